@@ -1,0 +1,228 @@
+"""CAN database loading and FCA Giorgio (Alfa Romeo Giulia) CAN framing.
+
+Loading tolerates the one real defect of opendbc's ``fca_giorgio.dbc``: a message ID above
+0x7FF written without the extended-frame bit 31, which cantools refuses. Framing encodes
+physical values with cantools, then fills in the rolling ``COUNTER`` and the Giorgio CRC8
+``CHECKSUM`` (SAE J1850 polynomial 0x1D, init 0x00, over all bytes but the last, then a final
+XOR that depends on the frame ID).
+
+Quantisation: cantools converts a physical value ``v`` to raw as
+``round((v - offset) / scale)`` with Python's built-in ``round`` (round to nearest, ties to
+even; ``LinearConversion.numeric_scaled_to_raw``). :func:`encode_frame` uses that same
+conversion, so a value decodes back within half a quantisation step, and clips the result to
+the range the raw bit field can hold. The DBC ``[min|max]`` is not used for clipping: the
+opendbc layouts store raw bounds there (e.g. ``[0|16383]`` for a steering angle that is
+negative when turning right).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import cantools
+from cantools.database.can import Database, Signal
+
+__all__ = [
+    "DbcError",
+    "FrameCheck",
+    "check_frame",
+    "encode_frame",
+    "giorgio_checksum",
+    "j1850_crc8",
+    "load_dbc",
+]
+
+_EXTENDED_BIT = 0x8000_0000
+_MAX_STANDARD_ID = 0x7FF
+_MAX_EXTENDED_ID = 0x1FFF_FFFF
+
+_BO_LINE = re.compile(r"^[ \t]*BO_[ \t]+(\d+)[ \t]+(\w+)", re.MULTILINE)
+# Statements that name a message by its numeric ID right after their keyword(s).
+_ID_REFERENCE = re.compile(
+    r"^([ \t]*(?:BO_|BO_TX_BU_|VAL_|SIG_VALTYPE_|SIG_GROUP_|SG_MUL_VAL_|SIG_TYPE_REF_"
+    r'|CM_[ \t]+(?:BO_|SG_)|BA_[ \t]+"[^"]*"[ \t]+(?:BO_|SG_))[ \t]+)(\d+)\b',
+    re.MULTILINE,
+)
+
+_J1850_POLY = 0x1D
+_GIORGIO_FINAL_XOR = {0xDE: 0x10, 0x106: 0xF6, 0x122: 0xF1}
+_GIORGIO_DEFAULT_XOR = 0x0A
+
+
+class DbcError(ValueError):
+    """A DBC file cannot be read or parsed."""
+
+
+def _parse(text: str) -> Database:
+    """Parse DBC text in cantools' strict mode."""
+    db = cantools.database.load_string(text, database_format="dbc", strict=True)
+    if not isinstance(db, Database):  # pragma: no cover - 'dbc' always gives a CAN database
+        raise TypeError("not a CAN database")
+    return db
+
+
+def _reason(exc: BaseException) -> str:
+    """One-line description of a cantools load failure (its underlying cause)."""
+    cause = exc.__cause__ or exc
+    return " ".join(str(cause).split()) or type(cause).__name__
+
+
+def _read_text(path: Path) -> str:
+    """Read a DBC file as UTF-8, falling back to cp1252 (the usual DBC encoding)."""
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise DbcError(f"{path.name}: cannot read: {exc.strerror or exc}") from exc
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return raw.decode("cp1252", errors="replace")
+
+
+def load_dbc(path: str | Path) -> tuple[Database, list[str]]:
+    """Load a DBC file; repair standard-frame IDs > 0x7FF by setting the extended-frame bit.
+
+    Returns the database and human-readable warnings about repairs. Raises DbcError with a
+    one-line message naming the file when the file cannot be read or parsed.
+    """
+    path = Path(path)
+    text = _read_text(path)
+    try:
+        db = _parse(text)
+    except cantools.database.UnsupportedDatabaseFormatError as exc:
+        first = exc
+    else:
+        return _nonempty(db, path), []
+    bad = {
+        int(frame_id): name
+        for frame_id, name in _BO_LINE.findall(text)
+        if _MAX_STANDARD_ID < int(frame_id) <= _MAX_EXTENDED_ID
+    }
+    if not bad:
+        raise DbcError(f"{path.name}: {_reason(first)}") from first
+
+    def set_extended(match: re.Match[str]) -> str:
+        frame_id = int(match.group(2))
+        if frame_id not in bad:
+            return match.group(0)
+        return f"{match.group(1)}{frame_id | _EXTENDED_BIT}"
+
+    try:
+        db = _parse(_ID_REFERENCE.sub(set_extended, text))
+    except cantools.database.UnsupportedDatabaseFormatError as exc:
+        raise DbcError(f"{path.name}: {_reason(exc)}") from exc
+    warnings = [
+        f"{path.name}: message {frame_id} (0x{frame_id:X}) {name} > 0x7FF without the "
+        "extended-frame bit; loaded as extended"
+        for frame_id, name in sorted(bad.items())
+    ]
+    return _nonempty(db, path), warnings
+
+
+def _nonempty(db: Database, path: Path) -> Database:
+    """Reject a file that parses but defines no message."""
+    if not db.messages:
+        raise DbcError(f"{path.name}: no message (BO_) defined")
+    return db
+
+
+def _crc8_table(poly: int) -> tuple[int, ...]:
+    """Lookup table of a non-reflected CRC-8 with the given polynomial."""
+    table = []
+    for byte in range(256):
+        crc = byte
+        for _ in range(8):
+            crc = ((crc << 1) ^ poly) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
+        table.append(crc)
+    return tuple(table)
+
+
+_J1850_TABLE = _crc8_table(_J1850_POLY)
+
+
+def j1850_crc8(data: bytes) -> int:
+    """CRC-8 with the SAE J1850 polynomial 0x1D, init 0x00, no final XOR (Giorgio variant)."""
+    crc = 0x00
+    for byte in data:
+        crc = _J1850_TABLE[crc ^ byte]
+    return crc
+
+
+def giorgio_checksum(frame_id: int, data: bytes) -> int:
+    """FCA Giorgio checksum of a frame: CRC8 of all bytes but the last, then a per-ID XOR."""
+    return j1850_crc8(data[:-1]) ^ _GIORGIO_FINAL_XOR.get(frame_id, _GIORGIO_DEFAULT_XOR)
+
+
+def _raw_limits(signal: Signal) -> tuple[int, int]:
+    """Smallest and largest raw value the signal's bit field holds."""
+    if signal.is_signed:
+        return -(1 << (signal.length - 1)), (1 << (signal.length - 1)) - 1
+    return 0, (1 << signal.length) - 1
+
+
+def _to_raw(signal: Signal, value: float | str) -> int | float:
+    """Physical value (or choice label) to raw, rounded by cantools, clipped to the bit field."""
+    conversion = signal.conversion
+    if isinstance(value, str):
+        return conversion.choice_to_number(value)
+    value = float(value)
+    if math.isnan(value):
+        raise ValueError(f"signal {signal.name}: value is NaN")
+    if signal.is_float:
+        return value
+    lo, hi = _raw_limits(signal)
+    ends = [float(conversion.raw_to_scaled(raw, decode_choices=False)) for raw in (lo, hi)]
+    value = min(max(value, min(ends)), max(ends))  # keeps round() finite for +-inf
+    return min(max(int(conversion.numeric_scaled_to_raw(value)), lo), hi)
+
+
+def encode_frame(db: Database, message_name: str, values: Mapping[str, float | str], counter: int) -> bytes:
+    """Encode a message's payload with COUNTER = counter % 16 and the Giorgio CHECKSUM.
+
+    Signals not given are raw 0; out-of-range values are clipped (see module docstring).
+    ``COUNTER`` and ``CHECKSUM`` in ``values`` are overridden. Unknown names raise KeyError.
+    """
+    message = db.get_message_by_name(message_name)
+    unknown = set(values) - {s.name for s in message.signals}
+    if unknown:
+        raise KeyError(f"{message_name} has no signal {', '.join(sorted(unknown))}")
+    raw: dict[str, int | float] = {s.name: 0 for s in message.signals}
+    for name, value in values.items():
+        raw[name] = _to_raw(message.get_signal_by_name(name), value)
+    if "COUNTER" in raw:
+        raw["COUNTER"] = counter % 16
+    data = message.encode(raw, scaling=False, strict=False)
+    if "CHECKSUM" in raw:
+        raw["CHECKSUM"] = giorgio_checksum(message.frame_id, data)
+        data = message.encode(raw, scaling=False, strict=False)
+    return data
+
+
+@dataclass(frozen=True, slots=True)
+class FrameCheck:
+    """Integrity facts of one received frame."""
+
+    frame_id: int
+    name: str
+    counter: int | None
+    checksum_ok: bool | None
+
+
+def check_frame(db: Database, frame_id: int, data: bytes) -> FrameCheck:
+    """Extract COUNTER and verify CHECKSUM (None where the message has none).
+
+    Raises KeyError for an unknown frame ID and ValueError for a payload of the wrong length.
+    """
+    message = db.get_message_by_frame_id(frame_id)
+    if len(data) != message.length:
+        raise ValueError(f"{message.name}: {len(data)} bytes, expected {message.length}")
+    raw = message.decode(data, decode_choices=False, scaling=False)
+    counter = int(raw["COUNTER"]) if "COUNTER" in raw else None
+    checksum_ok = None
+    if "CHECKSUM" in raw:
+        checksum_ok = int(raw["CHECKSUM"]) == giorgio_checksum(message.frame_id, data)
+    return FrameCheck(message.frame_id, message.name, counter, checksum_ok)

@@ -1,0 +1,445 @@
+"""Typed configuration loaded from TOML, validated with messages that name the offending key.
+
+The default file is ``configs/giulia_scanbrick.toml``. Every section maps onto a frozen dataclass;
+unknown keys and impossible values raise :class:`ConfigError` naming the key path
+(e.g. ``radar.slope_hz_per_s``).
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+import types
+import typing
+from dataclasses import MISSING, dataclass, field, fields, is_dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+SPEED_OF_LIGHT = 299_792_458.0
+
+CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"
+DEFAULT_CONFIG = CONFIG_DIR / "giulia_scanbrick.toml"
+MSG_DIR = CONFIG_DIR / "msg"
+
+
+class ConfigError(ValueError):
+    """A configuration file is malformed or holds an impossible value."""
+
+
+# ----------------------------------------------------------------------------- sections
+
+
+@dataclass(frozen=True)
+class VehicleConfig:
+    name: str
+    wheelbase_m: float
+    track_front_m: float
+    track_rear_m: float
+    steering_ratio: float
+    wheel_radius_m: float
+    cog_to_rear_axle_m: float
+    cog_height_m: float
+
+
+@dataclass(frozen=True)
+class MountingConfig:
+    """Radar pose in the body frame: lever arm (m) and yaw/pitch/roll (deg, applied z-y-x)."""
+
+    lever_arm_m: tuple[float, float, float]
+    yaw_deg: float
+    pitch_deg: float = 0.0
+    roll_deg: float = 0.0
+
+
+@dataclass(frozen=True)
+class RadarConfig:
+    name: str
+    topic: str
+    start_frequency_hz: float
+    bandwidth_hz: float
+    slope_hz_per_s: float
+    sample_rate_hz: float
+    num_samples: int
+    num_tx: int
+    num_rx: int
+    prf_hz: float
+    chirp_period_s: float
+    max_range_m: float
+    beamwidth_az_deg: float
+    beamwidth_el_deg: float
+    tx_positions_wavelengths: tuple[tuple[float, float, float], ...]
+    rx_positions_wavelengths: tuple[tuple[float, float, float], ...]
+    mounting: MountingConfig
+
+    @property
+    def wavelength_m(self) -> float:
+        return SPEED_OF_LIGHT / self.start_frequency_hz
+
+    @property
+    def centre_frequency_hz(self) -> float:
+        return self.start_frequency_hz + 0.5 * self.bandwidth_hz
+
+    @property
+    def tx_positions_m(self) -> tuple[tuple[float, float, float], ...]:
+        """Tx phase centres in the radar frame (m)."""
+        lam = self.wavelength_m
+        return tuple(tuple(c * lam for c in p) for p in self.tx_positions_wavelengths)  # type: ignore[misc]
+
+    @property
+    def rx_positions_m(self) -> tuple[tuple[float, float, float], ...]:
+        """Rx phase centres in the radar frame (m)."""
+        lam = self.wavelength_m
+        return tuple(tuple(c * lam for c in p) for p in self.rx_positions_wavelengths)  # type: ignore[misc]
+
+    @property
+    def tx_start_offsets_s(self) -> tuple[float, ...]:
+        """Start of each Tx chirp relative to the start of the PRI (s)."""
+        return tuple(k * self.chirp_period_s for k in range(self.num_tx))
+
+    @property
+    def chirp_duration_s(self) -> float:
+        """ADC window length (s)."""
+        return self.num_samples / self.sample_rate_hz
+
+    @property
+    def range_resolution_m(self) -> float:
+        return SPEED_OF_LIGHT / (2.0 * self.bandwidth_hz)
+
+
+@dataclass(frozen=True)
+class CanConfig:
+    dbc: str
+    roles: dict[str, str]
+    topic: str = ""
+
+    def role_signal(self, role: str) -> tuple[str, str]:
+        """(message name, signal name) that plays ``role``."""
+        message, _, signal = self.roles[role].partition(".")
+        return message, signal
+
+
+@dataclass(frozen=True)
+class GyroErrors:
+    turn_on_bias_dps: float
+    bias_instability_dps: float
+    bias_tau_s: float
+    noise_density_dps_rthz: float
+
+
+@dataclass(frozen=True)
+class AccelErrors:
+    turn_on_bias_mps2: float
+    bias_instability_mps2: float
+    bias_tau_s: float
+    noise_density_mps2_rthz: float
+
+
+@dataclass(frozen=True)
+class WheelErrors:
+    radius_scale_error_std: float
+    noise_std_mps: float
+
+
+@dataclass(frozen=True)
+class SteeringErrors:
+    offset_std_deg: float
+    noise_std_deg: float
+
+
+@dataclass(frozen=True)
+class GnssErrors:
+    horizontal_std_m: float
+    vertical_std_m: float
+    correlation_time_s: float
+    white_std_m: float
+    velocity_std_mps: float
+    heading_std_deg: float
+
+
+SensorKind = Literal["wheel_speeds", "steering", "can_imu", "imu", "gnss"]
+
+_REQUIRED_ERRORS: dict[str, tuple[str, ...]] = {
+    "wheel_speeds": ("wheel",),
+    "steering": ("steering",),
+    "can_imu": ("gyro", "accel"),
+    "imu": ("gyro", "accel"),
+    "gnss": ("gnss",),
+}
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    kind: SensorKind
+    rate_hz: float
+    latency_s: float = 0.0
+    lever_arm_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    topic: str = ""
+    frame_id: str = ""
+    dof: int = 6
+    velocity_topic: str = ""
+    velocity_type: Literal["twist", "twist_with_covariance"] = "twist"
+    nmea_topic: str = ""
+    gyro: GyroErrors | None = None
+    accel: AccelErrors | None = None
+    wheel: WheelErrors | None = None
+    steering: SteeringErrors | None = None
+    gnss: GnssErrors | None = None
+
+
+@dataclass(frozen=True)
+class ProcessingConfig:
+    focus_height_m: float = 0.5
+    pixel_m: float = 0.04
+    cross_range_resolution_m: float = 0.04
+    range_window: Literal["hann", "hamming", "rect", "taylor"] = "hann"
+    range_upsample: int = 8
+    channels: Literal[8, 12] = 8
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    origin_lat_deg: float
+    origin_lon_deg: float
+    origin_height_m: float
+    start_time_utc: str
+    truth_rate_hz: float = 1000.0
+    radar_noise_std_lsb: float = 3.0
+    radar_amplitude_lsb: float = 4000.0
+    vibration_vertical_rms_m: float = 1.0e-3
+    vibration_horizontal_rms_m: float = 0.08e-3
+    vibration_band_hz: tuple[float, float] = (4.0, 25.0)
+
+
+@dataclass(frozen=True)
+class Config:
+    vehicle: VehicleConfig
+    radar: RadarConfig
+    can: CanConfig
+    sensors: dict[str, SensorConfig]
+    processing: ProcessingConfig = field(default_factory=ProcessingConfig)
+    simulation: SimulationConfig | None = None
+    source: str = ""
+
+    @property
+    def dbc_path(self) -> Path:
+        p = Path(self.can.dbc)
+        if not p.is_absolute() and self.source:
+            p = Path(self.source).parent / p
+        return p
+
+    def sensors_of_kind(self, kind: str) -> dict[str, SensorConfig]:
+        return {name: s for name, s in self.sensors.items() if s.kind == kind}
+
+
+# ----------------------------------------------------------------------------- loading
+
+
+def load_config(path: str | Path | None = None) -> Config:
+    """Load and validate a TOML config (default: ``configs/giulia_scanbrick.toml``)."""
+    p = Path(path) if path is not None else DEFAULT_CONFIG
+    try:
+        with open(p, "rb") as f:
+            raw = tomllib.load(f)
+    except FileNotFoundError:
+        raise ConfigError(f"{p}: config file not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{p}: not valid TOML: {exc}") from None
+    try:
+        cfg = config_from_dict(raw, source=str(p.resolve()))
+    except ConfigError as exc:
+        raise ConfigError(f"{p}: {exc}") from None
+    return cfg
+
+
+def config_from_dict(raw: dict[str, Any], source: str = "") -> Config:
+    """Build a validated :class:`Config` from a parsed TOML mapping."""
+    data = dict(raw)
+    data["source"] = source
+    cfg = _build(Config, data, "")
+    _validate(cfg)
+    return cfg
+
+
+def _build(cls: Any, value: Any, path: str) -> Any:
+    """Convert parsed TOML into the annotated type ``cls``; reject unknown keys."""
+    origin = typing.get_origin(cls)
+    where = path or "<top level>"
+    if is_dataclass(cls):
+        if not isinstance(value, dict):
+            raise ConfigError(f"{where}: expected a table, got {type(value).__name__}")
+        hints = typing.get_type_hints(cls)
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(value) - names)
+        if unknown:
+            raise ConfigError(f"{_join(path, unknown[0])}: unknown key")
+        kwargs = {}
+        for f in fields(cls):
+            if f.name in value:
+                kwargs[f.name] = _build(hints[f.name], value[f.name], _join(path, f.name))
+            elif f.default is MISSING and f.default_factory is MISSING:
+                raise ConfigError(f"{_join(path, f.name)}: missing required key")
+        return cls(**kwargs)
+    if origin in (types.UnionType, typing.Union):
+        args = [a for a in typing.get_args(cls) if a is not type(None)]
+        if value is None:
+            return None
+        return _build(args[0], value, path)
+    if origin is Literal:
+        allowed = typing.get_args(cls)
+        if value not in allowed:
+            raise ConfigError(f"{where}: {value!r} is not one of {', '.join(map(repr, allowed))}")
+        return value
+    if origin is dict:
+        key_t, val_t = typing.get_args(cls)
+        if not isinstance(value, dict):
+            raise ConfigError(f"{where}: expected a table")
+        return {str(k): _build(val_t, v, _join(path, str(k))) for k, v in value.items()}
+    if origin is tuple:
+        args = typing.get_args(cls)
+        if not isinstance(value, list | tuple):
+            raise ConfigError(f"{where}: expected an array")
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_build(args[0], v, f"{where}[{i}]") for i, v in enumerate(value))
+        if len(value) != len(args):
+            raise ConfigError(f"{where}: expected {len(args)} values, got {len(value)}")
+        return tuple(_build(a, v, f"{where}[{i}]") for i, (a, v) in enumerate(zip(args, value, strict=True)))
+    if cls is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ConfigError(f"{where}: expected a number, got {value!r}")
+        return float(value)
+    if cls is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"{where}: expected an integer, got {value!r}")
+        return value
+    if cls is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"{where}: expected a string, got {value!r}")
+        return value
+    if cls is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(f"{where}: expected true or false, got {value!r}")
+        return value
+    raise TypeError(f"unsupported config type {cls!r} at {where}")  # a bug in this module, not in the file
+
+
+def _join(path: str, key: str) -> str:
+    return f"{path}.{key}" if path else key
+
+
+# ----------------------------------------------------------------------------- validation
+
+
+def _positive(path: str, value: float) -> None:
+    if not (math.isfinite(value) and value > 0):
+        raise ConfigError(f"{path}: must be a positive finite number, got {value!r}")
+
+
+def _non_negative(path: str, value: float) -> None:
+    if not (math.isfinite(value) and value >= 0):
+        raise ConfigError(f"{path}: must be a non-negative finite number, got {value!r}")
+
+
+def _finite_vector(path: str, values: tuple[float, ...]) -> None:
+    if not all(math.isfinite(v) for v in values):
+        raise ConfigError(f"{path}: every component must be finite, got {list(values)!r}")
+
+
+def _validate(cfg: Config) -> None:
+    v = cfg.vehicle
+    for name in ("wheelbase_m", "track_front_m", "track_rear_m", "steering_ratio", "wheel_radius_m"):
+        _positive(f"vehicle.{name}", getattr(v, name))
+    _non_negative("vehicle.cog_height_m", v.cog_height_m)
+    if not 0.0 <= v.cog_to_rear_axle_m <= v.wheelbase_m:
+        raise ConfigError(
+            f"vehicle.cog_to_rear_axle_m: must lie between 0 and the wheelbase ({v.wheelbase_m} m), "
+            f"got {v.cog_to_rear_axle_m}"
+        )
+
+    r = cfg.radar
+    for name in ("start_frequency_hz", "bandwidth_hz", "slope_hz_per_s", "sample_rate_hz", "prf_hz",
+                 "chirp_period_s", "max_range_m", "beamwidth_az_deg", "beamwidth_el_deg"):
+        _positive(f"radar.{name}", getattr(r, name))
+    for name in ("num_samples", "num_tx", "num_rx"):
+        if getattr(r, name) < 1:
+            raise ConfigError(f"radar.{name}: must be at least 1, got {getattr(r, name)}")
+    swept = r.slope_hz_per_s * r.num_samples / r.sample_rate_hz
+    if abs(swept - r.bandwidth_hz) > 1e-6 * r.bandwidth_hz:
+        raise ConfigError(
+            f"radar.bandwidth_hz: slope x ADC window = {swept:.6g} Hz differs from bandwidth_hz = "
+            f"{r.bandwidth_hz:.6g} Hz (slope_hz_per_s * num_samples / sample_rate_hz must equal it)"
+        )
+    r_max = r.sample_rate_hz * SPEED_OF_LIGHT / (2.0 * r.slope_hz_per_s)
+    if r.max_range_m > r_max * 1.001:
+        raise ConfigError(
+            f"radar.max_range_m: {r.max_range_m} m exceeds the unambiguous range fs*c/(2K) = {r_max:.3f} m"
+        )
+    if r.chirp_period_s < r.chirp_duration_s:
+        raise ConfigError(
+            f"radar.chirp_period_s: {r.chirp_period_s} s is shorter than the ADC window "
+            f"{r.chirp_duration_s} s"
+        )
+    if r.num_tx * r.chirp_period_s > 1.0 / r.prf_hz:
+        raise ConfigError(f"radar.prf_hz: {r.num_tx} chirps of {r.chirp_period_s} s do not fit in one PRI")
+    if len(r.tx_positions_wavelengths) != r.num_tx:
+        raise ConfigError(f"radar.tx_positions_wavelengths: expected {r.num_tx} positions")
+    if len(r.rx_positions_wavelengths) != r.num_rx:
+        raise ConfigError(f"radar.rx_positions_wavelengths: expected {r.num_rx} positions")
+    for i, p in enumerate(r.tx_positions_wavelengths):
+        _finite_vector(f"radar.tx_positions_wavelengths[{i}]", p)
+    for i, p in enumerate(r.rx_positions_wavelengths):
+        _finite_vector(f"radar.rx_positions_wavelengths[{i}]", p)
+    m = r.mounting
+    _finite_vector("radar.mounting.lever_arm_m", m.lever_arm_m)
+    for name in ("yaw_deg", "pitch_deg", "roll_deg"):
+        _finite_vector(f"radar.mounting.{name}", (getattr(m, name),))
+
+    for role, ref in cfg.can.roles.items():
+        message, dot, signal = ref.partition(".")
+        if not dot or not message or not signal:
+            raise ConfigError(f"can.roles.{role}: expected 'MESSAGE.SIGNAL', got {ref!r}")
+
+    for name, s in cfg.sensors.items():
+        base = f"sensors.{name}"
+        _positive(f"{base}.rate_hz", s.rate_hz)
+        _non_negative(f"{base}.latency_s", s.latency_s)
+        _finite_vector(f"{base}.lever_arm_m", s.lever_arm_m)
+        for sub in _REQUIRED_ERRORS[s.kind]:
+            if getattr(s, sub) is None:
+                raise ConfigError(f"{base}.{sub}: a {s.kind} sensor needs this error-model table")
+        if s.kind in ("imu", "gnss") and not s.topic:
+            raise ConfigError(f"{base}.topic: a {s.kind} sensor needs a topic")
+        if s.kind == "imu" and s.dof not in (3, 6):
+            raise ConfigError(f"{base}.dof: must be 3 or 6, got {s.dof}")
+        for sub in ("gyro", "accel", "wheel", "steering", "gnss"):
+            errors = getattr(s, sub)
+            if errors is not None:
+                for f in fields(errors):
+                    _non_negative(f"{base}.{sub}.{f.name}", getattr(errors, f.name))
+
+    p = cfg.processing
+    _positive("processing.pixel_m", p.pixel_m)
+    _positive("processing.cross_range_resolution_m", p.cross_range_resolution_m)
+    _finite_vector("processing.focus_height_m", (p.focus_height_m,))
+    if p.range_upsample < 1:
+        raise ConfigError(f"processing.range_upsample: must be at least 1, got {p.range_upsample}")
+
+    sim = cfg.simulation
+    if sim is not None:
+        if not -90.0 <= sim.origin_lat_deg <= 90.0:
+            raise ConfigError(f"simulation.origin_lat_deg: {sim.origin_lat_deg} is not a latitude")
+        if not -180.0 <= sim.origin_lon_deg <= 180.0:
+            raise ConfigError(f"simulation.origin_lon_deg: {sim.origin_lon_deg} is not a longitude")
+        _positive("simulation.truth_rate_hz", sim.truth_rate_hz)
+        _non_negative("simulation.radar_noise_std_lsb", sim.radar_noise_std_lsb)
+        _positive("simulation.radar_amplitude_lsb", sim.radar_amplitude_lsb)
+        _non_negative("simulation.vibration_vertical_rms_m", sim.vibration_vertical_rms_m)
+        _non_negative("simulation.vibration_horizontal_rms_m", sim.vibration_horizontal_rms_m)
+        lo, hi = sim.vibration_band_hz
+        if not 0 < lo < hi:
+            raise ConfigError(f"simulation.vibration_band_hz: need 0 < low < high, got {[lo, hi]}")
+        try:
+            from datetime import datetime
+
+            datetime.fromisoformat(sim.start_time_utc.replace("Z", "+00:00"))
+        except ValueError:
+            raise ConfigError(f"simulation.start_time_utc: not an ISO 8601 time: {sim.start_time_utc!r}") from None

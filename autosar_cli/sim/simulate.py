@@ -1,0 +1,297 @@
+"""``autosar simulate``: a complete synthetic drive log (+ ground-truth sidecar) for a scenario.
+
+Navigation sensors are generated for the whole drive up front (small); radar frames are synthesised in
+blocks and merged into the log in log-time order, so memory stays bounded by one block of the radar
+cube whatever the drive length. Everything random comes from generators seeded by (seed, stream name):
+the same seed gives byte-identical files.
+"""
+
+from __future__ import annotations
+
+import heapq
+import time
+import zlib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from autosar_cli import __version__, msgs
+from autosar_cli.candb import load_dbc
+from autosar_cli.config import Config, load_config
+from autosar_cli.nav.frames import mounting_rotation, rot_z
+from autosar_cli.nav.geodesy import GeodeticOrigin
+from autosar_cli.sim import sensors as sensor_models
+from autosar_cli.sim.echo import synthesize_beat
+from autosar_cli.sim.logwriter import open_log_writer
+from autosar_cli.sim.messages import MessageFactory, can_topic, sensor_topics
+from autosar_cli.sim.scenario import Scenario, build_scenario
+from autosar_cli.sim.trajectory import TruthMotion
+from autosar_cli.sim.truth import TruthWriter, truth_path_for
+
+LogFormat = Literal["mcap", "ros1", "ros2"]
+RADAR_BLOCK_FRAMES = 128
+RADAR_TRANSFER_DELAY_NS = 1_500_000  # frame leaves the radar after its last chirp, over Ethernet
+
+ProgressCallback = Callable[[int, int], None]
+
+
+@dataclass
+class SimulationResult:
+    log_path: Path
+    truth_path: Path
+    scenario: str
+    seed: int
+    format: str
+    duration_s: float
+    radar_frames: int
+    message_counts: dict[str, int] = field(default_factory=dict)
+    elapsed_s: float = 0.0
+
+
+def stream_rng(seed: int, stream: str) -> np.random.Generator:
+    """Independent generator per named stream, so adding a sensor does not change the others."""
+    return np.random.default_rng([seed, zlib.crc32(stream.encode())])
+
+
+def start_time_ns(config: Config) -> int:
+    assert config.simulation is not None
+    dt = datetime.fromisoformat(config.simulation.start_time_utc.replace("Z", "+00:00"))
+    return int(round(dt.timestamp())) * 1_000_000_000 + dt.microsecond * 1000
+
+
+@dataclass(frozen=True)
+class RadarGeometry:
+    """Antenna lever arms in the body frame (m) and the radar->body rotation."""
+
+    mount_lever_arm: NDArray[np.float64]  # (3,)
+    radar_to_body: NDArray[np.float64]  # (3, 3)
+    tx_lever_arms: NDArray[np.float64]  # (T, 3)
+    rx_lever_arms: NDArray[np.float64]  # (R, 3)
+
+    @classmethod
+    def from_config(cls, config: Config) -> RadarGeometry:
+        r = config.radar
+        rot = mounting_rotation(r.mounting.yaw_deg, r.mounting.pitch_deg, r.mounting.roll_deg)
+        lever = np.asarray(r.mounting.lever_arm_m, dtype=np.float64)
+        tx = lever + np.asarray(r.tx_positions_m) @ rot.T
+        rx = lever + np.asarray(r.rx_positions_m) @ rot.T
+        return cls(lever, rot, tx, rx)
+
+
+class Vibration:
+    """Radar-case vibration no sensor sees: a sum of random sinusoids per body axis (x, y, z), band-limited."""
+
+    def __init__(self, rng: np.random.Generator, horizontal_rms: float, vertical_rms: float,
+                 band_hz: tuple[float, float], components: int = 24) -> None:
+        self.freq = rng.uniform(band_hz[0], band_hz[1], (3, components))
+        self.phase = rng.uniform(0.0, 2 * np.pi, (3, components))
+        rms = np.array([horizontal_rms, horizontal_rms, vertical_rms])
+        self.amp = (rms * np.sqrt(2.0 / components))[:, None] * np.ones((3, components))
+
+    def body(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Displacement in body axes (..., 3) m at times t (...)."""
+        t = np.asarray(t, dtype=np.float64)
+        arg = 2 * np.pi * t[..., None, None] * self.freq + self.phase
+        return np.sum(self.amp * np.sin(arg), axis=-1)
+
+    def enu(self, t: NDArray[np.float64], heading: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.einsum("...ij,...j->...i", rot_z(heading), self.body(t))
+
+
+def antenna_positions(motion: TruthMotion, geom: RadarGeometry, vib: Vibration, t: NDArray[np.float64],
+                      lever_arms: NDArray[np.float64]) -> NDArray[np.float64]:
+    """ENU positions (len(t), len(lever_arms), 3) of body points at times t, with the radar vibration."""
+    nt, na = t.size, len(lever_arms)
+    tt = np.repeat(t, na)
+    pos = motion.point(tt, np.tile(lever_arms, (nt, 1))).position.reshape(nt, na, 3)
+    heading = motion.states(t)["heading"]
+    return pos + vib.enu(t, heading)[:, None, :]
+
+
+def radar_block(motion: TruthMotion, config: Config, geom: RadarGeometry, vib: Vibration,
+                t_frames: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
+    """Antenna positions at chirp start and ADC end for frames starting at t_frames (s)."""
+    r = config.radar
+    offsets = np.asarray(r.tx_start_offsets_s)
+    t_win = r.chirp_duration_s
+    F, T, R = t_frames.size, r.num_tx, r.num_rx
+    out: dict[str, NDArray[np.float64]] = {}
+    for tag, extra in (("start", 0.0), ("end", t_win)):
+        tx = np.empty((F, T, 3))
+        rx = np.empty((F, T, R, 3))
+        for k in range(T):
+            tc = t_frames + offsets[k] + extra
+            tx[:, k] = antenna_positions(motion, geom, vib, tc, geom.tx_lever_arms[k : k + 1])[:, 0]
+            rx[:, k] = antenna_positions(motion, geom, vib, tc, geom.rx_lever_arms)
+        out[f"tx_{tag}"], out[f"rx_{tag}"] = tx, rx
+    heading = motion.states(t_frames)["heading"]
+    out["origin"] = antenna_positions(motion, geom, vib, t_frames, geom.mount_lever_arm[None, :])[:, 0]
+    body_to_enu = rot_z(heading)
+    out["enu_to_radar"] = np.swapaxes(body_to_enu @ geom.radar_to_body, -1, -2)
+    out["vibration"] = vib.enu(t_frames, heading)
+    return out
+
+
+def _sensor_samples(motion: TruthMotion, config: Config, seed: int) -> list[sensor_models.SensorSamples]:
+    out = []
+    for name, s in config.sensors.items():
+        rng = stream_rng(seed, f"sensor/{name}")
+        if s.kind == "imu":
+            out.append(sensor_models.imu(motion, name, s, rng))
+        elif s.kind == "can_imu":
+            out.append(sensor_models.can_imu(motion, name, s, rng))
+        elif s.kind == "wheel_speeds":
+            out.append(sensor_models.wheel_speeds(motion, config, name, s, rng))
+        elif s.kind == "steering":
+            out.append(sensor_models.steering(motion, config, name, s, rng))
+        elif s.kind == "gnss":
+            out.append(sensor_models.gnss(motion, name, s, rng))
+    return out
+
+
+def simulate(
+    scenario_name: str,
+    output: Path,
+    *,
+    fmt: LogFormat = "mcap",
+    seed: int = 0,
+    config: Config | None = None,
+    progress: ProgressCallback | None = None,
+) -> SimulationResult:
+    """Write a synthetic drive log for ``scenario_name`` to ``output`` and its truth sidecar next to it."""
+    t_start = time.perf_counter()
+    config = config or load_config()
+    if config.simulation is None:
+        raise ValueError(f"{config.source}: has no [simulation] table; autosar simulate needs one")
+    sim = config.simulation
+    scenario: Scenario = build_scenario(scenario_name, config)
+    motion = scenario.motion
+    ros_version = 1 if fmt == "ros1" else 2
+    typestore = msgs.typestore_for(ros_version)
+    origin = GeodeticOrigin(sim.origin_lat_deg, sim.origin_lon_deg, sim.origin_height_m)
+    t0_ns = start_time_ns(config)
+    factory = MessageFactory(typestore, ros_version, t0_ns, origin)
+    db, _ = load_dbc(config.dbc_path)
+    output = Path(output)
+    truth_path = truth_path_for(output)
+    radar = config.radar
+
+    # --- navigation sensors: whole drive, merged by log time
+    samples = _sensor_samples(motion, config, seed)
+    nav_streams = []
+    for smp in samples:
+        s = config.sensors[smp.name]
+        if s.kind in ("wheel_speeds", "steering", "can_imu"):
+            nav_streams.append(factory.can_frames(smp, config, db, can_topic(ros_version)))
+        elif s.kind == "imu":
+            nav_streams.append(factory.imu(smp, s))
+        else:
+            nav_streams.append(factory.gnss(smp, s))
+    nav_messages = list(heapq.merge(*[list(st) for st in nav_streams], key=lambda m: m[0]))
+
+    # --- radar frame schedule
+    t_needed = (radar.num_tx - 1) * radar.chirp_period_s + radar.chirp_duration_s
+    n_frames = int(np.floor((motion.duration_s - t_needed) * radar.prf_hz)) + 1
+    geom = RadarGeometry.from_config(config)
+    vib = Vibration(stream_rng(seed, "radar/vibration"), sim.vibration_horizontal_rms_m,
+                    sim.vibration_vertical_rms_m, sim.vibration_band_hz)
+    noise_rng = stream_rng(seed, "radar/noise")
+
+    attrs = {
+        "scenario": scenario.name, "description": scenario.description, "seed": seed,
+        "autosar_version": __version__, "origin_lat_deg": origin.lat_deg, "origin_lon_deg": origin.lon_deg,
+        "origin_height_m": origin.height_m, "start_time_ns": t0_ns, "duration_s": motion.duration_s,
+        "config_toml": Path(config.source).read_text() if config.source else "",
+        "log_format": fmt, "log_file": output.name,
+    }
+    truth = TruthWriter(truth_path, attrs, radar.num_tx, radar.num_rx)
+    counts: dict[str, int] = {}
+    try:
+        _write_truth_static(truth, scenario, config, geom, samples, t0_ns)
+        with open_log_writer(output, fmt) as writer:
+            topics: dict[str, str] = {radar.topic: msgs.RAW_FRAME}
+            for name, s in config.sensors.items():
+                for tp in sensor_topics(s, ros_version):
+                    topics.setdefault(tp.name, tp.msgtype)
+            for topic in sorted(topics):
+                writer.add_topic(topic, topics[topic])
+            RawFrame = typestore.types[msgs.RAW_FRAME]
+            offsets = np.asarray(radar.tx_start_offsets_s, dtype=np.float64)
+            nav_i = 0
+            for b0 in range(0, n_frames, RADAR_BLOCK_FRAMES):
+                idx = np.arange(b0, min(b0 + RADAR_BLOCK_FRAMES, n_frames))
+                t_frames = idx / radar.prf_hz
+                geo = radar_block(motion, config, geom, vib, t_frames)
+                beat = synthesize_beat(
+                    geo["tx_start"], geo["tx_end"], geo["rx_start"], geo["rx_end"], geo["origin"],
+                    geo["enu_to_radar"], scenario.scene.position, scenario.scene.rcs_m2,
+                    start_frequency_hz=radar.start_frequency_hz, slope_hz_per_s=radar.slope_hz_per_s,
+                    sample_rate_hz=radar.sample_rate_hz, num_samples=radar.num_samples,
+                    amplitude_lsb=sim.radar_amplitude_lsb, beamwidth_az_deg=radar.beamwidth_az_deg,
+                    beamwidth_el_deg=radar.beamwidth_el_deg,
+                )
+                iq = beat.view(np.float32).reshape(*beat.shape, 2)
+                iq += noise_rng.standard_normal(iq.shape, dtype=np.float32) * np.float32(sim.radar_noise_std_lsb)
+                raw = np.clip(np.rint(iq), -32768, 32767).astype(np.int16)
+                stamps = t0_ns + np.round(t_frames * 1e9).astype(np.int64)
+                for j, fi in enumerate(idx):
+                    log_ns = int(stamps[j]) + RADAR_TRANSFER_DELAY_NS
+                    while nav_i < len(nav_messages) and nav_messages[nav_i][0] <= log_ns:
+                        lt, topic, m = nav_messages[nav_i]
+                        writer.write(topic, lt, m)
+                        counts[topic] = counts.get(topic, 0) + 1
+                        nav_i += 1
+                    msg = RawFrame(
+                        header=factory.header(int(stamps[j]), "scanbrick"), frame_index=int(fi),
+                        start_frequency_hz=radar.start_frequency_hz, slope_hz_per_s=radar.slope_hz_per_s,
+                        sample_rate_hz=radar.sample_rate_hz, tx_start_offsets_s=offsets,
+                        num_tx=radar.num_tx, num_rx=radar.num_rx, num_samples=radar.num_samples,
+                        data=raw[j].reshape(-1),
+                    )
+                    writer.write(radar.topic, log_ns, msg)
+                counts[radar.topic] = counts.get(radar.topic, 0) + len(idx)
+                chirp_s = t_frames[:, None] + offsets[None, :]
+                truth.append_radar({
+                    "frame_index": idx, "t_ns": stamps,
+                    "chirp_t_ns": t0_ns + np.round(chirp_s * 1e9).astype(np.int64),
+                    "tx_position_enu": geo["tx_start"], "rx_position_enu": geo["rx_start"],
+                    "phase_centre_enu": 0.5 * (geo["tx_start"][:, :, None, :] + geo["rx_start"]),
+                    "vibration_enu": geo["vibration"],
+                })
+                if progress is not None:
+                    progress(int(idx[-1]) + 1, n_frames)
+            for lt, topic, m in nav_messages[nav_i:]:
+                writer.write(topic, lt, m)
+                counts[topic] = counts.get(topic, 0) + 1
+    except BaseException:
+        truth.abort()
+        raise
+    truth.close()
+    return SimulationResult(output, truth_path, scenario.name, seed, fmt, motion.duration_s, n_frames, counts,
+                            time.perf_counter() - t_start)
+
+
+def _write_truth_static(truth: TruthWriter, scenario: Scenario, config: Config, geom: RadarGeometry,
+                        samples: list[sensor_models.SensorSamples], t0_ns: int) -> None:
+    motion = scenario.motion
+    assert config.simulation is not None
+    t = np.arange(0.0, motion.duration_s, 1.0 / config.simulation.truth_rate_hz)
+    st = motion.states(t)
+    truth.write_trajectory({
+        "t_ns": t0_ns + np.round(t * 1e9).astype(np.int64),
+        "position_enu": motion.point(t, np.zeros(3)).position,
+        "rear_axle_enu": st["position"],
+        "heading": st["heading"], "speed": st["speed"], "yaw_rate": st["yaw_rate"], "accel": st["accel"],
+        "curvature": st["curvature"],
+        "road_wheel_angle": motion.road_wheel_angle(t, config.vehicle.wheelbase_m),
+        "radar_origin_enu": motion.point(t, geom.mount_lever_arm).position,
+    })
+    truth.write_targets(scenario.scene)
+    for smp in samples:
+        truth.write_sensor(smp, t0_ns + np.round(smp.t_meas * 1e9).astype(np.int64),
+                           t0_ns + np.round(smp.t_stamp * 1e9).astype(np.int64))

@@ -1,0 +1,109 @@
+"""Ground-truth sidecar ``<log>.truth.h5`` written next to every simulated log.
+
+Layout (format ``autosar-truth`` version 1; every array in SI units, ENU metres at the origin attrs):
+
+    /                      attrs: format, format_version, scenario, description, seed, autosar_version,
+                                  origin_lat_deg, origin_lon_deg, origin_height_m, start_time_ns, config_toml
+    /trajectory/           t_ns (N,), position_enu (N,3) CoG, rear_axle_enu (N,2), heading (N,) rad from East CCW,
+                           speed (N,) rear-axle m/s, yaw_rate (N,) rad/s, accel (N,) m/s^2, curvature (N,) 1/m,
+                           road_wheel_angle (N,) rad, radar_origin_enu (N,3) (without vibration)
+    /radar/                frame_index (F,), t_ns (F,) PRI start, chirp_t_ns (F,T) chirp start per Tx,
+                           tx_position_enu (F,T,3), rx_position_enu (F,T,R,3) at each chirp start,
+                           phase_centre_enu (F,T,R,3) = (tx + rx) / 2, vibration_enu (F,3)
+    /targets/              position_enu (M,3), rcs_m2 (M,), kind (M,) int8 (attrs kinds), object (M,),
+                           object_names (K,), corner_reflectors (C,) indices
+    /sensors/<name>/       t_ns (n,) measurement instants, plus true values and error states
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+from numpy.typing import NDArray
+
+from autosar_cli.sim.scene import KINDS, Scene
+from autosar_cli.sim.sensors import SensorSamples
+
+FORMAT = "autosar-truth"
+FORMAT_VERSION = 1
+
+
+def truth_path_for(log_path: Path) -> Path:
+    return log_path.with_name(log_path.name + ".truth.h5")
+
+
+class TruthWriter:
+    """Streams the truth sidecar: whole-drive arrays once, radar arrays appended block by block."""
+
+    def __init__(self, path: Path, attrs: dict[str, Any], n_tx: int, n_rx: int) -> None:
+        self.path = path
+        self.tmp = path.with_name(path.name + ".partial")
+        self.f = h5py.File(self.tmp, "w", track_order=False)
+        for k, v in attrs.items():
+            self.f.attrs[k] = v
+        self.f.attrs["format"] = FORMAT
+        self.f.attrs["format_version"] = FORMAT_VERSION
+        r = self.f.create_group("radar")
+        self._radar = {
+            "frame_index": r.create_dataset("frame_index", (0,), np.int64, maxshape=(None,), chunks=(4096,),
+                                            track_times=False),
+            "t_ns": r.create_dataset("t_ns", (0,), np.int64, maxshape=(None,), chunks=(4096,), track_times=False),
+            "chirp_t_ns": r.create_dataset("chirp_t_ns", (0, n_tx), np.int64, maxshape=(None, n_tx),
+                                           chunks=(1024, n_tx), track_times=False),
+            "tx_position_enu": r.create_dataset("tx_position_enu", (0, n_tx, 3), np.float64,
+                                                maxshape=(None, n_tx, 3), chunks=(1024, n_tx, 3),
+                                                track_times=False),
+            "rx_position_enu": r.create_dataset("rx_position_enu", (0, n_tx, n_rx, 3), np.float64,
+                                                maxshape=(None, n_tx, n_rx, 3), chunks=(512, n_tx, n_rx, 3),
+                                                track_times=False),
+            "phase_centre_enu": r.create_dataset("phase_centre_enu", (0, n_tx, n_rx, 3), np.float64,
+                                                 maxshape=(None, n_tx, n_rx, 3), chunks=(512, n_tx, n_rx, 3),
+                                                 track_times=False),
+            "vibration_enu": r.create_dataset("vibration_enu", (0, 3), np.float64, maxshape=(None, 3),
+                                              chunks=(4096, 3), track_times=False),
+        }
+
+    def _put(self, group: str, name: str, data: NDArray[Any]) -> None:
+        self.f.require_group(group).create_dataset(name, data=data, track_times=False)
+
+    def write_trajectory(self, arrays: dict[str, NDArray[Any]]) -> None:
+        for k, v in arrays.items():
+            self._put("trajectory", k, v)
+
+    def write_targets(self, scene: Scene) -> None:
+        self._put("targets", "position_enu", scene.position)
+        self._put("targets", "rcs_m2", scene.rcs_m2)
+        self._put("targets", "kind", scene.kind)
+        self._put("targets", "object", scene.object_index)
+        self._put("targets", "object_names", np.array(scene.names, dtype=h5py.string_dtype()))
+        self._put("targets", "corner_reflectors", scene.corner_reflectors)
+        self.f["targets"].attrs["kinds"] = ",".join(KINDS)
+
+    def write_sensor(self, samples: SensorSamples, t_ns: NDArray[np.int64], stamp_ns: NDArray[np.int64]) -> None:
+        g = f"sensors/{samples.name}"
+        self._put(g, "t_ns", t_ns)
+        self._put(g, "stamp_ns", stamp_ns)
+        for k, v in samples.truth.items():
+            self._put(g, k, np.asarray(v))
+        self.f[g].attrs["kind"] = samples.kind
+
+    def append_radar(self, block: dict[str, NDArray[Any]]) -> None:
+        n = len(block["t_ns"])
+        for k, ds in self._radar.items():
+            old = ds.shape[0]
+            ds.resize(old + n, axis=0)
+            ds[old:] = block[k]
+
+    def close(self) -> None:
+        self.f.close()
+        os.replace(self.tmp, self.path)
+
+    def abort(self) -> None:
+        try:
+            self.f.close()
+        finally:
+            self.tmp.unlink(missing_ok=True)

@@ -1,0 +1,51 @@
+"""Shared fixtures: simulated drives (made once per test session) and the real third-party files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from autosar_cli.sim.simulate import SimulationResult, simulate
+
+REPO = Path(__file__).resolve().parents[1]
+REALDATA = REPO.parent / "shared" / "realdata"
+
+
+def realdata(*parts: str) -> Path:
+    """Path to a real third-party file under ../shared/realdata, or skip the test if it is absent."""
+    p = REALDATA.joinpath(*parts)
+    if not p.exists():
+        pytest.skip(f"real-data file {p} is absent (a fresh clone has no ../shared/realdata)")
+    return p
+
+
+@pytest.fixture(scope="session")
+def sim_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("sim")
+
+
+_CACHE: dict[tuple[str, str, int], SimulationResult] = {}
+
+
+def simulated(sim_dir: Path, scenario: str, fmt: str, seed: int) -> SimulationResult:
+    key = (scenario, fmt, seed)
+    if key not in _CACHE:
+        ext = {"mcap": ".mcap", "ros1": ".bag", "ros2": ""}[fmt]
+        _CACHE[key] = simulate(scenario, sim_dir / f"{scenario}_{fmt}_s{seed}{ext}", fmt=fmt, seed=seed)
+    return _CACHE[key]
+
+
+@pytest.fixture(scope="session")
+def ci_mcap(sim_dir: Path) -> SimulationResult:
+    return simulated(sim_dir, "ci", "mcap", 7)
+
+
+@pytest.fixture(scope="session")
+def ci_ros1(sim_dir: Path) -> SimulationResult:
+    return simulated(sim_dir, "ci", "ros1", 7)
+
+
+@pytest.fixture(scope="session")
+def ci_ros2(sim_dir: Path) -> SimulationResult:
+    return simulated(sim_dir, "ci", "ros2", 7)
