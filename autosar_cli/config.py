@@ -204,7 +204,7 @@ class SimulationConfig:
     start_time_utc: str
     truth_rate_hz: float = 1000.0
     radar_noise_std_lsb: float = 3.0
-    radar_amplitude_lsb: float = 4000.0
+    radar_amplitude_lsb: float = 1500.0
     vibration_vertical_rms_m: float = 1.0e-3
     vibration_horizontal_rms_m: float = 0.08e-3
     vibration_band_hz: tuple[float, float] = (4.0, 25.0)

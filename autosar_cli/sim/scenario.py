@@ -77,17 +77,17 @@ def _radar_u0(config: Config) -> float:
 
 
 def _ci(config: Config) -> Scenario:
-    motion = _motion(config, polynomial_profile((0.0, 0.0, 0.004)), 3.6, 0.0,
-                     [(0.0, 2.0), (1.0, 2.4), (60.0, 2.4)])
+    motion = _motion(config, polynomial_profile((0.0, 0.0, 0.006)), 2.4, 0.0,
+                     [(0.0, 2.2), (0.6, 2.5), (60.0, 2.5)])
     b = SceneBuilder(_scene_rng("ci"), config.radar.centre_frequency_hz)
     u0 = _radar_u0(config)
-    for du, w in ((1.0, -4.0), (1.8, -6.0), (2.6, -8.0)):
+    for du, w in ((0.6, -4.0), (1.2, -5.5), (1.8, -7.0)):
         b.corner_reflector(u0 + du, w)
     b.kerb(u0 - 4.0, u0 + 8.0, -2.4)
-    b.car(u0 + 1.0, -10.5, name="parked car")
-    b.lamp_post(u0 + 2.2, -3.0)
+    b.car(u0 + 0.2, -10.0, name="parked car")
+    b.lamp_post(u0 + 1.5, -3.0)
     b.clutter(u0 - 6.0, u0 + 14.0, -2.5, -20.0, 0.4)
-    return Scenario("ci", "tiny drive for tests: 3.6 m at ~2.3 m/s, gentle left curve, 3 corner reflectors",
+    return Scenario("ci", "tiny drive for tests: 2.4 m at ~2.4 m/s, gentle left curve, 3 corner reflectors",
                     motion, finish_scene(b, 0.0, (0.0, 0.0)))
 
 

@@ -1,0 +1,37 @@
+# autosar — developer entry points. `make test` and `make demo` set everything up from scratch.
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed-stamp
+
+.PHONY: setup test demo bench lint clean sample-logs
+
+setup: $(STAMP)
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+test: setup
+	$(BIN)/python -m pytest -q
+
+demo: setup
+	$(BIN)/autosar info sample_logs/ci_seed1.mcap
+	$(BIN)/autosar simulate --scenario ci --seed 2 --output demo_out/ci_seed2.mcap --overwrite
+	$(BIN)/autosar info demo_out/ci_seed2.mcap
+	@echo "demo: simulated log and truth sidecar in demo_out/"
+
+bench: setup
+	$(BIN)/python benches/bench_simulate.py
+
+lint: setup
+	$(BIN)/ruff check autosar_cli tests benches
+
+# Regenerates the committed sample logs (see sample_logs/README.md).
+sample-logs: setup
+	$(BIN)/autosar simulate --scenario ci --seed 1 --format mcap --output sample_logs/ci_seed1.mcap --overwrite
+
+clean:
+	rm -rf $(VENV) demo_out .pytest_cache

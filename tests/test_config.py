@@ -1,0 +1,75 @@
+"""Typed config: the default file loads with the paper's numbers; bad files are rejected naming the key."""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import pytest
+
+from autosar_cli.config import DEFAULT_CONFIG, ConfigError, load_config
+
+
+def test_default_config_has_the_reference_hardware():
+    c = load_config()
+    assert c.vehicle.wheelbase_m == 2.82 and c.vehicle.steering_ratio == 11.8
+    r = c.radar
+    assert (r.num_tx, r.num_rx, r.num_samples) == (3, 4, 540)
+    assert r.slope_hz_per_s * r.num_samples / r.sample_rate_hz == pytest.approx(3e9)
+    assert r.range_resolution_m == pytest.approx(0.04997, abs=1e-4)
+    # the 8 virtual phase centres of Tx0/Tx2 x 4 Rx are lambda/4 apart along the antenna row
+    lam = r.wavelength_m
+    mids = sorted((t[1] + q[1]) / 2 for t in (r.tx_positions_m[0], r.tx_positions_m[2]) for q in r.rx_positions_m)
+    assert all(math.isclose(b - a, lam / 4, rel_tol=1e-12) for a, b in zip(mids, mids[1:], strict=False))
+    assert r.tx_start_offsets_s == pytest.approx((0.0, 60e-6, 120e-6))
+    assert c.dbc_path.exists()
+    assert set(c.sensors_of_kind("imu")) == {"imu_cog_a", "imu_cog_b", "ins_cog", "ins_radar"}
+    assert c.can.role_signal("yaw_rate.orc") == ("ORC_1", "YAW_RATE")
+
+
+def _write_variant(tmp_path: Path, pattern: str, replacement: str) -> Path:
+    text = DEFAULT_CONFIG.read_text()
+    new, n = re.subn(pattern, replacement, text, count=1, flags=re.MULTILINE)
+    assert n == 1, pattern
+    p = tmp_path / "variant.toml"
+    p.write_text(new)
+    (tmp_path / "autosar_giulia.dbc").write_text((DEFAULT_CONFIG.parent / "autosar_giulia.dbc").read_text())
+    return p
+
+
+@pytest.mark.parametrize(
+    ("pattern", "replacement", "key"),
+    [
+        (r"^wheelbase_m = .*$", "wheelbase_m = -2.82", "vehicle.wheelbase_m"),
+        (r"^slope_hz_per_s = .*$", "slope_hz_per_s = 70.0e12", "radar.bandwidth_hz"),
+        (r"^lever_arm_m = \[2.20, -0.75, 0.0\].*$", "lever_arm_m = [2.20, nan, 0.0]", "radar.mounting.lever_arm_m"),
+        (r"^wheelbase_m = .*$", "wheelbase_m = 2.82\nwheel_base = 2.9", "vehicle.wheel_base"),
+        (r"^noise_density_dps_rthz = 0.008", "noise_dnsity_dps_rthz = 0.008", "sensors.imu_cog_a.gyro.noise_dnsity"),
+        (r"^dof = 3 ", "dof = 4 ", "sensors.imu_cog_a.dof"),
+        (r"^prf_hz = .*$", 'prf_hz = "fast"', "radar.prf_hz"),
+        (r"^num_tx = 3$", "num_tx = 2", "radar.tx_positions_wavelengths"),
+        (r'^"yaw_rate.orc" = .*$', '"yaw_rate.orc" = "ORC_1_YAW"', "can.roles.yaw_rate.orc"),
+        (r"^max_range_m = .*$", "max_range_m = 40.0", "radar.max_range_m"),
+        (r"^range_window = .*$", 'range_window = "kaiser"', "processing.range_window"),
+    ],
+)
+def test_bad_values_are_rejected_naming_the_key(tmp_path, pattern, replacement, key):
+    path = _write_variant(tmp_path, pattern, replacement)
+    with pytest.raises(ConfigError) as exc:
+        load_config(path)
+    msg = str(exc.value)
+    assert str(path) in msg
+    assert key in msg, msg
+
+
+def test_missing_key_and_missing_file(tmp_path):
+    path = _write_variant(tmp_path, r"^steering_ratio = .*$", "")
+    with pytest.raises(ConfigError, match=r"vehicle\.steering_ratio: missing required key"):
+        load_config(path)
+    with pytest.raises(ConfigError, match="config file not found"):
+        load_config(tmp_path / "nope.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[vehicle\nname = 1")
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        load_config(bad)
