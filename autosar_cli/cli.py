@@ -7,7 +7,7 @@ import shutil
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -30,20 +30,21 @@ out = Console()
 
 _state: dict[str, Any] = {"debug": False}
 
-ConfigOpt = Annotated[Path | None, typer.Option("--config", "-c", help="TOML config (default: configs/giulia_scanbrick.toml).",
-                                                exists=False, dir_okay=False)]
+ConfigOpt = Annotated[
+    Path | None, typer.Option("--config", "-c", help="TOML config (default: configs/giulia_scanbrick.toml).")
+]
 OverwriteOpt = Annotated[bool, typer.Option("--overwrite", help="Replace existing outputs.")]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print a machine-readable JSON summary on stdout.")]
 
 
-class Scenario(str, Enum):
+class Scenario(StrEnum):
     ci = "ci"
     test1 = "test1"
     test2 = "test2"
     test3 = "test3"
 
 
-class LogFormat(str, Enum):
+class LogFormat(StrEnum):
     mcap = "mcap"
     ros1 = "ros1"
     ros2 = "ros2"

@@ -7,10 +7,9 @@ from __future__ import annotations
 import h5py
 import numpy as np
 import pytest
+import reference as ref
 from mcap.reader import make_reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-
-import reference as ref
 
 C = ref.C
 
@@ -21,7 +20,7 @@ def read_raw_frames(path) -> tuple[np.ndarray, np.ndarray, dict]:
     frames, index, params = [], [], {}
     with open(path, "rb") as f:
         reader = make_reader(f)
-        for schema, channel, message in reader.iter_messages():
+        for schema, _channel, message in reader.iter_messages():
             if schema.name != "scanbrick_msgs/msg/RawFrame":
                 continue
             if "scanbrick_msgs/msg/RawFrame" not in store.types:

@@ -165,7 +165,8 @@ def nmea_sentences(fix_time: datetime, lat: float, lon: float, height_m: float, 
     knots = speed_mps * KNOTS_PER_MPS
     out = [
         NMEAMessage("GN", "GGA", GET, time=hms, **common, quality=2, numSV=14, HDOP=0.7,
-                    alt=round(height_m - GEOID_SEPARATION_M, 3), altUnit="M", sep=GEOID_SEPARATION_M, sepUnit="M", hpnmeamode=True),
+                    alt=round(height_m - GEOID_SEPARATION_M, 3), altUnit="M", sep=GEOID_SEPARATION_M, sepUnit="M",
+                    hpnmeamode=True),
         NMEAMessage("GN", "RMC", GET, time=hms, status="A", **common, spd=round(knots, 3), cog=round(course_deg, 2),
                     date=fix_time.date(), mv="", mvEW="", posMode="D", hpnmeamode=True),
         NMEAMessage("GN", "VTG", GET, cogt=round(course_deg, 2), cogtUnit="T", cogm="", cogmUnit="M",

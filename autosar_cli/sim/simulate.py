@@ -215,7 +215,7 @@ def simulate(
         _write_truth_static(truth, scenario, config, geom, samples, t0_ns)
         with open_log_writer(output, fmt) as writer:
             topics: dict[str, str] = {radar.topic: msgs.RAW_FRAME}
-            for name, s in config.sensors.items():
+            for s in config.sensors.values():
                 for tp in sensor_topics(s, ros_version):
                     topics.setdefault(tp.name, tp.msgtype)
             for topic in sorted(topics):

@@ -1,0 +1,61 @@
+"""The command line: help, JSON output, one-line errors with non-zero exit codes, no tracebacks."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+from typer.testing import CliRunner
+
+from autosar_cli.cli import app
+
+runner = CliRunner()
+
+
+@pytest.mark.parametrize("command", [[], ["simulate"], ["info"]])
+def test_help(command):
+    r = runner.invoke(app, [*command, "--help"])
+    assert r.exit_code == 0
+    assert "Usage" in r.output
+
+
+def test_simulate_json_and_info(tmp_path):
+    log = tmp_path / "ci.bag"
+    r = runner.invoke(app, ["simulate", "-s", "ci", "-f", "ros1", "--seed", "5", "-o", str(log), "--json"])
+    assert r.exit_code == 0, r.output
+    summary = json.loads(r.stdout)
+    assert summary["radar_frames"] == summary["messages"]["/scanbrick/raw_frames"] > 900
+    assert (tmp_path / "ci.bag.truth.h5").exists()
+    r = runner.invoke(app, ["info", str(log), "--json"])
+    assert r.exit_code == 0, r.output
+    info = json.loads(r.stdout)
+    rates = {s["topic"]: s["rate_hz"] for s in info["streams"]}
+    assert rates["/scanbrick/raw_frames"] == pytest.approx(990.0, rel=0.01)
+    assert rates["/imu/cog_a"] == pytest.approx(500.0, rel=0.01)
+    assert rates["/received_messages"] == pytest.approx(400.0, rel=0.02)  # ROS1 CAN topic, 4 ids x 100 Hz
+
+    # the same output again without --overwrite: refused, one line, exit 1, nothing touched
+    before = log.stat().st_mtime_ns
+    r = runner.invoke(app, ["simulate", "-s", "ci", "-f", "ros1", "-o", str(log)])
+    assert r.exit_code == 1
+    assert r.stderr.strip().count("\n") == 0 and "already exists" in r.stderr and "--overwrite" in r.stderr
+    assert log.stat().st_mtime_ns == before
+
+
+def test_errors_are_one_line_without_traceback(tmp_path):
+    bad_cfg = tmp_path / "bad.toml"
+    bad_cfg.write_text("[vehicle]\nwheelbase_m = -1\n")
+    r = runner.invoke(app, ["simulate", "-o", str(tmp_path / "x.mcap"), "--config", str(bad_cfg)])
+    assert r.exit_code == 1
+    assert "Traceback" not in r.output and str(bad_cfg) in r.stderr
+    r = runner.invoke(app, ["info", str(tmp_path / "missing.mcap")])
+    assert r.exit_code == 1 and "no such file" in r.stderr
+    # a corrupt MCAP: error names the file, no traceback, via the real console script
+    corrupt = tmp_path / "corrupt.mcap"
+    corrupt.write_bytes(b"\x89MCAP0\r\n" + bytes(range(256)) * 4)
+    p = subprocess.run([sys.executable, "-m", "autosar_cli.cli", "info", str(corrupt)], capture_output=True, text=True)
+    assert p.returncode == 1
+    assert str(corrupt) in p.stderr and "Traceback" not in p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1
