@@ -82,7 +82,7 @@ def can(ci_mcap, db):
                                                 "log_time": []})
     with open(ci_mcap.log_path, "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
-        for schema, channel, message, frame in reader.iter_decoded_messages(topics=[CAN_TOPIC]):
+        for schema, _, message, frame in reader.iter_decoded_messages(topics=[CAN_TOPIC]):
             assert schema.name == "can_msgs/msg/Frame"
             assert not frame.is_extended and not frame.is_rtr and not frame.is_error
             msg = db.get_message_by_frame_id(frame.id)
@@ -150,7 +150,7 @@ def test_config_roles_match_the_dbc(config, db):
     assert {k: tuple(v.split(".")) for k, v in roles.items()} == EXPECTED_ROLES
     for message, signal in EXPECTED_ROLES.values():
         db.get_message_by_name(message).get_signal_by_name(signal)
-    for message, sensor in MESSAGE_SENSOR.items():
+    for sensor in MESSAGE_SENSOR.values():
         assert config["sensors"][sensor]["rate_hz"] == 100.0
 
 
