@@ -78,7 +78,6 @@ def _synthesize(tx0, tx1, rx0, rx1, origin, enu_to_radar, targets, sqrt_rcs, f0,
     c = 299792458.0
     t_win = n_samp / fs
     t_mid = 0.5 * (n_samp - 1) / fs
-    two_pi = 2.0 * np.pi
     for f in nb.prange(n_frames):
         idx = np.empty(n_tgt, np.int64)
         gain = np.empty(n_tgt, np.float64)

@@ -54,6 +54,16 @@ def sensor_topics(s: SensorConfig, ros_version: int) -> list[Topic]:
     return topics
 
 
+def to_dbc_unit(value_si: float, unit: str | None) -> float:
+    """Convert an SI value (rad, rad/s, m/s, m/s^2) to the unit a DBC signal declares (deg, deg/s, km/h)."""
+    u = (unit or "").strip().lower()
+    if u in ("deg", "deg/s", "°", "°/s"):
+        return float(np.rad2deg(value_si))
+    if u in ("km/h", "kph"):
+        return float(value_si) * 3.6
+    return float(value_si)
+
+
 class MessageFactory:
     """Builds rosbags message objects for one typestore (ROS1 or ROS2)."""
 
@@ -90,8 +100,7 @@ class MessageFactory:
                 values = {}
                 for role, signal in roles.items():
                     value = samples.values[role][i]
-                    if role.startswith("steering_wheel"):
-                        value = np.rad2deg(value)  # the DBC carries degrees
+                    value = to_dbc_unit(value, db.get_message_by_name(message).get_signal_by_name(signal).unit)
                     values[signal] = float(value)
                 payload = encode_frame(db, message, values, counter=i)
                 data = np.zeros(8, dtype=np.uint8)
