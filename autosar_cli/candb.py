@@ -31,6 +31,9 @@ __all__ = [
     "FrameCheck",
     "check_frame",
     "encode_frame",
+    "si_factor",
+    "si_unit",
+    "to_dbc_unit",
     "giorgio_checksum",
     "j1850_crc8",
     "load_dbc",
@@ -51,6 +54,41 @@ _ID_REFERENCE = re.compile(
 _J1850_POLY = 0x1D
 _GIORGIO_FINAL_XOR = {0xDE: 0x10, 0x106: 0xF6, 0x122: 0xF1}
 _GIORGIO_DEFAULT_XOR = 0x0A
+
+
+# DBC units that are not SI -> (factor to SI, SI unit). Degrees and km/h live only at this edge.
+_TO_SI: dict[str, tuple[float, str]] = {
+    "deg": (math.pi / 180.0, "rad"),
+    "°": (math.pi / 180.0, "rad"),
+    "deg/s": (math.pi / 180.0, "rad/s"),
+    "°/s": (math.pi / 180.0, "rad/s"),
+    "km/h": (1.0 / 3.6, "m/s"),
+    "kph": (1.0 / 3.6, "m/s"),
+    "g": (9.80665, "m/s^2"),
+}
+
+
+def si_unit(unit: str | None) -> tuple[float, str]:
+    """(factor, SI unit) that converts a value in a DBC signal's declared unit to SI (1, unit if unknown).
+
+    Latitude/longitude keep degrees (they are coordinates, not angles of the vehicle): see :func:`si_factor`.
+    """
+    return _TO_SI.get((unit or "").strip().lower(), (1.0, (unit or "").strip()))
+
+
+_GEODETIC = re.compile(r"^(lat|latitude|lon|lng|long|longitude)(_?deg)?$", re.IGNORECASE)
+
+
+def si_factor(signal_name: str, unit: str | None) -> tuple[float, str]:
+    """Like :func:`si_unit`, but geodetic coordinates (Latitude, LON_DEG, ...) stay in degrees."""
+    if _GEODETIC.match(signal_name.strip()):
+        return 1.0, (unit or "").strip()
+    return si_unit(unit)
+
+
+def to_dbc_unit(value_si: float, unit: str | None) -> float:
+    """Convert an SI value (rad, rad/s, m/s, m/s^2) to the unit a DBC signal declares (deg, deg/s, km/h)."""
+    return float(value_si) / si_unit(unit)[0]
 
 
 class DbcError(ValueError):

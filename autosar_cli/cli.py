@@ -13,7 +13,16 @@ from typing import Annotated, Any
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.progress import (
+    BarColumn,
+    DownloadColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+    TransferSpeedColumn,
+)
 from rich.table import Table
 
 from autosar_cli import __version__
@@ -101,11 +110,12 @@ def _prepare_output(path: Path, overwrite: bool) -> None:
 
 
 @contextmanager
-def _progress(label: str, enabled: bool = True) -> Iterator[Callable[[int, int], None]]:
+def _progress(label: str, enabled: bool = True, in_bytes: bool = False) -> Iterator[Callable[[int, int], None]]:
     if not enabled or not err.is_terminal:
         yield lambda done, total: None
         return
-    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+    counts = (DownloadColumn(), TransferSpeedColumn()) if in_bytes else (MofNCompleteColumn(),)
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), *counts, TimeElapsedColumn(),
                   TimeRemainingColumn(), console=err, transient=True) as bar:
         task = bar.add_task(label, total=None)
 
@@ -150,24 +160,83 @@ def simulate(
 
 
 @app.command()
-def info(
-    path: Annotated[Path, typer.Argument(help="A drive log (.mcap, .bag, rosbag2 directory).")],
+def ingest(
+    logs: Annotated[list[Path] | None, typer.Argument(
+        help="Drive logs: .mcap, .bag, rosbag2 directories; CAN logs (.blf .asc .trc .log .mf4) and NMEA text "
+             "captures are recognised too.")] = None,
+    output: Annotated[Path, typer.Option("--output", "-o", help="drive.h5 to write.")] = Path("drive.h5"),
+    config: ConfigOpt = None,
+    dbc: Annotated[Path | None, typer.Option("--dbc", help="CAN database (default: the config's).")] = None,
+    can_log: Annotated[list[Path] | None, typer.Option("--can-log", help="Standalone CAN log (repeatable).")] = None,
+    nmea: Annotated[list[Path] | None, typer.Option("--nmea", help="NMEA text capture (repeatable).")] = None,
+    allow_partial: Annotated[bool, typer.Option("--allow-partial",
+                                                help="Write a drive without radar or without navigation.")] = False,
+    overwrite: OverwriteOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
-    """Summarise a log: streams, message types, counts, rates and time span."""
+    """Decode CAN (with a DBC), GNSS, IMU and raw radar frames of drive logs into one drive.h5, streaming."""
     with _errors():
-        from autosar_cli.ingest.inspect import summarize_log
+        from autosar_cli.ingest.pipeline import classify_input
+        from autosar_cli.ingest.pipeline import ingest as run_ingest
 
-        summary = summarize_log(path)
+        cfg = _load_config(config)
+        kinds: dict[str, list[Path]] = {"log": [], "can": list(can_log or []), "nmea": list(nmea or [])}
+        for p in logs or []:
+            kinds[classify_input(p)].append(p)
+        _prepare_output(output, overwrite)
+        with _progress("ingest", not as_json, in_bytes=True) as update:
+            report = run_ingest(kinds["log"], output, config=cfg, dbc=dbc, can_logs=kinds["can"],
+                                nmea_logs=kinds["nmea"], allow_partial=allow_partial, progress=update,
+                                command=" ".join(sys.argv))
+        d = report.to_dict()
+        if as_json:
+            out.print_json(json.dumps(d))
+            return
+        out.print(f"wrote [bold]{output}[/]: {d['duration_s']:.2f} s of drive, {report.messages} messages, "
+                  f"{report.bytes_read / 1e6:.1f} MB in {report.wall_s:.1f} s ({d['throughput_mb_s']:.0f} MB/s)")
+        table = Table("stream", "written", "rate (Hz)", "gaps", "dropped / repaired")
+        for st in report.streams:
+            span = (st["last_ns"] - st["first_ns"]) / 1e9
+            rate = (st["written"] - 1) / span if span > 0 else 0.0
+            notes = [f"{k} {st[k]}" for k in ("duplicates", "late_dropped", "time_jumps", "reordered") if st.get(k)]
+            notes += [f"{k} {v}" for k, v in st["skipped"].items()]
+            if st.get("missing_frames"):
+                notes.append(f"missing frames {st['missing_frames']}")
+            table.add_row(st["path"], str(st["written"]), f"{rate:.1f}", str(st["gaps"]), ", ".join(notes))
+        out.print(table)
+        can = report.can
+        problems = {k: sum(v.values()) for k in ("unknown_ids", "dlc_mismatch", "checksum_errors", "counter_errors")
+                    if (v := can.get(k))}
+        if can.get("frames"):
+            out.print(f"CAN: {can['frames']} frames, {can['decoded']} decoded"
+                      + "".join(f", {k.replace('_', ' ')} {v}" for k, v in problems.items()))
+        if can.get("missing_roles"):
+            out.print(f"CAN roles not found: {', '.join(can['missing_roles'])}")
+        for sk in report.skipped_channels:
+            out.print(f"skipped {sk['topic']} ({sk['msgtype']}): {sk['reason']}", highlight=False)
+        for w in report.warnings:
+            err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+
+
+@app.command()
+def info(
+    path: Annotated[Path, typer.Argument(help="A drive log (.mcap, .bag, rosbag2 directory) or a drive.h5.")],
+    as_json: JsonOpt = False,
+) -> None:
+    """Summarise a log or drive.h5: streams, message types, counts, rates, time span and gaps."""
+    with _errors():
+        from autosar_cli.ingest.inspect import summarize
+
+        summary = summarize(path)
         if as_json:
             out.print_json(json.dumps(summary.to_dict()))
             return
         d = summary.to_dict()
         out.print(f"[bold]{path}[/]  {summary.container}, {summary.size_bytes / 1e6:.1f} MB, "
                   f"{d['duration_s']:.2f} s")
-        table = Table("topic", "type", "count", "rate (Hz)")
+        table = Table("stream", "type", "count", "rate (Hz)", "gaps")
         for s in summary.streams:
-            table.add_row(s.topic, s.msgtype, str(s.count), f"{s.rate_hz:.1f}")
+            table.add_row(s.topic, s.msgtype, str(s.count), f"{s.rate_hz:.1f}", str(s.gaps))
         out.print(table)
 
 

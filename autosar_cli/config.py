@@ -111,6 +111,7 @@ class CanConfig:
     dbc: str
     roles: dict[str, str]
     topic: str = ""
+    checksum: str = "fca_giorgio"  #: CHECKSUM rule of frames that have one: "fca_giorgio" or "none"
 
     def role_signal(self, role: str) -> tuple[str, str]:
         """(message name, signal name) that plays ``role``."""
@@ -393,6 +394,8 @@ def _validate(cfg: Config) -> None:
     for name in ("yaw_deg", "pitch_deg", "roll_deg"):
         _finite_vector(f"radar.mounting.{name}", (getattr(m, name),))
 
+    if cfg.can.checksum not in ("fca_giorgio", "none"):
+        raise ConfigError(f"can.checksum: expected 'fca_giorgio' or 'none', got {cfg.can.checksum!r}")
     for role, ref in cfg.can.roles.items():
         message, dot, signal = ref.partition(".")
         if not dot or not message or not signal:

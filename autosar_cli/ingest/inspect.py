@@ -1,7 +1,8 @@
 """Summaries of drive logs without decoding payloads: streams, types, counts, rates, time span.
 
-MCAP files are summarised from their index (summary section); ROS1 bags and rosbag2 directories with
-rosbags. Used by ``autosar info``.
+Logs are read once without decoding payloads (through the same readers as ingest, so damaged files and
+unparseable schemas behave the same); a drive.h5 is summarised from its series groups. Used by
+``autosar info``.
 """
 
 from __future__ import annotations
@@ -9,6 +10,10 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
+
+from .sources import LogReadError, container_of, open_source
+
+__all__ = ["LogReadError", "LogSummary", "StreamSummary", "summarize", "summarize_drive", "summarize_log"]
 
 
 @dataclass
@@ -18,6 +23,7 @@ class StreamSummary:
     count: int
     start_ns: int
     end_ns: int
+    gaps: int = 0
 
     @property
     def rate_hz(self) -> float:
@@ -31,6 +37,7 @@ class LogSummary:
     container: str
     size_bytes: int
     streams: list[StreamSummary] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def start_ns(self) -> int:
@@ -48,18 +55,12 @@ class LogSummary:
         return d
 
 
-class LogReadError(RuntimeError):
-    """A log cannot be opened or summarised; the message names the file and the problem."""
-
-
-def container_of(path: Path) -> str:
-    if path.is_dir():
-        return "rosbag2"
-    if path.suffix == ".mcap":
-        return "mcap"
-    if path.suffix == ".bag":
-        return "ros1"
-    raise LogReadError(f"{path}: unknown log container (expected .mcap, .bag or a rosbag2 directory)")
+def summarize(path: Path) -> LogSummary:
+    """Summary of a drive log or of a drive.h5."""
+    path = Path(path)
+    if path.is_file() and path.suffix.lower() in (".h5", ".hdf5"):
+        return summarize_drive(path)
+    return summarize_log(path)
 
 
 def summarize_log(path: Path) -> LogSummary:
@@ -70,10 +71,7 @@ def summarize_log(path: Path) -> LogSummary:
     size = sum(p.stat().st_size for p in path.rglob("*") if p.is_file()) if path.is_dir() else path.stat().st_size
     summary = LogSummary(str(path), kind, size)
     try:
-        if kind == "mcap":
-            _summarize_mcap(path, summary)
-        else:
-            _summarize_rosbags(path, summary)
+        _summarize_messages(path, summary)
     except LogReadError:
         raise
     except Exception as exc:  # the readers raise many types; the user needs file + reason
@@ -82,28 +80,41 @@ def summarize_log(path: Path) -> LogSummary:
     return summary
 
 
-def _summarize_mcap(path: Path, summary: LogSummary) -> None:
-    """One pass over the records (no payload decoding): works for indexed and unindexed files."""
-    from mcap.reader import make_reader
-
-    streams: dict[int, StreamSummary] = {}
-    with open(path, "rb") as f:
-        for schema, channel, msg in make_reader(f).iter_messages(log_time_order=False):
-            s = streams.get(channel.id)
-            if s is None:
-                s = streams[channel.id] = StreamSummary(channel.topic, schema.name if schema else "?", 0,
-                                                        msg.log_time, msg.log_time)
-            s.count += 1
-            s.start_ns = min(s.start_ns, msg.log_time)
-            s.end_ns = max(s.end_ns, msg.log_time)
+def _summarize_messages(path: Path, summary: LogSummary) -> None:
+    streams: dict[tuple[str, int], StreamSummary] = {}
+    src = open_source(path)
+    for msg in src.messages():
+        ch = msg.channel
+        s = streams.get(ch.key)
+        if s is None:
+            s = streams[ch.key] = StreamSummary(ch.topic, ch.msgtype, 0, msg.log_ns, msg.log_ns)
+        s.count += 1
+        s.start_ns = min(s.start_ns, msg.log_ns)
+        s.end_ns = max(s.end_ns, msg.log_ns)
     summary.streams.extend(streams.values())
+    summary.warnings.extend(src.stats.warnings)
 
 
-def _summarize_rosbags(path: Path, summary: LogSummary) -> None:
-    from rosbags.highlevel import AnyReader
+def summarize_drive(path: Path) -> LogSummary:
+    """Series of a drive.h5: group, type, count, rate, span and recorded gaps."""
+    from autosar_cli.store.drive import Drive, DriveFormatError
 
-    with AnyReader([path]) as reader:
-        for conn in reader.connections:
-            times = [t for _, t, _ in reader.messages(connections=[conn])]
-            summary.streams.append(StreamSummary(conn.topic, conn.msgtype, len(times),
-                                                 min(times, default=0), max(times, default=0)))
+    try:
+        drive = Drive(path)
+    except DriveFormatError as exc:
+        raise LogReadError(str(exc)) from exc
+    summary = LogSummary(str(path), f"drive.h5 v{int(drive.attrs['format_version'])}", path.stat().st_size)
+    with drive:
+        def visit(name: str, obj: object) -> None:
+            import h5py
+
+            if isinstance(obj, h5py.Group) and "t_ns" in obj:
+                t = obj["t_ns"]
+                n = t.shape[0]
+                gaps = obj["gaps"].shape[0] if "gaps" in obj else 0
+                summary.streams.append(StreamSummary(name, str(obj.attrs.get("msgtype", "")), n,
+                                                     int(t[0]) if n else 0, int(t[-1]) if n else 0, gaps))
+
+        drive.h5.visititems(visit)
+        summary.warnings.extend(drive.report().get("warnings", []))
+    return summary

@@ -18,7 +18,7 @@ from pynmeagps import NMEAMessage
 from pynmeagps.nmeatypes_core import GET
 
 from autosar_cli import msgs
-from autosar_cli.candb import encode_frame
+from autosar_cli.candb import encode_frame, to_dbc_unit
 from autosar_cli.config import Config, SensorConfig
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.sim.sensors import SensorSamples
@@ -52,16 +52,6 @@ def sensor_topics(s: SensorConfig, ros_version: int) -> list[Topic]:
     if s.nmea_topic:
         topics.append(Topic(s.nmea_topic, msgs.NMEA_SENTENCE))
     return topics
-
-
-def to_dbc_unit(value_si: float, unit: str | None) -> float:
-    """Convert an SI value (rad, rad/s, m/s, m/s^2) to the unit a DBC signal declares (deg, deg/s, km/h)."""
-    u = (unit or "").strip().lower()
-    if u in ("deg", "deg/s", "°", "°/s"):
-        return float(np.rad2deg(value_si))
-    if u in ("km/h", "kph"):
-        return float(value_si) * 3.6
-    return float(value_si)
 
 
 class MessageFactory:

@@ -1,0 +1,238 @@
+"""Standalone CAN logs (Vector ASC/BLF, PEAK TRC, SocketCAN candump -L, ASAM MDF4) read with python-can.
+
+:func:`read_can_log` streams :class:`~autosar_cli.ingest.records.CanRecord` in file order. Its time
+``t_ns`` is python-can's float ``timestamp`` in seconds rounded to the nearest ns, converted without
+the product ``timestamp * 1e9`` (a float near 1.6e18, only 256 ns apart). python-can's float seconds
+are themselves 0.24 us apart at present-day epochs, so ``t_ns`` is within 0.12 us of what the file
+stores, whatever its resolution.
+
+What python-can 4.6 gives as the timestamp, per format (all Unix seconds unless stated):
+
+- ``.mf4`` (``MF4Reader``): absolute. Header start time (asammdf, UTC-aware) + the per-frame offset in
+  seconds. The real CANedge files are from 2022/2023 (t = 1.64e9 / 1.67e9 s); their clock is the
+  logger's RTC, which may be off GNSS time by tens of seconds.
+- ``.blf`` (``BLFReader``): absolute. Header start SYSTEMTIME (1 ms resolution) + object offsets of
+  1 ns or 10 us. python-can takes the SYSTEMTIME as UTC; Vector tools write local time, so a BLF
+  recorded by CANoe is shifted by the recording PC's UTC offset (python-can issue #2010).
+- ``.asc`` (``ASCReader``): the file holds offsets in seconds (1 us) from the ``Begin Triggerblock``
+  (or ``date``) header date, which has 1 ms resolution and no time zone. Read with
+  ``relative_timestamp=False`` so python-can adds that date, parsed as *local time of the reading
+  machine*; a date it cannot parse is a :class:`CanLogError`. A file without a header date keeps
+  offsets from the measurement start (t_ns near 0; logged as a warning). python-can ignores the
+  header's ``timestamps relative`` (offsets from the previous event): such files read wrong.
+- ``.trc`` (``TRCReader``): ``$STARTTIME`` (days since 1899-12-30, taken as UTC) + offsets in ms with
+  1 us resolution (v1.1+). Version 1.0 files and files without ``$STARTTIME`` give offsets from the
+  measurement start (warning logged).
+- ``.log`` (``CanutilsLogReader``, ``candump -L``): absolute, as recorded (1 us).
+
+Channels are named as the file numbers them: python-can makes ASC and BLF channels 0-based
+(file channel 1 -> 0); that shift is undone here so that "1" means CAN 1 in every format (MF4
+``BusChannel``, TRC bus, ASC/BLF channel), and candump interface names ("can0") stay as they are.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import re
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack
+from pathlib import Path
+from typing import IO
+
+import can
+from can.io.generic import MessageReader
+
+from autosar_cli.ingest.records import CanRecord
+
+__all__ = ["CAN_LOG_SUFFIXES", "CanLogError", "is_can_log", "read_can_log"]
+
+log = logging.getLogger(__name__)
+
+CAN_LOG_SUFFIXES: tuple[str, ...] = (".blf", ".asc", ".trc", ".log", ".mf4")
+
+#: Formats whose python-can reader numbers channels from 0 where the file numbers them from 1.
+_ZERO_BASED_CHANNELS = (".asc", ".blf")
+#: Text formats: legacy tools write ANSI (cp1252) text, e.g. a German CANoe date "Mär".
+_TEXT_SUFFIXES = (".asc", ".trc", ".log")
+_CANDUMP_LINE = re.compile(r"\(\s*\d+(?:\.\d*)?\)\s+\S+\s+[0-9A-Fa-f]{1,8}#")
+_SNIFF_BYTES = 4096
+_FORMAT_NAMES = {".blf": "BLF", ".asc": "ASC", ".trc": "TRC", ".log": "candump -L", ".mf4": "MDF4"}
+
+
+class CanLogError(RuntimeError):
+    """One-line message naming the file and the problem (and where in the file, where known)."""
+
+
+def _suffix(path: Path) -> str:
+    return path.suffix.lower()
+
+
+def _first_line(path: Path) -> str | None:
+    """First non-blank line of a text file (within its first 4 KiB), or None if unreadable/empty."""
+    try:
+        with path.open("rb") as f:
+            head = f.read(_SNIFF_BYTES)
+    except OSError:
+        return None
+    for line in head.decode("latin-1").splitlines():
+        if line.strip():
+            return line.strip()
+    return None
+
+
+def is_can_log(path: Path) -> bool:
+    """True for a CAN log suffix (any case); a ``.log`` must also start like ``candump -L`` output.
+
+    ``.log`` is shared with NMEA captures, so its first non-blank line must read
+    ``(<seconds>) <interface> <hex id>#...``; an unreadable ``.log`` is not a CAN log.
+    """
+    path = Path(path)
+    suffix = _suffix(path)
+    if suffix not in CAN_LOG_SUFFIXES:
+        return False
+    if suffix != ".log":
+        return True
+    line = _first_line(path)
+    return line is not None and _CANDUMP_LINE.match(line) is not None
+
+
+def _one_line(exc: BaseException) -> str:
+    """Exception type and message on one line."""
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+class _MF4Reader(can.MF4Reader):
+    """MF4Reader that closes the file it opened when asammdf rejects the file."""
+
+    def __init__(self, file: Path) -> None:
+        try:
+            super().__init__(file)
+        except BaseException:
+            opened = getattr(self, "file", None)
+            if opened is not None:
+                opened.close()
+            raise
+
+
+def _open_reader(path: Path, stack: ExitStack) -> MessageReader:
+    """Open the python-can reader of the file's format; files we open are closed by ``stack``."""
+    suffix = _suffix(path)
+    if suffix == ".mf4":
+        # Given a file object, MF4Reader copies the whole file into memory; given a path, asammdf
+        # reads it block by block.
+        return stack.enter_context(_MF4Reader(path))
+    if suffix == ".blf":
+        return stack.enter_context(can.BLFReader(stack.enter_context(path.open("rb"))))
+    text: IO[str] = stack.enter_context(path.open("r", encoding="cp1252", errors="replace"))
+    if suffix == ".asc":
+        return stack.enter_context(can.ASCReader(text, relative_timestamp=False))
+    if suffix == ".trc":
+        return stack.enter_context(can.TRCReader(text))
+    first = _first_line(path)
+    if first is not None and _CANDUMP_LINE.match(first) is None:
+        raise CanLogError(f"{path}: not a candump -L log (first line {first[:40]!r})")
+    return stack.enter_context(can.CanutilsLogReader(text))
+
+
+def _relative_start(reader: MessageReader) -> bool:
+    """True if the reader found no start date, so its times are offsets from the measurement start."""
+    if isinstance(reader, can.ASCReader):
+        return reader.start_time == 0.0
+    if isinstance(reader, can.TRCReader):
+        return reader.start_time is None
+    return False
+
+
+def _where(reader: MessageReader | None, frames: int) -> str:
+    """Position of a failure: frames read so far, plus the byte offset for BLF."""
+    where = f"after {frames} frame{'' if frames == 1 else 's'}"
+    if isinstance(reader, can.BLFReader):
+        try:
+            where += f", near byte {reader.file.tell()}"
+        except (OSError, ValueError):
+            pass
+    return where
+
+
+def read_can_log(path: Path) -> Iterator[CanRecord]:
+    """Stream the frames of a standalone CAN log in file order (never load the whole file into a list).
+
+    Raises :class:`CanLogError` at once for an unsupported suffix or a missing file. A file that
+    cannot be parsed raises it from the iterator, after the frames read before the damage.
+    """
+    path = Path(path)
+    if _suffix(path) not in CAN_LOG_SUFFIXES:
+        raise CanLogError(
+            f"{path}: unsupported CAN log format {path.suffix or '(no suffix)'!r} "
+            f"(supported: {', '.join(CAN_LOG_SUFFIXES)}, any case)"
+        )
+    if not path.is_file():
+        raise CanLogError(f"{path}: no such file" if not path.exists() else f"{path}: not a file")
+    return _records(path)
+
+
+def _records(path: Path) -> Iterator[CanRecord]:
+    """Generator behind :func:`read_can_log`: the reader is closed when it ends or is closed."""
+    suffix = _suffix(path)
+    kind = _FORMAT_NAMES[suffix]
+    to_channel: Callable[[object], str] = _channel_from_one if suffix in _ZERO_BASED_CHANNELS else _channel
+    frames = 0
+    reader: MessageReader | None = None
+    with ExitStack() as stack:
+        try:
+            reader = _open_reader(path, stack)
+            messages = iter(reader)
+        except CanLogError:
+            raise
+        except Exception as exc:  # python-can/asammdf raise many types; the user needs file + reason
+            raise CanLogError(f"{path}: cannot open {kind} log: {_one_line(exc)}") from exc
+        while True:
+            try:
+                msg = next(messages)
+            except StopIteration:
+                break
+            except Exception as exc:
+                raise CanLogError(f"{path}: cannot read {kind} log {_where(reader, frames)}: {_one_line(exc)}") from exc
+            if frames == 0 and _relative_start(reader):
+                log.warning("%s: no start date in the header; times are offsets from the measurement start", path)
+            frames += 1
+            yield CanRecord(
+                t_ns=_to_ns(msg.timestamp),
+                frame_id=msg.arbitration_id,
+                is_extended=msg.is_extended_id,
+                dlc=msg.dlc,
+                data=bytes(msg.data),
+                is_error=msg.is_error_frame,
+                is_remote=msg.is_remote_frame,
+                channel=to_channel(msg.channel),
+            )
+        _check_complete(path, reader, frames)
+
+
+def _check_complete(path: Path, reader: MessageReader, frames: int) -> None:
+    """Raise for a BLF shorter than its header says: python-can often ends such a file silently."""
+    if isinstance(reader, can.BLFReader):
+        size = path.stat().st_size
+        if size < reader.file_size:
+            raise CanLogError(
+                f"{path}: truncated BLF log: header says {reader.file_size} bytes, file has {size} "
+                f"({frames} frames read before the cut)"
+            )
+
+
+def _to_ns(seconds: float) -> int:
+    """Float seconds to the nearest integer ns (the whole seconds split off exactly first)."""
+    whole = math.floor(seconds)
+    return whole * 1_000_000_000 + round((seconds - whole) * 1e9)
+
+
+def _channel(channel: object) -> str:
+    """python-can channel as text ("" if unknown)."""
+    return "" if channel is None else str(channel)
+
+
+def _channel_from_one(channel: object) -> str:
+    """Channel of a reader that counts from 0, as the file counts it (from 1)."""
+    return str(channel + 1) if isinstance(channel, int) else _channel(channel)

@@ -1,0 +1,394 @@
+"""Decoders: one per message kind, from a deserialized message to rows of a drive.h5 series.
+
+Each decoder owns the :class:`~.series.Series` (ordering, duplicates, gaps) and the drive.h5 table of its
+stream. Values leave here in SI units and the project's frames (see :mod:`autosar_cli.store.drive`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from cantools.database.can import Database, Message
+
+from autosar_cli.candb import giorgio_checksum, si_factor
+from autosar_cli.store.drive import Column, DriveWriter, RadarCube, Table
+
+from .records import UNKNOWN_TIME, CanRecord, NmeaFix, NmeaHeading, NmeaRecord, NmeaVelocity
+from .series import Series, SeriesStats
+
+_NAN9 = (math.nan,) * 9
+
+
+def _stamp_ns(header: Any) -> int:
+    s = header.stamp
+    return int(s.sec) * 1_000_000_000 + int(getattr(s, "nanosec", getattr(s, "nsec", 0)))
+
+
+@dataclass
+class StreamInfo:
+    """Where a stream came from and what became of it (one entry of the ingest report)."""
+
+    path: str  #: drive.h5 group
+    kind: str
+    topics: set[str] = field(default_factory=set)
+    msgtype: str = ""
+    stats: SeriesStats | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        d = {"path": self.path, "kind": self.kind, "topics": sorted(self.topics), "msgtype": self.msgtype}
+        if self.stats is not None:
+            d.update(self.stats.to_dict())
+        d.update(self.extra)
+        return d
+
+
+class TableStream:
+    """A series whose rows are flat tuples written to a drive.h5 table (the common case)."""
+
+    def __init__(self, writer: DriveWriter, path: str, kind: str, columns: dict[str, Column],
+                 attrs: dict[str, Any], window: int = 512) -> None:
+        self.info = StreamInfo(path, kind, msgtype=str(attrs.get("msgtype", "")))
+        self.columns = columns
+        self.table: Table = writer.table(path, columns, attrs)
+        self.series = Series(self._sink, window=window)
+        # Flat tuple layout: each column takes prod(shape) consecutive values.
+        self._slices: list[tuple[str, slice, tuple[int, ...]]] = []
+        i = 0
+        for name, col in columns.items():
+            if name == "t_ns":
+                continue
+            n = int(np.prod(col.shape)) if col.shape else 1
+            self._slices.append((name, slice(i, i + n), col.shape))
+            i += n
+
+    def _sink(self, t_ns: np.ndarray, rows: list[Any]) -> None:
+        flat = np.asarray(rows, dtype=np.float64)
+        data: dict[str, np.ndarray] = {"t_ns": t_ns}
+        for name, sl, shape in self._slices:
+            block = flat[:, sl]
+            data[name] = block.reshape(len(rows), *shape) if shape else block[:, 0]
+        self.table.append(data)
+
+    def push(self, header_ns: int | None, log_ns: int, row: tuple[float, ...]) -> None:
+        self.series.push(header_ns, log_ns, row)
+
+    def skip(self, reason: str) -> None:
+        self.series.stats.received += 1
+        self.series.stats.skipped[reason] += 1
+
+    def finish(self) -> StreamInfo:
+        stats = self.series.finish()
+        self.table.write_dataset("gaps", np.asarray(stats.gaps, dtype=np.int64).reshape(-1, 2))
+        self.info.stats = stats
+        return self.info
+
+
+def _f(unit: str = "", shape: tuple[int, ...] = ()) -> Column:
+    return Column(np.float64, shape, unit)
+
+
+IMU_COLUMNS = {
+    "t_ns": Column(np.int64, (), "ns"),
+    "angular_velocity": _f("rad/s", (3,)),
+    "linear_acceleration": _f("m/s^2", (3,)),
+    "orientation": _f("", (4,)),
+    "angular_velocity_covariance": _f("rad^2/s^2", (9,)),
+    "linear_acceleration_covariance": _f("m^2/s^4", (9,)),
+    "orientation_covariance": _f("rad^2", (9,)),
+}
+FIX_COLUMNS = {
+    "t_ns": Column(np.int64, (), "ns"),
+    "latitude_deg": _f("deg"),
+    "longitude_deg": _f("deg"),
+    "altitude_m": _f("m"),
+    "status": _f(),
+    "service": _f(),
+    "position_covariance": _f("m^2", (9,)),
+    "position_covariance_type": _f(),
+}
+VELOCITY_COLUMNS = {
+    "t_ns": Column(np.int64, (), "ns"),
+    "velocity_enu": _f("m/s", (3,)),
+    "angular_velocity": _f("rad/s", (3,)),
+    "velocity_variance": _f("m^2/s^2", (3,)),
+}
+NMEA_FIX_COLUMNS = {
+    "t_ns": Column(np.int64, (), "ns"),
+    "fix_time_ns": _f("ns"),
+    "latitude_deg": _f("deg"),
+    "longitude_deg": _f("deg"),
+    "altitude_m": _f("m"),
+    "quality": _f(),
+    "num_satellites": _f(),
+    "hdop": _f(),
+}
+NMEA_VELOCITY_COLUMNS = {
+    "t_ns": Column(np.int64, (), "ns"),
+    "fix_time_ns": _f("ns"),
+    "speed_mps": _f("m/s"),
+    "course_rad": _f("rad"),
+}
+NMEA_HEADING_COLUMNS = {"t_ns": Column(np.int64, (), "ns"), "heading_rad": _f("rad")}
+
+
+def imu_row(m: Any) -> tuple[float, ...]:
+    w, a, q = m.angular_velocity, m.linear_acceleration, m.orientation
+    return (w.x, w.y, w.z, a.x, a.y, a.z, q.x, q.y, q.z, q.w, *m.angular_velocity_covariance,
+            *m.linear_acceleration_covariance, *m.orientation_covariance)
+
+
+def fix_row(m: Any) -> tuple[float, ...] | None:
+    """Row of a NavSatFix, or None when it holds no fix (status < 0 or non-finite coordinates)."""
+    if m.status.status < 0 or not (math.isfinite(m.latitude) and math.isfinite(m.longitude)):
+        return None
+    return (m.latitude, m.longitude, m.altitude, m.status.status, m.status.service, *m.position_covariance,
+            m.position_covariance_type)
+
+
+def velocity_row(m: Any) -> tuple[float, ...]:
+    twist = m.twist
+    if hasattr(twist, "covariance"):  # TwistWithCovarianceStamped
+        cov = twist.covariance
+        var = (cov[0], cov[7], cov[14])
+        twist = twist.twist
+    else:
+        var = (math.nan, math.nan, math.nan)
+    v, w = twist.linear, twist.angular
+    return (v.x, v.y, v.z, w.x, w.y, w.z, *var)
+
+
+class NmeaStreams:
+    """The three NMEA series of one GNSS source, fed by an :class:`~.nmea.NmeaDecoder`."""
+
+    def __init__(self, writer: DriveWriter, base: str, attrs: dict[str, Any]) -> None:
+        from .nmea import NmeaDecoder
+
+        self.decoder = NmeaDecoder()
+        self.fix = TableStream(writer, f"{base}/nmea_fix", "nmea_fix", NMEA_FIX_COLUMNS, attrs)
+        self.velocity = TableStream(writer, f"{base}/nmea_velocity", "nmea_velocity", NMEA_VELOCITY_COLUMNS, attrs)
+        # VTG repeats RMC's speed and course without a time: its own table, not RMC's duplicates.
+        self.vtg = TableStream(writer, f"{base}/nmea_vtg", "nmea_vtg", NMEA_VELOCITY_COLUMNS, attrs)
+        self.heading = TableStream(writer, f"{base}/nmea_heading", "nmea_heading", NMEA_HEADING_COLUMNS, attrs)
+
+    def feed(self, sentence: str | bytes, stamp_ns: int | None, log_ns: int | None) -> None:
+        self.route(self.decoder.feed(sentence, stamp_ns), log_ns)
+
+    def route(self, records: list[NmeaRecord], log_ns: int | None) -> None:
+        for r in records:
+            lg = r.t_ns if log_ns is None else log_ns
+            if isinstance(r, NmeaFix):
+                fix_t = math.nan if r.fix_time_ns == UNKNOWN_TIME else float(r.fix_time_ns)
+                self.fix.push(r.t_ns, lg, (fix_t, r.latitude_deg, r.longitude_deg, r.altitude_m, r.quality,
+                                           r.num_satellites, r.hdop))
+            elif isinstance(r, NmeaVelocity):
+                if r.fix_time_ns == UNKNOWN_TIME:
+                    self.vtg.push(r.t_ns, lg, (math.nan, r.speed_mps, r.course_rad))
+                else:
+                    self.velocity.push(r.t_ns, lg, (float(r.fix_time_ns), r.speed_mps, r.course_rad))
+            elif isinstance(r, NmeaHeading):
+                self.heading.push(r.t_ns, lg, (r.heading_rad,))
+
+    def finish(self) -> list[StreamInfo]:
+        self.route(self.decoder.flush(), None)
+        infos = [s.finish() for s in (self.fix, self.velocity, self.vtg, self.heading)]
+        skipped = self.decoder.skipped
+        if infos[0].stats is not None:
+            infos[0].stats.skipped.update(skipped)
+        return [i for i in infos if i.stats is not None and (i.stats.received or i.kind == "nmea_fix")]
+
+
+# ------------------------------------------------------------------------------------------------- CAN
+@dataclass
+class CanStats:
+    frames: int = 0
+    decoded: int = 0
+    unknown_ids: Counter[str] = field(default_factory=Counter)
+    dlc_mismatch: Counter[str] = field(default_factory=Counter)
+    checksum_errors: Counter[str] = field(default_factory=Counter)
+    counter_errors: Counter[str] = field(default_factory=Counter)
+    error_frames: int = 0
+    remote_frames: int = 0
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"frames": self.frames, "decoded": self.decoded, "unknown_ids": dict(self.unknown_ids),
+                "dlc_mismatch": dict(self.dlc_mismatch), "checksum_errors": dict(self.checksum_errors),
+                "counter_errors": dict(self.counter_errors), "error_frames": self.error_frames,
+                "remote_frames": self.remote_frames}
+
+
+@dataclass
+class _CanLayout:
+    message: Message
+    group: str
+    names: list[str]
+    factors: list[float]
+    has_checksum: bool
+    has_counter: bool
+    stream: TableStream | None = None
+    last_counter: int | None = None
+
+
+class CanDecoder:
+    """Decodes CAN frames with a DBC into one series per message (/can/<MESSAGE>), SI units.
+
+    Frames are looked up by frame ID (DBCs such as CSS's gnss.dbc reuse names); messages whose name is
+    not unique get the ID appended to their group name. Integrity problems are counted, never fatal:
+    unknown IDs, DLC mismatch and bad checksums drop the frame; counter jumps are counted and kept.
+    """
+
+    def __init__(self, writer: DriveWriter, db: Database, checksum_rule: str, attrs: Callable[[], dict[str, Any]]):
+        self.writer = writer
+        self.db = db
+        self.checksum_rule = checksum_rule
+        self.stats = CanStats()
+        self._attrs = attrs
+        self._topics: set[str] = set()
+        names = Counter(m.name for m in db.messages)
+        self._layouts: dict[tuple[int, bool], _CanLayout] = {}
+        for m in db.messages:
+            group = m.name if names[m.name] == 1 else f"{m.name}_0x{m.frame_id:X}"
+            sig_names = [s.name for s in m.signals]
+            factors = [si_factor(s.name, s.unit)[0] for s in m.signals]
+            self._layouts[(m.frame_id, m.is_extended_frame)] = _CanLayout(
+                m, group, sig_names, factors, "CHECKSUM" in sig_names, "COUNTER" in sig_names)
+
+    def group_of(self, message_name: str) -> str | None:
+        for lay in self._layouts.values():
+            if lay.message.name == message_name:
+                return lay.group
+        return None
+
+    def _stream(self, lay: _CanLayout) -> TableStream:
+        columns: dict[str, Column] = {"t_ns": Column(np.int64, (), "ns")}
+        for s in lay.message.signals:
+            columns[s.name] = Column(np.float64, (), si_factor(s.name, s.unit)[1])
+        attrs = {**self._attrs(), "frame_id": lay.message.frame_id, "is_extended": lay.message.is_extended_frame,
+                 "message": lay.message.name, "msgtype": "can_msgs/msg/Frame"}
+        lay.stream = TableStream(self.writer, f"can/{lay.group}", "can", columns, attrs)
+        return lay.stream
+
+    def feed(self, frame: CanRecord, header_ns: int | None, log_ns: int, topic: str = "") -> None:
+        st = self.stats
+        st.frames += 1
+        if topic:
+            self._topics.add(topic)
+        if frame.is_error:
+            st.error_frames += 1
+            return
+        if frame.is_remote:
+            st.remote_frames += 1
+            return
+        lay = self._layouts.get((frame.frame_id, frame.is_extended))
+        if lay is None:
+            lay = self._layouts.get((frame.frame_id, not frame.is_extended))
+        if lay is None:
+            st.unknown_ids[f"0x{frame.frame_id:X}"] += 1
+            return
+        m = lay.message
+        data = frame.data
+        if frame.dlc != m.length or len(data) < m.length:
+            st.dlc_mismatch[m.name] += 1
+            return
+        data = bytes(data[: m.length])
+        raw = m.decode(data, decode_choices=False, scaling=False)
+        if lay.has_checksum and self.checksum_rule == "fca_giorgio":
+            if int(raw["CHECKSUM"]) != giorgio_checksum(m.frame_id, data):
+                st.checksum_errors[m.name] += 1
+                return
+        if lay.has_counter:
+            c = int(raw["COUNTER"])
+            if lay.last_counter is not None and c != (lay.last_counter + 1) % 16:
+                st.counter_errors[m.name] += 1
+            lay.last_counter = c
+        values = m.decode(data, decode_choices=False, scaling=True)
+        row = tuple(float(values[n]) * f for n, f in zip(lay.names, lay.factors, strict=True))
+        stream = lay.stream or self._stream(lay)
+        stream.push(header_ns, log_ns, row)
+        st.decoded += 1
+
+    def finish(self) -> list[StreamInfo]:
+        out = []
+        for lay in self._layouts.values():
+            if lay.stream is not None:
+                info = lay.stream.finish()
+                info.topics |= self._topics
+                out.append(info)
+        return out
+
+
+# ----------------------------------------------------------------------------------------------- radar
+class RadarDecoder:
+    """ScanBrick RawFrame messages into /radar/<name>: frame times, indices and the raw int16 cube."""
+
+    BLOCK = 64
+
+    def __init__(self, writer: DriveWriter, path: str, attrs: dict[str, Any]) -> None:
+        self.writer = writer
+        self.path = path
+        self.attrs = attrs
+        self.info = StreamInfo(path, "radar", msgtype="scanbrick_msgs/msg/RawFrame")
+        self.cube: RadarCube | None = None
+        self.params: tuple[Any, ...] | None = None
+        self.shape: tuple[int, int, int] | None = None
+        self.series = Series(self._sink, window=self.BLOCK, flush_rows=self.BLOCK)
+        self.frame_gaps: list[tuple[int, int, int, int]] = []
+        self._last: tuple[int, int] | None = None
+
+    def feed(self, m: Any, log_ns: int) -> None:
+        shape = (int(m.num_tx), int(m.num_rx), int(m.num_samples))
+        params = (float(m.start_frequency_hz), float(m.slope_hz_per_s), float(m.sample_rate_hz),
+                  tuple(float(x) for x in m.tx_start_offsets_s), shape)
+        data = m.data
+        if len(data) != shape[0] * shape[1] * shape[2] * 2:
+            self.series.stats.received += 1
+            self.series.stats.skipped["wrong data size"] += 1
+            return
+        if self.params is None:
+            self._open(params, shape)
+        elif params != self.params:
+            self.series.stats.received += 1
+            self.series.stats.skipped["radar parameters changed"] += 1
+            return
+        self.series.push(_stamp_ns(m.header), log_ns, (int(m.frame_index), data))
+
+    def _open(self, params: tuple[Any, ...], shape: tuple[int, int, int]) -> None:
+        self.params, self.shape = params, shape
+        f0, slope, fs, offsets, _ = params
+        attrs = {**self.attrs, "start_frequency_hz": f0, "slope_hz_per_s": slope, "sample_rate_hz": fs,
+                 "tx_start_offsets_s": list(offsets), "num_tx": shape[0], "num_rx": shape[1],
+                 "num_samples": shape[2], "layout": "frame, tx, rx, sample, I/Q"}
+        self.cube = self.writer.radar(self.path, shape, attrs)
+
+    def _sink(self, t_ns: np.ndarray, rows: list[Any]) -> None:
+        assert self.cube is not None and self.shape is not None
+        idx = np.fromiter((r[0] for r in rows), dtype=np.int64, count=len(rows))
+        raw = np.empty((len(rows), *self.shape, 2), dtype=np.int16)
+        flat = raw.reshape(len(rows), -1)
+        for i, r in enumerate(rows):
+            flat[i] = r[1]
+        prev = np.concatenate([[self._last[0]], idx]) if self._last else idx
+        prev_t = np.concatenate([[self._last[1]], t_ns]) if self._last else t_ns
+        for j in np.flatnonzero(np.diff(prev) != 1):
+            self.frame_gaps.append((int(prev_t[j]), int(prev_t[j + 1]), int(prev[j]), int(prev[j + 1])))
+        self._last = (int(idx[-1]), int(t_ns[-1]))
+        self.cube.append_frames(t_ns, idx, raw)
+
+    def finish(self) -> StreamInfo | None:
+        stats = self.series.finish()
+        self.info.stats = stats
+        if self.cube is None:
+            return self.info if stats.received else None
+        gaps = np.asarray([g[:2] for g in self.frame_gaps], dtype=np.int64).reshape(-1, 2)
+        self.cube.write_dataset("gaps", gaps)
+        self.cube.write_dataset("gap_frame_index", np.asarray([g[2:] for g in self.frame_gaps],
+                                                              dtype=np.int64).reshape(-1, 2))
+        # Radar gaps are frame-index jumps, not time steps.
+        stats.gaps = [g[:2] for g in self.frame_gaps]
+        self.info.extra["missing_frames"] = sum(b - a - 1 for _, _, a, b in self.frame_gaps if b > a)
+        return self.info

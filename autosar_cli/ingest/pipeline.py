@@ -1,0 +1,488 @@
+"""``autosar ingest``: logs in, one drive.h5 out (streaming, bounded memory, atomic).
+
+Streams are found by message type; the config names them (a topic pinned to a sensor gets that
+sensor's name) and may pin the CAN topic. Everything skipped is counted and reported, nothing is fatal
+but an unreadable input, a log with no sensor stream at all, or (unless ``allow_partial``) a drive
+without radar or without any navigation stream.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+import time
+from collections import Counter
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from autosar_cli import __version__, msgs
+from autosar_cli.candb import load_dbc
+from autosar_cli.config import Config
+from autosar_cli.store.drive import DriveWriter
+
+from .decoders import (
+    FIX_COLUMNS,
+    IMU_COLUMNS,
+    VELOCITY_COLUMNS,
+    CanDecoder,
+    NmeaStreams,
+    RadarDecoder,
+    StreamInfo,
+    TableStream,
+    _stamp_ns,
+    fix_row,
+    imu_row,
+    velocity_row,
+)
+from .records import CanRecord
+from .sources import Channel, LogReadError, LogSource, RawMessage, open_source
+from .typesys import MessageTypes, SchemaError
+
+KIND_OF_TYPE = {
+    msgs.CAN_FRAME: "can",
+    msgs.NAV_SAT_FIX: "fix",
+    msgs.TWIST_STAMPED: "velocity",
+    msgs.TWIST_WITH_COVARIANCE_STAMPED: "velocity",
+    msgs.NMEA_SENTENCE: "nmea",
+    msgs.IMU: "imu",
+    msgs.RAW_FRAME: "radar",
+}
+CAN_LOG_SUFFIXES = (".blf", ".asc", ".trc", ".mf4")
+NMEA_SUFFIXES = (".nmea", ".txt", ".gps")
+
+ProgressFn = Callable[[int, int], None]
+
+
+class IngestError(RuntimeError):
+    """Ingest cannot produce a useful drive.h5; the message says which file and why."""
+
+
+@dataclass
+class IngestReport:
+    output: str
+    inputs: list[dict[str, Any]] = field(default_factory=list)
+    streams: list[dict[str, Any]] = field(default_factory=list)
+    can: dict[str, Any] = field(default_factory=dict)
+    skipped_channels: list[dict[str, Any]] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    start_ns: int = 0
+    end_ns: int = 0
+    bytes_read: int = 0
+    messages: int = 0
+    wall_s: float = 0.0
+    partial: bool = False
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dict(self.__dict__)
+        d["duration_s"] = (self.end_ns - self.start_ns) / 1e9
+        d["throughput_mb_s"] = self.bytes_read / 1e6 / self.wall_s if self.wall_s > 0 else 0.0
+        return d
+
+
+def classify_input(path: Path) -> str:
+    """"log" (MCAP / bag / rosbag2), "can" (standalone CAN log) or "nmea" (NMEA text capture)."""
+    suffix = path.suffix.lower()
+    if suffix in CAN_LOG_SUFFIXES:
+        return "can"
+    if suffix in NMEA_SUFFIXES:
+        return "nmea"
+    if suffix == ".log" and path.is_file():
+        # candump logs start with "(<time>) <bus> <id>#<data>"; NMEA captures with '$' or '#' comments.
+        with open(path, "rb") as f:
+            head = f.read(4096)
+        for line in head.splitlines():
+            line = line.strip()
+            if not line or line.startswith(b"#"):
+                continue
+            return "can" if line.startswith(b"(") else "nmea"
+        return "nmea"
+    return "log"
+
+
+def _sanitise(topic: str) -> str:
+    return re.sub(r"\W+", "_", topic.strip("/")) or "root"
+
+
+def _sha256(path: Path) -> tuple[int, str]:
+    """(size in bytes, sha256 hex) of a file; of a directory: sha256 over its files' names and digests."""
+    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+    digests = []
+    for p in files:
+        with open(p, "rb") as f:
+            digests.append(hashlib.file_digest(f, "sha256"))
+    size = sum(p.stat().st_size for p in files)
+    if not path.is_dir():
+        return size, digests[0].hexdigest()
+    h = hashlib.sha256()
+    for p, d in zip(files, digests, strict=True):
+        h.update(str(p.relative_to(path)).encode() + d.digest())
+    return size, h.hexdigest()
+
+
+class _Ingest:
+    def __init__(self, writer: DriveWriter, config: Config, dbc: Path | None) -> None:
+        self.writer = writer
+        self.config = config
+        self.types = MessageTypes()
+        self.warnings: list[str] = []
+        self.skipped_channels: dict[tuple[str, str], dict[str, Any]] = {}
+        self.streams: dict[str, Any] = {}  # drive.h5 group -> TableStream / NmeaStreams / RadarDecoder
+        self.handlers: dict[tuple[str, int], Callable[[RawMessage], None] | None] = {}
+        self.bad_messages: Counter[str] = Counter()
+        self.source_file = ""
+        dbc_path = Path(dbc) if dbc else config.dbc_path
+        try:
+            db, dbc_warnings = load_dbc(dbc_path)
+        except Exception as exc:
+            raise IngestError(f"{dbc_path}: {exc}") from exc
+        self.dbc_path = dbc_path
+        self.warnings.extend(dbc_warnings)
+        self.can = CanDecoder(writer, db, config.can.checksum, lambda: {"source_file": self.source_file})
+        self.names = self._configured_names()
+        self.used_names: dict[tuple[str, str], str] = {}
+
+    # -- naming ------------------------------------------------------------------------------------
+    def _configured_names(self) -> dict[str, tuple[str, str]]:
+        """topic -> (kind, sensor name) for every topic the config pins."""
+        out: dict[str, tuple[str, str]] = {self.config.radar.topic: ("radar", self.config.radar.name)}
+        for name, s in self.config.sensors.items():
+            if s.kind == "imu" and s.topic:
+                out[s.topic] = ("imu", name)
+            elif s.kind == "gnss":
+                for topic, kind in ((s.topic, "fix"), (s.velocity_topic, "velocity"), (s.nmea_topic, "nmea")):
+                    if topic:
+                        out[topic] = (kind, name)
+        return out
+
+    def _name(self, kind: str, topic: str) -> str:
+        pinned = self.names.get(topic)
+        if pinned and pinned[0] == kind:
+            return pinned[1]
+        if kind in ("fix", "velocity", "nmea"):
+            ns = topic.rsplit("/", 1)[0].strip("/")
+            return _sanitise(ns) if ns else "gnss"
+        return _sanitise(topic)
+
+    def _attrs(self, ch: Channel, sensor: str) -> dict[str, Any]:
+        attrs: dict[str, Any] = {"topic": ch.topic, "msgtype": ch.msgtype, "source_file": self.source_file,
+                                 "sensor": sensor}
+        s = self.config.sensors.get(sensor)
+        if s is not None:
+            attrs["lever_arm_m"] = list(s.lever_arm_m)
+            attrs["configured_rate_hz"] = s.rate_hz
+            if s.kind == "imu":
+                attrs["dof"] = s.dof
+        return attrs
+
+    # -- routing -----------------------------------------------------------------------------------
+    def _skip_channel(self, ch: Channel, reason: str) -> None:
+        self.skipped_channels[(ch.topic, ch.msgtype)] = {"topic": ch.topic, "msgtype": ch.msgtype, "reason": reason,
+                                                        "messages": 0}
+        self.handlers[ch.key] = None
+
+    def _route(self, ch: Channel) -> Callable[[RawMessage], None] | None:
+        kind = KIND_OF_TYPE.get(ch.msgtype)
+        if kind is None:
+            self._skip_channel(ch, "not a sensor stream")
+            return None
+        if kind == "can" and self.config.can.topic and ch.topic != self.config.can.topic:
+            self._skip_channel(ch, f"CAN topic pinned to {self.config.can.topic}")
+            return None
+        try:
+            deser = self.types.deserializer(ch)
+        except SchemaError as exc:
+            self._skip_channel(ch, str(exc))
+            self.warnings.append(f"{self.source_file}: topic {ch.topic} ({ch.msgtype}) skipped: {exc}")
+            return None
+        self.warnings.extend(self.types.warnings)
+        self.types.warnings.clear()
+        fn = getattr(self, f"_handler_{kind}")(ch, deser)
+        self.handlers[ch.key] = fn
+        return fn
+
+    def _table(self, path: str, kind: str, columns: dict[str, Any], ch: Channel, sensor: str) -> TableStream:
+        stream = self.streams.get(path)
+        if stream is None:
+            stream = self.streams[path] = TableStream(self.writer, path, kind, columns, self._attrs(ch, sensor))
+        stream.info.topics.add(ch.topic)
+        return stream
+
+    def _handler_imu(self, ch: Channel, deser: Callable[[Any], Any]) -> Callable[[RawMessage], None]:
+        name = self._name("imu", ch.topic)
+        stream = self._table(f"imu/{name}", "imu", IMU_COLUMNS, ch, name)
+        push = stream.push
+
+        def handle(raw: RawMessage) -> None:
+            m = deser(raw.data)
+            push(_stamp_ns(m.header), raw.log_ns, imu_row(m))
+
+        return handle
+
+    def _handler_fix(self, ch: Channel, deser: Callable[[Any], Any]) -> Callable[[RawMessage], None]:
+        name = self._name("fix", ch.topic)
+        stream = self._table(f"gnss/{name}/fix", "fix", FIX_COLUMNS, ch, name)
+
+        def handle(raw: RawMessage) -> None:
+            m = deser(raw.data)
+            row = fix_row(m)
+            if row is None:
+                stream.skip("no fix")
+            else:
+                stream.push(_stamp_ns(m.header), raw.log_ns, row)
+
+        return handle
+
+    def _handler_velocity(self, ch: Channel, deser: Callable[[Any], Any]) -> Callable[[RawMessage], None]:
+        name = self._name("velocity", ch.topic)
+        stream = self._table(f"gnss/{name}/velocity", "velocity", VELOCITY_COLUMNS, ch, name)
+
+        def handle(raw: RawMessage) -> None:
+            m = deser(raw.data)
+            stream.push(_stamp_ns(m.header), raw.log_ns, velocity_row(m))
+
+        return handle
+
+    def _handler_nmea(self, ch: Channel, deser: Callable[[Any], Any]) -> Callable[[RawMessage], None]:
+        name = self._name("nmea", ch.topic)
+        path = f"gnss/{name}"
+        streams = self.streams.get(path)
+        if streams is None:
+            streams = self.streams[path] = NmeaStreams(self.writer, path, self._attrs(ch, name))
+        for s in (streams.fix, streams.velocity, streams.vtg, streams.heading):
+            s.info.topics.add(ch.topic)
+
+        def handle(raw: RawMessage) -> None:
+            m = deser(raw.data)
+            streams.feed(m.sentence, _stamp_ns(m.header), raw.log_ns)
+
+        return handle
+
+    def _handler_can(self, ch: Channel, deser: Callable[[Any], Any]) -> Callable[[RawMessage], None]:
+        feed = self.can.feed
+        topic = ch.topic
+
+        def handle(raw: RawMessage) -> None:
+            m = deser(raw.data)
+            stamp = _stamp_ns(m.header)
+            frame = CanRecord(stamp or raw.log_ns, int(m.id), bool(m.is_extended), int(m.dlc), bytes(m.data),
+                              bool(m.is_error), bool(m.is_rtr))
+            feed(frame, stamp, raw.log_ns, topic)
+
+        return handle
+
+    def _handler_radar(self, ch: Channel, deser: Callable[[Any], Any]) -> Callable[[RawMessage], None]:
+        name = self._name("radar", ch.topic)
+        path = f"radar/{name}"
+        dec = self.streams.get(path)
+        if dec is None:
+            r = self.config.radar
+            m = r.mounting
+            attrs = {**self._attrs(ch, name), "prf_hz": r.prf_hz, "bandwidth_hz": r.bandwidth_hz,
+                     "tx_positions_m": [list(p) for p in r.tx_positions_m],
+                     "rx_positions_m": [list(p) for p in r.rx_positions_m],
+                     "lever_arm_m": list(m.lever_arm_m), "yaw_deg": m.yaw_deg, "pitch_deg": m.pitch_deg,
+                     "roll_deg": m.roll_deg, "geometry_source": "config"}
+            dec = self.streams[path] = RadarDecoder(self.writer, path, attrs)
+        dec.info.topics.add(ch.topic)
+        feed = dec.feed
+
+        def handle(raw: RawMessage) -> None:
+            feed(deser(raw.data), raw.log_ns)
+
+        return handle
+
+    # -- driving -----------------------------------------------------------------------------------
+    def run_source(self, src: LogSource, progress: Callable[[int], None]) -> int:
+        self.source_file = str(src.path)
+        handlers = self.handlers
+        n = 0
+        for raw in src.messages():
+            n += 1
+            key = raw.channel.key
+            fn = handlers[key] if key in handlers else self._route(raw.channel)
+            if fn is None:
+                sk = self.skipped_channels.get((raw.channel.topic, raw.channel.msgtype))
+                if sk is not None:
+                    sk["messages"] += 1
+                continue
+            try:
+                fn(raw)
+            except Exception as exc:  # one undecodable message must not end the ingest
+                self.bad_messages[f"{raw.channel.topic}: {type(exc).__name__}"] += 1
+            if n & 1023 == 0:
+                progress(src.stats.bytes_read)
+        progress(src.stats.bytes_total)
+        self.warnings.extend(src.stats.warnings)
+        return n
+
+    def run_can_log(self, path: Path) -> int:
+        from .canlog import CanLogError, read_can_log
+
+        self.source_file = str(path)
+        n = 0
+        try:
+            for rec in read_can_log(path):
+                self.can.feed(rec, None, rec.t_ns, f"file:{path.name}")
+                n += 1
+        except CanLogError as exc:
+            if n == 0:
+                raise LogReadError(str(exc)) from exc
+            self.warnings.append(f"{exc}; the {n} frames before it were read")
+        return n
+
+    def run_nmea_log(self, path: Path) -> int:
+        from .nmea import NmeaLogReader
+
+        self.source_file = str(path)
+        name = _sanitise(path.stem)
+        key = f"gnss/{name}"
+        streams = self.streams.get(key)
+        if streams is None:
+            attrs = {"topic": "", "msgtype": "nmea text", "source_file": str(path), "sensor": name}
+            streams = self.streams[key] = NmeaStreams(self.writer, key, attrs)
+        reader = NmeaLogReader(path)
+        n = 0
+        for rec in reader:
+            streams.route([rec], None)
+            n += 1
+        streams.decoder.skipped.update(reader.skipped)
+        return n
+
+    def finish(self) -> list[StreamInfo]:
+        infos: list[StreamInfo] = []
+        for stream in self.streams.values():
+            got = stream.finish()
+            if isinstance(got, list):
+                infos.extend(got)
+            elif got is not None:
+                infos.append(got)
+        infos.extend(self.can.finish())
+        for info in infos:
+            st = info.stats
+            if st is None:
+                continue
+            source = "log" if st.log_time_used >= st.received else "header" if st.log_time_used == 0 else "mixed"
+            self.writer.set_attrs(info.path, {"time_source": source, "messages": st.written,
+                                              "clock_offset_ns": st.clock_offset_ns})
+        return infos
+
+
+def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | None = None,
+           can_logs: Iterable[Path] = (), nmea_logs: Iterable[Path] = (), allow_partial: bool = False,
+           progress: ProgressFn | None = None, command: str = "") -> IngestReport:
+    """Ingest ``logs`` (+ standalone CAN and NMEA logs) into ``output`` (drive.h5), atomically."""
+    t0 = time.perf_counter()
+    inputs = [(Path(p), "log") for p in logs] + [(Path(p), "can") for p in can_logs] + \
+             [(Path(p), "nmea") for p in nmea_logs]
+    if not inputs:
+        raise IngestError("no input: give at least one log, --can-log or --nmea file")
+    for path, _ in inputs:
+        if not path.exists():
+            raise IngestError(f"{path}: no such file or directory")
+    sources: list[tuple[Path, str, LogSource | None]] = []
+    for path, kind in inputs:
+        try:
+            sources.append((path, kind, open_source(path) if kind == "log" else None))
+        except LogReadError as exc:
+            raise IngestError(str(exc)) from exc
+    total = sum((s.stats.bytes_total if s else path.stat().st_size) for path, _, s in sources)
+    report = IngestReport(str(output))
+    hasher = ThreadPoolExecutor(1, thread_name_prefix="sha256")
+    hashes: list[Future[tuple[int, str]]] = [hasher.submit(_sha256, p) for p, _, _ in sources]
+    attrs = {"autosar_version": __version__, "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+             "config_path": config.source, "config_toml": _config_text(config)}
+    writer = DriveWriter(output, attrs)
+    done = 0
+    try:
+        job = _Ingest(writer, config, dbc)
+        for path, kind, src in sources:
+            report_progress = (lambda b, base=done: progress(base + b, total)) if progress else (lambda b: None)
+            try:
+                if src is not None:
+                    report.messages += job.run_source(src, report_progress)
+                elif kind == "can":
+                    report.messages += job.run_can_log(path)
+                else:
+                    report.messages += job.run_nmea_log(path)
+            except LogReadError as exc:
+                raise IngestError(str(exc)) from exc
+            done += src.stats.bytes_total if src else path.stat().st_size
+            report_progress(0)
+        infos = job.finish()
+        _check_content(inputs, infos, job, allow_partial, report)
+        roles, missing_roles = _resolve_roles(job, infos)
+        report.streams = [i.to_dict() for i in infos]
+        report.can = {**job.can.stats.to_dict(), "roles": roles, "missing_roles": missing_roles}
+        if job.bad_messages:
+            report.can["undecodable_messages"] = dict(job.bad_messages)
+            report.warnings.append(f"{sum(job.bad_messages.values())} messages could not be decoded: "
+                                   + ", ".join(f"{k} ×{v}" for k, v in job.bad_messages.items()))
+        report.skipped_channels = list(job.skipped_channels.values())
+        report.warnings = job.warnings + report.warnings
+        written = [i.stats for i in infos if i.stats is not None and i.stats.written]
+        report.start_ns = min((s.first_ns for s in written), default=0)
+        report.end_ns = max((s.last_ns for s in written), default=0)
+        for (path, kind, _), fut in zip(sources, hashes, strict=True):
+            size, digest = fut.result()
+            report.inputs.append({"path": str(path), "kind": kind, "size_bytes": size, "sha256": digest})
+        report.bytes_read = total
+        report.wall_s = time.perf_counter() - t0
+        writer.set_attrs("can", {"roles": roles, "dbc_path": str(job.dbc_path)})
+        writer.set_attrs("/", {"start_ns": report.start_ns, "end_ns": report.end_ns})
+        writer.write_inputs(report.inputs)
+        writer.set_attrs("provenance", {"command": command, "report": json.dumps(report.to_dict())})
+        writer.commit()
+    except BaseException:
+        writer.abort()
+        raise
+    finally:
+        hasher.shutdown(wait=False, cancel_futures=True)
+    report.wall_s = time.perf_counter() - t0
+    return report
+
+
+def _config_text(config: Config) -> str:
+    try:
+        return Path(config.source).read_text(encoding="utf-8") if config.source else ""
+    except OSError:
+        return ""
+
+
+def _check_content(inputs: list[tuple[Path, str]], infos: list[StreamInfo], job: _Ingest, allow_partial: bool,
+                   report: IngestReport) -> None:
+    names = ", ".join(str(p) for p, _ in inputs)
+    written = [i for i in infos if i.stats is not None and i.stats.written]
+    if not written:
+        seen = ", ".join(f"{s['topic']} ({s['msgtype']})" for s in job.skipped_channels.values())
+        raise IngestError(f"{names}: no known sensor streams (CAN frames, NavSatFix, NMEA, Imu, ScanBrick RawFrame)"
+                          + (f"; found only {seen}" if seen else ""))
+    has_radar = any(i.kind == "radar" for i in written)
+    has_nav = any(i.kind in ("imu", "fix", "nmea_fix", "velocity") for i in written) or any(
+        i.kind == "can" for i in written)
+    missing = [what for what, ok in (("radar", has_radar), ("navigation (CAN, GNSS or IMU)", has_nav)) if not ok]
+    if missing:
+        msg = f"{names}: no {' and no '.join(missing)} stream"
+        if not allow_partial:
+            raise IngestError(msg + " (use --allow-partial to write the drive anyway)")
+        report.partial = True
+        report.warnings.append(msg + "; written anyway (--allow-partial)")
+
+
+def _resolve_roles(job: _Ingest, infos: list[StreamInfo]) -> tuple[dict[str, str], list[str]]:
+    """Role -> "GROUP/SIGNAL" for every configured CAN role whose message was ingested."""
+    groups = {i.path.split("/", 1)[1] for i in infos if i.kind == "can" and i.stats is not None and i.stats.written}
+    roles: dict[str, str] = {}
+    missing: list[str] = []
+    for role, ref in job.config.can.roles.items():
+        message, _, signal = ref.partition(".")
+        group = job.can.group_of(message)
+        if group in groups:
+            roles[role] = f"{group}/{signal}"
+        else:
+            missing.append(role)
+    return roles, missing

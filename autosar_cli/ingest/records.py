@@ -1,0 +1,62 @@
+"""Records that the ingest readers and decoders hand to the ingest pipeline.
+
+Times are int64 nanoseconds since the Unix epoch (UTC). Angles follow the project's ENU convention
+(``heading``/``course``: angle from East, counter-clockwise, radians): GNSS courses "from North,
+clockwise" are converted once, by the NMEA decoder, through :mod:`autosar_cli.nav.frames`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+#: Marks an unknown time (e.g. an NMEA fix time before any sentence carried the date).
+UNKNOWN_TIME = -1
+
+
+@dataclass(frozen=True, slots=True)
+class CanRecord:
+    """One CAN frame as recorded (by a ROS driver or a standalone CAN logger)."""
+
+    t_ns: int  #: reception time, ns since the Unix epoch
+    frame_id: int  #: arbitration ID without flag bits
+    is_extended: bool
+    dlc: int  #: data length code as recorded (may disagree with len(data) on a faulty logger)
+    data: bytes
+    is_error: bool = False
+    is_remote: bool = False
+    channel: str = ""  #: bus name/number as the logger calls it ("" if unknown)
+
+
+@dataclass(frozen=True, slots=True)
+class NmeaFix:
+    """Position of one GGA sentence."""
+
+    t_ns: int  #: when it was received (log/header stamp); for a text log without stamps, the fix time
+    fix_time_ns: int  #: UTC instant the fix refers to, or UNKNOWN_TIME if the date is not known yet
+    latitude_deg: float
+    longitude_deg: float
+    altitude_m: float  #: ellipsoidal height = altitude above mean sea level + geoid separation
+    quality: int  #: GGA fix quality (0 = no fix, 1 = GPS, 2 = DGPS, 4 = RTK fixed, 5 = RTK float, ...)
+    num_satellites: int
+    hdop: float
+
+
+@dataclass(frozen=True, slots=True)
+class NmeaVelocity:
+    """Ground speed and course of one RMC or VTG sentence."""
+
+    t_ns: int
+    fix_time_ns: int  #: RMC: its fix instant; VTG (no time field): UNKNOWN_TIME
+    speed_mps: float
+    course_rad: float  #: course over ground in ENU convention (from East, counter-clockwise); NaN if absent
+
+
+@dataclass(frozen=True, slots=True)
+class NmeaHeading:
+    """True heading of one HDT sentence (dual-antenna receivers)."""
+
+    t_ns: int
+    heading_rad: float  #: ENU convention (from East, counter-clockwise)
+
+
+NmeaRecord = NmeaFix | NmeaVelocity | NmeaHeading

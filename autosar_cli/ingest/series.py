@@ -1,0 +1,171 @@
+"""Time series assembly: stamp choice, time-jump repair, reordering, duplicates, gaps and statistics.
+
+Every decoded stream goes through one :class:`Series` before it reaches drive.h5:
+
+1. Stamp: the header stamp (sensor time) when it is set, else the log (recording) time.
+2. Time jumps: the median of ``header − log`` over the first messages is the stream's clock offset. A
+   message whose offset differs from it by more than ``max_clock_step_s`` has a broken stamp (sensor
+   clock jump, uninitialised header): its time becomes ``log time + offset`` and it is counted.
+3. Reordering: a bounded buffer (``window`` messages) puts slightly out-of-order messages back in
+   order. A message older than what has already been written is dropped and counted ("late"); one with
+   the same time as its neighbour is a duplicate, dropped and counted.
+4. Gaps: a step longer than ``gap_factor`` × the stream's typical period is recorded.
+
+Memory is bounded by the window and the flush size, whatever the length of the log.
+"""
+
+from __future__ import annotations
+
+import bisect
+from collections import Counter
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from operator import itemgetter
+from typing import Any
+
+import numpy as np
+
+_KEY = itemgetter(0)
+_OFFSET_SAMPLES = 8
+
+
+@dataclass
+class SeriesStats:
+    """What happened to the messages of one stream (reported by ingest, stored in drive.h5)."""
+
+    received: int = 0
+    written: int = 0
+    log_time_used: int = 0
+    reordered: int = 0
+    duplicates: int = 0
+    late_dropped: int = 0
+    time_jumps: int = 0
+    gaps: list[tuple[int, int]] = field(default_factory=list)
+    skipped: Counter[str] = field(default_factory=Counter)
+    clock_offset_ns: int = 0
+    first_ns: int = 0
+    last_ns: int = 0
+
+    def to_dict(self) -> dict[str, Any]:
+        d: dict[str, Any] = {k: v for k, v in self.__dict__.items() if k not in ("gaps", "skipped")}
+        d["gaps"] = len(self.gaps)
+        d["largest_gap_s"] = max(((b - a) / 1e9 for a, b in self.gaps), default=0.0)
+        d["skipped"] = dict(self.skipped)
+        return d
+
+
+class Series:
+    """Ordered, de-duplicated rows of one stream, flushed in batches to ``sink``.
+
+    ``sink(t_ns, rows)`` receives int64 times and the list of row objects in time order.
+    """
+
+    def __init__(self, sink: Callable[[np.ndarray, list[Any]], None], *, window: int = 512, flush_rows: int = 4096,
+                 max_clock_step_s: float = 1.0, gap_factor: float = 5.0) -> None:
+        self._sink = sink
+        self.window = window
+        self.flush_rows = flush_rows
+        self.max_step_ns = int(max_clock_step_s * 1e9)
+        self.gap_factor = gap_factor
+        self.stats = SeriesStats()
+        self._pending: list[tuple[int | None, int, Any]] = []
+        self._offset: int | None = None
+        self._buf: list[tuple[int, Any]] = []
+        self._out_t: list[int] = []
+        self._out_rows: list[Any] = []
+        self._last_t: int | None = None
+        self._period: float | None = None
+
+    def push(self, header_ns: int | None, log_ns: int, row: Any) -> None:
+        """Add one message: its header stamp (None or 0 if it has none), log time (ns) and decoded row."""
+        self.stats.received += 1
+        if self._offset is None:
+            self._pending.append((header_ns, log_ns, row))
+            if len(self._pending) >= _OFFSET_SAMPLES:
+                self._settle_offset()
+            return
+        self._add(self._stamp(header_ns, log_ns), row)
+
+    def _settle_offset(self) -> None:
+        offsets = [h - lg for h, lg, _ in self._pending if h]
+        self._offset = int(np.median(offsets)) if offsets else 0
+        self.stats.clock_offset_ns = self._offset
+        pending, self._pending = self._pending, []
+        for h, lg, row in pending:
+            self._add(self._stamp(h, lg), row)
+
+    def _stamp(self, header_ns: int | None, log_ns: int) -> int:
+        if not header_ns or header_ns <= 0:
+            self.stats.log_time_used += 1
+            return log_ns
+        assert self._offset is not None
+        if abs(header_ns - log_ns - self._offset) > self.max_step_ns:
+            self.stats.time_jumps += 1
+            return log_ns + self._offset
+        return header_ns
+
+    def _add(self, t: int, row: Any) -> None:
+        buf = self._buf
+        if self._last_t is not None and t <= self._last_t:
+            if t == self._last_t:
+                self.stats.duplicates += 1
+            else:
+                self.stats.late_dropped += 1
+            return
+        if not buf or t > buf[-1][0]:
+            buf.append((t, row))
+        else:
+            i = bisect.bisect_left(buf, t, key=_KEY)
+            if i < len(buf) and buf[i][0] == t:
+                self.stats.duplicates += 1
+                return
+            self.stats.reordered += 1
+            buf.insert(i, (t, row))
+        if len(buf) >= 2 * self.window:
+            self._emit(self.window)
+
+    def _emit(self, n: int) -> None:
+        head, self._buf = self._buf[:n], self._buf[n:]
+        for t, row in head:
+            self._out_t.append(t)
+            self._out_rows.append(row)
+        if head:
+            self._last_t = head[-1][0]
+        if len(self._out_t) >= self.flush_rows:
+            self._flush()
+
+    def _flush(self) -> None:
+        if not self._out_t:
+            return
+        t = np.asarray(self._out_t, dtype=np.int64)
+        rows, self._out_t, self._out_rows = self._out_rows, [], []
+        self._track(t)
+        self._sink(t, rows)
+
+    def _track(self, t: np.ndarray) -> None:
+        s = self.stats
+        prev = np.concatenate([[s.last_ns], t]) if s.written else t
+        dts = np.diff(prev)
+        if self._period is None and len(dts):
+            # The first flush holds flush_rows rows (or the whole stream): a robust typical period.
+            self._period = float(np.median(dts))
+        if self._period:
+            big = np.flatnonzero(dts > self.gap_factor * self._period)
+            s.gaps.extend((int(prev[i]), int(prev[i + 1])) for i in big)
+        if s.written == 0:
+            s.first_ns = int(t[0])
+        s.written += len(t)
+        s.last_ns = int(t[-1])
+
+    def finish(self) -> SeriesStats:
+        """Write out everything still buffered; returns the statistics."""
+        if self._offset is None:
+            self._settle_offset()
+        self._emit(len(self._buf))
+        self._flush()
+        return self.stats
+
+
+def stack_rows(rows: Sequence[Any], index: int, dtype: Any) -> np.ndarray:
+    """Column ``index`` of tuple rows as an array (rows of vectors give a 2-D array)."""
+    return np.asarray([r[index] for r in rows], dtype=dtype)

@@ -1,0 +1,71 @@
+"""Message deserializers per channel, built from the definitions embedded in the log.
+
+A channel's embedded definition wins (it describes the bytes as they were written). Where a log has
+none, or it cannot be parsed (e.g. a service-event schema holding ``---``), the project's built-in
+definitions (:func:`autosar_cli.msgs.typestore_for`) are used for the types ingest knows; any other
+channel is skipped with a warning. A bad channel never takes the whole log down.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from autosar_cli.msgs import typestore_for
+
+from .sources import Channel
+
+Deserializer = Callable[[bytes | memoryview], Any]
+
+
+class SchemaError(ValueError):
+    """A channel cannot be decoded; the message says why."""
+
+
+class MessageTypes:
+    """Caches one deserializer per (encoding, type, definition)."""
+
+    def __init__(self) -> None:
+        self._cache: dict[tuple[str, str, str], Deserializer] = {}
+        self.warnings: list[str] = []
+
+    def deserializer(self, channel: Channel) -> Deserializer:
+        key = (channel.encoding, channel.msgtype, channel.schema)
+        if key not in self._cache:
+            self._cache[key] = self._build(channel)
+        return self._cache[key]
+
+    def _build(self, ch: Channel) -> Deserializer:
+        if ch.encoding not in ("cdr", "ros1"):
+            raise SchemaError(f"message encoding {ch.encoding!r} is not supported (cdr, ros1)")
+        ros_version = 1 if ch.encoding == "ros1" else 2
+        store = None
+        if ch.schema and ch.schema_encoding in ("ros2msg", "ros1msg", ""):
+            try:
+                store = get_typestore(Stores.EMPTY)
+                store.register(get_types_from_msg(ch.schema, ch.msgtype))
+                if ch.msgtype not in store.types:
+                    raise SchemaError(f"definition does not define {ch.msgtype}")
+            except Exception as exc:  # rosbags raises several types for bad text
+                store = None
+                builtin = typestore_for(ros_version)
+                if ch.msgtype not in builtin.types:
+                    raise SchemaError(f"unparseable embedded definition ({_one_line(exc)})") from exc
+                self.warnings.append(f"topic {ch.topic}: unparseable embedded definition of {ch.msgtype} "
+                                     f"({_one_line(exc)}); using the built-in one")
+        if store is None:
+            store = typestore_for(ros_version)
+            if ch.msgtype not in store.types:
+                raise SchemaError(f"no definition of {ch.msgtype}")
+        typename = ch.msgtype
+        if ros_version == 1:
+            deser1 = store.deserialize_ros1
+            return lambda data: deser1(data, typename)
+        deser2 = store.deserialize_cdr
+        return lambda data: deser2(data, typename)
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())[:200] or type(exc).__name__

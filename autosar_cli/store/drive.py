@@ -1,0 +1,353 @@
+"""drive.h5: the HDF5 layout ingest writes and navigate/focus read (docs/FORMATS.md, format version 1).
+
+Layout::
+
+    /                      attrs: format="autosar-drive", format_version, autosar_version, created_utc,
+                                  start_ns, end_ns, config_toml, config_path
+    /provenance            attrs: command, report (JSON ingest report); dataset inputs (path, kind, size, sha256)
+    /can/<MESSAGE>         t_ns + one float64 column per DBC signal (SI units, attr unit); attrs frame_id, ...
+    /gnss/<source>/fix     t_ns, latitude_deg, longitude_deg, altitude_m, status, position_covariance (N, 9)
+    /gnss/<source>/velocity              t_ns, velocity_enu (N, 3) m/s, velocity_covariance (N, 3) m²/s²
+    /gnss/<source>/nmea_fix|nmea_velocity|nmea_heading   decoded NMEA sentences
+    /imu/<source>          t_ns, angular_velocity (N, 3) rad/s, linear_acceleration (N, 3) m/s², orientation
+                           (N, 4) xyzw, *_covariance (N, 9); body axes of the IMU frame
+    /radar/<sensor>        t_ns (start of each PRI), frame_index, raw (N, tx, rx, sample, I/Q) int16 chunked
+                           by frames and Blosc-LZ4 compressed; radar parameters and antenna geometry as attrs
+
+Every series group has attrs ``topic``, ``source_file``, ``msgtype``, ``time_source`` ("header" or "log"),
+and a ``gaps`` dataset ``(M, 2)`` int64 of (t_ns before, t_ns after) for every gap in the series
+(radar: frame_index jumps). All ``t_ns`` are int64 ns since the Unix epoch, sorted, without duplicates.
+
+Writing is atomic: :class:`DriveWriter` writes ``<name>.partial`` and renames it on :meth:`commit`.
+All HDF5 calls of a writer run on one background thread so that compression overlaps decoding.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import queue
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import h5py
+import hdf5plugin  # noqa: F401  (registers the Blosc filter that raw radar cubes use)
+import numpy as np
+
+FORMAT = "autosar-drive"
+FORMAT_VERSION = 1
+RADAR_CHUNK_FRAMES = 32
+TABLE_CHUNK_ROWS = 4096
+
+_STR = h5py.string_dtype()
+
+
+def radar_compression() -> dict[str, Any]:
+    """HDF5 filter of raw radar cubes: Blosc + LZ4 + byte shuffle (fast both ways, ~0.75 on noisy int16)."""
+    return dict(hdf5plugin.Blosc(cname="lz4", clevel=5, shuffle=hdf5plugin.Blosc.SHUFFLE))
+
+
+class DriveFormatError(ValueError):
+    """A file is not a drive.h5 this version can read; the message names the file and the problem."""
+
+
+@dataclass(frozen=True, slots=True)
+class Column:
+    """One column of a table: dtype and the shape of one row (() for scalars)."""
+
+    dtype: Any
+    shape: tuple[int, ...] = ()
+    unit: str = ""
+
+
+class _HdfThread:
+    """Runs every HDF5 call of one file on a single worker thread, in submission order.
+
+    The queue is bounded so that a slow disk throttles the decoder instead of filling memory.
+    An exception on the worker is re-raised on the next submit, wait or close.
+    """
+
+    def __init__(self, max_pending: int = 8) -> None:
+        self._queue: queue.Queue[tuple[Callable[[], Any], threading.Event | None] | None] = queue.Queue(max_pending)
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name="drive-writer", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while True:
+            item = self._queue.get()
+            if item is None:
+                return
+            fn, done = item
+            if self._error is None:
+                try:
+                    fn()
+                except BaseException as exc:  # handed to the submitting thread
+                    self._error = exc
+            if done is not None:
+                done.set()
+
+    def _raise(self) -> None:
+        if self._error is not None:
+            err, self._error = self._error, None
+            raise err
+
+    def submit(self, fn: Callable[[], Any]) -> None:
+        self._raise()
+        self._queue.put((fn, None))
+
+    def call(self, fn: Callable[[], Any]) -> Any:
+        """Run ``fn`` on the worker after everything queued before it; return its result."""
+        box: list[Any] = []
+        done = threading.Event()
+        self._queue.put((lambda: box.append(fn()), done))
+        done.wait()
+        self._raise()
+        return box[0]
+
+    def close(self) -> None:
+        self._queue.put(None)
+        self._thread.join()
+        self._raise()
+
+
+class Table:
+    """Appendable columns of equal length in one HDF5 group (rows = time samples)."""
+
+    def __init__(self, writer: DriveWriter, path: str, columns: Mapping[str, Column], attrs: Mapping[str, Any]):
+        self._writer = writer
+        self.path = path
+        self.columns = dict(columns)
+        self.rows = 0
+        writer._hdf.call(lambda: self._create(writer._file, attrs))
+
+    def _create(self, f: h5py.File, attrs: Mapping[str, Any]) -> None:
+        g = f.require_group(self.path)
+        for name, col in self.columns.items():
+            ds = g.create_dataset(name, shape=(0, *col.shape), maxshape=(None, *col.shape), dtype=col.dtype,
+                                  chunks=(TABLE_CHUNK_ROWS, *col.shape), compression="gzip", compression_opts=1,
+                                  shuffle=True)
+            if col.unit:
+                ds.attrs["unit"] = col.unit
+        _set_attrs(g, attrs)
+
+    def append(self, data: Mapping[str, np.ndarray]) -> None:
+        """Append rows; ``data`` has one array per column, all of the same length."""
+        n = len(data["t_ns"])
+        if n == 0:
+            return
+        arrays = {k: np.asarray(data[k], dtype=self.columns[k].dtype) for k in self.columns}
+        start = self.rows
+        self.rows += n
+        f = self._writer._file
+
+        def write() -> None:
+            g = f[self.path]
+            for name, arr in arrays.items():
+                ds = g[name]
+                ds.resize(start + n, axis=0)
+                ds[start:] = arr
+
+        self._writer._hdf.submit(write)
+
+    def set_attrs(self, attrs: Mapping[str, Any]) -> None:
+        f = self._writer._file
+        self._writer._hdf.submit(lambda: _set_attrs(f[self.path], attrs))
+
+    def write_dataset(self, name: str, data: np.ndarray) -> None:
+        f = self._writer._file
+        arr = np.asarray(data)
+        self._writer._hdf.submit(lambda: f[self.path].create_dataset(name, data=arr))
+
+
+class RadarCube(Table):
+    """A radar group: t_ns and frame_index columns plus the raw (frame, tx, rx, sample, I/Q) int16 cube."""
+
+    def __init__(self, writer: DriveWriter, path: str, frame_shape: tuple[int, int, int], attrs: Mapping[str, Any]):
+        self.frame_shape = (*frame_shape, 2)
+        super().__init__(writer, path, {"t_ns": Column(np.int64), "frame_index": Column(np.int64)}, attrs)
+        shape = self.frame_shape
+
+        def create() -> None:
+            writer._file[path].create_dataset(
+                "raw", shape=(0, *shape), maxshape=(None, *shape), dtype=np.int16,
+                chunks=(RADAR_CHUNK_FRAMES, *shape), **radar_compression())
+
+        writer._hdf.call(create)
+
+    def append_frames(self, t_ns: np.ndarray, frame_index: np.ndarray, raw: np.ndarray) -> None:
+        """Append frames; ``raw`` (n, tx, rx, sample, 2) int16 is handed over (do not modify it afterwards)."""
+        start = self.rows
+        self.append({"t_ns": t_ns, "frame_index": frame_index})
+        f = self._writer._file
+        n = len(raw)
+
+        def write() -> None:
+            ds = f[self.path]["raw"]
+            ds.resize(start + n, axis=0)
+            ds[start:] = raw
+
+        self._writer._hdf.submit(write)
+
+
+def _set_attrs(obj: h5py.HLObject, attrs: Mapping[str, Any]) -> None:
+    for key, value in attrs.items():
+        if isinstance(value, dict | list) and not (isinstance(value, list) and value and
+                                                    all(isinstance(v, int | float) for v in value)):
+            value = json.dumps(value)
+        obj.attrs[key] = value
+
+
+class DriveWriter:
+    """Writes one drive.h5 atomically: everything goes to ``<path>.partial`` until :meth:`commit`."""
+
+    def __init__(self, path: str | Path, attrs: Mapping[str, Any]) -> None:
+        self.path = Path(path)
+        self.partial = self.path.with_name(self.path.name + ".partial")
+        self.partial.unlink(missing_ok=True)
+        self._file = h5py.File(self.partial, "w", libver="latest")
+        self._hdf = _HdfThread()
+        self._closed = False
+        root = {"format": FORMAT, "format_version": FORMAT_VERSION, **attrs}
+        self._hdf.call(lambda: _set_attrs(self._file, root))
+
+    def table(self, path: str, columns: Mapping[str, Column], attrs: Mapping[str, Any]) -> Table:
+        return Table(self, path, columns, attrs)
+
+    def radar(self, path: str, frame_shape: tuple[int, int, int], attrs: Mapping[str, Any]) -> RadarCube:
+        return RadarCube(self, path, frame_shape, attrs)
+
+    def set_attrs(self, path: str, attrs: Mapping[str, Any]) -> None:
+        self._hdf.submit(lambda: _set_attrs(self._file.require_group(path), attrs))
+
+    def write_inputs(self, inputs: list[dict[str, Any]]) -> None:
+        """Provenance table of the input files (path, kind, size_bytes, sha256)."""
+        dt = np.dtype([("path", _STR), ("kind", _STR), ("size_bytes", np.int64), ("sha256", _STR)])
+        rows = np.array([(i["path"], i["kind"], i["size_bytes"], i["sha256"]) for i in inputs], dtype=dt)
+
+        def write() -> None:
+            g = self._file.require_group("provenance")
+            g.create_dataset("inputs", data=rows)
+
+        self._hdf.submit(write)
+
+    def flush(self) -> None:
+        """Wait until everything submitted so far is written."""
+        self._hdf.call(lambda: None)
+
+    def commit(self) -> Path:
+        """Finish writing and rename the partial file to its final name."""
+        self._close()
+        os.replace(self.partial, self.path)
+        return self.path
+
+    def abort(self) -> None:
+        """Stop writing and delete the partial file (never leaves a file that looks complete)."""
+        try:
+            self._close()
+        except Exception:  # the original failure matters more than a follow-up one
+            pass
+        self.partial.unlink(missing_ok=True)
+
+    def _close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._hdf.close()
+        finally:
+            self._file.close()
+
+
+# --------------------------------------------------------------------------------------------- reading
+@dataclass(frozen=True)
+class RadarStream:
+    """One radar of a drive: frame times (ns), frame indices, the lazily read raw cube and its parameters."""
+
+    name: str
+    t_ns: np.ndarray
+    frame_index: np.ndarray
+    raw: h5py.Dataset  #: (frame, tx, rx, sample, I/Q) int16; read it in blocks of frames
+    attrs: dict[str, Any]
+
+
+class Drive:
+    """Read access to a drive.h5 (use as a context manager)."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        try:
+            self._file = h5py.File(self.path, "r")
+        except OSError as exc:
+            raise DriveFormatError(f"{self.path}: not an HDF5 file ({exc})") from exc
+        fmt = self._file.attrs.get("format")
+        version = self._file.attrs.get("format_version")
+        if fmt != FORMAT:
+            self._file.close()
+            raise DriveFormatError(f"{self.path}: not a drive.h5 (format attribute {fmt!r})")
+        if version is None or int(version) > FORMAT_VERSION:
+            self._file.close()
+            raise DriveFormatError(f"{self.path}: drive format version {version} is newer than this autosar "
+                                   f"reads ({FORMAT_VERSION})")
+        self.attrs = dict(self._file.attrs)
+
+    def __enter__(self) -> Drive:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._file.close()
+
+    @property
+    def h5(self) -> h5py.File:
+        return self._file
+
+    def _members(self, group: str) -> list[str]:
+        return sorted(self._file[group]) if group in self._file else []
+
+    def can_messages(self) -> list[str]:
+        return self._members("can")
+
+    def gnss_sources(self) -> list[str]:
+        return self._members("gnss")
+
+    def imu_sources(self) -> list[str]:
+        return self._members("imu")
+
+    def radar_names(self) -> list[str]:
+        return self._members("radar")
+
+    def series(self, path: str) -> dict[str, np.ndarray]:
+        """All columns of a series group (``"imu/imu_cog_a"``, ``"gnss/gnss_cog/fix"``, ``"can/ABS_1"``)."""
+        g = self._file[path]
+        return {k: g[k][()] for k in g if isinstance(g[k], h5py.Dataset) and k != "raw"}
+
+    def can_role(self, role: str) -> tuple[np.ndarray, np.ndarray]:
+        """(t_ns, value in SI units) of a CAN signal by its role in the vehicle config (``wheel_speed_fl``)."""
+        roles = json.loads(self._file["can"].attrs.get("roles", "{}")) if "can" in self._file else {}
+        if role not in roles:
+            raise KeyError(f"{self.path}: no CAN signal has the role {role!r} (known: {', '.join(sorted(roles))})")
+        message, signal = roles[role].split("/")
+        g = self._file["can"][message]
+        return g["t_ns"][()], g[signal][()]
+
+    def can_roles(self) -> dict[str, str]:
+        return json.loads(self._file["can"].attrs.get("roles", "{}")) if "can" in self._file else {}
+
+    def radar(self, name: str | None = None) -> RadarStream:
+        names = self.radar_names()
+        if not names:
+            raise DriveFormatError(f"{self.path}: no radar stream")
+        name = name or names[0]
+        g = self._file["radar"][name]
+        attrs = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in g.attrs.items()}
+        return RadarStream(name, g["t_ns"][()], g["frame_index"][()], g["raw"], attrs)
+
+    def report(self) -> dict[str, Any]:
+        """The ingest report stored in the provenance group."""
+        return json.loads(self._file["provenance"].attrs.get("report", "{}"))

@@ -1,0 +1,383 @@
+"""Tests of standalone CAN log ingest: real CANedge MDF4 recordings of a GNSS/IMU module, and round trips
+through the formats python-can writes (ASC, BLF, TRC, candump -L)."""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Iterator
+from datetime import UTC, datetime
+from functools import cache
+from pathlib import Path
+
+import can
+import numpy as np
+import pytest
+from asammdf import MDF
+from cantools.database.can import Database
+
+from autosar_cli.candb import check_frame, encode_frame, load_dbc
+from autosar_cli.ingest.canlog import CAN_LOG_SUFFIXES, CanLogError, is_can_log, read_can_log
+from autosar_cli.ingest.records import CanRecord
+from tests.conftest import realdata
+
+REPO = Path(__file__).resolve().parents[1]
+PROJECT_DBC = REPO / "configs" / "autosar_giulia.dbc"
+CSS = "css-electronics"
+MF4_2022 = "2F6913DB_00000004_00000001.MF4"
+MF4_2023_1 = "2F6913DB_00001089_00000001-63BEF5CD.MF4"
+MF4_2023_2 = "2F6913DB_00001089_00000002-63BEFDF9.MF4"
+
+# Facts of the real files, checked against asammdf and python-can (see test_real_mf4_*).
+# name: (frames, frames on channel 1 (0x7xx diagnostics), on channel 2 (GNSS module), first t [s], last t [s])
+MF4_FACTS = {
+    MF4_2022: (5588, 221, 5367, 1641469561.9497, 1641469625.4197),
+    MF4_2023_1: (4024, 1011, 3013, 1673458929.10395, 1673459099.6699),
+    MF4_2023_2: (3587, 304, 3283, 1673459099.772, 1673459288.66955),
+}
+# Where the module was: the 2022 recording is 9 km north of the 2023 drives (not near 56.07 N).
+MF4_PLACE = {MF4_2022: (56.1517, 10.1738), MF4_2023_1: (56.0707, 10.1604), MF4_2023_2: (56.0704, 10.1602)}
+# gnss_pos / gnss_time frames: 1 Hz, each of them valid.
+MF4_GNSS_FRAMES = {MF4_2022: 44, MF4_2023_1: 168, MF4_2023_2: 178}
+# Median of (logger time - GNSS epoch in gnss_time) [s]: the 2023 logger clock lags GNSS time by ~29 s.
+MF4_CLOCK_OFFSET = {MF4_2022: -0.1055, MF4_2023_1: -28.9028, MF4_2023_2: -28.8160}
+
+T_2022 = datetime(2022, 1, 1, tzinfo=UTC).timestamp() * 1e9
+T_2024 = datetime(2024, 1, 1, tzinfo=UTC).timestamp() * 1e9
+
+
+@cache
+def _real_records(name: str) -> tuple[CanRecord, ...]:
+    """All records of a real MF4 file (read once per test session)."""
+    return tuple(read_can_log(realdata(CSS, name)))
+
+
+@cache
+def _gnss_dbc() -> Database:
+    db, warnings = load_dbc(realdata(CSS, "gnss.dbc"))
+    assert warnings == []
+    return db
+
+
+def _decoded(name: str, message: str) -> list[tuple[int, dict[str, float]]]:
+    """(t_ns, raw-choice-free decoded values) of every GNSS-module frame of a message, found by frame ID."""
+    db = _gnss_dbc()
+    out = []
+    for rec in _real_records(name):
+        if rec.channel != "2":
+            continue
+        try:
+            msg = db.get_message_by_frame_id(rec.frame_id)
+        except KeyError:
+            continue  # 0x10 in the 2022 file is not in gnss.dbc
+        if msg.name == message:
+            values = msg.decode(rec.data, decode_choices=False)
+            out.append((rec.t_ns, {k: float(v) for k, v in values.items()}))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Real CANedge MDF4 files
+
+
+@pytest.mark.parametrize("name", sorted(MF4_FACTS))
+def test_real_mf4_counts_and_absolute_times(name: str) -> None:
+    path = realdata(CSS, name)
+    frames, on_ch1, on_ch2, first_s, last_s = MF4_FACTS[name]
+    records = _real_records(name)
+    assert len(records) == frames
+    with MDF(path) as mdf:  # asammdf's own count: cycles of the CAN data-frame channel groups
+        cycles = sum(
+            g.channel_group.cycles_nr for g in mdf.groups if any(c.name == "CAN_DataFrame" for c in g.channels)
+        )
+    assert cycles == frames
+    assert Counter(r.channel for r in records) == {"1": on_ch1, "2": on_ch2}
+    t = np.array([r.t_ns for r in records], dtype=np.int64)
+    assert T_2022 <= t.min() and t.max() < T_2024  # absolute Unix times, not offsets from the start
+    assert t[0] == pytest.approx(first_s * 1e9, abs=1e3)
+    assert t[-1] == pytest.approx(last_s * 1e9, abs=1e3)
+    assert np.all(np.diff(t) >= 0)  # all three files: 0 decreasing steps (python-can merges groups by time)
+    assert all(not r.is_extended and not r.is_error and not r.is_remote and r.dlc == len(r.data) for r in records)
+    ids = {r.frame_id for r in records if r.channel == "2"}
+    assert ids == (set(range(17, 26)) if "1089" in name else set(range(1, 10)) | {0x10})
+    assert all(0x700 <= r.frame_id <= 0x7FF for r in records if r.channel == "1")
+
+
+def test_real_mf4_suffix_and_streaming() -> None:
+    path = realdata(CSS, MF4_2023_2)
+    assert path.suffix == ".MF4" and is_can_log(path)
+    it = read_can_log(path)
+    assert isinstance(it, Iterator) and not isinstance(it, list | tuple)
+    first = next(it)
+    it.close()  # closes the reader early
+    assert first == _real_records(MF4_2023_2)[0]
+    assert first.frame_id == 25 and first.channel == "2" and first.data.hex() == "fb13d0c9ff01d07f"
+
+
+def test_gnss_dbc_duplicate_names_resolve_by_frame_id() -> None:
+    db = _gnss_dbc()
+    assert len(db.messages) == 18  # 2 x 9; cantools drops VECTOR__INDEPENDENT_SIG_MSG
+    for low in range(1, 10):
+        a, b = db.get_message_by_frame_id(low), db.get_message_by_frame_id(low + 16)
+        assert a.name == b.name and [s.name for s in a.signals] == [s.name for s in b.signals]
+    assert db.get_message_by_frame_id(3).name == db.get_message_by_frame_id(19).name == "gnss_pos"
+
+
+@pytest.mark.parametrize("name", sorted(MF4_FACTS))
+def test_real_gnss_positions(name: str) -> None:
+    positions = _decoded(name, "gnss_pos")
+    valid = [v for _, v in positions if v["PositionValid"] == 1]
+    assert len(valid) == len(positions) == MF4_GNSS_FRAMES[name]
+    lat0, lon0 = MF4_PLACE[name]
+    for v in valid:
+        assert abs(v["Latitude"] - lat0) < 0.05 and abs(v["Longitude"] - lon0) < 0.05
+    assert abs(np.mean([v["Latitude"] for v in valid]) - lat0) < 2e-4
+    assert abs(np.mean([v["Longitude"] for v in valid]) - lon0) < 2e-4
+
+
+def test_real_gnss_pos_by_hand() -> None:
+    """First gnss_pos frame of the first 2023 file, decoded from its bytes per gnss.dbc's Intel layout."""
+    rec = next(r for r in _real_records(MF4_2023_1) if r.channel == "2" and r.frame_id == 19)
+    assert rec.data.hex() == "39b769f1adb36a0d"
+    raw = int.from_bytes(rec.data, "little")  # @1 = little endian: start bit counts from bit 0 of byte 0
+
+    def field(start: int, length: int) -> int:
+        return (raw >> start) & ((1 << length) - 1)
+
+    valid, lat_raw, lon_raw, accuracy = field(0, 1), field(1, 28), field(29, 29), field(58, 6)
+    assert (valid, lat_raw, lon_raw, accuracy) == (1, 146_070_428, 190_160_239, 3)
+    lat, lon = lat_raw * 1e-6 - 90, lon_raw * 1e-6 - 180  # (1E-006,-90) and (1E-006,-180)
+    assert lat == pytest.approx(56.070428, abs=1e-9) and lon == pytest.approx(10.160239, abs=1e-9)
+    decoded = _gnss_dbc().get_message_by_frame_id(rec.frame_id).decode(rec.data, decode_choices=False)
+    assert decoded["PositionValid"] == valid and decoded["PositionAccuracy"] == accuracy
+    assert decoded["Latitude"] == pytest.approx(lat, abs=1e-12)
+    assert decoded["Longitude"] == pytest.approx(lon, abs=1e-12)
+
+
+@pytest.mark.parametrize("name", sorted(MF4_FACTS))
+def test_real_logger_clock_against_gnss_time(name: str) -> None:
+    """gnss_time carries the GNSS epoch: logger times are absolute, off by the logger's clock error."""
+    epochs = _decoded(name, "gnss_time")
+    assert len(epochs) == MF4_GNSS_FRAMES[name]
+    offsets = np.array([t / 1e9 - v["Epoch"] for t, v in epochs if v["TimeValid"] == 1])
+    assert np.median(offsets) == pytest.approx(MF4_CLOCK_OFFSET[name], abs=0.01)
+    assert np.ptp(offsets) < 0.7  # jitter of the 1 Hz message, no jumps
+
+
+def _speed_and_track(name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Valid gnss_speed (t [s], Speed), and speed from consecutive valid positions at mid times."""
+    sp = np.array([(t / 1e9, v["Speed"]) for t, v in _decoded(name, "gnss_speed") if v["SpeedValid"] == 1])
+    pos = np.array(
+        [(t / 1e9, v["Latitude"], v["Longitude"]) for t, v in _decoded(name, "gnss_pos") if v["PositionValid"] == 1]
+    )
+    r_earth = 6_371_000.0
+    north = np.diff(np.radians(pos[:, 1])) * r_earth
+    east = np.diff(np.radians(pos[:, 2])) * r_earth * math.cos(math.radians(pos[0, 1]))
+    steps = np.hypot(north, east)
+    track = np.column_stack([0.5 * (pos[1:, 0] + pos[:-1, 0]), steps / np.diff(pos[:, 0]), steps])
+    return sp, track, pos
+
+
+def test_real_gnss_speed_matches_positions() -> None:
+    """2023 drive: Speed (max 7.449 m/s) agrees with the speed between consecutive decoded positions."""
+    sp, track, _ = _speed_and_track(MF4_2023_1)
+    assert sp[:, 1].max() == pytest.approx(7.449, abs=1e-9)
+    speed_at = np.interp(track[:, 0], sp[:, 0], sp[:, 1])
+    moving = speed_at > 1.0
+    assert moving.sum() >= 50
+    assert np.median(np.abs(track[moving, 1] - speed_at[moving])) < 0.1
+    assert np.abs(track[moving, 1] - speed_at[moving]).max() < 0.5
+    path = track[:, 2].sum()  # 249.4 m from positions vs 246.5 m integrated speed
+    assert np.trapezoid(sp[:, 1], sp[:, 0]) == pytest.approx(path, rel=0.03)
+    assert path == pytest.approx(249.4, abs=0.5)
+
+
+def test_real_gnss_speed_other_files() -> None:
+    """The second 2023 file peaks at 6.367 m/s ("about 6.4"); the 2022 file is a module standing still."""
+    sp2, _, _ = _speed_and_track(MF4_2023_2)
+    assert sp2[:, 1].max() == pytest.approx(6.367, abs=1e-9)
+    sp0, _, pos0 = _speed_and_track(MF4_2022)
+    assert sp0[:, 1].max() < 0.5
+    spread = (np.ptp(pos0[:, 1]) * 111_000, np.ptp(pos0[:, 2]) * 62_000)
+    assert max(spread) < 20  # metres of GNSS scatter, no motion
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Round trips through python-can writers
+
+T0_NS = 1_600_000_000_123_456_789  # not on a whole ms: shows what each format keeps of the start time
+PERIOD_NS = 10_000_000
+N_CYCLES = 100  # one ABS_1 and one EPS_1 per cycle -> 200 frames
+
+
+@cache
+def _giulia() -> Database:
+    db, warnings = load_dbc(PROJECT_DBC)
+    assert warnings == []
+    return db
+
+
+def _frames() -> list[tuple[int, str, dict[str, float], can.Message]]:
+    """(true t_ns, message name, physical values, python-can message) of 100 ABS_1 + 100 EPS_1 frames."""
+    db = _giulia()
+    out = []
+    for i in range(N_CYCLES):
+        t_abs = T0_NS + i * PERIOD_NS
+        abs_values = {
+            "WHEEL_SPEED_FL": 10.0 + 0.05 * i,
+            "WHEEL_SPEED_FR": 10.1 + 0.05 * i,
+            "WHEEL_SPEED_RL": 9.9 + 0.05 * i,
+            "WHEEL_SPEED_RR": 10.0 + 0.049 * i,
+        }
+        eps_values = {"STEERING_ANGLE": -30.0 + 0.37 * i, "STEERING_RATE": -20.0 + 0.5 * i}
+        for t_ns, name, values, channel in (
+            (t_abs, "ABS_1", abs_values, 0),
+            (t_abs + 3_141_593, "EPS_1", eps_values, 1),
+        ):
+            data = encode_frame(db, name, values, i)
+            frame_id = db.get_message_by_name(name).frame_id
+            msg = can.Message(
+                timestamp=t_ns / 1e9, arbitration_id=frame_id, is_extended_id=False, data=data, channel=channel
+            )
+            out.append((t_ns, name, values, msg))
+    return out
+
+
+WRITERS: dict[str, type[can.io.generic.MessageWriter]] = {
+    ".asc": can.ASCWriter,
+    ".blf": can.BLFWriter,
+    ".trc": can.TRCWriter,
+    ".log": can.CanutilsLogWriter,
+}
+# Time kept per format, in ns: (constant offset of the whole file, per-frame tolerance). ASC and BLF keep the
+# start date to 1 ms (python-can truncates; ASC: as local time); ASC, TRC and candump store offsets/times to
+# 1 us; BLF objects to 1 ns. Plus 0.12 us of float64 seconds in python-can itself.
+TIME_FACTS = {
+    ".asc": (-(T0_NS % 1_000_000), 1_200),
+    ".blf": (0, 300),
+    ".trc": (0, 1_200),
+    ".log": (0, 700),
+}
+CHANNELS = {".asc": ("1", "2"), ".blf": ("1", "2"), ".trc": ("1", "2"), ".log": ("can0", "can1")}
+
+
+def _write(path: Path, messages: list[can.Message]) -> None:
+    with WRITERS[path.suffix](path) as writer:
+        for msg in messages:
+            writer.on_message_received(msg)
+
+
+@pytest.mark.parametrize("suffix", sorted(WRITERS))
+def test_round_trip(tmp_path: Path, suffix: str) -> None:
+    frames = _frames()
+    path = tmp_path / f"giulia{suffix}"
+    _write(path, [f[3] for f in frames])
+    assert is_can_log(path)
+    records = list(read_can_log(path))
+    assert len(records) == len(frames) == 2 * N_CYCLES
+    db = _giulia()
+    offset, tolerance = TIME_FACTS[suffix]
+    for rec, (t_ns, name, values, msg) in zip(records, frames, strict=True):
+        assert (rec.frame_id, rec.is_extended, rec.dlc, rec.data) == (
+            msg.arbitration_id,
+            False,
+            msg.dlc,
+            bytes(msg.data),
+        )
+        assert not rec.is_error and not rec.is_remote
+        assert rec.channel == CHANNELS[suffix][msg.channel]
+        assert abs(rec.t_ns - (t_ns + offset)) <= tolerance, (rec.t_ns, t_ns)
+        check = check_frame(db, rec.frame_id, rec.data)
+        assert check.name == name and check.checksum_ok is True
+        message = db.get_message_by_frame_id(rec.frame_id)
+        decoded = message.decode(rec.data)
+        for signal, value in values.items():
+            assert abs(decoded[signal] - value) <= message.get_signal_by_name(signal).scale / 2 + 1e-9, signal
+    counters = [check_frame(db, r.frame_id, r.data).counter for r in records if r.frame_id == 0xEE]
+    assert counters == [i % 16 for i in range(N_CYCLES)]
+
+
+def test_round_trip_extended_ids(tmp_path: Path) -> None:
+    msgs = [
+        can.Message(timestamp=1.6e9 + 0.25, arbitration_id=0x18FF1234, is_extended_id=True, data=b"\x01\x02\x03"),
+        can.Message(timestamp=1.6e9 + 0.27, arbitration_id=0x001, is_extended_id=True, data=b""),
+    ]
+    for suffix in WRITERS:
+        path = tmp_path / f"ext{suffix}"
+        _write(path, msgs)
+        got = [(r.frame_id, r.is_extended, r.data, r.t_ns) for r in read_can_log(path)]
+        assert got == [
+            (0x18FF1234, True, b"\x01\x02\x03", pytest.approx(1_600_000_000_250_000_000, abs=1_200)),
+            (0x001, True, b"", pytest.approx(1_600_000_000_270_000_000, abs=1_200)),
+        ], suffix
+
+
+def test_times_to_ns_exact(tmp_path: Path) -> None:
+    """t_ns is the float time rounded to the ns: not timestamp * 1e9, which is only 256 ns fine near 1.6e18."""
+    path = tmp_path / "exact.log"
+    path.write_text("(1600000000.250000) can0 0EE#01\n(1600000000.000001) vcan1 1FFFFFFF#\n")
+    records = list(read_can_log(path))
+    assert [r.t_ns for r in records] == [1_600_000_000_250_000_000, pytest.approx(1_600_000_000_000_001_000, abs=120)]
+    assert [(r.channel, r.frame_id, r.is_extended) for r in records] == [
+        ("can0", 0xEE, False),
+        ("vcan1", 0x1FFFFFFF, True),
+    ]
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Errors
+
+
+def test_truncated_blf_yields_frames_then_error(tmp_path: Path) -> None:
+    frames = _frames()
+    whole = tmp_path / "whole.blf"
+    _write(whole, [f[3] for f in frames])
+    reference = list(read_can_log(whole))
+    cut = tmp_path / "cut.blf"
+    cut.write_bytes(whole.read_bytes()[: whole.stat().st_size // 2])
+    with can.BLFReader(cut) as reader:  # python-can itself ends such a file silently, with fewer frames
+        assert 0 < sum(1 for _ in reader) < len(frames)
+    got: list[CanRecord] = []
+    with pytest.raises(CanLogError) as info:  # only CanLogError, never a raw reader exception
+        for rec in read_can_log(cut):
+            got.append(rec)
+    assert 0 < len(got) < len(frames) and got == reference[: len(got)]
+    message = str(info.value)
+    assert "cut.blf" in message and "truncated" in message and "\n" not in message
+
+
+def test_corrupt_files(tmp_path: Path) -> None:
+    bad = tmp_path / "garbage.blf"
+    bad.write_bytes(b"not a binary logging file" * 10)
+    with pytest.raises(CanLogError, match="garbage.blf"):
+        list(read_can_log(bad))
+    empty = tmp_path / "empty.mf4"
+    empty.write_bytes(b"")
+    with pytest.raises(CanLogError, match="empty.mf4"):
+        list(read_can_log(empty))
+    candump = tmp_path / "bad.log"
+    candump.write_text("(1600000000.000000) can0 0EE#1260\nthis line is not candump output at all\n")
+    got = []
+    with pytest.raises(CanLogError, match=r"bad\.log.*after 1 frame"):
+        for rec in read_can_log(candump):
+            got.append(rec)
+    assert [r.data for r in got] == [b"\x12\x60"]
+
+
+def test_missing_file_and_unknown_suffix(tmp_path: Path) -> None:
+    with pytest.raises(CanLogError, match="nothere.blf"):
+        read_can_log(tmp_path / "nothere.blf")
+    odd = tmp_path / "frames.xyz"
+    odd.write_text("")
+    with pytest.raises(CanLogError, match="frames.xyz") as info:
+        read_can_log(odd)
+    assert all(suffix in str(info.value) for suffix in CAN_LOG_SUFFIXES)
+    assert not is_can_log(odd)
+
+
+def test_nmea_log_is_not_a_can_log() -> None:
+    """.log is shared with NMEA captures: is_can_log sniffs the first line, read_can_log refuses clearly."""
+    nmea = realdata("gpsd", "neo-m8n.log")
+    assert not is_can_log(nmea)
+    with pytest.raises(CanLogError, match="neo-m8n.log: not a candump -L log"):
+        list(read_can_log(nmea))
