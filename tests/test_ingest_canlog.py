@@ -60,7 +60,7 @@ def _gnss_dbc() -> Database:
 
 
 def _decoded(name: str, message: str) -> list[tuple[int, dict[str, float]]]:
-    """(t_ns, raw-choice-free decoded values) of every GNSS-module frame of a message, found by frame ID."""
+    """(t_ns, decoded physical values, choices as numbers) of a GNSS-module message, looked up by frame ID."""
     db = _gnss_dbc()
     out = []
     for rec in _real_records(name):

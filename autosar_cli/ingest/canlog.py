@@ -25,9 +25,15 @@ What python-can 4.6 gives as the timestamp, per format (all Unix seconds unless 
   measurement start (warning logged).
 - ``.log`` (``CanutilsLogReader``, ``candump -L``): absolute, as recorded (1 us).
 
+Text logs are read as cp1252 (what Windows tools write, e.g. a German CANoe date "Mär"); python-can
+skips text lines it does not recognise (comments, statistics, a damaged line), except in candump logs.
+Damage python-can passes over silently: a BLF cut short often just ends early, so the file size in its
+header is checked after the last frame (:class:`CanLogError` if the file is shorter); an MDF4 cut in
+half may also end early without error (python-can gives no way to check that).
+
 Channels are named as the file numbers them: python-can makes ASC and BLF channels 0-based
-(file channel 1 -> 0); that shift is undone here so that "1" means CAN 1 in every format (MF4
-``BusChannel``, TRC bus, ASC/BLF channel), and candump interface names ("can0") stay as they are.
+(file channel 1 -> 0) but not TRC or MF4; that shift is undone here so that "1" means CAN 1 in every
+format (MF4 ``BusChannel``, TRC bus, ASC/BLF channel). candump interface names ("can0") stay as they are.
 """
 
 from __future__ import annotations
@@ -53,8 +59,6 @@ CAN_LOG_SUFFIXES: tuple[str, ...] = (".blf", ".asc", ".trc", ".log", ".mf4")
 
 #: Formats whose python-can reader numbers channels from 0 where the file numbers them from 1.
 _ZERO_BASED_CHANNELS = (".asc", ".blf")
-#: Text formats: legacy tools write ANSI (cp1252) text, e.g. a German CANoe date "Mär".
-_TEXT_SUFFIXES = (".asc", ".trc", ".log")
 _CANDUMP_LINE = re.compile(r"\(\s*\d+(?:\.\d*)?\)\s+\S+\s+[0-9A-Fa-f]{1,8}#")
 _SNIFF_BYTES = 4096
 _FORMAT_NAMES = {".blf": "BLF", ".asc": "ASC", ".trc": "TRC", ".log": "candump -L", ".mf4": "MDF4"}
@@ -145,7 +149,7 @@ def _relative_start(reader: MessageReader) -> bool:
     return False
 
 
-def _where(reader: MessageReader | None, frames: int) -> str:
+def _where(reader: MessageReader, frames: int) -> str:
     """Position of a failure: frames read so far, plus the byte offset for BLF."""
     where = f"after {frames} frame{'' if frames == 1 else 's'}"
     if isinstance(reader, can.BLFReader):
@@ -179,7 +183,6 @@ def _records(path: Path) -> Iterator[CanRecord]:
     kind = _FORMAT_NAMES[suffix]
     to_channel: Callable[[object], str] = _channel_from_one if suffix in _ZERO_BASED_CHANNELS else _channel
     frames = 0
-    reader: MessageReader | None = None
     with ExitStack() as stack:
         try:
             reader = _open_reader(path, stack)
@@ -214,7 +217,10 @@ def _records(path: Path) -> Iterator[CanRecord]:
 def _check_complete(path: Path, reader: MessageReader, frames: int) -> None:
     """Raise for a BLF shorter than its header says: python-can often ends such a file silently."""
     if isinstance(reader, can.BLFReader):
-        size = path.stat().st_size
+        try:
+            size = path.stat().st_size
+        except OSError:
+            return
         if size < reader.file_size:
             raise CanLogError(
                 f"{path}: truncated BLF log: header says {reader.file_size} bytes, file has {size} "

@@ -25,6 +25,7 @@ from autosar_cli.candb import load_dbc
 from autosar_cli.config import Config
 from autosar_cli.store.drive import DriveWriter
 
+from . import fastcdr
 from .decoders import (
     FIX_COLUMNS,
     IMU_COLUMNS,
@@ -221,7 +222,18 @@ class _Ingest:
             m = deser(raw.data)
             push(_stamp_ns(m.header), raw.log_ns, imu_row(m))
 
-        return handle
+        if not self.types.is_builtin(ch):
+            return handle
+        fast = fastcdr.imu
+
+        def handle_fast(raw: RawMessage) -> None:
+            try:
+                stamp, row = fast(raw.data)
+            except fastcdr.NotLittleEndian:
+                return handle(raw)
+            push(stamp, raw.log_ns, row)
+
+        return handle_fast
 
     def _handler_fix(self, ch: Channel, deser: Callable[[Any], Any]) -> Callable[[RawMessage], None]:
         name = self._name("fix", ch.topic)
@@ -289,12 +301,23 @@ class _Ingest:
                      "roll_deg": m.roll_deg, "geometry_source": "config"}
             dec = self.streams[path] = RadarDecoder(self.writer, path, attrs)
         dec.info.topics.add(ch.topic)
-        feed = dec.feed
+        feed, feed_parts = dec.feed, dec.feed_parts
 
         def handle(raw: RawMessage) -> None:
             feed(deser(raw.data), raw.log_ns)
 
-        return handle
+        if not self.types.is_builtin(ch):
+            return handle
+        fast = fastcdr.raw_frame
+
+        def handle_fast(raw: RawMessage) -> None:
+            try:
+                parts = fast(raw.data)
+            except fastcdr.NotLittleEndian:
+                return handle(raw)
+            feed_parts(*parts, raw.log_ns)
+
+        return handle_fast
 
     # -- driving -----------------------------------------------------------------------------------
     def run_source(self, src: LogSource, progress: Callable[[int], None]) -> int:

@@ -3,8 +3,9 @@
 rosbag2 traps handled here (see the real-data notes in docs/FORMATS.md):
 
 - rosbags' rosbag2 ``Reader`` matches connections on topic, type *and* QoS; when ``metadata.yaml`` and
-  the storage disagree on QoS it silently yields nothing. Every topic's count is therefore checked
-  against ``metadata.yaml``; on a shortfall the sqlite3 storage is read directly with SQL instead.
+  the storage disagree on a topic's QoS it silently yields nothing of that topic. Every topic's count is
+  therefore checked against ``metadata.yaml``; the topics rosbags yielded nothing of are read directly
+  from the sqlite3 storage with SQL instead.
 - MCAP storage files are plain MCAP: they are read with :class:`~.mcap_source.McapSource`, which decodes
   per channel, so one unparseable embedded schema cannot take the whole bag down.
 """
@@ -165,13 +166,17 @@ class Rosbag2SqliteSource:
                 yield msg
         except LogReadError:
             raise
-        short = {t: n for t, n in self.declared.items() if seen.get(t, 0) < n}
-        if short and not got_any:
-            # The QoS trap: rosbags matched no connection. Read the storage directly.
-            self.stats.warnings.append(f"{self.path}: rosbags yielded no message although metadata.yaml declares "
-                                       f"{sum(self.declared.values())} (QoS mismatch); read the sqlite3 storage "
-                                       "directly")
-            for msg in self._sql_messages():
+        # The QoS trap: rosbags matched no connection of these topics. Read them from the storage directly.
+        unmatched = {t for t, n in self.declared.items() if n > 0 and t not in seen}
+        if unmatched:
+            if not got_any:
+                what = f"no message although metadata.yaml declares {sum(self.declared.values())}"
+            else:
+                what = (f"no message of {', '.join(sorted(unmatched))} although metadata.yaml declares "
+                        f"{sum(self.declared[t] for t in unmatched)}")
+            self.stats.warnings.append(f"{self.path}: rosbags yielded {what} (QoS mismatch); read the sqlite3 "
+                                       "storage directly")
+            for msg in self._sql_messages(unmatched):
                 seen[msg.channel.topic] = seen.get(msg.channel.topic, 0) + 1
                 yield msg
         _check_declared(self.path, self.declared, seen, self.stats)
@@ -187,9 +192,10 @@ class Rosbag2SqliteSource:
         try:
             channels: dict[int, Channel] = {}
             for conn in reader.connections:
+                text = conn.msgdef.data if conn.msgdef else ""
+                encoding = ("ros2idl" if conn.msgdef.format.name == "IDL" else "ros2msg") if text else ""
                 channels[conn.id] = Channel((str(self.path), conn.id), conn.topic, normalise_type(conn.msgtype),
-                                            "cdr", conn.msgdef.data if conn.msgdef else "",
-                                            "ros2msg" if conn.msgdef and conn.msgdef.data else "", conn.msgcount)
+                                            "cdr", text, encoding, conn.msgcount)
             total = sum(c.msgcount for c in reader.connections) or 1
             for conn, t_ns, data in reader.messages():
                 ch = channels[conn.id]
@@ -202,18 +208,21 @@ class Rosbag2SqliteSource:
         finally:
             reader.close()
 
-    def _sql_messages(self) -> Iterator[RawMessage]:
+    def _sql_messages(self, topics: set[str]) -> Iterator[RawMessage]:
+        """The messages of ``topics``, straight from the sqlite3 storage files."""
         import zstandard
 
         dctx = zstandard.ZstdDecompressor() if self.compressed else None
         for file in self.files:
             db = sqlite3.connect(f"file:{file}?mode=ro", uri=True)
             try:
-                channels = self._channels(db, file)
-                for tid, t_ns, data in db.execute("SELECT topic_id, timestamp, data FROM messages ORDER BY id"):
-                    ch = channels.get(tid)
-                    if ch is None:
-                        continue
+                channels = {tid: ch for tid, ch in self._channels(db, file).items() if ch.topic in topics}
+                if not channels:
+                    continue
+                marks = ",".join("?" * len(channels))
+                for tid, t_ns, data in db.execute(f"SELECT topic_id, timestamp, data FROM messages WHERE topic_id IN "
+                                                  f"({marks}) ORDER BY id", tuple(channels)):
+                    ch = channels[tid]
                     if dctx is not None:
                         data = dctx.decompress(data)
                     self.stats.messages += 1

@@ -31,6 +31,22 @@ class MessageTypes:
         self._cache: dict[tuple[str, str, str], Deserializer] = {}
         self.warnings: list[str] = []
 
+    def is_builtin(self, channel: Channel) -> bool:
+        """True if the channel is CDR and its embedded definition (if any) equals the built-in one."""
+        if channel.encoding != "cdr":
+            return False
+        builtin = typestore_for(2)
+        if channel.msgtype not in builtin.types:
+            return False
+        if not channel.schema:
+            return True
+        try:
+            embedded = get_types_from_msg(channel.schema, channel.msgtype)
+        except Exception:  # unparseable: the deserializer falls back to the built-in definition anyway
+            return True
+        return all(name not in builtin.fielddefs or builtin.fielddefs[name] == fields
+                   for name, fields in embedded.items())
+
     def deserializer(self, channel: Channel) -> Deserializer:
         key = (channel.encoding, channel.msgtype, channel.schema)
         if key not in self._cache:
