@@ -19,12 +19,14 @@ test: setup
 
 demo: setup
 	$(BIN)/autosar info sample_logs/ci_seed1.mcap
+	$(BIN)/autosar ingest sample_logs/ci_seed1.mcap --output demo_out/drive.h5 --overwrite
+	$(BIN)/autosar info demo_out/drive.h5
 	$(BIN)/autosar simulate --scenario ci --seed 2 --output demo_out/ci_seed2.mcap --overwrite
-	$(BIN)/autosar info demo_out/ci_seed2.mcap
-	@echo "demo: simulated log and truth sidecar in demo_out/"
+	@echo "demo: drive.h5, a new simulated log and its truth sidecar in demo_out/"
 
 bench: setup
 	$(BIN)/python benches/bench_simulate.py
+	$(BIN)/python benches/bench_ingest.py
 
 lint: setup
 	$(BIN)/ruff check autosar_cli tests benches

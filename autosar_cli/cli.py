@@ -238,6 +238,8 @@ def info(
         for s in summary.streams:
             table.add_row(s.topic, s.msgtype, str(s.count), f"{s.rate_hz:.1f}", str(s.gaps))
         out.print(table)
+        for w in summary.warnings:
+            err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
 
 
 def main() -> None:

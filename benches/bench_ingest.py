@@ -115,7 +115,8 @@ def main() -> None:
                          "throughput_MB_s": round(r0["bytes"] / 1e6 / wall, 1),
                          "peak_rss_MB": round(max(r["peak_rss_mb"] for r in runs), 1),
                          "drive_h5_MB": round(r0["drive_bytes"] / 1e6, 1)})
-    print(f"{'log':4s} {'MB':>7s} {'drive s':>8s} {'median s':>9s} {'MB/s':>7s} {'peak RSS MB':>12s} {'drive.h5 MB':>12s}")
+    head = ("log", "MB", "drive s", "median s", "MB/s", "peak RSS MB", "drive.h5 MB")
+    print("{:4s} {:>7s} {:>8s} {:>9s} {:>7s} {:>12s} {:>12s}".format(*head))
     for r in rows:
         print(f"{r['log']:4s} {r['log_MB']:7.1f} {r['drive_s']:8.2f} {r['median_wall_s']:9.3f} "
               f"{r['throughput_MB_s']:7.1f} {r['peak_rss_MB']:12.1f} {r['drive_h5_MB']:12.1f}")

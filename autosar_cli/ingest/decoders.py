@@ -381,16 +381,12 @@ class RadarDecoder:
     def _sink(self, t_ns: np.ndarray, rows: list[Any]) -> None:
         assert self.cube is not None and self.shape is not None
         idx = np.fromiter((r[0] for r in rows), dtype=np.int64, count=len(rows))
-        raw = np.empty((len(rows), *self.shape, 2), dtype=np.int16)
-        flat = raw.reshape(len(rows), -1)
-        for i, r in enumerate(rows):
-            flat[i] = r[1]
         prev = np.concatenate([[self._last[0]], idx]) if self._last else idx
         prev_t = np.concatenate([[self._last[1]], t_ns]) if self._last else t_ns
         for j in np.flatnonzero(np.diff(prev) != 1):
             self.frame_gaps.append((int(prev_t[j]), int(prev_t[j + 1]), int(prev[j]), int(prev[j + 1])))
         self._last = (int(idx[-1]), int(t_ns[-1]))
-        self.cube.append_frames(t_ns, idx, raw)
+        self.cube.append_frames(t_ns, idx, [r[1] for r in rows])
 
     def finish(self) -> StreamInfo | None:
         stats = self.series.finish()

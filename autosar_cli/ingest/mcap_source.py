@@ -160,7 +160,9 @@ class McapSource:
                     msg = self._inner_record(opcode, memoryview(body), 0, length)
                     if msg is not None:
                         yield msg
-                else:  # message indexes, attachments, metadata, summary records: not needed here
+                elif length < 1 << 20:  # message indexes etc.: reading is cheaper than a buffered seek
+                    f.read(length)
+                else:  # attachments, large metadata: not needed here
                     f.seek(length, 1)
                 offset += 9 + length
                 self.stats.bytes_read = offset
@@ -168,6 +170,8 @@ class McapSource:
                 yield from self._chunk_messages(*pending.popleft())
 
     def _damaged(self, offset: int, what: str) -> None:
+        if offset <= len(MCAP_MAGIC):  # not a single record is readable: not a usable MCAP at all
+            raise LogReadError(f"{self.path}: not a readable MCAP file ({what} at byte {offset})")
         self.stats.warnings.append(f"{self.path}: damaged MCAP at byte {offset} of {self.stats.bytes_total}: {what}; "
                                    "everything before it was read")
 
