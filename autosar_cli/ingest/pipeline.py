@@ -285,7 +285,19 @@ class _Ingest:
                               bool(m.is_error), bool(m.is_rtr))
             feed(frame, stamp, raw.log_ns, topic)
 
-        return handle
+        if not self.types.is_builtin(ch):
+            return handle
+        fast = fastcdr.can_frame
+
+        def handle_fast(raw: RawMessage) -> None:
+            try:
+                stamp, frame_id, is_rtr, is_extended, is_error, dlc, data = fast(raw.data)
+            except fastcdr.NotLittleEndian:
+                return handle(raw)
+            feed(CanRecord(stamp or raw.log_ns, frame_id, is_extended, dlc, data, is_error, is_rtr), stamp,
+                 raw.log_ns, topic)
+
+        return handle_fast
 
     def _handler_radar(self, ch: Channel, deser: Callable[[Any], Any]) -> Callable[[RawMessage], None]:
         name = self._name("radar", ch.topic)
