@@ -233,6 +233,10 @@ class _CanLayout:
     unscaled_integrity: bool = True
     stream: TableStream | None = None
     topics: set[str] = field(default_factory=set)
+
+    def skip_counter(self) -> None:
+        if self.last_counter is not None:
+            self.last_counter = (self.last_counter + 1) % 16
     last_counter: int | None = None
 
 
@@ -295,6 +299,7 @@ class CanDecoder:
         data = frame.data
         if frame.dlc != m.length or len(data) < m.length:
             st.dlc_mismatch[m.name] += 1
+            lay.skip_counter()  # a rejected frame still took its counter value: no counter error next
             return
         data = bytes(data[: m.length])
         values = m.decode(data, decode_choices=False, scaling=lay.unscaled_integrity)
@@ -306,6 +311,7 @@ class CanDecoder:
         if lay.has_checksum and self.checksum_rule == "fca_giorgio":
             if int(raw["CHECKSUM"]) != giorgio_checksum(m.frame_id, data):
                 st.checksum_errors[m.name] += 1
+                lay.skip_counter()
                 return
         if lay.has_counter:
             c = int(raw["COUNTER"])

@@ -494,8 +494,9 @@ def _check_content(inputs: list[tuple[Path, str]], infos: list[StreamInfo], job:
     written = [i for i in infos if i.stats is not None and i.stats.written]
     if not written:
         seen = ", ".join(f"{s['topic']} ({s['msgtype']})" for s in job.skipped_channels.values())
+        damage = [w for w in job.warnings if "damaged" in w or "truncated" in w or "corrupt" in w]
         raise IngestError(f"{names}: no known sensor streams (CAN frames, NavSatFix, NMEA, Imu, ScanBrick RawFrame)"
-                          + (f"; found only {seen}" if seen else ""))
+                          + (f"; found only {seen}" if seen else "") + (f"; {damage[0]}" if damage else ""))
     has_radar = any(i.kind == "radar" for i in written)
     has_nav = any(i.kind in ("imu", "fix", "nmea_fix", "velocity") for i in written) or any(
         i.kind == "can" for i in written)

@@ -1,0 +1,648 @@
+"""Ingest robustness: tampered, damaged and incomplete logs, each fault injected a known number of times.
+
+Every tampered MCAP is a copy of the simulated ci drive (seed 7) written by :func:`tamper`, which passes
+each message through a callback that may drop, keep, edit, duplicate or hold it back. The tests check that
+ingest counts exactly what was injected, writes exactly the rows that remain, never fails on a bad
+message and, where a file cannot be read at all, fails with one clear error naming the file.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import math
+import re
+import shutil
+import sqlite3
+from collections import Counter
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+from mcap.data_stream import ReadDataStream
+from mcap.reader import make_reader
+from mcap.records import Chunk, Message
+from mcap.stream_reader import breakup_chunk
+from mcap.writer import CompressionType, Writer
+from typer.testing import CliRunner
+
+from autosar_cli import msgs
+from autosar_cli.cli import app
+from autosar_cli.config import Config, load_config
+from autosar_cli.ingest.pipeline import IngestError, IngestReport, ingest
+from autosar_cli.sim.simulate import SimulationResult
+from autosar_cli.store.drive import Drive
+
+TS = msgs.typestore_for(2)
+Out = list[tuple[int, int, bytes]]  # (log_time, channel_id, CDR bytes) to write for one source message
+
+CAN_TOPIC = "/from_can_bus"
+RADAR_TOPIC = "/scanbrick/raw_frames"
+RADAR = "radar/scanbrick_w43"
+ABS_1, ABS_2, EPS_1, ORC_1 = 0xEE, 0xFE, 0xDE, 0xD2
+SECOND = 1_000_000_000
+
+runner = CliRunner()
+
+
+# ------------------------------------------------------------------------------------------ helpers
+@dataclasses.dataclass(frozen=True)
+class Rec:
+    """One message of the source log, as the tamper callback sees it."""
+
+    topic: str
+    msgtype: str
+    channel_id: int
+    log_time: int
+    data: bytes
+    n: int  #: index of the message within its topic (0-based)
+
+    def keep(self) -> Out:
+        return [(self.log_time, self.channel_id, self.data)]
+
+    def decode(self) -> Any:
+        return TS.deserialize_cdr(self.data, self.msgtype)
+
+    def encode(self, msg: Any) -> bytes:
+        return bytes(TS.serialize_cdr(msg, self.msgtype))
+
+    def edited(self, **changes: Any) -> Out:
+        """This message with top-level fields replaced (``dataclasses.replace``), same log time."""
+        return [(self.log_time, self.channel_id, self.encode(dataclasses.replace(self.decode(), **changes)))]
+
+
+def tamper(src: Path, dst: Path, fn: Callable[[Rec], Out], extra: Sequence[tuple[str, str, str]] = ()) -> Path:
+    """Copy the MCAP ``src`` to ``dst`` through ``fn``; ``extra`` adds channels (topic, schema name, schema text).
+
+    Schemas and channels keep their ids; extra channels get the next ids (see :func:`channel_ids`).
+    """
+    seen: Counter[str] = Counter()
+    with open(src, "rb") as f, open(dst, "wb") as out:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert summary is not None
+        w = Writer(out, compression=CompressionType.ZSTD, chunk_size=4 * 1024 * 1024)
+        w.start(profile="ros2", library="test_ingest_robustness")
+        for sid, s in sorted(summary.schemas.items()):
+            assert w.register_schema(s.name, s.encoding, s.data) == sid
+        for cid, c in sorted(summary.channels.items()):
+            assert w.register_channel(c.topic, c.message_encoding, c.schema_id, c.metadata) == cid
+        for topic, name, text in extra:
+            sid = w.register_schema(name, "ros2msg", text.encode())
+            w.register_channel(topic, "cdr", sid, {})
+        for schema, channel, m in reader.iter_messages(log_time_order=False):
+            rec = Rec(channel.topic, schema.name, channel.id, m.log_time, bytes(m.data), seen[channel.topic])
+            seen[channel.topic] += 1
+            for t, cid, data in fn(rec):
+                w.add_message(cid, t, data, t)
+        w.finish()
+    return dst
+
+
+def channel_ids(path: Path) -> dict[str, int]:
+    """topic -> channel id of an MCAP file."""
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    return {c.topic: c.id for c in summary.channels.values()}
+
+
+def stamp(msg: Any) -> int:
+    return int(msg.header.stamp.sec) * SECOND + int(msg.header.stamp.nanosec)
+
+
+def shifted(msg: Any, dt_ns: int) -> Any:
+    """``msg`` with its header stamp moved by ``dt_ns``."""
+    sec, nanosec = divmod(stamp(msg) + dt_ns, SECOND)
+    st = dataclasses.replace(msg.header.stamp, sec=sec, nanosec=nanosec)
+    return dataclasses.replace(msg, header=dataclasses.replace(msg.header, stamp=st))
+
+
+@dataclasses.dataclass
+class Ingested:
+    report: IngestReport
+    drive: Path
+    log: Path
+    injected: dict[str, Any] = dataclasses.field(default_factory=dict)  #: what the tamper callback did
+
+    @property
+    def streams(self) -> dict[str, dict[str, Any]]:
+        return {s["path"]: s for s in self.report.streams}
+
+    def t_ns(self, path: str) -> np.ndarray:
+        with Drive(self.drive) as d:
+            return d.h5[path]["t_ns"][()]
+
+
+def run(log: Path, out_dir: Path, config: Config, **kw: Any) -> Ingested:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    drive = out_dir / "drive.h5"
+    return Ingested(ingest([log], drive, config=config, **kw), drive, log)
+
+
+def no_output(out_dir: Path) -> bool:
+    """Neither drive.h5 nor drive.h5.partial was left behind."""
+    return not (out_dir / "drive.h5").exists() and not (out_dir / "drive.h5.partial").exists()
+
+
+def one_error_line(stderr: str) -> str:
+    lines = [ln for ln in stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith("error:"), stderr
+    return lines[0]
+
+
+# ----------------------------------------------------------------------------------------- fixtures
+@pytest.fixture(scope="module")
+def cfg() -> Config:
+    return load_config()
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("robust")
+
+
+@pytest.fixture(scope="module")
+def base(ci_mcap: SimulationResult, work: Path, cfg: Config) -> Ingested:
+    """The untampered ci drive: the reference every tampered ingest is compared with."""
+    got = run(ci_mcap.log_path, work / "base", cfg)
+    s = got.streams
+    assert s[RADAR]["written"] == 981 and s["imu/imu_cog_a"]["written"] == 494 and got.report.can["decoded"] == 392
+    assert got.report.warnings == [] and got.report.skipped_channels == []
+    return got
+
+
+@pytest.fixture(scope="module")
+def can_tampered(ci_mcap: SimulationResult, work: Path, cfg: Config) -> Ingested:
+    """5 ABS_1 frames with a flipped CHECKSUM byte, 3 ABS_2 frames dropped (counter skips), 2 EPS_1 frames with a
+    wrong DLC, 4 extra frames with the unknown ID 0x555."""
+    per_id: Counter[int] = Counter()
+    injected: dict[str, list[int]] = {"checksum": [], "dropped": [], "dlc": [], "unknown": []}
+
+    def fn(r: Rec) -> Out:
+        if r.topic != CAN_TOPIC:
+            return r.keep()
+        m = r.decode()
+        k = per_id[m.id]
+        per_id[m.id] += 1
+        if m.id == ABS_1 and k in (10, 20, 30, 40, 50):
+            injected["checksum"].append(stamp(m))
+            data = m.data.copy()
+            data[7] ^= 0xFF  # CHECKSUM is the last byte
+            return r.edited(data=data)
+        if m.id == ABS_2 and k in (15, 45, 75):
+            injected["dropped"].append(stamp(m))
+            return []
+        if m.id == EPS_1 and k in (25, 65):
+            injected["dlc"].append(stamp(m))
+            return r.edited(dlc=5)
+        if m.id == ORC_1 and k in (5, 35, 55, 85):
+            injected["unknown"].append(stamp(m))
+            return r.keep() + r.edited(id=0x555)
+        return r.keep()
+
+    log = tamper(ci_mcap.log_path, work / "can.mcap", fn)
+    got = run(log, work / "can", cfg)
+    got.injected = injected
+    return got
+
+
+@pytest.fixture(scope="module")
+def timing_tampered(ci_mcap: SimulationResult, work: Path, cfg: Config) -> Ingested:
+    """/imu/cog_a: 3 adjacent swaps + 1 message delayed by 3 (file order); /imu/cog_b: 6 duplicates (5 adjacent,
+    1 three messages later); /ins_cog/imu: 4 header stamps +1000 s (one among the first 8)."""
+    held: dict[str, Out] = {}
+    jumps = (3, 30, 60, 90)
+
+    def fn(r: Rec) -> Out:
+        if r.topic == "/imu/cog_a":
+            if r.n in (100, 200, 300, 400):
+                held["a"] = r.keep()
+                return []
+            if r.n in (101, 201, 301, 403):
+                return r.keep() + held.pop("a")
+        elif r.topic == "/imu/cog_b":
+            if r.n in (50, 150, 250, 350, 450):
+                return r.keep() + r.keep()
+            if r.n == 60:
+                held["b"] = r.keep()
+            if r.n == 63:
+                return r.keep() + held.pop("b")
+        elif r.topic == "/ins_cog/imu" and r.n in jumps:
+            return [(r.log_time, r.channel_id, r.encode(shifted(r.decode(), 1000 * SECOND)))]
+        return r.keep()
+
+    log = tamper(ci_mcap.log_path, work / "timing.mcap", fn)
+    assert not held
+    got = run(log, work / "timing", cfg)
+    got.injected = {"jumps": jumps}
+    return got
+
+
+@pytest.fixture(scope="module")
+def content_tampered(ci_mcap: SimulationResult, work: Path, cfg: Config) -> Ingested:
+    """/ins_cog/fix: status -1 (twice) and NaN latitude (once); radar: 3 frames with truncated data."""
+    injected: dict[str, list[int]] = {"no_fix": [], "radar_short": []}
+
+    def fn(r: Rec) -> Out:
+        if r.topic == "/ins_cog/fix" and r.n in (2, 5, 7):
+            m = r.decode()
+            injected["no_fix"].append(stamp(m))
+            if r.n == 5:
+                return r.edited(latitude=math.nan)
+            return r.edited(status=dataclasses.replace(m.status, status=-1))
+        if r.topic == RADAR_TOPIC and r.n in (100, 400, 700):
+            m = r.decode()
+            injected["radar_short"].append(int(m.frame_index))
+            return r.edited(data=m.data[: len(m.data) // 2])
+        return r.keep()
+
+    log = tamper(ci_mcap.log_path, work / "content.mcap", fn)
+    got = run(log, work / "content", cfg)
+    got.injected = injected
+    return got
+
+
+@pytest.fixture(scope="module")
+def radar_gap(ci_mcap: SimulationResult, work: Path, cfg: Config) -> Ingested:
+    """5 consecutive radar frames (the 500th to the 504th) dropped."""
+    log = tamper(ci_mcap.log_path, work / "radar_gap.mcap",
+                 lambda r: [] if r.topic == RADAR_TOPIC and 500 <= r.n < 505 else r.keep())
+    return run(log, work / "radar_gap", cfg)
+
+
+# ------------------------------------------------------------------------------------- 1. CAN faults
+def test_can_integrity_faults_counted_never_fatal(can_tampered: Ingested, base: Ingested) -> None:
+    assert {k: len(v) for k, v in can_tampered.injected.items()} == {"checksum": 5, "dropped": 3, "dlc": 2,
+                                                                      "unknown": 4}
+    can = can_tampered.report.can
+    assert can["frames"] == 392 - 3 + 4
+    assert can["decoded"] == 392 - 3 - 5 - 2
+    assert can["checksum_errors"] == {"ABS_1": 5}
+    assert can["dlc_mismatch"] == {"EPS_1": 2}
+    assert can["unknown_ids"] == {"0x555": 4}
+    assert can["counter_errors"]["ABS_2"] == 3
+    assert can["missing_roles"] == [] and can_tampered.drive.exists()
+
+    s, b = can_tampered.streams, base.streams
+    for group, dropped in (("ABS_1", "checksum"), ("ABS_2", "dropped"), ("EPS_1", "dlc"), ("ORC_1", "unknown")):
+        lost = can_tampered.injected[dropped] if dropped != "unknown" else []
+        assert s[f"can/{group}"]["written"] == b[f"can/{group}"]["written"] - len(lost), group
+        # exactly the tampered frames are missing from drive.h5, everything else is there
+        t, t0 = can_tampered.t_ns(f"can/{group}"), base.t_ns(f"can/{group}")
+        assert np.array_equal(t, np.setdiff1d(t0, lost)), group
+    # the CAN faults touch nothing else
+    for path, st in b.items():
+        if not path.startswith("can/"):
+            assert s[path]["written"] == st["written"], path
+
+
+def test_can_rejected_frames_are_not_also_counter_errors(can_tampered: Ingested) -> None:
+    # The bus carried every ABS_1 and EPS_1 frame (only their content was bad): no counter ever skipped there.
+    assert can_tampered.report.can["counter_errors"] == {"ABS_2": 3}
+
+
+# -------------------------------------------------------------------- 2. out of order and duplicates
+def test_out_of_order_messages_are_reordered(timing_tampered: Ingested, base: Ingested) -> None:
+    st = timing_tampered.streams["imu/imu_cog_a"]
+    assert (st["received"], st["written"]) == (494, 494)
+    assert st["reordered"] == 4
+    assert st["duplicates"] == st["late_dropped"] == st["time_jumps"] == 0
+    t = timing_tampered.t_ns("imu/imu_cog_a")
+    assert np.all(np.diff(t) > 0)
+    assert np.array_equal(t, base.t_ns("imu/imu_cog_a"))
+
+
+def test_duplicate_messages_are_dropped_and_counted(timing_tampered: Ingested, base: Ingested) -> None:
+    st = timing_tampered.streams["imu/imu_cog_b"]
+    assert (st["received"], st["written"]) == (494 + 6, 494)
+    assert st["duplicates"] == 6
+    assert st["reordered"] == st["late_dropped"] == 0
+    t = timing_tampered.t_ns("imu/imu_cog_b")
+    assert np.all(np.diff(t) > 0)
+    assert np.array_equal(t, base.t_ns("imu/imu_cog_b"))
+    with Drive(timing_tampered.drive) as d, Drive(base.drive) as d0:
+        assert np.array_equal(d.series("imu/imu_cog_b")["angular_velocity"],
+                              d0.series("imu/imu_cog_b")["angular_velocity"], equal_nan=True)
+
+
+# ------------------------------------------------------------------------------------- 3. time jumps
+def test_header_time_jumps_are_repaired(timing_tampered: Ingested, base: Ingested) -> None:
+    st, st0 = timing_tampered.streams["imu/ins_cog"], base.streams["imu/ins_cog"]
+    jumps = list(timing_tampered.injected["jumps"])
+    assert st["time_jumps"] == len(jumps) == 4
+    assert st["written"] == st0["written"] == 99
+    assert st["clock_offset_ns"] == st0["clock_offset_ns"]  # the jump among the first 8 does not skew it
+    t, t0 = timing_tampered.t_ns("imu/ins_cog"), base.t_ns("imu/ins_cog")
+    assert np.all(np.diff(t) > 0)
+    assert np.all(np.abs(t[jumps] - t0[jumps]) < 10_000_000)  # within 10 ms of the true stamp
+    others = np.setdiff1d(np.arange(len(t0)), jumps)
+    assert np.array_equal(t[others], t0[others])
+    # the other streams are untouched by the jumps
+    assert timing_tampered.streams["imu/ins_radar"]["time_jumps"] == 0
+
+
+# ----------------------------------------------------------------------------------- 4. GNSS no fix
+def test_gnss_without_fix_is_skipped(content_tampered: Ingested, base: Ingested) -> None:
+    st = content_tampered.streams["gnss/gnss_cog/fix"]
+    no_fix = content_tampered.injected["no_fix"]
+    assert len(no_fix) == 3
+    assert st["received"] == 10 and st["written"] == 7
+    assert st["skipped"] == {"no fix": 3}
+    t0 = base.t_ns("gnss/gnss_cog/fix")
+    assert np.array_equal(content_tampered.t_ns("gnss/gnss_cog/fix"), np.setdiff1d(t0, no_fix))
+    with Drive(content_tampered.drive) as d:
+        fix = d.series("gnss/gnss_cog/fix")
+    assert np.all(np.isfinite(fix["latitude_deg"])) and np.all(np.isfinite(fix["longitude_deg"]))
+    assert np.all(fix["status"] >= 0)
+    assert content_tampered.streams["gnss/gnss_radar/fix"]["skipped"] == {}
+
+
+# ------------------------------------------------------------------------------------- 5. radar
+def test_radar_frames_of_wrong_size_are_skipped(content_tampered: Ingested, base: Ingested) -> None:
+    st = content_tampered.streams[RADAR]
+    short = content_tampered.injected["radar_short"]
+    assert st["received"] == 981 and st["written"] == 978
+    assert st["skipped"] == {"wrong data size": 3}
+    assert st["missing_frames"] == 3  # a skipped frame is a missing frame
+    with Drive(content_tampered.drive) as d, Drive(base.drive) as d0:
+        r, r0 = d.radar(), d0.radar()
+        assert np.array_equal(r.frame_index, np.setdiff1d(r0.frame_index, short))
+        assert r.raw.shape == (978, *r0.raw.shape[1:])
+        assert np.array_equal(d.h5[RADAR]["gap_frame_index"][()], [[f - 1, f + 1] for f in short])
+
+
+def test_radar_frame_index_gap_is_recorded(radar_gap: Ingested, base: Ingested) -> None:
+    st = radar_gap.streams[RADAR]
+    assert st["received"] == st["written"] == 981 - 5
+    assert st["missing_frames"] == 5
+    assert st["gaps"] == 1
+    with Drive(base.drive) as d0:
+        idx0, t0 = d0.radar().frame_index, d0.radar().t_ns
+    with Drive(radar_gap.drive) as d:
+        g = d.h5[RADAR]
+        assert np.array_equal(g["gap_frame_index"][()], [[idx0[499], idx0[505]]])
+        assert idx0[505] - idx0[499] == 6
+        assert np.array_equal(g["gaps"][()], [[t0[499], t0[505]]])
+        assert np.array_equal(g["frame_index"][()], np.delete(idx0, range(500, 505)))
+        stored = {st["path"]: st for st in d.report()["streams"]}  # the report kept in drive.h5 says so too
+    assert stored[RADAR]["missing_frames"] == 5 and stored[RADAR]["gaps"] == 1
+
+
+# ---------------------------------------------------------------------------- 6. damaged containers
+def _chunk_messages(path: Path, start: int, length: int) -> Counter[int]:
+    """Messages per channel id inside the chunk record at ``start``."""
+    with open(path, "rb") as f:
+        f.seek(start)
+        blob = f.read(length)
+    assert blob[0] == 0x06  # chunk opcode; then a uint64 length, then the chunk body
+    chunk = Chunk.read(ReadDataStream(io.BytesIO(blob[9:])))
+    return Counter(r.channel_id for r in breakup_chunk(chunk) if isinstance(r, Message))
+
+
+def test_truncated_mcap_keeps_what_came_before(ci_mcap: SimulationResult, work: Path, cfg: Config,
+                                               base: Ingested) -> None:
+    data = ci_mcap.log_path.read_bytes()
+    log = work / "half.mcap"
+    log.write_bytes(data[: len(data) // 2])
+    got = run(log, work / "half", cfg)
+    hits = [m for w in got.report.warnings if str(log) in w and (m := re.search(r"\bbyte (\d+)", w))]
+    assert len(hits) == 1, got.report.warnings
+    offset = int(hits[0].group(1))
+    assert 0 < offset <= len(data) // 2
+    radar = got.streams[RADAR]["written"]
+    assert 0 < radar < 981
+    # every stream holds exactly the beginning of the intact drive
+    for path, st in got.streams.items():
+        t = got.t_ns(path)
+        assert np.array_equal(t, base.t_ns(path)[: len(t)]), path
+        assert st["late_dropped"] == st["duplicates"] == 0
+
+
+def test_corrupt_chunk_is_skipped_the_rest_is_read(ci_mcap: SimulationResult, work: Path, cfg: Config,
+                                                   base: Ingested) -> None:
+    with open(ci_mcap.log_path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+    assert len(chunks) >= 3 and all(c.compression == "zstd" for c in chunks)
+    bad = chunks[len(chunks) // 2]
+    lost = _chunk_messages(ci_mcap.log_path, bad.chunk_start_offset, bad.chunk_length)
+    data = bytearray(ci_mcap.log_path.read_bytes())
+    mid = bad.chunk_start_offset + bad.chunk_length // 2
+    data[mid: mid + 256] = bytes(b ^ 0xFF for b in data[mid: mid + 256])
+    log = work / "bad_chunk.mcap"
+    log.write_bytes(bytes(data))
+
+    got = run(log, work / "bad_chunk", cfg)
+    end = bad.chunk_start_offset + bad.chunk_length
+    assert any(str(log) in w and f"chunk ending at byte {end} skipped" in w for w in got.report.warnings), \
+        got.report.warnings
+    ids = channel_ids(ci_mcap.log_path)
+    lost_radar = lost[ids[RADAR_TOPIC]]
+    assert 0 < lost_radar < 981
+    st = got.streams
+    assert st[RADAR]["written"] == 981 - lost_radar
+    assert st[RADAR]["missing_frames"] == lost_radar
+    for path, topic in (("imu/imu_cog_a", "/imu/cog_a"), ("imu/ins_radar", "/ins_radar/imu")):
+        assert st[path]["written"] == base.streams[path]["written"] - lost[ids[topic]], path
+    assert got.report.can["frames"] == 392 - lost[ids[CAN_TOPIC]]
+    # the summary's counts show the shortfall per topic
+    assert any(f"topic {RADAR_TOPIC}: {981 - lost_radar} of the 981" in w for w in got.report.warnings)
+
+
+@pytest.mark.parametrize("head", [b"", b"\x89MCAP0\r\n"], ids=["random", "magic-then-garbage"])
+def test_not_an_mcap_is_a_clear_error(head: bytes, work: Path, cfg: Config) -> None:
+    log = work / f"noise{len(head)}.mcap"
+    log.write_bytes(head + np.random.default_rng(7).bytes(64 * 1024))
+    out = work / f"noise{len(head)}"
+    with pytest.raises(IngestError, match=re.escape(str(log))) as exc:
+        run(log, out, cfg)
+    assert "MCAP" in str(exc.value)  # says what is wrong with the file, not just "no sensor streams"
+    assert no_output(out)
+
+
+def test_mcap_cut_inside_first_chunk_error_says_damaged(ci_mcap: SimulationResult, work: Path, cfg: Config) -> None:
+    log = work / "cut200.mcap"
+    log.write_bytes(ci_mcap.log_path.read_bytes()[:200])  # magic, header record, part of the first chunk
+    with pytest.raises(IngestError, match=re.escape(str(log))) as exc:
+        run(log, work / "cut200", cfg)
+    assert re.search(r"damaged|truncated", str(exc.value)), str(exc.value)
+
+
+def test_cli_corrupt_mcap_one_error_line(work: Path) -> None:
+    log = work / "cli noise.mcap"  # a space in the name: still one line, still named
+    log.write_bytes(np.random.default_rng(3).bytes(16 * 1024))
+    out = work / "cli_noise"
+    r = runner.invoke(app, ["ingest", str(log), "-o", str(out / "drive.h5")])
+    assert r.exit_code != 0
+    assert str(log) in one_error_line(r.stderr)
+    assert "Traceback" not in r.output and "Traceback" not in r.stderr
+    assert no_output(out)
+
+
+def test_truncated_ros1_bag_clear_error(ci_ros1: SimulationResult, work: Path, cfg: Config) -> None:
+    data = ci_ros1.log_path.read_bytes()
+    log = work / "half.bag"
+    log.write_bytes(data[: len(data) // 2])
+    out = work / "half_bag"
+    r = runner.invoke(app, ["ingest", str(log), "-o", str(out / "drive.h5")])
+    assert "Traceback" not in r.output and "Traceback" not in r.stderr
+    if r.exit_code == 0:  # salvaged: then a warning must name the file
+        assert any(ln.startswith("warning:") and str(log) in ln for ln in r.stderr.splitlines()), r.stderr
+    else:
+        line = one_error_line(r.stderr)
+        assert str(log) in line and "ROS1 bag" in line
+        assert no_output(out)
+        with pytest.raises(IngestError, match=re.escape(str(log))):
+            run(log, out, cfg)
+        assert no_output(out)
+
+
+# -------------------------------------------------------------------------- 7. missing radar or nav
+def test_log_without_radar_needs_allow_partial(ci_mcap: SimulationResult, work: Path, cfg: Config,
+                                               base: Ingested) -> None:
+    log = tamper(ci_mcap.log_path, work / "no_radar.mcap", lambda r: [] if r.topic == RADAR_TOPIC else r.keep())
+    with pytest.raises(IngestError, match="radar") as exc:
+        run(log, work / "no_radar", cfg)
+    assert "--allow-partial" in str(exc.value) and str(log) in str(exc.value)
+    assert no_output(work / "no_radar")
+
+    got = run(log, work / "no_radar_partial", cfg, allow_partial=True)
+    assert got.report.partial is True
+    assert any("radar" in w and "--allow-partial" in w for w in got.report.warnings)
+    with Drive(got.drive) as d:
+        assert d.radar_names() == []
+        assert d.report()["partial"] is True
+    assert RADAR not in got.streams
+    for path, st in base.streams.items():
+        if path != RADAR:
+            assert got.streams[path]["written"] == st["written"], path
+
+
+def test_log_without_navigation_is_refused(ci_mcap: SimulationResult, work: Path, cfg: Config) -> None:
+    log = tamper(ci_mcap.log_path, work / "radar_only.mcap", lambda r: r.keep() if r.topic == RADAR_TOPIC else [])
+    with pytest.raises(IngestError, match="navigation") as exc:
+        run(log, work / "radar_only", cfg)
+    assert "--allow-partial" in str(exc.value)
+    assert no_output(work / "radar_only")
+
+
+# ------------------------------------------------------------------------------------ 8. rosbag2 traps
+def _edit_metadata(bag: Path, edit: Callable[[dict[str, Any]], None]) -> None:
+    meta_path = bag / "metadata.yaml"
+    meta = yaml.safe_load(meta_path.read_text(encoding="utf-8"))
+    for entry in meta["rosbag2_bagfile_information"]["topics_with_message_count"]:
+        edit(entry["topic_metadata"])
+    meta_path.write_text(yaml.safe_dump(meta, sort_keys=False), encoding="utf-8")
+
+
+def _rosbags_count(bag: Path) -> Counter[str]:
+    from rosbags.rosbag2 import Reader
+
+    with Reader(bag) as reader:
+        return Counter(conn.topic for conn, _, _ in reader.messages())
+
+
+def _change_qos(topic_meta: dict[str, Any]) -> None:
+    for q in topic_meta["offered_qos_profiles"]:
+        q["reliability"] = "best_effort"
+        q["durability"] = "transient_local"
+
+
+def test_rosbag2_qos_mismatch_is_read_anyway(ci_ros2: SimulationResult, work: Path, cfg: Config,
+                                             base: Ingested) -> None:
+    bag = work / "qos_all"
+    shutil.copytree(ci_ros2.log_path, bag)
+    _edit_metadata(bag, _change_qos)
+    assert sum(_rosbags_count(bag).values()) == 0  # the trap is real: rosbags alone reads nothing
+
+    got = run(bag, work / "qos_all_out", cfg)
+    assert any("QoS mismatch" in w for w in got.report.warnings), got.report.warnings
+    assert got.streams.keys() == base.streams.keys()
+    for path, st in base.streams.items():
+        assert got.streams[path]["written"] == st["written"], path
+    assert got.report.can["decoded"] == 392
+
+
+def test_rosbag2_qos_mismatch_on_one_topic(ci_ros2: SimulationResult, work: Path, cfg: Config,
+                                           base: Ingested) -> None:
+    bag = work / "qos_one"
+    shutil.copytree(ci_ros2.log_path, bag)
+    _edit_metadata(bag, lambda t: _change_qos(t) if t["name"] == "/imu/cog_a" else None)
+    counts = _rosbags_count(bag)
+    assert counts["/imu/cog_a"] == 0 and counts[RADAR_TOPIC] == 981  # rosbags silently drops just that topic
+
+    got = run(bag, work / "qos_one_out", cfg)
+    assert any("QoS mismatch" in w and "/imu/cog_a" in w for w in got.report.warnings), got.report.warnings
+    for path, st in base.streams.items():
+        assert got.streams[path]["written"] == st["written"], path
+    assert np.array_equal(got.t_ns("imu/imu_cog_a"), base.t_ns("imu/imu_cog_a"))
+
+
+def test_rosbag2_storage_shortfall_is_warned(ci_ros2: SimulationResult, work: Path, cfg: Config,
+                                            base: Ingested) -> None:
+    bag = work / "short"
+    shutil.copytree(ci_ros2.log_path, bag)
+    db = sqlite3.connect(next(bag.glob("*.db3")))
+    with db:
+        db.execute("DELETE FROM messages WHERE id IN (SELECT messages.id FROM messages JOIN topics "
+                   "ON messages.topic_id = topics.id WHERE topics.name = '/ins_cog/fix' "
+                   "ORDER BY messages.timestamp LIMIT 3 OFFSET 4)")
+    db.close()
+
+    got = run(bag, work / "short_out", cfg)
+    hits = [w for w in got.report.warnings if "/ins_cog/fix" in w]
+    assert len(hits) == 1 and "7 of the 10" in hits[0], got.report.warnings
+    assert got.streams["gnss/gnss_cog/fix"]["written"] == 7
+    for path, st in base.streams.items():
+        if path != "gnss/gnss_cog/fix":
+            assert got.streams[path]["written"] == st["written"], path
+
+
+# -------------------------------------------------------------------- 9. unparseable embedded schema
+SERVICE_SCHEMA = "int64 a\nint64 b\n---\nint64 sum\n"
+
+
+@pytest.fixture(scope="module")
+def bad_schema(ci_mcap: SimulationResult, work: Path, cfg: Config) -> Ingested:
+    """Two extra channels with a service-like (``---``) schema: an unknown type (5 messages) and an Imu topic
+    that copies every 10th /imu/cog_a message (50 messages)."""
+    first_extra = max(channel_ids(ci_mcap.log_path).values()) + 1
+    srv_id, imu_id = first_extra, first_extra + 1
+    extra = [("/add_two_ints", "example_interfaces/srv/AddTwoInts", SERVICE_SCHEMA),
+             ("/imu/extra", msgs.IMU, "std_msgs/Header header\n---\nfloat64 x\n")]
+
+    def fn(r: Rec) -> Out:
+        out = r.keep()
+        if r.topic == RADAR_TOPIC and r.n % 100 == 0 and r.n < 500:
+            out.append((r.log_time, srv_id, bytes(range(20))))
+        if r.topic == "/imu/cog_a" and r.n % 10 == 0:
+            out.append((r.log_time, imu_id, r.data))
+        return out
+
+    log = tamper(ci_mcap.log_path, work / "bad_schema.mcap", fn, extra)
+    return run(log, work / "bad_schema", cfg)
+
+
+def test_unparseable_schema_channel_is_skipped(bad_schema: Ingested, base: Ingested) -> None:
+    skipped = {s["topic"]: s for s in bad_schema.report.skipped_channels}
+    assert set(skipped) == {"/add_two_ints"}
+    sk = skipped["/add_two_ints"]
+    assert sk["msgtype"] == "example_interfaces/srv/AddTwoInts" and sk["reason"] and sk["messages"] == 5
+    for path, st in base.streams.items():  # the rest is complete
+        assert bad_schema.streams[path]["written"] == st["written"], path
+    assert bad_schema.report.can["decoded"] == 392
+
+
+def test_unparseable_schema_of_known_type_uses_builtin(bad_schema: Ingested, base: Ingested) -> None:
+    assert any("/imu/extra" in w and "unparseable embedded definition" in w for w in bad_schema.report.warnings), \
+        bad_schema.report.warnings
+    st = bad_schema.streams["imu/imu_extra"]
+    assert st["written"] == 50 and st["skipped"] == {}
+    assert "undecodable_messages" not in bad_schema.report.can
+    assert np.array_equal(bad_schema.t_ns("imu/imu_extra"), base.t_ns("imu/imu_cog_a")[::10])
