@@ -24,12 +24,27 @@ class SchemaError(ValueError):
     """A channel cannot be decoded; the message says why."""
 
 
+class _SameAsBuiltin(Exception):
+    pass
+
+
 class MessageTypes:
     """Caches one deserializer per (encoding, type, definition)."""
 
     def __init__(self) -> None:
         self._cache: dict[tuple[str, str, str], Deserializer] = {}
+        self._parsed: dict[tuple[str, str], Any] = {}
         self.warnings: list[str] = []
+
+    def _parse(self, schema: str, msgtype: str) -> Any:
+        """Types of an embedded definition (cached), or the exception parsing it raised."""
+        key = (schema, msgtype)
+        if key not in self._parsed:
+            try:
+                self._parsed[key] = get_types_from_msg(schema, msgtype)
+            except Exception as exc:  # rosbags raises several types for bad text
+                self._parsed[key] = exc
+        return self._parsed[key]
 
     def is_builtin(self, channel: Channel) -> bool:
         """True if the channel is CDR and its embedded definition (if any) equals the built-in one."""
@@ -38,11 +53,10 @@ class MessageTypes:
         builtin = typestore_for(2)
         if channel.msgtype not in builtin.types:
             return False
-        if not channel.schema:
-            return True
-        try:
-            embedded = get_types_from_msg(channel.schema, channel.msgtype)
-        except Exception:  # unparseable: the deserializer falls back to the built-in definition anyway
+        if not channel.schema or channel.schema_encoding not in ("ros2msg", ""):
+            return not channel.schema
+        embedded = self._parse(channel.schema, channel.msgtype)
+        if isinstance(embedded, Exception):  # the deserializer falls back to the built-in definition anyway
             return True
         return all(name not in builtin.fielddefs or builtin.fielddefs[name] == fields
                    for name, fields in embedded.items())
@@ -60,10 +74,17 @@ class MessageTypes:
         store = None
         if ch.schema and ch.schema_encoding in ("ros2msg", "ros1msg", ""):
             try:
+                parsed = self._parse(ch.schema, ch.msgtype)
+                if isinstance(parsed, Exception):
+                    raise parsed
+                if self.is_builtin(ch):  # same definition: the cached built-in store serves it
+                    raise _SameAsBuiltin
                 store = get_typestore(Stores.EMPTY)
-                store.register(get_types_from_msg(ch.schema, ch.msgtype))
+                store.register(parsed)
                 if ch.msgtype not in store.types:
                     raise SchemaError(f"definition does not define {ch.msgtype}")
+            except _SameAsBuiltin:
+                store = None
             except Exception as exc:  # rosbags raises several types for bad text
                 store = None
                 builtin = typestore_for(ros_version)

@@ -130,7 +130,7 @@ class Table:
         self._pending: list[dict[str, np.ndarray]] = []
         self._pending_rows = 0
         writer._tables.append(self)
-        writer._hdf.call(lambda: self._create(writer._file, attrs))
+        writer._hdf.submit(lambda: self._create(writer._file, attrs))
 
     def _create(self, f: h5py.File, attrs: Mapping[str, Any]) -> None:
         g = f.require_group(self.path)
@@ -203,7 +203,7 @@ class RadarCube(Table):
                 "raw", shape=(0, *shape), maxshape=(None, *shape), dtype=np.int16,
                 chunks=(RADAR_CHUNK_FRAMES, *shape), **radar_compression())
 
-        writer._hdf.call(create)
+        writer._hdf.submit(create)
 
     def append_frames(self, t_ns: np.ndarray, frame_index: np.ndarray, frames: list[np.ndarray]) -> None:
         """Append frames: one flat int16 array (tx·rx·sample·2) per frame, handed over (do not modify them).
