@@ -4,8 +4,9 @@ Usage: python benches/bench_ingest.py [--scenario test1] [--repeat 3] [--workdir
 
 Simulates the scenario (MCAP, seed 1) once, builds a 4x longer log by repeating its messages with
 shifted times and frame indices, then ingests each log ``--repeat`` times, every run in a fresh
-process that reports its own wall time (ingest only, imports excluded) and peak RSS. Prints a table
-and writes benches/results/ingest.json.
+process that ingests the log twice and reports both wall times (cold: the first ingest of the
+process, including one-time lazy imports and type-store builds, ~0.3 s; warm: the second) and its
+peak RSS. Throughput is log bytes / warm median. Prints a table and writes benches/results/ingest.json.
 """
 
 from __future__ import annotations
@@ -29,11 +30,13 @@ from autosar_cli.config import load_config
 from autosar_cli.ingest.pipeline import ingest
 cfg = load_config()
 out = Path(sys.argv[2])
-out.unlink(missing_ok=True)
-t = time.perf_counter()
-report = ingest([Path(sys.argv[1])], out, config=cfg)
-wall = time.perf_counter() - t
-print(json.dumps({"wall_s": wall, "bytes": report.bytes_read, "messages": report.messages,
+walls = []
+for _ in range(2):  # cold: first ingest of the process (lazy imports, type stores); warm: the second one
+    out.unlink(missing_ok=True)
+    t = time.perf_counter()
+    report = ingest([Path(sys.argv[1])], out, config=cfg)
+    walls.append(time.perf_counter() - t)
+print(json.dumps({"cold_s": walls[0], "wall_s": walls[1], "bytes": report.bytes_read, "messages": report.messages,
                   "duration_s": (report.end_ns - report.start_ns) / 1e9,
                   "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
                   "drive_bytes": out.stat().st_size}))
@@ -107,19 +110,23 @@ def main() -> None:
         for label, log in (("1x", log1), ("4x", log4)):
             runs = [ingest_once(log, work) for _ in range(args.repeat)]
             wall = statistics.median(r["wall_s"] for r in runs)
+            cold = statistics.median(r["cold_s"] for r in runs)
             r0 = runs[0]
             rows.append({"log": label, "scenario": args.scenario, "repeat": args.repeat,
                          "log_MB": round(r0["bytes"] / 1e6, 1), "drive_s": round(r0["duration_s"], 2),
                          "messages": r0["messages"], "median_wall_s": round(wall, 3),
                          "walls_s": [round(r["wall_s"], 3) for r in runs],
                          "throughput_MB_s": round(r0["bytes"] / 1e6 / wall, 1),
+                         "median_cold_wall_s": round(cold, 3),
+                         "cold_throughput_MB_s": round(r0["bytes"] / 1e6 / cold, 1),
                          "peak_rss_MB": round(max(r["peak_rss_mb"] for r in runs), 1),
                          "drive_h5_MB": round(r0["drive_bytes"] / 1e6, 1)})
-    head = ("log", "MB", "drive s", "median s", "MB/s", "peak RSS MB", "drive.h5 MB")
-    print("{:4s} {:>7s} {:>8s} {:>9s} {:>7s} {:>12s} {:>12s}".format(*head))
+    head = ("log", "MB", "drive s", "warm s", "MB/s", "cold s", "MB/s", "peak RSS MB", "drive.h5 MB")
+    print("{:4s} {:>7s} {:>8s} {:>8s} {:>7s} {:>8s} {:>7s} {:>12s} {:>12s}".format(*head))
     for r in rows:
-        print(f"{r['log']:4s} {r['log_MB']:7.1f} {r['drive_s']:8.2f} {r['median_wall_s']:9.3f} "
-              f"{r['throughput_MB_s']:7.1f} {r['peak_rss_MB']:12.1f} {r['drive_h5_MB']:12.1f}")
+        print(f"{r['log']:4s} {r['log_MB']:7.1f} {r['drive_s']:8.2f} {r['median_wall_s']:8.3f} "
+              f"{r['throughput_MB_s']:7.1f} {r['median_cold_wall_s']:8.3f} {r['cold_throughput_MB_s']:7.1f} "
+              f"{r['peak_rss_MB']:12.1f} {r['drive_h5_MB']:12.1f}")
     RESULTS.mkdir(exist_ok=True)
     result = {"benchmark": "ingest", "machine": {"cpus": _cpus(), "python": platform.python_version()},
               "target": {"throughput_MB_s": 200, "peak_rss_MB": 400}, "rows": rows}

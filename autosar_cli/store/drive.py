@@ -205,19 +205,14 @@ class RadarCube(Table):
 
         writer._hdf.submit(create)
 
-    def append_frames(self, t_ns: np.ndarray, frame_index: np.ndarray, frames: list[np.ndarray]) -> None:
-        """Append frames: one flat int16 array (tx·rx·sample·2) per frame, handed over (do not modify them).
-
-        The frames are gathered into one block on the writer thread, off the decoder's critical path.
-        """
+    def append_frames(self, t_ns: np.ndarray, frame_index: np.ndarray, raw: np.ndarray) -> None:
+        """Append frames; ``raw`` (n, tx, rx, sample, 2) int16 is handed over (do not modify it afterwards)."""
         start = self.rows
         self.append({"t_ns": t_ns, "frame_index": frame_index})
         f = self._writer._file
-        n = len(frames)
-        shape = self.frame_shape
+        n = len(raw)
 
         def write() -> None:
-            raw = np.stack(frames).reshape(n, *shape)
             ds = f[self.path]["raw"]
             ds.resize(start + n, axis=0)
             ds[start:] = raw
