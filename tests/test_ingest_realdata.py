@@ -470,3 +470,25 @@ def test_rosbag2_embedded_schemas_decode_like_mcap_ros2(name: str) -> None:
     assert [t for t, _ in ours] == [t for t, _ in ref] and len(ours) == sum(n for _, n in _declared(bag).values())
     for (topic, a), (_, b) in zip(ours, ref, strict=True):
         _assert_same(a, b, topic)
+
+
+# ------------------------------------------------------------------ autosar info on standalone logs
+def test_info_on_a_can_log_counts_frames_per_channel_and_id() -> None:
+    mf4 = realdata("css-electronics", "2F6913DB_00000004_00000001.MF4")
+    with can.MF4Reader(str(mf4)) as reader:
+        expected = Counter((str(m.channel), m.arbitration_id) for m in reader)
+    r = runner.invoke(app, ["info", str(mf4), "--json"])
+    assert r.exit_code == 0, r.output
+    got = {s["topic"]: s["count"] for s in json.loads(r.stdout)["streams"]}
+    assert sum(got.values()) == sum(expected.values()) == 5588
+    assert got["ch2 0x9"] == expected[("2", 9)] == 4724  # gnss_imu
+
+
+def test_info_on_an_nmea_capture_counts_decoded_records() -> None:
+    log = realdata("gpsd", "neo-m8n.log")
+    r = runner.invoke(app, ["info", str(log), "--json"])
+    assert r.exit_code == 0, r.output
+    d = json.loads(r.stdout)
+    got = {s["topic"]: s["count"] for s in d["streams"]}
+    assert got == {"NmeaFix": 23, "NmeaVelocity": 46}  # 23 GGA; 23 RMC + 23 VTG
+    assert any("GSV ×157" in w for w in d["warnings"])

@@ -57,10 +57,60 @@ class LogSummary:
 
 def summarize(path: Path) -> LogSummary:
     """Summary of a drive log or of a drive.h5."""
+    from .pipeline import classify_input
+
     path = Path(path)
     if path.is_file() and path.suffix.lower() in (".h5", ".hdf5"):
         return summarize_drive(path)
+    if not path.exists():
+        raise LogReadError(f"{path}: no such file or directory")
+    kind = classify_input(path)
+    if kind == "can":
+        return summarize_can_log(path)
+    if kind == "nmea":
+        return summarize_nmea_log(path)
     return summarize_log(path)
+
+
+def _add(streams: dict[str, StreamSummary], name: str, msgtype: str, t_ns: int) -> None:
+    s = streams.get(name)
+    if s is None:
+        s = streams[name] = StreamSummary(name, msgtype, 0, t_ns, t_ns)
+    s.count += 1
+    s.start_ns = min(s.start_ns, t_ns)
+    s.end_ns = max(s.end_ns, t_ns)
+
+
+def summarize_can_log(path: Path) -> LogSummary:
+    """Frames of a standalone CAN log per channel and ID."""
+    from .canlog import CanLogError, read_can_log
+
+    summary = LogSummary(str(path), f"CAN log ({path.suffix.lower().lstrip('.')})", path.stat().st_size)
+    streams: dict[str, StreamSummary] = {}
+    try:
+        for rec in read_can_log(path):
+            _add(streams, f"ch{rec.channel or '?'} 0x{rec.frame_id:X}", "CAN frame", rec.t_ns)
+    except CanLogError as exc:
+        if not streams:
+            raise LogReadError(str(exc)) from exc
+        summary.warnings.append(str(exc))
+    summary.streams.extend(sorted(streams.values(), key=lambda s: s.topic))
+    return summary
+
+
+def summarize_nmea_log(path: Path) -> LogSummary:
+    """Decoded records of an NMEA text capture per kind (GGA fixes, RMC/VTG velocities, HDT headings)."""
+    from .nmea import NmeaLogReader
+
+    summary = LogSummary(str(path), "NMEA text", path.stat().st_size)
+    streams: dict[str, StreamSummary] = {}
+    reader = NmeaLogReader(path)
+    for rec in reader:
+        _add(streams, type(rec).__name__, "NMEA", rec.t_ns)
+    summary.streams.extend(streams.values())
+    if reader.skipped:
+        summary.warnings.append("skipped sentences: " + ", ".join(f"{k} ×{v}" for k, v in reader.skipped.items()))
+    return summary
 
 
 def summarize_log(path: Path) -> LogSummary:

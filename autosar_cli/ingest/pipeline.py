@@ -53,7 +53,6 @@ KIND_OF_TYPE = {
     msgs.IMU: "imu",
     msgs.RAW_FRAME: "radar",
 }
-CAN_LOG_SUFFIXES = (".blf", ".asc", ".trc", ".mf4")
 NMEA_SUFFIXES = (".nmea", ".txt", ".gps")
 
 ProgressFn = Callable[[int, int], None]
@@ -87,20 +86,11 @@ class IngestReport:
 
 def classify_input(path: Path) -> str:
     """"log" (MCAP / bag / rosbag2), "can" (standalone CAN log) or "nmea" (NMEA text capture)."""
-    suffix = path.suffix.lower()
-    if suffix in CAN_LOG_SUFFIXES:
+    from .canlog import is_can_log
+
+    if path.is_file() and is_can_log(path):
         return "can"
-    if suffix in NMEA_SUFFIXES:
-        return "nmea"
-    if suffix == ".log" and path.is_file():
-        # candump logs start with "(<time>) <bus> <id>#<data>"; NMEA captures with '$' or '#' comments.
-        with open(path, "rb") as f:
-            head = f.read(4096)
-        for line in head.splitlines():
-            line = line.strip()
-            if not line or line.startswith(b"#"):
-                continue
-            return "can" if line.startswith(b"(") else "nmea"
+    if path.suffix.lower() in NMEA_SUFFIXES or path.suffix.lower() == ".log":
         return "nmea"
     return "log"
 
