@@ -53,6 +53,13 @@ class Scenario(StrEnum):
     test3 = "test3"
 
 
+class NavMethod(StrEnum):
+    sar_min = "sar-min"
+    gnss = "gnss"
+    none = "none"
+    truth = "truth"
+
+
 class LogFormat(StrEnum):
     mcap = "mcap"
     ros1 = "ros1"
@@ -216,6 +223,46 @@ def ingest(
             out.print(f"skipped {sk['topic']} ({sk['msgtype']}): {sk['reason']}", highlight=False)
         for w in report.warnings:
             err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+
+
+@app.command()
+def navigate(
+    drive: Annotated[Path, typer.Argument(help="drive.h5 written by `autosar ingest`.")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="trajectory.h5 to write.")] = Path("trajectory.h5"),
+    method: Annotated[NavMethod, typer.Option("--method", "-m", help="sar-min (UKF fusion, paper Sec. II-B), gnss "
+                                              "(GNSS only), none (straight line), truth (simulator sidecar).")]
+    = NavMethod.sar_min,
+    no_smooth: Annotated[bool, typer.Option("--no-smooth", help="Filter only (no RTS smoother).")] = False,
+    truth: Annotated[Path | None, typer.Option("--truth", help="Truth sidecar for --method truth "
+                                               "(default: <log>.truth.h5 of the drive's input log).")] = None,
+    config: ConfigOpt = None,
+    overwrite: OverwriteOpt = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """Estimate the vehicle trajectory of a drive (SAR-MIN UKF + RTS smoother, or a baseline)."""
+    with _errors():
+        import numpy as np
+
+        from autosar_cli.nav.navigate import navigate as run_navigate
+        from autosar_cli.store.trajectory import write_trajectory
+
+        cfg = _load_config(config)
+        _prepare_output(output, overwrite)
+        traj = run_navigate(drive, method.value, cfg, smooth=not no_smooth, truth_path=truth)
+        write_trajectory(output, traj)
+        span = (traj.t_ns[-1] - traj.t_ns[0]) / 1e9
+        dist = float(np.sum(np.hypot(*np.diff(traj.rear_axle_enu, axis=0).T)))
+        summary = {"trajectory": str(output), "method": traj.method, "samples": len(traj.t_ns),
+                   "duration_s": round(span, 3), "distance_m": round(dist, 3),
+                   "elapsed_s": round(traj.info["elapsed_s"], 3),
+                   **{k: traj.info[k] for k in ("updates", "rejected") if k in traj.info}}
+        if as_json:
+            out.print_json(json.dumps(summary))
+            return
+        out.print(f"wrote [bold]{output}[/]: {traj.method}, {len(traj.t_ns)} samples over {span:.2f} s, "
+                  f"{dist:.1f} m travelled, in {traj.info['elapsed_s']:.1f} s")
+        if traj.info.get("rejected"):
+            out.print("gated out: " + ", ".join(f"{k} {v}" for k, v in traj.info["rejected"].items()))
 
 
 @app.command()

@@ -212,6 +212,21 @@ class SimulationConfig:
 
 
 @dataclass(frozen=True)
+class NavigationConfig:
+    """SAR-MIN tuning (measurement noises come from each sensor's own error table)."""
+
+    gyros: tuple[str, ...] = ("imu_cog_a", "imu_cog_b", "orc", "esc")  # yaw-rate sensors fused, by sensor name
+    gnss: str = "gnss_cog"  # GNSS source fused (fix + velocity)
+    speed_noise_mps2: float = 0.8  # process: white acceleration, m/s^2 per sqrt(Hz)
+    yaw_rate_noise_radps2: float = 0.08  # process: white yaw acceleration, rad/s^2 per sqrt(Hz)
+    position_noise_m: float = 0.002  # process: unmodelled position jitter, m per sqrt(Hz)
+    gnss_position_std_m: float = 0.5  # GNSS position noise used by the filter (its errors are slow, not white)
+    steering_min_speed_mps: float = 1.0  # below it the steering model atan(L omega / v) is not used
+    gate_probability: float = 0.9999  # chi-square gate of each update
+    max_step_s: float = 0.05  # longest single prediction step (dead reckoning through gaps)
+
+
+@dataclass(frozen=True)
 class Config:
     vehicle: VehicleConfig
     radar: RadarConfig
@@ -219,6 +234,7 @@ class Config:
     sensors: dict[str, SensorConfig]
     processing: ProcessingConfig = field(default_factory=ProcessingConfig)
     simulation: SimulationConfig | None = None
+    navigation: NavigationConfig = field(default_factory=NavigationConfig)
     source: str = ""
 
     @property

@@ -1,0 +1,131 @@
+"""Navigation inputs read from a drive.h5: every measurement SAR-MIN fuses, at its measurement instant.
+
+I/O only (no filtering). Times are float64 seconds since ``t0_ns``, already corrected for each
+sensor's configured latency (header stamp − latency = the instant the value refers to). Positions are
+ENU metres at ``origin``, whose height is the road surface under the first GNSS fix.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from autosar_cli.config import Config
+from autosar_cli.nav.geodesy import GeodeticOrigin
+from autosar_cli.store.drive import Drive
+
+Array = NDArray[np.float64]
+
+
+class NavInputError(ValueError):
+    """A drive lacks what navigation needs; the message says what."""
+
+
+@dataclass
+class Measurements:
+    """One sensor's samples: times (s), values (n, k) and the standard deviation of one sample (k,)."""
+
+    name: str
+    t: Array
+    z: Array
+    sigma: Array
+
+
+@dataclass
+class NavInputs:
+    t0_ns: int
+    origin: GeodeticOrigin
+    gyros: list[Measurements] = field(default_factory=list)
+    wheels: Measurements | None = None
+    steering: Measurements | None = None  # road-wheel angle (rad) = steering-wheel angle / ratio
+    gnss_position: Measurements | None = None  # antenna ENU (x, y)
+    gnss_velocity: Measurements | None = None  # antenna ENU (vx, vy)
+    gnss_lever_m: tuple[float, float, float] = (0.0, 0.0, 0.0)  # antenna in the body frame (from the CoG)
+    gyro_bias_std: list[float] = field(default_factory=list)  # prior std of each gyro's bias (rad/s)
+    gyro_bias_walk: list[float] = field(default_factory=list)  # bias random walk (rad/s per sqrt(s))
+    steering_offset_std: float = 0.0  # prior std of the road-wheel angle offset (rad)
+    wheel_scale_std: float = 0.0
+
+
+def lsb_of(values: Array) -> float:
+    """Quantisation step of a recorded signal: the smallest gap between its distinct values (0 if none)."""
+    u = np.unique(values[np.isfinite(values)])
+    if len(u) < 2:
+        return 0.0
+    gaps = np.diff(u)
+    return float(gaps[gaps > 1e-12].min()) if (gaps > 1e-12).any() else 0.0
+
+
+def load_inputs(drive: Drive, config: Config) -> NavInputs:
+    """Collect the SAR-MIN measurements of ``drive`` as the config names them."""
+    nav = config.navigation
+    gnss_cfg = config.sensors.get(nav.gnss)
+    if nav.gnss not in drive.gnss_sources() or "fix" not in drive.h5[f"gnss/{nav.gnss}"]:
+        raise NavInputError(f"{drive.path}: no GNSS fix stream gnss/{nav.gnss} (config navigation.gnss)")
+    fix = drive.series(f"gnss/{nav.gnss}/fix")
+    if len(fix["t_ns"]) == 0:
+        raise NavInputError(f"{drive.path}: gnss/{nav.gnss}/fix is empty")
+    lever = tuple(gnss_cfg.lever_arm_m) if gnss_cfg else (0.0, 0.0, 0.0)
+    antenna_height = config.vehicle.cog_height_m + lever[2]
+    origin = GeodeticOrigin(float(fix["latitude_deg"][0]), float(fix["longitude_deg"][0]),
+                            float(fix["altitude_m"][0]) - antenna_height)
+    t0 = int(fix["t_ns"][0])
+
+    def rel(t_ns: Array, sensor: str) -> Array:
+        s = config.sensors.get(sensor)
+        latency = s.latency_s if s else 0.0
+        return (np.asarray(t_ns, dtype=np.int64) - t0) / 1e9 - latency
+
+    out = NavInputs(t0, origin, gnss_lever_m=lever)  # type: ignore[arg-type]
+    enu = origin.to_enu(fix["latitude_deg"], fix["longitude_deg"], fix["altitude_m"])
+    pos_std = np.full(2, nav.gnss_position_std_m)
+    out.gnss_position = Measurements(nav.gnss, rel(fix["t_ns"], nav.gnss), enu[:, :2], pos_std)
+    if "velocity" in drive.h5[f"gnss/{nav.gnss}"]:
+        vel = drive.series(f"gnss/{nav.gnss}/velocity")
+        std = gnss_cfg.gnss.velocity_std_mps if gnss_cfg and gnss_cfg.gnss else 0.05
+        out.gnss_velocity = Measurements(nav.gnss, rel(vel["t_ns"], nav.gnss), vel["velocity_enu"][:, :2],
+                                         np.full(2, std))
+    for name in nav.gyros:
+        s = config.sensors.get(name)
+        if s is None or s.gyro is None:
+            raise NavInputError(f"navigation.gyros: {name!r} is not a sensor with a gyro in the config")
+        if s.kind == "imu":
+            if name not in drive.imu_sources():
+                raise NavInputError(f"{drive.path}: no IMU stream imu/{name}")
+            imu = drive.series(f"imu/{name}")
+            t_ns, z = imu["t_ns"], imu["angular_velocity"][:, 2]
+        else:
+            try:
+                t_ns, z = drive.can_role(f"yaw_rate.{name}")
+            except KeyError as exc:
+                raise NavInputError(str(exc).strip("'\"")) from exc
+        q = lsb_of(z)
+        sigma = np.deg2rad(s.gyro.noise_density_dps_rthz) * np.sqrt(s.rate_hz)
+        out.gyros.append(Measurements(name, rel(t_ns, name), z[:, None], np.array([np.hypot(sigma, q / np.sqrt(12))])))
+        out.gyro_bias_std.append(1.5 * np.deg2rad(s.gyro.turn_on_bias_dps))
+        out.gyro_bias_walk.append(np.deg2rad(s.gyro.bias_instability_dps) * np.sqrt(2.0 / s.gyro.bias_tau_s))
+    wheels_cfg = next((n for n, s in config.sensors.items() if s.kind == "wheel_speeds"), None)
+    roles = drive.can_roles()
+    if wheels_cfg and all(f"wheel_speed_{w}" in roles for w in ("fl", "fr", "rl", "rr")):
+        t_ns, _ = drive.can_role("wheel_speed_fl")
+        z = np.stack([drive.can_role(f"wheel_speed_{w}")[1] for w in ("fl", "fr", "rl", "rr")], axis=1)
+        s = config.sensors[wheels_cfg]
+        q = lsb_of(z[:, 0])
+        noise = s.wheel.noise_std_mps if s.wheel else 0.01
+        out.wheels = Measurements(wheels_cfg, rel(t_ns, wheels_cfg), z, np.full(4, np.hypot(noise, q / np.sqrt(12))))
+        out.wheel_scale_std = s.wheel.radius_scale_error_std if s.wheel else 0.005
+    steer_cfg = next((n for n, s in config.sensors.items() if s.kind == "steering"), None)
+    if steer_cfg and "steering_wheel_angle" in roles:
+        t_ns, angle = drive.can_role("steering_wheel_angle")
+        s = config.sensors[steer_cfg]
+        ratio = config.vehicle.steering_ratio
+        q = lsb_of(angle)
+        noise = np.deg2rad(s.steering.noise_std_deg) if s.steering else np.deg2rad(0.1)
+        out.steering = Measurements(steer_cfg, rel(t_ns, steer_cfg), (angle / ratio)[:, None],
+                                    np.array([np.hypot(noise, q / np.sqrt(12)) / ratio]))
+        out.steering_offset_std = (np.deg2rad(s.steering.offset_std_deg) if s.steering else 0.02) / ratio * 2
+    if not out.gyros:
+        raise NavInputError(f"{drive.path}: no gyro to fuse (config navigation.gyros is empty)")
+    return out

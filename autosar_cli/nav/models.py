@@ -1,0 +1,76 @@
+"""SAR-MIN motion and measurement models (paper Sec. II-B, eq. 8-9), vectorised over sigma points.
+
+State (ENU navigation frame, SI): ``[px, py, v, psi, omega, b_1 .. b_N, b_steer]``.
+
+- ``px, py``: the centre of the rear axle. For a car that does not skid this point moves along the
+  body x-axis (no side slip), so CTRV is exact there; the CoG would need a side-slip term.
+- ``v``: speed of that point (m/s); ``psi``: heading of the body x-axis (rad, from East, CCW);
+  ``omega``: yaw rate (rad/s).
+- ``b_i``: bias of gyro i (rad/s); ``b_steer``: road-wheel angle offset of the steering sensor (rad).
+
+All functions take ``X`` of shape (m, n): one row per sigma point.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+PX, PY, V, PSI, OMEGA = 0, 1, 2, 3, 4
+N_KINEMATIC = 5
+
+Array = NDArray[np.float64]
+
+
+def ctrv_step(X: Array, dt: float) -> Array:
+    """Constant turn rate and velocity over ``dt`` seconds (exact, smooth at omega -> 0).
+
+    The chord is ``v dt sinc(omega dt / 2)`` long and points along ``psi + omega dt / 2``.
+    """
+    out = X.copy()
+    v, psi, w = X[:, V], X[:, PSI], X[:, OMEGA]
+    half = 0.5 * w * dt
+    chord = v * dt * np.sinc(half / np.pi)  # numpy's sinc is sin(pi x)/(pi x)
+    out[:, PX] += chord * np.cos(psi + half)
+    out[:, PY] += chord * np.sin(psi + half)
+    out[:, PSI] = psi + w * dt
+    return out
+
+
+def point_position(X: Array, lever_xy: tuple[float, float]) -> Array:
+    """ENU (x, y) of a body point ``lever_xy`` (m, body frame relative to the rear-axle centre); (m, 2)."""
+    c, s = np.cos(X[:, PSI]), np.sin(X[:, PSI])
+    lx, ly = lever_xy
+    return np.stack([X[:, PX] + c * lx - s * ly, X[:, PY] + s * lx + c * ly], axis=1)
+
+
+def point_velocity(X: Array, lever_xy: tuple[float, float]) -> Array:
+    """ENU ground velocity (m/s) of a body point ``lever_xy`` relative to the rear-axle centre; (m, 2)."""
+    c, s = np.cos(X[:, PSI]), np.sin(X[:, PSI])
+    lx, ly = lever_xy
+    bx = X[:, V] - X[:, OMEGA] * ly  # body-frame velocity of the point
+    by = X[:, OMEGA] * lx
+    return np.stack([c * bx - s * by, s * bx + c * by], axis=1)
+
+
+def wheel_speeds(X: Array, wheelbase_m: float, track_front_m: float, track_rear_m: float) -> Array:
+    """Ground speed (m/s) of the four wheel centres (fl, fr, rl, rr) under the no-slip bicycle model; (m, 4).
+
+    Rear wheels: v -+ omega * track/2. Front wheels also move sideways at omega * wheelbase.
+    """
+    v, w = X[:, V], X[:, OMEGA]
+    lat = w * wheelbase_m
+    fl = np.hypot(v - w * track_front_m / 2, lat)
+    fr = np.hypot(v + w * track_front_m / 2, lat)
+    return np.stack([fl, fr, np.abs(v - w * track_rear_m / 2), np.abs(v + w * track_rear_m / 2)], axis=1)
+
+
+def road_wheel_angle(X: Array, wheelbase_m: float, steer_bias_index: int) -> Array:
+    """Measured road-wheel angle (rad) = atan(L omega / v) + offset; (m, 1). Only meaningful for v > 0."""
+    v = np.maximum(X[:, V], 1e-3)
+    return (np.arctan(wheelbase_m * X[:, OMEGA] / v) + X[:, steer_bias_index])[:, None]
+
+
+def gyro(X: Array, bias_index: int) -> Array:
+    """Yaw rate measured by a gyro with its own bias (rad/s); (m, 1)."""
+    return (X[:, OMEGA] + X[:, bias_index])[:, None]

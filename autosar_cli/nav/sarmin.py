@@ -1,0 +1,191 @@
+"""SAR-MIN: UKF fusion of GNSS, N gyros, four wheel speeds and the steering angle (paper Sec. II-B),
+every measurement applied at its own instant, with Mahalanobis gating and an RTS smoother.
+
+Array-in, array-out: :func:`run_sarmin` takes :class:`~.inputs.NavInputs` and returns a
+:class:`NavSolution`; reading drive.h5 and writing trajectory.h5 happen elsewhere.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.stats import chi2
+
+from autosar_cli.config import Config
+
+from . import models as m
+from .inputs import Measurements, NavInputError, NavInputs
+from .ukf import FilterHistory, VectorUKF, rts_smooth
+
+Array = NDArray[np.float64]
+
+
+@dataclass
+class NavSolution:
+    """Estimated rear-axle states over time (see :mod:`.models` for the state layout)."""
+
+    t: Array  #: s since t0_ns
+    x: Array  #: (K, n)
+    P: Array  #: (K, n, n)
+    state_names: list[str]
+    rejected: dict[str, int]
+    updates: dict[str, int]
+
+
+def _state_names(inputs: NavInputs) -> list[str]:
+    return (["px", "py", "v", "psi", "omega"] + [f"bias.{g.name}" for g in inputs.gyros] + ["bias.steering"]
+            + [f"scale.wheel_{w}" for w in ("fl", "fr", "rl", "rr")])
+
+
+def _initial_state(inputs: NavInputs, config: Config, n: int) -> tuple[float, Array, Array]:
+    """Start state from the first data: position and heading from GNSS, speed from wheels, yaw rate from gyros."""
+    pos = inputs.gnss_position
+    assert pos is not None
+    vel = inputs.gnss_velocity
+    x0 = np.zeros(n)
+    P0 = np.zeros((n, n))
+    t_start = float(pos.t[0])
+    psi, psi_std = 0.0, np.pi
+    if vel is not None:
+        speed = np.hypot(vel.z[:, 0], vel.z[:, 1])
+        moving = np.flatnonzero(speed > 0.5)
+        if len(moving):
+            k = moving[0]
+            psi = float(np.arctan2(vel.z[k, 1], vel.z[k, 0]))
+            psi_std = float(3 * vel.sigma[0] / speed[k]) + 0.02
+            t_start = max(t_start, float(vel.t[k]))
+    k = int(np.searchsorted(pos.t, t_start - 1e-9))
+    k = min(k, len(pos.t) - 1)
+    t_start = max(t_start, float(pos.t[k]))
+    lx, ly = _gnss_lever_rear(inputs, config)
+    c, s = np.cos(psi), np.sin(psi)
+    x0[m.PX] = pos.z[k, 0] - (c * lx - s * ly)
+    x0[m.PY] = pos.z[k, 1] - (s * lx + c * ly)
+    x0[m.PSI] = psi
+    v0, v_std = 0.0, 2.0
+    if inputs.wheels is not None:
+        near = np.abs(inputs.wheels.t - t_start) < 0.1
+        if near.any():
+            v0, v_std = float(np.median(inputs.wheels.z[near][:, 2:])), 0.1
+    elif vel is not None:
+        v0 = float(np.hypot(*vel.z[np.argmin(np.abs(vel.t - t_start))]))
+    x0[m.V] = v0
+    rates = [float(np.median(g.z[np.abs(g.t - t_start) < 0.1, 0])) for g in inputs.gyros
+             if (np.abs(g.t - t_start) < 0.1).any()]
+    x0[m.OMEGA] = float(np.median(rates)) if rates else 0.0
+    diag = [pos.sigma[0] ** 2, pos.sigma[0] ** 2, v_std**2, psi_std**2, 0.02**2]
+    diag += [b**2 for b in inputs.gyro_bias_std] + [max(inputs.steering_offset_std, 1e-4) ** 2]
+    diag += [max(inputs.wheel_scale_std, 1e-4) ** 2] * 4
+    P0[np.diag_indices(n)] = diag
+    return t_start, x0, P0
+
+
+def _gnss_lever_rear(inputs: NavInputs, config: Config) -> tuple[float, float]:
+    lx, ly, _ = inputs.gnss_lever_m
+    return lx + config.vehicle.cog_to_rear_axle_m, ly
+
+
+def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True) -> NavSolution:
+    """Filter (and by default smooth) the drive; states at every measurement instant."""
+    nav = config.navigation
+    veh = config.vehicle
+    ng = len(inputs.gyros)
+    steer_i = m.N_KINEMATIC + ng
+    scale_i = steer_i + 1  # four wheel scale errors (tyre radius): left/right differences fake a yaw rate
+    n = scale_i + 4
+    names = _state_names(inputs)
+    t_start, x0, P0 = _initial_state(inputs, config, n)
+    ukf = VectorUKF(x0, P0, m.ctrv_step, angle_indices=[m.PSI])
+
+    q = np.zeros(n)
+    q[m.PX] = q[m.PY] = nav.position_noise_m**2
+    q[m.V] = nav.speed_noise_mps2**2
+    q[m.PSI] = 1e-8
+    q[m.OMEGA] = nav.yaw_rate_noise_radps2**2
+    q[m.N_KINEMATIC:m.N_KINEMATIC + ng] = np.square(inputs.gyro_bias_walk)
+    q[steer_i] = 1e-12
+    q[scale_i:scale_i + 4] = 1e-12
+
+    # One event list: (time, sensor kind, sample index), in time order.
+    sources: list[tuple[str, Measurements]] = [(f"gyro{i}", g) for i, g in enumerate(inputs.gyros)]
+    for kind, meas in (("wheels", inputs.wheels), ("steering", inputs.steering), ("gnss_pos", inputs.gnss_position),
+                       ("gnss_vel", inputs.gnss_velocity)):
+        if meas is not None:
+            sources.append((kind, meas))
+    times = np.concatenate([s.t for _, s in sources])
+    kinds = np.concatenate([np.full(len(s.t), i, dtype=np.int32) for i, (_, s) in enumerate(sources)])
+    index = np.concatenate([np.arange(len(s.t)) for _, s in sources])
+    order = np.argsort(times, kind="stable")
+    keep = times[order] >= t_start
+    order = order[keep]
+
+    gnss_lever = _gnss_lever_rear(inputs, config)
+    def wheel_fn(X: Array) -> Array:
+        return (1.0 + X[:, scale_i:scale_i + 4]) * m.wheel_speeds(X, veh.wheelbase_m, veh.track_front_m,
+                                                                  veh.track_rear_m)
+
+    gates = {k: chi2.ppf(nav.gate_probability, k) for k in (1, 2, 4)}
+    rejected: dict[str, int] = {}
+    updates: dict[str, int] = {}
+    hist = FilterHistory()
+    hist.t.append(t_start)
+    hist.x.append(ukf.x.copy())
+    hist.P.append(ukf.P.copy())
+    t_now = t_start
+
+    def advance(t: float) -> None:
+        nonlocal t_now
+        while t - t_now > nav.max_step_s:  # dead reckoning through gaps, in bounded steps
+            step = ukf.predict(nav.max_step_s, np.diag(q * nav.max_step_s))
+            t_now += nav.max_step_s
+            hist.steps.append(step)
+            hist.t.append(t_now)
+            hist.x.append(ukf.x.copy())
+            hist.P.append(ukf.P.copy())
+        dt = max(t - t_now, 0.0)
+        hist.steps.append(ukf.predict(dt, np.diag(q * dt)))
+        t_now = max(t, t_now)
+
+    for e in order:
+        kind, meas = sources[kinds[e]]
+        i = index[e]
+        advance(float(times[e]))
+        z = meas.z[i]
+        ok = True
+        if kind.startswith("gyro"):
+            g = int(kind[4:])
+            bias_i = m.N_KINEMATIC + g
+            ok = ukf.update(z, lambda X, b=bias_i: m.gyro(X, b), np.diag(meas.sigma**2), gates[1])
+        elif kind == "wheels":
+            ok = ukf.update(z, wheel_fn, np.diag(meas.sigma**2), gates[4])
+        elif kind == "steering":
+            if ukf.x[m.V] < nav.steering_min_speed_mps:
+                ok = None  # type: ignore[assignment]
+            else:
+                ok = ukf.update(z, lambda X: m.road_wheel_angle(X, veh.wheelbase_m, steer_i),
+                                np.diag(meas.sigma**2), gates[1])
+        elif kind == "gnss_pos":
+            ok = ukf.update(z, lambda X: m.point_position(X, gnss_lever), np.diag(meas.sigma**2), gates[2])
+        elif kind == "gnss_vel":
+            ok = ukf.update(z, lambda X: m.point_velocity(X, gnss_lever), np.diag(meas.sigma**2), gates[2])
+        if ok is False:
+            rejected[kind if not kind.startswith("gyro") else inputs.gyros[int(kind[4:])].name] = \
+                rejected.get(kind, 0) + 1
+        elif ok:
+            key = kind if not kind.startswith("gyro") else inputs.gyros[int(kind[4:])].name
+            updates[key] = updates.get(key, 0) + 1
+        hist.t.append(t_now)
+        hist.x.append(ukf.x.copy())
+        hist.P.append(ukf.P.copy())
+    if len(hist.t) < 2:
+        raise NavInputError("no measurement after the initial GNSS fix: nothing to navigate")
+    if smooth:
+        xs, Ps = rts_smooth(hist, angle_indices=[m.PSI])
+    else:
+        xs, Ps = np.array(hist.x), np.array(hist.P)
+    t = np.array(hist.t)
+    # Several measurements at one instant give several states at that instant: keep the last (most informed).
+    last = np.r_[np.diff(t) > 0, True]
+    return NavSolution(t[last], xs[last], Ps[last], names, rejected, updates)
