@@ -87,8 +87,12 @@ def _gnss_lever_rear(inputs: NavInputs, config: Config) -> tuple[float, float]:
     return lx + config.vehicle.cog_to_rear_axle_m, ly
 
 
-def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True) -> NavSolution:
-    """Filter (and by default smooth) the drive; states at every measurement instant."""
+def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: str = "numba") -> NavSolution:
+    """Filter (and by default smooth) the drive; states at every measurement instant.
+
+    ``engine``: "numba" (compiled loop, :mod:`.sarmin_kernel`) or "numpy" (the same filter through
+    filterpy's sigma points and unscented transform, one Python call per measurement: the reference).
+    """
     nav = config.navigation
     veh = config.vehicle
     ng = len(inputs.gyros)
@@ -122,6 +126,9 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True) -> NavSol
     order = order[keep]
 
     gnss_lever = _gnss_lever_rear(inputs, config)
+    if engine == "numba":
+        return _run_kernel(inputs, config, smooth, sources, times, kinds, index, order, t_start, x0, P0, q,
+                           ukf, names, steer_i, scale_i, gnss_lever)
     def wheel_fn(X: Array) -> Array:
         return (1.0 + X[:, scale_i:scale_i + 4]) * m.wheel_speeds(X, veh.wheelbase_m, veh.track_front_m,
                                                                   veh.track_rear_m)
@@ -189,3 +196,40 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True) -> NavSol
     # Several measurements at one instant give several states at that instant: keep the last (most informed).
     last = np.r_[np.diff(t) > 0, True]
     return NavSolution(t[last], xs[last], Ps[last], names, rejected, updates)
+
+
+def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[tuple[str, Measurements]],
+                times: Array, kinds: NDArray[np.int32], index: NDArray[np.int64], order: NDArray[np.int64],
+                t_start: float, x0: Array, P0: Array, q: Array, ukf: VectorUKF, names: list[str], steer_i: int,
+                scale_i: int, gnss_lever: tuple[float, float]) -> NavSolution:
+    from . import sarmin_kernel as kern
+
+    nav, veh = config.navigation, config.vehicle
+    ng = len(inputs.gyros)
+    code = {"wheels": ng, "steering": ng + 1, "gnss_pos": ng + 2, "gnss_vel": ng + 3}
+    src_code = np.array([int(k[4:]) if k.startswith("gyro") else code[k] for k, _ in sources], dtype=np.int64)
+    E = len(order)
+    zs = np.zeros((E, 4))
+    sig = np.ones((E, 4))
+    ev_kind = src_code[kinds[order]]
+    for s_idx, (_, meas) in enumerate(sources):
+        sel = np.flatnonzero(kinds[order] == s_idx)
+        k = meas.z.shape[1]
+        zs[sel, :k] = meas.z[index[order][sel]]
+        sig[sel, :k] = meas.sigma
+    gates = np.zeros(5)
+    for k in (1, 2, 4):
+        gates[k] = chi2.ppf(nav.gate_probability, k)
+    geo = np.array([veh.wheelbase_m, veh.track_front_m, veh.track_rear_m, gnss_lever[0], gnss_lever[1]])
+    lam = float(ukf.points.alpha**2 * (len(x0) + ukf.points.kappa) - len(x0))  # filterpy's Merwe lambda
+    T, X, PP, XP, PPp, C, used, rejected = kern.run_filter(
+        times[order], ev_kind, zs, sig, t_start, x0, P0, q, ukf.Wm, ukf.Wc, lam, ng, geo, scale_i, steer_i,
+        nav.steering_min_speed_mps, gates, nav.max_step_s)
+    if len(T) < 2:
+        raise NavInputError("no measurement after the initial GNSS fix: nothing to navigate")
+    xs, Ps = kern.smooth(X, PP, XP, PPp, C) if smooth else (X, PP)
+    label = [g.name for g in inputs.gyros] + ["wheels", "steering", "gnss_pos", "gnss_vel"]
+    last = np.r_[np.diff(T) > 0, True]
+    return NavSolution(T[last], xs[last], Ps[last], names,
+                       {label[i]: int(v) for i, v in enumerate(rejected) if v},
+                       {label[i]: int(v) for i, v in enumerate(used) if v})
