@@ -24,10 +24,45 @@ def _wrap(a: float) -> float:
 
 
 @njit(cache=True)
+def _cholesky(A):  # noqa: ANN001, ANN202
+    """Lower Cholesky factor of a small SPD matrix (plain loops: no LAPACK call overhead per event)."""
+    n = A.shape[0]
+    L = np.zeros((n, n))
+    for j in range(n):
+        d = A[j, j]
+        for k in range(j):
+            d -= L[j, k] * L[j, k]
+        if d <= 0.0:
+            raise np.linalg.LinAlgError("covariance is not positive definite")
+        L[j, j] = np.sqrt(d)
+        for i in range(j + 1, n):
+            v = A[i, j]
+            for k in range(j):
+                v -= L[i, k] * L[j, k]
+            L[i, j] = v / L[j, j]
+    return L
+
+
+@njit(cache=True, fastmath=True)
+def _weighted_cov(a, b, W):  # noqa: ANN001, ANN202
+    """sum_i W[i] a[i]^T b[i] for row-stacked deviations a (m, p), b (m, q)."""
+    m, p = a.shape
+    q = b.shape[1]
+    out = np.zeros((p, q))
+    for i in range(m):
+        w = W[i]
+        for r in range(p):
+            ar = w * a[i, r]
+            for c in range(q):
+                out[r, c] += ar * b[i, c]
+    return out
+
+
+@njit(cache=True)
 def _sigmas(x, P, lam):  # noqa: ANN001, ANN202
     n = x.shape[0]
     S = 0.5 * (P + P.T) * (n + lam)
-    L = np.linalg.cholesky(S)  # lower; filterpy uses the rows of the upper factor = columns of L
+    L = _cholesky(S)  # lower; filterpy uses the rows of the upper factor = columns of L
     sig = np.empty((2 * n + 1, n))
     sig[0] = x
     for k in range(n):
@@ -42,12 +77,11 @@ def _sigmas(x, P, lam):  # noqa: ANN001, ANN202
 @njit(cache=True)
 def _mean(sig, Wm):  # noqa: ANN001, ANN202
     x = Wm @ sig
-    s = 0.0
-    c = 0.0
+    ref = sig[0, PSI]  # the heading mean as wrapped deviations from the centre point (see ukf._mean_x)
+    acc = 0.0
     for i in range(sig.shape[0]):
-        s += Wm[i] * np.sin(sig[i, PSI])
-        c += Wm[i] * np.cos(sig[i, PSI])
-    x[PSI] = np.arctan2(s, c)
+        acc += Wm[i] * _wrap(sig[i, PSI] - ref)
+    x[PSI] = _wrap(ref + acc)
     return x
 
 
@@ -61,7 +95,7 @@ def _resid(sig, x):  # noqa: ANN001, ANN202
 
 @njit(cache=True)
 def _ctrv(sig, dt):  # noqa: ANN001, ANN202
-    out = sig.copy()
+    out = sig.copy()  # the caller keeps the undisturbed sigma points for the cross-covariance
     for i in range(sig.shape[0]):
         v, psi, w = sig[i, V], sig[i, PSI], sig[i, OMEGA]
         half = 0.5 * w * dt
@@ -73,17 +107,44 @@ def _ctrv(sig, dt):  # noqa: ANN001, ANN202
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def _predict(x, P, dt, q, Wm, Wc, lam):  # noqa: ANN001, ANN202
-    sig = _sigmas(x, P, lam)
+    n = x.shape[0]
+    L = _cholesky(0.5 * (P + P.T) * (n + lam))
+    sig = np.empty((2 * n + 1, n))
+    sig[0] = x
+    for k in range(n):
+        for j in range(n):
+            sig[k + 1, j] = x[j] + L[j, k]
+            sig[n + k + 1, j] = x[j] - L[j, k]
+        sig[k + 1, PSI] = _wrap(sig[k + 1, PSI])
+        sig[n + k + 1, PSI] = _wrap(sig[n + k + 1, PSI])
     prop = _ctrv(sig, dt)
     xp = _mean(prop, Wm)
     dy = _resid(prop, xp)
-    dx = _resid(sig, x)
-    Pp = (dy.T * Wc) @ dy
-    for j in range(x.shape[0]):
-        Pp[j, j] += q[j] * dt
-    cross = (dx.T * Wc) @ dy
+    # Covariance: symmetric, so only the upper triangle is summed.
+    Pp = np.empty((n, n))
+    for r in range(n):
+        for c in range(r, n):
+            acc = 0.0
+            for i in range(2 * n + 1):
+                acc += Wc[i] * dy[i, r] * dy[i, c]
+            Pp[r, c] = acc
+            Pp[c, r] = acc
+        Pp[r, r] += q[r] * dt
+    # Cross-covariance: the sigma deviations are +-L[:, k] (and 0 for the centre point), so
+    # sum_i Wc_i dx_i dy_i^T = Wc_1 sum_k L[:, k] (dy_{k+1} - dy_{n+k+1})^T.
+    diff = np.empty((n, n))
+    for k in range(n):
+        for c in range(n):
+            diff[k, c] = dy[k + 1, c] - dy[n + k + 1, c]
+    cross = np.zeros((n, n))
+    w1 = Wc[1]
+    for r in range(n):
+        for k in range(r + 1):  # L is lower triangular
+            lrk = w1 * L[r, k]
+            for c in range(n):
+                cross[r, c] += lrk * diff[k, c]
     xp[PSI] = _wrap(xp[PSI])
     return xp, Pp, cross
 
@@ -135,19 +196,42 @@ def _update(x, P, z, sigma, kind, ng, geo, scale_i, steer_i, gate, Wm, Wc, lam):
     k = zs.shape[1]
     zp = Wm @ zs
     dz = zs - zp
-    S = (dz.T * Wc) @ dz
+    S = _weighted_cov(dz, dz, Wc)
     for j in range(k):
         S[j, j] += sigma[j] ** 2
     y = z[:k] - zp
-    S_inv = np.linalg.inv(S)
+    if k == 1:
+        S_inv = np.empty((1, 1))
+        S_inv[0, 0] = 1.0 / S[0, 0]
+    else:
+        S_inv = np.linalg.inv(S)
     if y @ S_inv @ y > gate:
         return x, P, False
     dx = _resid(sig, x)
-    Pxz = (dx.T * Wc) @ dz
+    Pxz = _weighted_cov(dx, dz, Wc)
     K = Pxz @ S_inv
     xn = x + K @ y
     xn[PSI] = _wrap(xn[PSI])
     Pn = P - K @ S @ K.T
+    return xn, Pn, True
+
+
+@njit(cache=True)
+def _update_gyro(x, P, z, sigma, bias_i, gate):  # noqa: ANN001, ANN202
+    """Gyro update z = omega + b_i: linear in the state, so the Kalman update is what the unscented one
+    computes (the unscented transform is exact for linear functions), at O(n^2) without sigma points."""
+    n = x.shape[0]
+    y = z - x[OMEGA] - x[bias_i]
+    ph = P[:, OMEGA] + P[:, bias_i]  # P H^T
+    S = ph[OMEGA] + ph[bias_i] + sigma * sigma
+    if y * y / S > gate:
+        return x, P, False
+    xn = x + ph * (y / S)
+    xn[PSI] = _wrap(xn[PSI])
+    Pn = P.copy()
+    for r in range(n):
+        for c in range(n):
+            Pn[r, c] -= ph[r] * ph[c] / S
     return xn, Pn, True
 
 
@@ -185,7 +269,11 @@ def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, Wm, Wc, lam, ng, ge
         kind = kinds[e]
         if not (kind == ng + 1 and x[V] < steer_min_speed):
             k_dim = 1 if (kind < ng or kind == ng + 1) else (4 if kind == ng else 2)
-            x, P, ok = _update(x, P, zs[e], sigmas[e], kind, ng, geo, scale_i, steer_i, gates[k_dim], Wm, Wc, lam)
+            if kind < ng:
+                x, P, ok = _update_gyro(x, P, zs[e, 0], sigmas[e, 0], 5 + kind, gates[1])
+            else:
+                x, P, ok = _update(x, P, np.ascontiguousarray(zs[e]), np.ascontiguousarray(sigmas[e]), kind, ng,
+                                   geo, scale_i, steer_i, gates[k_dim], Wm, Wc, lam)
             if ok:
                 used[kind] += 1
             else:
@@ -201,11 +289,42 @@ def smooth(X, PP, XP, PPp, C):  # noqa: ANN001, ANN201
     """Unscented RTS smoother over the kernel's history (asynchronous steps)."""
     xs = X.copy()
     Ps = PP.copy()
+    n = X.shape[1]
     for k in range(X.shape[0] - 2, -1, -1):
-        G = np.linalg.solve(PPp[k].T, C[k].T).T
+        # G = C P_pred^-1 through the Cholesky factor of the (symmetric) predicted covariance
+        L = _cholesky(0.5 * (PPp[k] + PPp[k].T))
+        G = np.empty((n, n))
+        for r in range(n):
+            y = np.empty(n)
+            for i in range(n):  # forward: L y = C[r]
+                v = C[k][r, i]
+                for j in range(i):
+                    v -= L[i, j] * y[j]
+                y[i] = v / L[i, i]
+            for i in range(n - 1, -1, -1):  # backward: L^T g = y
+                v = y[i]
+                for j in range(i + 1, n):
+                    v -= L[j, i] * G[r, j]
+                G[r, i] = v / L[i, i]
         d = xs[k + 1] - XP[k]
         d[PSI] = _wrap(d[PSI])
-        xs[k] = X[k] + G @ d
+        for r in range(n):
+            acc = 0.0
+            for c in range(n):
+                acc += G[r, c] * d[c]
+            xs[k, r] = X[k, r] + acc
         xs[k, PSI] = _wrap(xs[k, PSI])
-        Ps[k] = PP[k] + G @ (Ps[k + 1] - PPp[k]) @ G.T
+        D = Ps[k + 1] - PPp[k]
+        GD = np.zeros((n, n))
+        for r in range(n):
+            for j in range(n):
+                g = G[r, j]
+                for c in range(n):
+                    GD[r, c] += g * D[j, c]
+        for r in range(n):
+            for c in range(n):
+                acc = 0.0
+                for j in range(n):
+                    acc += GD[r, j] * G[c, j]
+                Ps[k, r, c] = PP[k, r, c] + acc
     return xs, Ps

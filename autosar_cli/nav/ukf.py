@@ -64,9 +64,15 @@ class VectorUKF:
         return d
 
     def _mean_x(self, sigmas: Array, Wm: Array) -> Array:
+        """Weighted mean; angles as the centre point plus the weighted mean of wrapped deviations.
+
+        Merwe weights with a small alpha are large and of both signs (the centre weight is about
+        -n / alpha^2 (n + kappa)), so averaging sin/cos would cancel catastrophically; deviations are small.
+        """
         x = Wm @ sigmas
         for i in self.angles:
-            x[i] = np.arctan2(Wm @ np.sin(sigmas[:, i]), Wm @ np.cos(sigmas[:, i]))
+            ref = sigmas[0, i]
+            x[i] = float(wrap_angle(ref + Wm @ wrap_angle(sigmas[:, i] - ref)))
         return x
 
     def _sigmas(self) -> Array:
