@@ -119,7 +119,22 @@ def _predict(x, P, dt, q, Wm, Wc, lam):  # noqa: ANN001, ANN202
             sig[n + k + 1, j] = x[j] - L[j, k]
         sig[k + 1, PSI] = _wrap(sig[k + 1, PSI])
         sig[n + k + 1, PSI] = _wrap(sig[n + k + 1, PSI])
-    prop = _ctrv(sig, dt)
+    # CTRV moves only the 5 kinematic states. L is lower triangular, so sigma points built from
+    # columns k >= 5 (parameters: biases, scales) have the centre's kinematic part: they propagate like
+    # the centre point. Propagating the 11 distinct points is the same unscented transform, 3x cheaper.
+    prop = sig.copy()
+    head = np.empty((11, n))
+    head[0] = sig[0]
+    for k in range(5):
+        head[1 + k] = sig[k + 1]
+        head[6 + k] = sig[n + k + 1]
+    moved = _ctrv(head, dt)
+    for k in range(5):
+        prop[k + 1, :5] = moved[1 + k, :5]
+        prop[n + k + 1, :5] = moved[6 + k, :5]
+    for i in range(2 * n + 1):
+        if i == 0 or (5 < i <= n) or i > n + 5:
+            prop[i, :5] = moved[0, :5]
     xp = _mean(prop, Wm)
     dy = _resid(prop, xp)
     # Covariance: symmetric, so only the upper triangle is summed.
@@ -285,46 +300,60 @@ def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, Wm, Wc, lam, ng, ge
 
 
 @njit(cache=True)
-def smooth(X, PP, XP, PPp, C):  # noqa: ANN001, ANN201
-    """Unscented RTS smoother over the kernel's history (asynchronous steps)."""
-    xs = X.copy()
-    Ps = PP.copy()
-    n = X.shape[1]
-    for k in range(X.shape[0] - 2, -1, -1):
-        # G = C P_pred^-1 through the Cholesky factor of the (symmetric) predicted covariance
+def _gains(PPp, C):  # noqa: ANN001, ANN202
+    """G_k = C_k P_pred,k^-1 for every step (independent of each other)."""
+    K, n = C.shape[0], C.shape[1]
+    G = np.empty((K, n, n))
+    for k in range(K):
         L = _cholesky(0.5 * (PPp[k] + PPp[k].T))
-        G = np.empty((n, n))
+        y = np.empty(n)
         for r in range(n):
-            y = np.empty(n)
             for i in range(n):  # forward: L y = C[r]
-                v = C[k][r, i]
+                v = C[k, r, i]
                 for j in range(i):
                     v -= L[i, j] * y[j]
                 y[i] = v / L[i, i]
             for i in range(n - 1, -1, -1):  # backward: L^T g = y
                 v = y[i]
                 for j in range(i + 1, n):
-                    v -= L[j, i] * G[r, j]
-                G[r, i] = v / L[i, i]
+                    v -= L[j, i] * G[k, r, j]
+                G[k, r, i] = v / L[i, i]
+    return G
+
+
+@njit(cache=True)
+def _smooth_pass(X, PP, XP, PPp, G):  # noqa: ANN001, ANN202
+    xs = X.copy()
+    Ps = PP.copy()
+    n = X.shape[1]
+    GD = np.empty((n, n))
+    for k in range(X.shape[0] - 2, -1, -1):
+        Gk = G[k]
         d = xs[k + 1] - XP[k]
         d[PSI] = _wrap(d[PSI])
         for r in range(n):
             acc = 0.0
             for c in range(n):
-                acc += G[r, c] * d[c]
+                acc += Gk[r, c] * d[c]
             xs[k, r] = X[k, r] + acc
         xs[k, PSI] = _wrap(xs[k, PSI])
         D = Ps[k + 1] - PPp[k]
-        GD = np.zeros((n, n))
+        GD[:] = 0.0
         for r in range(n):
             for j in range(n):
-                g = G[r, j]
+                g = Gk[r, j]
                 for c in range(n):
                     GD[r, c] += g * D[j, c]
         for r in range(n):
-            for c in range(n):
+            for c in range(r, n):
                 acc = 0.0
                 for j in range(n):
-                    acc += GD[r, j] * G[c, j]
+                    acc += GD[r, j] * Gk[c, j]
                 Ps[k, r, c] = PP[k, r, c] + acc
+                Ps[k, c, r] = Ps[k, r, c]
     return xs, Ps
+
+
+def smooth(X, PP, XP, PPp, C):  # noqa: ANN001, ANN201
+    """Unscented RTS smoother over the kernel's history (asynchronous steps)."""
+    return _smooth_pass(X, PP, XP, PPp, _gains(PPp, C))

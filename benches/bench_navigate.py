@@ -1,0 +1,82 @@
+"""Benchmark `autosar navigate`: wall time per second of drive for SAR-MIN (filter + RTS smoother).
+
+Usage: python benches/bench_navigate.py [--scenario test1] [--repeat 5] [--workdir DIR]
+
+Simulates (MCAP, seed 1) and ingests the scenario once, then times ``navigate(drive, "sar-min")``
+(reading the inputs from drive.h5 included) ``--repeat`` times in one process after a warm-up run
+(numba's compiled kernels are cached on disk, so the warm-up only loads them), plus one run of the
+filterpy/numpy reference engine. Writes benches/results/navigate.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenario", default="test1")
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--workdir", type=Path, default=None)
+    args = ap.parse_args()
+    from autosar_cli.config import load_config
+    from autosar_cli.ingest.pipeline import ingest
+    from autosar_cli.nav.inputs import load_inputs
+    from autosar_cli.nav.navigate import navigate
+    from autosar_cli.nav.sarmin import run_sarmin
+    from autosar_cli.store.drive import Drive
+
+    cfg = load_config()
+    with tempfile.TemporaryDirectory() as tmp:
+        work = args.workdir or Path(tmp)
+        work.mkdir(parents=True, exist_ok=True)
+        log = work / f"{args.scenario}_seed1.mcap"
+        if not log.exists():
+            subprocess.run([sys.executable, "-m", "autosar_cli.cli", "simulate", "--scenario", args.scenario,
+                            "--seed", "1", "--output", str(log), "--overwrite"], check=True, capture_output=True)
+        drive = work / f"{args.scenario}_seed1.drive.h5"
+        if not drive.exists():
+            ingest([log], drive, config=cfg)
+        t = time.perf_counter()
+        first = navigate(drive, "sar-min", cfg)
+        warmup = time.perf_counter() - t
+        duration = (first.t_ns[-1] - first.t_ns[0]) / 1e9
+        walls = []
+        for _ in range(args.repeat):
+            t = time.perf_counter()
+            navigate(drive, "sar-min", cfg)
+            walls.append(time.perf_counter() - t)
+        unsmoothed = []
+        for _ in range(args.repeat):
+            t = time.perf_counter()
+            navigate(drive, "sar-min", cfg, smooth=False)
+            unsmoothed.append(time.perf_counter() - t)
+        with Drive(drive) as d:
+            inputs = load_inputs(d, cfg)
+        t = time.perf_counter()
+        run_sarmin(inputs, cfg, engine="numpy")
+        reference = time.perf_counter() - t
+    wall = statistics.median(walls)
+    row = {"scenario": args.scenario, "drive_s": round(duration, 2), "samples": len(first.t_ns),
+           "first_run_s": round(warmup, 3), "median_wall_s": round(wall, 3),
+           "walls_s": [round(w, 3) for w in walls], "realtime_factor": round(duration / wall, 1),
+           "s_per_drive_s": round(wall / duration, 4),
+           "filter_only_median_s": round(statistics.median(unsmoothed), 3),
+           "reference_engine_s": round(reference, 2), "reference_realtime_factor": round(duration / reference, 2)}
+    print(json.dumps(row, indent=2))
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "navigate.json").write_text(json.dumps({"benchmark": "navigate", "target_realtime_factor": 50,
+                                                       "rows": [row]}, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
