@@ -27,6 +27,7 @@ demo: setup
 bench: setup
 	$(BIN)/python benches/bench_simulate.py
 	$(BIN)/python benches/bench_ingest.py
+	$(BIN)/python benches/bench_navigate.py
 
 lint: setup
 	$(BIN)/ruff check autosar_cli tests benches

@@ -104,3 +104,31 @@ def test_sarmin_on_test1_meets_the_accuracy_targets(test1) -> None:
     # The paper's ordering: SAR-MIN at least 3x better than GNSS alone over 1 m.
     gnss = navigate(drive, "gnss", CFG)
     assert _rpe_across(gnss, truth, 1.0) > 3 * across_1
+
+
+@pytest.mark.slow
+def test_sarmin_dead_reckons_through_a_10s_gnss_outage_on_test2(sim_dir: Path,
+                                                                 tmp_path_factory: pytest.TempPathFactory) -> None:
+    import dataclasses
+
+    sim = simulated(sim_dir, "test2", "mcap", 1)
+    drive = tmp_path_factory.mktemp("test2") / "drive.h5"
+    ingest([sim.log_path], drive, config=CFG)
+    with Drive(drive) as d:
+        inputs = load_inputs(d, CFG)
+    mid = 0.5 * (inputs.gnss_position.t[0] + inputs.gnss_position.t[-1])
+    for field in ("gnss_position", "gnss_velocity"):
+        meas = getattr(inputs, field)
+        keep = np.abs(meas.t - mid) > 5.0  # no GNSS for 10 s in the middle of the drive
+        setattr(inputs, field, dataclasses.replace(meas, t=meas.t[keep], z=meas.z[keep]))
+    sol = run_sarmin(inputs, CFG)
+    t_ns = inputs.t0_ns + np.round(sol.t * 1e9).astype(np.int64)
+    est = Trajectory("sar-min", t_ns, sol.x[:, :2], np.unwrap(sol.x[:, 3]), sol.x[:, 2], sol.x[:, 4], inputs.origin,
+                     CFG.vehicle.cog_to_rear_axle_m, CFG.vehicle.cog_height_m)
+    truth = from_truth(str(sim.truth_path), inputs.origin, CFG)
+    outage = np.abs(sol.t - mid) <= 5.0
+    est_out = Trajectory("sar-min", t_ns[outage], est.rear_axle_enu[outage], est.heading[outage], est.speed[outage],
+                         est.yaw_rate[outage], inputs.origin, est.cog_to_rear_axle_m, est.cog_height_m)
+    whole, inside = _rpe_across(est, truth, 1.0), _rpe_across(est_out, truth, 1.0)
+    print(f"test2, 10 s GNSS outage: RPE 1 m across {whole * 1e3:.3f} mm, inside the outage {inside * 1e3:.3f} mm")
+    assert whole < 3e-3 and inside < 3e-3
