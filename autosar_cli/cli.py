@@ -55,6 +55,7 @@ class Scenario(StrEnum):
 
 class NavMethod(StrEnum):
     sar_min = "sar-min"
+    ins = "ins"
     gnss = "gnss"
     none = "none"
     truth = "truth"
@@ -229,8 +230,9 @@ def ingest(
 def navigate(
     drive: Annotated[Path, typer.Argument(help="drive.h5 written by `autosar ingest`.")],
     output: Annotated[Path, typer.Option("--output", "-o", help="trajectory.h5 to write.")] = Path("trajectory.h5"),
-    method: Annotated[NavMethod, typer.Option("--method", "-m", help="sar-min (UKF fusion, paper Sec. II-B), gnss "
-                                              "(GNSS only), none (straight line), truth (simulator sidecar).")]
+    method: Annotated[NavMethod, typer.Option("--method", "-m", help="sar-min (UKF fusion, paper Sec. II-B), ins "
+                                              "(radar IMU + its GNSS, Sec. II-A), gnss (GNSS only), none (straight "
+                                              "line), truth (simulator sidecar).")]
     = NavMethod.sar_min,
     no_smooth: Annotated[bool, typer.Option("--no-smooth", help="Filter only (no RTS smoother).")] = False,
     truth: Annotated[Path | None, typer.Option("--truth", help="Truth sidecar for --method truth "

@@ -224,6 +224,8 @@ class NavigationConfig:
     steering_min_speed_mps: float = 1.0  # below it the steering model atan(L omega / v) is not used
     gate_probability: float = 0.9999  # chi-square gate of each update
     max_step_s: float = 0.05  # longest single prediction step (dead reckoning through gaps)
+    ins_imu: str = "ins_radar"  # INS baseline: the radar-mounted 6-DoF IMU ...
+    ins_gnss: str = "gnss_radar"  # ... and its own GNSS
 
 
 @dataclass(frozen=True)

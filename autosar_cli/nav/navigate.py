@@ -15,7 +15,7 @@ from autosar_cli.nav.sarmin import run_sarmin
 from autosar_cli.nav.trajectory import Trajectory
 from autosar_cli.store.drive import Drive
 
-METHODS = ("sar-min", "gnss", "none", "truth")
+METHODS = ("sar-min", "ins", "gnss", "none", "truth")
 
 
 def default_truth_path(drive: Drive) -> Path | None:
@@ -34,12 +34,16 @@ def default_truth_path(drive: Drive) -> Path | None:
 
 def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: bool = True,
              truth_path: str | Path | None = None) -> Trajectory:
-    """Estimate the trajectory of a drive.h5 with ``method`` (sar-min, gnss, none, truth)."""
+    """Estimate the trajectory of a drive.h5 with ``method`` (sar-min, ins, gnss, none, truth)."""
     if method not in METHODS:
         raise NavInputError(f"unknown method {method!r} (choose from {', '.join(METHODS)})")
     t0 = time.perf_counter()
     with Drive(drive_path) as drive:
         inputs = load_inputs(drive, config)
+        if method == "ins":
+            from autosar_cli.nav.ins import load_ins_inputs
+
+            ins_inputs = load_ins_inputs(drive, config, inputs.origin, inputs.t0_ns)
         if method == "truth":
             truth_path = truth_path or default_truth_path(drive)
             if truth_path is None:
@@ -52,6 +56,10 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                           config.vehicle.cog_height_m, state=sol.x, state_names=sol.state_names,
                           covariance=sol.P, info={"updates": sol.updates, "rejected": sol.rejected,
                                                   "smoothed": smooth})
+    elif method == "ins":
+        from autosar_cli.nav.ins import run_ins
+
+        traj = run_ins(ins_inputs, config)
     elif method == "gnss":
         traj = gnss_only(inputs, config)
     elif method == "none":
