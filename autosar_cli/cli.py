@@ -237,6 +237,8 @@ def navigate(
     no_smooth: Annotated[bool, typer.Option("--no-smooth", help="Filter only (no RTS smoother).")] = False,
     truth: Annotated[Path | None, typer.Option("--truth", help="Truth sidecar for --method truth "
                                                "(default: <log>.truth.h5 of the drive's input log).")] = None,
+    plot: Annotated[bool, typer.Option("--plot", help="Also write OUTPUT.png: track, across-track deviation, "
+                                       "speed, heading, yaw rate, gyro biases.")] = False,
     config: ConfigOpt = None,
     overwrite: OverwriteOpt = False,
     as_json: JsonOpt = False,
@@ -252,12 +254,18 @@ def navigate(
         _prepare_output(output, overwrite)
         traj = run_navigate(drive, method.value, cfg, smooth=not no_smooth, truth_path=truth)
         write_trajectory(output, traj)
+        figure = None
+        if plot:
+            from autosar_cli.nav.plot import plot_trajectory
+
+            figure = plot_trajectory(traj, output.with_suffix(".png"))
         span = (traj.t_ns[-1] - traj.t_ns[0]) / 1e9
         dist = float(np.sum(np.hypot(*np.diff(traj.rear_axle_enu, axis=0).T)))
         summary = {"trajectory": str(output), "method": traj.method, "samples": len(traj.t_ns),
                    "duration_s": round(span, 3), "distance_m": round(dist, 3),
                    "elapsed_s": round(traj.info["elapsed_s"], 3),
-                   **{k: traj.info[k] for k in ("updates", "rejected") if k in traj.info}}
+                   **{k: traj.info[k] for k in ("updates", "rejected") if k in traj.info},
+                   **({"plot": str(figure)} if figure else {})}
         if as_json:
             out.print_json(json.dumps(summary))
             return
@@ -265,6 +273,8 @@ def navigate(
                   f"{dist:.1f} m travelled, in {traj.info['elapsed_s']:.1f} s")
         if traj.info.get("rejected"):
             out.print("gated out: " + ", ".join(f"{k} {v}" for k, v in traj.info["rejected"].items()))
+        if figure:
+            out.print(f"figure [bold]{figure}[/]")
 
 
 @app.command()

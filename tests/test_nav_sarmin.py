@@ -61,6 +61,10 @@ def test_cli_navigate_all_methods(ci_drive: Path, tmp_path: Path) -> None:
         traj = read_trajectory(out)
         assert traj.method == method and len(traj.t_ns) > 2 and np.all(np.diff(traj.t_ns) > 0)
         assert 1.5 < float(np.sum(np.hypot(*np.diff(traj.rear_axle_enu, axis=0).T))) < 3.5  # ci drives 2.4 m
+    r = runner.invoke(app, ["navigate", str(ci_drive), "-o", str(tmp_path / "plotted.h5"), "--plot"])
+    assert r.exit_code == 0, r.output
+    png = tmp_path / "plotted.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 30_000
     sar = read_trajectory(tmp_path / "sar-min.h5")
     assert sar.state is not None and sar.covariance is not None and "bias.orc" in sar.state_names
     # the truth sidecar was found from the drive's provenance, and no stale partial file remains
