@@ -215,11 +215,7 @@ def _update(x, P, z, sigma, kind, ng, geo, scale_i, steer_i, gate, Wm, Wc, lam):
     for j in range(k):
         S[j, j] += sigma[j] ** 2
     y = z[:k] - zp
-    if k == 1:
-        S_inv = np.empty((1, 1))
-        S_inv[0, 0] = 1.0 / S[0, 0]
-    else:
-        S_inv = np.linalg.inv(S)
+    S_inv = np.ascontiguousarray(np.linalg.inv(S))
     if y @ S_inv @ y > gate:
         return x, P, False
     dx = _resid(sig, x)
