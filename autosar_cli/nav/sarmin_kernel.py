@@ -71,7 +71,7 @@ def _sigmas(x, P, lam):  # noqa: ANN001, ANN202
             sig[n + k + 1, j] = x[j] - L[j, k]
         sig[k + 1, PSI] = _wrap(sig[k + 1, PSI])
         sig[n + k + 1, PSI] = _wrap(sig[n + k + 1, PSI])
-    return sig
+    return sig, L
 
 
 @njit(cache=True)
@@ -110,15 +110,7 @@ def _ctrv(sig, dt):  # noqa: ANN001, ANN202
 @njit(cache=True, fastmath=True)
 def _predict(x, P, dt, q, Wm, Wc, lam):  # noqa: ANN001, ANN202
     n = x.shape[0]
-    L = _cholesky(0.5 * (P + P.T) * (n + lam))
-    sig = np.empty((2 * n + 1, n))
-    sig[0] = x
-    for k in range(n):
-        for j in range(n):
-            sig[k + 1, j] = x[j] + L[j, k]
-            sig[n + k + 1, j] = x[j] - L[j, k]
-        sig[k + 1, PSI] = _wrap(sig[k + 1, PSI])
-        sig[n + k + 1, PSI] = _wrap(sig[n + k + 1, PSI])
+    sig, L = _sigmas(x, P, lam)
     # CTRV moves only the 5 kinematic states. L is lower triangular, so sigma points built from
     # columns k >= 5 (parameters: biases, scales) have the centre's kinematic part: they propagate like
     # the centre point. Propagating the 11 distinct points is the same unscented transform, 3x cheaper.
@@ -206,7 +198,7 @@ def _measure(sig, kind, ng, geo, scale_i, steer_i):  # noqa: ANN001, ANN202
 
 @njit(cache=True)
 def _update(x, P, z, sigma, kind, ng, geo, scale_i, steer_i, gate, Wm, Wc, lam):  # noqa: ANN001, ANN202
-    sig = _sigmas(x, P, lam)
+    sig, _ = _sigmas(x, P, lam)
     zs = _measure(sig, kind, ng, geo, scale_i, steer_i)
     k = zs.shape[1]
     zp = Wm @ zs
