@@ -12,6 +12,16 @@ import numpy as np
 C = 299_792_458.0
 
 
+def crc8_j1850(data: bytes) -> int:
+    """Bitwise CRC-8, polynomial 0x1D, init 0x00, not reflected, no final XOR (independent of candb's table)."""
+    crc = 0
+    for byte in data:
+        crc ^= byte
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x1D) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
+    return crc
+
+
 def hann(n: int) -> np.ndarray:
     return np.hanning(n)
 

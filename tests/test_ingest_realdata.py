@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 import yaml
 from conftest import realdata
+from reference import crc8_j1850
 from typer.testing import CliRunner
 
 from autosar_cli.cli import app
@@ -289,15 +290,6 @@ def test_css_can_stream_names_only_its_own_file(css: tuple[IngestReport, Path]) 
 
 
 # ------------------------------------------------------------------------------ opendbc: FCA Giorgio
-def _crc8_j1850(data: bytes) -> int:
-    crc = 0
-    for byte in data:
-        crc ^= byte
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x1D) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
-    return crc
-
-
 @pytest.fixture(scope="module")
 def giorgio(tmp_path_factory: pytest.TempPathFactory, config: Config) -> tuple[IngestReport, Path, list[Any]]:
     """The 12 real Giulia payloads written 10 ms apart into a BLF log, ingested with the real DBC."""
@@ -319,7 +311,7 @@ def test_giorgio_checksums_and_dbc_repair(giorgio: tuple[IngestReport, Path, lis
     report, _, frames = giorgio
     xor = {0xDE: 0x10, 0x106: 0xF6, 0x122: 0xF1}
     bad = [f["data_hex"] for f in frames
-           if _crc8_j1850(bytes.fromhex(f["data_hex"])[:-1]) ^ xor.get(f["frame_id"], 0x0A)
+           if crc8_j1850(bytes.fromhex(f["data_hex"])[:-1]) ^ xor.get(f["frame_id"], 0x0A)
            != bytes.fromhex(f["data_hex"])[-1]]
     assert bad == ["7bf0026e"]  # the known bad checksum of upstream's EPS_3 sample
     assert report.can["checksum_errors"] == {"EPS_3": 1}

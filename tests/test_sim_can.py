@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+from reference import crc8_j1850
 
 from autosar_cli.candb import check_frame
 
@@ -49,14 +50,6 @@ EXPECTED_ROLES = {
 FINAL_XOR = {0xDE: 0x10, 0x106: 0xF6, 0x122: 0xF1}
 
 
-def crc8_j1850(data: bytes) -> int:
-    """Bitwise CRC-8, polynomial 0x1D, init 0x00, not reflected, no final XOR."""
-    crc = 0
-    for byte in data:
-        crc ^= byte
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x1D) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
-    return crc
 
 
 def test_crc8_reference_value():

@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .sources import LogReadError, container_of, open_source
+from .sources import LogReadError, open_source
 
 __all__ = ["LogReadError", "LogSummary", "StreamSummary", "summarize", "summarize_drive", "summarize_log"]
 
@@ -114,35 +114,20 @@ def summarize_nmea_log(path: Path) -> LogSummary:
 
 
 def summarize_log(path: Path) -> LogSummary:
-    path = Path(path)
-    if not path.exists():
-        raise LogReadError(f"{path}: no such file or directory")
-    kind = container_of(path)
-    size = sum(p.stat().st_size for p in path.rglob("*") if p.is_file()) if path.is_dir() else path.stat().st_size
-    summary = LogSummary(str(path), kind, size)
+    """Streams of an MCAP / ROS1 / rosbag2 log, read once through the ingest readers (no decoding)."""
+    src = open_source(Path(path))
+    summary = LogSummary(str(path), src.container, src.stats.bytes_total)
+    streams: dict[str, StreamSummary] = {}
     try:
-        _summarize_messages(path, summary)
+        for msg in src.messages():
+            _add(streams, msg.channel.topic, msg.channel.msgtype, msg.log_ns)
     except LogReadError:
         raise
     except Exception as exc:  # the readers raise many types; the user needs file + reason
-        raise LogReadError(f"{path}: cannot read {kind} log: {exc}") from exc
-    summary.streams.sort(key=lambda s: s.topic)
-    return summary
-
-
-def _summarize_messages(path: Path, summary: LogSummary) -> None:
-    streams: dict[tuple[str, int], StreamSummary] = {}
-    src = open_source(path)
-    for msg in src.messages():
-        ch = msg.channel
-        s = streams.get(ch.key)
-        if s is None:
-            s = streams[ch.key] = StreamSummary(ch.topic, ch.msgtype, 0, msg.log_ns, msg.log_ns)
-        s.count += 1
-        s.start_ns = min(s.start_ns, msg.log_ns)
-        s.end_ns = max(s.end_ns, msg.log_ns)
-    summary.streams.extend(streams.values())
+        raise LogReadError(f"{path}: cannot read {src.container} log: {exc}") from exc
+    summary.streams.extend(sorted(streams.values(), key=lambda s: s.topic))
     summary.warnings.extend(src.stats.warnings)
+    return summary
 
 
 def summarize_drive(path: Path) -> LogSummary:

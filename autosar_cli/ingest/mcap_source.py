@@ -250,7 +250,3 @@ class McapSource:
             if ch.declared_count is not None and got < ch.declared_count:
                 self.stats.warnings.append(f"{self.path}: topic {ch.topic}: {got} of the {ch.declared_count} "
                                            "messages the index declares could be read")
-
-    @property
-    def channels(self) -> list[Channel]:
-        return list(self._channels.values())

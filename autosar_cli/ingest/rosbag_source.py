@@ -158,18 +158,13 @@ class Rosbag2SqliteSource:
 
     def messages(self) -> Iterator[RawMessage]:
         seen: dict[str, int] = {}
-        got_any = False
-        try:
-            for msg in self._rosbags_messages():
-                got_any = True
-                seen[msg.channel.topic] = seen.get(msg.channel.topic, 0) + 1
-                yield msg
-        except LogReadError:
-            raise
+        for msg in self._rosbags_messages():
+            seen[msg.channel.topic] = seen.get(msg.channel.topic, 0) + 1
+            yield msg
         # The QoS trap: rosbags matched no connection of these topics. Read them from the storage directly.
         unmatched = {t for t, n in self.declared.items() if n > 0 and t not in seen}
         if unmatched:
-            if not got_any:
+            if not seen:
                 what = f"no message although metadata.yaml declares {sum(self.declared.values())}"
             else:
                 what = (f"no message of {', '.join(sorted(unmatched))} although metadata.yaml declares "

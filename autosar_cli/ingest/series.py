@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import bisect
 from collections import Counter
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from operator import itemgetter
 from typing import Any
@@ -165,7 +165,3 @@ class Series:
         self._flush()
         return self.stats
 
-
-def stack_rows(rows: Sequence[Any], index: int, dtype: Any) -> np.ndarray:
-    """Column ``index`` of tuple rows as an array (rows of vectors give a 2-D array)."""
-    return np.asarray([r[index] for r in rows], dtype=dtype)

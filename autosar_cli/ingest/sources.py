@@ -8,7 +8,7 @@ the job of :mod:`.typesys` and :mod:`.decoders`.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
@@ -56,8 +56,6 @@ class LogSource(Protocol):
 
     def messages(self) -> Iterator[RawMessage]: ...
 
-
-ProgressFn = Callable[[int], None]
 
 _TYPE = re.compile(r"^([\w]+)/(?:msg/)?([\w]+)$")
 

@@ -177,11 +177,10 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
             ok = ukf.update(z, lambda X: m.point_position(X, gnss_lever), np.diag(meas.sigma**2), gates[2])
         elif kind == "gnss_vel":
             ok = ukf.update(z, lambda X: m.point_velocity(X, gnss_lever), np.diag(meas.sigma**2), gates[2])
+        key = kind if not kind.startswith("gyro") else inputs.gyros[int(kind[4:])].name
         if ok is False:
-            rejected[kind if not kind.startswith("gyro") else inputs.gyros[int(kind[4:])].name] = \
-                rejected.get(kind, 0) + 1
+            rejected[key] = rejected.get(key, 0) + 1
         elif ok:
-            key = kind if not kind.startswith("gyro") else inputs.gyros[int(kind[4:])].name
             updates[key] = updates.get(key, 0) + 1
         hist.t.append(t_now)
         hist.x.append(ukf.x.copy())

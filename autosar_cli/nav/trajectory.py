@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from autosar_cli.config import Config
-from autosar_cli.nav.frames import mounting_rotation, wrap_angle
+from autosar_cli.nav.frames import mounting_rotation
 from autosar_cli.nav.geodesy import GeodeticOrigin
 
 Array = NDArray[np.float64]
@@ -123,6 +123,3 @@ def relative_pose_error(est_xy: Array, est_heading: Array, ref_xy: Array, ref_he
 
     return local(est_xy, est_heading) - local(ref_xy, ref_heading)
 
-
-def heading_difference(a: ArrayLike, b: ArrayLike) -> Array:
-    return wrap_angle(np.asarray(a) - np.asarray(b))

@@ -222,9 +222,9 @@ class RadarCube(Table):
 
 def _set_attrs(obj: h5py.HLObject, attrs: Mapping[str, Any]) -> None:
     for key, value in attrs.items():
-        if isinstance(value, dict | list) and not (isinstance(value, list) and value and
-                                                    all(isinstance(v, int | float) for v in value)):
-            value = json.dumps(value)
+        if isinstance(value, dict | list):
+            numeric = np.asarray(value) if isinstance(value, list) and value else None
+            value = numeric if numeric is not None and numeric.dtype.kind in "iuf" else json.dumps(value)
         obj.attrs[key] = value
 
 
@@ -359,7 +359,7 @@ class Drive:
 
     def can_role(self, role: str) -> tuple[np.ndarray, np.ndarray]:
         """(t_ns, value in SI units) of a CAN signal by its role in the vehicle config (``wheel_speed_fl``)."""
-        roles = json.loads(self._file["can"].attrs.get("roles", "{}")) if "can" in self._file else {}
+        roles = self.can_roles()
         if role not in roles:
             raise KeyError(f"{self.path}: no CAN signal has the role {role!r} (known: {', '.join(sorted(roles))})")
         message, signal = roles[role].split("/")
