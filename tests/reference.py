@@ -77,3 +77,29 @@ def window_width_bins(window: np.ndarray, oversample: int = 64) -> float:
     spec = np.abs(np.fft.fftshift(np.fft.fft(window, n * oversample)))
     x = (np.arange(n * oversample) - n * oversample // 2) / oversample
     return minus3db_width(x, spec)
+
+
+def tdbp(profiles: np.ndarray, antennas: np.ndarray, channels: np.ndarray, pixels: np.ndarray,
+         windows: np.ndarray, *, range0_m: np.ndarray, bin_m: float, cycles_per_m: float) -> np.ndarray:
+    """Windowed back-projection, float64, one pixel at a time.
+
+    profiles (C, B, P) complex; antennas (A, P, 3); channels (C, 2) Tx/Rx antenna indices; pixels (N, 3);
+    windows (N, 2) pulse ranges [lo, hi); bin b of channel c lies at bistatic path range0_m[c] + b * bin_m.
+    """
+    profiles = np.asarray(profiles, dtype=np.complex128)
+    n_ch, n_bins, _ = profiles.shape
+    r0 = np.broadcast_to(np.asarray(range0_m, dtype=np.float64), (n_ch,))
+    image = np.zeros(len(pixels), dtype=np.complex128)
+    for n, (pix, (lo, hi)) in enumerate(zip(pixels, windows, strict=True)):
+        pulses = np.arange(lo, hi)
+        for c, (ta, ra) in enumerate(channels):
+            path = (np.sqrt(np.sum((pix - antennas[ta, pulses]) ** 2, axis=1))
+                    + np.sqrt(np.sum((pix - antennas[ra, pulses]) ** 2, axis=1)))
+            x = (path - r0[c]) / bin_m
+            i0 = np.floor(x).astype(int)
+            frac = x - i0
+            ok = (i0 >= 0) & (i0 + 1 < n_bins)
+            i0 = np.clip(i0, 0, n_bins - 2)
+            s = (1 - frac) * profiles[c, i0, pulses] + frac * profiles[c, i0 + 1, pulses]
+            image[n] += np.sum(np.where(ok, s * np.exp(-2j * np.pi * cycles_per_m * path), 0.0))
+    return image

@@ -3,10 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pymap3d
 from numpy.typing import ArrayLike, NDArray
+
+if TYPE_CHECKING:
+    from pyproj import Transformer
 
 
 @dataclass(frozen=True)
@@ -36,3 +41,22 @@ class GeodeticOrigin:
         """EPSG code of the WGS-84 UTM zone holding the origin."""
         zone = int((self.lon_deg + 180.0) // 6.0) + 1
         return (32600 if self.lat_deg >= 0 else 32700) + zone
+
+    def enu_to_utm(self, enu: ArrayLike, epsg: int | None = None) -> NDArray[np.float64]:
+        """ENU (..., 3) in metres -> UTM (..., 2) easting, northing in metres (zone ``epsg``, default the origin's)."""
+        lat, lon, _ = self.to_geodetic(enu)
+        return geodetic_to_utm(lat, lon, self.utm_epsg() if epsg is None else epsg)
+
+
+@lru_cache(maxsize=8)
+def _utm_transformer(epsg: int) -> Transformer:
+    from pyproj import Transformer  # imported here: pyproj is only needed by the map products
+
+    return Transformer.from_crs("EPSG:4326", f"EPSG:{epsg}", always_xy=True)
+
+
+def geodetic_to_utm(lat_deg: ArrayLike, lon_deg: ArrayLike, epsg: int) -> NDArray[np.float64]:
+    """WGS-84 latitude, longitude (deg) -> (..., 2) easting, northing (m) in the UTM CRS ``EPSG:<epsg>``."""
+    e, n = _utm_transformer(int(epsg)).transform(np.asarray(lon_deg, dtype=np.float64),
+                                                 np.asarray(lat_deg, dtype=np.float64))
+    return np.stack([np.asarray(e, dtype=np.float64), np.asarray(n, dtype=np.float64)], axis=-1)

@@ -1,0 +1,127 @@
+"""Focusing grids: a rectangle of square pixels on the focusing plane (ENU, z = height).
+
+The image array is (rows, cols) = (n_across, n_along). Column index grows along ``along`` (a unit ENU
+vector, usually the direction of travel); row index grows along ``across`` (unit vector, away from the
+track on the radar side for the automatic grid, south for an explicit east/north box). Pixel (0, 0)'s
+centre is ``origin``. Rows of the image are therefore lines of constant ground range for the automatic
+grid, which keeps neighbouring pixels of the kernel's pixel order on neighbouring range bins.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+Array = NDArray[np.float64]
+
+
+class GridError(ValueError):
+    """An impossible grid request (empty box, pixel <= 0, no trajectory); the message says which."""
+
+
+@dataclass(frozen=True)
+class FocusGrid:
+    origin: tuple[float, float]  #: ENU (x, y) of pixel (0, 0)'s centre, m
+    along: tuple[float, float]  #: unit ENU vector of increasing column index
+    across: tuple[float, float]  #: unit ENU vector of increasing row index
+    pixel_m: float
+    n_along: int  #: columns
+    n_across: int  #: rows
+    height_m: float  #: focusing plane height (ENU z), m
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Image shape (rows, cols)."""
+        return (self.n_across, self.n_along)
+
+    @property
+    def size(self) -> int:
+        return self.n_across * self.n_along
+
+    def pixel_enu(self, rows: ArrayLike, cols: ArrayLike) -> Array:
+        """ENU positions (..., 3) of (fractional) pixel indices."""
+        r = np.asarray(rows, dtype=np.float64)
+        c = np.asarray(cols, dtype=np.float64)
+        o, a, x = np.asarray(self.origin), np.asarray(self.along), np.asarray(self.across)
+        xy = o + (c[..., None] * a + r[..., None] * x) * self.pixel_m
+        z = np.full(xy.shape[:-1] + (1,), self.height_m)
+        return np.concatenate([xy, z], axis=-1)
+
+    def positions(self) -> Array:
+        """ENU positions (rows, cols, 3) of every pixel centre."""
+        rows, cols = np.meshgrid(np.arange(self.n_across), np.arange(self.n_along), indexing="ij")
+        return self.pixel_enu(rows, cols)
+
+    def enu_to_pixel(self, xy: ArrayLike) -> tuple[Array, Array]:
+        """Fractional (row, col) of ENU points (..., 2 or 3)."""
+        d = np.asarray(xy, dtype=np.float64)[..., :2] - np.asarray(self.origin)
+        return d @ np.asarray(self.across) / self.pixel_m, d @ np.asarray(self.along) / self.pixel_m
+
+    def corners_enu(self) -> Array:
+        """ENU (4, 2) of the outer pixel edges: (0,0) corner, along end, far corner, across end."""
+        h = -0.5
+        r = np.array([h, h, self.n_across + h, self.n_across + h])
+        c = np.array([h, self.n_along + h, self.n_along + h, h])
+        return self.pixel_enu(r, c)[:, :2]
+
+    def to_attrs(self) -> dict[str, object]:
+        return {"origin_enu_m": np.asarray(self.origin), "along": np.asarray(self.along),
+                "across": np.asarray(self.across), "pixel_m": self.pixel_m, "n_along": self.n_along,
+                "n_across": self.n_across, "height_m": self.height_m}
+
+    @classmethod
+    def from_attrs(cls, attrs: dict[str, object]) -> FocusGrid:
+        def pair(key: str) -> tuple[float, float]:
+            v = np.asarray(attrs[key], dtype=np.float64)
+            return (float(v[0]), float(v[1]))
+
+        return cls(pair("origin_enu_m"), pair("along"), pair("across"), float(attrs["pixel_m"]),  # type: ignore[arg-type]
+                   int(attrs["n_along"]), int(attrs["n_across"]), float(attrs["height_m"]))  # type: ignore[arg-type]
+
+
+def box_grid(x0: float, y0: float, x1: float, y1: float, *, pixel_m: float, height_m: float) -> FocusGrid:
+    """North-up grid covering the ENU box [x0, x1] x [y0, y1] (m): columns go east, rows go south."""
+    if not (x1 > x0 and y1 > y0):
+        raise GridError(f"grid box {x0},{y0},{x1},{y1}: need x0 < x1 and y0 < y1 (ENU metres)")
+    if pixel_m <= 0:
+        raise GridError(f"pixel size {pixel_m} m: must be positive")
+    n_along = max(1, int(np.ceil((x1 - x0) / pixel_m)))
+    n_across = max(1, int(np.ceil((y1 - y0) / pixel_m)))
+    return FocusGrid((x0 + 0.5 * pixel_m, y1 - 0.5 * pixel_m), (1.0, 0.0), (0.0, -1.0), pixel_m, n_along,
+                     n_across, height_m)
+
+
+def track_grid(track_xy: ArrayLike, *, side: float, pixel_m: float, height_m: float, antenna_height_m: float,
+               near_range_m: float = 0.5, max_range_m: float = 27.0) -> FocusGrid:
+    """Grid along a track (radar phase centres, (K, 2) ENU m) on one side of it.
+
+    ``side`` > 0: the radar looks left of the direction of travel, < 0: right. Columns follow the
+    least-squares line through the track, from its first to its last point; rows run away from the
+    line, from ``near_range_m`` ground range of the track point nearest to the line's far side to the
+    ground range at which the slant range reaches ``max_range_m`` from the track point farthest away.
+    """
+    xy = np.asarray(track_xy, dtype=np.float64).reshape(-1, 2)
+    if len(xy) < 2 or np.hypot(*(xy[-1] - xy[0])) < pixel_m:
+        raise GridError("the trajectory is shorter than one pixel: nothing to focus along")
+    if pixel_m <= 0:
+        raise GridError(f"pixel size {pixel_m} m: must be positive")
+    centre = xy.mean(axis=0)
+    _, _, vt = np.linalg.svd(xy - centre, full_matrices=False)
+    along = vt[0] if np.dot(vt[0], xy[-1] - xy[0]) > 0 else -vt[0]
+    left = np.array([-along[1], along[0]])
+    across = left if side > 0 else -left
+    s = (xy - centre) @ along
+    d = (xy - centre) @ across  # lateral offsets of the track towards the imaged side
+    dz = antenna_height_m - height_m
+    ground_max = np.sqrt(max(max_range_m**2 - dz**2, 0.0))
+    a0, a1 = s.min(), s.max()
+    r0, r1 = d.max() + near_range_m, d.min() + ground_max
+    if r1 <= r0:
+        raise GridError(f"no ground between {near_range_m} m and {max_range_m} m slant range at height {height_m} m")
+    n_along = max(1, int(np.ceil((a1 - a0) / pixel_m)))
+    n_across = max(1, int(np.ceil((r1 - r0) / pixel_m)))
+    origin = centre + (a0 + 0.5 * pixel_m) * along + (r0 + 0.5 * pixel_m) * across
+    return FocusGrid((float(origin[0]), float(origin[1])), (float(along[0]), float(along[1])),
+                     (float(across[0]), float(across[1])), float(pixel_m), n_along, n_across, float(height_m))

@@ -1,0 +1,302 @@
+"""Focused-image products: OUT.tif (GeoTIFF, dB), OUT.h5 (format ``autosar-image`` v1), OUT.png (quicklook).
+
+The image is complex, (rows, cols) = (n_across, n_along) on a :class:`FocusGrid` in the local ENU frame
+of a :class:`GeodeticOrigin`. The GeoTIFF is georeferenced in the WGS-84 UTM zone of that origin with an
+affine transform fitted to the exact ENU -> geodetic -> UTM conversion (residual reported, sub-mm over a
+few hundred metres). Every file is written atomically (``<stem>.partial<suffix>``, then renamed). See
+docs/FORMATS.md.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+import rasterio
+from numpy.typing import NDArray
+from rasterio import Affine
+from rasterio.crs import CRS
+
+from autosar_cli import __version__
+from autosar_cli.nav.geodesy import GeodeticOrigin
+from autosar_cli.sar.grid import FocusGrid
+from autosar_cli.store.atomic import atomic_output
+
+FORMAT = "autosar-image"
+FORMAT_VERSION = 1
+DB_UNITS = "dB, 20 log10 |complex image|"
+PRODUCT_SUFFIXES = (".tif", ".h5", ".png")
+_JSON_KEYS = "_json_keys"  #: attribute of /params listing the parameters stored as JSON text
+
+
+class ImageFormatError(ValueError):
+    """Not an image.h5 this version reads; the message names the file and the problem."""
+
+
+@dataclass
+class FocusedImage:
+    """A focused complex image on ``grid`` (ENU of ``origin``) with its processing parameters and provenance."""
+
+    image: NDArray[np.complex64]  #: (rows, cols) = grid.shape, linear complex amplitude (arbitrary units)
+    grid: FocusGrid
+    origin: GeodeticOrigin
+    params: dict[str, Any]  #: processing parameters, JSON-serialisable values
+    provenance: dict[str, Any] = field(default_factory=dict)  #: inputs, command line, ... (JSON-serialisable)
+
+    def __post_init__(self) -> None:
+        if self.image.ndim != 2 or self.image.shape != self.grid.shape:
+            raise ValueError(f"image shape {self.image.shape} does not match the grid shape {self.grid.shape} "
+                             "(rows = n_across, cols = n_along)")
+
+
+def product_paths(base: Path) -> dict[str, Path]:
+    """The three product paths for ``base``: {'tif', 'h5', 'png'}.
+
+    A product suffix on ``base`` (``.tif``, ``.tiff``, ``.h5``, ``.png``) is replaced; any other suffix is
+    kept (``run.v2`` -> ``run.v2.tif``), so dotted names do not lose their last part.
+    """
+    base = Path(base)
+    if base.suffix.lower() in (*PRODUCT_SUFFIXES, ".tiff"):
+        base = base.with_suffix("")
+    return {s[1:]: base.with_name(base.name + s) for s in PRODUCT_SUFFIXES}
+
+
+def utm_geotransform(grid: FocusGrid, origin: GeodeticOrigin) -> tuple[Affine, int, float]:
+    """Affine raster -> UTM transform of ``grid``, its EPSG code, and the max fit residual (m).
+
+    The transform maps raster (col, row) of pixel *corners* (GDAL convention: (0, 0) is the outer corner
+    of pixel (0, 0), its centre is (0.5, 0.5)) to UTM easting, northing (m) in the zone of ``origin``.
+    It is the least-squares fit over a 5 x 5 lattice of raster points spanning the image (corners, edge
+    midpoints, centre, ...) converted exactly ENU -> geodetic -> UTM; the conversion is not exactly affine
+    (grid convergence, scale factor, earth curvature), the residual is the largest misfit on the lattice.
+    """
+    epsg = origin.utm_epsg()
+    u, v = np.meshgrid(np.linspace(0.0, grid.n_along, 5), np.linspace(0.0, grid.n_across, 5))
+    u, v = u.ravel(), v.ravel()
+    utm = origin.enu_to_utm(grid.pixel_enu(v - 0.5, u - 0.5), epsg)  # raster corner coords -> pixel indices
+    uc, vc, centre = u - u.mean(), v - v.mean(), utm.mean(axis=0)  # centred for conditioning (UTM ~ 1e6 m)
+    design = np.column_stack([uc, vc, np.ones_like(uc)])
+    coef, *_ = np.linalg.lstsq(design, utm - centre, rcond=None)  # (3, 2): rows a|d, b|e, offset
+    residual = float(np.max(np.hypot(*(design @ coef - (utm - centre)).T)))
+    (a, d), (b, e), (c0, f0) = coef
+    c = centre[0] + c0 - a * u.mean() - b * v.mean()
+    f = centre[1] + f0 - d * u.mean() - e * v.mean()
+    return Affine(float(a), float(b), float(c), float(d), float(e), float(f)), epsg, residual
+
+
+def magnitude_db(image: NDArray[np.complexfloating[Any, Any]]) -> NDArray[np.float32]:
+    """20 log10 |z| (absolute dB) as float32; NaN where |z| is 0 or not finite."""
+    mag = np.abs(image)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        db = (20.0 * np.log10(mag)).astype(np.float32)
+    db[~np.isfinite(db)] = np.nan
+    return db
+
+
+def write_image(base: Path, img: FocusedImage, *, overwrite: bool = False,
+                dynamic_range_db: float = 50.0) -> dict[str, Path]:
+    """Write ``base``.tif, .h5 and .png (see :func:`product_paths`), each atomically; return {'tif', 'h5', 'png'}.
+
+    Raises FileExistsError before writing anything if any of them exists and ``overwrite`` is false, and
+    TypeError if a parameter or the provenance is not JSON-serialisable.
+    """
+    paths = product_paths(base)
+    if not overwrite:
+        for p in paths.values():
+            if p.exists():
+                raise FileExistsError(f"{p} already exists; pass --overwrite to replace it")
+    params_json = {k: _to_json(v) for k, v in img.params.items()}  # fail early on unserialisable values
+    provenance_json = _to_json(img.provenance)
+    transform, epsg, residual = utm_geotransform(img.grid, img.origin)
+    crs = CRS.from_epsg(epsg)
+    with atomic_output(paths["tif"], overwrite) as tmp:
+        _write_geotiff(tmp, img, transform, crs, params_json, provenance_json)
+    with atomic_output(paths["h5"], overwrite) as tmp:
+        _write_h5(tmp, img, transform, epsg, crs, residual, provenance_json)
+    with atomic_output(paths["png"], overwrite) as tmp:
+        write_quicklook(tmp, img, dynamic_range_db=dynamic_range_db)
+    return paths
+
+
+def read_image(path: Path) -> FocusedImage:
+    """Read an image.h5 back; raises ImageFormatError for anything that is not one this version reads."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such file")
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise ImageFormatError(f"{path}: not an HDF5 file ({exc})") from exc
+    with f:
+        fmt = f.attrs.get("format")
+        if fmt != FORMAT:
+            raise ImageFormatError(f"{path}: not an autosar image.h5 (format attribute {fmt!r}, "
+                                   f"expected {FORMAT!r})")
+        version = int(f.attrs.get("format_version", -1))
+        if version != FORMAT_VERSION:
+            raise ImageFormatError(f"{path}: image format version {version}, this autosar {__version__} reads "
+                                   f"version {FORMAT_VERSION}")
+        try:
+            a = f.attrs
+            origin = GeodeticOrigin(float(a["origin_lat_deg"]), float(a["origin_lon_deg"]),
+                                    float(a["origin_height_m"]))
+            grid = FocusGrid.from_attrs(dict(f["grid"].attrs))
+            image = np.asarray(f["image"][()], dtype=np.complex64)
+            params = _read_params(f["params"])
+            provenance = json.loads(f["provenance"].attrs["json"]) if "provenance" in f else {}
+        except KeyError as exc:
+            raise ImageFormatError(f"{path}: incomplete image.h5, missing {exc}") from exc
+    try:
+        return FocusedImage(image, grid, origin, params, provenance)
+    except ValueError as exc:
+        raise ImageFormatError(f"{path}: {exc}") from exc
+
+
+def _to_json(value: Any) -> str:
+    """JSON text of ``value`` (numpy scalars and arrays become numbers and lists)."""
+
+    def default(o: Any) -> Any:
+        if isinstance(o, np.generic):
+            return o.item()
+        if isinstance(o, np.ndarray):
+            return o.tolist()
+        if isinstance(o, Path):
+            return str(o)
+        raise TypeError(f"processing parameter value {o!r} ({type(o).__name__}) is not JSON-serialisable")
+
+    return json.dumps(value, default=default)
+
+
+def _write_geotiff(path: Path, img: FocusedImage, transform: Affine, crs: CRS, params_json: dict[str, str],
+                   provenance_json: str) -> None:
+    """One float32 band of 20 log10 |z| (dB, NaN nodata), tiled, deflate; tags: units, parameters, version."""
+    rows, cols = img.grid.shape
+    profile: dict[str, Any] = {
+        "driver": "GTiff", "width": cols, "height": rows, "count": 1, "dtype": "float32", "crs": crs,
+        "transform": transform, "nodata": np.nan, "compress": "deflate", "predictor": 3,
+    }
+    if rows >= 16 and cols >= 16:  # GeoTIFF tiles are multiples of 16 pixels
+        profile.update(tiled=True, blockxsize=min(256, cols // 16 * 16), blockysize=min(256, rows // 16 * 16))
+    with rasterio.open(path, "w", **profile) as dst:
+        dst.write(magnitude_db(img.image), 1)
+        dst.update_tags(**_tif_tags(params_json, provenance_json))
+        dst.update_tags(1, units=DB_UNITS)
+        dst.set_band_description(1, "magnitude_db")
+        dst.set_band_unit(1, "dB")
+
+
+def _tif_tags(params_json: dict[str, str], provenance_json: str) -> dict[str, str]:
+    """GeoTIFF dataset tags: units, autosar version, one ``param_<name>`` JSON tag per parameter, provenance."""
+    return {"units": DB_UNITS, "autosar_version": __version__, "autosar_format": "autosar-image-db",
+            **{f"param_{k}": v for k, v in params_json.items()}, "provenance": provenance_json}
+
+
+def _write_h5(path: Path, img: FocusedImage, transform: Affine, epsg: int, crs: CRS, residual: float,
+              provenance_json: str) -> None:
+    """image.h5: complex image, pixel-centre axes, grid, origin, UTM georeferencing, params, provenance."""
+    g = img.grid
+    rows, cols = g.shape
+    with h5py.File(path, "w") as f:
+        f.attrs.update({
+            "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
+            "origin_lat_deg": img.origin.lat_deg, "origin_lon_deg": img.origin.lon_deg,
+            "origin_height_m": img.origin.height_m, "utm_epsg": epsg,
+            "geotransform": np.asarray(transform.to_gdal(), dtype=np.float64), "geotransform_residual_m": residual,
+            "crs_wkt": crs.to_wkt(),
+        })
+        chunks = (min(rows, 256), min(cols, 256))
+        ds = f.create_dataset("image", data=np.asarray(img.image, dtype=np.complex64), chunks=chunks,
+                              compression="gzip", compression_opts=1, shuffle=True)
+        ds.attrs.update({"units": "linear complex amplitude (arbitrary)", "axes": "rows = across, cols = along"})
+        f["along_m"] = np.arange(cols, dtype=np.float64) * g.pixel_m
+        f["across_m"] = np.arange(rows, dtype=np.float64) * g.pixel_m
+        for name, axis in (("along_m", "along"), ("across_m", "across")):
+            f[name].attrs["description"] = (f"pixel-centre distance from pixel (0, 0)'s centre along grid/{axis}, "
+                                            "m; ENU = grid/origin_enu_m + along_m * along + across_m * across")
+        f.create_group("grid").attrs.update(g.to_attrs())
+        _write_params(f.create_group("params"), img.params)
+        f.create_group("provenance").attrs["json"] = provenance_json
+
+
+def _write_params(group: h5py.Group, params: dict[str, Any]) -> None:
+    """Scalars (bool, int, float, str) as native attributes, everything else as JSON text listed in _json_keys."""
+    if _JSON_KEYS in params:
+        raise ValueError(f"processing parameter name {_JSON_KEYS!r} is reserved")
+    json_keys = []
+    for k, v in params.items():
+        if isinstance(v, np.generic):
+            v = v.item()
+        if isinstance(v, bool | str | float) or (isinstance(v, int) and -2**63 <= v < 2**63):
+            group.attrs[k] = v
+        else:
+            group.attrs[k] = _to_json(v)
+            json_keys.append(k)
+    group.attrs[_JSON_KEYS] = json.dumps(json_keys)
+
+
+def _read_params(group: h5py.Group) -> dict[str, Any]:
+    json_keys = set(json.loads(group.attrs.get(_JSON_KEYS, "[]")))
+    out: dict[str, Any] = {}
+    for k, v in group.attrs.items():
+        if k == _JSON_KEYS:
+            continue
+        out[k] = json.loads(v) if k in json_keys else (v.item() if isinstance(v, np.generic) else v)
+    return out
+
+
+def _nice_length(x: float) -> float:
+    """The 1-2-5 x 10^k value nearest ``x`` (> 0) on a log scale."""
+    k = math.floor(math.log10(x))
+    return min((m * 10.0**k for m in (1, 2, 5, 10)), key=lambda v: abs(math.log(v / x)))
+
+
+def write_quicklook(path: Path, img: FocusedImage, *, dynamic_range_db: float = 50.0) -> None:
+    """PNG quicklook: dB relative to the image peak, clipped to [-dynamic_range_db, 0], in grid metres.
+
+    x: along-track metres from pixel (0, 0)'s centre, y: across metres, increasing upwards, so row 0 (near
+    range for the automatic grid) is at the bottom. A scale bar (metres), a dB colour bar and a north
+    arrow (the grid may be rotated and mirrored relative to a map) are drawn. No pyplot state is touched.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
+
+    g = img.grid
+    rows, cols = g.shape
+    db = magnitude_db(img.image)
+    peak = float(np.nanmax(db)) if np.isfinite(db).any() else 0.0
+    rel = np.clip(db - peak, -dynamic_range_db, 0.0)
+    rel[np.isnan(db) & (np.abs(img.image) == 0)] = -dynamic_range_db  # exact zeros: floor, non-finite: blank
+    p = g.pixel_m
+    extent = (-0.5 * p, (cols - 0.5) * p, -0.5 * p, (rows - 0.5) * p)
+    width_m, height_m = cols * p, rows * p
+
+    aspect = height_m / width_m
+    fig_w = 10.0
+    fig_h = float(np.clip(fig_w * aspect * 0.85 + 1.2, 3.0, 10.0))
+    fig = Figure(figsize=(fig_w, fig_h), dpi=150, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    im = ax.imshow(rel, origin="lower", extent=extent, cmap="gray", vmin=-dynamic_range_db, vmax=0.0,
+                   interpolation="antialiased", aspect="equal")
+    ax.set_xlabel("along (m)")
+    ax.set_ylabel("across (m)")
+    title = f"peak {peak:.1f} dB, {rows} x {cols} px at {p * 100:g} cm"
+    ax.set_title(title, fontsize=9)
+    fig.colorbar(im, ax=ax, label="dB (rel. peak)", shrink=0.9)
+    length = _nice_length(width_m / 5.0)
+    label = f"{length:g} m" if length >= 1 else f"{length * 100:g} cm"
+    ax.add_artist(AnchoredSizeBar(ax.transData, length, label, loc="lower right", color="yellow", frameon=False,
+                                  size_vertical=min(width_m, height_m) / 150.0, pad=0.5, sep=4))
+    north = np.array([g.along[1], g.across[1]])  # ENU north in the (along, across) plot axes
+    if np.hypot(*north) > 1e-9:
+        n = 24.0 * north / np.hypot(*north)  # arrow length in points (isotropic, unlike axes fraction)
+        ax.annotate("N", xy=(0.06, 0.88), xycoords="axes fraction", xytext=(n[0], n[1]), textcoords="offset points",
+                    color="yellow", fontsize=8, ha="center", va="center",
+                    arrowprops={"arrowstyle": "<-", "color": "yellow", "shrinkA": 4, "shrinkB": 0})
+    fig.savefig(path, format="png")

@@ -1,0 +1,258 @@
+"""Focused-image products: GeoTIFF georeferencing (UTM), image.h5 round trip, PNG quicklook, atomic writes."""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import rasterio
+from numpy.typing import NDArray
+from pyproj import Proj, Transformer
+
+from autosar_cli import __version__
+from autosar_cli.nav.geodesy import GeodeticOrigin
+from autosar_cli.sar.grid import FocusGrid
+from autosar_cli.store import image as image_mod
+from autosar_cli.store.atomic import atomic_output
+from autosar_cli.store.image import (
+    FocusedImage,
+    ImageFormatError,
+    read_image,
+    utm_geotransform,
+    write_image,
+)
+
+ORIGIN = GeodeticOrigin(45.06, 7.66, 240.0)  # Turin: UTM zone 32N, 1.34 deg west of the central meridian
+PIXEL = 0.04
+C30, S30 = math.cos(math.radians(30.0)), math.sin(math.radians(30.0))
+BRIGHT = {(17, 33): 1000.0 * np.exp(0.7j), (120, 250): 400.0 * np.exp(-2.1j), (199, 5): 150.0 + 0j}
+ZERO = (60, 60)
+PARAMS = {"method": "backprojection", "pixel_m": PIXEL, "upsample": 8, "autofocus": False,
+          "band_hz": [76.0e9, 80.0e9], "window": {"range": "hann", "azimuth": None}, "seed": None}
+
+
+def rotated_grid() -> FocusGrid:
+    """250 x 400 px at 4 cm, columns at 30 deg north of east, rows on the right-hand side of travel."""
+    return FocusGrid((7.5, -3.25), (C30, S30), (S30, -C30), PIXEL, 400, 250, -1.5)
+
+
+def make_image(grid: FocusGrid, seed: int = 3) -> NDArray[np.complex64]:
+    """Complex noise (|z| ~ 0.5), the BRIGHT pixels and one exact zero where they fit in the grid."""
+    rng = np.random.default_rng(seed)
+    z = (0.5 * (rng.normal(size=grid.shape) + 1j * rng.normal(size=grid.shape))).astype(np.complex64)
+    for (r, c), v in [*BRIGHT.items(), (ZERO, 0)]:
+        if r < grid.n_across and c < grid.n_along:
+            z[r, c] = v
+    return z
+
+
+def utm_of(grid: FocusGrid, row: float, col: float, epsg: int) -> np.ndarray:
+    """Independent reference: ENU -> geodetic (pymap3d) -> UTM (pyproj), pixel centre (row, col)."""
+    lat, lon, _ = ORIGIN.to_geodetic(grid.pixel_enu(row, col))
+    e, n = Transformer.from_crs("EPSG:4326", f"EPSG:{epsg}", always_xy=True).transform(lon, lat)
+    return np.array([e, n])
+
+
+@pytest.fixture(scope="module")
+def rotated_products(tmp_path_factory: pytest.TempPathFactory) -> tuple[FocusedImage, dict[str, Path]]:
+    grid = rotated_grid()
+    img = FocusedImage(make_image(grid), grid, ORIGIN, PARAMS, {"inputs": ["drive.h5"], "command": "autosar focus"})
+    out = tmp_path_factory.mktemp("img") / "scene"
+    return img, write_image(out, img)
+
+
+def test_products_are_written_next_to_base(rotated_products: tuple[FocusedImage, dict[str, Path]]) -> None:
+    _, paths = rotated_products
+    assert {k: p.name for k, p in paths.items()} == {"tif": "scene.tif", "h5": "scene.h5", "png": "scene.png"}
+    assert all(p.is_file() for p in paths.values())
+    assert not list(paths["tif"].parent.glob("*partial*"))
+    assert not list(paths["tif"].parent.glob("*.aux.xml"))  # everything is inside the GeoTIFF
+
+
+def test_geotiff_lands_on_the_utm_positions_of_the_pixels(
+        rotated_products: tuple[FocusedImage, dict[str, Path]]) -> None:
+    img, paths = rotated_products
+    assert ORIGIN.utm_epsg() == 32632
+    with rasterio.open(paths["tif"]) as ds:
+        assert ds.crs.to_epsg() == 32632
+        assert (ds.height, ds.width) == img.grid.shape == (250, 400)
+        assert ds.dtypes == ("float32",)
+        band = ds.read(1)
+        t = ds.transform
+        for (row, col), z in BRIGHT.items():
+            got = np.array(t @ (col + 0.5, row + 0.5))
+            assert np.hypot(*(got - utm_of(img.grid, row, col, 32632))) < 0.01
+            assert band[row, col] == pytest.approx(20 * np.log10(abs(z)), abs=1e-4)
+        # the pixel (0, 0) outer corner is half a pixel before pixel (0, 0)'s centre on both grid axes
+        assert np.hypot(*(np.array(t @ (0, 0)) - utm_of(img.grid, -0.5, -0.5, 32632))) < 0.01
+        # the transform is rotated: the column axis follows the grid's 30 deg (plus ~ -1 deg grid convergence)
+        assert math.degrees(math.atan2(t.d, t.a)) == pytest.approx(30.0, abs=1.5)
+        assert math.hypot(t.a, t.d) == pytest.approx(PIXEL, rel=1e-3)
+        assert np.unravel_index(np.nanargmax(band), band.shape) == (17, 33)
+
+
+def test_geotiff_nodata_tags_and_layout(rotated_products: tuple[FocusedImage, dict[str, Path]]) -> None:
+    img, paths = rotated_products
+    with rasterio.open(paths["tif"]) as ds:
+        band = ds.read(1)
+        assert math.isnan(ds.nodata)
+        assert np.isnan(band[ZERO])
+        assert np.isnan(band).sum() == 1  # only the zero pixel
+        assert ds.read_masks(1)[ZERO] == 0 and ds.read_masks(1)[0, 0] == 255
+        noise = np.delete(band.ravel(), np.ravel_multi_index(ZERO, band.shape))
+        ref = 20 * np.log10(np.abs(np.delete(img.image.ravel(), np.ravel_multi_index(ZERO, band.shape))))
+        np.testing.assert_allclose(noise, ref, atol=1e-4)
+        tags = ds.tags()
+        assert tags["units"] == "dB, 20 log10 |complex image|"
+        assert tags["autosar_version"] == __version__
+        assert json.loads(tags["param_band_hz"]) == PARAMS["band_hz"]
+        assert json.loads(tags["param_method"]) == "backprojection"
+        assert json.loads(tags["provenance"])["command"] == "autosar focus"
+        assert ds.profile["tiled"] and ds.compression.name.lower() == "deflate"
+
+
+@pytest.mark.filterwarnings("ignore:Use `@` matmul:PendingDeprecationWarning")  # rasterio bounds
+def test_north_up_grid_has_only_convergence_rotation(tmp_path: Path) -> None:
+    # pixel (0, 0)'s centre at the ENU origin itself: its UTM position inverts to the origin's lat/lon
+    grid = FocusGrid((0.0, 0.0), (1.0, 0.0), (0.0, -1.0), PIXEL, 300, 200, 0.0)
+    t, epsg, residual = utm_geotransform(grid, ORIGIN)
+    assert epsg == 32632 and residual < 1e-4
+    assert abs(t.b) < 0.02 * PIXEL and abs(t.d) < 0.02 * PIXEL
+    assert t.a == pytest.approx(PIXEL, rel=1e-3) and t.e == pytest.approx(-PIXEL, rel=1e-3)
+    # the small rotation is the meridian convergence (~ -0.95 deg here), not noise
+    conv = Proj("EPSG:32632").get_factors(ORIGIN.lon_deg, ORIGIN.lat_deg).meridian_convergence
+    assert abs(conv) > 0.5
+    assert abs(math.degrees(math.atan2(t.d, t.a))) == pytest.approx(abs(conv), abs=0.01)
+    e, n = t @ (0.5, 0.5)
+    lon, lat = Transformer.from_crs("EPSG:32632", "EPSG:4326", always_xy=True).transform(e, n)
+    assert lat == pytest.approx(ORIGIN.lat_deg, abs=1e-8) and lon == pytest.approx(ORIGIN.lon_deg, abs=1e-8)
+
+    img = FocusedImage(make_image(grid), grid, ORIGIN, {})
+    paths = write_image(tmp_path / "north", img)
+    with rasterio.open(paths["tif"]) as ds:
+        assert ds.transform.almost_equals(t, precision=1e-9)
+        corners = np.array([utm_of(grid, r, c, 32632) for r in (-0.5, 199.5) for c in (-0.5, 299.5)])
+        np.testing.assert_allclose(ds.bounds, [*corners.min(axis=0), *corners.max(axis=0)], atol=0.01)
+
+
+def test_affine_residual_is_sub_millimetre_over_300_m() -> None:
+    grid = FocusGrid((-150.0, 40.0), (C30, S30), (S30, -C30), 1.0, 300, 300, 0.0)
+    t, _, residual = utm_geotransform(grid, ORIGIN)
+    assert residual < 1e-3
+    # the fit holds between its lattice points too
+    for row, col in [(37.0, 211.0), (150.0, 150.0), (299.0, 0.0), (263.5, 88.25)]:
+        assert np.hypot(*(np.array(t @ (col + 0.5, row + 0.5)) - utm_of(grid, row, col, 32632))) < 1e-3
+
+
+def test_h5_round_trip(rotated_products: tuple[FocusedImage, dict[str, Path]]) -> None:
+    img, paths = rotated_products
+    back = read_image(paths["h5"])
+    assert back.image.dtype == np.complex64
+    np.testing.assert_array_equal(back.image, img.image)
+    assert back.grid == img.grid
+    assert back.origin == img.origin
+    assert back.params == PARAMS
+    assert back.provenance == img.provenance
+    with h5py.File(paths["h5"], "r") as f:
+        assert f.attrs["format"] == "autosar-image" and int(f.attrs["format_version"]) == 1
+        assert f.attrs["autosar_version"] == __version__
+        assert int(f.attrs["utm_epsg"]) == 32632
+        with rasterio.open(paths["tif"]) as ds:
+            np.testing.assert_allclose(f.attrs["geotransform"], ds.transform.to_gdal(), rtol=0, atol=1e-9)
+            assert rasterio.crs.CRS.from_wkt(f.attrs["crs_wkt"]) == ds.crs
+        along, across = f["along_m"][()], f["across_m"][()]
+        assert along.shape == (400,) and across.shape == (250,)
+        row, col = 120, 250
+        enu = np.asarray(img.grid.origin) + along[col] * np.asarray(img.grid.along) + across[row] * np.asarray(
+            img.grid.across)
+        np.testing.assert_allclose(enu, img.grid.pixel_enu(row, col)[:2], atol=1e-12)
+        assert f["image"].chunks is not None and f["image"].compression in ("gzip", "lzf")
+
+
+def test_png_quicklook(rotated_products: tuple[FocusedImage, dict[str, Path]]) -> None:
+    _, paths = rotated_products
+    head = paths["png"].read_bytes()[:24]
+    assert head[:8] == b"\x89PNG\r\n\x1a\n"
+    width, height = struct.unpack(">II", head[16:24])
+    assert 600 <= width <= 3000 and 300 <= height <= 2000
+
+
+def test_failed_tif_write_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    def boom(*args: object, **kwargs: object) -> dict[str, str]:
+        assert (tmp_path / "scene.partial.tif").exists()  # the failure happens with a half-written file
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(image_mod, "_tif_tags", boom)
+    grid = rotated_grid()
+    with pytest.raises(RuntimeError, match="disk full"):
+        write_image(tmp_path / "scene", FocusedImage(make_image(grid), grid, ORIGIN, PARAMS))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_existing_outputs_need_overwrite(tmp_path: Path) -> None:
+    grid = FocusGrid((0.0, 0.0), (1.0, 0.0), (0.0, -1.0), PIXEL, 40, 30, 0.0)
+    first = FocusedImage(make_image(grid, seed=1), grid, ORIGIN, {"run": 1})
+    paths = write_image(tmp_path / "out", first)
+    (tmp_path / "other.png").write_bytes(b"x")
+    with pytest.raises(FileExistsError, match="--overwrite") as exc:
+        write_image(tmp_path / "other", first)
+    assert "other.png" in str(exc.value)
+    assert not (tmp_path / "other.tif").exists()  # refused before writing anything
+    second = FocusedImage(make_image(grid, seed=2), grid, ORIGIN, {"run": 2})
+    with pytest.raises(FileExistsError, match="--overwrite"):
+        write_image(tmp_path / "out", second)
+    assert read_image(paths["h5"]).params == {"run": 1}
+    write_image(tmp_path / "out", second, overwrite=True)
+    back = read_image(paths["h5"])
+    assert back.params == {"run": 2}
+    np.testing.assert_array_equal(back.image, second.image)
+    with rasterio.open(paths["tif"]) as ds:
+        assert ds.read(1)[20, 3] == pytest.approx(20 * np.log10(abs(second.image[20, 3])), abs=1e-4)
+
+
+def test_atomic_output_keeps_the_old_file_on_failure(tmp_path: Path) -> None:
+    target = tmp_path / "a.txt"
+    target.write_text("old")
+    with pytest.raises(ValueError, match="half"), atomic_output(target, overwrite=True) as tmp:
+        assert tmp.name == "a.partial.txt"
+        tmp.write_text("half")
+        raise ValueError("half")
+    assert target.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["a.txt"]
+    with atomic_output(target, overwrite=True) as tmp:
+        tmp.write_text("new")
+        assert target.read_text() == "old"  # not visible until complete
+    assert target.read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == ["a.txt"]
+
+
+def test_read_image_rejects_other_files(tmp_path: Path, rotated_products: tuple[FocusedImage, dict[str, Path]]
+                                        ) -> None:
+    other = tmp_path / "trajectory.h5"
+    with h5py.File(other, "w") as f:
+        f.attrs["format"] = "autosar-trajectory"
+        f["t_ns"] = np.arange(3)
+    with pytest.raises(ImageFormatError, match="trajectory.h5") as exc:
+        read_image(other)
+    assert "autosar-trajectory" in str(exc.value)
+
+    text = tmp_path / "notes.h5"
+    text.write_text("not hdf5")
+    with pytest.raises(ImageFormatError, match="notes.h5.*not an HDF5"):
+        read_image(text)
+
+    newer = tmp_path / "newer.h5"
+    newer.write_bytes(rotated_products[1]["h5"].read_bytes())
+    with h5py.File(newer, "r+") as f:
+        f.attrs["format_version"] = 2
+    with pytest.raises(ImageFormatError, match="newer.h5.*version 2"):
+        read_image(newer)
+
+
+def test_image_must_match_the_grid() -> None:
+    grid = rotated_grid()
+    with pytest.raises(ValueError, match="grid shape"):
+        FocusedImage(np.zeros((400, 250), np.complex64), grid, ORIGIN, {})
