@@ -277,6 +277,58 @@ def navigate(
             out.print(f"figure [bold]{figure}[/]")
 
 
+class Channels(StrEnum):
+    eight = "8"
+    twelve = "12"
+
+
+@app.command()
+def focus(
+    drive: Annotated[Path, typer.Argument(help="drive.h5 written by `autosar ingest`.")],
+    trajectory: Annotated[Path, typer.Option("--trajectory", "-t", help="trajectory.h5 written by "
+                                             "`autosar navigate`.")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="Output base name: writes OUT.tif (GeoTIFF, dB, "
+                                         "UTM), OUT.h5 (complex image) and OUT.png (quicklook).")] = Path("image"),
+    pixel: Annotated[float | None, typer.Option("--pixel", help="Pixel spacing in metres (config default 0.04).")]
+    = None,
+    resolution: Annotated[float | None, typer.Option("--resolution", help="Cross-range resolution rho in metres: the "
+                                                     "processed beam is lambda/(4 rho) wide (config default 0.04).")]
+    = None,
+    channels: Annotated[Channels | None, typer.Option("--channels", help="8: Tx0 + Tx2 (the lambda/2 virtual "
+                                                      "array), 12: all Tx (config default 8).")] = None,
+    height: Annotated[float | None, typer.Option("--height", help="Focusing plane height, ENU metres above the "
+                                                 "road at the origin (config default 0.5).")] = None,
+    grid: Annotated[str, typer.Option("--grid", help="'auto' (along the trajectory on the radar side, ground "
+                                      "range 0.5 m to R_max) or x0,y0,x1,y1 in ENU metres.")] = "auto",
+    config: ConfigOpt = None,
+    overwrite: OverwriteOpt = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """Focus the radar with time-domain back-projection (stripmap, coherent MIMO sum) into georeferenced images."""
+    with _errors():
+        from autosar_cli.sar.focus import FocusOptions
+        from autosar_cli.sar.focus import focus as run_focus
+
+        cfg = _load_config(config)
+        options = FocusOptions.from_config(cfg, pixel_m=pixel, resolution_m=resolution, height_m=height, grid=grid,
+                                           channels=int(channels.value) if channels else None)
+        with _progress("focusing", enabled=not as_json) as progress:
+            report = run_focus(drive, trajectory, output, cfg, options, overwrite=overwrite, progress=progress,
+                               command=" ".join(sys.argv))
+        summary = report.to_dict()
+        if as_json:
+            out.print_json(json.dumps(summary))
+            return
+        rows, cols = report.grid_shape
+        wall = summary["wall_s"]
+        out.print(f"wrote [bold]{report.outputs['tif']}[/], {report.outputs['h5']}, {report.outputs['png']}: "
+                  f"{rows} x {cols} pixels at {options.pixel_m * 100:g} cm, {report.frames_used} frames, "
+                  f"{report.backprojections / 1e9:.2f} G back-projections in {wall:.1f} s "
+                  f"({wall / max(report.drive_s, 1e-9):.2f} x the drive's {report.drive_s:.1f} s)")
+        for reason, n in report.frames_skipped.items():
+            err.print(f"[yellow]skipped[/] {n} frames: {reason}", highlight=False)
+
+
 @app.command()
 def info(
     path: Annotated[Path, typer.Argument(help="A drive log (.mcap, .bag, rosbag2 directory) or a drive.h5.")],

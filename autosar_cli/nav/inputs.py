@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import h5py
 import numpy as np
 from numpy.typing import NDArray
 
@@ -58,13 +59,20 @@ def lsb_of(values: Array) -> float:
     return float(gaps[gaps > 1e-12].min()) if (gaps > 1e-12).any() else 0.0
 
 
+def _columns(group: h5py.Group, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """The named datasets of a series group (only those: a group holds many more columns than navigation uses)."""
+    return {k: group[k][()] for k in names}
+
+
 def load_inputs(drive: Drive, config: Config) -> NavInputs:
     """Collect the SAR-MIN measurements of ``drive`` as the config names them."""
     nav = config.navigation
     gnss_cfg = config.sensors.get(nav.gnss)
-    if nav.gnss not in drive.gnss_sources() or "fix" not in drive.h5[f"gnss/{nav.gnss}"]:
+    h5 = drive.h5
+    if nav.gnss not in drive.gnss_sources() or "fix" not in h5["gnss"][nav.gnss]:
         raise NavInputError(f"{drive.path}: no GNSS fix stream gnss/{nav.gnss} (config navigation.gnss)")
-    fix = drive.series(f"gnss/{nav.gnss}/fix")
+    gnss = h5["gnss"][nav.gnss]
+    fix = _columns(gnss["fix"], ("t_ns", "latitude_deg", "longitude_deg", "altitude_m"))
     if len(fix["t_ns"]) == 0:
         raise NavInputError(f"{drive.path}: gnss/{nav.gnss}/fix is empty")
     lever = tuple(gnss_cfg.lever_arm_m) if gnss_cfg else (0.0, 0.0, 0.0)
@@ -78,27 +86,41 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         latency = s.latency_s if s else 0.0
         return (np.asarray(t_ns, dtype=np.int64) - t0) / 1e9 - latency
 
+    roles = drive.can_roles()
+    can_times: dict[str, np.ndarray] = {}
+
+    def can_role(role: str) -> tuple[np.ndarray, np.ndarray]:
+        """Like :meth:`Drive.can_role`, reading each message's time stamps once."""
+        if role not in roles:
+            return drive.can_role(role)  # raises the KeyError naming the known roles
+        message, signal = roles[role].split("/")
+        g = h5["can"][message]
+        if message not in can_times:
+            can_times[message] = g["t_ns"][()]
+        return can_times[message], g[signal][()]
+
     out = NavInputs(t0, origin, gnss_lever_m=lever)  # type: ignore[arg-type]
     enu = origin.to_enu(fix["latitude_deg"], fix["longitude_deg"], fix["altitude_m"])
     pos_std = np.full(2, nav.gnss_position_std_m)
     out.gnss_position = Measurements(nav.gnss, rel(fix["t_ns"], nav.gnss), enu[:, :2], pos_std)
-    if "velocity" in drive.h5[f"gnss/{nav.gnss}"]:
-        vel = drive.series(f"gnss/{nav.gnss}/velocity")
+    if "velocity" in gnss:
+        vel = _columns(gnss["velocity"], ("t_ns", "velocity_enu"))
         std = gnss_cfg.gnss.velocity_std_mps if gnss_cfg and gnss_cfg.gnss else 0.05
         out.gnss_velocity = Measurements(nav.gnss, rel(vel["t_ns"], nav.gnss), vel["velocity_enu"][:, :2],
                                          np.full(2, std))
+    imu_sources = drive.imu_sources()
     for name in nav.gyros:
         s = config.sensors.get(name)
         if s is None or s.gyro is None:
             raise NavInputError(f"navigation.gyros: {name!r} is not a sensor with a gyro in the config")
         if s.kind == "imu":
-            if name not in drive.imu_sources():
+            if name not in imu_sources:
                 raise NavInputError(f"{drive.path}: no IMU stream imu/{name}")
-            imu = drive.series(f"imu/{name}")
+            imu = _columns(h5["imu"][name], ("t_ns", "angular_velocity"))
             t_ns, z = imu["t_ns"], imu["angular_velocity"][:, 2]
         else:
             try:
-                t_ns, z = drive.can_role(f"yaw_rate.{name}")
+                t_ns, z = can_role(f"yaw_rate.{name}")
             except KeyError as exc:
                 raise NavInputError(str(exc).strip("'\"")) from exc
         q = lsb_of(z)
@@ -107,10 +129,9 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         out.gyro_bias_std.append(1.5 * np.deg2rad(s.gyro.turn_on_bias_dps))
         out.gyro_bias_walk.append(np.deg2rad(s.gyro.bias_instability_dps) * np.sqrt(2.0 / s.gyro.bias_tau_s))
     wheels_cfg = next((n for n, s in config.sensors.items() if s.kind == "wheel_speeds"), None)
-    roles = drive.can_roles()
     if wheels_cfg and all(f"wheel_speed_{w}" in roles for w in ("fl", "fr", "rl", "rr")):
-        t_ns, _ = drive.can_role("wheel_speed_fl")
-        z = np.stack([drive.can_role(f"wheel_speed_{w}")[1] for w in ("fl", "fr", "rl", "rr")], axis=1)
+        t_ns, _ = can_role("wheel_speed_fl")
+        z = np.stack([can_role(f"wheel_speed_{w}")[1] for w in ("fl", "fr", "rl", "rr")], axis=1)
         s = config.sensors[wheels_cfg]
         q = lsb_of(z[:, 0])
         noise = s.wheel.noise_std_mps if s.wheel else 0.01
@@ -118,7 +139,7 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         out.wheel_scale_std = s.wheel.radius_scale_error_std if s.wheel else 0.005
     steer_cfg = next((n for n, s in config.sensors.items() if s.kind == "steering"), None)
     if steer_cfg and "steering_wheel_angle" in roles:
-        t_ns, angle = drive.can_role("steering_wheel_angle")
+        t_ns, angle = can_role("steering_wheel_angle")
         s = config.sensors[steer_cfg]
         ratio = config.vehicle.steering_ratio
         q = lsb_of(angle)

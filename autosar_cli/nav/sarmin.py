@@ -7,6 +7,7 @@ Array-in, array-out: :func:`run_sarmin` takes :class:`~.inputs.NavInputs` and re
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -221,14 +222,14 @@ def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[t
         gates[k] = chi2.ppf(nav.gate_probability, k)
     geo = np.array([veh.wheelbase_m, veh.track_front_m, veh.track_rear_m, gnss_lever[0], gnss_lever[1]])
     lam = float(ukf.points.alpha**2 * (len(x0) + ukf.points.kappa) - len(x0))  # filterpy's Merwe lambda
-    T, X, PP, XP, PPp, C, used, rejected = kern.run_filter(
+    T, X, PP, XP, FF, PK, DT, used, rejected = kern.run_filter(
         times[order], ev_kind, zs, sig, t_start, x0, P0, q, ukf.Wm, ukf.Wc, lam, ng, geo, scale_i, steer_i,
-        nav.steering_min_speed_mps, gates, nav.max_step_s)
+        nav.steering_min_speed_mps, gates, nav.max_step_s, math.fsum(ukf.Wm))
     if len(T) < 2:
         raise NavInputError("no measurement after the initial GNSS fix: nothing to navigate")
-    xs, Ps = kern.smooth(X, PP, XP, PPp, C) if smooth else (X, PP)
+    xs, Ps = kern.smooth(X, PP, XP, FF, PK, DT, q) if smooth else (X, PP)
     label = [g.name for g in inputs.gyros] + ["wheels", "steering", "gnss_pos", "gnss_vel"]
-    last = np.r_[np.diff(T) > 0, True]
-    return NavSolution(T[last], xs[last], Ps[last], names,
+    # One state per distinct instant already (the kernel refines a state for measurements at its instant).
+    return NavSolution(T, xs, Ps, names,
                        {label[i]: int(v) for i, v in enumerate(rejected) if v},
                        {label[i]: int(v) for i, v in enumerate(used) if v})

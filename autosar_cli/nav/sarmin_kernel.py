@@ -2,9 +2,24 @@
 :func:`~.sarmin.run_sarmin`, without Python in the per-measurement path.
 
 filterpy still supplies the sigma-point weights (``Wm``, ``Wc``, ``lambda``: Merwe's scaled points);
-the kernel reproduces its sigma-point placement (rows of the upper Cholesky factor of
-``(n + lambda) P``) and unscented transform. ``tests/test_nav_sarmin.py`` checks it against the
-numpy/filterpy path state by state.
+the kernel reproduces its sigma-point placement (columns ``L[:, j]`` of the lower Cholesky factor of
+``(n + lambda) P``, i.e. the rows of filterpy's upper factor) and unscented transform.
+``tests/test_nav_sarmin.py`` checks it against the numpy/filterpy path state by state.
+
+Partitioned prediction. CTRV moves only the ``NK = 5`` kinematic states ``k``; the parameters ``p``
+(biases, scales) are constant. With ``L = [[Lkk, 0], [Lpk, Lpp]]`` the sigma points built from the
+parameter columns have the centre's kinematic part, so the full unscented transform reduces exactly to
+
+- ``x_k'``, ``Pkk'``: the transform of the 11 points ``x_k``, ``x_k +- Lkk[:, j]`` (the ``2 (n - 5)``
+  parameter points add their weight to the centre), plus ``Q_k dt``;
+- ``Pkp' = F Pkp`` with ``F = Wc_1 (n + lambda) M Lkk^-1`` and ``M[:, j] = dy_{+j} - dy_{-j}`` (the
+  statistical linearisation of CTRV), ``Ppp' = Ppp + Q_p dt``, ``x_p' = x_p``;
+- the cross-covariance the smoother needs, ``cov(x, x') = P Phi^T`` with ``Phi = diag(F, I)``.
+
+So the filter stores per step only ``x'``, ``F`` and ``Pkk'`` besides the filtered states; the smoother
+rebuilds ``P_pred`` and the cross-covariance from them. Measurements at the instant of the previous one
+(``dt = 0``) predict nothing (the transform is the identity there) and refine the same stored state:
+the smoother sees one state per distinct instant, exactly what it would compute through identity steps.
 
 Event kinds: ``0 .. ng-1`` gyro i; ``ng`` wheels; ``ng+1`` steering; ``ng+2`` GNSS position;
 ``ng+3`` GNSS velocity. Measurement values are padded to 4 columns.
@@ -16,6 +31,7 @@ import numpy as np
 from numba import njit
 
 PX, PY, V, PSI, OMEGA = 0, 1, 2, 3, 4
+NK = 5  # kinematic states (the only ones CTRV moves); the rest are constant parameters
 
 
 @njit(cache=True)
@@ -24,324 +40,435 @@ def _wrap(a: float) -> float:
 
 
 @njit(cache=True)
-def _cholesky(A):  # noqa: ANN001, ANN202
-    """Lower Cholesky factor of a small SPD matrix (plain loops: no LAPACK call overhead per event)."""
-    n = A.shape[0]
-    L = np.zeros((n, n))
-    for j in range(n):
-        d = A[j, j]
+def _cholesky_into(A, scale, m, L, inv_diag):  # noqa: ANN001, ANN202
+    """Lower Cholesky factor of ``scale * A[:m, :m]`` (SPD) into ``L``, 1 / diagonal into ``inv_diag``."""
+    for j in range(m):
+        d = scale * A[j, j]
         for k in range(j):
             d -= L[j, k] * L[j, k]
         if d <= 0.0:
             raise np.linalg.LinAlgError("covariance is not positive definite")
-        L[j, j] = np.sqrt(d)
-        for i in range(j + 1, n):
-            v = A[i, j]
+        s = np.sqrt(d)
+        L[j, j] = s
+        inv = 1.0 / s
+        inv_diag[j] = inv
+        for i in range(j + 1, m):
+            v = scale * A[i, j]
             for k in range(j):
                 v -= L[i, k] * L[j, k]
-            L[i, j] = v / L[j, j]
-    return L
-
-
-@njit(cache=True, fastmath=True)
-def _weighted_cov(a, b, W):  # noqa: ANN001, ANN202
-    """sum_i W[i] a[i]^T b[i] for row-stacked deviations a (m, p), b (m, q)."""
-    m, p = a.shape
-    q = b.shape[1]
-    out = np.zeros((p, q))
-    for i in range(m):
-        w = W[i]
-        for r in range(p):
-            ar = w * a[i, r]
-            for c in range(q):
-                out[r, c] += ar * b[i, c]
-    return out
+            L[i, j] = v * inv
+        for i in range(j):
+            L[i, j] = 0.0
 
 
 @njit(cache=True)
-def _sigmas(x, P, lam):  # noqa: ANN001, ANN202
+def _ctrv_point(pt, out, dt):  # noqa: ANN001, ANN202
+    v, psi, w = pt[V], pt[PSI], pt[OMEGA]
+    half = 0.5 * w * dt
+    sinc = 1.0 if abs(half) < 1e-12 else np.sin(half) / half
+    chord = v * dt * sinc
+    out[PX] = pt[PX] + chord * np.cos(psi + half)
+    out[PY] = pt[PY] + chord * np.sin(psi + half)
+    out[V] = v
+    out[PSI] = psi + w * dt
+    out[OMEGA] = w
+
+
+@njit(cache=True)
+def _predict(x, P, xn, Pn, dt, q, Wm, Wc, c, wsum, L5, inv5, pts, prop, dy, F, Pkk):  # noqa: ANN001, ANN202
+    """Unscented CTRV prediction of node ``(x, P)`` by ``dt`` into ``(xn, Pn)`` (partitioned, see the
+    module docstring); also fills ``F`` and ``Pkk`` (the predicted kinematic block) for the smoother."""
     n = x.shape[0]
-    S = 0.5 * (P + P.T) * (n + lam)
-    L = _cholesky(S)  # lower; filterpy uses the rows of the upper factor = columns of L
-    sig = np.empty((2 * n + 1, n))
-    sig[0] = x
-    for k in range(n):
-        for j in range(n):
-            sig[k + 1, j] = x[j] + L[j, k]
-            sig[n + k + 1, j] = x[j] - L[j, k]
-        sig[k + 1, PSI] = _wrap(sig[k + 1, PSI])
-        sig[n + k + 1, PSI] = _wrap(sig[n + k + 1, PSI])
-    return sig, L
-
-
-@njit(cache=True)
-def _mean(sig, Wm):  # noqa: ANN001, ANN202
-    x = Wm @ sig
-    ref = sig[0, PSI]  # the heading mean as wrapped deviations from the centre point (see ukf._mean_x)
-    acc = 0.0
-    for i in range(sig.shape[0]):
-        acc += Wm[i] * _wrap(sig[i, PSI] - ref)
-    x[PSI] = _wrap(ref + acc)
-    return x
-
-
-@njit(cache=True)
-def _resid(sig, x):  # noqa: ANN001, ANN202
-    d = sig - x
-    for i in range(d.shape[0]):
-        d[i, PSI] = _wrap(d[i, PSI])
-    return d
-
-
-@njit(cache=True)
-def _ctrv(sig, dt):  # noqa: ANN001, ANN202
-    out = sig.copy()  # the caller keeps the undisturbed sigma points for the cross-covariance
-    for i in range(sig.shape[0]):
-        v, psi, w = sig[i, V], sig[i, PSI], sig[i, OMEGA]
-        half = 0.5 * w * dt
-        sinc = 1.0 if abs(half) < 1e-12 else np.sin(half) / half
-        chord = v * dt * sinc
-        out[i, PX] += chord * np.cos(psi + half)
-        out[i, PY] += chord * np.sin(psi + half)
-        out[i, PSI] = psi + w * dt
-    return out
-
-
-@njit(cache=True, fastmath=True)
-def _predict(x, P, dt, q, Wm, Wc, lam):  # noqa: ANN001, ANN202
-    n = x.shape[0]
-    sig, L = _sigmas(x, P, lam)
-    # CTRV moves only the 5 kinematic states. L is lower triangular, so sigma points built from
-    # columns k >= 5 (parameters: biases, scales) have the centre's kinematic part: they propagate like
-    # the centre point. Propagating the 11 distinct points is the same unscented transform, 3x cheaper.
-    prop = sig.copy()
-    head = np.empty((11, n))
-    head[0] = sig[0]
-    for k in range(5):
-        head[1 + k] = sig[k + 1]
-        head[6 + k] = sig[n + k + 1]
-    moved = _ctrv(head, dt)
-    for k in range(5):
-        prop[k + 1, :5] = moved[1 + k, :5]
-        prop[n + k + 1, :5] = moved[6 + k, :5]
-    for i in range(2 * n + 1):
-        if i == 0 or (5 < i <= n) or i > n + 5:
-            prop[i, :5] = moved[0, :5]
-    xp = _mean(prop, Wm)
-    dy = _resid(prop, xp)
-    # Covariance: symmetric, so only the upper triangle is summed.
-    Pp = np.empty((n, n))
-    for r in range(n):
-        for c in range(r, n):
-            acc = 0.0
-            for i in range(2 * n + 1):
-                acc += Wc[i] * dy[i, r] * dy[i, c]
-            Pp[r, c] = acc
-            Pp[c, r] = acc
-        Pp[r, r] += q[r] * dt
-    # Cross-covariance: the sigma deviations are +-L[:, k] (and 0 for the centre point), so
-    # sum_i Wc_i dx_i dy_i^T = Wc_1 sum_k L[:, k] (dy_{k+1} - dy_{n+k+1})^T.
-    diff = np.empty((n, n))
-    for k in range(n):
-        for c in range(n):
-            diff[k, c] = dy[k + 1, c] - dy[n + k + 1, c]
-    cross = np.zeros((n, n))
+    _cholesky_into(P, c, NK, L5, inv5)
+    for r in range(NK):
+        pts[0, r] = x[r]
+    for j in range(NK):
+        for r in range(NK):
+            pts[1 + j, r] = x[r] + L5[r, j]
+            pts[1 + NK + j, r] = x[r] - L5[r, j]
+        pts[1 + j, PSI] = _wrap(pts[1 + j, PSI])
+        pts[1 + NK + j, PSI] = _wrap(pts[1 + NK + j, PSI])
+    for i in range(2 * NK + 1):
+        _ctrv_point(pts[i], prop[i], dt)
+    # Mean: the centre plus weighted deviations (the parameter points equal the centre); the heading as
+    # wrapped deviations from the centre point (see ukf._mean_x).
+    for r in range(NK):
+        ref = prop[0, r]
+        acc = 0.0
+        if r == PSI:
+            for i in range(1, 2 * NK + 1):
+                acc += Wm[i] * _wrap(prop[i, r] - ref)
+            xn[r] = _wrap(ref + acc)
+        else:
+            for i in range(1, 2 * NK + 1):
+                acc += Wm[i] * (prop[i, r] - ref)
+            xn[r] = wsum * ref + acc
+    for i in range(2 * NK + 1):
+        for r in range(NK):
+            dy[i, r] = prop[i, r] - xn[r]
+        dy[i, PSI] = _wrap(dy[i, PSI])
+    w0 = Wc[0] + 2 * (n - NK) * Wc[1]  # the centre and the parameter points
     w1 = Wc[1]
-    for r in range(n):
-        for k in range(r + 1):  # L is lower triangular
-            lrk = w1 * L[r, k]
-            for c in range(n):
-                cross[r, c] += lrk * diff[k, c]
-    xp[PSI] = _wrap(xp[PSI])
-    return xp, Pp, cross
+    for r in range(NK):
+        for col in range(r, NK):
+            acc = 0.0
+            for i in range(1, 2 * NK + 1):
+                acc += dy[i, r] * dy[i, col]
+            v = w0 * dy[0, r] * dy[0, col] + w1 * acc
+            if col == r:
+                v += q[r] * dt
+            Pkk[r, col] = v
+            Pkk[col, r] = v
+    # F = Wc_1 (n + lambda) M Lkk^-1: each row solves Lkk^T f = s m (back substitution).
+    s = w1 * c
+    for r in range(NK):
+        for i in range(NK - 1, -1, -1):
+            v = s * (dy[1 + i, r] - dy[1 + NK + i, r])
+            for j in range(i + 1, NK):
+                v -= L5[j, i] * F[r, j]
+            F[r, i] = v * inv5[i]
+    for r in range(NK):
+        for col in range(NK):
+            Pn[r, col] = Pkk[r, col]
+    _fill_cross_blocks(P, F, Pn, n)
+    for r in range(NK, n):
+        xn[r] = wsum * x[r]  # sum_i Wm_i x_p with filterpy's weights (their sum is 1 only to ~1e-9)
+        for col in range(NK, n):
+            Pn[r, col] = P[r, col]
+        Pn[r, r] += q[r] * dt
 
 
 @njit(cache=True)
-def _measure(sig, kind, ng, geo, scale_i, steer_i):  # noqa: ANN001, ANN202
-    """Predicted measurement (m, k) of every sigma point for event ``kind``."""
+def _fill_cross_blocks(P, F, Pn, n):  # noqa: ANN001, ANN202
+    """``Pn[k, p] = F P[k, p]`` and its transpose (shared by the filter and the smoother's rebuild)."""
+    for r in range(NK):
+        for col in range(NK, n):
+            acc = 0.0
+            for j in range(NK):
+                acc += F[r, j] * P[j, col]
+            Pn[r, col] = acc
+            Pn[col, r] = acc
+
+
+@njit(cache=True)
+def _measure(sig, kind, ng, geo, scale_i, steer_i, zsig):  # noqa: ANN001, ANN202
+    """Predicted measurement of every sigma point for event ``kind`` into ``zsig``; returns its size."""
     m = sig.shape[0]
     wheelbase, tf, tr, lx, ly = geo[0], geo[1], geo[2], geo[3], geo[4]
-    if kind < ng:
-        z = np.empty((m, 1))
-        for i in range(m):
-            z[i, 0] = sig[i, OMEGA] + sig[i, 5 + kind]
-        return z
     if kind == ng:  # wheels fl, fr, rl, rr
-        z = np.empty((m, 4))
         for i in range(m):
             v, w = sig[i, V], sig[i, OMEGA]
             lat = w * wheelbase
-            z[i, 0] = np.hypot(v - w * tf / 2, lat) * (1.0 + sig[i, scale_i])
-            z[i, 1] = np.hypot(v + w * tf / 2, lat) * (1.0 + sig[i, scale_i + 1])
-            z[i, 2] = abs(v - w * tr / 2) * (1.0 + sig[i, scale_i + 2])
-            z[i, 3] = abs(v + w * tr / 2) * (1.0 + sig[i, scale_i + 3])
-        return z
+            zsig[i, 0] = np.hypot(v - w * tf / 2, lat) * (1.0 + sig[i, scale_i])
+            zsig[i, 1] = np.hypot(v + w * tf / 2, lat) * (1.0 + sig[i, scale_i + 1])
+            zsig[i, 2] = abs(v - w * tr / 2) * (1.0 + sig[i, scale_i + 2])
+            zsig[i, 3] = abs(v + w * tr / 2) * (1.0 + sig[i, scale_i + 3])
+        return 4
     if kind == ng + 1:  # road-wheel angle
-        z = np.empty((m, 1))
         for i in range(m):
             v = max(sig[i, V], 1e-3)
-            z[i, 0] = np.arctan(wheelbase * sig[i, OMEGA] / v) + sig[i, steer_i]
-        return z
-    z = np.empty((m, 2))
+            zsig[i, 0] = np.arctan(wheelbase * sig[i, OMEGA] / v) + sig[i, steer_i]
+        return 1
     for i in range(m):
         c, s = np.cos(sig[i, PSI]), np.sin(sig[i, PSI])
         if kind == ng + 2:  # antenna position
-            z[i, 0] = sig[i, PX] + c * lx - s * ly
-            z[i, 1] = sig[i, PY] + s * lx + c * ly
+            zsig[i, 0] = sig[i, PX] + c * lx - s * ly
+            zsig[i, 1] = sig[i, PY] + s * lx + c * ly
         else:  # antenna velocity
             bx = sig[i, V] - sig[i, OMEGA] * ly
             by = sig[i, OMEGA] * lx
-            z[i, 0] = c * bx - s * by
-            z[i, 1] = s * bx + c * by
-    return z
+            zsig[i, 0] = c * bx - s * by
+            zsig[i, 1] = s * bx + c * by
+    return 2
 
 
 @njit(cache=True)
-def _update(x, P, z, sigma, kind, ng, geo, scale_i, steer_i, gate, Wm, Wc, lam):  # noqa: ANN001, ANN202
-    sig, _ = _sigmas(x, P, lam)
-    zs = _measure(sig, kind, ng, geo, scale_i, steer_i)
-    k = zs.shape[1]
-    zp = Wm @ zs
-    dz = zs - zp
-    S = _weighted_cov(dz, dz, Wc)
-    for j in range(k):
-        S[j, j] += sigma[j] ** 2
-    y = z[:k] - zp
-    S_inv = np.ascontiguousarray(np.linalg.inv(S))
-    if y @ S_inv @ y > gate:
-        return x, P, False
-    dx = _resid(sig, x)
-    Pxz = _weighted_cov(dx, dz, Wc)
-    K = Pxz @ S_inv
-    xn = x + K @ y
-    xn[PSI] = _wrap(xn[PSI])
-    Pn = P - K @ S @ K.T
-    return xn, Pn, True
+def _update_nl(x, P, z, sigma, kind, ng, geo, scale_i, steer_i, gate, Wm, Wc, c, wsum,  # noqa: ANN001, ANN202
+               L, inv_d, sig, zsig, Pxz, Kg):
+    """Unscented update of ``(x, P)`` in place; False (state untouched) when the gate rejects it."""
+    n = x.shape[0]
+    m = 2 * n + 1
+    _cholesky_into(P, c, n, L, inv_d)
+    for j in range(n):
+        sig[0, j] = x[j]
+    for j in range(n):
+        for r in range(n):
+            sig[1 + j, r] = x[r] + L[r, j]
+            sig[1 + n + j, r] = x[r] - L[r, j]
+        sig[1 + j, PSI] = _wrap(sig[1 + j, PSI])
+        sig[1 + n + j, PSI] = _wrap(sig[1 + n + j, PSI])
+    k = _measure(sig, kind, ng, geo, scale_i, steer_i, zsig)
+    zp = np.empty(4)
+    for a in range(k):
+        ref = zsig[0, a]
+        acc = 0.0
+        for i in range(1, m):
+            acc += Wm[i] * (zsig[i, a] - ref)
+        zp[a] = wsum * ref + acc
+    for i in range(m):
+        for a in range(k):
+            zsig[i, a] -= zp[a]  # now dz
+    S = np.zeros((4, 4))
+    for a in range(k):
+        for b in range(a, k):
+            acc = Wc[0] * zsig[0, a] * zsig[0, b]
+            for i in range(1, m):
+                acc += Wc[i] * zsig[i, a] * zsig[i, b]
+            S[a, b] = acc
+            S[b, a] = acc
+        S[a, a] += sigma[a] * sigma[a]
+    Ls = np.zeros((4, 4))
+    inv_s = np.empty(4)
+    for j in range(k):  # Cholesky of S (k <= 4)
+        d = S[j, j]
+        for i in range(j):
+            d -= Ls[j, i] * Ls[j, i]
+        if d <= 0.0:
+            return False
+        Ls[j, j] = np.sqrt(d)
+        inv_s[j] = 1.0 / Ls[j, j]
+        for i in range(j + 1, k):
+            v = S[i, j]
+            for t in range(j):
+                v -= Ls[i, t] * Ls[j, t]
+            Ls[i, j] = v * inv_s[j]
+    y = np.empty(4)
+    u = np.empty(4)
+    d2 = 0.0
+    for a in range(k):
+        y[a] = z[a] - zp[a]
+        v = y[a]
+        for b in range(a):
+            v -= Ls[a, b] * u[b]
+        u[a] = v * inv_s[a]
+        d2 += u[a] * u[a]
+    if d2 > gate:
+        return False
+    # Pxz = sum_i Wc_i dx_i dz_i^T with dx = +-L[:, j] (0 for the centre).
+    w1 = Wc[1]
+    for r in range(n):
+        for a in range(k):
+            acc = 0.0
+            for j in range(r + 1):  # L is lower triangular
+                acc += L[r, j] * (zsig[1 + j, a] - zsig[1 + n + j, a])
+            Pxz[r, a] = w1 * acc
+    # K = Pxz S^-1 (row by row through the Cholesky factor of S), x += K y, P -= K Pxz^T.
+    for r in range(n):
+        for a in range(k):
+            v = Pxz[r, a]
+            for b in range(a):
+                v -= Ls[a, b] * Kg[r, b]
+            Kg[r, a] = v * inv_s[a]
+        for a in range(k - 1, -1, -1):
+            v = Kg[r, a]
+            for b in range(a + 1, k):
+                v -= Ls[b, a] * Kg[r, b]
+            Kg[r, a] = v * inv_s[a]
+    for r in range(n):
+        acc = 0.0
+        for a in range(k):
+            acc += Kg[r, a] * y[a]
+        x[r] += acc
+    x[PSI] = _wrap(x[PSI])
+    for r in range(n):
+        for col in range(r, n):
+            acc = 0.0
+            for a in range(k):
+                acc += Kg[r, a] * Pxz[col, a]
+            P[r, col] -= acc
+        for col in range(r + 1, n):
+            P[col, r] = P[r, col]
+    return True
 
 
 @njit(cache=True)
-def _update_gyro(x, P, z, sigma, bias_i, gate):  # noqa: ANN001, ANN202
+def _update_gyro(x, P, z, sigma, bias_i, gate, ph):  # noqa: ANN001, ANN202
     """Gyro update z = omega + b_i: linear in the state, so the Kalman update is what the unscented one
     computes (the unscented transform is exact for linear functions), at O(n^2) without sigma points."""
     n = x.shape[0]
     y = z - x[OMEGA] - x[bias_i]
-    ph = P[:, OMEGA] + P[:, bias_i]  # P H^T
+    for r in range(n):
+        ph[r] = P[r, OMEGA] + P[r, bias_i]  # P H^T
     S = ph[OMEGA] + ph[bias_i] + sigma * sigma
     if y * y / S > gate:
-        return x, P, False
-    xn = x + ph * (y / S)
-    xn[PSI] = _wrap(xn[PSI])
-    Pn = P.copy()
+        return False
+    g = y / S
     for r in range(n):
-        for c in range(n):
-            Pn[r, c] -= ph[r] * ph[c] / S
-    return xn, Pn, True
+        x[r] += ph[r] * g
+    x[PSI] = _wrap(x[PSI])
+    for r in range(n):
+        a = ph[r] / S
+        for col in range(r, n):
+            P[r, col] -= a * ph[col]
+        for col in range(r + 1, n):
+            P[col, r] = P[r, col]
+    return True
 
 
 @njit(cache=True)
 def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, Wm, Wc, lam, ng, geo, scale_i, steer_i,  # noqa: ANN001, ANN201
-               steer_min_speed, gates, max_step):
-    """Filter all events in time order; returns the history the smoother needs and per-kind counts."""
+               steer_min_speed, gates, max_step, wsum):
+    """Filter all events in time order; one stored state per distinct instant.
+
+    Returns ``T, X, PP`` (node times, filtered states and covariances), ``XP, FF, PK, DT`` (per step
+    k -> k+1: predicted state, linearised kinematic transition, predicted kinematic covariance, dt) and
+    per-kind counts of used and rejected measurements.
+    """
     n = x0.shape[0]
-    span = times[-1] - t_start if times.shape[0] else 0.0
-    cap = times.shape[0] + int(span / max_step) + 2
+    E = times.shape[0]
+    span = times[-1] - t_start if E else 0.0
+    cap = E + int(span / max_step) + 2
+    c = n + lam
     T = np.empty(cap)
     X = np.empty((cap, n))
     PP = np.empty((cap, n, n))
     XP = np.empty((cap, n))
-    PPp = np.empty((cap, n, n))
-    C = np.empty((cap, n, n))
+    FF = np.empty((cap, NK, NK))
+    PK = np.empty((cap, NK, NK))
+    DT = np.empty(cap)
     used = np.zeros(ng + 4, dtype=np.int64)
     rejected = np.zeros(ng + 4, dtype=np.int64)
-    x, P = x0.copy(), P0.copy()
+    # work buffers
+    L5 = np.zeros((NK, NK))
+    inv5 = np.empty(NK)
+    pts = np.empty((2 * NK + 1, NK))
+    prop = np.empty((2 * NK + 1, NK))
+    dy = np.empty((2 * NK + 1, NK))
+    L = np.zeros((n, n))
+    inv_d = np.empty(n)
+    sig = np.empty((2 * n + 1, n))
+    zsig = np.empty((2 * n + 1, 4))
+    Pxz = np.empty((n, 4))
+    Kg = np.empty((n, 4))
+    ph = np.empty(n)
+    X[0] = x0
+    for r in range(n):
+        for col in range(n):
+            PP[0, r, col] = 0.5 * (P0[r, col] + P0[col, r])
     t_now = t_start
+    T[0] = t_now
     K = 0
-    T[0], X[0], PP[0] = t_now, x, P
-    for e in range(times.shape[0]):
+    for e in range(E):
         t = times[e]
-        while t - t_now > max_step:
-            x, P, cross = _predict(x, P, max_step, q, Wm, Wc, lam)
-            XP[K], PPp[K], C[K] = x, P, cross
+        while t - t_now > max_step:  # dead reckoning through gaps, in bounded steps
+            _predict(X[K], PP[K], X[K + 1], PP[K + 1], max_step, q, Wm, Wc, c, wsum, L5, inv5, pts, prop, dy,
+                     FF[K], PK[K])
+            XP[K] = X[K + 1]
+            DT[K] = max_step
             t_now += max_step
             K += 1
-            T[K], X[K], PP[K] = t_now, x, P
-        dt = max(t - t_now, 0.0)
-        x, P, cross = _predict(x, P, dt, q, Wm, Wc, lam)
-        XP[K], PPp[K], C[K] = x, P, cross
-        t_now = max(t, t_now)
+            T[K] = t_now
+        if t > t_now:
+            _predict(X[K], PP[K], X[K + 1], PP[K + 1], t - t_now, q, Wm, Wc, c, wsum, L5, inv5, pts, prop, dy,
+                     FF[K], PK[K])
+            XP[K] = X[K + 1]
+            DT[K] = t - t_now
+            t_now = t
+            K += 1
+            T[K] = t_now
+        x = X[K]
+        P = PP[K]
         kind = kinds[e]
-        if not (kind == ng + 1 and x[V] < steer_min_speed):
-            k_dim = 1 if (kind < ng or kind == ng + 1) else (4 if kind == ng else 2)
-            if kind < ng:
-                x, P, ok = _update_gyro(x, P, zs[e, 0], sigmas[e, 0], 5 + kind, gates[1])
-            else:
-                x, P, ok = _update(x, P, np.ascontiguousarray(zs[e]), np.ascontiguousarray(sigmas[e]), kind, ng,
-                                   geo, scale_i, steer_i, gates[k_dim], Wm, Wc, lam)
-            if ok:
-                used[kind] += 1
-            else:
-                rejected[kind] += 1
-        K += 1
-        T[K], X[K], PP[K] = t_now, x, P
+        if kind == ng + 1 and x[V] < steer_min_speed:
+            continue
+        if kind < ng:
+            ok = _update_gyro(x, P, zs[e, 0], sigmas[e, 0], NK + kind, gates[1], ph)
+        else:
+            k_dim = 4 if kind == ng else (1 if kind == ng + 1 else 2)
+            ok = _update_nl(x, P, zs[e], sigmas[e], kind, ng, geo, scale_i, steer_i, gates[k_dim], Wm, Wc, c,
+                            wsum, L, inv_d, sig, zsig, Pxz, Kg)
+        if ok:
+            used[kind] += 1
+        else:
+            rejected[kind] += 1
     K += 1
-    return T[:K], X[:K], PP[:K], XP[:K - 1], PPp[:K - 1], C[:K - 1], used, rejected
+    return T[:K], X[:K], PP[:K], XP[:K - 1], FF[:K - 1], PK[:K - 1], DT[:K - 1], used, rejected
 
 
-@njit(cache=True)
-def _gains(PPp, C):  # noqa: ANN001, ANN202
-    """G_k = C_k P_pred,k^-1 for every step (independent of each other)."""
-    K, n = C.shape[0], C.shape[1]
-    G = np.empty((K, n, n))
-    for k in range(K):
-        L = _cholesky(0.5 * (PPp[k] + PPp[k].T))
-        y = np.empty(n)
-        for r in range(n):
-            for i in range(n):  # forward: L y = C[r]
-                v = C[k, r, i]
-                for j in range(i):
-                    v -= L[i, j] * y[j]
-                y[i] = v / L[i, i]
-            for i in range(n - 1, -1, -1):  # backward: L^T g = y
-                v = y[i]
-                for j in range(i + 1, n):
-                    v -= L[j, i] * G[k, r, j]
-                G[k, r, i] = v / L[i, i]
-    return G
+@njit(cache=True, fastmath=True)
+def _smooth_pass(X, PP, XP, FF, PK, DT, q):  # noqa: ANN001, ANN202
+    """Unscented RTS smoother, in place over ``X`` and ``PP`` (filtered -> smoothed).
 
-
-@njit(cache=True)
-def _smooth_pass(X, PP, XP, PPp, G):  # noqa: ANN001, ANN202
-    xs = X.copy()
-    Ps = PP.copy()
-    n = X.shape[1]
-    GD = np.empty((n, n))
-    for k in range(X.shape[0] - 2, -1, -1):
-        Gk = G[k]
-        d = xs[k + 1] - XP[k]
+    Per step: ``P_pred`` rebuilt from the filtered ``P_k`` (see :func:`_predict`), ``G^T`` from
+    ``P_pred G^T = Phi P_k`` (the cross-covariance ``P_k Phi^T`` transposed) through the Cholesky factor
+    of ``P_pred``, then ``x_k += G (xs_{k+1} - x_pred)``, ``P_k += G (Ps_{k+1} - P_pred) G^T``.
+    """
+    K, n = X.shape[0], X.shape[1]
+    Pp = np.empty((n, n))
+    L = np.zeros((n, n))
+    inv_d = np.empty(n)
+    B = np.empty((n, n))
+    W = np.empty((n, n))
+    d = np.empty(n)
+    for k in range(K - 2, -1, -1):
+        P = PP[k]
+        F = FF[k]
+        dt = DT[k]
+        # P_pred and B = Phi P_k (= cross-covariance^T)
+        _fill_cross_blocks(P, F, Pp, n)
+        for r in range(NK):
+            for col in range(NK):
+                Pp[r, col] = PK[k, r, col]
+        for r in range(NK, n):
+            for col in range(NK, n):
+                Pp[r, col] = P[r, col]
+            Pp[r, r] += q[r] * dt
+        for r in range(NK):
+            for col in range(n):
+                B[r, col] = 0.0
+            for j in range(NK):
+                f = F[r, j]
+                for col in range(n):
+                    B[r, col] += f * P[j, col]
+        for r in range(NK, n):
+            for col in range(n):
+                B[r, col] = P[r, col]
+        _cholesky_into(Pp, 1.0, n, L, inv_d)
+        for i in range(n):  # L Y = B
+            for j in range(i):
+                lij = L[i, j]
+                for col in range(n):
+                    B[i, col] -= lij * B[j, col]
+            inv = inv_d[i]
+            for col in range(n):
+                B[i, col] *= inv
+        for i in range(n - 1, -1, -1):  # L^T G^T = Y
+            for j in range(i + 1, n):
+                lji = L[j, i]
+                for col in range(n):
+                    B[i, col] -= lji * B[j, col]
+            inv = inv_d[i]
+            for col in range(n):
+                B[i, col] *= inv
+        # B = G^T now
+        for j in range(n):
+            d[j] = X[k + 1, j] - XP[k, j]
         d[PSI] = _wrap(d[PSI])
-        for r in range(n):
-            acc = 0.0
-            for c in range(n):
-                acc += Gk[r, c] * d[c]
-            xs[k, r] = X[k, r] + acc
-        xs[k, PSI] = _wrap(xs[k, PSI])
-        D = Ps[k + 1] - PPp[k]
-        GD[:] = 0.0
-        for r in range(n):
+        for j in range(n):
+            dj = d[j]
+            for r in range(n):
+                X[k, r] += B[j, r] * dj
+        X[k, PSI] = _wrap(X[k, PSI])
+        for r in range(n):  # D = Ps_{k+1} - P_pred (into Pp)
+            for col in range(n):
+                Pp[r, col] = PP[k + 1, r, col] - Pp[r, col]
+        for r in range(n):  # W = D G^T
+            for col in range(n):
+                W[r, col] = 0.0
             for j in range(n):
-                g = Gk[r, j]
-                for c in range(n):
-                    GD[r, c] += g * D[j, c]
-        for r in range(n):
-            for c in range(r, n):
-                acc = 0.0
-                for j in range(n):
-                    acc += GD[r, j] * Gk[c, j]
-                Ps[k, r, c] = PP[k, r, c] + acc
-                Ps[k, c, r] = Ps[k, r, c]
-    return xs, Ps
+                drj = Pp[r, j]
+                for col in range(n):
+                    W[r, col] += drj * B[j, col]
+        for r in range(n):  # P_k += G W (upper triangle, mirrored)
+            for j in range(n):
+                g = B[j, r]
+                for col in range(r, n):
+                    P[r, col] += g * W[j, col]
+            for col in range(r + 1, n):
+                P[col, r] = P[r, col]
 
 
-def smooth(X, PP, XP, PPp, C):  # noqa: ANN001, ANN201
-    """Unscented RTS smoother over the kernel's history (asynchronous steps)."""
-    return _smooth_pass(X, PP, XP, PPp, _gains(PPp, C))
+def smooth(X, PP, XP, FF, PK, DT, q):  # noqa: ANN001, ANN201
+    """Unscented RTS smoother over the kernel's history; overwrites and returns ``X``, ``PP``."""
+    _smooth_pass(X, PP, XP, FF, PK, DT, q)
+    return X, PP

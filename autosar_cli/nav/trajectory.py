@@ -80,6 +80,14 @@ class PhaseCentres:
     t_ns: NDArray[np.int64]  #: (F, T) chirp start times
 
 
+def antenna_lever_arms(config: Config) -> tuple[Array, Array]:
+    """Tx (T, 3) and Rx (R, 3) phase centres in the body frame (m from the CoG): mounting + antenna layout."""
+    r = config.radar
+    rot = mounting_rotation(r.mounting.yaw_deg, r.mounting.pitch_deg, r.mounting.roll_deg)
+    lever = np.asarray(r.mounting.lever_arm_m, dtype=np.float64)
+    return lever + np.asarray(r.tx_positions_m) @ rot.T, lever + np.asarray(r.rx_positions_m) @ rot.T
+
+
 def radar_phase_centres(traj: Trajectory, frame_t_ns: ArrayLike, tx_start_offsets_s: ArrayLike,
                         config: Config) -> PhaseCentres:
     """Tx/Rx phase centres of every chirp from the trajectory, the mounting and the antenna layout.
@@ -87,11 +95,7 @@ def radar_phase_centres(traj: Trajectory, frame_t_ns: ArrayLike, tx_start_offset
     ``frame_t_ns`` (F,): start of each PRI; ``tx_start_offsets_s`` (T,): chirp start of Tx k in the PRI
     (TDM chirps 60 µs apart move the antennas ~0.4 mm at 7 m/s: a tenth of a wavelength).
     """
-    r = config.radar
-    rot = mounting_rotation(r.mounting.yaw_deg, r.mounting.pitch_deg, r.mounting.roll_deg)
-    lever = np.asarray(r.mounting.lever_arm_m, dtype=np.float64)
-    tx_levers = lever + np.asarray(r.tx_positions_m) @ rot.T  # (T, 3) body frame
-    rx_levers = lever + np.asarray(r.rx_positions_m) @ rot.T  # (R, 3)
+    tx_levers, rx_levers = antenna_lever_arms(config)
     frame_t_ns = np.asarray(frame_t_ns, dtype=np.int64)
     offsets_ns = np.round(np.asarray(tx_start_offsets_s, dtype=np.float64) * 1e9).astype(np.int64)
     t = frame_t_ns[:, None] + offsets_ns[None, :]  # (F, T)

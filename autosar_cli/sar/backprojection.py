@@ -20,10 +20,11 @@ Why the kernel looks the way it does (measured on the 2-core AVX-512 development
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 LANES = 16  #: pulses per vector (one AVX-512 register of float32)
 E_MAX = 0.05  #: bound on the series variable e; truncated after e^5 the error is < 0.021 e^6 R < 1e-8 m at 27 m
@@ -283,50 +284,98 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
             out_im[k] += acc_im
 
 
-def backproject(profiles: NDArray[np.complex64], antennas: NDArray[np.float64], channels: NDArray[np.int64],
-                pixels: NDArray[np.float64], windows: NDArray[np.int64], *, range0_m: NDArray[np.float64] | float,
-                bin_m: float, cycles_per_m: float, out: NDArray[np.complex64] | None = None,
-                max_chunk: int = DEFAULT_MAX_CHUNK) -> NDArray[np.complex64]:
-    """Back-project range-compressed pulses onto pixels and sum coherently over pulses and channels.
+@dataclass
+class PulseBlock:
+    """Range-compressed pulses laid out for the kernel (planar float32, pulses contiguous, zero padded).
 
-    ``profiles`` (C, B, P) complex: channel c, bistatic-range bin b, pulse p (bin b is at bistatic path
-    ``range0_m[c] + b * bin_m``, metres Tx -> pixel -> Rx). ``antennas`` (A, P, 3) float64: phase
-    centre of antenna a at pulse p, metres in any Cartesian frame shared with ``pixels`` (keep it local:
-    the kernel works in float32 relative to per-pixel references). ``channels`` (C, 2): the (Tx, Rx)
-    antenna indices of each channel. ``pixels`` (N, 3) metres. ``windows`` (N, 2): pulses
-    ``lo <= p < hi`` contribute to pixel n. Each sample is multiplied by ``exp(-2j pi cycles_per_m R)``
-    with R the exact bistatic path. Returns (or accumulates into ``out``) the (N,) complex64 image.
+    ``re``/``im`` (C, B, P + LANES): channel c, bistatic-range bin b (at path ``range0_m[c] + b * bin_m``,
+    metres Tx -> pixel -> Rx), pulse p. ``antennas`` (A, P + LANES, 3) float32: phase centre of antenna a
+    at pulse p, ENU metres relative to ``origin`` (keeps float32 positions exact to ~0.1 um over a block
+    of a few metres). ``channels`` (C, 2): the (Tx, Rx) antenna indices of each channel. Each sample is
+    multiplied by ``exp(-2j pi cycles_per_m R)``, R the exact bistatic path.
     """
-    profiles = np.asarray(profiles)
-    n_ch, n_bins, n_pulse = profiles.shape
-    stride = n_pulse + LANES  # zero padding so the last vector of a window never reads past a row
-    prof_re = np.zeros((n_ch, n_bins, stride), np.float32)
-    prof_im = np.zeros((n_ch, n_bins, stride), np.float32)
-    prof_re[:, :, :n_pulse] = profiles.real
-    prof_im[:, :, :n_pulse] = profiles.imag
-    ant = np.asarray(antennas, dtype=np.float64)
-    origin = ant[:, n_pulse // 2].mean(axis=0)
-    ant_pad = np.empty((ant.shape[0], stride, 3), np.float32)
-    ant_pad[:, :n_pulse] = ant - origin
-    ant_pad[:, n_pulse:] = ant_pad[:, n_pulse - 1: n_pulse]
-    ch = np.ascontiguousarray(np.asarray(channels, dtype=np.int64).reshape(-1, 2))
-    r0 = np.broadcast_to(np.asarray(range0_m, dtype=np.float64), (n_ch,)).copy()
-    pix = np.ascontiguousarray(np.asarray(pixels, dtype=np.float64).reshape(-1, 3) - origin)
-    win = np.ascontiguousarray(np.clip(np.asarray(windows, dtype=np.int64).reshape(-1, 2), 0, n_pulse))
+
+    re: NDArray[np.float32]
+    im: NDArray[np.float32]
+    antennas: NDArray[np.float32]
+    origin: NDArray[np.float64]
+    channels: NDArray[np.int64]
+    range0_m: NDArray[np.float64]
+    bin_m: float
+    cycles_per_m: float
+    n_pulses: int
+
+    @classmethod
+    def empty(cls, n_channels: int, n_bins: int, n_pulses: int, n_antennas: int, *, channels: ArrayLike,
+              range0_m: ArrayLike | float, bin_m: float, cycles_per_m: float) -> PulseBlock:
+        """A zeroed block to be filled in place (``re``/``im`` per channel, then :meth:`set_antennas`)."""
+        stride = n_pulses + LANES
+        ch = np.ascontiguousarray(np.asarray(channels, dtype=np.int64).reshape(n_channels, 2))
+        r0 = np.broadcast_to(np.asarray(range0_m, dtype=np.float64), (n_channels,)).copy()
+        shape = (n_channels, n_bins, stride)
+        ant = np.zeros((n_antennas, stride, 3), np.float32)
+        return cls(np.zeros(shape, np.float32), np.zeros(shape, np.float32), ant, np.zeros(3), ch, r0, float(bin_m),
+                   float(cycles_per_m), n_pulses)
+
+    @classmethod
+    def from_profiles(cls, profiles: ArrayLike, antennas: ArrayLike, channels: ArrayLike, *,
+                      range0_m: ArrayLike | float, bin_m: float, cycles_per_m: float) -> PulseBlock:
+        """From complex profiles (C, B, P) and antenna positions (A, P, 3) (ENU m, float64)."""
+        prof = np.asarray(profiles)
+        n_ch, n_bins, n_pulse = prof.shape
+        ant = np.asarray(antennas, dtype=np.float64)
+        block = cls.empty(n_ch, n_bins, n_pulse, ant.shape[0], channels=channels, range0_m=range0_m, bin_m=bin_m,
+                          cycles_per_m=cycles_per_m)
+        block.re[:, :, :n_pulse] = prof.real
+        block.im[:, :, :n_pulse] = prof.imag
+        block.set_antennas(ant)
+        return block
+
+    def set_antennas(self, antennas: ArrayLike) -> None:
+        """Antenna phase centres (A, P, 3), ENU m (float64); the origin becomes their centre."""
+        ant = np.asarray(antennas, dtype=np.float64)
+        n = self.n_pulses
+        self.origin = ant[:, n // 2].mean(axis=0)
+        self.antennas[:, :n] = ant - self.origin
+        self.antennas[:, n:] = self.antennas[:, n - 1: n]
+
+
+def backproject_block(block: PulseBlock, pixels: ArrayLike, windows: ArrayLike, *,
+                      out: NDArray[np.complex64] | None = None,
+                      max_chunk: int = DEFAULT_MAX_CHUNK) -> NDArray[np.complex64]:
+    """Back-project a block onto ``pixels`` (N, 3) ENU m, pulses ``windows`` (N, 2) [lo, hi) of the block.
+
+    Returns (or adds into ``out``) the (N,) complex64 sums over the windows' pulses and all channels.
+    """
+    pix = np.ascontiguousarray(np.asarray(pixels, dtype=np.float64).reshape(-1, 3) - block.origin)
+    win = np.ascontiguousarray(np.clip(np.asarray(windows, dtype=np.int64).reshape(-1, 2), 0, block.n_pulses))
     n = len(pix)
     if out is None:
         out = np.zeros(n, np.complex64)
+    if n == 0:
+        return out
     out_re = np.zeros(n, np.float32)
     out_im = np.zeros(n, np.float32)
     n_threads = nb.get_num_threads()
     per_task = max(1, min(256, n // (64 * n_threads) + 1))
     order = _balanced_order(win, n_threads, per_task)
-    _tdbp(prof_re.reshape(-1), prof_im.reshape(-1), n_bins, stride,
-          np.ascontiguousarray(ant_pad[..., 0]), np.ascontiguousarray(ant_pad[..., 1]),
-          np.ascontiguousarray(ant_pad[..., 2]), ch[:, 0].copy(), ch[:, 1].copy(), r0, 1.0 / bin_m,
-          float(cycles_per_m), pix, win, order, per_task, int(max_chunk), out_re, out_im)
+    n_ch, n_bins, stride = block.re.shape
+    ant = block.antennas
+    _tdbp(block.re.reshape(-1), block.im.reshape(-1), n_bins, stride, np.ascontiguousarray(ant[..., 0]),
+          np.ascontiguousarray(ant[..., 1]), np.ascontiguousarray(ant[..., 2]), block.channels[:, 0].copy(),
+          block.channels[:, 1].copy(), block.range0_m, 1.0 / block.bin_m, block.cycles_per_m, pix, win, order,
+          per_task, int(max_chunk), out_re, out_im)
     out += out_re + 1j * out_im
     return out
+
+
+def backproject(profiles: ArrayLike, antennas: ArrayLike, channels: ArrayLike, pixels: ArrayLike,
+                windows: ArrayLike, *, range0_m: ArrayLike | float, bin_m: float, cycles_per_m: float,
+                out: NDArray[np.complex64] | None = None, max_chunk: int = DEFAULT_MAX_CHUNK) -> NDArray[np.complex64]:
+    """Back-project complex profiles (C, B, P) seen by antennas (A, P, 3) onto pixels; see :class:`PulseBlock`."""
+    block = PulseBlock.from_profiles(profiles, antennas, channels, range0_m=range0_m, bin_m=bin_m,
+                                     cycles_per_m=cycles_per_m)
+    return backproject_block(block, pixels, windows, out=out, max_chunk=max_chunk)
 
 
 def _balanced_order(win: NDArray[np.int64], n_threads: int, per_task: int) -> NDArray[np.int64]:

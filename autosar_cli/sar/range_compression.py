@@ -13,6 +13,9 @@ Array in, array out; no I/O.
 
 from __future__ import annotations
 
+import functools
+
+import numba as nb
 import numpy as np
 import scipy.fft
 import scipy.signal
@@ -37,6 +40,19 @@ def taper(name: str, n: int) -> NDArray[np.float64]:
     return scipy.signal.get_window(name, n, fftbins=False)
 
 
+@functools.lru_cache(maxsize=8)
+def _reference_ramp(n: int, nfft: int, sample_rate_hz: float, slope_hz_per_s: float) -> NDArray[np.complex64]:
+    """Window-centre reference and RVP removal for each compressed bin, in one float64 phase ramp."""
+    k = np.arange(nfft)
+    f = k * sample_rate_hz / nfft
+    return np.exp(1j * (np.pi * k * (n - 1) / nfft + np.pi * f**2 / slope_hz_per_s)).astype(np.complex64)
+
+
+@functools.lru_cache(maxsize=8)
+def _taper32(name: str, n: int) -> NDArray[np.float32]:
+    return taper(name, n).astype(np.float32)
+
+
 def range_compress(beat: ArrayLike, *, sample_rate_hz: float, slope_hz_per_s: float, window: str = "hann",
                    upsample: int = 8, workers: int = -1) -> NDArray[np.complex64]:
     """Compress complex beat samples (..., N) to (..., N * upsample) range profiles (complex64).
@@ -48,13 +64,38 @@ def range_compress(beat: ArrayLike, *, sample_rate_hz: float, slope_hz_per_s: fl
         x = iq_to_complex(x)
     n = x.shape[-1]
     nfft = n * upsample
-    w = taper(window, n).astype(np.float32)
-    spec = scipy.fft.fft(x.astype(np.complex64, copy=False) * w, n=nfft, axis=-1, workers=workers)
-    k = np.arange(nfft)
-    f = k * sample_rate_hz / nfft
-    # window-centre reference and RVP removal in one float64 phase ramp
-    ramp = np.exp(1j * (np.pi * k * (n - 1) / nfft + np.pi * f**2 / slope_hz_per_s)).astype(np.complex64)
-    return (spec * ramp).astype(np.complex64, copy=False)
+    spec = scipy.fft.fft(x.astype(np.complex64, copy=False) * _taper32(window, n), n=nfft, axis=-1, workers=workers)
+    spec *= _reference_ramp(n, nfft, float(sample_rate_hz), float(slope_hz_per_s))
+    return spec.astype(np.complex64, copy=False)
+
+
+def range_compress_into(beat: ArrayLike, out_re: NDArray[np.float32], out_im: NDArray[np.float32], *,
+                        sample_rate_hz: float, slope_hz_per_s: float, window: str = "hann", upsample: int = 8,
+                        workers: int = -1) -> None:
+    """Compress (P, N) beat samples (complex, or int16 I/Q (P, N, 2)) into planar (bin, pulse) arrays.
+
+    ``out_re``/``out_im`` (N * upsample, >= P) float32 receive the profiles transposed: bin-major with pulses
+    contiguous, the layout the back-projection kernel reads.
+    """
+    spec = range_compress(beat, sample_rate_hz=sample_rate_hz, slope_hz_per_s=slope_hz_per_s, window=window,
+                          upsample=upsample, workers=workers)
+    _transpose_planar(spec.view(np.float32), out_re, out_im)
+
+
+@nb.njit(cache=True)
+def _transpose_planar(spec, out_re, out_im):  # pragma: no cover - compiled
+    """spec (P, 2B) interleaved re/im -> out_re/out_im (B, >= P), in cache-sized tiles."""
+    n_p = spec.shape[0]
+    n_b = spec.shape[1] // 2
+    tile = 32
+    for b0 in range(0, n_b, tile):
+        b1 = min(n_b, b0 + tile)
+        for p0 in range(0, n_p, tile):
+            p1 = min(n_p, p0 + tile)
+            for b in range(b0, b1):
+                for p in range(p0, p1):
+                    out_re[b, p] = spec[p, 2 * b]
+                    out_im[b, p] = spec[p, 2 * b + 1]
 
 
 def bistatic_range_axis(n_fft: int, *, sample_rate_hz: float, slope_hz_per_s: float) -> NDArray[np.float64]:

@@ -18,6 +18,7 @@ Layout (format ``autosar-truth`` version 1; every array in SI units, ENU metres 
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +26,7 @@ import h5py
 import numpy as np
 from numpy.typing import NDArray
 
+from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.sim.scene import KINDS, Scene
 from autosar_cli.sim.sensors import SensorSamples
 
@@ -107,3 +109,33 @@ class TruthWriter:
             self.f.close()
         finally:
             self.tmp.unlink(missing_ok=True)
+
+
+@dataclass(frozen=True)
+class TruthTargets:
+    """Scene scatterers from a truth sidecar, in the ENU frame of a given origin."""
+
+    position_enu: NDArray[np.float64]  #: (N, 3) m
+    kind: NDArray[np.int64]  #: index into KINDS
+    names: list[str]  #: object name of each scatterer
+    corner_reflectors: NDArray[np.int64]  #: indices of the corner reflectors
+
+    def corner_reflector_names(self) -> list[str]:
+        return [self.names[i] for i in self.corner_reflectors]
+
+
+def read_targets(truth_path: str | Path, origin: GeodeticOrigin) -> TruthTargets:
+    """The targets of ``truth_path`` re-expressed in ``origin``'s ENU frame (e.g. a drive's or an image's)."""
+    with h5py.File(truth_path, "r") as f:
+        if f.attrs.get("format") != FORMAT:
+            raise ValueError(f"{truth_path}: not an autosar truth sidecar")
+        g = f["targets"]
+        pos = g["position_enu"][()]
+        kind = g["kind"][()].astype(np.int64)
+        obj = g["object"][()].astype(np.int64)
+        names = [n.decode() if isinstance(n, bytes) else str(n) for n in g["object_names"][()]]
+        crs = g["corner_reflectors"][()].astype(np.int64)
+        truth_origin = GeodeticOrigin(float(f.attrs["origin_lat_deg"]), float(f.attrs["origin_lon_deg"]),
+                                      float(f.attrs["origin_height_m"]))
+    enu = origin.to_enu(*truth_origin.to_geodetic(pos))
+    return TruthTargets(enu, kind, [names[i] for i in obj], crs)
