@@ -36,6 +36,9 @@ NK = 5  # kinematic states (the only ones CTRV moves); the rest are constant par
 
 @njit(cache=True)
 def _wrap(a: float) -> float:
+    """Angle to [-pi, pi); one already there is returned as it is (no round trip through +-pi)."""
+    if -np.pi <= a < np.pi:
+        return a
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
@@ -62,16 +65,46 @@ def _cholesky_into(A, scale, m, L, inv_diag):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True)
-def _ctrv_point(pt, out, dt):  # noqa: ANN001, ANN202
-    v, psi, w = pt[V], pt[PSI], pt[OMEGA]
-    half = 0.5 * w * dt
-    sinc = 1.0 if abs(half) < 1e-12 else np.sin(half) / half
-    chord = v * dt * sinc
-    out[PX] = pt[PX] + chord * np.cos(psi + half)
-    out[PY] = pt[PY] + chord * np.sin(psi + half)
-    out[V] = v
-    out[PSI] = psi + w * dt
-    out[OMEGA] = w
+def _sinc(h: float) -> float:
+    """sin(h) / h (1 at 0); the Taylor series below 1e-2, where its remainder is under 1e-20."""
+    if abs(h) < 1e-2:
+        h2 = h * h
+        return 1.0 - h2 / 6.0 * (1.0 - h2 / 20.0 * (1.0 - h2 / 42.0 * (1.0 - h2 / 72.0)))
+    return np.sin(h) / h
+
+
+@njit(cache=True)
+def _ctrv_points(pts, prop, dt):  # noqa: ANN001, ANN202
+    """CTRV over ``dt`` of every kinematic sigma point (row 0: the centre).
+
+    The chord ``v dt sinc(omega dt / 2)`` points along ``a = psi + omega dt / 2``. The points differ from
+    the centre by tiny angles ``e = a - a_0`` (a fraction of a standard deviation times
+    sqrt(n + lambda)): ``cos a``, ``sin a`` by the angle-sum formulas with the series of ``cos e``,
+    ``sin e`` (remainder under 1e-20 below 1e-2); the direct functions otherwise.
+    """
+    a0 = pts[0, PSI] + 0.5 * pts[0, OMEGA] * dt
+    c0, s0 = np.cos(a0), np.sin(a0)
+    for i in range(pts.shape[0]):
+        v, psi, w = pts[i, V], pts[i, PSI], pts[i, OMEGA]
+        half = 0.5 * w * dt
+        a = psi + half
+        e = a - a0
+        if i == 0:
+            ca, sa = c0, s0
+        elif abs(e) < 1e-2:
+            e2 = e * e
+            ce = 1.0 - e2 / 2.0 * (1.0 - e2 / 12.0 * (1.0 - e2 / 30.0 * (1.0 - e2 / 56.0)))
+            se = e * (1.0 - e2 / 6.0 * (1.0 - e2 / 20.0 * (1.0 - e2 / 42.0)))
+            ca = c0 * ce - s0 * se
+            sa = s0 * ce + c0 * se
+        else:
+            ca, sa = np.cos(a), np.sin(a)
+        chord = v * dt * _sinc(half)
+        prop[i, PX] = pts[i, PX] + chord * ca
+        prop[i, PY] = pts[i, PY] + chord * sa
+        prop[i, V] = v
+        prop[i, PSI] = psi + w * dt
+        prop[i, OMEGA] = w
 
 
 @njit(cache=True)
@@ -88,8 +121,7 @@ def _predict(x, P, xn, Pn, dt, q, Wm, Wc, c, wsum, L5, inv5, pts, prop, dy, F, P
             pts[1 + NK + j, r] = x[r] - L5[r, j]
         pts[1 + j, PSI] = _wrap(pts[1 + j, PSI])
         pts[1 + NK + j, PSI] = _wrap(pts[1 + NK + j, PSI])
-    for i in range(2 * NK + 1):
-        _ctrv_point(pts[i], prop[i], dt)
+    _ctrv_points(pts, prop, dt)
     # Mean: the centre plus weighted deviations (the parameter points equal the centre); the heading as
     # wrapped deviations from the centre point (see ukf._mean_x).
     for r in range(NK):
@@ -389,83 +421,95 @@ def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, Wm, Wc, lam, ng, ge
 def _smooth_pass(X, PP, XP, FF, PK, DT, q):  # noqa: ANN001, ANN202
     """Unscented RTS smoother, in place over ``X`` and ``PP`` (filtered -> smoothed).
 
-    Per step: ``P_pred`` rebuilt from the filtered ``P_k`` (see :func:`_predict`), ``G^T`` from
-    ``P_pred G^T = Phi P_k`` (the cross-covariance ``P_k Phi^T`` transposed) through the Cholesky factor
+    Per step: ``P_pred`` rebuilt from the filtered ``P_k`` (as :func:`_predict` built it), ``G^T`` from
+    ``P_pred G^T = Phi P_k`` (the cross-covariance ``P_k Phi^T``, transposed) through the Cholesky factor
     of ``P_pred``, then ``x_k += G (xs_{k+1} - x_pred)``, ``P_k += G (Ps_{k+1} - P_pred) G^T``.
+    The work matrices have ``m >= n`` columns (a multiple of 4, zero beyond ``n``): whole-vector rows.
     """
     K, n = X.shape[0], X.shape[1]
-    Pp = np.empty((n, n))
+    m = (n + 3) // 4 * 4
+    Pk = np.zeros((m, m))  # P_k, then G D G^T
+    Pp = np.zeros((m, m))  # P_pred, then D = Ps_{k+1} - P_pred
+    B = np.zeros((m, m))  # Phi P_k, then G^T
+    W = np.zeros((m, m))  # D G^T
     L = np.zeros((n, n))
     inv_d = np.empty(n)
-    B = np.empty((n, n))
-    W = np.empty((n, n))
-    d = np.empty(n)
+    d = np.zeros(m)
+    dx = np.zeros(m)
     for k in range(K - 2, -1, -1):
         P = PP[k]
         F = FF[k]
-        dt = DT[k]
-        # P_pred and B = Phi P_k (= cross-covariance^T)
-        _fill_cross_blocks(P, F, Pp, n)
+        for r in range(n):
+            for col in range(n):
+                Pk[r, col] = P[r, col]
+        _fill_cross_blocks(Pk, F, Pp, n)
         for r in range(NK):
             for col in range(NK):
                 Pp[r, col] = PK[k, r, col]
         for r in range(NK, n):
             for col in range(NK, n):
-                Pp[r, col] = P[r, col]
-            Pp[r, r] += q[r] * dt
+                Pp[r, col] = Pk[r, col]
+            Pp[r, r] += q[r] * DT[k]
         for r in range(NK):
-            for col in range(n):
+            for col in range(m):
                 B[r, col] = 0.0
             for j in range(NK):
                 f = F[r, j]
-                for col in range(n):
-                    B[r, col] += f * P[j, col]
+                for col in range(m):
+                    B[r, col] += f * Pk[j, col]
         for r in range(NK, n):
-            for col in range(n):
-                B[r, col] = P[r, col]
+            for col in range(m):
+                B[r, col] = Pk[r, col]
         _cholesky_into(Pp, 1.0, n, L, inv_d)
         for i in range(n):  # L Y = B
             for j in range(i):
                 lij = L[i, j]
-                for col in range(n):
+                for col in range(m):
                     B[i, col] -= lij * B[j, col]
             inv = inv_d[i]
-            for col in range(n):
+            for col in range(m):
                 B[i, col] *= inv
         for i in range(n - 1, -1, -1):  # L^T G^T = Y
             for j in range(i + 1, n):
                 lji = L[j, i]
-                for col in range(n):
+                for col in range(m):
                     B[i, col] -= lji * B[j, col]
             inv = inv_d[i]
-            for col in range(n):
+            for col in range(m):
                 B[i, col] *= inv
-        # B = G^T now
         for j in range(n):
             d[j] = X[k + 1, j] - XP[k, j]
         d[PSI] = _wrap(d[PSI])
+        for r in range(m):
+            dx[r] = 0.0
         for j in range(n):
             dj = d[j]
-            for r in range(n):
-                X[k, r] += B[j, r] * dj
+            for r in range(m):
+                dx[r] += B[j, r] * dj
+        for r in range(n):
+            X[k, r] += dx[r]
         X[k, PSI] = _wrap(X[k, PSI])
-        for r in range(n):  # D = Ps_{k+1} - P_pred (into Pp)
+        for r in range(n):
             for col in range(n):
                 Pp[r, col] = PP[k + 1, r, col] - Pp[r, col]
         for r in range(n):  # W = D G^T
-            for col in range(n):
+            for col in range(m):
                 W[r, col] = 0.0
             for j in range(n):
                 drj = Pp[r, j]
-                for col in range(n):
+                for col in range(m):
                     W[r, col] += drj * B[j, col]
-        for r in range(n):  # P_k += G W (upper triangle, mirrored)
-            for j in range(n):
+        for r in range(n):  # G W
+            for col in range(m):
+                Pk[r, col] = 0.0
+        for j in range(n):
+            for r in range(n):
                 g = B[j, r]
-                for col in range(r, n):
-                    P[r, col] += g * W[j, col]
-            for col in range(r + 1, n):
-                P[col, r] = P[r, col]
+                for col in range(m):
+                    Pk[r, col] += g * W[j, col]
+        for r in range(n):
+            for col in range(n):
+                P[r, col] += 0.5 * (Pk[r, col] + Pk[col, r])
 
 
 def smooth(X, PP, XP, FF, PK, DT, q):  # noqa: ANN001, ANN201

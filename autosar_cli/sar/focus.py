@@ -236,7 +236,7 @@ def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Pat
             rr, cc = np.meshgrid(np.arange(grid.n_across)[rows], np.arange(grid.n_along)[cols], indexing="ij")
             flat = (rr * grid.n_along + cc).ravel()
             pix = grid.pixel_enu(rr, cc).reshape(-1, 3)
-            win = stripmap_windows(pix, geometry.reference[sel], geometry.velocity[sel], half_width)
+            win = stripmap_windows(pix, geometry.reference[sel], geometry.velocity[sel], half_width, side)
             keep = win[:, 1] > win[:, 0]
             timings["geometry"] += time.perf_counter() - t0
 

@@ -99,8 +99,8 @@ def track_grid(track_xy: ArrayLike, *, side: float, pixel_m: float, height_m: fl
 
     ``side`` > 0: the radar looks left of the direction of travel, < 0: right. Columns follow the
     least-squares line through the track, from its first to its last point; rows run away from the
-    line, from ``near_range_m`` ground range of the track point nearest to the line's far side to the
-    ground range at which the slant range reaches ``max_range_m`` from the track point farthest away.
+    line and cover every track point's ground ranges from ``near_range_m`` to where the slant range
+    reaches ``max_range_m`` (pixels behind parts of a weaving track get no pulses: see stripmap windows).
     """
     xy = np.asarray(track_xy, dtype=np.float64).reshape(-1, 2)
     if len(xy) < 2 or np.hypot(*(xy[-1] - xy[0])) < pixel_m:
@@ -117,7 +117,7 @@ def track_grid(track_xy: ArrayLike, *, side: float, pixel_m: float, height_m: fl
     dz = antenna_height_m - height_m
     ground_max = np.sqrt(max(max_range_m**2 - dz**2, 0.0))
     a0, a1 = s.min(), s.max()
-    r0, r1 = d.max() + near_range_m, d.min() + ground_max
+    r0, r1 = d.min() + near_range_m, d.max() + ground_max
     if r1 <= r0:
         raise GridError(f"no ground between {near_range_m} m and {max_range_m} m slant range at height {height_m} m")
     n_along = max(1, int(np.ceil((a1 - a0) / pixel_m)))

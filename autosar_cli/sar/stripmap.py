@@ -42,7 +42,7 @@ def _sin_psi(px, py, pz, ax, ay, az, vx, vy, vz):  # pragma: no cover - compiled
 
 
 @nb.njit(parallel=True, cache=True)
-def _windows(pix, ant, vel, s_max, out):  # pragma: no cover - compiled
+def _windows(pix, ant, vel, s_max, side, out):  # pragma: no cover - compiled
     n_p = ant.shape[0]
     for k in nb.prange(pix.shape[0]):
         px = pix[k, 0]
@@ -65,16 +65,23 @@ def _windows(pix, ant, vel, s_max, out):  # pragma: no cover - compiled
                 hi = m
             else:
                 lo = m + 1
+        if side != 0.0 and lo > first:
+            # the radar sees one side only: a pixel on the other side would alias onto its mirror image
+            m = (first + lo) // 2
+            cross = vel[m, 0] * (py - ant[m, 1]) - vel[m, 1] * (px - ant[m, 0])
+            if cross * side <= 0.0:
+                lo = first
         out[k, 0] = first
         out[k, 1] = lo
 
 
-def stripmap_windows(pixels: ArrayLike, antenna: ArrayLike, velocity: ArrayLike,
-                     half_width_rad: float) -> NDArray[np.int64]:
-    """Pulse interval [lo, hi) (N, 2) integrated by each pixel.
+def stripmap_windows(pixels: ArrayLike, antenna: ArrayLike, velocity: ArrayLike, half_width_rad: float,
+                     side: float = 0.0) -> NDArray[np.int64]:
+    """Pulse interval [lo, hi) (N, 2) integrated by each pixel (empty: lo == hi).
 
     ``pixels`` (N, 3) and ``antenna`` (P, 3): ENU metres (the antenna is the reference phase centre of each
-    pulse); ``velocity`` (P, 3): its velocity (any scale; only the direction is used).
+    pulse); ``velocity`` (P, 3): its velocity (any scale; only the direction is used). ``side`` > 0: only
+    pixels left of the track get pulses, < 0: only those on the right, 0: both.
     """
     pix = np.ascontiguousarray(np.asarray(pixels, dtype=np.float64).reshape(-1, 3))
     ant = np.ascontiguousarray(np.asarray(antenna, dtype=np.float64).reshape(-1, 3))
@@ -83,5 +90,5 @@ def stripmap_windows(pixels: ArrayLike, antenna: ArrayLike, velocity: ArrayLike,
     vel = np.ascontiguousarray(vel / np.where(speed > 0, speed, 1.0))
     out = np.zeros((len(pix), 2), np.int64)
     if len(ant) and len(pix):
-        _windows(pix, ant, vel, math.sin(half_width_rad), out)
+        _windows(pix, ant, vel, math.sin(half_width_rad), float(np.sign(side)), out)
     return out
