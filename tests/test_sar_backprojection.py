@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 import pytest
-
 import reference
+
 from autosar_cli.sar.backprojection import PulseBlock, backproject, backproject_block
 from autosar_cli.sar.grid import GridError, box_grid, track_grid
 from autosar_cli.sar.stripmap import processed_half_width, stripmap_windows

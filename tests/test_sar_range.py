@@ -63,3 +63,16 @@ def test_real_ti_adc_frame_shows_a_target() -> None:
     k = int(np.argmax(np.where(usable, profile, 0.0)))
     assert 10 * np.log10(profile[k] / np.median(profile)) > 15  # a real reflector, well above the noise floor
     assert axis[k] == pytest.approx(1.9, abs=0.1)  # one-way range (m) of the strongest reflector in this capture
+
+
+def test_range_compress_into_is_the_transposed_profile() -> None:
+    from autosar_cli.sar.range_compression import range_compress, range_compress_into
+
+    rng = np.random.default_rng(0)
+    raw = rng.integers(-2000, 2000, (37, 540, 2)).astype(np.int16)
+    re = np.zeros((540 * 4, 40), np.float32)
+    im = np.zeros_like(re)
+    range_compress_into(raw, re, im, sample_rate_hz=FS, slope_hz_per_s=K, upsample=4)
+    ref = range_compress(raw, sample_rate_hz=FS, slope_hz_per_s=K, upsample=4)
+    np.testing.assert_allclose(re[:, :37] + 1j * im[:, :37], ref.T, atol=1e-5 * np.abs(ref).max())
+    assert not re[:, 37:].any()

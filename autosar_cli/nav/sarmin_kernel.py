@@ -13,13 +13,18 @@ parameter columns have the centre's kinematic part, so the full unscented transf
 - ``x_k'``, ``Pkk'``: the transform of the 11 points ``x_k``, ``x_k +- Lkk[:, j]`` (the ``2 (n - 5)``
   parameter points add their weight to the centre), plus ``Q_k dt``;
 - ``Pkp' = F Pkp`` with ``F = Wc_1 (n + lambda) M Lkk^-1`` and ``M[:, j] = dy_{+j} - dy_{-j}`` (the
-  statistical linearisation of CTRV), ``Ppp' = Ppp + Q_p dt``, ``x_p' = x_p``;
+  statistical linearisation of CTRV: ``Lpk^T = (n + lambda) Lkk^-1 Pkp``), ``Ppp' = Ppp + Q_p dt``;
 - the cross-covariance the smoother needs, ``cov(x, x') = P Phi^T`` with ``Phi = diag(F, I)``.
 
 So the filter stores per step only ``x'``, ``F`` and ``Pkk'`` besides the filtered states; the smoother
 rebuilds ``P_pred`` and the cross-covariance from them. Measurements at the instant of the previous one
 (``dt = 0``) predict nothing (the transform is the identity there) and refine the same stored state:
 the smoother sees one state per distinct instant, exactly what it would compute through identity steps.
+
+Weighted means are summed as ``sum_i Wm_i y_i = wsum y_0 + sum_{i>0} Wm_i (y_i - y_0)`` with ``wsum`` the
+exact sum of filterpy's weights (:func:`math.fsum`). Those weights are ~1e6 with both signs and sum to 1
+only within ~1e-9; the reference's ``Wm @ sigmas`` carries that factor (on an ENU coordinate of 50 m,
+~3e-8 m per step) and so does this form, without the cancellation error of summing the raw products.
 
 Event kinds: ``0 .. ng-1`` gyro i; ``ng`` wheels; ``ng+1`` steering; ``ng+2`` GNSS position;
 ``ng+3`` GNSS velocity. Measurement values are padded to 4 columns.
@@ -65,43 +70,16 @@ def _cholesky_into(A, scale, m, L, inv_diag):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True)
-def _sinc(h: float) -> float:
-    """sin(h) / h (1 at 0); the Taylor series below 1e-2, where its remainder is under 1e-20."""
-    if abs(h) < 1e-2:
-        h2 = h * h
-        return 1.0 - h2 / 6.0 * (1.0 - h2 / 20.0 * (1.0 - h2 / 42.0 * (1.0 - h2 / 72.0)))
-    return np.sin(h) / h
-
-
-@njit(cache=True)
 def _ctrv_points(pts, prop, dt):  # noqa: ANN001, ANN202
-    """CTRV over ``dt`` of every kinematic sigma point (row 0: the centre).
-
-    The chord ``v dt sinc(omega dt / 2)`` points along ``a = psi + omega dt / 2``. The points differ from
-    the centre by tiny angles ``e = a - a_0`` (a fraction of a standard deviation times
-    sqrt(n + lambda)): ``cos a``, ``sin a`` by the angle-sum formulas with the series of ``cos e``,
-    ``sin e`` (remainder under 1e-20 below 1e-2); the direct functions otherwise.
-    """
-    a0 = pts[0, PSI] + 0.5 * pts[0, OMEGA] * dt
-    c0, s0 = np.cos(a0), np.sin(a0)
+    """CTRV over ``dt`` of every kinematic sigma point: the chord ``v dt sinc(omega dt / 2)`` along
+    ``psi + omega dt / 2`` (exact, smooth at omega -> 0)."""
     for i in range(pts.shape[0]):
         v, psi, w = pts[i, V], pts[i, PSI], pts[i, OMEGA]
         half = 0.5 * w * dt
-        a = psi + half
-        e = a - a0
-        if i == 0:
-            ca, sa = c0, s0
-        elif abs(e) < 1e-2:
-            e2 = e * e
-            ce = 1.0 - e2 / 2.0 * (1.0 - e2 / 12.0 * (1.0 - e2 / 30.0 * (1.0 - e2 / 56.0)))
-            se = e * (1.0 - e2 / 6.0 * (1.0 - e2 / 20.0 * (1.0 - e2 / 42.0)))
-            ca = c0 * ce - s0 * se
-            sa = s0 * ce + c0 * se
-        else:
-            ca, sa = np.cos(a), np.sin(a)
-        chord = v * dt * _sinc(half)
-        prop[i, PX] = pts[i, PX] + chord * ca
-        prop[i, PY] = pts[i, PY] + chord * sa
+        sinc = 1.0 if abs(half) < 1e-12 else np.sin(half) / half
+        chord = v * dt * sinc
+        prop[i, PX] = pts[i, PX] + chord * np.cos(psi + half)
+        prop[i, PY] = pts[i, PY] + chord * np.sin(psi + half)
         prop[i, V] = v
         prop[i, PSI] = psi + w * dt
         prop[i, OMEGA] = w
@@ -164,7 +142,7 @@ def _predict(x, P, xn, Pn, dt, q, Wm, Wc, c, wsum, L5, inv5, pts, prop, dy, F, P
             Pn[r, col] = Pkk[r, col]
     _fill_cross_blocks(P, F, Pn, n)
     for r in range(NK, n):
-        xn[r] = wsum * x[r]  # sum_i Wm_i x_p with filterpy's weights (their sum is 1 only to ~1e-9)
+        xn[r] = wsum * x[r]  # sum_i Wm_i x_p: the +-Lpk deviations cancel in pairs
         for col in range(NK, n):
             Pn[r, col] = P[r, col]
         Pn[r, r] += q[r] * dt
@@ -216,8 +194,12 @@ def _measure(sig, kind, ng, geo, scale_i, steer_i, zsig):  # noqa: ANN001, ANN20
 
 @njit(cache=True)
 def _update_nl(x, P, z, sigma, kind, ng, geo, scale_i, steer_i, gate, Wm, Wc, c, wsum,  # noqa: ANN001, ANN202
-               L, inv_d, sig, zsig, Pxz, Kg):
-    """Unscented update of ``(x, P)`` in place; False (state untouched) when the gate rejects it."""
+               L, inv_d, sig, zsig, Pxz, Kg, S, Ls, v4):
+    """Unscented update of ``(x, P)`` in place; False (state untouched) when the gate rejects it.
+
+    Work arrays: ``L`` (n, n), ``inv_d`` (n,), ``sig`` (2n+1, n), ``zsig`` (2n+1, 4), ``Pxz``, ``Kg``
+    (n, 4), ``S``, ``Ls``, ``v4`` (4, 4).
+    """
     n = x.shape[0]
     m = 2 * n + 1
     _cholesky_into(P, c, n, L, inv_d)
@@ -230,7 +212,7 @@ def _update_nl(x, P, z, sigma, kind, ng, geo, scale_i, steer_i, gate, Wm, Wc, c,
         sig[1 + j, PSI] = _wrap(sig[1 + j, PSI])
         sig[1 + n + j, PSI] = _wrap(sig[1 + n + j, PSI])
     k = _measure(sig, kind, ng, geo, scale_i, steer_i, zsig)
-    zp = np.empty(4)
+    zp, inv_s, y, u = v4[0], v4[1], v4[2], v4[3]
     for a in range(k):
         ref = zsig[0, a]
         acc = 0.0
@@ -240,7 +222,6 @@ def _update_nl(x, P, z, sigma, kind, ng, geo, scale_i, steer_i, gate, Wm, Wc, c,
     for i in range(m):
         for a in range(k):
             zsig[i, a] -= zp[a]  # now dz
-    S = np.zeros((4, 4))
     for a in range(k):
         for b in range(a, k):
             acc = Wc[0] * zsig[0, a] * zsig[0, b]
@@ -249,8 +230,6 @@ def _update_nl(x, P, z, sigma, kind, ng, geo, scale_i, steer_i, gate, Wm, Wc, c,
             S[a, b] = acc
             S[b, a] = acc
         S[a, a] += sigma[a] * sigma[a]
-    Ls = np.zeros((4, 4))
-    inv_s = np.empty(4)
     for j in range(k):  # Cholesky of S (k <= 4)
         d = S[j, j]
         for i in range(j):
@@ -264,8 +243,6 @@ def _update_nl(x, P, z, sigma, kind, ng, geo, scale_i, steer_i, gate, Wm, Wc, c,
             for t in range(j):
                 v -= Ls[i, t] * Ls[j, t]
             Ls[i, j] = v * inv_s[j]
-    y = np.empty(4)
-    u = np.empty(4)
     d2 = 0.0
     for a in range(k):
         y[a] = z[a] - zp[a]
@@ -372,6 +349,9 @@ def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, Wm, Wc, lam, ng, ge
     zsig = np.empty((2 * n + 1, 4))
     Pxz = np.empty((n, 4))
     Kg = np.empty((n, 4))
+    S = np.zeros((4, 4))
+    Ls = np.zeros((4, 4))
+    v4 = np.empty((4, 4))
     ph = np.empty(n)
     X[0] = x0
     for r in range(n):
@@ -408,7 +388,7 @@ def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, Wm, Wc, lam, ng, ge
         else:
             k_dim = 4 if kind == ng else (1 if kind == ng + 1 else 2)
             ok = _update_nl(x, P, zs[e], sigmas[e], kind, ng, geo, scale_i, steer_i, gates[k_dim], Wm, Wc, c,
-                            wsum, L, inv_d, sig, zsig, Pxz, Kg)
+                            wsum, L, inv_d, sig, zsig, Pxz, Kg, S, Ls, v4)
         if ok:
             used[kind] += 1
         else:

@@ -169,6 +169,9 @@ def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Pat
     """Focus the radar of ``drive_path`` along ``trajectory_path`` and write OUT.tif/.h5/.png."""
     timings: Counter[str] = Counter()
     t_start = time.perf_counter()
+    parse_grid(options.grid)  # a bad --grid fails before any work
+    if options.channels not in (8, 12):
+        raise FocusError(f"--channels {options.channels}: choose 8 or 12")
     existing = [str(p) for p in product_paths(Path(output)).values() if p.exists()]
     if existing and not overwrite:
         raise FocusError(f"{existing[0]} already exists; pass --overwrite to replace it")

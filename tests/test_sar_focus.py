@@ -1,0 +1,187 @@
+"""`autosar focus` end to end on simulated drives: corner reflectors land where they are, as sharp as theory.
+
+The drives are simulated without the radar's unobservable vibration (the paper's fast-varying term):
+with it, the truth trajectory no longer describes the phase centres to a fraction of a wavelength and
+the responses widen by ~20 % (measured; see the issue notes), which is the effect, not the processor.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rasterio
+import reference
+from typer.testing import CliRunner
+
+from autosar_cli.cli import app
+from autosar_cli.config import Config, load_config
+from autosar_cli.evaluate.point_target import analyse_point_target
+from autosar_cli.ingest.pipeline import ingest
+from autosar_cli.nav.navigate import navigate
+from autosar_cli.sar.focus import FocusError, FocusOptions, focus
+from autosar_cli.sar.range_compression import SPEED_OF_LIGHT
+from autosar_cli.sim.simulate import simulate
+from autosar_cli.sim.truth import read_targets
+from autosar_cli.store.image import read_image
+from autosar_cli.store.trajectory import write_trajectory
+
+
+@dataclass
+class Drive:
+    dir: Path
+    drive: Path
+    trajectory: Path
+    truth: Path
+    config: Config
+
+
+def still_config() -> Config:
+    cfg = load_config()
+    assert cfg.simulation is not None
+    return replace(cfg, simulation=replace(cfg.simulation, vibration_vertical_rms_m=0.0,
+                                           vibration_horizontal_rms_m=0.0))
+
+
+def prepare(directory: Path, scenario: str) -> Drive:
+    cfg = still_config()
+    sim = simulate(scenario, directory / f"{scenario}.mcap", seed=3, config=cfg)
+    drive = directory / "drive.h5"
+    ingest([sim.log_path], drive, config=cfg)
+    traj = directory / "truth_trajectory.h5"
+    write_trajectory(traj, navigate(drive, "truth", cfg, truth_path=sim.truth_path))
+    return Drive(directory, drive, traj, sim.truth_path, cfg)
+
+
+@pytest.fixture(scope="module")
+def ci_drive(tmp_path_factory: pytest.TempPathFactory) -> Drive:
+    return prepare(tmp_path_factory.mktemp("focus_ci"), "ci")
+
+
+def theory_widths(cfg: Config, options: FocusOptions) -> tuple[float, float]:
+    """-3 dB widths (m): range c/2B times the taper's main-lobe width in bins; cross-range 0.886 rho."""
+    r = cfg.radar
+    bandwidth = r.slope_hz_per_s * r.num_samples / r.sample_rate_hz
+    window = np.hanning(r.num_samples) if options.window == "hann" else np.ones(r.num_samples)
+    return (reference.window_width_bins(window) * SPEED_OF_LIGHT / (2 * bandwidth), 0.8859 * options.resolution_m)
+
+
+def check_reflectors(d: Drive, tag: str) -> list[dict[str, float]]:
+    """Focus a 1 m patch of 5 mm pixels around every reflector and compare its response with theory."""
+    opts = FocusOptions.from_config(d.config, pixel_m=0.005)
+    w_range, w_cross = theory_widths(d.config, opts)
+    # a coarse first focus gives the image origin in which the truth targets are expressed
+    probe = focus(d.drive, d.trajectory, d.dir / f"{tag}_probe", d.config, replace(opts, pixel_m=0.5, resolution_m=0.5),
+                  overwrite=True)
+    img0 = read_image(Path(probe.outputs["h5"]))
+    targets = read_targets(d.truth, img0.origin)
+    rows = []
+    for k, i in enumerate(targets.corner_reflectors):
+        x, y = targets.position_enu[i, :2]
+        o = replace(opts, grid=f"{x - 0.5},{y - 0.5},{x + 0.5},{y + 0.5}")
+        rep = focus(d.drive, d.trajectory, d.dir / f"{tag}_cr{k}", d.config, o, overwrite=True)
+        img = read_image(Path(rep.outputs["h5"]))
+        # ground range runs along the line of sight from the track; the auto grid's across axis gives it
+        m = analyse_point_target(img, targets.position_enu[i], name=targets.names[i],
+                                 range_dir=img0.grid.across, patch_m=0.9)
+        rows.append({"name": m.name, "error_mm": m.peak_error_m * 1e3, "range_mm": m.range_cut.width_m * 1e3,
+                     "cross_mm": m.cross_range_cut.width_m * 1e3, "range_pslr": m.range_cut.pslr_db,
+                     "cross_pslr": m.cross_range_cut.pslr_db, "range_islr": m.range_cut.islr_db,
+                     "cross_islr": m.cross_range_cut.islr_db})
+        assert m.peak_error_m <= 0.01, rows[-1]
+        assert m.range_cut.width_m == pytest.approx(w_range, rel=0.15), rows[-1]
+        assert m.cross_range_cut.width_m == pytest.approx(w_cross, rel=0.15), rows[-1]
+        assert m.range_cut.pslr_db < -25.0, rows[-1]  # Hann: -31.5 dB
+        assert -16.0 < m.cross_range_cut.pslr_db < -9.0, rows[-1]  # uniform aperture: -13.3 dB
+    assert len(rows) >= 3
+    return rows
+
+
+def test_ci_corner_reflectors_focus_at_truth_with_theoretical_widths(ci_drive: Drive) -> None:
+    check_reflectors(ci_drive, "ci")
+
+
+def test_geotiff_puts_reflectors_at_their_utm_position(ci_drive: Drive) -> None:
+    d = ci_drive
+    rep = focus(d.drive, d.trajectory, d.dir / "full", d.config, FocusOptions.from_config(d.config),
+                overwrite=True)
+    img = read_image(Path(rep.outputs["h5"]))
+    targets = read_targets(d.truth, img.origin)
+    mag = np.abs(img.image)
+    with rasterio.open(rep.outputs["tif"]) as ds:
+        assert ds.crs.to_epsg() == img.origin.utm_epsg()
+        db = ds.read(1)
+        transform = ds.transform
+    seen = mag > 0
+    np.testing.assert_allclose(db[seen], 20 * np.log10(mag[seen]), rtol=1e-5)
+    assert np.all(np.isnan(db[~seen]))  # pixels no pulse reached (behind a weaving track) are nodata
+    for i in targets.corner_reflectors:
+        r, c = img.grid.enu_to_pixel(targets.position_enu[i, :2])
+        r0, c0 = int(round(r)), int(round(c))
+        win = mag[r0 - 5:r0 + 6, c0 - 5:c0 + 6]
+        dr, dc = np.unravel_index(int(np.argmax(win)), win.shape)
+        east, north = transform @ (c0 - 5 + dc + 0.5, r0 - 5 + dr + 0.5)
+        true_e, true_n = img.origin.enu_to_utm(targets.position_enu[i])
+        assert abs(east - true_e) <= 0.04 and abs(north - true_n) <= 0.04, (targets.names[i], east - true_e,
+                                                                            north - true_n)
+
+
+def test_twelve_channels_focus_too(ci_drive: Drive) -> None:
+    d = ci_drive
+    probe = read_image(Path(focus(d.drive, d.trajectory, d.dir / "p12", d.config,
+                                  FocusOptions.from_config(d.config, pixel_m=0.5), overwrite=True).outputs["h5"]))
+    targets = read_targets(d.truth, probe.origin)
+    i = targets.corner_reflectors[0]
+    x, y = targets.position_enu[i, :2]
+    peaks = {}
+    for ch in (8, 12):
+        box = f"{x - 0.3},{y - 0.3},{x + 0.3},{y + 0.3}"
+        o = FocusOptions.from_config(d.config, pixel_m=0.005, channels=ch, grid=box)
+        rep = focus(d.drive, d.trajectory, d.dir / f"c{ch}", d.config, o, overwrite=True)
+        img = read_image(Path(rep.outputs["h5"]))
+        m = analyse_point_target(img, targets.position_enu[i], patch_m=0.5)
+        assert m.peak_error_m <= 0.01
+        peaks[ch] = m.peak_db
+        assert rep.backprojections > 0 and img.params["channel_pairs"] == (
+            [[t, r] for t in (0, 2) for r in range(4)] if ch == 8 else [[t, r] for t in range(3) for r in range(4)])
+    # 12 coherent channels instead of 8: +3.5 dB of peak (20 log10 12/8) when Tx1's extra half-wavelength
+    # of height is seen at the reflector's height; allow for the elevation pattern
+    assert 2.0 < peaks[12] - peaks[8] < 4.0
+
+
+def test_focus_errors(ci_drive: Drive, tmp_path: Path) -> None:
+    d = ci_drive
+    runner = CliRunner()
+    res = runner.invoke(app, ["focus", str(d.drive), "-t", str(tmp_path / "missing.h5"), "-o", str(tmp_path / "x")])
+    assert res.exit_code == 1
+    assert "missing.h5" in res.output and "Traceback" not in res.output
+    assert not list(tmp_path.glob("x*"))
+    res = runner.invoke(app, ["focus", str(d.drive), "-t", str(d.trajectory), "-o", str(tmp_path / "g"),
+                              "--grid", "1,2,3"])
+    assert res.exit_code == 1 and "--grid" in res.output
+    (tmp_path / "y.tif").write_text("keep")
+    with pytest.raises(FocusError, match="overwrite"):
+        focus(d.drive, d.trajectory, tmp_path / "y", d.config, FocusOptions.from_config(d.config))
+    assert (tmp_path / "y.tif").read_text() == "keep"
+
+
+def test_focus_cli_writes_the_three_products(ci_drive: Drive, tmp_path: Path) -> None:
+    d = ci_drive
+    res = CliRunner().invoke(app, ["focus", str(d.drive), "-t", str(d.trajectory), "-o", str(tmp_path / "img"),
+                                   "--pixel", "0.08", "--json"])
+    assert res.exit_code == 0, res.output
+    for ext in ("tif", "h5", "png"):
+        assert (tmp_path / f"img.{ext}").stat().st_size > 0
+    assert not list(tmp_path.glob("*partial*"))
+    img = read_image(tmp_path / "img.h5")
+    assert img.grid.pixel_m == 0.08 and img.params["trajectory_method"] == "truth"
+    assert math.isfinite(float(np.abs(img.image).max()))
+
+
+@pytest.mark.slow
+def test_test1_corner_reflectors_focus_at_truth(tmp_path_factory: pytest.TempPathFactory) -> None:
+    rows = check_reflectors(prepare(tmp_path_factory.mktemp("focus_test1"), "test1"), "test1")
+    assert len(rows) >= 4
