@@ -193,7 +193,7 @@ class ProcessingConfig:
     pixel_m: float = 0.04
     cross_range_resolution_m: float = 0.04
     range_window: Literal["hann", "hamming", "rect", "taylor"] = "hann"
-    range_upsample: int = 8
+    range_upsample: int = 4
     channels: Literal[8, 12] = 8
 
 

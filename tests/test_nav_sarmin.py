@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import h5py
@@ -13,11 +14,14 @@ from typer.testing import CliRunner
 from autosar_cli.cli import app
 from autosar_cli.config import load_config
 from autosar_cli.ingest.pipeline import ingest
+from autosar_cli.nav import models as m
+from autosar_cli.nav import sarmin_kernel as kern
 from autosar_cli.nav.baselines import from_truth
 from autosar_cli.nav.inputs import load_inputs
 from autosar_cli.nav.navigate import navigate
 from autosar_cli.nav.sarmin import run_sarmin
 from autosar_cli.nav.trajectory import Trajectory, relative_pose_error
+from autosar_cli.nav.ukf import VectorUKF
 from autosar_cli.store.drive import Drive
 from autosar_cli.store.trajectory import read_trajectory
 
@@ -50,6 +54,39 @@ def test_compiled_filter_equals_the_filterpy_reference(ci_drive: Path) -> None:
     np.testing.assert_allclose(fast.x, ref.x, atol=1e-7)
     np.testing.assert_allclose(fast.P, ref.P, atol=1e-10)
     assert fast.updates == ref.updates and fast.rejected == ref.rejected == {}
+
+
+@pytest.mark.parametrize("dt", [2e-3, 0.05])
+def test_partitioned_prediction_is_the_full_unscented_transform(dt: float) -> None:
+    """The kernel's prediction (11 kinematic sigma points, linear parameter blocks) against filterpy's
+    29-point transform: mean, covariance and the smoother's cross-covariance P Phi^T."""
+    n = 14
+    rng = np.random.default_rng(5)
+    x = np.r_[31.0, -12.0, 8.0, np.pi - 2e-4, 0.3, rng.normal(0, 1e-3, n - 5)]  # the heading crosses +pi
+    scale = np.r_[0.05, 0.05, 0.02, 1e-3, 2e-3, np.full(n - 5, 1e-3)]
+    A = rng.normal(size=(n, n)) * scale[:, None]
+    P = A @ A.T + 0.1 * np.diag(scale**2)
+    q = np.r_[1e-4, 1e-4, 0.1, 1e-8, 0.01, np.full(n - 5, 1e-10)]
+    ukf = VectorUKF(x, P, m.ctrv_step, angle_indices=[m.PSI])
+    step = ukf.predict(dt, np.diag(q * dt))
+    lam = ukf.points.alpha**2 * (n + ukf.points.kappa) - n
+    xn, Pn, F, Pkk = np.empty(n), np.empty((n, n)), np.empty((5, 5)), np.empty((5, 5))
+    kern._predict(x, P, xn, Pn, dt, q, ukf.Wm, ukf.Wc, n + lam, math.fsum(ukf.Wm), np.zeros((5, 5)), np.empty(5),
+                  np.empty((11, 5)), np.empty((11, 5)), np.empty((11, 5)), F, Pkk)
+    assert -np.pi <= xn[m.PSI] < -3.1  # wrapped
+    d = xn - ukf.x
+    d[m.PSI] = (d[m.PSI] + np.pi) % (2 * np.pi) - np.pi
+    # filterpy's mean sums weights of ~5e6 (both signs) times sigma points: its rounding is ~|Wm_0| eps |x|
+    # (3e-8 m at 31 m); the covariances carry the rounding of sigma points x +- L relative to L (~1e-10).
+    np.testing.assert_allclose(d[:2], 0.0, atol=5e-8)
+    np.testing.assert_allclose(d[2:], 0.0, atol=5e-9)
+    sd_pred = np.sqrt(np.diag(ukf.P))
+    np.testing.assert_allclose((Pn - ukf.P) / np.outer(sd_pred, sd_pred), 0.0, atol=1e-9)
+    np.testing.assert_array_equal(Pn, Pn.T)
+    np.testing.assert_array_equal(Pn[:5, :5], Pkk)
+    Phi = np.eye(n)
+    Phi[:5, :5] = F
+    np.testing.assert_allclose((P @ Phi.T - step.cross) / np.outer(np.sqrt(np.diag(P)), sd_pred), 0.0, atol=1e-9)
 
 
 def test_cli_navigate_all_methods(ci_drive: Path, tmp_path: Path) -> None:

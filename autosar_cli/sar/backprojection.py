@@ -148,25 +148,29 @@ _accumulate_rows = _make_accumulate(False)
 _accumulate_rows_masked = _make_accumulate(True)
 
 
-@nb.njit(fastmath=True, cache=True)
-def _accumulate_exact(prof_re, prof_im, row0, stride, n_bins, dt, dr, n, i0, c0, bin_inv,
-                      cyc_per_m):  # pragma: no cover - compiled
-    """Scalar path for chunks whose samples spread over more than four rows (large range migration)."""
+@nb.njit(cache=True)
+def _accumulate_exact(prof_re, prof_im, row0, stride, n_bins, ax, ay, az, ta, ra, p, n, px, py, pz, range0,
+                      bin_inv, cyc_per_m):  # pragma: no cover - compiled
+    """Scalar float64 path, exact distances: for chunks the series or the four-row window cannot serve
+    (strong squint close to the radar, large range migration)."""
     sr = 0.0
     si = 0.0
     for l in range(n):
-        db = dt[l] + dr[l]
-        fi = i0 + db * _F(bin_inv)
+        pp = p + l
+        path = (math.sqrt((px - ax[ta, pp]) ** 2 + (py - ay[ta, pp]) ** 2 + (pz - az[ta, pp]) ** 2)
+                + math.sqrt((px - ax[ra, pp]) ** 2 + (py - ay[ra, pp]) ** 2 + (pz - az[ra, pp]) ** 2))
+        fi = (path - range0) * bin_inv
         if fi < 0.0:
             continue
         ib = int(fi)
         if ib + 1 >= n_bins:
             continue
-        fr = fi - _F(ib)
+        fr = fi - ib
         o = row0 + ib * stride + l
         s_re = prof_re[o] + fr * (prof_re[o + stride] - prof_re[o])
         s_im = prof_im[o] + fr * (prof_im[o + stride] - prof_im[o])
-        ang = 2.0 * math.pi * (c0 + db * _F(cyc_per_m))
+        turns = path * cyc_per_m
+        ang = 2.0 * math.pi * (turns - math.floor(turns))
         cs = math.cos(ang)
         sn = math.sin(ang)
         sr += s_re * cs + s_im * sn
@@ -198,7 +202,9 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
             while p < hi:
                 end = min(hi, p + max_chunk)
                 # halve the chunk until the series variable is small at both ends (|e| is largest there) and
-                # channel 0's samples stay within three range bins (the fast path reads four rows)
+                # channel 0's samples stay within three range bins (the fast path reads four rows). Checked
+                # on channel 0's two antennas: the others move with them and sit within centimetres, so their
+                # e differs by a few per cent at most (E_MAX keeps a factor 2 of margin on the error bound)
                 while True:
                     q = (p + end) // 2
                     e_max = 0.0
@@ -206,7 +212,7 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                     span_lo = 0.0
                     span_hi = 0.0
                     h2 = (0.5 * (end - p)) ** 2
-                    for a in range(n_ant):
+                    for a in (ch_tx[0], ch_rx[0]):
                         x = px - ax[a, q]
                         y = py - ay[a, q]
                         z = pz - az[a, q]
@@ -218,25 +224,24 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                             dy = np.float64(ay[a, pe]) - ay[a, q]
                             dz = np.float64(az[a, pe]) - az[a, q]
                             d = dx * (dx - 2.0 * x) + dy * (dy - 2.0 * y) + dz * (dz - 2.0 * z)
-                            e_max = max(e_max, abs(d) / r2)
-                            if a == ch_tx[0] or a == ch_rx[0]:
-                                d_ends = math.sqrt(max(r2 + d, 0.0)) - r
-                                if pe == p:
-                                    span_lo += d_ends
-                                else:
-                                    span_hi += d_ends
-                        if a == ch_tx[0] or a == ch_rx[0]:
-                            sx = np.float64(ax[a, end - 1]) - ax[a, p]
-                            sy = np.float64(ay[a, end - 1]) - ay[a, p]
-                            sz = np.float64(az[a, end - 1]) - az[a, p]
-                            step2 = (sx * sx + sy * sy + sz * sz) / max(end - 1 - p, 1) ** 2
-                            # |d2R/dp2| <= step^2 / R_min, doubled for path curvature and speed changes
-                            sag += 2.0 * step2 / (r * (1.0 - e_max)) * h2 / 8.0
+                            e_max = max(e_max, 1.1 * abs(d) / r2)
+                            d_ends = math.sqrt(max(r2 + d, 0.0)) - r
+                            if pe == p:
+                                span_lo += d_ends
+                            else:
+                                span_hi += d_ends
+                        sx = np.float64(ax[a, end - 1]) - ax[a, p]
+                        sy = np.float64(ay[a, end - 1]) - ay[a, p]
+                        sz = np.float64(az[a, end - 1]) - az[a, p]
+                        step2 = (sx * sx + sy * sy + sz * sz) / max(end - 1 - p, 1) ** 2
+                        # |d2R/dp2| <= step^2 / R_min, doubled for path curvature and speed changes
+                        sag += 2.0 * step2 / (r * max(1.0 - e_max, 0.5)) * h2 / 8.0
                     sag *= bin_inv
                     span = (max(0.0, span_lo, span_hi) - min(0.0, span_lo, span_hi)) * bin_inv + 2.0 * sag
                     if (e_max <= E_MAX and span < 2.9) or end - p <= LANES:
                         break
                     end = p + (end - p) // 2
+                series_ok = e_max <= E_MAX
                 order_series = 3 if e_max <= 0.01 else 5
                 n = end - p
                 n_pad = (n + LANES - 1) // LANES * LANES
@@ -263,7 +268,7 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                     i_last = i0 + (delta[ta, n - 1] + delta[ra, n - 1]) * bin_inv
                     b0 = int(math.floor(min(i0, i_first, i_last) - sag))
                     top = max(i0, i_first, i_last) + sag
-                    if b0 >= 0 and b0 + 4 < n_bins and top < b0 + 3:
+                    if series_ok and b0 >= 0 and b0 + 4 < n_bins and top < b0 + 3:
                         n16 = n // LANES * LANES
                         sr, si = _accumulate_rows(prof_re, prof_im, row0, stride, b0, delta[ta], delta[ra], 0, n16, n,
                                                   np.float32(i0), c0, bin_inv, cycles_per_m)
@@ -275,8 +280,8 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                             acc_re += sr
                             acc_im += si
                     else:
-                        sr, si = _accumulate_exact(prof_re, prof_im, row0, stride, n_bins, delta[ta], delta[ra],
-                                                   n, np.float32(i0), c0, bin_inv, cycles_per_m)
+                        sr, si = _accumulate_exact(prof_re, prof_im, row0, stride, n_bins, ax, ay, az, ta, ra, p, n,
+                                                   px, py, pz, range0[c], bin_inv, cycles_per_m)
                         acc_re += sr
                         acc_im += si
                 p = end

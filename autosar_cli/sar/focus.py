@@ -44,7 +44,7 @@ class FocusOptions:
     height_m: float = 0.5  #: focusing plane height (ENU z, m)
     grid: str = "auto"  #: "auto" (along the track, radar side) or "x0,y0,x1,y1" (ENU m)
     window: str = "hann"  #: range taper
-    upsample: int = 8  #: range zero-padding factor
+    upsample: int = 4  #: range zero-padding factor
     block_pulses: int = 512  #: pulses per processing block
     min_speed_mps: float = 0.2  #: frames slower than this are skipped (no synthetic aperture)
 

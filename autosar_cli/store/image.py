@@ -282,8 +282,16 @@ def write_quicklook(path: Path, img: FocusedImage, *, dynamic_range_db: float = 
     fig = Figure(figsize=(fig_w, fig_h), dpi=150, layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
+    # at most ~one image pixel per screen pixel: max-pool (bright points stay visible), then draw as is
+    f = max(1, int(np.ceil(max(rows / 1200, cols / 1400))))
+    if f > 1:
+        r2, c2 = -(-rows // f) * f, -(-cols // f) * f
+        padded = np.full((r2, c2), -dynamic_range_db, dtype=rel.dtype)
+        padded[:rows, :cols] = np.nan_to_num(rel, nan=-dynamic_range_db)
+        rel = padded.reshape(r2 // f, f, c2 // f, f).max(axis=(1, 3))
+        extent = (-0.5 * p, (c2 - 0.5) * p, -0.5 * p, (r2 - 0.5) * p)
     im = ax.imshow(rel, origin="lower", extent=extent, cmap="gray", vmin=-dynamic_range_db, vmax=0.0,
-                   interpolation="antialiased", aspect="equal")
+                   interpolation="nearest", aspect="equal")
     ax.set_xlabel("along (m)")
     ax.set_ylabel("across (m)")
     title = f"peak {peak:.1f} dB, {rows} x {cols} px at {p * 100:g} cm"
@@ -299,4 +307,4 @@ def write_quicklook(path: Path, img: FocusedImage, *, dynamic_range_db: float = 
         ax.annotate("N", xy=(0.06, 0.88), xycoords="axes fraction", xytext=(n[0], n[1]), textcoords="offset points",
                     color="yellow", fontsize=8, ha="center", va="center",
                     arrowprops={"arrowstyle": "<-", "color": "yellow", "shrinkA": 4, "shrinkB": 0})
-    fig.savefig(path, format="png")
+    fig.savefig(path, format="png", pil_kwargs={"compress_level": 1})

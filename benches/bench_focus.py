@@ -1,0 +1,204 @@
+"""Benchmark `autosar focus`: kernel throughput, end-to-end time on test1, peak memory vs drive length.
+
+Usage: python benches/bench_focus.py [--repeat 5] [--workdir DIR] [--kernel-only]
+
+1. Kernel, fixed synthetic case (like the peers' published benchmarks): 512 pulses, 256 range bins,
+   256 x 256 grid at 4 cm, 1 channel (one Tx/Rx pair), side-looking at 2-12 m ground range, 4 mm
+   between pulses. Two windows: every pulse for every pixel (the peers' count, 33.6 M back-projections,
+   with up to 30 deg of squint and range migration across 20 bins), and the stripmap window of focus
+   (rho = 4 cm). Throughput = pixels x pulses x channels summed / s of ``backproject_block`` (the data
+   already in the kernel's layout), median of ``--repeat`` runs, with 2 threads and with 1.
+2. test1 (simulated, seed 1, MCAP, ingested, SAR-MIN trajectory): ``autosar focus`` with 8 channels,
+   4 cm pixels, full swath, in a fresh process per run: wall time (median), as a fraction of the drive's
+   duration, its split, kernel throughput, and peak RSS of the process.
+3. The same drive four times over (radar frames repeated, trajectory repeated and translated end to
+   start so the car drives on): peak RSS must not grow beyond the larger image.
+Writes benches/results/focus.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+RESULTS = Path(__file__).resolve().parent / "results"
+C = 299_792_458.0
+
+
+def kernel_case(repeat: int) -> list[dict[str, object]]:
+    import numba
+
+    from autosar_cli.sar.backprojection import PulseBlock, backproject_block
+    from autosar_cli.sar.stripmap import processed_half_width, stripmap_windows
+
+    rng = np.random.default_rng(0)
+    n_p, n_b, n = 512, 256, 256
+    x = (np.arange(n_p) - n_p / 2) * 0.004
+    tx = np.stack([x, np.zeros(n_p), np.full(n_p, 0.5)], axis=1)
+    rx = tx + np.array([0.0019, 0.0, 0.0])
+    prof = (rng.standard_normal((1, n_b, n_p)) + 1j * rng.standard_normal((1, n_b, n_p))).astype(np.complex64)
+    block = PulseBlock.from_profiles(prof, np.stack([tx, rx]), [[0, 1]], range0_m=3.5, bin_m=0.1,
+                                     cycles_per_m=78.5e9 / C)
+    gx, gy = np.meshgrid((np.arange(n) - n / 2) * 0.04, -2.0 - np.arange(n) * 0.04)
+    pix = np.stack([gx.ravel(), gy.ravel(), np.full(n * n, 0.5)], axis=1)
+    full = np.tile([0, n_p], (n * n, 1))
+    strip = stripmap_windows(pix, tx, np.tile([1.0, 0.0, 0.0], (n_p, 1)),
+                             processed_half_width(C / 78.5e9, 0.04), side=-1.0)
+    rows = []
+    for name, win in (("all pulses for every pixel", full), ("stripmap window, rho 4 cm", strip)):
+        bps = int(np.sum(win[:, 1] - win[:, 0]))
+        for threads in (numba.config.NUMBA_NUM_THREADS, 1):
+            numba.set_num_threads(threads)
+            backproject_block(block, pix, win)
+            walls = []
+            for _ in range(repeat):
+                t = time.perf_counter()
+                backproject_block(block, pix, win)
+                walls.append(time.perf_counter() - t)
+            wall = statistics.median(walls)
+            rows.append({"case": f"fixed 512 x 256 bins x 256^2 px, 1 channel: {name}", "threads": threads,
+                         "backprojections": bps, "median_s": round(wall, 4), "walls_s": [round(w, 4) for w in walls],
+                         "bp_per_s": round(bps / wall / 1e9, 3)})
+            print(json.dumps(rows[-1]))
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    return rows
+
+
+CHILD = r"""
+import json, resource, sys, time
+from autosar_cli.config import load_config
+from autosar_cli.sar.focus import FocusOptions, focus
+cfg = load_config()
+t = time.perf_counter()
+rep = focus(sys.argv[1], sys.argv[2], sys.argv[3], cfg, FocusOptions.from_config(cfg), overwrite=True)
+wall = time.perf_counter() - t
+d = rep.to_dict()
+d["process_wall_s"] = wall
+d["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+print(json.dumps(d))
+"""
+
+
+def run_focus(drive: Path, traj: Path, out: Path) -> dict[str, object]:
+    res = subprocess.run([sys.executable, "-c", CHILD, str(drive), str(traj), str(out)], check=True,
+                         capture_output=True, text=True)
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def repeat_drive(drive: Path, traj_path: Path, times: int, out_drive: Path, out_traj: Path) -> None:
+    """The drive ``times`` over: radar frames repeated, the trajectory translated end to start each time."""
+    import h5py
+
+    from autosar_cli.store.trajectory import read_trajectory, write_trajectory
+
+    traj = read_trajectory(traj_path)
+    with h5py.File(drive, "r") as src, h5py.File(out_drive, "w") as dst:
+        dst.attrs.update(src.attrs)
+        name = next(iter(src["radar"]))
+        g = src["radar"][name]
+        t = g["t_ns"][()]
+        span = int(t[-1] - t[0] + (t[1] - t[0]))
+        d = dst.require_group("radar").create_group(name)
+        d.attrs.update(g.attrs)
+        d["t_ns"] = np.concatenate([t + k * span for k in range(times)])
+        d["frame_index"] = np.concatenate([g["frame_index"][()] + k * len(t) for k in range(times)])
+        raw = g["raw"]
+        out = d.create_dataset("raw", (len(t) * times, *raw.shape[1:]), raw.dtype, chunks=raw.chunks,
+                               **{k: v for k, v in (("compression", raw.compression),) if v})
+        for k in range(times):
+            for i in range(0, len(t), 1024):
+                block = raw[i: i + 1024]
+                out[k * len(t) + i: k * len(t) + i + len(block)] = block
+    # translate each copy so it starts where the previous one ended (in time and space)
+    k_in = (traj.t_ns >= t[0]) & (traj.t_ns <= t[0] + span)
+    base_t = traj.t_ns[k_in]
+    rot = traj.heading[k_in][-1] - traj.heading[k_in][0]
+    parts = {k: [] for k in ("t", "xy", "psi", "v", "w")}
+    xy0 = traj.rear_axle_enu[k_in] - traj.rear_axle_enu[k_in][0]
+    pos, psi0 = traj.rear_axle_enu[k_in][0].copy(), 0.0
+    for k in range(times):
+        c, s = math.cos(psi0), math.sin(psi0)
+        parts["t"].append(base_t + k * span)
+        parts["xy"].append(pos + xy0 @ np.array([[c, s], [-s, c]]))
+        parts["psi"].append(traj.heading[k_in] + psi0)
+        parts["v"].append(traj.speed[k_in])
+        parts["w"].append(traj.yaw_rate[k_in])
+        pos = parts["xy"][-1][-1]
+        psi0 += rot
+    traj.t_ns = np.concatenate(parts["t"])
+    keep = np.r_[True, np.diff(traj.t_ns) > 0]
+    traj.t_ns = traj.t_ns[keep]
+    traj.rear_axle_enu = np.concatenate(parts["xy"])[keep]
+    traj.heading = np.concatenate(parts["psi"])[keep]
+    traj.speed = np.concatenate(parts["v"])[keep]
+    traj.yaw_rate = np.concatenate(parts["w"])[keep]
+    traj.state = traj.covariance = None
+    write_trajectory(out_traj, traj)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--workdir", type=Path, default=None)
+    ap.add_argument("--kernel-only", action="store_true")
+    args = ap.parse_args()
+    result: dict[str, object] = {"benchmark": "focus", "kernel": kernel_case(args.repeat)}
+    if not args.kernel_only:
+        from autosar_cli.config import load_config
+        from autosar_cli.ingest.pipeline import ingest
+        from autosar_cli.nav.navigate import navigate
+        from autosar_cli.store.trajectory import write_trajectory
+
+        cfg = load_config()
+        with tempfile.TemporaryDirectory() as tmp:
+            work = args.workdir or Path(tmp)
+            work.mkdir(parents=True, exist_ok=True)
+            log = work / "test1_seed1.mcap"
+            if not log.exists():
+                subprocess.run([sys.executable, "-m", "autosar_cli.cli", "simulate", "--scenario", "test1", "--seed",
+                                "1", "--output", str(log), "--overwrite"], check=True, capture_output=True)
+            drive = work / "test1_seed1.drive.h5"
+            if not drive.exists():
+                ingest([log], drive, config=cfg)
+            traj = work / "test1_seed1.sarmin.h5"
+            if not traj.exists():
+                write_trajectory(traj, navigate(drive, "sar-min", cfg))
+            runs = [run_focus(drive, traj, work / "image") for _ in range(args.repeat)]
+            walls = [r["process_wall_s"] for r in runs]
+            med = runs[int(np.argsort(walls)[len(walls) // 2])]
+            row = {"case": "test1, 8 channels, 4 cm, full swath (autosar focus, fresh process per run)",
+                   "drive_s": round(med["drive_s"], 2), "median_wall_s": round(statistics.median(walls), 3),
+                   "walls_s": [round(w, 3) for w in walls],
+                   "fraction_of_drive": round(statistics.median(walls) / med["drive_s"], 3),
+                   "timings_s_of_median_run": {k: round(v, 3) for k, v in med["timings_s"].items()},
+                   "backprojections": med["backprojections"],
+                   "kernel_bp_per_s": round(med["backprojections_per_s"] / 1e9, 3),
+                   "grid_shape": med["grid_shape"], "peak_rss_mb": round(max(r["peak_rss_mb"] for r in runs), 1)}
+            print(json.dumps(row))
+            result["test1"] = row
+            drive4, traj4 = work / "test1x4.drive.h5", work / "test1x4.traj.h5"
+            if not drive4.exists():
+                repeat_drive(drive, traj, 4, drive4, traj4)
+            r4 = run_focus(drive4, traj4, work / "image4")
+            row4 = {"case": "test1 four times over (radar repeated, trajectory continued)",
+                    "drive_s": round(r4["drive_s"], 2), "wall_s": round(r4["process_wall_s"], 3),
+                    "grid_shape": r4["grid_shape"], "peak_rss_mb": round(r4["peak_rss_mb"], 1),
+                    "image_mb_1x": round(math.prod(row["grid_shape"]) * 8 / 1e6, 1),
+                    "image_mb_4x": round(math.prod(r4["grid_shape"]) * 8 / 1e6, 1)}
+            print(json.dumps(row4))
+            result["test1x4"] = row4
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "focus.json").write_text(json.dumps(result, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
