@@ -21,13 +21,15 @@ demo: setup
 	$(BIN)/autosar info sample_logs/ci_seed1.mcap
 	$(BIN)/autosar ingest sample_logs/ci_seed1.mcap --output demo_out/drive.h5 --overwrite
 	$(BIN)/autosar info demo_out/drive.h5
-	$(BIN)/autosar simulate --scenario ci --seed 2 --output demo_out/ci_seed2.mcap --overwrite
-	@echo "demo: drive.h5, a new simulated log and its truth sidecar in demo_out/"
+	$(BIN)/autosar navigate demo_out/drive.h5 --output demo_out/trajectory.h5 --plot --overwrite
+	$(BIN)/autosar focus demo_out/drive.h5 --trajectory demo_out/trajectory.h5 --output demo_out/image --overwrite
+	@echo "demo: drive.h5, trajectory.h5 (+ .png) and image.tif / image.h5 / image.png in demo_out/"
 
 bench: setup
 	$(BIN)/python benches/bench_simulate.py
 	$(BIN)/python benches/bench_ingest.py
 	$(BIN)/python benches/bench_navigate.py
+	$(BIN)/python benches/bench_focus.py
 
 lint: setup
 	$(BIN)/ruff check autosar_cli tests benches
