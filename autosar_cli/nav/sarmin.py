@@ -222,11 +222,12 @@ def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[t
         gates[k] = chi2.ppf(nav.gate_probability, k)
     geo = np.array([veh.wheelbase_m, veh.track_front_m, veh.track_rear_m, gnss_lever[0], gnss_lever[1]])
     lam = float(ukf.points.alpha**2 * (len(x0) + ukf.points.kappa) - len(x0))  # filterpy's Merwe lambda
+    if E == 0:
+        raise NavInputError("no measurement after the initial GNSS fix: nothing to navigate")
+    # wsum: the exact sum of filterpy's weights (see the kernel's docstring).
     T, X, PP, XP, FF, PK, DT, used, rejected = kern.run_filter(
         times[order], ev_kind, zs, sig, t_start, x0, P0, q, ukf.Wm, ukf.Wc, lam, ng, geo, scale_i, steer_i,
         nav.steering_min_speed_mps, gates, nav.max_step_s, math.fsum(ukf.Wm))
-    if len(T) < 2:
-        raise NavInputError("no measurement after the initial GNSS fix: nothing to navigate")
     xs, Ps = kern.smooth(X, PP, XP, FF, PK, DT, q) if smooth else (X, PP)
     label = [g.name for g in inputs.gyros] + ["wheels", "steering", "gnss_pos", "gnss_vel"]
     # One state per distinct instant already (the kernel refines a state for measurements at its instant).

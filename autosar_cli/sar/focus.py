@@ -163,23 +163,37 @@ def _candidate_pixels(grid: FocusGrid, ref: NDArray[np.float64], vel: NDArray[np
     return slice(r0, max(r0, r1)), slice(c0, max(c0, c1))
 
 
-def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Path, config: Config,
-          options: FocusOptions, *, overwrite: bool = False,
-          progress: Callable[[int, int], None] | None = None, command: str = "") -> FocusReport:
-    """Focus the radar of ``drive_path`` along ``trajectory_path`` and write OUT.tif/.h5/.png."""
+@dataclass
+class FocusResult:
+    """In-memory result of :func:`focus_images`: one image per grid plus what it took."""
+
+    images: list[FocusedImage]
+    frames_used: int
+    frames_skipped: dict[str, int]
+    backprojections: int
+    timings_s: dict[str, float]
+    drive_s: float
+
+
+def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, config: Config, options: FocusOptions,
+                 grids: list[FocusGrid] | None = None, *, progress: Callable[[int, int], None] | None = None,
+                 command: str = "") -> FocusResult:
+    """Focus a drive along a trajectory onto ``grids`` (default: the one ``options.grid`` describes).
+
+    One pass over the radar data serves every grid, so e.g. fine patches around several reflectors cost
+    one range compression. ``trajectory``: a trajectory.h5 path or a :class:`Trajectory`.
+    """
     timings: Counter[str] = Counter()
     t_start = time.perf_counter()
-    parse_grid(options.grid)  # a bad --grid fails before any work
-    if options.channels not in (8, 12):
-        raise FocusError(f"--channels {options.channels}: choose 8 or 12")
-    existing = [str(p) for p in product_paths(Path(output)).values() if p.exists()]
-    if existing and not overwrite:
-        raise FocusError(f"{existing[0]} already exists; pass --overwrite to replace it")
-    try:
-        traj = read_trajectory(trajectory_path)
-    except (OSError, ValueError) as exc:
-        msg = str(exc)
-        raise FocusError(msg if str(trajectory_path) in msg else f"{trajectory_path}: {msg}") from None
+    if isinstance(trajectory, Trajectory):
+        traj, traj_name = trajectory, f"<{trajectory.method} trajectory>"
+    else:
+        traj_name = str(trajectory)
+        try:
+            traj = read_trajectory(trajectory)
+        except (OSError, ValueError) as exc:
+            msg = str(exc)
+            raise FocusError(msg if traj_name in msg else f"{traj_name}: {msg}") from None
     with Drive(drive_path) as drive:
         try:
             radar = drive.radar()
@@ -194,8 +208,8 @@ def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Pat
         pairs = channel_pairs(n_tx, n_rx, options.channels)
         geometry = _usable_frames(radar, traj, config, options.min_speed_mps)
         if geometry.frames.size < 2:
-            raise FocusError(f"{drive_path}: no radar frame lies inside the trajectory {trajectory_path} while moving")
-        grid = make_grid(options, geometry, config)
+            raise FocusError(f"{drive_path}: no radar frame lies inside the trajectory {traj_name} while moving")
+        grid_list = grids if grids else [make_grid(options, geometry, config)]
         timings["geometry"] += time.perf_counter() - t_start
 
         n_bins = n_samp * options.upsample
@@ -209,7 +223,7 @@ def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Pat
         antenna_of_tx = {t: i for i, t in enumerate(used_tx)}
         channels = np.array([[antenna_of_tx[t], len(used_tx) + c] for c, (t, _) in enumerate(pairs)])
 
-        image = np.zeros(grid.size, np.complex64)
+        images = [np.zeros(g.size, np.complex64) for g in grid_list]
         n_bp = 0
         frames = geometry.frames
         n_blocks = (len(frames) + options.block_pulses - 1) // options.block_pulses
@@ -234,34 +248,53 @@ def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Pat
             ant = np.concatenate([pc.tx[:, used_tx].transpose(1, 0, 2),
                                   np.stack([pc.rx[:, t, r] for t, r in pairs])], axis=0)
             block.set_antennas(ant)
-            rows, cols = _candidate_pixels(grid, geometry.reference[sel], geometry.velocity[sel], half_width,
-                                           config.radar.max_range_m, side)
-            rr, cc = np.meshgrid(np.arange(grid.n_across)[rows], np.arange(grid.n_along)[cols], indexing="ij")
-            flat = (rr * grid.n_along + cc).ravel()
-            pix = grid.pixel_enu(rr, cc).reshape(-1, 3)
-            win = stripmap_windows(pix, geometry.reference[sel], geometry.velocity[sel], half_width, side)
-            keep = win[:, 1] > win[:, 0]
             timings["geometry"] += time.perf_counter() - t0
-
-            t0 = time.perf_counter()
-            if keep.any():
-                vals = backproject_block(block, pix[keep], win[keep])
-                image[flat[keep]] += vals
-                n_bp += int(np.sum(win[keep, 1] - win[keep, 0])) * len(pairs)
-            timings["backprojection"] += time.perf_counter() - t0
+            for grid, image in zip(grid_list, images, strict=True):
+                t0 = time.perf_counter()
+                rows, cols = _candidate_pixels(grid, geometry.reference[sel], geometry.velocity[sel], half_width,
+                                               config.radar.max_range_m, side)
+                rr, cc = np.meshgrid(np.arange(grid.n_across)[rows], np.arange(grid.n_along)[cols], indexing="ij")
+                flat = (rr * grid.n_along + cc).ravel()
+                pix = grid.pixel_enu(rr, cc).reshape(-1, 3)
+                win = stripmap_windows(pix, geometry.reference[sel], geometry.velocity[sel], half_width, side)
+                keep = win[:, 1] > win[:, 0]
+                timings["geometry"] += time.perf_counter() - t0
+                t0 = time.perf_counter()
+                if keep.any():
+                    image[flat[keep]] += backproject_block(block, pix[keep], win[keep])
+                    n_bp += int(np.sum(win[keep, 1] - win[keep, 0])) * len(pairs)
+                timings["backprojection"] += time.perf_counter() - t0
             if progress is not None:
                 progress(b + 1, n_blocks)
         drive_s = float((geometry.t_ns[-1] - geometry.t_ns[0]) / 1e9)
 
-    t0 = time.perf_counter()
     params = {**asdict(options), "channel_pairs": [list(p) for p in pairs], "start_frequency_hz": f0,
               "slope_hz_per_s": slope, "sample_rate_hz": fs, "num_samples": n_samp, "bin_m": bin_m,
               "cycles_per_m": cycles_per_m, "wavelength_m": wavelength, "half_width_rad": half_width,
               "trajectory_method": traj.method, "frames_used": int(len(frames)), "backprojections": n_bp}
-    provenance = {"drive": str(drive_path), "trajectory": str(trajectory_path), "autosar_version": __version__,
+    provenance = {"drive": str(drive_path), "trajectory": traj_name, "autosar_version": __version__,
                   "command": command, "config": config.source}
-    img = FocusedImage(image.reshape(grid.shape), grid, traj.origin, params, provenance)
+    out = [FocusedImage(img.reshape(g.shape), g, traj.origin, dict(params), dict(provenance))
+           for g, img in zip(grid_list, images, strict=True)]
+    return FocusResult(out, int(len(frames)), {k: v for k, v in geometry.skipped.items() if v}, n_bp, dict(timings),
+                       drive_s)
+
+
+def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Path, config: Config,
+          options: FocusOptions, *, overwrite: bool = False,
+          progress: Callable[[int, int], None] | None = None, command: str = "") -> FocusReport:
+    """Focus the radar of ``drive_path`` along ``trajectory_path`` and write OUT.tif/.h5/.png."""
+    parse_grid(options.grid)  # a bad --grid fails before any work
+    if options.channels not in (8, 12):
+        raise FocusError(f"--channels {options.channels}: choose 8 or 12")
+    existing = [str(p) for p in product_paths(Path(output)).values() if p.exists()]
+    if existing and not overwrite:
+        raise FocusError(f"{existing[0]} already exists; pass --overwrite to replace it")
+    res = focus_images(drive_path, trajectory_path, config, options, progress=progress, command=command)
+    t0 = time.perf_counter()
+    img = res.images[0]
     outputs = write_image(Path(output), img, overwrite=overwrite)
-    timings["write"] += time.perf_counter() - t0
-    return FocusReport({k: str(v) for k, v in outputs.items()}, grid.shape, int(len(frames)),
-                       {k: v for k, v in geometry.skipped.items() if v}, n_bp, dict(timings), drive_s)
+    timings = dict(res.timings_s)
+    timings["write"] = time.perf_counter() - t0
+    return FocusReport({k: str(v) for k, v in outputs.items()}, img.grid.shape, res.frames_used, res.frames_skipped,
+                       res.backprojections, timings, res.drive_s)
