@@ -330,6 +330,56 @@ def focus(
 
 
 @app.command()
+def run(
+    logs: Annotated[list[Path], typer.Argument(help="Drive log(s): .mcap, .bag, rosbag2 directory (and CAN/NMEA "
+                                               "log files), as for `autosar ingest`.")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="Run directory: drive.h5, trajectory.h5, "
+                                         "image.tif/.h5/.png and run.json.")],
+    method: Annotated[NavMethod, typer.Option("--method", "-m", help="Navigation method (see `autosar navigate`).")]
+    = NavMethod.sar_min,
+    truth: Annotated[Path | None, typer.Option("--truth", help="Truth sidecar for --method truth.")] = None,
+    config: ConfigOpt = None,
+    overwrite: OverwriteOpt = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """Ingest, navigate and focus a drive in one go; every product in one directory plus a run.json manifest."""
+    with _errors():
+        from autosar_cli.run import run as run_chain
+
+        cfg = _load_config(config)
+        if not as_json and err.is_terminal:
+            with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                          TimeElapsedColumn(), console=err, transient=True) as bar:
+                tasks: dict[str, Any] = {}
+
+                def update(stage: str, done: int, total: int) -> None:
+                    if stage not in tasks:
+                        tasks[stage] = bar.add_task(stage, total=total)
+                    bar.update(tasks[stage], completed=done, total=total)
+
+                manifest = run_chain(logs, output, cfg, method=method.value, truth_path=truth, overwrite=overwrite,
+                                     progress=update, command=" ".join(sys.argv))
+        else:
+            manifest = run_chain(logs, output, cfg, method=method.value, truth_path=truth, overwrite=overwrite,
+                                 command=" ".join(sys.argv))
+        if as_json:
+            out.print_json(json.dumps(manifest, default=str))
+            return
+        table = Table("stage", "wall (s)", "summary")
+        st = manifest["stages"]
+        table.add_row("ingest", f"{st['ingest']['wall_s']:.2f}", f"{st['ingest']['messages']} messages")
+        table.add_row("navigate", f"{st['navigate']['wall_s']:.2f}",
+                      f"{st['navigate']['method']}, {st['navigate']['distance_m']:.1f} m")
+        table.add_row("focus", f"{st['focus']['wall_s']:.2f}",
+                      f"{st['focus']['grid_shape'][0]} x {st['focus']['grid_shape'][1]} px, "
+                      f"{st['focus']['backprojections'] / 1e9:.2f} G back-projections")
+        out.print(table)
+        out.print(f"wrote [bold]{output}[/] (run.json, drive.h5, trajectory.h5, image.tif/.h5/.png) in "
+                  f"{manifest['wall_s']:.1f} s = {manifest['fraction_of_drive']:.2f} x the drive's "
+                  f"{manifest['drive_s']:.1f} s")
+
+
+@app.command()
 def info(
     path: Annotated[Path, typer.Argument(help="A drive log (.mcap, .bag, rosbag2 directory) or a drive.h5.")],
     as_json: JsonOpt = False,
