@@ -13,10 +13,13 @@ import math
 import time
 from collections import Counter
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -227,6 +230,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         n_bp = 0
         frames = geometry.frames
         n_blocks = (len(frames) + options.block_pulses - 1) // options.block_pulses
+        pool = ThreadPoolExecutor(max(1, min(len(pairs), numba.get_num_threads())))
         for b in range(n_blocks):
             sel = slice(b * options.block_pulses, min(len(frames), (b + 1) * options.block_pulses))
             idx = frames[sel]
@@ -238,9 +242,10 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
             t0 = time.perf_counter()
             block = PulseBlock.empty(len(pairs), n_bins, len(idx), len(used_tx) + len(pairs), channels=channels,
                                      range0_m=0.0, bin_m=bin_m, cycles_per_m=cycles_per_m)
-            for c, (t, r) in enumerate(pairs):
-                range_compress_into(raw[:, t, r], block.re[c], block.im[c], sample_rate_hz=fs, slope_hz_per_s=slope,
-                                    window=options.window, upsample=options.upsample)
+            # one channel per thread (FFT and transposing copies release the GIL): both cores stay busy
+            beats = [raw[:, t, r] for t, r in pairs]
+            list(pool.map(partial(range_compress_into, sample_rate_hz=fs, slope_hz_per_s=slope, window=options.window,
+                                  upsample=options.upsample, workers=1), beats, block.re, block.im))
             timings["range_compression"] += time.perf_counter() - t0
 
             t0 = time.perf_counter()
@@ -266,6 +271,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
                 timings["backprojection"] += time.perf_counter() - t0
             if progress is not None:
                 progress(b + 1, n_blocks)
+        pool.shutdown()
         drive_s = float((geometry.t_ns[-1] - geometry.t_ns[0]) / 1e9)
 
     params = {**asdict(options), "channel_pairs": [list(p) for p in pairs], "start_frequency_hz": f0,

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import functools
 
-import numba as nb
 import numpy as np
 import scipy.fft
 import scipy.signal
@@ -75,8 +74,7 @@ def range_compress_into(beat: ArrayLike, out_re: NDArray[np.float32], out_im: ND
     """Compress (P, N) beat samples (complex, or int16 I/Q (P, N, 2)) into planar (bin, pulse) arrays.
 
     ``out_re``/``out_im`` (N * upsample, >= P) float32 receive the profiles transposed: bin-major with pulses
-    contiguous, the layout the back-projection kernel reads. The reference ramp is applied while
-    transposing, so the spectrum is read once.
+    contiguous, the layout the back-projection kernel reads.
     """
     x = np.asarray(beat)
     if x.dtype == np.int16 and x.shape[-1] == 2:
@@ -84,28 +82,11 @@ def range_compress_into(beat: ArrayLike, out_re: NDArray[np.float32], out_im: ND
     n = x.shape[-1]
     nfft = n * upsample
     spec = scipy.fft.fft(x.astype(np.complex64, copy=False) * _taper32(window, n), n=nfft, axis=-1, workers=workers)
-    ramp = _reference_ramp(n, nfft, float(sample_rate_hz), float(slope_hz_per_s))
-    _ramp_transpose(spec, ramp, out_re, out_im)
-
-
-@nb.njit(parallel=True, cache=True)
-def _ramp_transpose(spec, ramp, out_re, out_im):  # pragma: no cover - compiled
-    """out[b, p] = spec[p, b] * ramp[b] (planar re/im), in tiles that stay in L1."""
-    n_p, n_b = spec.shape
-    tile = 64
-    n_tiles = (n_b + tile - 1) // tile
-    for t in nb.prange(n_tiles):
-        b0 = t * tile
-        b1 = min(n_b, b0 + tile)
-        for p0 in range(0, n_p, 16):
-            p1 = min(n_p, p0 + 16)
-            for b in range(b0, b1):
-                rr = ramp[b].real
-                ri = ramp[b].imag
-                for p in range(p0, p1):
-                    v = spec[p, b]
-                    out_re[b, p] = v.real * rr - v.imag * ri
-                    out_im[b, p] = v.real * ri + v.imag * rr
+    spec *= _reference_ramp(n, nfft, float(sample_rate_hz), float(slope_hz_per_s))
+    p = spec.shape[0]
+    # numpy's strided copy transposes ~3x faster here than a tiled numba loop (measured)
+    np.copyto(out_re[:, :p], spec.real.T)
+    np.copyto(out_im[:, :p], spec.imag.T)
 
 
 def bistatic_range_axis(n_fft: int, *, sample_rate_hz: float, slope_hz_per_s: float) -> NDArray[np.float64]:
