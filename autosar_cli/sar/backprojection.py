@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 LANES = 16  #: pulses per vector (one AVX-512 register of float32)
 E_MAX = 0.05  #: bound on the series variable e; truncated after e^5 the error is < 0.021 e^6 R < 1e-8 m at 27 m
 DEFAULT_MAX_CHUNK = 512  #: pulses per reference (longer windows are split)
+MAX_SPAN_BINS = 1.95  #: range migration allowed within a chunk on the fast path (it reads four rows)
 
 
 def _fit_odd(fn, n_terms: int, half_width: float) -> tuple[float, ...]:
@@ -199,9 +200,10 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
             acc_re = 0.0
             acc_im = 0.0
             p = lo
+            chunk = max_chunk
             while p < hi:
-                end = min(hi, p + max_chunk)
-                # halve the chunk until the series variable is small at both ends (|e| is largest there) and
+                end = min(hi, p + chunk)
+                # shorten the chunk until the series variable is small at both ends (|e| is largest there) and
                 # channel 0's samples stay within three range bins (the fast path reads four rows). Checked
                 # on channel 0's two antennas: the others move with them and sit within centimetres, so their
                 # e differs by a few per cent at most (E_MAX keeps a factor 2 of margin on the error bound)
@@ -238,9 +240,13 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                         sag += 2.0 * step2 / (r * max(1.0 - e_max, 0.5)) * h2 / 8.0
                     sag *= bin_inv
                     span = (max(0.0, span_lo, span_hi) - min(0.0, span_lo, span_hi)) * bin_inv + 2.0 * sag
-                    if (e_max <= E_MAX and span < 2.9) or end - p <= LANES:
+                    # span < 2 bins keeps every sample within rows floor(lowest) .. floor(lowest) + 3
+                    if (e_max <= E_MAX and span < MAX_SPAN_BINS) or end - p <= LANES:
                         break
-                    end = p + (end - p) // 2
+                    # e and the span grow about linearly with the chunk: jump to the length that fits
+                    shrink = 0.85 * min(E_MAX / max(e_max, 1e-12), MAX_SPAN_BINS / max(span, 1e-12), 0.5)
+                    end = p + max(LANES, int((end - p) * shrink) // LANES * LANES)
+                chunk = min(max_chunk, max(2 * LANES, (end - p) * 5 // 4))  # where the next chunk starts
                 series_ok = e_max <= E_MAX
                 order_series = 3 if e_max <= 0.01 else 5
                 n = end - p

@@ -1,0 +1,147 @@
+"""Trajectory accuracy against the truth: absolute error, relative pose error, rigid SE(2) alignment.
+
+Everything is evaluated at common instants (normally the radar frame times, so each frame counts once)
+at the radar's mean antenna phase centre (the point whose motion shapes the image), in the local ENU
+frame of the estimate. Errors are split into along-track and across-track components in the frame of
+the true heading (across positive to the left of the direction of travel).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from autosar_cli.config import Config
+from autosar_cli.evaluate.alignment import Se2, fit_se2
+from autosar_cli.nav.trajectory import Trajectory, antenna_lever_arms, relative_pose_error
+
+Array = NDArray[np.float64]
+
+#: Travel distances (m) of the relative pose error, as ``evo_rpe --delta D --delta_unit m``.
+RPE_DELTAS_M = (1.0, 10.0)
+
+
+def phase_centre_lever_arm(config: Config) -> Array:
+    """Body-frame lever arm (3,) (m from the CoG) of the radar's mean phase centre: the mean of Tx and Rx means."""
+    tx, rx = antenna_lever_arms(config)
+    return 0.5 * (tx.mean(axis=0) + rx.mean(axis=0))
+
+
+@dataclass
+class TrajectoryErrors:
+    """Time series of an estimate's errors at common instants (arrays of length M)."""
+
+    method: str
+    t_ns: NDArray[np.int64]  #: instants, ns since the Unix epoch
+    distance_m: Array  #: true travel of the phase centre since the first instant, m
+    est_xy: Array  #: (M, 2) estimated phase centre, ENU m
+    ref_xy: Array  #: (M, 2) true phase centre, ENU m
+    ref_heading: Array  #: (M,) true heading, rad (ENU, from East CCW)
+    error_along: Array  #: estimate - truth, along the true heading, m
+    error_across: Array  #: estimate - truth, across (left positive), m
+    alignment: Se2  #: maps estimated positions onto the truth (least squares over all instants)
+    aligned_along: Array  #: T(estimate) - truth, along, m
+    aligned_across: Array  #: T(estimate) - truth, across, m
+
+    @property
+    def t_s(self) -> Array:
+        return (self.t_ns - self.t_ns[0]) / 1e9
+
+
+@dataclass(frozen=True)
+class TrajectoryMetrics:
+    """Summary of :class:`TrajectoryErrors` (metres unless the name says otherwise)."""
+
+    method: str
+    samples: int
+    duration_s: float
+    distance_m: float
+    abs_rmse_m: float  #: horizontal RMSE, time-matched, no alignment
+    abs_max_m: float
+    abs_rmse_along_m: float
+    abs_rmse_across_m: float
+    rpe_1m_along_m: float  #: RMS relative pose error over 1 m of travel, along-track component
+    rpe_1m_across_m: float
+    rpe_10m_along_m: float
+    rpe_10m_across_m: float
+    alignment_angle_deg: float  #: rotation of the SE(2) alignment (estimate -> truth)
+    alignment_translation_m: tuple[float, float]  #: its translation (ENU x, y)
+    aligned_rmse_m: float  #: horizontal RMSE after the alignment
+    aligned_rmse_across_m: float
+    aligned_max_m: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def _rms(x: Array) -> float:
+    return float(np.sqrt(np.mean(np.square(x)))) if x.size else math.nan
+
+
+def _along_across(d: Array, heading: Array) -> tuple[Array, Array]:
+    c, s = np.cos(heading), np.sin(heading)
+    return c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]
+
+
+def common_instants(est: Trajectory, ref: Trajectory, t_ns: ArrayLike | None = None, *,
+                    min_speed_mps: float = 0.2, rate_hz: float = 100.0) -> NDArray[np.int64]:
+    """Instants inside both trajectories' spans where the truth moves at ``min_speed_mps`` or more.
+
+    ``t_ns``: candidate instants (e.g. the radar frame times); default: a uniform ``rate_hz`` grid.
+    """
+    lo, hi = max(est.t_ns[0], ref.t_ns[0]), min(est.t_ns[-1], ref.t_ns[-1])
+    if hi <= lo:
+        raise ValueError(f"the {est.method} and {ref.method} trajectories do not overlap in time")
+    if t_ns is None:
+        t = np.arange(lo, hi, int(1e9 / rate_hz), dtype=np.int64)
+    else:
+        t = np.asarray(t_ns, dtype=np.int64)
+        t = t[(t >= lo) & (t <= hi)]
+    speed = np.interp(t, ref.t_ns, ref.speed)
+    t = t[speed >= min_speed_mps]
+    if len(t) < 2:
+        raise ValueError(f"the {est.method} and truth trajectories share fewer than two moving instants")
+    return t
+
+
+def trajectory_errors(est: Trajectory, ref: Trajectory, lever_arm: ArrayLike, t_ns: ArrayLike) -> TrajectoryErrors:
+    """Errors of ``est`` against ``ref`` (same ENU frame) at instants ``t_ns`` for the body point ``lever_arm``."""
+    t = np.asarray(t_ns, dtype=np.int64)
+    lever = np.asarray(lever_arm, dtype=np.float64).reshape(1, 3)
+    est_xy = est.body_points(t, lever)[:, 0, :2]
+    ref_xy = ref.body_points(t, lever)[:, 0, :2]
+    _, ref_psi = ref.pose(t)
+    dist = np.r_[0.0, np.cumsum(np.hypot(*np.diff(ref_xy, axis=0).T))]
+    along, across = _along_across(est_xy - ref_xy, ref_psi)
+    align = fit_se2(est_xy, ref_xy)
+    a_along, a_across = _along_across(align.apply(est_xy) - ref_xy, ref_psi)
+    return TrajectoryErrors(est.method, t, dist, est_xy, ref_xy, ref_psi, along, across, align, a_along, a_across)
+
+
+def trajectory_metrics(est: Trajectory, errors: TrajectoryErrors,
+                       deltas_m: tuple[float, float] = RPE_DELTAS_M) -> TrajectoryMetrics:
+    """Summarise ``errors`` and add the relative pose error over ``deltas_m`` (1 m and 10 m) of true travel.
+
+    The RPE is computed on SE(2) poses (phase-centre position, vehicle heading) at the same instants.
+    """
+    t = errors.t_ns
+    _, est_psi = est.pose(t)
+    rpe: dict[float, tuple[float, float]] = {}
+    for d in deltas_m:
+        err = relative_pose_error(errors.est_xy, est_psi, errors.ref_xy, errors.ref_heading, d)
+        rpe[d] = (_rms(err[:, 0]), _rms(err[:, 1])) if len(err) else (math.nan, math.nan)
+    abs_err = np.hypot(errors.error_along, errors.error_across)
+    aligned = np.hypot(errors.aligned_along, errors.aligned_across)
+    d1, d10 = deltas_m
+    return TrajectoryMetrics(
+        method=est.method, samples=int(len(t)), duration_s=float((t[-1] - t[0]) / 1e9),
+        distance_m=float(errors.distance_m[-1]), abs_rmse_m=_rms(abs_err), abs_max_m=float(abs_err.max()),
+        abs_rmse_along_m=_rms(errors.error_along), abs_rmse_across_m=_rms(errors.error_across),
+        rpe_1m_along_m=rpe[d1][0], rpe_1m_across_m=rpe[d1][1], rpe_10m_along_m=rpe[d10][0],
+        rpe_10m_across_m=rpe[d10][1], alignment_angle_deg=math.degrees(errors.alignment.angle_rad),
+        alignment_translation_m=errors.alignment.translation, aligned_rmse_m=_rms(aligned),
+        aligned_rmse_across_m=_rms(errors.aligned_across), aligned_max_m=float(aligned.max()))
