@@ -97,6 +97,8 @@ def check_reflectors(d: Drive, tag: str) -> list[dict[str, float]]:
         assert m.range_cut.pslr_db < -25.0, rows[-1]  # Hann: -31.5 dB
         assert -16.0 < m.cross_range_cut.pslr_db < -9.0, rows[-1]  # uniform aperture: -13.3 dB
     assert len(rows) >= 3
+    for row in rows:  # shown with pytest -s: the figures quoted in docs/FOCUS.md
+        print(tag, {k: (round(v, 2) if isinstance(v, float) else v) for k, v in row.items()})
     return rows
 
 
