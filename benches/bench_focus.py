@@ -30,6 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
+import autosar_cli  # noqa: F401  (first: lets numba use 512-bit vectors, see autosar_cli/__init__.py)
+
 RESULTS = Path(__file__).resolve().parent / "results"
 C = 299_792_458.0
 

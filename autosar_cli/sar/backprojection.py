@@ -85,8 +85,9 @@ def _antenna_deltas(ax, ay, az, a, p, q, n_pad, mx, my, mz, inv_r, inv_r2, order
         out[l] = _delta_series(d, inv_r, inv_r2, order)
 
 
-def _make_accumulate(masked: bool):  # noqa: ANN202 - returns a numba dispatcher
-    """Build the row-window accumulator; ``masked`` (a compile-time constant) zeroes lanes >= n_valid."""
+def _make_accumulate(masked: bool, four_rows: bool):  # noqa: ANN202 - returns a numba dispatcher
+    """Build the row-window accumulator (compile-time variants): ``masked`` zeroes lanes >= n_valid;
+    ``four_rows`` reads rows b0..b0+3 (samples within [b0, b0+3)), else b0..b0+2 (within [b0, b0+2))."""
 
     @nb.njit(fastmath=True, cache=True, inline="always")
     def accumulate(prof_re, prof_im, row0, stride, b0, dt, dr, start, n_lanes, n_valid, i0, c0, bin_inv,
@@ -110,20 +111,26 @@ def _make_accumulate(masked: bool):  # noqa: ANN202 - returns a numba dispatcher
             db = dt[l] + dr[l]
             fi = i0 - fb0 + db * ib
             m1 = fi >= _F(1.0)
-            m2 = fi >= _F(2.0)
             fr = fi - np.floor(fi)
             x0 = prof_re[r0 + l]
             x1 = prof_re[r1 + l]
             x2 = prof_re[r2 + l]
-            x3 = prof_re[r3 + l]
             y0 = prof_im[r0 + l]
             y1 = prof_im[r1 + l]
             y2 = prof_im[r2 + l]
-            y3 = prof_im[r3 + l]
-            a_re = x2 if m2 else (x1 if m1 else x0)
-            b_re = x3 if m2 else (x2 if m1 else x1)
-            a_im = y2 if m2 else (y1 if m1 else y0)
-            b_im = y3 if m2 else (y2 if m1 else y1)
+            if four_rows:
+                m2 = fi >= _F(2.0)
+                x3 = prof_re[r3 + l]
+                y3 = prof_im[r3 + l]
+                a_re = x2 if m2 else (x1 if m1 else x0)
+                b_re = x3 if m2 else (x2 if m1 else x1)
+                a_im = y2 if m2 else (y1 if m1 else y0)
+                b_im = y3 if m2 else (y2 if m1 else y1)
+            else:
+                a_re = x1 if m1 else x0
+                b_re = x2 if m1 else x1
+                a_im = y1 if m1 else y0
+                b_im = y2 if m1 else y1
             s_re = a_re + fr * (b_re - a_re)
             s_im = a_im + fr * (b_im - a_im)
             f = c0 + db * kc
@@ -145,8 +152,10 @@ def _make_accumulate(masked: bool):  # noqa: ANN202 - returns a numba dispatcher
     return accumulate
 
 
-_accumulate_rows = _make_accumulate(False)
-_accumulate_rows_masked = _make_accumulate(True)
+_accumulate_rows = _make_accumulate(False, True)
+_accumulate_rows_masked = _make_accumulate(True, True)
+_accumulate_3rows = _make_accumulate(False, False)
+_accumulate_3rows_masked = _make_accumulate(True, False)
 
 
 @nb.njit(cache=True)
@@ -276,15 +285,26 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                     top = max(i0, i_first, i_last) + sag
                     if series_ok and b0 >= 0 and b0 + 4 < n_bins and top < b0 + 3:
                         n16 = n // LANES * LANES
-                        sr, si = _accumulate_rows(prof_re, prof_im, row0, stride, b0, delta[ta], delta[ra], 0, n16, n,
-                                                  np.float32(i0), c0, bin_inv, cycles_per_m)
+                        if top < b0 + 2:  # usual under stripmap windows: three rows suffice
+                            sr, si = _accumulate_3rows(prof_re, prof_im, row0, stride, b0, delta[ta], delta[ra], 0,
+                                                       n16, n, np.float32(i0), c0, bin_inv, cycles_per_m)
+                            if n16 < n:
+                                sr2, si2 = _accumulate_3rows_masked(prof_re, prof_im, row0, stride, b0, delta[ta],
+                                                                    delta[ra], n16, LANES, n, np.float32(i0), c0,
+                                                                    bin_inv, cycles_per_m)
+                                sr += sr2
+                                si += si2
+                        else:
+                            sr, si = _accumulate_rows(prof_re, prof_im, row0, stride, b0, delta[ta], delta[ra], 0,
+                                                      n16, n, np.float32(i0), c0, bin_inv, cycles_per_m)
+                            if n16 < n:
+                                sr2, si2 = _accumulate_rows_masked(prof_re, prof_im, row0, stride, b0, delta[ta],
+                                                                   delta[ra], n16, LANES, n, np.float32(i0), c0,
+                                                                   bin_inv, cycles_per_m)
+                                sr += sr2
+                                si += si2
                         acc_re += sr
                         acc_im += si
-                        if n16 < n:
-                            sr, si = _accumulate_rows_masked(prof_re, prof_im, row0, stride, b0, delta[ta], delta[ra],
-                                                             n16, LANES, n, np.float32(i0), c0, bin_inv, cycles_per_m)
-                            acc_re += sr
-                            acc_im += si
                     else:
                         sr, si = _accumulate_exact(prof_re, prof_im, row0, stride, n_bins, ax, ay, az, ta, ra, p, n,
                                                    px, py, pz, range0[c], bin_inv, cycles_per_m)
