@@ -69,7 +69,10 @@ def _delta_series(d, inv_r, inv_r2, order):  # pragma: no cover - compiled
 
 @nb.njit(fastmath=True, cache=True, inline="always")
 def _antenna_deltas(ax, ay, az, a, p, q, n_pad, mx, my, mz, inv_r, inv_r2, order, out):  # pragma: no cover
-    """out[l] = R(p + l) - R(q) for antenna a, l < n_pad (the series above; contiguous float32 loads)."""
+    """out[l] = R(p + l) - R(q) for antenna a, l < n_pad (the series above; contiguous float32 loads).
+
+    The order branch sits outside the loops: inside, it kept the loop from vectorising (measured 4x).
+    """
     qx = ax[a, q]
     qy = ay[a, q]
     qz = az[a, q]
@@ -77,12 +80,18 @@ def _antenna_deltas(ax, ay, az, a, p, q, n_pad, mx, my, mz, inv_r, inv_r2, order
     ry = ay[a]
     rz = az[a]
     base = _U(p)
-    for l in range(_U(n_pad)):
-        dx = rx[base + l] - qx
-        dy = ry[base + l] - qy
-        dz = rz[base + l] - qz
-        d = dx * (dx + mx) + dy * (dy + my) + dz * (dz + mz)
-        out[l] = _delta_series(d, inv_r, inv_r2, order)
+    if order <= 3:
+        for l in range(_U(n_pad)):
+            dx = rx[base + l] - qx
+            dy = ry[base + l] - qy
+            dz = rz[base + l] - qz
+            out[l] = _delta_series(dx * (dx + mx) + dy * (dy + my) + dz * (dz + mz), inv_r, inv_r2, 3)
+    else:
+        for l in range(_U(n_pad)):
+            dx = rx[base + l] - qx
+            dy = ry[base + l] - qy
+            dz = rz[base + l] - qz
+            out[l] = _delta_series(dx * (dx + mx) + dy * (dy + my) + dz * (dz + mz), inv_r, inv_r2, 5)
 
 
 def _make_accumulate(masked: bool, four_rows: bool):  # noqa: ANN202 - returns a numba dispatcher
