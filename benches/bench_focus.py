@@ -100,6 +100,7 @@ def repeat_drive(drive: Path, traj_path: Path, times: int, out_drive: Path, out_
     """The drive ``times`` over: radar frames repeated, the trajectory translated end to start each time."""
     import h5py
 
+    from autosar_cli.store.drive import radar_compression
     from autosar_cli.store.trajectory import read_trajectory, write_trajectory
 
     traj = read_trajectory(traj_path)
@@ -115,7 +116,7 @@ def repeat_drive(drive: Path, traj_path: Path, times: int, out_drive: Path, out_
         d["frame_index"] = np.concatenate([g["frame_index"][()] + k * len(t) for k in range(times)])
         raw = g["raw"]
         out = d.create_dataset("raw", (len(t) * times, *raw.shape[1:]), raw.dtype, chunks=raw.chunks,
-                               **{k: v for k, v in (("compression", raw.compression),) if v})
+                               **radar_compression())
         for k in range(times):
             for i in range(0, len(t), 1024):
                 block = raw[i: i + 1024]
@@ -188,7 +189,7 @@ def main() -> None:
             print(json.dumps(row))
             result["test1"] = row
             drive4, traj4 = work / "test1x4.drive.h5", work / "test1x4.traj.h5"
-            if not drive4.exists():
+            if not (drive4.exists() and traj4.exists()):
                 repeat_drive(drive, traj, 4, drive4, traj4)
             r4 = run_focus(drive4, traj4, work / "image4")
             row4 = {"case": "test1 four times over (radar repeated, trajectory continued)",
