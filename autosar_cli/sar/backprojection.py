@@ -293,25 +293,21 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                     b0 = int(math.floor(min(i0, i_first, i_last) - sag))
                     top = max(i0, i_first, i_last) + sag
                     if series_ok and b0 >= 0 and b0 + 4 < n_bins and top < b0 + 3:
-                        n16 = n // LANES * LANES
+                        # one loop per channel: a separate tail call costs more than masking every lane
                         if top < b0 + 2:  # usual under stripmap windows: three rows suffice
-                            sr, si = _accumulate_3rows(prof_re, prof_im, row0, stride, b0, delta[ta], delta[ra], 0,
-                                                       n16, n, np.float32(i0), c0, bin_inv, cycles_per_m)
-                            if n16 < n:
-                                sr2, si2 = _accumulate_3rows_masked(prof_re, prof_im, row0, stride, b0, delta[ta],
-                                                                    delta[ra], n16, LANES, n, np.float32(i0), c0,
-                                                                    bin_inv, cycles_per_m)
-                                sr += sr2
-                                si += si2
-                        else:
+                            if n == n_pad:
+                                sr, si = _accumulate_3rows(prof_re, prof_im, row0, stride, b0, delta[ta], delta[ra], 0,
+                                                           n, n, np.float32(i0), c0, bin_inv, cycles_per_m)
+                            else:
+                                sr, si = _accumulate_3rows_masked(prof_re, prof_im, row0, stride, b0, delta[ta],
+                                                                  delta[ra], 0, n_pad, n, np.float32(i0), c0, bin_inv,
+                                                                  cycles_per_m)
+                        elif n == n_pad:
                             sr, si = _accumulate_rows(prof_re, prof_im, row0, stride, b0, delta[ta], delta[ra], 0,
-                                                      n16, n, np.float32(i0), c0, bin_inv, cycles_per_m)
-                            if n16 < n:
-                                sr2, si2 = _accumulate_rows_masked(prof_re, prof_im, row0, stride, b0, delta[ta],
-                                                                   delta[ra], n16, LANES, n, np.float32(i0), c0,
-                                                                   bin_inv, cycles_per_m)
-                                sr += sr2
-                                si += si2
+                                                      n, n, np.float32(i0), c0, bin_inv, cycles_per_m)
+                        else:
+                            sr, si = _accumulate_rows_masked(prof_re, prof_im, row0, stride, b0, delta[ta], delta[ra],
+                                                             0, n_pad, n, np.float32(i0), c0, bin_inv, cycles_per_m)
                         acc_re += sr
                         acc_im += si
                     else:
