@@ -234,6 +234,26 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         for b in range(n_blocks):
             sel = slice(b * options.block_pulses, min(len(frames), (b + 1) * options.block_pulses))
             idx = frames[sel]
+            # which pixels of each grid this block can reach; a block no grid needs is not even read
+            t0 = time.perf_counter()
+            work = []
+            for gi, grid in enumerate(grid_list):
+                rows, cols = _candidate_pixels(grid, geometry.reference[sel], geometry.velocity[sel], half_width,
+                                               config.radar.max_range_m, side)
+                rr, cc = np.meshgrid(np.arange(grid.n_across)[rows], np.arange(grid.n_along)[cols], indexing="ij")
+                if rr.size == 0:
+                    continue
+                pix = grid.pixel_enu(rr, cc).reshape(-1, 3)
+                win = stripmap_windows(pix, geometry.reference[sel], geometry.velocity[sel], half_width, side)
+                keep = win[:, 1] > win[:, 0]
+                if keep.any():
+                    work.append((gi, (rr * grid.n_along + cc).ravel()[keep], pix[keep], win[keep]))
+            timings["geometry"] += time.perf_counter() - t0
+            if not work:
+                if progress is not None:
+                    progress(b + 1, n_blocks)
+                continue
+
             t0 = time.perf_counter()
             raw = radar.raw[idx[0]: idx[-1] + 1]
             raw = raw[idx - idx[0]]
@@ -254,21 +274,11 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
                                   np.stack([pc.rx[:, t, r] for t, r in pairs])], axis=0)
             block.set_antennas(ant)
             timings["geometry"] += time.perf_counter() - t0
-            for grid, image in zip(grid_list, images, strict=True):
-                t0 = time.perf_counter()
-                rows, cols = _candidate_pixels(grid, geometry.reference[sel], geometry.velocity[sel], half_width,
-                                               config.radar.max_range_m, side)
-                rr, cc = np.meshgrid(np.arange(grid.n_across)[rows], np.arange(grid.n_along)[cols], indexing="ij")
-                flat = (rr * grid.n_along + cc).ravel()
-                pix = grid.pixel_enu(rr, cc).reshape(-1, 3)
-                win = stripmap_windows(pix, geometry.reference[sel], geometry.velocity[sel], half_width, side)
-                keep = win[:, 1] > win[:, 0]
-                timings["geometry"] += time.perf_counter() - t0
-                t0 = time.perf_counter()
-                if keep.any():
-                    image[flat[keep]] += backproject_block(block, pix[keep], win[keep])
-                    n_bp += int(np.sum(win[keep, 1] - win[keep, 0])) * len(pairs)
-                timings["backprojection"] += time.perf_counter() - t0
+            t0 = time.perf_counter()
+            for gi, flat, pix, win in work:
+                images[gi][flat] += backproject_block(block, pix, win)
+                n_bp += int(np.sum(win[:, 1] - win[:, 0])) * len(pairs)
+            timings["backprojection"] += time.perf_counter() - t0
             if progress is not None:
                 progress(b + 1, n_blocks)
         pool.shutdown()

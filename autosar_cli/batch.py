@@ -1,0 +1,317 @@
+"""``autosar batch``: one ``autosar run`` per drive, as Dask tasks on a dask.distributed cluster.
+
+Each drive log becomes one task (:func:`run_drive`) that runs :func:`autosar_cli.run.run` into
+``DIR/<drive>/`` and returns a small status record; the products are exactly those of ``autosar run`` on
+that log alone. The cluster is a :class:`~distributed.LocalCluster` of ``workers`` processes (one task
+thread each) unless ``scheduler`` names an existing one (then logs and DIR must be reachable at the same
+paths from every worker).
+
+Failures: a drive whose input is bad (corrupt or missing log, no usable data: the ``ValueError`` family and
+the ingest errors, whose messages name the file) ends at once as a ``failed`` record and never stops the
+other drives. Anything else (an ``OSError`` on a shared file system, ``MemoryError``, a worker that
+died) is raised so that Dask retries the task ``retries`` times, on any worker; if it still fails, the
+drive's record is ``failed`` with the last error. ``DIR/batch.json`` (format ``autosar-batch`` v1) keeps
+every record, the cluster (scheduler address, dashboard link), and the timings.
+
+Threads: every worker runs one task at a time (``threads_per_worker=1``) and its numba kernels with
+``numba_threads`` threads (default: cores // workers for a local cluster, so 2 workers on 2 cores do
+not oversubscribe; set per task with ``numba.set_num_threads``, and as ``NUMBA_NUM_THREADS`` in the
+environment of local workers). A worker process compiles or loads the cached kernels once and keeps
+them for all its drives.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import os
+import platform
+import time
+import uuid
+from collections.abc import Callable, Sequence
+from dataclasses import asdict
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from autosar_cli import __version__
+from autosar_cli.config import Config
+from autosar_cli.ingest.canlog import CanLogError
+from autosar_cli.ingest.pipeline import IngestError
+from autosar_cli.ingest.sources import LogReadError
+from autosar_cli.run import run
+from autosar_cli.sar.focus import FocusOptions
+from autosar_cli.store.atomic import atomic_output
+
+FORMAT = "autosar-batch"
+FORMAT_VERSION = 1
+MANIFEST = "batch.json"
+DEFAULT_RETRIES = 2
+
+#: Errors that say the drive itself is bad: retrying cannot help, the drive is reported failed at once.
+INPUT_ERRORS: tuple[type[BaseException], ...] = (
+    ValueError, LookupError, IngestError, LogReadError, CanLogError, EOFError, FileNotFoundError,
+    FileExistsError, IsADirectoryError, NotADirectoryError, PermissionError,
+)
+
+
+class BatchError(ValueError):
+    """A batch cannot start (no logs, DIR holds another batch, bad worker count); the message says why."""
+
+
+def drive_names(logs: Sequence[str | Path]) -> list[str]:
+    """One directory name per log: its name without the container suffix, made unique with -2, -3, ..."""
+    names: list[str] = []
+    seen: dict[str, int] = {}
+    for log in logs:
+        p = Path(log)
+        base = p.stem if p.suffix.lower() in (".mcap", ".bag", ".db3") else p.name
+        base = base or "drive"
+        seen[base] = seen.get(base, 0) + 1
+        name = base if seen[base] == 1 else f"{base}-{seen[base]}"
+        while name in names:  # e.g. logs named "a-2" and "a", "a"
+            seen[base] += 1
+            name = f"{base}-{seen[base]}"
+        names.append(name)
+    return names
+
+
+def _worker_address() -> str:
+    try:
+        from distributed import get_worker
+
+        return str(get_worker().address)
+    except (ImportError, ValueError):
+        return f"{platform.node()}:{os.getpid()} (no worker)"
+
+
+def _reporter(topic: str | None, name: str, min_interval_s: float = 0.25) -> Callable[[str, int, int], None]:
+    """``progress(stage, done, total)`` that sends throttled events to the client (via the scheduler)."""
+    if topic is None:
+        return lambda stage, done, total: None
+    try:
+        from distributed import get_worker
+
+        worker = get_worker()
+    except (ImportError, ValueError):
+        return lambda stage, done, total: None
+    last: dict[str, float] = {}
+
+    def send(stage: str, done: int, total: int) -> None:
+        now = time.monotonic()
+        if done < total and now - last.get(stage, 0.0) < min_interval_s:
+            return
+        last[stage] = now
+        worker.log_event(topic, {"drive": name, "stage": stage, "done": int(done), "total": int(total)})
+
+    return send
+
+
+def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, method: str = "sar-min",
+              options: FocusOptions | None = None, truth_path: str | None = None, overwrite: bool = False,
+              numba_threads: int | None = None, progress_topic: str | None = None,
+              command: str = "") -> dict[str, Any]:
+    """The Dask task of one drive: :func:`autosar_cli.run.run` into ``out_dir``; returns its status record.
+
+    Input errors (:data:`INPUT_ERRORS`) give a ``failed`` record; any other exception propagates so that
+    Dask retries the task.
+    """
+    if numba_threads:
+        import numba
+
+        numba.set_num_threads(max(1, min(int(numba_threads), numba.config.NUMBA_NUM_THREADS)))
+    report = _reporter(progress_topic, name)
+    report("start", 0, 1)
+    record: dict[str, Any] = {"name": name, "logs": [str(p) for p in logs], "output": str(out_dir),
+                              "worker": _worker_address()}
+    t0 = time.perf_counter()
+    try:
+        manifest = run(logs, out_dir, config, method=method, options=options, truth_path=truth_path,
+                       overwrite=overwrite, progress=report, command=command)
+    except INPUT_ERRORS as exc:
+        with contextlib.suppress(OSError):
+            Path(out_dir).rmdir()  # only if run() left it empty: never touches an earlier run's products
+        record.update(status="failed", error=_message(exc), error_type=type(exc).__name__,
+                      wall_s=time.perf_counter() - t0)
+        report("failed", 1, 1)
+        return record
+    st = manifest["stages"]
+    record.update(status="ok", error=None, wall_s=time.perf_counter() - t0, drive_s=manifest.get("drive_s"),
+                  stages_s={k: v["wall_s"] for k, v in st.items()}, grid_shape=st["focus"]["grid_shape"],
+                  frames_used=st["focus"]["frames_used"], backprojections=st["focus"]["backprojections"],
+                  outputs={"run": "run.json", **{k: v for k, v in manifest["outputs"].items() if k != "image"},
+                           **{f"image_{k}": v for k, v in manifest["outputs"].get("image", {}).items()}})
+    report("done", 1, 1)
+    return record
+
+
+#: Imported on every worker before the first drive (the chain imports some of them on first use).
+WARM_IMPORTS = ("autosar_cli.run", "autosar_cli.ingest.mcap_source", "autosar_cli.ingest.nmea",
+                "autosar_cli.nav.sarmin_kernel", "pyproj", "matplotlib.figure", "matplotlib.backends.backend_agg")
+
+
+def _warm_worker() -> dict[str, Any]:
+    """Run on every worker before the drives: import the chain once (so drive timings exclude it)."""
+    import importlib
+
+    import numba
+
+    importlib.import_module("autosar_cli.run")  # must work: the tasks need it
+    for name in WARM_IMPORTS[1:]:
+        try:
+            importlib.import_module(name)
+        except ImportError:  # pragma: no cover - a module moved: warming is only an optimisation
+            pass
+    return {"pid": os.getpid(), "numba_threads": int(numba.config.NUMBA_NUM_THREADS)}
+
+
+def _message(exc: BaseException) -> str:
+    msg = str(exc).splitlines()[0] if str(exc) else ""
+    return msg or type(exc).__name__
+
+
+def _dashboard(client: Any) -> str | None:
+    try:
+        services = client.scheduler_info().get("services", {})
+    except Exception:  # noqa: BLE001 - the link is a nicety
+        return None
+    return str(client.dashboard_link) if "dashboard" in services else None
+
+
+def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, method: str = "sar-min",
+              options: FocusOptions | None = None, scheduler: str | None = None, workers: int | None = None,
+              retries: int = DEFAULT_RETRIES, numba_threads: int | None = None, overwrite: bool = False,
+              progress: Callable[[dict[str, Any]], None] | None = None,
+              on_cluster: Callable[[dict[str, Any]], None] | None = None, command: str = "") -> dict[str, Any]:
+    """Run every log as its own drive into ``out_dir/<name>/`` on a Dask cluster; returns batch.json's content.
+
+    ``scheduler``: address of an existing scheduler (``tcp://host:8786``); else a LocalCluster of
+    ``workers`` processes (default: one per core, at most one per drive). ``progress(event)`` gets
+    ``{"drive", "stage", "done", "total"}`` events from the workers (stage ``start``, ``ingest``,
+    ``navigate``, ``focus``, ``done`` or ``failed``) and ``{"drive", "stage": "finished", "record"}``
+    once a drive's record is final. ``on_cluster(info)`` is called once the cluster is up (scheduler
+    address, dashboard link, workers). Never raises for a failing drive: look at ``failed``.
+    """
+    if not logs:
+        raise BatchError("no drive logs given")
+    if retries < 0:
+        raise BatchError(f"--retries {retries}: must be 0 or more")
+    if workers is not None and workers < 1:
+        raise BatchError(f"--workers {workers}: must be at least 1")
+    if scheduler and workers:
+        raise BatchError("give either --scheduler (an existing cluster) or --workers (a local one), not both")
+    out = Path(out_dir).resolve()
+    if (out / MANIFEST).exists() and not overwrite:
+        raise BatchError(f"{out}: already holds a batch ({MANIFEST}); pass --overwrite to replace it")
+    out.mkdir(parents=True, exist_ok=True)
+    options = options or FocusOptions.from_config(config)
+    names = drive_names(logs)
+    paths = [str(Path(p).resolve()) for p in logs]
+
+    from distributed import Client, LocalCluster, as_completed
+
+    cores = os.cpu_count() or 1
+    t_start = time.perf_counter()
+    started = datetime.now(UTC).isoformat(timespec="seconds")
+    cluster = None
+    if scheduler:
+        client = Client(scheduler, timeout="30s")
+        kind = "external"
+    else:
+        n = workers or max(1, min(len(logs), cores))
+        threads = numba_threads or max(1, cores // n)
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                               silence_logs=logging.ERROR, env={"NUMBA_NUM_THREADS": str(threads)})
+        client = Client(cluster)
+        kind = "local"
+    try:
+        if kind == "external" and not client.scheduler_info().get("workers"):
+            try:
+                client.wait_for_workers(1, timeout=60)
+            except TimeoutError:
+                raise BatchError(f"{scheduler}: the scheduler has no workers (waited 60 s)") from None
+        try:
+            warm = client.run(_warm_worker)
+        except Exception as exc:  # noqa: BLE001 - e.g. a remote worker without autosar_cli installed
+            raise BatchError(f"the Dask workers cannot run autosar: {_message(exc)}") from exc
+        info = client.scheduler_info()
+        worker_info = info.get("workers", {})
+        if numba_threads is None and kind == "local":
+            numba_threads = max(1, cores // max(1, len(worker_info)))
+        cluster_info = {"kind": kind, "scheduler": str(client.scheduler.address), "dashboard": _dashboard(client),
+                        "workers": len(worker_info),
+                        "threads_per_worker": max((int(w.get("nthreads", 1)) for w in worker_info.values()),
+                                                  default=None),
+                        "numba_threads_per_task": numba_threads, "cores_here": cores,
+                        "numba_threads_max": {str(k): v["numba_threads"] for k, v in warm.items()},
+                        "start_s": round(time.perf_counter() - t_start, 3)}
+        if on_cluster is not None:
+            on_cluster(cluster_info)
+        topic = f"autosar-batch-{uuid.uuid4().hex[:12]}"
+        starts: dict[str, int] = {}
+
+        def on_event(event: tuple[float, dict[str, Any]]) -> None:
+            msg = event[1]
+            if msg.get("stage") == "start":  # one per attempt of the drive's task
+                starts[msg["drive"]] = starts.get(msg["drive"], 0) + 1
+            if progress is not None:
+                progress(msg)
+
+        client.subscribe_topic(topic, on_event)
+        t_submit = time.perf_counter()
+        futures = {}
+        for name, log in zip(names, paths, strict=True):
+            fut = client.submit(run_drive, name, [log], str(out / name), config, method=method, options=options,
+                                overwrite=overwrite, numba_threads=numba_threads, progress_topic=topic,
+                                command=command, retries=retries, pure=False, key=f"autosar-run-{name}-{topic[-12:]}")
+            futures[fut] = (name, log)
+        records: dict[str, dict[str, Any]] = {}
+        for fut in as_completed(futures):
+            name, log = futures[fut]
+            try:
+                rec = fut.result()
+                rec["attempts"] = max(1, starts.get(name, 0))
+            except Exception as exc:  # noqa: BLE001 - a drive that failed after its retries
+                rec = {"name": name, "logs": [log], "output": str(out / name), "status": "failed",
+                       "error": _message(exc), "error_type": type(exc).__name__,
+                       "attempts": max(retries + 1, starts.get(name, 0))}
+            rec["output"] = os.path.relpath(rec["output"], out)
+            records[name] = rec
+            fut.release()
+            if progress is not None:
+                progress({"drive": name, "stage": "finished", "record": rec})
+        wall = time.perf_counter() - t_submit
+        client.unsubscribe_topic(topic)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    ordered = [records[n] for n in names]
+    n_ok = sum(r["status"] == "ok" for r in ordered)
+    manifest = {
+        "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
+        "python": platform.python_version(), "command": command, "config": config.source, "method": method,
+        "focus_options": asdict(options), "started": started, "cluster": cluster_info, "retries": retries,
+        "drives": ordered, "ok": n_ok, "failed": len(ordered) - n_ok, "wall_s": wall,
+        "total_wall_s": time.perf_counter() - t_start,
+        "drives_per_minute": 60.0 * n_ok / wall if wall > 0 else None,
+    }
+    with atomic_output(out / MANIFEST, overwrite=True) as tmp:
+        tmp.write_text(json.dumps(manifest, indent=2, default=str) + "\n")
+    return manifest
+
+
+def read_batch(out_dir: str | Path) -> dict[str, Any]:
+    """batch.json of a batch directory, checked."""
+    path = Path(out_dir) / MANIFEST
+    try:
+        manifest = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise BatchError(f"{path}: not a readable batch manifest ({exc})") from None
+    if manifest.get("format") != FORMAT:
+        raise BatchError(f"{path}: not an autosar batch manifest")
+    return manifest
+
+
+__all__ = ["BatchError", "FORMAT", "INPUT_ERRORS", "drive_names", "read_batch", "run_batch", "run_drive"]

@@ -1,0 +1,157 @@
+"""`autosar batch` on dask.distributed and focus in tiles: same products as one drive / one piece alone."""
+
+from __future__ import annotations
+
+import json
+import logging
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import simulated
+from typer.testing import CliRunner
+
+from autosar_cli import batch as batch_mod
+from autosar_cli.batch import BatchError, drive_names, read_batch, run_batch
+from autosar_cli.cli import app
+from autosar_cli.config import load_config
+from autosar_cli.run import run
+from autosar_cli.sar.focus import FocusOptions
+from autosar_cli.sar.grid import FocusGrid
+from autosar_cli.sar.tiles import GridTile, focus_tiled, plan_grid, split_grid
+from autosar_cli.store.image import read_image
+
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def logs(sim_dir: Path, ci_mcap, tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
+    """Two simulated ci drives (seeds 7 and 8) and a corrupt one (the first 64 kB of a ci log)."""
+    work = tmp_path_factory.mktemp("batch_logs")
+    other = simulated(sim_dir, "ci", "mcap", 8)
+    a, b = work / "drive_a.mcap", work / "drive_b.mcap"
+    shutil.copy(ci_mcap.log_path, a)
+    shutil.copy(other.log_path, b)
+    corrupt = work / "corrupt.mcap"
+    corrupt.write_bytes(Path(ci_mcap.log_path).read_bytes()[:64_000])
+    return [a, b, corrupt]
+
+
+@pytest.fixture(scope="module")
+def solo(logs: list[Path], tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """`autosar run` of each good drive alone, in this process: the reference products."""
+    cfg = load_config()
+    root = tmp_path_factory.mktemp("solo")
+    for log in logs[:2]:
+        run([log], root / log.stem, cfg)
+    return {log.stem: root / log.stem for log in logs[:2]}
+
+
+def test_batch_local_cluster_two_workers(logs, solo, tmp_path):
+    out = tmp_path / "batch"
+    r = runner.invoke(app, ["batch", *map(str, logs), "-o", str(out), "--workers", "2", "--retries", "1"])
+    assert r.exit_code == 1, r.output  # one drive failed
+    manifest = read_batch(out)
+    assert manifest["cluster"]["kind"] == "local" and manifest["cluster"]["workers"] == 2
+    assert manifest["cluster"]["numba_threads_per_task"] >= 1
+    recs = {d["name"]: d for d in manifest["drives"]}
+    assert list(recs) == ["drive_a", "drive_b", "corrupt"]
+    assert (manifest["ok"], manifest["failed"]) == (2, 1)
+    for name in ("drive_a", "drive_b"):
+        assert recs[name]["status"] == "ok" and recs[name]["attempts"] == 1
+        got = read_image(out / name / "image.h5")
+        ref = read_image(solo[name] / "image.h5")
+        assert got.grid == ref.grid
+        assert np.array_equal(got.image, ref.image), f"{name}: batch image differs from the single-drive run"
+        assert json.loads((out / name / "run.json").read_text())["outputs"]["image"]["h5"] == "image.h5"
+    bad = recs["corrupt"]
+    assert bad["status"] == "failed" and "corrupt.mcap" in bad["error"]
+    assert bad["attempts"] == 1  # a bad log is not retried
+    assert "corrupt.mcap" in r.output  # reported on the console too
+
+
+def test_batch_refuses_existing_and_bad_arguments(tmp_path, logs):
+    (tmp_path / "batch.json").write_text("{}")
+    with pytest.raises(BatchError, match="already holds a batch"):
+        run_batch(logs, tmp_path, load_config())
+    with pytest.raises(BatchError, match="no drive logs"):
+        run_batch([], tmp_path / "x", load_config())
+    with pytest.raises(BatchError, match="either --scheduler"):
+        run_batch(logs, tmp_path / "x", load_config(), scheduler="tcp://127.0.0.1:1", workers=2)
+
+
+def test_drive_names_unique():
+    assert drive_names(["a/x.mcap", "b/x.mcap", "c/x", "d/y.bag", "x-2.mcap"]) == ["x", "x-2", "x-3", "y", "x-2-2"]
+
+
+@pytest.fixture(scope="module")
+def thread_cluster():
+    """An in-process cluster, one worker with one thread (monkeypatches reach its tasks)."""
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None,
+                      silence_logs=logging.ERROR) as cluster:
+        yield cluster
+
+
+def _fake_manifest() -> dict:
+    return {"stages": {"ingest": {"wall_s": 0.1}, "navigate": {"wall_s": 0.1},
+                       "focus": {"wall_s": 0.1, "grid_shape": [2, 3], "frames_used": 5, "backprojections": 7}},
+            "outputs": {"drive": "drive.h5", "image": {"h5": "image.h5"}}, "drive_s": 1.0}
+
+
+def test_batch_existing_scheduler_retries_transient_errors(thread_cluster, tmp_path, monkeypatch):
+    calls: dict[str, int] = {}
+
+    def flaky_run(logs, out_dir, config, **kw):
+        name = Path(out_dir).name
+        calls[name] = calls.get(name, 0) + 1
+        if name == "broken" or calls[name] == 1:
+            raise OSError(f"{logs[0]}: transient I/O error (attempt {calls[name]})")
+        return _fake_manifest()
+
+    monkeypatch.setattr(batch_mod, "run", flaky_run)
+    m = run_batch([tmp_path / "flaky.mcap", tmp_path / "broken.mcap"], tmp_path / "out", load_config(),
+                  scheduler=thread_cluster.scheduler_address, retries=2)
+    recs = {d["name"]: d for d in m["drives"]}
+    assert m["cluster"]["kind"] == "external"
+    assert recs["flaky"]["status"] == "ok" and recs["flaky"]["attempts"] == 2
+    assert recs["broken"]["status"] == "failed" and recs["broken"]["attempts"] == 3
+    assert "broken.mcap: transient I/O error (attempt 3)" in recs["broken"]["error"]
+    assert calls == {"flaky": 2, "broken": 3}
+
+
+def test_split_grid_positions_bit_identical():
+    grid = FocusGrid((12.345678, -3.21), (0.6, 0.8), (0.8, -0.6), 0.04, 61, 7, 0.5)
+    tiles = split_grid(grid, 4)
+    assert [t.n_along for t in tiles] == [15, 15, 16, 15] and all(isinstance(t, GridTile) for t in tiles)
+    assert [t.col0 for t in tiles] == [0, 15, 30, 46]
+    full = grid.positions()
+    assert np.array_equal(np.concatenate([t.positions() for t in tiles], axis=1), full)
+    rows, cols = tiles[2].enu_to_pixel(full[3, 33])
+    assert (round(float(rows), 9), round(float(cols), 9)) == (3, 3)
+    assert np.allclose(tiles[1].origin, full[0, 15, :2])
+    assert len(split_grid(grid, 100)) == 61
+
+
+def test_focus_in_four_tiles_equals_one_piece(solo, tmp_path, thread_cluster):
+    d = solo["drive_a"]
+    one = read_image(d / "image.h5")  # focused in one piece by `autosar run`
+    cfg = load_config()
+    assert plan_grid(d / "drive.h5", d / "trajectory.h5", cfg, FocusOptions.from_config(cfg)) == one.grid
+    r = runner.invoke(app, ["focus", str(d / "drive.h5"), "-t", str(d / "trajectory.h5"), "-o",
+                            str(tmp_path / "tiled"), "--tiles", "4", "--json"])
+    assert r.exit_code == 0, r.output
+    tiled = read_image(tmp_path / "tiled.h5")
+    assert tiled.grid == one.grid and tiled.provenance["tiles"] == 4
+    assert np.array_equal(tiled.image, one.image)  # bit for bit
+    assert tiled.params["backprojections"] == one.params["backprojections"]
+    # the same as Dask tasks
+    from distributed import Client
+
+    with Client(thread_cluster) as client:
+        rep = focus_tiled(d / "drive.h5", d / "trajectory.h5", tmp_path / "dask", cfg, FocusOptions.from_config(cfg),
+                          tiles=4, client=client)
+    assert rep.grid_shape == one.grid.shape
+    assert np.array_equal(read_image(tmp_path / "dask.h5").image, one.image)
