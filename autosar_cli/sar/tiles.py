@@ -12,8 +12,9 @@ Memory: a tile's task holds its own image (and one block of pulses), never the w
 can run one after the other in-process (``client=None``) or as Dask tasks on a dask.distributed cluster.
 Only the caller assembles the full complex image to write the products.
 
-Cost: every tile's task reads and range-compresses every pulse block of the drive (back-projection work
-is split, not repeated), so N tiles cost about (N - 1) extra passes of reading + range compression.
+Cost: a tile's task reads and range-compresses only the pulse blocks whose beam reaches it (focus_images
+skips the others), so tiles along the track split the reading, range compression and back-projection of
+a long drive; blocks that straddle a tile boundary are compressed once per tile they reach.
 """
 
 from __future__ import annotations
