@@ -23,7 +23,12 @@ demo: setup
 	$(BIN)/autosar info demo_out/drive.h5
 	$(BIN)/autosar navigate demo_out/drive.h5 --output demo_out/trajectory.h5 --plot --overwrite
 	$(BIN)/autosar focus demo_out/drive.h5 --trajectory demo_out/trajectory.h5 --output demo_out/image --overwrite
+	$(BIN)/autosar run sample_logs/ci_seed1.mcap -o demo_out/run --overwrite
+	$(BIN)/autosar evaluate demo_out/run -o demo_out/run/report --overwrite
+	$(BIN)/autosar compare sample_logs/ci_seed1.mcap -o demo_out/compare --overwrite
 	@echo "demo: drive.h5, trajectory.h5 (+ .png) and image.tif / image.h5 / image.png in demo_out/"
+	@echo "demo: autosar run -> demo_out/run/ (run.json + products), its evaluation in demo_out/run/report/ (report.md, *.png)"
+	@echo "demo: comparison none / ins / sar-min / truth -> demo_out/compare/compare.md, compare.png, across_track.png, compare_chips.png"
 
 bench: setup
 	$(BIN)/python benches/bench_simulate.py

@@ -300,6 +300,9 @@ def focus(
                                                  "road at the origin (config default 0.5).")] = None,
     grid: Annotated[str, typer.Option("--grid", help="'auto' (along the trajectory on the radar side, ground "
                                       "range 0.5 m to R_max) or x0,y0,x1,y1 in ENU metres.")] = "auto",
+    tiles: Annotated[int, typer.Option("--tiles", min=1, help="Focus the grid in N tiles along the track, one "
+                                       "after the other (same image; each holds only its tile in memory, but "
+                                       "re-reads the pulses).")] = 1,
     config: ConfigOpt = None,
     overwrite: OverwriteOpt = False,
     as_json: JsonOpt = False,
@@ -313,8 +316,14 @@ def focus(
         options = FocusOptions.from_config(cfg, pixel_m=pixel, resolution_m=resolution, height_m=height, grid=grid,
                                            channels=int(channels.value) if channels else None)
         with _progress("focusing", enabled=not as_json) as progress:
-            report = run_focus(drive, trajectory, output, cfg, options, overwrite=overwrite, progress=progress,
-                               command=" ".join(sys.argv))
+            if tiles > 1:
+                from autosar_cli.sar.tiles import focus_tiled
+
+                report = focus_tiled(drive, trajectory, output, cfg, options, tiles=tiles, overwrite=overwrite,
+                                     progress=progress, command=" ".join(sys.argv))
+            else:
+                report = run_focus(drive, trajectory, output, cfg, options, overwrite=overwrite, progress=progress,
+                                   command=" ".join(sys.argv))
         summary = report.to_dict()
         if as_json:
             out.print_json(json.dumps(summary))
@@ -379,6 +388,117 @@ def run(
                   f"{manifest['drive_s']:.1f} s")
 
 
+@contextmanager
+def _stages(enabled: bool = True) -> Iterator[Callable[[str, int, int], None]]:
+    """Progress bars on stderr, one per stage: yields ``update(stage, done, total)``."""
+    if not enabled or not err.is_terminal:
+        yield lambda stage, done, total: None
+        return
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  console=err, transient=True) as bar:
+        tasks: dict[str, Any] = {}
+
+        def update(stage: str, done: int, total: int) -> None:
+            if stage not in tasks:
+                tasks[stage] = bar.add_task(stage, total=total)
+            bar.update(tasks[stage], completed=done, total=total)
+
+        yield update
+
+
+def _cm(value: float | None, scale: float = 100.0, digits: int = 1) -> str:
+    return "–" if value is None else f"{value * scale:.{digits}f}"
+
+
+@app.command()
+def evaluate(
+    source: Annotated[Path, typer.Argument(help="A run directory (run.json; from `autosar run` or a method directory "
+                                           "of `autosar compare`) or an image.h5.")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="Report directory: metrics.json, report.md, "
+                                         "trajectory_error.png, reflector_chips.png.")],
+    truth: Annotated[Path | None, typer.Option("--truth", help="Truth sidecar LOG.truth.h5 (default: the run's, or "
+                                               "<log>.truth.h5 next to the drive's input log).")] = None,
+    config: Annotated[Path | None, typer.Option("--config", "-c", help="TOML config (default: the one the run "
+                                                "used).")] = None,
+    overwrite: OverwriteOpt = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """Evaluate a focused run against the truth: trajectory errors, corner reflectors (position, peak loss, IRW,
+    PSLR, ISLR on fine patches), entropy, contrast, straightness of the facade and kerb."""
+    with _errors():
+        from autosar_cli.evaluate.report import evaluate_run
+
+        cfg = _load_config(config) if config else None
+        with _stages(not as_json) as update:
+            result = evaluate_run(source, output, truth, config=cfg, overwrite=overwrite, progress=update)
+        if as_json:
+            out.print_json(json.dumps(result))
+            return
+        s = result["summary"]
+        table = Table("metric", "value")
+        table.add_row("method", str(s["method"]))
+        if result.get("truth"):
+            table.add_row("absolute RMSE / after SE(2) alignment", f"{_cm(s['abs_rmse_m'])} / "
+                          f"{_cm(s['aligned_rmse_m'], digits=2)} cm")
+            table.add_row("RPE across, 1 m / 10 m", f"{_cm(s['rpe_1m_across_m'], 1e3, 2)} / "
+                          f"{_cm(s['rpe_10m_across_m'], 1e3, 2)} mm")
+            table.add_row("reflectors: aligned error mean / max", f"{_cm(s['aligned_error_mean_m'], digits=2)} / "
+                          f"{_cm(s['aligned_error_max_m'], digits=2)} cm ({s['reflectors']} reflectors)")
+            table.add_row("reflectors: peak loss mean / max", f"{_cm(s['peak_loss_mean_db'], 1)} / "
+                          f"{_cm(s['peak_loss_max_db'], 1)} dB")
+        table.add_row("entropy / contrast", f"{_cm(s['entropy'], 1, 4)} nats / {_cm(s['contrast'], 1, 1)}")
+        for kind in ("facade", "kerb"):
+            if s.get(f"straightness_{kind}_m") is not None:
+                table.add_row(f"{kind} straightness (RMS)", f"{_cm(s[f'straightness_{kind}_m'], digits=2)} cm")
+        out.print(table)
+        out.print(f"wrote [bold]{output}[/] ({', '.join(Path(p).name for p in result['outputs'].values())})")
+        for note in result.get("notes", []):
+            err.print(f"[yellow]note:[/] {note}", highlight=False, soft_wrap=True)
+
+
+@app.command()
+def compare(
+    logs: Annotated[list[Path], typer.Argument(help="Drive log(s), as for `autosar run`.")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="Comparison directory: drive.h5, one directory "
+                                         "per method, compare.png, across_track.png, compare.md, compare.json.")],
+    methods: Annotated[str, typer.Option("--methods", help="Comma-separated navigation methods (sar-min, ins, gnss, "
+                                         "none, truth).")] = "none,ins,sar-min,truth",
+    truth: Annotated[Path | None, typer.Option("--truth", help="Truth sidecar (default: <log>.truth.h5).")] = None,
+    config: ConfigOpt = None,
+    overwrite: OverwriteOpt = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """Focus one drive with several navigation methods and compare them side by side (paper Fig. 10/11)."""
+    with _errors():
+        from autosar_cli.evaluate.compare import compare as run_compare
+        from autosar_cli.evaluate.compare import parse_methods
+
+        cfg = _load_config(config)
+        chosen = parse_methods(methods)
+        with _stages(not as_json) as update:
+            result = run_compare(logs, output, cfg, methods=chosen, truth_path=truth, overwrite=overwrite,
+                                 progress=update, command=" ".join(sys.argv))
+        if as_json:
+            out.print_json(json.dumps(result))
+            return
+        table = Table("method", "abs RMSE (cm)", "RPE 1 m across (mm)", "reflector error mean / max (cm)",
+                      "peak loss mean / max (dB)", "entropy", "contrast")
+        for m in result["methods"]:
+            s = result["results"][m]["summary"]
+            table.add_row(m, _cm(s["abs_rmse_m"]), _cm(s["rpe_1m_across_m"], 1e3, 2),
+                          f"{_cm(s['aligned_error_mean_m'], digits=2)} / {_cm(s['aligned_error_max_m'], digits=2)}",
+                          f"{_cm(s['peak_loss_mean_db'], 1)} / {_cm(s['peak_loss_max_db'], 1)}",
+                          _cm(s["entropy"], 1, 4), _cm(s["contrast"], 1, 1))
+        out.print(table)
+        figures = [v for k, v in result["outputs"].items() if isinstance(v, str)]
+        out.print(f"wrote [bold]{output}[/] ({', '.join(figures)}; per method: "
+                  f"{', '.join(m + '/' for m in result['methods'])}) in {result['wall_s']:.1f} s")
+        for m, why in result["skipped"].items():
+            err.print(f"[yellow]skipped[/] {m}: {why}", highlight=False, soft_wrap=True)
+        for note in result["notes"]:
+            err.print(f"[yellow]note:[/] {note}", highlight=False, soft_wrap=True)
+
+
 @app.command()
 def info(
     path: Annotated[Path, typer.Argument(help="A drive log (.mcap, .bag, rosbag2 directory) or a drive.h5.")],
@@ -401,6 +521,100 @@ def info(
         out.print(table)
         for w in summary.warnings:
             err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+
+
+@contextmanager
+def _batch_progress(n_drives: int, enabled: bool = True) -> Iterator[Callable[[dict[str, Any]], None]]:
+    """Progress on stderr for `autosar batch`: drives finished, and each running drive's stage."""
+    if not enabled or not err.is_terminal:
+        yield lambda event: None
+        return
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  console=err, transient=True) as bar:
+        overall = bar.add_task("drives", total=n_drives)
+        tasks: dict[str, Any] = {}
+        finished: set[str] = set()
+
+        def update(event: dict[str, Any]) -> None:
+            name, stage = str(event.get("drive")), str(event.get("stage"))
+            if stage == "finished":
+                finished.add(name)
+                bar.advance(overall)
+                if name in tasks:
+                    bar.remove_task(tasks.pop(name))
+                return
+            if name in finished:  # a worker's event that arrived after the drive's result
+                return
+            if name not in tasks:
+                tasks[name] = bar.add_task(name, total=None)
+            if stage in ("start", "done", "failed"):
+                bar.update(tasks[name], description=f"{name}: {stage}", completed=0, total=None)
+            else:
+                bar.update(tasks[name], description=f"{name}: {stage}", completed=event.get("done", 0),
+                           total=event.get("total"))
+
+        yield update
+
+
+@app.command()
+def batch(
+    logs: Annotated[list[Path], typer.Argument(help="Drive logs, one drive each (.mcap, .bag, rosbag2 directory).")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="Batch directory: one run directory per drive "
+                                         "(named after its log, as `autosar run` writes it) and batch.json.")],
+    scheduler: Annotated[str | None, typer.Option("--scheduler", help="Address of a running Dask scheduler "
+                                                  "(tcp://host:8786); default: a local cluster.")] = None,
+    workers: Annotated[int | None, typer.Option("--workers", "-w", min=1, help="Worker processes of the local "
+                                                "cluster (default: one per core, at most one per drive).")] = None,
+    retries: Annotated[int, typer.Option("--retries", min=0, help="Retries of a drive after an unexpected error "
+                                         "(worker died, I/O error); a bad log fails at once.")] = 2,
+    numba_threads: Annotated[int | None, typer.Option("--numba-threads", min=1, help="Numba threads per drive "
+                                                      "(default: cores // workers on a local cluster, the "
+                                                      "workers' own setting on an existing one).")] = None,
+    method: Annotated[NavMethod, typer.Option("--method", "-m", help="Navigation method (see `autosar navigate`).")]
+    = NavMethod.sar_min,
+    config: ConfigOpt = None,
+    overwrite: OverwriteOpt = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """Run many drives (`autosar run` each) as Dask tasks on a local or existing dask.distributed cluster;
+    exit code 1 if any drive failed."""
+    with _errors():
+        from autosar_cli.batch import run_batch
+
+        cfg = _load_config(config)
+
+        def on_cluster(info: dict[str, Any]) -> None:
+            if as_json:
+                return
+            threads = info["numba_threads_per_task"] or "the workers' default"
+            err.print(f"{info['kind']} cluster {info['scheduler']}: {info['workers']} workers x "
+                      f"{info['threads_per_worker']} task, numba threads per task {threads}", highlight=False)
+            err.print(f"dashboard: {info['dashboard']}" if info["dashboard"] else "dashboard: none", highlight=False)
+
+        with _batch_progress(len(logs), enabled=not as_json) as update:
+            manifest = run_batch(logs, output, cfg, method=method.value, scheduler=scheduler, workers=workers,
+                                 retries=retries, numba_threads=numba_threads, overwrite=overwrite, progress=update,
+                                 on_cluster=on_cluster, command=" ".join(sys.argv))
+        if as_json:
+            out.print_json(json.dumps(manifest, default=str))
+        else:
+            table = Table("drive", "status", "attempts", "wall (s)", "worker", "result")
+            for r in manifest["drives"]:
+                ok = r["status"] == "ok"
+                result = (f"{r['grid_shape'][0]} x {r['grid_shape'][1]} px, {r['output']}/image.tif" if ok
+                          else r["error"])
+                table.add_row(r["name"], "[green]ok[/]" if ok else "[red]failed[/]", str(r.get("attempts") or ""),
+                              f"{r['wall_s']:.1f}" if r.get("wall_s") is not None else "–", r.get("worker", "–"),
+                              result)
+            out.print(table)
+            rate = manifest["drives_per_minute"]
+            out.print(f"wrote [bold]{Path(output) / 'batch.json'}[/]: {manifest['ok']} of {len(manifest['drives'])} "
+                      f"drives ok in {manifest['wall_s']:.1f} s" + (f" ({rate:.1f} drives/min)" if rate else ""))
+        for r in manifest["drives"]:
+            if r["status"] != "ok":
+                err.print(f"[red]failed:[/] {r['name']}: {r['error']}", highlight=False, soft_wrap=True)
+        if manifest["failed"]:
+            raise typer.Exit(1)
 
 
 def main() -> None:

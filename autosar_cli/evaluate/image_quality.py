@@ -87,9 +87,9 @@ class Straightness:
 
     name: str  #: e.g. "facade", "kerb"
     rms_residual_m: float  #: RMS perpendicular residual of the traced line about its best straight fit
-    n_columns: int  #: image columns that contributed a point
+    n_columns: int  #: image columns that contributed a point (after outlier rejection)
     length_m: float  #: extent of the traced points along the line
-    offset_m: float  #: intensity-weighted mean distance of the traced points from the expected line (m, + = left of along)
+    offset_m: float  #: intensity-weighted mean distance from the expected line (m, + = left of the along axis)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -103,7 +103,8 @@ def trace_line(img: FocusedImage, line_xy: ArrayLike, *, half_width_m: float = 0
     ``line_xy``: (N, 2+) points of the expected line (ENU m in the image's frame, e.g. the truth scatterers
     mapped by the alignment); the line is their least-squares fit, limited to their extent. Returns the
     traced pixel positions (K, 2) (ENU m), their intensities |z|^2 (K,), and their signed distances to the
-    expected line (K,) (m, positive to the left of the grid's along axis). K = 0 when fewer than ``min_columns`` columns cross it.
+    expected line (K,) (m, positive to the left of the grid's along axis). K = 0 when fewer than
+    ``min_columns`` columns cross it.
     """
     pts = np.asarray(line_xy, dtype=np.float64)[:, :2]
     fit = fit_line(pts)
@@ -114,28 +115,51 @@ def trace_line(img: FocusedImage, line_xy: ArrayLike, *, half_width_m: float = 0
     n = np.array([-u[1], u[0]])  # left of the image's along axis
     s = (pts - c) @ u
     s0, s1 = s.min(), s.max()
-    pos = grid.positions()[..., :2]
-    d_perp = (pos - c) @ n
-    d_along = (pos - c) @ u
+    # pixel (r, c) lies at origin + (c along + r across) pixel: distances to the line are separable sums
+    o = np.asarray(grid.origin) - c
+    rows_i, cols_i = np.arange(grid.n_across), np.arange(grid.n_along)
+    along, across = np.asarray(grid.along) * grid.pixel_m, np.asarray(grid.across) * grid.pixel_m
+    d_perp = (o @ n + rows_i * (across @ n))[:, None] + (cols_i * (along @ n))[None, :]
+    d_along = (o @ u + rows_i * (across @ u))[:, None] + (cols_i * (along @ u))[None, :]
     inten = np.abs(img.image).astype(np.float64) ** 2
-    ok = (np.abs(d_perp) <= half_width_m) & (d_along >= s0) & (d_along <= s1) & (inten > 0)
-    score = np.where(ok, inten, -1.0)
+    score = np.where((np.abs(d_perp) <= half_width_m) & (d_along >= s0) & (d_along <= s1), inten, -1.0)
+    del d_along
     rows = np.argmax(score, axis=0)
-    cols = np.arange(grid.n_along)
-    has = score[rows, cols] > 0
+    has = score[rows, cols_i] > 0
     if has.sum() < min_columns:
         return np.zeros((0, 2)), np.zeros(0), np.zeros(0)
-    rows, cols = rows[has], cols[has]
-    return pos[rows, cols], inten[rows, cols], d_perp[rows, cols]
+    rows, cols = rows[has], cols_i[has]
+    return grid.pixel_enu(rows, cols)[:, :2], inten[rows, cols], d_perp[rows, cols]
 
 
-def line_straightness(img: FocusedImage, line_xy: ArrayLike, name: str, *, half_width_m: float = 0.3) -> Straightness:
+def line_straightness(img: FocusedImage, line_xy: ArrayLike, name: str, *, half_width_m: float = 0.3,
+                      reject_sigma: float = 3.0) -> Straightness:
     """Straightness of the scene line through ``line_xy`` (see :func:`trace_line`): RMS perpendicular residual
-    of the traced points about their own intensity-weighted straight fit (m); NaN if the line is not seen."""
+    (intensity weighted) of the traced points about their own intensity-weighted straight fit (m); NaN if the
+    line is not seen.
+
+    Columns where something else is brighter than the line inside the +-``half_width_m`` band (the end of a
+    parked car crossing the kerb line, or clutter in the gaps between a kerb's scatterers) give outliers:
+    points farther than ``reject_sigma`` robust standard deviations (1.4826 x the median absolute deviation
+    of the residuals, unweighted: the outliers are few but often bright; at least half a pixel) from their
+    median are dropped and the line refitted, up to five times. ``n_columns`` counts the points kept.
+    """
     xy, inten, dist = trace_line(img, line_xy, half_width_m=half_width_m)
     if len(xy) < 2:
         return Straightness(name, math.nan, int(len(xy)), 0.0, math.nan)
-    fit = fit_line(xy, inten)
-    s = (xy - np.asarray(fit.centre)) @ np.asarray(fit.direction)
-    w = inten / inten.sum()
-    return Straightness(name, fit.rms_residual_m, int(len(xy)), float(s.max() - s.min()), float(np.sum(w * dist)))
+    keep = np.ones(len(xy), bool)
+    for _ in range(5):
+        fit = fit_line(xy[keep], inten[keep])
+        u = np.asarray(fit.direction)
+        resid = (xy - np.asarray(fit.centre)) @ np.array([-u[1], u[0]])
+        centre = float(np.median(resid[keep]))
+        sigma = 1.4826 * float(np.median(np.abs(resid[keep] - centre)))
+        new = np.abs(resid - centre) <= max(reject_sigma * sigma, 0.5 * img.grid.pixel_m)
+        if new.sum() < 2 or np.array_equal(new, keep):
+            break
+        keep = new
+    fit = fit_line(xy[keep], inten[keep])
+    s = (xy[keep] - np.asarray(fit.centre)) @ np.asarray(fit.direction)
+    w = inten[keep] / inten[keep].sum()
+    return Straightness(name, fit.rms_residual_m, int(keep.sum()), float(s.max() - s.min()),
+                        float(np.sum(w * dist[keep])))

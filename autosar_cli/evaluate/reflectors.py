@@ -11,12 +11,19 @@ and shifts the whole image rigidly. With T the rigid SE(2) motion that best maps
 phase-centre track onto the true one, a reflector at true position p should appear at T^-1(p) in the
 image focused along the estimate; the aligned error is the distance of the peak from there. The
 absolute error (distance from p itself) is reported too.
+
+Where the response is searched: around T^-1(p), and, when it differs by more than
+:data:`SEPARATE_M`, also around the zero-Doppler prediction of where the estimated trajectory puts it
+(:func:`predict_image_positions`): a trajectory with large along-track errors (the straight line at
+constant speed while the car accelerates) images a reflector metres from T^-1(p), often still
+focused. The brighter of the two peaks is the reflector's response, so the peak loss measures
+defocusing and the aligned error measures the displacement, instead of both reading "nothing here".
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -25,8 +32,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from autosar_cli.config import Config
 from autosar_cli.evaluate.alignment import Se2
-from autosar_cli.evaluate.point_target import analyse_point_target
-from autosar_cli.nav.trajectory import Trajectory
+from autosar_cli.evaluate.point_target import PointTargetMetrics, analyse_point_target
+from autosar_cli.nav.trajectory import Trajectory, antenna_lever_arms
 from autosar_cli.sar.focus import FocusOptions, FocusResult, focus_images
 from autosar_cli.sar.grid import FocusGrid, box_grid
 from autosar_cli.store.image import FocusedImage
@@ -35,20 +42,29 @@ Array = NDArray[np.float64]
 
 PATCH_SIZE_M = 1.0  #: side of the fine patch around each reflector
 PATCH_PIXEL_M = 0.005  #: pixel of the fine patches
-SEARCH_M = 0.4  #: the peak is searched within +- this of where the reflector should appear
+SEARCH_M = 0.4  #: the peak is searched within +- this of each patch centre
+SEPARATE_M = 0.25  #: a second patch is focused at the zero-Doppler prediction when it is this far from T^-1(p)
 ANALYSIS_M = 0.4  #: side of the window upsampled around the peak for widths, PSLR and ISLR
 UPSAMPLE = 4  #: band-limited upsampling of that window (5 mm -> 1.25 mm)
+VELOCITY_SPAN_NS = 50_000_000  #: half-span of the finite difference giving the radar's velocity direction
 
 
 @dataclass
 class ReflectorPatches:
-    """Fine images around every corner reflector, focused along one trajectory."""
+    """Fine images around every corner reflector, focused along one trajectory: one or two candidate patches
+    per reflector (around T^-1(true), and around the zero-Doppler prediction when it lies elsewhere)."""
 
     method: str  #: trajectory method the patches were focused with
     names: list[str]  #: reflector names (CR1, ...)
     true_enu: Array  #: (C, 3) true positions, ENU m of the image's origin
-    expected_xy: Array  #: (C, 2) where each should appear in this trajectory's image (patch centres), ENU m
-    images: list[FocusedImage]
+    expected_xy: Array  #: (C, 2) T^-1(true): where each should appear in this trajectory's image, ENU m
+    candidates: list[list[FocusedImage]]  #: per reflector, the patches searched (the first centred on expected_xy)
+    local_expected_xy: Array | None = None  #: (C, 2) the same with the local alignment (:func:`local_alignments`)
+
+    def centre_xy(self, image: FocusedImage) -> tuple[float, float]:
+        """ENU centre (m) of a patch."""
+        c = image.grid.pixel_enu(0.5 * (image.grid.n_across - 1), 0.5 * (image.grid.n_along - 1))
+        return (float(c[0]), float(c[1]))
 
 
 def reflector_grids(centres_xy: ArrayLike, *, height_m: float, size_m: float = PATCH_SIZE_M,
@@ -59,29 +75,98 @@ def reflector_grids(centres_xy: ArrayLike, *, height_m: float, size_m: float = P
             for x, y in np.asarray(centres_xy, dtype=np.float64)[:, :2]]
 
 
-def patch_options(options: FocusOptions, pixel_m: float = PATCH_PIXEL_M) -> FocusOptions:
-    """The focus options of the full image with the fine-patch pixel."""
-    return replace(options, pixel_m=pixel_m, grid="auto")
+def _reference_track(traj: Trajectory, t_ns: NDArray[np.int64], config: Config) -> tuple[Array, Array]:
+    """Tx0 reference point (M, 3) and its velocity (M, 3), the latter over +-50 ms (the direction an aperture
+    sees, not a GNSS correction's step)."""
+    tx0 = antenna_lever_arms(config)[0][:1]
+    c = traj.body_points(t_ns, tx0)[:, 0]
+    ahead, behind = (traj.body_points(t_ns + s * VELOCITY_SPAN_NS, tx0)[:, 0] for s in (1, -1))
+    return c, (ahead - behind) / (2 * VELOCITY_SPAN_NS * 1e-9)
+
+
+def zero_doppler_times(truth: Trajectory, true_enu: ArrayLike, config: Config, t_ns: ArrayLike) -> NDArray[np.int64]:
+    """For each target (C, 3) (ENU m), the instant (ns) the true radar reference (Tx0) passes it: the target lies
+    perpendicular to the reference's velocity (the centre of its processed aperture). ``t_ns``: candidate
+    instants (the radar frame times), interpolated between; the closest one when the target is never passed."""
+    true = np.asarray(true_enu, dtype=np.float64).reshape(-1, 3)
+    t = np.asarray(t_ns, dtype=np.int64)
+    c, v = _reference_track(truth, t, config)
+    out = np.empty(len(true), np.int64)
+    for i, p in enumerate(true):
+        f = np.sum((p[:2] - c[:, :2]) * v[:, :2], axis=1)  # > 0 while the target is ahead
+        k = np.flatnonzero((f[:-1] > 0) & (f[1:] <= 0))
+        if k.size == 0:
+            out[i] = t[int(np.argmin(np.abs(f)))]
+            continue
+        k0 = k[np.argmin(np.linalg.norm(p[:2] - c[k, :2], axis=1))]
+        w = f[k0] / (f[k0] - f[k0 + 1])
+        out[i] = t[k0] + int(round(w * (t[k0 + 1] - t[k0])))
+    return out
+
+
+def predict_image_positions(estimate: Trajectory, truth: Trajectory, true_enu: ArrayLike, config: Config,
+                            t_ns: ArrayLike, height_m: float) -> Array:
+    """Where each target (C, 3) (ENU m; z above the road) appears in the image focused along ``estimate``
+    (C, 2), to first order.
+
+    Zero-Doppler mapping: the instant t0 at which the true radar reference passes the target
+    (:func:`zero_doppler_times`) and the slant range R0 then; the target focuses where the estimated
+    reference at t0 sees slant range R0 perpendicular to its estimated velocity, on the radar side, on the
+    focusing plane. For a trajectory that is right up to a rigid motion this is the rigidly moved target;
+    for one with large along-track errors (e.g. ``none``, constant speed while the car accelerates) it
+    follows the response metres along the track. ``t_ns``: candidate instants (the radar frame times).
+    """
+    true = np.asarray(true_enu, dtype=np.float64).reshape(-1, 3)
+    t = np.asarray(t_ns, dtype=np.int64)
+    t = t[(t >= max(truth.t_ns[0], estimate.t_ns[0])) & (t <= min(truth.t_ns[-1], estimate.t_ns[-1]))]
+    side = 1.0 if math.sin(math.radians(config.radar.mounting.yaw_deg)) > 0 else -1.0
+    t0 = zero_doppler_times(truth, true, config, t)
+    c0, _ = _reference_track(truth, t0, config)
+    ce, ve = _reference_track(estimate, t0, config)
+    out = np.empty((len(true), 2))
+    for i, p in enumerate(true):
+        r0 = float(np.linalg.norm(p - c0[i]))
+        u = ve[i, :2] / max(float(np.linalg.norm(ve[i, :2])), 1e-9)
+        n = side * np.array([-u[1], u[0]])
+        g = math.sqrt(max(r0**2 - (ce[i, 2] - height_m) ** 2, 0.0))
+        out[i] = ce[i, :2] + g * n
+    return out
 
 
 def focus_patches(drive_path: str | Path, trajectory: Trajectory, config: Config, options: FocusOptions,
-                  names: list[str], true_enu: ArrayLike, alignment: Se2 = Se2(), *,
-                  extra_grids: list[FocusGrid] | None = None,
+                  names: list[str], true_enu: ArrayLike, alignment: Se2 | None = None, *,
+                  predicted_xy: ArrayLike | None = None, extra_grids: list[FocusGrid] | None = None,
                   size_m: float = PATCH_SIZE_M) -> tuple[ReflectorPatches, list[FocusedImage], FocusResult]:
-    """Focus a fine patch around every reflector along ``trajectory`` in one pass over the radar data.
+    """Focus the candidate patches of every reflector along ``trajectory`` in one pass over the radar data.
 
-    Patches are centred on ``alignment.inverse()`` of the true positions (where each reflector should
-    appear in this trajectory's image). ``extra_grids`` (e.g. the full image's grid) are focused in the
-    same pass and returned second. ``options``: the full image's options; the patches use their own pixel.
+    Each reflector should appear at ``alignment.inverse()`` (default: identity) of its true position: a patch
+    is centred there; ``predicted_xy`` (C, 2) (:func:`predict_image_positions`) adds a second patch where
+    it lies more than :data:`SEPARATE_M` away. ``extra_grids`` (e.g. the full image's grid) are focused in
+    the same pass and returned second. ``options``: the full image's options (range processing, channels,
+    resolution, focusing height); the patch grids carry their own pixel (:data:`PATCH_PIXEL_M`).
     """
     true = np.asarray(true_enu, dtype=np.float64).reshape(-1, 3)
+    alignment = alignment or Se2()
     expected = alignment.inverse().apply(true[:, :2])
-    opts = patch_options(options)
-    grids = reflector_grids(expected, height_m=options.height_m, size_m=size_m, pixel_m=opts.pixel_m)
+    pred = None if predicted_xy is None else np.asarray(predicted_xy, dtype=np.float64).reshape(-1, 2)
+    centres: list[NDArray[np.float64]] = []
+    owner: list[int] = []
+    for i, e in enumerate(expected):
+        centres.append(e)
+        owner.append(i)
+        if pred is not None and np.hypot(*(pred[i] - e)) > SEPARATE_M:
+            centres.append(pred[i])
+            owner.append(i)
+    grids = reflector_grids(np.array(centres), height_m=options.height_m, size_m=size_m)
     extra = list(extra_grids or [])
-    res = focus_images(drive_path, trajectory, config, opts, grids=extra + grids)
-    images = res.images[len(extra):]
-    return ReflectorPatches(trajectory.method, list(names), true, expected, images), res.images[:len(extra)], res
+    res = focus_images(drive_path, trajectory, config, options, grids=extra + grids)
+    candidates: list[list[FocusedImage]] = [[] for _ in expected]
+    for i, img in zip(owner, res.images[len(extra):], strict=True):
+        img.params["pixel_m"] = img.grid.pixel_m  # each grid carries its own pixel; the options' is the full image's
+        img.params["grid"] = "reflector patch"
+        candidates[i].append(img)
+    patches = ReflectorPatches(trajectory.method, list(names), true, expected, candidates)
+    return patches, res.images[:len(extra)], res
 
 
 @dataclass(frozen=True)
@@ -91,11 +176,13 @@ class ReflectorMetrics:
     name: str
     true_enu: tuple[float, float, float]
     expected_xy: tuple[float, float]  #: T^-1(true): where it should appear in this image
+    patch_centre_xy: tuple[float, float]  #: centre of the patch the peak was found in
     peak_xy: tuple[float, float]  #: interpolated peak
     aligned_error_m: float  #: |peak - expected|
     aligned_error_range_m: float  #: signed component along the range direction (away from the track)
     aligned_error_cross_m: float  #: signed component along cross-range (90 deg CCW from range)
     absolute_error_m: float  #: |peak - true|
+    local_aligned_error_m: float  #: |peak - T_local^-1(true)|, aligned on the track around the reflector only
     peak_db: float  #: 20 log10 |peak| (arbitrary but common units)
     reference_peak_db: float | None  #: the same reflector focused along the true trajectory
     peak_loss_db: float | None  #: reference_peak_db - peak_db
@@ -110,10 +197,27 @@ class ReflectorMetrics:
         return asdict(self)
 
 
+def _brightest(patches: ReflectorPatches, i: int, rd: NDArray[np.float64], search_m: float, analysis_m: float,
+               factor: int) -> tuple[FocusedImage, PointTargetMetrics] | None:
+    """The candidate patch of reflector ``i`` with the brightest peak within ``search_m`` of its centre."""
+    best: tuple[FocusedImage, PointTargetMetrics] | None = None
+    for img in patches.candidates[i]:
+        if not np.any(img.image):  # no pulse reached this patch
+            continue
+        centre = patches.centre_xy(img)
+        m = analyse_point_target(img, np.r_[centre, patches.true_enu[i, 2]], name=patches.names[i], range_dir=rd,
+                                 search_m=search_m, patch_m=analysis_m, factor=factor)
+        if best is None or m.peak_db > best[1].peak_db:
+            best = (img, m)
+    return best
+
+
 def measure_reflectors(patches: ReflectorPatches, range_dir: ArrayLike,
                        reference: ReflectorPatches | None = None, *, search_m: float = SEARCH_M,
                        analysis_m: float = ANALYSIS_M, factor: int = UPSAMPLE) -> list[ReflectorMetrics]:
-    """Analyse every patch; ``reference``: the patches focused along the true trajectory (for the peak loss).
+    """Analyse every reflector: the brightest peak over its candidate patches (each searched within ``search_m``
+    of its centre), its position error relative to where the reflector should appear, widths, PSLR, ISLR;
+    ``reference``: the patches focused along the true trajectory (for the peak loss).
 
     ``range_dir``: horizontal unit vector of ground range (the auto grid's across axis: perpendicular to the
     mean track, away from it).
@@ -123,29 +227,46 @@ def measure_reflectors(patches: ReflectorPatches, range_dir: ArrayLike,
     cd = np.array([-rd[1], rd[0]])
     ref_db: dict[str, float] = {}
     if reference is not None:
-        for name, img, xy, true in zip(reference.names, reference.images, reference.expected_xy,
-                                       reference.true_enu, strict=True):
-            m = analyse_point_target(img, np.r_[xy, true[2]], name=name, range_dir=rd, search_m=search_m,
-                                     patch_m=analysis_m, factor=factor)
-            ref_db[name] = m.peak_db
+        for i, name in enumerate(reference.names):
+            found = _brightest(reference, i, rd, search_m, analysis_m, factor)
+            if found is not None:
+                ref_db[name] = found[1].peak_db
     out = []
-    for name, img, xy, true in zip(patches.names, patches.images, patches.expected_xy, patches.true_enu,
-                                   strict=True):
-        m = analyse_point_target(img, np.r_[xy, true[2]], name=name, range_dir=rd, search_m=search_m,
-                                 patch_m=analysis_m, factor=factor)
+    nan = math.nan
+    for i, name in enumerate(patches.names):
+        true, xy = patches.true_enu[i], patches.expected_xy[i]
+        ref = ref_db.get(name)
+        found = _brightest(patches, i, rd, search_m, analysis_m, factor)
+        if found is None:  # nothing to measure
+            out.append(ReflectorMetrics(name, (float(true[0]), float(true[1]), float(true[2])),
+                                        (float(xy[0]), float(xy[1])), (nan, nan), (nan, nan), nan, nan, nan, nan,
+                                        nan, nan, ref, None, nan, nan, nan, nan, nan, nan))
+            continue
+        img, m = found
         peak = np.asarray(m.peak_enu)
         d = peak - xy
-        ref = ref_db.get(name)
         out.append(ReflectorMetrics(
             name=name, true_enu=(float(true[0]), float(true[1]), float(true[2])),
-            expected_xy=(float(xy[0]), float(xy[1])), peak_xy=(float(peak[0]), float(peak[1])),
+            expected_xy=(float(xy[0]), float(xy[1])), patch_centre_xy=patches.centre_xy(img),
+            peak_xy=(float(peak[0]), float(peak[1])),
             aligned_error_m=float(np.hypot(*d)), aligned_error_range_m=float(d @ rd),
             aligned_error_cross_m=float(d @ cd), absolute_error_m=float(np.hypot(*(peak - true[:2]))),
+            local_aligned_error_m=(float(np.hypot(*(peak - patches.local_expected_xy[i])))
+                                   if patches.local_expected_xy is not None else nan),
             peak_db=m.peak_db, reference_peak_db=ref, peak_loss_db=None if ref is None else ref - m.peak_db,
             irw_range_m=m.range_cut.width_m, irw_cross_m=m.cross_range_cut.width_m,
             pslr_range_db=m.range_cut.pslr_db, pslr_cross_db=m.cross_range_cut.pslr_db,
             islr_range_db=m.range_cut.islr_db, islr_cross_db=m.cross_range_cut.islr_db))
     return out
+
+
+def chosen_patch(patches: ReflectorPatches, metrics: ReflectorMetrics) -> FocusedImage:
+    """The candidate patch the peak of ``metrics`` was found in (the first candidate if none was)."""
+    cands = patches.candidates[patches.names.index(metrics.name)]
+    for img in cands:
+        if np.allclose(patches.centre_xy(img), metrics.patch_centre_xy, atol=1e-6):
+            return img
+    return cands[0]
 
 
 def summarise_reflectors(metrics: list[ReflectorMetrics]) -> dict[str, float]:
@@ -156,8 +277,10 @@ def summarise_reflectors(metrics: list[ReflectorMetrics]) -> dict[str, float]:
         return float(fn(v)) if v else math.nan
 
     aligned = [m.aligned_error_m for m in metrics]
+    local = [m.local_aligned_error_m for m in metrics]
     absolute = [m.absolute_error_m for m in metrics]
     loss = [m.peak_loss_db for m in metrics if m.peak_loss_db is not None]
     return {"reflectors": len(metrics), "aligned_error_mean_m": stat(aligned, np.mean),
-            "aligned_error_max_m": stat(aligned, np.max), "absolute_error_mean_m": stat(absolute, np.mean),
+            "aligned_error_max_m": stat(aligned, np.max), "local_aligned_error_mean_m": stat(local, np.mean),
+            "local_aligned_error_max_m": stat(local, np.max), "absolute_error_mean_m": stat(absolute, np.mean),
             "peak_loss_mean_db": stat(loss, np.mean), "peak_loss_max_db": stat(loss, np.max)}

@@ -145,3 +145,20 @@ def trajectory_metrics(est: Trajectory, errors: TrajectoryErrors,
         rpe_10m_across_m=rpe[d10][1], alignment_angle_deg=math.degrees(errors.alignment.angle_rad),
         alignment_translation_m=errors.alignment.translation, aligned_rmse_m=_rms(aligned),
         aligned_rmse_across_m=_rms(errors.aligned_across), aligned_max_m=float(aligned.max()))
+
+
+#: Half-length (m of true travel) of the track the local alignment of a reflector is fitted on.
+LOCAL_HALF_SPAN_M = 5.0
+
+
+def local_alignments(errors: TrajectoryErrors, t0_ns: ArrayLike, half_span_m: float = LOCAL_HALF_SPAN_M) -> list[Se2]:
+    """For each instant t0 (e.g. when the radar passes a reflector), the rigid SE(2) motion estimate -> truth
+    fitted only on the instants within ``half_span_m`` of true travel of t0 (10 m of track by default, the
+    scale of the 10 m relative pose error). It removes the slowly varying (GNSS-driven) part of the error that
+    a whole-track alignment leaves on a long drive, keeping what deforms the image around the reflector."""
+    out = []
+    for t0 in np.atleast_1d(np.asarray(t0_ns, dtype=np.int64)):
+        s0 = float(np.interp(t0, errors.t_ns, errors.distance_m))
+        sel = np.abs(errors.distance_m - s0) <= half_span_m
+        out.append(fit_se2(errors.est_xy[sel], errors.ref_xy[sel]) if sel.sum() >= 2 else errors.alignment)
+    return out

@@ -1,0 +1,329 @@
+"""``autosar compare``: one drive focused with several navigation methods, side by side (paper Fig. 10/11).
+
+The log is ingested once (``OUT/drive.h5``). Every method (none, ins, sar-min, truth by default) is
+navigated, focused and evaluated into ``OUT/<method>/`` (trajectory.h5, image.tif/.h5/.png, run.json
+pointing at ``../drive.h5``, and the evaluation report: metrics.json, report.md, figures), then:
+
+- ``compare.png``: the images one above the other, same dB colour scale relative to the maximum over all
+  methods (paper Fig. 10);
+- ``across_track.png``: each method's across-track deviation from the straight line through its own track
+  (paper Fig. 11), and its across-track error vs the truth after the SE(2) alignment;
+- ``compare_chips.png``: the fine patch of every reflector (columns) for every method (rows);
+- ``compare.md`` and ``compare.json``: the comparison tables.
+
+All images share one grid: the automatic grid of the true trajectory (or of the first method's when there
+is no truth), moved into each method's frame by the inverse of its SE(2) alignment, so every panel shows
+the same piece of the scene and entropy / contrast are computed over the same area. One pass over the
+radar data per method serves the full image and the reflector patches. Methods that need the truth
+(``truth``) are skipped with a note when the log has no truth sidecar, and so is a method whose inputs the
+drive lacks (e.g. ``ins`` without the radar's IMU).
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from autosar_cli import __version__
+from autosar_cli.config import Config
+from autosar_cli.evaluate.alignment import Se2
+from autosar_cli.evaluate.evaluation import (
+    LINE_KINDS,
+    Evaluation,
+    Truth,
+    evaluate_image,
+    load_truth,
+    metrics_grid,
+    radar_times,
+)
+from autosar_cli.evaluate.figures import plot_across_track, plot_images_side_by_side, plot_reflector_chips
+from autosar_cli.evaluate.reflectors import ReflectorPatches, focus_patches, predict_image_positions
+from autosar_cli.evaluate.report import fmt, json_safe, markdown_table, write_json, write_report, write_text
+from autosar_cli.evaluate.trajectory_metrics import common_instants, phase_centre_lever_arm, trajectory_errors
+from autosar_cli.ingest.pipeline import ingest
+from autosar_cli.nav.inputs import NavInputError
+from autosar_cli.nav.navigate import METHODS as NAV_METHODS
+from autosar_cli.nav.navigate import default_truth_path, navigate
+from autosar_cli.nav.trajectory import Trajectory
+from autosar_cli.run import FORMAT as RUN_FORMAT
+from autosar_cli.run import FORMAT_VERSION as RUN_FORMAT_VERSION
+from autosar_cli.sar.focus import FocusOptions, _usable_frames, focus_images, make_grid
+from autosar_cli.sar.grid import FocusGrid
+from autosar_cli.store.drive import Drive
+from autosar_cli.store.image import write_image
+from autosar_cli.store.trajectory import write_trajectory
+
+FORMAT = "autosar-compare"
+FORMAT_VERSION = 1
+DEFAULT_METHODS = ("none", "ins", "sar-min", "truth")
+NEEDS_TRUTH = ("truth",)
+DRIVE = "drive.h5"
+
+Progress = Callable[[str, int, int], None]
+
+
+class CompareError(ValueError):
+    """A comparison cannot start (unknown method, existing output without --overwrite, ...)."""
+
+
+def parse_methods(spec: str | Sequence[str]) -> list[str]:
+    """``"none,ins,sar-min,truth"`` (or a sequence) -> the list of methods, checked, duplicates removed."""
+    items = spec.split(",") if isinstance(spec, str) else list(spec)
+    methods: list[str] = []
+    for m in (s.strip() for s in items):
+        if not m:
+            continue
+        if m not in NAV_METHODS:
+            raise CompareError(f"--methods: unknown method {m!r} (choose from {', '.join(NAV_METHODS)})")
+        if m not in methods:
+            methods.append(m)
+    if not methods:
+        raise CompareError("--methods: give at least one method")
+    return methods
+
+
+def transform_grid(grid: FocusGrid, motion: Se2) -> FocusGrid:
+    """``grid`` moved rigidly by ``motion`` (same shape and pixel; origin and axes transformed)."""
+    r = motion.rotation
+    origin = motion.apply(np.asarray(grid.origin))
+    along, across = r @ np.asarray(grid.along), r @ np.asarray(grid.across)
+    return replace(grid, origin=(float(origin[0]), float(origin[1])), along=(float(along[0]), float(along[1])),
+                   across=(float(across[0]), float(across[1])))
+
+
+def auto_grid(drive_path: Path, trajectory: Trajectory, config: Config, options: FocusOptions) -> FocusGrid:
+    """The grid ``autosar focus --grid auto`` would use along ``trajectory``."""
+    with Drive(drive_path) as d:
+        geometry = _usable_frames(d.radar(), trajectory, config, options.min_speed_mps)
+    return make_grid(replace(options, grid="auto"), geometry, config)
+
+
+def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
+            methods: Sequence[str] = DEFAULT_METHODS, truth_path: str | Path | None = None,
+            options: FocusOptions | None = None, overwrite: bool = False, progress: Progress | None = None,
+            command: str = "") -> dict[str, Any]:
+    """Compare navigation methods on one drive; returns the comparison (also written as compare.json)."""
+    out = Path(out_dir)
+    if (out / "compare.json").exists() and not overwrite:
+        raise CompareError(f"{out}: already holds a comparison (compare.json); pass --overwrite to replace it")
+    methods = parse_methods(methods)
+    options = options or FocusOptions.from_config(config)
+    tick = progress or (lambda stage, done, total: None)
+    out.mkdir(parents=True, exist_ok=True)
+    timings: dict[str, float] = {}
+    notes: list[str] = []
+
+    t0 = time.perf_counter()
+    ingest([Path(p) for p in logs], out / DRIVE, config=config, command=command,
+           progress=lambda done, total: tick("ingest", done, total))
+    timings["ingest"] = time.perf_counter() - t0
+
+    if truth_path is None:
+        with Drive(out / DRIVE) as d:
+            truth_path = default_truth_path(d)
+    elif not Path(truth_path).is_file():
+        raise CompareError(f"{truth_path}: no such truth sidecar")
+    skipped: dict[str, str] = {}
+    if truth_path is None:
+        for m in methods:
+            if m in NEEDS_TRUTH:
+                skipped[m] = "no truth sidecar next to the log (give --truth LOG.truth.h5)"
+        notes.append("no truth sidecar: trajectory and reflector metrics need one; only entropy and contrast "
+                     "are compared")
+    t0 = time.perf_counter()
+    trajectories: dict[str, Trajectory] = {}
+    wanted = [m for m in methods if m not in skipped]
+    for i, m in enumerate(wanted):
+        tick("navigate", i, len(wanted))
+        try:
+            trajectories[m] = navigate(out / DRIVE, m, config, truth_path=truth_path)
+        except NavInputError as exc:  # e.g. no radar IMU for the INS: compare the others
+            skipped[m] = str(exc).splitlines()[0]
+    tick("navigate", len(wanted), len(wanted))
+    timings["navigate"] = time.perf_counter() - t0
+    run_methods = [m for m in methods if m in trajectories]
+    if not run_methods:
+        raise CompareError("no method left to compare: " + "; ".join(f"{k}: {v}" for k, v in skipped.items()))
+
+    first = trajectories[run_methods[0]]
+    truth: Truth | None = None
+    if truth_path is not None:
+        truth = load_truth(truth_path, first.origin, config)
+    base_traj = truth.trajectory if truth is not None else trajectories.get("sar-min", first)
+    base_grid = auto_grid(out / DRIVE, base_traj, config, options)
+    range_dir = base_grid.across
+
+    alignments: dict[str, Se2] = {m: Se2() for m in run_methods}
+    centres: dict[str, np.ndarray] = {}
+    has_reflectors = truth is not None and len(truth.targets.corner_reflectors) > 0
+    names = truth.targets.corner_reflector_names() if has_reflectors and truth else []
+    true_cr = truth.targets.position_enu[truth.targets.corner_reflectors] if has_reflectors and truth else None
+    if truth is not None:
+        t_radar = radar_times(out / DRIVE)
+        lever = phase_centre_lever_arm(config)
+        for m in run_methods:
+            t = common_instants(trajectories[m], truth.trajectory, t_radar)
+            alignments[m] = trajectory_errors(trajectories[m], truth.trajectory, lever, t).alignment
+            if has_reflectors:
+                centres[m] = predict_image_positions(trajectories[m], truth.trajectory,
+                                                     truth.targets_above_road(truth.targets.corner_reflectors),
+                                                     config, t, options.height_m)
+
+    # The truth trajectory's reflector patches are every method's peak-loss reference: focus them first.
+    order = sorted(run_methods, key=lambda m: m != "truth")
+    reference: ReflectorPatches | None = None
+    if has_reflectors and "truth" not in run_methods and truth is not None:
+        t0 = time.perf_counter()
+        tick("focus reference patches (truth)", 0, 1)
+        reference = focus_patches(out / DRIVE, truth.trajectory, config, options, names, true_cr)[0]
+        tick("focus reference patches (truth)", 1, 1)
+        timings["reference_patches"] = time.perf_counter() - t0
+
+    evaluations: dict[str, Evaluation] = {}
+    for m in order:
+        traj = trajectories[m]
+        mdir = out / m
+        mdir.mkdir(parents=True, exist_ok=True)
+        grid = transform_grid(base_grid, alignments[m].inverse())
+        t0 = time.perf_counter()
+        label = f"focus {m}"
+        tick(label, 0, 1)
+        fine = metrics_grid(grid)
+        if has_reflectors:
+            patches, (image, metrics_image), res = focus_patches(out / DRIVE, traj, config, options, names, true_cr,
+                                                                 alignments[m], predicted_xy=centres[m],
+                                                                 extra_grids=[grid, fine])
+        else:
+            res = focus_images(out / DRIVE, traj, config, options, grids=[grid, fine])
+            (image, metrics_image), patches = res.images, None
+        tick(label, 1, 1)
+        metrics_image.params["pixel_m"] = metrics_image.grid.pixel_m
+        image.params["grid"] = "auto, registered" if truth is not None else "auto"
+        image.params["grid_reference"] = base_traj.method
+        image.provenance.update({"drive": str(out / DRIVE), "trajectory": str(mdir / "trajectory.h5"),
+                                 "command": command})
+        focus_s = time.perf_counter() - t0
+        write_trajectory(mdir / "trajectory.h5", traj)
+        outputs = write_image(mdir / "image", image, overwrite=True)
+        _write_method_manifest(mdir, logs, config, m, traj, truth_path, options, res, focus_s, outputs, command)
+        timings[f"focus_{m}"] = focus_s
+        t0 = time.perf_counter()
+        tick(f"evaluate {m}", 0, 1)
+        if m == "truth" and patches is not None:
+            reference = patches
+        ev = evaluate_image(image, traj, out / DRIVE, config, truth, metrics_image=metrics_image, patches=patches,
+                            reference_patches=reference,
+                            range_dir=range_dir,
+                            inputs={"image": str(outputs["h5"]), "trajectory": str(mdir / "trajectory.h5"),
+                                    "drive": str(out / DRIVE), "config": config.source})
+        write_report(ev, mdir, overwrite=True)
+        evaluations[m] = ev
+        tick(f"evaluate {m}", 1, 1)
+        timings[f"evaluate_{m}"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    tick("figures", 0, 1)
+    shown = list(run_methods)
+    figures = {"compare": plot_images_side_by_side([(m, evaluations[m].image) for m in shown],
+                                                   out / "compare.png").name,
+               "across_track": plot_across_track([trajectories[m] for m in shown], out / "across_track.png",
+                                                 [evaluations[m].errors for m in shown
+                                                  if evaluations[m].errors is not None]).name}
+    chip_rows = [(m, p, evaluations[m].reflectors) for m in shown if (p := evaluations[m].patches) is not None]
+    if chip_rows:
+        figures["compare_chips"] = plot_reflector_chips(chip_rows, out / "compare_chips.png").name
+    tick("figures", 1, 1)
+    timings["figures"] = time.perf_counter() - t0
+
+    result: dict[str, Any] = {
+        "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__, "command": command,
+        "inputs": [str(p) for p in logs], "config": config.source, "truth": str(truth_path) if truth_path else None,
+        "methods": run_methods, "skipped": skipped, "notes": notes,
+        "grid": {"reference_trajectory": base_traj.method, "shape": list(base_grid.shape),
+                 "pixel_m": base_grid.pixel_m, "range_direction": list(range_dir)},
+        "results": {m: _method_result(evaluations[m]) for m in run_methods},
+        "timings_s": timings, "outputs": {**figures, "markdown": "compare.md",
+                                          "methods": {m: m for m in run_methods}},
+    }
+    result["wall_s"] = sum(timings.values())
+    write_text(out / "compare.md", compare_markdown(result, evaluations, figures))
+    write_json(out / "compare.json", result)
+    return json_safe(result)
+
+
+def _method_result(ev: Evaluation) -> dict[str, Any]:
+    return {"summary": ev.summary(),
+            "trajectory": ev.trajectory_metrics.to_dict() if ev.trajectory_metrics else None,
+            "alignment": ev.alignment.to_dict() if ev.errors is not None else None,
+            "image": ev.image_metrics.to_dict(),
+            "reflectors": [r.to_dict() for r in ev.reflectors]}
+
+
+def _write_method_manifest(mdir: Path, logs: Sequence[str | Path], config: Config, method: str, traj: Trajectory,
+                           truth_path: str | Path | None, options: FocusOptions, res: Any, focus_s: float,
+                           outputs: dict[str, Path], command: str) -> None:
+    """A run.json (format autosar-run) for a method directory, so ``autosar evaluate OUT/<method>`` works."""
+    manifest = {
+        "format": RUN_FORMAT, "format_version": RUN_FORMAT_VERSION, "autosar_version": __version__,
+        "python": platform.python_version(), "command": command, "config": config.source,
+        "inputs": [{"path": str(p)} for p in logs], "method": method, "focus_options": asdict(options),
+        "stages": {"navigate": {"method": traj.method, "samples": int(len(traj.t_ns)),
+                                "elapsed_s": traj.info.get("elapsed_s")},
+                   "focus": {"wall_s": focus_s, "timings_s": res.timings_s, "frames_used": res.frames_used,
+                             "backprojections": res.backprojections}},
+        "outputs": {"drive": os.path.join("..", DRIVE), "trajectory": "trajectory.h5",
+                    "image": {k: os.path.relpath(v, mdir) for k, v in outputs.items()}},
+        "drive_s": res.drive_s, "comparison": "..",
+    }
+    if truth_path is not None:
+        manifest["truth"] = str(truth_path)
+    write_json(mdir / "run.json", manifest)
+
+
+def compare_markdown(result: dict[str, Any], evaluations: dict[str, Evaluation], figures: dict[str, str]) -> str:
+    """compare.md: the per-method table, the per-reflector table, the figures and notes."""
+    methods = result["methods"]
+    parts = ["# Navigation comparison\n\n",
+             f"Log: {', '.join(f'`{p}`' for p in result['inputs'])}; truth: "
+             f"{'`' + result['truth'] + '`' if result['truth'] else 'none'}; grid: the automatic grid of the "
+             f"{result['grid']['reference_trajectory']} trajectory ({result['grid']['shape'][0]} x "
+             f"{result['grid']['shape'][1]} pixels of {result['grid']['pixel_m'] * 100:g} cm)"
+             + (", registered into each method's frame by its SE(2) alignment" if result["truth"] else "")
+             + ".\n\n"]
+    rows = []
+    for m in methods:
+        s = evaluations[m].summary()
+        rows.append([m, fmt(s["abs_rmse_m"], 100), fmt(s["aligned_rmse_m"], 100), fmt(s["rpe_1m_across_m"], 1000),
+                     fmt(s["rpe_10m_across_m"], 1000), fmt(s["aligned_error_mean_m"], 100),
+                     fmt(s["aligned_error_max_m"], 100), fmt(s["local_aligned_error_max_m"], 100),
+                     fmt(s["peak_loss_mean_db"], signed=True),
+                     fmt(s["peak_loss_max_db"], signed=True), fmt(s["entropy"], digits=4),
+                     fmt(s["contrast"], digits=1)]
+                    + [fmt(s[f"straightness_{k}_m"], 100) for k in LINE_KINDS])
+    parts.append(markdown_table(["method", "abs RMSE (cm)", "aligned RMSE (cm)", "RPE 1 m across (mm)",
+                                 "RPE 10 m across (mm)", "reflector aligned error mean (cm)", "max (cm)",
+                                 "max, local alignment (cm)",
+                                 "peak loss mean (dB)", "max (dB)", "entropy (nats)", "contrast"]
+                                + [f"{k} straightness (cm)" for k in LINE_KINDS], rows))
+    names = [r.name for r in next(iter(evaluations.values())).reflectors]
+    if names:
+        parts.append("\nPer reflector: aligned position error (cm; in brackets with the local alignment on the 10 m "
+                     "of track around the reflector) / peak loss vs the truth-trajectory image (dB).\n\n")
+        by = {m: {r.name: r for r in evaluations[m].reflectors} for m in methods}
+        rows = [[n] + [f"{fmt(by[m][n].aligned_error_m, 100)} ({fmt(by[m][n].local_aligned_error_m, 100)}) / "
+                       f"{fmt(by[m][n].peak_loss_db, signed=True)}" if n in by[m] else "–" for m in methods]
+                for n in names]
+        parts.append(markdown_table(["reflector", *methods], rows))
+    parts.append("\n" + "\n".join(f"![{k}]({v})" for k, v in figures.items()) + "\n")
+    notes = list(result["notes"]) + [f"{m} skipped: {why}" for m, why in result["skipped"].items()]
+    if notes:
+        parts.append("\n## Notes\n\n" + "\n".join(f"- {n}" for n in notes) + "\n")
+    parts.append(f"\nPer-method reports: {', '.join(f'[{m}]({m}/report.md)' for m in methods)}.\n")
+    return "".join(parts)
