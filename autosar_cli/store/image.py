@@ -178,7 +178,7 @@ def _write_geotiff(path: Path, img: FocusedImage, transform: Affine, crs: CRS, p
     rows, cols = img.grid.shape
     profile: dict[str, Any] = {
         "driver": "GTiff", "width": cols, "height": rows, "count": 1, "dtype": "float32", "crs": crs,
-        "transform": transform, "nodata": np.nan, "compress": "deflate", "predictor": 3,
+        "transform": transform, "nodata": np.nan, "compress": "deflate", "predictor": 3, "zlevel": 1,
     }
     if rows >= 16 and cols >= 16:  # GeoTIFF tiles are multiples of 16 pixels
         profile.update(tiled=True, blockxsize=min(256, cols // 16 * 16), blockysize=min(256, rows // 16 * 16))
@@ -211,7 +211,7 @@ def _write_h5(path: Path, img: FocusedImage, transform: Affine, epsg: int, crs: 
         })
         chunks = (min(rows, 256), min(cols, 256))
         ds = f.create_dataset("image", data=np.asarray(img.image, dtype=np.complex64), chunks=chunks,
-                              compression="gzip", compression_opts=1, shuffle=True)
+                              compression="lzf", shuffle=True)
         ds.attrs.update({"units": "linear complex amplitude (arbitrary)", "axes": "rows = across, cols = along"})
         f["along_m"] = np.arange(cols, dtype=np.float64) * g.pixel_m
         f["across_m"] = np.arange(rows, dtype=np.float64) * g.pixel_m
