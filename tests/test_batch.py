@@ -63,7 +63,10 @@ def test_batch_local_cluster_two_workers(logs, solo, tmp_path):
         got = read_image(out / name / "image.h5")
         ref = read_image(solo[name] / "image.h5")
         assert got.grid == ref.grid
-        assert np.array_equal(got.image, ref.image), f"{name}: batch image differs from the single-drive run"
+        # equal to float32 rounding: dask workers run BLAS single-threaded (OMP/OPENBLAS_NUM_THREADS=1) and
+        # the kernels are reloaded from numba's cache, which on a cold cache moved a few pixels by ~1e-7
+        err = np.abs(got.image - ref.image).max() / np.abs(ref.image).max()
+        assert err <= 1e-5, f"{name}: batch image differs from the single-drive run by {err:.1e} of the peak"
         assert json.loads((out / name / "run.json").read_text())["outputs"]["image"]["h5"] == "image.h5"
     bad = recs["corrupt"]
     assert bad["status"] == "failed" and "corrupt.mcap" in bad["error"]
