@@ -76,13 +76,8 @@ def range_compress_into(beat: ArrayLike, out_re: NDArray[np.float32], out_im: ND
     ``out_re``/``out_im`` (N * upsample, >= P) float32 receive the profiles transposed: bin-major with pulses
     contiguous, the layout the back-projection kernel reads.
     """
-    x = np.asarray(beat)
-    if x.dtype == np.int16 and x.shape[-1] == 2:
-        x = iq_to_complex(x)
-    n = x.shape[-1]
-    nfft = n * upsample
-    spec = scipy.fft.fft(x.astype(np.complex64, copy=False) * _taper32(window, n), n=nfft, axis=-1, workers=workers)
-    spec *= _reference_ramp(n, nfft, float(sample_rate_hz), float(slope_hz_per_s))
+    spec = range_compress(beat, sample_rate_hz=sample_rate_hz, slope_hz_per_s=slope_hz_per_s, window=window,
+                          upsample=upsample, workers=workers)
     p = spec.shape[0]
     # numpy's strided copy transposes ~3x faster here than a tiled numba loop (measured)
     np.copyto(out_re[:, :p], spec.real.T)
