@@ -43,6 +43,7 @@ from autosar_cli.ingest.sources import LogReadError
 from autosar_cli.run import run
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.store.atomic import atomic_output
+from autosar_cli.store.manifest import read_json_manifest
 
 FORMAT = "autosar-batch"
 FORMAT_VERSION = 1
@@ -304,14 +305,7 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
 
 def read_batch(out_dir: str | Path) -> dict[str, Any]:
     """batch.json of a batch directory, checked."""
-    path = Path(out_dir) / MANIFEST
-    try:
-        manifest = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise BatchError(f"{path}: not a readable batch manifest ({exc})") from None
-    if manifest.get("format") != FORMAT:
-        raise BatchError(f"{path}: not an autosar batch manifest")
-    return manifest
+    return read_json_manifest(Path(out_dir) / MANIFEST, FORMAT, "batch", BatchError)
 
 
 __all__ = ["BatchError", "FORMAT", "INPUT_ERRORS", "drive_names", "read_batch", "run_batch", "run_drive"]

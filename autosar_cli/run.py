@@ -24,6 +24,7 @@ from autosar_cli.ingest.pipeline import ingest
 from autosar_cli.nav.navigate import navigate
 from autosar_cli.sar.focus import FocusOptions, focus
 from autosar_cli.store.atomic import atomic_output
+from autosar_cli.store.manifest import read_json_manifest
 from autosar_cli.store.trajectory import write_trajectory
 
 FORMAT = "autosar-run"
@@ -107,14 +108,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
 
 def read_manifest(run_dir: str | Path) -> dict[str, Any]:
     """run.json of a run directory, checked."""
-    path = Path(run_dir) / "run.json"
-    try:
-        manifest = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise RunError(f"{path}: not a readable run manifest ({exc})") from None
-    if manifest.get("format") != FORMAT:
-        raise RunError(f"{path}: not an autosar run manifest")
-    return manifest
+    return read_json_manifest(Path(run_dir) / "run.json", FORMAT, "run", RunError)
 
 
 def _size(p: Path) -> int:

@@ -1,0 +1,18 @@
+"""JSON manifests of run and batch directories: one reader with one kind of error message."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+
+def read_json_manifest(path: Path, fmt: str, what: str, error: type[Exception]) -> dict[str, Any]:
+    """The JSON object in ``path`` if its ``format`` is ``fmt``; else ``error`` naming the file and ``what``."""
+    try:
+        manifest = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise error(f"{path}: not a readable {what} manifest ({exc})") from None
+    if not isinstance(manifest, dict) or manifest.get("format") != fmt:
+        raise error(f"{path}: not an autosar {what} manifest")
+    return manifest
