@@ -24,7 +24,7 @@ from autosar_cli.ingest.pipeline import ingest
 from autosar_cli.nav.navigate import navigate
 from autosar_cli.sar.focus import FocusOptions, focus
 from autosar_cli.store.atomic import atomic_output
-from autosar_cli.store.manifest import read_json_manifest
+from autosar_cli.store.manifest import json_default, read_json_manifest
 from autosar_cli.store.trajectory import write_trajectory
 
 FORMAT = "autosar-run"
@@ -76,7 +76,6 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     if progress:
         progress("navigate", 0, 1)
     traj = navigate(out / DRIVE, method, config, truth_path=truth_path)
-    _replace(out / TRAJECTORY, overwrite=True)
     write_trajectory(out / TRAJECTORY, traj)
     if progress:
         progress("navigate", 1, 1)
@@ -102,7 +101,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     manifest["wall_s"] = sum(s["wall_s"] for s in manifest["stages"].values())
     manifest["fraction_of_drive"] = manifest["wall_s"] / frep.drive_s if frep.drive_s > 0 else None
     with atomic_output(manifest_path, overwrite=True) as tmp:
-        tmp.write_text(json.dumps(manifest, indent=2, default=_json_default) + "\n")
+        tmp.write_text(json.dumps(manifest, indent=2, default=json_default) + "\n")
     return manifest
 
 
@@ -117,16 +116,3 @@ def _size(p: Path) -> int:
     return p.stat().st_size if p.exists() else 0
 
 
-def _replace(path: Path, *, overwrite: bool) -> None:
-    if path.exists() and overwrite:
-        path.unlink()
-
-
-def _json_default(obj: Any) -> Any:
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, Path):
-        return str(obj)
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")

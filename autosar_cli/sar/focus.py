@@ -296,16 +296,21 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
                        drive_s)
 
 
-def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Path, config: Config,
-          options: FocusOptions, *, overwrite: bool = False,
-          progress: Callable[[int, int], None] | None = None, command: str = "") -> FocusReport:
-    """Focus the radar of ``drive_path`` along ``trajectory_path`` and write OUT.tif/.h5/.png."""
-    parse_grid(options.grid)  # a bad --grid fails before any work
+def check_request(options: FocusOptions, output: str | Path, overwrite: bool) -> None:
+    """Fail before any work on a bad --grid or --channels, or on existing products without --overwrite."""
+    parse_grid(options.grid)
     if options.channels not in (8, 12):
         raise FocusError(f"--channels {options.channels}: choose 8 or 12")
     existing = [str(p) for p in product_paths(Path(output)).values() if p.exists()]
     if existing and not overwrite:
         raise FocusError(f"{existing[0]} already exists; pass --overwrite to replace it")
+
+
+def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Path, config: Config,
+          options: FocusOptions, *, overwrite: bool = False,
+          progress: Callable[[int, int], None] | None = None, command: str = "") -> FocusReport:
+    """Focus the radar of ``drive_path`` along ``trajectory_path`` and write OUT.tif/.h5/.png."""
+    check_request(options, output, overwrite)
     res = focus_images(drive_path, trajectory_path, config, options, progress=progress, command=command)
     t0 = time.perf_counter()
     img = res.images[0]

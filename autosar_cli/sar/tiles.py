@@ -36,13 +36,13 @@ from autosar_cli.sar.focus import (
     FocusOptions,
     FocusReport,
     _usable_frames,
+    check_request,
     focus_images,
     make_grid,
-    parse_grid,
 )
 from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.store.drive import Drive
-from autosar_cli.store.image import FocusedImage, product_paths, write_image
+from autosar_cli.store.image import FocusedImage, write_image
 from autosar_cli.store.trajectory import read_trajectory
 
 
@@ -150,12 +150,7 @@ def focus_tiled(drive_path: str | Path, trajectory_path: str | Path, output: str
     in this process. ``progress(done, total)`` counts pulse blocks over all tiles in-process, tiles with a
     client. Timings in the report are summed over the tiles (processing time, not wall time).
     """
-    parse_grid(options.grid)  # a bad --grid fails before any work
-    if options.channels not in (8, 12):
-        raise FocusError(f"--channels {options.channels}: choose 8 or 12")
-    existing = [str(p) for p in product_paths(Path(output)).values() if p.exists()]
-    if existing and not overwrite:
-        raise FocusError(f"{existing[0]} already exists; pass --overwrite to replace it")
+    check_request(options, output, overwrite)
     t_plan = time.perf_counter()
     grid = plan_grid(drive_path, trajectory_path, config, options)
     parts = split_grid(grid, tiles)

@@ -26,6 +26,7 @@ from autosar_cli import __version__
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.store.atomic import atomic_output
+from autosar_cli.store.manifest import json_default
 
 FORMAT = "autosar-image"
 FORMAT_VERSION = 1
@@ -159,17 +160,7 @@ def read_image(path: Path) -> FocusedImage:
 
 def _to_json(value: Any) -> str:
     """JSON text of ``value`` (numpy scalars and arrays become numbers and lists)."""
-
-    def default(o: Any) -> Any:
-        if isinstance(o, np.generic):
-            return o.item()
-        if isinstance(o, np.ndarray):
-            return o.tolist()
-        if isinstance(o, Path):
-            return str(o)
-        raise TypeError(f"processing parameter value {o!r} ({type(o).__name__}) is not JSON-serialisable")
-
-    return json.dumps(value, default=default)
+    return json.dumps(value, default=json_default)
 
 
 def _write_geotiff(path: Path, img: FocusedImage, transform: Affine, crs: CRS, params_json: dict[str, str],

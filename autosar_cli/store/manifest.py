@@ -6,6 +6,19 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+
+def json_default(obj: Any) -> Any:
+    """``json.dumps(default=...)``: numpy scalars and arrays become numbers and lists, paths strings."""
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"value {obj!r} ({type(obj).__name__}) is not JSON-serialisable")
+
 
 def read_json_manifest(path: Path, fmt: str, what: str, error: type[Exception]) -> dict[str, Any]:
     """The JSON object in ``path`` if its ``format`` is ``fmt``; else ``error`` naming the file and ``what``."""
