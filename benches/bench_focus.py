@@ -12,7 +12,8 @@ Usage: python benches/bench_focus.py [--repeat 5] [--workdir DIR] [--kernel-only
    4 cm pixels, full swath, in a fresh process per run: wall time (median), as a fraction of the drive's
    duration, its split, kernel throughput, and peak RSS of the process.
 3. The same drive four times over (radar frames repeated, trajectory repeated and translated end to
-   start so the car drives on): peak RSS must not grow beyond the larger image.
+   start so the car drives on): peak RSS must not grow beyond the larger image; and the same focused in
+   8 tiles, written tile by tile (peak RSS must stay near the one-drive figure).
 Writes benches/results/focus.json.
 """
 
@@ -79,9 +80,15 @@ CHILD = r"""
 import json, resource, sys, time
 from autosar_cli.config import load_config
 from autosar_cli.sar.focus import FocusOptions, focus
+from autosar_cli.sar.tiles import focus_tiled
 cfg = load_config()
+tiles = int(sys.argv[4])
 t = time.perf_counter()
-rep = focus(sys.argv[1], sys.argv[2], sys.argv[3], cfg, FocusOptions.from_config(cfg), overwrite=True)
+if tiles > 1:
+    rep = focus_tiled(sys.argv[1], sys.argv[2], sys.argv[3], cfg, FocusOptions.from_config(cfg), tiles=tiles,
+                      overwrite=True)
+else:
+    rep = focus(sys.argv[1], sys.argv[2], sys.argv[3], cfg, FocusOptions.from_config(cfg), overwrite=True)
 wall = time.perf_counter() - t
 d = rep.to_dict()
 d["process_wall_s"] = wall
@@ -90,8 +97,8 @@ print(json.dumps(d))
 """
 
 
-def run_focus(drive: Path, traj: Path, out: Path) -> dict[str, object]:
-    res = subprocess.run([sys.executable, "-c", CHILD, str(drive), str(traj), str(out)], check=True,
+def run_focus(drive: Path, traj: Path, out: Path, tiles: int = 1) -> dict[str, object]:
+    res = subprocess.run([sys.executable, "-c", CHILD, str(drive), str(traj), str(out), str(tiles)], check=True,
                          capture_output=True, text=True)
     return json.loads(res.stdout.strip().splitlines()[-1])
 
@@ -199,6 +206,13 @@ def main() -> None:
                     "image_mb_4x": round(math.prod(r4["grid_shape"]) * 8 / 1e6, 1)}
             print(json.dumps(row4))
             result["test1x4"] = row4
+            rt = run_focus(drive4, traj4, work / "image4t", tiles=8)
+            rowt = {"case": "test1 four times over, focused in 8 tiles (focus_tiled, in-process)",
+                    "wall_s": round(rt["process_wall_s"], 3), "grid_shape": rt["grid_shape"],
+                    "peak_rss_mb": round(rt["peak_rss_mb"], 1),
+                    "image_mb_tile": round(math.prod(rt["grid_shape"]) * 8 / 8 / 1e6, 1)}
+            print(json.dumps(rowt))
+            result["test1x4_tiles8"] = rowt
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "focus.json").write_text(json.dumps(result, indent=2) + "\n")
 

@@ -22,6 +22,7 @@ from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.image import (
     FocusedImage,
     ImageFormatError,
+    ImageWriter,
     read_image,
     utm_geotransform,
     write_image,
@@ -256,3 +257,47 @@ def test_image_must_match_the_grid() -> None:
     grid = rotated_grid()
     with pytest.raises(ValueError, match="grid shape"):
         FocusedImage(np.zeros((400, 250), np.complex64), grid, ORIGIN, {})
+
+
+def test_strip_writer_equals_one_piece(tmp_path: Path) -> None:
+    """Column strips in any order (boundaries off the GeoTIFF blocks and the quicklook's 3-pixel pools) give
+    the products of the whole image at once: same GeoTIFF, same image.h5, same quicklook PNG."""
+    grid = FocusGrid((0.0, 0.0), (1.0, 0.0), (0.0, -1.0), PIXEL, 3000, 64, 0.0)  # quicklook pools 3 x 3 px
+    img = FocusedImage(make_image(grid), grid, ORIGIN, PARAMS, {"tiles": 5})
+    whole = write_image(tmp_path / "whole", img)
+    bounds = [0, 700, 1301, 1302, 2048, 3000]
+    with ImageWriter(tmp_path / "strips", grid, ORIGIN) as w:
+        for k in (3, 0, 4, 2, 1):  # as tiles come back from a cluster
+            c0, c1 = bounds[k], bounds[k + 1]
+            w.write_columns(c0, img.image[:, c0:c1])
+        w.set_metadata(PARAMS, {"tiles": 5})
+    strips = w.paths
+    back = read_image(strips["h5"])
+    np.testing.assert_array_equal(back.image, img.image)
+    assert back.params == read_image(whole["h5"]).params and back.provenance == {"tiles": 5}
+    with rasterio.open(whole["tif"]) as a, rasterio.open(strips["tif"]) as b:
+        assert a.transform == b.transform and a.crs == b.crs and a.tags() == b.tags()
+        np.testing.assert_array_equal(a.read(1), b.read(1))
+        assert np.isnan(b.read(1)[ZERO])  # the exact zero is nodata
+    assert strips["png"].read_bytes() == whole["png"].read_bytes()
+
+
+def test_strip_writer_leaves_nothing_when_incomplete_or_failing(tmp_path: Path) -> None:
+    grid = FocusGrid((0.0, 0.0), (1.0, 0.0), (0.0, -1.0), PIXEL, 64, 32, 0.0)
+    img = make_image(grid)
+    with pytest.raises(ValueError, match="image incomplete, 14 columns never written"):
+        with ImageWriter(tmp_path / "a", grid, ORIGIN) as w:
+            w.write_columns(0, img[:, :50])
+            w.set_metadata(PARAMS)
+    with pytest.raises(ValueError, match="some were written already"):
+        with ImageWriter(tmp_path / "b", grid, ORIGIN) as w:
+            w.write_columns(0, img[:, :50])
+            w.write_columns(40, img[:, 40:])
+    with pytest.raises(ValueError, match="does not fit the grid"):
+        with ImageWriter(tmp_path / "c", grid, ORIGIN) as w:
+            w.write_columns(60, img[:, :10])
+    with pytest.raises(RuntimeError, match="worker lost"):
+        with ImageWriter(tmp_path / "d", grid, ORIGIN) as w:
+            w.write_columns(0, img)
+            raise RuntimeError("worker lost")
+    assert list(tmp_path.iterdir()) == []

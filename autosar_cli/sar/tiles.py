@@ -10,7 +10,8 @@ float32 rounding).
 
 Memory: a tile's task holds its own image (and one block of pulses), never the whole image; the tiles
 can run one after the other in-process (``client=None``) or as Dask tasks on a dask.distributed cluster.
-Only the caller assembles the full complex image to write the products.
+The caller writes each tile's columns into the products as the tile arrives
+(:class:`~autosar_cli.store.image.ImageWriter`), so it never holds the whole image either.
 
 Cost: a tile's task reads and range-compresses only the pulse blocks whose beam reaches it (focus_images
 skips the others), so tiles along the track split the reading, range compression and back-projection of
@@ -42,7 +43,7 @@ from autosar_cli.sar.focus import (
 )
 from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.store.drive import Drive
-from autosar_cli.store.image import FocusedImage, write_image
+from autosar_cli.store.image import ImageWriter
 from autosar_cli.store.trajectory import read_trajectory
 
 
@@ -152,48 +153,49 @@ def focus_tiled(drive_path: str | Path, trajectory_path: str | Path, output: str
     """
     check_request(options, output, overwrite)
     t_plan = time.perf_counter()
-    grid = plan_grid(drive_path, trajectory_path, config, options)
+    traj, _ = _read_trajectory(trajectory_path)
+    grid = plan_grid(drive_path, traj, config, options)
     parts = split_grid(grid, tiles)
-    image = np.zeros(grid.shape, np.complex64)
     timings: Counter[str] = Counter()
     timings["geometry"] += time.perf_counter() - t_plan
     results: list[TileResult] = []
 
-    def place(r: TileResult) -> None:
-        image[:, r.col0: r.col0 + r.image.shape[1]] = r.image
-        timings.update(r.timings_s)
-        results.append(replace(r, image=np.zeros((0, 0), np.complex64)))  # its pixels now live in ``image``
+    with ImageWriter(Path(output), grid, traj.origin, overwrite=overwrite) as writer:
+        def place(r: TileResult) -> None:
+            t0 = time.perf_counter()
+            writer.write_columns(r.col0, r.image)  # straight to the products: the whole image is never held
+            timings["write"] += time.perf_counter() - t0
+            timings.update(r.timings_s)
+            results.append(replace(r, image=np.zeros((0, 0), np.complex64)))
 
-    if client is None:
-        for k, tile in enumerate(parts):
-            def tile_progress(done: int, total: int, k: int = k) -> None:
+        if client is None:
+            for k, tile in enumerate(parts):
+                def tile_progress(done: int, total: int, k: int = k) -> None:
+                    if progress is not None:
+                        progress(k * total + done, len(parts) * total)
+
+                place(focus_tile(drive_path, trajectory_path, config, options, tile, progress=tile_progress,
+                                 command=command))
+        else:
+            from distributed import as_completed
+
+            futures = [client.submit(focus_tile, str(drive_path), str(trajectory_path), config, options, tile,
+                                     command=command, key=f"focus-tile-{Path(output).name}-{k}-{_token()}",
+                                     pure=False)
+                       for k, tile in enumerate(parts)]
+            for n, fut in enumerate(as_completed(futures), 1):
+                place(fut.result())
+                fut.release()
                 if progress is not None:
-                    progress(k * total + done, len(parts) * total)
+                    progress(n, len(parts))
 
-            place(focus_tile(drive_path, trajectory_path, config, options, tile, progress=tile_progress,
-                             command=command))
-    else:
-        from distributed import as_completed
-
-        futures = [client.submit(focus_tile, str(drive_path), str(trajectory_path), config, options, tile,
-                                 command=command, key=f"focus-tile-{Path(output).name}-{k}-{_token()}", pure=False)
-                   for k, tile in enumerate(parts)]
-        for n, fut in enumerate(as_completed(futures), 1):
-            place(fut.result())
-            fut.release()
-            if progress is not None:
-                progress(n, len(parts))
-
-    first = min(results, key=lambda r: r.col0)
-    n_bp = sum(r.backprojections for r in results)
-    params = {**first.params, "backprojections": n_bp}
-    provenance = {**first.provenance, "tiles": len(parts)}
-    t0 = time.perf_counter()
-    outputs = write_image(Path(output), FocusedImage(image, grid, first.origin, params, provenance),
-                          overwrite=overwrite)
-    timings["write"] += time.perf_counter() - t0
-    return FocusReport({k: str(v) for k, v in outputs.items()}, grid.shape, first.frames_used, first.frames_skipped,
-                       n_bp, dict(timings), first.drive_s)
+        first = min(results, key=lambda r: r.col0)
+        n_bp = sum(r.backprojections for r in results)
+        writer.set_metadata({**first.params, "backprojections": n_bp}, {**first.provenance, "tiles": len(parts)})
+        t0 = time.perf_counter()
+    timings["write"] += time.perf_counter() - t0  # closing: tags, quicklook, flush, rename
+    return FocusReport({k: str(v) for k, v in writer.paths.items()}, grid.shape, first.frames_used,
+                       first.frames_skipped, n_bp, dict(timings), first.drive_s)
 
 
 def _token() -> str:

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -21,6 +23,7 @@ import rasterio
 from numpy.typing import NDArray
 from rasterio import Affine
 from rasterio.crs import CRS
+from rasterio.windows import Window
 
 from autosar_cli import __version__
 from autosar_cli.nav.geodesy import GeodeticOrigin
@@ -99,29 +102,143 @@ def magnitude_db(image: NDArray[np.complexfloating[Any, Any]]) -> NDArray[np.flo
     return db
 
 
+class ImageWriter:
+    """Writes the three products of a grid column strip by column strip, so the image never has to be whole
+    in memory (focus in tiles): each strip goes into the GeoTIFF (dB, windowed write) and image.h5 (complex
+    hyperslab) at once, and into a max-pooled dB copy the size of the quicklook (at most ~1200 x 1400).
+
+    Use as a context manager::
+
+        with ImageWriter(base, grid, origin, overwrite=True) as w:
+            for col0, strip in strips:          # any order, each column exactly once
+                w.write_columns(col0, strip)
+            w.set_metadata(params, provenance)
+        w.paths  # {'tif', 'h5', 'png'}
+
+    The files are written to temporary siblings and renamed onto their names only when the block exits
+    without an exception, every column written and the metadata set; otherwise the temporaries are deleted
+    and no product is left looking complete. GDAL's block cache is bounded (``gdal_cache_mb``) so the
+    GeoTIFF's dirty blocks do not grow with the image either.
+    """
+
+    def __init__(self, base: Path, grid: FocusGrid, origin: GeodeticOrigin, *, overwrite: bool = False,
+                 dynamic_range_db: float = 50.0, gdal_cache_mb: int = 64) -> None:
+        self.paths = product_paths(base)
+        self.grid = grid
+        self.origin = origin
+        self.overwrite = overwrite
+        self.dynamic_range_db = dynamic_range_db
+        self.gdal_cache_mb = gdal_cache_mb
+        rows, cols = grid.shape
+        self._pool = max(1, int(np.ceil(max(rows / 1200, cols / 1400))))
+        f = self._pool
+        self._pooled = np.full((-(-rows // f), -(-cols // f)), np.nan, np.float32)  # absolute dB, NaN = none yet
+        self._written = np.zeros(cols, bool)
+        self._params_json: dict[str, str] | None = None
+        self._params: dict[str, Any] = {}
+        self._provenance_json = "{}"
+        self._stack: ExitStack | None = None
+
+    def __enter__(self) -> ImageWriter:
+        if not self.overwrite:
+            for p in self.paths.values():
+                if p.exists():
+                    raise FileExistsError(f"{p} already exists; pass --overwrite to replace it")
+        self.transform, self.epsg, self.residual = utm_geotransform(self.grid, self.origin)
+        self.crs = CRS.from_epsg(self.epsg)
+        stack = ExitStack()
+        try:
+            self._tmp = {k: stack.enter_context(atomic_output(p, self.overwrite)) for k, p in self.paths.items()}
+            stack.enter_context(rasterio.Env(GDAL_CACHEMAX=self.gdal_cache_mb))
+            self._tif = stack.enter_context(_open_geotiff(self._tmp["tif"], self.grid, self.transform, self.crs))
+            self._h5 = stack.enter_context(h5py.File(self._tmp["h5"], "w"))
+            self._image_ds = _create_h5(self._h5, self.grid, self.origin, self.transform, self.epsg, self.crs,
+                                        self.residual)
+        except BaseException:
+            stack.close()
+            raise
+        self._stack = stack
+        return self
+
+    def write_columns(self, col0: int, strip: NDArray[np.complexfloating[Any, Any]]) -> None:
+        """Columns [col0, col0 + n) of the complex image: ``strip`` (rows, n), linear amplitude."""
+        rows, cols = self.grid.shape
+        strip = np.asarray(strip, dtype=np.complex64)
+        n = strip.shape[1] if strip.ndim == 2 else -1
+        if strip.ndim != 2 or strip.shape[0] != rows or col0 < 0 or col0 + n > cols:
+            raise ValueError(f"column strip of shape {strip.shape} at column {col0} does not fit the grid "
+                             f"{self.grid.shape} (rows = n_across, cols = n_along)")
+        if self._written[col0: col0 + n].any():
+            raise ValueError(f"columns {col0}..{col0 + n - 1}: some were written already")
+        db = magnitude_db(strip)
+        self._tif.write(db, 1, window=Window(col0, 0, n, rows))
+        self._image_ds[:, col0: col0 + n] = strip
+        self._pool_into(np.where(strip == 0, np.float32(-np.inf), db), col0)
+        self._written[col0: col0 + n] = True
+
+    def set_metadata(self, params: dict[str, Any], provenance: dict[str, Any] | None = None) -> None:
+        """Processing parameters and provenance (JSON-serialisable; TypeError here if not)."""
+        self._params_json = {k: _to_json(v) for k, v in params.items()}
+        self._params = dict(params)
+        self._provenance_json = _to_json(provenance or {})
+
+    def _pool_into(self, db: NDArray[np.float32], col0: int) -> None:
+        """Max-pool ``db`` (exact zeros -inf, non-finite NaN) into the quicklook copy; NaN only where all are."""
+        f = self._pool
+        rows, n = db.shape
+        r2 = -(-rows // f) * f
+        if r2 != rows:
+            db = np.concatenate([db, np.full((r2 - rows, n), np.nan, np.float32)])
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN pools stay NaN
+            by_rows = np.nanmax(db.reshape(r2 // f, f, n), axis=1)
+            cells = (col0 + np.arange(n)) // f
+            starts = np.flatnonzero(np.r_[True, cells[1:] != cells[:-1]])
+            pooled = np.fmax.reduceat(by_rows, starts, axis=1)
+            sl = self._pooled[:, cells[starts]]
+            self._pooled[:, cells[starts]] = np.fmax(sl, pooled)
+
+    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
+        stack, self._stack = self._stack, None
+        if stack is None:
+            return
+        if exc_type is None:
+            try:
+                self._finish()
+            except BaseException as err:
+                stack.__exit__(type(err), err, err.__traceback__)  # deletes the temporaries, re-raises
+                raise
+        stack.__exit__(exc_type, exc, tb)  # closes the files, then renames them (or deletes them on error)
+
+    def _finish(self) -> None:
+        if not self._written.all():
+            missing = np.flatnonzero(~self._written)
+            raise ValueError(f"{self.paths['h5']}: image incomplete, {missing.size} columns never written "
+                             f"(first {missing[0]})")
+        if self._params_json is None:
+            raise ValueError(f"{self.paths['h5']}: processing parameters never set")
+        self._tif.update_tags(**_tif_tags(self._params_json, self._provenance_json))
+        self._tif.update_tags(1, units=DB_UNITS)
+        self._tif.set_band_description(1, "magnitude_db")
+        self._tif.set_band_unit(1, "dB")
+        _write_params(self._h5.create_group("params"), self._params)
+        self._h5.create_group("provenance").attrs["json"] = self._provenance_json
+        _draw_quicklook(self._tmp["png"], self._pooled, self._pool, self.grid, dynamic_range_db=self.dynamic_range_db)
+
+
 def write_image(base: Path, img: FocusedImage, *, overwrite: bool = False,
                 dynamic_range_db: float = 50.0) -> dict[str, Path]:
     """Write ``base``.tif, .h5 and .png (see :func:`product_paths`), each atomically; return {'tif', 'h5', 'png'}.
 
     Raises FileExistsError before writing anything if any of them exists and ``overwrite`` is false, and
-    TypeError if a parameter or the provenance is not JSON-serialisable.
+    TypeError if a parameter or the provenance is not JSON-serialisable. (:class:`ImageWriter` writes the
+    same products strip by strip.)
     """
-    paths = product_paths(base)
-    if not overwrite:
-        for p in paths.values():
-            if p.exists():
-                raise FileExistsError(f"{p} already exists; pass --overwrite to replace it")
-    params_json = {k: _to_json(v) for k, v in img.params.items()}  # fail early on unserialisable values
-    provenance_json = _to_json(img.provenance)
-    transform, epsg, residual = utm_geotransform(img.grid, img.origin)
-    crs = CRS.from_epsg(epsg)
-    with atomic_output(paths["tif"], overwrite) as tmp:
-        _write_geotiff(tmp, img, transform, crs, params_json, provenance_json)
-    with atomic_output(paths["h5"], overwrite) as tmp:
-        _write_h5(tmp, img, transform, epsg, crs, residual, provenance_json)
-    with atomic_output(paths["png"], overwrite) as tmp:
-        write_quicklook(tmp, img, dynamic_range_db=dynamic_range_db)
-    return paths
+    writer = ImageWriter(base, img.grid, img.origin, overwrite=overwrite, dynamic_range_db=dynamic_range_db)
+    writer.set_metadata(img.params, img.provenance)  # fail early on unserialisable values
+    with writer:
+        writer.write_columns(0, img.image)
+    return writer.paths
 
 
 def read_image(path: Path) -> FocusedImage:
@@ -163,22 +280,16 @@ def _to_json(value: Any) -> str:
     return json.dumps(value, default=json_default)
 
 
-def _write_geotiff(path: Path, img: FocusedImage, transform: Affine, crs: CRS, params_json: dict[str, str],
-                   provenance_json: str) -> None:
-    """One float32 band of 20 log10 |z| (dB, NaN nodata), tiled, deflate; tags: units, parameters, version."""
-    rows, cols = img.grid.shape
+def _open_geotiff(path: Path, grid: FocusGrid, transform: Affine, crs: CRS) -> Any:
+    """One float32 band of 20 log10 |z| (dB, NaN nodata), tiled, deflate, open for (windowed) writing."""
+    rows, cols = grid.shape
     profile: dict[str, Any] = {
         "driver": "GTiff", "width": cols, "height": rows, "count": 1, "dtype": "float32", "crs": crs,
         "transform": transform, "nodata": np.nan, "compress": "deflate", "predictor": 3, "zlevel": 1,
     }
     if rows >= 16 and cols >= 16:  # GeoTIFF tiles are multiples of 16 pixels
         profile.update(tiled=True, blockxsize=min(256, cols // 16 * 16), blockysize=min(256, rows // 16 * 16))
-    with rasterio.open(path, "w", **profile) as dst:
-        dst.write(magnitude_db(img.image), 1)
-        dst.update_tags(**_tif_tags(params_json, provenance_json))
-        dst.update_tags(1, units=DB_UNITS)
-        dst.set_band_description(1, "magnitude_db")
-        dst.set_band_unit(1, "dB")
+    return rasterio.open(path, "w", **profile)
 
 
 def _tif_tags(params_json: dict[str, str], provenance_json: str) -> dict[str, str]:
@@ -187,31 +298,28 @@ def _tif_tags(params_json: dict[str, str], provenance_json: str) -> dict[str, st
             **{f"param_{k}": v for k, v in params_json.items()}, "provenance": provenance_json}
 
 
-def _write_h5(path: Path, img: FocusedImage, transform: Affine, epsg: int, crs: CRS, residual: float,
-              provenance_json: str) -> None:
-    """image.h5: complex image, pixel-centre axes, grid, origin, UTM georeferencing, params, provenance."""
-    g = img.grid
+def _create_h5(f: h5py.File, g: FocusGrid, origin: GeodeticOrigin, transform: Affine, epsg: int, crs: CRS,
+               residual: float) -> h5py.Dataset:
+    """image.h5 skeleton: attributes, pixel-centre axes, grid; returns the (empty) complex image dataset."""
     rows, cols = g.shape
-    with h5py.File(path, "w") as f:
-        f.attrs.update({
-            "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
-            "origin_lat_deg": img.origin.lat_deg, "origin_lon_deg": img.origin.lon_deg,
-            "origin_height_m": img.origin.height_m, "utm_epsg": epsg,
-            "geotransform": np.asarray(transform.to_gdal(), dtype=np.float64), "geotransform_residual_m": residual,
-            "crs_wkt": crs.to_wkt(),
-        })
-        chunks = (min(rows, 256), min(cols, 256))
-        ds = f.create_dataset("image", data=np.asarray(img.image, dtype=np.complex64), chunks=chunks,
-                              compression="lzf", shuffle=True)
-        ds.attrs.update({"units": "linear complex amplitude (arbitrary)", "axes": "rows = across, cols = along"})
-        f["along_m"] = np.arange(cols, dtype=np.float64) * g.pixel_m
-        f["across_m"] = np.arange(rows, dtype=np.float64) * g.pixel_m
-        for name, axis in (("along_m", "along"), ("across_m", "across")):
-            f[name].attrs["description"] = (f"pixel-centre distance from pixel (0, 0)'s centre along grid/{axis}, "
-                                            "m; ENU = grid/origin_enu_m + along_m * along + across_m * across")
-        f.create_group("grid").attrs.update(g.to_attrs())
-        _write_params(f.create_group("params"), img.params)
-        f.create_group("provenance").attrs["json"] = provenance_json
+    f.attrs.update({
+        "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
+        "origin_lat_deg": origin.lat_deg, "origin_lon_deg": origin.lon_deg,
+        "origin_height_m": origin.height_m, "utm_epsg": epsg,
+        "geotransform": np.asarray(transform.to_gdal(), dtype=np.float64), "geotransform_residual_m": residual,
+        "crs_wkt": crs.to_wkt(),
+    })
+    chunks = (min(rows, 256), min(cols, 256))
+    ds = f.create_dataset("image", shape=(rows, cols), dtype=np.complex64, chunks=chunks, compression="lzf",
+                          shuffle=True)
+    ds.attrs.update({"units": "linear complex amplitude (arbitrary)", "axes": "rows = across, cols = along"})
+    f["along_m"] = np.arange(cols, dtype=np.float64) * g.pixel_m
+    f["across_m"] = np.arange(rows, dtype=np.float64) * g.pixel_m
+    for name, axis in (("along_m", "along"), ("across_m", "across")):
+        f[name].attrs["description"] = (f"pixel-centre distance from pixel (0, 0)'s centre along grid/{axis}, "
+                                        "m; ENU = grid/origin_enu_m + along_m * along + across_m * across")
+    f.create_group("grid").attrs.update(g.to_attrs())
+    return ds
 
 
 def _write_params(group: h5py.Group, params: dict[str, Any]) -> None:
@@ -246,25 +354,27 @@ def _nice_length(x: float) -> float:
     return min((m * 10.0**k for m in (1, 2, 5, 10)), key=lambda v: abs(math.log(v / x)))
 
 
-def write_quicklook(path: Path, img: FocusedImage, *, dynamic_range_db: float = 50.0) -> None:
-    """PNG quicklook: dB relative to the image peak, clipped to [-dynamic_range_db, 0], in grid metres.
+def _draw_quicklook(path: Path, pooled_db: NDArray[np.float32], pool: int, g: FocusGrid, *,
+                    dynamic_range_db: float = 50.0) -> None:
+    """PNG quicklook of the max-pooled (``pool`` x ``pool`` pixels) absolute dB image: dB relative to the
+    image peak, clipped to [-dynamic_range_db, 0], in grid metres.
 
     x: along-track metres from pixel (0, 0)'s centre, y: across metres, increasing upwards, so row 0 (near
-    range for the automatic grid) is at the bottom. A scale bar (metres), a dB colour bar and a north
-    arrow (the grid may be rotated and mirrored relative to a map) are drawn. No pyplot state is touched.
+    range for the automatic grid) is at the bottom. Exact zeros (-inf) show as the floor, pixels with no
+    finite value blank. A scale bar (metres), a dB colour bar and a north arrow (the grid may be rotated
+    and mirrored relative to a map) are drawn. No pyplot state is touched.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
 
-    g = img.grid
     rows, cols = g.shape
-    db = magnitude_db(img.image)
-    peak = float(np.nanmax(db)) if np.isfinite(db).any() else 0.0
-    rel = np.clip(db - peak, -dynamic_range_db, 0.0)
-    rel[np.isnan(db) & (np.abs(img.image) == 0)] = -dynamic_range_db  # exact zeros: floor, non-finite: blank
+    finite = np.isfinite(pooled_db)
+    peak = float(pooled_db[finite].max()) if finite.any() else 0.0
+    rel = np.clip(pooled_db - np.float32(peak), -dynamic_range_db, 0.0)
     p = g.pixel_m
-    extent = (-0.5 * p, (cols - 0.5) * p, -0.5 * p, (rows - 0.5) * p)
+    r2, c2 = pooled_db.shape[0] * pool, pooled_db.shape[1] * pool
+    extent = (-0.5 * p, (c2 - 0.5) * p, -0.5 * p, (r2 - 0.5) * p)
     width_m, height_m = cols * p, rows * p
 
     aspect = height_m / width_m
@@ -273,14 +383,7 @@ def write_quicklook(path: Path, img: FocusedImage, *, dynamic_range_db: float = 
     fig = Figure(figsize=(fig_w, fig_h), dpi=150, layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
-    # at most ~one image pixel per screen pixel: max-pool (bright points stay visible), then draw as is
-    f = max(1, int(np.ceil(max(rows / 1200, cols / 1400))))
-    if f > 1:
-        r2, c2 = -(-rows // f) * f, -(-cols // f) * f
-        padded = np.full((r2, c2), -dynamic_range_db, dtype=rel.dtype)
-        padded[:rows, :cols] = np.nan_to_num(rel, nan=-dynamic_range_db)
-        rel = padded.reshape(r2 // f, f, c2 // f, f).max(axis=(1, 3))
-        extent = (-0.5 * p, (c2 - 0.5) * p, -0.5 * p, (r2 - 0.5) * p)
+    # at most ~one image pixel per screen pixel: max-pooled (bright points stay visible), drawn as is
     im = ax.imshow(rel, origin="lower", extent=extent, cmap="gray", vmin=-dynamic_range_db, vmax=0.0,
                    interpolation="nearest", aspect="equal")
     ax.set_xlabel("along (m)")
