@@ -85,20 +85,27 @@ def _ctrv_points(pts, prop, dt):  # noqa: ANN001, ANN202
         prop[i, OMEGA] = w
 
 
+@njit(cache=True, inline="always")
+def _sigma_points_into(x, L, m, pts):  # noqa: ANN001, ANN202
+    """Symmetric sigma points of the first ``m`` states: ``pts[0] = x``, ``pts[1 + j] = x + L[:, j]``,
+    ``pts[1 + m + j] = x - L[:, j]`` (``L`` the scaled Cholesky factor), headings wrapped to [-pi, pi)."""
+    for r in range(m):
+        pts[0, r] = x[r]
+    for j in range(m):
+        for r in range(m):
+            pts[1 + j, r] = x[r] + L[r, j]
+            pts[1 + m + j, r] = x[r] - L[r, j]
+        pts[1 + j, PSI] = _wrap(pts[1 + j, PSI])
+        pts[1 + m + j, PSI] = _wrap(pts[1 + m + j, PSI])
+
+
 @njit(cache=True)
 def _predict(x, P, xn, Pn, dt, q, Wm, Wc, c, wsum, L5, inv5, pts, prop, dy, F, Pkk):  # noqa: ANN001, ANN202
     """Unscented CTRV prediction of node ``(x, P)`` by ``dt`` into ``(xn, Pn)`` (partitioned, see the
     module docstring); also fills ``F`` and ``Pkk`` (the predicted kinematic block) for the smoother."""
     n = x.shape[0]
     _cholesky_into(P, c, NK, L5, inv5)
-    for r in range(NK):
-        pts[0, r] = x[r]
-    for j in range(NK):
-        for r in range(NK):
-            pts[1 + j, r] = x[r] + L5[r, j]
-            pts[1 + NK + j, r] = x[r] - L5[r, j]
-        pts[1 + j, PSI] = _wrap(pts[1 + j, PSI])
-        pts[1 + NK + j, PSI] = _wrap(pts[1 + NK + j, PSI])
+    _sigma_points_into(x, L5, NK, pts)
     _ctrv_points(pts, prop, dt)
     # Mean: the centre plus weighted deviations (the parameter points equal the centre); the heading as
     # wrapped deviations from the centre point (see ukf._mean_x).
@@ -203,14 +210,7 @@ def _update_nl(x, P, z, sigma, kind, ng, geo, scale_i, steer_i, gate, Wm, Wc, c,
     n = x.shape[0]
     m = 2 * n + 1
     _cholesky_into(P, c, n, L, inv_d)
-    for j in range(n):
-        sig[0, j] = x[j]
-    for j in range(n):
-        for r in range(n):
-            sig[1 + j, r] = x[r] + L[r, j]
-            sig[1 + n + j, r] = x[r] - L[r, j]
-        sig[1 + j, PSI] = _wrap(sig[1 + j, PSI])
-        sig[1 + n + j, PSI] = _wrap(sig[1 + n + j, PSI])
+    _sigma_points_into(x, L, n, sig)
     k = _measure(sig, kind, ng, geo, scale_i, steer_i, zsig)
     zp, inv_s, y, u = v4[0], v4[1], v4[2], v4[3]
     for a in range(k):

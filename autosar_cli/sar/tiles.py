@@ -126,7 +126,6 @@ class TileResult:
     drive_s: float
     params: dict[str, Any] = field(default_factory=dict)
     provenance: dict[str, Any] = field(default_factory=dict)
-    origin: Any = None  #: the trajectory's GeodeticOrigin
     wall_s: float = 0.0
 
 
@@ -138,7 +137,7 @@ def focus_tile(drive_path: str | Path, trajectory: str | Path | Trajectory, conf
     res = focus_images(drive_path, trajectory, config, options, [tile], progress=progress, command=command)
     img = res.images[0]
     return TileResult(getattr(tile, "col0", 0), img.image, res.frames_used, res.frames_skipped, res.backprojections,
-                      res.timings_s, res.drive_s, img.params, img.provenance, img.origin, time.perf_counter() - t0)
+                      res.timings_s, res.drive_s, img.params, img.provenance, time.perf_counter() - t0)
 
 
 def focus_tiled(drive_path: str | Path, trajectory_path: str | Path, output: str | Path, config: Config,
