@@ -8,7 +8,7 @@ import reference
 from conftest import realdata
 
 from autosar_cli.config import load_config
-from autosar_cli.sar.range_compression import SPEED_OF_LIGHT, bistatic_range_axis, iq_to_complex, range_compress
+from autosar_cli.sar.range_compression import SPEED_OF_LIGHT, bistatic_range_axis, iq_to_complex, range_compress, taper
 
 R = load_config().radar
 FS, K, F0, N = R.sample_rate_hz, R.slope_hz_per_s, R.start_frequency_hz, R.num_samples
@@ -17,6 +17,15 @@ FS, K, F0, N = R.sample_rate_hz, R.slope_hz_per_s, R.start_frequency_hz, R.num_s
 def _beat(tau: float) -> np.ndarray:
     t = np.arange(N) / FS
     return np.exp(2j * np.pi * (F0 * tau + K * tau * t - 0.5 * K * tau**2))
+
+
+@pytest.mark.parametrize("name", ["hann", "hamming", "blackman", "bartlett", "nuttall", "rect"])
+def test_taper_is_scipys_symmetric_window(name: str) -> None:
+    import scipy.signal
+
+    want = scipy.signal.get_window("boxcar" if name == "rect" else name, N, fftbins=False)
+    np.testing.assert_allclose(taper(name, N), want, rtol=0, atol=1e-15)
+    assert taper(name, N)[0] == pytest.approx(taper(name, N)[-1])  # symmetric, not periodic
 
 
 def test_matches_the_float64_reference_on_random_data() -> None:
