@@ -366,6 +366,7 @@ def _draw_quicklook(path: Path, pooled_db: NDArray[np.float32], pool: int, g: Fo
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+    from mpl_toolkits.axes_grid1 import make_axes_locatable
     from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
 
     rows, cols = g.shape
@@ -380,8 +381,10 @@ def _draw_quicklook(path: Path, pooled_db: NDArray[np.float32], pool: int, g: Fo
     aspect = height_m / width_m
     fig_w = 10.0
     fig_h = float(np.clip(fig_w * aspect * 0.85 + 1.2, 3.0, 10.0))
-    fig = Figure(figsize=(fig_w, fig_h), dpi=150, layout="constrained")
+    fig = Figure(figsize=(fig_w, fig_h), dpi=150)
     FigureCanvasAgg(fig)
+    # fixed margins (inches) for the labels, title and colour bar: a layout engine would cost a second draw
+    fig.subplots_adjust(left=0.75 / fig_w, right=1.0 - 1.0 / fig_w, bottom=0.55 / fig_h, top=1.0 - 0.3 / fig_h)
     ax = fig.add_subplot()
     # at most ~one image pixel per screen pixel: max-pooled (bright points stay visible), drawn as is
     im = ax.imshow(rel, origin="lower", extent=extent, cmap="gray", vmin=-dynamic_range_db, vmax=0.0,
@@ -390,7 +393,8 @@ def _draw_quicklook(path: Path, pooled_db: NDArray[np.float32], pool: int, g: Fo
     ax.set_ylabel("across (m)")
     title = f"peak {peak:.1f} dB, {rows} x {cols} px at {p * 100:g} cm"
     ax.set_title(title, fontsize=9)
-    fig.colorbar(im, ax=ax, label="dB (rel. peak)", shrink=0.9)
+    cax = make_axes_locatable(ax).append_axes("right", size=0.15, pad=0.1)  # follows the equal-aspect box
+    fig.colorbar(im, cax=cax, label="dB (rel. peak)")
     length = _nice_length(width_m / 5.0)
     label = f"{length:g} m" if length >= 1 else f"{length * 100:g} cm"
     ax.add_artist(AnchoredSizeBar(ax.transData, length, label, loc="lower right", color="yellow", frameon=False,
