@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import functools
 
+import numba as nb
 import numpy as np
 import scipy.fft
 from numpy.typing import ArrayLike, NDArray
@@ -59,6 +60,14 @@ def _taper32(name: str, n: int) -> NDArray[np.float32]:
     return taper(name, n).astype(np.float32)
 
 
+@nb.njit(cache=True)
+def _load_iq_tapered(raw, w, out):  # pragma: no cover - compiled
+    """out[..., n] = (I + jQ)[..., n] * w[n] for int16 pairs raw (P, N, 2) (any strides); out (P, >= N)."""
+    for p in range(raw.shape[0]):
+        for n in range(raw.shape[1]):
+            out[p, n] = complex(np.float32(raw[p, n, 0]) * w[n], np.float32(raw[p, n, 1]) * w[n])
+
+
 def range_compress(beat: ArrayLike, *, sample_rate_hz: float, slope_hz_per_s: float, window: str = "hann",
                    upsample: int = 8, workers: int = -1) -> NDArray[np.complex64]:
     """Compress complex beat samples (..., N) to (..., N * upsample) range profiles (complex64).
@@ -66,11 +75,19 @@ def range_compress(beat: ArrayLike, *, sample_rate_hz: float, slope_hz_per_s: fl
     ``beat``: complex samples along fast time (last axis), or int16 I/Q pairs (..., N, 2).
     """
     x = np.asarray(beat)
-    if x.dtype == np.int16 and x.shape[-1] == 2:
-        x = iq_to_complex(x)
-    n = x.shape[-1]
+    iq = x.dtype == np.int16 and x.shape[-1] == 2
+    n = x.shape[-2] if iq else x.shape[-1]
     nfft = n * upsample
-    spec = scipy.fft.fft(x.astype(np.complex64, copy=False) * _taper32(window, n), n=nfft, axis=-1, workers=workers)
+    w = _taper32(window, n)
+    # tapered and zero-padded by hand: scipy's own padding (n=nfft) made the FFT ~30 % slower (measured)
+    padded = np.zeros((*x.shape[:-2], nfft) if iq else (*x.shape[:-1], nfft), np.complex64)
+    if iq and x.ndim == 3:
+        _load_iq_tapered(x, w, padded)
+    elif iq:
+        padded[..., :n] = iq_to_complex(x) * w
+    else:
+        padded[..., :n] = x * w
+    spec = scipy.fft.fft(padded, axis=-1, workers=workers, overwrite_x=True)
     spec *= _reference_ramp(n, nfft, float(sample_rate_hz), float(slope_hz_per_s))
     return spec.astype(np.complex64, copy=False)
 
