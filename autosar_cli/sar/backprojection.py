@@ -5,13 +5,13 @@ channels. Array in, array out; geometry (grids, windows) and I/O live elsewhere.
 Why the kernel looks the way it does (measured on the 2-core AVX-512 development machine):
 
 * Lanes run over **pulses**, not pixels. Between neighbouring pulses a pixel's range changes by far less
-  than a range bin, so 16 lanes read 2-3 neighbouring rows of a (bin, pulse) array with contiguous
-  loads. With lanes over pixels every sample is a gather, and gathers cost ~17 cycles per 8 lanes here.
+  than a range bin, so 16 lanes read 3, 4 or 6 neighbouring rows of a (bin, pulse) array with contiguous
+  loads and select per lane. With lanes over pixels every sample is a gather, and gathers cost ~17 cycles per 8 lanes here.
 * No square root or division per back-projection (both ~10 cycles per 16 lanes). The range to pulse p
   is written as ``R_p = R_q + delta`` about a reference pulse q of the same pixel, with ``R_q`` exact in
   float64 once per pixel chunk, and ``delta = R_q (sqrt(1 + e) - 1)``, ``e = (|a|^2 - 2 x.a) / R_q^2``
   (``a`` = antenna displacement since pulse q, ``x`` = pixel - antenna at q), summed as a series. Chunks
-  are kept short enough that ``|e| <= E_MAX``, where the series truncation error is below 1e-8 m. This
+  are kept short enough that ``|e| <= E_MAX``, where the series truncation error is below 5e-8 m. This
   also keeps the carrier phase accurate in float32: phase is ``frac(R_q k) + delta k`` with ``delta``
   small, instead of ``R k`` ~ 1e4 cycles.
 * sin/cos of the residual phase by minimax polynomials of the half angle (error < 2e-6).
@@ -27,9 +27,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 LANES = 16  #: pulses per vector (one AVX-512 register of float32)
-E_MAX = 0.05  #: bound on the series variable e; truncated after e^5 the error is < 0.021 e^6 R < 1e-8 m at 27 m
+E_MAX = 0.1  #: bound on the series variable e; truncated after e^6 the error is < 0.017 e^7 R < 5e-8 m at 27 m
 DEFAULT_MAX_CHUNK = 512  #: pulses per reference (longer windows are split)
-MAX_SPAN_BINS = 1.95  #: range migration allowed within a chunk on the fast path (it reads four rows)
+MAX_ROWS = 6  #: the fast path reads 3, 4 or 6 neighbouring rows per chunk and channel
+MAX_SPAN_BINS = MAX_ROWS - 2.05  #: range migration allowed within a chunk on the fast path
 
 
 def _fit_odd(fn, n_terms: int, half_width: float) -> tuple[float, ...]:
@@ -94,22 +95,28 @@ def _antenna_deltas(ax, ay, az, a, p, q, n_pad, mx, my, mz, inv_r, inv_r2, order
             out[l] = _delta_series(dx * (dx + mx) + dy * (dy + my) + dz * (dz + mz), inv_r, inv_r2, 5)
 
 
-def _make_accumulate(masked: bool, four_rows: bool):  # noqa: ANN202 - returns a numba dispatcher
-    """Build the row-window accumulator (compile-time variants): ``masked`` zeroes lanes >= n_valid;
-    ``four_rows`` reads rows b0..b0+3 (samples within [b0, b0+3)), else b0..b0+2 (within [b0, b0+2))."""
+def _make_accumulate(masked: bool, n_rows: int):  # noqa: ANN202 - returns a numba dispatcher
+    """Build the row-window accumulator (compile-time variants): ``masked`` zeroes lanes >= n_valid; it reads
+    rows b0 .. b0 + n_rows - 1 (3, 4 or 6), so every sample must lie within [b0, b0 + n_rows - 1)."""
+    if n_rows not in (3, 4, 6):
+        raise ValueError(f"n_rows {n_rows}: 3, 4 or 6")
+    four_rows = n_rows >= 4
+    six_rows = n_rows == 6
 
     @nb.njit(fastmath=True, cache=True, inline="always")
     def accumulate(prof_re, prof_im, row0, stride, b0, dt, dr, start, n_lanes, n_valid, i0, c0, bin_inv,
                    cyc_per_m):  # pragma: no cover - compiled
         """Sum over lanes start .. start + n_lanes of the interpolated, phase-rotated samples.
 
-        Lane l reads pulse column row0 + l of rows b0 .. b0 + 3 (contiguous loads, then a per-lane select);
-        the caller guarantees that every lane's fractional bin lies in [b0, b0 + 3).
+        Lane l reads pulse column row0 + l of rows b0 .. b0 + n_rows - 1 (contiguous loads, then a per-lane
+        select); the caller guarantees that every lane's fractional bin lies in [b0, b0 + n_rows - 1).
         """
         r0 = _U(row0 + b0 * stride)
         r1 = r0 + _U(stride)
         r2 = r1 + _U(stride)
         r3 = r2 + _U(stride)
+        r4 = r3 + _U(stride)
+        r5 = r4 + _U(stride)
         fb0 = _F(b0)
         ib = _F(bin_inv)
         kc = _F(cyc_per_m)
@@ -127,7 +134,21 @@ def _make_accumulate(masked: bool, four_rows: bool):  # noqa: ANN202 - returns a
             y0 = prof_im[r0 + l]
             y1 = prof_im[r1 + l]
             y2 = prof_im[r2 + l]
-            if four_rows:
+            if six_rows:
+                m2 = fi >= _F(2.0)
+                m3 = fi >= _F(3.0)
+                m4 = fi >= _F(4.0)
+                x3 = prof_re[r3 + l]
+                y3 = prof_im[r3 + l]
+                x4 = prof_re[r4 + l]
+                y4 = prof_im[r4 + l]
+                x5 = prof_re[r5 + l]
+                y5 = prof_im[r5 + l]
+                a_re = x4 if m4 else (x3 if m3 else (x2 if m2 else (x1 if m1 else x0)))
+                b_re = x5 if m4 else (x4 if m3 else (x3 if m2 else (x2 if m1 else x1)))
+                a_im = y4 if m4 else (y3 if m3 else (y2 if m2 else (y1 if m1 else y0)))
+                b_im = y5 if m4 else (y4 if m3 else (y3 if m2 else (y2 if m1 else y1)))
+            elif four_rows:
                 m2 = fi >= _F(2.0)
                 x3 = prof_re[r3 + l]
                 y3 = prof_im[r3 + l]
@@ -161,10 +182,12 @@ def _make_accumulate(masked: bool, four_rows: bool):  # noqa: ANN202 - returns a
     return accumulate
 
 
-_accumulate_rows = _make_accumulate(False, True)
-_accumulate_rows_masked = _make_accumulate(True, True)
-_accumulate_3rows = _make_accumulate(False, False)
-_accumulate_3rows_masked = _make_accumulate(True, False)
+_accumulate_3rows = _make_accumulate(False, 3)
+_accumulate_3rows_masked = _make_accumulate(True, 3)
+_accumulate_4rows = _make_accumulate(False, 4)
+_accumulate_4rows_masked = _make_accumulate(True, 4)
+_accumulate_6rows = _make_accumulate(False, 6)
+_accumulate_6rows_masked = _make_accumulate(True, 6)
 
 
 @nb.njit(cache=True)
@@ -222,9 +245,9 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
             while p < hi:
                 end = min(hi, p + chunk)
                 # shorten the chunk until the series variable is small at both ends (|e| is largest there) and
-                # channel 0's samples stay within three range bins (the fast path reads four rows). Checked
+                # channel 0's samples span less than MAX_SPAN_BINS (the fast path reads up to six rows). Checked
                 # on channel 0's two antennas: the others move with them and sit within centimetres, so their
-                # e differs by a few per cent at most (E_MAX keeps a factor 2 of margin on the error bound)
+                # e differs by a few per cent at most (at E_MAX the series errs by < 5e-8 m, 1e-4 rad of phase)
                 while True:
                     q = (p + end) // 2
                     e_max = 0.0
@@ -258,13 +281,16 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                         sag += 2.0 * step2 / (r * max(1.0 - e_max, 0.5)) * h2 / 8.0
                     sag *= bin_inv
                     span = (max(0.0, span_lo, span_hi) - min(0.0, span_lo, span_hi)) * bin_inv + 2.0 * sag
-                    # span < 2 bins keeps every sample within rows floor(lowest) .. floor(lowest) + 3
+                    # a span < MAX_ROWS - 2 bins keeps every sample within rows floor(lowest) + 0 .. MAX_ROWS - 1
                     if (e_max <= E_MAX and span < MAX_SPAN_BINS) or end - p <= LANES:
                         break
                     # e and the span grow about linearly with the chunk: jump to the length that fits
                     shrink = 0.85 * min(E_MAX / max(e_max, 1e-12), MAX_SPAN_BINS / max(span, 1e-12), 0.5)
                     end = p + max(LANES, int((end - p) * shrink) // LANES * LANES)
-                chunk = min(max_chunk, max(2 * LANES, (end - p) * 5 // 4))  # where the next chunk starts
+                # the next chunk's first guess: the length this one's margins allow (e and the span grow about
+                # linearly with it), at most 1.25 x; a guess that fails costs a second check (~200 cycles)
+                room = 0.9 * min(E_MAX / max(e_max, 1e-12), MAX_SPAN_BINS / max(span, 1e-12), 1.4)
+                chunk = min(max_chunk, max(2 * LANES, int((end - p) * room)))
                 series_ok = e_max <= E_MAX
                 order_series = 3 if e_max <= 0.01 else 5
                 n = end - p
@@ -292,22 +318,31 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                     i_last = i0 + (delta[ta, n - 1] + delta[ra, n - 1]) * bin_inv
                     b0 = int(math.floor(min(i0, i_first, i_last) - sag))
                     top = max(i0, i_first, i_last) + sag
-                    if series_ok and b0 >= 0 and b0 + 4 < n_bins and top < b0 + 3:
+                    if series_ok and b0 >= 0 and b0 + MAX_ROWS <= n_bins and top < b0 + MAX_ROWS - 1:
                         # one loop per channel: a separate tail call costs more than masking every lane
+                        full = n == n_pad
                         if top < b0 + 2:  # usual under stripmap windows: three rows suffice
-                            if n == n_pad:
+                            if full:
                                 sr, si = _accumulate_3rows(prof_re, prof_im, row0, stride, b0, delta[ta], delta[ra], 0,
                                                            n, n, np.float32(i0), c0, bin_inv, cycles_per_m)
                             else:
                                 sr, si = _accumulate_3rows_masked(prof_re, prof_im, row0, stride, b0, delta[ta],
                                                                   delta[ra], 0, n_pad, n, np.float32(i0), c0, bin_inv,
                                                                   cycles_per_m)
-                        elif n == n_pad:
-                            sr, si = _accumulate_rows(prof_re, prof_im, row0, stride, b0, delta[ta], delta[ra], 0,
-                                                      n, n, np.float32(i0), c0, bin_inv, cycles_per_m)
+                        elif top < b0 + 3:
+                            if full:
+                                sr, si = _accumulate_4rows(prof_re, prof_im, row0, stride, b0, delta[ta], delta[ra], 0,
+                                                           n, n, np.float32(i0), c0, bin_inv, cycles_per_m)
+                            else:
+                                sr, si = _accumulate_4rows_masked(prof_re, prof_im, row0, stride, b0, delta[ta],
+                                                                  delta[ra], 0, n_pad, n, np.float32(i0), c0, bin_inv,
+                                                                  cycles_per_m)
+                        elif full:  # wide windows at strong squint: longer chunks for two more rows
+                            sr, si = _accumulate_6rows(prof_re, prof_im, row0, stride, b0, delta[ta], delta[ra], 0,
+                                                       n, n, np.float32(i0), c0, bin_inv, cycles_per_m)
                         else:
-                            sr, si = _accumulate_rows_masked(prof_re, prof_im, row0, stride, b0, delta[ta], delta[ra],
-                                                             0, n_pad, n, np.float32(i0), c0, bin_inv, cycles_per_m)
+                            sr, si = _accumulate_6rows_masked(prof_re, prof_im, row0, stride, b0, delta[ta], delta[ra],
+                                                              0, n_pad, n, np.float32(i0), c0, bin_inv, cycles_per_m)
                         acc_re += sr
                         acc_im += si
                     else:
