@@ -105,6 +105,23 @@ def test_kernel_equals_reference_with_large_range_migration() -> None:
     assert err < -50.0, err
 
 
+def test_kernel_equals_reference_at_the_end_of_the_profiles() -> None:
+    """Profiles that stop at 30 m of bistatic path while pixels reach 27 m of ground range (54 m of path):
+    pixels beyond the last bin get exactly nothing, those across it what the reference gives."""
+    rng = np.random.default_rng(4)
+    n = 3000
+    track = np.stack([np.arange(n) * 0.004, np.zeros(n)], axis=1)
+    prof, ant, pix, win = _case(track, np.zeros(n), 300, rng)
+    prof = np.ascontiguousarray(prof[:, :2400])  # 30 m of bistatic path
+    kw = dict(range0_m=0.0, bin_m=BIN_M, cycles_per_m=CYCLES_PER_M)
+    got = backproject(prof, ant, CHANNELS, pix, win, **kw)
+    ref = reference.tdbp(prof, ant, CHANNELS, pix, win, **kw)
+    # the track runs along y = 0, pixels at y = -ground range, the antennas 0.75 m right of the track
+    beyond = -pix[:, 1] > 15.8  # every channel's path > 30.1 m
+    assert beyond.sum() > 50 and (~beyond).sum() > 50
+    assert np.all(ref[beyond] == 0) and np.all(got[beyond] == 0)
+    assert _relative_error_db(got[~beyond], ref[~beyond]) < -50.0
+
 def test_point_target_focuses_at_its_position() -> None:
     """Noise-free profiles of one point (sinc in range, exact carrier phase) focus on it, to the millimetre."""
     n = 600

@@ -6,7 +6,8 @@ Why the kernel looks the way it does (measured on the 2-core AVX-512 development
 
 * Lanes run over **pulses**, not pixels. Between neighbouring pulses a pixel's range changes by far less
   than a range bin, so 16 lanes read 3, 4 or 6 neighbouring rows of a (bin, pulse) array with contiguous
-  loads and select per lane. With lanes over pixels every sample is a gather, and gathers cost ~17 cycles per 8 lanes here.
+  loads and select per lane. With lanes over pixels every sample is a gather, and gathers cost ~17
+  cycles per 8 lanes here.
 * No square root or division per back-projection (both ~10 cycles per 16 lanes). The range to pulse p
   is written as ``R_p = R_q + delta`` about a reference pulse q of the same pixel, with ``R_q`` exact in
   float64 once per pixel chunk, and ``delta = R_q (sqrt(1 + e) - 1)``, ``e = (|a|^2 - 2 x.a) / R_q^2``
@@ -318,10 +319,13 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                     i_last = i0 + (delta[ta, n - 1] + delta[ra, n - 1]) * bin_inv
                     b0 = int(math.floor(min(i0, i_first, i_last) - sag))
                     top = max(i0, i_first, i_last) + sag
-                    if series_ok and b0 >= 0 and b0 + MAX_ROWS <= n_bins and top < b0 + MAX_ROWS - 1:
+                    rows = 3 if top < b0 + 2 else (4 if top < b0 + 3 else (6 if top < b0 + 5 else n_bins + 1))
+                    if b0 >= n_bins - 1 or top < 0.0:
+                        pass  # every sample lies outside the profile (the far edge of the swath): nothing to add
+                    elif series_ok and b0 >= 0 and b0 + rows <= n_bins:
                         # one loop per channel: a separate tail call costs more than masking every lane
                         full = n == n_pad
-                        if top < b0 + 2:  # usual under stripmap windows: three rows suffice
+                        if rows == 3:  # usual under stripmap windows
                             if full:
                                 sr, si = _accumulate_3rows(prof_re, prof_im, row0, stride, b0, delta[ta], delta[ra], 0,
                                                            n, n, np.float32(i0), c0, bin_inv, cycles_per_m)
@@ -329,7 +333,7 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                                 sr, si = _accumulate_3rows_masked(prof_re, prof_im, row0, stride, b0, delta[ta],
                                                                   delta[ra], 0, n_pad, n, np.float32(i0), c0, bin_inv,
                                                                   cycles_per_m)
-                        elif top < b0 + 3:
+                        elif rows == 4:
                             if full:
                                 sr, si = _accumulate_4rows(prof_re, prof_im, row0, stride, b0, delta[ta], delta[ra], 0,
                                                            n, n, np.float32(i0), c0, bin_inv, cycles_per_m)
