@@ -330,9 +330,10 @@ def test_paper_comparison(scenario: str, sim_dir: Path, tmp_path_factory: pytest
     assert result["methods"] == ["none", "ins", "sar-min", "truth"]
     sar = res["sar-min"]["reflectors"]
     assert len(sar) == 5
-    # Whole-track SE(2) alignment: within 3 cm on test1 and test3. test2 is 120 m long and SAR-MIN follows the
-    # GNSS's slowly varying error (aligned track RMSE 3.2 cm): its reflectors measured 1.3-4.4 cm (seed 1), so
-    # 5 cm there; aligned on the 10 m of track around each reflector they are within 1 cm (the 3 cm limit).
+    # Whole-track SE(2) alignment: within 3 cm on test1 and test3. On test2 (120 m) the odometry's scale, which
+    # 25 s of GNSS velocity pins down to ~0.08 %, leaves an along-track stretch no rotation removes (aligned
+    # track RMSE 3.2 cm, docs/EVALUATION.md): its reflectors measured 1.3-4.4 cm (seed 1), so 5 cm there;
+    # aligned on the 10 m of track around each reflector they are within 1 cm (the 3 cm limit).
     whole_track = 0.05 if scenario == "test2" else 0.03
     for r in sar:
         assert r["aligned_error_m"] < whole_track, r
