@@ -320,7 +320,7 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                     b0 = int(math.floor(min(i0, i_first, i_last) - sag))
                     top = max(i0, i_first, i_last) + sag
                     rows = 3 if top < b0 + 2 else (4 if top < b0 + 3 else (6 if top < b0 + 5 else n_bins + 1))
-                    if b0 >= n_bins - 1 or top < 0.0:
+                    if series_ok and (b0 >= n_bins - 1 or top < 0.0):
                         pass  # every sample lies outside the profile (the far edge of the swath): nothing to add
                     elif series_ok and b0 >= 0 and b0 + rows <= n_bins:
                         # one loop per channel: a separate tail call costs more than masking every lane
