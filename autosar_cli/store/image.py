@@ -378,13 +378,16 @@ def _draw_quicklook(path: Path, pooled_db: NDArray[np.float32], pool: int, g: Fo
     extent = (-0.5 * p, (c2 - 0.5) * p, -0.5 * p, (r2 - 0.5) * p)
     width_m, height_m = cols * p, rows * p
 
+    # the figure hugs the image (at most 8 x 9 inches of image); fixed margins (inches) for the labels, title
+    # and colour bar, since a layout engine would cost a second draw
+    left, right, bottom, top = 0.75, 1.0, 0.55, 0.3
     aspect = height_m / width_m
-    fig_w = 10.0
-    fig_h = float(np.clip(fig_w * aspect * 0.85 + 1.2, 3.0, 10.0))
+    img_w = min(8.0, 9.0 / aspect)
+    fig_w = max(4.0, img_w + left + right + 0.25)  # + the colour bar
+    fig_h = float(np.clip(img_w * aspect + bottom + top, 3.0, 10.0))
     fig = Figure(figsize=(fig_w, fig_h), dpi=150)
     FigureCanvasAgg(fig)
-    # fixed margins (inches) for the labels, title and colour bar: a layout engine would cost a second draw
-    fig.subplots_adjust(left=0.75 / fig_w, right=1.0 - 1.0 / fig_w, bottom=0.55 / fig_h, top=1.0 - 0.3 / fig_h)
+    fig.subplots_adjust(left=left / fig_w, right=1.0 - right / fig_w, bottom=bottom / fig_h, top=1.0 - top / fig_h)
     ax = fig.add_subplot()
     # at most ~one image pixel per screen pixel: max-pooled (bright points stay visible), drawn as is
     im = ax.imshow(rel, origin="lower", extent=extent, cmap="gray", vmin=-dynamic_range_db, vmax=0.0,
