@@ -96,6 +96,38 @@ def _antenna_deltas(ax, ay, az, a, p, q, n_pad, mx, my, mz, inv_r, inv_r2, order
             out[l] = _delta_series(dx * (dx + mx) + dy * (dy + my) + dz * (dz + mz), inv_r, inv_r2, 5)
 
 
+@nb.njit(fastmath=True, cache=True, inline="always")
+def _rotate(s_re, s_im, f, w):  # pragma: no cover - compiled
+    """w (s_re + j s_im) exp(-2j pi f) for f in cycles (any value); w is 1, or 0 for a padding lane."""
+    f = f - np.floor(f + _F(0.5))
+    f2 = f * f
+    sh = f * (_F(_S1) + f2 * (_F(_S3) + f2 * _F(_S5))) * w  # w sin(pi f)
+    ch = _F(_C0) + f2 * (_F(_C2) + f2 * (_F(_C4) + f2 * _F(_C6)))  # cos(pi f)
+    cs = w - _F(2.0) * sh * sh  # w cos(2 pi f)
+    sn = _F(2.0) * sh * ch  # w sin(2 pi f)
+    return s_re * cs + s_im * sn, s_im * cs - s_re * sn
+
+
+@nb.njit(fastmath=True, cache=True, inline="always")
+def _interp_3rows(prof_re, prof_im, r0, l, stride, fi):  # pragma: no cover - compiled
+    """Sample at fractional row fi in [0, 2) of rows r0, r0 + stride, r0 + 2 stride, pulse column l."""
+    r1 = r0 + stride
+    r2 = r1 + stride
+    m1 = fi >= _F(1.0)
+    fr = fi - np.floor(fi)
+    x0 = prof_re[r0 + l]
+    x1 = prof_re[r1 + l]
+    x2 = prof_re[r2 + l]
+    y0 = prof_im[r0 + l]
+    y1 = prof_im[r1 + l]
+    y2 = prof_im[r2 + l]
+    a_re = x1 if m1 else x0
+    b_re = x2 if m1 else x1
+    a_im = y1 if m1 else y0
+    b_im = y2 if m1 else y1
+    return a_re + fr * (b_re - a_re), a_im + fr * (b_im - a_im)
+
+
 def _make_accumulate(masked: bool, n_rows: int):  # noqa: ANN202 - returns a numba dispatcher
     """Build the row-window accumulator (compile-time variants): ``masked`` zeroes lanes >= n_valid; it reads
     rows b0 .. b0 + n_rows - 1 (3, 4 or 6), so every sample must lie within [b0, b0 + n_rows - 1)."""
@@ -127,57 +159,42 @@ def _make_accumulate(masked: bool, n_rows: int):  # noqa: ANN202 - returns a num
         for l in range(_U(start), _U(start + n_lanes)):
             db = dt[l] + dr[l]
             fi = i0 - fb0 + db * ib
-            m1 = fi >= _F(1.0)
-            fr = fi - np.floor(fi)
-            x0 = prof_re[r0 + l]
-            x1 = prof_re[r1 + l]
-            x2 = prof_re[r2 + l]
-            y0 = prof_im[r0 + l]
-            y1 = prof_im[r1 + l]
-            y2 = prof_im[r2 + l]
-            if six_rows:
-                m2 = fi >= _F(2.0)
-                m3 = fi >= _F(3.0)
-                m4 = fi >= _F(4.0)
-                x3 = prof_re[r3 + l]
-                y3 = prof_im[r3 + l]
-                x4 = prof_re[r4 + l]
-                y4 = prof_im[r4 + l]
-                x5 = prof_re[r5 + l]
-                y5 = prof_im[r5 + l]
-                a_re = x4 if m4 else (x3 if m3 else (x2 if m2 else (x1 if m1 else x0)))
-                b_re = x5 if m4 else (x4 if m3 else (x3 if m2 else (x2 if m1 else x1)))
-                a_im = y4 if m4 else (y3 if m3 else (y2 if m2 else (y1 if m1 else y0)))
-                b_im = y5 if m4 else (y4 if m3 else (y3 if m2 else (y2 if m1 else y1)))
-            elif four_rows:
-                m2 = fi >= _F(2.0)
-                x3 = prof_re[r3 + l]
-                y3 = prof_im[r3 + l]
-                a_re = x2 if m2 else (x1 if m1 else x0)
-                b_re = x3 if m2 else (x2 if m1 else x1)
-                a_im = y2 if m2 else (y1 if m1 else y0)
-                b_im = y3 if m2 else (y2 if m1 else y1)
+            w = (_F(1.0) if l < nu else _F(0.0)) if masked else _F(1.0)
+            if not four_rows:
+                s_re, s_im = _interp_3rows(prof_re, prof_im, r0, l, _U(stride), fi)
             else:
-                a_re = x1 if m1 else x0
-                b_re = x2 if m1 else x1
-                a_im = y1 if m1 else y0
-                b_im = y2 if m1 else y1
-            s_re = a_re + fr * (b_re - a_re)
-            s_im = a_im + fr * (b_im - a_im)
-            f = c0 + db * kc
-            f = f - np.floor(f + _F(0.5))
-            f2 = f * f
-            sh = f * (_F(_S1) + f2 * (_F(_S3) + f2 * _F(_S5)))
-            ch = _F(_C0) + f2 * (_F(_C2) + f2 * (_F(_C4) + f2 * _F(_C6)))
-            if masked:
-                w = _F(1.0) if l < nu else _F(0.0)
-                sh = sh * w
-                cs = w - _F(2.0) * sh * sh  # cos(2 pi f), zero outside
-            else:
-                cs = _F(1.0) - _F(2.0) * sh * sh
-            sn = _F(2.0) * sh * ch  # sin(2 pi f)
-            sr += s_re * cs + s_im * sn  # times exp(-2j pi f)
-            si += s_im * cs - s_re * sn
+                m1 = fi >= _F(1.0)
+                m2 = fi >= _F(2.0)
+                fr = fi - np.floor(fi)
+                x0 = prof_re[r0 + l]
+                x1 = prof_re[r1 + l]
+                x2 = prof_re[r2 + l]
+                x3 = prof_re[r3 + l]
+                y0 = prof_im[r0 + l]
+                y1 = prof_im[r1 + l]
+                y2 = prof_im[r2 + l]
+                y3 = prof_im[r3 + l]
+                if six_rows:
+                    m3 = fi >= _F(3.0)
+                    m4 = fi >= _F(4.0)
+                    x4 = prof_re[r4 + l]
+                    y4 = prof_im[r4 + l]
+                    x5 = prof_re[r5 + l]
+                    y5 = prof_im[r5 + l]
+                    a_re = x4 if m4 else (x3 if m3 else (x2 if m2 else (x1 if m1 else x0)))
+                    b_re = x5 if m4 else (x4 if m3 else (x3 if m2 else (x2 if m1 else x1)))
+                    a_im = y4 if m4 else (y3 if m3 else (y2 if m2 else (y1 if m1 else y0)))
+                    b_im = y5 if m4 else (y4 if m3 else (y3 if m2 else (y2 if m1 else y1)))
+                else:
+                    a_re = x2 if m2 else (x1 if m1 else x0)
+                    b_re = x3 if m2 else (x2 if m1 else x1)
+                    a_im = y2 if m2 else (y1 if m1 else y0)
+                    b_im = y3 if m2 else (y2 if m1 else y1)
+                s_re = a_re + fr * (b_re - a_re)
+                s_im = a_im + fr * (b_im - a_im)
+            t_re, t_im = _rotate(s_re, s_im, c0 + db * kc, w)
+            sr += t_re
+            si += t_im
         return sr, si
 
     return accumulate
@@ -189,6 +206,47 @@ _accumulate_4rows = _make_accumulate(False, 4)
 _accumulate_4rows_masked = _make_accumulate(True, 4)
 _accumulate_6rows = _make_accumulate(False, 6)
 _accumulate_6rows_masked = _make_accumulate(True, 6)
+
+
+def _make_accumulate_pair(masked: bool):  # noqa: ANN202 - returns a numba dispatcher
+    """Two channels of the same Tx in one loop, three rows each (the usual case under stripmap windows):
+    one loop's fixed cost (entry, exit, sums; ~140 cycles) serves both, and the Tx series is loaded once."""
+
+    @nb.njit(fastmath=True, cache=True, inline="always")
+    def accumulate_pair(prof_re, prof_im, row0a, row0b, stride, b0a, b0b, dt, dra, drb, n_lanes, n_valid, i0a, i0b,
+                        c0a, c0b, bin_inv, cyc_per_m):  # pragma: no cover - compiled
+        """(re, im) sums of channel a and of channel b over lanes 0 .. n_lanes; see ``accumulate``."""
+        ra0 = _U(row0a + b0a * stride)
+        rb0 = _U(row0b + b0b * stride)
+        ga = i0a - _F(b0a)
+        gb = i0b - _F(b0b)
+        ib = _F(bin_inv)
+        kc = _F(cyc_per_m)
+        sra = _F(0.0)
+        sia = _F(0.0)
+        srb = _F(0.0)
+        sib = _F(0.0)
+        nu = _U(n_valid)
+        for l in range(_U(n_lanes)):
+            t = dt[l]
+            dba = t + dra[l]
+            dbb = t + drb[l]
+            w = (_F(1.0) if l < nu else _F(0.0)) if masked else _F(1.0)
+            s_re, s_im = _interp_3rows(prof_re, prof_im, ra0, l, _U(stride), ga + dba * ib)
+            t_re, t_im = _rotate(s_re, s_im, c0a + dba * kc, w)
+            sra += t_re
+            sia += t_im
+            s_re, s_im = _interp_3rows(prof_re, prof_im, rb0, l, _U(stride), gb + dbb * ib)
+            t_re, t_im = _rotate(s_re, s_im, c0b + dbb * kc, w)
+            srb += t_re
+            sib += t_im
+        return sra, sia, srb, sib
+
+    return accumulate_pair
+
+
+_accumulate_pair = _make_accumulate_pair(False)
+_accumulate_pair_masked = _make_accumulate_pair(True)
 
 
 @nb.njit(cache=True)
@@ -232,6 +290,11 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
             continue
         delta = np.zeros((n_ant, max_chunk + LANES), np.float32)
         r_ref = np.zeros(n_ant, np.float64)
+        ch_i0 = np.zeros(n_ch, np.float64)
+        ch_c0 = np.zeros(n_ch, np.float32)
+        ch_b0 = np.zeros(n_ch, np.int64)
+        ch_rows = np.zeros(n_ch, np.int64)
+        ch_path = np.zeros(n_ch, np.int64)
         k_end = min((task + 1) * per_task, win.shape[0])
         for k in range(task * per_task, k_end):
             lo = win[k, 0]
@@ -305,14 +368,16 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                     _antenna_deltas(ax, ay, az, a, p, q, n_pad, np.float32(-2.0 * x), np.float32(-2.0 * y),
                                     np.float32(-2.0 * z), np.float32(1.0 / r), np.float32(1.0 / (r * r)),
                                     order_series, delta[a])
+                # per channel: reference phase, fractional bin, the rows its samples touch and the path it takes
+                # (0: entirely past the profile, 1: fast, 2: exact)
                 for c in range(n_ch):
                     ta = ch_tx[c]
                     ra = ch_rx[c]
                     rb = r_ref[ta] + r_ref[ra]
                     i0 = (rb - range0[c]) * bin_inv
                     turns = rb * cycles_per_m
-                    c0 = np.float32(turns - math.floor(turns))
-                    row0 = c * n_bins * stride + p
+                    ch_c0[c] = np.float32(turns - math.floor(turns))
+                    ch_i0[c] = i0
                     # rows touched: the fractional bin varies smoothly along the chunk; between its values at
                     # the ends and the centre it deviates by at most sag (|R''| <= step^2 / R per antenna)
                     i_first = i0 + (delta[ta, 0] + delta[ra, 0]) * bin_inv
@@ -320,11 +385,43 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                     b0 = int(math.floor(min(i0, i_first, i_last) - sag))
                     top = max(i0, i_first, i_last) + sag
                     rows = 3 if top < b0 + 2 else (4 if top < b0 + 3 else (6 if top < b0 + 5 else n_bins + 1))
+                    ch_b0[c] = b0
+                    ch_rows[c] = rows
                     if series_ok and (b0 >= n_bins - 1 or top < 0.0):
-                        pass  # every sample lies outside the profile (the far edge of the swath): nothing to add
+                        ch_path[c] = 0  # the far edge of the swath: nothing to add
                     elif series_ok and b0 >= 0 and b0 + rows <= n_bins:
+                        ch_path[c] = 1
+                    else:
+                        ch_path[c] = 2
+                full = n == n_pad
+                c = 0
+                while c < n_ch:
+                    ta = ch_tx[c]
+                    ra = ch_rx[c]
+                    row0 = c * n_bins * stride + p
+                    b0 = ch_b0[c]
+                    rows = ch_rows[c]
+                    i0 = ch_i0[c]
+                    c0 = ch_c0[c]
+                    d = c + 1
+                    if (ch_path[c] == 1 and rows == 3 and d < n_ch and ch_path[d] == 1 and ch_rows[d] == 3
+                            and ch_tx[d] == ta):
+                        if full:
+                            sr, si, sr2, si2 = _accumulate_pair(
+                                prof_re, prof_im, row0, row0 + n_bins * stride, stride, b0, ch_b0[d], delta[ta],
+                                delta[ra], delta[ch_rx[d]], n, n, np.float32(i0), np.float32(ch_i0[d]), c0, ch_c0[d],
+                                bin_inv, cycles_per_m)
+                        else:
+                            sr, si, sr2, si2 = _accumulate_pair_masked(
+                                prof_re, prof_im, row0, row0 + n_bins * stride, stride, b0, ch_b0[d], delta[ta],
+                                delta[ra], delta[ch_rx[d]], n_pad, n, np.float32(i0), np.float32(ch_i0[d]), c0,
+                                ch_c0[d], bin_inv, cycles_per_m)
+                        acc_re += sr + sr2
+                        acc_im += si + si2
+                        c += 2
+                        continue
+                    if ch_path[c] == 1:
                         # one loop per channel: a separate tail call costs more than masking every lane
-                        full = n == n_pad
                         if rows == 3:  # usual under stripmap windows
                             if full:
                                 sr, si = _accumulate_3rows(prof_re, prof_im, row0, stride, b0, delta[ta], delta[ra], 0,
@@ -349,11 +446,12 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                                                               0, n_pad, n, np.float32(i0), c0, bin_inv, cycles_per_m)
                         acc_re += sr
                         acc_im += si
-                    else:
+                    elif ch_path[c] == 2:
                         sr, si = _accumulate_exact(prof_re, prof_im, row0, stride, n_bins, ax, ay, az, ta, ra, p, n,
                                                    px, py, pz, range0[c], bin_inv, cycles_per_m)
                         acc_re += sr
                         acc_im += si
+                    c += 1
                 p = end
             out_re[k] += acc_re
             out_im[k] += acc_im
