@@ -14,7 +14,8 @@ Usage: python benches/bench_focus.py [--repeat 5] [--workdir DIR] [--kernel-only
 3. The same drive four times over (radar frames repeated, trajectory repeated and translated end to
    start so the car drives on): peak RSS must not grow beyond the larger image; and the same focused in
    8 tiles, written tile by tile (peak RSS must stay near the one-drive figure).
-Writes benches/results/focus.json.
+A host reference (a fixed FFT workload) is timed before and after, since this host's speed varies by
+tens of per cent from minute to minute. Writes benches/results/focus.json.
 """
 
 from __future__ import annotations
@@ -155,13 +156,33 @@ def repeat_drive(drive: Path, traj_path: Path, times: int, out_drive: Path, out_
     write_trajectory(out_traj, traj)
 
 
+def host_reference(repeat: int = 21) -> dict[str, object]:
+    """A fixed workload (one thread: 512 FFTs of 2160 points, complex64), timed before and after the benchmark.
+
+    This host's speed varies by tens of per cent from minute to minute; the ratio of this figure between two
+    runs tells how much of a difference is the host's.
+    """
+    import scipy.fft
+
+    x = np.random.default_rng(0).standard_normal((512, 2160)).astype(np.complex64)
+    walls = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        scipy.fft.fft(x, axis=-1, workers=1)
+        walls.append(time.perf_counter() - t)
+    return {"case": "host reference: 512 x 2160-point complex64 FFTs, 1 thread", "median_ms":
+            round(statistics.median(walls) * 1e3, 3), "min_ms": round(min(walls) * 1e3, 3)}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--kernel-only", action="store_true")
     args = ap.parse_args()
-    result: dict[str, object] = {"benchmark": "focus", "kernel": kernel_case(args.repeat)}
+    result: dict[str, object] = {"benchmark": "focus", "host_before": host_reference()}
+    print(json.dumps(result["host_before"]))
+    result["kernel"] = kernel_case(args.repeat)
     if not args.kernel_only:
         from autosar_cli.config import load_config
         from autosar_cli.ingest.pipeline import ingest
@@ -213,6 +234,8 @@ def main() -> None:
                     "image_mb_tile": round(math.prod(rt["grid_shape"]) * 8 / 8 / 1e6, 1)}
             print(json.dumps(rowt))
             result["test1x4_tiles8"] = rowt
+    result["host_after"] = host_reference()
+    print(json.dumps(result["host_after"]))
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "focus.json").write_text(json.dumps(result, indent=2) + "\n")
 

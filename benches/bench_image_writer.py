@@ -34,7 +34,8 @@ bounds = np.linspace(0, cols, n_strips + 1).astype(int)
 def strip(k):
     rng = np.random.default_rng(k)
     n = bounds[k + 1] - bounds[k]
-    return (rng.standard_normal((rows, n), np.float32) + 1j * rng.standard_normal((rows, n), np.float32)).astype(np.complex64)
+    z = rng.standard_normal((rows, n), np.float32) + 1j * rng.standard_normal((rows, n), np.float32)
+    return z.astype(np.complex64)
 base_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 t = time.perf_counter()
 if mode == "strips":
