@@ -109,8 +109,10 @@ def _rotate(s_re, s_im, f, w):  # pragma: no cover - compiled
 
 
 @nb.njit(fastmath=True, cache=True, inline="always")
-def _interp_3rows(prof_re, prof_im, r0, l, stride, fi):  # pragma: no cover - compiled
-    """Sample at fractional row fi in [0, 2) of rows r0, r0 + stride, r0 + 2 stride, pulse column l."""
+def _interp_rows(prof_re, prof_im, r0, l, stride, fi, n_rows):  # pragma: no cover - compiled
+    """Sample at fractional row fi in [0, n_rows - 1) of rows r0, r0 + stride, ... (n_rows: 3, 4 or 6, a
+    constant at every call site, so the branches fold away), pulse column l: contiguous loads, a per-lane
+    select of the two rows around fi, linear interpolation."""
     r1 = r0 + stride
     r2 = r1 + stride
     m1 = fi >= _F(1.0)
@@ -121,10 +123,34 @@ def _interp_3rows(prof_re, prof_im, r0, l, stride, fi):  # pragma: no cover - co
     y0 = prof_im[r0 + l]
     y1 = prof_im[r1 + l]
     y2 = prof_im[r2 + l]
-    a_re = x1 if m1 else x0
-    b_re = x2 if m1 else x1
-    a_im = y1 if m1 else y0
-    b_im = y2 if m1 else y1
+    if n_rows == 3:
+        a_re = x1 if m1 else x0
+        b_re = x2 if m1 else x1
+        a_im = y1 if m1 else y0
+        b_im = y2 if m1 else y1
+    else:
+        r3 = r2 + stride
+        m2 = fi >= _F(2.0)
+        x3 = prof_re[r3 + l]
+        y3 = prof_im[r3 + l]
+        if n_rows == 4:
+            a_re = x2 if m2 else (x1 if m1 else x0)
+            b_re = x3 if m2 else (x2 if m1 else x1)
+            a_im = y2 if m2 else (y1 if m1 else y0)
+            b_im = y3 if m2 else (y2 if m1 else y1)
+        else:
+            r4 = r3 + stride
+            r5 = r4 + stride
+            m3 = fi >= _F(3.0)
+            m4 = fi >= _F(4.0)
+            x4 = prof_re[r4 + l]
+            y4 = prof_im[r4 + l]
+            x5 = prof_re[r5 + l]
+            y5 = prof_im[r5 + l]
+            a_re = x4 if m4 else (x3 if m3 else (x2 if m2 else (x1 if m1 else x0)))
+            b_re = x5 if m4 else (x4 if m3 else (x3 if m2 else (x2 if m1 else x1)))
+            a_im = y4 if m4 else (y3 if m3 else (y2 if m2 else (y1 if m1 else y0)))
+            b_im = y5 if m4 else (y4 if m3 else (y3 if m2 else (y2 if m1 else y1)))
     return a_re + fr * (b_re - a_re), a_im + fr * (b_im - a_im)
 
 
@@ -133,8 +159,6 @@ def _make_accumulate(masked: bool, n_rows: int):  # noqa: ANN202 - returns a num
     rows b0 .. b0 + n_rows - 1 (3, 4 or 6), so every sample must lie within [b0, b0 + n_rows - 1)."""
     if n_rows not in (3, 4, 6):
         raise ValueError(f"n_rows {n_rows}: 3, 4 or 6")
-    four_rows = n_rows >= 4
-    six_rows = n_rows == 6
 
     @nb.njit(fastmath=True, cache=True, inline="always")
     def accumulate(prof_re, prof_im, row0, stride, b0, dt, dr, start, n_lanes, n_valid, i0, c0, bin_inv,
@@ -145,11 +169,6 @@ def _make_accumulate(masked: bool, n_rows: int):  # noqa: ANN202 - returns a num
         select); the caller guarantees that every lane's fractional bin lies in [b0, b0 + n_rows - 1).
         """
         r0 = _U(row0 + b0 * stride)
-        r1 = r0 + _U(stride)
-        r2 = r1 + _U(stride)
-        r3 = r2 + _U(stride)
-        r4 = r3 + _U(stride)
-        r5 = r4 + _U(stride)
         fb0 = _F(b0)
         ib = _F(bin_inv)
         kc = _F(cyc_per_m)
@@ -158,40 +177,8 @@ def _make_accumulate(masked: bool, n_rows: int):  # noqa: ANN202 - returns a num
         nu = _U(n_valid)
         for l in range(_U(start), _U(start + n_lanes)):
             db = dt[l] + dr[l]
-            fi = i0 - fb0 + db * ib
             w = (_F(1.0) if l < nu else _F(0.0)) if masked else _F(1.0)
-            if not four_rows:
-                s_re, s_im = _interp_3rows(prof_re, prof_im, r0, l, _U(stride), fi)
-            else:
-                m1 = fi >= _F(1.0)
-                m2 = fi >= _F(2.0)
-                fr = fi - np.floor(fi)
-                x0 = prof_re[r0 + l]
-                x1 = prof_re[r1 + l]
-                x2 = prof_re[r2 + l]
-                x3 = prof_re[r3 + l]
-                y0 = prof_im[r0 + l]
-                y1 = prof_im[r1 + l]
-                y2 = prof_im[r2 + l]
-                y3 = prof_im[r3 + l]
-                if six_rows:
-                    m3 = fi >= _F(3.0)
-                    m4 = fi >= _F(4.0)
-                    x4 = prof_re[r4 + l]
-                    y4 = prof_im[r4 + l]
-                    x5 = prof_re[r5 + l]
-                    y5 = prof_im[r5 + l]
-                    a_re = x4 if m4 else (x3 if m3 else (x2 if m2 else (x1 if m1 else x0)))
-                    b_re = x5 if m4 else (x4 if m3 else (x3 if m2 else (x2 if m1 else x1)))
-                    a_im = y4 if m4 else (y3 if m3 else (y2 if m2 else (y1 if m1 else y0)))
-                    b_im = y5 if m4 else (y4 if m3 else (y3 if m2 else (y2 if m1 else y1)))
-                else:
-                    a_re = x2 if m2 else (x1 if m1 else x0)
-                    b_re = x3 if m2 else (x2 if m1 else x1)
-                    a_im = y2 if m2 else (y1 if m1 else y0)
-                    b_im = y3 if m2 else (y2 if m1 else y1)
-                s_re = a_re + fr * (b_re - a_re)
-                s_im = a_im + fr * (b_im - a_im)
+            s_re, s_im = _interp_rows(prof_re, prof_im, r0, l, _U(stride), i0 - fb0 + db * ib, n_rows)
             t_re, t_im = _rotate(s_re, s_im, c0 + db * kc, w)
             sr += t_re
             si += t_im
@@ -232,11 +219,11 @@ def _make_accumulate_pair(masked: bool):  # noqa: ANN202 - returns a numba dispa
             dba = t + dra[l]
             dbb = t + drb[l]
             w = (_F(1.0) if l < nu else _F(0.0)) if masked else _F(1.0)
-            s_re, s_im = _interp_3rows(prof_re, prof_im, ra0, l, _U(stride), ga + dba * ib)
+            s_re, s_im = _interp_rows(prof_re, prof_im, ra0, l, _U(stride), ga + dba * ib, 3)
             t_re, t_im = _rotate(s_re, s_im, c0a + dba * kc, w)
             sra += t_re
             sia += t_im
-            s_re, s_im = _interp_3rows(prof_re, prof_im, rb0, l, _U(stride), gb + dbb * ib)
+            s_re, s_im = _interp_rows(prof_re, prof_im, rb0, l, _U(stride), gb + dbb * ib, 3)
             t_re, t_im = _rotate(s_re, s_im, c0b + dbb * kc, w)
             srb += t_re
             sib += t_im
