@@ -104,6 +104,11 @@ def test_cli_navigate_all_methods(ci_drive: Path, tmp_path: Path) -> None:
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 30_000
     sar = read_trajectory(tmp_path / "sar-min.h5")
     assert sar.state is not None and sar.covariance is not None and "bias.orc" in sar.state_names
+    lean = read_trajectory(tmp_path / "sar-min.h5", covariance=False)  # what focus reads
+    n = len(sar.state_names)
+    assert lean.covariance is None and sar.covariance.shape == (len(sar.t_ns), n, n)
+    np.testing.assert_array_equal(lean.rear_axle_enu, sar.rear_axle_enu)
+    np.testing.assert_array_equal(lean.state, sar.state)
     # the truth sidecar was found from the drive's provenance, and no stale partial file remains
     assert not list(tmp_path.glob("*.partial"))
     r = runner.invoke(app, ["navigate", str(tmp_path / "missing.h5"), "-o", str(tmp_path / "x.h5")])

@@ -266,7 +266,7 @@ def _accumulate_exact(prof_re, prof_im, row0, stride, n_bins, ax, ay, az, ta, ra
     return sr, si
 
 
-@nb.njit(fastmath=True, parallel=True, cache=True)
+@nb.njit(fastmath=True, parallel=True, cache=True, nogil=True)
 def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bin_inv, cycles_per_m,
           pix, win, order, per_task, max_chunk, out_re, out_im):  # pragma: no cover - compiled
     n_ch = ch_tx.shape[0]

@@ -10,6 +10,7 @@ pixel whose window straddles two blocks gets one partial sum from each.
 from __future__ import annotations
 
 import math
+import threading
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -31,7 +32,7 @@ from autosar_cli.sar.grid import FocusGrid, GridError, box_grid, track_grid
 from autosar_cli.sar.range_compression import SPEED_OF_LIGHT, range_compress_into
 from autosar_cli.sar.stripmap import processed_half_width, stripmap_windows
 from autosar_cli.store.drive import Drive, RadarStream
-from autosar_cli.store.image import FocusedImage, product_paths, write_image
+from autosar_cli.store.image import FocusedImage, preload_quicklook, product_paths, write_image
 from autosar_cli.store.trajectory import read_trajectory
 
 
@@ -193,7 +194,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
     else:
         traj_name = str(trajectory)
         try:
-            traj = read_trajectory(trajectory)
+            traj = read_trajectory(trajectory, covariance=False)
         except (OSError, ValueError) as exc:
             msg = str(exc)
             raise FocusError(msg if traj_name in msg else f"{traj_name}: {msg}") from None
@@ -230,13 +231,10 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         n_bp = 0
         frames = geometry.frames
         n_blocks = (len(frames) + options.block_pulses - 1) // options.block_pulses
-        pool = ThreadPoolExecutor(max(1, min(len(pairs), numba.get_num_threads())))
-        block: PulseBlock | None = None
-        for b in range(n_blocks):
+
+        def plan(b: int) -> tuple[slice, NDArray[np.int64], list[tuple[int, Any, Any, Any]]]:
+            """Block b's frames and, per grid, the pixels its beam can reach with their windows."""
             sel = slice(b * options.block_pulses, min(len(frames), (b + 1) * options.block_pulses))
-            idx = frames[sel]
-            # which pixels of each grid this block can reach; a block no grid needs is not even read
-            t0 = time.perf_counter()
             work = []
             for gi, grid in enumerate(grid_list):
                 rows, cols = _candidate_pixels(grid, geometry.reference[sel], geometry.velocity[sel], half_width,
@@ -249,43 +247,67 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
                 keep = win[:, 1] > win[:, 0]
                 if keep.any():
                     work.append((gi, (rr * grid.n_along + cc).ravel()[keep], pix[keep], win[keep]))
+            return sel, frames[sel], work
+
+        def read(idx: NDArray[np.int64]) -> NDArray[np.int16]:
+            raw = radar.raw[idx[0]: idx[-1] + 1]
+            return raw[idx - idx[0]]
+
+        pool = ThreadPoolExecutor(max(1, min(len(pairs), numba.get_num_threads())))
+        # the next block's frames are read while this one is processed (h5py and blosc release the GIL, the
+        # kernels too): a core is otherwise idle during the read
+        reader = ThreadPoolExecutor(1)
+        try:
+            block: PulseBlock | None = None
+            t0 = time.perf_counter()
+            upcoming = plan(0)
+            pending = reader.submit(read, upcoming[1]) if upcoming[2] else None
             timings["geometry"] += time.perf_counter() - t0
-            if not work:
+            for b in range(n_blocks):
+                sel, idx, work = upcoming
+                raw_future = pending
+                t0 = time.perf_counter()
+                upcoming = plan(b + 1) if b + 1 < n_blocks else (sel, idx, [])
+                pending = reader.submit(read, upcoming[1]) if upcoming[2] else None
+                timings["geometry"] += time.perf_counter() - t0
+                if raw_future is None:  # a block no grid needs is not even read
+                    if progress is not None:
+                        progress(b + 1, n_blocks)
+                    continue
+
+                t0 = time.perf_counter()
+                raw = raw_future.result()
+                timings["read"] += time.perf_counter() - t0
+
+                t0 = time.perf_counter()
+                if block is None or block.n_pulses != len(idx):
+                    # reused while the length stays: range compression overwrites every pulse column and the zero
+                    # padding stays; a fresh 70 MB block per 512 pulses cost ~15 ms of page faults (measured)
+                    block = PulseBlock.empty(len(pairs), n_bins, len(idx), len(used_tx) + len(pairs),
+                                             channels=channels, range0_m=0.0, bin_m=bin_m, cycles_per_m=cycles_per_m)
+                # one channel per thread (FFT and transposing copies release the GIL): both cores stay busy
+                beats = [raw[:, t, r] for t, r in pairs]
+                compress = partial(range_compress_into, sample_rate_hz=fs, slope_hz_per_s=slope, window=options.window,
+                                   upsample=options.upsample, workers=1)
+                list(pool.map(compress, beats, block.re, block.im))
+                timings["range_compression"] += time.perf_counter() - t0
+
+                t0 = time.perf_counter()
+                pc = radar_phase_centres(traj, geometry.t_ns[sel], offsets, config)
+                ant = np.concatenate([pc.tx[:, used_tx].transpose(1, 0, 2),
+                                      np.stack([pc.rx[:, t, r] for t, r in pairs])], axis=0)
+                block.set_antennas(ant)
+                timings["geometry"] += time.perf_counter() - t0
+                t0 = time.perf_counter()
+                for gi, flat, pix, win in work:
+                    images[gi][flat] += backproject_block(block, pix, win)
+                    n_bp += int(np.sum(win[:, 1] - win[:, 0])) * len(pairs)
+                timings["backprojection"] += time.perf_counter() - t0
                 if progress is not None:
                     progress(b + 1, n_blocks)
-                continue
-
-            t0 = time.perf_counter()
-            raw = radar.raw[idx[0]: idx[-1] + 1]
-            raw = raw[idx - idx[0]]
-            timings["read"] += time.perf_counter() - t0
-
-            t0 = time.perf_counter()
-            if block is None or block.n_pulses != len(idx):
-                # reused while the length stays: range compression overwrites every pulse column and the zero
-                # padding stays; a fresh 70 MB block per 512 pulses cost ~15 ms of page faults (measured)
-                block = PulseBlock.empty(len(pairs), n_bins, len(idx), len(used_tx) + len(pairs), channels=channels,
-                                         range0_m=0.0, bin_m=bin_m, cycles_per_m=cycles_per_m)
-            # one channel per thread (FFT and transposing copies release the GIL): both cores stay busy
-            beats = [raw[:, t, r] for t, r in pairs]
-            list(pool.map(partial(range_compress_into, sample_rate_hz=fs, slope_hz_per_s=slope, window=options.window,
-                                  upsample=options.upsample, workers=1), beats, block.re, block.im))
-            timings["range_compression"] += time.perf_counter() - t0
-
-            t0 = time.perf_counter()
-            pc = radar_phase_centres(traj, geometry.t_ns[sel], offsets, config)
-            ant = np.concatenate([pc.tx[:, used_tx].transpose(1, 0, 2),
-                                  np.stack([pc.rx[:, t, r] for t, r in pairs])], axis=0)
-            block.set_antennas(ant)
-            timings["geometry"] += time.perf_counter() - t0
-            t0 = time.perf_counter()
-            for gi, flat, pix, win in work:
-                images[gi][flat] += backproject_block(block, pix, win)
-                n_bp += int(np.sum(win[:, 1] - win[:, 0])) * len(pairs)
-            timings["backprojection"] += time.perf_counter() - t0
-            if progress is not None:
-                progress(b + 1, n_blocks)
-        pool.shutdown()
+        finally:
+            reader.shutdown(cancel_futures=True)
+            pool.shutdown()
         drive_s = float((geometry.t_ns[-1] - geometry.t_ns[0]) / 1e9)
 
     params = {**asdict(options), "channel_pairs": [list(p) for p in pairs], "start_frequency_hz": f0,
@@ -315,7 +337,17 @@ def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Pat
           progress: Callable[[int, int], None] | None = None, command: str = "") -> FocusReport:
     """Focus the radar of ``drive_path`` along ``trajectory_path`` and write OUT.tif/.h5/.png."""
     check_request(options, output, overwrite)
-    res = focus_images(drive_path, trajectory_path, config, options, progress=progress, command=command)
+    # the quicklook's imports run beside the focusing, from its first block on (its kernels and FFTs release the
+    # GIL; before that, the imports would compete with numba's start-up for it)
+    preload = threading.Thread(target=preload_quicklook, daemon=True)
+
+    def on_block(done: int, total: int) -> None:
+        if preload.ident is None:
+            preload.start()
+        if progress is not None:
+            progress(done, total)
+
+    res = focus_images(drive_path, trajectory_path, config, options, progress=on_block, command=command)
     t0 = time.perf_counter()
     img = res.images[0]
     outputs = write_image(Path(output), img, overwrite=overwrite)

@@ -60,7 +60,7 @@ def _taper32(name: str, n: int) -> NDArray[np.float32]:
     return taper(name, n).astype(np.float32)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _load_iq_tapered(raw, w, out):  # pragma: no cover - compiled
     """out[..., n] = (I + jQ)[..., n] * w[n] for int16 pairs raw (P, N, 2) (any strides); out (P, >= N)."""
     for p in range(raw.shape[0]):

@@ -41,7 +41,7 @@ def _sin_psi(px, py, pz, ax, ay, az, vx, vy, vz):  # pragma: no cover - compiled
     return (dx * vx + dy * vy + dz * vz) / math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(parallel=True, cache=True, nogil=True)
 def _windows(pix, ant, vel, s_max, side, out):  # pragma: no cover - compiled
     n_p = ant.shape[0]
     for k in nb.prange(pix.shape[0]):

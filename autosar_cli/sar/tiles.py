@@ -89,7 +89,7 @@ def _read_trajectory(trajectory: str | Path | Trajectory) -> tuple[Trajectory, s
         return trajectory, f"<{trajectory.method} trajectory>"
     name = str(trajectory)
     try:
-        return read_trajectory(trajectory), name
+        return read_trajectory(trajectory, covariance=False), name
     except (OSError, ValueError) as exc:
         msg = str(exc)
         raise FocusError(msg if name in msg else f"{name}: {msg}") from None
