@@ -22,7 +22,7 @@ from autosar_cli.config import Config, load_config
 from autosar_cli.evaluate.point_target import analyse_point_target
 from autosar_cli.ingest.pipeline import ingest
 from autosar_cli.nav.navigate import navigate
-from autosar_cli.sar.focus import FocusError, FocusOptions, focus
+from autosar_cli.sar.focus import FocusError, FocusOptions, focus, focus_images
 from autosar_cli.sar.range_compression import SPEED_OF_LIGHT
 from autosar_cli.sim.simulate import simulate
 from autosar_cli.sim.truth import read_targets
@@ -152,6 +152,28 @@ def test_twelve_channels_focus_too(ci_drive: Drive) -> None:
     # 12 coherent channels instead of 8: +3.5 dB of peak (20 log10 12/8) when Tx1's extra half-wavelength
     # of height is seen at the reflector's height; allow for the elevation pattern
     assert 2.0 < peaks[12] - peaks[8] < 4.0
+
+
+def test_image_does_not_depend_on_the_block_size(ci_drive: Drive) -> None:
+    """Blocks of 64 pulses (read ahead one at a time, most of them out of reach of the patch and never read) give
+    the image of 512-pulse blocks: the windows straddling blocks are summed in parts."""
+    d = ci_drive
+    probe = read_image(Path(focus(d.drive, d.trajectory, d.dir / "pb", d.config,
+                                  FocusOptions.from_config(d.config, pixel_m=0.5), overwrite=True).outputs["h5"]))
+    targets = read_targets(d.truth, probe.origin)
+    x, y = targets.position_enu[targets.corner_reflectors[0], :2]
+    opts = FocusOptions.from_config(d.config, pixel_m=0.01, grid=f"{x - 0.2},{y - 0.2},{x + 0.2},{y + 0.2}")
+    images, progress = {}, {}
+    for n in (512, 64):
+        calls: list[tuple[int, int]] = []
+        res = focus_images(d.drive, d.trajectory, d.config, replace(opts, block_pulses=n),
+                           progress=lambda done, total, calls=calls: calls.append((done, total)))
+        images[n], progress[n] = res.images[0].image, calls
+        assert res.backprojections > 0
+    n_frames = res.frames_used
+    assert progress[64][-1] == (math.ceil(n_frames / 64), math.ceil(n_frames / 64)) and len(progress[64]) > 8
+    err = np.sum(np.abs(images[64] - images[512]) ** 2) / np.sum(np.abs(images[512]) ** 2)
+    assert 10 * np.log10(err) < -100, 10 * np.log10(err)  # float32 sums in another order
 
 
 def test_focus_errors(ci_drive: Drive, tmp_path: Path) -> None:

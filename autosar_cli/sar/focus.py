@@ -4,7 +4,8 @@ Streaming over blocks of pulses, so memory depends on the block and the image, n
 each block the raw frames are read, range-compressed straight into the kernel's (channel, bin, pulse)
 layout, the antenna phase centres of every chirp are derived from the trajectory, each pixel near the
 block gets the pulses inside its stripmap window, and the block is back-projected into the image. A
-pixel whose window straddles two blocks gets one partial sum from each.
+pixel whose window straddles two blocks gets one partial sum from each. The next block's frames are read in a
+thread meanwhile.
 """
 
 from __future__ import annotations
