@@ -23,6 +23,7 @@ from autosar_cli.evaluate.point_target import analyse_point_target
 from autosar_cli.ingest.pipeline import ingest
 from autosar_cli.nav.navigate import navigate
 from autosar_cli.sar.focus import FocusError, FocusOptions, focus, focus_images
+from autosar_cli.sar.grid import box_grid
 from autosar_cli.sar.range_compression import SPEED_OF_LIGHT
 from autosar_cli.sim.simulate import simulate
 from autosar_cli.sim.truth import read_targets
@@ -174,6 +175,29 @@ def test_image_does_not_depend_on_the_block_size(ci_drive: Drive) -> None:
     assert progress[64][-1] == (math.ceil(n_frames / 64), math.ceil(n_frames / 64)) and len(progress[64]) > 8
     err = np.sum(np.abs(images[64] - images[512]) ** 2) / np.sum(np.abs(images[512]) ** 2)
     assert 10 * np.log10(err) < -100, 10 * np.log10(err)  # float32 sums in another order
+
+
+def test_range_upsampling_of_four_keeps_the_theoretical_response(ci_drive: Drive) -> None:
+    """The default zero padding (x4) gives the reflectors' response of x8 (the kernel interpolates linearly between
+    compressed bins); x2 would move peaks by up to 7 mm and lift the range sidelobes (docs/FOCUS.md)."""
+    d = ci_drive
+    base = FocusOptions.from_config(d.config, pixel_m=0.005)
+    assert base.upsample == 4
+    probe = focus_images(d.drive, d.trajectory, d.config, replace(base, pixel_m=0.5, resolution_m=0.5)).images[0]
+    targets = read_targets(d.truth, probe.origin)
+    grids = [box_grid(x - 0.5, y - 0.5, x + 0.5, y + 0.5, pixel_m=0.005, height_m=base.height_m)
+             for x, y in targets.position_enu[targets.corner_reflectors, :2]]
+    m = {}
+    for up in (2, 4, 8):
+        images = focus_images(d.drive, d.trajectory, d.config, replace(base, upsample=up), grids).images
+        m[up] = [analyse_point_target(img, targets.position_enu[i], range_dir=probe.grid.across, patch_m=0.9)
+                 for img, i in zip(images, targets.corner_reflectors, strict=True)]
+        print(up, [(round(t.peak_db, 2), round(t.peak_error_m * 1e3, 1), round(t.range_cut.pslr_db, 1)) for t in m[up]])
+    for a, b in zip(m[4], m[8], strict=True):
+        assert abs(a.peak_db - b.peak_db) < 0.1 and a.peak_error_m <= 0.002
+        assert a.range_cut.width_m == pytest.approx(b.range_cut.width_m, rel=0.02)
+        assert a.range_cut.pslr_db == pytest.approx(b.range_cut.pslr_db, abs=1.0)
+    assert max(t.peak_error_m for t in m[2]) > 2 * max(t.peak_error_m for t in m[4])
 
 
 def test_focus_errors(ci_drive: Drive, tmp_path: Path) -> None:
