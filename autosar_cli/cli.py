@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import json
 import shutil
 import sys
@@ -621,8 +622,14 @@ def main() -> None:
     """Console-script entry point."""
     try:
         app()
+        code: int | str | None = 0
     except SystemExit as exc:
-        sys.exit(exc.code)
+        code = exc.code
+    # The command is over and its products are closed. Frozen, the objects of numba, scipy, pandas and matplotlib
+    # are no longer walked by the collections of the interpreter's shutdown: 0.7-0.8 s -> 0.1 s after
+    # `autosar run` (measured). atexit handlers still run.
+    gc.freeze()
+    sys.exit(code)
 
 
 if __name__ == "__main__":

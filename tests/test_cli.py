@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -59,3 +60,21 @@ def test_errors_are_one_line_without_traceback(tmp_path):
     assert p.returncode == 1
     assert str(corrupt) in p.stderr and "Traceback" not in p.stderr
     assert len(p.stderr.strip().splitlines()) == 1
+
+
+def test_console_script_exit_codes_and_complete_products(tmp_path):
+    """Through the real entry point (which freezes the collector before the interpreter shuts down): a command
+    that succeeds exits 0 with its product complete and readable, a bad option exits 2 (typer's usage error)."""
+    log = tmp_path / "ci.mcap"
+    p = subprocess.run([sys.executable, "-m", "autosar_cli.cli", "simulate", "--scenario", "ci", "--seed", "2", "-o",
+                        str(log), "--json"], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    sim = json.loads(p.stdout)
+    assert sim["radar_frames"] > 900 and Path(sim["truth"]).is_file()
+    r = runner.invoke(app, ["info", str(log), "--json"])
+    assert r.exit_code == 0
+    counts = {s["topic"]: s["count"] for s in json.loads(r.stdout)["streams"]}
+    assert counts == sim["messages"]  # every message the simulator wrote is in the file
+    p = subprocess.run([sys.executable, "-m", "autosar_cli.cli", "simulate", "--no-such-option"], capture_output=True,
+                       text=True)
+    assert p.returncode == 2
