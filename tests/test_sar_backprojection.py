@@ -159,14 +159,15 @@ def test_empty_windows_and_accumulation() -> None:
     np.testing.assert_allclose(twice, 2 * once, rtol=1e-6)
 
 
-def test_stripmap_windows_equal_brute_force() -> None:
+@pytest.mark.parametrize("parallel", [True, False])
+def test_stripmap_windows_equal_brute_force(parallel: bool) -> None:
     rng = np.random.default_rng(5)
     n = 2000
     s = np.arange(n) * 0.004
     track = np.stack([s, 0.3 * np.sin(s / 3.0), np.full(n, 0.5)], axis=1)
     vel = np.gradient(track, axis=0)
     pix = np.stack([rng.uniform(1, 7, 300), rng.uniform(-27, -0.5, 300), np.full(300, 0.5)], axis=1)
-    win = stripmap_windows(pix, track, vel, HALF_WIDTH)
+    win = stripmap_windows(pix, track, vel, HALF_WIDTH, parallel=parallel)
     v = vel / np.linalg.norm(vel, axis=1, keepdims=True)
     for k in range(len(pix)):
         d = pix[k] - track

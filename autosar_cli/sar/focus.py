@@ -233,8 +233,12 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         frames = geometry.frames
         n_blocks = (len(frames) + options.block_pulses - 1) // options.block_pulses
 
-        def plan(b: int) -> tuple[slice, NDArray[np.int64], list[tuple[int, Any, Any, Any]]]:
-            """Block b's frames and, per grid, the pixels its beam can reach with their windows."""
+        def prepare(b: int) -> tuple[slice, list[tuple[int, Any, Any, Any]], NDArray[np.int16] | None]:
+            """Block b's frames, per grid the pixels its beam reaches with their windows, and its raw frames.
+
+            Runs on the reader thread, beside this block's range compression and back-projection (h5py, blosc
+            and the kernels release the GIL): one thread, so no numba-parallel launch nests in the kernel's.
+            """
             sel = slice(b * options.block_pulses, min(len(frames), (b + 1) * options.block_pulses))
             work = []
             for gi, grid in enumerate(grid_list):
@@ -244,47 +248,39 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
                 if rr.size == 0:
                     continue
                 pix = grid.pixel_enu(rr, cc).reshape(-1, 3)
-                win = stripmap_windows(pix, geometry.reference[sel], geometry.velocity[sel], half_width, side)
+                win = stripmap_windows(pix, geometry.reference[sel], geometry.velocity[sel], half_width, side,
+                                       parallel=False)
                 keep = win[:, 1] > win[:, 0]
                 if keep.any():
                     work.append((gi, (rr * grid.n_along + cc).ravel()[keep], pix[keep], win[keep]))
-            return sel, frames[sel], work
-
-        def read(idx: NDArray[np.int64]) -> NDArray[np.int16]:
+            if not work:  # a block no grid needs is not even read
+                return sel, work, None
+            idx = frames[sel]
             raw = radar.raw[idx[0]: idx[-1] + 1]
-            return raw[idx - idx[0]]
+            return sel, work, raw[idx - idx[0]]
 
         pool = ThreadPoolExecutor(max(1, min(len(pairs), numba.get_num_threads())))
-        # the next block's frames are read while this one is processed (h5py and blosc release the GIL, the
-        # kernels too): a core is otherwise idle during the read
         reader = ThreadPoolExecutor(1)
         try:
             block: PulseBlock | None = None
-            t0 = time.perf_counter()
-            upcoming = plan(0)
-            pending = reader.submit(read, upcoming[1]) if upcoming[2] else None
-            timings["geometry"] += time.perf_counter() - t0
+            pending = reader.submit(prepare, 0)
             for b in range(n_blocks):
-                sel, idx, work = upcoming
-                raw_future = pending
                 t0 = time.perf_counter()
-                upcoming = plan(b + 1) if b + 1 < n_blocks else (sel, idx, [])
-                pending = reader.submit(read, upcoming[1]) if upcoming[2] else None
-                timings["geometry"] += time.perf_counter() - t0
-                if raw_future is None:  # a block no grid needs is not even read
+                sel, work, raw = pending.result()
+                timings["read"] += time.perf_counter() - t0
+                if b + 1 < n_blocks:
+                    pending = reader.submit(prepare, b + 1)
+                if raw is None:
                     if progress is not None:
                         progress(b + 1, n_blocks)
                     continue
+                n_pulses = sel.stop - sel.start
 
                 t0 = time.perf_counter()
-                raw = raw_future.result()
-                timings["read"] += time.perf_counter() - t0
-
-                t0 = time.perf_counter()
-                if block is None or block.n_pulses != len(idx):
+                if block is None or block.n_pulses != n_pulses:
                     # reused while the length stays: range compression overwrites every pulse column and the zero
                     # padding stays; a fresh 70 MB block per 512 pulses cost ~15 ms of page faults (measured)
-                    block = PulseBlock.empty(len(pairs), n_bins, len(idx), len(used_tx) + len(pairs),
+                    block = PulseBlock.empty(len(pairs), n_bins, n_pulses, len(used_tx) + len(pairs),
                                              channels=channels, range0_m=0.0, bin_m=bin_m, cycles_per_m=cycles_per_m)
                 # one channel per thread (FFT and transposing copies release the GIL): both cores stay busy
                 beats = [raw[:, t, r] for t, r in pairs]

@@ -41,47 +41,56 @@ def _sin_psi(px, py, pz, ax, ay, az, vx, vy, vz):  # pragma: no cover - compiled
     return (dx * vx + dy * vy + dz * vz) / math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
+@nb.njit(cache=True, inline="always")
+def _window(px, py, pz, ant, vel, s_max, side):  # pragma: no cover - compiled
+    """[first, last) pulses of one pixel (see the module docstring)."""
+    n_p = ant.shape[0]
+    # first pulse with sin psi <= s_max, then first with sin psi < -s_max (sin psi decreases with p)
+    lo = 0
+    hi = n_p
+    while lo < hi:
+        m = (lo + hi) // 2
+        if _sin_psi(px, py, pz, ant[m, 0], ant[m, 1], ant[m, 2], vel[m, 0], vel[m, 1], vel[m, 2]) <= s_max:
+            hi = m
+        else:
+            lo = m + 1
+    first = lo
+    hi = n_p
+    while lo < hi:
+        m = (lo + hi) // 2
+        if _sin_psi(px, py, pz, ant[m, 0], ant[m, 1], ant[m, 2], vel[m, 0], vel[m, 1], vel[m, 2]) < -s_max:
+            hi = m
+        else:
+            lo = m + 1
+    if side != 0.0 and lo > first:
+        # the radar sees one side only: a pixel on the other side would alias onto its mirror image
+        m = (first + lo) // 2
+        cross = vel[m, 0] * (py - ant[m, 1]) - vel[m, 1] * (px - ant[m, 0])
+        if cross * side <= 0.0:
+            lo = first
+    return first, lo
+
+
 @nb.njit(parallel=True, cache=True, nogil=True)
 def _windows(pix, ant, vel, s_max, side, out):  # pragma: no cover - compiled
-    n_p = ant.shape[0]
     for k in nb.prange(pix.shape[0]):
-        px = pix[k, 0]
-        py = pix[k, 1]
-        pz = pix[k, 2]
-        # first pulse with sin psi <= s_max, then first with sin psi < -s_max (sin psi decreases with p)
-        lo = 0
-        hi = n_p
-        while lo < hi:
-            m = (lo + hi) // 2
-            if _sin_psi(px, py, pz, ant[m, 0], ant[m, 1], ant[m, 2], vel[m, 0], vel[m, 1], vel[m, 2]) <= s_max:
-                hi = m
-            else:
-                lo = m + 1
-        first = lo
-        hi = n_p
-        while lo < hi:
-            m = (lo + hi) // 2
-            if _sin_psi(px, py, pz, ant[m, 0], ant[m, 1], ant[m, 2], vel[m, 0], vel[m, 1], vel[m, 2]) < -s_max:
-                hi = m
-            else:
-                lo = m + 1
-        if side != 0.0 and lo > first:
-            # the radar sees one side only: a pixel on the other side would alias onto its mirror image
-            m = (first + lo) // 2
-            cross = vel[m, 0] * (py - ant[m, 1]) - vel[m, 1] * (px - ant[m, 0])
-            if cross * side <= 0.0:
-                lo = first
-        out[k, 0] = first
-        out[k, 1] = lo
+        out[k, 0], out[k, 1] = _window(pix[k, 0], pix[k, 1], pix[k, 2], ant, vel, s_max, side)
+
+
+@nb.njit(cache=True, nogil=True)
+def _windows_serial(pix, ant, vel, s_max, side, out):  # pragma: no cover - compiled
+    for k in range(pix.shape[0]):
+        out[k, 0], out[k, 1] = _window(pix[k, 0], pix[k, 1], pix[k, 2], ant, vel, s_max, side)
 
 
 def stripmap_windows(pixels: ArrayLike, antenna: ArrayLike, velocity: ArrayLike, half_width_rad: float,
-                     side: float = 0.0) -> NDArray[np.int64]:
+                     side: float = 0.0, *, parallel: bool = True) -> NDArray[np.int64]:
     """Pulse interval [lo, hi) (N, 2) integrated by each pixel (empty: lo == hi).
 
     ``pixels`` (N, 3) and ``antenna`` (P, 3): ENU metres (the antenna is the reference phase centre of each
     pulse); ``velocity`` (P, 3): its velocity (any scale; only the direction is used). ``side`` > 0: only
-    pixels left of the track get pulses, < 0: only those on the right, 0: both.
+    pixels left of the track get pulses, < 0: only those on the right, 0: both. ``parallel=False``: one
+    thread, for a caller that runs beside other numba-parallel work (no nested parallel launch).
     """
     pix = np.ascontiguousarray(np.asarray(pixels, dtype=np.float64).reshape(-1, 3))
     ant = np.ascontiguousarray(np.asarray(antenna, dtype=np.float64).reshape(-1, 3))
@@ -90,5 +99,5 @@ def stripmap_windows(pixels: ArrayLike, antenna: ArrayLike, velocity: ArrayLike,
     vel = np.ascontiguousarray(vel / np.where(speed > 0, speed, 1.0))
     out = np.zeros((len(pix), 2), np.int64)
     if len(ant) and len(pix):
-        _windows(pix, ant, vel, math.sin(half_width_rad), float(np.sign(side)), out)
+        (_windows if parallel else _windows_serial)(pix, ant, vel, math.sin(half_width_rad), float(np.sign(side)), out)
     return out
