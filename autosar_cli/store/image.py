@@ -309,9 +309,11 @@ def _create_h5(f: h5py.File, g: FocusGrid, origin: GeodeticOrigin, transform: Af
         "geotransform": np.asarray(transform.to_gdal(), dtype=np.float64), "geotransform_residual_m": residual,
         "crs_wkt": crs.to_wkt(),
     })
-    chunks = (min(rows, 256), min(cols, 256))
-    ds = f.create_dataset("image", shape=(rows, cols), dtype=np.complex64, chunks=chunks, compression="lzf",
-                          shuffle=True)
+    # ~256 x 256 chunks that tile the image evenly (edge chunks are stored whole). Uncompressed: shuffle + lzf
+    # saved 6 % of test1's 6.7 MB (a complex image is noise-like in its low bits) for 0.13 s of writing and
+    # 0.06 s of reading; raw it takes 0.02 s and 0.01 s (measured)
+    chunks = (-(-rows // -(-rows // 256)), -(-cols // -(-cols // 256)))
+    ds = f.create_dataset("image", shape=(rows, cols), dtype=np.complex64, chunks=chunks)
     ds.attrs.update({"units": "linear complex amplitude (arbitrary)", "axes": "rows = across, cols = along"})
     f["along_m"] = np.arange(cols, dtype=np.float64) * g.pixel_m
     f["across_m"] = np.arange(rows, dtype=np.float64) * g.pixel_m
