@@ -20,6 +20,8 @@ import numpy as np
 import scipy.fft
 from numpy.typing import ArrayLike, NDArray
 
+from autosar_cli.sar.range_fft import compress_iq, radices
+
 SPEED_OF_LIGHT = 299_792_458.0
 
 
@@ -96,8 +98,15 @@ def range_compress_into(beat: ArrayLike, out_re: NDArray[np.float32], out_im: ND
     """Compress (P, N) beat samples (complex, or int16 I/Q (P, N, 2)) into planar (bin, pulse) arrays.
 
     ``out_re``/``out_im`` (N * upsample, >= P) float32 receive the profiles transposed: bin-major with pulses
-    contiguous, the layout the back-projection kernel reads.
+    contiguous, the layout the back-projection kernel reads. int16 I/Q input whose N factors into 2, 3 and 5
+    goes through the batched FFT of :mod:`.range_fft` (no transposes; equal to this path to -137 dB).
     """
+    x = np.asarray(beat)
+    if x.dtype == np.int16 and x.ndim == 3 and x.shape[-1] == 2 and radices(x.shape[1]) is not None:
+        n = x.shape[1]
+        compress_iq(x, _taper32(window, n), _reference_ramp(n, n * upsample, float(sample_rate_hz),
+                                                            float(slope_hz_per_s)), upsample, out_re, out_im)
+        return
     spec = range_compress(beat, sample_rate_hz=sample_rate_hz, slope_hz_per_s=slope_hz_per_s, window=window,
                           upsample=upsample, workers=workers)
     p = spec.shape[0]
