@@ -4,8 +4,8 @@ Streaming over blocks of pulses, so memory depends on the block and the image, n
 each block the raw frames are read, range-compressed straight into the kernel's (channel, bin, pulse)
 layout, the antenna phase centres of every chirp are derived from the trajectory, each pixel near the
 block gets the pulses inside its stripmap window, and the block is back-projected into the image. A
-pixel whose window straddles two blocks gets one partial sum from each. The next block's frames are read in a
-thread meanwhile.
+pixel whose window straddles two blocks gets one partial sum from each. The next block's windows and frames
+are prepared in a thread meanwhile.
 """
 
 from __future__ import annotations
@@ -282,7 +282,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
                     # padding stays; a fresh 70 MB block per 512 pulses cost ~15 ms of page faults (measured)
                     block = PulseBlock.empty(len(pairs), n_bins, n_pulses, len(used_tx) + len(pairs),
                                              channels=channels, range0_m=0.0, bin_m=bin_m, cycles_per_m=cycles_per_m)
-                # one channel per thread (FFT and transposing copies release the GIL): both cores stay busy
+                # one channel per thread (the batched FFT, or scipy's and its copies, release the GIL): both cores busy
                 beats = [raw[:, t, r] for t, r in pairs]
                 compress = partial(range_compress_into, sample_rate_hz=fs, slope_hz_per_s=slope, window=options.window,
                                    upsample=options.upsample, workers=1)

@@ -99,7 +99,8 @@ def range_compress_into(beat: ArrayLike, out_re: NDArray[np.float32], out_im: ND
 
     ``out_re``/``out_im`` (N * upsample, >= P) float32 receive the profiles transposed: bin-major with pulses
     contiguous, the layout the back-projection kernel reads. int16 I/Q input whose N factors into 2, 3 and 5
-    goes through the batched FFT of :mod:`.range_fft` (no transposes; equal to this path to -137 dB).
+    goes through the batched FFT of :mod:`.range_fft` (no transposes; equal to this path to -137 dB; one thread,
+    whatever ``workers`` says).
     """
     x = np.asarray(beat)
     if x.dtype == np.int16 and x.ndim == 3 and x.shape[-1] == 2 and radices(x.shape[1]) is not None:
