@@ -27,8 +27,10 @@ def _error_db(got: np.ndarray, ref: np.ndarray) -> float:
     return float(10 * np.log10(max(np.sum(np.abs(got - ref) ** 2) / np.sum(np.abs(ref) ** 2), 1e-30)))
 
 
+# pulse counts below, at and across the staged groups of GROUP * BATCH pulses (one full group, then a partial one
+# ending in a partial batch; exactly two groups)
 @pytest.mark.parametrize(("n_pulses", "n", "up"), [(45, 540, 4), (64, 512, 2), (33, 60, 3), (7, 25, 8), (1, 540, 4),
-                                                    (70, 48, 1)])
+                                                    (70, 48, 1), (300, 60, 3), (512, 30, 2)])
 def test_equals_the_float64_reference(n_pulses: int, n: int, up: int) -> None:
     rng = np.random.default_rng(n + up)
     cube = rng.integers(-2000, 2000, (n_pulses, 3, 4, n, 2)).astype(np.int16)
