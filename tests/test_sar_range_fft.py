@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from autosar_cli.sar import range_fft
 from autosar_cli.sar.range_compression import range_compress, range_compress_into
 from autosar_cli.sar.range_fft import compress_iq, radices
 
@@ -27,10 +28,10 @@ def _error_db(got: np.ndarray, ref: np.ndarray) -> float:
     return float(10 * np.log10(max(np.sum(np.abs(got - ref) ** 2) / np.sum(np.abs(ref) ** 2), 1e-30)))
 
 
-# pulse counts below, at and across the staged groups of GROUP * BATCH pulses (one full group, then a partial one
-# ending in a partial batch; exactly two groups)
+# pulse counts within one batch, across batches, ending in a partial batch, and across the staged groups of
+# GROUP * BATCH pulses (a full group, then a partial one ending in a partial batch)
 @pytest.mark.parametrize(("n_pulses", "n", "up"), [(45, 540, 4), (64, 512, 2), (33, 60, 3), (7, 25, 8), (1, 540, 4),
-                                                    (70, 48, 1), (300, 60, 3), (512, 30, 2)])
+                                                    (70, 48, 1), (300, 60, 3), (600, 30, 2)])
 def test_equals_the_float64_reference(n_pulses: int, n: int, up: int) -> None:
     rng = np.random.default_rng(n + up)
     cube = rng.integers(-2000, 2000, (n_pulses, 3, 4, n, 2)).astype(np.int16)
@@ -42,6 +43,18 @@ def test_equals_the_float64_reference(n_pulses: int, n: int, up: int) -> None:
     got = (out_re[:, :n_pulses] + 1j * out_im[:, :n_pulses]).T
     assert _error_db(got, ref) < -120.0
     assert not out_re[:, n_pulses:].any() and not out_im[:, n_pulses:].any()  # the batch padding is dropped
+
+
+@pytest.mark.parametrize("group", [1, 3])
+def test_staged_groups_of_any_size(group: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(range_fft, "GROUP", group)  # 10 batches: groups of 3, 3, 3 and 1 (or ten of 1)
+    rng = np.random.default_rng(group)
+    raw = rng.integers(-2000, 2000, (300, 60, 2)).astype(np.int16)
+    ref, ramp = _reference(raw, 2)
+    out_re = np.zeros((120, 300), np.float32)
+    out_im = np.zeros_like(out_re)
+    compress_iq(raw, np.hanning(60).astype(np.float32), ramp.astype(np.complex64), 2, out_re, out_im)
+    assert _error_db((out_re + 1j * out_im).T, ref) < -120.0
 
 
 def test_a_point_target_lands_in_its_bin() -> None:

@@ -25,9 +25,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 BATCH = 32  #: pulses per batch: 0.76 of scipy's time on the block above, against 0.81 with 16 and 0.90 with 64
-#: batches staged before their rows are written: 32-pulse pieces of 2160 rows took ~3x as long to write as
-#: 128- or 256-pulse ones (measured), and 8 of them (2.2 MB per plane) beat 2, 4 and 16
-GROUP = 8
+#: batches staged before their rows are written (at most): 32-pulse pieces of 2160 rows took ~3x as long to write
+#: as 256-pulse ones; whole 512-pulse rows (4.4 MB per plane, with the work buffer reused) beat 256-pulse pieces by
+#: 8-9 % and 128-pulse ones by 17-20 % (measured on test1 blocks, 1 and 2 threads)
+GROUP = 16
 RADICES = (4, 3, 5, 2)
 
 _F = nb.float32
@@ -348,9 +349,9 @@ def _compress(raw, first_re, first_im, rad, offs, twr, twi, ramp_re, ramp_im, ou
                     row_i[_U(q0) + b] = vr * ri + vi * rr
 
 
-def workspace_size(n: int, upsample: int) -> int:
-    """Float32 elements of :func:`_compress`'s work buffer for n samples, x upsample."""
-    return (4 + 2 * GROUP) * n * upsample * BATCH + 2 * n * BATCH
+def workspace_size(n: int, upsample: int, group: int) -> int:
+    """Float32 elements of :func:`_compress`'s work buffer for n samples, x upsample, ``group`` staged batches."""
+    return (4 + 2 * group) * n * upsample * BATCH + 2 * n * BATCH
 
 
 _local = threading.local()
@@ -376,10 +377,11 @@ def compress_iq(raw: NDArray[np.int16], taper: NDArray[np.float32], ramp: NDArra
     2, 3 and 5 (:func:`radices`).
     """
     n = raw.shape[1]
+    group = max(1, min(GROUP, -(-raw.shape[0] // BATCH)))
     rad, offs, twr, twi, first_re, first_im = fft_plan(n, upsample)
     # the taper rides on the first pass's twiddles (sample k's row of them): no pass of its own
     w = np.repeat(np.asarray(taper, np.float32), upsample)
     ramp = np.asarray(ramp)
     _compress(raw, first_re * w, first_im * w, rad, offs, twr, twi, np.ascontiguousarray(ramp.real, np.float32),
-              np.ascontiguousarray(ramp.imag, np.float32), out_re, out_im, BATCH, GROUP,
-              _workspace(workspace_size(n, upsample)))
+              np.ascontiguousarray(ramp.imag, np.float32), out_re, out_im, BATCH, group,
+              _workspace(workspace_size(n, upsample, group)))
