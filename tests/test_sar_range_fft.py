@@ -34,7 +34,7 @@ def _error_db(got: np.ndarray, ref: np.ndarray) -> float:
                                                     (70, 48, 1), (300, 60, 3), (600, 30, 2)])
 def test_equals_the_float64_reference(n_pulses: int, n: int, up: int) -> None:
     rng = np.random.default_rng(n + up)
-    cube = rng.integers(-2000, 2000, (n_pulses, 3, 4, n, 2)).astype(np.int16)
+    cube = rng.integers(-32768, 32767, (n_pulses, 3, 4, n, 2), endpoint=True).astype(np.int16)  # full range: sign bits
     raw = cube[:, 2, 1]  # strided, as focus hands over one Tx/Rx pair of the raw cube
     ref, ramp = _reference(raw, up)
     out_re = np.zeros((n * up, n_pulses + 3), np.float32)
@@ -43,6 +43,19 @@ def test_equals_the_float64_reference(n_pulses: int, n: int, up: int) -> None:
     got = (out_re[:, :n_pulses] + 1j * out_im[:, :n_pulses]).T
     assert _error_db(got, ref) < -120.0
     assert not out_re[:, n_pulses:].any() and not out_im[:, n_pulses:].any()  # the batch padding is dropped
+
+
+@pytest.mark.parametrize("layout", ["planar", "big-endian"])
+def test_other_sample_layouts(layout: str) -> None:
+    """I and Q in separate planes, or big-endian samples, take the packed copy instead of the int32 view."""
+    rng = np.random.default_rng(5)
+    raw = rng.integers(-32768, 32767, (40, 60, 2), endpoint=True).astype(np.int16)
+    ref, ramp = _reference(raw, 3)
+    given = np.ascontiguousarray(raw.transpose(2, 0, 1)).transpose(1, 2, 0) if layout == "planar" else raw.astype(">i2")
+    out_re = np.zeros((180, 40), np.float32)
+    out_im = np.zeros_like(out_re)
+    compress_iq(given, np.hanning(60).astype(np.float32), ramp.astype(np.complex64), 3, out_re, out_im)
+    assert _error_db((out_re + 1j * out_im).T, ref) < -120.0
 
 
 @pytest.mark.parametrize("group", [1, 3])

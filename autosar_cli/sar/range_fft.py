@@ -252,13 +252,14 @@ def _pass5(xr, xi, yr, yi, s, m, nb_, twr, twi, off, ids):  # pragma: no cover -
 
 
 @nb.njit(fastmath=True, cache=True, nogil=True)
-def _compress(raw, first_re, first_im, rad, offs, twr, twi, ramp_re, ramp_im, out_re, out_im, nb_, group,
-              work):  # pragma: no cover - compiled
-    """raw (P, N, 2) int16, any strides: I/Q samples of each pulse. first_* (N * up,): the pruned
+def _compress(iq, first_re, first_im, rad, offs, twr, twi, ramp_re, ramp_im, out_re, out_im, nb_, group,
+              work, tile):  # pragma: no cover - compiled
+    """iq (P, N) int32, any strides: each pulse's I/Q samples, I in the low 16 bits (:func:`_packed_iq`);
+    tile (N * nb_,) int32: room for one batch of them. first_* (N * up,): the pruned
     pass's twiddles times the taper; rad, offs, twr, twi: :func:`fft_plan`; ramp_* (N * up,): per bin.
     out_* (N * up, >= n_pulses): (bin, pulse) rows, first n_pulses columns written. ``group`` batches are
     staged before they are copied into the rows (see ``GROUP``). ``work``: :func:`workspace_size` floats."""
-    n_pulses, n = raw.shape[0], raw.shape[1]
+    n_pulses, n = iq.shape
     up = first_re.size // n
     n_fft = n * up
     n_batch = (n_pulses + nb_ - 1) // nb_
@@ -270,9 +271,9 @@ def _compress(raw, first_re, first_im, rad, offs, twr, twi, ramp_re, ramp_im, ou
     bi = work[3 * plane: 4 * plane]
     stage_r = work[4 * plane: (4 + group) * plane]
     stage_i = work[(4 + group) * plane: (4 + 2 * group) * plane]
-    # one batch's samples as (sample, pulse) planes, zero beyond the last pulse: a transpose within the L2 cache
-    tr = work[(4 + 2 * group) * plane: (4 + 2 * group) * plane + n * nb_]
-    ti = work[(4 + 2 * group) * plane + n * nb_: (4 + 2 * group) * plane + 2 * n * nb_]
+    # one sample of the batch's pulses, decoded
+    xr_row = work[(4 + 2 * group) * plane: (4 + 2 * group) * plane + nb_]
+    xi_row = work[(4 + 2 * group) * plane + nb_: (4 + 2 * group) * plane + 2 * nb_]
     bu = _U(nb_)
     n_st = rad.size
     for ib in range(n_batch):
@@ -280,28 +281,33 @@ def _compress(raw, first_re, first_im, rad, offs, twr, twi, ramp_re, ramp_im, ou
         g = ib % group
         dst_r = stage_r[g * plane: (g + 1) * plane]
         dst_i = stage_i[g * plane: (g + 1) * plane]
+        # the batch as a (sample, pulse) tile of I/Q words, zero beyond the last pulse: a transpose within the L1/L2
+        # cache, one 32-bit store per sample (0.49 against 0.72 ms per channel block for I and Q apart, measured)
         n_in = min(nb_, n_pulses - p0)
         if n_in < nb_:
-            tr[:] = 0.0
-            ti[:] = 0.0
+            tile[:] = 0
         for b in range(n_in):
-            pulse = raw[p0 + b]
+            pulse = iq[p0 + b]
             for k in range(n):
-                tr[k * nb_ + b] = pulse[k, 0]
-                ti[k * nb_ + b] = pulse[k, 1]
+                tile[k * nb_ + b] = pulse[k]
         # pruned first pass: y[up k + r] = x[k] w^(k r) (first_* carry the taper too); the other up - 1 inputs of
         # each butterfly are zeros
         yr = ar if n_st > 0 else dst_r
         yi = ai if n_st > 0 else dst_i
         for k in range(n):
             i = _U(k * nb_)
+            for b in range(bu):
+                word = tile[i + b]
+                lo = word & 0xFFFF
+                xr_row[b] = _F(lo - ((lo & 0x8000) << 1))  # the low half, sign-extended
+                xi_row[b] = _F(word >> 16)
             for r in range(up):
                 wr = first_re[k * up + r]
                 wi = first_im[k * up + r]
                 o = _U((up * k + r) * nb_)
                 for b in range(bu):
-                    xr_ = tr[i + b]
-                    xi_ = ti[i + b]
+                    xr_ = xr_row[b]
+                    xi_ = xi_row[b]
                     yr[o + b] = xr_ * wr - xi_ * wi
                     yi[o + b] = xr_ * wi + xi_ * wr
         s = up
@@ -351,7 +357,7 @@ def _compress(raw, first_re, first_im, rad, offs, twr, twi, ramp_re, ramp_im, ou
 
 def workspace_size(n: int, upsample: int, group: int) -> int:
     """Float32 elements of :func:`_compress`'s work buffer for n samples, x upsample, ``group`` staged batches."""
-    return (4 + 2 * group) * n * upsample * BATCH + 2 * n * BATCH
+    return (4 + 2 * group) * n * upsample * BATCH + 2 * BATCH
 
 
 _local = threading.local()
@@ -368,6 +374,16 @@ def _workspace(size: int) -> NDArray[np.float32]:
     return buf[a0: a0 + size]
 
 
+def _packed_iq(raw: NDArray[np.int16]) -> NDArray[np.int32]:
+    """(P, N, 2) int16 I/Q as (P, N) int32 words, I in the low 16 bits: a view where the pairs are adjacent and
+    aligned on a little-endian host (focus's raw cubes), else a packed copy."""
+    if (np.little_endian and raw.dtype == np.int16 and raw.strides[-1] == 2 and raw.strides[-2] % 4 == 0
+            and raw.strides[0] % 4 == 0 and raw.ctypes.data % 4 == 0):
+        return raw.view(np.int32)[..., 0]
+    i = np.asarray(raw[..., 0], np.int32) & 0xFFFF
+    return i | (np.asarray(raw[..., 1], np.int32) << 16)
+
+
 def compress_iq(raw: NDArray[np.int16], taper: NDArray[np.float32], ramp: NDArray[np.complex64], upsample: int,
                 out_re: NDArray[np.float32], out_im: NDArray[np.float32]) -> None:
     """Range-compress int16 I/Q pairs ``raw`` (P, N, 2) (any strides) into ``out_re``/``out_im`` (N * upsample,
@@ -382,6 +398,6 @@ def compress_iq(raw: NDArray[np.int16], taper: NDArray[np.float32], ramp: NDArra
     # the taper rides on the first pass's twiddles (sample k's row of them): no pass of its own
     w = np.repeat(np.asarray(taper, np.float32), upsample)
     ramp = np.asarray(ramp)
-    _compress(raw, first_re * w, first_im * w, rad, offs, twr, twi, np.ascontiguousarray(ramp.real, np.float32),
-              np.ascontiguousarray(ramp.imag, np.float32), out_re, out_im, BATCH, group,
-              _workspace(workspace_size(n, upsample, group)))
+    _compress(_packed_iq(raw), first_re * w, first_im * w, rad, offs, twr, twi,
+              np.ascontiguousarray(ramp.real, np.float32), np.ascontiguousarray(ramp.imag, np.float32), out_re, out_im,
+              BATCH, group, _workspace(workspace_size(n, upsample, group)), np.empty(n * BATCH, np.int32))
