@@ -12,7 +12,7 @@ All scratch memory is one buffer per thread, reused.
 Measured on 512-pulse blocks of test1 (8 channels, 540 samples, x4 padding, docs/FOCUS.md): 2 threads, 22-28 ms
 per block against 45-65 ms for the first version of this module (written straight into the rows from each
 32-pulse batch, with numpy's transposing loads) and ~61 ms for scipy's FFT + ramp + transposes; one thread,
-0.52-0.54 of the first version's time per channel (paired rounds in one process). Its output equals scipy's
+0.47-0.49 of the first version's time per channel (paired rounds in one process). Its output equals scipy's
 to -137 dB.
 
 Array in, array out; :mod:`autosar_cli.sar.range_compression` decides when to use it.
