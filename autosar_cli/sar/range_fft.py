@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 BATCH = 32  #: pulses per batch: 0.76 of scipy's time on the block above, against 0.81 with 16 and 0.90 with 64
 #: batches staged before their rows are written (at most): 32-pulse pieces of 2160 rows took ~3x as long to write
 #: as 256-pulse ones; whole 512-pulse rows (4.4 MB per plane, with the work buffer reused) beat 256-pulse pieces by
-#: 8-9 % and 128-pulse ones by 17-20 % (measured on test1 blocks, 1 and 2 threads)
+#: 6-9 % and 128-pulse ones by 15-26 % (paired rounds on test1 blocks, 1 and 2 threads)
 GROUP = 16
 RADICES = (4, 3, 5, 2)
 
