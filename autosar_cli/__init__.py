@@ -32,11 +32,12 @@ def _prefer_wide_vectors() -> None:
 def _two_threads_per_cpu() -> None:
     """Start numba with two threads per CPU unless the user chose a number (NUMBA_NUM_THREADS).
 
-    Numba hands each thread of a parallel loop an equal, fixed share. On a shared machine, one CPU is often
-    busy with something else for a while (another process, the hypervisor, focus's own read-ahead thread),
-    and the loop then waits for the thread stuck on it. Two threads per CPU let the OS even that out: on the
-    2-CPU development VM the back-projection of a test1 block took 0.73-0.79 of the time with 4 threads as
-    with 2, and 0.67-0.75 with another process busy (paired rounds, docs/FOCUS.md).
+    Numba hands each thread of a parallel loop an equal, fixed share. When one CPU is busy with something
+    else for a while (another process, focus's own read-ahead thread), the loop waits for the thread stuck on
+    it; two threads per CPU let the OS even that out. On the 2-CPU development VM, with another process
+    keeping one CPU busy, a test1 block's back-projection took 0.73-0.79 of the time with 4 threads as with
+    2; on an idle machine 1.04 (paired rounds), and focus() of test1 was as fast or faster in 8 of 11
+    interleaved runs (docs/FOCUS.md).
     """
     import os
     import sys
