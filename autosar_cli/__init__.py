@@ -35,9 +35,9 @@ def _two_threads_per_cpu() -> None:
     Numba hands each thread of a parallel loop an equal, fixed share. When one CPU is busy with something
     else for a while (another process, focus's own read-ahead thread), the loop waits for the thread stuck on
     it; two threads per CPU let the OS even that out. On the 2-CPU development VM, with another process
-    keeping one CPU busy, a test1 block's back-projection took 0.73-0.79 of the time with 4 threads as with
-    2; on an idle machine 1.04 (paired rounds), and focus() of test1 was as fast or faster in 8 of 11
-    interleaved runs (docs/FOCUS.md).
+    keeping one CPU busy, a test1 block's back-projection took 0.79 of the time with 4 threads as with 2
+    (quartiles of paired rounds 0.73-0.91); on an idle machine 1.04, and focus() of test1 was as fast or
+    faster in 8 of 11 interleaved runs (docs/FOCUS.md).
     """
     import os
     import sys
