@@ -360,8 +360,9 @@ def _compress(iq, first_re, first_im, rad, offs, twr, twi, ramp_re, ramp_im, out
 
 
 def workspace_size(n: int, upsample: int, group: int) -> int:
-    """Float32 elements of :func:`_compress`'s work buffer for n samples, x upsample, ``group`` staged batches."""
-    return (4 + 2 * group) * n * upsample * BATCH + 2 * BATCH
+    """Float32 elements of :func:`_compress`'s work buffer for n samples, x upsample, ``group`` staged batches,
+    followed by the batch's (sample, pulse) tile of I/Q words (n * BATCH)."""
+    return (4 + 2 * group) * n * upsample * BATCH + 2 * BATCH + n * BATCH
 
 
 _local = threading.local()
@@ -402,6 +403,8 @@ def compress_iq(raw: NDArray[np.int16], taper: NDArray[np.float32], ramp: NDArra
     # the taper rides on the first pass's twiddles (sample k's row of them): no pass of its own
     w = np.repeat(np.asarray(taper, np.float32), upsample)
     ramp = np.asarray(ramp)
+    work = _workspace(workspace_size(n, upsample, group))
+    tile = work[work.size - n * BATCH:].view(np.int32)
     _compress(_packed_iq(raw), first_re * w, first_im * w, rad, offs, twr, twi,
               np.ascontiguousarray(ramp.real, np.float32), np.ascontiguousarray(ramp.imag, np.float32), out_re, out_im,
-              BATCH, group, _workspace(workspace_size(n, upsample, group)), np.empty(n * BATCH, np.int32))
+              BATCH, group, work, tile)
