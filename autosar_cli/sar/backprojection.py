@@ -20,7 +20,8 @@ Why the kernel looks the way it does (measured on the 2-core AVX-512 development
   (every pulse for every pixel) migrate further; rather than cutting them into many short chunks (each
   with its sizing check and loop set-up, ~600 cycles), each vector of 16 pulses then picks its own four rows
   (``_accumulate_vectors``): ~1.4x the cost per vector of the six-row loop, but chunks limited by the
-  series alone (0.85x the time on the benchmark's fixed case).
+  series alone. That pays with one channel (0.84x the time on the benchmark's fixed case), not with the
+  product's eight or twelve, which share each chunk's fixed costs (see ``VSPAN_MAX``).
 """
 
 from __future__ import annotations
@@ -37,11 +38,16 @@ E_MAX = 0.1  #: bound on the series variable e; truncated after e^6 the error is
 DEFAULT_MAX_CHUNK = 512  #: pulses per reference (longer windows are split)
 MAX_ROWS = 6  #: the fast path reads 3, 4 or 6 neighbouring rows per chunk and channel
 MAX_SPAN_BINS = MAX_ROWS - 2.05  #: range migration allowed within a chunk on the fast path
-#: a chunk whose migration exceeds the six rows takes the per-vector path (:func:`_accumulate_vectors`) if
-#: 16 pulses change channel 0's path by less than this many bins at both of its ends: every lane then lies
-#: within 8/15 x 1.6 = 0.85 bins of its vector's centre lane, inside the four rows around it (+-1 bin), with
-#: 0.15 bins to spare for the other channels (centimetres away) and vibration
+#: In a block of at most VECTOR_ROWS_MAX_CHANNELS channels, a chunk whose migration exceeds the six rows takes
+#: the per-vector path (:func:`_accumulate_vectors`) instead of being cut, if 16 pulses change channel 0's
+#: path by less than VSPAN_MAX bins at both of its ends: every lane then lies within 8/15 x 1.6 = 0.85 bins of
+#: its vector's centre lane, inside the four rows around it (+-1 bin), with 0.15 bins to spare for
+#: vibration. A chunk's fixed costs (sizing, references, loop set-up) are shared by all channels, so cutting
+#: costs less with many: with one channel (the benchmark's fixed case) the per-vector rows took 0.84x the
+#: time, with test1's eight channels at 1 cm resolution 1.05-1.10x (interleaved focus runs), so the
+#: product's 8- and 12-channel blocks keep cutting.
 VSPAN_MAX = 1.6
+VECTOR_ROWS_MAX_CHANNELS = 1
 
 
 def _fit_odd(fn, n_terms: int, half_width: float) -> tuple[float, ...]:
@@ -384,8 +390,9 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                     vec = False
                     if (e_max <= E_MAX and span < MAX_SPAN_BINS) or end - p <= LANES:
                         break
-                    # too much migration for six rows: per-vector rows serve it if 16 pulses span little
-                    if e_max <= E_MAX:
+                    vectors_ok = n_ch <= VECTOR_ROWS_MAX_CHANNELS and n_bins >= 4
+                    if vectors_ok and e_max <= E_MAX:
+                        # too much migration for six rows: per-vector rows serve it if 16 pulses span little
                         vspan = 0.0
                         for pe0 in (p, end - LANES):
                             rs = 0.0
@@ -395,11 +402,13 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                                        - math.sqrt((px - ax[a, pe0]) ** 2 + (py - ay[a, pe0]) ** 2
                                                    + (pz - az[a, pe0]) ** 2))
                             vspan = max(vspan, abs(rs) * bin_inv)
-                        if vspan < VSPAN_MAX and n_bins >= 4:
+                        if vspan < VSPAN_MAX:
                             vec = True
                             break
-                    # e and the span grow about linearly with the chunk: jump to the length that fits
-                    shrink = 0.85 * min(E_MAX / max(e_max, 1e-12), MAX_SPAN_BINS / max(span, 1e-12), 0.5)
+                    # e and the span grow about linearly with the chunk: jump to the length that fits (where the
+                    # per-vector rows may serve the span, the length the series allows first)
+                    span_fit = 1.0 if vectors_ok and e_max > E_MAX else MAX_SPAN_BINS / max(span, 1e-12)
+                    shrink = 0.85 * min(E_MAX / max(e_max, 1e-12), span_fit, 0.5)
                     end = p + max(LANES, int((end - p) * shrink) // LANES * LANES)
                 # the next chunk's first guess: the length this one's margins allow (e and the span grow about
                 # linearly with it), at most 1.25 x; a guess that fails costs a second check (~200 cycles)
