@@ -233,8 +233,10 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         frames = geometry.frames
         n_blocks = (len(frames) + options.block_pulses - 1) // options.block_pulses
 
-        def prepare(b: int) -> tuple[slice, list[tuple[int, Any, Any, Any]], NDArray[np.int16] | None]:
-            """Block b's frames, per grid the pixels its beam reaches with their windows, and its raw frames.
+        def prepare(b: int) -> tuple[slice, list[tuple[int, Any, Any, Any]], NDArray[np.int16] | None,
+                                     NDArray[np.float64] | None]:
+            """Block b's frames, per grid the pixels its beam reaches with their windows, its raw frames and the
+            phase centres of its antennas (A, P, 3).
 
             Runs on the reader thread, beside this block's range compression and back-projection (h5py, blosc
             and the kernels release the GIL): one thread, so no numba-parallel launch nests in the kernel's.
@@ -254,10 +256,13 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
                 if keep.any():
                     work.append((gi, (rr * grid.n_along + cc).ravel()[keep], pix[keep], win[keep]))
             if not work:  # a block no grid needs is not even read
-                return sel, work, None
+                return sel, work, None, None
             idx = frames[sel]
             raw = radar.raw[idx[0]: idx[-1] + 1]
-            return sel, work, raw[idx - idx[0]]
+            pc = radar_phase_centres(traj, geometry.t_ns[sel], offsets, config)
+            ant = np.concatenate([pc.tx[:, used_tx].transpose(1, 0, 2),
+                                  np.stack([pc.rx[:, t, r] for t, r in pairs])], axis=0)
+            return sel, work, raw[idx - idx[0]], ant
 
         pool = ThreadPoolExecutor(max(1, min(len(pairs), numba.get_num_threads())))
         reader = ThreadPoolExecutor(1)
@@ -266,7 +271,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
             pending = reader.submit(prepare, 0)
             for b in range(n_blocks):
                 t0 = time.perf_counter()
-                sel, work, raw = pending.result()
+                sel, work, raw, ant = pending.result()
                 timings["read"] += time.perf_counter() - t0
                 if b + 1 < n_blocks:
                     pending = reader.submit(prepare, b + 1)
@@ -290,12 +295,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
                 timings["range_compression"] += time.perf_counter() - t0
 
                 t0 = time.perf_counter()
-                pc = radar_phase_centres(traj, geometry.t_ns[sel], offsets, config)
-                ant = np.concatenate([pc.tx[:, used_tx].transpose(1, 0, 2),
-                                      np.stack([pc.rx[:, t, r] for t, r in pairs])], axis=0)
                 block.set_antennas(ant)
-                timings["geometry"] += time.perf_counter() - t0
-                t0 = time.perf_counter()
                 for gi, flat, pix, win in work:
                     images[gi][flat] += backproject_block(block, pix, win)
                     n_bp += int(np.sum(win[:, 1] - win[:, 0])) * len(pairs)
