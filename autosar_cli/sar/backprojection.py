@@ -323,6 +323,7 @@ def _accumulate_exact(prof_re, prof_im, row0, stride, n_bins, ax, ay, az, ta, ra
 def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bin_inv, cycles_per_m,
           pix, win, order, per_task, max_chunk, out_re, out_im):  # pragma: no cover - compiled
     n_ch = ch_tx.shape[0]
+    vectors_ok = n_ch <= VECTOR_ROWS_MAX_CHANNELS and n_bins >= 4  # may chunks take per-vector rows
     n_ant = ax.shape[0]
     for t in nb.prange(order.shape[0]):
         task = order[t]
@@ -390,7 +391,6 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                     vec = False
                     if (e_max <= E_MAX and span < MAX_SPAN_BINS) or end - p <= LANES:
                         break
-                    vectors_ok = n_ch <= VECTOR_ROWS_MAX_CHANNELS and n_bins >= 4
                     if vectors_ok and e_max <= E_MAX:
                         # too much migration for six rows: per-vector rows serve it if 16 pulses span little
                         vspan = 0.0
