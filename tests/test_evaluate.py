@@ -332,7 +332,7 @@ def test_paper_comparison(scenario: str, sim_dir: Path, tmp_path_factory: pytest
     assert len(sar) == 5
     # Whole-track SE(2) alignment: within 3 cm on test1 and test3. On test2 (120 m) the odometry's scale, which
     # 25 s of GNSS velocity pins down to ~0.08 %, leaves an along-track stretch no rotation removes (aligned
-    # track RMSE 3.2 cm, docs/EVALUATION.md): its reflectors measured 1.3-4.4 cm (seed 1), so 5 cm there;
+    # track RMSE 3.2 cm, docs/EVALUATION.md): its reflectors measured 0.1-4.4 cm (seed 1), so 5 cm there;
     # aligned on the 10 m of track around each reflector they are within 1 cm (the 3 cm limit).
     whole_track = 0.05 if scenario == "test2" else 0.03
     for r in sar:
@@ -346,13 +346,17 @@ def test_paper_comparison(scenario: str, sim_dir: Path, tmp_path_factory: pytest
     assert min(straight["ins"], straight["none"]) > 1.5 * straight["sar-min"], straight
 
 
+_ENTROPY_XFAIL = ("measured (seed 1): beside focus, the entropy follows how bright the few strong scatterers are "
+                  "(specular facade and car bodies, five 27 m^2 corner reflectors), which depends on the direction of "
+                  "the processed beam; test2 ins > truth > sar-min > none, test3 ins > none > sar-min > truth (see "
+                  "docs/EVALUATION.md)")
+
+
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="measured (seed 1): the entropy follows the brightness of the five 27 m^2 "
-                   "corner reflectors, which depends on the processed beam's direction (perpendicular to the "
-                   "estimated velocity) on the antenna pattern's slope as much as on focus: test1 ins > none > truth "
-                   "> sar-min, test2 truth > sar-min > none > ins, test3 ins > none > truth > sar-min (see "
-                   "docs/EVALUATION.md)")
-@pytest.mark.parametrize("scenario", ["test1", "test2", "test3"])
+@pytest.mark.parametrize("scenario", ["test1", pytest.param("test2", marks=pytest.mark.xfail(strict=True,
+                                                                                             reason=_ENTROPY_XFAIL)),
+                                      pytest.param("test3", marks=pytest.mark.xfail(strict=True,
+                                                                                    reason=_ENTROPY_XFAIL))])
 def test_entropy_orders_the_methods_as_in_the_paper(scenario: str, sim_dir: Path,
                                                     tmp_path_factory: pytest.TempPathFactory) -> None:
     res = _comparison(sim_dir, tmp_path_factory, scenario)["results"]

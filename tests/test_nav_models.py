@@ -13,7 +13,7 @@ from autosar_cli.config import load_config
 from autosar_cli.nav import models as m
 from autosar_cli.nav.baselines import from_truth
 from autosar_cli.nav.geodesy import GeodeticOrigin
-from autosar_cli.nav.trajectory import radar_phase_centres, relative_pose_error
+from autosar_cli.nav.trajectory import Trajectory, radar_phase_centres, relative_pose_error
 from autosar_cli.nav.ukf import FilterHistory, VectorUKF, rts_smooth
 
 CFG = load_config()
@@ -130,6 +130,40 @@ def test_relative_pose_error_ignores_rigid_motion_and_sees_bends() -> None:
     bent[:, 1] += 0.002 * np.sin(2 * np.pi * s / 2.0)  # 2 mm wiggle, 2 m period
     lat = relative_pose_error(bent, psi, ref, psi, 1.0)[:, 1]
     assert 1e-3 < np.sqrt(np.mean(lat**2)) < 4e-3
+
+
+def _circle(t: np.ndarray, speed: float, yaw_rate: float) -> Trajectory:
+    """A trajectory sampled at times t (s) of a car turning at a constant rate: CTRV is exact on it."""
+    psi = 0.3 + yaw_rate * t
+    r = speed / yaw_rate
+    xy = np.c_[r * (np.sin(psi) - np.sin(0.3)), -r * (np.cos(psi) - np.cos(0.3))]
+    return Trajectory("test", np.round(t * 1e9).astype(np.int64) + 10**18, xy, psi, np.full_like(t, speed),
+                      np.full_like(t, yaw_rate), GeodeticOrigin(45.0, 9.0, 100.0), 1.4, 0.5)
+
+
+def test_travel_velocity_follows_the_motion_not_the_position_steps() -> None:
+    """The beam's direction of travel: on a continuous track the +-50 ms chord of the body point; position steps
+    between samples (an INS's GNSS resets, a filter's updates) do not tilt it, while a position difference does."""
+    t = np.arange(0.0, 4.0, 0.004)
+    lever = np.array([[2.2, -0.75, 0.3]])  # the radar, ahead and to the right of the CoG
+    turn = _circle(t, 6.0, 0.15)
+    q = turn.t_ns[0] + np.array([0, 7_000_000, 1_000_000_000, 2_345_678_901, 3_990_000_000])
+    got = turn.travel_velocity(q, lever)[:, 0]
+    a = np.clip(q - 50_000_000, turn.t_ns[0], turn.t_ns[-1])  # clamped to the trajectory at its ends
+    b = np.clip(q + 50_000_000, turn.t_ns[0], turn.t_ns[-1])
+    chord = (turn.body_points(b, lever)[:, 0] - turn.body_points(a, lever)[:, 0]) / ((b - a) * 1e-9)[:, None]
+    np.testing.assert_allclose(got, chord, atol=1e-9)
+    # the lever arm turns with the car: v + yaw_rate x (3.6 m ahead of the rear axle, 0.75 m right)
+    assert np.linalg.norm(got[2]) == pytest.approx(math.hypot(6.0 + 0.15 * 0.75, 0.15 * 3.6), rel=1e-4)
+
+    # a GNSS reset every 100 ms: the positions step 4 cm sideways, speed and heading carry on
+    steps = np.floor(t / 0.1)[:, None] * np.array([[0.0, 0.04]])
+    reset = Trajectory("test", turn.t_ns, turn.rear_axle_enu + steps, turn.heading, turn.speed, turn.yaw_rate,
+                       turn.origin, 1.4, 0.5)
+    np.testing.assert_allclose(reset.travel_velocity(q, lever), turn.travel_velocity(q, lever), atol=1e-9)
+    c = q[2]
+    diff = (reset.body_points([c + 50_000_000], lever) - reset.body_points([c - 50_000_000], lever))[0, 0] / 0.1
+    assert np.linalg.norm(diff - got[2]) > 0.3  # a position difference sees the steps: 0.4 m/s across
 
 
 def test_phase_centres_from_the_true_track_match_the_sidecar(ci_mcap) -> None:

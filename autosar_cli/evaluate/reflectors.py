@@ -46,7 +46,6 @@ SEARCH_M = 0.4  #: the peak is searched within +- this of each patch centre
 SEPARATE_M = 0.25  #: a second patch is focused at the zero-Doppler prediction when it is this far from T^-1(p)
 ANALYSIS_M = 0.4  #: side of the window upsampled around the peak for widths, PSLR and ISLR
 UPSAMPLE = 4  #: band-limited upsampling of that window (5 mm -> 1.25 mm)
-VELOCITY_SPAN_NS = 50_000_000  #: half-span of the finite difference giving the radar's velocity direction
 
 
 @dataclass
@@ -76,12 +75,10 @@ def reflector_grids(centres_xy: ArrayLike, *, height_m: float, size_m: float = P
 
 
 def _reference_track(traj: Trajectory, t_ns: NDArray[np.int64], config: Config) -> tuple[Array, Array]:
-    """Tx0 reference point (M, 3) and its velocity (M, 3), the latter over +-50 ms (the direction an aperture
-    sees, not a GNSS correction's step)."""
+    """Tx0 reference point (M, 3) and its direction of travel (M, 3), as focus points its beam
+    (:meth:`Trajectory.travel_velocity`)."""
     tx0 = antenna_lever_arms(config)[0][:1]
-    c = traj.body_points(t_ns, tx0)[:, 0]
-    ahead, behind = (traj.body_points(t_ns + s * VELOCITY_SPAN_NS, tx0)[:, 0] for s in (1, -1))
-    return c, (ahead - behind) / (2 * VELOCITY_SPAN_NS * 1e-9)
+    return traj.body_points(t_ns, tx0)[:, 0], traj.travel_velocity(t_ns, tx0)[:, 0]
 
 
 def zero_doppler_times(truth: Trajectory, true_enu: ArrayLike, config: Config, t_ns: ArrayLike) -> NDArray[np.int64]:

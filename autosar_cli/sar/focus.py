@@ -109,7 +109,7 @@ class _Geometry:
     frames: NDArray[np.int64]  #: indices of the frames used (into the radar stream)
     t_ns: NDArray[np.int64]
     reference: NDArray[np.float64]  #: (F, 3) Tx0 phase centre per frame (ENU m)
-    velocity: NDArray[np.float64]  #: (F, 3) its velocity (m/s)
+    velocity: NDArray[np.float64]  #: (F, 3) its direction of travel (m/s; :meth:`Trajectory.travel_velocity`)
     skipped: Counter[str]
 
 
@@ -126,8 +126,7 @@ def _usable_frames(radar: RadarStream, traj: Trajectory, config: Config, min_spe
         return _Geometry(frames, t[frames], np.zeros((0, 3)), np.zeros((0, 3)), skipped)
     tx0 = antenna_lever_arms(config)[0][:1]
     ref = traj.body_points(t[frames], tx0)[:, 0]
-    dt = 1e-3
-    vel = (traj.body_points(t[frames] + int(dt * 1e9), tx0)[:, 0] - ref) / dt
+    vel = traj.travel_velocity(t[frames], tx0)[:, 0]  # the beam points across the aperture's direction of travel
     moving = np.linalg.norm(vel[:, :2], axis=1) >= min_speed
     skipped[f"slower than {min_speed} m/s"] = int((~moving).sum())
     return _Geometry(frames[moving], t[frames][moving], ref[moving], vel[moving], skipped)
