@@ -93,14 +93,13 @@ class Trajectory:
         t_b = np.maximum(t_b, t_a + 1)  # a single sample, or a time beyond the span: the motion there (1 ns)
         lever = np.asarray(lever_arms, dtype=np.float64).reshape(-1, 3)
         # each segment's displacement under its own motion model, summed: the continuous path at every sample
-        starts = self._place(*self._pose_from(np.arange(len(self.t_ns) - 1), self.t_ns[:-1]), lever)
+        samples = self._place(self.rear_axle_enu, self.heading, lever)
         ends = self._place(*self._pose_from(np.arange(len(self.t_ns) - 1), self.t_ns[1:]), lever)
-        at_sample = np.concatenate([np.zeros((1, *starts.shape[1:])), np.cumsum(ends - starts, axis=0)])
+        at_sample = np.concatenate([np.zeros((1, *samples.shape[1:])), np.cumsum(ends - samples[:-1], axis=0)])
 
         def path(t: NDArray[np.int64]) -> Array:
             k = self._segment(t)
-            return at_sample[k] + self._place(*self._pose_from(k, t), lever) - self._place(
-                *self._pose_from(k, self.t_ns[k]), lever)
+            return at_sample[k] + self._place(*self._pose_from(k, t), lever) - samples[k]
 
         return (path(t_b) - path(t_a)) / ((t_b - t_a) * 1e-9)[:, None, None]
 
