@@ -13,6 +13,7 @@ from autosar_cli.config import load_config
 from autosar_cli.nav import models as m
 from autosar_cli.nav.baselines import from_truth
 from autosar_cli.nav.geodesy import GeodeticOrigin
+from autosar_cli.nav.ins import COURSE_MIN_SPEED_MPS, rear_axle_motion
 from autosar_cli.nav.trajectory import Trajectory, radar_phase_centres, relative_pose_error
 from autosar_cli.nav.ukf import FilterHistory, VectorUKF, rts_smooth
 
@@ -164,6 +165,35 @@ def test_travel_velocity_follows_the_motion_not_the_position_steps() -> None:
     c = q[2]
     diff = (reset.body_points([c + 50_000_000], lever) - reset.body_points([c - 50_000_000], lever))[0, 0] / 0.1
     assert np.linalg.norm(diff - got[2]) > 0.3  # a position difference sees the steps: 0.4 m/s across
+
+
+def test_ins_heading_is_the_rear_axle_course_not_its_drifting_yaw() -> None:
+    # A car on a 10 m circle at 3 m/s (rear axle, 0.3 rad/s), starting from rest, later stopping and reversing;
+    # its INS (IMU 3.6 m ahead of the axle, 0.3 m left) reports the IMU's velocity and a yaw 30 mrad off.
+    t = np.linspace(0.0, 10.0, 1001)
+    speed = np.where(t < 1.0, 3.0 * t, 3.0) * np.where(t > 8.0, -1.0, 1.0) * np.where(np.abs(t - 8.0) < 0.5, 0.0, 1.0)
+    w = speed / 10.0
+    psi = 0.4 + np.cumsum(w) * (t[1] - t[0])
+    lever = (3.6, 0.3)
+    c, s = np.cos(psi), np.sin(psi)
+    rx, ry = c * lever[0] - s * lever[1], s * lever[0] + c * lever[1]
+    v_imu = np.stack([speed * c - w * ry, speed * s + w * rx], axis=1)  # v_rear + omega x lever
+    heading, v = rear_axle_motion(v_imu, psi + 0.03, w, lever)
+    moving = np.abs(speed) > COURSE_MIN_SPEED_MPS
+    np.testing.assert_allclose(v[moving], speed[moving], atol=2e-3)  # the lever arm's yaw-rate term is taken out
+    np.testing.assert_allclose(v, speed, atol=1e-2)
+    # where the car moves the heading is the true one to the 30 mrad yaw error's second order (omega L x 0.03)
+    assert np.max(np.abs(heading - psi)[moving]) < 1e-3
+    # the IMU's own course (without the lever arm's term) would be 0.36 rad off at this yaw rate and speed
+    imu_course = np.arctan2(v_imu[:, 1], v_imu[:, 0])
+    assert np.max(np.abs((imu_course - psi + np.pi) % (2 * np.pi) - np.pi)[moving & (speed > 0)]) > 0.3
+    # below the course's minimum speed: the yaw, corrected by the offset of the nearest moving sample
+    assert not moving.all()
+    assert np.max(np.abs(heading - psi)[~moving]) < 0.01
+    # a car at rest throughout keeps its yaw
+    still, v0 = rear_axle_motion(np.zeros((5, 2)), np.full(5, 0.2), np.zeros(5), lever)
+    np.testing.assert_array_equal(still, 0.2)
+    np.testing.assert_array_equal(v0, 0.0)
 
 
 def test_phase_centres_from_the_true_track_match_the_sidecar(ci_mcap) -> None:

@@ -8,6 +8,10 @@ a few hundred metres they are below the IMU's own errors).
 
 Error state (15): position, velocity (ENU), attitude error (ENU small angles), accelerometer bias,
 gyro bias (body frame).
+
+The output is the common trajectory model (rear-axle centre, no sideslip): its heading is the course of the
+rear axle, derived from the INS's velocity and yaw rate (:func:`rear_axle_motion`), not the INS's yaw, so
+that the motion the trajectory describes is the motion the INS measured.
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from autosar_cli.config import Config
+from autosar_cli.nav.frames import wrap_angle
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.nav.inputs import NavInputError
 from autosar_cli.nav.trajectory import Trajectory
@@ -118,7 +123,7 @@ def run_ins(ins: InsInputs, config: Config) -> Trajectory:
     out_t = np.empty(n)
     out_p = np.empty((n, 3))
     out_yaw = np.empty(n)
-    out_v = np.empty(n)
+    out_v = np.empty((n, 2))
     out_w = np.empty(n)
     gi = int(np.searchsorted(ins.gnss_t, ins.imu_t[i0], side="right"))
     vi = int(np.searchsorted(ins.vel_t, ins.imu_t[i0], side="right"))
@@ -168,18 +173,67 @@ def run_ins(ins: InsInputs, config: Config) -> Trajectory:
         out_t[k] = t
         out_p[k] = p
         out_yaw[k] = np.arctan2(C[1, 0], C[0, 0])
-        out_v[k] = np.linalg.norm(v[:2])
+        out_v[k] = v[:2]
         out_w[k] = (C @ w)[2]
     # IMU point -> rear-axle centre (level vehicle)
-    heading = np.unwrap(out_yaw)
     lx = ins.imu_lever[0] + config.vehicle.cog_to_rear_axle_m
     ly = ins.imu_lever[1]
+    heading, speed = rear_axle_motion(out_v, np.unwrap(out_yaw), _smoothed(out_t, out_w, YAW_RATE_SPAN_S), (lx, ly))
     c, s = np.cos(heading), np.sin(heading)
     rear = out_p[:, :2] - np.stack([c * lx - s * ly, s * lx + c * ly], axis=1)
     t_ns = ins.t0_ns + np.round(out_t * 1e9).astype(np.int64)
     keep = np.r_[True, np.diff(t_ns) > 0]
-    return Trajectory("ins", t_ns[keep], rear[keep], heading[keep], out_v[keep], out_w[keep], ins.origin,
+    return Trajectory("ins", t_ns[keep], rear[keep], heading[keep], speed[keep], out_w[keep], ins.origin,
                       config.vehicle.cog_to_rear_axle_m, config.vehicle.cog_height_m)
+
+
+#: below this rear-axle speed (m/s) the INS's velocity gives no usable course, and its yaw sets the heading
+COURSE_MIN_SPEED_MPS = 0.5
+#: span (s) of the moving average of the yaw rate in the lever arm's omega x L: one gyro sample's noise
+#: (~2 mrad/s at 250 Hz) times 3.6 m would turn the course by ~7 mrad at 1 m/s from sample to sample
+YAW_RATE_SPAN_S = 0.1
+
+
+def _smoothed(t: Array, x: Array, span_s: float) -> Array:
+    """Centred moving average of x (N,) sampled at times t (N,) s over ~span_s (edges: the mean of what exists)."""
+    if len(t) < 2:
+        return x
+    half = max(int(round(0.5 * span_s / float(np.median(np.diff(t))))), 0)
+    kernel = np.ones(2 * half + 1)
+    return np.convolve(x, kernel, mode="same") / np.convolve(np.ones_like(x), kernel, mode="same")
+
+
+def rear_axle_motion(v_enu: Array, yaw: Array, yaw_rate: Array, lever_xy: tuple[float, float]) -> tuple[Array, Array]:
+    """Heading (rad, ENU, unwrapped) and speed (m/s) of the rear-axle centre from an INS at body point ``lever_xy``.
+
+    ``v_enu`` (N, 2) m/s: the INS's horizontal velocity (of its IMU); ``yaw`` (N,) rad and ``yaw_rate`` (N,)
+    rad/s: its attitude; ``lever_xy`` m: the IMU seen from the rear-axle centre, body frame. The trajectory model
+    has no sideslip, so its heading is the course of the rear axle, whose velocity is the IMU's minus
+    omega x lever (at 3.6 m ahead of the axle the IMU's own course turns by omega L / v, 0.1-0.3 rad in a
+    slow zig-zag). That course is GNSS-aided through the velocity; the INS's yaw drifts with its gyro bias
+    (tens of mrad over a drive), and a heading off the motion points the processed beam off its aperture.
+    Where the rear axle moves slower than ``COURSE_MIN_SPEED_MPS`` the course is noise, and the heading is
+    the yaw plus the course-yaw offset at the nearest faster sample.
+    """
+    yaw = np.asarray(yaw, dtype=np.float64)
+    # v_imu = R(psi) (u - omega ly, omega lx) for rear-axle speed u and heading psi: solved exactly, the
+    # root (forward or reversing) being the one whose heading lies nearer the yaw
+    a = yaw_rate * lever_xy[0]
+    b = np.sqrt(np.maximum(np.sum(v_enu**2, axis=1) - a**2, 0.0))
+    course = np.arctan2(v_enu[:, 1], v_enu[:, 0])
+    offset_f = wrap_angle(course - np.arctan2(a, b) - yaw)
+    offset_r = wrap_angle(course - np.arctan2(a, -b) - yaw)
+    ahead = np.abs(offset_f) <= np.abs(offset_r)
+    speed = yaw_rate * lever_xy[1] + np.where(ahead, b, -b)
+    offset = np.where(ahead, offset_f, offset_r)
+    moving = np.abs(speed) > COURSE_MIN_SPEED_MPS
+    if not moving.any():
+        return yaw, speed
+    index = np.arange(len(yaw))
+    idx = np.flatnonzero(moving)
+    after = idx[np.clip(np.searchsorted(idx, index), 0, len(idx) - 1)]
+    before = idx[np.clip(np.searchsorted(idx, index) - 1, 0, len(idx) - 1)]
+    return yaw + offset[np.where(np.abs(before - index) < np.abs(after - index), before, after)], speed
 
 
 def _correct(p: Array, v: Array, C: Array, ba: Array, bg: Array, P: Array, H: Array, y: Array,
