@@ -17,7 +17,6 @@ import functools
 
 import numba as nb
 import numpy as np
-import scipy.fft
 from numpy.typing import ArrayLike, NDArray
 
 from autosar_cli.sar.range_fft import compress_iq, radices
@@ -87,6 +86,8 @@ def range_compress(beat: ArrayLike, *, sample_rate_hz: float, slope_hz_per_s: fl
         _load_iq_tapered(x.reshape(-1, n, 2), w, padded.reshape(-1, nfft))
     else:
         padded[..., :n] = x * w
+    import scipy.fft  # here, not at the top: focus's own path (range_fft) never needs it, and it costs ~0.2 s to import
+
     spec = scipy.fft.fft(padded, axis=-1, workers=workers, overwrite_x=True)
     spec *= _reference_ramp(n, nfft, float(sample_rate_hz), float(slope_hz_per_s))
     return spec.astype(np.complex64, copy=False)
