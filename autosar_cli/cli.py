@@ -620,6 +620,9 @@ def batch(
 
 def main() -> None:
     """Console-script entry point."""
+    from autosar_cli.ingest import mf4_support
+
+    mf4_support.defer()  # python-can without asammdf and pandas (~0.35 s) until an .mf4 log is opened
     try:
         app()
         code: int | str | None = 0

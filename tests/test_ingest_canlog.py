@@ -381,3 +381,36 @@ def test_nmea_log_is_not_a_can_log() -> None:
     assert not is_can_log(nmea)
     with pytest.raises(CanLogError, match="neo-m8n.log: not a candump -L log"):
         list(read_can_log(nmea))
+
+
+_LEAN_MF4 = """
+import json, sys
+from autosar_cli.ingest import mf4_support
+mf4_support.defer()  # as the autosar command does
+import autosar_cli.ingest.pipeline  # noqa: F401  (cantools, python-can)
+from autosar_cli.ingest.canlog import read_can_log
+before = sorted(m for m in ("asammdf", "pandas") if m in sys.modules)
+records = [[r.t_ns, r.frame_id, r.data.hex(), r.channel] for r in read_can_log(sys.argv[1])]
+print(json.dumps({"before": before, "after": "asammdf" in sys.modules, "records": records}))
+"""
+
+
+def test_mf4_support_is_loaded_when_the_first_mf4_log_is_opened(tmp_path: Path) -> None:
+    # The autosar command imports python-can without asammdf (and pandas); an .mf4 log then still reads exactly
+    # as with python-can imported the usual way (this process).
+    import json
+    import subprocess
+    import sys
+
+    frames = _frames()
+    path = tmp_path / "giulia.mf4"
+    with can.MF4Writer(path) as writer:
+        for _, _, _, msg in frames:
+            writer.on_message_received(msg)
+    expected = [[r.t_ns, r.frame_id, r.data.hex(), r.channel] for r in read_can_log(path)]
+    assert len(expected) == len(frames) and [e[1] for e in expected] == [f[3].arbitration_id for f in frames]
+    out = subprocess.run([sys.executable, "-c", _LEAN_MF4, str(path)], check=True, capture_output=True, text=True,
+                         cwd=REPO)
+    lean = json.loads(out.stdout)
+    assert lean["before"] == [] and lean["after"] is True
+    assert lean["records"] == expected

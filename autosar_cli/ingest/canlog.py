@@ -49,6 +49,7 @@ from typing import IO
 import can
 from can.io.generic import MessageReader
 
+from autosar_cli.ingest import mf4_support
 from autosar_cli.ingest.records import CanRecord
 
 __all__ = ["CAN_LOG_SUFFIXES", "CanLogError", "is_can_log", "read_can_log"]
@@ -124,6 +125,7 @@ def _open_reader(path: Path, stack: ExitStack) -> MessageReader:
     """Open the python-can reader of the file's format; files we open are closed by ``stack``."""
     suffix = _suffix(path)
     if suffix == ".mf4":
+        mf4_support.ensure()
         # Given a file object, MF4Reader copies the whole file into memory; given a path, asammdf
         # reads it block by block.
         return stack.enter_context(_MF4Reader(path))
