@@ -196,9 +196,11 @@ YAW_RATE_SPAN_S = 0.1
 
 def _smoothed(t: Array, x: Array, span_s: float) -> Array:
     """Centred moving average of x (N,) sampled at times t (N,) s over ~span_s (edges: the mean of what exists)."""
-    if len(t) < 2:
+    steps = np.diff(t)
+    steps = steps[steps > 0]
+    if not steps.size:
         return x
-    half = max(int(round(0.5 * span_s / float(np.median(np.diff(t))))), 0)
+    half = int(round(0.5 * span_s / float(np.median(steps))))
     kernel = np.ones(2 * half + 1)
     return np.convolve(x, kernel, mode="same") / np.convolve(np.ones_like(x), kernel, mode="same")
 
