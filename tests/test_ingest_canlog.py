@@ -3,7 +3,10 @@ through the formats python-can writes (ASC, BLF, TRC, candump -L)."""
 
 from __future__ import annotations
 
+import json
 import math
+import subprocess
+import sys
 from collections import Counter
 from collections.abc import Iterator
 from datetime import UTC, datetime
@@ -398,10 +401,6 @@ print(json.dumps({"before": before, "after": "asammdf" in sys.modules, "records"
 def test_mf4_support_is_loaded_when_the_first_mf4_log_is_opened(tmp_path: Path) -> None:
     # The autosar command imports python-can without asammdf (and pandas); an .mf4 log then still reads exactly
     # as with python-can imported the usual way (this process).
-    import json
-    import subprocess
-    import sys
-
     frames = _frames()
     path = tmp_path / "giulia.mf4"
     with can.MF4Writer(path) as writer:

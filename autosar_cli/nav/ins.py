@@ -233,8 +233,9 @@ def rear_axle_motion(v_enu: Array, yaw: Array, yaw_rate: Array, lever_xy: tuple[
         return yaw, speed
     index = np.arange(len(yaw))
     idx = np.flatnonzero(moving)
-    after = idx[np.clip(np.searchsorted(idx, index), 0, len(idx) - 1)]
-    before = idx[np.clip(np.searchsorted(idx, index) - 1, 0, len(idx) - 1)]
+    pos = np.searchsorted(idx, index)
+    after = idx[np.minimum(pos, len(idx) - 1)]
+    before = idx[np.maximum(pos - 1, 0)]
     return yaw + offset[np.where(np.abs(before - index) < np.abs(after - index), before, after)], speed
 
 
