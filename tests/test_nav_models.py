@@ -14,7 +14,7 @@ from autosar_cli.nav import models as m
 from autosar_cli.nav.baselines import from_truth
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.nav.ins import COURSE_MIN_SPEED_MPS, rear_axle_motion
-from autosar_cli.nav.trajectory import Trajectory, radar_phase_centres, relative_pose_error
+from autosar_cli.nav.trajectory import Trajectory, radar_phase_centres, rear_axle_from_body_point, relative_pose_error
 from autosar_cli.nav.ukf import FilterHistory, VectorUKF, rts_smooth
 
 CFG = load_config()
@@ -165,6 +165,18 @@ def test_travel_velocity_follows_the_motion_not_the_position_steps() -> None:
     c = q[2]
     diff = (reset.body_points([c + 50_000_000], lever) - reset.body_points([c - 50_000_000], lever))[0, 0] / 0.1
     assert np.linalg.norm(diff - got[2]) > 0.3  # a position difference sees the steps: 0.4 m/s across
+
+
+def test_rear_axle_from_body_point_inverts_body_points() -> None:
+    """A GNSS antenna or IMU track moved to the rear axle lands on the trajectory it was placed from."""
+    turn = _circle(np.arange(0.0, 3.0, 0.01), 5.0, 0.4)
+    lever = np.array([2.2, -0.75, 1.4])  # ahead, right and above the CoG; the height plays no part
+    point = turn.body_points(turn.t_ns, lever[None])[:, 0]
+    rear = rear_axle_from_body_point(point, turn.heading, lever, turn.cog_to_rear_axle_m)
+    np.testing.assert_allclose(rear, turn.rear_axle_enu, atol=1e-12)
+    # the body point is 3.6 m ahead of the axle: a heading 10 mrad off moves the axle 3.7 cm
+    off = rear_axle_from_body_point(point, turn.heading + 0.01, lever, turn.cog_to_rear_axle_m)
+    assert np.linalg.norm(off - rear, axis=1) == pytest.approx(0.01 * math.hypot(3.6, 0.75), rel=1e-4)
 
 
 def test_ins_heading_is_the_rear_axle_course_not_its_drifting_yaw() -> None:

@@ -9,7 +9,7 @@ from numpy.typing import NDArray
 from autosar_cli.config import Config
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.nav.inputs import NavInputError, NavInputs
-from autosar_cli.nav.trajectory import Trajectory
+from autosar_cli.nav.trajectory import Trajectory, rear_axle_from_body_point
 
 Array = NDArray[np.float64]
 
@@ -37,10 +37,7 @@ def gnss_only(inputs: NavInputs, config: Config) -> Trajectory:
     assert pos is not None
     t = pos.t
     psi = _gnss_heading(inputs, t)
-    lx = inputs.gnss_lever_m[0] + config.vehicle.cog_to_rear_axle_m
-    ly = inputs.gnss_lever_m[1]
-    c, s = np.cos(psi), np.sin(psi)
-    rear = pos.z - np.stack([c * lx - s * ly, s * lx + c * ly], axis=1)
+    rear = rear_axle_from_body_point(pos.z, psi, inputs.gnss_lever_m, config.vehicle.cog_to_rear_axle_m)
     vel = inputs.gnss_velocity
     assert vel is not None
     speed = np.interp(t, vel.t, np.hypot(vel.z[:, 0], vel.z[:, 1]))

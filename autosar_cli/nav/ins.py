@@ -25,7 +25,7 @@ from autosar_cli.config import Config
 from autosar_cli.nav.frames import wrap_angle
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.nav.inputs import NavInputError
-from autosar_cli.nav.trajectory import Trajectory
+from autosar_cli.nav.trajectory import Trajectory, rear_axle_from_body_point
 from autosar_cli.store.drive import Drive
 
 Array = NDArray[np.float64]
@@ -179,8 +179,7 @@ def run_ins(ins: InsInputs, config: Config) -> Trajectory:
     lx = ins.imu_lever[0] + config.vehicle.cog_to_rear_axle_m
     ly = ins.imu_lever[1]
     heading, speed = rear_axle_motion(out_v, np.unwrap(out_yaw), _smoothed(out_t, out_w, YAW_RATE_SPAN_S), (lx, ly))
-    c, s = np.cos(heading), np.sin(heading)
-    rear = out_p[:, :2] - np.stack([c * lx - s * ly, s * lx + c * ly], axis=1)
+    rear = rear_axle_from_body_point(out_p, heading, ins.imu_lever, config.vehicle.cog_to_rear_axle_m)
     t_ns = ins.t0_ns + np.round(out_t * 1e9).astype(np.int64)
     keep = np.r_[True, np.diff(t_ns) > 0]
     return Trajectory("ins", t_ns[keep], rear[keep], heading[keep], speed[keep], out_w[keep], ins.origin,

@@ -114,6 +114,18 @@ class Trajectory:
         return np.stack([x, y, z], axis=-1)
 
 
+def rear_axle_from_body_point(point_xy: Array, heading: Array, lever_arm: ArrayLike,
+                              cog_to_rear_axle_m: float) -> Array:
+    """Rear-axle centre ENU (M, 2) (m) of a level vehicle whose body point ``lever_arm`` (x forward, y left, m,
+    from the CoG) is at ENU ``point_xy`` (M, 2) (m) with ``heading`` (M,) (rad, ENU): the inverse of
+    :meth:`Trajectory.body_points` in the horizontal plane."""
+    lever = np.asarray(lever_arm, dtype=np.float64)
+    lx = lever[0] + cog_to_rear_axle_m
+    c, s = np.cos(heading), np.sin(heading)
+    return np.asarray(point_xy, dtype=np.float64)[:, :2] - np.stack([c * lx - s * lever[1], s * lx + c * lever[1]],
+                                                                     axis=1)
+
+
 @dataclass(frozen=True)
 class PhaseCentres:
     """Antenna positions of every chirp (ENU, m): Tx k at its own chirp start, Rx at the same instant."""
