@@ -19,7 +19,7 @@ from autosar_cli.cli import app
 from autosar_cli.config import load_config
 from autosar_cli.evaluate.alignment import Se2, fit_se2
 from autosar_cli.evaluate.compare import compare, parse_methods, transform_grid
-from autosar_cli.evaluate.evaluation import evaluate_image, load_truth
+from autosar_cli.evaluate.evaluation import evaluate_image, far_swath_mask, image_metrics, load_truth
 from autosar_cli.evaluate.image_quality import fit_line, image_contrast, image_entropy, line_straightness
 from autosar_cli.evaluate.trajectory_metrics import (
     common_instants,
@@ -28,7 +28,7 @@ from autosar_cli.evaluate.trajectory_metrics import (
     trajectory_metrics,
 )
 from autosar_cli.nav.geodesy import GeodeticOrigin
-from autosar_cli.sar.grid import box_grid
+from autosar_cli.sar.grid import FocusGrid, box_grid
 from autosar_cli.store.image import FocusedImage, read_image
 from autosar_cli.store.trajectory import read_trajectory
 
@@ -58,6 +58,33 @@ def test_se2_fit_recovers_a_known_rigid_motion() -> None:
     f2 = fit_se2(src, noisy)
     assert abs(f2.angle_rad - truth.angle_rad) < 1e-4
     assert np.hypot(*np.subtract(f2.translation, truth.translation)) < 3e-3
+
+
+def test_far_swath_is_the_pixels_far_from_the_radars_track() -> None:
+    """The far-swath mask against brute-force distances to a bent track, and its entropy on a known image."""
+    grid = FocusGrid(origin=(0.01, 0.51), along=(1.0, 0.0), across=(0.0, 1.0), pixel_m=0.02, n_along=400,
+                     n_across=700, height_m=0.0)
+    u = np.arange(-5.0, 13.0, 0.005)
+    track = np.c_[u, 0.02 * np.maximum(u - 4.0, 0.0) ** 2]  # straight, then bending 1.6 m towards the scene
+    xy = grid.positions()[..., :2]
+    dist = np.min(np.hypot(xy[..., None, 0] - track[::20, 0], xy[..., None, 1] - track[::20, 1]), axis=-1)
+    exact = far_swath_mask(grid, track, 7.0, lattice_m=0.02)  # one pixel per lattice point: no rounding
+    np.testing.assert_array_equal(exact, dist >= 7.0)
+    coarse = far_swath_mask(grid, track, 7.0)  # 0.24 m lattice: the edge within 0.17 m (half its diagonal)
+    assert coarse[dist >= 7.0 + 0.17].all() and not coarse[dist < 7.0 - 0.17].any()
+    assert 0.3 < coarse.mean() < 0.7
+    # a bright near-range glint sets the whole image's entropy; the far swath's uniform clutter gives ln N there
+    img = np.where(coarse, 1.0, 0.1).astype(np.complex64)
+    img[20, 200] = 1000.0
+    im = FocusedImage(img, grid, ORIGIN, {})
+    m = image_metrics(im, None, Se2(), track_xy=track, max_range_m=14.0)
+    assert m.far_swath["min_range_m"] == 7.0
+    n_far = int(coarse.sum())
+    assert m.far_swath["pixels"] == n_far
+    assert m.far_swath["entropy"] == pytest.approx(math.log(n_far), rel=1e-6)
+    assert m.far_swath["contrast"] < 0.2 < m.contrast
+    assert m.entropy < m.far_swath["entropy"]
+    assert image_metrics(im, None, Se2()).far_swath == {}  # no track: not measured
 
 
 def test_entropy_and_contrast_exact() -> None:
@@ -361,4 +388,36 @@ def test_entropy_orders_the_methods_as_in_the_paper(scenario: str, sim_dir: Path
     res = _comparison(sim_dir, tmp_path_factory, scenario)["results"]
     h = {m: res[m]["summary"]["entropy"] for m in res}
     assert h["none"] > h["ins"] > h["sar-min"], h
+    assert h["sar-min"] >= h["truth"] * (1 - 0.002), h
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scenario", ["test1", "test2", "test3"])
+def test_far_swath_entropy_ranks_none_above_ins_above_sarmin(scenario: str, sim_dir: Path,
+                                                             tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Where the processed apertures are long enough for navigation errors to defocus (at least half the maximum
+    range from the track), the entropy ranks the methods as the paper's images do (seed 1, 2 cm grid: test1
+    9.71 > 9.17 > 8.79, test2 9.40 > 9.26 > 9.14, test3 10.14 > 9.05 > 8.72 nats), and the contrast the other way."""
+    res = _comparison(sim_dir, tmp_path_factory, scenario)["results"]
+    h = {m: res[m]["summary"]["entropy_far"] for m in res}
+    c = {m: res[m]["summary"]["contrast_far"] for m in res}
+    assert h["none"] > h["ins"] > h["sar-min"], h
+    assert c["none"] < c["ins"] < c["sar-min"], c
+
+
+_FAR_TRUTH_XFAIL = ("measured (seed 1): SAR-MIN's far swath 8.716 nats, the truth's 8.818 (seed 2: 8.732, 8.792); "
+                    "the swath beyond 13.5 m is dominated by a few facade pillars at 16 m (the 10 brightest 4 cm "
+                    "pixels hold 15-16 % of its energy), and on a grid shifted by half a 2 cm pixel along the track "
+                    "SAR-MIN's value is 8.848 and the truth's 8.812: the difference is within the measure's "
+                    "sampling (docs/EVALUATION.md)")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scenario", ["test1", "test2",
+                                      pytest.param("test3", marks=pytest.mark.xfail(strict=True,
+                                                                                    reason=_FAR_TRUTH_XFAIL))])
+def test_far_swath_entropy_of_sarmin_is_not_below_the_truths(scenario: str, sim_dir: Path,
+                                                             tmp_path_factory: pytest.TempPathFactory) -> None:
+    res = _comparison(sim_dir, tmp_path_factory, scenario)["results"]
+    h = {m: res[m]["summary"]["entropy_far"] for m in res}
     assert h["sar-min"] >= h["truth"] * (1 - 0.002), h

@@ -14,7 +14,7 @@ from typing import Any
 
 import h5py
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from autosar_cli.config import Config
 from autosar_cli.evaluate.alignment import Se2
@@ -57,6 +57,13 @@ from autosar_cli.store.image import FocusedImage
 LINE_KINDS = ("facade", "kerb")
 #: The image metrics are measured on the product's grid with this many times finer pixels.
 METRICS_OVERSAMPLE = 2
+#: The far swath, where entropy and contrast are also reported: pixels at least this fraction of the radar's
+#: maximum range from the radar's track. Its processed apertures (range x the beam's width, 0.33-0.68 m at
+#: 4 cm resolution) are long enough for centimetre navigation errors to defocus; the near swath's (a few cm
+#: at 2-3 m) only shift, and there the brightest scatterers' radiometry sets the entropy (docs/EVALUATION.md).
+FAR_SWATH_FRACTION = 0.5
+#: Lattice (m) on which a pixel's distance to the track is measured for the far swath (nearest lattice point).
+FAR_SWATH_LATTICE_M = 0.25
 
 
 @dataclass
@@ -105,10 +112,13 @@ class ImageMetrics:
     contrast: float  #: std(I) / mean(I)
     straightness: dict[str, Straightness] = field(default_factory=dict)
     product: dict[str, float] = field(default_factory=dict)  #: pixel_m, entropy, contrast of the product image
+    #: min_range_m, pixels, entropy, contrast over the far swath (:data:`FAR_SWATH_FRACTION`); empty if not measured
+    far_swath: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         return {"pixels": self.pixels, "pixel_m": self.pixel_m, "entropy": self.entropy, "contrast": self.contrast,
-                "straightness": {k: v.to_dict() for k, v in self.straightness.items()}, "product": self.product}
+                "straightness": {k: v.to_dict() for k, v in self.straightness.items()}, "product": self.product,
+                "far_swath": self.far_swath}
 
 
 @dataclass
@@ -143,7 +153,9 @@ class Evaluation:
                              "aligned_rmse_m": tm.aligned_rmse_m if tm else nan,
                              "rpe_1m_across_m": tm.rpe_1m_across_m if tm else nan,
                              "rpe_10m_across_m": tm.rpe_10m_across_m if tm else nan,
-                             "entropy": self.image_metrics.entropy, "contrast": self.image_metrics.contrast}
+                             "entropy": self.image_metrics.entropy, "contrast": self.image_metrics.contrast,
+                             "entropy_far": self.image_metrics.far_swath.get("entropy", nan),
+                             "contrast_far": self.image_metrics.far_swath.get("contrast", nan)}
         s.update(summarise_reflectors(self.reflectors))
         for kind in LINE_KINDS:
             st = self.image_metrics.straightness.get(kind)
@@ -205,15 +217,41 @@ def metrics_grid(grid: FocusGrid, oversample: int = METRICS_OVERSAMPLE) -> Focus
                    n_across=grid.n_across * oversample)
 
 
+def far_swath_mask(grid: FocusGrid, track_xy: ArrayLike, min_range_m: float,
+                   lattice_m: float = FAR_SWATH_LATTICE_M) -> NDArray[np.bool_]:
+    """Pixels (rows, cols) of ``grid`` at least ``min_range_m`` (horizontal) from the nearest point of the radar's
+    track ``track_xy`` (M, 2) (ENU m, densely sampled: the distance is to its points). Each pixel takes the
+    distance of the nearest point of a ``lattice_m`` lattice of the grid, so the edge is drawn to within
+    ``lattice_m``."""
+    from scipy.spatial import cKDTree  # evaluation only; the pipeline does not load scipy.spatial
+
+    step = max(1, int(round(lattice_m / grid.pixel_m)))
+    rows = np.minimum(np.arange(0, grid.n_across, step) + step // 2, grid.n_across - 1)
+    cols = np.minimum(np.arange(0, grid.n_along, step) + step // 2, grid.n_along - 1)
+    lattice = grid.pixel_enu(rows[:, None], cols[None, :])[..., :2]
+    dist = cKDTree(np.asarray(track_xy, dtype=np.float64)[:, :2]).query(lattice.reshape(-1, 2))[0]
+    far = (dist >= min_range_m).reshape(lattice.shape[:2])
+    return np.repeat(np.repeat(far, step, axis=0), step, axis=1)[:grid.n_across, :grid.n_along]
+
+
 def image_metrics(image: FocusedImage, truth: Truth | None, alignment: Se2,
-                  product: FocusedImage | None = None) -> ImageMetrics:
-    """Entropy and contrast over the data pixels of ``image``; with truth, the straightness of the facade and kerb
-    lines (their true scatterers mapped into the image by ``alignment.inverse()``) traced in ``product`` (the
-    product image, whose own entropy and contrast are reported alongside; default: ``image``).
+                  product: FocusedImage | None = None, *, track_xy: ArrayLike | None = None,
+                  max_range_m: float | None = None) -> ImageMetrics:
+    """Entropy and contrast over the data pixels of ``image``, and over its far swath (pixels at least
+    :data:`FAR_SWATH_FRACTION` x ``max_range_m`` from the radar's track ``track_xy`` (M, 2), ENU m in the
+    image's frame; both needed); with truth, the straightness of the facade and kerb lines (their true
+    scatterers mapped into the image by ``alignment.inverse()``) traced in ``product`` (the product image,
+    whose own entropy and contrast are reported alongside; default: ``image``).
 
     Lines are traced in the product: at its 4 cm pixels a line of scatterers 10 cm apart (a kerb) leaves
     fewer empty columns for clutter and sidelobes to fill than at 2 cm."""
     mask = data_mask(image.image)
+    far: dict[str, float] = {}
+    if track_xy is not None and max_range_m is not None:
+        min_range = FAR_SWATH_FRACTION * max_range_m
+        far_mask = mask & far_swath_mask(image.grid, track_xy, min_range)
+        far = {"min_range_m": min_range, "pixels": int(far_mask.sum()),
+               "entropy": image_entropy(image.image, far_mask), "contrast": image_contrast(image.image, far_mask)}
     straight: dict[str, Straightness] = {}
     if truth is not None:
         inv = alignment.inverse()
@@ -227,7 +265,17 @@ def image_metrics(image: FocusedImage, truth: Truth | None, alignment: Se2,
         raw = {"pixel_m": product.grid.pixel_m, "entropy": image_entropy(product.image),
                "contrast": image_contrast(product.image)}
     return ImageMetrics(int(mask.sum()), image.grid.pixel_m, image_entropy(image.image, mask),
-                        image_contrast(image.image, mask), straight, raw)
+                        image_contrast(image.image, mask), straight, raw, far)
+
+
+def radar_track(trajectory: Trajectory, drive_path: str | Path, config: Config,
+                alignment: Se2 | None = None) -> NDArray[np.float64]:
+    """Horizontal ENU track (M, 2) (m) of the radar's mean phase centre at the drive's radar frame times within
+    ``trajectory``'s span, moved by ``alignment`` if given."""
+    t = radar_times(drive_path)
+    t = t[(t >= trajectory.t_ns[0]) & (t <= trajectory.t_ns[-1])]
+    xy = trajectory.body_points(t, phase_centre_lever_arm(config)[None])[:, 0, :2]
+    return xy if alignment is None else alignment.apply(xy)
 
 
 def evaluate_image(image: FocusedImage, trajectory: Trajectory, drive_path: str | Path, config: Config,
@@ -252,7 +300,9 @@ def evaluate_image(image: FocusedImage, trajectory: Trajectory, drive_path: str 
         if metrics_image is None:
             metrics_image = focus_images(drive_path, trajectory, config, options, grids=fine).images[0]
         ev.metrics_image = metrics_image
-        ev.image_metrics = image_metrics(metrics_image, None, Se2(), image)
+        ev.image_metrics = image_metrics(metrics_image, None, Se2(), image,
+                                         track_xy=radar_track(trajectory, drive_path, config),
+                                         max_range_m=config.radar.max_range_m)
         ev.notes.append("no truth sidecar: only the truth-free image metrics (entropy, contrast) are reported")
         return ev
     ev.truth = truth
@@ -273,7 +323,12 @@ def evaluate_image(image: FocusedImage, trajectory: Trajectory, drive_path: str 
         metrics_image = focus_images(drive_path, trajectory, config, options, grids=fine).images[0]
     assert metrics_image is not None
     ev.metrics_image = metrics_image
-    ev.image_metrics = image_metrics(metrics_image, truth, ev.alignment, image)
+    # the far swath measured from the true track moved into this image's frame: the same piece of the scene for
+    # every method of a comparison, whatever its own track
+    ev.image_metrics = image_metrics(metrics_image, truth, ev.alignment, image,
+                                     track_xy=radar_track(truth.trajectory, drive_path, config,
+                                                          ev.alignment.inverse()),
+                                     max_range_m=config.radar.max_range_m)
     if patches is None:
         ev.notes.append("the truth lists no corner reflector")
         return ev

@@ -236,6 +236,10 @@ def report_markdown(ev: Evaluation, figures: dict[str, str]) -> str:
     px = f"{im.pixel_m * 100:g} cm pixels" if math.isfinite(im.pixel_m) else "–"
     rows = [["pixels with data", f"{im.pixels} ({px})"], ["entropy (nats)", fmt(im.entropy, digits=4)],
             ["contrast std(I)/mean(I)", fmt(im.contrast, digits=2)]]
+    if im.far_swath:
+        rows.append([f"far swath (>= {im.far_swath['min_range_m']:.1f} m from the radar's track, "
+                     f"{im.far_swath['pixels']} pixels): entropy / contrast",
+                     f"{fmt(im.far_swath['entropy'], digits=4)} / {fmt(im.far_swath['contrast'], digits=2)}"])
     if im.product:
         rows.append([f"product image ({im.product['pixel_m'] * 100:g} cm pixels): entropy / contrast",
                      f"{fmt(im.product['entropy'], digits=4)} / {fmt(im.product['contrast'], digits=2)}"])
