@@ -15,6 +15,7 @@ from typing import Any
 import h5py
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import cKDTree
 
 from autosar_cli.config import Config
 from autosar_cli.evaluate.alignment import Se2
@@ -223,8 +224,6 @@ def far_swath_mask(grid: FocusGrid, track_xy: ArrayLike, min_range_m: float,
     track ``track_xy`` (M, 2) (ENU m, densely sampled: the distance is to its points). Each pixel takes the
     distance of the nearest point of a ``lattice_m`` lattice of the grid, so the edge is drawn to within
     ``lattice_m``."""
-    from scipy.spatial import cKDTree  # evaluation only; the pipeline does not load scipy.spatial
-
     step = max(1, int(round(lattice_m / grid.pixel_m)))
     rows = np.minimum(np.arange(0, grid.n_across, step) + step // 2, grid.n_across - 1)
     cols = np.minimum(np.arange(0, grid.n_along, step) + step // 2, grid.n_along - 1)
