@@ -267,12 +267,11 @@ def image_metrics(image: FocusedImage, truth: Truth | None, alignment: Se2,
                         image_contrast(image.image, mask), straight, raw, far)
 
 
-def radar_track(trajectory: Trajectory, drive_path: str | Path, config: Config,
+def radar_track(trajectory: Trajectory, frame_t_ns: NDArray[np.int64], config: Config,
                 alignment: Se2 | None = None) -> NDArray[np.float64]:
-    """Horizontal ENU track (M, 2) (m) of the radar's mean phase centre at the drive's radar frame times within
-    ``trajectory``'s span, moved by ``alignment`` if given."""
-    t = radar_times(drive_path)
-    t = t[(t >= trajectory.t_ns[0]) & (t <= trajectory.t_ns[-1])]
+    """Horizontal ENU track (M, 2) (m) of the radar's mean phase centre at the radar frame times ``frame_t_ns``
+    (ns) within ``trajectory``'s span, moved by ``alignment`` if given."""
+    t = frame_t_ns[(frame_t_ns >= trajectory.t_ns[0]) & (frame_t_ns <= trajectory.t_ns[-1])]
     xy = trajectory.body_points(t, phase_centre_lever_arm(config)[None])[:, 0, :2]
     return xy if alignment is None else alignment.apply(xy)
 
@@ -294,19 +293,20 @@ def evaluate_image(image: FocusedImage, trajectory: Trajectory, drive_path: str 
     ev = Evaluation(trajectory.method, image, trajectory, ImageMetrics(0, math.nan, math.nan, math.nan),
                     range_dir=range_dir or range_direction(image, trajectory, config), inputs=dict(inputs or {}))
     options = options_from_image(image, config)
+    frames = radar_times(drive_path)
     fine = [metrics_grid(image.grid)] if metrics_image is None else []
     if truth is None:
         if metrics_image is None:
             metrics_image = focus_images(drive_path, trajectory, config, options, grids=fine).images[0]
         ev.metrics_image = metrics_image
         ev.image_metrics = image_metrics(metrics_image, None, Se2(), image,
-                                         track_xy=radar_track(trajectory, drive_path, config),
+                                         track_xy=radar_track(trajectory, frames, config),
                                          max_range_m=config.radar.max_range_m)
         ev.notes.append("no truth sidecar: only the truth-free image metrics (entropy, contrast) are reported")
         return ev
     ev.truth = truth
     lever = phase_centre_lever_arm(config)
-    t = common_instants(trajectory, truth.trajectory, radar_times(drive_path))
+    t = common_instants(trajectory, truth.trajectory, frames)
     ev.errors = trajectory_errors(trajectory, truth.trajectory, lever, t)
     ev.trajectory_metrics = trajectory_metrics(trajectory, ev.errors)
     crs = truth.targets.corner_reflectors
@@ -325,8 +325,7 @@ def evaluate_image(image: FocusedImage, trajectory: Trajectory, drive_path: str 
     # the far swath measured from the true track moved into this image's frame: the same piece of the scene for
     # every method of a comparison, whatever its own track
     ev.image_metrics = image_metrics(metrics_image, truth, ev.alignment, image,
-                                     track_xy=radar_track(truth.trajectory, drive_path, config,
-                                                          ev.alignment.inverse()),
+                                     track_xy=radar_track(truth.trajectory, frames, config, ev.alignment.inverse()),
                                      max_range_m=config.radar.max_range_m)
     if patches is None:
         ev.notes.append("the truth lists no corner reflector")
