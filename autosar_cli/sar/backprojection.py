@@ -8,19 +8,21 @@ Why the kernel looks the way it does (measured on the 2-core AVX-512 development
   than a range bin, so 16 lanes read 3, 4 or 6 neighbouring rows of a (bin, pulse) array with contiguous
   loads and select per lane. With lanes over pixels every sample is a gather, and gathers cost ~17
   cycles per 8 lanes here.
-* No square root or division per back-projection (both ~10 cycles per 16 lanes). The range to pulse p
-  is written as ``R_p = R_q + delta`` about a reference pulse q of the same pixel, with ``R_q`` exact in
-  float64 once per pixel chunk, and ``delta = R_q (sqrt(1 + e) - 1)``, ``e = (|a|^2 - 2 x.a) / R_q^2``
-  (``a`` = antenna displacement since pulse q, ``x`` = pixel - antenna at q), summed as a series. Chunks
-  are kept short enough that ``|e| <= E_MAX``, where the series truncation error is below 5e-8 m. This
-  also keeps the carrier phase accurate in float32: phase is ``frac(R_q k) + delta k`` with ``delta``
-  small, instead of ``R k`` ~ 1e4 cycles.
+* Each antenna's range to pulse p is written as ``R_p = R_q + delta`` about a reference pulse q of the same
+  pixel, with ``R_q`` exact in float64 once per pixel chunk and ``delta = d / (R_q + sqrt(R_q^2 + d))``,
+  ``d = |a|^2 - 2 x.a`` (``a`` = antenna displacement since pulse q, ``x`` = pixel - antenna at q), in
+  float32: exact (no series, so no bound on the chunk's length), ~1e-7 relative, and it keeps the carrier
+  phase accurate in float32: phase is ``frac(R_q k) + delta k`` with ``delta`` small, instead of
+  ``R k`` ~ 1e4 cycles. With ``error_model="numpy"`` the division vectorises (a reciprocal estimate and a
+  Newton step): ~5 cycles per 16 lanes, as much as the sixth-order series in ``e = d / R_q^2`` it replaced,
+  whose ``|e| <= 0.1`` cut the benchmark's full-aperture chunks short (fixed case 0.86 -> 1.00 G/s per
+  thread; test1's image equal to -137 dB).
 * sin/cos of the residual phase by minimax polynomials of the half angle (error < 2e-6).
 * A chunk reads 3, 4 or 6 rows, so its range migration must stay below four bins. Wide, squinted windows
   (every pulse for every pixel) migrate further; rather than cutting them into many short chunks (each
   with its sizing check and loop set-up, ~600 cycles), each vector of 16 pulses then picks its own four rows
-  (``_accumulate_vectors``): ~1.4x the cost per vector of the six-row loop, but chunks limited by the
-  series alone. That pays with one channel (0.84x the time on the benchmark's fixed case), not with the
+  (``_accumulate_vectors``): ~1.9x the cost per vector of the six-row loop, but chunks as long as the
+  window. That pays with one channel (0.84x the time on the benchmark's fixed case), not with the
   product's eight or twelve, which share each chunk's fixed costs (see ``VSPAN_MAX``).
 """
 
@@ -34,7 +36,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 LANES = 16  #: pulses per vector (one AVX-512 register of float32)
-E_MAX = 0.1  #: bound on the series variable e; truncated after e^6 the error is < 0.017 e^7 R < 5e-8 m at 27 m
 DEFAULT_MAX_CHUNK = 512  #: pulses per reference (longer windows are split)
 MAX_ROWS = 6  #: the fast path reads 3, 4 or 6 neighbouring rows per chunk and channel
 MAX_SPAN_BINS = MAX_ROWS - 2.05  #: range migration allowed within a chunk on the fast path
@@ -73,24 +74,13 @@ _U = nb.uint64  # unsigned indices: numba's negative-index wraparound turns cont
 _F = nb.float32
 
 
-@nb.njit(fastmath=True, cache=True, inline="always")
-def _delta_series(d, inv_r, inv_r2, order):  # pragma: no cover - compiled
-    """R_q (sqrt(1 + e) - 1) for e = d / R_q^2, as d / R_q * (1/2 - e/8 + e^2/16 - ...), to e^3 or e^5."""
-    e = d * inv_r2
-    if order <= 3:
-        s = _F(0.5) + e * (_F(-0.125) + e * (_F(0.0625) + e * _F(-0.0390625)))
-    else:
-        s = _F(0.5) + e * (_F(-0.125) + e * (_F(0.0625) + e * (_F(-0.0390625) + e * (
-            _F(0.02734375) + e * _F(-0.0205078125)))))
-    return d * inv_r * s
-
-
-@nb.njit(fastmath=True, cache=True, inline="always")
-def _antenna_deltas(ax, ay, az, a, p, q, n_pad, mx, my, mz, inv_r, inv_r2, order, out):  # pragma: no cover
-    """out[l] = R(p + l) - R(q) for antenna a, l < n_pad (the series above; contiguous float32 loads).
-
-    The order branch sits outside the loops: inside, it kept the loop from vectorising (measured 4x).
-    """
+@nb.njit(fastmath=True, cache=True, inline="always", error_model="numpy")
+def _antenna_deltas(ax, ay, az, a, p, q, n_pad, mx, my, mz, r_q, r_q2, out):  # pragma: no cover - compiled
+    """out[l] = R(p + l) - R(q) for antenna a, l < n_pad: exact, as d / (R_q + sqrt(R_q^2 + d)) with
+    d = R^2 - R_q^2 = |u|^2 - 2 x.u (u = antenna displacement since pulse q, x = pixel - antenna at q; mx, my,
+    mz = -2 x). The difference of squares is small where R - R_q is, so float32 keeps it to ~1e-7 relative,
+    and the square root only enters the denominator; contiguous float32 loads. ``error_model="numpy"`` in the
+    caller lets LLVM vectorise the division (a reciprocal estimate and a Newton step)."""
     qx = ax[a, q]
     qy = ay[a, q]
     qz = az[a, q]
@@ -98,18 +88,12 @@ def _antenna_deltas(ax, ay, az, a, p, q, n_pad, mx, my, mz, inv_r, inv_r2, order
     ry = ay[a]
     rz = az[a]
     base = _U(p)
-    if order <= 3:
-        for l in range(_U(n_pad)):
-            dx = rx[base + l] - qx
-            dy = ry[base + l] - qy
-            dz = rz[base + l] - qz
-            out[l] = _delta_series(dx * (dx + mx) + dy * (dy + my) + dz * (dz + mz), inv_r, inv_r2, 3)
-    else:
-        for l in range(_U(n_pad)):
-            dx = rx[base + l] - qx
-            dy = ry[base + l] - qy
-            dz = rz[base + l] - qz
-            out[l] = _delta_series(dx * (dx + mx) + dy * (dy + my) + dz * (dz + mz), inv_r, inv_r2, 5)
+    for l in range(_U(n_pad)):
+        dx = rx[base + l] - qx
+        dy = ry[base + l] - qy
+        dz = rz[base + l] - qz
+        d = dx * (dx + mx) + dy * (dy + my) + dz * (dz + mz)
+        out[l] = d / (r_q + np.sqrt(max(r_q2 + d, _F(0.0))))
 
 
 @nb.njit(fastmath=True, cache=True, inline="always")
@@ -213,7 +197,7 @@ _accumulate_6rows_masked = _make_accumulate(True, 6)
 
 def _make_accumulate_pair(masked: bool):  # noqa: ANN202 - returns a numba dispatcher
     """Two channels of the same Tx in one loop, three rows each (the usual case under stripmap windows):
-    one loop's fixed cost (entry, exit, sums; ~140 cycles) serves both, and the Tx series is loaded once."""
+    one loop's fixed cost (entry, exit, sums; ~140 cycles) serves both, and the Tx deltas are loaded once."""
 
     @nb.njit(fastmath=True, cache=True, inline="always")
     def accumulate_pair(prof_re, prof_im, row0a, row0b, stride, b0a, b0b, dt, dra, drb, n_lanes, n_valid, i0a, i0b,
@@ -292,8 +276,8 @@ def _accumulate_vectors(prof_re, prof_im, row0, stride, n_bins, dt, dr, n_vec, n
 @nb.njit(cache=True)
 def _accumulate_exact(prof_re, prof_im, row0, stride, n_bins, ax, ay, az, ta, ra, p, n, px, py, pz, range0,
                       bin_inv, cyc_per_m):  # pragma: no cover - compiled
-    """Scalar float64 path, exact distances: for chunks the series or the four-row window cannot serve
-    (strong squint close to the radar, large range migration)."""
+    """Scalar float64 path, exact distances: for chunks the row windows cannot serve (samples past either end
+    of the profiles, range migration beyond six rows where per-vector rows are not allowed)."""
     sr = 0.0
     si = 0.0
     for l in range(n):
@@ -319,7 +303,7 @@ def _accumulate_exact(prof_re, prof_im, row0, stride, n_bins, ax, ay, az, ta, ra
     return sr, si
 
 
-@nb.njit(fastmath=True, parallel=True, cache=True, nogil=True)
+@nb.njit(fastmath=True, parallel=True, cache=True, nogil=True, error_model="numpy")
 def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bin_inv, cycles_per_m,
           pix, win, order, per_task, max_chunk, out_re, out_im):  # pragma: no cover - compiled
     n_ch = ch_tx.shape[0]
@@ -349,14 +333,11 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
             chunk = max_chunk
             while p < hi:
                 end = min(hi, p + chunk)
-                # shorten the chunk until the series variable is small at both ends (|e| is largest there) and
-                # channel 0's samples span less than MAX_SPAN_BINS (the fast path reads up to six rows) or, if
-                # they span more, 16 pulses span less than VSPAN_MAX (the per-vector rows serve it). Checked
-                # on channel 0's two antennas: the others move with them and sit within centimetres, so their
-                # e differs by a few per cent at most (at E_MAX the series errs by < 5e-8 m, 1e-4 rad of phase)
+                # shorten the chunk until channel 0's samples span less than MAX_SPAN_BINS (the fast path reads up
+                # to six rows) or, if they span more, 16 pulses span less than VSPAN_MAX (the per-vector rows serve
+                # it). Checked on channel 0's two antennas: the others move with them and sit within centimetres.
                 while True:
                     q = (p + end) // 2
-                    e_max = 0.0
                     sag = 0.0
                     span_lo = 0.0
                     span_hi = 0.0
@@ -367,31 +348,36 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                         z = pz - az[a, q]
                         r2 = x * x + y * y + z * z
                         r = math.sqrt(r2)
-                        d_ends = 0.0
                         for pe in (p, end - 1):
                             dx = np.float64(ax[a, pe]) - ax[a, q]
                             dy = np.float64(ay[a, pe]) - ay[a, q]
                             dz = np.float64(az[a, pe]) - az[a, q]
                             d = dx * (dx - 2.0 * x) + dy * (dy - 2.0 * y) + dz * (dz - 2.0 * z)
-                            e_max = max(e_max, 1.1 * abs(d) / r2)
-                            d_ends = math.sqrt(max(r2 + d, 0.0)) - r
                             if pe == p:
-                                span_lo += d_ends
+                                span_lo += math.sqrt(max(r2 + d, 0.0)) - r
                             else:
-                                span_hi += d_ends
+                                span_hi += math.sqrt(max(r2 + d, 0.0)) - r
+                        # the closest the antenna comes within the chunk: the pixel's distance to the chord from
+                        # its first to its last position (less 10 % for the path's bend)
                         sx = np.float64(ax[a, end - 1]) - ax[a, p]
                         sy = np.float64(ay[a, end - 1]) - ay[a, p]
                         sz = np.float64(az[a, end - 1]) - az[a, p]
-                        step2 = (sx * sx + sy * sy + sz * sz) / max(end - 1 - p, 1) ** 2
+                        s2 = sx * sx + sy * sy + sz * sz
+                        wx = px - ax[a, p]
+                        wy = py - ay[a, p]
+                        wz = pz - az[a, p]
+                        tc = min(max((wx * sx + wy * sy + wz * sz) / max(s2, 1e-30), 0.0), 1.0)
+                        r_min = 0.9 * math.sqrt((wx - tc * sx) ** 2 + (wy - tc * sy) ** 2 + (wz - tc * sz) ** 2)
+                        step2 = s2 / max(end - 1 - p, 1) ** 2
                         # |d2R/dp2| <= step^2 / R_min, doubled for path curvature and speed changes
-                        sag += 2.0 * step2 / (r * max(1.0 - e_max, 0.5)) * h2 / 8.0
+                        sag += 2.0 * step2 / max(r_min, 1e-3) * h2 / 8.0
                     sag *= bin_inv
                     span = (max(0.0, span_lo, span_hi) - min(0.0, span_lo, span_hi)) * bin_inv + 2.0 * sag
                     # a span < MAX_ROWS - 2 bins keeps every sample within rows floor(lowest) + 0 .. MAX_ROWS - 1
                     vec = False
-                    if (e_max <= E_MAX and span < MAX_SPAN_BINS) or end - p <= LANES:
+                    if span < MAX_SPAN_BINS or end - p <= LANES:
                         break
-                    if vectors_ok and e_max <= E_MAX:
+                    if vectors_ok:
                         # too much migration for six rows: per-vector rows serve it if 16 pulses span little
                         vspan = 0.0
                         for pe0 in (p, end - LANES):
@@ -405,28 +391,23 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                         if vspan < VSPAN_MAX:
                             vec = True
                             break
-                    # e and the span grow about linearly with the chunk: jump to the length that fits (where the
-                    # per-vector rows may serve the span, the length the series allows first)
-                    span_fit = 1.0 if vectors_ok and e_max > E_MAX else MAX_SPAN_BINS / max(span, 1e-12)
-                    shrink = 0.85 * min(E_MAX / max(e_max, 1e-12), span_fit, 0.5)
+                    # the span grows about linearly with the chunk: jump to the length that fits
+                    shrink = 0.85 * min(MAX_SPAN_BINS / max(span, 1e-12), 0.5)
                     end = p + max(LANES, int((end - p) * shrink) // LANES * LANES)
-                # the next chunk's first guess: the length this one's margins allow (e and the span grow about
-                # linearly with it), at most 1.25 x; a guess that fails costs a second check (~200 cycles)
-                room = 0.9 * min(E_MAX / max(e_max, 1e-12), 1.4 if vec else MAX_SPAN_BINS / max(span, 1e-12), 1.4)
+                # the next chunk's first guess: the length this one's margin allows (the span grows about linearly
+                # with it), at most 1.4 x; a guess that fails costs a second check (~200 cycles)
+                room = 0.9 * min(1.4 if vec else MAX_SPAN_BINS / max(span, 1e-12), 1.4)
                 chunk = min(max_chunk, max(2 * LANES, int((end - p) * room)))
-                series_ok = e_max <= E_MAX
-                order_series = 3 if e_max <= 0.01 else 5
                 n = end - p
                 n_pad = (n + LANES - 1) // LANES * LANES
                 for a in range(n_ant):
                     x = px - ax[a, q]
                     y = py - ay[a, q]
                     z = pz - az[a, q]
-                    r = math.sqrt(x * x + y * y + z * z)
-                    r_ref[a] = r
+                    r2 = x * x + y * y + z * z
+                    r_ref[a] = math.sqrt(r2)
                     _antenna_deltas(ax, ay, az, a, p, q, n_pad, np.float32(-2.0 * x), np.float32(-2.0 * y),
-                                    np.float32(-2.0 * z), np.float32(1.0 / r), np.float32(1.0 / (r * r)),
-                                    order_series, delta[a])
+                                    np.float32(-2.0 * z), np.float32(r_ref[a]), np.float32(r2), delta[a])
                 # per channel: reference phase, fractional bin, the rows its samples touch and the path it takes
                 # (0: entirely past the profile, 1: fast, 2: exact)
                 for c in range(n_ch):
@@ -446,11 +427,11 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                     rows = 3 if top < b0 + 2 else (4 if top < b0 + 3 else (6 if top < b0 + 5 else n_bins + 1))
                     ch_b0[c] = b0
                     ch_rows[c] = rows
-                    if series_ok and (b0 >= n_bins - 1 or top < 0.0):
+                    if b0 >= n_bins - 1 or top < 0.0:
                         ch_path[c] = 0  # the far edge of the swath: nothing to add
-                    elif series_ok and vec:
+                    elif vec:
                         ch_path[c] = 3
-                    elif series_ok and b0 >= 0 and b0 + rows <= n_bins:
+                    elif b0 >= 0 and b0 + rows <= n_bins:
                         ch_path[c] = 1
                     else:
                         ch_path[c] = 2
