@@ -148,8 +148,10 @@ def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, m
 
 
 #: Imported on every worker before the first drive (the chain imports some of them on first use).
-WARM_IMPORTS = ("autosar_cli.run", "autosar_cli.ingest.mcap_source", "autosar_cli.ingest.nmea",
-                "autosar_cli.nav.sarmin_kernel", "pyproj", "matplotlib.figure", "matplotlib.backends.backend_agg")
+WARM_IMPORTS = ("autosar_cli.run", "autosar_cli.ingest.pipeline", "autosar_cli.ingest.mcap_source",
+                "autosar_cli.ingest.nmea", "autosar_cli.nav.navigate", "autosar_cli.sar.focus",
+                "autosar_cli.store.trajectory", "autosar_cli.nav.sarmin_kernel", "pyproj", "matplotlib.figure",
+                "matplotlib.backends.backend_agg")
 
 
 def _warm_worker() -> dict[str, Any]:

@@ -368,10 +368,10 @@ def run(
                     bar.update(tasks[stage], completed=done, total=total)
 
                 manifest = run_chain(logs, output, cfg, method=method.value, truth_path=truth, overwrite=overwrite,
-                                     progress=update, command=" ".join(sys.argv))
+                                     progress=update, command=" ".join(sys.argv), fork_ingest=True)
         else:
             manifest = run_chain(logs, output, cfg, method=method.value, truth_path=truth, overwrite=overwrite,
-                                 command=" ".join(sys.argv))
+                                 command=" ".join(sys.argv), fork_ingest=True)
         if as_json:
             out.print_json(json.dumps(manifest, default=str))
             return

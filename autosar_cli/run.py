@@ -8,24 +8,27 @@ config file, the method and focus parameters, per-stage wall times and summaries
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
+import pickle
 import platform
+import sys
 import time
+import traceback
 from collections.abc import Callable, Sequence
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from autosar_cli import __version__
 from autosar_cli.config import Config
-from autosar_cli.ingest.pipeline import ingest
-from autosar_cli.nav.navigate import navigate
-from autosar_cli.sar.focus import FocusOptions, focus
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.manifest import json_default, read_json_manifest
-from autosar_cli.store.trajectory import write_trajectory
+
+if TYPE_CHECKING:
+    from autosar_cli.sar.focus import FocusOptions
 
 FORMAT = "autosar-run"
 FORMAT_VERSION = 1
@@ -43,35 +46,42 @@ class RunError(ValueError):
 
 def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, method: str = "sar-min",
         options: FocusOptions | None = None, truth_path: str | Path | None = None, overwrite: bool = False,
-        progress: Callable[[str, int, int], None] | None = None, command: str = "") -> dict[str, Any]:
+        progress: Callable[[str, int, int], None] | None = None, command: str = "",
+        fork_ingest: bool = False) -> dict[str, Any]:
     """Run the whole chain on ``logs`` into ``out_dir``; returns the manifest (also written as run.json).
 
-    ``progress(stage, done, total)`` is called as each stage advances.
+    ``progress(stage, done, total)`` is called as each stage advances. ``fork_ingest``: ingest in a forked child
+    process while this one imports the later stages (see :func:`_ingest_beside_imports`; the ``autosar run``
+    command sets it, library callers such as ``autosar batch``'s workers keep one process).
     """
     out = Path(out_dir)
     manifest_path = out / "run.json"
     if manifest_path.exists() and not overwrite:
         raise RunError(f"{out}: already holds a run (run.json); pass --overwrite to replace it")
     out.mkdir(parents=True, exist_ok=True)
-    options = options or FocusOptions.from_config(config)
     inputs = [{"path": str(Path(p)), "size_bytes": _size(Path(p))} for p in logs]
     manifest: dict[str, Any] = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
         "python": platform.python_version(), "command": command, "config": config.source, "inputs": inputs,
-        "method": method, "focus_options": asdict(options), "stages": {}, "outputs": {},
+        "method": method, "focus_options": None, "stages": {}, "outputs": {},
     }
 
     def stage_progress(stage: str) -> Callable[[int, int], None]:
         return lambda done, total: progress(stage, done, total) if progress else None
 
     t = time.perf_counter()
-    report = ingest([Path(p) for p in logs], out / DRIVE, config=config, progress=stage_progress("ingest"),
-                    command=command)
-    rep = report.to_dict()
+    rep = _ingest_beside_imports([Path(p) for p in logs], out / DRIVE, config, stage_progress("ingest"), command,
+                                 fork=fork_ingest)
     manifest["stages"]["ingest"] = {"wall_s": time.perf_counter() - t, "messages": rep.get("messages"),
                                     "bytes_read": rep.get("bytes_read"), "warnings": rep.get("warnings", [])}
     manifest["outputs"]["drive"] = DRIVE
 
+    from autosar_cli.nav.navigate import navigate
+    from autosar_cli.sar.focus import FocusOptions, focus
+    from autosar_cli.store.trajectory import write_trajectory
+
+    options = options or FocusOptions.from_config(config)
+    manifest["focus_options"] = asdict(options)
     t = time.perf_counter()
     if progress:
         progress("navigate", 0, 1)
@@ -103,6 +113,117 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     with atomic_output(manifest_path, overwrite=True) as tmp:
         tmp.write_text(json.dumps(manifest, indent=2, default=json_default) + "\n")
     return manifest
+
+
+def _prepare_later_stages(warm: bool) -> None:
+    """Import navigation and focus's modules (filterpy and scipy.stats, numba, rasterio: ~0.7 s of one CPU) and,
+    with ``warm``, load their kernels from numba's cache (~0.3 s that their first calls would otherwise take)
+    and the quicklook's imports."""
+    import autosar_cli.nav.navigate  # noqa: F401
+    import autosar_cli.sar.focus  # noqa: F401
+    import autosar_cli.store.trajectory  # noqa: F401
+
+    if warm:
+        from autosar_cli.kernel_cache import load_cached_kernels
+        from autosar_cli.nav import sarmin_kernel
+        from autosar_cli.sar import backprojection, range_compression, range_fft, stripmap
+        from autosar_cli.store.image import preload_quicklook
+
+        load_cached_kernels(sarmin_kernel, backprojection, range_fft, range_compression, stripmap)
+        preload_quicklook()  # matplotlib's imports; a first draw here measured no gain (its CPU slows the ingest)
+
+
+def _fork_context() -> Any:
+    """multiprocessing's fork context where a child can be forked from this process safely, else None (no fork
+    on this platform; macOS, where fork is unsafe; a daemonic process, e.g. a Dask worker, which may have none)."""
+    if not sys.platform.startswith("linux") or multiprocessing.current_process().daemon:
+        return None
+    try:
+        return multiprocessing.get_context("fork")
+    except ValueError:
+        return None
+
+
+def _ingest_beside_imports(logs: list[Path], drive: Path, config: Config, progress: Callable[[int, int], None],
+                           command: str, *, fork: bool) -> dict[str, Any]:
+    """Ingest ``logs`` into ``drive``; returns the ingest report as a dict.
+
+    With ``fork``, the ingest runs in a forked child while this process imports the later stages: ingest is
+    Python work holding its process's GIL (~1.4 of the 2 CPUs with its writer thread), so those imports could
+    not run beside it in a thread (tried: they only moved into ingest's time) but can in a second process.
+    Meanwhile this process also loads the later stages' kernels from numba's cache, which their first calls
+    would otherwise pay. Progress and the report (or the error) come back through a pipe.
+    """
+    ctx = _fork_context() if fork else None
+    if ctx is None:
+        from autosar_cli.ingest.pipeline import ingest
+
+        report = ingest(logs, drive, config=config, progress=progress, command=command).to_dict()
+        _prepare_later_stages(warm=False)
+        return report
+    receive, send = ctx.Pipe(duplex=False)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    child = ctx.Process(target=_ingest_child, args=(send, logs, drive, config, command), name="autosar-ingest")
+    child.start()
+    send.close()
+    try:
+        _prepare_later_stages(warm=True)
+        while True:
+            try:
+                kind, *payload = receive.recv()
+            except EOFError:
+                child.join()
+                raise RunError(f"{drive}: the ingest process ended without a report (exit code {child.exitcode})")\
+                    from None
+            if kind == "progress":
+                progress(*payload)
+            elif kind == "report":
+                return payload[0]
+            else:
+                exc, remote = payload
+                exc.__cause__ = _RemoteTraceback(remote)
+                raise exc
+    finally:
+        receive.close()
+        if child.is_alive():
+            child.join(timeout=5.0)
+        if child.is_alive():
+            child.terminate()
+            child.join()
+
+
+class _RemoteTraceback(Exception):
+    """The ingest child's traceback, chained to the error it raised (shown with ``--debug``)."""
+
+    def __str__(self) -> str:
+        return "\n" + str(self.args[0])
+
+
+def _ingest_child(send: Any, logs: list[Path], drive: Path, config: Config, command: str) -> None:
+    """The forked ingest: progress at most every 0.1 s (the parent reads only after its imports), then the
+    report, or the error (its class if it pickles, else a RunError with its message) and its traceback."""
+    last = [0.0]
+
+    def progress(done: int, total: int) -> None:
+        now = time.perf_counter()
+        if now - last[0] >= 0.1 or done >= total:
+            last[0] = now
+            send.send(("progress", done, total))
+
+    try:
+        from autosar_cli.ingest.pipeline import ingest
+
+        send.send(("report", ingest(logs, drive, config=config, progress=progress, command=command).to_dict()))
+    except BaseException as exc:  # noqa: BLE001 - every failure goes back to the parent
+        remote = traceback.format_exc()
+        try:
+            pickle.loads(pickle.dumps(exc))
+        except Exception:  # noqa: BLE001 - an exception that does not survive pickling
+            exc = RunError(str(exc) or type(exc).__name__)
+        send.send(("error", exc, remote))
+    finally:
+        send.close()
 
 
 def read_manifest(run_dir: str | Path) -> dict[str, Any]:

@@ -1,0 +1,109 @@
+"""`autosar run`'s ingest in a forked child (while the parent prepares the later stages) and the kernel cache
+preloading that the parent does meanwhile."""
+
+from __future__ import annotations
+
+import pickle
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from autosar_cli.config import load_config
+from autosar_cli.ingest.pipeline import IngestError
+from autosar_cli.run import RunError, _fork_context, _ingest_beside_imports, _ingest_child
+
+CFG = load_config()
+needs_fork = pytest.mark.skipif(_fork_context() is None, reason="no fork on this platform")
+
+
+def _radar(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    with h5py.File(path, "r") as f:
+        g = f["radar"][next(iter(f["radar"]))]
+        return g["t_ns"][()], g["raw"][::97]
+
+
+@needs_fork
+def test_forked_ingest_equals_the_ingest_in_this_process(ci_mcap, tmp_path: Path) -> None:
+    seen: list[tuple[int, int]] = []
+    forked = _ingest_beside_imports([ci_mcap.log_path], tmp_path / "forked.h5", CFG,
+                                    lambda d, t: seen.append((d, t)), "test", fork=True)
+    alone = _ingest_beside_imports([ci_mcap.log_path], tmp_path / "alone.h5", CFG, lambda d, t: None, "test",
+                                   fork=False)
+    for key in ("messages", "bytes_read", "start_ns", "end_ns", "warnings"):
+        assert forked[key] == alone[key], key
+    assert forked["messages"] > 1000
+    t_f, raw_f = _radar(tmp_path / "forked.h5")
+    t_a, raw_a = _radar(tmp_path / "alone.h5")
+    assert len(t_f) > 100 and np.array_equal(t_f, t_a) and np.array_equal(raw_f, raw_a)
+    # the child's progress reached the parent, ending with the whole log
+    assert seen and seen[-1][0] == seen[-1][1] == forked["bytes_read"]
+
+
+@needs_fork
+def test_forked_ingest_raises_the_childs_error_with_its_traceback(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(np.random.default_rng(0).bytes(4096))
+    with pytest.raises(IngestError, match="not an MCAP file") as info:
+        _ingest_beside_imports([bad], tmp_path / "drive.h5", CFG, lambda d, t: None, "test", fork=True)
+    assert "Traceback" in str(info.value.__cause__)  # the child's, shown with --debug
+    assert not (tmp_path / "drive.h5").exists()
+
+
+class _Unpicklable(RuntimeError):
+    def __init__(self, message: str, extra: object) -> None:
+        super().__init__(message)
+        self.extra = extra
+
+    def __reduce__(self):  # noqa: ANN204 - refuses pickling, like an exception holding an open file
+        raise TypeError("cannot pickle")
+
+
+def test_an_error_that_does_not_pickle_comes_back_as_a_run_error(monkeypatch: pytest.MonkeyPatch,
+                                                                 tmp_path: Path) -> None:
+    def failing_ingest(*args: object, **kwargs: object) -> None:
+        raise _Unpicklable("bad.mcap: the reader broke", object())
+
+    import autosar_cli.ingest.pipeline as pipeline
+
+    monkeypatch.setattr(pipeline, "ingest", failing_ingest)
+    sent: list[tuple[object, ...]] = []
+
+    class Pipe:
+        def send(self, msg: tuple[object, ...]) -> None:
+            sent.append(pickle.loads(pickle.dumps(msg)))
+
+        def close(self) -> None:
+            pass
+
+    _ingest_child(Pipe(), [tmp_path / "bad.mcap"], tmp_path / "drive.h5", CFG, "test")
+    kind, exc, remote = sent[-1]
+    assert kind == "error" and isinstance(exc, RunError) and str(exc) == "bad.mcap: the reader broke"
+    assert "_Unpicklable" in remote
+
+
+def test_cached_kernels_load_before_their_first_call(tmp_path: Path) -> None:
+    """In a fresh process, the back-projection kernel's cached specialisation is loaded without a call, and the
+    first call then compiles nothing (numba's cache of this checkout is filled by this process first)."""
+    from autosar_cli.sar.backprojection import backproject
+
+    prof = np.ones((1, 8, 32), np.complex64)
+    ant = np.zeros((2, 32, 3))
+    ant[:, :, 0] = np.arange(32) * 0.004
+    args = dict(range0_m=0.0, bin_m=0.1, cycles_per_m=262.0)
+    backproject(prof, ant, [[0, 1]], np.array([[0.05, -1.0, 0.0]]), np.array([[0, 32]]), **args)  # cached now
+    code = (
+        "import time\n"
+        "from autosar_cli.kernel_cache import load_cached_kernels\n"
+        "from autosar_cli.sar import backprojection as bp\n"
+        "assert not bp._tdbp.overloads\n"
+        "n = load_cached_kernels(bp)\n"
+        "assert n >= 1 and bp._tdbp.overloads, n\n"
+        "print(n)\n"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
+    assert res.returncode == 0, res.stderr
+    assert int(res.stdout.strip()) >= 1
