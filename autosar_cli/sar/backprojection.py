@@ -21,8 +21,9 @@ Why the kernel looks the way it does (measured on the 2-core AVX-512 development
 * A chunk reads 3, 4 or 6 rows, so its range migration must stay below four bins. Wide, squinted windows
   (every pulse for every pixel) migrate further; rather than cutting them into many short chunks (each
   with its sizing check and loop set-up, ~600 cycles), each vector of 16 pulses then picks its own four rows
-  (``_accumulate_vectors``): ~1.9x the cost per vector of the six-row loop, but chunks as long as the
-  window. That pays with one channel (0.84x the time on the benchmark's fixed case), not with the
+  (``_accumulate_vectors``; where no lane needs masking, four vectors per horizontal sum,
+  ``_accumulate_vectors_inside``: ~1.2x the cost per vector of the six-row loop), and chunks are as long as
+  the window. That pays with one channel (0.84x the time on the benchmark's fixed case), not with the
   product's eight or twelve, which share each chunk's fixed costs (see ``VSPAN_MAX``).
 """
 
@@ -273,6 +274,75 @@ def _accumulate_vectors(prof_re, prof_im, row0, stride, n_bins, dt, dr, n_vec, n
     return sr, si
 
 
+@nb.njit(fastmath=True, cache=True, inline="always")
+def _vector_rows(g, dt, dr, at, ib, bmax, row0, stride):  # pragma: no cover - compiled
+    """The four rows of the vector of 16 pulses from lane ``at``: flat index of its first lane in the lowest row
+    (around its centre lane's sample, clamped to the profile) and its lanes' fractional-row offset."""
+    b = min(max(int(g + (dt[at + 8] + dr[at + 8]) * ib) - 1, 0), bmax)
+    return _U(row0 + b * stride + at), g - _F(b)
+
+
+@nb.njit(fastmath=True, cache=True, inline="always")
+def _accumulate_vectors_inside(prof_re, prof_im, row0, stride, n_bins, dt, dr, n_vec, i0, c0, bin_inv,
+                               cyc_per_m):  # pragma: no cover - compiled
+    """:func:`_accumulate_vectors` for a chunk of whole vectors whose samples all lie inside the profiles (no
+    lane is masked) and four vectors per horizontal sum: 26 cycles per vector instead of 42 in a loop alone
+    (docs/FOCUS.md, eighth session)."""
+    ib = _F(bin_inv)
+    kc = _F(cyc_per_m)
+    g = _F(i0)
+    bmax = n_bins - 4
+    us = _U(stride)
+    sr = _F(0.0)
+    si = _F(0.0)
+    n_quad = n_vec // 4
+    for v in range(n_quad):
+        at = v * 4 * LANES
+        rb0, g0 = _vector_rows(g, dt, dr, at, ib, bmax, row0, stride)
+        rb1, g1 = _vector_rows(g, dt, dr, at + LANES, ib, bmax, row0, stride)
+        rb2, g2 = _vector_rows(g, dt, dr, at + 2 * LANES, ib, bmax, row0, stride)
+        rb3, g3 = _vector_rows(g, dt, dr, at + 3 * LANES, ib, bmax, row0, stride)
+        ua = _U(at)
+        vr = _F(0.0)
+        vi = _F(0.0)
+        for j in range(_U(LANES)):
+            l = ua + j
+            db = dt[l] + dr[l]
+            s_re, s_im = _interp_rows(prof_re, prof_im, rb0, j, us, g0 + db * ib, 4)
+            a_re, a_im = _rotate(s_re, s_im, c0 + db * kc, _F(1.0))
+            l += _U(LANES)
+            db = dt[l] + dr[l]
+            s_re, s_im = _interp_rows(prof_re, prof_im, rb1, j, us, g1 + db * ib, 4)
+            b_re, b_im = _rotate(s_re, s_im, c0 + db * kc, _F(1.0))
+            l += _U(LANES)
+            db = dt[l] + dr[l]
+            s_re, s_im = _interp_rows(prof_re, prof_im, rb2, j, us, g2 + db * ib, 4)
+            c_re, c_im = _rotate(s_re, s_im, c0 + db * kc, _F(1.0))
+            l += _U(LANES)
+            db = dt[l] + dr[l]
+            s_re, s_im = _interp_rows(prof_re, prof_im, rb3, j, us, g3 + db * ib, 4)
+            d_re, d_im = _rotate(s_re, s_im, c0 + db * kc, _F(1.0))
+            vr += (a_re + b_re) + (c_re + d_re)
+            vi += (a_im + b_im) + (c_im + d_im)
+        sr += vr
+        si += vi
+    for v in range(n_quad * 4, n_vec):
+        at = v * LANES
+        rb, gv = _vector_rows(g, dt, dr, at, ib, bmax, row0, stride)
+        ua = _U(at)
+        vr = _F(0.0)
+        vi = _F(0.0)
+        for j in range(_U(LANES)):
+            db = dt[ua + j] + dr[ua + j]
+            s_re, s_im = _interp_rows(prof_re, prof_im, rb, j, us, gv + db * ib, 4)
+            t_re, t_im = _rotate(s_re, s_im, c0 + db * kc, _F(1.0))
+            vr += t_re
+            vi += t_im
+        sr += vr
+        si += vi
+    return sr, si
+
+
 @nb.njit(cache=True)
 def _accumulate_exact(prof_re, prof_im, row0, stride, n_bins, ax, ay, az, ta, ra, p, n, px, py, pz, range0,
                       bin_inv, cyc_per_m):  # pragma: no cover - compiled
@@ -320,6 +390,7 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
         ch_b0 = np.zeros(n_ch, np.int64)
         ch_rows = np.zeros(n_ch, np.int64)
         ch_path = np.zeros(n_ch, np.int64)
+        ch_inside = np.zeros(n_ch, np.bool_)
         k_end = min((task + 1) * per_task, win.shape[0])
         for k in range(task * per_task, k_end):
             lo = win[k, 0]
@@ -427,6 +498,8 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                     rows = 3 if top < b0 + 2 else (4 if top < b0 + 3 else (6 if top < b0 + 5 else n_bins + 1))
                     ch_b0[c] = b0
                     ch_rows[c] = rows
+                    # per-vector rows need no lane masks where no vector's rows are clamped to the profile
+                    ch_inside[c] = b0 >= 1 and top < n_bins - 3
                     if b0 >= n_bins - 1 or top < 0.0:
                         ch_path[c] = 0  # the far edge of the swath: nothing to add
                     elif vec:
@@ -462,7 +535,13 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                         acc_im += si + si2
                         c += 2
                         continue
-                    if ch_path[c] == 3:
+                    if ch_path[c] == 3 and full and ch_inside[c]:
+                        sr, si = _accumulate_vectors_inside(prof_re, prof_im, row0, stride, n_bins, delta[ta],
+                                                            delta[ra], n // LANES, np.float32(i0), c0, bin_inv,
+                                                            cycles_per_m)
+                        acc_re += sr
+                        acc_im += si
+                    elif ch_path[c] == 3:
                         sr, si = _accumulate_vectors(prof_re, prof_im, row0, stride, n_bins, delta[ta], delta[ra],
                                                      n_pad // LANES, n, np.float32(i0), c0, bin_inv, cycles_per_m)
                         acc_re += sr
