@@ -283,6 +283,15 @@ def _vector_rows(g, dt, dr, at, ib, bmax, row0, stride):  # pragma: no cover - c
 
 
 @nb.njit(fastmath=True, cache=True, inline="always")
+def _vector_lane(prof_re, prof_im, dt, dr, l, rb, j, stride, gv, ib, c0, kc):  # pragma: no cover - compiled
+    """Lane j (pulse column l of the chunk) of a vector reading its own four rows from ``rb``: the interpolated,
+    phase-rotated sample, unmasked."""
+    db = dt[l] + dr[l]
+    s_re, s_im = _interp_rows(prof_re, prof_im, rb, j, stride, gv + db * ib, 4)
+    return _rotate(s_re, s_im, c0 + db * kc, _F(1.0))
+
+
+@nb.njit(fastmath=True, cache=True, inline="always")
 def _accumulate_vectors_inside(prof_re, prof_im, row0, stride, n_bins, dt, dr, n_vec, i0, c0, bin_inv,
                                cyc_per_m):  # pragma: no cover - compiled
     """:func:`_accumulate_vectors` for a chunk of whole vectors whose samples all lie inside the profiles (no
@@ -307,21 +316,10 @@ def _accumulate_vectors_inside(prof_re, prof_im, row0, stride, n_bins, dt, dr, n
         vi = _F(0.0)
         for j in range(_U(LANES)):
             l = ua + j
-            db = dt[l] + dr[l]
-            s_re, s_im = _interp_rows(prof_re, prof_im, rb0, j, us, g0 + db * ib, 4)
-            a_re, a_im = _rotate(s_re, s_im, c0 + db * kc, _F(1.0))
-            l += _U(LANES)
-            db = dt[l] + dr[l]
-            s_re, s_im = _interp_rows(prof_re, prof_im, rb1, j, us, g1 + db * ib, 4)
-            b_re, b_im = _rotate(s_re, s_im, c0 + db * kc, _F(1.0))
-            l += _U(LANES)
-            db = dt[l] + dr[l]
-            s_re, s_im = _interp_rows(prof_re, prof_im, rb2, j, us, g2 + db * ib, 4)
-            c_re, c_im = _rotate(s_re, s_im, c0 + db * kc, _F(1.0))
-            l += _U(LANES)
-            db = dt[l] + dr[l]
-            s_re, s_im = _interp_rows(prof_re, prof_im, rb3, j, us, g3 + db * ib, 4)
-            d_re, d_im = _rotate(s_re, s_im, c0 + db * kc, _F(1.0))
+            a_re, a_im = _vector_lane(prof_re, prof_im, dt, dr, l, rb0, j, us, g0, ib, c0, kc)
+            b_re, b_im = _vector_lane(prof_re, prof_im, dt, dr, l + _U(LANES), rb1, j, us, g1, ib, c0, kc)
+            c_re, c_im = _vector_lane(prof_re, prof_im, dt, dr, l + _U(2 * LANES), rb2, j, us, g2, ib, c0, kc)
+            d_re, d_im = _vector_lane(prof_re, prof_im, dt, dr, l + _U(3 * LANES), rb3, j, us, g3, ib, c0, kc)
             vr += (a_re + b_re) + (c_re + d_re)
             vi += (a_im + b_im) + (c_im + d_im)
         sr += vr
@@ -333,9 +331,7 @@ def _accumulate_vectors_inside(prof_re, prof_im, row0, stride, n_bins, dt, dr, n
         vr = _F(0.0)
         vi = _F(0.0)
         for j in range(_U(LANES)):
-            db = dt[ua + j] + dr[ua + j]
-            s_re, s_im = _interp_rows(prof_re, prof_im, rb, j, us, gv + db * ib, 4)
-            t_re, t_im = _rotate(s_re, s_im, c0 + db * kc, _F(1.0))
+            t_re, t_im = _vector_lane(prof_re, prof_im, dt, dr, ua + j, rb, j, us, gv, ib, c0, kc)
             vr += t_re
             vi += t_im
         sr += vr
