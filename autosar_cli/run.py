@@ -115,22 +115,20 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     return manifest
 
 
-def _prepare_later_stages(warm: bool) -> None:
-    """Import navigation and focus's modules (filterpy and scipy.stats, numba, rasterio: ~0.7 s of one CPU) and,
-    with ``warm``, load their kernels from numba's cache (~0.3 s that their first calls would otherwise take)
-    and the quicklook's imports."""
+def _prepare_later_stages() -> None:
+    """Import navigation and focus's modules (filterpy and scipy.stats, numba, rasterio: ~0.7 s of one CPU), load
+    their kernels from numba's cache (~0.3 s that their first calls would otherwise take) and the quicklook's
+    imports."""
     import autosar_cli.nav.navigate  # noqa: F401
     import autosar_cli.sar.focus  # noqa: F401
     import autosar_cli.store.trajectory  # noqa: F401
+    from autosar_cli.kernel_cache import load_cached_kernels
+    from autosar_cli.nav import sarmin_kernel
+    from autosar_cli.sar import backprojection, range_compression, range_fft, stripmap
+    from autosar_cli.store.image import preload_quicklook
 
-    if warm:
-        from autosar_cli.kernel_cache import load_cached_kernels
-        from autosar_cli.nav import sarmin_kernel
-        from autosar_cli.sar import backprojection, range_compression, range_fft, stripmap
-        from autosar_cli.store.image import preload_quicklook
-
-        load_cached_kernels(sarmin_kernel, backprojection, range_fft, range_compression, stripmap)
-        preload_quicklook()  # matplotlib's imports; a first draw here measured no gain (its CPU slows the ingest)
+    load_cached_kernels(sarmin_kernel, backprojection, range_fft, range_compression, stripmap)
+    preload_quicklook()  # matplotlib's imports; a first draw here measured no gain (its CPU slows the ingest)
 
 
 def _fork_context() -> Any:
@@ -158,9 +156,7 @@ def _ingest_beside_imports(logs: list[Path], drive: Path, config: Config, progre
     if ctx is None:
         from autosar_cli.ingest.pipeline import ingest
 
-        report = ingest(logs, drive, config=config, progress=progress, command=command).to_dict()
-        _prepare_later_stages(warm=False)
-        return report
+        return ingest(logs, drive, config=config, progress=progress, command=command).to_dict()
     receive, send = ctx.Pipe(duplex=False)
     sys.stdout.flush()
     sys.stderr.flush()
@@ -168,7 +164,7 @@ def _ingest_beside_imports(logs: list[Path], drive: Path, config: Config, progre
     child.start()
     send.close()
     try:
-        _prepare_later_stages(warm=True)
+        _prepare_later_stages()
         while True:
             try:
                 kind, *payload = receive.recv()

@@ -238,6 +238,14 @@ _accumulate_pair_masked = _make_accumulate_pair(True)
 
 
 @nb.njit(fastmath=True, cache=True, inline="always")
+def _vector_rows(g, dt, dr, at, ib, bmax, row0, stride):  # pragma: no cover - compiled
+    """The four rows of the vector of 16 pulses from lane ``at``: flat index of its first lane in the lowest row
+    (around its centre lane's sample, clamped to the profile) and its lanes' fractional-row offset."""
+    b = min(max(int(g + (dt[at + 8] + dr[at + 8]) * ib) - 1, 0), bmax)
+    return _U(row0 + b * stride + at), g - _F(b)
+
+
+@nb.njit(fastmath=True, cache=True, inline="always")
 def _accumulate_vectors(prof_re, prof_im, row0, stride, n_bins, dt, dr, n_vec, n_valid, i0, c0, bin_inv,
                         cyc_per_m):  # pragma: no cover - compiled
     """Sum over lanes 0 .. n_vec * 16 (lanes >= n_valid count 0), each vector of 16 pulses reading its own four
@@ -252,11 +260,7 @@ def _accumulate_vectors(prof_re, prof_im, row0, stride, n_bins, dt, dr, n_vec, n
     bmax = n_bins - 4
     for v in range(n_vec):
         base = v * LANES
-        fic = g + (dt[base + 8] + dr[base + 8]) * ib
-        b = int(fic) - 1
-        b = min(max(b, 0), bmax)
-        r0 = _U(row0 + b * stride + base)
-        gb = g - _F(b)
+        r0, gb = _vector_rows(g, dt, dr, base, ib, bmax, row0, stride)
         ub = _U(base)
         vr = _F(0.0)
         vi = _F(0.0)
@@ -272,14 +276,6 @@ def _accumulate_vectors(prof_re, prof_im, row0, stride, n_bins, dt, dr, n_vec, n
         sr += vr
         si += vi
     return sr, si
-
-
-@nb.njit(fastmath=True, cache=True, inline="always")
-def _vector_rows(g, dt, dr, at, ib, bmax, row0, stride):  # pragma: no cover - compiled
-    """The four rows of the vector of 16 pulses from lane ``at``: flat index of its first lane in the lowest row
-    (around its centre lane's sample, clamped to the profile) and its lanes' fractional-row offset."""
-    b = min(max(int(g + (dt[at + 8] + dr[at + 8]) * ib) - 1, 0), bmax)
-    return _U(row0 + b * stride + at), g - _F(b)
 
 
 @nb.njit(fastmath=True, cache=True, inline="always")
@@ -386,7 +382,6 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
         ch_b0 = np.zeros(n_ch, np.int64)
         ch_rows = np.zeros(n_ch, np.int64)
         ch_path = np.zeros(n_ch, np.int64)
-        ch_inside = np.zeros(n_ch, np.bool_)
         k_end = min((task + 1) * per_task, win.shape[0])
         for k in range(task * per_task, k_end):
             lo = win[k, 0]
@@ -420,10 +415,11 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                             dy = np.float64(ay[a, pe]) - ay[a, q]
                             dz = np.float64(az[a, pe]) - az[a, q]
                             d = dx * (dx - 2.0 * x) + dy * (dy - 2.0 * y) + dz * (dz - 2.0 * z)
+                            moved = math.sqrt(max(r2 + d, 0.0)) - r
                             if pe == p:
-                                span_lo += math.sqrt(max(r2 + d, 0.0)) - r
+                                span_lo += moved
                             else:
-                                span_hi += math.sqrt(max(r2 + d, 0.0)) - r
+                                span_hi += moved
                         # the closest the antenna comes within the chunk: the pixel's distance to the chord from
                         # its first to its last position (less 10 % for the path's bend)
                         sx = np.float64(ax[a, end - 1]) - ax[a, p]
@@ -476,7 +472,9 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                     _antenna_deltas(ax, ay, az, a, p, q, n_pad, np.float32(-2.0 * x), np.float32(-2.0 * y),
                                     np.float32(-2.0 * z), np.float32(r_ref[a]), np.float32(r2), delta[a])
                 # per channel: reference phase, fractional bin, the rows its samples touch and the path it takes
-                # (0: entirely past the profile, 1: fast, 2: exact)
+                # (0: entirely past the profile, 1: row windows, 2: exact, 3: per-vector rows, 4: the same for whole
+                # vectors none of whose rows meet the profile's ends, unmasked)
+                full = n == n_pad
                 for c in range(n_ch):
                     ta = ch_tx[c]
                     ra = ch_rx[c]
@@ -494,17 +492,14 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                     rows = 3 if top < b0 + 2 else (4 if top < b0 + 3 else (6 if top < b0 + 5 else n_bins + 1))
                     ch_b0[c] = b0
                     ch_rows[c] = rows
-                    # per-vector rows need no lane masks where no vector's rows are clamped to the profile
-                    ch_inside[c] = b0 >= 1 and top < n_bins - 3
                     if b0 >= n_bins - 1 or top < 0.0:
                         ch_path[c] = 0  # the far edge of the swath: nothing to add
                     elif vec:
-                        ch_path[c] = 3
+                        ch_path[c] = 4 if full and b0 >= 1 and top < n_bins - 3 else 3
                     elif b0 >= 0 and b0 + rows <= n_bins:
                         ch_path[c] = 1
                     else:
                         ch_path[c] = 2
-                full = n == n_pad
                 c = 0
                 while c < n_ch:
                     ta = ch_tx[c]
@@ -531,7 +526,7 @@ def _tdbp(prof_re, prof_im, n_bins, stride, ax, ay, az, ch_tx, ch_rx, range0, bi
                         acc_im += si + si2
                         c += 2
                         continue
-                    if ch_path[c] == 3 and full and ch_inside[c]:
+                    if ch_path[c] == 4:
                         sr, si = _accumulate_vectors_inside(prof_re, prof_im, row0, stride, n_bins, delta[ta],
                                                             delta[ra], n // LANES, np.float32(i0), c0, bin_inv,
                                                             cycles_per_m)
