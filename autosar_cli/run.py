@@ -116,7 +116,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
 
 
 def _prepare_later_stages() -> None:
-    """Import navigation and focus's modules (filterpy and scipy.stats, numba, rasterio: ~0.7 s of one CPU), load
+    """Import navigation and focus's modules (numba, rasterio, h5py, scipy.special: ~0.4 s of one CPU), load
     their kernels from numba's cache (~0.3 s that their first calls would otherwise take) and the quicklook's
     imports."""
     import autosar_cli.nav.navigate  # noqa: F401

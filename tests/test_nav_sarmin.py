@@ -19,7 +19,7 @@ from autosar_cli.nav import sarmin_kernel as kern
 from autosar_cli.nav.baselines import from_truth
 from autosar_cli.nav.inputs import load_inputs
 from autosar_cli.nav.navigate import navigate
-from autosar_cli.nav.sarmin import run_sarmin
+from autosar_cli.nav.sarmin import SIGMA_ALPHA, SIGMA_BETA, chi2_gate, run_sarmin
 from autosar_cli.nav.trajectory import Trajectory, relative_pose_error
 from autosar_cli.nav.ukf import VectorUKF
 from autosar_cli.store.drive import Drive
@@ -54,6 +54,29 @@ def test_compiled_filter_equals_the_filterpy_reference(ci_drive: Path) -> None:
     np.testing.assert_allclose(fast.x, ref.x, atol=1e-7)
     np.testing.assert_allclose(fast.P, ref.P, atol=1e-10)
     assert fast.updates == ref.updates and fast.rejected == ref.rejected == {}
+
+
+@pytest.mark.parametrize(("n", "alpha", "beta", "kappa"), [(14, SIGMA_ALPHA, SIGMA_BETA, 3.0 - 14),
+                                                        (3, 0.5, 2.0, 0.0), (20, 1e-2, 0.0, -17.0)])
+def test_kernel_sigma_weights_are_filterpys(n: int, alpha: float, beta: float, kappa: float) -> None:
+    """The compiled path's Merwe weights equal filterpy's bit for bit (it does not import filterpy)."""
+    from filterpy.kalman import MerweScaledSigmaPoints
+
+    ref = MerweScaledSigmaPoints(n, alpha=alpha, beta=beta, kappa=kappa)
+    wm, wc, lam = kern.merwe_weights(n, alpha, beta, kappa)
+    np.testing.assert_array_equal(wm, ref.Wm)
+    np.testing.assert_array_equal(wc, ref.Wc)
+    assert lam == alpha**2 * (n + kappa) - n
+    assert VectorUKF(np.zeros(n), np.eye(n), m.ctrv_step).points.alpha == SIGMA_ALPHA  # the engines agree
+
+
+@pytest.mark.parametrize("dof", [1, 2, 4])
+def test_chi2_gate_is_scipy_stats_quantile(dof: int) -> None:
+    from scipy.stats import chi2
+
+    for p in (0.99, 0.9999, 0.999999):
+        assert chi2_gate(p, dof) == pytest.approx(chi2.ppf(p, dof), rel=1e-12)
+    assert chi2_gate(0.9999, 2) == pytest.approx(-2.0 * math.log(1e-4), rel=1e-12)  # closed form for 2 dof
 
 
 @pytest.mark.parametrize("dt", [2e-3, 0.05])

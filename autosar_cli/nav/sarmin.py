@@ -12,15 +12,18 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import chi2
+from scipy.special import chdtri
 
 from autosar_cli.config import Config
 
 from . import models as m
 from .inputs import Measurements, NavInputError, NavInputs
-from .ukf import FilterHistory, VectorUKF, rts_smooth
 
 Array = NDArray[np.float64]
+
+# Merwe's scaled sigma points (kappa = 3 - n): the same for both engines
+SIGMA_ALPHA = 1e-3
+SIGMA_BETA = 2.0
 
 
 @dataclass
@@ -33,6 +36,13 @@ class NavSolution:
     state_names: list[str]
     rejected: dict[str, int]
     updates: dict[str, int]
+
+
+def chi2_gate(probability: float, dof: int) -> float:
+    """Squared Mahalanobis distance that a consistent innovation of ``dof`` dimensions stays below with
+    ``probability`` (the chi-square quantile; scipy.special's inverse survival function, as scipy.stats'
+    ``chi2.ppf`` computes it, without scipy.stats' ~0.3 s import)."""
+    return float(chdtri(dof, 1.0 - probability))
 
 
 def _state_names(inputs: NavInputs) -> list[str]:
@@ -102,7 +112,6 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
     n = scale_i + 4
     names = _state_names(inputs)
     t_start, x0, P0 = _initial_state(inputs, config, n)
-    ukf = VectorUKF(x0, P0, m.ctrv_step, angle_indices=[m.PSI])
 
     q = np.zeros(n)
     q[m.PX] = q[m.PY] = nav.position_noise_m**2
@@ -129,12 +138,16 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
     gnss_lever = _gnss_lever_rear(inputs, config)
     if engine == "numba":
         return _run_kernel(inputs, config, smooth, sources, times, kinds, index, order, t_start, x0, P0, q,
-                           ukf, names, steer_i, scale_i, gnss_lever)
+                           names, steer_i, scale_i, gnss_lever)
+    from .ukf import FilterHistory, VectorUKF, rts_smooth  # filterpy (and its scipy.stats): ~0.4 s to import
+
+    ukf = VectorUKF(x0, P0, m.ctrv_step, angle_indices=[m.PSI], alpha=SIGMA_ALPHA, beta=SIGMA_BETA,
+                    kappa=3.0 - n)
     def wheel_fn(X: Array) -> Array:
         return (1.0 + X[:, scale_i:scale_i + 4]) * m.wheel_speeds(X, veh.wheelbase_m, veh.track_front_m,
                                                                   veh.track_rear_m)
 
-    gates = {k: chi2.ppf(nav.gate_probability, k) for k in (1, 2, 4)}
+    gates = {k: chi2_gate(nav.gate_probability, k) for k in (1, 2, 4)}
     rejected: dict[str, int] = {}
     updates: dict[str, int] = {}
     hist = FilterHistory()
@@ -200,7 +213,7 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
 
 def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[tuple[str, Measurements]],
                 times: Array, kinds: NDArray[np.int32], index: NDArray[np.int64], order: NDArray[np.int64],
-                t_start: float, x0: Array, P0: Array, q: Array, ukf: VectorUKF, names: list[str], steer_i: int,
+                t_start: float, x0: Array, P0: Array, q: Array, names: list[str], steer_i: int,
                 scale_i: int, gnss_lever: tuple[float, float]) -> NavSolution:
     from . import sarmin_kernel as kern
 
@@ -219,15 +232,15 @@ def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[t
         sig[sel, :k] = meas.sigma
     gates = np.zeros(5)
     for k in (1, 2, 4):
-        gates[k] = chi2.ppf(nav.gate_probability, k)
+        gates[k] = chi2_gate(nav.gate_probability, k)
     geo = np.array([veh.wheelbase_m, veh.track_front_m, veh.track_rear_m, gnss_lever[0], gnss_lever[1]])
-    lam = float(ukf.points.alpha**2 * (len(x0) + ukf.points.kappa) - len(x0))  # filterpy's Merwe lambda
+    wm, wc, lam = kern.merwe_weights(len(x0), SIGMA_ALPHA, SIGMA_BETA, 3.0 - len(x0))
     if E == 0:
         raise NavInputError("no measurement after the initial GNSS fix: nothing to navigate")
     # wsum: the exact sum of filterpy's weights (see the kernel's docstring).
     T, X, PP, XP, FF, PK, DT, used, rejected = kern.run_filter(
-        times[order], ev_kind, zs, sig, t_start, x0, P0, q, ukf.Wm, ukf.Wc, lam, ng, geo, scale_i, steer_i,
-        nav.steering_min_speed_mps, gates, nav.max_step_s, math.fsum(ukf.Wm))
+        times[order], ev_kind, zs, sig, t_start, x0, P0, q, wm, wc, lam, ng, geo, scale_i, steer_i,
+        nav.steering_min_speed_mps, gates, nav.max_step_s, math.fsum(wm))
     xs, Ps = kern.smooth(X, PP, XP, FF, PK, DT, q) if smooth else (X, PP)
     label = [g.name for g in inputs.gyros] + ["wheels", "steering", "gnss_pos", "gnss_vel"]
     # One state per distinct instant already (the kernel refines a state for measurements at its instant).

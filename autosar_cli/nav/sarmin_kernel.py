@@ -1,8 +1,10 @@
 """Compiled SAR-MIN filter loop (numba): the same UKF as :class:`~.ukf.VectorUKF` driven by
 :func:`~.sarmin.run_sarmin`, without Python in the per-measurement path.
 
-filterpy still supplies the sigma-point weights (``Wm``, ``Wc``, ``lambda``: Merwe's scaled points);
-the kernel reproduces its sigma-point placement (columns ``L[:, j]`` of the lower Cholesky factor of
+The sigma-point weights are Merwe's scaled points, computed by :func:`merwe_weights` with filterpy's
+expressions (a test checks them equal to :class:`filterpy.kalman.MerweScaledSigmaPoints`'s, bit for bit;
+importing filterpy costs ~0.4 s, which the compiled path does not need). The kernel reproduces filterpy's
+sigma-point placement (columns ``L[:, j]`` of the lower Cholesky factor of
 ``(n + lambda) P``, i.e. the rows of filterpy's upper factor) and unscented transform.
 ``tests/test_nav_sarmin.py`` checks it against the numpy/filterpy path state by state.
 
@@ -37,6 +39,18 @@ from numba import njit
 
 PX, PY, V, PSI, OMEGA = 0, 1, 2, 3, 4
 NK = 5  # kinematic states (the only ones CTRV moves); the rest are constant parameters
+
+
+def merwe_weights(n: int, alpha: float, beta: float, kappa: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Mean and covariance weights (2n + 1 each) and ``lambda`` of Merwe's scaled sigma points, as
+    :class:`filterpy.kalman.MerweScaledSigmaPoints` computes them (same expressions, same rounding)."""
+    lam = alpha**2 * (n + kappa) - n
+    c = 0.5 / (n + lam)
+    wc = np.full(2 * n + 1, c)
+    wm = np.full(2 * n + 1, c)
+    wc[0] = lam / (n + lam) + (1 - alpha**2 + beta)
+    wm[0] = lam / (n + lam)
+    return wm, wc, float(lam)
 
 
 @njit(cache=True)
