@@ -448,6 +448,8 @@ def evaluate(
             table.add_row("reflectors: peak loss mean / max", f"{_cm(s['peak_loss_mean_db'], 1)} / "
                           f"{_cm(s['peak_loss_max_db'], 1)} dB")
         table.add_row("entropy / contrast", f"{_cm(s['entropy'], 1, 4)} nats / {_cm(s['contrast'], 1, 1)}")
+        table.add_row("range-normalised: entropy / contrast",
+                      f"{_cm(s.get('entropy_rn'), 1, 4)} nats / {_cm(s.get('contrast_rn'), 1, 1)}")
         table.add_row("far swath: entropy / contrast",
                       f"{_cm(s.get('entropy_far'), 1, 4)} nats / {_cm(s.get('contrast_far'), 1, 1)}")
         for kind in ("facade", "kerb"):
@@ -485,13 +487,15 @@ def compare(
             out.print_json(json.dumps(result))
             return
         table = Table("method", "abs RMSE (cm)", "RPE 1 m across (mm)", "reflector error mean / max (cm)",
-                      "peak loss mean / max (dB)", "entropy", "far swath entropy", "contrast")
+                      "peak loss mean / max (dB)", "entropy", "range-normalised entropy", "far swath entropy",
+                      "contrast")
         for m in result["methods"]:
             s = result["results"][m]["summary"]
             table.add_row(m, _cm(s["abs_rmse_m"]), _cm(s["rpe_1m_across_m"], 1e3, 2),
                           f"{_cm(s['aligned_error_mean_m'], digits=2)} / {_cm(s['aligned_error_max_m'], digits=2)}",
                           f"{_cm(s['peak_loss_mean_db'], 1)} / {_cm(s['peak_loss_max_db'], 1)}",
-                          _cm(s["entropy"], 1, 4), _cm(s.get("entropy_far"), 1, 4), _cm(s["contrast"], 1, 1))
+                          _cm(s["entropy"], 1, 4), _cm(s.get("entropy_rn"), 1, 4), _cm(s.get("entropy_far"), 1, 4),
+                          _cm(s["contrast"], 1, 1))
         out.print(table)
         figures = [v for k, v in result["outputs"].items() if isinstance(v, str)]
         out.print(f"wrote [bold]{output}[/] ({', '.join(figures)}; per method: "

@@ -65,6 +65,11 @@ METRICS_OVERSAMPLE = 2
 FAR_SWATH_FRACTION = 0.5
 #: Lattice (m) on which a pixel's distance to the track is measured for the far swath (nearest lattice point).
 FAR_SWATH_LATTICE_M = 0.25
+#: Power of the range whose inverse a point's focused intensity follows, which the range-normalised entropy and
+#: contrast undo: 1/R^4 per pulse (two-way spreading) times R^2 of coherent gain over a processed aperture that grows
+#: as R. Measured on the 15 corner reflectors (all one size) of test1-3: peak intensity ~ R^-2.3, the antenna
+#: pattern adding the rest.
+RANGE_LAW_EXPONENT = 2.0
 
 
 @dataclass
@@ -115,11 +120,14 @@ class ImageMetrics:
     product: dict[str, float] = field(default_factory=dict)  #: pixel_m, entropy, contrast of the product image
     #: min_range_m, pixels, entropy, contrast over the far swath (:data:`FAR_SWATH_FRACTION`); empty if not measured
     far_swath: dict[str, float] = field(default_factory=dict)
+    #: exponent, entropy, contrast of the range-normalised intensity |z|^2 R^exponent (:data:`RANGE_LAW_EXPONENT`) over
+    #: the same pixels as ``entropy``; empty if not measured
+    range_normalised: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         return {"pixels": self.pixels, "pixel_m": self.pixel_m, "entropy": self.entropy, "contrast": self.contrast,
                 "straightness": {k: v.to_dict() for k, v in self.straightness.items()}, "product": self.product,
-                "far_swath": self.far_swath}
+                "far_swath": self.far_swath, "range_normalised": self.range_normalised}
 
 
 @dataclass
@@ -156,7 +164,9 @@ class Evaluation:
                              "rpe_10m_across_m": tm.rpe_10m_across_m if tm else nan,
                              "entropy": self.image_metrics.entropy, "contrast": self.image_metrics.contrast,
                              "entropy_far": self.image_metrics.far_swath.get("entropy", nan),
-                             "contrast_far": self.image_metrics.far_swath.get("contrast", nan)}
+                             "contrast_far": self.image_metrics.far_swath.get("contrast", nan),
+                             "entropy_rn": self.image_metrics.range_normalised.get("entropy", nan),
+                             "contrast_rn": self.image_metrics.range_normalised.get("contrast", nan)}
         s.update(summarise_reflectors(self.reflectors))
         for kind in LINE_KINDS:
             st = self.image_metrics.straightness.get(kind)
@@ -218,19 +228,49 @@ def metrics_grid(grid: FocusGrid, oversample: int = METRICS_OVERSAMPLE) -> Focus
                    n_across=grid.n_across * oversample)
 
 
+def _track_lattice(grid: FocusGrid, track_xy: ArrayLike, lattice_m: float, *, covering: bool
+                   ) -> tuple[int, NDArray[np.float64]]:
+    """Distances (m) from the nearest point of ``track_xy`` (M, 2) to a lattice of the grid's pixels every ``step``
+    pixels (``lattice_m``): at the centres of step x step cells, or (``covering``) at pixels 0, step, 2 step, ...
+    up to one past the last row and column, so that the lattice encloses every pixel."""
+    step = max(1, int(round(lattice_m / grid.pixel_m)))
+    if covering:
+        rows = np.arange(grid.n_across // step + 2) * step
+        cols = np.arange(grid.n_along // step + 2) * step
+    else:
+        rows = np.minimum(np.arange(0, grid.n_across, step) + step // 2, grid.n_across - 1)
+        cols = np.minimum(np.arange(0, grid.n_along, step) + step // 2, grid.n_along - 1)
+    lattice = grid.pixel_enu(rows[:, None], cols[None, :])[..., :2]
+    dist = cKDTree(np.asarray(track_xy, dtype=np.float64)[:, :2]).query(lattice.reshape(-1, 2))[0]
+    return step, dist.reshape(lattice.shape[:2])
+
+
 def far_swath_mask(grid: FocusGrid, track_xy: ArrayLike, min_range_m: float,
                    lattice_m: float = FAR_SWATH_LATTICE_M) -> NDArray[np.bool_]:
     """Pixels (rows, cols) of ``grid`` at least ``min_range_m`` (horizontal) from the nearest point of the radar's
     track ``track_xy`` (M, 2) (ENU m, densely sampled: the distance is to its points). Each pixel takes the
     distance of the nearest point of a ``lattice_m`` lattice of the grid, so the edge is drawn to within
     ``lattice_m``."""
-    step = max(1, int(round(lattice_m / grid.pixel_m)))
-    rows = np.minimum(np.arange(0, grid.n_across, step) + step // 2, grid.n_across - 1)
-    cols = np.minimum(np.arange(0, grid.n_along, step) + step // 2, grid.n_along - 1)
-    lattice = grid.pixel_enu(rows[:, None], cols[None, :])[..., :2]
-    dist = cKDTree(np.asarray(track_xy, dtype=np.float64)[:, :2]).query(lattice.reshape(-1, 2))[0]
-    far = (dist >= min_range_m).reshape(lattice.shape[:2])
+    step, dist = _track_lattice(grid, track_xy, lattice_m, covering=False)
+    far = dist >= min_range_m
     return np.repeat(np.repeat(far, step, axis=0), step, axis=1)[:grid.n_across, :grid.n_along]
+
+
+def track_distance(grid: FocusGrid, track_xy: ArrayLike, lattice_m: float = FAR_SWATH_LATTICE_M) -> NDArray[np.float64]:
+    """Horizontal distance (m) of every pixel (rows, cols) of ``grid`` from the nearest point of the radar's track
+    ``track_xy`` (M, 2) (ENU m, densely sampled): exact on a ``lattice_m`` lattice, bilinear in between (the distance
+    is smooth away from the track; a few mm off at 2 m with the default lattice)."""
+    step, lat = _track_lattice(grid, track_xy, lattice_m, covering=True)
+
+    def weights(n: int) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        pos = np.arange(n) / step
+        i0 = np.floor(pos).astype(np.int64)
+        return i0, (pos - i0)
+
+    r0, wr = weights(grid.n_across)
+    c0, wc = weights(grid.n_along)
+    by_rows = lat[r0] * (1.0 - wr)[:, None] + lat[r0 + 1] * wr[:, None]
+    return by_rows[:, c0] * (1.0 - wc) + by_rows[:, c0 + 1] * wc
 
 
 def image_metrics(image: FocusedImage, truth: Truth | None, alignment: Se2,
@@ -238,7 +278,9 @@ def image_metrics(image: FocusedImage, truth: Truth | None, alignment: Se2,
                   max_range_m: float | None = None) -> ImageMetrics:
     """Entropy and contrast over the data pixels of ``image``, and over its far swath (pixels at least
     :data:`FAR_SWATH_FRACTION` x ``max_range_m`` from the radar's track ``track_xy`` (M, 2), ENU m in the
-    image's frame; both needed); with truth, the straightness of the facade and kerb lines (their true
+    image's frame; both needed) and over the range-normalised intensity |z|^2 R^2 (R: the pixel's distance from
+    that track; :data:`RANGE_LAW_EXPONENT`), in which a scatterer counts by its reflectivity, not by how near the
+    track it is; with truth, the straightness of the facade and kerb lines (their true
     scatterers mapped into the image by ``alignment.inverse()``) traced in ``product`` (the product image,
     whose own entropy and contrast are reported alongside; default: ``image``).
 
@@ -246,11 +288,16 @@ def image_metrics(image: FocusedImage, truth: Truth | None, alignment: Se2,
     fewer empty columns for clutter and sidelobes to fill than at 2 cm."""
     mask = data_mask(image.image)
     far: dict[str, float] = {}
+    range_normalised: dict[str, float] = {}
     if track_xy is not None and max_range_m is not None:
         min_range = FAR_SWATH_FRACTION * max_range_m
         far_mask = mask & far_swath_mask(image.grid, track_xy, min_range)
         far = {"min_range_m": min_range, "pixels": int(far_mask.sum()),
                "entropy": image_entropy(image.image, far_mask), "contrast": image_contrast(image.image, far_mask)}
+        reflectivity = (np.abs(image.image[mask]).astype(np.float64) ** 2
+                        * track_distance(image.grid, track_xy)[mask] ** RANGE_LAW_EXPONENT)
+        range_normalised = {"exponent": RANGE_LAW_EXPONENT, "entropy": image_entropy(reflectivity),
+                            "contrast": image_contrast(reflectivity)}
     straight: dict[str, Straightness] = {}
     if truth is not None:
         inv = alignment.inverse()
@@ -264,7 +311,7 @@ def image_metrics(image: FocusedImage, truth: Truth | None, alignment: Se2,
         raw = {"pixel_m": product.grid.pixel_m, "entropy": image_entropy(product.image),
                "contrast": image_contrast(product.image)}
     return ImageMetrics(int(mask.sum()), image.grid.pixel_m, image_entropy(image.image, mask),
-                        image_contrast(image.image, mask), straight, raw, far)
+                        image_contrast(image.image, mask), straight, raw, far, range_normalised)
 
 
 def radar_track(trajectory: Trajectory, frame_t_ns: NDArray[np.int64], config: Config,

@@ -240,6 +240,10 @@ def report_markdown(ev: Evaluation, figures: dict[str, str]) -> str:
         rows.append([f"far swath (>= {im.far_swath['min_range_m']:.1f} m from the radar's track, "
                      f"{im.far_swath['pixels']} pixels): entropy / contrast",
                      f"{fmt(im.far_swath['entropy'], digits=4)} / {fmt(im.far_swath['contrast'], digits=2)}"])
+    if im.range_normalised:
+        rows.append([f"range-normalised (|z|² R^{im.range_normalised['exponent']:g}, R from the radar's track): "
+                     "entropy / contrast", f"{fmt(im.range_normalised['entropy'], digits=4)} / "
+                                           f"{fmt(im.range_normalised['contrast'], digits=2)}"])
     if im.product:
         rows.append([f"product image ({im.product['pixel_m'] * 100:g} cm pixels): entropy / contrast",
                      f"{fmt(im.product['entropy'], digits=4)} / {fmt(im.product['contrast'], digits=2)}"])
