@@ -143,6 +143,7 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
 
     ukf = VectorUKF(x0, P0, m.ctrv_step, angle_indices=[m.PSI], alpha=SIGMA_ALPHA, beta=SIGMA_BETA,
                     kappa=3.0 - n)
+
     def wheel_fn(X: Array) -> Array:
         return (1.0 + X[:, scale_i:scale_i + 4]) * m.wheel_speeds(X, veh.wheelbase_m, veh.track_front_m,
                                                                   veh.track_rear_m)
