@@ -24,7 +24,7 @@ from rich.progress import (
     TimeRemainingColumn,
     TransferSpeedColumn,
 )
-from rich.table import Table
+from rich.table import Column, Table
 
 from autosar_cli import __version__
 
@@ -486,16 +486,22 @@ def compare(
         if as_json:
             out.print_json(json.dumps(result))
             return
-        table = Table("method", "abs RMSE (cm)", "RPE 1 m across (mm)", "reflector error mean / max (cm)",
-                      "peak loss mean / max (dB)", "entropy", "range-normalised entropy", "far swath entropy",
-                      "contrast")
-        for m in result["methods"]:
-            s = result["results"][m]["summary"]
-            table.add_row(m, _cm(s["abs_rmse_m"]), _cm(s["rpe_1m_across_m"], 1e3, 2),
-                          f"{_cm(s['aligned_error_mean_m'], digits=2)} / {_cm(s['aligned_error_max_m'], digits=2)}",
-                          f"{_cm(s['peak_loss_mean_db'], 1)} / {_cm(s['peak_loss_max_db'], 1)}",
-                          _cm(s["entropy"], 1, 4), _cm(s.get("entropy_rn"), 1, 4), _cm(s.get("entropy_far"), 1, 4),
-                          _cm(s["contrast"], 1, 1))
+        # one column per method, so that it fits an 80-column terminal; contrasts and the rest are in compare.md
+        summaries = {m: result["results"][m]["summary"] for m in result["methods"]}
+        table = Table("", *(Column(m, no_wrap=True, justify="right") for m in summaries))
+        rows: list[tuple[str, Callable[[dict[str, Any]], str]]] = [
+            ("abs RMSE (cm)", lambda s: _cm(s["abs_rmse_m"])),
+            ("RPE 1 m across (mm)", lambda s: _cm(s["rpe_1m_across_m"], 1e3, 2)),
+            ("reflector error mean / max (cm)",
+             lambda s: f"{_cm(s['aligned_error_mean_m'], digits=2)} / {_cm(s['aligned_error_max_m'], digits=2)}"),
+            ("peak loss mean / max (dB)",
+             lambda s: f"{_cm(s['peak_loss_mean_db'], 1)} / {_cm(s['peak_loss_max_db'], 1)}"),
+            ("entropy (nats)", lambda s: _cm(s["entropy"], 1, 4)),
+            ("range-normalised entropy", lambda s: _cm(s.get("entropy_rn"), 1, 4)),
+            ("far swath entropy", lambda s: _cm(s.get("entropy_far"), 1, 4)),
+        ]
+        for label, cell in rows:
+            table.add_row(label, *(cell(s) for s in summaries.values()))
         out.print(table)
         figures = [v for k, v in result["outputs"].items() if isinstance(v, str)]
         out.print(f"wrote [bold]{output}[/] ({', '.join(figures)}; per method: "

@@ -340,8 +340,15 @@ def test_compare_cli_on_ci(ci_mcap, tmp_path: Path) -> None:
     r = runner.invoke(app, ["evaluate", str(out / "ins"), "-o", str(tmp_path / "ins_report"), "--json"])
     assert r.exit_code == 0, r.output
     again = json.loads(r.stdout)["summary"]
-    for key in ("abs_rmse_m", "aligned_error_mean_m", "peak_loss_mean_db", "entropy"):
+    for key in ("abs_rmse_m", "aligned_error_mean_m", "peak_loss_mean_db", "entropy", "entropy_rn"):
         assert again[key] == pytest.approx(res["ins"]["summary"][key], rel=1e-6, abs=1e-9), key
+    # without --json: one column per method, within an 80-column terminal
+    r = runner.invoke(app, ["compare", str(ci_mcap.log_path), "-o", str(out), "--overwrite"])
+    assert r.exit_code == 0, r.output
+    table = r.stdout[:r.stdout.index("wrote ")]
+    assert all(m in table for m in result["methods"]) and "range-normalised" in table
+    assert f"{res['sar-min']['summary']['entropy_rn']:.4f}" in table
+    assert max(len(line) for line in table.splitlines()) <= 80
 
 
 def test_compare_skips_truth_without_a_sidecar(ci_mcap, tmp_path: Path) -> None:
