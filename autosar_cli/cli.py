@@ -467,7 +467,9 @@ def compare(
     output: Annotated[Path, typer.Option("--output", "-o", help="Comparison directory: drive.h5, one directory "
                                          "per method, compare.png, across_track.png, compare.md, compare.json.")],
     methods: Annotated[str, typer.Option("--methods", help="Comma-separated navigation methods (sar-min, ins, gnss, "
-                                         "none, truth).")] = "none,ins,sar-min,truth",
+                                         "none, truth; sar-min+scale: SAR-MIN with its track's scale measured by "
+                                         "the radar on the truth's corner reflectors, ~20 wide-beam focusings)."
+                                         )] = "none,ins,sar-min,truth",
     truth: Annotated[Path | None, typer.Option("--truth", help="Truth sidecar (default: <log>.truth.h5).")] = None,
     config: ConfigOpt = None,
     overwrite: OverwriteOpt = False,

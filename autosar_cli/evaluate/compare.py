@@ -54,6 +54,7 @@ from autosar_cli.nav.navigate import default_truth_path, navigate
 from autosar_cli.nav.trajectory import Trajectory
 from autosar_cli.run import FORMAT as RUN_FORMAT
 from autosar_cli.run import FORMAT_VERSION as RUN_FORMAT_VERSION
+from autosar_cli.sar.autofocus import estimate_track_scale, scale_track
 from autosar_cli.sar.focus import FocusOptions, _usable_frames, focus_images, make_grid
 from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.store.drive import Drive
@@ -63,7 +64,11 @@ from autosar_cli.store.trajectory import write_trajectory
 FORMAT = "autosar-compare"
 FORMAT_VERSION = 1
 DEFAULT_METHODS = ("none", "ins", "sar-min", "truth")
-NEEDS_TRUTH = ("truth",)
+#: SAR-MIN with its track's scale measured by the radar on the corner reflectors (sar/autofocus.py); it needs the
+#: truth's reflector list to know where they are, and costs ~20 wide-beam focusings
+SARMIN_SCALED = "sar-min+scale"
+COMPARE_METHODS = (*NAV_METHODS, SARMIN_SCALED)
+NEEDS_TRUTH = ("truth", SARMIN_SCALED)
 DRIVE = "drive.h5"
 
 Progress = Callable[[str, int, int], None]
@@ -80,8 +85,8 @@ def parse_methods(spec: str | Sequence[str]) -> list[str]:
     for m in (s.strip() for s in items):
         if not m:
             continue
-        if m not in NAV_METHODS:
-            raise CompareError(f"--methods: unknown method {m!r} (choose from {', '.join(NAV_METHODS)})")
+        if m not in COMPARE_METHODS:
+            raise CompareError(f"--methods: unknown method {m!r} (choose from {', '.join(COMPARE_METHODS)})")
         if m not in methods:
             methods.append(m)
     if not methods:
@@ -140,15 +145,18 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
     t0 = time.perf_counter()
     trajectories: dict[str, Trajectory] = {}
     wanted = [m for m in methods if m not in skipped]
-    for i, m in enumerate(wanted):
-        tick("navigate", i, len(wanted))
+    nav_wanted = [m for m in wanted if m != SARMIN_SCALED]
+    if SARMIN_SCALED in wanted and "sar-min" not in nav_wanted:
+        nav_wanted.append("sar-min")  # its base; compared only if asked for
+    for i, m in enumerate(nav_wanted):
+        tick("navigate", i, len(nav_wanted))
         try:
             trajectories[m] = navigate(out / DRIVE, m, config, truth_path=truth_path)
         except NavInputError as exc:  # e.g. no radar IMU for the INS: compare the others
             skipped[m] = str(exc).splitlines()[0]
-    tick("navigate", len(wanted), len(wanted))
+    tick("navigate", len(nav_wanted), len(nav_wanted))
     timings["navigate"] = time.perf_counter() - t0
-    run_methods = [m for m in methods if m in trajectories]
+    run_methods = [m for m in methods if m in trajectories or (m == SARMIN_SCALED and "sar-min" in trajectories)]
     if not run_methods:
         raise CompareError("no method left to compare: " + "; ".join(f"{k}: {v}" for k, v in skipped.items()))
 
@@ -168,13 +176,37 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
     if truth is not None:
         t_radar = radar_times(out / DRIVE)
         lever = phase_centre_lever_arm(config)
-        for m in run_methods:
+
+        def register(m: str) -> None:
             t = common_instants(trajectories[m], truth.trajectory, t_radar)
             alignments[m] = trajectory_errors(trajectories[m], truth.trajectory, lever, t).alignment
             if has_reflectors:
                 centres[m] = predict_image_positions(trajectories[m], truth.trajectory,
                                                      truth.targets_above_road(truth.targets.corner_reflectors),
                                                      config, t, options.height_m)
+
+        for m in run_methods:
+            if m != SARMIN_SCALED:
+                register(m)
+        if SARMIN_SCALED in run_methods:
+            if not has_reflectors:
+                run_methods.remove(SARMIN_SCALED)
+                skipped[SARMIN_SCALED] = "the truth lists no corner reflector to measure the scale on"
+            else:
+                if "sar-min" not in centres:
+                    register("sar-min")
+                t0 = time.perf_counter()
+                tick("measure sar-min's track scale on the reflectors", 0, 1)
+                est = estimate_track_scale(out / DRIVE, trajectories["sar-min"], config, centres["sar-min"])
+                tick("measure sar-min's track scale on the reflectors", 1, 1)
+                timings["track_scale"] = time.perf_counter() - t0
+                scaled = scale_track(trajectories["sar-min"], est.scale)
+                trajectories[SARMIN_SCALED] = replace(scaled, method=SARMIN_SCALED,
+                                                      info={**scaled.info, "track_scale": est.scale})
+                register(SARMIN_SCALED)
+                notes.append(f"{SARMIN_SCALED}: SAR-MIN's distances times 1 {est.scale * 100:+.4f} %, the scale at "
+                             f"which its {len(est.point_scales)} corner reflectors focus best with a ±28° beam "
+                             f"(each alone: {', '.join(f'{v * 100:+.3f}' for v in est.point_scales)} %)")
 
     # The truth trajectory's reflector patches are every method's peak-loss reference: focus them first.
     order = sorted(run_methods, key=lambda m: m != "truth")
