@@ -35,6 +35,7 @@ from autosar_cli.evaluate.trajectory_metrics import (
     trajectory_metrics,
 )
 from autosar_cli.nav.geodesy import GeodeticOrigin
+from autosar_cli.nav.navigate import navigate
 from autosar_cli.sar.autofocus import _parabola_peak, scale_track
 from autosar_cli.sar.grid import FocusGrid, box_grid
 from autosar_cli.store.image import FocusedImage, read_image
@@ -375,11 +376,27 @@ def test_compare_cli_on_ci(ci_mcap, tmp_path: Path) -> None:
     assert max(len(line) for line in table.splitlines()) <= 80
 
 
+def test_compare_sarmin_scaled_alone_on_ci(ci_mcap, tmp_path: Path) -> None:
+    """sar-min+scale without sar-min itself: SAR-MIN is navigated as its base but not compared; its track is
+    SAR-MIN's scaled by the note's figure (the ci drive is 2.4 m long: the scale is barely observable there,
+    the plumbing is what is tested)."""
+    result = compare([ci_mcap.log_path], tmp_path / "cmp", CFG, methods=["sar-min+scale"])
+    assert result["methods"] == ["sar-min+scale"] and result["skipped"] == {}
+    note = next(n for n in result["notes"] if n.startswith("sar-min+scale:"))
+    scale = float(note.split("scaled by ")[1].split(" %")[0]) / 100
+    assert abs(scale) <= 3e-3  # within the sweep
+    traj = read_trajectory(tmp_path / "cmp" / "sar-min+scale" / "trajectory.h5", covariance=False)
+    assert traj.method == "sar-min+scale"
+    base = navigate(tmp_path / "cmp" / "drive.h5", "sar-min", CFG)
+    np.testing.assert_allclose(traj.speed, base.speed * (1 + scale), rtol=1e-5)  # the note's scale, 4 digits
+    assert not (tmp_path / "cmp" / "sar-min").exists()
+
+
 def test_compare_skips_truth_without_a_sidecar(ci_mcap, tmp_path: Path) -> None:
     log = tmp_path / "bare.mcap"
     shutil.copy(ci_mcap.log_path, log)
-    result = compare([log], tmp_path / "cmp", CFG, methods=["sar-min", "truth"])
-    assert result["methods"] == ["sar-min"] and "truth" in result["skipped"]
+    result = compare([log], tmp_path / "cmp", CFG, methods=["sar-min", "truth", "sar-min+scale"])
+    assert result["methods"] == ["sar-min"] and {"truth", "sar-min+scale"} <= set(result["skipped"])
     s = result["results"]["sar-min"]["summary"]
     assert math.isfinite(s["entropy"]) and s["abs_rmse_m"] is None and s["reflectors"] == 0
     assert "skipped" in (tmp_path / "cmp" / "compare.md").read_text()

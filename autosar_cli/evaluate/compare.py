@@ -156,11 +156,12 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
             skipped[m] = str(exc).splitlines()[0]
     tick("navigate", len(nav_wanted), len(nav_wanted))
     timings["navigate"] = time.perf_counter() - t0
-    run_methods = [m for m in methods if m in trajectories or (m == SARMIN_SCALED and "sar-min" in trajectories)]
+    run_methods = [m for m in methods if m not in skipped
+                   and (m in trajectories or (m == SARMIN_SCALED and "sar-min" in trajectories))]
     if not run_methods:
         raise CompareError("no method left to compare: " + "; ".join(f"{k}: {v}" for k, v in skipped.items()))
 
-    first = trajectories[run_methods[0]]
+    first = trajectories.get(run_methods[0]) or trajectories["sar-min"]  # sar-min+scale: made from sar-min below
     truth: Truth | None = None
     if truth_path is not None:
         truth = load_truth(truth_path, first.origin, config)
@@ -204,7 +205,7 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
                 trajectories[SARMIN_SCALED] = replace(scaled, method=SARMIN_SCALED,
                                                       info={**scaled.info, "track_scale": est.scale})
                 register(SARMIN_SCALED)
-                notes.append(f"{SARMIN_SCALED}: SAR-MIN's distances times 1 {est.scale * 100:+.4f} %, the scale at "
+                notes.append(f"{SARMIN_SCALED}: SAR-MIN's distances scaled by {est.scale * 100:+.4f} %, the scale at "
                              f"which its {len(est.point_scales)} corner reflectors focus best with a ±28° beam "
                              f"(each alone: {', '.join(f'{v * 100:+.3f}' for v in est.point_scales)} %)")
 
