@@ -118,6 +118,32 @@ def test_vector_ukf_and_smoother_equal_kalman_on_a_linear_model() -> None:
     np.testing.assert_allclose(Ps, ref_P, rtol=1e-7, atol=1e-14)
 
 
+def test_held_update_is_schmidts_consider_update() -> None:
+    """States held by an update keep their estimate and covariance block; the rest equals the Joseph-form
+    covariance of the gain with those rows zeroed (float64, straightforward matrices)."""
+    rng = np.random.default_rng(5)
+    A = rng.normal(size=(4, 4))
+    P0 = A @ A.T + np.eye(4)
+    x0 = rng.normal(size=4)
+    H = np.array([[1.0, 0.5, -2.0, 0.3]])
+    R = np.array([[0.2]])
+    z = np.array([1.7])
+    hold = [1, 3]
+    ukf = VectorUKF(x0, P0, lambda X, t: X)
+    assert ukf.update(z, lambda X: X @ H.T, R, hold=hold)
+    S = H @ P0 @ H.T + R
+    K = P0 @ H.T @ np.linalg.inv(S)
+    K[hold] = 0.0
+    I_KH = np.eye(4) - K @ H
+    np.testing.assert_allclose(ukf.x, x0 + K @ (z - H @ x0), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(ukf.P, I_KH @ P0 @ I_KH.T + K @ R @ K.T, rtol=1e-8, atol=1e-12)
+    np.testing.assert_array_equal(ukf.x[hold], x0[hold])
+    np.testing.assert_allclose(ukf.P[np.ix_(hold, hold)], P0[np.ix_(hold, hold)], rtol=1e-12)
+    free = VectorUKF(x0, P0, lambda X, t: X)
+    free.update(z, lambda X: X @ H.T, R)
+    assert np.linalg.eigvalsh(ukf.P - free.P).min() > -1e-12  # holding states can only lose information
+
+
 def test_relative_pose_error_ignores_rigid_motion_and_sees_bends() -> None:
     s = np.linspace(0, 20, 2001)
     ref = np.c_[s, 0.01 * s**2 / 20]

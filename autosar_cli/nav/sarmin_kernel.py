@@ -215,8 +215,12 @@ def _measure(sig, kind, ng, geo, scale_i, steer_i, zsig):  # noqa: ANN001, ANN20
 
 @njit(cache=True)
 def _update_nl(x, P, z, sigma, kind, ng, geo, scale_i, steer_i, gate, Wm, Wc, c, wsum,  # noqa: ANN001, ANN202
-               L, inv_d, sig, zsig, Pxz, Kg, S, Ls, v4):
+               L, inv_d, sig, zsig, Pxz, Kg, S, Ls, v4, hold):
     """Unscented update of ``(x, P)`` in place; False (state untouched) when the gate rejects it.
+
+    ``hold`` (n,) bool: states the update leaves alone (a Schmidt "consider" update: their estimate and
+    their own covariance block stay, their cross-covariance with the updated states is the exact one for
+    that gain).
 
     Work arrays: ``L`` (n, n), ``inv_d`` (n,), ``sig`` (2n+1, n), ``zsig`` (2n+1, 4), ``Pxz``, ``Kg``
     (n, 4), ``S``, ``Ls``, ``v4`` (4, 4).
@@ -288,13 +292,19 @@ def _update_nl(x, P, z, sigma, kind, ng, geo, scale_i, steer_i, gate, Wm, Wc, c,
                 v -= Ls[b, a] * Kg[r, b]
             Kg[r, a] = v * inv_s[a]
     for r in range(n):
+        if hold[r]:
+            continue
         acc = 0.0
         for a in range(k):
             acc += Kg[r, a] * y[a]
         x[r] += acc
     x[PSI] = _wrap(x[PSI])
+    # P - K Pxz^T - Pxz K^T + K S K^T with K's held rows zeroed: the usual P - Pxz S^-1 Pxz^T except on the
+    # held block, which stays.
     for r in range(n):
         for col in range(r, n):
+            if hold[r] and hold[col]:
+                continue
             acc = 0.0
             for a in range(k):
                 acc += Kg[r, a] * Pxz[col, a]
@@ -330,8 +340,10 @@ def _update_gyro(x, P, z, sigma, bias_i, gate, ph):  # noqa: ANN001, ANN202
 
 @njit(cache=True)
 def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, Wm, Wc, lam, ng, geo, scale_i, steer_i,  # noqa: ANN001, ANN201
-               steer_min_speed, gates, max_step, wsum):
+               steer_min_speed, gates, max_step, wsum, steer_hold):
     """Filter all events in time order; one stored state per distinct instant.
+
+    ``steer_hold`` (n,) bool: the states a steering update leaves alone (see :func:`_update_nl`).
 
     Returns ``T, X, PP`` (node times, filtered states and covariances), ``XP, FF, PK, DT`` (per step
     k -> k+1: predicted state, linearised kinematic transition, predicted kinematic covariance, dt) and
@@ -367,6 +379,7 @@ def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, Wm, Wc, lam, ng, ge
     Ls = np.zeros((4, 4))
     v4 = np.empty((4, 4))
     ph = np.empty(n)
+    no_hold = np.zeros(n, dtype=np.bool_)
     X[0] = x0
     for r in range(n):
         for col in range(n):
@@ -402,7 +415,8 @@ def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, Wm, Wc, lam, ng, ge
         else:
             k_dim = 4 if kind == ng else (1 if kind == ng + 1 else 2)
             ok = _update_nl(x, P, zs[e], sigmas[e], kind, ng, geo, scale_i, steer_i, gates[k_dim], Wm, Wc, c,
-                            wsum, L, inv_d, sig, zsig, Pxz, Kg, S, Ls, v4)
+                            wsum, L, inv_d, sig, zsig, Pxz, Kg, S, Ls, v4,
+                            steer_hold if kind == ng + 1 else no_hold)
         if ok:
             used[kind] += 1
         else:

@@ -91,11 +91,14 @@ class VectorUKF:
         self.x, self.P = x_pred, P_pred
         return StepRecord(x_pred.copy(), P_pred.copy(), cross)
 
-    def update(self, z: Array, hx: Callable[[Array], Array], R: Array, gate_chi2: float | None = None) -> bool:
+    def update(self, z: Array, hx: Callable[[Array], Array], R: Array, gate_chi2: float | None = None,
+               hold: Sequence[int] = ()) -> bool:
         """Correct with measurement ``z`` (k,), model ``hx`` ((m, n) -> (m, k)), noise ``R`` (k, k).
 
         Returns False (and leaves the state alone) when the squared Mahalanobis distance of the
-        innovation exceeds ``gate_chi2``.
+        innovation exceeds ``gate_chi2``. ``hold``: states the update leaves alone (Schmidt's consider
+        update: their gain rows are zero and the covariance is the one for that gain,
+        P - K Pxz^T - Pxz K^T + K S K^T).
         """
         sigmas = self._sigmas()
         zs = hx(sigmas)
@@ -112,10 +115,15 @@ class VectorUKF:
         dx = self._residual_x(sigmas, self.x)
         Pxz = (self.Wc[:, None] * dx).T @ dz
         K = Pxz @ S_inv
+        if len(hold):
+            K[list(hold)] = 0.0
         self.x = self.x + K @ y
         for i in self.angles:
             self.x[i] = wrap_angle(self.x[i])
-        self.P = self.P - K @ S @ K.T
+        if len(hold):
+            self.P = self.P - K @ Pxz.T - Pxz @ K.T + K @ S @ K.T
+        else:
+            self.P = self.P - K @ S @ K.T
         return True
 
 
