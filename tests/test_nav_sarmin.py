@@ -181,7 +181,7 @@ def test_sarmin_meets_the_accuracy_targets(scenario: str, sim_dir: Path,
             assert np.all(np.abs(b - ref) <= 0.2 * np.abs(ref)), gyro
     # The track's length: the wheels' common scale within 0.08 % of truth (test1-3 seed 1: -0.007, -0.067,
     # +0.016 %; 25 s of 3 cm/s GNSS velocity pin it to ~0.04 % 1-sigma; before the steering stopped
-    # updating the speed: -0.043, -0.091, +0.010 %).
+    # updating the speed: -0.043, -0.091, +0.016 %).
     scale_err = _wheel_scale_error(est, sim.truth_path)
     print(f"{scenario}: wheel scale error (common mode) {scale_err * 100:+.4f} %")
     assert abs(scale_err) < 8e-4, scale_err
