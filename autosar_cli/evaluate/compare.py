@@ -206,7 +206,7 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
                                                       info={**scaled.info, "track_scale": est.scale})
                 register(SARMIN_SCALED)
                 notes.append(f"{SARMIN_SCALED}: SAR-MIN's distances scaled by {est.scale * 100:+.4f} %, the scale at "
-                             f"which its {len(est.point_scales)} corner reflectors focus best with a ±28° beam "
+                             f"which its {len(est.point_scales)} corner reflectors focus sharpest with a ±28° beam "
                              f"(each alone: {', '.join(f'{v * 100:+.3f}' for v in est.point_scales)} %)")
 
     # The truth trajectory's reflector patches are every method's peak-loss reference: focus them first.
