@@ -468,8 +468,9 @@ def compare(
                                          "per method, compare.png, across_track.png, compare.md, compare.json.")],
     methods: Annotated[str, typer.Option("--methods", help="Comma-separated navigation methods (sar-min, ins, gnss, "
                                          "none, truth; sar-min+scale: SAR-MIN with its track's scale measured by "
-                                         "the radar on the truth's corner reflectors, ~20 wide-beam focusings)."
-                                         )] = "none,ins,sar-min,truth",
+                                         "the radar on the truth's corner reflectors, ~20 wide-beam focusings; "
+                                         "sar-min+af: the same on the brightest isolated points of SAR-MIN's "
+                                         "image, no truth needed).")] = "none,ins,sar-min,truth",
     truth: Annotated[Path | None, typer.Option("--truth", help="Truth sidecar (default: <log>.truth.h5).")] = None,
     config: ConfigOpt = None,
     overwrite: OverwriteOpt = False,

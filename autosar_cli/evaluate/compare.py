@@ -42,6 +42,8 @@ from autosar_cli.evaluate.evaluation import (
     load_truth,
     metrics_grid,
     radar_times,
+    radar_track,
+    track_distance,
 )
 from autosar_cli.evaluate.figures import plot_across_track, plot_images_side_by_side, plot_reflector_chips
 from autosar_cli.evaluate.reflectors import ReflectorPatches, focus_patches, predict_image_positions
@@ -54,7 +56,7 @@ from autosar_cli.nav.navigate import default_truth_path, navigate
 from autosar_cli.nav.trajectory import Trajectory
 from autosar_cli.run import FORMAT as RUN_FORMAT
 from autosar_cli.run import FORMAT_VERSION as RUN_FORMAT_VERSION
-from autosar_cli.sar.autofocus import estimate_track_scale, scale_track
+from autosar_cli.sar.autofocus import TrackScaleEstimate, bright_points, estimate_track_scale, scale_track
 from autosar_cli.sar.focus import FocusOptions, _usable_frames, focus_images, make_grid
 from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.store.drive import Drive
@@ -67,7 +69,11 @@ DEFAULT_METHODS = ("none", "ins", "sar-min", "truth")
 #: SAR-MIN with its track's scale measured by the radar on the corner reflectors (sar/autofocus.py); it needs the
 #: truth's reflector list to know where they are, and costs ~20 wide-beam focusings
 SARMIN_SCALED = "sar-min+scale"
-COMPARE_METHODS = (*NAV_METHODS, SARMIN_SCALED)
+#: SAR-MIN with its track's scale measured the same way on the brightest isolated points of its own image: no
+#: truth needed
+SARMIN_AUTOFOCUS = "sar-min+af"
+DERIVED = (SARMIN_SCALED, SARMIN_AUTOFOCUS)  # made from SAR-MIN's track, which is navigated for them
+COMPARE_METHODS = (*NAV_METHODS, *DERIVED)
 NEEDS_TRUTH = ("truth", SARMIN_SCALED)
 DRIVE = "drive.h5"
 
@@ -110,6 +116,22 @@ def auto_grid(drive_path: Path, trajectory: Trajectory, config: Config, options:
     return make_grid(replace(options, grid="auto"), geometry, config)
 
 
+def autofocus_track(drive_path: Path, trajectory: Trajectory, config: Config, options: FocusOptions
+                    ) -> tuple[Trajectory, TrackScaleEstimate | None, np.ndarray]:
+    """``trajectory`` scaled by the scale its own image's brightest isolated points focus sharpest at, with no
+    truth: the product image on the auto grid, :func:`~autosar_cli.sar.autofocus.bright_points` 3-12 m from the
+    radar's track, :func:`~autosar_cli.sar.autofocus.estimate_track_scale` on them. Returns the scaled track,
+    the estimate (None, and the track unchanged, when no point qualifies) and the points (P, 2; ENU m)."""
+    grid = auto_grid(drive_path, trajectory, config, options)
+    image = focus_images(drive_path, trajectory, config, options, grids=[grid]).images[0]
+    track = radar_track(trajectory, radar_times(drive_path), config)
+    points = bright_points(image.image, grid, track_distance(grid, track))
+    if len(points) == 0:
+        return trajectory, None, points
+    est = estimate_track_scale(drive_path, trajectory, config, points)
+    return scale_track(trajectory, est.scale), est, points
+
+
 def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
             methods: Sequence[str] = DEFAULT_METHODS, truth_path: str | Path | None = None,
             options: FocusOptions | None = None, overwrite: bool = False, progress: Progress | None = None,
@@ -145,9 +167,9 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
     t0 = time.perf_counter()
     trajectories: dict[str, Trajectory] = {}
     wanted = [m for m in methods if m not in skipped]
-    nav_wanted = [m for m in wanted if m != SARMIN_SCALED]
-    if SARMIN_SCALED in wanted and "sar-min" not in nav_wanted:
-        nav_wanted.append("sar-min")  # its base; compared only if asked for
+    nav_wanted = [m for m in wanted if m not in DERIVED]
+    if any(m in DERIVED for m in wanted) and "sar-min" not in nav_wanted:
+        nav_wanted.append("sar-min")  # their base; compared only if asked for
     for i, m in enumerate(nav_wanted):
         tick("navigate", i, len(nav_wanted))
         try:
@@ -157,7 +179,22 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
     tick("navigate", len(nav_wanted), len(nav_wanted))
     timings["navigate"] = time.perf_counter() - t0
     run_methods = [m for m in methods if m not in skipped
-                   and (m in trajectories or (m == SARMIN_SCALED and "sar-min" in trajectories))]
+                   and (m in trajectories or (m in DERIVED and "sar-min" in trajectories))]
+    if SARMIN_AUTOFOCUS in run_methods:
+        t0 = time.perf_counter()
+        tick("autofocus sar-min's track scale", 0, 1)
+        scaled, est, points = autofocus_track(out / DRIVE, trajectories["sar-min"], config, options)
+        tick("autofocus sar-min's track scale", 1, 1)
+        timings["autofocus"] = time.perf_counter() - t0
+        if est is None:
+            run_methods.remove(SARMIN_AUTOFOCUS)
+            skipped[SARMIN_AUTOFOCUS] = "SAR-MIN's image holds no bright isolated point 3-12 m from the track"
+        else:
+            trajectories[SARMIN_AUTOFOCUS] = replace(scaled, method=SARMIN_AUTOFOCUS, info={
+                **scaled.info, "track_scale": est.scale, "autofocus_points_enu": points.tolist()})
+            notes.append(f"{SARMIN_AUTOFOCUS}: SAR-MIN's distances scaled by {est.scale * 100:+.4f} %, the scale at "
+                         f"which the {len(points)} brightest isolated points of its image focus sharpest with a "
+                         f"±28° beam (each alone: {', '.join(f'{v * 100:+.3f}' for v in est.point_scales)} %)")
     if not run_methods:
         raise CompareError("no method left to compare: " + "; ".join(f"{k}: {v}" for k, v in skipped.items()))
 
