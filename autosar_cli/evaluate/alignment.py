@@ -66,3 +66,22 @@ def fit_se2(source: ArrayLike, target: ArrayLike, weights: ArrayLike | None = No
     c, s = math.cos(angle), math.sin(angle)
     t = cd - np.array([c * cs[0] - s * cs[1], s * cs[0] + c * cs[1]])
     return Se2(angle, (float(t[0]), float(t[1])))
+
+
+def fit_similarity_scale(source: ArrayLike, target: ArrayLike) -> float:
+    """The scale s of the similarity ``p -> s R p + t`` that fits ``source`` to ``target`` best in least squares
+    (Umeyama; the rotation is :func:`fit_se2`'s). ``s - 1`` is how much longer (> 0) the target's distances are
+    than the source's: for an estimated track against the truth at the same instants, the scale error of its
+    odometry, free of what its path length alone would add (lateral jitter lengthens a path without scaling it).
+    """
+    src = np.asarray(source, dtype=np.float64)[:, :2]
+    dst = np.asarray(target, dtype=np.float64)[:, :2]
+    if src.shape != dst.shape or len(src) < 2:
+        raise ValueError(f"fit_similarity_scale: need matching point sets of >= 2, got {src.shape} and {dst.shape}")
+    a, b = src - src.mean(axis=0), dst - dst.mean(axis=0)
+    spread = float(np.sum(a * a))
+    if spread == 0.0:
+        raise ValueError("fit_similarity_scale: the source points coincide")
+    dot = float(np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]))
+    cross = float(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]))
+    return math.hypot(dot, cross) / spread
