@@ -1,7 +1,8 @@
 """Point-target (corner reflector) analysis of a focused image: peak position, -3 dB widths, PSLR, ISLR.
 
 The image around the target is upsampled by zero-padding its 2-D spectrum (the image is band-limited,
-so this is exact interpolation), the peak is located on the fine grid, and two cuts through it are
+so this is exact interpolation), the peak is located on the fine grid and refined between its samples by
+a quadratic fit of the intensity around it (:func:`refine_peak`), and two cuts through it are
 measured: along ``range_dir`` (ground range, usually the grid's across axis) and perpendicular to it
 (cross-range). Main lobe = between the first minima either side of the peak; PSLR = highest sidelobe
 within the cut relative to the peak; ISLR = sidelobe energy over main-lobe energy along the cut.
@@ -51,6 +52,31 @@ def upsample_patch(patch: NDArray[np.complexfloating], factor: int) -> NDArray[n
     out = np.fft.ifft2(np.fft.ifftshift(big)) * factor**2
     # fftshift bookkeeping: sample (i, j) of the fine grid sits at coarse (i / factor, j / factor)
     return out
+
+
+def refine_peak(intensity: NDArray[np.floating], row: int, col: int) -> tuple[float, float]:
+    """Sub-sample offset (rows, cols; each within +-1) of the maximum of ``intensity`` near its sample
+    ``(row, col)``: the stationary point of the quadratic fitted in least squares to the 3 x 3 samples around
+    it. A main lobe sampled many times per width is a paraboloid near its top, so the fit removes the +-0.5
+    sample quantisation of the argmax (1.25 mm on the reflector patches, where the errors are quoted to
+    0.1 mm). At an edge, or where the fit has no maximum, the sample itself is returned (0, 0)."""
+    if not (0 < row < intensity.shape[0] - 1 and 0 < col < intensity.shape[1] - 1):
+        return 0.0, 0.0
+    w = np.asarray(intensity[row - 1:row + 2, col - 1:col + 2], dtype=np.float64)
+    # f(y, x) = a + b y + c x + d y^2 + e x^2 + g x y on the 3 x 3 stencil, in closed form
+    b = (w[2, :].sum() - w[0, :].sum()) / 6.0
+    c = (w[:, 2].sum() - w[:, 0].sum()) / 6.0
+    d = (w[0, :].sum() + w[2, :].sum() - 2.0 * w[1, :].sum()) / 6.0
+    e = (w[:, 0].sum() + w[:, 2].sum() - 2.0 * w[:, 1].sum()) / 6.0
+    g = (w[2, 2] + w[0, 0] - w[0, 2] - w[2, 0]) / 4.0
+    det = 4.0 * d * e - g * g
+    if not (d < 0.0 and det > 0.0):  # not a maximum
+        return 0.0, 0.0
+    dy = (-2.0 * e * b + g * c) / det
+    dx = (-2.0 * d * c + g * b) / det
+    if abs(dy) > 1.0 or abs(dx) > 1.0:  # beyond the stencil (a flat or noisy top): trust the argmax
+        return 0.0, 0.0
+    return float(dy), float(dx)
 
 
 def cut_metrics(x: NDArray[np.float64], mag: NDArray[np.float64]) -> CutMetrics:
@@ -112,9 +138,10 @@ def analyse_point_target(img: FocusedImage, target_enu: ArrayLike, *, name: str 
     fine = upsample_patch(patch, factor)
     fmag = np.abs(fine)
     fi, fj = np.unravel_index(int(np.argmax(fmag)), fmag.shape)
+    di, dj = refine_peak(fmag * fmag, int(fi), int(fj))
     # fine index -> coarse pixel index (fractional)
-    row = pr0 + fi / factor
-    col = pc0 + fj / factor
+    row = pr0 + (fi + di) / factor
+    col = pc0 + (fj + dj) / factor
     peak_xy = grid.pixel_enu(row, col)[:2]
     along = np.asarray(grid.along)
     across = np.asarray(grid.across)
