@@ -110,7 +110,8 @@ def _reporter(topic: str | None, name: str, min_interval_s: float = 0.25) -> Cal
 
 
 def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, method: str = "sar-min",
-              options: FocusOptions | None = None, truth_path: str | None = None, overwrite: bool = False,
+              options: FocusOptions | None = None, truth_path: str | None = None, autofocus: bool = False,
+              overwrite: bool = False,
               numba_threads: int | None = None, progress_topic: str | None = None,
               command: str = "") -> dict[str, Any]:
     """The Dask task of one drive: :func:`autosar_cli.run.run` into ``out_dir``; returns its status record.
@@ -129,7 +130,7 @@ def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, m
     t0 = time.perf_counter()
     try:
         manifest = run(logs, out_dir, config, method=method, options=options, truth_path=truth_path,
-                       overwrite=overwrite, progress=report, command=command)
+                       autofocus=autofocus, overwrite=overwrite, progress=report, command=command)
     except INPUT_ERRORS as exc:
         with contextlib.suppress(OSError):
             Path(out_dir).rmdir()  # only if run() left it empty: never touches an earlier run's products
@@ -183,8 +184,9 @@ def _dashboard(client: Any) -> str | None:
 
 
 def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, method: str = "sar-min",
-              options: FocusOptions | None = None, scheduler: str | None = None, workers: int | None = None,
-              retries: int = DEFAULT_RETRIES, numba_threads: int | None = None, overwrite: bool = False,
+              autofocus: bool = False, options: FocusOptions | None = None, scheduler: str | None = None,
+              workers: int | None = None, retries: int = DEFAULT_RETRIES, numba_threads: int | None = None,
+              overwrite: bool = False,
               progress: Callable[[dict[str, Any]], None] | None = None,
               on_cluster: Callable[[dict[str, Any]], None] | None = None, command: str = "") -> dict[str, Any]:
     """Run every log as its own drive into ``out_dir/<name>/`` on a Dask cluster; returns batch.json's content.
@@ -192,9 +194,10 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
     ``scheduler``: address of an existing scheduler (``tcp://host:8786``); else a LocalCluster of
     ``workers`` processes (default: one per core, at most one per drive). ``progress(event)`` gets
     ``{"drive", "stage", "done", "total"}`` events from the workers (stage ``start``, ``ingest``,
-    ``navigate``, ``focus``, ``done`` or ``failed``) and ``{"drive", "stage": "finished", "record"}``
-    once a drive's record is final. ``on_cluster(info)`` is called once the cluster is up (scheduler
-    address, dashboard link, workers). Never raises for a failing drive: look at ``failed``.
+    ``navigate``, ``autofocus`` (with ``autofocus``), ``focus``, ``done`` or ``failed``) and
+    ``{"drive", "stage": "finished", "record"}`` once a drive's record is final. ``on_cluster(info)`` is called
+    once the cluster is up (scheduler address, dashboard link, workers). Never raises for a failing drive: look
+    at ``failed``.
     """
     if not logs:
         raise BatchError("no drive logs given")
@@ -266,8 +269,9 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
         futures = {}
         for name, log in zip(names, paths, strict=True):
             fut = client.submit(run_drive, name, [log], str(out / name), config, method=method, options=options,
-                                overwrite=overwrite, numba_threads=numba_threads, progress_topic=topic,
-                                command=command, retries=retries, pure=False, key=f"autosar-run-{name}-{topic[-12:]}")
+                                autofocus=autofocus, overwrite=overwrite, numba_threads=numba_threads,
+                                progress_topic=topic, command=command, retries=retries, pure=False,
+                                key=f"autosar-run-{name}-{topic[-12:]}")
             futures[fut] = (name, log)
         records: dict[str, dict[str, Any]] = {}
         for fut in as_completed(futures):
@@ -295,8 +299,8 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
     manifest = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
         "python": platform.python_version(), "command": command, "config": config.source, "method": method,
-        "focus_options": asdict(options), "started": started, "cluster": cluster_info, "retries": retries,
-        "drives": ordered, "ok": n_ok, "failed": len(ordered) - n_ok, "wall_s": wall,
+        "autofocus": autofocus, "focus_options": asdict(options), "started": started, "cluster": cluster_info,
+        "retries": retries, "drives": ordered, "ok": n_ok, "failed": len(ordered) - n_ok, "wall_s": wall,
         "total_wall_s": time.perf_counter() - t_start,
         "drives_per_minute": 60.0 * n_ok / wall if wall > 0 else None,
     }

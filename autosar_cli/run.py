@@ -1,4 +1,10 @@
-"""``autosar run``: ingest -> navigate -> focus in one go, every product in one directory plus run.json.
+"""``autosar run``: ingest -> navigate [-> autofocus] -> focus in one go, every product in one directory plus
+run.json.
+
+The optional autofocus stage scales the navigated track by what the radar itself measures
+(:func:`autosar_cli.sar.autofocus.autofocus_track`: the scale at which the brightest isolated points of a first
+image focus sharpest): GNSS velocity pins a 25 s drive's odometry scale to ~0.04 %, which leaves reflectors
+120 m apart a few cm off; the radar measures it to ~0.02 % (docs/EVALUATION.md). It costs ~20-30 s per drive.
 
 run.json (format ``autosar-run`` version 1) records the inputs (path, size), the autosar version, the
 config file, the method and focus parameters, per-stage wall times and summaries, and the outputs
@@ -32,7 +38,7 @@ if TYPE_CHECKING:
 
 FORMAT = "autosar-run"
 FORMAT_VERSION = 1
-STAGES = ("ingest", "navigate", "focus")
+STAGES = ("ingest", "navigate", "autofocus", "focus")  #: in order; autofocus only when asked for
 
 #: Products inside a run directory.
 DRIVE = "drive.h5"
@@ -45,11 +51,14 @@ class RunError(ValueError):
 
 
 def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, method: str = "sar-min",
-        options: FocusOptions | None = None, truth_path: str | Path | None = None, overwrite: bool = False,
+        options: FocusOptions | None = None, truth_path: str | Path | None = None, autofocus: bool = False,
+        overwrite: bool = False,
         progress: Callable[[str, int, int], None] | None = None, command: str = "",
         fork_ingest: bool = False) -> dict[str, Any]:
     """Run the whole chain on ``logs`` into ``out_dir``; returns the manifest (also written as run.json).
 
+    ``autofocus``: scale the navigated track by the radar's own measure of it before focusing (the trajectory
+    written is then named ``METHOD+af``, its scale in its info and in the manifest's ``autofocus`` stage).
     ``progress(stage, done, total)`` is called as each stage advances. ``fork_ingest``: ingest in a forked child
     process while this one imports the later stages (see :func:`_ingest_beside_imports`; the ``autosar run``
     command sets it, library callers such as ``autosar batch``'s workers keep one process).
@@ -63,7 +72,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     manifest: dict[str, Any] = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
         "python": platform.python_version(), "command": command, "config": config.source, "inputs": inputs,
-        "method": method, "focus_options": None, "stages": {}, "outputs": {},
+        "method": method, "autofocus": autofocus, "focus_options": None, "stages": {}, "outputs": {},
     }
 
     def stage_progress(stage: str) -> Callable[[int, int], None]:
@@ -86,7 +95,8 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     if progress:
         progress("navigate", 0, 1)
     traj = navigate(out / DRIVE, method, config, truth_path=truth_path)
-    write_trajectory(out / TRAJECTORY, traj)
+    if not autofocus:
+        write_trajectory(out / TRAJECTORY, traj)
     if progress:
         progress("navigate", 1, 1)
     span = (traj.t_ns[-1] - traj.t_ns[0]) / 1e9
@@ -94,6 +104,25 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
                                       "samples": int(len(traj.t_ns)), "duration_s": float(span),
                                       "distance_m": float(np.sum(np.hypot(*np.diff(traj.rear_axle_enu, axis=0).T))),
                                       **{k: traj.info[k] for k in ("updates", "rejected") if k in traj.info}}
+    if autofocus:
+        from autosar_cli.sar.autofocus import autofocus_track
+
+        t = time.perf_counter()
+        if progress:
+            progress("autofocus", 0, 1)
+        focused = autofocus_track(out / DRIVE, traj, config, options)
+        if focused.applied:
+            traj = focused.labelled(f"{traj.method}+af")
+        write_trajectory(out / TRAJECTORY, traj)
+        if progress:
+            progress("autofocus", 1, 1)
+        est = focused.estimate
+        manifest["stages"]["autofocus"] = {
+            "wall_s": time.perf_counter() - t, "applied": focused.applied, "summary": focused.summary(),
+            "track_scale": est.scale if est is not None and focused.applied else 0.0,
+            "sharpest_scale": est.scale if est is not None else None,
+            "point_scales": est.point_scales.tolist() if est is not None else [],
+            "points_enu": focused.points_xy.tolist(), "method": traj.method}
     manifest["outputs"]["trajectory"] = TRAJECTORY
     if traj.info.get("truth"):
         manifest["truth"] = traj.info["truth"]

@@ -41,25 +41,22 @@ from autosar_cli.evaluate.evaluation import (
     evaluate_image,
     load_truth,
     metrics_grid,
-    radar_times,
-    radar_track,
-    track_distance,
 )
 from autosar_cli.evaluate.figures import plot_across_track, plot_images_side_by_side, plot_reflector_chips
 from autosar_cli.evaluate.reflectors import ReflectorPatches, focus_patches, predict_image_positions
 from autosar_cli.evaluate.report import fmt, json_safe, markdown_table, write_json, write_report, write_text
-from autosar_cli.evaluate.trajectory_metrics import common_instants, phase_centre_lever_arm, trajectory_errors
+from autosar_cli.evaluate.trajectory_metrics import common_instants, trajectory_errors
 from autosar_cli.ingest.pipeline import ingest
 from autosar_cli.nav.inputs import NavInputError
 from autosar_cli.nav.navigate import METHODS as NAV_METHODS
 from autosar_cli.nav.navigate import default_truth_path, navigate
-from autosar_cli.nav.trajectory import Trajectory
+from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm
 from autosar_cli.run import FORMAT as RUN_FORMAT
 from autosar_cli.run import FORMAT_VERSION as RUN_FORMAT_VERSION
-from autosar_cli.sar.autofocus import TrackScaleEstimate, bright_points, estimate_track_scale, scale_track
-from autosar_cli.sar.focus import FocusOptions, _usable_frames, focus_images, make_grid
+from autosar_cli.sar.autofocus import autofocus_track, estimate_track_scale, scale_track
+from autosar_cli.sar.focus import FocusOptions, auto_grid, focus_images
 from autosar_cli.sar.grid import FocusGrid
-from autosar_cli.store.drive import Drive
+from autosar_cli.store.drive import Drive, radar_times
 from autosar_cli.store.image import write_image
 from autosar_cli.store.trajectory import write_trajectory
 
@@ -107,29 +104,6 @@ def transform_grid(grid: FocusGrid, motion: Se2) -> FocusGrid:
     along, across = r @ np.asarray(grid.along), r @ np.asarray(grid.across)
     return replace(grid, origin=(float(origin[0]), float(origin[1])), along=(float(along[0]), float(along[1])),
                    across=(float(across[0]), float(across[1])))
-
-
-def auto_grid(drive_path: Path, trajectory: Trajectory, config: Config, options: FocusOptions) -> FocusGrid:
-    """The grid ``autosar focus --grid auto`` would use along ``trajectory``."""
-    with Drive(drive_path) as d:
-        geometry = _usable_frames(d.radar(), trajectory, config, options.min_speed_mps)
-    return make_grid(replace(options, grid="auto"), geometry, config)
-
-
-def autofocus_track(drive_path: Path, trajectory: Trajectory, config: Config, options: FocusOptions
-                    ) -> tuple[Trajectory, TrackScaleEstimate | None, np.ndarray]:
-    """``trajectory`` scaled by the scale its own image's brightest isolated points focus sharpest at, with no
-    truth: the product image on the auto grid, :func:`~autosar_cli.sar.autofocus.bright_points` 3-12 m from the
-    radar's track, :func:`~autosar_cli.sar.autofocus.estimate_track_scale` on them. Returns the scaled track,
-    the estimate (None, and the track unchanged, when no point qualifies) and the points (P, 2; ENU m)."""
-    grid = auto_grid(drive_path, trajectory, config, options)
-    image = focus_images(drive_path, trajectory, config, options, grids=[grid]).images[0]
-    track = radar_track(trajectory, radar_times(drive_path), config)
-    points = bright_points(image.image, grid, track_distance(grid, track))
-    if len(points) == 0:
-        return trajectory, None, points
-    est = estimate_track_scale(drive_path, trajectory, config, points)
-    return scale_track(trajectory, est.scale), est, points
 
 
 def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
@@ -183,18 +157,15 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
     if SARMIN_AUTOFOCUS in run_methods:
         t0 = time.perf_counter()
         tick("autofocus sar-min's track scale", 0, 1)
-        scaled, est, points = autofocus_track(out / DRIVE, trajectories["sar-min"], config, options)
+        focused = autofocus_track(out / DRIVE, trajectories["sar-min"], config, options)
         tick("autofocus sar-min's track scale", 1, 1)
         timings["autofocus"] = time.perf_counter() - t0
-        if est is None:
+        if not focused.applied:
             run_methods.remove(SARMIN_AUTOFOCUS)
-            skipped[SARMIN_AUTOFOCUS] = "SAR-MIN's image holds no bright isolated point 3-12 m from the track"
+            skipped[SARMIN_AUTOFOCUS] = f"SAR-MIN's {focused.summary()}"
         else:
-            trajectories[SARMIN_AUTOFOCUS] = replace(scaled, method=SARMIN_AUTOFOCUS, info={
-                **scaled.info, "track_scale": est.scale, "autofocus_points_enu": points.tolist()})
-            notes.append(f"{SARMIN_AUTOFOCUS}: SAR-MIN's distances scaled by {est.scale * 100:+.4f} %, the scale at "
-                         f"which the {len(points)} brightest isolated points of its image focus sharpest with a "
-                         f"±28° beam (each alone: {', '.join(f'{v * 100:+.3f}' for v in est.point_scales)} %)")
+            trajectories[SARMIN_AUTOFOCUS] = focused.labelled(SARMIN_AUTOFOCUS)
+            notes.append(f"{SARMIN_AUTOFOCUS}: SAR-MIN's {focused.summary()}")
     if not run_methods:
         raise CompareError("no method left to compare: " + "; ".join(f"{k}: {v}" for k, v in skipped.items()))
 

@@ -15,7 +15,6 @@ from typing import Any
 import h5py
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial import cKDTree
 
 from autosar_cli.config import Config
 from autosar_cli.evaluate.alignment import Se2
@@ -40,18 +39,17 @@ from autosar_cli.evaluate.trajectory_metrics import (
     TrajectoryMetrics,
     common_instants,
     local_alignments,
-    phase_centre_lever_arm,
     trajectory_errors,
     trajectory_metrics,
 )
 from autosar_cli.nav.baselines import from_truth
 from autosar_cli.nav.geodesy import GeodeticOrigin
-from autosar_cli.nav.trajectory import Trajectory
+from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm, radar_track
 from autosar_cli.sar.focus import FocusOptions, focus_images
-from autosar_cli.sar.grid import FocusGrid
+from autosar_cli.sar.grid import FocusGrid, track_distance, track_lattice
 from autosar_cli.sim.scene import KINDS
 from autosar_cli.sim.truth import TruthTargets, read_targets
-from autosar_cli.store.drive import Drive
+from autosar_cli.store.drive import radar_times
 from autosar_cli.store.image import FocusedImage
 
 #: Scene lines whose straightness is measured (kinds of autosar_cli.sim.scene.KINDS).
@@ -185,12 +183,6 @@ class Evaluation:
         return d
 
 
-def radar_times(drive_path: str | Path) -> NDArray[np.int64]:
-    """Frame start times (ns) of a drive's radar."""
-    with Drive(drive_path) as d:
-        return np.asarray(d.radar().t_ns, dtype=np.int64)
-
-
 def options_from_image(image: FocusedImage, config: Config) -> FocusOptions:
     """The focus options an image was made with (from its parameters; config defaults for anything missing)."""
     names = {f.name for f in fields(FocusOptions)}
@@ -228,49 +220,15 @@ def metrics_grid(grid: FocusGrid, oversample: int = METRICS_OVERSAMPLE) -> Focus
                    n_across=grid.n_across * oversample)
 
 
-def _track_lattice(grid: FocusGrid, track_xy: ArrayLike, lattice_m: float, *, covering: bool
-                   ) -> tuple[int, NDArray[np.float64]]:
-    """Distances (m) from the nearest point of ``track_xy`` (M, 2) to a lattice of the grid's pixels every ``step``
-    pixels (``lattice_m``): at the centres of step x step cells, or (``covering``) at pixels 0, step, 2 step, ...
-    up to one past the last row and column, so that the lattice encloses every pixel."""
-    step = max(1, int(round(lattice_m / grid.pixel_m)))
-    if covering:
-        rows = np.arange(grid.n_across // step + 2) * step
-        cols = np.arange(grid.n_along // step + 2) * step
-    else:
-        rows = np.minimum(np.arange(0, grid.n_across, step) + step // 2, grid.n_across - 1)
-        cols = np.minimum(np.arange(0, grid.n_along, step) + step // 2, grid.n_along - 1)
-    lattice = grid.pixel_enu(rows[:, None], cols[None, :])[..., :2]
-    dist = cKDTree(np.asarray(track_xy, dtype=np.float64)[:, :2]).query(lattice.reshape(-1, 2))[0]
-    return step, dist.reshape(lattice.shape[:2])
-
-
 def far_swath_mask(grid: FocusGrid, track_xy: ArrayLike, min_range_m: float,
                    lattice_m: float = FAR_SWATH_LATTICE_M) -> NDArray[np.bool_]:
     """Pixels (rows, cols) of ``grid`` at least ``min_range_m`` (horizontal) from the nearest point of the radar's
     track ``track_xy`` (M, 2) (ENU m, densely sampled: the distance is to its points). Each pixel takes the
     distance of the nearest point of a ``lattice_m`` lattice of the grid, so the edge is drawn to within
     ``lattice_m``."""
-    step, dist = _track_lattice(grid, track_xy, lattice_m, covering=False)
+    step, dist = track_lattice(grid, track_xy, lattice_m, covering=False)
     far = dist >= min_range_m
     return np.repeat(np.repeat(far, step, axis=0), step, axis=1)[:grid.n_across, :grid.n_along]
-
-
-def track_distance(grid: FocusGrid, track_xy: ArrayLike, lattice_m: float = FAR_SWATH_LATTICE_M) -> NDArray[np.float64]:
-    """Horizontal distance (m) of every pixel (rows, cols) of ``grid`` from the nearest point of the radar's track
-    ``track_xy`` (M, 2) (ENU m, densely sampled): exact on a ``lattice_m`` lattice, bilinear in between (the distance
-    is smooth away from the track; a few mm off at 2 m with the default lattice)."""
-    step, lat = _track_lattice(grid, track_xy, lattice_m, covering=True)
-
-    def weights(n: int) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-        pos = np.arange(n) / step
-        i0 = np.floor(pos).astype(np.int64)
-        return i0, (pos - i0)
-
-    r0, wr = weights(grid.n_across)
-    c0, wc = weights(grid.n_along)
-    by_rows = lat[r0] * (1.0 - wr)[:, None] + lat[r0 + 1] * wr[:, None]
-    return by_rows[:, c0] * (1.0 - wc) + by_rows[:, c0 + 1] * wc
 
 
 def image_metrics(image: FocusedImage, truth: Truth | None, alignment: Se2,
@@ -312,15 +270,6 @@ def image_metrics(image: FocusedImage, truth: Truth | None, alignment: Se2,
                "contrast": image_contrast(product.image)}
     return ImageMetrics(int(mask.sum()), image.grid.pixel_m, image_entropy(image.image, mask),
                         image_contrast(image.image, mask), straight, raw, far, range_normalised)
-
-
-def radar_track(trajectory: Trajectory, frame_t_ns: NDArray[np.int64], config: Config,
-                alignment: Se2 | None = None) -> NDArray[np.float64]:
-    """Horizontal ENU track (M, 2) (m) of the radar's mean phase centre at the radar frame times ``frame_t_ns``
-    (ns) within ``trajectory``'s span, moved by ``alignment`` if given."""
-    t = frame_t_ns[(frame_t_ns >= trajectory.t_ns[0]) & (frame_t_ns <= trajectory.t_ns[-1])]
-    xy = trajectory.body_points(t, phase_centre_lever_arm(config)[None])[:, 0, :2]
-    return xy if alignment is None else alignment.apply(xy)
 
 
 def evaluate_image(image: FocusedImage, trajectory: Trajectory, drive_path: str | Path, config: Config,
@@ -371,8 +320,8 @@ def evaluate_image(image: FocusedImage, trajectory: Trajectory, drive_path: str 
     ev.metrics_image = metrics_image
     # the far swath measured from the true track moved into this image's frame: the same piece of the scene for
     # every method of a comparison, whatever its own track
-    ev.image_metrics = image_metrics(metrics_image, truth, ev.alignment, image,
-                                     track_xy=radar_track(truth.trajectory, frames, config, ev.alignment.inverse()),
+    true_track = ev.alignment.inverse().apply(radar_track(truth.trajectory, frames, config))
+    ev.image_metrics = image_metrics(metrics_image, truth, ev.alignment, image, track_xy=true_track,
                                      max_range_m=config.radar.max_range_m)
     if patches is None:
         ev.notes.append("the truth lists no corner reflector")

@@ -15,20 +15,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from autosar_cli.config import Config
 from autosar_cli.evaluate.alignment import Se2, fit_se2
-from autosar_cli.nav.trajectory import Trajectory, antenna_lever_arms, relative_pose_error
+from autosar_cli.nav.trajectory import Trajectory, relative_pose_error
 
 Array = NDArray[np.float64]
 
 #: Travel distances (m) of the relative pose error, as ``evo_rpe --delta D --delta_unit m``.
 RPE_DELTAS_M = (1.0, 10.0)
-
-
-def phase_centre_lever_arm(config: Config) -> Array:
-    """Body-frame lever arm (3,) (m from the CoG) of the radar's mean phase centre: the mean of Tx and Rx means."""
-    tx, rx = antenna_lever_arms(config)
-    return 0.5 * (tx.mean(axis=0) + rx.mean(axis=0))
 
 
 @dataclass

@@ -143,6 +143,19 @@ def antenna_lever_arms(config: Config) -> tuple[Array, Array]:
     return lever + np.asarray(r.tx_positions_m) @ rot.T, lever + np.asarray(r.rx_positions_m) @ rot.T
 
 
+def phase_centre_lever_arm(config: Config) -> Array:
+    """Body-frame lever arm (3,) (m from the CoG) of the radar's mean phase centre: the mean of Tx and Rx means."""
+    tx, rx = antenna_lever_arms(config)
+    return 0.5 * (tx.mean(axis=0) + rx.mean(axis=0))
+
+
+def radar_track(trajectory: Trajectory, frame_t_ns: NDArray[np.int64], config: Config) -> Array:
+    """Horizontal ENU track (M, 2) (m) of the radar's mean phase centre at the radar frame times ``frame_t_ns``
+    (ns) within ``trajectory``'s span."""
+    t = frame_t_ns[(frame_t_ns >= trajectory.t_ns[0]) & (frame_t_ns <= trajectory.t_ns[-1])]
+    return trajectory.body_points(t, phase_centre_lever_arm(config)[None])[:, 0, :2]
+
+
 def radar_phase_centres(traj: Trajectory, frame_t_ns: ArrayLike, tx_start_offsets_s: ArrayLike,
                         config: Config) -> PhaseCentres:
     """Tx/Rx phase centres of every chirp from the trajectory, the mounting and the antenna layout.

@@ -29,9 +29,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from autosar_cli.config import Config
-from autosar_cli.nav.trajectory import Trajectory
-from autosar_cli.sar.focus import FocusOptions, focus_images
-from autosar_cli.sar.grid import FocusGrid, box_grid
+from autosar_cli.nav.trajectory import Trajectory, radar_track
+from autosar_cli.sar.focus import FocusOptions, auto_grid, focus_images
+from autosar_cli.sar.grid import FocusGrid, box_grid, track_distance
+from autosar_cli.store.drive import radar_times
 
 Array = NDArray[np.float64]
 
@@ -145,3 +146,51 @@ def bright_points(image: ArrayLike, grid: FocusGrid, range_m: ArrayLike, *, coun
         if all(float(np.hypot(*(xy - c))) >= min_separation_m for c in chosen):
             chosen.append(xy)
     return np.array(chosen, dtype=np.float64).reshape(-1, 2)
+
+
+@dataclass(frozen=True)
+class TrackAutofocus:
+    """Result of :func:`autofocus_track`."""
+
+    trajectory: Trajectory  #: the input scaled by ``estimate.scale`` (unchanged where ``reason`` says why not)
+    estimate: TrackScaleEstimate | None  #: None where no point qualified
+    points_xy: Array  #: (P, 2) the points measured, ENU m (where the unscaled track images them)
+    reason: str = ""  #: why the track was left unscaled ("" when it was scaled)
+
+    @property
+    def applied(self) -> bool:
+        return not self.reason
+
+    def labelled(self, method: str) -> Trajectory:
+        """The (scaled) trajectory named ``method``, its info holding the scale and the points measured."""
+        scale = self.estimate.scale if self.estimate is not None and self.applied else 0.0
+        return replace(self.trajectory, method=method, info={**self.trajectory.info, "track_scale": scale,
+                                                             "autofocus_points_enu": self.points_xy.tolist()})
+
+    def summary(self) -> str:
+        """One line: the scale applied and what measured it, or why none was."""
+        est = self.estimate
+        if est is None or not self.applied:
+            return f"track not scaled: {self.reason}"
+        return (f"distances scaled by {est.scale * 100:+.4f} %, the scale at which the {len(self.points_xy)} "
+                f"brightest isolated points of its image focus sharpest with a ±28° beam (each alone: "
+                f"{', '.join(f'{v * 100:+.3f}' for v in est.point_scales)} %)")
+
+
+def autofocus_track(drive_path: str | Path, trajectory: Trajectory, config: Config, options: FocusOptions
+                    ) -> TrackAutofocus:
+    """``trajectory`` scaled by the scale its own image's brightest isolated points focus sharpest at, with no
+    truth: the product image on the auto grid, :func:`bright_points` 3-12 m from the radar's track,
+    :func:`estimate_track_scale` on them. The track is left as it is when no point qualifies or when the optimum
+    lies at an end of the scales tried (beyond them the sweep says nothing)."""
+    grid = auto_grid(drive_path, trajectory, config, options)
+    image = focus_images(drive_path, trajectory, config, options, grids=[grid]).images[0]
+    track = radar_track(trajectory, radar_times(drive_path), config)
+    points = bright_points(image.image, grid, track_distance(grid, track))
+    if len(points) == 0:
+        return TrackAutofocus(trajectory, None, points, "no bright isolated point 3-12 m from the track")
+    est = estimate_track_scale(drive_path, trajectory, config, points)
+    if not est.scales[1] <= est.scale <= est.scales[-2]:
+        return TrackAutofocus(trajectory, est, points, f"the sharpest scale, {est.scale * 100:+.3f} %, is at an end "
+                              f"of the {est.scales[0] * 100:+.2f} … {est.scales[-1] * 100:+.2f} % tried")
+    return TrackAutofocus(scale_track(trajectory, est.scale), est, points)

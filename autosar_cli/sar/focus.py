@@ -16,7 +16,7 @@ import time
 from collections import Counter
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -144,6 +144,13 @@ def make_grid(options: FocusOptions, geometry: _Geometry, config: Config) -> Foc
                           max_range_m=config.radar.max_range_m)
     except GridError as exc:
         raise FocusError(f"grid: {exc}") from None
+
+
+def auto_grid(drive_path: str | Path, trajectory: Trajectory, config: Config, options: FocusOptions) -> FocusGrid:
+    """The grid ``autosar focus --grid auto`` would use along ``trajectory``."""
+    with Drive(drive_path) as d:
+        geometry = _usable_frames(d.radar(), trajectory, config, options.min_speed_mps)
+    return make_grid(replace(options, grid="auto"), geometry, config)
 
 
 def _candidate_pixels(grid: FocusGrid, ref: NDArray[np.float64], vel: NDArray[np.float64], half_width: float,

@@ -13,8 +13,12 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import cKDTree
 
 Array = NDArray[np.float64]
+
+#: Lattice (m) on which :func:`track_distance` measures a pixel's distance to the track (bilinear in between).
+TRACK_LATTICE_M = 0.25
 
 
 class GridError(ValueError):
@@ -125,3 +129,37 @@ def track_grid(track_xy: ArrayLike, *, side: float, pixel_m: float, height_m: fl
     origin = centre + (a0 + 0.5 * pixel_m) * along + (r0 + 0.5 * pixel_m) * across
     return FocusGrid((float(origin[0]), float(origin[1])), (float(along[0]), float(along[1])),
                      (float(across[0]), float(across[1])), float(pixel_m), n_along, n_across, float(height_m))
+
+
+def track_lattice(grid: FocusGrid, track_xy: ArrayLike, lattice_m: float, *, covering: bool
+                  ) -> tuple[int, NDArray[np.float64]]:
+    """Distances (m) from the nearest point of ``track_xy`` (M, 2) to a lattice of the grid's pixels every ``step``
+    pixels (``lattice_m``): at the centres of step x step cells, or (``covering``) at pixels 0, step, 2 step, ...
+    up to one past the last row and column, so that the lattice encloses every pixel."""
+    step = max(1, int(round(lattice_m / grid.pixel_m)))
+    if covering:
+        rows = np.arange(grid.n_across // step + 2) * step
+        cols = np.arange(grid.n_along // step + 2) * step
+    else:
+        rows = np.minimum(np.arange(0, grid.n_across, step) + step // 2, grid.n_across - 1)
+        cols = np.minimum(np.arange(0, grid.n_along, step) + step // 2, grid.n_along - 1)
+    lattice = grid.pixel_enu(rows[:, None], cols[None, :])[..., :2]
+    dist = cKDTree(np.asarray(track_xy, dtype=np.float64)[:, :2]).query(lattice.reshape(-1, 2))[0]
+    return step, dist.reshape(lattice.shape[:2])
+
+
+def track_distance(grid: FocusGrid, track_xy: ArrayLike, lattice_m: float = TRACK_LATTICE_M) -> NDArray[np.float64]:
+    """Horizontal distance (m) of every pixel (rows, cols) of ``grid`` from the nearest point of the radar's track
+    ``track_xy`` (M, 2) (ENU m, densely sampled): exact on a ``lattice_m`` lattice, bilinear in between (the distance
+    is smooth away from the track; a few mm off at 2 m with the default lattice)."""
+    step, lat = track_lattice(grid, track_xy, lattice_m, covering=True)
+
+    def weights(n: int) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        pos = np.arange(n) / step
+        i0 = np.floor(pos).astype(np.int64)
+        return i0, (pos - i0)
+
+    r0, wr = weights(grid.n_across)
+    c0, wc = weights(grid.n_along)
+    by_rows = lat[r0] * (1.0 - wr)[:, None] + lat[r0 + 1] * wr[:, None]
+    return by_rows[:, c0] * (1.0 - wc) + by_rows[:, c0 + 1] * wc

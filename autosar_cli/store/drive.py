@@ -36,6 +36,7 @@ from typing import Any
 import h5py
 import hdf5plugin  # noqa: F401  (registers the Blosc filter that raw radar cubes use)
 import numpy as np
+from numpy.typing import NDArray
 
 FORMAT = "autosar-drive"
 FORMAT_VERSION = 1
@@ -381,3 +382,9 @@ class Drive:
     def report(self) -> dict[str, Any]:
         """The ingest report stored in the provenance group."""
         return json.loads(self._file["provenance"].attrs.get("report", "{}"))
+
+
+def radar_times(drive_path: str | Path) -> NDArray[np.int64]:
+    """Frame start times (ns) of a drive's radar."""
+    with Drive(drive_path) as d:
+        return np.asarray(d.radar().t_ns, dtype=np.int64)
