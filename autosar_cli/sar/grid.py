@@ -13,7 +13,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial import cKDTree
 
 Array = NDArray[np.float64]
 
@@ -136,6 +135,8 @@ def track_lattice(grid: FocusGrid, track_xy: ArrayLike, lattice_m: float, *, cov
     """Distances (m) from the nearest point of ``track_xy`` (M, 2) to a lattice of the grid's pixels every ``step``
     pixels (``lattice_m``): at the centres of step x step cells, or (``covering``) at pixels 0, step, 2 step, ...
     up to one past the last row and column, so that the lattice encloses every pixel."""
+    from scipy.spatial import cKDTree  # focusing never needs it: keep scipy.spatial off its imports
+
     step = max(1, int(round(lattice_m / grid.pixel_m)))
     if covering:
         rows = np.arange(grid.n_across // step + 2) * step
