@@ -389,6 +389,10 @@ def test_run_autofocus_scales_the_track_before_focusing(ci_run: Path, ci_mcap, t
     c = base.rear_axle_enu.mean(axis=0)
     np.testing.assert_allclose(traj.rear_axle_enu, c + (1 + scale) * (base.rear_axle_enu - c), atol=1e-9)
     assert read_image(out / "image.h5").image.shape == read_image(ci_run / "image.h5").image.shape
+    r = runner.invoke(app, ["evaluate", str(out), "-o", str(tmp_path / "report"), "--json"])
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.stdout)["track_scale"] == scale
+    assert f"scaled by {scale * 100:+.4f} %" in (tmp_path / "report" / "report.md").read_text()
 
 
 @pytest.mark.slow

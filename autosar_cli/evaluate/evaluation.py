@@ -175,7 +175,8 @@ class Evaluation:
         """JSON-ready metrics (metrics.json)."""
         d: dict[str, Any] = {"format": "autosar-evaluation", "format_version": 1, "method": self.method,
                              "inputs": dict(self.inputs), "truth": str(self.truth.path) if self.truth else None,
-                             "summary": self.summary(), "image": self.image_metrics.to_dict(),
+                             "track_scale": self.trajectory.info.get("track_scale"), "summary": self.summary(),
+                             "image": self.image_metrics.to_dict(),
                              "trajectory": self.trajectory_metrics.to_dict() if self.trajectory_metrics else None,
                              "alignment": self.alignment.to_dict() if self.errors else None,
                              "range_direction": list(self.range_dir),
