@@ -106,17 +106,20 @@ def _fake_manifest() -> dict:
 
 def test_batch_existing_scheduler_retries_transient_errors(thread_cluster, tmp_path, monkeypatch):
     calls: dict[str, int] = {}
+    autofocus: set[bool] = set()
 
     def flaky_run(logs, out_dir, config, **kw):
         name = Path(out_dir).name
         calls[name] = calls.get(name, 0) + 1
+        autofocus.add(kw["autofocus"])
         if name == "broken" or calls[name] == 1:
             raise OSError(f"{logs[0]}: transient I/O error (attempt {calls[name]})")
         return _fake_manifest()
 
     monkeypatch.setattr(batch_mod, "run", flaky_run)
     m = run_batch([tmp_path / "flaky.mcap", tmp_path / "broken.mcap"], tmp_path / "out", load_config(),
-                  scheduler=thread_cluster.scheduler_address, retries=2)
+                  scheduler=thread_cluster.scheduler_address, retries=2, autofocus=True)
+    assert autofocus == {True} and m["autofocus"] is True  # `autosar batch --autofocus` reaches every drive's run
     recs = {d["name"]: d for d in m["drives"]}
     assert m["cluster"]["kind"] == "external"
     assert recs["flaky"]["status"] == "ok" and recs["flaky"]["attempts"] == 2
