@@ -376,7 +376,8 @@ def run(
         if "autofocus" in st:
             table.add_row("autofocus", f"{st['autofocus']['wall_s']:.2f}", st["autofocus"]["summary"])
             if not st["autofocus"]["applied"]:
-                err.print(f"[yellow]warning[/] autofocus: {st['autofocus']['summary']}", highlight=False)
+                err.print(f"[yellow]warning[/] autofocus: {st['autofocus']['summary']}", highlight=False,
+                          soft_wrap=True)
         table.add_row("focus", f"{st['focus']['wall_s']:.2f}",
                       f"{st['focus']['grid_shape'][0]} x {st['focus']['grid_shape'][1]} px, "
                       f"{st['focus']['backprojections'] / 1e9:.2f} G back-projections")

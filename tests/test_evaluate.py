@@ -395,6 +395,34 @@ def test_run_autofocus_scales_the_track_before_focusing(ci_run: Path, ci_mcap, t
     assert f"scaled by {scale * 100:+.4f} %" in (tmp_path / "report" / "report.md").read_text()
 
 
+@pytest.mark.parametrize("failure", ["no point", "sweep end"])
+def test_run_autofocus_leaves_the_track_alone_when_it_cannot_measure(failure: str, ci_run: Path, ci_mcap,
+                                                                    tmp_path: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """No bright isolated point in the first image, or the sharpest scale at an end of the sweep: the run goes on
+    with the navigated track (named sar-min), run.json says why, and the console warns."""
+    import autosar_cli.sar.autofocus as af
+
+    if failure == "no point":
+        monkeypatch.setattr(af, "bright_points", lambda *a, **k: np.zeros((0, 2)))
+    else:
+        def at_the_end(drive_path, trajectory, config, points, **kw):  # type: ignore[no-untyped-def]
+            s = af.DEFAULT_SCALES
+            return af.TrackScaleEstimate(float(s[-1]), np.full(len(points), s[-1]), s, np.zeros((s.size, len(points))))
+        monkeypatch.setattr(af, "estimate_track_scale", at_the_end)
+    out = tmp_path / "af"
+    r = runner.invoke(app, ["run", str(ci_mcap.log_path), "-o", str(out), "--autofocus"])
+    assert r.exit_code == 0, r.output
+    stage = json.loads((out / "run.json").read_text())["stages"]["autofocus"]
+    assert not stage["applied"] and stage["track_scale"] == 0.0 and stage["method"] == "sar-min"
+    reason = "no bright isolated point" if failure == "no point" else "is at an end of the"
+    assert reason in stage["summary"] and "warning" in r.stderr and reason in r.stderr
+    traj = read_trajectory(out / "trajectory.h5", covariance=False)
+    base = read_trajectory(ci_run / "trajectory.h5", covariance=False)
+    assert traj.method == "sar-min" and "track_scale" not in traj.info
+    np.testing.assert_array_equal(traj.rear_axle_enu, base.rear_axle_enu)
+
+
 @pytest.mark.slow
 def test_run_autofocus_puts_test2s_reflectors_within_3_cm(sim_dir: Path, tmp_path: Path) -> None:
     """The product path end to end on test2 seed 1, where SAR-MIN alone leaves its reflectors up to 3.03 cm off
