@@ -608,9 +608,8 @@ def batch(
 
         with _batch_progress(len(logs), enabled=not as_json) as update:
             manifest = run_batch(logs, output, cfg, method=method.value, autofocus=autofocus, scheduler=scheduler,
-                                 workers=workers,
-                                 retries=retries, numba_threads=numba_threads, overwrite=overwrite, progress=update,
-                                 on_cluster=on_cluster, command=" ".join(sys.argv))
+                                 workers=workers, retries=retries, numba_threads=numba_threads, overwrite=overwrite,
+                                 progress=update, on_cluster=on_cluster, command=" ".join(sys.argv))
         if as_json:
             out.print_json(json.dumps(manifest, default=str))
         else:

@@ -119,7 +119,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         est = focused.estimate
         manifest["stages"]["autofocus"] = {
             "wall_s": time.perf_counter() - t, "applied": focused.applied, "summary": focused.summary(),
-            "track_scale": est.scale if est is not None and focused.applied else 0.0,
+            "track_scale": focused.scale,
             "sharpest_scale": est.scale if est is not None else None,
             "point_scales": est.point_scales.tolist() if est is not None else [],
             "points_enu": focused.points_xy.tolist(), "method": traj.method}

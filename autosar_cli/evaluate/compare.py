@@ -53,7 +53,7 @@ from autosar_cli.nav.navigate import default_truth_path, navigate
 from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm
 from autosar_cli.run import FORMAT as RUN_FORMAT
 from autosar_cli.run import FORMAT_VERSION as RUN_FORMAT_VERSION
-from autosar_cli.sar.autofocus import autofocus_track, estimate_track_scale, scale_track
+from autosar_cli.sar.autofocus import TrackAutofocus, autofocus_track, estimate_track_scale, scale_track
 from autosar_cli.sar.focus import FocusOptions, auto_grid, focus_images
 from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.store.drive import Drive, radar_times
@@ -209,13 +209,11 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
                 est = estimate_track_scale(out / DRIVE, trajectories["sar-min"], config, centres["sar-min"])
                 tick("measure sar-min's track scale on the reflectors", 1, 1)
                 timings["track_scale"] = time.perf_counter() - t0
-                scaled = scale_track(trajectories["sar-min"], est.scale)
-                trajectories[SARMIN_SCALED] = replace(scaled, method=SARMIN_SCALED,
-                                                      info={**scaled.info, "track_scale": est.scale})
+                focused = TrackAutofocus(scale_track(trajectories["sar-min"], est.scale), est, centres["sar-min"],
+                                         points_label="corner reflectors")
+                trajectories[SARMIN_SCALED] = focused.labelled(SARMIN_SCALED)
                 register(SARMIN_SCALED)
-                notes.append(f"{SARMIN_SCALED}: SAR-MIN's distances scaled by {est.scale * 100:+.4f} %, the scale at "
-                             f"which its {len(est.point_scales)} corner reflectors focus sharpest with a ±28° beam "
-                             f"(each alone: {', '.join(f'{v * 100:+.3f}' for v in est.point_scales)} %)")
+                notes.append(f"{SARMIN_SCALED}: SAR-MIN's {focused.summary()}")
 
     # The truth trajectory's reflector patches are every method's peak-loss reference: focus them first.
     order = sorted(run_methods, key=lambda m: m != "truth")

@@ -209,7 +209,7 @@ def report_markdown(ev: Evaluation, figures: dict[str, str]) -> str:
     scale = ev.trajectory.info.get("track_scale")
     if scale is not None:  # autosar run --autofocus, compare's sar-min+scale / sar-min+af
         n = len(ev.trajectory.info.get("autofocus_points_enu", []))
-        measured = f" ({n} bright isolated points)" if n else ""
+        measured = f" (on {n} points)" if n else ""
         parts.append(f"\nThe navigated track's distances were scaled by {scale * 100:+.4f} % before focusing: the "
                      f"radar's own measure of the odometry's scale{measured}.\n")
     tm = ev.trajectory_metrics

@@ -156,15 +156,20 @@ class TrackAutofocus:
     estimate: TrackScaleEstimate | None  #: None where no point qualified
     points_xy: Array  #: (P, 2) the points measured, ENU m (where the unscaled track images them)
     reason: str = ""  #: why the track was left unscaled ("" when it was scaled)
+    points_label: str = "brightest isolated points of its image"  #: what the points are, for :meth:`summary`
 
     @property
     def applied(self) -> bool:
         return not self.reason
 
+    @property
+    def scale(self) -> float:
+        """The scale applied to the track (0 where none was)."""
+        return self.estimate.scale if self.estimate is not None and self.applied else 0.0
+
     def labelled(self, method: str) -> Trajectory:
         """The (scaled) trajectory named ``method``, its info holding the scale and the points measured."""
-        scale = self.estimate.scale if self.estimate is not None and self.applied else 0.0
-        return replace(self.trajectory, method=method, info={**self.trajectory.info, "track_scale": scale,
+        return replace(self.trajectory, method=method, info={**self.trajectory.info, "track_scale": self.scale,
                                                              "autofocus_points_enu": self.points_xy.tolist()})
 
     def summary(self) -> str:
@@ -173,7 +178,7 @@ class TrackAutofocus:
         if est is None or not self.applied:
             return f"track not scaled: {self.reason}"
         return (f"distances scaled by {est.scale * 100:+.4f} %, the scale at which the {len(self.points_xy)} "
-                f"brightest isolated points of its image focus sharpest with a ±28° beam (each alone: "
+                f"{self.points_label} focus sharpest with a ±28° beam (each alone: "
                 f"{', '.join(f'{v * 100:+.3f}' for v in est.point_scales)} %)")
 
 
