@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: setup test demo bench lint clean sample-logs
+.PHONY: setup test demo bench bench-paper lint clean sample-logs
 
 setup: $(STAMP)
 
@@ -35,6 +35,11 @@ bench: setup
 	$(BIN)/python benches/bench_ingest.py
 	$(BIN)/python benches/bench_navigate.py
 	$(BIN)/python benches/bench_focus.py
+	$(BIN)/python benches/bench_run.py
+
+# The paper's comparison (issue 6's figures) on test1-3, seeds 0-9: ~35 min (1.2 min per drive).
+bench-paper: setup
+	$(BIN)/python benches/bench_paper.py
 
 lint: setup
 	$(BIN)/ruff check autosar_cli tests benches

@@ -577,17 +577,18 @@ def test_compare_cli_on_ci(ci_mcap, tmp_path: Path) -> None:
 
 def test_compare_sarmin_scaled_alone_on_ci(ci_mcap, tmp_path: Path) -> None:
     """sar-min+scale without sar-min itself: SAR-MIN is navigated as its base but not compared; its track is
-    SAR-MIN's scaled by the note's figure (the ci drive is 2.4 m long: the scale is barely observable there,
-    the plumbing is what is tested)."""
+    SAR-MIN's scaled by the figure in its info and the note (the ci drive is 2.4 m long: the scale is barely
+    observable there, the plumbing is what is tested)."""
     result = compare([ci_mcap.log_path], tmp_path / "cmp", CFG, methods=["sar-min+scale"])
     assert result["methods"] == ["sar-min+scale"] and result["skipped"] == {}
-    note = next(n for n in result["notes"] if n.startswith("sar-min+scale:"))
-    scale = float(note.split("scaled by ")[1].split(" %")[0]) / 100
-    assert abs(scale) <= 3e-3  # within the sweep
     traj = read_trajectory(tmp_path / "cmp" / "sar-min+scale" / "trajectory.h5", covariance=False)
     assert traj.method == "sar-min+scale"
+    scale = traj.info["track_scale"]
+    assert abs(scale) <= 3e-3  # within the sweep
+    note = next(n for n in result["notes"] if n.startswith("sar-min+scale:"))
+    assert f"{scale * 100:+.4f} %" in note
     base = navigate(tmp_path / "cmp" / "drive.h5", "sar-min", CFG)
-    np.testing.assert_allclose(traj.speed, base.speed * (1 + scale), rtol=1e-5)  # the note's scale, 4 digits
+    np.testing.assert_allclose(traj.speed, base.speed * (1 + scale), rtol=1e-9)
     assert not (tmp_path / "cmp" / "sar-min").exists()
 
 
