@@ -218,6 +218,35 @@ def test_steering_does_not_bias_the_speed_on_test2(sim_dir: Path, tmp_path_facto
 
 
 @pytest.mark.slow
+def test_sarmin_speed_scale_is_what_the_gnss_velocity_allows_on_test2(sim_dir: Path,
+                                                                     tmp_path_factory: pytest.TempPathFactory) -> None:
+    """test2's reflectors are up to 3 cm off with the whole-track alignment because SAR-MIN's track is 0.07 % too long
+    (docs/EVALUATION.md). Nothing aboard measures speed better than the GNSS velocity (3 cm/s white at 10 Hz): on
+    this drive its mean along-track error is +3.1 mm/s, 1.7 standard errors, and SAR-MIN's wheel scale is that draw
+    to 0.001 % (measured: -0.0673 % against the GNSS's +0.0681 %). Over seeds 10-39 (benches/bench_nav_seeds.py)
+    SAR-MIN's scale on test2 scatters by ~0.05 % RMS, the GNSS velocity alone by ~0.04 %."""
+    sim, drive = _drive(sim_dir, tmp_path_factory, "test2")
+    with Drive(drive) as d:
+        inputs = load_inputs(d, CFG)
+    gnss = inputs.gnss_velocity
+    t_ns = inputs.t0_ns + np.round(gnss.t * 1e9).astype(np.int64)
+    with h5py.File(sim.truth_path, "r") as f:
+        true_t_ns = f["sensors/gnss_cog/t_ns"][()]
+        true_velocity = f["sensors/gnss_cog/velocity_enu"][()][:, :2]
+    assert np.array_equal(t_ns, true_t_ns)  # every fix ingested, at its measurement time
+    speed = np.hypot(*true_velocity.T)
+    moving = speed >= 0.2
+    along = np.sum((gnss.z - true_velocity)[moving] * (true_velocity[moving] / speed[moving, None]), axis=1)
+    mean_speed = speed[moving].mean()
+    gnss_bias, gnss_se = along.mean() / mean_speed, along.std() / math.sqrt(along.size) / mean_speed
+    wheel_scale_error = _wheel_scale_error(navigate(drive, "sar-min", CFG), sim.truth_path)
+    print(f"test2: GNSS velocity {gnss_bias * 100:+.4f} % fast ({gnss_bias / gnss_se:.1f} standard errors); SAR-MIN's "
+          f"wheel scale error {wheel_scale_error * 100:+.4f} %")
+    assert gnss_bias > 1.5 * gnss_se  # the draw the 3 cm is lost to
+    assert abs(wheel_scale_error + gnss_bias) < 1e-4  # the wheels scaled to the GNSS speed: too low by its bias
+
+
+@pytest.mark.slow
 def test_sarmin_dead_reckons_through_a_10s_gnss_outage_on_test2(sim_dir: Path,
                                                                  tmp_path_factory: pytest.TempPathFactory) -> None:
     import dataclasses

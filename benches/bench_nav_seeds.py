@@ -1,0 +1,123 @@
+"""Benchmark SAR-MIN's accuracy over many seeds, navigation only: the statistics one seed cannot give.
+
+Usage: python benches/bench_nav_seeds.py [--scenarios test1,test2,test3] [--seeds 10-69]
+                                         [--gnss-position-std 0.5,2] [--output benches/results/nav_seeds.json]
+
+For every filter setting, scenario and seed: ``simulate`` with the radar at 20 Hz instead of 990 Hz (the navigation
+sensors draw from their own random streams, so their samples are those of the full simulation; ~2.5 s per drive
+instead of ~35 s), ``ingest``, ``navigate --method sar-min``, and against the truth at 100 Hz while moving, at the
+radar's mean phase centre: the track's scale (similarity fitted to the truth's, - 1; below 0 the track is too long),
+its aligned RMSE and maximum after the rigid SE(2) alignment, the absolute RMSE, and what the GNSS velocity alone
+says of the scale (its mean along-track error over the drive: benches/bench_paper.py). A reflector's whole-track
+aligned error is about the scale times its along-track distance from the track's centre: 0.055 % is 3 cm at 55 m.
+Prints one line per setting and scenario; writes the rows and the summary as JSON.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_paper import gnss_velocity_scale, parse_seeds  # noqa: E402
+
+RESULTS = Path(__file__).resolve().parent / "results"
+NAV_ONLY_PRF_HZ = 20.0
+SCALE_LIMIT = 5.5e-4  #: |scale| above it puts a reflector 55 m from the track's centre more than 3 cm off
+
+
+def measure(scenario: str, seed: int, config: Any, work: Path) -> dict[str, float]:
+    from autosar_cli.evaluate.alignment import fit_se2, fit_similarity_scale
+    from autosar_cli.evaluate.trajectory_metrics import common_instants
+    from autosar_cli.ingest.pipeline import ingest
+    from autosar_cli.nav.baselines import from_truth
+    from autosar_cli.nav.navigate import navigate
+    from autosar_cli.nav.trajectory import phase_centre_lever_arm
+    from autosar_cli.sim.simulate import simulate
+
+    log = work / f"{scenario}_s{seed}.mcap"
+    sim = simulate(scenario, log, seed=seed, config=config)
+    drive = work / f"{scenario}_s{seed}.h5"
+    ingest([log], drive, config=config)
+    est = navigate(drive, "sar-min", config)
+    truth = from_truth(str(sim.truth_path), est.origin, config)
+    t = common_instants(est, truth)
+    lever = phase_centre_lever_arm(config)[None]
+    e_xy, r_xy = est.body_points(t, lever)[:, 0, :2], truth.body_points(t, lever)[:, 0, :2]
+    residual = np.hypot(*(fit_se2(e_xy, r_xy).apply(e_xy) - r_xy).T)
+    gnss, _ = gnss_velocity_scale(scenario, seed)
+    for p in (log, drive, sim.truth_path):
+        Path(p).unlink(missing_ok=True)
+    return {"scale_pct": 100 * (fit_similarity_scale(e_xy, r_xy) - 1.0), "gnss_velocity_scale_pct": 100 * gnss,
+            "aligned_rmse_cm": 100 * float(np.sqrt(np.mean(residual**2))),
+            "aligned_max_cm": 100 * float(residual.max()),
+            "abs_rmse_m": float(np.sqrt(np.mean(np.sum((e_xy - r_xy) ** 2, axis=1))))}
+
+
+def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    scale = np.array([r["scale_pct"] for r in rows])
+    gnss = np.array([r["gnss_velocity_scale_pct"] for r in rows])
+    aligned_max = [r["aligned_max_cm"] for r in rows]
+    return {"drives": len(rows), "scale_rms_pct": round(float(np.sqrt(np.mean(scale**2))), 4),
+            "scale_mean_pct": round(float(scale.mean()), 4),
+            "gnss_velocity_scale_rms_pct": round(float(np.sqrt(np.mean(gnss**2))), 4),
+            "scale_correlation_with_gnss_velocity": round(float(np.corrcoef(scale, gnss)[0, 1]), 3),
+            "scale_beyond_limit": int(np.sum(np.abs(scale) > 100 * SCALE_LIMIT)),
+            "aligned_rmse_mean_cm": round(statistics.fmean(r["aligned_rmse_cm"] for r in rows), 3),
+            "aligned_max_median_cm": round(statistics.median(aligned_max), 3),
+            "aligned_max_p90_cm": round(float(np.percentile(aligned_max, 90)), 3),
+            "abs_rmse_mean_m": round(statistics.fmean(r["abs_rmse_m"] for r in rows), 4)}
+
+
+def main() -> None:
+    from autosar_cli.config import load_config
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenarios", default="test1,test2,test3")
+    ap.add_argument("--seeds", default="10-69", help="e.g. 10-69 (held out from the tests' seed 1 and "
+                                                      "bench_paper's 0-9)")
+    ap.add_argument("--gnss-position-std", default=None,
+                    help="comma-separated navigation.gnss_position_std_m values to compare (default: the config's)")
+    ap.add_argument("--output", type=Path, default=RESULTS / "nav_seeds.json")
+    args = ap.parse_args()
+    base = load_config()
+    config = dataclasses.replace(base, radar=dataclasses.replace(base.radar, prf_hz=NAV_ONLY_PRF_HZ))
+    stds = ([float(v) for v in args.gnss_position_std.split(",")] if args.gnss_position_std
+            else [base.navigation.gnss_position_std_m])
+    rows: list[dict[str, Any]] = []
+    summary: dict[str, Any] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for std in stds:
+            cfg = dataclasses.replace(config, navigation=dataclasses.replace(config.navigation,
+                                                                             gnss_position_std_m=std))
+            for scenario in args.scenarios.split(","):
+                t = time.perf_counter()
+                these = [{"gnss_position_std_m": std, "scenario": scenario, "seed": seed,
+                          **{k: round(v, 4) for k, v in measure(scenario, seed, cfg, Path(tmp)).items()}}
+                         for seed in parse_seeds(args.seeds)]
+                rows += these
+                s = summarise(these)
+                summary[f"{scenario} gnss_position_std_m={std:g}"] = s
+                print(f"{scenario}, gnss_position_std_m {std:g}: {s['drives']} drives, "
+                      f"scale RMS {s['scale_rms_pct']:.4f} % "
+                      f"(GNSS velocity alone {s['gnss_velocity_scale_rms_pct']:.4f} %, correlation "
+                      f"{s['scale_correlation_with_gnss_velocity']:.2f}), |scale| > {100 * SCALE_LIMIT:.3f} % on "
+                      f"{s['scale_beyond_limit']}, aligned RMSE {s['aligned_rmse_mean_cm']:.2f} cm, aligned max median "
+                      f"{s['aligned_max_median_cm']:.2f} / p90 {s['aligned_max_p90_cm']:.2f} cm, abs RMSE "
+                      f"{s['abs_rmse_mean_m']:.3f} m ({time.perf_counter() - t:.0f} s)", flush=True)
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    args.output.write_text(json.dumps({"benchmark": "nav_seeds", "radar_prf_hz": NAV_ONLY_PRF_HZ, "summary": summary,
+                                       "rows": rows}, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
