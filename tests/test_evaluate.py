@@ -666,6 +666,8 @@ def test_paper_comparison(scenario: str, sim_dir: Path, tmp_path_factory: pytest
     # track RMSE 2.4 cm, docs/EVALUATION.md): its reflectors measured 0.19-3.03 cm (seed 1), so 3.5 cm there;
     # aligned on the 10 m of track around each reflector they are within 1 cm (the 3 cm limit). With the scale the
     # radar measures (compare's sar-min+scale) they are within 3 cm: test_radar_measured_scale_puts_test2s_...
+    # Over seeds 0-9 (benches/bench_paper.py): within 3 cm on 10/10 drives of test1 and test3, 7/10 of test2 (max
+    # 3.54 cm, seed 3, whose GNSS velocity ran 2 standard errors fast); with the local alignment on all 30.
     whole_track = 0.035 if scenario == "test2" else 0.03
     for r in sar:
         assert r["aligned_error_m"] < whole_track, r

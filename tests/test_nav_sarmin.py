@@ -223,8 +223,8 @@ def test_sarmin_speed_scale_is_what_the_gnss_velocity_allows_on_test2(sim_dir: P
     """test2's reflectors are up to 3 cm off with the whole-track alignment because SAR-MIN's track is 0.07 % too long
     (docs/EVALUATION.md). Nothing aboard measures speed better than the GNSS velocity (3 cm/s white at 10 Hz): on
     this drive its mean along-track error is +3.1 mm/s, 1.7 standard errors, and SAR-MIN's wheel scale is that draw
-    to 0.001 % (measured: -0.0673 % against the GNSS's +0.0681 %). Over seeds 10-39 (benches/bench_nav_seeds.py)
-    SAR-MIN's scale on test2 scatters by ~0.05 % RMS, the GNSS velocity alone by ~0.04 %."""
+    to 0.001 % (measured: -0.0673 % against the GNSS's +0.0681 %). benches/bench_nav_seeds.py:
+    SAR-MIN's scale on test2 scatters by 0.047 % RMS (seeds 10-69), the GNSS velocity alone by 0.037 %."""
     sim, drive = _drive(sim_dir, tmp_path_factory, "test2")
     with Drive(drive) as d:
         inputs = load_inputs(d, CFG)
