@@ -35,7 +35,7 @@ from autosar_cli.evaluate.trajectory_metrics import (
 )
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.nav.navigate import navigate
-from autosar_cli.nav.trajectory import phase_centre_lever_arm
+from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm
 from autosar_cli.sar.autofocus import _parabola_peak, bright_points, point_sharpness, scale_track
 from autosar_cli.sar.grid import FocusGrid, box_grid, track_distance
 from autosar_cli.store.drive import radar_times
@@ -575,21 +575,28 @@ def test_compare_cli_on_ci(ci_mcap, tmp_path: Path) -> None:
     assert max(len(line) for line in table.splitlines()) <= 80
 
 
+def _check_scaled_sarmin(result: dict[str, Any], out: Path, method: str) -> Trajectory:
+    """A radar-scaled SAR-MIN in a comparison: its scale (trajectory info) is within the sweep and in the note, its
+    speed is SAR-MIN's times it, and SAR-MIN itself (its base, not asked for) left no directory. Returns its track."""
+    traj = read_trajectory(out / method / "trajectory.h5", covariance=False)
+    scale = traj.info["track_scale"]
+    assert abs(scale) <= 3e-3  # within the sweep
+    note = next(n for n in result["notes"] if n.startswith(f"{method}:"))
+    assert f"{scale * 100:+.4f} %" in note
+    base = navigate(out / "drive.h5", "sar-min", CFG)
+    np.testing.assert_allclose(traj.speed, base.speed * (1 + scale), rtol=1e-9)
+    assert not (out / "sar-min").exists()
+    return traj
+
+
 def test_compare_sarmin_scaled_alone_on_ci(ci_mcap, tmp_path: Path) -> None:
     """sar-min+scale without sar-min itself: SAR-MIN is navigated as its base but not compared; its track is
     SAR-MIN's scaled by the figure in its info and the note (the ci drive is 2.4 m long: the scale is barely
     observable there, the plumbing is what is tested)."""
     result = compare([ci_mcap.log_path], tmp_path / "cmp", CFG, methods=["sar-min+scale"])
     assert result["methods"] == ["sar-min+scale"] and result["skipped"] == {}
-    traj = read_trajectory(tmp_path / "cmp" / "sar-min+scale" / "trajectory.h5", covariance=False)
+    traj = _check_scaled_sarmin(result, tmp_path / "cmp", "sar-min+scale")
     assert traj.method == "sar-min+scale"
-    scale = traj.info["track_scale"]
-    assert abs(scale) <= 3e-3  # within the sweep
-    note = next(n for n in result["notes"] if n.startswith("sar-min+scale:"))
-    assert f"{scale * 100:+.4f} %" in note
-    base = navigate(tmp_path / "cmp" / "drive.h5", "sar-min", CFG)
-    np.testing.assert_allclose(traj.speed, base.speed * (1 + scale), rtol=1e-9)
-    assert not (tmp_path / "cmp" / "sar-min").exists()
 
 
 def test_compare_sarmin_autofocus_needs_no_truth(ci_mcap, tmp_path: Path) -> None:
@@ -599,15 +606,9 @@ def test_compare_sarmin_autofocus_needs_no_truth(ci_mcap, tmp_path: Path) -> Non
     shutil.copy(ci_mcap.log_path, log)
     result = compare([log], tmp_path / "cmp", CFG, methods=["sar-min+af"])
     assert result["methods"] == ["sar-min+af"] and result["skipped"] == {}, result["skipped"]
-    traj = read_trajectory(tmp_path / "cmp" / "sar-min+af" / "trajectory.h5", covariance=False)
-    scale = traj.info["track_scale"]
+    traj = _check_scaled_sarmin(result, tmp_path / "cmp", "sar-min+af")
     points = np.asarray(traj.info["autofocus_points_enu"])
-    assert abs(scale) <= 3e-3 and points.ndim == 2 and points.shape[1] == 2 and 1 <= len(points) <= 8
-    note = next(n for n in result["notes"] if n.startswith("sar-min+af:"))
-    assert f"{scale * 100:+.4f} %" in note
-    base = navigate(tmp_path / "cmp" / "drive.h5", "sar-min", CFG)
-    np.testing.assert_allclose(traj.speed, base.speed * (1 + scale), rtol=1e-9)
-    assert not (tmp_path / "cmp" / "sar-min").exists()
+    assert points.ndim == 2 and points.shape[1] == 2 and 1 <= len(points) <= 8
 
 
 def test_compare_skips_truth_without_a_sidecar(ci_mcap, tmp_path: Path) -> None:
