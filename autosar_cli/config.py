@@ -223,7 +223,11 @@ class NavigationConfig:
     speed_noise_mps2: float = 0.3
     yaw_rate_noise_radps2: float = 0.08  # process: white yaw acceleration, rad/s^2 per sqrt(Hz)
     position_noise_m: float = 0.002  # process: unmodelled position jitter, m per sqrt(Hz)
-    gnss_position_std_m: float = 0.5  # GNSS position noise used by the filter (its errors are slow, not white)
+    # GNSS position error as the filter models it. "gauss_markov": two states (east, north) with the GNSS
+    # sensor's own error table (horizontal_std_m, correlation_time_s) plus white_std_m per fix; "white":
+    # independent fixes of gnss_position_std_m (the slow error then leaks into the speed, see EVALUATION.md).
+    gnss_error_model: Literal["gauss_markov", "white"] = "gauss_markov"
+    gnss_position_std_m: float = 0.5  # per-fix noise of the "white" model only
     steering_min_speed_mps: float = 1.0  # below it the steering model atan(L omega / v) is not used
     gate_probability: float = 0.9999  # chi-square gate of each update
     max_step_s: float = 0.05  # longest single prediction step (dead reckoning through gaps)

@@ -1,7 +1,8 @@
 """Benchmark SAR-MIN's accuracy over many seeds, navigation only: the statistics one seed cannot give.
 
 Usage: python benches/bench_nav_seeds.py [--scenarios test1,test2,test3] [--seeds 10-69]
-                                         [--gnss-position-std 0.5,2] [--output benches/results/nav_seeds.json]
+                                         [--gnss-models gauss_markov,white:0.5,white:2]
+                                         [--output benches/results/nav_seeds.json]
 
 For every filter setting, scenario and seed: ``simulate`` with the radar at 20 Hz instead of 990 Hz (the navigation
 sensors draw from their own random streams, so their samples are those of the full simulation; ~2.5 s per drive
@@ -85,29 +86,32 @@ def main() -> None:
     ap.add_argument("--scenarios", default="test1,test2,test3")
     ap.add_argument("--seeds", default="10-69", help="e.g. 10-69 (held out from the tests' seed 1 and "
                                                       "bench_paper's 0-9)")
-    ap.add_argument("--gnss-position-std", default=None,
-                    help="comma-separated navigation.gnss_position_std_m values to compare (default: the config's)")
+    ap.add_argument("--gnss-models", default=None,
+                    help="comma-separated GNSS error models to compare: gauss_markov, or white:<std m> "
+                         "(navigation.gnss_error_model, gnss_position_std_m; default: the config's)")
     ap.add_argument("--output", type=Path, default=RESULTS / "nav_seeds.json")
     args = ap.parse_args()
     base = load_config()
     config = dataclasses.replace(base, radar=dataclasses.replace(base.radar, prf_hz=NAV_ONLY_PRF_HZ))
-    stds = ([float(v) for v in args.gnss_position_std.split(",")] if args.gnss_position_std
-            else [base.navigation.gnss_position_std_m])
+    nav = base.navigation
+    default = "gauss_markov" if nav.gnss_error_model == "gauss_markov" else f"white:{nav.gnss_position_std_m:g}"
+    models = args.gnss_models.split(",") if args.gnss_models else [default]
     rows: list[dict[str, Any]] = []
     summary: dict[str, Any] = {}
     with tempfile.TemporaryDirectory() as tmp:
-        for std in stds:
-            cfg = dataclasses.replace(config, navigation=dataclasses.replace(config.navigation,
-                                                                             gnss_position_std_m=std))
+        for model in models:
+            kind, _, std = model.partition(":")
+            setting = {"gnss_error_model": kind, **({"gnss_position_std_m": float(std)} if std else {})}
+            cfg = dataclasses.replace(config, navigation=dataclasses.replace(nav, **setting))  # type: ignore[arg-type]
             for scenario in args.scenarios.split(","):
                 t = time.perf_counter()
-                these = [{"gnss_position_std_m": std, "scenario": scenario, "seed": seed,
+                these = [{"gnss_model": model, "scenario": scenario, "seed": seed,
                           **{k: round(v, 4) for k, v in measure(scenario, seed, cfg, Path(tmp)).items()}}
                          for seed in parse_seeds(args.seeds)]
                 rows += these
                 s = summarise(these)
-                summary[f"{scenario} gnss_position_std_m={std:g}"] = s
-                print(f"{scenario}, gnss_position_std_m {std:g}: {s['drives']} drives, "
+                summary[f"{scenario} {model}"] = s
+                print(f"{scenario}, GNSS error {model}: {s['drives']} drives, "
                       f"scale RMS {s['scale_rms_pct']:.4f} % "
                       f"(GNSS velocity alone {s['gnss_velocity_scale_rms_pct']:.4f} %, correlation "
                       f"{s['scale_correlation_with_gnss_velocity']:.2f}), |scale| > {100 * SCALE_LIMIT:.3f} % on "

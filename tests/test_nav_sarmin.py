@@ -45,11 +45,16 @@ def ci_drive(ci_mcap, tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-def test_compiled_filter_equals_the_filterpy_reference(ci_drive: Path) -> None:
+@pytest.mark.parametrize("gnss_error_model", ["gauss_markov", "white"])
+def test_compiled_filter_equals_the_filterpy_reference(ci_drive: Path, gnss_error_model: str) -> None:
+    import dataclasses
+
+    cfg = dataclasses.replace(CFG, navigation=dataclasses.replace(CFG.navigation, gnss_error_model=gnss_error_model))
     with Drive(ci_drive) as d:
-        inputs = load_inputs(d, CFG)
-    fast = run_sarmin(inputs, CFG, engine="numba")
-    ref = run_sarmin(inputs, CFG, engine="numpy")
+        inputs = load_inputs(d, cfg)
+    fast = run_sarmin(inputs, cfg, engine="numba")
+    ref = run_sarmin(inputs, cfg, engine="numpy")
+    assert ("gnss_error.east" in fast.state_names) == (gnss_error_model == "gauss_markov")
     np.testing.assert_array_equal(fast.t, ref.t)
     np.testing.assert_allclose(fast.x, ref.x, atol=1e-7)
     np.testing.assert_allclose(fast.P, ref.P, atol=1e-10)
@@ -79,23 +84,29 @@ def test_chi2_gate_is_scipy_stats_quantile(dof: int) -> None:
     assert chi2_gate(0.9999, 2) == pytest.approx(-2.0 * math.log(1e-4), rel=1e-12)  # closed form for 2 dof
 
 
-@pytest.mark.parametrize("dt", [2e-3, 0.05])
-def test_partitioned_prediction_is_the_full_unscented_transform(dt: float) -> None:
+@pytest.mark.parametrize(("dt", "gauss_markov"), [(2e-3, False), (0.05, False), (2e-3, True), (0.05, True)])
+def test_partitioned_prediction_is_the_full_unscented_transform(dt: float, gauss_markov: bool) -> None:
     """The kernel's prediction (11 kinematic sigma points, linear parameter blocks) against filterpy's
-    29-point transform: mean, covariance and the smoother's cross-covariance P Phi^T."""
-    n = 14
+    29-point (33 with the GNSS error states) transform: mean, covariance and the smoother's
+    cross-covariance P Phi^T, with constant parameters and with two decaying ones."""
+    n = 16 if gauss_markov else 14
     rng = np.random.default_rng(5)
     x = np.r_[31.0, -12.0, 8.0, np.pi - 2e-4, 0.3, rng.normal(0, 1e-3, n - 5)]  # the heading crosses +pi
     scale = np.r_[0.05, 0.05, 0.02, 1e-3, 2e-3, np.full(n - 5, 1e-3)]
+    beta = np.zeros(n)
+    if gauss_markov:  # GNSS errors of 0.25 m decorrelating over 60 s (but 4 s here, for a visible decay)
+        x[-2:], scale[-2:], beta[-2:] = (0.2, -0.1), 0.25, 1.0 / 4.0
     A = rng.normal(size=(n, n)) * scale[:, None]
     P = A @ A.T + 0.1 * np.diag(scale**2)
     q = np.r_[1e-4, 1e-4, 0.1, 1e-8, 0.01, np.full(n - 5, 1e-10)]
-    ukf = VectorUKF(x, P, m.ctrv_step, angle_indices=[m.PSI])
-    step = ukf.predict(dt, np.diag(q * dt))
+    q[beta > 0] = 2 * 0.25**2 * beta[beta > 0]
+    ukf = VectorUKF(x, P, lambda X, dt: m.decay_parameters(m.ctrv_step(X, dt), beta, dt), angle_indices=[m.PSI])
+    step = ukf.predict(dt, np.diag(m.process_noise(q, beta, dt)))
     lam = ukf.points.alpha**2 * (n + ukf.points.kappa) - n
     xn, Pn, F, Pkk = np.empty(n), np.empty((n, n)), np.empty((5, 5)), np.empty((5, 5))
-    kern._predict(x, P, xn, Pn, dt, q, ukf.Wm, ukf.Wc, n + lam, math.fsum(ukf.Wm), np.zeros((5, 5)), np.empty(5),
-                  np.empty((11, 5)), np.empty((11, 5)), np.empty((11, 5)), F, Pkk)
+    kern._predict(x, P, xn, Pn, dt, q, beta, ukf.Wm, ukf.Wc, n + lam, math.fsum(ukf.Wm), np.zeros((5, 5)),
+                  np.empty(5), np.empty((11, 5)), np.empty((11, 5)), np.empty((11, 5)), F, Pkk, np.empty(n),
+                  np.empty(n))
     assert -np.pi <= xn[m.PSI] < -3.1  # wrapped
     d = xn - ukf.x
     d[m.PSI] = (d[m.PSI] + np.pi) % (2 * np.pi) - np.pi
@@ -107,8 +118,11 @@ def test_partitioned_prediction_is_the_full_unscented_transform(dt: float) -> No
     np.testing.assert_allclose((Pn - ukf.P) / np.outer(sd_pred, sd_pred), 0.0, atol=1e-9)
     np.testing.assert_array_equal(Pn, Pn.T)
     np.testing.assert_array_equal(Pn[:5, :5], Pkk)
-    Phi = np.eye(n)
+    Phi = np.diag(np.exp(-beta * dt))
     Phi[:5, :5] = F
+    if gauss_markov:  # the errors decayed, and their variance stays sigma^2 at equilibrium
+        np.testing.assert_allclose(xn[-2:], x[-2:] * np.exp(-dt / 4.0), rtol=1e-12)
+        np.testing.assert_allclose(m.process_noise(q, beta, 1e6)[-2:], 0.25**2, rtol=1e-12)
     np.testing.assert_allclose((P @ Phi.T - step.cross) / np.outer(np.sqrt(np.diag(P)), sd_pred), 0.0, atol=1e-9)
 
 
@@ -165,8 +179,11 @@ def test_sarmin_meets_the_accuracy_targets(scenario: str, sim_dir: Path,
     assert across_10 < 1e-2, across_10  # <= 1 cm RMS over 10 m
     ref_xy, _ = truth.pose(est.t_ns)
     rmse = float(np.sqrt(np.mean(np.sum((est.rear_axle_enu - ref_xy) ** 2, axis=1))))
-    assert rmse < 0.5, rmse  # absolute: GNSS-limited
-    print(f"{scenario}: absolute horizontal RMSE {rmse:.3f} m")
+    with h5py.File(sim.truth_path, "r") as f:  # absolute: no better than the GNSS fixes' slow error allows
+        gnss_error = f["sensors/gnss_cog/position_error"][()][:, :2]
+    gnss_rms = float(np.sqrt(np.mean(np.sum(gnss_error**2, axis=1))))
+    print(f"{scenario}: absolute horizontal RMSE {rmse:.3f} m (the GNSS fixes' error {gnss_rms:.3f} m RMS)")
+    assert rmse < gnss_rms + 0.05, (rmse, gnss_rms)
     # Gyro biases converge to within 20 % of truth within 10 s.
     names = est.state_names
     t_rel = (est.t_ns - est.t_ns[0]) / 1e9
@@ -244,6 +261,34 @@ def test_sarmin_speed_scale_is_what_the_gnss_velocity_allows_on_test2(sim_dir: P
           f"wheel scale error {wheel_scale_error * 100:+.4f} %")
     assert gnss_bias > 1.5 * gnss_se  # the draw the 3 cm is lost to
     assert abs(wheel_scale_error + gnss_bias) < 1e-4  # the wheels scaled to the GNSS speed: too low by its bias
+
+
+@pytest.mark.slow
+def test_sarmin_follows_the_gnss_slow_error_on_test1(sim_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> None:
+    """The two Gauss-Markov states follow the GNSS fixes' slow error as it drifts over the drive. Its offset is not
+    observable (a fix is position plus error, and nothing else aboard measures absolute position), so the check is
+    on its variation: the estimate minus the truth's slow error (its 3 cm white part averaged out over 2 s), about
+    its mean, against that error's own scatter. Measured on test1 seed 1: 1.4 / 1.4 cm against 5.5 / 11.1 cm
+    (east / north). On test2 seed 1 the east miss is 2.6 cm: its track runs east, and the wheels' 0.066 % scale
+    (the GNSS velocity's draw, test below) puts 8 cm over its 120 m into the error states."""
+    sim, drive = _drive(sim_dir, tmp_path_factory, "test1")
+    with Drive(drive) as d:
+        inputs = load_inputs(d, CFG)
+    sol = run_sarmin(inputs, CFG)
+    with h5py.File(sim.truth_path, "r") as f:
+        t = (f["sensors/gnss_cog/t_ns"][()] - inputs.t0_ns) / 1e9 - CFG.sensors["gnss_cog"].latency_s
+        true_error = f["sensors/gnss_cog/position_error"][()][:, :2]
+    inside = np.flatnonzero((t >= sol.t[0]) & (t <= sol.t[-1]))
+    window = 21  # fixes at 10 Hz
+    slow = np.stack([np.convolve(true_error[inside, i], np.ones(window) / window, mode="valid") for i in (0, 1)], 1)
+    t_slow = t[inside][window // 2:len(inside) - window // 2]
+    e = sol.state_names.index("gnss_error.east")
+    est = np.stack([np.interp(t_slow, sol.t, sol.x[:, e + i]) for i in (0, 1)], axis=1)
+    miss = (est - slow).std(axis=0)
+    scatter = slow.std(axis=0)
+    print(f"test1: GNSS slow error scatter east/north {scatter[0] * 100:.2f} / {scatter[1] * 100:.2f} cm, the "
+          f"estimate's miss {miss[0] * 100:.2f} / {miss[1] * 100:.2f} cm")
+    assert np.all(miss < 0.025) and np.all(miss < 0.4 * scatter)
 
 
 @pytest.mark.slow

@@ -48,6 +48,10 @@ class NavInputs:
     gyro_bias_walk: list[float] = field(default_factory=list)  # bias random walk (rad/s per sqrt(s))
     steering_offset_std: float = 0.0  # prior std of the road-wheel angle offset (rad)
     wheel_scale_std: float = 0.0
+    # GNSS position error, per horizontal axis: first-order Gauss-Markov (std m, correlation time s) on top
+    # of gnss_position.sigma (white, per fix); std 0 means the fixes are taken as independent.
+    gnss_error_std_m: float = 0.0
+    gnss_error_time_s: float = 0.0
 
 
 def lsb_of(values: Array) -> float:
@@ -101,11 +105,22 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
 
     out = NavInputs(t0, origin, gnss_lever_m=lever)  # type: ignore[arg-type]
     enu = origin.to_enu(fix["latitude_deg"], fix["longitude_deg"], fix["altitude_m"])
-    pos_std = np.full(2, nav.gnss_position_std_m)
+    errors = gnss_cfg.gnss if gnss_cfg else None
+    if nav.gnss_error_model == "gauss_markov":
+        # no error table: a plain receiver's (metre-level, minutes) rather than none
+        slow, tau, white = ((errors.horizontal_std_m, errors.correlation_time_s, errors.white_std_m) if errors
+                            else (1.0, 60.0, 0.05))
+        if tau > 0.0:
+            out.gnss_error_std_m, out.gnss_error_time_s = slow, tau
+        else:  # an uncorrelated table: all of it per fix
+            white = float(np.hypot(slow, white))
+        pos_std = np.full(2, max(white, 1e-3))
+    else:
+        pos_std = np.full(2, nav.gnss_position_std_m)
     out.gnss_position = Measurements(nav.gnss, rel(fix["t_ns"], nav.gnss), enu[:, :2], pos_std)
     if "velocity" in gnss:
         vel = _columns(gnss["velocity"], ("t_ns", "velocity_enu"))
-        std = gnss_cfg.gnss.velocity_std_mps if gnss_cfg and gnss_cfg.gnss else 0.05
+        std = errors.velocity_std_mps if errors else 0.05
         out.gnss_velocity = Measurements(nav.gnss, rel(vel["t_ns"], nav.gnss), vel["velocity_enu"][:, :2],
                                          np.full(2, std))
     imu_sources = drive.imu_sources()

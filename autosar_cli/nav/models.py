@@ -1,12 +1,17 @@
 """SAR-MIN motion and measurement models (paper Sec. II-B, eq. 8-9), vectorised over sigma points.
 
-State (ENU navigation frame, SI): ``[px, py, v, psi, omega, b_1 .. b_N, b_steer]``.
+State (ENU navigation frame, SI): ``[px, py, v, psi, omega, b_1 .. b_N, b_steer, s_fl .. s_rr, e_x, e_y]``.
 
 - ``px, py``: the centre of the rear axle. For a car that does not skid this point moves along the
   body x-axis (no side slip), so CTRV is exact there; the CoG would need a side-slip term.
 - ``v``: speed of that point (m/s); ``psi``: heading of the body x-axis (rad, from East, CCW);
   ``omega``: yaw rate (rad/s).
 - ``b_i``: bias of gyro i (rad/s); ``b_steer``: road-wheel angle offset of the steering sensor (rad).
+- ``s_w``: scale error of wheel w's speed (tyre radius); ``e_x, e_y``: the GNSS position's slow error (m,
+  ENU), first-order Gauss-Markov (only with ``navigation.gnss_error_model = "gauss_markov"``).
+
+The kinematic states follow CTRV; the others are parameters that either stay constant (random walk) or
+decay as Gauss-Markov processes with rate ``beta`` (1/s): ``x' = exp(-beta dt) x`` plus noise.
 
 All functions take ``X`` of shape (m, n): one row per sigma point.
 """
@@ -37,11 +42,34 @@ def ctrv_step(X: Array, dt: float) -> Array:
     return out
 
 
+def decay_parameters(X: Array, beta: Array, dt: float) -> Array:
+    """Gauss-Markov parameters of every sigma point decayed over ``dt``: ``x_r exp(-beta_r dt)``;
+    ``beta`` (n,) 1/s, 0 for kinematic and constant states. Returns a new array."""
+    return X * np.exp(-beta * dt)
+
+
+def process_noise(q: Array, beta: Array, dt: float) -> Array:
+    """Diagonal process noise accumulated over ``dt`` (n,): ``q dt`` for a random walk of intensity ``q``,
+    ``q (1 - exp(-2 beta dt)) / (2 beta)`` for a Gauss-Markov state of intensity ``q = 2 sigma^2 beta``
+    (its steady variance ``sigma^2``); the second tends to the first as beta -> 0."""
+    out = q * dt
+    gm = beta > 0
+    out[gm] = q[gm] * -np.expm1(-2.0 * beta[gm] * dt) / (2.0 * beta[gm])
+    return out
+
+
 def point_position(X: Array, lever_xy: tuple[float, float]) -> Array:
     """ENU (x, y) of a body point ``lever_xy`` (m, body frame relative to the rear-axle centre); (m, 2)."""
     c, s = np.cos(X[:, PSI]), np.sin(X[:, PSI])
     lx, ly = lever_xy
     return np.stack([X[:, PX] + c * lx - s * ly, X[:, PY] + s * lx + c * ly], axis=1)
+
+
+def gnss_position(X: Array, lever_xy: tuple[float, float], error_index: int) -> Array:
+    """GNSS fix (ENU x, y) of an antenna at ``lever_xy``: its position plus the slow error states
+    ``X[:, error_index:error_index + 2]`` (``error_index < 0``: none modelled); (m, 2)."""
+    p = point_position(X, lever_xy)
+    return p + X[:, error_index:error_index + 2] if error_index >= 0 else p
 
 
 def point_velocity(X: Array, lever_xy: tuple[float, float]) -> Array:

@@ -58,9 +58,15 @@ def steering_held_states(scale_i: int) -> list[int]:
     return [m.V] + list(range(scale_i, scale_i + 4))
 
 
+def models_gnss_error(inputs: NavInputs) -> bool:
+    """Whether the filter carries the GNSS position's slow error as two Gauss-Markov states."""
+    return inputs.gnss_error_std_m > 0.0 and inputs.gnss_error_time_s > 0.0
+
+
 def _state_names(inputs: NavInputs) -> list[str]:
     return (["px", "py", "v", "psi", "omega"] + [f"bias.{g.name}" for g in inputs.gyros] + ["bias.steering"]
-            + [f"scale.wheel_{w}" for w in ("fl", "fr", "rl", "rr")])
+            + [f"scale.wheel_{w}" for w in ("fl", "fr", "rl", "rr")]
+            + (["gnss_error.east", "gnss_error.north"] if models_gnss_error(inputs) else []))
 
 
 def _initial_state(inputs: NavInputs, config: Config, n: int) -> tuple[float, Array, Array]:
@@ -99,10 +105,16 @@ def _initial_state(inputs: NavInputs, config: Config, n: int) -> tuple[float, Ar
     rates = [float(np.median(g.z[np.abs(g.t - t_start) < 0.1, 0])) for g in inputs.gyros
              if (np.abs(g.t - t_start) < 0.1).any()]
     x0[m.OMEGA] = float(np.median(rates)) if rates else 0.0
-    diag = [pos.sigma[0] ** 2, pos.sigma[0] ** 2, v_std**2, psi_std**2, 0.02**2]
+    pos_var = pos.sigma[0] ** 2 + inputs.gnss_error_std_m**2  # the first fix's whole error
+    diag = [pos_var, pos_var, v_std**2, psi_std**2, 0.02**2]
     diag += [b**2 for b in inputs.gyro_bias_std] + [max(inputs.steering_offset_std, 1e-4) ** 2]
     diag += [max(inputs.wheel_scale_std, 1e-4) ** 2] * 4
+    if models_gnss_error(inputs):
+        diag += [inputs.gnss_error_std_m**2] * 2
     P0[np.diag_indices(n)] = diag
+    if models_gnss_error(inputs):  # the start is the fix minus its error: they are anti-correlated
+        e = n - 2
+        P0[m.PX, e] = P0[e, m.PX] = P0[m.PY, e + 1] = P0[e + 1, m.PY] = -inputs.gnss_error_std_m**2
     return t_start, x0, P0
 
 
@@ -122,7 +134,8 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
     ng = len(inputs.gyros)
     steer_i = m.N_KINEMATIC + ng
     scale_i = steer_i + 1  # four wheel scale errors (tyre radius): left/right differences fake a yaw rate
-    n = scale_i + 4
+    gnss_i = scale_i + 4 if models_gnss_error(inputs) else -1  # the GNSS position's slow error (east, north)
+    n = scale_i + 4 + (2 if gnss_i >= 0 else 0)
     names = _state_names(inputs)
     t_start, x0, P0 = _initial_state(inputs, config, n)
 
@@ -134,6 +147,10 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
     q[m.N_KINEMATIC:m.N_KINEMATIC + ng] = np.square(inputs.gyro_bias_walk)
     q[steer_i] = 1e-12
     q[scale_i:scale_i + 4] = 1e-12
+    beta = np.zeros(n)  # decay rates (1/s) of the Gauss-Markov states
+    if gnss_i >= 0:
+        beta[gnss_i:gnss_i + 2] = 1.0 / inputs.gnss_error_time_s
+        q[gnss_i:gnss_i + 2] = 2.0 * inputs.gnss_error_std_m**2 * beta[gnss_i]
 
     # One event list: (time, sensor kind, sample index), in time order.
     sources: list[tuple[str, Measurements]] = [(f"gyro{i}", g) for i, g in enumerate(inputs.gyros)]
@@ -151,11 +168,11 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
     gnss_lever = _gnss_lever_rear(inputs, config)
     if engine == "numba":
         return _run_kernel(inputs, config, smooth, sources, times, kinds, index, order, t_start, x0, P0, q,
-                           names, steer_i, scale_i, gnss_lever)
+                           beta, names, steer_i, scale_i, gnss_i, gnss_lever)
     from .ukf import FilterHistory, VectorUKF, rts_smooth  # filterpy (and its scipy.stats): ~0.4 s to import
 
-    ukf = VectorUKF(x0, P0, m.ctrv_step, angle_indices=[m.PSI], alpha=SIGMA_ALPHA, beta=SIGMA_BETA,
-                    kappa=3.0 - n)
+    ukf = VectorUKF(x0, P0, lambda X, dt: m.decay_parameters(m.ctrv_step(X, dt), beta, dt),
+                    angle_indices=[m.PSI], alpha=SIGMA_ALPHA, beta=SIGMA_BETA, kappa=3.0 - n)
 
     def wheel_fn(X: Array) -> Array:
         return (1.0 + X[:, scale_i:scale_i + 4]) * m.wheel_speeds(X, veh.wheelbase_m, veh.track_front_m,
@@ -173,14 +190,14 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
     def advance(t: float) -> None:
         nonlocal t_now
         while t - t_now > nav.max_step_s:  # dead reckoning through gaps, in bounded steps
-            step = ukf.predict(nav.max_step_s, np.diag(q * nav.max_step_s))
+            step = ukf.predict(nav.max_step_s, np.diag(m.process_noise(q, beta, nav.max_step_s)))
             t_now += nav.max_step_s
             hist.steps.append(step)
             hist.t.append(t_now)
             hist.x.append(ukf.x.copy())
             hist.P.append(ukf.P.copy())
         dt = max(t - t_now, 0.0)
-        hist.steps.append(ukf.predict(dt, np.diag(q * dt)))
+        hist.steps.append(ukf.predict(dt, np.diag(m.process_noise(q, beta, dt))))
         t_now = max(t, t_now)
 
     for e in order:
@@ -202,7 +219,7 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
                 ok = ukf.update(z, lambda X: m.road_wheel_angle(X, veh.wheelbase_m, steer_i),
                                 np.diag(meas.sigma**2), gates[1], hold=steering_held_states(scale_i))
         elif kind == "gnss_pos":
-            ok = ukf.update(z, lambda X: m.point_position(X, gnss_lever), np.diag(meas.sigma**2), gates[2])
+            ok = ukf.update(z, lambda X: m.gnss_position(X, gnss_lever, gnss_i), np.diag(meas.sigma**2), gates[2])
         elif kind == "gnss_vel":
             ok = ukf.update(z, lambda X: m.point_velocity(X, gnss_lever), np.diag(meas.sigma**2), gates[2])
         key = kind if not kind.startswith("gyro") else inputs.gyros[int(kind[4:])].name
@@ -227,8 +244,8 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
 
 def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[tuple[str, Measurements]],
                 times: Array, kinds: NDArray[np.int32], index: NDArray[np.int64], order: NDArray[np.int64],
-                t_start: float, x0: Array, P0: Array, q: Array, names: list[str], steer_i: int,
-                scale_i: int, gnss_lever: tuple[float, float]) -> NavSolution:
+                t_start: float, x0: Array, P0: Array, q: Array, beta: Array, names: list[str], steer_i: int,
+                scale_i: int, gnss_i: int, gnss_lever: tuple[float, float]) -> NavSolution:
     from . import sarmin_kernel as kern
 
     nav, veh = config.navigation, config.vehicle
@@ -255,9 +272,9 @@ def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[t
         raise NavInputError("no measurement after the initial GNSS fix: nothing to navigate")
     # wsum: the exact sum of filterpy's weights (see the kernel's docstring).
     T, X, PP, XP, FF, PK, DT, used, rejected = kern.run_filter(
-        times[order], ev_kind, zs, sig, t_start, x0, P0, q, wm, wc, lam, ng, geo, scale_i, steer_i,
+        times[order], ev_kind, zs, sig, t_start, x0, P0, q, beta, wm, wc, lam, ng, geo, scale_i, steer_i, gnss_i,
         nav.steering_min_speed_mps, gates, nav.max_step_s, math.fsum(wm), steer_hold)
-    xs, Ps = kern.smooth(X, PP, XP, FF, PK, DT, q) if smooth else (X, PP)
+    xs, Ps = kern.smooth(X, PP, XP, FF, PK, DT, q, beta) if smooth else (X, PP)
     label = [g.name for g in inputs.gyros] + ["wheels", "steering", "gnss_pos", "gnss_vel"]
     # One state per distinct instant already (the kernel refines a state for measurements at its instant).
     return NavSolution(T, xs, Ps, names,

@@ -14,9 +14,11 @@ parameter columns have the centre's kinematic part, so the full unscented transf
 
 - ``x_k'``, ``Pkk'``: the transform of the 11 points ``x_k``, ``x_k +- Lkk[:, j]`` (the ``2 (n - 5)``
   parameter points add their weight to the centre), plus ``Q_k dt``;
-- ``Pkp' = F Pkp`` with ``F = Wc_1 (n + lambda) M Lkk^-1`` and ``M[:, j] = dy_{+j} - dy_{-j}`` (the
-  statistical linearisation of CTRV: ``Lpk^T = (n + lambda) Lkk^-1 Pkp``), ``Ppp' = Ppp + Q_p dt``;
-- the cross-covariance the smoother needs, ``cov(x, x') = P Phi^T`` with ``Phi = diag(F, I)``.
+- ``Pkp' = F Pkp A`` with ``F = Wc_1 (n + lambda) M Lkk^-1`` and ``M[:, j] = dy_{+j} - dy_{-j}`` (the
+  statistical linearisation of CTRV: ``Lpk^T = (n + lambda) Lkk^-1 Pkp``), ``Ppp' = A Ppp A + Q_p``, where
+  ``A = diag(exp(-beta dt))`` decays the Gauss-Markov parameters (1 for the constant ones; the transform
+  of a linear map is exact);
+- the cross-covariance the smoother needs, ``cov(x, x') = P Phi^T`` with ``Phi = diag(F, A)``.
 
 So the filter stores per step only ``x'``, ``F`` and ``Pkk'`` besides the filtered states; the smoother
 rebuilds ``P_pred`` and the cross-covariance from them. Measurements at the instant of the previous one
@@ -29,7 +31,8 @@ only within ~1e-9; the reference's ``Wm @ sigmas`` carries that factor (on an EN
 ~3e-8 m per step) and so does this form, without the cancellation error of summing the raw products.
 
 Event kinds: ``0 .. ng-1`` gyro i; ``ng`` wheels; ``ng+1`` steering; ``ng+2`` GNSS position;
-``ng+3`` GNSS velocity. Measurement values are padded to 4 columns.
+``ng+3`` GNSS velocity. Measurement values are padded to 4 columns. ``gnss_i``: first of the two GNSS
+position error states (east, north), or -1 when the filter has none.
 """
 
 from __future__ import annotations
@@ -114,10 +117,25 @@ def _sigma_points_into(x, L, m, pts):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True)
-def _predict(x, P, xn, Pn, dt, q, Wm, Wc, c, wsum, L5, inv5, pts, prop, dy, F, Pkk):  # noqa: ANN001, ANN202
+def _parameter_step(q, beta, dt, a, qd):  # noqa: ANN001, ANN202
+    """Decay ``a = exp(-beta dt)`` and accumulated noise ``qd`` of every state over ``dt`` (as
+    :func:`~.models.process_noise`: ``q dt``, or ``q (1 - a^2) / (2 beta)`` for a Gauss-Markov state)."""
+    for r in range(q.shape[0]):
+        if beta[r] > 0.0:
+            a[r] = np.exp(-beta[r] * dt)
+            qd[r] = q[r] * -np.expm1(-2.0 * beta[r] * dt) / (2.0 * beta[r])
+        else:
+            a[r] = 1.0
+            qd[r] = q[r] * dt
+
+
+@njit(cache=True)
+def _predict(x, P, xn, Pn, dt, q, beta, Wm, Wc, c, wsum, L5, inv5, pts, prop, dy, F, Pkk, a, qd):  # noqa: ANN001, ANN202
     """Unscented CTRV prediction of node ``(x, P)`` by ``dt`` into ``(xn, Pn)`` (partitioned, see the
-    module docstring); also fills ``F`` and ``Pkk`` (the predicted kinematic block) for the smoother."""
+    module docstring); also fills ``F`` and ``Pkk`` (the predicted kinematic block) for the smoother.
+    ``a``, ``qd`` (n,): work vectors (each state's decay and process noise over ``dt``)."""
     n = x.shape[0]
+    _parameter_step(q, beta, dt, a, qd)
     _cholesky_into(P, c, NK, L5, inv5)
     _sigma_points_into(x, L5, NK, pts)
     _ctrv_points(pts, prop, dt)
@@ -147,7 +165,7 @@ def _predict(x, P, xn, Pn, dt, q, Wm, Wc, c, wsum, L5, inv5, pts, prop, dy, F, P
                 acc += dy[i, r] * dy[i, col]
             v = w0 * dy[0, r] * dy[0, col] + w1 * acc
             if col == r:
-                v += q[r] * dt
+                v += qd[r]
             Pkk[r, col] = v
             Pkk[col, r] = v
     # F = Wc_1 (n + lambda) M Lkk^-1: each row solves Lkk^T f = s m (back substitution).
@@ -161,28 +179,31 @@ def _predict(x, P, xn, Pn, dt, q, Wm, Wc, c, wsum, L5, inv5, pts, prop, dy, F, P
     for r in range(NK):
         for col in range(NK):
             Pn[r, col] = Pkk[r, col]
-    _fill_cross_blocks(P, F, Pn, n)
+    _fill_parameter_blocks(P, F, Pn, n, a, qd)
     for r in range(NK, n):
-        xn[r] = wsum * x[r]  # sum_i Wm_i x_p: the +-Lpk deviations cancel in pairs
-        for col in range(NK, n):
-            Pn[r, col] = P[r, col]
-        Pn[r, r] += q[r] * dt
+        xn[r] = wsum * a[r] * x[r]  # sum_i Wm_i a x_p: the +-Lpk deviations cancel in pairs
 
 
 @njit(cache=True)
-def _fill_cross_blocks(P, F, Pn, n):  # noqa: ANN001, ANN202
-    """``Pn[k, p] = F P[k, p]`` and its transpose (shared by the filter and the smoother's rebuild)."""
+def _fill_parameter_blocks(P, F, Pn, n, a, qd):  # noqa: ANN001, ANN202
+    """``Pn[k, p] = F P[k, p] A`` (and its transpose), ``Pn[p, p] = A P[p, p] A + Qd``: the predicted
+    covariance outside the kinematic block (shared by the filter and the smoother's rebuild)."""
     for r in range(NK):
         for col in range(NK, n):
             acc = 0.0
             for j in range(NK):
                 acc += F[r, j] * P[j, col]
+            acc *= a[col]
             Pn[r, col] = acc
             Pn[col, r] = acc
+    for r in range(NK, n):
+        for col in range(NK, n):
+            Pn[r, col] = a[r] * a[col] * P[r, col]
+        Pn[r, r] += qd[r]
 
 
 @njit(cache=True)
-def _measure(sig, kind, ng, geo, scale_i, steer_i, zsig):  # noqa: ANN001, ANN202
+def _measure(sig, kind, ng, geo, scale_i, steer_i, gnss_i, zsig):  # noqa: ANN001, ANN202
     """Predicted measurement of every sigma point for event ``kind`` into ``zsig``; returns its size."""
     m = sig.shape[0]
     wheelbase, tf, tr, lx, ly = geo[0], geo[1], geo[2], geo[3], geo[4]
@@ -202,9 +223,12 @@ def _measure(sig, kind, ng, geo, scale_i, steer_i, zsig):  # noqa: ANN001, ANN20
         return 1
     for i in range(m):
         c, s = np.cos(sig[i, PSI]), np.sin(sig[i, PSI])
-        if kind == ng + 2:  # antenna position
+        if kind == ng + 2:  # antenna position, plus the fix's slow error
             zsig[i, 0] = sig[i, PX] + c * lx - s * ly
             zsig[i, 1] = sig[i, PY] + s * lx + c * ly
+            if gnss_i >= 0:
+                zsig[i, 0] += sig[i, gnss_i]
+                zsig[i, 1] += sig[i, gnss_i + 1]
         else:  # antenna velocity
             bx = sig[i, V] - sig[i, OMEGA] * ly
             by = sig[i, OMEGA] * lx
@@ -214,7 +238,7 @@ def _measure(sig, kind, ng, geo, scale_i, steer_i, zsig):  # noqa: ANN001, ANN20
 
 
 @njit(cache=True)
-def _update_nl(x, P, z, sigma, kind, ng, geo, scale_i, steer_i, gate, Wm, Wc, c, wsum,  # noqa: ANN001, ANN202
+def _update_nl(x, P, z, sigma, kind, ng, geo, scale_i, steer_i, gnss_i, gate, Wm, Wc, c, wsum,  # noqa: ANN001, ANN202
                L, inv_d, sig, zsig, Pxz, Kg, S, Ls, v4, hold):
     """Unscented update of ``(x, P)`` in place; False (state untouched) when the gate rejects it.
 
@@ -229,7 +253,7 @@ def _update_nl(x, P, z, sigma, kind, ng, geo, scale_i, steer_i, gate, Wm, Wc, c,
     m = 2 * n + 1
     _cholesky_into(P, c, n, L, inv_d)
     _sigma_points_into(x, L, n, sig)
-    k = _measure(sig, kind, ng, geo, scale_i, steer_i, zsig)
+    k = _measure(sig, kind, ng, geo, scale_i, steer_i, gnss_i, zsig)
     zp, inv_s, y, u = v4[0], v4[1], v4[2], v4[3]
     for a in range(k):
         ref = zsig[0, a]
@@ -339,8 +363,8 @@ def _update_gyro(x, P, z, sigma, bias_i, gate, ph):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True)
-def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, Wm, Wc, lam, ng, geo, scale_i, steer_i,  # noqa: ANN001, ANN201
-               steer_min_speed, gates, max_step, wsum, steer_hold):
+def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, beta, Wm, Wc, lam, ng, geo, scale_i, steer_i,  # noqa: ANN001, ANN201
+               gnss_i, steer_min_speed, gates, max_step, wsum, steer_hold):
     """Filter all events in time order; one stored state per distinct instant.
 
     ``steer_hold`` (n,) bool: the states a steering update leaves alone (see :func:`_update_nl`).
@@ -379,6 +403,8 @@ def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, Wm, Wc, lam, ng, ge
     Ls = np.zeros((4, 4))
     v4 = np.empty((4, 4))
     ph = np.empty(n)
+    a = np.empty(n)
+    qd = np.empty(n)
     no_hold = np.zeros(n, dtype=np.bool_)
     X[0] = x0
     for r in range(n):
@@ -390,16 +416,16 @@ def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, Wm, Wc, lam, ng, ge
     for e in range(E):
         t = times[e]
         while t - t_now > max_step:  # dead reckoning through gaps, in bounded steps
-            _predict(X[K], PP[K], X[K + 1], PP[K + 1], max_step, q, Wm, Wc, c, wsum, L5, inv5, pts, prop, dy,
-                     FF[K], PK[K])
+            _predict(X[K], PP[K], X[K + 1], PP[K + 1], max_step, q, beta, Wm, Wc, c, wsum, L5, inv5, pts, prop,
+                     dy, FF[K], PK[K], a, qd)
             XP[K] = X[K + 1]
             DT[K] = max_step
             t_now += max_step
             K += 1
             T[K] = t_now
         if t > t_now:
-            _predict(X[K], PP[K], X[K + 1], PP[K + 1], t - t_now, q, Wm, Wc, c, wsum, L5, inv5, pts, prop, dy,
-                     FF[K], PK[K])
+            _predict(X[K], PP[K], X[K + 1], PP[K + 1], t - t_now, q, beta, Wm, Wc, c, wsum, L5, inv5, pts, prop,
+                     dy, FF[K], PK[K], a, qd)
             XP[K] = X[K + 1]
             DT[K] = t - t_now
             t_now = t
@@ -414,7 +440,7 @@ def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, Wm, Wc, lam, ng, ge
             ok = _update_gyro(x, P, zs[e, 0], sigmas[e, 0], NK + kind, gates[1], ph)
         else:
             k_dim = 4 if kind == ng else (1 if kind == ng + 1 else 2)
-            ok = _update_nl(x, P, zs[e], sigmas[e], kind, ng, geo, scale_i, steer_i, gates[k_dim], Wm, Wc, c,
+            ok = _update_nl(x, P, zs[e], sigmas[e], kind, ng, geo, scale_i, steer_i, gnss_i, gates[k_dim], Wm, Wc, c,
                             wsum, L, inv_d, sig, zsig, Pxz, Kg, S, Ls, v4,
                             steer_hold if kind == ng + 1 else no_hold)
         if ok:
@@ -426,7 +452,7 @@ def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, Wm, Wc, lam, ng, ge
 
 
 @njit(cache=True, fastmath=True)
-def _smooth_pass(X, PP, XP, FF, PK, DT, q):  # noqa: ANN001, ANN202
+def _smooth_pass(X, PP, XP, FF, PK, DT, q, beta):  # noqa: ANN001, ANN202
     """Unscented RTS smoother, in place over ``X`` and ``PP`` (filtered -> smoothed).
 
     Per step: ``P_pred`` rebuilt from the filtered ``P_k`` (as :func:`_predict` built it), ``G^T`` from
@@ -444,20 +470,19 @@ def _smooth_pass(X, PP, XP, FF, PK, DT, q):  # noqa: ANN001, ANN202
     inv_d = np.empty(n)
     d = np.zeros(m)
     dx = np.zeros(m)
+    a = np.empty(n)
+    qd = np.empty(n)
     for k in range(K - 2, -1, -1):
         P = PP[k]
         F = FF[k]
+        _parameter_step(q, beta, DT[k], a, qd)
         for r in range(n):
             for col in range(n):
                 Pk[r, col] = P[r, col]
-        _fill_cross_blocks(Pk, F, Pp, n)
+        _fill_parameter_blocks(Pk, F, Pp, n, a, qd)
         for r in range(NK):
             for col in range(NK):
                 Pp[r, col] = PK[k, r, col]
-        for r in range(NK, n):
-            for col in range(NK, n):
-                Pp[r, col] = Pk[r, col]
-            Pp[r, r] += q[r] * DT[k]
         for r in range(NK):
             for col in range(m):
                 B[r, col] = 0.0
@@ -467,7 +492,7 @@ def _smooth_pass(X, PP, XP, FF, PK, DT, q):  # noqa: ANN001, ANN202
                     B[r, col] += f * Pk[j, col]
         for r in range(NK, n):
             for col in range(m):
-                B[r, col] = Pk[r, col]
+                B[r, col] = a[r] * Pk[r, col]
         _cholesky_into(Pp, 1.0, n, L, inv_d)
         for i in range(n):  # L Y = B
             for j in range(i):
@@ -520,7 +545,7 @@ def _smooth_pass(X, PP, XP, FF, PK, DT, q):  # noqa: ANN001, ANN202
                 P[r, col] += 0.5 * (Pk[r, col] + Pk[col, r])
 
 
-def smooth(X, PP, XP, FF, PK, DT, q):  # noqa: ANN001, ANN201
+def smooth(X, PP, XP, FF, PK, DT, q, beta):  # noqa: ANN001, ANN201
     """Unscented RTS smoother over the kernel's history; overwrites and returns ``X``, ``PP``."""
-    _smooth_pass(X, PP, XP, FF, PK, DT, q)
+    _smooth_pass(X, PP, XP, FF, PK, DT, q, beta)
     return X, PP
