@@ -69,8 +69,9 @@ def _state_names(inputs: NavInputs) -> list[str]:
             + (["gnss_error.east", "gnss_error.north"] if models_gnss_error(inputs) else []))
 
 
-def _initial_state(inputs: NavInputs, config: Config, n: int) -> tuple[float, Array, Array]:
-    """Start state from the first data: position and heading from GNSS, speed from wheels, yaw rate from gyros."""
+def _initial_state(inputs: NavInputs, config: Config, n: int, gnss_i: int) -> tuple[float, Array, Array]:
+    """Start state from the first data: position and heading from GNSS, speed from wheels, yaw rate from gyros;
+    ``gnss_i``: first of the two GNSS error states (-1: none)."""
     pos = inputs.gnss_position
     assert pos is not None
     vel = inputs.gnss_velocity
@@ -109,12 +110,12 @@ def _initial_state(inputs: NavInputs, config: Config, n: int) -> tuple[float, Ar
     diag = [pos_var, pos_var, v_std**2, psi_std**2, 0.02**2]
     diag += [b**2 for b in inputs.gyro_bias_std] + [max(inputs.steering_offset_std, 1e-4) ** 2]
     diag += [max(inputs.wheel_scale_std, 1e-4) ** 2] * 4
-    if models_gnss_error(inputs):
+    if gnss_i >= 0:
         diag += [inputs.gnss_error_std_m**2] * 2
     P0[np.diag_indices(n)] = diag
-    if models_gnss_error(inputs):  # the start is the fix minus its error: they are anti-correlated
-        e = n - 2
-        P0[m.PX, e] = P0[e, m.PX] = P0[m.PY, e + 1] = P0[e + 1, m.PY] = -inputs.gnss_error_std_m**2
+    if gnss_i >= 0:  # the start is the fix minus its error: they are anti-correlated
+        e, var = gnss_i, inputs.gnss_error_std_m**2
+        P0[m.PX, e] = P0[e, m.PX] = P0[m.PY, e + 1] = P0[e + 1, m.PY] = -var
     return t_start, x0, P0
 
 
@@ -135,9 +136,9 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
     steer_i = m.N_KINEMATIC + ng
     scale_i = steer_i + 1  # four wheel scale errors (tyre radius): left/right differences fake a yaw rate
     gnss_i = scale_i + 4 if models_gnss_error(inputs) else -1  # the GNSS position's slow error (east, north)
-    n = scale_i + 4 + (2 if gnss_i >= 0 else 0)
     names = _state_names(inputs)
-    t_start, x0, P0 = _initial_state(inputs, config, n)
+    n = len(names)
+    t_start, x0, P0 = _initial_state(inputs, config, n, gnss_i)
 
     q = np.zeros(n)
     q[m.PX] = q[m.PY] = nav.position_noise_m**2
