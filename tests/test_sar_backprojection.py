@@ -182,8 +182,29 @@ def test_empty_windows_and_accumulation() -> None:
     np.testing.assert_allclose(twice, 2 * once, rtol=1e-6)
 
 
+def _brute_force_window(pix: np.ndarray, track: np.ndarray, vel: np.ndarray) -> tuple[int, int]:
+    """Pulses inside the processed beam (|sin psi| <= sin psi_max) whose line of sight is within psi_max of the
+    line of sight at zero Doppler (the first pulse with sin psi <= 0), every pulse tested; (0, 0) if none."""
+    v = vel / np.linalg.norm(vel, axis=1, keepdims=True)
+    d = pix - track
+    sin_psi = np.sum(d * v, axis=1) / np.linalg.norm(d, axis=1)
+    inside = np.flatnonzero(np.abs(sin_psi) <= math.sin(HALF_WIDTH))
+    if inside.size == 0:
+        return (0, 0)
+    assert inside.size == inside[-1] + 1 - inside[0]  # one contiguous interval
+    past = inside[sin_psi[inside] <= 0.0]
+    m0 = past[0] if past.size else inside[-1]
+    los = -d[inside] / np.linalg.norm(d[inside], axis=1, keepdims=True)
+    sin_angle = np.linalg.norm(np.cross(los, los[inside == m0][0]), axis=1)
+    keep = inside[sin_angle <= math.sin(HALF_WIDTH)]
+    assert keep.size == keep[-1] + 1 - keep[0]
+    return (int(keep[0]), int(keep[-1]) + 1)
+
+
 @pytest.mark.parametrize("parallel", [True, False])
 def test_stripmap_windows_equal_brute_force(parallel: bool) -> None:
+    # a weaving track (0.3 m, 19 m period: a 30 m turn radius at its crests), pixels out to 27 m, so some lie
+    # near a centre of curvature and the look-angle cut applies
     rng = np.random.default_rng(5)
     n = 2000
     s = np.arange(n) * 0.004
@@ -191,16 +212,49 @@ def test_stripmap_windows_equal_brute_force(parallel: bool) -> None:
     vel = np.gradient(track, axis=0)
     pix = np.stack([rng.uniform(1, 7, 300), rng.uniform(-27, -0.5, 300), np.full(300, 0.5)], axis=1)
     win = stripmap_windows(pix, track, vel, HALF_WIDTH, parallel=parallel)
-    v = vel / np.linalg.norm(vel, axis=1, keepdims=True)
+    cut = 0
     for k in range(len(pix)):
-        d = pix[k] - track
-        sin_psi = np.sum(d * v, axis=1) / np.linalg.norm(d, axis=1)
-        inside = np.flatnonzero(np.abs(sin_psi) <= math.sin(HALF_WIDTH))
-        if inside.size == 0:
-            assert win[k, 1] <= win[k, 0] or win[k, 1] - win[k, 0] == 0
+        want = _brute_force_window(pix[k], track, vel)
+        if want == (0, 0):
+            assert win[k, 1] <= win[k, 0]
             continue
-        assert (win[k, 0], win[k, 1]) == (inside[0], inside[-1] + 1)
-        assert inside.size == inside[-1] + 1 - inside[0]  # one contiguous interval
+        assert (win[k, 0], win[k, 1]) == want
+        v = vel / np.linalg.norm(vel, axis=1, keepdims=True)
+        d = pix[k] - track
+        beam = np.abs(np.sum(d * v, axis=1) / np.linalg.norm(d, axis=1)) <= math.sin(HALF_WIDTH)
+        cut += int(want[1] - want[0] < beam.sum())
+    assert cut > 20  # the curve matters for a good share of these pixels
+
+
+def test_cross_range_resolution_stays_nominal_in_a_curve() -> None:
+    """A point 1 m from the centre of a 10 m turn towards it: the beam holds it for +-0.12 rad of look angle,
+    which would focus it to ~4 mm across; cut to +-psi_max of look angle it has the nominal 0.886 rho."""
+    turn_radius, offset = 10.0, 1.0
+    theta = np.arange(-0.3, 0.3, 0.0004)  # 4 mm per pulse along the arc
+    track = np.stack([turn_radius * np.sin(theta), turn_radius * (1 - np.cos(theta)), np.full(theta.size, 0.5)], 1)
+    vel = np.stack([np.cos(theta), np.sin(theta), np.zeros(theta.size)], axis=1)
+    target = np.array([0.0, turn_radius - offset, 0.5])  # 9 m from the track, left of it
+    xs = np.arange(-0.1, 0.1, 0.001)
+    pix = target + np.outer(xs, [1.0, 0.0, 0.0])  # across the line of sight at zero Doppler (theta = 0)
+    path = 2 * np.linalg.norm(track - target, axis=1)
+    bins = np.arange(N_BINS) * BIN_M
+    res_path = 2 * 0.0375  # 4 GHz: 3.75 cm in range, twice that in two-way path
+    prof = (np.sinc((bins[:, None] - path[None, :]) / res_path)
+            * np.exp(2j * np.pi * CYCLES_PER_M * path)[None, :])[None].astype(np.complex64)
+    ant = track[None]
+    kw = dict(range0_m=0.0, bin_m=BIN_M, cycles_per_m=CYCLES_PER_M)
+    win = stripmap_windows(pix, track, vel, HALF_WIDTH)
+    img = backproject(prof, ant, np.array([[0, 0]]), pix, win, **kw)
+    width = reference.minus3db_width(xs, np.abs(img))
+    assert width == pytest.approx(0.8859 * 0.04, rel=0.1), width
+    assert abs(xs[np.argmax(np.abs(img))]) <= 0.002
+    # the beam alone: every pulse with |sin psi| <= sin psi_max
+    v_sin = np.sum((target - track) * vel, axis=1) / np.linalg.norm(target - track, axis=1)
+    beam = np.flatnonzero(np.abs(v_sin) <= math.sin(HALF_WIDTH))
+    wide = np.tile([beam[0], beam[-1] + 1], (len(pix), 1))
+    sharp = reference.minus3db_width(xs, np.abs(backproject(prof, ant, np.array([[0, 0]]), pix, wide, **kw)))
+    print(f"cross-range -3 dB width: {width * 1e3:.1f} mm cut, {sharp * 1e3:.1f} mm the beam alone")
+    assert sharp < 0.3 * width, sharp
 
 
 def test_aperture_grows_with_range() -> None:
