@@ -10,7 +10,7 @@ import reference
 
 from autosar_cli.sar.backprojection import PulseBlock, backproject, backproject_block
 from autosar_cli.sar.grid import GridError, box_grid, track_grid
-from autosar_cli.sar.stripmap import processed_half_width, stripmap_windows
+from autosar_cli.sar.stripmap import block_context, look_angle_margin_m, processed_half_width, stripmap_windows
 
 C = 299_792_458.0
 F_CENTRE = 78.5e9
@@ -184,7 +184,8 @@ def test_empty_windows_and_accumulation() -> None:
 
 def _brute_force_window(pix: np.ndarray, track: np.ndarray, vel: np.ndarray) -> tuple[int, int]:
     """Pulses inside the processed beam (|sin psi| <= sin psi_max) whose line of sight is within psi_max of the
-    line of sight at zero Doppler (the first pulse with sin psi <= 0), every pulse tested; (0, 0) if none."""
+    line of sight at zero Doppler (the first pulse with sin psi <= 0, or the beam's last if psi jumps past zero
+    after it or the drive ends before), every pulse tested; (0, 0) if none."""
     v = vel / np.linalg.norm(vel, axis=1, keepdims=True)
     d = pix - track
     sin_psi = np.sum(d * v, axis=1) / np.linalg.norm(d, axis=1)
@@ -224,6 +225,44 @@ def test_stripmap_windows_equal_brute_force(parallel: bool) -> None:
         beam = np.abs(np.sum(d * v, axis=1) / np.linalg.norm(d, axis=1)) <= math.sin(HALF_WIDTH)
         cut += int(want[1] - want[0] < beam.sum())
     assert cut > 20  # the curve matters for a good share of these pixels
+
+
+@pytest.mark.parametrize("block_pulses", [97, 512])
+def test_stripmap_windows_do_not_depend_on_the_block(block_pulses: int) -> None:
+    """Block by block, each with the context block_context gives, the windows are the whole drive's cut to the
+    block: a pixel whose aperture straddles a block's end gets the same look-angle cut on both sides. test3-like
+    zig-zag (+-0.8 m, 25 m period: a 20 m turn radius at its crests), 1.5 mm per pulse (1.5 m/s), pixels out to
+    27.5 m on the right."""
+    rng = np.random.default_rng(8)
+    n = 6000
+    s = np.arange(n) * 0.0015
+    track = np.stack([s, 0.8 * np.sin(2 * np.pi * s / 25.0), np.full(n, 0.5)], axis=1)
+    vel = np.gradient(track, axis=0)
+    pix = np.stack([rng.uniform(0, 9, 2000), rng.uniform(-27.5, -0.5, 2000), np.full(2000, 0.5)], axis=1)
+    whole = stripmap_windows(pix, track, vel, HALF_WIDTH, side=-1.0)
+    # beyond a crest's centre of curvature (y < -19 m), and where the track swings over a pixel, sin psi is not
+    # monotone, and bisections in the whole drive and in a block's context may find different crossings (the
+    # processed beam assumes one pass): compare where sin psi decreases along the whole drive
+    d = pix[:, None, :] - track[None]
+    sin_psi = np.sum(d * (vel / np.linalg.norm(vel, axis=1, keepdims=True))[None], axis=2) / np.linalg.norm(d, axis=2)
+    once = np.all(np.diff(sin_psi, axis=1) <= 0.0, axis=1)
+    assert once.sum() > 1200
+    travel = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(track, axis=0), axis=1))])
+    margin = look_angle_margin_m(27.5, HALF_WIDTH)
+    got = np.zeros(len(pix), np.int64)
+    for b0 in range(0, n, block_pulses):
+        b1 = min(n, b0 + block_pulses)
+        c0, c1 = block_context(travel, b0, b1, margin)
+        win = stripmap_windows(pix, track[c0:c1], vel[c0:c1], HALF_WIDTH, side=-1.0, block=(b0 - c0, b1 - c0),
+                               drive_ends=(c0 == 0, c1 == n))
+        lo = np.maximum(whole[:, 0], b0) - b0
+        hi = np.maximum(np.minimum(whole[:, 1], b1) - b0, lo)
+        part = (hi > lo) & once
+        np.testing.assert_array_equal(win[part], np.stack([lo, hi], axis=1)[part])
+        assert np.all(win[~part & once, 1] <= win[~part & once, 0])
+        got += np.maximum(win[:, 1] - win[:, 0], 0)
+    np.testing.assert_array_equal(got[once], np.maximum(whole[:, 1] - whole[:, 0], 0)[once])
+    assert np.count_nonzero(whole[once, 1] > whole[once, 0]) > 900
 
 
 def test_cross_range_resolution_stays_nominal_in_a_curve() -> None:

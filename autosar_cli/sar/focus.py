@@ -31,7 +31,7 @@ from autosar_cli.nav.trajectory import Trajectory, antenna_lever_arms, radar_pha
 from autosar_cli.sar.backprojection import PulseBlock, backproject_block
 from autosar_cli.sar.grid import FocusGrid, GridError, box_grid, track_grid
 from autosar_cli.sar.range_compression import SPEED_OF_LIGHT, range_compress_into
-from autosar_cli.sar.stripmap import processed_half_width, stripmap_windows
+from autosar_cli.sar.stripmap import block_context, look_angle_margin_m, processed_half_width, stripmap_windows
 from autosar_cli.store.drive import Drive, RadarStream
 from autosar_cli.store.image import FocusedImage, preload_quicklook, product_paths, write_image
 from autosar_cli.store.trajectory import read_trajectory
@@ -238,6 +238,9 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         n_bp = 0
         frames = geometry.frames
         n_blocks = (len(frames) + options.block_pulses - 1) // options.block_pulses
+        # a block's windows need the pulses around it: a pixel's look-angle cut is centred on its zero-Doppler pulse
+        travel = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(geometry.reference, axis=0), axis=1))])
+        margin = look_angle_margin_m(config.radar.max_range_m, half_width)
 
         def prepare(b: int) -> tuple[slice, list[tuple[int, Any, Any, Any]], NDArray[np.int16] | None,
                                      NDArray[np.float64] | None]:
@@ -248,6 +251,8 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
             and the kernels release the GIL): one thread, so no numba-parallel launch nests in the kernel's.
             """
             sel = slice(b * options.block_pulses, min(len(frames), (b + 1) * options.block_pulses))
+            c0, c1 = block_context(travel, sel.start, sel.stop, margin)
+            ctx = slice(c0, c1)
             work = []
             for gi, grid in enumerate(grid_list):
                 rows, cols = _candidate_pixels(grid, geometry.reference[sel], geometry.velocity[sel], half_width,
@@ -256,8 +261,9 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
                 if rr.size == 0:
                     continue
                 pix = grid.pixel_enu(rr, cc).reshape(-1, 3)
-                win = stripmap_windows(pix, geometry.reference[sel], geometry.velocity[sel], half_width, side,
-                                       parallel=False)
+                win = stripmap_windows(pix, geometry.reference[ctx], geometry.velocity[ctx], half_width, side,
+                                       parallel=False, block=(sel.start - c0, sel.stop - c0),
+                                       drive_ends=(c0 == 0, c1 == len(frames)))
                 keep = win[:, 1] > win[:, 0]
                 if keep.any():
                     work.append((gi, (rr * grid.n_along + cc).ravel()[keep], pix[keep], win[keep]))

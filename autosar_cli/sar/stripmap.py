@@ -13,7 +13,15 @@ pixel sees the track over many times 2 psi_max of look angle (test3's zig-zag tu
 pillars at 16 m focused to a few mm across the track, so the image's entropy moved by 1 % when its grid moved by
 half a pixel). The window is therefore also cut to the pulses whose line of sight (pixel to antenna) is within
 psi_max of the line of sight at zero Doppler (psi = 0). On a straight track that is the same interval (the
-angle between the two lines of sight is psi), so the aperture spans 2 psi_max of look angle everywhere.
+angle between the two lines of sight is psi), so the aperture spans 2 psi_max of look angle everywhere. Where the
+drive ends before the pixel reaches zero Doppler, the drive's last pulse stands in for it (its first, where the
+drive starts after).
+
+Focus works in blocks of pulses; a block's windows come from the block plus the pulses within
+:func:`look_angle_margin_m` of travel either side (:func:`block_context`), so a pixel's zero-Doppler pulse is found
+even where it lies in a neighbouring block, and the windows are those of the whole drive cut to the block.
+One pass of the beam is assumed: beyond a turn's centre of curvature sin psi is not monotone, and the bisections
+find one of its crossings.
 """
 
 from __future__ import annotations
@@ -66,8 +74,9 @@ def _sin_angle(px, py, pz, ax, ay, az, ux, uy, uz):  # pragma: no cover - compil
 
 
 @nb.njit(cache=True, inline="always")
-def _window(px, py, pz, ant, vel, s_max, side):  # pragma: no cover - compiled
-    """[first, last) pulses of one pixel (see the module docstring)."""
+def _window(px, py, pz, ant, vel, s_max, side, b0, b1, open_start, open_end):  # pragma: no cover - compiled
+    """[first, last) pulses of one pixel within the block [b0, b1) of the context ``ant`` (see the module
+    docstring); ``open_start`` / ``open_end``: the context starts / ends where the drive does."""
     n_p = ant.shape[0]
     # first pulse with sin psi <= s_max, then first with sin psi < -s_max (sin psi decreases with p)
     lo = 0
@@ -87,7 +96,7 @@ def _window(px, py, pz, ant, vel, s_max, side):  # pragma: no cover - compiled
         else:
             lo = m + 1
     if lo > first:
-        # the zero-Doppler pulse m0, then only the pulses whose line of sight is within psi_max of its own
+        # the zero-Doppler pulse m0: the first with sin psi <= 0
         a = first
         b = lo
         while a < b:
@@ -96,62 +105,102 @@ def _window(px, py, pz, ant, vel, s_max, side):  # pragma: no cover - compiled
                 b = m
             else:
                 a = m + 1
-        m0 = min(a, lo - 1)
-        ux, uy, uz = _unit(ant[m0, 0] - px, ant[m0, 1] - py, ant[m0, 2] - pz)
-        a = first
-        b = m0
-        while a < b:
-            m = (a + b) // 2
-            if _sin_angle(px, py, pz, ant[m, 0], ant[m, 1], ant[m, 2], ux, uy, uz) <= s_max:
-                b = m
-            else:
-                a = m + 1
-        first = a
-        a = m0
-        b = lo
-        while a < b:
-            m = (a + b) // 2
-            if _sin_angle(px, py, pz, ant[m, 0], ant[m, 1], ant[m, 2], ux, uy, uz) > s_max:
-                b = m
-            else:
-                a = m + 1
-        lo = a
+        m0 = a
+        if m0 == lo:
+            # no pulse of the beam past zero Doppler: psi jumps past zero after its last pulse (the nearest
+            # pixels), or the drive ends first (take its last pulse), or the context does (below)
+            m0 = lo - 1
+        if (m0 == n_p - 1 and a == n_p and not open_end) or (m0 == 0 and not open_start):
+            # zero Doppler beyond this end of the context (at or before its first pulse): the margin puts
+            # the block's pulses outside the look-angle cut
+            lo = first
+        else:
+            # only the pulses whose line of sight is within psi_max of m0's
+            ux, uy, uz = _unit(ant[m0, 0] - px, ant[m0, 1] - py, ant[m0, 2] - pz)
+            a = first
+            b = m0
+            while a < b:
+                m = (a + b) // 2
+                if _sin_angle(px, py, pz, ant[m, 0], ant[m, 1], ant[m, 2], ux, uy, uz) <= s_max:
+                    b = m
+                else:
+                    a = m + 1
+            first = a
+            a = m0
+            b = lo
+            while a < b:
+                m = (a + b) // 2
+                if _sin_angle(px, py, pz, ant[m, 0], ant[m, 1], ant[m, 2], ux, uy, uz) > s_max:
+                    b = m
+                else:
+                    a = m + 1
+            lo = a
+    first = max(first, b0)
+    lo = max(first, min(lo, b1))
     if side != 0.0 and lo > first:
         # the radar sees one side only: a pixel on the other side would alias onto its mirror image
         m = (first + lo) // 2
         cross = vel[m, 0] * (py - ant[m, 1]) - vel[m, 1] * (px - ant[m, 0])
         if cross * side <= 0.0:
             lo = first
-    return first, lo
+    return first - b0, lo - b0
 
 
 @nb.njit(parallel=True, cache=True, nogil=True)
-def _windows(pix, ant, vel, s_max, side, out):  # pragma: no cover - compiled
+def _windows(pix, ant, vel, s_max, side, b0, b1, open_start, open_end, out):  # pragma: no cover - compiled
     for k in nb.prange(pix.shape[0]):
-        out[k, 0], out[k, 1] = _window(pix[k, 0], pix[k, 1], pix[k, 2], ant, vel, s_max, side)
+        out[k, 0], out[k, 1] = _window(pix[k, 0], pix[k, 1], pix[k, 2], ant, vel, s_max, side, b0, b1,
+                                       open_start, open_end)
 
 
 @nb.njit(cache=True, nogil=True)
-def _windows_serial(pix, ant, vel, s_max, side, out):  # pragma: no cover - compiled
+def _windows_serial(pix, ant, vel, s_max, side, b0, b1, open_start, open_end, out):  # pragma: no cover - compiled
     for k in range(pix.shape[0]):
-        out[k, 0], out[k, 1] = _window(pix[k, 0], pix[k, 1], pix[k, 2], ant, vel, s_max, side)
+        out[k, 0], out[k, 1] = _window(pix[k, 0], pix[k, 1], pix[k, 2], ant, vel, s_max, side, b0, b1,
+                                       open_start, open_end)
+
+
+def look_angle_margin_m(max_range_m: float, half_width_rad: float) -> float:
+    """Travel (m) beyond which no pulse is within ``half_width_rad`` of look angle of a pixel's zero-Doppler line of
+    sight, for pixels up to ``max_range_m`` away: seen from the pixel the line of sight turns by at least
+    cos(psi_max) / R per metre of travel inside the beam. Padded by a quarter for the slant and the track's bends."""
+    return 1.25 * max_range_m * math.tan(half_width_rad) / math.cos(half_width_rad)
+
+
+def block_context(travel_m: NDArray[np.float64], start: int, stop: int, margin_m: float) -> tuple[int, int]:
+    """Pulses [c0, c1) within ``margin_m`` of travel of the block [start, stop), ``travel_m`` (P,) the cumulative
+    distance travelled at each pulse: what :func:`stripmap_windows` needs to find the block's windows as if it saw
+    the whole drive."""
+    c0 = int(np.searchsorted(travel_m, travel_m[start] - margin_m, side="left"))
+    c1 = int(np.searchsorted(travel_m, travel_m[stop - 1] + margin_m, side="right"))
+    return min(c0, start), max(c1, stop)
 
 
 def stripmap_windows(pixels: ArrayLike, antenna: ArrayLike, velocity: ArrayLike, half_width_rad: float,
-                     side: float = 0.0, *, parallel: bool = True) -> NDArray[np.int64]:
+                     side: float = 0.0, *, parallel: bool = True, block: tuple[int, int] | None = None,
+                     drive_ends: tuple[bool, bool] = (True, True)) -> NDArray[np.int64]:
     """Pulse interval [lo, hi) (N, 2) integrated by each pixel (empty: lo == hi).
 
     ``pixels`` (N, 3) and ``antenna`` (P, 3): ENU metres (the antenna is the reference phase centre of each
     pulse); ``velocity`` (P, 3): its velocity (any scale; only the direction is used). ``side`` > 0: only
     pixels left of the track get pulses, < 0: only those on the right, 0: both. ``parallel=False``: one
     thread, for a caller that runs beside other numba-parallel work (no nested parallel launch).
+
+    ``block`` = (b0, b1): only the pulses b0 <= p < b1 of these are wanted, and the intervals are returned relative
+    to b0; the pulses around them are context, for the zero-Doppler line of sight of pixels whose aperture straddles
+    the block's ends (:func:`block_context` with :func:`look_angle_margin_m` gives enough). ``drive_ends``: whether
+    the first / last pulse given is the drive's (default: all of the drive is given).
     """
     pix = np.ascontiguousarray(np.asarray(pixels, dtype=np.float64).reshape(-1, 3))
     ant = np.ascontiguousarray(np.asarray(antenna, dtype=np.float64).reshape(-1, 3))
     vel = np.asarray(velocity, dtype=np.float64).reshape(-1, 3)
     speed = np.linalg.norm(vel, axis=1, keepdims=True)
     vel = np.ascontiguousarray(vel / np.where(speed > 0, speed, 1.0))
+    b0, b1 = block if block is not None else (0, len(ant))
+    if not 0 <= b0 <= b1 <= len(ant):
+        raise ValueError(f"block {b0}..{b1} is not within the {len(ant)} pulses given")
     out = np.zeros((len(pix), 2), np.int64)
     if len(ant) and len(pix):
-        (_windows if parallel else _windows_serial)(pix, ant, vel, math.sin(half_width_rad), float(np.sign(side)), out)
+        (_windows if parallel else _windows_serial)(pix, ant, vel, math.sin(half_width_rad), float(np.sign(side)),
+                                                     b0, b1, bool(drive_ends[0]), bool(drive_ends[1]), out)
     return out
