@@ -57,8 +57,8 @@ LINE_KINDS = ("facade", "kerb")
 #: The image metrics are measured on the product's grid with this many times finer pixels.
 METRICS_OVERSAMPLE = 2
 #: The far swath, where entropy and contrast are also reported: pixels at least this fraction of the radar's
-#: maximum range from the radar's track. Its processed apertures (range x the beam's width, 0.33-0.68 m at
-#: 4 cm resolution) are long enough for centimetre navigation errors to defocus; the near swath's (a few cm
+#: maximum range from the radar's track. Its processed apertures (range x the beam's width 2 psi_max, 0.64-1.29 m
+#: at 4 cm resolution) are long enough for centimetre navigation errors to defocus; the near swath's (~10 cm
 #: at 2-3 m) only shift, and there the brightest scatterers' radiometry sets the entropy (docs/EVALUATION.md).
 FAR_SWATH_FRACTION = 0.5
 #: Lattice (m) on which a pixel's distance to the track is measured for the far swath (nearest lattice point).
