@@ -10,12 +10,12 @@ the radar passes a pixel, so the contributing pulses form one interval [lo, hi),
 The beam alone does not bound the resolution in a curve: where the car turns towards a pixel (the pixel near
 the centre of curvature), the velocity turns with the line of sight, psi stays small for much longer, and the
 pixel sees the track over many times 2 psi_max of look angle (test3's zig-zag turns on a ~20 m radius: facade
-pillars at 16 m focused to a few mm across the track, so the image's entropy moved by 1 % when its grid moved by
-half a pixel). The window is therefore also cut to the pulses whose line of sight (pixel to antenna) is within
+pillars at 16 m focused to a few mm across the track, and the image's entropy moved by up to 2 % when its grid
+moved by half a pixel). The window is therefore also cut to the pulses whose line of sight (pixel to antenna) is within
 psi_max of the line of sight at zero Doppler (psi = 0). On a straight track that is the same interval (the
 angle between the two lines of sight is psi), so the aperture spans 2 psi_max of look angle everywhere. Where the
-drive ends before the pixel reaches zero Doppler, the drive's last pulse stands in for it (its first, where the
-drive starts after).
+drive ends before the pixel reaches zero Doppler, the drive's last pulse stands in for it; where it starts after,
+its first.
 
 Focus works in blocks of pulses; a block's windows come from the block plus the pulses within
 :func:`look_angle_margin_m` of travel either side (:func:`block_context`), so a pixel's zero-Doppler pulse is found
