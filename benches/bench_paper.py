@@ -28,8 +28,9 @@ from typing import Any
 RESULTS = Path(__file__).resolve().parent / "results"
 METHODS = ("none", "ins", "sar-min", "truth")
 ENTROPIES = {"entropy": "whole image", "entropy_rn": "range-normalised", "entropy_far": "far swath"}
-# sar-min >= truth allows the entropy's sampling on a 2 cm grid (0.04-0.3 % for a half-pixel shift; EVALUATION.md)
-SARMIN_BELOW_TRUTH_TOLERANCE = 0.003
+# sar-min >= truth allows the entropy's sampling on a 2 cm grid, as the tests do (SAR-MIN minus the truth moved by
+# up to 0.16 % over half-pixel shifts of the grid on test1-3 seed 1, lowest -0.03 %; EVALUATION.md)
+SARMIN_BELOW_TRUTH_TOLERANCE = 0.001
 
 
 def parse_seeds(text: str) -> list[int]:

@@ -115,10 +115,13 @@ def _window(px, py, pz, ant, vel, s_max, side, b0, b1, open_start, open_end):  #
             # the block's pulses outside the look-angle cut
             lo = first
         else:
-            # only the pulses whose line of sight is within psi_max of m0's
+            # only the pulses whose line of sight is within psi_max of m0's (on straight stretches all of them:
+            # test the ends before bisecting)
             ux, uy, uz = _unit(ant[m0, 0] - px, ant[m0, 1] - py, ant[m0, 2] - pz)
             a = first
             b = m0
+            if _sin_angle(px, py, pz, ant[a, 0], ant[a, 1], ant[a, 2], ux, uy, uz) <= s_max:
+                b = a
             while a < b:
                 m = (a + b) // 2
                 if _sin_angle(px, py, pz, ant[m, 0], ant[m, 1], ant[m, 2], ux, uy, uz) <= s_max:
@@ -128,6 +131,8 @@ def _window(px, py, pz, ant, vel, s_max, side, b0, b1, open_start, open_end):  #
             first = a
             a = m0
             b = lo
+            if _sin_angle(px, py, pz, ant[b - 1, 0], ant[b - 1, 1], ant[b - 1, 2], ux, uy, uz) <= s_max:
+                a = b
             while a < b:
                 m = (a + b) // 2
                 if _sin_angle(px, py, pz, ant[m, 0], ant[m, 1], ant[m, 2], ux, uy, uz) > s_max:
