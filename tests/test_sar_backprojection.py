@@ -252,9 +252,8 @@ def test_stripmap_windows_do_not_depend_on_the_block(block_pulses: int) -> None:
     got = np.zeros(len(pix), np.int64)
     for b0 in range(0, n, block_pulses):
         b1 = min(n, b0 + block_pulses)
-        c0, c1 = block_context(travel, b0, b1, margin)
-        win = stripmap_windows(pix, track[c0:c1], vel[c0:c1], HALF_WIDTH, side=-1.0, block=(b0 - c0, b1 - c0),
-                               drive_ends=(c0 == 0, c1 == n))
+        win = stripmap_windows(pix, track, vel, HALF_WIDTH, side=-1.0, block=(b0, b1),
+                               context=block_context(travel, b0, b1, margin))
         lo = np.maximum(whole[:, 0], b0) - b0
         hi = np.maximum(np.minimum(whole[:, 1], b1) - b0, lo)
         part = (hi > lo) & once

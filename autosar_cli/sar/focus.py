@@ -251,8 +251,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
             and the kernels release the GIL): one thread, so no numba-parallel launch nests in the kernel's.
             """
             sel = slice(b * options.block_pulses, min(len(frames), (b + 1) * options.block_pulses))
-            c0, c1 = block_context(travel, sel.start, sel.stop, margin)
-            ctx = slice(c0, c1)
+            context = block_context(travel, sel.start, sel.stop, margin)
             work = []
             for gi, grid in enumerate(grid_list):
                 rows, cols = _candidate_pixels(grid, geometry.reference[sel], geometry.velocity[sel], half_width,
@@ -261,9 +260,8 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
                 if rr.size == 0:
                     continue
                 pix = grid.pixel_enu(rr, cc).reshape(-1, 3)
-                win = stripmap_windows(pix, geometry.reference[ctx], geometry.velocity[ctx], half_width, side,
-                                       parallel=False, block=(sel.start - c0, sel.stop - c0),
-                                       drive_ends=(c0 == 0, c1 == len(frames)))
+                win = stripmap_windows(pix, geometry.reference, geometry.velocity, half_width, side, parallel=False,
+                                       block=(sel.start, sel.stop), context=context)
                 keep = win[:, 1] > win[:, 0]
                 if keep.any():
                     work.append((gi, (rr * grid.n_along + cc).ravel()[keep], pix[keep], win[keep]))

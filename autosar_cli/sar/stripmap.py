@@ -183,29 +183,32 @@ def block_context(travel_m: NDArray[np.float64], start: int, stop: int, margin_m
 
 def stripmap_windows(pixels: ArrayLike, antenna: ArrayLike, velocity: ArrayLike, half_width_rad: float,
                      side: float = 0.0, *, parallel: bool = True, block: tuple[int, int] | None = None,
-                     drive_ends: tuple[bool, bool] = (True, True)) -> NDArray[np.int64]:
+                     context: tuple[int, int] | None = None) -> NDArray[np.int64]:
     """Pulse interval [lo, hi) (N, 2) integrated by each pixel (empty: lo == hi).
 
     ``pixels`` (N, 3) and ``antenna`` (P, 3): ENU metres (the antenna is the reference phase centre of each
-    pulse); ``velocity`` (P, 3): its velocity (any scale; only the direction is used). ``side`` > 0: only
-    pixels left of the track get pulses, < 0: only those on the right, 0: both. ``parallel=False``: one
+    pulse of the drive); ``velocity`` (P, 3): its velocity (any scale; only the direction is used). ``side`` > 0:
+    only pixels left of the track get pulses, < 0: only those on the right, 0: both. ``parallel=False``: one
     thread, for a caller that runs beside other numba-parallel work (no nested parallel launch).
 
-    ``block`` = (b0, b1): only the pulses b0 <= p < b1 of these are wanted, and the intervals are returned relative
-    to b0; the pulses around them are context, for the zero-Doppler line of sight of pixels whose aperture straddles
-    the block's ends (:func:`block_context` with :func:`look_angle_margin_m` gives enough). ``drive_ends``: whether
-    the first / last pulse given is the drive's (default: all of the drive is given).
+    ``block`` = (start, stop): only these pulses are wanted (default: all), and the intervals are returned relative
+    to ``start``. ``context`` = (c0, c1) around it: the pulses searched, for the zero-Doppler line of sight of
+    pixels whose aperture straddles the block's ends (default: all; :func:`block_context` with
+    :func:`look_angle_margin_m` gives enough).
     """
     pix = np.ascontiguousarray(np.asarray(pixels, dtype=np.float64).reshape(-1, 3))
-    ant = np.ascontiguousarray(np.asarray(antenna, dtype=np.float64).reshape(-1, 3))
-    vel = np.asarray(velocity, dtype=np.float64).reshape(-1, 3)
+    ant = np.asarray(antenna, dtype=np.float64).reshape(-1, 3)
+    n = len(ant)
+    start, stop = block if block is not None else (0, n)
+    c0, c1 = context if context is not None else (0, n)
+    if not 0 <= c0 <= start <= stop <= c1 <= n:
+        raise ValueError(f"block {start}..{stop} in context {c0}..{c1}: not nested within the {n} pulses given")
+    ant = np.ascontiguousarray(ant[c0:c1])
+    vel = np.asarray(velocity, dtype=np.float64).reshape(-1, 3)[c0:c1]
     speed = np.linalg.norm(vel, axis=1, keepdims=True)
     vel = np.ascontiguousarray(vel / np.where(speed > 0, speed, 1.0))
-    b0, b1 = block if block is not None else (0, len(ant))
-    if not 0 <= b0 <= b1 <= len(ant):
-        raise ValueError(f"block {b0}..{b1} is not within the {len(ant)} pulses given")
     out = np.zeros((len(pix), 2), np.int64)
     if len(ant) and len(pix):
         (_windows if parallel else _windows_serial)(pix, ant, vel, math.sin(half_width_rad), float(np.sign(side)),
-                                                     b0, b1, bool(drive_ends[0]), bool(drive_ends[1]), out)
+                                                     start - c0, stop - c0, c0 == 0, c1 == n, out)
     return out
