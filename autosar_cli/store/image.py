@@ -26,10 +26,9 @@ from rasterio.crs import CRS
 from rasterio.windows import Window
 
 from autosar_cli import __version__
-from autosar_cli.nav.geodesy import GeodeticOrigin
-from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.manifest import json_default
+from autosar_cli.types import FocusGrid, GeodeticOrigin
 
 FORMAT = "autosar-image"
 FORMAT_VERSION = 1
