@@ -14,8 +14,9 @@ from autosar_cli.config import Config
 from autosar_cli.nav.frames import mounting_rotation
 from autosar_cli.types import TRAVEL_HALF_SPAN_S, Trajectory
 
-__all__ = ["TRAVEL_HALF_SPAN_S", "PhaseCentres", "Trajectory", "antenna_lever_arms", "phase_centre_lever_arm",
-           "radar_phase_centres", "radar_track", "rear_axle_from_body_point", "relative_pose_error"]
+__all__ = ["TRAVEL_HALF_SPAN_S", "PhaseCentres", "Trajectory", "antenna_lever_arms", "cumulative_travel",
+           "phase_centre_lever_arm", "radar_phase_centres", "radar_track",
+           "rear_axle_from_body_point", "relative_pose_error"]
 
 Array = NDArray[np.float64]
 
@@ -81,6 +82,13 @@ def radar_phase_centres(traj: Trajectory, frame_t_ns: ArrayLike, tx_start_offset
     return PhaseCentres(tx, rx, t)
 
 
+def cumulative_travel(points: ArrayLike) -> Array:
+    """Distance (N,) (m) travelled along the polyline ``points`` (N, D) (m, any frame) up to each point: 0 at
+    the first point, then the running sum of the straight steps between consecutive points."""
+    p = np.asarray(points, dtype=np.float64)
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=-1))])
+
+
 def relative_pose_error(est_xy: Array, est_heading: Array, ref_xy: Array, ref_heading: Array,
                         delta_m: float) -> Array:
     """SE(2) relative pose error like ``evo_rpe --delta D --delta_unit m``: (P, 2) [along, across] errors (m).
@@ -89,7 +97,7 @@ def relative_pose_error(est_xy: Array, est_heading: Array, ref_xy: Array, ref_he
     displacement expressed in the estimated pose i frame minus the reference one in the reference frame.
     A rigid offset or rotation of the whole estimate gives zero.
     """
-    dist = np.r_[0.0, np.cumsum(np.hypot(*np.diff(ref_xy, axis=0).T))]
+    dist = cumulative_travel(ref_xy)
     j = np.searchsorted(dist, dist + delta_m)
     i = np.flatnonzero(j < len(dist))
     j = j[i]
