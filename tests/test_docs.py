@@ -67,3 +67,16 @@ def test_benchmarks_md_is_generated_from_the_results() -> None:
     assert (ROOT / "docs" / "BENCHMARKS.md").read_text() == expected, "stale docs/BENCHMARKS.md: run make benchmarks-md"
     n_results = len(list((ROOT / "benches" / "results").glob("*.json")))
     assert expected.count("- command: `python benches/bench_") == n_results  # every result names its command
+
+
+def test_code_points_at_sections_that_exist() -> None:
+    """A reference like `docs/FOCUS.md, "Back-projection kernel"` in the code names a heading of that document."""
+    cited = re.compile(r'docs/(\w+\.md),? "([^"]+)"')
+    missing = []
+    for path in sorted((ROOT / "autosar_cli").rglob("*.py")):
+        for doc, section in cited.findall(path.read_text()):
+            headings = [ln.lstrip("#").strip() for ln in (ROOT / "docs" / doc).read_text().splitlines()
+                        if ln.startswith("#")]
+            if section not in headings:
+                missing.append(f"{path.relative_to(ROOT)}: {doc} \"{section}\"")
+    assert not missing, "\n".join(missing)
