@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: setup test demo bench bench-paper lint clean sample-logs
+.PHONY: setup test demo bench bench-paper benchmarks-md figures lint clean sample-logs
 
 setup: $(STAMP)
 
@@ -40,6 +40,17 @@ bench: setup
 # The paper's comparison (issue 6's figures) on test1-3, seeds 0-9: ~35 min (1.2 min per drive).
 bench-paper: setup
 	$(BIN)/python benches/bench_paper.py
+
+# docs/BENCHMARKS.md from benches/results/*.json.
+benchmarks-md: setup
+	$(BIN)/python benches/benchmarks_md.py
+
+# The README's pictures (docs/figures/): test1 seed 0 simulated and compared (none, ins, sar-min, truth), ~5 min.
+FIGURES_WORK := demo_out/figures
+figures: setup
+	$(BIN)/autosar simulate --scenario test1 --seed 0 --output $(FIGURES_WORK)/test1.mcap --overwrite
+	$(BIN)/autosar compare $(FIGURES_WORK)/test1.mcap -o $(FIGURES_WORK)/compare --overwrite
+	$(BIN)/python benches/docs_figures.py $(FIGURES_WORK)/compare docs/figures
 
 lint: setup
 	$(BIN)/ruff check autosar_cli tests benches

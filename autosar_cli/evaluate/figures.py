@@ -19,6 +19,7 @@ from autosar_cli.nav.plot import across_track_deviation
 from autosar_cli.nav.trajectory import Trajectory
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.image import FocusedImage, magnitude_db
+from autosar_cli.store.quicklook import draw_tiled, tile_layout
 
 #: Colours of the methods in every figure (paper Fig. 11: INS red, SAR-MIN blue).
 COLOURS = {"truth": "black", "sar-min": "tab:blue", "ins": "tab:red", "gnss": "tab:orange", "none": "tab:gray"}
@@ -154,35 +155,25 @@ def plot_reflector_chips(rows: Sequence[tuple[str, ReflectorPatches, Sequence[Re
 
 def plot_images_side_by_side(images: Sequence[tuple[str, FocusedImage]], path: str | Path, *,
                              dynamic_range_db: float = 40.0) -> Path:
-    """Full images with the same dB colour scale, relative to the maximum over all of them (paper Fig. 10): one
-    above the other for long drives, side by side for short ones. Axes: metres along the grid (columns) and
-    across it (rows, near range at the bottom)."""
-    plt = _pyplot()
+    """Full images with the same dB colour scale, relative to the maximum over all of them (paper Fig. 10),
+    in the panel grid and tiles that let them fill the figure (:func:`~autosar_cli.store.quicklook.tile_layout`:
+    a short drive's tall image is cut across range, a long drive's strip along track). Axes: metres along
+    the grid (columns) and across it (rows, near range at the bottom)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
     dbs = [magnitude_db(img.image) for _, img in images]
     top = max(float(np.nanmax(d)) for d in dbs)
-    n = len(images)
     first = images[0][1].grid
-    aspect = first.n_across / max(first.n_along, 1)
-    if aspect <= 1.0:  # long drive: images one above the other, along track horizontal
-        fig, axes = plt.subplots(n, 1, figsize=(14.0, n * (max(12.0 * aspect, 1.0) + 0.7) + 0.3), squeeze=False,
-                                 constrained_layout=True)
-        panels = axes[:, 0]
-    else:  # short drive: images side by side, along track still horizontal
-        fig, axes = plt.subplots(1, n, figsize=(n * max(9.0 / aspect, 1.6) + 1.5, 10.0), squeeze=False,
-                                 constrained_layout=True)
-        panels = axes[0, :]
-    im = None
-    for ax, (label, img), db in zip(panels, images, dbs, strict=True):
-        g = img.grid
-        im = ax.imshow(db - top, origin="lower", cmap=_cmap("gray"), vmin=-dynamic_range_db, vmax=0.0,
-                       extent=(-0.5 * g.pixel_m, (g.n_along - 0.5) * g.pixel_m, -0.5 * g.pixel_m,
-                               (g.n_across - 0.5) * g.pixel_m), interpolation="nearest")
-        ax.set_title(label, fontsize=10, loc="left")
-        ax.set_xlabel("along track (m)")
-        ax.set_ylabel("across (m)")
-    if im is not None:
-        fig.colorbar(im, ax=list(panels), shrink=0.6, fraction=0.03, pad=0.01, label="dB (re maximum of all images)")
-    return _save(fig, Path(path), dpi=110)
+    layout = tile_layout(first.shape, len(images), titled=True)
+    fig = Figure(figsize=layout.figure_in, dpi=110)
+    FigureCanvasAgg(fig)
+    panels = [(label, db - np.float32(top)) for (label, _), db in zip(images, dbs, strict=True)]
+    draw_tiled(fig, layout, panels, first.pixel_m, vmin=-dynamic_range_db, cmap=_cmap("gray"),
+               colorbar_label="dB (re maximum of all images)")
+    with atomic_output(Path(path), overwrite=True) as tmp:
+        fig.savefig(tmp, format="png")
+    return Path(path)
 
 
 def plot_across_track(trajectories: Sequence[Trajectory], path: str | Path,

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from autosar_cli.evaluate.alignment import Se2, fit_se2
-from autosar_cli.nav.trajectory import Trajectory, relative_pose_error
+from autosar_cli.nav.trajectory import Trajectory, cumulative_travel, relative_pose_error
 
 Array = NDArray[np.float64]
 
@@ -108,7 +108,7 @@ def trajectory_errors(est: Trajectory, ref: Trajectory, lever_arm: ArrayLike, t_
     est_xy = est.body_points(t, lever)[:, 0, :2]
     ref_xy = ref.body_points(t, lever)[:, 0, :2]
     _, ref_psi = ref.pose(t)
-    dist = np.r_[0.0, np.cumsum(np.hypot(*np.diff(ref_xy, axis=0).T))]
+    dist = cumulative_travel(ref_xy)
     along, across = _along_across(est_xy - ref_xy, ref_psi)
     align = fit_se2(est_xy, ref_xy)
     a_along, a_across = _along_across(align.apply(est_xy) - ref_xy, ref_psi)

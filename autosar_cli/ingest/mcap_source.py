@@ -30,7 +30,7 @@ from mcap.data_stream import ReadDataStream
 from mcap.records import Channel as McapChannel
 from mcap.records import Chunk, Schema
 
-from .sources import Channel, LogReadError, RawMessage, ReadStats, normalise_type
+from .sources import Channel, LogReadError, RawMessage, ReadStats, normalise_type, register_container
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 _OP_FOOTER = 0x02
@@ -250,3 +250,6 @@ class McapSource:
             if ch.declared_count is not None and got < ch.declared_count:
                 self.stats.warnings.append(f"{self.path}: topic {ch.topic}: {got} of the {ch.declared_count} "
                                            "messages the index declares could be read")
+
+
+register_container("mcap", ".mcap", lambda path: not path.is_dir() and path.suffix.lower() == ".mcap", McapSource)

@@ -20,7 +20,15 @@ from typing import Any
 import yaml
 
 from .mcap_source import McapSource
-from .sources import Channel, LogReadError, LogSource, RawMessage, ReadStats, normalise_type
+from .sources import (
+    Channel,
+    LogReadError,
+    LogSource,
+    RawMessage,
+    ReadStats,
+    normalise_type,
+    register_container,
+)
 
 
 class Ros1BagSource:
@@ -238,3 +246,13 @@ def open_rosbag2(path: Path) -> LogSource:
     if storage == "sqlite3":
         return Rosbag2SqliteSource(path, meta)
     raise LogReadError(f"{path}: rosbag2 storage {storage!r} is not supported (mcap, sqlite3)")
+
+
+def _is_rosbag2(path: Path) -> bool:
+    """A rosbag2 bag: its directory (with metadata.yaml) or that metadata.yaml itself."""
+    return (path / "metadata.yaml").exists() if path.is_dir() else path.name == "metadata.yaml"
+
+
+register_container("ros1", ".bag", lambda path: not path.is_dir() and path.suffix.lower() == ".bag", Ros1BagSource)
+register_container("rosbag2", "a rosbag2 directory", _is_rosbag2,
+                   lambda path: open_rosbag2(path.parent if path.name == "metadata.yaml" else path))

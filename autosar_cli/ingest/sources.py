@@ -1,14 +1,16 @@
 """What every log reader yields: channels (topic, type, encoding, embedded definition) and raw messages.
 
 One reader per container: :mod:`.mcap_source` (MCAP, also rosbag2 directories with MCAP storage) and
-:mod:`.rosbag_source` (ROS1 bags, rosbag2 sqlite3 storage). Payloads stay serialized here; decoding is
+:mod:`.rosbag_source` (ROS1 bags, rosbag2 sqlite3 storage). Each registers its containers here with
+:func:`register_container` when it is imported (:mod:`autosar_cli.ingest` imports them), and
+:func:`open_source` picks the reader from that registry. Payloads stay serialized here; decoding is
 the job of :mod:`.typesys` and :mod:`.decoders`.
 """
 
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
@@ -66,20 +68,43 @@ def normalise_type(name: str) -> str:
     return f"{m.group(1)}/msg/{m.group(2)}" if m else name.strip()
 
 
-def container_of(path: Path) -> str:
-    """"mcap", "ros1" or "rosbag2" from the path (a rosbag2 bag is a directory with metadata.yaml)."""
+@dataclass(frozen=True, slots=True)
+class Container:
+    """One log container a reader handles (see :func:`register_container`)."""
+
+    name: str  #: "mcap", "ros1", "rosbag2", ...
+    expected: str  #: how an error message names what it accepts: ".mcap", "a rosbag2 directory"
+    detect: Callable[[Path], bool]  #: True if this reader takes the path (file or directory)
+    open: Callable[[Path], LogSource]
+
+
+_CONTAINERS: list[Container] = []
+
+
+def register_container(name: str, expected: str, detect: Callable[[Path], bool],
+                       open: Callable[[Path], LogSource]) -> None:
+    """Make :func:`open_source` hand paths that `detect` accepts to `open`.
+
+    Each reader module registers its containers when it is imported; :mod:`autosar_cli.ingest` imports
+    them all, so this module never imports a reader (the readers import it)."""
+    _CONTAINERS[:] = [c for c in _CONTAINERS if c.name != name] + [Container(name, expected, detect, open)]
+
+
+def _container(path: Path) -> Container:
+    for container in _CONTAINERS:
+        if container.detect(path):
+            return container
     if path.is_dir():
-        if (path / "metadata.yaml").exists():
-            return "rosbag2"
         raise LogReadError(f"{path}: a directory but not a rosbag2 bag (no metadata.yaml)")
-    suffix = path.suffix.lower()
-    if suffix == ".mcap":
-        return "mcap"
-    if suffix == ".bag":
-        return "ros1"
-    if suffix == ".yaml" and path.name == "metadata.yaml":
-        return "rosbag2"
-    raise LogReadError(f"{path}: unknown log container (expected .mcap, .bag or a rosbag2 directory)")
+    names = [c.expected for c in _CONTAINERS]
+    expected = " or ".join([", ".join(names[:-1]), names[-1]] if len(names) > 1 else names)
+    raise LogReadError(f"{path}: unknown log container (expected {expected})")
+
+
+def container_of(path: Path) -> str:
+    """The registered container that takes `path`: "mcap", "ros1" or "rosbag2" (a rosbag2 bag is a
+    directory with metadata.yaml)."""
+    return _container(path).name
 
 
 def open_source(path: Path) -> LogSource:
@@ -87,15 +112,4 @@ def open_source(path: Path) -> LogSource:
     path = Path(path)
     if not path.exists():
         raise LogReadError(f"{path}: no such file or directory")
-    kind = container_of(path)
-    if kind == "mcap":
-        from .mcap_source import McapSource
-
-        return McapSource(path)
-    if kind == "ros1":
-        from .rosbag_source import Ros1BagSource
-
-        return Ros1BagSource(path)
-    from .rosbag_source import open_rosbag2
-
-    return open_rosbag2(path.parent if path.name == "metadata.yaml" else path)
+    return _container(path).open(path)

@@ -1,7 +1,7 @@
 """What the radar can measure that the navigation sensors cannot: the track's along-track scale.
 
 SAR-MIN's speed scale comes from GNSS velocity (3 cm/s of white noise at 10 Hz pins 25 s of driving to
-~0.04 %, docs/EVALUATION.md "test2: the odometry's scale"). A speed error eps leaves a range error of about
+~0.04 %, docs/EVALUATION.md, "Decisions"). A speed error eps leaves a range error of about
 ``x^2 eps / R`` at along-track offset x of an aperture: nothing over the product's narrow processed beam, but a
 large fraction of a wavelength at the edge of a wide one (±28 deg at 9 m: ~lambda/4 for eps = 0.09 %). So the
 peaks of bright point scatterers focused with a wide beam are sharpest when the track is scaled right.

@@ -292,7 +292,7 @@ def _accumulate_vectors_inside(prof_re, prof_im, row0, stride, n_bins, dt, dr, n
                                cyc_per_m):  # pragma: no cover - compiled
     """:func:`_accumulate_vectors` for a chunk of whole vectors whose samples all lie inside the profiles (no
     lane is masked) and four vectors per horizontal sum: 26 cycles per vector instead of 42 in a loop alone
-    (docs/FOCUS.md, eighth session)."""
+    (docs/FOCUS.md, "Back-projection kernel")."""
     ib = _F(bin_inv)
     kc = _F(cyc_per_m)
     g = _F(i0)

@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from autosar_cli import __version__
 from autosar_cli.config import Config
-from autosar_cli.nav.trajectory import Trajectory, antenna_lever_arms, radar_phase_centres
+from autosar_cli.nav.trajectory import Trajectory, antenna_lever_arms, cumulative_travel, radar_phase_centres
 from autosar_cli.sar.backprojection import PulseBlock, backproject_block
 from autosar_cli.sar.grid import FocusGrid, GridError, box_grid, track_grid
 from autosar_cli.sar.range_compression import SPEED_OF_LIGHT, range_compress_into
@@ -239,7 +239,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         frames = geometry.frames
         n_blocks = (len(frames) + options.block_pulses - 1) // options.block_pulses
         # a block's windows need the pulses around it: a pixel's look-angle cut is centred on its zero-Doppler pulse
-        travel = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(geometry.reference, axis=0), axis=1))])
+        travel = cumulative_travel(geometry.reference)
         margin = look_angle_margin_m(config.radar.max_range_m, half_width)
 
         def prepare(b: int) -> tuple[slice, list[tuple[int, Any, Any, Any]], NDArray[np.int16] | None,

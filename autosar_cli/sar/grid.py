@@ -1,18 +1,16 @@
-"""Focusing grids: a rectangle of square pixels on the focusing plane (ENU, z = height).
+"""Focusing grids: the automatic grid along a track, a box grid, and pixels' distances to the track.
 
-The image array is (rows, cols) = (n_across, n_along). Column index grows along ``along`` (a unit ENU
-vector, usually the direction of travel); row index grows along ``across`` (unit vector, away from the
-track on the radar side for the automatic grid, south for an explicit east/north box). Pixel (0, 0)'s
-centre is ``origin``. Rows of the image are therefore lines of constant ground range for the automatic
-grid, which keeps neighbouring pixels of the kernel's pixel order on neighbouring range bins.
+:class:`FocusGrid` itself (the grid's geometry and pixel positions) lives in :mod:`autosar_cli.types`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from autosar_cli.types import FocusGrid
+
+__all__ = ["TRACK_LATTICE_M", "FocusGrid", "GridError", "box_grid", "track_distance", "track_grid", "track_lattice"]
 
 Array = NDArray[np.float64]
 
@@ -22,66 +20,6 @@ TRACK_LATTICE_M = 0.25
 
 class GridError(ValueError):
     """An impossible grid request (empty box, pixel <= 0, no trajectory); the message says which."""
-
-
-@dataclass(frozen=True)
-class FocusGrid:
-    origin: tuple[float, float]  #: ENU (x, y) of pixel (0, 0)'s centre, m
-    along: tuple[float, float]  #: unit ENU vector of increasing column index
-    across: tuple[float, float]  #: unit ENU vector of increasing row index
-    pixel_m: float
-    n_along: int  #: columns
-    n_across: int  #: rows
-    height_m: float  #: focusing plane height (ENU z), m
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        """Image shape (rows, cols)."""
-        return (self.n_across, self.n_along)
-
-    @property
-    def size(self) -> int:
-        return self.n_across * self.n_along
-
-    def pixel_enu(self, rows: ArrayLike, cols: ArrayLike) -> Array:
-        """ENU positions (..., 3) of (fractional) pixel indices."""
-        r = np.asarray(rows, dtype=np.float64)
-        c = np.asarray(cols, dtype=np.float64)
-        o, a, x = np.asarray(self.origin), np.asarray(self.along), np.asarray(self.across)
-        xy = o + (c[..., None] * a + r[..., None] * x) * self.pixel_m
-        z = np.full(xy.shape[:-1] + (1,), self.height_m)
-        return np.concatenate([xy, z], axis=-1)
-
-    def positions(self) -> Array:
-        """ENU positions (rows, cols, 3) of every pixel centre."""
-        rows, cols = np.meshgrid(np.arange(self.n_across), np.arange(self.n_along), indexing="ij")
-        return self.pixel_enu(rows, cols)
-
-    def enu_to_pixel(self, xy: ArrayLike) -> tuple[Array, Array]:
-        """Fractional (row, col) of ENU points (..., 2 or 3)."""
-        d = np.asarray(xy, dtype=np.float64)[..., :2] - np.asarray(self.origin)
-        return d @ np.asarray(self.across) / self.pixel_m, d @ np.asarray(self.along) / self.pixel_m
-
-    def corners_enu(self) -> Array:
-        """ENU (4, 2) of the outer pixel edges: (0,0) corner, along end, far corner, across end."""
-        h = -0.5
-        r = np.array([h, h, self.n_across + h, self.n_across + h])
-        c = np.array([h, self.n_along + h, self.n_along + h, h])
-        return self.pixel_enu(r, c)[:, :2]
-
-    def to_attrs(self) -> dict[str, object]:
-        return {"origin_enu_m": np.asarray(self.origin), "along": np.asarray(self.along),
-                "across": np.asarray(self.across), "pixel_m": self.pixel_m, "n_along": self.n_along,
-                "n_across": self.n_across, "height_m": self.height_m}
-
-    @classmethod
-    def from_attrs(cls, attrs: dict[str, object]) -> FocusGrid:
-        def pair(key: str) -> tuple[float, float]:
-            v = np.asarray(attrs[key], dtype=np.float64)
-            return (float(v[0]), float(v[1]))
-
-        return cls(pair("origin_enu_m"), pair("along"), pair("across"), float(attrs["pixel_m"]),  # type: ignore[arg-type]
-                   int(attrs["n_along"]), int(attrs["n_across"]), float(attrs["height_m"]))  # type: ignore[arg-type]
 
 
 def box_grid(x0: float, y0: float, x1: float, y1: float, *, pixel_m: float, height_m: float) -> FocusGrid:

@@ -10,7 +10,6 @@ docs/FORMATS.md.
 from __future__ import annotations
 
 import json
-import math
 import warnings
 from contextlib import ExitStack
 from dataclasses import dataclass, field
@@ -26,10 +25,10 @@ from rasterio.crs import CRS
 from rasterio.windows import Window
 
 from autosar_cli import __version__
-from autosar_cli.nav.geodesy import GeodeticOrigin
-from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.manifest import json_default
+from autosar_cli.store.quicklook import draw_quicklook, preload_quicklook  # noqa: F401  (focus, run preload it)
+from autosar_cli.types import FocusGrid, GeodeticOrigin
 
 FORMAT = "autosar-image"
 FORMAT_VERSION = 1
@@ -223,7 +222,7 @@ class ImageWriter:
         self._tif.set_band_unit(1, "dB")
         _write_params(self._h5.create_group("params"), self._params)
         self._h5.create_group("provenance").attrs["json"] = self._provenance_json
-        _draw_quicklook(self._tmp["png"], self._pooled, self._pool, self.grid, dynamic_range_db=self.dynamic_range_db)
+        draw_quicklook(self._tmp["png"], self._pooled, self._pool, self.grid, dynamic_range_db=self.dynamic_range_db)
 
 
 def write_image(base: Path, img: FocusedImage, *, overwrite: bool = False,
@@ -348,74 +347,3 @@ def _read_params(group: h5py.Group) -> dict[str, Any]:
             continue
         out[k] = json.loads(v) if k in json_keys else (v.item() if isinstance(v, np.generic) else v)
     return out
-
-
-def _nice_length(x: float) -> float:
-    """The 1-2-5 x 10^k value nearest ``x`` (> 0) on a log scale."""
-    k = math.floor(math.log10(x))
-    return min((m * 10.0**k for m in (1, 2, 5, 10)), key=lambda v: abs(math.log(v / x)))
-
-
-def preload_quicklook() -> None:
-    """Import what the quicklook draws with (matplotlib: ~0.5 s), e.g. in a thread while focusing runs."""
-    import matplotlib.backends.backend_agg  # noqa: F401
-    import matplotlib.figure  # noqa: F401
-    import mpl_toolkits.axes_grid1  # noqa: F401
-    import mpl_toolkits.axes_grid1.anchored_artists  # noqa: F401
-
-
-def _draw_quicklook(path: Path, pooled_db: NDArray[np.float32], pool: int, g: FocusGrid, *,
-                    dynamic_range_db: float = 50.0) -> None:
-    """PNG quicklook of the max-pooled (``pool`` x ``pool`` pixels) absolute dB image: dB relative to the
-    image peak, clipped to [-dynamic_range_db, 0], in grid metres.
-
-    x: along-track metres from pixel (0, 0)'s centre, y: across metres, increasing upwards, so row 0 (near
-    range for the automatic grid) is at the bottom. Exact zeros (-inf) show as the floor, pixels with no
-    finite value blank. A scale bar (metres), a dB colour bar and a north arrow (the grid may be rotated
-    and mirrored relative to a map) are drawn. No pyplot state is touched.
-    """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from mpl_toolkits.axes_grid1 import make_axes_locatable
-    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
-
-    rows, cols = g.shape
-    finite = np.isfinite(pooled_db)
-    peak = float(pooled_db[finite].max()) if finite.any() else 0.0
-    rel = np.clip(pooled_db - np.float32(peak), -dynamic_range_db, 0.0)
-    p = g.pixel_m
-    r2, c2 = pooled_db.shape[0] * pool, pooled_db.shape[1] * pool
-    extent = (-0.5 * p, (c2 - 0.5) * p, -0.5 * p, (r2 - 0.5) * p)
-    width_m, height_m = cols * p, rows * p
-
-    # the figure hugs the image (at most 8 x 9 inches of image); fixed margins (inches) for the labels, title
-    # and colour bar, since a layout engine would cost a second draw
-    left, right, bottom, top = 0.75, 1.0, 0.55, 0.3
-    aspect = height_m / width_m
-    img_w = min(8.0, 9.0 / aspect)
-    fig_w = max(4.0, img_w + left + right + 0.25)  # + the colour bar
-    fig_h = float(np.clip(img_w * aspect + bottom + top, 3.0, 10.0))
-    fig = Figure(figsize=(fig_w, fig_h), dpi=150)
-    FigureCanvasAgg(fig)
-    fig.subplots_adjust(left=left / fig_w, right=1.0 - right / fig_w, bottom=bottom / fig_h, top=1.0 - top / fig_h)
-    ax = fig.add_subplot()
-    # at most ~one image pixel per screen pixel: max-pooled (bright points stay visible), drawn as is
-    im = ax.imshow(rel, origin="lower", extent=extent, cmap="gray", vmin=-dynamic_range_db, vmax=0.0,
-                   interpolation="nearest", aspect="equal")
-    ax.set_xlabel("along (m)")
-    ax.set_ylabel("across (m)")
-    title = f"peak {peak:.1f} dB, {rows} x {cols} px at {p * 100:g} cm"
-    ax.set_title(title, fontsize=9)
-    cax = make_axes_locatable(ax).append_axes("right", size=0.15, pad=0.1)  # follows the equal-aspect box
-    fig.colorbar(im, cax=cax, label="dB (rel. peak)")
-    length = _nice_length(width_m / 5.0)
-    label = f"{length:g} m" if length >= 1 else f"{length * 100:g} cm"
-    ax.add_artist(AnchoredSizeBar(ax.transData, length, label, loc="lower right", color="yellow", frameon=False,
-                                  size_vertical=min(width_m, height_m) / 150.0, pad=0.5, sep=4))
-    north = np.array([g.along[1], g.across[1]])  # ENU north in the (along, across) plot axes
-    if np.hypot(*north) > 1e-9:
-        n = 24.0 * north / np.hypot(*north)  # arrow length in points (isotropic, unlike axes fraction)
-        ax.annotate("N", xy=(0.06, 0.88), xycoords="axes fraction", xytext=(n[0], n[1]), textcoords="offset points",
-                    color="yellow", fontsize=8, ha="center", va="center",
-                    arrowprops={"arrowstyle": "<-", "color": "yellow", "shrinkA": 4, "shrinkB": 0})
-    fig.savefig(path, format="png", pil_kwargs={"compress_level": 1})

@@ -17,8 +17,7 @@ from typing import Any
 import h5py
 
 from autosar_cli import __version__
-from autosar_cli.nav.geodesy import GeodeticOrigin
-from autosar_cli.nav.trajectory import Trajectory
+from autosar_cli.types import GeodeticOrigin, Trajectory
 
 FORMAT = "autosar-trajectory"
 FORMAT_VERSION = 1

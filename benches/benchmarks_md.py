@@ -1,0 +1,143 @@
+"""Write docs/BENCHMARKS.md from benches/results/*.json: every figure with the command and machine that made it.
+Usage: python benches/benchmarks_md.py [--results benches/results] [--output docs/BENCHMARKS.md] [--max-rows 8]
+
+One section per JSON file, in file-name order. The command is the ``Usage:`` line of the bench script whose
+docstring names that JSON file, the description its first line; the machine is what the JSON recorded
+(``machine``, ``cores``, ``host_*``, ``python``), or says that it recorded none. Scalars become a
+key/value table; lists of records a table with one column per scalar field (at most ``--max-rows`` rows;
+the JSON holds the rest); per-run lists of numbers are shown as their count and range.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+from pathlib import Path
+from typing import Any
+
+HERE = Path(__file__).resolve().parent
+MACHINE_KEYS = ("machine", "cores", "cpus", "python", "host_before", "host_after")
+MAX_COLUMNS = 12
+
+
+def bench_scripts(benches: Path) -> dict[str, tuple[str, str]]:
+    """JSON file name -> (first docstring line, usage command) of the bench script that writes it."""
+    out: dict[str, tuple[str, str]] = {}
+    for script in sorted(benches.glob("bench_*.py")):
+        doc = ast.get_docstring(ast.parse(script.read_text())) or ""
+        lines = doc.splitlines()
+        usage = next((ln.removeprefix("Usage:").strip() for ln in lines if ln.startswith("Usage:")),
+                     f"python benches/{script.name}")
+        for word in doc.replace("``", " ").split():
+            name = word.strip(".,;:()`")
+            if name.endswith(".json"):
+                out.setdefault(Path(name).name, (lines[0] if lines else "", usage))
+        out.setdefault(script.stem.removeprefix("bench_") + ".json", (lines[0] if lines else "", usage))
+    return out
+
+
+def cell(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    if isinstance(value, list) and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value):
+        if not value:
+            return "[]"
+        if len(value) <= 3:
+            return ", ".join(cell(v) for v in value)
+        return f"{len(value)} values, {cell(min(value))} .. {cell(max(value))}"
+    if isinstance(value, dict):
+        return ", ".join(f"{k} {cell(v)}" for k, v in value.items() if not isinstance(v, dict | list))
+    return str(value).replace("|", "\\|").replace("\n", " ")
+
+
+def is_scalar(value: Any) -> bool:
+    return not isinstance(value, dict | list) or isinstance(value, list) and not any(
+        isinstance(v, dict | list) for v in value)
+
+
+def table(header: list[str], rows: list[list[str]]) -> list[str]:
+    return ["| " + " | ".join(header) + " |", "|" + "---|" * len(header),
+            *("| " + " | ".join(r) + " |" for r in rows), ""]
+
+
+def records_table(records: list[dict[str, Any]], max_rows: int, names: list[str] | None = None) -> list[str]:
+    """One row per record (headed by its name from ``names``, if given), one column per scalar field."""
+    columns: list[str] = []
+    for rec in records:
+        columns += [k for k, v in rec.items() if is_scalar(v) and k not in columns]
+    shown = columns[:MAX_COLUMNS]
+    rows = [[cell(rec.get(k, "")) for k in shown] for rec in records[:max_rows]]
+    if names is not None:
+        shown, rows = ["", *shown], [[f"**{n}**", *r] for n, r in zip(names, rows, strict=False)]
+    lines = table(shown, rows)
+    notes = []
+    if len(records) > max_rows:
+        notes.append(f"{len(records) - max_rows} more rows")
+    if len(columns) > len(shown):
+        notes.append("more fields: " + ", ".join(columns[len(shown):]))
+    nested = sorted({k for rec in records for k, v in rec.items() if not is_scalar(v)})
+    if nested:
+        notes.append("per-row groups: " + ", ".join(nested))
+    if notes:
+        lines += [f"({'; '.join(notes)}: see the JSON.)", ""]
+    return lines
+
+
+def section(data: Any, max_rows: int, depth: int = 0) -> list[str]:
+    """Markdown of one JSON value: scalars as a table, records as tables, dicts of dicts as sub-headings."""
+    lines: list[str] = []
+    if isinstance(data, list):
+        return records_table([r for r in data if isinstance(r, dict)], max_rows) if data else []
+    scalars = [(k, v) for k, v in data.items() if is_scalar(v) and k not in MACHINE_KEYS and k != "benchmark"]
+    if scalars:
+        lines += table(["figure", "value"], [[k, cell(v)] for k, v in scalars])
+    for key, value in data.items():
+        if is_scalar(value) or key in MACHINE_KEYS:
+            continue
+        if isinstance(value, dict) and all(is_scalar(v) for v in value.values()) and depth >= 1:
+            lines += [f"**{key}**: {cell(value)}", ""]
+            continue
+        lines += [f"{'#' * min(3 + depth, 6)} {key}", ""]
+        if isinstance(value, dict) and value and all(isinstance(v, dict) for v in value.values()):
+            lines += records_table(list(value.values()), len(value), names=list(value))  # a table of named records
+            continue
+        lines += section(value, max_rows, depth + 1)
+    return lines
+
+
+def machine_of(data: dict[str, Any]) -> str:
+    found = [f"{k} {cell(data[k])}" for k in MACHINE_KEYS if k in data]
+    return "; ".join(found) if found else "not recorded in the JSON"
+
+
+def render(results: Path, max_rows: int) -> str:
+    scripts = bench_scripts(HERE)
+    out = ["# Benchmarks", "",
+           "Generated by `python benches/benchmarks_md.py` (`make benchmarks-md`) from `benches/results/*.json`;",
+           "do not edit by hand: rerun a benchmark, then this script. Each section names the command that",
+           "wrote the figures and the machine it recorded. Times are wall-clock seconds on that machine.", ""]
+    for path in sorted(results.glob("*.json")):
+        data = json.loads(path.read_text())
+        title, usage = scripts.get(path.name, ("", "(no bench script names this file)"))
+        out += [f"## {path.stem}", ""]
+        if title:
+            out += [title, ""]
+        out += [f"- command: `{usage}`", f"- machine: {machine_of(data) if isinstance(data, dict) else '-'}",
+                f"- data: [`benches/results/{path.name}`](../benches/results/{path.name})", ""]
+        out += section(data, max_rows)
+    return "\n".join(out).rstrip() + "\n"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--results", type=Path, default=HERE / "results")
+    parser.add_argument("--output", type=Path, default=HERE.parent / "docs" / "BENCHMARKS.md")
+    parser.add_argument("--max-rows", type=int, default=8)
+    args = parser.parse_args()
+    args.output.write_text(render(args.results, args.max_rows))
+    print(f"wrote {args.output} ({len(args.output.read_text().splitlines())} lines)")
+
+
+if __name__ == "__main__":
+    main()

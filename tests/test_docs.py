@@ -1,0 +1,82 @@
+"""docs/ describe the code as it is: short documents, no narrative of the work's history, links that resolve."""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = sorted((ROOT / "docs").glob("*.md"))
+MAX_LINES = 300
+#: dated or numbered narrative: "2026-11-24", "third session", "round 3", "run C (...)"
+HISTORY = re.compile(r"\b20\d\d-[01]\d-[0-3]\d\b|\bsessions?\b|\bround \d|\brun [A-L]\b(?! *[=:])", re.IGNORECASE)
+LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
+
+
+def test_the_stage_documents_exist() -> None:
+    names = {p.name for p in DOCS}
+    assert {"ARCHITECTURE.md", "FORMATS.md", "NAVIGATION.md", "FOCUS.md", "EVALUATION.md", "BATCH.md",
+            "BENCHMARKS.md"} <= names
+
+
+@pytest.mark.parametrize("doc", DOCS, ids=[p.name for p in DOCS])
+def test_doc_is_short_and_tells_no_history(doc: Path) -> None:
+    lines = doc.read_text().splitlines()
+    assert len(lines) <= MAX_LINES, f"{doc.name}: {len(lines)} lines"
+    history = [f"{i}: {ln.strip()[:80]}" for i, ln in enumerate(lines, 1) if HISTORY.search(ln)]
+    assert not history, f"{doc.name} narrates its history:\n" + "\n".join(history)
+
+
+@pytest.mark.parametrize("doc", [*DOCS, ROOT / "README.md"], ids=[*(p.name for p in DOCS), "README.md"])
+def test_relative_links_resolve(doc: Path) -> None:
+    missing = [t for t in LINK.findall(doc.read_text()) if "://" not in t and not (doc.parent / t).exists()]
+    assert not missing, f"{doc.name}: links to missing files {missing}"
+
+
+def test_docstrings_tell_no_history() -> None:
+    found = []
+    for path in sorted((ROOT / "autosar_cli").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef):
+                doc = ast.get_docstring(node) or ""
+                found += [f"{path.relative_to(ROOT)}: {m.group(0)}" for m in HISTORY.finditer(doc)]
+    assert not found, "docstrings that point at the work's history:\n" + "\n".join(found)
+
+
+def test_readme_opens_with_a_picture() -> None:
+    lines = [ln for ln in (ROOT / "README.md").read_text().splitlines() if ln.strip()]
+    first_content = next(ln for ln in lines if not ln.startswith("#"))
+    assert re.match(r"\s*(!\[|<img|<p|<a)", first_content), first_content
+    pictures = re.findall(r"!\[[^\]]*\]\(([^)]+\.png)\)", (ROOT / "README.md").read_text())
+    assert len(pictures) >= 2
+    for rel in pictures:
+        assert (ROOT / rel).stat().st_size <= 300_000, rel
+
+
+def test_benchmarks_md_is_generated_from_the_results() -> None:
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("benchmarks_md", ROOT / "benches" / "benchmarks_md.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    expected = module.render(ROOT / "benches" / "results", 8)
+    assert (ROOT / "docs" / "BENCHMARKS.md").read_text() == expected, "stale docs/BENCHMARKS.md: run make benchmarks-md"
+    n_results = len(list((ROOT / "benches" / "results").glob("*.json")))
+    assert expected.count("- command: `python benches/bench_") == n_results  # every result names its command
+
+
+def test_code_points_at_sections_that_exist() -> None:
+    """A reference like `docs/FOCUS.md, "Back-projection kernel"` in the code names a heading of that document."""
+    cited = re.compile(r'docs/(\w+\.md),? "([^"]+)"')
+    missing = []
+    for path in sorted((ROOT / "autosar_cli").rglob("*.py")):
+        for doc, section in cited.findall(path.read_text()):
+            headings = [ln.lstrip("#").strip() for ln in (ROOT / "docs" / doc).read_text().splitlines()
+                        if ln.startswith("#")]
+            if section not in headings:
+                missing.append(f"{path.relative_to(ROOT)}: {doc} \"{section}\"")
+    assert not missing, "\n".join(missing)

@@ -1,0 +1,71 @@
+"""The image fills its figures: the PNG quicklook of the ci and test1 drives, and compare's panels."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from autosar_cli.config import load_config
+from autosar_cli.nav.geodesy import GeodeticOrigin
+from autosar_cli.nav.trajectory import antenna_lever_arms
+from autosar_cli.sar.focus import FocusOptions
+from autosar_cli.sar.grid import FocusGrid, track_grid
+from autosar_cli.sim.scenario import build_scenario
+from autosar_cli.store.image import FocusedImage, write_image
+from autosar_cli.store.quicklook import tile_layout
+
+ORIGIN = GeodeticOrigin(45.06, 7.66, 240.0)
+PARAMS = {"method": "backprojection", "pixel_m": 0.04}
+
+
+def drive_grid(scenario: str) -> FocusGrid:
+    """The automatic focus grid along the scenario's true radar track (no focusing needed for its shape)."""
+    config = load_config()
+    options = FocusOptions.from_config(config)
+    motion = build_scenario(scenario, config).motion
+    track = motion.point(np.linspace(0.0, motion.duration_s, 400), antenna_lever_arms(config)[0][0]).position
+    side = 1.0 if math.sin(math.radians(config.radar.mounting.yaw_deg)) > 0 else -1.0
+    return track_grid(track[:, :2], side=side, pixel_m=options.pixel_m, height_m=options.height_m,
+                      antenna_height_m=float(track[:, 2].mean()), max_range_m=config.radar.max_range_m)
+
+
+@pytest.mark.parametrize(("scenario", "shape_like"), [("ci", "tall"), ("test1", "wide")])
+def test_quicklook_image_fills_half_the_figure(scenario: str, shape_like: str, tmp_path: Path) -> None:
+    grid = drive_grid(scenario)
+    rows, cols = grid.shape
+    assert (rows > 5 * cols) if shape_like == "tall" else (cols > rows)  # ci: ~11:1, test1: ~1:2
+    # every pixel at -25 dB below one peak pixel: mid grey (0.5 of the 50 dB scale) wherever the image is drawn
+    image = np.full(grid.shape, 10 ** (-25 / 20), np.complex64)
+    image[rows // 2, cols // 2] = 1.0
+    png = write_image(tmp_path / "scene", FocusedImage(image, grid, ORIGIN, PARAMS))["png"]
+    pixels = np.asarray(Image.open(png).convert("RGB")).astype(int)
+    grey = np.all(np.abs(pixels - 128) <= 1, axis=-1)  # the image; labels, ticks, colour bar are other colours
+    filled = grey.mean()
+    assert filled >= 0.5, f"{scenario}: image covers {filled:.0%} of the quicklook"
+    # the layout's own account of its coverage is what the PNG shows
+    assert tile_layout(grid.shape).image_fraction(1) == pytest.approx(filled, abs=0.03)
+
+
+def test_layout_tiles_long_and_tall_images() -> None:
+    tall = tile_layout((663, 61))  # ci: range across 26 m, 2.4 m of travel
+    assert tall.tall and tall.tiles >= 2
+    strip = tile_layout((700, 3000))  # test2: 120 m of travel
+    assert not strip.tall and strip.tiles >= 2
+    assert tile_layout((600, 1200)).tiles == 1  # test1 fits in one piece
+    for layout in (tall, strip):
+        covered = {(r, c) for p in range(1) for rs, cs, _ in layout.tiles_of(p)
+                   for r in (rs.start, rs.stop - 1) for c in (cs.start, cs.stop - 1)}
+        assert (0, 0) in covered and (layout.shape[0] - 1, layout.shape[1] - 1) in covered
+        pieces = layout.tiles_of(0)
+        assert sum((r.stop - r.start) * (c.stop - c.start) for r, c, _ in pieces) == layout.shape[0] * layout.shape[1]
+        rects = [rect for _, _, rect in pieces]
+        assert all(0.0 <= x and 0.0 <= y and x + w <= 1.0 and y + h <= 1.0 for x, y, w, h in rects)
+
+
+def test_compare_panels_fill_the_figure() -> None:
+    for shape in ((663, 61), (666, 1251), (709, 3000)):  # ci, test1, test2
+        assert tile_layout(shape, 4, titled=True).image_fraction(4) >= 0.44, shape
