@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Iterator
-from dataclasses import dataclass, replace
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
 from decimal import Decimal
 from pathlib import Path
 from typing import Any
@@ -398,6 +398,8 @@ _SPLIT = re.compile(r"^(.*)_(\d+)\.bin$")
 
 def is_capture(path: Path) -> bool:
     """A DCA1000 capture: a directory or .bin file with a parameter file (.cfg / .mmwave.json) beside it."""
+    if not (path.is_dir() or path.suffix.lower() == ".bin"):
+        return False
     try:
         find_capture(path)
     except CaptureError:
@@ -499,50 +501,71 @@ class Dca1000Capture:
             f.close()
 
 
-def write_capture(folder: Path, params: CaptureParams, pris: Iterator[NDArray[np.int16]], *,
-                  param_format: str = "cfg", split_bytes: int = 0) -> list[Path]:
-    """Write PRI blocks (n, tx, rx, sample, I/Q) int16 as a DCA1000 capture in ``folder``.
+class CaptureWriter:
+    """Writes PRI blocks as a DCA1000 capture in ``folder`` (use as a context manager).
 
     ``param_format``: "cfg" (mmWave SDK) or "json" (mmWave Studio pair). ``split_bytes`` > 0 writes split
     files ``adc_data_Raw_<k>.bin`` of at most that size (frames may straddle files, as in a real capture),
     else ``adc_data.bin``. Blocks must hold whole frames (a multiple of ``num_loops`` PRIs).
     """
-    folder.mkdir(parents=True, exist_ok=True)
-    if param_format == "json":
-        write_studio_json(folder / "capture", params)
-    else:
-        write_sdk_cfg(folder / "capture.cfg", params)
-    files: list[Path] = []
-    out = None
-    room = 0
-    try:
+
+    def __init__(self, folder: Path, params: CaptureParams, *, param_format: str = "cfg",
+                 split_bytes: int = 0) -> None:
+        folder.mkdir(parents=True, exist_ok=True)
+        if param_format == "json":
+            write_studio_json(folder / "capture", params)
+        else:
+            write_sdk_cfg(folder / "capture.cfg", params)
+        self.folder, self.params, self.split_bytes = folder, params, split_bytes
+        self.files: list[Path] = []
+        self._out: Any = None
+        self._room = 0
+
+    def write(self, pris: NDArray[np.int16]) -> None:
+        """PRIs (n, tx, rx, sample, I/Q) int16, n a multiple of the loops per frame."""
+        data = memoryview(pris_to_frames(pris, self.params)).cast("B")
+        while len(data):
+            if self._out is None or (self.split_bytes and self._room == 0):
+                if self._out is not None:
+                    self._out.close()
+                name = f"adc_data_Raw_{len(self.files)}.bin" if self.split_bytes else "adc_data.bin"
+                self.files.append(self.folder / name)
+                self._out = open(self.files[-1], "wb")  # noqa: SIM115 (closed in close())
+                self._room = self.split_bytes
+            k = min(self._room, len(data)) if self.split_bytes else len(data)
+            self._out.write(data[:k])
+            data = data[k:]
+            self._room -= k
+
+    def close(self) -> None:
+        if self._out is not None:
+            self._out.close()
+            self._out = None
+
+    def __enter__(self) -> CaptureWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def write_capture(folder: Path, params: CaptureParams, pris: Iterable[NDArray[np.int16]], *,
+                  param_format: str = "cfg", split_bytes: int = 0) -> list[Path]:
+    """Write PRI blocks as a capture (see :class:`CaptureWriter`); returns the data files."""
+    with CaptureWriter(folder, params, param_format=param_format, split_bytes=split_bytes) as w:
         for block in pris:
-            data = memoryview(pris_to_frames(block, params)).cast("B")
-            while len(data):
-                if out is None or (split_bytes and room == 0):
-                    if out is not None:
-                        out.close()
-                    name = f"adc_data_Raw_{len(files)}.bin" if split_bytes else "adc_data.bin"
-                    files.append(folder / name)
-                    out = open(files[-1], "wb")  # noqa: SIM115
-                    room = split_bytes
-                k = min(room, len(data)) if split_bytes else len(data)
-                out.write(data[:k])
-                data = data[k:]
-                room -= k
-    finally:
-        if out is not None:
-            out.close()
-    return files
+            w.write(block)
+    return w.files
 
 
 def params_from_radar(radar: Any, *, lanes: int = 4, adc_format: str = "complex1x",
-                      chirp_tx: tuple[int, ...] | None = None) -> CaptureParams:
+                      chirp_tx: tuple[int, ...] | None = None, num_frames: int = 0) -> CaptureParams:
     """Capture parameters that state a configured radar (``config.RadarConfig``): one loop per frame."""
     p = CaptureParams(
         profile_start_frequency_hz=radar.start_frequency_hz, slope_hz_per_s=radar.slope_hz_per_s,
         sample_rate_hz=radar.sample_rate_hz, num_samples=radar.num_samples, adc_start_s=0.0,
         chirp_period_s=radar.chirp_period_s, rx_channels=tuple(range(radar.num_rx)),
-        chirp_tx=chirp_tx or tuple(range(radar.num_tx)), num_loops=1, num_frames=0,
+        chirp_tx=chirp_tx or tuple(range(radar.num_tx)), num_loops=1, num_frames=num_frames,
         frame_period_s=1.0 / radar.prf_hz, adc_format=adc_format, lanes=lanes)
-    return replace(p, source="")
+    p.check()
+    return p

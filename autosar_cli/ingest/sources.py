@@ -79,6 +79,8 @@ def container_of(path: Path) -> str:
         return "ros1"
     if suffix == ".yaml" and path.name == "metadata.yaml":
         return "rosbag2"
+    if suffix == ".bin":
+        raise LogReadError(f"{path}: a raw .bin without a DCA1000 parameter file (*.mmwave.json or .cfg) beside it")
     raise LogReadError(f"{path}: unknown log container (expected .mcap, .bag or a rosbag2 directory)")
 
 
