@@ -3,7 +3,7 @@
 Frequencies, slope, sampling, chirp timing and Tx/Rx counts and order come from the recording (a RawFrame's
 fields, a DCA1000 capture's parameter file); mounting and antenna positions from the config. A value that
 both state must agree, else ingest stops with a one-line error naming both values (``override``: the
-recording's value is kept and the disagreement is reported as a warning). Every attribute's origin is
+recording's values are kept and the disagreements reported as a warning). Every attribute's origin is
 stored in the radar group's ``parameter_sources`` attribute and shown by ``autosar info``.
 """
 
@@ -57,11 +57,10 @@ def resolve(rec: Recorded, cfg: RadarConfig, *, what: str, override: bool,
             warn: Callable[[str], None]) -> dict[str, Any]:
     """The radar attributes of the drive for recording ``rec`` and config ``cfg``; ``what`` names the recording."""
 
+    clashes: list[str] = []
+
     def clash(name: str, recorded: Any, configured: Any) -> None:
-        msg = (f"{what}: the recording's {name} is {recorded} but the config's radar.{name} is {configured}")
-        if not override:
-            raise RadarParamsError(msg + f" (fix the config, or give {OVERRIDE_OPTION} to keep the recording's)")
-        warn(msg + f"; kept the recording's ({OVERRIDE_OPTION})")
+        clashes.append(f"the recording's {name} is {recorded} but the config's radar.{name} is {configured}")
 
     for name in ("num_tx", "num_rx", "num_samples"):
         if getattr(rec, name) != getattr(cfg, name):
@@ -76,7 +75,13 @@ def resolve(rec: Recorded, cfg: RadarConfig, *, what: str, override: bool,
     cfg_offsets = cfg.tx_start_offsets_s
     if len(cfg_offsets) == len(rec.tx_start_offsets_s) and any(
             abs(a - b) > _TIME_TOL_S for a, b in zip(rec.tx_start_offsets_s, cfg_offsets, strict=True)):
-        clash("tx_start_offsets_s (chirp_period_s)", list(rec.tx_start_offsets_s), list(cfg_offsets))
+        clash("tx_start_offsets_s", f"{list(rec.tx_start_offsets_s)}",
+              f"{list(cfg_offsets)} (k x chirp_period_s)")
+    if clashes:
+        if not override:
+            raise RadarParamsError(f"{what}: " + "; ".join(clashes)
+                                   + f" (fix the config, or give {OVERRIDE_OPTION} to keep the recording's)")
+        warn(f"{what}: " + "; ".join(clashes) + f"; kept the recording's ({OVERRIDE_OPTION})")
 
     tx_rows = _rows(cfg.tx_positions_m, rec.tx_channels, rec.num_tx, "tx_positions_wavelengths", what)
     rx_rows = _rows(cfg.rx_positions_m, rec.rx_channels, rec.num_rx, "rx_positions_wavelengths", what)
