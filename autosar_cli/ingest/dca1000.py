@@ -166,17 +166,25 @@ def decode_chirps(values: NDArray[np.int16], p: CaptureParams) -> NDArray[np.int
             out[..., 0] = values.reshape(n, s, LANE_SLOTS_4)[:, :, lanes].transpose(0, 2, 1)
             out[..., 1] = 0
     elif p.complex:
-        v = values.reshape(n, r, s // 2, 2, 2)  # (pair, I/Q, sample of the pair)
-        out.reshape(n, r, s // 2, 2, 2)[...] = v.transpose(0, 1, 2, 4, 3)
+        out.reshape(-1)[...] = _swap_middle_pair(values).reshape(-1)
     else:
         out[..., 0] = values.reshape(n, r, s)
         out[..., 1] = 0
     return out
 
 
+def _swap_middle_pair(values: NDArray[np.int16]) -> NDArray[np.int16]:
+    """I(n) I(n+1) Q(n) Q(n+1) <-> I(n) Q(n) I(n+1) Q(n+1): the middle two of every four int16 values swapped,
+    as 64-bit words (a 2x2 transpose in numpy's strided copy ran at a third of the speed)."""
+    w = np.ascontiguousarray(values).reshape(-1).view("<u8")
+    swapped = (w & np.uint64(0xFFFF00000000FFFF)) | ((w >> np.uint64(16)) & np.uint64(0xFFFF0000)) \
+        | ((w & np.uint64(0xFFFF0000)) << np.uint64(16))
+    return swapped.view(np.int16)
+
+
 def encode_chirps(iq: NDArray[np.int16], p: CaptureParams) -> NDArray[np.int16]:
     """(n, rx, sample, I/Q) int16 -> file values (n, chirp_values); the inverse of :func:`decode_chirps`."""
-    n, r, s = iq.shape[0], p.num_rx, p.num_samples
+    n, s = iq.shape[0], p.num_samples
     if p.lanes == 4:
         lanes = list(p.rx_channels)
         if p.complex:
@@ -186,7 +194,7 @@ def encode_chirps(iq: NDArray[np.int16], p: CaptureParams) -> NDArray[np.int16]:
             v = np.zeros((n, s, LANE_SLOTS_4), dtype=np.int16)
             v[:, :, lanes] = iq[..., 0].transpose(0, 2, 1)
     elif p.complex:
-        v = np.ascontiguousarray(iq.reshape(n, r, s // 2, 2, 2).transpose(0, 1, 2, 4, 3))
+        v = _swap_middle_pair(iq)
     else:
         v = np.ascontiguousarray(iq[..., 0])
     return v.reshape(n, -1)
