@@ -24,7 +24,6 @@ from autosar_cli.ingest.dca1000 import (
     params_from_radar,
     write_capture,
 )
-from autosar_cli.ingest.pipeline import RadarCaptureOptions, ingest
 from autosar_cli.sim.simulate import simulate
 from autosar_cli.store.drive import Drive
 
@@ -206,13 +205,20 @@ def test_malformed_sizes(tmp_path: Path) -> None:
 
 def test_simulated_capture_ingests_to_the_rawframe_cube(ci_mcap, tmp_path: Path) -> None:
     """`simulate --format dca1000` (capture + navigation MCAP with a frame-sync topic) ingests to the same
-    radar cube, frame times and radar parameters as the RawFrame MCAP of the same seed: focus reads the same."""
+    radar cube, frame times and radar parameters as the RawFrame MCAP of the same seed, and `run` focuses
+    both to the same image."""
+    from autosar_cli.run import run
+
     sim = simulate("ci", tmp_path / "ci.mcap", fmt="dca1000", seed=7)
     assert sim.radar_capture is not None and (sim.radar_capture / "capture.mmwave.json").exists()
-    ingest([sim.log_path], tmp_path / "a.h5", config=CFG, radar_captures=[sim.radar_capture],
-           radar_options=RadarCaptureOptions())
-    ingest([ci_mcap.log_path], tmp_path / "b.h5", config=CFG)
-    with h5py.File(tmp_path / "a.h5") as a, h5py.File(tmp_path / "b.h5") as b:
+    run([sim.log_path, sim.radar_capture], tmp_path / "a", CFG)  # the whole chain: ingest, navigate, focus
+    run([ci_mcap.log_path], tmp_path / "b", CFG)
+    with h5py.File(tmp_path / "a" / "image.h5") as a, h5py.File(tmp_path / "b" / "image.h5") as b:
+        images = [name for name, obj in a.items() if isinstance(obj, h5py.Dataset)]
+        assert images
+        for name in images:
+            np.testing.assert_array_equal(a[name][()], b[name][()], err_msg=name)
+    with h5py.File(tmp_path / "a" / "drive.h5") as a, h5py.File(tmp_path / "b" / "drive.h5") as b:
         ra, rb = a["radar/scanbrick_w43"], b["radar/scanbrick_w43"]
         for name in ("raw", "t_ns", "frame_index"):
             np.testing.assert_array_equal(ra[name][()], rb[name][()])
