@@ -24,7 +24,6 @@ from autosar_cli.ingest.dca1000 import (
     params_from_radar,
     write_capture,
 )
-from autosar_cli.sim.simulate import simulate
 from autosar_cli.store.drive import Drive
 
 CFG = load_config()
@@ -130,6 +129,14 @@ def test_sdk_cfg_capture_ingests_with_recorded_parameters(tmp_path: Path) -> Non
         assert r.attrs["lvds_lanes"] == 2 and r.attrs["prf_hz"] == pytest.approx(990.0)
     r = runner.invoke(app, ["info", str(tmp_path / "d.h5")])
     assert r.exit_code == 0 and "radar parameter" in r.stdout and "recording" in r.stdout
+    r = runner.invoke(app, ["info", str(cap), "--json"])
+    assert r.exit_code == 0, r.output
+    d = json.loads(r.stdout)
+    assert d["container"].startswith("TI DCA1000 capture (2-lane complex1x") and d["streams"][0]["count"] == 3
+    assert d["radar_parameters"]["num_samples"] == {"value": 540, "source": "recording"}
+    # batch pairs one capture with each log
+    r = runner.invoke(app, ["batch", str(cap), "--radar", str(cap), "--radar", str(cap), "-o", str(tmp_path / "b")])
+    assert_one_line_error(r.exit_code, r.stderr, "--radar given 2 times for 1 logs")
 
 
 @pytest.mark.parametrize(("change", "needles"), [
@@ -209,9 +216,12 @@ def test_simulated_capture_ingests_to_the_rawframe_cube(ci_mcap, tmp_path: Path)
     both to the same image."""
     from autosar_cli.run import run
 
-    sim = simulate("ci", tmp_path / "ci.mcap", fmt="dca1000", seed=7)
-    assert sim.radar_capture is not None and (sim.radar_capture / "capture.mmwave.json").exists()
-    run([sim.log_path, sim.radar_capture], tmp_path / "a", CFG)  # the whole chain: ingest, navigate, focus
+    r = runner.invoke(app, ["simulate", "-s", "ci", "--seed", "7", "-f", "dca1000", "-o", str(tmp_path / "ci.mcap"),
+                            "--json"])
+    assert r.exit_code == 0, r.output
+    capture = Path(json.loads(r.stdout)["radar_capture"])
+    assert (capture / "capture.mmwave.json").exists() and (capture / "adc_data.bin").exists()
+    run([tmp_path / "ci.mcap", capture], tmp_path / "a", CFG)  # the whole chain: ingest, navigate, focus
     run([ci_mcap.log_path], tmp_path / "b", CFG)
     with h5py.File(tmp_path / "a" / "image.h5") as a, h5py.File(tmp_path / "b" / "image.h5") as b:
         images = [name for name, obj in a.items() if isinstance(obj, h5py.Dataset)]
