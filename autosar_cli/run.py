@@ -234,7 +234,7 @@ def _ingest(logs: list[Path], drive: Path, config: Config, progress: Callable[[i
 
 
 def _ingest_child(send: Any, logs: list[Path], drive: Path, config: Config, command: str,
-                  radar_options: Any) -> None:
+                  radar_options: Any = None) -> None:
     """The forked ingest: progress at most every 0.1 s (the parent reads only after its imports), then the
     report, or the error (its class if it pickles, else a RunError with its message) and its traceback."""
     last = [0.0]
