@@ -88,6 +88,20 @@ def test_layout_round_trips(tmp_path: Path, fmt: str, lanes: int, chirp_tx: tupl
                                           1_001_000 + 20_000 * len(chirp_tx)])
 
 
+@pytest.mark.parametrize("bits", [12, 14])
+def test_narrow_adc_samples_are_sign_extended(tmp_path: Path, bits: int) -> None:
+    """12/14-bit samples sit unextended in the low bits of each int16 (SWRA581's readers sign-extend them)."""
+    p = dataclasses.replace(small_params(2, "complex1x", (0, 1), (0, 1, 2, 3), loops=1), adc_bits=bits)
+    rng = np.random.default_rng(bits)
+    pris = rng.integers(-(1 << (bits - 1)), 1 << (bits - 1), (4, 2, 4, 8, 2), dtype=np.int16)
+    files = write_capture(tmp_path, p, [pris])
+    unsigned = np.frombuffer(app_note_bytes(pris, p), dtype="<i2").astype(np.int64) % (1 << bits)
+    np.testing.assert_array_equal(np.fromfile(files[0], dtype="<i2"), unsigned)
+    cap = Dca1000Capture(tmp_path)
+    assert cap.params.adc_bits == bits
+    np.testing.assert_array_equal(np.concatenate([b for _, b in cap.blocks()]), pris)
+
+
 def sdk_cfg(tmp_path: Path, **change: str) -> Path:
     """A capture matching the default config, as an mmWave SDK .cfg (2-lane), with edited command lines."""
     p = params_from_radar(CFG.radar, lanes=2)

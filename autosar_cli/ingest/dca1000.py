@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 from .sources import LogReadError
 
 ADC_FORMATS = ("real", "complex1x", "complex2x")  #: by TI's adcOutputFmt / b2AdcOutFmt code 0, 1, 2
+ADC_BITS = (12, 14, 16)  #: by TI's numADCBits / b2AdcBits code 0, 1, 2
 LANE_SLOTS_4 = 4  # a 4-lane capture always carries four lanes
 
 
@@ -67,6 +68,7 @@ class CaptureParams:
     adc_format: str  #: one of ADC_FORMATS
     lanes: int  #: LVDS lanes, 2 or 4
     source: str = ""  #: the parameter file
+    adc_bits: int = 16  #: 12 or 14: samples are not sign-extended in the file (SWRA581)
 
     @property
     def start_frequency_hz(self) -> float:
@@ -132,6 +134,8 @@ class CaptureParams:
             raise CaptureError(f"{src}: {self.lanes} LVDS lanes; a DCA1000 capture has 2 or 4")
         if self.lanes == 4 and max(self.rx_channels, default=0) >= LANE_SLOTS_4:
             raise CaptureError(f"{src}: Rx {max(self.rx_channels)} has no lane in a 4-lane capture")
+        if self.adc_bits not in ADC_BITS:
+            raise CaptureError(f"{src}: {self.adc_bits}-bit ADC, expected one of {', '.join(map(str, ADC_BITS))}")
         if self.adc_format not in ADC_FORMATS:
             raise CaptureError(f"{src}: ADC format {self.adc_format!r}, expected one of {', '.join(ADC_FORMATS)}")
         if not self.rx_channels or not self.chirp_tx:
@@ -203,6 +207,9 @@ def encode_chirps(iq: NDArray[np.int16], p: CaptureParams) -> NDArray[np.int16]:
 def frames_to_pris(values: NDArray[np.int16], p: CaptureParams) -> NDArray[np.int16]:
     """(frames, frame values) -> (frames * loops, tx, rx, sample, I/Q): chirps regrouped by Tx index."""
     n = len(values) * p.num_loops
+    if p.adc_bits != 16:  # sign-extend: a 12/14-bit sample sits in the low bits of its int16
+        values = values.copy()
+        values[values >= 1 << (p.adc_bits - 1)] -= np.int16(1 << p.adc_bits)
     chirps = decode_chirps(values.reshape(n * p.num_tx, p.chirp_values), p).reshape(n, p.num_tx, p.num_rx,
                                                                                   p.num_samples, 2)
     order = [p.chirp_tx.index(tx) for tx in p.tx_order]
@@ -213,7 +220,8 @@ def pris_to_frames(pris: NDArray[np.int16], p: CaptureParams) -> NDArray[np.int1
     """(frames * loops, tx, rx, sample, I/Q) -> file values (frames, frame values); inverse of the above."""
     slot = [p.tx_order.index(tx) for tx in p.chirp_tx]
     chirps = pris[:, slot].reshape(-1, p.num_rx, p.num_samples, 2)
-    return encode_chirps(chirps, p).reshape(-1, p.frame_bytes // 2)
+    values = encode_chirps(chirps, p).reshape(-1, p.frame_bytes // 2)
+    return values & np.int16((1 << p.adc_bits) - 1) if p.adc_bits != 16 else values
 
 
 # ------------------------------------------------------------------------------------ parameter files
@@ -262,7 +270,7 @@ def parse_sdk_cfg(path: Path) -> CaptureParams:
                 raise CaptureError(f"{src}: chirpCfg has {len(args)} values, expected 8")
             for c in range(int(args[0]), int(args[1]) + 1):
                 table[c] = int(args[7], 0)
-        adc_fmt = int(one("adcCfg", 2)[1])
+        adc_bits_code, adc_fmt = (int(v) for v in one("adcCfg", 2)[:2])
         if "adcbufCfg" in cmds:
             buf = one("adcbufCfg", 4)
             if (adc_fmt == 0) != (int(buf[1]) == 1):
@@ -277,7 +285,8 @@ def parse_sdk_cfg(path: Path) -> CaptureParams:
             chirp_period_s=_scaled(format(Decimal(prof[2]) + Decimal(prof[4]), "f"), -6),
             rx_channels=_mask_bits(rx_mask), chirp_tx=_chirp_tx(src, table, int(frame[0]), int(frame[1])),
             num_loops=int(frame[2]), num_frames=int(frame[3]), frame_period_s=_scaled(frame[4], -3),
-            adc_format=ADC_FORMATS[adc_fmt] if 0 <= adc_fmt < 3 else str(adc_fmt), lanes=2, source=src)
+            adc_format=ADC_FORMATS[adc_fmt] if 0 <= adc_fmt < 3 else str(adc_fmt), lanes=2, source=src,
+            adc_bits=ADC_BITS[adc_bits_code] if 0 <= adc_bits_code < 3 else adc_bits_code)
     except (ValueError, IndexError) as exc:
         raise CaptureError(f"{src}: unreadable value ({exc})") from None
     if set(params.chirp_tx) - set(_mask_bits(tx_mask)):
@@ -300,7 +309,7 @@ def write_sdk_cfg(path: Path, p: CaptureParams) -> None:
         "% DCA1000 capture parameters (mmWave SDK CLI format), written by autosar",
         "sensorStop", "flushCfg", "dfeDataOutputMode 1",
         f"channelCfg {rx_mask} {tx_mask} 0",
-        f"adcCfg 2 {fmt}",
+        f"adcCfg {ADC_BITS.index(p.adc_bits)} {fmt}",
         f"adcbufCfg -1 {1 if fmt == 0 else 0} 1 1 1",
         f"profileCfg 0 {_in_unit(p.profile_start_frequency_hz, 9)} {idle} {_in_unit(p.adc_start_s, -6)} {ramp} "
         f"0 0 {_in_unit(p.slope_hz_per_s, 12)} 0 {p.num_samples} {_in_unit(p.sample_rate_hz, 3)} 0 0 30",
@@ -335,6 +344,7 @@ def parse_studio_json(path: Path) -> CaptureParams:
             for i in range(int(c["chirpStartIdx"]), int(c["chirpEndIdx"]) + 1):
                 table[i] = _mask_int(c["txEnable"])
         fmt = int(rf["rlAdcOutCfg_t"]["fmt"]["b2AdcOutFmt"])
+        bits = int(rf["rlAdcOutCfg_t"]["fmt"].get("b2AdcBits", 2))
         lane_en = dev.get("rawDataCaptureConfig", {}).get("rlDevLaneEnable_t", {}).get("laneEn", "0xF")
         params = CaptureParams(
             profile_start_frequency_hz=_scaled(prof["startFreqConst_GHz"], 9),
@@ -347,7 +357,8 @@ def parse_studio_json(path: Path) -> CaptureParams:
             chirp_tx=_chirp_tx(src, table, int(frame["chirpStartIdx"]), int(frame["chirpEndIdx"])),
             num_loops=int(frame["numLoops"]), num_frames=int(frame["numFrames"]),
             frame_period_s=_scaled(float(frame["framePeriodicity_msec"]), -3),
-            adc_format=ADC_FORMATS[fmt] if 0 <= fmt < 3 else str(fmt), lanes=len(_mask_bits(lane_en)), source=src)
+            adc_format=ADC_FORMATS[fmt] if 0 <= fmt < 3 else str(fmt), lanes=len(_mask_bits(lane_en)), source=src,
+            adc_bits=ADC_BITS[bits] if 0 <= bits < 3 else bits)
     except CaptureError:
         raise
     except (OSError, ValueError, KeyError, IndexError, TypeError) as exc:
@@ -367,7 +378,8 @@ def write_studio_json(base: Path, p: CaptureParams) -> tuple[Path, Path]:
     rf = {
         "rlChanCfg_t": {"rxChannelEn": hex(sum(1 << r for r in p.rx_channels)),
                         "txChannelEn": hex(sum(1 << t for t in p.chirp_tx)), "cascading": 0},
-        "rlAdcOutCfg_t": {"fmt": {"b2AdcBits": 2, "b2AdcOutFmt": ADC_FORMATS.index(p.adc_format)}},
+        "rlAdcOutCfg_t": {"fmt": {"b2AdcBits": ADC_BITS.index(p.adc_bits),
+                                  "b2AdcOutFmt": ADC_FORMATS.index(p.adc_format)}},
         "rlProfiles": [{"rlProfileCfg_t": {
             "profileId": 0, "startFreqConst_GHz": float(_in_unit(p.profile_start_frequency_hz, 9)),
             "idleTimeConst_usec": float(idle), "adcStartTimeConst_usec": float(_in_unit(p.adc_start_s, -6)),
