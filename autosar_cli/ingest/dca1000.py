@@ -428,7 +428,9 @@ def is_capture(path: Path) -> bool:
 
 
 def find_capture(path: Path) -> tuple[list[Path], Path]:
-    """(data files in stream order, parameter file) of a capture directory or data file."""
+    """(data files in stream order, parameter file) of a capture directory, data file or parameter file."""
+    if path.is_file() and path.suffix.lower() != ".bin":  # the parameter file names its capture's folder
+        path = path.parent
     folder = path if path.is_dir() else path.parent
     params = sorted(folder.glob("*.mmwave.json")) or sorted(folder.glob("*.cfg"))
     if not params:
