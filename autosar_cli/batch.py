@@ -111,7 +111,7 @@ def _reporter(topic: str | None, name: str, min_interval_s: float = 0.25) -> Cal
 
 def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, method: str = "sar-min",
               options: FocusOptions | None = None, truth_path: str | None = None, autofocus: bool = False,
-              overwrite: bool = False,
+              overwrite: bool = False, radar_options: Any = None,
               numba_threads: int | None = None, progress_topic: str | None = None,
               command: str = "") -> dict[str, Any]:
     """The Dask task of one drive: :func:`autosar_cli.run.run` into ``out_dir``; returns its status record.
@@ -130,7 +130,8 @@ def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, m
     t0 = time.perf_counter()
     try:
         manifest = run(logs, out_dir, config, method=method, options=options, truth_path=truth_path,
-                       autofocus=autofocus, overwrite=overwrite, progress=report, command=command)
+                       autofocus=autofocus, overwrite=overwrite, progress=report, command=command,
+                       radar_options=radar_options)
     except INPUT_ERRORS as exc:
         with contextlib.suppress(OSError):
             Path(out_dir).rmdir()  # only if run() left it empty: never touches an earlier run's products
@@ -186,7 +187,7 @@ def _dashboard(client: Any) -> str | None:
 def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, method: str = "sar-min",
               autofocus: bool = False, options: FocusOptions | None = None, scheduler: str | None = None,
               workers: int | None = None, retries: int = DEFAULT_RETRIES, numba_threads: int | None = None,
-              overwrite: bool = False,
+              overwrite: bool = False, radars: Sequence[str | Path] | None = None, radar_options: Any = None,
               progress: Callable[[dict[str, Any]], None] | None = None,
               on_cluster: Callable[[dict[str, Any]], None] | None = None, command: str = "") -> dict[str, Any]:
     """Run every log as its own drive into ``out_dir/<name>/`` on a Dask cluster; returns batch.json's content.
@@ -197,7 +198,7 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
     ``navigate``, ``autofocus`` (with ``autofocus``), ``focus``, ``done`` or ``failed``) and
     ``{"drive", "stage": "finished", "record"}`` once a drive's record is final. ``on_cluster(info)`` is called
     once the cluster is up (scheduler address, dashboard link, workers). Never raises for a failing drive: look
-    at ``failed``.
+    at ``failed``. ``radars``: a DCA1000 capture per log (same order), ingested with ``radar_options``.
     """
     if not logs:
         raise BatchError("no drive logs given")
@@ -213,6 +214,9 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
     out.mkdir(parents=True, exist_ok=True)
     options = options or FocusOptions.from_config(config)
     names = drive_names(logs)
+    if radars and len(radars) != len(logs):
+        raise BatchError(f"--radar given {len(radars)} times for {len(logs)} logs; give one capture per log")
+    captures = [[str(Path(r).resolve())] for r in radars] if radars else [[] for _ in logs]
     paths = [str(Path(p).resolve()) for p in logs]
 
     from distributed import Client, LocalCluster, as_completed
@@ -267,9 +271,10 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
         client.subscribe_topic(topic, on_event)
         t_submit = time.perf_counter()
         futures = {}
-        for name, log in zip(names, paths, strict=True):
-            fut = client.submit(run_drive, name, [log], str(out / name), config, method=method, options=options,
-                                autofocus=autofocus, overwrite=overwrite, numba_threads=numba_threads,
+        for name, log, capture in zip(names, paths, captures, strict=True):
+            fut = client.submit(run_drive, name, [log, *capture], str(out / name), config, method=method,
+                                options=options, autofocus=autofocus, overwrite=overwrite,
+                                radar_options=radar_options, numba_threads=numba_threads,
                                 progress_topic=topic, command=command, retries=retries, pure=False,
                                 key=f"autosar-run-{name}-{topic[-12:]}")
             futures[fut] = (name, log)

@@ -45,6 +45,14 @@ ConfigOpt = Annotated[
 ]
 OverwriteOpt = Annotated[bool, typer.Option("--overwrite", help="Replace existing outputs.")]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print a machine-readable JSON summary on stdout.")]
+RadarStartOpt = Annotated[str | None, typer.Option(
+    "--radar-start", help="Start of a DCA1000 capture's first frame: ns since the Unix epoch or ISO 8601 (UTC); "
+                          "default: the first message of --radar-sync in the logs.")]
+RadarSyncOpt = Annotated[str, typer.Option("--radar-sync", help="Topic whose first message stamps a DCA1000 "
+                                           "capture's first frame.")]
+RadarOverrideOpt = Annotated[bool, typer.Option("--radar-override", help="Where the recording's radar parameters "
+                                                "contradict the config's, keep the recording's (warned) instead of "
+                                                "stopping.")]
 AutofocusOpt = Annotated[bool, typer.Option("--autofocus", help="Before focusing, scale the track by the scale at "
                                             "which the brightest isolated points of a first image focus sharpest "
                                             "(the radar's own measure of the odometry's scale; ~20-30 s more per "
@@ -70,6 +78,13 @@ class LogFormat(StrEnum):
     mcap = "mcap"
     ros1 = "ros1"
     ros2 = "ros2"
+    dca1000 = "dca1000"
+
+
+def _radar_options(start: str | None, sync: str, override: bool) -> Any:
+    from autosar_cli.ingest.pipeline import RadarCaptureOptions, parse_time_ns
+
+    return RadarCaptureOptions(parse_time_ns(start) if start is not None else None, sync, override)
 
 
 def _version(value: bool) -> None:
@@ -142,7 +157,9 @@ def _progress(label: str, enabled: bool = True, in_bytes: bool = False) -> Itera
 def simulate(
     output: Annotated[Path, typer.Option("--output", "-o", help="Log to write (.mcap, .bag, or a rosbag2 directory).")],
     scenario: Annotated[Scenario, typer.Option("--scenario", "-s", help="Drive to simulate.")] = Scenario.ci,
-    fmt: Annotated[LogFormat, typer.Option("--format", "-f", help="Log container.")] = LogFormat.mcap,
+    fmt: Annotated[LogFormat, typer.Option("--format", "-f", help="Log container; dca1000: an MCAP of the "
+                                           "navigation plus the radar as a TI DCA1000 capture in <log>.dca1000/ "
+                                           "(ingest with --radar).")] = LogFormat.mcap,
     seed: Annotated[int, typer.Option("--seed", help="Random seed: same seed, same bytes.")] = 0,
     config: ConfigOpt = None,
     overwrite: OverwriteOpt = False,
@@ -150,12 +167,15 @@ def simulate(
 ) -> None:
     """Write a realistic synthetic drive log (radar, CAN, GNSS, IMUs) plus a ground-truth sidecar <log>.truth.h5."""
     with _errors():
+        from autosar_cli.sim.simulate import capture_dir_for
         from autosar_cli.sim.simulate import simulate as run_simulation
         from autosar_cli.sim.truth import truth_path_for
 
         cfg = _load_config(config)
         _prepare_output(output, overwrite)
         _prepare_output(truth_path_for(output), overwrite)
+        if fmt == LogFormat.dca1000:
+            _prepare_output(capture_dir_for(output), overwrite)
         with _progress(f"simulate {scenario.value}", not as_json) as update:
             result = run_simulation(scenario.value, output, fmt=fmt.value, seed=seed, config=cfg, progress=update)
         summary = {
@@ -164,12 +184,17 @@ def simulate(
             "radar_frames": result.radar_frames, "messages": result.message_counts,
             "elapsed_s": round(result.elapsed_s, 2),
         }
+        if result.radar_capture is not None:
+            summary["radar_capture"] = str(result.radar_capture)
         if as_json:
             out.print_json(json.dumps(summary))
         else:
             out.print(f"wrote [bold]{result.log_path}[/] ({result.duration_s:.1f} s drive, {result.radar_frames} radar "
                       f"frames, {sum(result.message_counts.values())} messages) in {result.elapsed_s:.1f} s")
             out.print(f"truth  [bold]{result.truth_path}[/]")
+            if result.radar_capture is not None:
+                out.print(f"radar  [bold]{result.radar_capture}[/] (DCA1000 capture: autosar ingest "
+                          f"{result.log_path} --radar {result.radar_capture})")
 
 
 @app.command()
@@ -182,6 +207,12 @@ def ingest(
     dbc: Annotated[Path | None, typer.Option("--dbc", help="CAN database (default: the config's).")] = None,
     can_log: Annotated[list[Path] | None, typer.Option("--can-log", help="Standalone CAN log (repeatable).")] = None,
     nmea: Annotated[list[Path] | None, typer.Option("--nmea", help="NMEA text capture (repeatable).")] = None,
+    radar: Annotated[Path | None, typer.Option("--radar", help="TI DCA1000 capture (directory, adc_data.bin or "
+                                               "<name>_0.bin, with its .cfg or *.mmwave.json) joining the logs' "
+                                               "navigation.")] = None,
+    radar_start: RadarStartOpt = None,
+    radar_sync: RadarSyncOpt = "/dca1000/sync",
+    radar_override: RadarOverrideOpt = False,
     allow_partial: Annotated[bool, typer.Option("--allow-partial",
                                                 help="Write a drive without radar or without navigation.")] = False,
     overwrite: OverwriteOpt = False,
@@ -193,13 +224,16 @@ def ingest(
         from autosar_cli.ingest.pipeline import ingest as run_ingest
 
         cfg = _load_config(config)
-        kinds: dict[str, list[Path]] = {"log": [], "can": list(can_log or []), "nmea": list(nmea or [])}
+        kinds: dict[str, list[Path]] = {"log": [], "can": list(can_log or []), "nmea": list(nmea or []),
+                                        "radar": [radar] if radar else []}
         for p in logs or []:
             kinds[classify_input(p)].append(p)
         _prepare_output(output, overwrite)
         with _progress("ingest", not as_json, in_bytes=True) as update:
             report = run_ingest(kinds["log"], output, config=cfg, dbc=dbc, can_logs=kinds["can"],
-                                nmea_logs=kinds["nmea"], allow_partial=allow_partial, progress=update,
+                                nmea_logs=kinds["nmea"], radar_captures=kinds["radar"],
+                                radar_options=_radar_options(radar_start, radar_sync, radar_override),
+                                allow_partial=allow_partial, progress=update,
                                 command=" ".join(sys.argv))
         d = report.to_dict()
         if as_json:
@@ -352,6 +386,11 @@ def run(
     method: Annotated[NavMethod, typer.Option("--method", "-m", help="Navigation method (see `autosar navigate`).")]
     = NavMethod.sar_min,
     truth: Annotated[Path | None, typer.Option("--truth", help="Truth sidecar for --method truth.")] = None,
+    radar: Annotated[Path | None, typer.Option("--radar", help="TI DCA1000 capture of the drive (see `autosar "
+                                               "ingest`).")] = None,
+    radar_start: RadarStartOpt = None,
+    radar_sync: RadarSyncOpt = "/dca1000/sync",
+    radar_override: RadarOverrideOpt = False,
     autofocus: AutofocusOpt = False,
     config: ConfigOpt = None,
     overwrite: OverwriteOpt = False,
@@ -363,8 +402,10 @@ def run(
 
         cfg = _load_config(config)
         with _stages(not as_json) as update:
-            manifest = run_chain(logs, output, cfg, method=method.value, truth_path=truth, autofocus=autofocus,
-                                 overwrite=overwrite, progress=update, command=" ".join(sys.argv), fork_ingest=True)
+            manifest = run_chain([*logs, *([radar] if radar else [])], output, cfg, method=method.value,
+                                 truth_path=truth, autofocus=autofocus, overwrite=overwrite, progress=update,
+                                 command=" ".join(sys.argv), fork_ingest=True,
+                                 radar_options=_radar_options(radar_start, radar_sync, radar_override))
         if as_json:
             out.print_json(json.dumps(manifest, default=str))
             return
@@ -515,7 +556,8 @@ def compare(
 
 @app.command()
 def info(
-    path: Annotated[Path, typer.Argument(help="A drive log (.mcap, .bag, rosbag2 directory) or a drive.h5.")],
+    path: Annotated[Path, typer.Argument(help="A drive log (.mcap, .bag, rosbag2 directory), a TI DCA1000 capture "
+                                         "or a drive.h5.")],
     as_json: JsonOpt = False,
 ) -> None:
     """Summarise a log or drive.h5: streams, message types, counts, rates, time span and gaps."""
@@ -533,6 +575,11 @@ def info(
         for s in summary.streams:
             table.add_row(s.topic, s.msgtype, str(s.count), f"{s.rate_hz:.1f}", str(s.gaps))
         out.print(table)
+        if summary.radar_parameters:
+            radar = Table("radar parameter", "value", "from")
+            for key, item in summary.radar_parameters.items():
+                radar.add_row(key, str(item["value"]), item["source"])
+            out.print(radar)
         for w in summary.warnings:
             err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
 
@@ -586,6 +633,11 @@ def batch(
                                                       "workers' own setting on an existing one).")] = None,
     method: Annotated[NavMethod, typer.Option("--method", "-m", help="Navigation method (see `autosar navigate`).")]
     = NavMethod.sar_min,
+    radar: Annotated[list[Path] | None, typer.Option("--radar", help="TI DCA1000 capture of each drive, in the "
+                                                     "order of the logs (repeat once per log).")] = None,
+    radar_start: RadarStartOpt = None,
+    radar_sync: RadarSyncOpt = "/dca1000/sync",
+    radar_override: RadarOverrideOpt = False,
     autofocus: AutofocusOpt = False,
     config: ConfigOpt = None,
     overwrite: OverwriteOpt = False,
@@ -609,6 +661,7 @@ def batch(
         with _batch_progress(len(logs), enabled=not as_json) as update:
             manifest = run_batch(logs, output, cfg, method=method.value, autofocus=autofocus, scheduler=scheduler,
                                  workers=workers, retries=retries, numba_threads=numba_threads, overwrite=overwrite,
+                                 radars=radar, radar_options=_radar_options(radar_start, radar_sync, radar_override),
                                  progress=update, on_cluster=on_cluster, command=" ".join(sys.argv))
         if as_json:
             out.print_json(json.dumps(manifest, default=str))

@@ -54,14 +54,15 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         options: FocusOptions | None = None, truth_path: str | Path | None = None, autofocus: bool = False,
         overwrite: bool = False,
         progress: Callable[[str, int, int], None] | None = None, command: str = "",
-        fork_ingest: bool = False) -> dict[str, Any]:
+        fork_ingest: bool = False, radar_options: Any = None) -> dict[str, Any]:
     """Run the whole chain on ``logs`` into ``out_dir``; returns the manifest (also written as run.json).
 
     ``autofocus``: scale the navigated track by the radar's own measure of it before focusing (the trajectory
     written is then named ``METHOD+af``, its scale in its info and in the manifest's ``autofocus`` stage).
     ``progress(stage, done, total)`` is called as each stage advances. ``fork_ingest``: ingest in a forked child
     process while this one imports the later stages (see :func:`_ingest_beside_imports`; the ``autosar run``
-    command sets it, library callers such as ``autosar batch``'s workers keep one process).
+    command sets it, library callers such as ``autosar batch``'s workers keep one process). ``logs`` may hold
+    a DCA1000 capture; ``radar_options`` (:class:`autosar_cli.ingest.pipeline.RadarCaptureOptions`) places it.
     """
     out = Path(out_dir)
     manifest_path = out / "run.json"
@@ -80,7 +81,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
 
     t = time.perf_counter()
     rep = _ingest_beside_imports([Path(p) for p in logs], out / DRIVE, config, stage_progress("ingest"), command,
-                                 fork=fork_ingest)
+                                 fork=fork_ingest, radar_options=radar_options)
     manifest["stages"]["ingest"] = {"wall_s": time.perf_counter() - t, "messages": rep.get("messages"),
                                     "bytes_read": rep.get("bytes_read"), "warnings": rep.get("warnings", [])}
     manifest["outputs"]["drive"] = DRIVE
@@ -172,7 +173,7 @@ def _fork_context() -> Any:
 
 
 def _ingest_beside_imports(logs: list[Path], drive: Path, config: Config, progress: Callable[[int, int], None],
-                           command: str, *, fork: bool) -> dict[str, Any]:
+                           command: str, *, fork: bool, radar_options: Any = None) -> dict[str, Any]:
     """Ingest ``logs`` into ``drive``; returns the ingest report as a dict.
 
     With ``fork``, the ingest runs in a forked child while this process imports the later stages: ingest is
@@ -183,13 +184,12 @@ def _ingest_beside_imports(logs: list[Path], drive: Path, config: Config, progre
     """
     ctx = _fork_context() if fork else None
     if ctx is None:
-        from autosar_cli.ingest.pipeline import ingest
-
-        return ingest(logs, drive, config=config, progress=progress, command=command).to_dict()
+        return _ingest(logs, drive, config, progress, command, radar_options)
     receive, send = ctx.Pipe(duplex=False)
     sys.stdout.flush()
     sys.stderr.flush()
-    child = ctx.Process(target=_ingest_child, args=(send, logs, drive, config, command), name="autosar-ingest")
+    child = ctx.Process(target=_ingest_child, args=(send, logs, drive, config, command, radar_options),
+                        name="autosar-ingest")
     child.start()
     send.close()
     try:
@@ -225,7 +225,16 @@ class _RemoteTraceback(Exception):
         return "\n" + str(self.args[0])
 
 
-def _ingest_child(send: Any, logs: list[Path], drive: Path, config: Config, command: str) -> None:
+def _ingest(logs: list[Path], drive: Path, config: Config, progress: Callable[[int, int], None], command: str,
+            radar_options: Any) -> dict[str, Any]:
+    from autosar_cli.ingest.pipeline import RadarCaptureOptions, ingest
+
+    return ingest(logs, drive, config=config, progress=progress, command=command,
+                  radar_options=radar_options or RadarCaptureOptions()).to_dict()
+
+
+def _ingest_child(send: Any, logs: list[Path], drive: Path, config: Config, command: str,
+                  radar_options: Any = None) -> None:
     """The forked ingest: progress at most every 0.1 s (the parent reads only after its imports), then the
     report, or the error (its class if it pickles, else a RunError with its message) and its traceback."""
     last = [0.0]
@@ -237,9 +246,7 @@ def _ingest_child(send: Any, logs: list[Path], drive: Path, config: Config, comm
             send.send(("progress", done, total))
 
     try:
-        from autosar_cli.ingest.pipeline import ingest
-
-        send.send(("report", ingest(logs, drive, config=config, progress=progress, command=command).to_dict()))
+        send.send(("report", _ingest(logs, drive, config, progress, command, radar_options)))
     except BaseException as exc:  # noqa: BLE001 - every failure goes back to the parent
         remote = traceback.format_exc()
         try:

@@ -341,10 +341,13 @@ class RadarDecoder:
 
     BLOCK = 128  # frames per HDF5 write (3.3 MB of ScanBrick data): fewer, larger writes
 
-    def __init__(self, writer: DriveWriter, path: str, attrs: dict[str, Any]) -> None:
+    def __init__(self, writer: DriveWriter, path: str, attrs: dict[str, Any],
+                 radar_attrs: Callable[[tuple[Any, ...]], dict[str, Any]]) -> None:
+        """``radar_attrs(params)``: the radar block for the first frame's parameters (may raise)."""
         self.writer = writer
         self.path = path
         self.attrs = attrs
+        self.radar_attrs = radar_attrs
         self.info = StreamInfo(path, "radar", msgtype="scanbrick_msgs/msg/RawFrame")
         self.cube: RadarCube | None = None
         self.params: tuple[Any, ...] | None = None
@@ -377,11 +380,8 @@ class RadarDecoder:
         self.series.push(stamp_ns, log_ns, (frame_index, data))
 
     def _open(self, params: tuple[Any, ...], shape: tuple[int, int, int]) -> None:
+        attrs = {**self.attrs, **self.radar_attrs(params), "layout": "frame, tx, rx, sample, I/Q"}
         self.params, self.shape = params, shape
-        f0, slope, fs, offsets, _ = params
-        attrs = {**self.attrs, "start_frequency_hz": f0, "slope_hz_per_s": slope, "sample_rate_hz": fs,
-                 "tx_start_offsets_s": list(offsets), "num_tx": shape[0], "num_rx": shape[1],
-                 "num_samples": shape[2], "layout": "frame, tx, rx, sample, I/Q"}
         self.cube = self.writer.radar(self.path, shape, attrs)
 
     def _sink(self, t_ns: np.ndarray, rows: list[Any]) -> None:

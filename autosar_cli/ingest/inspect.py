@@ -38,6 +38,8 @@ class LogSummary:
     size_bytes: int
     streams: list[StreamSummary] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    #: radar parameter -> {"value", "source"} ("recording" or "config"): a drive.h5's radar or a capture's
+    radar_parameters: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     @property
     def start_ns(self) -> int:
@@ -65,6 +67,8 @@ def summarize(path: Path) -> LogSummary:
     if not path.exists():
         raise LogReadError(f"{path}: no such file or directory")
     kind = classify_input(path)
+    if kind == "radar":
+        return summarize_capture(path)
     if kind == "can":
         return summarize_can_log(path)
     if kind == "nmea":
@@ -130,6 +134,46 @@ def summarize_log(path: Path) -> LogSummary:
     return summary
 
 
+def summarize_capture(path: Path) -> LogSummary:
+    """A TI DCA1000 capture: its layout, frame count and the radar parameters its parameter file states.
+
+    Frame times are relative to the first frame: the capture's absolute start comes with ingest.
+    """
+    from .dca1000 import Dca1000Capture
+    from .radar_block import recorded_from_capture
+
+    cap = Dca1000Capture(path)
+    p = cap.params
+    summary = LogSummary(str(path), f"TI DCA1000 capture ({p.lanes}-lane {p.adc_format}, {len(cap.files)} file"
+                         f"{'s' if len(cap.files) > 1 else ''}, {cap.param_file.name})", cap.bytes_total)
+    t = cap.pri_times_ns(0)
+    summary.streams.append(StreamSummary("radar frames (PRIs)", p.describe_layout(), cap.num_pris,
+                                         int(t[0]) if len(t) else 0, int(t[-1]) if len(t) else 0))
+    rec = recorded_from_capture(cap)
+    values = {**{k: getattr(rec, k) for k in ("start_frequency_hz", "slope_hz_per_s", "sample_rate_hz",
+                                              "num_samples", "num_tx", "num_rx", "prf_hz", "bandwidth_hz")},
+              "tx_start_offsets_s": list(rec.tx_start_offsets_s), "tx_channels": list(p.tx_order),
+              "rx_channels": list(p.rx_channels), **rec.extra}
+    summary.radar_parameters = {k: {"value": v, "source": "recording"} for k, v in values.items()}
+    summary.warnings.extend(cap.warnings)
+    return summary
+
+
+def _radar_parameters(attrs: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """A drive's radar attributes with the origin ``parameter_sources`` records for each."""
+    import json
+
+    import numpy as np
+
+    sources = json.loads(attrs.get("parameter_sources", "{}") or "{}")
+    out = {}
+    for key, source in sources.items():
+        v = attrs.get(key)
+        out[key] = {"value": v.tolist() if isinstance(v, np.ndarray) else v.item() if isinstance(v, np.generic)
+                    else v, "source": source}
+    return out
+
+
 def summarize_drive(path: Path) -> LogSummary:
     """Series of a drive.h5: group, type, count, rate, span and recorded gaps."""
     from autosar_cli.store.drive import Drive, DriveFormatError
@@ -151,5 +195,7 @@ def summarize_drive(path: Path) -> LogSummary:
                                                      int(t[0]) if n else 0, int(t[-1]) if n else 0, gaps))
 
         drive.h5.visititems(visit)
+        for name in drive.radar_names():
+            summary.radar_parameters.update(_radar_parameters(dict(drive.h5["radar"][name].attrs)))
         summary.warnings.extend(drive.report().get("warnings", []))
     return summary

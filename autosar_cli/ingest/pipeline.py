@@ -26,6 +26,7 @@ from autosar_cli.config import Config
 from autosar_cli.store.drive import DriveWriter
 
 from . import fastcdr
+from .dca1000 import Dca1000Capture, is_capture
 from .decoders import (
     FIX_COLUMNS,
     IMU_COLUMNS,
@@ -40,6 +41,7 @@ from .decoders import (
     imu_row,
     velocity_row,
 )
+from .radar_block import RadarParamsError, Recorded, recorded_from_capture, resolve, write_capture_stream
 from .records import CanRecord
 from .sources import Channel, LogReadError, LogSource, RawMessage, open_source
 from .typesys import MessageTypes, SchemaError
@@ -85,9 +87,11 @@ class IngestReport:
 
 
 def classify_input(path: Path) -> str:
-    """"log" (MCAP / bag / rosbag2), "can" (standalone CAN log) or "nmea" (NMEA text capture)."""
+    """"log" (MCAP / bag / rosbag2), "can" (CAN log), "nmea" (NMEA text) or "radar" (DCA1000 capture)."""
     from .canlog import is_can_log
 
+    if is_capture(path):
+        return "radar"
     if path.is_file() and is_can_log(path):
         return "can"
     if path.suffix.lower() in NMEA_SUFFIXES or path.suffix.lower() == ".log":
@@ -115,10 +119,23 @@ def _sha256(path: Path) -> tuple[int, str]:
     return size, h.hexdigest()
 
 
+@dataclass(frozen=True)
+class RadarCaptureOptions:
+    """How a DCA1000 capture joins the drive: its start time (ns since the epoch, else the first message of
+    ``sync_topic`` in the logs) and whether the recording's radar parameters override the config's."""
+
+    start_ns: int | None = None
+    sync_topic: str = "/dca1000/sync"
+    override: bool = False
+
+
 class _Ingest:
-    def __init__(self, writer: DriveWriter, config: Config, dbc: Path | None) -> None:
+    def __init__(self, writer: DriveWriter, config: Config, dbc: Path | None,
+                 radar_options: RadarCaptureOptions = RadarCaptureOptions()) -> None:
         self.writer = writer
         self.config = config
+        self.radar_options = radar_options
+        self.sync_ns: int | None = None
         self.types = MessageTypes()
         self.warnings: list[str] = []
         self.skipped_channels: dict[tuple[str, str], dict[str, Any]] = {}
@@ -177,7 +194,7 @@ class _Ingest:
         self.handlers[ch.key] = None
 
     def _route(self, ch: Channel) -> Callable[[RawMessage], None] | None:
-        kind = KIND_OF_TYPE.get(ch.msgtype)
+        kind = "sync" if ch.topic == self.radar_options.sync_topic else KIND_OF_TYPE.get(ch.msgtype)
         if kind is None:
             self._skip_channel(ch, "not a sensor stream")
             return None
@@ -202,6 +219,14 @@ class _Ingest:
             stream = self.streams[path] = TableStream(self.writer, path, kind, columns, self._attrs(ch, sensor))
         stream.info.topics.add(ch.topic)
         return stream
+
+    def _handler_sync(self, ch: Channel, deser: Callable[[Any], Any]) -> Callable[[RawMessage], None]:
+        def handle(raw: RawMessage) -> None:
+            if self.sync_ns is None:
+                m = deser(raw.data)
+                self.sync_ns = _stamp_ns(getattr(m, "header", m))
+
+        return handle
 
     def _handler_imu(self, ch: Channel, deser: Callable[[Any], Any]) -> Callable[[RawMessage], None]:
         name = self._name("imu", ch.topic)
@@ -294,14 +319,9 @@ class _Ingest:
         path = f"radar/{name}"
         dec = self.streams.get(path)
         if dec is None:
-            r = self.config.radar
-            m = r.mounting
-            attrs = {**self._attrs(ch, name), "prf_hz": r.prf_hz, "bandwidth_hz": r.bandwidth_hz,
-                     "tx_positions_m": [list(p) for p in r.tx_positions_m],
-                     "rx_positions_m": [list(p) for p in r.rx_positions_m],
-                     "lever_arm_m": list(m.lever_arm_m), "yaw_deg": m.yaw_deg, "pitch_deg": m.pitch_deg,
-                     "roll_deg": m.roll_deg, "geometry_source": "config"}
-            dec = self.streams[path] = RadarDecoder(self.writer, path, attrs)
+            what = f"{self.source_file}: topic {ch.topic}"
+            dec = self.streams[path] = RadarDecoder(self.writer, path, self._attrs(ch, name),
+                                                    lambda params: self._radar_block(params, what))
         dec.info.topics.add(ch.topic)
         feed, feed_parts = dec.feed, dec.feed_parts
 
@@ -321,6 +341,36 @@ class _Ingest:
 
         return handle_fast
 
+    def _radar_block(self, params: tuple[Any, ...], what: str) -> dict[str, Any]:
+        """Radar attributes for a RawFrame stream's parameters (see :func:`.fastcdr.raw_frame`)."""
+        f0, slope, fs, offsets, (n_tx, n_rx, n_samples) = params
+        rec = Recorded(f0, slope, fs, n_samples, n_tx, n_rx, tuple(offsets))
+        return resolve(rec, self.config.radar, what=what, override=self.radar_options.override,
+                       warn=self.warnings.append)
+
+    def run_capture(self, path: Path, progress: Callable[[int], None]) -> int:
+        """A DCA1000 capture into the configured radar's group; after the logs (their sync topic gives its start)."""
+        cap = Dca1000Capture(path)
+        self.source_file = str(path)
+        start = self.radar_options.start_ns if self.radar_options.start_ns is not None else self.sync_ns
+        if start is None:
+            raise IngestError(f"{path}: no start time for the DCA1000 capture: give --radar-start, or record its "
+                              f"first frame trigger on topic {self.radar_options.sync_topic} in a log")
+        name = self.config.radar.name
+        group = f"radar/{name}"
+        if group in self.streams:
+            raise IngestError(f"{path}: the drive already has radar {name} from a log; give one radar source")
+        attrs = resolve(recorded_from_capture(cap), self.config.radar, what=str(path),
+                        override=self.radar_options.override, warn=self.warnings.append)
+        attrs.update({"topic": "", "msgtype": "TI DCA1000 capture", "source_file": str(path), "sensor": name,
+                      "start_time_source": "--radar-start" if self.radar_options.start_ns is not None
+                      else f"topic {self.radar_options.sync_topic}",
+                      "layout": "frame, tx, rx, sample, I/Q"})
+        self.warnings.extend(cap.warnings)
+        info = write_capture_stream(self.writer, group, cap, start, attrs, progress)
+        self.streams[group] = _Finished(info)
+        return cap.num_pris
+
     # -- driving -----------------------------------------------------------------------------------
     def run_source(self, src: LogSource, progress: Callable[[int], None]) -> int:
         self.source_file = str(src.path)
@@ -337,6 +387,8 @@ class _Ingest:
                 continue
             try:
                 fn(raw)
+            except RadarParamsError:
+                raise
             except Exception as exc:  # one undecodable message must not end the ingest
                 self.bad_messages[f"{raw.channel.topic}: {type(exc).__name__}"] += 1
             if n & 1023 == 0:
@@ -398,12 +450,15 @@ class _Ingest:
 
 
 def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | None = None,
-           can_logs: Iterable[Path] = (), nmea_logs: Iterable[Path] = (), allow_partial: bool = False,
+           can_logs: Iterable[Path] = (), nmea_logs: Iterable[Path] = (), radar_captures: Iterable[Path] = (),
+           radar_options: RadarCaptureOptions = RadarCaptureOptions(), allow_partial: bool = False,
            progress: ProgressFn | None = None, command: str = "") -> IngestReport:
-    """Ingest ``logs`` (+ standalone CAN and NMEA logs) into ``output`` (drive.h5), atomically."""
+    """Ingest ``logs`` (+ standalone CAN and NMEA logs, DCA1000 captures) into ``output`` (drive.h5), atomically."""
     t0 = time.perf_counter()
+    radar_captures = list(radar_captures) + [p for p in logs if is_capture(Path(p))]
+    logs = [p for p in logs if not is_capture(Path(p))]
     inputs = [(Path(p), "log") for p in logs] + [(Path(p), "can") for p in can_logs] + \
-             [(Path(p), "nmea") for p in nmea_logs]
+             [(Path(p), "nmea") for p in nmea_logs] + [(Path(p), "radar") for p in radar_captures]
     if not inputs:
         raise IngestError("no input: give at least one log, --can-log or --nmea file")
     for path, _ in inputs:
@@ -415,7 +470,7 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
             sources.append((path, kind, open_source(path) if kind == "log" else None))
         except LogReadError as exc:
             raise IngestError(str(exc)) from exc
-    total = sum((s.stats.bytes_total if s else path.stat().st_size) for path, _, s in sources)
+    total = sum(_input_bytes(path, s) for path, _, s in sources)
     report = IngestReport(str(output))
     hasher = ThreadPoolExecutor(1, thread_name_prefix="sha256")
     hashes: list[Future[tuple[int, str]]] = [hasher.submit(_sha256, p) for p, _, _ in sources]
@@ -424,7 +479,7 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
     writer = DriveWriter(output, attrs)
     done = 0
     try:
-        job = _Ingest(writer, config, dbc)
+        job = _Ingest(writer, config, dbc, radar_options)
         for path, kind, src in sources:
             report_progress = (lambda b, base=done: progress(base + b, total)) if progress else (lambda b: None)
             try:
@@ -432,11 +487,13 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
                     report.messages += job.run_source(src, report_progress)
                 elif kind == "can":
                     report.messages += job.run_can_log(path)
+                elif kind == "radar":
+                    report.messages += job.run_capture(path, report_progress)
                 else:
                     report.messages += job.run_nmea_log(path)
-            except LogReadError as exc:
+            except (LogReadError, RadarParamsError) as exc:
                 raise IngestError(str(exc)) from exc
-            done += src.stats.bytes_total if src else path.stat().st_size
+            done += _input_bytes(path, src)
             report_progress(0)
         infos = job.finish()
         _check_content(inputs, infos, job, allow_partial, report)
@@ -469,6 +526,37 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
         hasher.shutdown(wait=False, cancel_futures=True)
     report.wall_s = time.perf_counter() - t0
     return report
+
+
+def parse_time_ns(text: str) -> int:
+    """``--radar-start``: integer ns since the Unix epoch, or an ISO 8601 time (UTC unless it says otherwise)."""
+    text = text.strip()
+    if re.fullmatch(r"-?\d+", text):
+        return int(text)
+    try:
+        dt = datetime.fromisoformat(text.replace("Z", "+00:00"))
+    except ValueError:
+        raise IngestError(f"--radar-start {text!r}: expected ns since the Unix epoch or an ISO 8601 time") from None
+    if dt.tzinfo is None:
+        dt = dt.replace(tzinfo=UTC)
+    whole = int(dt.replace(microsecond=0).timestamp())
+    return whole * 1_000_000_000 + dt.microsecond * 1000
+
+
+def _input_bytes(path: Path, src: LogSource | None) -> int:
+    if src is not None:
+        return src.stats.bytes_total
+    return sum(p.stat().st_size for p in path.iterdir() if p.is_file()) if path.is_dir() else path.stat().st_size
+
+
+@dataclass
+class _Finished:
+    """A stream written in one go (a DCA1000 capture): nothing left to flush."""
+
+    info: StreamInfo
+
+    def finish(self) -> StreamInfo:
+        return self.info
 
 
 def _config_text(config: Config) -> str:

@@ -96,6 +96,8 @@ def _container(path: Path) -> Container:
             return container
     if path.is_dir():
         raise LogReadError(f"{path}: a directory but not a rosbag2 bag (no metadata.yaml)")
+    if path.suffix.lower() == ".bin":
+        raise LogReadError(f"{path}: a raw .bin without a DCA1000 parameter file (*.mmwave.json or .cfg) beside it")
     names = [c.expected for c in _CONTAINERS]
     expected = " or ".join([", ".join(names[:-1]), names[-1]] if len(names) > 1 else names)
     raise LogReadError(f"{path}: unknown log container (expected {expected})")

@@ -8,6 +8,7 @@ the same seed gives byte-identical files.
 
 from __future__ import annotations
 
+import contextlib
 import heapq
 import time
 import zlib
@@ -23,6 +24,7 @@ from numpy.typing import NDArray
 from autosar_cli import __version__, msgs
 from autosar_cli.candb import load_dbc
 from autosar_cli.config import Config, load_config
+from autosar_cli.ingest.dca1000 import CaptureWriter, params_from_radar
 from autosar_cli.nav.frames import mounting_rotation, rot_z
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.sim import sensors as sensor_models
@@ -33,7 +35,8 @@ from autosar_cli.sim.scenario import Scenario, build_scenario
 from autosar_cli.sim.trajectory import TruthMotion
 from autosar_cli.sim.truth import TruthWriter, truth_path_for
 
-LogFormat = Literal["mcap", "ros1", "ros2"]
+LogFormat = Literal["mcap", "ros1", "ros2", "dca1000"]
+RADAR_SYNC_TOPIC = "/dca1000/sync"  #: dca1000 format: std_msgs/Header stamped at each frame's start
 RADAR_BLOCK_FRAMES = 128
 RADAR_TRANSFER_DELAY_NS = 1_500_000  # frame leaves the radar after its last chirp, over Ethernet
 
@@ -51,6 +54,12 @@ class SimulationResult:
     radar_frames: int
     message_counts: dict[str, int] = field(default_factory=dict)
     elapsed_s: float = 0.0
+    radar_capture: Path | None = None  #: dca1000 format: the capture directory beside the navigation log
+
+
+def capture_dir_for(log_path: Path) -> Path:
+    """Where ``--format dca1000`` writes the radar capture of ``log_path`` (the navigation MCAP)."""
+    return log_path.with_name(log_path.stem + ".dca1000")
 
 
 def stream_rng(seed: int, stream: str) -> np.random.Generator:
@@ -163,7 +172,13 @@ def simulate(
     config: Config | None = None,
     progress: ProgressCallback | None = None,
 ) -> SimulationResult:
-    """Write a synthetic drive log for ``scenario_name`` to ``output`` and its truth sidecar next to it."""
+    """Write a synthetic drive log for ``scenario_name`` to ``output`` and its truth sidecar next to it.
+
+    ``fmt`` "dca1000": ``output`` is an MCAP of the navigation sensors plus a frame-trigger topic
+    (:data:`RADAR_SYNC_TOPIC`), and the radar frames go to a TI DCA1000 capture (4-lane complex, mmWave
+    Studio JSON) in :func:`capture_dir_for` ``(output)``; the same seed gives the same samples as the
+    RawFrame log.
+    """
     t_start = time.perf_counter()
     config = config or load_config()
     if config.simulation is None:
@@ -172,6 +187,7 @@ def simulate(
     scenario: Scenario = build_scenario(scenario_name, config)
     motion = scenario.motion
     ros_version = 1 if fmt == "ros1" else 2
+    capture_dir = capture_dir_for(Path(output)) if fmt == "dca1000" else None
     typestore = msgs.typestore_for(ros_version)
     origin = GeodeticOrigin(sim.origin_lat_deg, sim.origin_lon_deg, sim.origin_height_m)
     t0_ns = start_time_ns(config)
@@ -213,8 +229,12 @@ def simulate(
     counts: dict[str, int] = {}
     try:
         _write_truth_static(truth, scenario, config, geom, samples, t0_ns)
-        with open_log_writer(output, fmt) as writer:
-            topics: dict[str, str] = {radar.topic: msgs.RAW_FRAME}
+        with open_log_writer(output, "mcap" if capture_dir else fmt) as writer, \
+                contextlib.ExitStack() as stack:
+            topics: dict[str, str] = {RADAR_SYNC_TOPIC: msgs.HEADER} if capture_dir else {radar.topic: msgs.RAW_FRAME}
+            capture = stack.enter_context(CaptureWriter(
+                capture_dir, params_from_radar(radar, num_frames=n_frames), param_format="json")) \
+                if capture_dir else None
             for s in config.sensors.values():
                 for tp in sensor_topics(s, ros_version):
                     topics.setdefault(tp.name, tp.msgtype)
@@ -239,6 +259,8 @@ def simulate(
                 iq += noise_rng.standard_normal(iq.shape, dtype=np.float32) * np.float32(sim.radar_noise_std_lsb)
                 raw = np.clip(np.rint(iq), -32768, 32767).astype(np.int16)
                 stamps = t0_ns + np.round(t_frames * 1e9).astype(np.int64)
+                if capture is not None:
+                    capture.write(raw)
                 for j, fi in enumerate(idx):
                     log_ns = int(stamps[j]) + RADAR_TRANSFER_DELAY_NS
                     while nav_i < len(nav_messages) and nav_messages[nav_i][0] <= log_ns:
@@ -246,6 +268,9 @@ def simulate(
                         writer.write(topic, lt, m)
                         counts[topic] = counts.get(topic, 0) + 1
                         nav_i += 1
+                    if capture is not None:
+                        writer.write(RADAR_SYNC_TOPIC, log_ns, factory.header(int(stamps[j]), "dca1000"))
+                        continue
                     msg = RawFrame(
                         header=factory.header(int(stamps[j]), "scanbrick"), frame_index=int(fi),
                         start_frequency_hz=radar.start_frequency_hz, slope_hz_per_s=radar.slope_hz_per_s,
@@ -254,7 +279,8 @@ def simulate(
                         data=raw[j].reshape(-1),
                     )
                     writer.write(radar.topic, log_ns, msg)
-                counts[radar.topic] = counts.get(radar.topic, 0) + len(idx)
+                frame_topic = RADAR_SYNC_TOPIC if capture else radar.topic
+                counts[frame_topic] = counts.get(frame_topic, 0) + len(idx)
                 chirp_s = t_frames[:, None] + offsets[None, :]
                 truth.append_radar({
                     "frame_index": idx, "t_ns": stamps,
@@ -273,7 +299,7 @@ def simulate(
         raise
     truth.close()
     return SimulationResult(output, truth_path, scenario.name, seed, fmt, motion.duration_s, n_frames, counts,
-                            time.perf_counter() - t_start)
+                            time.perf_counter() - t_start, capture_dir)
 
 
 def _write_truth_static(truth: TruthWriter, scenario: Scenario, config: Config, geom: RadarGeometry,

@@ -1,0 +1,149 @@
+"""The drive's radar block: what the recording states wins, the config supplies the rest.
+
+Frequencies, slope, sampling, chirp timing and Tx/Rx counts and order come from the recording (a RawFrame's
+fields, a DCA1000 capture's parameter file); mounting and antenna positions from the config. A value that
+both state must agree, else ingest stops with a one-line error naming both values (``override``: the
+recording's values are kept and the disagreements reported as a warning). Every attribute's origin is
+stored in the radar group's ``parameter_sources`` attribute and shown by ``autosar info``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from autosar_cli.config import RadarConfig
+from autosar_cli.store.drive import DriveWriter
+
+from .dca1000 import Dca1000Capture
+from .decoders import StreamInfo
+from .series import SeriesStats
+
+OVERRIDE_OPTION = "--radar-override"
+_REL_TOL = 1e-6
+_TIME_TOL_S = 1e-9
+
+
+class RadarParamsError(ValueError):
+    """The recording and the config disagree about the radar (one line, both values named)."""
+
+
+@dataclass
+class Recorded:
+    """Radar parameters a recording states (None: not stated)."""
+
+    start_frequency_hz: float
+    slope_hz_per_s: float
+    sample_rate_hz: float
+    num_samples: int
+    num_tx: int
+    num_rx: int
+    tx_start_offsets_s: tuple[float, ...]
+    prf_hz: float | None = None
+    tx_channels: tuple[int, ...] | None = None  #: physical Tx index of each Tx of the cube
+    rx_channels: tuple[int, ...] | None = None  #: physical Rx index of each Rx of the cube
+    extra: dict[str, Any] = field(default_factory=dict)  #: further recorded attributes (stored as they are)
+
+    @property
+    def bandwidth_hz(self) -> float:
+        return self.slope_hz_per_s * self.num_samples / self.sample_rate_hz
+
+
+def resolve(rec: Recorded, cfg: RadarConfig, *, what: str, override: bool,
+            warn: Callable[[str], None]) -> dict[str, Any]:
+    """The radar attributes of the drive for recording ``rec`` and config ``cfg``; ``what`` names the recording."""
+
+    clashes: list[str] = []
+
+    def clash(name: str, recorded: Any, configured: Any) -> None:
+        clashes.append(f"the recording's {name} is {recorded} but the config's radar.{name} is {configured}")
+
+    for name in ("num_tx", "num_rx", "num_samples"):
+        if getattr(rec, name) != getattr(cfg, name):
+            clash(name, getattr(rec, name), getattr(cfg, name))
+    for name in ("start_frequency_hz", "slope_hz_per_s", "sample_rate_hz"):
+        if not math.isclose(getattr(rec, name), getattr(cfg, name), rel_tol=_REL_TOL):
+            clash(name, f"{getattr(rec, name):.9g}", f"{getattr(cfg, name):.9g}")
+    if not math.isclose(rec.bandwidth_hz, cfg.bandwidth_hz, rel_tol=_REL_TOL):
+        clash("bandwidth_hz", f"{rec.bandwidth_hz:.9g} (slope x ADC window)", f"{cfg.bandwidth_hz:.9g}")
+    if rec.prf_hz is not None and not math.isclose(rec.prf_hz, cfg.prf_hz, rel_tol=_REL_TOL):
+        clash("prf_hz", f"{rec.prf_hz:.9g}", f"{cfg.prf_hz:.9g}")
+    cfg_offsets = cfg.tx_start_offsets_s
+    if len(cfg_offsets) == len(rec.tx_start_offsets_s) and any(
+            abs(a - b) > _TIME_TOL_S for a, b in zip(rec.tx_start_offsets_s, cfg_offsets, strict=True)):
+        clash("tx_start_offsets_s", f"{list(rec.tx_start_offsets_s)}",
+              f"{list(cfg_offsets)} (k x chirp_period_s)")
+    if clashes:
+        if not override:
+            raise RadarParamsError(f"{what}: " + "; ".join(clashes)
+                                   + f" (fix the config, or give {OVERRIDE_OPTION} to keep the recording's)")
+        warn(f"{what}: " + "; ".join(clashes) + f"; kept the recording's ({OVERRIDE_OPTION})")
+
+    tx_rows = _rows(cfg.tx_positions_m, rec.tx_channels, rec.num_tx, "tx_positions_wavelengths", what)
+    rx_rows = _rows(cfg.rx_positions_m, rec.rx_channels, rec.num_rx, "rx_positions_wavelengths", what)
+    m = cfg.mounting
+    recorded = {"start_frequency_hz": rec.start_frequency_hz, "slope_hz_per_s": rec.slope_hz_per_s,
+                "sample_rate_hz": rec.sample_rate_hz, "tx_start_offsets_s": list(rec.tx_start_offsets_s),
+                "num_tx": rec.num_tx, "num_rx": rec.num_rx, "num_samples": rec.num_samples,
+                "bandwidth_hz": rec.bandwidth_hz, **rec.extra}
+    configured: dict[str, Any] = {"tx_positions_m": tx_rows, "rx_positions_m": rx_rows,
+                                  "lever_arm_m": list(m.lever_arm_m), "yaw_deg": m.yaw_deg, "pitch_deg": m.pitch_deg,
+                                  "roll_deg": m.roll_deg}
+    if rec.prf_hz is not None:
+        recorded["prf_hz"] = rec.prf_hz
+    else:
+        configured["prf_hz"] = cfg.prf_hz
+    sources = {k: "recording" for k in recorded} | {k: "config" for k in configured}
+    return {**configured, **recorded, "geometry_source": "config", "parameter_sources": sources}
+
+
+def _rows(positions: tuple[tuple[float, float, float], ...], channels: tuple[int, ...] | None, count: int,
+          name: str, what: str) -> list[list[float]]:
+    """The config's antenna rows for the recording's channels (all rows when it does not name them)."""
+    if channels is None:
+        if len(positions) != count:
+            raise RadarParamsError(f"{what}: the recording has {count} antennas but the config's radar.{name} "
+                                   f"has {len(positions)} rows")
+        return [list(p) for p in positions]
+    if max(channels) >= len(positions):
+        raise RadarParamsError(f"{what}: the recording uses antenna {max(channels)} but the config's radar.{name} "
+                               f"has {len(positions)} rows (0-{len(positions) - 1})")
+    return [list(positions[c]) for c in channels]
+
+
+def recorded_from_capture(cap: Dca1000Capture) -> Recorded:
+    p = cap.params
+    return Recorded(
+        start_frequency_hz=p.start_frequency_hz, slope_hz_per_s=p.slope_hz_per_s, sample_rate_hz=p.sample_rate_hz,
+        num_samples=p.num_samples, num_tx=p.num_tx, num_rx=p.num_rx, tx_start_offsets_s=p.tx_start_offsets_s,
+        prf_hz=p.prf_hz, tx_channels=p.tx_order, rx_channels=p.rx_channels,
+        extra={"adc_format": p.adc_format, "lvds_lanes": p.lanes, "chirp_tx_order": list(p.chirp_tx),
+               "frame_period_s": p.frame_period_s, "loops_per_frame": p.num_loops,
+               "parameter_file": str(p.source)})
+
+
+def write_capture_stream(writer: DriveWriter, path: str, cap: Dca1000Capture, start_ns: int,
+                         attrs: dict[str, Any], progress: Callable[[int], None]) -> StreamInfo:
+    """Stream a capture's PRIs into the drive's radar group ``path``; frame times from ``start_ns``."""
+    p = cap.params
+    cube = writer.radar(path, (p.num_tx, p.num_rx, p.num_samples), attrs)
+    t_ns = cap.pri_times_ns(start_ns)
+    done = 0
+    for first, block in cap.blocks():
+        n = len(block)
+        cube.append_frames(t_ns[first:first + n], np.arange(first, first + n, dtype=np.int64), block)
+        done += n
+        progress(done // p.num_loops * p.frame_bytes)
+    cube.write_dataset("gaps", np.zeros((0, 2), dtype=np.int64))
+    cube.write_dataset("gap_frame_index", np.zeros((0, 2), dtype=np.int64))
+    stats = SeriesStats(received=done, written=done, first_ns=int(t_ns[0]) if done else 0,
+                        last_ns=int(t_ns[-1]) if done else 0)
+    if cap.partial_bytes:
+        stats.skipped["trailing partial frame"] = 1
+    info = StreamInfo(path, "radar", topics={str(cap.path)}, msgtype="TI DCA1000 capture", stats=stats)
+    info.extra["missing_frames"] = 0
+    return info
