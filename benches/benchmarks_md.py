@@ -1,5 +1,5 @@
 """Write docs/BENCHMARKS.md from benches/results/*.json: every figure with the command and machine that made it.
-Usage: python benches/benchmarks_md.py [--results benches/results] [--output docs/BENCHMARKS.md] [--max-rows 8]
+Usage: python benches/benchmarks_md.py [--results benches/results] [--output docs/BENCHMARKS.md] [--max-rows 4]
 
 One section per JSON file, in file-name order. The command is the ``Usage:`` line of the bench script whose
 docstring names that JSON file, the description its first line; the machine is what the JSON recorded
@@ -19,6 +19,7 @@ from typing import Any
 HERE = Path(__file__).resolve().parent
 MACHINE_KEYS = ("machine", "cores", "cpus", "python", "host_before", "host_after")
 MAX_COLUMNS = 12
+MAX_ROWS = 4
 
 
 def bench_scripts(benches: Path) -> dict[str, tuple[str, str]]:
@@ -123,8 +124,9 @@ def render(results: Path, max_rows: int) -> str:
         out += [f"## {path.stem}", ""]
         if title:
             out += [title, ""]
-        out += [f"- command: `{usage}`", f"- machine: {machine_of(data) if isinstance(data, dict) else '-'}",
-                f"- data: [`benches/results/{path.name}`](../benches/results/{path.name})", ""]
+        machine = machine_of(data) if isinstance(data, dict) else "-"
+        out += [f"Command `{usage}`; machine: {machine}; data "
+                f"[`benches/results/{path.name}`](../benches/results/{path.name}).", ""]
         out += section(data, max_rows)
     return "\n".join(out).rstrip() + "\n"
 
@@ -133,7 +135,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--results", type=Path, default=HERE / "results")
     parser.add_argument("--output", type=Path, default=HERE.parent / "docs" / "BENCHMARKS.md")
-    parser.add_argument("--max-rows", type=int, default=8)
+    parser.add_argument("--max-rows", type=int, default=MAX_ROWS)
     args = parser.parse_args()
     args.output.write_text(render(args.results, args.max_rows))
     print(f"wrote {args.output} ({len(args.output.read_text().splitlines())} lines)")
