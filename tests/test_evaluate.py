@@ -754,7 +754,8 @@ _ENTROPY_XFAIL = ("measured (seed 1): beside focus, the whole image's entropy fo
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("scenario", [pytest.param(s, marks=pytest.mark.xfail(strict=True, reason=_ENTROPY_XFAIL))
+@pytest.mark.parametrize("scenario", [pytest.param(s, marks=pytest.mark.xfail(strict=True, raises=AssertionError,
+                                                                                reason=_ENTROPY_XFAIL))
                                       for s in ("test1", "test2", "test3")])
 def test_entropy_orders_the_methods_as_in_the_paper(scenario: str, sim_dir: Path,
                                                     tmp_path_factory: pytest.TempPathFactory) -> None:
@@ -774,7 +775,8 @@ _RN_ORDER_XFAIL = ("measured (seed 1): test1's INS image is 0.5 % lower in range
 
 @pytest.mark.slow
 @pytest.mark.parametrize("scenario", [pytest.param("test1",
-                                                   marks=pytest.mark.xfail(strict=True, reason=_RN_ORDER_XFAIL)),
+                                                   marks=pytest.mark.xfail(strict=True, raises=AssertionError,
+                                                                             reason=_RN_ORDER_XFAIL)),
                                       "test2", "test3"])
 def test_range_normalised_entropy_orders_the_methods_as_in_the_paper(scenario: str, sim_dir: Path,
                                                                       tmp_path_factory: pytest.TempPathFactory) -> None:

@@ -12,7 +12,7 @@ import heapq
 import time
 import zlib
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime
 from pathlib import Path
 from typing import Literal
@@ -30,6 +30,7 @@ from autosar_cli.sim.echo import synthesize_beat
 from autosar_cli.sim.logwriter import open_log_writer
 from autosar_cli.sim.messages import MessageFactory, can_topic, sensor_topics
 from autosar_cli.sim.scenario import Scenario, build_scenario
+from autosar_cli.sim.scene import Scene
 from autosar_cli.sim.trajectory import TruthMotion
 from autosar_cli.sim.truth import TruthWriter, truth_path_for
 
@@ -162,14 +163,20 @@ def simulate(
     seed: int = 0,
     config: Config | None = None,
     progress: ProgressCallback | None = None,
+    scene: Scene | None = None,
 ) -> SimulationResult:
-    """Write a synthetic drive log for ``scenario_name`` to ``output`` and its truth sidecar next to it."""
+    """Write a synthetic drive log for ``scenario_name`` to ``output`` and its truth sidecar next to it.
+
+    ``scene``: scatterers to use instead of the scenario's (e.g. one point target, or none, for radiometry tests).
+    """
     t_start = time.perf_counter()
     config = config or load_config()
     if config.simulation is None:
         raise ValueError(f"{config.source}: has no [simulation] table; autosar simulate needs one")
     sim = config.simulation
     scenario: Scenario = build_scenario(scenario_name, config)
+    if scene is not None:
+        scenario = replace(scenario, scene=scene)
     motion = scenario.motion
     ros_version = 1 if fmt == "ros1" else 2
     typestore = msgs.typestore_for(ros_version)
