@@ -163,3 +163,76 @@ def beat_reference(
                                      - 0.5 * slope_hz_per_s * tau**2)
                 out[f, k, q] = (gain[:, None] * np.exp(1j * phase)).sum(axis=0)
     return out
+
+
+# ---------------------------------------------------------------- radiometry (radar equation), for the focus tests
+
+
+def centred_window_response(window: np.ndarray, offset_bins: np.ndarray) -> np.ndarray:
+    """Real amplitude spectrum of the taper about its centre, at offsets (unpadded FFT bins) from a tone."""
+    n = len(window)
+    k = np.arange(n) - 0.5 * (n - 1)
+    return np.cos(2 * np.pi * np.asarray(offset_bins)[..., None] * k / n) @ window
+
+
+def stripmap_pulses(pixel: np.ndarray, tx0: np.ndarray, half_width_rad: float) -> np.ndarray:
+    """Pulses whose line of sight from Tx0 (P, 3) to the pixel is within half_width of the zero-Doppler plane of
+    the direction of travel (central differences of Tx0's track): a boolean mask (P,)."""
+    v = np.gradient(tx0, axis=0)
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    los = pixel[None, :] - tx0
+    sin_psi = np.sum(los * v, axis=1) / np.linalg.norm(los, axis=1)
+    return np.abs(sin_psi) <= np.sin(half_width_rad)
+
+
+def focused_peak_prediction(target: np.ndarray, rcs_m2: float, tx: np.ndarray, rx: np.ndarray,
+                            pairs: list[tuple[int, int]], *, amplitude_1m2_1m_lsb: float, beamwidth_az_deg: float,
+                            beamwidth_el_deg: float, f0: float, slope: float, fs: float, n_samples: int,
+                            upsample: int, resolution_m: float) -> tuple[float, int]:
+    """|focused image| at a point target by the radar equation, and the pulses in its window.
+
+    Per pulse and channel the beat tone has amplitude A1 sqrt(rcs) g(az, el) / R^2 (A1: the ADC amplitude of 1 m^2
+    at 1 m on boresight; g = cos^n_az(az) cos^n_el(el), each antenna's one-way power pattern, so the two-way
+    amplitude; R from the radar's centre). The Hann-tapered FFT gives it the coherent gain sum(w) at the tone;
+    linear interpolation between bins of the x``upsample`` zero-padded spectrum loses what the taper's response
+    loses at the sample's fractional position; the back-projection sums pulses x channels coherently.
+    tx (P, T, 3), rx (P, T, R, 3): true phase centres (ENU m) at each chirp; the radar's axes come from the Rx
+    row (y, Rx0 -> Rx3) and the vertical (z): boresight x = y x z.
+    """
+    lam_c = C / (f0 + 0.5 * slope * n_samples / fs)
+    half_width = lam_c / (4 * resolution_m)
+    window = np.hanning(n_samples)
+    sel = stripmap_pulses(target, tx[:, 0], half_width)
+    tx, rx = tx[sel], rx[sel]
+    y = rx[:, 0, -1] - rx[:, 0, 0]
+    y /= np.linalg.norm(y, axis=1, keepdims=True)
+    x = np.cross(y, [0.0, 0.0, 1.0])
+    x /= np.linalg.norm(x, axis=1, keepdims=True)
+    centre = 0.5 * (tx.mean(axis=1) + rx.mean(axis=(1, 2)))
+    los = target[None, :] - centre
+    r = np.linalg.norm(los, axis=1)
+    ux = np.sum(los * x, axis=1) / r
+    uy = np.sum(los * y, axis=1) / r
+    horiz = np.hypot(ux, uy)
+    gain = (ux / horiz) ** pattern_exponent(beamwidth_az_deg) * horiz ** pattern_exponent(beamwidth_el_deg)
+    amp = amplitude_1m2_1m_lsb * np.sqrt(rcs_m2) * gain / r**2
+    bin_path = C * fs / (n_samples * upsample * slope)
+    total = 0.0
+    for t, q in pairs:
+        path = np.linalg.norm(target - tx[:, t], axis=1) + np.linalg.norm(target - rx[:, t, q], axis=1)
+        frac = path / bin_path % 1.0
+        interp = ((1 - frac) * centred_window_response(window, frac / upsample)
+                  + frac * centred_window_response(window, (1 - frac) / upsample))
+        total += float(np.sum(amp * interp))
+    return total, int(sel.sum())
+
+
+def noise_floor_prediction(noise_std_lsb: float, n_samples: int, upsample: int) -> float:
+    """Mean |compressed sample|^2 (LSB^2) of white complex noise, std noise_std_lsb per rail plus the int16
+    ADC's rounding (1/12 LSB^2 per rail), after the Hann taper, the FFT and linear interpolation between bins of
+    the x``upsample`` spectrum at a uniformly distributed fractional position: sum(w^2) (2/3 + rho/3), rho the
+    correlation of neighbouring bins. A pixel's floor is this times the pulses x channels it sums."""
+    w = np.hanning(n_samples)
+    k = np.arange(n_samples) - 0.5 * (n_samples - 1)
+    rho = np.sum(w**2 * np.cos(2 * np.pi * k / (n_samples * upsample))) / np.sum(w**2)
+    return 2 * (noise_std_lsb**2 + 1 / 12) * np.sum(w**2) * (2 / 3 + rho / 3)

@@ -107,6 +107,17 @@ def test_ci_corner_reflectors_focus_at_truth_with_theoretical_widths(ci_drive: D
     check_reflectors(ci_drive, "ci")
 
 
+@pytest.mark.parametrize("channels", [8, 12])
+def test_ci_corner_reflectors_have_the_radar_equations_peak_at_their_position(ci_drive: Drive, channels: int) -> None:
+    """The corner reflectors of the whole ci scene (clutter, noise) against the radar equation as in
+    tests/test_sar_radiometry.py's noise-free, isolated case: measured +0.02 ... +0.17 dB, range -2.4 ... +2.3 mm,
+    cross-range <= 0.17 mm (the same to 0.01 dB and 0.01 mm: the clutter is > 40 dB below the reflectors)."""
+    from test_sar_radiometry import check_peaks_against_the_radar_equation
+
+    check_peaks_against_the_radar_equation(ci_drive, channels, "ci", limit_db=0.5, range_limit_m=0.003,
+                                           cross_limit_m=0.0005)
+
+
 def test_geotiff_puts_reflectors_at_their_utm_position(ci_drive: Drive) -> None:
     d = ci_drive
     rep = focus(d.drive, d.trajectory, d.dir / "full", d.config, FocusOptions.from_config(d.config),
