@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: setup test demo bench bench-paper lint clean sample-logs
+.PHONY: setup test demo bench bench-paper lint clean sample-logs mutate
 
 setup: $(STAMP)
 
@@ -40,6 +40,10 @@ bench: setup
 # The paper's comparison (issue 6's figures) on test1-3, seeds 0-9: ~35 min (1.2 min per drive).
 bench-paper: setup
 	$(BIN)/python benches/bench_paper.py
+
+# Curated mutations (benches/mutate.py): each must make a fast test fail; ~15 min on 2 cores.
+mutate: setup
+	$(BIN)/python benches/mutate.py --json benches/results/mutate.json
 
 lint: setup
 	$(BIN)/ruff check autosar_cli tests benches
