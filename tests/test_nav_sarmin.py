@@ -126,15 +126,23 @@ def test_partitioned_prediction_is_the_full_unscented_transform(dt: float, gauss
     np.testing.assert_allclose((P @ Phi.T - step.cross) / np.outer(np.sqrt(np.diag(P)), sd_pred), 0.0, atol=1e-9)
 
 
-def test_cli_navigate_all_methods(ci_drive: Path, tmp_path: Path) -> None:
+def test_cli_navigate_all_methods(ci_drive: Path, ci_mcap, tmp_path: Path) -> None:  # noqa: ANN001
     runner = CliRunner()
+    lengths = {}
     for method in ("sar-min", "ins", "gnss", "none", "truth"):
         out = tmp_path / f"{method}.h5"
         r = runner.invoke(app, ["navigate", str(ci_drive), "-o", str(out), "--method", method, "--json"])
         assert r.exit_code == 0, r.output
         traj = read_trajectory(out)
         assert traj.method == method and len(traj.t_ns) > 2 and np.all(np.diff(traj.t_ns) > 0)
-        assert 1.5 < float(np.sum(np.hypot(*np.diff(traj.rear_axle_enu, axis=0).T))) < 3.5  # ci drives 2.4 m
+        truth = from_truth(str(ci_mcap.truth_path), traj.origin, CFG)
+        inside = (truth.t_ns >= traj.t_ns[0]) & (truth.t_ns <= traj.t_ns[-1])
+        true_length = float(np.sum(np.hypot(*np.diff(truth.rear_axle_enu[inside], axis=0).T)))
+        lengths[method] = float(np.sum(np.hypot(*np.diff(traj.rear_axle_enu, axis=0).T))) / true_length - 1.0
+    print("track length against truth over the same span (%):", {k: round(v * 100, 3) for k, v in lengths.items()})
+    # measured on ci seed 7: sar-min +0.09 %, ins +7.1 %, gnss +4.7 %, none +2.2 %, truth 0: bounds 3x that
+    bounds = {"sar-min": 0.0027, "ins": 0.21, "gnss": 0.15, "none": 0.07, "truth": 1e-6}
+    assert all(abs(lengths[m]) < bounds[m] for m in bounds), lengths
     r = runner.invoke(app, ["navigate", str(ci_drive), "-o", str(tmp_path / "plotted.h5"), "--plot"])
     assert r.exit_code == 0, r.output
     png = tmp_path / "plotted.png"
