@@ -35,6 +35,8 @@ ENGINES = "tests/test_nav_sarmin.py::test_compiled_filter_equals_the_filterpy_re
 SENSORS = "tests/test_nav_sarmin.py::test_every_sensor_counts"
 NAV_CI = "tests/test_nav_sarmin.py::test_sarmin_accuracy_on_ci"
 CAN_SI = "tests/test_ingest_roundtrip.py::test_can_values_in_si_within_quantisation"
+CAN_UNITS = "tests/test_candb.py::test_dbc_units_convert_to_si_by_the_textbook_factors"
+NMEA_SIM = "tests/test_ingest_nmea.py::test_simulator_round_trip"
 
 
 @dataclass(frozen=True)
@@ -120,10 +122,13 @@ MUTATIONS: list[Mutation] = [
     _m("geotiff-half-pixel-shift", "geotiff", "store/image.py",
        "grid.pixel_enu(v - 0.5, u - 0.5)", "grid.pixel_enu(v, u)", GEOTIFF),
     # --- ingest scaling
-    _m("can-km-per-h-scaling", "ingest", "candb.py",
-       '"km/h": (1.0 / 3.6, "m/s"),', '"km/h": (1.0 / 3.5, "m/s"),', CAN_SI),
-    _m("can-deg-per-s-scaling", "ingest", "candb.py",
-       '"deg/s": (math.pi / 180.0, "rad/s"),', '"deg/s": (math.pi / 180.5, "rad/s"),', CAN_SI),
+    _m("can-degrees-as-gradians", "ingest", "candb.py",
+       '"deg": (math.pi / 180.0, "rad"),', '"deg": (math.pi / 200.0, "rad"),', CAN_UNITS),
+    _m("nmea-minutes-as-hundredths", "ingest", "ingest/nmea.py",
+       "value = deg + minutes / 60.0", "value = deg + minutes / 100.0", NMEA_SIM),
+    _m("can-dbc-scale-and-offset-not-applied", "ingest", "ingest/decoders.py",
+       "values = m.decode(data, decode_choices=False, scaling=lay.unscaled_integrity)",
+       "values = m.decode(data, decode_choices=False, scaling=False)", CAN_SI),
 ]
 
 
