@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: setup test demo bench bench-paper benchmarks-md figures lint clean sample-logs
+.PHONY: setup test demo bench bench-paper benchmarks-md figures lint clean sample-logs mutate
 
 setup: $(STAMP)
 
@@ -51,6 +51,10 @@ figures: setup
 	$(BIN)/autosar simulate --scenario test1 --seed 0 --output $(FIGURES_WORK)/test1.mcap --overwrite
 	$(BIN)/autosar compare $(FIGURES_WORK)/test1.mcap -o $(FIGURES_WORK)/compare --overwrite
 	$(BIN)/python benches/docs_figures.py $(FIGURES_WORK)/compare docs/figures
+
+# Curated mutations (benches/mutate.py): each must make a fast test fail; 29 in ~10 min on 2 cores.
+mutate: setup
+	$(BIN)/python benches/mutate.py --json benches/results/mutate.json
 
 lint: setup
 	$(BIN)/ruff check autosar_cli tests benches

@@ -25,7 +25,7 @@ MAX_ROWS = 4
 def bench_scripts(benches: Path) -> dict[str, tuple[str, str]]:
     """JSON file name -> (first docstring line, usage command) of the bench script that writes it."""
     out: dict[str, tuple[str, str]] = {}
-    for script in sorted(benches.glob("bench_*.py")):
+    for script in sorted(p for p in benches.glob("*.py") if p.name != Path(__file__).name):
         doc = ast.get_docstring(ast.parse(script.read_text())) or ""
         lines = doc.splitlines()
         usage = next((ln.removeprefix("Usage:").strip() for ln in lines if ln.startswith("Usage:")),
@@ -34,7 +34,8 @@ def bench_scripts(benches: Path) -> dict[str, tuple[str, str]]:
             name = word.strip(".,;:()`")
             if name.endswith(".json"):
                 out.setdefault(Path(name).name, (lines[0] if lines else "", usage))
-        out.setdefault(script.stem.removeprefix("bench_") + ".json", (lines[0] if lines else "", usage))
+        if script.name.startswith("bench_"):
+            out.setdefault(script.stem.removeprefix("bench_") + ".json", (lines[0] if lines else "", usage))
     return out
 
 
@@ -91,8 +92,8 @@ def section(data: Any, max_rows: int, depth: int = 0) -> list[str]:
     if isinstance(data, list):
         return records_table([r for r in data if isinstance(r, dict)], max_rows) if data else []
     scalars = [(k, v) for k, v in data.items() if is_scalar(v) and k not in MACHINE_KEYS and k != "benchmark"]
-    if scalars:
-        lines += table(["figure", "value"], [[k, cell(v)] for k, v in scalars])
+    if scalars:  # one line: a key/value table would cost a line per figure
+        lines += ["; ".join(f"{k} **{cell(v)}**" for k, v in scalars), ""]
     for key, value in data.items():
         if is_scalar(value) or key in MACHINE_KEYS:
             continue

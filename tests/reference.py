@@ -8,6 +8,7 @@ removal of the full beat phase 2 pi (f0 tau + K tau t_c - K tau^2 / 2) at the wi
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
 C = 299_792_458.0
 
@@ -103,3 +104,135 @@ def tdbp(profiles: np.ndarray, antennas: np.ndarray, channels: np.ndarray, pixel
             s = (1 - frac) * profiles[c, i0, pulses] + frac * profiles[c, i0 + 1, pulses]
             image[n] += np.sum(np.where(ok, s * np.exp(-2j * np.pi * cycles_per_m * path), 0.0))
     return image
+
+
+def pattern_exponent(beamwidth_deg: float) -> float:
+    """n of a cos^n one-way power pattern that is -3 dB at half the beamwidth."""
+    return float(np.log(0.5) / np.log(np.cos(np.radians(beamwidth_deg / 2.0))))
+
+
+IF_BAND_FRACTION = 0.98  # the simulator receives beat frequencies below 0.98 fs (its anti-alias filter)
+
+
+def beat_reference(
+    tx_start: NDArray[np.float64],
+    tx_end: NDArray[np.float64],
+    rx_start: NDArray[np.float64],
+    rx_end: NDArray[np.float64],
+    radar_origin: NDArray[np.float64],
+    enu_to_radar: NDArray[np.float64],
+    targets: NDArray[np.float64],
+    rcs_m2: NDArray[np.float64],
+    *,
+    start_frequency_hz: float,
+    slope_hz_per_s: float,
+    sample_rate_hz: float,
+    num_samples: int,
+    amplitude_lsb: float,
+    beamwidth_az_deg: float,
+    beamwidth_el_deg: float,
+) -> NDArray[np.complex128]:
+    """Straightforward float64 version of the simulator's beat synthesis (``synthesize_beat``): exact phase at
+    every sample, with the antenna positions interpolated linearly over the chirp. For tests on small cases."""
+    c = C
+    n = np.arange(num_samples)
+    t = n / sample_rate_hz
+    frac = t * sample_rate_hz / num_samples  # 0 .. (N-1)/N of the way from start to end positions
+    n_az, n_el = pattern_exponent(beamwidth_az_deg), pattern_exponent(beamwidth_el_deg)
+    max_path = IF_BAND_FRACTION * sample_rate_hz * c / slope_hz_per_s
+    n_frames, n_tx = tx_start.shape[:2]
+    n_rx = rx_start.shape[2]
+    out = np.zeros((n_frames, n_tx, n_rx, num_samples), dtype=np.complex128)
+    for f in range(n_frames):
+        d = targets - radar_origin[f]
+        r = np.linalg.norm(d, axis=1)
+        u = (enu_to_radar[f] @ d.T).T / r[:, None]
+        horiz = np.hypot(u[:, 0], u[:, 1])
+        visible = (u[:, 0] > 0) & (2 * r < max_path) & (r >= 0.05)
+        cos_az = np.where(visible, u[:, 0] / np.maximum(horiz, 1e-300), 0.0)
+        gain = amplitude_lsb * np.sqrt(rcs_m2) * np.abs(cos_az) ** n_az * np.minimum(horiz, 1.0) ** n_el / r**2
+        gain = np.where(visible, gain, 0.0)
+        for k in range(n_tx):
+            tx = tx_start[f, k][None, :] + frac[:, None] * (tx_end[f, k] - tx_start[f, k])[None, :]
+            for q in range(n_rx):
+                rx = rx_start[f, k, q][None, :] + frac[:, None] * (rx_end[f, k, q] - rx_start[f, k, q])[None, :]
+                path = (np.linalg.norm(targets[:, None, :] - tx[None], axis=2)
+                        + np.linalg.norm(targets[:, None, :] - rx[None], axis=2))
+                tau = path / c
+                phase = 2 * np.pi * (start_frequency_hz * tau + slope_hz_per_s * tau * t[None, :]
+                                     - 0.5 * slope_hz_per_s * tau**2)
+                out[f, k, q] = (gain[:, None] * np.exp(1j * phase)).sum(axis=0)
+    return out
+
+
+# ---------------------------------------------------------------- radiometry (radar equation), for the focus tests
+
+
+def centred_window_response(window: np.ndarray, offset_bins: np.ndarray) -> np.ndarray:
+    """Real amplitude spectrum of the taper about its centre, at offsets (unpadded FFT bins) from a tone."""
+    n = len(window)
+    k = np.arange(n) - 0.5 * (n - 1)
+    return np.cos(2 * np.pi * np.asarray(offset_bins)[..., None] * k / n) @ window
+
+
+def stripmap_pulses(pixel: np.ndarray, tx0: np.ndarray, half_width_rad: float) -> np.ndarray:
+    """Pulses whose line of sight from Tx0 (P, 3) to the pixel is within half_width of the zero-Doppler plane of
+    the direction of travel (central differences of Tx0's track): a boolean mask (P,)."""
+    v = np.gradient(tx0, axis=0)
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    los = pixel[None, :] - tx0
+    sin_psi = np.sum(los * v, axis=1) / np.linalg.norm(los, axis=1)
+    return np.abs(sin_psi) <= np.sin(half_width_rad)
+
+
+def focused_peak_prediction(target: np.ndarray, rcs_m2: float, tx: np.ndarray, rx: np.ndarray,
+                            pairs: list[tuple[int, int]], *, amplitude_1m2_1m_lsb: float, beamwidth_az_deg: float,
+                            beamwidth_el_deg: float, f0: float, slope: float, fs: float, n_samples: int,
+                            upsample: int, resolution_m: float) -> tuple[float, int]:
+    """|focused image| at a point target by the radar equation, and the pulses in its window.
+
+    Per pulse and channel the beat tone has amplitude A1 sqrt(rcs) g(az, el) / R^2 (A1: the ADC amplitude of 1 m^2
+    at 1 m on boresight; g = cos^n_az(az) cos^n_el(el), each antenna's one-way power pattern, so the two-way
+    amplitude; R from the radar's centre). The Hann-tapered FFT gives it the coherent gain sum(w) at the tone;
+    linear interpolation between bins of the x``upsample`` zero-padded spectrum loses what the taper's response
+    loses at the sample's fractional position; the back-projection sums pulses x channels coherently.
+    tx (P, T, 3), rx (P, T, R, 3): true phase centres (ENU m) at each chirp; the radar's axes come from the Rx
+    row (y, Rx0 -> Rx3) and the vertical (z): boresight x = y x z.
+    """
+    lam_c = C / (f0 + 0.5 * slope * n_samples / fs)
+    half_width = lam_c / (4 * resolution_m)
+    window = np.hanning(n_samples)
+    sel = stripmap_pulses(target, tx[:, 0], half_width)
+    tx, rx = tx[sel], rx[sel]
+    y = rx[:, 0, -1] - rx[:, 0, 0]
+    y /= np.linalg.norm(y, axis=1, keepdims=True)
+    x = np.cross(y, [0.0, 0.0, 1.0])
+    x /= np.linalg.norm(x, axis=1, keepdims=True)
+    centre = 0.5 * (tx.mean(axis=1) + rx.mean(axis=(1, 2)))
+    los = target[None, :] - centre
+    r = np.linalg.norm(los, axis=1)
+    ux = np.sum(los * x, axis=1) / r
+    uy = np.sum(los * y, axis=1) / r
+    horiz = np.hypot(ux, uy)
+    gain = (ux / horiz) ** pattern_exponent(beamwidth_az_deg) * horiz ** pattern_exponent(beamwidth_el_deg)
+    amp = amplitude_1m2_1m_lsb * np.sqrt(rcs_m2) * gain / r**2
+    bin_path = C * fs / (n_samples * upsample * slope)
+    total = 0.0
+    for t, q in pairs:
+        path = np.linalg.norm(target - tx[:, t], axis=1) + np.linalg.norm(target - rx[:, t, q], axis=1)
+        frac = path / bin_path % 1.0
+        interp = ((1 - frac) * centred_window_response(window, frac / upsample)
+                  + frac * centred_window_response(window, (1 - frac) / upsample))
+        total += float(np.sum(amp * interp))
+    return total, int(sel.sum())
+
+
+def noise_floor_prediction(noise_std_lsb: float, n_samples: int, upsample: int) -> float:
+    """Mean |compressed sample|^2 (LSB^2) of white complex noise, std noise_std_lsb per rail plus the int16
+    ADC's rounding (1/12 LSB^2 per rail), after the Hann taper, the FFT and linear interpolation between bins of
+    the x``upsample`` spectrum at a uniformly distributed fractional position: sum(w^2) (2/3 + rho/3), rho the
+    correlation of neighbouring bins. A pixel's floor is this times the pulses x channels it sums."""
+    w = np.hanning(n_samples)
+    k = np.arange(n_samples) - 0.5 * (n_samples - 1)
+    rho = np.sum(w**2 * np.cos(2 * np.pi * k / (n_samples * upsample))) / np.sum(w**2)
+    return 2 * (noise_std_lsb**2 + 1 / 12) * np.sum(w**2) * (2 / 3 + rho / 3)

@@ -18,6 +18,7 @@ from autosar_cli.candb import (
     giorgio_checksum,
     j1850_crc8,
     load_dbc,
+    si_factor,
 )
 
 REPO = Path(__file__).resolve().parents[1]
@@ -328,3 +329,22 @@ def test_check_frame_errors_and_messages_without_checksum(db: Database, tmp_path
     path.write_text(_SYNTHETIC)
     database, _ = load_dbc(path)
     assert check_frame(database, 100, b"\x05") == FrameCheck(100, "SMALL", None, None)
+
+
+def test_dbc_units_convert_to_si_by_the_textbook_factors() -> None:
+    """A frame of the project's DBC encoded by cantools with a 90 deg steering-wheel angle, 100 deg/s of rate and
+    10 m/s of wheel speed reads back, through the unit conversion ingest applies, as pi/2 rad, 1.745 rad/s, 10 m/s
+    (factors written here from their definitions: 1 deg = pi/180 rad, 1 km/h = 1/3.6 m/s)."""
+    import cantools
+
+    db = cantools.database.load_file(str(PROJECT_DBC))
+    eps = db.get_message_by_name("EPS_1")
+    frame = eps.encode({"STEERING_ANGLE": 90.0, "STEERING_RATE": 100.0, "UNKNOWN_1": 0, "UNKNOWN_2": 0,
+                        "COUNTER": 0, "CHECKSUM": 0})
+    values = eps.decode(frame)
+    angle = float(values["STEERING_ANGLE"]) * si_factor("STEERING_ANGLE", "deg")[0]
+    rate = float(values["STEERING_RATE"]) * si_factor("STEERING_RATE", "deg/s")[0]
+    assert angle == pytest.approx(90.0 * 3.141592653589793 / 180.0, abs=1e-12)
+    assert rate == pytest.approx(100.0 * 3.141592653589793 / 180.0, abs=1e-12)
+    assert si_factor("SPEED", "km/h") == (pytest.approx(1 / 3.6, rel=1e-15), "m/s")
+    assert si_factor("LATITUDE", "deg") == (1.0, "deg")  # coordinates stay in degrees

@@ -463,14 +463,17 @@ def test_evaluate_cli_writes_the_report(ci_run: Path, tmp_path: Path) -> None:
     assert (report / "reflector_chips.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert metrics["truth"].endswith(".truth.h5")  # found next to the run's input log
     s = metrics["summary"]
-    for key in ("abs_rmse_m", "aligned_rmse_m", "rpe_1m_across_m", "aligned_error_mean_m", "peak_loss_mean_db",
-                "entropy", "contrast", "straightness_kerb_m"):
-        assert s[key] is not None and math.isfinite(s[key]), key
+    print({k: round(v, 6) for k, v in s.items() if isinstance(v, float)})
     assert s["reflectors"] == 3 and len(metrics["reflectors"]) == 3
     assert all(math.isfinite(x) for x in _finite_numbers(metrics["reflectors"]))
-    # sar-min on ci: GNSS-limited absolute position, millimetre shape, reflectors where they belong
-    assert 0.05 < s["abs_rmse_m"] < 1.5 and s["aligned_rmse_m"] < 0.01
-    assert s["aligned_error_max_m"] < 0.02 and abs(s["peak_loss_max_db"]) < 1.0
+    # sar-min on ci seed 7, each bound about 3x what it achieves (measured: absolute 0.301 m RMS, GNSS-limited;
+    # aligned 0.185 mm RMS; RPE over 1 m 0.92 mm; reflectors 3.5 mm mean, 5.1 mm max from truth after the alignment,
+    # -0.04 dB mean peak loss; kerb straightness 10.9 mm; entropy 4.626, contrast 61.9)
+    assert 0.1 < s["abs_rmse_m"] < 0.9 and s["aligned_rmse_m"] < 6e-4 and s["rpe_1m_across_m"] < 3e-3
+    assert s["aligned_error_mean_m"] < 0.01 and s["aligned_error_max_m"] < 0.015
+    assert abs(s["peak_loss_mean_db"]) < 0.12 and abs(s["peak_loss_max_db"]) < 0.12
+    assert s["straightness_kerb_m"] < 0.033
+    assert 4.4 < s["entropy"] < 4.85 and 40 < s["contrast"] < 90
     assert "| CR1 |" in (report / "report.md").read_text()
     # again without --overwrite: refused; with it: replaced
     r = runner.invoke(app, ["evaluate", str(ci_run), "-o", str(report)])
@@ -754,7 +757,8 @@ _ENTROPY_XFAIL = ("measured (seed 1): beside focus, the whole image's entropy fo
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("scenario", [pytest.param(s, marks=pytest.mark.xfail(strict=True, reason=_ENTROPY_XFAIL))
+@pytest.mark.parametrize("scenario", [pytest.param(s, marks=pytest.mark.xfail(strict=True, raises=AssertionError,
+                                                                                reason=_ENTROPY_XFAIL))
                                       for s in ("test1", "test2", "test3")])
 def test_entropy_orders_the_methods_as_in_the_paper(scenario: str, sim_dir: Path,
                                                     tmp_path_factory: pytest.TempPathFactory) -> None:
@@ -774,7 +778,8 @@ _RN_ORDER_XFAIL = ("measured (seed 1): test1's INS image is 0.5 % lower in range
 
 @pytest.mark.slow
 @pytest.mark.parametrize("scenario", [pytest.param("test1",
-                                                   marks=pytest.mark.xfail(strict=True, reason=_RN_ORDER_XFAIL)),
+                                                   marks=pytest.mark.xfail(strict=True, raises=AssertionError,
+                                                                             reason=_RN_ORDER_XFAIL)),
                                       "test2", "test3"])
 def test_range_normalised_entropy_orders_the_methods_as_in_the_paper(scenario: str, sim_dir: Path,
                                                                       tmp_path_factory: pytest.TempPathFactory) -> None:

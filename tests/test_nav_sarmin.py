@@ -126,15 +126,23 @@ def test_partitioned_prediction_is_the_full_unscented_transform(dt: float, gauss
     np.testing.assert_allclose((P @ Phi.T - step.cross) / np.outer(np.sqrt(np.diag(P)), sd_pred), 0.0, atol=1e-9)
 
 
-def test_cli_navigate_all_methods(ci_drive: Path, tmp_path: Path) -> None:
+def test_cli_navigate_all_methods(ci_drive: Path, ci_mcap, tmp_path: Path) -> None:  # noqa: ANN001
     runner = CliRunner()
+    lengths = {}
     for method in ("sar-min", "ins", "gnss", "none", "truth"):
         out = tmp_path / f"{method}.h5"
         r = runner.invoke(app, ["navigate", str(ci_drive), "-o", str(out), "--method", method, "--json"])
         assert r.exit_code == 0, r.output
         traj = read_trajectory(out)
         assert traj.method == method and len(traj.t_ns) > 2 and np.all(np.diff(traj.t_ns) > 0)
-        assert 1.5 < float(np.sum(np.hypot(*np.diff(traj.rear_axle_enu, axis=0).T))) < 3.5  # ci drives 2.4 m
+        truth = from_truth(str(ci_mcap.truth_path), traj.origin, CFG)
+        inside = (truth.t_ns >= traj.t_ns[0]) & (truth.t_ns <= traj.t_ns[-1])
+        true_length = float(np.sum(np.hypot(*np.diff(truth.rear_axle_enu[inside], axis=0).T)))
+        lengths[method] = float(np.sum(np.hypot(*np.diff(traj.rear_axle_enu, axis=0).T))) / true_length - 1.0
+    print("track length against truth over the same span (%):", {k: round(v * 100, 3) for k, v in lengths.items()})
+    # measured on ci seed 7: sar-min +0.09 %, ins +7.1 %, gnss +4.7 %, none +2.2 %, truth 0: bounds 3x that
+    bounds = {"sar-min": 0.0027, "ins": 0.21, "gnss": 0.15, "none": 0.07, "truth": 1e-6}
+    assert all(abs(lengths[m]) < bounds[m] for m in bounds), lengths
     r = runner.invoke(app, ["navigate", str(ci_drive), "-o", str(tmp_path / "plotted.h5"), "--plot"])
     assert r.exit_code == 0, r.output
     png = tmp_path / "plotted.png"
@@ -315,3 +323,214 @@ def test_sarmin_dead_reckons_through_a_10s_gnss_outage_on_test2(sim_dir: Path,
     whole, inside = _rpe_across(est, truth, 1.0), _rpe_across(est_out, truth, 1.0)
     print(f"test2, 10 s GNSS outage: RPE 1 m across {whole * 1e3:.3f} mm, inside the outage {inside * 1e3:.3f} mm")
     assert whole < 3e-3 and inside < 3e-3
+
+
+def _without(inputs, sensor: str):  # noqa: ANN001, ANN202 - NavInputs in, NavInputs out
+    """``inputs`` less one sensor: "steering", "gnss_velocity", "gnss_position" (all but the first fix, which
+    places the start), "wheel_<i>" (its noise made 1 km/s: no information) or "gyro_<name>"."""
+    import dataclasses
+
+    if sensor in ("steering", "gnss_velocity"):
+        return dataclasses.replace(inputs, **{sensor: None})
+    if sensor == "gnss_position":
+        p = inputs.gnss_position
+        return dataclasses.replace(inputs, gnss_position=dataclasses.replace(p, t=p.t[:1], z=p.z[:1]))
+    if sensor.startswith("wheel_"):
+        sigma = inputs.wheels.sigma.copy()
+        sigma[int(sensor[6:])] = 1e3
+        return dataclasses.replace(inputs, wheels=dataclasses.replace(inputs.wheels, sigma=sigma))
+    keep = [i for i, g in enumerate(inputs.gyros) if g.name != sensor[5:]]
+    assert len(keep) == len(inputs.gyros) - 1
+    return dataclasses.replace(inputs, gyros=[inputs.gyros[i] for i in keep],
+                               gyro_bias_std=[inputs.gyro_bias_std[i] for i in keep],
+                               gyro_bias_walk=[inputs.gyro_bias_walk[i] for i in keep])
+
+
+# sensor removed -> (state whose mean posterior standard deviation over the drive grows, least relative growth).
+# Measured on ci seed 7 (both engines alike): steering omega +11.5 %, wheels v +3.2 ... +3.3 %, gyros omega +7.8,
+# +9.2, +6.4, +1.8 %, GNSS velocity psi +299 %, GNSS positions (but the first) px +0.6 %. The limits: a third of that.
+_SENSOR_EFFECT = {"steering": ("omega", 0.038), "wheel_0": ("v", 0.011), "wheel_1": ("v", 0.011),
+                  "wheel_2": ("v", 0.011), "wheel_3": ("v", 0.011), "gyro_imu_cog_a": ("omega", 0.026),
+                  "gyro_imu_cog_b": ("omega", 0.03), "gyro_orc": ("omega", 0.021), "gyro_esc": ("omega", 0.006),
+                  "gnss_velocity": ("psi", 1.0), "gnss_position": ("px", 0.002)}
+
+
+@pytest.mark.parametrize("engine", ["numba", "numpy"])
+def test_every_sensor_counts(ci_drive: Path, engine: str) -> None:
+    """Each sensor updates the filter at each of its samples after the start (the steering above its minimum speed),
+    and taking any one away leaves the filter measurably less certain of the state it informs (the posterior
+    covariance: on a 1.6 s drive the errors against truth are single draws and do not order reliably). The filterpy
+    engine (2 s a run) takes the steering away only."""
+    with Drive(ci_drive) as d:
+        inputs = load_inputs(d, CFG)
+    base = run_sarmin(inputs, CFG, engine=engine)
+    t_start = base.t[0]
+    expected = {g.name: int(np.sum(g.t >= t_start)) for g in inputs.gyros}
+    for name, meas in (("wheels", inputs.wheels), ("steering", inputs.steering), ("gnss_pos", inputs.gnss_position),
+                       ("gnss_vel", inputs.gnss_velocity)):
+        expected[name] = int(np.sum(meas.t >= t_start))
+    assert base.updates == expected and base.rejected == {}
+    assert expected == {"imu_cog_a": 494, "imu_cog_b": 494, "orc": 98, "esc": 98, "wheels": 98, "steering": 98,
+                        "gnss_pos": 10, "gnss_vel": 10}
+
+    def mean_sd(sol: NavSolution, state: str) -> float:
+        i = sol.state_names.index(state)
+        return float(np.mean(np.sqrt(sol.P[:, i, i])))
+
+    for sensor, (state, least) in _SENSOR_EFFECT.items():
+        if engine == "numpy" and sensor != "steering":
+            continue
+        worse = run_sarmin(_without(inputs, sensor), CFG, engine=engine)
+        growth = mean_sd(worse, state) / mean_sd(base, state) - 1.0
+        print(f"{engine}: without {sensor}, {state}'s posterior std {growth * 100:+.1f} %")
+        assert growth > least, (sensor, state, growth)
+
+
+def test_sarmin_accuracy_on_ci(ci_drive: Path, ci_mcap) -> None:  # noqa: ANN001 - the session's SimulationResult
+    """SAR-MIN against truth on the short ci drive, each bound about 3x what it achieves (seed 7: heading 0.47 mrad,
+    yaw rate 1.35 mrad/s, speed 4.1 mm/s RMS; position 0.302 m RMS, 0.013 m within the GNSS fixes' own 0.315 m)."""
+    est = navigate(ci_drive, "sar-min", CFG)
+    truth = from_truth(str(ci_mcap.truth_path), est.origin, CFG)
+    t = est.t_ns[(est.t_ns >= truth.t_ns[0]) & (est.t_ns <= truth.t_ns[-1])]
+    xy, psi = truth.pose(t)
+    ex, epsi = est.pose(t)
+    heading = float(np.sqrt(np.mean(((epsi - psi + np.pi) % (2 * np.pi) - np.pi) ** 2)))
+    yaw_rate = float(np.sqrt(np.mean((np.interp(t, est.t_ns, est.yaw_rate) - np.interp(t, truth.t_ns,
+                                                                                       truth.yaw_rate)) ** 2)))
+    speed = float(np.sqrt(np.mean((np.interp(t, est.t_ns, est.speed) - np.interp(t, truth.t_ns, truth.speed)) ** 2)))
+    position = float(np.sqrt(np.mean(np.sum((ex - xy) ** 2, axis=1))))
+    with h5py.File(ci_mcap.truth_path, "r") as f:
+        gnss_rms = float(np.sqrt(np.mean(np.sum(f["sensors/gnss_cog/position_error"][()][:, :2] ** 2, axis=1))))
+    print(f"ci sar-min: heading {heading * 1e3:.3f} mrad, yaw rate {yaw_rate * 1e3:.3f} mrad/s, speed "
+          f"{speed * 1e3:.2f} mm/s, position {position:.3f} m (GNSS fixes {gnss_rms:.3f} m) RMS")
+    assert heading < 1.4e-3 and yaw_rate < 4e-3 and speed < 0.012
+    assert abs(position - gnss_rms) < 0.04
+
+
+def _independent_ukf(inputs, cfg):  # noqa: ANN001, ANN202 - NavInputs, Config -> (t, x (K, 14))
+    """A SAR-MIN filter set up here from the measurements alone, sharing nothing with run_sarmin but the physics:
+    filterpy's UKF over [px, py, v, psi, omega, 4 gyro biases, steering offset, 4 wheel scales] at the rear axle,
+    CTRV written out, its own start (first moving GNSS velocity fix, wheels, gyros), its own noise (config
+    densities x dt), its own event list (one update per sample, in time order), the GNSS positions white, no
+    gating, the steering's Schmidt update done by restoring the held block. Filtered, not smoothed."""
+    from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter, unscented_transform
+
+    veh, nav = cfg.vehicle, cfg.navigation
+    L, tf, tr = veh.wheelbase_m, veh.track_front_m, veh.track_rear_m
+    lx, ly = inputs.gnss_lever_m[0] + veh.cog_to_rear_axle_m, inputs.gnss_lever_m[1]
+    ng = len(inputs.gyros)
+    n = 5 + ng + 1 + 4
+
+    def fx(x, dt):  # noqa: ANN001, ANN202
+        px, py, v, psi, w = x[:5]
+        out = x.copy()
+        if abs(w) > 1e-9:
+            out[0] = px + v / w * (math.sin(psi + w * dt) - math.sin(psi))
+            out[1] = py - v / w * (math.cos(psi + w * dt) - math.cos(psi))
+        else:
+            out[0], out[1] = px + v * dt * math.cos(psi), py + v * dt * math.sin(psi)
+        out[3] = psi + w * dt
+        return out
+
+    def antenna(x):  # noqa: ANN001, ANN202
+        c, s = math.cos(x[3]), math.sin(x[3])
+        return np.array([x[0] + c * lx - s * ly, x[1] + s * lx + c * ly])
+
+    def antenna_velocity(x):  # noqa: ANN001, ANN202
+        c, s = math.cos(x[3]), math.sin(x[3])
+        bx, by = x[2] - x[4] * ly, x[4] * lx
+        return np.array([c * bx - s * by, s * bx + c * by])
+
+    def wheels(x):  # noqa: ANN001, ANN202
+        v, w, sc = x[2], x[4], x[6 + ng: 10 + ng]
+        return np.array([math.hypot(v - w * tf / 2, w * L), math.hypot(v + w * tf / 2, w * L),
+                         abs(v - w * tr / 2), abs(v + w * tr / 2)]) * (1 + sc)
+
+    pos, vel = inputs.gnss_position, inputs.gnss_velocity
+    k0 = int(np.flatnonzero(np.hypot(*vel.z.T) > 0.5)[0])
+    t0 = max(float(vel.t[k0]), float(pos.t[0]))
+    kp = int(np.searchsorted(pos.t, t0 - 1e-9))
+    t0 = max(t0, float(pos.t[kp]))
+    psi0 = math.atan2(vel.z[k0, 1], vel.z[k0, 0])
+    x0 = np.zeros(n)
+    x0[3] = psi0
+    x0[:2] = pos.z[kp] - (antenna(x0) - x0[:2])
+    near = np.abs(inputs.wheels.t - t0) < 0.1
+    x0[2] = float(np.median(inputs.wheels.z[near][:, 2:]))
+    x0[4] = float(np.median([np.median(g.z[np.abs(g.t - t0) < 0.1, 0]) for g in inputs.gyros]))
+    sp = MerweScaledSigmaPoints(n, alpha=1e-3, beta=2.0, kappa=3.0 - n)
+    ukf = UnscentedKalmanFilter(dim_x=n, dim_z=1, dt=0.0, hx=None, fx=fx, points=sp)
+    ukf.x = x0
+    psi_std = 3 * vel.sigma[0] / np.hypot(*vel.z[k0]) + 0.02  # the first velocity fix's direction, 3 sigma
+    ukf.P = np.diag([pos.sigma[0] ** 2, pos.sigma[0] ** 2, 0.1**2, psi_std**2, 0.02**2,
+                     *np.square(inputs.gyro_bias_std), max(inputs.steering_offset_std, 1e-4) ** 2,
+                     *[max(inputs.wheel_scale_std, 1e-4) ** 2] * 4])
+    q = np.array([nav.position_noise_m**2, nav.position_noise_m**2, nav.speed_noise_mps2**2, 1e-8,
+                  nav.yaw_rate_noise_radps2**2, *np.square(inputs.gyro_bias_walk), 1e-12, *[1e-12] * 4])
+    # simultaneous samples: gyros, wheels, steering, GNSS position, GNSS velocity (in that order)
+    meas = {"wheels": inputs.wheels, "steer": inputs.steering, "pos": pos, "vel": vel}
+    events = sorted([(float(t), i, f"g{i}", j) for i, g in enumerate(inputs.gyros) for j, t in enumerate(g.t)]
+                    + [(float(t), ng + k, name, j) for k, (name, m) in enumerate(meas.items())
+                       for j, t in enumerate(m.t)])
+    t_now, ts, xs = t0, [], []
+    for t, _, name, j in events:
+        if t < t0:
+            continue
+        while t - t_now > 1e-12:
+            dt = min(t - t_now, nav.max_step_s)
+            ukf.Q = np.diag(q * dt)
+            ukf.predict(dt=dt)
+            t_now += dt
+        m = inputs.gyros[int(name[1:])] if name[0] == "g" else meas[name]
+        R = np.diag(m.sigma**2)
+        # filterpy's update reuses the sigma points of the last predict: draw them from the current estimate
+        ukf.sigmas_f = sp.sigma_points(ukf.x, ukf.P)
+        if name[0] == "g":
+            b = 5 + int(name[1:])
+            ukf.update(m.z[j], R=R, hx=lambda x, b=b: np.array([x[4] + x[b]]))
+        elif name == "wheels":
+            ukf.update(m.z[j], R=R, hx=wheels)
+        elif name == "steer":
+            if ukf.x[2] < nav.steering_min_speed_mps:
+                continue
+            # Schmidt (consider) update: the gain of the speed and the wheel scales is zero, the covariance follows
+            # the Joseph form for that gain
+            sigmas = ukf.sigmas_f
+            zs = np.array([[math.atan(L * x[4] / max(x[2], 1e-3)) + x[5 + ng]] for x in sigmas])
+            z_mean, S = unscented_transform(zs, sp.Wm, sp.Wc, R)
+            Pxz = (sp.Wc[:, None] * (sigmas - ukf.x)).T @ (zs - z_mean)
+            K = Pxz @ np.linalg.inv(S)
+            K[[2, *range(6 + ng, 10 + ng)]] = 0.0
+            ukf.x = ukf.x + K @ (m.z[j] - z_mean)
+            ukf.P = ukf.P - K @ Pxz.T - Pxz @ K.T + K @ S @ K.T
+        elif name == "pos":
+            ukf.update(m.z[j], R=R, hx=antenna)
+        else:
+            ukf.update(m.z[j], R=R, hx=antenna_velocity)
+        ts.append(t_now)
+        xs.append(ukf.x.copy())
+    return np.array(ts), np.array(xs)
+
+
+def test_sarmin_equals_a_filter_set_up_independently(ci_drive: Path) -> None:
+    """The product's filter (white GNSS model, filtered) against _independent_ukf on the same measurements."""
+    import dataclasses
+
+    cfg = dataclasses.replace(CFG, navigation=dataclasses.replace(CFG.navigation, gnss_error_model="white"))
+    with Drive(ci_drive) as d:
+        inputs = load_inputs(d, cfg)
+    sol = run_sarmin(inputs, cfg, smooth=False)
+    t_ref, x_ref = _independent_ukf(inputs, cfg)
+    last = np.r_[np.diff(t_ref) > 0, True]
+    t_ref, x_ref = t_ref[last], x_ref[last]
+    np.testing.assert_allclose(sol.t, t_ref, atol=1e-9)
+    d_xy = float(np.abs(sol.x[:, :2] - x_ref[:, :2]).max())
+    d_psi = float(np.abs((sol.x[:, 3] - x_ref[:, 3] + np.pi) % (2 * np.pi) - np.pi).max())
+    d_v = float(np.abs(sol.x[:, 2] - x_ref[:, 2]).max())
+    d_w = float(np.abs(sol.x[:, 4] - x_ref[:, 4]).max())
+    d_par = float(np.abs(sol.x[:, 5:] - x_ref[:, 5:]).max())
+    print(f"product - independent filter, max: position {d_xy * 1e6:.3f} um, heading {d_psi * 1e9:.2f} nrad, speed "
+          f"{d_v * 1e6:.3f} um/s, yaw rate {d_w * 1e9:.2f} nrad/s, biases and scales {d_par:.2e}")
+    # measured: 0.15 um, 9 nrad, 0.013 um/s, 0.56 nrad/s, 4e-10 (float rounding of two filters computing in another
+    # order over 1 s): the same filter. A lost steering update moves the yaw rate by ~0.1 mrad/s.
+    assert d_xy < 5e-7 and d_psi < 3e-8 and d_v < 5e-8 and d_w < 2e-9 and d_par < 2e-9

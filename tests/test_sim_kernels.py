@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from reference import beat_reference
 
 from autosar_cli.config import load_config
-from autosar_cli.sim.echo import beat_reference, synthesize_beat
+from autosar_cli.sim.echo import synthesize_beat
 from autosar_cli.sim.scenario import SCENARIOS, build_scenario
 
 KW = dict(start_frequency_hz=77e9, slope_hz_per_s=75e12, sample_rate_hz=13.5e6, num_samples=540,

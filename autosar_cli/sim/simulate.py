@@ -13,7 +13,7 @@ import heapq
 import time
 import zlib
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime
 from pathlib import Path
 from typing import Literal
@@ -32,6 +32,7 @@ from autosar_cli.sim.echo import synthesize_beat
 from autosar_cli.sim.logwriter import open_log_writer
 from autosar_cli.sim.messages import MessageFactory, can_topic, sensor_topics
 from autosar_cli.sim.scenario import Scenario, build_scenario
+from autosar_cli.sim.scene import Scene
 from autosar_cli.sim.trajectory import TruthMotion
 from autosar_cli.sim.truth import TruthWriter, truth_path_for
 
@@ -171,6 +172,7 @@ def simulate(
     seed: int = 0,
     config: Config | None = None,
     progress: ProgressCallback | None = None,
+    scene: Scene | None = None,
 ) -> SimulationResult:
     """Write a synthetic drive log for ``scenario_name`` to ``output`` and its truth sidecar next to it.
 
@@ -178,6 +180,8 @@ def simulate(
     (:data:`RADAR_SYNC_TOPIC`), and the radar frames go to a TI DCA1000 capture (4-lane complex, mmWave
     Studio JSON) in :func:`capture_dir_for` ``(output)``; the same seed gives the same samples as the
     RawFrame log.
+
+    ``scene``: scatterers to use instead of the scenario's (e.g. one point target, or none, for radiometry tests).
     """
     t_start = time.perf_counter()
     config = config or load_config()
@@ -185,6 +189,8 @@ def simulate(
         raise ValueError(f"{config.source}: has no [simulation] table; autosar simulate needs one")
     sim = config.simulation
     scenario: Scenario = build_scenario(scenario_name, config)
+    if scene is not None:
+        scenario = replace(scenario, scene=scene)
     motion = scenario.motion
     ros_version = 1 if fmt == "ros1" else 2
     capture_dir = capture_dir_for(Path(output)) if fmt == "dca1000" else None

@@ -1,0 +1,228 @@
+"""`make mutate`: break the code on purpose, one curated mutation at a time, and check that a fast test fails.
+
+Each mutation is a textual replacement of an exact snippet (found exactly once) in a temporary copy of the package;
+the working tree is never touched. The copy carries the tree's numba cache (``__pycache__``, sources' timestamps
+kept), so only the mutated file's kernels are recompiled. Each mutant's chosen tests run in a fresh process
+(``pytest -x``, stopping at the first failure): the mutation is *killed* when one fails, *survived* when all pass.
+A baseline run of every chosen test on an unmutated copy comes first (it must pass, and it warms the cache the
+mutants copy). Exits non-zero when any mutation survives (or the baseline fails).
+
+    python benches/mutate.py [--only NAME ...] [--list] [--json benches/results/mutate.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+RAD8 = "tests/test_sar_radiometry.py::test_isolated_point_targets_focus_to_the_radar_equation[8]"
+TWELVE = "tests/test_sar_focus.py::test_twelve_channels_focus_too"
+GEOTIFF = "tests/test_sar_focus.py::test_geotiff_puts_reflectors_at_their_utm_position"
+BP_REF = "tests/test_sar_backprojection.py::test_kernel_equals_float64_reference_straight_track"
+RANGE_REF = "tests/test_sar_range.py::test_matches_the_float64_reference_on_random_data"
+BEAT_REF = "tests/test_sim_kernels.py::test_beat_kernel_matches_float64_reference"
+ENGINES = "tests/test_nav_sarmin.py::test_compiled_filter_equals_the_filterpy_reference[white]"
+SENSORS = "tests/test_nav_sarmin.py::test_every_sensor_counts"
+NAV_CI = "tests/test_nav_sarmin.py::test_sarmin_accuracy_on_ci"
+CAN_SI = "tests/test_ingest_roundtrip.py::test_can_values_in_si_within_quantisation"
+CAN_UNITS = "tests/test_candb.py::test_dbc_units_convert_to_si_by_the_textbook_factors"
+NMEA_SIM = "tests/test_ingest_nmea.py::test_simulator_round_trip"
+
+
+@dataclass(frozen=True)
+class Mutation:
+    name: str
+    area: str
+    edits: tuple[tuple[str, str, str], ...]  #: (file under autosar_cli/, exact snippet, replacement)
+    tests: tuple[str, ...]  #: pytest node ids, run in this order with -x
+
+
+def _m(name: str, area: str, file: str, old: str, new: str, *tests: str) -> Mutation:
+    return Mutation(name, area, ((file, old, new),), tests)
+
+
+MUTATIONS: list[Mutation] = [
+    # --- kernels: phase sign, interpolation, window edges
+    _m("bp-phase-conjugated", "kernel", "sar/backprojection.py",
+       "return s_re * cs + s_im * sn, s_im * cs - s_re * sn", "return s_re * cs - s_im * sn, s_im * cs + s_re * sn",
+       RAD8),
+    _m("bp-interpolation-nearest-lower-bin", "kernel", "sar/backprojection.py",
+       "return a_re + fr * (b_re - a_re), a_im + fr * (b_im - a_im)", "return a_re, a_im", RAD8),
+    _m("bp-interpolation-weights-swapped", "kernel", "sar/backprojection.py",
+       "    fr = fi - np.floor(fi)\n", "    fr = 1 - (fi - np.floor(fi))\n", RAD8),
+    _m("stripmap-beam-twice-as-wide", "kernel", "sar/stripmap.py",
+       "return wavelength_m / (4.0 * resolution_m)", "return wavelength_m / (2.0 * resolution_m)", RAD8),
+    _m("stripmap-window-edge-past-zero-doppler", "kernel", "sar/stripmap.py",
+       "vel[m, 0], vel[m, 1], vel[m, 2]) < -s_max:", "vel[m, 0], vel[m, 1], vel[m, 2]) < 0.0:", RAD8),
+    _m("range-compression-rvp-sign", "kernel", "sar/range_compression.py",
+       "+ np.pi * f**2 / slope_hz_per_s)", "- np.pi * f**2 / slope_hz_per_s)", RANGE_REF),
+    _m("range-compression-window-centre", "kernel", "sar/range_compression.py",
+       "np.pi * k * (n - 1) / nfft", "np.pi * k * n / nfft", RANGE_REF),
+    _m("sim-beat-phase-conjugated", "kernel", "sim/echo.py",
+       "p_im[i] = a * s_im[i] + b * s_re[i]", "p_im[i] = -(a * s_im[i] + b * s_re[i])", BEAT_REF),
+    _m("sim-beat-rvp-sign", "kernel", "sim/echo.py",
+       "cycles_mid = f0 * tau_m + slope * tau_m * t_mid - 0.5 * slope * tau_m * tau_m",
+       "cycles_mid = f0 * tau_m + slope * tau_m * t_mid + 0.5 * slope * tau_m * tau_m", BEAT_REF),
+    # --- channel mapping and phase centres
+    _m("rx-order-reversed", "channels", "sar/focus.py",
+       "np.stack([pc.rx[:, t, r] for t, r in pairs])", "np.stack([pc.rx[:, t, 3 - r] for t, r in pairs])", RAD8),
+    _m("eight-channels-use-tx1", "channels", "sar/focus.py",
+       "return [(t, r) for t in (0, 2) for r in range(n_rx)]", "return [(t, r) for t in (0, 1) for r in range(n_rx)]",
+       TWELVE),
+    _m("eight-channels-lose-one", "channels", "sar/focus.py",
+       "return [(t, r) for t in (0, 2) for r in range(n_rx)]",
+       "return [(t, r) for t in (0, 2) for r in range(n_rx)][1:]", RAD8),
+    _m("antenna-layout-mirrored", "channels", "nav/trajectory.py",
+       "lever + np.asarray(r.rx_positions_m) @ rot.T", "lever + np.asarray(r.rx_positions_m) @ rot", RAD8),
+    _m("radar-lever-arm-1-percent-long", "channels", "nav/trajectory.py",
+       "    lever = np.asarray(r.mounting.lever_arm_m, dtype=np.float64)\n    return lever",
+       "    lever = 1.01 * np.asarray(r.mounting.lever_arm_m, dtype=np.float64)\n    return lever", RAD8),
+    # --- the range axis
+    _m("range-shift-one-bin", "range axis", "sar/focus.py",
+       "range0_m=0.0, bin_m=bin_m", "range0_m=bin_m, bin_m=bin_m", RAD8),
+    _m("range-shift-half-bin", "range axis", "sar/focus.py",
+       "range0_m=0.0, bin_m=bin_m", "range0_m=0.5 * bin_m, bin_m=bin_m", RAD8),
+    _m("range-bin-size-of-the-unpadded-fft", "range axis", "sar/focus.py",
+       "bin_m = SPEED_OF_LIGHT * fs / (n_bins * slope)", "bin_m = SPEED_OF_LIGHT * fs / ((n_bins - 4) * slope)",
+       RAD8),
+    # --- SAR-MIN: updates and models
+    Mutation("steering-dropped-in-both-engines", "sar-min", (
+        ("nav/sarmin_kernel.py", "if kind == ng + 1 and x[V] < steer_min_speed:", "if kind == ng + 1:"),
+        ("nav/sarmin.py", "if ukf.x[m.V] < nav.steering_min_speed_mps:", "if True:")), (SENSORS,)),
+    _m("kernel-rear-wheels-swapped", "sar-min", "nav/sarmin_kernel.py",
+       "zsig[i, 2] = abs(v - w * tr / 2)", "zsig[i, 2] = abs(v + w * tr / 2)", ENGINES),
+    _m("kernel-gnss-velocity-lever-sign", "sar-min", "nav/sarmin_kernel.py",
+       "by = sig[i, OMEGA] * lx", "by = -sig[i, OMEGA] * lx", ENGINES),
+    _m("model-gyro-bias-sign", "sar-min", "nav/models.py",
+       "return (X[:, OMEGA] + X[:, bias_index])[:, None]", "return (X[:, OMEGA] - X[:, bias_index])[:, None]",
+       ENGINES),
+    _m("setup-gnss-lever-not-moved-to-the-rear-axle", "sar-min", "nav/sarmin.py",
+       "return lx + config.vehicle.cog_to_rear_axle_m, ly", "return lx, ly", NAV_CI),
+    _m("setup-wheel-update-skipped", "sar-min", "nav/sarmin_kernel.py",
+       "k_dim = 4 if kind == ng else (1 if kind == ng + 1 else 2)",
+       "k_dim = 4 if kind == ng else (1 if kind == ng + 1 else 2)\n"
+       "            if kind == ng:\n                continue",
+       SENSORS),
+    # --- geodesy and GeoTIFF georeferencing
+    _m("geodesy-east-north-swapped", "geodesy", "nav/geodesy.py",
+       "pymap3d.enu2geodetic(p[..., 0], p[..., 1], p[..., 2]", "pymap3d.enu2geodetic(p[..., 1], p[..., 0], p[..., 2]",
+       GEOTIFF),
+    _m("geodesy-utm-zone-off-by-one", "geodesy", "nav/geodesy.py",
+       "zone = int((self.lon_deg + 180.0) // 6.0) + 1", "zone = int((self.lon_deg + 180.0) // 6.0) + 2", GEOTIFF),
+    _m("geotiff-half-pixel-shift", "geotiff", "store/image.py",
+       "grid.pixel_enu(v - 0.5, u - 0.5)", "grid.pixel_enu(v, u)", GEOTIFF),
+    # --- ingest scaling
+    _m("can-degrees-as-gradians", "ingest", "candb.py",
+       '"deg": (math.pi / 180.0, "rad"),', '"deg": (math.pi / 200.0, "rad"),', CAN_UNITS),
+    _m("nmea-minutes-as-hundredths", "ingest", "ingest/nmea.py",
+       "value = deg + minutes / 60.0", "value = deg + minutes / 100.0", NMEA_SIM),
+    _m("can-dbc-scale-and-offset-not-applied", "ingest", "ingest/decoders.py",
+       "values = m.decode(data, decode_choices=False, scaling=lay.unscaled_integrity)",
+       "values = m.decode(data, decode_choices=False, scaling=False)", CAN_SI),
+]
+
+
+def _copy_package(src: Path, dst: Path) -> None:
+    """dst/autosar_cli (a copy, timestamps kept: numba's cache index keys on them), configs, tests, pyproject."""
+    dst.mkdir(parents=True)
+    shutil.copytree(src / "autosar_cli", dst / "autosar_cli", copy_function=shutil.copy2)
+    for name in ("configs", "tests", "pyproject.toml"):
+        (dst / name).symlink_to(src / name if src == REPO else (src / name).resolve())
+
+
+def _apply(root: Path, mutation: Mutation) -> None:
+    for file, old, new in mutation.edits:
+        path = root / "autosar_cli" / file
+        text = path.read_text()
+        if text.count(old) != 1:
+            raise SystemExit(f"mutation {mutation.name}: {file} holds its snippet {text.count(old)} times, not once")
+        path.write_text(text.replace(old, new))
+
+
+def _pytest(root: Path, tests: list[str], timeout_s: float) -> tuple[int, float, str]:
+    """Run ``tests`` in a fresh process inside ``root`` (its autosar_cli first on the path)."""
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "NUMBA_CACHE_DIR")}
+    env["PYTHONPATH"] = str(root)
+    cmd = [sys.executable, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", "--no-header", *tests]
+    t0 = time.perf_counter()
+    try:
+        res = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True, timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        return -1, time.perf_counter() - t0, "timeout"
+    return res.returncode, time.perf_counter() - t0, res.stdout + res.stderr
+
+
+def _first_failure(output: str) -> str:
+    for line in output.splitlines():
+        if line.startswith(("FAILED", "ERROR")):
+            return line.split(" - ")[0].split("::")[-1]
+    return ""
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", nargs="*", help="names of the mutations to run (default: all)")
+    ap.add_argument("--list", action="store_true", help="list the mutations and exit")
+    ap.add_argument("--json", type=Path, help="write the results here")
+    ap.add_argument("--timeout", type=float, default=300.0, help="seconds per mutant")
+    args = ap.parse_args(argv)
+    chosen = [m for m in MUTATIONS if not args.only or m.name in args.only]
+    if args.list:
+        for m in chosen:
+            print(f"{m.area:10s} {m.name:45s} {' '.join(t.split('::')[-1] for t in m.tests)}")
+        return 0
+    for m in chosen:  # every snippet is where it should be before anything runs
+        for file, old, _ in m.edits:
+            n = (REPO / "autosar_cli" / file).read_text().count(old)
+            if n != 1:
+                print(f"mutation {m.name}: autosar_cli/{file} holds its snippet {n} times, not once")
+                return 2
+    t_all = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="autosar-mutate-") as tmp:
+        base = Path(tmp) / "base"
+        _copy_package(REPO, base)
+        probe = subprocess.run([sys.executable, "-c", "import autosar_cli; print(autosar_cli.__file__)"], cwd=base,
+                               env={**os.environ, "PYTHONPATH": str(base)}, capture_output=True, text=True)
+        if not probe.stdout.startswith(str(base)):
+            print(f"the copy's package is not the one imported: {probe.stdout or probe.stderr}")
+            return 2
+        tests = list(dict.fromkeys(t for m in chosen for t in m.tests))
+        rc, secs, out = _pytest(base, tests, 1200.0)
+        print(f"baseline: {len(tests)} tests {'pass' if rc == 0 else 'FAIL'} unmutated ({secs:.0f} s)")
+        if rc != 0:
+            print(out[-3000:])
+            return 2
+        rows = []
+        for m in chosen:
+            root = Path(tmp) / m.name
+            shutil.copytree(base, root, copy_function=shutil.copy2, symlinks=True)
+            try:
+                _apply(root, m)
+                rc, secs, out = _pytest(root, list(m.tests), args.timeout)
+            finally:
+                shutil.rmtree(root, ignore_errors=True)
+            killed = rc != 0
+            by = "timeout" if rc == -1 else _first_failure(out)
+            rows.append({"name": m.name, "area": m.area, "killed": killed, "by": by, "seconds": round(secs, 1)})
+            print(f"{'killed  ' if killed else 'SURVIVED'} {m.area:10s} {m.name:45s} {secs:6.1f} s  {by}", flush=True)
+    survived = [r["name"] for r in rows if not r["killed"]]
+    total = time.perf_counter() - t_all
+    print(f"{len(rows) - len(survived)}/{len(rows)} mutations killed in {total / 60:.1f} min"
+          + (f"; survived: {', '.join(survived)}" if survived else ""))
+    if args.json:
+        args.json.write_text(json.dumps({"total_s": round(total, 1), "mutations": rows}, indent=1) + "\n")
+    return 1 if survived else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
