@@ -31,7 +31,7 @@ def bench_scripts(benches: Path) -> dict[str, tuple[str, str]]:
         usage = next((ln.removeprefix("Usage:").strip() for ln in lines if ln.startswith("Usage:")),
                      f"python benches/{script.name}")
         for word in doc.replace("``", " ").split():
-            name = word.strip(".,;:()`")
+            name = word.strip(".,;:()[]`")
             if name.endswith(".json"):
                 out.setdefault(Path(name).name, (lines[0] if lines else "", usage))
         if script.name.startswith("bench_"):

@@ -7,7 +7,7 @@ kept), so only the mutated file's kernels are recompiled. Each mutant's chosen t
 A baseline run of every chosen test on an unmutated copy comes first (it must pass, and it warms the cache the
 mutants copy). Exits non-zero when any mutation survives (or the baseline fails).
 
-    python benches/mutate.py [--only NAME ...] [--list] [--json benches/results/mutate.json]
+Usage: python benches/mutate.py [--only NAME ...] [--list] [--json benches/results/mutate.json]
 """
 
 from __future__ import annotations
