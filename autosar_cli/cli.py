@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import gc
 import json
-import shutil
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -14,6 +13,7 @@ from typing import Annotated, Any
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import (
     BarColumn,
     DownloadColumn,
@@ -101,7 +101,8 @@ def _errors() -> Iterator[None]:
         if _state["debug"]:
             raise
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        err.print(f"[red]error:[/] {msg}", highlight=False, soft_wrap=True)
+        # escaped: a message quoting a value such as [inf] or a path with brackets is not rich markup
+        err.print(f"[red]error:[/] {escape(msg)}", highlight=False, soft_wrap=True)
         raise typer.Exit(1) from None
 
 
@@ -111,14 +112,14 @@ def _load_config(path: Path | None) -> Any:
     return load_config(path)
 
 
-def _prepare_output(path: Path, overwrite: bool) -> None:
-    if path.exists():
-        if not overwrite:
-            raise FileExistsError(f"{path}: already exists (use --overwrite to replace it)")
-        if path.is_dir():
-            shutil.rmtree(path)
-        else:
-            path.unlink()
+def _prepare_output(path: Path, overwrite: bool, inputs: list[Path | str | None]) -> None:
+    """Pass ``path`` through the output gate (store.outputs: never an input, --overwrite only replaces what
+    autosar made); a file is then replaced atomically by its writer, a directory (rosbag2) removed here."""
+    from autosar_cli.store.outputs import check_output, remove_product_directory
+
+    check_output(path, [p for p in inputs if p], overwrite=overwrite)
+    if path.is_dir():
+        remove_product_directory(path)
     path.parent.mkdir(parents=True, exist_ok=True)
 
 
@@ -154,8 +155,8 @@ def simulate(
         from autosar_cli.sim.truth import truth_path_for
 
         cfg = _load_config(config)
-        _prepare_output(output, overwrite)
-        _prepare_output(truth_path_for(output), overwrite)
+        _prepare_output(output, overwrite, [cfg.source])
+        _prepare_output(truth_path_for(output), overwrite, [cfg.source])
         with _progress(f"simulate {scenario.value}", not as_json) as update:
             result = run_simulation(scenario.value, output, fmt=fmt.value, seed=seed, config=cfg, progress=update)
         summary = {
@@ -196,7 +197,7 @@ def ingest(
         kinds: dict[str, list[Path]] = {"log": [], "can": list(can_log or []), "nmea": list(nmea or [])}
         for p in logs or []:
             kinds[classify_input(p)].append(p)
-        _prepare_output(output, overwrite)
+        _prepare_output(output, overwrite, [*(logs or []), *kinds["can"], *kinds["nmea"], dbc, cfg.source])
         with _progress("ingest", not as_json, in_bytes=True) as update:
             report = run_ingest(kinds["log"], output, config=cfg, dbc=dbc, can_logs=kinds["can"],
                                 nmea_logs=kinds["nmea"], allow_partial=allow_partial, progress=update,
@@ -228,7 +229,7 @@ def ingest(
         for sk in report.skipped_channels:
             out.print(f"skipped {sk['topic']} ({sk['msgtype']}): {sk['reason']}", highlight=False)
         for w in report.warnings:
-            err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+            err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
 
 
 @app.command()
@@ -256,7 +257,7 @@ def navigate(
         from autosar_cli.store.trajectory import write_trajectory
 
         cfg = _load_config(config)
-        _prepare_output(output, overwrite)
+        _prepare_output(output, overwrite, [drive, truth, cfg.source])
         traj = run_navigate(drive, method.value, cfg, smooth=not no_smooth, truth_path=truth)
         write_trajectory(output, traj)
         figure = None
@@ -534,7 +535,7 @@ def info(
             table.add_row(s.topic, s.msgtype, str(s.count), f"{s.rate_hz:.1f}", str(s.gaps))
         out.print(table)
         for w in summary.warnings:
-            err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+            err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
 
 
 @contextmanager

@@ -30,8 +30,10 @@ import numpy as np
 
 from autosar_cli import __version__
 from autosar_cli.config import Config
+from autosar_cli.sar.grid import GridError, check_image_size
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.manifest import json_default, read_json_manifest
+from autosar_cli.store.outputs import check_output, check_products
 
 if TYPE_CHECKING:
     from autosar_cli.sar.focus import FocusOptions
@@ -67,6 +69,21 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     manifest_path = out / "run.json"
     if manifest_path.exists() and not overwrite:
         raise RunError(f"{out}: already holds a run (run.json); pass --overwrite to replace it")
+    # every check that needs no data before the ingest starts: outputs (never an input, only autosar's replaced)
+    # and the image's size
+    inputs = [*logs, *([truth_path] if truth_path else []), *([config.source] if config.source else [])]
+    check_output(out, inputs, overwrite=overwrite, directory=True)
+    check_products(out, [DRIVE, TRAJECTORY, "run.json"], inputs, overwrite=True)
+    check_products(out, [f"{IMAGE}.tif", f"{IMAGE}.h5", f"{IMAGE}.png"], inputs, overwrite=True)
+    if options is None:  # the config's automatic grid (focus's own modules are imported beside the ingest)
+        try:
+            check_image_size(config.processing.pixel_m, max_range_m=config.radar.max_range_m)
+        except GridError as exc:
+            raise RunError(f"grid: {exc}") from None
+    else:
+        from autosar_cli.sar.focus import check_request
+
+        check_request(options, out / IMAGE, True, inputs, config)
     out.mkdir(parents=True, exist_ok=True)
     inputs = [{"path": str(Path(p)), "size_bytes": _size(Path(p))} for p in logs]
     manifest: dict[str, Any] = {

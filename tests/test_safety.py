@@ -1,0 +1,139 @@
+"""Inputs are never harmed: an output is never an input nor inside one, --overwrite replaces only what autosar
+made, and bad output paths give one line."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import h5py
+import pytest
+from typer.testing import CliRunner
+
+from autosar_cli.cli import app
+
+runner = CliRunner()
+
+
+def _one_line_error(r, *fragments: str) -> None:
+    assert r.exit_code == 1, r.output
+    lines = [ln for ln in r.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error:"), r.output
+    assert "Traceback" not in r.output
+    for fragment in fragments:
+        assert fragment in r.output.replace("\n", ""), r.output
+
+
+def _foreign(path: Path, content: bytes = b"not autosar's\n") -> bytes:
+    path.write_bytes(content)
+    return content
+
+
+def test_ingest_output_same_as_its_log_is_refused(tmp_path: Path) -> None:
+    log = tmp_path / "s.mcap"
+    content = _foreign(log, b"\x89MCAP0\r\n" + bytes(range(256)))
+    r = runner.invoke(app, ["ingest", str(log), "-o", str(log), "--overwrite"])
+    _one_line_error(r, "is an input")
+    assert log.read_bytes() == content
+
+
+def test_navigate_output_same_as_its_drive_is_refused(tmp_path: Path) -> None:
+    drive = tmp_path / "y.h5"
+    with h5py.File(drive, "w") as f:
+        f.attrs["format"] = "autosar-drive"
+    before = drive.read_bytes()
+    r = runner.invoke(app, ["navigate", str(drive), "-o", str(drive), "--overwrite"])
+    _one_line_error(r, "is an input")
+    assert drive.read_bytes() == before
+
+
+def test_focus_output_base_whose_h5_is_the_drive_is_refused(tmp_path: Path) -> None:
+    drive, traj = tmp_path / "x.h5", tmp_path / "t.h5"
+    for path, fmt in ((drive, "autosar-drive"), (traj, "autosar-trajectory")):
+        with h5py.File(path, "w") as f:
+            f.attrs["format"] = fmt
+    before = drive.read_bytes()
+    r = runner.invoke(app, ["focus", str(drive), "-t", str(traj), "-o", str(tmp_path / "x"), "--overwrite"])
+    _one_line_error(r, "x.h5", "is an input")
+    assert drive.read_bytes() == before
+
+
+def test_overwrite_never_replaces_a_directory_or_a_foreign_file(tmp_path: Path) -> None:
+    log = tmp_path / "log.mcap"
+    _foreign(log)
+    tree = tmp_path / "somedir"
+    (tree / "sub").mkdir(parents=True)
+    keep = _foreign(tree / "sub" / "precious.txt")
+    r = runner.invoke(app, ["ingest", str(log), "-o", str(tree), "--overwrite"])
+    _one_line_error(r, str(tree), "autosar did not write")
+    assert (tree / "sub" / "precious.txt").read_bytes() == keep
+
+    foreign = tmp_path / "notes.h5"
+    keep = _foreign(foreign)
+    r = runner.invoke(app, ["ingest", str(log), "-o", str(foreign), "--overwrite"])
+    _one_line_error(r, str(foreign), "autosar did not write")
+    assert foreign.read_bytes() == keep
+
+
+def test_output_whose_parent_is_a_file_names_it(tmp_path: Path) -> None:
+    log = tmp_path / "log.mcap"
+    _foreign(log)
+    blocker = tmp_path / "afile"
+    _foreign(blocker)
+    r = runner.invoke(app, ["ingest", str(log), "-o", str(blocker / "drive.h5")])
+    _one_line_error(r, str(blocker), "is a file, not a directory")
+    assert "Errno" not in r.output
+
+
+def test_run_refuses_foreign_products_and_inputs_inside_before_ingesting(tmp_path: Path) -> None:
+    log = tmp_path / "rundir" / "log.mcap"
+    log.parent.mkdir()
+    keep = _foreign(log)
+    r = runner.invoke(app, ["run", str(log), "-o", str(tmp_path / "rundir" / "log.mcap" / "out")])
+    _one_line_error(r, "log.mcap")
+    foreign = _foreign(tmp_path / "rundir" / "drive.h5")
+    r = runner.invoke(app, ["run", str(log), "-o", str(tmp_path / "rundir"), "--overwrite"])
+    _one_line_error(r, "drive.h5", "autosar did not write")
+    assert (tmp_path / "rundir" / "drive.h5").read_bytes() == foreign and log.read_bytes() == keep
+
+
+@pytest.mark.parametrize("pixel", ["1e-6", "nan", "-0.04"])
+def test_run_refuses_an_impossible_grid_before_ingest(tmp_path: Path, pixel: str) -> None:
+    log = tmp_path / "log.mcap"
+    _foreign(log)  # never read: the grid is refused first
+    cfg = tmp_path / "cfg.toml"
+    base = Path(__file__).resolve().parents[1] / "configs" / "giulia_scanbrick.toml"
+    text = base.read_text()
+    assert "pixel_m = 0.04" in text
+    cfg.write_text(text.replace("pixel_m = 0.04", f"pixel_m = {pixel}"))
+    shutil.copy(base.parent / "autosar_giulia.dbc", tmp_path)
+    r = runner.invoke(app, ["run", str(log), "-o", str(tmp_path / "out"), "-c", str(cfg)])
+    _one_line_error(r, "pixel")
+    assert not (tmp_path / "out" / "drive.h5").exists()
+
+
+@pytest.mark.parametrize(("pattern", "replacement", "shown"), [
+    (r"^speed_noise_mps2 = 0\.3", "speed_noise_mps2 = nan", "navigation.speed_noise_mps2: must be finite, got nan"),
+    (r"^gate_probability = 0\.9999", "gate_probability = -1", "navigation.gate_probability"),
+    (r"^position_noise_m = 0\.002", "position_noise_m = -0.002", "got -0.002"),
+    (r"^yaw_deg = -45\.0", "yaw_deg = inf", "radar.mounting.yaw_deg: must be finite, got inf"),
+])
+def test_config_values_out_of_range_are_shown_in_one_line(tmp_path: Path, pattern: str, replacement: str,
+                                                          shown: str) -> None:
+    import re
+
+    base = Path(__file__).resolve().parents[1] / "configs" / "giulia_scanbrick.toml"
+    text, n = re.subn(pattern, replacement, base.read_text(), count=1, flags=re.MULTILINE)
+    assert n == 1
+    cfg = tmp_path / "cfg.toml"
+    cfg.write_text(text)
+    shutil.copy(base.parent / "autosar_giulia.dbc", tmp_path)
+    r = runner.invoke(app, ["navigate", str(tmp_path / "drive.h5"), "-o", str(tmp_path / "t.h5"), "-c", str(cfg)])
+    _one_line_error(r, str(cfg), shown)
+
+
+def test_non_utf8_config_names_the_file(tmp_path: Path) -> None:
+    cfg = tmp_path / "latin1.toml"
+    cfg.write_bytes("# Fahrzeug: Giulia, Geschwindigkeit in km/h, Lenkübersetzung\n".encode("latin-1"))
+    r = runner.invoke(app, ["navigate", str(tmp_path / "drive.h5"), "-c", str(cfg)])
+    _one_line_error(r, str(cfg), "UTF-8")
