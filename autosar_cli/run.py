@@ -33,7 +33,7 @@ from autosar_cli.config import Config
 from autosar_cli.sar.grid import GridError, check_image_size
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.manifest import json_default, read_json_manifest
-from autosar_cli.store.outputs import check_output, check_products
+from autosar_cli.store.outputs import check_free_space, check_output, check_products, input_bytes
 
 if TYPE_CHECKING:
     from autosar_cli.sar.focus import FocusOptions
@@ -75,6 +75,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     check_output(out, inputs, overwrite=overwrite, directory=True)
     check_products(out, [DRIVE, TRAJECTORY, "run.json"], inputs, overwrite=True)
     check_products(out, [f"{IMAGE}.tif", f"{IMAGE}.h5", f"{IMAGE}.png"], inputs, overwrite=True)
+    check_free_space(out / DRIVE, input_bytes(logs), "the drive")
     if options is None:  # the config's automatic grid (focus's own modules are imported beside the ingest)
         try:
             check_image_size(config.processing.pixel_m, max_range_m=config.radar.max_range_m)

@@ -137,3 +137,41 @@ def test_non_utf8_config_names_the_file(tmp_path: Path) -> None:
     cfg.write_bytes("# Fahrzeug: Giulia, Geschwindigkeit in km/h, Lenkübersetzung\n".encode("latin-1"))
     r = runner.invoke(app, ["navigate", str(tmp_path / "drive.h5"), "-c", str(cfg)])
     _one_line_error(r, str(cfg), "UTF-8")
+
+
+def _disk_with_free_bytes(monkeypatch: pytest.MonkeyPatch, folder: Path, capacity: int) -> None:
+    """Pretend ``folder``'s file system holds ``capacity`` bytes, less what its files already take."""
+    import autosar_cli.store.outputs as outputs
+
+    real = outputs.shutil.disk_usage
+
+    def disk_usage(path):  # type: ignore[no-untyped-def]
+        if Path(path).resolve() != folder.resolve():
+            return real(path)
+        used = sum(f.stat().st_size for f in folder.iterdir() if f.is_file())
+        return shutil._ntuple_diskusage(capacity, used, max(capacity - used, 0))  # type: ignore[attr-defined]
+
+    monkeypatch.setattr(outputs.shutil, "disk_usage", disk_usage)
+
+
+def test_full_disk_is_one_line_and_leaves_no_partial(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, ci_mcap) -> None:
+    out = tmp_path / "small"
+    out.mkdir()
+    _disk_with_free_bytes(monkeypatch, out, 5 * 2**20)
+    r = runner.invoke(app, ["ingest", str(ci_mcap.log_path), "-o", str(out / "drive.h5")])
+    _one_line_error(r, str(out / "drive.h5"), "no space left")
+    assert list(out.iterdir()) == []
+
+
+def test_disk_filling_while_the_drive_is_written(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, ci_mcap) -> None:
+    """The estimate passes (the run's own check is skipped) but the disk fills up half way: the drive writer's
+    thread refuses the next write, the error reaches run's parent process, nothing partial is left."""
+    import autosar_cli.run as run_module
+
+    out = tmp_path / "run"
+    out.mkdir()
+    _disk_with_free_bytes(monkeypatch, out, 28 * 2**20)  # the ci drive is ~18 MB; 16 MB kept in hand
+    monkeypatch.setattr(run_module, "input_bytes", lambda paths: 0)
+    r = runner.invoke(app, ["run", str(ci_mcap.log_path), "-o", str(out)])
+    _one_line_error(r, str(out / "drive.h5"), "no space left")
+    assert [p.name for p in out.iterdir()] == []

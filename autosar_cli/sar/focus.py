@@ -273,7 +273,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
             if not work:  # a block no grid needs is not even read
                 return sel, work, None, None
             idx = frames[sel]
-            raw = radar.raw[idx[0]: idx[-1] + 1]
+            raw = radar.frames(int(idx[0]), int(idx[-1]) + 1)
             pc = radar_phase_centres(traj, geometry.t_ns[sel], offsets, config)
             ant = np.concatenate([pc.tx[:, used_tx].transpose(1, 0, 2),
                                   np.stack([pc.rx[:, t, r] for t, r in pairs])], axis=0)

@@ -10,6 +10,7 @@ Anything else is refused with one line.
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import shutil
@@ -137,3 +138,42 @@ def _tif_is_autosar(path: Path) -> bool:
             return str(src.tags().get("autosar_format", "")).startswith(AUTOSAR_FORMAT_PREFIX)
     except Exception:  # noqa: BLE001 - anything rasterio cannot read is not autosar's
         return False
+
+
+class DiskFullError(OSError):
+    """Not enough free space for an output; its message names the file and the sizes."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(errno.ENOSPC, message)
+        self.message = message
+
+    def __str__(self) -> str:
+        return self.message
+
+    def __reduce__(self) -> tuple[type, tuple[str]]:  # crosses the pipe from run's ingest child
+        return (DiskFullError, (self.message,))
+
+
+#: Free space kept in hand beyond an estimate: HDF5's metadata and chunk caches are flushed at close.
+SPACE_MARGIN_BYTES = 16 * 2**20
+
+
+def check_free_space(path: str | Path, needed_bytes: float, what: str = "") -> None:
+    """Raise DiskFullError unless the file system of ``path`` has ``needed_bytes`` + SPACE_MARGIN_BYTES free."""
+    path = Path(path)
+    folder = next((p for p in (path.parent, *path.parent.parents) if p.is_dir()), Path("."))
+    free = shutil.disk_usage(folder).free
+    if free < needed_bytes + SPACE_MARGIN_BYTES:
+        raise DiskFullError(f"{path}: no space left on the device: {what or 'writing it'} needs about "
+                            f"{(needed_bytes + SPACE_MARGIN_BYTES) / 1e6:.1f} MB, {free / 1e6:.1f} MB are free")
+
+
+def input_bytes(paths: Iterable[str | Path]) -> int:
+    """Total size of input files and directories (an upper bound of what ingesting them writes)."""
+    total = 0
+    for p in map(Path, paths):
+        if p.is_dir():
+            total += sum(f.stat().st_size for f in p.rglob("*") if f.is_file())
+        elif p.exists():
+            total += p.stat().st_size
+    return total
