@@ -51,8 +51,21 @@ def _two_threads_per_cpu() -> None:
     os.environ["NUMBA_NUM_THREADS"] = str(2 * max(1, n_cpu))
 
 
+def _writable_kernel_cache() -> None:
+    """A temporary directory for numba's cache where neither the install nor the home can hold it (numba
+    would otherwise refuse to define the kernels); see autosar_cli.kernel_cache."""
+    import sys
+
+    if "numba" in sys.modules:
+        return
+    from autosar_cli.kernel_cache import ensure_cache_dir
+
+    ensure_cache_dir()
+
+
 _prefer_wide_vectors()
 _two_threads_per_cpu()
+_writable_kernel_cache()
 
 from autosar_cli.config import Config, ConfigError, load_config  # noqa: E402
 

@@ -175,3 +175,20 @@ def test_disk_filling_while_the_drive_is_written(tmp_path: Path, monkeypatch: py
     r = runner.invoke(app, ["run", str(ci_mcap.log_path), "-o", str(out)])
     _one_line_error(r, str(out / "drive.h5"), "no space left")
     assert [p.name for p in out.iterdir()] == []
+
+
+def test_numba_cache_falls_back_to_a_temporary_directory(tmp_path: Path) -> None:
+    import tempfile
+
+    from autosar_cli.kernel_cache import fallback_cache_dir
+
+    blocker = tmp_path / "a_file"
+    blocker.write_text("x")  # nothing can be created below a regular file, not even by root
+    read_only_install = blocker / "site-packages" / "autosar_cli"
+    env = {"HOME": str(blocker / "home")}
+    got = fallback_cache_dir(read_only_install, env)
+    assert got is not None and got.parent == Path(tempfile.gettempdir())
+    assert fallback_cache_dir(read_only_install, {"HOME": str(tmp_path)}) is None  # the home's cache is writable
+    assert fallback_cache_dir(tmp_path / "autosar_cli", env) is None  # the install is writable
+    assert fallback_cache_dir(read_only_install, {**env, "NUMBA_CACHE_DIR": str(tmp_path)}) is None
+
