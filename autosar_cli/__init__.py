@@ -5,6 +5,31 @@ from __future__ import annotations
 __version__ = "0.1.0"
 
 
+def _quiet_interrupt_while_starting() -> None:
+    """Ctrl-C while the ``autosar`` command is still importing: "interrupted", exit 130, no traceback.
+
+    Only for the console script (a library import leaves the signal alone); ``autosar_cli.cli.main`` restores
+    Python's handler once its imports are done, and from then on reports KeyboardInterrupt the same way.
+    """
+    import os
+    import signal
+    import sys
+
+    if os.path.basename(sys.argv[0]) not in ("autosar", "autosar.exe"):
+        return
+    if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        return
+
+    def interrupted(signum: int, frame: object) -> None:
+        os.write(2, b"error: interrupted\n")
+        os._exit(130)
+
+    signal.signal(signal.SIGINT, interrupted)
+
+
+_quiet_interrupt_while_starting()
+
+
 def _prefer_wide_vectors() -> None:
     """Let numba emit 512-bit vectors on AVX-512 CPUs.
 

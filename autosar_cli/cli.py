@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gc
 import json
+import signal
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -638,14 +639,20 @@ def batch(
 
 def main() -> None:
     """Console-script entry point."""
-    from autosar_cli.ingest import mf4_support
-
-    mf4_support.defer()  # python-can without asammdf and pandas (~0.35 s) until an .mf4 log is opened
     try:
+        from autosar_cli.ingest import mf4_support
+
+        mf4_support.defer()  # python-can without asammdf and pandas (~0.35 s) until an .mf4 log is opened
+        # from here on Ctrl-C is a KeyboardInterrupt again (autosar_cli's start-up handler exited at once),
+        # so that a command stops its writers and removes its partial files
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         app()
         code: int | str | None = 0
     except SystemExit as exc:
         code = exc.code
+    except KeyboardInterrupt:
+        err.print("[red]error:[/] interrupted")
+        code = 130
     # The command is over and its products are closed. Frozen, the objects of numba, scipy, pandas and matplotlib
     # are no longer walked by the collections of the interpreter's shutdown: 0.7-0.8 s -> 0.1 s after
     # `autosar run` (measured). atexit handlers still run.

@@ -192,3 +192,24 @@ def test_numba_cache_falls_back_to_a_temporary_directory(tmp_path: Path) -> None
     assert fallback_cache_dir(tmp_path / "autosar_cli", env) is None  # the install is writable
     assert fallback_cache_dir(read_only_install, {**env, "NUMBA_CACHE_DIR": str(tmp_path)}) is None
 
+
+
+@pytest.mark.parametrize("delay_s", [0.05, 0.15, 0.4, 1.5])
+def test_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path: Path, delay_s: float) -> None:
+    """SIGINT while the command imports (the first 0.2 s) or while it simulates: "interrupted", 130, no trace."""
+    import signal
+    import subprocess
+    import time
+
+    script = shutil.which("autosar")
+    if script is None:
+        pytest.skip("the autosar console script is not installed")
+    proc = subprocess.Popen([script, "simulate", "-o", str(tmp_path / "s.mcap")], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    time.sleep(delay_s)
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
+    assert stderr.strip().endswith("interrupted"), stderr
+    assert not [p.name for p in tmp_path.iterdir()]  # no log, no truth, no partial
