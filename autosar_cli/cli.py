@@ -520,16 +520,29 @@ def compare(
 
 @app.command()
 def info(
-    path: Annotated[Path, typer.Argument(help="A drive log (.mcap, .bag, rosbag2 directory) or a drive.h5.")],
+    path: Annotated[Path, typer.Argument(help="A drive log (.mcap, .bag, rosbag2 directory) or a drive.h5; or "
+                                         "any directory, for its stale partial files.")],
     as_json: JsonOpt = False,
 ) -> None:
-    """Summarise a log or drive.h5: streams, message types, counts, rates, time span and gaps."""
+    """Summarise a log or drive.h5: streams, message types, counts, rates, time span and gaps; and list the
+    partial files that killed autosar processes left beside it."""
     with _errors():
+        from autosar_cli.store.atomic import stale_partials
+
+        folder = path if path.is_dir() else path.parent
+        stale = [str(p) for p in stale_partials(folder)]
+        if path.is_dir() and not (path / "metadata.yaml").exists():  # a plain directory, not a rosbag2 log
+            if as_json:
+                out.print_json(json.dumps({"path": str(path), "stale_partials": stale}))
+                return
+            out.print(f"[bold]{escape(str(path))}[/]: {len(stale)} stale partial file(s)"
+                      + "".join(f"\n  {escape(p)}" for p in stale))
+            return
         from autosar_cli.ingest.inspect import summarize
 
         summary = summarize(path)
         if as_json:
-            out.print_json(json.dumps(summary.to_dict()))
+            out.print_json(json.dumps({**summary.to_dict(), "stale_partials": stale}))
             return
         d = summary.to_dict()
         out.print(f"[bold]{path}[/]  {summary.container}, {summary.size_bytes / 1e6:.1f} MB, "
@@ -540,6 +553,9 @@ def info(
         out.print(table)
         for w in summary.warnings:
             err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
+        for p in stale:
+            err.print(f"[yellow]stale partial file:[/] {escape(p)} (left by a killed autosar; the next command "
+                      f"writing there removes it)", highlight=False, soft_wrap=True)
 
 
 @contextmanager

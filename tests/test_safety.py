@@ -3,6 +3,8 @@ made, and bad output paths give one line."""
 
 from __future__ import annotations
 
+import json
+import os
 import shutil
 from pathlib import Path
 
@@ -213,3 +215,46 @@ def test_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path: Path, delay_s: 
     assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
     assert stderr.strip().endswith("interrupted"), stderr
     assert not [p.name for p in tmp_path.iterdir()]  # no log, no truth, no partial
+
+
+def test_stale_partial_of_a_killed_ingest_is_listed_and_removed_by_the_next_command(tmp_path: Path,
+                                                                                    ci_mcap) -> None:
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "out"
+    out.mkdir()
+    proc = subprocess.Popen([sys.executable, "-c", "from autosar_cli.cli import main; main()", "ingest",
+                             str(ci_mcap.log_path), "-o", str(out / "drive.h5")], stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 60
+    while not list(out.glob("*.partial*")) and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    left = [p.name for p in out.iterdir()]
+    assert left == [f"drive.partial-{proc.pid}.h5"]
+    alive = out / f"other.partial-{os.getpid()}.h5"  # a writer still at work: never touched
+    alive.write_bytes(b"x")
+
+    r = runner.invoke(app, ["info", str(out), "--json"])
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.stdout)["stale_partials"] == [str(out / left[0])]
+
+    log = tmp_path / "not_a_log.mcap"
+    _foreign(log)
+    r = runner.invoke(app, ["ingest", str(log), "-o", str(out / "drive.h5")])  # fails on the log, after the gate
+    assert r.exit_code == 1
+    assert sorted(p.name for p in out.iterdir()) == [alive.name]
+
+
+def test_a_255_byte_file_name_is_written_through_its_partial(tmp_path: Path) -> None:
+    from autosar_cli.store.atomic import atomic_output
+
+    target = tmp_path / ("t" * 252 + ".h5")
+    assert len(target.name.encode()) == 255
+    with atomic_output(target, overwrite=False) as tmp:
+        assert len(tmp.name.encode()) <= 255 and tmp.suffix == ".h5"
+        tmp.write_bytes(b"content")
+    assert target.read_bytes() == b"content" and [p.name for p in tmp_path.iterdir()] == [target.name]

@@ -18,7 +18,7 @@ Every series group has attrs ``topic``, ``source_file``, ``msgtype``, ``time_sou
 and a ``gaps`` dataset ``(M, 2)`` int64 of (t_ns before, t_ns after) for every gap in the series
 (radar: frame_index jumps). All ``t_ns`` are int64 ns since the Unix epoch, sorted, without duplicates.
 
-Writing is atomic: :class:`DriveWriter` writes ``<name>.partial`` and renames it on :meth:`commit`.
+Writing is atomic: :class:`DriveWriter` writes ``<stem>.partial-<pid>.h5`` and renames it on :meth:`commit`.
 All HDF5 calls of a writer run on one background thread so that compression overlaps decoding.
 """
 
@@ -38,6 +38,7 @@ import hdf5plugin  # noqa: F401  (registers the Blosc filter that raw radar cube
 import numpy as np
 from numpy.typing import NDArray
 
+from autosar_cli.store.atomic import partial_path
 from autosar_cli.store.hdf5_read import dataset_errors, read_dataset, read_rows
 from autosar_cli.store.outputs import check_free_space
 
@@ -238,11 +239,12 @@ def _set_attrs(obj: h5py.HLObject, attrs: Mapping[str, Any]) -> None:
 
 
 class DriveWriter:
-    """Writes one drive.h5 atomically: everything goes to ``<path>.partial`` until :meth:`commit`."""
+    """Writes one drive.h5 atomically: everything goes to its partial sibling (store.atomic.partial_path) until
+    :meth:`commit`."""
 
     def __init__(self, path: str | Path, attrs: Mapping[str, Any]) -> None:
         self.path = Path(path)
-        self.partial = self.path.with_name(self.path.name + ".partial")
+        self.partial = partial_path(self.path)
         self.partial.unlink(missing_ok=True)
         self._file = h5py.File(self.partial, "w", libver="latest")
         self._hdf = _HdfThread()

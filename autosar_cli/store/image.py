@@ -3,7 +3,7 @@
 The image is complex, (rows, cols) = (n_across, n_along) on a :class:`FocusGrid` in the local ENU frame
 of a :class:`GeodeticOrigin`. The GeoTIFF is georeferenced in the WGS-84 UTM zone of that origin with an
 affine transform fitted to the exact ENU -> geodetic -> UTM conversion (residual reported, sub-mm over a
-few hundred metres). Every file is written atomically (``<stem>.partial<suffix>``, then renamed). See
+few hundred metres). Every file is written atomically (``<stem>.partial-<pid><suffix>``, then renamed). See
 docs/FORMATS.md.
 """
 

@@ -17,6 +17,8 @@ import shutil
 from collections.abc import Iterable
 from pathlib import Path
 
+from autosar_cli.store.atomic import remove_stale_partials
+
 AUTOSAR_FORMAT_PREFIX = "autosar-"
 DIRECTORY_MANIFESTS = ("run.json", "batch.json", "compare.json", "metrics.json")
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -35,6 +37,7 @@ def check_output(path: str | Path, inputs: Iterable[str | Path] = (), *, overwri
     """
     path = Path(path)
     _check_parent(path)
+    remove_stale_partials(path.parent)
     target = path.resolve()
     for inp in inputs:
         source = Path(inp).resolve()

@@ -20,6 +20,7 @@ import numpy as np
 from autosar_cli import __version__
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.nav.trajectory import Trajectory
+from autosar_cli.store.atomic import partial_path
 from autosar_cli.store.hdf5_read import read_dataset
 
 FORMAT = "autosar-trajectory"
@@ -32,7 +33,7 @@ class TrajectoryFormatError(ValueError):
 
 def write_trajectory(path: str | Path, traj: Trajectory, attrs: dict[str, Any] | None = None) -> Path:
     path = Path(path)
-    partial = path.with_name(path.name + ".partial")
+    partial = partial_path(path)
     try:
         with h5py.File(partial, "w") as f:
             f.attrs.update({"format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
