@@ -635,20 +635,25 @@ def batch(
             out.print_json(json.dumps(manifest, default=str))
         else:
             table = Table("drive", "status", "attempts", "wall (s)", "worker", "result")
+            status = {"ok": "[green]ok[/]", "degraded": "[yellow]degraded[/]", "failed": "[red]failed[/]"}
             for r in manifest["drives"]:
-                ok = r["status"] == "ok"
+                ok = r["status"] != "failed"
                 result = (f"{r['grid_shape'][0]} x {r['grid_shape'][1]} px, {r['output']}/image.tif" if ok
                           else r["error"])
-                table.add_row(r["name"], "[green]ok[/]" if ok else "[red]failed[/]", str(r.get("attempts") or ""),
+                table.add_row(r["name"], status[r["status"]], str(r.get("attempts") or ""),
                               f"{r['wall_s']:.1f}" if r.get("wall_s") is not None else "–", r.get("worker", "–"),
                               result)
             out.print(table)
             rate = manifest["drives_per_minute"]
-            out.print(f"wrote [bold]{Path(output) / 'batch.json'}[/]: {manifest['ok']} of {len(manifest['drives'])} "
-                      f"drives ok in {manifest['wall_s']:.1f} s" + (f" ({rate:.1f} drives/min)" if rate else ""))
+            degraded = f" ({manifest['degraded']} degraded)" if manifest.get("degraded") else ""
+            out.print(f"wrote [bold]{Path(output) / 'batch.json'}[/]: "
+                      f"{manifest['ok'] + manifest.get('degraded', 0)} of {len(manifest['drives'])} drives done"
+                      f"{degraded} in {manifest['wall_s']:.1f} s" + (f" ({rate:.1f} drives/min)" if rate else ""))
         for r in manifest["drives"]:
-            if r["status"] != "ok":
-                err.print(f"[red]failed:[/] {r['name']}: {r['error']}", highlight=False, soft_wrap=True)
+            if r["status"] == "failed":
+                err.print(f"[red]failed:[/] {r['name']}: {escape(r['error'])}", highlight=False, soft_wrap=True)
+            for w in r.get("warnings", []) if r["status"] == "degraded" else []:
+                err.print(f"[yellow]degraded:[/] {r['name']}: {escape(w)}", highlight=False, soft_wrap=True)
         if manifest["failed"]:
             raise typer.Exit(1)
 

@@ -258,3 +258,24 @@ def test_a_255_byte_file_name_is_written_through_its_partial(tmp_path: Path) -> 
         assert len(tmp.name.encode()) <= 255 and tmp.suffix == ".h5"
         tmp.write_bytes(b"content")
     assert target.read_bytes() == b"content" and [p.name for p in tmp_path.iterdir()] == [target.name]
+
+
+def test_batch_record_of_a_drive_with_ingest_warnings_is_degraded(tmp_path: Path, monkeypatch) -> None:
+    """run.json of a truncated log carries the ingest's warning; batch.json must too, and not say plain ok."""
+    import autosar_cli.batch as batch_mod
+    from autosar_cli.config import load_config
+
+    truncated = "drive.mcap: the log ends inside a chunk at byte 1048576 (truncated); kept the 812 messages before it"
+
+    def fake_run(logs, out_dir, config, **kw):  # the parts of a real run.json that batch reads
+        warnings = [truncated] if "truncated" in str(logs[0]) else []
+        return {"stages": {"ingest": {"wall_s": 0.1, "warnings": warnings}, "navigate": {"wall_s": 0.1},
+                           "focus": {"wall_s": 0.1, "grid_shape": [2, 3], "frames_used": 5, "backprojections": 7}},
+                "outputs": {"drive": "drive.h5", "image": {"h5": "image.h5"}}, "drive_s": 1.0}
+
+    monkeypatch.setattr(batch_mod, "run", fake_run)
+    cfg = load_config()
+    bad = batch_mod.run_drive("t", [str(tmp_path / "truncated.mcap")], str(tmp_path / "t"), cfg)
+    good = batch_mod.run_drive("g", [str(tmp_path / "good.mcap")], str(tmp_path / "g"), cfg)
+    assert (bad["status"], bad["warnings"]) == ("degraded", [truncated])
+    assert (good["status"], good["warnings"]) == ("ok", [])
