@@ -279,3 +279,21 @@ def test_batch_record_of_a_drive_with_ingest_warnings_is_degraded(tmp_path: Path
     good = batch_mod.run_drive("g", [str(tmp_path / "good.mcap")], str(tmp_path / "g"), cfg)
     assert (bad["status"], bad["warnings"]) == ("degraded", [truncated])
     assert (good["status"], good["warnings"]) == ("ok", [])
+
+
+def test_full_disk_refuses_the_image_before_writing_it(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import numpy as np
+
+    from autosar_cli.nav.geodesy import GeodeticOrigin
+    from autosar_cli.sar.grid import FocusGrid
+    from autosar_cli.store.image import FocusedImage, write_image
+    from autosar_cli.store.outputs import DiskFullError
+
+    grid = FocusGrid((0.0, 0.0), (1.0, 0.0), (0.0, -1.0), 0.04, 400, 300, 0.0)
+    image = FocusedImage(np.ones(grid.shape, np.complex64), grid, GeodeticOrigin(45.06, 7.66, 240.0), {})
+    _disk_with_free_bytes(monkeypatch, tmp_path, 16 * 2**20 + 1_000_000)  # 400 x 300 x 12 B = 1.44 MB needed
+    with pytest.raises(DiskFullError, match=r"image\.h5: no space left on the device: the image needs about"):
+        write_image(tmp_path / "image", image)
+    assert list(tmp_path.iterdir()) == []
+    _disk_with_free_bytes(monkeypatch, tmp_path, 16 * 2**20 + 2_000_000)
+    assert set(write_image(tmp_path / "image", image)) == {"tif", "h5", "png"}
