@@ -297,3 +297,12 @@ def test_full_disk_refuses_the_image_before_writing_it(tmp_path: Path, monkeypat
     assert list(tmp_path.iterdir()) == []
     _disk_with_free_bytes(monkeypatch, tmp_path, 16 * 2**20 + 2_000_000)
     assert set(write_image(tmp_path / "image", image)) == {"tif", "h5", "png"}
+
+
+def test_compare_output_inside_its_rosbag2_log_is_refused(tmp_path: Path) -> None:
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    r = runner.invoke(app, ["compare", str(bag), "-o", str(bag / "cmp")])
+    _one_line_error(r, "lies inside the input")
+    assert [p.name for p in bag.iterdir()] == ["metadata.yaml"]
