@@ -10,8 +10,9 @@ from pathlib import Path
 
 def _simulate_in_fresh_process(output: Path, cache_dir: Path) -> bytes:
     env = {**os.environ, "NUMBA_CACHE_DIR": str(cache_dir)}
-    subprocess.run([sys.executable, "-c", "from autosar_cli.cli import main; main()", "simulate", "-o", str(output), "--seed", "7"],
-                   check=True, env=env, capture_output=True)
+    command = [sys.executable, "-c", "from autosar_cli.cli import main; main()", "simulate", "-o", str(output),
+               "--seed", "7"]
+    subprocess.run(command, check=True, env=env, capture_output=True)
     return output.read_bytes()
 
 
