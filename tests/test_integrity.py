@@ -81,7 +81,7 @@ def test_a_heading_no_car_can_have_is_refused(tmp_path: Path) -> None:
     traj = _straight_track()
     traj.heading[57] = -1.9e171  # what a flipped exponent byte made of a heading (finite, absurd)
     path = write_trajectory(tmp_path / "trajectory.h5", traj)
-    with pytest.raises(TrajectoryFormatError, match=r"trajectory\.h5: turn rate between headings exceeds 10 rad/s "
+    with pytest.raises(TrajectoryFormatError, match=r"trajectory\.h5: step between headings exceeds 1\.571 rad "
                                                     r"at sample 56"):
         read_trajectory(path)
     traj = _straight_track()

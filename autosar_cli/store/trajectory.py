@@ -105,11 +105,16 @@ def read_trajectory(path: str | Path, *, covariance: bool = True) -> Trajectory:
 #: Limits of a car's motion that no trajectory may exceed (a damaged file or a diverged filter does).
 MAX_SPEED_MPS = 100.0
 MAX_YAW_RATE_RADPS = 10.0  # ~6x a car at full lock; GNSS-course baselines are noisy at walking pace
+#: Steps between successive samples always allowed: the baselines' headings switch source (the INS's yaw
+#: below 0.5 m/s, its course above) and GNSS positions jump by their noise, both within one IMU sample.
+MAX_HEADING_STEP_RAD = np.pi / 2
+MAX_POSITION_STEP_M = 5.0
 
 
 def check_plausible(traj: Trajectory, path: str | Path) -> None:
-    """Refuse a trajectory that no car drove: non-finite values, time not increasing, speed or yaw rate
-    (stored, or implied by successive positions and headings) beyond MAX_SPEED_MPS / MAX_YAW_RATE_RADPS."""
+    """Refuse a trajectory that no car drove: non-finite values, time not increasing, stored speed or yaw
+    rate beyond MAX_SPEED_MPS / MAX_YAW_RATE_RADPS, or a step between successive positions (headings) larger
+    than both MAX_POSITION_STEP_M (MAX_HEADING_STEP_RAD) and what those limits allow in its time."""
     t = np.asarray(traj.t_ns, dtype=np.int64)
     if len(t) < 2:
         raise TrajectoryFormatError(f"{path}: holds {len(t)} sample(s); a trajectory needs at least 2")
@@ -117,15 +122,17 @@ def check_plausible(traj: Trajectory, path: str | Path) -> None:
         k = int(np.argmax(np.diff(t) <= 0))
         raise TrajectoryFormatError(f"{path}: t_ns does not increase at sample {k + 1}")
     dt = np.diff(t) / 1e9
-    checks = (
-        ("rear_axle_enu", np.asarray(traj.rear_axle_enu, np.float64), None, "m"),
-        ("heading", np.asarray(traj.heading, np.float64), None, "rad"),
+    xy = np.asarray(traj.rear_axle_enu, np.float64)
+    heading = np.asarray(traj.heading, np.float64)
+    checks = (  # name, values, per-sample limit (None: finite only), unit
+        ("rear_axle_enu", xy, None, "m"),
+        ("heading", heading, None, "rad"),
         ("speed", np.abs(np.asarray(traj.speed, np.float64)), MAX_SPEED_MPS, "m/s"),
         ("yaw_rate", np.abs(np.asarray(traj.yaw_rate, np.float64)), MAX_YAW_RATE_RADPS, "rad/s"),
-        ("speed between positions", np.hypot(*np.diff(np.asarray(traj.rear_axle_enu, np.float64), axis=0).T) / dt,
-         MAX_SPEED_MPS, "m/s"),
-        ("turn rate between headings", np.abs(np.diff(np.asarray(traj.heading, np.float64))) / dt,
-         MAX_YAW_RATE_RADPS, "rad/s"),
+        ("step between positions", np.hypot(*np.diff(xy, axis=0).T),
+         np.maximum(MAX_POSITION_STEP_M, MAX_SPEED_MPS * dt), "m"),
+        ("step between headings", np.abs(np.diff(heading)),
+         np.maximum(MAX_HEADING_STEP_RAD, MAX_YAW_RATE_RADPS * dt), "rad"),
     )
     for name, values, limit, unit in checks:
         bad = ~np.isfinite(values) if limit is None else ~(values <= limit)
@@ -134,6 +141,7 @@ def check_plausible(traj: Trajectory, path: str | Path) -> None:
         if bad.any():
             k = int(np.argmax(bad))
             shown = values[k].tolist() if values.ndim > 1 else f"{values[k]:.4g} {unit}"
-            what = "is not finite" if limit is None else f"exceeds {limit:g} {unit}"
+            lim = limit if limit is None or np.isscalar(limit) else limit[k]
+            what = "is not finite" if lim is None else f"exceeds {lim:.4g} {unit}"
             raise TrajectoryFormatError(f"{path}: {name} {what} at sample {k} ({shown}); the file is damaged or "
                                         f"the navigation diverged")
