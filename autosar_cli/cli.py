@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import gc
 import json
 import signal
@@ -89,8 +90,10 @@ def main_options(
 
 
 @contextmanager
-def _errors() -> Iterator[None]:
-    """Turn expected failures into a one-line message and exit code 1 (tracebacks only with --debug)."""
+def _errors(writing: Path | None = None) -> Iterator[None]:
+    """Turn expected failures into a one-line message and exit code 1 (tracebacks only with --debug).
+
+    ``writing``: the command's output, named when a full disk (ENOSPC) says no file of its own."""
     try:
         yield
     except (typer.Exit, typer.Abort):
@@ -102,6 +105,8 @@ def _errors() -> Iterator[None]:
         if _state["debug"]:
             raise
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        if isinstance(exc, OSError) and exc.errno == errno.ENOSPC and str(writing or "") not in msg:
+            msg = f"{exc.filename or writing}: no space left on the device"
         # escaped: a message quoting a value such as [inf] or a path with brackets is not rich markup
         err.print(f"[red]error:[/] {escape(msg)}", highlight=False, soft_wrap=True)
         raise typer.Exit(1) from None
@@ -151,7 +156,7 @@ def simulate(
     as_json: JsonOpt = False,
 ) -> None:
     """Write a realistic synthetic drive log (radar, CAN, GNSS, IMUs) plus a ground-truth sidecar <log>.truth.h5."""
-    with _errors():
+    with _errors(output):
         from autosar_cli.sim.simulate import simulate as run_simulation
         from autosar_cli.sim.truth import truth_path_for
 
@@ -190,7 +195,7 @@ def ingest(
     as_json: JsonOpt = False,
 ) -> None:
     """Decode CAN (with a DBC), GNSS, IMU and raw radar frames of drive logs into one drive.h5, streaming."""
-    with _errors():
+    with _errors(output):
         from autosar_cli.ingest.pipeline import classify_input
         from autosar_cli.ingest.pipeline import ingest as run_ingest
 
@@ -254,7 +259,7 @@ def navigate(
     as_json: JsonOpt = False,
 ) -> None:
     """Estimate the vehicle trajectory of a drive (SAR-MIN UKF + RTS smoother, or a baseline)."""
-    with _errors():
+    with _errors(output):
         import numpy as np
 
         from autosar_cli.nav.navigate import navigate as run_navigate
@@ -318,7 +323,7 @@ def focus(
     as_json: JsonOpt = False,
 ) -> None:
     """Focus the radar with time-domain back-projection (stripmap, coherent MIMO sum) into georeferenced images."""
-    with _errors():
+    with _errors(output):
         from autosar_cli.sar.focus import FocusOptions
         from autosar_cli.sar.focus import focus as run_focus
 
@@ -363,7 +368,7 @@ def run(
     as_json: JsonOpt = False,
 ) -> None:
     """Ingest, navigate and focus a drive in one go; every product in one directory plus a run.json manifest."""
-    with _errors():
+    with _errors(output):
         from autosar_cli.run import run as run_chain
 
         cfg = _load_config(config)

@@ -306,3 +306,17 @@ def test_compare_output_inside_its_rosbag2_log_is_refused(tmp_path: Path) -> Non
     r = runner.invoke(app, ["compare", str(bag), "-o", str(bag / "cmp")])
     _one_line_error(r, "lies inside the input")
     assert [p.name for p in bag.iterdir()] == ["metadata.yaml"]
+
+
+def test_enospc_without_a_file_name_names_the_output(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The log writers' own ENOSPC ("[Errno 28] No space left on device") names no file: the command does."""
+    import errno
+
+    import autosar_cli.sim.simulate as sim_mod
+
+    def full_disk(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(sim_mod, "simulate", full_disk)
+    r = runner.invoke(app, ["simulate", "-o", str(tmp_path / "s.mcap")])
+    _one_line_error(r, f"{tmp_path / 's.mcap'}: no space left on the device")
