@@ -30,7 +30,7 @@ from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.manifest import json_default
-from autosar_cli.store.outputs import check_free_space
+from autosar_cli.store.outputs import SMALL_FILE_MARGIN_BYTES, check_free_space
 
 FORMAT = "autosar-image"
 FORMAT_VERSION = 1
@@ -147,7 +147,7 @@ class ImageWriter:
                     raise FileExistsError(f"{p} already exists; pass --overwrite to replace it")
         rows, cols = self.grid.shape
         # complex64 image.h5 + float32 GeoTIFF (uncompressed bounds; the quicklook is small)
-        check_free_space(self.paths["h5"], rows * cols * (8 + 4), "the image")
+        check_free_space(self.paths["h5"], rows * cols * (8 + 4), "the image", SMALL_FILE_MARGIN_BYTES)
         self.transform, self.epsg, self.residual = utm_geotransform(self.grid, self.origin)
         self.crs = CRS.from_epsg(self.epsg)
         stack = ExitStack()

@@ -157,18 +157,21 @@ class DiskFullError(OSError):
         return (DiskFullError, (self.message,))
 
 
-#: Free space kept in hand beyond an estimate: HDF5's metadata and chunk caches are flushed at close.
+#: Free space kept in hand beyond an estimate: HDF5 flushes its metadata and chunk caches (1 MiB a dataset)
+#: at close, and a drive has dozens of datasets; a file written whole and closed at once needs less.
 SPACE_MARGIN_BYTES = 16 * 2**20
+SMALL_FILE_MARGIN_BYTES = 2**20
 
 
-def check_free_space(path: str | Path, needed_bytes: float, what: str = "") -> None:
-    """Raise DiskFullError unless the file system of ``path`` has ``needed_bytes`` + SPACE_MARGIN_BYTES free."""
+def check_free_space(path: str | Path, needed_bytes: float, what: str = "",
+                     margin_bytes: int = SPACE_MARGIN_BYTES) -> None:
+    """Raise DiskFullError unless the file system of ``path`` has ``needed_bytes`` + ``margin_bytes`` free."""
     path = Path(path)
     folder = next((p for p in (path.parent, *path.parent.parents) if p.is_dir()), Path("."))
     free = shutil.disk_usage(folder).free
-    if free < needed_bytes + SPACE_MARGIN_BYTES:
+    if free < needed_bytes + margin_bytes:
         raise DiskFullError(f"{path}: no space left on the device: {what or 'writing it'} needs about "
-                            f"{(needed_bytes + SPACE_MARGIN_BYTES) / 1e6:.1f} MB, {free / 1e6:.1f} MB are free")
+                            f"{(needed_bytes + margin_bytes) / 1e6:.1f} MB, {free / 1e6:.1f} MB are free")
 
 
 def input_bytes(paths: Iterable[str | Path]) -> int:

@@ -22,7 +22,7 @@ from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.nav.trajectory import Trajectory
 from autosar_cli.store.atomic import partial_path
 from autosar_cli.store.hdf5_read import read_dataset
-from autosar_cli.store.outputs import check_free_space
+from autosar_cli.store.outputs import SMALL_FILE_MARGIN_BYTES, check_free_space
 
 FORMAT = "autosar-trajectory"
 FORMAT_VERSION = 1
@@ -37,7 +37,7 @@ def write_trajectory(path: str | Path, traj: Trajectory, attrs: dict[str, Any] |
     arrays = (traj.t_ns, traj.rear_axle_enu, traj.heading, traj.speed, traj.yaw_rate, traj.state, traj.covariance)
     # the CoG positions (K, 3) are 1.5 times the rear axle's (K, 2)
     needed = sum(a.nbytes for a in arrays if a is not None) + traj.rear_axle_enu.nbytes * 3 // 2
-    check_free_space(path, needed, "the trajectory")
+    check_free_space(path, needed, "the trajectory", SMALL_FILE_MARGIN_BYTES)
     partial = partial_path(path)
     try:
         with h5py.File(partial, "w") as f:
