@@ -118,12 +118,13 @@ def _load_config(path: Path | None) -> Any:
     return load_config(path)
 
 
-def _prepare_output(path: Path, overwrite: bool, inputs: list[Path | str | None]) -> None:
+def _prepare_output(path: Path, overwrite: bool, inputs: list[Path | str | None],
+                    replaces_directory: bool = False) -> None:
     """Pass ``path`` through the output gate (store.outputs: never an input, --overwrite only replaces what
     autosar made); a file is then replaced atomically by its writer, a directory (rosbag2) removed here."""
     from autosar_cli.store.outputs import check_output, remove_product_directory
 
-    check_output(path, [p for p in inputs if p], overwrite=overwrite)
+    check_output(path, [p for p in inputs if p], overwrite=overwrite, replaces_directory=replaces_directory)
     if path.is_dir():
         remove_product_directory(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -161,7 +162,7 @@ def simulate(
         from autosar_cli.sim.truth import truth_path_for
 
         cfg = _load_config(config)
-        _prepare_output(output, overwrite, [cfg.source])
+        _prepare_output(output, overwrite, [cfg.source], replaces_directory=fmt is LogFormat.ros2)
         _prepare_output(truth_path_for(output), overwrite, [cfg.source])
         with _progress(f"simulate {scenario.value}", not as_json) as update:
             result = run_simulation(scenario.value, output, fmt=fmt.value, seed=seed, config=cfg, progress=update)

@@ -67,7 +67,11 @@ def test_overwrite_never_replaces_a_directory_or_a_foreign_file(tmp_path: Path) 
     (tree / "sub").mkdir(parents=True)
     keep = _foreign(tree / "sub" / "precious.txt")
     r = runner.invoke(app, ["ingest", str(log), "-o", str(tree), "--overwrite"])
-    _one_line_error(r, str(tree), "autosar did not write")
+    _one_line_error(r, str(tree), "is a directory")
+    assert (tree / "sub" / "precious.txt").read_bytes() == keep
+    (tree / "run.json").write_text('{"format": "autosar-run"}')  # even a run directory autosar made
+    r = runner.invoke(app, ["ingest", str(log), "-o", str(tree), "--overwrite"])
+    _one_line_error(r, str(tree), "is a directory")
     assert (tree / "sub" / "precious.txt").read_bytes() == keep
 
     foreign = tmp_path / "notes.h5"

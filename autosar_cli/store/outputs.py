@@ -29,11 +29,12 @@ class OutputError(ValueError):
 
 
 def check_output(path: str | Path, inputs: Iterable[str | Path] = (), *, overwrite: bool,
-                 directory: bool = False) -> None:
+                 directory: bool = False, replaces_directory: bool = False) -> None:
     """Refuse ``path`` as an output unless writing it harms nothing; raises OutputError/FileExistsError.
 
     ``inputs``: every file or directory the command reads. ``directory``: the output is a directory that
-    autosar fills (a run); else a file.
+    autosar fills (a run); else a file, or with ``replaces_directory`` a directory written whole (a
+    simulated rosbag2 log).
     """
     path = Path(path)
     _check_parent(path)
@@ -53,6 +54,8 @@ def check_output(path: str | Path, inputs: Iterable[str | Path] = (), *, overwri
         if not path.is_dir():
             raise OutputError(f"{path}: exists and is not a directory")
         return  # a run directory: its products are checked one by one (check_products)
+    if path.is_dir() and not replaces_directory:
+        raise OutputError(f"{path}: is a directory; the output is a file")
     if not overwrite:
         raise FileExistsError(f"{path}: already exists (use --overwrite to replace it)")
     if not is_autosar_product(path):
