@@ -324,3 +324,16 @@ def test_enospc_without_a_file_name_names_the_output(tmp_path: Path, monkeypatch
     monkeypatch.setattr(sim_mod, "simulate", full_disk)
     r = runner.invoke(app, ["simulate", "-o", str(tmp_path / "s.mcap")])
     _one_line_error(r, f"{tmp_path / 's.mcap'}: no space left on the device")
+
+
+def test_a_missing_dataset_names_the_file_and_the_dataset(tmp_path: Path, ci_mcap) -> None:
+    import h5py
+
+    drive = tmp_path / "drive.h5"
+    r = runner.invoke(app, ["ingest", str(ci_mcap.log_path), "-o", str(drive)])
+    assert r.exit_code == 0, r.output
+    with h5py.File(drive, "r+") as f:
+        del f["gnss/gnss_cog/fix/latitude_deg"]
+    r = runner.invoke(app, ["navigate", str(drive), "-o", str(tmp_path / "t.h5")])
+    _one_line_error(r, f"{drive}: dataset /gnss/gnss_cog/fix/latitude_deg is missing")
+    assert "synchronously" not in r.output
