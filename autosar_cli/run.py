@@ -18,6 +18,7 @@ import multiprocessing
 import os
 import pickle
 import platform
+import signal
 import sys
 import time
 import traceback
@@ -227,6 +228,10 @@ def _ingest_beside_imports(logs: list[Path], drive: Path, config: Config, progre
                 exc, remote = payload
                 exc.__cause__ = _RemoteTraceback(remote)
                 raise exc
+    except BaseException:
+        if child.is_alive():  # e.g. Ctrl-C or a kill of this process alone: the child aborts its drive too
+            os.kill(child.pid, signal.SIGINT)
+        raise
     finally:
         receive.close()
         if child.is_alive():

@@ -337,3 +337,24 @@ def test_a_missing_dataset_names_the_file_and_the_dataset(tmp_path: Path, ci_mca
     r = runner.invoke(app, ["navigate", str(drive), "-o", str(tmp_path / "t.h5")])
     _one_line_error(r, f"{drive}: dataset /gnss/gnss_cog/fix/latitude_deg is missing")
     assert "synchronously" not in r.output
+
+
+def test_ctrl_c_during_runs_ingest_stops_its_child_without_leaving_a_partial(tmp_path: Path, ci_mcap) -> None:
+    import signal
+    import subprocess
+    import time
+
+    script = shutil.which("autosar")
+    if script is None:
+        pytest.skip("the autosar console script is not installed")
+    out = tmp_path / "run"
+    proc = subprocess.Popen([script, "run", str(ci_mcap.log_path), "-o", str(out)], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not list(out.glob("*.partial*")) and time.monotonic() < deadline:  # the forked ingest is writing
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGINT)  # to the parent alone, as `kill -INT` does
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and stderr.strip() == "error: interrupted", stderr
+    time.sleep(0.5)  # the child's abort has finished when its parent has joined it; allow a margin anyway
+    assert not list(out.glob("*partial*")) and not (out / "drive.h5").exists()
