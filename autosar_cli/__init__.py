@@ -5,26 +5,26 @@ from __future__ import annotations
 __version__ = "0.1.0"
 
 
-def _quiet_interrupt_while_starting() -> None:
-    """Ctrl-C while the ``autosar`` command is still importing: "interrupted", exit 130, no traceback.
+def exit_interrupted(signum: int, frame: object) -> None:
+    """SIGINT handler of the ``autosar`` command outside a command's body (while it imports, parses its
+    arguments, or has finished): "interrupted", exit 130, no traceback. A command's body (``cli._errors``)
+    swaps in Python's KeyboardInterrupt instead, so that its writers stop and remove their partial files."""
+    import os
 
-    Only for the console script (a library import leaves the signal alone); ``autosar_cli.cli.main`` restores
-    Python's handler once its imports are done, and from then on reports KeyboardInterrupt the same way.
-    """
+    os.write(2, b"error: interrupted\n")
+    os._exit(130)
+
+
+def _quiet_interrupt_while_starting() -> None:
+    """Install :func:`exit_interrupted` for the console script (a library import leaves the signal alone)."""
     import os
     import signal
     import sys
 
     if os.path.basename(sys.argv[0]) not in ("autosar", "autosar.exe"):
         return
-    if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
-        return
-
-    def interrupted(signum: int, frame: object) -> None:
-        os.write(2, b"error: interrupted\n")
-        os._exit(130)
-
-    signal.signal(signal.SIGINT, interrupted)
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, exit_interrupted)
 
 
 _quiet_interrupt_while_starting()

@@ -28,7 +28,7 @@ from rich.progress import (
 )
 from rich.table import Column, Table
 
-from autosar_cli import __version__
+from autosar_cli import __version__, exit_interrupted
 
 app = typer.Typer(
     name="autosar",
@@ -93,7 +93,12 @@ def main_options(
 def _errors(writing: Path | None = None) -> Iterator[None]:
     """Turn expected failures into a one-line message and exit code 1 (tracebacks only with --debug).
 
-    ``writing``: the command's output, named when a full disk (ENOSPC) says no file of its own."""
+    ``writing``: the command's output, named when a full disk (ENOSPC) says no file of its own. Inside, Ctrl-C
+    is a KeyboardInterrupt (writers clean up, then "interrupted", 130); outside, the console script's
+    start-up handler (autosar_cli.exit_interrupted) says the same and exits at once."""
+    quick_exit = signal.getsignal(signal.SIGINT) is exit_interrupted
+    if quick_exit:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         yield
     except (typer.Exit, typer.Abort):
@@ -110,6 +115,9 @@ def _errors(writing: Path | None = None) -> Iterator[None]:
         # escaped: a message quoting a value such as [inf] or a path with brackets is not rich markup
         err.print(f"[red]error:[/] {escape(msg)}", highlight=False, soft_wrap=True)
         raise typer.Exit(1) from None
+    finally:
+        if quick_exit:
+            signal.signal(signal.SIGINT, exit_interrupted)
 
 
 def _load_config(path: Path | None) -> Any:
@@ -670,9 +678,6 @@ def main() -> None:
         from autosar_cli.ingest import mf4_support
 
         mf4_support.defer()  # python-can without asammdf and pandas (~0.35 s) until an .mf4 log is opened
-        # from here on Ctrl-C is a KeyboardInterrupt again (autosar_cli's start-up handler exited at once),
-        # so that a command stops its writers and removes its partial files
-        signal.signal(signal.SIGINT, signal.default_int_handler)
         app()
         code: int | str | None = 0
     except SystemExit as exc:
