@@ -5,6 +5,31 @@ from __future__ import annotations
 __version__ = "0.1.0"
 
 
+def exit_interrupted(signum: int, frame: object) -> None:
+    """SIGINT handler of the ``autosar`` command outside a command's body (while it imports, parses its
+    arguments, or has finished): "interrupted", exit 130, no traceback. A command's body (``cli._errors``)
+    swaps in Python's KeyboardInterrupt instead, so that its writers stop and remove their partial files."""
+    import os
+
+    os.write(2, b"error: interrupted\n")
+    os._exit(130)
+
+
+def _quiet_interrupt_while_starting() -> None:
+    """Install :func:`exit_interrupted` for the console script (a library import leaves the signal alone)."""
+    import os
+    import signal
+    import sys
+
+    if os.path.basename(sys.argv[0]) not in ("autosar", "autosar.exe"):
+        return
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, exit_interrupted)
+
+
+_quiet_interrupt_while_starting()
+
+
 def _prefer_wide_vectors() -> None:
     """Let numba emit 512-bit vectors on AVX-512 CPUs.
 
@@ -51,8 +76,21 @@ def _two_threads_per_cpu() -> None:
     os.environ["NUMBA_NUM_THREADS"] = str(2 * max(1, n_cpu))
 
 
+def _writable_kernel_cache() -> None:
+    """A temporary directory for numba's cache where neither the install nor the home can hold it (numba
+    would otherwise refuse to define the kernels); see autosar_cli.kernel_cache."""
+    import sys
+
+    if "numba" in sys.modules:
+        return
+    from autosar_cli.kernel_cache import ensure_cache_dir
+
+    ensure_cache_dir()
+
+
 _prefer_wide_vectors()
 _two_threads_per_cpu()
+_writable_kernel_cache()
 
 from autosar_cli.config import Config, ConfigError, load_config  # noqa: E402
 

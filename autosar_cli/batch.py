@@ -140,13 +140,26 @@ def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, m
         report("failed", 1, 1)
         return record
     st = manifest["stages"]
-    record.update(status="ok", error=None, wall_s=time.perf_counter() - t0, drive_s=manifest.get("drive_s"),
+    warnings = run_warnings(manifest)
+    record.update(status="degraded" if warnings else "ok", error=None, warnings=warnings,
+                  wall_s=time.perf_counter() - t0, drive_s=manifest.get("drive_s"),
                   stages_s={k: v["wall_s"] for k, v in st.items()}, grid_shape=st["focus"]["grid_shape"],
                   frames_used=st["focus"]["frames_used"], backprojections=st["focus"]["backprojections"],
                   outputs={"run": "run.json", **{k: v for k, v in manifest["outputs"].items() if k != "image"},
                            **{f"image_{k}": v for k, v in manifest["outputs"].get("image", {}).items()}})
     report("done", 1, 1)
     return record
+
+
+def run_warnings(manifest: dict[str, Any]) -> list[str]:
+    """What a finished run warned about (ingest: a truncated or damaged log, dropped data; autofocus not
+    applied): a drive with any is ``degraded`` in batch.json, not plain ``ok``."""
+    st = manifest.get("stages", {})
+    warnings = [str(w) for w in st.get("ingest", {}).get("warnings", [])]
+    af = st.get("autofocus")
+    if af and not af.get("applied", True):
+        warnings.append(f"autofocus: {af.get('summary', 'not applied')}")
+    return warnings
 
 
 #: Imported on every worker before the first drive (the chain imports some of them on first use).
@@ -301,13 +314,15 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
             cluster.close()
     ordered = [records[n] for n in names]
     n_ok = sum(r["status"] == "ok" for r in ordered)
+    n_degraded = sum(r["status"] == "degraded" for r in ordered)
     manifest = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
         "python": platform.python_version(), "command": command, "config": config.source, "method": method,
         "autofocus": autofocus, "focus_options": asdict(options), "started": started, "cluster": cluster_info,
-        "retries": retries, "drives": ordered, "ok": n_ok, "failed": len(ordered) - n_ok, "wall_s": wall,
+        "retries": retries, "drives": ordered, "ok": n_ok, "degraded": n_degraded,
+        "failed": len(ordered) - n_ok - n_degraded, "wall_s": wall,
         "total_wall_s": time.perf_counter() - t_start,
-        "drives_per_minute": 60.0 * n_ok / wall if wall > 0 else None,
+        "drives_per_minute": 60.0 * (n_ok + n_degraded) / wall if wall > 0 else None,
     }
     with atomic_output(out / MANIFEST, overwrite=True) as tmp:
         tmp.write_text(json.dumps(manifest, indent=2, default=str) + "\n")

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import errno
 import gc
 import json
-import shutil
+import signal
 import sys
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from enum import StrEnum
@@ -14,6 +16,7 @@ from typing import Annotated, Any
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import (
     BarColumn,
     DownloadColumn,
@@ -26,7 +29,7 @@ from rich.progress import (
 )
 from rich.table import Column, Table
 
-from autosar_cli import __version__
+from autosar_cli import __version__, exit_interrupted
 
 app = typer.Typer(
     name="autosar",
@@ -103,8 +106,17 @@ def main_options(
 
 
 @contextmanager
-def _errors() -> Iterator[None]:
-    """Turn expected failures into a one-line message and exit code 1 (tracebacks only with --debug)."""
+def _errors(writing: Path | None = None) -> Iterator[None]:
+    """Turn expected failures into a one-line message and exit code 1 (tracebacks only with --debug).
+
+    ``writing``: the command's output, named when a full disk (ENOSPC) says no file of its own. Inside, Ctrl-C
+    is a KeyboardInterrupt (writers clean up, then "interrupted", 130); outside, the console script's
+    start-up handler (autosar_cli.exit_interrupted) says the same and exits at once."""
+    quick_exit = signal.getsignal(signal.SIGINT) is exit_interrupted
+    if quick_exit:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    unraisable_hook = sys.unraisablehook
+    sys.unraisablehook = _interrupt_again(unraisable_hook)
     try:
         yield
     except (typer.Exit, typer.Abort):
@@ -116,8 +128,28 @@ def _errors() -> Iterator[None]:
         if _state["debug"]:
             raise
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        err.print(f"[red]error:[/] {msg}", highlight=False, soft_wrap=True)
+        if isinstance(exc, OSError) and exc.errno == errno.ENOSPC and str(writing or "") not in msg:
+            msg = f"{exc.filename or writing}: no space left on the device"
+        # escaped: a message quoting a value such as [inf] or a path with brackets is not rich markup
+        err.print(f"[red]error:[/] {escape(msg)}", highlight=False, soft_wrap=True)
         raise typer.Exit(1) from None
+    finally:
+        sys.unraisablehook = unraisable_hook
+        if quick_exit:
+            signal.signal(signal.SIGINT, exit_interrupted)
+
+
+def _interrupt_again(hook: Callable[[Any], None]) -> Callable[[Any], None]:
+    """An unraisable-exception hook that raises a Ctrl-C swallowed in a destructor (or a callback) again, where
+    it can stop the command, instead of printing "Exception ignored ..." and going on."""
+
+    def interrupt_again(unraisable: Any) -> None:
+        if unraisable.exc_type is KeyboardInterrupt:  # raised from here it would be unraisable again: a moment later
+            threading.Timer(0.01, signal.raise_signal, (signal.SIGINT,)).start()
+            return
+        hook(unraisable)
+
+    return interrupt_again
 
 
 def _load_config(path: Path | None) -> Any:
@@ -126,14 +158,15 @@ def _load_config(path: Path | None) -> Any:
     return load_config(path)
 
 
-def _prepare_output(path: Path, overwrite: bool) -> None:
-    if path.exists():
-        if not overwrite:
-            raise FileExistsError(f"{path}: already exists (use --overwrite to replace it)")
-        if path.is_dir():
-            shutil.rmtree(path)
-        else:
-            path.unlink()
+def _prepare_output(path: Path, overwrite: bool, inputs: list[Path | str | None],
+                    replaces_directory: bool = False) -> None:
+    """Pass ``path`` through the output gate (store.outputs: never an input, --overwrite only replaces what
+    autosar made); a file is then replaced atomically by its writer, a directory (rosbag2) removed here."""
+    from autosar_cli.store.outputs import check_output, remove_product_directory
+
+    check_output(path, [p for p in inputs if p], overwrite=overwrite, replaces_directory=replaces_directory)
+    if path.is_dir():
+        remove_product_directory(path)
     path.parent.mkdir(parents=True, exist_ok=True)
 
 
@@ -166,16 +199,16 @@ def simulate(
     as_json: JsonOpt = False,
 ) -> None:
     """Write a realistic synthetic drive log (radar, CAN, GNSS, IMUs) plus a ground-truth sidecar <log>.truth.h5."""
-    with _errors():
+    with _errors(output):
         from autosar_cli.sim.simulate import capture_dir_for
         from autosar_cli.sim.simulate import simulate as run_simulation
         from autosar_cli.sim.truth import truth_path_for
 
         cfg = _load_config(config)
-        _prepare_output(output, overwrite)
-        _prepare_output(truth_path_for(output), overwrite)
+        _prepare_output(output, overwrite, [cfg.source], replaces_directory=fmt is LogFormat.ros2)
+        _prepare_output(truth_path_for(output), overwrite, [cfg.source])
         if fmt == LogFormat.dca1000:
-            _prepare_output(capture_dir_for(output), overwrite)
+            _prepare_output(capture_dir_for(output), overwrite, [cfg.source], replaces_directory=True)
         with _progress(f"simulate {scenario.value}", not as_json) as update:
             result = run_simulation(scenario.value, output, fmt=fmt.value, seed=seed, config=cfg, progress=update)
         summary = {
@@ -219,7 +252,7 @@ def ingest(
     as_json: JsonOpt = False,
 ) -> None:
     """Decode CAN (with a DBC), GNSS, IMU and raw radar frames of drive logs into one drive.h5, streaming."""
-    with _errors():
+    with _errors(output):
         from autosar_cli.ingest.pipeline import classify_input
         from autosar_cli.ingest.pipeline import ingest as run_ingest
 
@@ -228,7 +261,10 @@ def ingest(
                                         "radar": [radar] if radar else []}
         for p in logs or []:
             kinds[classify_input(p)].append(p)
-        _prepare_output(output, overwrite)
+        _prepare_output(output, overwrite, [*(logs or []), *kinds["can"], *kinds["nmea"], dbc, cfg.source])
+        from autosar_cli.store.outputs import check_free_space, input_bytes
+
+        check_free_space(output, input_bytes([*(logs or []), *kinds["can"], *kinds["nmea"]]), "the drive")
         with _progress("ingest", not as_json, in_bytes=True) as update:
             report = run_ingest(kinds["log"], output, config=cfg, dbc=dbc, can_logs=kinds["can"],
                                 nmea_logs=kinds["nmea"], radar_captures=kinds["radar"],
@@ -262,7 +298,7 @@ def ingest(
         for sk in report.skipped_channels:
             out.print(f"skipped {sk['topic']} ({sk['msgtype']}): {sk['reason']}", highlight=False)
         for w in report.warnings:
-            err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+            err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
 
 
 @app.command()
@@ -283,14 +319,14 @@ def navigate(
     as_json: JsonOpt = False,
 ) -> None:
     """Estimate the vehicle trajectory of a drive (SAR-MIN UKF + RTS smoother, or a baseline)."""
-    with _errors():
+    with _errors(output):
         import numpy as np
 
         from autosar_cli.nav.navigate import navigate as run_navigate
         from autosar_cli.store.trajectory import write_trajectory
 
         cfg = _load_config(config)
-        _prepare_output(output, overwrite)
+        _prepare_output(output, overwrite, [drive, truth, cfg.source])
         traj = run_navigate(drive, method.value, cfg, smooth=not no_smooth, truth_path=truth)
         write_trajectory(output, traj)
         figure = None
@@ -347,7 +383,7 @@ def focus(
     as_json: JsonOpt = False,
 ) -> None:
     """Focus the radar with time-domain back-projection (stripmap, coherent MIMO sum) into georeferenced images."""
-    with _errors():
+    with _errors(output):
         from autosar_cli.sar.focus import FocusOptions
         from autosar_cli.sar.focus import focus as run_focus
 
@@ -397,7 +433,7 @@ def run(
     as_json: JsonOpt = False,
 ) -> None:
     """Ingest, navigate and focus a drive in one go; every product in one directory plus a run.json manifest."""
-    with _errors():
+    with _errors(output):
         from autosar_cli.run import run as run_chain
 
         cfg = _load_config(config)
@@ -557,16 +593,30 @@ def compare(
 @app.command()
 def info(
     path: Annotated[Path, typer.Argument(help="A drive log (.mcap, .bag, rosbag2 directory), a TI DCA1000 capture "
-                                         "or a drive.h5.")],
+                                         "or a drive.h5; or any directory, for its stale partial files.")],
     as_json: JsonOpt = False,
 ) -> None:
-    """Summarise a log or drive.h5: streams, message types, counts, rates, time span and gaps."""
+    """Summarise a log or drive.h5: streams, message types, counts, rates, time span and gaps; and list the
+    partial files that killed autosar processes left beside it."""
     with _errors():
+        from autosar_cli.store.atomic import stale_partials
+
+        folder = path if path.is_dir() else path.parent
+        stale = [str(p) for p in stale_partials(folder)]
+        from autosar_cli.ingest.dca1000 import is_capture
+
+        if path.is_dir() and not (path / "metadata.yaml").exists() and not is_capture(path):  # a plain directory
+            if as_json:
+                out.print_json(json.dumps({"path": str(path), "stale_partials": stale}))
+                return
+            out.print(f"[bold]{escape(str(path))}[/]: {len(stale)} stale partial file(s)"
+                      + "".join(f"\n  {escape(p)}" for p in stale))
+            return
         from autosar_cli.ingest.inspect import summarize
 
         summary = summarize(path)
         if as_json:
-            out.print_json(json.dumps(summary.to_dict()))
+            out.print_json(json.dumps({**summary.to_dict(), "stale_partials": stale}))
             return
         d = summary.to_dict()
         out.print(f"[bold]{path}[/]  {summary.container}, {summary.size_bytes / 1e6:.1f} MB, "
@@ -581,7 +631,10 @@ def info(
                 radar.add_row(key, str(item["value"]), item["source"])
             out.print(radar)
         for w in summary.warnings:
-            err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+            err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
+        for p in stale:
+            err.print(f"[yellow]stale partial file:[/] {escape(p)} (left by a killed autosar; the next command "
+                      f"writing there removes it)", highlight=False, soft_wrap=True)
 
 
 @contextmanager
@@ -667,34 +720,42 @@ def batch(
             out.print_json(json.dumps(manifest, default=str))
         else:
             table = Table("drive", "status", "attempts", "wall (s)", "worker", "result")
+            status = {"ok": "[green]ok[/]", "degraded": "[yellow]degraded[/]", "failed": "[red]failed[/]"}
             for r in manifest["drives"]:
-                ok = r["status"] == "ok"
+                ok = r["status"] != "failed"
                 result = (f"{r['grid_shape'][0]} x {r['grid_shape'][1]} px, {r['output']}/image.tif" if ok
                           else r["error"])
-                table.add_row(r["name"], "[green]ok[/]" if ok else "[red]failed[/]", str(r.get("attempts") or ""),
+                table.add_row(r["name"], status[r["status"]], str(r.get("attempts") or ""),
                               f"{r['wall_s']:.1f}" if r.get("wall_s") is not None else "–", r.get("worker", "–"),
                               result)
             out.print(table)
             rate = manifest["drives_per_minute"]
-            out.print(f"wrote [bold]{Path(output) / 'batch.json'}[/]: {manifest['ok']} of {len(manifest['drives'])} "
-                      f"drives ok in {manifest['wall_s']:.1f} s" + (f" ({rate:.1f} drives/min)" if rate else ""))
+            degraded = f" ({manifest['degraded']} degraded)" if manifest.get("degraded") else ""
+            out.print(f"wrote [bold]{Path(output) / 'batch.json'}[/]: "
+                      f"{manifest['ok'] + manifest.get('degraded', 0)} of {len(manifest['drives'])} drives done"
+                      f"{degraded} in {manifest['wall_s']:.1f} s" + (f" ({rate:.1f} drives/min)" if rate else ""))
         for r in manifest["drives"]:
-            if r["status"] != "ok":
-                err.print(f"[red]failed:[/] {r['name']}: {r['error']}", highlight=False, soft_wrap=True)
+            if r["status"] == "failed":
+                err.print(f"[red]failed:[/] {r['name']}: {escape(r['error'])}", highlight=False, soft_wrap=True)
+            for w in r.get("warnings", []) if r["status"] == "degraded" else []:
+                err.print(f"[yellow]degraded:[/] {r['name']}: {escape(w)}", highlight=False, soft_wrap=True)
         if manifest["failed"]:
             raise typer.Exit(1)
 
 
 def main() -> None:
     """Console-script entry point."""
-    from autosar_cli.ingest import mf4_support
-
-    mf4_support.defer()  # python-can without asammdf and pandas (~0.35 s) until an .mf4 log is opened
     try:
+        from autosar_cli.ingest import mf4_support
+
+        mf4_support.defer()  # python-can without asammdf and pandas (~0.35 s) until an .mf4 log is opened
         app()
         code: int | str | None = 0
     except SystemExit as exc:
         code = exc.code
+    except KeyboardInterrupt:
+        err.print("[red]error:[/] interrupted")
+        code = 130
     # The command is over and its products are closed. Frozen, the objects of numba, scipy, pandas and matplotlib
     # are no longer walked by the collections of the interpreter's shutdown: 0.7-0.8 s -> 0.1 s after
     # `autosar run` (measured). atexit handlers still run.

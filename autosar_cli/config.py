@@ -270,6 +270,10 @@ def load_config(path: str | Path | None = None) -> Config:
         raise ConfigError(f"{p}: config file not found") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{p}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{p}: not valid TOML: not UTF-8 text (byte {exc.start})") from None
+    except OSError as exc:
+        raise ConfigError(f"{p}: cannot read the config: {exc.strerror}") from None
     try:
         cfg = config_from_dict(raw, source=str(p.resolve()))
     except ConfigError as exc:
@@ -355,6 +359,21 @@ def _join(path: str, key: str) -> str:
 # ----------------------------------------------------------------------------- validation
 
 
+def _all_finite(node: Any, path: str) -> None:
+    """Every number anywhere in the config is finite (nan or inf has no meaning in any setting)."""
+    if is_dataclass(node):
+        for f in fields(node):
+            _all_finite(getattr(node, f.name), _join(path, f.name))
+    elif isinstance(node, dict):
+        for k, v in node.items():
+            _all_finite(v, _join(path, str(k)))
+    elif isinstance(node, tuple):
+        for i, v in enumerate(node):
+            _all_finite(v, f"{path}[{i}]")
+    elif isinstance(node, float) and not math.isfinite(node):
+        raise ConfigError(f"{path}: must be finite, got {node!r}")
+
+
 def _positive(path: str, value: float) -> None:
     if not (math.isfinite(value) and value > 0):
         raise ConfigError(f"{path}: must be a positive finite number, got {value!r}")
@@ -371,6 +390,7 @@ def _finite_vector(path: str, values: tuple[float, ...]) -> None:
 
 
 def _validate(cfg: Config) -> None:
+    _all_finite(cfg, "")
     v = cfg.vehicle
     for name in ("wheelbase_m", "track_front_m", "track_rear_m", "steering_ratio", "wheel_radius_m"):
         _positive(f"vehicle.{name}", getattr(v, name))
@@ -443,6 +463,15 @@ def _validate(cfg: Config) -> None:
             if errors is not None:
                 for f in fields(errors):
                     _non_negative(f"{base}.{sub}.{f.name}", getattr(errors, f.name))
+
+    nav = cfg.navigation
+    for name in ("speed_noise_mps2", "yaw_rate_noise_radps2", "gnss_position_std_m", "max_step_s"):
+        _positive(f"navigation.{name}", getattr(nav, name))
+    _non_negative("navigation.position_noise_m", nav.position_noise_m)
+    _non_negative("navigation.steering_min_speed_mps", nav.steering_min_speed_mps)
+    if not 0.0 < nav.gate_probability < 1.0:
+        raise ConfigError(f"navigation.gate_probability: must lie strictly between 0 and 1, got "
+                          f"{nav.gate_probability!r}")
 
     p = cfg.processing
     _positive("processing.pixel_m", p.pixel_m)

@@ -1,4 +1,9 @@
-"""Loading numba's compiled kernels from its on-disk cache before their first call.
+"""numba's on-disk cache of compiled kernels: where it lives, and loading from it before a kernel's first call.
+
+Every kernel is compiled with ``cache=True``. numba keeps the cache beside the package's sources, else in the
+user's cache directory (``~/.cache/numba``); where neither is writable (a read-only install and no writable
+home) it refuses to define the kernels at all ("no locator available"), so :func:`ensure_cache_dir` points
+``NUMBA_CACHE_DIR`` at a directory under the system's temporary directory before numba is imported.
 
 Every kernel is compiled with ``cache=True``; a fresh process still pays, at each kernel's first call, for
 reading and linking its cached machine code (~0.1 s for navigation, ~0.3 s for focus on the development
@@ -9,7 +14,42 @@ child) can take it out of the later stages. Nothing is compiled: entries of othe
 
 from __future__ import annotations
 
+import os
+import tempfile
+from collections.abc import MutableMapping
+from pathlib import Path
 from types import ModuleType
+
+
+def fallback_cache_dir(package_dir: Path, env: MutableMapping[str, str]) -> Path | None:
+    """The cache directory to use when numba would find none writable (``env`` has no NUMBA_CACHE_DIR, the
+    package's ``__pycache__`` and the user cache directory cannot be written); None when numba finds one."""
+    if env.get("NUMBA_CACHE_DIR"):
+        return None
+    if _writable(package_dir / "__pycache__"):
+        return None
+    home = Path(env["HOME"]) if env.get("HOME") else Path.home()
+    user_cache = Path(env.get("XDG_CACHE_HOME") or home / ".cache") / "numba"
+    if _writable(user_cache):
+        return None
+    uid = os.getuid() if hasattr(os, "getuid") else 0
+    return Path(tempfile.gettempdir()) / f"autosar-numba-cache-{uid}"
+
+
+def ensure_cache_dir(env: MutableMapping[str, str] = os.environ) -> Path | None:
+    """Set NUMBA_CACHE_DIR to :func:`fallback_cache_dir` where needed (before numba's import); returns it."""
+    fallback = fallback_cache_dir(Path(__file__).resolve().parent, env)
+    if fallback is not None:
+        env["NUMBA_CACHE_DIR"] = str(fallback)
+    return fallback
+
+
+def _writable(folder: Path) -> bool:
+    """Whether ``folder`` is, or could be created as, a directory this process can write in."""
+    for p in (folder, *folder.parents):
+        if p.exists():
+            return p.is_dir() and os.access(p, os.W_OK | os.X_OK)
+    return False
 
 
 def load_cached_kernels(*modules: ModuleType) -> int:

@@ -13,12 +13,15 @@ config file, the method and focus parameters, per-stage wall times and summaries
 
 from __future__ import annotations
 
+import contextlib
 import json
 import multiprocessing
 import os
 import pickle
 import platform
+import signal
 import sys
+import threading
 import time
 import traceback
 from collections.abc import Callable, Sequence
@@ -30,8 +33,10 @@ import numpy as np
 
 from autosar_cli import __version__
 from autosar_cli.config import Config
+from autosar_cli.sar.grid import GridError, check_image_size
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.manifest import json_default, read_json_manifest
+from autosar_cli.store.outputs import check_free_space, check_output, check_products, input_bytes
 
 if TYPE_CHECKING:
     from autosar_cli.sar.focus import FocusOptions
@@ -68,6 +73,22 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     manifest_path = out / "run.json"
     if manifest_path.exists() and not overwrite:
         raise RunError(f"{out}: already holds a run (run.json); pass --overwrite to replace it")
+    # every check that needs no data before the ingest starts: outputs (never an input, only autosar's replaced)
+    # and the image's size
+    inputs = [*logs, *([truth_path] if truth_path else []), *([config.source] if config.source else [])]
+    check_output(out, inputs, overwrite=overwrite, directory=True)
+    check_products(out, [DRIVE, TRAJECTORY, "run.json"], inputs, overwrite=True)
+    check_products(out, [f"{IMAGE}.tif", f"{IMAGE}.h5", f"{IMAGE}.png"], inputs, overwrite=True)
+    check_free_space(out / DRIVE, input_bytes(logs), "the drive")
+    if options is None:  # the config's automatic grid (focus's own modules are imported beside the ingest)
+        try:
+            check_image_size(config.processing.pixel_m, max_range_m=config.radar.max_range_m)
+        except GridError as exc:
+            raise RunError(f"grid: {exc}") from None
+    else:
+        from autosar_cli.sar.focus import check_request
+
+        check_request(options, out / IMAGE, True, inputs, config)
     out.mkdir(parents=True, exist_ok=True)
     inputs = [{"path": str(Path(p)), "size_bytes": _size(Path(p))} for p in logs]
     manifest: dict[str, Any] = {
@@ -190,9 +211,13 @@ def _ingest_beside_imports(logs: list[Path], drive: Path, config: Config, progre
     sys.stderr.flush()
     child = ctx.Process(target=_ingest_child, args=(send, logs, drive, config, command, radar_options),
                         name="autosar-ingest")
-    child.start()
-    send.close()
-    try:
+    child_pid: list[int] = []
+    forwarded: list[bool] = []
+    restore_sigint = _forward_sigint_to(child_pid, forwarded)
+    try:  # from before the fork: a Ctrl-C at any moment after it reaches the child or is passed on below
+        child.start()
+        child_pid.append(child.pid)
+        send.close()
         _prepare_later_stages()
         while True:
             try:
@@ -209,13 +234,42 @@ def _ingest_beside_imports(logs: list[Path], drive: Path, config: Config, progre
                 exc, remote = payload
                 exc.__cause__ = _RemoteTraceback(remote)
                 raise exc
+    except BaseException:
+        if child.is_alive() and not forwarded:  # e.g. a kill of this process alone: the child aborts its drive too
+            os.kill(child.pid, signal.SIGINT)
+        raise
     finally:
+        restore_sigint()
         receive.close()
         if child.is_alive():
             child.join(timeout=5.0)
         if child.is_alive():
             child.terminate()
             child.join()
+
+
+def _forward_sigint_to(child_pid: list[int], forwarded: list[bool]) -> Callable[[], None]:
+    """Until the returned function is called, Ctrl-C reaches the ingest child (``child_pid``, once it is
+    known) at once, and then this process as before: a KeyboardInterrupt raised here can be swallowed (in a
+    destructor, while kernels load), but the child's abort still comes back through the pipe as its error.
+    ``forwarded`` gets an entry when it has been. The child, forked with this handler, has no pid in its copy
+    of the list and just raises. Only from the main thread (else a no-op)."""
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+    previous = signal.getsignal(signal.SIGINT)
+
+    def forward(signum: int, frame: Any) -> None:
+        if child_pid and not forwarded:  # once: a second SIGINT could interrupt the child's own clean-up
+            forwarded.append(True)
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(child_pid[0], signal.SIGINT)
+        if callable(previous):
+            previous(signum, frame)
+        elif previous != signal.SIG_IGN:
+            raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, forward)
+    return lambda: signal.signal(signal.SIGINT, previous)
 
 
 class _RemoteTraceback(Exception):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import struct
 from pathlib import Path
 
@@ -187,7 +188,7 @@ def test_png_quicklook(rotated_products: tuple[FocusedImage, dict[str, Path]]) -
 
 def test_failed_tif_write_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     def boom(*args: object, **kwargs: object) -> dict[str, str]:
-        assert (tmp_path / "scene.partial.tif").exists()  # the failure happens with a half-written file
+        assert (tmp_path / f"scene.partial-{os.getpid()}.tif").exists()  # the failure happens half-written
         raise RuntimeError("disk full")
 
     monkeypatch.setattr(image_mod, "_tif_tags", boom)
@@ -222,7 +223,7 @@ def test_atomic_output_keeps_the_old_file_on_failure(tmp_path: Path) -> None:
     target = tmp_path / "a.txt"
     target.write_text("old")
     with pytest.raises(ValueError, match="half"), atomic_output(target, overwrite=True) as tmp:
-        assert tmp.name == "a.partial.txt"
+        assert tmp.name == f"a.partial-{os.getpid()}.txt"
         tmp.write_text("half")
         raise ValueError("half")
     assert target.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["a.txt"]

@@ -58,6 +58,7 @@ from autosar_cli.sar.focus import FocusOptions, auto_grid, focus_images
 from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.store.drive import Drive, radar_times
 from autosar_cli.store.image import write_image
+from autosar_cli.store.outputs import check_output
 from autosar_cli.store.trajectory import write_trajectory
 
 FORMAT = "autosar-compare"
@@ -114,6 +115,7 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
     out = Path(out_dir)
     if (out / "compare.json").exists() and not overwrite:
         raise CompareError(f"{out}: already holds a comparison (compare.json); pass --overwrite to replace it")
+    check_output(out, [*logs, *([truth_path] if truth_path else [])], overwrite=overwrite, directory=True)
     methods = parse_methods(methods)
     options = options or FocusOptions.from_config(config)
     tick = progress or (lambda stage, done, total: None)

@@ -1,6 +1,6 @@
 """Report figures (PNG, matplotlib Agg): trajectory error, reflector chips, side-by-side images, across-track.
 
-Every figure is written atomically (``<name>.partial.png``, then renamed) and its path returned.
+Every figure is written atomically (``<name>.partial-<pid>.png``, then renamed) and its path returned.
 """
 
 from __future__ import annotations

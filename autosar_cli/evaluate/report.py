@@ -25,6 +25,7 @@ from autosar_cli.sim.truth import truth_path_for
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.drive import Drive
 from autosar_cli.store.image import read_image
+from autosar_cli.store.outputs import check_output
 from autosar_cli.store.trajectory import read_trajectory
 
 METRICS = "metrics.json"
@@ -132,6 +133,8 @@ def evaluate_run(source: str | Path, out_dir: str | Path, truth_path: str | Path
     if (out / METRICS).exists() and not overwrite:
         raise EvaluateError(f"{out}: already holds an evaluation ({METRICS}); pass --overwrite to replace it")
     inputs = resolve_inputs(source, truth_path, config)
+    check_output(out, [p for p in (inputs.image_path, inputs.trajectory_path, inputs.drive_path, inputs.truth_path)
+                       if p], overwrite=overwrite, directory=True)
     if progress:
         progress("evaluate", 0, 1)
     image = read_image(inputs.image_path)

@@ -476,8 +476,8 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
     hashes: list[Future[tuple[int, str]]] = [hasher.submit(_sha256, p) for p, _, _ in sources]
     attrs = {"autosar_version": __version__, "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
              "config_path": config.source, "config_toml": _config_text(config)}
-    writer = DriveWriter(output, attrs)
     done = 0
+    writer = DriveWriter(output, attrs)
     try:
         job = _Ingest(writer, config, dbc, radar_options)
         for path, kind, src in sources:

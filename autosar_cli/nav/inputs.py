@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 from autosar_cli.config import Config
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.store.drive import Drive
+from autosar_cli.store.hdf5_read import dataset_errors, read_dataset
 
 Array = NDArray[np.float64]
 
@@ -65,7 +66,7 @@ def lsb_of(values: Array) -> float:
 
 def _columns(group: h5py.Group, names: tuple[str, ...]) -> dict[str, np.ndarray]:
     """The named datasets of a series group (only those: a group holds many more columns than navigation uses)."""
-    return {k: group[k][()] for k in names}
+    return {k: read_dataset(group, k) for k in names}
 
 
 def load_inputs(drive: Drive, config: Config) -> NavInputs:
@@ -98,10 +99,11 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         if role not in roles:
             return drive.can_role(role)  # raises the KeyError naming the known roles
         message, signal = roles[role].split("/")
-        g = h5["can"][message]
+        with dataset_errors(drive.path, f"/can/{message}"):
+            g = h5["can"][message]
         if message not in can_times:
-            can_times[message] = g["t_ns"][()]
-        return can_times[message], g[signal][()]
+            can_times[message] = read_dataset(g, "t_ns", drive.path)
+        return can_times[message], read_dataset(g, signal, drive.path)
 
     out = NavInputs(t0, origin, gnss_lever_m=lever)  # type: ignore[arg-type]
     enu = origin.to_enu(fix["latitude_deg"], fix["longitude_deg"], fix["altitude_m"])

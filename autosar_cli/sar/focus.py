@@ -14,7 +14,7 @@ import math
 import threading
 import time
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field, replace
 from functools import partial
@@ -29,11 +29,12 @@ from autosar_cli import __version__
 from autosar_cli.config import Config
 from autosar_cli.nav.trajectory import Trajectory, antenna_lever_arms, cumulative_travel, radar_phase_centres
 from autosar_cli.sar.backprojection import PulseBlock, backproject_block
-from autosar_cli.sar.grid import FocusGrid, GridError, box_grid, track_grid
+from autosar_cli.sar.grid import FocusGrid, GridError, box_grid, check_image_size, track_grid
 from autosar_cli.sar.range_compression import SPEED_OF_LIGHT, range_compress_into
 from autosar_cli.sar.stripmap import block_context, look_angle_margin_m, processed_half_width, stripmap_windows
 from autosar_cli.store.drive import Drive, RadarStream
 from autosar_cli.store.image import FocusedImage, preload_quicklook, product_paths, write_image
+from autosar_cli.store.outputs import check_output
 from autosar_cli.store.trajectory import read_trajectory
 
 
@@ -134,16 +135,20 @@ def _usable_frames(radar: RadarStream, traj: Trajectory, config: Config, min_spe
 
 def make_grid(options: FocusOptions, geometry: _Geometry, config: Config) -> FocusGrid:
     box = parse_grid(options.grid)
+    check_grid_size(options, config)
     try:
         if box is not None:
-            return box_grid(*box, pixel_m=options.pixel_m, height_m=options.height_m)
-        yaw = math.radians(config.radar.mounting.yaw_deg)
-        side = 1.0 if math.sin(yaw) > 0 else -1.0
-        return track_grid(geometry.reference[:, :2], side=side, pixel_m=options.pixel_m, height_m=options.height_m,
-                          antenna_height_m=float(np.mean(geometry.reference[:, 2])),
-                          max_range_m=config.radar.max_range_m)
+            grid = box_grid(*box, pixel_m=options.pixel_m, height_m=options.height_m)
+        else:
+            yaw = math.radians(config.radar.mounting.yaw_deg)
+            side = 1.0 if math.sin(yaw) > 0 else -1.0
+            grid = track_grid(geometry.reference[:, :2], side=side, pixel_m=options.pixel_m,
+                              height_m=options.height_m, antenna_height_m=float(np.mean(geometry.reference[:, 2])),
+                              max_range_m=config.radar.max_range_m)
     except GridError as exc:
         raise FocusError(f"grid: {exc}") from None
+    check_grid_size(options, config, grid)
+    return grid
 
 
 def auto_grid(drive_path: str | Path, trajectory: Trajectory, config: Config, options: FocusOptions) -> FocusGrid:
@@ -268,7 +273,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
             if not work:  # a block no grid needs is not even read
                 return sel, work, None, None
             idx = frames[sel]
-            raw = radar.raw[idx[0]: idx[-1] + 1]
+            raw = radar.frames(int(idx[0]), int(idx[-1]) + 1)
             pc = radar_phase_centres(traj, geometry.t_ns[sel], offsets, config)
             ant = np.concatenate([pc.tx[:, used_tx].transpose(1, 0, 2),
                                   np.stack([pc.rx[:, t, r] for t, r in pairs])], axis=0)
@@ -329,21 +334,36 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
                        drive_s)
 
 
-def check_request(options: FocusOptions, output: str | Path, overwrite: bool) -> None:
-    """Fail before any work on a bad --grid or --channels, or on existing products without --overwrite."""
+def check_grid_size(options: FocusOptions, config: Config | None = None, grid: FocusGrid | None = None) -> None:
+    """Refuse an image too large to hold (sar.grid.check_image_size), before or after planning its grid."""
+    try:
+        check_image_size(options.pixel_m, pixels=None if grid is None else float(grid.size),
+                         box=parse_grid(options.grid), max_range_m=config.radar.max_range_m if config else None)
+    except GridError as exc:
+        raise FocusError(f"grid: {exc}") from None
+
+
+def check_request(options: FocusOptions, output: str | Path, overwrite: bool,
+                  inputs: Sequence[str | Path] = (), config: Config | None = None) -> None:
+    """Fail before any work on a bad --grid, --channels or grid size, on products that are ``inputs`` (the
+    drive, the trajectory), and on existing products without --overwrite or not written by autosar
+    (store.outputs)."""
     parse_grid(options.grid)
+    check_grid_size(options, config)
     if options.channels not in (8, 12):
         raise FocusError(f"--channels {options.channels}: choose 8 or 12")
     existing = [str(p) for p in product_paths(Path(output)).values() if p.exists()]
     if existing and not overwrite:
         raise FocusError(f"{existing[0]} already exists; pass --overwrite to replace it")
+    for path in product_paths(Path(output)).values():
+        check_output(path, inputs, overwrite=overwrite)
 
 
 def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Path, config: Config,
           options: FocusOptions, *, overwrite: bool = False,
           progress: Callable[[int, int], None] | None = None, command: str = "") -> FocusReport:
     """Focus the radar of ``drive_path`` along ``trajectory_path`` and write OUT.tif/.h5/.png."""
-    check_request(options, output, overwrite)
+    check_request(options, output, overwrite, [drive_path, trajectory_path], config)
     # the quicklook's imports run beside the focusing, from its first block on (its kernels and FFTs release the
     # GIL; before that, the imports would compete with numba's start-up for it)
     preload = threading.Thread(target=preload_quicklook, daemon=True)

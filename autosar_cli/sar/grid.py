@@ -10,7 +10,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from autosar_cli.types import FocusGrid
 
-__all__ = ["TRACK_LATTICE_M", "FocusGrid", "GridError", "box_grid", "track_distance", "track_grid", "track_lattice"]
+__all__ = ["MAX_IMAGE_BYTES", "TRACK_LATTICE_M", "FocusGrid", "GridError", "box_grid", "check_image_size",
+           "track_distance", "track_grid", "track_lattice"]
 
 Array = NDArray[np.float64]
 
@@ -18,8 +19,31 @@ Array = NDArray[np.float64]
 TRACK_LATTICE_M = 0.25
 
 
+#: Largest complex image (complex64) focus makes, tiled or not.
+MAX_IMAGE_BYTES = 64 * 2**30
+
+
 class GridError(ValueError):
     """An impossible grid request (empty box, pixel <= 0, no trajectory); the message says which."""
+
+
+def check_image_size(pixel_m: float, *, pixels: float | None = None,
+                     box: tuple[float, float, float, float] | None = None, max_range_m: float | None = None) -> None:
+    """Refuse an image that would not fit: ``pixels`` of a planned grid; before planning, the ENU ``box``
+    (m) of an explicit grid, or the least an automatic grid needs (1 m of track across ``max_range_m``)."""
+    if not (np.isfinite(pixel_m) and pixel_m > 0):
+        raise GridError(f"pixel size {pixel_m} m: must be a positive finite number")
+    if pixels is None and box is not None:
+        pixels = abs(box[2] - box[0]) / pixel_m * abs(box[3] - box[1]) / pixel_m
+    elif pixels is None and max_range_m is not None:
+        pixels = max_range_m / pixel_m * 1.0 / pixel_m
+    if pixels is None:
+        return
+    need = pixels * np.dtype(np.complex64).itemsize
+    if need > MAX_IMAGE_BYTES:
+        raise GridError(f"pixel size {pixel_m:g} m: the image needs at least {need / 2**30:.3g} GiB "
+                        f"({pixels:.3g} pixels), more than the {MAX_IMAGE_BYTES / 2**30:.3g} GiB allowed; "
+                        f"choose a larger pixel or a smaller grid")
 
 
 def box_grid(x0: float, y0: float, x1: float, y1: float, *, pixel_m: float, height_m: float) -> FocusGrid:

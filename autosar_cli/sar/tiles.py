@@ -150,7 +150,7 @@ def focus_tiled(drive_path: str | Path, trajectory_path: str | Path, output: str
     in this process. ``progress(done, total)`` counts pulse blocks over all tiles in-process, tiles with a
     client. Timings in the report are summed over the tiles (processing time, not wall time).
     """
-    check_request(options, output, overwrite)
+    check_request(options, output, overwrite, [drive_path, trajectory_path])
     t_plan = time.perf_counter()
     traj, _ = _read_trajectory(trajectory_path)
     grid = plan_grid(drive_path, traj, config, options)

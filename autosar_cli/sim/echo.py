@@ -25,6 +25,11 @@ from autosar_cli.config import SPEED_OF_LIGHT
 
 IF_BAND_FRACTION = 0.98
 SEGMENT = 136  # samples between exact re-anchoring of the tone recurrence
+# fastmath without "contract": whether LLVM fuses a multiply and an add into an FMA depends on the context it
+# optimises in, and the copy numba caches is optimised once more than the one a fresh compile runs, so with
+# contraction a compiled and a cached kernel differ in the last bit. Reassociating the sum is a property of the
+# loop alone (it is what lets the scatterer sum vectorise).
+SUM_FASTMATH = {"reassoc", "nsz", "nnan", "ninf", "arcp"}
 
 
 def pattern_exponent(beamwidth_deg: float) -> float:
@@ -32,7 +37,7 @@ def pattern_exponent(beamwidth_deg: float) -> float:
     return math.log(0.5) / math.log(math.cos(math.radians(beamwidth_deg / 2.0)))
 
 
-@nb.njit(cache=True, fastmath=True)
+@nb.njit(cache=True, fastmath=SUM_FASTMATH)
 def _accumulate_tones(p_re, p_im, s_re, s_im, nv, out_row):  # pragma: no cover - compiled
     """out_row[n] = sum_i p_i * s_i^n: phasor recurrence, vectorised over scatterers."""
     for n in range(out_row.shape[0]):
@@ -48,7 +53,7 @@ def _accumulate_tones(p_re, p_im, s_re, s_im, nv, out_row):  # pragma: no cover 
         out_row[n] = complex(acc_re, acc_im)
 
 
-@nb.njit(cache=True, fastmath=True)
+@nb.njit(cache=True)
 def _phasors(turns, amp, re, im, n):  # pragma: no cover - compiled
     """re + j im = amp * exp(j 2 pi turns) for turns in [-1/2, 1/2]: octant reduction and Taylor series
     (phase error < 4e-7 rad, modulus normalised), branch-free so that the loop vectorises (libm sin/cos do not)."""

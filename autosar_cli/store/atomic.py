@@ -1,16 +1,76 @@
-"""Atomic product files: write to a temporary sibling, rename onto the final name only when complete."""
+"""Atomic product files: write to a temporary sibling, rename onto the final name only when complete.
+
+The sibling's name carries the writing process's id (``out.partial-<pid>.tif``), so a partial file left by a
+killed process is recognised as stale (its process is gone) and removed by the next autosar command writing
+in that directory (:func:`remove_stale_partials`, called by the output gate) or listed by ``autosar info``.
+"""
 
 from __future__ import annotations
 
+import hashlib
 import os
+import re
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+NAME_MAX = 255  #: bytes in one file name on the usual file systems
+#: ``<stem>.partial-<pid><suffix>``; ``.partial`` without a pid: older autosar and the simulator's log writer
+PARTIAL_NAME = re.compile(r"\.partial(?:-(?P<pid>\d+))?(?:\.[^.]*)?$")
 
-def partial_path(path: Path) -> Path:
-    """The temporary sibling of ``path``: ``<stem>.partial<suffix>`` (``out.tif`` -> ``out.partial.tif``)."""
-    return path.with_name(f"{path.stem}.partial{path.suffix}")
+
+def partial_path(path: Path, pid: int | None = None) -> Path:
+    """The temporary sibling of ``path``: ``<stem>.partial-<pid><suffix>`` (``out.tif`` ->
+    ``out.partial-4242.tif``). A name too long for that is replaced by a digest of it (the suffix kept)."""
+    path = Path(path)
+    pid = os.getpid() if pid is None else pid
+    name = f"{path.stem}.partial-{pid}{path.suffix}"
+    if len(os.fsencode(name)) > NAME_MAX:
+        suffix = path.suffix if len(os.fsencode(path.suffix)) <= 16 else ""
+        name = f"{hashlib.sha256(os.fsencode(path.name)).hexdigest()[:32]}.partial-{pid}{suffix}"
+    return path.with_name(name)
+
+
+def stale_partials(folder: Path) -> list[Path]:
+    """Partial files in ``folder`` whose writing process has ended (or that name none), sorted."""
+    try:
+        entries = list(Path(folder).iterdir())
+    except OSError:
+        return []
+    stale = []
+    for p in entries:
+        m = PARTIAL_NAME.search(p.name)
+        if m is not None and (m["pid"] is None or not _process_alive(int(m["pid"]))):
+            stale.append(p)
+    return sorted(stale)
+
+
+def remove_stale_partials(folder: Path) -> list[Path]:
+    """Delete the partial files of ended autosar processes in ``folder`` (never one whose process runs, nor
+    one without a pid, which an older autosar or the simulator may still be writing); returns them."""
+    removed = []
+    for p in stale_partials(folder):
+        m = PARTIAL_NAME.search(p.name)
+        if m is None or m["pid"] is None or p.is_dir():
+            continue
+        try:
+            p.unlink()
+            removed.append(p)
+        except OSError:
+            pass
+    return removed
+
+
+def _process_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    except OSError:
+        return False
+    return True
 
 
 @contextmanager

@@ -18,7 +18,7 @@ Every series group has attrs ``topic``, ``source_file``, ``msgtype``, ``time_sou
 and a ``gaps`` dataset ``(M, 2)`` int64 of (t_ns before, t_ns after) for every gap in the series
 (radar: frame_index jumps). All ``t_ns`` are int64 ns since the Unix epoch, sorted, without duplicates.
 
-Writing is atomic: :class:`DriveWriter` writes ``<name>.partial`` and renames it on :meth:`commit`.
+Writing is atomic: :class:`DriveWriter` writes ``<stem>.partial-<pid>.h5`` and renames it on :meth:`commit`.
 All HDF5 calls of a writer run on one background thread so that compression overlaps decoding.
 """
 
@@ -38,6 +38,10 @@ import hdf5plugin  # noqa: F401  (registers the Blosc filter that raw radar cube
 import numpy as np
 from numpy.typing import NDArray
 
+from autosar_cli.store.atomic import partial_path
+from autosar_cli.store.hdf5_read import dataset_errors, read_dataset, read_rows
+from autosar_cli.store.outputs import check_free_space
+
 FORMAT = "autosar-drive"
 FORMAT_VERSION = 1
 RADAR_CHUNK_FRAMES = 32
@@ -46,6 +50,8 @@ TABLE_CHUNK_ROWS = 4096
 _STR = h5py.string_dtype()
 
 
+# Every dataset carries Fletcher-32 checksums of its stored chunks (after compression), so a flipped byte
+# is a read error naming the file and dataset instead of a silently different product.
 def radar_compression() -> dict[str, Any]:
     """HDF5 filter of raw radar cubes: Blosc + LZ4 + bit shuffle.
 
@@ -138,7 +144,7 @@ class Table:
         for name, col in self.columns.items():
             ds = g.create_dataset(name, shape=(0, *col.shape), maxshape=(None, *col.shape), dtype=col.dtype,
                                   chunks=(TABLE_CHUNK_ROWS, *col.shape), compression="gzip", compression_opts=1,
-                                  shuffle=True)
+                                  shuffle=True, fletcher32=True)
             if col.unit:
                 ds.attrs["unit"] = col.unit
         _set_attrs(g, attrs)
@@ -173,6 +179,7 @@ class Table:
         f = self._writer._file
 
         def write() -> None:
+            self._writer.ensure_space(sum(a.nbytes for a in arrays.values()))
             g = f[self.path]
             for name, arr in arrays.items():
                 ds = g[name]
@@ -188,7 +195,8 @@ class Table:
     def write_dataset(self, name: str, data: np.ndarray) -> None:
         f = self._writer._file
         arr = np.asarray(data)
-        self._writer._hdf.submit(lambda: f[self.path].create_dataset(name, data=arr))
+        checksum = arr.ndim > 0 and arr.size > 0  # Fletcher-32 needs a chunked, so non-empty, dataset
+        self._writer._hdf.submit(lambda: f[self.path].create_dataset(name, data=arr, fletcher32=checksum))
 
 
 class RadarCube(Table):
@@ -202,7 +210,7 @@ class RadarCube(Table):
         def create() -> None:
             writer._file[path].create_dataset(
                 "raw", shape=(0, *shape), maxshape=(None, *shape), dtype=np.int16,
-                chunks=(RADAR_CHUNK_FRAMES, *shape), **radar_compression())
+                chunks=(RADAR_CHUNK_FRAMES, *shape), fletcher32=True, **radar_compression())
 
         writer._hdf.submit(create)
 
@@ -214,6 +222,7 @@ class RadarCube(Table):
         n = len(raw)
 
         def write() -> None:
+            self._writer.ensure_space(raw.nbytes)
             ds = f[self.path]["raw"]
             ds.resize(start + n, axis=0)
             ds[start:] = raw
@@ -230,18 +239,30 @@ def _set_attrs(obj: h5py.HLObject, attrs: Mapping[str, Any]) -> None:
 
 
 class DriveWriter:
-    """Writes one drive.h5 atomically: everything goes to ``<path>.partial`` until :meth:`commit`."""
+    """Writes one drive.h5 atomically: everything goes to its partial sibling (store.atomic.partial_path) until
+    :meth:`commit`."""
 
     def __init__(self, path: str | Path, attrs: Mapping[str, Any]) -> None:
         self.path = Path(path)
-        self.partial = self.path.with_name(self.path.name + ".partial")
+        self.partial = partial_path(self.path)
         self.partial.unlink(missing_ok=True)
-        self._file = h5py.File(self.partial, "w", libver="latest")
-        self._hdf = _HdfThread()
         self._tables: list[Table] = []
         self._closed = False
-        root = {"format": FORMAT, "format_version": FORMAT_VERSION, **attrs}
-        self._hdf.call(lambda: _set_attrs(self._file, root))
+        try:
+            self._file = h5py.File(self.partial, "w", libver="latest")
+            self._hdf = _HdfThread()
+            root = {"format": FORMAT, "format_version": FORMAT_VERSION, **attrs}
+            self._hdf.call(lambda: _set_attrs(self._file, root))
+        except BaseException:  # e.g. Ctrl-C as the file appears: the caller has no writer to abort yet
+            self._closed = True
+            try:
+                if hasattr(self, "_hdf"):
+                    self._hdf.close()
+                if hasattr(self, "_file"):
+                    self._file.close()
+            finally:
+                self.partial.unlink(missing_ok=True)
+            raise
 
     def table(self, path: str, columns: Mapping[str, Column], attrs: Mapping[str, Any]) -> Table:
         return Table(self, path, columns, attrs)
@@ -267,10 +288,16 @@ class DriveWriter:
         """Wait until everything submitted so far is written."""
         self._hdf.call(lambda: None)
 
+    def ensure_space(self, nbytes: int) -> None:
+        """Before HDF5 writes ``nbytes``: raise DiskFullError if the disk cannot take them. HDF5 itself meets
+        a full disk in its caches and destructors (errors ignored, then a crash at close), so it must not."""
+        check_free_space(self.path, nbytes, "the drive")
+
     def commit(self) -> Path:
         """Finish writing and rename the partial file to its final name."""
         for table in self._tables:
             table.flush()
+        self._hdf.call(lambda: self.ensure_space(0))  # room for what closing flushes
         self._close()
         os.replace(self.partial, self.path)
         return self.path
@@ -278,10 +305,17 @@ class DriveWriter:
     def abort(self) -> None:
         """Stop writing and delete the partial file (never leaves a file that looks complete)."""
         try:
-            self._close()
-        except Exception:  # the original failure matters more than a follow-up one
-            pass
-        self.partial.unlink(missing_ok=True)
+            try:
+                # emptied first: closing flushes HDF5's caches, which on a full disk must find room
+                os.truncate(self.partial, 0)
+            except OSError:
+                pass
+            try:
+                self._close()
+            except Exception:  # the original failure matters more than a follow-up one
+                pass
+        finally:  # even when a second Ctrl-C interrupts the closing
+            self.partial.unlink(missing_ok=True)
 
     def _close(self) -> None:
         if self._closed:
@@ -301,8 +335,13 @@ class RadarStream:
     name: str
     t_ns: np.ndarray
     frame_index: np.ndarray
-    raw: h5py.Dataset  #: (frame, tx, rx, sample, I/Q) int16; read it in blocks of frames
+    raw: h5py.Dataset  #: (frame, tx, rx, sample, I/Q) int16; read it in blocks of frames (:meth:`frames`)
     attrs: dict[str, Any]
+
+    def frames(self, start: int, stop: int) -> np.ndarray:
+        """Raw frames ``start:stop``; a damaged chunk (checksum, decompression) is an error naming file and
+        dataset."""
+        return read_rows(self.raw, start, stop)
 
 
 class Drive:
@@ -319,7 +358,10 @@ class Drive:
         if fmt != FORMAT:
             self._file.close()
             raise DriveFormatError(f"{self.path}: not a drive.h5 (format attribute {fmt!r})")
-        if version is None or int(version) > FORMAT_VERSION:
+        if version is None:
+            self._file.close()
+            raise DriveFormatError(f"{self.path}: has no format_version attribute (damaged drive.h5)")
+        if int(version) > FORMAT_VERSION:
             self._file.close()
             raise DriveFormatError(f"{self.path}: drive format version {version} is newer than this autosar "
                                    f"reads ({FORMAT_VERSION})")
@@ -355,8 +397,9 @@ class Drive:
 
     def series(self, path: str) -> dict[str, np.ndarray]:
         """All columns of a series group (``"imu/imu_cog_a"``, ``"gnss/gnss_cog/fix"``, ``"can/ABS_1"``)."""
-        g = self._file[path]
-        return {k: g[k][()] for k in g if isinstance(g[k], h5py.Dataset) and k != "raw"}
+        with dataset_errors(self.path, path):
+            g = self._file[path]
+        return {k: read_dataset(g, k, self.path) for k in g if isinstance(g[k], h5py.Dataset) and k != "raw"}
 
     def can_role(self, role: str) -> tuple[np.ndarray, np.ndarray]:
         """(t_ns, value in SI units) of a CAN signal by its role in the vehicle config (``wheel_speed_fl``)."""
@@ -364,8 +407,9 @@ class Drive:
         if role not in roles:
             raise KeyError(f"{self.path}: no CAN signal has the role {role!r} (known: {', '.join(sorted(roles))})")
         message, signal = roles[role].split("/")
-        g = self._file["can"][message]
-        return g["t_ns"][()], g[signal][()]
+        with dataset_errors(self.path, f"can/{message}"):
+            g = self._file["can"][message]
+        return read_dataset(g, "t_ns", self.path), read_dataset(g, signal, self.path)
 
     def can_roles(self) -> dict[str, str]:
         return json.loads(self._file["can"].attrs.get("roles", "{}")) if "can" in self._file else {}
@@ -375,9 +419,12 @@ class Drive:
         if not names:
             raise DriveFormatError(f"{self.path}: no radar stream")
         name = name or names[0]
-        g = self._file["radar"][name]
+        with dataset_errors(self.path, f"radar/{name}/raw"):
+            g = self._file["radar"][name]
+            raw = g["raw"]
         attrs = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in g.attrs.items()}
-        return RadarStream(name, g["t_ns"][()], g["frame_index"][()], g["raw"], attrs)
+        return RadarStream(name, read_dataset(g, "t_ns", self.path), read_dataset(g, "frame_index", self.path), raw,
+                           attrs)
 
     def report(self) -> dict[str, Any]:
         """The ingest report stored in the provenance group."""

@@ -1,0 +1,41 @@
+"""Reading HDF5 products: h5py's errors (a missing dataset, a Fletcher-32 checksum or a decompression
+failure) become one line naming the file and the dataset."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+
+class DamagedFileError(ValueError):
+    """A dataset of an autosar HDF5 file is missing or cannot be read back intact."""
+
+
+@contextmanager
+def dataset_errors(path: str | Path, dataset: str) -> Iterator[None]:
+    """Re-raise h5py's errors inside the block as DamagedFileError naming ``path`` and ``dataset``."""
+    try:
+        yield
+    except KeyError:
+        raise DamagedFileError(f"{path}: dataset {dataset} is missing") from None
+    except OSError as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise DamagedFileError(f"{path}: dataset {dataset} is damaged and cannot be read ({reason})") from exc
+
+
+def read_dataset(f: h5py.File | h5py.Group, name: str, path: str | Path | None = None) -> Any:
+    """``f[name][()]``, with errors naming the file and the dataset."""
+    where = path if path is not None else f.file.filename
+    with dataset_errors(where, f"{f.name.rstrip('/')}/{name}"):
+        return f[name][()]
+
+
+def read_rows(ds: h5py.Dataset, start: int, stop: int) -> np.ndarray:
+    """``ds[start:stop]``, with errors naming the file and the dataset."""
+    with dataset_errors(ds.file.filename, ds.name):
+        return ds[start:stop]

@@ -1,0 +1,190 @@
+"""The one gate every output passes before anything is written.
+
+An output is never an input, nor inside one, nor a directory holding one that ``--overwrite`` would replace.
+``--overwrite`` replaces only what autosar made, recognised by its own metadata: an HDF5 file whose root
+attribute ``format`` starts with ``autosar-``, a GeoTIFF with autosar's ``autosar_format`` tag, a JSON
+manifest with such a ``format``, a directory holding one of autosar's manifests (run.json, batch.json,
+compare.json, metrics.json), a quicklook PNG beside its image.h5, or a simulated log beside its truth sidecar.
+Anything else is refused with one line.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import shutil
+from collections.abc import Iterable
+from pathlib import Path
+
+from autosar_cli.store.atomic import remove_stale_partials
+
+AUTOSAR_FORMAT_PREFIX = "autosar-"
+DIRECTORY_MANIFESTS = ("run.json", "batch.json", "compare.json", "metrics.json")
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+
+class OutputError(ValueError):
+    """An output that must not be written: an input, inside one, or something autosar did not make."""
+
+
+def check_output(path: str | Path, inputs: Iterable[str | Path] = (), *, overwrite: bool,
+                 directory: bool = False, replaces_directory: bool = False) -> None:
+    """Refuse ``path`` as an output unless writing it harms nothing; raises OutputError/FileExistsError.
+
+    ``inputs``: every file or directory the command reads. ``directory``: the output is a directory that
+    autosar fills (a run); else a file, or with ``replaces_directory`` a directory written whole (a
+    simulated rosbag2 log).
+    """
+    path = Path(path)
+    _check_parent(path)
+    remove_stale_partials(path.parent)
+    target = path.resolve()
+    for inp in inputs:
+        source = Path(inp).resolve()
+        if target == source or (path.exists() and Path(inp).exists() and os.path.samefile(path, inp)):
+            raise OutputError(f"{path}: is an input of this command; choose another output")
+        if source in target.parents:
+            raise OutputError(f"{path}: lies inside the input {inp}; choose an output outside it")
+        if target in source.parents and path.exists() and not directory:
+            raise OutputError(f"{path}: holds the input {inp}; choose another output")
+    if not (path.exists() or path.is_symlink()):
+        return
+    if directory:
+        if not path.is_dir():
+            raise OutputError(f"{path}: exists and is not a directory")
+        return  # a run directory: its products are checked one by one (check_products)
+    if path.is_dir() and not replaces_directory:
+        raise OutputError(f"{path}: is a directory; the output is a file")
+    if not overwrite:
+        raise FileExistsError(f"{path}: already exists (use --overwrite to replace it)")
+    if not is_autosar_product(path):
+        what = "a directory" if path.is_dir() else "a file"
+        raise OutputError(f"{path}: is {what} autosar did not write (no autosar metadata); refusing to replace "
+                          f"it, even with --overwrite")
+
+
+def check_products(directory: Path, names: Iterable[str], inputs: Iterable[str | Path], *, overwrite: bool) -> None:
+    """check_output for each of ``names`` inside ``directory`` (a run directory's products)."""
+    inputs = list(inputs)
+    for name in names:
+        check_output(directory / name, inputs, overwrite=overwrite)
+
+
+def remove_product_directory(path: Path) -> None:
+    """Delete a directory autosar made (a simulated rosbag2 log, a run), after :func:`is_autosar_product`."""
+    if not is_autosar_product(path):
+        raise OutputError(f"{path}: was not written by autosar; refusing to delete it")
+    shutil.rmtree(path)
+
+
+def is_autosar_product(path: Path) -> bool:
+    """Whether ``path`` carries autosar's own metadata (see the module docstring)."""
+    path = Path(path)
+    if path.is_dir():
+        if any(_json_format(path / m) for m in DIRECTORY_MANIFESTS):
+            return True
+        if path.suffix == ".dca1000":  # a simulated DCA1000 capture beside its navigation MCAP
+            return _hdf5_format(_truth_sidecar(path.with_suffix(".mcap"))) == "autosar-truth"
+        return _hdf5_format(_truth_sidecar(path)) == "autosar-truth"  # a simulated rosbag2 log
+    suffix = path.suffix.lower()
+    if _hdf5_format(path):
+        return True
+    if suffix in (".tif", ".tiff"):
+        return _tif_is_autosar(path)
+    if suffix == ".json":
+        return _json_format(path)
+    if suffix == ".png":
+        return bool(_hdf5_format(path.with_suffix(".h5")))
+    if suffix in (".mcap", ".bag"):
+        return _hdf5_format(_truth_sidecar(path)) == "autosar-truth"
+    return False
+
+
+def _check_parent(path: Path) -> None:
+    for parent in path.parents:
+        if parent.exists() or parent.is_symlink():
+            if not parent.is_dir():
+                raise OutputError(f"{path}: cannot be written, {parent} is a file, not a directory")
+            return
+
+
+def _truth_sidecar(log: Path) -> Path:
+    return log.with_name(log.name + ".truth.h5")
+
+
+def _hdf5_format(path: Path) -> str | None:
+    """The ``format`` attribute of an HDF5 file written by autosar, else None."""
+    try:
+        with open(path, "rb") as fh:
+            if fh.read(8) != HDF5_SIGNATURE:
+                return None
+        import h5py
+
+        with h5py.File(path, "r") as f:
+            fmt = f.attrs.get("format")
+    except (OSError, ValueError):
+        return None
+    fmt = fmt.decode() if isinstance(fmt, bytes) else fmt
+    return fmt if isinstance(fmt, str) and fmt.startswith(AUTOSAR_FORMAT_PREFIX) else None
+
+
+def _json_format(path: Path) -> bool:
+    try:
+        manifest = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    fmt = manifest.get("format") if isinstance(manifest, dict) else None
+    return isinstance(fmt, str) and fmt.startswith(AUTOSAR_FORMAT_PREFIX)
+
+
+def _tif_is_autosar(path: Path) -> bool:
+    try:
+        import rasterio
+
+        with rasterio.open(path) as src:
+            return str(src.tags().get("autosar_format", "")).startswith(AUTOSAR_FORMAT_PREFIX)
+    except Exception:  # noqa: BLE001 - anything rasterio cannot read is not autosar's
+        return False
+
+
+class DiskFullError(OSError):
+    """Not enough free space for an output; its message names the file and the sizes."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(errno.ENOSPC, message)
+        self.message = message
+
+    def __str__(self) -> str:
+        return self.message
+
+    def __reduce__(self) -> tuple[type, tuple[str]]:  # crosses the pipe from run's ingest child
+        return (DiskFullError, (self.message,))
+
+
+#: Free space kept in hand beyond an estimate: HDF5 flushes its metadata and chunk caches (1 MiB a dataset)
+#: at close, and a drive has dozens of datasets; a file written whole and closed at once needs less.
+SPACE_MARGIN_BYTES = 16 * 2**20
+SMALL_FILE_MARGIN_BYTES = 2**20
+
+
+def check_free_space(path: str | Path, needed_bytes: float, what: str = "",
+                     margin_bytes: int = SPACE_MARGIN_BYTES) -> None:
+    """Raise DiskFullError unless the file system of ``path`` has ``needed_bytes`` + ``margin_bytes`` free."""
+    path = Path(path)
+    folder = next((p for p in (path.parent, *path.parent.parents) if p.is_dir()), Path("."))
+    free = shutil.disk_usage(folder).free
+    if free < needed_bytes + margin_bytes:
+        raise DiskFullError(f"{path}: no space left on the device: {what or 'writing it'} needs about "
+                            f"{(needed_bytes + margin_bytes) / 1e6:.1f} MB, {free / 1e6:.1f} MB are free")
+
+
+def input_bytes(paths: Iterable[str | Path]) -> int:
+    """Total size of input files and directories (an upper bound of what ingesting them writes)."""
+    total = 0
+    for p in map(Path, paths):
+        if p.is_dir():
+            total += sum(f.stat().st_size for f in p.rglob("*") if f.is_file())
+        elif p.exists():
+            total += p.stat().st_size
+    return total

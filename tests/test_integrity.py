@@ -1,0 +1,103 @@
+"""Stored products are checked when read: Fletcher-32 checksums turn a flipped byte into an error naming the
+file and dataset, and a trajectory no car could drive is refused."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from autosar_cli.cli import app
+from autosar_cli.nav.geodesy import GeodeticOrigin
+from autosar_cli.nav.trajectory import Trajectory
+from autosar_cli.store.drive import Column, Drive, DriveWriter
+from autosar_cli.store.hdf5_read import DamagedFileError
+from autosar_cli.store.trajectory import TrajectoryFormatError, read_trajectory, write_trajectory
+
+runner = CliRunner()
+
+
+def _straight_track(n: int = 200) -> Trajectory:
+    """A car at 2 m/s heading north-east, 100 Hz, turning at 0.1 rad/s (float64 reference values)."""
+    t_ns = 1_700_000_000_000_000_000 + np.arange(n, dtype=np.int64) * 10_000_000
+    t = (t_ns - t_ns[0]) / 1e9
+    heading = 0.7 + 0.1 * t
+    xy = np.stack([np.cumsum(2.0 * 0.01 * np.cos(heading)), np.cumsum(2.0 * 0.01 * np.sin(heading))], axis=1)
+    return Trajectory("test", t_ns, xy, heading, np.full(n, 2.0), np.full(n, 0.1),
+                      GeodeticOrigin(45.0, 9.0, 120.0), 1.4, 0.5)
+
+
+def _flip_byte_in(path: Path, dataset: str, at: float = 0.5) -> None:
+    """Flip one byte of ``dataset``'s first stored chunk (or contiguous data) in the file."""
+    with h5py.File(path, "r") as f:
+        ds = f[dataset]
+        if ds.chunks:
+            info = ds.id.get_chunk_info(0)
+            offset, size = info.byte_offset, info.size
+        else:
+            offset, size = ds.id.get_offset(), ds.id.get_storage_size()
+    with open(path, "r+b") as fh:
+        fh.seek(offset + int(size * at))
+        b = fh.read(1)[0]
+        fh.seek(offset + int(size * at))
+        fh.write(bytes([b ^ 0x10]))
+
+
+def test_a_flipped_byte_in_a_trajectory_is_an_error_naming_file_and_dataset(tmp_path: Path) -> None:
+    path = write_trajectory(tmp_path / "trajectory.h5", _straight_track())
+    np.testing.assert_array_equal(read_trajectory(path).heading, _straight_track().heading)
+    _flip_byte_in(path, "heading")
+    with pytest.raises(DamagedFileError, match=r"trajectory\.h5: dataset /heading is damaged"):
+        read_trajectory(path)
+
+
+def test_a_flipped_byte_in_the_radar_cube_is_an_error_naming_file_and_dataset(tmp_path: Path) -> None:
+    rng = np.random.default_rng(3)
+    raw = rng.normal(0, 300, size=(64, 3, 4, 540, 2)).astype(np.int16)
+    w = DriveWriter(tmp_path / "drive.h5", {"autosar_version": "test"})
+    cube = w.radar("radar/scanbrick", (3, 4, 540), {})
+    cube.append_frames(np.arange(64, dtype=np.int64) * 1_000_000, np.arange(64, dtype=np.int64), raw)
+    w.table("can/ABS_1", {"t_ns": Column(np.int64), "speed": Column(np.float64)}, {}).append(
+        {"t_ns": np.arange(10, dtype=np.int64), "speed": np.arange(10.0)})
+    path = w.commit()
+    with Drive(path) as d:
+        np.testing.assert_array_equal(d.radar().frames(0, 64), raw)
+    _flip_byte_in(path, "radar/scanbrick/raw", at=0.7)
+    with Drive(path) as d, pytest.raises(DamagedFileError, match=r"drive\.h5: dataset /radar/scanbrick/raw is "
+                                                                 r"damaged"):
+        d.radar().frames(0, 64)
+    # a missing dataset names the file and the dataset too, not h5py's "Unable to synchronously open object"
+    with h5py.File(path, "r+") as f:
+        del f["can/ABS_1/speed"]
+        f["can"].attrs["roles"] = '{"wheel_speed_fl": "ABS_1/speed"}'
+    with Drive(path) as d, pytest.raises(DamagedFileError, match=r"drive\.h5: dataset /can/ABS_1/speed is missing"):
+        d.can_role("wheel_speed_fl")
+
+
+def test_a_heading_no_car_can_have_is_refused(tmp_path: Path) -> None:
+    traj = _straight_track()
+    traj.heading[57] = -1.9e171  # what a flipped exponent byte made of a heading (finite, absurd)
+    path = write_trajectory(tmp_path / "trajectory.h5", traj)
+    with pytest.raises(TrajectoryFormatError, match=r"trajectory\.h5: step between headings exceeds 1\.571 rad "
+                                                    r"at sample 56"):
+        read_trajectory(path)
+    traj = _straight_track()
+    traj.speed[10] = np.nan
+    with pytest.raises(TrajectoryFormatError, match="speed exceeds 100 m/s at sample 10"):
+        read_trajectory(write_trajectory(tmp_path / "t2.h5", traj))
+
+
+def test_missing_format_version_is_named(tmp_path: Path) -> None:
+    path = write_trajectory(tmp_path / "trajectory.h5", _straight_track())
+    with h5py.File(path, "r+") as f:
+        del f.attrs["format_version"]
+    with pytest.raises(TrajectoryFormatError, match="has no format_version attribute"):
+        read_trajectory(path)
+    drive = DriveWriter(tmp_path / "drive.h5", {}).commit()
+    with h5py.File(drive, "r+") as f:
+        del f.attrs["format_version"]
+    r = runner.invoke(app, ["navigate", str(drive), "-o", str(tmp_path / "t.h5")])
+    assert r.exit_code == 1 and "drive.h5: has no format_version attribute" in r.output.replace("\n", "")

@@ -1,0 +1,360 @@
+"""Inputs are never harmed: an output is never an input nor inside one, --overwrite replaces only what autosar
+made, and bad output paths give one line."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from pathlib import Path
+
+import h5py
+import pytest
+from typer.testing import CliRunner
+
+from autosar_cli.cli import app
+
+runner = CliRunner()
+
+
+def _one_line_error(r, *fragments: str) -> None:
+    assert r.exit_code == 1, r.output
+    lines = [ln for ln in r.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error:"), r.output
+    assert "Traceback" not in r.output
+    for fragment in fragments:
+        assert fragment in r.output.replace("\n", ""), r.output
+
+
+def _foreign(path: Path, content: bytes = b"not autosar's\n") -> bytes:
+    path.write_bytes(content)
+    return content
+
+
+def test_ingest_output_same_as_its_log_is_refused(tmp_path: Path) -> None:
+    log = tmp_path / "s.mcap"
+    content = _foreign(log, b"\x89MCAP0\r\n" + bytes(range(256)))
+    r = runner.invoke(app, ["ingest", str(log), "-o", str(log), "--overwrite"])
+    _one_line_error(r, "is an input")
+    assert log.read_bytes() == content
+
+
+def test_navigate_output_same_as_its_drive_is_refused(tmp_path: Path) -> None:
+    drive = tmp_path / "y.h5"
+    with h5py.File(drive, "w") as f:
+        f.attrs["format"] = "autosar-drive"
+    before = drive.read_bytes()
+    r = runner.invoke(app, ["navigate", str(drive), "-o", str(drive), "--overwrite"])
+    _one_line_error(r, "is an input")
+    assert drive.read_bytes() == before
+
+
+def test_focus_output_base_whose_h5_is_the_drive_is_refused(tmp_path: Path) -> None:
+    drive, traj = tmp_path / "x.h5", tmp_path / "t.h5"
+    for path, fmt in ((drive, "autosar-drive"), (traj, "autosar-trajectory")):
+        with h5py.File(path, "w") as f:
+            f.attrs["format"] = fmt
+    before = drive.read_bytes()
+    r = runner.invoke(app, ["focus", str(drive), "-t", str(traj), "-o", str(tmp_path / "x"), "--overwrite"])
+    _one_line_error(r, "x.h5", "is an input")
+    assert drive.read_bytes() == before
+
+
+def test_overwrite_never_replaces_a_directory_or_a_foreign_file(tmp_path: Path) -> None:
+    log = tmp_path / "log.mcap"
+    _foreign(log)
+    tree = tmp_path / "somedir"
+    (tree / "sub").mkdir(parents=True)
+    keep = _foreign(tree / "sub" / "precious.txt")
+    r = runner.invoke(app, ["ingest", str(log), "-o", str(tree), "--overwrite"])
+    _one_line_error(r, str(tree), "is a directory")
+    assert (tree / "sub" / "precious.txt").read_bytes() == keep
+    (tree / "run.json").write_text('{"format": "autosar-run"}')  # even a run directory autosar made
+    r = runner.invoke(app, ["ingest", str(log), "-o", str(tree), "--overwrite"])
+    _one_line_error(r, str(tree), "is a directory")
+    assert (tree / "sub" / "precious.txt").read_bytes() == keep
+
+    foreign = tmp_path / "notes.h5"
+    keep = _foreign(foreign)
+    r = runner.invoke(app, ["ingest", str(log), "-o", str(foreign), "--overwrite"])
+    _one_line_error(r, str(foreign), "autosar did not write")
+    assert foreign.read_bytes() == keep
+
+
+def test_output_whose_parent_is_a_file_names_it(tmp_path: Path) -> None:
+    log = tmp_path / "log.mcap"
+    _foreign(log)
+    blocker = tmp_path / "afile"
+    _foreign(blocker)
+    r = runner.invoke(app, ["ingest", str(log), "-o", str(blocker / "drive.h5")])
+    _one_line_error(r, str(blocker), "is a file, not a directory")
+    assert "Errno" not in r.output
+
+
+def test_run_refuses_foreign_products_and_inputs_inside_before_ingesting(tmp_path: Path) -> None:
+    log = tmp_path / "rundir" / "log.mcap"
+    log.parent.mkdir()
+    keep = _foreign(log)
+    r = runner.invoke(app, ["run", str(log), "-o", str(tmp_path / "rundir" / "log.mcap" / "out")])
+    _one_line_error(r, "log.mcap")
+    foreign = _foreign(tmp_path / "rundir" / "drive.h5")
+    r = runner.invoke(app, ["run", str(log), "-o", str(tmp_path / "rundir"), "--overwrite"])
+    _one_line_error(r, "drive.h5", "autosar did not write")
+    assert (tmp_path / "rundir" / "drive.h5").read_bytes() == foreign and log.read_bytes() == keep
+
+
+@pytest.mark.parametrize("pixel", ["1e-6", "nan", "-0.04"])
+def test_run_refuses_an_impossible_grid_before_ingest(tmp_path: Path, pixel: str) -> None:
+    log = tmp_path / "log.mcap"
+    _foreign(log)  # never read: the grid is refused first
+    cfg = tmp_path / "cfg.toml"
+    base = Path(__file__).resolve().parents[1] / "configs" / "giulia_scanbrick.toml"
+    text = base.read_text()
+    assert "pixel_m = 0.04" in text
+    cfg.write_text(text.replace("pixel_m = 0.04", f"pixel_m = {pixel}"))
+    shutil.copy(base.parent / "autosar_giulia.dbc", tmp_path)
+    r = runner.invoke(app, ["run", str(log), "-o", str(tmp_path / "out"), "-c", str(cfg)])
+    _one_line_error(r, "pixel")
+    assert not (tmp_path / "out" / "drive.h5").exists()
+
+
+@pytest.mark.parametrize(("pattern", "replacement", "shown"), [
+    (r"^speed_noise_mps2 = 0\.3", "speed_noise_mps2 = nan", "navigation.speed_noise_mps2: must be finite, got nan"),
+    (r"^gate_probability = 0\.9999", "gate_probability = -1", "navigation.gate_probability"),
+    (r"^position_noise_m = 0\.002", "position_noise_m = -0.002", "got -0.002"),
+    (r"^yaw_deg = -45\.0", "yaw_deg = inf", "radar.mounting.yaw_deg: must be finite, got inf"),
+])
+def test_config_values_out_of_range_are_shown_in_one_line(tmp_path: Path, pattern: str, replacement: str,
+                                                          shown: str) -> None:
+    import re
+
+    base = Path(__file__).resolve().parents[1] / "configs" / "giulia_scanbrick.toml"
+    text, n = re.subn(pattern, replacement, base.read_text(), count=1, flags=re.MULTILINE)
+    assert n == 1
+    cfg = tmp_path / "cfg.toml"
+    cfg.write_text(text)
+    shutil.copy(base.parent / "autosar_giulia.dbc", tmp_path)
+    r = runner.invoke(app, ["navigate", str(tmp_path / "drive.h5"), "-o", str(tmp_path / "t.h5"), "-c", str(cfg)])
+    _one_line_error(r, str(cfg), shown)
+
+
+def test_non_utf8_config_names_the_file(tmp_path: Path) -> None:
+    cfg = tmp_path / "latin1.toml"
+    cfg.write_bytes("# Fahrzeug: Giulia, Geschwindigkeit in km/h, Lenkübersetzung\n".encode("latin-1"))
+    r = runner.invoke(app, ["navigate", str(tmp_path / "drive.h5"), "-c", str(cfg)])
+    _one_line_error(r, str(cfg), "UTF-8")
+
+
+def _disk_with_free_bytes(monkeypatch: pytest.MonkeyPatch, folder: Path, capacity: int) -> None:
+    """Pretend ``folder``'s file system holds ``capacity`` bytes, less what its files already take."""
+    import autosar_cli.store.outputs as outputs
+
+    real = outputs.shutil.disk_usage
+
+    def disk_usage(path):  # type: ignore[no-untyped-def]
+        if Path(path).resolve() != folder.resolve():
+            return real(path)
+        used = sum(f.stat().st_size for f in folder.iterdir() if f.is_file())
+        return shutil._ntuple_diskusage(capacity, used, max(capacity - used, 0))  # type: ignore[attr-defined]
+
+    monkeypatch.setattr(outputs.shutil, "disk_usage", disk_usage)
+
+
+def test_full_disk_is_one_line_and_leaves_no_partial(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, ci_mcap) -> None:
+    out = tmp_path / "small"
+    out.mkdir()
+    _disk_with_free_bytes(monkeypatch, out, 5 * 2**20)
+    r = runner.invoke(app, ["ingest", str(ci_mcap.log_path), "-o", str(out / "drive.h5")])
+    _one_line_error(r, str(out / "drive.h5"), "no space left")
+    assert list(out.iterdir()) == []
+
+
+def test_disk_filling_while_the_drive_is_written(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, ci_mcap) -> None:
+    """The estimate passes (the run's own check is skipped) but the disk fills up half way: the drive writer's
+    thread refuses the next write, the error reaches run's parent process, nothing partial is left."""
+    import autosar_cli.run as run_module
+
+    out = tmp_path / "run"
+    out.mkdir()
+    _disk_with_free_bytes(monkeypatch, out, 28 * 2**20)  # the ci drive is ~18 MB; 16 MB kept in hand
+    monkeypatch.setattr(run_module, "input_bytes", lambda paths: 0)
+    r = runner.invoke(app, ["run", str(ci_mcap.log_path), "-o", str(out)])
+    _one_line_error(r, str(out / "drive.h5"), "no space left")
+    assert [p.name for p in out.iterdir()] == []
+
+
+def test_numba_cache_falls_back_to_a_temporary_directory(tmp_path: Path) -> None:
+    import tempfile
+
+    from autosar_cli.kernel_cache import fallback_cache_dir
+
+    blocker = tmp_path / "a_file"
+    blocker.write_text("x")  # nothing can be created below a regular file, not even by root
+    read_only_install = blocker / "site-packages" / "autosar_cli"
+    env = {"HOME": str(blocker / "home")}
+    got = fallback_cache_dir(read_only_install, env)
+    assert got is not None and got.parent == Path(tempfile.gettempdir())
+    assert fallback_cache_dir(read_only_install, {"HOME": str(tmp_path)}) is None  # the home's cache is writable
+    assert fallback_cache_dir(tmp_path / "autosar_cli", env) is None  # the install is writable
+    assert fallback_cache_dir(read_only_install, {**env, "NUMBA_CACHE_DIR": str(tmp_path)}) is None
+
+
+
+@pytest.mark.parametrize("delay_s", [0.05, 0.15, 0.4, 1.5])
+def test_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path: Path, delay_s: float) -> None:
+    """SIGINT while the command imports (the first 0.2 s) or while it simulates: "interrupted", 130, no trace."""
+    import signal
+    import subprocess
+    import time
+
+    script = shutil.which("autosar")
+    if script is None:
+        pytest.skip("the autosar console script is not installed")
+    proc = subprocess.Popen([script, "simulate", "-o", str(tmp_path / "s.mcap")], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    time.sleep(delay_s)
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
+    assert stderr.strip().endswith("interrupted"), stderr
+    assert not [p.name for p in tmp_path.iterdir()]  # no log, no truth, no partial
+
+
+def test_stale_partial_of_a_killed_ingest_is_listed_and_removed_by_the_next_command(tmp_path: Path,
+                                                                                    ci_mcap) -> None:
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "out"
+    out.mkdir()
+    proc = subprocess.Popen([sys.executable, "-c", "from autosar_cli.cli import main; main()", "ingest",
+                             str(ci_mcap.log_path), "-o", str(out / "drive.h5")], stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 60
+    while not list(out.glob("*.partial*")) and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    left = [p.name for p in out.iterdir()]
+    assert left == [f"drive.partial-{proc.pid}.h5"]
+    alive = out / f"other.partial-{os.getpid()}.h5"  # a writer still at work: never touched
+    alive.write_bytes(b"x")
+
+    r = runner.invoke(app, ["info", str(out), "--json"])
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.stdout)["stale_partials"] == [str(out / left[0])]
+
+    log = tmp_path / "not_a_log.mcap"
+    _foreign(log)
+    r = runner.invoke(app, ["ingest", str(log), "-o", str(out / "drive.h5")])  # fails on the log, after the gate
+    assert r.exit_code == 1
+    assert sorted(p.name for p in out.iterdir()) == [alive.name]
+
+
+def test_a_255_byte_file_name_is_written_through_its_partial(tmp_path: Path) -> None:
+    from autosar_cli.store.atomic import atomic_output
+
+    target = tmp_path / ("t" * 252 + ".h5")
+    assert len(target.name.encode()) == 255
+    with atomic_output(target, overwrite=False) as tmp:
+        assert len(tmp.name.encode()) <= 255 and tmp.suffix == ".h5"
+        tmp.write_bytes(b"content")
+    assert target.read_bytes() == b"content" and [p.name for p in tmp_path.iterdir()] == [target.name]
+
+
+def test_batch_record_of_a_drive_with_ingest_warnings_is_degraded(tmp_path: Path, monkeypatch) -> None:
+    """run.json of a truncated log carries the ingest's warning; batch.json must too, and not say plain ok."""
+    import autosar_cli.batch as batch_mod
+    from autosar_cli.config import load_config
+
+    truncated = "drive.mcap: the log ends inside a chunk at byte 1048576 (truncated); kept the 812 messages before it"
+
+    def fake_run(logs, out_dir, config, **kw):  # the parts of a real run.json that batch reads
+        warnings = [truncated] if "truncated" in str(logs[0]) else []
+        return {"stages": {"ingest": {"wall_s": 0.1, "warnings": warnings}, "navigate": {"wall_s": 0.1},
+                           "focus": {"wall_s": 0.1, "grid_shape": [2, 3], "frames_used": 5, "backprojections": 7}},
+                "outputs": {"drive": "drive.h5", "image": {"h5": "image.h5"}}, "drive_s": 1.0}
+
+    monkeypatch.setattr(batch_mod, "run", fake_run)
+    cfg = load_config()
+    bad = batch_mod.run_drive("t", [str(tmp_path / "truncated.mcap")], str(tmp_path / "t"), cfg)
+    good = batch_mod.run_drive("g", [str(tmp_path / "good.mcap")], str(tmp_path / "g"), cfg)
+    assert (bad["status"], bad["warnings"]) == ("degraded", [truncated])
+    assert (good["status"], good["warnings"]) == ("ok", [])
+
+
+def test_full_disk_refuses_the_image_before_writing_it(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import numpy as np
+
+    from autosar_cli.nav.geodesy import GeodeticOrigin
+    from autosar_cli.sar.grid import FocusGrid
+    from autosar_cli.store.image import FocusedImage, write_image
+    from autosar_cli.store.outputs import DiskFullError
+
+    grid = FocusGrid((0.0, 0.0), (1.0, 0.0), (0.0, -1.0), 0.04, 400, 300, 0.0)
+    image = FocusedImage(np.ones(grid.shape, np.complex64), grid, GeodeticOrigin(45.06, 7.66, 240.0), {})
+    _disk_with_free_bytes(monkeypatch, tmp_path, 2**20 + 1_000_000)  # 400 x 300 x 12 B = 1.44 MB needed
+    with pytest.raises(DiskFullError, match=r"image\.h5: no space left on the device: the image needs about"):
+        write_image(tmp_path / "image", image)
+    assert list(tmp_path.iterdir()) == []
+    _disk_with_free_bytes(monkeypatch, tmp_path, 2**20 + 2_000_000)
+    assert set(write_image(tmp_path / "image", image)) == {"tif", "h5", "png"}
+
+
+def test_compare_output_inside_its_rosbag2_log_is_refused(tmp_path: Path) -> None:
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    r = runner.invoke(app, ["compare", str(bag), "-o", str(bag / "cmp")])
+    _one_line_error(r, "lies inside the input")
+    assert [p.name for p in bag.iterdir()] == ["metadata.yaml"]
+
+
+def test_enospc_without_a_file_name_names_the_output(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The log writers' own ENOSPC ("[Errno 28] No space left on device") names no file: the command does."""
+    import errno
+
+    import autosar_cli.sim.simulate as sim_mod
+
+    def full_disk(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(sim_mod, "simulate", full_disk)
+    r = runner.invoke(app, ["simulate", "-o", str(tmp_path / "s.mcap")])
+    _one_line_error(r, f"{tmp_path / 's.mcap'}: no space left on the device")
+
+
+def test_a_missing_dataset_names_the_file_and_the_dataset(tmp_path: Path, ci_mcap) -> None:
+    import h5py
+
+    drive = tmp_path / "drive.h5"
+    r = runner.invoke(app, ["ingest", str(ci_mcap.log_path), "-o", str(drive)])
+    assert r.exit_code == 0, r.output
+    with h5py.File(drive, "r+") as f:
+        del f["gnss/gnss_cog/fix/latitude_deg"]
+    r = runner.invoke(app, ["navigate", str(drive), "-o", str(tmp_path / "t.h5")])
+    _one_line_error(r, f"{drive}: dataset /gnss/gnss_cog/fix/latitude_deg is missing")
+    assert "synchronously" not in r.output
+
+
+def test_ctrl_c_during_runs_ingest_stops_its_child_without_leaving_a_partial(tmp_path: Path, ci_mcap) -> None:
+    import signal
+    import subprocess
+    import time
+
+    script = shutil.which("autosar")
+    if script is None:
+        pytest.skip("the autosar console script is not installed")
+    out = tmp_path / "run"
+    proc = subprocess.Popen([script, "run", str(ci_mcap.log_path), "-o", str(out)], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not list(out.glob("*.partial*")) and time.monotonic() < deadline:  # the forked ingest is writing
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGINT)  # to the parent alone, as `kill -INT` does
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and stderr.strip() == "error: interrupted", stderr
+    time.sleep(0.5)  # the child's abort has finished when its parent has joined it; allow a margin anyway
+    assert not list(out.glob("*partial*")) and not (out / "drive.h5").exists()
