@@ -66,14 +66,13 @@ class Ros1BagSource:
                 try:
                     conn, t_ns, data = next(it)
                 except StopIteration:
-                    break
+                    self.stats.bytes_read = self.stats.bytes_total
+                    return
                 except Exception as exc:  # damaged chunk (or index pointing at garbage): rescan the file
                     self.stats.warnings.append(f"{self.path}: ROS1 bag damaged after {n} messages read through "
                                                f"its index ({type(exc).__name__}: {exc}); the rest read chunk by "
                                                "chunk")
-                    reader.close()
-                    yield from self._scan()
-                    return
+                    break
                 n += 1
                 ch = channels[conn.id]
                 self._yielded[(conn.id, t_ns)] += 1
@@ -82,9 +81,9 @@ class Ros1BagSource:
                 if n % 256 == 0:
                     self.stats.bytes_read = int(self.stats.bytes_total * n / total)
                 yield RawMessage(ch, t_ns, data)
-            self.stats.bytes_read = self.stats.bytes_total
         finally:
             reader.close()
+        yield from self._scan()
 
     def _scan(self) -> Iterator[RawMessage]:
         """Every message of every intact chunk not yet delivered through the index."""
