@@ -200,6 +200,7 @@ class NmeaStreams:
         skipped = self.decoder.skipped
         if infos[0].stats is not None:
             infos[0].stats.skipped.update(skipped)
+        infos[0].extra["sentences"] = dict(sorted(self.decoder.sentences.items()))  # ZDA has no table of its own
         return [i for i in infos if i.stats is not None and (i.stats.received or i.kind == "nmea_fix")]
 
 

@@ -549,16 +549,16 @@ def check_time_gaps(spans: dict[str, tuple[int, int]], max_gap_s: float, allow: 
     """Refuse inputs whose time spans lie more than ``max_gap_s`` apart (different drives, or a clock set
     wrong), unless ``allow``: then warn. ``spans``: input -> (first, last) time, ns since the epoch."""
     items = sorted(spans.items(), key=lambda kv: kv[1][0])
-    for i, (path, (a, b)) in enumerate(items):
-        others = [span for j, (_, span) in enumerate(items) if j != i]
+    for path, (a, b) in items:
+        others = [(p, span) for p, span in items if p != path]
         if not others:
             return
-        gap = min(max(0, a - d, c - b) for c, d in others)
+        near, (c, d) = min(others, key=lambda o: max(0, a - o[1][1], o[1][0] - b))
+        gap = max(0, a - d, c - b)
         if gap <= max_gap_s * 1e9:
             continue
-        near = min(others, key=lambda span: max(0, a - span[1], span[0] - b))
-        what = (f"{path} ({_iso(a)} to {_iso(b)}) lies {_human(gap / 1e9)} away from the other inputs (nearest "
-                f"{_iso(near[0])} to {_iso(near[1])}), more than the {max_gap_s:g} s allowed")
+        what = (f"{path} ({_iso(a)} to {_iso(b)}) lies {_human(gap / 1e9)} away from {near} ({_iso(c)} to "
+                f"{_iso(d)}), more than the {max_gap_s:g} s allowed")
         if allow:
             warnings.append(what + "; ingested as recorded (--allow-time-gap)")
             continue
