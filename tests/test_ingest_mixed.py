@@ -7,7 +7,6 @@ and by hand (NMEA checksums computed independently), so every expected count is 
 from __future__ import annotations
 
 import re
-import shutil
 from datetime import UTC, datetime
 from functools import reduce
 from pathlib import Path
@@ -182,17 +181,14 @@ def test_flipped_bytes_in_ros1_are_flagged(ci_ros1: SimulationResult, work: Path
     with Reader(bag) as reader:
         msgs = [(c.topic, bytes(d)) for c, _, d in reader.messages()]
     radar = [d for tpc, d in msgs if tpc == "/scanbrick/raw_frames"]
-    abs1 = [d for tpc, d in msgs if tpc == "/from_can_bus" and d[-13:-8] == b"\x00\x00\x00\x00\x00"]
     data = bytearray(bag.read_bytes())
     frame = radar[500]
     at = data.find(frame)
     assert at > 0 and data.find(frame, at + 1) < 0
     sample = at + len(frame) - 2 * 6000 + 1  # the high byte of one int16 sample, late in the frame
     data[sample] ^= 0x40
-    shutil.copyfile(bag, work / "flipped.bag")
     (work / "flipped.bag").write_bytes(bytes(data))
     report = run([work / "flipped.bag"], work / "flipped.h5", cfg)
-    assert len(abs1) >= 0
     with Drive(work / "flipped.h5") as d:
         idx = d.radar().frame_index
     hits = [w for w in report.warnings if "radar frames" in w]
