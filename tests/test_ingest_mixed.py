@@ -186,7 +186,7 @@ def test_flipped_bytes_in_ros1_are_flagged(ci_ros1: SimulationResult, work: Path
     at = data.find(frame)
     assert at > 0 and data.find(frame, at + 1) < 0
     sample = at + len(frame) - 2 * 6000 + 1  # the high byte of one int16 sample, late in the frame
-    data[sample] ^= 0x40
+    data[sample] ^= 0x0C  # +-3072 counts: within the stream's peaks (~1700), far above this frame's crest
     (work / "flipped.bag").write_bytes(bytes(data))
     report = run([work / "flipped.bag"], work / "flipped.h5", cfg)
     with Drive(work / "flipped.h5") as d:

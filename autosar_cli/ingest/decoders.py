@@ -443,6 +443,9 @@ class RadarDecoder:
 PEAK_RATIO = 6.0
 RMS_RATIO = 3.0
 MEAN_MADS = 50.0
+#: peak/RMS of a frame over the stream's median peak/RMS: a beat signal's crest factor is steady (3.1 +- 0.15
+#: on the ci drive, at most 4.0), one sample with a flipped high byte raises it to ~9
+CREST_RATIO = 2.0
 
 
 def frame_statistics(frame_index: np.ndarray, raw: np.ndarray) -> np.ndarray:
@@ -453,8 +456,9 @@ def frame_statistics(frame_index: np.ndarray, raw: np.ndarray) -> np.ndarray:
 
 
 def implausible_frames(stats: np.ndarray) -> np.ndarray:
-    """Frame indices whose statistics break the stream's: a peak or RMS far from the stream's median (a
-    flipped high byte, a zeroed or garbage block), or a DC offset far outside the stream's spread.
+    """Frame indices whose statistics break the stream's: a peak, RMS or crest factor (peak/RMS) far from
+    the stream's median (a flipped high byte, a zeroed or garbage block), or a DC offset far outside the
+    stream's spread.
 
     ``stats``: rows of :func:`frame_statistics`. Needs a few frames to know the stream; flags nothing below 8.
     """
@@ -463,6 +467,7 @@ def implausible_frames(stats: np.ndarray) -> np.ndarray:
     peak, rms, mean = stats[:, 1], stats[:, 2], stats[:, 3]
     med_peak, med_rms, med_mean = np.median(peak), np.median(rms), np.median(mean)
     mad_mean = np.median(np.abs(mean - med_mean)) + 1e-3 * med_rms + 1e-9
+    crest = peak / np.maximum(rms, 1e-9)
     bad = (peak > PEAK_RATIO * med_peak) | (rms > RMS_RATIO * med_rms) | (rms * RMS_RATIO < med_rms) | \
-          (mean > med_mean + MEAN_MADS * mad_mean)
+          (mean > med_mean + MEAN_MADS * mad_mean) | (crest > CREST_RATIO * np.median(crest))
     return stats[bad, 0].astype(np.int64)
