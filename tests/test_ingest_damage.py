@@ -246,3 +246,15 @@ def test_mcap_bad_record_length_resynchronises(where: str, ci_mcap: SimulationRe
     assert Counter(got) == Counter(kept)
     hits = [w for w in warnings if str(log) in w and re.search(r"bytes \d+-\d+ skipped", w)]
     assert len(hits) == 1, warnings
+
+
+def test_rosbag2_unreadable_metadata_reads_the_storage_anyway(ci_ros2: SimulationResult, work: Path) -> None:
+    bag = work / "bad_meta"
+    db3 = copy_bag(ci_ros2.log_path, bag)
+    meta = bag / "metadata.yaml"
+    text = bytearray(meta.read_bytes())
+    text[len(text) // 2] = 0xFF  # not UTF-8 any more
+    meta.write_bytes(bytes(text))
+    got, warnings = read_all(bag)
+    assert Counter(got) == Counter(m for _, m in db_rows(ci_ros2.log_path))
+    assert any(str(meta) in w and db3.name in w for w in warnings), warnings

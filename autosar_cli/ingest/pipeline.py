@@ -128,6 +128,7 @@ class _Ingest:
         self.streams: dict[str, Any] = {}  # drive.h5 group -> TableStream / NmeaStreams / RadarDecoder
         self.handlers: dict[tuple[str, int], Callable[[RawMessage], None] | None] = {}
         self.bad_messages: Counter[str] = Counter()
+        self.bad_near: dict[str, int] = {}  #: first read position (byte) of each kind of undecodable message
         self.source_file = ""
         self.spans: dict[str, tuple[int, int]] = {}  #: input -> (first, last) message time, ns
         dbc_path = Path(dbc) if dbc else config.dbc_path
@@ -346,7 +347,9 @@ class _Ingest:
             try:
                 fn(raw)
             except Exception as exc:  # one undecodable message must not end the ingest
-                self.bad_messages[f"{self.source_file}: {raw.channel.topic}: {type(exc).__name__}"] += 1
+                what = f"{self.source_file}: {raw.channel.topic}: {type(exc).__name__}"
+                self.bad_messages[what] += 1
+                self.bad_near.setdefault(what, src.stats.bytes_read)
             if n & 1023 == 0:
                 progress(src.stats.bytes_read)
         progress(src.stats.bytes_total)
@@ -493,7 +496,8 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
         if job.bad_messages:
             report.can["undecodable_messages"] = dict(job.bad_messages)
             report.warnings.append(f"{sum(job.bad_messages.values())} messages could not be decoded: "
-                                   + ", ".join(f"{k} ×{v}" for k, v in job.bad_messages.items()))
+                                   + ", ".join(f"{k} ×{v} (the first near byte {job.bad_near.get(k, 0)})"
+                                               for k, v in job.bad_messages.items()))
         report.skipped_channels = list(job.skipped_channels.values())
         report.warnings = job.warnings + report.warnings
         written = [i.stats for i in infos if i.stats is not None and i.stats.written]
@@ -591,7 +595,8 @@ def _check_content(inputs: list[tuple[Path, str]], infos: list[StreamInfo], job:
             raise IngestError(f"{names}: none of the {can.frames} CAN frames has an ID in the DBC {job.dbc_path} "
                               f"({len(can.unknown_ids)} IDs, e.g. {ids}); give the vehicle's DBC with --dbc")
         seen = ", ".join(f"{s['topic']} ({s['msgtype']})" for s in job.skipped_channels.values())
-        damage = [w for w in job.warnings if "damaged" in w or "truncated" in w or "corrupt" in w]
+        damage = sorted((w for w in job.warnings if "damaged" in w or "truncated" in w or "corrupt" in w),
+                        key=lambda w: "byte" not in w)  # the warning with the offset first
         raise IngestError(f"{names}: no known sensor streams (CAN frames, NavSatFix, NMEA, Imu, ScanBrick RawFrame)"
                           + (f"; found only {seen}" if seen else "") + (f"; {damage[0]}" if damage else ""))
     has_radar = any(i.kind == "radar" for i in written)

@@ -121,7 +121,7 @@ def _read_metadata(path: Path) -> dict[str, Any]:
         meta = yaml.safe_load(meta_path.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
         meta["relative_file_paths"]  # noqa: B018  (required key)
         meta["storage_identifier"]  # noqa: B018
-    except (OSError, yaml.YAMLError, KeyError, TypeError) as exc:
+    except (OSError, yaml.YAMLError, KeyError, TypeError, ValueError) as exc:  # ValueError: not UTF-8
         raise LogReadError(f"{meta_path}: not a valid rosbag2 metadata file ({exc})") from exc
     return meta
 
@@ -396,10 +396,48 @@ def _message_leaves(file: Path) -> dict[int, tuple[int, int, int, bytes]]:
 
 
 def open_rosbag2(path: Path) -> LogSource:
-    meta = _read_metadata(path)
+    try:
+        meta = _read_metadata(path)
+        lost = ""
+    except LogReadError as exc:  # the storage files hold the messages: read them without it
+        meta = _metadata_from_files(path, exc)
+        lost = str(exc)
     storage = meta["storage_identifier"]
+    src: Rosbag2McapSource | Rosbag2SqliteSource
     if storage == "mcap":
-        return Rosbag2McapSource(path, meta)
-    if storage == "sqlite3":
-        return Rosbag2SqliteSource(path, meta)
-    raise LogReadError(f"{path}: rosbag2 storage {storage!r} is not supported (mcap, sqlite3)")
+        src = Rosbag2McapSource(path, meta)
+    elif storage == "sqlite3":
+        src = Rosbag2SqliteSource(path, meta)
+    else:
+        raise LogReadError(f"{path}: rosbag2 storage {storage!r} is not supported (mcap, sqlite3)")
+    if lost:
+        src.stats.warnings.append(f"{lost}; read its storage files {', '.join(p.name for p in src.files)} "
+                                  "without it (no message counts to check against)")
+    return src
+
+
+def _metadata_from_files(path: Path, exc: LogReadError) -> dict[str, Any]:
+    """Stand-in metadata for a bag whose metadata.yaml is unreadable: its storage files, by suffix."""
+    for suffix, storage in ((".db3", "sqlite3"), (".mcap", "mcap")):
+        files = sorted(p.name for p in path.glob(f"*{suffix}"))
+        if files:
+            meta: dict[str, Any] = {"relative_file_paths": files, "storage_identifier": storage}
+            if storage == "sqlite3" and _first_payload(path / files[0]).startswith(_ZSTD_MAGIC):
+                meta["compression_mode"], meta["compression_format"] = "message", "zstd"
+            return meta
+    raise exc
+
+
+_ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
+
+
+def _first_payload(file: Path) -> bytes:
+    """The first message payload of a sqlite3 storage file (b"" if none can be read)."""
+    db = sqlite3.connect(f"file:{quote(str(file.resolve()))}?mode=ro&immutable=1", uri=True)
+    try:
+        row = db.execute("SELECT data FROM messages ORDER BY id LIMIT 1").fetchone()
+    except sqlite3.DatabaseError:
+        row = None
+    finally:
+        db.close()
+    return bytes(row[0]) if row else b""
