@@ -301,6 +301,7 @@ def hdf5_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
     spots = flip(data, rng, rng.randint(1, 10), lo=len(data) // 20)  # past the superblock/root: the data
     dst.write_bytes(bytes(data))
     before = (tree_hash(dst), tree_hash(other))
+    (tdir / "out").mkdir()
     t0 = time.perf_counter()
     r = cli(["focus", "drive.h5", "-t", "traj.h5", "-o", "out/image"], tdir)
     trial = Trial("hdf5", n, f"{len(spots)} flipped bytes in {src.name}", rc=r.returncode,
@@ -390,6 +391,7 @@ def kill_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
     else:
         shutil.copyfile(base.drive, tdir / "drive.h5")
         shutil.copyfile(base.traj, tdir / "traj.h5")
+        (tdir / "out").mkdir()  # focus writes into an existing directory
         args, delay = ["focus", "drive.h5", "-t", "traj.h5", "-o", "out/image"], rng.uniform(0.0, 3.5)
         inputs = [tdir / "drive.h5", tdir / "traj.h5"]
     before = [tree_hash(p) for p in inputs]
