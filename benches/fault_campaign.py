@@ -537,7 +537,7 @@ def main() -> None:
               f" ({t.outcome}: {t.detail})")
     RESULTS.mkdir(exist_ok=True)
     path = RESULTS / "fault_campaign.json"
-    out = {"seed": args.seed, "scale": args.scale, "wall_s": {c: 0.0 for c in classes}, "table": {},
+    out = {"seed": args.seed, "scale": args.scale, "wall_s": {}, "table": {},
            "intact_chunks_kept": {}, "trials": []}
     if set(classes) != set(COUNTS) and path.exists():  # a subset of the classes: merge into the last run's
         old = json.loads(path.read_text())
