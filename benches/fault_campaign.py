@@ -546,9 +546,10 @@ def main() -> None:
     out["python"] = sys.version.split()[0]
     out["wall_s"] = {**out["wall_s"], ",".join(classes): round(wall, 1)}
     out["table"] = {**out["table"], **{c: dict(table[c]) for c in classes}}
-    if chunk_checks:
-        out["intact_chunks_kept"] = {"trials": len(chunk_checks), "failed": len(chunk_fail)}
     out["trials"] = [t for t in out["trials"] if t["cls"] not in classes] + [asdict(t) for t in trials]
+    checked = [t for t in out["trials"] if t["chunks_expected"] is not None]
+    out["intact_chunks_kept"] = {"trials": len(checked), "failed": sum(
+        1 for t in checked if (t["messages_read"] or 0) < t["chunks_expected"])}
     path.write_text(json.dumps(out, indent=1) + "\n")
     print(f"{len(trials)} trials in {wall:.0f} s; wrote {RESULTS / 'fault_campaign.json'}")
     if args.workdir is None:

@@ -616,8 +616,8 @@ def _plausibility(infos: list[StreamInfo], job: _Ingest) -> None:
     for info in infos:
         bad = info.extra.get("implausible_frames")
         if bad:
-            job.warnings.append(f"{info.path}: {len(bad)} radar frames have statistics far outside the stream's "
-                                f"(peak, RMS or DC; damaged data?): frame indices {_listed(bad)}")
+            job.warnings.append(f"{info.path}: {len(bad)} radar frames have a crest factor (peak/RMS) far above "
+                                f"the stream's, or are all zero (damaged data?): frame indices {_listed(bad)}")
     can = job.can.stats
     if can.out_of_range:
         job.warnings.append(f"{sum(can.out_of_range.values())} CAN values outside their DBC range (damaged data?): "
