@@ -439,11 +439,15 @@ class RadarDecoder:
         return self.info
 
 
-#: a frame's crest factor (peak/RMS) over the stream's median crest factor beyond which it is flagged. Peak,
-#: RMS and DC level follow the scene (on the test2 drive RMS spans 0.3x-48x its median as strong targets
-#: pass), but a beat signal's crest factor stays within 0.48x-1.57x of its median there (ci: 3.1 +- 0.15, at
-#: most 4.0); one sample with a flipped high byte raises it to ~9.
+#: a frame's crest factor (peak/RMS) over the stream's median crest factor beyond which it is flagged. Peak and
+#: RMS follow the scene (on the test2 drive RMS spans 0.3x-48x its median as strong targets pass), but a beat
+#: signal's crest factor stays within 0.48x-1.57x of its median there (ci: 3.1 +- 0.15, at most 4.0); one
+#: sample with a flipped high byte raises it to ~9.
 CREST_RATIO = 2.0
+#: a frame's peak or RMS against the running median of its NEIGHBOURS frames: at 990 frames/s the scene barely
+#: changes from one frame to the next (test2: 0.68x-1.55x, ci: 0.88x-1.22x), a garbage block does
+LOCAL_RATIO = 2.0
+NEIGHBOURS = 9
 
 
 def frame_statistics(frame_index: np.ndarray, raw: np.ndarray) -> np.ndarray:
@@ -453,14 +457,19 @@ def frame_statistics(frame_index: np.ndarray, raw: np.ndarray) -> np.ndarray:
 
 
 def implausible_frames(stats: np.ndarray) -> np.ndarray:
-    """Frame indices whose samples cannot be the ADC's: a crest factor (peak/RMS) far above the stream's
-    (a flipped high byte, a garbage block), or all samples zero.
+    """Frame indices whose samples cannot be the ADC's: a crest factor (peak/RMS) far above the stream's (a
+    flipped high byte), a peak or RMS far from the neighbouring frames' (a garbage block), or all zeros.
 
-    ``stats``: rows of :func:`frame_statistics`. Needs a few frames to know the stream; flags nothing below 8.
+    ``stats``: rows of :func:`frame_statistics` in time order. Flags nothing below 8 frames.
     """
+    from scipy.ndimage import median_filter
+
     if len(stats) < 8:
         return np.zeros(0, dtype=np.int64)
     peak, rms = stats[:, 1], stats[:, 2]
     crest = peak / np.maximum(rms, 1e-9)
     bad = (crest > CREST_RATIO * np.median(crest)) | (rms == 0)
+    for v in (peak, rms):
+        local = np.maximum(median_filter(v, size=NEIGHBOURS, mode="nearest"), 1e-9)
+        bad |= (v > LOCAL_RATIO * local) | (v * LOCAL_RATIO < local)
     return stats[bad, 0].astype(np.int64)
