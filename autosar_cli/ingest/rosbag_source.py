@@ -358,7 +358,8 @@ def _rows(db: sqlite3.Connection, file: Path, hint: int,
         (last,) = db.execute("SELECT max(id) FROM messages").fetchone()
     except sqlite3.DatabaseError:
         last = None
-    last = hint if last is None else last
+    if last is None or (hint and last > 4 * hint + _ROW_BATCH):  # unreadable, or a damaged b-tree's garbage
+        last = hint
     leaves: dict[int, tuple[int, int, int, bytes]] | None = None
     query = "SELECT id, topic_id, timestamp, data FROM messages WHERE id >= ? AND id < ? ORDER BY id"
     for lo in range(0, last + 1, _ROW_BATCH):
