@@ -358,9 +358,12 @@ def _rows(db: sqlite3.Connection, file: Path, hint: int,
         (last,) = db.execute("SELECT max(id) FROM messages").fetchone()
     except sqlite3.DatabaseError:
         last = None
+    leaves: dict[int, tuple[int, int, int, bytes]] | None = None
     if last is None or (hint and last > 4 * hint + _ROW_BATCH):  # unreadable, or a damaged b-tree's garbage
         last = hint
-    leaves: dict[int, tuple[int, int, int, bytes]] | None = None
+        if not hint:  # no declared count either: the highest id the leaf pages hold
+            leaves = _message_leaves(file)
+            last = max(leaves, default=0)
     query = "SELECT id, topic_id, timestamp, data FROM messages WHERE id >= ? AND id < ? ORDER BY id"
     for lo in range(0, last + 1, _ROW_BATCH):
         hi = min(lo + _ROW_BATCH, last + 1)
