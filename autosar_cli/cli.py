@@ -248,12 +248,18 @@ def ingest(
     radar_override: RadarOverrideOpt = False,
     allow_partial: Annotated[bool, typer.Option("--allow-partial",
                                                 help="Write a drive without radar or without navigation.")] = False,
+    time_offset: Annotated[list[str] | None, typer.Option(
+        "--time-offset", metavar="PATH=SECONDS", help="Shift a CAN or NMEA log's times (repeatable).")] = None,
+    allow_time_gap: Annotated[bool, typer.Option(
+        "--allow-time-gap", help="Ingest inputs that lie more than --max-time-gap apart as recorded.")] = False,
+    max_time_gap: Annotated[float, typer.Option(
+        "--max-time-gap", help="Seconds inputs may lie apart before they are refused.")] = 3600.0,
     overwrite: OverwriteOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
     """Decode CAN (with a DBC), GNSS, IMU and raw radar frames of drive logs into one drive.h5, streaming."""
     with _errors(output):
-        from autosar_cli.ingest.pipeline import classify_input
+        from autosar_cli.ingest.pipeline import classify_input, parse_time_offsets
         from autosar_cli.ingest.pipeline import ingest as run_ingest
 
         cfg = _load_config(config)
@@ -269,8 +275,9 @@ def ingest(
             report = run_ingest(kinds["log"], output, config=cfg, dbc=dbc, can_logs=kinds["can"],
                                 nmea_logs=kinds["nmea"], radar_captures=kinds["radar"],
                                 radar_options=_radar_options(radar_start, radar_sync, radar_override),
-                                allow_partial=allow_partial, progress=update,
-                                command=" ".join(sys.argv))
+                                allow_partial=allow_partial, progress=update, command=" ".join(sys.argv),
+                                time_offsets=parse_time_offsets(time_offset or []),
+                                max_time_gap_s=max_time_gap, allow_time_gap=allow_time_gap)
         d = report.to_dict()
         if as_json:
             out.print_json(json.dumps(d))
@@ -288,8 +295,9 @@ def ingest(
             table.add_row(st["path"], str(st["written"]), f"{rate:.1f}", str(st["gaps"]), ", ".join(notes))
         out.print(table)
         can = report.can
-        problems = {k: sum(v.values()) for k in ("unknown_ids", "dlc_mismatch", "checksum_errors", "counter_errors")
-                    if (v := can.get(k))}
+        problems = {k: sum(v.values()) if isinstance(v, dict) else v for k in (
+            "unknown_ids", "dlc_mismatch", "checksum_errors", "counter_errors", "error_frames", "remote_frames",
+            "out_of_range") if (v := can.get(k))}
         if can.get("frames"):
             out.print(f"CAN: {can['frames']} frames, {can['decoded']} decoded"
                       + "".join(f", {k.replace('_', ' ')} {v}" for k, v in problems.items()))

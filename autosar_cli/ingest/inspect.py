@@ -93,7 +93,13 @@ def summarize_can_log(path: Path) -> LogSummary:
     streams: dict[str, StreamSummary] = {}
     try:
         for rec in read_can_log(path):
-            _add(streams, f"ch{rec.channel or '?'} 0x{rec.frame_id:X}", "CAN frame", rec.t_ns)
+            ch = f"ch{rec.channel or '?'}"
+            if rec.is_error:  # an error frame's ID field means nothing
+                _add(streams, f"{ch} error frames", "CAN error frame", rec.t_ns)
+            elif rec.is_remote:
+                _add(streams, f"{ch} 0x{rec.frame_id:X} remote", "CAN remote frame", rec.t_ns)
+            else:
+                _add(streams, f"{ch} 0x{rec.frame_id:X}", "CAN frame", rec.t_ns)
     except CanLogError as exc:
         if not streams:
             raise LogReadError(str(exc)) from exc
@@ -112,6 +118,11 @@ def summarize_nmea_log(path: Path) -> LogSummary:
     for rec in reader:
         _add(streams, type(rec).__name__, "NMEA", rec.t_ns)
     summary.streams.extend(streams.values())
+    # date/time sentences carry no record of their own but say how the capture is dated
+    sentences = reader.decoder.sentences
+    span = (summary.start_ns, summary.end_ns)
+    summary.streams.extend(StreamSummary(f"{kind} sentences", "NMEA", n, *span) for kind, n in sorted(sentences.items())
+                           if kind == "ZDA")
     if reader.skipped:
         summary.warnings.append("skipped sentences: " + ", ".join(f"{k} ×{v}" for k, v in reader.skipped.items()))
     return summary

@@ -17,6 +17,8 @@ Only a file that is not MCAP at all (bad magic) raises :class:`~.sources.LogRead
 
 from __future__ import annotations
 
+import mmap
+import re
 import struct
 import zlib
 from collections import deque
@@ -44,8 +46,50 @@ _RECORD_HEAD = struct.Struct("<BQ")
 _PREFETCH = 4
 
 
+_OP_NAMES = {_OP_SCHEMA: "schema", _OP_CHANNEL: "channel", _OP_MESSAGE: "message"}
+_LAST_OPCODE = 0x0F  # opcodes 0x10-0x7F are reserved; 0x80-0xFF are private records, skipped by length
+#: a record header whose opcode is defined and whose length fits in 32 bits (as every real record's does)
+_PLAUSIBLE_HEAD = re.compile(rb"(?=[\x01-\x0f\x80-\xff][\x00-\xff]{4}\x00\x00\x00\x00)")
+
+
 class _BadChunk(Exception):
     pass
+
+
+def _framing_problem(opcode: int, length: int, offset: int, total: int) -> str:
+    """Why the record header at ``offset`` cannot be a real one ("" if it can)."""
+    if opcode == 0 or _LAST_OPCODE < opcode < 0x80:
+        return f"invalid record opcode {opcode:#04x}"
+    if length > total - offset - 9:
+        return f"record of {length} bytes runs past the end of the file (truncated or damaged length)"
+    if opcode == _OP_FOOTER and offset + 9 + length + len(MCAP_MAGIC) != total:
+        return "footer record before the end of the file"
+    return ""
+
+
+def _next_record(path: Path, start: int, total: int) -> int | None:
+    """Offset of the first plausible record at or after ``start``: a sane header whose successor's header is
+    sane too (or which ends where the closing magic starts); chunk records must parse as chunks."""
+    with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+        for m in _PLAUSIBLE_HEAD.finditer(buf, start):
+            pos = m.start()
+            opcode, length = _RECORD_HEAD.unpack_from(buf, pos)
+            if _framing_problem(opcode, length, pos, total):
+                continue
+            end = pos + 9 + length
+            if opcode == _OP_CHUNK:
+                try:
+                    _parse_chunk(buf[pos + 9:end])
+                except (struct.error, ValueError, UnicodeDecodeError):
+                    continue
+            if end + 9 <= total:
+                op2, len2 = _RECORD_HEAD.unpack_from(buf, end)
+                if _framing_problem(op2, len2, end, total):
+                    continue
+            elif end != total - len(MCAP_MAGIC):
+                continue
+            return pos
+    return None
 
 
 def _parse_chunk(body: bytes) -> Chunk:
@@ -97,6 +141,8 @@ class McapSource:
         self._channels: dict[int, Channel] = {}
         self._declared = declared  # per-topic counts from a rosbag2 metadata.yaml
         self._summary_counts: dict[int, int] = {}
+        #: the summary's schemas and channels: stand-ins for records damaged in the data section
+        self._summary_records: tuple[dict[int, Schema], dict[int, McapChannel]] = ({}, {})
         self._undeclared = 0
 
     # -- public -------------------------------------------------------------------------------------
@@ -122,25 +168,43 @@ class McapSource:
                                            "reading sequentially")
             return
         self._summary_counts = dict(summary.statistics.channel_message_counts)
+        self._summary_records = (summary.schemas, summary.channels)
 
     def _records(self, f: BinaryIO) -> Iterator[RawMessage]:
-        """Outer records in file order; chunks go to the worker threads, message indexes are skipped."""
+        """Outer records in file order; chunks go to the worker threads, message indexes are skipped.
+
+        A record that does not parse costs only itself; a broken framing (garbage opcode or length) is
+        resynchronised on the next plausible record (:func:`_next_record`).
+        """
         magic = f.read(8)
         if magic != MCAP_MAGIC:
             raise LogReadError(f"{self.path}: not an MCAP file (bad magic)")
         pending: deque[tuple[int, Future[bytes]]] = deque()
         total = self.stats.bytes_total
         offset = 8
+        # where to look for the next record if the one at ``offset`` is garbage: a record other than a chunk
+        # (whose header was checked) may itself have carried the bad length that led here
+        resync_from = offset
         with ThreadPoolExecutor(1, thread_name_prefix="mcap-chunk") as pool:
             while True:
                 head = f.read(9)
                 if len(head) < 9:
-                    self._damaged(offset, "file ends inside a record header (truncated)")
+                    if offset < total:
+                        self._damaged(offset, "file ends inside a record header (truncated)")
                     break
                 opcode, length = _RECORD_HEAD.unpack(head)
-                if length > total - offset - 9:
-                    self._damaged(offset, f"record of {length} bytes runs past the end of the file (truncated)")
-                    break
+                framing = _framing_problem(opcode, length, offset, total)
+                if framing:
+                    nxt = _next_record(self.path, resync_from + 1, total)
+                    if nxt is None:
+                        self._damaged(offset, framing)
+                        break
+                    if nxt < offset:
+                        framing = f"the record at byte {resync_from} has a bad length ({framing} at byte {offset})"
+                    self._skipped(resync_from, nxt, framing)
+                    f.seek(nxt)
+                    offset = resync_from = nxt
+                    continue
                 if opcode == _OP_FOOTER:
                     break
                 if opcode == _OP_CHUNK:
@@ -148,22 +212,31 @@ class McapSource:
                     try:
                         chunk = _parse_chunk(body)
                     except (struct.error, ValueError, UnicodeDecodeError) as exc:
-                        self._damaged(offset, f"bad chunk header ({exc})")
-                        break
-                    pending.append((offset + 9 + length, pool.submit(_decompress, chunk)))
-                    if len(pending) > _PREFETCH:
-                        yield from self._chunk_messages(*pending.popleft())
+                        self._skipped(offset, offset + 9 + length, f"bad chunk header ({exc})")
+                        resync_from = offset
+                    else:
+                        resync_from = offset + 9 + length
+                        pending.append((offset + 9 + length, pool.submit(_decompress, chunk)))
+                        if len(pending) > _PREFETCH:
+                            yield from self._chunk_messages(*pending.popleft())
                 elif opcode in (_OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE):
                     while pending:
                         yield from self._chunk_messages(*pending.popleft())
                     body = f.read(length)
-                    msg = self._inner_record(opcode, memoryview(body), 0, length)
+                    try:
+                        msg = self._inner_record(opcode, memoryview(body), 0, length)
+                    except Exception as exc:  # mcap's record parsers raise whatever the bytes provoke
+                        self._skipped(offset, offset + 9 + length, f"unreadable {_OP_NAMES[opcode]} record "
+                                      f"({type(exc).__name__}: {exc})")
+                        msg = None
                     if msg is not None:
                         yield msg
                 elif length < 1 << 20:  # message indexes etc.: reading is cheaper than a buffered seek
                     f.read(length)
                 else:  # attachments, large metadata: not needed here
                     f.seek(length, 1)
+                if opcode != _OP_CHUNK:
+                    resync_from = offset
                 offset += 9 + length
                 self.stats.bytes_read = offset
             while pending:
@@ -174,6 +247,10 @@ class McapSource:
             raise LogReadError(f"{self.path}: not a readable MCAP file ({what} at byte {offset})")
         self.stats.warnings.append(f"{self.path}: damaged MCAP at byte {offset} of {self.stats.bytes_total}: {what}; "
                                    "everything before it was read")
+
+    def _skipped(self, start: int, end: int, what: str) -> None:
+        self.stats.warnings.append(f"{self.path}: damaged MCAP: bytes {start}-{end} skipped: {what}; reading "
+                                   "went on after them")
 
     def _chunk_messages(self, end_offset: int, future: Future[bytes]) -> Iterator[RawMessage]:
         try:
@@ -195,7 +272,7 @@ class McapSource:
                     raise ValueError("record runs past the end of the chunk")
                 if opcode == _OP_MESSAGE:  # the hot path, inlined
                     channel_id, _, log_time, _ = unpack_msg(view, body)
-                    channel = channels.get(channel_id)
+                    channel = channels.get(channel_id) or self._summary_channel(channel_id)
                     if channel is None:
                         self._undeclared += 1
                         continue
@@ -207,6 +284,17 @@ class McapSource:
             self.stats.warnings.append(f"{self.path}: chunk ending at byte {end_offset} is corrupt ({exc}); "
                                        "the rest of it was skipped")
         self.stats.bytes_read = end_offset
+
+    def _summary_channel(self, channel_id: int) -> Channel | None:
+        """The channel as the summary declares it, when its record in the data section was lost."""
+        schemas, channels = self._summary_records
+        ch = channels.get(channel_id)
+        if ch is None:
+            return None
+        if ch.schema_id not in self._schemas and ch.schema_id in schemas:
+            self._schemas[ch.schema_id] = schemas[ch.schema_id]
+        self._add_channel(ch)
+        return self._channels[channel_id]
 
     def _add_channel(self, ch: McapChannel) -> None:
         schema = self._schemas.get(ch.schema_id)
@@ -233,7 +321,7 @@ class McapSource:
             self._add_channel(McapChannel.read(ReadDataStream(BytesIO(view[start:end]))))
         elif opcode == _OP_MESSAGE:
             channel_id, _, log_time, _ = _MSG_HEAD.unpack_from(view, start)
-            channel = self._channels.get(channel_id)
+            channel = self._channels.get(channel_id) or self._summary_channel(channel_id)
             if channel is None:
                 self._undeclared += 1
                 return None

@@ -139,8 +139,12 @@ class NmeaDecoder:
     Feed sentences in stream order; one decoder per receiver. ``skipped`` counts what was not decoded.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, anchor_ns: int | None = None) -> None:
         self.skipped: Counter[str] = Counter()
+        self.sentences: Counter[str] = Counter()  #: supported sentences parsed, by type (ZDA included)
+        #: an instant on the drive's day, from other streams: dates a capture that never carries one
+        self.anchor_ns = anchor_ns
+        self.anchored = 0  #: records dated by ``anchor_ns``
         self._ref_ns: int | None = None  # last dated instant (RMC/ZDA, then each dated GGA): the date source
         self._epoch: tuple[int, int | None] | None = None  # last GGA/RMC: (time of day ns, fix time ns or None)
         self._held: deque[_Held] = deque()
@@ -153,6 +157,7 @@ class NmeaDecoder:
         out: list[NmeaRecord] = []
         try:
             kind, msg = self._parse(sentence)
+            self.sentences[kind] += 1
             if kind == "GGA":
                 self._gga(msg, stamp_ns, out)
             elif kind == "RMC":
@@ -168,12 +173,17 @@ class NmeaDecoder:
         return out
 
     def flush(self) -> list[NmeaRecord]:
-        """Records still held back at end of stream. A record is only ever held for want of a date, so these
-        are dropped and counted as "no date"; the list is empty (kept so callers need not special-case)."""
+        """Records still held back at end of stream. A record is only ever held for want of a date: with an
+        ``anchor_ns`` they are dated by it (the day that puts the first within 12 h of it) and returned;
+        without one they are dropped and counted as "no date"."""
+        out: list[NmeaRecord] = []
+        if self._held and self.anchor_ns is not None:
+            self.anchored = len(self._held)
+            self._learn_date(nearest_instant(self._held[0].tod_ns, self.anchor_ns), out)
         if self._held:
             self.skipped["no date"] += len(self._held)
             self._held.clear()
-        return []
+        return out
 
     # ------------------------------------------------------------------ parsing
     def _parse(self, sentence: str | bytes) -> tuple[str, Any]:
@@ -245,7 +255,7 @@ class NmeaDecoder:
             self._epoch = (self._epoch[0], nearest_instant(self._epoch[0], instant_ns))
 
     def _hold(self, tod_ns: int, record: NmeaRecord, timed: bool) -> None:
-        if len(self._held) >= MAX_HELD:
+        if len(self._held) >= MAX_HELD and self.anchor_ns is None:
             self._held.popleft()
             self.skipped["no date"] += 1
         self._held.append(_Held(tod_ns, record, timed))
@@ -349,17 +359,23 @@ class NmeaLogReader:
     including records dropped as "no date" at the end).
     """
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, anchor_ns: int | None = None) -> None:
         self.path = Path(path)
-        self._decoder = NmeaDecoder()
+        self.anchor_ns = anchor_ns
+        self._decoder = NmeaDecoder(anchor_ns)
 
     @property
     def skipped(self) -> Counter[str]:
         """Reason -> count of what the latest (or current) iteration did not decode."""
         return self._decoder.skipped
 
+    @property
+    def decoder(self) -> NmeaDecoder:
+        """The latest (or current) iteration's decoder: its ``sentences`` and ``anchored`` counts."""
+        return self._decoder
+
     def __iter__(self) -> Iterator[NmeaRecord]:
-        decoder = self._decoder = NmeaDecoder()
+        decoder = self._decoder = NmeaDecoder(self.anchor_ns)
         with self.path.open("rb") as f:
             for line in f:
                 line = line.strip()

@@ -8,12 +8,14 @@ without radar or without any navigation stream.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
+import math
 import re
 import time
 from collections import Counter
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -42,7 +44,7 @@ from .decoders import (
     velocity_row,
 )
 from .radar_block import RadarParamsError, Recorded, recorded_from_capture, resolve, write_capture_stream
-from .records import CanRecord
+from .records import UNKNOWN_TIME, CanRecord, NmeaHeading, NmeaRecord
 from .sources import Channel, LogReadError, LogSource, RawMessage, open_source
 from .typesys import MessageTypes, SchemaError
 
@@ -56,6 +58,7 @@ KIND_OF_TYPE = {
     msgs.RAW_FRAME: "radar",
 }
 NMEA_SUFFIXES = (".nmea", ".txt", ".gps")
+MAX_TIME_GAP_S = 3600.0  #: inputs further apart than this are refused (unless --allow-time-gap)
 
 ProgressFn = Callable[[int, int], None]
 
@@ -142,7 +145,9 @@ class _Ingest:
         self.streams: dict[str, Any] = {}  # drive.h5 group -> TableStream / NmeaStreams / RadarDecoder
         self.handlers: dict[tuple[str, int], Callable[[RawMessage], None] | None] = {}
         self.bad_messages: Counter[str] = Counter()
+        self.bad_near: dict[str, int] = {}  #: first read position (byte) of each kind of undecodable message
         self.source_file = ""
+        self.spans: dict[str, tuple[int, int]] = {}  #: input -> (first, last) message time, ns
         dbc_path = Path(dbc) if dbc else config.dbc_path
         try:
             db, dbc_warnings = load_dbc(dbc_path)
@@ -376,8 +381,12 @@ class _Ingest:
         self.source_file = str(src.path)
         handlers = self.handlers
         n = 0
+        first = last = None
         for raw in src.messages():
             n += 1
+            last = raw
+            if first is None:
+                first = raw.log_ns
             key = raw.channel.key
             fn = handlers[key] if key in handlers else self._route(raw.channel)
             if fn is None:
@@ -390,29 +399,40 @@ class _Ingest:
             except RadarParamsError:
                 raise
             except Exception as exc:  # one undecodable message must not end the ingest
-                self.bad_messages[f"{raw.channel.topic}: {type(exc).__name__}"] += 1
+                what = f"{self.source_file}: {raw.channel.topic}: {type(exc).__name__}"
+                self.bad_messages[what] += 1
+                self.bad_near.setdefault(what, src.stats.bytes_read)
             if n & 1023 == 0:
                 progress(src.stats.bytes_read)
         progress(src.stats.bytes_total)
         self.warnings.extend(src.stats.warnings)
+        if first is not None and last is not None:
+            self.spans[str(src.path)] = (first, last.log_ns)
         return n
 
-    def run_can_log(self, path: Path) -> int:
+    def run_can_log(self, path: Path, offset_ns: int = 0) -> int:
         from .canlog import CanLogError, read_can_log
 
         self.source_file = str(path)
         n = 0
+        first = last = 0
         try:
             for rec in read_can_log(path):
+                if offset_ns:
+                    rec = dataclasses.replace(rec, t_ns=rec.t_ns + offset_ns)
                 self.can.feed(rec, None, rec.t_ns, f"file:{path.name}")
+                first = rec.t_ns if n == 0 else first
+                last = rec.t_ns
                 n += 1
         except CanLogError as exc:
             if n == 0:
                 raise LogReadError(str(exc)) from exc
             self.warnings.append(f"{exc}; the {n} frames before it were read")
+        if n:
+            self.spans[str(path)] = (first, last)
         return n
 
-    def run_nmea_log(self, path: Path) -> int:
+    def run_nmea_log(self, path: Path, offset_ns: int = 0) -> int:
         from .nmea import NmeaLogReader
 
         self.source_file = str(path)
@@ -422,12 +442,30 @@ class _Ingest:
         if streams is None:
             attrs = {"topic": "", "msgtype": "nmea text", "source_file": str(path), "sensor": name}
             streams = self.streams[key] = NmeaStreams(self.writer, key, attrs)
-        reader = NmeaLogReader(path)
+        # a capture without RMC/ZDA has times of day only: date them by the streams read so far
+        anchor = min((a for a, _ in self.spans.values()), default=None)
+        reader = NmeaLogReader(path, None if anchor is None else anchor - offset_ns)
         n = 0
+        first = last = 0
         for rec in reader:
+            if offset_ns:
+                rec = _shifted(rec, offset_ns)
             streams.route([rec], None)
+            first = rec.t_ns if n == 0 else min(first, rec.t_ns)
+            last = max(last, rec.t_ns)
             n += 1
         streams.decoder.skipped.update(reader.skipped)
+        dec = reader.decoder
+        if not dec.sentences and not any(k.startswith("unsupported") for k in dec.skipped):
+            raise LogReadError(f"{path}: no NMEA 0183 sentence in this file (read as an NMEA text capture"
+                               + (": its name ends in .log but it is not a CAN log either)" if
+                                  path.suffix.lower() == ".log" else ")"))
+        if dec.anchored:
+            self.warnings.append(f"{path}: no RMC or ZDA sentence gives the date; {dec.anchored} NMEA records dated "
+                                 "by the other inputs (the day that puts them within 12 h of "
+                                 f"{_iso(anchor or 0)})")
+        if n:
+            self.spans[str(path)] = (first, last)
         return n
 
     def finish(self) -> list[StreamInfo]:
@@ -452,8 +490,13 @@ class _Ingest:
 def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | None = None,
            can_logs: Iterable[Path] = (), nmea_logs: Iterable[Path] = (), radar_captures: Iterable[Path] = (),
            radar_options: RadarCaptureOptions = RadarCaptureOptions(), allow_partial: bool = False,
-           progress: ProgressFn | None = None, command: str = "") -> IngestReport:
-    """Ingest ``logs`` (+ standalone CAN and NMEA logs, DCA1000 captures) into ``output`` (drive.h5), atomically."""
+           progress: ProgressFn | None = None, command: str = "", time_offsets: Mapping[Path, float] | None = None,
+           max_time_gap_s: float = MAX_TIME_GAP_S, allow_time_gap: bool = False) -> IngestReport:
+    """Ingest ``logs`` (+ standalone CAN and NMEA logs, DCA1000 captures) into ``output`` (drive.h5), atomically.
+
+    ``time_offsets``: seconds added to every time of a standalone CAN or NMEA log (a logger's clock set
+    wrong). Inputs whose spans lie more than ``max_time_gap_s`` apart are refused unless ``allow_time_gap``.
+    """
     t0 = time.perf_counter()
     radar_captures = list(radar_captures) + [p for p in logs if is_capture(Path(p))]
     logs = [p for p in logs if not is_capture(Path(p))]
@@ -461,6 +504,11 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
              [(Path(p), "nmea") for p in nmea_logs] + [(Path(p), "radar") for p in radar_captures]
     if not inputs:
         raise IngestError("no input: give at least one log, --can-log or --nmea file")
+    offsets = {Path(p): round(float(s) * 1e9) for p, s in (time_offsets or {}).items()}
+    for p in offsets:
+        if (p, "can") not in inputs and (p, "nmea") not in inputs:
+            raise IngestError(f"--time-offset {p}: not one of the CAN or NMEA logs given (a container log's "
+                              "header stamps cannot be shifted; use --allow-time-gap)")
     for path, _ in inputs:
         if not path.exists():
             raise IngestError(f"{path}: no such file or directory")
@@ -486,24 +534,27 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
                 if src is not None:
                     report.messages += job.run_source(src, report_progress)
                 elif kind == "can":
-                    report.messages += job.run_can_log(path)
+                    report.messages += job.run_can_log(path, offsets.get(path, 0))
                 elif kind == "radar":
                     report.messages += job.run_capture(path, report_progress)
                 else:
-                    report.messages += job.run_nmea_log(path)
+                    report.messages += job.run_nmea_log(path, offsets.get(path, 0))
             except (LogReadError, RadarParamsError) as exc:
                 raise IngestError(str(exc)) from exc
             done += _input_bytes(path, src)
             report_progress(0)
+        check_time_gaps(job.spans, max_time_gap_s, allow_time_gap, job.warnings)
         infos = job.finish()
         _check_content(inputs, infos, job, allow_partial, report)
+        _plausibility(infos, job)
         roles, missing_roles = _resolve_roles(job, infos)
         report.streams = [i.to_dict() for i in infos]
         report.can = {**job.can.stats.to_dict(), "roles": roles, "missing_roles": missing_roles}
         if job.bad_messages:
             report.can["undecodable_messages"] = dict(job.bad_messages)
             report.warnings.append(f"{sum(job.bad_messages.values())} messages could not be decoded: "
-                                   + ", ".join(f"{k} ×{v}" for k, v in job.bad_messages.items()))
+                                   + ", ".join(f"{k} ×{v} (the first near byte {job.bad_near.get(k, 0)})"
+                                               for k, v in job.bad_messages.items()))
         report.skipped_channels = list(job.skipped_channels.values())
         report.warnings = job.warnings + report.warnings
         written = [i.stats for i in infos if i.stats is not None and i.stats.written]
@@ -559,6 +610,61 @@ class _Finished:
         return self.info
 
 
+def _iso(t_ns: int) -> str:
+    return datetime.fromtimestamp(t_ns / 1e9, UTC).isoformat(timespec="seconds")
+
+
+def _shifted(rec: NmeaRecord, offset_ns: int) -> NmeaRecord:
+    """``rec`` with its times moved by ``offset_ns`` (``--time-offset``)."""
+    if isinstance(rec, NmeaHeading):
+        return dataclasses.replace(rec, t_ns=rec.t_ns + offset_ns)
+    fix = rec.fix_time_ns if rec.fix_time_ns == UNKNOWN_TIME else rec.fix_time_ns + offset_ns
+    return dataclasses.replace(rec, t_ns=rec.t_ns + offset_ns, fix_time_ns=fix)
+
+
+def parse_time_offsets(items: Iterable[str]) -> dict[Path, float]:
+    """``--time-offset PATH=SECONDS`` values as {path: seconds}."""
+    out: dict[Path, float] = {}
+    for item in items:
+        path, sep, value = item.rpartition("=")
+        try:
+            seconds = float(value)
+        except ValueError:
+            seconds = math.nan
+        if not sep or not path or not math.isfinite(seconds):
+            raise IngestError(f"--time-offset {item!r}: expected PATH=SECONDS, e.g. can.asc=-3600")
+        out[Path(path)] = seconds
+    return out
+
+
+def check_time_gaps(spans: dict[str, tuple[int, int]], max_gap_s: float, allow: bool, warnings: list[str]) -> None:
+    """Refuse inputs whose time spans lie more than ``max_gap_s`` apart (different drives, or a clock set
+    wrong), unless ``allow``: then warn. ``spans``: input -> (first, last) time, ns since the epoch."""
+    items = sorted(spans.items(), key=lambda kv: kv[1][0])
+    for path, (a, b) in items:
+        others = [(p, span) for p, span in items if p != path]
+        if not others:
+            return
+        near, (c, d) = min(others, key=lambda o: max(0, a - o[1][1], o[1][0] - b))
+        gap = max(0, a - d, c - b)
+        if gap <= max_gap_s * 1e9:
+            continue
+        what = (f"{path} ({_iso(a)} to {_iso(b)}) lies {_human(gap / 1e9)} away from {near} ({_iso(c)} to "
+                f"{_iso(d)}), more than the {max_gap_s:g} s allowed")
+        if allow:
+            warnings.append(what + "; ingested as recorded (--allow-time-gap)")
+            continue
+        raise IngestError(what + ": different drives, or a clock set wrong? Shift a CAN or NMEA log with "
+                          "--time-offset PATH=SECONDS, or give --allow-time-gap to ingest the inputs as recorded")
+
+
+def _human(seconds: float) -> str:
+    for unit, size in (("years", 365.25 * 86400), ("days", 86400), ("h", 3600), ("min", 60)):
+        if seconds >= size:
+            return f"{seconds / size:.1f} {unit}"
+    return f"{seconds:.1f} s"
+
+
 def _config_text(config: Config) -> str:
     try:
         return Path(config.source).read_text(encoding="utf-8") if config.source else ""
@@ -571,8 +677,14 @@ def _check_content(inputs: list[tuple[Path, str]], infos: list[StreamInfo], job:
     names = ", ".join(str(p) for p, _ in inputs)
     written = [i for i in infos if i.stats is not None and i.stats.written]
     if not written:
+        can = job.can.stats
+        if can.frames and not can.decoded and can.unknown_ids:
+            ids = ", ".join(k for k, _ in can.unknown_ids.most_common(5))
+            raise IngestError(f"{names}: none of the {can.frames} CAN frames has an ID in the DBC {job.dbc_path} "
+                              f"({len(can.unknown_ids)} IDs, e.g. {ids}); give the vehicle's DBC with --dbc")
         seen = ", ".join(f"{s['topic']} ({s['msgtype']})" for s in job.skipped_channels.values())
-        damage = [w for w in job.warnings if "damaged" in w or "truncated" in w or "corrupt" in w]
+        damage = sorted((w for w in job.warnings if "damaged" in w or "truncated" in w or "corrupt" in w),
+                        key=lambda w: "byte" not in w)  # the warning with the offset first
         raise IngestError(f"{names}: no known sensor streams (CAN frames, NavSatFix, NMEA, Imu, ScanBrick RawFrame)"
                           + (f"; found only {seen}" if seen else "") + (f"; {damage[0]}" if damage else ""))
     has_radar = any(i.kind == "radar" for i in written)
@@ -585,6 +697,26 @@ def _check_content(inputs: list[tuple[Path, str]], infos: list[StreamInfo], job:
             raise IngestError(msg + " (use --allow-partial to write the drive anyway)")
         report.partial = True
         report.warnings.append(msg + "; written anyway (--allow-partial)")
+
+
+def _plausibility(infos: list[StreamInfo], job: _Ingest) -> None:
+    """Warnings for data that decoded but cannot be right (ROS containers carry no checksums)."""
+    for info in infos:
+        bad = info.extra.get("implausible_frames")
+        if bad:
+            job.warnings.append(f"{info.path}: {len(bad)} radar frames have a crest factor (peak/RMS) far above "
+                                f"the stream's, or are all zero (damaged data?): frame indices {_listed(bad)}")
+    can = job.can.stats
+    if can.out_of_range:
+        job.warnings.append(f"{sum(can.out_of_range.values())} CAN values outside their DBC range (damaged data?): "
+                            + ", ".join(f"{k} ×{v}" for k, v in can.out_of_range.most_common(8)))
+    if can.frames and not can.decoded and can.unknown_ids:
+        job.warnings.append(f"none of the {can.frames} CAN frames has an ID in the DBC {job.dbc_path}; give the "
+                            "vehicle's DBC with --dbc")
+
+
+def _listed(values: Sequence[int], n: int = 8) -> str:
+    return ", ".join(str(v) for v in values[:n]) + (f" and {len(values) - n} more" if len(values) > n else "")
 
 
 def _resolve_roles(job: _Ingest, infos: list[StreamInfo]) -> tuple[dict[str, str], list[str]]:

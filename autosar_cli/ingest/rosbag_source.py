@@ -12,14 +12,19 @@ rosbag2 traps handled here (see the real-data notes in docs/FORMATS.md):
 
 from __future__ import annotations
 
+import mmap
 import sqlite3
+from collections import Counter
 from collections.abc import Iterator
 from pathlib import Path, PurePath
 from typing import Any
+from urllib.parse import quote
 
 import yaml
 
 from .mcap_source import McapSource
+from .ros1_chunks import RecordError, Ros1Connection, ScanReport, scan_bag
+from .ros1_chunks import normalise_topic as ros1_topic
 from .sources import (
     Channel,
     LogReadError,
@@ -29,16 +34,20 @@ from .sources import (
     normalise_type,
     register_container,
 )
+from .sqlite_pages import table_leaf_rows
 
 
 class Ros1BagSource:
-    """ROS1 bag v2.0 (indexed). An unindexed or truncated bag is refused with the reason rosbags gives."""
+    """ROS1 bag v2.0. Read through its index with rosbags; a bag whose index is missing or damaged, or
+    whose chunks break while reading, is scanned chunk by chunk instead (:mod:`.ros1_chunks`), keeping
+    every intact chunk."""
 
     container = "ros1"
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
         self.stats = ReadStats(bytes_total=self.path.stat().st_size)
+        self._yielded: Counter[tuple[int, int]] = Counter()  # (connection, t_ns) already delivered
 
     def messages(self) -> Iterator[RawMessage]:
         from rosbags.rosbag1 import Reader, ReaderError
@@ -47,8 +56,12 @@ class Ros1BagSource:
         try:
             reader.open()
         except ReaderError as exc:
-            raise LogReadError(f"{self.path}: cannot open ROS1 bag: {exc} (a truncated or unindexed bag can be "
-                               "repaired with `rosbag reindex`)") from exc
+            if "magic" in str(exc) or "empty" in str(exc) or "version" in str(exc):
+                raise LogReadError(f"{self.path}: not a readable ROS1 bag ({exc})") from exc
+            self.stats.warnings.append(f"{self.path}: ROS1 bag index unusable ({exc}); read chunk by chunk "
+                                       "as `rosbag reindex` does")
+            yield from self._scan()
+            return
         try:
             channels = {}
             for conn in reader.connections:
@@ -61,21 +74,53 @@ class Ros1BagSource:
                 try:
                     conn, t_ns, data = next(it)
                 except StopIteration:
-                    break
-                except Exception as exc:  # damaged chunk: keep what was read
-                    self.stats.warnings.append(f"{self.path}: damaged ROS1 bag after {n} messages ({exc}); "
-                                               "everything before it was read")
+                    self.stats.bytes_read = self.stats.bytes_total
+                    return
+                except Exception as exc:  # damaged chunk (or index pointing at garbage): rescan the file
+                    self.stats.warnings.append(f"{self.path}: ROS1 bag damaged after {n} messages read through "
+                                               f"its index ({type(exc).__name__}: {exc}); the rest read chunk by "
+                                               "chunk")
                     break
                 n += 1
                 ch = channels[conn.id]
+                self._yielded[(conn.id, t_ns)] += 1
                 self.stats.counts[ch.key] = self.stats.counts.get(ch.key, 0) + 1
                 self.stats.messages = n
                 if n % 256 == 0:
                     self.stats.bytes_read = int(self.stats.bytes_total * n / total)
                 yield RawMessage(ch, t_ns, data)
-            self.stats.bytes_read = self.stats.bytes_total
         finally:
             reader.close()
+        yield from self._scan()
+
+    def _scan(self) -> Iterator[RawMessage]:
+        """Every message of every intact chunk not yet delivered through the index."""
+        report = ScanReport()
+        conns: dict[int, Ros1Connection] = {}
+        channels: dict[int, Channel] = {}
+        with open(self.path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+            try:
+                for msg in scan_bag(buf, report, conns):
+                    key = (msg.conn_id, msg.t_ns)
+                    if self._yielded[key] > 0:
+                        self._yielded[key] -= 1
+                        continue
+                    ch = channels.get(msg.conn_id)
+                    if ch is None:
+                        c = conns[msg.conn_id]
+                        ch = channels[msg.conn_id] = Channel((str(self.path), c.conn_id), ros1_topic(c.topic),
+                                                             normalise_type(c.msgtype), "ros1", c.msgdef, "ros1msg")
+                    self.stats.messages += 1
+                    self.stats.counts[ch.key] = self.stats.counts.get(ch.key, 0) + 1
+                    self.stats.bytes_read = msg.chunk_offset
+                    yield RawMessage(ch, msg.t_ns, msg.data)
+            except RecordError as exc:
+                raise LogReadError(f"{self.path}: not a readable ROS1 bag ({exc})") from exc
+        self.stats.bytes_read = self.stats.bytes_total
+        for lost in report.lost:
+            self.stats.warnings.append(f"{self.path}: damaged ROS1 bag: {lost}")
+        self.stats.warnings.append(f"{self.path}: {report.chunks_read} intact chunks read without the index "
+                                   f"({self.stats.messages} messages)")
 
 
 def _read_metadata(path: Path) -> dict[str, Any]:
@@ -84,7 +129,7 @@ def _read_metadata(path: Path) -> dict[str, Any]:
         meta = yaml.safe_load(meta_path.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
         meta["relative_file_paths"]  # noqa: B018  (required key)
         meta["storage_identifier"]  # noqa: B018
-    except (OSError, yaml.YAMLError, KeyError, TypeError) as exc:
+    except (OSError, yaml.YAMLError, KeyError, TypeError, ValueError) as exc:  # ValueError: not UTF-8
         raise LogReadError(f"{meta_path}: not a valid rosbag2 metadata file ({exc})") from exc
     return meta
 
@@ -166,9 +211,23 @@ class Rosbag2SqliteSource:
 
     def messages(self) -> Iterator[RawMessage]:
         seen: dict[str, int] = {}
-        for msg in self._rosbags_messages():
-            seen[msg.channel.topic] = seen.get(msg.channel.topic, 0) + 1
-            yield msg
+        yielded: Counter[tuple[str, int]] = Counter()  # (topic, t_ns) delivered by rosbags
+        try:
+            for msg in self._rosbags_messages():
+                seen[msg.channel.topic] = seen.get(msg.channel.topic, 0) + 1
+                yielded[(msg.channel.topic, msg.log_ns)] += 1
+                yield msg
+        except LogReadError:
+            raise
+        except Exception as exc:  # malformed pages, a bad compressed message: read row range by row range
+            what = f"after {sum(seen.values())} messages" if seen else "when opened"
+            self.stats.warnings.append(f"{self.path}: rosbags failed {what} ({type(exc).__name__}: {exc}); "
+                                       "the sqlite3 storage is read directly, row range by row range")
+            for msg in self._sql_messages(set(self.declared) or None, skip=yielded):
+                seen[msg.channel.topic] = seen.get(msg.channel.topic, 0) + 1
+                yield msg
+            _check_declared(self.path, self.declared, seen, self.stats)
+            return
         # The QoS trap: rosbags matched no connection of these topics. Read them from the storage directly.
         unmatched = {t for t, n in self.declared.items() if n > 0 and t not in seen}
         if unmatched:
@@ -187,11 +246,8 @@ class Rosbag2SqliteSource:
     def _rosbags_messages(self) -> Iterator[RawMessage]:
         from rosbags.rosbag2 import Reader
 
-        try:
-            reader = Reader(self.path)
-            reader.open()
-        except Exception as exc:
-            raise LogReadError(f"{self.path}: cannot open rosbag2 bag: {exc}") from exc
+        reader = Reader(self.path)
+        reader.open()
         try:
             channels: dict[int, Channel] = {}
             for conn in reader.connections:
@@ -211,41 +267,192 @@ class Rosbag2SqliteSource:
         finally:
             reader.close()
 
-    def _sql_messages(self, topics: set[str]) -> Iterator[RawMessage]:
-        """The messages of ``topics``, straight from the sqlite3 storage files."""
+    def _sql_messages(self, topics: set[str] | None,
+                      skip: Counter[tuple[str, int]] | None = None) -> Iterator[RawMessage]:
+        """The messages of ``topics`` (None: all), straight from the sqlite3 storage files, less ``skip``.
+
+        The files are opened immutable (nothing is written next to them, read-only media work) and read in
+        row-id ranges, so a malformed page costs only the rows on it.
+        """
         import zstandard
 
         dctx = zstandard.ZstdDecompressor() if self.compressed else None
+        skip = skip if skip is not None else Counter()
         for file in self.files:
-            db = sqlite3.connect(f"file:{file}?mode=ro", uri=True)
+            if not file.exists():
+                continue
+            db = _open_storage(file, self.stats.warnings)
             try:
-                channels = {tid: ch for tid, ch in self._channels(db, file).items() if ch.topic in topics}
+                try:
+                    channels = {tid: ch for tid, ch in self._channels(db, file).items()
+                                if topics is None or ch.topic in topics}
+                except sqlite3.DatabaseError as exc:
+                    raise LogReadError(f"{file}: cannot read the rosbag2 topics table ({exc})") from exc
                 if not channels:
                     continue
-                marks = ",".join("?" * len(channels))
-                for tid, t_ns, data in db.execute(f"SELECT topic_id, timestamp, data FROM messages WHERE topic_id IN "
-                                                  f"({marks}) ORDER BY id", tuple(channels)):
-                    ch = channels[tid]
+                bad_rows: list[tuple[int, int]] = []
+                bad_data: Counter[str] = Counter()
+                for row_id, tid, t_ns, data in _rows(db, file, sum(self.declared.values()), bad_rows):
+                    ch = channels.get(tid)
+                    if ch is None:
+                        continue
+                    if skip[(ch.topic, t_ns)] > 0:
+                        skip[(ch.topic, t_ns)] -= 1
+                        continue
                     if dctx is not None:
-                        data = dctx.decompress(data)
+                        try:
+                            data = dctx.decompress(data)
+                        except zstandard.ZstdError as exc:
+                            if not bad_data:
+                                self.stats.warnings.append(f"{file}: row {row_id} (topic {ch.topic}) does not "
+                                                           f"decompress ({exc}); skipped")
+                            bad_data[ch.topic] += 1
+                            continue
                     self.stats.messages += 1
                     self.stats.counts[ch.key] = self.stats.counts.get(ch.key, 0) + 1
                     yield RawMessage(ch, t_ns, data)
-            except sqlite3.DatabaseError as exc:
-                self.stats.warnings.append(f"{file}: damaged sqlite3 storage ({exc}); everything before it was read")
+                if bad_rows:
+                    spans = ", ".join(f"{a}-{b}" for a, b in bad_rows[:8]) + (" ..." if len(bad_rows) > 8 else "")
+                    n = sum(b - a + 1 for a, b in bad_rows)
+                    self.stats.warnings.append(f"{file}: damaged sqlite3 storage: {n} message row ids unreadable "
+                                               f"(ids {spans}); every other row was read")
+                if bad_data:
+                    self.stats.warnings.append(f"{file}: {sum(bad_data.values())} compressed messages do not "
+                                               "decompress: " + ", ".join(f"{t} ×{n}" for t, n in bad_data.items()))
             finally:
                 db.close()
         self.stats.bytes_read = self.stats.bytes_total
 
 
+_ROW_BATCH = 512
+
+
+def _open_storage(file: Path, warnings: list[str]) -> sqlite3.Connection:
+    """The sqlite3 file opened read-only and immutable; a truncated one is read from a padded copy in memory.
+
+    A truncated file's schema points at pages past its end, which makes sqlite refuse the whole file;
+    padded with zero pages to the size its header declares, only the lost pages' rows are unreadable.
+    """
+    db = sqlite3.connect(f"file:{quote(str(file.resolve()))}?mode=ro&immutable=1", uri=True)
+    try:
+        db.execute("SELECT name FROM sqlite_master").fetchall()
+        return db
+    except sqlite3.DatabaseError as exc:
+        db.close()
+        reason = exc
+    data = file.read_bytes()
+    if len(data) < 100 or not data.startswith(b"SQLite format 3\x00"):
+        raise LogReadError(f"{file}: not a readable sqlite3 file ({reason})")
+    page_size = int.from_bytes(data[16:18], "big")
+    page_size = 65536 if page_size == 1 else page_size
+    pages = int.from_bytes(data[28:32], "big")
+    size = max(pages * page_size, -(-len(data) // page_size) * page_size)
+    warnings.append(f"{file}: damaged sqlite3 storage: {len(data)} bytes, its header declares "
+                    f"{pages * page_size} ({reason}); read what its pages hold")
+    db = sqlite3.connect(":memory:")
+    db.deserialize(data + bytes(size - len(data)))
+    return db
+
+
+def _rows(db: sqlite3.Connection, file: Path, hint: int,
+          bad: list[tuple[int, int]]) -> Iterator[tuple[int, int, int, bytes]]:
+    """(id, topic_id, timestamp, data) of every readable message row, in id order; unreadable ids go to ``bad``.
+
+    Rows the b-tree cannot reach (a malformed or missing interior page) are looked up in the file's
+    table-leaf pages (:mod:`.sqlite_pages`). ``hint``: the message count metadata.yaml declares, the last
+    id when the table's own end is unreadable.
+    """
+    try:
+        (last,) = db.execute("SELECT max(id) FROM messages").fetchone()
+    except sqlite3.DatabaseError:
+        last = None
+    leaves: dict[int, tuple[int, int, int, bytes]] | None = None
+    if last is None or (hint and last > 4 * hint + _ROW_BATCH):  # unreadable, or a damaged b-tree's garbage
+        last = hint
+        if not hint:  # no declared count either: the highest id the leaf pages hold
+            leaves = _message_leaves(file)
+            last = max(leaves, default=0)
+    query = "SELECT id, topic_id, timestamp, data FROM messages WHERE id >= ? AND id < ? ORDER BY id"
+    for lo in range(0, last + 1, _ROW_BATCH):
+        hi = min(lo + _ROW_BATCH, last + 1)
+        try:
+            yield from db.execute(query, (lo, hi)).fetchall()
+            continue
+        except sqlite3.DatabaseError:
+            pass
+        for i in range(max(lo, 1), hi):  # one by one: a bad page costs only its own rows
+            try:
+                yield from db.execute(query, (i, i + 1)).fetchall()
+                continue
+            except sqlite3.DatabaseError:
+                pass
+            if leaves is None:
+                leaves = _message_leaves(file)
+            if i in leaves:
+                yield leaves[i]
+            elif bad and bad[-1][1] == i - 1:
+                bad[-1] = (bad[-1][0], i)
+            else:
+                bad.append((i, i))
+
+
+def _message_leaves(file: Path) -> dict[int, tuple[int, int, int, bytes]]:
+    """id -> row of every intact rosbag2 message row in the file's table-leaf pages."""
+    out: dict[int, tuple[int, int, int, bytes]] = {}
+    for rowid, v in table_leaf_rows(file.read_bytes()):
+        # the messages table's shape: (id as rowid alias, topic_id, timestamp, data)
+        if len(v) == 4 and v[0] is None and isinstance(v[1], int) and isinstance(v[2], int) and \
+                isinstance(v[3], bytes):
+            out.setdefault(rowid, (rowid, v[1], v[2], v[3]))
+    return out
+
+
 def open_rosbag2(path: Path) -> LogSource:
-    meta = _read_metadata(path)
+    try:
+        meta = _read_metadata(path)
+        lost = ""
+    except LogReadError as exc:  # the storage files hold the messages: read them without it
+        meta = _metadata_from_files(path, exc)
+        lost = str(exc)
     storage = meta["storage_identifier"]
+    src: Rosbag2McapSource | Rosbag2SqliteSource
     if storage == "mcap":
-        return Rosbag2McapSource(path, meta)
-    if storage == "sqlite3":
-        return Rosbag2SqliteSource(path, meta)
-    raise LogReadError(f"{path}: rosbag2 storage {storage!r} is not supported (mcap, sqlite3)")
+        src = Rosbag2McapSource(path, meta)
+    elif storage == "sqlite3":
+        src = Rosbag2SqliteSource(path, meta)
+    else:
+        raise LogReadError(f"{path}: rosbag2 storage {storage!r} is not supported (mcap, sqlite3)")
+    if lost:
+        src.stats.warnings.append(f"{lost}; read its storage files {', '.join(p.name for p in src.files)} "
+                                  "without it (no message counts to check against)")
+    return src
+
+
+def _metadata_from_files(path: Path, exc: LogReadError) -> dict[str, Any]:
+    """Stand-in metadata for a bag whose metadata.yaml is unreadable: its storage files, by suffix."""
+    for suffix, storage in ((".db3", "sqlite3"), (".mcap", "mcap")):
+        files = sorted(p.name for p in path.glob(f"*{suffix}"))
+        if files:
+            meta: dict[str, Any] = {"relative_file_paths": files, "storage_identifier": storage}
+            if storage == "sqlite3" and _first_payload(path / files[0]).startswith(_ZSTD_MAGIC):
+                meta["compression_mode"], meta["compression_format"] = "message", "zstd"
+            return meta
+    raise exc
+
+
+_ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
+
+
+def _first_payload(file: Path) -> bytes:
+    """The first message payload of a sqlite3 storage file (b"" if none can be read)."""
+    db = sqlite3.connect(f"file:{quote(str(file.resolve()))}?mode=ro&immutable=1", uri=True)
+    try:
+        row = db.execute("SELECT data FROM messages ORDER BY id LIMIT 1").fetchone()
+    except sqlite3.DatabaseError:
+        row = None
+    finally:
+        db.close()
+    return bytes(row[0]) if row else b""
 
 
 def _is_rosbag2(path: Path) -> bool:

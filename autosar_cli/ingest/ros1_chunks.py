@@ -1,0 +1,222 @@
+"""ROS1 bag v2.0 read record by record, as ``rosbag reindex`` does: no index needed.
+
+Used when a bag's index is missing or damaged (a truncated or killed recording, a flipped byte): the
+file is scanned from the start (bag header, chunk records, the connection and message-data records
+inside each decompressed chunk), so every intact chunk is kept. A chunk whose record header is damaged
+is skipped by resynchronising on the next plausible chunk header; a chunk that does not decompress is
+skipped whole; a chunk whose inner records break keeps the messages before the break. Each loss is
+reported once, with its byte offsets in the file.
+"""
+
+from __future__ import annotations
+
+import bz2
+import mmap
+import struct
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+ROS1_MAGIC = b"#ROSBAG V2.0\n"
+OP_MSG_DATA = 0x02
+OP_BAG_HEADER = 0x03
+OP_CHUNK = 0x05
+OP_CONNECTION = 0x07
+_MAX_HEADER = 1 << 20  # a record header is a few hundred bytes; anything near this is garbage
+_U32 = struct.Struct("<I")
+_CHUNK_OP = b"op=\x05"
+Buffer = bytes | mmap.mmap  #: the whole bag (an mmap of the file, or bytes in tests)
+
+
+class RecordError(ValueError):
+    """A record's framing or header cannot be parsed."""
+
+
+@dataclass(frozen=True, slots=True)
+class Ros1Connection:
+    conn_id: int
+    topic: str
+    msgtype: str  #: as the bag spells it ("pkg/Name")
+    msgdef: str
+
+
+@dataclass(frozen=True, slots=True)
+class Ros1Message:
+    conn_id: int
+    t_ns: int
+    data: bytes
+    chunk_offset: int  #: file offset of the chunk record holding it
+
+
+@dataclass
+class ScanReport:
+    """What the scan kept and lost (offsets are file byte offsets)."""
+
+    chunks_read: int = 0
+    lost: list[str] = field(default_factory=list)  #: one line per damaged region
+
+
+def parse_fields(blob: bytes) -> dict[str, bytes]:
+    """The ``name=value`` fields of a record header (or of a connection record's data)."""
+    fields: dict[str, bytes] = {}
+    pos, n = 0, len(blob)
+    while pos < n:
+        if pos + 4 > n:
+            raise RecordError("header field size cut off")
+        (size,) = _U32.unpack_from(blob, pos)
+        pos += 4
+        if pos + size > n:
+            raise RecordError("header field runs past the header")
+        name, sep, value = bytes(blob[pos:pos + size]).partition(b"=")
+        if not sep:
+            raise RecordError("header field without '='")
+        fields[name.decode("ascii", "replace")] = value
+        pos += size
+    return fields
+
+
+def parse_header(blob: bytes) -> dict[str, bytes]:
+    """The fields of one record header, which must have a one-byte ``op``."""
+    fields = parse_fields(blob)
+    if "op" not in fields or len(fields["op"]) != 1:
+        raise RecordError("record header has no op field")
+    return fields
+
+
+def read_record(buf: Buffer, pos: int) -> tuple[dict[str, bytes], int, int]:
+    """(header fields, data start, data end) of the record at ``pos`` in ``buf``."""
+    n = len(buf)
+    if pos + 4 > n:
+        raise RecordError("record header length cut off")
+    (hlen,) = _U32.unpack_from(buf, pos)
+    if hlen > _MAX_HEADER or pos + 4 + hlen + 4 > n:
+        raise RecordError(f"record header of {hlen} bytes runs past the end")
+    fields = parse_header(buf[pos + 4:pos + 4 + hlen])
+    dpos = pos + 4 + hlen
+    (dlen,) = _U32.unpack_from(buf, dpos)
+    if dpos + 4 + dlen > n:
+        raise RecordError(f"record data of {dlen} bytes runs past the end")
+    return fields, dpos + 4, dpos + 4 + dlen
+
+
+def _u32(fields: dict[str, bytes], name: str) -> int:
+    v = fields.get(name)
+    if v is None or len(v) != 4:
+        raise RecordError(f"record header field {name!r} missing or malformed")
+    return int(_U32.unpack(v)[0])
+
+
+def _time_ns(fields: dict[str, bytes]) -> int:
+    v = fields.get("time")
+    if v is None or len(v) != 8:
+        raise RecordError("message record without a valid time")
+    sec, nsec = struct.unpack("<II", v)
+    if nsec >= 1_000_000_000:
+        raise RecordError(f"message time has {nsec} ns")
+    return sec * 1_000_000_000 + nsec
+
+
+def _connection(fields: dict[str, bytes], data: bytes) -> Ros1Connection:
+    conn = parse_fields(bytes(data))
+    topic = fields.get("topic", b"").decode("utf-8")
+    return Ros1Connection(_u32(fields, "conn"), topic, conn.get("type", b"").decode("utf-8"),
+                          conn.get("message_definition", b"").decode("utf-8"))
+
+
+def normalise_topic(name: str) -> str:
+    """Topic name as rosbags spells it (repeated and trailing slashes dropped)."""
+    return f'{"/" * name.startswith("/")}{"/".join(x for x in name.split("/") if x)}'
+
+
+def _decompress(compression: str, data: bytes, size: int) -> bytes:
+    if compression == "none":
+        out = data
+    elif compression == "bz2":
+        out = bz2.decompress(data)
+    elif compression == "lz4":
+        import lz4.frame
+
+        out = lz4.frame.decompress(data)
+    else:
+        raise RecordError(f"unknown chunk compression {compression!r}")
+    if len(out) != size:
+        raise RecordError(f"chunk decompresses to {len(out)} bytes, its header says {size}")
+    return out
+
+
+def _next_chunk(buf: Buffer, start: int) -> int | None:
+    """Offset of the next record after ``start`` that parses as a whole chunk record, or None."""
+    at = start
+    while (hit := buf.find(_CHUNK_OP, at)) >= 0:
+        # the op field sits somewhere in the header: try the record starts a short header allows
+        for pos in range(max(start, hit - 256), hit - 3):
+            try:
+                fields, _, _ = read_record(buf, pos)
+            except (RecordError, UnicodeDecodeError, struct.error):
+                continue
+            if fields["op"][0] == OP_CHUNK and "compression" in fields and "size" in fields:
+                return pos
+        at = hit + 1
+    return None
+
+
+def scan_bag(buf: Buffer, report: ScanReport,
+             connections: dict[int, Ros1Connection]) -> Iterator[Ros1Message]:
+    """Every message of every intact chunk of the bag ``buf``, in file order.
+
+    ``connections`` is filled as connection records are met (they precede their first message).
+    """
+    if buf[:len(ROS1_MAGIC)] != ROS1_MAGIC:
+        raise RecordError("not a ROS1 bag v2.0 (bad magic)")
+    pos = len(ROS1_MAGIC)
+    n = len(buf)
+    while pos < n:
+        try:
+            fields, dstart, dend = read_record(buf, pos)
+            op = fields["op"][0]
+        except (RecordError, UnicodeDecodeError) as exc:
+            nxt = _next_chunk(buf, pos + 1)
+            end = nxt if nxt is not None else n
+            report.lost.append(f"bytes {pos}-{end} unreadable ({exc})")
+            if nxt is None:
+                return
+            pos = nxt
+            continue
+        if op == OP_CHUNK:
+            yield from _chunk(buf, pos, fields, dstart, dend, report, connections)
+        elif op == OP_CONNECTION:
+            try:
+                c = _connection(fields, buf[dstart:dend])
+                connections.setdefault(c.conn_id, c)
+            except (RecordError, UnicodeDecodeError) as exc:
+                report.lost.append(f"connection record at byte {pos} unreadable ({exc})")
+        pos = dend
+
+
+def _chunk(buf: Buffer, pos: int, fields: dict[str, bytes], dstart: int, dend: int, report: ScanReport,
+           connections: dict[int, Ros1Connection]) -> Iterator[Ros1Message]:
+    try:
+        data = _decompress(fields.get("compression", b"").decode("ascii", "replace"), buf[dstart:dend],
+                           _u32(fields, "size"))
+    except Exception as exc:  # any codec error: the chunk is lost, the next one is not
+        report.lost.append(f"chunk at bytes {pos}-{dend} skipped: it does not decompress ({exc})")
+        return
+    report.chunks_read += 1
+    at, kept = 0, 0
+    try:
+        while at < len(data):
+            inner, istart, iend = read_record(data, at)
+            op = inner["op"][0]
+            if op == OP_MSG_DATA:
+                conn = _u32(inner, "conn")
+                if conn not in connections:
+                    raise RecordError(f"message on undeclared connection {conn}")
+                msg = Ros1Message(conn, _time_ns(inner), data[istart:iend], pos)
+                kept += 1
+                yield msg
+            elif op == OP_CONNECTION:
+                c = _connection(inner, data[istart:iend])
+                connections.setdefault(c.conn_id, c)
+            at = iend
+    except (RecordError, UnicodeDecodeError) as exc:
+        report.lost.append(f"chunk at bytes {pos}-{dend} is corrupt after its first {kept} messages "
+                           f"(uncompressed offset {at}: {exc}); the rest of it was skipped")

@@ -1,0 +1,560 @@
+"""Fault campaign: seeded faults against the CLI, each trial classified by what the user would see.
+
+Usage: python benches/fault_campaign.py [--seed 0] [--jobs 1] [--workdir DIR] [--scale 1.0]
+
+Simulates the ci drive (seed 7) as MCAP, ROS1 bag and rosbag2 (sqlite3), ingests, navigates and focuses
+it once for reference products, then runs trials of these classes through ``python -m autosar_cli.cli``
+in subprocesses (minimum counts at ``--scale 1``):
+
+    mcap 100, ros1 40, rosbag2 40   byte flips, truncations, damaged record headers / index / metadata
+    hdf5 60                         byte flips in drive.h5 and trajectory.h5, then focus
+    config 30                       non-finite, negative, huge, mistyped, missing and non-UTF-8 values
+    kill 30                         SIGKILL / SIGINT at a random moment of ingest or focus, then a rerun
+    disk-full 5                     ingest and focus onto a 5 MiB tmpfs (skipped with a message if no mount)
+    path 10                         outputs that are inputs, directories, under files, 255-byte names
+
+Outcomes: clean-error (exit != 0, one error line, no traceback), kept-with-warning, ok, crash-or-traceback,
+silent-wrong (exit 0, product differs from the undamaged one, no warning), input-harmed (an input's bytes
+changed), partial-left (a *.partial remains after the next run). For damaged MCAP and ROS1 logs the
+messages ingested are checked against the messages of the chunks the damage did not touch.
+
+Prints the counts per class and writes benches/results/fault_campaign.json (``--classes`` runs a subset
+and merges it into that file's earlier run of the same seed and scale).
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import random
+import shutil
+import signal
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+from collections import Counter
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+RESULTS = Path(__file__).resolve().parent / "results"
+REPO = Path(__file__).resolve().parents[1]
+CLI = [sys.executable, "-m", "autosar_cli.cli"]
+OUTCOMES = ("clean-error", "kept-with-warning", "ok", "crash-or-traceback", "silent-wrong", "input-harmed",
+            "partial-left")
+BAD = ("crash-or-traceback", "silent-wrong", "input-harmed", "partial-left")
+COUNTS = {"mcap": 100, "ros1": 40, "rosbag2": 40, "hdf5": 60, "config": 30, "kill": 30, "disk-full": 5, "path": 10}
+
+
+@dataclass
+class Trial:
+    cls: str
+    n: int
+    fault: str
+    outcome: str = ""
+    rc: int | None = None
+    detail: str = ""
+    chunks_expected: int | None = None  #: messages of the chunks the damage left intact (MCAP, ROS1)
+    messages_read: int | None = None
+    wall_s: float = 0.0
+
+
+@dataclass
+class Base:
+    """The undamaged inputs and their products."""
+
+    dir: Path
+    mcap: Path
+    ros1: Path
+    ros2: Path
+    drive: Path
+    traj: Path
+    image: Path
+    mcap_chunks: list[tuple[int, int, int]] = field(default_factory=list)  #: (start, end, messages)
+    ros1_chunks: list[tuple[int, int, int]] = field(default_factory=list)
+    digests: dict[str, str] = field(default_factory=dict)
+
+
+# ------------------------------------------------------------------------------------------ helpers
+def cli(args: list[str], cwd: Path, timeout: float = 300) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(CLI + args, cwd=cwd, capture_output=True, text=True, timeout=timeout, env=_env())
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = f"{REPO}{os.pathsep}{env.get('PYTHONPATH', '')}"
+    env["COLUMNS"] = "200"
+    return env
+
+
+def tree_hash(path: Path) -> str:
+    if not path.exists():
+        return "missing"
+    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+    h = hashlib.sha256()
+    for p in files:
+        h.update(str(p.relative_to(path) if path.is_dir() else p.name).encode())
+        h.update(hashlib.file_digest(open(p, "rb"), "sha256").digest())  # noqa: SIM115
+    if path.is_dir():
+        h.update(repr(sorted(q.name for q in path.iterdir())).encode())  # stray -wal/-shm files count as harm
+    return h.hexdigest()
+
+
+def product_digest(path: Path) -> str:
+    """sha256 over every dataset of an HDF5 product (names and values; attributes and provenance left out)."""
+    import h5py
+
+    import autosar_cli.store.drive  # noqa: F401  (registers the compression filters)
+
+    h = hashlib.sha256()
+    with h5py.File(path, "r") as f:
+        def visit(name: str, obj: object) -> None:
+            if isinstance(obj, h5py.Dataset) and not name.startswith(("provenance", "inputs")):
+                h.update(name.encode())
+                h.update(obj[()].tobytes() if obj.shape != () else repr(obj[()]).encode())
+
+        f.visititems(visit)
+    return h.hexdigest()
+
+
+def classify(r: subprocess.CompletedProcess[str], product: Path | None, reference: str | None,
+             warned: bool = False) -> tuple[str, str]:
+    """Outcome of one finished command (input harm and partials are checked by the caller). ``warned``: the
+    command's JSON report carries warnings (``--json`` prints them there, not on stderr)."""
+    text = r.stdout + r.stderr
+    if r.returncode < 0 or "Traceback" in text or r.returncode not in (0, 1, 2, 130):
+        return "crash-or-traceback", text.strip().splitlines()[-1][:200] if text.strip() else f"rc {r.returncode}"
+    if r.returncode != 0:
+        lines = [ln for ln in r.stderr.splitlines() if ln.strip() and not ln.startswith("warning:")]
+        errors = [ln for ln in lines if ln.startswith("error:")]
+        if len(errors) == 1:
+            return "clean-error", errors[0][:200]
+        return "crash-or-traceback", f"{len(errors)} error lines: {(lines or [''])[-1][:160]}"
+    warned = warned or "warning:" in r.stderr
+    if product is None or reference is None:
+        return ("kept-with-warning" if warned else "ok"), ""
+    try:
+        same = product_digest(product) == reference
+    except Exception as exc:  # an exit-0 product that cannot be read back is wrong output
+        return "silent-wrong", f"product unreadable: {exc}"[:200]
+    if same:
+        return "ok", ""
+    return ("kept-with-warning", "") if warned else ("silent-wrong", "product differs, no warning")
+
+
+def partials(where: Path) -> list[str]:
+    return sorted(str(p.relative_to(where)) for p in where.rglob("*") if ".partial" in p.name)
+
+
+# ------------------------------------------------------------------------------------ chunk layout
+def mcap_chunks(path: Path) -> list[tuple[int, int, int]]:
+    """(record start, record end, messages) of every chunk, from the intact file's summary."""
+    import io
+
+    from mcap.data_stream import ReadDataStream
+    from mcap.reader import make_reader
+    from mcap.records import Chunk, Message
+    from mcap.stream_reader import breakup_chunk
+
+    out = []
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+        assert summary is not None
+        for c in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
+            f.seek(c.chunk_start_offset + 9)
+            chunk = Chunk.read(ReadDataStream(io.BytesIO(f.read(c.chunk_length - 9))))
+            n = sum(1 for r in breakup_chunk(chunk) if isinstance(r, Message))
+            out.append((c.chunk_start_offset, c.chunk_start_offset + c.chunk_length, n))
+    return out
+
+
+def ros1_chunks(path: Path) -> list[tuple[int, int, int]]:
+    from rosbags.rosbag1 import Reader
+
+    with Reader(path) as reader:
+        per: Counter[int] = Counter(e.chunk_pos for entries in reader.indexes.values() for e in entries)
+        return [(pos, reader.chunks[pos].datapos + reader.chunks[pos].datasize, n) for pos, n in sorted(per.items())]
+
+
+def intact(chunks: list[tuple[int, int, int]], damaged: list[tuple[int, int]]) -> int:
+    """Messages of the chunks no damaged byte range [a, b) touches."""
+    return sum(n for s, e, n in chunks if not any(a < e and b > s for a, b in damaged))
+
+
+# ------------------------------------------------------------------------------------------- setup
+def setup(work: Path) -> Base:
+    for fmt, name in (("mcap", "ci.mcap"), ("ros1", "ci.bag"), ("ros2", "ci_ros2")):
+        r = cli(["simulate", "-s", "ci", "-f", fmt, "--seed", "7", "-o", name], work)
+        assert r.returncode == 0, r.stderr
+    base = Base(work, work / "ci.mcap", work / "ci.bag", work / "ci_ros2", work / "drive.h5", work / "traj.h5",
+                work / "image.h5")
+    for args in (["ingest", "ci.mcap", "-o", "drive.h5"], ["navigate", "drive.h5", "-o", "traj.h5"],
+                 ["focus", "drive.h5", "-t", "traj.h5", "-o", "image"]):
+        r = cli(args, work)
+        assert r.returncode == 0, r.stderr
+    for name, log in (("mcap", "ci.mcap"), ("ros1", "ci.bag"), ("rosbag2", "ci_ros2")):
+        r = cli(["ingest", log, "-o", f"ref_{name}.h5"], work)
+        assert r.returncode == 0, r.stderr
+        base.digests[name] = product_digest(work / f"ref_{name}.h5")
+    base.digests["image"] = product_digest(base.image)
+    base.digests["traj"] = product_digest(base.traj)
+    base.mcap_chunks = mcap_chunks(base.mcap)
+    base.ros1_chunks = ros1_chunks(base.ros1)
+    return base
+
+
+# ------------------------------------------------------------------------------------------ faults
+def flip(data: bytearray, rng: random.Random, n: int, lo: int = 0, hi: int | None = None) -> list[tuple[int, int]]:
+    hi = len(data) if hi is None else hi
+    spots = []
+    for _ in range(n):
+        i = rng.randrange(lo, hi)
+        data[i] ^= rng.randrange(1, 256)
+        spots.append((i, i + 1))
+    return spots
+
+
+def container_trial(base: Base, cls: str, n: int, rng: random.Random, tdir: Path) -> Trial:
+    src = {"mcap": base.mcap, "ros1": base.ros1, "rosbag2": base.ros2}[cls]
+    kind = rng.choice(["flip"] * 5 + ["truncate"] * 3 + ["header"] * 2)
+    dst = tdir / ("log" + ("" if cls == "rosbag2" else src.suffix))
+    if cls == "rosbag2":
+        shutil.copytree(src, dst)
+        target = next(dst.glob("*.db3"))
+        if kind == "header":  # damage metadata.yaml instead
+            target = dst / "metadata.yaml"
+    else:
+        shutil.copyfile(src, dst)
+        target = dst
+    data = bytearray(target.read_bytes())
+    damaged: list[tuple[int, int]]
+    if kind == "flip":
+        damaged = flip(data, rng, rng.randint(1, 10))
+        fault = f"{len(damaged)} flipped bytes in {target.name}"
+    elif kind == "truncate":
+        cut = rng.randrange(len(data) // 50, len(data))
+        damaged = [(cut, 1 << 62)]
+        del data[cut:]
+        fault = f"{target.name} truncated at byte {cut}"
+    elif cls == "mcap":  # a record header: opcode or length bytes
+        starts = _mcap_record_starts(bytes(data))
+        s = rng.choice(starts)
+        i = s + rng.randrange(0, 9)
+        data[i] = rng.randrange(256)
+        damaged = [(s, s + 9)]
+        fault = f"record header byte {i} set to {data[i]:#04x}"
+    elif cls == "ros1":  # the index and connection records at the end, or the bag header
+        lo = max(e for _, e, _ in base.ros1_chunks)
+        damaged = flip(data, rng, rng.randint(1, 4), lo=rng.choice([13, lo]), hi=None)
+        fault = f"{len(damaged)} flipped bytes in the bag header/index"
+    else:
+        damaged = flip(data, rng, rng.randint(1, 6))
+        fault = f"{len(damaged)} flipped bytes in metadata.yaml"
+    target.write_bytes(bytes(data))
+    before = tree_hash(dst)
+    t0 = time.perf_counter()
+    r = cli(["ingest", dst.name, "-o", "out/drive.h5", "--json"], tdir)
+    trial = Trial(cls, n, fault, rc=r.returncode, wall_s=time.perf_counter() - t0)
+    report: dict[str, object] = {}
+    if r.returncode == 0:
+        try:
+            report = json.loads(r.stdout)
+            trial.messages_read = int(report["messages"])  # type: ignore[call-overload]
+        except (ValueError, KeyError):
+            pass
+    trial.outcome, trial.detail = classify(r, tdir / "out" / "drive.h5", base.digests[cls],
+                                           warned=bool(report.get("warnings")))
+    chunks = {"mcap": base.mcap_chunks, "ros1": base.ros1_chunks}.get(cls)
+    if chunks is not None:
+        trial.chunks_expected = intact(chunks, damaged)
+    if tree_hash(dst) != before:
+        trial.outcome = "input-harmed"
+    elif partials(tdir):
+        trial.outcome, trial.detail = "partial-left", ", ".join(partials(tdir))
+    return trial
+
+
+def _mcap_record_starts(data: bytes) -> list[int]:
+    out, pos = [], 8
+    while pos + 9 <= len(data):
+        op, length = struct.unpack_from("<BQ", data, pos)
+        out.append(pos)
+        if op == 0x02:
+            break
+        pos += 9 + length
+    return out
+
+
+def hdf5_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
+    which = "drive" if n % 2 == 0 else "traj"
+    src = base.drive if which == "drive" else base.traj
+    dst = tdir / src.name
+    shutil.copyfile(src, dst)
+    other = tdir / (base.traj.name if which == "drive" else base.drive.name)
+    shutil.copyfile(base.traj if which == "drive" else base.drive, other)
+    data = bytearray(dst.read_bytes())
+    spots = flip(data, rng, rng.randint(1, 10), lo=len(data) // 20)  # past the superblock/root: the data
+    dst.write_bytes(bytes(data))
+    before = (tree_hash(dst), tree_hash(other))
+    (tdir / "out").mkdir()
+    t0 = time.perf_counter()
+    r = cli(["focus", "drive.h5", "-t", "traj.h5", "-o", "out/image"], tdir)
+    trial = Trial("hdf5", n, f"{len(spots)} flipped bytes in {src.name}", rc=r.returncode,
+                  wall_s=time.perf_counter() - t0)
+    trial.outcome, trial.detail = classify(r, tdir / "out" / "image.h5", base.digests["image"])
+    if (tree_hash(dst), tree_hash(other)) != before:
+        trial.outcome = "input-harmed"
+    elif partials(tdir):
+        trial.outcome, trial.detail = "partial-left", ", ".join(partials(tdir))
+    return trial
+
+
+CONFIG_VALUES = ["nan", "inf", "-inf", "-1.0", "0.0", "1e300", "-1e300", '"abc"', "[]", "true"]
+
+
+def config_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
+    from autosar_cli.config import DEFAULT_CONFIG
+
+    text = Path(DEFAULT_CONFIG).read_text(encoding="utf-8")
+    lines = text.splitlines()
+    numeric = [i for i, ln in enumerate(lines) if "=" in ln and not ln.lstrip().startswith("#")
+               and _is_number(ln.split("=", 1)[1].split("#")[0].strip())]
+    mode = rng.choice(["value"] * 8 + ["delete", "utf8"])
+    if mode == "value":
+        i = rng.choice(numeric)
+        key = lines[i].split("=", 1)[0].strip()
+        value = rng.choice(CONFIG_VALUES)
+        lines[i] = f"{key} = {value}"
+        fault, blob = f"{key} = {value}", "\n".join(lines).encode()
+    elif mode == "delete":
+        i = rng.choice(numeric)
+        fault = f"{lines[i].split('=', 1)[0].strip()} deleted"
+        del lines[i]
+        blob = "\n".join(lines).encode()
+    else:
+        fault, blob = "non-UTF-8 bytes", text.encode().replace(b"=", b"= \xff\xfe", 1)
+    cfg = tdir / "cfg.toml"
+    cfg.write_bytes(blob)
+    shutil.copyfile(base.drive, tdir / "drive.h5")
+    before = tree_hash(cfg), tree_hash(tdir / "drive.h5")
+    t0 = time.perf_counter()
+    r = cli(["navigate", "drive.h5", "-o", "out/traj.h5", "-c", "cfg.toml"], tdir)
+    trial = Trial("config", n, fault, rc=r.returncode, wall_s=time.perf_counter() - t0)
+    trial.outcome, trial.detail = classify(r, None, None)
+    if r.returncode == 0 and not _finite_trajectory(tdir / "out" / "traj.h5"):
+        trial.outcome, trial.detail = "silent-wrong", "non-finite trajectory, exit 0"
+    if (tree_hash(cfg), tree_hash(tdir / "drive.h5")) != before:
+        trial.outcome = "input-harmed"
+    elif partials(tdir):
+        trial.outcome, trial.detail = "partial-left", ", ".join(partials(tdir))
+    return trial
+
+
+def _is_number(s: str) -> bool:
+    try:
+        float(s)
+    except ValueError:
+        return False
+    return True
+
+
+def _finite_trajectory(path: Path) -> bool:
+    import h5py
+    import numpy as np
+
+    import autosar_cli.store.drive  # noqa: F401
+
+    with h5py.File(path, "r") as f:
+        ok = True
+
+        def visit(name: str, obj: object) -> None:
+            nonlocal ok
+            if isinstance(obj, h5py.Dataset) and obj.dtype.kind == "f" and obj.ndim >= 1:
+                ok = ok and bool(np.all(np.isfinite(obj[()])))
+
+        f.visititems(visit)
+    return ok
+
+
+def kill_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
+    stage = "ingest" if n % 2 == 0 else "focus"
+    sig = signal.SIGKILL if rng.random() < 0.5 else signal.SIGINT
+    if stage == "ingest":
+        shutil.copyfile(base.mcap, tdir / "ci.mcap")
+        args, delay = ["ingest", "ci.mcap", "-o", "out/drive.h5"], rng.uniform(0.0, 1.6)
+        inputs = [tdir / "ci.mcap"]
+    else:
+        shutil.copyfile(base.drive, tdir / "drive.h5")
+        shutil.copyfile(base.traj, tdir / "traj.h5")
+        (tdir / "out").mkdir()  # focus writes into an existing directory
+        args, delay = ["focus", "drive.h5", "-t", "traj.h5", "-o", "out/image"], rng.uniform(0.0, 3.5)
+        inputs = [tdir / "drive.h5", tdir / "traj.h5"]
+    before = [tree_hash(p) for p in inputs]
+    proc = subprocess.Popen(CLI + args, cwd=tdir, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=_env())
+    time.sleep(delay)
+    proc.send_signal(sig)
+    out, errtext = proc.communicate(timeout=300)
+    trial = Trial("kill", n, f"{sig.name} after {delay:.2f} s of {stage}", rc=proc.returncode)
+    first = subprocess.CompletedProcess(args, proc.returncode, out, errtext)
+    if sig == signal.SIGINT:
+        if proc.returncode == 0:
+            trial.outcome = "ok"
+        elif "Traceback" in out + errtext or proc.returncode != 130:
+            trial.outcome, trial.detail = "crash-or-traceback", f"SIGINT gave rc {proc.returncode}: " + \
+                ((out + errtext).strip().splitlines() or [""])[-1][:150]
+        else:
+            trial.outcome = "clean-error"
+    else:
+        trial.outcome = "ok" if proc.returncode == 0 else "clean-error"  # SIGKILL cannot be handled
+    del first
+    rerun = cli(args + ["--overwrite"], tdir)
+    if rerun.returncode != 0 and trial.outcome != "crash-or-traceback":
+        trial.outcome, trial.detail = classify(rerun, None, None)
+        trial.detail = "rerun: " + trial.detail
+    if [tree_hash(p) for p in inputs] != before:
+        trial.outcome = "input-harmed"
+    elif partials(tdir):
+        trial.outcome, trial.detail = "partial-left", ", ".join(partials(tdir))
+    return trial
+
+
+def disk_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
+    mnt = tdir / "small"
+    mnt.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=5m", "tmpfs", str(mnt)], capture_output=True).returncode:
+        return Trial("disk-full", n, "skipped: cannot mount a tmpfs (needs root)", outcome="skipped")
+    try:
+        shutil.copyfile(base.mcap, tdir / "ci.mcap")
+        shutil.copyfile(base.drive, tdir / "drive.h5")
+        shutil.copyfile(base.traj, tdir / "traj.h5")
+        if n % 2 == 0:
+            args, fault = ["ingest", "ci.mcap", "-o", "small/drive.h5"], "ingest onto a 5 MiB tmpfs"
+        else:  # fill most of it first so the image does not fit
+            (mnt / "filler").write_bytes(bytes(5 * 1024 * 1024 - 64 * 1024))
+            args, fault = ["focus", "drive.h5", "-t", "traj.h5", "-o", "small/image"], "focus onto a full tmpfs"
+        before = [tree_hash(tdir / p) for p in ("ci.mcap", "drive.h5", "traj.h5")]
+        r = cli(args, tdir)
+        trial = Trial("disk-full", n, fault, rc=r.returncode)
+        trial.outcome, trial.detail = classify(r, None, None)
+        if [tree_hash(tdir / p) for p in ("ci.mcap", "drive.h5", "traj.h5")] != before:
+            trial.outcome = "input-harmed"
+        elif partials(mnt):
+            trial.outcome, trial.detail = "partial-left", ", ".join(partials(mnt))
+        return trial
+    finally:
+        subprocess.run(["umount", str(mnt)], capture_output=True)
+
+
+PATH_CASES: list[tuple[str, Callable[[Path], list[str]], list[str]]] = [
+    ("ingest -o its own input", lambda d: ["ingest", "ci.mcap", "-o", "ci.mcap", "--overwrite"], ["ci.mcap"]),
+    ("navigate -o its own input", lambda d: ["navigate", "drive.h5", "-o", "drive.h5", "--overwrite"], ["drive.h5"]),
+    ("focus -o onto the drive", lambda d: ["focus", "drive.h5", "-t", "traj.h5", "-o", "drive", "--overwrite"],
+     ["drive.h5", "traj.h5"]),
+    ("ingest -o a directory of files", lambda d: ["ingest", "ci.mcap", "-o", "keep", "--overwrite"], ["keep"]),
+    ("output parent is a file", lambda d: ["ingest", "ci.mcap", "-o", "ci.mcap/drive.h5"], ["ci.mcap"]),
+    ("255-byte output name", lambda d: ["ingest", "ci.mcap", "-o", "d" * 252 + ".h5"], ["ci.mcap"]),
+    ("output in a missing directory", lambda d: ["navigate", "drive.h5", "-o", "no/such/dir/traj.h5"], ["drive.h5"]),
+    ("input does not exist", lambda d: ["ingest", "missing.mcap", "-o", "out.h5"], ["ci.mcap"]),
+    ("focus -t the drive itself", lambda d: ["focus", "drive.h5", "-t", "drive.h5", "-o", "img"], ["drive.h5"]),
+    ("ingest -o inside a rosbag2 input", lambda d: ["ingest", "bag", "-o", "bag/drive.h5", "--overwrite"], ["bag"]),
+]
+
+
+def path_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
+    name, make, watched = PATH_CASES[n % len(PATH_CASES)]
+    shutil.copyfile(base.mcap, tdir / "ci.mcap")
+    shutil.copyfile(base.drive, tdir / "drive.h5")
+    shutil.copyfile(base.traj, tdir / "traj.h5")
+    shutil.copytree(base.ros2, tdir / "bag")
+    (tdir / "keep").mkdir()
+    (tdir / "keep" / "notes.txt").write_text("precious\n")
+    before = [tree_hash(tdir / p) for p in watched]
+    r = cli(make(tdir), tdir)
+    trial = Trial("path", n, name, rc=r.returncode)
+    trial.outcome, trial.detail = classify(r, None, None)
+    if [tree_hash(tdir / p) for p in watched] != before:
+        trial.outcome, trial.detail = "input-harmed", f"{watched} changed"
+    elif partials(tdir):
+        trial.outcome, trial.detail = "partial-left", ", ".join(partials(tdir))
+    return trial
+
+
+# -------------------------------------------------------------------------------------------- main
+def run_trial(base: Base, cls: str, n: int, seed: int, root: Path) -> Trial:
+    rng = random.Random(f"{seed}:{cls}:{n}")
+    tdir = root / f"{cls}_{n:03d}"
+    tdir.mkdir()
+    try:
+        if cls in ("mcap", "ros1", "rosbag2"):
+            return container_trial(base, cls, n, rng, tdir)
+        return {"hdf5": hdf5_trial, "config": config_trial, "kill": kill_trial, "disk-full": disk_trial,
+                "path": path_trial}[cls](base, n, rng, tdir)
+    except subprocess.TimeoutExpired:
+        return Trial(cls, n, "timeout", outcome="crash-or-traceback", detail="hung for 300 s")
+    finally:
+        shutil.rmtree(tdir, ignore_errors=True)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--scale", type=float, default=1.0, help="trials per class relative to the minimum counts")
+    ap.add_argument("--classes", default=",".join(COUNTS), help="comma-separated subset of " + ",".join(COUNTS))
+    ap.add_argument("--workdir", type=Path, default=None)
+    args = ap.parse_args()
+    root = args.workdir or Path(tempfile.mkdtemp(prefix="fault_campaign_"))
+    root.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    base = setup(root)
+    print(f"setup {time.perf_counter() - t0:.0f} s in {root}", file=sys.stderr)
+    classes = [c for c in args.classes.split(",") if c]
+    jobs = [(c, n) for c in classes for n in range(max(1, round(COUNTS[c] * args.scale)))]
+    trials_dir = root / "trials"
+    trials_dir.mkdir(exist_ok=True)
+    with ThreadPoolExecutor(args.jobs) as pool:
+        trials = list(pool.map(lambda cn: run_trial(base, cn[0], cn[1], args.seed, trials_dir), jobs))
+    wall = time.perf_counter() - t0
+    table: dict[str, Counter[str]] = {c: Counter(t.outcome for t in trials if t.cls == c) for c in classes}
+    chunk_checks = [t for t in trials if t.chunks_expected is not None]
+    chunk_fail = [t for t in chunk_checks if (t.messages_read or 0) < (t.chunks_expected or 0)]
+    cols = [*OUTCOMES, "skipped"]
+    print(f"{'class':10s} {'trials':>6s} " + " ".join(f"{o:>18s}" for o in cols))
+    for c in classes:
+        print(f"{c:10s} {sum(table[c].values()):6d} " + " ".join(f"{table[c].get(o, 0):18d}" for o in cols))
+    print(f"intact chunks kept (MCAP, ROS1): {len(chunk_checks) - len(chunk_fail)} of {len(chunk_checks)} trials")
+    for t in trials:
+        if t.outcome in BAD:
+            print(f"  {t.cls} #{t.n} {t.outcome}: {t.fault} -- {t.detail}")
+    for t in chunk_fail:
+        print(f"  {t.cls} #{t.n} lost intact chunks: {t.fault}: read {t.messages_read}, intact {t.chunks_expected}"
+              f" ({t.outcome}: {t.detail})")
+    RESULTS.mkdir(exist_ok=True)
+    path = RESULTS / "fault_campaign.json"
+    out = {"seed": args.seed, "scale": args.scale, "wall_s": {}, "table": {},
+           "intact_chunks_kept": {}, "trials": []}
+    if set(classes) != set(COUNTS) and path.exists():  # a subset of the classes: merge into the last run's
+        old = json.loads(path.read_text())
+        if old.get("seed") == args.seed and old.get("scale") == args.scale:
+            out = old
+    out["python"] = sys.version.split()[0]
+    out["wall_s"] = {**out["wall_s"], ",".join(classes): round(wall, 1)}
+    out["table"] = {**out["table"], **{c: dict(table[c]) for c in classes}}
+    out["trials"] = [t for t in out["trials"] if t["cls"] not in classes] + [asdict(t) for t in trials]
+    checked = [t for t in out["trials"] if t["chunks_expected"] is not None]
+    out["intact_chunks_kept"] = {"trials": len(checked), "failed": sum(
+        1 for t in checked if (t["messages_read"] or 0) < t["chunks_expected"])}
+    path.write_text(json.dumps(out, indent=1) + "\n")
+    print(f"{len(trials)} trials in {wall:.0f} s; wrote {RESULTS / 'fault_campaign.json'}")
+    if args.workdir is None:
+        shutil.rmtree(root, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()

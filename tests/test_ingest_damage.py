@@ -1,0 +1,260 @@
+"""Damaged containers keep every intact part: ROS1 bags, rosbag2 sqlite3 storage and MCAP files.
+
+Each test damages a copy of the simulated ci drive (seed 7) in a known place and checks the messages
+kept against a reference computed independently from the undamaged file (rosbags' index, sqlite3's own
+reading of the intact database, the MCAP summary's chunk index): everything outside the damage is kept,
+nothing inside it is invented, and a warning names the file and the byte offsets.
+"""
+
+from __future__ import annotations
+
+import io
+import re
+import shutil
+import sqlite3
+import subprocess
+from collections import Counter
+from pathlib import Path
+
+import pytest
+import yaml
+from mcap.data_stream import ReadDataStream
+from mcap.reader import make_reader
+from mcap.records import Chunk, Message
+from mcap.stream_reader import breakup_chunk
+
+from autosar_cli.config import load_config
+from autosar_cli.ingest.pipeline import ingest
+from autosar_cli.ingest.sources import open_source
+from autosar_cli.sim.simulate import SimulationResult
+
+Msg = tuple[str, int, bytes]  # (topic, log time ns, payload)
+
+
+def read_all(path: Path) -> tuple[list[Msg], list[str]]:
+    src = open_source(path)
+    msgs = [(m.channel.topic, m.log_ns, bytes(m.data)) for m in src.messages()]
+    return msgs, src.stats.warnings
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("damage")
+
+
+# ------------------------------------------------------------------------------------------- ROS1
+def ros1_chunks(bag: Path) -> list[tuple[int, int, list[Msg]]]:
+    """(record start, record end, messages) of every chunk, from rosbags' index of the intact bag."""
+    from rosbags.rosbag1 import Reader
+
+    with Reader(bag) as reader:
+        topics = {c.id: c.topic for c in reader.connections}
+        payloads: dict[tuple[str, int], list[bytes]] = {}
+        for c, t, d in reader.messages():  # in index order: (time, chunk, offset within the chunk)
+            payloads.setdefault((c.topic, t), []).append(d)
+        by_chunk: dict[int, list[tuple[int, Msg]]] = {}
+        for cid, entries in reader.indexes.items():
+            for e in sorted(entries, key=lambda e: (e.time, e.chunk_pos, e.offset)):
+                msg = (topics[cid], e.time, payloads[(topics[cid], e.time)].pop(0))
+                by_chunk.setdefault(e.chunk_pos, []).append((e.offset, msg))
+        out = []
+        for pos, entries in sorted(by_chunk.items()):
+            ch = reader.chunks[pos]
+            out.append((pos, ch.datapos + ch.datasize, [m for _, m in sorted(entries, key=lambda e: e[0])]))
+    return out
+
+
+def test_truncated_ros1_bag_keeps_every_chunk_before_the_cut(ci_ros1: SimulationResult, work: Path) -> None:
+    chunks = ros1_chunks(ci_ros1.log_path)
+    data = ci_ros1.log_path.read_bytes()
+    cut = len(data) // 2
+    bag = work / "half.bag"
+    bag.write_bytes(data[:cut])
+    got, warnings = read_all(bag)
+    intact = [m for start, end, msgs in chunks if end <= cut for m in msgs]
+    assert 0 < len(intact) < sum(len(c[2]) for c in chunks)
+    assert Counter(got) == Counter(intact)
+    first_lost = min(start for start, end, _ in chunks if end > cut)
+    assert any(str(bag) in w and f"bytes {first_lost}-{cut}" in w for w in warnings), warnings
+
+
+def test_ros1_damaged_chunk_costs_only_that_chunk(ci_ros1: SimulationResult, work: Path) -> None:
+    chunks = ros1_chunks(ci_ros1.log_path)
+    start, end, lost = chunks[len(chunks) // 3]
+    data = bytearray(ci_ros1.log_path.read_bytes())
+    mid = (start + end) // 2
+    data[mid:mid + 64] = bytes(b ^ 0x5A for b in data[mid:mid + 64])  # inside the compressed chunk data
+    bag = work / "bad_chunk.bag"
+    bag.write_bytes(bytes(data))
+    got, warnings = read_all(bag)
+    kept = [m for s, _, msgs in chunks if s != start for m in msgs]
+    # the damaged chunk does not decompress or breaks mid-way: at most its messages before the damage stay
+    assert Counter(got) - Counter(lost) == Counter(kept)
+    assert len(got) < len(kept) + len(lost)
+    assert any(str(bag) in w and f"chunk at bytes {start}-{end}" in w for w in warnings), warnings
+
+
+def test_ros1_damaged_chunk_header_resynchronises(ci_ros1: SimulationResult, work: Path) -> None:
+    chunks = ros1_chunks(ci_ros1.log_path)
+    start, _, lost = chunks[2]
+    data = bytearray(ci_ros1.log_path.read_bytes())
+    data[start:start + 4] = b"\xff\xff\xff\x7f"  # the chunk record's header length
+    bag = work / "bad_header.bag"
+    bag.write_bytes(bytes(data))
+    got, warnings = read_all(bag)
+    assert Counter(got) == Counter(m for s, _, msgs in chunks if s != start for m in msgs)
+    assert any(str(bag) in w and f"bytes {start}-" in w for w in warnings), warnings
+
+
+# ---------------------------------------------------------------------------------------- rosbag2
+def db_rows(bag: Path) -> list[tuple[int, Msg]]:
+    """(row id, message) of the intact rosbag2, straight from sqlite3 (payloads decompressed as rosbag2 does)."""
+    import zstandard
+
+    meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    zstd = zstandard.ZstdDecompressor() if meta.get("compression_mode", "").lower() == "message" else None
+    db = sqlite3.connect(f"file:{next(bag.glob('*.db3'))}?immutable=1", uri=True)
+    rows = db.execute("SELECT messages.id, topics.name, timestamp, data FROM messages JOIN topics "
+                      "ON topics.id = topic_id ORDER BY messages.id").fetchall()
+    db.close()
+    return [(i, (t, ts, zstd.decompress(d) if zstd else d)) for i, t, ts, d in rows]
+
+
+def copy_bag(src: Path, dst: Path) -> Path:
+    shutil.copytree(src, dst)
+    return next(dst.glob("*.db3"))
+
+
+def test_truncated_rosbag2_keeps_the_rows_before_the_cut(ci_ros2: SimulationResult, work: Path) -> None:
+    rows = db_rows(ci_ros2.log_path)
+    bag = work / "half_ros2"
+    db3 = copy_bag(ci_ros2.log_path, bag)
+    data = db3.read_bytes()
+    db3.write_bytes(data[: len(data) // 2])
+    got, warnings = read_all(bag)
+    # exactly a prefix of the rows by id, and most of what the first half of the file holds
+    n = len(got)
+    assert Counter(got) == Counter(m for _, m in rows[:n])
+    assert 0.4 * len(rows) < n < len(rows)
+    assert any(str(db3) in w and f"ids {rows[n][0]}-{rows[-1][0]}" in w for w in warnings), warnings
+    assert sorted(p.name for p in bag.iterdir()) == [db3.name, "metadata.yaml"]
+
+
+def test_rosbag2_zstd_error_names_file_row_and_topic(ci_ros2: SimulationResult, work: Path) -> None:
+    rows = db_rows(ci_ros2.log_path)
+    bag = work / "zstd_ros2"
+    db3 = copy_bag(ci_ros2.log_path, bag)
+    db = sqlite3.connect(db3)
+    with db:
+        (row_id, topic), = db.execute("SELECT messages.id, topics.name FROM messages JOIN topics ON "
+                                      "topics.id = topic_id WHERE topics.name = '/scanbrick/raw_frames' "
+                                      "ORDER BY messages.id LIMIT 1 OFFSET 400").fetchall()
+        blob = bytearray(db.execute("SELECT data FROM messages WHERE id = ?", (row_id,)).fetchone()[0])
+        blob[:4] = bytes(4)  # the zstd frame magic
+        db.execute("UPDATE messages SET data = ? WHERE id = ?", (bytes(blob), row_id))
+    db.close()
+    msgs = ingest([bag], work / "zstd_ros2.h5", config=load_config())
+    assert any(str(db3) in w and f"row {row_id}" in w and topic in w for w in msgs.warnings), msgs.warnings
+    radar = {s["path"]: s for s in msgs.streams}["radar/scanbrick_w43"]
+    assert radar["written"] == sum(1 for _, m in rows if m[0] == topic) - 1
+
+
+def _mount_tmpfs(where: Path) -> bool:
+    where.mkdir()
+    return subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64m", "tmpfs", str(where)],
+                          capture_output=True).returncode == 0
+
+
+def test_rosbag2_sqlite_read_direct_writes_nothing_and_works_read_only(ci_ros2: SimulationResult,
+                                                                        work: Path) -> None:
+    """A WAL-mode database whose QoS mismatch sends every topic to the direct SQL reader."""
+    bag = work / "wal_ros2"
+    db3 = copy_bag(ci_ros2.log_path, bag)
+    db = sqlite3.connect(db3)
+    db.execute("PRAGMA journal_mode=WAL")
+    db.close()
+    meta_path = bag / "metadata.yaml"
+    meta = yaml.safe_load(meta_path.read_text())
+    for entry in meta["rosbag2_bagfile_information"]["topics_with_message_count"]:
+        for q in entry["topic_metadata"]["offered_qos_profiles"]:
+            q["reliability"] = "best_effort"
+    meta_path.write_text(yaml.safe_dump(meta, sort_keys=False))
+    before = sorted(p.name for p in bag.iterdir())
+    want = Counter(m for _, m in db_rows(ci_ros2.log_path))
+    got, _ = read_all(bag)
+    assert Counter(got) == want
+    assert sorted(p.name for p in bag.iterdir()) == before  # no -wal / -shm left in the input directory
+
+    media = work / "ro_media"
+    if not _mount_tmpfs(media):
+        pytest.skip("cannot mount a tmpfs here (not root)")
+    try:
+        shutil.copytree(bag, media / "bag")
+        subprocess.run(["mount", "-o", "remount,ro", str(media)], check=True)
+        got, _ = read_all(media / "bag")
+        assert Counter(got) == want
+    finally:
+        subprocess.run(["umount", str(media)], check=False)
+
+
+# ------------------------------------------------------------------------------------------- MCAP
+def mcap_chunks(path: Path) -> list[tuple[int, int, list[Msg]]]:
+    """(record start, record end, messages) of every chunk, from the intact file's summary."""
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+        assert summary is not None
+        topics = {c.id: c.topic for c in summary.channels.values()}
+        out = []
+        for ci in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
+            f.seek(ci.chunk_start_offset + 9)
+            chunk = Chunk.read(ReadDataStream(io.BytesIO(f.read(ci.chunk_length - 9))))
+            msgs = [(topics[r.channel_id], r.log_time, bytes(r.data)) for r in breakup_chunk(chunk)
+                    if isinstance(r, Message)]
+            out.append((ci.chunk_start_offset, ci.chunk_start_offset + ci.chunk_length, msgs))
+    return out
+
+
+def test_mcap_bad_first_chunk_opcode_costs_only_that_chunk(ci_mcap: SimulationResult, work: Path) -> None:
+    chunks = mcap_chunks(ci_mcap.log_path)
+    start, end, _ = chunks[0]
+    data = bytearray(ci_mcap.log_path.read_bytes())
+    assert start == 69
+    data[69] = 0x04  # the first chunk now reads as a channel record that does not parse
+    log = work / "b69.mcap"
+    log.write_bytes(bytes(data))
+    got, warnings = read_all(log)
+    # the channels it declared are taken from the summary: every other chunk is kept
+    assert Counter(got) == Counter(m for s, _, msgs in chunks if s != start for m in msgs)
+    assert any(str(log) in w and f"bytes 69-{end}" in w and "channel record" in w for w in warnings), warnings
+
+
+@pytest.mark.parametrize("where", ["message index length", "chunk length"])
+def test_mcap_bad_record_length_resynchronises(where: str, ci_mcap: SimulationResult, work: Path) -> None:
+    chunks = mcap_chunks(ci_mcap.log_path)
+    data = bytearray(ci_mcap.log_path.read_bytes())
+    start, end, lost = chunks[1]
+    if where == "chunk length":
+        data[start + 5] = 0x01  # length byte 4: +4 GiB
+        kept = [m for s, _, msgs in chunks if s != start for m in msgs]
+    else:  # the message index record right after the first chunk: nothing of value is in it
+        assert data[chunks[0][1]] == 0x07
+        data[chunks[0][1] + 3] = 0x77
+        kept = [m for _, _, msgs in chunks for m in msgs]
+    log = work / f"len_{where.replace(' ', '_')}.mcap"
+    log.write_bytes(bytes(data))
+    got, warnings = read_all(log)
+    assert Counter(got) == Counter(kept)
+    hits = [w for w in warnings if str(log) in w and re.search(r"bytes \d+-\d+ skipped", w)]
+    assert len(hits) == 1, warnings
+
+
+def test_rosbag2_unreadable_metadata_reads_the_storage_anyway(ci_ros2: SimulationResult, work: Path) -> None:
+    bag = work / "bad_meta"
+    db3 = copy_bag(ci_ros2.log_path, bag)
+    meta = bag / "metadata.yaml"
+    text = bytearray(meta.read_bytes())
+    text[len(text) // 2] = 0xFF  # not UTF-8 any more
+    meta.write_bytes(bytes(text))
+    got, warnings = read_all(bag)
+    assert Counter(got) == Counter(m for _, m in db_rows(ci_ros2.log_path))
+    assert any(str(meta) in w and db3.name in w for w in warnings), warnings

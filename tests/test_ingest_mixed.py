@@ -1,0 +1,220 @@
+"""Mixed inputs (a drive log plus standalone CAN and NMEA captures) and plausibility checks at ingest.
+
+The drive is the simulated ci drive (seed 7); the CAN and NMEA captures are written here with python-can
+and by hand (NMEA checksums computed independently), so every expected count is known by construction.
+"""
+
+from __future__ import annotations
+
+import re
+from datetime import UTC, datetime
+from functools import reduce
+from pathlib import Path
+
+import can
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from autosar_cli.cli import app
+from autosar_cli.config import Config, load_config
+from autosar_cli.ingest.inspect import summarize
+from autosar_cli.ingest.pipeline import IngestError, IngestReport, ingest
+from autosar_cli.sim.simulate import SimulationResult
+from autosar_cli.store.drive import Drive
+
+YEAR_S = 365 * 86400
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def cfg() -> Config:
+    return load_config()
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("mixed")
+
+
+@pytest.fixture(scope="module")
+def drive_start_s(ci_mcap: SimulationResult) -> float:
+    from mcap.reader import make_reader
+
+    with open(ci_mcap.log_path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None and summary.statistics is not None
+    return summary.statistics.message_start_time / 1e9
+
+
+def candump(path: Path, frames: list[can.Message]) -> Path:
+    with can.CanutilsLogWriter(path) as w:
+        for m in frames:
+            w.on_message_received(m)
+    return path
+
+
+def nmea(body: str) -> str:
+    """``$body*CS`` with the XOR checksum of ``body``."""
+    return f"${body}*{reduce(lambda a, c: a ^ ord(c), body, 0):02X}"
+
+
+def gga(t: float) -> str:
+    hms = datetime.fromtimestamp(t, UTC).strftime("%H%M%S.%f")[:9]
+    return nmea(f"GPGGA,{hms},4502.0000,N,00740.0000,E,1,12,0.8,250.0,M,48.0,M,,")
+
+
+def run(inputs: list[Path], out: Path, cfg: Config, **kw: object) -> IngestReport:
+    return ingest(inputs, out, config=cfg, **kw)  # type: ignore[arg-type]
+
+
+# -------------------------------------------------------------------------------------- time gaps
+def test_inputs_a_year_apart_are_refused_unless_shifted_or_allowed(ci_mcap: SimulationResult, work: Path,
+                                                                   cfg: Config, drive_start_s: float) -> None:
+    later = drive_start_s + YEAR_S
+    log = candump(work / "later.log", [can.Message(timestamp=later + 0.01 * i, arbitration_id=0x555,
+                                                   is_extended_id=False, data=bytes(8)) for i in range(20)])
+    out = work / "gap.h5"
+    with pytest.raises(IngestError) as exc:
+        run([ci_mcap.log_path], out, cfg, can_logs=[log])
+    msg = str(exc.value)
+    assert str(log) in msg and "--allow-time-gap" in msg and "--time-offset" in msg
+    assert "365.0 days" in msg, msg
+    assert not out.exists() and not Path(f"{out}.partial").exists()
+
+    allowed = run([ci_mcap.log_path], work / "gap_allowed.h5", cfg, can_logs=[log], allow_time_gap=True)
+    assert any(str(log) in w and "--allow-time-gap" in w for w in allowed.warnings), allowed.warnings
+
+    shifted = run([ci_mcap.log_path], work / "gap_shifted.h5", cfg, can_logs=[log],
+                  time_offsets={log: -YEAR_S})
+    assert not any("apart" in w or "away" in w for w in shifted.warnings), shifted.warnings
+    assert shifted.can["unknown_ids"]["0x555"] == 20
+
+
+def test_cli_time_gap_options(ci_mcap: SimulationResult, work: Path, drive_start_s: float) -> None:
+    log = candump(work / "cli_later.log", [can.Message(timestamp=drive_start_s + 7200 + i, arbitration_id=0x555,
+                                                       data=bytes(8), is_extended_id=False) for i in range(3)])
+    out = work / "cli_gap.h5"
+    r = runner.invoke(app, ["ingest", str(ci_mcap.log_path), "--can-log", str(log), "-o", str(out)])
+    assert r.exit_code != 0 and "--allow-time-gap" in r.stderr and "Traceback" not in r.output
+    r = runner.invoke(app, ["ingest", str(ci_mcap.log_path), "--can-log", str(log), "-o", str(out),
+                            "--max-time-gap", "10800"])
+    assert r.exit_code == 0, r.output
+    r = runner.invoke(app, ["ingest", str(ci_mcap.log_path), "--can-log", str(log), "-o", str(work / "cli2.h5"),
+                            "--time-offset", f"{log}=-7200"])
+    assert r.exit_code == 0, r.output
+
+
+# ------------------------------------------------------------------------------------------- NMEA
+def test_dateless_nmea_is_dated_by_the_other_streams(ci_mcap: SimulationResult, work: Path, cfg: Config,
+                                                     drive_start_s: float) -> None:
+    times = [drive_start_s + 0.5 + k for k in range(5)]
+    text = work / "gga_only.nmea"
+    text.write_text("\n".join(gga(t) for t in times) + "\n")
+    out = work / "dateless.h5"
+    report = run([ci_mcap.log_path], out, cfg, nmea_logs=[text])
+    assert any(str(text) in w and "5 NMEA records dated" in w for w in report.warnings), report.warnings
+    with Drive(out) as d:
+        t = d.h5["gnss/gga_only/nmea_fix/t_ns"][()]
+    want = np.round(np.array(times) * 100).astype(np.int64) * 10_000_000  # GGA keeps the time to 10 ms
+    assert np.array_equal(t, want)
+
+
+def test_nmea_option_on_a_file_without_nmea_is_an_error(ci_mcap: SimulationResult, work: Path,
+                                                        cfg: Config) -> None:
+    junk = work / "notes.txt"
+    junk.write_text("this is a shopping list\nnot a GNSS capture\n")
+    with pytest.raises(IngestError, match=re.escape(str(junk)) + ".*no NMEA 0183 sentence"):
+        run([ci_mcap.log_path], work / "junk.h5", cfg, nmea_logs=[junk])
+
+
+def test_zda_sentences_are_counted(work: Path) -> None:
+    text = work / "zda.nmea"
+    text.write_text("\n".join([nmea("GPZDA,120000.00,27,11,2026,00,00"), gga(1_795_780_800.0),
+                               nmea("GPZDA,120001.00,27,11,2026,00,00"), gga(1_795_780_801.0)]) + "\n")
+    rows = {s.topic: s.count for s in summarize(text).streams}
+    assert rows == {"NmeaFix": 2, "ZDA sentences": 2}
+
+
+# -------------------------------------------------------------------------------------------- CAN
+def test_can_log_with_no_id_in_the_dbc_names_frames_and_suggests_dbc(work: Path, cfg: Config) -> None:
+    log = candump(work / "foreign.log", [can.Message(timestamp=1_795_780_800 + 0.01 * i, arbitration_id=0x600 + i % 3,
+                                                     is_extended_id=False, data=bytes(8)) for i in range(57)])
+    with pytest.raises(IngestError) as exc:
+        run([], work / "foreign.h5", cfg, can_logs=[log])
+    msg = str(exc.value)
+    assert "57 CAN frames" in msg and "--dbc" in msg and "0x600" in msg, msg
+
+
+def test_can_error_and_remote_frames_listed_and_counted(ci_mcap: SimulationResult, work: Path,
+                                                        drive_start_s: float) -> None:
+    t = drive_start_s + 1
+    frames = [can.Message(timestamp=t + 0.001 * i, arbitration_id=0x123, is_extended_id=False, is_remote_frame=True,
+                          dlc=8) for i in range(3)]
+    frames += [can.Message(timestamp=t + 0.1 + 0.001 * i, is_error_frame=True, arbitration_id=0, dlc=0)
+               for i in range(4)]
+    log = candump(work / "errors.log", frames)
+    rows = sorted((s.msgtype, s.count, s.topic.split(" ", 1)[1]) for s in summarize(log).streams)
+    assert rows == [("CAN error frame", 4, "error frames"), ("CAN remote frame", 3, "0x123 remote")], rows
+    r = runner.invoke(app, ["ingest", str(ci_mcap.log_path), "--can-log", str(log), "-o", str(work / "err.h5")])
+    assert r.exit_code == 0, r.output
+    assert re.search(r"CAN: 399 frames, 392 decoded.*error frames 4.*remote frames 3", r.stdout), r.stdout
+
+
+# ----------------------------------------------------------------------------------- plausibility
+def uncompressed_ros1(src: Path, dst: Path) -> Path:
+    """The ROS1 bag ``src`` rewritten without chunk compression, so stored payload bytes can be flipped."""
+    from rosbags.rosbag1 import Reader, Writer
+
+    with Reader(src) as reader, Writer(dst) as writer:
+        conns = {c.id: writer.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data, md5sum=c.digest)
+                 for c in reader.connections}
+        for c, t, data in reader.messages():
+            writer.write(conns[c.id], t, data)
+    return dst
+
+
+def test_flipped_bytes_in_ros1_are_flagged(ci_ros1: SimulationResult, work: Path, cfg: Config) -> None:
+    from rosbags.rosbag1 import Reader
+
+    bag = uncompressed_ros1(ci_ros1.log_path, work / "plain.bag")
+    with Reader(bag) as reader:
+        msgs = [(c.topic, bytes(d)) for c, _, d in reader.messages()]
+    radar = [d for tpc, d in msgs if tpc == "/scanbrick/raw_frames"]
+    data = bytearray(bag.read_bytes())
+    frame = radar[500]
+    at = data.find(frame)
+    assert at > 0 and data.find(frame, at + 1) < 0
+    sample = at + len(frame) - 2 * 6000 + 1  # the high byte of one int16 sample, late in the frame
+    data[sample] ^= 0x0C  # +-3072 counts: within the stream's peaks (~1700), far above this frame's crest
+    (work / "flipped.bag").write_bytes(bytes(data))
+    report = run([work / "flipped.bag"], work / "flipped.h5", cfg)
+    with Drive(work / "flipped.h5") as d:
+        idx = d.radar().frame_index
+    hits = [w for w in report.warnings if "radar frames" in w]
+    assert len(hits) == 1 and f"frame indices {idx[500]}" in hits[0] and hits[0].startswith("radar/"), hits
+    clean = run([bag], work / "plain.h5", cfg)
+    assert not any("radar frames" in w for w in clean.warnings), clean.warnings
+
+
+def test_can_values_outside_the_dbc_range_are_counted(ci_mcap: SimulationResult, work: Path, cfg: Config) -> None:
+    dbc_text = cfg.dbc_path.read_text()
+    dbc = work / "ranged.dbc"  # a physical range for one signal, which the ci drive (2.2-2.5 m/s) crosses
+    dbc.write_text(dbc_text.replace("SG_ WHEEL_SPEED_FL : 7|13@0+ (0.017,0) [0|8191]",
+                                    "SG_ WHEEL_SPEED_FL : 7|13@0+ (0.017,0) [0|2.3]"))
+    assert dbc.read_text() != dbc_text
+    report = run([ci_mcap.log_path], work / "ranged.h5", cfg, dbc=dbc)
+    with Drive(work / "ranged.h5") as d:
+        fl = d.h5["can/ABS_1/WHEEL_SPEED_FL"][()]
+    n = int(np.count_nonzero(fl > 2.3))
+    assert 0 < n < len(fl)
+    assert report.can["out_of_range"] == {"ABS_1.WHEEL_SPEED_FL": n}
+    assert any(f"ABS_1.WHEEL_SPEED_FL ×{n}" in w for w in report.warnings), report.warnings
+
+
+def test_plausibility_is_silent_on_an_intact_drive(ci_mcap: SimulationResult, work: Path, cfg: Config) -> None:
+    report = run([ci_mcap.log_path], work / "intact.h5", cfg)
+    assert report.warnings == [] and report.can["out_of_range"] == {}
+    assert "implausible_frames" not in {k for s in report.streams for k in s}
+
+
