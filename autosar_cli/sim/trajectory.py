@@ -88,6 +88,23 @@ class TruthMotion:
         s = self._distance(t)
         v = self._speed(t)
         a = self._accel(t)
+        pos, psi, kappa, dkappa_ds = self.path(s)
+        return {
+            "position": pos,
+            "heading": psi,
+            "speed": v,
+            "accel": a,
+            "curvature": kappa,
+            "yaw_rate": kappa * v,
+            "yaw_accel": dkappa_ds * v * v + kappa * a,
+        }
+
+    def distance(self, t: ArrayLike) -> NDArray[np.float64]:
+        """Arc length (m) travelled along the path by the rear axle at times t (s)."""
+        return np.asarray(self._distance(np.asarray(t, dtype=np.float64)))
+
+    def path(self, s: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
+        """Path at arc lengths s (m): ENU position (N, 2), tangent heading (rad), curvature (1/m), dkappa/ds."""
         u = self._u_of_s(s)
         w1, w2, w3 = self.lateral(u, 1), self.lateral(u, 2), self.lateral(u, 3)
         q = 1.0 + w1 * w1
@@ -99,15 +116,7 @@ class TruthMotion:
         c, sn = np.cos(self.direction_rad), np.sin(self.direction_rad)
         w0 = self.lateral(u, 0)
         pos = np.stack([self.start_enu[0] + c * u - sn * w0, self.start_enu[1] + sn * u + c * w0], -1)
-        return {
-            "position": pos,
-            "heading": psi,
-            "speed": v,
-            "accel": a,
-            "curvature": kappa,
-            "yaw_rate": kappa * v,
-            "yaw_accel": dkappa_ds * v * v + kappa * a,
-        }
+        return pos, psi, kappa, dkappa_ds
 
     def point(self, t: ArrayLike, lever_arm_m: ArrayLike) -> PointKinematics:
         """ENU kinematics of body points at lever arms (..., 3) from the CoG (body frame), at times t (N,).
