@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from autosar_cli.config import Config
+from autosar_cli.sim.road import RoadLayout
 from autosar_cli.sim.scene import Scene, SceneBuilder, finish_scene
 from autosar_cli.sim.trajectory import LateralProfile, TruthMotion
 
@@ -49,6 +50,7 @@ class Scenario:
     description: str
     motion: TruthMotion
     scene: Scene
+    road: RoadLayout = RoadLayout()  # discrete road features the full model drives over
 
 
 def _scene_rng(name: str) -> np.random.Generator:
