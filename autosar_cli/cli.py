@@ -56,6 +56,12 @@ class Scenario(StrEnum):
     test1 = "test1"
     test2 = "test2"
     test3 = "test3"
+    urban = "urban"
+
+
+class Dynamics(StrEnum):
+    kinematic = "kinematic"
+    full = "full"
 
 
 class NavMethod(StrEnum):
@@ -144,6 +150,8 @@ def simulate(
     scenario: Annotated[Scenario, typer.Option("--scenario", "-s", help="Drive to simulate.")] = Scenario.ci,
     fmt: Annotated[LogFormat, typer.Option("--format", "-f", help="Log container.")] = LogFormat.mcap,
     seed: Annotated[int, typer.Option("--seed", help="Random seed: same seed, same bytes.")] = 0,
+    dynamics: Annotated[Dynamics | None, typer.Option(
+        "--dynamics", help="Vehicle model: kinematic bicycle or full 3-D dynamics (default: the config's).")] = None,
     config: ConfigOpt = None,
     overwrite: OverwriteOpt = False,
     as_json: JsonOpt = False,
@@ -157,7 +165,8 @@ def simulate(
         _prepare_output(output, overwrite)
         _prepare_output(truth_path_for(output), overwrite)
         with _progress(f"simulate {scenario.value}", not as_json) as update:
-            result = run_simulation(scenario.value, output, fmt=fmt.value, seed=seed, config=cfg, progress=update)
+            result = run_simulation(scenario.value, output, fmt=fmt.value, seed=seed, config=cfg, progress=update,
+                                    dynamics=dynamics.value if dynamics else None)
         summary = {
             "log": str(result.log_path), "truth": str(result.truth_path), "scenario": result.scenario,
             "seed": result.seed, "format": result.format, "duration_s": round(result.duration_s, 3),

@@ -291,9 +291,9 @@ class FullMotion:
         return np.einsum("nji,nj->ni", rot, k.acceleration + np.array([0.0, 0.0, GRAVITY]))
 
     def side_slip(self, t: ArrayLike) -> NDArray[np.float64]:
-        """Body side-slip angle at the CoG (rad): direction of its velocity in the body frame."""
+        """Body side-slip angle at the CoG (rad): direction of its velocity in the body frame (0 below 5 cm/s)."""
         vel = np.einsum("nji,nj->ni", self.body_to_enu(t), self.point(t, np.zeros(3)).velocity)
-        return np.arctan2(vel[:, 1], vel[:, 0])
+        return np.where(np.hypot(vel[:, 0], vel[:, 1]) > 0.05, np.arctan2(vel[:, 1], vel[:, 0]), 0.0)
 
     # -- the TruthMotion interface ---------------------------------------------------------------------
     def speed(self, t: ArrayLike) -> NDArray[np.float64]:
