@@ -1,6 +1,7 @@
 """Benchmark the paper's comparison over several seeds: how often each "Done when" figure of issue 6 holds.
 
-Usage: python benches/bench_paper.py [--scenarios test1,test2,test3] [--seeds 0-9] [--workdir DIR] [--keep]
+Usage: python benches/bench_paper.py [--scenarios test1,test2,test3,urban] [--seeds 0-9] [--dynamics kinematic|full]
+       [--workdir DIR] [--keep]
 
 For every scenario and seed: ``autosar simulate --scenario S --seed N`` (MCAP), then ``autosar compare LOG -o DIR
 --methods none,ins,sar-min,truth --json``. Per drive it records SAR-MIN's worst corner reflector (whole-track and
@@ -147,6 +148,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenarios", default="test1,test2,test3")
     ap.add_argument("--seeds", default="0-9", help="e.g. 0-9 or 1,3,7")
+    ap.add_argument("--dynamics", choices=("kinematic", "full"), default=None,
+                    help="simulator vehicle model (default: the config's simulation.dynamics)")
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--keep", action="store_true", help="keep every drive's log and comparison")
     ap.add_argument("--output", type=Path, default=RESULTS / "paper.json")
@@ -157,10 +160,13 @@ def main() -> None:
         work.mkdir(parents=True, exist_ok=True)
         for seed in parse_seeds(args.seeds):
             for scenario in args.scenarios.split(","):
-                log = work / f"{scenario}_s{seed}.mcap"
+                tag = f"_{args.dynamics}" if args.dynamics else ""
+                log = work / f"{scenario}_s{seed}{tag}.mcap"
                 t = time.perf_counter()
                 if not log.exists():
-                    cli("simulate", "--scenario", scenario, "--seed", str(seed), "--output", str(log), "--overwrite")
+                    dyn = ["--dynamics", args.dynamics] if args.dynamics else []
+                    cli("simulate", "--scenario", scenario, "--seed", str(seed), "--output", str(log), "--overwrite",
+                        *dyn)
                 sim_s = time.perf_counter() - t
                 out = work / f"{scenario}_s{seed}"
                 t = time.perf_counter()
@@ -183,7 +189,7 @@ def main() -> None:
                     shutil.rmtree(out, ignore_errors=True)
                     for p in (log, log.with_name(log.name + ".truth.h5")):
                         p.unlink(missing_ok=True)
-    result = {"benchmark": "paper", "methods": list(METHODS), "rows": rows,
+    result = {"benchmark": "paper", "methods": list(METHODS), "dynamics": args.dynamics or "config", "rows": rows,
               "summary": {s: summary([r for r in rows if r["scenario"] == s]) for s in args.scenarios.split(",")}
               | {"all": summary(rows)}}
     print(json.dumps(result["summary"], indent=2))
