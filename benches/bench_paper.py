@@ -1,7 +1,6 @@
 """Benchmark the paper's comparison over several seeds: how often each "Done when" figure of issue 6 holds.
 
-Usage: python benches/bench_paper.py [--scenarios test1,test2,test3,urban] [--seeds 0-9] [--dynamics kinematic|full]
-       [--workdir DIR] [--keep]
+Usage: python benches/bench_paper.py [--scenarios test1,test2,test3] [--seeds 0-9] [--dynamics full] [--keep]
 
 For every scenario and seed: ``autosar simulate --scenario S --seed N`` (MCAP), then ``autosar compare LOG -o DIR
 --methods none,ins,sar-min,truth --json``. Per drive it records SAR-MIN's worst corner reflector (whole-track and
