@@ -230,7 +230,11 @@ class FullMotion:
             heading = x[:, 4] if i < 2 else np.zeros(t.size)
             v_long[:, i] = vel_b[:, 0] * np.cos(heading) + vel_b[:, 1] * np.sin(heading)
         self.wheel_rate = v_long * (1.0 + self.longitudinal_slip) / self.rolling_radius
-        self.wheel_angle = cumulative_trapezoid(self.wheel_rate, t, axis=0, initial=0.0)
+        # The car was already rolling before the log starts: one second at the initial rate, so that an ABS
+        # ECU has edge history at t = 0. wheel_angle (M, 4) rad is on wheel_t (M,) s = (-1, t...).
+        self.wheel_t = np.concatenate([[-1.0], t])
+        self.wheel_angle = np.concatenate([-self.wheel_rate[:1],
+                                           cumulative_trapezoid(self.wheel_rate, t, axis=0, initial=0.0)])
 
     # -- pose --------------------------------------------------------------------------------------
     def _pose_derivatives(self, t: ArrayLike) -> tuple[NDArray[np.float64], ...]:
@@ -317,7 +321,7 @@ class FullMotion:
     def wheel_rotation(self, t: ArrayLike) -> NDArray[np.float64]:
         """Rotation angle of each wheel since the drive start (N, 4) rad."""
         t = np.atleast_1d(np.asarray(t, dtype=np.float64))
-        return np.stack([np.interp(t, self.t, self.wheel_angle[:, i]) for i in range(4)], -1)
+        return np.stack([np.interp(t, self.wheel_t, self.wheel_angle[:, i]) for i in range(4)], -1)
 
 
 def full_motion(name: str, reference: TruthMotion, layout: RoadLayout, vehicle: VehicleConfig,

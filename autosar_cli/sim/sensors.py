@@ -176,8 +176,9 @@ def tone_ring_speed(t_grid: NDArray[np.float64], wheel_angle: NDArray[np.float64
     """
     teeth = tooth_error.size
     pitch = 2.0 * np.pi / teeth
+    first = int(np.floor(wheel_angle[0] / pitch)) + 1
     last = int(np.floor(wheel_angle[-1] / pitch)) - 1
-    j = np.arange(1, max(last, 1))
+    j = np.arange(first, max(last, first))
     edge_t = np.interp((j + tooth_error[j % teeth]) * pitch, wheel_angle, t_grid)
     k = np.searchsorted(edge_t, t_samples, side="right") - 1
     ok = (k >= edges_per_estimate) & (t_samples - edge_t[np.maximum(k, 0)] <= timeout_s) if edge_t.size else (
@@ -199,7 +200,7 @@ def _tone_ring_wheel_speeds(motion: FullMotion, config: Config, name: str, s: Se
     ground = {}
     for i, wheel in enumerate(("fl", "fr", "rl", "rr")):
         err = rng.standard_normal(dyn.tone_ring_teeth) * dyn.tooth_pitch_error_std
-        speed, _ = tone_ring_speed(motion.t, motion.wheel_angle[:, i], t, err, dyn.edges_per_speed_estimate,
+        speed, _ = tone_ring_speed(motion.wheel_t, motion.wheel_angle[:, i], t, err, dyn.edges_per_speed_estimate,
                                    dyn.wheel_speed_timeout_s, float(radius[i]))
         values[f"wheel_speed_{wheel}"] = speed
         ground[wheel] = np.linalg.norm(motion.point(t, motion.wheel_positions[i]).velocity, axis=1)

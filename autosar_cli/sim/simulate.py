@@ -348,7 +348,7 @@ def _dynamics_truth(motion: FullMotion, t: NDArray[np.float64], t0_ns: int) -> d
         "attitude": motion.attitude(t), "body_rates": motion.body_rates(t), "side_slip": motion.side_slip(t),
         "lateral_offset": np.interp(t, motion.t, motion.lateral_offset),
         "wheel_load": wheels(motion.wheel_load), "rolling_radius": wheels(motion.rolling_radius),
-        "longitudinal_slip": wheels(motion.longitudinal_slip), "wheel_rotation": wheels(motion.wheel_angle),
+        "longitudinal_slip": wheels(motion.longitudinal_slip), "wheel_rotation": motion.wheel_rotation(t),
         "road_height_at_wheels": wheels(motion.road_height),
         "road_s": motion.road.s, "road_track_heights": (motion.road.roughness + motion.road.features).T,
         "road_grade_height": motion.road.grade_height(motion.road.s),
