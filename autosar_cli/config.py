@@ -211,7 +211,7 @@ class SimulationConfig:
     vibration_band_hz: tuple[float, float] = (4.0, 25.0)
     # "kinematic": planar kinematic bicycle on a level road (the motion SAR-MIN assumes); "full": single-track
     # dynamics with tyre slip, body roll/pitch/heave on the suspension, a rough road ([vehicle_dynamics]).
-    dynamics: Literal["kinematic", "full"] = "kinematic"
+    dynamics: Literal["kinematic", "full"] = "full"
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ CI_SEED7_MCAP_SHA256 = "419f0a87bcc79944b793394784702d5687e834212cc0897a55cefac1
 
 
 def test_kinematic_drive_is_byte_identical_to_before(ci_mcap: SimulationResult) -> None:
-    assert load_config().simulation.dynamics == "kinematic"
+    assert load_config().simulation.dynamics == "full"  # ci_mcap (conftest) pins the kinematic model
     digest = hashlib.sha256(ci_mcap.log_path.read_bytes()).hexdigest()
     assert digest == CI_SEED7_MCAP_SHA256
 
