@@ -278,3 +278,26 @@ def test_full_drive_focuses_at_truth_along_its_6dof_phase_centres(ci_mcap: Simul
     for (err_f, db_f), (_, db_k) in zip(peaks_full, peaks_kin, strict=True):
         assert err_f < 0.001, f"peak {err_f * 1000:.2f} mm from the truth"
         assert abs(db_f - db_k) < 0.2, (db_f, db_k)
+
+
+def test_urban_route_has_its_junction_turn_stop_and_road_features(config: Config) -> None:
+    sc = build_scenario("urban", config)
+    m = sc.motion
+    t = np.arange(0.0, m.duration_s, 0.01)
+    st = m.states(t)
+    assert 190 < m.path_length_m < 210
+    assert st["speed"].max() <= 20 / 3.6 + 1e-9 and np.median(st["speed"][st["speed"] > 0.1]) > 2 / 3.6
+    stopped = st["speed"] < 1e-3
+    assert stopped.sum() * 0.01 >= 5.0
+    assert np.rad2deg(st["heading"][-1] - st["heading"][0]) == pytest.approx(-90.0, abs=0.5)
+    assert np.abs(st["curvature"]).max() == pytest.approx(0.1)  # 10 m junction radius
+    # reflectors all along, including in the turn (radar on the right: inside the turn)
+    s_path = np.arange(0.0, m.path_length_m, 0.05)
+    xy, psi = m.path(s_path)[:2]
+    crs = sc.scene.position[sc.scene.corner_reflectors]
+    nearest = np.argmin(np.linalg.norm(xy[None] - crs[:, None, :2], axis=2), axis=1)
+    s_cr = s_path[nearest]
+    assert len(crs) >= 10 and np.any((s_cr > 40) & (s_cr < 58)) and np.ptp(s_cr) > 180
+    side = np.einsum("ij,ij->i", crs[:, :2] - xy[nearest], np.stack([-np.sin(psi), np.cos(psi)], -1)[nearest])
+    assert np.all(side < -2.0)
+    assert sc.road.bumps and sc.road.kerb_ramps and ("C" in [c for _, _, c in sc.road.rough_sections])
