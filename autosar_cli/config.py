@@ -253,6 +253,11 @@ class VehicleDynamicsConfig:
     road_grade_wavelength_m: float = 120.0
     road_cross_fall_percent: float = 2.0
     road_max_frequency_cpm: float = 8.0
+    # which effects the full model has (ablation): lateral tyre slip and the driver; roll/pitch from the
+    # accelerations; the road (grade, cross-fall, roughness, features) through the suspension; load- and
+    # speed-dependent rolling radius and longitudinal slip; tone-ring wheel speeds; IMU mounting misalignment
+    components: tuple[Literal["slip", "body", "road", "tyre_radius", "wheel_ticks", "imu_misalignment"], ...] = (
+        "slip", "body", "road", "tyre_radius", "wheel_ticks", "imu_misalignment")
 
 
 @dataclass(frozen=True)

@@ -301,3 +301,16 @@ def test_urban_route_has_its_junction_turn_stop_and_road_features(config: Config
     side = np.einsum("ij,ij->i", crs[:, :2] - xy[nearest], np.stack([-np.sin(psi), np.cos(psi)], -1)[nearest])
     assert np.all(side < -2.0)
     assert sc.road.bumps and sc.road.kerb_ramps and ("C" in [c for _, _, c in sc.road.rough_sections])
+
+
+def test_full_model_without_its_effects_is_the_kinematic_motion(config: Config) -> None:
+    sc = build_scenario("ci", config)
+    bare = replace(config.vehicle_dynamics, components=())
+    motion = full_motion("ci", sc.motion, sc.road, config.vehicle, bare)
+    t = np.linspace(0.0, sc.motion.duration_s, 200)
+    lever = np.array([1.9, -0.6, 0.3])
+    assert np.abs(motion.point(t, lever).position - sc.motion.point(t, lever).position).max() < 1e-9
+    assert np.allclose(motion.specific_force_body(t, lever), sc.motion.specific_force_body(t, lever), atol=1e-6)
+    assert np.allclose(motion.body_rates(t)[:, 2], sc.motion.states(t)["yaw_rate"], atol=1e-9)
+    only_road = full_motion("ci", sc.motion, sc.road, config.vehicle, replace(bare, components=("road",)))
+    assert np.abs(only_road.attitude(t)[:, 0]).max() > 0.005  # 2 % cross-fall rolls the body

@@ -168,7 +168,12 @@ class FullMotion:
                       dyn.friction_coefficient * load_r, understeer_gradient(vehicle, dyn),
                       dyn.driver_lateral_gain, dyn.driver_heading_gain])
         r0 = v_half[0] * kappa_half[0]
-        x = single_track(dt / 1.0, v_half, kappa_half, kappa_prev, np.array([0.0, 0.0, b * r0, r0]), p)
+        x = single_track(dt, v_half, kappa_half, kappa_prev, np.array([0.0, 0.0, b * r0, r0]), p)
+        on = set(dyn.components)
+        if "slip" not in on:  # the kinematic bicycle's planar motion
+            x[:] = 0.0
+            x[:, 4] = np.arctan(wheelbase * kappa_half[::2])
+            x[:, 5] = m * v_half[::2] ** 2 * kappa_half[::2]  # lateral force, all on the front axle's slot
         t = t_half[::2]
         self.t = t
         s = s_half[::2]
@@ -189,12 +194,14 @@ class FullMotion:
         self.road_height = np.stack([
             road.height(s + wheelbase, w_front + half_f, 0), road.height(s + wheelbase, w_front - half_f, 1),
             road.height(s, e + half_r, 0), road.height(s, e - half_r, 1)], -1)
+        if "road" not in on:
+            self.road_height[:] = 0.0
         h = self.road_height
         roll_road = 0.5 * ((h[:, 0] - h[:, 1]) / vehicle.track_front_m + (h[:, 2] - h[:, 3]) / vehicle.track_rear_m)
         pitch_road = -(0.5 * (h[:, 0] + h[:, 1]) - 0.5 * (h[:, 2] + h[:, 3])) / wheelbase
         heave_road = (b * 0.5 * (h[:, 0] + h[:, 1]) + a * 0.5 * (h[:, 2] + h[:, 3])) / wheelbase
-        k_roll = np.deg2rad(dyn.roll_gradient_deg_per_g) / GRAVITY
-        k_pitch = np.deg2rad(dyn.pitch_gradient_deg_per_g) / GRAVITY
+        k_roll = np.deg2rad(dyn.roll_gradient_deg_per_g) / GRAVITY * ("body" in on)
+        k_pitch = np.deg2rad(dyn.pitch_gradient_deg_per_g) / GRAVITY * ("body" in on)
         roll = suspension_response(dt, roll_road, k_roll * accel_y, dyn.roll_frequency_hz, dyn.roll_damping_ratio)
         pitch = suspension_response(dt, pitch_road, -k_pitch * accel_x, dyn.pitch_frequency_hz,
                                     dyn.pitch_damping_ratio)
@@ -221,6 +228,9 @@ class FullMotion:
         share = drive[:, None] * np.array([0.0, 0.0, 0.5, 0.5]) + (1 - drive[:, None]) * np.array(
             [dyn.brake_front_fraction / 2] * 2 + [(1 - dyn.brake_front_fraction) / 2] * 2)
         self.longitudinal_slip = force_x[:, None] * share / (dyn.slip_stiffness_per_load * self.wheel_load)
+        if "tyre_radius" not in on:
+            self.rolling_radius = np.full_like(self.rolling_radius, vehicle.wheel_radius_m)
+            self.longitudinal_slip = np.zeros_like(self.longitudinal_slip)
         self.wheel_positions = np.array([[a, half_f, -vehicle.cog_height_m], [a, -half_f, -vehicle.cog_height_m],
                                          [-b, half_r, -vehicle.cog_height_m], [-b, -half_r, -vehicle.cog_height_m]])
         v_long = np.empty((t.size, 4))

@@ -106,6 +106,8 @@ def imu(motion: Motion, name: str, s: SensorConfig, rng: np.random.Generator) ->
     if isinstance(motion, FullMotion):
         lo, hi = motion.dyn.imu_misalignment_deg
         angles = np.deg2rad(rng.uniform(lo, hi, 3) * np.where(rng.random(3) < 0.5, -1.0, 1.0))
+        if "imu_misalignment" not in motion.dyn.components:
+            angles = np.zeros(3)
         mis = misalignment_matrix(angles)
         extra = {"misalignment_rad": angles}
         gyro = true_gyro @ mis.T + gb + gn
@@ -200,8 +202,12 @@ def _tone_ring_wheel_speeds(motion: FullMotion, config: Config, name: str, s: Se
     ground = {}
     for i, wheel in enumerate(("fl", "fr", "rl", "rr")):
         err = rng.standard_normal(dyn.tone_ring_teeth) * dyn.tooth_pitch_error_std
-        speed, _ = tone_ring_speed(motion.wheel_t, motion.wheel_angle[:, i], t, err, dyn.edges_per_speed_estimate,
-                                   dyn.wheel_speed_timeout_s, float(radius[i]))
+        if "wheel_ticks" in dyn.components:
+            speed, _ = tone_ring_speed(motion.wheel_t, motion.wheel_angle[:, i], t, err,
+                                       dyn.edges_per_speed_estimate, dyn.wheel_speed_timeout_s, float(radius[i]))
+        else:  # the wheel's rotation rate itself, with the kinematic model's white noise
+            speed = (np.interp(t, motion.t, motion.wheel_rate[:, i]) * radius[i]
+                     + rng.standard_normal(t.size) * s.wheel.noise_std_mps)
         values[f"wheel_speed_{wheel}"] = speed
         ground[wheel] = np.linalg.norm(motion.point(t, motion.wheel_positions[i]).velocity, axis=1)
         truth[f"wheel_speed_{wheel}"] = ground[wheel]
