@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
 
 from autosar_cli.config import AccelErrors, Config, GyroErrors, SensorConfig
 from autosar_cli.nav.frames import course_deg_from_heading
@@ -125,8 +126,6 @@ def imu(motion: Motion, name: str, s: SensorConfig, rng: np.random.Generator) ->
 
 def misalignment_matrix(angles_rad: NDArray[np.float64]) -> NDArray[np.float64]:
     """Body -> sensor axes (3, 3) of a unit mounted with small rotation angles (rad) about body x, y, z."""
-    from scipy.spatial.transform import Rotation
-
     return np.asarray(Rotation.from_euler("xyz", angles_rad).as_matrix().T)
 
 
