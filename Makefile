@@ -48,7 +48,7 @@ benchmarks-md: setup
 # The README's pictures (docs/figures/): test1 seed 0 simulated and compared (none, ins, sar-min, truth), ~5 min.
 FIGURES_WORK := demo_out/figures
 figures: setup
-	$(BIN)/autosar simulate --scenario test1 --seed 0 --output $(FIGURES_WORK)/test1.mcap --overwrite
+	$(BIN)/autosar simulate --scenario test1 --seed 0 --dynamics kinematic --output $(FIGURES_WORK)/test1.mcap --overwrite
 	$(BIN)/autosar compare $(FIGURES_WORK)/test1.mcap -o $(FIGURES_WORK)/compare --overwrite
 	$(BIN)/python benches/docs_figures.py $(FIGURES_WORK)/compare docs/figures
 
@@ -61,7 +61,7 @@ lint: setup
 
 # Regenerates the committed sample logs (see sample_logs/README.md).
 sample-logs: setup
-	$(BIN)/autosar simulate --scenario ci --seed 1 --format mcap --output sample_logs/ci_seed1.mcap --overwrite
+	$(BIN)/autosar simulate --scenario ci --seed 1 --dynamics kinematic --format mcap --output sample_logs/ci_seed1.mcap --overwrite
 
 clean:
 	rm -rf $(VENV) demo_out .pytest_cache

@@ -67,6 +67,12 @@ class Scenario(StrEnum):
     test1 = "test1"
     test2 = "test2"
     test3 = "test3"
+    urban = "urban"
+
+
+class Dynamics(StrEnum):
+    kinematic = "kinematic"
+    full = "full"
 
 
 class NavMethod(StrEnum):
@@ -194,6 +200,8 @@ def simulate(
                                            "navigation plus the radar as a TI DCA1000 capture in <log>.dca1000/ "
                                            "(ingest with --radar).")] = LogFormat.mcap,
     seed: Annotated[int, typer.Option("--seed", help="Random seed: same seed, same bytes.")] = 0,
+    dynamics: Annotated[Dynamics | None, typer.Option(
+        "--dynamics", help="Vehicle model: kinematic bicycle or full 3-D dynamics (default: the config's).")] = None,
     config: ConfigOpt = None,
     overwrite: OverwriteOpt = False,
     as_json: JsonOpt = False,
@@ -210,7 +218,8 @@ def simulate(
         if fmt == LogFormat.dca1000:
             _prepare_output(capture_dir_for(output), overwrite, [cfg.source], replaces_directory=True)
         with _progress(f"simulate {scenario.value}", not as_json) as update:
-            result = run_simulation(scenario.value, output, fmt=fmt.value, seed=seed, config=cfg, progress=update)
+            result = run_simulation(scenario.value, output, fmt=fmt.value, seed=seed, config=cfg, progress=update,
+                                    dynamics=dynamics.value if dynamics else None)
         summary = {
             "log": str(result.log_path), "truth": str(result.truth_path), "scenario": result.scenario,
             "seed": result.seed, "format": result.format, "duration_s": round(result.duration_s, 3),

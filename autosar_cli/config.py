@@ -209,6 +209,55 @@ class SimulationConfig:
     vibration_vertical_rms_m: float = 1.0e-3
     vibration_horizontal_rms_m: float = 0.08e-3
     vibration_band_hz: tuple[float, float] = (4.0, 25.0)
+    # "kinematic": planar kinematic bicycle on a level road (the motion SAR-MIN assumes); "full": single-track
+    # dynamics with tyre slip, body roll/pitch/heave on the suspension, a rough road ([vehicle_dynamics]).
+    dynamics: Literal["kinematic", "full"] = "full"
+
+
+@dataclass(frozen=True)
+class VehicleDynamicsConfig:
+    """Parameters of the simulator's full vehicle model (sources in configs/giulia_scanbrick.toml)."""
+
+    mass_kg: float = 1600.0
+    yaw_inertia_kgm2: float = 2600.0
+    cornering_stiffness_front_n_per_rad: float = 90000.0  # per axle
+    cornering_stiffness_rear_n_per_rad: float = 120000.0
+    friction_coefficient: float = 0.9
+    slip_stiffness_per_load: float = 15.0  # longitudinal: F_x / (F_z * slip)
+    brake_front_fraction: float = 0.7
+    rolling_resistance: float = 0.012
+    drag_area_m2: float = 0.65  # C_d * A
+    heave_frequency_hz: float = 1.3
+    pitch_frequency_hz: float = 1.5
+    roll_frequency_hz: float = 1.7
+    heave_damping_ratio: float = 0.3
+    pitch_damping_ratio: float = 0.3
+    roll_damping_ratio: float = 0.35
+    roll_gradient_deg_per_g: float = 4.0
+    pitch_gradient_deg_per_g: float = 2.0
+    roll_centre_height_m: float = 0.10
+    tyre_vertical_stiffness_n_per_m: float = 250000.0
+    rolling_radius_deflection_fraction: float = 0.33
+    rolling_radius_speed_growth_per_mps2: float = 1.5e-6
+    driver_preview_s: float = 0.3
+    driver_lateral_gain: float = 1.5
+    driver_heading_gain: float = 0.5
+    tone_ring_teeth: int = 48
+    tooth_pitch_error_std: float = 0.002  # fraction of one tooth's pitch
+    edges_per_speed_estimate: int = 6
+    wheel_speed_timeout_s: float = 0.3
+    imu_misalignment_deg: tuple[float, float] = (0.3, 1.0)  # magnitude per axis drawn uniformly in this range
+    road_class: Literal["A", "B", "C"] = "A"
+    road_coherence_decay: float = 0.8  # left/right coherence exp(-decay * n * track)
+    road_grade_percent: float = 1.0
+    road_grade_wavelength_m: float = 120.0
+    road_cross_fall_percent: float = 2.0
+    road_max_frequency_cpm: float = 8.0
+    # which effects the full model has (ablation): lateral tyre slip and the driver; roll/pitch from the
+    # accelerations; the road (grade, cross-fall, roughness, features) through the suspension; load- and
+    # speed-dependent rolling radius and longitudinal slip; tone-ring wheel speeds; IMU mounting misalignment
+    components: tuple[Literal["slip", "body", "road", "tyre_radius", "wheel_ticks", "imu_misalignment"], ...] = (
+        "slip", "body", "road", "tyre_radius", "wheel_ticks", "imu_misalignment")
 
 
 @dataclass(frozen=True)
@@ -243,6 +292,7 @@ class Config:
     sensors: dict[str, SensorConfig]
     processing: ProcessingConfig = field(default_factory=ProcessingConfig)
     simulation: SimulationConfig | None = None
+    vehicle_dynamics: VehicleDynamicsConfig = field(default_factory=VehicleDynamicsConfig)
     navigation: NavigationConfig = field(default_factory=NavigationConfig)
     source: str = ""
 

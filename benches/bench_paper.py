@@ -1,6 +1,6 @@
 """Benchmark the paper's comparison over several seeds: how often each "Done when" figure of issue 6 holds.
 
-Usage: python benches/bench_paper.py [--scenarios test1,test2,test3] [--seeds 0-9] [--workdir DIR] [--keep]
+Usage: python benches/bench_paper.py [--scenarios test1,test2,test3] [--seeds 0-9] [--dynamics full] [--keep]
 
 For every scenario and seed: ``autosar simulate --scenario S --seed N`` (MCAP), then ``autosar compare LOG -o DIR
 --methods none,ins,sar-min,truth --json``. Per drive it records SAR-MIN's worst corner reflector (whole-track and
@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import shutil
 import statistics
 import subprocess
@@ -45,6 +46,20 @@ def parse_seeds(text: str) -> list[int]:
 def cli(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "autosar_cli.cli", *args], check=True, capture_output=True,
                           text=True)
+
+
+def ablation_config(components: str, work: Path) -> Path:
+    """A copy of the default config whose full vehicle model has only ``components`` (comma-separated)."""
+    from autosar_cli.config import DEFAULT_CONFIG
+
+    text = DEFAULT_CONFIG.read_text()
+    wanted = ", ".join(f'"{c}"' for c in components.split(",") if c)
+    text = re.sub(r"^components = \[.*\]$", f"components = [{wanted}]", text, count=1, flags=re.MULTILINE)
+    text = re.sub(r'^dbc = "(.*)"$', lambda m: f'dbc = "{(DEFAULT_CONFIG.parent / m.group(1)).as_posix()}"', text,
+                  count=1, flags=re.MULTILINE)
+    path = work / f"config_{components.replace(',', '+') or 'none'}.toml"
+    path.write_text(text)
+    return path
 
 
 def in_paper_order(e: dict[str, float]) -> bool:
@@ -147,6 +162,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenarios", default="test1,test2,test3")
     ap.add_argument("--seeds", default="0-9", help="e.g. 0-9 or 1,3,7")
+    ap.add_argument("--dynamics", choices=("kinematic", "full"), default=None,
+                    help="simulator vehicle model (default: the config's simulation.dynamics)")
+    ap.add_argument("--components", default=None,
+                    help="ablation: the full model's effects to keep, e.g. slip or body,road (implies --dynamics full)")
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--keep", action="store_true", help="keep every drive's log and comparison")
     ap.add_argument("--output", type=Path, default=RESULTS / "paper.json")
@@ -155,12 +174,19 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         work = args.workdir or Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
+        config = ["--config", str(ablation_config(args.components, work))] if args.components is not None else []
+        if config:
+            args.dynamics = "full"
         for seed in parse_seeds(args.seeds):
             for scenario in args.scenarios.split(","):
-                log = work / f"{scenario}_s{seed}.mcap"
+                tag = (f"_{args.dynamics}" if args.dynamics else "") + (
+                    f"_{args.components.replace(',', '+')}" if args.components is not None else "")
+                log = work / f"{scenario}_s{seed}{tag}.mcap"
                 t = time.perf_counter()
                 if not log.exists():
-                    cli("simulate", "--scenario", scenario, "--seed", str(seed), "--output", str(log), "--overwrite")
+                    dyn = ["--dynamics", args.dynamics] if args.dynamics else []
+                    cli("simulate", "--scenario", scenario, "--seed", str(seed), "--output", str(log), "--overwrite",
+                        *dyn, *config)
                 sim_s = time.perf_counter() - t
                 out = work / f"{scenario}_s{seed}"
                 t = time.perf_counter()
@@ -183,7 +209,8 @@ def main() -> None:
                     shutil.rmtree(out, ignore_errors=True)
                     for p in (log, log.with_name(log.name + ".truth.h5")):
                         p.unlink(missing_ok=True)
-    result = {"benchmark": "paper", "methods": list(METHODS), "rows": rows,
+    result = {"benchmark": "paper", "methods": list(METHODS), "dynamics": args.dynamics or "config",
+              "components": args.components, "rows": rows,
               "summary": {s: summary([r for r in rows if r["scenario"] == s]) for s in args.scenarios.split(",")}
               | {"all": summary(rows)}}
     print(json.dumps(result["summary"], indent=2))

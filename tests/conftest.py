@@ -32,7 +32,8 @@ def simulated(sim_dir: Path, scenario: str, fmt: str, seed: int) -> SimulationRe
     key = (scenario, fmt, seed)
     if key not in _CACHE:
         ext = {"mcap": ".mcap", "ros1": ".bag", "ros2": ""}[fmt]
-        _CACHE[key] = simulate(scenario, sim_dir / f"{scenario}_{fmt}_s{seed}{ext}", fmt=fmt, seed=seed)
+        _CACHE[key] = simulate(scenario, sim_dir / f"{scenario}_{fmt}_s{seed}{ext}", fmt=fmt, seed=seed,
+                               dynamics="kinematic")  # the motion the navigation models: in-model accuracy
     return _CACHE[key]
 
 

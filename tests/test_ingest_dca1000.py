@@ -230,8 +230,8 @@ def test_simulated_capture_ingests_to_the_rawframe_cube(ci_mcap, tmp_path: Path)
     both to the same image."""
     from autosar_cli.run import run
 
-    r = runner.invoke(app, ["simulate", "-s", "ci", "--seed", "7", "-f", "dca1000", "-o", str(tmp_path / "ci.mcap"),
-                            "--json"])
+    r = runner.invoke(app, ["simulate", "-s", "ci", "--seed", "7", "-f", "dca1000", "--dynamics", "kinematic",
+                            "-o", str(tmp_path / "ci.mcap"), "--json"])
     assert r.exit_code == 0, r.output
     capture = Path(json.loads(r.stdout)["radar_capture"])
     assert (capture / "capture.mmwave.json").exists() and (capture / "adc_data.bin").exists()

@@ -45,7 +45,7 @@ def still_config() -> Config:
     cfg = load_config()
     assert cfg.simulation is not None
     return replace(cfg, simulation=replace(cfg.simulation, vibration_vertical_rms_m=0.0,
-                                           vibration_horizontal_rms_m=0.0))
+                                           vibration_horizontal_rms_m=0.0, dynamics="kinematic"))
 
 
 def prepare(directory: Path, scenario: str) -> Drive:

@@ -75,7 +75,7 @@ def test_scenarios_are_plausible_drives(name):
     st = m.states(t)
     v_max_imaging = 990 * 8 * (cfg.radar.wavelength_m / 4) * np.cos(np.pi / 4)  # ~5.4 m/s (DESIGN.md)
     assert st["speed"].max() < v_max_imaging
-    assert st["speed"].min() > 1.0
+    assert st["speed"].min() > 1.0 or name == "urban"  # urban stops for 6 s and goes
     assert np.abs(st["accel"]).max() < 3.0
     assert np.abs(st["yaw_rate"] * st["speed"]).max() < 3.0  # lateral acceleration, m/s^2
     assert len(sc.scene.corner_reflectors) >= 3

@@ -15,10 +15,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from autosar_cli.config import Config
-from autosar_cli.sim.scene import Scene, SceneBuilder, finish_scene
-from autosar_cli.sim.trajectory import LateralProfile, TruthMotion
+from autosar_cli.sim.road import RoadLayout
+from autosar_cli.sim.scene import Scene, SceneBuilder, finish_scene, finish_scene_along
+from autosar_cli.sim.trajectory import ArcPathMotion, LateralProfile, TruthMotion
 
-SCENARIOS = ("ci", "test1", "test2", "test3")
+SCENARIOS = ("ci", "test1", "test2", "test3", "urban")
 
 
 def polynomial_profile(coeffs: tuple[float, ...]) -> LateralProfile:
@@ -49,6 +50,7 @@ class Scenario:
     description: str
     motion: TruthMotion
     scene: Scene
+    road: RoadLayout = RoadLayout()  # discrete road features the full model drives over
 
 
 def _scene_rng(name: str) -> np.random.Generator:
@@ -155,6 +157,38 @@ def _test3(config: Config) -> Scenario:
                     finish_scene(b, np.pi / 2, (0.0, 0.0)))
 
 
+def _urban(config: Config) -> Scenario:
+    # ~200 m through a town, starting East-bound: straight, a right turn at a junction (10 m radius), an S-bend,
+    # a stop of 6 s and go, a speed bump, cobbles; the radar (right side) sees the junction's inner corner.
+    # Top speed 18 km/h: the radar images unambiguously up to ~19.5 km/h (DESIGN.md).
+    length = 200.0
+    v = config.vehicle
+    turn = (40.0, 40.0 + 0.5 * np.pi * 10.0, -0.1)
+    s_bend = [(85.0, 97.0, 0.04), (97.0, 109.0, -0.04)]
+    motion = ArcPathMotion([turn, *s_bend], 3.0, length, 0.0, (0.0, 0.0),
+                           [(0.0, 2.0), (5.0, 4.5), (9.0, 4.5), (12.0, 3.0), (16.0, 3.0), (21.0, 5.0), (26.0, 5.0),
+                            (30.0, 0.0), (36.0, 0.0), (41.0, 4.0), (45.0, 3.0), (48.0, 5.0), (90.0, 5.0)],
+                           v.cog_to_rear_axle_m, v.cog_height_m)
+    b = SceneBuilder(_scene_rng("urban"), config.radar.centre_frequency_hz)
+    u0 = _radar_u0(config)
+    b.facade(u0 - 2.0, u0 + 36.0, -9.0)  # the junction's corner building, both streets
+    b.facade(u0 + 62.0, u0 + 84.0, -9.0, pillar_spacing=3.5)
+    b.facade(u0 + 112.0, u0 + length + 8.0, -11.0, pillar_spacing=4.0)
+    crs = (10.0, 30.0, 48.0, 52.0, 70.0, 91.0, 103.0, 125.0, 150.0, 175.0, 195.0)
+    for i, du in enumerate(crs):
+        b.corner_reflector(u0 + du, -4.0 if i % 2 == 0 else -6.0)
+    b.kerb(u0 - 4.0, u0 + length + 8.0, -2.3)
+    for du in (14.0, 22.0, 64.0, 72.0, 118.0, 140.0, 160.0, 182.0):
+        b.car(u0 + du, -3.3, name=f"parked car at {du:.0f} m")
+    for du in range(0, 201, 25):
+        b.lamp_post(u0 + du, -2.8)
+    b.clutter(u0 - 6.0, u0 + length + 10.0, -2.5, -7.5, 0.35)
+    road = RoadLayout(bumps=((128.0, 3.7, 0.07),), kerb_ramps=((20.0, 3.0, 0.06),),
+                      rough_sections=((145.0, 175.0, "C"),))
+    return Scenario("urban", "~200 m town drive: straight, right turn at a junction, S-bend, 6 s stop, speed bump,"
+                    " cobbles; 2-18 km/h", motion, finish_scene_along(b, motion.path), road)
+
+
 _MAKERS: dict[str, Callable[[Config], Scenario]] = {
-    "ci": _ci, "test1": _test1, "test2": _test2, "test3": _test3,
+    "ci": _ci, "test1": _test1, "test2": _test2, "test3": _test3, "urban": _urban,
 }

@@ -6,6 +6,7 @@ the road) and converted to ENU by the scenario. Radar cross sections are in m^2.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -123,5 +124,18 @@ def finish_scene(builder: SceneBuilder, direction_rad: float, start_enu: tuple[f
     c, s = np.cos(direction_rad), np.sin(direction_rad)
     enu = np.stack([start_enu[0] + c * uwz[:, 0] - s * uwz[:, 1],
                     start_enu[1] + s * uwz[:, 0] + c * uwz[:, 1], uwz[:, 2]], -1)
+    return Scene(enu, np.concatenate(builder.rcs), np.concatenate(builder.kind),
+                 np.concatenate(builder.name_index), tuple(builder.names))
+
+
+def finish_scene_along(builder: SceneBuilder,
+                       path: Callable[[NDArray[np.float64]], tuple[NDArray[np.float64], ...]]) -> Scene:
+    """Convert the builder's points to ENU along a curved path: u is the arc length, w the offset to its left.
+
+    path(s) returns (ENU position (N, 2), tangent heading (N,) rad, ...).
+    """
+    uwz = np.concatenate(builder.uwz)
+    pos, psi = path(uwz[:, 0])[:2]
+    enu = np.stack([pos[:, 0] - np.sin(psi) * uwz[:, 1], pos[:, 1] + np.cos(psi) * uwz[:, 1], uwz[:, 2]], -1)
     return Scene(enu, np.concatenate(builder.rcs), np.concatenate(builder.kind),
                  np.concatenate(builder.name_index), tuple(builder.names))

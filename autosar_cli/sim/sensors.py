@@ -12,10 +12,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
 
 from autosar_cli.config import AccelErrors, Config, GyroErrors, SensorConfig
 from autosar_cli.nav.frames import course_deg_from_heading
+from autosar_cli.sim.dynamics import FullMotion
 from autosar_cli.sim.trajectory import TruthMotion
+
+Motion = TruthMotion | FullMotion
 
 
 @dataclass
@@ -81,30 +85,51 @@ def accel_errors(n: int, rate_hz: float, model: AccelErrors, axes: int,
     return b0[None, :] + drift, noise
 
 
-def imu(motion: TruthMotion, name: str, s: SensorConfig, rng: np.random.Generator) -> SensorSamples:
+def imu(motion: Motion, name: str, s: SensorConfig, rng: np.random.Generator) -> SensorSamples:
     """Body-frame gyro (rad/s) and accelerometer (m/s^2) of a strapdown IMU at its lever arm.
 
-    A 3-DoF unit measures yaw rate and longitudinal/lateral acceleration: the other axes are NaN.
+    A 3-DoF unit measures yaw rate and longitudinal/lateral acceleration: the other axes are NaN. On the full
+    model each unit sits on the body with a small mounting misalignment (drawn once, after the other
+    errors), so its axes see roll and pitch rates and gravity: measured = M (true) + bias + noise.
     """
     assert s.gyro is not None and s.accel is not None
     t = sample_times(s.rate_hz, motion.duration_s, rng, s.latency_s)
     n = t.size
-    true_gyro = np.zeros((n, 3))
-    true_gyro[:, 2] = motion.states(t)["yaw_rate"]
+    if isinstance(motion, FullMotion):
+        true_gyro = motion.body_rates(t)
+    else:
+        true_gyro = np.zeros((n, 3))
+        true_gyro[:, 2] = motion.states(t)["yaw_rate"]
     true_accel = motion.specific_force_body(t, s.lever_arm_m)
     gb, gn = gyro_errors(n, s.rate_hz, s.gyro, 3, rng)
     ab, an = accel_errors(n, s.rate_hz, s.accel, 3, rng)
-    gyro = true_gyro + gb + gn
-    accel = true_accel + ab + an
+    extra: dict[str, NDArray[np.float64]] = {}
+    if isinstance(motion, FullMotion):
+        lo, hi = motion.dyn.imu_misalignment_deg
+        angles = np.deg2rad(rng.uniform(lo, hi, 3) * np.where(rng.random(3) < 0.5, -1.0, 1.0))
+        if "imu_misalignment" not in motion.dyn.components:
+            angles = np.zeros(3)
+        mis = misalignment_matrix(angles)
+        extra = {"misalignment_rad": angles}
+        gyro = true_gyro @ mis.T + gb + gn
+        accel = true_accel @ mis.T + ab + an
+    else:
+        gyro = true_gyro + gb + gn
+        accel = true_accel + ab + an
     if s.kind == "imu" and s.dof == 3:
         gyro[:, :2] = np.nan
         accel[:, 2] = np.nan
     return SensorSamples(name, s.kind, t, t + s.latency_s, {"angular_velocity": gyro, "linear_acceleration": accel},
                          {"angular_velocity": true_gyro, "linear_acceleration": true_accel, "gyro_bias": gb,
-                          "accel_bias": ab})
+                          "accel_bias": ab, **extra})
 
 
-def can_imu(motion: TruthMotion, name: str, s: SensorConfig, rng: np.random.Generator) -> SensorSamples:
+def misalignment_matrix(angles_rad: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Body -> sensor axes (3, 3) of a unit mounted with small rotation angles (rad) about body x, y, z."""
+    return np.asarray(Rotation.from_euler("xyz", angles_rad).as_matrix().T)
+
+
+def can_imu(motion: Motion, name: str, s: SensorConfig, rng: np.random.Generator) -> SensorSamples:
     """Yaw rate (rad/s) and longitudinal/lateral acceleration (m/s^2) of an ECU on CAN (ESC, ORC)."""
     full = imu(motion, name, s, rng)
     v = full.values
@@ -119,7 +144,7 @@ def can_imu(motion: TruthMotion, name: str, s: SensorConfig, rng: np.random.Gene
     )
 
 
-def wheel_speeds(motion: TruthMotion, config: Config, name: str, s: SensorConfig,
+def wheel_speeds(motion: Motion, config: Config, name: str, s: SensorConfig,
                  rng: np.random.Generator) -> SensorSamples:
     """Rolling speed (m/s) of each wheel: ground speed of its centre, scaled by a per-wheel radius error."""
     assert s.wheel is not None
@@ -130,6 +155,8 @@ def wheel_speeds(motion: TruthMotion, config: Config, name: str, s: SensorConfig
     wheels = {"fl": (a, v.track_front_m / 2), "fr": (a, -v.track_front_m / 2),
               "rl": (-b, v.track_rear_m / 2), "rr": (-b, -v.track_rear_m / 2)}
     scale = 1.0 + rng.standard_normal(4) * s.wheel.radius_scale_error_std
+    if isinstance(motion, FullMotion):
+        return _tone_ring_wheel_speeds(motion, config, name, s, t, scale, rng)
     values, truth = {}, {}
     for i, (wheel, (x, y)) in enumerate(wheels.items()):
         true = np.linalg.norm(motion.point(t, (x, y, -v.cog_height_m)).velocity, axis=1)
@@ -139,7 +166,56 @@ def wheel_speeds(motion: TruthMotion, config: Config, name: str, s: SensorConfig
     return SensorSamples(name, s.kind, t, t + s.latency_s, values, truth)
 
 
-def steering(motion: TruthMotion, config: Config, name: str, s: SensorConfig,
+def tone_ring_speed(t_grid: NDArray[np.float64], wheel_angle: NDArray[np.float64], t_samples: NDArray[np.float64],
+                    tooth_error: NDArray[np.float64], edges_per_estimate: int, timeout_s: float,
+                    radius_m: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Wheel speed (m/s) an ABS ECU computes at t_samples (s) from a tone ring's edges, and the edge times.
+
+    wheel_angle (rad, non-decreasing) on t_grid (s); tooth_error (teeth,): each edge's position error as a
+    fraction of the pitch. The ECU takes the newest edge before each sample and the one edges_per_estimate
+    teeth earlier, assumes a perfect ring, and reports 0 when no edge came for timeout_s.
+    """
+    teeth = tooth_error.size
+    pitch = 2.0 * np.pi / teeth
+    first = int(np.floor(wheel_angle[0] / pitch)) + 1
+    last = int(np.floor(wheel_angle[-1] / pitch)) - 1
+    j = np.arange(first, max(last, first))
+    edge_t = np.interp((j + tooth_error[j % teeth]) * pitch, wheel_angle, t_grid)
+    k = np.searchsorted(edge_t, t_samples, side="right") - 1
+    ok = (k >= edges_per_estimate) & (t_samples - edge_t[np.maximum(k, 0)] <= timeout_s) if edge_t.size else (
+        np.zeros(t_samples.size, dtype=bool))
+    speed = np.zeros(t_samples.size)
+    kk = k[ok]
+    speed[ok] = edges_per_estimate * pitch * radius_m / (edge_t[kk] - edge_t[kk - edges_per_estimate])
+    return speed, edge_t
+
+
+def _tone_ring_wheel_speeds(motion: FullMotion, config: Config, name: str, s: SensorConfig,
+                            t: NDArray[np.float64], scale: NDArray[np.float64],
+                            rng: np.random.Generator) -> SensorSamples:
+    """Full model: each wheel's rotation through its tone ring's edges; the ECU's nominal radius is the
+    config's times the wheel's scale error (a tyre whose real size differs from the nominal)."""
+    dyn = motion.dyn
+    values, truth = {}, {}
+    radius = config.vehicle.wheel_radius_m * scale
+    ground = {}
+    for i, wheel in enumerate(("fl", "fr", "rl", "rr")):
+        err = rng.standard_normal(dyn.tone_ring_teeth) * dyn.tooth_pitch_error_std
+        if "wheel_ticks" in dyn.components:
+            speed, _ = tone_ring_speed(motion.wheel_t, motion.wheel_angle[:, i], t, err,
+                                       dyn.edges_per_speed_estimate, dyn.wheel_speed_timeout_s, float(radius[i]))
+        else:  # the wheel's rotation rate itself, with the kinematic model's white noise
+            speed = (np.interp(t, motion.t, motion.wheel_rate[:, i]) * radius[i]
+                     + rng.standard_normal(t.size) * s.wheel.noise_std_mps)
+        values[f"wheel_speed_{wheel}"] = speed
+        ground[wheel] = np.linalg.norm(motion.point(t, motion.wheel_positions[i]).velocity, axis=1)
+        truth[f"wheel_speed_{wheel}"] = ground[wheel]
+        truth[f"tooth_error_{wheel}"] = err
+    truth["scale_factor"] = scale
+    return SensorSamples(name, s.kind, t, t + s.latency_s, values, truth)
+
+
+def steering(motion: Motion, config: Config, name: str, s: SensorConfig,
              rng: np.random.Generator) -> SensorSamples:
     """Steering-wheel angle (rad) = ratio x kinematic road-wheel angle + offset + noise, and its rate."""
     assert s.steering is not None
@@ -156,7 +232,7 @@ def steering(motion: TruthMotion, config: Config, name: str, s: SensorConfig,
                          {"steering_wheel_angle": true, "offset": np.array([offset])})
 
 
-def gnss(motion: TruthMotion, name: str, s: SensorConfig, rng: np.random.Generator) -> SensorSamples:
+def gnss(motion: Motion, name: str, s: SensorConfig, rng: np.random.Generator) -> SensorSamples:
     """Antenna position (ENU, m) with time-correlated + white errors, ENU velocity (m/s), true heading
     (deg from North, clockwise) and course over ground; fixes at whole multiples of the period (UTC)."""
     assert s.gnss is not None

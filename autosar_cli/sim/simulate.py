@@ -28,6 +28,7 @@ from autosar_cli.ingest.dca1000 import CaptureWriter, params_from_radar
 from autosar_cli.nav.frames import mounting_rotation, rot_z
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.sim import sensors as sensor_models
+from autosar_cli.sim.dynamics import FullMotion, full_motion
 from autosar_cli.sim.echo import synthesize_beat
 from autosar_cli.sim.logwriter import open_log_writer
 from autosar_cli.sim.messages import MessageFactory, can_topic, sensor_topics
@@ -38,6 +39,8 @@ from autosar_cli.sim.truth import TruthWriter, truth_path_for
 
 LogFormat = Literal["mcap", "ros1", "ros2", "dca1000"]
 RADAR_SYNC_TOPIC = "/dca1000/sync"  #: dca1000 format: std_msgs/Header stamped at each frame's start
+Dynamics = Literal["kinematic", "full"]
+Motion = TruthMotion | FullMotion
 RADAR_BLOCK_FRAMES = 128
 RADAR_TRANSFER_DELAY_NS = 1_500_000  # frame leaves the radar after its last chirp, over Ethernet
 
@@ -113,17 +116,30 @@ class Vibration:
         return np.einsum("...ij,...j->...i", rot_z(heading), self.body(t))
 
 
-def antenna_positions(motion: TruthMotion, geom: RadarGeometry, vib: Vibration, t: NDArray[np.float64],
+def body_to_enu(motion: Motion, t: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Body-to-ENU rotations (N, 3, 3): heading only on the kinematic model, full attitude on the full one."""
+    if isinstance(motion, FullMotion):
+        return motion.body_to_enu(t)
+    return rot_z(motion.states(t)["heading"])
+
+
+def vibration_enu(motion: Motion, vib: Vibration, t: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The radar vibration (N, 3) m in ENU, rotated with the body."""
+    if isinstance(motion, FullMotion):
+        return np.einsum("nij,nj->ni", motion.body_to_enu(t), vib.body(t))
+    return vib.enu(t, motion.states(t)["heading"])
+
+
+def antenna_positions(motion: Motion, geom: RadarGeometry, vib: Vibration, t: NDArray[np.float64],
                       lever_arms: NDArray[np.float64]) -> NDArray[np.float64]:
     """ENU positions (len(t), len(lever_arms), 3) of body points at times t, with the radar vibration."""
     nt, na = t.size, len(lever_arms)
     tt = np.repeat(t, na)
     pos = motion.point(tt, np.tile(lever_arms, (nt, 1))).position.reshape(nt, na, 3)
-    heading = motion.states(t)["heading"]
-    return pos + vib.enu(t, heading)[:, None, :]
+    return pos + vibration_enu(motion, vib, t)[:, None, :]
 
 
-def radar_block(motion: TruthMotion, config: Config, geom: RadarGeometry, vib: Vibration,
+def radar_block(motion: Motion, config: Config, geom: RadarGeometry, vib: Vibration,
                 t_frames: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
     """Antenna positions at chirp start and ADC end for frames starting at t_frames (s)."""
     r = config.radar
@@ -139,15 +155,25 @@ def radar_block(motion: TruthMotion, config: Config, geom: RadarGeometry, vib: V
             tx[:, k] = antenna_positions(motion, geom, vib, tc, geom.tx_lever_arms[k : k + 1])[:, 0]
             rx[:, k] = antenna_positions(motion, geom, vib, tc, geom.rx_lever_arms)
         out[f"tx_{tag}"], out[f"rx_{tag}"] = tx, rx
-    heading = motion.states(t_frames)["heading"]
     out["origin"] = antenna_positions(motion, geom, vib, t_frames, geom.mount_lever_arm[None, :])[:, 0]
-    body_to_enu = rot_z(heading)
-    out["enu_to_radar"] = np.swapaxes(body_to_enu @ geom.radar_to_body, -1, -2)
-    out["vibration"] = vib.enu(t_frames, heading)
+    out["enu_to_radar"] = np.swapaxes(body_to_enu(motion, t_frames) @ geom.radar_to_body, -1, -2)
+    out["vibration"] = vibration_enu(motion, vib, t_frames)
     return out
 
 
-def _sensor_samples(motion: TruthMotion, config: Config, seed: int) -> list[sensor_models.SensorSamples]:
+def on_road(scene: Scene, motion: FullMotion) -> Scene:
+    """The scene lifted onto the road's grade: each scatterer by the centre-line height at its nearest path point."""
+    from scipy.spatial import cKDTree
+
+    s_path = np.arange(-5.0, motion.reference.path_length_m + 30.0, 0.1)
+    xy = motion.reference.path(s_path)[0]
+    _, nearest = cKDTree(xy).query(scene.position[:, :2])
+    pos = scene.position.copy()
+    pos[:, 2] += motion.road.grade_height(s_path[nearest])
+    return replace(scene, position=pos)
+
+
+def _sensor_samples(motion: Motion, config: Config, seed: int) -> list[sensor_models.SensorSamples]:
     out = []
     for name, s in config.sensors.items():
         rng = stream_rng(seed, f"sensor/{name}")
@@ -173,6 +199,7 @@ def simulate(
     config: Config | None = None,
     progress: ProgressCallback | None = None,
     scene: Scene | None = None,
+    dynamics: Dynamics | None = None,
 ) -> SimulationResult:
     """Write a synthetic drive log for ``scenario_name`` to ``output`` and its truth sidecar next to it.
 
@@ -182,6 +209,8 @@ def simulate(
     RawFrame log.
 
     ``scene``: scatterers to use instead of the scenario's (e.g. one point target, or none, for radiometry tests).
+
+    ``dynamics``: "kinematic" or "full" vehicle model; None takes the config's simulation.dynamics.
     """
     t_start = time.perf_counter()
     config = config or load_config()
@@ -191,7 +220,14 @@ def simulate(
     scenario: Scenario = build_scenario(scenario_name, config)
     if scene is not None:
         scenario = replace(scenario, scene=scene)
-    motion = scenario.motion
+    dynamics = dynamics or sim.dynamics
+    motion: Motion = scenario.motion
+    if dynamics == "full":
+        motion = full_motion(scenario.name, scenario.motion, scenario.road, config.vehicle,
+                             config.vehicle_dynamics, sim.truth_rate_hz)
+        scenario = replace(scenario, scene=on_road(scenario.scene, motion))
+    elif dynamics != "kinematic":
+        raise ValueError(f"unknown vehicle dynamics {dynamics!r}; choose kinematic or full")
     ros_version = 1 if fmt == "ros1" else 2
     capture_dir = capture_dir_for(Path(output)) if fmt == "dca1000" else None
     typestore = msgs.typestore_for(ros_version)
@@ -231,10 +267,12 @@ def simulate(
         "config_toml": Path(config.source).read_text() if config.source else "",
         "log_format": fmt, "log_file": output.name,
     }
+    if dynamics == "full":
+        attrs["dynamics"] = dynamics
     truth = TruthWriter(truth_path, attrs, radar.num_tx, radar.num_rx)
     counts: dict[str, int] = {}
     try:
-        _write_truth_static(truth, scenario, config, geom, samples, t0_ns)
+        _write_truth_static(truth, scenario, motion, config, geom, samples, t0_ns)
         with open_log_writer(output, "mcap" if capture_dir else fmt) as writer, \
                 contextlib.ExitStack() as stack:
             topics: dict[str, str] = {RADAR_SYNC_TOPIC: msgs.HEADER} if capture_dir else {radar.topic: msgs.RAW_FRAME}
@@ -308,9 +346,8 @@ def simulate(
                             time.perf_counter() - t_start, capture_dir)
 
 
-def _write_truth_static(truth: TruthWriter, scenario: Scenario, config: Config, geom: RadarGeometry,
-                        samples: list[sensor_models.SensorSamples], t0_ns: int) -> None:
-    motion = scenario.motion
+def _write_truth_static(truth: TruthWriter, scenario: Scenario, motion: Motion, config: Config,
+                        geom: RadarGeometry, samples: list[sensor_models.SensorSamples], t0_ns: int) -> None:
     assert config.simulation is not None
     t = np.arange(0.0, motion.duration_s, 1.0 / config.simulation.truth_rate_hz)
     st = motion.states(t)
@@ -323,7 +360,26 @@ def _write_truth_static(truth: TruthWriter, scenario: Scenario, config: Config, 
         "road_wheel_angle": motion.road_wheel_angle(t, config.vehicle.wheelbase_m),
         "radar_origin_enu": motion.point(t, geom.mount_lever_arm).position,
     })
+    if isinstance(motion, FullMotion):
+        truth.write_dynamics(_dynamics_truth(motion, t, t0_ns))
     truth.write_targets(scenario.scene)
     for smp in samples:
         truth.write_sensor(smp, t0_ns + np.round(smp.t_meas * 1e9).astype(np.int64),
                            t0_ns + np.round(smp.t_stamp * 1e9).astype(np.int64))
+
+
+def _dynamics_truth(motion: FullMotion, t: NDArray[np.float64], t0_ns: int) -> dict[str, NDArray[np.float64]]:
+    """The full model's 6-DOF pose and wheel states at the truth times t (s), and the road it drove on."""
+    def wheels(a: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.stack([np.interp(t, motion.t, a[:, i]) for i in range(a.shape[1])], -1)
+
+    return {
+        "t_ns": t0_ns + np.round(t * 1e9).astype(np.int64),
+        "attitude": motion.attitude(t), "body_rates": motion.body_rates(t), "side_slip": motion.side_slip(t),
+        "lateral_offset": np.interp(t, motion.t, motion.lateral_offset),
+        "wheel_load": wheels(motion.wheel_load), "rolling_radius": wheels(motion.rolling_radius),
+        "longitudinal_slip": wheels(motion.longitudinal_slip), "wheel_rotation": motion.wheel_rotation(t),
+        "road_height_at_wheels": wheels(motion.road_height),
+        "road_s": motion.road.s, "road_track_heights": (motion.road.roughness + motion.road.features).T,
+        "road_grade_height": motion.road.grade_height(motion.road.s),
+    }

@@ -59,16 +59,19 @@ class TruthMotion:
         self.start_enu = np.asarray(start_enu, dtype=np.float64)
         self.cog_to_rear_axle_m = float(cog_to_rear_axle_m)
         self.cog_height_m = float(cog_height_m)
-        kt, kv = np.array(speed_knots, dtype=np.float64).T
-        self._speed = PchipInterpolator(kt, kv, extrapolate=True)
-        self._accel = self._speed.derivative()
-        self._distance = self._speed.antiderivative()
         # Arc length s(u) on a 2 mm grid, inverted with a cubic spline u(s).
         u = np.linspace(0.0, self.length_m, int(self.length_m / 0.002) + 1)
         ds_du = np.hypot(1.0, lateral(u, 1))
         s = cumulative_simpson(ds_du, x=u, initial=0.0)
         self.path_length_m = float(s[-1])
         self._u_of_s = CubicSpline(s, u)
+        self._set_speed_profile(speed_knots)
+
+    def _set_speed_profile(self, speed_knots: list[tuple[float, float]]) -> None:
+        kt, kv = np.array(speed_knots, dtype=np.float64).T
+        self._speed = PchipInterpolator(kt, kv, extrapolate=True)
+        self._accel = self._speed.derivative()
+        self._distance = self._speed.antiderivative()
         # Duration: when the travelled distance reaches the path length.
         t_grid = np.linspace(kt[0], kt[-1] + 3600.0, 200001)
         d = self._distance(t_grid)
@@ -88,6 +91,23 @@ class TruthMotion:
         s = self._distance(t)
         v = self._speed(t)
         a = self._accel(t)
+        pos, psi, kappa, dkappa_ds = self.path(s)
+        return {
+            "position": pos,
+            "heading": psi,
+            "speed": v,
+            "accel": a,
+            "curvature": kappa,
+            "yaw_rate": kappa * v,
+            "yaw_accel": dkappa_ds * v * v + kappa * a,
+        }
+
+    def distance(self, t: ArrayLike) -> NDArray[np.float64]:
+        """Arc length (m) travelled along the path by the rear axle at times t (s)."""
+        return np.asarray(self._distance(np.asarray(t, dtype=np.float64)))
+
+    def path(self, s: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
+        """Path at arc lengths s (m): ENU position (N, 2), tangent heading (rad), curvature (1/m), dkappa/ds."""
         u = self._u_of_s(s)
         w1, w2, w3 = self.lateral(u, 1), self.lateral(u, 2), self.lateral(u, 3)
         q = 1.0 + w1 * w1
@@ -99,15 +119,7 @@ class TruthMotion:
         c, sn = np.cos(self.direction_rad), np.sin(self.direction_rad)
         w0 = self.lateral(u, 0)
         pos = np.stack([self.start_enu[0] + c * u - sn * w0, self.start_enu[1] + sn * u + c * w0], -1)
-        return {
-            "position": pos,
-            "heading": psi,
-            "speed": v,
-            "accel": a,
-            "curvature": kappa,
-            "yaw_rate": kappa * v,
-            "yaw_accel": dkappa_ds * v * v + kappa * a,
-        }
+        return pos, psi, kappa, dkappa_ds
 
     def point(self, t: ArrayLike, lever_arm_m: ArrayLike) -> PointKinematics:
         """ENU kinematics of body points at lever arms (..., 3) from the CoG (body frame), at times t (N,).
@@ -145,3 +157,54 @@ class TruthMotion:
     def road_wheel_angle(self, t: ArrayLike, wheelbase_m: float) -> NDArray[np.float64]:
         """Kinematic (Ackermann, bicycle) road-wheel angle (rad): atan(L * kappa)."""
         return np.arctan(wheelbase_m * self.states(t)["curvature"])
+
+
+def smoothstep(x: NDArray[np.float64], order: int = 0) -> NDArray[np.float64]:
+    """Quintic step 0 -> 1 on [0, 1] (C2 at both ends) and its derivative (order 1)."""
+    x = np.clip(x, 0.0, 1.0)
+    if order == 0:
+        return x**3 * (10.0 - 15.0 * x + 6.0 * x * x)
+    return 30.0 * x * x * (1.0 - x) ** 2
+
+
+class ArcPathMotion(TruthMotion):
+    """Kinematic motion along a path given by its curvature: arcs joined by C2 curvature ramps (clothoid-like).
+
+    Args:
+        arcs: (start s, end s, curvature 1/m) of each arc; the curvature ramps in and out over ramp_m.
+        length_m: path length (m); the path runs straight before 0 and after length_m.
+        direction_rad, start_enu: heading and ENU position of the rear axle at s = 0.
+    """
+
+    def __init__(self, arcs: list[tuple[float, float, float]], ramp_m: float, length_m: float,
+                 direction_rad: float, start_enu: tuple[float, float], speed_knots: list[tuple[float, float]],
+                 cog_to_rear_axle_m: float, cog_height_m: float) -> None:
+        self.arcs, self.ramp_m = arcs, float(ramp_m)
+        self.length_m = self.path_length_m = float(length_m)
+        self.direction_rad = float(direction_rad)
+        self.start_enu = np.asarray(start_enu, dtype=np.float64)
+        self.cog_to_rear_axle_m = float(cog_to_rear_axle_m)
+        self.cog_height_m = float(cog_height_m)
+        s = np.arange(-60.0, length_m + 60.0 + 1e-9, 0.002)
+        psi = self.direction_rad + cumulative_simpson(self._curvature(s, 0), x=s, initial=0.0)
+        psi -= np.interp(0.0, s, psi) - self.direction_rad
+        xy = np.stack([cumulative_simpson(np.cos(psi), x=s, initial=0.0),
+                       cumulative_simpson(np.sin(psi), x=s, initial=0.0)], -1)
+        xy += self.start_enu - np.array([np.interp(0.0, s, xy[:, 0]), np.interp(0.0, s, xy[:, 1])])
+        self._xy_psi = CubicSpline(s, np.column_stack([xy, psi]), axis=0)
+        self._set_speed_profile(speed_knots)
+
+    def _curvature(self, s: NDArray[np.float64], order: int) -> NDArray[np.float64]:
+        out = np.zeros_like(np.asarray(s, dtype=np.float64))
+        for s0, s1, k in self.arcs:
+            if order == 0:
+                out += k * (smoothstep((s - s0) / self.ramp_m) - smoothstep((s - s1) / self.ramp_m))
+            else:
+                out += k / self.ramp_m * (smoothstep((s - s0) / self.ramp_m, 1) - smoothstep((s - s1) / self.ramp_m, 1))
+        return out
+
+    def path(self, s: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
+        """Path at arc lengths s (m): ENU position (N, 2), tangent heading (rad), curvature (1/m), dkappa/ds."""
+        s = np.asarray(s, dtype=np.float64)
+        q = self._xy_psi(s)
+        return q[..., :2], q[..., 2], self._curvature(s, 0), self._curvature(s, 1)

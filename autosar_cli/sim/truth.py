@@ -10,6 +10,12 @@ Layout (format ``autosar-truth`` version 1; every array in SI units, ENU metres 
     /radar/                frame_index (F,), t_ns (F,) PRI start, chirp_t_ns (F,T) chirp start per Tx,
                            tx_position_enu (F,T,3), rx_position_enu (F,T,R,3) at each chirp start,
                            phase_centre_enu (F,T,R,3) = (tx + rx) / 2, vibration_enu (F,3)
+    /dynamics/             only for the full vehicle model (attrs dynamics = "full"): t_ns (N,), attitude (N,3)
+                           roll, pitch, yaw rad, body_rates (N,3) rad/s body axes, side_slip (N,) rad at the CoG,
+                           lateral_offset (N,) rear axle from the path m, per wheel (fl, fr, rl, rr) (N,4):
+                           wheel_load N, rolling_radius m, longitudinal_slip, wheel_rotation rad,
+                           road_height_at_wheels m; road_s (S,) m along the path, road_track_heights (S,2)
+                           left/right roughness + features m, road_grade_height (S,) m
     /targets/              position_enu (M,3), rcs_m2 (M,), kind (M,) int8 (attrs kinds), object (M,),
                            object_names (K,), corner_reflectors (C,) indices
     /sensors/<name>/       t_ns (n,) measurement instants, plus true values and error states
@@ -75,6 +81,10 @@ class TruthWriter:
     def write_trajectory(self, arrays: dict[str, NDArray[Any]]) -> None:
         for k, v in arrays.items():
             self._put("trajectory", k, v)
+
+    def write_dynamics(self, arrays: dict[str, NDArray[Any]]) -> None:
+        for k, v in arrays.items():
+            self._put("dynamics", k, v)
 
     def write_targets(self, scene: Scene) -> None:
         self._put("targets", "position_enu", scene.position)

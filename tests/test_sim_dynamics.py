@@ -1,0 +1,324 @@
+"""The simulator's full vehicle model: physics against closed forms, sensors against the truth motion."""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import replace
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from scipy.optimize import minimize_scalar
+from scipy.signal import chirp, coherence, csd, welch
+
+from autosar_cli.config import Config, load_config
+from autosar_cli.sim import sensors
+from autosar_cli.sim.dynamics import FullMotion, full_motion, suspension_response
+from autosar_cli.sim.road import rough_tracks
+from autosar_cli.sim.scenario import build_scenario
+from autosar_cli.sim.simulate import SimulationResult, simulate
+from autosar_cli.sim.trajectory import ArcPathMotion
+
+# sha256 of the ci scenario, seed 7, MCAP, kinematic, per host CPU (LLVM's name for it): the radar kernel's
+# vectorised sums depend on the vector width, so the bytes are only comparable on the same kind of CPU. Made
+# by the code before the full model existed (with the simulator kernels' FMA contraction off, which is what
+# makes a freshly compiled and a cached kernel agree); the kinematic path must keep writing them.
+CI_SEED7_MCAP_SHA256 = {"rocketlake": "0b9c4b15e4b5549ebe149adcc60b063caa1020a6d0122bd44fea7901182cefcf"}
+
+
+def test_kinematic_drive_is_byte_identical_to_before(ci_mcap: SimulationResult) -> None:
+    import llvmlite.binding as llvm
+
+    assert load_config().simulation.dynamics == "full"  # ci_mcap (conftest) pins the kinematic model
+    cpu = llvm.get_host_cpu_name()
+    if cpu not in CI_SEED7_MCAP_SHA256:
+        pytest.skip(f"no reference digest for this CPU ({cpu}); known: {', '.join(CI_SEED7_MCAP_SHA256)}")
+    digest = hashlib.sha256(ci_mcap.log_path.read_bytes()).hexdigest()
+    assert digest == CI_SEED7_MCAP_SHA256[cpu]
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+class FlatRoad:
+    """A level, perfectly smooth road (the closed-form single-track and roll values assume one)."""
+
+    def height(self, s: np.ndarray, w: np.ndarray, side: int) -> np.ndarray:
+        return np.zeros(np.broadcast(np.asarray(s), np.asarray(w)).shape)
+
+    def grade_height(self, s: np.ndarray) -> np.ndarray:
+        return np.zeros_like(np.asarray(s, dtype=np.float64))
+
+
+@pytest.fixture(scope="module")
+def config() -> Config:
+    return load_config()
+
+
+@pytest.fixture(scope="module")
+def ci_full(config: Config) -> FullMotion:
+    sc = build_scenario("ci", config)
+    return full_motion("ci", sc.motion, sc.road, config.vehicle, config.vehicle_dynamics)
+
+
+def rotation_xyz(angles: np.ndarray) -> np.ndarray:
+    """Rz(c) Ry(b) Rx(a), written out."""
+    a, b, c = angles
+    rx = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+    ry = np.array([[np.cos(b), 0, np.sin(b)], [0, 1, 0], [-np.sin(b), 0, np.cos(b)]])
+    rz = np.array([[np.cos(c), -np.sin(c), 0], [np.sin(c), np.cos(c), 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+# ----------------------------------------------------------------------------- physics
+
+
+def test_steady_turn_side_slip_and_roll_match_the_linear_single_track(config: Config) -> None:
+    v, radius = 5.5, 20.0  # 0.154 g
+    veh, dyn = config.vehicle, config.vehicle_dynamics
+    path = ArcPathMotion([(5.0, 200.0, 1.0 / radius)], 3.0, 80.0, 0.0, (0.0, 0.0), [(0.0, v), (100.0, v)],
+                         veh.cog_to_rear_axle_m, veh.cog_height_m)
+    motion = FullMotion(path, veh, dyn, FlatRoad(), 1000.0)
+    t = np.linspace(7.0, 12.0, 50)  # well inside the arc, transients over (slowest mode ~0.1 s)
+    b = veh.cog_to_rear_axle_m
+    a = veh.wheelbase_m - b
+    ay = v * v / radius
+    alpha_rear = dyn.mass_kg * ay * a / veh.wheelbase_m / dyn.cornering_stiffness_rear_n_per_rad
+    beta_closed = b / radius - alpha_rear
+    roll_closed = np.deg2rad(dyn.roll_gradient_deg_per_g) * ay / 9.80665
+    beta = motion.side_slip(t)
+    roll = motion.attitude(t)[:, 0]
+    assert np.all(np.abs(beta / beta_closed - 1.0) < 0.05), (beta.min(), beta.max(), beta_closed)
+    assert np.all(np.abs(roll / roll_closed - 1.0) < 0.05), (roll.min(), roll.max(), roll_closed)
+    # the tyres slip: the body's velocity is not where a kinematic bicycle would point it (b / R)
+    assert abs(beta.mean() - b / radius) > 0.01
+    # and the driver steers more than L kappa (understeer)
+    assert np.all(motion.road_wheel_angle(t, veh.wheelbase_m) > np.arctan(veh.wheelbase_m / radius) + 1e-3)
+
+
+def _second_order_step(t: np.ndarray, fn: float, zeta: float) -> np.ndarray:
+    """Closed-form step response of (2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2)."""
+    w = 2 * np.pi * fn
+    wd = w * np.sqrt(1 - zeta * zeta)
+    env = np.exp(-zeta * w * t)
+    return (1 - env * (np.cos(wd * t) + zeta / np.sqrt(1 - zeta * zeta) * np.sin(wd * t))
+            + 2 * zeta * w / wd * env * np.sin(wd * t))
+
+
+def test_suspension_step_response_is_the_second_order_model() -> None:
+    dt, fn, zeta = 1e-3, 1.7, 0.35
+    t = np.arange(0, 6.0, dt)
+    step = (t >= 1.0).astype(float)
+    y = suspension_response(dt, step, np.zeros_like(t), fn, zeta)
+    after = t >= 1.0
+    fit = minimize_scalar(lambda f: np.sum((y[after] - _second_order_step(t[after] - 1.0, f, zeta)) ** 2),
+                          bounds=(0.5, 4.0), method="bounded")
+    assert abs(fit.x / fn - 1) < 0.03
+    assert np.max(np.abs(y[after] - _second_order_step(t[after] - 1.0, fn, zeta))) < 0.01
+    assert np.all(y[~after] == 0.0)
+
+
+def test_suspension_sine_sweep_resonance_at_the_natural_frequency() -> None:
+    dt, fn, zeta = 1e-3, 1.3, 0.3
+    t = np.arange(0, 80.0, dt)
+    sweep = chirp(t, 0.2, t[-1], 5.0, method="logarithmic")
+    y = suspension_response(dt, np.zeros_like(t), sweep, fn, zeta)
+    f, pxy = csd(sweep, y, fs=1 / dt, nperseg=1 << 15)
+    _, pxx = welch(sweep, fs=1 / dt, nperseg=1 << 15)
+    band = (f > 0.4) & (f < 4.0)
+    gain = np.abs(pxy[band] / pxx[band])
+    f_peak = f[band][np.argmax(gain)]
+    fn_measured = f_peak / np.sqrt(1 - 2 * zeta * zeta)  # peak of w^2 / (s^2 + 2 zeta w s + w^2)
+    assert abs(fn_measured / fn - 1) < 0.03, fn_measured
+    assert abs(gain.max() - 1 / (2 * zeta * np.sqrt(1 - zeta * zeta))) < 0.1 * gain.max()
+
+
+@pytest.mark.parametrize("road_class", ["A", "C"])
+def test_road_psd_matches_iso8608(road_class: str) -> None:
+    spacing = 0.02
+    x = rough_tracks(3000.0, road_class, 1.58, 0.8, 8.0, np.random.default_rng(3), spacing)
+    for track in x:
+        f, p = welch(track, fs=1 / spacing, nperseg=1 << 13)
+        edges = 0.05 * 2 ** (np.arange(0, 20) / 3)  # third-octave bands 0.05 .. 5 cycles/m
+        for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+            if hi > 5.0 * 1.0001:
+                break
+            band = (f >= lo) & (f < hi)
+            gd = 16e-6 * {"A": 1, "C": 16}[road_class] * (f[band] / 0.1) ** -2  # ISO 8608 Table 1, w = 2
+            level = 10 * np.log10(p[band].mean() / gd.mean())
+            assert abs(level) < 2.0, (road_class, lo, level)
+    # the two tracks are partly coherent at long wavelengths, independent at short ones
+    f, coh = coherence(x[0], x[1], fs=1 / spacing, nperseg=1 << 12)
+    assert np.interp(0.05, f, coh) > 0.7 and np.interp(2.0, f, coh) < 0.1
+
+
+# ----------------------------------------------------------------------------- sensors
+
+
+def test_full_pose_derivatives_are_consistent(ci_full: FullMotion) -> None:
+    t = np.linspace(0.1, ci_full.duration_s - 0.1, 40)
+    h = 1e-4
+    lever = np.array([1.9, -0.6, 0.3])
+    rp, r0, rm = ci_full.body_to_enu(t + h), ci_full.body_to_enu(t), ci_full.body_to_enu(t - h)
+    skew = np.einsum("nji,njk->nik", r0, (rp - rm) / (2 * h))  # R^T dR/dt = [w]x
+    rates = np.stack([skew[:, 2, 1], skew[:, 0, 2], skew[:, 1, 0]], -1)
+    assert np.allclose(ci_full.body_rates(t), rates, atol=1e-6)
+    pp, p0, pm = (ci_full.point(tt, lever).position for tt in (t + h, t, t - h))
+    k = ci_full.point(t, lever)
+    assert np.allclose(k.velocity, (pp - pm) / (2 * h), atol=1e-6)
+    acc = (pp - 2 * p0 + pm) / (h * h)
+    assert np.allclose(k.acceleration, acc, atol=2e-3)
+    f = np.einsum("nji,nj->ni", r0, acc + np.array([0, 0, 9.80665]))
+    assert np.allclose(ci_full.specific_force_body(t, lever), f, atol=2e-3)
+
+
+def test_imu_reads_body_rates_and_specific_force_through_its_misalignment(config: Config,
+                                                                           ci_full: FullMotion) -> None:
+    s = config.sensors["imu_cog_a"]
+    quiet = replace(s, gyro=replace(s.gyro, noise_density_dps_rthz=0.0),
+                    accel=replace(s.accel, noise_density_mps2_rthz=0.0))
+    smp = sensors.imu(ci_full, "imu_cog_a", quiet, np.random.default_rng(5))
+    angles = smp.truth["misalignment_rad"]
+    lo, hi = np.deg2rad(config.vehicle_dynamics.imu_misalignment_deg)
+    assert np.all((np.abs(angles) >= lo) & (np.abs(angles) <= hi))
+    m = rotation_xyz(angles).T  # body -> sensor
+    rates = ci_full.body_rates(smp.t_meas)
+    force = ci_full.specific_force_body(smp.t_meas, s.lever_arm_m)
+    gyro = smp.values["angular_velocity"]
+    accel = smp.values["linear_acceleration"]
+    yaw_axis = (rates @ m.T)[:, 2] + smp.truth["gyro_bias"][:, 2]
+    assert np.allclose(gyro[:, 2], yaw_axis, atol=1e-12)
+    assert np.allclose(accel[:, :2], (force @ m.T)[:, :2] + smp.truth["accel_bias"][:, :2], atol=1e-12)
+    # roll and pitch rates leak into the yaw axis by the misalignment
+    leak = gyro[:, 2] - smp.truth["gyro_bias"][:, 2] - rates[:, 2]
+    assert np.abs(leak).max() > 1e-4
+    # gravity through roll/pitch reaches the horizontal accelerometers
+    assert np.abs(force[:, 1]).max() > 0.05
+
+
+def _edge_speeds(t_grid: np.ndarray, angle: np.ndarray, t_samples: np.ndarray, err: np.ndarray, n_est: int,
+                 timeout: float, radius: float) -> np.ndarray:
+    """Reference ECU: walk the wheel angle samples, linearly interpolate each tooth edge's time."""
+    teeth = err.size
+    pitch = 2 * np.pi / teeth
+    edges = []
+    i = 1
+    j = int(np.floor(angle[0] / pitch)) + 1
+    while True:
+        target = (j + err[j % teeth]) * pitch
+        while i < angle.size and angle[i] < target:
+            i += 1
+        if i >= angle.size:
+            break
+        frac = (target - angle[i - 1]) / (angle[i] - angle[i - 1])
+        edges.append(t_grid[i - 1] + frac * (t_grid[i] - t_grid[i - 1]))
+        j += 1
+    edges = np.array(edges)
+    out = np.zeros(t_samples.size)
+    for n, ts in enumerate(t_samples):
+        past = edges[edges <= ts]
+        if past.size > n_est and ts - past[-1] <= timeout:
+            out[n] = n_est * pitch * radius / (past[-1] - past[-1 - n_est])
+    return out
+
+
+def test_wheel_speeds_come_from_the_tone_ring_edges(config: Config, ci_full: FullMotion) -> None:
+    s = config.sensors["wheel_speeds"]
+    smp = sensors.wheel_speeds(ci_full, config, "wheel_speeds", s, np.random.default_rng(2))
+    dyn = config.vehicle_dynamics
+    radius = config.vehicle.wheel_radius_m * smp.truth["scale_factor"]
+    for i, wheel in enumerate(("fl", "fr", "rl", "rr")):
+        err = smp.truth[f"tooth_error_{wheel}"]
+        assert err.size == dyn.tone_ring_teeth and 0.5 < err.std() / dyn.tooth_pitch_error_std < 1.5
+        ref = _edge_speeds(ci_full.wheel_t, ci_full.wheel_angle[:, i], smp.t_meas, err, dyn.edges_per_speed_estimate,
+                           dyn.wheel_speed_timeout_s, radius[i])
+        got = smp.values[f"wheel_speed_{wheel}"]
+        assert np.allclose(got, ref, rtol=1e-9, atol=1e-9)
+        moving = got > 0
+        assert moving.all()  # the ring turned before the log began: speeds from the first sample on
+        # what the ECU reports is the ground speed within its radius, slip and pitch errors (< 1 %)
+        ratio = got[moving] / (smp.truth[f"wheel_speed_{wheel}"][moving] * smp.truth["scale_factor"][i])
+        assert abs(np.median(ratio) - 1) < 0.01
+
+
+# ----------------------------------------------------------------------------- the echo tells the truth
+
+
+def _reflector_peaks(result: SimulationResult) -> list[tuple[float, float]]:
+    """(peak distance from the true position m, focusing efficiency dB) of each corner reflector: float64 TDBP
+    along the truth's own Tx/Rx phase centres (tests/reference.py), peak refined to 0.25 mm; the efficiency is
+    the peak over the sum of the pulses' magnitudes there (0 dB: perfectly coherent), so it does not depend on
+    how the beam lit the reflector (the full model's body rolls and pitches the beam)."""
+    import reference as ref
+    from test_sim_radar import focus_reflector, read_raw_frames
+
+    _, cube, params = read_raw_frames(result.log_path)
+    with h5py.File(result.truth_path) as t:
+        truth = {"tx": t["radar/tx_position_enu"][:], "rx": t["radar/rx_position_enu"][:]}
+        targets, corners = t["targets/position_enu"][:], t["targets/corner_reflectors"][:]
+    out = []
+    for c in corners:
+        target = targets[c]
+        rc, txc, rxc, kw, u_range, u_along = focus_reflector(cube, params, truth, target)
+        best = target.copy()
+        for span, step in ((0.02, 0.004), (0.004, 0.001), (0.001, 0.00025)):
+            g = np.arange(-span, span + 1e-9, step)
+            gx, gy = np.meshgrid(g, g, indexing="ij")
+            pix = best + gx.reshape(-1, 1) * u_range + gy.reshape(-1, 1) * u_along
+            img = np.abs(ref.backproject(rc, txc, rxc, pix, **kw))
+            best = pix[int(np.argmax(img))]
+        # focusing efficiency: the coherent sum at the peak over the sum of every pulse's magnitude there
+        incoherent = sum(abs(ref.backproject(rc[p : p + 1], txc[p : p + 1], rxc[p : p + 1], best[None], **kw)[0])
+                         for p in range(rc.shape[0]))
+        out.append((float(np.linalg.norm((best - target)[:2])), float(20 * np.log10(img.max() / incoherent))))
+    return out
+
+
+@pytest.mark.slow
+def test_full_drive_focuses_at_truth_along_its_6dof_phase_centres(ci_mcap: SimulationResult,
+                                                                   tmp_path: Path) -> None:
+    full = simulate("ci", tmp_path / "ci_full.mcap", seed=7, dynamics="full")
+    with h5py.File(full.truth_path) as t:
+        roll = t["dynamics/attitude"][:, 0]
+        assert t.attrs["dynamics"] == "full" and np.ptp(roll) > 1e-4  # the body does roll on this drive
+    peaks_full, peaks_kin = _reflector_peaks(full), _reflector_peaks(ci_mcap)
+    for (err_f, db_f), (_, db_k) in zip(peaks_full, peaks_kin, strict=True):
+        assert err_f < 0.001, f"peak {err_f * 1000:.2f} mm from the truth"
+        assert abs(db_f - db_k) < 0.2, (db_f, db_k)
+
+
+def test_urban_route_has_its_junction_turn_stop_and_road_features(config: Config) -> None:
+    sc = build_scenario("urban", config)
+    m = sc.motion
+    t = np.arange(0.0, m.duration_s, 0.01)
+    st = m.states(t)
+    assert 190 < m.path_length_m < 210
+    assert st["speed"].max() <= 18 / 3.6 + 1e-9 and np.median(st["speed"][st["speed"] > 0.1]) > 2 / 3.6
+    stopped = st["speed"] < 1e-3
+    assert stopped.sum() * 0.01 >= 5.0
+    assert np.rad2deg(st["heading"][-1] - st["heading"][0]) == pytest.approx(-90.0, abs=0.5)
+    assert np.abs(st["curvature"]).max() == pytest.approx(0.1)  # 10 m junction radius
+    # reflectors all along, including in the turn (radar on the right: inside the turn)
+    s_path = np.arange(0.0, m.path_length_m, 0.05)
+    xy, psi = m.path(s_path)[:2]
+    crs = sc.scene.position[sc.scene.corner_reflectors]
+    nearest = np.argmin(np.linalg.norm(xy[None] - crs[:, None, :2], axis=2), axis=1)
+    s_cr = s_path[nearest]
+    assert len(crs) >= 10 and np.any((s_cr > 40) & (s_cr < 58)) and np.ptp(s_cr) > 180
+    side = np.einsum("ij,ij->i", crs[:, :2] - xy[nearest], np.stack([-np.sin(psi), np.cos(psi)], -1)[nearest])
+    assert np.all(side < -2.0)
+    assert sc.road.bumps and sc.road.kerb_ramps and ("C" in [c for _, _, c in sc.road.rough_sections])
+
+
+def test_full_model_without_its_effects_is_the_kinematic_motion(config: Config) -> None:
+    sc = build_scenario("ci", config)
+    bare = replace(config.vehicle_dynamics, components=())
+    motion = full_motion("ci", sc.motion, sc.road, config.vehicle, bare)
+    t = np.linspace(0.0, sc.motion.duration_s, 200)
+    lever = np.array([1.9, -0.6, 0.3])
+    assert np.abs(motion.point(t, lever).position - sc.motion.point(t, lever).position).max() < 1e-9
+    assert np.allclose(motion.specific_force_body(t, lever), sc.motion.specific_force_body(t, lever), atol=1e-6)
+    assert np.allclose(motion.body_rates(t)[:, 2], sc.motion.states(t)["yaw_rate"], atol=1e-9)
+    only_road = full_motion("ci", sc.motion, sc.road, config.vehicle, replace(bare, components=("road",)))
+    assert np.abs(only_road.attitude(t)[:, 0]).max() > 0.005  # 2 % cross-fall rolls the body
