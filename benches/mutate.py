@@ -114,10 +114,10 @@ MUTATIONS: list[Mutation] = [
        "            if kind == ng:\n                continue",
        SENSORS),
     # --- geodesy and GeoTIFF georeferencing
-    _m("geodesy-east-north-swapped", "geodesy", "nav/geodesy.py",
+    _m("geodesy-east-north-swapped", "geodesy", "types.py",
        "pymap3d.enu2geodetic(p[..., 0], p[..., 1], p[..., 2]", "pymap3d.enu2geodetic(p[..., 1], p[..., 0], p[..., 2]",
        GEOTIFF),
-    _m("geodesy-utm-zone-off-by-one", "geodesy", "nav/geodesy.py",
+    _m("geodesy-utm-zone-off-by-one", "geodesy", "types.py",
        "zone = int((self.lon_deg + 180.0) // 6.0) + 1", "zone = int((self.lon_deg + 180.0) // 6.0) + 2", GEOTIFF),
     _m("geotiff-half-pixel-shift", "geotiff", "store/image.py",
        "grid.pixel_enu(v - 0.5, u - 0.5)", "grid.pixel_enu(v, u)", GEOTIFF),
