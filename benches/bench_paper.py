@@ -10,6 +10,7 @@ against the truth's (the similarity fitted to the phase-centre tracks) beside wh
 (its mean along-track error over the drive), and the wall times. Prints one line per drive
 and a summary (medians, counts of drives meeting each criterion); writes benches/results/paper.json.
 A drive's outputs are deleted after it is measured unless --keep (test2 is ~0.5 GB of log and ~1 GB of products).
+The full vehicle model's runs go to benches/results/paper_full.json (``--dynamics full --output ...``).
 """
 
 from __future__ import annotations
