@@ -20,6 +20,8 @@ HERE = Path(__file__).resolve().parent
 MACHINE_KEYS = ("machine", "cores", "cpus", "python", "host_before", "host_after")
 MAX_COLUMNS = 12
 MAX_ROWS = 4
+PER_RUN_KEYS = {"rows", "trials"}  #: per-drive / per-trial records: left in the JSON where a summary exists
+SUMMARY_KEYS = {"summary", "table"}
 
 
 def bench_scripts(benches: Path) -> dict[str, tuple[str, str]]:
@@ -96,6 +98,9 @@ def section(data: Any, max_rows: int, depth: int = 0) -> list[str]:
         lines += ["; ".join(f"{k} **{cell(v)}**" for k, v in scalars), ""]
     for key, value in data.items():
         if is_scalar(value) or key in MACHINE_KEYS:
+            continue
+        if key in PER_RUN_KEYS and isinstance(value, list) and SUMMARY_KEYS & data.keys():
+            lines += [f"({len(value)} {key} behind the summary: see the JSON.)", ""]
             continue
         if isinstance(value, dict) and all(is_scalar(v) for v in value.values()) and depth >= 1:
             lines += [f"**{key}**: {cell(value)}", ""]
