@@ -219,7 +219,7 @@ def simulate(
             _prepare_output(capture_dir_for(output), overwrite, [cfg.source], replaces_directory=True)
         with _progress(f"simulate {scenario.value}", not as_json) as update:
             result = run_simulation(scenario.value, output, fmt=fmt.value, seed=seed, config=cfg, progress=update,
-                                    dynamics=dynamics.value if dynamics else None)
+                                    dynamics=dynamics.value if dynamics else None, overwrite=overwrite)
         summary = {
             "log": str(result.log_path), "truth": str(result.truth_path), "scenario": result.scenario,
             "seed": result.seed, "format": result.format, "duration_s": round(result.duration_s, 3),

@@ -358,3 +358,17 @@ def test_ctrl_c_during_runs_ingest_stops_its_child_without_leaving_a_partial(tmp
     assert proc.returncode == 130 and stderr.strip() == "error: interrupted", stderr
     time.sleep(0.5)  # the child's abort has finished when its parent has joined it; allow a margin anyway
     assert not list(out.glob("*partial*")) and not (out / "drive.h5").exists()
+
+
+@pytest.mark.parametrize("fmt,suffix", [("mcap", ".mcap"), ("ros1", ".bag")])
+def test_simulate_overwrite_replaces_its_own_log_once_the_new_one_is_complete(tmp_path: Path, fmt: str,
+                                                                                 suffix: str) -> None:
+    log = tmp_path / f"ci{suffix}"
+    args = ["simulate", "-s", "ci", "--seed", "3", "-f", fmt, "--dynamics", "kinematic", "-o", str(log)]
+    assert runner.invoke(app, args).exit_code == 0
+    first = log.read_bytes()
+    _one_line_error(runner.invoke(app, args), "already exists")
+    r = runner.invoke(app, [*args, "--overwrite"])
+    assert r.exit_code == 0, r.output
+    assert log.read_bytes() == first  # the same seed again, written over the first
+    assert not list(tmp_path.glob("*partial*"))

@@ -166,9 +166,10 @@ class _BaseWriter:
     fmt: str
     ros_version: int
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, replace: bool = False) -> None:
         self.path = Path(path)
-        if self.path.exists() or self.path.is_symlink():
+        self._replace = replace  # a file at ``path`` (checked by the caller as one autosar wrote) is replaced
+        if (self.path.exists() or self.path.is_symlink()) and not replace:
             raise FileExistsError(errno.EEXIST, "log output exists, refusing to overwrite", str(self.path))
         if not self.path.parent.is_dir():
             raise FileNotFoundError(errno.ENOENT, "output directory does not exist", str(self.path.parent))
@@ -196,7 +197,10 @@ class _BaseWriter:
         raise NotImplementedError
 
     def _publish(self) -> None:
-        """Move the finished partial output to the final path (never clobbering)."""
+        """Move the finished partial output to the final path (never clobbering, unless told to replace)."""
+        if self._replace and self.path.is_file():
+            os.replace(self._partial, self.path)
+            return
         if self.path.exists() or self.path.is_symlink():
             raise FileExistsError(
                 errno.EEXIST,
@@ -310,10 +314,11 @@ class McapLogWriter(_BaseWriter):
     fmt = "mcap"
     ros_version = 2
 
-    def __init__(self, path: Path, *, compression: str = "zstd", chunk_size: int = MCAP_CHUNK_SIZE) -> None:
+    def __init__(self, path: Path, *, compression: str = "zstd", chunk_size: int = MCAP_CHUNK_SIZE,
+                 replace: bool = False) -> None:
         from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
 
-        super().__init__(path)
+        super().__init__(path, replace)
         ctype = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
         self._schemas: dict[str, int] = {}
         self._qos_metadata = {"offered_qos_profiles": qos_yaml(default_qos())}
@@ -358,10 +363,11 @@ class Ros1LogWriter(_BaseWriter):
     fmt = "ros1"
     ros_version = 1
 
-    def __init__(self, path: Path, *, compression: str = "zstd", chunk_size: int = ROS1_CHUNK_SIZE) -> None:
+    def __init__(self, path: Path, *, compression: str = "zstd", chunk_size: int = ROS1_CHUNK_SIZE,
+                 replace: bool = False) -> None:
         from rosbags.rosbag1 import Writer
 
-        super().__init__(path)
+        super().__init__(path, replace)
         try:
             self._writer = Writer(self._partial)
             self._writer.chunk_threshold = chunk_size
@@ -457,13 +463,15 @@ def open_log_writer(
     *,
     compression: str = "zstd",
     storage: Ros2Storage = "sqlite3",
+    replace: bool = False,
 ) -> LogWriter:
     """Open a streaming writer of ``fmt`` (``"mcap"``, ``"ros1"``, ``"ros2"``) for ``path``.
 
     ``compression``: ``"zstd"`` (default: zstd chunks for mcap, lz4 chunks for ros1 bags, zstd per
     message / per chunk for ros2 sqlite3 / mcap storage), ``"lz4"`` (mcap, ros1), ``"bz2"`` (ros1),
     ``"none"``. ``storage`` applies to ``"ros2"`` only. Raises :class:`FileExistsError` if ``path``
-    exists and :class:`ValueError` for an unknown format or an unsupported compression.
+    exists (unless ``replace``: a log file is then replaced when the new one is complete) and
+    :class:`ValueError` for an unknown format or an unsupported compression.
     """
     path = Path(path)
     if fmt not in _COMPRESSIONS:
@@ -476,7 +484,7 @@ def open_log_writer(
             f"compression {compression!r} not supported for {fmt} (choose {', '.join(_COMPRESSIONS[fmt])})"
         )
     if fmt == "mcap":
-        return McapLogWriter(path, compression=compression)
+        return McapLogWriter(path, compression=compression, replace=replace)
     if fmt == "ros1":
-        return Ros1LogWriter(path, compression=compression)
-    return Ros2LogWriter(path, compression=compression, storage=storage)
+        return Ros1LogWriter(path, compression=compression, replace=replace)
+    return Ros2LogWriter(path, compression=compression, storage=storage)  # its directory: removed by the caller

@@ -200,6 +200,7 @@ def simulate(
     progress: ProgressCallback | None = None,
     scene: Scene | None = None,
     dynamics: Dynamics | None = None,
+    overwrite: bool = False,
 ) -> SimulationResult:
     """Write a synthetic drive log for ``scenario_name`` to ``output`` and its truth sidecar next to it.
 
@@ -211,6 +212,9 @@ def simulate(
     ``scene``: scatterers to use instead of the scenario's (e.g. one point target, or none, for radiometry tests).
 
     ``dynamics``: "kinematic" or "full" vehicle model; None takes the config's simulation.dynamics.
+
+    ``overwrite``: replace an existing log file at ``output`` once the new one is complete (the caller has
+    checked that autosar wrote it; a rosbag2 directory the caller removes).
     """
     t_start = time.perf_counter()
     config = config or load_config()
@@ -273,7 +277,7 @@ def simulate(
     counts: dict[str, int] = {}
     try:
         _write_truth_static(truth, scenario, motion, config, geom, samples, t0_ns)
-        with open_log_writer(output, "mcap" if capture_dir else fmt) as writer, \
+        with open_log_writer(output, "mcap" if capture_dir else fmt, replace=overwrite) as writer, \
                 contextlib.ExitStack() as stack:
             topics: dict[str, str] = {RADAR_SYNC_TOPIC: msgs.HEADER} if capture_dir else {radar.topic: msgs.RAW_FRAME}
             capture = stack.enter_context(CaptureWriter(
