@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import sys
 from pathlib import Path
 
 import h5py
@@ -15,6 +16,13 @@ from typer.testing import CliRunner
 from autosar_cli.cli import app
 
 runner = CliRunner()
+
+
+def _console_script() -> str | None:
+    """The `autosar` console script of this interpreter's environment (make test runs .venv/bin/python without
+    .venv/bin on PATH), else the one on PATH."""
+    beside = Path(sys.executable).parent / "autosar"
+    return str(beside) if beside.exists() else shutil.which("autosar")
 
 
 def _one_line_error(r, *fragments: str) -> None:
@@ -207,7 +215,7 @@ def test_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path: Path, delay_s: 
     import subprocess
     import time
 
-    script = shutil.which("autosar")
+    script = _console_script()
     if script is None:
         pytest.skip("the autosar console script is not installed")
     proc = subprocess.Popen([script, "simulate", "-o", str(tmp_path / "s.mcap")], stdout=subprocess.PIPE,
@@ -344,7 +352,7 @@ def test_ctrl_c_during_runs_ingest_stops_its_child_without_leaving_a_partial(tmp
     import subprocess
     import time
 
-    script = shutil.which("autosar")
+    script = _console_script()
     if script is None:
         pytest.skip("the autosar console script is not installed")
     out = tmp_path / "run"
