@@ -279,7 +279,8 @@ def ingest(
         _prepare_output(output, overwrite, [*(logs or []), *kinds["can"], *kinds["nmea"], dbc, cfg.source])
         from autosar_cli.store.outputs import check_free_space, input_bytes
 
-        check_free_space(output, input_bytes([*(logs or []), *kinds["can"], *kinds["nmea"]]), "the drive")
+        check_free_space(output, input_bytes([*(logs or []), *kinds["can"], *kinds["nmea"], *kinds["radar"]]),
+                         "the drive")
         with _progress("ingest", not as_json, in_bytes=True) as update:
             report = run_ingest(kinds["log"], output, config=cfg, dbc=dbc, can_logs=kinds["can"],
                                 nmea_logs=kinds["nmea"], radar_captures=kinds["radar"],

@@ -90,7 +90,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
 
         check_request(options, out / IMAGE, True, inputs, config)
     out.mkdir(parents=True, exist_ok=True)
-    inputs = [{"path": str(Path(p)), "size_bytes": _size(Path(p))} for p in logs]
+    inputs = [{"path": str(Path(p)), "size_bytes": input_bytes([p])} for p in logs]
     manifest: dict[str, Any] = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
         "python": platform.python_version(), "command": command, "config": config.source, "inputs": inputs,
@@ -315,11 +315,5 @@ def _ingest_child(send: Any, logs: list[Path], drive: Path, config: Config, comm
 def read_manifest(run_dir: str | Path) -> dict[str, Any]:
     """run.json of a run directory, checked."""
     return read_json_manifest(Path(run_dir) / "run.json", FORMAT, "run", RunError)
-
-
-def _size(p: Path) -> int:
-    if p.is_dir():
-        return sum(f.stat().st_size for f in p.rglob("*") if f.is_file())
-    return p.stat().st_size if p.exists() else 0
 
 

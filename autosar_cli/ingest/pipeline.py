@@ -26,6 +26,7 @@ from autosar_cli import __version__, msgs
 from autosar_cli.candb import load_dbc
 from autosar_cli.config import Config
 from autosar_cli.store.drive import DriveWriter
+from autosar_cli.store.outputs import input_bytes
 
 from . import fastcdr
 from .dca1000 import Dca1000Capture, is_capture
@@ -597,7 +598,7 @@ def parse_time_ns(text: str) -> int:
 def _input_bytes(path: Path, src: LogSource | None) -> int:
     if src is not None:
         return src.stats.bytes_total
-    return sum(p.stat().st_size for p in path.iterdir() if p.is_file()) if path.is_dir() else path.stat().st_size
+    return input_bytes([path])
 
 
 @dataclass
