@@ -41,6 +41,17 @@ bench: setup
 bench-paper: setup
 	$(BIN)/python benches/bench_paper.py
 
+# The same on the full vehicle model with test1-3 and urban, seeds 0-9, and SAR-MIN with autofocus: ~2.5 h.
+PAPER_FULL := --scenarios test1,test2,test3,urban --seeds 0-9 --dynamics full --methods none,ins,sar-min,sar-min+af,truth
+bench-paper-full: setup
+	$(BIN)/python benches/bench_paper.py $(PAPER_FULL) --output benches/results/paper_full.json --resume
+
+# What each effect of the full vehicle model does to the chain: test2 and urban, seed 0, one effect at a time: ~35 min.
+ABLATION := slip body road tyre_radius wheel_ticks slip,body,road,tyre_radius,wheel_ticks,imu_misalignment
+bench-ablation: setup
+	for c in $(ABLATION); do $(BIN)/python benches/bench_paper.py --scenarios test2,urban --seeds 0 \
+	  --methods sar-min,truth --components $$c --output benches/results/paper_ablation.json --resume || exit 1; done
+
 # docs/BENCHMARKS.md from benches/results/*.json.
 benchmarks-md: setup
 	$(BIN)/python benches/benchmarks_md.py

@@ -3,14 +3,17 @@
 Usage: python benches/bench_paper.py [--scenarios test1,test2,test3] [--seeds 0-9] [--dynamics full] [--keep]
 
 For every scenario and seed: ``autosar simulate --scenario S --seed N`` (MCAP), then ``autosar compare LOG -o DIR
---methods none,ins,sar-min,truth --json``. Per drive it records SAR-MIN's worst corner reflector (whole-track and
-local alignment) and worst peak loss, the same for the INS and the straight line, the entropies (whole image,
-range-normalised, far swath) of every method and whether they fall in the paper's order, SAR-MIN's track scale
-against the truth's (the similarity fitted to the phase-centre tracks) beside what the GNSS velocity alone allows
-(its mean along-track error over the drive), and the wall times. Prints one line per drive
-and a summary (medians, counts of drives meeting each criterion); writes benches/results/paper.json.
+--methods none,ins,sar-min,truth --json`` (``--methods`` adds e.g. sar-min+af). Per drive it records, for every
+navigated method, the worst corner reflector (whole-track and local alignment), the worst peak loss and the RPE across
+track over 1 m and 10 m; the entropies (whole image, range-normalised, far swath) of every method and whether they
+fall in the paper's order; SAR-MIN's track scale against the truth's (the similarity fitted to the phase-centre
+tracks) beside what the GNSS velocity alone allows (its mean along-track error over the drive), and the wall times.
+Prints one line per drive and a summary (medians, counts of drives meeting each criterion); writes
+benches/results/paper.json after every drive, and ``--resume`` skips the drives already in it.
 A drive's outputs are deleted after it is measured unless --keep (test2 is ~0.5 GB of log and ~1 GB of products).
-The full vehicle model's runs go to benches/results/paper_full.json (``--dynamics full --output ...``).
+The full vehicle model's runs (``make bench-paper-full``): ``--scenarios test1,test2,test3,urban --seeds 0-9 --dynamics full --methods
+none,ins,sar-min,sar-min+af,truth --output benches/results/paper_full.json``; the ablation, one run per
+``--components`` set, to benches/results/paper_ablation.json with ``--resume`` (``make bench-ablation``).
 """
 
 from __future__ import annotations
@@ -28,7 +31,8 @@ from pathlib import Path
 from typing import Any
 
 RESULTS = Path(__file__).resolve().parent / "results"
-METHODS = ("none", "ins", "sar-min", "truth")
+METHODS = ("none", "ins", "sar-min", "truth")  # the default; --methods adds sar-min+af
+PAPER_ORDER = ("none", "ins", "sar-min", "truth")
 ENTROPIES = {"entropy": "whole image", "entropy_rn": "range-normalised", "entropy_far": "far swath"}
 # sar-min >= truth allows the entropy's sampling on a 2 cm grid, as the tests do (SAR-MIN minus the truth moved by
 # up to 0.16 % over half-pixel shifts of the grid on test1-3 seed 1, lowest -0.03 %; EVALUATION.md)
@@ -63,8 +67,10 @@ def ablation_config(components: str, work: Path) -> Path:
     return path
 
 
-def in_paper_order(e: dict[str, float]) -> bool:
-    """none > ins > sar-min >= truth (the last within the sampling tolerance)."""
+def in_paper_order(e: dict[str, float]) -> bool | None:
+    """none > ins > sar-min >= truth (the last within the sampling tolerance); None when a method was not run."""
+    if any(m not in e for m in PAPER_ORDER):
+        return None
     return (e["none"] > e["ins"] > e["sar-min"]
             and e["sar-min"] >= e["truth"] * (1.0 - SARMIN_BELOW_TRUTH_TOLERANCE))
 
@@ -115,39 +121,62 @@ def gnss_velocity_scale(scenario: str, seed: int) -> tuple[float, float]:
     return -float(along.mean()) / mean_speed, float(along.std() / np.sqrt(along.size)) / mean_speed
 
 
+def mm(metres: float | None) -> float | None:
+    """metres -> mm to the micrometre; None (a drive too short for the measure) stays None."""
+    return None if metres is None else round(1000 * metres, 3)
+
+
 def drive_row(scenario: str, seed: int, comparison: dict[str, Any], sim_s: float, compare_s: float) -> dict[str, Any]:
     res = comparison["results"]
     row: dict[str, Any] = {"scenario": scenario, "seed": seed, "simulate_s": round(sim_s, 1),
-                           "compare_s": round(compare_s, 1)}
-    for m in ("none", "ins", "sar-min"):
-        refl = res[m]["reflectors"]
+                           "compare_s": round(compare_s, 1), "skipped": comparison.get("skipped", {})}
+    for m in (m for m in res if m != "truth"):
+        refl, traj = res[m]["reflectors"], res[m]["trajectory"]
         row[m] = {"reflector_error_max_cm": round(100 * max(r["aligned_error_m"] for r in refl), 2),
                   "reflector_error_local_max_cm": round(100 * max(r["local_aligned_error_m"] for r in refl), 2),
                   "peak_loss_max_db": round(max(r["peak_loss_db"] for r in refl), 2),
                   "peak_loss_min_db": round(min(r["peak_loss_db"] for r in refl), 2),
-                  "aligned_rmse_cm": round(100 * res[m]["trajectory"]["aligned_rmse_m"], 2)}
-    s = row["sar-min"]
-    s["within_3cm_1db"] = s["reflector_error_max_cm"] < 3.0 and max(abs(s["peak_loss_max_db"]),
-                                                                       abs(s["peak_loss_min_db"])) < 1.0
-    for m in ("none", "ins"):
-        row[m]["worse"] = row[m]["peak_loss_max_db"] >= 3.0 or row[m]["reflector_error_max_cm"] >= 5.0
+                  "aligned_rmse_cm": round(100 * traj["aligned_rmse_m"], 2),
+                  "rpe_1m_across_mm": mm(traj["rpe_1m_across_m"]), "rpe_10m_across_mm": mm(traj["rpe_10m_across_m"])}
+        s = row[m]
+        s["within_3cm_1db"] = s["reflector_error_max_cm"] < 3.0 and max(abs(s["peak_loss_max_db"]),
+                                                                           abs(s["peak_loss_min_db"])) < 1.0
+        s["within_2cm_1db"] = s["reflector_error_max_cm"] <= 2.0 and max(abs(s["peak_loss_max_db"]),
+                                                                            abs(s["peak_loss_min_db"])) <= 1.0
+        s["worse"] = s["peak_loss_max_db"] >= 3.0 or s["reflector_error_max_cm"] >= 5.0
     for key in ENTROPIES:
-        e = {m: res[m]["summary"][key] for m in METHODS}
+        e = {m: res[m]["summary"][key] for m in res}
         row[key] = {**{m: round(v, 4) for m, v in e.items()}, "paper_order": in_paper_order(e)}
+        if "truth" in e:  # each method's entropy relative to the truth image's
+            row[key]["vs_truth_pct"] = {m: round(100 * (v / e["truth"] - 1.0), 3) for m, v in e.items() if m != "truth"}
     return row
 
 
 def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     n = len(rows)
     out: dict[str, Any] = {"drives": n}
-    errs = [r["sar-min"]["reflector_error_max_cm"] for r in rows]
-    out["sarmin_reflector_error_max_cm"] = {"median": round(statistics.median(errs), 2), "max": max(errs)}
-    out["sarmin_within_3cm_1db"] = sum(r["sar-min"]["within_3cm_1db"] for r in rows)
-    out["sarmin_local_within_3cm"] = sum(r["sar-min"]["reflector_error_local_max_cm"] < 3.0 for r in rows)
-    out["ins_worse"] = sum(r["ins"]["worse"] for r in rows)
-    out["none_worse"] = sum(r["none"]["worse"] for r in rows)
+    if not n:
+        return out
+    methods = list(dict.fromkeys(m for r in rows for m in r if isinstance(r[m], dict) and "reflector_error_max_cm"
+                                 in r[m]))
+    for m in methods:
+        key = m.replace("-", "").replace("+", "_")
+        if len(ran := [r for r in rows if m in r]) < n:
+            out[f"{key}_skipped"] = n - len(ran)
+        errs = [r[m]["reflector_error_max_cm"] for r in ran]
+        out[f"{key}_reflector_error_max_cm"] = {"median": round(statistics.median(errs), 2), "max": max(errs)}
+        out[f"{key}_within_3cm_1db"] = sum(r[m]["within_3cm_1db"] for r in ran)
+        out[f"{key}_within_2cm_1db"] = sum(r[m]["within_2cm_1db"] for r in ran)
+        out[f"{key}_local_within_3cm"] = sum(r[m]["reflector_error_local_max_cm"] < 3.0 for r in ran)
+        out[f"{key}_rpe_1m_across_mm_max"] = max((r[m]["rpe_1m_across_mm"] or 0.0) for r in ran)
+        if "vs_truth_pct" in ran[0]["entropy_far"]:
+            out[f"{key}_entropy_far_vs_truth_pct_max"] = max(r["entropy_far"]["vs_truth_pct"][m] for r in ran)
+        if m in ("none", "ins"):
+            out[f"{key}_worse"] = sum(r[m]["worse"] for r in ran)
     for key in ENTROPIES:
-        out[f"{key}_paper_order"] = sum(r[key]["paper_order"] for r in rows)
+        orders = [r[key]["paper_order"] for r in rows if r[key]["paper_order"] is not None]
+        if orders:
+            out[f"{key}_paper_order"] = sum(orders)
 
     def rms(values: list[float]) -> float:
         return round(statistics.fmean(v * v for v in values) ** 0.5, 4)
@@ -159,27 +188,54 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
+def group_key(row: dict[str, Any]) -> str:
+    """Summary group of a row: the scenario, with the ablation's components where there are several sets."""
+    comps = row.get("components")
+    return row["scenario"] if comps is None else f"{row['scenario']} [{comps or 'none'}]"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenarios", default="test1,test2,test3")
     ap.add_argument("--seeds", default="0-9", help="e.g. 0-9 or 1,3,7")
+    ap.add_argument("--methods", default=",".join(METHODS),
+                    help="compare's methods (sar-min and truth are always run)")
     ap.add_argument("--dynamics", choices=("kinematic", "full"), default=None,
                     help="simulator vehicle model (default: the config's simulation.dynamics)")
     ap.add_argument("--components", default=None,
                     help="ablation: the full model's effects to keep, e.g. slip or body,road (implies --dynamics full)")
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--keep", action="store_true", help="keep every drive's log and comparison")
+    ap.add_argument("--resume", action="store_true", help="keep --output's rows and skip the drives already in it")
     ap.add_argument("--output", type=Path, default=RESULTS / "paper.json")
     args = ap.parse_args()
+    methods = [m for m in args.methods.split(",") if m]
+    methods += [m for m in ("sar-min", "truth") if m not in methods]
+    if args.components is not None:
+        args.dynamics = "full"
     rows: list[dict[str, Any]] = []
+    if args.resume and args.output.exists():
+        rows = json.loads(args.output.read_text())["rows"]
+    done = {(r["scenario"], r["seed"], r.get("dynamics"), r.get("components")) for r in rows}
+
+    def write() -> dict[str, Any]:
+        groups = list(dict.fromkeys(group_key(r) for r in rows))
+        result = {"benchmark": "paper", "methods": methods, "dynamics": args.dynamics or "config",
+                  "components": args.components, "rows": rows,
+                  "summary": {g: summary([r for r in rows if group_key(r) == g]) for g in groups}
+                  | {"all": summary(rows)}}
+        args.output.parent.mkdir(parents=True, exist_ok=True)
+        args.output.write_text(json.dumps(result, indent=2) + "\n")
+        return result
+
     with tempfile.TemporaryDirectory() as tmp:
         work = args.workdir or Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
         config = ["--config", str(ablation_config(args.components, work))] if args.components is not None else []
-        if config:
-            args.dynamics = "full"
         for seed in parse_seeds(args.seeds):
             for scenario in args.scenarios.split(","):
+                if (scenario, seed, args.dynamics, args.components) in done:
+                    continue
                 tag = (f"_{args.dynamics}" if args.dynamics else "") + (
                     f"_{args.components.replace(',', '+')}" if args.components is not None else "")
                 log = work / f"{scenario}_s{seed}{tag}.mcap"
@@ -191,32 +247,28 @@ def main() -> None:
                 sim_s = time.perf_counter() - t
                 out = work / f"{scenario}_s{seed}"
                 t = time.perf_counter()
-                comparison = json.loads(cli("compare", str(log), "-o", str(out), "--methods", ",".join(METHODS),
+                comparison = json.loads(cli("compare", str(log), "-o", str(out), "--methods", ",".join(methods),
                                             "--overwrite", "--json").stdout)
                 row = drive_row(scenario, seed, comparison, sim_s, time.perf_counter() - t)
+                row["dynamics"], row["components"] = args.dynamics, args.components
                 row["sarmin_track_scale_pct"] = round(100 * track_scale(out), 4)
                 gnss_scale, gnss_se = gnss_velocity_scale(scenario, seed)
                 row["gnss_velocity_scale_pct"] = round(100 * gnss_scale, 4)
                 row["gnss_velocity_scale_se_pct"] = round(100 * gnss_se, 4)
                 rows.append(row)
-                s = row["sar-min"]
-                print(f"{scenario} seed {seed}: sar-min max {s['reflector_error_max_cm']:.2f} cm "
-                      f"(local {s['reflector_error_local_max_cm']:.2f}), peak loss {s['peak_loss_min_db']:+.2f}.."
-                      f"{s['peak_loss_max_db']:+.2f} dB; ins max {row['ins']['reflector_error_max_cm']:.1f} cm / "
-                      f"{row['ins']['peak_loss_max_db']:+.1f} dB; none {row['none']['reflector_error_max_cm']:.1f} cm"
-                      f" / {row['none']['peak_loss_max_db']:+.1f} dB; entropy order whole/rn/far "
-                      + "/".join("yes" if row[k]["paper_order"] else "no" for k in ENTROPIES), flush=True)
+                print(f"{group_key(row)} seed {seed}: " + "; ".join(
+                    f"{m} max {row[m]['reflector_error_max_cm']:.2f} cm (local "
+                    f"{row[m]['reflector_error_local_max_cm']:.2f}), peak loss {row[m]['peak_loss_min_db']:+.2f}.."
+                    f"{row[m]['peak_loss_max_db']:+.2f} dB" for m in methods if m in row)
+                    + "; entropy order whole/rn/far "
+                    + "/".join({True: "yes", False: "no", None: "-"}[row[k]["paper_order"]] for k in ENTROPIES),
+                    flush=True)
+                write()
                 if not args.keep:
                     shutil.rmtree(out, ignore_errors=True)
                     for p in (log, log.with_name(log.name + ".truth.h5")):
                         p.unlink(missing_ok=True)
-    result = {"benchmark": "paper", "methods": list(METHODS), "dynamics": args.dynamics or "config",
-              "components": args.components, "rows": rows,
-              "summary": {s: summary([r for r in rows if r["scenario"] == s]) for s in args.scenarios.split(",")}
-              | {"all": summary(rows)}}
-    print(json.dumps(result["summary"], indent=2))
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text(json.dumps(result, indent=2) + "\n")
+    print(json.dumps(write()["summary"], indent=2))
 
 
 if __name__ == "__main__":
