@@ -16,6 +16,9 @@ track on the radar side for the automatic grid, south for an explicit east/north
 centre is ``origin``. Rows of the image are therefore lines of constant ground range for the automatic
 grid, which keeps neighbouring pixels of the kernel's pixel order on neighbouring range bins.
 
+A trajectory may carry a :class:`MotionCorrection`: a small ENU offset (mm) of every body point over time that
+the radar measured and the navigation could not (residual-motion autofocus, :mod:`autosar_cli.sar.residual_motion`).
+
 Trajectories: a :class:`Trajectory` holds the rear-axle centre, heading, speed and yaw rate at its sample
 times. Between samples the vehicle follows CTRV from the preceding sample (exact for the filter's own
 model, and the samples are milliseconds apart). Body points are given relative to the CoG (ISO 8855 body
@@ -147,6 +150,22 @@ class FocusGrid:
                    int(attrs["n_along"]), int(attrs["n_across"]), float(attrs["height_m"]))  # type: ignore[arg-type]
 
 
+@dataclass(frozen=True)
+class MotionCorrection:
+    """An ENU offset of every body point over time, linearly interpolated between its samples and held beyond
+    them: the residual motion the radar measured and the navigation could not (residual-motion autofocus)."""
+
+    t_ns: NDArray[np.int64]  #: (M,) sample times, ns since the Unix epoch, strictly increasing
+    offset_enu: Array  #: (M, 3) m, added to the navigated position of every body point
+    std_enu: Array  #: (M, 3) m, its 1-sigma uncertainty per ENU axis
+
+    def at(self, t_ns: ArrayLike) -> Array:
+        """Offset (N, 3) (ENU m) at times ``t_ns`` (N,) (ns)."""
+        t = (np.asarray(t_ns, dtype=np.int64) - self.t_ns[0]).astype(np.float64)
+        knots = (self.t_ns - self.t_ns[0]).astype(np.float64)
+        return np.stack([np.interp(t, knots, self.offset_enu[:, i]) for i in range(3)], axis=-1)
+
+
 #: half-span (s) of :meth:`Trajectory.travel_velocity`'s average: of the order of the processed apertures
 #: (5-130 ms at 4 cm resolution and 5 m/s), long enough to smooth a filter's sample-to-sample jitter
 TRAVEL_HALF_SPAN_S = 0.05
@@ -167,6 +186,7 @@ class Trajectory:
     state_names: list[str] = field(default_factory=list)
     covariance: Array | None = None  #: (K, n, n)
     info: dict[str, Any] = field(default_factory=dict)
+    correction: MotionCorrection | None = None  #: residual motion added to every body point (autofocus)
 
     @property
     def t(self) -> Array:
@@ -196,8 +216,12 @@ class Trajectory:
         return xy, psi + w * dt
 
     def body_points(self, t_ns: ArrayLike, lever_arms: ArrayLike) -> Array:
-        """ENU positions (M, A, 3) of body points ``lever_arms`` (A, 3) (m, from the CoG) at times ``t_ns`` (M,)."""
-        return self._place(*self.pose(t_ns), lever_arms)
+        """ENU positions (M, A, 3) of body points ``lever_arms`` (A, 3) (m, from the CoG) at times ``t_ns`` (M,),
+        with the :attr:`correction` where there is one."""
+        points = self._place(*self.pose(t_ns), lever_arms)
+        if self.correction is not None:
+            points += self.correction.at(np.asarray(t_ns).reshape(-1))[:, None, :]
+        return points
 
     def travel_velocity(self, t_ns: ArrayLike, lever_arms: ArrayLike,
                         half_span_s: float = TRAVEL_HALF_SPAN_S) -> Array:

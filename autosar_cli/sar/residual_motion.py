@@ -1,0 +1,523 @@
+"""Residual-motion autofocus: the phase-centre motion the navigation missed, measured on the radar's own echoes.
+
+A phase-centre error ``e`` along the line of sight ``u`` (unit, radar -> scatterer) adds ``4 pi e . u / lambda``
+to a pulse's phase: 3.2 rad per mm at 77 GHz. Back-projection onto a bright, isolated, stationary point ``p``
+turns each pulse into one complex number ``z_k`` (the channels summed); along an error-free track every ``z_k``
+has the same phase. So the phase history of a few such points per aperture measures the error, as in
+phase-gradient autofocus (Wahl et al. 1994), but solved for a correction of the trajectory, not of the image
+(generalised PGA, as in torchbp; "Residual Motion Compensation in Automotive MIMO SAR Imaging", RadarConf 2022):
+
+* the points: the brightest isolated point-like pixels 3-12 m from the track in a first image along the
+  navigated track (:func:`~autosar_cli.sar.autofocus.bright_points`), about one per ``point_spacing_m`` of travel;
+* their histories over a wide beam (+-28 deg), each pulse's channels summed, ``presum`` pulses summed after
+  compensation (:func:`gather_phase_histories` keeps a few range bins per pulse and channel, so the iterations do
+  not read the radar again);
+* the model, for the phase step between successive presummed samples a, b of point j::
+
+      psi_b - psi_a = -kappa (u_b . dc(t_b) - u_a . dc(t_a) - (u_b - u_a) . d_j),   kappa = 4 pi / lambda
+
+  with ``dc(t)`` the correction (across track and up, piecewise linear on ``node_s`` nodes) and ``d_j`` the
+  point's own position error (it absorbs the parts of the correction that only move a point: a constant and a
+  steady drift over its aperture). Phase steps need no unwrapping; each is weighted by its signal-to-noise ratio;
+* fused with the navigation: a prior of ``prior_across_m`` (or the filter's own across-track standard deviation
+  where larger) and ``prior_up_m`` on the correction, and ``step_m`` on its change between nodes, so a stretch
+  with no point keeps the navigated track; a sparse weighted least-squares solve, Gauss-Newton iterations with
+  each point's position updated, posterior standard deviations from the normal matrix;
+* points whose phases do not fit (moving targets, multipath) are dropped. The correction is refused, with the
+  reason, when fewer than ``min_points`` points remain or when it does not make the points' histories more
+  coherent.
+
+What it cannot see: a correction constant or linear in time over the whole drive (it moves every point alike),
+and the along-track direction (hardly in any line of sight).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numpy.typing import NDArray
+
+from autosar_cli.config import Config
+from autosar_cli.nav.trajectory import phase_centre_lever_arm, radar_phase_centres
+from autosar_cli.types import FocusGrid, MotionCorrection, Trajectory
+from autosar_cli.sar.focus import FocusOptions, channel_pairs
+from autosar_cli.sar.range_compression import SPEED_OF_LIGHT, range_compress
+from autosar_cli.store.drive import Drive
+
+Array = NDArray[np.float64]
+import os
+_DEBUG = bool(os.environ.get("AF_DEBUG"))
+
+
+@dataclass(frozen=True)
+class AutofocusOptions:
+    """Parameters of the residual-motion autofocus (defaults: docs/FOCUS.md, "Residual-motion autofocus")."""
+
+    half_beam_deg: float = 28.0  #: half-width of the beam over which each point's history is taken
+    min_range_m: float = 3.0  #: ground distance from the track of the points chosen
+    max_range_m: float = 12.0
+    point_spacing_m: float = 1.5  #: about one point per this much travel (and no two points closer)
+    presum: int = 4  #: pulses summed (after compensation) per sample of a history
+    node_s: float = 0.01  #: spacing of the correction's nodes (s)
+    window_bins: int = 32  #: range bins kept around each pulse's expected range
+    iterations: int = 4  #: Gauss-Newton iterations at most
+    prior_across_m: float = 0.005  #: prior std of the across-track correction (floor of the filter's own)
+    prior_up_m: float = 0.005  #: prior std of the vertical correction
+    step_m: float = 0.001  #: prior std of the correction's change from one node to the next
+    point_prior_m: float = 0.02  #: prior std of a point's own position error
+    max_phase_rms_rad: float = 0.15  #: points fitting worse than this are dropped (moving, multipath)
+    min_points: int = 2  #: fewer usable points: no correction
+
+
+@dataclass
+class PhaseHistories:
+    """Range-compressed samples around each point's expected range, for every (point, pulse) pair it is seen in.
+
+    Pair n: point ``point[n]``, radar frame ``frame_t_ns[frame[n]]``; channel c's bins ``bin0[n, c]`` ...
+    ``bin0[n, c] + W - 1`` (bistatic path ``bin * bin_m``) are ``samples[n, c]``.
+    """
+
+    point: NDArray[np.int64]  #: (N,)
+    frame: NDArray[np.int64]  #: (N,) index into frame_t_ns
+    frame_t_ns: NDArray[np.int64]  #: (F,) the frames used
+    bin0: NDArray[np.int64]  #: (N, C)
+    samples: NDArray[np.complex64]  #: (N, C, W)
+    pairs: list[tuple[int, int]]  #: (Tx, Rx) of each channel
+    tx_offsets_s: Array  #: (T,) chirp start of each Tx in the PRI
+    bin_m: float  #: bistatic path per bin (m)
+    cycles_per_m: float  #: phase turns per metre of bistatic path
+
+
+def _frame_geometry(traj: Trajectory, t_ns: NDArray[np.int64], config: Config) -> tuple[Array, Array, Array]:
+    """Mean phase centre (F, 3), unit across-track vector towards the radar side (F, 3), unit along (F, 3)."""
+    centre = traj.body_points(t_ns, phase_centre_lever_arm(config)[None])[:, 0]
+    _, heading = traj.pose(t_ns)
+    side = 1.0 if math.sin(math.radians(config.radar.mounting.yaw_deg)) > 0 else -1.0
+    zero = np.zeros_like(heading)
+    along = np.stack([np.cos(heading), np.sin(heading), zero], axis=-1)
+    across = side * np.stack([-np.sin(heading), np.cos(heading), zero], axis=-1)
+    return centre, across, along
+
+
+def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Config, points_enu: Array,
+                           focus: FocusOptions, opts: AutofocusOptions, *, block_frames: int = 256) -> PhaseHistories:
+    """Read and range-compress the frames that see ``points_enu`` (P, 3) (ENU m) within the wide beam, and keep
+    ``opts.window_bins`` bins around each point's range per pulse and channel (one pass over the radar data)."""
+    points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
+    w = int(opts.window_bins)
+    with Drive(drive_path) as drive:
+        radar = drive.radar()
+        a = radar.attrs
+        f0 = float(a.get("start_frequency_hz", config.radar.start_frequency_hz))
+        slope = float(a.get("slope_hz_per_s", config.radar.slope_hz_per_s))
+        fs = float(a.get("sample_rate_hz", config.radar.sample_rate_hz))
+        n_tx, n_rx, n_samp = (int(v) for v in radar.raw.shape[1:4])
+        offsets = np.asarray(a.get("tx_start_offsets_s", config.radar.tx_start_offsets_s), dtype=np.float64)
+        pairs = channel_pairs(n_tx, n_rx, focus.channels)
+        n_bins = n_samp * focus.upsample
+        bin_m = SPEED_OF_LIGHT * fs / (n_bins * slope)
+        cycles_per_m = (f0 + slope * 0.5 * (n_samp - 1) / fs) / SPEED_OF_LIGHT
+        t_all = radar.t_ns
+        last_chirp_ns = int(round(offsets.max() * 1e9)) if offsets.size else 0
+        frames = np.flatnonzero((t_all >= traj.t_ns[0]) & (t_all + last_chirp_ns <= traj.t_ns[-1]))
+        t = t_all[frames]
+        speed = np.interp((t - traj.t_ns[0]).astype(np.float64), (traj.t_ns - traj.t_ns[0]).astype(np.float64),
+                          np.abs(traj.speed))
+        centre, across, along = _frame_geometry(traj, t, config)
+        d = points[None, :, :] - centre[:, None, :]  # (F, P, 3)
+        horiz = np.maximum(np.hypot(d[..., 0], d[..., 1]), 1e-9)
+        sin_squint = np.einsum("fpk,fk->fp", d, along) / horiz
+        seen = ((speed >= focus.min_speed_mps)[:, None] & (np.einsum("fpk,fk->fp", d, across) > 0.0)
+                & (np.abs(sin_squint) <= math.sin(math.radians(opts.half_beam_deg)))
+                & (np.linalg.norm(d, axis=-1) <= config.radar.max_range_m))
+        used = np.flatnonzero(seen.any(axis=1))
+        out_point, out_frame, out_bin0, out_samples = [], [], [], []
+        tx_idx = np.array([p[0] for p in pairs])
+        rx_idx = np.array([p[1] for p in pairs])
+        for start in range(0, len(used), block_frames):
+            sel = used[start:start + block_frames]
+            raw = radar.frames(int(frames[sel[0]]), int(frames[sel[-1]]) + 1)[frames[sel] - frames[sel[0]]]
+            profiles = np.stack([range_compress(raw[:, tt, rr], sample_rate_hz=fs, slope_hz_per_s=slope,
+                                                window=focus.window, upsample=focus.upsample) for tt, rr in pairs],
+                                axis=1)  # (B, C, bins)
+            pc = radar_phase_centres(traj, t[sel], offsets, config)
+            kk, jj = np.nonzero(seen[sel])
+            tx = pc.tx[kk][:, tx_idx]  # (n, C, 3)
+            rx = pc.rx[kk][:, tx_idx, rx_idx]
+            p = points[jj][:, None, :]
+            path = np.linalg.norm(tx - p, axis=-1) + np.linalg.norm(rx - p, axis=-1)
+            b0 = np.floor(path / bin_m).astype(np.int64) - (w // 2 - 1)
+            b0 = np.clip(b0, 0, n_bins - w)
+            idx = b0[..., None] + np.arange(w)
+            out_samples.append(np.take_along_axis(profiles[kk], idx.reshape(len(kk), len(pairs), w), axis=-1))
+            out_point.append(jj)
+            out_frame.append(sel[kk])
+            out_bin0.append(b0)
+    empty = len(out_point) == 0
+    return PhaseHistories(
+        np.concatenate(out_point) if not empty else np.zeros(0, np.int64),
+        np.concatenate(out_frame) if not empty else np.zeros(0, np.int64), t,
+        np.concatenate(out_bin0) if not empty else np.zeros((0, len(pairs)), np.int64),
+        np.concatenate(out_samples).astype(np.complex64) if not empty else np.zeros((0, len(pairs), w), np.complex64),
+        pairs, offsets, bin_m, cycles_per_m)
+
+
+def focus_history(hist: PhaseHistories, traj: Trajectory, config: Config, points_enu: Array
+                  ) -> tuple[NDArray[np.complex128], Array]:
+    """Each pair's back-projected value (N,) (channels summed, exact path, linear interpolation between bins as
+    the kernel does) along ``traj`` onto ``points_enu`` (P, 3), and its unit line of sight (N, 3) from the mean
+    phase centre to the point. A pair whose path left its bin window in any channel gives NaN."""
+    pc = radar_phase_centres(traj, hist.frame_t_ns, hist.tx_offsets_s, config)
+    tx_idx = np.array([p[0] for p in hist.pairs])
+    rx_idx = np.array([p[1] for p in hist.pairs])
+    tx = pc.tx[hist.frame][:, tx_idx]
+    rx = pc.rx[hist.frame][:, tx_idx, rx_idx]
+    p = np.asarray(points_enu, dtype=np.float64)[hist.point][:, None, :]
+    path = np.linalg.norm(tx - p, axis=-1) + np.linalg.norm(rx - p, axis=-1)  # (N, C)
+    fi = path / hist.bin_m - hist.bin0
+    i = np.floor(fi).astype(np.int64)
+    ok = (i >= 0) & (i < hist.samples.shape[-1] - 1)
+    i = np.clip(i, 0, hist.samples.shape[-1] - 2)
+    s0 = np.take_along_axis(hist.samples, i[..., None], axis=-1)[..., 0]
+    s1 = np.take_along_axis(hist.samples, (i + 1)[..., None], axis=-1)[..., 0]
+    s = (s0 + (fi - i) * (s1 - s0)) * ok
+    turns = path * hist.cycles_per_m
+    z = np.sum(s * np.exp(-2j * np.pi * (turns - np.floor(turns))), axis=1)
+    z[~ok.all(axis=1)] = np.nan
+    los = p[:, 0] - 0.5 * (tx.mean(axis=1) + rx.mean(axis=1))
+    return z, los / np.linalg.norm(los, axis=-1, keepdims=True)
+
+
+@dataclass
+class _Samples:
+    """Presummed history samples: point, group, time (s from t0), value, line of sight."""
+
+    point: NDArray[np.int64]
+    t_s: Array
+    z: NDArray[np.complex128]
+    los: Array
+
+
+def _presum(hist: PhaseHistories, z: NDArray[np.complex128], los: Array, presum: int, t0_ns: int) -> _Samples:
+    key = hist.point * (len(hist.frame_t_ns) // presum + 2) + hist.frame // presum
+    uniq, inv = np.unique(key, return_inverse=True)
+    n = len(uniq)
+    zs = np.bincount(inv, z.real, n) + 1j * np.bincount(inv, z.imag, n)
+    count = np.bincount(inv, minlength=n).astype(np.float64)
+    t = np.bincount(inv, (hist.frame_t_ns[hist.frame] - t0_ns) / 1e9, n) / count
+    u = np.stack([np.bincount(inv, los[:, k], n) for k in range(3)], axis=-1)
+    u /= np.linalg.norm(u, axis=-1, keepdims=True)
+    point = np.zeros(n, np.int64)
+    point[inv] = hist.point
+    order = np.lexsort((t, point))
+    return _Samples(point[order], t[order], zs[order], u[order])
+
+
+@dataclass(frozen=True)
+class ResidualMotion:
+    """Result of :func:`estimate_residual_motion` / :func:`autofocus_residual_motion`."""
+
+    trajectory: Trajectory  #: the input with its correction (unchanged where ``reason`` says why not)
+    correction: MotionCorrection | None  #: None where refused
+    points_enu: Array  #: (P, 3) the candidate points, where the (corrected) track focuses them
+    points_used: NDArray[np.bool_]  #: (P,) those that fit and were used
+    phase_rms_rad: Array  #: (P,) each point's phase residual (rad RMS of its phase steps)
+    coherence_before: float  #: median over used points of |sum z| / sum |z| along the navigated track
+    coherence_after: float  #: the same along the corrected track
+    coverage: float  #: fraction of the moving frames that at least one used point sees
+    iterations: int
+    reason: str = ""
+
+    @property
+    def applied(self) -> bool:
+        return not self.reason
+
+    def labelled(self, method: str) -> Trajectory:
+        """The corrected trajectory named ``method``, its info holding what autofocus measured."""
+        return replace(self.trajectory, method=method, info={**self.trajectory.info, "autofocus": self.to_dict()})
+
+    def correction_summary(self) -> dict[str, float]:
+        c = self.correction
+        if c is None:
+            return {}
+        mag = np.linalg.norm(c.offset_enu, axis=-1)
+        return {"rms_mm": float(1e3 * np.sqrt(np.mean(mag**2))), "max_mm": float(1e3 * mag.max()),
+                "std_median_mm": float(1e3 * np.median(np.linalg.norm(c.std_enu, axis=-1)))}
+
+    def to_dict(self) -> dict[str, object]:
+        return {"applied": self.applied, "reason": self.reason, "points": int(len(self.points_enu)),
+                "points_used": int(self.points_used.sum()), "coverage": round(self.coverage, 4),
+                "coherence_before": round(self.coherence_before, 4), "coherence_after": round(self.coherence_after, 4),
+                "iterations": self.iterations, "correction": self.correction_summary(),
+                "points_enu": np.round(self.points_enu, 4).tolist()}
+
+    def summary(self) -> str:
+        """One line: what was corrected, or why nothing was."""
+        if not self.applied:
+            return f"track not corrected: {self.reason}"
+        c = self.correction_summary()
+        return (f"residual motion corrected by {c['rms_mm']:.2f} mm RMS ({c['max_mm']:.2f} max, ±{c['std_median_mm']:.2f}"
+                f" mm), measured on {int(self.points_used.sum())} points seen over {100 * self.coverage:.0f} % of the "
+                f"drive; their coherence {self.coherence_before:.3f} -> {self.coherence_after:.3f}")
+
+
+def _coherence(samples: _Samples, used: NDArray[np.bool_]) -> float:
+    """Median over the used points of |sum z| / sum |z| over each point's presummed history (1: perfectly focused)."""
+    vals = []
+    for j in np.flatnonzero(used):
+        z = samples.z[(samples.point == j) & np.isfinite(samples.z)]
+        if len(z):
+            vals.append(abs(z.sum()) / max(np.abs(z).sum(), 1e-30))
+    return float(np.median(vals)) if vals else 0.0
+
+
+@dataclass
+class _Linear:
+    """The phase steps of the used points at the current state and their derivatives."""
+
+    step: Array  #: (M,) wrapped phase step between successive samples of a point (rad)
+    design: sp.csr_matrix  #: (M, unknowns): step after the increment dx is step + design @ dx
+    rel_var: Array  #: (M,) relative variance of each step (noise power units)
+    point: NDArray[np.int64]  #: (M,) the point of each step
+
+
+def _linearise(smp: _Samples, used: NDArray[np.bool_], node_across: Array, node_s: float, kappa: float,
+               n_pts: int) -> _Linear:
+    """Phase steps of successive presummed samples of each used point and their linear model: with the
+    correction dc (across, up on the nodes) and the point shifts d, psi_b - psi_a changes by
+    kappa (u_b . dc(t_b) - u_a . dc(t_a) - (u_b - u_a) . d_j)."""
+    n_nodes = len(node_across)
+    valid = np.isfinite(smp.z)
+    same = (smp.point[1:] == smp.point[:-1]) & used[smp.point[1:]] & valid[1:] & valid[:-1]
+    a_idx = np.flatnonzero(same)
+    b_idx = a_idx + 1
+    step = np.angle(smp.z[b_idx] * np.conj(smp.z[a_idx]))
+    pa, pb = np.abs(smp.z[a_idx]) ** 2, np.abs(smp.z[b_idx]) ** 2
+    rel_var = 0.5 * (1.0 / np.maximum(pa, 1e-30) + 1.0 / np.maximum(pb, 1e-30))
+    cols, vals = [], []
+    for which, sign in ((a_idx, -1.0), (b_idx, 1.0)):
+        u = smp.los[which]
+        pos = np.clip(smp.t_s[which] / node_s, 0.0, n_nodes - 1.000001)
+        n0 = np.floor(pos).astype(np.int64)
+        frac = pos - n0
+        across = node_across[n0] * (1 - frac)[:, None] + node_across[n0 + 1] * frac[:, None]
+        k_across = np.einsum("nk,nk->n", u, across)
+        for col, wgt in ((n0, 1 - frac), (n0 + 1, frac)):
+            cols += [col, n_nodes + col]
+            vals += [sign * kappa * wgt * k_across, sign * kappa * wgt * u[:, 2]]
+    du = smp.los[b_idx] - smp.los[a_idx]
+    pt = smp.point[b_idx]
+    for k in range(3):
+        cols.append(2 * n_nodes + 3 * pt + k)
+        vals.append(-kappa * du[:, k])
+    m = len(step)
+    design = sp.csr_matrix((np.concatenate(vals), (np.tile(np.arange(m), len(vals)), np.concatenate(cols))),
+                           shape=(m, 2 * n_nodes + 3 * n_pts))
+    return _Linear(step, design, rel_var, pt)
+
+
+def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, config: Config, points_enu: Array,
+                             focus: FocusOptions | None = None, opts: AutofocusOptions | None = None
+                             ) -> ResidualMotion:
+    """The correction of ``trajectory`` that makes the phase histories of the points ``points_enu`` (P, 3) (ENU m,
+    where ``trajectory`` focuses them) coherent; see the module's docstring."""
+    focus = focus or FocusOptions.from_config(config)
+    opts = opts or AutofocusOptions()
+    points0 = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
+    n_pts = len(points0)
+    if n_pts == 0:
+        return ResidualMotion(trajectory, None, points0, np.zeros(0, dtype=bool), np.zeros(0), 0.0, 0.0, 0.0, 0,
+                              f"no bright isolated point {opts.min_range_m:g}-{opts.max_range_m:g} m from the track")
+    hist = gather_phase_histories(drive_path, trajectory, config, points0, focus, opts)
+    t0 = int(trajectory.t_ns[0])
+    n_nodes = int(math.ceil((int(trajectory.t_ns[-1]) - t0) / 1e9 / opts.node_s)) + 1
+    nodes_ns = t0 + np.round(np.arange(n_nodes) * opts.node_s * 1e9).astype(np.int64)
+    _, node_across, _ = _frame_geometry(trajectory, nodes_ns, config)
+    up = np.array([0.0, 0.0, 1.0])
+    sigma_across = np.full(n_nodes, opts.prior_across_m)
+    nav_std = _across_track_std(trajectory, nodes_ns, node_across)
+    if nav_std is not None:
+        sigma_across = np.maximum(sigma_across, nav_std)
+    kappa = 4.0 * math.pi * hist.cycles_per_m
+    # a correction the trajectory already carries is kept, and this one added to it
+    base = trajectory.correction.at(nodes_ns) if trajectory.correction is not None else np.zeros((n_nodes, 3))
+    # priors: the correction's size (the navigation's own uncertainty), its change between nodes, the point shifts
+    prior_diag = np.concatenate([1.0 / sigma_across**2, np.full(n_nodes, 1.0 / opts.prior_up_m**2),
+                                 np.full(3 * n_pts, 1.0 / opts.point_prior_m**2)])
+    diff = sp.diags([np.ones(n_nodes - 1), -np.ones(n_nodes - 1)], [1, 0], shape=(n_nodes - 1, n_nodes))
+    smooth = (sp.block_diag([diff, diff, sp.csr_matrix((0, 3 * n_pts))]) / opts.step_m).tocsc()
+    prior_normal = (sp.diags(prior_diag) + smooth.T @ smooth).tocsc()
+
+    def corrected(x: Array) -> Trajectory:
+        offset = base + x[:n_nodes, None] * node_across + x[n_nodes:2 * n_nodes, None] * up
+        return replace(trajectory, correction=MotionCorrection(nodes_ns, offset, np.zeros_like(offset)))
+
+    def linearise(x: Array, used: NDArray[np.bool_]) -> _Linear:
+        z, los = focus_history(hist, corrected(x), config, points0 + x[2 * n_nodes:].reshape(n_pts, 3))
+        return _linearise(_presum(hist, z, los, opts.presum, t0), used, node_across, opts.node_s, kappa, n_pts)
+
+    def cost(lin: _Linear, x: Array, noise: float, n_ref: int) -> float:
+        """The fit's cost, its data term scaled to ``n_ref`` steps (a point's edge samples come and go with it)."""
+        data = float(np.sum(lin.step**2 / (noise * lin.rel_var))) * n_ref / max(len(lin.step), 1)
+        return data + float(x @ (prior_normal @ x))
+
+    x = np.zeros(2 * n_nodes + 3 * n_pts)  # across (m), up (m) per node, then the point shifts (m)
+    used = np.ones(n_pts, dtype=bool)
+    lin = linearise(x, used)
+    # the noise power of a sample, until the fit measures it: 20 dB below the points' typical sample
+    noise = 0.01 / float(np.median(lin.rel_var))
+    iterations = 0
+    for _ in range(4):  # fit; measure the noise and drop the points that do not fit; fit again
+        damping = 1e-3
+        current = cost(lin, x, noise, len(lin.step))
+        for _ in range(opts.iterations):
+            iterations += 1
+            w = 1.0 / (noise * lin.rel_var)
+            normal = (lin.design.T @ lin.design.multiply(w[:, None])).tocsc() + prior_normal
+            rhs = -(lin.design.T @ (w * lin.step)) - prior_normal @ x
+            while damping < 1e6:  # Levenberg-Marquardt: a step that does not lower the cost is damped
+                dx = spla.spsolve((normal + sp.diags(damping * normal.diagonal())).tocsc(), rhs)
+                trial = linearise(x + dx, used)
+                # a step that pushes a point's samples out of their range window loses data: not a better fit
+                if (len(trial.step) >= 0.99 * len(lin.step)
+                        and (new := cost(trial, x + dx, noise, len(lin.step))) < current):
+                    x, lin, current, damping = x + dx, trial, new, damping / 10.0
+                    break
+                damping *= 10.0
+            else:
+                break
+            if _DEBUG:
+                print(iterations, damping, np.abs(dx[:2 * n_nodes]).max(), current, noise)
+            if np.max(np.abs(dx[:2 * n_nodes])) < 1e-6 and np.max(np.abs(dx[2 * n_nodes:])) < 1e-5:
+                break
+        resid_norm = lin.step**2 / lin.rel_var
+        new_noise = max(float(np.median(resid_norm)) / 0.455, 1e-12 * noise)  # the median of chi2(1) is 0.455
+        phase_rms = np.array([float(np.sqrt(np.mean(lin.step[lin.point == j] ** 2))) if np.any(lin.point == j)
+                              else np.inf for j in range(n_pts)])
+        bad = used & (phase_rms > opts.max_phase_rms_rad)
+        settled = abs(new_noise / noise - 1.0) < 0.2
+        noise = new_noise
+        if not bad.any() and settled:
+            break
+        used &= ~bad
+        if used.sum() < opts.min_points:
+            break
+        x[2 * n_nodes:].reshape(n_pts, 3)[bad] = 0.0
+        lin = linearise(x, used)
+    points = points0 + x[2 * n_nodes:].reshape(n_pts, 3)
+    cross = np.stack([x[:n_nodes], x[n_nodes:2 * n_nodes]], axis=-1)
+
+    def coherence(c: Array) -> float:
+        z, los = focus_history(hist, corrected(np.concatenate([c[:, 0], c[:, 1], x[2 * n_nodes:]])), config, points)
+        return _coherence(_presum(hist, z, los, opts.presum, t0), used)
+
+    # with the points where the fit puts them, so that only the track differs
+    coherence_before, coherence_after = coherence(np.zeros_like(cross)), coherence(cross)
+    seen_frames = np.unique(hist.frame[used[hist.point]])
+    coverage = len(seen_frames) / max(len(hist.frame_t_ns), 1)
+
+    def refuse(reason: str) -> ResidualMotion:
+        return ResidualMotion(trajectory, None, points0, used, phase_rms, coherence_before, coherence_after, coverage,
+                              iterations, reason)
+
+    if used.sum() < opts.min_points:
+        return refuse(f"{int(used.sum())} of the {n_pts} candidate points behave as stationary point scatterers "
+                      f"(phase residual <= {opts.max_phase_rms_rad:g} rad); {opts.min_points} needed")
+    if coherence_after <= coherence_before:
+        return refuse(f"the correction does not sharpen its points (coherence {coherence_before:.3f} -> "
+                      f"{coherence_after:.3f})")
+    # the posterior at the solution, with the measured noise
+    w = 1.0 / (noise * lin.rel_var)
+    std = _posterior_std(spla.splu(((lin.design.T @ lin.design.multiply(w[:, None])) + prior_normal).tocsc()), n_nodes)
+    offset = base + cross[:, :1] * node_across + cross[:, 1:] * up
+    std_enu = np.stack([np.abs(std[:, 0] * node_across[:, 0]), np.abs(std[:, 0] * node_across[:, 1]), std[:, 1]],
+                       axis=-1)
+    correction = MotionCorrection(nodes_ns, offset, std_enu)
+    return ResidualMotion(replace(trajectory, correction=correction), correction, points, used, phase_rms,
+                          coherence_before, coherence_after, coverage, iterations)
+
+
+def _across_track_std(traj: Trajectory, nodes_ns: NDArray[np.int64], across: Array) -> Array | None:
+    """The navigation's own across-track position std (m) at the nodes, where its covariance holds x and y."""
+    if traj.covariance is None or "x" not in traj.state_names or "y" not in traj.state_names:
+        return None
+    ix, iy = traj.state_names.index("x"), traj.state_names.index("y")
+    k = np.clip(np.searchsorted(traj.t_ns, nodes_ns), 0, len(traj.t_ns) - 1)
+    cov = traj.covariance[k][:, [ix, iy]][:, :, [ix, iy]]
+    a = across[:, :2]
+    return np.sqrt(np.maximum(np.einsum("ni,nij,nj->n", a, cov, a), 0.0))
+
+
+def _posterior_std(lu: spla.SuperLU, n_nodes: int, every: int = 10) -> Array:
+    """Std (n_nodes, 2) of the across and up correction from the factorised normal matrix, computed every
+    ``every`` nodes and interpolated between."""
+    picks = np.unique(np.concatenate([np.arange(0, n_nodes, every), [n_nodes - 1]]))
+    out = np.empty((n_nodes, 2))
+    n = lu.shape[0]
+    for comp in range(2):
+        cols = comp * n_nodes + picks
+        e = np.zeros((n, len(cols)))
+        e[cols, np.arange(len(cols))] = 1.0
+        var = lu.solve(e)[cols, np.arange(len(cols))]
+        out[:, comp] = np.interp(np.arange(n_nodes), picks, np.sqrt(np.maximum(var, 0.0)))
+    return out
+
+
+def select_points(image: NDArray[np.complexfloating], grid: FocusGrid, range_m: Array, opts: AutofocusOptions,
+                  *, per_segment: int = 2, min_concentration: float = 0.2, min_snr_db: float = 20.0) -> Array:
+    """Bright, isolated, point-like pixels (P, 3) (ENU m, on the grid's plane) of a first image for the phase
+    histories: in every ``opts.point_spacing_m`` of the grid's along axis, the ``per_segment`` brightest local maxima
+    (within 1 m) between ``opts.min_range_m`` and ``opts.max_range_m`` from the track (``range_m``, per pixel)
+    that hold ``min_concentration`` of the intensity of the 7 x 7 pixels around them and stand ``min_snr_db`` above
+    the image's median intensity. Points that are not point scatterers after all are dropped by their phase fit."""
+    from scipy.ndimage import maximum_filter, uniform_filter
+
+    intensity = np.abs(np.asarray(image).astype(np.complex128)) ** 2
+    size = max(3, 2 * int(round(0.5 / grid.pixel_m)) + 1)
+    local_max = intensity == maximum_filter(intensity, size=size)
+    concentration = intensity / np.maximum(uniform_filter(intensity, size=7) * 49.0, np.finfo(np.float64).tiny)
+    floor = np.median(intensity[intensity > 0]) * 10 ** (min_snr_db / 10) if np.any(intensity > 0) else np.inf
+    score = np.where(local_max & (range_m >= opts.min_range_m) & (range_m <= opts.max_range_m)
+                     & (concentration >= min_concentration) & (intensity >= floor), intensity, 0.0)
+    cols = max(1, int(round(opts.point_spacing_m / grid.pixel_m)))
+    chosen: list[tuple[int, int]] = []
+    for c0 in range(0, grid.n_along, cols):
+        seg = score[:, c0:c0 + cols]
+        for k in np.argsort(seg.ravel())[::-1][:per_segment]:
+            if seg.flat[k] > 0:
+                r, c = divmod(int(k), seg.shape[1])
+                chosen.append((r, c0 + c))
+    if not chosen:
+        return np.zeros((0, 3))
+    rc = np.array(chosen)
+    return grid.pixel_enu(rc[:, 0], rc[:, 1])
+
+
+def candidate_points(drive_path: str | Path, trajectory: Trajectory, config: Config, focus: FocusOptions,
+                     opts: AutofocusOptions) -> Array:
+    """:func:`select_points` on a first image along ``trajectory`` (the product's grid and options)."""
+    from autosar_cli.nav.trajectory import radar_track
+    from autosar_cli.sar.focus import auto_grid, focus_images
+    from autosar_cli.sar.grid import track_distance
+    from autosar_cli.store.drive import radar_times
+
+    grid = auto_grid(drive_path, trajectory, config, focus)
+    image = focus_images(drive_path, trajectory, config, focus, grids=[grid]).images[0]
+    track = radar_track(trajectory, radar_times(drive_path), config)
+    return select_points(image.image, grid, track_distance(grid, track), opts)
+
+
+def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, config: Config,
+                              focus: FocusOptions | None = None, opts: AutofocusOptions | None = None
+                              ) -> ResidualMotion:
+    """``trajectory`` corrected by the residual motion its own image's bright points measure, with no truth
+    (:func:`candidate_points`, then :func:`estimate_residual_motion`)."""
+    focus = focus or FocusOptions.from_config(config)
+    opts = opts or AutofocusOptions()
+    points = candidate_points(drive_path, trajectory, config, focus, opts)
+    return estimate_residual_motion(drive_path, trajectory, config, points, focus, opts)
