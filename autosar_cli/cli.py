@@ -56,10 +56,11 @@ RadarSyncOpt = Annotated[str, typer.Option("--radar-sync", help="Topic whose fir
 RadarOverrideOpt = Annotated[bool, typer.Option("--radar-override", help="Where the recording's radar parameters "
                                                 "contradict the config's, keep the recording's (warned) instead of "
                                                 "stopping.")]
-AutofocusOpt = Annotated[bool, typer.Option("--autofocus", help="Before focusing, scale the track by the scale at "
-                                            "which the brightest isolated points of a first image focus sharpest "
-                                            "(the radar's own measure of the odometry's scale; ~20-30 s more per "
-                                            "drive). The trajectory is then named METHOD+af.")]
+AutofocusOpt = Annotated[bool, typer.Option("--autofocus", help="Before focusing, correct the track by the motion "
+                                            "the radar itself measures: the phase histories of a first image's "
+                                            "bright isolated points (residual motion across track and up, and the "
+                                            "track's scale). The trajectory is then named METHOD+af; where nothing "
+                                            "can be measured the navigated track is kept and run.json says why.")]
 
 
 class Scenario(StrEnum):
@@ -562,8 +563,8 @@ def compare(
     methods: Annotated[str, typer.Option("--methods", help="Comma-separated navigation methods (sar-min, ins, gnss, "
                                          "none, truth; sar-min+scale: SAR-MIN with its track's scale measured by "
                                          "the radar on the truth's corner reflectors, ~20 wide-beam focusings; "
-                                         "sar-min+af: the same on the brightest isolated points of SAR-MIN's "
-                                         "image, no truth needed).")] = "none,ins,sar-min,truth",
+                                         "sar-min+af: SAR-MIN corrected by the residual-motion autofocus, as "
+                                         "`autosar run --autofocus`, no truth needed).")] = "none,ins,sar-min,truth",
     truth: Annotated[Path | None, typer.Option("--truth", help="Truth sidecar (default: <log>.truth.h5).")] = None,
     config: ConfigOpt = None,
     overwrite: OverwriteOpt = False,

@@ -1,10 +1,10 @@
 """``autosar run``: ingest -> navigate [-> autofocus] -> focus in one go, every product in one directory plus
 run.json.
 
-The optional autofocus stage scales the navigated track by what the radar itself measures
-(:func:`autosar_cli.sar.autofocus.autofocus_track`: the scale at which the brightest isolated points of a first
-image focus sharpest): GNSS velocity pins a 25 s drive's odometry scale to ~0.04 %, which leaves reflectors
-120 m apart a few cm off; the radar measures it to ~0.02 % (docs/EVALUATION.md). It costs ~20-30 s per drive.
+The optional autofocus stage corrects the navigated track by what the radar itself measures
+(:func:`autosar_cli.sar.residual_motion.autofocus_residual_motion`: the phase-centre motion that makes the phase
+histories of a first image's bright isolated points coherent, and the track's along-track scale where they measure
+it; docs/FOCUS.md). Where it cannot measure, the navigated track is kept and run.json says why.
 
 run.json (format ``autosar-run`` version 1) records the inputs (path, size), the autosar version, the
 config file, the method and focus parameters, per-stage wall times and summaries, and the outputs
@@ -127,24 +127,19 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
                                       "distance_m": float(np.sum(np.hypot(*np.diff(traj.rear_axle_enu, axis=0).T))),
                                       **{k: traj.info[k] for k in ("updates", "rejected") if k in traj.info}}
     if autofocus:
-        from autosar_cli.sar.autofocus import autofocus_track
+        from autosar_cli.sar.residual_motion import autofocus_residual_motion
 
         t = time.perf_counter()
         if progress:
             progress("autofocus", 0, 1)
-        focused = autofocus_track(out / DRIVE, traj, config, options)
+        focused = autofocus_residual_motion(out / DRIVE, traj, config, options)
         if focused.applied:
             traj = focused.labelled(f"{traj.method}+af")
         write_trajectory(out / TRAJECTORY, traj)
         if progress:
             progress("autofocus", 1, 1)
-        est = focused.estimate
-        manifest["stages"]["autofocus"] = {
-            "wall_s": time.perf_counter() - t, "applied": focused.applied, "summary": focused.summary(),
-            "track_scale": focused.scale,
-            "sharpest_scale": est.scale if est is not None else None,
-            "point_scales": est.point_scales.tolist() if est is not None else [],
-            "points_enu": focused.points_xy.tolist(), "method": traj.method}
+        manifest["stages"]["autofocus"] = {"wall_s": time.perf_counter() - t, "summary": focused.summary(),
+                                           **focused.to_dict(), "method": traj.method}
     manifest["outputs"]["trajectory"] = TRAJECTORY
     if traj.info.get("truth"):
         manifest["truth"] = traj.info["truth"]

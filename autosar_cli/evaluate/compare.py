@@ -53,9 +53,10 @@ from autosar_cli.nav.navigate import default_truth_path, navigate
 from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm
 from autosar_cli.run import FORMAT as RUN_FORMAT
 from autosar_cli.run import FORMAT_VERSION as RUN_FORMAT_VERSION
-from autosar_cli.sar.autofocus import TrackAutofocus, autofocus_track, estimate_track_scale, scale_track
+from autosar_cli.sar.autofocus import TrackAutofocus, estimate_track_scale, scale_track
 from autosar_cli.sar.focus import FocusOptions, auto_grid, focus_images
 from autosar_cli.sar.grid import FocusGrid
+from autosar_cli.sar.residual_motion import autofocus_residual_motion
 from autosar_cli.store.drive import Drive, radar_times
 from autosar_cli.store.image import write_image
 from autosar_cli.store.outputs import check_output
@@ -67,8 +68,8 @@ DEFAULT_METHODS = ("none", "ins", "sar-min", "truth")
 #: SAR-MIN with its track's scale measured by the radar on the corner reflectors (sar/autofocus.py); it needs the
 #: truth's reflector list to know where they are, and costs ~20 wide-beam focusings
 SARMIN_SCALED = "sar-min+scale"
-#: SAR-MIN with its track's scale measured the same way on the brightest isolated points of its own image: no
-#: truth needed
+#: SAR-MIN corrected by the residual-motion autofocus (sar/residual_motion.py) on the bright isolated points of its
+#: own image: no truth needed
 SARMIN_AUTOFOCUS = "sar-min+af"
 DERIVED = (SARMIN_SCALED, SARMIN_AUTOFOCUS)  # made from SAR-MIN's track, which is navigated for them
 COMPARE_METHODS = (*NAV_METHODS, *DERIVED)
@@ -158,9 +159,9 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
                    and (m in trajectories or (m in DERIVED and "sar-min" in trajectories))]
     if SARMIN_AUTOFOCUS in run_methods:
         t0 = time.perf_counter()
-        tick("autofocus sar-min's track scale", 0, 1)
-        focused = autofocus_track(out / DRIVE, trajectories["sar-min"], config, options)
-        tick("autofocus sar-min's track scale", 1, 1)
+        tick("autofocus sar-min's residual motion", 0, 1)
+        focused = autofocus_residual_motion(out / DRIVE, trajectories["sar-min"], config, options)
+        tick("autofocus sar-min's residual motion", 1, 1)
         timings["autofocus"] = time.perf_counter() - t0
         if not focused.applied:
             run_methods.remove(SARMIN_AUTOFOCUS)

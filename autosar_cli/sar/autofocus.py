@@ -8,8 +8,9 @@ peaks of bright point scatterers focused with a wide beam are sharpest when the 
 
 :func:`estimate_track_scale` sweeps the scale, focuses a small patch around each given point with a wide beam
 for each scale, and fits the optimum of the summed sharpness (:func:`point_sharpness`). The points must be
-isolated point-like scatterers: corner reflectors where their whereabouts are known, or the brightest isolated
-points of a first image (:func:`bright_points`).
+isolated point-like scatterers: here the corner reflectors of a simulated drive's truth (compare's
+``sar-min+scale``). The truth-free autofocus, which measures the scale together with the residual motion from the
+phase histories of a first image's bright points, is :mod:`autosar_cli.sar.residual_motion`.
 
 Why sharpness and not the peak: the scale moves each point's response by ``scale`` times its distance from
 the track's centre (13 mm per 0.03 % at 45 m), so the patch's pixels sample it at a different sub-pixel
@@ -29,10 +30,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from autosar_cli.config import Config
-from autosar_cli.nav.trajectory import Trajectory, radar_track
-from autosar_cli.sar.focus import FocusOptions, auto_grid, focus_images
-from autosar_cli.sar.grid import FocusGrid, box_grid, track_distance
-from autosar_cli.store.drive import radar_times
+from autosar_cli.nav.trajectory import Trajectory
+from autosar_cli.sar.focus import FocusOptions, focus_images
+from autosar_cli.sar.grid import box_grid
 
 Array = NDArray[np.float64]
 
@@ -112,51 +112,15 @@ def estimate_track_scale(drive_path: str | Path, trajectory: Trajectory, config:
     return TrackScaleEstimate(_parabola_peak(s_grid, sharp_db.sum(axis=1)), per_point, s_grid, sharp_db)
 
 
-def bright_points(image: ArrayLike, grid: FocusGrid, range_m: ArrayLike, *, count: int = 8,
-                  min_range_m: float = 3.0, max_range_m: float = 12.0, min_separation_m: float = 4.0,
-                  isolation_m: float = 1.0, min_concentration: float = 0.35) -> Array:
-    """ENU (x, y) (P, 2; m) of up to ``count`` bright, isolated, point-like scatterers of a focused image, for
-    :func:`estimate_track_scale` without knowing where any reflector is.
-
-    ``image``: complex (rows, cols) on ``grid``; ``range_m``: each pixel's ground distance from the radar's track
-    (m, same shape). A candidate is the brightest pixel within ``isolation_m`` (square), between ``min_range_m`` and
-    ``max_range_m`` from the track (nearer, the wide beam's aperture is short; farther, the image is faint and the
-    product's beam narrow), holding at least ``min_concentration`` of the intensity of the 7 x 7 pixels around it
-    (car bodies, kerbs and facades spread; a point's response fits in one or two product pixels). Candidates are
-    ranked by |z|^2 R^2 (reflectivity, not nearness) and taken greedily at least ``min_separation_m`` apart.
-    """
-    from scipy.ndimage import maximum_filter, uniform_filter  # only the truth-free selection needs ndimage
-
-    intensity = np.abs(np.asarray(image).astype(np.complex128)) ** 2
-    r = np.asarray(range_m, dtype=np.float64)
-    if intensity.shape != r.shape or intensity.shape != grid.shape:
-        raise ValueError(f"bright_points: image {intensity.shape}, ranges {r.shape} and grid {grid.shape} differ")
-    size = max(3, 2 * int(round(0.5 * isolation_m / grid.pixel_m)) + 1)
-    local_max = (intensity == maximum_filter(intensity, size=size)) & (intensity > 0.0)
-    concentration = intensity / np.maximum(uniform_filter(intensity, size=7) * 49.0, np.finfo(np.float64).tiny)
-    score = np.where(local_max & (r >= min_range_m) & (r <= max_range_m) & (concentration >= min_concentration),
-                     intensity * r**2, 0.0)
-    flat = score.ravel()
-    chosen: list[Array] = []
-    for k in np.argsort(flat)[::-1]:
-        if flat[k] <= 0.0 or len(chosen) >= count:
-            break
-        row, col = divmod(int(k), grid.n_along)
-        xy = grid.pixel_enu(np.array(row), np.array(col))[:2]
-        if all(float(np.hypot(*(xy - c))) >= min_separation_m for c in chosen):
-            chosen.append(xy)
-    return np.array(chosen, dtype=np.float64).reshape(-1, 2)
-
-
 @dataclass(frozen=True)
 class TrackAutofocus:
-    """Result of :func:`autofocus_track`."""
+    """A track scaled by the scale :func:`estimate_track_scale` measured on given points (compare's sar-min+scale)."""
 
     trajectory: Trajectory  #: the input scaled by ``estimate.scale`` (unchanged where ``reason`` says why not)
     estimate: TrackScaleEstimate | None  #: None where no point qualified
     points_xy: Array  #: (P, 2) the points measured, ENU m (where the unscaled track images them)
     reason: str = ""  #: why the track was left unscaled ("" when it was scaled)
-    points_label: str = "brightest isolated points of its image"  #: what the points are, for :meth:`summary`
+    points_label: str = "corner reflectors"  #: what the points are, for :meth:`summary`
 
     @property
     def applied(self) -> bool:
@@ -180,22 +144,3 @@ class TrackAutofocus:
         return (f"distances scaled by {est.scale * 100:+.4f} %, the scale at which the {len(self.points_xy)} "
                 f"{self.points_label} focus sharpest with a ±28° beam (each alone: "
                 f"{', '.join(f'{v * 100:+.3f}' for v in est.point_scales)} %)")
-
-
-def autofocus_track(drive_path: str | Path, trajectory: Trajectory, config: Config, options: FocusOptions
-                    ) -> TrackAutofocus:
-    """``trajectory`` scaled by the scale its own image's brightest isolated points focus sharpest at, with no
-    truth: the product image on the auto grid, :func:`bright_points` 3-12 m from the radar's track,
-    :func:`estimate_track_scale` on them. The track is left as it is when no point qualifies or when the optimum
-    lies at an end of the scales tried (beyond them the sweep says nothing)."""
-    grid = auto_grid(drive_path, trajectory, config, options)
-    image = focus_images(drive_path, trajectory, config, options, grids=[grid]).images[0]
-    track = radar_track(trajectory, radar_times(drive_path), config)
-    points = bright_points(image.image, grid, track_distance(grid, track))
-    if len(points) == 0:
-        return TrackAutofocus(trajectory, None, points, "no bright isolated point 3-12 m from the track")
-    est = estimate_track_scale(drive_path, trajectory, config, points)
-    if not est.scales[1] <= est.scale <= est.scales[-2]:
-        return TrackAutofocus(trajectory, est, points, f"the sharpest scale, {est.scale * 100:+.3f} %, is at an end "
-                              f"of the {est.scales[0] * 100:+.2f} … {est.scales[-1] * 100:+.2f} % tried")
-    return TrackAutofocus(scale_track(trajectory, est.scale), est, points)
