@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -58,6 +59,7 @@ class AutofocusOptions:
     """Parameters of the residual-motion autofocus (defaults: docs/FOCUS.md, "Residual-motion autofocus")."""
 
     half_beam_deg: float = 28.0  #: half-width of the beam over which each point's history is taken
+    channels: int = 2  #: channels of the first image and the histories (sar.focus.channel_pairs)
     min_range_m: float = 3.0  #: ground distance from the track of the points chosen
     max_range_m: float = 12.0
     point_spacing_m: float = 1.5  #: about one point per this much travel (and no two points closer)
@@ -71,6 +73,7 @@ class AutofocusOptions:
     point_prior_m: float = 0.02  #: prior std of a point's own position error
     prior_scale: float = 0.003  #: prior std of the track's along-track scale (GNSS velocity: ~0.04 % on 25 s)
     max_scale_std: float = 0.0003  #: a scale measured less well than this is not applied
+    range_sigma_m: float = 0.002  #: std of a point's bistatic path from its range envelope
     max_phase_rms_rad: float = 0.15  #: points fitting worse than this are dropped (moving, multipath)
     min_points: int = 2  #: fewer usable points: no correction
 
@@ -92,6 +95,16 @@ class PhaseHistories:
     tx_offsets_s: Array  #: (T,) chirp start of each Tx in the PRI
     bin_m: float  #: bistatic path per bin (m)
     cycles_per_m: float  #: phase turns per metre of bistatic path
+
+    @cached_property
+    def flat_samples(self) -> NDArray[np.complex64]:
+        return self.samples.reshape(-1)
+
+    @cached_property
+    def window_starts(self) -> NDArray[np.int64]:
+        """(N, C) index of each window's first bin in :attr:`flat_samples`."""
+        n, c, w = self.samples.shape
+        return np.arange(n * c, dtype=np.int64).reshape(n, c) * w
 
 
 def _frame_geometry(traj: Trajectory, t_ns: NDArray[np.int64], config: Config) -> tuple[Array, Array, Array]:
@@ -119,7 +132,7 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         fs = float(a.get("sample_rate_hz", config.radar.sample_rate_hz))
         n_tx, n_rx, n_samp = (int(v) for v in radar.raw.shape[1:4])
         offsets = np.asarray(a.get("tx_start_offsets_s", config.radar.tx_start_offsets_s), dtype=np.float64)
-        pairs = channel_pairs(n_tx, n_rx, focus.channels)
+        pairs = channel_pairs(n_tx, n_rx, opts.channels)
         n_bins = n_samp * focus.upsample
         bin_m = SPEED_OF_LIGHT * fs / (n_bins * slope)
         cycles_per_m = (f0 + slope * 0.5 * (n_samp - 1) / fs) / SPEED_OF_LIGHT
@@ -168,6 +181,17 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         pairs, offsets, bin_m, cycles_per_m)
 
 
+def _interpolate(hist: PhaseHistories, fi: Array) -> tuple[NDArray[np.complex128], NDArray[np.bool_]]:
+    """Samples (N, C) at fractional bins ``fi`` (N, C) of each pair's window, linearly interpolated; 0 (and
+    False in the mask) outside it."""
+    w = hist.samples.shape[-1]
+    i = np.floor(fi).astype(np.int64)
+    ok = (i >= 0) & (i < w - 1)
+    at = hist.window_starts + np.clip(i, 0, w - 2)
+    s0, s1 = hist.flat_samples[at], hist.flat_samples[at + 1]
+    return (s0 + (fi - i) * (s1 - s0)) * ok, ok
+
+
 def pair_antennas(hist: PhaseHistories, traj: Trajectory, config: Config) -> tuple[Array, Array]:
     """Tx and Rx phase centres (N, C, 3) (ENU m) of every pair's channels along ``traj``."""
     pc = radar_phase_centres(traj, hist.frame_t_ns, hist.tx_offsets_s, config)
@@ -184,18 +208,44 @@ def focus_history(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array
     bin window in any channel gives NaN."""
     p = np.asarray(points_enu, dtype=np.float64)[hist.point][:, None, :]
     path = np.linalg.norm(tx - p, axis=-1) + np.linalg.norm(rx - p, axis=-1)  # (N, C)
-    fi = path / hist.bin_m - hist.bin0
-    i = np.floor(fi).astype(np.int64)
-    ok = (i >= 0) & (i < hist.samples.shape[-1] - 1)
-    i = np.clip(i, 0, hist.samples.shape[-1] - 2)
-    s0 = np.take_along_axis(hist.samples, i[..., None], axis=-1)[..., 0]
-    s1 = np.take_along_axis(hist.samples, (i + 1)[..., None], axis=-1)[..., 0]
-    s = (s0 + (fi - i) * (s1 - s0)) * ok
+    s, ok = _interpolate(hist, path / hist.bin_m - hist.bin0)
     turns = path * hist.cycles_per_m
     z = np.sum(s * np.exp(-2j * np.pi * (turns - np.floor(turns))), axis=1)
     z[~ok.all(axis=1)] = np.nan
     los = p[:, 0] - 0.5 * (tx.mean(axis=1) + rx.mean(axis=1))
     return z, los / np.linalg.norm(los, axis=-1, keepdims=True)
+
+
+def range_offsets(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array, n_points: int,
+                  half_bins: float = 3.0, step_bins: float = 0.5) -> tuple[Array, Array, Array]:
+    """Per point, how much longer (m of bistatic path) its echoes' range envelope says its path is than predicted
+    from ``tx``, ``rx`` (N, C, 3): the peak, over offsets of +-``half_bins``, of the point's pulses summed
+    coherently with the predicted phase (parabola through the three samples around it). Also each point's
+    weight (its summed power) and mean line of sight (P, 3). Phases alone do not fix a point's range: a range error
+    bends its phase history as a wrong speed does, so the envelope pins it."""
+    p = np.asarray(points_enu, dtype=np.float64)[hist.point][:, None, :]
+    path = np.linalg.norm(tx - p, axis=-1) + np.linalg.norm(rx - p, axis=-1)
+    fi = path / hist.bin_m - hist.bin0
+    turns = path * hist.cycles_per_m
+    rot = np.exp(-2j * np.pi * (turns - np.floor(turns)))
+    ks = np.arange(-half_bins, half_bins + 1e-9, step_bins)
+    power = np.zeros((n_points, len(ks)))
+    for m, k in enumerate(ks):
+        s, _ = _interpolate(hist, fi + k)
+        z = np.sum(s * rot, axis=1)
+        zs = np.bincount(hist.point, z.real, n_points) + 1j * np.bincount(hist.point, z.imag, n_points)
+        power[:, m] = np.abs(zs) ** 2
+    k = np.clip(np.argmax(power, axis=1), 1, len(ks) - 2)
+    rows = np.arange(n_points)
+    y0, y1, y2 = (np.log(np.maximum(power[rows, k + d], 1e-300)) for d in (-1, 0, 1))
+    denom = y0 - 2 * y1 + y2
+    frac = np.where(denom < 0, 0.5 * (y0 - y2) / np.where(denom < 0, denom, -1.0), 0.0)
+    offset = (ks[k] + np.clip(frac, -1.0, 1.0) * step_bins) * hist.bin_m
+    los = p[:, 0] - 0.5 * (tx.mean(axis=1) + rx.mean(axis=1))
+    los /= np.linalg.norm(los, axis=-1, keepdims=True)
+    mean_los = np.stack([np.bincount(hist.point, los[:, c], n_points) for c in range(3)], axis=-1)
+    mean_los /= np.maximum(np.linalg.norm(mean_los, axis=-1, keepdims=True), 1e-12)
+    return offset, power.max(axis=1), mean_los
 
 
 @dataclass
@@ -300,6 +350,8 @@ class _Linear:
     design: sp.csr_matrix  #: (M, unknowns): step after the increment dx is step + design @ dx
     rel_var: Array  #: (M,) relative variance of each step (noise power units)
     point: NDArray[np.int64]  #: (M,) the point of each step
+    range_resid: Array = field(default_factory=lambda: np.zeros(0))  #: (Q,) envelope range offset per used point (m)
+    range_design: sp.csr_matrix | None = None  #: (Q, unknowns): its change with the increment
 
 
 def _linearise(smp: _Samples, used: NDArray[np.bool_], node_across: Array, node_s: float, kappa: float,
@@ -354,17 +406,30 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
         return ResidualMotion(trajectory, None, points0, np.zeros(0, dtype=bool), np.zeros(0), 0.0, 0.0, 0.0, 0,
                               f"no bright isolated point {opts.min_range_m:g}-{opts.max_range_m:g} m from the track")
     hist = gather_phase_histories(drive_path, trajectory, config, points0, focus, opts)
-    result, scale_std = _fit(hist, trajectory, config, points0, opts)
-    if result.applied and scale_std > opts.max_scale_std:
-        # too few points, or all at one range: the scale is not measured; the correction is, with the scale kept
-        result, _ = _fit(hist, trajectory, config, points0, replace(opts, prior_scale=1e-9))
-        result = replace(result, scale_note=f"track scale not measured (its std would be {scale_std * 100:.3f} %)")
-    return result
+    # first the scale alone, the track otherwise as navigated: its signature is each aperture's quadratic phase
+    # (the wide beam's defocus the old scale sweep measured), which a free across-track correction would absorb
+    # (the uncorrected motion leaves larger phase residuals: a looser test of which points are points)
+    first, scale_std = _fit(hist, trajectory, config, points0,
+                            replace(opts, prior_across_m=1e-6, prior_up_m=1e-6,
+                                    max_phase_rms_rad=max(opts.max_phase_rms_rad, 0.5)), motion_free=False)
+    scale, note = first.scale, ""
+    if not first.applied:
+        scale, note = 0.0, f"track scale not measured: {first.reason}"
+    elif scale_std > opts.max_scale_std:
+        scale, note = 0.0, f"track scale not measured (its std would be {scale_std * 100:.3f} %)"
+    track = scale_track(trajectory, scale, trajectory.rear_axle_enu.mean(axis=0)) if scale else trajectory
+    points = first.points_enu if first.applied else points0
+    # then the residual motion along the scaled track, from the points that fitted there
+    result, _ = _fit(hist, track, config, points, replace(opts, prior_scale=1e-9),
+                     used0=first.points_used if first.applied else None)
+    return replace(result, scale=scale, scale_std=scale_std, scale_note=note)
 
 
-def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: Array, opts: AutofocusOptions
-         ) -> tuple[ResidualMotion, float]:
-    """The fit of :func:`estimate_residual_motion` on gathered histories; also the posterior std of the scale."""
+def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: Array, opts: AutofocusOptions,
+         motion_free: bool = True, used0: NDArray[np.bool_] | None = None) -> tuple[ResidualMotion, float]:
+    """The fit of :func:`estimate_residual_motion` on gathered histories; also the posterior std of the scale.
+    ``motion_free=False``: the correction's priors are the options' alone, not floored by the navigation's
+    covariance (to hold the track as navigated). ``used0``: the points to start from (default: all)."""
     n_pts = len(points0)
     t0 = int(trajectory.t_ns[0])
     n_nodes = int(math.ceil((int(trajectory.t_ns[-1]) - t0) / 1e9 / opts.node_s)) + 1
@@ -372,7 +437,7 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     _, node_across, _ = _frame_geometry(trajectory, nodes_ns, config)
     up = np.array([0.0, 0.0, 1.0])
     sigma_across = np.full(n_nodes, opts.prior_across_m)
-    nav_std = _across_track_std(trajectory, nodes_ns, node_across)
+    nav_std = _across_track_std(trajectory, nodes_ns, node_across) if motion_free else None
     if nav_std is not None:
         sigma_across = np.maximum(sigma_across, nav_std)
     kappa = 4.0 * math.pi * hist.cycles_per_m
@@ -396,24 +461,60 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     f_node = np.floor(pos).astype(np.int64)
     f_frac = (pos - f_node)[:, None]
 
-    def presummed(x: Array, points: Array) -> _Samples:
+    def antennas(x: Array) -> tuple[Array, Array]:
         at_nodes = x[:n_nodes, None] * node_across + x[n_nodes:2 * n_nodes, None] * up
         moved = at_nodes[f_node] * (1.0 - f_frac) + at_nodes[f_node + 1] * f_frac + x[-1] * scale_lever
         d = moved[hist.frame][:, None, :]
-        z, los = focus_history(hist, tx0 + d, rx0 + d, points)
+        return tx0 + d, rx0 + d
+
+    def presummed(x: Array, points: Array) -> _Samples:
+        z, los = focus_history(hist, *antennas(x), points)
         return _presum(hist, z, los, opts.presum, t0, scale_lever)
 
-    def linearise(x: Array, used: NDArray[np.bool_]) -> _Linear:
-        smp = presummed(x, points0 + x[shifts].reshape(n_pts, 3))
-        return _linearise(smp, used, node_across, opts.node_s, kappa, n_pts)
+    # each point's mean time and scale lever over its pulses, for its range row
+    counts = np.maximum(np.bincount(hist.point, minlength=n_pts), 1)
+    t_mean = np.bincount(hist.point, (hist.frame_t_ns[hist.frame] - t0) / 1e9, n_pts) / counts
+    lever_mean = np.stack([np.bincount(hist.point, scale_lever[hist.frame, k], n_pts) for k in range(3)], -1)
+    lever_mean /= counts[:, None]
+    r_pos = np.clip(t_mean / opts.node_s, 0.0, n_nodes - 1.000001)
+    r_node = np.floor(r_pos).astype(np.int64)
+    r_frac = r_pos - r_node
+
+    def linearise(x: Array, used: NDArray[np.bool_], envelope_of: tuple[_Linear, Array] | None = None) -> _Linear:
+        """The phase steps at ``x``, and the points' range rows: measured at ``x``, or, with ``envelope_of`` =
+        (the linearisation at x - dx, dx), carried over linearly (the envelope changes slowly; measuring it costs
+        as much as the phases)."""
+        points = points0 + x[shifts].reshape(n_pts, 3)
+        tx, rx = antennas(x)
+        z, los = focus_history(hist, tx, rx, points)
+        lin = _linearise(_presum(hist, z, los, opts.presum, t0, scale_lever), used, node_across, opts.node_s,
+                         kappa, n_pts)
+        if envelope_of is not None:
+            prev, dx = envelope_of
+            lin.range_resid = prev.range_resid + prev.range_design @ dx
+            lin.range_design = prev.range_design
+            return lin
+        offset, _, u = range_offsets(hist, tx, rx, points, n_pts)
+        q = np.flatnonzero(used & (np.bincount(hist.point, minlength=n_pts) > 0))
+        # the path is 2 u . (point - antenna): a point shift lengthens it, a correction towards it shortens it
+        k_across = np.einsum("qk,qk->q", u[q], node_across[r_node[q]])
+        cols = [2 * n_nodes + 3 * q + k for k in range(3)] + [r_node[q], r_node[q] + 1, n_nodes + r_node[q],
+                                                                n_nodes + r_node[q] + 1, np.full(len(q), len(x) - 1)]
+        vals = [-2.0 * u[q, k] for k in range(3)] + [
+            2.0 * k_across * (1 - r_frac[q]), 2.0 * k_across * r_frac[q], 2.0 * u[q, 2] * (1 - r_frac[q]),
+            2.0 * u[q, 2] * r_frac[q], 2.0 * np.einsum("qk,qk->q", u[q], lever_mean[q])]
+        lin.range_resid = offset[q]
+        lin.range_design = sp.csr_matrix((np.concatenate(vals), (np.tile(np.arange(len(q)), len(vals)),
+                                                                 np.concatenate(cols))), shape=(len(q), len(x)))
+        return lin
 
     def cost(lin: _Linear, x: Array, noise: float, n_ref: int) -> float:
         """The fit's cost, its data term scaled to ``n_ref`` steps (a point's edge samples come and go with it)."""
         data = float(np.sum(lin.step**2 / (noise * lin.rel_var))) * n_ref / max(len(lin.step), 1)
-        return data + float(x @ (prior_normal @ x))
+        return data + float(np.sum(lin.range_resid**2)) / opts.range_sigma_m**2 + float(x @ (prior_normal @ x))
 
     x = np.zeros(2 * n_nodes + 3 * n_pts + 1)
-    used = np.ones(n_pts, dtype=bool)
+    used = np.ones(n_pts, dtype=bool) if used0 is None else used0.copy()
     lin = linearise(x, used)
     # the noise power of a sample, until the fit measures it: 20 dB below the points' typical sample
     noise = 0.01 / float(np.median(lin.rel_var))
@@ -424,15 +525,21 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
         for _ in range(opts.iterations):
             iterations += 1
             w = 1.0 / (noise * lin.rel_var)
-            normal = (lin.design.T @ lin.design.multiply(w[:, None])).tocsc() + prior_normal
-            rhs = -(lin.design.T @ (w * lin.step)) - prior_normal @ x
+            rd = lin.range_design
+            normal = ((lin.design.T @ lin.design.multiply(w[:, None])) + (rd.T @ rd) / opts.range_sigma_m**2
+                      ).tocsc() + prior_normal
+            rhs = (-(lin.design.T @ (w * lin.step)) - (rd.T @ lin.range_resid) / opts.range_sigma_m**2
+                   - prior_normal @ x)
             while damping < 1e6:  # Levenberg-Marquardt: a step that does not lower the cost is damped
                 dx = spla.spsolve((normal + sp.diags(damping * normal.diagonal())).tocsc(), rhs)
-                trial = linearise(x + dx, used)
+                trial = linearise(x + dx, used, (lin, dx))
                 # a step that pushes a point's samples out of their range window loses data: not a better fit
                 if (len(trial.step) >= 0.99 * len(lin.step)
-                        and (new := cost(trial, x + dx, noise, len(lin.step))) < current):
-                    x, lin, current, damping = x + dx, trial, new, damping / 10.0
+                        and cost(trial, x + dx, noise, len(lin.step)) < current):
+                    x, lin, damping = x + dx, trial, damping / 10.0
+                    if np.max(np.abs(dx[shifts])) > 1e-3:  # a point moved by more than a mm: measure again
+                        lin = linearise(x, used)
+                    current = cost(lin, x, noise, len(lin.step))
                     break
                 damping *= 10.0
             else:
@@ -476,7 +583,9 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
                       f"{coherence_after:.3f})"), np.inf
     # the posterior at the solution, with the measured noise
     w = 1.0 / (noise * lin.rel_var)
-    lu = spla.splu(((lin.design.T @ lin.design.multiply(w[:, None])) + prior_normal).tocsc())
+    rd = lin.range_design
+    lu = spla.splu(((lin.design.T @ lin.design.multiply(w[:, None])) + (rd.T @ rd) / opts.range_sigma_m**2
+                    + prior_normal).tocsc())
     std = _posterior_std(lu, n_nodes)
     unit = np.zeros(len(x))
     unit[-1] = 1.0
@@ -554,8 +663,9 @@ def select_points(image: NDArray[np.complexfloating], grid: FocusGrid, range_m: 
 def candidate_points(drive_path: str | Path, trajectory: Trajectory, config: Config, focus: FocusOptions,
                      opts: AutofocusOptions) -> Array:
     """:func:`select_points` on a first image along ``trajectory``: the product's grid, but only out to
-    ``opts.max_range_m`` and at twice the product's resolution and 1.5 times its pixel (a tenth of the product's
-    back-projections; the fit refines each point's position)."""
+    ``opts.max_range_m``, at twice the product's resolution and 1.5 times its pixel, from ``opts.channels`` channels
+    (a fortieth of the product's back-projections and a quarter of its range compression; the fit refines each
+    point's position)."""
     from autosar_cli.nav.trajectory import radar_track
     from autosar_cli.sar.focus import auto_grid, focus_images
     from autosar_cli.sar.grid import track_distance
@@ -563,7 +673,7 @@ def candidate_points(drive_path: str | Path, trajectory: Trajectory, config: Con
 
     near = replace(config, radar=replace(config.radar, max_range_m=min(config.radar.max_range_m,
                                                                        opts.max_range_m + 1.0)))
-    coarse = replace(focus, resolution_m=2.0 * focus.resolution_m, pixel_m=1.5 * focus.pixel_m)
+    coarse = replace(focus, resolution_m=2.0 * focus.resolution_m, pixel_m=1.5 * focus.pixel_m, channels=opts.channels)
     grid = auto_grid(drive_path, trajectory, near, coarse)
     image = focus_images(drive_path, trajectory, near, coarse, grids=[grid]).images[0]
     track = radar_track(trajectory, radar_times(drive_path), config)
