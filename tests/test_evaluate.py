@@ -36,7 +36,7 @@ from autosar_cli.evaluate.trajectory_metrics import (
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.nav.navigate import navigate
 from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm
-from autosar_cli.sar.autofocus import _parabola_peak, bright_points, point_sharpness, scale_track
+from autosar_cli.sar.autofocus import _parabola_peak, point_sharpness, scale_track
 from autosar_cli.sar.grid import FocusGrid, box_grid, track_distance
 from autosar_cli.store.drive import radar_times
 from autosar_cli.store.image import FocusedImage, read_image
@@ -247,29 +247,6 @@ def test_point_target_peak_is_located_between_the_fine_samples() -> None:
     assert worst_argmax > 3e-4
 
 
-def test_bright_points_are_isolated_point_like_and_ranked_by_reflectivity() -> None:
-    """A synthetic 4 cm image 1-13 m from a track: the points come out brightest-by-|z|^2 R^2 first; one too near
-    the track, one within 4 m of a brighter point and a bright 4 m line (a facade) are left out."""
-    from autosar_cli.sar.grid import FocusGrid
-
-    grid = FocusGrid((0.0, 0.0), (1.0, 0.0), (0.0, -1.0), 0.04, 500, 300, 0.0)
-    rows = np.arange(300)[:, None] * np.ones((1, 500))
-    range_m = 1.0 + 0.04 * rows  # the track runs along y = +1 m
-    image = np.full((300, 500), 1e-3, np.complex64)
-    spots = {"A": (100, 50, 1.0), "B": (200, 300, 0.8), "C": (150, 310, 0.7), "D": (25, 200, 3.0),
-             "F": (120, 450, 0.5)}
-    for r, c, a in spots.values():
-        image[r, c] = a
-        image[r, c + 1] = 0.5 * a  # a response over two pixels, still point-like
-    image[250, 100:200] = 2.0  # the facade
-    points = bright_points(image, grid, range_m)
-    expected = [spots[k] for k in ("B", "A", "F")]
-    np.testing.assert_allclose(points, [[c * 0.04, -r * 0.04] for r, c, _ in expected], atol=1e-9)
-    assert len(bright_points(image, grid, range_m, count=2)) == 2
-    with pytest.raises(ValueError, match="differ"):
-        bright_points(image, grid, range_m[:-1])
-
-
 def test_entropy_and_contrast_exact() -> None:
     n = 64 * 32
     uniform = np.full((64, 32), 3.0 + 4.0j, np.complex64)
@@ -368,10 +345,12 @@ def test_run_writes_every_product_and_the_manifest(ci_run: Path) -> None:
     assert r.exit_code == 1 and "--overwrite" in r.stderr and "Traceback" not in r.output
 
 
-def test_run_autofocus_scales_the_track_before_focusing(ci_run: Path, ci_mcap, tmp_path: Path) -> None:
+def test_run_autofocus_corrects_the_track_before_focusing(ci_run: Path, ci_mcap, tmp_path: Path) -> None:
     """`autosar run --autofocus`: a stage between navigate and focus; the trajectory written (and focused) is
-    SAR-MIN's scaled by the stage's scale, named sar-min+af, the points measured in its info; the ci drive is
-    2.4 m long, so the scale is barely observable there: the plumbing is what is tested (test2 below)."""
+    SAR-MIN's with the residual-motion correction the stage measured, named sar-min+af; run.json holds the points,
+    their coherence before and after, the correction's size and uncertainty. On the 2.4 m ci drive the radar's own
+    vibration (1 mm vertical, which no sensor sees) is what there is to correct, and the track scale is not
+    measurable (std ~0.04 %): the stage says so and keeps SAR-MIN's."""
     out = tmp_path / "af"
     r = runner.invoke(app, ["run", str(ci_mcap.log_path), "-o", str(out), "--autofocus", "--json"])
     assert r.exit_code == 0, r.output
@@ -379,55 +358,57 @@ def test_run_autofocus_scales_the_track_before_focusing(ci_run: Path, ci_mcap, t
     assert manifest == json.loads((out / "run.json").read_text()) and manifest["autofocus"] is True
     assert list(manifest["stages"]) == ["ingest", "navigate", "autofocus", "focus"]
     af = manifest["stages"]["autofocus"]
-    assert af["applied"] and af["method"] == "sar-min+af" and af["wall_s"] > 0
-    scale = af["track_scale"]
-    assert 0.0 < abs(scale) <= 3e-3 and 1 <= len(af["points_enu"]) == len(af["point_scales"]) <= 8
+    assert af["applied"] and af["method"] == "sar-min+af" and af["wall_s"] > 0 and af["reason"] == ""
+    assert af["points_used"] >= 2 and af["coverage"] == pytest.approx(1.0, abs=0.05)
+    assert af["coherence_before"] < af["coherence_after"] and af["coherence_after"] > 0.99
+    assert af["track_scale"] == 0.0 and "track scale not measured" in af["track_scale_note"]
+    assert 0.01 < af["correction"]["rms_mm"] < 1.0 and af["correction"]["std_median_mm"] > 0
     traj = read_trajectory(out / "trajectory.h5", covariance=False)
     base = read_trajectory(ci_run / "trajectory.h5", covariance=False)  # the same log without --autofocus
-    assert traj.method == "sar-min+af" and traj.info["track_scale"] == scale
-    np.testing.assert_allclose(traj.speed, base.speed * (1 + scale), rtol=1e-9)
-    c = base.rear_axle_enu.mean(axis=0)
-    np.testing.assert_allclose(traj.rear_axle_enu, c + (1 + scale) * (base.rear_axle_enu - c), atol=1e-9)
+    assert traj.method == "sar-min+af" and traj.info["autofocus"]["points_used"] == af["points_used"]
+    np.testing.assert_array_equal(traj.rear_axle_enu, base.rear_axle_enu)
+    c = traj.correction
+    assert c is not None and c.offset_enu.shape == c.std_enu.shape == (len(c.t_ns), 3)
+    lever = phase_centre_lever_arm(CFG)[None]
+    moved = traj.body_points(c.t_ns, lever)[:, 0] - base.body_points(c.t_ns, lever)[:, 0]
+    np.testing.assert_allclose(moved, c.offset_enu, atol=1e-12)
     assert read_image(out / "image.h5").image.shape == read_image(ci_run / "image.h5").image.shape
     r = runner.invoke(app, ["evaluate", str(out), "-o", str(tmp_path / "report"), "--json"])
     assert r.exit_code == 0, r.output
-    assert json.loads(r.stdout)["track_scale"] == scale
-    assert f"scaled by {scale * 100:+.4f} %" in (tmp_path / "report" / "report.md").read_text()
 
 
-@pytest.mark.parametrize("failure", ["no point", "sweep end"])
+@pytest.mark.parametrize("failure", ["no point", "clutter"])
 def test_run_autofocus_leaves_the_track_alone_when_it_cannot_measure(failure: str, ci_run: Path, ci_mcap,
                                                                     tmp_path: Path,
                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
-    """No bright isolated point in the first image, or the sharpest scale at an end of the sweep: the run goes on
-    with the navigated track (named sar-min), run.json says why, and the console warns."""
-    import autosar_cli.sar.autofocus as af
+    """No bright isolated point in the first image, or candidates that are distributed clutter, not point
+    scatterers: the run goes on with the navigated track (named sar-min), run.json says why, the console warns."""
+    import autosar_cli.sar.residual_motion as rm
 
     if failure == "no point":
-        monkeypatch.setattr(af, "bright_points", lambda *a, **k: np.zeros((0, 2)))
-    else:
-        def at_the_end(drive_path, trajectory, config, points, **kw):  # type: ignore[no-untyped-def]
-            s = af.DEFAULT_SCALES
-            return af.TrackScaleEstimate(float(s[-1]), np.full(len(points), s[-1]), s, np.zeros((s.size, len(points))))
-        monkeypatch.setattr(af, "estimate_track_scale", at_the_end)
+        monkeypatch.setattr(rm, "select_points", lambda *a, **k: np.zeros((0, 3)))
+    else:  # ground clutter 2-3 m beyond the corner reflectors, away from every bright object
+        monkeypatch.setattr(rm, "select_points", lambda *a, **k: np.array([[2.2, -8.0, 0.5], [3.6, -8.6, 0.5],
+                                                                           [1.5, -9.2, 0.5]]))
     out = tmp_path / "af"
     r = runner.invoke(app, ["run", str(ci_mcap.log_path), "-o", str(out), "--autofocus"])
     assert r.exit_code == 0, r.output
     stage = json.loads((out / "run.json").read_text())["stages"]["autofocus"]
-    assert not stage["applied"] and stage["track_scale"] == 0.0 and stage["method"] == "sar-min"
-    reason = "no bright isolated point" if failure == "no point" else "is at an end of the"
-    assert reason in stage["summary"] and "warning" in r.stderr and reason in r.stderr
+    assert not stage["applied"] and stage["method"] == "sar-min" and stage["correction"] == {}
+    reason = "no bright isolated point" if failure == "no point" else "behave as stationary point scatterers"
+    assert reason in stage["reason"] and reason in stage["summary"] and "warning" in r.stderr and reason in r.stderr
     traj = read_trajectory(out / "trajectory.h5", covariance=False)
     base = read_trajectory(ci_run / "trajectory.h5", covariance=False)
-    assert traj.method == "sar-min" and "track_scale" not in traj.info
+    assert traj.method == "sar-min" and traj.correction is None and "autofocus" not in traj.info
     np.testing.assert_array_equal(traj.rear_axle_enu, base.rear_axle_enu)
 
 
 @pytest.mark.slow
 def test_run_autofocus_puts_test2s_reflectors_within_3_cm(sim_dir: Path, tmp_path: Path) -> None:
-    """The product path end to end on test2 seed 1, where SAR-MIN alone leaves its reflectors up to 2.95 cm off
+    """The product path end to end on test2 seed 1, where SAR-MIN alone leaves its reflectors up to 2.94 cm off
     (the GNSS velocity's scale): `autosar run --autofocus` then `autosar evaluate` finds every reflector within
-    3 cm and 1 dB of the truth-trajectory image (measured: <= 1.62 cm, <= 0.14 dB)."""
+    3 cm and 1 dB of the truth-trajectory image (measured: scale -0.071 ± 0.008 %, reflectors <= 0.34 cm,
+    peak loss -0.42 ... +0.19 dB: the correction also removes the radar's vibration, which the truth image keeps)."""
     sim = simulated(sim_dir, "test2", "mcap", 1)
     out = tmp_path / "run"
     r = runner.invoke(app, ["run", str(sim.log_path), "-o", str(out), "--autofocus", "--json"])
@@ -603,15 +584,18 @@ def test_compare_sarmin_scaled_alone_on_ci(ci_mcap, tmp_path: Path) -> None:
 
 
 def test_compare_sarmin_autofocus_needs_no_truth(ci_mcap, tmp_path: Path) -> None:
-    """sar-min+af on a log without its truth sidecar: SAR-MIN's track scaled by what the brightest isolated points
-    of its own image measure; the points and the scale are in its trajectory's info."""
+    """sar-min+af on a log without its truth sidecar: SAR-MIN's track with the residual-motion correction its own
+    image's bright points measure; what was measured is in its trajectory's info and the comparison's notes."""
     log = tmp_path / "bare.mcap"
     shutil.copy(ci_mcap.log_path, log)
     result = compare([log], tmp_path / "cmp", CFG, methods=["sar-min+af"])
     assert result["methods"] == ["sar-min+af"] and result["skipped"] == {}, result["skipped"]
-    traj = _check_scaled_sarmin(result, tmp_path / "cmp", "sar-min+af")
-    points = np.asarray(traj.info["autofocus_points_enu"])
-    assert points.ndim == 2 and points.shape[1] == 2 and 1 <= len(points) <= 8
+    traj = read_trajectory(tmp_path / "cmp" / "sar-min+af" / "trajectory.h5", covariance=False)
+    assert traj.method == "sar-min+af" and traj.correction is not None
+    af = traj.info["autofocus"]
+    assert af["applied"] and af["points_used"] >= 2 and len(af["points_enu"]) == af["points"]
+    assert any(n.startswith("sar-min+af:") and "residual motion corrected" in n for n in result["notes"])
+    assert not (tmp_path / "cmp" / "sar-min").exists()
 
 
 def test_compare_skips_truth_without_a_sidecar(ci_mcap, tmp_path: Path) -> None:
@@ -739,10 +723,9 @@ def test_radar_measured_scale_puts_test2s_reflectors_within_3_cm(sim_dir: Path,
 @pytest.mark.slow
 def test_radar_autofocus_without_truth_brings_test2s_reflectors_within_3_cm(
         sim_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> None:
-    """sar-min+af: the scale sweep on the 8 brightest isolated points of SAR-MIN's own image (3 of them the corner
-    reflectors, 5 facade and street furniture), no truth. Measured on test2 seed 1: scale -0.086 % against the
-    truth's -0.066 % (SAR-MIN alone: 0), reflectors <= 1.62 cm (SAR-MIN alone 2.95 cm), peak loss <= 0.14 dB. Its
-    scale erred by -0.027 … +0.023 % on test1-3 seeds 1, 2 (docs/EVALUATION.md), more than on the reflectors."""
+    """sar-min+af: the residual-motion autofocus on the bright isolated points of SAR-MIN's own image, no truth; its
+    scale comes from the points' phase histories with their ranges pinned by the range envelope. Measured on test2
+    seed 1: scale -0.071 % against the truth's -0.066 % (SAR-MIN alone: 0)."""
     _, true_scale, radar_scale = _scaled_comparison(sim_dir, tmp_path_factory, "sar-min+af")
     assert abs(radar_scale - true_scale) < 4e-4
 

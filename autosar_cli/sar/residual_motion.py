@@ -301,7 +301,8 @@ class ResidualMotion:
 
     def labelled(self, method: str) -> Trajectory:
         """The corrected trajectory named ``method``, its info holding what autofocus measured."""
-        return replace(self.trajectory, method=method, info={**self.trajectory.info, "autofocus": self.to_dict()})
+        return replace(self.trajectory, method=method, info={**self.trajectory.info, "track_scale": self.scale,
+                                                             "autofocus": self.to_dict()})
 
     def correction_summary(self) -> dict[str, float]:
         c = self.correction
@@ -562,7 +563,7 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
         lin = linearise(x, used)
     points = points0 + x[shifts].reshape(n_pts, 3)
     cross = np.stack([x[:n_nodes], x[n_nodes:2 * n_nodes]], axis=-1)
-    scale = float(x[-1])
+    scale = float(x[-1]) if opts.prior_scale > 1e-9 else 0.0  # a prior that small holds the scale (the motion fit)
     # with the points where the fit puts them, so that only the track differs
     unchanged = np.zeros_like(x)
     unchanged[shifts] = x[shifts]
@@ -594,7 +595,7 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     std_enu = np.stack([np.abs(std[:, 0] * node_across[:, 0]), np.abs(std[:, 0] * node_across[:, 1]), std[:, 1]],
                        axis=-1)
     correction = MotionCorrection(nodes_ns, offset, std_enu)
-    result = replace(scale_track(trajectory, scale, centre), correction=correction)
+    result = replace(scale_track(trajectory, scale, centre) if scale else trajectory, correction=correction)
     return ResidualMotion(result, correction, points, used, phase_rms, coherence_before, coherence_after, coverage,
                           iterations, "", hist.frame_t_ns[seen_frames], scale, scale_std), scale_std
 
