@@ -1,0 +1,87 @@
+"""Benchmark the residual-motion autofocus: `autosar run --autofocus` against `autosar run` on one drive, and what
+the correction recovers.
+
+Usage: python benches/bench_autofocus.py [--scenario test2] [--seed 1] [--dynamics kinematic] [--repeat 5]
+
+Simulates the drive once (MCAP), then alternates ``autosar run LOG`` and ``autosar run LOG --autofocus`` in fresh
+processes (after one warm-up of each, which fills numba's cache), so both see the same host load; records each
+command's wall time and stage times, and the ratio of the medians (the issue's target: <= 1.5). Then evaluates the
+last --autofocus run against the truth (reflector errors and peak losses, the scale applied against the truth's),
+and the plain run the same way. Writes benches/results/autofocus.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def autosar(*args: str) -> tuple[float, dict[str, Any]]:
+    """Wall time (s) of one `autosar ... --json` command in a fresh process, and its JSON output."""
+    t = time.perf_counter()
+    res = subprocess.run([sys.executable, "-m", "autosar_cli.cli", *args, "--json"], check=True, capture_output=True,
+                         text=True)
+    return time.perf_counter() - t, json.loads(res.stdout)
+
+
+def reflectors(run_dir: Path) -> dict[str, Any]:
+    """`autosar evaluate` of a run: each reflector's aligned error (cm) and peak loss (dB)."""
+    autosar("evaluate", str(run_dir), "-o", str(run_dir / "report"), "--overwrite")
+    m = json.loads((run_dir / "report" / "metrics.json").read_text())
+    return {"error_cm": [round(100 * r["aligned_error_m"], 2) for r in m["reflectors"]],
+            "peak_loss_db": [round(r["peak_loss_db"], 2) for r in m["reflectors"]]}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenario", default="test2")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--dynamics", choices=("kinematic", "full"), default="kinematic")
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--workdir", type=Path, default=None)
+    ap.add_argument("--output", type=Path, default=RESULTS / "autofocus.json")
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        work = args.workdir or Path(tmp)
+        work.mkdir(parents=True, exist_ok=True)
+        log = work / f"{args.scenario}_s{args.seed}_{args.dynamics}.mcap"
+        if not log.exists():
+            subprocess.run([sys.executable, "-m", "autosar_cli.cli", "simulate", "--scenario", args.scenario, "--seed",
+                            str(args.seed), "--dynamics", args.dynamics, "--output", str(log), "--overwrite"],
+                           check=True, capture_output=True)
+        runs: dict[str, list[dict[str, Any]]] = {"run": [], "run --autofocus": []}
+        for i in range(args.repeat + 1):  # the first pair warms numba's on-disk cache
+            for name, extra in (("run", []), ("run --autofocus", ["--autofocus"])):
+                out = work / name.replace(" --", "_")
+                wall, manifest = autosar("run", str(log), "-o", str(out), "--overwrite", *extra)
+                if i:
+                    runs[name].append({"wall_s": round(wall, 3), "stages_s": {k: round(v["wall_s"], 3) for k, v in
+                                                                             manifest["stages"].items()}})
+                    print(f"{name}: {wall:.2f} s " + ", ".join(f"{k} {v['wall_s']:.2f}"
+                                                               for k, v in manifest["stages"].items()), flush=True)
+        af = manifest["stages"]["autofocus"]
+        medians = {k: statistics.median(r["wall_s"] for r in v) for k, v in runs.items()}
+        result = {"benchmark": "autofocus", "scenario": args.scenario, "seed": args.seed, "dynamics": args.dynamics,
+                  "repeat": args.repeat, "runs": runs, "median_wall_s": medians,
+                  "ratio_autofocus_to_run": round(medians["run --autofocus"] / medians["run"], 3),
+                  "autofocus": {k: af[k] for k in ("summary", "applied", "track_scale", "track_scale_std", "points",
+                                                   "points_used", "coverage", "coherence_before", "coherence_after",
+                                                   "correction")},
+                  "reflectors": {"run": reflectors(work / "run"), "run --autofocus": reflectors(work / "run_autofocus")}}
+    print(json.dumps({k: result[k] for k in ("median_wall_s", "ratio_autofocus_to_run", "autofocus", "reflectors")},
+                     indent=2))
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    args.output.write_text(json.dumps(result, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
