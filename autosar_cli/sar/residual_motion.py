@@ -19,9 +19,10 @@ phase-gradient autofocus (Wahl et al. 1994), but solved for a correction of the 
   with ``dc(t)`` the correction (across track and up, piecewise linear on ``node_s`` nodes) and ``d_j`` the
   point's own position error (it absorbs the parts of the correction that only move a point: a constant and a
   steady drift over its aperture). Phase steps need no unwrapping; each is weighted by its signal-to-noise ratio;
-* fused with the navigation: a prior of ``prior_across_m`` (or the filter's own across-track standard deviation
-  where larger) and ``prior_up_m`` on the correction, and ``step_m`` on its change between nodes, so a stretch
-  with no point keeps the navigated track; a sparse weighted least-squares solve, Gauss-Newton iterations with
+* fused with the navigation: a prior of ``prior_across_m`` and ``prior_up_m`` on the correction (the size of the
+  motion the navigation leaves unmodelled; its own covariance bounds the absolute position to ~0.3 m, which
+  constrains nothing at this scale) and ``step_m`` on its change between nodes, so a stretch with no point keeps
+  the navigated track; a sparse weighted least-squares solve, Gauss-Newton iterations with
   each point's position updated, posterior standard deviations from the normal matrix;
 * points whose phases do not fit (moving targets, multipath) are dropped. The correction is refused, with the
   reason, when fewer than ``min_points`` points remain or when it does not make the points' histories more
@@ -56,7 +57,7 @@ Array = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class AutofocusOptions:
-    """Parameters of the residual-motion autofocus (defaults: docs/FOCUS.md, "Residual-motion autofocus")."""
+    """Parameters of the residual-motion autofocus (their reasons: docs/AUTOFOCUS.md, "What it does")."""
 
     half_beam_deg: float = 28.0  #: half-width of the beam over which each point's history is taken
     channels: int = 2  #: channels of the first image and the histories (sar.focus.channel_pairs)
@@ -67,7 +68,7 @@ class AutofocusOptions:
     node_s: float = 0.01  #: spacing of the correction's nodes (s)
     window_bins: int = 32  #: range bins kept around each pulse's expected range
     iterations: int = 4  #: Gauss-Newton iterations at most
-    prior_across_m: float = 0.005  #: prior std of the across-track correction (floor of the filter's own)
+    prior_across_m: float = 0.005  #: prior std of the across-track correction
     prior_up_m: float = 0.005  #: prior std of the vertical correction
     step_m: float = 0.001  #: prior std of the correction's change from one node to the next
     point_prior_m: float = 0.02  #: prior std of a point's own position error
@@ -412,7 +413,7 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
     # (the uncorrected motion leaves larger phase residuals: a looser test of which points are points)
     first, scale_std = _fit(hist, trajectory, config, points0,
                             replace(opts, prior_across_m=1e-6, prior_up_m=1e-6,
-                                    max_phase_rms_rad=max(opts.max_phase_rms_rad, 0.5)), motion_free=False)
+                                    max_phase_rms_rad=max(opts.max_phase_rms_rad, 0.5)))
     scale, note = first.scale, ""
     if not first.applied:
         scale, note = 0.0, f"track scale not measured: {first.reason}"
@@ -427,10 +428,9 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
 
 
 def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: Array, opts: AutofocusOptions,
-         motion_free: bool = True, used0: NDArray[np.bool_] | None = None) -> tuple[ResidualMotion, float]:
+         used0: NDArray[np.bool_] | None = None) -> tuple[ResidualMotion, float]:
     """The fit of :func:`estimate_residual_motion` on gathered histories; also the posterior std of the scale.
-    ``motion_free=False``: the correction's priors are the options' alone, not floored by the navigation's
-    covariance (to hold the track as navigated). ``used0``: the points to start from (default: all)."""
+    ``used0``: the points to start from (default: all)."""
     n_pts = len(points0)
     t0 = int(trajectory.t_ns[0])
     n_nodes = int(math.ceil((int(trajectory.t_ns[-1]) - t0) / 1e9 / opts.node_s)) + 1
@@ -438,9 +438,6 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     _, node_across, _ = _frame_geometry(trajectory, nodes_ns, config)
     up = np.array([0.0, 0.0, 1.0])
     sigma_across = np.full(n_nodes, opts.prior_across_m)
-    nav_std = _across_track_std(trajectory, nodes_ns, node_across) if motion_free else None
-    if nav_std is not None:
-        sigma_across = np.maximum(sigma_across, nav_std)
     kappa = 4.0 * math.pi * hist.cycles_per_m
     # a correction the trajectory already carries is kept, and this one added to it
     base = trajectory.correction.at(nodes_ns) if trajectory.correction is not None else np.zeros((n_nodes, 3))
@@ -598,17 +595,6 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     result = replace(scale_track(trajectory, scale, centre) if scale else trajectory, correction=correction)
     return ResidualMotion(result, correction, points, used, phase_rms, coherence_before, coherence_after, coverage,
                           iterations, "", hist.frame_t_ns[seen_frames], scale, scale_std), scale_std
-
-
-def _across_track_std(traj: Trajectory, nodes_ns: NDArray[np.int64], across: Array) -> Array | None:
-    """The navigation's own across-track position std (m) at the nodes, where its covariance holds x and y."""
-    if traj.covariance is None or "x" not in traj.state_names or "y" not in traj.state_names:
-        return None
-    ix, iy = traj.state_names.index("x"), traj.state_names.index("y")
-    k = np.clip(np.searchsorted(traj.t_ns, nodes_ns), 0, len(traj.t_ns) - 1)
-    cov = traj.covariance[k][:, [ix, iy]][:, :, [ix, iy]]
-    a = across[:, :2]
-    return np.sqrt(np.maximum(np.einsum("ni,nij,nj->n", a, cov, a), 0.0))
 
 
 def _posterior_std(lu: spla.SuperLU, n_nodes: int, every: int = 10) -> Array:
