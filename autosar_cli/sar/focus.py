@@ -98,6 +98,37 @@ def channel_pairs(n_tx: int, n_rx: int, channels: int) -> list[tuple[int, int]]:
     raise FocusError(f"--channels {channels}: choose 8 or 12")
 
 
+@dataclass(frozen=True)
+class RadarParameters:
+    """What focusing needs of a drive's radar: its chirp (from the recording, the config where it says nothing),
+    its array's size and the range axis of a compressed profile upsampled ``upsample`` times."""
+
+    start_frequency_hz: float
+    slope_hz_per_s: float
+    sample_rate_hz: float
+    n_tx: int
+    n_rx: int
+    n_samples: int
+    tx_start_offsets_s: NDArray[np.float64]  #: (T,) chirp start of Tx k in the PRI
+    n_bins: int  #: bins of a compressed profile
+    bin_m: float  #: bistatic path per compressed bin (m)
+    cycles_per_m: float  #: carrier turns per metre of bistatic path at the window's centre
+    wavelength_m: float  #: at the chirp's centre frequency
+
+    @classmethod
+    def of(cls, radar: RadarStream, config: Config, upsample: int) -> RadarParameters:
+        a = radar.attrs
+        f0 = float(a.get("start_frequency_hz", config.radar.start_frequency_hz))
+        slope = float(a.get("slope_hz_per_s", config.radar.slope_hz_per_s))
+        fs = float(a.get("sample_rate_hz", config.radar.sample_rate_hz))
+        n_tx, n_rx, n_samp = (int(v) for v in radar.raw.shape[1:4])
+        offsets = np.asarray(a.get("tx_start_offsets_s", config.radar.tx_start_offsets_s), dtype=np.float64)
+        n_bins = n_samp * upsample
+        return cls(f0, slope, fs, n_tx, n_rx, n_samp, offsets, n_bins, SPEED_OF_LIGHT * fs / (n_bins * slope),
+                   (f0 + slope * 0.5 * (n_samp - 1) / fs) / SPEED_OF_LIGHT,
+                   SPEED_OF_LIGHT / (f0 + 0.5 * slope * n_samp / fs))
+
+
 def parse_grid(spec: str) -> tuple[float, float, float, float] | None:
     """``auto`` -> None; ``x0,y0,x1,y1`` -> the ENU box (m)."""
     if spec.strip().lower() == "auto":
@@ -219,24 +250,17 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
             radar = drive.radar()
         except Exception as exc:  # noqa: BLE001 - any reader failure is an input problem here
             raise FocusError(f"{drive_path}: {exc}") from None
-        a = radar.attrs
-        f0 = float(a.get("start_frequency_hz", config.radar.start_frequency_hz))
-        slope = float(a.get("slope_hz_per_s", config.radar.slope_hz_per_s))
-        fs = float(a.get("sample_rate_hz", config.radar.sample_rate_hz))
-        n_tx, n_rx, n_samp = (int(v) for v in radar.raw.shape[1:4])
-        offsets = np.asarray(a.get("tx_start_offsets_s", config.radar.tx_start_offsets_s), dtype=np.float64)
-        pairs = channel_pairs(n_tx, n_rx, options.channels)
+        rp = RadarParameters.of(radar, config, options.upsample)
+        f0, slope, fs, n_samp, offsets = rp.start_frequency_hz, rp.slope_hz_per_s, rp.sample_rate_hz, rp.n_samples, \
+            rp.tx_start_offsets_s
+        n_bins, bin_m, cycles_per_m, wavelength = rp.n_bins, rp.bin_m, rp.cycles_per_m, rp.wavelength_m
+        pairs = channel_pairs(rp.n_tx, rp.n_rx, options.channels)
         geometry = _usable_frames(radar, traj, config, options.min_speed_mps)
         if geometry.frames.size < 2:
             raise FocusError(f"{drive_path}: no radar frame lies inside the trajectory {traj_name} while moving")
         grid_list = grids if grids else [make_grid(options, geometry, config)]
         timings["geometry"] += time.perf_counter() - t_start
 
-        n_bins = n_samp * options.upsample
-        bin_m = SPEED_OF_LIGHT * fs / (n_bins * slope)  # bistatic path per compressed bin
-        t_c = 0.5 * (n_samp - 1) / fs
-        cycles_per_m = (f0 + slope * t_c) / SPEED_OF_LIGHT
-        wavelength = SPEED_OF_LIGHT / (f0 + 0.5 * slope * n_samp / fs)
         half_width = processed_half_width(wavelength, options.resolution_m)
         side = 1.0 if math.sin(math.radians(config.radar.mounting.yaw_deg)) > 0 else -1.0
         used_tx = sorted({t for t, _ in pairs})

@@ -47,8 +47,8 @@ from numpy.typing import NDArray
 from autosar_cli.config import Config
 from autosar_cli.nav.trajectory import phase_centre_lever_arm, radar_phase_centres
 from autosar_cli.sar.autofocus import scale_track
-from autosar_cli.sar.focus import FocusOptions, channel_pairs
-from autosar_cli.sar.range_compression import SPEED_OF_LIGHT, range_compress
+from autosar_cli.sar.focus import FocusOptions, RadarParameters, channel_pairs
+from autosar_cli.sar.range_compression import range_compress
 from autosar_cli.store.drive import Drive
 from autosar_cli.types import FocusGrid, MotionCorrection, Trajectory
 
@@ -127,16 +127,10 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
     w = int(opts.window_bins)
     with Drive(drive_path) as drive:
         radar = drive.radar()
-        a = radar.attrs
-        f0 = float(a.get("start_frequency_hz", config.radar.start_frequency_hz))
-        slope = float(a.get("slope_hz_per_s", config.radar.slope_hz_per_s))
-        fs = float(a.get("sample_rate_hz", config.radar.sample_rate_hz))
-        n_tx, n_rx, n_samp = (int(v) for v in radar.raw.shape[1:4])
-        offsets = np.asarray(a.get("tx_start_offsets_s", config.radar.tx_start_offsets_s), dtype=np.float64)
-        pairs = channel_pairs(n_tx, n_rx, opts.channels)
-        n_bins = n_samp * focus.upsample
-        bin_m = SPEED_OF_LIGHT * fs / (n_bins * slope)
-        cycles_per_m = (f0 + slope * 0.5 * (n_samp - 1) / fs) / SPEED_OF_LIGHT
+        rp = RadarParameters.of(radar, config, focus.upsample)
+        fs, slope, offsets, n_bins, bin_m = rp.sample_rate_hz, rp.slope_hz_per_s, rp.tx_start_offsets_s, rp.n_bins, \
+            rp.bin_m
+        pairs = channel_pairs(rp.n_tx, rp.n_rx, opts.channels)
         t_all = radar.t_ns
         last_chirp_ns = int(round(offsets.max() * 1e9)) if offsets.size else 0
         frames = np.flatnonzero((t_all >= traj.t_ns[0]) & (t_all + last_chirp_ns <= traj.t_ns[-1]))
@@ -179,7 +173,7 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         np.concatenate(out_frame) if not empty else np.zeros(0, np.int64), t,
         np.concatenate(out_bin0) if not empty else np.zeros((0, len(pairs)), np.int64),
         np.concatenate(out_samples).astype(np.complex64) if not empty else np.zeros((0, len(pairs), w), np.complex64),
-        pairs, offsets, bin_m, cycles_per_m)
+        pairs, offsets, bin_m, rp.cycles_per_m)
 
 
 def _interpolate(hist: PhaseHistories, fi: Array) -> tuple[NDArray[np.complex128], NDArray[np.bool_]]:
