@@ -39,6 +39,9 @@ class VehicleConfig:
     wheel_radius_m: float
     cog_to_rear_axle_m: float
     cog_height_m: float
+    #: K of the steady-state steering, road-wheel angle = L kappa + K a_y (rad per m/s^2); what SAR-MIN's steering
+    #: model assumes (0: the kinematic bicycle)
+    understeer_gradient_rad_per_mps2: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -236,3 +236,13 @@ def noise_floor_prediction(noise_std_lsb: float, n_samples: int, upsample: int) 
     k = np.arange(n_samples) - 0.5 * (n_samples - 1)
     rho = np.sum(w**2 * np.cos(2 * np.pi * k / (n_samples * upsample))) / np.sum(w**2)
     return 2 * (noise_std_lsb**2 + 1 / 12) * np.sum(w**2) * (2 / 3 + rho / 3)
+
+
+class FlatRoad:
+    """A level, perfectly smooth road (the closed-form single-track and roll values assume one)."""
+
+    def height(self, s: np.ndarray, w: np.ndarray, side: int) -> np.ndarray:
+        return np.zeros(np.broadcast(np.asarray(s), np.asarray(w)).shape)
+
+    def grade_height(self, s: np.ndarray) -> np.ndarray:
+        return np.zeros_like(np.asarray(s, dtype=np.float64))

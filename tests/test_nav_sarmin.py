@@ -469,6 +469,7 @@ def _independent_ukf(inputs, cfg):  # noqa: ANN001, ANN202 - NavInputs, Config -
                   nav.yaw_rate_noise_radps2**2, *np.square(inputs.gyro_bias_walk), 1e-12, *[1e-12] * 4])
     # simultaneous samples: gyros, wheels, steering, GNSS position, GNSS velocity (in that order)
     meas = {"wheels": inputs.wheels, "steer": inputs.steering, "pos": pos, "vel": vel}
+    k_us = cfg.vehicle.understeer_gradient_rad_per_mps2
     events = sorted([(float(t), i, f"g{i}", j) for i, g in enumerate(inputs.gyros) for j, t in enumerate(g.t)]
                     + [(float(t), ng + k, name, j) for k, (name, m) in enumerate(meas.items())
                        for j, t in enumerate(m.t)])
@@ -496,7 +497,8 @@ def _independent_ukf(inputs, cfg):  # noqa: ANN001, ANN202 - NavInputs, Config -
             # Schmidt (consider) update: the gain of the speed and the wheel scales is zero, the covariance follows
             # the Joseph form for that gain
             sigmas = ukf.sigmas_f
-            zs = np.array([[math.atan(L * x[4] / max(x[2], 1e-3)) + x[5 + ng]] for x in sigmas])
+            # the linear single-track steady state: L kappa + K a_y (K the understeer gradient, a_y = v omega)
+            zs = np.array([[math.atan(L * x[4] / max(x[2], 1e-3)) + k_us * x[2] * x[4] + x[5 + ng]] for x in sigmas])
             z_mean, S = unscented_transform(zs, sp.Wm, sp.Wc, R)
             Pxz = (sp.Wc[:, None] * (sigmas - ukf.x)).T @ (zs - z_mean)
             K = Pxz @ np.linalg.inv(S)

@@ -9,6 +9,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from reference import FlatRoad
 from scipy.optimize import minimize_scalar
 from scipy.signal import chirp, coherence, csd, welch
 
@@ -39,16 +40,6 @@ def test_kinematic_drive_is_byte_identical_to_before(ci_mcap: SimulationResult) 
 
 
 # ----------------------------------------------------------------------------- helpers
-
-
-class FlatRoad:
-    """A level, perfectly smooth road (the closed-form single-track and roll values assume one)."""
-
-    def height(self, s: np.ndarray, w: np.ndarray, side: int) -> np.ndarray:
-        return np.zeros(np.broadcast(np.asarray(s), np.asarray(w)).shape)
-
-    def grade_height(self, s: np.ndarray) -> np.ndarray:
-        return np.zeros_like(np.asarray(s, dtype=np.float64))
 
 
 @pytest.fixture(scope="module")

@@ -93,10 +93,13 @@ def wheel_speeds(X: Array, wheelbase_m: float, track_front_m: float, track_rear_
     return np.stack([fl, fr, np.abs(v - w * track_rear_m / 2), np.abs(v + w * track_rear_m / 2)], axis=1)
 
 
-def road_wheel_angle(X: Array, wheelbase_m: float, steer_bias_index: int) -> Array:
-    """Measured road-wheel angle (rad) = atan(L omega / v) + offset; (m, 1). Only meaningful for v > 0."""
+def road_wheel_angle(X: Array, wheelbase_m: float, steer_bias_index: int, understeer_gradient: float = 0.0) -> Array:
+    """Measured road-wheel angle (rad) = atan(L omega / v) + K v omega + offset; (m, 1): the linear single-track
+    model's steady state, K the understeer gradient (rad per m/s^2 of lateral acceleration v omega; 0: the
+    kinematic bicycle). Only meaningful for v > 0."""
     v = np.maximum(X[:, V], 1e-3)
-    return (np.arctan(wheelbase_m * X[:, OMEGA] / v) + X[:, steer_bias_index])[:, None]
+    return (np.arctan(wheelbase_m * X[:, OMEGA] / v) + understeer_gradient * X[:, V] * X[:, OMEGA]
+            + X[:, steer_bias_index])[:, None]
 
 
 def gyro(X: Array, bias_index: int) -> Array:

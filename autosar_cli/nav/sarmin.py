@@ -217,7 +217,8 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
             if ukf.x[m.V] < nav.steering_min_speed_mps:
                 ok = None  # type: ignore[assignment]
             else:
-                ok = ukf.update(z, lambda X: m.road_wheel_angle(X, veh.wheelbase_m, steer_i),
+                ok = ukf.update(z, lambda X: m.road_wheel_angle(X, veh.wheelbase_m, steer_i,
+                                                                veh.understeer_gradient_rad_per_mps2),
                                 np.diag(meas.sigma**2), gates[1], hold=steering_held_states(scale_i))
         elif kind == "gnss_pos":
             ok = ukf.update(z, lambda X: m.gnss_position(X, gnss_lever, gnss_i), np.diag(meas.sigma**2), gates[2])
@@ -265,7 +266,8 @@ def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[t
     gates = np.zeros(5)
     for k in (1, 2, 4):
         gates[k] = chi2_gate(nav.gate_probability, k)
-    geo = np.array([veh.wheelbase_m, veh.track_front_m, veh.track_rear_m, gnss_lever[0], gnss_lever[1]])
+    geo = np.array([veh.wheelbase_m, veh.track_front_m, veh.track_rear_m, gnss_lever[0], gnss_lever[1],
+                    veh.understeer_gradient_rad_per_mps2])
     steer_hold = np.zeros(len(x0), dtype=np.bool_)
     steer_hold[list(steering_held_states(scale_i))] = True
     wm, wc, lam = kern.merwe_weights(len(x0), SIGMA_ALPHA, SIGMA_BETA, 3.0 - len(x0))

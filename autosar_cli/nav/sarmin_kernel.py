@@ -206,7 +206,7 @@ def _fill_parameter_blocks(P, F, Pn, n, a, qd):  # noqa: ANN001, ANN202
 def _measure(sig, kind, ng, geo, scale_i, steer_i, gnss_i, zsig):  # noqa: ANN001, ANN202
     """Predicted measurement of every sigma point for event ``kind`` into ``zsig``; returns its size."""
     m = sig.shape[0]
-    wheelbase, tf, tr, lx, ly = geo[0], geo[1], geo[2], geo[3], geo[4]
+    wheelbase, tf, tr, lx, ly, k_us = geo[0], geo[1], geo[2], geo[3], geo[4], geo[5]
     if kind == ng:  # wheels fl, fr, rl, rr
         for i in range(m):
             v, w = sig[i, V], sig[i, OMEGA]
@@ -219,7 +219,8 @@ def _measure(sig, kind, ng, geo, scale_i, steer_i, gnss_i, zsig):  # noqa: ANN00
     if kind == ng + 1:  # road-wheel angle
         for i in range(m):
             v = max(sig[i, V], 1e-3)
-            zsig[i, 0] = np.arctan(wheelbase * sig[i, OMEGA] / v) + sig[i, steer_i]
+            zsig[i, 0] = (np.arctan(wheelbase * sig[i, OMEGA] / v) + k_us * sig[i, V] * sig[i, OMEGA]
+                          + sig[i, steer_i])
         return 1
     for i in range(m):
         c, s = np.cos(sig[i, PSI]), np.sin(sig[i, PSI])
