@@ -76,7 +76,8 @@ def main() -> None:
                   "autofocus": {k: af[k] for k in ("summary", "applied", "track_scale", "track_scale_std", "points",
                                                    "points_used", "coverage", "coherence_before", "coherence_after",
                                                    "correction")},
-                  "reflectors": {"run": reflectors(work / "run"), "run --autofocus": reflectors(work / "run_autofocus")}}
+                  "reflectors": {"run": reflectors(work / "run"),
+                                 "run --autofocus": reflectors(work / "run_autofocus")}}
     print(json.dumps({k: result[k] for k in ("median_wall_s", "ratio_autofocus_to_run", "autofocus", "reflectors")},
                      indent=2))
     args.output.parent.mkdir(parents=True, exist_ok=True)

@@ -11,9 +11,10 @@ tracks) beside what the GNSS velocity alone allows (its mean along-track error o
 Prints one line per drive and a summary (medians, counts of drives meeting each criterion); writes
 benches/results/paper.json after every drive, and ``--resume`` skips the drives already in it.
 A drive's outputs are deleted after it is measured unless --keep (test2 is ~0.5 GB of log and ~1 GB of products).
-The full vehicle model's runs (``make bench-paper-full``): ``--scenarios test1,test2,test3,urban --seeds 0-9 --dynamics full --methods
-none,ins,sar-min,sar-min+af,truth --output benches/results/paper_full.json``; the ablation, one run per
-``--components`` set, to benches/results/paper_ablation.json with ``--resume`` (``make bench-ablation``).
+The full vehicle model's runs (``make bench-paper-full``): ``--scenarios test1,test2,test3,urban --seeds 0-9
+--dynamics full --methods none,ins,sar-min,sar-min+af,truth --output benches/results/paper_full.json``; the
+ablation, one run per ``--components`` set, to benches/results/paper_ablation.json with ``--resume``
+(``make bench-ablation``); ``--understeer-gradient K`` gives SAR-MIN's steering model an understeer term.
 """
 
 from __future__ import annotations
@@ -53,16 +54,22 @@ def cli(*args: str) -> subprocess.CompletedProcess[str]:
                           text=True)
 
 
-def ablation_config(components: str, work: Path) -> Path:
-    """A copy of the default config whose full vehicle model has only ``components`` (comma-separated)."""
+def config_copy(components: str | None, understeer: float | None, work: Path) -> Path:
+    """A copy of the default config whose full vehicle model has only ``components`` (comma-separated; None: all)
+    and whose steering model has the understeer gradient ``understeer`` (rad per m/s^2; None: the config's)."""
     from autosar_cli.config import DEFAULT_CONFIG
 
     text = DEFAULT_CONFIG.read_text()
-    wanted = ", ".join(f'"{c}"' for c in components.split(",") if c)
-    text = re.sub(r"^components = \[.*\]$", f"components = [{wanted}]", text, count=1, flags=re.MULTILINE)
+    if components is not None:
+        wanted = ", ".join(f'"{c}"' for c in components.split(",") if c)
+        text = re.sub(r"^components = \[.*\]$", f"components = [{wanted}]", text, count=1, flags=re.MULTILINE)
+    if understeer is not None:
+        text = re.sub(r"^understeer_gradient_rad_per_mps2 = \S+", f"understeer_gradient_rad_per_mps2 = {understeer!r}",
+                      text, count=1, flags=re.MULTILINE)
     text = re.sub(r'^dbc = "(.*)"$', lambda m: f'dbc = "{(DEFAULT_CONFIG.parent / m.group(1)).as_posix()}"', text,
                   count=1, flags=re.MULTILINE)
-    path = work / f"config_{components.replace(',', '+') or 'none'}.toml"
+    tag = (components.replace(",", "+") or "none") if components is not None else "all"
+    path = work / f"config_{tag}_us{understeer}.toml"
     path.write_text(text)
     return path
 
@@ -189,9 +196,11 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def group_key(row: dict[str, Any]) -> str:
-    """Summary group of a row: the scenario, with the ablation's components where there are several sets."""
-    comps = row.get("components")
-    return row["scenario"] if comps is None else f"{row['scenario']} [{comps or 'none'}]"
+    """Summary group of a row: the scenario, with the ablation's components and the understeer gradient where
+    given."""
+    comps, k = row.get("components"), row.get("understeer_gradient")
+    return (row["scenario"] + ("" if comps is None else f" [{comps or 'none'}]")
+            + ("" if k is None else f" [K={k:g}]"))
 
 
 def main() -> None:
@@ -204,6 +213,8 @@ def main() -> None:
                     help="simulator vehicle model (default: the config's simulation.dynamics)")
     ap.add_argument("--components", default=None,
                     help="ablation: the full model's effects to keep, e.g. slip or body,road (implies --dynamics full)")
+    ap.add_argument("--understeer-gradient", type=float, default=None,
+                    help="SAR-MIN's steering model's understeer gradient (rad per m/s^2; default: the config's)")
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--keep", action="store_true", help="keep every drive's log and comparison")
     ap.add_argument("--resume", action="store_true", help="keep --output's rows and skip the drives already in it")
@@ -216,7 +227,8 @@ def main() -> None:
     rows: list[dict[str, Any]] = []
     if args.resume and args.output.exists():
         rows = json.loads(args.output.read_text())["rows"]
-    done = {(r["scenario"], r["seed"], r.get("dynamics"), r.get("components")) for r in rows}
+    done = {(r["scenario"], r["seed"], r.get("dynamics"), r.get("components"), r.get("understeer_gradient"))
+            for r in rows}
 
     def write() -> dict[str, Any]:
         groups = list(dict.fromkeys(group_key(r) for r in rows))
@@ -231,10 +243,11 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         work = args.workdir or Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
-        config = ["--config", str(ablation_config(args.components, work))] if args.components is not None else []
+        custom = args.components is not None or args.understeer_gradient is not None
+        config = ["--config", str(config_copy(args.components, args.understeer_gradient, work))] if custom else []
         for seed in parse_seeds(args.seeds):
             for scenario in args.scenarios.split(","):
-                if (scenario, seed, args.dynamics, args.components) in done:
+                if (scenario, seed, args.dynamics, args.components, args.understeer_gradient) in done:
                     continue
                 tag = (f"_{args.dynamics}" if args.dynamics else "") + (
                     f"_{args.components.replace(',', '+')}" if args.components is not None else "")
@@ -251,6 +264,8 @@ def main() -> None:
                                             "--overwrite", "--json").stdout)
                 row = drive_row(scenario, seed, comparison, sim_s, time.perf_counter() - t)
                 row["dynamics"], row["components"] = args.dynamics, args.components
+                if args.understeer_gradient is not None:
+                    row["understeer_gradient"] = args.understeer_gradient
                 row["sarmin_track_scale_pct"] = round(100 * track_scale(out), 4)
                 gnss_scale, gnss_se = gnss_velocity_scale(scenario, seed)
                 row["gnss_velocity_scale_pct"] = round(100 * gnss_scale, 4)

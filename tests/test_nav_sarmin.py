@@ -518,7 +518,9 @@ def test_sarmin_equals_a_filter_set_up_independently(ci_drive: Path) -> None:
     """The product's filter (white GNSS model, filtered) against _independent_ukf on the same measurements."""
     import dataclasses
 
-    cfg = dataclasses.replace(CFG, navigation=dataclasses.replace(CFG.navigation, gnss_error_model="white"))
+    # with the understeer term on (the car's 1.3 deg/g), so that both filters' steering models are compared whole
+    cfg = dataclasses.replace(CFG, navigation=dataclasses.replace(CFG.navigation, gnss_error_model="white"),
+                              vehicle=dataclasses.replace(CFG.vehicle, understeer_gradient_rad_per_mps2=0.00233))
     with Drive(ci_drive) as d:
         inputs = load_inputs(d, cfg)
     sol = run_sarmin(inputs, cfg, smooth=False)
