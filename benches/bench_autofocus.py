@@ -58,20 +58,23 @@ def main() -> None:
             subprocess.run([sys.executable, "-m", "autosar_cli.cli", "simulate", "--scenario", args.scenario, "--seed",
                             str(args.seed), "--dynamics", args.dynamics, "--output", str(log), "--overwrite"],
                            check=True, capture_output=True)
-        runs: dict[str, list[dict[str, Any]]] = {"run": [], "run --autofocus": []}
+        runs: dict[str, list[float]] = {"run": [], "run --autofocus": []}
+        stages: dict[str, list[dict[str, float]]] = {"run": [], "run --autofocus": []}
         for i in range(args.repeat + 1):  # the first pair warms numba's on-disk cache
             for name, extra in (("run", []), ("run --autofocus", ["--autofocus"])):
                 out = work / name.replace(" --", "_")
                 wall, manifest = autosar("run", str(log), "-o", str(out), "--overwrite", *extra)
                 if i:
-                    runs[name].append({"wall_s": round(wall, 3), "stages_s": {k: round(v["wall_s"], 3) for k, v in
-                                                                             manifest["stages"].items()}})
+                    runs[name].append(round(wall, 3))
+                    stages[name].append({k: v["wall_s"] for k, v in manifest["stages"].items()})
                     print(f"{name}: {wall:.2f} s " + ", ".join(f"{k} {v['wall_s']:.2f}"
                                                                for k, v in manifest["stages"].items()), flush=True)
         af = manifest["stages"]["autofocus"]
-        medians = {k: statistics.median(r["wall_s"] for r in v) for k, v in runs.items()}
+        medians = {k: statistics.median(v) for k, v in runs.items()}
         result = {"benchmark": "autofocus", "scenario": args.scenario, "seed": args.seed, "dynamics": args.dynamics,
-                  "repeat": args.repeat, "runs": runs, "median_wall_s": medians,
+                  "repeat": args.repeat, "wall_s": runs, "median_wall_s": medians,
+                  "median_stage_s": {k: {s: round(statistics.median(r[s] for r in v), 3) for s in v[0]}
+                                     for k, v in stages.items()},
                   "ratio_autofocus_to_run": round(medians["run --autofocus"] / medians["run"], 3),
                   "autofocus": {k: af[k] for k in ("summary", "applied", "track_scale", "track_scale_std", "points",
                                                    "points_used", "coverage", "coherence_before", "coherence_after",
