@@ -256,6 +256,9 @@ class _Samples:
 
 def _presum(hist: PhaseHistories, z: NDArray[np.complex128], los: Array, presum: int, t0_ns: int,
             scale_lever: Array) -> _Samples:
+    if len(z) == 0:
+        return _Samples(np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.complex128), np.zeros((0, 3)),
+                        np.zeros((0, 3)))
     key = hist.point * (len(hist.frame_t_ns) // presum + 2) + hist.frame // presum
     uniq, inv = np.unique(key, return_inverse=True)
     n = len(uniq)
@@ -453,15 +456,28 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     f_node = np.floor(pos).astype(np.int64)
     f_frac = (pos - f_node)[:, None]
 
-    def antennas(x: Array) -> tuple[Array, Array]:
+    active_cache: dict[bytes, tuple[PhaseHistories, Array, Array]] = {}
+
+    def active(used: NDArray[np.bool_]) -> tuple[PhaseHistories, Array, Array]:
+        """The histories and antennas of the used points' pulses only (a dropped point costs nothing more)."""
+        key = used.tobytes()
+        if key not in active_cache:
+            keep = used[hist.point]
+            active_cache.clear()
+            active_cache[key] = (replace(hist, point=hist.point[keep], frame=hist.frame[keep], bin0=hist.bin0[keep],
+                                         samples=hist.samples[keep]), tx0[keep], rx0[keep])
+        return active_cache[key]
+
+    def antennas(x: Array, h: PhaseHistories, tx_0: Array, rx_0: Array) -> tuple[Array, Array]:
         at_nodes = x[:n_nodes, None] * node_across + x[n_nodes:2 * n_nodes, None] * up
         moved = at_nodes[f_node] * (1.0 - f_frac) + at_nodes[f_node + 1] * f_frac + x[-1] * scale_lever
-        d = moved[hist.frame][:, None, :]
-        return tx0 + d, rx0 + d
+        d = moved[h.frame][:, None, :]
+        return tx_0 + d, rx_0 + d
 
-    def presummed(x: Array, points: Array) -> _Samples:
-        z, los = focus_history(hist, *antennas(x), points)
-        return _presum(hist, z, los, opts.presum, t0, scale_lever)
+    def presummed(x: Array, points: Array, used: NDArray[np.bool_]) -> _Samples:
+        h, tx_0, rx_0 = active(used)
+        z, los = focus_history(h, *antennas(x, h, tx_0, rx_0), points)
+        return _presum(h, z, los, opts.presum, t0, scale_lever)
 
     # each point's mean time and scale lever over its pulses, for its range row
     counts = np.maximum(np.bincount(hist.point, minlength=n_pts), 1)
@@ -477,17 +493,18 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
         (the linearisation at x - dx, dx), carried over linearly (the envelope changes slowly; measuring it costs
         as much as the phases)."""
         points = points0 + x[shifts].reshape(n_pts, 3)
-        tx, rx = antennas(x)
-        z, los = focus_history(hist, tx, rx, points)
-        lin = _linearise(_presum(hist, z, los, opts.presum, t0, scale_lever), used, node_across, opts.node_s,
+        h, tx_0, rx_0 = active(used)
+        tx, rx = antennas(x, h, tx_0, rx_0)
+        z, los = focus_history(h, tx, rx, points)
+        lin = _linearise(_presum(h, z, los, opts.presum, t0, scale_lever), used, node_across, opts.node_s,
                          kappa, n_pts)
         if envelope_of is not None:
             prev, dx = envelope_of
             lin.range_resid = prev.range_resid + prev.range_design @ dx
             lin.range_design = prev.range_design
             return lin
-        offset, _, u = range_offsets(hist, tx, rx, points, n_pts)
-        q = np.flatnonzero(used & (np.bincount(hist.point, minlength=n_pts) > 0))
+        offset, _, u = range_offsets(h, tx, rx, points, n_pts)
+        q = np.flatnonzero(used & (np.bincount(h.point, minlength=n_pts) > 0))
         # the path is 2 u . (point - antenna): a point shift lengthens it, a correction towards it shortens it
         k_across = np.einsum("qk,qk->q", u[q], node_across[r_node[q]])
         cols = [2 * n_nodes + 3 * q + k for k in range(3)] + [r_node[q], r_node[q] + 1, n_nodes + r_node[q],
@@ -536,14 +553,15 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
                 damping *= 10.0
             else:
                 break
-            if np.max(np.abs(dx[:2 * n_nodes])) < 1e-6 and np.max(np.abs(dx[shifts])) < 1e-5 and abs(dx[-1]) < 1e-6:
+            # converged: the last step moved the correction by < 2 um, the points by < 50 um, the scale by < 2e-6
+            if np.max(np.abs(dx[:2 * n_nodes])) < 2e-6 and np.max(np.abs(dx[shifts])) < 5e-5 and abs(dx[-1]) < 2e-6:
                 break
         resid_norm = lin.step**2 / lin.rel_var
         new_noise = max(float(np.median(resid_norm)) / 0.455, 1e-12 * noise)  # the median of chi2(1) is 0.455
         phase_rms = np.array([float(np.sqrt(np.mean(lin.step[lin.point == j] ** 2))) if np.any(lin.point == j)
                               else np.inf for j in range(n_pts)])
         bad = used & (phase_rms > opts.max_phase_rms_rad)
-        settled = abs(new_noise / noise - 1.0) < 0.2
+        settled = abs(new_noise / noise - 1.0) < 0.5  # the weights' scale, not the fit, moves with the noise
         noise = new_noise
         if not bad.any() and settled:
             break
@@ -558,8 +576,8 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     # with the points where the fit puts them, so that only the track differs
     unchanged = np.zeros_like(x)
     unchanged[shifts] = x[shifts]
-    coherence_before = _coherence(presummed(unchanged, points), used)
-    coherence_after = _coherence(presummed(x, points), used)
+    coherence_before = _coherence(presummed(unchanged, points, used), used)
+    coherence_after = _coherence(presummed(x, points, used), used)
     seen_frames = np.unique(hist.frame[used[hist.point]])
     coverage = len(seen_frames) / max(len(hist.frame_t_ns), 1)
 
