@@ -42,6 +42,9 @@ class VehicleConfig:
     #: K of the steady-state steering, road-wheel angle = L kappa + K a_y (rad per m/s^2); what SAR-MIN's steering
     #: model assumes (0: the kinematic bicycle)
     understeer_gradient_rad_per_mps2: float = 0.0
+    #: the rear tyres' slip angle per m/s^2 of lateral acceleration, m a / (L C_r): how far SAR-MIN's trajectory turns
+    #: the body (and the radar on it) from the rear axle's direction of motion (0: no slip)
+    rear_slip_gain_rad_per_mps2: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -187,6 +187,9 @@ class Trajectory:
     covariance: Array | None = None  #: (K, n, n)
     info: dict[str, Any] = field(default_factory=dict)
     correction: MotionCorrection | None = None  #: residual motion added to every body point (autofocus)
+    #: the body's yaw is the heading plus this times speed x yaw rate (rad per m/s^2 of lateral acceleration): the
+    #: rear tyres' slip angle, where the heading is the rear axle's direction of motion (SAR-MIN); 0: no slip
+    rear_slip_gain: float = 0.0
 
     @property
     def t(self) -> Array:
@@ -218,7 +221,10 @@ class Trajectory:
     def body_points(self, t_ns: ArrayLike, lever_arms: ArrayLike) -> Array:
         """ENU positions (M, A, 3) of body points ``lever_arms`` (A, 3) (m, from the CoG) at times ``t_ns`` (M,),
         with the :attr:`correction` where there is one."""
-        points = self._place(*self.pose(t_ns), lever_arms)
+        t_ns = np.asarray(t_ns, dtype=np.int64)
+        k = self._segment(t_ns)
+        xy, psi = self._pose_from(k, t_ns)
+        points = self._place(xy, psi + self._slip(k), lever_arms)
         if self.correction is not None:
             points += self.correction.at(np.asarray(t_ns).reshape(-1))[:, None, :]
         return points
@@ -243,15 +249,22 @@ class Trajectory:
         t_b = np.maximum(t_b, t_a + 1)  # a single sample, or a time beyond the span: the motion there (1 ns)
         lever = np.asarray(lever_arms, dtype=np.float64).reshape(-1, 3)
         # each segment's displacement under its own motion model, summed: the continuous path at every sample
-        samples = self._place(self.rear_axle_enu, self.heading, lever)
-        ends = self._place(*self._pose_from(np.arange(len(self.t_ns) - 1), self.t_ns[1:]), lever)
+        every = np.arange(len(self.t_ns))
+        samples = self._place(self.rear_axle_enu, self.heading + self._slip(every), lever)
+        xy_end, psi_end = self._pose_from(every[:-1], self.t_ns[1:])
+        ends = self._place(xy_end, psi_end + self._slip(every[:-1]), lever)
         at_sample = np.concatenate([np.zeros((1, *samples.shape[1:])), np.cumsum(ends - samples[:-1], axis=0)])
 
         def path(t: NDArray[np.int64]) -> Array:
             k = self._segment(t)
-            return at_sample[k] + self._place(*self._pose_from(k, t), lever) - samples[k]
+            xy, psi = self._pose_from(k, t)
+            return at_sample[k] + self._place(xy, psi + self._slip(k), lever) - samples[k]
 
         return (path(t_b) - path(t_a)) / ((t_b - t_a) * 1e-9)[:, None, None]
+
+    def _slip(self, k: NDArray[np.intp]) -> Array | float:
+        """Body yaw minus heading (rad) over the segments ``k``: the rear tyres' slip angle (0 without a gain)."""
+        return self.rear_slip_gain * self.speed[k] * self.yaw_rate[k] if self.rear_slip_gain else 0.0
 
     def _place(self, xy: Array, psi: Array, lever_arms: ArrayLike) -> Array:
         """Body points (M, A, 3) of rear-axle positions xy (M, 2) and headings psi (M,)."""

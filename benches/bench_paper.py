@@ -54,9 +54,10 @@ def cli(*args: str) -> subprocess.CompletedProcess[str]:
                           text=True)
 
 
-def config_copy(components: str | None, understeer: float | None, work: Path) -> Path:
-    """A copy of the default config whose full vehicle model has only ``components`` (comma-separated; None: all)
-    and whose steering model has the understeer gradient ``understeer`` (rad per m/s^2; None: the config's)."""
+def config_copy(components: str | None, understeer: float | None, work: Path, rear_slip: float | None = None) -> Path:
+    """A copy of the default config whose full vehicle model has only ``components`` (comma-separated; None: all),
+    whose steering model has the understeer gradient ``understeer`` and whose trajectory the rear-slip gain
+    ``rear_slip`` (rad per m/s^2; None: the config's)."""
     from autosar_cli.config import DEFAULT_CONFIG
 
     text = DEFAULT_CONFIG.read_text()
@@ -68,8 +69,11 @@ def config_copy(components: str | None, understeer: float | None, work: Path) ->
                       text, count=1, flags=re.MULTILINE)
     text = re.sub(r'^dbc = "(.*)"$', lambda m: f'dbc = "{(DEFAULT_CONFIG.parent / m.group(1)).as_posix()}"', text,
                   count=1, flags=re.MULTILINE)
+    if rear_slip is not None:
+        text = re.sub(r"^rear_slip_gain_rad_per_mps2 = \S+", f"rear_slip_gain_rad_per_mps2 = {rear_slip!r}", text,
+                      count=1, flags=re.MULTILINE)
     tag = (components.replace(",", "+") or "none") if components is not None else "all"
-    path = work / f"config_{tag}_us{understeer}.toml"
+    path = work / f"config_{tag}_us{understeer}_slip{rear_slip}.toml"
     path.write_text(text)
     return path
 
@@ -198,9 +202,9 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
 def group_key(row: dict[str, Any]) -> str:
     """Summary group of a row: the scenario, with the ablation's components and the understeer gradient where
     given."""
-    comps, k = row.get("components"), row.get("understeer_gradient")
+    comps, k, g = row.get("components"), row.get("understeer_gradient"), row.get("rear_slip_gain")
     return (row["scenario"] + ("" if comps is None else f" [{comps or 'none'}]")
-            + ("" if k is None else f" [K={k:g}]"))
+            + ("" if k is None else f" [K={k:g}]") + ("" if g is None else f" [slip={g:g}]"))
 
 
 def main() -> None:
@@ -215,6 +219,8 @@ def main() -> None:
                     help="ablation: the full model's effects to keep, e.g. slip or body,road (implies --dynamics full)")
     ap.add_argument("--understeer-gradient", type=float, default=None,
                     help="SAR-MIN's steering model's understeer gradient (rad per m/s^2; default: the config's)")
+    ap.add_argument("--rear-slip-gain", type=float, default=None,
+                    help="the rear-slip gain SAR-MIN's trajectory turns the body by (rad per m/s^2; default: config's)")
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--keep", action="store_true", help="keep every drive's log and comparison")
     ap.add_argument("--resume", action="store_true", help="keep --output's rows and skip the drives already in it")
@@ -227,8 +233,8 @@ def main() -> None:
     rows: list[dict[str, Any]] = []
     if args.resume and args.output.exists():
         rows = json.loads(args.output.read_text())["rows"]
-    done = {(r["scenario"], r["seed"], r.get("dynamics"), r.get("components"), r.get("understeer_gradient"))
-            for r in rows}
+    done = {(r["scenario"], r["seed"], r.get("dynamics"), r.get("components"), r.get("understeer_gradient"),
+             r.get("rear_slip_gain")) for r in rows}
 
     def write() -> dict[str, Any]:
         groups = list(dict.fromkeys(group_key(r) for r in rows))
@@ -243,11 +249,13 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         work = args.workdir or Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
-        custom = args.components is not None or args.understeer_gradient is not None
-        config = ["--config", str(config_copy(args.components, args.understeer_gradient, work))] if custom else []
+        custom = (args.components, args.understeer_gradient, args.rear_slip_gain) != (None, None, None)
+        config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain))]
+                  if custom else [])
         for seed in parse_seeds(args.seeds):
             for scenario in args.scenarios.split(","):
-                if (scenario, seed, args.dynamics, args.components, args.understeer_gradient) in done:
+                if (scenario, seed, args.dynamics, args.components, args.understeer_gradient,
+                        args.rear_slip_gain) in done:
                     continue
                 tag = (f"_{args.dynamics}" if args.dynamics else "") + (
                     f"_{args.components.replace(',', '+')}" if args.components is not None else "")
@@ -266,6 +274,8 @@ def main() -> None:
                 row["dynamics"], row["components"] = args.dynamics, args.components
                 if args.understeer_gradient is not None:
                     row["understeer_gradient"] = args.understeer_gradient
+                if args.rear_slip_gain is not None:
+                    row["rear_slip_gain"] = args.rear_slip_gain
                 row["sarmin_track_scale_pct"] = round(100 * track_scale(out), 4)
                 gnss_scale, gnss_se = gnss_velocity_scale(scenario, seed)
                 row["gnss_velocity_scale_pct"] = round(100 * gnss_scale, 4)

@@ -54,7 +54,8 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
         traj = Trajectory("sar-min", t_ns, sol.x[:, [m.PX, m.PY]], np.unwrap(sol.x[:, m.PSI]), sol.x[:, m.V],
                           sol.x[:, m.OMEGA], inputs.origin, config.vehicle.cog_to_rear_axle_m,
                           config.vehicle.cog_height_m, state=sol.x, state_names=sol.state_names,
-                          covariance=sol.P, info={"updates": sol.updates, "rejected": sol.rejected,
+                          covariance=sol.P, rear_slip_gain=config.vehicle.rear_slip_gain_rad_per_mps2,
+                          info={"updates": sol.updates, "rejected": sol.rejected,
                                                   "smoothed": smooth})
     elif method == "ins":
         from autosar_cli.nav.ins import run_ins

@@ -4,7 +4,8 @@ Datasets (K samples): ``t_ns`` int64; ``rear_axle_enu`` (K, 2) m; ``position_enu
 ``heading`` (K,) rad (ENU, unwrapped); ``speed`` (K,) m/s; ``yaw_rate`` (K,) rad/s; for sar-min also
 ``state`` (K, n) with attribute ``names`` and ``covariance`` (K, n, n). Attributes: ``method``,
 ``origin_lat_deg``, ``origin_lon_deg``, ``origin_height_m`` (road surface), ``cog_to_rear_axle_m``,
-``cog_height_m``, ``info`` (JSON: updates, rejections, inputs), ``autosar_version``. A residual-motion
+``cog_height_m``, ``rear_slip_gain`` (body yaw = heading + gain x speed x yaw rate), ``info`` (JSON: updates,
+rejections, inputs), ``autosar_version``. A residual-motion
 correction (autofocus), where there is one, is the group ``correction`` with ``t_ns`` (M,), ``offset_enu`` (M, 3)
 m and ``std_enu`` (M, 3) m. Written atomically.
 """
@@ -46,6 +47,7 @@ def write_trajectory(path: str | Path, traj: Trajectory, attrs: dict[str, Any] |
                             "method": traj.method, "origin_lat_deg": traj.origin.lat_deg,
                             "origin_lon_deg": traj.origin.lon_deg, "origin_height_m": traj.origin.height_m,
                             "cog_to_rear_axle_m": traj.cog_to_rear_axle_m, "cog_height_m": traj.cog_height_m,
+                            "rear_slip_gain": traj.rear_slip_gain,
                             "info": json.dumps(traj.info), **(attrs or {})})
             # Fletcher-32 checksums: a flipped byte is a read error, not a different track
             f.create_dataset("t_ns", data=traj.t_ns, fletcher32=True)
@@ -104,6 +106,7 @@ def read_trajectory(path: str | Path, *, covariance: bool = True) -> Trajectory:
             info=json.loads(a.get("info", "{}")),
             correction=MotionCorrection(*(read_dataset(f, f"correction/{name}", path) for name in
                                           ("t_ns", "offset_enu", "std_enu"))) if "correction" in f else None,
+            rear_slip_gain=float(a.get("rear_slip_gain", 0.0)),
         )
     check_plausible(traj, path)
     return traj
