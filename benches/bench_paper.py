@@ -269,7 +269,7 @@ def main() -> None:
                 out = work / f"{scenario}_s{seed}"
                 t = time.perf_counter()
                 comparison = json.loads(cli("compare", str(log), "-o", str(out), "--methods", ",".join(methods),
-                                            "--overwrite", "--json").stdout)
+                                            "--overwrite", "--json", *config).stdout)  # the same config navigates
                 row = drive_row(scenario, seed, comparison, sim_s, time.perf_counter() - t)
                 row["dynamics"], row["components"] = args.dynamics, args.components
                 if args.understeer_gradient is not None:
