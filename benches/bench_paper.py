@@ -14,7 +14,8 @@ A drive's outputs are deleted after it is measured unless --keep (test2 is ~0.5 
 The full vehicle model's runs (``make bench-paper-full``): ``--scenarios test1,test2,test3,urban --seeds 0-9
 --dynamics full --methods none,ins,sar-min,sar-min+af,truth --output benches/results/paper_full.json``; the
 ablation, one run per ``--components`` set, to benches/results/paper_ablation.json with ``--resume``
-(``make bench-ablation``); ``--understeer-gradient K`` gives SAR-MIN's steering model an understeer term.
+(``make bench-ablation``); ``--understeer-gradient K`` and ``--rear-slip-gain G`` give SAR-MIN's steering
+model an understeer term and its trajectory the rear tyres' slip (the A/B: benches/results/paper_understeer.json).
 """
 
 from __future__ import annotations
