@@ -1,0 +1,194 @@
+"""Phase histories of point scatterers: what back-projection makes of each pulse at one point, kept so that a
+trajectory correction can be tried on them many times without reading the radar again.
+
+:func:`gather_phase_histories` reads the frames that see the points once, range-compresses them and keeps a window
+of bins around each point's predicted range per pulse and channel; :func:`focus_history` back-projects a pulse onto
+its point from given antenna positions (exact bistatic path, linear interpolation between bins and the carrier
+phase, as the product's kernel does); :func:`range_offsets` measures each point's range from its envelope. Used by
+the residual-motion autofocus (:mod:`autosar_cli.sar.residual_motion`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from autosar_cli.config import Config
+from autosar_cli.nav.trajectory import phase_centre_lever_arm, radar_phase_centres
+from autosar_cli.sar.focus import FocusOptions, RadarParameters, channel_pairs
+from autosar_cli.sar.range_compression import range_compress
+from autosar_cli.store.drive import Drive
+from autosar_cli.types import Trajectory
+
+Array = NDArray[np.float64]
+
+
+@dataclass
+class PhaseHistories:
+    """Range-compressed samples around each point's expected range, for every (point, pulse) pair it is seen in.
+
+    Pair n: point ``point[n]``, radar frame ``frame_t_ns[frame[n]]``; channel c's bins ``bin0[n, c]`` ...
+    ``bin0[n, c] + W - 1`` (bistatic path ``bin * bin_m``) are ``samples[n, c]``.
+    """
+
+    point: NDArray[np.int64]  #: (N,)
+    frame: NDArray[np.int64]  #: (N,) index into frame_t_ns
+    frame_t_ns: NDArray[np.int64]  #: (F,) the frames used
+    bin0: NDArray[np.int64]  #: (N, C)
+    samples: NDArray[np.complex64]  #: (N, C, W)
+    pairs: list[tuple[int, int]]  #: (Tx, Rx) of each channel
+    tx_offsets_s: Array  #: (T,) chirp start of each Tx in the PRI
+    bin_m: float  #: bistatic path per bin (m)
+    cycles_per_m: float  #: phase turns per metre of bistatic path
+
+    @cached_property
+    def flat_samples(self) -> NDArray[np.complex64]:
+        return self.samples.reshape(-1)
+
+    @cached_property
+    def window_starts(self) -> NDArray[np.int64]:
+        """(N, C) index of each window's first bin in :attr:`flat_samples`."""
+        n, c, w = self.samples.shape
+        return np.arange(n * c, dtype=np.int64).reshape(n, c) * w
+
+
+def frame_geometry(traj: Trajectory, t_ns: NDArray[np.int64], config: Config) -> tuple[Array, Array, Array]:
+    """Mean phase centre (F, 3), unit across-track vector towards the radar side (F, 3), unit along (F, 3)."""
+    centre = traj.body_points(t_ns, phase_centre_lever_arm(config)[None])[:, 0]
+    _, heading = traj.pose(t_ns)
+    side = 1.0 if math.sin(math.radians(config.radar.mounting.yaw_deg)) > 0 else -1.0
+    zero = np.zeros_like(heading)
+    along = np.stack([np.cos(heading), np.sin(heading), zero], axis=-1)
+    across = side * np.stack([-np.sin(heading), np.cos(heading), zero], axis=-1)
+    return centre, across, along
+
+
+def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Config, points_enu: Array,
+                           focus: FocusOptions, *, half_beam_deg: float, window_bins: int, channels: int,
+                           block_frames: int = 256) -> PhaseHistories:
+    """Read and range-compress (``channels``, sar.focus.channel_pairs; ``focus``'s window and upsampling) the
+    frames that see ``points_enu`` (P, 3) (ENU m) within ``half_beam_deg`` of broadside, and keep ``window_bins``
+    bins around each point's range per pulse and channel (one pass over the radar data)."""
+    points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
+    w = int(window_bins)
+    with Drive(drive_path) as drive:
+        radar = drive.radar()
+        rp = RadarParameters.of(radar, config, focus.upsample)
+        fs, slope, offsets, n_bins, bin_m = rp.sample_rate_hz, rp.slope_hz_per_s, rp.tx_start_offsets_s, rp.n_bins, \
+            rp.bin_m
+        pairs = channel_pairs(rp.n_tx, rp.n_rx, channels)
+        t_all = radar.t_ns
+        last_chirp_ns = int(round(offsets.max() * 1e9)) if offsets.size else 0
+        frames = np.flatnonzero((t_all >= traj.t_ns[0]) & (t_all + last_chirp_ns <= traj.t_ns[-1]))
+        t = t_all[frames]
+        speed = np.interp((t - traj.t_ns[0]).astype(np.float64), (traj.t_ns - traj.t_ns[0]).astype(np.float64),
+                          np.abs(traj.speed))
+        centre, across, along = frame_geometry(traj, t, config)
+        d = points[None, :, :] - centre[:, None, :]  # (F, P, 3)
+        horiz = np.maximum(np.hypot(d[..., 0], d[..., 1]), 1e-9)
+        sin_squint = np.einsum("fpk,fk->fp", d, along) / horiz
+        seen = ((speed >= focus.min_speed_mps)[:, None] & (np.einsum("fpk,fk->fp", d, across) > 0.0)
+                & (np.abs(sin_squint) <= math.sin(math.radians(half_beam_deg)))
+                & (np.linalg.norm(d, axis=-1) <= config.radar.max_range_m))
+        used = np.flatnonzero(seen.any(axis=1))
+        out_point, out_frame, out_bin0, out_samples = [], [], [], []
+        tx_idx = np.array([p[0] for p in pairs])
+        rx_idx = np.array([p[1] for p in pairs])
+        for start in range(0, len(used), block_frames):
+            sel = used[start:start + block_frames]
+            raw = radar.frames(int(frames[sel[0]]), int(frames[sel[-1]]) + 1)[frames[sel] - frames[sel[0]]]
+            profiles = np.stack([range_compress(raw[:, tt, rr], sample_rate_hz=fs, slope_hz_per_s=slope,
+                                                window=focus.window, upsample=focus.upsample) for tt, rr in pairs],
+                                axis=1)  # (B, C, bins)
+            pc = radar_phase_centres(traj, t[sel], offsets, config)
+            kk, jj = np.nonzero(seen[sel])
+            tx = pc.tx[kk][:, tx_idx]  # (n, C, 3)
+            rx = pc.rx[kk][:, tx_idx, rx_idx]
+            p = points[jj][:, None, :]
+            path = np.linalg.norm(tx - p, axis=-1) + np.linalg.norm(rx - p, axis=-1)
+            b0 = np.floor(path / bin_m).astype(np.int64) - (w // 2 - 1)
+            b0 = np.clip(b0, 0, n_bins - w)
+            idx = b0[..., None] + np.arange(w)
+            out_samples.append(np.take_along_axis(profiles[kk], idx.reshape(len(kk), len(pairs), w), axis=-1))
+            out_point.append(jj)
+            out_frame.append(sel[kk])
+            out_bin0.append(b0)
+    empty = len(out_point) == 0
+    return PhaseHistories(
+        np.concatenate(out_point) if not empty else np.zeros(0, np.int64),
+        np.concatenate(out_frame) if not empty else np.zeros(0, np.int64), t,
+        np.concatenate(out_bin0) if not empty else np.zeros((0, len(pairs)), np.int64),
+        np.concatenate(out_samples).astype(np.complex64) if not empty else np.zeros((0, len(pairs), w), np.complex64),
+        pairs, offsets, bin_m, rp.cycles_per_m)
+
+
+def _interpolate(hist: PhaseHistories, fi: Array) -> tuple[NDArray[np.complex128], NDArray[np.bool_]]:
+    """Samples (N, C) at fractional bins ``fi`` (N, C) of each pair's window, linearly interpolated; 0 (and
+    False in the mask) outside it."""
+    w = hist.samples.shape[-1]
+    i = np.floor(fi).astype(np.int64)
+    ok = (i >= 0) & (i < w - 1)
+    at = hist.window_starts + np.clip(i, 0, w - 2)
+    s0, s1 = hist.flat_samples[at], hist.flat_samples[at + 1]
+    return (s0 + (fi - i) * (s1 - s0)) * ok, ok
+
+
+def pair_antennas(hist: PhaseHistories, traj: Trajectory, config: Config) -> tuple[Array, Array]:
+    """Tx and Rx phase centres (N, C, 3) (ENU m) of every pair's channels along ``traj``."""
+    pc = radar_phase_centres(traj, hist.frame_t_ns, hist.tx_offsets_s, config)
+    tx_idx = np.array([p[0] for p in hist.pairs])
+    rx_idx = np.array([p[1] for p in hist.pairs])
+    return pc.tx[hist.frame][:, tx_idx], pc.rx[hist.frame][:, tx_idx, rx_idx]
+
+
+def focus_history(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array
+                  ) -> tuple[NDArray[np.complex128], Array]:
+    """Each pair's back-projected value (N,) (channels summed, exact path, linear interpolation between bins as
+    the kernel does) from antennas ``tx``, ``rx`` (N, C, 3) (:func:`pair_antennas`, ENU m) onto ``points_enu``
+    (P, 3), and its unit line of sight (N, 3) from the mean phase centre to the point. A pair whose path left its
+    bin window in any channel gives NaN."""
+    p = np.asarray(points_enu, dtype=np.float64)[hist.point][:, None, :]
+    path = np.linalg.norm(tx - p, axis=-1) + np.linalg.norm(rx - p, axis=-1)  # (N, C)
+    s, ok = _interpolate(hist, path / hist.bin_m - hist.bin0)
+    turns = path * hist.cycles_per_m
+    z = np.sum(s * np.exp(-2j * np.pi * (turns - np.floor(turns))), axis=1)
+    z[~ok.all(axis=1)] = np.nan
+    los = p[:, 0] - 0.5 * (tx.mean(axis=1) + rx.mean(axis=1))
+    return z, los / np.linalg.norm(los, axis=-1, keepdims=True)
+
+
+def range_offsets(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array, n_points: int,
+                  half_bins: float = 3.0, step_bins: float = 0.5) -> tuple[Array, Array, Array]:
+    """Per point, how much longer (m of bistatic path) its echoes' range envelope says its path is than predicted
+    from ``tx``, ``rx`` (N, C, 3): the peak, over offsets of +-``half_bins``, of the point's pulses summed
+    coherently with the predicted phase (parabola through the three samples around it). Also each point's
+    weight (its summed power) and mean line of sight (P, 3). Phases alone do not fix a point's range: a range error
+    bends its phase history as a wrong speed does, so the envelope pins it."""
+    p = np.asarray(points_enu, dtype=np.float64)[hist.point][:, None, :]
+    path = np.linalg.norm(tx - p, axis=-1) + np.linalg.norm(rx - p, axis=-1)
+    fi = path / hist.bin_m - hist.bin0
+    turns = path * hist.cycles_per_m
+    rot = np.exp(-2j * np.pi * (turns - np.floor(turns)))
+    ks = np.arange(-half_bins, half_bins + 1e-9, step_bins)
+    power = np.zeros((n_points, len(ks)))
+    for m, k in enumerate(ks):
+        s, _ = _interpolate(hist, fi + k)
+        z = np.sum(s * rot, axis=1)
+        zs = np.bincount(hist.point, z.real, n_points) + 1j * np.bincount(hist.point, z.imag, n_points)
+        power[:, m] = np.abs(zs) ** 2
+    k = np.clip(np.argmax(power, axis=1), 1, len(ks) - 2)
+    rows = np.arange(n_points)
+    y0, y1, y2 = (np.log(np.maximum(power[rows, k + d], 1e-300)) for d in (-1, 0, 1))
+    denom = y0 - 2 * y1 + y2
+    frac = np.where(denom < 0, 0.5 * (y0 - y2) / np.where(denom < 0, denom, -1.0), 0.0)
+    offset = (ks[k] + np.clip(frac, -1.0, 1.0) * step_bins) * hist.bin_m
+    los = p[:, 0] - 0.5 * (tx.mean(axis=1) + rx.mean(axis=1))
+    los /= np.linalg.norm(los, axis=-1, keepdims=True)
+    mean_los = np.stack([np.bincount(hist.point, los[:, c], n_points) for c in range(3)], axis=-1)
+    mean_los /= np.maximum(np.linalg.norm(mean_los, axis=-1, keepdims=True), 1e-12)
+    return offset, power.max(axis=1), mean_los
