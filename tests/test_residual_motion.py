@@ -135,3 +135,48 @@ def test_correction_moves_every_body_point_and_is_stored(tmp_path: Path, ci_driv
     assert back.correction is not None
     for name in ("t_ns", "offset_enu", "std_enu"):
         np.testing.assert_array_equal(getattr(back.correction, name), getattr(corrected.correction, name))
+
+
+def test_focus_history_is_the_reference_backprojection_pulse_by_pulse() -> None:
+    """One pulse of a point's history equals tests/reference.py::tdbp (float64, one pixel, a one-pulse window) on
+    the same profiles: the same path, interpolation and carrier phase as the product's kernel; a pulse whose path
+    leaves its window is NaN."""
+    from reference import tdbp
+
+    from autosar_cli.sar.phase_history import PhaseHistories, focus_history, range_offsets
+
+    rng = np.random.default_rng(3)
+    n_pulse, n_bins, w = 40, 400, 32
+    bin_m, cycles_per_m = 0.025, 257.3
+    profiles = (rng.normal(size=(2, n_bins, n_pulse)) + 1j * rng.normal(size=(2, n_bins, n_pulse))).astype(np.complex64)
+    along = np.linspace(-1.0, 1.0, n_pulse)
+    base = np.stack([along, np.zeros(n_pulse), np.full(n_pulse, 0.5)], -1)
+    tx = np.stack([base + [0.0, 0.0, 0.0], base + [0.0, 0.0, 0.0078]], axis=1)  # (P, C, 3)
+    rx = np.stack([base + [0.0, 0.0019, 0.0], base + [0.0, 0.0057, 0.0078]], axis=1)
+    point = np.array([[0.3, -4.0, 0.4]])
+    path = np.linalg.norm(tx - point, axis=-1) + np.linalg.norm(rx - point, axis=-1)
+    bin0 = np.floor(path / bin_m).astype(np.int64) - (w // 2 - 1)
+    samples = np.stack([np.stack([profiles[c, bin0[n, c]:bin0[n, c] + w, n] for c in range(2)])
+                        for n in range(n_pulse)])
+    hist = PhaseHistories(np.zeros(n_pulse, np.int64), np.arange(n_pulse), np.arange(n_pulse, dtype=np.int64), bin0,
+                          samples, [(0, 0), (2, 3)], np.zeros(3), bin_m, cycles_per_m)
+    z, los = focus_history(hist, tx, rx, point)
+    antennas = np.stack([tx[:, 0], rx[:, 0], tx[:, 1], rx[:, 1]])
+    ref = np.array([tdbp(profiles, antennas, np.array([[0, 1], [2, 3]]), point, np.array([[n, n + 1]]),
+                         range0_m=0.0, bin_m=bin_m, cycles_per_m=cycles_per_m)[0] for n in range(n_pulse)])
+    np.testing.assert_allclose(z, ref, rtol=2e-5, atol=1e-4)
+    np.testing.assert_allclose(np.linalg.norm(los, axis=-1), 1.0)
+    far = focus_history(hist, tx, rx, point + [[0.0, -0.5, 0.0]])[0]  # 1 m of path beyond every window
+    assert np.all(np.isnan(far))
+    # a point whose echo is a bright response 2.1 bins beyond the prediction: the envelope says so
+    echo = np.zeros_like(profiles)
+    true_path = path + 2.1 * bin_m
+    for n in range(n_pulse):
+        for c in range(2):
+            b = np.arange(n_bins)
+            echo[c, :, n] = (np.sinc((b - true_path[n, c] / bin_m) / 2.0)
+                             * np.exp(2j * np.pi * cycles_per_m * true_path[n, c]))
+    echoes = replace(hist, samples=np.stack([np.stack([echo[c, bin0[n, c]:bin0[n, c] + w, n] for c in range(2)])
+                                             for n in range(n_pulse)]).astype(np.complex64))
+    offset, _, _ = range_offsets(echoes, tx, rx, point, 1)
+    assert offset[0] == pytest.approx(2.1 * bin_m, abs=0.15 * bin_m)
