@@ -1,5 +1,4 @@
-"""Benchmark the residual-motion autofocus: `autosar run --autofocus` against `autosar run` on one drive, and what
-the correction recovers.
+"""Benchmark `autosar run --autofocus` against `autosar run` on one drive, side by side, and what it recovers.
 
 Usage: python benches/bench_autofocus.py [--scenario test2] [--seed 1] [--dynamics kinematic] [--repeat 5]
 

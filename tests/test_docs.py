@@ -11,8 +11,6 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = sorted((ROOT / "docs").glob("*.md"))
 MAX_LINES = 300
-#: BENCHMARKS.md is no stage document but the generated index of every benchmark's figures
-MAX_LINES_GENERATED = {"BENCHMARKS.md": 400}
 #: dated or numbered narrative: "2026-11-24", "third session", "round 3", "run C (...)"
 HISTORY = re.compile(r"\b20\d\d-[01]\d-[0-3]\d\b|\bsessions?\b|\bround \d|\brun [A-L]\b(?! *[=:])", re.IGNORECASE)
 LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
@@ -27,7 +25,7 @@ def test_the_stage_documents_exist() -> None:
 @pytest.mark.parametrize("doc", DOCS, ids=[p.name for p in DOCS])
 def test_doc_is_short_and_tells_no_history(doc: Path) -> None:
     lines = doc.read_text().splitlines()
-    assert len(lines) <= MAX_LINES_GENERATED.get(doc.name, MAX_LINES), f"{doc.name}: {len(lines)} lines"
+    assert len(lines) <= MAX_LINES, f"{doc.name}: {len(lines)} lines"
     history = [f"{i}: {ln.strip()[:80]}" for i, ln in enumerate(lines, 1) if HISTORY.search(ln)]
     assert not history, f"{doc.name} narrates its history:\n" + "\n".join(history)
 
