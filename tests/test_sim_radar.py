@@ -14,8 +14,10 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 C = ref.C
 
 
-def read_raw_frames(path) -> tuple[np.ndarray, np.ndarray, dict]:
-    """All RawFrames of an MCAP: (frame_index (F,), cube (F, T, R, N) complex64, radar parameters)."""
+def read_raw_frames(path, keep: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The RawFrames of an MCAP, all or those whose frame index is in ``keep``: (frame_index (F,),
+    cube (F, T, R, N) complex64, radar parameters)."""
+    wanted = None if keep is None else {int(k) for k in keep}
     store = get_typestore(Stores.ROS2_HUMBLE)
     frames, index, params = [], [], {}
     with open(path, "rb") as f:
@@ -27,6 +29,8 @@ def read_raw_frames(path) -> tuple[np.ndarray, np.ndarray, dict]:
                 text = schema.data.decode()
                 store.register(get_types_from_msg(text.split("=" * 80)[0], schema.name))
             m = store.deserialize_cdr(message.data, schema.name)
+            if wanted is not None and m.frame_index not in wanted:
+                continue
             params = {"f0": m.start_frequency_hz, "slope": m.slope_hz_per_s, "fs": m.sample_rate_hz,
                       "n": m.num_samples, "offsets": np.array(m.tx_start_offsets_s)}
             iq = np.asarray(m.data, dtype=np.float32).reshape(m.num_tx, m.num_rx, m.num_samples, 2)
@@ -61,20 +65,31 @@ def test_frames_match_truth_and_are_contiguous(ci_data, ci_mcap):
     assert abs(len(index) - ci_mcap.duration_s * 990) < 3
 
 
-def focus_reflector(cube, params, truth, target):
-    """Float64 TDBP around one reflector with the true phase centres, all 12 channels, pulses within the
-    stripmap window (+- lambda / (4 rho) of broadside, rho = 4 cm)."""
-    lam = C / params["f0"]
-    half_width = lam / (4 * 0.04)
-    tx = truth["tx"]  # (F, T, 3)
-    rx = truth["rx"]  # (F, T, R, 3)
-    centre = 0.5 * (tx.mean(axis=1) + rx.mean(axis=(1, 2)))  # (F, 3)
+def array_centres(truth) -> np.ndarray:
+    """(F, 3) midpoint of each frame's mean Tx and mean Rx phase centre (truth["tx"] (F, T, 3), ["rx"] (F, T, R, 3))."""
+    return 0.5 * (truth["tx"].mean(axis=1) + truth["rx"].mean(axis=(1, 2)))
+
+
+def stripmap_frames(truth, target, f0: float) -> np.ndarray:
+    """Rows of the truth's per-frame arrays whose array centre sees ``target`` within the stripmap window
+    (+- lambda / (4 rho) of broadside, rho = 4 cm); frames standing still have no broadside and are left out."""
+    half_width = C / f0 / (4 * 0.04)
+    centre = array_centres(truth)
     velocity = np.gradient(centre, axis=0)
     los = target[None, :] - centre
-    cosang = np.einsum("ij,ij->i", los[:, :2], velocity[:, :2]) / (
-        np.linalg.norm(los[:, :2], axis=1) * np.linalg.norm(velocity[:, :2], axis=1))
-    inside = np.abs(np.arcsin(np.clip(cosang, -1, 1))) < half_width
-    sel = np.flatnonzero(inside)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cosang = np.einsum("ij,ij->i", los[:, :2], velocity[:, :2]) / (
+            np.linalg.norm(los[:, :2], axis=1) * np.linalg.norm(velocity[:, :2], axis=1))
+    return np.flatnonzero(np.abs(np.arcsin(np.clip(cosang, -1, 1))) < half_width)
+
+
+def focus_reflector(cube, params, truth, target):
+    """Float64 TDBP around one reflector with the true phase centres, all 12 channels, pulses within the
+    stripmap window (:func:`stripmap_frames`)."""
+    tx = truth["tx"]  # (F, T, 3)
+    rx = truth["rx"]  # (F, T, R, 3)
+    centre = array_centres(truth)
+    sel = stripmap_frames(truth, target, params["f0"])
     assert len(sel) > 20, "reflector not illuminated inside the stripmap window"
     window = ref.hann(params["n"])
     rc = ref.range_compress(cube[sel].astype(np.complex128), window, 8).reshape(len(sel), 12, -1)
