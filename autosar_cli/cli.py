@@ -358,7 +358,8 @@ def navigate(
         summary = {"trajectory": str(output), "method": traj.method, "samples": len(traj.t_ns),
                    "duration_s": round(span, 3), "distance_m": round(dist, 3),
                    "elapsed_s": round(traj.info["elapsed_s"], 3),
-                   **{k: traj.info[k] for k in ("updates", "rejected") if k in traj.info},
+                   **{k: traj.info[k] for k in ("updates", "rejected", "understeer", "wheel_lag")
+                      if k in traj.info},
                    **({"plot": str(figure)} if figure else {})}
         if as_json:
             out.print_json(json.dumps(summary))
@@ -367,6 +368,13 @@ def navigate(
                   f"{dist:.1f} m travelled, in {traj.info['elapsed_s']:.1f} s")
         if traj.info.get("rejected"):
             out.print("gated out: " + ", ".join(f"{k} {v}" for k, v in traj.info["rejected"].items()))
+        if "understeer" in traj.info:
+            us = traj.info["understeer"]
+            fitted = f" +- {us['std']:.2g}" if us.get("applied") else ""
+            out.print(f"understeer gradient {us['gradient']:.3g}{fitted} rad per m/s^2: {us['reason']}")
+        if traj.info.get("wheel_lag", {}).get("applied"):
+            lag = traj.info["wheel_lag"]
+            out.print(f"wheel speeds moved back by {lag['lag_distance_m']:.3f} +- {lag['std_m']:.2g} m / speed")
         if figure:
             out.print(f"figure [bold]{figure}[/]")
 

@@ -284,6 +284,14 @@ class NavigationConfig:
     gnss_error_model: Literal["gauss_markov", "white"] = "gauss_markov"
     gnss_position_std_m: float = 0.5  # per-fix noise of the "white" model only
     steering_min_speed_mps: float = 1.0  # below it the steering model atan(L omega / v) is not used
+    # the understeer gradient K from the drive's own turns (a second pass with the fitted K), used where its std is
+    # at most understeer_max_std_rad_per_mps2; else, and with estimate_understeer off, vehicle's value
+    estimate_understeer: bool = True
+    understeer_max_std_rad_per_mps2: float = 0.0005
+    # the wheel speeds' lag c / v behind their stamps (an ABS ECU's edge window) fitted against the GNSS velocity,
+    # and the samples moved back by it, where c's std is at most wheel_lag_max_std_m
+    estimate_wheel_lag: bool = True
+    wheel_lag_max_std_m: float = 0.02
     gate_probability: float = 0.9999  # chi-square gate of each update
     max_step_s: float = 0.05  # longest single prediction step (dead reckoning through gaps)
     ins_imu: str = "ins_radar"  # INS baseline: the radar-mounted 6-DoF IMU ...
@@ -525,6 +533,8 @@ def _validate(cfg: Config) -> None:
         _positive(f"navigation.{name}", getattr(nav, name))
     _non_negative("navigation.position_noise_m", nav.position_noise_m)
     _non_negative("navigation.steering_min_speed_mps", nav.steering_min_speed_mps)
+    _non_negative("navigation.understeer_max_std_rad_per_mps2", nav.understeer_max_std_rad_per_mps2)
+    _non_negative("navigation.wheel_lag_max_std_m", nav.wheel_lag_max_std_m)
     if not 0.0 < nav.gate_probability < 1.0:
         raise ConfigError(f"navigation.gate_probability: must lie strictly between 0 and 1, got "
                           f"{nav.gate_probability!r}")

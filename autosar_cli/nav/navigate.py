@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -10,9 +11,11 @@ import numpy as np
 from autosar_cli.config import Config
 from autosar_cli.nav import models as m
 from autosar_cli.nav.baselines import from_truth, gnss_only, straight_line
-from autosar_cli.nav.inputs import NavInputError, load_inputs
-from autosar_cli.nav.sarmin import run_sarmin
+from autosar_cli.nav.inputs import NavInputError, NavInputs, load_inputs
+from autosar_cli.nav.sarmin import NavSolution, run_sarmin
 from autosar_cli.nav.trajectory import Trajectory
+from autosar_cli.nav.understeer import fit_understeer, lag_compensated
+from autosar_cli.nav.wheel_lag import fit_wheel_lag, lag_compensated_wheels
 from autosar_cli.store.drive import Drive
 
 METHODS = ("sar-min", "ins", "gnss", "none", "truth")
@@ -32,6 +35,48 @@ def default_truth_path(drive: Drive) -> Path | None:
     return None
 
 
+def wheel_lag_compensated(inputs: NavInputs, config: Config) -> tuple[NavInputs, dict]:
+    """The inputs with the wheel samples moved back by their fitted lag (:mod:`.wheel_lag`) where
+    ``navigation.estimate_wheel_lag`` is on and the fit's std is small enough; and what the fit found."""
+    nav = config.navigation
+    if not nav.estimate_wheel_lag:
+        return inputs, {"applied": False, "reason": "navigation.estimate_wheel_lag is off"}
+    fit = fit_wheel_lag(inputs)
+    if fit is None:
+        return inputs, {"applied": False, "reason": "no wheel speeds, GNSS velocity, or motion above 1 m/s"}
+    if not fit.std_m <= nav.wheel_lag_max_std_m:
+        return inputs, replace(fit, reason=f"std {fit.std_m:.2g} m above navigation.wheel_lag_max_std_m (a / v "
+                                           f"{fit.accel_over_speed_rms:.2f} 1/s RMS): samples as stamped").to_dict()
+    moved = replace(inputs, wheels=lag_compensated_wheels(inputs.wheels, fit))
+    return moved, replace(fit, applied=True, reason="fitted to the drive").to_dict()
+
+
+def sarmin_with_understeer(inputs: NavInputs, config: Config, smooth: bool = True) -> tuple[NavSolution, dict]:
+    """SAR-MIN; with ``navigation.estimate_understeer``, in two passes (:mod:`.understeer`): the first without the
+    steering, whose speed and gyro biases the fit of K and the yaw lag takes; the second with the steering, the
+    fitted K and the lag-compensated samples where K's std is small enough, else as recorded with the vehicle's
+    K. Returns the solution and what the fit found, why it was or was not applied."""
+    nav, veh = config.navigation, config.vehicle
+    vehicle_k = {"applied": False, "gradient": veh.understeer_gradient_rad_per_mps2}
+    if not nav.estimate_understeer or inputs.steering is None:
+        why = "navigation.estimate_understeer is off" if inputs.steering else "no steering"
+        return run_sarmin(inputs, config, smooth=smooth), {**vehicle_k, "reason": f"{why}: the vehicle's K"}
+    first = run_sarmin(replace(inputs, steering=None), config, smooth=smooth)
+    fit = fit_understeer(inputs, first.t, first.x, veh.wheelbase_m, nav.steering_min_speed_mps)
+    if fit is None:
+        info = {**vehicle_k, "reason": "no steering samples above navigation.steering_min_speed_mps: the vehicle's K"}
+    elif not fit.std <= nav.understeer_max_std_rad_per_mps2:
+        info = replace(fit, reason=f"std {fit.std:.2g} above navigation.understeer_max_std_rad_per_mps2 (lateral "
+                                   f"acceleration {fit.lateral_accel_rms_mps2:.2f} m/s^2 RMS): the vehicle's K, no "
+                                   "lag").to_dict()
+    else:
+        steering = lag_compensated(inputs.steering, first.t, first.x, fit, veh.wheelbase_m)
+        fitted = replace(config, vehicle=replace(veh, understeer_gradient_rad_per_mps2=fit.gradient))
+        return (run_sarmin(replace(inputs, steering=steering), fitted, smooth=smooth),
+                replace(fit, applied=True, reason="fitted to the drive").to_dict())
+    return run_sarmin(inputs, config, smooth=smooth), info
+
+
 def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: bool = True,
              truth_path: str | Path | None = None) -> Trajectory:
     """Estimate the trajectory of a drive.h5 with ``method`` (sar-min, ins, gnss, none, truth)."""
@@ -49,14 +94,15 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
             if truth_path is None:
                 raise NavInputError(f"{drive_path}: no truth sidecar found; give --truth LOG.truth.h5")
     if method == "sar-min":
-        sol = run_sarmin(inputs, config, smooth=smooth)
+        inputs, wheel_lag = wheel_lag_compensated(inputs, config)
+        sol, understeer = sarmin_with_understeer(inputs, config, smooth=smooth)
         t_ns = inputs.t0_ns + np.round(sol.t * 1e9).astype(np.int64)
         traj = Trajectory("sar-min", t_ns, sol.x[:, [m.PX, m.PY]], np.unwrap(sol.x[:, m.PSI]), sol.x[:, m.V],
                           sol.x[:, m.OMEGA], inputs.origin, config.vehicle.cog_to_rear_axle_m,
                           config.vehicle.cog_height_m, state=sol.x, state_names=sol.state_names,
                           covariance=sol.P, rear_slip_gain=config.vehicle.rear_slip_gain_rad_per_mps2,
-                          info={"updates": sol.updates, "rejected": sol.rejected,
-                                                  "smoothed": smooth})
+                          info={"updates": sol.updates, "rejected": sol.rejected, "smoothed": smooth,
+                                "understeer": understeer, "wheel_lag": wheel_lag})
     elif method == "ins":
         from autosar_cli.nav.ins import run_ins
 

@@ -1,0 +1,132 @@
+"""The steering's relation to the yaw rate, fitted to the drive's own turns: understeer gradient and yaw lag.
+
+A real car steers more than the kinematic bicycle's ``atan(L omega / v)`` in a turn: the linear single-track
+model's steady state adds ``K a_y`` with ``a_y = v omega`` (K = m / L (b / C_f - a / C_r), rad per m/s^2). And its
+yaw rate lags the steering: ``delta ~ G (omega + tau omega')`` with ``G = L / v + K v``. SAR-MIN's steering update
+is the steady state (``models.road_wheel_angle``); the filter has no yaw acceleration. Both errors pull the
+filter's yaw rate, and through the track's lateral swings the wheels' scale: on test3 with tyre slip
+(K = 3.2e-3, ``T omega'`` 2.5 mrad RMS) the scale came out 0.82 % long with K = 0, 0.16 % with the right K and no
+lag, -0.03 % (true: -0.04 %) without the steering. So the fit (:func:`fit_understeer`) regresses the steering
+on the gyros' yaw rate and its rate of change, and the second pass takes the fitted K and moves each steering
+sample to the instant whose yaw rate it describes, ``t + T / G`` (:func:`lag_compensated`).
+
+The fit's yaw rate is the gyros' own (their mean, less the first pass's bias estimates, averaged over
+``GYRO_WINDOW_S``), not the filter's: per sample the steering measures the yaw rate ~30x more precisely than a
+gyro, so the filter's yaw rate follows the steering and would hide most of a wrong K in its residual.
+
+Why not a filter state: the steering update's regressor ``v omega`` would be the filter's own yaw rate, whose
+error is correlated with the innovation it multiplies. On a straight drive (test1, ``omega`` < 1.2 mrad/s) that
+errors-in-variables drift took K to -0.036 at "13 sigma".
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from . import models as m
+from .inputs import Measurements, NavInputs
+
+Array = NDArray[np.float64]
+
+GYRO_WINDOW_S = 0.1  # the gyros' white noise averaged down; the steering's relation to the yaw rate is slower
+
+
+@dataclass(frozen=True)
+class UndersteerFit:
+    """K fitted to one drive's steering (rad per m/s^2), its 1-sigma, the yaw lag, and what they rest on."""
+
+    gradient: float
+    std: float
+    yaw_lag_coefficient_s2: float  #: T in delta = ... + T omega' (rad per rad/s^2)
+    yaw_lag_s: float  #: T / G at the drive's median speed: how far the steering leads the yaw rate
+    samples: int  #: steering samples above the steering model's minimum speed
+    effective_samples: float  #: after the residual's serial correlation
+    lateral_accel_rms_mps2: float  #: about its mean: the excitation that makes K observable
+    residual_rms_rad: float
+    applied: bool = False
+    reason: str = ""
+
+    def to_dict(self) -> dict[str, object]:
+        return asdict(self)
+
+
+def gyro_yaw_rate(inputs: NavInputs, t: Array, x: Array, at: Array) -> Array:
+    """Mean yaw rate (rad/s) of the gyros at times ``at`` (s): each gyro less its bias state ``x[:, 5 + i]`` at
+    ``t``, as running means over ``GYRO_WINDOW_S`` of samples placed at their samples' mean time (so a window
+    is never off-centre, which would show as a yaw lag), interpolated; NaN outside a gyro's span."""
+    rates = []
+    for i, g in enumerate(inputs.gyros):
+        if len(g.t) < 2:
+            continue
+        corrected = g.z[:, 0] - np.interp(g.t, t, x[:, m.N_KINEMATIC + i])
+        k = max(int(round(GYRO_WINDOW_S / float(np.median(np.diff(g.t))))), 1)
+        if len(g.t) < k:
+            continue
+        kernel = np.full(k, 1.0 / k)
+        t_mean, rate_mean = np.convolve(g.t, kernel, "valid"), np.convolve(corrected, kernel, "valid")
+        rates.append(np.interp(at, t_mean, rate_mean, left=np.nan, right=np.nan))
+    if not rates:
+        return np.full(np.shape(at), np.nan)
+    stacked = np.stack(rates)
+    seen = np.isfinite(stacked).sum(axis=0)
+    return np.where(seen > 0, np.nansum(stacked, axis=0) / np.maximum(seen, 1), np.nan)
+
+
+def fit_understeer(inputs: NavInputs, t: Array, x: Array, wheelbase_m: float,
+                   min_speed_mps: float) -> UndersteerFit | None:
+    """Least-squares K and T in ``z - atan(L omega / v) = c + K v omega + T omega'`` over the steering samples.
+
+    ``t`` (K,) s and ``x`` (K, n): the first pass's SAR-MIN states (see :mod:`.models`); its speed and gyro
+    biases are used, the yaw rate is the gyros' (:func:`gyro_yaw_rate`). The offset ``c`` stands in for the
+    filter's steering offset, which was estimated together with the first pass's K; ``T omega'`` takes up
+    the transient: the yaw rate lags the steering (on the simulator's full vehicle in an S-bend the steady-state
+    model alone leaves 1.6 mrad RMS, this term 0.03 mrad; K itself moves by 1 %). The std counts the
+    residual's serial correlation (lag-1 autocorrelation rho: N (1 - rho) / (1 + rho) independent samples).
+    None without usable steering.
+    """
+    st = inputs.steering
+    if st is None or len(t) < 2 or not inputs.gyros:
+        return None
+    inside = (st.t >= t[0] + 2 * GYRO_WINDOW_S) & (st.t <= t[-1] - 2 * GYRO_WINDOW_S)
+    ts, z = st.t[inside], st.z[inside, 0]
+    v = np.interp(ts, t, x[:, m.V])
+    # The kinematic part takes the yaw rate of the window at the sample, the regressors that of the windows
+    # either side: their noise is independent, so it does not correlate the residual with a regressor (with one
+    # yaw rate in both, -L sigma_w^2 / var(v omega) took K to -0.10 on a straight drive); it only shrinks K
+    # towards 0 where the turns are too weak to show it.
+    h = GYRO_WINDOW_S
+    w = gyro_yaw_rate(inputs, t, x, ts)
+    w_after, w_before = gyro_yaw_rate(inputs, t, x, ts + h), gyro_yaw_rate(inputs, t, x, ts - h)
+    use = (v >= min_speed_mps) & np.isfinite(w) & np.isfinite(w_after) & np.isfinite(w_before)
+    if use.sum() < 10:
+        return None
+    v, w, z = v[use], w[use], z[use]
+    w_side, w_dot = 0.5 * (w_after[use] + w_before[use]), (w_after[use] - w_before[use]) / (2.0 * h)
+    a = v * w_side
+    r = z - np.arctan(wheelbase_m * w / v)
+    design = np.stack([np.ones_like(a), a - a.mean(), w_dot - w_dot.mean()], axis=1)
+    coef, *_ = np.linalg.lstsq(design, r, rcond=None)
+    res = r - design @ coef
+    n = len(r)
+    rho = float(np.clip(np.corrcoef(res[:-1], res[1:])[0, 1], 0.0, 0.999)) if n > 2 and res.std() > 0 else 0.0
+    n_eff = max(n * (1.0 - rho) / (1.0 + rho), 2.0)
+    rms = float(np.sqrt(np.mean(res**2)))
+    normal = design.T @ design
+    std = (rms * np.sqrt(n / n_eff * np.linalg.inv(normal)[1, 1])
+           if np.linalg.matrix_rank(normal) == 3 else np.inf)
+    v_mid = float(np.median(v))
+    lag = float(coef[2]) / (wheelbase_m / v_mid + float(coef[1]) * v_mid)
+    return UndersteerFit(float(coef[1]), float(std), float(coef[2]), lag, n, float(n_eff), float(np.std(a)), rms)
+
+
+def lag_compensated(steering: Measurements, t: Array, x: Array, fit: UndersteerFit,
+                    wheelbase_m: float) -> Measurements:
+    """The steering samples moved to the instants whose yaw rate they describe: ``t + T / (L / v + K v)``, with the
+    speed of the states ``x`` at ``t`` (at least 1 m/s: below it the steering update is not used), in time order."""
+    v = np.maximum(np.interp(steering.t, t, x[:, m.V]), 1.0)
+    moved = steering.t + fit.yaw_lag_coefficient_s2 / (wheelbase_m / v + fit.gradient * v)
+    order = np.argsort(moved, kind="stable")
+    return Measurements(steering.name, moved[order], steering.z[order], steering.sigma)
