@@ -4,9 +4,9 @@ A real car steers more than the kinematic bicycle's ``atan(L omega / v)`` in a t
 model's steady state adds ``K a_y`` with ``a_y = v omega`` (K = m / L (b / C_f - a / C_r), rad per m/s^2). And its
 yaw rate lags the steering: ``delta ~ G (omega + tau omega')`` with ``G = L / v + K v``. SAR-MIN's steering update
 is the steady state (``models.road_wheel_angle``); the filter has no yaw acceleration. Both errors pull the
-filter's yaw rate, and through the track's lateral swings the wheels' scale: on test3 with tyre slip
-(K = 3.2e-3, ``T omega'`` 2.5 mrad RMS) the scale came out 0.82 % long with K = 0, 0.16 % with the right K and no
-lag, -0.03 % (true: -0.04 %) without the steering. So the fit (:func:`fit_understeer`) regresses the steering
+filter's yaw rate, and through the track's lateral swings the wheels' scale: on test3 with tyre slip (seed 0,
+fitted K = 2.5e-3 and T = 0.021 s^2) the scale came out 0.71 % long with K = 0, 0.20 % with the fitted K and no
+lag, 0.01 % with both, and 0.01 % without the steering. So the fit (:func:`fit_understeer`) regresses the steering
 on the gyros' yaw rate and its rate of change, and the second pass takes the fitted K and moves each steering
 sample to the instant whose yaw rate it describes, ``t + T / G`` (:func:`lag_compensated`).
 
