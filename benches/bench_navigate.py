@@ -5,7 +5,8 @@ Usage: python benches/bench_navigate.py [--scenario test1] [--repeat 5] [--workd
 Simulates (MCAP, seed 1) and ingests the scenario once (kept in ``--workdir`` between runs when given),
 then times ``navigate(drive, "sar-min")`` (reading the inputs from drive.h5 included) ``--repeat`` times
 in one process after a warm-up run (numba's compiled kernels are cached on disk, so the warm-up only
-loads them), the same without the smoother, and reading the inputs alone; plus one run of the
+loads them), alternating with single-pass runs (the fitted steering and wheel-speed lags off, side by side),
+the same without the smoother, and reading the inputs alone; plus one run of the
 filterpy/numpy reference engine (unless ``--no-reference``). Writes benches/results/navigate.json.
 """
 
@@ -18,6 +19,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -38,6 +40,7 @@ def main() -> None:
     from autosar_cli.store.drive import Drive
 
     cfg = load_config()
+    single = replace(cfg, navigation=replace(cfg.navigation, estimate_understeer=False, estimate_wheel_lag=False))
     with tempfile.TemporaryDirectory() as tmp:
         work = args.workdir or Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
@@ -52,11 +55,14 @@ def main() -> None:
         first = navigate(drive, "sar-min", cfg)
         warmup = time.perf_counter() - t
         duration = (first.t_ns[-1] - first.t_ns[0]) / 1e9
-        walls = []
+        walls, single_walls = [], []
         for _ in range(args.repeat):
             t = time.perf_counter()
             navigate(drive, "sar-min", cfg)
             walls.append(time.perf_counter() - t)
+            t = time.perf_counter()
+            navigate(drive, "sar-min", single)
+            single_walls.append(time.perf_counter() - t)
         unsmoothed = []
         for _ in range(args.repeat):
             t = time.perf_counter()
@@ -79,6 +85,8 @@ def main() -> None:
            "first_run_s": round(warmup, 3), "median_wall_s": round(wall, 3),
            "walls_s": [round(w, 3) for w in walls], "realtime_factor": round(duration / wall, 1),
            "s_per_drive_s": round(wall / duration, 4),
+           "single_pass_median_s": round(statistics.median(single_walls), 3),
+           "vs_single_pass": round(wall / statistics.median(single_walls), 2),
            "filter_only_median_s": round(filter_only, 3), "smoother_median_s": round(wall - filter_only, 3),
            "load_inputs_median_s": round(statistics.median(loads), 3),
            "reference_engine_s": round(reference, 2) if reference else None,
