@@ -55,10 +55,12 @@ def cli(*args: str) -> subprocess.CompletedProcess[str]:
                           text=True)
 
 
-def config_copy(components: str | None, understeer: float | None, work: Path, rear_slip: float | None = None) -> Path:
+def config_copy(components: str | None, understeer: float | None, work: Path, rear_slip: float | None = None,
+                fits: bool = True) -> Path:
     """A copy of the default config whose full vehicle model has only ``components`` (comma-separated; None: all),
     whose steering model has the understeer gradient ``understeer`` and whose trajectory the rear-slip gain
-    ``rear_slip`` (rad per m/s^2; None: the config's)."""
+    ``rear_slip`` (rad per m/s^2; None: the config's); ``fits`` False: SAR-MIN in one pass, without the fitted
+    understeer, yaw lag and wheel-speed lag."""
     from autosar_cli.config import DEFAULT_CONFIG
 
     text = DEFAULT_CONFIG.read_text()
@@ -73,8 +75,11 @@ def config_copy(components: str | None, understeer: float | None, work: Path, re
     if rear_slip is not None:
         text = re.sub(r"^rear_slip_gain_rad_per_mps2 = \S+", f"rear_slip_gain_rad_per_mps2 = {rear_slip!r}", text,
                       count=1, flags=re.MULTILINE)
+    if not fits:
+        for key in ("estimate_understeer", "estimate_wheel_lag"):
+            text = re.sub(rf"^{key} = true", f"{key} = false", text, count=1, flags=re.MULTILINE)
     tag = (components.replace(",", "+") or "none") if components is not None else "all"
-    path = work / f"config_{tag}_us{understeer}_slip{rear_slip}.toml"
+    path = work / f"config_{tag}_us{understeer}_slip{rear_slip}{'' if fits else '_nofits'}.toml"
     path.write_text(text)
     return path
 
@@ -205,7 +210,8 @@ def group_key(row: dict[str, Any]) -> str:
     given."""
     comps, k, g = row.get("components"), row.get("understeer_gradient"), row.get("rear_slip_gain")
     return (row["scenario"] + ("" if comps is None else f" [{comps or 'none'}]")
-            + ("" if k is None else f" [K={k:g}]") + ("" if g is None else f" [slip={g:g}]"))
+            + ("" if k is None else f" [K={k:g}]") + ("" if g is None else f" [slip={g:g}]")
+            + ("" if row.get("fits", True) else " [no fits]"))
 
 
 def main() -> None:
@@ -222,6 +228,8 @@ def main() -> None:
                     help="SAR-MIN's steering model's understeer gradient (rad per m/s^2; default: the config's)")
     ap.add_argument("--rear-slip-gain", type=float, default=None,
                     help="the rear-slip gain SAR-MIN's trajectory turns the body by (rad per m/s^2; default: config's)")
+    ap.add_argument("--no-fits", action="store_true",
+                    help="SAR-MIN in one pass: no fitted understeer, yaw lag or wheel-speed lag")
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--keep", action="store_true", help="keep every drive's log and comparison")
     ap.add_argument("--resume", action="store_true", help="keep --output's rows and skip the drives already in it")
@@ -235,7 +243,7 @@ def main() -> None:
     if args.resume and args.output.exists():
         rows = json.loads(args.output.read_text())["rows"]
     done = {(r["scenario"], r["seed"], r.get("dynamics"), r.get("components"), r.get("understeer_gradient"),
-             r.get("rear_slip_gain")) for r in rows}
+             r.get("rear_slip_gain"), r.get("fits", True)) for r in rows}
 
     def write() -> dict[str, Any]:
         groups = list(dict.fromkeys(group_key(r) for r in rows))
@@ -250,13 +258,14 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         work = args.workdir or Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
-        custom = (args.components, args.understeer_gradient, args.rear_slip_gain) != (None, None, None)
-        config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain))]
-                  if custom else [])
+        custom = (args.components is not None or args.understeer_gradient is not None
+                  or args.rear_slip_gain is not None or args.no_fits)
+        config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
+                                                not args.no_fits))] if custom else [])
         for seed in parse_seeds(args.seeds):
             for scenario in args.scenarios.split(","):
                 if (scenario, seed, args.dynamics, args.components, args.understeer_gradient,
-                        args.rear_slip_gain) in done:
+                        args.rear_slip_gain, not args.no_fits) in done:
                     continue
                 tag = (f"_{args.dynamics}" if args.dynamics else "") + (
                     f"_{args.components.replace(',', '+')}" if args.components is not None else "")
@@ -277,6 +286,8 @@ def main() -> None:
                     row["understeer_gradient"] = args.understeer_gradient
                 if args.rear_slip_gain is not None:
                     row["rear_slip_gain"] = args.rear_slip_gain
+                if args.no_fits:
+                    row["fits"] = False
                 row["sarmin_track_scale_pct"] = round(100 * track_scale(out), 4)
                 gnss_scale, gnss_se = gnss_velocity_scale(scenario, seed)
                 row["gnss_velocity_scale_pct"] = round(100 * gnss_scale, 4)
