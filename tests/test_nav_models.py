@@ -164,7 +164,7 @@ def test_lag_compensated_steering_moves_each_sample_by_t_over_g() -> None:
     from autosar_cli.nav.inputs import Measurements
     from autosar_cli.nav.understeer import UndersteerFit, lag_compensated
 
-    fit = UndersteerFit(0.003, 1e-4, 0.02, 0.0, 0, 0.0, 0.0, 0.0)
+    fit = UndersteerFit(0.003, 1e-4, 0.02, 1e-4, 0.0, 0, 0.0, 0.0, 0.0)
     t = np.linspace(0.0, 10.0, 101)
     x = np.zeros((t.size, 5))
     x[:, m.V] = np.linspace(0.0, 10.0, t.size)

@@ -19,6 +19,7 @@ from autosar_cli.nav.wheel_lag import fit_wheel_lag, lag_compensated_wheels
 from autosar_cli.store.drive import Drive
 
 METHODS = ("sar-min", "ins", "gnss", "none", "truth")
+SIGNIFICANT = 3.0  # a fitted lag or gradient is applied where it differs from the default by more stds than this
 
 
 def default_truth_path(drive: Drive) -> Path | None:
@@ -37,7 +38,8 @@ def default_truth_path(drive: Drive) -> Path | None:
 
 def wheel_lag_compensated(inputs: NavInputs, config: Config) -> tuple[NavInputs, dict]:
     """The inputs with the wheel samples moved back by their fitted lag (:mod:`.wheel_lag`) where
-    ``navigation.estimate_wheel_lag`` is on and the fit's std is small enough; and what the fit found."""
+    ``navigation.estimate_wheel_lag`` is on, the fit's std is small enough and the lag differs from 0 by more than
+    ``SIGNIFICANT`` of them; and what the fit found."""
     nav = config.navigation
     if not nav.estimate_wheel_lag:
         return inputs, {"applied": False, "reason": "navigation.estimate_wheel_lag is off"}
@@ -47,6 +49,8 @@ def wheel_lag_compensated(inputs: NavInputs, config: Config) -> tuple[NavInputs,
     if not fit.std_m <= nav.wheel_lag_max_std_m:
         return inputs, replace(fit, reason=f"std {fit.std_m:.2g} m above navigation.wheel_lag_max_std_m (a / v "
                                            f"{fit.accel_over_speed_rms:.2f} 1/s RMS): samples as stamped").to_dict()
+    if abs(fit.lag_distance_m) <= SIGNIFICANT * fit.std_m:
+        return inputs, replace(fit, reason=f"lag within {SIGNIFICANT:g} std of 0: samples as stamped").to_dict()
     moved = replace(inputs, wheels=lag_compensated_wheels(inputs.wheels, fit))
     return moved, replace(fit, applied=True, reason="fitted to the drive").to_dict()
 
@@ -54,8 +58,9 @@ def wheel_lag_compensated(inputs: NavInputs, config: Config) -> tuple[NavInputs,
 def sarmin_with_understeer(inputs: NavInputs, config: Config, smooth: bool = True) -> tuple[NavSolution, dict]:
     """SAR-MIN; with ``navigation.estimate_understeer``, in two passes (:mod:`.understeer`): the first without the
     steering, whose speed and gyro biases the fit of K and the yaw lag takes; the second with the steering, the
-    fitted K and the lag-compensated samples where K's std is small enough, else as recorded with the vehicle's
-    K. Returns the solution and what the fit found, why it was or was not applied."""
+    fitted K and the lag-compensated samples where K's std is small enough and K (from the vehicle's) or the lag
+    (from 0) is significant, else as recorded with the vehicle's K. Returns the solution and what the fit found,
+    why it was or was not applied."""
     nav, veh = config.navigation, config.vehicle
     vehicle_k = {"applied": False, "gradient": veh.understeer_gradient_rad_per_mps2}
     if not nav.estimate_understeer or inputs.steering is None:
@@ -69,6 +74,10 @@ def sarmin_with_understeer(inputs: NavInputs, config: Config, smooth: bool = Tru
         info = replace(fit, reason=f"std {fit.std:.2g} above navigation.understeer_max_std_rad_per_mps2 (lateral "
                                    f"acceleration {fit.lateral_accel_rms_mps2:.2f} m/s^2 RMS): the vehicle's K, no "
                                    "lag").to_dict()
+    elif (abs(fit.gradient - veh.understeer_gradient_rad_per_mps2) <= SIGNIFICANT * fit.std
+          and abs(fit.yaw_lag_coefficient_s2) <= SIGNIFICANT * fit.yaw_lag_coefficient_std_s2):
+        info = replace(fit, reason=f"K within {SIGNIFICANT:g} std of the vehicle's and the lag of 0: the vehicle's K, "
+                                   "no lag").to_dict()
     else:
         steering = lag_compensated(inputs.steering, first.t, first.x, fit, veh.wheelbase_m)
         fitted = replace(config, vehicle=replace(veh, understeer_gradient_rad_per_mps2=fit.gradient))

@@ -41,6 +41,7 @@ class UndersteerFit:
     gradient: float
     std: float
     yaw_lag_coefficient_s2: float  #: T in delta = ... + T omega' (rad per rad/s^2)
+    yaw_lag_coefficient_std_s2: float
     yaw_lag_s: float  #: T / G at the drive's median speed: how far the steering leads the yaw rate
     samples: int  #: steering samples above the steering model's minimum speed
     effective_samples: float  #: after the residual's serial correlation
@@ -115,11 +116,14 @@ def fit_understeer(inputs: NavInputs, t: Array, x: Array, wheelbase_m: float,
     n_eff = max(n * (1.0 - rho) / (1.0 + rho), 2.0)
     rms = float(np.sqrt(np.mean(res**2)))
     normal = design.T @ design
-    std = (rms * np.sqrt(n / n_eff * np.linalg.inv(normal)[1, 1])
-           if np.linalg.matrix_rank(normal) == 3 else np.inf)
+    if np.linalg.matrix_rank(normal) == 3:
+        std, lag_std = rms * np.sqrt(n / n_eff * np.diag(np.linalg.inv(normal))[1:])
+    else:
+        std = lag_std = np.inf
     v_mid = float(np.median(v))
     lag = float(coef[2]) / (wheelbase_m / v_mid + float(coef[1]) * v_mid)
-    return UndersteerFit(float(coef[1]), float(std), float(coef[2]), lag, n, float(n_eff), float(np.std(a)), rms)
+    return UndersteerFit(float(coef[1]), float(std), float(coef[2]), float(lag_std), lag, n, float(n_eff),
+                         float(np.std(a)), rms)
 
 
 def lag_compensated(steering: Measurements, t: Array, x: Array, fit: UndersteerFit,
