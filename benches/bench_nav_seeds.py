@@ -36,7 +36,7 @@ NAV_ONLY_PRF_HZ = 20.0
 SCALE_LIMIT = 5.5e-4  #: |scale| above it puts a reflector 55 m from the track's centre more than 3 cm off
 
 
-def measure(scenario: str, seed: int, config: Any, work: Path) -> dict[str, float]:
+def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | None = None) -> dict[str, float]:
     from autosar_cli.evaluate.alignment import fit_se2, fit_similarity_scale
     from autosar_cli.evaluate.trajectory_metrics import common_instants
     from autosar_cli.ingest.pipeline import ingest
@@ -46,7 +46,7 @@ def measure(scenario: str, seed: int, config: Any, work: Path) -> dict[str, floa
     from autosar_cli.sim.simulate import simulate
 
     log = work / f"{scenario}_s{seed}.mcap"
-    sim = simulate(scenario, log, seed=seed, config=config)
+    sim = simulate(scenario, log, seed=seed, config=config, dynamics=dynamics)  # type: ignore[arg-type]
     drive = work / f"{scenario}_s{seed}.h5"
     ingest([log], drive, config=config)
     est = navigate(drive, "sar-min", config)
@@ -61,7 +61,10 @@ def measure(scenario: str, seed: int, config: Any, work: Path) -> dict[str, floa
     return {"scale_pct": 100 * (fit_similarity_scale(e_xy, r_xy) - 1.0), "gnss_velocity_scale_pct": 100 * gnss,
             "aligned_rmse_cm": 100 * float(np.sqrt(np.mean(residual**2))),
             "aligned_max_cm": 100 * float(residual.max()),
-            "abs_rmse_m": float(np.sqrt(np.mean(np.sum((e_xy - r_xy) ** 2, axis=1))))}
+            "abs_rmse_m": float(np.sqrt(np.mean(np.sum((e_xy - r_xy) ** 2, axis=1)))),
+            # which of the fitted lags SAR-MIN applied (docs/NAVIGATION.md)
+            "understeer_applied": bool(est.info["understeer"]["applied"]),
+            "wheel_lag_applied": bool(est.info["wheel_lag"]["applied"])}
 
 
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
@@ -76,7 +79,9 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "aligned_rmse_mean_cm": round(statistics.fmean(r["aligned_rmse_cm"] for r in rows), 3),
             "aligned_max_median_cm": round(statistics.median(aligned_max), 3),
             "aligned_max_p90_cm": round(float(np.percentile(aligned_max, 90)), 3),
-            "abs_rmse_mean_m": round(statistics.fmean(r["abs_rmse_m"] for r in rows), 4)}
+            "abs_rmse_mean_m": round(statistics.fmean(r["abs_rmse_m"] for r in rows), 4),
+            "understeer_applied": sum(r["understeer_applied"] for r in rows),
+            "wheel_lag_applied": sum(r["wheel_lag_applied"] for r in rows)}
 
 
 def main() -> None:
@@ -89,6 +94,8 @@ def main() -> None:
     ap.add_argument("--gnss-models", default=None,
                     help="comma-separated GNSS error models to compare: gauss_markov, or white:<std m> "
                          "(navigation.gnss_error_model, gnss_position_std_m; default: the config's)")
+    ap.add_argument("--dynamics", choices=("kinematic", "full"), default=None,
+                    help="simulator vehicle model (default: the config's simulation.dynamics)")
     ap.add_argument("--output", type=Path, default=RESULTS / "nav_seeds.json")
     args = ap.parse_args()
     base = load_config()
@@ -106,7 +113,8 @@ def main() -> None:
             for scenario in args.scenarios.split(","):
                 t = time.perf_counter()
                 these = [{"gnss_model": model, "scenario": scenario, "seed": seed,
-                          **{k: round(v, 4) for k, v in measure(scenario, seed, cfg, Path(tmp)).items()}}
+                          **{k: (round(v, 4) if isinstance(v, float) else v)
+                             for k, v in measure(scenario, seed, cfg, Path(tmp), args.dynamics).items()}}
                          for seed in parse_seeds(args.seeds)]
                 rows += these
                 s = summarise(these)
@@ -117,7 +125,9 @@ def main() -> None:
                       f"{s['scale_correlation_with_gnss_velocity']:.2f}), |scale| > {100 * SCALE_LIMIT:.3f} % on "
                       f"{s['scale_beyond_limit']}, aligned RMSE {s['aligned_rmse_mean_cm']:.2f} cm, aligned max median "
                       f"{s['aligned_max_median_cm']:.2f} / p90 {s['aligned_max_p90_cm']:.2f} cm, abs RMSE "
-                      f"{s['abs_rmse_mean_m']:.3f} m ({time.perf_counter() - t:.0f} s)", flush=True)
+                      f"{s['abs_rmse_mean_m']:.3f} m, fitted understeer / wheel lag applied on "
+                      f"{s['understeer_applied']} / {s['wheel_lag_applied']} ({time.perf_counter() - t:.0f} s)",
+                      flush=True)
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(json.dumps({"benchmark": "nav_seeds", "radar_prf_hz": NAV_ONLY_PRF_HZ, "summary": summary,
                                        "rows": rows}, indent=2) + "\n")

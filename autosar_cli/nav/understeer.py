@@ -40,6 +40,7 @@ class UndersteerFit:
 
     gradient: float
     std: float
+    #: the regression's, counting its correlated residual and the first pass's speed scale (see fit_understeer)
     yaw_lag_coefficient_s2: float  #: T in delta = ... + T omega' (rad per rad/s^2)
     yaw_lag_coefficient_std_s2: float
     yaw_lag_s: float  #: T / G at the drive's median speed: how far the steering leads the yaw rate
@@ -76,8 +77,8 @@ def gyro_yaw_rate(inputs: NavInputs, t: Array, x: Array, at: Array) -> Array:
     return np.where(seen > 0, np.nansum(stacked, axis=0) / np.maximum(seen, 1), np.nan)
 
 
-def fit_understeer(inputs: NavInputs, t: Array, x: Array, wheelbase_m: float,
-                   min_speed_mps: float) -> UndersteerFit | None:
+def fit_understeer(inputs: NavInputs, t: Array, x: Array, wheelbase_m: float, min_speed_mps: float,
+                   speed_scale_std: float = 0.0) -> UndersteerFit | None:
     """Least-squares K and T in ``z - atan(L omega / v) = c + K v omega + T omega'`` over the steering samples.
 
     ``t`` (K,) s and ``x`` (K, n): the first pass's SAR-MIN states (see :mod:`.models`); its speed and gyro
@@ -85,7 +86,11 @@ def fit_understeer(inputs: NavInputs, t: Array, x: Array, wheelbase_m: float,
     filter's steering offset, which was estimated together with the first pass's K; ``T omega'`` takes up
     the transient: the yaw rate lags the steering (on the simulator's full vehicle in an S-bend the steady-state
     model alone leaves 1.6 mrad RMS, this term 0.03 mrad; K itself moves by 1 %). The std counts the
-    residual's serial correlation (lag-1 autocorrelation rho: N (1 - rho) / (1 + rho) independent samples).
+    residual's serial correlation (lag-1 autocorrelation rho: N (1 - rho) / (1 + rho) independent samples), and
+    the first pass's speed scale error (1-sigma ``speed_scale_std``, a fraction): the steering and the gyros
+    together measure the speed (``v = omega G``), so at a steady speed a scale error eps reads as
+    ``K = L eps / v^2`` (0.1 % at 4 m/s: 1.8e-4; on the kinematic test3 drives K came out 1.9-2.7e-4 at "9 sigma"
+    without this term, and applying it took the steering's own measure of the speed away: scale -0.06 -> -0.11 %).
     None without usable steering.
     """
     st = inputs.steering
@@ -116,11 +121,12 @@ def fit_understeer(inputs: NavInputs, t: Array, x: Array, wheelbase_m: float,
     n_eff = max(n * (1.0 - rho) / (1.0 + rho), 2.0)
     rms = float(np.sqrt(np.mean(res**2)))
     normal = design.T @ design
+    v_mid = float(np.median(v))
     if np.linalg.matrix_rank(normal) == 3:
         std, lag_std = rms * np.sqrt(n / n_eff * np.diag(np.linalg.inv(normal))[1:])
+        std = float(np.hypot(std, wheelbase_m * speed_scale_std / v_mid**2))
     else:
         std = lag_std = np.inf
-    v_mid = float(np.median(v))
     lag = float(coef[2]) / (wheelbase_m / v_mid + float(coef[1]) * v_mid)
     return UndersteerFit(float(coef[1]), float(std), float(coef[2]), float(lag_std), lag, n, float(n_eff),
                          float(np.std(a)), rms)
