@@ -370,7 +370,7 @@ def navigate(
             out.print("gated out: " + ", ".join(f"{k} {v}" for k, v in traj.info["rejected"].items()))
         if "understeer" in traj.info:
             us = traj.info["understeer"]
-            fitted = f" +- {us['std']:.2g}" if us.get("applied") else ""
+            fitted = f" +- {us['std']:.2g}" if "std" in us else ""
             out.print(f"understeer gradient {us['gradient']:.3g}{fitted} rad per m/s^2: {us['reason']}")
         if traj.info.get("wheel_lag", {}).get("applied"):
             lag = traj.info["wheel_lag"]

@@ -284,8 +284,9 @@ class NavigationConfig:
     gnss_error_model: Literal["gauss_markov", "white"] = "gauss_markov"
     gnss_position_std_m: float = 0.5  # per-fix noise of the "white" model only
     steering_min_speed_mps: float = 1.0  # below it the steering model atan(L omega / v) is not used
-    # the understeer gradient K from the drive's own turns (a second pass with the fitted K), used where its std is
-    # at most understeer_max_std_rad_per_mps2; else, and with estimate_understeer off, vehicle's value
+    # fit the understeer gradient K and the yaw lag to the drive's turns on a pass without the steering, and keep that
+    # pass where they show the car not steering as the kinematic bicycle (K's std at most
+    # understeer_max_std_rad_per_mps2); else, and with estimate_understeer off, the steering is used
     estimate_understeer: bool = True
     understeer_max_std_rad_per_mps2: float = 0.0005
     # the wheel speeds' lag c / v behind their stamps (an ABS ECU's edge window) fitted against the GNSS velocity,

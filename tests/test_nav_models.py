@@ -159,23 +159,6 @@ def test_understeer_fit_finds_the_full_vehicles_gradient_and_none_on_a_kinematic
     assert fit_understeer(inputs, t, x, VEH.wheelbase_m, 1.0).std > 10 * limit
 
 
-def test_lag_compensated_steering_moves_each_sample_by_t_over_g() -> None:
-    """Each sample moves by T / (L / v + K v) at its speed (v floored at 1 m/s), and the samples stay in time order."""
-    from autosar_cli.nav.inputs import Measurements
-    from autosar_cli.nav.understeer import UndersteerFit, lag_compensated
-
-    fit = UndersteerFit(0.003, 1e-4, 0.02, 1e-4, 0.0, 0, 0.0, 0.0, 0.0)
-    t = np.linspace(0.0, 10.0, 101)
-    x = np.zeros((t.size, 5))
-    x[:, m.V] = np.linspace(0.0, 10.0, t.size)
-    steering = Measurements("steering", t[::2], np.arange(51.0)[:, None], np.array([1e-4]))
-    moved = lag_compensated(steering, t, x, fit, 2.82)
-    v = np.maximum(np.interp(steering.t, t, x[:, m.V]), 1.0)
-    np.testing.assert_allclose(moved.t, steering.t + 0.02 / (2.82 / v + 0.003 * v), rtol=1e-12)
-    np.testing.assert_array_equal(moved.z, steering.z)
-    assert np.all(np.diff(moved.t) > 0)
-
-
 def _wheel_and_gnss_inputs(speed, ecu: bool, seed: int):  # noqa: ANN001, ANN202
     """NavInputs of a straight drive at ``speed(t)`` (m/s) over 60 s: four wheel speeds at 100 Hz, from an ABS
     ECU's tone-ring edges (the simulator's edge model: 48 teeth, 6 edges per estimate) or instantaneous with 8 mm/s

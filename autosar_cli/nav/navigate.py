@@ -14,7 +14,7 @@ from autosar_cli.nav.baselines import from_truth, gnss_only, straight_line
 from autosar_cli.nav.inputs import NavInputError, NavInputs, load_inputs
 from autosar_cli.nav.sarmin import NavSolution, run_sarmin
 from autosar_cli.nav.trajectory import Trajectory
-from autosar_cli.nav.understeer import fit_understeer, lag_compensated
+from autosar_cli.nav.understeer import fit_understeer
 from autosar_cli.nav.wheel_lag import fit_wheel_lag, lag_compensated_wheels
 from autosar_cli.store.drive import Drive
 
@@ -69,37 +69,36 @@ def wheel_lag_compensated(inputs: NavInputs, config: Config) -> tuple[NavInputs,
 
 
 def sarmin_with_understeer(inputs: NavInputs, config: Config, smooth: bool = True) -> tuple[NavSolution, dict]:
-    """SAR-MIN; with ``navigation.estimate_understeer``, in two passes (:mod:`.understeer`): the first without the
-    steering, whose speed and gyro biases the fit of K and the yaw lag takes; the second with the steering, the
-    fitted K and the lag-compensated samples where K's std is small enough and K (from the vehicle's) or the lag
-    (from 0) is significant, else as recorded with the vehicle's K. Returns the solution and what the fit found,
-    why it was or was not applied."""
+    """SAR-MIN; with ``navigation.estimate_understeer``, first without the steering, and the steering's understeer
+    gradient and yaw lag fitted against the gyros on that pass (:mod:`.understeer`). Where the drive shows the car
+    steering otherwise than the kinematic bicycle (K off the vehicle's, or a yaw lag, by more than ``SIGNIFICANT``
+    std and the ``MIN_*`` sizes) that pass is the solution: the steering is left out. Else SAR-MIN runs again with
+    the steering. Returns the solution and what the fit found, and why the steering was or was not used."""
     nav, veh = config.navigation, config.vehicle
     vehicle_k = {"applied": False, "gradient": veh.understeer_gradient_rad_per_mps2}
     if not nav.estimate_understeer or inputs.steering is None:
         why = "navigation.estimate_understeer is off" if inputs.steering else "no steering"
-        return run_sarmin(inputs, config, smooth=smooth), {**vehicle_k, "reason": f"{why}: the vehicle's K"}
+        return run_sarmin(inputs, config, smooth=smooth), {**vehicle_k, "reason": f"{why}: the steering as recorded"}
     first = run_sarmin(replace(inputs, steering=None), config, smooth=smooth)
     scales = [i for i, name in enumerate(first.state_names) if name.startswith("scale.wheel_")]
     common_scale_std = float(np.sqrt(first.P[-1][np.ix_(scales, scales)].sum())) / len(scales)
     fit = fit_understeer(inputs, first.t, first.x, veh.wheelbase_m, nav.steering_min_speed_mps, common_scale_std)
     if fit is None:
-        info = {**vehicle_k, "reason": "no steering samples above navigation.steering_min_speed_mps: the vehicle's K"}
+        info = {**vehicle_k, "reason": "no steering samples above navigation.steering_min_speed_mps: the steering "
+                                       "as recorded"}
     elif not fit.std <= nav.understeer_max_std_rad_per_mps2:
-        info = replace(fit, reason=f"std {fit.std:.2g} above navigation.understeer_max_std_rad_per_mps2 (lateral "
-                                   f"acceleration {fit.lateral_accel_rms_mps2:.2f} m/s^2 RMS): the vehicle's K, no "
-                                   "lag").to_dict()
+        info = replace(fit, reason=f"K's std {fit.std:.2g} above navigation.understeer_max_std_rad_per_mps2 "
+                                   f"(lateral acceleration {fit.lateral_accel_rms_mps2:.2f} m/s^2 RMS): the steering "
+                                   "as recorded").to_dict()
     elif not (_shows(fit.gradient - veh.understeer_gradient_rad_per_mps2, fit.std, MIN_UNDERSTEER_CHANGE)
               or (_shows(fit.yaw_lag_coefficient_s2, fit.yaw_lag_coefficient_std_s2, 0.0)
                   and abs(fit.yaw_lag_s) > MIN_YAW_LAG_S)):
         info = replace(fit, reason=f"K within {SIGNIFICANT:g} std or {MIN_UNDERSTEER_CHANGE:g} of the vehicle's and "
                                    f"the lag within {SIGNIFICANT:g} std or {MIN_YAW_LAG_S * 1000:g} ms of 0: the "
-                                   "vehicle's K, no lag").to_dict()
+                                   "steering as recorded").to_dict()
     else:
-        steering = lag_compensated(inputs.steering, first.t, first.x, fit, veh.wheelbase_m)
-        fitted = replace(config, vehicle=replace(veh, understeer_gradient_rad_per_mps2=fit.gradient))
-        return (run_sarmin(replace(inputs, steering=steering), fitted, smooth=smooth),
-                replace(fit, applied=True, reason="fitted to the drive").to_dict())
+        return first, replace(fit, applied=True, reason="the car does not steer as the kinematic bicycle: navigated "
+                                                        "without the steering").to_dict()
     return run_sarmin(inputs, config, smooth=smooth), info
 
 
