@@ -11,7 +11,9 @@ radar's mean phase centre: the track's scale (similarity fitted to the truth's, 
 its aligned RMSE and maximum after the rigid SE(2) alignment, the absolute RMSE, and what the GNSS velocity alone
 says of the scale (its mean along-track error over the drive: benches/bench_paper.py). A reflector's whole-track
 aligned error is about the scale times its along-track distance from the track's centre: 0.055 % is 3 cm at 55 m.
-Prints one line per setting and scenario; writes the rows and the summary as JSON.
+Prints one line per setting and scenario; writes the rows and the summary as JSON, with which of SAR-MIN's fitted
+terms each drive applied (``--dynamics kinematic --seeds 0-9 --output benches/results/nav_seeds_kinematic.json``:
+none shows on the kinematic drives).
 """
 
 from __future__ import annotations

@@ -15,7 +15,8 @@ The full vehicle model's runs (``make bench-paper-full``): ``--scenarios test1,t
 --dynamics full --methods none,ins,sar-min,sar-min+af,truth --output benches/results/paper_full.json``; the
 ablation, one run per ``--components`` set, to benches/results/paper_ablation.json with ``--resume``
 (``make bench-ablation``); ``--understeer-gradient K`` and ``--rear-slip-gain G`` give SAR-MIN's steering
-model an understeer term and its trajectory the rear tyres' slip (the A/B: benches/results/paper_understeer.json).
+model an understeer term and its trajectory the rear tyres' slip; ``--no-fits`` navigates in one pass without the
+fitted wheel-speed lag and steering test (the A/B: benches/results/paper_fits.json).
 """
 
 from __future__ import annotations

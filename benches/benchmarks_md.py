@@ -19,7 +19,7 @@ from typing import Any
 HERE = Path(__file__).resolve().parent
 MACHINE_KEYS = ("machine", "cores", "cpus", "python", "host_before", "host_after")
 MAX_COLUMNS = 12
-MAX_NAMED = 5  #: named records (a summary's groups) shown per table
+MAX_NAMED = 4  #: named records (a summary's groups) shown per table
 MAX_ROWS = 3
 PER_RUN_KEYS = {"rows", "trials"}  #: per-drive / per-trial records: left in the JSON where a summary exists
 SUMMARY_KEYS = {"summary", "table"}
@@ -101,7 +101,11 @@ def section(data: Any, max_rows: int, depth: int = 0) -> list[str]:
         if is_scalar(value) or key in MACHINE_KEYS:
             continue
         if key in PER_RUN_KEYS and isinstance(value, list) and SUMMARY_KEYS & data.keys():
-            lines += [f"({len(value)} {key} behind the summary: see the JSON.)", ""]
+            note = f"{len(value)} {key} behind the summary (see the JSON)"
+            if len(lines) >= 2 and lines[-1] == "" and lines[-2] and not lines[-2].startswith(("|", "#", "(")):
+                lines[-2] += f"; {note}"  # on the figures' line: a paragraph per note cost 2 lines a section
+            else:
+                lines += [f"({note}.)", ""]
             continue
         if isinstance(value, dict) and all(is_scalar(v) for v in value.values()):
             lines += [f"**{key}**: {cell(value)}", ""]
@@ -114,7 +118,11 @@ def section(data: Any, max_rows: int, depth: int = 0) -> list[str]:
                 names = names[:MAX_NAMED - 1] + (["all"] if "all" in value else names[MAX_NAMED - 1:MAX_NAMED])
             lines += records_table([value[n] for n in names], len(names), names=names)
             if len(names) < len(value):
-                lines += [f"({len(value) - len(names)} more groups: see the JSON.)", ""]
+                more = f"{len(value) - len(names)} more groups"
+                if len(lines) >= 2 and lines[-1] == "" and lines[-2].endswith(": see the JSON.)"):
+                    lines[-2] = lines[-2][: -len(": see the JSON.)")] + f"; {more}: see the JSON.)"
+                else:
+                    lines += [f"({more}: see the JSON.)", ""]
             continue
         lines += section(value, max_rows, depth + 1)
     return lines
