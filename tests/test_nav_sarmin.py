@@ -538,3 +538,26 @@ def test_sarmin_equals_a_filter_set_up_independently(ci_drive: Path) -> None:
     # measured: 0.15 um, 9 nrad, 0.013 um/s, 0.56 nrad/s, 4e-10 (float rounding of two filters computing in another
     # order over 1 s): the same filter. A lost steering update moves the yaw rate by ~0.1 mrad/s.
     assert d_xy < 5e-7 and d_psi < 3e-8 and d_v < 5e-8 and d_w < 2e-9 and d_par < 2e-9
+
+
+def test_steering_is_left_out_only_where_the_fit_shows_another_steering(ci_drive: Path) -> None:
+    """The ci drive is kinematic: with the vehicle's K (0) the fit shows nothing and SAR-MIN's second pass uses the
+    steering; told the car's K is 0.5 (absurd), the fitted K (~0) differs by many sigma and the first pass, without
+    the steering, is the solution."""
+    import dataclasses
+
+    from autosar_cli.nav.navigate import sarmin_with_understeer
+
+    with Drive(ci_drive) as d:
+        inputs = load_inputs(d, CFG)
+    loose = dataclasses.replace(CFG, navigation=dataclasses.replace(CFG.navigation,
+                                                                     understeer_max_std_rad_per_mps2=10.0))
+    sol, info = sarmin_with_understeer(inputs, loose)
+    assert not info["applied"] and "updates" not in info
+    np.testing.assert_array_equal(sol.x, run_sarmin(inputs, loose).x)
+    assert sol.updates["steering"] > 0
+    wrong_k = dataclasses.replace(loose, vehicle=dataclasses.replace(CFG.vehicle, understeer_gradient_rad_per_mps2=0.5))
+    sol, info = sarmin_with_understeer(inputs, wrong_k)
+    assert info["applied"] and abs(info["gradient"] - 0.5) > 3 * info["std"], info
+    np.testing.assert_array_equal(sol.x, run_sarmin(dataclasses.replace(inputs, steering=None), wrong_k).x)
+    assert "steering" not in sol.updates
