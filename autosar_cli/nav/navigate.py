@@ -21,9 +21,8 @@ from autosar_cli.store.drive import Drive
 METHODS = ("sar-min", "ins", "gnss", "none", "truth")
 SIGNIFICANT = 3.0  # a fitted lag or gradient is applied where it differs from the default by more stds than this
 # ... and by more than these: a tenth of a sedan's understeer gradient (rad per m/s^2), 5 ms of yaw lag, 1 cm of
-# wheel-speed lag distance. Below them the correction changes the track by less than the filter's own noise (on
-# the kinematic test3 drives a 0.4 ms lag at 4 sigma was applied on 6 of 10 and moved seed 0's worst reflector
-# 1.99 -> 2.32 cm)
+# wheel-speed lag distance. Smaller ones, significant or not, are below what changes a track: a kinematic drive's
+# sensors show sub-millisecond timing offsets at several sigma
 MIN_UNDERSTEER_CHANGE = 2e-4
 MIN_YAW_LAG_S = 0.005
 MIN_WHEEL_LAG_M = 0.01

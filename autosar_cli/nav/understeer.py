@@ -57,9 +57,10 @@ class UndersteerFit:
 
 
 def gyro_yaw_rate(inputs: NavInputs, t: Array, x: Array, at: Array) -> Array:
-    """Mean yaw rate (rad/s) of the gyros at times ``at`` (s): each gyro less its bias state ``x[:, 5 + i]`` at
-    ``t``, as running means over ``GYRO_WINDOW_S`` of samples placed at their samples' mean time (so a window
-    is never off-centre, which would show as a yaw lag), interpolated; NaN outside a gyro's span."""
+    """Mean yaw rate (rad/s) of the gyros at times ``at`` (s, any shape): each gyro less its bias state
+    ``x[:, 5 + i]`` at ``t``, as running means over ``GYRO_WINDOW_S`` of samples placed at their samples' mean
+    time (so a window is never off-centre, which would show as a yaw lag), interpolated; NaN outside a gyro's
+    span."""
     rates = []
     for i, g in enumerate(inputs.gyros):
         if len(g.t) < 2:
@@ -105,8 +106,7 @@ def fit_understeer(inputs: NavInputs, t: Array, x: Array, wheelbase_m: float, mi
     # yaw rate in both, -L sigma_w^2 / var(v omega) took K to -0.10 on a straight drive); it only shrinks K
     # towards 0 where the turns are too weak to show it.
     h = GYRO_WINDOW_S
-    w = gyro_yaw_rate(inputs, t, x, ts)
-    w_after, w_before = gyro_yaw_rate(inputs, t, x, ts + h), gyro_yaw_rate(inputs, t, x, ts - h)
+    w, w_after, w_before = gyro_yaw_rate(inputs, t, x, np.stack([ts, ts + h, ts - h]))
     use = (v >= min_speed_mps) & np.isfinite(w) & np.isfinite(w_after) & np.isfinite(w_before)
     if use.sum() < 10:
         return None

@@ -79,9 +79,7 @@ def lag_compensated_wheels(wheels: Measurements, fit: WheelLagFit) -> Measuremen
     """The wheel samples moved to the instants they describe, ``t - c / v`` (``v`` the sample's mean wheel speed,
     at most ``MAX_DELAY_S`` back; a standing car's samples stay), in time order."""
     v = np.mean(np.abs(wheels.z), axis=1)
-    with np.errstate(divide="ignore"):
-        delay = np.where(v > 0, np.minimum(fit.lag_distance_m / np.maximum(v, 1e-9), MAX_DELAY_S), 0.0)
-    delay = np.clip(delay, -MAX_DELAY_S, MAX_DELAY_S)
+    delay = np.where(v > 0, np.clip(fit.lag_distance_m / np.maximum(v, 1e-9), -MAX_DELAY_S, MAX_DELAY_S), 0.0)
     moved = wheels.t - delay
     order = np.argsort(moved, kind="stable")
     return Measurements(wheels.name, moved[order], wheels.z[order], wheels.sigma)
