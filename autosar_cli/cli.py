@@ -358,7 +358,7 @@ def navigate(
         summary = {"trajectory": str(output), "method": traj.method, "samples": len(traj.t_ns),
                    "duration_s": round(span, 3), "distance_m": round(dist, 3),
                    "elapsed_s": round(traj.info["elapsed_s"], 3),
-                   **{k: traj.info[k] for k in ("updates", "rejected", "understeer", "wheel_lag")
+                   **{k: traj.info[k] for k in ("updates", "rejected", "understeer", "wheel_lag", "wheel_radii")
                       if k in traj.info},
                    **({"plot": str(figure)} if figure else {})}
         if as_json:
@@ -375,6 +375,10 @@ def navigate(
         if traj.info.get("wheel_lag", {}).get("applied"):
             lag = traj.info["wheel_lag"]
             out.print(f"wheel speeds moved back by {lag['lag_distance_m']:.3f} +- {lag['std_m']:.2g} m / speed")
+        if traj.info.get("wheel_radii", {}).get("applied"):
+            gains = traj.info["wheel_radii"]["applied"]
+            out.print("wheel speeds divided by their fitted gains (% per m/s^2): "
+                      + ", ".join(f"{k} {100 * v:.3g}" for k, v in gains.items()))
         if figure:
             out.print(f"figure [bold]{figure}[/]")
 

@@ -293,6 +293,10 @@ class NavigationConfig:
     # and the samples moved back by it, where c's std is at most wheel_lag_max_std_m
     estimate_wheel_lag: bool = True
     wheel_lag_max_std_m: float = 0.02
+    # each axle's slip (per m/s^2 of acceleration, drive and brake) and lateral load gain (per m/s^2 of lateral
+    # acceleration) fitted to the drive, and the wheel speeds divided by those whose std is at most this
+    estimate_wheel_radii: bool = True
+    wheel_radius_gain_max_std_per_mps2: float = 0.005
     gate_probability: float = 0.9999  # chi-square gate of each update
     max_step_s: float = 0.05  # longest single prediction step (dead reckoning through gaps)
     ins_imu: str = "ins_radar"  # INS baseline: the radar-mounted 6-DoF IMU ...
@@ -536,6 +540,7 @@ def _validate(cfg: Config) -> None:
     _non_negative("navigation.steering_min_speed_mps", nav.steering_min_speed_mps)
     _non_negative("navigation.understeer_max_std_rad_per_mps2", nav.understeer_max_std_rad_per_mps2)
     _non_negative("navigation.wheel_lag_max_std_m", nav.wheel_lag_max_std_m)
+    _non_negative("navigation.wheel_radius_gain_max_std_per_mps2", nav.wheel_radius_gain_max_std_per_mps2)
     if not 0.0 < nav.gate_probability < 1.0:
         raise ConfigError(f"navigation.gate_probability: must lie strictly between 0 and 1, got "
                           f"{nav.gate_probability!r}")

@@ -40,7 +40,8 @@ def main() -> None:
     from autosar_cli.store.drive import Drive
 
     cfg = load_config()
-    single = replace(cfg, navigation=replace(cfg.navigation, estimate_understeer=False, estimate_wheel_lag=False))
+    single = replace(cfg, navigation=replace(cfg.navigation, estimate_understeer=False, estimate_wheel_lag=False,
+                                             estimate_wheel_radii=False))
     with tempfile.TemporaryDirectory() as tmp:
         work = args.workdir or Path(tmp)
         work.mkdir(parents=True, exist_ok=True)

@@ -77,7 +77,7 @@ def config_copy(components: str | None, understeer: float | None, work: Path, re
         text = re.sub(r"^rear_slip_gain_rad_per_mps2 = \S+", f"rear_slip_gain_rad_per_mps2 = {rear_slip!r}", text,
                       count=1, flags=re.MULTILINE)
     if not fits:
-        for key in ("estimate_understeer", "estimate_wheel_lag"):
+        for key in ("estimate_understeer", "estimate_wheel_lag", "estimate_wheel_radii"):
             text = re.sub(rf"^{key} = true", f"{key} = false", text, count=1, flags=re.MULTILINE)
     tag = (components.replace(",", "+") or "none") if components is not None else "all"
     path = work / f"config_{tag}_us{understeer}_slip{rear_slip}{'' if fits else '_nofits'}.toml"

@@ -189,7 +189,10 @@ def test_wheel_lag_fit_finds_the_ecu_window_and_none_on_instant_speeds() -> None
     (N + 1) / 2 2 pi r / Z = 0.151 m within 3 sigma (measured 0.153 +- 0.002 m); instantaneous speeds give 0 within
     3 sigma; at a steady speed c is unobservable (std above navigation.wheel_lag_max_std_m). Moving the samples back
     by c / v brings the ECU's speeds 10x closer to the true speed (97 -> 10 mm/s RMS)."""
-    from autosar_cli.nav.wheel_lag import fit_wheel_lag, lag_compensated_wheels
+    from autosar_cli.nav.wheel_speeds import fit_wheel_speeds, lag_compensated_wheels
+
+    def fit_wheel_lag(inputs):  # noqa: ANN001, ANN202
+        return fit_wheel_speeds(inputs, (0.0, 0.0), VEH.wheelbase_m, (VEH.track_front_m, VEH.track_rear_m))[0]
 
     def stop_and_go(t):  # noqa: ANN001, ANN202
         return 2.5 - 2.0 * np.cos(2 * np.pi * t / 8.0)

@@ -84,13 +84,17 @@ def point_velocity(X: Array, lever_xy: tuple[float, float]) -> Array:
 def wheel_speeds(X: Array, wheelbase_m: float, track_front_m: float, track_rear_m: float) -> Array:
     """Ground speed (m/s) of the four wheel centres (fl, fr, rl, rr) under the no-slip bicycle model; (m, 4).
 
-    Rear wheels: v -+ omega * track/2. Front wheels also move sideways at omega * wheelbase.
+    Rear wheels: v -+ omega * track/2. Front wheels also move sideways at omega * wheelbase. Signed, negative
+    where the state's speed is: the car drives forwards (an ABS ECU's speeds carry no sign). With unsigned
+    predictions ``v`` and ``-v`` look alike to the wheels: at a stop the filter's speed could cross zero and go on
+    backwards once the car pulled away, its GNSS updates then gated out (urban seed 0, kinematic: 172 m off).
     """
     v, w = X[:, V], X[:, OMEGA]
     lat = w * wheelbase_m
-    fl = np.hypot(v - w * track_front_m / 2, lat)
-    fr = np.hypot(v + w * track_front_m / 2, lat)
-    return np.stack([fl, fr, np.abs(v - w * track_rear_m / 2), np.abs(v + w * track_rear_m / 2)], axis=1)
+    left, right = v - w * track_front_m / 2, v + w * track_front_m / 2
+    fl = np.copysign(np.hypot(left, lat), left)
+    fr = np.copysign(np.hypot(right, lat), right)
+    return np.stack([fl, fr, v - w * track_rear_m / 2, v + w * track_rear_m / 2], axis=1)
 
 
 def road_wheel_angle(X: Array, wheelbase_m: float, steer_bias_index: int, understeer_gradient: float = 0.0) -> Array:

@@ -15,17 +15,26 @@ from autosar_cli.nav.inputs import NavInputError, NavInputs, load_inputs
 from autosar_cli.nav.sarmin import NavSolution, run_sarmin
 from autosar_cli.nav.trajectory import Trajectory
 from autosar_cli.nav.understeer import fit_understeer
-from autosar_cli.nav.wheel_lag import fit_wheel_lag, lag_compensated_wheels
+from autosar_cli.nav.wheel_speeds import (
+    LOAD_GAINS,
+    SLIP_GAINS,
+    fit_wheel_speeds,
+    lag_compensated_wheels,
+    radius_corrected_wheels,
+)
 from autosar_cli.store.drive import Drive
 
 METHODS = ("sar-min", "ins", "gnss", "none", "truth")
 SIGNIFICANT = 3.0  # a fitted lag or gradient is applied where it differs from the default by more stds than this
 # ... and by more than these: a tenth of a sedan's understeer gradient (rad per m/s^2), 5 ms of yaw lag, 1 cm of
-# wheel-speed lag distance. Smaller ones, significant or not, are below what changes a track: a kinematic drive's
-# sensors show sub-millisecond timing offsets at several sigma
+# wheel-speed lag distance, 0.1 % per m/s^2 of slip gain (at urban's 1 m/s^2 RMS, 1 mm per metre), 0.02 % per m/s^2
+# of load gain. Smaller ones, significant or not, are below what changes a track: a kinematic drive's sensors
+# show sub-millisecond timing offsets at several sigma
 MIN_UNDERSTEER_CHANGE = 2e-4
 MIN_YAW_LAG_S = 0.005
 MIN_WHEEL_LAG_M = 0.01
+MIN_SLIP_GAIN = 1e-3
+MIN_LOAD_GAIN = 2e-4
 
 
 def default_truth_path(drive: Drive) -> Path | None:
@@ -47,24 +56,56 @@ def _shows(change: float, std: float, minimum: float) -> bool:
     return abs(change) > SIGNIFICANT * std and abs(change) > minimum
 
 
-def wheel_lag_compensated(inputs: NavInputs, config: Config) -> tuple[NavInputs, dict]:
-    """The inputs with the wheel samples moved back by their fitted lag (:mod:`.wheel_lag`) where
-    ``navigation.estimate_wheel_lag`` is on, the fit's std is small enough and the lag differs from 0 by more than
-    ``SIGNIFICANT`` of them; and what the fit found."""
-    nav = config.navigation
+def wheel_speeds_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs, dict, dict]:
+    """The inputs with the wheel speeds corrected by what :mod:`.wheel_speeds` fits to the drive and the drive
+    shows: divided by their slip and load factors (``navigation.estimate_wheel_radii``: a gain is shown where its
+    std is at most ``wheel_radius_gain_max_std_per_mps2`` and it differs from 0 by more than ``SIGNIFICANT`` of
+    them and ``MIN_SLIP_GAIN`` / ``MIN_LOAD_GAIN``; the four slip gains go together), then moved back by their
+    lag (``navigation.estimate_wheel_lag``, the same test with ``wheel_lag_max_std_m`` and ``MIN_WHEEL_LAG_M``);
+    and what the fits found, lag and radii."""
+    nav, veh = config.navigation, config.vehicle
+    if not (nav.estimate_wheel_lag or nav.estimate_wheel_radii):
+        off = {"applied": False, "reason": "navigation.estimate_wheel_lag is off"}
+        return inputs, off, {"applied": {}, "reason": "navigation.estimate_wheel_radii is off"}
+    lx, ly, _ = inputs.gnss_lever_m
+    lag, radii = fit_wheel_speeds(inputs, (lx + veh.cog_to_rear_axle_m, ly), veh.wheelbase_m,
+                                  (veh.track_front_m, veh.track_rear_m))
+    radii_info: dict = {"applied": {}, "reason": "no wheel speeds, or no GNSS velocity and gyros, or no motion above "
+                                                 "1 m/s"}
+    if not nav.estimate_wheel_radii:
+        radii_info = {"applied": {}, "reason": "navigation.estimate_wheel_radii is off"}
+    elif radii is not None:
+        limit = nav.wheel_radius_gain_max_std_per_mps2
+        # the slip gains are one term (the tyres' slip stiffness, the axle's share of drive and brake): all four
+        # are applied where all are measured and one shows
+        slip_measured = all(radii.slip_gain_std[name] <= limit for name in SLIP_GAINS)
+        slip_shows = any(_shows(radii.slip_gain[name], radii.slip_gain_std[name], MIN_SLIP_GAIN) for name in SLIP_GAINS)
+        gains = {name: radii.slip_gain[name] for name in SLIP_GAINS} if slip_measured and slip_shows else {}
+        gains.update({f"load_{name}": radii.load_gain[name] for name in LOAD_GAINS
+                      if radii.load_gain_std[name] <= limit
+                      and _shows(radii.load_gain[name], radii.load_gain_std[name], MIN_LOAD_GAIN)})
+        if gains:
+            inputs = replace(inputs, wheels=radius_corrected_wheels(inputs, gains))
+            why = "fitted to the drive" + ("" if len(gains) == len(SLIP_GAINS) + len(LOAD_GAINS) else
+                                           "; the gains not listed are not shown")
+        else:
+            why = (f"no gain with std at most navigation.wheel_radius_gain_max_std_per_mps2 and more than "
+                   f"{SIGNIFICANT:g} std from 0: wheel speeds as recorded")
+        radii_info = replace(radii, applied=gains, reason=why).to_dict()
     if not nav.estimate_wheel_lag:
-        return inputs, {"applied": False, "reason": "navigation.estimate_wheel_lag is off"}
-    fit = fit_wheel_lag(inputs)
-    if fit is None:
-        return inputs, {"applied": False, "reason": "no wheel speeds, GNSS velocity, or motion above 1 m/s"}
-    if not fit.std_m <= nav.wheel_lag_max_std_m:
-        return inputs, replace(fit, reason=f"std {fit.std_m:.2g} m above navigation.wheel_lag_max_std_m (a / v "
-                                           f"{fit.accel_over_speed_rms:.2f} 1/s RMS): samples as stamped").to_dict()
-    if not _shows(fit.lag_distance_m, fit.std_m, MIN_WHEEL_LAG_M):
-        return inputs, replace(fit, reason=f"lag within {SIGNIFICANT:g} std or {MIN_WHEEL_LAG_M} m of 0: samples as "
-                                           "stamped").to_dict()
-    moved = replace(inputs, wheels=lag_compensated_wheels(inputs.wheels, fit))
-    return moved, replace(fit, applied=True, reason="fitted to the drive").to_dict()
+        return inputs, {"applied": False, "reason": "navigation.estimate_wheel_lag is off"}, radii_info
+    if lag is None:
+        return inputs, {"applied": False, "reason": "no wheel speeds, GNSS velocity, or motion above 1 m/s"}, radii_info
+    if not lag.std_m <= nav.wheel_lag_max_std_m:
+        return inputs, replace(lag, reason=f"std {lag.std_m:.2g} m above navigation.wheel_lag_max_std_m (a / v "
+                                           f"{lag.accel_over_speed_rms:.2f} 1/s RMS): samples as stamped").to_dict(), \
+            radii_info
+    if not _shows(lag.lag_distance_m, lag.std_m, MIN_WHEEL_LAG_M):
+        return inputs, replace(lag, reason=f"lag within {SIGNIFICANT:g} std or {MIN_WHEEL_LAG_M} m of 0: samples as "
+                                           "stamped").to_dict(), radii_info
+    assert inputs.wheels is not None
+    moved = replace(inputs, wheels=lag_compensated_wheels(inputs.wheels, lag))
+    return moved, replace(lag, applied=True, reason="fitted to the drive").to_dict(), radii_info
 
 
 def sarmin_with_understeer(inputs: NavInputs, config: Config, smooth: bool = True) -> tuple[NavSolution, dict]:
@@ -118,7 +159,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
             if truth_path is None:
                 raise NavInputError(f"{drive_path}: no truth sidecar found; give --truth LOG.truth.h5")
     if method == "sar-min":
-        inputs, wheel_lag = wheel_lag_compensated(inputs, config)
+        inputs, wheel_lag, wheel_radii = wheel_speeds_corrected(inputs, config)
         sol, understeer = sarmin_with_understeer(inputs, config, smooth=smooth)
         t_ns = inputs.t0_ns + np.round(sol.t * 1e9).astype(np.int64)
         traj = Trajectory("sar-min", t_ns, sol.x[:, [m.PX, m.PY]], np.unwrap(sol.x[:, m.PSI]), sol.x[:, m.V],
@@ -126,7 +167,8 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                           config.vehicle.cog_height_m, state=sol.x, state_names=sol.state_names,
                           covariance=sol.P, rear_slip_gain=config.vehicle.rear_slip_gain_rad_per_mps2,
                           info={"updates": sol.updates, "rejected": sol.rejected, "smoothed": smooth,
-                                "understeer": understeer, "wheel_lag": wheel_lag})
+                                "understeer": understeer, "wheel_lag": wheel_lag,
+                                "wheel_radii": wheel_radii})
     elif method == "ins":
         from autosar_cli.nav.ins import run_ins
 

@@ -211,10 +211,10 @@ def _measure(sig, kind, ng, geo, scale_i, steer_i, gnss_i, zsig):  # noqa: ANN00
         for i in range(m):
             v, w = sig[i, V], sig[i, OMEGA]
             lat = w * wheelbase
-            zsig[i, 0] = np.hypot(v - w * tf / 2, lat) * (1.0 + sig[i, scale_i])
-            zsig[i, 1] = np.hypot(v + w * tf / 2, lat) * (1.0 + sig[i, scale_i + 1])
-            zsig[i, 2] = abs(v - w * tr / 2) * (1.0 + sig[i, scale_i + 2])
-            zsig[i, 3] = abs(v + w * tr / 2) * (1.0 + sig[i, scale_i + 3])
+            zsig[i, 0] = np.copysign(np.hypot(v - w * tf / 2, lat), v - w * tf / 2) * (1.0 + sig[i, scale_i])
+            zsig[i, 1] = np.copysign(np.hypot(v + w * tf / 2, lat), v + w * tf / 2) * (1.0 + sig[i, scale_i + 1])
+            zsig[i, 2] = (v - w * tr / 2) * (1.0 + sig[i, scale_i + 2])
+            zsig[i, 3] = (v + w * tr / 2) * (1.0 + sig[i, scale_i + 3])
         return 4
     if kind == ng + 1:  # road-wheel angle
         for i in range(m):

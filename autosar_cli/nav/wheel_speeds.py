@@ -1,0 +1,261 @@
+"""What the wheel speeds get wrong, fitted to each drive: their lag, and rolling radii that change with load.
+
+SAR-MIN's wheel model (``models.wheel_speeds``) is the no-slip bicycle with one constant scale per wheel. A real
+car's wheel speeds differ from it in three ways that bend the track:
+
+* **Lag.** An ABS ECU divides a few tone-ring pitches by the time their edges took (``N`` edges of a ring of
+  ``Z`` teeth on a wheel of radius ``r``), at the next CAN cycle: each value is the mean speed over the last
+  ``N 2 pi r / Z`` metres and describes the instant about ``c / v`` before its stamp,
+  ``c = (N + 1) / 2 * 2 pi r / Z`` (0.15 m for 6 edges of a 48-tooth ring on a 0.33 m wheel). Under acceleration
+  ``a`` the speed then reads ``a c / v`` low. In urban's stop and go that alone bent the track by 38 cm.
+* **Longitudinal slip and load transfer.** A driven or braked tyre turns faster or slower than it rolls, in
+  proportion to its force over its load, and the axle the acceleration loads rolls on a smaller radius. Both
+  make an axle's speed read ``(1 + k a)`` times the truth, ``k`` differing between drive (a > 0) and braking
+  (a < 0): on the simulator's rear-driven car 1.4 % per m/s^2 on the rear axle under drive.
+* **Lateral load transfer.** In a turn the outer wheels carry more load and roll on a smaller radius: the right
+  wheel reads ``(1 + g a_y)``, the left ``(1 - g a_y)`` times the truth (``a_y = v omega``, left turns positive;
+  ``g = f m h s / (T k_z R)`` with ``f`` the deflection's share in the rolling radius, ``h`` the CoG height,
+  ``s`` the axle's share of the transfer, ``T`` the track, ``k_z`` the tyre's vertical stiffness: ~0.1 % per
+  m/s^2). The wheels then show a yaw rate 1-2 % larger than the gyros in every turn; the filter, which trusts
+  both, put the wheels' common scale 0.3 % off on test3 (16 cm over the drive, with the steering left out).
+
+:func:`fit_wheel_speeds` needs no data sheet. Against the GNSS velocity (moved to the rear axle with the gyros'
+yaw rate) it regresses each axle's mean speed on the speed (a scale), ``-a / v`` (the lag, one ``c`` for all
+wheels) and ``a v`` split at ``a = 0`` (the slip gains); against the gyros it regresses each axle's right-left
+difference, less the bicycle's, on a constant (the gyros' bias), the speed (the two scales' difference) and
+``a_y`` times the axle's speed (the load gain). The lateral regressor takes the gyros' yaw rate of the windows
+either side of each sample, the bicycle's difference that of the window at it: their noise is independent, so it
+does not correlate the residual with the regressor (with one yaw rate in both, test1's straight drive gave
+g = -3.8 % at "15 sigma"). A drive that does not excite a term (steady speed: no ``c`` nor ``k``; straight: no
+``g``) gives it a large std, and navigate leaves it out (``nav.navigate.wheel_speeds_corrected``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .inputs import Measurements, NavInputs
+
+Array = NDArray[np.float64]
+
+ACCEL_WINDOW_S = 0.2  # the wheels' acceleration: a running mean of their speed over this, differentiated
+GYRO_WINDOW_S = 0.1  # the gyros' white noise averaged down; a turn's yaw rate changes more slowly
+MAX_DELAY_S = 0.5  # a sample is never moved further: below ~0.3 m/s the ECU's window spans its timeout
+SLIP_GAINS = ("front_drive", "front_brake", "rear_drive", "rear_brake")
+LOAD_GAINS = ("front", "rear")
+
+
+@dataclass(frozen=True)
+class WheelLagFit:
+    """The wheel speeds' lag ``c / v`` fitted to one drive: ``c`` (m), its 1-sigma, and what it rests on."""
+
+    lag_distance_m: float
+    std_m: float
+    samples: int  #: GNSS velocity samples above the minimum speed
+    accel_over_speed_rms: float  #: a / v about its mean (1/s): the excitation that makes c observable
+    residual_rms_mps: float
+    applied: bool = False
+    reason: str = ""
+
+    def to_dict(self) -> dict[str, object]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class WheelRadiusFit:
+    """Each axle's speed error per m/s^2 of acceleration (slip and longitudinal load, :data:`SLIP_GAINS`) and of
+    lateral acceleration (right wheel +, left -, :data:`LOAD_GAINS`), fractions, with their 1-sigma; ``applied``:
+    the gains the wheel speeds were corrected by (the rest taken as 0)."""
+
+    slip_gain: dict[str, float]
+    slip_gain_std: dict[str, float]
+    load_gain: dict[str, float]
+    load_gain_std: dict[str, float]
+    accel_rms_mps2: float  #: the car's acceleration about its mean: what makes the slip gains observable
+    lateral_accel_rms_mps2: float  #: and the load gains
+    applied: dict[str, float] = field(default_factory=dict)
+    reason: str = ""
+
+    def to_dict(self) -> dict[str, object]:
+        return asdict(self)
+
+
+def _running_mean(t: Array, y: Array, window_s: float) -> tuple[Array, Array] | None:
+    """Means of ``y`` over ``window_s`` of samples, placed at their samples' mean time; None when too short."""
+    if len(t) < 2:
+        return None
+    k = max(int(round(window_s / float(np.median(np.diff(t))))), 1)
+    if len(t) <= k:
+        return None
+    kernel = np.full(k, 1.0 / k)
+    return np.convolve(t, kernel, "valid"), np.convolve(y, kernel, "valid")
+
+
+def wheel_acceleration(wheels: Measurements, at: Array) -> Array:
+    """The car's acceleration (m/s^2) at ``at`` (s): the four wheels' mean speed over ``ACCEL_WINDOW_S``,
+    differentiated; 0 where the wheels are too few."""
+    mean = _running_mean(wheels.t, np.mean(wheels.z, axis=1), ACCEL_WINDOW_S)
+    if mean is None or len(mean[0]) < 2:
+        return np.zeros(np.shape(at))
+    return np.interp(at, mean[0], np.gradient(mean[1], mean[0]))
+
+
+def raw_gyro_yaw_rate(inputs: NavInputs, at: Array) -> Array:
+    """The gyros' mean yaw rate (rad/s, biases included) at ``at`` (s, any shape), each averaged over
+    ``GYRO_WINDOW_S``; NaN outside their span, 0 everywhere without gyros."""
+    rates = []
+    for g in inputs.gyros:
+        mean = _running_mean(g.t, g.z[:, 0], GYRO_WINDOW_S)
+        if mean is not None:
+            rates.append(np.interp(at, *mean, left=np.nan, right=np.nan))
+    if not rates:
+        return np.zeros(np.shape(at))
+    return np.mean(rates, axis=0)
+
+
+def _effective_std(design: Array, res: Array) -> Array:
+    """1-sigma of least-squares coefficients, counting the residual's serial correlation (lag-1 rho:
+    N (1 - rho) / (1 + rho) independent samples); inf where the design is rank-deficient."""
+    n, p = design.shape
+    normal = design.T @ design
+    if n <= p or np.linalg.matrix_rank(normal) < p:
+        return np.full(p, np.inf)
+    rho = float(np.clip(np.corrcoef(res[:-1], res[1:])[0, 1], 0.0, 0.999)) if res.std() > 0 else 0.0
+    n_eff = max(n * (1.0 - rho) / (1.0 + rho), p + 1.0)
+    rms = float(np.sqrt(np.mean(res**2)))
+    return rms * np.sqrt(n / n_eff * np.diag(np.linalg.inv(normal)))
+
+
+def _front_speeds(v: Array, w: Array, wheelbase_m: float, track_m: float) -> tuple[Array, Array]:
+    """The bicycle's front-left and front-right wheel-centre speeds (m/s) at rear-axle speed v and yaw rate w."""
+    lat = w * wheelbase_m
+    return np.hypot(v - w * track_m / 2, lat), np.hypot(v + w * track_m / 2, lat)
+
+
+def _fit_longitudinal(inputs: NavInputs, lever_rear_m: tuple[float, float], wheelbase_m: float,
+                      min_speed_mps: float) -> tuple[Array, Array, int, float, float, float] | None:
+    """Coefficients [s_rear, s_front, c, k_front_drive, k_front_brake, k_rear_drive, k_rear_brake] of both axles'
+    mean speed less the GNSS speed at the rear axle, their stds, samples, a / v RMS, a RMS and residual RMS."""
+    wheels, gnss = inputs.wheels, inputs.gnss_velocity
+    assert wheels is not None and gnss is not None
+    inside = (gnss.t > wheels.t[0] + ACCEL_WINDOW_S) & (gnss.t < wheels.t[-1] - ACCEL_WINDOW_S)
+    ts, vel = gnss.t[inside], gnss.z[inside]
+    w = np.nan_to_num(raw_gyro_yaw_rate(inputs, ts))
+    lx, ly = lever_rear_m
+    # the antenna moves at (v - w ly, w lx) in the body frame
+    v = np.sqrt(np.maximum(np.sum(vel**2, axis=1) - (w * lx) ** 2, 0.0)) + w * ly
+    use = v >= min_speed_mps
+    if use.sum() < 10:
+        return None
+    ts, v, w = ts[use], v[use], w[use]
+    a = wheel_acceleration(wheels, ts)
+    vf = np.hypot(v, w * wheelbase_m)
+    rear = np.interp(ts, wheels.t, 0.5 * (wheels.z[:, 2] + wheels.z[:, 3]))
+    front = np.interp(ts, wheels.t, 0.5 * (wheels.z[:, 0] + wheels.z[:, 1]))
+    zero = np.zeros_like(v)
+    drive, brake = np.maximum(a, 0.0), np.minimum(a, 0.0)
+    design = np.vstack([np.stack([v, zero, -a / v, zero, zero, drive * v, brake * v], axis=1),
+                        np.stack([zero, vf, -a / vf, drive * vf, brake * vf, zero, zero], axis=1)])
+    y = np.concatenate([rear - v, front - vf])
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    res = y - design @ coef
+    std = _effective_std(design, res)
+    return coef, std, int(use.sum()), float(np.std(a / v)), float(np.std(a)), float(np.sqrt(np.mean(res**2)))
+
+
+def _fit_lateral(inputs: NavInputs, wheelbase_m: float, tracks_m: tuple[float, float],
+                 min_speed_mps: float) -> tuple[Array, Array, float] | None:
+    """Load gains (front, rear) of the axles' right-left speed difference against the gyros, their stds and the
+    lateral acceleration's RMS."""
+    wheels = inputs.wheels
+    assert wheels is not None
+    if not inputs.gyros:
+        return None
+    h = GYRO_WINDOW_S
+    t = wheels.t
+    w, w_after, w_before = raw_gyro_yaw_rate(inputs, np.stack([t, t + h, t - h]))
+    v = 0.5 * (wheels.z[:, 2] + wheels.z[:, 3])
+    use = (v >= min_speed_mps) & np.isfinite(w) & np.isfinite(w_after) & np.isfinite(w_before)
+    if use.sum() < 10:
+        return None
+    v, w, z = v[use], w[use], wheels.z[use]
+    w_side = 0.5 * (w_after[use] + w_before[use])
+    a_y = v * w_side
+    gains, stds = np.empty(2), np.empty(2)
+    for i, (left, right) in enumerate(((0, 1), (2, 3))):
+        track = tracks_m[i]
+        if i == 0:
+            model_l, model_r = _front_speeds(v, w, wheelbase_m, track)
+            side_l, side_r = _front_speeds(v, w_side, wheelbase_m, track)
+        else:
+            model_l, model_r = v - w * track / 2, v + w * track / 2
+            side_l, side_r = v - w_side * track / 2, v + w_side * track / 2
+        y = (z[:, right] - z[:, left]) - (model_r - model_l)
+        design = np.stack([np.ones_like(v), v, a_y * (side_l + side_r)], axis=1)
+        coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+        gains[i], stds[i] = coef[2], _effective_std(design, y - design @ coef)[2]
+    return gains, stds, float(np.std(a_y))
+
+
+def fit_wheel_speeds(inputs: NavInputs, lever_rear_m: tuple[float, float], wheelbase_m: float,
+                     tracks_m: tuple[float, float], min_speed_mps: float = 1.0
+                     ) -> tuple[WheelLagFit | None, WheelRadiusFit | None]:
+    """The wheel speeds' lag and their slip and load gains (see the module's docstring), fitted to the drive.
+
+    ``lever_rear_m``: the GNSS antenna's (x, y) from the rear axle's centre (m, body frame); ``tracks_m``: front
+    and rear track (m). None for what the inputs cannot show: no wheel speeds or GNSS velocity (the lag and slip),
+    no gyros (the load gains), or fewer than 10 samples above ``min_speed_mps``.
+    """
+    wheels = inputs.wheels
+    if wheels is None or len(wheels.t) < 3:
+        return None, None
+    longitudinal = (_fit_longitudinal(inputs, lever_rear_m, wheelbase_m, min_speed_mps)
+                    if inputs.gnss_velocity is not None else None)
+    lateral = _fit_lateral(inputs, wheelbase_m, tracks_m, min_speed_mps)
+    lag = None
+    nan = {name: float("nan") for name in SLIP_GAINS}
+    slip, slip_std, accel_rms = dict(nan), dict(nan), float("nan")
+    if longitudinal is not None:
+        coef, std, samples, a_over_v_rms, accel_rms, rms = longitudinal
+        lag = WheelLagFit(float(coef[2]), float(std[2]), samples, a_over_v_rms, rms)
+        slip = {name: float(c) for name, c in zip(SLIP_GAINS, coef[3:], strict=True)}
+        slip_std = {name: float(s) for name, s in zip(SLIP_GAINS, std[3:], strict=True)}
+    load = {name: float("nan") for name in LOAD_GAINS}
+    load_std, lateral_rms = dict(load), float("nan")
+    if lateral is not None:
+        load = {name: float(g) for name, g in zip(LOAD_GAINS, lateral[0], strict=True)}
+        load_std = {name: float(s) for name, s in zip(LOAD_GAINS, lateral[1], strict=True)}
+        lateral_rms = lateral[2]
+    radii = (WheelRadiusFit(slip, slip_std, load, load_std, accel_rms, lateral_rms)
+             if longitudinal is not None or lateral is not None else None)
+    return lag, radii
+
+
+def radius_corrected_wheels(inputs: NavInputs, gains: dict[str, float]) -> Measurements:
+    """The wheel speeds divided by their fitted slip and load factors; ``gains``: the :data:`SLIP_GAINS` and
+    ``load_front`` / ``load_rear`` to apply (absent: 0)."""
+    wheels = inputs.wheels
+    assert wheels is not None
+    a = wheel_acceleration(wheels, wheels.t)
+    a_y = np.mean(np.abs(wheels.z[:, 2:]), axis=1) * np.nan_to_num(raw_gyro_yaw_rate(inputs, wheels.t))
+    drive, brake = np.maximum(a, 0.0), np.minimum(a, 0.0)
+    factor = np.ones_like(wheels.z)
+    for i, axle in enumerate(("front", "rear")):
+        longitudinal = 1.0 + gains.get(f"{axle}_drive", 0.0) * drive + gains.get(f"{axle}_brake", 0.0) * brake
+        g = gains.get(f"load_{axle}", 0.0) * a_y
+        factor[:, 2 * i] = longitudinal * (1.0 - g)
+        factor[:, 2 * i + 1] = longitudinal * (1.0 + g)
+    return Measurements(wheels.name, wheels.t, wheels.z / factor, wheels.sigma)
+
+
+def lag_compensated_wheels(wheels: Measurements, fit: WheelLagFit) -> Measurements:
+    """The wheel samples moved to the instants they describe, ``t - c / v`` (``v`` the sample's mean wheel speed,
+    at most ``MAX_DELAY_S`` back; a standing car's samples stay), in time order."""
+    v = np.mean(np.abs(wheels.z), axis=1)
+    delay = np.where(v > 0, np.clip(fit.lag_distance_m / np.maximum(v, 1e-9), -MAX_DELAY_S, MAX_DELAY_S), 0.0)
+    moved = wheels.t - delay
+    order = np.argsort(moved, kind="stable")
+    return Measurements(wheels.name, moved[order], wheels.z[order], wheels.sigma)
