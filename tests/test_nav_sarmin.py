@@ -443,8 +443,9 @@ def _independent_ukf(inputs, cfg):  # noqa: ANN001, ANN202 - NavInputs, Config -
 
     def wheels(x):  # noqa: ANN001, ANN202
         v, w, sc = x[2], x[4], x[6 + ng: 10 + ng]
-        return np.array([math.hypot(v - w * tf / 2, w * L), math.hypot(v + w * tf / 2, w * L),
-                         abs(v - w * tr / 2), abs(v + w * tr / 2)]) * (1 + sc)
+        return np.array([math.copysign(math.hypot(v - w * tf / 2, w * L), v - w * tf / 2),
+                         math.copysign(math.hypot(v + w * tf / 2, w * L), v + w * tf / 2),
+                         v - w * tr / 2, v + w * tr / 2]) * (1 + sc)
 
     pos, vel = inputs.gnss_position, inputs.gnss_velocity
     k0 = int(np.flatnonzero(np.hypot(*vel.z.T) > 0.5)[0])
@@ -561,3 +562,27 @@ def test_steering_is_left_out_only_where_the_fit_shows_another_steering(ci_drive
     assert info["applied"] and abs(info["gradient"] - 0.5) > 3 * info["std"], info
     np.testing.assert_array_equal(sol.x, run_sarmin(dataclasses.replace(inputs, steering=None), wrong_k).x)
     assert "steering" not in sol.updates
+
+
+@pytest.mark.slow
+def test_a_stop_does_not_turn_the_speed_backwards(tmp_path: Path) -> None:
+    """Urban seed 0 on the kinematic car: it stops for 8 s at the junction and pulls away. ABS wheel speeds carry no
+    sign, so wheel predictions that did not either (|v|) let the filter's speed drift through zero at the stop and
+    go on backwards: 172 m off by the end, its GNSS updates gated out. With signed predictions the speed never goes
+    below -5 cm/s and the track stays within 5 cm of the truth after a rigid alignment (measured 1.8 cm)."""
+    from dataclasses import replace
+
+    from autosar_cli.evaluate.alignment import fit_se2
+    from autosar_cli.evaluate.trajectory_metrics import common_instants
+    from autosar_cli.sim.simulate import simulate
+
+    cfg = replace(CFG, radar=replace(CFG.radar, prf_hz=20.0))  # the navigation sensors' samples are the same
+    sim = simulate("urban", tmp_path / "urban.mcap", seed=0, config=cfg, dynamics="kinematic")
+    ingest([sim.log_path], tmp_path / "drive.h5", config=cfg)
+    est = navigate(tmp_path / "drive.h5", "sar-min", cfg)
+    truth = from_truth(str(sim.truth_path), est.origin, cfg)
+    t = common_instants(est, truth)
+    e_xy, r_xy = est.body_points(t, np.zeros((1, 3)))[:, 0, :2], truth.body_points(t, np.zeros((1, 3)))[:, 0, :2]
+    aligned = float(np.hypot(*(fit_se2(e_xy, r_xy).apply(e_xy) - r_xy).T).max())
+    print(f"urban seed 0 kinematic: lowest speed {est.speed.min():.3f} m/s, aligned max {aligned * 100:.2f} cm")
+    assert est.speed.min() > -0.05 and aligned < 0.05
