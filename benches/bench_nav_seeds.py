@@ -13,7 +13,8 @@ says of the scale (its mean along-track error over the drive: benches/bench_pape
 aligned error is about the scale times its along-track distance from the track's centre: 0.055 % is 3 cm at 55 m.
 Prints one line per setting and scenario; writes the rows and the summary as JSON, with which of SAR-MIN's fitted
 terms each drive applied (``--dynamics kinematic --seeds 0-9 --output benches/results/nav_seeds_kinematic.json``:
-none shows on the kinematic drives).
+none shows on the kinematic drives; ``--scenarios test1,test2,test3,urban --seeds 0-9 --dynamics full --output
+benches/results/nav_seeds_full.json``: the full vehicle model).
 """
 
 from __future__ import annotations
@@ -66,7 +67,8 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
             "abs_rmse_m": float(np.sqrt(np.mean(np.sum((e_xy - r_xy) ** 2, axis=1)))),
             # which of the fitted lags SAR-MIN applied (docs/NAVIGATION.md)
             "understeer_applied": bool(est.info["understeer"]["applied"]),
-            "wheel_lag_applied": bool(est.info["wheel_lag"]["applied"])}
+            "wheel_lag_applied": bool(est.info["wheel_lag"]["applied"]),
+            "wheel_radii_applied": bool(est.info["wheel_radii"]["applied"])}
 
 
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
@@ -83,7 +85,8 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "aligned_max_p90_cm": round(float(np.percentile(aligned_max, 90)), 3),
             "abs_rmse_mean_m": round(statistics.fmean(r["abs_rmse_m"] for r in rows), 4),
             "understeer_applied": sum(r["understeer_applied"] for r in rows),
-            "wheel_lag_applied": sum(r["wheel_lag_applied"] for r in rows)}
+            "wheel_lag_applied": sum(r["wheel_lag_applied"] for r in rows),
+            "wheel_radii_applied": sum(r.get("wheel_radii_applied", False) for r in rows)}
 
 
 def main() -> None:
@@ -127,8 +130,9 @@ def main() -> None:
                       f"{s['scale_correlation_with_gnss_velocity']:.2f}), |scale| > {100 * SCALE_LIMIT:.3f} % on "
                       f"{s['scale_beyond_limit']}, aligned RMSE {s['aligned_rmse_mean_cm']:.2f} cm, aligned max median "
                       f"{s['aligned_max_median_cm']:.2f} / p90 {s['aligned_max_p90_cm']:.2f} cm, abs RMSE "
-                      f"{s['abs_rmse_mean_m']:.3f} m, fitted understeer / wheel lag applied on "
-                      f"{s['understeer_applied']} / {s['wheel_lag_applied']} ({time.perf_counter() - t:.0f} s)",
+                      f"{s['abs_rmse_mean_m']:.3f} m, fitted understeer / wheel lag / wheel radii applied on "
+                      f"{s['understeer_applied']} / {s['wheel_lag_applied']} / {s['wheel_radii_applied']} "
+                      f"({time.perf_counter() - t:.0f} s)",
                       flush=True)
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(json.dumps({"benchmark": "nav_seeds", "radar_prf_hz": NAV_ONLY_PRF_HZ, "summary": summary,

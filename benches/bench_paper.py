@@ -16,7 +16,9 @@ The full vehicle model's runs (``make bench-paper-full``): ``--scenarios test1,t
 ablation, one run per ``--components`` set, to benches/results/paper_ablation.json with ``--resume``
 (``make bench-ablation``); ``--understeer-gradient K`` and ``--rear-slip-gain G`` give SAR-MIN's steering
 model an understeer term and its trajectory the rear tyres' slip; ``--no-fits`` navigates in one pass without the
-fitted wheel-speed lag and steering test (the A/B: benches/results/paper_fits.json).
+fitted wheel-speed lag, slip and load gains and the steering test (the A/B: benches/results/paper_fits.json, before
+the slip and load gains). With them: ``--scenarios test3,urban --seeds 0,1 --methods sar-min,sar-min+af --dynamics
+full --output benches/results/paper_wheel_radii.json``.
 """
 
 from __future__ import annotations
