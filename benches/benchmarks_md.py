@@ -66,15 +66,17 @@ def table(header: list[str], rows: list[list[str]]) -> list[str]:
             *("| " + " | ".join(r) + " |" for r in rows), ""]
 
 
-def records_table(records: list[dict[str, Any]], max_rows: int, names: list[str] | None = None) -> list[str]:
-    """One row per record (headed by its name from ``names``, if given), one column per scalar field."""
+def records_table(records: list[dict[str, Any]], max_rows: int, names: list[str] | None = None,
+                  corner: str = "") -> list[str]:
+    """One row per record (headed by its name from ``names``, if given, under the column head ``corner``), one
+    column per scalar field."""
     columns: list[str] = []
     for rec in records:
         columns += [k for k, v in rec.items() if is_scalar(v) and k not in columns]
     shown = columns[:MAX_COLUMNS]
     rows = [[cell(rec.get(k, "")) for k in shown] for rec in records[:max_rows]]
     if names is not None:
-        shown, rows = ["", *shown], [[f"**{n}**", *r] for n, r in zip(names, rows, strict=False)]
+        shown, rows = [corner, *shown], [[f"**{n}**", *r] for n, r in zip(names, rows, strict=False)]
     lines = table(shown, rows)
     notes = []
     if len(records) > max_rows:
@@ -102,21 +104,21 @@ def section(data: Any, max_rows: int, depth: int = 0) -> list[str]:
             continue
         if key in PER_RUN_KEYS and isinstance(value, list) and SUMMARY_KEYS & data.keys():
             note = f"{len(value)} {key} behind the summary (see the JSON)"
-            if len(lines) >= 2 and lines[-1] == "" and lines[-2] and not lines[-2].startswith(("|", "#", "(")):
-                lines[-2] += f"; {note}"  # on the figures' line: a paragraph per note cost 2 lines a section
+            if scalars:
+                lines[0] += f"; {note}"  # on the figures' line: a paragraph per note cost 2 lines a section
             else:
                 lines += [f"({note}.)", ""]
             continue
         if isinstance(value, dict) and all(is_scalar(v) for v in value.values()):
             lines += [f"**{key}**: {cell(value)}", ""]
             continue
-        lines += [f"{'#' * min(3 + depth, 6)} {key}", ""]
         if isinstance(value, dict) and value and all(isinstance(v, dict) for v in value.values()):
-            # a table of named records; beyond MAX_NAMED of them, the first ones and the aggregate "all"
+            # a table of named records, its key in the corner (a heading would cost 2 lines); beyond MAX_NAMED of
+            # them, the first ones and the aggregate "all"
             names = list(value)
             if len(names) > MAX_NAMED:
                 names = names[:MAX_NAMED - 1] + (["all"] if "all" in value else names[MAX_NAMED - 1:MAX_NAMED])
-            lines += records_table([value[n] for n in names], len(names), names=names)
+            lines += records_table([value[n] for n in names], len(names), names=names, corner=key)
             if len(names) < len(value):
                 more = f"{len(value) - len(names)} more groups"
                 if len(lines) >= 2 and lines[-1] == "" and lines[-2].endswith(": see the JSON.)"):
@@ -124,6 +126,7 @@ def section(data: Any, max_rows: int, depth: int = 0) -> list[str]:
                 else:
                     lines += [f"({more}: see the JSON.)", ""]
             continue
+        lines += [f"{'#' * min(3 + depth, 6)} {key}", ""]
         lines += section(value, max_rows, depth + 1)
     return lines
 
@@ -148,6 +151,9 @@ def render(results: Path, max_rows: int) -> str:
         out += [(f"{title} " if title else "") + f"Command `{usage}`; machine: {machine}; data "
                 f"[`benches/results/{path.name}`](../benches/results/{path.name}).", ""]
         out += section(data, max_rows)
+    # a heading may follow a paragraph directly: no blank line after a closing note
+    out = [line for i, line in enumerate(out) if not (line == "" and 0 < i < len(out) - 1
+                                                       and out[i - 1].startswith("(") and out[i + 1].startswith("#"))]
     return "\n".join(out).rstrip() + "\n"
 
 
