@@ -66,7 +66,7 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
             "aligned_max_cm": 100 * float(residual.max()),
             "abs_rmse_m": float(np.sqrt(np.mean(np.sum((e_xy - r_xy) ** 2, axis=1)))),
             # which of the fitted lags SAR-MIN applied (docs/NAVIGATION.md)
-            "understeer_applied": bool(est.info["understeer"]["applied"]),
+            "steering_left_out": bool(est.info["understeer"]["steering_left_out"]),
             "wheel_lag_applied": bool(est.info["wheel_lag"]["applied"]),
             "wheel_radii_applied": bool(est.info["wheel_radii"]["applied"])}
 
@@ -84,7 +84,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "aligned_max_median_cm": round(statistics.median(aligned_max), 3),
             "aligned_max_p90_cm": round(float(np.percentile(aligned_max, 90)), 3),
             "abs_rmse_mean_m": round(statistics.fmean(r["abs_rmse_m"] for r in rows), 4),
-            "understeer_applied": sum(r["understeer_applied"] for r in rows),
+            "steering_left_out": sum(r["steering_left_out"] for r in rows),
             "wheel_lag_applied": sum(r["wheel_lag_applied"] for r in rows),
             "wheel_radii_applied": sum(r.get("wheel_radii_applied", False) for r in rows)}
 
@@ -130,8 +130,8 @@ def main() -> None:
                       f"{s['scale_correlation_with_gnss_velocity']:.2f}), |scale| > {100 * SCALE_LIMIT:.3f} % on "
                       f"{s['scale_beyond_limit']}, aligned RMSE {s['aligned_rmse_mean_cm']:.2f} cm, aligned max median "
                       f"{s['aligned_max_median_cm']:.2f} / p90 {s['aligned_max_p90_cm']:.2f} cm, abs RMSE "
-                      f"{s['abs_rmse_mean_m']:.3f} m, fitted understeer / wheel lag / wheel radii applied on "
-                      f"{s['understeer_applied']} / {s['wheel_lag_applied']} / {s['wheel_radii_applied']} "
+                      f"{s['abs_rmse_mean_m']:.3f} m, steering left out / wheel lag / wheel gains applied on "
+                      f"{s['steering_left_out']} / {s['wheel_lag_applied']} / {s['wheel_radii_applied']} "
                       f"({time.perf_counter() - t:.0f} s)",
                       flush=True)
     args.output.parent.mkdir(parents=True, exist_ok=True)

@@ -475,8 +475,8 @@ def _full_vehicle_wheel_inputs(components: tuple[str, ...] | None = None):  # no
     from dataclasses import replace
 
     from autosar_cli.config import load_config
-    from autosar_cli.nav.inputs import Measurements, NavInputs
     from autosar_cli.nav.geodesy import GeodeticOrigin
+    from autosar_cli.nav.inputs import Measurements, NavInputs
     from autosar_cli.sim.dynamics import full_motion
     from autosar_cli.sim.scenario import build_scenario
 

@@ -109,14 +109,14 @@ def wheel_speeds_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
     return moved, replace(lag, applied=True, reason="fitted to the drive").to_dict(), radii_info
 
 
-def sarmin_with_understeer(inputs: NavInputs, config: Config, smooth: bool = True) -> tuple[NavSolution, dict]:
+def sarmin_with_steering_test(inputs: NavInputs, config: Config, smooth: bool = True) -> tuple[NavSolution, dict]:
     """SAR-MIN; with ``navigation.estimate_understeer``, first without the steering, and the steering's understeer
     gradient and yaw lag fitted against the gyros on that pass (:mod:`.understeer`). Where the drive shows the car
     steering otherwise than the kinematic bicycle (K off the vehicle's, or a yaw lag, by more than ``SIGNIFICANT``
     std and the ``MIN_*`` sizes) that pass is the solution: the steering is left out. Else SAR-MIN runs again with
     the steering. Returns the solution and what the fit found, and why the steering was or was not used."""
     nav, veh = config.navigation, config.vehicle
-    vehicle_k = {"applied": False, "gradient": veh.understeer_gradient_rad_per_mps2}
+    vehicle_k = {"steering_left_out": False, "gradient": veh.understeer_gradient_rad_per_mps2}
     if not nav.estimate_understeer or inputs.steering is None:
         why = "navigation.estimate_understeer is off" if inputs.steering else "no steering"
         return run_sarmin(inputs, config, smooth=smooth), {**vehicle_k, "reason": f"{why}: the steering as recorded"}
@@ -138,8 +138,8 @@ def sarmin_with_understeer(inputs: NavInputs, config: Config, smooth: bool = Tru
                                    f"the lag within {SIGNIFICANT:g} std or {MIN_YAW_LAG_S * 1000:g} ms of 0: the "
                                    "steering as recorded").to_dict()
     else:
-        return first, replace(fit, applied=True, reason="the car does not steer as the kinematic bicycle: navigated "
-                                                        "without the steering").to_dict()
+        return first, replace(fit, steering_left_out=True, reason="the car does not steer as the kinematic bicycle: "
+                                                                  "navigated without the steering").to_dict()
     return run_sarmin(inputs, config, smooth=smooth), info
 
 
@@ -161,7 +161,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                 raise NavInputError(f"{drive_path}: no truth sidecar found; give --truth LOG.truth.h5")
     if method == "sar-min":
         inputs, wheel_lag, wheel_radii = wheel_speeds_corrected(inputs, config)
-        sol, understeer = sarmin_with_understeer(inputs, config, smooth=smooth)
+        sol, understeer = sarmin_with_steering_test(inputs, config, smooth=smooth)
         t_ns = inputs.t0_ns + np.round(sol.t * 1e9).astype(np.int64)
         traj = Trajectory("sar-min", t_ns, sol.x[:, [m.PX, m.PY]], np.unwrap(sol.x[:, m.PSI]), sol.x[:, m.V],
                           sol.x[:, m.OMEGA], inputs.origin, config.vehicle.cog_to_rear_axle_m,
