@@ -44,7 +44,7 @@ from autosar_cli.evaluate.trajectory_metrics import (
 )
 from autosar_cli.nav.baselines import from_truth
 from autosar_cli.nav.geodesy import GeodeticOrigin
-from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm, radar_track
+from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm, radar_side, radar_track
 from autosar_cli.sar.focus import FocusOptions, focus_images
 from autosar_cli.sar.grid import FocusGrid, track_distance, track_lattice
 from autosar_cli.sim.scene import KINDS
@@ -207,7 +207,7 @@ def range_direction(image: FocusedImage, trajectory: Trajectory, config: Config)
         _, _, vt = np.linalg.svd(xy - xy.mean(axis=0), full_matrices=False)
         along = vt[0] if np.dot(vt[0], xy[-1] - xy[0]) > 0 else -vt[0]
         left = np.array([-along[1], along[0]])
-        side = 1.0 if math.sin(math.radians(config.radar.mounting.yaw_deg)) > 0 else -1.0
+        side = radar_side(config)
         a = left * side
     return (float(a[0]), float(a[1]))
 

@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 from autosar_cli.config import Config
 from autosar_cli.evaluate.alignment import Se2
 from autosar_cli.evaluate.point_target import PointTargetMetrics, analyse_point_target
-from autosar_cli.nav.trajectory import Trajectory, antenna_lever_arms
+from autosar_cli.nav.trajectory import Trajectory, antenna_lever_arms, radar_side
 from autosar_cli.sar.focus import FocusOptions, FocusResult, focus_images
 from autosar_cli.sar.grid import FocusGrid, box_grid
 from autosar_cli.store.image import FocusedImage
@@ -116,7 +116,7 @@ def predict_image_positions(estimate: Trajectory, truth: Trajectory, true_enu: A
     true = np.asarray(true_enu, dtype=np.float64).reshape(-1, 3)
     t = np.asarray(t_ns, dtype=np.int64)
     t = t[(t >= max(truth.t_ns[0], estimate.t_ns[0])) & (t <= min(truth.t_ns[-1], estimate.t_ns[-1]))]
-    side = 1.0 if math.sin(math.radians(config.radar.mounting.yaw_deg)) > 0 else -1.0
+    side = radar_side(config)
     t0 = zero_doppler_times(truth, true, config, t)
     c0, _ = _reference_track(truth, t0, config)
     ce, ve = _reference_track(estimate, t0, config)

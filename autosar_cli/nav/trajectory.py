@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -48,6 +49,12 @@ def antenna_lever_arms(config: Config) -> tuple[Array, Array]:
     rot = mounting_rotation(r.mounting.yaw_deg, r.mounting.pitch_deg, r.mounting.roll_deg)
     lever = np.asarray(r.mounting.lever_arm_m, dtype=np.float64)
     return lever + np.asarray(r.tx_positions_m) @ rot.T, lever + np.asarray(r.rx_positions_m) @ rot.T
+
+
+def radar_side(config: Config) -> float:
+    """The side the radar looks to, +1 left of the car's x-axis (mounting yaw in (0, 180) deg), -1 right: the
+    one definition of the looking side for the grid, the beam and the reflectors' expected positions."""
+    return 1.0 if math.sin(math.radians(config.radar.mounting.yaw_deg)) > 0 else -1.0
 
 
 def phase_centre_lever_arm(config: Config) -> Array:

@@ -27,7 +27,13 @@ from numpy.typing import NDArray
 
 from autosar_cli import __version__
 from autosar_cli.config import Config
-from autosar_cli.nav.trajectory import Trajectory, antenna_lever_arms, cumulative_travel, radar_phase_centres
+from autosar_cli.nav.trajectory import (
+    Trajectory,
+    antenna_lever_arms,
+    cumulative_travel,
+    radar_phase_centres,
+    radar_side,
+)
 from autosar_cli.sar.backprojection import PulseBlock, backproject_block
 from autosar_cli.sar.grid import FocusGrid, GridError, box_grid, check_image_size, track_grid
 from autosar_cli.sar.range_compression import SPEED_OF_LIGHT, range_compress_into
@@ -175,9 +181,7 @@ def make_grid(options: FocusOptions, geometry: _Geometry, config: Config) -> Foc
         if box is not None:
             grid = box_grid(*box, pixel_m=options.pixel_m, height_m=options.height_m)
         else:
-            yaw = math.radians(config.radar.mounting.yaw_deg)
-            side = 1.0 if math.sin(yaw) > 0 else -1.0
-            grid = track_grid(geometry.reference[:, :2], side=side, pixel_m=options.pixel_m,
+            grid = track_grid(geometry.reference[:, :2], side=radar_side(config), pixel_m=options.pixel_m,
                               height_m=options.height_m, antenna_height_m=float(np.mean(geometry.reference[:, 2])),
                               max_range_m=config.radar.max_range_m)
     except GridError as exc:
@@ -262,7 +266,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         timings["geometry"] += time.perf_counter() - t_start
 
         half_width = processed_half_width(wavelength, options.resolution_m)
-        side = 1.0 if math.sin(math.radians(config.radar.mounting.yaw_deg)) > 0 else -1.0
+        side = radar_side(config)
         used_tx = sorted({t for t, _ in pairs})
         antenna_of_tx = {t: i for i, t in enumerate(used_tx)}
         channels = np.array([[antenna_of_tx[t], len(used_tx) + c] for c, (t, _) in enumerate(pairs)])

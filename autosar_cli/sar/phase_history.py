@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from autosar_cli.config import Config
-from autosar_cli.nav.trajectory import phase_centre_lever_arm, radar_phase_centres
+from autosar_cli.nav.trajectory import phase_centre_lever_arm, radar_phase_centres, radar_side
 from autosar_cli.sar.focus import FocusOptions, RadarParameters, channel_pairs
 from autosar_cli.sar.range_compression import range_compress
 from autosar_cli.store.drive import Drive
@@ -61,7 +61,7 @@ def frame_geometry(traj: Trajectory, t_ns: NDArray[np.int64], config: Config) ->
     """Mean phase centre (F, 3), unit across-track vector towards the radar side (F, 3), unit along (F, 3)."""
     centre = traj.body_points(t_ns, phase_centre_lever_arm(config)[None])[:, 0]
     _, heading = traj.pose(t_ns)
-    side = 1.0 if math.sin(math.radians(config.radar.mounting.yaw_deg)) > 0 else -1.0
+    side = radar_side(config)
     zero = np.zeros_like(heading)
     along = np.stack([np.cos(heading), np.sin(heading), zero], axis=-1)
     across = side * np.stack([-np.sin(heading), np.cos(heading), zero], axis=-1)
