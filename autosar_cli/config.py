@@ -296,6 +296,9 @@ class NavigationConfig:
     # each axle's slip (per m/s^2 of acceleration, drive and brake) and lateral load gain (per m/s^2 of lateral
     # acceleration) fitted to the drive, and the wheel speeds divided by those whose std is at most this
     estimate_wheel_radii: bool = True
+    # the radar's fore-aft offset on a graded road (its height times the grade, from the GNSS vertical velocity) as
+    # the trajectory's correction (docs/NAVIGATION.md)
+    phase_centre_on_grade: bool = False
     wheel_radius_gain_max_std_per_mps2: float = 0.005
     gate_probability: float = 0.9999  # chi-square gate of each update
     max_step_s: float = 0.05  # longest single prediction step (dead reckoning through gaps)

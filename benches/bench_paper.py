@@ -18,7 +18,9 @@ ablation, one run per ``--components`` set, to benches/results/paper_ablation.js
 model an understeer term and its trajectory the rear tyres' slip; ``--no-fits`` navigates in one pass without the
 fitted wheel-speed lag, slip and load gains and the steering test (the A/B: benches/results/paper_fits.json, before
 the slip and load gains). With them: ``--scenarios test3,urban --seeds 0,1 --methods sar-min,sar-min+af --dynamics
-full --output benches/results/paper_wheel_radii.json``.
+full --output benches/results/paper_wheel_radii.json``; ``--grade`` puts the radar's fore-aft offset on the graded
+road into SAR-MIN's trajectory (``--scenarios test1 --seeds 0,9 --methods sar-min,sar-min+af --dynamics full
+--grade --output benches/results/paper_grade.json``, against the same without ``--grade`` in paper_full_fits.json).
 """
 
 from __future__ import annotations
@@ -59,7 +61,7 @@ def cli(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 def config_copy(components: str | None, understeer: float | None, work: Path, rear_slip: float | None = None,
-                fits: bool = True) -> Path:
+                fits: bool = True, grade: bool = False) -> Path:
     """A copy of the default config whose full vehicle model has only ``components`` (comma-separated; None: all),
     whose steering model has the understeer gradient ``understeer`` and whose trajectory the rear-slip gain
     ``rear_slip`` (rad per m/s^2; None: the config's); ``fits`` False: SAR-MIN in one pass, without the fitted
@@ -78,11 +80,15 @@ def config_copy(components: str | None, understeer: float | None, work: Path, re
     if rear_slip is not None:
         text = re.sub(r"^rear_slip_gain_rad_per_mps2 = \S+", f"rear_slip_gain_rad_per_mps2 = {rear_slip!r}", text,
                       count=1, flags=re.MULTILINE)
+    if grade:
+        text = re.sub(r"^phase_centre_on_grade = false", "phase_centre_on_grade = true", text, count=1,
+                      flags=re.MULTILINE)
     if not fits:
         for key in ("estimate_understeer", "estimate_wheel_lag", "estimate_wheel_radii"):
             text = re.sub(rf"^{key} = true", f"{key} = false", text, count=1, flags=re.MULTILINE)
     tag = (components.replace(",", "+") or "none") if components is not None else "all"
-    path = work / f"config_{tag}_us{understeer}_slip{rear_slip}{'' if fits else '_nofits'}.toml"
+    variant = ("" if fits else "_nofits") + ("_grade" if grade else "")
+    path = work / f"config_{tag}_us{understeer}_slip{rear_slip}{variant}.toml"
     path.write_text(text)
     return path
 
@@ -214,7 +220,7 @@ def group_key(row: dict[str, Any]) -> str:
     comps, k, g = row.get("components"), row.get("understeer_gradient"), row.get("rear_slip_gain")
     return (row["scenario"] + ("" if comps is None else f" [{comps or 'none'}]")
             + ("" if k is None else f" [K={k:g}]") + ("" if g is None else f" [slip={g:g}]")
-            + ("" if row.get("fits", True) else " [no fits]"))
+            + ("" if row.get("fits", True) else " [no fits]") + (" [grade]" if row.get("grade") else ""))
 
 
 def main() -> None:
@@ -233,6 +239,8 @@ def main() -> None:
                     help="the rear-slip gain SAR-MIN's trajectory turns the body by (rad per m/s^2; default: config's)")
     ap.add_argument("--no-fits", action="store_true",
                     help="SAR-MIN in one pass: no fitted understeer, yaw lag or wheel-speed lag")
+    ap.add_argument("--grade", action="store_true",
+                    help="the radar's fore-aft offset on the graded road in SAR-MIN's trajectory")
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--keep", action="store_true", help="keep every drive's log and comparison")
     ap.add_argument("--resume", action="store_true", help="keep --output's rows and skip the drives already in it")
@@ -246,7 +254,7 @@ def main() -> None:
     if args.resume and args.output.exists():
         rows = json.loads(args.output.read_text())["rows"]
     done = {(r["scenario"], r["seed"], r.get("dynamics"), r.get("components"), r.get("understeer_gradient"),
-             r.get("rear_slip_gain"), r.get("fits", True)) for r in rows}
+             r.get("rear_slip_gain"), r.get("fits", True), r.get("grade", False)) for r in rows}
 
     def write() -> dict[str, Any]:
         groups = list(dict.fromkeys(group_key(r) for r in rows))
@@ -262,13 +270,13 @@ def main() -> None:
         work = args.workdir or Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
         custom = (args.components is not None or args.understeer_gradient is not None
-                  or args.rear_slip_gain is not None or args.no_fits)
+                  or args.rear_slip_gain is not None or args.no_fits or args.grade)
         config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
-                                                not args.no_fits))] if custom else [])
+                                                not args.no_fits, args.grade))] if custom else [])
         for seed in parse_seeds(args.seeds):
             for scenario in args.scenarios.split(","):
                 if (scenario, seed, args.dynamics, args.components, args.understeer_gradient,
-                        args.rear_slip_gain, not args.no_fits) in done:
+                        args.rear_slip_gain, not args.no_fits, args.grade) in done:
                     continue
                 tag = (f"_{args.dynamics}" if args.dynamics else "") + (
                     f"_{args.components.replace(',', '+')}" if args.components is not None else "")
@@ -291,6 +299,8 @@ def main() -> None:
                     row["rear_slip_gain"] = args.rear_slip_gain
                 if args.no_fits:
                     row["fits"] = False
+                if args.grade:
+                    row["grade"] = True
                 row["sarmin_track_scale_pct"] = round(100 * track_scale(out), 4)
                 gnss_scale, gnss_se = gnss_velocity_scale(scenario, seed)
                 row["gnss_velocity_scale_pct"] = round(100 * gnss_scale, 4)

@@ -119,7 +119,9 @@ class ResidualMotion:
     """Result of :func:`estimate_residual_motion` / :func:`autofocus_residual_motion`."""
 
     trajectory: Trajectory  #: the input with its correction (unchanged where ``reason`` says why not)
-    correction: MotionCorrection | None  #: None where refused
+    #: what the radar data measured (None where refused); the trajectory's correction is this plus the one the
+    #: input carried (e.g. the radar's offset on a graded road, :mod:`autosar_cli.nav.vertical`)
+    correction: MotionCorrection | None
     points_enu: Array  #: (P, 3) the candidate points, where the (corrected) track focuses them
     points_used: NDArray[np.bool_]  #: (P,) those that fit and were used
     phase_rms_rad: Array  #: (P,) each point's phase residual (rad RMS of its phase steps)
@@ -441,13 +443,14 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     unit = np.zeros(len(x))
     unit[-1] = 1.0
     scale_std = float(np.sqrt(max(lu.solve(unit)[-1], 0.0)))
-    offset = base + cross[:, :1] * node_across + cross[:, 1:] * up
+    measured = cross[:, :1] * node_across + cross[:, 1:] * up
     std_enu = np.stack([np.abs(std[:, 0] * node_across[:, 0]), np.abs(std[:, 0] * node_across[:, 1]), std[:, 1]],
                        axis=-1)
-    correction = MotionCorrection(nodes_ns, offset, std_enu)
-    result = replace(scale_track(trajectory, scale, centre) if scale else trajectory, correction=correction)
-    return ResidualMotion(result, correction, points, used, phase_rms, coherence_before, coherence_after, coverage,
-                          iterations, "", hist.frame_t_ns[seen_frames], scale, scale_std), scale_std
+    total = MotionCorrection(nodes_ns, base + measured, std_enu)
+    result = replace(scale_track(trajectory, scale, centre) if scale else trajectory, correction=total)
+    return ResidualMotion(result, MotionCorrection(nodes_ns, measured, std_enu), points, used, phase_rms,
+                          coherence_before, coherence_after, coverage, iterations, "", hist.frame_t_ns[seen_frames],
+                          scale, scale_std), scale_std
 
 
 def _posterior_std(lu: spla.SuperLU, n_nodes: int, every: int = 10) -> Array:

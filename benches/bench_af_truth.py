@@ -1,0 +1,96 @@
+"""Benchmark the autofocus's track scale on the truth track: what each effect of the full vehicle model biases it by.
+
+Usage: python benches/bench_af_truth.py [--scenario test1] [--seeds 0,9]
+                                        [--components "kinematic;body;road;;slip,tyre_radius,wheel_ticks"]
+                                        [--output benches/results/af_truth_scale.json]
+
+For every seed and components set (``kinematic``: the kinematic car; otherwise the full model with only those
+effects, empty: none of them): ``simulate``, ``ingest``, then the residual-motion autofocus
+(``sar.residual_motion.autofocus_residual_motion``) on the simulator's own truth track. The truth's scale is
+exact, so the scale the autofocus applies to it is its bias there, to compare with its stated std; and the same
+with the radar's fore-aft offset on the graded road (``nav.vertical``) where the drive shows a grade. Prints one line
+per drive and writes the rows as JSON (``--scenario test1 --seeds 0,9``: benches/results/af_truth_scale.json).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def measure(scenario: str, seed: int, components: str, work: Path) -> dict[str, Any]:
+    from autosar_cli.config import load_config
+    from autosar_cli.ingest.pipeline import ingest
+    from autosar_cli.nav.baselines import from_truth
+    from autosar_cli.nav.inputs import load_inputs
+    from autosar_cli.nav.navigate import navigate, with_grade
+    from autosar_cli.sar.residual_motion import autofocus_residual_motion
+    from autosar_cli.sim.simulate import simulate
+    from autosar_cli.store.drive import Drive
+
+    config = load_config()
+    dynamics = "kinematic" if components == "kinematic" else "full"
+    if dynamics == "full":
+        wanted = tuple(c for c in components.split(",") if c)
+        config = dataclasses.replace(config, vehicle_dynamics=dataclasses.replace(config.vehicle_dynamics,
+                                                                                  components=wanted))
+    log = work / f"{scenario}_s{seed}.mcap"
+    sim = simulate(scenario, log, seed=seed, config=config, dynamics=dynamics)  # type: ignore[arg-type]
+    drive = work / f"{scenario}_s{seed}.h5"
+    ingest([log], drive, config=config)
+    origin = navigate(drive, "none", config).origin
+    truth = from_truth(str(sim.truth_path), origin, config)
+    t = time.perf_counter()
+    result = autofocus_residual_motion(drive, truth, config)
+    row = {"scenario": scenario, "seed": seed, "components": components, "applied": result.applied,
+           "track_scale_pct": round(100 * result.scale, 4),
+           "track_scale_std_pct": round(100 * result.scale_std, 4),
+           "autofocus_s": round(time.perf_counter() - t, 1),
+           "summary": result.summary()}
+    # the same with the radar's fore-aft offset on the graded road (nav.vertical), where the drive shows a grade
+    with Drive(drive) as d:
+        inputs = load_inputs(d, config)
+    on_grade = with_grade(truth, inputs, replace(config, navigation=replace(config.navigation,
+                                                                            phase_centre_on_grade=True)))
+    row["grade_shown"] = bool(on_grade.info["grade"]["applied"])
+    if row["grade_shown"]:
+        graded = autofocus_residual_motion(drive, on_grade, config)
+        row["track_scale_on_grade_pct"] = round(100 * graded.scale, 4)
+        row["track_scale_on_grade_std_pct"] = round(100 * graded.scale_std, 4)
+    for path in work.iterdir():
+        if path.is_file():
+            path.unlink()
+    return row
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenario", default="test1")
+    ap.add_argument("--seeds", default="0,9")
+    ap.add_argument("--components", default="kinematic;body;road;;slip,tyre_radius,wheel_ticks,imu_misalignment")
+    ap.add_argument("--output", type=Path, default=RESULTS / "af_truth_scale.json")
+    args = ap.parse_args()
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in (int(s) for s in args.seeds.split(",")):
+            for components in args.components.split(";"):
+                row = measure(args.scenario, seed, components, Path(tmp))
+                rows.append(row)
+                graded = (f"; with the grade {row['track_scale_on_grade_pct']:+.4f} +- "
+                          f"{row['track_scale_on_grade_std_pct']:.4f} %" if row["grade_shown"] else "; no grade shown")
+                print(f"{args.scenario} seed {seed} [{components or 'none'}]: truth track scaled by "
+                      f"{row['track_scale_pct']:+.4f} +- {row['track_scale_std_pct']:.4f} %{graded}", flush=True)
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    args.output.write_text(json.dumps({"benchmark": "af_truth_scale", "rows": rows}, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
