@@ -112,10 +112,21 @@ def section(data: Any, max_rows: int, depth: int = 0) -> list[str]:
         if isinstance(value, dict) and all(is_scalar(v) for v in value.values()):
             lines += [f"**{key}**: {cell(value)}", ""]
             continue
+        if isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
+            # records under a key: the key in the table's note (a heading would cost 2 lines)
+            table_lines = records_table(value, max_rows)
+            if table_lines[-2].startswith("("):
+                table_lines[-2] = f"({key}: " + table_lines[-2][1:]
+            else:
+                table_lines += [f"({key}: see the JSON.)", ""]
+            lines += table_lines
+            continue
         if isinstance(value, dict) and value and all(isinstance(v, dict) for v in value.values()):
             # a table of named records, its key in the corner (a heading would cost 2 lines); beyond MAX_NAMED of
-            # them, the first ones and the aggregate "all"
+            # them, the first ones and the aggregate "all" (not where it repeats the one other group)
             names = list(value)
+            if len(names) == 2 and "all" in value:
+                names = [n for n in names if n != "all"]
             if len(names) > MAX_NAMED:
                 names = names[:MAX_NAMED - 1] + (["all"] if "all" in value else names[MAX_NAMED - 1:MAX_NAMED])
             lines += records_table([value[n] for n in names], len(names), names=names, corner=key)
