@@ -21,6 +21,8 @@ the slip and load gains). With them: ``--scenarios test3,urban --seeds 0,1 --met
 full --output benches/results/paper_wheel_radii.json``; ``--grade`` puts the radar's fore-aft offset on the graded
 road into SAR-MIN's trajectory (``--scenarios test1 --seeds 0,9 --methods sar-min,sar-min+af --dynamics full
 --grade --output benches/results/paper_grade.json``, against the same without ``--grade`` in paper_full_fits.json).
+The 40 drives with the current SAR-MIN: ``--scenarios test1,test2,test3,urban --seeds 0-9 --methods
+sar-min,sar-min+af --dynamics full --output benches/results/paper_full_fits.json`` (``--resume`` goes on).
 """
 
 from __future__ import annotations

@@ -110,7 +110,10 @@ def section(data: Any, max_rows: int, depth: int = 0) -> list[str]:
                 lines += [f"({note}.)", ""]
             continue
         if isinstance(value, dict) and all(is_scalar(v) for v in value.values()):
-            lines += [f"**{key}**: {cell(value)}", ""]
+            if len(lines) >= 2 and lines[-1] == "" and lines[-2] and not lines[-2].startswith(("|", "#", "(")):
+                lines[-2] += f"; **{key}**: {cell(value)}"  # small groups share the figures' paragraph
+            else:
+                lines += [f"**{key}**: {cell(value)}", ""]
             continue
         if isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
             # records under a key: the key in the table's note (a heading would cost 2 lines)
