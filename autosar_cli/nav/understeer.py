@@ -29,10 +29,10 @@ from numpy.typing import NDArray
 
 from . import models as m
 from .inputs import NavInputs
+from .wheel_speeds import GYRO_WINDOW_S, running_mean
 
 Array = NDArray[np.float64]
 
-GYRO_WINDOW_S = 0.1  # the gyros' white noise averaged down; the steering's relation to the yaw rate is slower
 
 
 @dataclass(frozen=True)
@@ -63,15 +63,10 @@ def gyro_yaw_rate(inputs: NavInputs, t: Array, x: Array, at: Array) -> Array:
     span."""
     rates = []
     for i, g in enumerate(inputs.gyros):
-        if len(g.t) < 2:
-            continue
         corrected = g.z[:, 0] - np.interp(g.t, t, x[:, m.N_KINEMATIC + i])
-        k = max(int(round(GYRO_WINDOW_S / float(np.median(np.diff(g.t))))), 1)
-        if len(g.t) < k:
-            continue
-        kernel = np.full(k, 1.0 / k)
-        t_mean, rate_mean = np.convolve(g.t, kernel, "valid"), np.convolve(corrected, kernel, "valid")
-        rates.append(np.interp(at, t_mean, rate_mean, left=np.nan, right=np.nan))
+        mean = running_mean(g.t, corrected, GYRO_WINDOW_S)
+        if mean is not None:
+            rates.append(np.interp(at, *mean, left=np.nan, right=np.nan))
     if not rates:
         return np.full(np.shape(at), np.nan)
     stacked = np.stack(rates)

@@ -83,12 +83,13 @@ class WheelRadiusFit:
         return asdict(self)
 
 
-def _running_mean(t: Array, y: Array, window_s: float) -> tuple[Array, Array] | None:
-    """Means of ``y`` over ``window_s`` of samples, placed at their samples' mean time; None when too short."""
+def running_mean(t: Array, y: Array, window_s: float) -> tuple[Array, Array] | None:
+    """Means of ``y`` over ``window_s`` of samples, placed at their samples' mean time (so a window is never
+    off-centre, which would show as a lag); None when too short."""
     if len(t) < 2:
         return None
     k = max(int(round(window_s / float(np.median(np.diff(t))))), 1)
-    if len(t) <= k:
+    if len(t) < k:
         return None
     kernel = np.full(k, 1.0 / k)
     return np.convolve(t, kernel, "valid"), np.convolve(y, kernel, "valid")
@@ -97,7 +98,7 @@ def _running_mean(t: Array, y: Array, window_s: float) -> tuple[Array, Array] | 
 def wheel_acceleration(wheels: Measurements, at: Array) -> Array:
     """The car's acceleration (m/s^2) at ``at`` (s): the four wheels' mean speed over ``ACCEL_WINDOW_S``,
     differentiated; 0 where the wheels are too few."""
-    mean = _running_mean(wheels.t, np.mean(wheels.z, axis=1), ACCEL_WINDOW_S)
+    mean = running_mean(wheels.t, np.mean(wheels.z, axis=1), ACCEL_WINDOW_S)
     if mean is None or len(mean[0]) < 2:
         return np.zeros(np.shape(at))
     return np.interp(at, mean[0], np.gradient(mean[1], mean[0]))
@@ -108,7 +109,7 @@ def raw_gyro_yaw_rate(inputs: NavInputs, at: Array) -> Array:
     ``GYRO_WINDOW_S``; NaN outside their span, 0 everywhere without gyros."""
     rates = []
     for g in inputs.gyros:
-        mean = _running_mean(g.t, g.z[:, 0], GYRO_WINDOW_S)
+        mean = running_mean(g.t, g.z[:, 0], GYRO_WINDOW_S)
         if mean is not None:
             rates.append(np.interp(at, *mean, left=np.nan, right=np.nan))
     if not rates:
