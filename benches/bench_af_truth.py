@@ -7,8 +7,10 @@ Usage: python benches/bench_af_truth.py [--scenario test1] [--seeds 0,9]
 For every seed and components set (``kinematic``: the kinematic car; otherwise the full model with only those
 effects, empty: none of them): ``simulate``, ``ingest``, then the residual-motion autofocus
 (``sar.residual_motion.autofocus_residual_motion``) on the simulator's own truth track. The truth's scale is
-exact, so the scale the autofocus applies to it is its bias there, to compare with its stated std; and the same
-with the radar's fore-aft offset on the graded road (``nav.vertical``) where the drive shows a grade. Prints one line
+exact, so the scale the autofocus applies to it is its bias there, to compare with its stated std; the same
+with the radar's fore-aft offset on the graded road (``nav.vertical``) where the drive shows a grade; and the same on
+the truth track carrying the radar's true 6-DOF motion (``from_truth(radar_motion=True)``: the sidecar's phase
+centres). Prints one line
 per drive and writes the rows as JSON (``--scenario test1 --seeds 0,9``: benches/results/af_truth_scale.json).
 """
 
@@ -65,6 +67,10 @@ def measure(scenario: str, seed: int, components: str, work: Path) -> dict[str, 
         graded = autofocus_residual_motion(drive, on_grade, config)
         row["track_scale_on_grade_pct"] = round(100 * graded.scale, 4)
         row["track_scale_on_grade_std_pct"] = round(100 * graded.scale_std, 4)
+    moving = from_truth(str(sim.truth_path), origin, config, radar_motion=True)
+    on_radar = autofocus_residual_motion(drive, moving, config)
+    row["track_scale_radar_motion_pct"] = round(100 * on_radar.scale, 4)
+    row["track_scale_radar_motion_std_pct"] = round(100 * on_radar.scale_std, 4)
     for path in work.iterdir():
         if path.is_file():
             path.unlink()
@@ -87,7 +93,8 @@ def main() -> None:
                 graded = (f"; with the grade {row['track_scale_on_grade_pct']:+.4f} +- "
                           f"{row['track_scale_on_grade_std_pct']:.4f} %" if row["grade_shown"] else "; no grade shown")
                 print(f"{args.scenario} seed {seed} [{components or 'none'}]: truth track scaled by "
-                      f"{row['track_scale_pct']:+.4f} +- {row['track_scale_std_pct']:.4f} %{graded}", flush=True)
+                      f"{row['track_scale_pct']:+.4f} +- {row['track_scale_std_pct']:.4f} %{graded}; on the radar's "
+                      f"true motion {row['track_scale_radar_motion_pct']:+.4f} %", flush=True)
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(json.dumps({"benchmark": "af_truth_scale", "rows": rows}, indent=2) + "\n")
 

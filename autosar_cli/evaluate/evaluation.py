@@ -89,7 +89,9 @@ class Truth:
 
 def load_truth(path: str | Path, origin: GeodeticOrigin, config: Config) -> Truth:
     """Read a truth sidecar and re-express its trajectory and targets in the ENU frame of ``origin`` (an
-    image's or a drive's)."""
+    image's or a drive's). The trajectory carries the radar's true motion (``from_truth(radar_motion=True)``):
+    the alignment, the trajectory errors and the peak-loss reference follow the phase centres the echoes came
+    from, not the planar track of the car."""
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"{p}: no such truth sidecar")
@@ -97,7 +99,7 @@ def load_truth(path: str | Path, origin: GeodeticOrigin, config: Config) -> Trut
         road = GeodeticOrigin(float(f.attrs["origin_lat_deg"]), float(f.attrs["origin_lon_deg"]),
                               float(f.attrs["origin_height_m"]))
     road_z = float(origin.to_enu(road.lat_deg, road.lon_deg, road.height_m)[2])
-    return Truth(p, from_truth(str(p), origin, config), read_targets(p, origin), road_z)
+    return Truth(p, from_truth(str(p), origin, config, radar_motion=True), read_targets(p, origin), road_z)
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,8 @@ from numpy.typing import NDArray
 from autosar_cli.config import Config
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.nav.inputs import NavInputError, NavInputs
-from autosar_cli.nav.trajectory import Trajectory, rear_axle_from_body_point
+from autosar_cli.nav.trajectory import Trajectory, radar_phase_centres, rear_axle_from_body_point
+from autosar_cli.types import MotionCorrection
 
 Array = NDArray[np.float64]
 
@@ -65,8 +66,16 @@ def straight_line(inputs: NavInputs, config: Config) -> Trajectory:
                       inputs.origin, **_geometry(config))
 
 
-def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config) -> Trajectory:
-    """The simulator's true rear-axle track, re-expressed in the drive's ENU origin."""
+def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config, *, radar_motion: bool = False) -> Trajectory:
+    """The simulator's true rear-axle track, re-expressed in the drive's ENU origin.
+
+    ``radar_motion``: also carry, as the trajectory's :attr:`~Trajectory.correction`, the horizontal motion of the
+    radar's mean phase centre that the planar track lacks (the sidecar's ``radar/phase_centre_enu``: body roll and
+    pitch, the grade's fore-aft offset of a radar mounted above the road, vibration), so that its body points
+    follow the radar as it really moved. Focusing and the reflector metrics use it; the navigation benchmarks,
+    which compare filter states, do not. The height is left out: the processing focuses on a plane at a fixed
+    height above the road under the car, and the grade lifts the radar and the scene alike.
+    """
     import h5py
 
     with h5py.File(truth_path, "r") as f:
@@ -80,6 +89,12 @@ def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config) -> Traje
         yaw_rate = tr["yaw_rate"][()]
         truth_origin = GeodeticOrigin(float(f.attrs["origin_lat_deg"]), float(f.attrs["origin_lon_deg"]),
                                       float(f.attrs["origin_height_m"]))
+        radar = f.get("radar")
+        phase_centres = None
+        if radar_motion and radar is not None and len(radar["t_ns"]):
+            offsets = radar.get("chirp_t_ns")
+            phase_centres = (radar["t_ns"][()], radar["phase_centre_enu"][()],
+                             None if offsets is None else offsets[()])
     lat, lon, h = truth_origin.to_geodetic(np.c_[rear, np.zeros(len(rear))])
     enu = origin.to_enu(lat, lon, h)
     # The two tangent planes differ by a tiny rotation: apply it to the heading too.
@@ -87,4 +102,25 @@ def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config) -> Traje
     ahead = origin.to_enu(*ref)
     psi = np.unwrap(np.arctan2(ahead[:, 1] - enu[:, 1], ahead[:, 0] - enu[:, 0]))
     psi += np.round((heading[0] - psi[0]) / (2 * np.pi)) * 2 * np.pi
-    return Trajectory("truth", t_ns, enu[:, :2], psi, speed, yaw_rate, origin, **_geometry(config))
+    traj = Trajectory("truth", t_ns, enu[:, :2], psi, speed, yaw_rate, origin, **_geometry(config))
+    if phase_centres is not None:
+        traj.correction = _radar_motion(traj, truth_origin, config, *phase_centres)
+    return traj
+
+
+def _radar_motion(planar: Trajectory, truth_origin: GeodeticOrigin, config: Config, frame_t_ns: NDArray[np.int64],
+                  phase_centre_enu: Array, chirp_t_ns: NDArray[np.int64] | None) -> MotionCorrection:
+    """The true mean phase centre (F, T, R, 3) (ENU m of ``truth_origin``) of every radar frame minus the same
+    mean of ``planar``'s antennas at the same chirps, horizontal only, as a correction of ``planar``."""
+    inside = (frame_t_ns >= planar.t_ns[0]) & (frame_t_ns <= planar.t_ns[-1])
+    t = frame_t_ns[inside]
+    true = phase_centre_enu[inside].reshape(len(t), -1, 3).mean(axis=1)
+    lat, lon, h = truth_origin.to_geodetic(true)
+    true = planar.origin.to_enu(lat, lon, h)
+    offsets_s = (np.zeros(phase_centre_enu.shape[1]) if chirp_t_ns is None
+                 else (chirp_t_ns[inside][0] - t[0]) / 1e9)
+    pc = radar_phase_centres(planar, t, offsets_s, config)
+    modelled = 0.5 * (pc.tx[:, :, None, :] + pc.rx).reshape(len(t), -1, 3).mean(axis=1)
+    offset = np.zeros((len(t), 3))
+    offset[:, :2] = true[:, :2] - modelled[:, :2]
+    return MotionCorrection(t.astype(np.int64), offset, np.zeros_like(offset))

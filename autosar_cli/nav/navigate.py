@@ -201,7 +201,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
     elif method == "none":
         traj = straight_line(inputs, config)
     else:
-        traj = from_truth(str(truth_path), inputs.origin, config)
+        traj = from_truth(str(truth_path), inputs.origin, config, radar_motion=True)
         traj.info["truth"] = str(truth_path)
     traj.info["drive"] = str(drive_path)
     traj.info["elapsed_s"] = time.perf_counter() - t0
