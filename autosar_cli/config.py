@@ -45,6 +45,9 @@ class VehicleConfig:
     #: the rear tyres' slip angle per m/s^2 of lateral acceleration, m a / (L C_r): how far SAR-MIN's trajectory turns
     #: the body (and the radar on it) from the rear axle's direction of motion (0: no slip)
     rear_slip_gain_rad_per_mps2: float = 0.0
+    #: the body rolls and pitches about an axis this high above the road under the CoG (the suspension's roll centre):
+    #: where SAR-MIN's radar moves with the IMU's roll and pitch (nav.attitude)
+    roll_axis_height_m: float = 0.10
 
 
 @dataclass(frozen=True)
@@ -299,6 +302,9 @@ class NavigationConfig:
     # the radar's fore-aft offset on a graded road (its height times the grade, from the GNSS vertical velocity) as
     # the trajectory's correction (docs/NAVIGATION.md)
     phase_centre_on_grade: bool = False
+    # the 6-DoF IMU whose roll and pitch move SAR-MIN's radar (nav.attitude; "" = none): the radar's motion as the
+    # body rolls and pitches, grade included, as the trajectory's correction
+    attitude_imu: str = ""
     wheel_radius_gain_max_std_per_mps2: float = 0.005
     gate_probability: float = 0.9999  # chi-square gate of each update
     max_step_s: float = 0.05  # longest single prediction step (dead reckoning through gaps)
@@ -467,6 +473,9 @@ def _validate(cfg: Config) -> None:
     for name in ("wheelbase_m", "track_front_m", "track_rear_m", "steering_ratio", "wheel_radius_m"):
         _positive(f"vehicle.{name}", getattr(v, name))
     _non_negative("vehicle.cog_height_m", v.cog_height_m)
+    if not 0.0 <= v.roll_axis_height_m <= max(v.cog_height_m, 0.0):
+        raise ConfigError(f"vehicle.roll_axis_height_m: must lie between the road (0) and the CoG "
+                          f"({v.cog_height_m} m), got {v.roll_axis_height_m}")
     if not 0.0 <= v.cog_to_rear_axle_m <= v.wheelbase_m:
         raise ConfigError(
             f"vehicle.cog_to_rear_axle_m: must lie between 0 and the wheelbase ({v.wheelbase_m} m), "
@@ -544,6 +553,10 @@ def _validate(cfg: Config) -> None:
     _non_negative("navigation.understeer_max_std_rad_per_mps2", nav.understeer_max_std_rad_per_mps2)
     _non_negative("navigation.wheel_lag_max_std_m", nav.wheel_lag_max_std_m)
     _non_negative("navigation.wheel_radius_gain_max_std_per_mps2", nav.wheel_radius_gain_max_std_per_mps2)
+    if nav.attitude_imu:
+        imu = cfg.sensors.get(nav.attitude_imu)
+        if imu is None or imu.kind != "imu" or imu.dof != 6:
+            raise ConfigError(f"navigation.attitude_imu: {nav.attitude_imu!r} is not a 6-DoF IMU of [sensors]")
     if not 0.0 < nav.gate_probability < 1.0:
         raise ConfigError(f"navigation.gate_probability: must lie strictly between 0 and 1, got "
                           f"{nav.gate_probability!r}")

@@ -63,7 +63,7 @@ def cli(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 def config_copy(components: str | None, understeer: float | None, work: Path, rear_slip: float | None = None,
-                fits: bool = True, grade: bool = False) -> Path:
+                fits: bool = True, grade: bool = False, attitude: bool = True) -> Path:
     """A copy of the default config whose full vehicle model has only ``components`` (comma-separated; None: all),
     whose steering model has the understeer gradient ``understeer`` and whose trajectory the rear-slip gain
     ``rear_slip`` (rad per m/s^2; None: the config's); ``fits`` False: SAR-MIN in one pass, without the fitted
@@ -85,11 +85,13 @@ def config_copy(components: str | None, understeer: float | None, work: Path, re
     if grade:
         text = re.sub(r"^phase_centre_on_grade = false", "phase_centre_on_grade = true", text, count=1,
                       flags=re.MULTILINE)
+    if not attitude:
+        text = re.sub(r'^attitude_imu = "\S*"', 'attitude_imu = ""', text, count=1, flags=re.MULTILINE)
     if not fits:
         for key in ("estimate_understeer", "estimate_wheel_lag", "estimate_wheel_radii"):
             text = re.sub(rf"^{key} = true", f"{key} = false", text, count=1, flags=re.MULTILINE)
     tag = (components.replace(",", "+") or "none") if components is not None else "all"
-    variant = ("" if fits else "_nofits") + ("_grade" if grade else "")
+    variant = ("" if fits else "_nofits") + ("_grade" if grade else "") + ("" if attitude else "_planar")
     path = work / f"config_{tag}_us{understeer}_slip{rear_slip}{variant}.toml"
     path.write_text(text)
     return path
@@ -222,7 +224,8 @@ def group_key(row: dict[str, Any]) -> str:
     comps, k, g = row.get("components"), row.get("understeer_gradient"), row.get("rear_slip_gain")
     return (row["scenario"] + ("" if comps is None else f" [{comps or 'none'}]")
             + ("" if k is None else f" [K={k:g}]") + ("" if g is None else f" [slip={g:g}]")
-            + ("" if row.get("fits", True) else " [no fits]") + (" [grade]" if row.get("grade") else ""))
+            + ("" if row.get("fits", True) else " [no fits]") + (" [grade]" if row.get("grade") else "")
+            + ("" if row.get("attitude", True) else " [planar]"))
 
 
 def main() -> None:
@@ -243,6 +246,8 @@ def main() -> None:
                     help="SAR-MIN in one pass: no fitted understeer, yaw lag or wheel-speed lag")
     ap.add_argument("--grade", action="store_true",
                     help="the radar's fore-aft offset on the graded road in SAR-MIN's trajectory")
+    ap.add_argument("--planar", action="store_true",
+                    help="SAR-MIN's radar on a planar body: not moved by the IMU's roll and pitch")
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--keep", action="store_true", help="keep every drive's log and comparison")
     ap.add_argument("--resume", action="store_true", help="keep --output's rows and skip the drives already in it")
@@ -256,7 +261,8 @@ def main() -> None:
     if args.resume and args.output.exists():
         rows = json.loads(args.output.read_text())["rows"]
     done = {(r["scenario"], r["seed"], r.get("dynamics"), r.get("components"), r.get("understeer_gradient"),
-             r.get("rear_slip_gain"), r.get("fits", True), r.get("grade", False)) for r in rows}
+             r.get("rear_slip_gain"), r.get("fits", True), r.get("grade", False), r.get("attitude", True))
+            for r in rows}
 
     def write() -> dict[str, Any]:
         groups = list(dict.fromkeys(group_key(r) for r in rows))
@@ -272,13 +278,13 @@ def main() -> None:
         work = args.workdir or Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
         custom = (args.components is not None or args.understeer_gradient is not None
-                  or args.rear_slip_gain is not None or args.no_fits or args.grade)
+                  or args.rear_slip_gain is not None or args.no_fits or args.grade or args.planar)
         config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
-                                                not args.no_fits, args.grade))] if custom else [])
+                                                not args.no_fits, args.grade, not args.planar))] if custom else [])
         for seed in parse_seeds(args.seeds):
             for scenario in args.scenarios.split(","):
                 if (scenario, seed, args.dynamics, args.components, args.understeer_gradient,
-                        args.rear_slip_gain, not args.no_fits, args.grade) in done:
+                        args.rear_slip_gain, not args.no_fits, args.grade, not args.planar) in done:
                     continue
                 tag = (f"_{args.dynamics}" if args.dynamics else "") + (
                     f"_{args.components.replace(',', '+')}" if args.components is not None else "")
@@ -303,6 +309,8 @@ def main() -> None:
                     row["fits"] = False
                 if args.grade:
                     row["grade"] = True
+                if args.planar:
+                    row["attitude"] = False
                 row["sarmin_track_scale_pct"] = round(100 * track_scale(out), 4)
                 gnss_scale, gnss_se = gnss_velocity_scale(scenario, seed)
                 row["gnss_velocity_scale_pct"] = round(100 * gnss_scale, 4)

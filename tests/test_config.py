@@ -52,6 +52,8 @@ def _write_variant(tmp_path: Path, pattern: str, replacement: str) -> Path:
         (r'^"yaw_rate.orc" = .*$', '"yaw_rate.orc" = "ORC_1_YAW"', "can.roles.yaw_rate.orc"),
         (r"^max_range_m = .*$", "max_range_m = 40.0", "radar.max_range_m"),
         (r"^range_window = .*$", 'range_window = "kaiser"', "processing.range_window"),
+        (r"^attitude_imu = .*$", 'attitude_imu = "imu_cog_a"', "navigation.attitude_imu"),
+        (r"^roll_axis_height_m = .*$", "roll_axis_height_m = 0.9", "vehicle.roll_axis_height_m"),
     ],
 )
 def test_bad_values_are_rejected_naming_the_key(tmp_path, pattern, replacement, key):

@@ -586,3 +586,16 @@ def test_a_stop_does_not_turn_the_speed_backwards(tmp_path: Path) -> None:
     aligned = float(np.hypot(*(fit_se2(e_xy, r_xy).apply(e_xy) - r_xy).T).max())
     print(f"urban seed 0 kinematic: lowest speed {est.speed.min():.3f} m/s, aligned max {aligned * 100:.2f} cm")
     assert est.speed.min() > -0.05 and aligned < 0.05
+
+
+def test_the_radar_stays_on_a_planar_body_where_no_attitude_is_measured(ci_drive: Path) -> None:
+    """SAR-MIN's radar moves with the IMU's roll and pitch only where the estimate can be made, and says why not:
+    the ci drive is 1 s long (the crossover needs 10 s), and with navigation.attitude_imu empty there is no IMU."""
+    from dataclasses import replace
+
+    traj = navigate(ci_drive, "sar-min", CFG)
+    assert traj.info["attitude"] == {"applied": False, "reason": "imu/ins_cog covers less than 10 s of the drive: "
+                                                                 "the radar as on a planar body"}
+    assert traj.correction is None
+    off = replace(CFG, navigation=replace(CFG.navigation, attitude_imu=""))
+    assert "attitude_imu is empty" in navigate(ci_drive, "sar-min", off).info["attitude"]["reason"]

@@ -35,6 +35,17 @@ class Measurements:
     sigma: Array
 
 
+@dataclass(frozen=True)
+class ImuSamples:
+    """A 6-DoF IMU's samples (body axes: x forward, y left, z up)."""
+
+    name: str
+    t: Array  #: (N,) s since the navigation's t0, latency removed
+    angular_velocity: Array  #: (N, 3) rad/s
+    specific_force: Array  #: (N, 3) m/s^2 (the accelerometers' reading: acceleration minus gravity)
+    lever_arm_m: tuple[float, float, float]  #: the IMU in the body frame, from the CoG
+
+
 @dataclass
 class NavInputs:
     t0_ns: int
@@ -46,6 +57,7 @@ class NavInputs:
     gnss_velocity: Measurements | None = None  # antenna ENU (vx, vy)
     gnss_vertical_velocity: Measurements | None = None  # antenna ENU vz (the road's grade times the speed)
     gnss_lever_m: tuple[float, float, float] = (0.0, 0.0, 0.0)  # antenna in the body frame (from the CoG)
+    attitude_imu: ImuSamples | None = None  # the 6-DoF IMU of navigation.attitude_imu, where the drive has it
     gyro_bias_std: list[float] = field(default_factory=list)  # prior std of each gyro's bias (rad/s)
     gyro_bias_walk: list[float] = field(default_factory=list)  # bias random walk (rad/s per sqrt(s))
     steering_offset_std: float = 0.0  # prior std of the road-wheel angle offset (rad)
@@ -170,4 +182,11 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         out.steering_offset_std = (np.deg2rad(s.steering.offset_std_deg) if s.steering else 0.02) / ratio * 2
     if not out.gyros:
         raise NavInputError(f"{drive.path}: no gyro to fuse (config navigation.gyros is empty)")
+    if nav.attitude_imu and nav.attitude_imu in imu_sources:
+        imu = _columns(h5["imu"][nav.attitude_imu], ("t_ns", "angular_velocity", "linear_acceleration"))
+        w, f = imu["angular_velocity"], imu["linear_acceleration"]
+        ok = np.isfinite(w).all(axis=1) & np.isfinite(f).all(axis=1)
+        if ok.any():  # a 3-DoF stream (NaN axes) has no attitude to give: left out, and navigate says why
+            out.attitude_imu = ImuSamples(nav.attitude_imu, rel(imu["t_ns"][ok], nav.attitude_imu), w[ok], f[ok],
+                                          tuple(config.sensors[nav.attitude_imu].lever_arm_m))
     return out
