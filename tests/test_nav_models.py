@@ -605,7 +605,8 @@ def test_tilt_offsets_are_the_rigid_rotation() -> None:
     def rz(a: float) -> np.ndarray:
         return np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
 
-    want = np.array([(rz(h) @ (ry(p) @ rx(r) - np.eye(3)) @ lever)[:2] for r, p, h in zip(roll, pitch, heading, strict=True)])
+    want = np.array([(rz(h) @ (ry(p) @ rx(r) - np.eye(3)) @ lever)[:2]
+                     for r, p, h in zip(roll, pitch, heading, strict=True)])
     np.testing.assert_allclose(tilt_offsets(roll, pitch, heading, lever), want, atol=1e-15)
 
 
