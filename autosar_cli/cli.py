@@ -359,7 +359,7 @@ def navigate(
                    "duration_s": round(span, 3), "distance_m": round(dist, 3),
                    "elapsed_s": round(traj.info["elapsed_s"], 3),
                    **{k: traj.info[k] for k in ("updates", "rejected", "understeer", "wheel_lag", "wheel_radii",
-                                               "grade") if k in traj.info},
+                                               "attitude") if k in traj.info},
                    **({"plot": str(figure)} if figure else {})}
         if as_json:
             out.print_json(json.dumps(summary))

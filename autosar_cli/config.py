@@ -299,9 +299,6 @@ class NavigationConfig:
     # each axle's slip (per m/s^2 of acceleration, drive and brake) and lateral load gain (per m/s^2 of lateral
     # acceleration) fitted to the drive, and the wheel speeds divided by those whose std is at most this
     estimate_wheel_radii: bool = True
-    # the radar's fore-aft offset on a graded road (its height times the grade, from the GNSS vertical velocity) as
-    # the trajectory's correction (docs/NAVIGATION.md)
-    phase_centre_on_grade: bool = False
     # the 6-DoF IMU whose roll and pitch move SAR-MIN's radar (nav.attitude; "" = none): the radar's motion as the
     # body rolls and pitches, grade included, as the trajectory's correction
     attitude_imu: str = ""

@@ -126,7 +126,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
                                       "samples": int(len(traj.t_ns)), "duration_s": float(span),
                                       "distance_m": float(np.sum(np.hypot(*np.diff(traj.rear_axle_enu, axis=0).T))),
                                       **{k: traj.info[k] for k in ("updates", "rejected", "understeer", "wheel_lag",
-                                                                   "wheel_radii", "grade") if k in traj.info}}
+                                                                   "wheel_radii", "attitude") if k in traj.info}}
     if autofocus:
         from autosar_cli.sar.residual_motion import autofocus_residual_motion
 

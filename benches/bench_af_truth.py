@@ -7,10 +7,10 @@ Usage: python benches/bench_af_truth.py [--scenario test1] [--seeds 0,9]
 For every seed and components set (``kinematic``: the kinematic car; otherwise the full model with only those
 effects, empty: none of them): ``simulate``, ``ingest``, then the residual-motion autofocus
 (``sar.residual_motion.autofocus_residual_motion``) on the simulator's own truth track. The truth's scale is
-exact, so the scale the autofocus applies to it is its bias there, to compare with its stated std; the same
-with the radar's fore-aft offset on the graded road (``nav.vertical``) where the drive shows a grade; and the same on
-the truth track carrying the radar's true 6-DOF motion (``from_truth(radar_motion=True)``: the sidecar's phase
-centres). Prints one line
+exact, so the scale the autofocus applies to it is its bias there, to compare with its stated std; the same on
+the truth track carrying the radar's motion as the IMU's roll and pitch move it (``navigate.with_attitude``, what
+SAR-MIN's trajectory carries); and on the truth track carrying the radar's true 6-DOF motion
+(``from_truth(radar_motion=True)``: the sidecar's phase centres). Prints one line
 per drive and writes the rows as JSON (``--scenario test1 --seeds 0,9``: benches/results/af_truth_scale.json).
 """
 
@@ -21,7 +21,6 @@ import dataclasses
 import json
 import tempfile
 import time
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +32,7 @@ def measure(scenario: str, seed: int, components: str, work: Path) -> dict[str, 
     from autosar_cli.ingest.pipeline import ingest
     from autosar_cli.nav.baselines import from_truth
     from autosar_cli.nav.inputs import load_inputs
-    from autosar_cli.nav.navigate import navigate, with_grade
+    from autosar_cli.nav.navigate import navigate, with_attitude
     from autosar_cli.sar.residual_motion import autofocus_residual_motion
     from autosar_cli.sim.simulate import simulate
     from autosar_cli.store.drive import Drive
@@ -57,16 +56,15 @@ def measure(scenario: str, seed: int, components: str, work: Path) -> dict[str, 
            "track_scale_std_pct": round(100 * result.scale_std, 4),
            "autofocus_s": round(time.perf_counter() - t, 1),
            "summary": result.summary()}
-    # the same with the radar's fore-aft offset on the graded road (nav.vertical), where the drive shows a grade
+    # the same with the radar moved by the IMU's roll and pitch, as in SAR-MIN's trajectory
     with Drive(drive) as d:
         inputs = load_inputs(d, config)
-    on_grade = with_grade(truth, inputs, replace(config, navigation=replace(config.navigation,
-                                                                            phase_centre_on_grade=True)))
-    row["grade_shown"] = bool(on_grade.info["grade"]["applied"])
-    if row["grade_shown"]:
-        graded = autofocus_residual_motion(drive, on_grade, config)
-        row["track_scale_on_grade_pct"] = round(100 * graded.scale, 4)
-        row["track_scale_on_grade_std_pct"] = round(100 * graded.scale_std, 4)
+    tilted = with_attitude(truth, inputs, config)
+    row["attitude_applied"] = bool(tilted.info["attitude"]["applied"])
+    if row["attitude_applied"]:
+        on_imu = autofocus_residual_motion(drive, tilted, config)
+        row["track_scale_with_attitude_pct"] = round(100 * on_imu.scale, 4)
+        row["track_scale_with_attitude_std_pct"] = round(100 * on_imu.scale_std, 4)
     moving = from_truth(str(sim.truth_path), origin, config, radar_motion=True)
     on_radar = autofocus_residual_motion(drive, moving, config)
     row["track_scale_radar_motion_pct"] = round(100 * on_radar.scale, 4)
@@ -90,10 +88,10 @@ def main() -> None:
             for components in args.components.split(";"):
                 row = measure(args.scenario, seed, components, Path(tmp))
                 rows.append(row)
-                graded = (f"; with the grade {row['track_scale_on_grade_pct']:+.4f} +- "
-                          f"{row['track_scale_on_grade_std_pct']:.4f} %" if row["grade_shown"] else "; no grade shown")
+                tilted = (f"; with the IMU's roll and pitch {row['track_scale_with_attitude_pct']:+.4f} %"
+                          if row["attitude_applied"] else "; no attitude")
                 print(f"{args.scenario} seed {seed} [{components or 'none'}]: truth track scaled by "
-                      f"{row['track_scale_pct']:+.4f} +- {row['track_scale_std_pct']:.4f} %{graded}; on the radar's "
+                      f"{row['track_scale_pct']:+.4f} +- {row['track_scale_std_pct']:.4f} %{tilted}; on the radar's "
                       f"true motion {row['track_scale_radar_motion_pct']:+.4f} %", flush=True)
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(json.dumps({"benchmark": "af_truth_scale", "rows": rows}, indent=2) + "\n")

@@ -18,9 +18,9 @@ ablation, one run per ``--components`` set, to benches/results/paper_ablation.js
 model an understeer term and its trajectory the rear tyres' slip; ``--no-fits`` navigates in one pass without the
 fitted wheel-speed lag, slip and load gains and the steering test (the A/B: benches/results/paper_fits.json, before
 the slip and load gains). With them: ``--scenarios test3,urban --seeds 0,1 --methods sar-min,sar-min+af --dynamics
-full --output benches/results/paper_wheel_radii.json``; ``--grade`` puts the radar's fore-aft offset on the graded
-road into SAR-MIN's trajectory (``--scenarios test1 --seeds 0,9 --methods sar-min,sar-min+af --dynamics full
---grade --output benches/results/paper_grade.json``, against the same without ``--grade`` in paper_full_fits.json).
+full --output benches/results/paper_wheel_radii.json``; ``--planar`` leaves SAR-MIN's radar on a planar body, not
+moved by the IMU's roll and pitch (the A/B: ``--scenarios test1,test2,test3,urban --seeds 0-2 --methods
+sar-min,sar-min+af --dynamics full --planar --output benches/results/paper_planar.json``).
 The 40 drives with the current SAR-MIN: ``--scenarios test1,test2,test3,urban --seeds 0-9 --methods
 sar-min,sar-min+af --dynamics full --output benches/results/paper_full_fits.json`` (``--resume`` goes on).
 """
@@ -63,7 +63,7 @@ def cli(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 def config_copy(components: str | None, understeer: float | None, work: Path, rear_slip: float | None = None,
-                fits: bool = True, grade: bool = False, attitude: bool = True) -> Path:
+                fits: bool = True, attitude: bool = True) -> Path:
     """A copy of the default config whose full vehicle model has only ``components`` (comma-separated; None: all),
     whose steering model has the understeer gradient ``understeer`` and whose trajectory the rear-slip gain
     ``rear_slip`` (rad per m/s^2; None: the config's); ``fits`` False: SAR-MIN in one pass, without the fitted
@@ -82,16 +82,13 @@ def config_copy(components: str | None, understeer: float | None, work: Path, re
     if rear_slip is not None:
         text = re.sub(r"^rear_slip_gain_rad_per_mps2 = \S+", f"rear_slip_gain_rad_per_mps2 = {rear_slip!r}", text,
                       count=1, flags=re.MULTILINE)
-    if grade:
-        text = re.sub(r"^phase_centre_on_grade = false", "phase_centre_on_grade = true", text, count=1,
-                      flags=re.MULTILINE)
     if not attitude:
         text = re.sub(r'^attitude_imu = "\S*"', 'attitude_imu = ""', text, count=1, flags=re.MULTILINE)
     if not fits:
         for key in ("estimate_understeer", "estimate_wheel_lag", "estimate_wheel_radii"):
             text = re.sub(rf"^{key} = true", f"{key} = false", text, count=1, flags=re.MULTILINE)
     tag = (components.replace(",", "+") or "none") if components is not None else "all"
-    variant = ("" if fits else "_nofits") + ("_grade" if grade else "") + ("" if attitude else "_planar")
+    variant = ("" if fits else "_nofits") + ("" if attitude else "_planar")
     path = work / f"config_{tag}_us{understeer}_slip{rear_slip}{variant}.toml"
     path.write_text(text)
     return path
@@ -224,8 +221,7 @@ def group_key(row: dict[str, Any]) -> str:
     comps, k, g = row.get("components"), row.get("understeer_gradient"), row.get("rear_slip_gain")
     return (row["scenario"] + ("" if comps is None else f" [{comps or 'none'}]")
             + ("" if k is None else f" [K={k:g}]") + ("" if g is None else f" [slip={g:g}]")
-            + ("" if row.get("fits", True) else " [no fits]") + (" [grade]" if row.get("grade") else "")
-            + ("" if row.get("attitude", True) else " [planar]"))
+            + ("" if row.get("fits", True) else " [no fits]") + ("" if row.get("attitude", True) else " [planar]"))
 
 
 def main() -> None:
@@ -244,8 +240,6 @@ def main() -> None:
                     help="the rear-slip gain SAR-MIN's trajectory turns the body by (rad per m/s^2; default: config's)")
     ap.add_argument("--no-fits", action="store_true",
                     help="SAR-MIN in one pass: no fitted understeer, yaw lag or wheel-speed lag")
-    ap.add_argument("--grade", action="store_true",
-                    help="the radar's fore-aft offset on the graded road in SAR-MIN's trajectory")
     ap.add_argument("--planar", action="store_true",
                     help="SAR-MIN's radar on a planar body: not moved by the IMU's roll and pitch")
     ap.add_argument("--workdir", type=Path, default=None)
@@ -261,7 +255,7 @@ def main() -> None:
     if args.resume and args.output.exists():
         rows = json.loads(args.output.read_text())["rows"]
     done = {(r["scenario"], r["seed"], r.get("dynamics"), r.get("components"), r.get("understeer_gradient"),
-             r.get("rear_slip_gain"), r.get("fits", True), r.get("grade", False), r.get("attitude", True))
+             r.get("rear_slip_gain"), r.get("fits", True), r.get("attitude", True))
             for r in rows}
 
     def write() -> dict[str, Any]:
@@ -278,13 +272,13 @@ def main() -> None:
         work = args.workdir or Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
         custom = (args.components is not None or args.understeer_gradient is not None
-                  or args.rear_slip_gain is not None or args.no_fits or args.grade or args.planar)
+                  or args.rear_slip_gain is not None or args.no_fits or args.planar)
         config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
-                                                not args.no_fits, args.grade, not args.planar))] if custom else [])
+                                                not args.no_fits, not args.planar))] if custom else [])
         for seed in parse_seeds(args.seeds):
             for scenario in args.scenarios.split(","):
                 if (scenario, seed, args.dynamics, args.components, args.understeer_gradient,
-                        args.rear_slip_gain, not args.no_fits, args.grade, not args.planar) in done:
+                        args.rear_slip_gain, not args.no_fits, not args.planar) in done:
                     continue
                 tag = (f"_{args.dynamics}" if args.dynamics else "") + (
                     f"_{args.components.replace(',', '+')}" if args.components is not None else "")
@@ -307,8 +301,6 @@ def main() -> None:
                     row["rear_slip_gain"] = args.rear_slip_gain
                 if args.no_fits:
                     row["fits"] = False
-                if args.grade:
-                    row["grade"] = True
                 if args.planar:
                     row["attitude"] = False
                 row["sarmin_track_scale_pct"] = round(100 * track_scale(out), 4)

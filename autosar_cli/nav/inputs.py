@@ -55,7 +55,6 @@ class NavInputs:
     steering: Measurements | None = None  # road-wheel angle (rad) = steering-wheel angle / ratio
     gnss_position: Measurements | None = None  # antenna ENU (x, y)
     gnss_velocity: Measurements | None = None  # antenna ENU (vx, vy)
-    gnss_vertical_velocity: Measurements | None = None  # antenna ENU vz (the road's grade times the speed)
     gnss_lever_m: tuple[float, float, float] = (0.0, 0.0, 0.0)  # antenna in the body frame (from the CoG)
     attitude_imu: ImuSamples | None = None  # the 6-DoF IMU of navigation.attitude_imu, where the drive has it
     gyro_bias_std: list[float] = field(default_factory=list)  # prior std of each gyro's bias (rad/s)
@@ -138,9 +137,6 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         std = errors.velocity_std_mps if errors else 0.05
         out.gnss_velocity = Measurements(nav.gnss, rel(vel["t_ns"], nav.gnss), vel["velocity_enu"][:, :2],
                                          np.full(2, std))
-        if vel["velocity_enu"].shape[1] > 2:
-            out.gnss_vertical_velocity = Measurements(nav.gnss, rel(vel["t_ns"], nav.gnss),
-                                                      vel["velocity_enu"][:, 2:3], np.full(1, std))
     imu_sources = drive.imu_sources()
     for name in nav.gyros:
         s = config.sensors.get(name)

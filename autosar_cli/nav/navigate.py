@@ -16,7 +16,6 @@ from autosar_cli.nav.inputs import NavInputError, NavInputs, load_inputs
 from autosar_cli.nav.sarmin import NavSolution, run_sarmin
 from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm
 from autosar_cli.nav.understeer import fit_understeer
-from autosar_cli.nav.vertical import grade, grade_correction
 from autosar_cli.nav.wheel_speeds import (
     LOAD_GAINS,
     SLIP_GAINS,
@@ -146,29 +145,6 @@ def with_attitude(traj: Trajectory, inputs: NavInputs, config: Config) -> Trajec
     return replace(traj, correction=correction, info={**traj.info, "attitude": info})
 
 
-def with_grade(traj: Trajectory, inputs: NavInputs, config: Config) -> Trajectory:
-    """``traj`` with the radar's fore-aft offset on a graded road as its correction (:mod:`.vertical`) where
-    ``navigation.phase_centre_on_grade`` is on, the IMU's pitch does not already move the radar (:func:`with_attitude`)
-    and the drive has GNSS vertical velocities; what was done in its ``info["grade"]``."""
-    if not config.navigation.phase_centre_on_grade:
-        return replace(traj, info={**traj.info, "grade": {"applied": False,
-                                                          "reason": "navigation.phase_centre_on_grade is off"}})
-    if traj.info.get("attitude", {}).get("applied"):
-        return replace(traj, info={**traj.info, "grade": {
-            "applied": False, "reason": "the IMU's pitch, grade included, already moves the radar"}})
-    theta, fit = grade(inputs, traj)
-    if fit is None:
-        return replace(traj, info={**traj.info, "grade": {
-            "applied": False, "reason": "no GNSS vertical velocity above 1 m/s over two knot spans"}})
-    if theta is None:
-        return replace(traj, info={**traj.info, "grade": {**fit.to_dict(), "applied": False,
-                                                          "reason": "no change of grade shown: the track as planar"}})
-    height = float(config.vehicle.cog_height_m + phase_centre_lever_arm(config)[2])
-    info = {**fit.to_dict(), "applied": True, "reason": "the grade's change shown", "radar_height_m": height,
-            "offset_max_m": float(height * np.max(np.abs(np.sin(theta))))}
-    return replace(traj, correction=grade_correction(traj, theta, height), info={**traj.info, "grade": info})
-
-
 def sarmin_with_steering_test(inputs: NavInputs, config: Config, smooth: bool = True) -> tuple[NavSolution, dict]:
     """SAR-MIN; with ``navigation.estimate_understeer``, first without the steering, and the steering's understeer
     gradient and yaw lag fitted against the gyros on that pass (:mod:`.understeer`). Where the drive shows the car
@@ -230,7 +206,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                           info={"updates": sol.updates, "rejected": sol.rejected, "smoothed": smooth,
                                 "understeer": understeer, "wheel_lag": wheel_lag,
                                 "wheel_radii": wheel_radii})
-        traj = with_grade(with_attitude(traj, inputs, config), inputs, config)
+        traj = with_attitude(traj, inputs, config)
     elif method == "ins":
         from autosar_cli.nav.ins import run_ins
 
