@@ -299,6 +299,10 @@ class NavigationConfig:
     # each axle's slip (per m/s^2 of acceleration, drive and brake) and lateral load gain (per m/s^2 of lateral
     # acceleration) fitted to the drive, and the wheel speeds divided by those whose std is at most this
     estimate_wheel_radii: bool = True
+    # the rear tyres' slip gain (the rear axle's course = heading - g v omega) fitted against the GNSS velocity on a
+    # first pass, and SAR-MIN's final pass run with it where its std is at most rear_slip_max_std_rad_per_mps2
+    estimate_rear_slip: bool = True
+    rear_slip_max_std_rad_per_mps2: float = 0.002
     # the 6-DoF IMU whose roll and pitch move SAR-MIN's radar (nav.attitude; "" = none): the radar's motion as the
     # body rolls and pitches, grade included, as the trajectory's correction
     attitude_imu: str = ""
@@ -550,6 +554,7 @@ def _validate(cfg: Config) -> None:
     _non_negative("navigation.understeer_max_std_rad_per_mps2", nav.understeer_max_std_rad_per_mps2)
     _non_negative("navigation.wheel_lag_max_std_m", nav.wheel_lag_max_std_m)
     _non_negative("navigation.wheel_radius_gain_max_std_per_mps2", nav.wheel_radius_gain_max_std_per_mps2)
+    _non_negative("navigation.rear_slip_max_std_rad_per_mps2", nav.rear_slip_max_std_rad_per_mps2)
     if nav.attitude_imu:
         imu = cfg.sensors.get(nav.attitude_imu)
         if imu is None or imu.kind != "imu" or imu.dof != 6:

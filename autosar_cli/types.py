@@ -218,6 +218,12 @@ class Trajectory:
         xy = self.rear_axle_enu[k] + np.stack([chord * np.cos(psi + half), chord * np.sin(psi + half)], axis=-1)
         return xy, psi + w * dt
 
+    def body_heading(self, t_ns: ArrayLike) -> Array:
+        """Heading (M,) (rad, ENU) of the body's x-axis at times ``t_ns`` (M,): the course plus the rear tyres' slip."""
+        t_ns = np.asarray(t_ns, dtype=np.int64)
+        k = self._segment(t_ns)
+        return self._pose_from(k, t_ns)[1] + self._slip(k)
+
     def body_points(self, t_ns: ArrayLike, lever_arms: ArrayLike) -> Array:
         """ENU positions (M, A, 3) of body points ``lever_arms`` (A, 3) (m, from the CoG) at times ``t_ns`` (M,),
         with the :attr:`correction` where there is one."""

@@ -45,11 +45,14 @@ def ci_drive(ci_mcap, tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-@pytest.mark.parametrize("gnss_error_model", ["gauss_markov", "white"])
-def test_compiled_filter_equals_the_filterpy_reference(ci_drive: Path, gnss_error_model: str) -> None:
+@pytest.mark.parametrize(("gnss_error_model", "rear_slip_gain"), [("gauss_markov", 0.0), ("white", 0.0),
+                                                                    ("gauss_markov", 0.05)])
+def test_compiled_filter_equals_the_filterpy_reference(ci_drive: Path, gnss_error_model: str,
+                                                       rear_slip_gain: float) -> None:
     import dataclasses
 
-    cfg = dataclasses.replace(CFG, navigation=dataclasses.replace(CFG.navigation, gnss_error_model=gnss_error_model))
+    cfg = dataclasses.replace(CFG, navigation=dataclasses.replace(CFG.navigation, gnss_error_model=gnss_error_model),
+                              vehicle=dataclasses.replace(CFG.vehicle, rear_slip_gain_rad_per_mps2=rear_slip_gain))
     with Drive(ci_drive) as d:
         inputs = load_inputs(d, cfg)
     fast = run_sarmin(inputs, cfg, engine="numba")
@@ -84,11 +87,13 @@ def test_chi2_gate_is_scipy_stats_quantile(dof: int) -> None:
     assert chi2_gate(0.9999, 2) == pytest.approx(-2.0 * math.log(1e-4), rel=1e-12)  # closed form for 2 dof
 
 
-@pytest.mark.parametrize(("dt", "gauss_markov"), [(2e-3, False), (0.05, False), (2e-3, True), (0.05, True)])
-def test_partitioned_prediction_is_the_full_unscented_transform(dt: float, gauss_markov: bool) -> None:
+@pytest.mark.parametrize(("dt", "gauss_markov", "slip"), [(2e-3, False, 0.0), (0.05, False, 0.0), (2e-3, True, 0.0),
+                                                          (0.05, True, 0.0), (0.05, False, 0.01)])
+def test_partitioned_prediction_is_the_full_unscented_transform(dt: float, gauss_markov: bool, slip: float) -> None:
     """The kernel's prediction (11 kinematic sigma points, linear parameter blocks) against filterpy's
     29-point (33 with the GNSS error states) transform: mean, covariance and the smoother's
-    cross-covariance P Phi^T, with constant parameters and with two decaying ones."""
+    cross-covariance P Phi^T, with constant parameters and with two decaying ones, without and with the rear
+    axle's slip."""
     n = 16 if gauss_markov else 14
     rng = np.random.default_rng(5)
     x = np.r_[31.0, -12.0, 8.0, np.pi - 2e-4, 0.3, rng.normal(0, 1e-3, n - 5)]  # the heading crosses +pi
@@ -100,13 +105,14 @@ def test_partitioned_prediction_is_the_full_unscented_transform(dt: float, gauss
     P = A @ A.T + 0.1 * np.diag(scale**2)
     q = np.r_[1e-4, 1e-4, 0.1, 1e-8, 0.01, np.full(n - 5, 1e-10)]
     q[beta > 0] = 2 * 0.25**2 * beta[beta > 0]
-    ukf = VectorUKF(x, P, lambda X, dt: m.decay_parameters(m.ctrv_step(X, dt), beta, dt), angle_indices=[m.PSI])
+    ukf = VectorUKF(x, P, lambda X, dt: m.decay_parameters(m.ctrv_step(X, dt, slip), beta, dt),
+                    angle_indices=[m.PSI])
     step = ukf.predict(dt, np.diag(m.process_noise(q, beta, dt)))
     lam = ukf.points.alpha**2 * (n + ukf.points.kappa) - n
     xn, Pn, F, Pkk = np.empty(n), np.empty((n, n)), np.empty((5, 5)), np.empty((5, 5))
     kern._predict(x, P, xn, Pn, dt, q, beta, ukf.Wm, ukf.Wc, n + lam, math.fsum(ukf.Wm), np.zeros((5, 5)),
                   np.empty(5), np.empty((11, 5)), np.empty((11, 5)), np.empty((11, 5)), F, Pkk, np.empty(n),
-                  np.empty(n))
+                  np.empty(n), slip)
     assert -np.pi <= xn[m.PSI] < -3.1  # wrapped
     d = xn - ukf.x
     d[m.PSI] = (d[m.PSI] + np.pi) % (2 * np.pi) - np.pi
@@ -553,12 +559,12 @@ def test_steering_is_left_out_only_where_the_fit_shows_another_steering(ci_drive
         inputs = load_inputs(d, CFG)
     loose = dataclasses.replace(CFG, navigation=dataclasses.replace(CFG.navigation,
                                                                      understeer_max_std_rad_per_mps2=10.0))
-    sol, info = sarmin_with_steering_test(inputs, loose)
+    sol, info, _, _ = sarmin_with_steering_test(inputs, loose)
     assert not info["steering_left_out"] and "updates" not in info
     np.testing.assert_array_equal(sol.x, run_sarmin(inputs, loose).x)
     assert sol.updates["steering"] > 0
     wrong_k = dataclasses.replace(loose, vehicle=dataclasses.replace(CFG.vehicle, understeer_gradient_rad_per_mps2=0.5))
-    sol, info = sarmin_with_steering_test(inputs, wrong_k)
+    sol, info, _, _ = sarmin_with_steering_test(inputs, wrong_k)
     assert info["steering_left_out"] and abs(info["gradient"] - 0.5) > 3 * info["std"], info
     np.testing.assert_array_equal(sol.x, run_sarmin(dataclasses.replace(inputs, steering=None), wrong_k).x)
     assert "steering" not in sol.updates

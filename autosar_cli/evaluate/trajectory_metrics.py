@@ -33,7 +33,7 @@ class TrajectoryErrors:
     distance_m: Array  #: true travel of the phase centre since the first instant, m
     est_xy: Array  #: (M, 2) estimated phase centre, ENU m
     ref_xy: Array  #: (M, 2) true phase centre, ENU m
-    ref_heading: Array  #: (M,) true heading, rad (ENU, from East CCW)
+    ref_heading: Array  #: (M,) true heading of the body, rad (ENU, from East CCW)
     error_along: Array  #: estimate - truth, along the true heading, m
     error_across: Array  #: estimate - truth, across (left positive), m
     alignment: Se2  #: maps estimated positions onto the truth (least squares over all instants)
@@ -107,7 +107,7 @@ def trajectory_errors(est: Trajectory, ref: Trajectory, lever_arm: ArrayLike, t_
     lever = np.asarray(lever_arm, dtype=np.float64).reshape(1, 3)
     est_xy = est.body_points(t, lever)[:, 0, :2]
     ref_xy = ref.body_points(t, lever)[:, 0, :2]
-    _, ref_psi = ref.pose(t)
+    ref_psi = ref.body_heading(t)
     dist = cumulative_travel(ref_xy)
     along, across = _along_across(est_xy - ref_xy, ref_psi)
     align = fit_se2(est_xy, ref_xy)
@@ -119,10 +119,11 @@ def trajectory_metrics(est: Trajectory, errors: TrajectoryErrors,
                        deltas_m: tuple[float, float] = RPE_DELTAS_M) -> TrajectoryMetrics:
     """Summarise ``errors`` and add the relative pose error over ``deltas_m`` (1 m and 10 m) of true travel.
 
-    The RPE is computed on SE(2) poses (phase-centre position, vehicle heading) at the same instants.
+    The RPE is computed on SE(2) poses (phase-centre position, the body's heading) at the same instants: the
+    estimate's body heading is its course plus the rear tyres' slip where it models one, as the truth's is the body's.
     """
     t = errors.t_ns
-    _, est_psi = est.pose(t)
+    est_psi = est.body_heading(t)
     rpe: dict[float, tuple[float, float]] = {}
     for d in deltas_m:
         err = relative_pose_error(errors.est_xy, est_psi, errors.ref_xy, errors.ref_heading, d)

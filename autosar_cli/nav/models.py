@@ -2,10 +2,11 @@
 
 State (ENU navigation frame, SI): ``[px, py, v, psi, omega, b_1 .. b_N, b_steer, s_fl .. s_rr, e_x, e_y]``.
 
-- ``px, py``: the centre of the rear axle. For a car that does not skid this point moves along the
-  body x-axis (no side slip), so CTRV is exact there; the CoG would need a side-slip term.
-- ``v``: speed of that point (m/s); ``psi``: heading of the body x-axis (rad, from East, CCW);
-  ``omega``: yaw rate (rad/s).
+- ``px, py``: the centre of the rear axle. It moves at the rear tyres' slip angle ``alpha = g v omega`` from the
+  body x-axis (``g`` the rear-slip gain, rad per m/s^2 of lateral acceleration; 0: no side slip), along
+  ``psi - alpha``: CTRV with that course is exact for a steady turn.
+- ``v``: speed of that point (m/s); ``psi``: heading of the body x-axis (rad, from East, CCW), what the gyros
+  integrate; ``omega``: yaw rate (rad/s).
 - ``b_i``: bias of gyro i (rad/s); ``b_steer``: road-wheel angle offset of the steering sensor (rad).
 - ``s_w``: scale error of wheel w's speed (tyre radius); ``e_x, e_y``: the GNSS position's slow error (m,
   ENU), first-order Gauss-Markov (only with ``navigation.gnss_error_model = "gauss_markov"``).
@@ -27,17 +28,19 @@ N_KINEMATIC = 5
 Array = NDArray[np.float64]
 
 
-def ctrv_step(X: Array, dt: float) -> Array:
+def ctrv_step(X: Array, dt: float, slip_gain: float = 0.0) -> Array:
     """Constant turn rate and velocity over ``dt`` seconds (exact, smooth at omega -> 0).
 
-    The chord is ``v dt sinc(omega dt / 2)`` long and points along ``psi + omega dt / 2``.
+    The chord is ``v dt sinc(omega dt / 2)`` long and points along ``psi - g v omega + omega dt / 2`` (``g`` =
+    ``slip_gain``: the rear axle's course is the body's heading less the rear tyres' slip angle).
     """
     out = X.copy()
     v, psi, w = X[:, V], X[:, PSI], X[:, OMEGA]
     half = 0.5 * w * dt
     chord = v * dt * np.sinc(half / np.pi)  # numpy's sinc is sin(pi x)/(pi x)
-    out[:, PX] += chord * np.cos(psi + half)
-    out[:, PY] += chord * np.sin(psi + half)
+    course = psi - slip_gain * v * w
+    out[:, PX] += chord * np.cos(course + half)
+    out[:, PY] += chord * np.sin(course + half)
     out[:, PSI] = psi + w * dt
     return out
 
@@ -72,25 +75,31 @@ def gnss_position(X: Array, lever_xy: tuple[float, float], error_index: int) -> 
     return p + X[:, error_index:error_index + 2] if error_index >= 0 else p
 
 
-def point_velocity(X: Array, lever_xy: tuple[float, float]) -> Array:
-    """ENU ground velocity (m/s) of a body point ``lever_xy`` relative to the rear-axle centre; (m, 2)."""
+def point_velocity(X: Array, lever_xy: tuple[float, float], slip_gain: float = 0.0) -> Array:
+    """ENU ground velocity (m/s) of a body point ``lever_xy`` relative to the rear-axle centre, the rear axle moving
+    at the slip angle ``slip_gain v omega`` (see :func:`ctrv_step`); (m, 2)."""
     c, s = np.cos(X[:, PSI]), np.sin(X[:, PSI])
     lx, ly = lever_xy
-    bx = X[:, V] - X[:, OMEGA] * ly  # body-frame velocity of the point
-    by = X[:, OMEGA] * lx
+    alpha = slip_gain * X[:, V] * X[:, OMEGA]
+    bx = X[:, V] * np.cos(alpha) - X[:, OMEGA] * ly  # body-frame velocity of the point
+    by = -X[:, V] * np.sin(alpha) + X[:, OMEGA] * lx
     return np.stack([c * bx - s * by, s * bx + c * by], axis=1)
 
 
-def wheel_speeds(X: Array, wheelbase_m: float, track_front_m: float, track_rear_m: float) -> Array:
-    """Ground speed (m/s) of the four wheel centres (fl, fr, rl, rr) under the no-slip bicycle model; (m, 4).
+def wheel_speeds(X: Array, wheelbase_m: float, track_front_m: float, track_rear_m: float,
+                 slip_gain: float = 0.0) -> Array:
+    """Ground speed (m/s) of the four wheel centres (fl, fr, rl, rr) under the bicycle model; (m, 4).
 
-    Rear wheels: v -+ omega * track/2. Front wheels also move sideways at omega * wheelbase. Signed, negative
+    Rear wheels roll along the body: v cos(alpha) -+ omega * track/2, alpha = ``slip_gain`` v omega the rear axle's
+    slip angle. Front wheels also move sideways at omega * wheelbase - v sin(alpha). Signed, negative
     where the state's speed is: the car drives forwards (an ABS ECU's speeds carry no sign). With unsigned
     predictions ``v`` and ``-v`` look alike to the wheels: at a stop the filter's speed could cross zero and go on
     backwards once the car pulled away, its GNSS updates then gated out (urban seed 0, kinematic: 172 m off).
     """
     v, w = X[:, V], X[:, OMEGA]
-    lat = w * wheelbase_m
+    alpha = slip_gain * v * w
+    lat = w * wheelbase_m - v * np.sin(alpha)
+    v = v * np.cos(alpha)
     left, right = v - w * track_front_m / 2, v + w * track_front_m / 2
     fl = np.copysign(np.hypot(left, lat), left)
     fr = np.copysign(np.hypot(right, lat), right)

@@ -13,7 +13,8 @@ from autosar_cli.nav import models as m
 from autosar_cli.nav.attitude import CROSSOVER_HZ, estimate_attitude, tilt_offsets
 from autosar_cli.nav.baselines import from_truth, gnss_only, straight_line
 from autosar_cli.nav.inputs import NavInputError, NavInputs, load_inputs
-from autosar_cli.nav.sarmin import NavSolution, run_sarmin
+from autosar_cli.nav.rear_slip import fit_rear_slip
+from autosar_cli.nav.sarmin import NavSolution, gnss_lever_rear, run_sarmin
 from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm
 from autosar_cli.nav.understeer import fit_understeer
 from autosar_cli.nav.wheel_speeds import (
@@ -38,6 +39,8 @@ MIN_YAW_LAG_S = 0.005
 MIN_WHEEL_LAG_M = 0.01
 MIN_SLIP_GAIN = 1e-3
 MIN_LOAD_GAIN = 5e-4
+#: ... and 1 mrad of rear slip per m/s^2 (a sixth of the full vehicle's 6.6)
+MIN_REAR_SLIP_CHANGE = 1e-3
 #: the attitude estimate's error (rad, 1 sigma): 0.76 / 0.47 mrad RMS roll / pitch on test3 seed 2 (nav.attitude)
 ATTITUDE_STD_RAD = 1e-3
 
@@ -145,18 +148,29 @@ def with_attitude(traj: Trajectory, inputs: NavInputs, config: Config) -> Trajec
     return replace(traj, correction=correction, info={**traj.info, "attitude": info})
 
 
-def sarmin_with_steering_test(inputs: NavInputs, config: Config, smooth: bool = True) -> tuple[NavSolution, dict]:
-    """SAR-MIN; with ``navigation.estimate_understeer``, first without the steering, and the steering's understeer
-    gradient and yaw lag fitted against the gyros on that pass (:mod:`.understeer`). Where the drive shows the car
-    steering otherwise than the kinematic bicycle (K off the vehicle's, or a yaw lag, by more than ``SIGNIFICANT``
-    std and the ``MIN_*`` sizes) that pass is the solution: the steering is left out. Else SAR-MIN runs again with
-    the steering. Returns the solution and what the fit found, and why the steering was or was not used."""
+def sarmin_with_steering_test(inputs: NavInputs, config: Config, smooth: bool = True
+                              ) -> tuple[NavSolution, dict, dict, float]:
+    """SAR-MIN with the terms fitted to the drive on a first pass without the steering: the steering's understeer
+    gradient and yaw lag against the gyros (:mod:`.understeer`, with ``navigation.estimate_understeer``), and the
+    rear tyres' slip gain against the GNSS velocity (:mod:`.rear_slip`, with ``navigation.estimate_rear_slip``).
+
+    Where the drive shows the car steering otherwise than the kinematic bicycle (K off the vehicle's, or a yaw lag,
+    by more than ``SIGNIFICANT`` std and the ``MIN_*`` sizes) the steering is left out. The first pass is the
+    solution where the steering is left out and no rear slip shows; else SAR-MIN runs once more, with the steering
+    or without it and with the slip gain that showed. Returns the solution, what the steering fit found and why the
+    steering was or was not used, the same for the rear slip, and the slip gain navigated with."""
     nav, veh = config.navigation, config.vehicle
     vehicle_k = {"steering_left_out": False, "gradient": veh.understeer_gradient_rad_per_mps2}
-    if not nav.estimate_understeer or inputs.steering is None:
+    test_steering = nav.estimate_understeer and inputs.steering is not None
+    first_inputs = replace(inputs, steering=None) if test_steering else inputs
+    first = run_sarmin(first_inputs, config, smooth=smooth)
+    gain, slip_info = rear_slip_gain(inputs, config, first)
+    slip_config = replace(config, vehicle=replace(veh, rear_slip_gain_rad_per_mps2=gain))
+    rerun = gain != veh.rear_slip_gain_rad_per_mps2
+    if not test_steering:
         why = "navigation.estimate_understeer is off" if inputs.steering else "no steering"
-        return run_sarmin(inputs, config, smooth=smooth), {**vehicle_k, "reason": f"{why}: the steering as recorded"}
-    first = run_sarmin(replace(inputs, steering=None), config, smooth=smooth)
+        sol = run_sarmin(inputs, slip_config, smooth=smooth) if rerun else first
+        return sol, {**vehicle_k, "reason": f"{why}: the steering as recorded"}, slip_info, gain
     scales = [i for i, name in enumerate(first.state_names) if name.startswith("scale.wheel_")]
     common_scale_std = float(np.sqrt(first.P[-1][np.ix_(scales, scales)].sum())) / len(scales)
     fit = fit_understeer(inputs, first.t, first.x, veh.wheelbase_m, nav.steering_min_speed_mps, common_scale_std)
@@ -174,9 +188,33 @@ def sarmin_with_steering_test(inputs: NavInputs, config: Config, smooth: bool = 
                                    f"the lag within {SIGNIFICANT:g} std or {MIN_YAW_LAG_S * 1000:g} ms of 0: the "
                                    "steering as recorded").to_dict()
     else:
-        return first, replace(fit, steering_left_out=True, reason="the car does not steer as the kinematic bicycle: "
-                                                                  "navigated without the steering").to_dict()
-    return run_sarmin(inputs, config, smooth=smooth), info
+        left_out = replace(fit, steering_left_out=True, reason="the car does not steer as the kinematic bicycle: "
+                                                               "navigated without the steering").to_dict()
+        sol = run_sarmin(first_inputs, slip_config, smooth=smooth) if rerun else first
+        return sol, left_out, slip_info, gain
+    return run_sarmin(inputs, slip_config, smooth=smooth), info, slip_info, gain
+
+
+def rear_slip_gain(inputs: NavInputs, config: Config, first: NavSolution) -> tuple[float, dict]:
+    """The rear-slip gain to navigate with: the one fitted on ``first`` (:mod:`.rear_slip`) where its std is at most
+    ``navigation.rear_slip_max_std_rad_per_mps2`` and it differs from the vehicle's by ``SIGNIFICANT`` std and
+    ``MIN_REAR_SLIP_CHANGE``; else the vehicle's. Also what the fit found, and why."""
+    nav, veh = config.navigation, config.vehicle
+    own = veh.rear_slip_gain_rad_per_mps2
+    if not nav.estimate_rear_slip:
+        return own, {"applied": False, "gain": own, "reason": "navigation.estimate_rear_slip is off"}
+    fit = fit_rear_slip(inputs, first.t, first.x, gnss_lever_rear(inputs, config), own)
+    if fit is None:
+        return own, {"applied": False, "gain": own, "reason": "fewer than 20 GNSS velocities while moving"}
+    if not fit.std <= nav.rear_slip_max_std_rad_per_mps2:
+        why = (f"g's std {fit.std:.2g} above navigation.rear_slip_max_std_rad_per_mps2 (lateral acceleration "
+               f"{fit.lateral_accel_rms_mps2:.2f} m/s^2 RMS): the vehicle's {own:g}")
+        return own, replace(fit, reason=why).to_dict()
+    if not _shows(fit.gain - own, fit.std, MIN_REAR_SLIP_CHANGE):
+        why = f"g within {SIGNIFICANT:g} std or {MIN_REAR_SLIP_CHANGE:g} of the vehicle's {own:g}"
+        return own, replace(fit, reason=why).to_dict()
+    return fit.gain, replace(fit, applied=True,
+                             reason="fitted to the drive: the rear axle's course turned by it").to_dict()
 
 
 def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: bool = True,
@@ -197,14 +235,16 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                 raise NavInputError(f"{drive_path}: no truth sidecar found; give --truth LOG.truth.h5")
     if method == "sar-min":
         inputs, wheel_lag, wheel_radii = wheel_speeds_corrected(inputs, config)
-        sol, understeer = sarmin_with_steering_test(inputs, config, smooth=smooth)
+        sol, understeer, rear_slip, slip_gain = sarmin_with_steering_test(inputs, config, smooth=smooth)
         t_ns = inputs.t0_ns + np.round(sol.t * 1e9).astype(np.int64)
-        traj = Trajectory("sar-min", t_ns, sol.x[:, [m.PX, m.PY]], np.unwrap(sol.x[:, m.PSI]), sol.x[:, m.V],
+        # the filter's heading is the body's; the trajectory's is the rear axle's course, the body turned from it
+        course = np.unwrap(sol.x[:, m.PSI]) - slip_gain * sol.x[:, m.V] * sol.x[:, m.OMEGA]
+        traj = Trajectory("sar-min", t_ns, sol.x[:, [m.PX, m.PY]], course, sol.x[:, m.V],
                           sol.x[:, m.OMEGA], inputs.origin, config.vehicle.cog_to_rear_axle_m,
                           config.vehicle.cog_height_m, state=sol.x, state_names=sol.state_names,
-                          covariance=sol.P, rear_slip_gain=config.vehicle.rear_slip_gain_rad_per_mps2,
+                          covariance=sol.P, rear_slip_gain=slip_gain,
                           info={"updates": sol.updates, "rejected": sol.rejected, "smoothed": smooth,
-                                "understeer": understeer, "wheel_lag": wheel_lag,
+                                "understeer": understeer, "rear_slip": rear_slip, "wheel_lag": wheel_lag,
                                 "wheel_radii": wheel_radii})
         traj = with_attitude(traj, inputs, config)
     elif method == "ins":

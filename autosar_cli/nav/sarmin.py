@@ -90,7 +90,7 @@ def _initial_state(inputs: NavInputs, config: Config, n: int, gnss_i: int) -> tu
     k = int(np.searchsorted(pos.t, t_start - 1e-9))
     k = min(k, len(pos.t) - 1)
     t_start = max(t_start, float(pos.t[k]))
-    lx, ly = _gnss_lever_rear(inputs, config)
+    lx, ly = gnss_lever_rear(inputs, config)
     c, s = np.cos(psi), np.sin(psi)
     x0[m.PX] = pos.z[k, 0] - (c * lx - s * ly)
     x0[m.PY] = pos.z[k, 1] - (s * lx + c * ly)
@@ -119,7 +119,8 @@ def _initial_state(inputs: NavInputs, config: Config, n: int, gnss_i: int) -> tu
     return t_start, x0, P0
 
 
-def _gnss_lever_rear(inputs: NavInputs, config: Config) -> tuple[float, float]:
+def gnss_lever_rear(inputs: NavInputs, config: Config) -> tuple[float, float]:
+    """The GNSS antenna's horizontal lever arm from the rear axle (m, body frame)."""
     lx, ly, _ = inputs.gnss_lever_m
     return lx + config.vehicle.cog_to_rear_axle_m, ly
 
@@ -166,18 +167,19 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
     keep = times[order] >= t_start
     order = order[keep]
 
-    gnss_lever = _gnss_lever_rear(inputs, config)
+    gnss_lever = gnss_lever_rear(inputs, config)
     if engine == "numba":
         return _run_kernel(inputs, config, smooth, sources, times, kinds, index, order, t_start, x0, P0, q,
                            beta, names, steer_i, scale_i, gnss_i, gnss_lever)
     from .ukf import FilterHistory, VectorUKF, rts_smooth  # filterpy (and its scipy.stats): ~0.4 s to import
 
-    ukf = VectorUKF(x0, P0, lambda X, dt: m.decay_parameters(m.ctrv_step(X, dt), beta, dt),
+    slip = veh.rear_slip_gain_rad_per_mps2
+    ukf = VectorUKF(x0, P0, lambda X, dt: m.decay_parameters(m.ctrv_step(X, dt, slip), beta, dt),
                     angle_indices=[m.PSI], alpha=SIGMA_ALPHA, beta=SIGMA_BETA, kappa=3.0 - n)
 
     def wheel_fn(X: Array) -> Array:
         return (1.0 + X[:, scale_i:scale_i + 4]) * m.wheel_speeds(X, veh.wheelbase_m, veh.track_front_m,
-                                                                  veh.track_rear_m)
+                                                                  veh.track_rear_m, slip)
 
     gates = {k: chi2_gate(nav.gate_probability, k) for k in (1, 2, 4)}
     rejected: dict[str, int] = {}
@@ -223,7 +225,7 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
         elif kind == "gnss_pos":
             ok = ukf.update(z, lambda X: m.gnss_position(X, gnss_lever, gnss_i), np.diag(meas.sigma**2), gates[2])
         elif kind == "gnss_vel":
-            ok = ukf.update(z, lambda X: m.point_velocity(X, gnss_lever), np.diag(meas.sigma**2), gates[2])
+            ok = ukf.update(z, lambda X: m.point_velocity(X, gnss_lever, slip), np.diag(meas.sigma**2), gates[2])
         key = kind if not kind.startswith("gyro") else inputs.gyros[int(kind[4:])].name
         if ok is False:
             rejected[key] = rejected.get(key, 0) + 1
@@ -267,7 +269,7 @@ def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[t
     for k in (1, 2, 4):
         gates[k] = chi2_gate(nav.gate_probability, k)
     geo = np.array([veh.wheelbase_m, veh.track_front_m, veh.track_rear_m, gnss_lever[0], gnss_lever[1],
-                    veh.understeer_gradient_rad_per_mps2])
+                    veh.understeer_gradient_rad_per_mps2, veh.rear_slip_gain_rad_per_mps2])
     steer_hold = np.zeros(len(x0), dtype=np.bool_)
     steer_hold[list(steering_held_states(scale_i))] = True
     wm, wc, lam = kern.merwe_weights(len(x0), SIGMA_ALPHA, SIGMA_BETA, 3.0 - len(x0))

@@ -87,16 +87,17 @@ def _cholesky_into(A, scale, m, L, inv_diag):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True)
-def _ctrv_points(pts, prop, dt):  # noqa: ANN001, ANN202
+def _ctrv_points(pts, prop, dt, slip):  # noqa: ANN001, ANN202
     """CTRV over ``dt`` of every kinematic sigma point: the chord ``v dt sinc(omega dt / 2)`` along
-    ``psi + omega dt / 2`` (exact, smooth at omega -> 0)."""
+    ``psi - slip v omega + omega dt / 2`` (exact, smooth at omega -> 0; :func:`~.models.ctrv_step`)."""
     for i in range(pts.shape[0]):
         v, psi, w = pts[i, V], pts[i, PSI], pts[i, OMEGA]
         half = 0.5 * w * dt
         sinc = 1.0 if abs(half) < 1e-12 else np.sin(half) / half
         chord = v * dt * sinc
-        prop[i, PX] = pts[i, PX] + chord * np.cos(psi + half)
-        prop[i, PY] = pts[i, PY] + chord * np.sin(psi + half)
+        course = psi - slip * v * w
+        prop[i, PX] = pts[i, PX] + chord * np.cos(course + half)
+        prop[i, PY] = pts[i, PY] + chord * np.sin(course + half)
         prop[i, V] = v
         prop[i, PSI] = psi + w * dt
         prop[i, OMEGA] = w
@@ -130,7 +131,7 @@ def _parameter_step(q, beta, dt, a, qd):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True)
-def _predict(x, P, xn, Pn, dt, q, beta, Wm, Wc, c, wsum, L5, inv5, pts, prop, dy, F, Pkk, a, qd):  # noqa: ANN001, ANN202
+def _predict(x, P, xn, Pn, dt, q, beta, Wm, Wc, c, wsum, L5, inv5, pts, prop, dy, F, Pkk, a, qd, slip):  # noqa: ANN001, ANN202
     """Unscented CTRV prediction of node ``(x, P)`` by ``dt`` into ``(xn, Pn)`` (partitioned, see the
     module docstring); also fills ``F`` and ``Pkk`` (the predicted kinematic block) for the smoother.
     ``a``, ``qd`` (n,): work vectors (each state's decay and process noise over ``dt``)."""
@@ -138,7 +139,7 @@ def _predict(x, P, xn, Pn, dt, q, beta, Wm, Wc, c, wsum, L5, inv5, pts, prop, dy
     _parameter_step(q, beta, dt, a, qd)
     _cholesky_into(P, c, NK, L5, inv5)
     _sigma_points_into(x, L5, NK, pts)
-    _ctrv_points(pts, prop, dt)
+    _ctrv_points(pts, prop, dt, slip)
     # Mean: the centre plus weighted deviations (the parameter points equal the centre); the heading as
     # wrapped deviations from the centre point (see ukf._mean_x).
     for r in range(NK):
@@ -206,11 +207,13 @@ def _fill_parameter_blocks(P, F, Pn, n, a, qd):  # noqa: ANN001, ANN202
 def _measure(sig, kind, ng, geo, scale_i, steer_i, gnss_i, zsig):  # noqa: ANN001, ANN202
     """Predicted measurement of every sigma point for event ``kind`` into ``zsig``; returns its size."""
     m = sig.shape[0]
-    wheelbase, tf, tr, lx, ly, k_us = geo[0], geo[1], geo[2], geo[3], geo[4], geo[5]
+    wheelbase, tf, tr, lx, ly, k_us, slip = geo[0], geo[1], geo[2], geo[3], geo[4], geo[5], geo[6]
     if kind == ng:  # wheels fl, fr, rl, rr
         for i in range(m):
             v, w = sig[i, V], sig[i, OMEGA]
-            lat = w * wheelbase
+            alpha = slip * v * w
+            lat = w * wheelbase - v * np.sin(alpha)
+            v = v * np.cos(alpha)
             zsig[i, 0] = np.copysign(np.hypot(v - w * tf / 2, lat), v - w * tf / 2) * (1.0 + sig[i, scale_i])
             zsig[i, 1] = np.copysign(np.hypot(v + w * tf / 2, lat), v + w * tf / 2) * (1.0 + sig[i, scale_i + 1])
             zsig[i, 2] = (v - w * tr / 2) * (1.0 + sig[i, scale_i + 2])
@@ -230,9 +233,10 @@ def _measure(sig, kind, ng, geo, scale_i, steer_i, gnss_i, zsig):  # noqa: ANN00
             if gnss_i >= 0:
                 zsig[i, 0] += sig[i, gnss_i]
                 zsig[i, 1] += sig[i, gnss_i + 1]
-        else:  # antenna velocity
-            bx = sig[i, V] - sig[i, OMEGA] * ly
-            by = sig[i, OMEGA] * lx
+        else:  # antenna velocity, the rear axle at its slip angle
+            alpha = slip * sig[i, V] * sig[i, OMEGA]
+            bx = sig[i, V] * np.cos(alpha) - sig[i, OMEGA] * ly
+            by = -sig[i, V] * np.sin(alpha) + sig[i, OMEGA] * lx
             zsig[i, 0] = c * bx - s * by
             zsig[i, 1] = s * bx + c * by
     return 2
@@ -418,7 +422,7 @@ def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, beta, Wm, Wc, lam, 
         t = times[e]
         while t - t_now > max_step:  # dead reckoning through gaps, in bounded steps
             _predict(X[K], PP[K], X[K + 1], PP[K + 1], max_step, q, beta, Wm, Wc, c, wsum, L5, inv5, pts, prop,
-                     dy, FF[K], PK[K], a, qd)
+                     dy, FF[K], PK[K], a, qd, geo[6])
             XP[K] = X[K + 1]
             DT[K] = max_step
             t_now += max_step
@@ -426,7 +430,7 @@ def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, beta, Wm, Wc, lam, 
             T[K] = t_now
         if t > t_now:
             _predict(X[K], PP[K], X[K + 1], PP[K + 1], t - t_now, q, beta, Wm, Wc, c, wsum, L5, inv5, pts, prop,
-                     dy, FF[K], PK[K], a, qd)
+                     dy, FF[K], PK[K], a, qd, geo[6])
             XP[K] = X[K + 1]
             DT[K] = t - t_now
             t_now = t
