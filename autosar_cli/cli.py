@@ -341,6 +341,7 @@ def navigate(
     with _errors(output):
         import numpy as np
 
+        from autosar_cli.nav.navigate import REPORTED_INFO
         from autosar_cli.nav.navigate import navigate as run_navigate
         from autosar_cli.store.trajectory import write_trajectory
 
@@ -358,8 +359,7 @@ def navigate(
         summary = {"trajectory": str(output), "method": traj.method, "samples": len(traj.t_ns),
                    "duration_s": round(span, 3), "distance_m": round(dist, 3),
                    "elapsed_s": round(traj.info["elapsed_s"], 3),
-                   **{k: traj.info[k] for k in ("updates", "rejected", "understeer", "wheel_lag", "wheel_radii",
-                                               "attitude") if k in traj.info},
+                   **{k: traj.info[k] for k in REPORTED_INFO if k in traj.info},
                    **({"plot": str(figure)} if figure else {})}
         if as_json:
             out.print_json(json.dumps(summary))

@@ -42,8 +42,9 @@ class VehicleConfig:
     #: K of the steady-state steering, road-wheel angle = L kappa + K a_y (rad per m/s^2); what SAR-MIN's steering
     #: model assumes (0: the kinematic bicycle)
     understeer_gradient_rad_per_mps2: float = 0.0
-    #: the rear tyres' slip angle per m/s^2 of lateral acceleration, m a / (L C_r): how far SAR-MIN's trajectory turns
-    #: the body (and the radar on it) from the rear axle's direction of motion (0: no slip)
+    #: the rear tyres' slip angle per m/s^2 of lateral acceleration, m a / (L C_r): how far the rear axle's direction of
+    #: motion turns from the body's heading in SAR-MIN's motion model (0: no slip; navigation.estimate_rear_slip fits
+    #: the drive's)
     rear_slip_gain_rad_per_mps2: float = 0.0
     #: the body rolls and pitches about an axis this high above the road under the CoG (the suspension's roll centre):
     #: where SAR-MIN's radar moves with the IMU's roll and pitch (nav.attitude)

@@ -107,7 +107,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
                                     "bytes_read": rep.get("bytes_read"), "warnings": rep.get("warnings", [])}
     manifest["outputs"]["drive"] = DRIVE
 
-    from autosar_cli.nav.navigate import navigate
+    from autosar_cli.nav.navigate import REPORTED_INFO, navigate
     from autosar_cli.sar.focus import FocusOptions, focus
     from autosar_cli.store.trajectory import write_trajectory
 
@@ -125,8 +125,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     manifest["stages"]["navigate"] = {"wall_s": time.perf_counter() - t, "method": traj.method,
                                       "samples": int(len(traj.t_ns)), "duration_s": float(span),
                                       "distance_m": float(np.sum(np.hypot(*np.diff(traj.rear_axle_enu, axis=0).T))),
-                                      **{k: traj.info[k] for k in ("updates", "rejected", "understeer", "wheel_lag",
-                                                                   "wheel_radii", "attitude") if k in traj.info}}
+                                      **{k: traj.info[k] for k in REPORTED_INFO if k in traj.info}}
     if autofocus:
         from autosar_cli.sar.residual_motion import autofocus_residual_motion
 
