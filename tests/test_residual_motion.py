@@ -123,6 +123,7 @@ def test_correction_moves_every_body_point_and_is_stored(tmp_path: Path, ci_driv
                                                          ) -> None:
     """A MotionCorrection adds its (interpolated) offset to every body point; trajectory.h5 keeps it exactly."""
     _, truth = ci_drive
+    truth = replace(truth, correction=None)  # the planar track alone (the truth carries the radar's own motion)
     t = truth.t_ns[::50]
     offset = np.stack([np.linspace(0, 1e-3, len(t)), np.zeros(len(t)), np.linspace(2e-3, 0, len(t))], -1)
     corrected = replace(truth, correction=MotionCorrection(t, offset, np.full_like(offset, 1e-4)))
@@ -181,3 +182,42 @@ def test_focus_history_is_the_reference_backprojection_pulse_by_pulse() -> None:
                                              for n in range(n_pulse)]).astype(np.complex64))
     offset, _, _ = range_offsets(echoes, tx, rx, point, 1)
     assert offset[0] == pytest.approx(2.1 * bin_m, abs=0.15 * bin_m)
+
+
+def test_points_that_disagree_on_the_scale_are_told_apart() -> None:
+    """The agreement statistic of the track scale: 8 points whose phase steps each carry a scale (their own
+    position shift free) give a reduced chi-square near 1 when they share one scale (the 0.999 limit for 8
+    points is 3.5) and far above the limit when half of them see another, 5 sigma away."""
+    import scipy.sparse as sp
+
+    from autosar_cli.sar.residual_motion import _agreement_limit, _Linear, _point_scale_chi2
+
+    rng = np.random.default_rng(11)
+    n_pts, steps, sigma = 8, 200, 0.05
+    used = np.ones(n_pts, dtype=bool)
+
+    def statistic(offsets: np.ndarray) -> float:
+        rows, cols, vals, resid, point = [], [], [], [], []
+        for j in range(n_pts):
+            a = rng.normal(0.0, 1.0, steps)  # d(step)/d(scale)
+            b = rng.normal(0.0, 0.3, (steps, 3))  # d(step)/d(shift)
+            r = np.arange(steps) + j * steps
+            rows += [r] * 4
+            cols += [np.full(steps, 3 * n_pts)] + [np.full(steps, 3 * j + k) for k in range(3)]
+            vals += [a] + [b[:, k] for k in range(3)]
+            # the residual a point's steps keep at the common solution: its own scale's offset, and noise
+            resid.append(a * offsets[j] + rng.normal(0.0, sigma, steps))
+            point.append(np.full(steps, j))
+        design = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                               shape=(n_pts * steps, 3 * n_pts + 1))
+        lin = _Linear(-np.concatenate(resid), design, np.ones(n_pts * steps), np.concatenate(point))
+        chi2, n = _point_scale_chi2(lin, np.full(n_pts * steps, 1.0 / sigma**2), 0, used, 0.02)
+        assert n == n_pts
+        return chi2
+
+    per_point_sigma = sigma / np.sqrt(steps)  # the scale's std from one point's steps
+    agree = statistic(np.zeros(n_pts))
+    split = statistic(np.r_[np.full(4, 2.5), np.full(4, -2.5)] * per_point_sigma)
+    print(f"agree {agree:.2f}, split {split:.1f}, limit {_agreement_limit(n_pts):.2f}")
+    assert agree < _agreement_limit(n_pts) and 0.3 < agree < 2.5
+    assert split > 2 * _agreement_limit(n_pts)
