@@ -14,14 +14,14 @@ A drive's outputs are deleted after it is measured unless --keep (test2 is ~0.5 
 The full vehicle model's runs (``make bench-paper-full``): ``--scenarios test1,test2,test3,urban --seeds 0-9
 --dynamics full --methods none,ins,sar-min,sar-min+af,truth --output benches/results/paper_full.json``; the
 ablation, one run per ``--components`` set, to benches/results/paper_ablation.json with ``--resume``
-(``make bench-ablation``); ``--understeer-gradient K`` and ``--rear-slip-gain G`` give SAR-MIN's steering
-model an understeer term and its motion model the rear tyres' slip; ``--no-fits`` navigates in one pass
-without the fitted wheel-speed lag, slip and load gains, rear slip and the steering test (the A/B:
-benches/results/paper_fits.json, before the slip and load gains). With them: ``--scenarios test3,urban --seeds 0,1 --methods sar-min,sar-min+af --dynamics
-full --output benches/results/paper_wheel_radii.json``; ``--planar`` leaves SAR-MIN's radar on a planar body, not
-moved by the IMU's roll and pitch (for an A/B). The 40-drive command below
-run at 3ac58ec (the truth with the radar's 6-DOF motion; SAR-MIN without the IMU's attitude and the rear slip),
-stopped after 6 drives: benches/results/paper_planar_noslip.json.
+(``make bench-ablation``); ``--understeer-gradient K`` and ``--rear-slip-gain G`` give SAR-MIN's steering model an
+understeer term and its motion model the rear tyres' slip; ``--no-fits`` navigates in one pass without the fitted
+wheel-speed lag, slip and load gains, rear slip and the steering test (the A/B: benches/results/paper_fits.json,
+before the slip and load gains). With them: ``--scenarios test3,urban --seeds 0,1 --methods sar-min,sar-min+af
+--dynamics full --output benches/results/paper_wheel_radii.json``; ``--planar`` leaves SAR-MIN's radar on a planar
+body, not moved by the IMU's roll and pitch (for an A/B). The 40-drive command below run at 3ac58ec (the truth with
+the radar's 6-DOF motion; SAR-MIN without the IMU's attitude and the rear slip), stopped after 6 drives:
+benches/results/paper_planar_noslip.json.
 The 40 drives with the current SAR-MIN: ``--scenarios test1,test2,test3,urban --seeds 0-9 --methods
 sar-min,sar-min+af --dynamics full --output benches/results/paper_full_fits.json`` (``--resume`` goes on).
 """
