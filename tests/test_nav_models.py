@@ -468,24 +468,31 @@ def test_gyro_and_point_models(dt: float) -> None:
     assert pm.shape == (1, 2)
 
 
-def _full_vehicle_wheel_inputs(components: tuple[str, ...] | None = None):  # noqa: ANN202
-    """NavInputs of urban driven by the simulator's full vehicle (with only ``components``, None: all): its
-    instantaneous wheel speeds at 100 Hz (8 mm/s noise), its yaw rate at 100 Hz (4 mrad/s) and the rear axle's
-    velocity at 10 Hz (3 cm/s), and the vehicle's config."""
+def _full_motion(scenario_name: str, components: tuple[str, ...] | None):  # noqa: ANN202
+    """The simulator's full vehicle driving ``scenario_name`` (with only ``components``; None: all) at 200 Hz, and the
+    config."""
     from dataclasses import replace
 
     from autosar_cli.config import load_config
-    from autosar_cli.nav.geodesy import GeodeticOrigin
-    from autosar_cli.nav.inputs import Measurements, NavInputs
     from autosar_cli.sim.dynamics import full_motion
     from autosar_cli.sim.scenario import build_scenario
 
     cfg = load_config()
     if components is not None:
         cfg = replace(cfg, vehicle_dynamics=replace(cfg.vehicle_dynamics, components=components))
+    scenario = build_scenario(scenario_name, cfg)
+    return full_motion(scenario.name, scenario.motion, scenario.road, cfg.vehicle, cfg.vehicle_dynamics, 200.0), cfg
+
+
+def _full_vehicle_wheel_inputs(components: tuple[str, ...] | None = None):  # noqa: ANN202
+    """NavInputs of urban driven by the simulator's full vehicle (with only ``components``, None: all): its
+    instantaneous wheel speeds at 100 Hz (8 mm/s noise), its yaw rate at 100 Hz (4 mrad/s) and the rear axle's
+    velocity at 10 Hz (3 cm/s), and the vehicle's config."""
+    from autosar_cli.nav.geodesy import GeodeticOrigin
+    from autosar_cli.nav.inputs import Measurements, NavInputs
+
+    motion, cfg = _full_motion("urban", components)
     veh = cfg.vehicle
-    scenario = build_scenario("urban", cfg)
-    motion = full_motion(scenario.name, scenario.motion, scenario.road, veh, cfg.vehicle_dynamics, 200.0)
     rng = np.random.default_rng(0)
     tw = np.arange(1.0, motion.duration_s - 1.0, 0.01)
     rate = np.stack([np.interp(tw, motion.t, motion.wheel_rate[:, i]) for i in range(4)], -1)
@@ -574,18 +581,13 @@ def test_attitude_from_the_imu_is_the_full_vehicles() -> None:
     third of it at most (0.8-1.0 of its 3.4 mm RMS)."""
     from scipy.signal import butter, filtfilt
 
-    from autosar_cli.config import load_config
     from autosar_cli.nav.attitude import estimate_attitude, tilt_offsets
     from autosar_cli.nav.inputs import ImuSamples
     from autosar_cli.nav.trajectory import phase_centre_lever_arm
     from autosar_cli.sim import sensors
-    from autosar_cli.sim.dynamics import full_motion
-    from autosar_cli.sim.scenario import build_scenario
 
-    cfg = load_config()
+    motion, cfg = _full_motion("test3", None)
     veh, dyn = cfg.vehicle, cfg.vehicle_dynamics
-    scenario = build_scenario("test3", cfg)
-    motion = full_motion(scenario.name, scenario.motion, scenario.road, veh, dyn, 200.0)
     t = np.arange(0.0, motion.duration_s, 0.01)
     rear = motion.point(t, [-veh.cog_to_rear_axle_m, 0.0, -veh.cog_height_m]).velocity[:, :2]
     speed = np.hypot(*rear.T)
@@ -621,20 +623,11 @@ def _full_vehicle_gnss_velocity(components: tuple[str, ...] | None, seed: int): 
     """test3 driven by the simulator's full vehicle (with only ``components``; None: all): NavInputs holding its GNSS
     antenna's velocity at 10 Hz with 3 cm/s noise, and a 100 Hz "pass" whose states are the true rear-axle speed,
     body heading and yaw rate; the config."""
-    from dataclasses import replace
-
-    from autosar_cli.config import load_config
     from autosar_cli.nav.geodesy import GeodeticOrigin
     from autosar_cli.nav.inputs import Measurements, NavInputs
-    from autosar_cli.sim.dynamics import full_motion
-    from autosar_cli.sim.scenario import build_scenario
 
-    cfg = load_config()
-    if components is not None:
-        cfg = replace(cfg, vehicle_dynamics=replace(cfg.vehicle_dynamics, components=components))
+    motion, cfg = _full_motion("test3", components)
     veh = cfg.vehicle
-    scenario = build_scenario("test3", cfg)
-    motion = full_motion(scenario.name, scenario.motion, scenario.road, veh, cfg.vehicle_dynamics, 200.0)
     rng = np.random.default_rng(seed)
     lever = np.array(cfg.sensors[cfg.navigation.gnss].lever_arm_m)
     tg = np.arange(0.5, motion.duration_s - 0.5, 0.1)
