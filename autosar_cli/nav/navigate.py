@@ -139,10 +139,11 @@ def with_attitude(traj: Trajectory, inputs: NavInputs, config: Config) -> Trajec
                         "on a planar body")
     lever = phase_centre_lever_arm(config) + np.array([0.0, 0.0, veh.cog_height_m - veh.roll_axis_height_m])
     offset = np.zeros((len(att.t), 3))
-    offset[:, :2] = tilt_offsets(att.roll, att.pitch, np.interp(att.t, t, traj.heading), lever)
+    t_ns = inputs.t0_ns + np.round(att.t * 1e9).astype(np.int64)
+    offset[:, :2] = tilt_offsets(att.roll, att.pitch, traj.body_heading(t_ns), lever)
     std = np.zeros_like(offset)
     std[:, :2] = abs(lever[2]) * ATTITUDE_STD_RAD
-    correction = MotionCorrection(inputs.t0_ns + np.round(att.t * 1e9).astype(np.int64), offset, std)
+    correction = MotionCorrection(t_ns, offset, std)
     moved = np.hypot(offset[:, 0] - offset[:, 0].mean(), offset[:, 1] - offset[:, 1].mean())
     info = {**att.to_dict(), "applied": True, "reason": "the body's roll and pitch from the IMU",
             "radar_above_axis_m": float(lever[2]), "offset_rms_mm": float(1e3 * np.sqrt(np.mean(moved**2))),
