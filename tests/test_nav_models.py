@@ -619,14 +619,13 @@ def test_attitude_from_the_imu_is_the_full_vehicles() -> None:
         assert missed < moved / 3
 
 
-def _full_vehicle_gnss_velocity(components: tuple[str, ...] | None, seed: int):  # noqa: ANN202
-    """test3 driven by the simulator's full vehicle (with only ``components``; None: all): NavInputs holding its GNSS
-    antenna's velocity at 10 Hz with 3 cm/s noise, and a 100 Hz "pass" whose states are the true rear-axle speed,
-    body heading and yaw rate; the config."""
+def _gnss_velocity_inputs(motion, cfg, seed: int):  # noqa: ANN001, ANN202
+    """NavInputs holding the GNSS antenna's velocity of the simulator's full vehicle ``motion`` at 10 Hz with 3 cm/s
+    noise (draw ``seed``), and a 100 Hz "pass" whose states are the true rear-axle speed, body heading and yaw
+    rate."""
     from autosar_cli.nav.geodesy import GeodeticOrigin
     from autosar_cli.nav.inputs import Measurements, NavInputs
 
-    motion, cfg = _full_motion("test3", components)
     veh = cfg.vehicle
     rng = np.random.default_rng(seed)
     lever = np.array(cfg.sensors[cfg.navigation.gnss].lever_arm_m)
@@ -638,7 +637,7 @@ def _full_vehicle_gnss_velocity(components: tuple[str, ...] | None, seed: int): 
     states = motion.states(t)
     x = np.zeros((t.size, 5))
     x[:, 2], x[:, 3], x[:, 4] = states["speed"], states["heading"], states["yaw_rate"]
-    return inputs, t, x, (lever[0] + veh.cog_to_rear_axle_m, lever[1]), cfg
+    return inputs, t, x, (lever[0] + veh.cog_to_rear_axle_m, lever[1])
 
 
 def test_rear_slip_gain_is_the_full_vehicles_closed_form() -> None:
@@ -647,16 +646,18 @@ def test_rear_slip_gain_is_the_full_vehicles_closed_form() -> None:
     sigma 0.0012-0.0013); without the tyres' slip it is 0 within 3 sigma."""
     from autosar_cli.nav.rear_slip import fit_rear_slip
 
+    motion, cfg = _full_motion("test3", None)
+    no_slip, _ = _full_motion("test3", ("body", "road"))
+    veh, dyn = cfg.vehicle, cfg.vehicle_dynamics
+    closed = dyn.mass_kg * (veh.wheelbase_m - veh.cog_to_rear_axle_m) / (
+        veh.wheelbase_m * dyn.cornering_stiffness_rear_n_per_rad)
     for seed in range(3):
-        inputs, t, x, lever, cfg = _full_vehicle_gnss_velocity(None, seed)
-        veh, dyn = cfg.vehicle, cfg.vehicle_dynamics
-        closed = dyn.mass_kg * (veh.wheelbase_m - veh.cog_to_rear_axle_m) / (
-            veh.wheelbase_m * dyn.cornering_stiffness_rear_n_per_rad)
+        inputs, t, x, lever = _gnss_velocity_inputs(motion, cfg, seed)
         fit = fit_rear_slip(inputs, t, x, lever, 0.0)
         assert fit is not None
         print(f"seed {seed}: g {fit.gain:.5f} +- {fit.std:.5f} against {closed:.5f}; lateral acceleration "
               f"{fit.lateral_accel_rms_mps2:.2f} m/s^2 RMS")
         assert abs(fit.gain - closed) < 3 * fit.std and fit.std < 0.002
-        plain, t, x, lever, _ = _full_vehicle_gnss_velocity(("body", "road"), seed)
+        plain, t, x, lever = _gnss_velocity_inputs(no_slip, cfg, seed)
         none = fit_rear_slip(plain, t, x, lever, 0.0)
         assert none is not None and abs(none.gain) < 3 * none.std, none
