@@ -11,7 +11,8 @@ exact, so the scale the autofocus applies to it is its bias there, to compare wi
 the truth track carrying the radar's motion as the IMU's roll and pitch move it (``navigate.with_attitude``, what
 SAR-MIN's trajectory carries); and on the truth track carrying the radar's true 6-DOF motion
 (``from_truth(radar_motion=True)``: the sidecar's phase centres). Prints one line
-per drive and writes the rows as JSON (``--scenario test1 --seeds 0,9``: benches/results/af_truth_scale.json).
+per drive and writes the rows as JSON (``--scenario test1 --seeds 0,9 --components road``:
+benches/results/af_truth_scale.json).
 """
 
 from __future__ import annotations
