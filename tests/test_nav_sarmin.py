@@ -553,18 +553,18 @@ def test_steering_is_left_out_only_where_the_fit_shows_another_steering(ci_drive
     the steering, is the solution."""
     import dataclasses
 
-    from autosar_cli.nav.navigate import sarmin_with_steering_test
+    from autosar_cli.nav.navigate import sarmin_with_fits
 
     with Drive(ci_drive) as d:
         inputs = load_inputs(d, CFG)
     loose = dataclasses.replace(CFG, navigation=dataclasses.replace(CFG.navigation,
                                                                      understeer_max_std_rad_per_mps2=10.0))
-    sol, info, _, _ = sarmin_with_steering_test(inputs, loose)
+    sol, info, _, _ = sarmin_with_fits(inputs, loose)
     assert not info["steering_left_out"] and "updates" not in info
     np.testing.assert_array_equal(sol.x, run_sarmin(inputs, loose).x)
     assert sol.updates["steering"] > 0
     wrong_k = dataclasses.replace(loose, vehicle=dataclasses.replace(CFG.vehicle, understeer_gradient_rad_per_mps2=0.5))
-    sol, info, _, _ = sarmin_with_steering_test(inputs, wrong_k)
+    sol, info, _, _ = sarmin_with_fits(inputs, wrong_k)
     assert info["steering_left_out"] and abs(info["gradient"] - 0.5) > 3 * info["std"], info
     np.testing.assert_array_equal(sol.x, run_sarmin(dataclasses.replace(inputs, steering=None), wrong_k).x)
     assert "steering" not in sol.updates

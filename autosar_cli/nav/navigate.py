@@ -151,7 +151,7 @@ def with_attitude(traj: Trajectory, inputs: NavInputs, config: Config) -> Trajec
     return replace(traj, correction=correction, info={**traj.info, "attitude": info})
 
 
-def sarmin_with_steering_test(inputs: NavInputs, config: Config, smooth: bool = True
+def sarmin_with_fits(inputs: NavInputs, config: Config, smooth: bool = True
                               ) -> tuple[NavSolution, dict, dict, float]:
     """SAR-MIN with the terms fitted to the drive on a first pass without the steering: the steering's understeer
     gradient and yaw lag against the gyros (:mod:`.understeer`, with ``navigation.estimate_understeer``), and the
@@ -238,7 +238,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                 raise NavInputError(f"{drive_path}: no truth sidecar found; give --truth LOG.truth.h5")
     if method == "sar-min":
         inputs, wheel_lag, wheel_radii = wheel_speeds_corrected(inputs, config)
-        sol, understeer, rear_slip, slip_gain = sarmin_with_steering_test(inputs, config, smooth=smooth)
+        sol, understeer, rear_slip, slip_gain = sarmin_with_fits(inputs, config, smooth=smooth)
         t_ns = inputs.t0_ns + np.round(sol.t * 1e9).astype(np.int64)
         # the filter's heading is the body's; the trajectory's is the rear axle's course, the body turned from it
         course = np.unwrap(sol.x[:, m.PSI]) - slip_gain * sol.x[:, m.V] * sol.x[:, m.OMEGA]

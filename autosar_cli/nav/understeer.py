@@ -8,7 +8,7 @@ more precisely than a gyro, and with the gyros it measures the speed (``v = omeg
 steer as the model says bends the track and sets the wheels' scale: on test3 with tyre slip (seed 0) the scale
 came out 0.71 % long with the steering, 0.01 % without it. :func:`fit_understeer` measures K and the lag on a
 pass without the steering, by regressing the steering on the gyros' yaw rate and its rate of change; where
-either is shown, SAR-MIN leaves the steering out (``nav.navigate.sarmin_with_steering_test``). Navigating with the
+either is shown, SAR-MIN leaves the steering out (``nav.navigate.sarmin_with_fits``). Navigating with the
 fitted K and the steering moved by the lag was tried: on urban with tyre slip its track was 28.9 cm off after a
 rigid alignment, 20.4 cm with the kinematic model, 8.3 cm without the steering.
 
