@@ -33,7 +33,7 @@ def measure(scenario: str, seed: int, components: str, work: Path) -> dict[str, 
     from autosar_cli.ingest.pipeline import ingest
     from autosar_cli.nav.baselines import from_truth
     from autosar_cli.nav.inputs import load_inputs
-    from autosar_cli.nav.navigate import navigate, with_attitude
+    from autosar_cli.nav.navigate import body_attitude, navigate, with_attitude
     from autosar_cli.sar.residual_motion import autofocus_residual_motion
     from autosar_cli.sim.simulate import simulate
     from autosar_cli.store.drive import Drive
@@ -60,7 +60,7 @@ def measure(scenario: str, seed: int, components: str, work: Path) -> dict[str, 
     # the same with the radar moved by the IMU's roll and pitch, as in SAR-MIN's trajectory
     with Drive(drive) as d:
         inputs = load_inputs(d, config)
-    tilted = with_attitude(truth, inputs, config)
+    tilted = with_attitude(truth, *body_attitude(inputs, config), inputs.t0_ns, config)
     row["attitude_applied"] = bool(tilted.info["attitude"]["applied"])
     if row["attitude_applied"]:
         on_imu = autofocus_residual_motion(drive, tilted, config)

@@ -447,11 +447,16 @@ def _independent_ukf(inputs, cfg):  # noqa: ANN001, ANN202 - NavInputs, Config -
         bx, by = x[2] - x[4] * ly, x[4] * lx
         return np.array([c * bx - s * by, s * bx + c * by])
 
-    def wheels(x):  # noqa: ANN001, ANN202
+    def forward(x):  # noqa: ANN001, ANN202
         v, w, sc = x[2], x[4], x[6 + ng: 10 + ng]
-        return np.array([math.copysign(math.hypot(v - w * tf / 2, w * L), v - w * tf / 2),
-                         math.copysign(math.hypot(v + w * tf / 2, w * L), v + w * tf / 2),
-                         v - w * tr / 2, v + w * tr / 2]) * (1 + sc)
+        return np.array([v * (1 + sc[0]) - w * tf / 2, v * (1 + sc[1]) + w * tf / 2,
+                         v * (1 + sc[2]) - w * tr / 2, v * (1 + sc[3]) + w * tr / 2])
+
+    def wheels(x):  # noqa: ANN001, ANN202
+        # the front wheels' sideways speed w L adds to their reading as it does at the current estimate
+        f0, lat0 = forward(ukf.x), ukf.x[4] * L
+        excess = [math.copysign(math.hypot(f0[k], lat0), f0[k]) - f0[k] for k in (0, 1)] + [0.0, 0.0]
+        return forward(x) + np.array(excess)
 
     pos, vel = inputs.gnss_position, inputs.gnss_velocity
     k0 = int(np.flatnonzero(np.hypot(*vel.z.T) > 0.5)[0])
@@ -595,13 +600,14 @@ def test_a_stop_does_not_turn_the_speed_backwards(tmp_path: Path) -> None:
 
 
 def test_the_radar_stays_on_a_planar_body_where_no_attitude_is_measured(ci_drive: Path) -> None:
-    """SAR-MIN's radar moves with the IMU's roll and pitch only where the estimate can be made, and says why not:
-    the ci drive is 1 s long (the crossover needs 10 s), and with navigation.attitude_imu empty there is no IMU."""
+    """SAR-MIN's radar and GNSS antenna move with the IMU's roll and pitch only where the estimate can be made, and
+    it says why not: the ci drive is 1 s long (the crossover needs 10 s), and with navigation.attitude_imu empty
+    there is no IMU."""
     from dataclasses import replace
 
     traj = navigate(ci_drive, "sar-min", CFG)
     assert traj.info["attitude"] == {"applied": False, "reason": "imu/ins_cog covers less than 10 s of the drive: "
-                                                                 "the radar as on a planar body"}
+                                                                 "the radar and the GNSS antenna as on a planar body"}
     assert traj.correction is None
     off = replace(CFG, navigation=replace(CFG.navigation, attitude_imu=""))
     assert "attitude_imu is empty" in navigate(ci_drive, "sar-min", off).info["attitude"]["reason"]

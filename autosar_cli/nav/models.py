@@ -106,6 +106,34 @@ def wheel_speeds(X: Array, wheelbase_m: float, track_front_m: float, track_rear_
     return np.stack([fl, fr, v - w * track_rear_m / 2, v + w * track_rear_m / 2], axis=1)
 
 
+def measured_wheel_speeds(X: Array, scale_index: int, wheelbase_m: Array | float, track_front_m: float,
+                          track_rear_m: float, slip_gain: float = 0.0) -> Array:
+    """What the four wheels (fl, fr, rl, rr) read, for every sigma point; (m, 4) m/s.
+
+    Each wheel reads its forward speed ``(1 + s_w) v cos(alpha) -+ omega T / 2``: the scale error ``s_w`` multiplies
+    the axle's speed, not the yaw rate's share. A tyre's radius error makes its effective track as uncertain, and
+    with the gyros' yaw rate known to 0.1 % the fully scaled form let the wheels' right-left difference set their
+    common scale (full vehicle, test3: the track 0.1 % long).
+
+    A front wheel's ground speed exceeds its forward speed by its sideways ``omega L - v sin(alpha)``:
+    ``hypot(forward, sideways) - forward``, taken at the mean point ``X[0]`` (the sigma points' centre). That excess,
+    ~(omega L / v)^2 / 2 of the speed, would otherwise make the front-rear ratio a measure of v that amplifies any
+    error in it ~v^2 / (omega L)^2-fold (120 on test3): the front tyres' slip angles and parallel steering put the
+    track 0.03 % long. Signed: negative where the state's speed is (see :func:`wheel_speeds`).
+    """
+    v, w = X[:, V], X[:, OMEGA]
+    alpha = slip_gain * v * w
+    forward = v * np.cos(alpha)
+    scale = 1.0 + X[:, scale_index:scale_index + 4]
+    out = np.stack([forward * scale[:, 0] - w * track_front_m / 2, forward * scale[:, 1] + w * track_front_m / 2,
+                    forward * scale[:, 2] - w * track_rear_m / 2, forward * scale[:, 3] + w * track_rear_m / 2], axis=1)
+    lat0 = w[0] * wheelbase_m - v[0] * np.sin(alpha[0])
+    for k in (0, 1):
+        f0 = out[0, k]
+        out[:, k] += np.copysign(np.hypot(f0, lat0), f0) - f0
+    return out
+
+
 def road_wheel_angle(X: Array, wheelbase_m: float, steer_bias_index: int, understeer_gradient: float = 0.0) -> Array:
     """Measured road-wheel angle (rad) = atan(L omega / v) + K v omega + offset; (m, 1): the linear single-track
     model's steady state, K the understeer gradient (rad per m/s^2 of lateral acceleration v omega; 0: the

@@ -10,7 +10,7 @@ import numpy as np
 
 from autosar_cli.config import Config
 from autosar_cli.nav import models as m
-from autosar_cli.nav.attitude import CROSSOVER_HZ, estimate_attitude, tilt_offsets
+from autosar_cli.nav.attitude import CROSSOVER_HZ, BodyAttitude, estimate_attitude, tilt_offsets
 from autosar_cli.nav.baselines import from_truth, gnss_only, straight_line
 from autosar_cli.nav.inputs import NavInputError, NavInputs, load_inputs
 from autosar_cli.nav.rear_slip import fit_rear_slip
@@ -118,34 +118,102 @@ def wheel_speeds_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
     return moved, replace(lag, applied=True, reason="fitted to the drive").to_dict(), radii_info
 
 
-def with_attitude(traj: Trajectory, inputs: NavInputs, config: Config) -> Trajectory:
-    """``traj`` with the radar's horizontal motion as the body rolls and pitches (:mod:`.attitude`, from the 6-DoF
-    IMU ``navigation.attitude_imu``) as its correction; what was done in its ``info["attitude"]``."""
-    nav, veh = config.navigation, config.vehicle
-
-    def left_out(reason: str) -> Trajectory:
-        return replace(traj, info={**traj.info, "attitude": {"applied": False, "reason": reason}})
-
+def body_attitude(inputs: NavInputs, config: Config) -> tuple[BodyAttitude | None, str]:
+    """The body's roll and pitch over the drive from the 6-DoF IMU ``navigation.attitude_imu`` (:mod:`.attitude`),
+    before any pass: the rear axle's speed from the rear wheels (the GNSS speed without them), its yaw rate the
+    gyros' median. None, and why, where there is no such IMU or it covers too little of the drive."""
+    nav = config.navigation
     if not nav.attitude_imu:
-        return left_out("navigation.attitude_imu is empty: the radar as on a planar body")
+        return None, "navigation.attitude_imu is empty: the radar and the GNSS antenna as on a planar body"
     if inputs.attitude_imu is None:
-        return left_out(f"no 6-DoF IMU stream imu/{nav.attitude_imu} in the drive: the radar as on a planar body")
-    t = (traj.t_ns - inputs.t0_ns) / 1e9
-    att = estimate_attitude(inputs.attitude_imu, t, traj.speed, traj.yaw_rate,
-                            cog_to_rear_axle_m=veh.cog_to_rear_axle_m, cog_height_m=veh.cog_height_m,
-                            roll_axis_height_m=veh.roll_axis_height_m)
+        return None, (f"no 6-DoF IMU stream imu/{nav.attitude_imu} in the drive: the radar and the GNSS antenna as "
+                      "on a planar body")
+    if inputs.wheels is not None:
+        t, speed = inputs.wheels.t, inputs.wheels.z[:, 2:].mean(axis=1)
+    elif inputs.gnss_velocity is not None:
+        t, speed = inputs.gnss_velocity.t, np.hypot(*inputs.gnss_velocity.z.T)
+    else:
+        t = speed = np.zeros(0)
+    att = None
+    if len(t) >= 2:
+        att = estimate_attitude(inputs.attitude_imu, t, speed, _gyro_yaw_rate(inputs, t),
+                                cog_to_rear_axle_m=config.vehicle.cog_to_rear_axle_m,
+                                cog_height_m=config.vehicle.cog_height_m,
+                                roll_axis_height_m=config.vehicle.roll_axis_height_m)
     if att is None:
-        return left_out(f"imu/{nav.attitude_imu} covers less than {1 / CROSSOVER_HZ:g} s of the drive: the radar as "
-                        "on a planar body")
-    lever = phase_centre_lever_arm(config) + np.array([0.0, 0.0, veh.cog_height_m - veh.roll_axis_height_m])
+        return None, (f"imu/{nav.attitude_imu} covers less than {1 / CROSSOVER_HZ:g} s of the drive: the radar and "
+                      "the GNSS antenna as on a planar body")
+    return att, "the body's roll and pitch from the IMU"
+
+
+def _gyro_yaw_rate(inputs: NavInputs, t: np.ndarray) -> np.ndarray:
+    """The gyros' median yaw rate (rad/s) at times ``t`` (s), biases and all."""
+    return np.median([np.interp(t, g.t, g.z[:, 0]) for g in inputs.gyros], axis=0)
+
+
+def _lever_from_roll_axis(lever_from_cog: np.ndarray, config: Config) -> np.ndarray:
+    return np.asarray(lever_from_cog, dtype=np.float64) + np.array(
+        [0.0, 0.0, config.vehicle.cog_height_m - config.vehicle.roll_axis_height_m])
+
+
+def gnss_on_level_body(inputs: NavInputs, att: BodyAttitude, config: Config) -> NavInputs:
+    """``inputs`` with the GNSS fixes and velocities moved to where the antenna would be on a level body.
+
+    An antenna h above the roll axis moves fore-aft by h theta and sideways by -h phi as the body pitches and
+    rolls; SAR-MIN's antenna model is planar. On a grade that changes by 1 % over 60 m (the simulator's road) the
+    roof antenna, 1.35 m up, moves 0.07 % of the distance driven fore-aft: the track's scale, were it left in.
+    The offsets rotate to ENU by the GNSS velocity's course, which is within a few mrad of the body's heading.
+    """
+    pos, vel = inputs.gnss_position, inputs.gnss_velocity
+    if pos is None:
+        return inputs
+    lever = _lever_from_roll_axis(np.asarray(inputs.gnss_lever_m), config)
+    body = tilt_offsets(att.roll, att.pitch, np.zeros_like(att.t), lever)  # (N, 2) body frame
+    body_rate = np.gradient(body, att.t, axis=0)
+    heading = _course(inputs, att.t)
+    yaw_rate = _gyro_yaw_rate(inputs, att.t)
+    c, s = np.cos(heading), np.sin(heading)
+    offset = np.stack([c * body[:, 0] - s * body[:, 1], s * body[:, 0] + c * body[:, 1]], axis=1)
+    # d/dt R(psi) d = R(psi) (d' + omega J d), J d = (-d_y, d_x)
+    bx, by = body_rate[:, 0] - yaw_rate * body[:, 1], body_rate[:, 1] + yaw_rate * body[:, 0]
+    offset_rate = np.stack([c * bx - s * by, s * bx + c * by], axis=1)
+
+    def at(t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        return np.stack([np.interp(t, att.t, x[:, k]) for k in range(2)], axis=1)
+
+    out = replace(inputs, gnss_position=replace(pos, z=pos.z - at(pos.t, offset)))
+    if vel is not None:
+        out = replace(out, gnss_velocity=replace(vel, z=vel.z - at(vel.t, offset_rate)))
+    return out
+
+
+def _course(inputs: NavInputs, t: np.ndarray) -> np.ndarray:
+    """The GNSS velocity's course (rad, ENU) at times ``t`` (s), interpolated across slow samples (below 1 m/s);
+    0 where the drive never moves faster."""
+    vel = inputs.gnss_velocity
+    if vel is None:
+        return np.zeros_like(t)
+    moving = np.hypot(*vel.z.T) > 1.0
+    if not moving.any():
+        return np.zeros_like(t)
+    return np.interp(t, vel.t[moving], np.unwrap(np.arctan2(vel.z[moving, 1], vel.z[moving, 0])))
+
+
+def with_attitude(traj: Trajectory, att: BodyAttitude | None, reason: str, t0_ns: int, config: Config) -> Trajectory:
+    """``traj`` with the radar's horizontal motion as the body rolls and pitches by ``att`` (times in s since
+    ``t0_ns``; see :func:`body_attitude`, which gives ``reason``) as its correction; what was done in its
+    ``info["attitude"]``."""
+    if att is None:
+        return replace(traj, info={**traj.info, "attitude": {"applied": False, "reason": reason}})
+    lever = _lever_from_roll_axis(phase_centre_lever_arm(config), config)
     offset = np.zeros((len(att.t), 3))
-    t_ns = inputs.t0_ns + np.round(att.t * 1e9).astype(np.int64)
+    t_ns = t0_ns + np.round(att.t * 1e9).astype(np.int64)
     offset[:, :2] = tilt_offsets(att.roll, att.pitch, traj.body_heading(t_ns), lever)
     std = np.zeros_like(offset)
     std[:, :2] = abs(lever[2]) * ATTITUDE_STD_RAD
     correction = MotionCorrection(t_ns, offset, std)
     moved = np.hypot(offset[:, 0] - offset[:, 0].mean(), offset[:, 1] - offset[:, 1].mean())
-    info = {**att.to_dict(), "applied": True, "reason": "the body's roll and pitch from the IMU",
+    info = {**att.to_dict(), "applied": True, "reason": reason,
             "radar_above_axis_m": float(lever[2]), "offset_rms_mm": float(1e3 * np.sqrt(np.mean(moved**2))),
             "offset_max_mm": float(1e3 * moved.max())}
     return replace(traj, correction=correction, info={**traj.info, "attitude": info})
@@ -238,6 +306,9 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                 raise NavInputError(f"{drive_path}: no truth sidecar found; give --truth LOG.truth.h5")
     if method == "sar-min":
         inputs, wheel_lag, wheel_radii = wheel_speeds_corrected(inputs, config)
+        attitude, attitude_reason = body_attitude(inputs, config)
+        if attitude is not None:
+            inputs = gnss_on_level_body(inputs, attitude, config)
         sol, understeer, rear_slip, slip_gain = sarmin_with_fits(inputs, config, smooth=smooth)
         t_ns = inputs.t0_ns + np.round(sol.t * 1e9).astype(np.int64)
         # the filter's heading is the body's; the trajectory's is the rear axle's course, the body turned from it
@@ -249,7 +320,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                           info={"updates": sol.updates, "rejected": sol.rejected, "smoothed": smooth,
                                 "understeer": understeer, "rear_slip": rear_slip, "wheel_lag": wheel_lag,
                                 "wheel_radii": wheel_radii})
-        traj = with_attitude(traj, inputs, config)
+        traj = with_attitude(traj, attitude, attitude_reason, inputs.t0_ns, config)
     elif method == "ins":
         from autosar_cli.nav.ins import run_ins
 

@@ -178,8 +178,7 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
                     angle_indices=[m.PSI], alpha=SIGMA_ALPHA, beta=SIGMA_BETA, kappa=3.0 - n)
 
     def wheel_fn(X: Array) -> Array:
-        return (1.0 + X[:, scale_i:scale_i + 4]) * m.wheel_speeds(X, veh.wheelbase_m, veh.track_front_m,
-                                                                  veh.track_rear_m, slip)
+        return m.measured_wheel_speeds(X, scale_i, veh.wheelbase_m, veh.track_front_m, veh.track_rear_m, slip)
 
     gates = {k: chi2_gate(nav.gate_probability, k) for k in (1, 2, 4)}
     rejected: dict[str, int] = {}

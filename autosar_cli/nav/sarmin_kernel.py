@@ -208,16 +208,20 @@ def _measure(sig, kind, ng, geo, scale_i, steer_i, gnss_i, zsig):  # noqa: ANN00
     """Predicted measurement of every sigma point for event ``kind`` into ``zsig``; returns its size."""
     m = sig.shape[0]
     wheelbase, tf, tr, lx, ly, k_us, slip = geo[0], geo[1], geo[2], geo[3], geo[4], geo[5], geo[6]
-    if kind == ng:  # wheels fl, fr, rl, rr
+    if kind == ng:  # wheels fl, fr, rl, rr (models.measured_wheel_speeds)
         for i in range(m):
             v, w = sig[i, V], sig[i, OMEGA]
-            alpha = slip * v * w
-            lat = w * wheelbase - v * np.sin(alpha)
-            v = v * np.cos(alpha)
-            zsig[i, 0] = np.copysign(np.hypot(v - w * tf / 2, lat), v - w * tf / 2) * (1.0 + sig[i, scale_i])
-            zsig[i, 1] = np.copysign(np.hypot(v + w * tf / 2, lat), v + w * tf / 2) * (1.0 + sig[i, scale_i + 1])
-            zsig[i, 2] = (v - w * tr / 2) * (1.0 + sig[i, scale_i + 2])
-            zsig[i, 3] = (v + w * tr / 2) * (1.0 + sig[i, scale_i + 3])
+            forward = v * np.cos(slip * v * w)
+            zsig[i, 0] = forward * (1.0 + sig[i, scale_i]) - w * tf / 2
+            zsig[i, 1] = forward * (1.0 + sig[i, scale_i + 1]) + w * tf / 2
+            zsig[i, 2] = forward * (1.0 + sig[i, scale_i + 2]) - w * tr / 2
+            zsig[i, 3] = forward * (1.0 + sig[i, scale_i + 3]) + w * tr / 2
+        lat0 = sig[0, OMEGA] * wheelbase - sig[0, V] * np.sin(slip * sig[0, V] * sig[0, OMEGA])
+        for k in range(2):
+            f0 = zsig[0, k]
+            excess = np.copysign(np.hypot(f0, lat0), f0) - f0
+            for i in range(m):
+                zsig[i, k] += excess
         return 4
     if kind == ng + 1:  # road-wheel angle
         for i in range(m):
