@@ -149,6 +149,11 @@ class AccelErrors:
 class WheelErrors:
     radius_scale_error_std: float
     noise_std_mps: float
+    # the ABS ECU's speed window: each value is the mean over its last N tooth pitches, so it describes the instant
+    # lag_distance_m / v before its stamp, (N + 1) / 2 x 2 pi r / Z for a Z-tooth ring on a wheel of radius r;
+    # with lag_distance_std_m > 0 navigation combines it with the lag fitted to the drive (0: the fit alone)
+    lag_distance_m: float = 0.0
+    lag_distance_std_m: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -307,7 +312,7 @@ class NavigationConfig:
     # the 6-DoF IMU whose roll and pitch move SAR-MIN's radar (nav.attitude; "" = none): the radar's motion as the
     # body rolls and pitches, grade included, as the trajectory's correction
     attitude_imu: str = ""
-    wheel_radius_gain_max_std_per_mps2: float = 0.005
+    wheel_radius_gain_max_std_per_mps2: float = 0.01
     gate_probability: float = 0.9999  # chi-square gate of each update
     max_step_s: float = 0.05  # longest single prediction step (dead reckoning through gaps)
     ins_imu: str = "ins_radar"  # INS baseline: the radar-mounted 6-DoF IMU ...

@@ -507,6 +507,36 @@ def _full_vehicle_wheel_inputs(components: tuple[str, ...] | None = None):  # no
                      gnss_velocity=Measurements("gnss", tg, vel, np.full(2, 0.03))), cfg
 
 
+def test_the_sensors_stated_window_joins_only_a_lag_the_drive_shows() -> None:
+    """A speed change of 6 +- 2 m/s every 12 s measures the ECU's lag, but not well enough to move the samples by it
+    (measured 0.117 +- 0.023 m; navigation.wheel_lag_max_std_m is 0.02). The wheel sensor's stated window
+    (0.151 +- 0.01 m) joins it and pins it within 1 cm of the edge model's 0.151 m (0.145 +- 0.009 m). On
+    instantaneous speeds the drive shows no lag (-0.023 +- 0.023 m), and the stated window is left out: a wrong data
+    sheet does not move the samples."""
+    from dataclasses import replace
+
+    from autosar_cli.nav.wheel_speeds import fit_wheel_speeds
+
+    def gentle(t):  # noqa: ANN001, ANN202
+        return 6.0 - 2.0 * np.cos(2 * np.pi * t / 12.0)
+
+    expected = 3.5 * 2 * np.pi * VEH.wheel_radius_m / 48
+    tracks = (VEH.track_front_m, VEH.track_rear_m)
+    for ecu, seed in ((True, 4), (False, 5)):
+        inputs = _wheel_and_gnss_inputs(gentle, ecu, seed)
+        alone = fit_wheel_speeds(inputs, (0.0, 0.0), VEH.wheelbase_m, tracks)[0]
+        joined = fit_wheel_speeds(replace(inputs, wheel_lag_prior_m=(0.151, 0.01)), (0.0, 0.0), VEH.wheelbase_m,
+                                  tracks)[0]
+        print("ECU" if ecu else "instant", alone.lag_distance_m, alone.std_m, "joined", joined)
+        if ecu:
+            assert alone.lag_distance_m > 2 * alone.std_m and alone.std_m > CFG.navigation.wheel_lag_max_std_m
+            assert joined.fitted_m == alone.lag_distance_m and joined.std_m < 0.0105
+            assert abs(joined.lag_distance_m - expected) < 0.01
+        else:
+            assert abs(alone.lag_distance_m) < 3 * alone.std_m
+            assert joined.fitted_m is None and joined.lag_distance_m == alone.lag_distance_m
+
+
 def test_wheel_radius_gains_are_the_full_vehicles_closed_form() -> None:
     """On urban driven by the simulator's full vehicle (stop and go, turns), the fitted gains equal the closed form
     of its tyre model: lateral load g = f m h s / (T k_z R) per axle (s the axle's share of the transfer) within 10 %

@@ -447,16 +447,11 @@ def _independent_ukf(inputs, cfg):  # noqa: ANN001, ANN202 - NavInputs, Config -
         bx, by = x[2] - x[4] * ly, x[4] * lx
         return np.array([c * bx - s * by, s * bx + c * by])
 
-    def forward(x):  # noqa: ANN001, ANN202
-        v, w, sc = x[2], x[4], x[6 + ng: 10 + ng]
-        return np.array([v * (1 + sc[0]) - w * tf / 2, v * (1 + sc[1]) + w * tf / 2,
-                         v * (1 + sc[2]) - w * tr / 2, v * (1 + sc[3]) + w * tr / 2])
-
     def wheels(x):  # noqa: ANN001, ANN202
-        # the front wheels' sideways speed w L adds to their reading as it does at the current estimate
-        f0, lat0 = forward(ukf.x), ukf.x[4] * L
-        excess = [math.copysign(math.hypot(f0[k], lat0), f0[k]) - f0[k] for k in (0, 1)] + [0.0, 0.0]
-        return forward(x) + np.array(excess)
+        v, w, sc = x[2], x[4], x[6 + ng: 10 + ng]
+        return np.array([math.copysign(math.hypot(v - w * tf / 2, w * L), v - w * tf / 2),
+                         math.copysign(math.hypot(v + w * tf / 2, w * L), v + w * tf / 2),
+                         v - w * tr / 2, v + w * tr / 2]) * (1 + sc)
 
     pos, vel = inputs.gnss_position, inputs.gnss_velocity
     k0 = int(np.flatnonzero(np.hypot(*vel.z.T) > 0.5)[0])

@@ -61,6 +61,10 @@ class NavInputs:
     gyro_bias_walk: list[float] = field(default_factory=list)  # bias random walk (rad/s per sqrt(s))
     steering_offset_std: float = 0.0  # prior std of the road-wheel angle offset (rad)
     wheel_scale_std: float = 0.0
+    wheel_lag_prior_m: tuple[float, float] = (0.0, 0.0)  # the wheel sensor's lag distance and its std (0: none)
+    # the wheels as tyres of fixed radius on a rigid bicycle (models.measured_wheel_speeds); False where their
+    # radii are seen to change with load
+    rigid_wheels: bool = True
     # GNSS position error, per horizontal axis: first-order Gauss-Markov (std m, correlation time s) on top
     # of gnss_position.sigma (white, per fix); std 0 means the fixes are taken as independent.
     gnss_error_std_m: float = 0.0
@@ -166,6 +170,8 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         noise = s.wheel.noise_std_mps if s.wheel else 0.01
         out.wheels = Measurements(wheels_cfg, rel(t_ns, wheels_cfg), z, np.full(4, np.hypot(noise, q / np.sqrt(12))))
         out.wheel_scale_std = s.wheel.radius_scale_error_std if s.wheel else 0.005
+        if s.wheel:
+            out.wheel_lag_prior_m = (s.wheel.lag_distance_m, s.wheel.lag_distance_std_m)
     steer_cfg = next((n for n, s in config.sensors.items() if s.kind == "steering"), None)
     if steer_cfg and "steering_wheel_angle" in roles:
         t_ns, angle = can_role("steering_wheel_angle")

@@ -106,25 +106,28 @@ def wheel_speeds(X: Array, wheelbase_m: float, track_front_m: float, track_rear_
     return np.stack([fl, fr, v - w * track_rear_m / 2, v + w * track_rear_m / 2], axis=1)
 
 
-def measured_wheel_speeds(X: Array, scale_index: int, wheelbase_m: Array | float, track_front_m: float,
-                          track_rear_m: float, slip_gain: float = 0.0) -> Array:
-    """What the four wheels (fl, fr, rl, rr) read, for every sigma point; (m, 4) m/s.
+def measured_wheel_speeds(X: Array, scale_index: int, wheelbase_m: float, track_front_m: float, track_rear_m: float,
+                          slip_gain: float = 0.0, rigid: bool = True) -> Array:
+    """What the four wheels (fl, fr, rl, rr) read, for every sigma point; (m, 4) m/s. Signed: negative where the
+    state's speed is (see :func:`wheel_speeds`).
 
-    Each wheel reads its forward speed ``(1 + s_w) v cos(alpha) -+ omega T / 2``: the scale error ``s_w`` multiplies
-    the axle's speed, not the yaw rate's share. A tyre's radius error makes its effective track as uncertain, and
-    with the gyros' yaw rate known to 0.1 % the fully scaled form let the wheels' right-left difference set their
-    common scale (full vehicle, test3: the track 0.1 % long).
+    ``rigid``: ``(1 + s_w)`` times the wheel centre's ground speed along its plane (:func:`wheel_speeds`). Exact for
+    tyres of fixed radius on a rigid bicycle, and then the right-left difference ``omega T (1 + s)`` calibrates the
+    common scale ``s`` against the gyros' yaw rate, known to 0.1 %: a strong measure in every turn.
 
-    A front wheel's ground speed exceeds its forward speed by its sideways ``omega L - v sin(alpha)``:
-    ``hypot(forward, sideways) - forward``, taken at the mean point ``X[0]`` (the sigma points' centre). That excess,
-    ~(omega L / v)^2 / 2 of the speed, would otherwise make the front-rear ratio a measure of v that amplifies any
-    error in it ~v^2 / (omega L)^2-fold (120 on test3): the front tyres' slip angles and parallel steering put the
-    track 0.03 % long. Signed: negative where the state's speed is (see :func:`wheel_speeds`).
+    Else load-compliant: a wheel reads ``(1 + s_w) v cos(alpha) -+ omega T / 2``, the front ones plus the excess of
+    their ground speed over that (their sideways ``omega L - v sin(alpha)``) taken at the mean point ``X[0]``. Where
+    the outer tyres roll on a smaller radius, track and radii are known only to the load gains' fit; the difference
+    then carries their error into the scale (full vehicle, test3: the track 0.1 % long), and the front-rear ratio,
+    1 + (omega L / v)^2 / 2, into the speed amplified (v / omega L)^2-fold (the front tyres' slip angles and
+    parallel steering: 0.03 % long). Here neither informs the scale or the speed.
     """
     v, w = X[:, V], X[:, OMEGA]
     alpha = slip_gain * v * w
-    forward = v * np.cos(alpha)
     scale = 1.0 + X[:, scale_index:scale_index + 4]
+    if rigid:
+        return scale * wheel_speeds(X, wheelbase_m, track_front_m, track_rear_m, slip_gain)
+    forward = v * np.cos(alpha)
     out = np.stack([forward * scale[:, 0] - w * track_front_m / 2, forward * scale[:, 1] + w * track_front_m / 2,
                     forward * scale[:, 2] - w * track_rear_m / 2, forward * scale[:, 3] + w * track_rear_m / 2], axis=1)
     lat0 = w[0] * wheelbase_m - v[0] * np.sin(alpha[0])

@@ -70,9 +70,10 @@ def wheel_speeds_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
     """The inputs with the wheel speeds corrected by what :mod:`.wheel_speeds` fits to the drive and the drive
     shows: divided by their slip and load factors (``navigation.estimate_wheel_radii``: a gain is shown where its
     std is at most ``wheel_radius_gain_max_std_per_mps2`` and it differs from 0 by more than ``SIGNIFICANT`` of
-    them and ``MIN_SLIP_GAIN`` / ``MIN_LOAD_GAIN``; the four slip gains go together), then moved back by their
-    lag (``navigation.estimate_wheel_lag``, the same test with ``wheel_lag_max_std_m`` and ``MIN_WHEEL_LAG_M``);
-    and what the fits found, lag and radii."""
+    them and ``MIN_SLIP_GAIN`` / ``MIN_LOAD_GAIN``; the measured slip gains go together), then moved back by their lag
+    (``navigation.estimate_wheel_lag``, the same test with ``wheel_lag_max_std_m`` and ``MIN_WHEEL_LAG_M``; the fit
+    conditioned on the wheel sensor's stated window where it has one and they agree); and what the fits found, lag
+    and radii."""
     nav, veh = config.navigation, config.vehicle
     if not (nav.estimate_wheel_lag or nav.estimate_wheel_radii):
         off = {"applied": False, "reason": "navigation.estimate_wheel_lag is off"}
@@ -86,22 +87,27 @@ def wheel_speeds_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
         radii_info = {"applied": {}, "reason": "navigation.estimate_wheel_radii is off"}
     elif radii is not None:
         limit = nav.wheel_radius_gain_max_std_per_mps2
-        # the slip gains are one term (the tyres' slip stiffness, the axle's share of drive and brake): all four
-        # are applied where all are measured and one shows
-        slip_measured = all(radii.slip_gain_std[name] <= limit for name in SLIP_GAINS)
-        slip_shows = any(_shows(radii.slip_gain[name], radii.slip_gain_std[name], MIN_SLIP_GAIN) for name in SLIP_GAINS)
-        gains = {name: radii.slip_gain[name] for name in SLIP_GAINS} if slip_measured and slip_shows else {}
+        # the slip gains are one term (the tyres' slip stiffness times the axle's share of drive and brake): the
+        # measured ones are applied together where one shows; a drive that never brakes leaves the brake gains
+        # unmeasured, and they never act on it. At a steady speed the slip regressor a v is alike the lag's -a / v:
+        # where the lag is not pinned down, neither are they
+        lag_known = lag is not None and lag.std_m <= nav.wheel_lag_max_std_m
+        measured = [name for name in SLIP_GAINS if radii.slip_gain_std[name] <= limit] if lag_known else []
+        shows = any(_shows(radii.slip_gain[name], radii.slip_gain_std[name], MIN_SLIP_GAIN) for name in measured)
+        gains = {name: radii.slip_gain[name] for name in measured} if shows else {}
         gains.update({f"load_{name}": radii.load_gain[name] for name in LOAD_GAINS
                       if radii.load_gain_std[name] <= limit
                       and _shows(radii.load_gain[name], radii.load_gain_std[name], MIN_LOAD_GAIN)})
         if gains:
-            inputs = replace(inputs, wheels=radius_corrected_wheels(inputs, gains))
+            inputs = replace(inputs, wheels=radius_corrected_wheels(inputs, gains),
+                             rigid_wheels=not any(name.startswith("load_") for name in gains))
             why = "fitted to the drive" + ("" if len(gains) == len(SLIP_GAINS) + len(LOAD_GAINS) else
                                            "; the gains not listed are not shown")
         else:
             why = (f"no gain with std at most navigation.wheel_radius_gain_max_std_per_mps2 and more than "
                    f"{SIGNIFICANT:g} std from 0: wheel speeds as recorded")
         radii_info = replace(radii, applied=gains, reason=why).to_dict()
+        radii_info["wheel_model"] = "rigid" if inputs.rigid_wheels else "load-compliant"
     if not nav.estimate_wheel_lag:
         return inputs, {"applied": False, "reason": "navigation.estimate_wheel_lag is off"}, radii_info
     if lag is None:
@@ -115,7 +121,14 @@ def wheel_speeds_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
                                            "stamped").to_dict(), radii_info
     assert inputs.wheels is not None
     moved = replace(inputs, wheels=lag_compensated_wheels(inputs.wheels, lag))
-    return moved, replace(lag, applied=True, reason="fitted to the drive").to_dict(), radii_info
+    if lag.prior_m is None:
+        source = "fitted to the drive"
+    elif lag.fitted_m is not None:
+        source = "fitted to the drive and the wheel sensor's stated window"
+    else:
+        source = (f"fitted to the drive, more than {SIGNIFICANT:g} std from the wheel sensor's stated window "
+                  f"{lag.prior_m:g} m, which is left out")
+    return moved, replace(lag, applied=True, reason=source).to_dict(), radii_info
 
 
 def body_attitude(inputs: NavInputs, config: Config) -> tuple[BodyAttitude | None, str]:

@@ -178,7 +178,8 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
                     angle_indices=[m.PSI], alpha=SIGMA_ALPHA, beta=SIGMA_BETA, kappa=3.0 - n)
 
     def wheel_fn(X: Array) -> Array:
-        return m.measured_wheel_speeds(X, scale_i, veh.wheelbase_m, veh.track_front_m, veh.track_rear_m, slip)
+        return m.measured_wheel_speeds(X, scale_i, veh.wheelbase_m, veh.track_front_m, veh.track_rear_m, slip,
+                                       inputs.rigid_wheels)
 
     gates = {k: chi2_gate(nav.gate_probability, k) for k in (1, 2, 4)}
     rejected: dict[str, int] = {}
@@ -268,7 +269,7 @@ def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[t
     for k in (1, 2, 4):
         gates[k] = chi2_gate(nav.gate_probability, k)
     geo = np.array([veh.wheelbase_m, veh.track_front_m, veh.track_rear_m, gnss_lever[0], gnss_lever[1],
-                    veh.understeer_gradient_rad_per_mps2, veh.rear_slip_gain_rad_per_mps2])
+                    veh.understeer_gradient_rad_per_mps2, veh.rear_slip_gain_rad_per_mps2, float(inputs.rigid_wheels)])
     steer_hold = np.zeros(len(x0), dtype=np.bool_)
     steer_hold[list(steering_held_states(scale_i))] = True
     wm, wc, lam = kern.merwe_weights(len(x0), SIGMA_ALPHA, SIGMA_BETA, 3.0 - len(x0))

@@ -31,7 +31,9 @@ only within ~1e-9; the reference's ``Wm @ sigmas`` carries that factor (on an EN
 ~3e-8 m per step) and so does this form, without the cancellation error of summing the raw products.
 
 Event kinds: ``0 .. ng-1`` gyro i; ``ng`` wheels; ``ng+1`` steering; ``ng+2`` GNSS position;
-``ng+3`` GNSS velocity. Measurement values are padded to 4 columns. ``gnss_i``: first of the two GNSS
+``ng+3`` GNSS velocity. Measurement values are padded to 4 columns. ``geo``: wheelbase, front and rear track,
+GNSS lever (x, y), understeer gradient, rear-slip gain, and 1 for the rigid wheel model or 0 for the
+load-compliant one (:func:`~.models.measured_wheel_speeds`). ``gnss_i``: first of the two GNSS
 position error states (east, north), or -1 when the filter has none.
 """
 
@@ -209,19 +211,30 @@ def _measure(sig, kind, ng, geo, scale_i, steer_i, gnss_i, zsig):  # noqa: ANN00
     m = sig.shape[0]
     wheelbase, tf, tr, lx, ly, k_us, slip = geo[0], geo[1], geo[2], geo[3], geo[4], geo[5], geo[6]
     if kind == ng:  # wheels fl, fr, rl, rr (models.measured_wheel_speeds)
+        rigid = geo[7] > 0
         for i in range(m):
             v, w = sig[i, V], sig[i, OMEGA]
             forward = v * np.cos(slip * v * w)
-            zsig[i, 0] = forward * (1.0 + sig[i, scale_i]) - w * tf / 2
-            zsig[i, 1] = forward * (1.0 + sig[i, scale_i + 1]) + w * tf / 2
-            zsig[i, 2] = forward * (1.0 + sig[i, scale_i + 2]) - w * tr / 2
-            zsig[i, 3] = forward * (1.0 + sig[i, scale_i + 3]) + w * tr / 2
-        lat0 = sig[0, OMEGA] * wheelbase - sig[0, V] * np.sin(slip * sig[0, V] * sig[0, OMEGA])
-        for k in range(2):
-            f0 = zsig[0, k]
-            excess = np.copysign(np.hypot(f0, lat0), f0) - f0
-            for i in range(m):
-                zsig[i, k] += excess
+            if rigid:
+                lat = w * wheelbase - v * np.sin(slip * v * w)
+                zsig[i, 0] = np.copysign(np.hypot(forward - w * tf / 2, lat), forward - w * tf / 2) * (
+                    1.0 + sig[i, scale_i])
+                zsig[i, 1] = np.copysign(np.hypot(forward + w * tf / 2, lat), forward + w * tf / 2) * (
+                    1.0 + sig[i, scale_i + 1])
+                zsig[i, 2] = (forward - w * tr / 2) * (1.0 + sig[i, scale_i + 2])
+                zsig[i, 3] = (forward + w * tr / 2) * (1.0 + sig[i, scale_i + 3])
+            else:
+                zsig[i, 0] = forward * (1.0 + sig[i, scale_i]) - w * tf / 2
+                zsig[i, 1] = forward * (1.0 + sig[i, scale_i + 1]) + w * tf / 2
+                zsig[i, 2] = forward * (1.0 + sig[i, scale_i + 2]) - w * tr / 2
+                zsig[i, 3] = forward * (1.0 + sig[i, scale_i + 3]) + w * tr / 2
+        if not rigid:
+            lat0 = sig[0, OMEGA] * wheelbase - sig[0, V] * np.sin(slip * sig[0, V] * sig[0, OMEGA])
+            for k in range(2):
+                f0 = zsig[0, k]
+                excess = np.copysign(np.hypot(f0, lat0), f0) - f0
+                for i in range(m):
+                    zsig[i, k] += excess
         return 4
     if kind == ng + 1:  # road-wheel angle
         for i in range(m):

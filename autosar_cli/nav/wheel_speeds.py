@@ -44,6 +44,7 @@ Array = NDArray[np.float64]
 ACCEL_WINDOW_S = 0.2  # the wheels' acceleration: a running mean of their speed over this, differentiated
 GYRO_WINDOW_S = 0.1  # the gyros' white noise averaged down; a turn's yaw rate changes more slowly
 MAX_DELAY_S = 0.5  # a sample is never moved further: below ~0.3 m/s the ECU's window spans its timeout
+LAG_SHOWN = 2.0  #: the drive's own lag fit must be this many std above 0 for the sensor's stated window to join it
 SLIP_GAINS = ("front_drive", "front_brake", "rear_drive", "rear_brake")
 LOAD_GAINS = ("front", "rear")
 
@@ -59,6 +60,10 @@ class WheelLagFit:
     residual_rms_mps: float
     applied: bool = False
     reason: str = ""
+    fitted_m: float | None = None  #: the drive's own fit, where ``c`` also rests on the sensor's stated window ...
+    fitted_std_m: float | None = None
+    prior_m: float | None = None  #: ... that window (None: none stated)
+    prior_std_m: float | None = None
 
     def to_dict(self) -> dict[str, object]:
         return asdict(self)
@@ -117,17 +122,21 @@ def raw_gyro_yaw_rate(inputs: NavInputs, at: Array) -> Array:
     return np.mean(rates, axis=0)
 
 
-def _effective_std(design: Array, res: Array) -> Array:
-    """1-sigma of least-squares coefficients, counting the residual's serial correlation (lag-1 rho:
-    N (1 - rho) / (1 + rho) independent samples); inf where the design is rank-deficient."""
+def _effective_covariance(design: Array, res: Array) -> Array:
+    """Covariance of least-squares coefficients, counting the residual's serial correlation (lag-1 rho:
+    N (1 - rho) / (1 + rho) independent samples); inf on the diagonal where the design is rank-deficient."""
     n, p = design.shape
     normal = design.T @ design
     if n <= p or np.linalg.matrix_rank(normal) < p:
-        return np.full(p, np.inf)
+        return np.diag(np.full(p, np.inf))
     rho = float(np.clip(np.corrcoef(res[:-1], res[1:])[0, 1], 0.0, 0.999)) if res.std() > 0 else 0.0
     n_eff = max(n * (1.0 - rho) / (1.0 + rho), p + 1.0)
-    rms = float(np.sqrt(np.mean(res**2)))
-    return rms * np.sqrt(n / n_eff * np.diag(np.linalg.inv(normal)))
+    return float(np.mean(res**2)) * n / n_eff * np.linalg.inv(normal)
+
+
+def _effective_std(design: Array, res: Array) -> Array:
+    """1-sigma of least-squares coefficients (see :func:`_effective_covariance`)."""
+    return np.sqrt(np.diag(_effective_covariance(design, res)))
 
 
 def _front_speeds(v: Array, w: Array, wheelbase_m: float, track_m: float) -> tuple[Array, Array]:
@@ -137,9 +146,12 @@ def _front_speeds(v: Array, w: Array, wheelbase_m: float, track_m: float) -> tup
 
 
 def _fit_longitudinal(inputs: NavInputs, lever_rear_m: tuple[float, float], wheelbase_m: float,
-                      min_speed_mps: float) -> tuple[Array, Array, int, float, float, float] | None:
+                      min_speed_mps: float, lag_prior_m: tuple[float, float] = (0.0, 0.0)
+                      ) -> tuple[Array, Array, int, float, float, float, tuple[float, float] | None] | None:
     """Coefficients [s_rear, s_front, c, k_front_drive, k_front_brake, k_rear_drive, k_rear_brake] of both axles'
-    mean speed less the GNSS speed at the rear axle, their stds, samples, a / v RMS, a RMS and residual RMS."""
+    mean speed less the GNSS speed at the rear axle, their stds, samples, a / v RMS, a RMS, residual RMS, and the
+    lag fitted alone (c, std) where ``lag_prior_m`` (c, std; std 0: none) conditions the coefficients (None: it does
+    not: no std, or the fit's c not ``LAG_SHOWN`` std above 0, or more than 3 combined std from the prior's)."""
     wheels, gnss = inputs.wheels, inputs.gnss_velocity
     assert wheels is not None and gnss is not None
     inside = (gnss.t > wheels.t[0] + ACCEL_WINDOW_S) & (gnss.t < wheels.t[-1] - ACCEL_WINDOW_S)
@@ -163,8 +175,21 @@ def _fit_longitudinal(inputs: NavInputs, lever_rear_m: tuple[float, float], whee
     y = np.concatenate([rear - v, front - vf])
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
     res = y - design @ coef
-    std = _effective_std(design, res)
-    return coef, std, int(use.sum()), float(np.std(a / v)), float(np.std(a)), float(np.sqrt(np.mean(res**2)))
+    cov = _effective_covariance(design, res)
+    alone = None
+    prior, prior_std = lag_prior_m
+    c, c_std = float(coef[2]), float(np.sqrt(cov[2, 2]))
+    if prior_std > 0 and np.isfinite(c_std) and c > LAG_SHOWN * c_std and abs(c - prior) <= 3.0 * np.hypot(c_std,
+                                                                                                          prior_std):
+        # the stated window as one more measurement of c, where the drive shows a lag and agrees with it: every
+        # coefficient correlated with c (the slip gains: -a / v and a v are alike at a steady speed) moves with it
+        alone = (c, c_std)
+        gain = cov[:, 2] / (cov[2, 2] + prior_std**2)
+        coef = coef + gain * (prior - coef[2])
+        cov = cov - np.outer(gain, cov[2])
+    std = np.sqrt(np.diag(cov))
+    return (coef, std, int(use.sum()), float(np.std(a / v)), float(np.std(a)), float(np.sqrt(np.mean(res**2))),
+            alone)
 
 
 def _fit_lateral(inputs: NavInputs, wheelbase_m: float, tracks_m: tuple[float, float],
@@ -213,15 +238,18 @@ def fit_wheel_speeds(inputs: NavInputs, lever_rear_m: tuple[float, float], wheel
     wheels = inputs.wheels
     if wheels is None or len(wheels.t) < 3:
         return None, None
-    longitudinal = (_fit_longitudinal(inputs, lever_rear_m, wheelbase_m, min_speed_mps)
+    longitudinal = (_fit_longitudinal(inputs, lever_rear_m, wheelbase_m, min_speed_mps, inputs.wheel_lag_prior_m)
                     if inputs.gnss_velocity is not None else None)
     lateral = _fit_lateral(inputs, wheelbase_m, tracks_m, min_speed_mps)
     lag = None
     nan = {name: float("nan") for name in SLIP_GAINS}
     slip, slip_std, accel_rms = dict(nan), dict(nan), float("nan")
     if longitudinal is not None:
-        coef, std, samples, a_over_v_rms, accel_rms, rms = longitudinal
-        lag = WheelLagFit(float(coef[2]), float(std[2]), samples, a_over_v_rms, rms)
+        coef, std, samples, a_over_v_rms, accel_rms, rms, alone = longitudinal
+        prior = (inputs.wheel_lag_prior_m if inputs.wheel_lag_prior_m[1] > 0 else (None, None))
+        lag = WheelLagFit(float(coef[2]), float(std[2]), samples, a_over_v_rms, rms,
+                          fitted_m=alone[0] if alone else None, fitted_std_m=alone[1] if alone else None,
+                          prior_m=prior[0], prior_std_m=prior[1])
         slip = {name: float(c) for name, c in zip(SLIP_GAINS, coef[3:], strict=True)}
         slip_std = {name: float(s) for name, s in zip(SLIP_GAINS, std[3:], strict=True)}
     load = {name: float("nan") for name in LOAD_GAINS}
