@@ -44,7 +44,7 @@ Array = NDArray[np.float64]
 ACCEL_WINDOW_S = 0.2  # the wheels' acceleration: a running mean of their speed over this, differentiated
 GYRO_WINDOW_S = 0.1  # the gyros' white noise averaged down; a turn's yaw rate changes more slowly
 MAX_DELAY_S = 0.5  # a sample is never moved further: below ~0.3 m/s the ECU's window spans its timeout
-LAG_SHOWN = 2.0  #: the drive's own lag fit must be this many std above 0 for the sensor's stated window to join it
+LAG_SHOWN = 3.0  #: the drive's own lag fit must be this many std above 0 for the sensor's stated window to join it
 SLIP_GAINS = ("front_drive", "front_brake", "rear_drive", "rear_brake")
 LOAD_GAINS = ("front", "rear")
 
