@@ -22,8 +22,10 @@ before the slip and load gains). With them: ``--scenarios test3,urban --seeds 0,
 body, not moved by the IMU's roll and pitch (for an A/B). The 40-drive command below run at 3ac58ec (the truth with
 the radar's 6-DOF motion; SAR-MIN without the IMU's attitude and the rear slip), stopped after 6 drives:
 benches/results/paper_planar_noslip.json.
-The 40 drives with the current SAR-MIN: ``--scenarios test1,test2,test3,urban --seeds 0-9 --methods
-sar-min,sar-min+af --dynamics full --output benches/results/paper_full_fits.json`` (``--resume`` goes on).
+The 40 drives: ``--scenarios test1,test2,test3,urban --seeds 0-9 --methods sar-min,sar-min+af --dynamics full
+--output benches/results/paper_full_level.json`` with the current SAR-MIN (the GNSS antenna on a level body, the
+load-compliant wheels, the lag's stated window; ``--resume`` goes on); the same run at 7118539, before them:
+benches/results/paper_full_fits.json.
 """
 
 from __future__ import annotations
