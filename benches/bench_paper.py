@@ -11,21 +11,20 @@ tracks) beside what the GNSS velocity alone allows (its mean along-track error o
 Prints one line per drive and a summary (medians, counts of drives meeting each criterion); writes
 benches/results/paper.json after every drive, and ``--resume`` skips the drives already in it.
 A drive's outputs are deleted after it is measured unless --keep (test2 is ~0.5 GB of log and ~1 GB of products).
-The full vehicle model's runs (``make bench-paper-full``): ``--scenarios test1,test2,test3,urban --seeds 0-9
---dynamics full --methods none,ins,sar-min,sar-min+af,truth --output benches/results/paper_full.json``; the
-ablation, one run per ``--components`` set, to benches/results/paper_ablation.json with ``--resume``
-(``make bench-ablation``); ``--understeer-gradient K`` and ``--rear-slip-gain G`` give SAR-MIN's steering model an
-understeer term and its motion model the rear tyres' slip; ``--no-fits`` navigates in one pass without the fitted
+The full vehicle model's runs: the ablation, one run per ``--components`` set, to
+benches/results/paper_ablation.json with ``--resume`` (``make bench-ablation``); ``--understeer-gradient K`` and
+``--rear-slip-gain G`` give SAR-MIN's steering model an understeer term and its motion model the rear tyres' slip;
+``--no-fits`` navigates in one pass without the fitted
 wheel-speed lag, slip and load gains, rear slip and the steering test (the A/B: benches/results/paper_fits.json,
 before the slip and load gains). With them: ``--scenarios test3,urban --seeds 0,1 --methods sar-min,sar-min+af
 --dynamics full --output benches/results/paper_wheel_radii.json``; ``--planar`` leaves SAR-MIN's radar on a planar
 body, not moved by the IMU's roll and pitch (for an A/B). The 40-drive command below run at 3ac58ec (the truth with
 the radar's 6-DOF motion; SAR-MIN without the IMU's attitude and the rear slip), stopped after 6 drives:
 benches/results/paper_planar_noslip.json.
-The 40 drives: ``--scenarios test1,test2,test3,urban --seeds 0-9 --methods sar-min,sar-min+af --dynamics full
---output benches/results/paper_full_level.json`` with the current SAR-MIN (the GNSS antenna on a level body, the
-load-compliant wheels, the lag's stated window; ``--resume`` goes on); the same run at 7118539, before them:
-benches/results/paper_full_fits.json.
+The 40 drives (``make bench-paper-full``): ``--scenarios test1,test2,test3,urban --seeds 0-9 --methods
+sar-min,sar-min+af --dynamics full --output benches/results/paper_full_level.json`` with the current SAR-MIN (the
+GNSS antenna on a level body, the load-compliant wheels, the lag's stated window; ``--resume`` goes on); the same
+run at 7118539, before them: benches/results/paper_full_fits.json.
 """
 
 from __future__ import annotations
