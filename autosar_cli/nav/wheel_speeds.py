@@ -145,13 +145,27 @@ def _front_speeds(v: Array, w: Array, wheelbase_m: float, track_m: float) -> tup
     return np.hypot(v - w * track_m / 2, lat), np.hypot(v + w * track_m / 2, lat)
 
 
+def _with_lag_prior(coef: Array, cov: Array, prior_m: float, prior_std_m: float
+                   ) -> tuple[Array, Array, tuple[float, float] | None]:
+    """The longitudinal coefficients and their covariance conditioned on the wheel sensor's stated window
+    ``prior_m`` +- ``prior_std_m`` as one more measurement of c (index 2): every coefficient correlated with c (the
+    slip gains: -a / v and a v are alike at a steady speed) moves with it. Only where the drive's own c is
+    ``LAG_SHOWN`` std above 0 and within 3 combined std of the window; then also c and its std fitted alone, else
+    None (and the fit unchanged)."""
+    c, c_std = float(coef[2]), float(np.sqrt(cov[2, 2]))
+    if not (prior_std_m > 0 and np.isfinite(c_std) and c > LAG_SHOWN * c_std
+            and abs(c - prior_m) <= 3.0 * np.hypot(c_std, prior_std_m)):
+        return coef, cov, None
+    gain = cov[:, 2] / (cov[2, 2] + prior_std_m**2)
+    return coef + gain * (prior_m - c), cov - np.outer(gain, cov[2]), (c, c_std)
+
+
 def _fit_longitudinal(inputs: NavInputs, lever_rear_m: tuple[float, float], wheelbase_m: float,
-                      min_speed_mps: float, lag_prior_m: tuple[float, float] = (0.0, 0.0)
+                      min_speed_mps: float
                       ) -> tuple[Array, Array, int, float, float, float, tuple[float, float] | None] | None:
     """Coefficients [s_rear, s_front, c, k_front_drive, k_front_brake, k_rear_drive, k_rear_brake] of both axles'
     mean speed less the GNSS speed at the rear axle, their stds, samples, a / v RMS, a RMS, residual RMS, and the
-    lag fitted alone (c, std) where ``lag_prior_m`` (c, std; std 0: none) conditions the coefficients (None: it does
-    not: no std, or the fit's c not ``LAG_SHOWN`` std above 0, or more than 3 combined std from the prior's)."""
+    lag fitted alone (c, std) where the wheel sensor's stated window conditions them (:func:`_with_lag_prior`)."""
     wheels, gnss = inputs.wheels, inputs.gnss_velocity
     assert wheels is not None and gnss is not None
     inside = (gnss.t > wheels.t[0] + ACCEL_WINDOW_S) & (gnss.t < wheels.t[-1] - ACCEL_WINDOW_S)
@@ -175,18 +189,7 @@ def _fit_longitudinal(inputs: NavInputs, lever_rear_m: tuple[float, float], whee
     y = np.concatenate([rear - v, front - vf])
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
     res = y - design @ coef
-    cov = _effective_covariance(design, res)
-    alone = None
-    prior, prior_std = lag_prior_m
-    c, c_std = float(coef[2]), float(np.sqrt(cov[2, 2]))
-    if prior_std > 0 and np.isfinite(c_std) and c > LAG_SHOWN * c_std and abs(c - prior) <= 3.0 * np.hypot(c_std,
-                                                                                                          prior_std):
-        # the stated window as one more measurement of c, where the drive shows a lag and agrees with it: every
-        # coefficient correlated with c (the slip gains: -a / v and a v are alike at a steady speed) moves with it
-        alone = (c, c_std)
-        gain = cov[:, 2] / (cov[2, 2] + prior_std**2)
-        coef = coef + gain * (prior - coef[2])
-        cov = cov - np.outer(gain, cov[2])
+    coef, cov, alone = _with_lag_prior(coef, _effective_covariance(design, res), *inputs.wheel_lag_prior_m)
     std = np.sqrt(np.diag(cov))
     return (coef, std, int(use.sum()), float(np.std(a / v)), float(np.std(a)), float(np.sqrt(np.mean(res**2))),
             alone)
@@ -238,7 +241,7 @@ def fit_wheel_speeds(inputs: NavInputs, lever_rear_m: tuple[float, float], wheel
     wheels = inputs.wheels
     if wheels is None or len(wheels.t) < 3:
         return None, None
-    longitudinal = (_fit_longitudinal(inputs, lever_rear_m, wheelbase_m, min_speed_mps, inputs.wheel_lag_prior_m)
+    longitudinal = (_fit_longitudinal(inputs, lever_rear_m, wheelbase_m, min_speed_mps)
                     if inputs.gnss_velocity is not None else None)
     lateral = _fit_lateral(inputs, wheelbase_m, tracks_m, min_speed_mps)
     lag = None
