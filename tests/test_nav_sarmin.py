@@ -64,6 +64,26 @@ def test_compiled_filter_equals_the_filterpy_reference(ci_drive: Path, gnss_erro
     assert fast.updates == ref.updates and fast.rejected == ref.rejected == {}
 
 
+def test_smoothed_states_alone_are_the_full_smoothers(ci_drive: Path) -> None:
+    """The means-only smoother (a fit pass's) gives the full RTS smoother's states to rounding, keeps the filtered
+    covariances, and finishes to the full smoother's covariances bit for bit."""
+    from autosar_cli.nav.sarmin import with_smoothed_covariance
+
+    with Drive(ci_drive) as d:
+        inputs = load_inputs(d, CFG)
+    full = run_sarmin(inputs, CFG)
+    means = run_sarmin(inputs, CFG, smoothed_covariance=False)
+    filtered = run_sarmin(inputs, CFG, smooth=False)
+    np.testing.assert_allclose(means.x, full.x, rtol=0, atol=1e-9)
+    # the smoother moves the states by far more than that: the test sees a means pass that skipped a step
+    assert np.abs(filtered.x[:, :2] - full.x[:, :2]).max() > 1e-3
+    np.testing.assert_array_equal(means.P, filtered.P)
+    done = with_smoothed_covariance(means)
+    assert done.filtered is None and means.filtered is None
+    np.testing.assert_array_equal(done.x, full.x)
+    np.testing.assert_array_equal(done.P, full.P)
+
+
 @pytest.mark.parametrize(("n", "alpha", "beta", "kappa"), [(14, SIGMA_ALPHA, SIGMA_BETA, 3.0 - 14),
                                                         (3, 0.5, 2.0, 0.0), (20, 1e-2, 0.0, -17.0)])
 def test_kernel_sigma_weights_are_filterpys(n: int, alpha: float, beta: float, kappa: float) -> None:

@@ -14,7 +14,7 @@ from autosar_cli.nav.attitude import CROSSOVER_HZ, BodyAttitude, estimate_attitu
 from autosar_cli.nav.baselines import from_truth, gnss_only, straight_line
 from autosar_cli.nav.inputs import NavInputError, NavInputs, load_inputs
 from autosar_cli.nav.rear_slip import fit_rear_slip
-from autosar_cli.nav.sarmin import NavSolution, gnss_lever_rear, run_sarmin
+from autosar_cli.nav.sarmin import NavSolution, gnss_lever_rear, run_sarmin, with_smoothed_covariance
 from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm
 from autosar_cli.nav.understeer import fit_understeer
 from autosar_cli.nav.wheel_speeds import (
@@ -247,13 +247,14 @@ def sarmin_with_fits(inputs: NavInputs, config: Config, smooth: bool = True
     vehicle_k = {"steering_left_out": False, "gradient": veh.understeer_gradient_rad_per_mps2}
     test_steering = nav.estimate_understeer and inputs.steering is not None
     first_inputs = replace(inputs, steering=None) if test_steering else inputs
-    first = run_sarmin(first_inputs, config, smooth=smooth)
+    # the first pass's states feed the fits; its covariance is smoothed only where it is the solution
+    first = run_sarmin(first_inputs, config, smooth=smooth, smoothed_covariance=False)
     gain, slip_info = rear_slip_gain(inputs, config, first)
     slip_config = replace(config, vehicle=replace(veh, rear_slip_gain_rad_per_mps2=gain))
     rerun = gain != veh.rear_slip_gain_rad_per_mps2
     if not test_steering:
         why = "navigation.estimate_understeer is off" if inputs.steering else "no steering"
-        sol = run_sarmin(inputs, slip_config, smooth=smooth) if rerun else first
+        sol = run_sarmin(inputs, slip_config, smooth=smooth) if rerun else with_smoothed_covariance(first)
         return sol, {**vehicle_k, "reason": f"{why}: the steering as recorded"}, slip_info, gain
     scales = [i for i, name in enumerate(first.state_names) if name.startswith("scale.wheel_")]
     common_scale_std = float(np.sqrt(first.P[-1][np.ix_(scales, scales)].sum())) / len(scales)
@@ -274,7 +275,7 @@ def sarmin_with_fits(inputs: NavInputs, config: Config, smooth: bool = True
     else:
         left_out = replace(fit, steering_left_out=True, reason="the car does not steer as the kinematic bicycle: "
                                                                "navigated without the steering").to_dict()
-        sol = run_sarmin(first_inputs, slip_config, smooth=smooth) if rerun else first
+        sol = run_sarmin(first_inputs, slip_config, smooth=smooth) if rerun else with_smoothed_covariance(first)
         return sol, left_out, slip_info, gain
     return run_sarmin(inputs, slip_config, smooth=smooth), info, slip_info, gain
 

@@ -36,6 +36,37 @@ class NavSolution:
     state_names: list[str]
     rejected: dict[str, int]
     updates: dict[str, int]
+    #: where only the states were smoothed (``run_sarmin(..., smoothed_covariance=False)``): the filter's history,
+    #: ``P`` is the filtered covariance (the smoothed one at the last state only), and :func:`with_smoothed_covariance`
+    #: completes the smoothing
+    filtered: _FilterHistory | None = None
+
+
+@dataclass
+class _FilterHistory:
+    """The compiled filter's output that the smoother reads (:func:`.sarmin_kernel.run_filter`)."""
+
+    x: Array
+    P: Array
+    x_pred: Array
+    transition: Array
+    P_pred_kinematic: Array
+    dt: Array
+    q: Array
+    beta: Array
+
+
+def with_smoothed_covariance(sol: NavSolution) -> NavSolution:
+    """``sol`` smoothed in full: itself where it already is, else its filter history through the RTS smoother
+    (in place: ``sol``'s covariances become the smoothed ones, and it no longer holds the history)."""
+    h = sol.filtered
+    if h is None:
+        return sol
+    sol.filtered = None
+    from . import sarmin_kernel as kern
+
+    xs, Ps = kern.smooth(h.x, h.P, h.x_pred, h.transition, h.P_pred_kinematic, h.dt, h.q, h.beta)
+    return NavSolution(sol.t, xs, Ps, sol.state_names, sol.rejected, sol.updates)
 
 
 def chi2_gate(probability: float, dof: int) -> float:
@@ -125,11 +156,14 @@ def gnss_lever_rear(inputs: NavInputs, config: Config) -> tuple[float, float]:
     return lx + config.vehicle.cog_to_rear_axle_m, ly
 
 
-def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: str = "numba") -> NavSolution:
+def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: str = "numba",
+               smoothed_covariance: bool = True) -> NavSolution:
     """Filter (and by default smooth) the drive; states at every measurement instant.
 
     ``engine``: "numba" (compiled loop, :mod:`.sarmin_kernel`) or "numpy" (the same filter through
     filterpy's sigma points and unscented transform, one Python call per measurement: the reference).
+    ``smoothed_covariance=False`` (numba, with ``smooth``): smooth the states alone, for a pass whose states
+    feed fits; the solution keeps what :func:`with_smoothed_covariance` needs to finish.
     """
     nav = config.navigation
     veh = config.vehicle
@@ -170,7 +204,7 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
     gnss_lever = gnss_lever_rear(inputs, config)
     if engine == "numba":
         return _run_kernel(inputs, config, smooth, sources, times, kinds, index, order, t_start, x0, P0, q,
-                           beta, names, steer_i, scale_i, gnss_i, gnss_lever)
+                           beta, names, steer_i, scale_i, gnss_i, gnss_lever, smoothed_covariance)
     from .ukf import FilterHistory, VectorUKF, rts_smooth  # filterpy (and its scipy.stats): ~0.4 s to import
 
     slip = veh.rear_slip_gain_rad_per_mps2
@@ -249,7 +283,8 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
 def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[tuple[str, Measurements]],
                 times: Array, kinds: NDArray[np.int32], index: NDArray[np.int64], order: NDArray[np.int64],
                 t_start: float, x0: Array, P0: Array, q: Array, beta: Array, names: list[str], steer_i: int,
-                scale_i: int, gnss_i: int, gnss_lever: tuple[float, float]) -> NavSolution:
+                scale_i: int, gnss_i: int, gnss_lever: tuple[float, float], smoothed_covariance: bool = True
+                ) -> NavSolution:
     from . import sarmin_kernel as kern
 
     nav, veh = config.navigation, config.vehicle
@@ -279,9 +314,16 @@ def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[t
     T, X, PP, XP, FF, PK, DT, used, rejected = kern.run_filter(
         times[order], ev_kind, zs, sig, t_start, x0, P0, q, beta, wm, wc, lam, ng, geo, scale_i, steer_i, gnss_i,
         nav.steering_min_speed_mps, gates, nav.max_step_s, math.fsum(wm), steer_hold)
-    xs, Ps = kern.smooth(X, PP, XP, FF, PK, DT, q, beta) if smooth else (X, PP)
+    filtered = None
+    if not smooth:
+        xs, Ps = X, PP
+    elif smoothed_covariance:
+        xs, Ps = kern.smooth(X, PP, XP, FF, PK, DT, q, beta)
+    else:
+        filtered = _FilterHistory(X.copy(), PP, XP, FF, PK, DT, q, beta)
+        xs, Ps = kern.smooth_means(X, PP, XP, FF, PK, DT, q, beta), PP
     label = [g.name for g in inputs.gyros] + ["wheels", "steering", "gnss_pos", "gnss_vel"]
     # One state per distinct instant already (the kernel refines a state for measurements at its instant).
     return NavSolution(T, xs, Ps, names,
                        {label[i]: int(v) for i, v in enumerate(rejected) if v},
-                       {label[i]: int(v) for i, v in enumerate(used) if v})
+                       {label[i]: int(v) for i, v in enumerate(used) if v}, filtered)

