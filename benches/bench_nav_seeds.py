@@ -45,7 +45,7 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
     from autosar_cli.ingest.pipeline import ingest
     from autosar_cli.nav.baselines import from_truth
     from autosar_cli.nav.navigate import navigate
-    from autosar_cli.nav.trajectory import phase_centre_lever_arm
+    from autosar_cli.nav.trajectory import phase_centre_lever_arm, track_scale_std
     from autosar_cli.sim.simulate import simulate
 
     log = work / f"{scenario}_s{seed}.mcap"
@@ -61,7 +61,10 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
     gnss, _ = gnss_velocity_scale(scenario, seed)
     for p in (log, drive, sim.truth_path):
         Path(p).unlink(missing_ok=True)
+    scale_std = track_scale_std(est)
     return {"scale_pct": 100 * (fit_similarity_scale(e_xy, r_xy) - 1.0), "gnss_velocity_scale_pct": 100 * gnss,
+            # the navigation's own std of it (its covariance), against which the scale's error is a z-score
+            "scale_std_pct": 100 * scale_std if scale_std is not None else float("nan"),
             "aligned_rmse_cm": 100 * float(np.sqrt(np.mean(residual**2))),
             "aligned_max_cm": 100 * float(residual.max()),
             "abs_rmse_m": float(np.sqrt(np.mean(np.sum((e_xy - r_xy) ** 2, axis=1)))),
@@ -74,11 +77,14 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     scale = np.array([r["scale_pct"] for r in rows])
     gnss = np.array([r["gnss_velocity_scale_pct"] for r in rows])
+    z = scale / np.array([r.get("scale_std_pct", np.nan) for r in rows])
     aligned_max = [r["aligned_max_cm"] for r in rows]
     return {"drives": len(rows), "scale_rms_pct": round(float(np.sqrt(np.mean(scale**2))), 4),
             "scale_mean_pct": round(float(scale.mean()), 4),
             "gnss_velocity_scale_rms_pct": round(float(np.sqrt(np.mean(gnss**2))), 4),
             "scale_correlation_with_gnss_velocity": round(float(np.corrcoef(scale, gnss)[0, 1]), 3),
+            # the scale's error over the navigation's own std, RMS: 1 where that std is right
+            "scale_z_rms": round(float(np.sqrt(np.mean(z**2))), 2),
             "scale_beyond_limit": int(np.sum(np.abs(scale) > 100 * SCALE_LIMIT)),
             "aligned_rmse_mean_cm": round(statistics.fmean(r["aligned_rmse_cm"] for r in rows), 3),
             "aligned_max_median_cm": round(statistics.median(aligned_max), 3),

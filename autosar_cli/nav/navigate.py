@@ -15,7 +15,7 @@ from autosar_cli.nav.baselines import from_truth, gnss_only, straight_line
 from autosar_cli.nav.inputs import NavInputError, NavInputs, load_inputs
 from autosar_cli.nav.rear_slip import fit_rear_slip
 from autosar_cli.nav.sarmin import NavSolution, gnss_lever_rear, run_sarmin, with_smoothed_covariance
-from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm
+from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm, wheel_scale_mean_std
 from autosar_cli.nav.understeer import fit_understeer
 from autosar_cli.nav.wheel_speeds import (
     LOAD_GAINS,
@@ -256,8 +256,7 @@ def sarmin_with_fits(inputs: NavInputs, config: Config, smooth: bool = True
         why = "navigation.estimate_understeer is off" if inputs.steering else "no steering"
         sol = run_sarmin(inputs, slip_config, smooth=smooth) if rerun else with_smoothed_covariance(first)
         return sol, {**vehicle_k, "reason": f"{why}: the steering as recorded"}, slip_info, gain
-    scales = [i for i, name in enumerate(first.state_names) if name.startswith("scale.wheel_")]
-    common_scale_std = float(np.sqrt(first.P[-1][np.ix_(scales, scales)].sum())) / len(scales)
+    common_scale_std = wheel_scale_mean_std(first.P[-1], first.state_names) or 0.0
     fit = fit_understeer(inputs, first.t, first.x, veh.wheelbase_m, nav.steering_min_speed_mps, common_scale_std)
     if fit is None:
         info = {**vehicle_k, "reason": "no steering samples above navigation.steering_min_speed_mps: the steering "

@@ -17,7 +17,8 @@ from autosar_cli.types import TRAVEL_HALF_SPAN_S, Trajectory
 
 __all__ = ["TRAVEL_HALF_SPAN_S", "PhaseCentres", "Trajectory", "antenna_lever_arms", "cumulative_travel",
            "phase_centre_lever_arm", "radar_phase_centres", "radar_track",
-           "rear_axle_from_body_point", "relative_pose_error"]
+           "rear_axle_from_body_point", "relative_pose_error", "track_scale_std",
+           "wheel_scale_mean_std"]
 
 Array = NDArray[np.float64]
 
@@ -116,3 +117,21 @@ def relative_pose_error(est_xy: Array, est_heading: Array, ref_xy: Array, ref_he
 
     return local(est_xy, est_heading) - local(ref_xy, ref_heading)
 
+
+
+def wheel_scale_mean_std(P: Array, state_names: list[str]) -> float | None:
+    """The std of the four wheel scales' mean (``scale.wheel_*``) from a covariance ``P`` (n, n) over
+    ``state_names``: a common error s in them is a speed, and so a track, scaled by -s. None without them."""
+    idx = [i for i, name in enumerate(state_names) if name.startswith("scale.wheel_")]
+    if not idx:
+        return None
+    return float(np.sqrt(max(P[np.ix_(idx, idx)].sum(), 0.0))) / len(idx)
+
+
+def track_scale_std(trajectory: Trajectory) -> float | None:
+    """The navigation's own std of the track's along-track scale (dimensionless): the wheel scales' mean's
+    (:func:`wheel_scale_mean_std`) in the middle of the drive, from the trajectory's covariance. None where the
+    trajectory has no covariance or no wheel-scale states."""
+    if trajectory.covariance is None or len(trajectory.covariance) == 0:
+        return None
+    return wheel_scale_mean_std(trajectory.covariance[len(trajectory.covariance) // 2], trajectory.state_names)

@@ -59,6 +59,11 @@ from autosar_cli.types import FocusGrid, MotionCorrection, Trajectory
 Array = NDArray[np.float64]
 
 
+#: The navigation's own track-scale std, times this, is the autofocus's prior on the scale. Over test1-3 and
+#: urban (full vehicle, seeds 0-4: benches/bench_nav_seeds.py's scale_z_rms) the scale's error is 0.8-1.9 times
+#: that std RMS: the GNSS velocity's slow error, which the filter takes as white, sets the scale.
+NAV_SCALE_STD_FACTOR = 2.0
+
 #: Probability of the points' agreement test on the track scale (:func:`_agreement_limit`): a scale that the points
 #: disagree on by more is not the track's (urban seed 0: reduced chi-square 80 over 10 points, the scale -0.12 % where
 #: the truth says 0; test3 seed 2: 1.5 over 5, test1 seed 0: 0.5 over 4).
@@ -82,7 +87,10 @@ class AutofocusOptions:
     prior_up_m: float = 0.005  #: prior std of the vertical correction
     step_m: float = 0.001  #: prior std of the correction's change from one node to the next
     point_prior_m: float = 0.02  #: prior std of a point's own position error
-    prior_scale: float = 0.003  #: prior std of the track's along-track scale (GNSS velocity: ~0.04 % on 25 s)
+    #: prior std of the track's along-track scale; None: ``NAV_SCALE_STD_FACTOR`` times the navigation's own std
+    #: (:func:`~autosar_cli.nav.trajectory.track_scale_std`), or ``fallback_prior_scale`` where it has none
+    prior_scale: float | None = None
+    fallback_prior_scale: float = 0.003  #: a track without a scale covariance (GNSS velocity: ~0.04 % on 25 s)
     max_scale_std: float = 0.0003  #: a scale measured less well than this is not applied
     range_sigma_m: float = 0.002  #: std of a point's bistatic path from its range envelope
     max_phase_rms_rad: float = 0.15  #: points fitting worse than this are dropped (moving, multipath)
@@ -142,6 +150,7 @@ class ResidualMotion:
     scale_note: str = ""  #: why the scale was kept, where it was
     #: the points' own scales about the common one: reduced chi-square and the number of points (the scale fit's)
     scale_agreement: tuple[float, int] = (1.0, 0)
+    scale_prior: float = 0.0  #: the prior std the scale was fitted with (:func:`with_scale_prior`)
 
     @property
     def applied(self) -> bool:
@@ -162,7 +171,8 @@ class ResidualMotion:
 
     def to_dict(self) -> dict[str, object]:
         return {"applied": self.applied, "reason": self.reason, "track_scale": self.scale,
-                "track_scale_std": self.scale_std, "track_scale_note": self.scale_note,
+                "track_scale_std": self.scale_std, "track_scale_prior_std": self.scale_prior,
+                "track_scale_note": self.scale_note,
                 "track_scale_agreement": {"reduced_chi2": round(self.scale_agreement[0], 3),
                                           "points": self.scale_agreement[1]},
                 "points": int(len(self.points_enu)),
@@ -250,7 +260,7 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
     """The correction of ``trajectory`` that makes the phase histories of the points ``points_enu`` (P, 3) (ENU m,
     where ``trajectory`` focuses them) coherent; see the module's docstring."""
     focus = focus or FocusOptions.from_config(config)
-    opts = opts or AutofocusOptions()
+    opts = with_scale_prior(opts or AutofocusOptions(), trajectory)
     points0 = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
     n_pts = len(points0)
     if n_pts == 0:
@@ -279,7 +289,19 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
     result, _ = _fit(hist, track, config, points, replace(opts, prior_scale=1e-9),
                      used0=first.points_used if first.applied else None)
     return replace(result, scale=scale, scale_std=scale_std, scale_note=note,
-                   scale_agreement=first.scale_agreement if first.applied else (1.0, 0))
+                   scale_agreement=first.scale_agreement if first.applied else (1.0, 0), scale_prior=opts.prior_scale)
+
+
+def with_scale_prior(opts: AutofocusOptions, trajectory: Trajectory) -> AutofocusOptions:
+    """``opts`` with its track-scale prior set: as given, else from the navigation's covariance
+    (``NAV_SCALE_STD_FACTOR`` times :func:`~autosar_cli.nav.trajectory.track_scale_std`), else the fallback."""
+    if opts.prior_scale is not None:
+        return opts
+    from autosar_cli.nav.trajectory import track_scale_std
+
+    nav_std = track_scale_std(trajectory)
+    prior = NAV_SCALE_STD_FACTOR * nav_std if nav_std else opts.fallback_prior_scale
+    return replace(opts, prior_scale=prior)
 
 
 def _agreement_limit(n_points: int) -> float:
@@ -293,7 +315,8 @@ def _agreement_limit(n_points: int) -> float:
 def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: Array, opts: AutofocusOptions,
          used0: NDArray[np.bool_] | None = None) -> tuple[ResidualMotion, float]:
     """The fit of :func:`estimate_residual_motion` on gathered histories; also the posterior std of the scale.
-    ``used0``: the points to start from (default: all)."""
+    ``used0``: the points to start from (default: all); ``opts``' scale prior set (:func:`with_scale_prior`)."""
+    assert opts.prior_scale is not None
     n_pts = len(points0)
     t0 = int(trajectory.t_ns[0])
     n_nodes = int(math.ceil((int(trajectory.t_ns[-1]) - t0) / 1e9 / opts.node_s)) + 1
