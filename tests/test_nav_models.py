@@ -507,6 +507,26 @@ def _full_vehicle_wheel_inputs(components: tuple[str, ...] | None = None):  # no
                      gnss_velocity=Measurements("gnss", tg, vel, np.full(2, 0.03))), cfg
 
 
+def test_slip_gains_go_only_with_the_lag_they_were_fitted_beside() -> None:
+    """At a steady speed the slip regressor a v is alike the lag's -a / v, so the slip gains are fitted together with
+    the lag. On urban's full vehicle (instantaneous speeds: the lag is pinned to 0 within 1 cm) they show and are
+    applied; with navigation.estimate_wheel_lag off the lag is not corrected, and the slip gains are not applied
+    either, while the load gains, which no lag mimics, still are."""
+    from dataclasses import replace
+
+    from autosar_cli.nav.navigate import wheel_speeds_corrected
+    from autosar_cli.nav.wheel_speeds import SLIP_GAINS
+
+    inputs, cfg = _full_vehicle_wheel_inputs()
+    _, lag, radii = wheel_speeds_corrected(inputs, cfg)
+    assert lag["std_m"] <= cfg.navigation.wheel_lag_max_std_m
+    assert set(SLIP_GAINS) <= set(radii["applied"]), radii["applied"]
+    no_lag = replace(cfg, navigation=replace(cfg.navigation, estimate_wheel_lag=False))
+    _, lag, radii = wheel_speeds_corrected(inputs, no_lag)
+    assert not lag["applied"] and "estimate_wheel_lag is off" in lag["reason"]
+    assert radii["applied"] and not set(SLIP_GAINS) & set(radii["applied"]), radii["applied"]
+
+
 def test_the_sensors_stated_window_joins_only_a_lag_the_drive_shows() -> None:
     """A speed change of 6 +- 2 m/s every 12 s measures the ECU's lag, but not well enough to move the samples by it
     (measured 0.117 +- 0.023 m; navigation.wheel_lag_max_std_m is 0.02). The wheel sensor's stated window

@@ -70,7 +70,8 @@ def wheel_speeds_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
     """The inputs with the wheel speeds corrected by what :mod:`.wheel_speeds` fits to the drive and the drive
     shows: divided by their slip and load factors (``navigation.estimate_wheel_radii``: a gain is shown where its
     std is at most ``wheel_radius_gain_max_std_per_mps2`` and it differs from 0 by more than ``SIGNIFICANT`` of
-    them and ``MIN_SLIP_GAIN`` / ``MIN_LOAD_GAIN``; the measured slip gains go together), then moved back by their lag
+    them and ``MIN_SLIP_GAIN`` / ``MIN_LOAD_GAIN``; the measured slip gains go together, and only where the lag beside
+    which they were fitted is estimated and pinned down), then moved back by their lag
     (``navigation.estimate_wheel_lag``, the same test with ``wheel_lag_max_std_m`` and ``MIN_WHEEL_LAG_M``; the fit
     conditioned on the wheel sensor's stated window where it has one and they agree); and what the fits found, lag
     and radii."""
@@ -90,8 +91,8 @@ def wheel_speeds_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
         # the slip gains are one term (the tyres' slip stiffness times the axle's share of drive and brake): the
         # measured ones are applied together where one shows; a drive that never brakes leaves the brake gains
         # unmeasured, and they never act on it. At a steady speed the slip regressor a v is alike the lag's -a / v:
-        # where the lag is not pinned down, neither are they
-        lag_known = lag is not None and lag.std_m <= nav.wheel_lag_max_std_m
+        # where the lag is not pinned down, or not estimated (and so not corrected), neither are they
+        lag_known = nav.estimate_wheel_lag and lag is not None and lag.std_m <= nav.wheel_lag_max_std_m
         measured = [name for name in SLIP_GAINS if radii.slip_gain_std[name] <= limit] if lag_known else []
         shows = any(_shows(radii.slip_gain[name], radii.slip_gain_std[name], MIN_SLIP_GAIN) for name in measured)
         gains = {name: radii.slip_gain[name] for name in measured} if shows else {}
