@@ -221,3 +221,27 @@ def test_points_that_disagree_on_the_scale_are_told_apart() -> None:
     print(f"agree {agree:.2f}, split {split:.1f}, limit {_agreement_limit(n_pts):.2f}")
     assert agree < _agreement_limit(n_pts) and 0.3 < agree < 2.5
     assert split > 2 * _agreement_limit(n_pts)
+
+
+def test_the_scale_prior_is_the_navigations_own_covariance() -> None:
+    """The autofocus's track-scale prior is NAV_SCALE_STD_FACTOR times the std of the wheel scales' mean in the
+    navigation's covariance at mid-drive (sqrt(1' P_ss 1) / 4, written out here for correlated scales); a track
+    without that covariance keeps the fallback, and a prior given explicitly is kept."""
+    from autosar_cli.nav.geodesy import GeodeticOrigin
+    from autosar_cli.sar.residual_motion import NAV_SCALE_STD_FACTOR, with_scale_prior
+
+    names = ["px", "py", "v", "psi", "omega", "bias.g", "scale.wheel_fl", "scale.wheel_fr", "scale.wheel_rl",
+             "scale.wheel_rr"]
+    k = 5
+    cov = np.tile(np.eye(len(names)) * 1e-2, (k, 1, 1))
+    scales = np.array([[4.0, 1.0, 0.5, 0.5], [1.0, 4.0, 0.5, 0.5], [0.5, 0.5, 9.0, 2.0], [0.5, 0.5, 2.0, 9.0]]) * 1e-8
+    cov[k // 2, 6:, 6:] = scales  # only the middle sample's counts
+    traj = Trajectory("sar-min", np.arange(k, dtype=np.int64) * 10**8, np.zeros((k, 2)), np.zeros(k), np.ones(k),
+                      np.zeros(k), GeodeticOrigin(45.0, 7.0, 0.0), 1.4, 0.5, state=np.zeros((k, len(names))),
+                      state_names=names, covariance=cov)
+    mean_std = float(np.sqrt(scales.sum())) / 4  # 1.62e-4: 0.016 %
+    assert with_scale_prior(AutofocusOptions(), traj).prior_scale == pytest.approx(NAV_SCALE_STD_FACTOR * mean_std,
+                                                                                   rel=1e-12)
+    bare = replace(traj, covariance=None, state_names=[], state=None)
+    assert with_scale_prior(AutofocusOptions(), bare).prior_scale == AutofocusOptions().fallback_prior_scale
+    assert with_scale_prior(AutofocusOptions(prior_scale=1e-3), traj).prior_scale == 1e-3
