@@ -61,7 +61,7 @@ Array = NDArray[np.float64]
 
 #: The navigation's own track-scale std, times this, is the autofocus's prior on the scale. Over test1-3 and
 #: urban (full vehicle, seeds 0-9: benches/results/nav_seeds_full.json's scale_z_rms) the scale's error is 0.9-1.5
-#: times that std RMS: the wheels' unmodelled tyre effects, which the filter does not carry in its covariance.
+#: times that std RMS: on the full vehicle the filter's covariance is that much too small.
 NAV_SCALE_STD_FACTOR = 2.0
 
 #: Probability of the points' agreement test on the track scale (:func:`_agreement_limit`): a scale that the points
