@@ -8,7 +8,8 @@ For every filter setting, scenario and seed: ``simulate`` with the radar at 20 H
 sensors draw from their own random streams, so their samples are those of the full simulation; ~2.5 s per drive
 instead of ~35 s), ``ingest``, ``navigate --method sar-min``, and against the truth at 100 Hz while moving, at the
 radar's mean phase centre: the track's scale (similarity fitted to the truth's, - 1; below 0 the track is too long),
-its aligned RMSE and maximum after the rigid SE(2) alignment, the absolute RMSE, and what the GNSS velocity alone
+its aligned RMSE and maximum after the rigid SE(2) alignment, the maximum with the scale removed too (the shape),
+the absolute RMSE, and what the GNSS velocity alone
 says of the scale (its mean along-track error over the drive: benches/bench_paper.py). A reflector's whole-track
 aligned error is about the scale times its along-track distance from the track's centre: 0.055 % is 3 cm at 55 m.
 Prints one line per setting and scenario; writes the rows and the summary as JSON, with which of SAR-MIN's fitted
@@ -58,15 +59,20 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
     lever = phase_centre_lever_arm(config)[None]
     e_xy, r_xy = est.body_points(t, lever)[:, 0, :2], truth.body_points(t, lever)[:, 0, :2]
     residual = np.hypot(*(fit_se2(e_xy, r_xy).apply(e_xy) - r_xy).T)
+    # the shape: what is left with the scale removed too (a similarity fit), which no scale estimate corrects
+    scale = fit_similarity_scale(e_xy, r_xy)
+    scaled = e_xy.mean(axis=0) + scale * (e_xy - e_xy.mean(axis=0))
+    shape = np.hypot(*(fit_se2(scaled, r_xy).apply(scaled) - r_xy).T)
     gnss, _ = gnss_velocity_scale(scenario, seed)
     for p in (log, drive, sim.truth_path):
         Path(p).unlink(missing_ok=True)
     scale_std = track_scale_std(est)
-    return {"scale_pct": 100 * (fit_similarity_scale(e_xy, r_xy) - 1.0), "gnss_velocity_scale_pct": 100 * gnss,
+    return {"scale_pct": 100 * (scale - 1.0), "gnss_velocity_scale_pct": 100 * gnss,
             # the navigation's own std of it (its covariance), against which the scale's error is a z-score
             "scale_std_pct": 100 * scale_std if scale_std is not None else float("nan"),
             "aligned_rmse_cm": 100 * float(np.sqrt(np.mean(residual**2))),
             "aligned_max_cm": 100 * float(residual.max()),
+            "shape_max_cm": 100 * float(shape.max()),
             "abs_rmse_m": float(np.sqrt(np.mean(np.sum((e_xy - r_xy) ** 2, axis=1)))),
             # which of the fitted lags SAR-MIN applied (docs/NAVIGATION.md)
             "steering_left_out": bool(est.info["understeer"]["steering_left_out"]),
@@ -89,6 +95,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "aligned_rmse_mean_cm": round(statistics.fmean(r["aligned_rmse_cm"] for r in rows), 3),
             "aligned_max_median_cm": round(statistics.median(aligned_max), 3),
             "aligned_max_p90_cm": round(float(np.percentile(aligned_max, 90)), 3),
+            "shape_max_median_cm": round(statistics.median(r.get("shape_max_cm", np.nan) for r in rows), 3),
             "abs_rmse_mean_m": round(statistics.fmean(r["abs_rmse_m"] for r in rows), 4),
             "steering_left_out": sum(r["steering_left_out"] for r in rows),
             "wheel_lag_applied": sum(r["wheel_lag_applied"] for r in rows),
