@@ -768,3 +768,22 @@ def test_rear_slip_gain_is_the_full_vehicles_closed_form() -> None:
         plain, t, x, lever = _gnss_velocity_inputs(no_slip, cfg, seed)
         none = fit_rear_slip(plain, t, x, lever, 0.0)
         assert none is not None and abs(none.gain) < 3 * none.std, none
+
+
+@pytest.mark.parametrize(("steering_left_out", "applied"), [(False, False), (True, True)])
+def test_a_car_that_shows_slip_in_its_steering_takes_the_fitted_rear_slip(monkeypatch: pytest.MonkeyPatch,
+                                                                          steering_left_out: bool,
+                                                                          applied: bool) -> None:
+    """A rear-slip fit of 3.4e-3 +- 1.2e-3 (test3 seed 5's, full vehicle; the tyres' is 6.6e-3) is 2.8 std from the
+    vehicle's 0: kept at 0 on its own, taken where the steering fit already showed the car steering otherwise than
+    the kinematic bicycle, whose tyres then slip."""
+    from autosar_cli.nav import navigate as nav_module
+    from autosar_cli.nav.rear_slip import RearSlipFit
+
+    monkeypatch.setattr(nav_module, "fit_rear_slip", lambda *args: RearSlipFit(3.38e-3, 1.23e-3, 220, 0.44, 0.03))
+    inputs, cfg = _full_vehicle_wheel_inputs()
+    from types import SimpleNamespace
+
+    first = SimpleNamespace(t=None, x=None)  # the pass the fit reads: the fit is replaced here
+    gain, info = nav_module.rear_slip_gain(inputs, cfg, first, tyres_slip=steering_left_out)  # type: ignore[arg-type]
+    assert info["applied"] is applied and gain == (3.38e-3 if applied else cfg.vehicle.rear_slip_gain_rad_per_mps2)
