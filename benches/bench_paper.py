@@ -173,6 +173,11 @@ def drive_row(scenario: str, seed: int, comparison: dict[str, Any], sim_s: float
         # a peak brighter than the truth image's is no loss: on the full vehicle model the truth track is planar
         s["within_2cm_1db"] = s["reflector_error_max_cm"] <= 2.0 and s["peak_loss_max_db"] <= 1.0
         s["worse"] = s["peak_loss_max_db"] >= 3.0 or s["reflector_error_max_cm"] >= 5.0
+    af = comparison.get("autofocus")
+    if af:  # the scale the autofocus measured (applied or not), its std and prior: against sarmin_track_scale_pct
+        row["af_track_scale_pct"] = round(100 * af["track_scale"], 4)
+        row["af_track_scale_std_pct"] = round(100 * af["track_scale_std"], 4)
+        row["af_track_scale_prior_pct"] = round(100 * af.get("track_scale_prior_std", 0.0), 4)
     for key in ENTROPIES:
         e = {m: res[m]["summary"][key] for m in res}
         row[key] = {**{m: round(v, 4) for m, v in e.items()}, "paper_order": in_paper_order(e)}

@@ -587,6 +587,8 @@ def test_compare_sarmin_scaled_alone_on_ci(ci_mcap, tmp_path: Path) -> None:
 def test_compare_sarmin_autofocus_needs_no_truth(ci_mcap, tmp_path: Path) -> None:
     """sar-min+af on a log without its truth sidecar: SAR-MIN's track with the residual-motion correction its own
     image's bright points measure; what was measured is in its trajectory's info and the comparison's notes."""
+    from autosar_cli.sar.residual_motion import AutofocusOptions
+
     log = tmp_path / "bare.mcap"
     shutil.copy(ci_mcap.log_path, log)
     result = compare([log], tmp_path / "cmp", CFG, methods=["sar-min+af"])
@@ -596,6 +598,10 @@ def test_compare_sarmin_autofocus_needs_no_truth(ci_mcap, tmp_path: Path) -> Non
     af = traj.info["autofocus"]
     assert af["applied"] and af["points_used"] >= 2 and len(af["points_enu"]) == af["points"]
     assert any(n.startswith("sar-min+af:") and "residual motion corrected" in n for n in result["notes"])
+    # the comparison records the same measurement, the scale's prior the navigation's own
+    assert result["autofocus"]["track_scale"] == af["track_scale"] and result["autofocus"]["points_used"] >= 2
+    assert result["autofocus"]["track_scale_prior_std"] > 0  # ci's 5 s: twice the navigation's 0.18 %
+    assert result["autofocus"]["track_scale_prior_std"] != AutofocusOptions().fallback_prior_scale
     assert not (tmp_path / "cmp" / "sar-min").exists()
 
 

@@ -157,12 +157,14 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
     timings["navigate"] = time.perf_counter() - t0
     run_methods = [m for m in methods if m not in skipped
                    and (m in trajectories or (m in DERIVED and "sar-min" in trajectories))]
+    autofocus: dict[str, Any] | None = None  # what the autofocus measured, applied or not
     if SARMIN_AUTOFOCUS in run_methods:
         t0 = time.perf_counter()
         tick("autofocus sar-min's residual motion", 0, 1)
         focused = autofocus_residual_motion(out / DRIVE, trajectories["sar-min"], config, options)
         tick("autofocus sar-min's residual motion", 1, 1)
         timings["autofocus"] = time.perf_counter() - t0
+        autofocus = {k: v for k, v in focused.to_dict().items() if k != "points_enu"}
         if not focused.applied:
             run_methods.remove(SARMIN_AUTOFOCUS)
             skipped[SARMIN_AUTOFOCUS] = f"SAR-MIN's {focused.summary()}"
@@ -290,7 +292,7 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
         "methods": run_methods, "skipped": skipped, "notes": notes,
         "grid": {"reference_trajectory": base_traj.method, "shape": list(base_grid.shape),
                  "pixel_m": base_grid.pixel_m, "range_direction": list(range_dir)},
-        "results": {m: _method_result(evaluations[m]) for m in run_methods},
+        "results": {m: _method_result(evaluations[m]) for m in run_methods}, "autofocus": autofocus,
         "timings_s": timings, "outputs": {**figures, "markdown": "compare.md",
                                           "methods": {m: m for m in run_methods}},
     }
