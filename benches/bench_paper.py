@@ -23,8 +23,9 @@ the radar's 6-DOF motion; SAR-MIN without the IMU's attitude and the rear slip),
 benches/results/paper_planar_noslip.json.
 The 40 drives (``make bench-paper-full``): ``--scenarios test1,test2,test3,urban --seeds 0-9 --methods
 sar-min,sar-min+af --dynamics full --output benches/results/paper_full_level.json`` with the current SAR-MIN (the
-GNSS antenna on a level body, the load-compliant wheels, the lag's stated window; ``--resume`` goes on); the same
-run at 7118539, before them: benches/results/paper_full_fits.json.
+GNSS antenna on a level body, the load-compliant wheels, the lag's stated window, the rear slip where the steering
+shows the tyres slip) and the autofocus's scale prior from its covariance; the same run at 7118539, before them:
+benches/results/paper_full_fits.json.
 """
 
 from __future__ import annotations
