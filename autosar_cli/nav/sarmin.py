@@ -283,7 +283,7 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
 def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[tuple[str, Measurements]],
                 times: Array, kinds: NDArray[np.int32], index: NDArray[np.int64], order: NDArray[np.int64],
                 t_start: float, x0: Array, P0: Array, q: Array, beta: Array, names: list[str], steer_i: int,
-                scale_i: int, gnss_i: int, gnss_lever: tuple[float, float], smoothed_covariance: bool = True
+                scale_i: int, gnss_i: int, gnss_lever: tuple[float, float], smoothed_covariance: bool
                 ) -> NavSolution:
     from . import sarmin_kernel as kern
 

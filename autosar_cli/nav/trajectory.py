@@ -118,7 +118,6 @@ def relative_pose_error(est_xy: Array, est_heading: Array, ref_xy: Array, ref_he
     return local(est_xy, est_heading) - local(ref_xy, ref_heading)
 
 
-
 def wheel_scale_mean_std(P: Array, state_names: list[str]) -> float | None:
     """The std of the four wheel scales' mean (``scale.wheel_*``) from a covariance ``P`` (n, n) over
     ``state_names``: a common error s in them is a speed, and so a track, scaled by -s. None without them."""

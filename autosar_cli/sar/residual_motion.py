@@ -44,6 +44,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from autosar_cli.config import Config
+from autosar_cli.nav.trajectory import track_scale_std
 from autosar_cli.sar.autofocus import scale_track
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.sar.phase_history import (
@@ -297,8 +298,6 @@ def with_scale_prior(opts: AutofocusOptions, trajectory: Trajectory) -> Autofocu
     (``NAV_SCALE_STD_FACTOR`` times :func:`~autosar_cli.nav.trajectory.track_scale_std`), else the fallback."""
     if opts.prior_scale is not None:
         return opts
-    from autosar_cli.nav.trajectory import track_scale_std
-
     nav_std = track_scale_std(trajectory)
     prior = NAV_SCALE_STD_FACTOR * nav_std if nav_std else opts.fallback_prior_scale
     return replace(opts, prior_scale=prior)
