@@ -235,6 +235,16 @@ class Trajectory:
             points += self.correction.at(np.asarray(t_ns).reshape(-1))[:, None, :]
         return points
 
+    def height_offset(self, t_ns: ArrayLike) -> Array:
+        """How far (M,) (m) the body rises above its planar track at times ``t_ns`` (M,): the vertical part of the
+        :attr:`correction` (the road's grade, the body's tilt; SAR-MIN's ``navigation.radar_height``), 0 without
+        one. The focusing surface lies ``height_m`` above the planar plane raised by this at each pixel's closest
+        approach (sar.focus), so that the radar's height above it is the planar one there."""
+        t_ns = np.asarray(t_ns, dtype=np.int64)
+        if self.correction is None:
+            return np.zeros(t_ns.shape)
+        return self.correction.at(t_ns.reshape(-1))[:, 2].reshape(t_ns.shape)
+
     def travel_velocity(self, t_ns: ArrayLike, lever_arms: ArrayLike,
                         half_span_s: float = TRAVEL_HALF_SPAN_S) -> Array:
         """Velocity (M, A, 3) (ENU m/s) of body points ``lever_arms`` (A, 3) (m, from the CoG) averaged over

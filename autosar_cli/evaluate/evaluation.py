@@ -32,7 +32,6 @@ from autosar_cli.evaluate.reflectors import (
     measure_reflectors,
     predict_image_positions,
     summarise_reflectors,
-    zero_doppler_times,
 )
 from autosar_cli.evaluate.trajectory_metrics import (
     TrajectoryErrors,
@@ -44,7 +43,13 @@ from autosar_cli.evaluate.trajectory_metrics import (
 )
 from autosar_cli.nav.baselines import from_truth
 from autosar_cli.nav.geodesy import GeodeticOrigin
-from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm, radar_side, radar_track
+from autosar_cli.nav.trajectory import (
+    Trajectory,
+    phase_centre_lever_arm,
+    radar_side,
+    radar_track,
+    zero_doppler_times,
+)
 from autosar_cli.sar.focus import FocusOptions, focus_images
 from autosar_cli.sar.grid import FocusGrid, track_distance, track_lattice
 from autosar_cli.sim.scene import KINDS

@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 from autosar_cli.config import Config
 from autosar_cli.evaluate.alignment import Se2
 from autosar_cli.evaluate.point_target import PointTargetMetrics, analyse_point_target
-from autosar_cli.nav.trajectory import Trajectory, antenna_lever_arms, radar_side
+from autosar_cli.nav.trajectory import Trajectory, radar_side, reference_track, zero_doppler_times
 from autosar_cli.sar.focus import FocusOptions, FocusResult, focus_images
 from autosar_cli.sar.grid import FocusGrid, box_grid
 from autosar_cli.store.image import FocusedImage
@@ -74,33 +74,6 @@ def reflector_grids(centres_xy: ArrayLike, *, height_m: float, size_m: float = P
             for x, y in np.asarray(centres_xy, dtype=np.float64)[:, :2]]
 
 
-def _reference_track(traj: Trajectory, t_ns: NDArray[np.int64], config: Config) -> tuple[Array, Array]:
-    """Tx0 reference point (M, 3) and its direction of travel (M, 3), as focus points its beam
-    (:meth:`Trajectory.travel_velocity`)."""
-    tx0 = antenna_lever_arms(config)[0][:1]
-    return traj.body_points(t_ns, tx0)[:, 0], traj.travel_velocity(t_ns, tx0)[:, 0]
-
-
-def zero_doppler_times(truth: Trajectory, true_enu: ArrayLike, config: Config, t_ns: ArrayLike) -> NDArray[np.int64]:
-    """For each target (C, 3) (ENU m), the instant (ns) the true radar reference (Tx0) passes it: the target lies
-    perpendicular to the reference's velocity (the centre of its processed aperture). ``t_ns``: candidate
-    instants (the radar frame times), interpolated between; the closest one when the target is never passed."""
-    true = np.asarray(true_enu, dtype=np.float64).reshape(-1, 3)
-    t = np.asarray(t_ns, dtype=np.int64)
-    c, v = _reference_track(truth, t, config)
-    out = np.empty(len(true), np.int64)
-    for i, p in enumerate(true):
-        f = np.sum((p[:2] - c[:, :2]) * v[:, :2], axis=1)  # > 0 while the target is ahead
-        k = np.flatnonzero((f[:-1] > 0) & (f[1:] <= 0))
-        if k.size == 0:
-            out[i] = t[int(np.argmin(np.abs(f)))]
-            continue
-        k0 = k[np.argmin(np.linalg.norm(p[:2] - c[k, :2], axis=1))]
-        w = f[k0] / (f[k0] - f[k0 + 1])
-        out[i] = t[k0] + int(round(w * (t[k0 + 1] - t[k0])))
-    return out
-
-
 def predict_image_positions(estimate: Trajectory, truth: Trajectory, true_enu: ArrayLike, config: Config,
                             t_ns: ArrayLike, height_m: float) -> Array:
     """Where each target (C, 3) (ENU m; z above the road) appears in the image focused along ``estimate``
@@ -118,14 +91,15 @@ def predict_image_positions(estimate: Trajectory, truth: Trajectory, true_enu: A
     t = t[(t >= max(truth.t_ns[0], estimate.t_ns[0])) & (t <= min(truth.t_ns[-1], estimate.t_ns[-1]))]
     side = radar_side(config)
     t0 = zero_doppler_times(truth, true, config, t)
-    c0, _ = _reference_track(truth, t0, config)
-    ce, ve = _reference_track(estimate, t0, config)
+    c0, _ = reference_track(truth, t0, config)
+    ce, ve = reference_track(estimate, t0, config)
     out = np.empty((len(true), 2))
+    rise = estimate.height_offset(t0)  # the focusing surface there (sar.focus)
     for i, p in enumerate(true):
         r0 = float(np.linalg.norm(p - c0[i]))
         u = ve[i, :2] / max(float(np.linalg.norm(ve[i, :2])), 1e-9)
         n = side * np.array([-u[1], u[0]])
-        g = math.sqrt(max(r0**2 - (ce[i, 2] - height_m) ** 2, 0.0))
+        g = math.sqrt(max(r0**2 - (ce[i, 2] - height_m - rise[i]) ** 2, 0.0))
         out[i] = ce[i, :2] + g * n
     return out
 

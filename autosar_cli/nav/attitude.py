@@ -27,13 +27,14 @@ centre): the radar's lever from there is its lever from the CoG plus (0, 0, cog_
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.signal import butter, filtfilt
 
-from autosar_cli.nav.inputs import ImuSamples
+from autosar_cli.nav.inputs import ImuSamples, Measurements
 
 Array = NDArray[np.float64]
 
@@ -53,11 +54,19 @@ class BodyAttitude:
     t: Array  #: (N,) s since the navigation's t0, uniform
     roll: Array  #: (N,) rad
     pitch: Array  #: (N,) rad
+    #: the IMU's pitch bias taken out of ``pitch`` (rad; :func:`pitch_bias`), its std; NaN where not measured
+    pitch_bias: float = math.nan
+    pitch_bias_std: float = math.nan
+    pitch_bias_samples: int = 0  #: the GNSS climb rates it was measured on
 
     def to_dict(self) -> dict[str, float | str]:
-        return {"imu": self.imu, "roll_mean_mrad": float(1e3 * self.roll.mean()),
-                "roll_std_mrad": float(1e3 * self.roll.std()), "pitch_mean_mrad": float(1e3 * self.pitch.mean()),
-                "pitch_std_mrad": float(1e3 * self.pitch.std())}
+        out: dict[str, float | str] = {
+            "imu": self.imu, "roll_mean_mrad": float(1e3 * self.roll.mean()),
+            "roll_std_mrad": float(1e3 * self.roll.std()), "pitch_mean_mrad": float(1e3 * self.pitch.mean()),
+            "pitch_std_mrad": float(1e3 * self.pitch.std())}
+        if math.isfinite(self.pitch_bias):
+            out.update(pitch_bias_mrad=1e3 * self.pitch_bias, pitch_bias_std_mrad=1e3 * self.pitch_bias_std)
+        return out
 
 
 def _zero_phase_lowpass(x: Array, cutoff_hz: float, rate_hz: float) -> Array:
@@ -123,3 +132,68 @@ def tilt_offsets(roll: Array, pitch: Array, heading: Array, lever_from_axis: Arr
     dy = cr * ly - sr * lz - ly
     ch, sh = np.cos(heading), np.sin(heading)
     return np.stack([ch * dx - sh * dy, sh * dx + ch * dy], axis=-1)
+
+
+def tilt_heights(roll: Array, pitch: Array, lever_from_axis: Array) -> Array:
+    """Vertical displacement (N,) (m) of the body point ``lever_from_axis`` (3,) (m, body frame, from the roll
+    axis) as the body rolls by ``roll`` and pitches by ``pitch`` (N,) (rad): the z row of
+    (R_y(pitch) R_x(roll) - I) lever. A radar ahead of the axis drops as the nose pitches down (pitch > 0)."""
+    lx, ly, lz = np.asarray(lever_from_axis, dtype=np.float64)
+    cr, sr, cp, sp = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch)
+    return -sp * lx + cp * sr * ly + cp * cr * lz - lz
+
+
+def climb(t: Array, speed: Array, pitch: Array) -> Array:
+    """Height (N,) (m) gained since ``t[0]`` (s) by the roll axis moving at ``speed`` (N,) (m/s) along the body's
+    x axis pitched by ``pitch`` (N,) (rad, nose down > 0): the integral of -v sin(pitch) dt. The body's pitch on its
+    suspension (about 2 deg/g under acceleration) counts as grade: k (v1^2 - v0^2) / 2, 3 cm from 0 to 4 m/s."""
+    rate = -np.asarray(speed) * np.sin(pitch)
+    return np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t))])
+
+
+#: Below this speed (m/s) a GNSS climb rate says too little of the pitch to take part in its bias.
+PITCH_BIAS_MIN_SPEED_MPS = 1.0
+
+
+def pitch_bias(att: BodyAttitude, speed: Array, climb_rate: Measurements,
+               antenna_from_axis: Array) -> tuple[float, float, int]:
+    """The constant error of ``att``'s pitch (rad), its std and the samples used, from a GNSS receiver's vertical
+    velocity ``climb_rate`` (its antenna at ``antenna_from_axis`` (3,), m body frame from the roll axis):
+    d/dt [climb + tilt_heights] = -v sin(pitch - b) + ..., linearised in b and solved by weighted least squares
+    over the fixes above :data:`PITCH_BIAS_MIN_SPEED_MPS` (``speed`` (N,) m/s at ``att.t``).
+
+    An IMU mounted 0.3-1 deg off (the simulator's range) tilts the pitch by as much, which the gravity direction
+    cannot tell from the road's mean grade: integrated over 80 m it lifts the track by 0.4-1.4 m. The GNSS's
+    vertical velocity, white at a few cm/s per fix, sees the grade itself. The std is scaled by the fit's reduced
+    chi-square where that exceeds 1. NaNs where fewer than 10 fixes qualify."""
+    tk = climb_rate.t
+    inside = (tk >= att.t[0]) & (tk <= att.t[-1])
+    v = np.interp(tk[inside], att.t, speed)
+    use = v >= PITCH_BIAS_MIN_SPEED_MPS
+    if use.sum() < 10:
+        return math.nan, math.nan, int(use.sum())
+    tk, v, measured = tk[inside][use], v[use], climb_rate.z[inside, 0][use]
+    dt = float(np.median(np.diff(att.t)))
+
+    def residual(b: float) -> tuple[Array, Array]:
+        """The climb rates' residual with the pitch less b, and its derivative in b."""
+        pitch = att.pitch - b
+        tilt_rate = np.interp(tk, att.t, np.gradient(tilt_heights(att.roll, pitch, antenna_from_axis), dt))
+        p = np.interp(tk, att.t, pitch)
+        return measured - (-v * np.sin(p) + tilt_rate), v * np.cos(p)
+
+    bias = 0.0
+    for _ in range(2):  # sin(pitch - b) is nearly linear in b: two steps settle it
+        r, slope = residual(bias)
+        bias += float(np.sum(slope * r) / np.sum(slope**2))
+    r, slope = residual(bias)
+    sigma = float(climb_rate.sigma[0])
+    chi2 = float(np.sum((r / sigma) ** 2)) / max(len(tk) - 1, 1)
+    std = sigma / float(np.sqrt(np.sum(slope**2))) * math.sqrt(max(chi2, 1.0))
+    return bias, std, len(tk)
+
+
+def without_pitch_bias(att: BodyAttitude, bias: float, std: float, samples: int) -> BodyAttitude:
+    """``att`` with ``bias`` (rad) taken out of its pitch and recorded (NaN: recorded as not measured)."""
+    pitch = att.pitch - bias if math.isfinite(bias) else att.pitch
+    return replace(att, pitch=pitch, pitch_bias=bias, pitch_bias_std=std, pitch_bias_samples=samples)

@@ -69,12 +69,12 @@ def straight_line(inputs: NavInputs, config: Config) -> Trajectory:
 def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config, *, radar_motion: bool = False) -> Trajectory:
     """The simulator's true rear-axle track, re-expressed in the drive's ENU origin.
 
-    ``radar_motion``: also carry, as the trajectory's :attr:`~Trajectory.correction`, the horizontal motion of the
+    ``radar_motion``: also carry, as the trajectory's :attr:`~Trajectory.correction`, the motion of the
     radar's mean phase centre that the planar track lacks (the sidecar's ``radar/phase_centre_enu``: body roll and
     pitch, the grade's fore-aft offset of a radar mounted above the road, vibration), so that its body points
     follow the radar as it really moved. Focusing and the reflector metrics use it; the navigation benchmarks,
-    which compare filter states, do not. The height is left out: the processing focuses on a plane at a fixed
-    height above the road under the car, and the grade lifts the radar and the scene alike.
+    which compare filter states, do not. Its height is the radar's above the road at the start (the grade, the
+    body's tilt and heave), which the focusing surface follows (:meth:`Trajectory.height_offset`).
     """
     import h5py
 
@@ -111,11 +111,11 @@ def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config, *, radar
 def _radar_motion(planar: Trajectory, truth_origin: GeodeticOrigin, config: Config, frame_t_ns: NDArray[np.int64],
                   phase_centre_enu: Array, chirp_t_ns: NDArray[np.int64] | None) -> MotionCorrection:
     """The true mean phase centre (F, T, R, 3) (ENU m of ``truth_origin``) of every radar frame minus the same
-    mean of ``planar``'s antennas at the same chirps, horizontal only, as a correction of ``planar``."""
+    mean of ``planar``'s antennas at the same chirps, as a correction of ``planar``."""
     inside = (frame_t_ns >= planar.t_ns[0]) & (frame_t_ns <= planar.t_ns[-1])
     t = frame_t_ns[inside]
-    true = phase_centre_enu[inside].reshape(len(t), -1, 3).mean(axis=1)
-    lat, lon, h = truth_origin.to_geodetic(true)
+    true_own = phase_centre_enu[inside].reshape(len(t), -1, 3).mean(axis=1)
+    lat, lon, h = truth_origin.to_geodetic(true_own)
     true = planar.origin.to_enu(lat, lon, h)
     offsets_s = (np.zeros(phase_centre_enu.shape[1]) if chirp_t_ns is None
                  else (chirp_t_ns[inside][0] - t[0]) / 1e9)
@@ -123,4 +123,7 @@ def _radar_motion(planar: Trajectory, truth_origin: GeodeticOrigin, config: Conf
     modelled = 0.5 * (pc.tx[:, :, None, :] + pc.rx).reshape(len(t), -1, 3).mean(axis=1)
     offset = np.zeros((len(t), 3))
     offset[:, :2] = true[:, :2] - modelled[:, :2]
+    # the height in the truth's own frame, whose z = 0 is the road under the start: the drive's frame takes its
+    # height from a GNSS fix, decimetres off
+    offset[:, 2] = true_own[:, 2] - modelled[:, 2]
     return MotionCorrection(t.astype(np.int64), offset, np.zeros_like(offset))

@@ -55,6 +55,7 @@ class NavInputs:
     steering: Measurements | None = None  # road-wheel angle (rad) = steering-wheel angle / ratio
     gnss_position: Measurements | None = None  # antenna ENU (x, y)
     gnss_velocity: Measurements | None = None  # antenna ENU (vx, vy)
+    gnss_climb: Measurements | None = None  # antenna's up velocity (m/s), where the receiver gives one
     gnss_lever_m: tuple[float, float, float] = (0.0, 0.0, 0.0)  # antenna in the body frame (from the CoG)
     attitude_imu: ImuSamples | None = None  # the 6-DoF IMU of navigation.attitude_imu, where the drive has it
     gyro_bias_std: list[float] = field(default_factory=list)  # prior std of each gyro's bias (rad/s)
@@ -141,6 +142,16 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         std = errors.velocity_std_mps if errors else 0.05
         out.gnss_velocity = Measurements(nav.gnss, rel(vel["t_ns"], nav.gnss), vel["velocity_enu"][:, :2],
                                          np.full(2, std))
+        up = vel["velocity_enu"][:, 2] if vel["velocity_enu"].shape[1] > 2 else np.zeros(0)
+        if np.isfinite(up).any():  # a receiver without a vertical velocity writes NaN there
+            # its stated variance where the stream has one; else receivers' usual 1.5 x the horizontal
+            var = (read_dataset(gnss["velocity"], "velocity_variance")[:, 2] if "velocity_variance" in
+                   gnss["velocity"] else np.zeros(0))
+            up_std = (float(np.sqrt(np.median(var[np.isfinite(var)]))) if np.isfinite(var).any()
+                      and np.median(var[np.isfinite(var)]) > 0 else 1.5 * std)
+            ok = np.isfinite(up)
+            out.gnss_climb = Measurements(nav.gnss, rel(vel["t_ns"][ok], nav.gnss), up[ok, None],
+                                          np.array([up_std]))
     imu_sources = drive.imu_sources()
     for name in nav.gyros:
         s = config.sensors.get(name)

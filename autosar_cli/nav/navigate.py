@@ -2,15 +2,27 @@
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from autosar_cli.config import Config
 from autosar_cli.nav import models as m
-from autosar_cli.nav.attitude import CROSSOVER_HZ, BodyAttitude, estimate_attitude, tilt_offsets
+from autosar_cli.nav.attitude import (
+    CROSSOVER_HZ,
+    PITCH_BIAS_MIN_SPEED_MPS,
+    BodyAttitude,
+    climb,
+    estimate_attitude,
+    pitch_bias,
+    tilt_heights,
+    tilt_offsets,
+    without_pitch_bias,
+)
 from autosar_cli.nav.baselines import from_truth, gnss_only, straight_line
 from autosar_cli.nav.inputs import NavInputError, NavInputs, load_inputs
 from autosar_cli.nav.rear_slip import fit_rear_slip
@@ -157,6 +169,9 @@ def body_attitude(inputs: NavInputs, config: Config) -> tuple[BodyAttitude | Non
     if att is None:
         return None, (f"imu/{nav.attitude_imu} covers less than {1 / CROSSOVER_HZ:g} s of the drive: the radar and "
                       "the GNSS antenna as on a planar body")
+    if nav.radar_height and inputs.gnss_climb is not None:
+        antenna = _lever_from_roll_axis(np.asarray(inputs.gnss_lever_m), config)
+        att = without_pitch_bias(att, *pitch_bias(att, np.interp(att.t, t, speed), inputs.gnss_climb, antenna))
     return att, "the body's roll and pitch from the IMU"
 
 
@@ -225,12 +240,32 @@ def with_attitude(traj: Trajectory, att: BodyAttitude | None, reason: str, t0_ns
     offset[:, :2] = tilt_offsets(att.roll, att.pitch, traj.body_heading(t_ns), lever)
     std = np.zeros_like(offset)
     std[:, :2] = abs(lever[2]) * ATTITUDE_STD_RAD
+    height = radar_height(traj, att, t_ns, lever, config)
+    if height["applied"]:
+        speed = np.interp(t_ns, traj.t_ns, traj.speed)
+        offset[:, 2] = climb(att.t, speed, att.pitch) + tilt_heights(att.roll, att.pitch, lever)
+        travelled = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(att.t))])
+        std[:, 2] = np.hypot(abs(lever[0]) * ATTITUDE_STD_RAD, att.pitch_bias_std * travelled)
+        height["range_m"] = float(np.ptp(offset[:, 2]))
     correction = MotionCorrection(t_ns, offset, std)
     moved = np.hypot(offset[:, 0] - offset[:, 0].mean(), offset[:, 1] - offset[:, 1].mean())
     info = {**att.to_dict(), "applied": True, "reason": reason,
             "radar_above_axis_m": float(lever[2]), "offset_rms_mm": float(1e3 * np.sqrt(np.mean(moved**2))),
-            "offset_max_mm": float(1e3 * moved.max())}
+            "offset_max_mm": float(1e3 * moved.max()), "height": height}
     return replace(traj, correction=correction, info={**traj.info, "attitude": info})
+
+
+def radar_height(traj: Trajectory, att: BodyAttitude, t_ns: np.ndarray, lever: np.ndarray,
+                 config: Config) -> dict[str, Any]:
+    """Whether the radar's height is taken from ``att``, and why (the trajectory's info["attitude"]["height"])."""
+    if not config.navigation.radar_height:
+        return {"applied": False, "reason": "navigation.radar_height is off: the radar at a fixed height"}
+    if not math.isfinite(att.pitch_bias):
+        why = (f"{att.pitch_bias_samples} GNSS climb rates above {PITCH_BIAS_MIN_SPEED_MPS:g} m/s"
+               if att.pitch_bias_samples else "no GNSS vertical velocity")
+        return {"applied": False, "reason": f"{why} to take the IMU's pitch bias out: the radar at a fixed height"}
+    return {"applied": True, "reason": "the radar's height from the IMU's pitch along the drive, its bias "
+                                       "measured on the GNSS's vertical velocity"}
 
 
 def sarmin_with_fits(inputs: NavInputs, config: Config, smooth: bool = True

@@ -71,6 +71,34 @@ def radar_track(trajectory: Trajectory, frame_t_ns: NDArray[np.int64], config: C
     return trajectory.body_points(t, phase_centre_lever_arm(config)[None])[:, 0, :2]
 
 
+def reference_track(traj: Trajectory, t_ns: NDArray[np.int64], config: Config) -> tuple[Array, Array]:
+    """Tx0 reference point (M, 3) and its direction of travel (M, 3), as focus points its beam
+    (:meth:`Trajectory.travel_velocity`)."""
+    tx0 = antenna_lever_arms(config)[0][:1]
+    return traj.body_points(t_ns, tx0)[:, 0], traj.travel_velocity(t_ns, tx0)[:, 0]
+
+
+def zero_doppler_times(traj: Trajectory, points_enu: ArrayLike, config: Config, t_ns: ArrayLike
+                       ) -> NDArray[np.int64]:
+    """For each point (C, 3) (ENU m), the instant (ns) the radar reference (Tx0) of ``traj`` passes it: the point
+    lies perpendicular to the reference's velocity (the centre of its processed aperture). ``t_ns``: candidate
+    instants (the radar frame times), interpolated between; the closest one when the point is never passed."""
+    true = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
+    t = np.asarray(t_ns, dtype=np.int64)
+    c, v = reference_track(traj, t, config)
+    out = np.empty(len(true), np.int64)
+    for i, p in enumerate(true):
+        f = np.sum((p[:2] - c[:, :2]) * v[:, :2], axis=1)  # > 0 while the target is ahead
+        k = np.flatnonzero((f[:-1] > 0) & (f[1:] <= 0))
+        if k.size == 0:
+            out[i] = t[int(np.argmin(np.abs(f)))]
+            continue
+        k0 = k[np.argmin(np.linalg.norm(p[:2] - c[k, :2], axis=1))]
+        w = f[k0] / (f[k0] - f[k0 + 1])
+        out[i] = t[k0] + int(round(w * (t[k0 + 1] - t[k0])))
+    return out
+
+
 def radar_phase_centres(traj: Trajectory, frame_t_ns: ArrayLike, tx_start_offsets_s: ArrayLike,
                         config: Config) -> PhaseCentres:
     """Tx/Rx phase centres of every chirp from the trajectory, the mounting and the antenna layout.

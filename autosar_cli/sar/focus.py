@@ -277,6 +277,8 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         n_blocks = (len(frames) + options.block_pulses - 1) // options.block_pulses
         # a block's windows need the pulses around it: a pixel's look-angle cut is centred on its zero-Doppler pulse
         travel = cumulative_travel(geometry.reference)
+        rise = traj.height_offset(geometry.t_ns)
+        lifted = bool(np.any(rise != 0.0))
         margin = look_angle_margin_m(config.radar.max_range_m, half_width)
 
         def prepare(b: int) -> tuple[slice, list[tuple[int, Any, Any, Any]], NDArray[np.int16] | None,
@@ -301,7 +303,10 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
                                        block=(sel.start, sel.stop), context=context)
                 keep = win[:, 1] > win[:, 0]
                 if keep.any():
-                    work.append((gi, (rr * grid.n_along + cc).ravel()[keep], pix[keep], win[keep]))
+                    pix = pix[keep]
+                    if lifted:  # the surface follows the body's rise at the pixel's window centre
+                        pix[:, 2] += rise[(win[keep, 0] + win[keep, 1] - 1) // 2]
+                    work.append((gi, (rr * grid.n_along + cc).ravel()[keep], pix, win[keep]))
             if not work:  # a block no grid needs is not even read
                 return sel, work, None, None
             idx = frames[sel]

@@ -581,7 +581,7 @@ def candidate_points(drive_path: str | Path, trajectory: Trajectory, config: Con
     ``opts.max_range_m``, at twice the product's resolution and 1.5 times its pixel, from ``opts.channels`` channels
     (a fortieth of the product's back-projections and a quarter of its range compression; the fit refines each
     point's position)."""
-    from autosar_cli.nav.trajectory import radar_track
+    from autosar_cli.nav.trajectory import radar_track, zero_doppler_times
     from autosar_cli.sar.focus import auto_grid, focus_images
     from autosar_cli.sar.grid import track_distance
     from autosar_cli.store.drive import radar_times
@@ -591,8 +591,12 @@ def candidate_points(drive_path: str | Path, trajectory: Trajectory, config: Con
     coarse = replace(focus, resolution_m=2.0 * focus.resolution_m, pixel_m=1.5 * focus.pixel_m, channels=opts.channels)
     grid = auto_grid(drive_path, trajectory, near, coarse)
     image = focus_images(drive_path, trajectory, near, coarse, grids=[grid]).images[0]
-    track = radar_track(trajectory, radar_times(drive_path), config)
-    return select_points(image.image, grid, track_distance(grid, track), opts)
+    t_radar = radar_times(drive_path)
+    track = radar_track(trajectory, t_radar, config)
+    points = select_points(image.image, grid, track_distance(grid, track), opts)
+    if len(points):  # on the focusing surface, as focus put them (sar.focus)
+        points[:, 2] += trajectory.height_offset(zero_doppler_times(trajectory, points, config, t_radar))
+    return points
 
 
 def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, config: Config,
