@@ -37,7 +37,13 @@ from autosar_cli.nav.trajectory import (
 from autosar_cli.sar.backprojection import PulseBlock, backproject_block
 from autosar_cli.sar.grid import FocusGrid, GridError, box_grid, check_image_size, track_grid
 from autosar_cli.sar.range_compression import SPEED_OF_LIGHT, range_compress_into
-from autosar_cli.sar.stripmap import block_context, look_angle_margin_m, processed_half_width, stripmap_windows
+from autosar_cli.sar.stripmap import (
+    block_context,
+    look_angle_margin_m,
+    processed_half_width,
+    stripmap_windows,
+    zero_doppler_pulses,
+)
 from autosar_cli.store.drive import Drive, RadarStream
 from autosar_cli.store.image import FocusedImage, preload_quicklook, product_paths, write_image
 from autosar_cli.store.outputs import check_output
@@ -299,14 +305,13 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
                 if rr.size == 0:
                     continue
                 pix = grid.pixel_enu(rr, cc).reshape(-1, 3)
+                if lifted:  # the surface rises with the body at the pixel's closest approach (the windows' 3-D)
+                    pix[:, 2] += rise[zero_doppler_pulses(pix, geometry.reference, geometry.velocity, context)]
                 win = stripmap_windows(pix, geometry.reference, geometry.velocity, half_width, side, parallel=False,
                                        block=(sel.start, sel.stop), context=context)
                 keep = win[:, 1] > win[:, 0]
                 if keep.any():
-                    pix = pix[keep]
-                    if lifted:  # the surface follows the body's rise at the pixel's window centre
-                        pix[:, 2] += rise[(win[keep, 0] + win[keep, 1] - 1) // 2]
-                    work.append((gi, (rr * grid.n_along + cc).ravel()[keep], pix, win[keep]))
+                    work.append((gi, (rr * grid.n_along + cc).ravel()[keep], pix[keep], win[keep]))
             if not work:  # a block no grid needs is not even read
                 return sel, work, None, None
             idx = frames[sel]

@@ -165,6 +165,39 @@ def _windows_serial(pix, ant, vel, s_max, side, b0, b1, open_start, open_end, ou
                                        open_start, open_end)
 
 
+@nb.njit(cache=True, nogil=True)
+def _zero_doppler(pix, ant, vel, out):  # pragma: no cover - compiled
+    n_p = ant.shape[0]
+    for k in range(pix.shape[0]):
+        lo = 0
+        hi = n_p
+        while lo < hi:  # the first pulse with the pixel abeam or behind (sin psi <= 0; it decreases with p)
+            m = (lo + hi) // 2
+            if _sin_psi(pix[k, 0], pix[k, 1], pix[k, 2], ant[m, 0], ant[m, 1], ant[m, 2], vel[m, 0], vel[m, 1],
+                        vel[m, 2]) <= 0.0:
+                hi = m
+            else:
+                lo = m + 1
+        out[k] = min(lo, n_p - 1)
+
+
+def zero_doppler_pulses(pixels: ArrayLike, antenna: ArrayLike, velocity: ArrayLike,
+                        context: tuple[int, int] | None = None) -> NDArray[np.int64]:
+    """Index (N,) into ``antenna`` of each pixel's zero-Doppler pulse, the first with the pixel abeam or behind,
+    searched within ``context`` = (c0, c1) (default: all) and clamped to its ends; the same bisection as
+    :func:`stripmap_windows`'s. ``pixels`` (N, 3), ``antenna`` (P, 3): ENU m; ``velocity`` (P, 3): any scale."""
+    pix = np.ascontiguousarray(np.asarray(pixels, dtype=np.float64).reshape(-1, 3))
+    ant = np.asarray(antenna, dtype=np.float64).reshape(-1, 3)
+    c0, c1 = context if context is not None else (0, len(ant))
+    vel = np.asarray(velocity, dtype=np.float64).reshape(-1, 3)[c0:c1]
+    speed = np.linalg.norm(vel, axis=1, keepdims=True)
+    out = np.zeros(len(pix), np.int64)
+    if c1 > c0 and len(pix):
+        unit = np.ascontiguousarray(vel / np.where(speed > 0, speed, 1.0))
+        _zero_doppler(pix, np.ascontiguousarray(ant[c0:c1]), unit, out)
+    return out + c0
+
+
 def look_angle_margin_m(max_range_m: float, half_width_rad: float) -> float:
     """Travel (m) beyond which no pulse is within ``half_width_rad`` of look angle of a pixel's zero-Doppler line of
     sight, for pixels up to ``max_range_m`` away: seen from the pixel the line of sight turns by at least
