@@ -698,3 +698,15 @@ def test_the_radar_stays_on_a_planar_body_where_no_attitude_is_measured(ci_drive
     assert traj.correction is None
     off = replace(CFG, navigation=replace(CFG.navigation, attitude_imu=""))
     assert "attitude_imu is empty" in navigate(ci_drive, "sar-min", off).info["attitude"]["reason"]
+
+
+def test_the_gnss_vertical_velocity_is_read_with_its_stated_variance(ci_drive: Path) -> None:
+    """The receiver's vertical velocity (the pitch bias's measurement, nav.attitude.pitch_bias) comes in beside the
+    horizontal one, with the std its stream states (the simulator's: 1.5 x the horizontal 3 cm/s)."""
+    with Drive(ci_drive) as d:
+        inputs = load_inputs(d, CFG)
+    climb, vel = inputs.gnss_climb, inputs.gnss_velocity
+    assert climb is not None and vel is not None
+    np.testing.assert_array_equal(climb.t, vel.t)
+    assert climb.z.shape == (len(vel.t), 1) and np.abs(climb.z).max() < 0.3
+    assert climb.sigma[0] == pytest.approx(0.045, rel=1e-9)

@@ -240,7 +240,7 @@ def with_attitude(traj: Trajectory, att: BodyAttitude | None, reason: str, t0_ns
     offset[:, :2] = tilt_offsets(att.roll, att.pitch, traj.body_heading(t_ns), lever)
     std = np.zeros_like(offset)
     std[:, :2] = abs(lever[2]) * ATTITUDE_STD_RAD
-    height = radar_height(traj, att, t_ns, lever, config)
+    height = _height_decision(att, config)
     if height["applied"]:
         speed = np.interp(t_ns, traj.t_ns, traj.speed)
         offset[:, 2] = climb(att.t, speed, att.pitch) + tilt_heights(att.roll, att.pitch, lever)
@@ -255,8 +255,7 @@ def with_attitude(traj: Trajectory, att: BodyAttitude | None, reason: str, t0_ns
     return replace(traj, correction=correction, info={**traj.info, "attitude": info})
 
 
-def radar_height(traj: Trajectory, att: BodyAttitude, t_ns: np.ndarray, lever: np.ndarray,
-                 config: Config) -> dict[str, Any]:
+def _height_decision(att: BodyAttitude, config: Config) -> dict[str, Any]:
     """Whether the radar's height is taken from ``att``, and why (the trajectory's info["attitude"]["height"])."""
     if not config.navigation.radar_height:
         return {"applied": False, "reason": "navigation.radar_height is off: the radar at a fixed height"}

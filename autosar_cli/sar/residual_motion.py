@@ -592,6 +592,7 @@ def candidate_points(drive_path: str | Path, trajectory: Trajectory, config: Con
     grid = auto_grid(drive_path, trajectory, near, coarse)
     image = focus_images(drive_path, trajectory, near, coarse, grids=[grid]).images[0]
     t_radar = radar_times(drive_path)
+    t_radar = t_radar[(t_radar >= trajectory.t_ns[0]) & (t_radar <= trajectory.t_ns[-1])]
     track = radar_track(trajectory, t_radar, config)
     points = select_points(image.image, grid, track_distance(grid, track), opts)
     if len(points):  # on the focusing surface, as focus put them (sar.focus)
