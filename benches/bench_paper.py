@@ -18,14 +18,14 @@ benches/results/paper_ablation.json with ``--resume`` (``make bench-ablation``);
 wheel-speed lag, slip and load gains, rear slip and the steering test (the A/B: benches/results/paper_fits.json,
 before the slip and load gains). With them: ``--scenarios test3,urban --seeds 0,1 --methods sar-min,sar-min+af
 --dynamics full --output benches/results/paper_wheel_radii.json``; ``--planar`` leaves SAR-MIN's radar on a planar
-body, not moved by the IMU's roll and pitch (for an A/B). The 40-drive command below run at 3ac58ec (the truth with
-the radar's 6-DOF motion; SAR-MIN without the IMU's attitude and the rear slip), stopped after 6 drives:
-benches/results/paper_planar_noslip.json.
+body, not moved by the IMU's roll and pitch (for an A/B).
 The 40 drives (``make bench-paper-full``): ``--scenarios test1,test2,test3,urban --seeds 0-9 --methods
-sar-min,sar-min+af --dynamics full --output benches/results/paper_full_level.json`` with the current SAR-MIN (the
-GNSS antenna on a level body, the load-compliant wheels, the lag's stated window, the rear slip where the steering
-shows the tyres slip) and the autofocus's scale prior from its covariance; the same run at 7118539, before them:
-benches/results/paper_full_fits.json.
+sar-min,sar-min+af --dynamics full --output benches/results/paper_full_height.json`` with the current SAR-MIN (the
+radar's height along the road, the IMU's pitch bias out, and the focusing surface that follows it; the truth with
+the radar's true height); the same run at 6a9a067, with the radar at a fixed height:
+benches/results/paper_full_level.json (the GNSS antenna on a level body, the load-compliant wheels, the lag's
+stated window, the rear slip where the steering shows the tyres slip, the autofocus's scale prior from its
+covariance); at 7118539, before those: benches/results/paper_full_fits.json.
 """
 
 from __future__ import annotations
@@ -171,7 +171,7 @@ def drive_row(scenario: str, seed: int, comparison: dict[str, Any], sim_s: float
         s = row[m]
         s["within_3cm_1db"] = s["reflector_error_max_cm"] < 3.0 and max(abs(s["peak_loss_max_db"]),
                                                                            abs(s["peak_loss_min_db"])) < 1.0
-        # a peak brighter than the truth image's is no loss: on the full vehicle model the truth track is planar
+        # a peak brighter than the truth image's is no loss: the autofocus also takes out vibration the truth keeps
         s["within_2cm_1db"] = s["reflector_error_max_cm"] <= 2.0 and s["peak_loss_max_db"] <= 1.0
         s["worse"] = s["peak_loss_max_db"] >= 3.0 or s["reflector_error_max_cm"] >= 5.0
     af = comparison.get("autofocus")
