@@ -171,7 +171,7 @@ def drive_row(scenario: str, seed: int, comparison: dict[str, Any], sim_s: float
         s = row[m]
         s["within_3cm_1db"] = s["reflector_error_max_cm"] < 3.0 and max(abs(s["peak_loss_max_db"]),
                                                                            abs(s["peak_loss_min_db"])) < 1.0
-        # a peak brighter than the truth image's is no loss: the autofocus also takes out vibration the truth keeps
+        # a peak brighter than the truth image's is no loss: the beam's pointing alone moves a peak by tenths of a dB
         s["within_2cm_1db"] = s["reflector_error_max_cm"] <= 2.0 and s["peak_loss_max_db"] <= 1.0
         s["worse"] = s["peak_loss_max_db"] >= 3.0 or s["reflector_error_max_cm"] >= 5.0
     af = comparison.get("autofocus")
