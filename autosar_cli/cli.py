@@ -379,6 +379,13 @@ def navigate(
             gains = traj.info["wheel_radii"]["applied"]
             out.print("wheel speeds divided by their fitted gains (% per m/s^2): "
                       + ", ".join(f"{k} {100 * v:.3g}" for k, v in gains.items()))
+        attitude = traj.info.get("attitude", {})
+        if attitude.get("applied"):
+            height = attitude.get("height", {})
+            out.print(f"radar moved by the body's roll and pitch ({attitude['offset_rms_mm']:.1f} mm RMS); "
+                      + (f"its height along the road over {height['range_m']:.2f} m, the IMU's pitch bias "
+                         f"{attitude['pitch_bias_mrad']:+.1f} +- {attitude['pitch_bias_std_mrad']:.1f} mrad out"
+                         if height.get("applied") else height.get("reason", "")))
         if figure:
             out.print(f"figure [bold]{figure}[/]")
 

@@ -321,6 +321,10 @@ def test_the_full_vehicles_wheels_leave_the_scale_to_the_gnss_velocity_on_test3(
     assert flat.info["attitude"]["height"] == {"applied": False, "reason": "navigation.radar_height is off: the "
                                                                            "radar at a fixed height"}
     assert np.all(flat.height_offset(t) == 0.0)
+    said = CliRunner().invoke(app, ["navigate", str(drive), "-o", str(tmp_path / "t3_traj.h5")])
+    assert said.exit_code == 0, said.output
+    words = " ".join(said.output.split())
+    assert "its height along the road over 0.4" in words and "the IMU's pitch bias -12.0 +- 0.8 mrad out" in words
 
 
 @pytest.mark.slow
