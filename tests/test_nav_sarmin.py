@@ -714,3 +714,21 @@ def test_the_gnss_vertical_velocity_is_read_with_its_stated_variance(ci_drive: P
     np.testing.assert_array_equal(climb.t, vel.t)
     assert climb.z.shape == (len(vel.t), 1) and np.abs(climb.z).max() < 0.3
     assert climb.sigma[0] == pytest.approx(0.045, rel=1e-9)
+
+
+@pytest.mark.parametrize("missing", [0.0, np.nan])
+def test_a_receiver_without_a_vertical_velocity_gives_none(ci_drive: Path, tmp_path: Path, missing: float) -> None:
+    """A receiver that leaves the vertical velocity out (0 throughout, or NaN) gives no climb rate, so the radar
+    keeps a fixed height rather than taking the mean pitch for the IMU's bias (a level road where there is a grade)."""
+    import shutil
+
+    drive = tmp_path / "drive.h5"
+    shutil.copy(ci_drive, drive)
+    with h5py.File(drive, "r+") as f:
+        v = f[f"gnss/{CFG.navigation.gnss}/velocity/velocity_enu"]
+        values = v[()]
+        values[:, 2] = missing
+        v[...] = values
+    with Drive(drive) as d:
+        inputs = load_inputs(d, CFG)
+    assert inputs.gnss_climb is None and inputs.gnss_velocity is not None

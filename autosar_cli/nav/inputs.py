@@ -143,7 +143,8 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         out.gnss_velocity = Measurements(nav.gnss, rel(vel["t_ns"], nav.gnss), vel["velocity_enu"][:, :2],
                                          np.full(2, std))
         up = vel["velocity_enu"][:, 2] if vel["velocity_enu"].shape[1] > 2 else np.zeros(0)
-        if np.isfinite(up).any():  # a receiver without a vertical velocity writes NaN there
+        # a receiver without a vertical velocity writes NaN there, or 0 throughout
+        if np.isfinite(up).any() and np.any(up[np.isfinite(up)] != 0.0):
             # its stated variance where the stream has one; else receivers' usual 1.5 x the horizontal
             var = (read_dataset(gnss["velocity"], "velocity_variance")[:, 2] if "velocity_variance" in
                    gnss["velocity"] else np.zeros(0))
