@@ -176,9 +176,12 @@ def drive_row(scenario: str, seed: int, comparison: dict[str, Any], sim_s: float
         s["worse"] = s["peak_loss_max_db"] >= 3.0 or s["reflector_error_max_cm"] >= 5.0
     af = comparison.get("autofocus")
     if af:  # the scale the autofocus measured (applied or not), its std and prior: against sarmin_track_scale_pct
-        row["af_track_scale_pct"] = round(100 * af["track_scale"], 4)
-        row["af_track_scale_std_pct"] = round(100 * af["track_scale_std"], 4)
-        row["af_track_scale_prior_pct"] = round(100 * af.get("track_scale_prior_std", 0.0), 4)
+        def pct(value: float | None) -> float | None:  # an autofocus that refused has no std (null)
+            return None if value is None else round(100 * value, 4)
+
+        row["af_track_scale_pct"] = pct(af["track_scale"])
+        row["af_track_scale_std_pct"] = pct(af["track_scale_std"])
+        row["af_track_scale_prior_pct"] = pct(af.get("track_scale_prior_std", 0.0))
     for key in ENTROPIES:
         e = {m: res[m]["summary"][key] for m in res}
         row[key] = {**{m: round(v, 4) for m, v in e.items()}, "paper_order": in_paper_order(e)}
