@@ -48,7 +48,7 @@ bench-paper: setup
 # The same on the full vehicle model with test1-3 and urban, seeds 0-9, and SAR-MIN with autofocus: ~2.5 h.
 PAPER_FULL := --scenarios test1,test2,test3,urban --seeds 0-9 --dynamics full --methods sar-min,sar-min+af
 bench-paper-full: setup
-	$(BIN)/python benches/bench_paper.py $(PAPER_FULL) --output benches/results/paper_full_height.json --resume
+	$(BIN)/python benches/bench_paper.py $(PAPER_FULL) --output benches/results/paper_full_level.json --resume
 
 # What each effect of the full vehicle model does to the chain: test2 and urban, seed 0, one effect at a time: ~35 min.
 ABLATION := slip body road tyre_radius wheel_ticks slip,body,road,tyre_radius,wheel_ticks,imu_misalignment

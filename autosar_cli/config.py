@@ -313,8 +313,9 @@ class NavigationConfig:
     # body rolls and pitches, grade included, as the trajectory's correction
     attitude_imu: str = ""
     # the radar's height along the drive from that IMU's pitch (the road's grade, the body's tilt), the IMU's pitch
-    # bias taken out against the GNSS's vertical velocity; off, or without a vertical velocity: a fixed height
-    radar_height: bool = True
+    # bias taken out against the GNSS's vertical velocity; off (the default: it biases the autofocus's track scale on
+    # straight drives, docs/NAVIGATION.md), or without a vertical velocity: a fixed height
+    radar_height: bool = False
     wheel_radius_gain_max_std_per_mps2: float = 0.01
     gate_probability: float = 0.9999  # chi-square gate of each update
     max_step_s: float = 0.05  # longest single prediction step (dead reckoning through gaps)

@@ -768,6 +768,8 @@ def test_radar_height_from_the_imu_and_the_gnss_climb_is_the_full_vehicles() -> 
     sees (0.02 %), and by at most 3 std once the fitted bias is out. The radar's height integrated from that pitch
     follows its true height within 1 cm RMS about a straight line. Measured: -0.8, -20.1, -22.4 mrad as measured,
     +0.1, +1.0, +0.4 after (std 0.84); 4.6, 5.3, 4.5 mm."""
+    from dataclasses import replace
+
     from autosar_cli.nav.attitude import climb, tilt_heights
     from autosar_cli.nav.geodesy import GeodeticOrigin
     from autosar_cli.nav.inputs import ImuSamples, Measurements, NavInputs
@@ -776,6 +778,7 @@ def test_radar_height_from_the_imu_and_the_gnss_climb_is_the_full_vehicles() -> 
     from autosar_cli.sim import sensors
 
     motion, cfg = _full_motion("test3", None)
+    cfg = replace(cfg, navigation=replace(cfg.navigation, radar_height=True))
     gnss_lever = np.array(cfg.sensors[cfg.navigation.gnss].lever_arm_m)
     tw = np.arange(0.0, motion.duration_s, 0.01)
     st = motion.states(tw)
