@@ -154,6 +154,11 @@ def gnss_velocity_scale(scenario: str, seed: int) -> tuple[float, float]:
     return -float(along.mean()) / mean_speed, float(along.std() / np.sqrt(along.size)) / mean_speed
 
 
+def pct(fraction: float | None) -> float | None:
+    """fraction -> % to 1e-4; None (an autofocus that refused has no scale std) stays None."""
+    return None if fraction is None else round(100 * fraction, 4)
+
+
 def mm(metres: float | None) -> float | None:
     """metres -> mm to the micrometre; None (a drive too short for the measure) stays None."""
     return None if metres is None else round(1000 * metres, 3)
@@ -179,9 +184,6 @@ def drive_row(scenario: str, seed: int, comparison: dict[str, Any], sim_s: float
         s["worse"] = s["peak_loss_max_db"] >= 3.0 or s["reflector_error_max_cm"] >= 5.0
     af = comparison.get("autofocus")
     if af:  # the scale the autofocus measured (applied or not), its std and prior: against sarmin_track_scale_pct
-        def pct(value: float | None) -> float | None:  # an autofocus that refused has no std (null)
-            return None if value is None else round(100 * value, 4)
-
         row["af_track_scale_pct"] = pct(af["track_scale"])
         row["af_track_scale_std_pct"] = pct(af["track_scale_std"])
         row["af_track_scale_prior_pct"] = pct(af.get("track_scale_prior_std", 0.0))

@@ -32,6 +32,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.integrate import cumulative_trapezoid
 from scipy.signal import butter, filtfilt
 
 from autosar_cli.nav.inputs import ImuSamples, Measurements
@@ -147,8 +148,7 @@ def climb(t: Array, speed: Array, pitch: Array) -> Array:
     """Height (N,) (m) gained since ``t[0]`` (s) by the roll axis moving at ``speed`` (N,) (m/s) along the body's
     x axis pitched by ``pitch`` (N,) (rad, nose down > 0): the integral of -v sin(pitch) dt. The body's pitch on its
     suspension (about 2 deg/g under acceleration) counts as grade: k (v1^2 - v0^2) / 2, 3 cm from 0 to 4 m/s."""
-    rate = -np.asarray(speed) * np.sin(pitch)
-    return np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t))])
+    return np.asarray(cumulative_trapezoid(-np.asarray(speed) * np.sin(pitch), t, initial=0.0))
 
 
 #: Below this speed (m/s) a GNSS climb rate says too little of the pitch to take part in its bias.

@@ -148,8 +148,8 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
             # its stated variance where the stream has one; else receivers' usual 1.5 x the horizontal
             var = (read_dataset(gnss["velocity"], "velocity_variance")[:, 2] if "velocity_variance" in
                    gnss["velocity"] else np.zeros(0))
-            up_std = (float(np.sqrt(np.median(var[np.isfinite(var)]))) if np.isfinite(var).any()
-                      and np.median(var[np.isfinite(var)]) > 0 else 1.5 * std)
+            var = np.median(var[np.isfinite(var)]) if np.isfinite(var).any() else 0.0
+            up_std = float(np.sqrt(var)) if var > 0 else 1.5 * std
             ok = np.isfinite(up)
             out.gnss_climb = Measurements(nav.gnss, rel(vel["t_ns"][ok], nav.gnss), up[ok, None],
                                           np.array([up_std]))

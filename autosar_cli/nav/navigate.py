@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.integrate import cumulative_trapezoid
 
 from autosar_cli.config import Config
 from autosar_cli.nav import models as m
@@ -244,7 +245,7 @@ def with_attitude(traj: Trajectory, att: BodyAttitude | None, reason: str, t0_ns
     if height["applied"]:
         speed = np.interp(t_ns, traj.t_ns, traj.speed)
         offset[:, 2] = climb(att.t, speed, att.pitch) + tilt_heights(att.roll, att.pitch, lever)
-        travelled = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(att.t))])
+        travelled = cumulative_trapezoid(speed, att.t, initial=0.0)
         std[:, 2] = np.hypot(abs(lever[0]) * ATTITUDE_STD_RAD, att.pitch_bias_std * travelled)
         height["range_m"] = float(np.ptp(offset[:, 2]))
     correction = MotionCorrection(t_ns, offset, std)

@@ -186,16 +186,22 @@ def zero_doppler_pulses(pixels: ArrayLike, antenna: ArrayLike, velocity: ArrayLi
     """Index (N,) into ``antenna`` of each pixel's zero-Doppler pulse, the first with the pixel abeam or behind,
     searched within ``context`` = (c0, c1) (default: all) and clamped to its ends; the same bisection as
     :func:`stripmap_windows`'s. ``pixels`` (N, 3), ``antenna`` (P, 3): ENU m; ``velocity`` (P, 3): any scale."""
+    c0, c1 = context if context is not None else (0, len(np.asarray(antenna).reshape(-1, 3)))
+    pix, ant, unit = _search_arrays(pixels, antenna, velocity, c0, c1)
+    out = np.zeros(len(pix), np.int64)
+    if len(ant) and len(pix):
+        _zero_doppler(pix, ant, unit, out)
+    return out + c0
+
+
+def _search_arrays(pixels: ArrayLike, antenna: ArrayLike, velocity: ArrayLike, c0: int, c1: int
+                   ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The kernels' inputs: pixels (N, 3), the context's antenna positions (c1 - c0, 3) and unit velocities."""
     pix = np.ascontiguousarray(np.asarray(pixels, dtype=np.float64).reshape(-1, 3))
-    ant = np.asarray(antenna, dtype=np.float64).reshape(-1, 3)
-    c0, c1 = context if context is not None else (0, len(ant))
+    ant = np.ascontiguousarray(np.asarray(antenna, dtype=np.float64).reshape(-1, 3)[c0:c1])
     vel = np.asarray(velocity, dtype=np.float64).reshape(-1, 3)[c0:c1]
     speed = np.linalg.norm(vel, axis=1, keepdims=True)
-    out = np.zeros(len(pix), np.int64)
-    if c1 > c0 and len(pix):
-        unit = np.ascontiguousarray(vel / np.where(speed > 0, speed, 1.0))
-        _zero_doppler(pix, np.ascontiguousarray(ant[c0:c1]), unit, out)
-    return out + c0
+    return pix, ant, np.ascontiguousarray(vel / np.where(speed > 0, speed, 1.0))
 
 
 def look_angle_margin_m(max_range_m: float, half_width_rad: float) -> float:
@@ -229,17 +235,12 @@ def stripmap_windows(pixels: ArrayLike, antenna: ArrayLike, velocity: ArrayLike,
     pixels whose aperture straddles the block's ends (default: all; :func:`block_context` with
     :func:`look_angle_margin_m` gives enough).
     """
-    pix = np.ascontiguousarray(np.asarray(pixels, dtype=np.float64).reshape(-1, 3))
-    ant = np.asarray(antenna, dtype=np.float64).reshape(-1, 3)
-    n = len(ant)
+    n = len(np.asarray(antenna).reshape(-1, 3))
     start, stop = block if block is not None else (0, n)
     c0, c1 = context if context is not None else (0, n)
     if not 0 <= c0 <= start <= stop <= c1 <= n:
         raise ValueError(f"block {start}..{stop} in context {c0}..{c1}: not nested within the {n} pulses given")
-    ant = np.ascontiguousarray(ant[c0:c1])
-    vel = np.asarray(velocity, dtype=np.float64).reshape(-1, 3)[c0:c1]
-    speed = np.linalg.norm(vel, axis=1, keepdims=True)
-    vel = np.ascontiguousarray(vel / np.where(speed > 0, speed, 1.0))
+    pix, ant, vel = _search_arrays(pixels, antenna, velocity, c0, c1)
     out = np.zeros((len(pix), 2), np.int64)
     if len(ant) and len(pix):
         (_windows if parallel else _windows_serial)(pix, ant, vel, math.sin(half_width_rad), float(np.sign(side)),
