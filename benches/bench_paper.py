@@ -325,10 +325,10 @@ def main() -> None:
                     row["attitude"] = False
                 if args.radar_height:
                     row["radar_height"] = True
-                row["sarmin_track_scale_pct"] = round(100 * track_scale(out), 4)
+                row["sarmin_track_scale_pct"] = pct(track_scale(out))
                 gnss_scale, gnss_se = gnss_velocity_scale(scenario, seed)
-                row["gnss_velocity_scale_pct"] = round(100 * gnss_scale, 4)
-                row["gnss_velocity_scale_se_pct"] = round(100 * gnss_se, 4)
+                row["gnss_velocity_scale_pct"] = pct(gnss_scale)
+                row["gnss_velocity_scale_se_pct"] = pct(gnss_se)
                 rows.append(row)
                 print(f"{group_key(row)} seed {seed}: " + "; ".join(
                     f"{m} max {row[m]['reflector_error_max_cm']:.2f} cm (local "

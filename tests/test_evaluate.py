@@ -747,6 +747,7 @@ def test_autofocus_fits_the_scale_with_the_motion(sim_dir: Path, tmp_path_factor
     +0.144 %."""
     from autosar_cli.nav.trajectory import cumulative_travel
     from autosar_cli.sar.focus import FocusOptions
+    from autosar_cli.sar.phase_history import frame_geometry
     from autosar_cli.sar.residual_motion import AutofocusOptions, candidate_points, estimate_residual_motion
     from autosar_cli.types import MotionCorrection
 
@@ -754,8 +755,7 @@ def test_autofocus_fits_the_scale_with_the_motion(sim_dir: Path, tmp_path_factor
     truth = read_trajectory(out / "truth" / "trajectory.h5", covariance=False)
     drive = out / "drive.h5"
     points = candidate_points(drive, truth, CFG, FocusOptions.from_config(CFG), AutofocusOptions())
-    side = 1.0 if np.sin(np.radians(CFG.radar.mounting.yaw_deg)) > 0 else -1.0
-    across = side * np.stack([-np.sin(truth.heading), np.cos(truth.heading), np.zeros_like(truth.heading)], -1)
+    _, across, _ = frame_geometry(truth, truth.t_ns, CFG)  # unit, towards the radar's side
     base = truth.correction.at(truth.t_ns) if truth.correction is not None else np.zeros((len(truth.t_ns), 3))
     sine = np.sin(2 * np.pi * cumulative_travel(truth.rear_axle_enu) / 4.0)
     for amplitude_m, bound in ((0.0, 1e-4), (0.002, 6e-4)):

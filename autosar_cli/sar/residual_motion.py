@@ -272,10 +272,9 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
     # first the scale alone, the track otherwise as navigated: its signature is each aperture's quadratic phase
     # (the wide beam's defocus the old scale sweep measured), which a free across-track correction would absorb
     # (the uncorrected motion leaves larger phase residuals: a looser test of which points are points)
-    first, scale_std = _fit(hist, trajectory, config, points0,
-                            replace(opts, prior_across_m=1e-6, prior_up_m=1e-6,
-                                    max_phase_rms_rad=max(opts.max_phase_rms_rad, 0.5)))
-    scale, note = first.scale, ""
+    held = replace(opts, prior_across_m=1e-6, prior_up_m=1e-6, max_phase_rms_rad=max(opts.max_phase_rms_rad, 0.5))
+    first = _fit(hist, trajectory, config, points0, held)
+    scale, scale_std, note = first.scale, first.scale_std, ""
     if not first.applied:
         scale, note = 0.0, f"track scale not measured: {first.reason}"
     elif scale_std > opts.max_scale_std:
@@ -290,10 +289,10 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
         # then the residual motion and the scale together, from that scale and the points that fitted it: the
         # motion the first fit held takes back the share of each aperture's quadratic phase that is its own
         # (test3 seed 1: +0.037 % alone, +0.002 % together, the track's error -0.017 %)
-        result, joint_std = _fit(hist, trajectory, config, points, opts, used0=used0, scale0=scale)
-        scale, scale_std = (result.scale, joint_std) if result.applied else (0.0, scale_std)
+        result = _fit(hist, trajectory, config, points, opts, used0=used0, scale0=scale)
+        scale, scale_std = (result.scale, result.scale_std) if result.applied else (0.0, scale_std)
     else:  # the residual motion alone along the navigated track
-        result, _ = _fit(hist, trajectory, config, points, replace(opts, prior_scale=1e-9), used0=used0)
+        result = _fit(hist, trajectory, config, points, replace(opts, prior_scale=1e-9), used0=used0)
     return replace(result, scale=scale, scale_std=scale_std, scale_note=note,
                    scale_agreement=first.scale_agreement if first.applied else (1.0, 0), scale_prior=opts.prior_scale)
 
@@ -317,8 +316,8 @@ def _agreement_limit(n_points: int) -> float:
 
 
 def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: Array, opts: AutofocusOptions,
-         used0: NDArray[np.bool_] | None = None, scale0: float = 0.0) -> tuple[ResidualMotion, float]:
-    """The fit of :func:`estimate_residual_motion` on gathered histories; also the posterior std of the scale.
+         used0: NDArray[np.bool_] | None = None, scale0: float = 0.0) -> ResidualMotion:
+    """The fit of :func:`estimate_residual_motion` on gathered histories (a refused one: the scale's std infinite).
     ``used0``: the points to start from (default: all); ``scale0``: the scale to start from (its prior stays about 0);
     ``opts``' scale prior set (:func:`with_scale_prior`)."""
     assert opts.prior_scale is not None
@@ -478,14 +477,14 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
 
     def refuse(reason: str) -> ResidualMotion:
         return ResidualMotion(trajectory, None, points0, used, phase_rms, coherence_before, coherence_after, coverage,
-                              iterations, reason, hist.frame_t_ns[seen_frames], 0.0)
+                              iterations, reason, hist.frame_t_ns[seen_frames], 0.0, math.inf)
 
     if used.sum() < opts.min_points:
         return refuse(f"{int(used.sum())} of the {n_pts} candidate points behave as stationary point scatterers "
-                      f"(phase residual <= {opts.max_phase_rms_rad:g} rad); {opts.min_points} needed"), np.inf
+                      f"(phase residual <= {opts.max_phase_rms_rad:g} rad); {opts.min_points} needed")
     if coherence_after <= coherence_before:
         return refuse(f"the correction does not sharpen its points (coherence {coherence_before:.3f} -> "
-                      f"{coherence_after:.3f})"), np.inf
+                      f"{coherence_after:.3f})")
     # the posterior at the solution, with the measured noise
     w = 1.0 / (noise * lin.rel_var)
     rd = lin.range_design
@@ -504,7 +503,7 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     result = replace(scale_track(trajectory, scale, centre) if scale else trajectory, correction=total)
     return ResidualMotion(result, MotionCorrection(nodes_ns, measured, std_enu), points, used, phase_rms,
                           coherence_before, coherence_after, coverage, iterations, "", hist.frame_t_ns[seen_frames],
-                          scale, scale_std, scale_agreement=scale_agreement), scale_std
+                          scale, scale_std, scale_agreement=scale_agreement)
 
 
 def _point_scale_chi2(lin: _Linear, w: Array, shift0: int, used: NDArray[np.bool_], point_prior_m: float
