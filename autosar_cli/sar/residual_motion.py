@@ -16,8 +16,9 @@ phase-gradient autofocus (Wahl et al. 1994), but solved for a correction of the 
 
       psi_b - psi_a = -kappa (u_b . dc(t_b) - u_a . dc(t_a) - (u_b - u_a) . d_j),   kappa = 4 pi / lambda
 
-  with ``dc(t)`` the correction (across track and up, piecewise linear on ``node_s`` nodes) and ``d_j`` the
-  point's own position error (it absorbs the parts of the correction that only move a point: a constant and a
+  with ``dc(t)`` the correction (across track and up, piecewise linear on ``node_s`` nodes; along track on
+  ``along_node_s`` nodes: an along-track error reaches a range through the squint's sine, and without a place in
+  the model it would be taken for across-track motion) and ``d_j`` the point's own position error (it absorbs the parts of the correction that only move a point: a constant and a
   steady drift over its aperture). Phase steps need no unwrapping; each is weighted by its signal-to-noise ratio;
 * fused with the navigation: a prior of ``prior_across_m`` and ``prior_up_m`` on the correction (the size of the
   motion the navigation leaves unmodelled; its own covariance bounds the absolute position to ~0.3 m, which
@@ -29,7 +30,7 @@ phase-gradient autofocus (Wahl et al. 1994), but solved for a correction of the 
   coherent.
 
 What it cannot see: a correction constant or linear in time over the whole drive (it moves every point alike),
-and the along-track direction (hardly in any line of sight).
+and the along-track position except where it changes over a point's aperture.
 """
 
 from __future__ import annotations
@@ -223,7 +224,8 @@ class _Linear:
 def _linearise(smp: _Samples, used: NDArray[np.bool_], node_across: Array, node_s: float, kappa: float,
                n_pts: int, node_along: Array | None = None, along_node_s: float = 1.0, n_along: int = 0) -> _Linear:
     """Phase steps of successive presummed samples of each used point and their linear model: with the
-    correction dc (across, up on the nodes), the point shifts d and the track scale ds, psi_b - psi_a changes by
+    correction dc (across, up on the nodes; along on ``n_along`` nodes ``along_node_s`` apart, ``node_along`` the
+    along-track unit vector on the fine nodes), the point shifts d and the track scale ds, psi_b - psi_a changes by
     kappa (u_b . dc(t_b) - u_a . dc(t_a) - (u_b - u_a) . d_j + (u_b . l_b - u_a . l_a) ds), l the scale's lever."""
     n_nodes = len(node_across)
     valid = np.isfinite(smp.z)
