@@ -366,9 +366,20 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
                             diff_al / opts.along_step_m, sp.csr_matrix((0, 1))]).tocsc()
     along_sl = slice(2 * n_nodes + 3 * n_pts, 2 * n_nodes + 3 * n_pts + n_al)
     prior_normal = (sp.diags(prior_diag) + smooth.T @ smooth).tocsc()
+    centre = trajectory.rear_axle_enu.mean(axis=0)
+    if n_al > 1:
+        # the along-track correction is the shape beyond the scale: no mean (it moves every point alike) and no
+        # trend in the distance from the scaling centre (that is the scale, whose prior is the navigation's)
+        t_al = t0 + np.round(np.arange(n_al) * al_s * 1e9).astype(np.int64)
+        dist = np.einsum("nk,nk->n", trajectory.pose(t_al)[0] - centre,
+                         frame_geometry(trajectory, t_al, config)[2][:, :2])
+        rows = np.stack([np.ones(n_al) / n_al, (dist - dist.mean()) / max(float(np.sum((dist - dist.mean())**2)),
+                                                                          1e-9)])
+        tie = sp.csr_matrix((rows.ravel(), (np.repeat([0, 1], n_al), np.tile(np.arange(n_al) + along_sl.start, 2))),
+                            shape=(2, len(prior_diag) + 0)) / np.array([[1e-5], [1e-7]])
+        prior_normal = (prior_normal + tie.T @ tie).tocsc()
 
     shifts = slice(2 * n_nodes, 2 * n_nodes + 3 * n_pts)  # x: across, up per node; the point shifts; the scale
-    centre = trajectory.rear_axle_enu.mean(axis=0)
     scale_lever = np.zeros((len(hist.frame_t_ns), 3))
     scale_lever[:, :2] = trajectory.pose(hist.frame_t_ns)[0] - centre
 
