@@ -16,12 +16,9 @@ phase-gradient autofocus (Wahl et al. 1994), but solved for a correction of the 
 
       psi_b - psi_a = -kappa (u_b . dc(t_b) - u_a . dc(t_a) - (u_b - u_a) . d_j),   kappa = 4 pi / lambda
 
-  with ``dc(t)`` the correction (across track and up, piecewise linear on ``node_s`` nodes; along track on
-  ``along_node_s`` nodes: an along-track error reaches a range through the squint's sine, and without a place in
-  the model it would be taken for across-track motion; only where the points agree on the track's scale) and
-  ``d_j`` the point's own position error (it absorbs the parts of the correction that only move a point: a
-  constant and a steady drift over its aperture). Phase steps need no unwrapping; each is weighted by its
-  signal-to-noise ratio;
+  with ``dc(t)`` the correction (across track and up, piecewise linear on ``node_s`` nodes) and ``d_j`` the
+  point's own position error (it absorbs the parts of the correction that only move a point: a constant and a
+  steady drift over its aperture). Phase steps need no unwrapping; each is weighted by its signal-to-noise ratio;
 * fused with the navigation: a prior of ``prior_across_m`` and ``prior_up_m`` on the correction (the size of the
   motion the navigation leaves unmodelled; its own covariance bounds the absolute position to ~0.3 m, which
   constrains nothing at this scale) and ``step_m`` on its change between nodes, so a stretch with no point keeps
@@ -32,7 +29,7 @@ phase-gradient autofocus (Wahl et al. 1994), but solved for a correction of the 
   coherent.
 
 What it cannot see: a correction constant or linear in time over the whole drive (it moves every point alike),
-and the along-track position except where it changes over a point's aperture.
+and the along-track direction (hardly in any line of sight).
 """
 
 from __future__ import annotations
@@ -91,10 +88,6 @@ class AutofocusOptions:
     prior_up_m: float = 0.005  #: prior std of the vertical correction
     step_m: float = 0.001  #: prior std of the correction's change from one node to the next
     point_prior_m: float = 0.02  #: prior std of a point's own position error
-    #: spacing (s) of the along-track correction's nodes (None: no along-track correction but the scale)
-    along_node_s: float | None = 0.25
-    prior_along_m: float = 0.05  #: prior std of the along-track correction
-    along_step_m: float = 0.003  #: prior std of its change from one along node to the next
     #: prior std of the track's along-track scale; None: ``NAV_SCALE_STD_FACTOR`` times the navigation's own std
     #: (:func:`~autosar_cli.nav.trajectory.track_scale_std`), or ``fallback_prior_scale`` where it has none
     prior_scale: float | None = None
@@ -224,10 +217,9 @@ class _Linear:
 
 
 def _linearise(smp: _Samples, used: NDArray[np.bool_], node_across: Array, node_s: float, kappa: float,
-               n_pts: int, node_along: Array | None = None, along_node_s: float = 1.0, n_along: int = 0) -> _Linear:
+               n_pts: int) -> _Linear:
     """Phase steps of successive presummed samples of each used point and their linear model: with the
-    correction dc (across, up on the nodes; along on ``n_along`` nodes ``along_node_s`` apart, ``node_along`` the
-    along-track unit vector on the fine nodes), the point shifts d and the track scale ds, psi_b - psi_a changes by
+    correction dc (across, up on the nodes), the point shifts d and the track scale ds, psi_b - psi_a changes by
     kappa (u_b . dc(t_b) - u_a . dc(t_a) - (u_b - u_a) . d_j + (u_b . l_b - u_a . l_a) ds), l the scale's lever."""
     n_nodes = len(node_across)
     valid = np.isfinite(smp.z)
@@ -248,27 +240,18 @@ def _linearise(smp: _Samples, used: NDArray[np.bool_], node_across: Array, node_
         for col, wgt in ((n0, 1 - frac), (n0 + 1, frac)):
             cols += [col, n_nodes + col]
             vals += [sign * kappa * wgt * k_across, sign * kappa * wgt * u[:, 2]]
-        if n_along:
-            along = node_along[n0] * (1 - frac)[:, None] + node_along[n0 + 1] * frac[:, None]
-            k_along = np.einsum("nk,nk->n", u, along)
-            apos = np.clip(smp.t_s[which] / along_node_s, 0.0, n_along - 1.000001)
-            a0 = np.floor(apos).astype(np.int64)
-            afrac = apos - a0
-            for col, wgt in ((a0, 1 - afrac), (a0 + 1, afrac)):
-                cols.append(2 * n_nodes + 3 * n_pts + col)
-                vals.append(sign * kappa * wgt * k_along)
     du = smp.los[b_idx] - smp.los[a_idx]
     pt = smp.point[b_idx]
     for k in range(3):
         cols.append(2 * n_nodes + 3 * pt + k)
         vals.append(-kappa * du[:, k])
     # the track scale moves every phase centre by scale * lever (a similarity about the track's centre)
-    cols.append(np.full(len(step), 2 * n_nodes + 3 * n_pts + n_along))
+    cols.append(np.full(len(step), 2 * n_nodes + 3 * n_pts))
     vals.append(kappa * (np.einsum("nk,nk->n", smp.los[b_idx], smp.lever[b_idx])
                          - np.einsum("nk,nk->n", smp.los[a_idx], smp.lever[a_idx])))
     m = len(step)
     design = sp.csr_matrix((np.concatenate(vals), (np.tile(np.arange(m), len(vals)), np.concatenate(cols))),
-                           shape=(m, 2 * n_nodes + 3 * n_pts + n_along + 1))
+                           shape=(m, 2 * n_nodes + 3 * n_pts + 1))
     return _Linear(step, design, rel_var, pt)
 
 
@@ -289,8 +272,7 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
     # first the scale alone, the track otherwise as navigated: its signature is each aperture's quadratic phase
     # (the wide beam's defocus the old scale sweep measured), which a free across-track correction would absorb
     # (the uncorrected motion leaves larger phase residuals: a looser test of which points are points)
-    held = replace(opts, prior_across_m=1e-6, prior_up_m=1e-6, along_node_s=None,
-                   max_phase_rms_rad=max(opts.max_phase_rms_rad, 0.5))
+    held = replace(opts, prior_across_m=1e-6, prior_up_m=1e-6, max_phase_rms_rad=max(opts.max_phase_rms_rad, 0.5))
     first = _fit(hist, trajectory, config, points0, held)
     scale, scale_std, note = first.scale, first.scale_std, ""
     if not first.applied:
@@ -309,11 +291,8 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
         # (test3 seed 1: +0.037 % alone, +0.002 % together, the track's error -0.017 %)
         result = _fit(hist, trajectory, config, points, opts, used0=used0, scale0=scale)
         scale, scale_std = (result.scale, result.scale_std) if result.applied else (0.0, scale_std)
-    else:  # the residual motion alone along the navigated track, across track and up only: points that do not
-        # agree on the track's scale do not measure its along-track shape either (urban seed 0: the along-track
-        # correction fitted on them took its worst reflector from 2.26 to 3.61 cm)
-        result = _fit(hist, trajectory, config, points, replace(opts, prior_scale=1e-9, along_node_s=None),
-                      used0=used0)
+    else:  # the residual motion alone along the navigated track
+        result = _fit(hist, trajectory, config, points, replace(opts, prior_scale=1e-9), used0=used0)
     return replace(result, scale=scale, scale_std=scale_std, scale_note=note,
                    scale_agreement=first.scale_agreement if first.applied else (1.0, 0), scale_prior=opts.prior_scale)
 
@@ -346,49 +325,26 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     t0 = int(trajectory.t_ns[0])
     n_nodes = int(math.ceil((int(trajectory.t_ns[-1]) - t0) / 1e9 / opts.node_s)) + 1
     nodes_ns = t0 + np.round(np.arange(n_nodes) * opts.node_s * 1e9).astype(np.int64)
-    _, node_across, node_along = frame_geometry(trajectory, nodes_ns, config)
+    _, node_across, _ = frame_geometry(trajectory, nodes_ns, config)
     up = np.array([0.0, 0.0, 1.0])
-    n_al = (int(math.ceil((int(trajectory.t_ns[-1]) - t0) / 1e9 / opts.along_node_s)) + 1
-            if opts.along_node_s else 0)
-    al_s = opts.along_node_s or 1.0
     sigma_across = np.full(n_nodes, opts.prior_across_m)
     kappa = 4.0 * math.pi * hist.cycles_per_m
     # a correction the trajectory already carries is kept, and this one added to it
     base = trajectory.correction.at(nodes_ns) if trajectory.correction is not None else np.zeros((n_nodes, 3))
     # priors: the correction's size (the navigation's own uncertainty), its change between nodes, the point shifts
     prior_diag = np.concatenate([1.0 / sigma_across**2, np.full(n_nodes, 1.0 / opts.prior_up_m**2),
-                                 np.full(3 * n_pts, 1.0 / opts.point_prior_m**2),
-                                 np.full(n_al, 1.0 / opts.prior_along_m**2), [1.0 / opts.prior_scale**2]])
+                                 np.full(3 * n_pts, 1.0 / opts.point_prior_m**2), [1.0 / opts.prior_scale**2]])
     diff = sp.diags([np.ones(n_nodes - 1), -np.ones(n_nodes - 1)], [1, 0], shape=(n_nodes - 1, n_nodes))
-    diff_al = (sp.diags([np.ones(n_al - 1), -np.ones(n_al - 1)], [1, 0], shape=(n_al - 1, n_al)) if n_al > 1
-               else sp.csr_matrix((0, n_al)))
-    smooth = sp.block_diag([diff / opts.step_m, diff / opts.step_m, sp.csr_matrix((0, 3 * n_pts)),
-                            diff_al / opts.along_step_m, sp.csr_matrix((0, 1))]).tocsc()
-    along_sl = slice(2 * n_nodes + 3 * n_pts, 2 * n_nodes + 3 * n_pts + n_al)
+    smooth = (sp.block_diag([diff, diff, sp.csr_matrix((0, 3 * n_pts + 1))]) / opts.step_m).tocsc()
     prior_normal = (sp.diags(prior_diag) + smooth.T @ smooth).tocsc()
-    centre = trajectory.rear_axle_enu.mean(axis=0)
-    if n_al > 1:
-        # the along-track correction is the shape beyond the scale: no mean (it moves every point alike) and no
-        # trend in the distance from the scaling centre (that is the scale, whose prior is the navigation's)
-        t_al = t0 + np.round(np.arange(n_al) * al_s * 1e9).astype(np.int64)
-        dist = np.einsum("nk,nk->n", trajectory.pose(t_al)[0] - centre,
-                         frame_geometry(trajectory, t_al, config)[2][:, :2])
-        rows = np.stack([np.ones(n_al) / n_al, (dist - dist.mean()) / max(float(np.sum((dist - dist.mean())**2)),
-                                                                          1e-9)])
-        tie = sp.csr_matrix((rows.ravel(), (np.repeat([0, 1], n_al), np.tile(np.arange(n_al) + along_sl.start, 2))),
-                            shape=(2, len(prior_diag) + 0)) / np.array([[1e-5], [1e-7]])
-        prior_normal = (prior_normal + tie.T @ tie).tocsc()
 
     shifts = slice(2 * n_nodes, 2 * n_nodes + 3 * n_pts)  # x: across, up per node; the point shifts; the scale
+    centre = trajectory.rear_axle_enu.mean(axis=0)
     scale_lever = np.zeros((len(hist.frame_t_ns), 3))
     scale_lever[:, :2] = trajectory.pose(hist.frame_t_ns)[0] - centre
 
     # the antennas move rigidly with the correction and the scale (a similarity about ``centre``): computed once
     tx0, rx0 = pair_antennas(hist, trajectory, config)
-    frame_along = frame_geometry(trajectory, hist.frame_t_ns, config)[2]
-    apos_f = np.clip((hist.frame_t_ns - t0) / 1e9 / al_s, 0.0, max(n_al - 1.000001, 0.0))
-    a_node = np.floor(apos_f).astype(np.int64)
-    a_frac = apos_f - a_node
     pos = np.clip((hist.frame_t_ns - t0) / 1e9 / opts.node_s, 0.0, n_nodes - 1.000001)
     f_node = np.floor(pos).astype(np.int64)
     f_frac = (pos - f_node)[:, None]
@@ -408,10 +364,6 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     def antennas(x: Array, h: PhaseHistories, tx_0: Array, rx_0: Array) -> tuple[Array, Array]:
         at_nodes = x[:n_nodes, None] * node_across + x[n_nodes:2 * n_nodes, None] * up
         moved = at_nodes[f_node] * (1.0 - f_frac) + at_nodes[f_node + 1] * f_frac + x[-1] * scale_lever
-        if n_al:
-            xa = x[along_sl]
-            moved = moved + (xa[a_node] * (1.0 - a_frac) + xa[np.minimum(a_node + 1, n_al - 1)] * a_frac
-                             )[:, None] * frame_along
         d = moved[h.frame][:, None, :]
         return tx_0 + d, rx_0 + d
 
@@ -438,7 +390,7 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
         tx, rx = antennas(x, h, tx_0, rx_0)
         z, los = focus_history(h, tx, rx, points)
         lin = _linearise(_presum(h, z, los, opts.presum, t0, scale_lever), used, node_across, opts.node_s,
-                         kappa, n_pts, node_along, al_s, n_al)
+                         kappa, n_pts)
         if envelope_of is not None:
             prev, dx = envelope_of
             lin.range_resid = prev.range_resid + prev.range_design @ dx
@@ -463,7 +415,7 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
         data = float(np.sum(lin.step**2 / (noise * lin.rel_var))) * n_ref / max(len(lin.step), 1)
         return data + float(np.sum(lin.range_resid**2)) / opts.range_sigma_m**2 + float(x @ (prior_normal @ x))
 
-    x = np.zeros(2 * n_nodes + 3 * n_pts + n_al + 1)
+    x = np.zeros(2 * n_nodes + 3 * n_pts + 1)
     x[-1] = scale0
     used = np.ones(n_pts, dtype=bool) if used0 is None else used0.copy()
     lin = linearise(x, used)
@@ -496,8 +448,7 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
             else:
                 break
             # converged: the last step moved the correction by < 2 um, the points by < 50 um, the scale by < 2e-6
-            motion = np.concatenate([dx[:2 * n_nodes], dx[along_sl]])
-            if np.max(np.abs(motion)) < 2e-6 and np.max(np.abs(dx[shifts])) < 5e-5 and abs(dx[-1]) < 2e-6:
+            if np.max(np.abs(dx[:2 * n_nodes])) < 2e-6 and np.max(np.abs(dx[shifts])) < 5e-5 and abs(dx[-1]) < 2e-6:
                 break
         resid_norm = lin.step**2 / lin.rel_var
         new_noise = max(float(np.median(resid_norm)) / 0.455, 1e-12 * noise)  # the median of chi2(1) is 0.455
@@ -539,20 +490,15 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     rd = lin.range_design
     lu = spla.splu(((lin.design.T @ lin.design.multiply(w[:, None])) + (rd.T @ rd) / opts.range_sigma_m**2
                     + prior_normal).tocsc())
-    std_across, std_up = _posterior_std(lu, 0, n_nodes), _posterior_std(lu, n_nodes, n_nodes)
+    std = _posterior_std(lu, n_nodes)
     unit = np.zeros(len(x))
     unit[-1] = 1.0
     scale_std = float(np.sqrt(max(lu.solve(unit)[-1], 0.0)))
     scale_agreement = (_point_scale_chi2(lin, w, 2 * n_nodes, used, opts.point_prior_m) if opts.prior_scale > 1e-9
                        else (1.0, 0))
     measured = cross[:, :1] * node_across + cross[:, 1:] * up
-    std_along = np.zeros(n_nodes)
-    if n_al:
-        t_nodes, t_al = (nodes_ns - t0) / 1e9, np.arange(n_al) * al_s
-        measured = measured + np.interp(t_nodes, t_al, x[along_sl])[:, None] * node_along
-        std_along = np.interp(t_nodes, t_al, _posterior_std(lu, along_sl.start, n_al, every=1))
-    horizontal = np.hypot(std_across[:, None] * node_across[:, :2], std_along[:, None] * node_along[:, :2])
-    std_enu = np.column_stack([horizontal, std_up])
+    std_enu = np.stack([np.abs(std[:, 0] * node_across[:, 0]), np.abs(std[:, 0] * node_across[:, 1]), std[:, 1]],
+                       axis=-1)
     total = MotionCorrection(nodes_ns, base + measured, std_enu)
     result = replace(scale_track(trajectory, scale, centre) if scale else trajectory, correction=total)
     return ResidualMotion(result, MotionCorrection(nodes_ns, measured, std_enu), points, used, phase_rms,
@@ -585,15 +531,19 @@ def _point_scale_chi2(lin: _Linear, w: Array, shift0: int, used: NDArray[np.bool
     return (float(np.mean(z2)), len(z2)) if z2 else (1.0, 0)
 
 
-def _posterior_std(lu: spla.SuperLU, first: int, count: int, every: int = 10) -> Array:
-    """Std (count,) of the unknowns ``first`` ... ``first + count - 1`` (a block of nodes) from the factorised
-    normal matrix, computed every ``every`` nodes and interpolated between."""
-    picks = np.unique(np.concatenate([np.arange(0, count, every), [count - 1]]))
-    cols = first + picks
-    e = np.zeros((lu.shape[0], len(cols)))
-    e[cols, np.arange(len(cols))] = 1.0
-    var = lu.solve(e)[cols, np.arange(len(cols))]
-    return np.interp(np.arange(count), picks, np.sqrt(np.maximum(var, 0.0)))
+def _posterior_std(lu: spla.SuperLU, n_nodes: int, every: int = 10) -> Array:
+    """Std (n_nodes, 2) of the across and up correction from the factorised normal matrix, computed every
+    ``every`` nodes and interpolated between."""
+    picks = np.unique(np.concatenate([np.arange(0, n_nodes, every), [n_nodes - 1]]))
+    out = np.empty((n_nodes, 2))
+    n = lu.shape[0]
+    for comp in range(2):
+        cols = comp * n_nodes + picks
+        e = np.zeros((n, len(cols)))
+        e[cols, np.arange(len(cols))] = 1.0
+        var = lu.solve(e)[cols, np.arange(len(cols))]
+        out[:, comp] = np.interp(np.arange(n_nodes), picks, np.sqrt(np.maximum(var, 0.0)))
+    return out
 
 
 def select_points(image: NDArray[np.complexfloating], grid: FocusGrid, range_m: Array, opts: AutofocusOptions,
