@@ -159,7 +159,7 @@ def render(results: Path, max_rows: int) -> str:
     for path in sorted(results.glob("*.json")):
         data = json.loads(path.read_text())
         title, usage = scripts.get(path.name, ("", "(no bench script names this file)"))
-        out += [f"## {path.stem}", ""]
+        out += [f"## {path.stem}"]  # the paragraph follows the heading directly: a line per section
         machine = machine_of(data) if isinstance(data, dict) else "-"
         # the script's one-line purpose and its command in one paragraph: a line per figure, not per heading
         out += [(f"{title} " if title else "") + f"Command `{usage}`; machine: {machine}; data "
