@@ -15,6 +15,7 @@ from autosar_cli.config import load_config
 from autosar_cli.evaluate.evaluation import load_truth
 from autosar_cli.nav.trajectory import cumulative_travel, phase_centre_lever_arm
 from autosar_cli.sar.focus import FocusOptions
+from autosar_cli.sar.phase_history import frame_geometry
 from autosar_cli.sar.residual_motion import AutofocusOptions, estimate_residual_motion, select_points
 from autosar_cli.store.trajectory import read_trajectory, write_trajectory
 from autosar_cli.types import FocusGrid, MotionCorrection, Trajectory
@@ -32,12 +33,6 @@ def ci_drive(ci_mcap, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, T
     nav = read_trajectory(out / "trajectory.h5", covariance=False)
     truth = load_truth(ci_mcap.truth_path, nav.origin, CFG)
     return out / "drive.h5", truth.trajectory
-
-
-def across_unit(traj: Trajectory) -> np.ndarray:
-    """(K, 3) horizontal unit vector perpendicular to the heading, towards the radar's side."""
-    side = 1.0 if np.sin(np.radians(CFG.radar.mounting.yaw_deg)) > 0 else -1.0
-    return side * np.stack([-np.sin(traj.heading), np.cos(traj.heading), np.zeros_like(traj.heading)], -1)
 
 
 def injected_error(traj: Trajectory) -> np.ndarray:
@@ -63,7 +58,7 @@ def test_recovers_an_injected_across_track_error(ci_drive: tuple[Path, Trajector
     radar's own vibration, which the truth track lacks, is in that figure)."""
     drive, truth = ci_drive
     err = injected_error(truth)
-    across = across_unit(truth)
+    across = frame_geometry(truth, truth.t_ns, CFG)[1]  # towards the radar's side, as the autofocus takes it
     wrong = replace(truth, correction=MotionCorrection(truth.t_ns, err[:, None] * across, np.zeros((len(err), 3))))
     res = estimate_residual_motion(drive, wrong, CFG, _reflector_points(drive, truth))
     assert res.applied, res.reason
