@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -90,20 +89,19 @@ def main() -> None:
     ap.add_argument("--output", type=Path, default=RESULTS / "af_oracle.json")
     args = ap.parse_args()
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from bench_paper import drive_row
+    from bench_paper import cli, drive_row
 
     rows: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as tmp:
         log = Path(tmp) / "drive.mcap"
-        subprocess.run([sys.executable, "-m", "autosar_cli.cli", "simulate", "--scenario", args.scenario, "--seed",
-                        str(args.seed), "--dynamics", "full", "--output", str(log)], check=True,
-                       capture_output=True)
+        cli("simulate", "--scenario", args.scenario, "--seed", str(args.seed), "--dynamics", "full", "--output",
+            str(log))
         truth_path = log.with_name(log.name + ".truth.h5")
         for case, axes in CASES.items():
             comparison = run_case(log, Path(tmp) / case, truth_path, axes, args.cutoff_hz)
             row = drive_row(args.scenario, args.seed, comparison, 0.0, 0.0)
             af = row.get("sar-min+af", {})
-            rows.append({"case": case, "axes": ",".join(axes) if axes else ("product" if axes is None else "none"),
+            rows.append({"case": case,
                          "far_entropy_above_truth_pct": row["entropy_far"]["vs_truth_pct"].get("sar-min+af"),
                          "worst_reflector_cm": af.get("reflector_error_max_cm"),
                          "peak_loss_max_db": af.get("peak_loss_max_db"),
@@ -112,7 +110,7 @@ def main() -> None:
     result = {"benchmark": "af_oracle", "scenario": args.scenario, "seed": args.seed, "dynamics": "full",
               "cutoff_hz": args.cutoff_hz}
     # one figure per case under each measure: a line of BENCHMARKS.md each, not a table
-    result |= {key: {r["case"]: r[key] for r in rows} for key in rows[0] if key not in ("case", "axes")}
+    result |= {key: {r["case"]: r[key] for r in rows} for key in rows[0] if key != "case"}
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(json.dumps(result, indent=2) + "\n")
 
