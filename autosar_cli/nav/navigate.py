@@ -36,6 +36,8 @@ from autosar_cli.nav.wheel_speeds import (
     fit_wheel_speeds,
     lag_compensated_wheels,
     radius_corrected_wheels,
+    restart_window_m,
+    without_restart_windows,
 )
 from autosar_cli.store.drive import Drive
 from autosar_cli.types import MotionCorrection
@@ -134,7 +136,9 @@ def wheel_speeds_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
         return inputs, replace(lag, reason=f"lag within {SIGNIFICANT:g} std or {MIN_WHEEL_LAG_M} m of 0: samples as "
                                            "stamped").to_dict(), radii_info
     assert inputs.wheels is not None
-    moved = replace(inputs, wheels=lag_compensated_wheels(inputs.wheels, lag))
+    # a drive that shows the ECU's window also shows where that window reaches back across a standstill
+    clear, dropped = without_restart_windows(inputs.wheels, restart_window_m(lag))
+    moved = replace(inputs, wheels=lag_compensated_wheels(clear, lag))
     if lag.prior_m is None:
         source = "fitted to the drive"
     elif lag.fitted_m is not None:
@@ -142,7 +146,7 @@ def wheel_speeds_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
     else:
         source = (f"fitted to the drive, more than {SIGNIFICANT:g} std from the wheel sensor's stated window "
                   f"{lag.prior_m:g} m, which is left out")
-    return moved, replace(lag, applied=True, reason=source).to_dict(), radii_info
+    return moved, replace(lag, applied=True, reason=source, restart_rows_dropped=dropped).to_dict(), radii_info
 
 
 def body_attitude(inputs: NavInputs, config: Config) -> tuple[BodyAttitude | None, str]:

@@ -8,6 +8,9 @@ car's wheel speeds differ from it in three ways that bend the track:
   ``N 2 pi r / Z`` metres and describes the instant about ``c / v`` before its stamp,
   ``c = (N + 1) / 2 * 2 pi r / Z`` (0.15 m for 6 edges of a 48-tooth ring on a 0.33 m wheel). Under acceleration
   ``a`` the speed then reads ``a c / v`` low. In urban's stop and go that alone bent the track by 38 cm.
+  After a standstill the first values' window still reaches back across it (the edges before the stop): they
+  read far below the truth until the wheel has turned a window's length again (urban's pull-away: 4 cm lost in
+  0.7 s), so :func:`without_restart_windows` leaves them out.
 * **Longitudinal slip and load transfer.** A driven or braked tyre turns faster or slower than it rolls, in
   proportion to its force over its load, and the axle the acceleration loads rolls on a smaller radius. Both
   make an axle's speed read ``(1 + k a)`` times the truth, ``k`` differing between drive (a > 0) and braking
@@ -64,6 +67,7 @@ class WheelLagFit:
     fitted_std_m: float | None = None
     prior_m: float | None = None  #: ... that window (None: none stated)
     prior_std_m: float | None = None
+    restart_rows_dropped: int = 0  #: rows whose ECU window reached back across a standstill (left out)
 
     def to_dict(self) -> dict[str, object]:
         return asdict(self)
@@ -281,6 +285,31 @@ def radius_corrected_wheels(inputs: NavInputs, gains: dict[str, float]) -> Measu
         factor[:, 2 * i] = longitudinal * (1.0 - g)
         factor[:, 2 * i + 1] = longitudinal * (1.0 + g)
     return Measurements(wheels.name, wheels.t, wheels.z / factor, wheels.sigma)
+
+
+def restart_window_m(fit: WheelLagFit) -> float:
+    """How far a wheel turns before its ECU's window is clear of a standstill (m): the window spans ``N`` pitches
+    and ``c = (N + 1) / 2`` of them, so ``N`` pitches are ``2 c N / (N + 1)``, at most ``2 c``."""
+    return 2.0 * fit.lag_distance_m
+
+
+def without_restart_windows(wheels: Measurements, window_m: float) -> tuple[Measurements, int]:
+    """The wheel samples less those whose ECU window still reaches back across a standstill, and how many rows
+    went: on each wheel, the non-zero values after a 0 (the ECU's "no edge" value) until that wheel's own
+    reported speed, integrated over time, reaches ``window_m`` (m). A reported speed below the truth makes this
+    drop more, never less. A row goes where any wheel's value goes (the filter updates all four together)."""
+    v = np.abs(wheels.z)
+    stopped = v == 0.0
+    dt = np.diff(wheels.t, prepend=wheels.t[0])
+    travel = np.cumsum(v * dt[:, None], axis=0)
+    # the travel at each wheel's last 0 so far (travel does not decrease, so the running maximum is the last)
+    at_stop = np.maximum.accumulate(np.where(stopped, travel, -np.inf), axis=0)
+    restarting = ~stopped & (travel - at_stop < window_m)
+    keep = ~restarting.any(axis=1)
+    dropped = int(np.sum(~keep))
+    if not dropped:
+        return wheels, 0
+    return Measurements(wheels.name, wheels.t[keep], wheels.z[keep], wheels.sigma), dropped
 
 
 def lag_compensated_wheels(wheels: Measurements, fit: WheelLagFit) -> Measurements:
