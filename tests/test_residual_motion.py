@@ -182,25 +182,16 @@ def test_focus_history_is_the_reference_backprojection_pulse_by_pulse() -> None:
 def test_points_that_disagree_on_the_scale_are_told_apart() -> None:
     """The agreement statistic of the track scale: 8 points whose phase steps each carry a scale (their own
     position shift free) give a reduced chi-square near 1 when they share one scale (the 0.999 limit for 8
-    points is 3.5) and far above the limit when half of them see another, 5 sigma away. With 3 of 9 points 6-40
-    sigma off (urban's facades: their own scales -0.26 ... +0.19 % about corner reflectors within 0.02 %),
-    `agreeing_points` keeps exactly the other 6; of two groups of 4, 12 sigma apart, it keeps none (no telling
-    which is right)."""
+    points is 3.5) and far above the limit when half of them see another, 5 sigma away."""
     import scipy.sparse as sp
 
-    from autosar_cli.sar.residual_motion import (
-        _agreement_limit,
-        _Linear,
-        _point_scales,
-        _scale_agreement,
-        agreeing_points,
-    )
+    from autosar_cli.sar.residual_motion import _agreement_limit, _Linear, _point_scale_chi2
 
     rng = np.random.default_rng(11)
-    steps, sigma = 200, 0.05
+    n_pts, steps, sigma = 8, 200, 0.05
+    used = np.ones(n_pts, dtype=bool)
 
-    def point_scales(offsets: np.ndarray) -> np.ndarray:
-        n_pts = len(offsets)
+    def statistic(offsets: np.ndarray) -> float:
         rows, cols, vals, resid, point = [], [], [], [], []
         for j in range(n_pts):
             a = rng.normal(0.0, 1.0, steps)  # d(step)/d(scale)
@@ -215,25 +206,16 @@ def test_points_that_disagree_on_the_scale_are_told_apart() -> None:
         design = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                                shape=(n_pts * steps, 3 * n_pts + 1))
         lin = _Linear(-np.concatenate(resid), design, np.ones(n_pts * steps), np.concatenate(point))
-        scales = _point_scales(lin, np.full(n_pts * steps, 1.0 / sigma**2), 0, np.ones(n_pts, dtype=bool), 0.02)
-        assert np.isfinite(scales).all()
-        return scales
+        chi2, n = _point_scale_chi2(lin, np.full(n_pts * steps, 1.0 / sigma**2), 0, used, 0.02)
+        assert n == n_pts
+        return chi2
 
     per_point_sigma = sigma / np.sqrt(steps)  # the scale's std from one point's steps
-    agree, n = _scale_agreement(point_scales(np.zeros(8)))
-    split_scales = point_scales(np.r_[np.full(4, 2.5), np.full(4, -2.5)] * per_point_sigma)
-    split, _ = _scale_agreement(split_scales)
-    print(f"agree {agree:.2f}, split {split:.1f}, limit {_agreement_limit(8):.2f}")
-    assert n == 8 and agree < _agreement_limit(8) and 0.3 < agree < 2.5
-    assert split > 2 * _agreement_limit(8)
-    # two groups 12 sigma apart that each agree: no subset of more than half of them agrees
-    assert agreeing_points(point_scales(np.r_[np.full(4, 6.0), np.full(4, -6.0)] * per_point_sigma)) is None
-    # the common scale sits among the outliers too: the offsets are about the mean of all nine
-    outliers = np.r_[np.zeros(6), [-40.0, 25.0, 6.0]] * per_point_sigma
-    scales = point_scales(outliers - outliers.mean())
-    assert _scale_agreement(scales)[0] > 10 * _agreement_limit(9)
-    keep = agreeing_points(scales)
-    assert keep is not None and keep.tolist() == [True] * 6 + [False] * 3
+    agree = statistic(np.zeros(n_pts))
+    split = statistic(np.r_[np.full(4, 2.5), np.full(4, -2.5)] * per_point_sigma)
+    print(f"agree {agree:.2f}, split {split:.1f}, limit {_agreement_limit(n_pts):.2f}")
+    assert agree < _agreement_limit(n_pts) and 0.3 < agree < 2.5
+    assert split > 2 * _agreement_limit(n_pts)
 
 
 def test_the_scale_prior_is_the_navigations_own_covariance() -> None:

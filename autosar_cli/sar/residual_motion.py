@@ -152,9 +152,6 @@ class ResidualMotion:
     #: the points' own scales about the common one: reduced chi-square and the number of points (the scale fit's)
     scale_agreement: tuple[float, int] = (1.0, 0)
     scale_prior: float = 0.0  #: the prior std the scale was fitted with (:func:`with_scale_prior`)
-    #: (P, 2) each point's own scale about the common one and its std (NaN: not measured; the scale fit's)
-    point_scales: Array = field(default_factory=lambda: np.zeros((0, 2)))
-    scale_points_left_out: int = 0  #: points left out of the scale because their own scales disagreed
 
     @property
     def applied(self) -> bool:
@@ -178,8 +175,7 @@ class ResidualMotion:
                 "track_scale_std": self.scale_std, "track_scale_prior_std": self.scale_prior,
                 "track_scale_note": self.scale_note,
                 "track_scale_agreement": {"reduced_chi2": round(self.scale_agreement[0], 3),
-                                          "points": self.scale_agreement[1],
-                                          "points_left_out": self.scale_points_left_out},
+                                          "points": self.scale_agreement[1]},
                 "points": int(len(self.points_enu)),
                 "points_used": int(self.points_used.sum()), "coverage": round(self.coverage, 4),
                 "coherence_before": round(self.coherence_before, 4), "coherence_after": round(self.coherence_after, 4),
@@ -278,15 +274,6 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
     # (the uncorrected motion leaves larger phase residuals: a looser test of which points are points)
     held = replace(opts, prior_across_m=1e-6, prior_up_m=1e-6, max_phase_rms_rad=max(opts.max_phase_rms_rad, 0.5))
     first = _fit(hist, trajectory, config, points0, held)
-    left_out, all_used = 0, first.points_used
-    if first.applied and first.scale_agreement[0] > _agreement_limit(first.scale_agreement[1]):
-        # points whose own scale stands apart are not clean point scatterers (a facade's column of scatterers at
-        # several heights, a cell of clutter): the scale is refitted on the largest subset that agrees, if it
-        # keeps more than half of them
-        subset = agreeing_points(first.point_scales)
-        if subset is not None:
-            left_out = int(np.sum(first.points_used & ~subset))
-            first = _fit(hist, trajectory, config, points0, held, used0=subset)
     scale, scale_std, note = first.scale, first.scale_std, ""
     if not first.applied:
         scale, note = 0.0, f"track scale not measured: {first.reason}"
@@ -304,34 +291,10 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
         # (test3 seed 1: +0.037 % alone, +0.002 % together, the track's error -0.017 %)
         result = _fit(hist, trajectory, config, points, opts, used0=used0, scale0=scale)
         scale, scale_std = (result.scale, result.scale_std) if result.applied else (0.0, scale_std)
-        if scale and left_out:
-            # the points left out of the scale still measure the motion: along the track so scaled, all of them
-            centre = trajectory.rear_axle_enu.mean(axis=0)
-            result = _fit(hist, scale_track(trajectory, scale, centre), config, points,
-                          replace(opts, prior_scale=1e-9), used0=all_used)
     else:  # the residual motion alone along the navigated track
         result = _fit(hist, trajectory, config, points, replace(opts, prior_scale=1e-9), used0=used0)
     return replace(result, scale=scale, scale_std=scale_std, scale_note=note,
-                   scale_agreement=first.scale_agreement if first.applied else (1.0, 0), scale_prior=opts.prior_scale,
-                   point_scales=first.point_scales, scale_points_left_out=left_out)
-
-
-def agreeing_points(point_scales: Array) -> NDArray[np.bool_] | None:
-    """The largest set of points whose own scales agree (``point_scales`` (P, 2): offset from the common scale and
-    its std, NaN where not measured): the point furthest from the others' weighted mean, in its own std, goes
-    until the rest pass :func:`_agreement_limit`. None where that would leave half of the measured points or fewer,
-    or fewer than 3 (two groups of points that each agree: no telling which is the track's)."""
-    measured = np.isfinite(point_scales).all(axis=1) & (point_scales[:, 1] > 0)
-    keep = measured.copy()
-    offset, std = point_scales[:, 0], point_scales[:, 1]
-    while keep.sum() >= max(3, int(measured.sum()) // 2 + 1):
-        w = np.where(keep, 1.0 / np.where(keep, std, 1.0) ** 2, 0.0)
-        mean = float(np.sum(w * np.nan_to_num(offset)) / w.sum())
-        z2 = np.where(keep, (np.nan_to_num(offset) - mean) ** 2 / np.where(keep, std, 1.0) ** 2, -1.0)
-        if z2[keep].mean() <= _agreement_limit(int(keep.sum())):
-            return keep
-        keep[int(np.argmax(z2))] = False
-    return None
+                   scale_agreement=first.scale_agreement if first.applied else (1.0, 0), scale_prior=opts.prior_scale)
 
 
 def with_scale_prior(opts: AutofocusOptions, trajectory: Trajectory) -> AutofocusOptions:
@@ -531,8 +494,8 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     unit = np.zeros(len(x))
     unit[-1] = 1.0
     scale_std = float(np.sqrt(max(lu.solve(unit)[-1], 0.0)))
-    point_scales = (_point_scales(lin, w, 2 * n_nodes, used, opts.point_prior_m) if opts.prior_scale > 1e-9
-                    else np.full((n_pts, 2), np.nan))
+    scale_agreement = (_point_scale_chi2(lin, w, 2 * n_nodes, used, opts.point_prior_m) if opts.prior_scale > 1e-9
+                       else (1.0, 0))
     measured = cross[:, :1] * node_across + cross[:, 1:] * up
     std_enu = np.stack([np.abs(std[:, 0] * node_across[:, 0]), np.abs(std[:, 0] * node_across[:, 1]), std[:, 1]],
                        axis=-1)
@@ -540,14 +503,16 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     result = replace(scale_track(trajectory, scale, centre) if scale else trajectory, correction=total)
     return ResidualMotion(result, MotionCorrection(nodes_ns, measured, std_enu), points, used, phase_rms,
                           coherence_before, coherence_after, coverage, iterations, "", hist.frame_t_ns[seen_frames],
-                          scale, scale_std, scale_agreement=_scale_agreement(point_scales), point_scales=point_scales)
+                          scale, scale_std, scale_agreement=scale_agreement)
 
 
-def _point_scales(lin: _Linear, w: Array, shift0: int, used: NDArray[np.bool_], point_prior_m: float) -> Array:
-    """Each used point's own scale (its phase steps alone, its position shift free, the rest of the solution held)
-    about the common one, and its std: (P, 2), NaN for the points not used or with too few steps."""
+def _point_scale_chi2(lin: _Linear, w: Array, shift0: int, used: NDArray[np.bool_], point_prior_m: float
+                      ) -> tuple[float, int]:
+    """How well the used points agree on the track's scale: each point's own scale (its phase steps alone, its
+    position shift free, the rest of the solution held) about the common one, as a reduced chi-square, and the
+    number of points in it."""
     col_scale = lin.design.shape[1] - 1
-    out = np.full((len(used), 2), np.nan)
+    z2 = []
     for j in np.flatnonzero(used):
         rows = np.flatnonzero(lin.point == j)
         if len(rows) < 8:
@@ -562,14 +527,8 @@ def _point_scales(lin: _Linear, w: Array, shift0: int, used: NDArray[np.bool_], 
             continue
         dx = cov @ (-(a.T @ (wj * lin.step[rows])))
         if cov[0, 0] > 0:
-            out[j] = dx[0], math.sqrt(cov[0, 0])
-    return out
-
-
-def _scale_agreement(point_scales: Array) -> tuple[float, int]:
-    """The points' own scales about the common one as a reduced chi-square, and the number of points in it."""
-    z = point_scales[np.isfinite(point_scales).all(axis=1)]
-    return (float(np.mean((z[:, 0] / z[:, 1]) ** 2)), len(z)) if len(z) else (1.0, 0)
+            z2.append(dx[0] ** 2 / cov[0, 0])
+    return (float(np.mean(z2)), len(z2)) if z2 else (1.0, 0)
 
 
 def _posterior_std(lu: spla.SuperLU, n_nodes: int, every: int = 10) -> Array:
