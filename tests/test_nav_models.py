@@ -254,8 +254,9 @@ def test_wheel_samples_whose_ecu_window_spans_a_standstill_are_left_out() -> Non
     after = np.interp(t[~keep].max(), grid, travel) - np.interp(12.0, grid, travel)
     assert after < 3 * restart_window_m(lag), after
     assert np.all(keep[(t < 12.0) & (v > 0)])  # braking to the stop: nothing goes
-    print(f"{spans_stop.sum()} samples span the stop, reading up to {worst:.0%} below the truth; dropped {dropped}, "
-          f"the last at {after:.3f} m after the restart (window {n_edges * pitch:.3f} m, 2 c {restart_window_m(lag):.3f} m)")
+    print(f"{spans_stop.sum()} samples span the stop, reading up to {worst:.0%} below the truth; "
+          f"dropped {dropped}, the last at {after:.3f} m after the restart (window {n_edges * pitch:.3f} m, "
+          f"2 c {restart_window_m(lag):.3f} m)")
     steady = Measurements("wheels", t, np.full((t.size, 4), 3.0), np.full(4, 0.008))
     assert without_restart_windows(steady, 0.3) == (steady, 0)
 
