@@ -68,14 +68,25 @@ def cli(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 def config_copy(components: str | None, understeer: float | None, work: Path, rear_slip: float | None = None,
-                fits: bool = True, attitude: bool = True, radar_height: bool = False) -> Path:
+                fits: bool = True, attitude: bool = True, radar_height: bool = False, car: str | None = None) -> Path:
     """A copy of the default config whose full vehicle model has only ``components`` (comma-separated; None: all),
     whose steering model has the understeer gradient ``understeer`` and whose trajectory the rear-slip gain
     ``rear_slip`` (rad per m/s^2; None: the config's); ``fits`` False: SAR-MIN in one pass, without the fitted
-    understeer, yaw lag and wheel-speed lag; ``radar_height``: SAR-MIN's radar lifted along the road."""
+    understeer, yaw lag and wheel-speed lag; ``radar_height``: SAR-MIN's radar lifted along the road; ``car``:
+    "key=value,..." entries of [vehicle_dynamics], the simulated car (only the simulator reads that section)."""
     from autosar_cli.config import DEFAULT_CONFIG
 
     text = DEFAULT_CONFIG.read_text()
+    if car:
+        head, section, tail = text.partition("\n[vehicle_dynamics]\n")
+        body, nxt, rest = tail.partition("\n[")
+        for item in car.split(","):
+            key, _, value = item.partition("=")
+            body, n = re.subn(rf"^{re.escape(key.strip())} = .*$", f"{key.strip()} = {value.strip()}", body, count=1,
+                              flags=re.MULTILINE)
+            if n != 1:
+                raise SystemExit(f"--car: {key.strip()!r} is not an entry of [vehicle_dynamics]")
+        text = head + section + body + nxt + rest
     if components is not None:
         wanted = ", ".join(f'"{c}"' for c in components.split(",") if c)
         text = re.sub(r"^components = \[.*\]$", f"components = [{wanted}]", text, count=1, flags=re.MULTILINE)
@@ -95,7 +106,8 @@ def config_copy(components: str | None, understeer: float | None, work: Path, re
         for key in ("estimate_understeer", "estimate_wheel_lag", "estimate_wheel_radii", "estimate_rear_slip"):
             text = re.sub(rf"^{key} = true", f"{key} = false", text, count=1, flags=re.MULTILINE)
     tag = (components.replace(",", "+") or "none") if components is not None else "all"
-    variant = ("" if fits else "_nofits") + ("" if attitude else "_planar") + ("_height" if radar_height else "")
+    variant = (("" if fits else "_nofits") + ("" if attitude else "_planar") + ("_height" if radar_height else "")
+               + ("_car" + re.sub(r"[^A-Za-z0-9.]+", "_", car) if car else ""))
     path = work / f"config_{tag}_us{understeer}_slip{rear_slip}{variant}.toml"
     path.write_text(text)
     return path
@@ -226,9 +238,11 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         return round(statistics.fmean(v * v for v in values) ** 0.5, 4)
 
     out["sarmin_track_scale_rms_pct"] = rms([r["sarmin_track_scale_pct"] for r in rows])
-    out["gnss_velocity_scale_rms_pct"] = rms([r["gnss_velocity_scale_pct"] for r in rows])
-    out["sarmin_minus_gnss_velocity_scale_rms_pct"] = rms([r["sarmin_track_scale_pct"] - r["gnss_velocity_scale_pct"]
-                                                           for r in rows])
+    with_gnss = [r for r in rows if "gnss_velocity_scale_pct" in r]  # (not on --car's drives)
+    if with_gnss:
+        out["gnss_velocity_scale_rms_pct"] = rms([r["gnss_velocity_scale_pct"] for r in with_gnss])
+        out["sarmin_minus_gnss_velocity_scale_rms_pct"] = rms(
+            [r["sarmin_track_scale_pct"] - r["gnss_velocity_scale_pct"] for r in with_gnss])
     return out
 
 
@@ -238,7 +252,8 @@ def group_key(row: dict[str, Any]) -> str:
     comps, k, g = row.get("components"), row.get("understeer_gradient"), row.get("rear_slip_gain")
     return (row["scenario"] + ("" if comps is None else f" [{comps or 'none'}]")
             + ("" if k is None else f" [K={k:g}]") + ("" if g is None else f" [slip={g:g}]")
-            + ("" if row.get("fits", True) else " [no fits]") + ("" if row.get("attitude", True) else " [planar]"))
+            + ("" if row.get("fits", True) else " [no fits]") + ("" if row.get("attitude", True) else " [planar]")
+            + (f" [car {row['car']}]" if row.get("car") else ""))
 
 
 def main() -> None:
@@ -261,6 +276,9 @@ def main() -> None:
                     help="SAR-MIN's radar on a planar body: not moved by the IMU's roll and pitch")
     ap.add_argument("--radar-height", action="store_true",
                     help="SAR-MIN's radar lifted along the road's grade (navigation.radar_height)")
+    ap.add_argument("--car", default=None,
+                    help="the simulated car differs from the config's: [vehicle_dynamics] entries, e.g. "
+                         "mass_kg=2000,road_class='\"B\"' (the processor keeps the config's)")
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--keep", action="store_true", help="keep every drive's log and comparison")
     ap.add_argument("--resume", action="store_true", help="keep --output's rows and skip the drives already in it")
@@ -274,8 +292,8 @@ def main() -> None:
     if args.resume and args.output.exists():
         rows = json.loads(args.output.read_text())["rows"]
     done = {(r["scenario"], r["seed"], r.get("dynamics"), r.get("components"), r.get("understeer_gradient"),
-             r.get("rear_slip_gain"), r.get("fits", True), r.get("attitude", True), r.get("radar_height", False))
-            for r in rows}
+             r.get("rear_slip_gain"), r.get("fits", True), r.get("attitude", True), r.get("radar_height", False),
+             r.get("car")) for r in rows}
 
     def write() -> dict[str, Any]:
         groups = list(dict.fromkeys(group_key(r) for r in rows))
@@ -295,19 +313,24 @@ def main() -> None:
         config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
                                                 not args.no_fits, not args.planar, args.radar_height))]
                   if custom else [])
+        # the simulated car: the config's unless --car (then only the simulator is given the changed one)
+        sim_config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
+                                                    not args.no_fits, not args.planar, args.radar_height, args.car))]
+                      if args.car else config)
         for seed in parse_seeds(args.seeds):
             for scenario in args.scenarios.split(","):
                 if (scenario, seed, args.dynamics, args.components, args.understeer_gradient,
-                        args.rear_slip_gain, not args.no_fits, not args.planar, args.radar_height) in done:
+                        args.rear_slip_gain, not args.no_fits, not args.planar, args.radar_height, args.car) in done:
                     continue
                 tag = (f"_{args.dynamics}" if args.dynamics else "") + (
-                    f"_{args.components.replace(',', '+')}" if args.components is not None else "")
+                    f"_{args.components.replace(',', '+')}" if args.components is not None else "") + (
+                    "_car" if args.car else "")
                 log = work / f"{scenario}_s{seed}{tag}.mcap"
                 t = time.perf_counter()
                 if not log.exists():
                     dyn = ["--dynamics", args.dynamics] if args.dynamics else []
                     cli("simulate", "--scenario", scenario, "--seed", str(seed), "--output", str(log), "--overwrite",
-                        *dyn, *config)
+                        *dyn, *sim_config)
                 sim_s = time.perf_counter() - t
                 out = work / f"{scenario}_s{seed}"
                 t = time.perf_counter()
@@ -325,10 +348,13 @@ def main() -> None:
                     row["attitude"] = False
                 if args.radar_height:
                     row["radar_height"] = True
+                if args.car:
+                    row["car"] = args.car
                 row["sarmin_track_scale_pct"] = pct(track_scale(out))
-                gnss_scale, gnss_se = gnss_velocity_scale(scenario, seed)
-                row["gnss_velocity_scale_pct"] = pct(gnss_scale)
-                row["gnss_velocity_scale_se_pct"] = pct(gnss_se)
+                if not args.car:  # (it rebuilds the config's car's motion)
+                    gnss_scale, gnss_se = gnss_velocity_scale(scenario, seed)
+                    row["gnss_velocity_scale_pct"] = pct(gnss_scale)
+                    row["gnss_velocity_scale_se_pct"] = pct(gnss_se)
                 rows.append(row)
                 print(f"{group_key(row)} seed {seed}: " + "; ".join(
                     f"{m} max {row[m]['reflector_error_max_cm']:.2f} cm (local "
