@@ -514,8 +514,8 @@ def test_trajectory_metrics_of_a_rigid_copy() -> None:
 
 def test_compare_cli_on_ci(ci_mcap, tmp_path: Path) -> None:
     out = tmp_path / "cmp"
-    r = runner.invoke(app, ["compare", str(ci_mcap.log_path), "-o", str(out), "--json"])
-    assert r.exit_code == 0, r.output
+    first = runner.invoke(app, ["compare", str(ci_mcap.log_path), "-o", str(out)])
+    assert first.exit_code == 0, first.output
     result = json.loads((out / "compare.json").read_text())
     assert result["methods"] == ["none", "ins", "sar-min", "truth"] and result["skipped"] == {}
     for name in ("compare.png", "across_track.png", "compare_chips.png", "compare.md", "drive.h5"):
@@ -537,13 +537,17 @@ def test_compare_cli_on_ci(ci_mcap, tmp_path: Path) -> None:
     again = json.loads(r.stdout)["summary"]
     for key in ("abs_rmse_m", "aligned_error_mean_m", "peak_loss_mean_db", "entropy", "entropy_rn"):
         assert again[key] == pytest.approx(res["ins"]["summary"][key], rel=1e-6, abs=1e-9), key
-    # without --json: one column per method, within an 80-column terminal
-    r = runner.invoke(app, ["compare", str(ci_mcap.log_path), "-o", str(out), "--overwrite"])
-    assert r.exit_code == 0, r.output
-    table = r.stdout[:r.stdout.index("wrote ")]
+    # the console: one column per method, within an 80-column terminal
+    table = first.stdout[:first.stdout.index("wrote ")]
     assert all(m in table for m in result["methods"]) and "range-normalised" in table
     assert f"{res['sar-min']['summary']['entropy_rn']:.4f}" in table
     assert max(len(line) for line in table.splitlines()) <= 80
+    # --json: the comparison on stdout, as written to compare.json (one method, over the last: --overwrite)
+    r = runner.invoke(app, ["compare", str(ci_mcap.log_path), "-o", str(out), "--methods", "none", "--json",
+                            "--overwrite"])
+    assert r.exit_code == 0, r.output
+    printed = json.loads(r.stdout)
+    assert printed["methods"] == ["none"] and printed == json.loads((out / "compare.json").read_text())
 
 
 def _check_scaled_sarmin(result: dict[str, Any], out: Path, method: str) -> Trajectory:
