@@ -245,7 +245,9 @@ def _vector_rows(g, dt, dr, at, ib, bmax, row0, stride):  # pragma: no cover - c
     return _U(row0 + b * stride + at), g - _F(b)
 
 
-@nb.njit(fastmath=True, cache=True, inline="always")
+# The per-vector accumulators are called, not inlined into _tdbp's IR as the others are: inlined, they took 32 of
+# the kernel's 72 s first compile; called, the kernel runs as fast (test1's focus, the bench's 1-channel case).
+@nb.njit(fastmath=True, cache=True)
 def _accumulate_vectors(prof_re, prof_im, row0, stride, n_bins, dt, dr, n_vec, n_valid, i0, c0, bin_inv,
                         cyc_per_m):  # pragma: no cover - compiled
     """Sum over lanes 0 .. n_vec * 16 (lanes >= n_valid count 0), each vector of 16 pulses reading its own four
@@ -287,7 +289,7 @@ def _vector_lane(prof_re, prof_im, dt, dr, l, rb, j, stride, gv, ib, c0, kc):  #
     return _rotate(s_re, s_im, c0 + db * kc, _F(1.0))
 
 
-@nb.njit(fastmath=True, cache=True, inline="always")
+@nb.njit(fastmath=True, cache=True)
 def _accumulate_vectors_inside(prof_re, prof_im, row0, stride, n_bins, dt, dr, n_vec, i0, c0, bin_inv,
                                cyc_per_m):  # pragma: no cover - compiled
     """:func:`_accumulate_vectors` for a chunk of whole vectors whose samples all lie inside the profiles (no
