@@ -28,6 +28,11 @@ leaves as it was, and SAR-MIN's rows of test1-3 came out the same to the digit; 
 benches/results/paper_full_fits.json. With ``--radar-height`` (run at a2a231f-8ba6ebe, where it was the default, so
 its rows lack the flag; stopped after 29 drives, test1 seeds 1 and 4 without the autofocus, which refused):
 benches/results/paper_full_height.json.
+Another car (``--car``: entries of the simulated car's [vehicle_dynamics]; the processor keeps the config's):
+``--scenarios test1,test2,test3 --seeds 10,11 --dynamics full --methods sar-min,sar-min+af --car
+mass_kg=1900,cornering_stiffness_front_n_per_rad=70000.0,cornering_stiffness_rear_n_per_rad=95000.0,
+roll_gradient_deg_per_g=5.5,pitch_gradient_deg_per_g=3.0,road_class='"B"' --output
+benches/results/paper_full_car.json``.
 """
 
 from __future__ import annotations
@@ -253,7 +258,7 @@ def group_key(row: dict[str, Any]) -> str:
     return (row["scenario"] + ("" if comps is None else f" [{comps or 'none'}]")
             + ("" if k is None else f" [K={k:g}]") + ("" if g is None else f" [slip={g:g}]")
             + ("" if row.get("fits", True) else " [no fits]") + ("" if row.get("attitude", True) else " [planar]")
-            + (f" [car {row['car']}]" if row.get("car") else ""))
+            + (" [car]" if row.get("car") else ""))
 
 
 def main() -> None:
@@ -297,8 +302,9 @@ def main() -> None:
 
     def write() -> dict[str, Any]:
         groups = list(dict.fromkeys(group_key(r) for r in rows))
+        cars = sorted({r["car"] for r in rows if r.get("car")})  # the rows' other car ("[car]" in the groups)
         result = {"benchmark": "paper", "methods": methods, "dynamics": args.dynamics or "config",
-                  "components": args.components, "rows": rows,
+                  "components": args.components, **({"car": " / ".join(cars)} if cars else {}), "rows": rows,
                   "summary": {g: summary([r for r in rows if group_key(r) == g]) for g in groups}
                   | {"all": summary(rows)}}
         args.output.parent.mkdir(parents=True, exist_ok=True)
