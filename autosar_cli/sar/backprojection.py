@@ -245,8 +245,8 @@ def _vector_rows(g, dt, dr, at, ib, bmax, row0, stride):  # pragma: no cover - c
     return _U(row0 + b * stride + at), g - _F(b)
 
 
-# The per-vector accumulators are called, not inlined into _tdbp's IR as the others are: inlined, they took 32 of
-# the kernel's 72 s first compile; called, the kernel runs as fast (test1's focus, the bench's 1-channel case).
+# The per-vector accumulators are called, not inlined into _tdbp's IR as the others are: the kernel's first compile
+# takes 44 s instead of 78 s (benches/bench_compile.py), and it runs as fast (test1's focus, the 1-channel bench).
 @nb.njit(fastmath=True, cache=True)
 def _accumulate_vectors(prof_re, prof_im, row0, stride, n_bins, dt, dr, n_vec, n_valid, i0, c0, bin_inv,
                         cyc_per_m):  # pragma: no cover - compiled
