@@ -210,7 +210,7 @@ def test_numba_cache_falls_back_to_a_temporary_directory(tmp_path: Path) -> None
 
 def _interpreter_start_s() -> float:
     """How long this environment's interpreter (the console script's) takes to start (its site, before any of
-    autosar's code runs) on this host now: the shortest of three bare starts."""
+    autosar's code runs) on this host now: the longest of three bare starts (under load they vary)."""
     import subprocess
     import time
 
@@ -219,7 +219,7 @@ def _interpreter_start_s() -> float:
         t = time.perf_counter()
         subprocess.run([sys.executable, "-c", "pass"], check=True)
         times.append(time.perf_counter() - t)
-    return min(times)
+    return max(times)
 
 
 @pytest.mark.parametrize("delay_s", [0.05, 0.15, 0.4, 1.5])
