@@ -296,9 +296,18 @@ def main() -> None:
     rows: list[dict[str, Any]] = []
     if args.resume and args.output.exists():
         rows = json.loads(args.output.read_text())["rows"]
-    done = {(r["scenario"], r["seed"], r.get("dynamics"), r.get("components"), r.get("understeer_gradient"),
-             r.get("rear_slip_gain"), r.get("fits", True), r.get("attitude", True), r.get("radar_height", False),
-             r.get("car")) for r in rows}
+    # what tells one run's drives from another's: a row's fields, or this run's options
+    variant = {"dynamics": args.dynamics, "components": args.components,
+               "understeer_gradient": args.understeer_gradient, "rear_slip_gain": args.rear_slip_gain,
+               "fits": not args.no_fits, "attitude": not args.planar, "radar_height": args.radar_height,
+               "car": args.car}
+
+    def drive_key(r: dict[str, Any]) -> tuple[Any, ...]:
+        return (r["scenario"], r["seed"], r.get("dynamics"), r.get("components"), r.get("understeer_gradient"),
+                r.get("rear_slip_gain"), r.get("fits", True), r.get("attitude", True), r.get("radar_height", False),
+                r.get("car"))
+
+    done = {drive_key(r) for r in rows}
 
     def write() -> dict[str, Any]:
         groups = list(dict.fromkeys(group_key(r) for r in rows))
@@ -325,8 +334,7 @@ def main() -> None:
                       if args.car else config)
         for seed in parse_seeds(args.seeds):
             for scenario in args.scenarios.split(","):
-                if (scenario, seed, args.dynamics, args.components, args.understeer_gradient,
-                        args.rear_slip_gain, not args.no_fits, not args.planar, args.radar_height, args.car) in done:
+                if drive_key({"scenario": scenario, "seed": seed, **variant}) in done:
                     continue
                 tag = (f"_{args.dynamics}" if args.dynamics else "") + (
                     f"_{args.components.replace(',', '+')}" if args.components is not None else "") + (

@@ -161,12 +161,12 @@ def render(results: Path, max_rows: int) -> str:
         title, usage = scripts.get(path.name, ("", "(no bench script names this file)"))
         out += [f"## {path.stem}"]  # the paragraph follows the heading directly: a line per section
         machine = machine_of(data) if isinstance(data, dict) else "-"
-        # the script's one-line purpose and its command in one paragraph: a line per figure, not per heading
+        # the script's one-line purpose, its command and the section's first line of figures in one paragraph (a
+        # table needs the blank line before it)
         body = section(data, max_rows)
-        # the section's first line of figures continues the paragraph (a table needs the blank line)
         out += [(f"{title} " if title else "") + f"Command `{usage}`; machine: {machine}; data "
                 f"[`benches/results/{path.name}`](../benches/results/{path.name})."]
-        out += ([""] if not body or body[0].startswith("|") or not body[0] else []) + body
+        out += ([] if body and body[0] and not body[0].startswith("|") else [""]) + body
     # a heading may follow a paragraph directly: no blank line after a closing note
     out = [line for i, line in enumerate(out) if not (line == "" and 0 < i < len(out) - 1
                                                        and out[i - 1].startswith("(") and out[i + 1].startswith("#"))]

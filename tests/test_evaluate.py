@@ -618,12 +618,15 @@ _AUTOFOCUS_METHODS = ["none", "ins", "sar-min", "sar-min+af", "truth"]
 _SWEEP_METHODS = ["sar-min", "sar-min+scale", "truth"]
 
 
+def _default_methods(scenario: str) -> list[str]:
+    return _AUTOFOCUS_METHODS if scenario == "test2" else _PAPER_METHODS
+
+
 def _comparison(sim_dir: Path, tmp_path_factory: pytest.TempPathFactory, scenario: str,
                 methods: list[str] | None = None) -> dict[str, Any]:
     """compare() of a simulated scenario (seed 1, default config: with the radar's unobservable vibration), once
     per session and set of methods: by default the paper's four methods, and on test2 the autofocus too."""
-    if methods is None:
-        methods = _AUTOFOCUS_METHODS if scenario == "test2" else _PAPER_METHODS
+    methods = methods or _default_methods(scenario)
     key = f"{scenario}:{','.join(methods)}"
     if key not in _COMPARISONS:
         sim = simulated(sim_dir, scenario, "mcap", 1)
@@ -653,7 +656,7 @@ def test_paper_comparison(scenario: str, sim_dir: Path, tmp_path_factory: pytest
     result = _comparison(sim_dir, tmp_path_factory, scenario)
     _print(scenario, result)
     res = result["results"]
-    assert result["methods"] == (_AUTOFOCUS_METHODS if scenario == "test2" else _PAPER_METHODS)
+    assert result["methods"] == _default_methods(scenario)
     sar = res["sar-min"]["reflectors"]
     assert len(sar) == 5
     # Whole-track SE(2) alignment: within 3 cm (seed 1: test1 <= 0.45, test3 <= 0.46 cm). On test2 (120 m) the
