@@ -60,15 +60,15 @@ def oracle(truth_path: Path, axes: tuple[str, ...], cutoff_hz: float) -> Any:
     return corrected
 
 
-def run_case(log: Path, out: Path, truth_path: Path, axes: tuple[str, ...] | None, cutoff_hz: float,
-             ) -> dict[str, Any]:
-    """compare, in this process, with the oracle in the autofocus's place (``axes`` None: the product's)."""
+def run_case(log: Path, out: Path, autofocus: Any = None) -> dict[str, Any]:
+    """compare, in this process, with ``autofocus`` in the place of the product's ``autofocus_residual_motion``
+    (None: the product's own)."""
     import autosar_cli.evaluate.compare as compare_module
     from autosar_cli.cli import app
 
     saved = compare_module.autofocus_residual_motion
-    if axes is not None:
-        compare_module.autofocus_residual_motion = oracle(truth_path, axes, cutoff_hz)
+    if autofocus is not None:
+        compare_module.autofocus_residual_motion = autofocus
     try:
         args = ["compare", str(log), "-o", str(out), "--methods", "sar-min,sar-min+af,truth", "--overwrite"]
         try:
@@ -98,7 +98,8 @@ def main() -> None:
             str(log))
         truth_path = log.with_name(log.name + ".truth.h5")
         for case, axes in CASES.items():
-            comparison = run_case(log, Path(tmp) / case, truth_path, axes, args.cutoff_hz)
+            comparison = run_case(log, Path(tmp) / case,
+                                  None if axes is None else oracle(truth_path, axes, args.cutoff_hz))
             row = drive_row(args.scenario, args.seed, comparison, 0.0, 0.0)
             af = row.get("sar-min+af", {})
             rows.append({"case": case,
