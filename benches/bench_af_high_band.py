@@ -127,7 +127,8 @@ def high_band_motion(drive: Path, traj: Any, config: Any, points: Any, cut_hz: f
     n_nodes = int(math.ceil((int(traj.t_ns[-1]) - t0) / 1e9 / node_s)) + 1
     nodes_ns = t0 + np.round(np.arange(n_nodes) * node_s * 1e9).astype(np.int64)
     if not steps:
-        return {"nodes_ns": nodes_ns, "correction_m": np.zeros(n_nodes), "histories": 0, "used": 0, "coverage": 0.0}
+        return {"nodes_ns": nodes_ns, "correction_m": np.zeros(n_nodes), "histories": 0, "used": 0, "coverage": 0.0,
+                "seen": np.zeros(n_nodes, dtype=bool)}
     t, step, gain, seg = (np.concatenate(v) for v in (times, steps, gains, segment))
     kappa = 4.0 * math.pi * hist.cycles_per_m
     m = len(step)
