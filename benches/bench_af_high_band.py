@@ -1,6 +1,7 @@
 """Benchmark an experimental stage after the autofocus: the across-track motion above 2 Hz from many scatterers.
 
 Usage: python benches/bench_af_high_band.py [--drives test1:0,test2:1,test3:8] [--cut-hz 2]
+                                            [--simulation KEY=VALUE,...] [--append]
                                             [--output benches/results/af_high_band.json]
 
 Many: bright scatterers over the whole drive, the facade's pillars included. The product's autofocus fits a few
@@ -23,7 +24,10 @@ For every drive (``simulate --dynamics full``): ``compare --methods sar-min,sar-
 autofocus, then with this stage after it. Rows: far-swath entropy against the truth image's, worst reflector, peak
 loss; the stage's scatterers, coverage and time; and how its correction compares with the truth's (the radar's
 true across-track motion less ``sar-min+af``'s) in 2-5 and 5-30 Hz, over the frames it covers; ``table`` has
-one line per drive of the main figures.
+one line per drive of the main figures. ``--simulation``: entries of the simulator's [simulation] section for
+these drives (the processor keeps the config's), recorded in their rows; ``--append``: add the rows to the
+output's. The committed file: ``--drives test1:0,test2:1,test3:8,test1:1,test2:0,test3:1``, then ``--drives
+test1:1 --simulation vibration_vertical_rms_m=0.0 --append`` (the radar case's vertical vibration off).
 """
 
 from __future__ import annotations
@@ -217,7 +221,8 @@ def table_row(row: dict[str, Any]) -> dict[str, Any]:
     """One drive's main figures: far-swath entropy and worst reflector without and with the stage, its histories
     used, its coverage, its correlation with the truth above 5 Hz and its time."""
     before, after, stage = row["autofocus"], row["with_high_band"], row["stage"]
-    return {"drive": f"{row['scenario']} s{row['seed']}",
+    sim = f" [{row['simulation']}]" if row.get("simulation") else ""
+    return {"drive": f"{row['scenario']} s{row['seed']}{sim}",
             "far_entropy_pct": before["far_entropy_vs_truth_pct"],
             "far_entropy_with_pct": after["far_entropy_vs_truth_pct"],
             "worst_cm": before["worst_reflector_cm"], "worst_with_cm": after["worst_reflector_cm"],
@@ -229,22 +234,27 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--drives", default="test1:0,test2:1,test3:8", help="scenario:seed,...")
     ap.add_argument("--cut-hz", type=float, default=2.0)
+    ap.add_argument("--simulation", default=None, help="[simulation] entries for the simulator, KEY=VALUE,...")
+    ap.add_argument("--append", action="store_true", help="add the rows to those of --output")
     ap.add_argument("--output", type=Path, default=RESULTS / "af_high_band.json")
     args = ap.parse_args()
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from bench_af_oracle import run_case
-    from bench_paper import cli, drive_row
+    from bench_paper import cli, config_copy, drive_row
 
     from autosar_cli.config import load_config
 
     config = load_config()
-    rows = []
+    rows = json.loads(args.output.read_text())["rows"] if args.append else []
     for drive in args.drives.split(","):
         scenario, seed = drive.split(":")
         with tempfile.TemporaryDirectory() as tmp:
             log = Path(tmp) / "drive.mcap"
-            cli("simulate", "--scenario", scenario, "--seed", seed, "--dynamics", "full", "--output", str(log))
-            row: dict[str, Any] = {"scenario": scenario, "seed": int(seed)}
+            sim_config = (["--config", str(config_copy(None, None, Path(tmp), simulation=args.simulation))]
+                          if args.simulation else [])
+            cli("simulate", "--scenario", scenario, "--seed", seed, "--dynamics", "full", "--output", str(log),
+                *sim_config)
+            row: dict[str, Any] = {"scenario": scenario, "seed": int(seed), "simulation": args.simulation}
             record: dict[str, Any] = {}
             for case, autofocus in (("autofocus", None), ("with_high_band", with_high_band(args.cut_hz, record))):
                 r = drive_row(scenario, int(seed), run_case(log, Path(tmp) / case, autofocus), 0.0, 0.0)

@@ -73,25 +73,28 @@ def cli(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 def config_copy(components: str | None, understeer: float | None, work: Path, rear_slip: float | None = None,
-                fits: bool = True, attitude: bool = True, radar_height: bool = False, car: str | None = None) -> Path:
+                fits: bool = True, attitude: bool = True, radar_height: bool = False, car: str | None = None,
+                simulation: str | None = None) -> Path:
     """A copy of the default config whose full vehicle model has only ``components`` (comma-separated; None: all),
     whose steering model has the understeer gradient ``understeer`` and whose trajectory the rear-slip gain
     ``rear_slip`` (rad per m/s^2; None: the config's); ``fits`` False: SAR-MIN in one pass, without the fitted
     understeer, yaw lag and wheel-speed lag; ``radar_height``: SAR-MIN's radar lifted along the road; ``car``:
-    "key=value,..." entries of [vehicle_dynamics], the simulated car (only the simulator reads that section)."""
+    "key=value,..." entries of [vehicle_dynamics], the simulated car (only the simulator reads that section);
+    ``simulation``: the same for [simulation]."""
     from autosar_cli.config import DEFAULT_CONFIG
 
     text = DEFAULT_CONFIG.read_text()
-    if car:
-        head, section, tail = text.partition("\n[vehicle_dynamics]\n")
-        body, nxt, rest = tail.partition("\n[")
-        for item in car.split(","):
-            key, _, value = item.partition("=")
-            body, n = re.subn(rf"^{re.escape(key.strip())} = .*$", f"{key.strip()} = {value.strip()}", body, count=1,
-                              flags=re.MULTILINE)
-            if n != 1:
-                raise SystemExit(f"--car: {key.strip()!r} is not an entry of [vehicle_dynamics]")
-        text = head + section + body + nxt + rest
+    for name, section, entries in (("--car", "vehicle_dynamics", car), ("--simulation", "simulation", simulation)):
+        if entries:
+            head, header, tail = text.partition(f"\n[{section}]\n")
+            body, nxt, rest = tail.partition("\n[")
+            for item in entries.split(","):
+                key, _, value = item.partition("=")
+                body, n = re.subn(rf"^{re.escape(key.strip())} = .*$", f"{key.strip()} = {value.strip()}", body,
+                                  count=1, flags=re.MULTILINE)
+                if n != 1:
+                    raise SystemExit(f"{name}: {key.strip()!r} is not an entry of [{section}]")
+            text = head + header + body + nxt + rest
     if components is not None:
         wanted = ", ".join(f'"{c}"' for c in components.split(",") if c)
         text = re.sub(r"^components = \[.*\]$", f"components = [{wanted}]", text, count=1, flags=re.MULTILINE)
@@ -112,7 +115,8 @@ def config_copy(components: str | None, understeer: float | None, work: Path, re
             text = re.sub(rf"^{key} = true", f"{key} = false", text, count=1, flags=re.MULTILINE)
     tag = (components.replace(",", "+") or "none") if components is not None else "all"
     variant = (("" if fits else "_nofits") + ("" if attitude else "_planar") + ("_height" if radar_height else "")
-               + ("_car" + re.sub(r"[^A-Za-z0-9.]+", "_", car) if car else ""))
+               + ("_car" + re.sub(r"[^A-Za-z0-9.]+", "_", car) if car else "")
+               + ("_sim" + re.sub(r"[^A-Za-z0-9.]+", "_", simulation) if simulation else ""))
     path = work / f"config_{tag}_us{understeer}_slip{rear_slip}{variant}.toml"
     path.write_text(text)
     return path
