@@ -5,9 +5,9 @@ Usage: python benches/bench_af_high_band.py [--drives test1:0,test2:1,test3:8] [
                                             [--output benches/results/af_high_band.json]
 
 Many: bright scatterers over the whole drive, the facade's pillars included. The product's autofocus fits a few
-isolated points (3-12 m from the track), which on test1 see 48 % of the drive;
-the far swath's entropy lacks the across-track motion above 0.5 Hz where they do not see (bench_af_oracle.py).
-Here, after it, along its track (``sar-min+af``):
+isolated points (3-12 m from the track), which on test1 see 48 % of the drive; the far swath's entropy lacks the
+across-track motion above 0.5 Hz where they do not see (bench_af_oracle.py). Here, after it, along its track
+(``sar-min+af``):
 
 * the scatterers: local maxima of a coarse first image out to the radar's range, four per 1.5 m of travel, within
   25 dB of the most reflective, holding 10 % of their 7 x 7 neighbourhood (the product: two, 15 dB, 20 %, 12 m);
