@@ -27,7 +27,8 @@ true across-track motion less ``sar-min+af``'s) in 2-5 and 5-30 Hz, over the fra
 one line per drive of the main figures. ``--simulation``: entries of the simulator's [simulation] section for
 these drives (the processor keeps the config's), recorded in their rows; ``--append``: add the rows to the
 output's. The committed file: ``--drives test1:0,test2:1,test3:8,test1:1,test2:0,test3:1``, then ``--drives
-test1:1 --simulation vibration_vertical_rms_m=0.0 --append`` (the radar case's vertical vibration off).
+test1:1 --simulation vibration_vertical_rms_m=0.0 --append`` (the radar case's vertical vibration off), then
+``--drives urban:0 --append``.
 """
 
 from __future__ import annotations
