@@ -49,22 +49,14 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 
 def bright_scatterers(drive: Path, traj: Any, config: Any) -> Any:
-    """(P, 3) ENU m: the stage's scatterers on a coarse image along ``traj`` (the module's docstring)."""
-    from autosar_cli.nav.trajectory import radar_track
-    from autosar_cli.sar.focus import FocusOptions, auto_grid, focus_images
-    from autosar_cli.sar.grid import track_distance
-    from autosar_cli.sar.residual_motion import AutofocusOptions, select_points
-    from autosar_cli.store.drive import radar_times
+    """(P, 3) ENU m: the stage's scatterers on a coarse image along ``traj`` (the module's docstring): the
+    autofocus's own candidate selection, out to the radar's range and less strict."""
+    from autosar_cli.sar.focus import FocusOptions
+    from autosar_cli.sar.residual_motion import AutofocusOptions, candidate_points
 
-    focus = FocusOptions.from_config(config)
-    coarse = dataclasses.replace(focus, resolution_m=2 * focus.resolution_m, pixel_m=1.5 * focus.pixel_m, channels=2)
-    grid = auto_grid(drive, traj, config, coarse)
-    image = focus_images(drive, traj, config, coarse, grids=[grid]).images[0]
-    t = radar_times(drive)
-    track = radar_track(traj, t[(t >= traj.t_ns[0]) & (t <= traj.t_ns[-1])], config)
-    opts = AutofocusOptions(max_range_m=config.radar.max_range_m - 1.0)
-    return select_points(image.image, grid, track_distance(grid, track), opts, per_segment=4,
-                         min_concentration=0.1, within_db=25.0)
+    return candidate_points(drive, traj, config, FocusOptions.from_config(config),
+                            AutofocusOptions(max_range_m=config.radar.max_range_m - 1.0), per_segment=4,
+                            min_concentration=0.1, within_db=25.0)
 
 
 def _moving_average_removal(segment: Any, half: int) -> Any:

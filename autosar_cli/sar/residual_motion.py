@@ -37,6 +37,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -582,11 +583,11 @@ def select_points(image: NDArray[np.complexfloating], grid: FocusGrid, range_m: 
 
 
 def candidate_points(drive_path: str | Path, trajectory: Trajectory, config: Config, focus: FocusOptions,
-                     opts: AutofocusOptions) -> Array:
-    """:func:`select_points` on a first image along ``trajectory``: the product's grid, but only out to
-    ``opts.max_range_m``, at twice the product's resolution and 1.5 times its pixel, from ``opts.channels`` channels
-    (a fortieth of the product's back-projections and a quarter of its range compression; the fit refines each
-    point's position)."""
+                     opts: AutofocusOptions, **select: Any) -> Array:
+    """:func:`select_points` (``select``: its keyword options) on a first image along ``trajectory``: the product's
+    grid, but only out to ``opts.max_range_m``, at twice the product's resolution and 1.5 times its pixel, from
+    ``opts.channels`` channels (a fortieth of the product's back-projections and a quarter of its range compression;
+    the fit refines each point's position)."""
     from autosar_cli.nav.trajectory import radar_track, zero_doppler_times
     from autosar_cli.sar.focus import auto_grid, focus_images
     from autosar_cli.sar.grid import track_distance
@@ -600,7 +601,7 @@ def candidate_points(drive_path: str | Path, trajectory: Trajectory, config: Con
     t_radar = radar_times(drive_path)
     t_radar = t_radar[(t_radar >= trajectory.t_ns[0]) & (t_radar <= trajectory.t_ns[-1])]
     track = radar_track(trajectory, t_radar, config)
-    points = select_points(image.image, grid, track_distance(grid, track), opts)
+    points = select_points(image.image, grid, track_distance(grid, track), opts, **select)
     if len(points):  # on the focusing surface, as focus put them (sar.focus)
         points[:, 2] += trajectory.height_offset(zero_doppler_times(trajectory, points, config, t_radar))
     return points
