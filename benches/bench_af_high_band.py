@@ -28,7 +28,7 @@ one line per drive of the main figures. ``--simulation``: entries of the simulat
 these drives (the processor keeps the config's), recorded in their rows; ``--append``: add the rows to the
 output's. The committed file: ``--drives test1:0,test2:1,test3:8,test1:1,test2:0,test3:1``, then ``--drives
 test1:1 --simulation vibration_vertical_rms_m=0.0 --append`` (the radar case's vertical vibration off), then
-``--drives urban:0 --append``.
+``--drives urban:0 --append``, then ``--drives test1:1,test2:1,test1:0 --vertical --append``.
 """
 
 from __future__ import annotations
@@ -78,9 +78,13 @@ def _moving_average_removal(segment: Any, half: int) -> Any:
 
 def high_band_motion(drive: Path, traj: Any, config: Any, points: Any, cut_hz: float, node_s: float = 0.01,
                      taps: int = 31, every: int = 10, alias_hz: float = 80.0, window_s: float = 0.6,
-                     prior_m: float = 3e-4, step_m: float = 1e-3, max_rms_rad: float = 0.5) -> dict[str, Any]:
+                     prior_m: float = 3e-4, step_m: float = 1e-3, max_rms_rad: float = 0.5,
+                     vertical: bool = False) -> dict[str, Any]:
     """The across-track correction (m, on ``node_s`` nodes from the track's start) above ``cut_hz`` that the
-    histories of ``points`` measure along ``traj``; the histories used, and the share of the nodes they cover."""
+    histories of ``points`` measure along ``traj``; the histories used, and the share of the nodes they cover.
+    ``vertical``: the fit also takes a vertical motion common to all histories, which each history sees with its
+    own unknown gain (the sine of its elevation, its scatterer's height unknown): alternately the two motions with
+    the gains held and each gain with the motions held; only the across-track motion is returned."""
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
     from scipy.ndimage import convolve1d
@@ -129,29 +133,49 @@ def high_band_motion(drive: Path, traj: Any, config: Any, points: Any, cut_hz: f
     t, step, gain, seg = (np.concatenate(v) for v in (times, steps, gains, segment))
     kappa = 4.0 * math.pi * hist.cycles_per_m
     m = len(step)
-    cols, vals = [], []
-    for end, sign in ((0, -1.0), (1, 1.0)):  # step = kappa (g_b e_b - g_a e_a), e the motion the correction undoes
-        pos = np.clip(t[:, end] / node_s, 0.0, n_nodes - 1.000001)
-        n0 = np.floor(pos).astype(np.int64)
-        cols += [n0, n0 + 1]
-        vals += [sign * kappa * gain[:, end] * (1 - (pos - n0)), sign * kappa * gain[:, end] * (pos - n0)]
-    design = sp.csr_matrix((np.concatenate(vals), (np.tile(np.arange(m), 4), np.concatenate(cols))),
-                           shape=(m, n_nodes))
+
+    def design_of(g: Any) -> Any:  # step = kappa (g_b e_b - g_a e_a), e the motion the correction undoes
+        cols, vals = [], []
+        for end, sign in ((0, -1.0), (1, 1.0)):
+            pos = np.clip(t[:, end] / node_s, 0.0, n_nodes - 1.000001)
+            n0 = np.floor(pos).astype(np.int64)
+            cols += [n0, n0 + 1]
+            vals += [sign * kappa * g[:, end] * (1 - (pos - n0)), sign * kappa * g[:, end] * (pos - n0)]
+        return sp.csr_matrix((np.concatenate(vals), (np.tile(np.arange(m), 4), np.concatenate(cols))),
+                             shape=(m, n_nodes))
+
     detrend = _moving_average_removal(seg, max(1, int(round(0.5 * window_s * prf / every))))
-    data, model = detrend @ step, (detrend @ design).tocsr()
+    data, model = detrend @ step, (detrend @ design_of(gain)).tocsr()
     change = sp.diags([np.ones(n_nodes - 1), -np.ones(n_nodes - 1)], [1, 0], shape=(n_nodes - 1, n_nodes))
     prior = (sp.identity(n_nodes) / prior_m**2 + change.T @ change / step_m**2).tocsc()
     n_seg = len(steps)
     used = np.ones(n_seg, dtype=bool)
     var = np.full(n_seg, 0.3**2)
-    for _ in range(5):
+    # the vertical: its unit-gain design (each step's vertical line-of-sight change is the history's own gain)
+    unit = (detrend @ design_of(np.ones_like(gain))).tocsr() if vertical else None
+    h = np.full(n_seg, 0.1)
+    e_up = np.zeros(n_nodes)
+    for _ in range(12 if vertical else 5):
         w = used[seg] / var[seg]
-        e = spla.spsolve((model.T @ model.multiply(w[:, None])).tocsc() + prior, model.T @ (w * data))
-        rms = np.sqrt(np.bincount(seg, (data - model @ e) ** 2, n_seg) / np.maximum(np.bincount(seg, minlength=n_seg),
-                                                                                   1))
+        if unit is None:
+            e = spla.spsolve((model.T @ model.multiply(w[:, None])).tocsc() + prior, model.T @ (w * data))
+            fit = model @ e
+        else:
+            both = sp.hstack([model, unit.multiply(h[seg][:, None])]).tocsr()
+            prior2 = sp.block_diag([prior, (sp.identity(n_nodes) / 3e-3**2 + change.T @ change / step_m**2)]).tocsc()
+            x = spla.spsolve((both.T @ both.multiply(w[:, None])).tocsc() + prior2, both.T @ (w * data))
+            e, e_up = x[:n_nodes], x[n_nodes:]
+            q = unit @ e_up
+            r = data - model @ e
+            h = np.bincount(seg, r * q, n_seg) / np.maximum(np.bincount(seg, q * q, n_seg), 1e-30)
+            # the gauge: h e_up is what the data fix; the gains' RMS is held at 0.1
+            c = 0.1 / max(float(np.sqrt(np.mean(h[used] ** 2))), 1e-12)
+            h, e_up = h * c, e_up / c
+            fit = model @ e + h[seg] * (unit @ e_up)
+        rms = np.sqrt(np.bincount(seg, (data - fit) ** 2, n_seg) / np.maximum(np.bincount(seg, minlength=n_seg), 1))
         var = np.maximum(rms, 0.02) ** 2
         bad = used & (rms > max_rms_rad)
-        if not bad.any():
+        if not bad.any() and unit is None:
             break
         used &= ~bad
     seen = np.zeros(n_nodes, dtype=bool)
@@ -163,7 +187,7 @@ def high_band_motion(drive: Path, traj: Any, config: Any, points: Any, cut_hz: f
             "coverage": float(seen.mean()), "seen": seen}
 
 
-def with_high_band(cut_hz: float, record: dict[str, Any]) -> Any:
+def with_high_band(cut_hz: float, record: dict[str, Any], vertical: bool = False) -> Any:
     """A replacement for compare's ``autofocus_residual_motion``: the product's, then this stage."""
     from autosar_cli.sar.phase_history import frame_geometry
     from autosar_cli.sar.residual_motion import autofocus_residual_motion
@@ -174,7 +198,7 @@ def with_high_band(cut_hz: float, record: dict[str, Any]) -> Any:
         track = result.trajectory
         start = time.perf_counter()
         points = bright_scatterers(drive, track, config)
-        stage = high_band_motion(drive, track, config, points, cut_hz)
+        stage = high_band_motion(drive, track, config, points, cut_hz, vertical=vertical)
         _, across, _ = frame_geometry(track, stage["nodes_ns"], config)
         base = track.correction.at(stage["nodes_ns"]) if track.correction is not None else np.zeros_like(across)
         moved = MotionCorrection(stage["nodes_ns"], base + stage["correction_m"][:, None] * across,
@@ -215,6 +239,7 @@ def table_row(row: dict[str, Any]) -> dict[str, Any]:
     used, its coverage, its correlation with the truth above 5 Hz and its time."""
     before, after, stage = row["autofocus"], row["with_high_band"], row["stage"]
     sim = f" [{row['simulation']}]" if row.get("simulation") else ""
+    sim += " [vertical]" if row.get("vertical") else ""
     return {"drive": f"{row['scenario']} s{row['seed']}{sim}",
             "far_entropy_pct": before["far_entropy_vs_truth_pct"],
             "far_entropy_with_pct": after["far_entropy_vs_truth_pct"],
@@ -229,6 +254,7 @@ def main() -> None:
     ap.add_argument("--cut-hz", type=float, default=2.0)
     ap.add_argument("--simulation", default=None, help="[simulation] entries for the simulator, KEY=VALUE,...")
     ap.add_argument("--append", action="store_true", help="add the rows to those of --output")
+    ap.add_argument("--vertical", action="store_true", help="the fit also takes a common vertical motion")
     ap.add_argument("--output", type=Path, default=RESULTS / "af_high_band.json")
     args = ap.parse_args()
     sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -247,9 +273,11 @@ def main() -> None:
                           if args.simulation else [])
             cli("simulate", "--scenario", scenario, "--seed", seed, "--dynamics", "full", "--output", str(log),
                 *sim_config)
-            row: dict[str, Any] = {"scenario": scenario, "seed": int(seed), "simulation": args.simulation}
+            row: dict[str, Any] = {"scenario": scenario, "seed": int(seed), "simulation": args.simulation,
+                                   "vertical": args.vertical}
             record: dict[str, Any] = {}
-            for case, autofocus in (("autofocus", None), ("with_high_band", with_high_band(args.cut_hz, record))):
+            stage = with_high_band(args.cut_hz, record, args.vertical)
+            for case, autofocus in (("autofocus", None), ("with_high_band", stage)):
                 r = drive_row(scenario, int(seed), run_case(log, Path(tmp) / case, autofocus), 0.0, 0.0)
                 af = r["sar-min+af"]
                 row[case] = {"far_entropy_vs_truth_pct": r["entropy_far"]["vs_truth_pct"]["sar-min+af"],
