@@ -28,7 +28,8 @@ one line per drive of the main figures. ``--simulation``: entries of the simulat
 these drives (the processor keeps the config's), recorded in their rows; ``--append``: add the rows to the
 output's. The committed file: ``--drives test1:0,test2:1,test3:8,test1:1,test2:0,test3:1``, then ``--drives
 test1:1 --simulation vibration_vertical_rms_m=0.0 --append`` (the radar case's vertical vibration off), then
-``--drives urban:0 --append``, then ``--drives test1:1,test2:1,test1:0 --vertical --append``.
+``--drives urban:0 --append``, then ``--drives test1:1,test2:1,test1:0 --vertical --append``, then ``--drives
+test1:1,test3:8,test2:1 --prior-mm 0.1 --append`` and ``--drives test1:0,test2:0,test3:1 --prior-mm 0.1 --append``.
 """
 
 from __future__ import annotations
@@ -187,7 +188,7 @@ def high_band_motion(drive: Path, traj: Any, config: Any, points: Any, cut_hz: f
             "coverage": float(seen.mean()), "seen": seen}
 
 
-def with_high_band(cut_hz: float, record: dict[str, Any], vertical: bool = False) -> Any:
+def with_high_band(cut_hz: float, record: dict[str, Any], vertical: bool = False, prior_m: float = 3e-4) -> Any:
     """A replacement for compare's ``autofocus_residual_motion``: the product's, then this stage."""
     from autosar_cli.sar.phase_history import frame_geometry
     from autosar_cli.sar.residual_motion import autofocus_residual_motion
@@ -198,7 +199,7 @@ def with_high_band(cut_hz: float, record: dict[str, Any], vertical: bool = False
         track = result.trajectory
         start = time.perf_counter()
         points = bright_scatterers(drive, track, config)
-        stage = high_band_motion(drive, track, config, points, cut_hz, vertical=vertical)
+        stage = high_band_motion(drive, track, config, points, cut_hz, vertical=vertical, prior_m=prior_m)
         _, across, _ = frame_geometry(track, stage["nodes_ns"], config)
         base = track.correction.at(stage["nodes_ns"]) if track.correction is not None else np.zeros_like(across)
         moved = MotionCorrection(stage["nodes_ns"], base + stage["correction_m"][:, None] * across,
@@ -240,6 +241,7 @@ def table_row(row: dict[str, Any]) -> dict[str, Any]:
     before, after, stage = row["autofocus"], row["with_high_band"], row["stage"]
     sim = f" [{row['simulation']}]" if row.get("simulation") else ""
     sim += " [vertical]" if row.get("vertical") else ""
+    sim += f" [prior {row['prior_mm']:g} mm]" if row.get("prior_mm", 0.3) != 0.3 else ""
     return {"drive": f"{row['scenario']} s{row['seed']}{sim}",
             "far_entropy_pct": before["far_entropy_vs_truth_pct"],
             "far_entropy_with_pct": after["far_entropy_vs_truth_pct"],
@@ -255,6 +257,7 @@ def main() -> None:
     ap.add_argument("--simulation", default=None, help="[simulation] entries for the simulator, KEY=VALUE,...")
     ap.add_argument("--append", action="store_true", help="add the rows to those of --output")
     ap.add_argument("--vertical", action="store_true", help="the fit also takes a common vertical motion")
+    ap.add_argument("--prior-mm", type=float, default=0.3, help="prior std of the across-track correction (mm)")
     ap.add_argument("--output", type=Path, default=RESULTS / "af_high_band.json")
     args = ap.parse_args()
     sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -274,9 +277,9 @@ def main() -> None:
             cli("simulate", "--scenario", scenario, "--seed", seed, "--dynamics", "full", "--output", str(log),
                 *sim_config)
             row: dict[str, Any] = {"scenario": scenario, "seed": int(seed), "simulation": args.simulation,
-                                   "vertical": args.vertical}
+                                   "vertical": args.vertical, "prior_mm": args.prior_mm}
             record: dict[str, Any] = {}
-            stage = with_high_band(args.cut_hz, record, args.vertical)
+            stage = with_high_band(args.cut_hz, record, args.vertical, 1e-3 * args.prior_mm)
             for case, autofocus in (("autofocus", None), ("with_high_band", stage)):
                 r = drive_row(scenario, int(seed), run_case(log, Path(tmp) / case, autofocus), 0.0, 0.0)
                 af = r["sar-min+af"]
