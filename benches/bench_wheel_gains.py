@@ -36,9 +36,14 @@ NAMES = ("lag_m", "front_drive", "front_brake", "rear_drive", "rear_brake")
 
 
 def truth_regression(inputs: Any, truth: Any, wheelbase_m: float, min_speed_mps: float = 1.0) -> dict[str, float]:
-    """The longitudinal regression of ``nav.wheel_speeds._fit_longitudinal`` (its design, its instants: the GNSS
-    velocity's) against the truth's rear-axle speed: c and the four slip gains."""
-    from autosar_cli.nav.wheel_speeds import ACCEL_WINDOW_S, raw_gyro_yaw_rate, wheel_acceleration
+    """The longitudinal regression of ``nav.wheel_speeds._fit_longitudinal`` (``longitudinal_regression``, at the
+    GNSS velocity's instants) against the truth's rear-axle speed: c and the four slip gains."""
+    from autosar_cli.nav.wheel_speeds import (
+        ACCEL_WINDOW_S,
+        longitudinal_regression,
+        raw_gyro_yaw_rate,
+        wheel_acceleration,
+    )
 
     wheels, gnss = inputs.wheels, inputs.gnss_velocity
     inside = (gnss.t > wheels.t[0] + ACCEL_WINDOW_S) & (gnss.t < wheels.t[-1] - ACCEL_WINDOW_S)
@@ -52,15 +57,8 @@ def truth_regression(inputs: Any, truth: Any, wheelbase_m: float, min_speed_mps:
     w = np.nan_to_num(raw_gyro_yaw_rate(inputs, ts))
     use = (v >= min_speed_mps) & np.all(np.isfinite(rear), axis=1)
     ts, v, w = ts[use], v[use], w[use]
-    a = wheel_acceleration(wheels, ts)
-    vf = np.hypot(v, w * wheelbase_m)
-    rear_z = np.interp(ts, wheels.t, 0.5 * (wheels.z[:, 2] + wheels.z[:, 3]))
-    front_z = np.interp(ts, wheels.t, 0.5 * (wheels.z[:, 0] + wheels.z[:, 1]))
-    zero = np.zeros_like(v)
-    drive, brake = np.maximum(a, 0.0), np.minimum(a, 0.0)
-    design = np.vstack([np.stack([v, zero, -a / v, zero, zero, drive * v, brake * v], axis=1),
-                        np.stack([zero, vf, -a / vf, drive * vf, brake * vf, zero, zero], axis=1)])
-    coef, *_ = np.linalg.lstsq(design, np.concatenate([rear_z - v, front_z - vf]), rcond=None)
+    design, y = longitudinal_regression(wheels, ts, v, w, wheel_acceleration(wheels, ts), wheelbase_m)
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
     return dict(zip(NAMES, (float(c) for c in coef[2:]), strict=True))
 
 

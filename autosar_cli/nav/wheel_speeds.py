@@ -164,6 +164,22 @@ def _with_lag_prior(coef: Array, cov: Array, prior_m: float, prior_std_m: float
     return coef + gain * (prior_m - c), cov - np.outer(gain, cov[2]), (c, c_std)
 
 
+def longitudinal_regression(wheels: Measurements, ts: Array, v: Array, w: Array, a: Array, wheelbase_m: float
+                            ) -> tuple[Array, Array]:
+    """The design (2 N, 7) and data (2 N,) of :func:`_fit_longitudinal` at the instants ``ts`` (s): both axles' mean
+    wheel speed less the rear axle's speed ``v`` (m/s; the front's from it and the yaw rate ``w``, rad/s), on
+    [s_rear, s_front, c, k_front_drive, k_front_brake, k_rear_drive, k_rear_brake] with ``a`` the car's
+    acceleration (m/s^2)."""
+    vf = np.hypot(v, w * wheelbase_m)
+    rear = np.interp(ts, wheels.t, 0.5 * (wheels.z[:, 2] + wheels.z[:, 3]))
+    front = np.interp(ts, wheels.t, 0.5 * (wheels.z[:, 0] + wheels.z[:, 1]))
+    zero = np.zeros_like(v)
+    drive, brake = np.maximum(a, 0.0), np.minimum(a, 0.0)
+    design = np.vstack([np.stack([v, zero, -a / v, zero, zero, drive * v, brake * v], axis=1),
+                        np.stack([zero, vf, -a / vf, drive * vf, brake * vf, zero, zero], axis=1)])
+    return design, np.concatenate([rear - v, front - vf])
+
+
 def _fit_longitudinal(inputs: NavInputs, lever_rear_m: tuple[float, float], wheelbase_m: float,
                       min_speed_mps: float
                       ) -> tuple[Array, Array, int, float, float, float, tuple[float, float] | None] | None:
@@ -183,14 +199,7 @@ def _fit_longitudinal(inputs: NavInputs, lever_rear_m: tuple[float, float], whee
         return None
     ts, v, w = ts[use], v[use], w[use]
     a = wheel_acceleration(wheels, ts)
-    vf = np.hypot(v, w * wheelbase_m)
-    rear = np.interp(ts, wheels.t, 0.5 * (wheels.z[:, 2] + wheels.z[:, 3]))
-    front = np.interp(ts, wheels.t, 0.5 * (wheels.z[:, 0] + wheels.z[:, 1]))
-    zero = np.zeros_like(v)
-    drive, brake = np.maximum(a, 0.0), np.minimum(a, 0.0)
-    design = np.vstack([np.stack([v, zero, -a / v, zero, zero, drive * v, brake * v], axis=1),
-                        np.stack([zero, vf, -a / vf, drive * vf, brake * vf, zero, zero], axis=1)])
-    y = np.concatenate([rear - v, front - vf])
+    design, y = longitudinal_regression(wheels, ts, v, w, a, wheelbase_m)
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
     res = y - design @ coef
     coef, cov, alone = _with_lag_prior(coef, _effective_covariance(design, res), *inputs.wheel_lag_prior_m)
