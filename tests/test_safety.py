@@ -235,8 +235,9 @@ def test_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path: Path, delay_s: 
     if script is None:
         pytest.skip("the autosar console script is not installed")
     start_s = _interpreter_start_s()
-    proc = subprocess.Popen([script, "simulate", "-o", str(tmp_path / "s.mcap")], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    # test1 (a 13 s drive) is still being simulated at 1.5 s where the default scenario may be done
+    proc = subprocess.Popen([script, "simulate", "--scenario", "test1", "-o", str(tmp_path / "s.mcap")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     time.sleep(start_s + delay_s)
     proc.send_signal(signal.SIGINT)
     _, stderr = proc.communicate(timeout=60)

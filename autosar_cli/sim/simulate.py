@@ -273,8 +273,8 @@ def simulate(
     }
     if dynamics == "full":
         attrs["dynamics"] = dynamics
-    truth = TruthWriter(truth_path, attrs, radar.num_tx, radar.num_rx)
     counts: dict[str, int] = {}
+    truth = TruthWriter(truth_path, attrs, radar.num_tx, radar.num_rx)  # removes its partial if interrupted
     try:
         _write_truth_static(truth, scenario, motion, config, geom, samples, t0_ns)
         with open_log_writer(output, "mcap" if capture_dir else fmt, replace=overwrite) as writer, \

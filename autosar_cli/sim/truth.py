@@ -50,7 +50,15 @@ class TruthWriter:
     def __init__(self, path: Path, attrs: dict[str, Any], n_tx: int, n_rx: int) -> None:
         self.path = path
         self.tmp = path.with_name(path.name + ".partial")
-        self.f = h5py.File(self.tmp, "w", track_order=False)
+        self.f: h5py.File | None = None
+        try:
+            self.f = h5py.File(self.tmp, "w", track_order=False)
+            self._start(attrs, n_tx, n_rx)
+        except BaseException:  # Ctrl-C included: the caller has no writer to abort yet
+            self.abort()
+            raise
+
+    def _start(self, attrs: dict[str, Any], n_tx: int, n_rx: int) -> None:
         for k, v in attrs.items():
             self.f.attrs[k] = v
         self.f.attrs["format"] = FORMAT
@@ -116,7 +124,8 @@ class TruthWriter:
 
     def abort(self) -> None:
         try:
-            self.f.close()
+            if self.f is not None:
+                self.f.close()
         finally:
             self.tmp.unlink(missing_ok=True)
 
