@@ -113,13 +113,17 @@ def main_options(
 
 
 @contextmanager
-def _errors(writing: Path | None = None) -> Iterator[None]:
+def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]:
     """Turn expected failures into a one-line message and exit code 1 (tracebacks only with --debug).
 
     ``writing``: the command's output, named when a full disk (ENOSPC) says no file of its own. Inside, Ctrl-C
     is a KeyboardInterrupt (writers clean up, then "interrupted", 130); outside, the console script's
-    start-up handler (autosar_cli.exit_interrupted) says the same and exits at once."""
+    start-up handler (autosar_cli.exit_interrupted) says the same and exits at once. ``kernels``: the command
+    runs numba kernels, and numba is imported before the body, under that start-up handler: a KeyboardInterrupt
+    inside numba's own import makes its extension modules print a traceback and fail with ImportError (exit 1)."""
     quick_exit = signal.getsignal(signal.SIGINT) is exit_interrupted
+    if quick_exit and kernels:
+        import numba  # noqa: F401
     if quick_exit:
         signal.signal(signal.SIGINT, signal.default_int_handler)
     unraisable_hook = sys.unraisablehook
@@ -268,7 +272,7 @@ def ingest(
     as_json: JsonOpt = False,
 ) -> None:
     """Decode CAN (with a DBC), GNSS, IMU and raw radar frames of drive logs into one drive.h5, streaming."""
-    with _errors(output):
+    with _errors(output, kernels=False):
         from autosar_cli.ingest.pipeline import classify_input, parse_time_offsets
         from autosar_cli.ingest.pipeline import ingest as run_ingest
 
@@ -636,7 +640,7 @@ def info(
 ) -> None:
     """Summarise a log or drive.h5: streams, message types, counts, rates, time span and gaps; and list the
     partial files that killed autosar processes left beside it."""
-    with _errors():
+    with _errors(kernels=False):
         from autosar_cli.store.atomic import stale_partials
 
         folder = path if path.is_dir() else path.parent
@@ -736,7 +740,7 @@ def batch(
 ) -> None:
     """Run many drives (`autosar run` each) as Dask tasks on a local or existing dask.distributed cluster;
     exit code 1 if any drive failed."""
-    with _errors():
+    with _errors(kernels=False):
         from autosar_cli.batch import run_batch
 
         cfg = _load_config(config)

@@ -247,6 +247,30 @@ def test_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path: Path, delay_s: 
     assert not [p.name for p in tmp_path.iterdir()]  # no log, no truth, no partial
 
 
+def test_numba_is_imported_before_a_kernel_command_takes_ctrl_c_as_an_exception() -> None:
+    """Ctrl-C inside numba's own import makes its extension modules print a traceback and fail with ImportError
+    (`autosar simulate` once exited 1 so at 0.4 s): a command that runs kernels imports numba while the console
+    script's quick exit still holds, and only then turns Ctrl-C into a KeyboardInterrupt; `info` does not."""
+    import subprocess
+
+    code = (
+        "import signal, sys\n"
+        "from autosar_cli import exit_interrupted\n"
+        "signal.signal(signal.SIGINT, exit_interrupted)\n"
+        "from autosar_cli.cli import _errors\n"
+        "before = 'numba' in sys.modules\n"
+        "with _errors(kernels=False):\n"
+        "    plain = 'numba' in sys.modules\n"
+        "with _errors():\n"
+        "    inside = signal.getsignal(signal.SIGINT) is signal.default_int_handler\n"
+        "    print(before, plain, 'numba' in sys.modules, inside)\n"
+        "print(signal.getsignal(signal.SIGINT) is exit_interrupted)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["False", "False", "True", "True", "True"], (out.stdout, out.stderr)
+
+
 def test_stale_partial_of_a_killed_ingest_is_listed_and_removed_by_the_next_command(tmp_path: Path,
                                                                                     ci_mcap) -> None:
     import signal
