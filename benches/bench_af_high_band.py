@@ -154,6 +154,8 @@ def high_band_motion(drive: Path, traj: Any, config: Any, points: Any, cut_hz: f
     var = np.full(n_seg, 0.3**2)
     # the vertical: its unit-gain design (each step's vertical line-of-sight change is the history's own gain)
     unit = (detrend @ design_of(np.ones_like(gain))).tocsr() if vertical else None
+    prior_both = (sp.block_diag([prior, sp.identity(n_nodes) / 3e-3**2 + change.T @ change / step_m**2]).tocsc()
+                  if vertical else None)
     h = np.full(n_seg, 0.1)
     e_up = np.zeros(n_nodes)
     for _ in range(12 if vertical else 5):
@@ -163,8 +165,7 @@ def high_band_motion(drive: Path, traj: Any, config: Any, points: Any, cut_hz: f
             fit = model @ e
         else:
             both = sp.hstack([model, unit.multiply(h[seg][:, None])]).tocsr()
-            prior2 = sp.block_diag([prior, (sp.identity(n_nodes) / 3e-3**2 + change.T @ change / step_m**2)]).tocsc()
-            x = spla.spsolve((both.T @ both.multiply(w[:, None])).tocsc() + prior2, both.T @ (w * data))
+            x = spla.spsolve((both.T @ both.multiply(w[:, None])).tocsc() + prior_both, both.T @ (w * data))
             e, e_up = x[:n_nodes], x[n_nodes:]
             q = unit @ e_up
             r = data - model @ e

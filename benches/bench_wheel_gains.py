@@ -49,13 +49,9 @@ def truth_regression(inputs: Any, truth: Any, wheelbase_m: float, min_speed_mps:
     inside = (gnss.t > wheels.t[0] + ACCEL_WINDOW_S) & (gnss.t < wheels.t[-1] - ACCEL_WINDOW_S)
     ts = gnss.t[inside]
     t_ns = inputs.t0_ns + np.round(ts * 1e9).astype(np.int64)
-    rear = truth.body_points(t_ns, np.zeros((1, 3)))[:, 0, :2]
-    dt_ns = 5_000_000
-    ahead = truth.body_points(t_ns + dt_ns, np.zeros((1, 3)))[:, 0, :2]
-    behind = truth.body_points(t_ns - dt_ns, np.zeros((1, 3)))[:, 0, :2]
-    v = np.linalg.norm(ahead - behind, axis=1) / (2 * dt_ns / 1e9)
+    v = np.interp(t_ns, truth.t_ns, np.abs(truth.speed), left=np.nan, right=np.nan)
     w = np.nan_to_num(raw_gyro_yaw_rate(inputs, ts))
-    use = (v >= min_speed_mps) & np.all(np.isfinite(rear), axis=1)
+    use = v >= min_speed_mps  # (NaN outside the truth's span: False)
     ts, v, w = ts[use], v[use], w[use]
     design, y = longitudinal_regression(wheels, ts, v, w, wheel_acceleration(wheels, ts), wheelbase_m)
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
@@ -66,6 +62,7 @@ def measure(scenario: str, seed: int, config: Any, work: Path) -> dict[str, Any]
     from autosar_cli.ingest.pipeline import ingest
     from autosar_cli.nav.baselines import from_truth
     from autosar_cli.nav.inputs import load_inputs
+    from autosar_cli.nav.sarmin import gnss_lever_rear
     from autosar_cli.nav.wheel_speeds import fit_wheel_speeds
     from autosar_cli.sim.simulate import simulate
     from autosar_cli.store.drive import Drive
@@ -77,8 +74,7 @@ def measure(scenario: str, seed: int, config: Any, work: Path) -> dict[str, Any]
     with Drive(drive) as d:
         inputs = load_inputs(d, config)
     veh = config.vehicle
-    lx, ly, _ = inputs.gnss_lever_m
-    lag, radii = fit_wheel_speeds(inputs, (lx + veh.cog_to_rear_axle_m, ly), veh.wheelbase_m,
+    lag, radii = fit_wheel_speeds(inputs, gnss_lever_rear(inputs, config), veh.wheelbase_m,
                                   (veh.track_front_m, veh.track_rear_m))
     truth = from_truth(str(sim.truth_path), inputs.origin, config)
     true = truth_regression(inputs, truth, veh.wheelbase_m)

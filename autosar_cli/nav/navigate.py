@@ -94,8 +94,7 @@ def wheel_speeds_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
     if not (nav.estimate_wheel_lag or nav.estimate_wheel_radii):
         off = {"applied": False, "reason": "navigation.estimate_wheel_lag is off"}
         return inputs, off, {"applied": {}, "reason": "navigation.estimate_wheel_radii is off"}
-    lx, ly, _ = inputs.gnss_lever_m
-    lag, radii = fit_wheel_speeds(inputs, (lx + veh.cog_to_rear_axle_m, ly), veh.wheelbase_m,
+    lag, radii = fit_wheel_speeds(inputs, gnss_lever_rear(inputs, config), veh.wheelbase_m,
                                   (veh.track_front_m, veh.track_rear_m))
     radii_info: dict = {"applied": {}, "reason": "no wheel speeds, or no GNSS velocity and gyros, or no motion above "
                                                  "1 m/s"}
