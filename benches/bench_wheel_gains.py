@@ -93,13 +93,11 @@ def measure(scenario: str, seed: int, config: Any, work: Path, true_velocity: bo
     if true_velocity:
         inputs = true_gnss_velocity(inputs, Path(sim.truth_path), config.navigation.gnss)
     veh = config.vehicle
-    fits = {"": fit_wheel_speeds(inputs, gnss_lever_rear(inputs, config), veh.wheelbase_m,
-                                 (veh.track_front_m, veh.track_rear_m)),
-            # the same fit on every drive without the stated window: which drives it conditions depends on
-            # their own error, so only this set says whether the fit's std is its error's
-            "alone_": fit_wheel_speeds(dataclasses.replace(inputs, wheel_lag_prior_m=(0.0, 0.0)),
-                                       gnss_lever_rear(inputs, config), veh.wheelbase_m,
-                                       (veh.track_front_m, veh.track_rear_m))}
+    geometry = (gnss_lever_rear(inputs, config), veh.wheelbase_m, (veh.track_front_m, veh.track_rear_m))
+    # the same fit on every drive without the stated window too: which drives the window conditions depends on
+    # their own error, so only that set says whether the fit's std is its error's
+    fits = {"": fit_wheel_speeds(inputs, *geometry),
+            "alone_": fit_wheel_speeds(dataclasses.replace(inputs, wheel_lag_prior_m=(0.0, 0.0)), *geometry)}
     truth = from_truth(str(sim.truth_path), inputs.origin, config)
     true = truth_regression(inputs, truth, veh.wheelbase_m)
     for p in (log, drive, sim.truth_path):
