@@ -36,6 +36,7 @@ from autosar_cli.nav.wheel_speeds import (
     fit_wheel_speeds,
     lag_compensated_wheels,
     radius_corrected_wheels,
+    raw_gyro_yaw_rate,
     restart_window_m,
     without_restart_windows,
 )
@@ -151,7 +152,7 @@ def wheel_speeds_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
 def body_attitude(inputs: NavInputs, config: Config) -> tuple[BodyAttitude | None, str]:
     """The body's roll and pitch over the drive from the 6-DoF IMU ``navigation.attitude_imu`` (:mod:`.attitude`),
     before any pass: the rear axle's speed from the rear wheels (the GNSS speed without them), its yaw rate the
-    gyros' median. None, and why, where there is no such IMU or it covers too little of the drive."""
+    gyros' (:func:`_gyro_yaw_rate`). None, and why, where there is no such IMU or it covers too little of the drive."""
     nav = config.navigation
     if not nav.attitude_imu:
         return None, "navigation.attitude_imu is empty: the radar and the GNSS antenna as on a planar body"
@@ -180,8 +181,11 @@ def body_attitude(inputs: NavInputs, config: Config) -> tuple[BodyAttitude | Non
 
 
 def _gyro_yaw_rate(inputs: NavInputs, t: np.ndarray) -> np.ndarray:
-    """The gyros' median yaw rate (rad/s) at times ``t`` (s), biases and all."""
-    return np.median([np.interp(t, g.t, g.z[:, 0]) for g in inputs.gyros], axis=0)
+    """The gyros' yaw rate (rad/s, biases and all) at the increasing times ``t`` (s): the wheel fits' own
+    (:func:`raw_gyro_yaw_rate`), held at its first and last values outside the gyros' span."""
+    w = raw_gyro_yaw_rate(inputs, t)
+    inside = np.isfinite(w)
+    return np.interp(t, t[inside], w[inside]) if inside.any() else np.zeros_like(t)
 
 
 def _lever_from_roll_axis(lever_from_cog: np.ndarray, config: Config) -> np.ndarray:
