@@ -153,7 +153,8 @@ class FocusGrid:
 @dataclass(frozen=True)
 class MotionCorrection:
     """An ENU offset of every body point over time, linearly interpolated between its samples and held beyond
-    them: the residual motion the radar measured and the navigation could not (residual-motion autofocus)."""
+    them: the radar's motion as the body rolls and pitches (SAR-MIN with a 6-DoF IMU, ``nav.attitude``), plus what
+    the radar itself measured and the navigation could not (residual-motion autofocus)."""
 
     t_ns: NDArray[np.int64]  #: (M,) sample times, ns since the Unix epoch, strictly increasing
     offset_enu: Array  #: (M, 3) m, added to the navigated position of every body point
@@ -161,9 +162,16 @@ class MotionCorrection:
 
     def at(self, t_ns: ArrayLike) -> Array:
         """Offset (N, 3) (ENU m) at times ``t_ns`` (N,) (ns)."""
+        return self._interpolated(t_ns, self.offset_enu)
+
+    def std_at(self, t_ns: ArrayLike) -> Array:
+        """The offset's 1-sigma (N, 3) (ENU m) at times ``t_ns`` (N,) (ns), interpolated as the offset is."""
+        return self._interpolated(t_ns, self.std_enu)
+
+    def _interpolated(self, t_ns: ArrayLike, values: Array) -> Array:
         t = (np.asarray(t_ns, dtype=np.int64) - self.t_ns[0]).astype(np.float64)
         knots = (self.t_ns - self.t_ns[0]).astype(np.float64)
-        return np.stack([np.interp(t, knots, self.offset_enu[:, i]) for i in range(3)], axis=-1)
+        return np.stack([np.interp(t, knots, values[:, i]) for i in range(3)], axis=-1)
 
 
 #: half-span (s) of :meth:`Trajectory.travel_velocity`'s average: of the order of the processed apertures

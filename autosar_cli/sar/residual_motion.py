@@ -332,6 +332,8 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     kappa = 4.0 * math.pi * hist.cycles_per_m
     # a correction the trajectory already carries is kept, and this one added to it
     base = trajectory.correction.at(nodes_ns) if trajectory.correction is not None else np.zeros((n_nodes, 3))
+    base_std = (trajectory.correction.std_at(nodes_ns) if trajectory.correction is not None
+                else np.zeros((n_nodes, 3)))
     # priors: the correction's size (the navigation's own uncertainty), its change between nodes, the point shifts
     prior_diag = np.concatenate([1.0 / sigma_across**2, np.full(n_nodes, 1.0 / opts.prior_up_m**2),
                                  np.full(3 * n_pts, 1.0 / opts.point_prior_m**2), [1.0 / opts.prior_scale**2]])
@@ -500,7 +502,8 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     measured = cross[:, :1] * node_across + cross[:, 1:] * up
     std_enu = np.stack([np.abs(std[:, 0] * node_across[:, 0]), np.abs(std[:, 0] * node_across[:, 1]), std[:, 1]],
                        axis=-1)
-    total = MotionCorrection(nodes_ns, base + measured, std_enu)
+    # the carried correction and this one are independent estimates: their sum's std adds in quadrature
+    total = MotionCorrection(nodes_ns, base + measured, np.hypot(base_std, std_enu))
     result = replace(scale_track(trajectory, scale, centre) if scale else trajectory, correction=total)
     return ResidualMotion(result, MotionCorrection(nodes_ns, measured, std_enu), points, used, phase_rms,
                           coherence_before, coherence_after, coverage, iterations, "", hist.frame_t_ns[seen_frames],

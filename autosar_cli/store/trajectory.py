@@ -5,9 +5,9 @@ Datasets (K samples): ``t_ns`` int64; ``rear_axle_enu`` (K, 2) m; ``position_enu
 ``state`` (K, n) with attribute ``names`` and ``covariance`` (K, n, n). Attributes: ``method``,
 ``origin_lat_deg``, ``origin_lon_deg``, ``origin_height_m`` (road surface), ``cog_to_rear_axle_m``,
 ``cog_height_m``, ``rear_slip_gain`` (body yaw = heading + gain x speed x yaw rate), ``info`` (JSON: updates,
-rejections, inputs), ``autosar_version``. A residual-motion
-correction (autofocus), where there is one, is the group ``correction`` with ``t_ns`` (M,), ``offset_enu`` (M, 3)
-m and ``std_enu`` (M, 3) m. Written atomically.
+rejections, inputs), ``autosar_version``. A motion
+correction (the body's roll and pitch, the autofocus's), where there is one, is the group ``correction`` with
+``t_ns`` (M,), ``offset_enu`` (M, 3) m and ``std_enu`` (M, 3) m. Written atomically.
 """
 
 from __future__ import annotations
