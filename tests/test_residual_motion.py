@@ -59,8 +59,9 @@ def test_recovers_an_injected_across_track_error(ci_drive: tuple[Path, Trajector
     drive, truth = ci_drive
     err = injected_error(truth)
     across = frame_geometry(truth, truth.t_ns, CFG)[1]  # towards the radar's side, as the autofocus takes it
-    carried_std = np.full((len(err), 3), 2e-4)  # what the input states of the correction it carries
-    wrong = replace(truth, correction=MotionCorrection(truth.t_ns, err[:, None] * across, carried_std))
+    carried_std_m = 2e-4  # what the input states of the correction it carries
+    wrong = replace(truth, correction=MotionCorrection(truth.t_ns, err[:, None] * across,
+                                                       np.full((len(err), 3), carried_std_m)))
     res = estimate_residual_motion(drive, wrong, CFG, _reflector_points(drive, truth))
     assert res.applied, res.reason
     assert res.coherence_before < 0.2 and res.coherence_after > 0.99
@@ -74,7 +75,7 @@ def test_recovers_an_injected_across_track_error(ci_drive: tuple[Path, Trajector
     assert observable_rms(truth.t, left) <= 0.5e-3
     assert np.all(c.std_enu >= 0) and np.median(np.linalg.norm(c.std_enu, axis=-1)) > 0
     # the stored std is that of the sum: the carried correction's and the measured one's, in quadrature
-    np.testing.assert_allclose(c.std_enu, np.hypot(2e-4, res.correction.std_enu), rtol=1e-12)
+    np.testing.assert_allclose(c.std_enu, np.hypot(carried_std_m, res.correction.std_enu), rtol=1e-12)
 
 
 def _reflector_points(drive: Path, truth: Trajectory) -> np.ndarray:
