@@ -331,9 +331,9 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     sigma_across = np.full(n_nodes, opts.prior_across_m)
     kappa = 4.0 * math.pi * hist.cycles_per_m
     # a correction the trajectory already carries is kept, and this one added to it
-    base = trajectory.correction.at(nodes_ns) if trajectory.correction is not None else np.zeros((n_nodes, 3))
-    base_std = (trajectory.correction.std_at(nodes_ns) if trajectory.correction is not None
-                else np.zeros((n_nodes, 3)))
+    carried = trajectory.correction
+    base, base_std = ((carried.at(nodes_ns), carried.std_at(nodes_ns)) if carried is not None
+                      else (np.zeros((n_nodes, 3)), np.zeros((n_nodes, 3))))
     # priors: the correction's size (the navigation's own uncertainty), its change between nodes, the point shifts
     prior_diag = np.concatenate([1.0 / sigma_across**2, np.full(n_nodes, 1.0 / opts.prior_up_m**2),
                                  np.full(3 * n_pts, 1.0 / opts.point_prior_m**2), [1.0 / opts.prior_scale**2]])
