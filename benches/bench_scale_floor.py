@@ -6,7 +6,7 @@ Usage: python benches/bench_scale_floor.py [--scenarios test1,test2,test3,urban]
                                            [--check benches/results/paper_full_level.json]
                                            [--output benches/results/scale_floor.json]
 
-SAR-MIN's track scale follows the GNSS velocity's error (NAVIGATION.md: correlation 0.86-0.95 over seeds), and where
+SAR-MIN's track scale follows the GNSS velocity's error (NAVIGATION.md: correlation 0.84-0.95 over seeds), and where
 the autofocus's points disagree on a scale (urban: all 10 drives) nothing else measures it. So this is the floor of
 the worst reflector there, for navigation with these sensors. Per scenario: one full-vehicle simulation (seed 0,
 radar at 20 Hz: only the truth's track and targets are used); per seed: the GNSS velocity's scale of that seed's draw

@@ -126,16 +126,29 @@ def raw_gyro_yaw_rate(inputs: NavInputs, at: Array) -> Array:
     return np.mean(rates, axis=0)
 
 
-def _effective_covariance(design: Array, res: Array) -> Array:
+def _effective_covariance(design: Array, res: Array, groups: int = 1) -> Array:
     """Covariance of least-squares coefficients, counting the residual's serial correlation (lag-1 rho:
-    N (1 - rho) / (1 + rho) independent samples); inf on the diagonal where the design is rank-deficient."""
+    N (1 - rho) / (1 + rho) independent samples); inf on the diagonal where the design is rank-deficient.
+
+    ``groups`` > 1: the rows are that many stacked blocks of the same instants (the longitudinal fit's rear and
+    front axles), whose residuals share the instant's GNSS speed error: the covariance is the sandwich of the
+    instants' summed scores (a cluster per instant; counting the rows as independent made the lag's std ~1.4 times
+    too small), with rho that of the instants' summed residuals."""
     n, p = design.shape
     normal = design.T @ design
     if n <= p or np.linalg.matrix_rank(normal) < p:
         return np.diag(np.full(p, np.inf))
-    rho = float(np.clip(np.corrcoef(res[:-1], res[1:])[0, 1], 0.0, 0.999)) if res.std() > 0 else 0.0
-    n_eff = max(n * (1.0 - rho) / (1.0 + rho), p + 1.0)
-    return float(np.mean(res**2)) * n / n_eff * np.linalg.inv(normal)
+
+    def serial(r: Array) -> float:
+        rho = float(np.clip(np.corrcoef(r[:-1], r[1:])[0, 1], 0.0, 0.999)) if r.std() > 0 else 0.0
+        return max(len(r) * (1.0 - rho) / (1.0 + rho), p + 1.0)
+
+    inverse = np.linalg.inv(normal)
+    if groups == 1:
+        return float(np.mean(res**2)) * n / serial(res) * inverse
+    m = n // groups
+    score = (design * res[:, None]).reshape(groups, m, p).sum(axis=0)
+    return m / serial(res.reshape(groups, m).sum(axis=0)) * inverse @ (score.T @ score) @ inverse
 
 
 def _effective_std(design: Array, res: Array) -> Array:
@@ -199,7 +212,8 @@ def _fit_longitudinal(inputs: NavInputs, lever_rear_m: tuple[float, float], whee
     v = np.sqrt(np.maximum(np.sum(vel**2, axis=1) - (w * lx) ** 2, 0.0)) + w * ly
     # the design takes the rear wheels' own speed: with the GNSS speed's noise in both the design and the data the
     # lag came out biased (errors in variables, leaking through -a / v and a v, collinear with the speed): on test3's
-    # full vehicle 0.25 m low over 60 draws of that noise (test_the_gnss_speeds_noise_does_not_bias_the_wheel_lag)
+    # full vehicle 0.25 m low over 60 draws of that noise
+    # (test_nav_models.py::test_the_gnss_speeds_noise_neither_biases_the_wheel_lag_nor_hides_in_its_std)
     v_wheels = np.interp(ts, wheels.t, 0.5 * (wheels.z[:, 2] + wheels.z[:, 3]))
     use = (v >= min_speed_mps) & (v_wheels >= min_speed_mps)
     if use.sum() < 10:
@@ -209,7 +223,8 @@ def _fit_longitudinal(inputs: NavInputs, lever_rear_m: tuple[float, float], whee
     design, y = longitudinal_regression(wheels, ts, v, w, a, wheelbase_m, v_design=v_wheels)
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
     res = y - design @ coef
-    coef, cov, alone = _with_lag_prior(coef, _effective_covariance(design, res), *inputs.wheel_lag_prior_m)
+    coef, cov, alone = _with_lag_prior(coef, _effective_covariance(design, res, groups=2),
+                                        *inputs.wheel_lag_prior_m)
     std = np.sqrt(np.diag(cov))
     return (coef, std, int(use.sum()), float(np.std(a / v)), float(np.std(a)), float(np.sqrt(np.mean(res**2))),
             alone)
