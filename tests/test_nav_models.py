@@ -532,16 +532,14 @@ def _full_motion(scenario_name: str, components: tuple[str, ...] | None):  # noq
     return full_motion(scenario.name, scenario.motion, scenario.road, cfg.vehicle, cfg.vehicle_dynamics, 200.0), cfg
 
 
-def _full_vehicle_wheel_inputs(components: tuple[str, ...] | None = None):  # noqa: ANN202
-    """NavInputs of urban driven by the simulator's full vehicle (with only ``components``, None: all): its
-    instantaneous wheel speeds at 100 Hz (8 mm/s noise), its yaw rate at 100 Hz (4 mrad/s) and the rear axle's
-    velocity at 10 Hz (3 cm/s), and the vehicle's config."""
-    from autosar_cli.nav.geodesy import GeodeticOrigin
-    from autosar_cli.nav.inputs import Measurements, NavInputs
+def _full_vehicle_sensors(scenario: str, components: tuple[str, ...] | None, rng: np.random.Generator):  # noqa: ANN202
+    """``scenario`` driven by the simulator's full vehicle (with only ``components``, None: all): its instantaneous
+    wheel speeds at 100 Hz (8 mm/s noise), its yaw rate at 100 Hz (4 mrad/s), the GNSS instants (10 Hz), the rear
+    axle's true velocity there (m/s, ENU) and the vehicle's config."""
+    from autosar_cli.nav.inputs import Measurements
 
-    motion, cfg = _full_motion("urban", components)
+    motion, cfg = _full_motion(scenario, components)
     veh = cfg.vehicle
-    rng = np.random.default_rng(0)
     tw = np.arange(1.0, motion.duration_s - 1.0, 0.01)
     rate = np.stack([np.interp(tw, motion.t, motion.wheel_rate[:, i]) for i in range(4)], -1)
     wheels = Measurements("wheels", tw, rate * veh.wheel_radius_m + rng.normal(0, 0.008, (tw.size, 4)),
@@ -550,38 +548,43 @@ def _full_vehicle_wheel_inputs(components: tuple[str, ...] | None = None):  # no
                         np.array([0.004]))
     tg = np.arange(1.0, motion.duration_s - 1.0, 0.1)
     rear_axle = np.array([-veh.cog_to_rear_axle_m, 0.0, 0.0])
-    vel = motion.point(tg, rear_axle).velocity[:, :2] + rng.normal(0, 0.03, (tg.size, 2))
+    return wheels, gyro, tg, motion.point(tg, rear_axle).velocity[:, :2], cfg
+
+
+def _with_gnss_velocity(wheels, gyro, tg: np.ndarray, velocity: np.ndarray):  # noqa: ANN001, ANN202
+    """NavInputs of those wheels and gyro with a GNSS velocity ``velocity`` (m/s, ENU) at ``tg`` (3 cm/s stated)."""
+    from autosar_cli.nav.geodesy import GeodeticOrigin
+    from autosar_cli.nav.inputs import Measurements, NavInputs
+
     return NavInputs(0, GeodeticOrigin(45.0, 7.0, 0.0), gyros=[gyro], wheels=wheels,
-                     gnss_velocity=Measurements("gnss", tg, vel, np.full(2, 0.03))), cfg
+                     gnss_velocity=Measurements("gnss", tg, velocity, np.full(2, 0.03)))
+
+
+def _full_vehicle_wheel_inputs(components: tuple[str, ...] | None = None):  # noqa: ANN202
+    """NavInputs of urban driven by the simulator's full vehicle (:func:`_full_vehicle_sensors`, the GNSS velocity
+    with 3 cm/s noise), and the vehicle's config."""
+    rng = np.random.default_rng(0)
+    wheels, gyro, tg, velocity, cfg = _full_vehicle_sensors("urban", components, rng)
+    return _with_gnss_velocity(wheels, gyro, tg, velocity + rng.normal(0, 0.03, velocity.shape)), cfg
 
 
 @pytest.mark.parametrize("scenario", ["test1", "test3"])
 def test_the_gnss_speeds_noise_neither_biases_the_wheel_lag_nor_hides_in_its_std(scenario: str) -> None:
     """The full vehicle with instantaneous wheel speeds (no lag), 60 draws of the GNSS velocity's 3 cm/s noise: the
-    lag fitted alone averages to the noise-free fit's within 2.5 standard errors (measured 0.2 on test3, 1.4 on
-    test1), and its stated std is its scatter over the draws within 20 % (0.95 and 1.15 times). With the GNSS speed in
-    the design as well as in the data (errors in variables, leaking through the lag's -a / v and the slip's a v,
-    collinear with the speed) test3's mean was 0.25 m below it, at 5.3 standard errors; with each instant's two
-    rows (rear and front axle, one GNSS speed) counted as independent, test1's scatter was 1.6 times its std."""
-    from autosar_cli.nav.geodesy import GeodeticOrigin
-    from autosar_cli.nav.inputs import Measurements, NavInputs
+    lag fitted alone averages to the noise-free fit's within 2.5 standard errors (measured 1.4 on test1, 0.2 on
+    test3), and its stated std is its scatter over the draws within 20 % (1.12 and 0.98 times). With the GNSS speed
+    in the design as well as in the data (errors in variables, leaking through the lag's -a / v and the slip's a v,
+    collinear with the speed) the mean was 0.05 / 0.23 m below it, at 3.7 / 4.8 standard errors; with each instant's
+    two rows (rear and front axle, one GNSS speed) counted as independent, the scatter was 1.6 / 1.3 times the std."""
     from autosar_cli.nav.wheel_speeds import fit_wheel_speeds
 
-    motion, cfg = _full_motion(scenario, None)
-    veh = cfg.vehicle
     rng = np.random.default_rng(0)
-    tw = np.arange(1.0, motion.duration_s - 1.0, 0.01)
-    rate = np.stack([np.interp(tw, motion.t, motion.wheel_rate[:, i]) for i in range(4)], -1)
-    wheels = Measurements("wheels", tw, rate * veh.wheel_radius_m + rng.normal(0, 0.008, (tw.size, 4)),
-                          np.full(4, 0.008))
-    gyro = Measurements("gyro", tw, motion.body_rates(tw)[:, 2:3], np.array([0.004]))
-    tg = np.arange(1.0, motion.duration_s - 1.0, 0.1)
-    true_vel = motion.point(tg, np.array([-veh.cog_to_rear_axle_m, 0.0, 0.0])).velocity[:, :2]
+    wheels, gyro, tg, true_vel, cfg = _full_vehicle_sensors(scenario, None, rng)
+    veh = cfg.vehicle
 
     def lag(vel: np.ndarray) -> tuple[float, float]:
-        inputs = NavInputs(0, GeodeticOrigin(45.0, 7.0, 0.0), gyros=[gyro], wheels=wheels,
-                           gnss_velocity=Measurements("gnss", tg, vel, np.full(2, 0.03)))
-        fit = fit_wheel_speeds(inputs, (0.0, 0.0), veh.wheelbase_m, (veh.track_front_m, veh.track_rear_m))[0]
+        fit = fit_wheel_speeds(_with_gnss_velocity(wheels, gyro, tg, vel), (0.0, 0.0), veh.wheelbase_m,
+                               (veh.track_front_m, veh.track_rear_m))[0]
         assert fit is not None
         return fit.lag_distance_m, fit.std_m
 

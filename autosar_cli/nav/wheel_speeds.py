@@ -212,7 +212,7 @@ def _fit_longitudinal(inputs: NavInputs, lever_rear_m: tuple[float, float], whee
     v = np.sqrt(np.maximum(np.sum(vel**2, axis=1) - (w * lx) ** 2, 0.0)) + w * ly
     # the design takes the rear wheels' own speed: with the GNSS speed's noise in both the design and the data the
     # lag came out biased (errors in variables, leaking through -a / v and a v, collinear with the speed): on test3's
-    # full vehicle 0.25 m low over 60 draws of that noise
+    # full vehicle 0.23 m low over 60 draws of that noise
     # (test_nav_models.py::test_the_gnss_speeds_noise_neither_biases_the_wheel_lag_nor_hides_in_its_std)
     v_wheels = np.interp(ts, wheels.t, 0.5 * (wheels.z[:, 2] + wheels.z[:, 3]))
     use = (v >= min_speed_mps) & (v_wheels >= min_speed_mps)
