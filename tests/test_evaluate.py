@@ -730,7 +730,7 @@ def test_radar_autofocus_without_truth_brings_test2s_reflectors_within_3_cm(
         sim_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> None:
     """sar-min+af: the residual-motion autofocus on the bright isolated points of SAR-MIN's own image, no truth; its
     scale comes from the points' phase histories with their ranges pinned by the range envelope. Measured on test2
-    seed 1: scale -0.062 % against the truth's -0.065 % (SAR-MIN alone: 0)."""
+    seed 1: scale -0.063 % against the truth's -0.065 % (SAR-MIN alone: 0)."""
     _, true_scale, radar_scale = _scaled_comparison(sim_dir, tmp_path_factory, "sar-min+af")
     assert abs(radar_scale - true_scale) < 4e-4
 
@@ -741,7 +741,7 @@ def test_autofocus_fits_the_scale_with_the_motion(sim_dir: Path, tmp_path_factor
     aperture. The autofocus's scale, fitted with the rest of the track held, reads that motion as scale; refitted
     together with the motion from there, it does not. test1 seed 1, the truth track (the radar's true motion),
     exact and with a 2 mm across-track sine over 4 m of travel added: the scale the autofocus then applies (its
-    error; the truth's is 0) measured +0.001 and +0.031 % (std 0.011 %); the scale alone gave +0.012 and
+    error; the truth's is 0) measured +0.000 and +0.016 % (std 0.008 %); the scale alone gave +0.012 and
     +0.144 %."""
     from autosar_cli.nav.trajectory import cumulative_travel
     from autosar_cli.sar.focus import FocusOptions

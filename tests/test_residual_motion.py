@@ -54,8 +54,8 @@ def observable_rms(t: np.ndarray, v: np.ndarray) -> float:
 
 def test_recovers_an_injected_across_track_error(ci_drive: tuple[Path, Trajectory]) -> None:
     """The truth track plus 5 mm over 2 m and a 2 mm step across track, which defocuses the reflectors to a
-    coherence of ~0.06: the correction the radar data give cancels it to <= 0.5 mm RMS (measured 0.07 mm; the
-    radar's own vibration, which the truth track lacks, is in that figure)."""
+    coherence of 0.24 (at the positions the fit gives the points): the correction the radar data give cancels it to
+    <= 0.5 mm RMS (measured 0.09 mm; the radar's own vibration, which the truth track lacks, is in that figure)."""
     drive, truth = ci_drive
     err = injected_error(truth)
     across = frame_geometry(truth, truth.t_ns, CFG)[1]  # towards the radar's side, as the autofocus takes it
@@ -64,7 +64,7 @@ def test_recovers_an_injected_across_track_error(ci_drive: tuple[Path, Trajector
                                                        np.full((len(err), 3), carried_std_m)))
     res = estimate_residual_motion(drive, wrong, CFG, _reflector_points(drive, truth))
     assert res.applied, res.reason
-    assert res.coherence_before < 0.2 and res.coherence_after > 0.99
+    assert res.coherence_before < 0.3 and res.coherence_after > 0.99
     assert res.coverage > 0.95 and res.points_used.sum() >= 2
     c = res.trajectory.correction
     assert c is not None and res.correction is not None

@@ -21,7 +21,8 @@ phase-gradient autofocus (Wahl et al. 1994), but solved for a correction of the 
   steady drift over its aperture). Phase steps need no unwrapping; each is weighted by its signal-to-noise ratio;
 * fused with the navigation: a prior of ``prior_across_m`` and ``prior_up_m`` on the correction (the size of the
   motion the navigation leaves unmodelled; its own covariance bounds the absolute position to ~0.3 m, which
-  constrains nothing at this scale) and ``step_m`` on its change between nodes, so a stretch with no point keeps
+  constrains nothing at this scale) and ``step_across_m`` / ``step_up_m`` on its change between nodes, so a stretch
+  with no point keeps
   the navigated track; a sparse weighted least-squares solve, Gauss-Newton iterations with
   each point's position updated, posterior standard deviations from the normal matrix;
 * points whose phases do not fit (moving targets, multipath) are dropped. The correction is refused, with the
@@ -87,7 +88,11 @@ class AutofocusOptions:
     iterations: int = 4  #: Gauss-Newton iterations at most
     prior_across_m: float = 0.005  #: prior std of the across-track correction
     prior_up_m: float = 0.005  #: prior std of the vertical correction
-    step_m: float = 0.001  #: prior std of the correction's change from one node to the next
+    #: prior std of the correction's change from one node to the next, across track (1 cm/s: body roll and the
+    #: case's horizontal vibration, 0.1 mm at 4-25 Hz, move it less; looser, it takes the scale's share of each
+    #: aperture's quadratic phase on a rough road) and up (the case's vertical vibration, ~1 mm)
+    step_across_m: float = 0.0001
+    step_up_m: float = 0.001
     point_prior_m: float = 0.02  #: prior std of a point's own position error
     #: prior std of the track's along-track scale; None: ``NAV_SCALE_STD_FACTOR`` times the navigation's own std
     #: (:func:`~autosar_cli.nav.trajectory.track_scale_std`), or ``fallback_prior_scale`` where it has none
@@ -289,7 +294,7 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
     if scale:
         # then the residual motion and the scale together, from that scale and the points that fitted it: the
         # motion the first fit held takes back the share of each aperture's quadratic phase that is its own
-        # (test3 seed 1: +0.037 % alone, +0.002 % together, the track's error -0.017 %)
+        # (test3 seed 1: +0.037 % alone, -0.002 % together, the track's error -0.017 %)
         result = _fit(hist, trajectory, config, points, opts, used0=used0, scale0=scale)
         scale, scale_std = (result.scale, result.scale_std) if result.applied else (0.0, scale_std)
     else:  # the residual motion alone along the navigated track
@@ -338,7 +343,8 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     prior_diag = np.concatenate([1.0 / sigma_across**2, np.full(n_nodes, 1.0 / opts.prior_up_m**2),
                                  np.full(3 * n_pts, 1.0 / opts.point_prior_m**2), [1.0 / opts.prior_scale**2]])
     diff = sp.diags([np.ones(n_nodes - 1), -np.ones(n_nodes - 1)], [1, 0], shape=(n_nodes - 1, n_nodes))
-    smooth = (sp.block_diag([diff, diff, sp.csr_matrix((0, 3 * n_pts + 1))]) / opts.step_m).tocsc()
+    smooth = sp.block_diag([diff / opts.step_across_m, diff / opts.step_up_m,
+                            sp.csr_matrix((0, 3 * n_pts + 1))]).tocsc()
     prior_normal = (sp.diags(prior_diag) + smooth.T @ smooth).tocsc()
 
     shifts = slice(2 * n_nodes, 2 * n_nodes + 3 * n_pts)  # x: across, up per node; the point shifts; the scale
