@@ -17,8 +17,9 @@ $(STAMP): pyproject.toml
 test: setup
 	$(BIN)/python -m pytest -q
 
-# The checks too long for CI: the urban drive's reflectors along its 6-DOF phase centres (~10 min), and test2's
-# scale sweep on the truth's reflectors (compare's sar-min+scale, ~3 min).
+# The checks too long for CI: the urban drive's reflectors along its 6-DOF phase centres (~10 min), test2's
+# scale sweep on the truth's reflectors (compare's sar-min+scale, ~3 min), and the autofocus's scale on a class C
+# road (~1 min).
 test-long: setup
 	$(BIN)/python -m pytest -q -s -m long
 
