@@ -30,8 +30,8 @@ Another car (``--car``: entries of the simulated car's [vehicle_dynamics]; the p
 ``--scenarios test1,test2,test3 --seeds 10,11 --dynamics full --methods sar-min,sar-min+af --car
 mass_kg=1900,cornering_stiffness_front_n_per_rad=70000.0,cornering_stiffness_rear_n_per_rad=95000.0,
 roll_gradient_deg_per_g=5.5,pitch_gradient_deg_per_g=3.0,road_class='"B"' --output
-benches/results/paper_full_car.json``, with the config's car on the same seeds beside it (no ``--car``) and on seeds
-12-16 (``--seeds 12-16 --resume``): 21 drives outside the 40, to show their figures are not tuned to their seeds.
+benches/results/paper_full_car.json``, with the config's car on seeds 10-16 beside it (no ``--car``, ``--seeds 10-16
+--resume``): 21 drives outside the 40, to show their figures are not tuned to their seeds.
 """
 
 from __future__ import annotations
