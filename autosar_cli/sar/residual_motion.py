@@ -22,9 +22,8 @@ phase-gradient autofocus (Wahl et al. 1994), but solved for a correction of the 
 * fused with the navigation: a prior of ``prior_across_m`` and ``prior_up_m`` on the correction (the size of the
   motion the navigation leaves unmodelled; its own covariance bounds the absolute position to ~0.3 m, which
   constrains nothing at this scale) and ``step_across_m`` / ``step_up_m`` on its change between nodes, so a stretch
-  with no point keeps
-  the navigated track; a sparse weighted least-squares solve, Gauss-Newton iterations with
-  each point's position updated, posterior standard deviations from the normal matrix;
+  with no point keeps the navigated track; a sparse weighted least-squares solve, Gauss-Newton iterations with each
+  point's position updated, posterior standard deviations from the normal matrix;
 * points whose phases do not fit (moving targets, multipath) are dropped. The correction is refused, with the
   reason, when fewer than ``min_points`` points remain or when it does not make the points' histories more
   coherent.
