@@ -130,23 +130,16 @@ def in_paper_order(e: dict[str, float]) -> bool | None:
 
 
 def track_scale(result_dir: Path) -> float:
-    """Scale of the similarity mapping SAR-MIN's phase-centre track onto the truth's (radar frames while moving) - 1.
-
-    Below 0, SAR-MIN's track is too long; its reflectors are then displaced by about the scale times their
-    along-track distance from the track's centre, which no rigid alignment removes.
-    """
+    """SAR-MIN's phase-centre track scale against the truth's, less 1, over the radar frames while moving
+    (``evaluate.trajectory_metrics.radar_track_scale``)."""
     from autosar_cli.config import load_config
-    from autosar_cli.evaluate.alignment import fit_similarity_scale
-    from autosar_cli.evaluate.trajectory_metrics import common_instants
-    from autosar_cli.nav.trajectory import radar_track
+    from autosar_cli.evaluate.trajectory_metrics import radar_track_scale
     from autosar_cli.store.drive import radar_times
     from autosar_cli.store.trajectory import read_trajectory
 
-    config = load_config()
     est = read_trajectory(result_dir / "sar-min" / "trajectory.h5", covariance=False)
     true = read_trajectory(result_dir / "truth" / "trajectory.h5", covariance=False)
-    t = common_instants(est, true, radar_times(result_dir / "drive.h5"))
-    return fit_similarity_scale(radar_track(est, t, config), radar_track(true, t, config)) - 1.0
+    return radar_track_scale(est, true, radar_times(result_dir / "drive.h5"), load_config())
 
 
 def gnss_velocity_scale(scenario: str, seed: int) -> tuple[float, float]:

@@ -151,7 +151,8 @@ def test_range_normalised_entropy_counts_scatterers_by_reflectivity() -> None:
 
 def test_scaled_track_is_the_same_path_driven_faster() -> None:
     """scale_track: every pose (between samples too, by CTRV) moves to centre + (1 + s)(pose - centre), the
-    heading stays; and the parabola vertex the scale estimate takes is exact on a parabola."""
+    heading stays, and radar_track_scale reads s back; and the parabola vertex the scale estimate takes is exact on a
+    parabola."""
     from autosar_cli.nav.trajectory import Trajectory
 
     t = np.arange(0.0, 10.0, 0.01)
@@ -167,6 +168,10 @@ def test_scaled_track_is_the_same_path_driven_faster() -> None:
     np.testing.assert_allclose(p1, c + (1 + s) * (p0 - c), atol=1e-9)
     np.testing.assert_array_equal(h1, h0)
     assert scaled.state is None and scale_track(traj, s).rear_axle_enu.mean(axis=0) == pytest.approx(xy.mean(axis=0))
+    # the evaluation's measure of a track's scale reads it back (the radar's lever arm, not scaled, costs ~1e-6)
+    from autosar_cli.evaluate.trajectory_metrics import radar_track_scale
+
+    assert radar_track_scale(traj, scaled, traj.t_ns[::10], CFG) == pytest.approx(s, abs=2e-5)
     x = np.linspace(-3e-3, 3e-3, 21)
     assert _parabola_peak(x, 5.0 - 4e5 * (x + 1.234e-3) ** 2) == pytest.approx(-1.234e-3, abs=1e-12)
 

@@ -15,8 +15,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from autosar_cli.evaluate.alignment import Se2, fit_se2
-from autosar_cli.nav.trajectory import Trajectory, cumulative_travel, relative_pose_error
+from autosar_cli.config import Config
+from autosar_cli.evaluate.alignment import Se2, fit_se2, fit_similarity_scale
+from autosar_cli.nav.trajectory import Trajectory, cumulative_travel, radar_track, relative_pose_error
 
 Array = NDArray[np.float64]
 
@@ -99,6 +100,15 @@ def common_instants(est: Trajectory, ref: Trajectory, t_ns: ArrayLike | None = N
     if len(t) < 2:
         raise ValueError(f"the {est.method} and truth trajectories share fewer than two moving instants")
     return t
+
+
+def radar_track_scale(est: Trajectory, ref: Trajectory, frame_t_ns: ArrayLike, config: Config) -> float:
+    """Scale of the similarity mapping ``est``'s radar phase-centre track onto ``ref``'s, less 1, over the radar
+    frame times ``frame_t_ns`` (ns) where both move (:func:`common_instants`). Below 0 ``est``'s track is too long;
+    its reflectors are then displaced by about the scale times their along-track distance from the track's centre,
+    which no rigid alignment removes. The autofocus's scale (``ResidualMotion.scale``) estimates it without ``ref``."""
+    t = common_instants(est, ref, frame_t_ns)
+    return fit_similarity_scale(radar_track(est, t, config), radar_track(ref, t, config)) - 1.0
 
 
 def trajectory_errors(est: Trajectory, ref: Trajectory, lever_arm: ArrayLike, t_ns: ArrayLike) -> TrajectoryErrors:
