@@ -254,7 +254,7 @@ def group_key(row: dict[str, Any]) -> str:
     return (row["scenario"] + ("" if comps is None else f" [{comps or 'none'}]")
             + ("" if k is None else f" [K={k:g}]") + ("" if g is None else f" [slip={g:g}]")
             + ("" if row.get("fits", True) else " [no fits]") + ("" if row.get("attitude", True) else " [planar]")
-            + (" [car]" if row.get("car") else ""))
+            + (" [car]" if row.get("car") else "") + (" [sim]" if row.get("simulation") else ""))
 
 
 def main() -> None:
@@ -280,6 +280,9 @@ def main() -> None:
     ap.add_argument("--car", default=None,
                     help="the simulated car differs from the config's: [vehicle_dynamics] entries, e.g. "
                          "mass_kg=2000,road_class='\"B\"' (the processor keeps the config's)")
+    ap.add_argument("--simulation", default=None,
+                    help="the simulated radar differs from the config's: [simulation] entries, e.g. "
+                         "vibration_horizontal_rms_m=0.25e-3 (the processor keeps the config's)")
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--keep", action="store_true", help="keep every drive's log and comparison")
     ap.add_argument("--resume", action="store_true", help="keep --output's rows and skip the drives already in it")
@@ -296,20 +299,22 @@ def main() -> None:
     variant = {"dynamics": args.dynamics, "components": args.components,
                "understeer_gradient": args.understeer_gradient, "rear_slip_gain": args.rear_slip_gain,
                "fits": not args.no_fits, "attitude": not args.planar, "radar_height": args.radar_height,
-               "car": args.car}
+               "car": args.car, "simulation": args.simulation}
 
     def drive_key(r: dict[str, Any]) -> tuple[Any, ...]:
         return (r["scenario"], r["seed"], r.get("dynamics"), r.get("components"), r.get("understeer_gradient"),
                 r.get("rear_slip_gain"), r.get("fits", True), r.get("attitude", True), r.get("radar_height", False),
-                r.get("car"))
+                r.get("car"), r.get("simulation"))
 
     done = {drive_key(r) for r in rows}
 
     def write() -> dict[str, Any]:
         groups = list(dict.fromkeys(group_key(r) for r in rows))
         cars = sorted({r["car"] for r in rows if r.get("car")})  # the rows' other car ("[car]" in the groups)
+        sims = sorted({r["simulation"] for r in rows if r.get("simulation")})  # and other radar ("[sim]")
         result = {"benchmark": "paper", "methods": methods, "dynamics": args.dynamics or "config",
-                  "components": args.components, **({"car": " / ".join(cars)} if cars else {}), "rows": rows,
+                  "components": args.components, **({"car": " / ".join(cars)} if cars else {}),
+                  **({"simulation": " / ".join(sims)} if sims else {}), "rows": rows,
                   "summary": {g: summary([r for r in rows if group_key(r) == g]) for g in groups}
                   | {"all": summary(rows)}}
         args.output.parent.mkdir(parents=True, exist_ok=True)
@@ -326,15 +331,16 @@ def main() -> None:
                   if custom else [])
         # the simulated car: the config's unless --car (then only the simulator is given the changed one)
         sim_config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
-                                                    not args.no_fits, not args.planar, args.radar_height, args.car))]
-                      if args.car else config)
+                                                    not args.no_fits, not args.planar, args.radar_height, args.car,
+                                                    args.simulation))]
+                      if args.car or args.simulation else config)
         for seed in parse_seeds(args.seeds):
             for scenario in args.scenarios.split(","):
                 if drive_key({"scenario": scenario, "seed": seed, **variant}) in done:
                     continue
                 tag = (f"_{args.dynamics}" if args.dynamics else "") + (
                     f"_{args.components.replace(',', '+')}" if args.components is not None else "") + (
-                    "_car" if args.car else "")
+                    "_car" if args.car else "") + ("_sim" if args.simulation else "")
                 log = work / f"{scenario}_s{seed}{tag}.mcap"
                 t = time.perf_counter()
                 if not log.exists():
@@ -360,8 +366,10 @@ def main() -> None:
                     row["radar_height"] = True
                 if args.car:
                     row["car"] = args.car
+                if args.simulation:
+                    row["simulation"] = args.simulation
                 row["sarmin_track_scale_pct"] = pct(track_scale(out))
-                if not args.car:  # (it rebuilds the config's car's motion)
+                if not (args.car or args.simulation):  # (it rebuilds the config's car's motion)
                     gnss_scale, gnss_se = gnss_velocity_scale(scenario, seed)
                     row["gnss_velocity_scale_pct"] = pct(gnss_scale)
                     row["gnss_velocity_scale_se_pct"] = pct(gnss_se)
