@@ -7,7 +7,7 @@ has the same phase. So the phase history of a few such points per aperture measu
 phase-gradient autofocus (Wahl et al. 1994), but solved for a correction of the trajectory, not of the image
 (generalised PGA, as in torchbp; "Residual Motion Compensation in Automotive MIMO SAR Imaging", RadarConf 2022):
 
-* the points: the brightest isolated point-like pixels 3-12 m from the track in a first image along the
+* the points: the brightest isolated point-like pixels 3-16 m from the track in a first image along the
   navigated track (:func:`~autosar_cli.sar.autofocus.bright_points`), about one per ``point_spacing_m`` of travel;
 * their histories over a wide beam (+-28 deg), each pulse's channels summed, ``presum`` pulses summed after
   compensation (:func:`gather_phase_histories` keeps a few range bins per pulse and channel, so the iterations do
@@ -79,7 +79,7 @@ class AutofocusOptions:
     half_beam_deg: float = 28.0  #: half-width of the beam over which each point's history is taken
     channels: int = 2  #: channels of the first image and the histories (sar.focus.channel_pairs)
     min_range_m: float = 3.0  #: ground distance from the track of the points chosen
-    max_range_m: float = 12.0
+    max_range_m: float = 16.0
     point_spacing_m: float = 1.5  #: about one point per this much travel (and no two points closer)
     presum: int = 4  #: pulses summed (after compensation) per sample of a history
     node_s: float = 0.01  #: spacing of the correction's nodes (s)
@@ -99,7 +99,7 @@ class AutofocusOptions:
     fallback_prior_scale: float = 0.003  #: a track without a scale covariance (GNSS velocity: ~0.04 % on 25 s)
     max_scale_std: float = 0.0003  #: a scale measured less well than this is not applied
     range_sigma_m: float = 0.002  #: std of a point's bistatic path from its range envelope
-    max_phase_rms_rad: float = 0.15  #: points fitting worse than this are dropped (moving, multipath)
+    max_phase_rms_rad: float = 0.3  #: points fitting worse than this are dropped (moving, multipath)
     min_points: int = 2  #: fewer usable points: no correction
 
 
@@ -556,7 +556,7 @@ def _posterior_std(lu: spla.SuperLU, n_nodes: int, every: int = 10) -> Array:
 
 
 def select_points(image: NDArray[np.complexfloating], grid: FocusGrid, range_m: Array, opts: AutofocusOptions,
-                  *, per_segment: int = 2, min_concentration: float = 0.2, within_db: float = 15.0) -> Array:
+                  *, per_segment: int = 2, min_concentration: float = 0.15, within_db: float = 15.0) -> Array:
     """Bright, isolated, point-like pixels (P, 3) (ENU m, on the grid's plane) of a first image for the phase
     histories: local maxima (within 1 m) between ``opts.min_range_m`` and ``opts.max_range_m`` from the track
     (``range_m``, per pixel) that hold ``min_concentration`` of the intensity of the 7 x 7 pixels around them, ranked
