@@ -7,7 +7,7 @@ has the same phase. So the phase history of a few such points per aperture measu
 phase-gradient autofocus (Wahl et al. 1994), but solved for a correction of the trajectory, not of the image
 (generalised PGA, as in torchbp; "Residual Motion Compensation in Automotive MIMO SAR Imaging", RadarConf 2022):
 
-* the points: the brightest isolated point-like pixels 3-16 m from the track in a first image along the
+* the points: the brightest isolated point-like pixels 3-12 m from the track in a first image along the
   navigated track (:func:`~autosar_cli.sar.autofocus.bright_points`), about one per ``point_spacing_m`` of travel;
 * their histories over a wide beam (+-28 deg), each pulse's channels summed, ``presum`` pulses summed after
   compensation (:func:`gather_phase_histories` keeps a few range bins per pulse and channel, so the iterations do
@@ -79,7 +79,7 @@ class AutofocusOptions:
     half_beam_deg: float = 28.0  #: half-width of the beam over which each point's history is taken
     channels: int = 2  #: channels of the first image and the histories (sar.focus.channel_pairs)
     min_range_m: float = 3.0  #: ground distance from the track of the points chosen
-    max_range_m: float = 16.0
+    max_range_m: float = 12.0
     point_spacing_m: float = 1.5  #: about one point per this much travel (and no two points closer)
     presum: int = 4  #: pulses summed (after compensation) per sample of a history
     node_s: float = 0.01  #: spacing of the correction's nodes (s)
