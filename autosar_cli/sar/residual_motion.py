@@ -99,7 +99,7 @@ class AutofocusOptions:
     fallback_prior_scale: float = 0.003  #: a track without a scale covariance (GNSS velocity: ~0.04 % on 25 s)
     max_scale_std: float = 0.0003  #: a scale measured less well than this is not applied
     range_sigma_m: float = 0.002  #: std of a point's bistatic path from its range envelope
-    max_phase_rms_rad: float = 0.3  #: points fitting worse than this are dropped (moving, multipath)
+    max_phase_rms_rad: float = 0.15  #: points fitting worse than this are dropped (moving, multipath)
     min_points: int = 2  #: fewer usable points: no correction
 
 
@@ -556,7 +556,7 @@ def _posterior_std(lu: spla.SuperLU, n_nodes: int, every: int = 10) -> Array:
 
 
 def select_points(image: NDArray[np.complexfloating], grid: FocusGrid, range_m: Array, opts: AutofocusOptions,
-                  *, per_segment: int = 2, min_concentration: float = 0.15, within_db: float = 15.0) -> Array:
+                  *, per_segment: int = 2, min_concentration: float = 0.2, within_db: float = 15.0) -> Array:
     """Bright, isolated, point-like pixels (P, 3) (ENU m, on the grid's plane) of a first image for the phase
     histories: local maxima (within 1 m) between ``opts.min_range_m`` and ``opts.max_range_m`` from the track
     (``range_m``, per pixel) that hold ``min_concentration`` of the intensity of the 7 x 7 pixels around them, ranked
