@@ -31,7 +31,9 @@ Another car (``--car``: entries of the simulated car's [vehicle_dynamics]; the p
 mass_kg=1900,cornering_stiffness_front_n_per_rad=70000.0,cornering_stiffness_rear_n_per_rad=95000.0,
 roll_gradient_deg_per_g=5.5,pitch_gradient_deg_per_g=3.0,road_class='"B"' --output
 benches/results/paper_full_car.json``, with the config's car on seeds 10-16 beside it (no ``--car``, ``--seeds 10-16
---resume``): 21 drives outside the 40, to show their figures are not tuned to their seeds.
+--resume``): 21 drives outside the 40, to show their figures are not tuned to their seeds; seeds 17-18 add the
+config's car, a softer one (``--car``) and a radar case that shakes more (``--simulation``: entries of [simulation],
+for the simulator only), with ``--resume`` into the same file (commands in docs/AUTOFOCUS.md).
 """
 
 from __future__ import annotations
