@@ -75,3 +75,27 @@ def test_missing_key_and_missing_file(tmp_path):
     bad.write_text("[vehicle\nname = 1")
     with pytest.raises(ConfigError, match="not valid TOML"):
         load_config(bad)
+
+
+def test_bench_configs_change_only_the_simulators_entries(tmp_path: Path) -> None:
+    """benches/bench_paper.py's other car (``--car``) and other radar (``--simulation``) edit only the entries named,
+    in their own sections, and refuse a name the section lacks."""
+    import importlib.util
+
+    source = Path(__file__).parents[1] / "benches" / "bench_paper.py"
+    spec = importlib.util.spec_from_file_location("bench_paper", source)
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    base = load_config()
+    path = bench.config_copy(None, None, tmp_path, car='roll_gradient_deg_per_g=7.0,road_class="B"',
+                             simulation="vibration_horizontal_rms_m=0.25e-3")
+    changed = load_config(path)
+    assert changed.simulation is not None and base.simulation is not None
+    assert changed.simulation.vibration_horizontal_rms_m == 0.25e-3
+    assert changed.simulation.vibration_vertical_rms_m == base.simulation.vibration_vertical_rms_m
+    assert changed.vehicle_dynamics.roll_gradient_deg_per_g == 7.0
+    assert changed.vehicle_dynamics.road_class == "B"
+    assert changed.navigation == base.navigation and changed.radar == base.radar
+    with pytest.raises(SystemExit, match="not an entry of \\[simulation\\]"):
+        bench.config_copy(None, None, tmp_path, simulation="vibration_rms_m=1.0")
