@@ -8,7 +8,7 @@ phase-gradient autofocus (Wahl et al. 1994), but solved for a correction of the 
 (generalised PGA, as in torchbp; "Residual Motion Compensation in Automotive MIMO SAR Imaging", RadarConf 2022):
 
 * the points: the brightest isolated point-like pixels 3-12 m from the track in a first image along the
-  navigated track (:func:`~autosar_cli.sar.autofocus.bright_points`), about one per ``point_spacing_m`` of travel;
+  navigated track (:func:`select_points`), about one per ``point_spacing_m`` of travel;
 * their histories over a wide beam (+-28 deg), each pulse's channels summed, ``presum`` pulses summed after
   compensation (:func:`gather_phase_histories` keeps a few range bins per pulse and channel, so the iterations do
   not read the radar again);
