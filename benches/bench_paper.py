@@ -331,11 +331,13 @@ def main() -> None:
         config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
                                                 not args.no_fits, not args.planar, args.radar_height))]
                   if custom else [])
-        # the simulated car: the config's unless --car (then only the simulator is given the changed one)
+        # the simulated car and radar: the config's unless --car / --simulation (then only the simulator is given
+        # the changed one)
+        other_vehicle = bool(args.car or args.simulation)
         sim_config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
                                                     not args.no_fits, not args.planar, args.radar_height, args.car,
                                                     args.simulation))]
-                      if args.car or args.simulation else config)
+                      if other_vehicle else config)
         for seed in parse_seeds(args.seeds):
             for scenario in args.scenarios.split(","):
                 if drive_key({"scenario": scenario, "seed": seed, **variant}) in done:
@@ -371,7 +373,7 @@ def main() -> None:
                 if args.simulation:
                     row["simulation"] = args.simulation
                 row["sarmin_track_scale_pct"] = pct(track_scale(out))
-                if not (args.car or args.simulation):  # (it rebuilds the config's car's motion)
+                if not other_vehicle:  # (it rebuilds the config's car's motion)
                     gnss_scale, gnss_se = gnss_velocity_scale(scenario, seed)
                     row["gnss_velocity_scale_pct"] = pct(gnss_scale)
                     row["gnss_velocity_scale_se_pct"] = pct(gnss_se)
