@@ -8,7 +8,8 @@ phase-gradient autofocus (Wahl et al. 1994), but solved for a correction of the 
 (generalised PGA, as in torchbp; "Residual Motion Compensation in Automotive MIMO SAR Imaging", RadarConf 2022):
 
 * the points: the brightest isolated point-like pixels 3-12 m from the track in a first image along the
-  navigated track (:func:`~autosar_cli.sar.autofocus.bright_points`), about one per ``point_spacing_m`` of travel;
+  navigated track (:func:`select_points`), about one per ``point_spacing_m`` of travel, and as many again 12-16 m
+  out, which measure the motion but not the scale;
 * their histories over a wide beam (+-28 deg), each pulse's channels summed, ``presum`` pulses summed after
   compensation (:func:`gather_phase_histories` keeps a few range bins per pulse and channel, so the iterations do
   not read the radar again);
@@ -79,7 +80,11 @@ class AutofocusOptions:
     half_beam_deg: float = 28.0  #: half-width of the beam over which each point's history is taken
     channels: int = 2  #: channels of the first image and the histories (sar.focus.channel_pairs)
     min_range_m: float = 3.0  #: ground distance from the track of the points chosen
-    max_range_m: float = 12.0
+    max_range_m: float = 16.0
+    #: points farther than this measure the motion, not the scale: chosen apart from the nearer ones, and left out of
+    #: the scale's first fit and its agreement test, which read across-track motion over each aperture as that
+    #: point's scale (with a 2 mm sine across, a corner reflector at 12.5 m made test1 seed 1's points disagree)
+    scale_max_range_m: float = 12.0
     point_spacing_m: float = 1.5  #: about one point per this much travel (and no two points closer)
     presum: int = 4  #: pulses summed (after compensation) per sample of a history
     node_s: float = 0.01  #: spacing of the correction's nodes (s)
@@ -99,7 +104,9 @@ class AutofocusOptions:
     fallback_prior_scale: float = 0.003  #: a track without a scale covariance (GNSS velocity: ~0.04 % on 25 s)
     max_scale_std: float = 0.0003  #: a scale measured less well than this is not applied
     range_sigma_m: float = 0.002  #: std of a point's bistatic path from its range envelope
-    max_phase_rms_rad: float = 0.15  #: points fitting worse than this are dropped (moving, multipath)
+    #: points fitting worse than this are dropped (moving, multipath: 1.8-2 rad; corner reflectors under three times
+    #: the radar case's vibration fit at 0.12-0.20 rad within the node steps' priors)
+    max_phase_rms_rad: float = 0.3
     min_points: int = 2  #: fewer usable points: no correction
 
 
@@ -278,7 +285,8 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
     # (the wide beam's defocus the old scale sweep measured), which a free across-track correction would absorb
     # (the uncorrected motion leaves larger phase residuals: a looser test of which points are points)
     held = replace(opts, prior_across_m=1e-6, prior_up_m=1e-6, max_phase_rms_rad=max(opts.max_phase_rms_rad, 0.5))
-    first = _fit(hist, trajectory, config, points0, held)
+    near = _ground_distance(trajectory, config, points0) <= opts.scale_max_range_m
+    first = _fit(hist, trajectory, config, points0, held, used0=near)
     scale, scale_std, note = first.scale, first.scale_std, ""
     if not first.applied:
         scale, note = 0.0, f"track scale not measured: {first.reason}"
@@ -289,7 +297,7 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
         scale, note = 0.0, (f"track scale not measured: its {n} points disagree on it (reduced chi-square "
                             f"{chi2:.1f}, above {_agreement_limit(n):.1f})")
     points = first.points_enu if first.applied else points0
-    used0 = first.points_used if first.applied else None
+    used0 = first.points_used | ~near if first.applied else None
     if scale:
         # then the residual motion and the scale together, from that scale and the points that fitted it: the
         # motion the first fit held takes back the share of each aperture's quadratic phase that is its own
@@ -310,6 +318,14 @@ def with_scale_prior(opts: AutofocusOptions, trajectory: Trajectory) -> Autofocu
     nav_std = track_scale_std(trajectory)
     prior = NAV_SCALE_STD_FACTOR * nav_std if nav_std else opts.fallback_prior_scale
     return replace(opts, prior_scale=prior)
+
+
+def _ground_distance(trajectory: Trajectory, config: Config, points_enu: Array) -> Array:
+    """Each point's (P, 3) (ENU m) horizontal distance (m) from the radar's track."""
+    from autosar_cli.nav.trajectory import radar_track
+
+    track = radar_track(trajectory, trajectory.t_ns, config)[:, :2]
+    return np.array([float(np.min(np.hypot(*(track - p[:2]).T))) for p in points_enu])
 
 
 def _agreement_limit(n_points: int) -> float:
@@ -556,12 +572,13 @@ def _posterior_std(lu: spla.SuperLU, n_nodes: int, every: int = 10) -> Array:
 
 
 def select_points(image: NDArray[np.complexfloating], grid: FocusGrid, range_m: Array, opts: AutofocusOptions,
-                  *, per_segment: int = 2, min_concentration: float = 0.2, within_db: float = 15.0) -> Array:
+                  *, band_m: tuple[float, float] | None = None, per_segment: int = 2, min_concentration: float = 0.2,
+                  within_db: float = 15.0) -> Array:
     """Bright, isolated, point-like pixels (P, 3) (ENU m, on the grid's plane) of a first image for the phase
-    histories: local maxima (within 1 m) between ``opts.min_range_m`` and ``opts.max_range_m`` from the track
-    (``range_m``, per pixel) that hold ``min_concentration`` of the intensity of the 7 x 7 pixels around them, ranked
-    by |z|^2 R^2 (reflectivity, not nearness); of those within ``within_db`` of the most reflective, the
-    ``per_segment`` best in every ``opts.point_spacing_m`` of the grid's along axis.
+    histories: local maxima (within 1 m) between ``band_m`` (default ``opts.min_range_m``, ``opts.max_range_m``)
+    from the track (``range_m``, per pixel) that hold ``min_concentration`` of the intensity of the 7 x 7 pixels
+    around them, ranked by |z|^2 R^2 (reflectivity, not nearness); of those within ``within_db`` of the most
+    reflective, the ``per_segment`` best in every ``opts.point_spacing_m`` of the grid's along axis.
 
     Why reflectivity: in the simulated scenes and on real roads, corner reflectors, poles and sign posts stand
     10 dB or more above the brightest speckle of distributed clutter, whose peak-to-background ratio alone does
@@ -573,7 +590,8 @@ def select_points(image: NDArray[np.complexfloating], grid: FocusGrid, range_m: 
     size = max(3, 2 * int(round(0.5 / grid.pixel_m)) + 1)
     local_max = (intensity == maximum_filter(intensity, size=size)) & (intensity > 0.0)
     concentration = intensity / np.maximum(uniform_filter(intensity, size=7) * 49.0, np.finfo(np.float64).tiny)
-    score = np.where(local_max & (range_m >= opts.min_range_m) & (range_m <= opts.max_range_m)
+    low, high = band_m or (opts.min_range_m, opts.max_range_m)
+    score = np.where(local_max & (range_m >= low) & (range_m <= high)
                      & (concentration >= min_concentration), intensity * range_m**2, 0.0)
     if not np.any(score > 0):
         return np.zeros((0, 3))
@@ -609,7 +627,12 @@ def candidate_points(drive_path: str | Path, trajectory: Trajectory, config: Con
     t_radar = radar_times(drive_path)
     t_radar = t_radar[(t_radar >= trajectory.t_ns[0]) & (t_radar <= trajectory.t_ns[-1])]
     track = radar_track(trajectory, t_radar, config)
-    points = select_points(image.image, grid, track_distance(grid, track), opts, **select)
+    distance = track_distance(grid, track)
+    # the scale's points as they would be alone, and the motion's beyond them (ranked by reflectivity, the farther
+    # would take the nearer's places)
+    bands = [(opts.min_range_m, opts.scale_max_range_m), (opts.scale_max_range_m, opts.max_range_m)]
+    points = np.concatenate([select_points(image.image, grid, distance, opts, band_m=b, **select) for b in bands
+                             if b[1] > b[0]])
     if len(points):  # on the focusing surface, as focus put them (sar.focus)
         points[:, 2] += trajectory.height_offset(zero_doppler_times(trajectory, points, config, t_radar))
     return points
