@@ -164,6 +164,7 @@ class ResidualMotion:
     #: the points' own scales about the common one: reduced chi-square and the number of points (the scale fit's)
     scale_agreement: tuple[float, int] = (1.0, 0)
     scale_prior: float = 0.0  #: the prior std the scale was fitted with (:func:`with_scale_prior`)
+    noise_power: float = math.nan  #: the noise power of a presummed sample, as the fit measured it
 
     @property
     def applied(self) -> bool:
@@ -313,7 +314,8 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
             moved[near] = result.points_enu[near]
             moved[~near, :2] = centre + (1.0 + scale) * (points[~near, :2] - centre)
             every = _fit(hist, scale_track(trajectory, scale, centre), config, moved, motion,
-                         used0=result.points_used | ~near)
+                         used0=result.points_used | ~near, motion0=result.correction,
+                         noise0=result.noise_power)
             result = every if every.applied else result
     else:  # the residual motion alone along the navigated track
         result = _fit(hist, trajectory, config, points, motion, used0=used0)
@@ -348,10 +350,13 @@ def _agreement_limit(n_points: int) -> float:
 
 
 def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: Array, opts: AutofocusOptions,
-         used0: NDArray[np.bool_] | None = None, scale0: float = 0.0) -> ResidualMotion:
+         used0: NDArray[np.bool_] | None = None, scale0: float = 0.0,
+         motion0: MotionCorrection | None = None, noise0: float | None = None) -> ResidualMotion:
     """The fit of :func:`estimate_residual_motion` on gathered histories (a refused one: the scale's std infinite).
     ``used0``: the points to start from (default: all); ``scale0``: the scale to start from (its prior stays about 0);
-    ``opts``' scale prior set (:func:`with_scale_prior`)."""
+    ``motion0``: the residual motion to start from (none: the track as it is), ``noise0`` the noise power (none: 20 dB
+    below the points' typical sample, until the fit measures it); ``opts``' scale prior set
+    (:func:`with_scale_prior`)."""
     assert opts.prior_scale is not None
     n_pts = len(points0)
     t0 = int(trajectory.t_ns[0])
@@ -452,10 +457,13 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
 
     x = np.zeros(2 * n_nodes + 3 * n_pts + 1)
     x[-1] = scale0
+    if motion0 is not None:
+        start = motion0.at(nodes_ns)
+        x[:n_nodes] = np.einsum("nk,nk->n", start, node_across)
+        x[n_nodes:2 * n_nodes] = start[:, 2]
     used = np.ones(n_pts, dtype=bool) if used0 is None else used0.copy()
     lin = linearise(x, used)
-    # the noise power of a sample, until the fit measures it: 20 dB below the points' typical sample
-    noise = 0.01 / float(np.median(lin.rel_var))
+    noise = noise0 or 0.01 / float(np.median(lin.rel_var))
     iterations = 0
     for _ in range(4):  # fit; measure the noise and drop the points that do not fit; fit again
         damping = 1e-3
@@ -490,8 +498,10 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
         phase_rms = np.array([float(np.sqrt(np.mean(lin.step[lin.point == j] ** 2))) if np.any(lin.point == j)
                               else np.inf for j in range(n_pts)])
         bad = used & (phase_rms > opts.max_phase_rms_rad)
-        settled = abs(new_noise / noise - 1.0) < 0.5  # the weights' scale, not the fit, moves with the noise
-        noise = new_noise
+        # the weights' scale, not the fit, moves with the noise; a noise given stays (the points it was measured on
+        # are most of the samples)
+        settled = noise0 is not None or abs(new_noise / noise - 1.0) < 0.5
+        noise = noise0 or new_noise
         if not bad.any() and settled:
             break
         used &= ~bad
@@ -539,7 +549,7 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     result = replace(scale_track(trajectory, scale, centre) if scale else trajectory, correction=total)
     return ResidualMotion(result, MotionCorrection(nodes_ns, measured, std_enu), points, used, phase_rms,
                           coherence_before, coherence_after, coverage, iterations, "", hist.frame_t_ns[seen_frames],
-                          scale, scale_std, scale_agreement=scale_agreement)
+                          scale, scale_std, scale_agreement=scale_agreement, noise_power=noise)
 
 
 def _point_scale_chi2(lin: _Linear, w: Array, shift0: int, used: NDArray[np.bool_], point_prior_m: float
