@@ -632,9 +632,9 @@ def select_points(image: NDArray[np.complexfloating], grid: FocusGrid, range_m: 
 def candidate_points(drive_path: str | Path, trajectory: Trajectory, config: Config, focus: FocusOptions,
                      opts: AutofocusOptions, **select: Any) -> Array:
     """:func:`select_points` (``select``: its keyword options) on a first image along ``trajectory``: the product's
-    grid, but only out to ``opts.max_range_m``, at twice the product's resolution and 1.5 times its pixel, from
-    ``opts.channels`` channels (a fortieth of the product's back-projections and a quarter of its range compression;
-    the fit refines each point's position)."""
+    grid, but only out to ``opts.max_range_m`` + 1 m, at twice the product's resolution and 1.5 times its pixel,
+    from ``opts.channels`` channels (on test2 1/45 of the product's back-projections, and a quarter of its range
+    compression; the fit refines each point's position)."""
     from autosar_cli.nav.trajectory import radar_track, zero_doppler_times
     from autosar_cli.sar.focus import auto_grid, focus_images
     from autosar_cli.sar.grid import track_distance
