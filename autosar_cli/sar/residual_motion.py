@@ -107,6 +107,9 @@ class AutofocusOptions:
     #: points fitting worse than this are dropped (moving, multipath: 1.8-2 rad; corner reflectors under three times
     #: the radar case's vibration fit at 0.12-0.20 rad within the node steps' priors)
     max_phase_rms_rad: float = 0.3
+    #: and from the scale's joint fit, worse than this (the 0.15-0.3 rad points moved test2 seeds 0-6's scale by up
+    #: to 0.009 % towards 0, away from the track's error)
+    scale_max_phase_rms_rad: float = 0.15
     min_points: int = 2  #: fewer usable points: no correction
 
 
@@ -305,17 +308,17 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
         # motion the first fit held takes back the share of each aperture's quadratic phase that is its own
         # (test3 seed 1: +0.037 % alone, -0.002 % together, the track's error -0.017 %); the near points alone, for
         # the farther pull the scale (test1 seeds 0-9: -0.064 % mean against the track's error with them)
-        result = _fit(hist, trajectory, config, points, opts, used0=first.points_used, scale0=scale)
+        result = _fit(hist, trajectory, config, points, replace(opts, max_phase_rms_rad=opts.scale_max_phase_rms_rad),
+                      used0=first.points_used, scale0=scale)
         scale, scale_std = (result.scale, result.scale_std) if result.applied else (0.0, scale_std)
-        if result.applied and np.any(~near):
-            # and the motion on every point along the track so scaled, the scale held
+        if result.applied and np.any(used0 & ~result.points_used):
+            # and the motion on every point along the track so scaled, the scale held: the points the joint fit
+            # did not place where the first image put them, scaled with the track
             centre = trajectory.rear_axle_enu.mean(axis=0)
-            moved = points.copy()
-            moved[near] = result.points_enu[near]
-            moved[~near, :2] = centre + (1.0 + scale) * (points[~near, :2] - centre)
-            every = _fit(hist, scale_track(trajectory, scale, centre), config, moved, motion,
-                         used0=result.points_used | ~near, motion0=result.correction,
-                         noise0=result.noise_power)
+            moved = np.where(result.points_used[:, None], result.points_enu, points0)
+            moved[~result.points_used, :2] = centre + (1.0 + scale) * (moved[~result.points_used, :2] - centre)
+            every = _fit(hist, scale_track(trajectory, scale, centre), config, moved, motion, used0=used0,
+                         motion0=result.correction, noise0=result.noise_power)
             result = every if every.applied else result
     else:  # the residual motion alone along the navigated track
         result = _fit(hist, trajectory, config, points, motion, used0=used0)
