@@ -110,6 +110,9 @@ class AutofocusOptions:
     #: and from the scale's joint fit, worse than this (the 0.15-0.3 rad points moved test2 seeds 0-6's scale by up
     #: to 0.009 % towards 0, away from the track's error)
     scale_max_phase_rms_rad: float = 0.15
+    #: points beyond the joint fit's that fit worse than this along its track, before any fit, are not fitted
+    #: again (clutter and moving scatterers: 1.4-2 rad; test2 seed 1's that fit at 0.15-0.3 rad: 0.5-0.6 rad)
+    screen_phase_rms_rad: float = 1.0
     min_points: int = 2  #: fewer usable points: no correction
 
 
@@ -289,7 +292,7 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
     # (the uncorrected motion leaves larger phase residuals: a looser test of which points are points)
     held = replace(opts, prior_across_m=1e-6, prior_up_m=1e-6, max_phase_rms_rad=max(opts.max_phase_rms_rad, 0.5))
     near = _ground_distance(trajectory, config, points0) <= opts.scale_max_range_m
-    first = _fit(hist, trajectory, config, points0, held, used0=near)
+    first = _fit(hist, trajectory, config, points0, held, used0=near, posterior=False)
     scale, scale_std, note = first.scale, first.scale_std, ""
     if not first.applied:
         scale, note = 0.0, f"track scale not measured: {first.reason}"
@@ -316,9 +319,13 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
             centre = trajectory.rear_axle_enu.mean(axis=0)
             moved = np.where(result.points_used[:, None], result.points_enu, points0)
             moved[~result.points_used, :2] = centre + (1.0 + scale) * (moved[~result.points_used, :2] - centre)
-            every = _fit(hist, scale_track(trajectory, scale, centre), config, moved, motion, used0=used0,
-                         motion0=result.correction)
-            result = every if every.applied else result
+            # less the points that are no point along the joint fit's track before any fit (clutter: 1.4-2 rad)
+            extra = used0 & ~result.points_used
+            extra &= _phase_rms(hist, result.trajectory, config, moved, extra, opts.presum) <= opts.screen_phase_rms_rad
+            if np.any(extra):
+                every = _fit(hist, scale_track(trajectory, scale, centre), config, moved, motion,
+                             used0=result.points_used | extra, motion0=result.correction)
+                result = every if every.applied else result
     else:  # the residual motion alone along the navigated track
         result = _fit(hist, trajectory, config, points, motion, used0=used0)
     return replace(result, scale=scale, scale_std=scale_std, scale_note=note,
@@ -333,6 +340,21 @@ def with_scale_prior(opts: AutofocusOptions, trajectory: Trajectory) -> Autofocu
     nav_std = track_scale_std(trajectory)
     prior = NAV_SCALE_STD_FACTOR * nav_std if nav_std else opts.fallback_prior_scale
     return replace(opts, prior_scale=prior)
+
+
+def _phase_rms(hist: PhaseHistories, trajectory: Trajectory, config: Config, points_enu: Array,
+               used: NDArray[np.bool_], presum: int) -> Array:
+    """Each used point's (P,) phase residual (rad RMS of its presummed phase steps) along ``trajectory`` as it is,
+    with no fit (inf for the others); ``points_enu`` (P, 3) ENU m."""
+    keep = used[hist.point]
+    h = replace(hist, point=hist.point[keep], frame=hist.frame[keep], bin0=hist.bin0[keep], samples=hist.samples[keep])
+    z, los = focus_history(h, *pair_antennas(h, trajectory, config), points_enu)
+    smp = _presum(h, z, los, presum, int(trajectory.t_ns[0]), np.zeros((len(h.frame_t_ns), 3)))
+    same = (smp.point[1:] == smp.point[:-1]) & np.isfinite(smp.z[1:]) & np.isfinite(smp.z[:-1])
+    step = np.angle(smp.z[1:][same] * np.conj(smp.z[:-1][same]))
+    n = len(points_enu)
+    count = np.bincount(smp.point[1:][same], minlength=n)
+    return np.where(count > 0, np.sqrt(np.bincount(smp.point[1:][same], step**2, n) / np.maximum(count, 1)), np.inf)
 
 
 def _ground_distance(trajectory: Trajectory, config: Config, points_enu: Array) -> Array:
@@ -353,10 +375,11 @@ def _agreement_limit(n_points: int) -> float:
 
 def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: Array, opts: AutofocusOptions,
          used0: NDArray[np.bool_] | None = None, scale0: float = 0.0,
-         motion0: MotionCorrection | None = None) -> ResidualMotion:
+         motion0: MotionCorrection | None = None, posterior: bool = True) -> ResidualMotion:
     """The fit of :func:`estimate_residual_motion` on gathered histories (a refused one: the scale's std infinite).
     ``used0``: the points to start from (default: all); ``scale0``: the scale to start from (its prior stays about 0);
-    ``motion0``: the residual motion to start from (none: the track as it is); ``opts``' scale prior set
+    ``motion0``: the residual motion to start from (none: the track as it is); ``posterior``: whether to compute
+    the correction's std (else NaN: a fit that only gives the scale and the points); ``opts``' scale prior set
     (:func:`with_scale_prior`)."""
     assert opts.prior_scale is not None
     n_pts = len(points0)
@@ -537,7 +560,7 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     rd = lin.range_design
     lu = spla.splu(((lin.design.T @ lin.design.multiply(w[:, None])) + (rd.T @ rd) / opts.range_sigma_m**2
                     + prior_normal).tocsc())
-    std = _posterior_std(lu, n_nodes)
+    std = _posterior_std(lu, n_nodes) if posterior else np.full((n_nodes, 2), np.nan)
     unit = np.zeros(len(x))
     unit[-1] = 1.0
     scale_std = float(np.sqrt(max(lu.solve(unit)[-1], 0.0)))
@@ -649,7 +672,8 @@ def candidate_points(drive_path: str | Path, trajectory: Trajectory, config: Con
     image = focus_images(drive_path, trajectory, near, coarse, grids=[grid]).images[0]
     t_radar = radar_times(drive_path)
     t_radar = t_radar[(t_radar >= trajectory.t_ns[0]) & (t_radar <= trajectory.t_ns[-1])]
-    track = radar_track(trajectory, t_radar, config)
+    # every 8th pulse (~3 cm apart at 30 km/h): the distance of a pixel 3 m away is off by < 0.1 mm
+    track = radar_track(trajectory, t_radar[::8], config)
     distance = track_distance(grid, track)
     # the scale's points as they would be alone, and the motion's beyond them (ranked by reflectivity, the farther
     # would take the nearer's places)
