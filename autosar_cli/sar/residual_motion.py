@@ -313,14 +313,14 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
         result = _fit(hist, trajectory, config, points, replace(opts, max_phase_rms_rad=opts.scale_max_phase_rms_rad),
                       used0=first.points_used, scale0=scale)
         scale, scale_std = (result.scale, result.scale_std) if result.applied else (0.0, scale_std)
-        if result.applied and np.any(used0 & ~result.points_used):
+        extra = used0 & ~result.points_used if result.applied else np.zeros(n_pts, dtype=bool)
+        if np.any(extra):
             # and the motion on every point along the track so scaled, the scale held: the points the joint fit
-            # did not place where the first image put them, scaled with the track
+            # did not place where the first image put them, scaled with the track, less those that are no point
+            # along the joint fit's track before any fit (clutter: 1.4-2 rad)
             centre = trajectory.rear_axle_enu.mean(axis=0)
             moved = np.where(result.points_used[:, None], result.points_enu, points0)
             moved[~result.points_used, :2] = centre + (1.0 + scale) * (moved[~result.points_used, :2] - centre)
-            # less the points that are no point along the joint fit's track before any fit (clutter: 1.4-2 rad)
-            extra = used0 & ~result.points_used
             extra &= _phase_rms(hist, result.trajectory, config, moved, extra, opts.presum) <= opts.screen_phase_rms_rad
             if np.any(extra):
                 every = _fit(hist, scale_track(trajectory, scale, centre), config, moved, motion,
