@@ -118,6 +118,26 @@ def test_select_points_takes_point_like_reflective_maxima_per_segment() -> None:
     assert np.all(pts[:, 2] == 0.5)
 
 
+def test_select_points_keeps_the_far_band_apart() -> None:
+    """The points 12-16 m out (motion only) are chosen in their own band: a far reflector brighter by |z|^2 R^2
+    than a near one in the same 1.5 m of along axis does not take its place among the near points, and the far band
+    holds it alone."""
+    grid = FocusGrid((0.0, 0.0), (1.0, 0.0), (0.0, -1.0), 0.04, 500, 400, 0.5)
+    range_m = 1.0 + 0.04 * np.arange(400)[:, None] * np.ones((1, 500))
+    image = np.full((400, 500), 1e-3, np.complex64)
+    spots = {"near": (150, 100, 1.0), "near2": (100, 110, 0.9), "far": (300, 105, 1.0)}  # 7, 5 and 13 m
+    for r, c, a in spots.values():
+        image[r, c] = a
+    opts = AutofocusOptions()
+    near = select_points(image, grid, range_m, opts, band_m=(opts.min_range_m, opts.scale_max_range_m))
+    far = select_points(image, grid, range_m, opts, band_m=(opts.scale_max_range_m, opts.max_range_m))
+    both = select_points(image, grid, range_m, opts)  # one band over 3-16 m: the far one would win a place
+    pix = {k: grid.pixel_enu(np.array(r), np.array(c)) for k, (r, c, _) in spots.items()}
+    np.testing.assert_allclose(near, [pix["near"], pix["near2"]], atol=1e-9)
+    np.testing.assert_allclose(far, [pix["far"]], atol=1e-9)
+    np.testing.assert_allclose(both, [pix["far"], pix["near"]], atol=1e-9)
+
+
 def test_correction_moves_every_body_point_and_is_stored(tmp_path: Path, ci_drive: tuple[Path, Trajectory]
                                                          ) -> None:
     """A MotionCorrection adds its (interpolated) offset to every body point; trajectory.h5 keeps it exactly."""
