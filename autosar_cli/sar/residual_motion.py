@@ -36,6 +36,7 @@ and the along-track direction (hardly in any line of sight).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -170,6 +171,8 @@ class ResidualMotion:
     #: the points' own scales about the common one: reduced chi-square and the number of points (the scale fit's)
     scale_agreement: tuple[float, int] = (1.0, 0)
     scale_prior: float = 0.0  #: the prior std the scale was fitted with (:func:`with_scale_prior`)
+    #: a fit run without its posterior: the same result with the correction's std (None where it has it)
+    with_posterior: Callable[[], ResidualMotion] | None = field(default=None, repr=False, compare=False)
 
     @property
     def applied(self) -> bool:
@@ -311,7 +314,7 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
         # (test3 seed 1: +0.037 % alone, -0.002 % together, the track's error -0.017 %); the near points alone, for
         # the farther pull the scale (test1 seeds 0-9: -0.064 % mean against the track's error with them)
         result = _fit(hist, trajectory, config, points, replace(opts, max_phase_rms_rad=opts.scale_max_phase_rms_rad),
-                      used0=first.points_used, scale0=scale)
+                      used0=first.points_used, scale0=scale, posterior=False)  # the fit below may replace it
         scale, scale_std = (result.scale, result.scale_std) if result.applied else (0.0, scale_std)
         extra = used0 & ~result.points_used if result.applied else np.zeros(n_pts, dtype=bool)
         if np.any(extra):
@@ -328,6 +331,8 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
                 result = every if every.applied else result
     else:  # the residual motion alone along the navigated track
         result = _fit(hist, trajectory, config, points, motion, used0=used0)
+    if result.with_posterior is not None:
+        result = result.with_posterior()
     return replace(result, scale=scale, scale_std=scale_std, scale_note=note,
                    scale_agreement=first.scale_agreement if first.applied else (1.0, 0), scale_prior=opts.prior_scale)
 
@@ -379,8 +384,8 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     """The fit of :func:`estimate_residual_motion` on gathered histories (a refused one: the scale's std infinite).
     ``used0``: the points to start from (default: all); ``scale0``: the scale to start from (its prior stays about 0);
     ``motion0``: the residual motion to start from (none: the track as it is); ``posterior``: whether to compute
-    the correction's std (else NaN: a fit that only gives the scale and the points); ``opts``' scale prior set
-    (:func:`with_scale_prior`)."""
+    the correction's std (else NaN until ``with_posterior()``: a fit that may give only the scale and the points,
+    or be replaced); ``opts``' scale prior set (:func:`with_scale_prior`)."""
     assert opts.prior_scale is not None
     n_pts = len(points0)
     t0 = int(trajectory.t_ns[0])
@@ -560,21 +565,27 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     rd = lin.range_design
     lu = spla.splu(((lin.design.T @ lin.design.multiply(w[:, None])) + (rd.T @ rd) / opts.range_sigma_m**2
                     + prior_normal).tocsc())
-    std = _posterior_std(lu, n_nodes) if posterior else np.full((n_nodes, 2), np.nan)
     unit = np.zeros(len(x))
     unit[-1] = 1.0
     scale_std = float(np.sqrt(max(lu.solve(unit)[-1], 0.0)))
     scale_agreement = (_point_scale_chi2(lin, w, 2 * n_nodes, used, opts.point_prior_m) if opts.prior_scale > 1e-9
                        else (1.0, 0))
     measured = cross[:, :1] * node_across + cross[:, 1:] * up
-    std_enu = np.stack([np.abs(std[:, 0] * node_across[:, 0]), np.abs(std[:, 0] * node_across[:, 1]), std[:, 1]],
-                       axis=-1)
-    # the carried correction and this one are independent estimates: their sum's std adds in quadrature
-    total = MotionCorrection(nodes_ns, base + measured, np.hypot(base_std, std_enu))
-    result = replace(scale_track(trajectory, scale, centre) if scale else trajectory, correction=total)
-    return ResidualMotion(result, MotionCorrection(nodes_ns, measured, std_enu), points, used, phase_rms,
-                          coherence_before, coherence_after, coverage, iterations, "", hist.frame_t_ns[seen_frames],
-                          scale, scale_std, scale_agreement=scale_agreement)
+    scaled = scale_track(trajectory, scale, centre) if scale else trajectory
+
+    def finished(std: Array) -> ResidualMotion:
+        std_enu = np.stack([np.abs(std[:, 0] * node_across[:, 0]), np.abs(std[:, 0] * node_across[:, 1]),
+                            std[:, 1]], axis=-1)
+        # the carried correction and this one are independent estimates: their sum's std adds in quadrature
+        total = MotionCorrection(nodes_ns, base + measured, np.hypot(base_std, std_enu))
+        return ResidualMotion(replace(scaled, correction=total), MotionCorrection(nodes_ns, measured, std_enu),
+                              points, used, phase_rms, coherence_before, coherence_after, coverage, iterations, "",
+                              hist.frame_t_ns[seen_frames], scale, scale_std, scale_agreement=scale_agreement)
+
+    if posterior:
+        return finished(_posterior_std(lu, n_nodes))
+    return replace(finished(np.full((n_nodes, 2), np.nan)),
+                   with_posterior=lambda: finished(_posterior_std(lu, n_nodes)))
 
 
 def _point_scale_chi2(lin: _Linear, w: Array, shift0: int, used: NDArray[np.bool_], point_prior_m: float
