@@ -237,17 +237,29 @@ class _Linear:
     range_design: sp.csr_matrix | None = None  #: (Q, unknowns): its change with the increment
 
 
+def _histories_of(hist: PhaseHistories, used: NDArray[np.bool_]) -> tuple[PhaseHistories, NDArray[np.bool_]]:
+    """The histories of the ``used`` (P,) points' pulses only, and the mask of those pulses."""
+    keep = used[hist.point]
+    return replace(hist, point=hist.point[keep], frame=hist.frame[keep], bin0=hist.bin0[keep],
+                   samples=hist.samples[keep]), keep
+
+
+def _phase_steps(smp: _Samples, used: NDArray[np.bool_]) -> tuple[NDArray[np.int64], Array]:
+    """The first sample's index of each step between successive valid samples of a used point, and the step (rad,
+    wrapped)."""
+    valid = np.isfinite(smp.z)
+    a_idx = np.flatnonzero((smp.point[1:] == smp.point[:-1]) & used[smp.point[1:]] & valid[1:] & valid[:-1])
+    return a_idx, np.angle(smp.z[a_idx + 1] * np.conj(smp.z[a_idx]))
+
+
 def _linearise(smp: _Samples, used: NDArray[np.bool_], node_across: Array, node_s: float, kappa: float,
                n_pts: int) -> _Linear:
     """Phase steps of successive presummed samples of each used point and their linear model: with the
     correction dc (across, up on the nodes), the point shifts d and the track scale ds, psi_b - psi_a changes by
     kappa (u_b . dc(t_b) - u_a . dc(t_a) - (u_b - u_a) . d_j + (u_b . l_b - u_a . l_a) ds), l the scale's lever."""
     n_nodes = len(node_across)
-    valid = np.isfinite(smp.z)
-    same = (smp.point[1:] == smp.point[:-1]) & used[smp.point[1:]] & valid[1:] & valid[:-1]
-    a_idx = np.flatnonzero(same)
+    a_idx, step = _phase_steps(smp, used)
     b_idx = a_idx + 1
-    step = np.angle(smp.z[b_idx] * np.conj(smp.z[a_idx]))
     pa, pb = np.abs(smp.z[a_idx]) ** 2, np.abs(smp.z[b_idx]) ** 2
     rel_var = 0.5 * (1.0 / np.maximum(pa, 1e-30) + 1.0 / np.maximum(pb, 1e-30))
     cols, vals = [], []
@@ -351,15 +363,14 @@ def _phase_rms(hist: PhaseHistories, trajectory: Trajectory, config: Config, poi
                used: NDArray[np.bool_], presum: int) -> Array:
     """Each used point's (P,) phase residual (rad RMS of its presummed phase steps) along ``trajectory`` as it is,
     with no fit (inf for the others); ``points_enu`` (P, 3) ENU m."""
-    keep = used[hist.point]
-    h = replace(hist, point=hist.point[keep], frame=hist.frame[keep], bin0=hist.bin0[keep], samples=hist.samples[keep])
+    h, _ = _histories_of(hist, used)
     z, los = focus_history(h, *pair_antennas(h, trajectory, config), points_enu)
     smp = _presum(h, z, los, presum, int(trajectory.t_ns[0]), np.zeros((len(h.frame_t_ns), 3)))
-    same = (smp.point[1:] == smp.point[:-1]) & np.isfinite(smp.z[1:]) & np.isfinite(smp.z[:-1])
-    step = np.angle(smp.z[1:][same] * np.conj(smp.z[:-1][same]))
+    a_idx, step = _phase_steps(smp, used)
     n = len(points_enu)
-    count = np.bincount(smp.point[1:][same], minlength=n)
-    return np.where(count > 0, np.sqrt(np.bincount(smp.point[1:][same], step**2, n) / np.maximum(count, 1)), np.inf)
+    point = smp.point[a_idx + 1]
+    count = np.bincount(point, minlength=n)
+    return np.where(count > 0, np.sqrt(np.bincount(point, step**2, n) / np.maximum(count, 1)), np.inf)
 
 
 def _ground_distance(trajectory: Trajectory, config: Config, points_enu: Array) -> Array:
@@ -424,10 +435,9 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
         """The histories and antennas of the used points' pulses only (a dropped point costs nothing more)."""
         key = used.tobytes()
         if key not in active_cache:
-            keep = used[hist.point]
+            h, keep = _histories_of(hist, used)
             active_cache.clear()
-            active_cache[key] = (replace(hist, point=hist.point[keep], frame=hist.frame[keep], bin0=hist.bin0[keep],
-                                         samples=hist.samples[keep]), tx0[keep], rx0[keep])
+            active_cache[key] = (h, tx0[keep], rx0[keep])
         return active_cache[key]
 
     def antennas(x: Array, h: PhaseHistories, tx_0: Array, rx_0: Array) -> tuple[Array, Array]:
