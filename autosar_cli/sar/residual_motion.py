@@ -342,7 +342,7 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
                              used0=result.points_used | extra, motion0=result.correction, point_noise=True)
                 result = every if every.applied else result
     else:  # the residual motion alone along the navigated track
-        result = _fit(hist, trajectory, config, points, motion, used0=used0)
+        result = _fit(hist, trajectory, config, points, motion, used0=used0, point_noise=True)
     if result.with_posterior is not None:
         result = result.with_posterior()
     return replace(result, scale=scale, scale_std=scale_std, scale_note=note,
