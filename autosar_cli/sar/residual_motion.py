@@ -339,10 +339,10 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
             extra &= _phase_rms(hist, result.trajectory, config, moved, extra, opts.presum) <= opts.screen_phase_rms_rad
             if np.any(extra):
                 every = _fit(hist, scale_track(trajectory, scale, centre), config, moved, motion,
-                             used0=result.points_used | extra, motion0=result.correction)
+                             used0=result.points_used | extra, motion0=result.correction, point_noise=True)
                 result = every if every.applied else result
     else:  # the residual motion alone along the navigated track
-        result = _fit(hist, trajectory, config, points, motion, used0=used0)
+        result = _fit(hist, trajectory, config, points, motion, used0=used0, point_noise=True)
     if result.with_posterior is not None:
         result = result.with_posterior()
     return replace(result, scale=scale, scale_std=scale_std, scale_note=note,
@@ -391,12 +391,14 @@ def _agreement_limit(n_points: int) -> float:
 
 def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: Array, opts: AutofocusOptions,
          used0: NDArray[np.bool_] | None = None, scale0: float = 0.0,
-         motion0: MotionCorrection | None = None, posterior: bool = True) -> ResidualMotion:
+         motion0: MotionCorrection | None = None, posterior: bool = True, point_noise: bool = False
+         ) -> ResidualMotion:
     """The fit of :func:`estimate_residual_motion` on gathered histories (a refused one: the scale's std infinite).
     ``used0``: the points to start from (default: all); ``scale0``: the scale to start from (its prior stays about 0);
     ``motion0``: the residual motion to start from (none: the track as it is); ``posterior``: whether to compute
     the correction's std (else NaN until ``with_posterior()``: a fit that may give only the scale and the points,
-    or be replaced); ``opts``' scale prior set (:func:`with_scale_prior`)."""
+    or be replaced); ``point_noise``: each point's steps weighted by its own measured noise (else by all the used
+    points' together); ``opts``' scale prior set (:func:`with_scale_prior`)."""
     assert opts.prior_scale is not None
     n_pts = len(points0)
     t0 = int(trajectory.t_ns[0])
@@ -489,9 +491,10 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
                                                                  np.concatenate(cols))), shape=(len(q), len(x)))
         return lin
 
-    def cost(lin: _Linear, x: Array, noise: float, n_ref: int) -> float:
-        """The fit's cost, its data term scaled to ``n_ref`` steps (a point's edge samples come and go with it)."""
-        data = float(np.sum(lin.step**2 / (noise * lin.rel_var))) * n_ref / max(len(lin.step), 1)
+    def cost(lin: _Linear, x: Array, noise: Array, n_ref: int) -> float:
+        """The fit's cost, its data term scaled to ``n_ref`` steps (a point's edge samples come and go with it);
+        ``noise`` (P,) per point."""
+        data = float(np.sum(lin.step**2 / (noise[lin.point] * lin.rel_var))) * n_ref / max(len(lin.step), 1)
         return data + float(np.sum(lin.range_resid**2)) / opts.range_sigma_m**2 + float(x @ (prior_normal @ x))
 
     x = np.zeros(2 * n_nodes + 3 * n_pts + 1)
@@ -505,14 +508,14 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     # the noise power of a sample, until the fit measures it: 20 dB below the points' typical sample (the noise
     # another fit measured, kept, under-fitted points it had not seen: test1 seed 17 with a shaking radar case, a
     # corner reflector at 0.24 rad, 0.14 with its own)
-    noise = 0.01 / float(np.median(lin.rel_var))
+    noise = np.full(n_pts, 0.01 / float(np.median(lin.rel_var)))
     iterations = 0
     for _ in range(4):  # fit; measure the noise and drop the points that do not fit; fit again
         damping = 1e-3
         current = cost(lin, x, noise, len(lin.step))
         for _ in range(opts.iterations):
             iterations += 1
-            w = 1.0 / (noise * lin.rel_var)
+            w = 1.0 / (noise[lin.point] * lin.rel_var)
             rd = lin.range_design
             normal = ((lin.design.T @ lin.design.multiply(w[:, None])) + (rd.T @ rd) / opts.range_sigma_m**2
                       ).tocsc() + prior_normal
@@ -536,11 +539,16 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
             if np.max(np.abs(dx[:2 * n_nodes])) < 2e-6 and np.max(np.abs(dx[shifts])) < 5e-5 and abs(dx[-1]) < 2e-6:
                 break
         resid_norm = lin.step**2 / lin.rel_var
-        new_noise = max(float(np.median(resid_norm)) / 0.455, 1e-12 * noise)  # the median of chi2(1) is 0.455
+        new_noise = np.full(n_pts, float(np.median(resid_norm)) / 0.455)  # the median of chi2(1) is 0.455
+        if point_noise:
+            for j in np.unique(lin.point):
+                new_noise[j] = float(np.median(resid_norm[lin.point == j])) / 0.455
+        new_noise = np.maximum(new_noise, 1e-12 * noise)
         phase_rms = np.array([float(np.sqrt(np.mean(lin.step[lin.point == j] ** 2))) if np.any(lin.point == j)
                               else np.inf for j in range(n_pts)])
         bad = used & (phase_rms > opts.max_phase_rms_rad)
-        settled = abs(new_noise / noise - 1.0) < 0.5  # the weights' scale, not the fit, moves with the noise
+        # the weights' scale, not the fit, moves with the noise
+        settled = bool(np.all(np.abs(new_noise[used] / noise[used] - 1.0) < 0.5))
         noise = new_noise
         if not bad.any() and settled:
             break
@@ -571,7 +579,7 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
         return refuse(f"the correction does not sharpen its points (coherence {coherence_before:.3f} -> "
                       f"{coherence_after:.3f})")
     # the posterior at the solution, with the measured noise
-    w = 1.0 / (noise * lin.rel_var)
+    w = 1.0 / (noise[lin.point] * lin.rel_var)
     rd = lin.range_design
     lu = spla.splu(((lin.design.T @ lin.design.multiply(w[:, None])) + (rd.T @ rd) / opts.range_sigma_m**2
                     + prior_normal).tocsc())
