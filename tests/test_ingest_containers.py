@@ -4,6 +4,7 @@ own zstd MCAP of the same drive."""
 
 from __future__ import annotations
 
+import shutil
 from collections.abc import Callable
 from pathlib import Path
 
@@ -17,6 +18,7 @@ from rosbags.rosbag2 import Writer as Rosbag2Writer
 
 from autosar_cli.config import load_config
 from autosar_cli.ingest.pipeline import ingest
+from autosar_cli.ingest.sources import LogReadError, container_of
 from autosar_cli.msgs import typestore_for
 from autosar_cli.store.drive import Drive
 
@@ -99,3 +101,25 @@ def test_container_variant_gives_the_same_drive(variant: str, ci_mcap, ci_ros1, 
             for key in want:
                 np.testing.assert_array_equal(got[key], want[key], err_msg=f"{variant}: {path}/{key}")
         np.testing.assert_array_equal(d.radar().raw[::97], ref.radar().raw[::97])
+
+
+@pytest.mark.parametrize(("name", "holds"), [("drive_log", "mcap"), ("drive.bag", "mcap"), ("drive.mcap", "ros1"),
+                                             ("drive", "ros1")])
+def test_a_log_is_read_by_what_it_holds_not_by_its_name(name: str, holds: str, ci_mcap, ci_ros1, reference: Path,
+                                                        tmp_path: Path) -> None:
+    """An MCAP saved without its suffix (as `simulate -o NAME` writes it) or a bag renamed is opened by its first
+    bytes and gives the same drive; a file no reader recognises is refused in one line naming it."""
+    src = tmp_path / name
+    shutil.copyfile(ci_mcap.log_path if holds == "mcap" else ci_ros1.log_path, src)
+    assert container_of(src) == holds
+    out = tmp_path / "drive.h5"
+    ingest([src], out, config=CFG)
+    with Drive(out) as d, Drive(reference) as ref:
+        for path in SERIES:
+            got, want = d.series(path), ref.series(path)
+            for key in want:
+                np.testing.assert_array_equal(got[key], want[key], err_msg=f"{name}: {path}/{key}")
+    other = tmp_path / "notes"
+    other.write_text("not a log\n")
+    with pytest.raises(LogReadError, match=r"notes: unknown log container \(expected .mcap, .bag or a rosbag2"):
+        container_of(other)

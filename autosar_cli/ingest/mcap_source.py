@@ -340,4 +340,5 @@ class McapSource:
                                            "messages the index declares could be read")
 
 
-register_container("mcap", ".mcap", lambda path: not path.is_dir() and path.suffix.lower() == ".mcap", McapSource)
+register_container("mcap", ".mcap", lambda path: not path.is_dir() and path.suffix.lower() == ".mcap", McapSource,
+                   magic=MCAP_MAGIC)

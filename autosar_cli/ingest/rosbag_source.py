@@ -460,6 +460,8 @@ def _is_rosbag2(path: Path) -> bool:
     return (path / "metadata.yaml").exists() if path.is_dir() else path.name == "metadata.yaml"
 
 
-register_container("ros1", ".bag", lambda path: not path.is_dir() and path.suffix.lower() == ".bag", Ros1BagSource)
+# any version: the reader says which it cannot read
+register_container("ros1", ".bag", lambda path: not path.is_dir() and path.suffix.lower() == ".bag", Ros1BagSource,
+                   magic=b"#ROSBAG V")
 register_container("rosbag2", "a rosbag2 directory", _is_rosbag2,
                    lambda path: open_rosbag2(path.parent if path.name == "metadata.yaml" else path))

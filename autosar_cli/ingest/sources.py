@@ -74,23 +74,39 @@ class Container:
 
     name: str  #: "mcap", "ros1", "rosbag2", ...
     expected: str  #: how an error message names what it accepts: ".mcap", "a rosbag2 directory"
-    detect: Callable[[Path], bool]  #: True if this reader takes the path (file or directory)
+    detect: Callable[[Path], bool]  #: True if this reader takes the path (file or directory), by its name
     open: Callable[[Path], LogSource]
+    magic: bytes = b""  #: how a file of this container begins (b"": not known)
 
 
 _CONTAINERS: list[Container] = []
 
 
 def register_container(name: str, expected: str, detect: Callable[[Path], bool],
-                       open: Callable[[Path], LogSource]) -> None:
-    """Make :func:`open_source` hand paths that `detect` accepts to `open`.
+                       open: Callable[[Path], LogSource], magic: bytes = b"") -> None:
+    """Make :func:`open_source` hand files that begin with `magic`, and paths that `detect` accepts, to `open`.
 
     Each reader module registers its containers when it is imported; :mod:`autosar_cli.ingest` imports
     them all, so this module never imports a reader (the readers import it)."""
-    _CONTAINERS[:] = [c for c in _CONTAINERS if c.name != name] + [Container(name, expected, detect, open)]
+    _CONTAINERS[:] = [c for c in _CONTAINERS if c.name != name] + [Container(name, expected, detect, open, magic)]
+
+
+def _head(path: Path, size: int) -> bytes:
+    """The first `size` bytes of a file (fewer if it is shorter; none if it cannot be read)."""
+    try:
+        with open(path, "rb") as f:
+            return f.read(size)
+    except OSError:
+        return b""
 
 
 def _container(path: Path) -> Container:
+    # a file's first bytes before its name: an MCAP saved without its suffix, or a bag renamed, is still what it is
+    if path.is_file():
+        head = _head(path, max((len(c.magic) for c in _CONTAINERS), default=0))
+        for container in _CONTAINERS:
+            if container.magic and head.startswith(container.magic):
+                return container
     for container in _CONTAINERS:
         if container.detect(path):
             return container
