@@ -40,7 +40,7 @@ from autosar_cli.config import Config
 from autosar_cli.ingest.canlog import CanLogError
 from autosar_cli.ingest.pipeline import IngestError
 from autosar_cli.ingest.sources import LogReadError
-from autosar_cli.run import run
+from autosar_cli.run import run, run_warnings
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.manifest import read_json_manifest
@@ -149,17 +149,6 @@ def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, m
                            **{f"image_{k}": v for k, v in manifest["outputs"].get("image", {}).items()}})
     report("done", 1, 1)
     return record
-
-
-def run_warnings(manifest: dict[str, Any]) -> list[str]:
-    """What a finished run warned about (ingest: a truncated or damaged log, dropped data; autofocus not
-    applied): a drive with any is ``degraded`` in batch.json, not plain ``ok``."""
-    st = manifest.get("stages", {})
-    warnings = [str(w) for w in st.get("ingest", {}).get("warnings", [])]
-    af = st.get("autofocus")
-    if af and not af.get("applied", True):
-        warnings.append(f"autofocus: {af.get('summary', 'not applied')}")
-    return warnings
 
 
 #: Imported on every worker before the first drive (the chain imports some of them on first use).

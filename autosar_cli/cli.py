@@ -494,16 +494,17 @@ def run(
                       f"{st['navigate']['method']}, {st['navigate']['distance_m']:.1f} m")
         if "autofocus" in st:
             table.add_row("autofocus", f"{st['autofocus']['wall_s']:.2f}", st["autofocus"]["summary"])
-            if not st["autofocus"]["applied"]:
-                err.print(f"[yellow]warning[/] autofocus: {st['autofocus']['summary']}", highlight=False,
-                          soft_wrap=True)
         table.add_row("focus", f"{st['focus']['wall_s']:.2f}",
                       f"{st['focus']['grid_shape'][0]} x {st['focus']['grid_shape'][1]} px, "
                       f"{st['focus']['backprojections'] / 1e9:.2f} G back-projections")
         out.print(table)
+        for w in manifest["warnings"]:  # a damaged log, dropped data, an autofocus not applied
+            err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
+        degraded = f" [yellow]degraded[/] ({len(manifest['warnings'])} warnings above, in run.json)" \
+            if manifest["status"] == "degraded" else ""
         out.print(f"wrote [bold]{output}[/] (run.json, drive.h5, trajectory.h5, image.tif/.h5/.png) in "
                   f"{manifest['wall_s']:.1f} s = {manifest['fraction_of_drive']:.2f} x the drive's "
-                  f"{manifest['drive_s']:.1f} s")
+                  f"{manifest['drive_s']:.1f} s{degraded}")
 
 
 @contextmanager

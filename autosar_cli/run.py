@@ -156,9 +156,22 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     manifest["drive_s"] = frep.drive_s
     manifest["wall_s"] = sum(s["wall_s"] for s in manifest["stages"].values())
     manifest["fraction_of_drive"] = manifest["wall_s"] / frep.drive_s if frep.drive_s > 0 else None
+    manifest["warnings"] = run_warnings(manifest)
+    manifest["status"] = "degraded" if manifest["warnings"] else "ok"
     with atomic_output(manifest_path, overwrite=True) as tmp:
         tmp.write_text(json.dumps(manifest, indent=2, default=json_default) + "\n")
     return manifest
+
+
+def run_warnings(manifest: dict[str, Any]) -> list[str]:
+    """What a run warned about (ingest: a truncated or damaged log, dropped data; autofocus not applied): a run
+    with any is ``degraded`` (run.json's ``status``, batch.json's drive record), not plain ``ok``."""
+    st = manifest.get("stages", {})
+    warnings = [str(w) for w in st.get("ingest", {}).get("warnings", [])]
+    af = st.get("autofocus")
+    if af and not af.get("applied", True):
+        warnings.append(f"autofocus: {af.get('summary', 'not applied')}")
+    return warnings
 
 
 def _prepare_later_stages() -> None:

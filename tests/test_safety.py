@@ -335,6 +335,28 @@ def test_batch_record_of_a_drive_with_ingest_warnings_is_degraded(tmp_path: Path
     assert (good["status"], good["warnings"]) == ("ok", [])
 
 
+def test_run_of_a_truncated_log_says_it_is_degraded(ci_mcap, tmp_path: Path) -> None:
+    """`autosar run` on a log cut at 60 % keeps what was intact and makes its products, but does not look
+    complete: the ingest's damage warning on stderr, "degraded" on its last line, and run.json's status and
+    warnings say so (before, only run.json's ingest stage held it); the whole log's run says ok."""
+    log = tmp_path / "cut.mcap"
+    data = ci_mcap.log_path.read_bytes()
+    log.write_bytes(data[: int(0.6 * len(data))])
+    r = runner.invoke(app, ["run", str(log), "-o", str(tmp_path / "cut")])
+    assert r.exit_code == 0, r.output
+    manifest = json.loads((tmp_path / "cut" / "run.json").read_text())
+    assert manifest["status"] == "degraded"
+    damage = [w for w in manifest["warnings"] if "damaged MCAP at byte" in w]
+    assert len(damage) == 1 and damage[0] in r.stderr.replace("\n", "")
+    assert manifest["warnings"] == manifest["stages"]["ingest"]["warnings"]
+    assert "degraded" in r.stdout.strip().splitlines()[-1]
+    whole = runner.invoke(app, ["run", str(ci_mcap.log_path), "-o", str(tmp_path / "whole")])
+    assert whole.exit_code == 0, whole.output
+    manifest = json.loads((tmp_path / "whole" / "run.json").read_text())
+    assert (manifest["status"], manifest["warnings"]) == ("ok", [])
+    assert "degraded" not in whole.stdout and "warning" not in whole.stderr
+
+
 def test_full_disk_refuses_the_image_before_writing_it(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     import numpy as np
 
