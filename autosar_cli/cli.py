@@ -498,13 +498,18 @@ def run(
                       f"{st['focus']['grid_shape'][0]} x {st['focus']['grid_shape'][1]} px, "
                       f"{st['focus']['backprojections'] / 1e9:.2f} G back-projections")
         out.print(table)
-        for w in manifest["warnings"]:  # a damaged log, dropped data, an autofocus not applied
-            err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
-        degraded = f" [yellow]degraded[/] ({len(manifest['warnings'])} warnings above, in run.json)" \
-            if manifest["status"] == "degraded" else ""
+        degraded = _degraded(manifest["warnings"], "run.json")  # a damaged log, dropped data, no autofocus
         out.print(f"wrote [bold]{output}[/] (run.json, drive.h5, trajectory.h5, image.tif/.h5/.png) in "
                   f"{manifest['wall_s']:.1f} s = {manifest['fraction_of_drive']:.2f} x the drive's "
                   f"{manifest['drive_s']:.1f} s{degraded}")
+
+
+def _degraded(warnings: list[str], record: str) -> str:
+    """Each warning of a product made from a damaged input on stderr; what the command's last line adds when
+    there is any (``record``: the file that keeps them)."""
+    for w in warnings:
+        err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
+    return f" [yellow]degraded[/] ({len(warnings)} warnings above, in {record})" if warnings else ""
 
 
 @contextmanager
@@ -574,7 +579,9 @@ def evaluate(
             if s.get(f"straightness_{kind}_m") is not None:
                 table.add_row(f"{kind} straightness (RMS)", f"{_cm(s[f'straightness_{kind}_m'], digits=2)} cm")
         out.print(table)
-        out.print(f"wrote [bold]{output}[/] ({', '.join(Path(p).name for p in result['outputs'].values())})")
+        degraded = _degraded(result["input_warnings"], "metrics.json")
+        out.print(f"wrote [bold]{output}[/] ({', '.join(Path(p).name for p in result['outputs'].values())})"
+                  f"{degraded}")
         for note in result.get("notes", []):
             err.print(f"[yellow]note:[/] {note}", highlight=False, soft_wrap=True)
 
@@ -625,8 +632,9 @@ def compare(
             table.add_row(label, *(cell(s) for s in summaries.values()))
         out.print(table)
         figures = [v for k, v in result["outputs"].items() if isinstance(v, str)]
+        degraded = _degraded(result["warnings"], "compare.json")
         out.print(f"wrote [bold]{output}[/] ({', '.join(figures)}; per method: "
-                  f"{', '.join(m + '/' for m in result['methods'])}) in {result['wall_s']:.1f} s")
+                  f"{', '.join(m + '/' for m in result['methods'])}) in {result['wall_s']:.1f} s{degraded}")
         for m, why in result["skipped"].items():
             err.print(f"[yellow]skipped[/] {m}: {why}", highlight=False, soft_wrap=True)
         for note in result["notes"]:

@@ -335,13 +335,21 @@ def test_batch_record_of_a_drive_with_ingest_warnings_is_degraded(tmp_path: Path
     assert (good["status"], good["warnings"]) == ("ok", [])
 
 
-def test_run_of_a_truncated_log_says_it_is_degraded(ci_mcap, tmp_path: Path) -> None:
-    """`autosar run` on a log cut at 60 % keeps what was intact and makes its products, but does not look
-    complete: the ingest's damage warning on stderr, "degraded" on its last line, and run.json's status and
-    warnings say so (before, only run.json's ingest stage held it); the whole log's run says ok."""
+def _cut_log(ci_mcap, tmp_path: Path) -> Path:
+    """The ci log cut at 60 % of its bytes, its truth sidecar beside it."""
     log = tmp_path / "cut.mcap"
     data = ci_mcap.log_path.read_bytes()
     log.write_bytes(data[: int(0.6 * len(data))])
+    shutil.copyfile(ci_mcap.truth_path, tmp_path / "cut.mcap.truth.h5")
+    return log
+
+
+def test_run_of_a_truncated_log_says_it_is_degraded(ci_mcap, tmp_path: Path) -> None:
+    """`autosar run` on a log cut at 60 % keeps what was intact and makes its products, but does not look
+    complete: the ingest's damage warning on stderr, "degraded" on its last line, and run.json's status and
+    warnings say so (before, only run.json's ingest stage held it); so does its evaluation (metrics.json,
+    report.md, the console); the whole log's run says ok."""
+    log = _cut_log(ci_mcap, tmp_path)
     r = runner.invoke(app, ["run", str(log), "-o", str(tmp_path / "cut")])
     assert r.exit_code == 0, r.output
     manifest = json.loads((tmp_path / "cut" / "run.json").read_text())
@@ -349,12 +357,34 @@ def test_run_of_a_truncated_log_says_it_is_degraded(ci_mcap, tmp_path: Path) -> 
     damage = [w for w in manifest["warnings"] if "damaged MCAP at byte" in w]
     assert len(damage) == 1 and damage[0] in r.stderr.replace("\n", "")
     assert manifest["warnings"] == manifest["stages"]["ingest"]["warnings"]
-    assert "degraded" in r.stdout.strip().splitlines()[-1]
+    assert "degraded" in r.stdout[r.stdout.rindex("wrote"):]
+    ev = runner.invoke(app, ["evaluate", str(tmp_path / "cut"), "-o", str(tmp_path / "cut_eval")])
+    assert ev.exit_code == 0, ev.output
+    metrics = json.loads((tmp_path / "cut_eval" / "metrics.json").read_text())
+    assert (metrics["status"], metrics["input_warnings"]) == ("degraded", manifest["stages"]["ingest"]["warnings"])
+    assert "Degraded input" in (tmp_path / "cut_eval" / "report.md").read_text()
+    assert damage[0] in ev.stderr.replace("\n", "") and "degraded" in ev.stdout[ev.stdout.rindex("wrote"):]
     whole = runner.invoke(app, ["run", str(ci_mcap.log_path), "-o", str(tmp_path / "whole")])
     assert whole.exit_code == 0, whole.output
     manifest = json.loads((tmp_path / "whole" / "run.json").read_text())
     assert (manifest["status"], manifest["warnings"]) == ("ok", [])
     assert "degraded" not in whole.stdout and "warning" not in whole.stderr
+
+
+def test_compare_of_a_truncated_log_says_it_is_degraded(ci_mcap, tmp_path: Path) -> None:
+    """`autosar compare` on the cut log: compare.json, compare.md, each method's run.json and the console say
+    the images are made from a damaged log."""
+    log = _cut_log(ci_mcap, tmp_path)
+    r = runner.invoke(app, ["compare", str(log), "-o", str(tmp_path / "cmp"), "--methods", "none,sar-min"])
+    assert r.exit_code == 0, r.output
+    result = json.loads((tmp_path / "cmp" / "compare.json").read_text())
+    assert result["status"] == "degraded" and any("damaged MCAP at byte" in w for w in result["warnings"])
+    for m in ("none", "sar-min"):
+        method = json.loads((tmp_path / "cmp" / m / "run.json").read_text())
+        assert (method["status"], method["warnings"]) == ("degraded", result["warnings"])
+    assert "Degraded input" in (tmp_path / "cmp" / "compare.md").read_text()
+    assert all(w in r.stderr.replace("\n", "") for w in result["warnings"])
+    assert "degraded" in r.stdout[r.stdout.rindex("wrote"):]
 
 
 def test_full_disk_refuses_the_image_before_writing_it(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

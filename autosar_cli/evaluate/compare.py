@@ -125,8 +125,9 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
     notes: list[str] = []
 
     t0 = time.perf_counter()
-    ingest([Path(p) for p in logs], out / DRIVE, config=config, command=command,
-           progress=lambda done, total: tick("ingest", done, total))
+    report = ingest([Path(p) for p in logs], out / DRIVE, config=config, command=command,
+                    progress=lambda done, total: tick("ingest", done, total))
+    warnings = [str(w) for w in report.warnings]  # a damaged log, dropped data: every product is degraded
     timings["ingest"] = time.perf_counter() - t0
 
     if truth_path is None:
@@ -256,7 +257,8 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
         focus_s = time.perf_counter() - t0
         write_trajectory(mdir / "trajectory.h5", traj)
         outputs = write_image(mdir / "image", image, overwrite=True)
-        _write_method_manifest(mdir, logs, config, m, traj, truth_path, options, res, focus_s, outputs, command)
+        _write_method_manifest(mdir, logs, config, m, traj, truth_path, options, res, focus_s, outputs, command,
+                               warnings)
         timings[f"focus_{m}"] = focus_s
         t0 = time.perf_counter()
         tick(f"evaluate {m}", 0, 1)
@@ -290,6 +292,7 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
         "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__, "command": command,
         "inputs": [str(p) for p in logs], "config": config.source, "truth": str(truth_path) if truth_path else None,
         "methods": run_methods, "skipped": skipped, "notes": notes,
+        "status": "degraded" if warnings else "ok", "warnings": warnings,
         "grid": {"reference_trajectory": base_traj.method, "shape": list(base_grid.shape),
                  "pixel_m": base_grid.pixel_m, "range_direction": list(range_dir)},
         "results": {m: _method_result(evaluations[m]) for m in run_methods}, "autofocus": autofocus,
@@ -312,8 +315,9 @@ def _method_result(ev: Evaluation) -> dict[str, Any]:
 
 def _write_method_manifest(mdir: Path, logs: Sequence[str | Path], config: Config, method: str, traj: Trajectory,
                            truth_path: str | Path | None, options: FocusOptions, res: Any, focus_s: float,
-                           outputs: dict[str, Path], command: str) -> None:
-    """A run.json (format autosar-run) for a method directory, so ``autosar evaluate OUT/<method>`` works."""
+                           outputs: dict[str, Path], command: str, warnings: list[str]) -> None:
+    """A run.json (format autosar-run) for a method directory, so ``autosar evaluate OUT/<method>`` works;
+    ``warnings``: the ingest's (as in `autosar run`'s)."""
     manifest = {
         "format": RUN_FORMAT, "format_version": RUN_FORMAT_VERSION, "autosar_version": __version__,
         "python": platform.python_version(), "command": command, "config": config.source,
@@ -324,7 +328,7 @@ def _write_method_manifest(mdir: Path, logs: Sequence[str | Path], config: Confi
                              "backprojections": res.backprojections}},
         "outputs": {"drive": os.path.join("..", DRIVE), "trajectory": "trajectory.h5",
                     "image": {k: os.path.relpath(v, mdir) for k, v in outputs.items()}},
-        "drive_s": res.drive_s, "comparison": "..",
+        "drive_s": res.drive_s, "comparison": "..", "status": "degraded" if warnings else "ok", "warnings": warnings,
     }
     if truth_path is not None:
         manifest["truth"] = str(truth_path)
@@ -341,6 +345,9 @@ def compare_markdown(result: dict[str, Any], evaluations: dict[str, Evaluation],
              f"{result['grid']['shape'][1]} pixels of {result['grid']['pixel_m'] * 100:g} cm)"
              + (", registered into each method's frame by its SE(2) alignment" if result["truth"] else "")
              + ".\n\n"]
+    if result.get("warnings"):
+        parts.append("**Degraded input:** every image below is made from what could be read.\n\n"
+                     + "".join(f"- {w}\n" for w in result["warnings"]) + "\n")
     rows = []
     for m in methods:
         s = evaluations[m].summary()

@@ -54,7 +54,7 @@ from autosar_cli.sar.focus import FocusOptions, focus_images
 from autosar_cli.sar.grid import FocusGrid, track_distance, track_lattice
 from autosar_cli.sim.scene import KINDS
 from autosar_cli.sim.truth import TruthTargets, read_targets
-from autosar_cli.store.drive import radar_times
+from autosar_cli.store.drive import Drive, radar_times
 from autosar_cli.store.image import FocusedImage
 
 #: Scene lines whose straightness is measured (kinds of autosar_cli.sim.scene.KINDS).
@@ -153,6 +153,7 @@ class Evaluation:
     range_dir: tuple[float, float] = (0.0, 1.0)
     notes: list[str] = field(default_factory=list)
     inputs: dict[str, str] = field(default_factory=dict)
+    input_warnings: list[str] = field(default_factory=list)  #: the drive's ingest warnings (a damaged log, ...)
 
     @property
     def alignment(self) -> Se2:
@@ -187,7 +188,9 @@ class Evaluation:
                              "trajectory": self.trajectory_metrics.to_dict() if self.trajectory_metrics else None,
                              "alignment": self.alignment.to_dict() if self.errors else None,
                              "range_direction": list(self.range_dir),
-                             "reflectors": [r.to_dict() for r in self.reflectors], "notes": list(self.notes)}
+                             "reflectors": [r.to_dict() for r in self.reflectors], "notes": list(self.notes),
+                             "status": "degraded" if self.input_warnings else "ok",
+                             "input_warnings": list(self.input_warnings)}
         return d
 
 
@@ -296,6 +299,8 @@ def evaluate_image(image: FocusedImage, trajectory: Trajectory, drive_path: str 
     """
     ev = Evaluation(trajectory.method, image, trajectory, ImageMetrics(0, math.nan, math.nan, math.nan),
                     range_dir=range_dir or range_direction(image, trajectory, config), inputs=dict(inputs or {}))
+    with Drive(drive_path) as drive:
+        ev.input_warnings = [str(w) for w in drive.report().get("warnings", [])]
     options = options_from_image(image, config)
     frames = radar_times(drive_path)
     fine = [metrics_grid(image.grid)] if metrics_image is None else []

@@ -209,6 +209,9 @@ def report_markdown(ev: Evaluation, figures: dict[str, str]) -> str:
     parts = [f"# Evaluation: {ev.method}\n\n",
              markdown_table(["input", "path"], [[k, f"`{v}`"] for k, v in ev.inputs.items()]
                             + [["truth", f"`{ev.truth.path}`" if ev.truth else "none"]])]
+    if ev.input_warnings:
+        parts.append("\n**Degraded input:** the image is made from what could be read of the drive.\n\n"
+                     + "".join(f"- {w}\n" for w in ev.input_warnings))
     scale = ev.trajectory.info.get("track_scale")
     if scale is not None:  # autosar run --autofocus, compare's sar-min+scale / sar-min+af
         n = len(ev.trajectory.info.get("autofocus_points_enu", []))
