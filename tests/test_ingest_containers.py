@@ -18,7 +18,7 @@ from rosbags.rosbag2 import Writer as Rosbag2Writer
 
 from autosar_cli.config import load_config
 from autosar_cli.ingest.pipeline import ingest
-from autosar_cli.ingest.sources import LogReadError, container_of
+from autosar_cli.ingest.sources import LogReadError, container_of, open_source
 from autosar_cli.msgs import typestore_for
 from autosar_cli.store.drive import Drive
 
@@ -123,3 +123,13 @@ def test_a_log_is_read_by_what_it_holds_not_by_its_name(name: str, holds: str, c
     other.write_text("not a log\n")
     with pytest.raises(LogReadError, match=r"notes: unknown log container \(expected .mcap, .bag or a rosbag2"):
         container_of(other)
+
+
+@pytest.mark.parametrize("name", ["old.bag", "old_log"])
+def test_a_bag_of_an_older_format_is_named_as_such(name: str, tmp_path: Path) -> None:
+    """A ROS1 bag of format 1.2 (before 2010) is refused in one line that names its format and the conversion,
+    not as "version 102" (the bag reader's own words)."""
+    bag = tmp_path / name
+    bag.write_bytes(b"#ROSBAG V1.2\n" + bytes(64))
+    with pytest.raises(LogReadError, match=r"a ROS1 bag of format '1.2'; only format 2.0 is read"):
+        list(open_source(bag).messages())

@@ -56,6 +56,10 @@ class Ros1BagSource:
         try:
             reader.open()
         except ReaderError as exc:
+            head = _first_line(self.path)
+            if head.startswith("#ROSBAG V") and head != "#ROSBAG V2.0":  # rosbags says "version 102" for V1.2
+                raise LogReadError(f"{self.path}: a ROS1 bag of format {head[9:]!r}; only format 2.0 is read "
+                                   "(ROS 1's `rosbag filter IN OUT True` rewrites it as 2.0)") from exc
             if "magic" in str(exc) or "empty" in str(exc) or "version" in str(exc):
                 raise LogReadError(f"{self.path}: not a readable ROS1 bag ({exc})") from exc
             self.stats.warnings.append(f"{self.path}: ROS1 bag index unusable ({exc}); read chunk by chunk "
@@ -453,6 +457,12 @@ def _first_payload(file: Path) -> bytes:
     finally:
         db.close()
     return bytes(row[0]) if row else b""
+
+
+def _first_line(path: Path) -> str:
+    """A bag's version line (``#ROSBAG V2.0``), or what stands there."""
+    with open(path, "rb") as f:
+        return f.read(16).split(b"\n", 1)[0].decode("ascii", "replace")
 
 
 def _is_rosbag2(path: Path) -> bool:
