@@ -118,7 +118,7 @@ def _read_text(path: Path) -> str:
     try:
         raw = path.read_bytes()
     except OSError as exc:
-        raise DbcError(f"{path.name}: cannot read: {exc.strerror or exc}") from exc
+        raise DbcError(f"{path}: cannot read: {exc.strerror or exc}") from exc
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError:
@@ -145,7 +145,7 @@ def load_dbc(path: str | Path) -> tuple[Database, list[str]]:
         if _MAX_STANDARD_ID < int(frame_id) <= _MAX_EXTENDED_ID
     }
     if not bad:
-        raise DbcError(f"{path.name}: {_reason(first)}") from first
+        raise DbcError(f"{path}: {_reason(first)}") from first
 
     def set_extended(match: re.Match[str]) -> str:
         frame_id = int(match.group(2))
@@ -156,7 +156,7 @@ def load_dbc(path: str | Path) -> tuple[Database, list[str]]:
     try:
         db = _parse(_ID_REFERENCE.sub(set_extended, text))
     except cantools.database.UnsupportedDatabaseFormatError as exc:
-        raise DbcError(f"{path.name}: {_reason(exc)}") from exc
+        raise DbcError(f"{path}: {_reason(exc)}") from exc
     warnings = [
         f"{path.name}: message {frame_id} (0x{frame_id:X}) {name} > 0x7FF without the "
         "extended-frame bit; loaded as extended"
@@ -168,7 +168,7 @@ def load_dbc(path: str | Path) -> tuple[Database, list[str]]:
 def _nonempty(db: Database, path: Path) -> Database:
     """Reject a file that parses but defines no message."""
     if not db.messages:
-        raise DbcError(f"{path.name}: no message (BO_) defined")
+        raise DbcError(f"{path}: no message (BO_) defined")
     return db
 
 

@@ -215,13 +215,20 @@ def test_repair_rewrites_every_reference(tmp_path: Path) -> None:
     assert check_frame(database, 2000000, encode_frame(database, "BIG", {"X": 1}, 0)).checksum_ok
 
 
-def test_garbage_raises_dbc_error_naming_the_file(tmp_path: Path) -> None:
+def test_garbage_raises_dbc_error_naming_the_file(tmp_path: Path, ci_mcap) -> None:
     path = tmp_path / "garbage.dbc"
     path.write_bytes(b"this is not\na DBC \x00\xff file\n")
     with pytest.raises(DbcError, match="garbage.dbc") as info:
         load_dbc(path)
     assert "\n" not in str(info.value)
     assert isinstance(info.value, ValueError)
+    assert str(info.value).startswith(f"{path}: ")  # the path as given, once (ingest's error repeated the name)
+    from autosar_cli.config import load_config
+    from autosar_cli.ingest.pipeline import IngestError, ingest
+
+    with pytest.raises(IngestError) as info2:
+        ingest([ci_mcap.log_path], tmp_path / "drive.h5", config=load_config(), dbc=path)
+    assert str(info2.value) == str(info.value)
 
 
 def test_other_defects_are_not_repaired(tmp_path: Path) -> None:

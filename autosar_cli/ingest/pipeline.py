@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from autosar_cli import __version__, msgs
-from autosar_cli.candb import load_dbc
+from autosar_cli.candb import DbcError, load_dbc
 from autosar_cli.config import Config
 from autosar_cli.store.drive import DriveWriter
 from autosar_cli.store.outputs import input_bytes
@@ -152,6 +152,8 @@ class _Ingest:
         dbc_path = Path(dbc) if dbc else config.dbc_path
         try:
             db, dbc_warnings = load_dbc(dbc_path)
+        except DbcError as exc:  # names the file already
+            raise IngestError(str(exc)) from exc
         except Exception as exc:
             raise IngestError(f"{dbc_path}: {exc}") from exc
         self.dbc_path = dbc_path
