@@ -258,3 +258,34 @@ def test_rosbag2_unreadable_metadata_reads_the_storage_anyway(ci_ros2: Simulatio
     got, warnings = read_all(bag)
     assert Counter(got) == Counter(m for _, m in db_rows(ci_ros2.log_path))
     assert any(str(meta) in w and db3.name in w for w in warnings), warnings
+
+
+def test_mcap_cut_between_records_is_told_from_an_unindexed_one(ci_mcap: SimulationResult, work: Path) -> None:
+    """An MCAP without a summary whose writer finished (its footer and closing magic present) reads with no
+    warning; one cut exactly after a chunk, where no record is broken, keeps every chunk before the cut and says
+    it ends without its footer (before, both said only "no MCAP summary (unindexed or truncated file)", which
+    made every run on a complete unindexed log degraded and left the cut one unnamed)."""
+    from mcap.writer import IndexType, Writer
+
+    chunks = mcap_chunks(ci_mcap.log_path)
+    unindexed = work / "unindexed.mcap"
+    with open(ci_mcap.log_path, "rb") as f, open(unindexed, "wb") as out:
+        w = Writer(out, index_types=IndexType.NONE, use_summary_offsets=False, use_statistics=False,
+                   repeat_channels=False, repeat_schemas=False)
+        w.start(profile="ros2", library="test")
+        ids: dict[str, int] = {}
+        for schema, channel, msg in make_reader(f).iter_messages(log_time_order=False):
+            if channel.topic not in ids:
+                ids[channel.topic] = w.register_channel(channel.topic, channel.message_encoding,
+                                                        w.register_schema(schema.name, schema.encoding, schema.data))
+            w.add_message(ids[channel.topic], msg.log_time, msg.data, msg.publish_time)
+        w.finish()
+    got, warnings = read_all(unindexed)
+    assert warnings == [] and Counter(got) == Counter(m for _, _, msgs in chunks for m in msgs)
+    cut = chunks[len(chunks) // 2][1]  # the end of a chunk record: the next byte starts a record
+    log = work / "cut_between.mcap"
+    log.write_bytes(ci_mcap.log_path.read_bytes()[:cut])
+    got, warnings = read_all(log)
+    assert Counter(got) == Counter(m for _, e, msgs in chunks if e <= cut for m in msgs)
+    assert warnings == [f"{log}: damaged MCAP at byte {cut} of {cut}: file ends without its footer (truncated, "
+                        "or its writer never finished); everything before it was read"]

@@ -163,9 +163,8 @@ class McapSource:
         except Exception:
             summary = None
         if summary is None or summary.statistics is None:
-            if self._declared is None:
-                self.stats.warnings.append(f"{self.path}: no MCAP summary (unindexed or truncated file); "
-                                           "reading sequentially")
+            # no counts to check the messages against: the file's end tells a finished writer (its footer) from a
+            # cut one (:meth:`_records`)
             return
         self._summary_counts = dict(summary.statistics.channel_message_counts)
         self._summary_records = (summary.schemas, summary.channels)
@@ -191,6 +190,9 @@ class McapSource:
                 if len(head) < 9:
                     if offset < total:
                         self._damaged(offset, "file ends inside a record header (truncated)")
+                    else:  # the cut fell between two records
+                        self._damaged(offset, "file ends without its footer (truncated, or its writer never "
+                                      "finished)")
                     break
                 opcode, length = _RECORD_HEAD.unpack(head)
                 framing = _framing_problem(opcode, length, offset, total)
