@@ -44,7 +44,15 @@ from autosar_cli.evaluate.evaluation import (
 )
 from autosar_cli.evaluate.figures import plot_across_track, plot_images_side_by_side, plot_reflector_chips
 from autosar_cli.evaluate.reflectors import ReflectorPatches, focus_patches, predict_image_positions
-from autosar_cli.evaluate.report import fmt, json_safe, markdown_table, write_json, write_report, write_text
+from autosar_cli.evaluate.report import (
+    degraded_markdown,
+    fmt,
+    json_safe,
+    markdown_table,
+    write_json,
+    write_report,
+    write_text,
+)
 from autosar_cli.evaluate.trajectory_metrics import common_instants, trajectory_errors
 from autosar_cli.ingest.pipeline import ingest
 from autosar_cli.nav.inputs import NavInputError
@@ -345,9 +353,7 @@ def compare_markdown(result: dict[str, Any], evaluations: dict[str, Evaluation],
              f"{result['grid']['shape'][1]} pixels of {result['grid']['pixel_m'] * 100:g} cm)"
              + (", registered into each method's frame by its SE(2) alignment" if result["truth"] else "")
              + ".\n\n"]
-    if result.get("warnings"):
-        parts.append("**Degraded input:** every image below is made from what could be read.\n\n"
-                     + "".join(f"- {w}\n" for w in result["warnings"]) + "\n")
+    parts.append(degraded_markdown(result.get("warnings", []), "every image below is"))
     rows = []
     for m in methods:
         s = evaluations[m].summary()

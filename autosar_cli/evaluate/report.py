@@ -204,14 +204,20 @@ def reflector_table(ev: Evaluation) -> str:
                            "ISLR r / c (dB)"], rows)
 
 
+def degraded_markdown(warnings: list[str], what: str) -> str:
+    """The list of a damaged input's warnings that heads a report ("" when there is none)."""
+    if not warnings:
+        return ""
+    return (f"**Degraded input:** {what} made from what could be read of the drive.\n\n"
+            + "".join(f"- {w}\n" for w in warnings) + "\n")
+
+
 def report_markdown(ev: Evaluation, figures: dict[str, str]) -> str:
     """report.md of one evaluation."""
     parts = [f"# Evaluation: {ev.method}\n\n",
              markdown_table(["input", "path"], [[k, f"`{v}`"] for k, v in ev.inputs.items()]
                             + [["truth", f"`{ev.truth.path}`" if ev.truth else "none"]])]
-    if ev.input_warnings:
-        parts.append("\n**Degraded input:** the image is made from what could be read of the drive.\n\n"
-                     + "".join(f"- {w}\n" for w in ev.input_warnings))
+    parts.append("\n" + degraded_markdown(ev.input_warnings, "the image is"))
     scale = ev.trajectory.info.get("track_scale")
     if scale is not None:  # autosar run --autofocus, compare's sar-min+scale / sar-min+af
         n = len(ev.trajectory.info.get("autofocus_points_enu", []))
