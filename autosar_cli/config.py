@@ -396,7 +396,9 @@ def _build(cls: Any, value: Any, path: str) -> Any:
             if f.name in value:
                 kwargs[f.name] = _build(hints[f.name], value[f.name], _join(path, f.name))
             elif f.default is MISSING and f.default_factory is MISSING:
-                raise ConfigError(f"{_join(path, f.name)}: missing required key")
+                what = "table" if is_dataclass(hints[f.name]) else "key"
+                raise ConfigError(f"{_join(path, f.name)}: missing required {what} (a config is complete: copy "
+                                  "configs/giulia_scanbrick.toml and edit it)")
         return cls(**kwargs)
     if origin in (types.UnionType, typing.Union):
         args = [a for a in typing.get_args(cls) if a is not type(None)]

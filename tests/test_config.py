@@ -67,8 +67,12 @@ def test_bad_values_are_rejected_naming_the_key(tmp_path, pattern, replacement, 
 
 def test_missing_key_and_missing_file(tmp_path):
     path = _write_variant(tmp_path, r"^steering_ratio = .*$", "")
-    with pytest.raises(ConfigError, match=r"vehicle\.steering_ratio: missing required key"):
+    with pytest.raises(ConfigError, match=r"vehicle\.steering_ratio: missing required key \(a config is complete"):
         load_config(path)
+    partial = tmp_path / "partial.toml"
+    partial.write_text("[radar]\nprf_hz = 500.0\n")  # a whole table missing is named as a table
+    with pytest.raises(ConfigError, match=r"partial.toml: vehicle: missing required table"):
+        load_config(partial)
     with pytest.raises(ConfigError, match="config file not found"):
         load_config(tmp_path / "nope.toml")
     bad = tmp_path / "bad.toml"
