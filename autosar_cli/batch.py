@@ -43,7 +43,7 @@ from autosar_cli.ingest.sources import LogReadError
 from autosar_cli.run import run, run_warnings
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.store.atomic import atomic_output
-from autosar_cli.store.manifest import read_json_manifest
+from autosar_cli.store.manifest import product_status, read_json_manifest
 
 FORMAT = "autosar-batch"
 FORMAT_VERSION = 1
@@ -141,7 +141,7 @@ def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, m
         return record
     st = manifest["stages"]
     warnings = run_warnings(manifest)
-    record.update(status="degraded" if warnings else "ok", error=None, warnings=warnings,
+    record.update(status=product_status(warnings), error=None, warnings=warnings,
                   wall_s=time.perf_counter() - t0, drive_s=manifest.get("drive_s"),
                   stages_s={k: v["wall_s"] for k, v in st.items()}, grid_shape=st["focus"]["grid_shape"],
                   frames_used=st["focus"]["frames_used"], backprojections=st["focus"]["backprojections"],

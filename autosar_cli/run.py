@@ -35,7 +35,7 @@ from autosar_cli import __version__
 from autosar_cli.config import Config
 from autosar_cli.sar.grid import GridError, check_image_size
 from autosar_cli.store.atomic import atomic_output
-from autosar_cli.store.manifest import json_default, read_json_manifest
+from autosar_cli.store.manifest import json_default, product_status, read_json_manifest
 from autosar_cli.store.outputs import check_free_space, check_output, check_products, input_bytes
 
 if TYPE_CHECKING:
@@ -157,7 +157,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     manifest["wall_s"] = sum(s["wall_s"] for s in manifest["stages"].values())
     manifest["fraction_of_drive"] = manifest["wall_s"] / frep.drive_s if frep.drive_s > 0 else None
     manifest["warnings"] = run_warnings(manifest)
-    manifest["status"] = "degraded" if manifest["warnings"] else "ok"
+    manifest["status"] = product_status(manifest["warnings"])
     with atomic_output(manifest_path, overwrite=True) as tmp:
         tmp.write_text(json.dumps(manifest, indent=2, default=json_default) + "\n")
     return manifest

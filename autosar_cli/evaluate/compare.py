@@ -67,6 +67,7 @@ from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.sar.residual_motion import autofocus_residual_motion
 from autosar_cli.store.drive import Drive, radar_times
 from autosar_cli.store.image import write_image
+from autosar_cli.store.manifest import product_status
 from autosar_cli.store.outputs import check_output
 from autosar_cli.store.trajectory import write_trajectory
 
@@ -300,7 +301,7 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
         "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__, "command": command,
         "inputs": [str(p) for p in logs], "config": config.source, "truth": str(truth_path) if truth_path else None,
         "methods": run_methods, "skipped": skipped, "notes": notes,
-        "status": "degraded" if warnings else "ok", "warnings": warnings,
+        "status": product_status(warnings), "warnings": warnings,
         "grid": {"reference_trajectory": base_traj.method, "shape": list(base_grid.shape),
                  "pixel_m": base_grid.pixel_m, "range_direction": list(range_dir)},
         "results": {m: _method_result(evaluations[m]) for m in run_methods}, "autofocus": autofocus,
@@ -336,7 +337,7 @@ def _write_method_manifest(mdir: Path, logs: Sequence[str | Path], config: Confi
                              "backprojections": res.backprojections}},
         "outputs": {"drive": os.path.join("..", DRIVE), "trajectory": "trajectory.h5",
                     "image": {k: os.path.relpath(v, mdir) for k, v in outputs.items()}},
-        "drive_s": res.drive_s, "comparison": "..", "status": "degraded" if warnings else "ok", "warnings": warnings,
+        "drive_s": res.drive_s, "comparison": "..", "status": product_status(warnings), "warnings": warnings,
     }
     if truth_path is not None:
         manifest["truth"] = str(truth_path)

@@ -56,6 +56,7 @@ from autosar_cli.sim.scene import KINDS
 from autosar_cli.sim.truth import TruthTargets, read_targets
 from autosar_cli.store.drive import Drive, radar_times
 from autosar_cli.store.image import FocusedImage
+from autosar_cli.store.manifest import product_status
 
 #: Scene lines whose straightness is measured (kinds of autosar_cli.sim.scene.KINDS).
 LINE_KINDS = ("facade", "kerb")
@@ -189,7 +190,7 @@ class Evaluation:
                              "alignment": self.alignment.to_dict() if self.errors else None,
                              "range_direction": list(self.range_dir),
                              "reflectors": [r.to_dict() for r in self.reflectors], "notes": list(self.notes),
-                             "status": "degraded" if self.input_warnings else "ok",
+                             "status": product_status(self.input_warnings),
                              "input_warnings": list(self.input_warnings)}
         return d
 

@@ -539,13 +539,18 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
             if np.max(np.abs(dx[:2 * n_nodes])) < 2e-6 and np.max(np.abs(dx[shifts])) < 5e-5 and abs(dx[-1]) < 2e-6:
                 break
         resid_norm = lin.step**2 / lin.rel_var
+        # each point's steps, in their order (one sort, not a mask per point)
+        order = np.argsort(lin.point, kind="stable")
+        bounds = np.searchsorted(lin.point[order], np.arange(n_pts + 1))
+        steps_of = [order[bounds[j]:bounds[j + 1]] for j in range(n_pts)]
         new_noise = np.full(n_pts, float(np.median(resid_norm)) / 0.455)  # the median of chi2(1) is 0.455
         if point_noise:
-            for j in np.unique(lin.point):
-                new_noise[j] = float(np.median(resid_norm[lin.point == j])) / 0.455
+            for j, own in enumerate(steps_of):
+                if len(own):
+                    new_noise[j] = float(np.median(resid_norm[own])) / 0.455
         new_noise = np.maximum(new_noise, 1e-12 * noise)
-        phase_rms = np.array([float(np.sqrt(np.mean(lin.step[lin.point == j] ** 2))) if np.any(lin.point == j)
-                              else np.inf for j in range(n_pts)])
+        phase_rms = np.array([float(np.sqrt(np.mean(lin.step[own] ** 2))) if len(own) else np.inf
+                              for own in steps_of])
         bad = used & (phase_rms > opts.max_phase_rms_rad)
         # the weights' scale, not the fit, moves with the noise
         settled = bool(np.all(np.abs(new_noise[used] / noise[used] - 1.0) < 0.5))

@@ -9,6 +9,12 @@ from typing import Any
 import numpy as np
 
 
+def product_status(warnings: list[str]) -> str:
+    """A product's ``status`` in its manifest: ``degraded`` when its making warned (a damaged input, dropped data,
+    an autofocus not applied), else ``ok`` (run.json, compare.json, metrics.json, batch.json's records)."""
+    return "degraded" if warnings else "ok"
+
+
 def json_default(obj: Any) -> Any:
     """``json.dumps(default=...)``: numpy scalars and arrays become numbers and lists, paths strings."""
     if isinstance(obj, np.generic):
