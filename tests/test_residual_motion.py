@@ -16,7 +16,12 @@ from autosar_cli.evaluate.evaluation import load_truth
 from autosar_cli.nav.trajectory import cumulative_travel, phase_centre_lever_arm
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.sar.phase_history import PhaseHistories, frame_geometry
-from autosar_cli.sar.residual_motion import AutofocusOptions, estimate_residual_motion, select_points
+from autosar_cli.sar.residual_motion import (
+    AutofocusOptions,
+    _measured_noise,
+    estimate_residual_motion,
+    select_points,
+)
 from autosar_cli.store.trajectory import read_trajectory, write_trajectory
 from autosar_cli.types import FocusGrid, MotionCorrection, Trajectory
 
@@ -119,6 +124,29 @@ def _reflector_points(drive: Path, truth: Trajectory) -> np.ndarray:
     from autosar_cli.sar.residual_motion import candidate_points
 
     return candidate_points(drive, truth, CFG, FocusOptions.from_config(CFG), AutofocusOptions())
+
+
+def test_a_point_seen_by_few_pulses_takes_the_shared_noise() -> None:
+    """Three points: a clean one and a noisy one with 200 steps each, measured on their own, and one with 8 steps
+    (a point at the drive's end, or a candidate seen by a few pulses), whose own median would be its luck: it
+    takes the level of all the steps. Residuals are χ²(1) times each point's noise power."""
+    rng = np.random.default_rng(3)
+    powers = (0.002, 0.06, 0.002)
+    counts = (200, 200, 8)
+    resid = [p * rng.standard_normal(n) ** 2 for p, n in zip(powers, counts, strict=True)]
+    resid[2][:] = 1e-6  # a few steps that happen to fit almost exactly
+    resid_norm = np.concatenate(resid)
+    bounds = np.cumsum((0,) + counts)
+    steps_of = [np.arange(bounds[j], bounds[j + 1]) for j in range(3)]
+    shared = float(np.median(resid_norm)) / 0.455
+    noise = _measured_noise(resid_norm, steps_of, AutofocusOptions().min_steps_own_noise)
+    # the two well-seen points get their own levels, to the median's accuracy over 200 steps (2.3/sqrt(200) = 16 %)
+    assert noise[0] == pytest.approx(0.002, rel=0.35)
+    assert noise[1] == pytest.approx(0.06, rel=0.35)
+    assert noise[2] == shared
+    assert noise[2] > 1e3 * float(np.median(resid[2])) / 0.455
+    # without per-point noise every point takes the shared level
+    assert np.all(_measured_noise(resid_norm, steps_of, None) == shared)
 
 
 def test_refuses_distributed_clutter(ci_drive: tuple[Path, Trajectory]) -> None:

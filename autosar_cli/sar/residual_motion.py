@@ -115,6 +115,10 @@ class AutofocusOptions:
     #: again (clutter and moving scatterers: 1.4-2 rad; test2 seed 1's that fit at 0.15-0.3 rad: 0.5-0.6 rad)
     screen_phase_rms_rad: float = 1.0
     min_points: int = 2  #: fewer usable points: no correction
+    #: a point with fewer phase steps than this is weighted by all the points' noise, not its own: the median of n
+    #: steps measures a noise power to about 2.3/sqrt(n) (43 % at 30), and a point seen by a few pulses would
+    #: otherwise weigh as much as its luck (the used points of test2 seed 1 hold 185-255)
+    min_steps_own_noise: int = 30
 
 
 @dataclass
@@ -389,6 +393,22 @@ def _agreement_limit(n_points: int) -> float:
     return float(chi2.ppf(SCALE_AGREEMENT_PROBABILITY, n_points - 1) / (n_points - 1)) if n_points > 1 else math.inf
 
 
+def _measured_noise(resid_norm: Array, steps_of: list[Array], min_steps: int | None) -> Array:
+    """Noise power of one phase step at unit relative variance, per point, from the fit's residuals.
+
+    ``resid_norm`` (M,): each step's squared residual over its relative variance (rad²); ``steps_of``: each point's
+    step indices. All points share the median's level (the median of χ²(1) is 0.455), robust to the few steps a
+    moving scatterer spoils; with ``min_steps``, a point with at least that many steps gets its own level instead.
+    Returns (P,).
+    """
+    noise = np.full(len(steps_of), float(np.median(resid_norm)) / 0.455)
+    if min_steps is not None:
+        for j, own in enumerate(steps_of):
+            if len(own) >= max(min_steps, 1):
+                noise[j] = float(np.median(resid_norm[own])) / 0.455
+    return noise
+
+
 def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: Array, opts: AutofocusOptions,
          used0: NDArray[np.bool_] | None = None, scale0: float = 0.0,
          motion0: MotionCorrection | None = None, posterior: bool = True, point_noise: bool = False
@@ -397,8 +417,9 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     ``used0``: the points to start from (default: all); ``scale0``: the scale to start from (its prior stays about 0);
     ``motion0``: the residual motion to start from (none: the track as it is); ``posterior``: whether to compute
     the correction's std (else NaN until ``with_posterior()``: a fit that may give only the scale and the points,
-    or be replaced); ``point_noise``: each point's steps weighted by its own measured noise (else by all the used
-    points' together); ``opts``' scale prior set (:func:`with_scale_prior`)."""
+    or be replaced); ``point_noise``: each point's steps weighted by its own measured noise (else, or with fewer than
+    ``opts.min_steps_own_noise`` steps, by all the used points' together); ``opts``' scale prior set
+    (:func:`with_scale_prior`)."""
     assert opts.prior_scale is not None
     n_pts = len(points0)
     t0 = int(trajectory.t_ns[0])
@@ -543,12 +564,8 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
         order = np.argsort(lin.point, kind="stable")
         bounds = np.searchsorted(lin.point[order], np.arange(n_pts + 1))
         steps_of = [order[bounds[j]:bounds[j + 1]] for j in range(n_pts)]
-        new_noise = np.full(n_pts, float(np.median(resid_norm)) / 0.455)  # the median of chi2(1) is 0.455
-        if point_noise:
-            for j, own in enumerate(steps_of):
-                if len(own):
-                    new_noise[j] = float(np.median(resid_norm[own])) / 0.455
-        new_noise = np.maximum(new_noise, 1e-12 * noise)
+        new_noise = np.maximum(_measured_noise(resid_norm, steps_of, opts.min_steps_own_noise if point_noise else None),
+                               1e-12 * noise)
         phase_rms = np.array([float(np.sqrt(np.mean(lin.step[own] ** 2))) if len(own) else np.inf
                               for own in steps_of])
         bad = used & (phase_rms > opts.max_phase_rms_rad)
