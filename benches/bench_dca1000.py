@@ -3,7 +3,8 @@
 Usage: python benches/bench_dca1000.py [--copies 16] [--repeat 3] [--workdir DIR]
 
 Simulates the ``ci`` scenario as a DCA1000 capture (4-lane complex, seed 1), tiles its adc_data.bin
-``--copies`` times into one capture (~25 MB each), also writes it in the 2-lane layout, then times, after
+``--copies`` times into one capture (~25 MB each), also writes it in the 2-lane layout and as the DCA1000's
+recorded packets (10-byte header + 1456 data bytes each, 4-lane), then times, after
 one warm-up pass (the file in the page cache, as on a second read of a recording):
 
 * read: :meth:`Dca1000Capture.blocks` over the whole capture, every PRI decoded into the drive's
@@ -38,7 +39,7 @@ def build_captures(work: Path, copies: int) -> dict[str, Path]:
     sim = simulate("ci", work / "ci.mcap", fmt="dca1000", seed=1)
     assert sim.radar_capture is not None
     src = Dca1000Capture(sim.radar_capture)
-    pris = [block for _, block in src.blocks()]
+    pris = [block for _, block, _ in src.blocks()]
     out: dict[str, Path] = {}
     for lanes in (4, 2):
         folder = work / f"capture_{lanes}lane"
@@ -48,6 +49,14 @@ def build_captures(work: Path, copies: int) -> dict[str, Path]:
                 for block in pris:
                     w.write(block)
         out[f"{lanes}-lane complex"] = folder
+    # the same 4-lane stream as the DCA1000's packets, recorded with their sequence numbers (1456 data bytes each)
+    folder = work / "capture_4lane_packets"
+    with CaptureWriter(folder, dataclasses.replace(src.params, num_frames=0), param_format="json",
+                       packet_bytes=1456) as w:
+        for _ in range(copies):
+            for block in pris:
+                w.write(block)
+    out["4-lane complex, packets"] = folder
     return out
 
 
@@ -56,7 +65,7 @@ def time_read(path: Path) -> float:
 
     t = time.perf_counter()
     n = 0
-    for _, block in Dca1000Capture(path).blocks():
+    for _, block, _ in Dca1000Capture(path).blocks():
         n += len(block)
     return time.perf_counter() - t
 

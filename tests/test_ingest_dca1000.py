@@ -80,7 +80,7 @@ def test_layout_round_trips(tmp_path: Path, fmt: str, lanes: int, chirp_tx: tupl
     assert len(files) > 1 or param_format == "cfg"
     cap = Dca1000Capture(tmp_path)
     assert (cap.params.lanes, cap.params.adc_format, cap.params.chirp_tx) == (lanes, fmt, chirp_tx)
-    got = np.concatenate([b for _, b in cap.blocks(frames_per_block=2)])
+    got = np.concatenate([b for _, b, _ in cap.blocks(frames_per_block=2)])
     np.testing.assert_array_equal(got, pris)
     # frame times: frame periodicity, then one loop (num_tx chirp slots) per PRI within the frame
     t = cap.pri_times_ns(1_000)
@@ -99,7 +99,7 @@ def test_narrow_adc_samples_are_sign_extended(tmp_path: Path, bits: int) -> None
     np.testing.assert_array_equal(np.fromfile(files[0], dtype="<i2"), unsigned)
     cap = Dca1000Capture(tmp_path)
     assert cap.params.adc_bits == bits
-    np.testing.assert_array_equal(np.concatenate([b for _, b in cap.blocks()]), pris)
+    np.testing.assert_array_equal(np.concatenate([b for _, b, _ in cap.blocks()]), pris)
 
 
 def sdk_cfg(tmp_path: Path, **change: str) -> Path:
@@ -255,6 +255,101 @@ def test_simulated_capture_ingests_to_the_rawframe_cube(ci_mcap, tmp_path: Path)
         np.testing.assert_array_equal(a["imu/ins_radar/t_ns"][()], b["imu/ins_radar/t_ns"][()])
 
 
+PACKET = 1456  # the DCA1000's default data bytes per packet
+
+
+def config_capture(folder: Path, n_pris: int = 150, **write: int) -> tuple[CaptureParams, np.ndarray, list[Path]]:
+    """``n_pris`` random PRIs of the default config's radar as a 2-lane capture (one PRI a frame, 25920 bytes)."""
+    p = params_from_radar(CFG.radar, lanes=2)
+    pris = np.random.default_rng(2).integers(-500, 500, (n_pris, 3, 4, 540, 2), dtype=np.int16)
+    return p, pris, write_capture(folder, p, [pris], **write)
+
+
+def pris_of(byte_range: tuple[int, int], p: CaptureParams) -> set[int]:
+    """PRIs (one a frame here) that stream bytes [a, b) touch."""
+    return set(range(byte_range[0] // p.frame_bytes, (byte_range[1] - 1) // p.frame_bytes + 1))
+
+
+def test_recorded_dca1000_packets_read_as_the_data_alone(tmp_path: Path) -> None:
+    """The DCA1000's packets as a recorder stores them (10-byte header: sequence number, bytes sent before; then
+    1456 data bytes, the last packet fewer; split files of whole packets) read as the same PRIs as the data
+    alone, and `info` says which it holds."""
+    p, pris, flat = config_capture(tmp_path / "flat")
+    _, _, raw = config_capture(tmp_path / "raw", packet_bytes=PACKET, split_bytes=1_000_000)
+    assert len(raw) == 4 and [f.name for f in raw][:2] == ["adc_data_Raw_0.bin", "adc_data_Raw_1.bin"]
+    head = raw[0].read_bytes()[:2 * (PACKET + 10)]
+    assert int.from_bytes(head[PACKET + 10:PACKET + 14], "little") == 2  # the second packet's sequence number
+    assert int.from_bytes(head[PACKET + 14:PACKET + 20], "little") == PACKET  # and the data sent before it
+    cap = Dca1000Capture(tmp_path / "raw")
+    assert cap.packets is not None and cap.packets.data_bytes == PACKET
+    assert cap.packets.packets == -(-len(pris) * p.frame_bytes // PACKET) and cap.packets.lost_packets == 0
+    got = list(cap.blocks())
+    np.testing.assert_array_equal(np.concatenate([b for _, b, _ in got]), pris)
+    assert not any(d.any() for _, _, d in got) and cap.warnings == []
+    assert Dca1000Capture(tmp_path / "flat").packets is None
+    r = runner.invoke(app, ["info", str(tmp_path / "raw"), "--json"])
+    assert r.exit_code == 0, r.output
+    assert "DCA1000 packets of 1456 data bytes: 2671 recorded, 0 lost" in r.stdout
+
+
+def test_lost_reordered_and_repeated_packets(tmp_path: Path) -> None:
+    """A recording that lost two packets, got two out of order and one twice: the packets go where their byte
+    counts say, the PRIs a lost packet touches are left out (the frame index jumps there, as in a log that
+    lost frames) with one warning that counts them, and every other PRI is the one written."""
+    p, pris, files = config_capture(tmp_path / "cap", packet_bytes=PACKET)
+    stream = files[0].read_bytes()
+    step = PACKET + 10
+    packets = [stream[i:i + step] for i in range(0, len(stream), step)]
+    lost = [712, 2000]  # 712 straddles PRIs 39 and 40; 2000 lies inside PRI 112
+    edited = [pk for k, pk in enumerate(packets) if k not in lost]
+    edited[300], edited[301] = edited[301], edited[300]
+    edited.insert(500, edited[499])
+    files[0].write_bytes(b"".join(edited))
+    left_out = set().union(*(pris_of((k * PACKET, (k + 1) * PACKET), p) for k in lost))
+    assert left_out == {39, 40, 112}
+
+    cap = Dca1000Capture(tmp_path / "cap")
+    assert (cap.packets.lost_packets, cap.packets.late, cap.packets.duplicates) == (2, 1, 1)
+    blocks = list(cap.blocks())
+    damaged = np.concatenate([d for _, _, d in blocks])
+    assert set(np.flatnonzero(damaged)) == left_out
+    keep = ~damaged
+    np.testing.assert_array_equal(np.concatenate([b for _, b, _ in blocks])[keep], pris[keep])
+
+    code, stderr = cli_ingest(tmp_path / "cap", tmp_path / "d.h5")
+    assert code == 0, stderr
+    assert "3 of 150 PRIs left out, they hold data the DCA1000 lost (2 lost packets)" in stderr, stderr.splitlines()
+    with Drive(tmp_path / "d.h5") as d:
+        radar = d.radar()
+        np.testing.assert_array_equal(radar.frame_index, np.flatnonzero(keep))
+        np.testing.assert_array_equal(radar.raw[()], pris[keep])
+    with h5py.File(tmp_path / "d.h5") as f:
+        np.testing.assert_array_equal(f["radar/scanbrick_w43/gap_frame_index"][()], [[38, 41], [111, 113]])
+
+
+def test_zero_filled_packets_of_post_processed_data_are_left_out(tmp_path: Path) -> None:
+    """mmWave Studio's post-processing fills a lost packet with zeros: a run of zeros as long as a packet is no
+    echo. The PRIs it touches are left out: one inside a PRI; one across the edge of the reader's 64-frame blocks
+    that is too short to be seen on either side alone (an 800-byte packet: 200 zeros each side); and isolated
+    zero samples, which real ADC data holds, are kept."""
+    p, pris, files = config_capture(tmp_path / "cap")
+    data = bytearray(files[0].read_bytes())
+    inside = (100 * p.frame_bytes + 5000, 100 * p.frame_bytes + 5000 + PACKET)
+    edge = (64 * p.frame_bytes - 400, 64 * p.frame_bytes + 400)
+    for a, b in (inside, edge):
+        data[a:b] = bytes(b - a)
+    files[0].write_bytes(bytes(data))
+    assert np.count_nonzero(pris == 0) > 100  # single zero samples elsewhere
+    cap = Dca1000Capture(tmp_path / "cap")
+    blocks = list(cap.blocks())
+    damaged = np.concatenate([d for _, _, d in blocks])
+    assert set(np.flatnonzero(damaged)) == pris_of(inside, p) | pris_of(edge, p) == {63, 64, 100}
+    np.testing.assert_array_equal(np.concatenate([b for _, b, _ in blocks])[~damaged], pris[~damaged])
+    assert cap.damage == {"lost packets": 0, "zero-filled runs": 2, "PRIs": 3}
+    assert cap.warnings == [f"{files[0]}: 3 of 150 PRIs left out, they hold data the DCA1000 lost "
+                            "(2 zero-filled runs)"]
+
+
 def test_real_ti_frames_through_a_capture(tmp_path: Path) -> None:
     """OpenRadar's real TI frame (2 Tx x 4 Rx TDM-MIMO, 128 loops, 60 MHz/us, 2.5 Msps, 128 samples) written
     back as a 2-lane DCA1000 capture, read by the ingest reader and range-compressed by the product: the real
@@ -270,8 +365,10 @@ def test_real_ti_frames_through_a_capture(tmp_path: Path) -> None:
                       lanes=2)
     write_capture(tmp_path, p, [pris])
     cap = Dca1000Capture(tmp_path)
-    raw = np.concatenate([b for _, b in cap.blocks()])
+    blocks = list(cap.blocks())
+    raw = np.concatenate([b for _, b, _ in blocks])
     assert raw.shape == (128, 2, 4, 128, 2)
+    assert not any(d.any() for _, _, d in blocks)  # real ADC noise holds no run of zeros a lost packet leaves
 
     up = 4
     rc = range_compress(raw, sample_rate_hz=cap.params.sample_rate_hz, slope_hz_per_s=cap.params.slope_hz_per_s,

@@ -26,6 +26,16 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .dca1000_packets import (
+    HEADER_BYTES,
+    MAX_PACKET_DATA,
+    ZERO_RUN_VALUES,
+    PacketIndex,
+    edge_zeros,
+    packet_data_bytes,
+    within,
+    zero_runs,
+)
 from .dca1000_params import (
     ADC_BITS,
     ADC_FORMATS,
@@ -162,31 +172,58 @@ def _split_series(folder: Path, base: str) -> list[Path]:
 
 
 class Dca1000Capture:
-    """A capture opened for streaming: its parameters, frame count and a block iterator over its PRIs."""
+    """A capture opened for streaming: its parameters, frame count and a block iterator over its PRIs.
+
+    The data files hold either the ADC data alone or the DCA1000's packets as recorded (found by their headers,
+    :mod:`.dca1000_packets`). PRIs a lost packet touches, or a stretch of zeros where post-processing filled one,
+    are flagged by :meth:`blocks`; ``damage`` counts them once the blocks are read, and ``warnings`` says so.
+    """
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
         self.files, self.param_file = find_capture(self.path)
         self.params = load_params(self.param_file)
         self.warnings: list[str] = []
-        self.bytes_total = sum(f.stat().st_size for f in self.files)
         p = self.params
-        name = self.files[0] if len(self.files) == 1 else f"{self.files[0]} (+{len(self.files) - 1} split files)"
-        group = 2 * (2 if p.complex else 1) * (LANE_SLOTS_4 if p.lanes == 4 else 2)
-        if self.bytes_total < p.frame_bytes or self.bytes_total % group:
-            raise CaptureError(f"{name}: {self.bytes_total} bytes fit no frame layout of {self.param_file.name}: "
+        self.name = str(self.files[0]) if len(self.files) == 1 \
+            else f"{self.files[0]} (+{len(self.files) - 1} split files)"
+        with open(self.files[0], "rb") as f:
+            data_bytes = packet_data_bytes(f.read(4 * (HEADER_BYTES + MAX_PACKET_DATA)))
+        self.packets = PacketIndex.build(self.files, data_bytes) if data_bytes else None
+        if self.packets is not None:
+            self.warnings.extend(self.packets.warnings)
+            self.bytes_total = self.packets.total_bytes
+        else:
+            self.bytes_total = sum(f.stat().st_size for f in self.files)
+            group = 2 * (2 if p.complex else 1) * (LANE_SLOTS_4 if p.lanes == 4 else 2)
+            if self.bytes_total % group:
+                raise CaptureError(f"{self.name}: {self.bytes_total} bytes fit no frame layout of "
+                                   f"{self.param_file.name}: expected whole frames of {p.describe_layout()}")
+        if self.bytes_total < p.frame_bytes:
+            raise CaptureError(f"{self.name}: {self.bytes_total} bytes fit no frame layout of {self.param_file.name}: "
                                f"expected whole frames of {p.describe_layout()}")
         self.num_frames, self.partial_bytes = divmod(self.bytes_total, p.frame_bytes)
         if p.num_frames and self.num_frames > p.num_frames:
-            raise CaptureError(f"{name}: holds {self.num_frames} frames but {self.param_file.name} configures "
+            raise CaptureError(f"{self.name}: holds {self.num_frames} frames but {self.param_file.name} configures "
                                f"{p.num_frames} ({p.describe_layout()})")
         if self.partial_bytes:
-            self.warnings.append(f"{name}: trailing partial frame left out ({self.partial_bytes} of "
+            self.warnings.append(f"{self.name}: trailing partial frame left out ({self.partial_bytes} of "
                                  f"{p.frame_bytes} bytes, 1 frame)")
+        #: PRIs left out by :meth:`blocks`' flags, by cause, once the blocks are read
+        self.damage = {"lost packets": 0, "zero-filled runs": 0, "PRIs": 0}
 
     @property
     def num_pris(self) -> int:
         return self.num_frames * self.params.num_loops
+
+    @property
+    def layout(self) -> str:
+        """How the data files hold the stream, for ``autosar info``."""
+        if self.packets is None:
+            return "ADC data"
+        k = self.packets
+        return (f"DCA1000 packets of {k.data_bytes} data bytes: {k.packets} recorded, {k.lost_packets} lost, "
+                f"{k.late} out of order, {k.duplicates} repeated")
 
     def pri_times_ns(self, start_ns: int) -> NDArray[np.int64]:
         """Start of every PRI (ns since the epoch): frame periodicity, then loop period within a frame."""
@@ -196,10 +233,59 @@ class Dca1000Capture:
         loop_t = np.round(np.arange(p.num_loops) * (p.loop_period_s * 1e9)).astype(np.int64)
         return start_ns + (frame_t[:, None] + loop_t[None, :]).reshape(-1)
 
-    def blocks(self, frames_per_block: int = 64) -> Iterator[tuple[int, NDArray[np.int16]]]:
-        """(first PRI index, PRIs (n, tx, rx, sample, I/Q) int16) for consecutive blocks of whole frames."""
+    def blocks(self, frames_per_block: int = 64
+               ) -> Iterator[tuple[int, NDArray[np.int16], NDArray[np.bool_]]]:
+        """(first PRI index, PRIs (n, tx, rx, sample, I/Q) int16, damaged (n,) bool) for consecutive blocks of whole
+        frames. A damaged PRI holds bytes a lost packet should have: missing from the recorded packets, or a run of
+        at least ``ZERO_RUN_VALUES`` zeros (post-processing's fill), a run across two blocks included."""
+        p = self.params
+        pri_values = p.frame_bytes // 2 // p.num_loops
+        lost = self.packets.lost if self.packets is not None else np.zeros((0, 2), dtype=np.int64)
+        self.damage = {"lost packets": self.packets.lost_packets if self.packets is not None else 0,
+                       "zero-filled runs": 0, "PRIs": 0}
+        pending: tuple[int, NDArray[np.int16], NDArray[np.bool_]] | None = None
+        pending_trail = 0
+        for first, values in self._value_blocks(frames_per_block):
+            n = len(values) // pri_values
+            damaged = np.zeros(n, dtype=bool)
+            a, b = 2 * first * pri_values, 2 * (first + n) * pri_values  # stream bytes of the block
+            for lo, hi in lost[(lost[:, 1] > a) & (lost[:, 0] < b)]:
+                damaged[max(int(lo) - a, 0) // (2 * pri_values):(min(int(hi), b) - a - 1) // (2 * pri_values) + 1] = 1
+            runs = zero_runs(values)
+            for lo, hi in runs:  # a run found on aligned groups of four may reach three values further
+                damaged[max(int(lo) - 3, 0) // pri_values:(min(int(hi) + 3, len(values)) - 1) // pri_values + 1] = 1
+            lead, trail = edge_zeros(values)
+            # zeros where no packet was are lost packets, counted already
+            self.damage["zero-filled runs"] += sum(not within(lost, a + 2 * int(lo), a + 2 * int(hi))
+                                                   for lo, hi in runs)
+            if pending is not None:
+                if pending_trail and lead and pending_trail + lead >= ZERO_RUN_VALUES:
+                    pending[2][-1] = damaged[0] = True
+                    if pending_trail < ZERO_RUN_VALUES and lead < ZERO_RUN_VALUES and not within(lost, a - 2, a + 2):
+                        self.damage["zero-filled runs"] += 1  # found on neither side alone
+                self.damage["PRIs"] += int(pending[2].sum())
+                yield pending
+            pending = (first, frames_to_pris(values.reshape(-1, p.frame_bytes // 2), p), damaged)
+            pending_trail = trail
+        if pending is not None:
+            self.damage["PRIs"] += int(pending[2].sum())
+            yield pending
+        if self.damage["PRIs"]:
+            causes = [f"{v} {k}" for k, v in self.damage.items() if v and k != "PRIs"]
+            self.warnings.append(f"{self.name}: {self.damage['PRIs']} of {self.num_pris} PRIs left out, they hold "
+                                 f"data the DCA1000 lost ({', '.join(causes)})")
+
+    def _value_blocks(self, frames_per_block: int) -> Iterator[tuple[int, NDArray[np.int16]]]:
+        """(first PRI index, the file's int16 values of whole frames) in blocks of ``frames_per_block`` frames."""
         p = self.params
         frame_values = p.frame_bytes // 2
+        if self.packets is not None:
+            for done in range(0, self.num_frames, frames_per_block):
+                n = min(frames_per_block, self.num_frames - done)
+                buf = np.empty(n * p.frame_bytes, dtype=np.uint8)
+                self.packets.read(done * p.frame_bytes, buf)
+                yield done * p.num_loops, buf.view("<i2")
+            return
         buf = np.empty(frames_per_block * frame_values, dtype=np.int16)
         view = memoryview(buf).cast("B")
         done = 0
@@ -216,7 +302,7 @@ class Dca1000Capture:
                         f = open(next(files), "rb")  # noqa: SIM115
                         continue
                     got += k
-                yield done * p.num_loops, frames_to_pris(buf[: n * frame_values].reshape(n, frame_values), p)
+                yield done * p.num_loops, buf[: n * frame_values]
                 done += n
         finally:
             f.close()
@@ -227,26 +313,48 @@ class CaptureWriter:
 
     ``param_format``: "cfg" (mmWave SDK) or "json" (mmWave Studio pair). ``split_bytes`` > 0 writes split
     files ``adc_data_Raw_<k>.bin`` of at most that size (frames may straddle files, as in a real capture),
-    else ``adc_data.bin``. Blocks must hold whole frames (a multiple of ``num_loops`` PRIs).
+    else ``adc_data.bin``. ``packet_bytes`` > 0 writes the DCA1000's packets as a recorder with sequence numbers
+    on stores them: each a 10-byte header and that many data bytes (the last packet fewer), whole in each file.
+    Blocks must hold whole frames (a multiple of ``num_loops`` PRIs).
     """
 
     def __init__(self, folder: Path, params: CaptureParams, *, param_format: str = "cfg",
-                 split_bytes: int = 0) -> None:
+                 split_bytes: int = 0, packet_bytes: int = 0) -> None:
         folder.mkdir(parents=True, exist_ok=True)
         if param_format == "json":
             write_studio_json(folder / "capture", params)
         else:
             write_sdk_cfg(folder / "capture.cfg", params)
         self.folder, self.params, self.split_bytes = folder, params, split_bytes
+        self.packet_bytes = packet_bytes
         self.files: list[Path] = []
         self._out: Any = None
         self._room = 0
+        self._unsent = bytearray()  # data not yet in a packet
+        self._sent = 0  # data bytes in packets so far
 
     def write(self, pris: NDArray[np.int16]) -> None:
         """PRIs (n, tx, rx, sample, I/Q) int16, n a multiple of the loops per frame."""
         data = memoryview(pris_to_frames(pris, self.params)).cast("B")
+        if not self.packet_bytes:
+            self._store(data, whole=False)
+            return
+        stream = memoryview(bytes(self._unsent) + bytes(data))
+        at = 0
+        while len(stream) - at >= self.packet_bytes:
+            self._packet(stream[at:at + self.packet_bytes])
+            at += self.packet_bytes
+        self._unsent = bytearray(stream[at:])
+
+    def _packet(self, data: memoryview | bytearray) -> None:
+        header = (self._sent // self.packet_bytes + 1).to_bytes(4, "little") + self._sent.to_bytes(6, "little")
+        self._store(memoryview(header + bytes(data)), whole=True)
+        self._sent += len(data)
+
+    def _store(self, data: memoryview, *, whole: bool) -> None:
+        """Into the data files; ``whole``: kept in one file (a packet)."""
         while len(data):
-            if self._out is None or (self.split_bytes and self._room == 0):
+            if self._out is None or (self.split_bytes and self._room < (len(data) if whole else 1)):
                 if self._out is not None:
                     self._out.close()
                 name = f"adc_data_Raw_{len(self.files)}.bin" if self.split_bytes else "adc_data.bin"
@@ -259,6 +367,9 @@ class CaptureWriter:
             self._room -= k
 
     def close(self) -> None:
+        if self._unsent:
+            self._packet(self._unsent)
+            self._unsent = bytearray()
         if self._out is not None:
             self._out.close()
             self._out = None
@@ -271,9 +382,10 @@ class CaptureWriter:
 
 
 def write_capture(folder: Path, params: CaptureParams, pris: Iterable[NDArray[np.int16]], *,
-                  param_format: str = "cfg", split_bytes: int = 0) -> list[Path]:
+                  param_format: str = "cfg", split_bytes: int = 0, packet_bytes: int = 0) -> list[Path]:
     """Write PRI blocks as a capture (see :class:`CaptureWriter`); returns the data files."""
-    with CaptureWriter(folder, params, param_format=param_format, split_bytes=split_bytes) as w:
+    with CaptureWriter(folder, params, param_format=param_format, split_bytes=split_bytes,
+                       packet_bytes=packet_bytes) as w:
         for block in pris:
             w.write(block)
     return w.files

@@ -358,6 +358,35 @@ class CanDecoder:
 
 
 # ----------------------------------------------------------------------------------------------- radar
+class FrameGaps:
+    """The jumps of a radar stream's frame index, block by block: (time before, time after, index before, index
+    after) each, stored as the group's ``gaps`` and ``gap_frame_index``."""
+
+    def __init__(self) -> None:
+        self.gaps: list[tuple[int, int, int, int]] = []
+        self._last: tuple[int, int] | None = None
+
+    def add(self, frame_index: np.ndarray, t_ns: np.ndarray) -> None:
+        """The next block's frame indices and times (ns), in order."""
+        if not len(frame_index):
+            return
+        prev = np.concatenate([[self._last[0]], frame_index]) if self._last else frame_index
+        prev_t = np.concatenate([[self._last[1]], t_ns]) if self._last else t_ns
+        for j in np.flatnonzero(np.diff(prev) != 1):
+            self.gaps.append((int(prev_t[j]), int(prev_t[j + 1]), int(prev[j]), int(prev[j + 1])))
+        self._last = (int(frame_index[-1]), int(t_ns[-1]))
+
+    @property
+    def missing(self) -> int:
+        """Frames the forward jumps skip."""
+        return sum(b - a - 1 for _, _, a, b in self.gaps if b > a)
+
+    def write(self, cube: RadarCube, stats: SeriesStats) -> None:
+        cube.write_dataset("gaps", np.asarray([g[:2] for g in self.gaps], dtype=np.int64).reshape(-1, 2))
+        cube.write_dataset("gap_frame_index", np.asarray([g[2:] for g in self.gaps], dtype=np.int64).reshape(-1, 2))
+        stats.gaps = [g[:2] for g in self.gaps]  # radar gaps are frame-index jumps, not time steps
+
+
 class RadarDecoder:
     """ScanBrick RawFrame messages into /radar/<name>: frame times, indices and the raw int16 cube."""
 
@@ -375,8 +404,7 @@ class RadarDecoder:
         self.params: tuple[Any, ...] | None = None
         self.shape: tuple[int, int, int] | None = None
         self.series = Series(self._sink, window=self.BLOCK, flush_rows=self.BLOCK)
-        self.frame_gaps: list[tuple[int, int, int, int]] = []
-        self._last: tuple[int, int] | None = None
+        self.frame_gaps = FrameGaps()
         self._frame_stats: list[np.ndarray] = []  # per block: (frame index, peak |sample|, RMS)
 
     def feed(self, m: Any, log_ns: int) -> None:
@@ -410,11 +438,7 @@ class RadarDecoder:
     def _sink(self, t_ns: np.ndarray, rows: list[Any]) -> None:
         assert self.cube is not None and self.shape is not None
         idx = np.fromiter((r[0] for r in rows), dtype=np.int64, count=len(rows))
-        prev = np.concatenate([[self._last[0]], idx]) if self._last else idx
-        prev_t = np.concatenate([[self._last[1]], t_ns]) if self._last else t_ns
-        for j in np.flatnonzero(np.diff(prev) != 1):
-            self.frame_gaps.append((int(prev_t[j]), int(prev_t[j + 1]), int(prev[j]), int(prev[j + 1])))
-        self._last = (int(idx[-1]), int(t_ns[-1]))
+        self.frame_gaps.add(idx, t_ns)
         # Gathering the frames here rather than on the writer thread balances the two cores better
         # (benches/bench_ingest.py: 1.15 s vs 1.30 s median on test1).
         raw = np.stack([r[1] for r in rows]).reshape(len(rows), *self.shape, 2)
@@ -426,13 +450,8 @@ class RadarDecoder:
         self.info.stats = stats
         if self.cube is None:
             return self.info if stats.received else None
-        gaps = np.asarray([g[:2] for g in self.frame_gaps], dtype=np.int64).reshape(-1, 2)
-        self.cube.write_dataset("gaps", gaps)
-        self.cube.write_dataset("gap_frame_index", np.asarray([g[2:] for g in self.frame_gaps],
-                                                              dtype=np.int64).reshape(-1, 2))
-        # Radar gaps are frame-index jumps, not time steps.
-        stats.gaps = [g[:2] for g in self.frame_gaps]
-        self.info.extra["missing_frames"] = sum(b - a - 1 for _, _, a, b in self.frame_gaps if b > a)
+        self.frame_gaps.write(self.cube, stats)
+        self.info.extra["missing_frames"] = self.frame_gaps.missing
         flagged = implausible_frames(np.concatenate(self._frame_stats)) if self._frame_stats else []
         if len(flagged):
             self.info.extra["implausible_frames"] = [int(i) for i in flagged]

@@ -374,8 +374,8 @@ class _Ingest:
                       "start_time_source": "--radar-start" if self.radar_options.start_ns is not None
                       else f"topic {self.radar_options.sync_topic}",
                       "layout": "frame, tx, rx, sample, I/Q"})
-        self.warnings.extend(cap.warnings)
         info = write_capture_stream(self.writer, group, cap, start, attrs, progress)
+        self.warnings.extend(cap.warnings)  # after the stream: the PRIs left out are known once it is read
         self.streams[group] = _Finished(info)
         return cap.num_pris
 

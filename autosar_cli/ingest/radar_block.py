@@ -20,7 +20,7 @@ from autosar_cli.config import RadarConfig
 from autosar_cli.store.drive import DriveWriter
 
 from .dca1000 import Dca1000Capture
-from .decoders import StreamInfo
+from .decoders import FrameGaps, StreamInfo
 from .series import SeriesStats
 
 OVERRIDE_OPTION = "--radar-override"
@@ -128,22 +128,31 @@ def recorded_from_capture(cap: Dca1000Capture) -> Recorded:
 
 def write_capture_stream(writer: DriveWriter, path: str, cap: Dca1000Capture, start_ns: int,
                          attrs: dict[str, Any], progress: Callable[[int], None]) -> StreamInfo:
-    """Stream a capture's PRIs into the drive's radar group ``path``; frame times from ``start_ns``."""
+    """Stream a capture's PRIs into the drive's radar group ``path``; frame times from ``start_ns``. PRIs that
+    hold data the DCA1000 lost are left out: the frame index jumps there, as in a log that lost frames."""
     p = cap.params
     cube = writer.radar(path, (p.num_tx, p.num_rx, p.num_samples), attrs)
     t_ns = cap.pri_times_ns(start_ns)
-    done = 0
-    for first, block in cap.blocks():
+    gaps = FrameGaps()
+    done = written = 0
+    for first, block, damaged in cap.blocks():
         n = len(block)
-        cube.append_frames(t_ns[first:first + n], np.arange(first, first + n, dtype=np.int64), block)
+        idx = np.arange(first, first + n, dtype=np.int64)
+        if damaged.any():
+            keep = ~damaged
+            idx, block = idx[keep], block[keep]
+        gaps.add(idx, t_ns[idx])
+        cube.append_frames(t_ns[idx], idx, block)
         done += n
+        written += len(idx)
         progress(done // p.num_loops * p.frame_bytes)
-    cube.write_dataset("gaps", np.zeros((0, 2), dtype=np.int64))
-    cube.write_dataset("gap_frame_index", np.zeros((0, 2), dtype=np.int64))
-    stats = SeriesStats(received=done, written=done, first_ns=int(t_ns[0]) if done else 0,
+    stats = SeriesStats(received=done, written=written, first_ns=int(t_ns[0]) if done else 0,
                         last_ns=int(t_ns[-1]) if done else 0)
+    gaps.write(cube, stats)
     if cap.partial_bytes:
         stats.skipped["trailing partial frame"] = 1
+    if done > written:
+        stats.skipped["PRIs holding data the DCA1000 lost"] = done - written
     info = StreamInfo(path, "radar", topics={str(cap.path)}, msgtype="TI DCA1000 capture", stats=stats)
-    info.extra["missing_frames"] = 0
+    info.extra["missing_frames"] = gaps.missing
     return info
