@@ -327,6 +327,42 @@ def test_lost_reordered_and_repeated_packets(tmp_path: Path) -> None:
         np.testing.assert_array_equal(f["radar/scanbrick_w43/gap_frame_index"][()], [[38, 41], [111, 113]])
 
 
+def test_packets_split_across_files_and_a_damaged_file(tmp_path: Path) -> None:
+    """A recording split anywhere (a packet, even its header, across two files) reads as one stream. A stretch
+    whose headers break the layout (bytes overwritten in the second file) is left out up to the next file, with
+    a warning naming the file and offset; the PRIs it held are left out and every other PRI is the one written."""
+    p, pris, files = config_capture(tmp_path / "one", packet_bytes=PACKET)
+    stream = files[0].read_bytes()
+    split = tmp_path / "split"
+    split.mkdir()
+    (split / "capture.cfg").write_bytes((tmp_path / "one" / "capture.cfg").read_bytes())
+    cuts = [0, 1_000_003, 1500 * (PACKET + 10) + 5, len(stream)]  # cut in a packet's data, then in a header
+    for k in range(3):
+        (split / f"adc_data_Raw_{k}.bin").write_bytes(stream[cuts[k]:cuts[k + 1]])
+    cap = Dca1000Capture(split)
+    assert len(cap.files) == 3 and cap.packets.lost_packets == 0
+    blocks = list(cap.blocks())
+    np.testing.assert_array_equal(np.concatenate([b for _, b, _ in blocks]), pris)
+    assert cap.warnings == [] and not any(d.any() for _, _, d in blocks)
+
+    _, _, files = config_capture(tmp_path / "three", packet_bytes=PACKET, split_bytes=1_000_000)
+    assert len(files) == 4
+    damaged_at = 300 * (PACKET + 10)  # a header in the second file
+    with open(files[1], "r+b") as f:
+        f.seek(damaged_at)
+        f.write(b"\xff" * 20)
+    cap = Dca1000Capture(tmp_path / "three")
+    assert cap.warnings == [f"{files[1]}: byte {damaged_at} is no DCA1000 packet of 1456 data bytes (sequence "
+                            f"{0xffffffff}, byte count {2**48 - 1}): left out up to adc_data_Raw_2.bin"]
+    per_file = 1_000_000 // (PACKET + 10)
+    lost = ((per_file + 300) * PACKET, 2 * per_file * PACKET)
+    np.testing.assert_array_equal(cap.packets.lost, [lost])
+    blocks = list(cap.blocks())
+    damaged = np.concatenate([d for _, _, d in blocks])
+    assert set(np.flatnonzero(damaged)) == pris_of(lost, p)
+    np.testing.assert_array_equal(np.concatenate([b for _, b, _ in blocks])[~damaged], pris[~damaged])
+
+
 def test_zero_filled_packets_of_post_processed_data_are_left_out(tmp_path: Path) -> None:
     """mmWave Studio's post-processing fills a lost packet with zeros: a run of zeros as long as a packet is no
     echo. The PRIs it touches are left out: one inside a PRI; one across the edge of the reader's 64-frame blocks

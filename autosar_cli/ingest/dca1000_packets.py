@@ -57,16 +57,62 @@ def packet_data_bytes(head: bytes) -> int | None:
     return None
 
 
+class SplitFiles:
+    """Files recorded one after the other, read as one byte stream (a packet may straddle two files)."""
+
+    def __init__(self, files: list[Path]) -> None:
+        self.files = list(files)
+        self.bounds = np.concatenate([[0], np.cumsum([f.stat().st_size for f in files])]).astype(np.int64)
+        self._maps: dict[int, np.memmap] = {}
+
+    @property
+    def size(self) -> int:
+        return int(self.bounds[-1])
+
+    def _map(self, k: int) -> NDArray[np.uint8]:
+        if k not in self._maps:
+            self._maps[k] = np.memmap(self.files[k], dtype=np.uint8, mode="r")
+        return self._maps[k]
+
+    def where(self, g: int) -> tuple[Path, int]:
+        """The file and offset of stream byte ``g``."""
+        k = int(np.searchsorted(self.bounds, g, side="right")) - 1
+        return self.files[k], g - int(self.bounds[k])
+
+    def read(self, g0: int, g1: int) -> NDArray[np.uint8]:
+        """Stream bytes [g0, g1): a view into one file's map, or a copy where they straddle files."""
+        k0 = int(np.searchsorted(self.bounds, g0, side="right")) - 1
+        k1 = int(np.searchsorted(self.bounds, g1, side="left")) - 1
+        if k0 == k1:
+            return self._map(k0)[g0 - self.bounds[k0]:g1 - self.bounds[k0]]
+        return np.concatenate([self._map(k)[max(g0, int(self.bounds[k])) - self.bounds[k]:
+                                            min(g1, int(self.bounds[k + 1])) - self.bounds[k]]
+                               for k in range(k0, k1 + 1)])
+
+    def headers(self, at: NDArray[np.int64]) -> NDArray[np.uint8]:
+        """(n, 10) the bytes at stream offsets ``at`` (ascending)."""
+        out = np.empty((len(at), HEADER_BYTES), dtype=np.uint8)
+        k = np.searchsorted(self.bounds, at, side="right") - 1
+        inside = at + HEADER_BYTES <= self.bounds[k + 1]
+        for f in np.unique(k[inside]):
+            sel = inside & (k == f)
+            local = at[sel] - self.bounds[f]
+            out[sel] = self._map(int(f))[local[:, None] + np.arange(HEADER_BYTES)]
+        for j in np.flatnonzero(~inside):
+            out[j] = self.read(int(at[j]), int(at[j]) + HEADER_BYTES)
+        return out
+
+
 @dataclass
 class PacketIndex:
     """The packets of a recorded DCA1000 stream, in stream order (by byte count), and what is missing.
 
-    ``file``, ``offset`` (of the data in that file), ``start`` (stream byte) and ``length`` per packet;
-    ``lost``: (k, 2) stream byte ranges no packet holds; ``total_bytes``: the stream's end."""
+    Per packet: ``offset`` of its data in the recording (its files as one stream), ``start`` (its byte count:
+    where its data goes in the ADC stream) and ``length``; ``lost``: (k, 2) ADC stream byte ranges no packet
+    holds; ``total_bytes``: the ADC stream's end."""
 
-    files: list[Path]
+    recording: SplitFiles
     data_bytes: int
-    file: NDArray[np.int64]
     offset: NDArray[np.int64]
     start: NDArray[np.int64]
     length: NDArray[np.int64]
@@ -78,56 +124,60 @@ class PacketIndex:
 
     @classmethod
     def build(cls, files: list[Path], data_bytes: int) -> PacketIndex:
-        """Index every packet of ``files`` (one recording, in order); a stretch that breaks the packet layout is
-        left out with a warning naming its file and offset, as is everything after it in that file."""
+        """Index every packet of ``files`` (one recording, in order, split anywhere). A packet whose header breaks
+        the layout (every packet but the last holds ``data_bytes``, so its byte count follows from its sequence
+        number) ends the run of packets there, with a warning naming the file and offset; reading resumes at the
+        next file that starts with a packet."""
+        rec = SplitFiles(files)
         step = HEADER_BYTES + data_bytes
         parts: list[tuple[NDArray[np.int64], ...]] = []
         warnings: list[str] = []
-        seq_origin = count_origin = None
-        for k, path in enumerate(files):
-            size = path.stat().st_size
-            raw = np.memmap(path, dtype=np.uint8, mode="r") if size else np.zeros(0, np.uint8)
-            n = size // step
-            heads = np.asarray(raw[:n * step]).reshape(n, step)[:, :HEADER_BYTES] if n else np.zeros((0, 10), np.uint8)
+        origin: tuple[int, int] | None = None
+        g = 0
+        while g + HEADER_BYTES <= rec.size:
+            n = (rec.size - g) // step
+            at = g + np.arange(n, dtype=np.int64) * step
+            lengths = np.full(n, data_bytes, dtype=np.int64)
+            tail = rec.size - (g + n * step)
+            if tail > HEADER_BYTES:  # the recording's last packet: shorter, or cut by the end of the recording
+                at = np.append(at, g + n * step)
+                lengths = np.append(lengths, tail - HEADER_BYTES)
+            heads = rec.headers(at)
             seq = heads[:, :4].copy().view("<u4").reshape(-1).astype(np.int64)
             count = _u48(heads[:, 4:10])
-            offsets = np.arange(n, dtype=np.int64) * step + HEADER_BYTES
-            lengths = np.full(n, data_bytes, dtype=np.int64)
-            tail = size - n * step
-            if tail > HEADER_BYTES:  # the recording's last packet, shorter, or one cut by the end of the file
-                h = np.asarray(raw[n * step:n * step + HEADER_BYTES])
-                seq = np.append(seq, int(h[:4].view("<u4")[0]))
-                count = np.append(count, _u48(h[4:10].reshape(1, 6)))
-                offsets = np.append(offsets, n * step + HEADER_BYTES)
-                lengths = np.append(lengths, tail - HEADER_BYTES)
-            if seq_origin is None and len(seq):
-                seq_origin, count_origin = int(seq[0]), int(count[0])
-            # every packet but the last holds data_bytes, so a packet's byte count follows from its sequence number
-            if seq_origin is not None:
-                bad = np.flatnonzero((count - count_origin != (seq - seq_origin) * data_bytes) | (seq < 1))
-                if len(bad):
-                    j = int(bad[0])
-                    warnings.append(f"{path}: byte {int(offsets[j]) - HEADER_BYTES} is no DCA1000 packet of "
-                                    f"{data_bytes} data bytes (sequence {int(seq[j])}, byte count {int(count[j])}): "
-                                    f"the rest of the file ({size - int(offsets[j]) + HEADER_BYTES} bytes) left out")
-                    seq, count, offsets, lengths = seq[:j], count[:j], offsets[:j], lengths[:j]
-            if 0 < tail <= HEADER_BYTES:
-                warnings.append(f"{path}: the last {tail} bytes hold no whole packet header: left out")
-            parts.append((np.full(len(seq), k, dtype=np.int64), offsets, count, lengths))
-        file, offset, start, length = (np.concatenate([p[i] for p in parts]) for i in range(4))
+            if origin is None and len(seq):
+                origin = int(seq[0]), int(count[0])
+            bad = np.flatnonzero((count - origin[1] != (seq - origin[0]) * data_bytes) | (seq < 1)) \
+                if origin is not None else np.zeros(0, dtype=np.int64)
+            end = int(bad[0]) if len(bad) else len(at)
+            parts.append((at[:end] + HEADER_BYTES, count[:end], lengths[:end]))
+            if not len(bad):
+                if 0 < tail <= HEADER_BYTES:
+                    warnings.append(f"{rec.files[-1]}: the last {tail} bytes hold no whole packet header: left out")
+                break
+            path, local = rec.where(int(at[end]))
+            later = rec.bounds[(rec.bounds > at[end]) & (rec.bounds < rec.size)]
+            what = f"up to {rec.where(int(later[0]))[0].name}" if later.size else "to the end of the recording"
+            warnings.append(f"{path}: byte {local} is no DCA1000 packet of {data_bytes} data bytes (sequence "
+                            f"{int(seq[end])}, byte count {int(count[end])}): left out {what}")
+            if not later.size:
+                break
+            g = int(later[0])
+        offset, start, length = (np.concatenate([p[i] for p in parts]) if parts else np.zeros(0, dtype=np.int64)
+                                 for i in range(3))
         order = np.argsort(start, kind="stable")
         # a packet that arrives after one from later in the stream came out of order (UDP may reorder)
         late = int(np.count_nonzero(start < np.maximum.accumulate(np.concatenate([[-1], start[:-1]]))))
-        file, offset, start, length = file[order], offset[order], start[order], length[order]
+        offset, start, length = offset[order], start[order], length[order]
         repeat = np.concatenate([[False], start[1:] == start[:-1]])
         duplicates = int(np.count_nonzero(repeat))
-        file, offset, start, length = file[~repeat], offset[~repeat], start[~repeat], length[~repeat]
-        end = start + length
-        covered_to = np.concatenate([[0], end[:-1]])
+        offset, start, length = offset[~repeat], start[~repeat], length[~repeat]
+        end_at = start + length
+        covered_to = np.concatenate([[0], end_at[:-1]])
         gap = start > covered_to
         lost = np.stack([covered_to[gap], start[gap]], axis=-1).reshape(-1, 2)
-        total = int(end[-1]) if len(end) else 0
-        return cls(list(files), data_bytes, file, offset, start, length, lost, total, duplicates, late, warnings)
+        total = int(end_at[-1]) if len(end_at) else 0
+        return cls(rec, data_bytes, offset, start, length, lost, total, duplicates, late, warnings)
 
     @property
     def packets(self) -> int:
@@ -139,32 +189,22 @@ class PacketIndex:
         return int(np.sum(-(-(self.lost[:, 1] - self.lost[:, 0]) // self.data_bytes))) if len(self.lost) else 0
 
     def read(self, a: int, out: NDArray[np.uint8]) -> None:
-        """Stream bytes [a, a + len(out)) into ``out``; bytes no packet holds are 0."""
+        """ADC stream bytes [a, a + len(out)) into ``out``; bytes no packet holds are 0."""
         b = a + len(out)
         out[:] = 0
-        i0 = int(np.searchsorted(self.start + self.length, a, side="right"))
+        step = HEADER_BYTES + self.data_bytes
+        i = int(np.searchsorted(self.start + self.length, a, side="right"))
         i1 = int(np.searchsorted(self.start, b, side="left"))
-        maps: dict[int, np.memmap] = {}
-        i = i0
         while i < i1:
-            # a run of packets that lie back to back in one file and in the stream: one strided copy
-            f, j = int(self.file[i]), i + 1
-            step = HEADER_BYTES + self.data_bytes
-            while (j < i1 and self.file[j] == f and self.offset[j] == self.offset[j - 1] + step
+            # a run of packets back to back in the recording and in the stream: one strided copy
+            j = i + 1
+            while (j < i1 and self.offset[j] == self.offset[j - 1] + step
                    and self.start[j] == self.start[j - 1] + self.data_bytes and self.length[j - 1] == self.data_bytes):
                 j += 1
-            raw = maps.get(f)
-            if raw is None:
-                raw = maps[f] = np.memmap(self.files[f], dtype=np.uint8, mode="r")
-            first = int(self.offset[i]) - HEADER_BYTES
-            n = j - i
-            if n == 1:
-                data = raw[first + HEADER_BYTES:first + HEADER_BYTES + int(self.length[i])]
-            else:
-                last_len = int(self.length[j - 1])
-                rows = np.asarray(raw[first:first + (n - 1) * step]).reshape(n - 1, step)[:, HEADER_BYTES:]
-                tail_at = first + (n - 1) * step + HEADER_BYTES
-                data = np.concatenate([rows.reshape(-1), raw[tail_at:tail_at + last_len]])
+            first, n = int(self.offset[i]) - HEADER_BYTES, j - i
+            blob = self.recording.read(first, int(self.offset[j - 1]) + int(self.length[j - 1]))
+            rows = np.asarray(blob[:(n - 1) * step]).reshape(n - 1, step)[:, HEADER_BYTES:]
+            data = np.concatenate([rows.reshape(-1), blob[(n - 1) * step + HEADER_BYTES:]])
             s0 = int(self.start[i])
             lo, hi = max(a, s0), min(b, s0 + len(data))
             out[lo - a:hi - a] = data[lo - s0:hi - s0]
