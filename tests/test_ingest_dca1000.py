@@ -328,9 +328,10 @@ def test_lost_reordered_and_repeated_packets(tmp_path: Path) -> None:
 
 
 def test_packets_split_across_files_and_a_damaged_file(tmp_path: Path) -> None:
-    """A recording split anywhere (a packet, even its header, across two files) reads as one stream. A stretch
-    whose headers break the layout (bytes overwritten in the second file) is left out up to the next file, with
-    a warning naming the file and offset; the PRIs it held are left out and every other PRI is the one written."""
+    """A recording split anywhere (a packet, even its header, across two files) reads as one stream. Bytes that
+    break the packet layout (a header overwritten in the second file) are left out up to the next header that
+    fits, with a warning naming the file and offset; the PRIs they held are left out and every other PRI is the
+    one written. A split file missing from the middle: its packets are lost, the later files' are read."""
     p, pris, files = config_capture(tmp_path / "one", packet_bytes=PACKET)
     stream = files[0].read_bytes()
     split = tmp_path / "split"
@@ -353,14 +354,31 @@ def test_packets_split_across_files_and_a_damaged_file(tmp_path: Path) -> None:
         f.write(b"\xff" * 20)
     cap = Dca1000Capture(tmp_path / "three")
     assert cap.warnings == [f"{files[1]}: byte {damaged_at} is no DCA1000 packet of 1456 data bytes (sequence "
-                            f"{0xffffffff}, byte count {2**48 - 1}): left out up to adc_data_Raw_2.bin"]
+                            f"{0xffffffff}, byte count {2**48 - 1}): left out up to byte {damaged_at + PACKET + 10}"]
     per_file = 1_000_000 // (PACKET + 10)
-    lost = ((per_file + 300) * PACKET, 2 * per_file * PACKET)
+    lost = ((per_file + 300) * PACKET, (per_file + 301) * PACKET)
     np.testing.assert_array_equal(cap.packets.lost, [lost])
     blocks = list(cap.blocks())
     damaged = np.concatenate([d for _, _, d in blocks])
     assert set(np.flatnonzero(damaged)) == pris_of(lost, p)
     np.testing.assert_array_equal(np.concatenate([b for _, b, _ in blocks])[~damaged], pris[~damaged])
+
+    files[1].unlink()
+    cap = Dca1000Capture(tmp_path / "three")
+    assert cap.warnings[0] == f"{files[0].parent}: split file adc_data_Raw_1.bin missing: its packets are lost"
+    lost = (per_file * PACKET, 2 * per_file * PACKET)
+    np.testing.assert_array_equal(cap.packets.lost, [lost])
+    blocks = list(cap.blocks())
+    damaged = np.concatenate([d for _, _, d in blocks])
+    assert set(np.flatnonzero(damaged)) == pris_of(lost, p) and len(damaged) == len(pris)
+    np.testing.assert_array_equal(np.concatenate([b for _, b, _ in blocks])[~damaged], pris[~damaged])
+    # the data alone: where the files after a missing one belong is unknown, so they are left out
+    _, _, files = config_capture(tmp_path / "flat", split_bytes=1_000_000)
+    files[1].unlink()
+    cap = Dca1000Capture(tmp_path / "flat")
+    assert cap.files == files[:1] and cap.num_frames == 1_000_000 // p.frame_bytes
+    assert cap.warnings[0] == (f"{files[0].parent}: split file adc_data_Raw_1.bin missing: the 2 after it left "
+                               "out, for where their data belongs is unknown without it")
 
 
 def test_zero_filled_packets_of_post_processed_data_are_left_out(tmp_path: Path) -> None:

@@ -18,6 +18,7 @@ per Tx, TDM-MIMO) becomes one PRI of the drive, with the Tx axis in ascending Tx
 
 from __future__ import annotations
 
+import glob
 import re
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -163,12 +164,22 @@ def find_capture(path: Path) -> tuple[list[Path], Path]:
 
 
 def _split_series(folder: Path, base: str) -> list[Path]:
-    files: list[Path] = []
-    while (folder / f"{base}_{len(files)}.bin").exists():
-        files.append(folder / f"{base}_{len(files)}.bin")
-    if not files:
+    """The split files ``<base>_<k>.bin`` present, by k (one missing in the middle leaves a gap: see
+    :func:`missing_split_files`)."""
+    indexed = sorted((int(m.group(2)), p) for p in folder.glob(f"{glob.escape(base)}_*.bin")
+                     if (m := _SPLIT.match(p.name)) and m.group(1) == base)
+    if not indexed or indexed[0][0] != 0:
         raise CaptureError(f"{folder / base}_0.bin: the split series must start at _0.bin")
-    return files
+    return [p for _, p in indexed]
+
+
+def missing_split_files(files: list[Path]) -> list[Path]:
+    """The split files missing between the first and the last of ``files`` (a series from :func:`_split_series`)."""
+    found = [(m.group(1), int(m.group(2))) for f in files if (m := _SPLIT.match(f.name))]
+    if len(found) < 2:
+        return []
+    base, have = found[0][0], {k for _, k in found}
+    return [files[0].parent / f"{base}_{k}.bin" for k in range(max(have)) if k not in have]
 
 
 class Dca1000Capture:
@@ -189,6 +200,19 @@ class Dca1000Capture:
             else f"{self.files[0]} (+{len(self.files) - 1} split files)"
         with open(self.files[0], "rb") as f:
             data_bytes = packet_data_bytes(f.read(4 * (HEADER_BYTES + MAX_PACKET_DATA)))
+        missing = missing_split_files(self.files)
+        names = ", ".join(m.name for m in missing)
+        if missing and data_bytes:  # the byte counts say where the later files' packets belong
+            self.warnings.append(f"{self.files[0].parent}: split file{'s' if len(missing) > 1 else ''} {names} "
+                                 f"missing: {'their' if len(missing) > 1 else 'its'} packets are lost")
+        elif missing:  # the data alone: where the later files' data belongs is unknown without the missing one
+            kept = self.files[:int(_SPLIT.match(missing[0].name).group(2))]  # _0 … up to the first missing
+            self.warnings.append(f"{self.files[0].parent}: split file {missing[0].name} missing: the "
+                                 f"{len(self.files) - len(kept)} after it left out, for where their data belongs "
+                                 f"is unknown without it")
+            self.files = kept
+            self.name = f"{self.files[0]} (+{len(self.files) - 1} split files)" if len(self.files) > 1 \
+                else str(self.files[0])
         self.packets = PacketIndex.build(self.files, data_bytes) if data_bytes else None
         if self.packets is not None:
             self.warnings.extend(self.packets.warnings)

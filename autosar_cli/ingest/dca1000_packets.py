@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
 
 HEADER_BYTES = 10
@@ -103,6 +104,32 @@ class SplitFiles:
         return out
 
 
+def _consistent(heads: NDArray[np.uint8], origin: tuple[int, int], data_bytes: int) -> NDArray[np.bool_]:
+    """Which (n, 10) headers fit the recording's first: byte count = (sequence - first's) x data bytes + first's."""
+    h = heads.astype(np.int64)
+    seq = h[:, 0] | h[:, 1] << 8 | h[:, 2] << 16 | h[:, 3] << 24
+    count = h[:, 4] | h[:, 5] << 8 | h[:, 6] << 16 | h[:, 7] << 24 | h[:, 8] << 32 | h[:, 9] << 40
+    return (seq >= 1) & (count - origin[1] == (seq - origin[0]) * data_bytes)
+
+
+def _resync(rec: SplitFiles, x: int, origin: tuple[int, int], data_bytes: int) -> int | None:
+    """The first stream offset after ``x`` where a packet header that fits the recording starts, and another one
+    packet later (or the recording ends within a packet): where reading resumes after damage."""
+    step = HEADER_BYTES + data_bytes
+    y0, window = x + 1, 1 << 16
+    while y0 + HEADER_BYTES <= rec.size:
+        blob = np.asarray(rec.read(y0, min(rec.size, y0 + window + HEADER_BYTES - 1)))
+        if len(blob) < HEADER_BYTES:
+            return None
+        for c in np.flatnonzero(_consistent(sliding_window_view(blob, HEADER_BYTES), origin, data_bytes)):
+            y = y0 + int(c)
+            if y + step + HEADER_BYTES > rec.size or _consistent(rec.headers(np.array([y + step])), origin,
+                                                                 data_bytes)[0]:
+                return y
+        y0 += window
+    return None
+
+
 @dataclass
 class PacketIndex:
     """The packets of a recorded DCA1000 stream, in stream order (by byte count), and what is missing.
@@ -155,14 +182,17 @@ class PacketIndex:
                 if 0 < tail <= HEADER_BYTES:
                     warnings.append(f"{rec.files[-1]}: the last {tail} bytes hold no whole packet header: left out")
                 break
-            path, local = rec.where(int(at[end]))
-            later = rec.bounds[(rec.bounds > at[end]) & (rec.bounds < rec.size)]
-            what = f"up to {rec.where(int(later[0]))[0].name}" if later.size else "to the end of the recording"
+            x = int(at[end])
+            path, local = rec.where(x)
+            y = _resync(rec, x, origin, data_bytes) if origin is not None else None
+            where = "to the end of the recording" if y is None else (
+                f"up to byte {rec.where(y)[1]} of {rec.where(y)[0].name}" if rec.where(y)[0] != path
+                else f"up to byte {y - x + local}")
             warnings.append(f"{path}: byte {local} is no DCA1000 packet of {data_bytes} data bytes (sequence "
-                            f"{int(seq[end])}, byte count {int(count[end])}): left out {what}")
-            if not later.size:
+                            f"{int(seq[end])}, byte count {int(count[end])}): left out {where}")
+            if y is None:
                 break
-            g = int(later[0])
+            g = y
         offset, start, length = (np.concatenate([p[i] for p in parts]) if parts else np.zeros(0, dtype=np.int64)
                                  for i in range(3))
         order = np.argsort(start, kind="stable")
