@@ -12,6 +12,11 @@ in subprocesses (minimum counts at ``--scale 1``):
     kill 30                         SIGKILL / SIGINT at a random moment of ingest or focus, then a rerun
     disk-full 5                     ingest and focus onto a 5 MiB tmpfs (skipped with a message if no mount)
     path 10                         outputs that are inputs, directories, under files, 255-byte names
+    dca1000 40                      a TI DCA1000 capture (beside its navigation MCAP): packets lost, reordered,
+                                    repeated or overwritten in a recording split across files, a split file
+                                    missing, a packet zero-filled or the data cut in the post-processed file,
+                                    an edited number in its mmWave Studio JSON (flipped ADC sample bits are
+                                    left out: the format carries no checksum to find them by)
 
 Outcomes: clean-error (exit != 0, one error line, no traceback), kept-with-warning, ok, crash-or-traceback,
 silent-wrong (exit 0, product differs from the undamaged one, no warning), input-harmed (an input's bytes
@@ -48,7 +53,9 @@ CLI = [sys.executable, "-m", "autosar_cli.cli"]
 OUTCOMES = ("clean-error", "kept-with-warning", "ok", "crash-or-traceback", "silent-wrong", "input-harmed",
             "partial-left")
 BAD = ("crash-or-traceback", "silent-wrong", "input-harmed", "partial-left")
-COUNTS = {"mcap": 100, "ros1": 40, "rosbag2": 40, "hdf5": 60, "config": 30, "kill": 30, "disk-full": 5, "path": 10}
+COUNTS = {"mcap": 100, "ros1": 40, "rosbag2": 40, "hdf5": 60, "config": 30, "kill": 30, "disk-full": 5, "path": 10,
+          "dca1000": 40}
+PACKET = 1456  #: the DCA1000's default data bytes per packet
 
 
 @dataclass
@@ -75,6 +82,9 @@ class Base:
     drive: Path
     traj: Path
     image: Path
+    dca_mcap: Path | None = None  #: the navigation log of the DCA1000 drive, with its frame-sync topic
+    dca_flat: Path | None = None  #: its capture as post-processed data (adc_data.bin)
+    dca_packets: Path | None = None  #: the same as recorded packets, one stream of bytes (cut into files per trial)
     mcap_chunks: list[tuple[int, int, int]] = field(default_factory=list)  #: (start, end, messages)
     ros1_chunks: list[tuple[int, int, int]] = field(default_factory=list)
     digests: dict[str, str] = field(default_factory=dict)
@@ -205,7 +215,21 @@ def setup(work: Path) -> Base:
     base.digests["traj"] = product_digest(base.traj)
     base.mcap_chunks = mcap_chunks(base.mcap)
     base.ros1_chunks = ros1_chunks(base.ros1)
+    r = cli(["simulate", "-s", "ci", "-f", "dca1000", "--seed", "7", "-o", "dca.mcap"], work)
+    assert r.returncode == 0, r.stderr
+    base.dca_mcap, base.dca_flat = work / "dca.mcap", work / "dca.dca1000"
+    r = cli(["ingest", "dca.mcap", "--radar", "dca.dca1000", "-o", "ref_dca1000.h5"], work)
+    assert r.returncode == 0, r.stderr
+    base.digests["dca1000"] = product_digest(work / "ref_dca1000.h5")
+    base.dca_packets = work / "dca_packets.bin"
+    base.dca_packets.write_bytes(b"".join(_packets((base.dca_flat / "adc_data.bin").read_bytes())))
     return base
+
+
+def _packets(data: bytes) -> list[bytes]:
+    """The DCA1000's packets of ``data``: a 10-byte header (sequence number from 1, bytes sent before) each."""
+    return [(k + 1).to_bytes(4, "little") + (k * PACKET).to_bytes(6, "little") + data[k * PACKET:(k + 1) * PACKET]
+            for k in range(-(-len(data) // PACKET))]
 
 
 # ------------------------------------------------------------------------------------------ faults
@@ -485,6 +509,78 @@ def path_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
     return trial
 
 
+def dca1000_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
+    assert base.dca_flat is not None and base.dca_packets is not None and base.dca_mcap is not None
+    kind = rng.choice(["lose", "reorder", "repeat", "header", "missing-file", "truncate", "zero-fill", "params"])
+    cap = tdir / "cap"
+    shutil.copytree(base.dca_flat, cap)
+    data = (cap / "adc_data.bin").read_bytes()
+    step = PACKET + 10
+    if kind in ("lose", "reorder", "repeat", "header", "missing-file"):  # a recording of packets, cut anywhere
+        (cap / "adc_data.bin").unlink()
+        stream = base.dca_packets.read_bytes()
+        packets = [stream[i:i + step] for i in range(0, len(stream), step)]
+        k = rng.randint(1, 20)
+        spots = sorted(rng.sample(range(len(packets) - 1), k))
+        if kind == "lose":
+            packets = [pk for i, pk in enumerate(packets) if i not in spots]
+        elif kind == "reorder":
+            for i in spots:
+                packets[i], packets[i + 1] = packets[i + 1], packets[i]
+        elif kind == "repeat":
+            for i in reversed(spots):
+                packets.insert(i + 1, packets[i])
+        stream = bytearray(b"".join(packets))
+        if kind == "header":
+            for i in spots:
+                stream[i * step + rng.randrange(10)] ^= rng.randrange(1, 256)
+        cuts = sorted(rng.sample(range(1, len(stream)), 3))
+        for j, (a, b) in enumerate(zip([0, *cuts], [*cuts, len(stream)], strict=True)):
+            (cap / f"adc_data_Raw_{j}.bin").write_bytes(stream[a:b])
+        fault = f"{k} packets {kind}" + (" (bytes flipped in their headers)" if kind == "header" else "")
+        if kind == "missing-file":
+            gone = rng.randint(1, 2)
+            (cap / f"adc_data_Raw_{gone}.bin").unlink()
+            fault = f"split file {gone} of 4 missing"
+    elif kind == "truncate":
+        cut = rng.randrange(len(data) // 50, len(data))
+        (cap / "adc_data.bin").write_bytes(data[:cut])
+        fault = f"adc_data.bin cut at byte {cut} of {len(data)}"
+    elif kind == "zero-fill":
+        k = rng.randint(1, 5)
+        zeroed = bytearray(data)
+        for _ in range(k):
+            at = rng.randrange(0, len(data) - PACKET) // 2 * 2
+            zeroed[at:at + PACKET] = bytes(PACKET)
+        (cap / "adc_data.bin").write_bytes(bytes(zeroed))
+        fault = f"{k} packets zero-filled in adc_data.bin"
+    else:
+        js = next(cap.glob("*.mmwave.json"))
+        text = js.read_text()
+        digits = [i for i, c in enumerate(text) if c.isdigit()]
+        i = rng.choice(digits)
+        new = str((int(text[i]) + rng.randint(1, 9)) % 10)
+        js.write_text(text[:i] + new + text[i + 1:])
+        fault = f"{js.name}: digit at character {i} {text[i]} -> {new}"
+    before = tree_hash(cap)
+    t0 = time.perf_counter()
+    r = cli(["ingest", str(base.dca_mcap), "--radar", "cap", "-o", "out/drive.h5", "--json"], tdir)
+    trial = Trial("dca1000", n, fault, rc=r.returncode, wall_s=time.perf_counter() - t0)
+    report: dict[str, object] = {}
+    if r.returncode == 0:
+        try:
+            report = json.loads(r.stdout)
+        except ValueError:
+            pass
+    trial.outcome, trial.detail = classify(r, tdir / "out" / "drive.h5", base.digests["dca1000"],
+                                           warned=bool(report.get("warnings")))
+    if tree_hash(cap) != before:
+        trial.outcome = "input-harmed"
+    elif partials(tdir):
+        trial.outcome, trial.detail = "partial-left", ", ".join(partials(tdir))
+    return trial
+
+
 # -------------------------------------------------------------------------------------------- main
 def run_trial(base: Base, cls: str, n: int, seed: int, root: Path) -> Trial:
     rng = random.Random(f"{seed}:{cls}:{n}")
@@ -494,7 +590,7 @@ def run_trial(base: Base, cls: str, n: int, seed: int, root: Path) -> Trial:
         if cls in ("mcap", "ros1", "rosbag2"):
             return container_trial(base, cls, n, rng, tdir)
         return {"hdf5": hdf5_trial, "config": config_trial, "kill": kill_trial, "disk-full": disk_trial,
-                "path": path_trial}[cls](base, n, rng, tdir)
+                "path": path_trial, "dca1000": dca1000_trial}[cls](base, n, rng, tdir)
     except subprocess.TimeoutExpired:
         return Trial(cls, n, "timeout", outcome="crash-or-traceback", detail="hung for 300 s")
     finally:
