@@ -34,6 +34,7 @@ import hashlib
 import json
 import os
 import random
+import re
 import shutil
 import signal
 import struct
@@ -557,7 +558,12 @@ def dca1000_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
     else:
         js = next(cap.glob("*.mmwave.json"))
         text = js.read_text()
-        digits = [i for i, c in enumerate(text) if c.isdigit()]
+        # a digit among its number's first six significant ones: a change further down is below any tolerance
+        digits = []
+        for m in re.finditer(r"\d[\d.]*", text):
+            number = m.group()
+            leading = sum(c.isdigit() for c in number[:len(number) - len(number.lstrip("0."))])
+            digits += [m.start() + j for j, c in enumerate(number) if c.isdigit()][leading:][:6]
         i = rng.choice(digits)
         new = str((int(text[i]) + rng.randint(1, 9)) % 10)
         js.write_text(text[:i] + new + text[i + 1:])

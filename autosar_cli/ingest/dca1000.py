@@ -219,10 +219,6 @@ class Dca1000Capture:
             self.bytes_total = self.packets.total_bytes
         else:
             self.bytes_total = sum(f.stat().st_size for f in self.files)
-            group = 2 * (2 if p.complex else 1) * (LANE_SLOTS_4 if p.lanes == 4 else 2)
-            if self.bytes_total % group:
-                raise CaptureError(f"{self.name}: {self.bytes_total} bytes fit no frame layout of "
-                                   f"{self.param_file.name}: expected whole frames of {p.describe_layout()}")
         if self.bytes_total < p.frame_bytes:
             raise CaptureError(f"{self.name}: {self.bytes_total} bytes fit no frame layout of {self.param_file.name}: "
                                f"expected whole frames of {p.describe_layout()}")
@@ -230,7 +226,7 @@ class Dca1000Capture:
         if p.num_frames and self.num_frames > p.num_frames:
             raise CaptureError(f"{self.name}: holds {self.num_frames} frames but {self.param_file.name} configures "
                                f"{p.num_frames} ({p.describe_layout()})")
-        if self.partial_bytes:
+        if self.partial_bytes:  # a recording cut short (a full disk, an interrupted copy) keeps its whole frames
             self.warnings.append(f"{self.name}: trailing partial frame left out ({self.partial_bytes} of "
                                  f"{p.frame_bytes} bytes, 1 frame)")
         #: PRIs left out by :meth:`blocks`' flags, by cause, once the blocks are read
