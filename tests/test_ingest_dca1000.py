@@ -24,6 +24,7 @@ from autosar_cli.ingest.dca1000 import (
     params_from_radar,
     write_capture,
 )
+from autosar_cli.ingest.decoders import frame_statistics, implausible_frames
 from autosar_cli.store.drive import Drive
 
 CFG = load_config()
@@ -407,6 +408,22 @@ def test_zero_filled_packets_of_post_processed_data_are_left_out(tmp_path: Path)
                             "(2 zero-filled runs)"]
 
 
+def test_a_flipped_high_byte_in_the_adc_data_is_reported(tmp_path: Path) -> None:
+    """The ADC data carries no checksum; a flipped high byte makes a sample no ADC gives beside its frame's
+    (crest factor), which ingest reports by PRI, as for RawFrame logs. The PRI is kept: the warning says where."""
+    p, pris, files = config_capture(tmp_path / "cap")
+    data = bytearray(files[0].read_bytes())
+    at = 77 * p.frame_bytes + 2 * 1001 + 1  # the high byte of a sample of PRI 77
+    data[at] ^= 0x70
+    files[0].write_bytes(bytes(data))
+    code, stderr = cli_ingest(tmp_path / "cap", tmp_path / "d.h5")
+    assert code == 0, stderr
+    assert "1 radar frames have a crest factor (peak/RMS) far above the stream's, or are all zero (damaged " \
+           "data?): frame indices 77" in stderr, stderr.splitlines()
+    with Drive(tmp_path / "d.h5") as d:
+        assert d.radar().raw.shape[0] == len(pris)
+
+
 def test_real_ti_frames_through_a_capture(tmp_path: Path) -> None:
     """OpenRadar's real TI frame (2 Tx x 4 Rx TDM-MIMO, 128 loops, 60 MHz/us, 2.5 Msps, 128 samples) written
     back as a 2-lane DCA1000 capture, read by the ingest reader and range-compressed by the product: the real
@@ -426,6 +443,7 @@ def test_real_ti_frames_through_a_capture(tmp_path: Path) -> None:
     raw = np.concatenate([b for _, b, _ in blocks])
     assert raw.shape == (128, 2, 4, 128, 2)
     assert not any(d.any() for _, _, d in blocks)  # real ADC noise holds no run of zeros a lost packet leaves
+    assert len(implausible_frames(frame_statistics(np.arange(128), raw))) == 0  # nor a crest factor ingest flags
 
     up = 4
     rc = range_compress(raw, sample_rate_hz=cap.params.sample_rate_hz, slope_hz_per_s=cap.params.slope_hz_per_s,

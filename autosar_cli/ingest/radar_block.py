@@ -20,7 +20,7 @@ from autosar_cli.config import RadarConfig
 from autosar_cli.store.drive import DriveWriter
 
 from .dca1000 import Dca1000Capture
-from .decoders import FrameGaps, StreamInfo
+from .decoders import FrameGaps, StreamInfo, frame_statistics, implausible_frames
 from .series import SeriesStats
 
 OVERRIDE_OPTION = "--radar-override"
@@ -134,6 +134,7 @@ def write_capture_stream(writer: DriveWriter, path: str, cap: Dca1000Capture, st
     cube = writer.radar(path, (p.num_tx, p.num_rx, p.num_samples), attrs)
     t_ns = cap.pri_times_ns(start_ns)
     gaps = FrameGaps()
+    frame_stats: list[np.ndarray] = []  # per block: (PRI index, peak |sample|, RMS), as for RawFrame logs
     done = written = 0
     for first, block, damaged in cap.blocks():
         n = len(block)
@@ -142,6 +143,7 @@ def write_capture_stream(writer: DriveWriter, path: str, cap: Dca1000Capture, st
             keep = ~damaged
             idx, block = idx[keep], block[keep]
         gaps.add(idx, t_ns[idx])
+        frame_stats.append(frame_statistics(idx, block))
         cube.append_frames(t_ns[idx], idx, block)
         done += n
         written += len(idx)
@@ -155,4 +157,7 @@ def write_capture_stream(writer: DriveWriter, path: str, cap: Dca1000Capture, st
         stats.skipped["PRIs holding data the DCA1000 lost"] = done - written
     info = StreamInfo(path, "radar", topics={str(cap.path)}, msgtype="TI DCA1000 capture", stats=stats)
     info.extra["missing_frames"] = gaps.missing
+    flagged = implausible_frames(np.concatenate(frame_stats)) if frame_stats else []
+    if len(flagged):
+        info.extra["implausible_frames"] = [int(i) for i in flagged]
     return info
