@@ -329,6 +329,13 @@ def test_lost_reordered_and_repeated_packets(tmp_path: Path) -> None:
         np.testing.assert_array_equal(radar.raw[()], pris[keep])
     with h5py.File(tmp_path / "d.h5") as f:
         np.testing.assert_array_equal(f["radar/scanbrick_w43/gap_frame_index"][()], [[38, 41], [111, 113]])
+    # the first 1300 packets lost: the reader's first block of 64 PRIs whole, and where the stream starts
+    files[0].write_bytes(b"".join(packets[1300:]))
+    code, stderr = cli_ingest(tmp_path / "cap", tmp_path / "e.h5")
+    assert code == 0 and "74 of 150 PRIs left out, they hold data the DCA1000 lost (1300 lost packets)" in stderr
+    with Drive(tmp_path / "e.h5") as d:
+        np.testing.assert_array_equal(d.radar().frame_index, np.arange(74, 150))  # 1300 x 1456 B: into PRI 73
+        np.testing.assert_array_equal(d.radar().raw[()], pris[74:])
 
 
 def test_packets_split_across_files_and_a_damaged_file(tmp_path: Path) -> None:
@@ -349,6 +356,15 @@ def test_packets_split_across_files_and_a_damaged_file(tmp_path: Path) -> None:
     blocks = list(cap.blocks())
     np.testing.assert_array_equal(np.concatenate([b for _, b, _ in blocks]), pris)
     assert cap.warnings == [] and not any(d.any() for _, _, d in blocks)
+    # its middle file missing: the next starts inside a packet, where reading resumes at the next header
+    (split / "adc_data_Raw_1.bin").unlink()
+    cap = Dca1000Capture(split)
+    assert cap.warnings == [f"{split}: split file adc_data_Raw_1.bin missing: its packets are lost"]
+    blocks = list(cap.blocks())
+    damaged = np.concatenate([d for _, _, d in blocks])
+    first_lost = cuts[1] // (PACKET + 10) * PACKET  # the loss starts in the packet the cut went through
+    assert np.flatnonzero(damaged)[0] == first_lost // p.frame_bytes and damaged.sum() < 50
+    np.testing.assert_array_equal(np.concatenate([b for _, b, _ in blocks])[~damaged], pris[~damaged])
 
     _, _, files = config_capture(tmp_path / "three", packet_bytes=PACKET, split_bytes=1_000_000)
     assert len(files) == 4

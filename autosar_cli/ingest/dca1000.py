@@ -173,6 +173,11 @@ def _split_series(folder: Path, base: str) -> list[Path]:
     return [p for _, p in indexed]
 
 
+def _split_number(path: Path) -> int:
+    m = _SPLIT.match(path.name)
+    return int(m.group(2)) if m else 0
+
+
 def missing_split_files(files: list[Path]) -> list[Path]:
     """The split files missing between the first and the last of ``files`` (a series from :func:`_split_series`)."""
     found = [(m.group(1), int(m.group(2))) for f in files if (m := _SPLIT.match(f.name))]
@@ -213,7 +218,9 @@ class Dca1000Capture:
             self.files = kept
             self.name = f"{self.files[0]} (+{len(self.files) - 1} split files)" if len(self.files) > 1 \
                 else str(self.files[0])
-        self.packets = PacketIndex.build(self.files, data_bytes) if data_bytes else None
+        gaps_before = tuple(k for k in range(1, len(self.files)) if _split_number(self.files[k])
+                            != _split_number(self.files[k - 1]) + 1)
+        self.packets = PacketIndex.build(self.files, data_bytes, gaps_before) if data_bytes else None
         if self.packets is not None:
             self.warnings.extend(self.packets.warnings)
             self.bytes_total = self.packets.total_bytes

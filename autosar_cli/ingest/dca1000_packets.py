@@ -150,23 +150,27 @@ class PacketIndex:
     warnings: list[str]
 
     @classmethod
-    def build(cls, files: list[Path], data_bytes: int) -> PacketIndex:
+    def build(cls, files: list[Path], data_bytes: int, gaps_before: tuple[int, ...] = ()) -> PacketIndex:
         """Index every packet of ``files`` (one recording, in order, split anywhere). A packet whose header breaks
         the layout (every packet but the last holds ``data_bytes``, so its byte count follows from its sequence
         number) ends the run of packets there, with a warning naming the file and offset; reading resumes at the
-        next file that starts with a packet."""
+        next header that fits. ``gaps_before``: indices of the files a missing file came before (the grid breaks
+        there, and resumes at the next header without a warning of its own)."""
         rec = SplitFiles(files)
         step = HEADER_BYTES + data_bytes
         parts: list[tuple[NDArray[np.int64], ...]] = []
         warnings: list[str] = []
         origin: tuple[int, int] | None = None
         g = 0
+        # where a split file is missing the grid of packets breaks without damage: it resumes at the next header
+        breaks = [int(rec.bounds[k]) for k in sorted(gaps_before)]
         while g + HEADER_BYTES <= rec.size:
-            n = (rec.size - g) // step
+            stop = next((b for b in breaks if b > g), rec.size)
+            n = (stop - g) // step
             at = g + np.arange(n, dtype=np.int64) * step
             lengths = np.full(n, data_bytes, dtype=np.int64)
-            tail = rec.size - (g + n * step)
-            if tail > HEADER_BYTES:  # the recording's last packet: shorter, or cut by the end of the recording
+            tail = stop - (g + n * step)
+            if tail > HEADER_BYTES:  # the recording's last packet (shorter), or one cut by the end of the data
                 at = np.append(at, g + n * step)
                 lengths = np.append(lengths, tail - HEADER_BYTES)
             heads = rec.headers(at)
@@ -179,9 +183,16 @@ class PacketIndex:
             end = int(bad[0]) if len(bad) else len(at)
             parts.append((at[:end] + HEADER_BYTES, count[:end], lengths[:end]))
             if not len(bad):
-                if 0 < tail <= HEADER_BYTES:
-                    warnings.append(f"{rec.files[-1]}: the last {tail} bytes hold no whole packet header: left out")
-                break
+                if stop == rec.size:
+                    if 0 < tail <= HEADER_BYTES:
+                        warnings.append(f"{rec.files[-1]}: the last {tail} bytes hold no whole packet header: "
+                                        "left out")
+                    break
+                y = _resync(rec, stop - 1, origin, data_bytes) if origin is not None else None
+                if y is None:
+                    break
+                g = y
+                continue
             x = int(at[end])
             path, local = rec.where(x)
             y = _resync(rec, x, origin, data_bytes) if origin is not None else None

@@ -139,14 +139,15 @@ def write_capture_stream(writer: DriveWriter, path: str, cap: Dca1000Capture, st
     for first, block, damaged in cap.blocks():
         n = len(block)
         idx = np.arange(first, first + n, dtype=np.int64)
+        done += n
         if damaged.any():
             keep = ~damaged
             idx, block = idx[keep], block[keep]
-        gaps.add(idx, t_ns[idx])
-        frame_stats.append(frame_statistics(idx, block))
-        cube.append_frames(t_ns[idx], idx, block)
-        done += n
-        written += len(idx)
+        if len(idx):  # a block the DCA1000 lost whole leaves nothing to write
+            gaps.add(idx, t_ns[idx])
+            frame_stats.append(frame_statistics(idx, block))
+            cube.append_frames(t_ns[idx], idx, block)
+            written += len(idx)
         progress(done // p.num_loops * p.frame_bytes)
     stats = SeriesStats(received=done, written=written, first_ns=int(t_ns[0]) if done else 0,
                         last_ns=int(t_ns[-1]) if done else 0)
