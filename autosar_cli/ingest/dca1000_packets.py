@@ -148,6 +148,7 @@ class PacketIndex:
     duplicates: int
     late: int
     warnings: list[str]
+    _end: NDArray[np.int64] | None = None  #: start + length, once
 
     @classmethod
     def build(cls, files: list[Path], data_bytes: int, gaps_before: tuple[int, ...] = ()) -> PacketIndex:
@@ -234,7 +235,9 @@ class PacketIndex:
         b = a + len(out)
         out[:] = 0
         step = HEADER_BYTES + self.data_bytes
-        i = int(np.searchsorted(self.start + self.length, a, side="right"))
+        if self._end is None:
+            self._end = self.start + self.length
+        i = int(np.searchsorted(self._end, a, side="right"))
         i1 = int(np.searchsorted(self.start, b, side="left"))
         while i < i1:
             # a run of packets back to back in the recording and in the stream: one strided copy
