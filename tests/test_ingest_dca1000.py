@@ -171,6 +171,27 @@ def test_contradictions_are_one_line_errors(tmp_path: Path, change: dict[str, st
     assert not (tmp_path / "d.h5").exists()
 
 
+@pytest.mark.parametrize(("field", "value", "needle"), [
+    ("iqSwapSel", 1, "iqSwapSel is 1 (Q before I)"),
+    ("chInterleave", 1, "chInterleave is 1 on a 4-lane device; its DCA1000 layout is interleaved (0)"),
+    ("transferFmtPkt0", "0x6", "transferFmtPkt0 is 0x6: the capture holds more than ADC data"),
+])
+def test_studio_json_layouts_that_are_not_read_are_refused(tmp_path: Path, field: str, value: object,
+                                                          needle: str) -> None:
+    """mmWave Studio states how the DCA1000 stream is laid out; a layout other than those read here (TI's
+    rawDataReader's rules: I first, 4 lanes interleaved, 2 lanes not, ADC data alone) is a one-line error, not
+    samples read in the wrong order."""
+    p = params_from_radar(CFG.radar, lanes=4)
+    write_capture(tmp_path, p, [np.ones((2, 3, 4, 540, 2), dtype=np.int16)], param_format="json")
+    js = tmp_path / "capture.mmwave.json"
+    doc = json.loads(js.read_text())
+    capture = doc["mmWaveDevices"][0]["rawDataCaptureConfig"]
+    (capture.setdefault("rlDevDataPathCfg_t", {}) if field == "transferFmtPkt0"
+     else capture["rlDevDataFmtCfg_t"])[field] = value
+    js.write_text(json.dumps(doc))
+    assert_one_line_error(*cli_ingest(tmp_path, tmp_path / "d.h5"), needle, "capture.mmwave.json")
+
+
 def test_override_keeps_the_recording_and_selects_antenna_rows(tmp_path: Path) -> None:
     p = dataclasses.replace(params_from_radar(CFG.radar), chirp_tx=(2, 0))  # Tx2 first, then Tx0
     rng = np.random.default_rng(2)

@@ -263,7 +263,9 @@ def parse_studio_json(path: Path) -> CaptureParams:
                 table[i] = _mask_int(c["txEnable"])
         fmt = int(rf["rlAdcOutCfg_t"]["fmt"]["b2AdcOutFmt"])
         bits = int(rf["rlAdcOutCfg_t"]["fmt"].get("b2AdcBits", 2))
-        lane_en = dev.get("rawDataCaptureConfig", {}).get("rlDevLaneEnable_t", {}).get("laneEn", "0xF")
+        capture = dev.get("rawDataCaptureConfig", {})
+        lane_en = capture.get("rlDevLaneEnable_t", {}).get("laneEn", "0xF")
+        data_fmt = capture.get("rlDevDataFmtCfg_t", {})
         params = CaptureParams(
             profile_start_frequency_hz=_scaled(prof["startFreqConst_GHz"], 9),
             slope_hz_per_s=_scaled(prof["freqSlopeConst_MHz_usec"], 12),
@@ -277,6 +279,21 @@ def parse_studio_json(path: Path) -> CaptureParams:
             frame_period_s=_scaled(float(frame["framePeriodicity_msec"]), -3),
             adc_format=ADC_FORMATS[fmt] if 0 <= fmt < 3 else str(fmt), lanes=len(_mask_bits(lane_en)), source=src,
             adc_bits=ADC_BITS[bits] if 0 <= bits < 3 else bits)
+        # the layouts read here (TI's SWRA581): I before Q; 4 lanes carry the channels interleaved (a lane per
+        # Rx), 2 lanes each Rx's samples of a chirp in turn (non-interleaved). Another would read as wrong samples.
+        if _mask_int(data_fmt.get("iqSwapSel", 0)):
+            raise CaptureError(f"{src}: rlDevDataFmtCfg_t.iqSwapSel is 1 (Q before I); the DCA1000 layouts read "
+                               "here put I first")
+        packet0 = _mask_int(capture.get("rlDevDataPathCfg_t", {}).get("transferFmtPkt0", 1))
+        if packet0 != 1:
+            raise CaptureError(f"{src}: rlDevDataPathCfg_t.transferFmtPkt0 is {packet0:#x}: the capture holds more "
+                               "than ADC data (chirp parameters, chirp quality); only ADC data (0x1) is read")
+        expected = 0 if params.lanes == 4 else 1
+        interleave = _mask_int(data_fmt.get("chInterleave", expected))
+        if interleave != expected:
+            raise CaptureError(f"{src}: rlDevDataFmtCfg_t.chInterleave is {interleave} on a {params.lanes}-lane "
+                               f"device; its DCA1000 layout is {('interleaved', 'non-interleaved')[expected]} "
+                               f"({expected})")
     except CaptureError:
         raise
     except (OSError, ValueError, KeyError, IndexError, TypeError) as exc:
@@ -311,7 +328,7 @@ def write_studio_json(base: Path, p: CaptureParams) -> tuple[Path, Path]:
     }
     doc = {"configGenerator": {"createdBy": "autosar"}, "mmWaveDevices": [{
         "mmWaveDeviceId": 0, "rfConfig": rf,
-        "rawDataCaptureConfig": {"rlDevDataFmtCfg_t": {"iqSwapSel": 0, "chInterleave": 0},
+        "rawDataCaptureConfig": {"rlDevDataFmtCfg_t": {"iqSwapSel": 0, "chInterleave": 0 if p.lanes == 4 else 1},
                                  "rlDevLaneEnable_t": {"laneEn": hex((1 << p.lanes) - 1)}}}]}
     mm = base.with_name(base.name + ".mmwave.json")
     setup = base.with_name(base.name + ".setup.json")
