@@ -192,6 +192,16 @@ def test_studio_json_layouts_that_are_not_read_are_refused(tmp_path: Path, field
     assert_one_line_error(*cli_ingest(tmp_path, tmp_path / "d.h5"), needle, "capture.mmwave.json")
 
 
+@pytest.mark.parametrize(("stream", "needle"), [
+    ("-1 1 1 0", "lvdsStreamCfg -1 1 1 0 streams HSI headers; only ADC data without headers"),
+    ("-1 0 4 1", "streams chirp parameters or quality data, the processing chain's output"),
+])
+def test_sdk_streams_other_than_adc_data_are_refused(tmp_path: Path, stream: str, needle: str) -> None:
+    """An mmWave SDK .cfg whose LVDS stream carries more than ADC data (HSI headers, chirp parameters, the
+    processing chain's output) is a one-line error, not those bytes read as samples."""
+    assert_one_line_error(*cli_ingest(sdk_cfg(tmp_path / "cap", lvdsStreamCfg=stream), tmp_path / "d.h5"), needle)
+
+
 def test_override_keeps_the_recording_and_selects_antenna_rows(tmp_path: Path) -> None:
     p = dataclasses.replace(params_from_radar(CFG.radar), chirp_tx=(2, 0))  # Tx2 first, then Tx0
     rng = np.random.default_rng(2)

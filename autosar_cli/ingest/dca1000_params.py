@@ -197,6 +197,15 @@ def parse_sdk_cfg(path: Path) -> CaptureParams:
             if int(buf[3]) == 0:
                 raise CaptureError(f"{src}: adcbufCfg asks for interleaved channels; DCA1000 captures are read "
                                    "non-interleaved")
+        if "lvdsStreamCfg" in cmds:  # <subFrameIdx> <enableHeader> <dataFmt> <enableSW>
+            args = one("lvdsStreamCfg", 4)
+            header, data_fmt, software = (int(v) for v in args[1:4])
+            found = (["no ADC data"] if data_fmt == 0 else ["chirp parameters or quality data"] if data_fmt > 1
+                     else []) + (["HSI headers"] if header else []) + (["the processing chain's output"] if software
+                                                                        else [])
+            if found:
+                raise CaptureError(f"{src}: lvdsStreamCfg {' '.join(args)} streams {', '.join(found)}; only ADC "
+                                   "data without headers (lvdsStreamCfg -1 0 1 0) is read")
         params = CaptureParams(
             profile_start_frequency_hz=_scaled(prof[1], 9), slope_hz_per_s=_scaled(prof[7], 12),
             sample_rate_hz=_scaled(prof[10], 3), num_samples=int(prof[9]), adc_start_s=_scaled(prof[3], -6),
