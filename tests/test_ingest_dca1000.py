@@ -192,6 +192,22 @@ def test_studio_json_layouts_that_are_not_read_are_refused(tmp_path: Path, field
     assert_one_line_error(*cli_ingest(tmp_path, tmp_path / "d.h5"), needle, "capture.mmwave.json")
 
 
+@pytest.mark.parametrize(("change", "needle"), [
+    ({"dataLoggingMode": "multi"}, "DCA1000Config.dataLoggingMode is 'multi'; only raw captures"),
+    ({"lvdsMode": 2}, "DCA1000Config.lvdsMode is 2 (2 lanes) but capture.mmwave.json enables 4 lanes"),
+])
+def test_the_setup_json_twin_must_agree(tmp_path: Path, change: dict[str, object], needle: str) -> None:
+    """mmWave Studio's ``*.setup.json`` says how the DCA1000 logged: a multi-mode capture, or one logged over
+    other LVDS lanes than the device sends, is a one-line error naming the twin."""
+    write_capture(tmp_path, params_from_radar(CFG.radar, lanes=4), [np.ones((2, 3, 4, 540, 2), dtype=np.int16)],
+                  param_format="json")
+    setup = tmp_path / "capture.setup.json"
+    doc = json.loads(setup.read_text())
+    doc["DCA1000Config"].update(change)
+    setup.write_text(json.dumps(doc))
+    assert_one_line_error(*cli_ingest(tmp_path, tmp_path / "d.h5"), needle, "capture.setup.json")
+
+
 @pytest.mark.parametrize(("stream", "needle"), [
     ("-1 1 1 0", "lvdsStreamCfg -1 1 1 0 streams HSI headers; only ADC data without headers"),
     ("-1 0 4 1", "streams chirp parameters or quality data, the processing chain's output"),

@@ -297,6 +297,7 @@ def parse_studio_json(path: Path) -> CaptureParams:
         if packet0 != 1:
             raise CaptureError(f"{src}: rlDevDataPathCfg_t.transferFmtPkt0 is {packet0:#x}: the capture holds more "
                                "than ADC data (chirp parameters, chirp quality); only ADC data (0x1) is read")
+        _check_setup(path, params.lanes)
         expected = 0 if params.lanes == 4 else 1
         interleave = _mask_int(data_fmt.get("chInterleave", expected))
         if interleave != expected:
@@ -309,6 +310,26 @@ def parse_studio_json(path: Path) -> CaptureParams:
         raise CaptureError(f"{src}: not a usable mmWave Studio configuration ({type(exc).__name__}: {exc})") from None
     params.check()
     return params
+
+
+def _check_setup(mmwave_json: Path, lanes: int) -> None:
+    """The ``*.setup.json`` twin, where there is one and it reads: the DCA1000 must have logged raw data (multi
+    mode splits it into per-type files) over as many LVDS lanes as the device sends (lvdsMode 1: 4, 2: 2)."""
+    twin = mmwave_json.with_name(mmwave_json.name[: -len(".mmwave.json")] + ".setup.json")
+    try:
+        dca = json.loads(twin.read_text(encoding="utf-8")).get("DCA1000Config", {})
+    except (OSError, ValueError, AttributeError):
+        return  # the twin is not needed for the layout
+    mode = dca.get("dataLoggingMode", "raw")
+    if str(mode).lower() != "raw":
+        raise CaptureError(f"{twin}: DCA1000Config.dataLoggingMode is {mode!r}; only raw captures (one stream of "
+                           "ADC data) are read")
+    lvds = dca.get("lvdsMode")
+    if lvds is not None:
+        logged = {"1": 4, "2": 2}.get(str(lvds))
+        if logged != lanes:
+            raise CaptureError(f"{twin}: DCA1000Config.lvdsMode is {lvds} ({logged or 'no known'} lanes) but "
+                               f"{mmwave_json.name} enables {lanes} lanes")
 
 
 def _mask_int(v: int | str) -> int:
