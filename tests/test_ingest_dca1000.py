@@ -218,6 +218,17 @@ def test_sdk_streams_other_than_adc_data_are_refused(tmp_path: Path, stream: str
     assert_one_line_error(*cli_ingest(sdk_cfg(tmp_path / "cap", lvdsStreamCfg=stream), tmp_path / "d.h5"), needle)
 
 
+@pytest.mark.parametrize(("chirp", "needle"), [
+    ("0 0 1 0 0 0 0 1", "chirp 0 uses profile 1, not profile 0 whose parameters are read"),
+    ("0 0 0 0 0.5 0 0 1", "chirp 0 varies its profile (start frequency, slope, idle time, ADC start time by 0, "
+                          "0.5, 0, 0)"),
+])
+def test_chirps_unlike_the_profile_are_refused(tmp_path: Path, chirp: str, needle: str) -> None:
+    """Focusing takes one start frequency, slope, idle and ADC start time for every pulse: a chirp of another
+    profile, or one that varies the profile, is a one-line error rather than pulses focused with the wrong slope."""
+    assert_one_line_error(*cli_ingest(sdk_cfg(tmp_path / "cap", chirpCfg=chirp), tmp_path / "d.h5"), needle)
+
+
 def test_override_keeps_the_recording_and_selects_antenna_rows(tmp_path: Path) -> None:
     p = dataclasses.replace(params_from_radar(CFG.radar), chirp_tx=(2, 0))  # Tx2 first, then Tx0
     rng = np.random.default_rng(2)

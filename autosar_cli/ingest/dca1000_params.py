@@ -161,6 +161,23 @@ def _chirp_tx(src: str, table: dict[int, int], first: int, last: int) -> tuple[i
     return tuple(out)
 
 
+def _same_chirps(src: str, shape: dict[int, tuple[int, tuple[float, ...]]], first: int, last: int,
+                 profile_id: int) -> None:
+    """Chirps first..last must all be the profile read, unvaried: focusing takes one start frequency, slope,
+    idle and ADC start time for every pulse. ``shape``: chirp index -> (profile id, (start frequency, slope, idle
+    time, ADC start time) variations)."""
+    for c in range(first, last + 1):
+        if c not in shape:
+            continue  # _chirp_tx names it
+        pid, variations = shape[c]
+        if pid != profile_id:
+            raise CaptureError(f"{src}: chirp {c} uses profile {pid}, not profile {profile_id} whose parameters are "
+                               "read; one profile for every chirp is read")
+        if any(variations):
+            raise CaptureError(f"{src}: chirp {c} varies its profile (start frequency, slope, idle time, ADC start "
+                               f"time by {', '.join(f'{v:g}' for v in variations)}); chirps that differ are not read")
+
+
 def parse_sdk_cfg(path: Path) -> CaptureParams:
     """An mmWave SDK CLI configuration (profileCfg, chirpCfg, frameCfg, channelCfg, adcCfg, adcbufCfg)."""
     src = str(path)
@@ -183,11 +200,14 @@ def parse_sdk_cfg(path: Path) -> CaptureParams:
         prof = one("profileCfg", 11)
         frame = one("frameCfg", 5)
         table: dict[int, int] = {}
+        shape: dict[int, tuple[int, tuple[float, ...]]] = {}
         for args in cmds.get("chirpCfg", []):
             if len(args) < 8:
                 raise CaptureError(f"{src}: chirpCfg has {len(args)} values, expected 8")
             for c in range(int(args[0]), int(args[1]) + 1):
                 table[c] = int(args[7], 0)
+                shape[c] = int(args[2]), tuple(float(v) for v in args[3:7])
+        _same_chirps(src, shape, int(frame[0]), int(frame[1]), int(prof[0]))
         adc_bits_code, adc_fmt = (int(v) for v in one("adcCfg", 2)[:2])
         if "adcbufCfg" in cmds:
             buf = one("adcbufCfg", 4)
@@ -266,10 +286,15 @@ def parse_studio_json(path: Path) -> CaptureParams:
         prof = rf["rlProfiles"][0]["rlProfileCfg_t"]
         frame = rf["rlFrameCfg_t"]
         table: dict[int, int] = {}
+        shape: dict[int, tuple[int, tuple[float, ...]]] = {}
         for entry in rf.get("rlChirps", []):
             c = entry["rlChirpCfg_t"]
             for i in range(int(c["chirpStartIdx"]), int(c["chirpEndIdx"]) + 1):
                 table[i] = _mask_int(c["txEnable"])
+                shape[i] = int(c.get("profileId", 0)), tuple(float(c.get(k, 0)) for k in (
+                    "startFreqVar_MHz", "freqSlopeVar_KHz_usec", "idleTimeVar_usec", "adcStartTimeVar_usec"))
+        _same_chirps(src, shape, int(frame["chirpStartIdx"]), int(frame["chirpEndIdx"]),
+                     int(prof.get("profileId", 0)))
         fmt = int(rf["rlAdcOutCfg_t"]["fmt"]["b2AdcOutFmt"])
         bits = int(rf["rlAdcOutCfg_t"]["fmt"].get("b2AdcBits", 2))
         capture = dev.get("rawDataCaptureConfig", {})
