@@ -229,6 +229,21 @@ def test_chirps_unlike_the_profile_are_refused(tmp_path: Path, chirp: str, needl
     assert_one_line_error(*cli_ingest(sdk_cfg(tmp_path / "cap", chirpCfg=chirp), tmp_path / "d.h5"), needle)
 
 
+def test_waveforms_other_than_frames_of_chirps_are_refused(tmp_path: Path) -> None:
+    """Advanced frames (sub-frames of other chirps) and continuous wave leave frameCfg / rlFrameCfg_t stale:
+    a one-line error, not the capture cut into frames it was not recorded in."""
+    assert_one_line_error(*cli_ingest(sdk_cfg(tmp_path / "a", dfeDataOutputMode="3"), tmp_path / "a.h5"),
+                          "dfeDataOutputMode 3 (advanced frames of sub-frames); only frames of chirps")
+    write_capture(tmp_path / "b", params_from_radar(CFG.radar, lanes=4), [np.ones((2, 3, 4, 540, 2), np.int16)],
+                  param_format="json")
+    js = tmp_path / "b" / "capture.mmwave.json"
+    doc = json.loads(js.read_text())
+    doc["mmWaveDevices"][0]["rfConfig"]["waveformType"] = "advancedFrameChirp"
+    js.write_text(json.dumps(doc))
+    assert_one_line_error(*cli_ingest(tmp_path / "b", tmp_path / "b.h5"),
+                          "rfConfig.waveformType is 'advancedFrameChirp'; only frames of chirps")
+
+
 def test_override_keeps_the_recording_and_selects_antenna_rows(tmp_path: Path) -> None:
     p = dataclasses.replace(params_from_radar(CFG.radar), chirp_tx=(2, 0))  # Tx2 first, then Tx0
     rng = np.random.default_rng(2)

@@ -161,6 +161,9 @@ def _chirp_tx(src: str, table: dict[int, int], first: int, last: int) -> tuple[i
     return tuple(out)
 
 
+_WAVEFORMS = {"2": "continuous wave", "3": "advanced frames of sub-frames"}  #: dfeDataOutputMode not read
+
+
 def _same_chirps(src: str, shape: dict[int, tuple[int, tuple[float, ...]]], first: int, last: int,
                  profile_id: int) -> None:
     """Chirps first..last must all be the profile read, unvaried: focusing takes one start frequency, slope,
@@ -208,6 +211,10 @@ def parse_sdk_cfg(path: Path) -> CaptureParams:
                 table[c] = int(args[7], 0)
                 shape[c] = int(args[2]), tuple(float(v) for v in args[3:7])
         _same_chirps(src, shape, int(frame[0]), int(frame[1]), int(prof[0]))
+        if "dfeDataOutputMode" in cmds and one("dfeDataOutputMode", 1)[0] != "1":
+            mode = one("dfeDataOutputMode", 1)[0]
+            raise CaptureError(f"{src}: dfeDataOutputMode {mode} ({_WAVEFORMS.get(mode, 'unknown')}); only frames "
+                               "of chirps (frameCfg, dfeDataOutputMode 1) are read")
         adc_bits_code, adc_fmt = (int(v) for v in one("adcCfg", 2)[:2])
         if "adcbufCfg" in cmds:
             buf = one("adcbufCfg", 4)
@@ -295,6 +302,10 @@ def parse_studio_json(path: Path) -> CaptureParams:
                     "startFreqVar_MHz", "freqSlopeVar_KHz_usec", "idleTimeVar_usec", "adcStartTimeVar_usec"))
         _same_chirps(src, shape, int(frame["chirpStartIdx"]), int(frame["chirpEndIdx"]),
                      int(prof.get("profileId", 0)))
+        waveform = rf.get("waveformType", "legacyFrameChirp")
+        if waveform != "legacyFrameChirp":
+            raise CaptureError(f"{src}: rfConfig.waveformType is {waveform!r}; only frames of chirps "
+                               "(legacyFrameChirp, rlFrameCfg_t) are read")
         fmt = int(rf["rlAdcOutCfg_t"]["fmt"]["b2AdcOutFmt"])
         bits = int(rf["rlAdcOutCfg_t"]["fmt"].get("b2AdcBits", 2))
         capture = dev.get("rawDataCaptureConfig", {})
