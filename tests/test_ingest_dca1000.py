@@ -230,8 +230,9 @@ def test_chirps_unlike_the_profile_are_refused(tmp_path: Path, chirp: str, needl
 
 
 def test_waveforms_other_than_frames_of_chirps_are_refused(tmp_path: Path) -> None:
-    """Advanced frames (sub-frames of other chirps) and continuous wave leave frameCfg / rlFrameCfg_t stale:
-    a one-line error, not the capture cut into frames it was not recorded in."""
+    """Advanced frames (sub-frames of other chirps) and continuous wave leave frameCfg / rlFrameCfg_t stale,
+    and a cascade's JSON states several devices: a one-line error each, not the capture cut into frames it was
+    not recorded in or read as the first device's."""
     assert_one_line_error(*cli_ingest(sdk_cfg(tmp_path / "a", dfeDataOutputMode="3"), tmp_path / "a.h5"),
                           "dfeDataOutputMode 3 (advanced frames of sub-frames); only frames of chirps")
     write_capture(tmp_path / "b", params_from_radar(CFG.radar, lanes=4), [np.ones((2, 3, 4, 540, 2), np.int16)],
@@ -242,6 +243,11 @@ def test_waveforms_other_than_frames_of_chirps_are_refused(tmp_path: Path) -> No
     js.write_text(json.dumps(doc))
     assert_one_line_error(*cli_ingest(tmp_path / "b", tmp_path / "b.h5"),
                           "rfConfig.waveformType is 'advancedFrameChirp'; only frames of chirps")
+    doc["mmWaveDevices"][0]["rfConfig"].pop("waveformType")
+    doc["mmWaveDevices"] *= 4  # a cascade (MMWCAS: four devices, one file series each)
+    js.write_text(json.dumps(doc))
+    assert_one_line_error(*cli_ingest(tmp_path / "b", tmp_path / "c.h5"),
+                          "a cascade of 4 mmWave devices; one device's capture is read")
 
 
 def test_override_keeps_the_recording_and_selects_antenna_rows(tmp_path: Path) -> None:

@@ -287,6 +287,8 @@ def parse_studio_json(path: Path) -> CaptureParams:
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
         dev = doc["mmWaveDevices"]
+        if isinstance(dev, list) and len(dev) > 1:
+            raise CaptureError(f"{src}: a cascade of {len(dev)} mmWave devices; one device's capture is read")
         dev = dev[0] if isinstance(dev, list) else dev
         rf = dev["rfConfig"]
         chan = rf["rlChanCfg_t"]
