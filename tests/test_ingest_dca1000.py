@@ -382,6 +382,51 @@ def test_a_capture_that_lost_packets_focuses_its_reflectors_where_the_whole_one_
         assert -1.5 < r["peak_db"] - w["peak_db"] < 0.0
 
 
+def trigger_log(path: Path, stamps_ns: np.ndarray) -> Path:
+    """An MCAP holding one std_msgs/Header per frame trigger on /dca1000/sync (as ``simulate -f dca1000`` writes)."""
+    from autosar_cli import msgs
+    from autosar_cli.sim.logwriter import open_log_writer
+
+    typestore = msgs.typestore_for(2)
+    with open_log_writer(path, "mcap") as writer:
+        writer.add_topic("/dca1000/sync", msgs.HEADER)
+        for t in stamps_ns:
+            writer.write("/dca1000/sync", int(t), msgs.header(typestore, int(t), "dca1000"))
+    return path
+
+
+def test_hardware_triggered_frames_take_their_triggers_times(tmp_path: Path) -> None:
+    """A capture whose frames start on an external trigger (triggerSelect 2; e.g. one per distance travelled) is
+    timed frame by frame by its triggers, not by the frame period; too few triggers is a one-line error; a
+    software-triggered capture whose per-frame triggers run 10 % slower than its period says so."""
+    p = dataclasses.replace(params_from_radar(CFG.radar, lanes=4), hardware_trigger=True)
+    pris = np.random.default_rng(4).integers(-500, 500, (40, 3, 4, 540, 2), dtype=np.int16)
+    write_capture(tmp_path / "hw", p, [pris], param_format="json")
+    assert Dca1000Capture(tmp_path / "hw").params.hardware_trigger
+    start = 1_714_557_600_000_000_000
+    stamps = start + np.cumsum(np.random.default_rng(5).integers(800_000, 3_000_000, 40))
+    log = trigger_log(tmp_path / "hw.mcap", stamps)
+    r = runner.invoke(app, ["ingest", str(log), "--radar", str(tmp_path / "hw"), "--allow-partial",
+                            "-o", str(tmp_path / "hw.h5")])
+    assert r.exit_code == 0, r.output
+    with Drive(tmp_path / "hw.h5") as d:
+        np.testing.assert_array_equal(d.radar().t_ns, stamps)
+    with h5py.File(tmp_path / "hw.h5") as f:
+        assert f["radar/scanbrick_w43"].attrs["start_time_source"] == "topic /dca1000/sync, a trigger per frame"
+    few = trigger_log(tmp_path / "few.mcap", stamps[:30])
+    r = runner.invoke(app, ["ingest", str(few), "--radar", str(tmp_path / "hw"), "--allow-partial",
+                            "-o", str(tmp_path / "few.h5")])
+    assert_one_line_error(r.exit_code, r.stderr, "hardware trigger (triggerSelect 2)", "30 triggers for 40 frames")
+
+    write_capture(tmp_path / "sw", params_from_radar(CFG.radar, lanes=4), [pris], param_format="json")
+    slow = trigger_log(tmp_path / "slow.mcap", start + np.arange(40) * round(1.1e9 / CFG.radar.prf_hz))
+    r = runner.invoke(app, ["ingest", str(slow), "--radar", str(tmp_path / "sw"), "--allow-partial",
+                            "-o", str(tmp_path / "sw.h5")])
+    assert r.exit_code == 0, r.output
+    assert "frames every 1.0101 ms drift up to 3.94 ms from their 40 triggers on topic /dca1000/sync (frame 39)" \
+        in r.stderr, r.stderr.splitlines()
+
+
 PACKET = 1456  # the DCA1000's default data bytes per packet
 
 

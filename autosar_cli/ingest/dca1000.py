@@ -252,13 +252,17 @@ class Dca1000Capture:
         return (f"DCA1000 packets of {k.data_bytes} data bytes: {k.packets} recorded, {k.lost_packets} lost, "
                 f"{k.late} out of order, {k.duplicates} repeated")
 
-    def pri_times_ns(self, start_ns: int) -> NDArray[np.int64]:
-        """Start of every PRI (ns since the epoch): frame periodicity, then loop period within a frame."""
+    def pri_times_ns(self, start_ns: int | NDArray[np.int64]) -> NDArray[np.int64]:
+        """Start of every PRI (ns since the epoch): the frames' starts (``start_ns`` an array, one per frame) or a
+        frame every frame period from ``start_ns``, then the loop period within a frame."""
         p = self.params
-        frames = np.arange(self.num_frames, dtype=np.float64)
-        frame_t = np.round(frames * (p.frame_period_s * 1e9)).astype(np.int64)
+        if np.ndim(start_ns):
+            frame_t = np.asarray(start_ns, dtype=np.int64)[:self.num_frames]
+        else:
+            frames = np.arange(self.num_frames, dtype=np.float64)
+            frame_t = int(start_ns) + np.round(frames * (p.frame_period_s * 1e9)).astype(np.int64)
         loop_t = np.round(np.arange(p.num_loops) * (p.loop_period_s * 1e9)).astype(np.int64)
-        return start_ns + (frame_t[:, None] + loop_t[None, :]).reshape(-1)
+        return (frame_t[:, None] + loop_t[None, :]).reshape(-1)
 
     def blocks(self, frames_per_block: int = 64
                ) -> Iterator[tuple[int, NDArray[np.int16], NDArray[np.bool_]]]:

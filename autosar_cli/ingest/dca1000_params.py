@@ -55,6 +55,9 @@ class CaptureParams:
     lanes: int  #: LVDS lanes, 2 or 4
     source: str = ""  #: the parameter file
     adc_bits: int = 16  #: 12 or 14: samples are not sign-extended in the file (SWRA581)
+    #: frames start on an external trigger (triggerSelect 2), not every frame period: their times come from the
+    #: frame-trigger topic, one message per frame
+    hardware_trigger: bool = False
 
     @property
     def start_frequency_hz(self) -> float:
@@ -239,6 +242,7 @@ def parse_sdk_cfg(path: Path) -> CaptureParams:
             chirp_period_s=_scaled(format(Decimal(prof[2]) + Decimal(prof[4]), "f"), -6),
             rx_channels=_mask_bits(rx_mask), chirp_tx=_chirp_tx(src, table, int(frame[0]), int(frame[1])),
             num_loops=int(frame[2]), num_frames=int(frame[3]), frame_period_s=_scaled(frame[4], -3),
+            hardware_trigger=len(frame) > 5 and int(frame[5]) == 2,
             adc_format=ADC_FORMATS[adc_fmt] if 0 <= adc_fmt < 3 else str(adc_fmt), lanes=2, source=src,
             adc_bits=ADC_BITS[adc_bits_code] if 0 <= adc_bits_code < 3 else adc_bits_code)
     except (ValueError, IndexError) as exc:
@@ -268,7 +272,8 @@ def write_sdk_cfg(path: Path, p: CaptureParams) -> None:
         f"profileCfg 0 {_in_unit(p.profile_start_frequency_hz, 9)} {idle} {_in_unit(p.adc_start_s, -6)} {ramp} "
         f"0 0 {_in_unit(p.slope_hz_per_s, 12)} 0 {p.num_samples} {_in_unit(p.sample_rate_hz, 3)} 0 0 30",
         *(f"chirpCfg {c} {c} 0 0 0 0 0 {1 << t}" for c, t in enumerate(p.chirp_tx)),
-        f"frameCfg 0 {p.num_tx - 1} {p.num_loops} {p.num_frames} {_in_unit(p.frame_period_s, -3)} 1 0",
+        f"frameCfg 0 {p.num_tx - 1} {p.num_loops} {p.num_frames} {_in_unit(p.frame_period_s, -3)} "
+        f"{2 if p.hardware_trigger else 1} 0",
         "lvdsStreamCfg -1 0 1 0", "sensorStart", "",
     ]
     path.write_text("\n".join(lines), encoding="utf-8")
@@ -323,6 +328,7 @@ def parse_studio_json(path: Path) -> CaptureParams:
             rx_channels=_mask_bits(chan["rxChannelEn"]),
             chirp_tx=_chirp_tx(src, table, int(frame["chirpStartIdx"]), int(frame["chirpEndIdx"])),
             num_loops=int(frame["numLoops"]), num_frames=int(frame["numFrames"]),
+            hardware_trigger=int(frame.get("triggerSelect", 1)) == 2,
             frame_period_s=_scaled(float(frame["framePeriodicity_msec"]), -3),
             adc_format=ADC_FORMATS[fmt] if 0 <= fmt < 3 else str(fmt), lanes=len(_mask_bits(lane_en)), source=src,
             adc_bits=ADC_BITS[bits] if 0 <= bits < 3 else bits)
@@ -392,7 +398,7 @@ def write_studio_json(base: Path, p: CaptureParams) -> tuple[Path, Path]:
                                        "txEnable": hex(1 << t)}} for c, t in enumerate(p.chirp_tx)],
         "rlFrameCfg_t": {"chirpStartIdx": 0, "chirpEndIdx": p.num_tx - 1, "numLoops": p.num_loops,
                          "numFrames": p.num_frames, "framePeriodicity_msec": float(_in_unit(p.frame_period_s, -3)),
-                         "triggerSelect": 1, "frameTriggerDelay": 0.0},
+                         "triggerSelect": 2 if p.hardware_trigger else 1, "frameTriggerDelay": 0.0},
     }
     doc = {"configGenerator": {"createdBy": "autosar"}, "mmWaveDevices": [{
         "mmWaveDeviceId": 0, "rfConfig": rf,

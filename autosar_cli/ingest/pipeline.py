@@ -44,7 +44,14 @@ from .decoders import (
     imu_row,
     velocity_row,
 )
-from .radar_block import RadarParamsError, Recorded, recorded_from_capture, resolve, write_capture_stream
+from .radar_block import (
+    RadarParamsError,
+    Recorded,
+    capture_frame_starts,
+    recorded_from_capture,
+    resolve,
+    write_capture_stream,
+)
 from .records import UNKNOWN_TIME, CanRecord, NmeaHeading, NmeaRecord
 from .sources import Channel, LogReadError, LogSource, RawMessage, open_source
 from .typesys import MessageTypes, SchemaError
@@ -139,7 +146,7 @@ class _Ingest:
         self.writer = writer
         self.config = config
         self.radar_options = radar_options
-        self.sync_ns: int | None = None
+        self.sync_stamps: list[int] = []  #: every frame trigger on the sync topic (ns), as recorded
         self.types = MessageTypes()
         self.warnings: list[str] = []
         self.skipped_channels: dict[tuple[str, str], dict[str, Any]] = {}
@@ -230,9 +237,8 @@ class _Ingest:
 
     def _handler_sync(self, ch: Channel, deser: Callable[[Any], Any]) -> Callable[[RawMessage], None]:
         def handle(raw: RawMessage) -> None:
-            if self.sync_ns is None:
-                m = deser(raw.data)
-                self.sync_ns = _stamp_ns(getattr(m, "header", m))
+            m = deser(raw.data)
+            self.sync_stamps.append(_stamp_ns(getattr(m, "header", m)))
 
         return handle
 
@@ -360,10 +366,11 @@ class _Ingest:
         """A DCA1000 capture into the configured radar's group; after the logs (their sync topic gives its start)."""
         cap = Dca1000Capture(path)
         self.source_file = str(path)
-        start = self.radar_options.start_ns if self.radar_options.start_ns is not None else self.sync_ns
-        if start is None:
-            raise IngestError(f"{path}: no start time for the DCA1000 capture: give --radar-start, or record its "
-                              f"first frame trigger on topic {self.radar_options.sync_topic} in a log")
+        try:
+            frame_starts = capture_frame_starts(cap, self.radar_options.start_ns, self.sync_stamps,
+                                                self.radar_options.sync_topic, warn=self.warnings.append)
+        except ValueError as exc:
+            raise IngestError(f"{path}: {exc}") from None
         name = self.config.radar.name
         group = f"radar/{name}"
         if group in self.streams:
@@ -371,10 +378,11 @@ class _Ingest:
         attrs = resolve(recorded_from_capture(cap), self.config.radar, what=str(path),
                         override=self.radar_options.override, warn=self.warnings.append)
         attrs.update({"topic": "", "msgtype": "TI DCA1000 capture", "source_file": str(path), "sensor": name,
-                      "start_time_source": "--radar-start" if self.radar_options.start_ns is not None
+                      "start_time_source": f"topic {self.radar_options.sync_topic}, a trigger per frame"
+                      if cap.params.hardware_trigger else "--radar-start" if self.radar_options.start_ns is not None
                       else f"topic {self.radar_options.sync_topic}",
                       "layout": "frame, tx, rx, sample, I/Q"})
-        info = write_capture_stream(self.writer, group, cap, start, attrs, progress)
+        info = write_capture_stream(self.writer, group, cap, frame_starts, attrs, progress)
         self.warnings.extend(cap.warnings)  # after the stream: the PRIs left out are known once it is read
         self.streams[group] = _Finished(info)
         return cap.num_pris

@@ -10,11 +10,12 @@ stored in the radar group's ``parameter_sources`` attribute and shown by ``autos
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from autosar_cli.config import RadarConfig
 from autosar_cli.store.drive import DriveWriter
@@ -126,13 +127,47 @@ def recorded_from_capture(cap: Dca1000Capture) -> Recorded:
                "parameter_file": str(p.source)})
 
 
-def write_capture_stream(writer: DriveWriter, path: str, cap: Dca1000Capture, start_ns: int,
+def capture_frame_starts(cap: Dca1000Capture, start_ns: int | None, triggers: Sequence[int], topic: str,
+                         warn: Callable[[str], None]) -> NDArray[np.int64]:
+    """Each frame's start (ns since the epoch). A capture's files hold no time: the frames of a software-triggered
+    capture start every frame period from ``start_ns`` (``--radar-start``) or from the first of ``triggers`` (the
+    frame-trigger topic's stamps, as recorded); those of a hardware-triggered one (triggerSelect 2) start on
+    their own triggers, one each. Raises ValueError where the times cannot be known; ``warn`` where the
+    triggers contradict the frame period."""
+    p, n = cap.params, cap.num_frames
+    stamps = np.asarray(triggers, dtype=np.int64)
+    if p.hardware_trigger:
+        if len(stamps) < n:
+            raise ValueError(f"its frames start on a hardware trigger (triggerSelect 2), so each frame's time is "
+                             f"its trigger on topic {topic}: {len(stamps)} triggers for {n} frames")
+        if len(stamps) > n:
+            warn(f"{cap.name}: {len(stamps)} triggers on topic {topic} for {n} frames: the first {n} taken")
+        starts = stamps[:n]
+        if np.any(np.diff(starts) <= 0):
+            raise ValueError(f"the triggers on topic {topic} do not rise: they cannot time its frames")
+        return starts
+    if start_ns is None and not len(stamps):
+        raise ValueError(f"no start time for the DCA1000 capture: give --radar-start, or record its first frame "
+                         f"trigger on topic {topic} in a log")
+    start = start_ns if start_ns is not None else int(stamps[0])
+    starts = start + np.round(np.arange(n, dtype=np.float64) * (p.frame_period_s * 1e9)).astype(np.int64)
+    if start_ns is None and len(stamps) == n and n > 1:  # a trigger per frame: they must follow the period
+        drift = np.abs(stamps - starts)
+        if drift.max() > p.frame_period_s * 1e9 / 2:
+            warn(f"{cap.name}: frames every {p.frame_period_s * 1e3:g} ms drift up to {drift.max() / 1e6:.3g} ms "
+                 f"from their {n} triggers on topic {topic} (frame {int(np.argmax(drift))}): a frame period or "
+                 "trigger mode that differs from the recording's?")
+    return starts
+
+
+def write_capture_stream(writer: DriveWriter, path: str, cap: Dca1000Capture, frame_starts_ns: NDArray[np.int64],
                          attrs: dict[str, Any], progress: Callable[[int], None]) -> StreamInfo:
-    """Stream a capture's PRIs into the drive's radar group ``path``; frame times from ``start_ns``. PRIs that
-    hold data the DCA1000 lost are left out: the frame index jumps there, as in a log that lost frames."""
+    """Stream a capture's PRIs into the drive's radar group ``path``; frame times from ``frame_starts_ns``
+    (:func:`capture_frame_starts`). PRIs that hold data the DCA1000 lost are left out: the frame index jumps
+    there, as in a log that lost frames."""
     p = cap.params
     cube = writer.radar(path, (p.num_tx, p.num_rx, p.num_samples), attrs)
-    t_ns = cap.pri_times_ns(start_ns)
+    t_ns = cap.pri_times_ns(frame_starts_ns)
     gaps = FrameGaps()
     frame_stats: list[np.ndarray] = []  # per block: (PRI index, peak |sample|, RMS), as for RawFrame logs
     done = written = 0
