@@ -403,6 +403,9 @@ def test_hardware_triggered_frames_take_their_triggers_times(tmp_path: Path) -> 
     pris = np.random.default_rng(4).integers(-500, 500, (40, 3, 4, 540, 2), dtype=np.int16)
     write_capture(tmp_path / "hw", p, [pris], param_format="json")
     assert Dca1000Capture(tmp_path / "hw").params.hardware_trigger
+    r = runner.invoke(app, ["info", str(tmp_path / "hw"), "--json"])
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.stdout)["container"].endswith("hardware trigger, timed by the sync topic at ingest)")
     start = 1_714_557_600_000_000_000
     stamps = start + np.cumsum(np.random.default_rng(5).integers(800_000, 3_000_000, 40))
     log = trigger_log(tmp_path / "hw.mcap", stamps)

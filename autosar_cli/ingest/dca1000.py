@@ -246,11 +246,13 @@ class Dca1000Capture:
     @property
     def layout(self) -> str:
         """How the data files hold the stream, for ``autosar info``."""
+        trigger = "; frames on a hardware trigger, timed by the sync topic at ingest" \
+            if self.params.hardware_trigger else ""
         if self.packets is None:
-            return "ADC data"
+            return "ADC data" + trigger
         k = self.packets
         return (f"DCA1000 packets of {k.data_bytes} data bytes: {k.packets} recorded, {k.lost_packets} lost, "
-                f"{k.late} out of order, {k.duplicates} repeated")
+                f"{k.late} out of order, {k.duplicates} repeated{trigger}")
 
     def pri_times_ns(self, start_ns: int | NDArray[np.int64]) -> NDArray[np.int64]:
         """Start of every PRI (ns since the epoch): the frames' starts (``start_ns`` an array, one per frame) or a
