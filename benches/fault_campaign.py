@@ -223,14 +223,10 @@ def setup(work: Path) -> Base:
     assert r.returncode == 0, r.stderr
     base.digests["dca1000"] = product_digest(work / "ref_dca1000.h5")
     base.dca_packets = work / "dca_packets.bin"
-    base.dca_packets.write_bytes(b"".join(_packets((base.dca_flat / "adc_data.bin").read_bytes())))
+    from autosar_cli.ingest.dca1000_packets import packets_of
+
+    base.dca_packets.write_bytes(b"".join(packets_of((base.dca_flat / "adc_data.bin").read_bytes(), PACKET)))
     return base
-
-
-def _packets(data: bytes) -> list[bytes]:
-    """The DCA1000's packets of ``data``: a 10-byte header (sequence number from 1, bytes sent before) each."""
-    return [(k + 1).to_bytes(4, "little") + (k * PACKET).to_bytes(6, "little") + data[k * PACKET:(k + 1) * PACKET]
-            for k in range(-(-len(data) // PACKET))]
 
 
 # ------------------------------------------------------------------------------------------ faults

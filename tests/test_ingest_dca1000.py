@@ -24,6 +24,7 @@ from autosar_cli.ingest.dca1000 import (
     params_from_radar,
     write_capture,
 )
+from autosar_cli.ingest.dca1000_packets import packets_of
 from autosar_cli.ingest.decoders import frame_statistics, implausible_frames
 from autosar_cli.store.drive import Drive
 
@@ -360,8 +361,7 @@ def test_a_capture_that_lost_packets_focuses_its_reflectors_where_the_whole_one_
 
     mcap, capture, whole = simulated_capture
     data = (capture / "adc_data.bin").read_bytes()
-    packets = [(k + 1).to_bytes(4, "little") + (k * PACKET).to_bytes(6, "little") + data[k * PACKET:(k + 1) * PACKET]
-               for k in range(-(-len(data) // PACKET))]
+    packets = packets_of(data, PACKET)
     lost = set(np.random.default_rng(3).choice(len(packets), 60, replace=False).tolist())
     lossy = tmp_path / "lossy"
     lossy.mkdir()

@@ -33,6 +33,7 @@ from .dca1000_packets import (
     ZERO_RUN_VALUES,
     PacketIndex,
     edge_zeros,
+    packet,
     packet_data_bytes,
     within,
     zero_runs,
@@ -380,8 +381,7 @@ class CaptureWriter:
         self._unsent = bytearray(stream[at:])
 
     def _packet(self, data: memoryview | bytearray) -> None:
-        header = (self._sent // self.packet_bytes + 1).to_bytes(4, "little") + self._sent.to_bytes(6, "little")
-        self._store(memoryview(header + bytes(data)), whole=True)
+        self._store(memoryview(packet(self._sent // self.packet_bytes + 1, self._sent, data)), whole=True)
         self._sent += len(data)
 
     def _store(self, data: memoryview, *, whole: bool) -> None:

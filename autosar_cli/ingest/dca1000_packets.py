@@ -24,11 +24,30 @@ MAX_PACKET_DATA = 1462  #: the DCA1000's largest data per packet (its user guide
 ZERO_RUN_VALUES = 256
 
 
-def _u48(b: NDArray[np.uint8]) -> NDArray[np.int64]:
-    """Little-endian uint48 from (n, 6) bytes."""
-    wide = np.zeros((len(b), 8), dtype=np.uint8)
-    wide[:, :6] = b
-    return wide.view("<u8").reshape(-1).astype(np.int64)
+def header_fields(heads: NDArray[np.uint8]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """(sequence numbers, data bytes sent before) of (n, 10) packet headers: uint32 and uint48, little-endian."""
+    h = np.asarray(heads, dtype=np.int64).reshape(-1, HEADER_BYTES)
+    seq = h[:, 0] | h[:, 1] << 8 | h[:, 2] << 16 | h[:, 3] << 24
+    count = h[:, 4] | h[:, 5] << 8 | h[:, 6] << 16 | h[:, 7] << 24 | h[:, 8] << 32 | h[:, 9] << 40
+    return seq, count
+
+
+def packet(sequence: int, sent: int, data: bytes | memoryview) -> bytes:
+    """One DCA1000 packet: its header (``sequence`` from 1, ``sent`` data bytes before it), then ``data``."""
+    return sequence.to_bytes(4, "little") + sent.to_bytes(6, "little") + bytes(data)
+
+
+def packets_of(data: bytes, data_bytes: int = 1456) -> list[bytes]:
+    """``data`` as the DCA1000 sends it: packets of ``data_bytes`` (the last fewer), numbered from 1."""
+    return [packet(k + 1, k * data_bytes, data[k * data_bytes:(k + 1) * data_bytes])
+            for k in range(-(-len(data) // data_bytes))]
+
+
+def _fits(heads: NDArray[np.uint8], origin: tuple[int, int], data_bytes: int) -> NDArray[np.bool_]:
+    """Which (n, 10) headers fit a recording whose first packet is ``origin`` (sequence, byte count): every packet
+    but the last holds ``data_bytes``, so a packet's byte count follows from its sequence number."""
+    seq, count = header_fields(heads)
+    return (seq >= 1) & (count - origin[1] == (seq - origin[0]) * data_bytes)
 
 
 def packet_data_bytes(head: bytes) -> int | None:
@@ -37,23 +56,17 @@ def packet_data_bytes(head: bytes) -> int | None:
     b = np.frombuffer(head, dtype=np.uint8)
     if len(b) < 3 * HEADER_BYTES + 2 * 48:
         return None
-    seq0 = int(b[:4].view("<u4")[0])
-    count0 = int(_u48(b[4:10].reshape(1, 6))[0])
+    (seq0,), (count0,) = header_fields(b[:HEADER_BYTES])
     if not 1 <= seq0 < 1 << 31:
         return None
     for length in range(48, MAX_PACKET_DATA + 1):
-        ok = True
-        for k in (1, 2):
-            at = k * (HEADER_BYTES + length)
-            if at + HEADER_BYTES > len(b):
-                ok = False
-                break
-            seq = int(b[at:at + 4].view("<u4")[0])
-            count = int(_u48(b[at + 4:at + 10].reshape(1, 6))[0])
-            if not (seq0 < seq <= seq0 + 64 * k and count - count0 == (seq - seq0) * length):
-                ok = False
-                break
-        if ok:
+        at = np.array([1, 2]) * (HEADER_BYTES + length)
+        if at[-1] + HEADER_BYTES > len(b):
+            return None
+        heads = b[at[:, None] + np.arange(HEADER_BYTES)]
+        seq, _ = header_fields(heads)
+        if np.all(_fits(heads, (int(seq0), int(count0)), length)) and np.all(
+                (seq > seq0) & (seq <= seq0 + 64 * np.array([1, 2]))):
             return length
     return None
 
@@ -104,14 +117,6 @@ class SplitFiles:
         return out
 
 
-def _consistent(heads: NDArray[np.uint8], origin: tuple[int, int], data_bytes: int) -> NDArray[np.bool_]:
-    """Which (n, 10) headers fit the recording's first: byte count = (sequence - first's) x data bytes + first's."""
-    h = heads.astype(np.int64)
-    seq = h[:, 0] | h[:, 1] << 8 | h[:, 2] << 16 | h[:, 3] << 24
-    count = h[:, 4] | h[:, 5] << 8 | h[:, 6] << 16 | h[:, 7] << 24 | h[:, 8] << 32 | h[:, 9] << 40
-    return (seq >= 1) & (count - origin[1] == (seq - origin[0]) * data_bytes)
-
-
 def _resync(rec: SplitFiles, x: int, origin: tuple[int, int], data_bytes: int) -> int | None:
     """The first stream offset after ``x`` where a packet header that fits the recording starts, and another one
     packet later (or the recording ends within a packet): where reading resumes after damage."""
@@ -121,9 +126,9 @@ def _resync(rec: SplitFiles, x: int, origin: tuple[int, int], data_bytes: int) -
         blob = np.asarray(rec.read(y0, min(rec.size, y0 + window + HEADER_BYTES - 1)))
         if len(blob) < HEADER_BYTES:
             return None
-        for c in np.flatnonzero(_consistent(sliding_window_view(blob, HEADER_BYTES), origin, data_bytes)):
+        for c in np.flatnonzero(_fits(sliding_window_view(blob, HEADER_BYTES), origin, data_bytes)):
             y = y0 + int(c)
-            if y + step + HEADER_BYTES > rec.size or _consistent(rec.headers(np.array([y + step])), origin,
+            if y + step + HEADER_BYTES > rec.size or _fits(rec.headers(np.array([y + step])), origin,
                                                                  data_bytes)[0]:
                 return y
         y0 += window
@@ -143,12 +148,12 @@ class PacketIndex:
     offset: NDArray[np.int64]
     start: NDArray[np.int64]
     length: NDArray[np.int64]
+    end: NDArray[np.int64]  #: start + length
     lost: NDArray[np.int64]
     total_bytes: int
     duplicates: int
     late: int
     warnings: list[str]
-    _end: NDArray[np.int64] | None = None  #: start + length, once
 
     @classmethod
     def build(cls, files: list[Path], data_bytes: int, gaps_before: tuple[int, ...] = ()) -> PacketIndex:
@@ -175,12 +180,11 @@ class PacketIndex:
                 at = np.append(at, g + n * step)
                 lengths = np.append(lengths, tail - HEADER_BYTES)
             heads = rec.headers(at)
-            seq = heads[:, :4].copy().view("<u4").reshape(-1).astype(np.int64)
-            count = _u48(heads[:, 4:10])
+            seq, count = header_fields(heads)
             if origin is None and len(seq):
                 origin = int(seq[0]), int(count[0])
-            bad = np.flatnonzero((count - origin[1] != (seq - origin[0]) * data_bytes) | (seq < 1)) \
-                if origin is not None else np.zeros(0, dtype=np.int64)
+            bad = np.flatnonzero(~_fits(heads, origin, data_bytes)) if origin is not None \
+                else np.zeros(0, dtype=np.int64)
             end = int(bad[0]) if len(bad) else len(at)
             parts.append((at[:end] + HEADER_BYTES, count[:end], lengths[:end]))
             if not len(bad):
@@ -219,7 +223,7 @@ class PacketIndex:
         gap = start > covered_to
         lost = np.stack([covered_to[gap], start[gap]], axis=-1).reshape(-1, 2)
         total = int(end_at[-1]) if len(end_at) else 0
-        return cls(rec, data_bytes, offset, start, length, lost, total, duplicates, late, warnings)
+        return cls(rec, data_bytes, offset, start, length, end_at, lost, total, duplicates, late, warnings)
 
     @property
     def packets(self) -> int:
@@ -235,9 +239,7 @@ class PacketIndex:
         b = a + len(out)
         out[:] = 0
         step = HEADER_BYTES + self.data_bytes
-        if self._end is None:
-            self._end = self.start + self.length
-        i = int(np.searchsorted(self._end, a, side="right"))
+        i = int(np.searchsorted(self.end, a, side="right"))
         i1 = int(np.searchsorted(self.start, b, side="left"))
         while i < i1:
             # a run of packets back to back in the recording and in the stream: one strided copy
