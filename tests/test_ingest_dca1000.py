@@ -85,7 +85,7 @@ def test_layout_round_trips(tmp_path: Path, fmt: str, lanes: int, chirp_tx: tupl
     got = np.concatenate([b for _, b, _ in cap.blocks(frames_per_block=2)])
     np.testing.assert_array_equal(got, pris)
     # frame times: frame periodicity, then one loop (num_tx chirp slots) per PRI within the frame
-    t = cap.pri_times_ns(1_000)
+    t = cap.pri_times_ns(cap.frame_starts_ns(1_000))
     np.testing.assert_array_equal(t[:4], [1_000, 1_000 + 20_000 * len(chirp_tx), 1_001_000,
                                           1_001_000 + 20_000 * len(chirp_tx)])
 

@@ -179,13 +179,18 @@ def _split_number(path: Path) -> int:
     return int(m.group(2)) if m else 0
 
 
-def missing_split_files(files: list[Path]) -> list[Path]:
-    """The split files missing between the first and the last of ``files`` (a series from :func:`_split_series`)."""
-    found = [(m.group(1), int(m.group(2))) for f in files if (m := _SPLIT.match(f.name))]
-    if len(found) < 2:
-        return []
-    base, have = found[0][0], {k for _, k in found}
-    return [files[0].parent / f"{base}_{k}.bin" for k in range(max(have)) if k not in have]
+def missing_split_files(files: list[Path]) -> list[int]:
+    """Numbers of the split files missing between the first and the last of ``files`` (a series from
+    :func:`_split_series`, which starts at 0)."""
+    have = {_split_number(f) for f in files}
+    return [k for k in range(max(have)) if k not in have]
+
+
+def _flag(damaged: NDArray[np.bool_], lo: int, hi: int, per_pri: int) -> None:
+    """Flag the PRIs that [lo, hi) touches (offsets in the block, ``per_pri`` of them to a PRI; clipped to it)."""
+    lo, hi = max(lo, 0), min(hi, len(damaged) * per_pri)
+    if hi > lo:
+        damaged[lo // per_pri:(hi - 1) // per_pri + 1] = True
 
 
 class Dca1000Capture:
@@ -202,25 +207,21 @@ class Dca1000Capture:
         self.params = load_params(self.param_file)
         self.warnings: list[str] = []
         p = self.params
-        self.name = str(self.files[0]) if len(self.files) == 1 \
-            else f"{self.files[0]} (+{len(self.files) - 1} split files)"
         with open(self.files[0], "rb") as f:
             data_bytes = packet_data_bytes(f.read(4 * (HEADER_BYTES + MAX_PACKET_DATA)))
         missing = missing_split_files(self.files)
-        names = ", ".join(m.name for m in missing)
+        names = ", ".join(self.files[0].name.replace("_0.bin", f"_{k}.bin") for k in missing)
         if missing and data_bytes:  # the byte counts say where the later files' packets belong
             self.warnings.append(f"{self.files[0].parent}: split file{'s' if len(missing) > 1 else ''} {names} "
                                  f"missing: {'their' if len(missing) > 1 else 'its'} packets are lost")
         elif missing:  # the data alone: where the later files' data belongs is unknown without the missing one
-            kept = self.files[:int(_SPLIT.match(missing[0].name).group(2))]  # _0 … up to the first missing
-            self.warnings.append(f"{self.files[0].parent}: split file {missing[0].name} missing: the "
+            kept = self.files[:missing[0]]  # _0 … up to the first missing
+            self.warnings.append(f"{self.files[0].parent}: split file {names.split(', ')[0]} missing: the "
                                  f"{len(self.files) - len(kept)} after it left out, for where their data belongs "
                                  f"is unknown without it")
             self.files = kept
-            self.name = f"{self.files[0]} (+{len(self.files) - 1} split files)" if len(self.files) > 1 \
-                else str(self.files[0])
-        gaps_before = tuple(k for k in range(1, len(self.files)) if _split_number(self.files[k])
-                            != _split_number(self.files[k - 1]) + 1)
+        numbers = [_split_number(f) for f in self.files]
+        gaps_before = tuple(k for k in range(1, len(numbers)) if numbers[k] != numbers[k - 1] + 1)
         self.packets = PacketIndex.build(self.files, data_bytes, gaps_before) if data_bytes else None
         if self.packets is not None:
             self.warnings.extend(self.packets.warnings)
@@ -241,6 +242,11 @@ class Dca1000Capture:
         self.damage = {"lost packets": 0, "zero-filled runs": 0, "PRIs": 0}
 
     @property
+    def name(self) -> str:
+        """The data files, for messages."""
+        return str(self.files[0]) if len(self.files) == 1 else f"{self.files[0]} (+{len(self.files) - 1} split files)"
+
+    @property
     def num_pris(self) -> int:
         return self.num_frames * self.params.num_loops
 
@@ -255,17 +261,17 @@ class Dca1000Capture:
         return (f"DCA1000 packets of {k.data_bytes} data bytes: {k.packets} recorded, {k.lost_packets} lost, "
                 f"{k.late} out of order, {k.duplicates} repeated{trigger}")
 
-    def pri_times_ns(self, start_ns: int | NDArray[np.int64]) -> NDArray[np.int64]:
-        """Start of every PRI (ns since the epoch): the frames' starts (``start_ns`` an array, one per frame) or a
-        frame every frame period from ``start_ns``, then the loop period within a frame."""
+    def frame_starts_ns(self, start_ns: int) -> NDArray[np.int64]:
+        """Each frame's start (ns since the epoch) of a frame every frame period from ``start_ns``."""
+        frames = np.arange(self.num_frames, dtype=np.float64)
+        return int(start_ns) + np.round(frames * (self.params.frame_period_s * 1e9)).astype(np.int64)
+
+    def pri_times_ns(self, frame_starts_ns: NDArray[np.int64]) -> NDArray[np.int64]:
+        """Start of every PRI (ns since the epoch): its frame's start (one per frame, :meth:`frame_starts_ns` for
+        periodic frames), then the loop period within the frame."""
         p = self.params
-        if np.ndim(start_ns):
-            frame_t = np.asarray(start_ns, dtype=np.int64)[:self.num_frames]
-        else:
-            frames = np.arange(self.num_frames, dtype=np.float64)
-            frame_t = int(start_ns) + np.round(frames * (p.frame_period_s * 1e9)).astype(np.int64)
         loop_t = np.round(np.arange(p.num_loops) * (p.loop_period_s * 1e9)).astype(np.int64)
-        return (frame_t[:, None] + loop_t[None, :]).reshape(-1)
+        return (np.asarray(frame_starts_ns, dtype=np.int64)[:self.num_frames, None] + loop_t[None, :]).reshape(-1)
 
     def blocks(self, frames_per_block: int = 64
                ) -> Iterator[tuple[int, NDArray[np.int16], NDArray[np.bool_]]]:
@@ -283,11 +289,11 @@ class Dca1000Capture:
             n = len(values) // pri_values
             damaged = np.zeros(n, dtype=bool)
             a, b = 2 * first * pri_values, 2 * (first + n) * pri_values  # stream bytes of the block
-            for lo, hi in lost[(lost[:, 1] > a) & (lost[:, 0] < b)]:
-                damaged[max(int(lo) - a, 0) // (2 * pri_values):(min(int(hi), b) - a - 1) // (2 * pri_values) + 1] = 1
+            for lo, hi in lost[(lost[:, 1] > a) & (lost[:, 0] < b)]:  # stream bytes
+                _flag(damaged, int(lo) - a, int(hi) - a, 2 * pri_values)
             runs = zero_runs(values)
-            for lo, hi in runs:  # a run found on aligned groups of four may reach three values further
-                damaged[max(int(lo) - 3, 0) // pri_values:(min(int(hi) + 3, len(values)) - 1) // pri_values + 1] = 1
+            for lo, hi in runs:  # values; a run found on aligned groups of four may reach three values further
+                _flag(damaged, int(lo) - 3, int(hi) + 3, pri_values)
             lead, trail = edge_zeros(values)
             # zeros where no packet was are lost packets, counted already
             self.damage["zero-filled runs"] += sum(not within(lost, a + 2 * int(lo), a + 2 * int(hi))

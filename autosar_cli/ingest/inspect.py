@@ -157,7 +157,7 @@ def summarize_capture(path: Path) -> LogSummary:
     p = cap.params
     summary = LogSummary(str(path), f"TI DCA1000 capture ({p.lanes}-lane {p.adc_format}, {len(cap.files)} file"
                          f"{'s' if len(cap.files) > 1 else ''}, {cap.param_file.name}; {cap.layout})", cap.bytes_total)
-    t = cap.pri_times_ns(0)
+    t = cap.pri_times_ns(cap.frame_starts_ns(0))
     summary.streams.append(StreamSummary("radar frames (PRIs)", p.describe_layout(), cap.num_pris,
                                          int(t[0]) if len(t) else 0, int(t[-1]) if len(t) else 0))
     rec = recorded_from_capture(cap)

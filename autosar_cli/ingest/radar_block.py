@@ -150,7 +150,7 @@ def capture_frame_starts(cap: Dca1000Capture, start_ns: int | None, triggers: Se
         raise ValueError(f"no start time for the DCA1000 capture: give --radar-start, or record its first frame "
                          f"trigger on topic {topic} in a log")
     start = start_ns if start_ns is not None else int(stamps[0])
-    starts = start + np.round(np.arange(n, dtype=np.float64) * (p.frame_period_s * 1e9)).astype(np.int64)
+    starts = cap.frame_starts_ns(start)
     if start_ns is None and len(stamps) == n and n > 1:  # a trigger per frame: they must follow the period
         drift = np.abs(stamps - starts)
         if drift.max() > p.frame_period_s * 1e9 / 2:
