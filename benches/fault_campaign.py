@@ -158,6 +158,39 @@ def classify(r: subprocess.CompletedProcess[str], product: Path | None, referenc
     return ("kept-with-warning", "") if warned else ("silent-wrong", "product differs, no warning")
 
 
+def drive_difference(product: Path, reference: Path) -> str:
+    """What differs between two drive files: the radar samples changed (how many, in how many frames, the largest
+    change in ADC counts against the frames' RMS), else the other datasets that differ. ROS containers carry no
+    checksum, so a flipped byte inside a radar sample reaches the drive unseen; this says whether that is all."""
+    import h5py
+    import numpy as np
+
+    import autosar_cli.store.drive  # noqa: F401  (registers the compression filters)
+
+    other: list[str] = []
+    radar: list[str] = []
+    with h5py.File(product, "r") as new, h5py.File(reference, "r") as ref:
+        def visit(name: str, obj: object) -> None:
+            if not isinstance(obj, h5py.Dataset) or name.startswith(("provenance", "inputs")):
+                return
+            a, b = obj[()], new[name][()] if name in new else None
+            if b is None or a.shape != b.shape:
+                other.append(name)
+            elif name.endswith("/raw"):
+                changed = a != b
+                if changed.any():
+                    frames = changed.reshape(len(a), -1).any(axis=1)
+                    delta = np.abs(b.astype(np.int32) - a.astype(np.int32))[changed]
+                    rms = float(np.sqrt(np.mean(a[frames].astype(np.float64) ** 2)))
+                    radar.append(f"{name}: {int(changed.sum())} samples in {int(frames.sum())} frames changed by up "
+                                 f"to {int(delta.max())} counts (the frames' RMS {rms:.0f})")
+            elif not np.array_equal(a, b, equal_nan=a.dtype.kind in "fc"):
+                other.append(name)
+
+        ref.visititems(visit)
+    return "; ".join(radar + ([f"also {', '.join(other[:4])}"] if other else [])) or "no dataset differs"
+
+
 def partials(where: Path) -> list[str]:
     return sorted(str(p.relative_to(where)) for p in where.rglob("*") if ".partial" in p.name)
 
@@ -290,6 +323,8 @@ def container_trial(base: Base, cls: str, n: int, rng: random.Random, tdir: Path
             pass
     trial.outcome, trial.detail = classify(r, tdir / "out" / "drive.h5", base.digests[cls],
                                            warned=bool(report.get("warnings")))
+    if trial.outcome == "silent-wrong":
+        trial.detail += ": " + drive_difference(tdir / "out" / "drive.h5", base.dir / f"ref_{cls}.h5")
     chunks = {"mcap": base.mcap_chunks, "ros1": base.ros1_chunks}.get(cls)
     if chunks is not None:
         trial.chunks_expected = intact(chunks, damaged)

@@ -154,6 +154,30 @@ def climb(t: Array, speed: Array, pitch: Array) -> Array:
 #: Below this speed (m/s) a GNSS climb rate says too little of the pitch to take part in its bias.
 PITCH_BIAS_MIN_SPEED_MPS = 1.0
 
+#: Half-span (s) of :func:`road_slope`'s average: the GNSS climb's noise (~0.05 m/s) to ~0.2 % of slope at 8 m/s,
+#: short against a road's grade (wavelengths of 100 m and more: 12 s at 8 m/s).
+SLOPE_HALF_SPAN_S = 1.0
+
+
+def road_slope(climb_rate: Measurements, velocity: Measurements, t: Array,
+               half_span_s: float = SLOPE_HALF_SPAN_S) -> Array:
+    """The road's slope (N,) (rise over horizontal run) at times ``t`` (N,) (s, the measurements' clock): a GNSS
+    receiver's vertical velocity ``climb_rate`` (m/s) over its horizontal speed (``velocity``, (n, 2) ENU m/s),
+    each summed over the samples within ``half_span_s``; 0 where fewer than 3 samples there move faster than
+    :data:`PITCH_BIAS_MIN_SPEED_MPS`. It needs no attitude, so no IMU's mounting error enters it."""
+    t = np.asarray(t, dtype=np.float64)
+    speed = np.interp(climb_rate.t, velocity.t, np.hypot(velocity.z[:, 0], velocity.z[:, 1]))
+    moving = speed > PITCH_BIAS_MIN_SPEED_MPS
+    tc, up, run = climb_rate.t[moving], climb_rate.z[moving, 0], speed[moving]
+    if len(tc) < 3:
+        return np.zeros_like(t)
+    cum_up, cum_run = np.r_[0.0, np.cumsum(up)], np.r_[0.0, np.cumsum(run)]
+    lo, hi = np.searchsorted(tc, t - half_span_s), np.searchsorted(tc, t + half_span_s, side="right")
+    enough = hi - lo >= 3
+    out = np.zeros_like(t)
+    out[enough] = (cum_up[hi] - cum_up[lo])[enough] / (cum_run[hi] - cum_run[lo])[enough]
+    return out
+
 
 def pitch_bias(att: BodyAttitude, speed: Array, climb_rate: Measurements,
                antenna_from_axis: Array) -> tuple[float, float, int]:

@@ -119,6 +119,8 @@ class AutofocusOptions:
     #: steps measures a noise power to about 2.3/sqrt(n) (43 % at 30), and a point seen by a few pulses would
     #: otherwise weigh as much as its luck (the used points of test2 seed 1 hold 185-255)
     min_steps_own_noise: int = 30
+    #: each point's aperture stretched by the road's grade (:func:`grade_stretch`), which the scale then leaves out
+    grade_stretch: bool = True
 
 
 @dataclass
@@ -175,6 +177,8 @@ class ResidualMotion:
     #: the points' own scales about the common one: reduced chi-square and the number of points (the scale fit's)
     scale_agreement: tuple[float, int] = (1.0, 0)
     scale_prior: float = 0.0  #: the prior std the scale was fitted with (:func:`with_scale_prior`)
+    #: the used points' mean stretch of their apertures by the road's grade, which the scale leaves out
+    grade_stretch: float = 0.0
     #: a fit run without its posterior: the same result with the correction's std (None where it has it)
     with_posterior: Callable[[], ResidualMotion] | None = field(default=None, repr=False, compare=False)
 
@@ -198,7 +202,7 @@ class ResidualMotion:
     def to_dict(self) -> dict[str, object]:
         return {"applied": self.applied, "reason": self.reason, "track_scale": self.scale,
                 "track_scale_std": self.scale_std, "track_scale_prior_std": self.scale_prior,
-                "track_scale_note": self.scale_note,
+                "track_scale_note": self.scale_note, "grade_stretch": self.grade_stretch,
                 "track_scale_agreement": {"reduced_chi2": round(self.scale_agreement[0], 3),
                                           "points": self.scale_agreement[1]},
                 "points": int(len(self.points_enu)),
@@ -306,12 +310,13 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
                               f"no bright isolated point {opts.min_range_m:g}-{opts.max_range_m:g} m from the track")
     hist = gather_phase_histories(drive_path, trajectory, config, points0, focus, half_beam_deg=opts.half_beam_deg,
                                   window_bins=opts.window_bins, channels=opts.channels)
+    grade = grade_stretch(drive_path, trajectory, config, hist.frame_t_ns) if opts.grade_stretch else None
     # first the scale alone, the track otherwise as navigated: its signature is each aperture's quadratic phase
     # (the wide beam's defocus the old scale sweep measured), which a free across-track correction would absorb
     # (the uncorrected motion leaves larger phase residuals: a looser test of which points are points)
     held = replace(opts, prior_across_m=1e-6, prior_up_m=1e-6, max_phase_rms_rad=max(opts.max_phase_rms_rad, 0.5))
     near = _ground_distance(trajectory, config, points0) <= opts.scale_max_range_m
-    first = _fit(hist, trajectory, config, points0, held, used0=near, posterior=False)
+    first = _fit(hist, trajectory, config, points0, held, used0=near, posterior=False, grade_stretch=grade)
     scale, scale_std, note = first.scale, first.scale_std, ""
     if not first.applied:
         scale, note = 0.0, f"track scale not measured: {first.reason}"
@@ -330,7 +335,8 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
         # (test3 seed 1: +0.037 % alone, -0.002 % together, the track's error -0.017 %); the near points alone, for
         # the farther pull the scale (test1 seeds 0-9: -0.064 % mean against the track's error with them)
         result = _fit(hist, trajectory, config, points, replace(opts, max_phase_rms_rad=opts.scale_max_phase_rms_rad),
-                      used0=first.points_used, scale0=scale, posterior=False)  # the fit below may replace it
+                      used0=first.points_used, scale0=scale, posterior=False,
+                      grade_stretch=grade)  # the fit below may replace it
         scale, scale_std = (result.scale, result.scale_std) if result.applied else (0.0, scale_std)
         extra = used0 & ~result.points_used if result.applied else np.zeros(n_pts, dtype=bool)
         if np.any(extra):
@@ -343,14 +349,44 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
             extra &= _phase_rms(hist, result.trajectory, config, moved, extra, opts.presum) <= opts.screen_phase_rms_rad
             if np.any(extra):
                 every = _fit(hist, scale_track(trajectory, scale, centre), config, moved, motion,
-                             used0=result.points_used | extra, motion0=result.correction, point_noise=True)
+                             used0=result.points_used | extra, motion0=result.correction, point_noise=True,
+                             grade_stretch=grade)
                 result = every if every.applied else result
     else:  # the residual motion alone along the navigated track
-        result = _fit(hist, trajectory, config, points, motion, used0=used0, point_noise=True)
+        result = _fit(hist, trajectory, config, points, motion, used0=used0, point_noise=True, grade_stretch=grade)
     if result.with_posterior is not None:
         result = result.with_posterior()
     return replace(result, scale=scale, scale_std=scale_std, scale_note=note,
                    scale_agreement=first.scale_agreement if first.applied else (1.0, 0), scale_prior=opts.prior_scale)
+
+
+def grade_stretch(drive_path: str | Path, trajectory: Trajectory, config: Config, t_ns: NDArray[np.int64]
+                  ) -> Array | None:
+    """How much longer (F,) the radar's path is than ``trajectory``'s at times ``t_ns`` (F,): sqrt(1 + m^2) -
+    sqrt(1 + n^2) for the slope m of the radar's path from the drive's GNSS climb
+    (:func:`~autosar_cli.nav.navigate.radar_slope`) and n that of the track's own height (0 for a planar track).
+    The planar track's points lie on a tilted road as on a level one, but the radar passes them over the slope's
+    length: 0.08 % at a 4 % grade, which the scale would otherwise read as the track's. None without a climb."""
+    from autosar_cli.nav.attitude import SLOPE_HALF_SPAN_S
+    from autosar_cli.nav.inputs import NavInputError, load_inputs
+    from autosar_cli.nav.navigate import radar_slope
+    from autosar_cli.store.drive import Drive
+
+    try:
+        with Drive(drive_path) as drive:
+            inputs = load_inputs(drive, config)
+    except NavInputError:
+        return None
+    t_ns = np.asarray(t_ns, dtype=np.int64)
+    m = radar_slope(inputs, config, (t_ns - inputs.t0_ns) / 1e9)
+    if m is None:
+        return None
+    half = int(SLOPE_HALF_SPAN_S * 1e9)
+    ends = np.clip(np.stack([t_ns - half, t_ns + half]), trajectory.t_ns[0], trajectory.t_ns[-1])
+    run = np.linalg.norm(trajectory.pose(ends[1])[0] - trajectory.pose(ends[0])[0], axis=-1)
+    rise = trajectory.height_offset(ends[1]) - trajectory.height_offset(ends[0])
+    n = np.divide(rise, run, out=np.zeros_like(run), where=run > 0.5)
+    return np.sqrt(1.0 + m**2) - np.sqrt(1.0 + n**2)
 
 
 def with_scale_prior(opts: AutofocusOptions, trajectory: Trajectory) -> AutofocusOptions:
@@ -411,14 +447,16 @@ def _measured_noise(resid_norm: Array, steps_of: list[Array], min_steps: int | N
 
 def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: Array, opts: AutofocusOptions,
          used0: NDArray[np.bool_] | None = None, scale0: float = 0.0,
-         motion0: MotionCorrection | None = None, posterior: bool = True, point_noise: bool = False
-         ) -> ResidualMotion:
+         motion0: MotionCorrection | None = None, posterior: bool = True, point_noise: bool = False,
+         grade_stretch: Array | None = None) -> ResidualMotion:
     """The fit of :func:`estimate_residual_motion` on gathered histories (a refused one: the scale's std infinite).
     ``used0``: the points to start from (default: all); ``scale0``: the scale to start from (its prior stays about 0);
     ``motion0``: the residual motion to start from (none: the track as it is); ``posterior``: whether to compute
     the correction's std (else NaN until ``with_posterior()``: a fit that may give only the scale and the points,
     or be replaced); ``point_noise``: each point's steps weighted by its own measured noise (else, or with fewer than
-    ``opts.min_steps_own_noise`` steps, by all the used points' together); ``opts``' scale prior set
+    ``opts.min_steps_own_noise`` steps, by all the used points' together); ``grade_stretch`` (F,): how much
+    longer the radar's path along the road is than the planar track at each frame (:func:`grade_stretch`), by which
+    each point's aperture is stretched about its centre (else none); ``opts``' scale prior set
     (:func:`with_scale_prior`)."""
     assert opts.prior_scale is not None
     n_pts = len(points0)
@@ -466,8 +504,10 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     def antennas(x: Array, h: PhaseHistories, tx_0: Array, rx_0: Array) -> tuple[Array, Array]:
         at_nodes = x[:n_nodes, None] * node_across + x[n_nodes:2 * n_nodes, None] * up
         moved = at_nodes[f_node] * (1.0 - f_frac) + at_nodes[f_node + 1] * f_frac + x[-1] * scale_lever
-        d = moved[h.frame][:, None, :]
-        return tx_0 + d, rx_0 + d
+        d = moved[h.frame]
+        if stretch is not None:
+            d = d + stretch[h.point, None] * (scale_lever[h.frame] - lever_mean[h.point])
+        return tx_0 + d[:, None, :], rx_0 + d[:, None, :]
 
     def presummed(x: Array, points: Array, used: NDArray[np.bool_]) -> _Samples:
         h, tx_0, rx_0 = active(used)
@@ -479,6 +519,10 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     t_mean = np.bincount(hist.point, (hist.frame_t_ns[hist.frame] - t0) / 1e9, n_pts) / counts
     lever_mean = np.stack([np.bincount(hist.point, scale_lever[hist.frame, k], n_pts) for k in range(3)], -1)
     lever_mean /= counts[:, None]
+    # a road's grade lengthens the radar's path over each aperture, as a scale there does (sqrt(1 + m^2) - 1 for
+    # slope m): the points' own, about their apertures' centres, not the track's
+    stretch = (None if grade_stretch is None
+               else np.bincount(hist.point, grade_stretch[hist.frame], n_pts) / counts)
     r_pos = np.clip(t_mean / opts.node_s, 0.0, n_nodes - 1.000001)
     r_node = np.floor(r_pos).astype(np.int64)
     r_frac = r_pos - r_node
@@ -620,7 +664,8 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
         total = MotionCorrection(nodes_ns, base + measured, np.hypot(base_std, std_enu))
         return ResidualMotion(replace(scaled, correction=total), MotionCorrection(nodes_ns, measured, std_enu),
                               points, used, phase_rms, coherence_before, coherence_after, coverage, iterations, "",
-                              hist.frame_t_ns[seen_frames], scale, scale_std, scale_agreement=scale_agreement)
+                              hist.frame_t_ns[seen_frames], scale, scale_std, scale_agreement=scale_agreement,
+                              grade_stretch=float(np.mean(stretch[used])) if stretch is not None else 0.0)
 
     if posterior:
         return finished(_posterior_std(lu, n_nodes))
