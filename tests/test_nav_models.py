@@ -976,9 +976,9 @@ def test_radar_slope_from_the_gnss_climb_and_the_imu_is_the_full_vehicles() -> N
     its suspension), from the roof antenna's velocity at 10 Hz (4.5 cm/s noise up, 3 cm/s across) and the INS IMU
     (3 draws): the stretch sqrt(1 + m^2) - 1 of the radar's slope m (``radar_slope``), which the autofocus takes out
     of each aperture's scale, against the radar's own (the length of its 3-D path over 1 s less that of its
-    horizontal path, relative), which reaches 0.09 % at 3.8 m/s. Measured: 0.0030-0.0046 % RMS off, 0.008-0.013 %
-    at most (the climb's noise over +-1 s at test3's speed); without the body's tilt, from the antenna's climb
-    alone, 0.0079 % RMS off with no noise at all."""
+    horizontal path, relative), 0.05 % RMS, 0.09 % at most at 3.8 m/s. Measured: 0.0086-0.0118 % RMS off, most of
+    it the climb's noise over +-1 s at test3's speed (0.0046 % without it; from the antenna's climb alone, without
+    the body's tilt, 0.0079 %)."""
     from dataclasses import replace
 
     from autosar_cli.config import load_config
