@@ -1030,3 +1030,23 @@ def test_radar_slope_from_the_gnss_climb_and_the_imu_is_the_full_vehicles() -> N
     assert true_stretch.max() > 8e-4
     assert max(errors) < 1.5e-4
     assert max(errors) < 0.3 * float(np.sqrt(np.mean(true_stretch**2)))
+
+
+def test_road_slope_is_the_climb_over_the_run_and_leaves_an_outlier_out() -> None:
+    """A constant 3 % grade driven at 10 m/s, the GNSS climb at 10 Hz with 3 cm/s noise: the slope within 0.002
+    everywhere (the mean of 21 samples: 0.0007 std). One climb sample of 5 m/s, a receiver's glitch, leaves it so;
+    a plain mean over the window would have read 0.052 there."""
+    from autosar_cli.nav.attitude import road_slope
+    from autosar_cli.nav.inputs import Measurements
+
+    rng = np.random.default_rng(0)
+    tg = np.arange(0.0, 20.0, 0.1)
+    up = 0.3 + rng.normal(0.0, 0.03, tg.size)
+    up[100] = 5.0
+    horizontal = np.stack([np.full(tg.size, 10.0), np.zeros(tg.size)], axis=1)
+    t = np.linspace(1.0, 19.0, 500)
+    slope = road_slope(Measurements("gnss", tg, up[:, None], np.array([0.03])),
+                       Measurements("gnss", tg, horizontal, np.full(2, 0.03)), t)
+    assert np.abs(slope - 0.03).max() < 0.002
+    plain = np.array([np.mean(up[np.abs(tg - x) <= 1.0]) / 10.0 for x in t])
+    assert np.abs(plain - 0.03).max() > 0.02

@@ -161,22 +161,35 @@ SLOPE_HALF_SPAN_S = 1.0
 
 def road_slope(climb_rate: Measurements, velocity: Measurements, t: Array,
                half_span_s: float = SLOPE_HALF_SPAN_S) -> Array:
-    """The road's slope (N,) (rise over horizontal run) at times ``t`` (N,) (s, the measurements' clock): a GNSS
-    receiver's vertical velocity ``climb_rate`` (m/s) over its horizontal speed (``velocity``, (n, 2) ENU m/s),
-    each summed over the samples within ``half_span_s``; 0 where fewer than 3 samples there move faster than
-    :data:`PITCH_BIAS_MIN_SPEED_MPS`. It needs no attitude, so no IMU's mounting error enters it."""
+    """The road's slope (N,) (rise over horizontal run) at times ``t`` (N,) (s, the measurements' clock): the mean,
+    over the samples within ``half_span_s``, of a GNSS receiver's vertical velocity ``climb_rate`` (m/s) over its
+    horizontal speed (``velocity``, (n, 2) ENU m/s), less the samples more than 4 robust std (1.4826 x the median
+    absolute deviation) from their median; 0 where fewer than 3 samples there move faster than
+    :data:`PITCH_BIAS_MIN_SPEED_MPS`. It needs no attitude, so no IMU's mounting error enters it. Not a plain mean,
+    for a receiver's vertical velocity has outliers: one of 5 m/s among 21 samples at 10 m/s would read as a 2.4 %
+    grade. Not the median, which on white noise scatters 1.25 times as much."""
     t = np.asarray(t, dtype=np.float64)
     speed = np.interp(climb_rate.t, velocity.t, np.hypot(velocity.z[:, 0], velocity.z[:, 1]))
     moving = speed > PITCH_BIAS_MIN_SPEED_MPS
-    tc, up, run = climb_rate.t[moving], climb_rate.z[moving, 0], speed[moving]
+    tc, slope = climb_rate.t[moving], climb_rate.z[moving, 0] / speed[moving]
+    out = np.zeros_like(t)
     if len(tc) < 3:
-        return np.zeros_like(t)
-    cum_up, cum_run = np.r_[0.0, np.cumsum(up)], np.r_[0.0, np.cumsum(run)]
+        return out
     lo, hi = np.searchsorted(tc, t - half_span_s), np.searchsorted(tc, t + half_span_s, side="right")
     enough = hi - lo >= 3
-    out = np.zeros_like(t)
-    out[enough] = (cum_up[hi] - cum_up[lo])[enough] / (cum_run[hi] - cum_run[lo])[enough]
+    # the times share few windows (the samples' own, ~10 a second): one median per window
+    windows, which = np.unique(np.stack([lo[enough], hi[enough]], axis=1), axis=0, return_inverse=True)
+    means = np.array([_robust_mean(slope[a:b]) for a, b in windows])
+    out[enough] = means[which.ravel()]
     return out
+
+
+def _robust_mean(x: Array, k: float = 4.0) -> float:
+    """The mean of ``x`` less the values more than ``k`` robust std from its median (all of them where the median
+    absolute deviation is 0)."""
+    med = float(np.median(x))
+    spread = 1.4826 * float(np.median(np.abs(x - med)))
+    return float(np.mean(x[np.abs(x - med) <= k * spread])) if spread > 0 else float(np.mean(x))
 
 
 def pitch_bias(att: BodyAttitude, speed: Array, climb_rate: Measurements,
