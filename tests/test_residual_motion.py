@@ -100,6 +100,7 @@ def test_a_track_that_climbs_the_data_do_not_is_no_scale(ci_drive: tuple[Path, T
     print(f"scale {stretched.scale * 100:+.4f} +- {stretched.scale_std * 100:.4f} % (the grade's stretch "
           f"{stretched.grade_stretch * 100:+.4f} %), without it {flat.scale * 100:+.4f} %")
     assert stretched.grade_stretch < -1.5e-3
+    assert "the road's grade: the radar's path -0.17" in stretched.summary()
     assert abs(stretched.scale) < 2 * stretched.scale_std
     assert flat.scale < -1e-3 and flat.scale < -2.5 * flat.scale_std
 

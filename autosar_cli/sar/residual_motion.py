@@ -217,6 +217,9 @@ class ResidualMotion:
             return f"track not corrected: {self.reason}"
         c = self.correction_summary()
         scaled = self.scale_note or f"distances scaled by {self.scale * 100:+.4f} ± {self.scale_std * 100:.4f} %"
+        if abs(self.grade_stretch) >= 1e-4:  # a grade of 1.4 % and more: say what the scale left out
+            scaled += (f" (the road's grade: the radar's path {self.grade_stretch * 100:+.3f} % on the track's, "
+                       "left out)")
         return (f"{scaled}, residual motion corrected by {c['rms_mm']:.2f} mm RMS ({c['max_mm']:.2f} max, "
                 f"±{c['std_median_mm']:.2f} mm), measured on {int(self.points_used.sum())} points seen over "
                 f"{100 * self.coverage:.0f} % of the drive; their coherence {self.coherence_before:.3f} -> "
