@@ -177,7 +177,7 @@ def road_slope(climb_rate: Measurements, velocity: Measurements, t: Array,
         return out
     lo, hi = np.searchsorted(tc, t - half_span_s), np.searchsorted(tc, t + half_span_s, side="right")
     enough = hi - lo >= 3
-    # the times share few windows (the samples' own, ~10 a second): one median per window
+    # the times share few windows (the samples' own, ~10 a second): one mean per window
     windows, which = np.unique(np.stack([lo[enough], hi[enough]], axis=1), axis=0, return_inverse=True)
     means = np.array([_robust_mean(slope[a:b]) for a, b in windows])
     out[enough] = means[which.ravel()]
