@@ -88,7 +88,7 @@ def config_copy(components: str | None, understeer: float | None, work: Path, re
         if entries:
             head, header, tail = text.partition(f"\n[{section}]\n")
             body, nxt, rest = tail.partition("\n[")
-            for item in entries.split(","):
+            for item in re.split(r",(?![^\[]*\])", entries):  # a list value keeps its commas
                 key, _, value = item.partition("=")
                 body, n = re.subn(rf"^{re.escape(key.strip())} = .*$", f"{key.strip()} = {value.strip()}", body,
                                   count=1, flags=re.MULTILINE)
