@@ -487,8 +487,20 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     scale_lever = np.zeros((len(hist.frame_t_ns), 3))
     scale_lever[:, :2] = trajectory.pose(hist.frame_t_ns)[0] - centre
 
+    # each point's mean time and scale lever over its pulses, for its range row
+    counts = np.maximum(np.bincount(hist.point, minlength=n_pts), 1)
+    t_mean = np.bincount(hist.point, (hist.frame_t_ns[hist.frame] - t0) / 1e9, n_pts) / counts
+    lever_mean = np.stack([np.bincount(hist.point, scale_lever[hist.frame, k], n_pts) for k in range(3)], -1)
+    lever_mean /= counts[:, None]
+    # a road's grade lengthens the radar's path over each aperture, as a scale there does (sqrt(1 + m^2) - 1 for
+    # slope m): the points' own, about their apertures' centres, not the track's
+    stretch = (None if grade_stretch is None
+               else np.bincount(hist.point, grade_stretch[hist.frame], n_pts) / counts)
     # the antennas move rigidly with the correction and the scale (a similarity about ``centre``): computed once
     tx0, rx0 = pair_antennas(hist, trajectory, config)
+    if stretch is not None:  # it does not change with the fit's unknowns: into the antennas it starts from
+        stretched = stretch[hist.point, None] * (scale_lever[hist.frame] - lever_mean[hist.point])
+        tx0, rx0 = tx0 + stretched[:, None, :], rx0 + stretched[:, None, :]
     pos = np.clip((hist.frame_t_ns - t0) / 1e9 / opts.node_s, 0.0, n_nodes - 1.000001)
     f_node = np.floor(pos).astype(np.int64)
     f_frac = (pos - f_node)[:, None]
@@ -508,8 +520,6 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
         at_nodes = x[:n_nodes, None] * node_across + x[n_nodes:2 * n_nodes, None] * up
         moved = at_nodes[f_node] * (1.0 - f_frac) + at_nodes[f_node + 1] * f_frac + x[-1] * scale_lever
         d = moved[h.frame]
-        if stretch is not None:
-            d = d + stretch[h.point, None] * (scale_lever[h.frame] - lever_mean[h.point])
         return tx_0 + d[:, None, :], rx_0 + d[:, None, :]
 
     def presummed(x: Array, points: Array, used: NDArray[np.bool_]) -> _Samples:
@@ -517,15 +527,6 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
         z, los = focus_history(h, *antennas(x, h, tx_0, rx_0), points)
         return _presum(h, z, los, opts.presum, t0, scale_lever)
 
-    # each point's mean time and scale lever over its pulses, for its range row
-    counts = np.maximum(np.bincount(hist.point, minlength=n_pts), 1)
-    t_mean = np.bincount(hist.point, (hist.frame_t_ns[hist.frame] - t0) / 1e9, n_pts) / counts
-    lever_mean = np.stack([np.bincount(hist.point, scale_lever[hist.frame, k], n_pts) for k in range(3)], -1)
-    lever_mean /= counts[:, None]
-    # a road's grade lengthens the radar's path over each aperture, as a scale there does (sqrt(1 + m^2) - 1 for
-    # slope m): the points' own, about their apertures' centres, not the track's
-    stretch = (None if grade_stretch is None
-               else np.bincount(hist.point, grade_stretch[hist.frame], n_pts) / counts)
     r_pos = np.clip(t_mean / opts.node_s, 0.0, n_nodes - 1.000001)
     r_node = np.floor(r_pos).astype(np.int64)
     r_frac = r_pos - r_node
