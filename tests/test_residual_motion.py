@@ -3,6 +3,7 @@ recovered from the radar data alone; distributed clutter is refused; the correct
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -287,6 +288,62 @@ def test_focus_history_is_the_reference_backprojection_pulse_by_pulse() -> None:
                                              for n in range(n_pulse)]).astype(np.complex64))
     offset, _, _ = range_offsets(echoes, tx, rx, point, 1)
     assert offset[0] == pytest.approx(2.1 * bin_m, abs=0.15 * bin_m)
+
+
+def test_gathered_histories_are_each_pulses_own_range_profile(ci_drive: tuple[Path, Trajectory]) -> None:
+    """gather_phase_histories against straightforward per-pulse code (float64 geometry, one pulse at a time): which
+    pulses see each point (its side, the beam, the range), and each pair's window equals the bins of that pulse's
+    own range profile around the point's predicted path."""
+    from autosar_cli.nav.trajectory import radar_phase_centres
+    from autosar_cli.sar.focus import RadarParameters, channel_pairs
+    from autosar_cli.sar.phase_history import gather_phase_histories
+    from autosar_cli.sar.range_compression import range_compress
+    from autosar_cli.store.drive import Drive
+
+    drive, traj = ci_drive
+    focus = FocusOptions.from_config(CFG)
+    at = np.linspace(traj.t_ns[0], traj.t_ns[-1], 5).astype(np.int64)[1:4]  # three places along the drive
+    centre, across, _ = frame_geometry(traj, at, CFG)
+    points = centre + 4.0 * across + [0.0, 0.0, -0.3]  # 4 m out
+    points[2] += 60.0 * across[2]  # beyond the radar's range: never seen
+    half_beam, w = 20.0, 16
+    hist = gather_phase_histories(drive, traj, CFG, points, focus, half_beam_deg=half_beam, window_bins=w,
+                                  channels=2)
+    with Drive(drive) as d:
+        radar = d.radar()
+        rp = RadarParameters.of(radar, CFG, focus.upsample)
+        t_all = radar.t_ns
+        frame_index = {int(t): k for k, t in enumerate(t_all)}
+        pairs = channel_pairs(rp.n_tx, rp.n_rx, 2)
+        assert hist.pairs == pairs
+        # the pulses that see each point, one at a time
+        expected = set()
+        for f, t in enumerate(hist.frame_t_ns):
+            c, a, along = (v[0] for v in frame_geometry(traj, np.array([t]), CFG))
+            speed = abs(float(np.interp(t, traj.t_ns, traj.speed)))
+            for j, p in enumerate(points):
+                v = p - c
+                squint = math.degrees(math.asin(float(v @ along) / math.hypot(v[0], v[1])))
+                if (speed >= focus.min_speed_mps and v @ a > 0 and abs(squint) <= half_beam
+                        and np.linalg.norm(v) <= CFG.radar.max_range_m):
+                    expected.add((j, f))
+        got = set(zip(hist.point.tolist(), hist.frame.tolist(), strict=True))
+        assert got == expected
+        assert len(got) > 1000 and not any(j == 2 for j, _ in got)
+        # the windows: 40 pairs drawn at random, each against its own pulse's profile
+        for n in np.random.default_rng(5).choice(len(hist.point), 40, replace=False):
+            t = int(hist.frame_t_ns[hist.frame[n]])
+            raw = radar.frames(frame_index[t], frame_index[t] + 1)[0]
+            pc = radar_phase_centres(traj, np.array([t]), rp.tx_start_offsets_s, CFG)
+            for c, (tt, rr) in enumerate(pairs):
+                profile = range_compress(raw[tt, rr], sample_rate_hz=rp.sample_rate_hz,
+                                         slope_hz_per_s=rp.slope_hz_per_s, window=focus.window,
+                                         upsample=focus.upsample)
+                p = points[hist.point[n]]
+                path = np.linalg.norm(pc.tx[0, tt] - p) + np.linalg.norm(pc.rx[0, tt, rr] - p)
+                b0 = int(np.floor(path / rp.bin_m)) - (w // 2 - 1)
+                assert hist.bin0[n, c] == b0
+                np.testing.assert_array_equal(hist.samples[n, c], profile[b0:b0 + w])
 
 
 def test_points_that_disagree_on_the_scale_are_told_apart() -> None:

@@ -88,13 +88,7 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         t = t_all[frames]
         speed = np.interp((t - traj.t_ns[0]).astype(np.float64), (traj.t_ns - traj.t_ns[0]).astype(np.float64),
                           np.abs(traj.speed))
-        centre, across, along = frame_geometry(traj, t, config)
-        d = points[None, :, :] - centre[:, None, :]  # (F, P, 3)
-        horiz = np.maximum(np.hypot(d[..., 0], d[..., 1]), 1e-9)
-        sin_squint = np.einsum("fpk,fk->fp", d, along) / horiz
-        seen = ((speed >= focus.min_speed_mps)[:, None] & (np.einsum("fpk,fk->fp", d, across) > 0.0)
-                & (np.abs(sin_squint) <= math.sin(math.radians(half_beam_deg)))
-                & (np.linalg.norm(d, axis=-1) <= config.radar.max_range_m))
+        seen = _seen(traj, t, config, points, speed >= focus.min_speed_mps, half_beam_deg)
         used = np.flatnonzero(seen.any(axis=1))
         out_point, out_frame, out_bin0, out_samples = [], [], [], []
         tx_idx = np.array([p[0] for p in pairs])
@@ -113,8 +107,10 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
             path = np.linalg.norm(tx - p, axis=-1) + np.linalg.norm(rx - p, axis=-1)
             b0 = np.floor(path / bin_m).astype(np.int64) - (w // 2 - 1)
             b0 = np.clip(b0, 0, n_bins - w)
-            idx = b0[..., None] + np.arange(w)
-            out_samples.append(np.take_along_axis(profiles[kk], idx.reshape(len(kk), len(pairs), w), axis=-1))
+            # the windows straight from the profiles' flat buffer: a copy of each pair's whole profile (its
+            # frame's, repeated for every point it sees) would move the profiles ~P times over
+            row = (kk[:, None] * len(pairs) + np.arange(len(pairs))) * profiles.shape[-1] + b0  # (n, C)
+            out_samples.append(profiles.reshape(-1)[row[..., None] + np.arange(w)])
             out_point.append(jj)
             out_frame.append(sel[kk])
             out_bin0.append(b0)
@@ -123,8 +119,26 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         np.concatenate(out_point) if not empty else np.zeros(0, np.int64),
         np.concatenate(out_frame) if not empty else np.zeros(0, np.int64), t,
         np.concatenate(out_bin0) if not empty else np.zeros((0, len(pairs)), np.int64),
-        np.concatenate(out_samples).astype(np.complex64) if not empty else np.zeros((0, len(pairs), w), np.complex64),
+        np.concatenate(out_samples).astype(np.complex64, copy=False) if not empty
+        else np.zeros((0, len(pairs), w), np.complex64),
         pairs, offsets, bin_m, rp.cycles_per_m)
+
+
+def _seen(traj: Trajectory, t_ns: NDArray[np.int64], config: Config, points: Array, moving: NDArray[np.bool_],
+          half_beam_deg: float, block_frames: int = 2048) -> NDArray[np.bool_]:
+    """(F, P) whether the radar at each frame ``t_ns`` sees each point (ENU m): on its side, within
+    ``half_beam_deg`` of broadside, within its range, the car ``moving`` (F,); in blocks of frames, so the
+    (frames, points, 3) geometry stays small."""
+    seen = np.zeros((len(t_ns), len(points)), dtype=bool)
+    sin_half_beam = math.sin(math.radians(half_beam_deg))
+    for b in range(0, len(t_ns), block_frames):
+        centre, across, along = frame_geometry(traj, t_ns[b:b + block_frames], config)
+        d = points[None, :, :] - centre[:, None, :]  # (B, P, 3)
+        horiz = np.maximum(np.hypot(d[..., 0], d[..., 1]), 1e-9)
+        seen[b:b + block_frames] = (moving[b:b + block_frames, None] & (np.einsum("fpk,fk->fp", d, across) > 0.0)
+                                    & (np.abs(np.einsum("fpk,fk->fp", d, along)) <= sin_half_beam * horiz)
+                                    & (np.einsum("fpk,fpk->fp", d, d) <= config.radar.max_range_m ** 2))
+    return seen
 
 
 def _interpolate(hist: PhaseHistories, fi: Array) -> tuple[NDArray[np.complex128], NDArray[np.bool_]]:
