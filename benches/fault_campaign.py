@@ -47,6 +47,7 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 RESULTS = Path(__file__).resolve().parent / "results"
 REPO = Path(__file__).resolve().parents[1]
@@ -116,20 +117,32 @@ def tree_hash(path: Path) -> str:
     return h.hexdigest()
 
 
-def product_digest(path: Path) -> str:
-    """sha256 over every dataset of an HDF5 product (names and values; attributes and provenance left out)."""
+def product_datasets(f: Any) -> list[tuple[str, Any]]:
+    """An open HDF5 product's datasets (name, dataset), in visiting order, provenance and inputs left out: what
+    two products of the same input must share."""
     import h5py
 
     import autosar_cli.store.drive  # noqa: F401  (registers the compression filters)
 
+    found: list[tuple[str, Any]] = []
+
+    def visit(name: str, obj: object) -> None:
+        if isinstance(obj, h5py.Dataset) and not name.startswith(("provenance", "inputs")):
+            found.append((name, obj))
+
+    f.visititems(visit)
+    return found
+
+
+def product_digest(path: Path) -> str:
+    """sha256 over every dataset of an HDF5 product (names and values; attributes and provenance left out)."""
+    import h5py
+
     h = hashlib.sha256()
     with h5py.File(path, "r") as f:
-        def visit(name: str, obj: object) -> None:
-            if isinstance(obj, h5py.Dataset) and not name.startswith(("provenance", "inputs")):
-                h.update(name.encode())
-                h.update(obj[()].tobytes() if obj.shape != () else repr(obj[()]).encode())
-
-        f.visititems(visit)
+        for name, obj in product_datasets(f):
+            h.update(name.encode())
+            h.update(obj[()].tobytes() if obj.shape != () else repr(obj[()]).encode())
     return h.hexdigest()
 
 
@@ -165,14 +178,10 @@ def drive_difference(product: Path, reference: Path) -> str:
     import h5py
     import numpy as np
 
-    import autosar_cli.store.drive  # noqa: F401  (registers the compression filters)
-
     other: list[str] = []
     radar: list[str] = []
     with h5py.File(product, "r") as new, h5py.File(reference, "r") as ref:
-        def visit(name: str, obj: object) -> None:
-            if not isinstance(obj, h5py.Dataset) or name.startswith(("provenance", "inputs")):
-                return
+        for name, obj in product_datasets(ref):
             a, b = obj[()], new[name][()] if name in new else None
             if b is None or a.shape != b.shape:
                 other.append(name)
@@ -186,8 +195,6 @@ def drive_difference(product: Path, reference: Path) -> str:
                                  f"to {int(delta.max())} counts (the frames' RMS {rms:.0f})")
             elif not np.array_equal(a, b, equal_nan=a.dtype.kind in "fc"):
                 other.append(name)
-
-        ref.visititems(visit)
     return "; ".join(radar + ([f"also {', '.join(other[:4])}"] if other else [])) or "no dataset differs"
 
 
