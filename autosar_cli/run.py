@@ -102,7 +102,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
 
     t = time.perf_counter()
     rep = _ingest_beside_imports([Path(p) for p in logs], out / DRIVE, config, stage_progress("ingest"), command,
-                                 fork=fork_ingest, radar_options=radar_options)
+                                 fork=fork_ingest, radar_options=radar_options, autofocus=autofocus)
     manifest["stages"]["ingest"] = {"wall_s": time.perf_counter() - t, "messages": rep.get("messages"),
                                     "bytes_read": rep.get("bytes_read"), "warnings": rep.get("warnings", [])}
     manifest["outputs"]["drive"] = DRIVE
@@ -174,10 +174,10 @@ def run_warnings(manifest: dict[str, Any]) -> list[str]:
     return warnings
 
 
-def _prepare_later_stages() -> None:
+def _prepare_later_stages(autofocus: bool = False) -> None:
     """Import navigation and focus's modules (numba, rasterio, h5py, scipy.special: ~0.4 s of one CPU), load
     their kernels from numba's cache (~0.3 s that their first calls would otherwise take) and the quicklook's
-    imports."""
+    imports; with ``autofocus``, the autofocus's too."""
     import autosar_cli.nav.navigate  # noqa: F401
     import autosar_cli.sar.focus  # noqa: F401
     import autosar_cli.store.trajectory  # noqa: F401
@@ -187,6 +187,11 @@ def _prepare_later_stages() -> None:
     from autosar_cli.store.image import preload_quicklook
 
     load_cached_kernels(sarmin_kernel, backprojection, range_fft, range_compression, stripmap)
+    if autofocus:
+        import autosar_cli.sar.residual_motion  # noqa: F401
+        from autosar_cli.sar import history_kernel
+
+        load_cached_kernels(history_kernel)
     preload_quicklook()  # matplotlib's imports; a first draw here measured no gain (its CPU slows the ingest)
 
 
@@ -202,14 +207,16 @@ def _fork_context() -> Any:
 
 
 def _ingest_beside_imports(logs: list[Path], drive: Path, config: Config, progress: Callable[[int, int], None],
-                           command: str, *, fork: bool, radar_options: Any = None) -> dict[str, Any]:
+                           command: str, *, fork: bool, radar_options: Any = None, autofocus: bool = False
+                           ) -> dict[str, Any]:
     """Ingest ``logs`` into ``drive``; returns the ingest report as a dict.
 
     With ``fork``, the ingest runs in a forked child while this process imports the later stages: ingest is
     Python work holding its process's GIL (~1.4 of the 2 CPUs with its writer thread), so those imports could
     not run beside it in a thread (tried: they only moved into ingest's time) but can in a second process.
     Meanwhile this process also loads the later stages' kernels from numba's cache, which their first calls
-    would otherwise pay. Progress and the report (or the error) come back through a pipe.
+    would otherwise pay (``autofocus``: the autofocus's among them). Progress and the report (or the error) come
+    back through a pipe.
     """
     ctx = _fork_context() if fork else None
     if ctx is None:
@@ -226,7 +233,7 @@ def _ingest_beside_imports(logs: list[Path], drive: Path, config: Config, progre
         child.start()
         child_pid.append(child.pid)
         send.close()
-        _prepare_later_stages()
+        _prepare_later_stages(autofocus)
         while True:
             try:
                 kind, *payload = receive.recv()

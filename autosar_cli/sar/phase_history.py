@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +20,7 @@ from numpy.typing import NDArray
 from autosar_cli.config import Config
 from autosar_cli.nav.trajectory import phase_centre_lever_arm, radar_phase_centres, radar_side
 from autosar_cli.sar.focus import FocusOptions, RadarParameters, channel_pairs
+from autosar_cli.sar.history_kernel import focus_windows
 from autosar_cli.sar.range_compression import range_compress
 from autosar_cli.store.drive import Drive
 from autosar_cli.types import Trajectory
@@ -45,16 +45,6 @@ class PhaseHistories:
     tx_offsets_s: Array  #: (T,) chirp start of each Tx in the PRI
     bin_m: float  #: bistatic path per bin (m)
     cycles_per_m: float  #: phase turns per metre of bistatic path
-
-    @cached_property
-    def flat_samples(self) -> NDArray[np.complex64]:
-        return self.samples.reshape(-1)
-
-    @cached_property
-    def window_starts(self) -> NDArray[np.int64]:
-        """(N, C) index of each window's first bin in :attr:`flat_samples`."""
-        n, c, w = self.samples.shape
-        return np.arange(n * c, dtype=np.int64).reshape(n, c) * w
 
 
 def frame_geometry(traj: Trajectory, t_ns: NDArray[np.int64], config: Config) -> tuple[Array, Array, Array]:
@@ -141,15 +131,11 @@ def _seen(traj: Trajectory, t_ns: NDArray[np.int64], config: Config, points: Arr
     return seen
 
 
-def _interpolate(hist: PhaseHistories, fi: Array) -> tuple[NDArray[np.complex128], NDArray[np.bool_]]:
-    """Samples (N, C) at fractional bins ``fi`` (N, C) of each pair's window, linearly interpolated; 0 (and
-    False in the mask) outside it."""
-    w = hist.samples.shape[-1]
-    i = np.floor(fi).astype(np.int64)
-    ok = (i >= 0) & (i < w - 1)
-    at = hist.window_starts + np.clip(i, 0, w - 2)
-    s0, s1 = hist.flat_samples[at], hist.flat_samples[at + 1]
-    return (s0 + (fi - i) * (s1 - s0)) * ok, ok
+def _line_of_sight(tx: Array, rx: Array, points: Array) -> Array:
+    """Unit vectors (N, 3) from each pair's mean phase centre (``tx``, ``rx`` (N, C, 3) ENU m) to its point
+    (N, 3)."""
+    los = points - 0.5 * (tx.mean(axis=1) + rx.mean(axis=1))
+    return los / np.linalg.norm(los, axis=-1, keepdims=True)
 
 
 def pair_antennas(hist: PhaseHistories, traj: Trajectory, config: Config) -> tuple[Array, Array]:
@@ -166,14 +152,12 @@ def focus_history(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array
     the kernel does) from antennas ``tx``, ``rx`` (N, C, 3) (:func:`pair_antennas`, ENU m) onto ``points_enu``
     (P, 3), and its unit line of sight (N, 3) from the mean phase centre to the point. A pair whose path left its
     bin window in any channel gives NaN."""
-    p = np.asarray(points_enu, dtype=np.float64)[hist.point][:, None, :]
-    path = np.linalg.norm(tx - p, axis=-1) + np.linalg.norm(rx - p, axis=-1)  # (N, C)
-    s, ok = _interpolate(hist, path / hist.bin_m - hist.bin0)
-    turns = path * hist.cycles_per_m
-    z = np.sum(s * np.exp(-2j * np.pi * (turns - np.floor(turns))), axis=1)
-    z[~ok.all(axis=1)] = np.nan
-    los = p[:, 0] - 0.5 * (tx.mean(axis=1) + rx.mean(axis=1))
-    return z, los / np.linalg.norm(los, axis=-1, keepdims=True)
+    points = np.asarray(points_enu, dtype=np.float64)
+    z, inside = focus_windows(hist.samples, hist.bin0, tx, rx, points, hist.point, hist.bin_m, hist.cycles_per_m,
+                              np.zeros(1))
+    z = z[:, 0]
+    z[~inside[:, 0]] = np.nan
+    return z, _line_of_sight(tx, rx, points[hist.point])
 
 
 def range_offsets(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array, n_points: int,
@@ -183,17 +167,12 @@ def range_offsets(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array,
     coherently with the predicted phase (parabola through the three samples around it). Also each point's
     weight (its summed power) and mean line of sight (P, 3). Phases alone do not fix a point's range: a range error
     bends its phase history as a wrong speed does, so the envelope pins it."""
-    p = np.asarray(points_enu, dtype=np.float64)[hist.point][:, None, :]
-    path = np.linalg.norm(tx - p, axis=-1) + np.linalg.norm(rx - p, axis=-1)
-    fi = path / hist.bin_m - hist.bin0
-    turns = path * hist.cycles_per_m
-    rot = np.exp(-2j * np.pi * (turns - np.floor(turns)))
+    points = np.asarray(points_enu, dtype=np.float64)
     ks = np.arange(-half_bins, half_bins + 1e-9, step_bins)
+    z, _ = focus_windows(hist.samples, hist.bin0, tx, rx, points, hist.point, hist.bin_m, hist.cycles_per_m, ks)
     power = np.zeros((n_points, len(ks)))
-    for m, k in enumerate(ks):
-        s, _ = _interpolate(hist, fi + k)
-        z = np.sum(s * rot, axis=1)
-        zs = np.bincount(hist.point, z.real, n_points) + 1j * np.bincount(hist.point, z.imag, n_points)
+    for m in range(len(ks)):
+        zs = np.bincount(hist.point, z[:, m].real, n_points) + 1j * np.bincount(hist.point, z[:, m].imag, n_points)
         power[:, m] = np.abs(zs) ** 2
     k = np.clip(np.argmax(power, axis=1), 1, len(ks) - 2)
     rows = np.arange(n_points)
@@ -201,8 +180,7 @@ def range_offsets(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array,
     denom = y0 - 2 * y1 + y2
     frac = np.where(denom < 0, 0.5 * (y0 - y2) / np.where(denom < 0, denom, -1.0), 0.0)
     offset = (ks[k] + np.clip(frac, -1.0, 1.0) * step_bins) * hist.bin_m
-    los = p[:, 0] - 0.5 * (tx.mean(axis=1) + rx.mean(axis=1))
-    los /= np.linalg.norm(los, axis=-1, keepdims=True)
+    los = _line_of_sight(tx, rx, points[hist.point])
     mean_los = np.stack([np.bincount(hist.point, los[:, c], n_points) for c in range(3)], axis=-1)
     mean_los /= np.maximum(np.linalg.norm(mean_los, axis=-1, keepdims=True), 1e-12)
     return offset, power.max(axis=1), mean_los
