@@ -23,18 +23,13 @@ def _focus_windows(samples, bin0, tx, rx, points, point_of, bin_m, cycles_per_m,
     n_pairs, n_ch, width = samples.shape
     for n in range(n_pairs):
         j = point_of[n]
-        for m in range(offsets_bins.shape[0]):
-            inside[n, m] = True
         for c in range(n_ch):
-            path = 0.0
-            d = 0.0
+            d_tx = 0.0
+            d_rx = 0.0
             for k in range(3):
-                d += (tx[n, c, k] - points[j, k]) ** 2
-            path += math.sqrt(d)
-            d = 0.0
-            for k in range(3):
-                d += (rx[n, c, k] - points[j, k]) ** 2
-            path += math.sqrt(d)
+                d_tx += (tx[n, c, k] - points[j, k]) ** 2
+                d_rx += (rx[n, c, k] - points[j, k]) ** 2
+            path = math.sqrt(d_tx) + math.sqrt(d_rx)
             turns = path * cycles_per_m
             phase = -2.0 * math.pi * (turns - math.floor(turns))
             rot_re, rot_im = math.cos(phase), math.sin(phase)
@@ -67,7 +62,7 @@ def focus_windows(samples: NDArray[np.complex64], bin0: NDArray[np.int64], tx: N
     point ``point_of[n]``; ``cycles_per_m`` carrier turns per metre of bistatic path."""
     n, k = len(samples), len(offsets_bins)
     z_re, z_im = np.zeros((n, k)), np.zeros((n, k))
-    inside = np.zeros((n, k), dtype=np.bool_)
+    inside = np.ones((n, k), dtype=np.bool_)
     _focus_windows(np.ascontiguousarray(samples), np.ascontiguousarray(bin0, dtype=np.int64),
                    np.ascontiguousarray(tx, dtype=np.float64), np.ascontiguousarray(rx, dtype=np.float64),
                    np.ascontiguousarray(points_enu, dtype=np.float64), np.ascontiguousarray(point_of, dtype=np.int64),
