@@ -240,6 +240,13 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         return round(statistics.fmean(v * v for v in values) ** 0.5, 4)
 
     out["sarmin_track_scale_rms_pct"] = rms([r["sarmin_track_scale_pct"] for r in rows])
+    # the autofocus's stated scale std against its error, where it applied one (a scale not applied is exactly 0):
+    # RMS 1 when the std says what the scale is worth
+    applied = [r for r in rows if r.get("af_track_scale_pct") and r.get("af_track_scale_std_pct")]
+    if applied:
+        out["af_track_scale_applied"] = len(applied)
+        out["af_track_scale_z_rms"] = rms([(r["af_track_scale_pct"] - r["sarmin_track_scale_pct"])
+                                           / r["af_track_scale_std_pct"] for r in applied])
     with_gnss = [r for r in rows if "gnss_velocity_scale_pct" in r]  # (not on --car's drives)
     if with_gnss:
         out["gnss_velocity_scale_rms_pct"] = rms([r["gnss_velocity_scale_pct"] for r in with_gnss])
