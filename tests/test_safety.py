@@ -25,6 +25,14 @@ def _console_script() -> str | None:
     return str(beside) if beside.exists() else shutil.which("autosar")
 
 
+def _as_from_a_terminal() -> None:
+    """A child's SIGINT as a terminal's Ctrl-C finds it: a runner started in the background (``cmd &`` in a
+    script) hands its children SIGINT ignored, and a program started so rightly keeps it ignored."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _one_line_error(r, *fragments: str) -> None:
     assert r.exit_code == 1, r.output
     lines = [ln for ln in r.output.splitlines() if ln.strip()]
@@ -237,7 +245,7 @@ def test_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path: Path, delay_s: 
     start_s = _interpreter_start_s()
     # test1 (a 13 s drive) is still being simulated at 1.5 s where the default scenario may be done
     proc = subprocess.Popen([script, "simulate", "--scenario", "test1", "-o", str(tmp_path / "s.mcap")],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_as_from_a_terminal)
     time.sleep(start_s + delay_s)
     proc.send_signal(signal.SIGINT)
     _, stderr = proc.communicate(timeout=60)
@@ -451,7 +459,7 @@ def test_ctrl_c_during_runs_ingest_stops_its_child_without_leaving_a_partial(tmp
         pytest.skip("the autosar console script is not installed")
     out = tmp_path / "run"
     proc = subprocess.Popen([script, "run", str(ci_mcap.log_path), "-o", str(out)], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True, preexec_fn=_as_from_a_terminal)
     deadline = time.monotonic() + 60
     while not list(out.glob("*.partial*")) and time.monotonic() < deadline:  # the forked ingest is writing
         time.sleep(0.01)
