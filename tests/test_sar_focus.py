@@ -81,11 +81,11 @@ def check_reflectors(d: Drive, tag: str) -> list[dict[str, float]]:
     img0 = read_image(Path(probe.outputs["h5"]))
     targets = read_targets(d.truth, img0.origin)
     rows = []
-    for k, i in enumerate(targets.corner_reflectors):
-        x, y = targets.position_enu[i, :2]
-        o = replace(opts, grid=f"{x - 0.5},{y - 0.5},{x + 0.5},{y + 0.5}")
-        rep = focus(d.drive, d.trajectory, d.dir / f"{tag}_cr{k}", d.config, o, overwrite=True)
-        img = read_image(Path(rep.outputs["h5"]))
+    # every reflector's patch from one pass over the radar data (each grid's pixels as focus would make them alone)
+    patches = focus_images(d.drive, d.trajectory, d.config, opts, grids=[
+        box_grid(x - 0.5, y - 0.5, x + 0.5, y + 0.5, pixel_m=opts.pixel_m, height_m=opts.height_m)
+        for x, y in targets.position_enu[targets.corner_reflectors, :2]]).images
+    for i, img in zip(targets.corner_reflectors, patches, strict=True):
         # ground range runs along the line of sight from the track; the auto grid's across axis gives it
         m = analyse_point_target(img, targets.position_enu[i], name=targets.names[i],
                                  range_dir=img0.grid.across, patch_m=0.9)
