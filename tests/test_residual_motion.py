@@ -273,7 +273,9 @@ def test_focus_history_is_the_reference_backprojection_pulse_by_pulse() -> None:
     ref = np.array([tdbp(profiles, antennas, np.array([[0, 1], [2, 3]]), point, np.array([[n, n + 1]]),
                          range0_m=0.0, bin_m=bin_m, cycles_per_m=cycles_per_m)[0] for n in range(n_pulse)])
     np.testing.assert_allclose(z, ref, rtol=2e-5, atol=1e-4)
-    np.testing.assert_allclose(np.linalg.norm(los, axis=-1), 1.0)
+    centre = 0.5 * (tx.mean(axis=1) + rx.mean(axis=1))  # the channels' mean phase centre, towards the point
+    np.testing.assert_allclose(los, (point - centre) / np.linalg.norm(point - centre, axis=-1, keepdims=True),
+                               rtol=1e-12)
     far = focus_history(hist, tx, rx, point + [[0.0, -0.5, 0.0]])[0]  # 1 m of path beyond every window
     assert np.all(np.isnan(far))
     # a point whose echo is a bright response 2.1 bins beyond the prediction: the envelope says so

@@ -19,16 +19,19 @@ from numpy.typing import NDArray
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _focus_windows(samples, bin0, tx, rx, points, point_of, bin_m, cycles_per_m, offsets_bins,
-                   z_re, z_im, inside):  # pragma: no cover - compiled
+                   z_re, z_im, inside, los):  # pragma: no cover - compiled
     n_pairs, n_ch, width = samples.shape
     for n in range(n_pairs):
         j = point_of[n]
+        for k in range(3):
+            los[n, k] = points[j, k]
         for c in range(n_ch):
             d_tx = 0.0
             d_rx = 0.0
             for k in range(3):
                 d_tx += (tx[n, c, k] - points[j, k]) ** 2
                 d_rx += (rx[n, c, k] - points[j, k]) ** 2
+                los[n, k] -= 0.5 * (tx[n, c, k] + rx[n, c, k]) / n_ch
             path = math.sqrt(d_tx) + math.sqrt(d_rx)
             turns = path * cycles_per_m
             phase = -2.0 * math.pi * (turns - math.floor(turns))
@@ -47,15 +50,19 @@ def _focus_windows(samples, bin0, tx, rx, points, point_of, bin_m, cycles_per_m,
                 s_im = float(s0.imag) + f * (float(s1.imag) - float(s0.imag))
                 z_re[n, m] += s_re * rot_re - s_im * rot_im
                 z_im[n, m] += s_re * rot_im + s_im * rot_re
+        norm = math.sqrt(los[n, 0] ** 2 + los[n, 1] ** 2 + los[n, 2] ** 2)
+        for k in range(3):
+            los[n, k] /= norm
 
 
 def focus_windows(samples: NDArray[np.complex64], bin0: NDArray[np.int64], tx: NDArray[np.float64],
                   rx: NDArray[np.float64], points_enu: NDArray[np.float64], point_of: NDArray[np.int64],
                   bin_m: float, cycles_per_m: float, offsets_bins: NDArray[np.float64]
-                  ) -> tuple[NDArray[np.complex128], NDArray[np.bool_]]:
+                  ) -> tuple[NDArray[np.complex128], NDArray[np.bool_], NDArray[np.float64]]:
     """Each pair's channels summed (N, K) at its exact path plus each of ``offsets_bins`` (K,) bins, rotated by
-    the carrier phase of the exact path; and whether every channel's sample lay inside its window (N, K) (one
-    outside contributes 0).
+    the carrier phase of the exact path; whether every channel's sample lay inside its window (N, K) (one
+    outside contributes 0); and each pair's unit line of sight (N, 3) from its channels' mean phase centre to its
+    point.
 
     ``samples`` (N, C, W) complex range samples, bins ``bin0`` (N, C) ... ``bin0 + W - 1`` (bistatic path ``bin *
     bin_m``, m); ``tx``, ``rx`` (N, C, 3) ENU m, each pair's antennas; ``points_enu`` (P, 3) ENU m, pair n's
@@ -63,9 +70,10 @@ def focus_windows(samples: NDArray[np.complex64], bin0: NDArray[np.int64], tx: N
     n, k = len(samples), len(offsets_bins)
     z_re, z_im = np.zeros((n, k)), np.zeros((n, k))
     inside = np.ones((n, k), dtype=np.bool_)
+    los = np.empty((n, 3))
     _focus_windows(np.ascontiguousarray(samples), np.ascontiguousarray(bin0, dtype=np.int64),
                    np.ascontiguousarray(tx, dtype=np.float64), np.ascontiguousarray(rx, dtype=np.float64),
                    np.ascontiguousarray(points_enu, dtype=np.float64), np.ascontiguousarray(point_of, dtype=np.int64),
                    float(bin_m), float(cycles_per_m), np.ascontiguousarray(offsets_bins, dtype=np.float64),
-                   z_re, z_im, inside)
-    return z_re + 1j * z_im, inside
+                   z_re, z_im, inside, los)
+    return z_re + 1j * z_im, inside, los

@@ -11,6 +11,7 @@ the residual-motion autofocus (:mod:`autosar_cli.sar.residual_motion`).
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -83,27 +84,36 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         out_point, out_frame, out_bin0, out_samples = [], [], [], []
         tx_idx = np.array([p[0] for p in pairs])
         rx_idx = np.array([p[1] for p in pairs])
-        for start in range(0, len(used), block_frames):
-            sel = used[start:start + block_frames]
-            raw = radar.frames(int(frames[sel[0]]), int(frames[sel[-1]]) + 1)[frames[sel] - frames[sel[0]]]
-            profiles = np.stack([range_compress(raw[:, tt, rr], sample_rate_hz=fs, slope_hz_per_s=slope,
-                                                window=focus.window, upsample=focus.upsample) for tt, rr in pairs],
-                                axis=1)  # (B, C, bins)
-            pc = radar_phase_centres(traj, t[sel], offsets, config)
-            kk, jj = np.nonzero(seen[sel])
-            tx = pc.tx[kk][:, tx_idx]  # (n, C, 3)
-            rx = pc.rx[kk][:, tx_idx, rx_idx]
-            p = points[jj][:, None, :]
-            path = np.linalg.norm(tx - p, axis=-1) + np.linalg.norm(rx - p, axis=-1)
-            b0 = np.floor(path / bin_m).astype(np.int64) - (w // 2 - 1)
-            b0 = np.clip(b0, 0, n_bins - w)
-            # the windows straight from the profiles' flat buffer: a copy of each pair's whole profile (its
-            # frame's, repeated for every point it sees) would move the profiles ~P times over
-            row = (kk[:, None] * len(pairs) + np.arange(len(pairs))) * profiles.shape[-1] + b0  # (n, C)
-            out_samples.append(profiles.reshape(-1)[row[..., None] + np.arange(w)])
-            out_point.append(jj)
-            out_frame.append(sel[kk])
-            out_bin0.append(b0)
+        blocks = [used[start:start + block_frames] for start in range(0, len(used), block_frames)]
+
+        def read(sel: NDArray[np.int64]) -> NDArray[np.int16]:
+            return radar.frames(int(frames[sel[0]]), int(frames[sel[-1]]) + 1)[frames[sel] - frames[sel[0]]]
+
+        # the next block is read while this one is compressed (h5py's reads and the FFTs release the GIL)
+        with ThreadPoolExecutor(1) as reader:
+            pending = reader.submit(read, blocks[0]) if blocks else None
+            for b, sel in enumerate(blocks):
+                raw = pending.result()
+                if b + 1 < len(blocks):
+                    pending = reader.submit(read, blocks[b + 1])
+                profiles = np.stack([range_compress(raw[:, tt, rr], sample_rate_hz=fs, slope_hz_per_s=slope,
+                                                    window=focus.window, upsample=focus.upsample) for tt, rr in pairs],
+                                    axis=1)  # (B, C, bins)
+                pc = radar_phase_centres(traj, t[sel], offsets, config)
+                kk, jj = np.nonzero(seen[sel])
+                tx = pc.tx[kk][:, tx_idx]  # (n, C, 3)
+                rx = pc.rx[kk][:, tx_idx, rx_idx]
+                p = points[jj][:, None, :]
+                path = np.linalg.norm(tx - p, axis=-1) + np.linalg.norm(rx - p, axis=-1)
+                b0 = np.floor(path / bin_m).astype(np.int64) - (w // 2 - 1)
+                b0 = np.clip(b0, 0, n_bins - w)
+                # the windows straight from the profiles' flat buffer: a copy of each pair's whole profile (its
+                # frame's, repeated for every point it sees) would move the profiles ~P times over
+                row = (kk[:, None] * len(pairs) + np.arange(len(pairs))) * profiles.shape[-1] + b0  # (n, C)
+                out_samples.append(profiles.reshape(-1)[row[..., None] + np.arange(w)])
+                out_point.append(jj)
+                out_frame.append(sel[kk])
+                out_bin0.append(b0)
     empty = len(out_point) == 0
     return PhaseHistories(
         np.concatenate(out_point) if not empty else np.zeros(0, np.int64),
@@ -131,13 +141,6 @@ def _seen(traj: Trajectory, t_ns: NDArray[np.int64], config: Config, points: Arr
     return seen
 
 
-def _line_of_sight(tx: Array, rx: Array, points: Array) -> Array:
-    """Unit vectors (N, 3) from each pair's mean phase centre (``tx``, ``rx`` (N, C, 3) ENU m) to its point
-    (N, 3)."""
-    los = points - 0.5 * (tx.mean(axis=1) + rx.mean(axis=1))
-    return los / np.linalg.norm(los, axis=-1, keepdims=True)
-
-
 def pair_antennas(hist: PhaseHistories, traj: Trajectory, config: Config) -> tuple[Array, Array]:
     """Tx and Rx phase centres (N, C, 3) (ENU m) of every pair's channels along ``traj``."""
     pc = radar_phase_centres(traj, hist.frame_t_ns, hist.tx_offsets_s, config)
@@ -153,11 +156,11 @@ def focus_history(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array
     (P, 3), and its unit line of sight (N, 3) from the mean phase centre to the point. A pair whose path left its
     bin window in any channel gives NaN."""
     points = np.asarray(points_enu, dtype=np.float64)
-    z, inside = focus_windows(hist.samples, hist.bin0, tx, rx, points, hist.point, hist.bin_m, hist.cycles_per_m,
-                              np.zeros(1))
+    z, inside, los = focus_windows(hist.samples, hist.bin0, tx, rx, points, hist.point, hist.bin_m,
+                                   hist.cycles_per_m, np.zeros(1))
     z = z[:, 0]
     z[~inside[:, 0]] = np.nan
-    return z, _line_of_sight(tx, rx, points[hist.point])
+    return z, los
 
 
 def range_offsets(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array, n_points: int,
@@ -169,7 +172,7 @@ def range_offsets(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array,
     bends its phase history as a wrong speed does, so the envelope pins it."""
     points = np.asarray(points_enu, dtype=np.float64)
     ks = np.arange(-half_bins, half_bins + 1e-9, step_bins)
-    z, _ = focus_windows(hist.samples, hist.bin0, tx, rx, points, hist.point, hist.bin_m, hist.cycles_per_m, ks)
+    z, _, los = focus_windows(hist.samples, hist.bin0, tx, rx, points, hist.point, hist.bin_m, hist.cycles_per_m, ks)
     power = np.zeros((n_points, len(ks)))
     for m in range(len(ks)):
         zs = np.bincount(hist.point, z[:, m].real, n_points) + 1j * np.bincount(hist.point, z[:, m].imag, n_points)
@@ -180,7 +183,6 @@ def range_offsets(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array,
     denom = y0 - 2 * y1 + y2
     frac = np.where(denom < 0, 0.5 * (y0 - y2) / np.where(denom < 0, denom, -1.0), 0.0)
     offset = (ks[k] + np.clip(frac, -1.0, 1.0) * step_bins) * hist.bin_m
-    los = _line_of_sight(tx, rx, points[hist.point])
     mean_los = np.stack([np.bincount(hist.point, los[:, c], n_points) for c in range(3)], axis=-1)
     mean_los /= np.maximum(np.linalg.norm(mean_los, axis=-1, keepdims=True), 1e-12)
     return offset, power.max(axis=1), mean_los
