@@ -25,6 +25,9 @@ from autosar_cli.evaluate.evaluation import (
     far_swath_mask,
     image_metrics,
     load_truth,
+    metrics_grid,
+    product_metrics_grid,
+    product_pixels,
 )
 from autosar_cli.evaluate.image_quality import fit_line, image_contrast, image_entropy, line_straightness
 from autosar_cli.evaluate.point_target import analyse_point_target, refine_peak
@@ -348,6 +351,31 @@ def test_run_writes_every_product_and_the_manifest(ci_run: Path) -> None:
     assert not list(ci_run.glob("*partial*"))
     r = runner.invoke(app, ["run", str(manifest["inputs"][0]["path"]), "-o", str(ci_run)])
     assert r.exit_code == 1 and "--overwrite" in r.stderr and "Traceback" not in r.output
+
+
+def test_compares_product_is_the_metrics_images_every_other_pixel(ci_run: Path) -> None:
+    """compare focuses the 2 cm metrics grid and takes the 4 cm product from it (`product_pixels`): the values a
+    focus of the product's grid moved by half a metrics pixel (1 cm) along and across gives, pixel for pixel."""
+    from autosar_cli.sar.focus import FocusOptions, focus_images
+
+    product = read_image(ci_run / "image.h5").grid
+    fine = metrics_grid(product)
+    half = 0.5 * fine.pixel_m
+    origin = np.asarray(product.origin) + half * (np.asarray(product.along) + np.asarray(product.across))
+    moved = replace(product, origin=(float(origin[0]), float(origin[1])))
+    metrics_image, direct = focus_images(ci_run / "drive.h5", ci_run / "trajectory.h5", CFG,
+                                         FocusOptions.from_config(CFG), grids=[fine, moved]).images
+    taken = product_pixels(metrics_image)
+    assert taken.grid.shape == moved.shape and taken.grid.pixel_m == moved.pixel_m
+    np.testing.assert_allclose(taken.grid.origin, moved.origin, rtol=0, atol=1e-9)
+    assert taken.grid.along == moved.along and taken.grid.across == moved.across
+    assert np.count_nonzero(direct.image) > 0.5 * direct.image.size
+    np.testing.assert_allclose(taken.image, direct.image, rtol=0, atol=1e-6 * np.abs(direct.image).max())
+    assert taken.params["pixel_m"] == moved.pixel_m
+    # and `autosar evaluate` of such a product measures on the metrics grid it was taken from
+    back = product_metrics_grid(taken)
+    assert back.shape == fine.shape and back.pixel_m == fine.pixel_m
+    np.testing.assert_allclose(back.origin, fine.origin, rtol=0, atol=1e-9)
 
 
 def test_run_autofocus_corrects_the_track_before_focusing(ci_run: Path, ci_mcap, tmp_path: Path) -> None:

@@ -41,6 +41,7 @@ from autosar_cli.evaluate.evaluation import (
     evaluate_image,
     load_truth,
     metrics_grid,
+    product_pixels,
 )
 from autosar_cli.evaluate.figures import plot_across_track, plot_images_side_by_side, plot_reflector_chips
 from autosar_cli.evaluate.reflectors import ReflectorPatches, focus_patches, predict_image_positions
@@ -245,20 +246,21 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
         traj = trajectories[m]
         mdir = out / m
         mdir.mkdir(parents=True, exist_ok=True)
-        grid = transform_grid(base_grid, alignments[m].inverse())
         t0 = time.perf_counter()
         label = f"focus {m}"
         tick(label, 0, 1)
-        fine = metrics_grid(grid)
+        # the metrics grid over the registered product grid; the product is every other of its pixels (its own
+        # grid moved by half a metrics pixel): focusing it again would add a fifth to the pass
+        fine = metrics_grid(transform_grid(base_grid, alignments[m].inverse()))
         if has_reflectors:
-            patches, (image, metrics_image), res = focus_patches(out / DRIVE, traj, config, options, names, true_cr,
-                                                                 alignments[m], predicted_xy=centres[m],
-                                                                 extra_grids=[grid, fine])
+            patches, (metrics_image,), res = focus_patches(out / DRIVE, traj, config, options, names, true_cr,
+                                                           alignments[m], predicted_xy=centres[m], extra_grids=[fine])
         else:
-            res = focus_images(out / DRIVE, traj, config, options, grids=[grid, fine])
-            (image, metrics_image), patches = res.images, None
+            res = focus_images(out / DRIVE, traj, config, options, grids=[fine])
+            (metrics_image,), patches = res.images, None
         tick(label, 1, 1)
         metrics_image.params["pixel_m"] = metrics_image.grid.pixel_m
+        image = product_pixels(metrics_image)
         image.params["grid"] = "auto, registered" if truth is not None else "auto"
         image.params["grid_reference"] = base_traj.method
         image.provenance.update({"drive": str(out / DRIVE), "trajectory": str(mdir / "trajectory.h5"),

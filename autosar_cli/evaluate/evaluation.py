@@ -232,6 +232,38 @@ def metrics_grid(grid: FocusGrid, oversample: int = METRICS_OVERSAMPLE) -> Focus
                    n_across=grid.n_across * oversample)
 
 
+def product_pixels(metrics: FocusedImage, oversample: int = METRICS_OVERSAMPLE) -> FocusedImage:
+    """The product-pixel image inside ``metrics`` (an image on :func:`metrics_grid`): every ``oversample``-th
+    pixel from ``oversample // 2`` on, along and across, on its own grid of ``oversample`` times the pixel.
+
+    Each pixel is focused on its own, so these are the values the product's grid focuses to once moved onto
+    them: half a metrics pixel along and across where ``oversample`` is even (1 cm for the 4 cm product),
+    not at all where it is odd. Lets one pass give the product and its metrics image without focusing the
+    product's pixels twice."""
+    g, k = metrics.grid, oversample // 2
+    o, a, x = np.asarray(g.origin), np.asarray(g.along), np.asarray(g.across)
+    origin = o + k * g.pixel_m * (a + x)
+    grid = replace(g, origin=(float(origin[0]), float(origin[1])), pixel_m=g.pixel_m * oversample,
+                   n_along=len(range(k, g.n_along, oversample)), n_across=len(range(k, g.n_across, oversample)))
+    image = np.ascontiguousarray(metrics.image[k::oversample, k::oversample])
+    params = {**metrics.params, "pixel_m": grid.pixel_m, "metrics_oversample": oversample}
+    return FocusedImage(image, grid, metrics.origin, params, dict(metrics.provenance))
+
+
+def product_metrics_grid(image: FocusedImage) -> FocusGrid:
+    """The grid ``image``'s metrics are measured on: :func:`metrics_grid` of its grid, or, where ``image`` was
+    taken from a metrics image (:func:`product_pixels`, as ``compare`` makes its products), that image's grid,
+    so that `autosar evaluate` of a compared method measures what ``compare`` did."""
+    oversample = image.params.get("metrics_oversample")
+    if not oversample:
+        return metrics_grid(image.grid)
+    g, n = image.grid, int(oversample)
+    px = g.pixel_m / n
+    origin = np.asarray(g.origin) - (n // 2) * px * (np.asarray(g.along) + np.asarray(g.across))
+    return replace(g, origin=(float(origin[0]), float(origin[1])), pixel_m=px, n_along=g.n_along * n,
+                   n_across=g.n_across * n)
+
+
 def far_swath_mask(grid: FocusGrid, track_xy: ArrayLike, min_range_m: float,
                    lattice_m: float = FAR_SWATH_LATTICE_M) -> NDArray[np.bool_]:
     """Pixels (rows, cols) of ``grid`` at least ``min_range_m`` (horizontal) from the nearest point of the radar's
@@ -292,7 +324,7 @@ def evaluate_image(image: FocusedImage, trajectory: Trajectory, drive_path: str 
 
     Trajectory metrics at the radar frame times; the SE(2) alignment; every corner reflector on fine patches;
     entropy, contrast and straightness on ``metrics_image``: the product's grid at half its pixel
-    (:func:`metrics_grid`). Whatever is not given is focused here, in one pass over the radar data
+    (:func:`product_metrics_grid`). Whatever is not given is focused here, in one pass over the radar data
     (``metrics_image`` and ``patches`` along ``trajectory``; ``reference_patches``, the peak-loss reference,
     along the truth). Given patches must have been focused with this evaluation's alignment (e.g. by
     :func:`autosar_cli.evaluate.compare.compare`). ``range_dir``: the ground-range direction of the
@@ -304,7 +336,7 @@ def evaluate_image(image: FocusedImage, trajectory: Trajectory, drive_path: str 
         ev.input_warnings = [str(w) for w in drive.report().get("warnings", [])]
     options = options_from_image(image, config)
     frames = radar_times(drive_path)
-    fine = [metrics_grid(image.grid)] if metrics_image is None else []
+    fine = [product_metrics_grid(image)] if metrics_image is None else []
     if truth is None:
         if metrics_image is None:
             metrics_image = focus_images(drive_path, trajectory, config, options, grids=fine).images[0]

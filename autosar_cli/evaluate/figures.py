@@ -19,19 +19,10 @@ from autosar_cli.nav.plot import across_track_deviation
 from autosar_cli.nav.trajectory import Trajectory
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.image import FocusedImage, magnitude_db
-from autosar_cli.store.quicklook import draw_tiled, tile_layout
+from autosar_cli.store.quicklook import PanelGrid, draw_tiled, tile_layout
 
 #: Colours of the methods in every figure (paper Fig. 11: INS red, SAR-MIN blue).
 COLOURS = {"truth": "black", "sar-min": "tab:blue", "ins": "tab:red", "gnss": "tab:orange", "none": "tab:gray"}
-
-
-def _pyplot() -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def _cmap(name: str) -> Any:
@@ -42,23 +33,19 @@ def _cmap(name: str) -> Any:
     return cmap.with_extremes(bad=cmap(0.0))
 
 
-def _save(fig: Any, path: Path, dpi: int = 90) -> Path:
-    plt = _pyplot()
+def _save(fig: Any, path: Path) -> Path:
     path = Path(path)
-    try:
-        with atomic_output(path, overwrite=True) as tmp:
-            fig.savefig(tmp, dpi=dpi)
-    finally:
-        plt.close(fig)
+    with atomic_output(path, overwrite=True) as tmp:
+        fig.savefig(tmp, format="png", dpi=fig.dpi)
     return path
 
 
 def plot_trajectory_errors(errors: TrajectoryErrors, path: str | Path) -> Path:
     """Error of the estimated phase-centre track vs the truth over time and distance: absolute (no alignment)
     with its along / across components, and after the rigid SE(2) alignment."""
-    plt = _pyplot()
     t, s = errors.t_s, errors.distance_m
-    fig, axes = plt.subplots(1, 3, figsize=(16, 4.5), constrained_layout=True)
+    fig, panels = PanelGrid(1, 3, (4.55, 3.55)).figure()
+    axes = panels[0]
     ax = axes[0]
     ax.plot(t, np.hypot(errors.error_along, errors.error_across) * 100, "k", lw=1, label="horizontal")
     ax.plot(t, errors.error_along * 100, lw=1, label="along")
@@ -98,7 +85,6 @@ def plot_reflector_chips(rows: Sequence[tuple[str, ReflectorPatches, Sequence[Re
     (T^-1 of the truth; outside the patch when the trajectory displaces the response by more), cyan ``+``
     the measured peak.
     """
-    plt = _pyplot()
     n_rows = len(rows)
     n_cols = max(len(p.names) for _, p, _ in rows) if rows else 0
     if n_rows == 0 or n_cols == 0:
@@ -117,8 +103,9 @@ def plot_reflector_chips(rows: Sequence[tuple[str, ReflectorPatches, Sequence[Re
     peaks = [max((float(np.max(np.abs(c[0].image))) for line in shown if (c := line[j]) is not None), default=0.0)
              for j in range(n_cols)]
     ref = [20 * np.log10(r) if r > 0 else 0.0 for r in peaks]
-    fig, axes = plt.subplots(n_rows, n_cols, figsize=(2.6 * n_cols + 1.0, 2.6 * n_rows + 0.4), squeeze=False,
-                             constrained_layout=True)
+    layout = PanelGrid(n_rows, n_cols, (2.0, 2.0), left_in=0.85, right_in=1.1, bottom_in=0.5, top_in=0.3,
+                       gap_x_in=0.45, gap_y_in=0.5)
+    fig, axes = layout.figure()
     im = None
     for i, ((label, patches, _), line) in enumerate(zip(rows, shown, strict=True)):
         for j, cell in enumerate(line):
@@ -149,7 +136,7 @@ def plot_reflector_chips(rows: Sequence[tuple[str, ReflectorPatches, Sequence[Re
             if i == n_rows - 1:
                 ax.set_xlabel("east (m)")
     if im is not None:
-        fig.colorbar(im, ax=axes, shrink=0.8, label="dB (re brightest peak)")
+        fig.colorbar(im, cax=fig.add_axes(layout.right_strip(0.15)), label="dB (re brightest peak)")
     return _save(fig, Path(path))
 
 
@@ -180,9 +167,8 @@ def plot_across_track(trajectories: Sequence[Trajectory], path: str | Path,
                       errors: Sequence[TrajectoryErrors] = ()) -> Path:
     """Across-track deviation of each method's rear-axle track from the straight line through its ends (paper
     Fig. 11), and, where given, each method's across-track error vs the truth after the SE(2) alignment."""
-    plt = _pyplot()
     n_panels = 2 if errors else 1
-    fig, axes = plt.subplots(1, n_panels, figsize=(7.5 * n_panels, 4.5), squeeze=False, constrained_layout=True)
+    fig, axes = PanelGrid(1, n_panels, (6.4, 3.6)).figure()
     ax = axes[0, 0]
     for tr in trajectories:
         along, across = across_track_deviation(tr.rear_axle_enu)

@@ -9,6 +9,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from autosar_cli.nav.trajectory import Trajectory
+from autosar_cli.store.atomic import atomic_output
+from autosar_cli.store.quicklook import PanelGrid
 
 Array = NDArray[np.float64]
 
@@ -24,15 +26,10 @@ def across_track_deviation(xy: Array) -> tuple[Array, Array]:
 
 def plot_trajectory(traj: Trajectory, path: str | Path, others: list[Trajectory] | None = None) -> Path:
     """Write a PNG summary of ``traj`` (and, in the track and across-track panels, ``others``)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     path = Path(path)
     t = traj.t
     has_bias = traj.state is not None and any(n.startswith("bias.") for n in traj.state_names)
-    fig, axes = plt.subplots(2, 3, figsize=(15, 8), constrained_layout=True)
+    fig, axes = PanelGrid(2, 3, (4.0, 2.9), top_in=0.75, gap_y_in=0.9).figure()
     ax = axes[0, 0]
     for tr in [traj, *(others or [])]:
         ax.plot(tr.rear_axle_enu[:, 0], tr.rear_axle_enu[:, 1], label=tr.method, lw=1)
@@ -61,8 +58,6 @@ def plot_trajectory(traj: Trajectory, path: str | Path, others: list[Trajectory]
     else:
         ax.axis("off")
     fig.suptitle(f"{traj.method}: {traj.info.get('drive', '')}")
-    partial = path.with_name(path.name + ".partial.png")
-    fig.savefig(partial, dpi=90)
-    plt.close(fig)
-    partial.replace(path)
+    with atomic_output(path, overwrite=True) as tmp:
+        fig.savefig(tmp, format="png", dpi=fig.dpi)
     return path
