@@ -16,7 +16,7 @@ from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.sar.grid import FocusGrid, track_grid
 from autosar_cli.sim.scenario import build_scenario
 from autosar_cli.store.image import FocusedImage, write_image
-from autosar_cli.store.quicklook import tile_layout
+from autosar_cli.store.quicklook import PanelGrid, tile_layout
 
 ORIGIN = GeodeticOrigin(45.06, 7.66, 240.0)
 PARAMS = {"method": "backprojection", "pixel_m": 0.04}
@@ -69,3 +69,20 @@ def test_layout_tiles_long_and_tall_images() -> None:
 def test_compare_panels_fill_the_figure() -> None:
     for shape in ((663, 61), (666, 1251), (709, 3000)):  # ci, test1, test2
         assert tile_layout(shape, 4, titled=True).image_fraction(4) >= 0.44, shape
+
+
+def test_panel_grid_places_equal_panels_on_its_margins() -> None:
+    """PanelGrid (the report figures' layout): every panel its size in inches, the gaps and margins as asked, row
+    0 on top, the colour bar's strip right of the panels; the figure draws them in that place."""
+    g = PanelGrid(2, 3, (2.0, 1.5), left_in=0.8, right_in=1.0, bottom_in=0.5, top_in=0.3, gap_x_in=0.4, gap_y_in=0.6)
+    w, h = g.figure_in
+    assert (w, h) == pytest.approx((0.8 + 3 * 2.0 + 2 * 0.4 + 1.0, 0.5 + 2 * 1.5 + 0.6 + 0.3))
+    inches = {(i, j): np.multiply(g.rect(i, j), (w, h, w, h)) for i in range(2) for j in range(3)}
+    assert inches[0, 0] == pytest.approx((0.8, 0.5 + 1.5 + 0.6, 2.0, 1.5))  # top left
+    assert inches[1, 2] == pytest.approx((0.8 + 2 * 2.4, 0.5, 2.0, 1.5))  # bottom right
+    strip = np.multiply(g.right_strip(0.15, pad_in=0.2), (w, h, w, h))
+    assert strip == pytest.approx((w - 1.0 + 0.2, 0.5, 0.15, h - 0.8))
+    fig, axes = g.figure(dpi=100)
+    assert axes.shape == (2, 3) and tuple(fig.get_size_inches()) == pytest.approx((w, h))
+    box = axes[1, 2].get_position().bounds
+    assert box == pytest.approx(g.rect(1, 2))

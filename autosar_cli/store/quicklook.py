@@ -6,7 +6,8 @@ leaves the image a sliver of the figure. So the image is cut into tiles along it
 are set beside each other (a tall image: near range on the left) or under each other (a long strip: the
 start of the drive on top), all at one scale in metres. :func:`tile_layout` picks the number of tiles, and
 for several images the panel grid, that give the image the largest share of the figure, margins for the
-tick labels, titles and the dB colour bar included.
+tick labels, titles and the dB colour bar included. :class:`PanelGrid` places the report figures' equal panels
+(reflector chips, trajectory errors) on fixed margins the same way.
 """
 
 from __future__ import annotations
