@@ -140,8 +140,11 @@ def section(data: Any, max_rows: int, depth: int = 0) -> list[str]:
                 else:
                     lines += [f"({more}: see the JSON.)", ""]
             continue
-        lines += [f"{'#' * min(3 + depth, 6)} {key}", ""]
-        lines += section(value, max_rows, depth + 1)
+        sub = section(value, max_rows, depth + 1)
+        if len(sub) == 2 and not sub[1] and not sub[0].startswith(("|", "#", "(")):
+            lines += [f"**{key}**: {sub[0]}", ""]  # one paragraph needs no heading (which costs 2 lines)
+        else:
+            lines += [f"{'#' * min(3 + depth, 6)} {key}", "", *sub]
     return lines
 
 
