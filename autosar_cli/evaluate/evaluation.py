@@ -232,6 +232,12 @@ def metrics_grid(grid: FocusGrid, oversample: int = METRICS_OVERSAMPLE) -> Focus
                    n_across=grid.n_across * oversample)
 
 
+def _moved_diagonally(g: FocusGrid, d_m: float, **changes: Any) -> FocusGrid:
+    """``g`` with its origin moved ``d_m`` along and ``d_m`` across (its own axes), and ``changes``."""
+    origin = np.asarray(g.origin) + d_m * (np.asarray(g.along) + np.asarray(g.across))
+    return replace(g, origin=(float(origin[0]), float(origin[1])), **changes)
+
+
 def product_pixels(metrics: FocusedImage, oversample: int = METRICS_OVERSAMPLE) -> FocusedImage:
     """The product-pixel image inside ``metrics`` (an image on :func:`metrics_grid`): every ``oversample``-th
     pixel from ``oversample // 2`` on, along and across, on its own grid of ``oversample`` times the pixel.
@@ -241,10 +247,9 @@ def product_pixels(metrics: FocusedImage, oversample: int = METRICS_OVERSAMPLE) 
     not at all where it is odd. Lets one pass give the product and its metrics image without focusing the
     product's pixels twice."""
     g, k = metrics.grid, oversample // 2
-    o, a, x = np.asarray(g.origin), np.asarray(g.along), np.asarray(g.across)
-    origin = o + k * g.pixel_m * (a + x)
-    grid = replace(g, origin=(float(origin[0]), float(origin[1])), pixel_m=g.pixel_m * oversample,
-                   n_along=len(range(k, g.n_along, oversample)), n_across=len(range(k, g.n_across, oversample)))
+    grid = _moved_diagonally(g, k * g.pixel_m, pixel_m=g.pixel_m * oversample,
+                             n_along=len(range(k, g.n_along, oversample)),
+                             n_across=len(range(k, g.n_across, oversample)))
     image = np.ascontiguousarray(metrics.image[k::oversample, k::oversample])
     params = {**metrics.params, "pixel_m": grid.pixel_m, "metrics_oversample": oversample}
     return FocusedImage(image, grid, metrics.origin, params, dict(metrics.provenance))
@@ -259,9 +264,7 @@ def product_metrics_grid(image: FocusedImage) -> FocusGrid:
         return metrics_grid(image.grid)
     g, n = image.grid, int(oversample)
     px = g.pixel_m / n
-    origin = np.asarray(g.origin) - (n // 2) * px * (np.asarray(g.along) + np.asarray(g.across))
-    return replace(g, origin=(float(origin[0]), float(origin[1])), pixel_m=px, n_along=g.n_along * n,
-                   n_across=g.n_across * n)
+    return _moved_diagonally(g, -((n // 2) * px), pixel_m=px, n_along=g.n_along * n, n_across=g.n_across * n)
 
 
 def far_swath_mask(grid: FocusGrid, track_xy: ArrayLike, min_range_m: float,

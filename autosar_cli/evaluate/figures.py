@@ -17,9 +17,8 @@ from autosar_cli.evaluate.reflectors import ReflectorMetrics, ReflectorPatches, 
 from autosar_cli.evaluate.trajectory_metrics import TrajectoryErrors
 from autosar_cli.nav.plot import across_track_deviation
 from autosar_cli.nav.trajectory import Trajectory
-from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.image import FocusedImage, magnitude_db
-from autosar_cli.store.quicklook import PanelGrid, draw_tiled, tile_layout
+from autosar_cli.store.quicklook import PanelGrid, agg_figure, draw_tiled, save_png, tile_layout
 
 #: Colours of the methods in every figure (paper Fig. 11: INS red, SAR-MIN blue).
 COLOURS = {"truth": "black", "sar-min": "tab:blue", "ins": "tab:red", "gnss": "tab:orange", "none": "tab:gray"}
@@ -31,13 +30,6 @@ def _cmap(name: str) -> Any:
 
     cmap = matplotlib.colormaps[name]
     return cmap.with_extremes(bad=cmap(0.0))
-
-
-def _save(fig: Any, path: Path) -> Path:
-    path = Path(path)
-    with atomic_output(path, overwrite=True) as tmp:
-        fig.savefig(tmp, format="png", dpi=fig.dpi)
-    return path
 
 
 def plot_trajectory_errors(errors: TrajectoryErrors, path: str | Path) -> Path:
@@ -69,7 +61,7 @@ def plot_trajectory_errors(errors: TrajectoryErrors, path: str | Path) -> Path:
     ax.set(xlabel="along track (m)", ylabel="across track (cm)",
            title="radar track: deviation from the straight line")
     ax.legend()
-    return _save(fig, Path(path))
+    return save_png(fig, path)
 
 
 def _chip_db(img: FocusedImage, ref_db: float) -> NDArray[np.float32]:
@@ -137,7 +129,7 @@ def plot_reflector_chips(rows: Sequence[tuple[str, ReflectorPatches, Sequence[Re
                 ax.set_xlabel("east (m)")
     if im is not None:
         fig.colorbar(im, cax=fig.add_axes(layout.right_strip(0.15)), label="dB (re brightest peak)")
-    return _save(fig, Path(path))
+    return save_png(fig, path)
 
 
 def plot_images_side_by_side(images: Sequence[tuple[str, FocusedImage]], path: str | Path, *,
@@ -146,21 +138,15 @@ def plot_images_side_by_side(images: Sequence[tuple[str, FocusedImage]], path: s
     in the panel grid and tiles that let them fill the figure (:func:`~autosar_cli.store.quicklook.tile_layout`:
     a short drive's tall image is cut across range, a long drive's strip along track). Axes: metres along
     the grid (columns) and across it (rows, near range at the bottom)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     dbs = [magnitude_db(img.image) for _, img in images]
     top = max(float(np.nanmax(d)) for d in dbs)
     first = images[0][1].grid
     layout = tile_layout(first.shape, len(images), titled=True)
-    fig = Figure(figsize=layout.figure_in, dpi=110)
-    FigureCanvasAgg(fig)
+    fig = agg_figure(layout.figure_in, 110)
     panels = [(label, db - np.float32(top)) for (label, _), db in zip(images, dbs, strict=True)]
     draw_tiled(fig, layout, panels, first.pixel_m, vmin=-dynamic_range_db, cmap=_cmap("gray"),
                colorbar_label="dB (re maximum of all images)")
-    with atomic_output(Path(path), overwrite=True) as tmp:
-        fig.savefig(tmp, format="png")
-    return Path(path)
+    return save_png(fig, path)
 
 
 def plot_across_track(trajectories: Sequence[Trajectory], path: str | Path,
@@ -185,4 +171,4 @@ def plot_across_track(trajectories: Sequence[Trajectory], path: str | Path,
         ax.set(xlabel="distance travelled (m)", ylabel="across-track error (cm)",
                title="radar track - truth, after SE(2) alignment")
         ax.legend()
-    return _save(fig, Path(path))
+    return save_png(fig, path)

@@ -9,8 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from autosar_cli.nav.trajectory import Trajectory
-from autosar_cli.store.atomic import atomic_output
-from autosar_cli.store.quicklook import PanelGrid
+from autosar_cli.store.quicklook import PanelGrid, save_png
 
 Array = NDArray[np.float64]
 
@@ -58,6 +57,4 @@ def plot_trajectory(traj: Trajectory, path: str | Path, others: list[Trajectory]
     else:
         ax.axis("off")
     fig.suptitle(f"{traj.method}: {traj.info.get('drive', '')}")
-    with atomic_output(path, overwrite=True) as tmp:
-        fig.savefig(tmp, format="png", dpi=fig.dpi)
-    return path
+    return save_png(fig, path)

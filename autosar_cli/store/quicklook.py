@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from autosar_cli.store.atomic import atomic_output
 from autosar_cli.types import FocusGrid
 
 #: figure margins (inches): tick labels and axis label on the left and bottom, colour bar on the right, title
@@ -98,6 +99,24 @@ class TileLayout:
         return out
 
 
+def agg_figure(figsize_in: tuple[float, float], dpi: float) -> Any:
+    """A matplotlib Figure of ``figsize_in`` (width, height) inches on an Agg canvas; no pyplot state is touched."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize_in, dpi=dpi)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def save_png(fig: Any, path: str | Path) -> Path:
+    """Write ``fig`` as a PNG at its own dpi, atomically (a partial file, then renamed); returns the path."""
+    path = Path(path)
+    with atomic_output(path, overwrite=True) as tmp:
+        fig.savefig(tmp, format="png", dpi=fig.dpi)
+    return path
+
+
 @dataclass(frozen=True)
 class PanelGrid:
     """``n_rows`` x ``n_cols`` equal panels of ``panel_in`` (width, height) inches, with fixed margins and gaps
@@ -137,12 +156,8 @@ class PanelGrid:
         return left / fig_w, self.bottom_in / fig_h, width_in / fig_w, 1.0 - (self.bottom_in + self.top_in) / fig_h
 
     def figure(self, dpi: float = 90) -> tuple[Any, NDArray[np.object_]]:
-        """A matplotlib Figure (Agg canvas, no pyplot state) of this size and its axes (n_rows, n_cols)."""
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-
-        fig = Figure(figsize=self.figure_in, dpi=dpi)
-        FigureCanvasAgg(fig)
+        """An :func:`agg_figure` of this size and its axes (n_rows, n_cols)."""
+        fig = agg_figure(self.figure_in, dpi)
         axes = np.empty((self.n_rows, self.n_cols), dtype=object)
         for i in range(self.n_rows):
             for j in range(self.n_cols):
@@ -226,8 +241,6 @@ def draw_quicklook(path: Path, pooled_db: NDArray[np.float32], pool: int, g: Foc
     finite value blank. A scale bar (metres), a dB colour bar and a north arrow (the grid may be rotated
     and mirrored relative to a map) are drawn on the first tile. No pyplot state is touched.
     """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
     from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
 
     rows, cols = g.shape
@@ -235,8 +248,7 @@ def draw_quicklook(path: Path, pooled_db: NDArray[np.float32], pool: int, g: Foc
     peak = float(pooled_db[finite].max()) if finite.any() else 0.0
     rel = np.clip(pooled_db - np.float32(peak), -dynamic_range_db, 0.0)
     layout = tile_layout(rel.shape)
-    fig = Figure(figsize=layout.figure_in, dpi=150)
-    FigureCanvasAgg(fig)
+    fig = agg_figure(layout.figure_in, 150)
     title = f"peak {peak:.1f} dB, {rows} x {cols} px at {g.pixel_m * 100:g} cm"
     if layout.tiles > 1:
         title += f", in {layout.tiles} tiles"
