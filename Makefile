@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 test: setup
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 # The checks too long for CI: the urban drive's reflectors along its 6-DOF phase centres (~10 min), test2's
 # scale sweep on the truth's reflectors (compare's sar-min+scale, ~3 min), and the autofocus's scale on a class C

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import fcntl
+import os
+import pickle
 from pathlib import Path
 
 import pytest
@@ -22,18 +25,32 @@ def realdata(*parts: str) -> Path:
 
 @pytest.fixture(scope="session")
 def sim_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return tmp_path_factory.mktemp("sim")
+    """Where the session's simulated drives are kept: under pytest-xdist, one folder for all its workers."""
+    if "PYTEST_XDIST_WORKER" not in os.environ:
+        return tmp_path_factory.mktemp("sim")
+    shared = tmp_path_factory.getbasetemp().parent / "sim"
+    shared.mkdir(exist_ok=True)
+    return shared
 
 
 _CACHE: dict[tuple[str, str, int], SimulationResult] = {}
 
 
 def simulated(sim_dir: Path, scenario: str, fmt: str, seed: int) -> SimulationResult:
+    """A kinematic drive (the motion the navigation models: in-model accuracy), simulated once per session: the
+    first worker to ask makes it under a lock of its own, and the others load its result."""
     key = (scenario, fmt, seed)
     if key not in _CACHE:
         ext = {"mcap": ".mcap", "ros1": ".bag", "ros2": ""}[fmt]
-        _CACHE[key] = simulate(scenario, sim_dir / f"{scenario}_{fmt}_s{seed}{ext}", fmt=fmt, seed=seed,
-                               dynamics="kinematic")  # the motion the navigation models: in-model accuracy
+        log = sim_dir / f"{scenario}_{fmt}_s{seed}{ext}"
+        made = log.with_name(log.name + ".result.pickle")
+        with open(log.with_name(log.name + ".lock"), "a") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            if made.exists():
+                _CACHE[key] = pickle.loads(made.read_bytes())
+            else:
+                _CACHE[key] = simulate(scenario, log, fmt=fmt, seed=seed, dynamics="kinematic")
+                made.write_bytes(pickle.dumps(_CACHE[key]))
     return _CACHE[key]
 
 
