@@ -74,27 +74,35 @@ def cli(*args: str) -> subprocess.CompletedProcess[str]:
 
 def config_copy(components: str | None, understeer: float | None, work: Path, rear_slip: float | None = None,
                 fits: bool = True, attitude: bool = True, radar_height: bool = False, car: str | None = None,
-                simulation: str | None = None) -> Path:
+                simulation: str | None = None, sensors: str | None = None) -> Path:
     """A copy of the default config whose full vehicle model has only ``components`` (comma-separated; None: all),
     whose steering model has the understeer gradient ``understeer`` and whose trajectory the rear-slip gain
     ``rear_slip`` (rad per m/s^2; None: the config's); ``fits`` False: SAR-MIN in one pass, without the fitted
     understeer, yaw lag and wheel-speed lag; ``radar_height``: SAR-MIN's radar lifted along the road; ``car``:
     "key=value,..." entries of [vehicle_dynamics], the simulated car (only the simulator reads that section);
-    ``simulation``: the same for [simulation]."""
+    ``simulation``: the same for [simulation]; ``sensors``: "sensor.table.key=value,..." entries of the sensors'
+    error tables, e.g. gnss_cog.gnss.velocity_std_mps=0.06 (a copy so changed is for the simulator alone: the
+    processor reads its noises from the same tables)."""
     from autosar_cli.config import DEFAULT_CONFIG
 
     text = DEFAULT_CONFIG.read_text()
-    for name, section, entries in (("--car", "vehicle_dynamics", car), ("--simulation", "simulation", simulation)):
-        if entries:
-            head, header, tail = text.partition(f"\n[{section}]\n")
-            body, nxt, rest = tail.partition("\n[")
-            for item in re.split(r",(?![^\[]*\])", entries):  # a list value keeps its commas
+    entries: list[tuple[str, str, str, str]] = []  # (option, section, key, value)
+    for option, section, given in (("--car", "vehicle_dynamics", car), ("--simulation", "simulation", simulation),
+                                   ("--sensors", "sensors", sensors)):
+        for item in re.split(r",(?![^\[]*\])", given or ""):  # a list value keeps its commas
+            if item:
                 key, _, value = item.partition("=")
-                body, n = re.subn(rf"^{re.escape(key.strip())} = .*$", f"{key.strip()} = {value.strip()}", body,
-                                  count=1, flags=re.MULTILINE)
-                if n != 1:
-                    raise SystemExit(f"{name}: {key.strip()!r} is not an entry of [{section}]")
-            text = head + header + body + nxt + rest
+                table, _, key = f"{section}.{key.strip()}".rpartition(".")
+                entries.append((option, table, key, value.strip()))
+    for option, section, key, value in entries:
+        head, header, tail = text.partition(f"\n[{section}]\n")
+        body, nxt, rest = tail.partition("\n[")
+        line = f"{key} = {value}"
+        body, n = re.subn(rf"^{re.escape(key)} = [^#\n]*?(\s*#.*)?$", lambda m, line=line: line + (m.group(1) or ""),
+                          body, count=1, flags=re.MULTILINE)
+        if not header or n != 1:
+            raise SystemExit(f"{option}: {key!r} is not an entry of [{section}]")
+        text = head + header + body + nxt + rest
     if components is not None:
         wanted = ", ".join(f'"{c}"' for c in components.split(",") if c)
         text = re.sub(r"^components = \[.*\]$", f"components = [{wanted}]", text, count=1, flags=re.MULTILINE)
@@ -116,7 +124,8 @@ def config_copy(components: str | None, understeer: float | None, work: Path, re
     tag = (components.replace(",", "+") or "none") if components is not None else "all"
     variant = (("" if fits else "_nofits") + ("" if attitude else "_planar") + ("_height" if radar_height else "")
                + ("_car" + re.sub(r"[^A-Za-z0-9.]+", "_", car) if car else "")
-               + ("_sim" + re.sub(r"[^A-Za-z0-9.]+", "_", simulation) if simulation else ""))
+               + ("_sim" + re.sub(r"[^A-Za-z0-9.]+", "_", simulation) if simulation else "")
+               + ("_sensors" + re.sub(r"[^A-Za-z0-9.]+", "_", sensors) if sensors else ""))
     path = work / f"config_{tag}_us{understeer}_slip{rear_slip}{variant}.toml"
     path.write_text(text)
     return path
@@ -262,7 +271,8 @@ def group_key(row: dict[str, Any]) -> str:
     return (row["scenario"] + ("" if comps is None else f" [{comps or 'none'}]")
             + ("" if k is None else f" [K={k:g}]") + ("" if g is None else f" [slip={g:g}]")
             + ("" if row.get("fits", True) else " [no fits]") + ("" if row.get("attitude", True) else " [planar]")
-            + (" [car]" if row.get("car") else "") + (" [sim]" if row.get("simulation") else ""))
+            + (" [car]" if row.get("car") else "") + (" [sim]" if row.get("simulation") else "")
+            + (" [sensors]" if row.get("sensors") else ""))
 
 
 def main() -> None:
@@ -291,6 +301,9 @@ def main() -> None:
     ap.add_argument("--simulation", default=None,
                     help="the simulated radar differs from the config's: [simulation] entries, e.g. "
                          "vibration_horizontal_rms_m=0.25e-3 (the processor keeps the config's)")
+    ap.add_argument("--sensors", default=None,
+                    help="the simulated sensors differ from their error tables: sensor.table.key entries, e.g. "
+                         "gnss_cog.gnss.velocity_std_mps=0.06 (the processor keeps the config's tables)")
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--keep", action="store_true", help="keep every drive's log and comparison")
     ap.add_argument("--resume", action="store_true", help="keep --output's rows and skip the drives already in it")
@@ -307,12 +320,12 @@ def main() -> None:
     variant = {"dynamics": args.dynamics, "components": args.components,
                "understeer_gradient": args.understeer_gradient, "rear_slip_gain": args.rear_slip_gain,
                "fits": not args.no_fits, "attitude": not args.planar, "radar_height": args.radar_height,
-               "car": args.car, "simulation": args.simulation}
+               "car": args.car, "simulation": args.simulation, "sensors": args.sensors}
 
     def drive_key(r: dict[str, Any]) -> tuple[Any, ...]:
         return (r["scenario"], r["seed"], r.get("dynamics"), r.get("components"), r.get("understeer_gradient"),
                 r.get("rear_slip_gain"), r.get("fits", True), r.get("attitude", True), r.get("radar_height", False),
-                r.get("car"), r.get("simulation"))
+                r.get("car"), r.get("simulation"), r.get("sensors"))
 
     done = {drive_key(r) for r in rows}
 
@@ -320,9 +333,11 @@ def main() -> None:
         groups = list(dict.fromkeys(group_key(r) for r in rows))
         cars = sorted({r["car"] for r in rows if r.get("car")})  # the rows' other car ("[car]" in the groups)
         sims = sorted({r["simulation"] for r in rows if r.get("simulation")})  # and other radar ("[sim]")
+        sensors = sorted({r["sensors"] for r in rows if r.get("sensors")})  # and other sensors ("[sensors]")
         result = {"benchmark": "paper", "methods": methods, "dynamics": args.dynamics or "config",
                   "components": args.components, **({"car": " / ".join(cars)} if cars else {}),
-                  **({"simulation": " / ".join(sims)} if sims else {}), "rows": rows,
+                  **({"simulation": " / ".join(sims)} if sims else {}),
+                  **({"sensors": " / ".join(sensors)} if sensors else {}), "rows": rows,
                   "summary": {g: summary([r for r in rows if group_key(r) == g]) for g in groups}
                   | {"all": summary(rows)}}
         args.output.parent.mkdir(parents=True, exist_ok=True)
@@ -337,12 +352,12 @@ def main() -> None:
         config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
                                                 not args.no_fits, not args.planar, args.radar_height))]
                   if custom else [])
-        # the simulated car and radar: the config's unless --car / --simulation (then only the simulator is given
-        # the changed one)
-        other_vehicle = bool(args.car or args.simulation)
+        # the simulated car, radar and sensors: the config's unless --car / --simulation / --sensors (then only the
+        # simulator is given the changed one)
+        other_vehicle = bool(args.car or args.simulation or args.sensors)
         sim_config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
                                                     not args.no_fits, not args.planar, args.radar_height, args.car,
-                                                    args.simulation))]
+                                                    args.simulation, args.sensors))]
                       if other_vehicle else config)
         for seed in parse_seeds(args.seeds):
             for scenario in args.scenarios.split(","):
@@ -350,7 +365,8 @@ def main() -> None:
                     continue
                 tag = (f"_{args.dynamics}" if args.dynamics else "") + (
                     f"_{args.components.replace(',', '+')}" if args.components is not None else "") + (
-                    "_car" if args.car else "") + ("_sim" if args.simulation else "")
+                    "_car" if args.car else "") + ("_sim" if args.simulation else "") + (
+                    "_sensors" if args.sensors else "")
                 log = work / f"{scenario}_s{seed}{tag}.mcap"
                 t = time.perf_counter()
                 if not log.exists():
@@ -378,6 +394,8 @@ def main() -> None:
                     row["car"] = args.car
                 if args.simulation:
                     row["simulation"] = args.simulation
+                if args.sensors:
+                    row["sensors"] = args.sensors
                 row["sarmin_track_scale_pct"] = pct(track_scale(out))
                 if not other_vehicle:  # (it rebuilds the config's car's motion)
                     gnss_scale, gnss_se = gnss_velocity_scale(scenario, seed)

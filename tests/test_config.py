@@ -82,8 +82,8 @@ def test_missing_key_and_missing_file(tmp_path):
 
 
 def test_bench_configs_change_only_the_simulators_entries(tmp_path: Path) -> None:
-    """benches/bench_paper.py's other car (``--car``) and other radar (``--simulation``) edit only the entries named,
-    in their own sections, and refuse a name the section lacks."""
+    """benches/bench_paper.py's other car (``--car``), other radar (``--simulation``) and other sensors
+    (``--sensors``) edit only the entries named, in their own sections, and refuse a name the section lacks."""
     import importlib.util
 
     source = Path(__file__).parents[1] / "benches" / "bench_paper.py"
@@ -103,3 +103,13 @@ def test_bench_configs_change_only_the_simulators_entries(tmp_path: Path) -> Non
     assert changed.navigation == base.navigation and changed.radar == base.radar
     with pytest.raises(SystemExit, match="not an entry of \\[simulation\\]"):
         bench.config_copy(None, None, tmp_path, simulation="vibration_rms_m=1.0")
+    path = bench.config_copy(None, None, tmp_path, sensors="gnss_cog.gnss.velocity_std_mps=0.06,"
+                                                           "wheel_speeds.wheel.noise_std_mps=0.016")
+    sensors, before = load_config(path).sensors, base.sensors
+    assert sensors["gnss_cog"].gnss is not None and before["gnss_cog"].gnss is not None
+    assert sensors["gnss_cog"].gnss.velocity_std_mps == 0.06
+    assert sensors["gnss_cog"].gnss.horizontal_std_m == before["gnss_cog"].gnss.horizontal_std_m
+    assert sensors["gnss_radar"] == before["gnss_radar"]  # the same key in another sensor's table is left alone
+    assert sensors["wheel_speeds"].wheel is not None and sensors["wheel_speeds"].wheel.noise_std_mps == 0.016
+    with pytest.raises(SystemExit, match="not an entry of \\[sensors.gnss_cog.gnss\\]"):
+        bench.config_copy(None, None, tmp_path, sensors="gnss_cog.gnss.speed_std_mps=1.0")
