@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import shutil
 import sys
 from pathlib import Path
@@ -244,12 +245,22 @@ def test_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path: Path, delay_s: 
     if script is None:
         pytest.skip("the autosar console script is not installed")
     start_s = _interpreter_start_s()
-    # test1 (a 13 s drive) is still being simulated at 1.5 s where the default scenario may be done
-    proc = subprocess.Popen([script, "simulate", "--scenario", "test1", "-o", str(tmp_path / "s.mcap")],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_as_from_a_terminal)
-    time.sleep(start_s + delay_s)
-    proc.send_signal(signal.SIGINT)
-    _, stderr = proc.communicate(timeout=60)
+    for _ in range(3):
+        # test1 (a 13 s drive) is still being simulated at 1.5 s where the default scenario may be done
+        proc = subprocess.Popen([script, "simulate", "--scenario", "test1", "-o", str(tmp_path / "s.mcap")],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                preexec_fn=_as_from_a_terminal)
+        time.sleep(start_s + delay_s)
+        proc.send_signal(signal.SIGINT)
+        _, stderr = proc.communicate(timeout=60)
+        before_autosar = (proc.returncode == -signal.SIGINT and not stderr.strip()) or (
+            "Traceback" in stderr and not re.search(r'File "[^"]*[/\\\\]autosar_cli[/\\\\]', stderr))
+        if not before_autosar:
+            break
+        # killed, or a traceback through no line of autosar's package: the signal came while Python itself started
+        # or looked for the package (a host under load, e.g. the other pytest-xdist worker's kernels, can take
+        # longer than the starts measured); again, later
+        start_s *= 2.0
     assert proc.returncode == 130, stderr
     assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
     assert stderr.strip().endswith("interrupted"), stderr
