@@ -309,6 +309,9 @@ class NavigationConfig:
     # first pass, and SAR-MIN's final pass run with it where its std is at most rear_slip_max_std_rad_per_mps2
     estimate_rear_slip: bool = True
     rear_slip_max_std_rad_per_mps2: float = 0.002
+    # each GNSS stream's white noise measured from its own samples (nav.gnss_noise), and the table's sigma raised to
+    # it where it is at least 1.4 times the table's (a receiver noisier than its datasheet)
+    estimate_gnss_noise: bool = True
     # the 6-DoF IMU whose roll and pitch move SAR-MIN's radar (nav.attitude; "" = none): the radar's motion as the
     # body rolls and pitches, grade included, as the trajectory's correction
     attitude_imu: str = ""

@@ -38,6 +38,7 @@ for the simulator only), with ``--resume`` into the same file (commands in docs/
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import re
 import shutil
@@ -126,7 +127,10 @@ def config_copy(components: str | None, understeer: float | None, work: Path, re
                + ("_car" + re.sub(r"[^A-Za-z0-9.]+", "_", car) if car else "")
                + ("_sim" + re.sub(r"[^A-Za-z0-9.]+", "_", simulation) if simulation else "")
                + ("_sensors" + re.sub(r"[^A-Za-z0-9.]+", "_", sensors) if sensors else ""))
-    path = work / f"config_{tag}_us{understeer}_slip{rear_slip}{variant}.toml"
+    name = f"config_{tag}_us{understeer}_slip{rear_slip}{variant}"
+    if len(name) > 200:  # a file name has at most 255 bytes
+        name = f"config_{hashlib.sha256(name.encode()).hexdigest()[:16]}"
+    path = work / f"{name}.toml"
     path.write_text(text)
     return path
 

@@ -26,6 +26,7 @@ from autosar_cli.nav.attitude import (
     without_pitch_bias,
 )
 from autosar_cli.nav.baselines import from_truth, gnss_only, straight_line
+from autosar_cli.nav.gnss_noise import gnss_noise_checked
 from autosar_cli.nav.inputs import NavInputError, NavInputs, load_inputs
 from autosar_cli.nav.rear_slip import fit_rear_slip
 from autosar_cli.nav.sarmin import NavSolution, gnss_lever_rear, run_sarmin, with_smoothed_covariance
@@ -402,6 +403,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
             if truth_path is None:
                 raise NavInputError(f"{drive_path}: no truth sidecar found; give --truth LOG.truth.h5")
     if method == "sar-min":
+        inputs, gnss_noise = gnss_noise_checked(inputs, config.navigation.estimate_gnss_noise)
         inputs, wheel_lag, wheel_radii = wheel_speeds_corrected(inputs, config)
         attitude, attitude_reason = body_attitude(inputs, config)
         if attitude is not None:
@@ -416,7 +418,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                           covariance=sol.P, rear_slip_gain=slip_gain,
                           info={"updates": sol.updates, "rejected": sol.rejected, "smoothed": smooth,
                                 "understeer": understeer, "rear_slip": rear_slip, "wheel_lag": wheel_lag,
-                                "wheel_radii": wheel_radii})
+                                "wheel_radii": wheel_radii, "gnss_noise": gnss_noise})
         traj = with_attitude(traj, attitude, attitude_reason, inputs.t0_ns, config)
     elif method == "ins":
         from autosar_cli.nav.ins import run_ins
