@@ -56,3 +56,18 @@ def test_only_a_receiver_noisier_than_its_table_is_reweighed() -> None:
     off, info_off = gnss_noise_checked(inputs, enabled=False)
     assert off.gnss_position is inputs.gnss_position and not info_off["position"]["applied"]
     assert "is off" in info_off["position"]["reason"]
+
+
+def test_the_fits_against_a_noisier_gnss_velocity_take_wider_bounds() -> None:
+    from autosar_cli.config import load_config
+    from autosar_cli.nav.gnss_noise import with_fit_bounds_widened
+
+    config = load_config()
+    nav = config.navigation
+    assert with_fit_bounds_widened(config, {"velocity": {"applied": False, "ratio": 1.2}}) is config
+    assert with_fit_bounds_widened(config, {"position": {"applied": True, "ratio": 2.0}}) is config  # velocity only
+    wide = with_fit_bounds_widened(config, {"velocity": {"applied": True, "ratio": 1.96}}).navigation
+    assert wide.rear_slip_max_std_rad_per_mps2 == 1.96 * nav.rear_slip_max_std_rad_per_mps2
+    assert wide.wheel_lag_max_std_m == 1.96 * nav.wheel_lag_max_std_m
+    assert wide.wheel_radius_gain_max_std_per_mps2 == 1.96 * nav.wheel_radius_gain_max_std_per_mps2
+    assert wide.understeer_max_std_rad_per_mps2 == nav.understeer_max_std_rad_per_mps2  # fitted against the gyros

@@ -26,7 +26,7 @@ from autosar_cli.nav.attitude import (
     without_pitch_bias,
 )
 from autosar_cli.nav.baselines import from_truth, gnss_only, straight_line
-from autosar_cli.nav.gnss_noise import gnss_noise_checked
+from autosar_cli.nav.gnss_noise import gnss_noise_checked, with_fit_bounds_widened
 from autosar_cli.nav.inputs import NavInputError, NavInputs, load_inputs
 from autosar_cli.nav.rear_slip import fit_rear_slip
 from autosar_cli.nav.sarmin import NavSolution, gnss_lever_rear, run_sarmin, with_smoothed_covariance
@@ -404,11 +404,12 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                 raise NavInputError(f"{drive_path}: no truth sidecar found; give --truth LOG.truth.h5")
     if method == "sar-min":
         inputs, gnss_noise = gnss_noise_checked(inputs, config.navigation.estimate_gnss_noise)
-        inputs, wheel_lag, wheel_radii = wheel_speeds_corrected(inputs, config)
+        fits_config = with_fit_bounds_widened(config, gnss_noise)
+        inputs, wheel_lag, wheel_radii = wheel_speeds_corrected(inputs, fits_config)
         attitude, attitude_reason = body_attitude(inputs, config)
         if attitude is not None:
             inputs = gnss_on_level_body(inputs, attitude, config)
-        sol, understeer, rear_slip, slip_gain = sarmin_with_fits(inputs, config, smooth=smooth)
+        sol, understeer, rear_slip, slip_gain = sarmin_with_fits(inputs, fits_config, smooth=smooth)
         t_ns = inputs.t0_ns + np.round(sol.t * 1e9).astype(np.int64)
         # the filter's heading is the body's; the trajectory's is the rear axle's course, the body turned from it
         course = np.unwrap(sol.x[:, m.PSI]) - slip_gain * sol.x[:, m.V] * sol.x[:, m.OMEGA]
