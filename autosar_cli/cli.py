@@ -372,6 +372,9 @@ def navigate(
                   f"{dist:.1f} m travelled, in {traj.info['elapsed_s']:.1f} s")
         if traj.info.get("rejected"):
             out.print("gated out: " + ", ".join(f"{k} {v}" for k, v in traj.info["rejected"].items()))
+        for stream, noise in traj.info.get("gnss_noise", {}).items():
+            if noise.get("applied"):
+                out.print(f"GNSS {stream} noise {noise['ratio']:.2f} times its table's: {noise['reason']}")
         if "understeer" in traj.info:
             us = traj.info["understeer"]
             fitted = f" +- {us['std']:.2g}" if "std" in us else ""
