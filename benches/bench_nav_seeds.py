@@ -77,7 +77,12 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
             # which of the fitted lags SAR-MIN applied (docs/NAVIGATION.md)
             "steering_left_out": bool(est.info["understeer"]["steering_left_out"]),
             "wheel_lag_applied": bool(est.info["wheel_lag"]["applied"]),
-            "wheel_radii_applied": bool(est.info["wheel_radii"]["applied"])}
+            "wheel_radii_applied": bool(est.info["wheel_radii"]["applied"]),
+            "rear_slip_applied": bool(est.info["rear_slip"]["applied"]),
+            "rear_slip_gain": est.info["rear_slip"].get("gain"), "rear_slip_std": est.info["rear_slip"].get("std"),
+            # the white noise each GNSS stream shows over its table's, and whether SAR-MIN weighed it so
+            **{f"gnss_{k}_noise_ratio": v["ratio"] for k, v in est.info.get("gnss_noise", {}).items()},
+            "gnss_noise_applied": any(v["applied"] for v in est.info.get("gnss_noise", {}).values())}
 
 
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
@@ -99,7 +104,9 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "abs_rmse_mean_m": round(statistics.fmean(r["abs_rmse_m"] for r in rows), 4),
             "steering_left_out": sum(r["steering_left_out"] for r in rows),
             "wheel_lag_applied": sum(r["wheel_lag_applied"] for r in rows),
-            "wheel_radii_applied": sum(r.get("wheel_radii_applied", False) for r in rows)}
+            "wheel_radii_applied": sum(r.get("wheel_radii_applied", False) for r in rows),
+            "rear_slip_applied": sum(r.get("rear_slip_applied", False) for r in rows),
+            "gnss_noise_applied": sum(r.get("gnss_noise_applied", False) for r in rows)}
 
 
 def main() -> None:
