@@ -73,6 +73,10 @@ def cli(*args: str) -> subprocess.CompletedProcess[str]:
                           text=True)
 
 
+#: what a probe may simulate otherwise than the config the processor keeps: options, and keys of its rows
+OTHER_VEHICLE = ("car", "simulation", "sensors")
+
+
 def config_copy(components: str | None, understeer: float | None, work: Path, rear_slip: float | None = None,
                 fits: bool = True, attitude: bool = True, radar_height: bool = False, car: str | None = None,
                 simulation: str | None = None, sensors: str | None = None) -> Path:
@@ -335,13 +339,10 @@ def main() -> None:
 
     def write() -> dict[str, Any]:
         groups = list(dict.fromkeys(group_key(r) for r in rows))
-        cars = sorted({r["car"] for r in rows if r.get("car")})  # the rows' other car ("[car]" in the groups)
-        sims = sorted({r["simulation"] for r in rows if r.get("simulation")})  # and other radar ("[sim]")
-        sensors = sorted({r["sensors"] for r in rows if r.get("sensors")})  # and other sensors ("[sensors]")
+        # the rows' other car, radar and sensors ("[car]", "[sim]", "[sensors]" in the groups)
+        others = {k: " / ".join(sorted({r[k] for r in rows if r.get(k)})) for k in OTHER_VEHICLE}
         result = {"benchmark": "paper", "methods": methods, "dynamics": args.dynamics or "config",
-                  "components": args.components, **({"car": " / ".join(cars)} if cars else {}),
-                  **({"simulation": " / ".join(sims)} if sims else {}),
-                  **({"sensors": " / ".join(sensors)} if sensors else {}), "rows": rows,
+                  "components": args.components, **{k: v for k, v in others.items() if v}, "rows": rows,
                   "summary": {g: summary([r for r in rows if group_key(r) == g]) for g in groups}
                   | {"all": summary(rows)}}
         args.output.parent.mkdir(parents=True, exist_ok=True)
@@ -358,7 +359,7 @@ def main() -> None:
                   if custom else [])
         # the simulated car, radar and sensors: the config's unless --car / --simulation / --sensors (then only the
         # simulator is given the changed one)
-        other_vehicle = bool(args.car or args.simulation or args.sensors)
+        other_vehicle = any(getattr(args, k) for k in OTHER_VEHICLE)
         sim_config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
                                                     not args.no_fits, not args.planar, args.radar_height, args.car,
                                                     args.simulation, args.sensors))]
@@ -394,12 +395,7 @@ def main() -> None:
                     row["attitude"] = False
                 if args.radar_height:
                     row["radar_height"] = True
-                if args.car:
-                    row["car"] = args.car
-                if args.simulation:
-                    row["simulation"] = args.simulation
-                if args.sensors:
-                    row["sensors"] = args.sensors
+                row |= {k: getattr(args, k) for k in OTHER_VEHICLE if getattr(args, k)}
                 row["sarmin_track_scale_pct"] = pct(track_scale(out))
                 if not other_vehicle:  # (it rebuilds the config's car's motion)
                     gnss_scale, gnss_se = gnss_velocity_scale(scenario, seed)
