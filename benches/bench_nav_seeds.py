@@ -2,6 +2,8 @@
 
 Usage: python benches/bench_nav_seeds.py [--scenarios test1,test2,test3] [--seeds 10-69]
                                          [--gnss-models gauss_markov,white:0.5,white:2]
+                                         [--navigation 'estimate_gnss_noise=false;estimate_gnss_noise=true']
+                                         [--sensors 'gnss_cog.gnss.velocity_std_mps=0.06,...']
                                          [--output benches/results/nav_seeds.json]
 
 For every filter setting, scenario and seed: ``simulate`` with the radar at 20 Hz instead of 990 Hz (the navigation
@@ -15,7 +17,8 @@ aligned error is about the scale times its along-track distance from the track's
 Prints one line per setting and scenario; writes the rows and the summary as JSON, with which of SAR-MIN's fitted
 terms each drive applied (``--dynamics kinematic --seeds 0-9 --output benches/results/nav_seeds_kinematic.json``:
 none shows on the kinematic drives; ``--scenarios test1,test2,test3,urban --seeds 0-9 --dynamics full --output
-benches/results/nav_seeds_full.json``: the full vehicle model).
+benches/results/nav_seeds_full.json``: the full vehicle model). ``--navigation`` compares settings of SAR-MIN
+side by side on the same drives; ``--sensors`` simulates sensors other than the error tables SAR-MIN weighs them by.
 """
 
 from __future__ import annotations
@@ -27,20 +30,23 @@ import statistics
 import sys
 import tempfile
 import time
+import tomllib
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_paper import gnss_velocity_scale, parse_seeds  # noqa: E402
+from bench_paper import config_copy, gnss_velocity_scale, parse_seeds  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 NAV_ONLY_PRF_HZ = 20.0
 SCALE_LIMIT = 5.5e-4  #: |scale| above it puts a reflector 55 m from the track's centre more than 3 cm off
 
 
-def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | None = None) -> dict[str, float]:
+def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | None = None,
+            sim_config: Any = None) -> dict[str, float]:
+    """One drive: simulated from ``sim_config`` (None: ``config``), navigated with ``config``."""
     from autosar_cli.evaluate.alignment import fit_se2, fit_similarity_scale
     from autosar_cli.evaluate.trajectory_metrics import common_instants
     from autosar_cli.ingest.pipeline import ingest
@@ -50,7 +56,7 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
     from autosar_cli.sim.simulate import simulate
 
     log = work / f"{scenario}_s{seed}.mcap"
-    sim = simulate(scenario, log, seed=seed, config=config, dynamics=dynamics)  # type: ignore[arg-type]
+    sim = simulate(scenario, log, seed=seed, config=sim_config or config, dynamics=dynamics)  # type: ignore[arg-type]
     drive = work / f"{scenario}_s{seed}.h5"
     ingest([log], drive, config=config)
     est = navigate(drive, "sar-min", config)
@@ -63,7 +69,7 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
     scale = fit_similarity_scale(e_xy, r_xy)
     scaled = e_xy.mean(axis=0) + scale * (e_xy - e_xy.mean(axis=0))
     shape = np.hypot(*(fit_se2(scaled, r_xy).apply(scaled) - r_xy).T)
-    gnss, _ = gnss_velocity_scale(scenario, seed)
+    gnss, _ = gnss_velocity_scale(scenario, seed, sim_config)
     for p in (log, drive, sim.truth_path):
         Path(p).unlink(missing_ok=True)
     scale_std = track_scale_std(est)
@@ -82,7 +88,9 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
             "rear_slip_gain": est.info["rear_slip"].get("gain"), "rear_slip_std": est.info["rear_slip"].get("std"),
             # the white noise each GNSS stream shows over its table's, and whether SAR-MIN weighed it so
             **{f"gnss_{k}_noise_ratio": v["ratio"] for k, v in est.info.get("gnss_noise", {}).items()},
-            "gnss_noise_applied": any(v["applied"] for v in est.info.get("gnss_noise", {}).values())}
+            "gnss_noise_applied": any(v["applied"] for v in est.info.get("gnss_noise", {}).values()),
+            # the updates the chi-square gate refused, all kinds together
+            "rejected": int(sum(est.info.get("rejected", {}).values()))}
 
 
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
@@ -106,7 +114,19 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "wheel_lag_applied": sum(r["wheel_lag_applied"] for r in rows),
             "wheel_radii_applied": sum(r.get("wheel_radii_applied", False) for r in rows),
             "rear_slip_applied": sum(r.get("rear_slip_applied", False) for r in rows),
-            "gnss_noise_applied": sum(r.get("gnss_noise_applied", False) for r in rows)}
+            "gnss_noise_applied": sum(r.get("gnss_noise_applied", False) for r in rows),
+            "rejected_median": statistics.median(r.get("rejected", 0) for r in rows)}
+
+
+def navigation_edits(nav: Any, edits: str) -> dict[str, Any]:
+    """'key=value,...' (TOML values) as fields of the navigation config ``nav``; an unknown key is refused."""
+    out: dict[str, Any] = {}
+    for item in filter(None, edits.split(",")):
+        key, _, value = (x.strip() for x in item.partition("="))
+        if key not in {f.name for f in dataclasses.fields(nav)}:
+            raise SystemExit(f"--navigation: {key!r} is not an entry of [navigation]")
+        out[key] = tomllib.loads(f"v = {value}")["v"]
+    return out
 
 
 def main() -> None:
@@ -119,6 +139,12 @@ def main() -> None:
     ap.add_argument("--gnss-models", default=None,
                     help="comma-separated GNSS error models to compare: gauss_markov, or white:<std m> "
                          "(navigation.gnss_error_model, gnss_position_std_m; default: the config's)")
+    ap.add_argument("--navigation", default=None,
+                    help="';'-separated settings of [navigation] to compare, each 'key=value,...' in TOML, e.g. "
+                         "'estimate_gnss_noise=false;estimate_gnss_noise=true' (default: the config's)")
+    ap.add_argument("--sensors", default=None,
+                    help="the simulated sensors differ from the error tables SAR-MIN weighs them by: "
+                         "'sensor.table.key=value,...', e.g. gnss_cog.gnss.velocity_std_mps=0.06 (bench_paper.py)")
     ap.add_argument("--dynamics", choices=("kinematic", "full"), default=None,
                     help="simulator vehicle model (default: the config's simulation.dynamics)")
     ap.add_argument("--output", type=Path, default=RESULTS / "nav_seeds.json")
@@ -128,23 +154,29 @@ def main() -> None:
     nav = base.navigation
     default = "gauss_markov" if nav.gnss_error_model == "gauss_markov" else f"white:{nav.gnss_position_std_m:g}"
     models = args.gnss_models.split(",") if args.gnss_models else [default]
+    settings = args.navigation.split(";") if args.navigation else [""]
     rows: list[dict[str, Any]] = []
     summary: dict[str, Any] = {}
     with tempfile.TemporaryDirectory() as tmp:
-        for model in models:
+        sim_config = (dataclasses.replace(load_config(config_copy(None, None, Path(tmp), sensors=args.sensors)),
+                                          radar=config.radar) if args.sensors else None)
+        for model, edits in ((m, e) for m in models for e in settings):
             kind, _, std = model.partition(":")
-            setting = {"gnss_error_model": kind, **({"gnss_position_std_m": float(std)} if std else {})}
+            setting = {"gnss_error_model": kind, **({"gnss_position_std_m": float(std)} if std else {}),
+                       **navigation_edits(nav, edits)}
             cfg = dataclasses.replace(config, navigation=dataclasses.replace(nav, **setting))  # type: ignore[arg-type]
+            label = model + (f" {edits}" if edits else "")
             for scenario in args.scenarios.split(","):
                 t = time.perf_counter()
-                these = [{"gnss_model": model, "scenario": scenario, "seed": seed,
+                these = [{"gnss_model": model, **({"navigation": edits} if edits else {}),
+                          **({"sensors": args.sensors} if args.sensors else {}), "scenario": scenario, "seed": seed,
                           **{k: (round(v, 4) if isinstance(v, float) else v)
-                             for k, v in measure(scenario, seed, cfg, Path(tmp), args.dynamics).items()}}
+                             for k, v in measure(scenario, seed, cfg, Path(tmp), args.dynamics, sim_config).items()}}
                          for seed in parse_seeds(args.seeds)]
                 rows += these
                 s = summarise(these)
-                summary[f"{scenario} {model}"] = s
-                print(f"{scenario}, GNSS error {model}: {s['drives']} drives, "
+                summary[f"{scenario} {label}"] = s
+                print(f"{scenario}, GNSS error {label}: {s['drives']} drives, "
                       f"scale RMS {s['scale_rms_pct']:.4f} % "
                       f"(GNSS velocity alone {s['gnss_velocity_scale_rms_pct']:.4f} %, correlation "
                       f"{s['scale_correlation_with_gnss_velocity']:.2f}), |scale| > {100 * SCALE_LIMIT:.3f} % on "

@@ -160,12 +160,12 @@ def track_scale(result_dir: Path) -> float:
     return radar_track_scale(est, true, radar_times(result_dir / "drive.h5"), load_config())
 
 
-def gnss_velocity_scale(scenario: str, seed: int) -> tuple[float, float]:
+def gnss_velocity_scale(scenario: str, seed: int, config: Any = None) -> tuple[float, float]:
     """What the fused GNSS velocity alone says of the track's scale, and its standard error (both - 1, not %).
 
     -(mean along-track error of the GNSS velocity) / (mean speed) over the fixes while moving: the scale of a
     track whose speed were the GNSS's averaged over the drive. The draws are the simulator's own (same seed, same
-    sensor stream), so this is exactly the noise in the log.
+    sensor stream), so this is exactly the noise in the log; ``config``: the simulator's (None: the default).
     """
     import numpy as np
 
@@ -174,7 +174,7 @@ def gnss_velocity_scale(scenario: str, seed: int) -> tuple[float, float]:
     from autosar_cli.sim.scenario import build_scenario
     from autosar_cli.sim.simulate import stream_rng
 
-    config = load_config()
+    config = config or load_config()
     name = config.navigation.gnss
     samples = sensors.gnss(build_scenario(scenario, config).motion, name, config.sensors[name],
                            stream_rng(seed, f"sensor/{name}"))
