@@ -302,6 +302,10 @@ class NavigationConfig:
     # and the samples moved back by it, where c's std is at most wheel_lag_max_std_m
     estimate_wheel_lag: bool = True
     wheel_lag_max_std_m: float = 0.02
+    # the wheel sensor's stated window ([sensors.*.wheel] lag_distance_m) joins that fit on every drive that does
+    # not contradict it, not only where the drive shows a lag: right for a real ABS ECU; off by default because the
+    # kinematic simulator's wheel speeds have no window (docs/NAVIGATION.md)
+    wheel_lag_window_always: bool = False
     # each axle's slip (per m/s^2 of acceleration, drive and brake) and lateral load gain (per m/s^2 of lateral
     # acceleration) fitted to the drive, and the wheel speeds divided by those whose std is at most this
     estimate_wheel_radii: bool = True

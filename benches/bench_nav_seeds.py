@@ -4,6 +4,7 @@ Usage: python benches/bench_nav_seeds.py [--scenarios test1,test2,test3] [--seed
                                          [--gnss-models gauss_markov,white:0.5,white:2]
                                          [--navigation 'estimate_gnss_noise=false;estimate_gnss_noise=true']
                                          [--sensors 'gnss_cog.gnss.velocity_std_mps=0.06,...']
+                                         [--components 'tyre_radius;wheel_ticks']
                                          [--output benches/results/nav_seeds.json]
 
 For every filter setting, scenario and seed: ``simulate`` with the radar at 20 Hz instead of 990 Hz (the navigation
@@ -102,6 +103,10 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "scale_mean_pct": round(float(scale.mean()), 4),
             "gnss_velocity_scale_rms_pct": round(float(np.sqrt(np.mean(gnss**2))), 4),
             "scale_correlation_with_gnss_velocity": round(float(np.corrcoef(scale, gnss)[0, 1]), 3),
+            # what SAR-MIN adds to its GNSS velocity's scale, mean and its standard error: 0 where it adds no bias
+            "scale_minus_gnss_velocity_mean_pct": round(float(np.mean(scale - gnss)), 4),
+            "scale_minus_gnss_velocity_se_pct": round(float(np.std(scale - gnss, ddof=1) / np.sqrt(len(rows))), 4)
+            if len(rows) > 1 else float("nan"),
             # the scale's error over the navigation's own std, RMS: 1 where that std is right
             "scale_z_rms": round(float(np.sqrt(np.mean(z**2))), 2),
             "scale_beyond_limit": int(np.sum(np.abs(scale) > 100 * SCALE_LIMIT)),
@@ -142,6 +147,9 @@ def main() -> None:
     ap.add_argument("--navigation", default=None,
                     help="';'-separated settings of [navigation] to compare, each 'key=value,...' in TOML, e.g. "
                          "'estimate_gnss_noise=false;estimate_gnss_noise=true' (default: the config's)")
+    ap.add_argument("--components", default=None,
+                    help="';'-separated sets of the full vehicle's components to simulate, each comma-separated, e.g. "
+                         "'tyre_radius;wheel_ticks' (default: the config's; with --dynamics full)")
     ap.add_argument("--sensors", default=None,
                     help="the simulated sensors differ from the error tables SAR-MIN weighs them by: "
                          "'sensor.table.key=value,...', e.g. gnss_cog.gnss.velocity_std_mps=0.06 (bench_paper.py)")
@@ -157,18 +165,23 @@ def main() -> None:
     settings = args.navigation.split(";") if args.navigation else [""]
     rows: list[dict[str, Any]] = []
     summary: dict[str, Any] = {}
+    components = args.components.split(";") if args.components is not None else [None]
     with tempfile.TemporaryDirectory() as tmp:
-        sim_config = (dataclasses.replace(load_config(config_copy(None, None, Path(tmp), sensors=args.sensors)),
-                                          radar=config.radar) if args.sensors else None)
-        for model, edits in ((m, e) for m in models for e in settings):
+        for model, edits, comps in ((m, e, c) for m in models for e in settings for c in components):
+            # the simulated car's components and sensors: the config's unless --components / --sensors
+            sim_config = (dataclasses.replace(load_config(config_copy(comps, None, Path(tmp), sensors=args.sensors)),
+                                              radar=config.radar) if comps is not None or args.sensors else None)
             kind, _, std = model.partition(":")
             setting = {"gnss_error_model": kind, **({"gnss_position_std_m": float(std)} if std else {}),
                        **navigation_edits(nav, edits)}
             cfg = dataclasses.replace(config, navigation=dataclasses.replace(nav, **setting))  # type: ignore[arg-type]
-            label = model + (f" {edits}" if edits else "")
+            label = (model + (f" {args.dynamics}" if args.dynamics else "") + (f" {edits}" if edits else "")
+                     + (f" [{comps}]" if comps is not None else "")
+                     + (f" sensors {args.sensors}" if args.sensors else ""))
             for scenario in args.scenarios.split(","):
                 t = time.perf_counter()
-                these = [{"gnss_model": model, **({"navigation": edits} if edits else {}),
+                these = [{"gnss_model": model, "dynamics": args.dynamics, **({"navigation": edits} if edits else {}),
+                          **({"components": comps} if comps is not None else {}),
                           **({"sensors": args.sensors} if args.sensors else {}), "scenario": scenario, "seed": seed,
                           **{k: (round(v, 4) if isinstance(v, float) else v)
                              for k, v in measure(scenario, seed, cfg, Path(tmp), args.dynamics, sim_config).items()}}

@@ -648,6 +648,30 @@ def test_the_sensors_stated_window_joins_only_a_lag_the_drive_shows() -> None:
             assert joined.fitted_m is None and joined.lag_distance_m == alone.lag_distance_m
 
 
+def test_the_stated_window_on_every_drive_that_does_not_contradict_it() -> None:
+    """``navigation.wheel_lag_window_always``: where a drive cannot measure the lag (6 +- 0.3 m/s: its own c is
+    -1.4 +- 1.5 m) the ECU's stated window (0.151 +- 0.01 m) is taken, and the lag pinned to it within 1 cm and
+    1.05 cm std; without the option the drive's own c stands. A drive whose speeds contradict the window
+    (instantaneous speeds, 6 +- 2 m/s: -0.023 +- 0.032 m, 5 combined std below) keeps its own with it too."""
+    from dataclasses import replace
+
+    from autosar_cli.nav.wheel_speeds import fit_wheel_speeds
+
+    tracks = (VEH.track_front_m, VEH.track_rear_m)
+    for speed, ecu, seed, joins in ((lambda t: 6.0 - 0.3 * np.cos(2 * np.pi * t / 12.0), True, 4, True),
+                                    (lambda t: 6.0 - 2.0 * np.cos(2 * np.pi * t / 12.0), False, 5, False)):
+        inputs = replace(_wheel_and_gnss_inputs(speed, ecu, seed), wheel_lag_prior_m=(0.151, 0.01))
+        shown = fit_wheel_speeds(inputs, (0.0, 0.0), VEH.wheelbase_m, tracks)[0]
+        always = fit_wheel_speeds(inputs, (0.0, 0.0), VEH.wheelbase_m, tracks, window_always=True)[0]
+        print("ECU" if ecu else "instant", shown, always)
+        assert shown.fitted_m is None  # neither shows a lag 3 std above 0
+        if joins:
+            assert shown.std_m > 0.1 and always.fitted_m == shown.lag_distance_m
+            assert abs(always.lag_distance_m - 0.151) < 0.01 and always.std_m < 0.0105
+        else:
+            assert always.fitted_m is None and always.lag_distance_m == shown.lag_distance_m
+
+
 def test_wheel_radius_gains_are_the_full_vehicles_closed_form() -> None:
     """On urban driven by the simulator's full vehicle (stop and go, turns), the fitted gains equal the closed form
     of its tyre model: lateral load g = f m h s / (T k_z R) per axle (s the axle's share of the transfer) within 10 %

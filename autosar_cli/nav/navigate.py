@@ -99,7 +99,7 @@ def wheel_speeds_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
         off = {"applied": False, "reason": "navigation.estimate_wheel_lag is off"}
         return inputs, off, {"applied": {}, "reason": "navigation.estimate_wheel_radii is off"}
     lag, radii = fit_wheel_speeds(inputs, gnss_lever_rear(inputs, config), veh.wheelbase_m,
-                                  (veh.track_front_m, veh.track_rear_m))
+                                  (veh.track_front_m, veh.track_rear_m), window_always=nav.wheel_lag_window_always)
     radii_info: dict = {"applied": {}, "reason": "no wheel speeds, or no GNSS velocity and gyros, or no motion above "
                                                  "1 m/s"}
     if not nav.estimate_wheel_radii:

@@ -162,15 +162,15 @@ def _front_speeds(v: Array, w: Array, wheelbase_m: float, track_m: float) -> tup
     return np.hypot(v - w * track_m / 2, lat), np.hypot(v + w * track_m / 2, lat)
 
 
-def _with_lag_prior(coef: Array, cov: Array, prior_m: float, prior_std_m: float
+def _with_lag_prior(coef: Array, cov: Array, prior_m: float, prior_std_m: float, always: bool = False
                    ) -> tuple[Array, Array, tuple[float, float] | None]:
     """The longitudinal coefficients and their covariance conditioned on the wheel sensor's stated window
     ``prior_m`` +- ``prior_std_m`` as one more measurement of c (index 2): every coefficient correlated with c (the
     slip gains: -a / v and a v are alike at a steady speed) moves with it. Only where the drive's own c is
-    ``LAG_SHOWN`` std above 0 and within 3 combined std of the window; then also c and its std fitted alone, else
-    None (and the fit unchanged)."""
+    ``LAG_SHOWN`` std above 0 (``always``: wherever it does not contradict the window) and within 3 combined std of
+    the window; then also c and its std fitted alone, else None (and the fit unchanged)."""
     c, c_std = float(coef[2]), float(np.sqrt(cov[2, 2]))
-    if not (prior_std_m > 0 and np.isfinite(c_std) and c > LAG_SHOWN * c_std
+    if not (prior_std_m > 0 and np.isfinite(c_std) and (always or c > LAG_SHOWN * c_std)
             and abs(c - prior_m) <= 3.0 * np.hypot(c_std, prior_std_m)):
         return coef, cov, None
     gain = cov[:, 2] / (cov[2, 2] + prior_std_m**2)
@@ -197,7 +197,7 @@ def longitudinal_regression(wheels: Measurements, ts: Array, v: Array, w: Array,
 
 
 def _fit_longitudinal(inputs: NavInputs, lever_rear_m: tuple[float, float], wheelbase_m: float,
-                      min_speed_mps: float
+                      min_speed_mps: float, window_always: bool = False
                       ) -> tuple[Array, Array, int, float, float, float, tuple[float, float] | None] | None:
     """Coefficients [s_rear, s_front, c, k_front_drive, k_front_brake, k_rear_drive, k_rear_brake] of both axles'
     mean speed less the GNSS speed at the rear axle, their stds, samples, a / v RMS, a RMS, residual RMS, and the
@@ -224,7 +224,7 @@ def _fit_longitudinal(inputs: NavInputs, lever_rear_m: tuple[float, float], whee
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
     res = y - design @ coef
     coef, cov, alone = _with_lag_prior(coef, _effective_covariance(design, res, groups=2),
-                                        *inputs.wheel_lag_prior_m)
+                                        *inputs.wheel_lag_prior_m, always=window_always)
     std = np.sqrt(np.diag(cov))
     return (coef, std, int(use.sum()), float(np.std(a / v)), float(np.std(a)), float(np.sqrt(np.mean(res**2))),
             alone)
@@ -265,18 +265,20 @@ def _fit_lateral(inputs: NavInputs, wheelbase_m: float, tracks_m: tuple[float, f
 
 
 def fit_wheel_speeds(inputs: NavInputs, lever_rear_m: tuple[float, float], wheelbase_m: float,
-                     tracks_m: tuple[float, float], min_speed_mps: float = 1.0
+                     tracks_m: tuple[float, float], min_speed_mps: float = 1.0, window_always: bool = False
                      ) -> tuple[WheelLagFit | None, WheelRadiusFit | None]:
     """The wheel speeds' lag and their slip and load gains (see the module's docstring), fitted to the drive.
 
     ``lever_rear_m``: the GNSS antenna's (x, y) from the rear axle's centre (m, body frame); ``tracks_m``: front
     and rear track (m). None for what the inputs cannot show: no wheel speeds or GNSS velocity (the lag and slip),
-    no gyros (the load gains), or fewer than 10 samples above ``min_speed_mps``.
+    no gyros (the load gains), or fewer than 10 samples above ``min_speed_mps``. ``window_always``: the wheel
+    sensor's stated window joins the lag fit wherever the drive does not contradict it, not only where it shows a
+    lag (:func:`_with_lag_prior`).
     """
     wheels = inputs.wheels
     if wheels is None or len(wheels.t) < 3:
         return None, None
-    longitudinal = (_fit_longitudinal(inputs, lever_rear_m, wheelbase_m, min_speed_mps)
+    longitudinal = (_fit_longitudinal(inputs, lever_rear_m, wheelbase_m, min_speed_mps, window_always)
                     if inputs.gnss_velocity is not None else None)
     lateral = _fit_lateral(inputs, wheelbase_m, tracks_m, min_speed_mps)
     lag = None
