@@ -113,6 +113,7 @@ def wheel_speeds_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
         lag_known = nav.estimate_wheel_lag and lag is not None and lag.std_m <= nav.wheel_lag_max_std_m
         measured = [name for name in SLIP_GAINS if radii.slip_gain_std[name] <= limit] if lag_known else []
         shows = any(_shows(radii.slip_gain[name], radii.slip_gain_std[name], MIN_SLIP_GAIN) for name in measured)
+        shows = shows or (nav.wheel_lag_window_always and lag is not None and lag.fitted_m is not None)
         gains = {name: radii.slip_gain[name] for name in measured} if shows else {}
         gains.update({f"load_{name}": radii.load_gain[name] for name in LOAD_GAINS
                       if radii.load_gain_std[name] <= limit
