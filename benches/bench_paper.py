@@ -33,6 +33,9 @@ benches/results/paper_full_car.json``, with the config's car on seeds 10-16 besi
 --resume``): 21 drives outside the 40, to show their figures are not tuned to their seeds; seeds 17-18 add the
 config's car, a softer one (``--car``) and a radar case that shakes more (``--simulation``: entries of [simulation],
 for the simulator only), with ``--resume`` into the same file (commands in docs/AUTOFOCUS.md).
+SAR-MIN's own settings otherwise than the config (``--navigation``: entries of [navigation], e.g.
+``wheel_lag_window_always=true``; rows and groups name them), side by side with the config's in
+benches/results/paper_fits.json.
 """
 
 from __future__ import annotations
@@ -79,7 +82,7 @@ OTHER_VEHICLE = ("car", "simulation", "sensors")
 
 def config_copy(components: str | None, understeer: float | None, work: Path, rear_slip: float | None = None,
                 fits: bool = True, attitude: bool = True, radar_height: bool = False, car: str | None = None,
-                simulation: str | None = None, sensors: str | None = None) -> Path:
+                simulation: str | None = None, sensors: str | None = None, navigation: str | None = None) -> Path:
     """A copy of the default config whose full vehicle model has only ``components`` (comma-separated; None: all),
     whose steering model has the understeer gradient ``understeer`` and whose trajectory the rear-slip gain
     ``rear_slip`` (rad per m/s^2; None: the config's); ``fits`` False: SAR-MIN in one pass, without the fitted
@@ -87,13 +90,14 @@ def config_copy(components: str | None, understeer: float | None, work: Path, re
     "key=value,..." entries of [vehicle_dynamics], the simulated car (only the simulator reads that section);
     ``simulation``: the same for [simulation]; ``sensors``: "sensor.table.key=value,..." entries of the sensors'
     error tables, e.g. gnss_cog.gnss.velocity_std_mps=0.06 (a copy so changed is for the simulator alone: the
-    processor reads its noises from the same tables)."""
+    processor reads its noises from the same tables); ``navigation``: "key=value,..." entries of [navigation], SAR-MIN's
+    own settings."""
     from autosar_cli.config import DEFAULT_CONFIG
 
     text = DEFAULT_CONFIG.read_text()
     entries: list[tuple[str, str, str, str]] = []  # (option, section, key, value)
     for option, section, given in (("--car", "vehicle_dynamics", car), ("--simulation", "simulation", simulation),
-                                   ("--sensors", "sensors", sensors)):
+                                   ("--sensors", "sensors", sensors), ("--navigation", "navigation", navigation)):
         for item in re.split(r",(?![^\[]*\])", given or ""):  # a list value keeps its commas
             if item:
                 key, _, value = item.partition("=")
@@ -130,7 +134,8 @@ def config_copy(components: str | None, understeer: float | None, work: Path, re
     variant = (("" if fits else "_nofits") + ("" if attitude else "_planar") + ("_height" if radar_height else "")
                + ("_car" + re.sub(r"[^A-Za-z0-9.]+", "_", car) if car else "")
                + ("_sim" + re.sub(r"[^A-Za-z0-9.]+", "_", simulation) if simulation else "")
-               + ("_sensors" + re.sub(r"[^A-Za-z0-9.]+", "_", sensors) if sensors else ""))
+               + ("_sensors" + re.sub(r"[^A-Za-z0-9.]+", "_", sensors) if sensors else "")
+               + ("_nav" + re.sub(r"[^A-Za-z0-9.]+", "_", navigation) if navigation else ""))
     name = f"config_{tag}_us{understeer}_slip{rear_slip}{variant}"
     if len(name) > 200:  # a file name has at most 255 bytes
         name = f"config_{hashlib.sha256(name.encode()).hexdigest()[:16]}"
@@ -280,7 +285,8 @@ def group_key(row: dict[str, Any]) -> str:
             + ("" if k is None else f" [K={k:g}]") + ("" if g is None else f" [slip={g:g}]")
             + ("" if row.get("fits", True) else " [no fits]") + ("" if row.get("attitude", True) else " [planar]")
             + (" [car]" if row.get("car") else "") + (" [sim]" if row.get("simulation") else "")
-            + (" [sensors]" if row.get("sensors") else ""))
+            + (" [sensors]" if row.get("sensors") else "")
+            + (f" [{row['navigation']}]" if row.get("navigation") else ""))
 
 
 def main() -> None:
@@ -312,6 +318,9 @@ def main() -> None:
     ap.add_argument("--sensors", default=None,
                     help="the simulated sensors differ from their error tables: sensor.table.key entries, e.g. "
                          "gnss_cog.gnss.velocity_std_mps=0.06 (the processor keeps the config's tables)")
+    ap.add_argument("--navigation", default=None,
+                    help="SAR-MIN's own settings differ from the config's: [navigation] entries, e.g. "
+                         "wheel_lag_window_always=true")
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--keep", action="store_true", help="keep every drive's log and comparison")
     ap.add_argument("--resume", action="store_true", help="keep --output's rows and skip the drives already in it")
@@ -328,12 +337,12 @@ def main() -> None:
     variant = {"dynamics": args.dynamics, "components": args.components,
                "understeer_gradient": args.understeer_gradient, "rear_slip_gain": args.rear_slip_gain,
                "fits": not args.no_fits, "attitude": not args.planar, "radar_height": args.radar_height,
-               "car": args.car, "simulation": args.simulation, "sensors": args.sensors}
+               "car": args.car, "simulation": args.simulation, "sensors": args.sensors, "navigation": args.navigation}
 
     def drive_key(r: dict[str, Any]) -> tuple[Any, ...]:
         return (r["scenario"], r["seed"], r.get("dynamics"), r.get("components"), r.get("understeer_gradient"),
                 r.get("rear_slip_gain"), r.get("fits", True), r.get("attitude", True), r.get("radar_height", False),
-                r.get("car"), r.get("simulation"), r.get("sensors"))
+                r.get("car"), r.get("simulation"), r.get("sensors"), r.get("navigation"))
 
     done = {drive_key(r) for r in rows}
 
@@ -353,16 +362,18 @@ def main() -> None:
         work = args.workdir or Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
         custom = (args.components is not None or args.understeer_gradient is not None
-                  or args.rear_slip_gain is not None or args.no_fits or args.planar or args.radar_height)
+                  or args.rear_slip_gain is not None or args.no_fits or args.planar or args.radar_height
+                  or args.navigation is not None)
         config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
-                                                not args.no_fits, not args.planar, args.radar_height))]
+                                                not args.no_fits, not args.planar, args.radar_height,
+                                                navigation=args.navigation))]
                   if custom else [])
         # the simulated car, radar and sensors: the config's unless --car / --simulation / --sensors (then only the
         # simulator is given the changed one)
         other_vehicle = any(getattr(args, k) for k in OTHER_VEHICLE)
         sim_config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
                                                     not args.no_fits, not args.planar, args.radar_height, args.car,
-                                                    args.simulation, args.sensors))]
+                                                    args.simulation, args.sensors, args.navigation))]
                       if other_vehicle else config)
         for seed in parse_seeds(args.seeds):
             for scenario in args.scenarios.split(","):
@@ -396,6 +407,8 @@ def main() -> None:
                 if args.radar_height:
                     row["radar_height"] = True
                 row |= {k: getattr(args, k) for k in OTHER_VEHICLE if getattr(args, k)}
+                if args.navigation:
+                    row["navigation"] = args.navigation
                 row["sarmin_track_scale_pct"] = pct(track_scale(out))
                 if not other_vehicle:  # (it rebuilds the config's car's motion)
                     gnss_scale, gnss_se = gnss_velocity_scale(scenario, seed)

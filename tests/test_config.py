@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -113,6 +114,10 @@ def test_bench_configs_change_only_the_simulators_entries(tmp_path: Path) -> Non
     assert sensors["wheel_speeds"].wheel is not None and sensors["wheel_speeds"].wheel.noise_std_mps == 0.016
     with pytest.raises(SystemExit, match="not an entry of \\[sensors.gnss_cog.gnss\\]"):
         bench.config_copy(None, None, tmp_path, sensors="gnss_cog.gnss.speed_std_mps=1.0")
+    # SAR-MIN's own settings (--navigation): the processor's section, the rest as it was
+    changed = load_config(bench.config_copy(None, None, tmp_path, navigation="wheel_lag_window_always=true"))
+    assert changed.navigation == replace(base.navigation, wheel_lag_window_always=True)
+    assert changed.sensors == base.sensors and changed.vehicle_dynamics == base.vehicle_dynamics
 
 
 def test_bench_nav_seeds_navigation_settings_are_typed_and_checked() -> None:
