@@ -31,7 +31,6 @@ import statistics
 import sys
 import tempfile
 import time
-import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -123,17 +122,6 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "rejected_median": statistics.median(r.get("rejected", 0) for r in rows)}
 
 
-def navigation_edits(nav: Any, edits: str) -> dict[str, Any]:
-    """'key=value,...' (TOML values) as fields of the navigation config ``nav``; an unknown key is refused."""
-    out: dict[str, Any] = {}
-    for item in filter(None, edits.split(",")):
-        key, _, value = (x.strip() for x in item.partition("="))
-        if key not in {f.name for f in dataclasses.fields(nav)}:
-            raise SystemExit(f"--navigation: {key!r} is not an entry of [navigation]")
-        out[key] = tomllib.loads(f"v = {value}")["v"]
-    return out
-
-
 def main() -> None:
     from autosar_cli.config import load_config
 
@@ -145,8 +133,8 @@ def main() -> None:
                     help="comma-separated GNSS error models to compare: gauss_markov, or white:<std m> "
                          "(navigation.gnss_error_model, gnss_position_std_m; default: the config's)")
     ap.add_argument("--navigation", default=None,
-                    help="';'-separated settings of [navigation] to compare, each 'key=value,...' in TOML, e.g. "
-                         "'estimate_gnss_noise=false;estimate_gnss_noise=true' (default: the config's)")
+                    help="';'-separated settings of [navigation] to compare, each 'key=value,...' (bench_paper.py), "
+                         "e.g. 'estimate_gnss_noise=false;estimate_gnss_noise=true' (default: the config's)")
     ap.add_argument("--components", default=None,
                     help="';'-separated sets of the full vehicle's components to simulate, each comma-separated, e.g. "
                          "'tyre_radius;wheel_ticks' (default: the config's; with --dynamics full)")
@@ -171,10 +159,12 @@ def main() -> None:
             # the simulated car's components and sensors: the config's unless --components / --sensors
             sim_config = (dataclasses.replace(load_config(config_copy(comps, None, Path(tmp), sensors=args.sensors)),
                                               radar=config.radar) if comps is not None or args.sensors else None)
+            # SAR-MIN's own settings: the config's [navigation] as bench_paper.py --navigation edits it
+            edited = load_config(config_copy(None, None, Path(tmp), navigation=edits)).navigation if edits else nav
             kind, _, std = model.partition(":")
-            setting = {"gnss_error_model": kind, **({"gnss_position_std_m": float(std)} if std else {}),
-                       **navigation_edits(nav, edits)}
-            cfg = dataclasses.replace(config, navigation=dataclasses.replace(nav, **setting))  # type: ignore[arg-type]
+            setting = {"gnss_error_model": kind, **({"gnss_position_std_m": float(std)} if std else {})}
+            cfg = dataclasses.replace(config,
+                                      navigation=dataclasses.replace(edited, **setting))  # type: ignore[arg-type]
             label = (model + (f" {args.dynamics}" if args.dynamics else "") + (f" {edits}" if edits else "")
                      + (f" [{comps}]" if comps is not None else "")
                      + (f" sensors {args.sensors}" if args.sensors else ""))

@@ -118,21 +118,6 @@ def test_bench_configs_change_only_the_simulators_entries(tmp_path: Path) -> Non
     changed = load_config(bench.config_copy(None, None, tmp_path, navigation="wheel_lag_window_always=true"))
     assert changed.navigation == replace(base.navigation, wheel_lag_window_always=True)
     assert changed.sensors == base.sensors and changed.vehicle_dynamics == base.vehicle_dynamics
-
-
-def test_bench_nav_seeds_navigation_settings_are_typed_and_checked() -> None:
-    """benches/bench_nav_seeds.py's ``--navigation`` settings: TOML values into [navigation]'s own fields, and a
-    name the section lacks refused."""
-    import importlib.util
-
-    source = Path(__file__).parents[1] / "benches" / "bench_nav_seeds.py"
-    spec = importlib.util.spec_from_file_location("bench_nav_seeds", source)
-    assert spec is not None and spec.loader is not None
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
-    nav = load_config().navigation
-    edits = bench.navigation_edits(nav, "estimate_gnss_noise=false, gate_probability=0.999,gnss=\"gnss_radar\"")
-    assert edits == {"estimate_gnss_noise": False, "gate_probability": 0.999, "gnss": "gnss_radar"}
-    assert bench.navigation_edits(nav, "") == {}
     with pytest.raises(SystemExit, match="'gate' is not an entry of \\[navigation\\]"):
-        bench.navigation_edits(nav, "gate=0.9")
+        bench.config_copy(None, None, tmp_path, navigation="gate=0.9")
+
