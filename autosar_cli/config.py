@@ -227,6 +227,10 @@ class SimulationConfig:
     # "kinematic": planar kinematic bicycle on a level road (the motion SAR-MIN assumes); "full": single-track
     # dynamics with tyre slip, body roll/pitch/heave on the suspension, a rough road ([vehicle_dynamics]).
     dynamics: Literal["kinematic", "full"] = "full"
+    # the kinematic model's wheel speeds as an ABS ECU reports them: each the mean over its last edges of a perfect
+    # tone ring ([vehicle_dynamics]), the window the wheel sensor's table states (lag_distance_m); false: each
+    # wheel's instantaneous speed. The full model's wheels always pass through their ring (component wheel_ticks).
+    kinematic_ecu_window: bool = False
 
 
 @dataclass(frozen=True)

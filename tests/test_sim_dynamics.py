@@ -233,6 +233,48 @@ def test_wheel_speeds_come_from_the_tone_ring_edges(config: Config, ci_full: Ful
         assert abs(np.median(ratio) - 1) < 0.01
 
 
+def test_kinematic_wheel_speeds_through_the_ecus_window(config: Config) -> None:
+    """``simulation.kinematic_ecu_window``: each value is the wheel's mean speed over the ring's last edges, so it
+    describes the instant ``c / v`` before its sample, c the window the sensor's table states; a stopped wheel
+    reads the ECU's 0, without noise. Off: the instantaneous speed."""
+    dyn = config.vehicle_dynamics
+    c = config.sensors["wheel_speeds"].wheel.lag_distance_m
+    pitch = 2 * np.pi * config.vehicle.wheel_radius_m / dyn.tone_ring_teeth
+    ring_c = (dyn.edges_per_speed_estimate + 1) / 2 * pitch
+    assert c == pytest.approx(ring_c, abs=1e-3)  # the table states the ring's window
+    quiet = replace(config.sensors["wheel_speeds"], wheel=replace(config.sensors["wheel_speeds"].wheel,
+                                                                  noise_std_mps=0.0))
+    on = replace(config, simulation=replace(config.simulation, kinematic_ecu_window=True))
+    motion = build_scenario("urban", config).motion
+    off_smp = sensors.wheel_speeds(motion, config, "wheel_speeds", quiet, np.random.default_rng(3))
+    smp = sensors.wheel_speeds(motion, on, "wheel_speeds", quiet, np.random.default_rng(3))
+    t = smp.t_meas
+    for i, wheel in enumerate(("fl", "fr", "rl", "rr")):
+        true = smp.truth[f"wheel_speed_{wheel}"]
+        got = smp.values[f"wheel_speed_{wheel}"] / smp.truth["scale_factor"][i]
+        assert np.allclose(off_smp.values[f"wheel_speed_{wheel}"] / smp.truth["scale_factor"][i], true, rtol=1e-12)
+        moving = true > 1.0
+        accel = np.gradient(true, t)
+        changing = moving & (np.abs(accel) > 0.3)
+        lagged = np.interp(t - c / np.maximum(true, 1e-3), t, true)
+        # off the stated instant by the newest edge's age, uniform over a pitch p: a (p / v) (u - 1/2), RMS 1/sqrt(12)
+        # of a p / v; off the sample's own instant by a c / v, 3.5 pitches
+        edge_timing = np.abs(accel[changing]) * pitch / true[changing]
+        timing = (got - lagged)[changing] / edge_timing
+        assert 0.25 < np.sqrt(np.mean(timing**2)) < 0.35 and np.abs(timing).max() < 1.1
+        assert np.sqrt(np.mean(((got - true)[changing] / edge_timing) ** 2)) > 3.0
+        assert abs(np.mean((got - lagged)[moving])) < 1e-3  # m/s
+        # the stop: the ECU's "no edge" 0, exactly, once no edge came for its timeout
+        stopped = true == 0.0
+        since = t - np.maximum.accumulate(np.where(stopped, -np.inf, t))  # how long the wheel has stood (s)
+        timed_out = stopped & (since > dyn.wheel_speed_timeout_s + 0.01)
+        assert timed_out.sum() > 300 and np.all(got[timed_out] == 0.0)
+    noisy = sensors.wheel_speeds(motion, on, "wheel_speeds", config.sensors["wheel_speeds"], np.random.default_rng(3))
+    z = noisy.values["wheel_speed_rl"]
+    zero = smp.values["wheel_speed_rl"] == 0.0
+    assert np.all(z[zero] == 0.0) and 0.006 < np.std((z - smp.values["wheel_speed_rl"])[~zero]) < 0.01
+
+
 # ----------------------------------------------------------------------------- the echo tells the truth
 
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.integrate import cumulative_trapezoid
 from scipy.spatial.transform import Rotation
 
 from autosar_cli.config import AccelErrors, Config, GyroErrors, SensorConfig
@@ -20,6 +21,7 @@ from autosar_cli.sim.dynamics import FullMotion
 from autosar_cli.sim.trajectory import TruthMotion
 
 Motion = TruthMotion | FullMotion
+WHEEL_GRID_S = 0.002  # the kinematic wheels' rotation sampled this finely for their ECU's edges
 
 
 @dataclass
@@ -159,11 +161,34 @@ def wheel_speeds(motion: Motion, config: Config, name: str, s: SensorConfig,
         return _tone_ring_wheel_speeds(motion, config, name, s, t, scale, rng)
     values, truth = {}, {}
     for i, (wheel, (x, y)) in enumerate(wheels.items()):
-        true = np.linalg.norm(motion.point(t, (x, y, -v.cog_height_m)).velocity, axis=1)
-        values[f"wheel_speed_{wheel}"] = true * scale[i] + rng.standard_normal(t.size) * s.wheel.noise_std_mps
+        centre = (x, y, -v.cog_height_m)
+        true = np.linalg.norm(motion.point(t, centre).velocity, axis=1)
+        noise = rng.standard_normal(t.size) * s.wheel.noise_std_mps
+        if config.simulation.kinematic_ecu_window:
+            reported = _ecu_window_speed(motion, centre, config, t)
+            # the ECU's 0 is its "no edge" value, not a measurement
+            values[f"wheel_speed_{wheel}"] = np.where(reported != 0.0, reported * scale[i] + noise, 0.0)
+        else:
+            values[f"wheel_speed_{wheel}"] = true * scale[i] + noise
         truth[f"wheel_speed_{wheel}"] = true
     truth["scale_factor"] = scale
     return SensorSamples(name, s.kind, t, t + s.latency_s, values, truth)
+
+
+def _ecu_window_speed(motion: Motion, centre: tuple[float, float, float], config: Config,
+                      t: NDArray[np.float64]) -> NDArray[np.float64]:
+    """What an ABS ECU reports at ``t`` (s) for a wheel whose centre sits at ``centre`` (m, body frame) and rolls
+    without slip: its mean speed (m/s) over the last edges of a perfect tone ring ([vehicle_dynamics]), the window
+    the wheel sensor's table states as ``lag_distance_m`` (``simulation.kinematic_ecu_window``). The car rolled at
+    its initial speed for a second before the log, so that the ECU has edges at t = 0."""
+    dyn, radius = config.vehicle_dynamics, config.vehicle.wheel_radius_m
+    grid = np.arange(0.0, motion.duration_s + WHEEL_GRID_S, WHEEL_GRID_S)
+    ground = np.linalg.norm(motion.point(grid, centre).velocity, axis=1)
+    angle = cumulative_trapezoid(ground / radius, grid, initial=0.0)
+    grid, angle = np.concatenate([[-1.0], grid]), np.concatenate([[-ground[0] / radius], angle])
+    speed, _ = tone_ring_speed(grid, angle, t, np.zeros(dyn.tone_ring_teeth), dyn.edges_per_speed_estimate,
+                               dyn.wheel_speed_timeout_s, radius)
+    return speed
 
 
 def tone_ring_speed(t_grid: NDArray[np.float64], wheel_angle: NDArray[np.float64], t_samples: NDArray[np.float64],
