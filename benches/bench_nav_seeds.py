@@ -5,6 +5,7 @@ Usage: python benches/bench_nav_seeds.py [--scenarios test1,test2,test3] [--seed
                                          [--navigation 'estimate_gnss_noise=false;estimate_gnss_noise=true']
                                          [--sensors 'gnss_cog.gnss.velocity_std_mps=0.06,...']
                                          [--components 'tyre_radius;wheel_ticks']
+                                         [--simulation kinematic_ecu_window=true]
                                          [--output benches/results/nav_seeds.json]
 
 For every filter setting, scenario and seed: ``simulate`` with the radar at 20 Hz instead of 990 Hz (the navigation
@@ -141,6 +142,9 @@ def main() -> None:
     ap.add_argument("--sensors", default=None,
                     help="the simulated sensors differ from the error tables SAR-MIN weighs them by: "
                          "'sensor.table.key=value,...', e.g. gnss_cog.gnss.velocity_std_mps=0.06 (bench_paper.py)")
+    ap.add_argument("--simulation", default=None,
+                    help="entries of [simulation] for the simulator, 'key=value,...' (bench_paper.py), e.g. "
+                         "kinematic_ecu_window=true")
     ap.add_argument("--dynamics", choices=("kinematic", "full"), default=None,
                     help="simulator vehicle model (default: the config's simulation.dynamics)")
     ap.add_argument("--output", type=Path, default=RESULTS / "nav_seeds.json")
@@ -156,9 +160,12 @@ def main() -> None:
     components = args.components.split(";") if args.components is not None else [None]
     with tempfile.TemporaryDirectory() as tmp:
         for model, edits, comps in ((m, e, c) for m in models for e in settings for c in components):
-            # the simulated car's components and sensors: the config's unless --components / --sensors
-            sim_config = (dataclasses.replace(load_config(config_copy(comps, None, Path(tmp), sensors=args.sensors)),
-                                              radar=config.radar) if comps is not None or args.sensors else None)
+            # the simulated car's components, sensors and simulation: the config's unless --components / --sensors /
+            # --simulation
+            sim_config = (dataclasses.replace(load_config(config_copy(comps, None, Path(tmp), sensors=args.sensors,
+                                                                      simulation=args.simulation)),
+                                              radar=config.radar)
+                          if comps is not None or args.sensors or args.simulation else None)
             # SAR-MIN's own settings: the config's [navigation] as bench_paper.py --navigation edits it
             edited = load_config(config_copy(None, None, Path(tmp), navigation=edits)).navigation if edits else nav
             kind, _, std = model.partition(":")
@@ -167,12 +174,15 @@ def main() -> None:
                                       navigation=dataclasses.replace(edited, **setting))  # type: ignore[arg-type]
             label = (model + (f" {args.dynamics}" if args.dynamics else "") + (f" {edits}" if edits else "")
                      + (f" [{comps}]" if comps is not None else "")
-                     + (f" sensors {args.sensors}" if args.sensors else ""))
+                     + (f" sensors {args.sensors}" if args.sensors else "")
+                     + (f" simulation {args.simulation}" if args.simulation else ""))
             for scenario in args.scenarios.split(","):
                 t = time.perf_counter()
                 these = [{"gnss_model": model, "dynamics": args.dynamics, **({"navigation": edits} if edits else {}),
                           **({"components": comps} if comps is not None else {}),
-                          **({"sensors": args.sensors} if args.sensors else {}), "scenario": scenario, "seed": seed,
+                          **({"sensors": args.sensors} if args.sensors else {}),
+                          **({"simulation": args.simulation} if args.simulation else {}),
+                          "scenario": scenario, "seed": seed,
                           **{k: (round(v, 4) if isinstance(v, float) else v)
                              for k, v in measure(scenario, seed, cfg, Path(tmp), args.dynamics, sim_config).items()}}
                          for seed in parse_seeds(args.seeds)]
