@@ -143,6 +143,8 @@ def wheel_speeds_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
     # a drive that shows the ECU's window also shows where that window reaches back across a standstill
     clear, dropped = without_restart_windows(inputs.wheels, restart_window_m(lag))
     moved = replace(inputs, wheels=lag_compensated_wheels(clear, lag))
+    assert moved.wheels is not None
+    unread = len(clear.t) - len(moved.wheels.t)
     if lag.prior_m is None:
         source = "fitted to the drive"
     elif lag.fitted_m is not None:
@@ -150,7 +152,8 @@ def wheel_speeds_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
     else:
         source = (f"fitted to the drive, more than {SIGNIFICANT:g} std from the wheel sensor's stated window "
                   f"{lag.prior_m:g} m, which is left out")
-    return moved, replace(lag, applied=True, reason=source, restart_rows_dropped=dropped).to_dict(), radii_info
+    return moved, replace(lag, applied=True, reason=source, restart_rows_dropped=dropped,
+                          unread_rows_dropped=unread).to_dict(), radii_info
 
 
 def body_attitude(inputs: NavInputs, config: Config) -> tuple[BodyAttitude | None, str]:
