@@ -136,6 +136,15 @@ def body_to_enu(att: NDArray[np.float64]) -> NDArray[np.float64]:
     ], -2)
 
 
+def rolled_wheel_angle(t: NDArray[np.float64],
+                       wheel_rate: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Wheel angle (rad, from 0 at t[0]) integrated from wheel_rate (rad/s, (N,) or (N, wheels)) on t (s),
+    with one sample a second before the log: the car was already rolling at its initial rate, so that an ABS
+    ECU has edge history at t = 0. Returns (times (N + 1,) s, angle (N + 1, ...) rad)."""
+    return (np.concatenate([[-1.0], t]),
+            np.concatenate([-wheel_rate[:1], cumulative_trapezoid(wheel_rate, t, axis=0, initial=0.0)]))
+
+
 class FullMotion:
     """6-DOF truth motion of the full model, with the same interface as ``TruthMotion`` plus attitude,
     body rates, side-slip and per-wheel loads, rolling radii and rotation.
@@ -242,11 +251,8 @@ class FullMotion:
             heading = x[:, 4] if i < 2 else np.zeros(t.size)
             v_long[:, i] = vel_b[:, 0] * np.cos(heading) + vel_b[:, 1] * np.sin(heading)
         self.wheel_rate = v_long * (1.0 + self.longitudinal_slip) / self.rolling_radius
-        # The car was already rolling before the log starts: one second at the initial rate, so that an ABS
-        # ECU has edge history at t = 0. wheel_angle (M, 4) rad is on wheel_t (M,) s = (-1, t...).
-        self.wheel_t = np.concatenate([[-1.0], t])
-        self.wheel_angle = np.concatenate([-self.wheel_rate[:1],
-                                           cumulative_trapezoid(self.wheel_rate, t, axis=0, initial=0.0)])
+        # wheel_angle (M, 4) rad on wheel_t (M,) s = (-1, t...)
+        self.wheel_t, self.wheel_angle = rolled_wheel_angle(t, self.wheel_rate)
 
     # -- pose --------------------------------------------------------------------------------------
     def _pose_derivatives(self, t: ArrayLike) -> tuple[NDArray[np.float64], ...]:

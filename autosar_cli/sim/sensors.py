@@ -12,12 +12,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.integrate import cumulative_trapezoid
 from scipy.spatial.transform import Rotation
 
 from autosar_cli.config import AccelErrors, Config, GyroErrors, SensorConfig
 from autosar_cli.nav.frames import course_deg_from_heading
-from autosar_cli.sim.dynamics import FullMotion
+from autosar_cli.sim.dynamics import FullMotion, rolled_wheel_angle
 from autosar_cli.sim.trajectory import TruthMotion
 
 Motion = TruthMotion | FullMotion
@@ -184,8 +183,7 @@ def _ecu_window_speed(motion: Motion, centre: tuple[float, float, float], config
     dyn, radius = config.vehicle_dynamics, config.vehicle.wheel_radius_m
     grid = np.arange(0.0, motion.duration_s + WHEEL_GRID_S, WHEEL_GRID_S)
     ground = np.linalg.norm(motion.point(grid, centre).velocity, axis=1)
-    angle = cumulative_trapezoid(ground / radius, grid, initial=0.0)
-    grid, angle = np.concatenate([[-1.0], grid]), np.concatenate([[-ground[0] / radius], angle])
+    grid, angle = rolled_wheel_angle(grid, ground / radius)
     speed, _ = tone_ring_speed(grid, angle, t, np.zeros(dyn.tone_ring_teeth), dyn.edges_per_speed_estimate,
                                dyn.wheel_speed_timeout_s, radius)
     return speed
