@@ -37,6 +37,7 @@ NAV_CI = "tests/test_nav_sarmin.py::test_sarmin_accuracy_on_ci"
 CAN_SI = "tests/test_ingest_roundtrip.py::test_can_values_in_si_within_quantisation"
 CAN_UNITS = "tests/test_candb.py::test_dbc_units_convert_to_si_by_the_textbook_factors"
 NMEA_SIM = "tests/test_ingest_nmea.py::test_simulator_round_trip"
+WHEEL_LAG = "tests/test_nav_models.py::test_each_wheel_is_moved_by_its_own_window_in_a_turn"
 
 
 @dataclass(frozen=True)
@@ -113,6 +114,10 @@ MUTATIONS: list[Mutation] = [
        "k_dim = 4 if kind == ng else (1 if kind == ng + 1 else 2)\n"
        "            if kind == ng:\n                continue",
        SENSORS),
+    _m("wheel-lag-one-move-per-row", "sar-min", "nav/wheel_speeds.py",
+       "        v = np.abs(z[:, w])\n", "        v = np.abs(z).mean(axis=1)\n", WHEEL_LAG),
+    _m("wheel-lag-moved-forward", "sar-min", "nav/wheel_speeds.py",
+       "moved, stamp, value = (t - delay)[order]", "moved, stamp, value = (t + delay)[order]", WHEEL_LAG),
     # --- geodesy and GeoTIFF georeferencing
     _m("geodesy-east-north-swapped", "geodesy", "types.py",
        "pymap3d.enu2geodetic(p[..., 0], p[..., 1], p[..., 2]", "pymap3d.enu2geodetic(p[..., 1], p[..., 0], p[..., 2]",
