@@ -107,7 +107,7 @@ def section(data: Any, max_rows: int, depth: int = 0) -> list[str]:
             if scalars:
                 lines[0] += f"; {note}"  # on the figures' line: a paragraph per note cost 2 lines a section
             else:
-                lines += [f"({note}.)", ""]
+                lines[:0] = [f"{note[0].upper()}{note[1:]}.", ""]  # the section's first line: it joins the command's
             continue
         if isinstance(value, dict) and all(is_scalar(v) for v in value.values()):
             if len(lines) >= 2 and lines[-1] == "" and lines[-2] and not lines[-2].startswith(("|", "#", "(")):
@@ -169,7 +169,11 @@ def render(results: Path, max_rows: int) -> str:
         body = section(data, max_rows)
         out += [(f"{title} " if title else "") + f"Command `{usage}`; machine: {machine}; data "
                 f"[`benches/results/{path.name}`](../benches/results/{path.name})."]
-        out += ([] if body and body[0] and not body[0].startswith("|") else [""]) + body
+        if body and body[0] and not body[0].startswith(("|", "#", "(")):
+            out[-1] += " Figures: " + body.pop(0)  # one paragraph, one line
+            if body and not body[0]:
+                body.pop(0)
+        out += [""] + body if body else []
     # a heading may follow a paragraph directly: no blank line after a closing note
     out = [line for i, line in enumerate(out) if not (line == "" and 0 < i < len(out) - 1
                                                        and out[i - 1].startswith("(") and out[i + 1].startswith("#"))]
