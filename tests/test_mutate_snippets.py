@@ -1,0 +1,32 @@
+"""`make mutate` (benches/mutate.py) edits the package by exact snippets: each must still stand once in its file,
+or the suite stops at the first stale one and no mutation is tried (two had gone stale as the kernels changed)."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _mutations() -> list:
+    spec = importlib.util.spec_from_file_location("benches_mutate", ROOT / "benches" / "mutate.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module.MUTATIONS
+
+
+@pytest.mark.parametrize("mutation", _mutations(), ids=lambda m: m.name)
+def test_each_mutations_snippet_stands_once_and_changes_the_code(mutation) -> None:  # noqa: ANN001
+    for file, old, new in mutation.edits:
+        text = (ROOT / "autosar_cli" / file).read_text()
+        assert text.count(old) == 1, f"{mutation.name}: {file} holds its snippet {text.count(old)} times"
+        assert old != new
+    for test in mutation.tests:  # the tests that must kill it exist
+        path, name = test.split("::", 1)
+        assert f"def {name.split('[')[0]}(" in (ROOT / path).read_text(), test
