@@ -4,6 +4,7 @@ or the suite stops at the first stale one and no mutation is tried (two had gone
 from __future__ import annotations
 
 import importlib.util
+import subprocess
 import sys
 from pathlib import Path
 
@@ -27,6 +28,14 @@ def test_each_mutations_snippet_stands_once_and_changes_the_code(mutation) -> No
         text = (ROOT / "autosar_cli" / file).read_text()
         assert text.count(old) == 1, f"{mutation.name}: {file} holds its snippet {text.count(old)} times"
         assert old != new
-    for test in mutation.tests:  # the tests that must kill it exist
-        path, name = test.split("::", 1)
-        assert f"def {name.split('[')[0]}(" in (ROOT / path).read_text(), test
+
+
+def test_each_mutations_tests_are_collected() -> None:
+    """The node ids that must kill the mutations name tests pytest collects (a parameter's id included)."""
+    wanted = sorted({t for m in _mutations() for t in m.tests})
+    files = sorted({t.split("::")[0] for t in wanted})
+    listed = subprocess.run([sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:xdist",
+                             "-p", "no:cacheprovider", *files], cwd=ROOT, capture_output=True, text=True).stdout
+    collected = {line.strip() for line in listed.splitlines()}
+    # a node id without a parameter's id runs all of them
+    assert [t for t in wanted if t not in collected and not any(c.startswith(t + "[") for c in collected)] == []
