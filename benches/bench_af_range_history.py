@@ -54,6 +54,7 @@ MIN_BLOCKS = 8
 def reflector_stretches(drive: Path, traj: Any, truth: Any, config: Any, half_beam_deg: float,
                         search_bins: float, range_doppler: bool) -> list[dict[str, Any]]:
     """Per corner reflector: the radar's local stretch of ``traj`` and the truth's (both dimensionless)."""
+    from autosar_cli.config import SPEED_OF_LIGHT
     from autosar_cli.evaluate.alignment import fit_se2
     from autosar_cli.evaluate.trajectory_metrics import common_instants, radar_track, trajectory_errors
     from autosar_cli.nav.trajectory import cumulative_travel
@@ -92,9 +93,8 @@ def reflector_stretches(drive: Path, traj: Any, truth: Any, config: Any, half_be
     travel = cumulative_travel(radar_track(traj, traj.t_ns, config))
     s = np.interp(tg.astype(np.float64), traj.t_ns.astype(np.float64), travel)
     if range_doppler:  # the echo's Doppler shifts its beat frequency: the envelope sits (dp/dt) f_c / slope further
-        radar = config.radar
-        centre_hz = radar.start_frequency_hz + radar.bandwidth_hz / 2.0
-        offset = offset - 2 * np.einsum("ij,ij->i", los, velocity) * centre_hz / radar.slope_hz_per_s
+        centre_hz = hist.cycles_per_m * SPEED_OF_LIGHT  # the carrier at the ADC window's centre, as focus takes it
+        offset = offset - 2 * np.einsum("ij,ij->i", los, velocity) * centre_hz / config.radar.slope_hz_per_s
     rows = []
     for j in range(len(points)):
         m = point_of == j

@@ -118,7 +118,7 @@ MUTATIONS: list[Mutation] = [
     _m("wheel-lag-one-move-per-row", "sar-min", "nav/wheel_speeds.py",
        "        v = np.abs(z[:, w])\n", "        v = np.abs(z).mean(axis=1)\n", WHEEL_LAG),
     _m("wheel-lag-moved-forward", "sar-min", "nav/wheel_speeds.py",
-       "moved, stamp, value = (t - delay)[order]", "moved, stamp, value = (t + delay)[order]", WHEEL_LAG),
+       "        described = t - delay\n", "        described = t + delay\n", WHEEL_LAG),
     # --- geodesy and GeoTIFF georeferencing
     _m("geodesy-east-north-swapped", "geodesy", "types.py",
        "pymap3d.enu2geodetic(p[..., 0], p[..., 1], p[..., 2]", "pymap3d.enu2geodetic(p[..., 1], p[..., 0], p[..., 2]",

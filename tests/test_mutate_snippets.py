@@ -1,8 +1,9 @@
-"""`make mutate` (benches/mutate.py) edits the package by exact snippets: each must still stand once in its file,
-or the suite stops at the first stale one and no mutation is tried (two had gone stale as the kernels changed)."""
+"""`make mutate` (benches/mutate.py) edits the package by exact snippets and runs named tests: each snippet must
+stand once in its file and each test must be collected, or the suite stops at the first stale one and tries none."""
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 import subprocess
 import sys
@@ -13,6 +14,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 
+@functools.cache
 def _mutations() -> list:
     spec = importlib.util.spec_from_file_location("benches_mutate", ROOT / "benches" / "mutate.py")
     assert spec is not None and spec.loader is not None

@@ -363,8 +363,9 @@ def lag_compensated_wheels(wheels: Measurements, fit: WheelLagFit) -> Measuremen
     for w in range(z.shape[1]):
         v = np.abs(z[:, w])
         delay = np.where(v > 0, np.clip(fit.lag_distance_m / np.maximum(v, 1e-9), -MAX_DELAY_S, MAX_DELAY_S), 0.0)
-        order = np.argsort(t - delay, kind="stable")
-        moved, stamp, value = (t - delay)[order], t[order], z[order, w]
+        described = t - delay
+        order = np.argsort(described, kind="stable")
+        moved, stamp, value = described[order], t[order], z[order, w]
         k = np.clip(np.searchsorted(moved, t, side="right") - 1, 0, len(t) - 2)
         lo, hi = value[k], value[k + 1]
         frac = (t - moved[k]) / np.maximum(moved[k + 1] - moved[k], 1e-12)
