@@ -19,13 +19,12 @@ import reference
 from typer.testing import CliRunner
 
 from autosar_cli.cli import app
-from autosar_cli.config import Config, load_config
+from autosar_cli.config import SPEED_OF_LIGHT, Config, load_config
 from autosar_cli.evaluate.point_target import analyse_point_target
 from autosar_cli.ingest.pipeline import ingest
 from autosar_cli.nav.navigate import navigate
 from autosar_cli.sar.focus import FocusError, FocusOptions, focus, focus_images
 from autosar_cli.sar.grid import box_grid
-from autosar_cli.sar.range_compression import SPEED_OF_LIGHT
 from autosar_cli.sim.simulate import simulate
 from autosar_cli.sim.truth import read_targets
 from autosar_cli.store.image import read_image

@@ -7,8 +7,8 @@ import pytest
 import reference
 from conftest import realdata
 
-from autosar_cli.config import load_config
-from autosar_cli.sar.range_compression import SPEED_OF_LIGHT, bistatic_range_axis, iq_to_complex, range_compress, taper
+from autosar_cli.config import SPEED_OF_LIGHT, load_config
+from autosar_cli.sar.range_compression import bistatic_range_axis, iq_to_complex, range_compress, taper
 
 R = load_config().radar
 FS, K, F0, N = R.sample_rate_hz, R.slope_hz_per_s, R.start_frequency_hz, R.num_samples

@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from autosar_cli import __version__
-from autosar_cli.config import Config
+from autosar_cli.config import SPEED_OF_LIGHT, Config
 from autosar_cli.nav.trajectory import (
     Trajectory,
     antenna_lever_arms,
@@ -36,7 +36,7 @@ from autosar_cli.nav.trajectory import (
 )
 from autosar_cli.sar.backprojection import PulseBlock, backproject_block
 from autosar_cli.sar.grid import FocusGrid, GridError, box_grid, check_image_size, track_grid
-from autosar_cli.sar.range_compression import SPEED_OF_LIGHT, range_compress_into
+from autosar_cli.sar.range_compression import range_compress_into
 from autosar_cli.sar.stripmap import (
     block_context,
     look_angle_margin_m,

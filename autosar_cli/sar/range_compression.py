@@ -19,9 +19,8 @@ import numba as nb
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from autosar_cli.config import SPEED_OF_LIGHT
 from autosar_cli.sar.range_fft import compress_iq, radices
-
-SPEED_OF_LIGHT = 299_792_458.0
 
 
 def iq_to_complex(raw: NDArray[np.int16]) -> NDArray[np.complex64]:
