@@ -5,10 +5,12 @@ from __future__ import annotations
 import fcntl
 import os
 import pickle
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
+from autosar_cli.config import load_config
 from autosar_cli.sim.simulate import SimulationResult, simulate
 
 REPO = Path(__file__).resolve().parents[1]
@@ -33,23 +35,32 @@ def sim_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return shared
 
 
-_CACHE: dict[tuple[str, str, int], SimulationResult] = {}
+_CACHE: dict[tuple[str, str, int, float | None], SimulationResult] = {}
+
+#: the radar's pulse rate of a drive made for the navigation alone: its other sensors' samples are the same as at the
+#: full rate (the simulator draws each sensor's noise from its own stream), and test2 is simulated ~15x faster
+NAV_ONLY_PRF_HZ = 20.0
 
 
-def simulated(sim_dir: Path, scenario: str, fmt: str, seed: int) -> SimulationResult:
+def simulated(sim_dir: Path, scenario: str, fmt: str, seed: int, *, prf_hz: float | None = None) -> SimulationResult:
     """A kinematic drive (the motion the navigation models: in-model accuracy), simulated once per session: the
-    first worker to ask makes it under a lock of its own, and the others load its result."""
-    key = (scenario, fmt, seed)
+    first worker to ask makes it under a lock of its own, and the others load its result. ``prf_hz``: the radar's
+    pulse rate, if not the config's (:data:`NAV_ONLY_PRF_HZ` for a drive only navigated)."""
+    key = (scenario, fmt, seed, prf_hz)
     if key not in _CACHE:
         ext = {"mcap": ".mcap", "ros1": ".bag", "ros2": ""}[fmt]
-        log = sim_dir / f"{scenario}_{fmt}_s{seed}{ext}"
+        rate = "" if prf_hz is None else f"_prf{prf_hz:g}"
+        log = sim_dir / f"{scenario}_{fmt}_s{seed}{rate}{ext}"
         made = log.with_name(log.name + ".result.pickle")
         with open(log.with_name(log.name + ".lock"), "a") as lock:
             fcntl.flock(lock, fcntl.LOCK_EX)
             if made.exists():
                 _CACHE[key] = pickle.loads(made.read_bytes())
             else:
-                _CACHE[key] = simulate(scenario, log, fmt=fmt, seed=seed, dynamics="kinematic")
+                config = load_config()
+                if prf_hz is not None:
+                    config = replace(config, radar=replace(config.radar, prf_hz=prf_hz))
+                _CACHE[key] = simulate(scenario, log, fmt=fmt, seed=seed, config=config, dynamics="kinematic")
                 made.write_bytes(pickle.dumps(_CACHE[key]))
     return _CACHE[key]
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import simulated
+from conftest import NAV_ONLY_PRF_HZ, simulated
 from typer.testing import CliRunner
 
 from autosar_cli.cli import app
@@ -190,9 +190,9 @@ _DRIVES: dict[str, tuple] = {}
 
 
 def _drive(sim_dir: Path, tmp_path_factory: pytest.TempPathFactory, scenario: str) -> tuple:
-    """A simulated scenario (seed 1) ingested once per test session."""
+    """A simulated scenario (seed 1) ingested once per test session, its radar at :data:`NAV_ONLY_PRF_HZ`."""
     if scenario not in _DRIVES:
-        sim = simulated(sim_dir, scenario, "mcap", 1)
+        sim = simulated(sim_dir, scenario, "mcap", 1, prf_hz=NAV_ONLY_PRF_HZ)
         drive = tmp_path_factory.mktemp(scenario) / "drive.h5"
         ingest([sim.log_path], drive, config=CFG)
         _DRIVES[scenario] = (sim, drive)
@@ -269,7 +269,7 @@ def test_the_full_vehicles_wheels_leave_the_scale_to_the_gnss_velocity_on_test3(
     from autosar_cli.nav.trajectory import phase_centre_lever_arm
     from autosar_cli.sim.simulate import simulate
 
-    cfg = dataclasses.replace(CFG, radar=dataclasses.replace(CFG.radar, prf_hz=20.0))
+    cfg = dataclasses.replace(CFG, radar=dataclasses.replace(CFG.radar, prf_hz=NAV_ONLY_PRF_HZ))
     sim = simulate("test3", tmp_path / "t3.mcap", seed=8, config=cfg, dynamics="full")
     drive = tmp_path / "t3.h5"
     ingest([sim.log_path], drive, config=cfg)
@@ -678,7 +678,7 @@ def test_a_stop_does_not_turn_the_speed_backwards(tmp_path: Path) -> None:
     from autosar_cli.evaluate.trajectory_metrics import common_instants
     from autosar_cli.sim.simulate import simulate
 
-    cfg = replace(CFG, radar=replace(CFG.radar, prf_hz=20.0))  # the navigation sensors' samples are the same
+    cfg = replace(CFG, radar=replace(CFG.radar, prf_hz=NAV_ONLY_PRF_HZ))
     sim = simulate("urban", tmp_path / "urban.mcap", seed=0, config=cfg, dynamics="kinematic")
     ingest([sim.log_path], tmp_path / "drive.h5", config=cfg)
     est = navigate(tmp_path / "drive.h5", "sar-min", cfg)
