@@ -46,6 +46,7 @@ class PhaseHistories:
     tx_offsets_s: Array  #: (T,) chirp start of each Tx in the PRI
     bin_m: float  #: bistatic path per bin (m)
     cycles_per_m: float  #: phase turns per metre of bistatic path
+    slope_hz_per_s: float = math.nan  #: the chirp's slope (the stream's own, as focus takes it)
 
 
 def frame_geometry(traj: Trajectory, t_ns: NDArray[np.int64], config: Config) -> tuple[Array, Array, Array]:
@@ -121,7 +122,7 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         np.concatenate(out_bin0) if not empty else np.zeros((0, len(pairs)), np.int64),
         np.concatenate(out_samples).astype(np.complex64, copy=False) if not empty
         else np.zeros((0, len(pairs), w), np.complex64),
-        pairs, offsets, bin_m, rp.cycles_per_m)
+        pairs, offsets, bin_m, rp.cycles_per_m, slope)
 
 
 def _seen(traj: Trajectory, t_ns: NDArray[np.int64], config: Config, points: Array, moving: NDArray[np.bool_],

@@ -50,6 +50,7 @@ from autosar_cli.config import Config
 from autosar_cli.nav.trajectory import track_scale_std
 from autosar_cli.sar.autofocus import scale_track
 from autosar_cli.sar.focus import FocusOptions
+from autosar_cli.sar.pass_ranges import PassOptions, SlowMotion, estimate_slow_motion
 from autosar_cli.sar.phase_history import (
     PhaseHistories,
     focus_history,
@@ -121,6 +122,11 @@ class AutofocusOptions:
     min_steps_own_noise: int = 30
     #: each point's aperture stretched by the road's grade (:func:`grade_stretch`), which the scale then leaves out
     grade_stretch: bool = True
+    #: first the track's slow motion from the points' ranges over their whole passes (:mod:`autosar_cli.sar.
+    #: pass_ranges`): the along-track error between points, which no phase over +-``half_beam_deg`` measures. Off
+    #: until measured over bench_paper's 40 drives (benches/bench_af_pass_ranges.py: urban seeds 1 and 6 6.6 and 7.3
+    #: cm -> 2.5 and 3.0, test3 seed 8 2.4 -> 0.8; urban seed 0 1.7 -> 2.4, test2 seed 1 0.6 -> 1.2)
+    slow_motion: bool = False
 
 
 @dataclass
@@ -181,10 +187,14 @@ class ResidualMotion:
     grade_stretch: float = 0.0
     #: a fit run without its posterior: the same result with the correction's std (None where it has it)
     with_posterior: Callable[[], ResidualMotion] | None = field(default=None, repr=False, compare=False)
+    #: the slow motion measured first (:mod:`autosar_cli.sar.pass_ranges`); where applied, ``trajectory`` and its
+    #: correction hold it, and ``correction`` (the phases') does not
+    slow_motion: SlowMotion | None = None
 
     @property
     def applied(self) -> bool:
-        return not self.reason
+        """Whether the track was corrected at all: by the phases, or by the slow motion alone."""
+        return not self.reason or (self.slow_motion is not None and self.slow_motion.applied)
 
     def labelled(self, method: str) -> Trajectory:
         """The corrected trajectory named ``method``, its info holding what autofocus measured."""
@@ -200,7 +210,9 @@ class ResidualMotion:
                 "std_median_mm": float(1e3 * np.median(np.linalg.norm(c.std_enu, axis=-1)))}
 
     def to_dict(self) -> dict[str, object]:
-        return {"applied": self.applied, "reason": self.reason, "track_scale": self.scale,
+        return {"applied": self.applied, "reason": self.reason,
+                "slow_motion": self.slow_motion.to_dict() if self.slow_motion is not None else None,
+                "track_scale": self.scale,
                 "track_scale_std": self.scale_std, "track_scale_prior_std": self.scale_prior,
                 "track_scale_note": self.scale_note, "grade_stretch": self.grade_stretch,
                 "track_scale_agreement": {"reduced_chi2": round(self.scale_agreement[0], 3),
@@ -213,8 +225,13 @@ class ResidualMotion:
 
     def summary(self) -> str:
         """One line: what was corrected, or why nothing was."""
-        if not self.applied:
-            return f"track not corrected: {self.reason}"
+        slow = "" if self.slow_motion is None else self.slow_motion.summary() + "; "
+        if self.reason:
+            return f"{slow}track not corrected by the phases: {self.reason}" if slow else \
+                f"track not corrected: {self.reason}"
+        return slow + self._phase_summary()
+
+    def _phase_summary(self) -> str:
         c = self.correction_summary()
         scaled = self.scale_note or f"distances scaled by {self.scale * 100:+.4f} ± {self.scale_std * 100:.4f} %"
         if abs(self.grade_stretch) >= 1e-4:  # a grade of 1.4 % and more: say what the scale left out
@@ -786,11 +803,20 @@ def candidate_points(drive_path: str | Path, trajectory: Trajectory, config: Con
 
 
 def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, config: Config,
-                              focus: FocusOptions | None = None, opts: AutofocusOptions | None = None
-                              ) -> ResidualMotion:
+                              focus: FocusOptions | None = None, opts: AutofocusOptions | None = None,
+                              passes: PassOptions | None = None) -> ResidualMotion:
     """``trajectory`` corrected by the residual motion its own image's bright points measure, with no truth
-    (:func:`candidate_points`, then :func:`estimate_residual_motion`)."""
+    (:func:`candidate_points`; the slow motion their ranges give over their passes,
+    :func:`~autosar_cli.sar.pass_ranges.estimate_slow_motion`, unless ``opts.slow_motion`` is off; then
+    :func:`estimate_residual_motion` along the track so corrected)."""
     focus = focus or FocusOptions.from_config(config)
     opts = opts or AutofocusOptions()
     points = candidate_points(drive_path, trajectory, config, focus, opts)
-    return estimate_residual_motion(drive_path, trajectory, config, points, focus, opts)
+    if not opts.slow_motion or len(points) == 0:
+        return estimate_residual_motion(drive_path, trajectory, config, points, focus, opts)
+    slow = estimate_slow_motion(drive_path, trajectory, config, points, focus, passes or PassOptions())
+    if not slow.applied:
+        return replace(estimate_residual_motion(drive_path, trajectory, config, points, focus, opts), slow_motion=slow)
+    # the points where the corrected track focuses them
+    result = estimate_residual_motion(drive_path, slow.trajectory, config, points - slow.point_shift_enu, focus, opts)
+    return replace(result, slow_motion=slow)

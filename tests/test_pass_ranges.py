@@ -1,0 +1,164 @@
+"""The track's slow motion from the points' ranges over their passes (sar/pass_ranges.py): an along-track error
+injected into test1's truth track is measured back, the envelope's shift by the echo's Doppler is the beat-frequency
+physics, a scene of no point is refused, and the correction adds to the one a trajectory carries."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import simulated
+
+from autosar_cli.config import load_config
+from autosar_cli.evaluate.evaluation import Truth, load_truth
+from autosar_cli.ingest.pipeline import ingest
+from autosar_cli.nav.inputs import load_inputs
+from autosar_cli.nav.trajectory import cumulative_travel, radar_track
+from autosar_cli.sar.focus import FocusOptions
+from autosar_cli.sar.pass_ranges import (
+    PassOptions,
+    estimate_slow_motion,
+    node_correction,
+    pass_blocks,
+    with_correction,
+)
+from autosar_cli.sar.phase_history import frame_geometry
+from autosar_cli.store.drive import Drive
+from autosar_cli.types import MotionCorrection, Trajectory
+
+CFG = load_config()
+
+
+@pytest.fixture(scope="module")
+def test1_drive(sim_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Truth]:
+    """test1 seed 1 (kinematic; the paper comparison's drive) ingested, and its truth in the drive's frame."""
+    sim = simulated(sim_dir, "test1", "mcap", 1)
+    drive = tmp_path_factory.mktemp("pass_ranges") / "drive.h5"
+    ingest([sim.log_path], drive, config=CFG)
+    with Drive(drive) as d:
+        origin = load_inputs(d, CFG).origin
+    return drive, load_truth(sim.truth_path, origin, CFG)
+
+
+def _along(traj: Trajectory, t_ns: np.ndarray) -> np.ndarray:
+    return frame_geometry(traj, t_ns, CFG)[2]
+
+
+def injected_along_error(traj: Trajectory) -> np.ndarray:
+    """An along-track error (K,) m of the kind urban's tracks carry: the distance 0.1 % long over the drive, plus
+    1.5 cm lost over 10 m of travel in its middle (a raised cosine: a wheel slipping as the car pulls away)."""
+    s = cumulative_travel(traj.rear_axle_enu)
+    ramp = np.clip((s - 0.5 * s[-1]) / 10.0 + 0.5, 0.0, 1.0)
+    return 0.001 * (s - 0.5 * s[-1]) - 0.015 * (0.5 - 0.5 * np.cos(np.pi * ramp))
+
+
+def observable_rms(v: np.ndarray) -> float:
+    """RMS of ``v`` about its mean: what moves every point alike (a shift along the whole track) no range sees."""
+    return float(np.sqrt(np.mean((v - v.mean()) ** 2)))
+
+
+@pytest.mark.slow
+def test_recovers_an_injected_along_track_error(test1_drive: tuple[Path, Truth]) -> None:
+    """The truth track plus :func:`injected_along_error`, measured on test1's five corner reflectors: 9.0 mm RMS
+    about its mean injected, 0.8 mm left."""
+    drive, truth = test1_drive
+    track = truth.trajectory
+    err = injected_along_error(track)
+    wrong = replace(track, correction=MotionCorrection(track.t_ns, err[:, None] * _along(track, track.t_ns),
+                                                       np.zeros((len(err), 3))))
+    points = truth.targets_above_road(truth.targets.corner_reflectors)
+    res = estimate_slow_motion(drive, wrong, CFG, points)
+    assert res.applied, res.reason
+    t = track.t_ns[(track.t_ns >= res.correction.t_ns[0]) & (track.t_ns <= res.correction.t_ns[-1])]
+    left = err[np.searchsorted(track.t_ns, t)] + np.einsum("kd,kd->k", res.correction.at(t), _along(track, t))
+    before, after = observable_rms(err[np.searchsorted(track.t_ns, t)]), observable_rms(left)
+    print(f"test1: along-track error {before * 1e3:.2f} mm RMS injected, {after * 1e3:.2f} mm left; "
+          f"{res.summary()}")
+    assert before > 0.008
+    assert after < 0.25 * before
+
+
+def _left_along(truth: Trajectory, moved: Trajectory) -> float:
+    """RMS about its mean of the along-track error ``moved`` (the truth track plus an injected error, corrected)
+    keeps: its whole correction's along-track part."""
+    c = moved.correction
+    assert c is not None
+    t = truth.t_ns
+    return observable_rms(np.einsum("kd,kd->k", c.at(t), _along(truth, t)))
+
+
+@pytest.mark.slow
+def test_autofocus_takes_the_slow_motion_first_where_asked(test1_drive: tuple[Path, Truth]) -> None:
+    """``AutofocusOptions(slow_motion=True)``: the points of the first image along a track carrying
+    :func:`injected_along_error`, their passes' slow motion, then the phases along the track so corrected; the
+    result says both, and its track keeps under a quarter of the injected error."""
+    from autosar_cli.sar.residual_motion import AutofocusOptions, autofocus_residual_motion
+
+    drive, truth = test1_drive
+    track = truth.trajectory
+    err = injected_along_error(track)
+    wrong = replace(track, correction=MotionCorrection(track.t_ns, err[:, None] * _along(track, track.t_ns),
+                                                       np.zeros((len(err), 3))))
+    res = autofocus_residual_motion(drive, wrong, CFG, opts=AutofocusOptions(slow_motion=True))
+    print(f"test1: {res.summary()}")
+    assert res.applied and res.slow_motion is not None and res.slow_motion.applied, res.summary()
+    assert res.summary().startswith("slow motion corrected by")
+    assert res.to_dict()["slow_motion"]["points_used"] >= 3
+    left = _left_along(track, res.trajectory)
+    assert left < 0.25 * observable_rms(err), (left, observable_rms(err))
+
+
+@pytest.mark.slow
+def test_the_envelopes_doppler_shift_is_the_beat_frequencys(test1_drive: tuple[Path, Truth]) -> None:
+    """An echo's Doppler adds to its beat frequency, so its range envelope sits (dp/dt) f_c / slope of path further
+    (1 cm at 5 m/s straight ahead): along the truth track the envelopes' offsets less that shift are flat, and
+    regressed on the path's rate they give back f_c / slope."""
+    drive, truth = test1_drive
+    points = truth.targets_above_road(truth.targets.corner_reflectors)
+    opts = PassOptions()
+    blocks = pass_blocks(drive, truth.trajectory, CFG, points, FocusOptions.from_config(CFG), opts)
+    use = blocks.usable
+    raw = blocks.offset_m[use] + blocks.doppler_m[use]
+    ratio = float(np.polyfit(blocks.doppler_m[use], raw, 1)[0])
+    print(f"test1 along the truth: {use.sum()} blocks, envelope shift {ratio:.3f} x (dp/dt) f_c / slope, "
+          f"offsets less it {1e3 * np.std(blocks.offset_m[use]):.2f} mm RMS (with it "
+          f"{1e3 * np.std(raw):.2f} mm), the shift spanning {1e3 * np.ptp(blocks.doppler_m[use]):.1f} mm")
+    assert ratio == pytest.approx(1.0, abs=0.05)
+    assert np.std(blocks.offset_m[use]) < 0.3 * np.std(raw)
+
+
+@pytest.mark.slow
+def test_refuses_a_scene_of_no_point(test1_drive: tuple[Path, Truth]) -> None:
+    """Points put on the bare road beside the track: no envelope follows a point, and it says so."""
+    drive, truth = test1_drive
+    xy = radar_track(truth.trajectory, truth.trajectory.t_ns[::2000], CFG)
+    points = np.column_stack([xy + np.array([0.0, -6.0]), np.zeros(len(xy))])
+    res = estimate_slow_motion(drive, truth.trajectory, CFG, points)
+    assert not res.applied and "points fit a point" in res.reason, res.reason
+    assert res.trajectory is truth.trajectory and res.correction is None
+
+
+def test_the_correction_adds_to_the_one_the_track_carries() -> None:
+    """Along and across the track at each node, summed with a carried correction, their std in quadrature."""
+    from autosar_cli.nav.geodesy import GeodeticOrigin
+
+    t_ns = np.arange(0, 2_000_000_001, 10_000_000, dtype=np.int64)
+    heading = np.full(len(t_ns), 0.3)
+    xy = np.column_stack([np.cos(0.3), np.sin(0.3)]) * (5.0 * t_ns[:, None] / 1e9)
+    traj = Trajectory("x", t_ns, xy, heading, np.full(len(t_ns), 5.0), np.zeros(len(t_ns)),
+                      GeodeticOrigin(45.0, 9.0, 100.0), 1.4, 0.5)
+    nodes = np.array([0, 1_000_000_000, 2_000_000_000], dtype=np.int64)
+    c = node_correction(traj, CFG, nodes, np.array([0.01, 0.0, -0.01]), np.array([0.0, 0.002, 0.0]),
+                        np.full(3, 0.003), np.full(3, 0.004))
+    _, across, along = frame_geometry(traj, nodes, CFG)
+    np.testing.assert_allclose(np.einsum("kd,kd->k", c.offset_enu, along), [0.01, 0.0, -0.01], atol=1e-12)
+    np.testing.assert_allclose(np.einsum("kd,kd->k", c.offset_enu, across), [0.0, 0.002, 0.0], atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(c.std_enu, axis=1), 0.005, rtol=1e-12)
+    carried = MotionCorrection(np.array([500_000_000], np.int64), np.array([[0.0, 0.0, 0.001]]),
+                               np.array([[0.0, 0.0, 0.0012]]))
+    both = with_correction(replace(traj, correction=carried), c).correction
+    assert both is not None and list(both.t_ns) == [0, 500_000_000, 1_000_000_000, 2_000_000_000]
+    np.testing.assert_allclose(both.at(nodes), c.at(nodes) + [0.0, 0.0, 0.001], atol=1e-12)
+    np.testing.assert_allclose(both.std_at(nodes)[:, 2], 0.0012, atol=1e-12)
