@@ -1,0 +1,139 @@
+"""Benchmark the autofocus with and without the slow motion from the points' passes (AutofocusOptions.slow_motion).
+
+Usage: python benches/bench_af_pass_ranges.py [--drives urban:0,urban:1] [--keep DIR] [--append]
+                                              [--output benches/results/af_pass_ranges.json]
+
+Per drive (``simulate --dynamics full``, ``ingest``, ``navigate``; with ``--keep`` the files stay in
+DIR/<scenario><seed> and are used again): the corner reflectors focused (patches only, the product's options, one pass
+over the radar data each) along SAR-MIN's track, along ``sar-min+af`` as the product makes it, along the slow motion
+alone (``sar.pass_ranges``) and along ``sar-min+af`` with the slow motion first; each one's worst reflector after the
+whole-track alignment and its worst peak loss against the truth track's patches, as ``compare`` measures them. Also
+the slow motion's points, residual, correction and time. The summary per scenario: drives within 2 cm and 1 dB, median
+and worst reflector, without and with."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_paper import RESULTS, cli  # noqa: E402
+
+WITHIN_CM, WITHIN_DB = 2.0, 1.0
+TRACKS = ("sar-min", "sar-min+af", "slow", "slow+af")
+
+
+def reflector_errors(drive: Path, traj: Any, truth: Any, config: Any, reference: Any = None) -> tuple[dict, Any]:
+    """Worst aligned reflector error (cm) and worst peak loss (dB, against ``reference``'s patches) of the image
+    along ``traj``, and its patches (the reference, when ``traj`` is the truth's)."""
+    from autosar_cli.evaluate.reflectors import focus_patches, measure_reflectors, predict_image_positions
+    from autosar_cli.evaluate.trajectory_metrics import common_instants, trajectory_errors
+    from autosar_cli.nav.trajectory import phase_centre_lever_arm
+    from autosar_cli.sar.focus import FocusOptions
+    from autosar_cli.store.drive import radar_times
+
+    t = common_instants(traj, truth.trajectory, radar_times(drive))
+    alignment = trajectory_errors(traj, truth.trajectory, phase_centre_lever_arm(config), t).alignment
+    crs = truth.targets.corner_reflectors
+    options = FocusOptions.from_config(config)
+    centres = predict_image_positions(traj, truth.trajectory, truth.targets_above_road(crs), config, t,
+                                      options.height_m)
+    patches, _, _ = focus_patches(drive, traj, config, options, truth.targets.corner_reflector_names(),
+                                  truth.targets.position_enu[crs], alignment, predicted_xy=centres)
+    metrics = measure_reflectors(patches, (0.0, 1.0), reference)
+    errors = [100 * m.aligned_error_m for m in metrics]
+    losses = [m.peak_loss_db for m in metrics if m.peak_loss_db is not None]
+    return ({"worst_cm": round(max(errors), 2), "peak_loss_max_db": round(max(losses), 2) if losses else None,
+             "errors_cm": [round(e, 2) for e in errors]}, patches)
+
+
+def measured_row(work: Path) -> dict[str, Any]:
+    """One drive's row from ``work``'s log.mcap(.truth.h5), drive.h5 and sarmin.h5."""
+    from autosar_cli.config import load_config
+    from autosar_cli.evaluate.evaluation import load_truth
+    from autosar_cli.sar.focus import FocusOptions
+    from autosar_cli.sar.pass_ranges import PassOptions, estimate_slow_motion
+    from autosar_cli.sar.residual_motion import AutofocusOptions, candidate_points, estimate_residual_motion
+    from autosar_cli.store.trajectory import read_trajectory
+
+    config = load_config()
+    drive = work / "drive.h5"
+    est = read_trajectory(work / "sarmin.h5", covariance=False)
+    truth = load_truth(work / "log.mcap.truth.h5", est.origin, config)
+    focus, opts = FocusOptions.from_config(config), AutofocusOptions()
+    _, reference = reflector_errors(drive, truth.trajectory, truth, config)
+    start = time.perf_counter()
+    points = candidate_points(drive, est, config, focus, opts)
+    points_s = time.perf_counter() - start
+    start = time.perf_counter()
+    slow = estimate_slow_motion(drive, est, config, points, focus, PassOptions())
+    slow_s = time.perf_counter() - start
+    product = estimate_residual_motion(drive, est, config, points, focus, opts)
+    tracks = {"sar-min": est, "sar-min+af": product.trajectory, "slow": slow.trajectory}
+    # the product's own path: AutofocusOptions(slow_motion=True) runs the two as here
+    tracks["slow+af"] = (estimate_residual_motion(drive, slow.trajectory, config, points - slow.point_shift_enu, focus,
+                                                  opts).trajectory if slow.applied else tracks["sar-min+af"])
+    row: dict[str, Any] = {"points": len(points), "points_s": round(points_s, 1), "slow_s": round(slow_s, 1),
+                           "slow": slow.to_dict(), "slow_summary": slow.summary()}
+    for name in TRACKS:
+        row[name], _ = reflector_errors(drive, tracks[name], truth, config, reference)
+    return row
+
+
+def drive_row(scenario: str, seed: int, keep: Path | None) -> dict[str, Any]:
+    with tempfile.TemporaryDirectory() as tmp:
+        work = (keep / f"{scenario}{seed}") if keep else Path(tmp)
+        work.mkdir(parents=True, exist_ok=True)
+        log, drive, nav = work / "log.mcap", work / "drive.h5", work / "sarmin.h5"
+        if not nav.exists():
+            cli("simulate", "--scenario", scenario, "--seed", str(seed), "--dynamics", "full", "-o", str(log),
+                "--overwrite")
+            cli("ingest", str(log), "-o", str(drive), "--overwrite")
+            cli("navigate", str(drive), "-o", str(nav), "--overwrite")
+        return {"scenario": scenario, "seed": seed, **measured_row(work)}
+
+
+def within(entry: dict[str, Any]) -> bool:
+    return entry["worst_cm"] <= WITHIN_CM and (entry["peak_loss_max_db"] or 0.0) <= WITHIN_DB
+
+
+def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for scenario in sorted({r["scenario"] for r in rows}):
+        these = [r for r in rows if r["scenario"] == scenario]
+        out[scenario] = {"drives": len(these), **{name: {
+            f"within_{WITHIN_CM:g}cm_{WITHIN_DB:g}db": sum(within(r[name]) for r in these),
+            "worst_median_cm": round(float(np.median([r[name]["worst_cm"] for r in these])), 2),
+            "worst_max_cm": max(r[name]["worst_cm"] for r in these)} for name in TRACKS},
+            "slow_s_median": round(float(np.median([r["slow_s"] for r in these])), 1)}
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--drives", default="urban:0,urban:1", help="scenario:seed,...")
+    ap.add_argument("--keep", type=Path, default=None, help="keep (and use again) each drive's files under this")
+    ap.add_argument("--append", action="store_true", help="add the rows to those of --output")
+    ap.add_argument("--output", type=Path, default=RESULTS / "af_pass_ranges.json")
+    args = ap.parse_args()
+    rows: list[dict[str, Any]] = json.loads(args.output.read_text())["rows"] if args.append else []
+    for item in args.drives.split(","):
+        scenario, seed = item.split(":")
+        row = drive_row(scenario, int(seed), args.keep)
+        rows.append(row)
+        print(json.dumps({k: row[k] for k in ("scenario", "seed", "slow_s", *TRACKS)}), flush=True)
+    result = {"benchmark": "af_pass_ranges", "summary": summary(rows), "rows": rows}
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    args.output.write_text(json.dumps(result, indent=1) + "\n")
+    print(json.dumps(result["summary"], indent=1))
+
+
+if __name__ == "__main__":
+    main()
