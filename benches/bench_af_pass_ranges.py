@@ -18,6 +18,7 @@ import json
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -60,12 +61,17 @@ def measured_row(work: Path) -> dict[str, Any]:
     from autosar_cli.evaluate.evaluation import load_truth
     from autosar_cli.sar.focus import FocusOptions
     from autosar_cli.sar.pass_ranges import PassOptions, estimate_slow_motion
-    from autosar_cli.sar.residual_motion import AutofocusOptions, candidate_points, estimate_residual_motion
+    from autosar_cli.sar.residual_motion import (
+        AutofocusOptions,
+        candidate_points,
+        estimate_residual_motion,
+        residual_motion_of_points,
+    )
     from autosar_cli.store.trajectory import read_trajectory
 
     config = load_config()
     drive = work / "drive.h5"
-    est = read_trajectory(work / "sarmin.h5", covariance=False)
+    est = read_trajectory(work / "sarmin.h5")  # its covariance sets the autofocus's scale prior, as in the product
     truth = load_truth(work / "log.mcap.truth.h5", est.origin, config)
     focus, opts = FocusOptions.from_config(config), AutofocusOptions()
     _, reference = reflector_errors(drive, truth.trajectory, truth, config)
@@ -76,12 +82,13 @@ def measured_row(work: Path) -> dict[str, Any]:
     slow = estimate_slow_motion(drive, est, config, points, focus, PassOptions())
     slow_s = time.perf_counter() - start
     product = estimate_residual_motion(drive, est, config, points, focus, opts)
-    tracks = {"sar-min": est, "sar-min+af": product.trajectory, "slow": slow.trajectory}
-    # the product's own path: AutofocusOptions(slow_motion=True) runs the two as here
-    tracks["slow+af"] = (estimate_residual_motion(drive, slow.trajectory, config, points - slow.point_shift_enu, focus,
-                                                  opts).trajectory if slow.applied else tracks["sar-min+af"])
+    start = time.perf_counter()
+    both = residual_motion_of_points(drive, est, config, points, focus, replace(opts, slow_motion=True))
+    both_s = time.perf_counter() - start
+    tracks = {"sar-min": est, "sar-min+af": product.trajectory, "slow": slow.trajectory, "slow+af": both.trajectory}
     row: dict[str, Any] = {"points": len(points), "points_s": round(points_s, 1), "slow_s": round(slow_s, 1),
-                           "slow": slow.to_dict(), "slow_summary": slow.summary()}
+                           "slow+af_s": round(both_s, 1), "slow": slow.to_dict(), "slow_summary": slow.summary(),
+                           "af_summary": product.summary(), "slow+af_summary": both.summary()}
     for name in TRACKS:
         row[name], _ = reflector_errors(drive, tracks[name], truth, config, reference)
     return row

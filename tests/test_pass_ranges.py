@@ -78,22 +78,37 @@ def test_recovers_an_injected_along_track_error(test1_drive: tuple[Path, Truth])
           f"{res.summary()}")
     assert before > 0.008
     assert after < 0.25 * before
+    # its whole-track stretch is the injected error's straight line (the 0.1 % and the slip's share); the shape, the
+    # correction less that stretch, is the rest
+    s = cumulative_travel(track.rear_axle_enu)[np.searchsorted(track.t_ns, t)]
+    injected_line = float(np.polyfit(s, err[np.searchsorted(track.t_ns, t)], 1)[0])
+    shape = res.shape_correction
+    assert shape is not None
+    shape_left = left - np.einsum("kd,kd->k", res.correction.at(t) - shape.at(t), _along(track, t))
+    slip_left = shape_left - np.polyval(np.polyfit(s, shape_left, 1), s)
+    print(f"stretch {res.stretch * 100:+.4f} ± {res.stretch_std * 100:.4f} % ({-injected_line * 100:+.4f} % "
+          f"injected); the shape leaves {observable_rms(slip_left) * 1e3:.2f} mm about a line")
+    assert res.stretch == pytest.approx(-injected_line, abs=max(3 * res.stretch_std, 1e-4))
+    assert observable_rms(slip_left) < 0.25 * before
 
 
 def _left_along(truth: Trajectory, moved: Trajectory) -> float:
     """RMS about its mean of the along-track error ``moved`` (the truth track plus an injected error, corrected)
-    keeps: its whole correction's along-track part."""
-    c = moved.correction
-    assert c is not None
+    keeps: its phase centre's less the truth's, along the track."""
     t = truth.t_ns
-    return observable_rms(np.einsum("kd,kd->k", c.at(t), _along(truth, t)))
+    centre, _, along = frame_geometry(truth, t, CFG)
+    return observable_rms(np.einsum("kd,kd->k", frame_geometry(moved, t, CFG)[0] - centre, along))
 
 
 @pytest.mark.slow
-def test_autofocus_takes_the_slow_motion_first_where_asked(test1_drive: tuple[Path, Truth]) -> None:
+@pytest.mark.parametrize("phases_scale", [True, False], ids=["phases-scale", "passes-scale"])
+def test_autofocus_takes_the_slow_motion_first_where_asked(test1_drive: tuple[Path, Truth], phases_scale: bool
+                                                            ) -> None:
     """``AutofocusOptions(slow_motion=True)``: the points of the first image along a track carrying
-    :func:`injected_along_error`, their passes' slow motion, then the phases along the track so corrected; the
-    result says both, and its track keeps under a quarter of the injected error."""
+    :func:`injected_along_error`, their passes' slow motion less its stretch, then the phases along the track so
+    corrected, which measure the scale; or, where the phases may not (``max_scale_std`` below any they reach), the
+    passes' stretch kept and said. The result says both, and its track keeps under a quarter of the injected
+    error."""
     from autosar_cli.sar.residual_motion import AutofocusOptions, autofocus_residual_motion
 
     drive, truth = test1_drive
@@ -101,12 +116,19 @@ def test_autofocus_takes_the_slow_motion_first_where_asked(test1_drive: tuple[Pa
     err = injected_along_error(track)
     wrong = replace(track, correction=MotionCorrection(track.t_ns, err[:, None] * _along(track, track.t_ns),
                                                        np.zeros((len(err), 3))))
-    res = autofocus_residual_motion(drive, wrong, CFG, opts=AutofocusOptions(slow_motion=True))
-    print(f"test1: {res.summary()}")
+    opts = AutofocusOptions(slow_motion=True) if phases_scale else AutofocusOptions(slow_motion=True,
+                                                                                    max_scale_std=1e-9)
+    res = autofocus_residual_motion(drive, wrong, CFG, opts=opts)
+    left = _left_along(track, res.trajectory)
+    print(f"test1: {res.summary()}; along-track error {observable_rms(err) * 1e3:.2f} mm RMS injected, "
+          f"{left * 1e3:.2f} mm left")
     assert res.applied and res.slow_motion is not None and res.slow_motion.applied, res.summary()
     assert res.summary().startswith("slow motion corrected by")
     assert res.to_dict()["slow_motion"]["points_used"] >= 3
-    left = _left_along(track, res.trajectory)
+    if phases_scale:
+        assert not res.scale_note and "distances scaled by" in res.summary()
+    else:
+        assert res.scale == res.slow_motion.stretch and "from the points' passes" in res.scale_note, res.summary()
     assert left < 0.25 * observable_rms(err), (left, observable_rms(err))
 
 

@@ -102,6 +102,16 @@ class SlowMotion:
     point_sigma_m: Array  #: (P,) each point's own fit's robust std of its path (inf: too few blocks)
     residual_m: float  #: median over the used points of their joint fit's robust std
     reason: str = ""
+    #: the correction's whole-track stretch: its along-track part's slope against the travel (distances times
+    #: 1 + stretch), fitted over the nodes by their std, and that fit's std
+    stretch: float = 0.0
+    stretch_std: float = 0.0
+    #: the correction less that stretch (about the track's point nearest its centroid, where
+    #: :func:`~autosar_cli.sar.autofocus.scale_track` scales), the input with it, and each point's shift on it (P, 3)
+    #: (ENU m)
+    shape_correction: MotionCorrection | None = None
+    shape_trajectory: Trajectory | None = None
+    shape_point_shift_enu: Array | None = None
 
     @property
     def applied(self) -> bool:
@@ -111,7 +121,8 @@ class SlowMotion:
         c = self.correction
         out: dict[str, object] = {"applied": self.applied, "reason": self.reason,
                                   "points_used": int(self.points_used.sum()),
-                                  "residual_mm": round(1e3 * self.residual_m, 3)}
+                                  "residual_mm": round(1e3 * self.residual_m, 3),
+                                 "stretch": self.stretch, "stretch_std": self.stretch_std}
         if c is not None:
             mag = np.linalg.norm(c.offset_enu, axis=-1)
             out["correction"] = {"rms_mm": round(float(1e3 * np.sqrt(np.mean(mag**2))), 3),
@@ -285,13 +296,37 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, opts: PassO
     cols = np.arange(n_nodes)
     e = np.zeros((n_var, n_nodes))
     e[cols, cols] = 1.0
-    std = np.sqrt(np.maximum(lu.solve(e)[cols, cols], 0.0))
+    cov = lu.solve(e)[cols]
+    std = np.sqrt(np.maximum(np.diag(cov), 0.0))
     across, across_std = (-x[k_n:n_nodes], std[k_n:]) if len(comps) == 2 else (np.zeros(k_n), np.zeros(k_n))
     t_nodes = t0 + np.round(nodes * 1e9).astype(np.int64)
-    correction = node_correction(trajectory, config, t_nodes, -x[:k_n], across, std[:k_n], across_std)
-    moved = with_correction(trajectory, correction)
-    return SlowMotion(moved, correction, x[n_nodes:].reshape(n_pts, 3) * used[:, None], used, point_sigma,
-                      float(np.median(sigma[used])))
+    along = -x[:k_n]
+    correction = node_correction(trajectory, config, t_nodes, along, across, std[:k_n], across_std)
+    shift = x[n_nodes:].reshape(n_pts, 3) * used[:, None]
+    # the stretch: a straight line through the along nodes against their travel, weighted by their std
+    s_nodes = np.interp(nodes, t_s, travel)
+    xy = trajectory.rear_axle_enu
+    s_centre = np.interp((trajectory.t_ns[np.argmin(np.linalg.norm(xy - xy.mean(axis=0), axis=1))] - t0) / 1e9, t_s,
+                         travel)
+    line = np.column_stack([np.ones(k_n), s_nodes - s_centre])
+    w = 1.0 / np.maximum(std[:k_n], 1e-6) ** 2
+    gain = np.linalg.solve(line.T @ (w[:, None] * line), (w[:, None] * line).T)  # (2, k_n): nodes -> line
+    stretch = float(gain[1] @ along)
+    stretch_std = float(np.sqrt(max(gain[1] @ cov[:k_n, :k_n] @ gain[1], 0.0)))
+    shape = node_correction(trajectory, config, t_nodes, along - stretch * (s_nodes - s_centre), across, std[:k_n],
+                            across_std)
+    # each point moves with the track at its broadside block (the one whose line of sight is least along)
+    shape_shift = shift.copy()
+    u_along = np.einsum("ij,ij->i", blocks.los, blocks.along)
+    for j in np.unique(blocks.point):
+        m = np.flatnonzero(blocks.point == j)
+        b = m[np.argmin(np.abs(u_along[m]))]
+        s_j = np.interp((blocks.t_ns[b] - t0) / 1e9, t_s, travel)
+        shape_shift[j] += stretch * (s_j - s_centre) * blocks.along[b]
+    return SlowMotion(with_correction(trajectory, correction), correction, shift, used, point_sigma,
+                      float(np.median(sigma[used])), stretch=stretch, stretch_std=stretch_std,
+                      shape_correction=shape, shape_trajectory=with_correction(trajectory, shape),
+                      shape_point_shift_enu=shape_shift)
 
 
 def node_correction(trajectory: Trajectory, config: Config, t_ns: NDArray[np.int64], along_m: Array, across_m: Array,
