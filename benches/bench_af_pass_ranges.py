@@ -81,13 +81,16 @@ def measured_row(work: Path) -> dict[str, Any]:
     start = time.perf_counter()
     slow = estimate_slow_motion(drive, est, config, points, focus, PassOptions())
     slow_s = time.perf_counter() - start
+    start = time.perf_counter()
     product = estimate_residual_motion(drive, est, config, points, focus, opts)
+    af_s = time.perf_counter() - start
     start = time.perf_counter()
     both = residual_motion_of_points(drive, est, config, points, focus, replace(opts, slow_motion=True))
     both_s = time.perf_counter() - start
     tracks = {"sar-min": est, "sar-min+af": product.trajectory, "slow": slow.trajectory, "slow+af": both.trajectory}
     row: dict[str, Any] = {"points": len(points), "points_s": round(points_s, 1), "slow_s": round(slow_s, 1),
-                           "slow+af_s": round(both_s, 1), "slow": slow.to_dict(), "slow_summary": slow.summary(),
+                           "af_s": round(af_s, 1), "slow+af_s": round(both_s, 1),
+                           "slow_motion": slow.to_dict(), "slow_summary": slow.summary(),
                            "af_summary": product.summary(), "slow+af_summary": both.summary()}
     for name in TRACKS:
         row[name], _ = reflector_errors(drive, tracks[name], truth, config, reference)

@@ -318,10 +318,12 @@ def _linearise(smp: _Samples, used: NDArray[np.bool_], node_across: Array, node_
 
 
 def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, config: Config, points_enu: Array,
-                             focus: FocusOptions | None = None, opts: AutofocusOptions | None = None
-                             ) -> ResidualMotion:
+                             focus: FocusOptions | None = None, opts: AutofocusOptions | None = None,
+                             unscaled: tuple[Trajectory, Array] | None = None) -> ResidualMotion:
     """The correction of ``trajectory`` that makes the phase histories of the points ``points_enu`` (P, 3) (ENU m,
-    where ``trajectory`` focuses them) coherent; see the module's docstring."""
+    where ``trajectory`` focuses them) coherent; see the module's docstring. ``unscaled``: where the points do not
+    measure the scale, the motion is fitted along this trajectory instead, the points (P, 3) where it focuses them
+    (the passes' stretch, :func:`residual_motion_of_points`), on the same histories."""
     focus = focus or FocusOptions.from_config(config)
     opts = with_scale_prior(opts or AutofocusOptions(), trajectory)
     points0 = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
@@ -373,6 +375,10 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
                              used0=result.points_used | extra, motion0=result.correction, point_noise=True,
                              grade_stretch=grade)
                 result = every if every.applied else result
+    elif unscaled is not None:  # the residual motion alone along the track given for it
+        track, moved = unscaled
+        result = _fit(hist, track, config, points + (np.asarray(moved, dtype=np.float64) - points0), motion,
+                      used0=used0, point_noise=True, grade_stretch=grade)
     else:  # the residual motion alone along the navigated track
         result = _fit(hist, trajectory, config, points, motion, used0=used0, point_noise=True, grade_stretch=grade)
     if result.with_posterior is not None:
@@ -829,16 +835,15 @@ def residual_motion_of_points(drive_path: str | Path, trajectory: Trajectory, co
     if not slow.applied:
         return replace(estimate_residual_motion(drive_path, trajectory, config, points, focus, opts), slow_motion=slow)
     # the passes' shape, their stretch left to the phases, which measure it better where their points agree on it
-    # (test2 seeds 0, 1: worst reflector 1.46, 1.17 cm along the passes' stretch, 1.09, 0.72 along the phases')
+    # (test2 seeds 0, 1: worst reflector 1.46, 1.17 cm along the passes' stretch, 1.09, 0.72 along the phases');
+    # where they do not, the passes' stretch too, and the points where that track focuses them
     assert slow.shape_trajectory is not None and slow.shape_point_shift_enu is not None
-    shaped = estimate_residual_motion(drive_path, slow.shape_trajectory, config, points - slow.shape_point_shift_enu,
-                                      focus, opts)
-    if shaped.applied and not shaped.scale_note:
-        return replace(shaped, slow_motion=slow)
-    # else the passes' stretch too, and the points where that track focuses them
-    result = estimate_residual_motion(drive_path, slow.trajectory, config, points - slow.point_shift_enu, focus, opts)
-    if not result.scale_note:  # the phases found a scale along it after all
+    result = estimate_residual_motion(drive_path, slow.shape_trajectory, config, points - slow.shape_point_shift_enu,
+                                      focus, opts, unscaled=(slow.trajectory, points - slow.point_shift_enu))
+    if not (result.scale_note or result.reason):
         return replace(result, slow_motion=slow)
+    phases = result.scale_note.removeprefix("track scale ") or f"not measured: {result.reason}"
     note = (f"track scale {slow.stretch * 100:+.4f} ± {slow.stretch_std * 100:.4f} % from the points' passes; by "
-            f"their phases {result.scale_note.removeprefix('track scale ')}")
-    return replace(result, slow_motion=slow, scale=slow.stretch, scale_std=slow.stretch_std, scale_note=note)
+            f"their phases {phases}")
+    return replace(result, trajectory=slow.trajectory if result.reason else result.trajectory, slow_motion=slow,
+                   scale=slow.stretch, scale_std=slow.stretch_std, scale_note=note)
