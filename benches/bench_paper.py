@@ -82,7 +82,8 @@ OTHER_VEHICLE = ("car", "simulation", "sensors")
 
 def config_copy(components: str | None, understeer: float | None, work: Path, rear_slip: float | None = None,
                 fits: bool = True, attitude: bool = True, radar_height: bool = False, car: str | None = None,
-                simulation: str | None = None, sensors: str | None = None, navigation: str | None = None) -> Path:
+                simulation: str | None = None, sensors: str | None = None, navigation: str | None = None,
+                processing: str | None = None) -> Path:
     """A copy of the default config whose full vehicle model has only ``components`` (comma-separated; None: all),
     whose steering model has the understeer gradient ``understeer`` and whose trajectory the rear-slip gain
     ``rear_slip`` (rad per m/s^2; None: the config's); ``fits`` False: SAR-MIN in one pass, without the fitted
@@ -91,13 +92,14 @@ def config_copy(components: str | None, understeer: float | None, work: Path, re
     ``simulation``: the same for [simulation]; ``sensors``: "sensor.table.key=value,..." entries of the sensors'
     error tables, e.g. gnss_cog.gnss.velocity_std_mps=0.06 (a copy so changed is for the simulator alone: the
     processor reads its noises from the same tables); ``navigation``: "key=value,..." entries of [navigation], SAR-MIN's
-    own settings."""
+    own settings; ``processing``: the same for [processing]."""
     from autosar_cli.config import DEFAULT_CONFIG
 
     text = DEFAULT_CONFIG.read_text()
     entries: list[tuple[str, str, str, str]] = []  # (option, section, key, value)
     for option, section, given in (("--car", "vehicle_dynamics", car), ("--simulation", "simulation", simulation),
-                                   ("--sensors", "sensors", sensors), ("--navigation", "navigation", navigation)):
+                                   ("--sensors", "sensors", sensors), ("--navigation", "navigation", navigation),
+                                   ("--processing", "processing", processing)):
         for item in re.split(r",(?![^\[]*\])", given or ""):  # a list value keeps its commas
             if item:
                 key, _, value = item.partition("=")

@@ -123,11 +123,14 @@ class AutofocusOptions:
     #: each point's aperture stretched by the road's grade (:func:`grade_stretch`), which the scale then leaves out
     grade_stretch: bool = True
     #: first the track's slow motion from the points' ranges over their whole passes (:mod:`autosar_cli.sar.
-    #: pass_ranges`): the along-track error between points, which no phase over +-``half_beam_deg`` measures. Off
-    #: until measured over bench_paper's 40 drives (benches/bench_af_pass_ranges.py, worst reflector: urban seeds 0-9
-    #: median 3.74 -> 2.68 cm, within 2 cm on 3 against 1, seed 0 1.74 -> 2.37; test3 seed 8 2.44 -> 0.95, test2
-    #: seed 1 0.64 -> 1.17)
+    #: pass_ranges`): the along-track error between points, which no phase over +-``half_beam_deg`` measures. The
+    #: config's ``processing.autofocus_slow_motion`` where the options are not given (off; its figures and cost:
+    #: docs/AUTOFOCUS.md, "The slow motion from the points' passes")
     slow_motion: bool = False
+
+    @classmethod
+    def from_config(cls, config: Config) -> AutofocusOptions:
+        return cls(slow_motion=config.processing.autofocus_slow_motion)
 
 
 @dataclass
@@ -815,7 +818,7 @@ def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, co
     """``trajectory`` corrected by the residual motion its own image's bright points (:func:`candidate_points`)
     measure, with no truth (:func:`residual_motion_of_points`)."""
     focus = focus or FocusOptions.from_config(config)
-    opts = opts or AutofocusOptions()
+    opts = opts or AutofocusOptions.from_config(config)
     points = candidate_points(drive_path, trajectory, config, focus, opts)
     return residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes)
 
