@@ -837,9 +837,10 @@ def residual_motion_of_points(drive_path: str | Path, trajectory: Trajectory, co
     slow = estimate_slow_motion(drive_path, trajectory, config, points, focus, passes or PassOptions())
     if not slow.applied:
         return replace(estimate_residual_motion(drive_path, trajectory, config, points, focus, opts), slow_motion=slow)
-    # the passes' shape, their stretch left to the phases, which measure it better where their points agree on it
-    # (test2 seeds 0, 1: worst reflector 1.46, 1.17 cm along the passes' stretch, 1.09, 0.72 along the phases');
-    # where they do not, the passes' stretch too, and the points where that track focuses them
+    # the passes' shape, their stretch left to the phases, so that the scale is one, the phases' where their points
+    # agree on it (test2 seeds 0 / 1 / 3: the worst reflector 1.46 / 1.17 / 1.43 cm along the passes' stretch, 1.60 /
+    # 0.56 / 1.60 along the phases'); where they do not, the passes' stretch too, and the points where that track
+    # focuses them
     assert slow.shape_trajectory is not None and slow.shape_point_shift_enu is not None
     result = estimate_residual_motion(drive_path, slow.shape_trajectory, config, points - slow.shape_point_shift_enu,
                                       focus, opts, unscaled=(slow.trajectory, points - slow.point_shift_enu))
