@@ -38,6 +38,8 @@ CAN_SI = "tests/test_ingest_roundtrip.py::test_can_values_in_si_within_quantisat
 CAN_UNITS = "tests/test_candb.py::test_dbc_units_convert_to_si_by_the_textbook_factors"
 NMEA_SIM = "tests/test_ingest_nmea.py::test_simulator_round_trip"
 WHEEL_LAG = "tests/test_nav_models.py::test_each_wheel_is_moved_by_its_own_window_in_a_turn"
+PASS_DOPPLER = "tests/test_pass_ranges.py::test_the_envelopes_doppler_shift_is_the_beat_frequencys"
+PASS_INJECTED = "tests/test_pass_ranges.py::test_recovers_an_injected_along_track_error"
 
 
 @dataclass(frozen=True)
@@ -119,6 +121,11 @@ MUTATIONS: list[Mutation] = [
        "        v = np.abs(z[:, w])\n", "        v = np.abs(z).mean(axis=1)\n", WHEEL_LAG),
     _m("wheel-lag-moved-forward", "sar-min", "nav/wheel_speeds.py",
        "        described = t - delay\n", "        described = t + delay\n", WHEEL_LAG),
+    # --- the slow motion from the points' passes
+    _m("pass-ranges-doppler-shift-added", "autofocus", "sar/pass_ranges.py",
+       "    offset = offset - doppler\n", "    offset = offset + doppler\n", PASS_DOPPLER),
+    _m("pass-ranges-stretch-left-in-the-shape", "autofocus", "sar/pass_ranges.py",
+       "along - stretch * (s_nodes - s_centre), across", "along, across", PASS_INJECTED),
     # --- geodesy and GeoTIFF georeferencing
     _m("geodesy-east-north-swapped", "geodesy", "types.py",
        "pymap3d.enu2geodetic(p[..., 0], p[..., 1], p[..., 2]", "pymap3d.enu2geodetic(p[..., 1], p[..., 0], p[..., 2]",

@@ -90,6 +90,8 @@ def test_recovers_an_injected_along_track_error(test1_drive: tuple[Path, Truth])
           f"injected); the shape leaves {observable_rms(slip_left) * 1e3:.2f} mm about a line")
     assert res.stretch == pytest.approx(-injected_line, abs=max(3 * res.stretch_std, 1e-4))
     assert observable_rms(slip_left) < 0.25 * before
+    shape_along = np.einsum("kd,kd->k", shape.at(t), _along(track, t))
+    assert abs(np.polyfit(s, shape_along, 1)[0]) < 0.1 * abs(injected_line)  # no stretch left in it
 
 
 def _left_along(truth: Trajectory, moved: Trajectory) -> float:
