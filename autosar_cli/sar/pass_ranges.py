@@ -107,10 +107,9 @@ class SlowMotion:
     stretch: float = 0.0
     stretch_std: float = 0.0
     #: the correction less that stretch (about the track's point nearest its centroid, where
-    #: :func:`~autosar_cli.sar.autofocus.scale_track` scales), the input with it, and each point's shift on it (P, 3)
+    #: :func:`~autosar_cli.sar.autofocus.scale_track` scales), and each point's shift along the input with it (P, 3)
     #: (ENU m)
     shape_correction: MotionCorrection | None = None
-    shape_trajectory: Trajectory | None = None
     shape_point_shift_enu: Array | None = None
 
     @property
@@ -188,10 +187,12 @@ def _travel(trajectory: Trajectory, config: Config) -> tuple[Array, Array]:
                                                                                           config))
 
 
-def point_sigmas(blocks: PassBlocks, trajectory: Trajectory, config: Config, opts: PassOptions) -> tuple[Array, Array]:
+def point_sigmas(blocks: PassBlocks, trajectory: Trajectory, clock: tuple[Array, Array], opts: PassOptions
+                 ) -> tuple[Array, Array]:
     """Per point: the robust std (m) of its blocks about its own fit (its 3-D shift and the track's stretch about
-    it; inf with fewer than ``opts.min_blocks``) and the travel (m) its fitted blocks span."""
-    t_s, travel = _travel(trajectory, config)
+    it; inf with fewer than ``opts.min_blocks``) and the travel (m) its fitted blocks span. ``clock``: the
+    trajectory's seconds and travel (:func:`_travel`)."""
+    t_s, travel = clock
     s = np.interp((blocks.t_ns - trajectory.t_ns[0]) / 1e9, t_s, travel)
     sigma, span = np.full(blocks.n_points, np.inf), np.zeros(blocks.n_points)
     for j in range(blocks.n_points):
@@ -229,18 +230,19 @@ def estimate_slow_motion(drive_path: str | Path, trajectory: Trajectory, config:
     if n_pts == 0:
         return refused("no bright point")
     blocks = pass_blocks(drive_path, trajectory, config, points, focus, opts)
-    sigma, span = point_sigmas(blocks, trajectory, config, opts)
+    clock = _travel(trajectory, config)
+    sigma, span = point_sigmas(blocks, trajectory, clock, opts)
     good = (sigma <= opts.max_point_sigma_m) & (span >= opts.min_span_m)
     if good.sum() < opts.min_points:
         return refused(f"{int(good.sum())} of {n_pts} points fit a point over {opts.min_span_m:g} m of their pass to "
                        f"{1e3 * opts.max_point_sigma_m:g} mm (at least {opts.min_points} needed)", sigma)
-    return _fit(blocks, trajectory, config, opts, good, sigma)
+    return _fit(blocks, trajectory, config, clock, opts, good, sigma)
 
 
-def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, opts: PassOptions, good: NDArray[np.bool_],
-         point_sigma: Array) -> SlowMotion:
+def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tuple[Array, Array], opts: PassOptions,
+         good: NDArray[np.bool_], point_sigma: Array) -> SlowMotion:
     t0 = trajectory.t_ns[0]
-    t_s, travel = _travel(trajectory, config)
+    t_s, travel = clock
     nodes = np.arange(0.0, t_s[-1] + opts.node_s, opts.node_s)
     k_n, n_pts = len(nodes), blocks.n_points
     tb = (blocks.t_ns - t0) / 1e9
@@ -317,7 +319,6 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, opts: PassO
                             across_std)
     # each point moves with the track at its broadside block (the one whose line of sight is least along)
     shape_shift = shift.copy()
-    u_along = np.einsum("ij,ij->i", blocks.los, blocks.along)
     for j in np.unique(blocks.point):
         m = np.flatnonzero(blocks.point == j)
         b = m[np.argmin(np.abs(u_along[m]))]
@@ -325,8 +326,7 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, opts: PassO
         shape_shift[j] += stretch * (s_j - s_centre) * blocks.along[b]
     return SlowMotion(with_correction(trajectory, correction), correction, shift, used, point_sigma,
                       float(np.median(sigma[used])), stretch=stretch, stretch_std=stretch_std,
-                      shape_correction=shape, shape_trajectory=with_correction(trajectory, shape),
-                      shape_point_shift_enu=shape_shift)
+                      shape_correction=shape, shape_point_shift_enu=shape_shift)
 
 
 def node_correction(trajectory: Trajectory, config: Config, t_ns: NDArray[np.int64], along_m: Array, across_m: Array,

@@ -50,7 +50,7 @@ from autosar_cli.config import Config
 from autosar_cli.nav.trajectory import track_scale_std
 from autosar_cli.sar.autofocus import scale_track
 from autosar_cli.sar.focus import FocusOptions
-from autosar_cli.sar.pass_ranges import PassOptions, SlowMotion, estimate_slow_motion
+from autosar_cli.sar.pass_ranges import PassOptions, SlowMotion, estimate_slow_motion, with_correction
 from autosar_cli.sar.phase_history import (
     PhaseHistories,
     focus_history,
@@ -841,9 +841,10 @@ def residual_motion_of_points(drive_path: str | Path, trajectory: Trajectory, co
     # agree on it (test2 seeds 0 / 1 / 3: the worst reflector 1.46 / 1.17 / 1.43 cm along the passes' stretch, 1.60 /
     # 0.56 / 1.60 along the phases'); where they do not, the passes' stretch too, and the points where that track
     # focuses them
-    assert slow.shape_trajectory is not None and slow.shape_point_shift_enu is not None
-    result = estimate_residual_motion(drive_path, slow.shape_trajectory, config, points - slow.shape_point_shift_enu,
-                                      focus, opts, unscaled=(slow.trajectory, points - slow.point_shift_enu))
+    assert slow.shape_correction is not None and slow.shape_point_shift_enu is not None
+    result = estimate_residual_motion(drive_path, with_correction(trajectory, slow.shape_correction), config,
+                                      points - slow.shape_point_shift_enu, focus, opts,
+                                      unscaled=(slow.trajectory, points - slow.point_shift_enu))
     if not (result.scale_note or result.reason):
         return replace(result, slow_motion=slow)
     phases = result.scale_note.removeprefix("track scale ") or f"not measured: {result.reason}"
