@@ -348,6 +348,31 @@ def test_gathered_histories_are_each_pulses_own_range_profile(ci_drive: tuple[Pa
                 np.testing.assert_array_equal(hist.samples[n, c], profile[b0:b0 + w])
 
 
+def test_narrowed_histories_are_those_gathered_along_the_nearby_track(ci_drive: tuple[Path, Trajectory]) -> None:
+    """Histories over a wide beam and window along a track, narrowed along that track moved by a 3 cm along-track
+    sine, are what a second read of the radar along the moved track keeps: the same pairs, windows and samples."""
+    from autosar_cli.sar.phase_history import gather_phase_histories, narrow_histories
+
+    drive, traj = ci_drive
+    focus = FocusOptions.from_config(CFG)
+    at = np.linspace(traj.t_ns[0], traj.t_ns[-1], 5).astype(np.int64)[1:4]
+    centre, across, along = frame_geometry(traj, at, CFG)
+    points = centre + np.array([2.0, 3.0, 4.0])[:, None] * across + [0.0, 0.0, -0.3]
+    wide = gather_phase_histories(drive, traj, CFG, points, focus, half_beam_deg=60.0, window_bins=40, channels=2)
+    _, _, along_k = frame_geometry(traj, traj.t_ns, CFG)
+    moved = replace(traj, correction=MotionCorrection(traj.t_ns, 0.03 * np.sin(traj.t)[:, None] * along_k,
+                                                      np.zeros((len(traj.t_ns), 3))))
+    narrow = narrow_histories(wide, moved, CFG, points, focus, half_beam_deg=25.0, window_bins=24)
+    direct = gather_phase_histories(drive, moved, CFG, points, focus, half_beam_deg=25.0, window_bins=24, channels=2)
+    assert 1000 < len(direct.point) < 0.9 * len(wide.point)  # the narrower beam keeps fewer pulses
+    np.testing.assert_array_equal(narrow.point, direct.point)
+    np.testing.assert_array_equal(narrow.frame, direct.frame)
+    np.testing.assert_array_equal(narrow.bin0, direct.bin0)
+    np.testing.assert_array_equal(narrow.samples, direct.samples)
+    with pytest.raises(ValueError, match="48 bins"):
+        narrow_histories(wide, moved, CFG, points, focus, half_beam_deg=25.0, window_bins=48)
+
+
 def test_points_that_disagree_on_the_scale_are_told_apart() -> None:
     """The agreement statistic of the track scale: 8 points whose phase steps each carry a scale (their own
     position shift free) give a reduced chi-square near 1 when they share one scale (the 0.999 limit for 8

@@ -39,13 +39,19 @@ from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from autosar_cli.config import SPEED_OF_LIGHT, Config
 from autosar_cli.nav.trajectory import cumulative_travel, radar_track
 from autosar_cli.sar.focus import FocusOptions
-from autosar_cli.sar.phase_history import frame_geometry, gather_phase_histories, pair_antennas, range_offsets
+from autosar_cli.sar.normal_equations import factor_normal
+from autosar_cli.sar.phase_history import (
+    PhaseHistories,
+    frame_geometry,
+    gather_phase_histories,
+    pair_antennas,
+    range_offsets,
+)
 from autosar_cli.types import MotionCorrection, Trajectory
 
 Array = NDArray[np.float64]
@@ -139,13 +145,22 @@ class SlowMotion:
                 f" mm) from {int(self.points_used.sum())} points' ranges over their passes")
 
 
+def pass_histories(drive_path: str | Path, trajectory: Trajectory, config: Config, points_enu: Array,
+                   focus: FocusOptions, opts: PassOptions, min_window_bins: int = 0) -> PhaseHistories:
+    """The points' (P, 3) (ENU m) histories over their passes along ``trajectory``, as :func:`pass_blocks` takes
+    them, their windows at least ``min_window_bins`` wide (for other fits to narrow from)."""
+    return gather_phase_histories(drive_path, trajectory, config, points_enu, focus, half_beam_deg=opts.half_beam_deg,
+                                  window_bins=max(int(2 * opts.search_bins) + 18, min_window_bins),
+                                  channels=opts.channels)
+
+
 def pass_blocks(drive_path: str | Path, trajectory: Trajectory, config: Config, points_enu: Array,
-                focus: FocusOptions, opts: PassOptions) -> PassBlocks:
+                focus: FocusOptions, opts: PassOptions, histories: PhaseHistories | None = None) -> PassBlocks:
     """Each point's (P, 3) (ENU m) range envelope per ``opts.block_s`` of its pulses over its pass, against the
-    path predicted along ``trajectory``."""
+    path predicted along ``trajectory``; from ``histories`` (:func:`pass_histories` along ``trajectory``) where
+    given, else from the radar data."""
     points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
-    hist = gather_phase_histories(drive_path, trajectory, config, points, focus, half_beam_deg=opts.half_beam_deg,
-                                  window_bins=int(2 * opts.search_bins) + 18, channels=opts.channels)
+    hist = histories if histories is not None else pass_histories(drive_path, trajectory, config, points, focus, opts)
     if len(hist.point) == 0:
         empty = np.zeros((0, 3))
         return PassBlocks(np.zeros(0, np.int64), np.zeros(0, np.int64), empty, empty, empty, np.zeros(0),
@@ -215,9 +230,11 @@ def point_sigmas(blocks: PassBlocks, trajectory: Trajectory, clock: tuple[Array,
 
 
 def estimate_slow_motion(drive_path: str | Path, trajectory: Trajectory, config: Config, points_enu: Array,
-                         focus: FocusOptions | None = None, opts: PassOptions | None = None) -> SlowMotion:
+                         focus: FocusOptions | None = None, opts: PassOptions | None = None,
+                         histories: PhaseHistories | None = None) -> SlowMotion:
     """The slow along- and across-track correction of ``trajectory`` that the ranges of the points ``points_enu``
-    (P, 3) (ENU m, where ``trajectory`` focuses them) measure over their passes; see the module's docstring."""
+    (P, 3) (ENU m, where ``trajectory`` focuses them) measure over their passes; see the module's docstring.
+    ``histories``: their histories gathered already (:func:`pass_histories`)."""
     focus = focus or FocusOptions.from_config(config)
     opts = opts or PassOptions()
     points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
@@ -229,7 +246,7 @@ def estimate_slow_motion(drive_path: str | Path, trajectory: Trajectory, config:
 
     if n_pts == 0:
         return refused("no bright point")
-    blocks = pass_blocks(drive_path, trajectory, config, points, focus, opts)
+    blocks = pass_blocks(drive_path, trajectory, config, points, focus, opts, histories)
     clock = _travel(trajectory, config)
     sigma, span = point_sigmas(blocks, trajectory, clock, opts)
     good = (sigma <= opts.max_point_sigma_m) & (span >= opts.min_span_m)
@@ -276,7 +293,7 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tupl
     for _ in range(opts.iterations):
         w = np.where(keep, 1.0 / np.maximum(sigma[blocks.point], opts.noise_floor_m), 0.0)
         normal = (design.T @ sp.diags(w**2) @ design + weighted_prior.T @ weighted_prior).tocsc()
-        lu = spla.splu(normal)
+        lu = factor_normal(normal)
         x = lu.solve(design.T @ (w**2 * blocks.offset_m))
         resid = blocks.offset_m - design @ x
         for j in np.flatnonzero(good):

@@ -2,7 +2,8 @@
 trajectory correction can be tried on them many times without reading the radar again.
 
 :func:`gather_phase_histories` reads the frames that see the points once, range-compresses them and keeps a window
-of bins around each point's predicted range per pulse and channel; :func:`focus_history` back-projects a pulse onto
+of bins around each point's predicted range per pulse and channel (:func:`narrow_histories` takes a narrower beam
+and window from them along a nearby track); :func:`focus_history` back-projects a pulse onto
 its point from given antenna positions (exact bistatic path, linear interpolation between bins and the carrier
 phase, as the product's kernel does); :func:`range_offsets` measures each point's range from its envelope. Used by
 the residual-motion autofocus (:mod:`autosar_cli.sar.residual_motion`).
@@ -10,6 +11,7 @@ the residual-motion autofocus (:mod:`autosar_cli.sar.residual_motion`).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -78,17 +80,21 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         last_chirp_ns = int(round(offsets.max() * 1e9)) if offsets.size else 0
         frames = np.flatnonzero((t_all >= traj.t_ns[0]) & (t_all + last_chirp_ns <= traj.t_ns[-1]))
         t = t_all[frames]
-        speed = np.interp((t - traj.t_ns[0]).astype(np.float64), (traj.t_ns - traj.t_ns[0]).astype(np.float64),
-                          np.abs(traj.speed))
-        seen = _seen(traj, t, config, points, speed >= focus.min_speed_mps, half_beam_deg)
+        seen = _seen(traj, t, config, points, _moving(traj, t, focus), half_beam_deg)
         used = np.flatnonzero(seen.any(axis=1))
-        out_point, out_frame, out_bin0, out_samples = [], [], [], []
+        # every (frame, point) pair in frame order, and its samples written in place (a list of blocks joined at
+        # the end cost as much again as the windows themselves: test2's 130 MB)
+        frame_of, point_of = np.nonzero(seen)
+        n_pairs = len(frame_of)
+        samples = np.empty((n_pairs, len(pairs), w), np.complex64)
+        bin0 = np.empty((n_pairs, len(pairs)), np.int64)
         tx_idx = np.array([p[0] for p in pairs])
         rx_idx = np.array([p[1] for p in pairs])
         blocks = [used[start:start + block_frames] for start in range(0, len(used), block_frames)]
 
         def read(sel: NDArray[np.int64]) -> NDArray[np.int16]:
-            return radar.frames(int(frames[sel[0]]), int(frames[sel[-1]]) + 1)[frames[sel] - frames[sel[0]]]
+            raw = radar.frames(int(frames[sel[0]]), int(frames[sel[-1]]) + 1)[frames[sel] - frames[sel[0]]]
+            return raw[:, tx_idx, rx_idx]  # (B, C, samples, 2)
 
         # the next block is read while this one is compressed (h5py's reads and the FFTs release the GIL)
         with ThreadPoolExecutor(1) as reader:
@@ -97,11 +103,12 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
                 raw = pending.result()
                 if b + 1 < len(blocks):
                     pending = reader.submit(read, blocks[b + 1])
-                profiles = np.stack([range_compress(raw[:, tt, rr], sample_rate_hz=fs, slope_hz_per_s=slope,
-                                                    window=focus.window, upsample=focus.upsample) for tt, rr in pairs],
-                                    axis=1)  # (B, C, bins)
+                profiles = range_compress(raw, sample_rate_hz=fs, slope_hz_per_s=slope, window=focus.window,
+                                          upsample=focus.upsample)  # (B, C, bins)
                 pc = radar_phase_centres(traj, t[sel], offsets, config)
-                kk, jj = np.nonzero(seen[sel])
+                lo, hi = np.searchsorted(frame_of, sel[0]), np.searchsorted(frame_of, sel[-1], side="right")
+                kk = np.searchsorted(sel, frame_of[lo:hi])
+                jj = point_of[lo:hi]
                 tx = pc.tx[kk][:, tx_idx]  # (n, C, 3)
                 rx = pc.rx[kk][:, tx_idx, rx_idx]
                 p = points[jj][:, None, :]
@@ -111,18 +118,39 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
                 # the windows straight from the profiles' flat buffer: a copy of each pair's whole profile (its
                 # frame's, repeated for every point it sees) would move the profiles ~P times over
                 row = (kk[:, None] * len(pairs) + np.arange(len(pairs))) * profiles.shape[-1] + b0  # (n, C)
-                out_samples.append(profiles.reshape(-1)[row[..., None] + np.arange(w)])
-                out_point.append(jj)
-                out_frame.append(sel[kk])
-                out_bin0.append(b0)
-    empty = len(out_point) == 0
-    return PhaseHistories(
-        np.concatenate(out_point) if not empty else np.zeros(0, np.int64),
-        np.concatenate(out_frame) if not empty else np.zeros(0, np.int64), t,
-        np.concatenate(out_bin0) if not empty else np.zeros((0, len(pairs)), np.int64),
-        np.concatenate(out_samples).astype(np.complex64, copy=False) if not empty
-        else np.zeros((0, len(pairs), w), np.complex64),
-        pairs, offsets, bin_m, rp.cycles_per_m, slope)
+                np.take(profiles.reshape(-1), row[..., None] + np.arange(w), out=samples[lo:hi], mode="clip")
+                bin0[lo:hi] = b0
+    return PhaseHistories(point_of, frame_of, t, bin0, samples, pairs, offsets, bin_m, rp.cycles_per_m, slope)
+
+
+def narrow_histories(hist: PhaseHistories, traj: Trajectory, config: Config, points_enu: Array, focus: FocusOptions,
+                     *, half_beam_deg: float, window_bins: int) -> PhaseHistories:
+    """What :func:`gather_phase_histories` would keep along ``traj`` of the points ``points_enu`` (P, 3) (ENU m),
+    within ``half_beam_deg`` of broadside and ``window_bins`` bins around each range, taken from ``hist``: the same
+    points' histories gathered with a wider beam and window along a track near ``traj`` (one read of the radar for
+    both). Where a window reaches beyond ``hist``'s, it is moved back inside (a pulse whose path then leaves it is
+    NaN in :func:`focus_history`)."""
+    points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
+    w, wide = int(window_bins), hist.samples.shape[-1]
+    if w > wide:
+        raise ValueError(f"a window of {w} bins cannot be taken from histories of {wide}")
+    seen = _seen(traj, hist.frame_t_ns, config, points, _moving(traj, hist.frame_t_ns, focus), half_beam_deg)
+    keep = np.flatnonzero(seen[hist.frame, hist.point])
+    sub = dataclasses.replace(hist, point=hist.point[keep], frame=hist.frame[keep], bin0=hist.bin0[keep],
+                              samples=hist.samples[keep])
+    tx, rx = pair_antennas(sub, traj, config)
+    p = points[sub.point][:, None, :]
+    path = np.linalg.norm(tx - p, axis=-1) + np.linalg.norm(rx - p, axis=-1)
+    start = np.clip(np.floor(path / hist.bin_m).astype(np.int64) - (w // 2 - 1) - sub.bin0, 0, wide - w)  # (n, C)
+    samples = np.take_along_axis(sub.samples, start[..., None] + np.arange(w), axis=-1)
+    return dataclasses.replace(sub, bin0=sub.bin0 + start, samples=samples)
+
+
+def _moving(traj: Trajectory, t_ns: NDArray[np.int64], focus: FocusOptions) -> NDArray[np.bool_]:
+    """(F,) whether the car moves fast enough at ``t_ns`` to focus (``focus.min_speed_mps``)."""
+    speed = np.interp((t_ns - traj.t_ns[0]).astype(np.float64), (traj.t_ns - traj.t_ns[0]).astype(np.float64),
+                      np.abs(traj.speed))
+    return speed >= focus.min_speed_mps
 
 
 def _seen(traj: Trajectory, t_ns: NDArray[np.int64], config: Config, points: Array, moving: NDArray[np.bool_],

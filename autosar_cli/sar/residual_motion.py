@@ -50,12 +50,14 @@ from autosar_cli.config import Config
 from autosar_cli.nav.trajectory import track_scale_std
 from autosar_cli.sar.autofocus import scale_track
 from autosar_cli.sar.focus import FocusOptions
-from autosar_cli.sar.pass_ranges import PassOptions, SlowMotion, estimate_slow_motion, with_correction
+from autosar_cli.sar.normal_equations import factor_normal
+from autosar_cli.sar.pass_ranges import PassOptions, SlowMotion, estimate_slow_motion, pass_histories, with_correction
 from autosar_cli.sar.phase_history import (
     PhaseHistories,
     focus_history,
     frame_geometry,
     gather_phase_histories,
+    narrow_histories,
     pair_antennas,
     range_offsets,
 )
@@ -68,6 +70,10 @@ Array = NDArray[np.float64]
 #: urban (full vehicle, seeds 0-9: benches/results/nav_seeds_full.json's scale_z_rms) the scale's error is 0.9-1.5
 #: times that std RMS: on the full vehicle the filter's covariance is that much too small.
 NAV_SCALE_STD_FACTOR = 2.0
+
+#: Range bins kept beyond the phases' window on either side where their histories are narrowed from the passes'
+#: (:func:`residual_motion_of_points`): room for the slow motion's change of each pulse's path.
+NARROWING_SLACK_BINS = 6
 
 #: Probability of the points' agreement test on the track scale (:func:`_agreement_limit`): a scale that the points
 #: disagree on by more is not the track's (urban seed 0: reduced chi-square 80 over 10 points, the scale -0.12 % where
@@ -322,11 +328,14 @@ def _linearise(smp: _Samples, used: NDArray[np.bool_], node_across: Array, node_
 
 def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, config: Config, points_enu: Array,
                              focus: FocusOptions | None = None, opts: AutofocusOptions | None = None,
-                             unscaled: tuple[Trajectory, Array] | None = None) -> ResidualMotion:
+                             unscaled: tuple[Trajectory, Array] | None = None,
+                             histories: PhaseHistories | None = None) -> ResidualMotion:
     """The correction of ``trajectory`` that makes the phase histories of the points ``points_enu`` (P, 3) (ENU m,
     where ``trajectory`` focuses them) coherent; see the module's docstring. ``unscaled``: where the points do not
     measure the scale, the motion is fitted along this trajectory instead, the points (P, 3) where it focuses them
-    (the passes' stretch, :func:`residual_motion_of_points`), on the same histories."""
+    (the passes' stretch, :func:`residual_motion_of_points`), on the same histories. ``histories``: the points'
+    histories over a wider beam and window along a track near ``trajectory``, narrowed here
+    (:func:`~autosar_cli.sar.phase_history.narrow_histories`) instead of read again."""
     focus = focus or FocusOptions.from_config(config)
     opts = with_scale_prior(opts or AutofocusOptions(), trajectory)
     points0 = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
@@ -334,8 +343,13 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
     if n_pts == 0:
         return ResidualMotion(trajectory, None, points0, np.zeros(0, dtype=bool), np.zeros(0), 0.0, 0.0, 0.0, 0,
                               f"no bright isolated point {opts.min_range_m:g}-{opts.max_range_m:g} m from the track")
-    hist = gather_phase_histories(drive_path, trajectory, config, points0, focus, half_beam_deg=opts.half_beam_deg,
-                                  window_bins=opts.window_bins, channels=opts.channels)
+    if histories is not None:
+        hist = narrow_histories(histories, trajectory, config, points0, focus, half_beam_deg=opts.half_beam_deg,
+                                window_bins=opts.window_bins)
+    else:
+        hist = gather_phase_histories(drive_path, trajectory, config, points0, focus,
+                                      half_beam_deg=opts.half_beam_deg, window_bins=opts.window_bins,
+                                      channels=opts.channels)
     grade = grade_stretch(drive_path, trajectory, config, hist.frame_t_ns) if opts.grade_stretch else None
     # first the scale alone, the track otherwise as navigated: its signature is each aperture's quadratic phase
     # (the wide beam's defocus the old scale sweep measured), which a free across-track correction would absorb
@@ -618,7 +632,7 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
             rhs = (-(lin.design.T @ (w * lin.step)) - (rd.T @ lin.range_resid) / opts.range_sigma_m**2
                    - prior_normal @ x)
             while damping < 1e6:  # Levenberg-Marquardt: a step that does not lower the cost is damped
-                dx = spla.spsolve((normal + sp.diags(damping * normal.diagonal())).tocsc(), rhs)
+                dx = factor_normal(normal + sp.diags(damping * normal.diagonal())).solve(rhs)
                 trial = linearise(x + dx, used, (lin, dx))
                 # a step that pushes a point's samples out of their range window loses data: not a better fit
                 if (len(trial.step) >= 0.99 * len(lin.step)
@@ -678,8 +692,8 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     # the posterior at the solution, with the measured noise
     w = 1.0 / (noise[lin.point] * lin.rel_var)
     rd = lin.range_design
-    lu = spla.splu(((lin.design.T @ lin.design.multiply(w[:, None])) + (rd.T @ rd) / opts.range_sigma_m**2
-                    + prior_normal).tocsc())
+    lu = factor_normal((lin.design.T @ lin.design.multiply(w[:, None])) + (rd.T @ rd) / opts.range_sigma_m**2
+                       + prior_normal)
     unit = np.zeros(len(x))
     unit[-1] = 1.0
     scale_std = float(np.sqrt(max(lu.solve(unit)[-1], 0.0)))
@@ -834,9 +848,16 @@ def residual_motion_of_points(drive_path: str | Path, trajectory: Trajectory, co
     points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
     if not opts.slow_motion or len(points) == 0:
         return estimate_residual_motion(drive_path, trajectory, config, points, focus, opts)
-    slow = estimate_slow_motion(drive_path, trajectory, config, points, focus, passes or PassOptions())
+    passes = passes or PassOptions()
+    # one read of the radar for both: the passes' histories, their windows wide enough that the phases' fit the
+    # shape correction's change of path (test2 seed 1: up to 2 bins; urban: ...)
+    histories = (pass_histories(drive_path, trajectory, config, points, focus, passes,
+                                min_window_bins=opts.window_bins + 2 * NARROWING_SLACK_BINS)
+                 if passes.channels == opts.channels and passes.half_beam_deg >= opts.half_beam_deg else None)
+    slow = estimate_slow_motion(drive_path, trajectory, config, points, focus, passes, histories)
     if not slow.applied:
-        return replace(estimate_residual_motion(drive_path, trajectory, config, points, focus, opts), slow_motion=slow)
+        return replace(estimate_residual_motion(drive_path, trajectory, config, points, focus, opts,
+                                                histories=histories), slow_motion=slow)
     # the passes' shape, their stretch left to the phases, so that the scale is one, the phases' where their points
     # agree on it (test2 seeds 0 / 1 / 3: the worst reflector 1.46 / 1.17 / 1.43 cm along the passes' stretch, 1.60 /
     # 0.56 / 1.60 along the phases'); where they do not, the passes' stretch too, and the points where that track
@@ -844,7 +865,7 @@ def residual_motion_of_points(drive_path: str | Path, trajectory: Trajectory, co
     assert slow.shape_correction is not None and slow.shape_point_shift_enu is not None
     result = estimate_residual_motion(drive_path, with_correction(trajectory, slow.shape_correction), config,
                                       points - slow.shape_point_shift_enu, focus, opts,
-                                      unscaled=(slow.trajectory, points - slow.point_shift_enu))
+                                      unscaled=(slow.trajectory, points - slow.point_shift_enu), histories=histories)
     if not (result.scale_note or result.reason):
         return replace(result, slow_motion=slow)
     phases = result.scale_note.removeprefix("track scale ") or f"not measured: {result.reason}"

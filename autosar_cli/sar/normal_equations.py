@@ -1,0 +1,18 @@
+"""Sparse symmetric positive-definite normal equations, as the autofocus's least-squares fits form them.
+
+SuperLU's symmetric mode (minimum degree on A + A^T, the diagonal as pivots) factorises them about 4 times faster
+than its general default (COLAMD with partial pivoting) on the phase fit's 5400-unknown systems (test2 seed 1:
+5.9 against 22.9 ms per solve, the same solution to 2e-12), and needs no pivoting: the priors make every such
+matrix positive definite.
+"""
+
+from __future__ import annotations
+
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+
+def factor_normal(normal: sp.spmatrix | sp.sparray) -> spla.SuperLU:
+    """The LU factors of a sparse symmetric positive-definite ``normal`` matrix (n, n)."""
+    return spla.splu(sp.csc_matrix(normal), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                     options={"SymmetricMode": True})
