@@ -210,7 +210,7 @@ class ProcessingConfig:
     range_window: Literal["hann", "hamming", "rect", "taylor"] = "hann"
     range_upsample: int = 4
     channels: Literal[8, 12] = 8
-    autofocus_slow_motion: bool = False  #: the autofocus takes the slow motion from the points' passes first
+    autofocus_slow_motion: bool = True  #: the autofocus takes the slow motion from the points' passes first
 
 
 @dataclass(frozen=True)

@@ -132,16 +132,20 @@ def main() -> None:
     ap.add_argument("--keep", type=Path, default=None, help="keep (and use again) each drive's files under this")
     ap.add_argument("--append", action="store_true", help="add the rows to those of --output")
     ap.add_argument("--output", type=Path, default=RESULTS / "af_pass_ranges.json")
+    ap.add_argument("--note", default="", help="how these rows were run (added to the file's note)")
     args = ap.parse_args()
-    rows: list[dict[str, Any]] = json.loads(args.output.read_text())["rows"] if args.append else []
+    old = json.loads(args.output.read_text()) if args.append else {}
+    rows: list[dict[str, Any]] = old.get("rows", [])
+    note = "; ".join(n for n in (old.get("note", ""), args.note) if n)
+    args.output.parent.mkdir(parents=True, exist_ok=True)
     for item in args.drives.split(","):
         scenario, seed = item.split(":")
         row = drive_row(scenario, int(seed), args.keep)
         rows.append(row)
         print(json.dumps({k: row[k] for k in ("scenario", "seed", "slow_s", *TRACKS)}), flush=True)
-    result = {"benchmark": "af_pass_ranges", "summary": summary(rows), "rows": rows}
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text(json.dumps(result, indent=1) + "\n")
+        # after every drive, so that a stopped run keeps what it measured
+        result = {"benchmark": "af_pass_ranges", "note": note, "summary": summary(rows), "rows": rows}
+        args.output.write_text(json.dumps(result, indent=1) + "\n")
     print(json.dumps(result["summary"], indent=1))
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import fcntl
+import json
 import os
 import pickle
 from dataclasses import replace
@@ -68,6 +69,31 @@ def simulated(sim_dir: Path, scenario: str, fmt: str, seed: int, *, prf_hz: floa
 @pytest.fixture(scope="session")
 def ci_mcap(sim_dir: Path) -> SimulationResult:
     return simulated(sim_dir, "ci", "mcap", 7)
+
+
+@pytest.fixture(scope="session")
+def ci_run(ci_mcap: SimulationResult, sim_dir: Path) -> Path:
+    """`autosar run --json` of the ci drive through the CLI (sar-min), once per session: the first worker to ask
+    runs it under a lock, as :func:`simulated` does; its console (stdout, stderr) is :func:`ci_run_console`. Tests
+    only read it."""
+    from typer.testing import CliRunner
+
+    from autosar_cli.cli import app
+
+    out = sim_dir / (ci_mcap.log_path.name + ".run")
+    console = out.with_name(out.name + ".console.json")
+    with open(out.with_name(out.name + ".lock"), "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not console.exists():
+            r = CliRunner().invoke(app, ["run", str(ci_mcap.log_path), "-o", str(out), "--json"])
+            assert r.exit_code == 0, r.output
+            console.write_text(json.dumps({"stdout": r.stdout, "stderr": r.stderr}))
+    return out
+
+
+def ci_run_console(run_dir: Path) -> dict[str, str]:
+    """The stdout and stderr of the :func:`ci_run` that made ``run_dir``."""
+    return json.loads(run_dir.with_name(run_dir.name + ".console.json").read_text())
 
 
 @pytest.fixture(scope="session")

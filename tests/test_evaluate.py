@@ -327,13 +327,7 @@ def test_transform_grid_moves_pixels_rigidly() -> None:
 
 
 # ------------------------------------------------------------------------------------- the chain on a ci drive
-@pytest.fixture(scope="module")
-def ci_run(ci_mcap, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """`autosar run` of the ci drive through the CLI (sar-min)."""
-    out = tmp_path_factory.mktemp("evaluate") / "run"
-    r = runner.invoke(app, ["run", str(ci_mcap.log_path), "-o", str(out), "--json"])
-    assert r.exit_code == 0, r.output
-    return out
+# ci_run: `autosar run` of the ci drive through the CLI (sar-min), conftest's, shared by the session
 
 
 def test_run_writes_every_product_and_the_manifest(ci_run: Path) -> None:

@@ -322,22 +322,19 @@ def simulated_capture(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, P
     return tmp / "ci.mcap", capture, tmp / "a"
 
 
-def test_simulated_capture_ingests_to_the_rawframe_cube(ci_mcap, simulated_capture: tuple[Path, Path, Path],
-                                                        tmp_path: Path) -> None:
+def test_simulated_capture_ingests_to_the_rawframe_cube(ci_run: Path, simulated_capture: tuple[Path, Path, Path]
+                                                        ) -> None:
     """`simulate --format dca1000` (capture + navigation MCAP with a frame-sync topic) ingests to the same
-    radar cube, frame times and radar parameters as the RawFrame MCAP of the same seed, and `run` focuses
-    both to the same image."""
-    from autosar_cli.run import run
-
+    radar cube, frame times and radar parameters as the RawFrame MCAP of the same seed (conftest's ci_run), and
+    `run` focuses both to the same image."""
     _, capture, whole = simulated_capture
     assert (capture / "capture.mmwave.json").exists() and (capture / "adc_data.bin").exists()
-    run([ci_mcap.log_path], tmp_path / "b", CFG)
-    with h5py.File(whole / "image.h5") as a, h5py.File(tmp_path / "b" / "image.h5") as b:
+    with h5py.File(whole / "image.h5") as a, h5py.File(ci_run / "image.h5") as b:
         images = [name for name, obj in a.items() if isinstance(obj, h5py.Dataset)]
         assert images
         for name in images:
             np.testing.assert_array_equal(a[name][()], b[name][()], err_msg=name)
-    with h5py.File(whole / "drive.h5") as a, h5py.File(tmp_path / "b" / "drive.h5") as b:
+    with h5py.File(whole / "drive.h5") as a, h5py.File(ci_run / "drive.h5") as b:
         ra, rb = a["radar/scanbrick_w43"], b["radar/scanbrick_w43"]
         for name in ("raw", "t_ns", "frame_index"):
             np.testing.assert_array_equal(ra[name][()], rb[name][()])

@@ -189,16 +189,16 @@ def test_the_correction_adds_to_the_one_the_track_carries() -> None:
 
 
 def test_the_config_turns_the_slow_motion_on() -> None:
-    """``processing.autofocus_slow_motion`` sets the autofocus's default options (off in the shipped config)."""
+    """``processing.autofocus_slow_motion`` sets the autofocus's default options (on in the shipped config)."""
     import tomllib
 
     from autosar_cli.config import DEFAULT_CONFIG, ConfigError, config_from_dict
     from autosar_cli.sar.residual_motion import AutofocusOptions
 
-    assert not AutofocusOptions.from_config(CFG).slow_motion
+    assert AutofocusOptions.from_config(CFG).slow_motion
     raw = tomllib.loads(DEFAULT_CONFIG.read_text())
-    raw["processing"]["autofocus_slow_motion"] = True
-    assert AutofocusOptions.from_config(config_from_dict(raw)).slow_motion
+    raw["processing"]["autofocus_slow_motion"] = False
+    assert not AutofocusOptions.from_config(config_from_dict(raw)).slow_motion
     raw["processing"]["autofocus_slow_motion"] = "yes"
     with pytest.raises(ConfigError, match="autofocus_slow_motion"):
         config_from_dict(raw)

@@ -130,9 +130,9 @@ class AutofocusOptions:
     grade_stretch: bool = True
     #: first the track's slow motion from the points' ranges over their whole passes (:mod:`autosar_cli.sar.
     #: pass_ranges`): the along-track error between points, which no phase over +-``half_beam_deg`` measures. The
-    #: config's ``processing.autofocus_slow_motion`` where the options are not given (off; its figures and cost:
+    #: config's ``processing.autofocus_slow_motion`` where the options are not given (on; its figures and cost:
     #: docs/AUTOFOCUS.md, "The slow motion from the points' passes")
-    slow_motion: bool = False
+    slow_motion: bool = True
 
     @classmethod
     def from_config(cls, config: Config) -> AutofocusOptions:
