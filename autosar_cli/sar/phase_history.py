@@ -82,8 +82,8 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         t = t_all[frames]
         seen = _seen(traj, t, config, points, _moving(traj, t, focus), half_beam_deg)
         used = np.flatnonzero(seen.any(axis=1))
-        # every (frame, point) pair in frame order, and its samples written in place (a list of blocks joined at
-        # the end cost as much again as the windows themselves: test2's 130 MB)
+        # every (frame, point) pair in frame order, its samples written in place (joining per-block lists at the
+        # end would cost as much again as taking the windows: test2's 130 MB)
         frame_of, point_of = np.nonzero(seen)
         n_pairs = len(frame_of)
         samples = np.empty((n_pairs, len(pairs), w), np.complex64)
