@@ -2,6 +2,7 @@
 
 Usage: python benches/bench_af_pass_ranges.py [--drives urban:0,urban:1] [--keep DIR] [--append]
                                               [--output benches/results/af_pass_ranges.json]
+                                              [--passes step_along_per_accel=0.005,...] [--product-only]
 
 Per drive (``simulate --dynamics full``, ``ingest``, ``navigate``; with ``--keep`` the files stay in
 DIR/<scenario><seed> and are used again): the corner reflectors focused (patches only, the product's options, one pass
@@ -55,8 +56,9 @@ def reflector_errors(drive: Path, traj: Any, truth: Any, config: Any, reference:
              "errors_cm": [round(e, 2) for e in errors]}, patches)
 
 
-def measured_row(work: Path) -> dict[str, Any]:
-    """One drive's row from ``work``'s log.mcap(.truth.h5), drive.h5 and sarmin.h5."""
+def measured_row(work: Path, passes: Any = None, product_only: bool = False) -> dict[str, Any]:
+    """One drive's row from ``work``'s log.mcap(.truth.h5), drive.h5 and sarmin.h5; ``passes``: the slow motion's
+    options (default PassOptions()); ``product_only``: only ``slow+af``, the product's track."""
     from autosar_cli.config import load_config
     from autosar_cli.evaluate.evaluation import load_truth
     from autosar_cli.sar.focus import FocusOptions
@@ -74,18 +76,28 @@ def measured_row(work: Path) -> dict[str, Any]:
     est = read_trajectory(work / "sarmin.h5")  # its covariance sets the autofocus's scale prior, as in the product
     truth = load_truth(work / "log.mcap.truth.h5", est.origin, config)
     focus, opts = FocusOptions.from_config(config), AutofocusOptions()
+    passes = passes or PassOptions()
     _, reference = reflector_errors(drive, truth.trajectory, truth, config)
     start = time.perf_counter()
     points = candidate_points(drive, est, config, focus, opts)
     points_s = time.perf_counter() - start
+    if product_only:
+        start = time.perf_counter()
+        both = residual_motion_of_points(drive, est, config, points, focus, replace(opts, slow_motion=True), passes)
+        row = {"points": len(points), "points_s": round(points_s, 1),
+               "slow+af_s": round(time.perf_counter() - start, 1),
+               "slow_motion": both.slow_motion.to_dict() if both.slow_motion else None,
+               "slow+af_summary": both.summary()}
+        row["slow+af"], _ = reflector_errors(drive, both.trajectory, truth, config, reference)
+        return row
     start = time.perf_counter()
-    slow = estimate_slow_motion(drive, est, config, points, focus, PassOptions())
+    slow = estimate_slow_motion(drive, est, config, points, focus, passes)
     slow_s = time.perf_counter() - start
     start = time.perf_counter()
     product = estimate_residual_motion(drive, est, config, points, focus, opts)
     af_s = time.perf_counter() - start
     start = time.perf_counter()
-    both = residual_motion_of_points(drive, est, config, points, focus, replace(opts, slow_motion=True))
+    both = residual_motion_of_points(drive, est, config, points, focus, replace(opts, slow_motion=True), passes)
     both_s = time.perf_counter() - start
     tracks = {"sar-min": est, "sar-min+af": product.trajectory, "slow": slow.trajectory, "slow+af": both.trajectory}
     row: dict[str, Any] = {"points": len(points), "points_s": round(points_s, 1), "slow_s": round(slow_s, 1),
@@ -97,7 +109,8 @@ def measured_row(work: Path) -> dict[str, Any]:
     return row
 
 
-def drive_row(scenario: str, seed: int, keep: Path | None) -> dict[str, Any]:
+def drive_row(scenario: str, seed: int, keep: Path | None, passes: Any = None, product_only: bool = False
+              ) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as tmp:
         work = (keep / f"{scenario}{seed}") if keep else Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
@@ -107,7 +120,7 @@ def drive_row(scenario: str, seed: int, keep: Path | None) -> dict[str, Any]:
                 "--overwrite")
             cli("ingest", str(log), "-o", str(drive), "--overwrite")
             cli("navigate", str(drive), "-o", str(nav), "--overwrite")
-        return {"scenario": scenario, "seed": seed, **measured_row(work)}
+        return {"scenario": scenario, "seed": seed, **measured_row(work, passes, product_only)}
 
 
 def within(entry: dict[str, Any]) -> bool:
@@ -118,11 +131,13 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for scenario in sorted({r["scenario"] for r in rows}):
         these = [r for r in rows if r["scenario"] == scenario]
+        tracks = [name for name in TRACKS if all(name in r for r in these)]
         out[scenario] = {"drives": len(these), **{name: {
             f"within_{WITHIN_CM:g}cm_{WITHIN_DB:g}db": sum(within(r[name]) for r in these),
             "worst_median_cm": round(float(np.median([r[name]["worst_cm"] for r in these])), 2),
-            "worst_max_cm": max(r[name]["worst_cm"] for r in these)} for name in TRACKS},
-            "slow_s_median": round(float(np.median([r["slow_s"] for r in these])), 1)}
+            "worst_max_cm": max(r[name]["worst_cm"] for r in these)} for name in tracks},
+            **({"slow_s_median": round(float(np.median([r["slow_s"] for r in these])), 1)}
+               if all("slow_s" in r for r in these) else {})}
     return out
 
 
@@ -133,16 +148,22 @@ def main() -> None:
     ap.add_argument("--append", action="store_true", help="add the rows to those of --output")
     ap.add_argument("--output", type=Path, default=RESULTS / "af_pass_ranges.json")
     ap.add_argument("--note", default="", help="how these rows were run (added to the file's note)")
+    ap.add_argument("--passes", default="", help="the slow motion's options, e.g. step_along_per_accel=0.005")
+    ap.add_argument("--product-only", action="store_true", help="measure only slow+af, the product's track")
     args = ap.parse_args()
+    from autosar_cli.sar.pass_ranges import PassOptions
+
+    passes = PassOptions(**{k: float(v) for k, v in (item.split("=") for item in args.passes.split(",") if item)})
     old = json.loads(args.output.read_text()) if args.append else {}
     rows: list[dict[str, Any]] = old.get("rows", [])
     note = "; ".join(n for n in (old.get("note", ""), args.note) if n)
     args.output.parent.mkdir(parents=True, exist_ok=True)
     for item in args.drives.split(","):
         scenario, seed = item.split(":")
-        row = drive_row(scenario, int(seed), args.keep)
+        row = drive_row(scenario, int(seed), args.keep, passes, args.product_only)
+        row["passes"] = args.passes
         rows.append(row)
-        print(json.dumps({k: row[k] for k in ("scenario", "seed", "slow_s", *TRACKS)}), flush=True)
+        print(json.dumps({k: row[k] for k in ("scenario", "seed", "slow_s", *TRACKS) if k in row}), flush=True)
         # after every drive, so that a stopped run keeps what it measured
         result = {"benchmark": "af_pass_ranges", "note": note, "summary": summary(rows), "rows": rows}
         args.output.write_text(json.dumps(result, indent=1) + "\n")
