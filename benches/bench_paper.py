@@ -24,7 +24,8 @@ sar-min,sar-min+af --dynamics full --output benches/results/paper_full_level.jso
 commit: the file's ``note``); at 7118539, before the level GNSS antenna, the load-compliant wheels, the lag's stated
 window and the rear slip: benches/results/paper_full_fits.json. With ``--radar-height`` (run at a2a231f-8ba6ebe,
 where it was the default, so its rows lack the flag; stopped after 29 drives, test1 seeds 1 and 4 without the
-autofocus, which refused): benches/results/paper_full_height.json.
+autofocus, which refused): benches/results/paper_full_height.json. The product with the slow motion from the points'
+passes first (on by default), test1-3 of the 40: benches/results/paper_full_slow.json (its note: the commands).
 Another car (``--car``: entries of the simulated car's [vehicle_dynamics]; the processor keeps the config's):
 ``--scenarios test1,test2,test3 --seeds 10,11 --dynamics full --methods sar-min,sar-min+af --car
 mass_kg=1900,cornering_stiffness_front_n_per_rad=70000.0,cornering_stiffness_rear_n_per_rad=95000.0,
