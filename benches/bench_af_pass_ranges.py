@@ -153,7 +153,9 @@ def main() -> None:
     args = ap.parse_args()
     from autosar_cli.sar.pass_ranges import PassOptions
 
-    passes = PassOptions(**{k: float(v) for k, v in (item.split("=") for item in args.passes.split(",") if item)})
+    defaults = PassOptions()  # each value as its field's type (min_blocks is an int)
+    passes = PassOptions(**{k: type(getattr(defaults, k))(float(v))
+                            for k, v in (item.split("=") for item in args.passes.split(",") if item)})
     old = json.loads(args.output.read_text()) if args.append else {}
     rows: list[dict[str, Any]] = old.get("rows", [])
     note = "; ".join(n for n in (old.get("note", ""), args.note) if n)
