@@ -40,6 +40,7 @@ from autosar_cli.nav.wheel_speeds import (
     radius_corrected_wheels,
     raw_gyro_yaw_rate,
     restart_window_m,
+    wheel_gaps,
     without_restart_windows,
 )
 from autosar_cli.store.drive import Drive
@@ -48,7 +49,7 @@ from autosar_cli.types import MotionCorrection
 METHODS = ("sar-min", "ins", "gnss", "none", "truth")
 #: what a trajectory's info reports of its navigation (navigate --json, run.json): updates and what was fitted
 REPORTED_INFO = ("updates", "rejected", "gnss_noise", "understeer", "rear_slip", "wheel_lag", "wheel_radii",
-                 "attitude")
+                 "attitude", "wheel_gaps")
 SIGNIFICANT = 3.0  # a fitted lag or gradient is applied where it differs from the default by more stds than this
 # ... and by more than these: a tenth of a sedan's understeer gradient (rad per m/s^2), 5 ms of yaw lag, 1 cm of
 # wheel-speed lag distance, 0.1 % per m/s^2 of slip gain (at urban's 1 m/s^2 RMS, 1 mm per metre), 0.05 % per m/s^2
@@ -424,7 +425,10 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                           covariance=sol.P, rear_slip_gain=slip_gain,
                           info={"updates": sol.updates, "rejected": sol.rejected, "smoothed": smooth,
                                 "understeer": understeer, "rear_slip": rear_slip, "wheel_lag": wheel_lag,
-                                "wheel_radii": wheel_radii, "gnss_noise": gnss_noise})
+                                "wheel_radii": wheel_radii, "gnss_noise": gnss_noise,
+                                "wheel_gaps": [g.to_dict() for g in wheel_gaps(inputs.wheels, inputs.gnss_velocity,
+                                                                               inputs.t0_ns)]
+                                if inputs.wheels is not None else []})
         traj = with_attitude(traj, attitude, attitude_reason, inputs.t0_ns, config)
     elif method == "ins":
         from autosar_cli.nav.ins import run_ins

@@ -373,3 +373,38 @@ def lag_compensated_wheels(wheels: Measurements, fit: WheelLagFit) -> Measuremen
         keep &= ((t >= moved[k]) & (t <= moved[k + 1]) & (np.abs(stamp[k + 1] - stamp[k]) <= gap)
                  & ((lo == 0.0) == (hi == 0.0)))
     return Measurements(wheels.name, t[keep], values[keep], wheels.sigma)
+
+
+@dataclass(frozen=True)
+class WheelGap:
+    """A span the wheel speeds do not cover (rows left out: an ECU window across a standstill, samples the lag
+    moved away), and how far the track's along-track error may drift over it (m, 1-sigma): there only the GNSS
+    velocity holds the speed, its noise ``sigma`` over the ``n`` fixes inside summing to ``sigma g / sqrt(n)``."""
+
+    start_ns: int
+    end_ns: int
+    along_std_m: float
+
+    def to_dict(self) -> dict[str, float | None]:
+        """As JSON takes it: an unbounded drift is None."""
+        return {**asdict(self), "along_std_m": self.along_std_m if np.isfinite(self.along_std_m) else None}
+
+
+def wheel_gaps(wheels: Measurements, gnss_velocity: Measurements | None, t0_ns: int, min_gap_s: float = 0.1
+               ) -> list[WheelGap]:
+    """The spans longer than ``min_gap_s`` between the wheel rows the filter takes (``wheels``, s since ``t0_ns``),
+    with their along-track drift (:class:`WheelGap`); with no GNSS velocity the drift is unbounded (inf)."""
+    t = wheels.t
+    if len(t) < 2:
+        return []
+    k = np.flatnonzero(np.diff(t) > min_gap_s)
+    gaps = []
+    for a, b in zip(t[k], t[k + 1], strict=True):
+        g = float(b - a)
+        if gnss_velocity is not None and len(gnss_velocity.t) > 1:
+            fix_s = float(np.median(np.diff(gnss_velocity.t)))
+            std = float(np.max(gnss_velocity.sigma)) * g / np.sqrt(max(g / fix_s, 1.0))
+        else:
+            std = float("inf")
+        gaps.append(WheelGap(t0_ns + int(round(a * 1e9)), t0_ns + int(round(b * 1e9)), std))
+    return gaps

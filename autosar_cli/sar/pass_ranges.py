@@ -15,15 +15,17 @@ through the rest.
   bistatic path is than predicted, less the envelope's shift by the echo's own Doppler, ``(dp/dt) f_c / slope``
   (1 cm of path at 5 m/s straight ahead, none at broadside), which over a pass would read as a stretch;
 * only the points whose blocks fit a point over at least ``min_span_m`` of travel to ``max_point_sigma_m`` (its
-  own shift, height and stretch; corner reflectors and poles 0.2-6 mm, car bodies, facades and clutter, whose
-  bright spot moves with the aspect, 10-130 mm: urban seed 0);
+  own shift, height and stretch, and a step across each wheel gap inside its pass; corner reflectors and poles
+  0.2-6 mm, car bodies, facades and clutter, whose bright spot moves with the aspect, 10-130 mm: urban seed 0);
 * the model, for block b of point j::
 
       offset_b = -2 u_b . (a(t_b) along_b + c(t_b) across_b - d_j)
 
   with ``u`` the line of sight (point -> radar), ``a``, ``c`` the track's error along and across it (piecewise
   linear on ``node_s`` nodes; their change between nodes has a prior of ``step_along`` / ``step_across`` per metre
-  of travel, the size of the navigation's local scale error; ``c`` is held by default), ``d_j`` the point's own
+  of travel, the size of the navigation's local scale error, plus, across a span where the navigation had no wheel
+  speeds (``trajectory.info["wheel_gaps"]``: its start and pull-away, where the ECU's window reaches across a
+  standstill), the drift the GNSS velocity leaves there; ``c`` is held by default), ``d_j`` the point's own
   position error (3-D, its prior ``point_prior_m``). Weighted least squares, each point weighted by its own
   residual, blocks beyond ``reject_sigma`` dropped and the fit repeated.
 
@@ -80,6 +82,9 @@ class PassOptions:
     reject_sigma: float = 3.5
     iterations: int = 5
     noise_floor_m: float = 0.0005  #: no point weighs as if its path were measured better than this
+    #: the navigation's wheel gaps (``trajectory.info["wheel_gaps"]``) loosen the along prior by their drift, and
+    #: a point's own fit takes a step across each gap inside its pass
+    wheel_gaps: bool = True
 
 
 @dataclass(frozen=True)
@@ -202,20 +207,40 @@ def _travel(trajectory: Trajectory, config: Config) -> tuple[Array, Array]:
                                                                                           config))
 
 
+def _gaps(trajectory: Trajectory, opts: PassOptions) -> list[tuple[int, int, float]]:
+    """The navigation's wheel gaps (start ns, end ns, along-track drift m) where ``opts`` takes them."""
+    if not opts.wheel_gaps:
+        return []
+    return [(int(g["start_ns"]), int(g["end_ns"]), np.inf if g["along_std_m"] is None else float(g["along_std_m"]))
+            for g in trajectory.info.get("wheel_gaps", [])]
+
+
+def gap_ramps(t_ns: NDArray[np.int64], gaps: list[tuple[int, int, float]]) -> Array:
+    """(N, G): how far through each gap ``t_ns`` is (0 before it, 1 after it, linear inside)."""
+    t = np.asarray(t_ns, dtype=np.float64)
+    return np.stack([np.clip((t - a) / max(b - a, 1), 0.0, 1.0) for a, b, _ in gaps], axis=1) if gaps else (
+        np.zeros((len(t), 0)))
+
+
 def point_sigmas(blocks: PassBlocks, trajectory: Trajectory, clock: tuple[Array, Array], opts: PassOptions
                  ) -> tuple[Array, Array]:
-    """Per point: the robust std (m) of its blocks about its own fit (its 3-D shift and the track's stretch about
-    it; inf with fewer than ``opts.min_blocks``) and the travel (m) its fitted blocks span. ``clock``: the
-    trajectory's seconds and travel (:func:`_travel`)."""
+    """Per point: the robust std (m) of its blocks about its own fit (its 3-D shift, the track's stretch about it,
+    and a step along across each wheel gap inside its pass; inf with fewer than ``opts.min_blocks``) and the travel
+    (m) its fitted blocks span. ``clock``: the trajectory's seconds and travel (:func:`_travel`)."""
     t_s, travel = clock
     s = np.interp((blocks.t_ns - trajectory.t_ns[0]) / 1e9, t_s, travel)
+    ramps = gap_ramps(blocks.t_ns, _gaps(trajectory, opts))
     sigma, span = np.full(blocks.n_points, np.inf), np.zeros(blocks.n_points)
     for j in range(blocks.n_points):
         m = (blocks.point == j) & blocks.usable
         if m.sum() < opts.min_blocks:
             continue
         u, y, sj = blocks.los[m], blocks.offset_m[m], s[m]
-        design = np.column_stack([2 * np.einsum("ij,ij->i", u, blocks.along[m]) * (sj - sj.mean()), 2 * u])
+        u_along = 2 * np.einsum("ij,ij->i", u, blocks.along[m])
+        # a gap inside the pass (blocks either side of it) may move the track along by a step across it
+        inside = [g for g in range(ramps.shape[1]) if 0.0 < ramps[m, g].mean() < 1.0
+                  and min(np.sum(ramps[m, g] == 0.0), np.sum(ramps[m, g] == 1.0)) >= opts.min_blocks // 2]
+        design = np.column_stack([u_along * (sj - sj.mean()), 2 * u, u_along[:, None] * ramps[m][:, inside]])
         keep = np.ones(len(y), dtype=bool)
         for _ in range(opts.iterations):
             x, *_ = np.linalg.lstsq(design[keep], y[keep], rcond=None)
@@ -280,11 +305,18 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tupl
                             (np.tile(rows, len(entries)), np.concatenate([c for c, _ in entries]))),
                            shape=(n_b, n_var))
     ds = np.maximum(np.diff(np.interp(nodes, t_s, travel)), 1e-3)
+    # a node step spanning (part of) a wheel gap may also drift by the gap's share of its drift (variances add)
+    gaps = _gaps(trajectory, opts)
+    gap_var = np.zeros(k_n - 1)
+    if gaps:
+        ramps = gap_ramps(t0 + np.round(nodes * 1e9).astype(np.int64), gaps)
+        gap_var = np.diff(ramps, axis=0) @ np.array([min(std, opts.prior_m) ** 2 for _, _, std in gaps])
     diff = sp.diags([-np.ones(k_n - 1), np.ones(k_n - 1)], [0, 1], shape=(k_n - 1, k_n))
     steps = [sp.hstack([sp.csr_matrix((k_n - 1, c * k_n)), diff, sp.csr_matrix((k_n - 1, n_var - (c + 1) * k_n))])
              for c in range(len(comps))]
     prior = sp.vstack([*steps, sp.eye(n_var)]).tocsr()
-    prior_std = np.concatenate([step * ds for _, step in comps] + [np.full(n_nodes, opts.prior_m),
+    prior_std = np.concatenate([np.sqrt((step * ds) ** 2 + (gap_var if c == 0 else 0.0))
+                                for c, (_, step) in enumerate(comps)] + [np.full(n_nodes, opts.prior_m),
                                                                     np.full(3 * n_pts, opts.point_prior_m)])
     weighted_prior = sp.diags(1.0 / prior_std) @ prior
     keep = blocks.usable & good[blocks.point]
