@@ -2,7 +2,7 @@
 
 Usage: python benches/bench_af_pass_ranges.py [--drives urban:0,urban:1] [--keep DIR] [--append]
                                               [--output benches/results/af_pass_ranges.json]
-                                              [--passes step_along_per_accel=0.005,...] [--product-only]
+                                              [--passes wheel_gaps=0,step_along=0.001,...] [--product-only]
 
 Per drive (``simulate --dynamics full``, ``ingest``, ``navigate``; with ``--keep`` the files stay in
 DIR/<scenario><seed> and are used again): the corner reflectors focused (patches only, the product's options, one pass
@@ -148,7 +148,8 @@ def main() -> None:
     ap.add_argument("--append", action="store_true", help="add the rows to those of --output")
     ap.add_argument("--output", type=Path, default=RESULTS / "af_pass_ranges.json")
     ap.add_argument("--note", default="", help="how these rows were run (added to the file's note)")
-    ap.add_argument("--passes", default="", help="the slow motion's options, e.g. step_along_per_accel=0.005")
+    ap.add_argument("--passes", default="",
+                    help="the slow motion's options (PassOptions fields), e.g. wheel_gaps=0,step_along=0.001")
     ap.add_argument("--product-only", action="store_true", help="measure only slow+af, the product's track")
     args = ap.parse_args()
     from autosar_cli.sar.pass_ranges import PassOptions

@@ -427,8 +427,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                                 "understeer": understeer, "rear_slip": rear_slip, "wheel_lag": wheel_lag,
                                 "wheel_radii": wheel_radii, "gnss_noise": gnss_noise,
                                 "wheel_gaps": [g.to_dict() for g in wheel_gaps(inputs.wheels, inputs.gnss_velocity,
-                                                                               inputs.t0_ns)]
-                                if inputs.wheels is not None else []})
+                                                                               inputs.t0_ns)]})
         traj = with_attitude(traj, attitude, attitude_reason, inputs.t0_ns, config)
     elif method == "ins":
         from autosar_cli.nav.ins import run_ins

@@ -390,21 +390,18 @@ class WheelGap:
         return {**asdict(self), "along_std_m": self.along_std_m if np.isfinite(self.along_std_m) else None}
 
 
-def wheel_gaps(wheels: Measurements, gnss_velocity: Measurements | None, t0_ns: int, min_gap_s: float = 0.1
+def wheel_gaps(wheels: Measurements | None, gnss_velocity: Measurements | None, t0_ns: int, min_gap_s: float = 0.1
                ) -> list[WheelGap]:
-    """The spans longer than ``min_gap_s`` between the wheel rows the filter takes (``wheels``, s since ``t0_ns``),
-    with their along-track drift (:class:`WheelGap`); with no GNSS velocity the drift is unbounded (inf)."""
-    t = wheels.t
-    if len(t) < 2:
+    """The spans longer than ``min_gap_s`` between the wheel rows the filter takes (``wheels``, s since ``t0_ns``;
+    none without wheels), with their along-track drift (:class:`WheelGap`); with no GNSS velocity it is unbounded."""
+    if wheels is None or len(wheels.t) < 2:
         return []
+    t = wheels.t
     k = np.flatnonzero(np.diff(t) > min_gap_s)
-    gaps = []
-    for a, b in zip(t[k], t[k + 1], strict=True):
-        g = float(b - a)
-        if gnss_velocity is not None and len(gnss_velocity.t) > 1:
-            fix_s = float(np.median(np.diff(gnss_velocity.t)))
-            std = float(np.max(gnss_velocity.sigma)) * g / np.sqrt(max(g / fix_s, 1.0))
-        else:
-            std = float("inf")
-        gaps.append(WheelGap(t0_ns + int(round(a * 1e9)), t0_ns + int(round(b * 1e9)), std))
-    return gaps
+    if gnss_velocity is not None and len(gnss_velocity.t) > 1:
+        fix_s, sigma = float(np.median(np.diff(gnss_velocity.t))), float(np.max(gnss_velocity.sigma))
+    else:
+        fix_s, sigma = 1.0, float("inf")
+    return [WheelGap(t0_ns + int(round(a * 1e9)), t0_ns + int(round(b * 1e9)),
+                     sigma * (b - a) / np.sqrt(max((b - a) / fix_s, 1.0)))
+            for a, b in zip(t[k], t[k + 1], strict=True)]
