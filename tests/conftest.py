@@ -104,3 +104,31 @@ def ci_ros1(sim_dir: Path) -> SimulationResult:
 @pytest.fixture(scope="session")
 def ci_ros2(sim_dir: Path) -> SimulationResult:
     return simulated(sim_dir, "ci", "ros2", 7)
+
+
+def stop_and_go(brake_mps2: float = 1.7, drive_mps2: float = 1.25, slip_std: float = 0.0025):
+    """A straight drive east at 5 m/s that brakes at ``brake_mps2`` to a 3 s stop from t = 8 s and pulls away at
+    ``drive_mps2`` back to 5 m/s, sampled at 200 Hz for 30 s; its navigation stated every slip gain at 0 ±
+    ``slip_std`` (per m/s^2). Returns the trajectory and its speed's closed form v(t) (m/s, t in s)."""
+    import numpy as np
+
+    from autosar_cli.nav.geodesy import GeodeticOrigin
+    from autosar_cli.types import Trajectory
+
+    t_stop = 8.0 + 5.0 / brake_mps2
+
+    def speed(t):
+        t = np.asarray(t, dtype=np.float64)
+        return np.select([t < 8.0, t < t_stop, t < t_stop + 3.0],
+                         [np.full_like(t, 5.0), 5.0 - brake_mps2 * (t - 8.0), np.zeros_like(t)],
+                         np.minimum(drive_mps2 * (t - t_stop - 3.0), 5.0))
+
+    t = np.arange(0.0, 30.0, 0.005)
+    v = speed(t)
+    x = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+    gains = ("front_drive", "front_brake", "rear_drive", "rear_brake")
+    info = {"wheel_radii": {"slip_gain": dict.fromkeys(gains, 0.0), "slip_gain_std": dict.fromkeys(gains, slip_std),
+                            "applied": dict.fromkeys(gains, 0.0)}}
+    traj = Trajectory("sar-min", np.round(t * 1e9).astype(np.int64) + 10**18, np.column_stack([x, np.zeros_like(x)]),
+                      np.zeros_like(t), v, np.zeros_like(t), GeodeticOrigin(45.0, 9.0, 100.0), 1.4, 0.5, info=info)
+    return traj, speed

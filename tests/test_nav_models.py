@@ -302,6 +302,31 @@ def test_wheel_samples_whose_ecu_window_spans_a_standstill_are_left_out() -> Non
     assert without_restart_windows(steady, 0.3) == (steady, 0)
 
 
+def test_a_slip_gains_error_drifts_the_track_by_its_gain_times_the_change_of_half_the_speed_squared() -> None:
+    """A slip gain ``dk`` off leaves the track ``v a dk`` fast under acceleration ``a``: by the end of a braking
+    from 5 m/s to a stop it has run ``dk (0 - 5^2) / 2`` further, ``dk 5^2 / 2`` by the end of the pull-away, and
+    nothing at a steady speed or at a standstill. The std is the mean of the two axles' stated ones (and of a gain
+    fitted but not applied)."""
+    from conftest import stop_and_go
+
+    from autosar_cli.nav.wheel_speeds import slip_gain_drift
+
+    traj, speed = stop_and_go(slip_std=0.003)
+    t_stop = 8.0 + 5.0 / 1.7
+    at = traj.t_ns[0] + np.round(np.array([4.0, 7.7, t_stop + 0.3, t_stop + 2.7, t_stop + 7.3, 29.0]) * 1e9
+                                 ).astype(np.int64)
+    drift, std = slip_gain_drift(traj, at)
+    # 0.3 s from each corner, beyond the speed's 0.5 s running mean
+    np.testing.assert_allclose(drift[:, 1], [0.0, 0.0, -12.5, -12.5, -12.5, -12.5], atol=1e-6)
+    np.testing.assert_allclose(drift[:, 0], [0.0, 0.0, 0.0, 0.0, 12.5, 12.5], atol=1e-6)
+    np.testing.assert_allclose(std, [0.003 / math.sqrt(2)] * 2)
+    radii = traj.info["wheel_radii"]
+    left_out = replace(traj, info={"wheel_radii": {**radii, "slip_gain": {**radii["slip_gain"], "rear_brake": 0.004}}})
+    assert slip_gain_drift(left_out, at)[1][1] == pytest.approx(math.sqrt(2 * 0.003**2 + 0.004**2) / 2)
+    none = slip_gain_drift(replace(traj, info={}), at)
+    assert none[0].shape == (len(at), 0) and none[1].shape == (0,)
+
+
 def test_a_wheel_gap_drifts_as_the_gnss_velocity_noise_summed_over_it() -> None:
     """Where the wheel rows are left out, only the GNSS velocity holds the speed: `wheel_gaps` finds each span longer
     than its minimum and gives its along-track drift as the velocity noise summed over the fixes inside it,

@@ -139,6 +139,66 @@ def test_a_point_whose_pass_spans_a_wheel_gap_fits_a_step_across_it(test1_drive:
     assert res.applied and left < 0.25 * observable_rms(err), (res.reason, left)
 
 
+def test_a_slip_gains_error_is_fitted_from_the_points_seen_through_a_braking() -> None:
+    """A stop and go (:func:`conftest.stop_and_go`) whose navigation's mean brake gain is 0.4 % per m/s^2 off and
+    its drive gain -0.4 %: the track runs 5 cm too far by the stop and 5 cm too short over the pull-away (2.3 times
+    the gains' stated std, 0.18 % for each mean; 4.2 cm RMS). Roadside points 6 m out every 20 m, each seen from 70
+    deg ahead to broadside, their paths measured to 0.5 mm (blocks built here, no radar). A point seen through the braking fits
+    its own point to the noise only with the gains' drift in its fit (urban seed 3's corner reflector seen through
+    its stop: 9.7 mm without, so left out; 0.7 mm with; here 0.4 against 0.9 mm). The joint fit with them leaves
+    1.2 mm of the along-track error, a fifteenth of what the node steps' prior leaves without them
+    (``slip_gains=False``), and measures the gains."""
+    from conftest import stop_and_go
+
+    from autosar_cli.sar.pass_ranges import PassBlocks, _fit, _travel, point_sigmas
+
+    traj, speed = stop_and_go()
+    t_ns = traj.t_ns[::20]  # 0.1 s blocks
+    x = np.interp(t_ns, traj.t_ns, traj.rear_axle_enu[:, 0])
+    t = (t_ns - traj.t_ns[0]) / 1e9
+    v = speed(t)
+    t_stop = 8.0 + 5.0 / 1.7  # the closed form of the drift (the function's own ramps are its test's)
+    brake = np.where(t < 8.0, 0.0, np.where(t < t_stop, (v**2 - 25.0) / 2, -12.5))
+    drive = np.where(t < t_stop + 3.0, 0.0, v**2 / 2)
+    err = 0.004 * brake - 0.004 * drive  # (B,) m: how far ahead of the truth the track puts the radar
+    rng = np.random.default_rng(7)
+    pts = np.array([[px, -6.0, 0.0] for px in np.arange(12.0, x[-1] - 2.0, 20.0)])
+    rows = []
+    for j, p in enumerate(pts):
+        ahead = p[0] - x
+        seen = (ahead > -0.5) & (np.degrees(np.arctan2(ahead, 6.0)) < 70.0)
+        radar = np.column_stack([x[seen], np.zeros(seen.sum()), np.full(seen.sum(), 0.5)])
+        los = (radar - p) / np.linalg.norm(radar - p, axis=1)[:, None]
+        offset = -2 * los[:, 0] * err[seen] + rng.normal(0.0, 0.0005, seen.sum())
+        rows.append((np.full(seen.sum(), j), t_ns[seen], los, offset))
+    point, tb, los, offset = (np.concatenate([r[i] for r in rows]) for i in range(4))
+    n = len(tb)
+    blocks = PassBlocks(point, tb, los, np.tile([1.0, 0.0, 0.0], (n, 1)), np.tile([0.0, -1.0, 0.0], (n, 1)), offset,
+                        np.zeros(n), np.ones(n, dtype=bool), len(pts))
+    clock = _travel(traj, CFG)
+    tbs = (tb - traj.t_ns[0]) / 1e9
+    braked = np.array([np.any((tbs[point == j] > 8.5) & (tbs[point == j] < t_stop - 0.5)) for j in range(len(pts))])
+    results = {}
+    for on in (True, False):
+        opts = PassOptions(slip_gains=on)
+        sigma, span = point_sigmas(blocks, traj, clock, opts)
+        good = (sigma <= opts.max_point_sigma_m) & (span >= opts.min_span_m)
+        res = _fit(blocks, traj, CFG, clock, opts, good, sigma)
+        along = err + res.correction.at(t_ns)[:, 0]
+        results[on] = (sigma, good, float(np.std(along)), res)
+        print(f"slip gains {'in' if on else 'out'}: points' own fits {np.round(sigma[braked] * 1e3, 2)} mm "
+              f"(those seen braking), {good.sum()} of {len(pts)} used; along-track error {np.std(err) * 1e3:.1f} "
+              f"-> {np.std(along) * 1e3:.2f} mm RMS about its mean")
+    assert braked.any() and results[True][1].all()
+    assert np.all(results[True][0][braked] < 0.001) and np.all(results[False][0][braked] > 2 * results[True][0][braked])
+    assert results[True][2] < 0.05 * np.std(err) and results[False][2] > 5 * results[True][2]
+    fitted = results[True][3]
+    print(f"gains' error (drive, brake): {fitted.to_dict()['slip_gain_error']}")
+    assert np.all(np.abs(fitted.slip_gain_error - [-0.004, 0.004]) < 3 * fitted.slip_gain_error_std)
+    assert np.all(fitted.slip_gain_error_std < 0.0005)
+    assert "slip_gain_error" not in results[False][3].to_dict()
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("phases_scale", [True, False], ids=["phases-scale", "passes-scale"])
 def test_autofocus_takes_the_slow_motion_first_where_asked(test1_drive: tuple[Path, Truth], phases_scale: bool

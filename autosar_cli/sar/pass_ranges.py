@@ -45,6 +45,7 @@ from numpy.typing import NDArray
 
 from autosar_cli.config import SPEED_OF_LIGHT, Config
 from autosar_cli.nav.trajectory import cumulative_travel, radar_track
+from autosar_cli.nav.wheel_speeds import slip_gain_drift
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.sar.normal_equations import factor_normal
 from autosar_cli.sar.phase_history import (
@@ -85,6 +86,9 @@ class PassOptions:
     #: the navigation's wheel gaps (``trajectory.info["wheel_gaps"]``) loosen the along prior by their drift, and
     #: a point's own fit takes a step across each gap inside its pass
     wheel_gaps: bool = True
+    #: the navigation's drive and brake slip gains are fitted again, within the std it stated, as a drift along the
+    #: track wherever the car speeds up or slows down (:func:`~autosar_cli.nav.wheel_speeds.slip_gain_drift`)
+    slip_gains: bool = True
 
 
 @dataclass(frozen=True)
@@ -122,6 +126,10 @@ class SlowMotion:
     #: (ENU m)
     shape_correction: MotionCorrection | None = None
     shape_point_shift_enu: Array | None = None
+    #: how far the navigation's mean drive and brake slip gains were off, as the passes measured them (per m/s^2;
+    #: :func:`~autosar_cli.nav.wheel_speeds.slip_gain_drift`), and their std; empty where not fitted
+    slip_gain_error: Array = dataclasses.field(default_factory=lambda: np.zeros(0))
+    slip_gain_error_std: Array = dataclasses.field(default_factory=lambda: np.zeros(0))
 
     @property
     def applied(self) -> bool:
@@ -133,6 +141,10 @@ class SlowMotion:
                                   "points_used": int(self.points_used.sum()),
                                   "residual_mm": round(1e3 * self.residual_m, 3),
                                  "stretch": self.stretch, "stretch_std": self.stretch_std}
+        if len(self.slip_gain_error):
+            out["slip_gain_error"] = {mode: {"value": float(v), "std": float(sd)} for mode, v, sd in
+                                      zip(("drive", "brake"), self.slip_gain_error, self.slip_gain_error_std,
+                                          strict=True)}
         if c is not None:
             mag = np.linalg.norm(c.offset_enu, axis=-1)
             out["correction"] = {"rms_mm": round(float(1e3 * np.sqrt(np.mean(mag**2))), 3),
@@ -222,6 +234,14 @@ def gap_ramps(t_ns: NDArray[np.int64], gaps: list[tuple[int, int, float]]) -> Ar
         np.zeros((len(t), 0)))
 
 
+def slip_drift(trajectory: Trajectory, t_ns: NDArray[np.int64], opts: PassOptions) -> tuple[Array, Array]:
+    """(N, G) the along-track drift per unit error of each slip gain the slow motion fits, and their prior std (G,)
+    (none where ``opts`` leaves them out)."""
+    if not opts.slip_gains:
+        return np.zeros((len(t_ns), 0)), np.zeros(0)
+    return slip_gain_drift(trajectory, t_ns)
+
+
 def point_sigmas(blocks: PassBlocks, trajectory: Trajectory, clock: tuple[Array, Array], opts: PassOptions
                  ) -> tuple[Array, Array]:
     """Per point: the robust std (m) of its blocks about its own fit (its 3-D shift, the track's stretch about it,
@@ -230,6 +250,7 @@ def point_sigmas(blocks: PassBlocks, trajectory: Trajectory, clock: tuple[Array,
     t_s, travel = clock
     s = np.interp((blocks.t_ns - trajectory.t_ns[0]) / 1e9, t_s, travel)
     ramps = gap_ramps(blocks.t_ns, _gaps(trajectory, opts))
+    drift, drift_std = slip_drift(trajectory, blocks.t_ns, opts)
     sigma, span = np.full(blocks.n_points, np.inf), np.zeros(blocks.n_points)
     for j in range(blocks.n_points):
         m = (blocks.point == j) & blocks.usable
@@ -240,10 +261,16 @@ def point_sigmas(blocks: PassBlocks, trajectory: Trajectory, clock: tuple[Array,
         # a gap inside the pass (blocks either side of it) may move the track along by a step across it
         inside = [g for g in range(ramps.shape[1]) if 0.0 < ramps[m, g].mean() < 1.0
                   and min(np.sum(ramps[m, g] == 0.0), np.sum(ramps[m, g] == 1.0)) >= opts.min_blocks // 2]
-        design = np.column_stack([u_along * (sj - sj.mean()), 2 * u, u_along[:, None] * ramps[m][:, inside]])
-        keep = np.ones(len(y), dtype=bool)
+        design = np.column_stack([u_along * (sj - sj.mean()), 2 * u, u_along[:, None] * ramps[m][:, inside],
+                                  u_along[:, None] * (drift[m] - drift[m].mean(axis=0))])
+        # the slip gains within their stated std (a prior row each, at the point's own noise level so far)
+        prior = np.zeros((len(drift_std), design.shape[1]))
+        prior[:, design.shape[1] - len(drift_std):] = np.diag(1.0 / drift_std)
+        keep, sg = np.ones(len(y), dtype=bool), opts.max_point_sigma_m
         for _ in range(opts.iterations):
-            x, *_ = np.linalg.lstsq(design[keep], y[keep], rcond=None)
+            level = max(sg, opts.noise_floor_m)
+            x, *_ = np.linalg.lstsq(np.vstack([design[keep], level * prior]),
+                                    np.concatenate([y[keep], np.zeros(len(prior))]), rcond=None)
             resid = y - design @ x
             sg = 1.4826 * float(np.median(np.abs(resid[keep])))
             new = np.abs(resid) < opts.reject_sigma * max(sg, opts.noise_floor_m)
@@ -296,11 +323,16 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tupl
     rows = np.arange(n_b)
     comps = [(u_along, opts.step_along)] + ([(u_across, opts.step_across)] if opts.step_across > 0 else [])
     n_nodes = len(comps) * k_n  # the along nodes, then the across ones where they are fitted
-    n_var = n_nodes + 3 * n_pts
+    t_nodes = t0 + np.round(nodes * 1e9).astype(np.int64)
+    # then each point's shift, then the slip gains' errors, whose drift adds to the along nodes' correction
+    drift, drift_std = slip_drift(trajectory, np.concatenate([blocks.t_ns, t_nodes]), opts)
+    drift_nodes, n_slip = drift[len(tb):], len(drift_std)
+    n_var = n_nodes + 3 * n_pts + n_slip
     entries: list[tuple[NDArray[np.int64], Array]] = []
     for c, (u, _) in enumerate(comps):
         entries += [(c * k_n + k, -2 * u * (1 - f)), (c * k_n + k + 1, -2 * u * f)]
     entries += [(n_nodes + 3 * blocks.point + i, 2 * blocks.los[:, i]) for i in range(3)]
+    entries += [(np.full(n_b, n_var - n_slip + g), -2 * u_along * drift[:n_b, g]) for g in range(n_slip)]
     design = sp.csr_matrix((np.concatenate([v for _, v in entries]),
                             (np.tile(rows, len(entries)), np.concatenate([c for c, _ in entries]))),
                            shape=(n_b, n_var))
@@ -317,7 +349,8 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tupl
     prior = sp.vstack([*steps, sp.eye(n_var)]).tocsr()
     prior_std = np.concatenate([np.sqrt((step * ds) ** 2 + (gap_var if c == 0 else 0.0))
                                 for c, (_, step) in enumerate(comps)] + [np.full(n_nodes, opts.prior_m),
-                                                                    np.full(3 * n_pts, opts.point_prior_m)])
+                                                                    np.full(3 * n_pts, opts.point_prior_m),
+                                                                    drift_std])
     weighted_prior = sp.diags(1.0 / prior_std) @ prior
     keep = blocks.usable & good[blocks.point]
     sigma = np.where(good, point_sigma, np.inf)
@@ -343,17 +376,21 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tupl
     if used.sum() < opts.min_points:
         return SlowMotion(trajectory, None, np.zeros((n_pts, 3)), used, point_sigma, float("nan"),
                           f"{int(used.sum())} points kept fitting the joint model (at least {opts.min_points} needed)")
-    # posterior std of the nodes from the normal matrix's inverse (one column per node: a few dozen to hundreds)
-    cols = np.arange(n_nodes)
-    e = np.zeros((n_var, n_nodes))
-    e[cols, cols] = 1.0
-    cov = lu.solve(e)[cols]
+    # posterior covariance of the nodes (the along ones with the slip gains' drift) from the normal matrix's
+    # inverse (one column per node: a few dozen to hundreds)
+    cols = np.concatenate([np.arange(n_nodes), np.arange(n_var - n_slip, n_var)])
+    e = np.zeros((n_var, len(cols)))
+    e[cols, np.arange(len(cols))] = 1.0
+    full = lu.solve(e)[cols]
+    to_nodes = np.zeros((n_nodes, len(cols)))
+    to_nodes[:, :n_nodes] = np.eye(n_nodes)
+    to_nodes[:k_n, n_nodes:] = drift_nodes
+    cov = to_nodes @ full @ to_nodes.T
     std = np.sqrt(np.maximum(np.diag(cov), 0.0))
     across, across_std = (-x[k_n:n_nodes], std[k_n:]) if len(comps) == 2 else (np.zeros(k_n), np.zeros(k_n))
-    t_nodes = t0 + np.round(nodes * 1e9).astype(np.int64)
-    along = -x[:k_n]
+    along = -(x[:k_n] + drift_nodes @ x[n_var - n_slip:])
     correction = node_correction(trajectory, config, t_nodes, along, across, std[:k_n], across_std)
-    shift = x[n_nodes:].reshape(n_pts, 3) * used[:, None]
+    shift = x[n_nodes:n_nodes + 3 * n_pts].reshape(n_pts, 3) * used[:, None]
     # the stretch: a straight line through the along nodes against their travel, weighted by their std
     s_nodes = np.interp(nodes, t_s, travel)
     xy = trajectory.rear_axle_enu
@@ -375,7 +412,9 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tupl
         shape_shift[j] += stretch * (s_j - s_centre) * blocks.along[b]
     return SlowMotion(with_correction(trajectory, correction), correction, shift, used, point_sigma,
                       float(np.median(sigma[used])), stretch=stretch, stretch_std=stretch_std,
-                      shape_correction=shape, shape_point_shift_enu=shape_shift)
+                      shape_correction=shape, shape_point_shift_enu=shape_shift,
+                      slip_gain_error=x[n_var - n_slip:].copy(),
+                      slip_gain_error_std=np.sqrt(np.maximum(np.diag(full)[n_nodes:], 0.0)))
 
 
 def node_correction(trajectory: Trajectory, config: Config, t_ns: NDArray[np.int64], along_m: Array, across_m: Array,
