@@ -143,10 +143,10 @@ def test_a_slip_gains_error_is_fitted_from_the_points_seen_through_a_braking() -
     """A stop and go (:func:`conftest.stop_and_go`) whose navigation's mean brake gain is 0.4 % per m/s^2 off and
     its drive gain -0.4 %: the track runs 5 cm too far by the stop and 5 cm too short over the pull-away (2.3 times
     the gains' stated std, 0.18 % for each mean; 4.2 cm RMS). Roadside points 6 m out every 20 m, each seen from 70
-    deg ahead to broadside, their paths measured to 0.5 mm (blocks built here, no radar). A point seen through the braking fits
-    its own point to the noise only with the gains' drift in its fit (urban seed 3's corner reflector seen through
-    its stop: 9.7 mm without, so left out; 0.7 mm with; here 0.4 against 0.9 mm). The joint fit with them leaves
-    1.2 mm of the along-track error, a fifteenth of what the node steps' prior leaves without them
+    deg ahead to broadside, their paths measured to 0.5 mm (blocks built here, no radar). A point seen through the
+    braking fits its own point to the noise only with the gains' drift in its fit (urban seed 3's corner reflector
+    seen through its stop: 9.7 mm without, so left out; 0.7 mm with; here 0.4 against 0.9 mm). The joint fit with
+    them leaves 1.2 mm of the along-track error, a fifteenth of what the node steps' prior leaves without them
     (``slip_gains=False``), and measures the gains."""
     from conftest import stop_and_go
 
