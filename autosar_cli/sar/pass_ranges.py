@@ -15,8 +15,9 @@ through the rest.
   bistatic path is than predicted, less the envelope's shift by the echo's own Doppler, ``(dp/dt) f_c / slope``
   (1 cm of path at 5 m/s straight ahead, none at broadside), which over a pass would read as a stretch;
 * only the points whose blocks fit a point over at least ``min_span_m`` of travel to ``max_point_sigma_m`` (its
-  own shift, height and stretch, and a step across each wheel gap inside its pass; corner reflectors and poles
-  0.2-6 mm, car bodies, facades and clutter, whose bright spot moves with the aspect, 10-130 mm: urban seed 0);
+  own shift, height and stretch, the slip gains' drift, and a step across each wheel gap inside its pass; corner
+  reflectors and poles 0.2-6 mm, car bodies, facades and clutter, whose bright spot moves with the aspect,
+  10-130 mm: urban seed 0);
 * the model, for block b of point j::
 
       offset_b = -2 u_b . (a(t_b) along_b + c(t_b) across_b - d_j)
@@ -26,8 +27,12 @@ through the rest.
   of travel, the size of the navigation's local scale error, plus, across a span where the navigation had no wheel
   speeds (``trajectory.info["wheel_gaps"]``: its start and pull-away, where the ECU's window reaches across a
   standstill), the drift the GNSS velocity leaves there; ``c`` is held by default), ``d_j`` the point's own
-  position error (3-D, its prior ``point_prior_m``). Weighted least squares, each point weighted by its own
-  residual, blocks beyond ``reject_sigma`` dropped and the fit repeated.
+  position error (3-D, its prior ``point_prior_m``). ``a`` also holds the drift of the navigation's mean drive and
+  brake slip gains' errors, the integral of ``v a`` over the time the car speeds up or slows down times each
+  (:func:`~autosar_cli.nav.wheel_speeds.slip_gain_drift`, their prior the std the navigation stated): one error
+  for every braking of the drive, so a gain the points measure at one stop corrects another no point sees, and a
+  point seen through a braking fits its own point (its own fit holds them too). Weighted least squares, each point
+  weighted by its own residual, blocks beyond ``reject_sigma`` dropped and the fit repeated.
 
 What it cannot see: a rigid motion of the whole track (it moves every point alike), and the track between points'
 passes, where the priors keep the navigated shape.
