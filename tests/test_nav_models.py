@@ -323,8 +323,9 @@ def test_a_slip_gains_error_drifts_the_track_by_its_gain_times_the_change_of_hal
     radii = traj.info["wheel_radii"]
     left_out = replace(traj, info={"wheel_radii": {**radii, "slip_gain": {**radii["slip_gain"], "rear_brake": 0.004}}})
     assert slip_gain_drift(left_out, at)[1][1] == pytest.approx(math.sqrt(2 * 0.003**2 + 0.004**2) / 2)
-    none = slip_gain_drift(replace(traj, info={}), at)
-    assert none[0].shape == (len(at), 0) and none[1].shape == (0,)
+    for info in ({}, {"wheel_radii": {**radii, "slip_gain_std": dict.fromkeys(radii["slip_gain_std"], 0.0)}}):
+        none = slip_gain_drift(replace(traj, info=info), at)
+        assert none[0].shape == (len(at), 0) and none[1].shape == (0,)
 
 
 def test_a_wheel_gap_drifts_as_the_gnss_velocity_noise_summed_over_it() -> None:

@@ -418,7 +418,7 @@ def slip_gain_drift(trajectory: Trajectory, t_ns: NDArray[np.int64]) -> tuple[Ar
     """How far (m) along its track ``trajectory`` has moved by ``t_ns`` per unit error of its mean drive and mean
     brake slip gain (N, 2), and the std of those two errors (2,) that its navigation stated
     (``info["wheel_radii"]``: each axle's gain std, and the gain fitted but not applied in full where it was left
-    out); (N, 0) and (0,) where it stated none.
+    out); (N, 0) and (0,) where it stated none, or a std of 0.
 
     A gain's error ``dk`` leaves the wheels' speed ``(1 + dk a)`` times the truth under acceleration ``a``, so the
     track, which follows the four wheels' mean, runs ``v a (dk_front + dk_rear) / 2`` fast, and by time ``t`` has
@@ -435,6 +435,8 @@ def slip_gain_drift(trajectory: Trajectory, t_ns: NDArray[np.int64]) -> tuple[Ar
         if not all(name in gain and std.get(name) is not None and np.isfinite(std[name]) for name in names):
             return np.zeros((len(np.atleast_1d(t_ns)), 0)), np.zeros(0)
         variances.append(sum(std[n] ** 2 + (gain[n] - applied.get(n, 0.0)) ** 2 for n in names) / 4.0)
+    if not all(v > 0.0 for v in variances):  # a gain known exactly leaves nothing to fit
+        return np.zeros((len(np.atleast_1d(t_ns)), 0)), np.zeros(0)
     t = (trajectory.t_ns - trajectory.t_ns[0]) / 1e9
     mean = running_mean(t, trajectory.speed, SLIP_DRIFT_WINDOW_S)
     if mean is None or len(mean[0]) < 2:
