@@ -9,8 +9,10 @@ DIR/<scenario><seed> and are used again): the corner reflectors focused (patches
 over the radar data each) along SAR-MIN's track, along ``sar-min+af`` as the product makes it, along the slow motion
 alone (``sar.pass_ranges``) and along ``sar-min+af`` with the slow motion first; each one's worst reflector after the
 whole-track alignment and its worst peak loss against the truth track's patches, as ``compare`` measures them. Also
-the slow motion's points, residual, correction and time. The summary per scenario: drives within 2 cm and 1 dB, median
-and worst reflector, without and with."""
+the slow motion's points, residual, correction and time; with ``--product-only``, SAR-MIN's track scale error too
+(``radar_track_scale``), which the slow motion's ``scale`` estimates. The summary per scenario: drives within 2 cm and
+1 dB, median and worst reflector, without and with; and the RMS of that scale's error over its std
+(``slow_scale_z_rms``, where the rows have it)."""
 
 from __future__ import annotations
 
@@ -61,6 +63,7 @@ def measured_row(work: Path, passes: Any = None, product_only: bool = False) -> 
     options (default PassOptions()); ``product_only``: only ``slow+af``, the product's track."""
     from autosar_cli.config import load_config
     from autosar_cli.evaluate.evaluation import load_truth
+    from autosar_cli.evaluate.trajectory_metrics import radar_track_scale
     from autosar_cli.sar.focus import FocusOptions
     from autosar_cli.sar.pass_ranges import PassOptions, estimate_slow_motion
     from autosar_cli.sar.residual_motion import (
@@ -69,6 +72,7 @@ def measured_row(work: Path, passes: Any = None, product_only: bool = False) -> 
         estimate_residual_motion,
         residual_motion_of_points,
     )
+    from autosar_cli.store.drive import radar_times
     from autosar_cli.store.trajectory import read_trajectory
 
     config = load_config()
@@ -87,7 +91,9 @@ def measured_row(work: Path, passes: Any = None, product_only: bool = False) -> 
         row = {"points": len(points), "points_s": round(points_s, 1),
                "slow+af_s": round(time.perf_counter() - start, 1),
                "slow_motion": both.slow_motion.to_dict() if both.slow_motion else None,
-               "slow+af_summary": both.summary()}
+               "slow+af_summary": both.summary(),
+               # what the slow motion's scale estimates (bench_paper's sarmin_track_scale_pct)
+               "sarmin_track_scale": radar_track_scale(est, truth.trajectory, radar_times(drive), config)}
         row["slow+af"], _ = reflector_errors(drive, both.trajectory, truth, config, reference)
         return row
     start = time.perf_counter()
@@ -138,6 +144,11 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "worst_max_cm": max(r[name]["worst_cm"] for r in these)} for name in tracks},
             **({"slow_s_median": round(float(np.median([r["slow_s"] for r in these])), 1)}
                if all("slow_s" in r for r in these) else {})}
+        # the slow motion's stated scale against SAR-MIN's scale error: RMS 1 where its std says what it is worth
+        z = [(r["slow_motion"]["scale"] - r["sarmin_track_scale"]) / r["slow_motion"]["scale_std"] for r in these
+             if "sarmin_track_scale" in r and (r.get("slow_motion") or {}).get("scale_std")]
+        if z:
+            out[scenario]["slow_scale_z_rms"] = round(float(np.sqrt(np.mean(np.square(z)))), 2)
     return out
 
 

@@ -13,6 +13,7 @@ from conftest import simulated
 
 from autosar_cli.config import load_config
 from autosar_cli.evaluate.evaluation import Truth, load_truth
+from autosar_cli.evaluate.trajectory_metrics import radar_track_scale
 from autosar_cli.ingest.pipeline import ingest
 from autosar_cli.nav.inputs import load_inputs
 from autosar_cli.nav.trajectory import cumulative_travel, radar_track
@@ -25,7 +26,7 @@ from autosar_cli.sar.pass_ranges import (
     with_correction,
 )
 from autosar_cli.sar.phase_history import frame_geometry
-from autosar_cli.store.drive import Drive
+from autosar_cli.store.drive import Drive, radar_times
 from autosar_cli.types import MotionCorrection, Trajectory
 
 CFG = load_config()
@@ -92,6 +93,13 @@ def test_recovers_an_injected_along_track_error(test1_drive: tuple[Path, Truth])
     assert observable_rms(slip_left) < 0.25 * before
     shape_along = np.einsum("kd,kd->k", shape.at(t), _along(track, t))
     assert abs(np.polyfit(s, shape_along, 1)[0]) < 0.1 * abs(injected_line)  # no stretch left in it
+    # the scale it reports is the evaluation's similarity scale of the correction (to first order), and the truth's
+    frames = radar_times(drive)
+    read, need = radar_track_scale(wrong, res.trajectory, frames, CFG), radar_track_scale(wrong, track, frames, CFG)
+    print(f"scale {res.scale * 100:+.4f} ± {res.scale_std * 100:.4f} %: the correction's similarity "
+          f"{read * 100:+.4f} %, the truth's {need * 100:+.4f} %")
+    assert res.scale == pytest.approx(read, rel=0.02)
+    assert abs(res.scale - need) < 3 * res.scale_std
 
 
 def _left_along(truth: Trajectory, moved: Trajectory) -> float:
@@ -206,8 +214,8 @@ def test_autofocus_takes_the_slow_motion_first_where_asked(test1_drive: tuple[Pa
     """``AutofocusOptions(slow_motion=True)``: the points of the first image along a track carrying
     :func:`injected_along_error`, their passes' slow motion less its stretch, then the phases along the track so
     corrected, which measure the scale; or, where the phases may not (``max_scale_std`` below any they reach), the
-    passes' stretch kept and said. The result says both, and its track keeps under a quarter of the injected
-    error."""
+    passes' stretch kept and their whole correction's scale said. The result says both, and its track keeps under a
+    quarter of the injected error."""
     from autosar_cli.sar.residual_motion import AutofocusOptions, autofocus_residual_motion
 
     drive, truth = test1_drive
@@ -227,7 +235,7 @@ def test_autofocus_takes_the_slow_motion_first_where_asked(test1_drive: tuple[Pa
     if phases_scale:
         assert not res.scale_note and "distances scaled by" in res.summary()
     else:
-        assert res.scale == res.slow_motion.stretch and "from the points' passes" in res.scale_note, res.summary()
+        assert res.scale == res.slow_motion.scale and "from the points' passes" in res.scale_note, res.summary()
     assert left < 0.25 * observable_rms(err), (left, observable_rms(err))
 
 

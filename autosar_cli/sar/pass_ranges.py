@@ -135,6 +135,10 @@ class SlowMotion:
     #: :func:`~autosar_cli.nav.wheel_speeds.slip_gain_drift`), and their std; empty where not fitted
     slip_gain_error: Array = dataclasses.field(default_factory=lambda: np.zeros(0))
     slip_gain_error_std: Array = dataclasses.field(default_factory=lambda: np.zeros(0))
+    #: the input track's scale error as the correction gives it, read as the evaluation reads a track's
+    #: (:func:`similarity_scale_gain`: the whole correction, moving instants alike), and its std
+    scale: float = 0.0
+    scale_std: float = 0.0
 
     @property
     def applied(self) -> bool:
@@ -145,7 +149,8 @@ class SlowMotion:
         out: dict[str, object] = {"applied": self.applied, "reason": self.reason,
                                   "points_used": int(self.points_used.sum()),
                                   "residual_mm": round(1e3 * self.residual_m, 3),
-                                 "stretch": self.stretch, "stretch_std": self.stretch_std}
+                                 "stretch": self.stretch, "stretch_std": self.stretch_std,
+                                  "scale": self.scale, "scale_std": self.scale_std}
         if len(self.slip_gain_error):
             out["slip_gain_error"] = {mode: {"value": float(v), "std": float(sd)} for mode, v, sd in
                                       zip(("drive", "brake"), self.slip_gain_error, self.slip_gain_error_std,
@@ -406,6 +411,9 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tupl
     gain = np.linalg.solve(line.T @ (w[:, None] * line), (w[:, None] * line).T)  # (2, k_n): nodes -> line
     stretch = float(gain[1] @ along)
     stretch_std = float(np.sqrt(max(gain[1] @ cov[:k_n, :k_n] @ gain[1], 0.0)))
+    scale_gain = similarity_scale_gain(trajectory, config, nodes, len(comps))
+    node_values = np.concatenate([along, across][:len(comps)])
+    scale, scale_std = float(scale_gain @ node_values), float(np.sqrt(max(scale_gain @ cov @ scale_gain, 0.0)))
     shape = node_correction(trajectory, config, t_nodes, along - stretch * (s_nodes - s_centre), across, std[:k_n],
                             across_std)
     # each point moves with the track at its broadside block (the one whose line of sight is least along)
@@ -419,7 +427,37 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tupl
                       float(np.median(sigma[used])), stretch=stretch, stretch_std=stretch_std,
                       shape_correction=shape, shape_point_shift_enu=shape_shift,
                       slip_gain_error=x[n_var - n_slip:].copy(),
-                      slip_gain_error_std=np.sqrt(np.maximum(np.diag(full)[n_nodes:], 0.0)))
+                      slip_gain_error_std=np.sqrt(np.maximum(np.diag(full)[n_nodes:], 0.0)), scale=scale,
+                      scale_std=scale_std)
+
+
+#: the evaluation's moving instants (:func:`autosar_cli.evaluate.trajectory_metrics.common_instants`)
+MOVING_MPS = 0.2
+
+
+def similarity_scale_gain(trajectory: Trajectory, config: Config, nodes_s: Array, components: int) -> Array:
+    """(C K,) the weights that give, from a correction's node values (along the track, then across it where
+    ``components`` is 2; on the nodes ``nodes_s``, s since the trajectory's start), the scale of the similarity that
+    maps the trajectory's radar track onto the corrected one, less 1 (Umeyama's, as
+    :func:`~autosar_cli.evaluate.trajectory_metrics.radar_track_scale` fits it), to first order: each moving
+    instant's offset (every 0.1 s) along its position about their centroid, over their spread."""
+    t = np.arange(trajectory.t_ns[0], trajectory.t_ns[-1], 100_000_000, dtype=np.int64)
+    t = t[np.interp(t, trajectory.t_ns, trajectory.speed) >= MOVING_MPS]
+    k_n = len(nodes_s)
+    if len(t) < 2:
+        return np.zeros(components * k_n)
+    xy = radar_track(trajectory, t, config)
+    a = xy - xy.mean(axis=0)
+    _, across, along = frame_geometry(trajectory, t, config)
+    ts = (t - trajectory.t_ns[0]) / 1e9
+    k = np.clip(np.searchsorted(nodes_s, ts, side="right") - 1, 0, k_n - 2)
+    f = np.clip((ts - nodes_s[k]) / (nodes_s[k + 1] - nodes_s[k]), 0.0, 1.0)
+    gain = np.zeros(components * k_n)
+    for c, unit in enumerate((along, across)[:components]):
+        proj = np.einsum("ij,ij->i", a, unit[:, :2]) / float(np.sum(a * a))
+        np.add.at(gain, c * k_n + k, proj * (1 - f))
+        np.add.at(gain, c * k_n + k + 1, proj * f)
+    return gain
 
 
 def node_correction(trajectory: Trajectory, config: Config, t_ns: NDArray[np.int64], along_m: Array, across_m: Array,
