@@ -205,6 +205,10 @@ def test_a_slip_gains_error_is_fitted_from_the_points_seen_through_a_braking() -
     assert np.all(np.abs(fitted.slip_gain_error - [-0.004, 0.004]) < 3 * fitted.slip_gain_error_std)
     assert np.all(fitted.slip_gain_error_std < 0.0005)
     assert "slip_gain_error" not in results[False][3].to_dict()
+    print(fitted.summary())
+    said = "(the navigation's slip gains off by drive -0.38 ± 0.02 %, brake +0.40 ± 0.02 % per m/s²)"
+    assert said in fitted.summary()
+    assert "slip gains" not in results[False][3].summary()
 
 
 @pytest.mark.slow

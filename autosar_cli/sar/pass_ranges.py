@@ -168,8 +168,12 @@ class SlowMotion:
             return f"slow motion not corrected: {self.reason}"
         c = self.to_dict()["correction"]
         assert isinstance(c, dict)
+        gains = "".join(f", {mode} {100 * v:+.2f} ± {100 * sd:.2f} %" for mode, v, sd in
+                        zip(("drive", "brake")[:len(self.slip_gain_error)], self.slip_gain_error,
+                            self.slip_gain_error_std, strict=True))
         return (f"slow motion corrected by {c['rms_mm']:.1f} mm RMS ({c['max_mm']:.1f} max, ±{c['std_median_mm']:.1f}"
-                f" mm) from {int(self.points_used.sum())} points' ranges over their passes")
+                f" mm) from {int(self.points_used.sum())} points' ranges over their passes"
+                + (f" (the navigation's slip gains off by{gains[1:]} per m/s²)" if gains else ""))
 
 
 def pass_histories(drive_path: str | Path, trajectory: Trajectory, config: Config, points_enu: Array,
