@@ -429,16 +429,13 @@ def slip_gain_drift(trajectory: Trajectory, t_ns: NDArray[np.int64]) -> tuple[Ar
     radii = trajectory.info.get("wheel_radii") or {}
     gain, std = radii.get("slip_gain") or {}, radii.get("slip_gain_std") or {}
     applied = radii.get("applied") or {}
-    variances = []
-    for mode in ("drive", "brake"):
-        names = [f"{axle}_{mode}" for axle in ("front", "rear")]
-        if not all(name in gain and std.get(name) is not None and np.isfinite(std[name]) for name in names):
-            return np.zeros((len(np.atleast_1d(t_ns)), 0)), np.zeros(0)
-        variances.append(sum(std[n] ** 2 + (gain[n] - applied.get(n, 0.0)) ** 2 for n in names) / 4.0)
+    if not all(name in gain and std.get(name) is not None and np.isfinite(std[name]) for name in SLIP_GAINS):
+        return np.zeros((len(np.atleast_1d(t_ns)), 0)), np.zeros(0)
+    variances = [sum(std[n] ** 2 + (gain[n] - applied.get(n, 0.0)) ** 2 for n in (f"front_{mode}", f"rear_{mode}"))
+                 / 4.0 for mode in ("drive", "brake")]
     if not all(v > 0.0 for v in variances):  # a gain known exactly leaves nothing to fit
         return np.zeros((len(np.atleast_1d(t_ns)), 0)), np.zeros(0)
-    t = (trajectory.t_ns - trajectory.t_ns[0]) / 1e9
-    mean = running_mean(t, trajectory.speed, SLIP_DRIFT_WINDOW_S)
+    mean = running_mean(trajectory.t, trajectory.speed, SLIP_DRIFT_WINDOW_S)
     if mean is None or len(mean[0]) < 2:
         return np.zeros((len(np.atleast_1d(t_ns)), 2)), np.sqrt(variances)
     tm, v = mean

@@ -168,9 +168,8 @@ class SlowMotion:
             return f"slow motion not corrected: {self.reason}"
         c = self.to_dict()["correction"]
         assert isinstance(c, dict)
-        gains = "".join(f", {mode} {100 * v:+.2f} ± {100 * sd:.2f} %" for mode, v, sd in
-                        zip(("drive", "brake")[:len(self.slip_gain_error)], self.slip_gain_error,
-                            self.slip_gain_error_std, strict=True))
+        gains = "".join(f", {mode} {100 * g['value']:+.2f} ± {100 * g['std']:.2f} %"
+                        for mode, g in self.to_dict().get("slip_gain_error", {}).items())
         return (f"slow motion corrected by {c['rms_mm']:.1f} mm RMS ({c['max_mm']:.1f} max, ±{c['std_median_mm']:.1f}"
                 f" mm) from {int(self.points_used.sum())} points' ranges over their passes"
                 + (f" (the navigation's slip gains off by{gains[1:]} per m/s²)" if gains else ""))
@@ -322,6 +321,13 @@ def estimate_slow_motion(drive_path: str | Path, trajectory: Trajectory, config:
     return _fit(blocks, trajectory, config, clock, opts, good, sigma)
 
 
+def _node_weights(nodes_s: Array, t_s: Array) -> tuple[NDArray[np.intp], Array]:
+    """For each of ``t_s`` (s) the node ``k`` before it and how far it is towards the next, ``f`` (piecewise linear
+    on ``nodes_s``: ``(1 - f)`` of node ``k`` and ``f`` of node ``k + 1``)."""
+    k = np.clip(np.searchsorted(nodes_s, t_s, side="right") - 1, 0, len(nodes_s) - 2)
+    return k, np.clip((t_s - nodes_s[k]) / (nodes_s[k + 1] - nodes_s[k]), 0.0, 1.0)
+
+
 def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tuple[Array, Array], opts: PassOptions,
          good: NDArray[np.bool_], point_sigma: Array) -> SlowMotion:
     t0 = trajectory.t_ns[0]
@@ -329,8 +335,7 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tupl
     nodes = np.arange(0.0, t_s[-1] + opts.node_s, opts.node_s)
     k_n, n_pts = len(nodes), blocks.n_points
     tb = (blocks.t_ns - t0) / 1e9
-    k = np.clip(np.searchsorted(nodes, tb, side="right") - 1, 0, k_n - 2)
-    f = (tb - nodes[k]) / (nodes[k + 1] - nodes[k])
+    k, f = _node_weights(nodes, tb)
     u_along = np.einsum("ij,ij->i", blocks.los, blocks.along)
     u_across = np.einsum("ij,ij->i", blocks.los, blocks.across)
     n_b = len(tb)
@@ -453,9 +458,7 @@ def similarity_scale_gain(trajectory: Trajectory, config: Config, nodes_s: Array
     xy = radar_track(trajectory, t, config)
     a = xy - xy.mean(axis=0)
     _, across, along = frame_geometry(trajectory, t, config)
-    ts = (t - trajectory.t_ns[0]) / 1e9
-    k = np.clip(np.searchsorted(nodes_s, ts, side="right") - 1, 0, k_n - 2)
-    f = np.clip((ts - nodes_s[k]) / (nodes_s[k + 1] - nodes_s[k]), 0.0, 1.0)
+    k, f = _node_weights(nodes_s, (t - trajectory.t_ns[0]) / 1e9)
     gain = np.zeros(components * k_n)
     for c, unit in enumerate((along, across)[:components]):
         proj = np.einsum("ij,ij->i", a, unit[:, :2]) / float(np.sum(a * a))
