@@ -297,6 +297,13 @@ class NavigationConfig:
     # independent fixes of gnss_position_std_m (the slow error then leaks into the speed, see EVALUATION.md).
     gnss_error_model: Literal["gauss_markov", "white"] = "gauss_markov"
     gnss_position_std_m: float = 0.5  # per-fix noise of the "white" model only
+    # the GNSS receiver's own heading (NMEA HDT: a dual-antenna or INS heading of the body), where the drive has
+    # one, as a measurement of the heading plus a constant offset (the antennas' baseline against the body's axis,
+    # prior std gnss_heading_offset_std_deg); its noise is the sensor table's heading_std_deg. Off by default: at the
+    # simulated receiver's 0.3 deg it took 10 % off urban's slow heading error and the autofocused images gained
+    # nothing (docs/NAVIGATION.md)
+    gnss_heading: bool = False
+    gnss_heading_offset_std_deg: float = 1.0
     steering_min_speed_mps: float = 1.0  # below it the steering model atan(L omega / v) is not used
     # fit the understeer gradient K and the yaw lag to the drive's turns on a pass without the steering, and keep that
     # pass where they show the car not steering as the kinematic bicycle (K's std at most
@@ -579,6 +586,7 @@ def _validate(cfg: Config) -> None:
     _non_negative("navigation.wheel_lag_max_std_m", nav.wheel_lag_max_std_m)
     _non_negative("navigation.wheel_radius_gain_max_std_per_mps2", nav.wheel_radius_gain_max_std_per_mps2)
     _non_negative("navigation.rear_slip_max_std_rad_per_mps2", nav.rear_slip_max_std_rad_per_mps2)
+    _positive("navigation.gnss_heading_offset_std_deg", nav.gnss_heading_offset_std_deg)
     if nav.attitude_imu:
         imu = cfg.sensors.get(nav.attitude_imu)
         if imu is None or imu.kind != "imu" or imu.dof != 6:

@@ -3,6 +3,7 @@
 Usage: python benches/bench_af_pass_ranges.py [--drives urban:0,urban:1] [--keep DIR] [--append]
                                               [--output benches/results/af_pass_ranges.json]
                                               [--passes wheel_gaps=0,step_along=0.001,...] [--product-only]
+                                              [--navigation gnss_heading=true]
 
 Per drive (``simulate --dynamics full``, ``ingest``, ``navigate``; with ``--keep`` the files stay in
 DIR/<scenario><seed> and are used again): the corner reflectors focused (patches only, the product's options, one pass
@@ -12,12 +13,15 @@ whole-track alignment and its worst peak loss against the truth track's patches,
 the slow motion's points, residual, correction and time; with ``--product-only``, SAR-MIN's track scale error too
 (``radar_track_scale``), which the slow motion's ``scale`` estimates. The summary per scenario: drives within 2 cm and
 1 dB, median and worst reflector, without and with; and the RMS of that scale's error over its std
-(``slow_scale_z_rms``, where the rows have it)."""
+(``slow_scale_z_rms``, where the rows have it). ``--navigation``: SAR-MIN's own settings otherwise than the config's
+(entries of [navigation], as bench_paper's), the drive navigated again with them (``sarmin_nav_<entries>.h5`` beside
+the drive's): ``--navigation gnss_heading=true --output benches/results/af_gnss_heading.json``."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import tempfile
 import time
@@ -28,7 +32,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_paper import RESULTS, cli  # noqa: E402
+from bench_paper import RESULTS, cli, config_copy  # noqa: E402
 
 WITHIN_CM, WITHIN_DB = 2.0, 1.0
 TRACKS = ("sar-min", "sar-min+af", "slow", "slow+af")
@@ -58,9 +62,9 @@ def reflector_errors(drive: Path, traj: Any, truth: Any, config: Any, reference:
              "errors_cm": [round(e, 2) for e in errors]}, patches)
 
 
-def measured_row(work: Path, passes: Any = None, product_only: bool = False) -> dict[str, Any]:
-    """One drive's row from ``work``'s log.mcap(.truth.h5), drive.h5 and sarmin.h5; ``passes``: the slow motion's
-    options (default PassOptions()); ``product_only``: only ``slow+af``, the product's track."""
+def measured_row(work: Path, passes: Any = None, product_only: bool = False, nav: str = "sarmin.h5") -> dict[str, Any]:
+    """One drive's row from ``work``'s log.mcap(.truth.h5), drive.h5 and its navigation ``nav``; ``passes``: the slow
+    motion's options (default PassOptions()); ``product_only``: only ``slow+af``, the product's track."""
     from autosar_cli.config import load_config
     from autosar_cli.evaluate.evaluation import load_truth
     from autosar_cli.evaluate.trajectory_metrics import radar_track_scale
@@ -77,7 +81,7 @@ def measured_row(work: Path, passes: Any = None, product_only: bool = False) -> 
 
     config = load_config()
     drive = work / "drive.h5"
-    est = read_trajectory(work / "sarmin.h5")  # its covariance sets the autofocus's scale prior, as in the product
+    est = read_trajectory(work / nav)  # its covariance sets the autofocus's scale prior, as in the product
     truth = load_truth(work / "log.mcap.truth.h5", est.origin, config)
     focus, opts = FocusOptions.from_config(config), AutofocusOptions()
     passes = passes or PassOptions()
@@ -115,8 +119,8 @@ def measured_row(work: Path, passes: Any = None, product_only: bool = False) -> 
     return row
 
 
-def drive_row(scenario: str, seed: int, keep: Path | None, passes: Any = None, product_only: bool = False
-              ) -> dict[str, Any]:
+def drive_row(scenario: str, seed: int, keep: Path | None, passes: Any = None, product_only: bool = False,
+              navigation: str = "") -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as tmp:
         work = (keep / f"{scenario}{seed}") if keep else Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
@@ -126,7 +130,12 @@ def drive_row(scenario: str, seed: int, keep: Path | None, passes: Any = None, p
                 "--overwrite")
             cli("ingest", str(log), "-o", str(drive), "--overwrite")
             cli("navigate", str(drive), "-o", str(nav), "--overwrite")
-        return {"scenario": scenario, "seed": seed, **measured_row(work, passes, product_only)}
+        if navigation:
+            nav = work / f"sarmin_nav_{re.sub(r'[^A-Za-z0-9.]+', '_', navigation)}.h5"
+            if not nav.exists():
+                cli("navigate", str(drive), "-o", str(nav), "--config",
+                    str(config_copy(None, None, work, navigation=navigation)), "--overwrite")
+        return {"scenario": scenario, "seed": seed, **measured_row(work, passes, product_only, nav.name)}
 
 
 def within(entry: dict[str, Any]) -> bool:
@@ -162,6 +171,9 @@ def main() -> None:
     ap.add_argument("--passes", default="",
                     help="the slow motion's options (PassOptions fields), e.g. wheel_gaps=0,step_along=0.001")
     ap.add_argument("--product-only", action="store_true", help="measure only slow+af, the product's track")
+    ap.add_argument("--navigation", default="",
+                    help="SAR-MIN's own settings otherwise than the config's: [navigation] entries, e.g. "
+                    "gnss_heading=true")
     args = ap.parse_args()
     from autosar_cli.sar.pass_ranges import PassOptions
 
@@ -174,8 +186,10 @@ def main() -> None:
     args.output.parent.mkdir(parents=True, exist_ok=True)
     for item in args.drives.split(","):
         scenario, seed = item.split(":")
-        row = drive_row(scenario, int(seed), args.keep, passes, args.product_only)
+        row = drive_row(scenario, int(seed), args.keep, passes, args.product_only, args.navigation)
         row["passes"] = args.passes
+        if args.navigation:
+            row["navigation"] = args.navigation
         rows.append(row)
         print(json.dumps({k: row[k] for k in ("scenario", "seed", "slow_s", *TRACKS) if k in row}), flush=True)
         # after every drive, so that a stopped run keeps what it measured

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -26,6 +27,8 @@ from autosar_cli.store.drive import Drive
 from autosar_cli.store.trajectory import read_trajectory
 
 CFG = load_config()
+#: with the receiver's heading fused (navigation.gnss_heading, off by default)
+CFG_HDT = dataclasses.replace(CFG, navigation=dataclasses.replace(CFG.navigation, gnss_heading=True))
 
 
 def _rpe_across(est: Trajectory, truth: Trajectory, delta: float) -> float:
@@ -45,19 +48,21 @@ def ci_drive(ci_mcap, tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-@pytest.mark.parametrize(("gnss_error_model", "rear_slip_gain"), [("gauss_markov", 0.0), ("white", 0.0),
-                                                                    ("gauss_markov", 0.05)])
+@pytest.mark.parametrize(("gnss_error_model", "rear_slip_gain", "gnss_heading"),
+                         [("gauss_markov", 0.0, False), ("white", 0.0, False), ("gauss_markov", 0.05, True)])
 def test_compiled_filter_equals_the_filterpy_reference(ci_drive: Path, gnss_error_model: str,
-                                                       rear_slip_gain: float) -> None:
-    import dataclasses
-
-    cfg = dataclasses.replace(CFG, navigation=dataclasses.replace(CFG.navigation, gnss_error_model=gnss_error_model),
+                                                       rear_slip_gain: float, gnss_heading: bool) -> None:
+    """The numba engine against the filterpy one, state by state, with the GNSS error states or not, the rear axle's
+    slip or not, and the receiver's heading fused or not."""
+    cfg = dataclasses.replace(CFG, navigation=dataclasses.replace(CFG.navigation, gnss_error_model=gnss_error_model,
+                                                                  gnss_heading=gnss_heading),
                               vehicle=dataclasses.replace(CFG.vehicle, rear_slip_gain_rad_per_mps2=rear_slip_gain))
     with Drive(ci_drive) as d:
         inputs = load_inputs(d, cfg)
     fast = run_sarmin(inputs, cfg, engine="numba")
     ref = run_sarmin(inputs, cfg, engine="numpy")
     assert ("gnss_error.east" in fast.state_names) == (gnss_error_model == "gauss_markov")
+    assert ("offset.gnss_heading" in fast.state_names) == gnss_heading
     np.testing.assert_array_equal(fast.t, ref.t)
     np.testing.assert_allclose(fast.x, ref.x, atol=1e-7)
     np.testing.assert_allclose(fast.P, ref.P, atol=1e-10)
@@ -150,6 +155,68 @@ def test_partitioned_prediction_is_the_full_unscented_transform(dt: float, gauss
         np.testing.assert_allclose(xn[-2:], x[-2:] * np.exp(-dt / 4.0), rtol=1e-12)
         np.testing.assert_allclose(m.process_noise(q, beta, 1e6)[-2:], 0.25**2, rtol=1e-12)
     np.testing.assert_allclose((P @ Phi.T - step.cross) / np.outer(np.sqrt(np.diag(P)), sd_pred), 0.0, atol=1e-9)
+
+
+def test_the_gnss_heading_update_is_the_unscented_one_across_plus_minus_pi() -> None:
+    """The kernel's GNSS heading update (z = psi + offset, linear, its innovation on the circle) against filterpy's
+    unscented update as the numpy engine makes it (the measurement moved to the turn nearest the prediction), where
+    the heading is just below +pi and the receiver reads just above -pi: a 0.5 mrad innovation, not -2 pi."""
+    n = 15  # 5 kinematic, 4 gyro biases, steering offset, 4 wheel scales, the heading's offset
+    rng = np.random.default_rng(3)
+    x = np.r_[31.0, -12.0, 8.0, np.pi - 2e-4, 0.3, rng.normal(0, 1e-3, n - 6), 2e-3]
+    scale = np.r_[0.05, 0.05, 0.02, 1e-3, 2e-3, np.full(n - 6, 1e-3), 5e-3]
+    A = rng.normal(size=(n, n)) * scale[:, None]
+    P = A @ A.T + 0.1 * np.diag(scale**2)
+    z, sigma = -np.pi + 3e-4 + 2e-3, 5e-3  # the heading 0.5 mrad past +pi, plus the offset
+    ukf = VectorUKF(x, P, lambda X, dt: X, angle_indices=[m.PSI])
+    zp = x[m.PSI] + x[-1]
+    assert ukf.update(np.array([zp + (z - zp + np.pi) % (2 * np.pi) - np.pi]),
+                      lambda X: m.gnss_heading(X, n - 1), np.diag([sigma**2]), 1e6)
+    xk, Pk = x.copy(), P.copy()
+    assert kern._update_sum(xk, Pk, z, sigma, m.PSI, n - 1, True, 1e6, np.empty(n))
+    d = xk - ukf.x
+    d[m.PSI] = (d[m.PSI] + np.pi) % (2 * np.pi) - np.pi
+    # filterpy's weighted sums carry ~|Wm_0| eps |x| of rounding (as in the prediction's test above)
+    np.testing.assert_allclose(d[:2], 0.0, atol=5e-8)
+    np.testing.assert_allclose(d[2:], 0.0, atol=5e-9)
+    sd = np.sqrt(np.diag(ukf.P))
+    np.testing.assert_allclose((Pk - ukf.P) / np.outer(sd, sd), 0.0, atol=1e-9)
+    assert -np.pi <= xk[m.PSI] < -np.pi + 1e-3 or np.pi - 1e-3 < xk[m.PSI] <= np.pi
+    moved = (xk[m.PSI] - x[m.PSI] + np.pi) % (2 * np.pi) - np.pi
+    assert 0.0 < moved < 5e-4  # towards the reading, by the gain's share of 0.5 mrad
+    # the same reading unwrapped (+pi + 3e-4) gives the same update: the circle, not the number, is measured
+    x2, P2 = x.copy(), P.copy()
+    kern._update_sum(x2, P2, z + 2 * np.pi, sigma, m.PSI, n - 1, True, 1e6, np.empty(n))
+    np.testing.assert_allclose(P2, Pk, atol=1e-15)
+    assert abs((x2[m.PSI] - xk[m.PSI] + np.pi) % (2 * np.pi) - np.pi) < 1e-12
+
+
+def test_a_constant_offset_of_the_gnss_heading_goes_into_its_offset_state(ci_drive: Path) -> None:
+    """A receiver whose heading reads 0.5 deg off the body's (its antennas' baseline turned): SAR-MIN's offset state
+    takes it, within 3 of its std, and the heading it navigates moves by a fraction of it (the GNSS velocity and the
+    gyros hold the heading's course; the heading readings' own noise is 5 mrad)."""
+
+    with Drive(ci_drive) as d:
+        assert load_inputs(d, CFG).gnss_heading is None  # off by default
+        inputs = load_inputs(d, CFG_HDT)
+    assert inputs.gnss_heading is not None and len(inputs.gnss_heading.t) >= 10
+    offset = np.deg2rad(0.5)
+    hdt = inputs.gnss_heading
+    turned = dataclasses.replace(inputs, gnss_heading=dataclasses.replace(hdt, z=hdt.z + offset))
+    base, off = run_sarmin(inputs, CFG_HDT), run_sarmin(turned, CFG_HDT)
+    i = off.state_names.index("offset.gnss_heading")
+    assert i == len(off.state_names) - 1
+    got = off.x[-1, i] - base.x[-1, i]
+    sd = float(np.sqrt(off.P[-1, i, i]))
+    moved = float(np.max(np.abs((off.x[:, m.PSI] - base.x[:, m.PSI] + np.pi) % (2 * np.pi) - np.pi)))
+    print(f"offset {np.rad2deg(got):.3f} deg (+- {np.rad2deg(sd):.3f}) for 0.5; the heading moved by "
+          f"{moved * 1e3:.3f} mrad at most")
+    # measured: 0.473 +- 0.234 deg, the heading moved 0.40 mrad at most (of 8.7)
+    assert abs(got - offset) < 3 * sd and sd < 0.6 * offset
+    assert moved < 0.1 * offset
+    # without a heading stream the filter has no offset state, and the navigation is the one before
+    bare = run_sarmin(dataclasses.replace(inputs, gnss_heading=None), CFG_HDT)
+    assert "offset.gnss_heading" not in bare.state_names and "gnss_heading" not in bare.updates
 
 
 def test_cli_navigate_all_methods(ci_drive: Path, ci_mcap, tmp_path: Path) -> None:  # noqa: ANN001
@@ -261,7 +328,6 @@ def test_the_full_vehicles_wheels_leave_the_scale_to_the_gnss_velocity_on_test3(
     With navigation.radar_height on, the radar's height follows its true one (0.37 m over the grade) within 1 cm RMS
     about a straight line and 5 cm RMS in all (measured 5.6 and 30 mm: the pitch bias's 0.8 mrad std over 80 m);
     off (the default), the radar stays at a fixed height and navigate says so."""
-    import dataclasses
 
     from autosar_cli.evaluate.alignment import fit_similarity_scale
     from autosar_cli.evaluate.trajectory_metrics import common_instants
@@ -332,7 +398,6 @@ def test_steering_does_not_bias_the_speed_on_test2(sim_dir: Path, tmp_path_facto
     """The steering angle corrects the yaw rate only: the wheels' scale is what wheels and GNSS make it,
     with or without the steering (test2 seed 1: -0.0654 % with it, -0.0639 % without; -0.0673 % both with independent
     GNSS fixes; when the steering also updated the speed, -0.0804 % with it)."""
-    import dataclasses
 
     sim, drive = _drive(sim_dir, tmp_path_factory, "test2")
     with Drive(drive) as d:
@@ -404,7 +469,6 @@ def test_sarmin_follows_the_gnss_slow_error_on_test1(sim_dir: Path, tmp_path_fac
 @pytest.mark.slow
 def test_sarmin_dead_reckons_through_a_10s_gnss_outage_on_test2(sim_dir: Path,
                                                                  tmp_path_factory: pytest.TempPathFactory) -> None:
-    import dataclasses
 
     sim, drive = _drive(sim_dir, tmp_path_factory, "test2")
     with Drive(drive) as d:
@@ -430,9 +494,8 @@ def test_sarmin_dead_reckons_through_a_10s_gnss_outage_on_test2(sim_dir: Path,
 def _without(inputs, sensor: str):  # noqa: ANN001, ANN202 - NavInputs in, NavInputs out
     """``inputs`` less one sensor: "steering", "gnss_velocity", "gnss_position" (all but the first fix, which
     places the start), "wheel_<i>" (its noise made 1 km/s: no information) or "gyro_<name>"."""
-    import dataclasses
 
-    if sensor in ("steering", "gnss_velocity"):
+    if sensor in ("steering", "gnss_velocity", "gnss_heading"):
         return dataclasses.replace(inputs, **{sensor: None})
     if sensor == "gnss_position":
         p = inputs.gnss_position
@@ -449,12 +512,13 @@ def _without(inputs, sensor: str):  # noqa: ANN001, ANN202 - NavInputs in, NavIn
 
 
 # sensor removed -> (state whose mean posterior standard deviation over the drive grows, least relative growth).
-# Measured on ci seed 7 (both engines alike): steering omega +11.5 %, wheels v +3.2 ... +3.3 %, gyros omega +7.8,
-# +9.2, +6.4, +1.8 %, GNSS velocity psi +299 %, GNSS positions (but the first) px +0.6 %. The limits: a third of that.
+# Measured on ci seed 7 (both engines alike): steering omega +11.3 %, wheels v +3.2 ... +3.3 %, gyros omega +7.5,
+# +8.9, +6.2, +1.7 %, GNSS velocity psi +207 %, GNSS positions (but the first) px +0.6 %, GNSS heading psi +2.4 % (its
+# offset takes the absolute heading; over 1.6 s it says little of the change). The limits: a third of that.
 _SENSOR_EFFECT = {"steering": ("omega", 0.038), "wheel_0": ("v", 0.011), "wheel_1": ("v", 0.011),
                   "wheel_2": ("v", 0.011), "wheel_3": ("v", 0.011), "gyro_imu_cog_a": ("omega", 0.026),
                   "gyro_imu_cog_b": ("omega", 0.03), "gyro_orc": ("omega", 0.021), "gyro_esc": ("omega", 0.006),
-                  "gnss_velocity": ("psi", 1.0), "gnss_position": ("px", 0.002)}
+                  "gnss_velocity": ("psi", 1.0), "gnss_position": ("px", 0.002), "gnss_heading": ("psi", 0.008)}
 
 
 @pytest.mark.parametrize("engine", ["numba", "numpy"])
@@ -464,16 +528,16 @@ def test_every_sensor_counts(ci_drive: Path, engine: str) -> None:
     covariance: on a 1.6 s drive the errors against truth are single draws and do not order reliably). The filterpy
     engine (2 s a run) takes the steering away only."""
     with Drive(ci_drive) as d:
-        inputs = load_inputs(d, CFG)
-    base = run_sarmin(inputs, CFG, engine=engine)
+        inputs = load_inputs(d, CFG_HDT)
+    base = run_sarmin(inputs, CFG_HDT, engine=engine)
     t_start = base.t[0]
     expected = {g.name: int(np.sum(g.t >= t_start)) for g in inputs.gyros}
     for name, meas in (("wheels", inputs.wheels), ("steering", inputs.steering), ("gnss_pos", inputs.gnss_position),
-                       ("gnss_vel", inputs.gnss_velocity)):
+                       ("gnss_vel", inputs.gnss_velocity), ("gnss_heading", inputs.gnss_heading)):
         expected[name] = int(np.sum(meas.t >= t_start))
     assert base.updates == expected and base.rejected == {}
     assert expected == {"imu_cog_a": 494, "imu_cog_b": 494, "orc": 98, "esc": 98, "wheels": 98, "steering": 98,
-                        "gnss_pos": 10, "gnss_vel": 10}
+                        "gnss_pos": 10, "gnss_vel": 10, "gnss_heading": 10}
 
     def mean_sd(sol: NavSolution, state: str) -> float:
         i = sol.state_names.index(state)
@@ -482,7 +546,7 @@ def test_every_sensor_counts(ci_drive: Path, engine: str) -> None:
     for sensor, (state, least) in _SENSOR_EFFECT.items():
         if engine == "numpy" and sensor != "steering":
             continue
-        worse = run_sarmin(_without(inputs, sensor), CFG, engine=engine)
+        worse = run_sarmin(_without(inputs, sensor), CFG_HDT, engine=engine)
         growth = mean_sd(worse, state) / mean_sd(base, state) - 1.0
         print(f"{engine}: without {sensor}, {state}'s posterior std {growth * 100:+.1f} %")
         assert growth > least, (sensor, state, growth)
@@ -509,9 +573,10 @@ def test_sarmin_accuracy_on_ci(ci_drive: Path, ci_mcap) -> None:  # noqa: ANN001
     assert abs(position - gnss_rms) < 0.04
 
 
-def _independent_ukf(inputs, cfg):  # noqa: ANN001, ANN202 - NavInputs, Config -> (t, x (K, 14))
+def _independent_ukf(inputs, cfg):  # noqa: ANN001, ANN202 - NavInputs, Config -> (t, x (K, 15))
     """A SAR-MIN filter set up here from the measurements alone, sharing nothing with run_sarmin but the physics:
-    filterpy's UKF over [px, py, v, psi, omega, 4 gyro biases, steering offset, 4 wheel scales] at the rear axle,
+    filterpy's UKF over [px, py, v, psi, omega, 4 gyro biases, steering offset, 4 wheel scales, the GNSS heading's
+    offset] at the rear axle,
     CTRV written out, its own start (first moving GNSS velocity fix, wheels, gyros), its own noise (config
     densities x dt), its own event list (one update per sample, in time order), the GNSS positions white, no
     gating, the steering's Schmidt update done by restoring the held block. Filtered, not smoothed."""
@@ -521,7 +586,8 @@ def _independent_ukf(inputs, cfg):  # noqa: ANN001, ANN202 - NavInputs, Config -
     L, tf, tr = veh.wheelbase_m, veh.track_front_m, veh.track_rear_m
     lx, ly = inputs.gnss_lever_m[0] + veh.cog_to_rear_axle_m, inputs.gnss_lever_m[1]
     ng = len(inputs.gyros)
-    n = 5 + ng + 1 + 4
+    hdt = inputs.gnss_heading is not None
+    n = 5 + ng + 1 + 4 + hdt
 
     def fx(x, dt):  # noqa: ANN001, ANN202
         px, py, v, psi, w = x[:5]
@@ -565,13 +631,15 @@ def _independent_ukf(inputs, cfg):  # noqa: ANN001, ANN202 - NavInputs, Config -
     ukf = UnscentedKalmanFilter(dim_x=n, dim_z=1, dt=0.0, hx=None, fx=fx, points=sp)
     ukf.x = x0
     psi_std = 3 * vel.sigma[0] / np.hypot(*vel.z[k0]) + 0.02  # the first velocity fix's direction, 3 sigma
+    # the last state: the GNSS heading's constant offset
     ukf.P = np.diag([pos.sigma[0] ** 2, pos.sigma[0] ** 2, 0.1**2, psi_std**2, 0.02**2,
                      *np.square(inputs.gyro_bias_std), max(inputs.steering_offset_std, 1e-4) ** 2,
-                     *[max(inputs.wheel_scale_std, 1e-4) ** 2] * 4])
+                     *[max(inputs.wheel_scale_std, 1e-4) ** 2] * 4, *[inputs.gnss_heading_offset_std**2] * hdt])
     q = np.array([nav.position_noise_m**2, nav.position_noise_m**2, nav.speed_noise_mps2**2, 1e-8,
-                  nav.yaw_rate_noise_radps2**2, *np.square(inputs.gyro_bias_walk), 1e-12, *[1e-12] * 4])
-    # simultaneous samples: gyros, wheels, steering, GNSS position, GNSS velocity (in that order)
-    meas = {"wheels": inputs.wheels, "steer": inputs.steering, "pos": pos, "vel": vel}
+                  nav.yaw_rate_noise_radps2**2, *np.square(inputs.gyro_bias_walk), 1e-12, *[1e-12] * 4, *[1e-12] * hdt])
+    # simultaneous samples: gyros, wheels, steering, GNSS position, GNSS velocity, GNSS heading (in that order)
+    meas = {"wheels": inputs.wheels, "steer": inputs.steering, "pos": pos, "vel": vel,
+            **({"heading": inputs.gnss_heading} if hdt else {})}
     k_us = cfg.vehicle.understeer_gradient_rad_per_mps2
     events = sorted([(float(t), i, f"g{i}", j) for i, g in enumerate(inputs.gyros) for j, t in enumerate(g.t)]
                     + [(float(t), ng + k, name, j) for k, (name, m) in enumerate(meas.items())
@@ -610,6 +678,9 @@ def _independent_ukf(inputs, cfg):  # noqa: ANN001, ANN202 - NavInputs, Config -
             ukf.P = ukf.P - K @ Pxz.T - Pxz @ K.T + K @ S @ K.T
         elif name == "pos":
             ukf.update(m.z[j], R=R, hx=antenna)
+        elif name == "heading":  # the heading's innovation on the circle
+            zp = ukf.x[3] + ukf.x[n - 1]
+            ukf.update(zp + (m.z[j] - zp + np.pi) % (2 * np.pi) - np.pi, R=R, hx=lambda x: np.array([x[3] + x[n - 1]]))
         else:
             ukf.update(m.z[j], R=R, hx=antenna_velocity)
         ts.append(t_now)
@@ -618,11 +689,11 @@ def _independent_ukf(inputs, cfg):  # noqa: ANN001, ANN202 - NavInputs, Config -
 
 
 def test_sarmin_equals_a_filter_set_up_independently(ci_drive: Path) -> None:
-    """The product's filter (white GNSS model, filtered) against _independent_ukf on the same measurements."""
-    import dataclasses
-
+    """The product's filter (white GNSS model, the GNSS heading fused, filtered) against _independent_ukf on the same
+    measurements."""
     # with the understeer term on (the car's 1.3 deg/g), so that both filters' steering models are compared whole
-    cfg = dataclasses.replace(CFG, navigation=dataclasses.replace(CFG.navigation, gnss_error_model="white"),
+    # the receiver's heading fused too (CFG_HDT), so that its update is compared as well
+    cfg = dataclasses.replace(CFG_HDT, navigation=dataclasses.replace(CFG_HDT.navigation, gnss_error_model="white"),
                               vehicle=dataclasses.replace(CFG.vehicle, understeer_gradient_rad_per_mps2=0.00233))
     with Drive(ci_drive) as d:
         inputs = load_inputs(d, cfg)
@@ -647,7 +718,6 @@ def test_steering_is_left_out_only_where_the_fit_shows_another_steering(ci_drive
     """The ci drive is kinematic: with the vehicle's K (0) the fit shows nothing and SAR-MIN's second pass uses the
     steering; told the car's K is 0.5 (absurd), the fitted K (~0) differs by many sigma and the first pass, without
     the steering, is the solution."""
-    import dataclasses
 
     from autosar_cli.nav.navigate import sarmin_with_fits
 

@@ -56,6 +56,8 @@ class NavInputs:
     gnss_position: Measurements | None = None  # antenna ENU (x, y)
     gnss_velocity: Measurements | None = None  # antenna ENU (vx, vy)
     gnss_climb: Measurements | None = None  # antenna's up velocity (m/s), where the receiver gives one
+    gnss_heading: Measurements | None = None  # the receiver's heading of the body (rad, ENU), where it gives one
+    gnss_heading_offset_std: float = 0.0  # prior std of that heading's constant offset (rad)
     gnss_lever_m: tuple[float, float, float] = (0.0, 0.0, 0.0)  # antenna in the body frame (from the CoG)
     attitude_imu: ImuSamples | None = None  # the 6-DoF IMU of navigation.attitude_imu, where the drive has it
     gyro_bias_std: list[float] = field(default_factory=list)  # prior std of each gyro's bias (rad/s)
@@ -153,6 +155,14 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
             ok = np.isfinite(up)
             out.gnss_climb = Measurements(nav.gnss, rel(vel["t_ns"][ok], nav.gnss), up[ok, None],
                                           np.array([up_std]))
+    if nav.gnss_heading and "nmea_heading" in gnss:
+        hdt = _columns(gnss["nmea_heading"], ("t_ns", "heading_rad"))
+        ok = np.isfinite(hdt["heading_rad"])
+        if ok.any():
+            std = np.deg2rad(errors.heading_std_deg if errors and errors.heading_std_deg > 0 else 0.5)
+            out.gnss_heading = Measurements(nav.gnss, rel(hdt["t_ns"][ok], nav.gnss), hdt["heading_rad"][ok, None],
+                                            np.array([std]))
+            out.gnss_heading_offset_std = float(np.deg2rad(nav.gnss_heading_offset_std_deg))
     imu_sources = drive.imu_sources()
     for name in nav.gyros:
         s = config.sensors.get(name)

@@ -146,6 +146,12 @@ def road_wheel_angle(X: Array, wheelbase_m: float, steer_bias_index: int, unders
             + X[:, steer_bias_index])[:, None]
 
 
+def gnss_heading(X: Array, offset_index: int) -> Array:
+    """The body's heading as a GNSS receiver gives it (rad, ENU): the heading plus the constant offset state
+    ``X[:, offset_index]`` (the antennas' baseline against the body's axis); (m, 1)."""
+    return (X[:, PSI] + X[:, offset_index])[:, None]
+
+
 def gyro(X: Array, bias_index: int) -> Array:
     """Yaw rate measured by a gyro with its own bias (rad/s); (m, 1)."""
     return (X[:, OMEGA] + X[:, bias_index])[:, None]

@@ -17,6 +17,7 @@ from scipy.special import chdtri
 from autosar_cli.config import Config
 
 from . import models as m
+from .frames import wrap_angle
 from .inputs import Measurements, NavInputError, NavInputs
 
 Array = NDArray[np.float64]
@@ -97,12 +98,14 @@ def models_gnss_error(inputs: NavInputs) -> bool:
 def _state_names(inputs: NavInputs) -> list[str]:
     return (["px", "py", "v", "psi", "omega"] + [f"bias.{g.name}" for g in inputs.gyros] + ["bias.steering"]
             + [f"scale.wheel_{w}" for w in ("fl", "fr", "rl", "rr")]
-            + (["gnss_error.east", "gnss_error.north"] if models_gnss_error(inputs) else []))
+            + (["gnss_error.east", "gnss_error.north"] if models_gnss_error(inputs) else [])
+            + (["offset.gnss_heading"] if inputs.gnss_heading is not None else []))
 
 
 def _initial_state(inputs: NavInputs, config: Config, n: int, gnss_i: int) -> tuple[float, Array, Array]:
     """Start state from the first data: position and heading from GNSS, speed from wheels, yaw rate from gyros;
-    ``gnss_i``: first of the two GNSS error states (-1: none)."""
+    ``gnss_i``: first of the two GNSS error states (-1: none). The GNSS heading's offset, where the filter has
+    one, is the last state."""
     pos = inputs.gnss_position
     assert pos is not None
     vel = inputs.gnss_velocity
@@ -143,6 +146,8 @@ def _initial_state(inputs: NavInputs, config: Config, n: int, gnss_i: int) -> tu
     diag += [max(inputs.wheel_scale_std, 1e-4) ** 2] * 4
     if gnss_i >= 0:
         diag += [inputs.gnss_error_std_m**2] * 2
+    if inputs.gnss_heading is not None:
+        diag += [inputs.gnss_heading_offset_std**2]
     P0[np.diag_indices(n)] = diag
     if gnss_i >= 0:  # the start is the fix minus its error: they are anti-correlated
         e, var = gnss_i, inputs.gnss_error_std_m**2
@@ -173,6 +178,7 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
     gnss_i = scale_i + 4 if models_gnss_error(inputs) else -1  # the GNSS position's slow error (east, north)
     names = _state_names(inputs)
     n = len(names)
+    heading_i = n - 1 if inputs.gnss_heading is not None else -1  # the GNSS heading's constant offset
     t_start, x0, P0 = _initial_state(inputs, config, n, gnss_i)
 
     q = np.zeros(n)
@@ -183,6 +189,8 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
     q[m.N_KINEMATIC:m.N_KINEMATIC + ng] = np.square(inputs.gyro_bias_walk)
     q[steer_i] = 1e-12
     q[scale_i:scale_i + 4] = 1e-12
+    if heading_i >= 0:
+        q[heading_i] = 1e-12
     beta = np.zeros(n)  # decay rates (1/s) of the Gauss-Markov states
     if gnss_i >= 0:
         beta[gnss_i:gnss_i + 2] = 1.0 / inputs.gnss_error_time_s
@@ -191,7 +199,7 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
     # One event list: (time, sensor kind, sample index), in time order.
     sources: list[tuple[str, Measurements]] = [(f"gyro{i}", g) for i, g in enumerate(inputs.gyros)]
     for kind, meas in (("wheels", inputs.wheels), ("steering", inputs.steering), ("gnss_pos", inputs.gnss_position),
-                       ("gnss_vel", inputs.gnss_velocity)):
+                       ("gnss_vel", inputs.gnss_velocity), ("gnss_heading", inputs.gnss_heading)):
         if meas is not None:
             sources.append((kind, meas))
     times = np.concatenate([s.t for _, s in sources])
@@ -204,7 +212,7 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
     gnss_lever = gnss_lever_rear(inputs, config)
     if engine == "numba":
         return _run_kernel(inputs, config, smooth, sources, times, kinds, index, order, t_start, x0, P0, q,
-                           beta, names, steer_i, scale_i, gnss_i, gnss_lever, smoothed_covariance)
+                           beta, names, steer_i, scale_i, gnss_i, heading_i, gnss_lever, smoothed_covariance)
     from .ukf import FilterHistory, VectorUKF, rts_smooth  # filterpy (and its scipy.stats): ~0.4 s to import
 
     slip = veh.rear_slip_gain_rad_per_mps2
@@ -260,6 +268,11 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
             ok = ukf.update(z, lambda X: m.gnss_position(X, gnss_lever, gnss_i), np.diag(meas.sigma**2), gates[2])
         elif kind == "gnss_vel":
             ok = ukf.update(z, lambda X: m.point_velocity(X, gnss_lever, slip), np.diag(meas.sigma**2), gates[2])
+        elif kind == "gnss_heading":
+            # the heading nearest the prediction: the innovation on the circle
+            zp = ukf.x[m.PSI] + ukf.x[heading_i]
+            ok = ukf.update(zp + wrap_angle(z - zp), lambda X: m.gnss_heading(X, heading_i),
+                            np.diag(meas.sigma**2), gates[1])
         key = kind if not kind.startswith("gyro") else inputs.gyros[int(kind[4:])].name
         if ok is False:
             rejected[key] = rejected.get(key, 0) + 1
@@ -283,13 +296,13 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
 def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[tuple[str, Measurements]],
                 times: Array, kinds: NDArray[np.int32], index: NDArray[np.int64], order: NDArray[np.int64],
                 t_start: float, x0: Array, P0: Array, q: Array, beta: Array, names: list[str], steer_i: int,
-                scale_i: int, gnss_i: int, gnss_lever: tuple[float, float], smoothed_covariance: bool
-                ) -> NavSolution:
+                scale_i: int, gnss_i: int, heading_i: int, gnss_lever: tuple[float, float],
+                smoothed_covariance: bool) -> NavSolution:
     from . import sarmin_kernel as kern
 
     nav, veh = config.navigation, config.vehicle
     ng = len(inputs.gyros)
-    code = {"wheels": ng, "steering": ng + 1, "gnss_pos": ng + 2, "gnss_vel": ng + 3}
+    code = {"wheels": ng, "steering": ng + 1, "gnss_pos": ng + 2, "gnss_vel": ng + 3, "gnss_heading": ng + 4}
     src_code = np.array([int(k[4:]) if k.startswith("gyro") else code[k] for k, _ in sources], dtype=np.int64)
     E = len(order)
     zs = np.zeros((E, 4))
@@ -313,7 +326,7 @@ def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[t
     # wsum: the exact sum of filterpy's weights (see the kernel's docstring).
     T, X, PP, XP, FF, PK, DT, used, rejected = kern.run_filter(
         times[order], ev_kind, zs, sig, t_start, x0, P0, q, beta, wm, wc, lam, ng, geo, scale_i, steer_i, gnss_i,
-        nav.steering_min_speed_mps, gates, nav.max_step_s, math.fsum(wm), steer_hold)
+        heading_i, nav.steering_min_speed_mps, gates, nav.max_step_s, math.fsum(wm), steer_hold)
     filtered = None
     if not smooth:
         xs, Ps = X, PP
@@ -322,7 +335,7 @@ def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[t
     else:
         filtered = _FilterHistory(X.copy(), PP, XP, FF, PK, DT, q, beta)
         xs, Ps = kern.smooth_means(X, PP, XP, FF, PK, DT, q, beta), PP
-    label = [g.name for g in inputs.gyros] + ["wheels", "steering", "gnss_pos", "gnss_vel"]
+    label = [g.name for g in inputs.gyros] + ["wheels", "steering", "gnss_pos", "gnss_vel", "gnss_heading"]
     # One state per distinct instant already (the kernel refines a state for measurements at its instant).
     return NavSolution(T, xs, Ps, names,
                        {label[i]: int(v) for i, v in enumerate(rejected) if v},
