@@ -112,6 +112,18 @@ def test_chi2_gate_is_scipy_stats_quantile(dof: int) -> None:
     assert chi2_gate(0.9999, 2) == pytest.approx(-2.0 * math.log(1e-4), rel=1e-12)  # closed form for 2 dof
 
 
+def _assert_filterpys(x: np.ndarray, P: np.ndarray, ukf: VectorUKF) -> None:
+    """The kernel's state ``x`` and covariance ``P`` are filterpy's (``ukf``'s) to its rounding: its mean sums weights
+    of ~5e6 (both signs) times sigma points, ~|Wm_0| eps |x| (3e-8 m at 31 m); the covariances carry the rounding of
+    sigma points x +- L relative to L (~1e-10)."""
+    d = x - ukf.x
+    d[m.PSI] = (d[m.PSI] + np.pi) % (2 * np.pi) - np.pi
+    np.testing.assert_allclose(d[:2], 0.0, atol=5e-8)
+    np.testing.assert_allclose(d[2:], 0.0, atol=5e-9)
+    sd = np.sqrt(np.diag(ukf.P))
+    np.testing.assert_allclose((P - ukf.P) / np.outer(sd, sd), 0.0, atol=1e-9)
+
+
 @pytest.mark.parametrize(("dt", "gauss_markov", "slip"), [(2e-3, False, 0.0), (0.05, False, 0.0), (2e-3, True, 0.0),
                                                           (0.05, True, 0.0), (0.05, False, 0.01)])
 def test_partitioned_prediction_is_the_full_unscented_transform(dt: float, gauss_markov: bool, slip: float) -> None:
@@ -139,14 +151,8 @@ def test_partitioned_prediction_is_the_full_unscented_transform(dt: float, gauss
                   np.empty(5), np.empty((11, 5)), np.empty((11, 5)), np.empty((11, 5)), F, Pkk, np.empty(n),
                   np.empty(n), slip)
     assert -np.pi <= xn[m.PSI] < -3.1  # wrapped
-    d = xn - ukf.x
-    d[m.PSI] = (d[m.PSI] + np.pi) % (2 * np.pi) - np.pi
-    # filterpy's mean sums weights of ~5e6 (both signs) times sigma points: its rounding is ~|Wm_0| eps |x|
-    # (3e-8 m at 31 m); the covariances carry the rounding of sigma points x +- L relative to L (~1e-10).
-    np.testing.assert_allclose(d[:2], 0.0, atol=5e-8)
-    np.testing.assert_allclose(d[2:], 0.0, atol=5e-9)
+    _assert_filterpys(xn, Pn, ukf)
     sd_pred = np.sqrt(np.diag(ukf.P))
-    np.testing.assert_allclose((Pn - ukf.P) / np.outer(sd_pred, sd_pred), 0.0, atol=1e-9)
     np.testing.assert_array_equal(Pn, Pn.T)
     np.testing.assert_array_equal(Pn[:5, :5], Pkk)
     Phi = np.diag(np.exp(-beta * dt))
@@ -174,13 +180,7 @@ def test_the_gnss_heading_update_is_the_unscented_one_across_plus_minus_pi() -> 
                       lambda X: m.gnss_heading(X, n - 1), np.diag([sigma**2]), 1e6)
     xk, Pk = x.copy(), P.copy()
     assert kern._update_sum(xk, Pk, z, sigma, m.PSI, n - 1, True, 1e6, np.empty(n))
-    d = xk - ukf.x
-    d[m.PSI] = (d[m.PSI] + np.pi) % (2 * np.pi) - np.pi
-    # filterpy's weighted sums carry ~|Wm_0| eps |x| of rounding (as in the prediction's test above)
-    np.testing.assert_allclose(d[:2], 0.0, atol=5e-8)
-    np.testing.assert_allclose(d[2:], 0.0, atol=5e-9)
-    sd = np.sqrt(np.diag(ukf.P))
-    np.testing.assert_allclose((Pk - ukf.P) / np.outer(sd, sd), 0.0, atol=1e-9)
+    _assert_filterpys(xk, Pk, ukf)
     assert -np.pi <= xk[m.PSI] < -np.pi + 1e-3 or np.pi - 1e-3 < xk[m.PSI] <= np.pi
     moved = (xk[m.PSI] - x[m.PSI] + np.pi) % (2 * np.pi) - np.pi
     assert 0.0 < moved < 5e-4  # towards the reading, by the gain's share of 0.5 mrad
