@@ -289,7 +289,8 @@ def group_key(row: dict[str, Any]) -> str:
             + ("" if row.get("fits", True) else " [no fits]") + ("" if row.get("attitude", True) else " [planar]")
             + (" [car]" if row.get("car") else "") + (" [sim]" if row.get("simulation") else "")
             + (" [sensors]" if row.get("sensors") else "")
-            + (f" [{row['navigation']}]" if row.get("navigation") else ""))
+            + (f" [{row['navigation']}]" if row.get("navigation") else "")
+            + (f" [{row['label']}]" if row.get("label") else ""))
 
 
 def main() -> None:
@@ -328,6 +329,8 @@ def main() -> None:
     ap.add_argument("--keep", action="store_true", help="keep every drive's log and comparison")
     ap.add_argument("--resume", action="store_true", help="keep --output's rows and skip the drives already in it")
     ap.add_argument("--output", type=Path, default=RESULTS / "paper.json")
+    ap.add_argument("--label", default="",
+                    help="a summary group of their own for these rows, e.g. the product's state they measure")
     args = ap.parse_args()
     methods = [m for m in args.methods.split(",") if m]
     methods += [m for m in ("sar-min", "truth") if m not in methods]
@@ -340,12 +343,13 @@ def main() -> None:
     variant = {"dynamics": args.dynamics, "components": args.components,
                "understeer_gradient": args.understeer_gradient, "rear_slip_gain": args.rear_slip_gain,
                "fits": not args.no_fits, "attitude": not args.planar, "radar_height": args.radar_height,
-               "car": args.car, "simulation": args.simulation, "sensors": args.sensors, "navigation": args.navigation}
+               "car": args.car, "simulation": args.simulation, "sensors": args.sensors, "navigation": args.navigation,
+               "label": args.label or None}
 
     def drive_key(r: dict[str, Any]) -> tuple[Any, ...]:
         return (r["scenario"], r["seed"], r.get("dynamics"), r.get("components"), r.get("understeer_gradient"),
                 r.get("rear_slip_gain"), r.get("fits", True), r.get("attitude", True), r.get("radar_height", False),
-                r.get("car"), r.get("simulation"), r.get("sensors"), r.get("navigation"))
+                r.get("car"), r.get("simulation"), r.get("sensors"), r.get("navigation"), r.get("label"))
 
     done = {drive_key(r) for r in rows}
 
@@ -412,6 +416,8 @@ def main() -> None:
                 row |= {k: getattr(args, k) for k in OTHER_VEHICLE if getattr(args, k)}
                 if args.navigation:
                     row["navigation"] = args.navigation
+                if args.label:
+                    row["label"] = args.label
                 row["sarmin_track_scale_pct"] = pct(track_scale(out))
                 if not other_vehicle:  # (it rebuilds the config's car's motion)
                     gnss_scale, gnss_se = gnss_velocity_scale(scenario, seed)
