@@ -300,8 +300,8 @@ class NavigationConfig:
     # the GNSS receiver's own heading (NMEA HDT: a dual-antenna or INS heading of the body), where the drive has
     # one, as a measurement of the heading plus a constant offset (the antennas' baseline against the body's axis,
     # prior std gnss_heading_offset_std_deg); its noise is the sensor table's heading_std_deg. Off by default: at the
-    # simulated receiver's 0.3 deg urban's autofocused images went within 2 cm on 10 of 16 drives against 9, and
-    # test1-3 and the kinematic drives are not measured with it (docs/NAVIGATION.md)
+    # simulated receiver's 0.3 deg urban's autofocused images went within 2 cm on 10 of 16 drives against 9 (test1-3
+    # 30 of 30 either way), and the kinematic drives are not measured with it (docs/NAVIGATION.md)
     gnss_heading: bool = False
     gnss_heading_offset_std_deg: float = 1.0
     steering_min_speed_mps: float = 1.0  # below it the steering model atan(L omega / v) is not used
