@@ -386,6 +386,11 @@ def navigate(
             gains = traj.info["wheel_radii"]["applied"]
             out.print("wheel speeds divided by their fitted gains (% per m/s^2): "
                       + ", ".join(f"{k} {100 * v:.3g}" for k, v in gains.items()))
+        heading = traj.info.get("gnss_heading")
+        if heading:
+            out.print(f"GNSS heading fused ({heading['samples']} samples), its offset {heading['offset_deg']:+.3f} +- "
+                      f"{heading['offset_std_deg']:.3f} deg" if heading["applied"] else
+                      f"GNSS heading not fused: {heading['reason']}")
         attitude = traj.info.get("attitude", {})
         if attitude.get("applied"):
             height = attitude.get("height", {})

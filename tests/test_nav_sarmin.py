@@ -219,6 +219,24 @@ def test_a_constant_offset_of_the_gnss_heading_goes_into_its_offset_state(ci_dri
     assert "offset.gnss_heading" not in bare.state_names and "gnss_heading" not in bare.updates
 
 
+def test_navigate_says_what_became_of_the_gnss_heading_it_was_asked_for(ci_drive: Path, tmp_path: Path) -> None:
+    """With navigation.gnss_heading on, the trajectory's info (and navigate's output) says how many heading samples
+    were fused and the offset found; on a drive without the stream, that none was and why, rather than nothing.
+    Off, it says nothing of it."""
+    import shutil
+
+    fused = navigate(ci_drive, "sar-min", CFG_HDT).info["gnss_heading"]
+    assert fused["applied"] and fused["samples"] == 10 and fused["rejected"] == 0
+    assert abs(fused["offset_deg"]) < 3 * fused["offset_std_deg"]  # the simulated receiver has none
+    bare = tmp_path / "drive.h5"
+    shutil.copy(ci_drive, bare)
+    with h5py.File(bare, "r+") as f:
+        del f["gnss/gnss_cog/nmea_heading"]
+    missing = navigate(bare, "sar-min", CFG_HDT).info["gnss_heading"]
+    assert missing == {"applied": False, "reason": "the drive has no NMEA heading (gnss/gnss_cog/nmea_heading)"}
+    assert "gnss_heading" not in navigate(ci_drive, "sar-min", CFG).info
+
+
 def test_cli_navigate_all_methods(ci_drive: Path, ci_mcap, tmp_path: Path) -> None:  # noqa: ANN001
     runner = CliRunner()
     lengths = {}

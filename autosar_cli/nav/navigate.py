@@ -49,7 +49,7 @@ from autosar_cli.types import MotionCorrection
 METHODS = ("sar-min", "ins", "gnss", "none", "truth")
 #: what a trajectory's info reports of its navigation (navigate --json, run.json): updates and what was fitted
 REPORTED_INFO = ("updates", "rejected", "gnss_noise", "understeer", "rear_slip", "wheel_lag", "wheel_radii",
-                 "attitude", "wheel_gaps")
+                 "attitude", "wheel_gaps", "gnss_heading")
 SIGNIFICANT = 3.0  # a fitted lag or gradient is applied where it differs from the default by more stds than this
 # ... and by more than these: a tenth of a sedan's understeer gradient (rad per m/s^2), 5 ms of yaw lag, 1 cm of
 # wheel-speed lag distance, 0.1 % per m/s^2 of slip gain (at urban's 1 m/s^2 RMS, 1 mm per metre), 0.05 % per m/s^2
@@ -155,6 +155,19 @@ def wheel_speeds_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
                   f"{lag.prior_m:g} m, which is left out")
     return moved, replace(lag, applied=True, reason=source, restart_rows_dropped=dropped,
                           unread_rows_dropped=unread).to_dict(), radii_info
+
+
+def gnss_heading_info(sol: NavSolution, config: Config) -> dict[str, object]:
+    """What became of the receiver's heading that ``navigation.gnss_heading`` asked for: the samples fused and the
+    offset SAR-MIN found (deg, and its std), or why none was fused."""
+    if "offset.gnss_heading" not in sol.state_names:
+        return {"applied": False,
+                "reason": f"the drive has no NMEA heading (gnss/{config.navigation.gnss}/nmea_heading)"}
+    i = sol.state_names.index("offset.gnss_heading")
+    return {"applied": True, "samples": int(sol.updates.get("gnss_heading", 0)),
+            "rejected": int(sol.rejected.get("gnss_heading", 0)),
+            "offset_deg": float(np.rad2deg(sol.x[-1, i])),
+            "offset_std_deg": float(np.rad2deg(np.sqrt(sol.P[-1, i, i])))}
 
 
 def body_attitude(inputs: NavInputs, config: Config) -> tuple[BodyAttitude | None, str]:
@@ -428,6 +441,8 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                                 "wheel_radii": wheel_radii, "gnss_noise": gnss_noise,
                                 "wheel_gaps": [g.to_dict() for g in wheel_gaps(inputs.wheels, inputs.gnss_velocity,
                                                                                inputs.t0_ns)]})
+        if config.navigation.gnss_heading:
+            traj.info["gnss_heading"] = gnss_heading_info(sol, config)
         traj = with_attitude(traj, attitude, attitude_reason, inputs.t0_ns, config)
     elif method == "ins":
         from autosar_cli.nav.ins import run_ins
