@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import sys
 import tempfile
 import time
@@ -32,7 +31,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_paper import RESULTS, cli, config_copy  # noqa: E402
+from bench_paper import RESULTS, cli, config_copy, variant_tag  # noqa: E402
 
 WITHIN_CM, WITHIN_DB = 2.0, 1.0
 TRACKS = ("sar-min", "sar-min+af", "slow", "slow+af")
@@ -131,7 +130,7 @@ def drive_row(scenario: str, seed: int, keep: Path | None, passes: Any = None, p
             cli("ingest", str(log), "-o", str(drive), "--overwrite")
             cli("navigate", str(drive), "-o", str(nav), "--overwrite")
         if navigation:
-            nav = work / f"sarmin_nav_{re.sub(r'[^A-Za-z0-9.]+', '_', navigation)}.h5"
+            nav = work / f"sarmin_nav_{variant_tag(navigation)}.h5"
             if not nav.exists():
                 cli("navigate", str(drive), "-o", str(nav), "--config",
                     str(config_copy(None, None, work, navigation=navigation)), "--overwrite")

@@ -81,6 +81,11 @@ def cli(*args: str) -> subprocess.CompletedProcess[str]:
 OTHER_VEHICLE = ("car", "simulation", "sensors")
 
 
+def variant_tag(options: str) -> str:
+    """``--car``/``--navigation``-style options (``key=value,...``) as a file-name part."""
+    return re.sub(r"[^A-Za-z0-9.]+", "_", options)
+
+
 def config_copy(components: str | None, understeer: float | None, work: Path, rear_slip: float | None = None,
                 fits: bool = True, attitude: bool = True, radar_height: bool = False, car: str | None = None,
                 simulation: str | None = None, sensors: str | None = None, navigation: str | None = None,
@@ -135,10 +140,9 @@ def config_copy(components: str | None, understeer: float | None, work: Path, re
             text = re.sub(rf"^{key} = true", f"{key} = false", text, count=1, flags=re.MULTILINE)
     tag = (components.replace(",", "+") or "none") if components is not None else "all"
     variant = (("" if fits else "_nofits") + ("" if attitude else "_planar") + ("_height" if radar_height else "")
-               + ("_car" + re.sub(r"[^A-Za-z0-9.]+", "_", car) if car else "")
-               + ("_sim" + re.sub(r"[^A-Za-z0-9.]+", "_", simulation) if simulation else "")
-               + ("_sensors" + re.sub(r"[^A-Za-z0-9.]+", "_", sensors) if sensors else "")
-               + ("_nav" + re.sub(r"[^A-Za-z0-9.]+", "_", navigation) if navigation else ""))
+               + ("_car" + variant_tag(car) if car else "") + ("_sim" + variant_tag(simulation) if simulation else "")
+               + ("_sensors" + variant_tag(sensors) if sensors else "")
+               + ("_nav" + variant_tag(navigation) if navigation else ""))
     name = f"config_{tag}_us{understeer}_slip{rear_slip}{variant}"
     if len(name) > 200:  # a file name has at most 255 bytes
         name = f"config_{hashlib.sha256(name.encode()).hexdigest()[:16]}"

@@ -232,8 +232,14 @@ def test_navigate_says_what_became_of_the_gnss_heading_it_was_asked_for(ci_drive
     shutil.copy(ci_drive, bare)
     with h5py.File(bare, "r+") as f:
         del f["gnss/gnss_cog/nmea_heading"]
+    empty = tmp_path / "empty.h5"
+    shutil.copy(ci_drive, empty)
+    with h5py.File(empty, "r+") as f:
+        f["gnss/gnss_cog/nmea_heading/heading_rad"][...] = np.nan  # a receiver that sends HDT with an empty field
     missing = navigate(bare, "sar-min", CFG_HDT).info["gnss_heading"]
     assert missing == {"applied": False, "reason": "the drive has no NMEA heading (gnss/gnss_cog/nmea_heading)"}
+    assert navigate(empty, "sar-min", CFG_HDT).info["gnss_heading"] == {
+        "applied": False, "reason": "gnss/gnss_cog/nmea_heading has no valid heading (all 10 samples are NaN)"}
     assert "gnss_heading" not in navigate(ci_drive, "sar-min", CFG).info
 
 

@@ -58,6 +58,7 @@ class NavInputs:
     gnss_climb: Measurements | None = None  # antenna's up velocity (m/s), where the receiver gives one
     gnss_heading: Measurements | None = None  # the receiver's heading of the body (rad, ENU), where it gives one
     gnss_heading_offset_std: float = 0.0  # prior std of that heading's constant offset (rad)
+    gnss_heading_missing: str = ""  # why there is no such heading, where navigation.gnss_heading asked for one
     gnss_lever_m: tuple[float, float, float] = (0.0, 0.0, 0.0)  # antenna in the body frame (from the CoG)
     attitude_imu: ImuSamples | None = None  # the 6-DoF IMU of navigation.attitude_imu, where the drive has it
     gyro_bias_std: list[float] = field(default_factory=list)  # prior std of each gyro's bias (rad/s)
@@ -155,10 +156,15 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
             ok = np.isfinite(up)
             out.gnss_climb = Measurements(nav.gnss, rel(vel["t_ns"][ok], nav.gnss), up[ok, None],
                                           np.array([up_std]))
-    if nav.gnss_heading and "nmea_heading" in gnss:
+    if nav.gnss_heading and "nmea_heading" not in gnss:
+        out.gnss_heading_missing = f"the drive has no NMEA heading (gnss/{nav.gnss}/nmea_heading)"
+    elif nav.gnss_heading:
         hdt = _columns(gnss["nmea_heading"], ("t_ns", "heading_rad"))
         ok = np.isfinite(hdt["heading_rad"])
-        if ok.any():
+        if not ok.any():
+            out.gnss_heading_missing = (f"gnss/{nav.gnss}/nmea_heading has no valid heading "
+                                        f"(all {len(ok)} samples are NaN)")
+        else:
             std = np.deg2rad(errors.heading_std_deg if errors and errors.heading_std_deg > 0 else 0.5)
             out.gnss_heading = Measurements(nav.gnss, rel(hdt["t_ns"][ok], nav.gnss), hdt["heading_rad"][ok, None],
                                             np.array([std]))

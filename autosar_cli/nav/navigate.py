@@ -157,12 +157,11 @@ def wheel_speeds_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
                           unread_rows_dropped=unread).to_dict(), radii_info
 
 
-def gnss_heading_info(sol: NavSolution, config: Config) -> dict[str, object]:
+def gnss_heading_info(sol: NavSolution, inputs: NavInputs) -> dict[str, object]:
     """What became of the receiver's heading that ``navigation.gnss_heading`` asked for: the samples fused and the
     offset SAR-MIN found (deg, and its std), or why none was fused."""
     if "offset.gnss_heading" not in sol.state_names:
-        return {"applied": False,
-                "reason": f"the drive has no NMEA heading (gnss/{config.navigation.gnss}/nmea_heading)"}
+        return {"applied": False, "reason": inputs.gnss_heading_missing}
     i = sol.state_names.index("offset.gnss_heading")
     return {"applied": True, "samples": int(sol.updates.get("gnss_heading", 0)),
             "rejected": int(sol.rejected.get("gnss_heading", 0)),
@@ -442,7 +441,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                                 "wheel_gaps": [g.to_dict() for g in wheel_gaps(inputs.wheels, inputs.gnss_velocity,
                                                                                inputs.t0_ns)]})
         if config.navigation.gnss_heading:
-            traj.info["gnss_heading"] = gnss_heading_info(sol, config)
+            traj.info["gnss_heading"] = gnss_heading_info(sol, inputs)
         traj = with_attitude(traj, attitude, attitude_reason, inputs.t0_ns, config)
     elif method == "ins":
         from autosar_cli.nav.ins import run_ins

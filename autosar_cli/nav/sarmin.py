@@ -178,7 +178,8 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
     gnss_i = scale_i + 4 if models_gnss_error(inputs) else -1  # the GNSS position's slow error (east, north)
     names = _state_names(inputs)
     n = len(names)
-    heading_i = n - 1 if inputs.gnss_heading is not None else -1  # the GNSS heading's constant offset
+    # the GNSS heading's constant offset
+    heading_i = names.index("offset.gnss_heading") if inputs.gnss_heading is not None else -1
     t_start, x0, P0 = _initial_state(inputs, config, n, gnss_i)
 
     q = np.zeros(n)
@@ -302,7 +303,8 @@ def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[t
 
     nav, veh = config.navigation, config.vehicle
     ng = len(inputs.gyros)
-    code = {"wheels": ng, "steering": ng + 1, "gnss_pos": ng + 2, "gnss_vel": ng + 3, "gnss_heading": ng + 4}
+    # the kernel's event kinds (its module docstring): the gyros 0 .. ng-1, then these
+    code = {k: ng + i for i, k in enumerate(("wheels", "steering", "gnss_pos", "gnss_vel", "gnss_heading"))}
     src_code = np.array([int(k[4:]) if k.startswith("gyro") else code[k] for k, _ in sources], dtype=np.int64)
     E = len(order)
     zs = np.zeros((E, 4))
@@ -335,7 +337,7 @@ def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[t
     else:
         filtered = _FilterHistory(X.copy(), PP, XP, FF, PK, DT, q, beta)
         xs, Ps = kern.smooth_means(X, PP, XP, FF, PK, DT, q, beta), PP
-    label = [g.name for g in inputs.gyros] + ["wheels", "steering", "gnss_pos", "gnss_vel", "gnss_heading"]
+    label = [g.name for g in inputs.gyros] + list(code)
     # One state per distinct instant already (the kernel refines a state for measurements at its instant).
     return NavSolution(T, xs, Ps, names,
                        {label[i]: int(v) for i, v in enumerate(rejected) if v},
