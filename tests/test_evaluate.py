@@ -1,5 +1,5 @@
 """`autosar run`, `autosar evaluate` and `autosar compare`: the metrics on exact cases and the chain end to end on a
-simulated `ci` drive (the paper's comparison on test1 / test2 / test3: test_paper_comparison.py)."""
+simulated `ci` drive (the paper's comparison on test1 / test2 / test3: test_paper_comparison*.py)."""
 
 from __future__ import annotations
 
