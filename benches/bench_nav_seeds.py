@@ -6,7 +6,7 @@ Usage: python benches/bench_nav_seeds.py [--scenarios test1,test2,test3] [--seed
                                          [--sensors 'gnss_cog.gnss.velocity_std_mps=0.06,...']
                                          [--components 'tyre_radius;wheel_ticks']
                                          [--simulation kinematic_ecu_window=true]
-                                         [--output benches/results/nav_seeds.json]
+                                         [--output benches/results/nav_seeds.json] [--append]
 
 For every filter setting, scenario and seed: ``simulate`` with the radar at 20 Hz instead of 990 Hz (the navigation
 sensors draw from their own random streams, so their samples are those of the full simulation; ~2.5 s per drive
@@ -21,6 +21,12 @@ terms each drive applied (``--dynamics kinematic --seeds 0-9 --output benches/re
 none shows on the kinematic drives; ``--scenarios test1,test2,test3,urban --seeds 0-9 --dynamics full --output
 benches/results/nav_seeds_full.json``: the full vehicle model). ``--navigation`` compares settings of SAR-MIN
 side by side on the same drives; ``--sensors`` simulates sensors other than the error tables SAR-MIN weighs them by.
+Where the track is at each corner reflector's zero-Doppler instant (``reflector_across_max_cm``: across, which the
+autofocus leaves; ``reflector_track_max_cm``) gives urban's floor: ``--scenarios urban --seeds 0-9 --dynamics full
+--append --sensors ";$G;gnss_cog.gnss.velocity_std_mps=0.015;gnss_cog.gnss.horizontal_std_m=0.0,gnss_cog.gnss.
+white_std_m=0.0;$G,gnss_cog.gnss.velocity_std_mps=0.0,gnss_cog.gnss.horizontal_std_m=0.0,gnss_cog.gnss.white_std_m=0.0"``
+(one line), where ``$G`` is ``<g>.gyro.turn_on_bias_dps=0.0,<g>.gyro.bias_instability_dps=0.0,<g>.gyro.
+noise_density_dps_rthz=0.0`` for each of esc, orc, imu_cog_a and imu_cog_b (~14 min).
 """
 
 from __future__ import annotations
@@ -49,11 +55,11 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
             sim_config: Any = None) -> dict[str, float]:
     """One drive: simulated from ``sim_config`` (None: ``config``), navigated with ``config``."""
     from autosar_cli.evaluate.alignment import fit_se2, fit_similarity_scale
-    from autosar_cli.evaluate.trajectory_metrics import common_instants
+    from autosar_cli.evaluate.evaluation import load_truth
+    from autosar_cli.evaluate.trajectory_metrics import common_instants, trajectory_errors
     from autosar_cli.ingest.pipeline import ingest
-    from autosar_cli.nav.baselines import from_truth
     from autosar_cli.nav.navigate import navigate
-    from autosar_cli.nav.trajectory import phase_centre_lever_arm, track_scale_std
+    from autosar_cli.nav.trajectory import phase_centre_lever_arm, track_scale_std, zero_doppler_times
     from autosar_cli.sim.simulate import simulate
 
     log = work / f"{scenario}_s{seed}.mcap"
@@ -61,7 +67,8 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
     drive = work / f"{scenario}_s{seed}.h5"
     ingest([log], drive, config=config)
     est = navigate(drive, "sar-min", config)
-    truth = from_truth(str(sim.truth_path), est.origin, config)
+    scene = load_truth(sim.truth_path, est.origin, config)
+    truth = scene.trajectory
     t = common_instants(est, truth)
     lever = phase_centre_lever_arm(config)[None]
     e_xy, r_xy = est.body_points(t, lever)[:, 0, :2], truth.body_points(t, lever)[:, 0, :2]
@@ -70,6 +77,12 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
     scale = fit_similarity_scale(e_xy, r_xy)
     scaled = e_xy.mean(axis=0) + scale * (e_xy - e_xy.mean(axis=0))
     shape = np.hypot(*(fit_se2(scaled, r_xy).apply(scaled) - r_xy).T)
+    # the track's aligned error where each corner reflector is imaged (its zero-Doppler instant), across and in all
+    errors = trajectory_errors(est, truth, lever[0], t)
+    crs = scene.targets.corner_reflectors
+    at = np.searchsorted(t, np.asarray(zero_doppler_times(truth, scene.targets_above_road(crs), config, t)))
+    at = at.clip(0, len(t) - 1)
+    across, along = errors.aligned_across[at], errors.aligned_along[at]
     gnss, _ = gnss_velocity_scale(scenario, seed, sim_config)
     for p in (log, drive, sim.truth_path):
         Path(p).unlink(missing_ok=True)
@@ -80,6 +93,8 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
             "aligned_rmse_cm": 100 * float(np.sqrt(np.mean(residual**2))),
             "aligned_max_cm": 100 * float(residual.max()),
             "shape_max_cm": 100 * float(shape.max()),
+            "reflector_track_max_cm": 100 * float(np.hypot(across, along).max()),
+            "reflector_across_max_cm": 100 * float(np.abs(across).max()),
             "abs_rmse_m": float(np.sqrt(np.mean(np.sum((e_xy - r_xy) ** 2, axis=1)))),
             # which of the fitted lags SAR-MIN applied (docs/NAVIGATION.md)
             "steering_left_out": bool(est.info["understeer"]["steering_left_out"]),
@@ -114,6 +129,13 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "aligned_max_median_cm": round(statistics.median(aligned_max), 3),
             "aligned_max_p90_cm": round(float(np.percentile(aligned_max, 90)), 3),
             "shape_max_median_cm": round(statistics.median(r.get("shape_max_cm", np.nan) for r in rows), 3),
+            # the track at the corner reflectors: where a navigation-only image would put them (the autofocus
+            # corrects along the track, not across it: docs/AUTOFOCUS.md)
+            "reflector_track_max_median_cm": round(statistics.median(r.get("reflector_track_max_cm", np.nan)
+                                                                     for r in rows), 2),
+            "reflector_across_max_median_cm": round(statistics.median(r.get("reflector_across_max_cm", np.nan)
+                                                                      for r in rows), 2),
+            "reflector_across_within_2cm": sum(r.get("reflector_across_max_cm", np.inf) <= 2.0 for r in rows),
             "abs_rmse_mean_m": round(statistics.fmean(r["abs_rmse_m"] for r in rows), 4),
             "steering_left_out": sum(r["steering_left_out"] for r in rows),
             "wheel_lag_applied": sum(r["wheel_lag_applied"] for r in rows),
@@ -140,14 +162,17 @@ def main() -> None:
                     help="';'-separated sets of the full vehicle's components to simulate, each comma-separated, e.g. "
                          "'tyre_radius;wheel_ticks' (default: the config's; with --dynamics full)")
     ap.add_argument("--sensors", default=None,
-                    help="the simulated sensors differ from the error tables SAR-MIN weighs them by: "
-                         "'sensor.table.key=value,...', e.g. gnss_cog.gnss.velocity_std_mps=0.06 (bench_paper.py)")
+                    help="';'-separated sets of simulated sensors that differ from the error tables SAR-MIN weighs "
+                         "them by, each 'sensor.table.key=value,...' (bench_paper.py; empty: the tables), e.g. "
+                         "';gnss_cog.gnss.velocity_std_mps=0.06'")
     ap.add_argument("--simulation", default=None,
                     help="entries of [simulation] for the simulator, 'key=value,...' (bench_paper.py), e.g. "
                          "kinematic_ecu_window=true")
     ap.add_argument("--dynamics", choices=("kinematic", "full"), default=None,
                     help="simulator vehicle model (default: the config's simulation.dynamics)")
     ap.add_argument("--output", type=Path, default=RESULTS / "nav_seeds.json")
+    ap.add_argument("--append", action="store_true",
+                    help="add this run's groups and rows to those of --output (a group of the same name is replaced)")
     args = ap.parse_args()
     base = load_config()
     config = dataclasses.replace(base, radar=dataclasses.replace(base.radar, prf_hz=NAV_ONLY_PRF_HZ))
@@ -158,14 +183,16 @@ def main() -> None:
     rows: list[dict[str, Any]] = []
     summary: dict[str, Any] = {}
     components = args.components.split(";") if args.components is not None else [None]
+    sensor_sets = args.sensors.split(";") if args.sensors is not None else [""]
     with tempfile.TemporaryDirectory() as tmp:
-        for model, edits, comps in ((m, e, c) for m in models for e in settings for c in components):
+        for model, edits, comps, sensors in ((m, e, c, x) for m in models for e in settings for c in components
+                                             for x in sensor_sets):
             # the simulated car's components, sensors and simulation: the config's unless --components / --sensors /
             # --simulation
-            sim_config = (dataclasses.replace(load_config(config_copy(comps, None, Path(tmp), sensors=args.sensors,
+            sim_config = (dataclasses.replace(load_config(config_copy(comps, None, Path(tmp), sensors=sensors,
                                                                       simulation=args.simulation)),
                                               radar=config.radar)
-                          if comps is not None or args.sensors or args.simulation else None)
+                          if comps is not None or sensors or args.simulation else None)
             # SAR-MIN's own settings: the config's [navigation] as bench_paper.py --navigation edits it
             edited = load_config(config_copy(None, None, Path(tmp), navigation=edits)).navigation if edits else nav
             kind, _, std = model.partition(":")
@@ -174,13 +201,13 @@ def main() -> None:
                                       navigation=dataclasses.replace(edited, **setting))  # type: ignore[arg-type]
             label = (model + (f" {args.dynamics}" if args.dynamics else "") + (f" {edits}" if edits else "")
                      + (f" [{comps}]" if comps is not None else "")
-                     + (f" sensors {args.sensors}" if args.sensors else "")
+                     + (f" sensors {sensors}" if sensors else "")
                      + (f" simulation {args.simulation}" if args.simulation else ""))
             for scenario in args.scenarios.split(","):
                 t = time.perf_counter()
                 these = [{"gnss_model": model, "dynamics": args.dynamics, **({"navigation": edits} if edits else {}),
                           **({"components": comps} if comps is not None else {}),
-                          **({"sensors": args.sensors} if args.sensors else {}),
+                          **({"sensors": sensors} if sensors else {}),
                           **({"simulation": args.simulation} if args.simulation else {}),
                           "scenario": scenario, "seed": seed,
                           **{k: (round(v, 4) if isinstance(v, float) else v)
@@ -196,9 +223,15 @@ def main() -> None:
                       f"{s['scale_beyond_limit']}, aligned RMSE {s['aligned_rmse_mean_cm']:.2f} cm, aligned max median "
                       f"{s['aligned_max_median_cm']:.2f} / p90 {s['aligned_max_p90_cm']:.2f} cm, abs RMSE "
                       f"{s['abs_rmse_mean_m']:.3f} m, steering left out / wheel lag / wheel gains applied on "
-                      f"{s['steering_left_out']} / {s['wheel_lag_applied']} / {s['wheel_radii_applied']} "
-                      f"({time.perf_counter() - t:.0f} s)",
+                      f"{s['steering_left_out']} / {s['wheel_lag_applied']} / {s['wheel_radii_applied']}; at the "
+                      f"reflectors the track's worst median {s['reflector_track_max_median_cm']:.2f} cm, across "
+                      f"{s['reflector_across_max_median_cm']:.2f} cm, across within 2 cm on "
+                      f"{s['reflector_across_within_2cm']} ({time.perf_counter() - t:.0f} s)",
                       flush=True)
+    if args.append and args.output.exists():
+        old = json.loads(args.output.read_text())
+        summary = {**{k: v for k, v in old["summary"].items() if k not in summary}, **summary}
+        rows = old["rows"] + rows
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(json.dumps({"benchmark": "nav_seeds", "radar_prf_hz": NAV_ONLY_PRF_HZ, "summary": summary,
                                        "rows": rows}, indent=2) + "\n")
