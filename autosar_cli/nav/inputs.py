@@ -7,13 +7,14 @@ ENU metres at ``origin``, whose height is the road surface under the first GNSS 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import h5py
 import numpy as np
 from numpy.typing import NDArray
 
-from autosar_cli.config import Config
+from autosar_cli.config import Config, GnssErrors
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.store.drive import Drive
 from autosar_cli.store.hdf5_read import dataset_errors, read_dataset
@@ -89,6 +90,23 @@ def _columns(group: h5py.Group, names: tuple[str, ...]) -> dict[str, np.ndarray]
     return {k: read_dataset(group, k) for k in names}
 
 
+def _load_gnss_heading(out: NavInputs, gnss: h5py.Group, source: str, errors: GnssErrors | None,
+                       offset_std_deg: float, rel: Callable[[Array, str], Array]) -> None:
+    """``out``'s receiver heading from ``gnss``' NMEA heading stream, or why there is none."""
+    if "nmea_heading" not in gnss:
+        out.gnss_heading_missing = f"the drive has no NMEA heading (gnss/{source}/nmea_heading)"
+        return
+    hdt = _columns(gnss["nmea_heading"], ("t_ns", "heading_rad"))
+    ok = np.isfinite(hdt["heading_rad"])
+    if not ok.any():
+        out.gnss_heading_missing = f"gnss/{source}/nmea_heading has no valid heading (all {len(ok)} samples are NaN)"
+        return
+    std = np.deg2rad(errors.heading_std_deg if errors and errors.heading_std_deg > 0 else 0.5)
+    out.gnss_heading = Measurements(source, rel(hdt["t_ns"][ok], source), hdt["heading_rad"][ok, None],
+                                    np.array([std]))
+    out.gnss_heading_offset_std = float(np.deg2rad(offset_std_deg))
+
+
 def load_inputs(drive: Drive, config: Config) -> NavInputs:
     """Collect the SAR-MIN measurements of ``drive`` as the config names them."""
     nav = config.navigation
@@ -156,19 +174,8 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
             ok = np.isfinite(up)
             out.gnss_climb = Measurements(nav.gnss, rel(vel["t_ns"][ok], nav.gnss), up[ok, None],
                                           np.array([up_std]))
-    if nav.gnss_heading and "nmea_heading" not in gnss:
-        out.gnss_heading_missing = f"the drive has no NMEA heading (gnss/{nav.gnss}/nmea_heading)"
-    elif nav.gnss_heading:
-        hdt = _columns(gnss["nmea_heading"], ("t_ns", "heading_rad"))
-        ok = np.isfinite(hdt["heading_rad"])
-        if not ok.any():
-            out.gnss_heading_missing = (f"gnss/{nav.gnss}/nmea_heading has no valid heading "
-                                        f"(all {len(ok)} samples are NaN)")
-        else:
-            std = np.deg2rad(errors.heading_std_deg if errors and errors.heading_std_deg > 0 else 0.5)
-            out.gnss_heading = Measurements(nav.gnss, rel(hdt["t_ns"][ok], nav.gnss), hdt["heading_rad"][ok, None],
-                                            np.array([std]))
-            out.gnss_heading_offset_std = float(np.deg2rad(nav.gnss_heading_offset_std_deg))
+    if nav.gnss_heading:
+        _load_gnss_heading(out, gnss, nav.gnss, errors, nav.gnss_heading_offset_std_deg, rel)
     imu_sources = drive.imu_sources()
     for name in nav.gyros:
         s = config.sensors.get(name)
