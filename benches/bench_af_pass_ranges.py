@@ -118,17 +118,24 @@ def measured_row(work: Path, passes: Any = None, product_only: bool = False, nav
     return row
 
 
+def kept_drive(scenario: str, seed: int, work: Path) -> Path:
+    """``work`` holding the full-dynamics drive's log.mcap.truth.h5, drive.h5 and SAR-MIN's sarmin.h5, made where
+    missing."""
+    work.mkdir(parents=True, exist_ok=True)
+    log, drive, nav = work / "log.mcap", work / "drive.h5", work / "sarmin.h5"
+    if not nav.exists():
+        cli("simulate", "--scenario", scenario, "--seed", str(seed), "--dynamics", "full", "-o", str(log),
+            "--overwrite")
+        cli("ingest", str(log), "-o", str(drive), "--overwrite")
+        cli("navigate", str(drive), "-o", str(nav), "--overwrite")
+    return work
+
+
 def drive_row(scenario: str, seed: int, keep: Path | None, passes: Any = None, product_only: bool = False,
               navigation: str = "") -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as tmp:
-        work = (keep / f"{scenario}{seed}") if keep else Path(tmp)
-        work.mkdir(parents=True, exist_ok=True)
-        log, drive, nav = work / "log.mcap", work / "drive.h5", work / "sarmin.h5"
-        if not nav.exists():
-            cli("simulate", "--scenario", scenario, "--seed", str(seed), "--dynamics", "full", "-o", str(log),
-                "--overwrite")
-            cli("ingest", str(log), "-o", str(drive), "--overwrite")
-            cli("navigate", str(drive), "-o", str(nav), "--overwrite")
+        work = kept_drive(scenario, seed, (keep / f"{scenario}{seed}") if keep else Path(tmp))
+        drive, nav = work / "drive.h5", work / "sarmin.h5"
         if navigation:
             nav = work / f"sarmin_nav_{variant_tag(navigation)}.h5"
             if not nav.exists():

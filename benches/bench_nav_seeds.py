@@ -51,15 +51,30 @@ NAV_ONLY_PRF_HZ = 20.0
 SCALE_LIMIT = 5.5e-4  #: |scale| above it puts a reflector 55 m from the track's centre more than 3 cm off
 
 
+def reflector_track_errors(est: Any, scene: Any, config: Any, t_ns: Any) -> tuple[Any, Any]:
+    """The track's aligned error (m) along and across where each corner reflector is imaged (its zero-Doppler
+    instant), (C,) each: the rigid alignment over the instants ``t_ns`` (ns), as the evaluation makes it; ``scene``:
+    the drive's ``load_truth``."""
+    from autosar_cli.evaluate.trajectory_metrics import trajectory_errors
+    from autosar_cli.nav.trajectory import phase_centre_lever_arm, zero_doppler_times
+
+    t = np.asarray(t_ns, dtype=np.int64)
+    errors = trajectory_errors(est, scene.trajectory, phase_centre_lever_arm(config), t)
+    crs = scene.targets.corner_reflectors
+    at = np.searchsorted(t, np.asarray(zero_doppler_times(scene.trajectory, scene.targets_above_road(crs), config,
+                                                          t))).clip(0, len(t) - 1)
+    return errors.aligned_along[at], errors.aligned_across[at]
+
+
 def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | None = None,
             sim_config: Any = None) -> dict[str, float]:
     """One drive: simulated from ``sim_config`` (None: ``config``), navigated with ``config``."""
     from autosar_cli.evaluate.alignment import fit_se2, fit_similarity_scale
     from autosar_cli.evaluate.evaluation import load_truth
-    from autosar_cli.evaluate.trajectory_metrics import common_instants, trajectory_errors
+    from autosar_cli.evaluate.trajectory_metrics import common_instants
     from autosar_cli.ingest.pipeline import ingest
     from autosar_cli.nav.navigate import navigate
-    from autosar_cli.nav.trajectory import phase_centre_lever_arm, track_scale_std, zero_doppler_times
+    from autosar_cli.nav.trajectory import phase_centre_lever_arm, track_scale_std
     from autosar_cli.sim.simulate import simulate
 
     log = work / f"{scenario}_s{seed}.mcap"
@@ -77,12 +92,7 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
     scale = fit_similarity_scale(e_xy, r_xy)
     scaled = e_xy.mean(axis=0) + scale * (e_xy - e_xy.mean(axis=0))
     shape = np.hypot(*(fit_se2(scaled, r_xy).apply(scaled) - r_xy).T)
-    # the track's aligned error where each corner reflector is imaged (its zero-Doppler instant), across and in all
-    errors = trajectory_errors(est, truth, lever[0], t)
-    crs = scene.targets.corner_reflectors
-    at = np.searchsorted(t, np.asarray(zero_doppler_times(truth, scene.targets_above_road(crs), config, t)))
-    at = at.clip(0, len(t) - 1)
-    across, along = errors.aligned_across[at], errors.aligned_along[at]
+    along, across = reflector_track_errors(est, scene, config, t)
     gnss, _ = gnss_velocity_scale(scenario, seed, sim_config)
     for p in (log, drive, sim.truth_path):
         Path(p).unlink(missing_ok=True)

@@ -1,0 +1,157 @@
+"""Benchmark what a heading ramp leaves on the track: the worst reflector with the yaw-rate error known (truth).
+
+Usage: python benches/bench_heading_ramp.py --keep DIR [--drives urban:0,urban:1,...]
+                                            [--output benches/results/heading_ramp.json]
+
+The gyros' biases drift (Gauss-Markov, 0.002-0.005 deg/s over 100-150 s), and SAR-MIN tells their common part from
+the car's yaw rate only through the GNSS velocity's course. What it leaves is, to first order, one number per drive:
+a yaw-rate error ``b`` (rad/s), which turns the track by ``b (t - t_c)`` about the instant ``t_c`` nearest its
+centroid and so bends it by ``b`` times the integral of ``(t - t_c) J dp`` (``J``: a quarter turn left; the radar's
+lever arm turned with it), 5 cm over urban's 200 m at 3.4e-5 rad/s. No pass of a point sees it (it bends a 26 m pass
+by well under a millimetre).
+
+Per drive (``simulate --dynamics full``, ``ingest``, ``navigate``, kept under DIR/<scenario><seed> as
+bench_af_pass_ranges.py keeps them): SAR-MIN's track and the slow motion's (``sar.pass_ranges``, the product's first
+autofocus stage; the phases after it move the track by millimetres), each one's ramp fitted to the truth with the
+rigid motion (a least-squares fit of the radar's track error at 10 Hz), and each one's worst error with and
+without its ramp where a corner reflector is imaged: the track's, after the evaluation's rigid alignment, at each
+reflector's zero-Doppler instant (bench_nav_seeds.py's ``reflector_track_max_cm``; no image is focused: the
+product's misses on urban are within 0.2 cm of their slow track's figure). The summary: per track, the drives within
+2 cm and the median; the rows hold each drive's ramp (deg/s) and figures. The committed file: ``--drives
+urban:0,...,urban:15`` (~10 min; the drives of af_pass_ranges.json and paper_full_car.json's urban rows).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_af_pass_ranges import kept_drive  # noqa: E402
+from bench_nav_seeds import reflector_track_errors  # noqa: E402
+
+RESULTS = Path(__file__).resolve().parent / "results"
+WITHIN_CM = 2.0
+TRACKS = ("sar-min", "sar-min less ramp", "slow", "slow less ramp")
+
+
+def heading_ramp_displacement(trajectory: Any, t_ns: Any, t_ref_ns: int, config: Any) -> Any:
+    """(N, 2) ENU m: how far a yaw-rate error of 1 rad/s from ``t_ref_ns`` on moves the radar's mean phase centre at
+    ``t_ns`` (ns): each step of the rear axle turned by ``(t - t_ref)``, and the lever arm by it."""
+    from autosar_cli.nav.trajectory import phase_centre_lever_arm
+
+    t_s = (trajectory.t_ns - t_ref_ns) / 1e9
+    step = np.diff(trajectory.rear_axle_enu, axis=0)
+    turned = 0.5 * (t_s[1:] + t_s[:-1])[:, None] * np.column_stack([-step[:, 1], step[:, 0]])
+    moved = np.vstack([[0.0, 0.0], np.cumsum(turned, axis=0)])
+    moved -= moved[np.argmin(np.abs(trajectory.t_ns - t_ref_ns))]
+    t = np.asarray(t_ns, dtype=np.int64)
+    axle = np.column_stack([np.interp(t, trajectory.t_ns, trajectory.rear_axle_enu[:, k]) for k in range(2)])
+    lever = trajectory.body_points(t, phase_centre_lever_arm(config)[None])[:, 0, :2] - axle
+    return (np.column_stack([np.interp(t, trajectory.t_ns, moved[:, k]) for k in range(2)])
+            + ((t - t_ref_ns) / 1e9)[:, None] * np.column_stack([-lever[:, 1], lever[:, 0]]))
+
+
+def centre_instant(trajectory: Any) -> int:
+    """The instant (ns) at which the rear axle is nearest its track's centroid."""
+    xy = trajectory.rear_axle_enu
+    return int(trajectory.t_ns[np.argmin(np.linalg.norm(xy - xy.mean(axis=0), axis=1))])
+
+
+def fitted_ramp(est: Any, truth: Any, config: Any) -> float:
+    """The yaw-rate error (rad/s) that, with a rigid motion, best fits ``est``'s radar track error against the
+    truth's at 10 Hz over the moving instants."""
+    from autosar_cli.evaluate.trajectory_metrics import common_instants
+    from autosar_cli.nav.trajectory import radar_track
+
+    t = common_instants(est, truth.trajectory, rate_hz=10.0)
+    a, b = radar_track(est, t, config), radar_track(truth.trajectory, t, config)
+    c, n = a.mean(axis=0), len(t)
+    design = np.column_stack([np.tile([1.0, 0.0], n), np.tile([0.0, 1.0], n),
+                              np.column_stack([-(a[:, 1] - c[1]), a[:, 0] - c[0]]).ravel(),
+                              heading_ramp_displacement(est, t, centre_instant(est), config).ravel()])
+    x, *_ = np.linalg.lstsq(design, (a - b).ravel(), rcond=None)
+    return float(x[-1])
+
+
+def less_ramp(trajectory: Any, ramp: float, config: Any) -> Any:
+    """``trajectory`` with the motion of the yaw-rate error ``ramp`` (rad/s) taken out."""
+    from autosar_cli.sar.pass_ranges import with_correction
+    from autosar_cli.types import MotionCorrection
+
+    t = trajectory.t_ns
+    offset = -ramp * heading_ramp_displacement(trajectory, t, centre_instant(trajectory), config)
+    return with_correction(trajectory, MotionCorrection(t, np.column_stack([offset, np.zeros(len(t))]),
+                                                        np.zeros((len(t), 3))))
+
+
+def drive_row(work: Path) -> dict[str, Any]:
+    from autosar_cli.config import load_config
+    from autosar_cli.evaluate.evaluation import load_truth
+    from autosar_cli.evaluate.trajectory_metrics import common_instants
+    from autosar_cli.sar.focus import FocusOptions
+    from autosar_cli.sar.pass_ranges import estimate_slow_motion
+    from autosar_cli.sar.residual_motion import AutofocusOptions, candidate_points
+    from autosar_cli.store.drive import radar_times
+    from autosar_cli.store.trajectory import read_trajectory
+
+    config = load_config()
+    drive = work / "drive.h5"
+    est = read_trajectory(work / "sarmin.h5")
+    truth = load_truth(work / "log.mcap.truth.h5", est.origin, config)
+    focus = FocusOptions.from_config(config)
+    points = candidate_points(drive, est, config, focus, AutofocusOptions())
+    slow = estimate_slow_motion(drive, est, config, points, focus).trajectory
+    t = common_instants(est, truth.trajectory, radar_times(drive))
+    row: dict[str, Any] = {}
+
+    def worst_cm(track: Any) -> float:
+        return round(100 * float(np.max(np.hypot(*reflector_track_errors(track, truth, config, t)))), 2)
+
+    for name, track in (("sar-min", est), ("slow", slow)):
+        ramp = fitted_ramp(track, truth, config)
+        row[f"{name}_ramp_deg_per_s"] = round(float(np.rad2deg(ramp)), 6)
+        row[name], row[f"{name} less ramp"] = worst_cm(track), worst_cm(less_ramp(track, ramp, config))
+    return row
+
+
+def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Per track: the drives within ``WITHIN_CM`` and the median worst error; the slow track's ramp, RMS."""
+    out: dict[str, Any] = {}
+    for name in TRACKS:
+        worst = [r[name] for r in rows]
+        out[f"{name} within {WITHIN_CM:g} cm"] = sum(w <= WITHIN_CM for w in worst)
+        out[f"{name} median cm"] = round(float(np.median(worst)), 2)
+    out["slow ramp RMS deg/s"] = round(float(np.sqrt(np.mean([r["slow_ramp_deg_per_s"] ** 2 for r in rows]))), 6)
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--drives", default="urban:0,urban:1", help="scenario:seed,...")
+    ap.add_argument("--keep", type=Path, required=True, help="each drive's files under DIR/<scenario><seed>")
+    ap.add_argument("--output", type=Path, default=RESULTS / "heading_ramp.json")
+    args = ap.parse_args()
+    rows: list[dict[str, Any]] = []
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    for item in args.drives.split(","):
+        scenario, seed = item.split(":")
+        start = time.perf_counter()
+        row = {"scenario": scenario, "seed": int(seed),
+               **drive_row(kept_drive(scenario, int(seed), args.keep / f"{scenario}{seed}"))}
+        rows.append(row)
+        print(json.dumps(row), f"({time.perf_counter() - start:.0f} s)", flush=True)
+        # after every drive, so that a stopped run keeps what it measured
+        args.output.write_text(json.dumps({"benchmark": "heading_ramp", "drives": len(rows), "summary": summary(rows),
+                                           "rows": rows}, indent=1) + "\n")
+    print(json.dumps(summary(rows), indent=1))
+
+
+if __name__ == "__main__":
+    main()
