@@ -17,7 +17,9 @@ rigid motion (a least-squares fit of the radar's track error at 10 Hz), and each
 without its ramp where a corner reflector is imaged: the track's, after the evaluation's rigid alignment, at each
 reflector's zero-Doppler instant (bench_nav_seeds.py's ``reflector_track_max_cm``; no image is focused: the
 product's misses on urban are within 0.2 cm of their slow track's figure). The summary: per track, the drives within
-2 cm and the median; the rows hold each drive's ramp (deg/s) and figures. The committed file: ``--drives
+2 cm and the median; the RMS of the slow motion's scale error (against SAR-MIN's, as bench_af_pass_ranges.py reads
+it) over its stated std, and over the nodes' share of it alone (without ``heading_ramp_scale_std``). The rows hold
+each drive's ramp (deg/s) and figures. The committed file: ``--drives
 urban:0,...,urban:15`` (~10 min; the drives of af_pass_ranges.json and paper_full_car.json's urban rows).
 """
 
@@ -41,34 +43,11 @@ WITHIN_CM = 2.0
 TRACKS = ("sar-min", "sar-min less ramp", "slow", "slow less ramp")
 
 
-def heading_ramp_displacement(trajectory: Any, t_ns: Any, t_ref_ns: int, config: Any) -> Any:
-    """(N, 2) ENU m: how far a yaw-rate error of 1 rad/s from ``t_ref_ns`` on moves the radar's mean phase centre at
-    ``t_ns`` (ns): each step of the rear axle turned by ``(t - t_ref)``, and the lever arm by it."""
-    from autosar_cli.nav.trajectory import phase_centre_lever_arm
-
-    t_s = (trajectory.t_ns - t_ref_ns) / 1e9
-    step = np.diff(trajectory.rear_axle_enu, axis=0)
-    turned = 0.5 * (t_s[1:] + t_s[:-1])[:, None] * np.column_stack([-step[:, 1], step[:, 0]])
-    moved = np.vstack([[0.0, 0.0], np.cumsum(turned, axis=0)])
-    moved -= moved[np.argmin(np.abs(trajectory.t_ns - t_ref_ns))]
-    t = np.asarray(t_ns, dtype=np.int64)
-    axle = np.column_stack([np.interp(t, trajectory.t_ns, trajectory.rear_axle_enu[:, k]) for k in range(2)])
-    lever = trajectory.body_points(t, phase_centre_lever_arm(config)[None])[:, 0, :2] - axle
-    return (np.column_stack([np.interp(t, trajectory.t_ns, moved[:, k]) for k in range(2)])
-            + ((t - t_ref_ns) / 1e9)[:, None] * np.column_stack([-lever[:, 1], lever[:, 0]]))
-
-
-def centre_instant(trajectory: Any) -> int:
-    """The instant (ns) at which the rear axle is nearest its track's centroid."""
-    xy = trajectory.rear_axle_enu
-    return int(trajectory.t_ns[np.argmin(np.linalg.norm(xy - xy.mean(axis=0), axis=1))])
-
-
 def fitted_ramp(est: Any, truth: Any, config: Any) -> float:
     """The yaw-rate error (rad/s) that, with a rigid motion, best fits ``est``'s radar track error against the
     truth's at 10 Hz over the moving instants."""
     from autosar_cli.evaluate.trajectory_metrics import common_instants
-    from autosar_cli.nav.trajectory import radar_track
+    from autosar_cli.nav.trajectory import centre_instant, heading_ramp_displacement, radar_track
 
     t = common_instants(est, truth.trajectory, rate_hz=10.0)
     a, b = radar_track(est, t, config), radar_track(truth.trajectory, t, config)
@@ -82,6 +61,7 @@ def fitted_ramp(est: Any, truth: Any, config: Any) -> float:
 
 def less_ramp(trajectory: Any, ramp: float, config: Any) -> Any:
     """``trajectory`` with the motion of the yaw-rate error ``ramp`` (rad/s) taken out."""
+    from autosar_cli.nav.trajectory import centre_instant, heading_ramp_displacement
     from autosar_cli.sar.pass_ranges import with_correction
     from autosar_cli.types import MotionCorrection
 
@@ -94,9 +74,9 @@ def less_ramp(trajectory: Any, ramp: float, config: Any) -> Any:
 def drive_row(work: Path) -> dict[str, Any]:
     from autosar_cli.config import load_config
     from autosar_cli.evaluate.evaluation import load_truth
-    from autosar_cli.evaluate.trajectory_metrics import common_instants
+    from autosar_cli.evaluate.trajectory_metrics import common_instants, radar_track_scale
     from autosar_cli.sar.focus import FocusOptions
-    from autosar_cli.sar.pass_ranges import estimate_slow_motion
+    from autosar_cli.sar.pass_ranges import estimate_slow_motion, heading_ramp_scale_std
     from autosar_cli.sar.residual_motion import AutofocusOptions, candidate_points
     from autosar_cli.store.drive import radar_times
     from autosar_cli.store.trajectory import read_trajectory
@@ -107,9 +87,16 @@ def drive_row(work: Path) -> dict[str, Any]:
     truth = load_truth(work / "log.mcap.truth.h5", est.origin, config)
     focus = FocusOptions.from_config(config)
     points = candidate_points(drive, est, config, focus, AutofocusOptions())
-    slow = estimate_slow_motion(drive, est, config, points, focus).trajectory
+    motion = estimate_slow_motion(drive, est, config, points, focus)
+    slow = motion.trajectory
     t = common_instants(est, truth.trajectory, radar_times(drive))
-    row: dict[str, Any] = {}
+    # the slow motion's scale against SAR-MIN's scale error, over its std with and without the ramp's share
+    error = motion.scale - radar_track_scale(est, truth.trajectory, radar_times(drive), config)
+    ramp_std = heading_ramp_scale_std(est, config)
+    row: dict[str, Any] = {"slow_scale_error_pct": round(100 * error, 4), "slow_scale_std_pct":
+                           round(100 * motion.scale_std, 4), "ramp_scale_std_pct": round(100 * ramp_std, 4),
+                           "slow_scale_z": round(error / motion.scale_std, 2),
+                           "slow_scale_z_nodes": round(error / np.sqrt(motion.scale_std**2 - ramp_std**2), 2)}
 
     def worst_cm(track: Any) -> float:
         return round(100 * float(np.max(np.hypot(*reflector_track_errors(track, truth, config, t)))), 2)
@@ -129,6 +116,8 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         out[f"{name} within {WITHIN_CM:g} cm"] = sum(w <= WITHIN_CM for w in worst)
         out[f"{name} median cm"] = round(float(np.median(worst)), 2)
     out["slow ramp RMS deg/s"] = round(float(np.sqrt(np.mean([r["slow_ramp_deg_per_s"] ** 2 for r in rows]))), 6)
+    for key, label in (("slow_scale_z", "slow scale z RMS"), ("slow_scale_z_nodes", "the nodes' alone")):
+        out[label] = round(float(np.sqrt(np.mean([r[key] ** 2 for r in rows]))), 2)
     return out
 
 

@@ -21,6 +21,7 @@ from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.sar.pass_ranges import (
     PassOptions,
     estimate_slow_motion,
+    heading_ramp_scale_std,
     node_correction,
     pass_blocks,
     with_correction,
@@ -209,6 +210,20 @@ def test_a_slip_gains_error_is_fitted_from_the_points_seen_through_a_braking() -
     said = "(the navigation's slip gains off by drive -0.38 ± 0.02 %, brake +0.40 ± 0.02 % per m/s²)"
     assert said in fitted.summary()
     assert "slip gains" not in results[False][3].summary()
+    # a navigation that states its gyros' bias adds what that leaves in the scale, which no pass measures
+    names = ["px", "py", "v", "psi", "omega", "bias.a"]
+    cov = np.zeros((len(traj.t_ns), len(names), len(names)))
+    cov[:, 5, 5] = np.radians(0.002) ** 2
+    stated = replace(traj, state_names=names, covariance=cov)
+    opts = PassOptions()
+    sigma, span = point_sigmas(blocks, stated, clock, opts)
+    with_bias = _fit(blocks, stated, CFG, clock, opts, (sigma <= opts.max_point_sigma_m) & (span >= opts.min_span_m),
+                     sigma)
+    ramp = heading_ramp_scale_std(stated, CFG)
+    print(f"scale {100 * fitted.scale:+.4f} ± {100 * fitted.scale_std:.4f} %; with the gyros' bias stated "
+          f"± {100 * with_bias.scale_std:.4f} % (its share {100 * ramp:.4f} %)")
+    assert ramp > 0.0 and with_bias.scale == fitted.scale
+    assert abs(with_bias.scale_std**2 - fitted.scale_std**2 - ramp**2) < 1e-6 * fitted.scale_std**2
 
 
 @pytest.mark.slow

@@ -15,10 +15,10 @@ from autosar_cli.config import Config
 from autosar_cli.nav.frames import mounting_rotation
 from autosar_cli.types import TRAVEL_HALF_SPAN_S, Trajectory
 
-__all__ = ["TRAVEL_HALF_SPAN_S", "PhaseCentres", "Trajectory", "antenna_lever_arms", "cumulative_travel",
-           "phase_centre_lever_arm", "radar_phase_centres", "radar_track",
-           "rear_axle_from_body_point", "relative_pose_error", "track_scale_std",
-           "wheel_scale_mean_std"]
+__all__ = ["TRAVEL_HALF_SPAN_S", "PhaseCentres", "Trajectory", "antenna_lever_arms", "centre_instant",
+           "cumulative_travel", "gyro_bias_mean_std", "heading_ramp_displacement", "phase_centre_lever_arm",
+           "radar_phase_centres", "radar_track", "rear_axle_from_body_point", "relative_pose_error",
+           "track_scale_std", "wheel_scale_mean_std", "yaw_rate_bias_std"]
 
 Array = NDArray[np.float64]
 
@@ -162,3 +162,44 @@ def track_scale_std(trajectory: Trajectory) -> float | None:
     if trajectory.covariance is None or len(trajectory.covariance) == 0:
         return None
     return wheel_scale_mean_std(trajectory.covariance[len(trajectory.covariance) // 2], trajectory.state_names)
+
+
+def gyro_bias_mean_std(P: Array, state_names: list[str]) -> float | None:
+    """The std (rad/s) of the gyros' biases' mean (``bias.<gyro>``; the steering's offset is no gyro) from a
+    covariance ``P`` (n, n) over ``state_names``: a common error in them is one in the yaw rate the track turns by.
+    None without them."""
+    idx = [i for i, name in enumerate(state_names) if name.startswith("bias.") and name != "bias.steering"]
+    if not idx:
+        return None
+    return float(np.sqrt(max(P[np.ix_(idx, idx)].sum(), 0.0))) / len(idx)
+
+
+def yaw_rate_bias_std(trajectory: Trajectory) -> float | None:
+    """The navigation's own std (rad/s) of its yaw rate's slow error: the gyros' biases' mean
+    (:func:`gyro_bias_mean_std`) in the middle of the drive. None where the trajectory has no covariance or no
+    gyro-bias states."""
+    if trajectory.covariance is None or len(trajectory.covariance) == 0:
+        return None
+    return gyro_bias_mean_std(trajectory.covariance[len(trajectory.covariance) // 2], trajectory.state_names)
+
+
+def centre_instant(trajectory: Trajectory) -> int:
+    """The instant (ns) at which the rear axle is nearest its track's centroid."""
+    xy = trajectory.rear_axle_enu
+    return int(trajectory.t_ns[np.argmin(np.linalg.norm(xy - xy.mean(axis=0), axis=1))])
+
+
+def heading_ramp_displacement(trajectory: Trajectory, t_ns: ArrayLike, t_ref_ns: int, config: Config) -> Array:
+    """How far (N, 2) (ENU m) a yaw-rate error of 1 rad/s from ``t_ref_ns`` on moves the radar's mean phase centre
+    at ``t_ns`` (N,) (ns): the heading is off by ``t - t_ref`` (s), so each step of the rear axle turns by it, and
+    so does the lever arm. A track built on a yaw rate ``b`` too high is bent by ``b`` times this."""
+    t_s = (trajectory.t_ns - t_ref_ns) / 1e9
+    step = np.diff(trajectory.rear_axle_enu, axis=0)
+    turned = 0.5 * (t_s[1:] + t_s[:-1])[:, None] * np.stack([-step[:, 1], step[:, 0]], axis=1)
+    moved = np.vstack([np.zeros((1, 2)), np.cumsum(turned, axis=0)])
+    moved -= moved[np.argmin(np.abs(trajectory.t_ns - t_ref_ns))]
+    t = np.asarray(t_ns, dtype=np.int64)
+    axle = np.stack([np.interp(t, trajectory.t_ns, trajectory.rear_axle_enu[:, k]) for k in range(2)], axis=1)
+    lever = trajectory.body_points(t, phase_centre_lever_arm(config)[None])[:, 0, :2] - axle
+    return (np.stack([np.interp(t, trajectory.t_ns, moved[:, k]) for k in range(2)], axis=1)
+            + ((t - t_ref_ns) / 1e9)[:, None] * np.stack([-lever[:, 1], lever[:, 0]], axis=1))

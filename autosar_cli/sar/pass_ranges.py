@@ -34,8 +34,9 @@ through the rest.
   point seen through a braking fits its own point (its own fit holds them too). Weighted least squares, each point
   weighted by its own residual, blocks beyond ``reject_sigma`` dropped and the fit repeated.
 
-What it cannot see: a rigid motion of the whole track (it moves every point alike), and the track between points'
-passes, where the priors keep the navigated shape.
+What it cannot see: a rigid motion of the whole track (it moves every point alike), the track between points'
+passes, where the priors keep the navigated shape, and the bend of a yaw-rate error (well under a millimetre over a
+pass), whose share of the track's scale its std takes from the navigation's own (:func:`heading_ramp_scale_std`).
 """
 
 from __future__ import annotations
@@ -49,7 +50,13 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from autosar_cli.config import SPEED_OF_LIGHT, Config
-from autosar_cli.nav.trajectory import cumulative_travel, radar_track
+from autosar_cli.nav.trajectory import (
+    centre_instant,
+    cumulative_travel,
+    heading_ramp_displacement,
+    radar_track,
+    yaw_rate_bias_std,
+)
 from autosar_cli.nav.wheel_speeds import slip_gain_drift
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.sar.normal_equations import factor_normal
@@ -136,7 +143,8 @@ class SlowMotion:
     slip_gain_error: Array = dataclasses.field(default_factory=lambda: np.zeros(0))
     slip_gain_error_std: Array = dataclasses.field(default_factory=lambda: np.zeros(0))
     #: the input track's scale error as the correction gives it, read as the evaluation reads a track's
-    #: (:func:`similarity_scale_gain`: the whole correction, moving instants alike), and its std
+    #: (:func:`similarity_scale_gain`: the whole correction, moving instants alike), and its std: the nodes' and
+    #: what the navigation's yaw-rate uncertainty leaves in it (:func:`heading_ramp_scale_std`)
     scale: float = 0.0
     scale_std: float = 0.0
 
@@ -422,7 +430,10 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tupl
     stretch_std = float(np.sqrt(max(gain[1] @ cov[:k_n, :k_n] @ gain[1], 0.0)))
     scale_gain = similarity_scale_gain(trajectory, config, nodes, len(comps))
     node_values = np.concatenate([along, across][:len(comps)])
-    scale, scale_std = float(scale_gain @ node_values), float(np.sqrt(max(scale_gain @ cov @ scale_gain, 0.0)))
+    # its std: the nodes', and the share of the navigation's yaw-rate uncertainty no pass measures
+    scale = float(scale_gain @ node_values)
+    scale_std = float(np.hypot(np.sqrt(max(scale_gain @ cov @ scale_gain, 0.0)),
+                               heading_ramp_scale_std(trajectory, config)))
     shape = node_correction(trajectory, config, t_nodes, along - stretch * (s_nodes - s_centre), across, std[:k_n],
                             across_std)
     # each point moves with the track at its broadside block (the one whose line of sight is least along)
@@ -444,19 +455,25 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tupl
 MOVING_MPS = 0.2
 
 
+def _moving_track(trajectory: Trajectory, config: Config) -> tuple[NDArray[np.int64], Array]:
+    """The evaluation's moving instants every 0.1 s (M,) and the radar's track there about its centroid (M, 2)
+    (ENU m)."""
+    t = np.arange(trajectory.t_ns[0], trajectory.t_ns[-1], 100_000_000, dtype=np.int64)
+    t = t[np.interp(t, trajectory.t_ns, trajectory.speed) >= MOVING_MPS]
+    xy = radar_track(trajectory, t, config) if len(t) else np.zeros((0, 2))
+    return t, xy - xy.mean(axis=0) if len(t) else xy
+
+
 def similarity_scale_gain(trajectory: Trajectory, config: Config, nodes_s: Array, components: int) -> Array:
     """(C K,) the weights that give, from a correction's node values (along the track, then across it where
     ``components`` is 2; on the nodes ``nodes_s``, s since the trajectory's start), the scale of the similarity that
     maps the trajectory's radar track onto the corrected one, less 1 (Umeyama's, as
     :func:`~autosar_cli.evaluate.trajectory_metrics.radar_track_scale` fits it), to first order: each moving
     instant's offset (every 0.1 s) along its position about their centroid, over their spread."""
-    t = np.arange(trajectory.t_ns[0], trajectory.t_ns[-1], 100_000_000, dtype=np.int64)
-    t = t[np.interp(t, trajectory.t_ns, trajectory.speed) >= MOVING_MPS]
+    t, a = _moving_track(trajectory, config)
     k_n = len(nodes_s)
     if len(t) < 2:
         return np.zeros(components * k_n)
-    xy = radar_track(trajectory, t, config)
-    a = xy - xy.mean(axis=0)
     _, across, along = frame_geometry(trajectory, t, config)
     k, f = _node_weights(nodes_s, (t - trajectory.t_ns[0]) / 1e9)
     gain = np.zeros(components * k_n)
@@ -465,6 +482,21 @@ def similarity_scale_gain(trajectory: Trajectory, config: Config, nodes_s: Array
         np.add.at(gain, c * k_n + k, proj * (1 - f))
         np.add.at(gain, c * k_n + k + 1, proj * f)
     return gain
+
+
+def heading_ramp_scale_std(trajectory: Trajectory, config: Config) -> float:
+    """The std that the navigation's own yaw-rate uncertainty leaves in the similarity scale of its radar track
+    (to first order, as :func:`similarity_scale_gain` reads one), which the passes, holding the track across, do
+    not measure: :func:`~autosar_cli.nav.trajectory.yaw_rate_bias_std` times the scale by which a yaw-rate error
+    of 1 rad/s bends the track (:func:`~autosar_cli.nav.trajectory.heading_ramp_displacement`, the heading turning
+    about the instant nearest its centroid). On urban's right turn 0.008 %, twice the nodes' own; on test1-3's
+    tracks 0.001-0.003 %. 0 where the trajectory states none."""
+    std = yaw_rate_bias_std(trajectory)
+    t, a = _moving_track(trajectory, config)
+    if not std or len(t) < 2:
+        return 0.0
+    bend = heading_ramp_displacement(trajectory, t, centre_instant(trajectory), config)
+    return std * abs(float(np.sum(a * bend))) / float(np.sum(a * a))
 
 
 def node_correction(trajectory: Trajectory, config: Config, t_ns: NDArray[np.int64], along_m: Array, across_m: Array,
