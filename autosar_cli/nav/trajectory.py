@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -146,41 +147,49 @@ def relative_pose_error(est_xy: Array, est_heading: Array, ref_xy: Array, ref_he
     return local(est_xy, est_heading) - local(ref_xy, ref_heading)
 
 
-def wheel_scale_mean_std(P: Array, state_names: list[str]) -> float | None:
-    """The std of the four wheel scales' mean (``scale.wheel_*``) from a covariance ``P`` (n, n) over
-    ``state_names``: a common error s in them is a speed, and so a track, scaled by -s. None without them."""
-    idx = [i for i, name in enumerate(state_names) if name.startswith("scale.wheel_")]
+def _mean_std(P: Array, state_names: list[str], member: Callable[[str], bool]) -> float | None:
+    """The std of the mean of the states ``member`` picks from a covariance ``P`` (n, n) over ``state_names``; None
+    where it picks none."""
+    idx = [i for i, name in enumerate(state_names) if member(name)]
     if not idx:
         return None
     return float(np.sqrt(max(P[np.ix_(idx, idx)].sum(), 0.0))) / len(idx)
+
+
+def _mid_drive(trajectory: Trajectory) -> Array | None:
+    """The trajectory's covariance (n, n) in the middle of the drive; None where it has none."""
+    if trajectory.covariance is None or len(trajectory.covariance) == 0:
+        return None
+    return trajectory.covariance[len(trajectory.covariance) // 2]
+
+
+def wheel_scale_mean_std(P: Array, state_names: list[str]) -> float | None:
+    """The std of the four wheel scales' mean (``scale.wheel_*``) from a covariance ``P`` (n, n) over
+    ``state_names``: a common error s in them is a speed, and so a track, scaled by -s. None without them."""
+    return _mean_std(P, state_names, lambda name: name.startswith("scale.wheel_"))
 
 
 def track_scale_std(trajectory: Trajectory) -> float | None:
     """The navigation's own std of the track's along-track scale (dimensionless): the wheel scales' mean's
     (:func:`wheel_scale_mean_std`) in the middle of the drive, from the trajectory's covariance. None where the
     trajectory has no covariance or no wheel-scale states."""
-    if trajectory.covariance is None or len(trajectory.covariance) == 0:
-        return None
-    return wheel_scale_mean_std(trajectory.covariance[len(trajectory.covariance) // 2], trajectory.state_names)
+    P = _mid_drive(trajectory)
+    return None if P is None else wheel_scale_mean_std(P, trajectory.state_names)
 
 
 def gyro_bias_mean_std(P: Array, state_names: list[str]) -> float | None:
     """The std (rad/s) of the gyros' biases' mean (``bias.<gyro>``; the steering's offset is no gyro) from a
     covariance ``P`` (n, n) over ``state_names``: a common error in them is one in the yaw rate the track turns by.
     None without them."""
-    idx = [i for i, name in enumerate(state_names) if name.startswith("bias.") and name != "bias.steering"]
-    if not idx:
-        return None
-    return float(np.sqrt(max(P[np.ix_(idx, idx)].sum(), 0.0))) / len(idx)
+    return _mean_std(P, state_names, lambda name: name.startswith("bias.") and name != "bias.steering")
 
 
 def yaw_rate_bias_std(trajectory: Trajectory) -> float | None:
     """The navigation's own std (rad/s) of its yaw rate's slow error: the gyros' biases' mean
     (:func:`gyro_bias_mean_std`) in the middle of the drive. None where the trajectory has no covariance or no
     gyro-bias states."""
-    if trajectory.covariance is None or len(trajectory.covariance) == 0:
-        return None
-    return gyro_bias_mean_std(trajectory.covariance[len(trajectory.covariance) // 2], trajectory.state_names)
+    P = _mid_drive(trajectory)
+    return None if P is None else gyro_bias_mean_std(P, trajectory.state_names)
 
 
 def centre_instant(trajectory: Trajectory) -> int:

@@ -460,8 +460,10 @@ def _moving_track(trajectory: Trajectory, config: Config) -> tuple[NDArray[np.in
     (ENU m)."""
     t = np.arange(trajectory.t_ns[0], trajectory.t_ns[-1], 100_000_000, dtype=np.int64)
     t = t[np.interp(t, trajectory.t_ns, trajectory.speed) >= MOVING_MPS]
-    xy = radar_track(trajectory, t, config) if len(t) else np.zeros((0, 2))
-    return t, xy - xy.mean(axis=0) if len(t) else xy
+    if len(t) == 0:
+        return t, np.zeros((0, 2))
+    xy = radar_track(trajectory, t, config)
+    return t, xy - xy.mean(axis=0)
 
 
 def similarity_scale_gain(trajectory: Trajectory, config: Config, nodes_s: Array, components: int) -> Array:
