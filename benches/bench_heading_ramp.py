@@ -89,9 +89,10 @@ def drive_row(work: Path) -> dict[str, Any]:
     points = candidate_points(drive, est, config, focus, AutofocusOptions())
     motion = estimate_slow_motion(drive, est, config, points, focus)
     slow = motion.trajectory
-    t = common_instants(est, truth.trajectory, radar_times(drive))
+    frames = radar_times(drive)
+    t = common_instants(est, truth.trajectory, frames)
     # the slow motion's scale against SAR-MIN's scale error, over its std with and without the ramp's share
-    error = motion.scale - radar_track_scale(est, truth.trajectory, radar_times(drive), config)
+    error = motion.scale - radar_track_scale(est, truth.trajectory, frames, config)
     ramp_std = heading_ramp_scale_std(est, config)
     row: dict[str, Any] = {"slow_scale_error_pct": round(100 * error, 4), "slow_scale_std_pct":
                            round(100 * motion.scale_std, 4), "ramp_scale_std_pct": round(100 * ramp_std, 4),

@@ -182,7 +182,8 @@ def main() -> None:
                     help="simulator vehicle model (default: the config's simulation.dynamics)")
     ap.add_argument("--output", type=Path, default=RESULTS / "nav_seeds.json")
     ap.add_argument("--append", action="store_true",
-                    help="add this run's groups and rows to those of --output (a group of the same name is replaced)")
+                    help="add this run's groups and rows to those of --output (a group of the same name is replaced, "
+                         "its rows with it)")
     args = ap.parse_args()
     base = load_config()
     config = dataclasses.replace(base, radar=dataclasses.replace(base.radar, prf_hz=NAV_ONLY_PRF_HZ))
@@ -215,7 +216,9 @@ def main() -> None:
                      + (f" simulation {args.simulation}" if args.simulation else ""))
             for scenario in args.scenarios.split(","):
                 t = time.perf_counter()
-                these = [{"gnss_model": model, "dynamics": args.dynamics, **({"navigation": edits} if edits else {}),
+                group = f"{scenario} {label}"
+                these = [{"group": group, "gnss_model": model, "dynamics": args.dynamics,
+                          **({"navigation": edits} if edits else {}),
                           **({"components": comps} if comps is not None else {}),
                           **({"sensors": sensors} if sensors else {}),
                           **({"simulation": args.simulation} if args.simulation else {}),
@@ -225,7 +228,7 @@ def main() -> None:
                          for seed in parse_seeds(args.seeds)]
                 rows += these
                 s = summarise(these)
-                summary[f"{scenario} {label}"] = s
+                summary[group] = s
                 print(f"{scenario}, GNSS error {label}: {s['drives']} drives, "
                       f"scale RMS {s['scale_rms_pct']:.4f} % "
                       f"(GNSS velocity alone {s['gnss_velocity_scale_rms_pct']:.4f} %, correlation "
@@ -241,7 +244,7 @@ def main() -> None:
     if args.append and args.output.exists():
         old = json.loads(args.output.read_text())
         summary = {**{k: v for k, v in old["summary"].items() if k not in summary}, **summary}
-        rows = old["rows"] + rows
+        rows = [r for r in old["rows"] if r.get("group") not in summary] + rows
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(json.dumps({"benchmark": "nav_seeds", "radar_prf_hz": NAV_ONLY_PRF_HZ, "summary": summary,
                                        "rows": rows}, indent=2) + "\n")
