@@ -18,8 +18,12 @@ without its ramp where a corner reflector is imaged: the track's, after the eval
 reflector's zero-Doppler instant (bench_nav_seeds.py's ``reflector_track_max_cm``; no image is focused: the
 product's misses on urban are within 0.2 cm of their slow track's figure). The summary: per track, the drives within
 2 cm and the median; the RMS of the slow motion's scale error (against SAR-MIN's, as bench_af_pass_ranges.py reads
-it) over its stated std, and over the nodes' share of it alone (without ``heading_ramp_scale_std``). The rows hold
-each drive's ramp (deg/s) and figures. The committed file: ``--drives
+it) over its stated std, and over the nodes' share of it alone (without ``heading_ramp_scale_std``). Beside each
+ramp, the track's course drift: how fast its course at the GNSS antenna turns away from the truth's, a weighted
+slope at the GNSS velocity's instants (:func:`course_drift`), against the course floor, that slope's std from the
+course alone (each sample ``sigma_v / v`` rad): the drift is the yaw-rate error proper, the ramp also takes what the
+track's other errors (along it, through the turns) project on its bend. The rows hold each drive's ramps, drifts
+(deg/s) and figures. The committed file: ``--drives
 urban:0,...,urban:15`` (~10 min; the drives of af_pass_ranges.json and paper_full_car.json's urban rows).
 """
 
@@ -57,6 +61,49 @@ def fitted_ramp(est: Any, truth: Any, config: Any) -> float:
                               heading_ramp_displacement(est, t, centre_instant(est), config).ravel()])
     x, *_ = np.linalg.lstsq(design, (a - b).ravel(), rcond=None)
     return float(x[-1])
+
+
+def course_samples(drive_path: Path, config: Any) -> tuple[Any, Any, Any, tuple[float, float, float]]:
+    """The GNSS velocity as SAR-MIN weighs it, where the car moves (above 0.5 m/s): its instants (ns), ENU velocity
+    (m/s), the weight of each one's course, ``(v / sigma_v)^2`` (1/rad^2), and the antenna's lever arm (m, body)."""
+    from autosar_cli.nav.gnss_noise import gnss_noise_checked
+    from autosar_cli.nav.inputs import load_inputs
+    from autosar_cli.store.drive import Drive
+
+    with Drive(drive_path) as drive:
+        inputs = load_inputs(drive, config)
+    inputs, _ = gnss_noise_checked(inputs, config.navigation.estimate_gnss_noise)
+    vel = inputs.gnss_velocity
+    speed = np.hypot(vel.z[:, 0], vel.z[:, 1])
+    moving = speed > 0.5
+    t_ns = inputs.t0_ns + np.round(vel.t[moving] * 1e9).astype(np.int64)
+    return t_ns, vel.z[moving, :2], (speed[moving] / vel.sigma[0]) ** 2, inputs.gnss_lever_m
+
+
+def weighted_slope(t_s: Any, y: Any, weight: Any) -> tuple[float, float]:
+    """Weighted least-squares slope of ``y`` over ``t_s`` with an offset, and its std from the weights alone."""
+    centre = np.sum(weight * t_s) / np.sum(weight)
+    sxx = np.sum(weight * (t_s - centre) ** 2)
+    return float(np.sum(weight * (t_s - centre) * y) / sxx), float(1.0 / np.sqrt(sxx))
+
+
+def course_drift(track: Any, truth: Any, samples: Any) -> tuple[float, float]:
+    """How fast ``track``'s course at the GNSS antenna turns away from the truth's (rad/s; a weighted slope over
+    the GNSS velocity's instants inside both), and the std of that slope that the GNSS velocity's course alone
+    leaves (rad/s, the course floor: each sample's course noise ``sigma_v / v``)."""
+    t_ns, _, weight, lever = samples
+    inside = (t_ns > max(track.t_ns[0], truth.t_ns[0]) + 100_000_000) & (t_ns < min(track.t_ns[-1],
+                                                                                    truth.t_ns[-1]) - 100_000_000)
+    t_ns, weight = t_ns[inside], weight[inside]
+    half = 50_000_000
+
+    def course(trajectory: Any) -> Any:
+        ahead, behind = (trajectory.body_points(t_ns + d, np.array([lever]))[:, 0, :2] for d in (half, -half))
+        step = ahead - behind
+        return np.arctan2(step[:, 1], step[:, 0])
+
+    drift = np.angle(np.exp(1j * (course(track) - course(truth))))
+    return weighted_slope((t_ns - t_ns[0]) / 1e9, drift, weight)
 
 
 def less_ramp(trajectory: Any, ramp: float, config: Any) -> Any:
@@ -102,23 +149,38 @@ def drive_row(work: Path) -> dict[str, Any]:
     def worst_cm(track: Any) -> float:
         return round(100 * float(np.max(np.hypot(*reflector_track_errors(track, truth, config, t)))), 2)
 
+    samples = course_samples(drive, config)
     for name, track in (("sar-min", est), ("slow", slow)):
         ramp = fitted_ramp(track, truth, config)
+        drift, floor = course_drift(track, truth.trajectory, samples)
         row[f"{name}_ramp_deg_per_s"] = round(float(np.rad2deg(ramp)), 6)
+        row[f"{name}_course_drift_deg_per_s"] = round(float(np.rad2deg(drift)), 6)
+        row["course_floor_deg_per_s"] = round(float(np.rad2deg(floor)), 6)
         row[name], row[f"{name} less ramp"] = worst_cm(track), worst_cm(less_ramp(track, ramp, config))
     return row
 
 
+def rms(values: list[float], digits: int) -> float:
+    return round(float(np.sqrt(np.mean(np.square(values)))), digits)
+
+
 def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    """Per track: the drives within ``WITHIN_CM`` and the median worst error; the slow track's ramp, RMS."""
+    """Per track: the drives within ``WITHIN_CM`` and the median worst error; the ramps and course drifts, RMS,
+    and their correlation; the scale's z, RMS."""
     out: dict[str, Any] = {}
     for name in TRACKS:
         worst = [r[name] for r in rows]
         out[f"{name} within {WITHIN_CM:g} cm"] = sum(w <= WITHIN_CM for w in worst)
         out[f"{name} median cm"] = round(float(np.median(worst)), 2)
-    out["slow ramp RMS deg/s"] = round(float(np.sqrt(np.mean([r["slow_ramp_deg_per_s"] ** 2 for r in rows]))), 6)
+    out["course floor RMS deg/s"] = rms([r["course_floor_deg_per_s"] for r in rows], 6)
+    for name in ("sar-min", "slow"):
+        ramps, drifts = ([r[f"{name}_{key}_deg_per_s"] for r in rows] for key in ("ramp", "course_drift"))
+        out[f"{name} course drift RMS deg/s"] = rms(drifts, 6)
+        out[f"{name} ramp RMS deg/s"] = rms(ramps, 6)
+        if len(rows) > 1:
+            out[f"{name} ramp vs course drift, correlation"] = round(float(np.corrcoef(ramps, drifts)[0, 1]), 2)
     for key, label in (("slow_scale_z", "slow scale z RMS"), ("slow_scale_z_nodes", "the nodes' alone")):
-        out[label] = round(float(np.sqrt(np.mean([r[key] ** 2 for r in rows]))), 2)
+        out[label] = rms([r[key] for r in rows], 2)
     return out
 
 
