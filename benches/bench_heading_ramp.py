@@ -21,9 +21,9 @@ product's misses on urban are within 0.2 cm of their slow track's figure). The s
 it) over its stated std, and over the nodes' share of it alone (without ``heading_ramp_scale_std``). Beside each
 ramp, the track's course drift: how fast its course at the GNSS antenna turns away from the truth's, a weighted
 slope at the GNSS velocity's instants (:func:`course_drift`), against the course floor, that slope's std from the
-course alone (each sample ``sigma_v / v`` rad): the drift is the yaw-rate error proper, the ramp also takes what the
-track's other errors (along it, through the turns) project on its bend. The rows hold each drive's ramps, drifts
-(deg/s) and figures. The committed file: ``--drives
+course alone (each sample ``sigma_v / v`` rad, :func:`course_floor`): the drift is the yaw-rate error proper, the
+ramp also takes what the track's other errors (along it, through the turns) project on its bend. The rows hold each
+drive's ramps, drifts (deg/s) and figures. The committed file: ``--drives
 urban:0,...,urban:15`` (~10 min; the drives of af_pass_ranges.json and paper_full_car.json's urban rows).
 """
 
@@ -63,9 +63,10 @@ def fitted_ramp(est: Any, truth: Any, config: Any) -> float:
     return float(x[-1])
 
 
-def course_samples(drive_path: Path, config: Any) -> tuple[Any, Any, Any, tuple[float, float, float]]:
-    """The GNSS velocity as SAR-MIN weighs it, where the car moves (above 0.5 m/s): its instants (ns), ENU velocity
-    (m/s), the weight of each one's course, ``(v / sigma_v)^2`` (1/rad^2), and the antenna's lever arm (m, body)."""
+def course_samples(drive_path: Path, config: Any, track: Any, truth: Any) -> tuple[Any, Any, Any]:
+    """The GNSS velocity's instants (ns) where the car moves (above 0.5 m/s) and both ``track`` and ``truth`` hold
+    (0.1 s inside their ends), the weight of each one's course as SAR-MIN weighs it, ``(v / sigma_v)^2``
+    (1/rad^2), and the antenna's (1, 3) lever arm (m, body)."""
     from autosar_cli.nav.gnss_noise import gnss_noise_checked
     from autosar_cli.nav.inputs import load_inputs
     from autosar_cli.store.drive import Drive
@@ -75,35 +76,42 @@ def course_samples(drive_path: Path, config: Any) -> tuple[Any, Any, Any, tuple[
     inputs, _ = gnss_noise_checked(inputs, config.navigation.estimate_gnss_noise)
     vel = inputs.gnss_velocity
     speed = np.hypot(vel.z[:, 0], vel.z[:, 1])
-    moving = speed > 0.5
-    t_ns = inputs.t0_ns + np.round(vel.t[moving] * 1e9).astype(np.int64)
-    return t_ns, vel.z[moving, :2], (speed[moving] / vel.sigma[0]) ** 2, inputs.gnss_lever_m
+    t_ns = inputs.t0_ns + np.round(vel.t * 1e9).astype(np.int64)
+    keep = ((speed > 0.5) & (t_ns > max(track.t_ns[0], truth.t_ns[0]) + 100_000_000)
+            & (t_ns < min(track.t_ns[-1], truth.t_ns[-1]) - 100_000_000))
+    return t_ns[keep], (speed[keep] / vel.sigma[0]) ** 2, np.array([inputs.gnss_lever_m])
 
 
-def weighted_slope(t_s: Any, y: Any, weight: Any) -> tuple[float, float]:
-    """Weighted least-squares slope of ``y`` over ``t_s`` with an offset, and its std from the weights alone."""
-    centre = np.sum(weight * t_s) / np.sum(weight)
-    sxx = np.sum(weight * (t_s - centre) ** 2)
-    return float(np.sum(weight * (t_s - centre) * y) / sxx), float(1.0 / np.sqrt(sxx))
+def _slope(t_ns: Any, weight: Any, y: Any | None = None) -> tuple[float, float]:
+    """Weighted least-squares slope (per s) of ``y`` over ``t_ns`` with an offset (0 without ``y``), and its std
+    from the weights alone."""
+    t_s = (t_ns - t_ns[0]) / 1e9
+    dt = t_s - np.sum(weight * t_s) / np.sum(weight)
+    sxx = np.sum(weight * dt**2)
+    return (0.0 if y is None else float(np.sum(weight * dt * y) / sxx)), float(1.0 / np.sqrt(sxx))
 
 
-def course_drift(track: Any, truth: Any, samples: Any) -> tuple[float, float]:
-    """How fast ``track``'s course at the GNSS antenna turns away from the truth's (rad/s; a weighted slope over
-    the GNSS velocity's instants inside both), and the std of that slope that the GNSS velocity's course alone
-    leaves (rad/s, the course floor: each sample's course noise ``sigma_v / v``)."""
-    t_ns, _, weight, lever = samples
-    inside = (t_ns > max(track.t_ns[0], truth.t_ns[0]) + 100_000_000) & (t_ns < min(track.t_ns[-1],
-                                                                                    truth.t_ns[-1]) - 100_000_000)
-    t_ns, weight = t_ns[inside], weight[inside]
+def course_floor(samples: Any) -> float:
+    """The std (rad/s) of a yaw-rate error that the GNSS velocity's course alone leaves (each sample's course
+    noise ``sigma_v / v``)."""
+    t_ns, weight, _ = samples
+    return _slope(t_ns, weight)[1]
+
+
+def course_drift(track: Any, truth: Any, samples: Any) -> float:
+    """How fast ``track``'s course at the GNSS antenna turns away from the truth's (rad/s): a weighted slope at the
+    GNSS velocity's ``samples`` (:func:`course_samples`)."""
+    from autosar_cli.nav.frames import wrap_angle
+
+    t_ns, weight, lever = samples
     half = 50_000_000
 
     def course(trajectory: Any) -> Any:
-        ahead, behind = (trajectory.body_points(t_ns + d, np.array([lever]))[:, 0, :2] for d in (half, -half))
+        ahead, behind = (trajectory.body_points(t_ns + d, lever)[:, 0, :2] for d in (half, -half))
         step = ahead - behind
         return np.arctan2(step[:, 1], step[:, 0])
 
-    drift = np.angle(np.exp(1j * (course(track) - course(truth))))
-    return weighted_slope((t_ns - t_ns[0]) / 1e9, drift, weight)
+    return _slope(t_ns, weight, wrap_angle(course(track) - course(truth)))[0]
 
 
 def less_ramp(trajectory: Any, ramp: float, config: Any) -> Any:
@@ -149,13 +157,13 @@ def drive_row(work: Path) -> dict[str, Any]:
     def worst_cm(track: Any) -> float:
         return round(100 * float(np.max(np.hypot(*reflector_track_errors(track, truth, config, t)))), 2)
 
-    samples = course_samples(drive, config)
+    samples = course_samples(drive, config, est, truth.trajectory)  # the slow track keeps SAR-MIN's instants
+    row["course_floor_deg_per_s"] = round(float(np.rad2deg(course_floor(samples))), 6)
     for name, track in (("sar-min", est), ("slow", slow)):
         ramp = fitted_ramp(track, truth, config)
-        drift, floor = course_drift(track, truth.trajectory, samples)
         row[f"{name}_ramp_deg_per_s"] = round(float(np.rad2deg(ramp)), 6)
-        row[f"{name}_course_drift_deg_per_s"] = round(float(np.rad2deg(drift)), 6)
-        row["course_floor_deg_per_s"] = round(float(np.rad2deg(floor)), 6)
+        row[f"{name}_course_drift_deg_per_s"] = round(float(np.rad2deg(course_drift(track, truth.trajectory,
+                                                                                      samples))), 6)
         row[name], row[f"{name} less ramp"] = worst_cm(track), worst_cm(less_ramp(track, ramp, config))
     return row
 
