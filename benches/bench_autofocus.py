@@ -39,13 +39,19 @@ def autosar(*args: str) -> tuple[float, dict[str, Any]]:
     return time.perf_counter() - t, json.loads(res.stdout)
 
 
+def flat_correction(stage: dict[str, Any]) -> dict[str, Any]:
+    """A stage's ``correction`` figures (RMS, max, median std) as scalars ``correction_*``."""
+    return {f"correction_{k}": v for k, v in (stage.get("correction") or {}).items()}
+
+
 def flat_slow_motion(slow: dict[str, Any] | None) -> dict[str, Any] | None:
     """run.json's ``slow_motion`` with each slip gain's error as two scalars (``slip_gain_error_drive`` and its
-    ``_std``), not a table of its own."""
+    ``_std``) and the correction's figures as ``correction_*``, not tables of their own."""
     if not slow:
         return slow
     gains = slow.get("slip_gain_error") or {}
-    return {**{k: v for k, v in slow.items() if k != "slip_gain_error"},
+    return {**{k: v for k, v in slow.items() if k not in ("slip_gain_error", "correction")},
+            **flat_correction(slow),
             **{f"slip_gain_error_{name}{tail}": g[key] for name, g in gains.items()
                for key, tail in (("value", ""), ("std", "_std"))}}
 
@@ -104,10 +110,12 @@ def main() -> None:
                   "median_stage_s": {k: {s: round(statistics.median(r[s] for r in v), 3) for s in v[0]}
                                      for k, v in stages.items()},
                   "ratio_autofocus_to_run": round(medians["run --autofocus"] / medians["run"], 3),
-                  "autofocus": {k: flat_slow_motion(af[k]) if k == "slow_motion" else af[k]
-                                for k in ("summary", "applied", "track_scale", "track_scale_std", "points",
-                                          "points_used", "coverage", "coherence_before", "coherence_after",
-                                          "correction", "slow_motion") if k in af},
+                  "autofocus": {**{k: af[k] for k in ("summary", "applied", "track_scale", "track_scale_std",
+                                                       "points", "points_used", "coverage", "coherence_before",
+                                                       "coherence_after") if k in af},
+                                **flat_correction(af),
+                                **({"slow_motion": flat_slow_motion(af["slow_motion"])} if "slow_motion" in af
+                                   else {})},
                   "reflectors": {name: reflectors(work / OUT_DIRS[name]) for name in commands}}
         if args.phases_only:
             phases_af = json.loads((work / OUT_DIRS[PHASES] / "run.json").read_text())["stages"]["autofocus"]

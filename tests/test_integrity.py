@@ -65,10 +65,14 @@ def test_a_flipped_byte_in_the_radar_cube_is_an_error_naming_file_and_dataset(tm
     path = w.commit()
     with Drive(path) as d:
         np.testing.assert_array_equal(d.radar().frames(0, 64), raw)
-    _flip_byte_in(path, "radar/scanbrick/raw", at=0.7)
-    with Drive(path) as d, pytest.raises(DamagedFileError, match=r"drive\.h5: dataset /radar/scanbrick/raw is "
-                                                                 r"damaged"):
-        d.radar().frames(0, 64)
+        assert d.radar().raw.chunks == (32, 1, 1, 540, 2)  # one chunk per channel
+    _flip_byte_in(path, "radar/scanbrick/raw", at=0.7)  # the first chunk: Tx 0, Rx 0's first 32 frames
+    for pairs in (None, [(0, 0), (2, 3)]):
+        with Drive(path) as d, pytest.raises(DamagedFileError, match=r"drive\.h5: dataset /radar/scanbrick/raw "
+                                                                     r"is damaged"):
+            d.radar().frames(0, 64, pairs)
+    with Drive(path) as d:  # the other channels' chunks are intact, and read
+        np.testing.assert_array_equal(d.radar().frames(0, 64, [(2, 3), (1, 0)]), raw[:, [2, 1], [3, 0]])
     # a missing dataset names the file and the dataset too, not h5py's "Unable to synchronously open object"
     with h5py.File(path, "r+") as f:
         del f["can/ABS_1/speed"]
@@ -101,3 +105,22 @@ def test_missing_format_version_is_named(tmp_path: Path) -> None:
         del f.attrs["format_version"]
     r = runner.invoke(app, ["navigate", str(drive), "-o", str(tmp_path / "t.h5")])
     assert r.exit_code == 1 and "drive.h5: has no format_version attribute" in r.output.replace("\n", "")
+
+
+@pytest.mark.parametrize("chunk_channels", [(1, 1), (3, 4)], ids=["per-channel", "whole-frame"])
+def test_channel_reads_equal_the_frames_channels_in_either_chunk_layout(tmp_path: Path,
+                                                                         chunk_channels: tuple[int, int]) -> None:
+    """Drives written with one chunk per channel, and those written before with whole frames per chunk."""
+    raw = np.random.default_rng(4).normal(0, 300, size=(70, 3, 4, 16, 2)).astype(np.int16)
+    w = DriveWriter(tmp_path / "drive.h5", {"autosar_version": "test"})
+    w.radar("radar/scanbrick", (3, 4, 16), {}).append_frames(np.arange(70, dtype=np.int64), np.arange(70), raw)
+    path = w.commit()
+    with h5py.File(path, "r+") as f:
+        del f["radar/scanbrick/raw"]
+        f["radar/scanbrick"].create_dataset("raw", data=raw, chunks=(32, *chunk_channels, 16, 2), fletcher32=True)
+    every = [(t, r) for t in range(3) for r in range(4)]
+    with Drive(path) as d:
+        radar = d.radar()
+        assert radar.raw.chunks[1:3] == chunk_channels
+        np.testing.assert_array_equal(radar.frames(5, 69, [(0, 0), (2, 3), (1, 2)]), raw[5:69, [0, 2, 1], [0, 3, 2]])
+        np.testing.assert_array_equal(radar.frames(40, 80, every), raw[40:].reshape(30, 12, 16, 2))

@@ -315,7 +315,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
             if not work:  # a block no grid needs is not even read
                 return sel, work, None, None
             idx = frames[sel]
-            raw = radar.frames(int(idx[0]), int(idx[-1]) + 1)
+            raw = radar.frames(int(idx[0]), int(idx[-1]) + 1, pairs)  # (n, C, samples, 2)
             pc = radar_phase_centres(traj, geometry.t_ns[sel], offsets, config)
             ant = np.concatenate([pc.tx[:, used_tx].transpose(1, 0, 2),
                                   np.stack([pc.rx[:, t, r] for t, r in pairs])], axis=0)
@@ -345,7 +345,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
                     block = PulseBlock.empty(len(pairs), n_bins, n_pulses, len(used_tx) + len(pairs),
                                              channels=channels, range0_m=0.0, bin_m=bin_m, cycles_per_m=cycles_per_m)
                 # one channel per thread (the batched FFT, or scipy's and its copies, release the GIL): both cores busy
-                beats = [raw[:, t, r] for t, r in pairs]
+                beats = [raw[:, c] for c in range(len(pairs))]
                 compress = partial(range_compress_into, sample_rate_hz=fs, slope_hz_per_s=slope, window=options.window,
                                    upsample=options.upsample, workers=1)
                 list(pool.map(compress, beats, block.re, block.im))

@@ -93,8 +93,8 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         blocks = [used[start:start + block_frames] for start in range(0, len(used), block_frames)]
 
         def read(sel: NDArray[np.int64]) -> NDArray[np.int16]:
-            raw = radar.frames(int(frames[sel[0]]), int(frames[sel[-1]]) + 1)[frames[sel] - frames[sel[0]]]
-            return raw[:, tx_idx, rx_idx]  # (B, C, samples, 2)
+            raw = radar.frames(int(frames[sel[0]]), int(frames[sel[-1]]) + 1, pairs)
+            return raw[frames[sel] - frames[sel[0]]]  # (B, C, samples, 2)
 
         # the next block is read while this one is compressed (h5py's reads and the FFTs release the GIL)
         with ThreadPoolExecutor(1) as reader:

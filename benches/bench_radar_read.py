@@ -1,0 +1,115 @@
+"""Benchmark the raw radar cube's chunk layout: one chunk per channel (the drive writer's) against whole frames
+per chunk (drives written before), side by side.
+
+Usage: python benches/bench_radar_read.py [--drive DRIVE.h5] [--scenario test2] [--seed 1] [--repeat 5]
+
+Takes a drive's raw cube (default: ``autosar simulate`` of test2 seed 1, full dynamics, ingested), writes it into
+two scratch files, 32 frames per chunk either way, with the writer's compression and checksums: (32, 1, 1, samples,
+2) and (32, tx, rx, samples, 2). Then, alternating the layouts in each of ``--repeat`` rounds, times writing the
+cube in blocks of 256 frames as ingest appends them, and reading it back in blocks of 512 frames (focus's) with
+:meth:`RadarStream.frames`: every channel, the product image's 8 and the autofocus's 2 (``sar.focus.channel_pairs``).
+Prints medians and the per-channel layout's time over the whole-frame one's; writes
+benches/results/radar_read.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from autosar_cli.sar.focus import channel_pairs
+from autosar_cli.store.drive import RADAR_CHUNK_FRAMES, Drive, RadarStream, radar_compression
+
+RESULTS = Path(__file__).resolve().parent / "results"
+WRITE_FRAMES = 256
+READ_FRAMES = 512
+
+
+def simulated_drive(work: Path, scenario: str, seed: int) -> Path:
+    """``autosar simulate`` + ``autosar ingest`` of one drive into ``work``."""
+    log, drive = work / f"{scenario}_s{seed}.mcap", work / f"{scenario}_s{seed}.h5"
+    for args in (["simulate", "--scenario", scenario, "--seed", str(seed), "--output", str(log), "--overwrite"],
+                 ["ingest", str(log), "--output", str(drive), "--overwrite"]):
+        subprocess.run([sys.executable, "-m", "autosar_cli.cli", *args], check=True, capture_output=True)
+    return drive
+
+
+def write_cube(path: Path, raw: h5py.Dataset, chunk_channels: tuple[int, int]) -> float:
+    """Copy ``raw`` into a fresh file at ``path`` in ingest's appends; the seconds spent in the appends."""
+    shape = raw.shape[1:]
+    spent = 0.0
+    with h5py.File(path, "w") as f:
+        ds = f.create_dataset("raw", shape=(0, *shape), maxshape=(None, *shape), dtype=np.int16,
+                              chunks=(RADAR_CHUNK_FRAMES, *chunk_channels, *shape[2:]), fletcher32=True,
+                              **radar_compression())
+        for start in range(0, len(raw), WRITE_FRAMES):
+            block = raw[start:start + WRITE_FRAMES]
+            t = time.perf_counter()
+            ds.resize(start + len(block), axis=0)
+            ds[start:] = block
+            spent += time.perf_counter() - t
+        t = time.perf_counter()
+    return spent + time.perf_counter() - t  # the close flushes the last chunks
+
+
+def read_cube(path: Path, pairs: list[tuple[int, int]] | None) -> float:
+    """Seconds to read the cube at ``path`` in focus's blocks, the channels ``pairs`` (None: whole frames)."""
+    with h5py.File(path, "r") as f:
+        radar = RadarStream("bench", np.zeros(0, np.int64), np.zeros(0, np.int64), f["raw"], {})
+        t = time.perf_counter()
+        for start in range(0, len(radar.raw), READ_FRAMES):
+            radar.frames(start, start + READ_FRAMES, pairs)
+        return time.perf_counter() - t
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--drive", type=Path, default=None, help="a drive.h5 (default: simulate one)")
+    ap.add_argument("--scenario", default="test2")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--output", type=Path, default=RESULTS / "radar_read.json")
+    args = ap.parse_args()
+    layouts = {"per_channel": (1, 1), "whole_frame": None}
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        drive = args.drive or simulated_drive(work, args.scenario, args.seed)
+        with Drive(drive) as d:
+            source = d.radar().raw
+            n_tx, n_rx = source.shape[1:3]
+            layouts["whole_frame"] = (n_tx, n_rx)
+            reads = {"all_12": None, "image_8": channel_pairs(n_tx, n_rx, 8),
+                     "autofocus_2": channel_pairs(n_tx, n_rx, 2)}
+            times: dict[str, dict[str, list[float]]] = {k: {op: [] for op in ("write", *reads)} for k in layouts}
+            for i in range(args.repeat):
+                order = list(layouts) if i % 2 == 0 else list(layouts)[::-1]
+                for name in order:
+                    path = work / f"{name}.h5"
+                    times[name]["write"].append(write_cube(path, source, layouts[name]))
+                    for op, pairs in reads.items():
+                        times[name][op].append(read_cube(path, pairs))
+                    print(f"round {i + 1} {name}: " + ", ".join(f"{op} {v[-1]:.3f} s" for op, v in
+                                                                  times[name].items()), flush=True)
+            shape, mb = list(source.shape), source.size * 2 / 1e6
+    medians = {k: {op: round(statistics.median(v), 4) for op, v in ops.items()} for k, ops in times.items()}
+    result = {"benchmark": "radar_read", "drive": str(args.drive) if args.drive else f"{args.scenario} seed "
+              f"{args.seed}", "cube_shape": shape, "cube_mb": round(mb, 1), "repeat": args.repeat,
+              **{f"median_{k}_s": v for k, v in medians.items()},
+              "ratio_per_channel_to_whole_frame": {op: round(medians["per_channel"][op] / medians["whole_frame"][op],
+                                                             3) for op in medians["per_channel"]}}
+    print(json.dumps(result, indent=2))
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    args.output.write_text(json.dumps(result, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
