@@ -292,6 +292,35 @@ def test_focus_history_is_the_reference_backprojection_pulse_by_pulse() -> None:
     assert offset[0] == pytest.approx(2.1 * bin_m, abs=0.15 * bin_m)
 
 
+def test_history_kernel_gives_the_same_bits_on_one_thread_as_on_all() -> None:
+    """The pairs are shared among numba's threads (prange): each writes only its own rows, so the sums and the
+    lines of sight are the same bits whatever the threads."""
+    import numba
+
+    from autosar_cli.sar.history_kernel import focus_windows
+
+    rng = np.random.default_rng(5)
+    n_pairs, n_ch, w, n_points = 5000, 2, 16, 7
+    samples = (rng.normal(size=(n_pairs, n_ch, w)) + 1j * rng.normal(size=(n_pairs, n_ch, w))).astype(np.complex64)
+    points = rng.uniform(-5.0, 5.0, size=(n_points, 3)) + [0.0, -8.0, 0.0]
+    point_of = rng.integers(0, n_points, n_pairs)
+    tx = rng.normal(scale=0.5, size=(n_pairs, n_ch, 3))
+    rx = tx + [0.0, 0.004, 0.0]
+    path = np.linalg.norm(tx - points[point_of, None], axis=-1) + np.linalg.norm(rx - points[point_of, None], axis=-1)
+    bin0 = np.floor(path / 0.05).astype(np.int64) - w // 2 + rng.integers(-6, 7, size=(n_pairs, n_ch))
+    offsets = np.arange(-3.0, 3.01, 0.5)
+    everyone = focus_windows(samples, bin0, tx, rx, points, point_of, 0.05, 257.3, offsets)
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        alone = focus_windows(samples, bin0, tx, rx, points, point_of, 0.05, 257.3, offsets)
+    finally:
+        numba.set_num_threads(threads)
+    assert 0 < everyone[1].mean() < 1  # some samples fall outside their windows
+    for a, b in zip(everyone, alone, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_gathered_histories_are_each_pulses_own_range_profile(ci_drive: tuple[Path, Trajectory]) -> None:
     """gather_phase_histories against straightforward per-pulse code (float64 geometry, one pulse at a time): which
     pulses see each point (its side, the beam, the range), and each pair's window equals the bins of that pulse's

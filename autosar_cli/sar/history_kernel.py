@@ -5,7 +5,8 @@ Each (point, pulse) pair's channels hold a window of range bins around the point
 (:class:`~autosar_cli.sar.phase_history.PhaseHistories`); the pair's value is the channels' samples at the exact
 bistatic path (linear interpolation between bins), rotated by the path's carrier phase and summed, as the
 product's back-projection kernel does. One fused loop in float64: the numpy form made a dozen (pairs, channels)
-temporaries per call, and the autofocus calls it ~100 times a drive.
+temporaries per call, and the autofocus calls it ~100 times a drive. The pairs are shared among numba's threads
+(0.49 of one thread's time on 2 cores, test2's 35 625 pairs), the same bits as on one.
 """
 
 from __future__ import annotations
@@ -17,11 +18,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
+@nb.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _focus_windows(samples, bin0, tx, rx, points, point_of, bin_m, cycles_per_m, offsets_bins,
                    z_re, z_im, inside, los):  # pragma: no cover - compiled
     n_pairs, n_ch, width = samples.shape
-    for n in range(n_pairs):
+    for n in nb.prange(n_pairs):  # each pair writes its own rows only: the same sums in any thread order
         j = point_of[n]
         for k in range(3):
             los[n, k] = points[j, k]

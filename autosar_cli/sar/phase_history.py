@@ -175,7 +175,8 @@ def pair_antennas(hist: PhaseHistories, traj: Trajectory, config: Config) -> tup
     pc = radar_phase_centres(traj, hist.frame_t_ns, hist.tx_offsets_s, config)
     tx_idx = np.array([p[0] for p in hist.pairs])
     rx_idx = np.array([p[1] for p in hist.pairs])
-    return pc.tx[hist.frame][:, tx_idx], pc.rx[hist.frame][:, tx_idx, rx_idx]
+    # the channels per frame first, then per pair: a pair's frame repeats for every point it sees
+    return pc.tx[:, tx_idx][hist.frame], pc.rx[:, tx_idx, rx_idx][hist.frame]
 
 
 def focus_history(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array
@@ -202,10 +203,11 @@ def range_offsets(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array,
     points = np.asarray(points_enu, dtype=np.float64)
     ks = np.arange(-half_bins, half_bins + 1e-9, step_bins)
     z, _, los = focus_windows(hist.samples, hist.bin0, tx, rx, points, hist.point, hist.bin_m, hist.cycles_per_m, ks)
-    power = np.zeros((n_points, len(ks)))
-    for m in range(len(ks)):
-        zs = np.bincount(hist.point, z[:, m].real, n_points) + 1j * np.bincount(hist.point, z[:, m].imag, n_points)
-        power[:, m] = np.abs(zs) ** 2
+    # every (point, offset) sum in one bincount over point * K + offset (each sum still adds its pairs in order)
+    cell = (hist.point[:, None] * len(ks) + np.arange(len(ks))).ravel()
+    zs = (np.bincount(cell, z.real.ravel(), n_points * len(ks))
+          + 1j * np.bincount(cell, z.imag.ravel(), n_points * len(ks))).reshape(n_points, len(ks))
+    power = np.abs(zs) ** 2
     k = np.clip(np.argmax(power, axis=1), 1, len(ks) - 2)
     rows = np.arange(n_points)
     y0, y1, y2 = (np.log(np.maximum(power[rows, k + d], 1e-300)) for d in (-1, 0, 1))
