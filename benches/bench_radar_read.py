@@ -4,11 +4,12 @@ per chunk (drives written before), side by side.
 Usage: python benches/bench_radar_read.py [--drive DRIVE.h5] [--scenario test2] [--seed 1] [--repeat 5]
 
 Takes a drive's raw cube (default: ``autosar simulate`` of test2 seed 1, full dynamics, ingested), writes it into
-two scratch files, 32 frames per chunk either way, with the writer's compression and checksums: (32, 1, 1, samples,
-2) and (32, tx, rx, samples, 2). Then, alternating the layouts in each of ``--repeat`` rounds, times writing the
-cube in blocks of 256 frames as ingest appends them, and reading it back in blocks of 512 frames (focus's) with
-:meth:`RadarStream.frames`: every channel, the product image's 8 and the autofocus's 2 (``sar.focus.channel_pairs``).
-Prints medians and the per-channel layout's time over the whole-frame one's; writes
+two scratch files with the writer's compression and checksums: the writer's layout (``store.drive.radar_layout``:
+64 frames of one channel per chunk, a chunk cache of two chunk rows) and whole frames, 32 per chunk, as drives were
+written before (h5py's default cache). Then, alternating the layouts in each of ``--repeat`` rounds, times
+writing the cube in blocks of 128 frames as ingest appends a log's frames, and reading it back in blocks of 512
+frames (focus's) with :meth:`RadarStream.frames`: every channel, the product image's 8 and the autofocus's 2
+(``sar.focus.channel_pairs``). Prints medians and the per-channel layout's time over the whole-frame one's; writes
 benches/results/radar_read.json.
 """
 
@@ -22,16 +23,19 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
 
+from autosar_cli.ingest.decoders import RadarDecoder
 from autosar_cli.sar.focus import channel_pairs
-from autosar_cli.store.drive import RADAR_CHUNK_FRAMES, Drive, RadarStream, radar_compression
+from autosar_cli.store.drive import Drive, RadarStream, radar_compression, radar_layout
 
 RESULTS = Path(__file__).resolve().parent / "results"
-WRITE_FRAMES = 256
+WRITE_FRAMES = RadarDecoder.BLOCK  #: ingest's appends of RawFrame messages
 READ_FRAMES = 512
+WHOLE_FRAME_CHUNK_FRAMES = 32  #: the chunks of drives written before per-channel chunks
 
 
 def simulated_drive(work: Path, scenario: str, seed: int) -> Path:
@@ -43,14 +47,14 @@ def simulated_drive(work: Path, scenario: str, seed: int) -> Path:
     return drive
 
 
-def write_cube(path: Path, raw: h5py.Dataset, chunk_channels: tuple[int, int]) -> float:
-    """Copy ``raw`` into a fresh file at ``path`` in ingest's appends; the seconds spent in the appends."""
+def write_cube(path: Path, raw: h5py.Dataset, layout: dict[str, Any]) -> float:
+    """Copy ``raw`` into a fresh file at ``path`` in ingest's appends, chunked as ``layout`` says (create_dataset's
+    keywords); the seconds spent in the appends."""
     shape = raw.shape[1:]
     spent = 0.0
-    with h5py.File(path, "w") as f:
-        ds = f.create_dataset("raw", shape=(0, *shape), maxshape=(None, *shape), dtype=np.int16,
-                              chunks=(RADAR_CHUNK_FRAMES, *chunk_channels, *shape[2:]), fletcher32=True,
-                              **radar_compression())
+    with h5py.File(path, "w", libver="latest") as f:
+        ds = f.create_dataset("raw", shape=(0, *shape), maxshape=(None, *shape), dtype=np.int16, fletcher32=True,
+                              **layout, **radar_compression())
         for start in range(0, len(raw), WRITE_FRAMES):
             block = raw[start:start + WRITE_FRAMES]
             t = time.perf_counter()
@@ -79,14 +83,14 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--output", type=Path, default=RESULTS / "radar_read.json")
     args = ap.parse_args()
-    layouts = {"per_channel": (1, 1), "whole_frame": None}
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         drive = args.drive or simulated_drive(work, args.scenario, args.seed)
         with Drive(drive) as d:
             source = d.radar().raw
             n_tx, n_rx = source.shape[1:3]
-            layouts["whole_frame"] = (n_tx, n_rx)
+            layouts = {"per_channel": radar_layout(source.shape[1:]),
+                       "whole_frame": {"chunks": (WHOLE_FRAME_CHUNK_FRAMES, *source.shape[1:])}}
             reads = {"all_12": None, "image_8": channel_pairs(n_tx, n_rx, 8),
                      "autofocus_2": channel_pairs(n_tx, n_rx, 2)}
             times: dict[str, dict[str, list[float]]] = {k: {op: [] for op in ("write", *reads)} for k in layouts}

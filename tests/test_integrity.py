@@ -65,8 +65,8 @@ def test_a_flipped_byte_in_the_radar_cube_is_an_error_naming_file_and_dataset(tm
     path = w.commit()
     with Drive(path) as d:
         np.testing.assert_array_equal(d.radar().frames(0, 64), raw)
-        assert d.radar().raw.chunks == (32, 1, 1, 540, 2)  # one chunk per channel
-    _flip_byte_in(path, "radar/scanbrick/raw", at=0.7)  # the first chunk: Tx 0, Rx 0's first 32 frames
+        assert d.radar().raw.chunks == (64, 1, 1, 540, 2)  # one chunk per channel
+    _flip_byte_in(path, "radar/scanbrick/raw", at=0.7)  # the first chunk: Tx 0, Rx 0's first 64 frames
     for pairs in (None, [(0, 0), (2, 3)]):
         with Drive(path) as d, pytest.raises(DamagedFileError, match=r"drive\.h5: dataset /radar/scanbrick/raw "
                                                                      r"is damaged"):
@@ -124,3 +124,16 @@ def test_channel_reads_equal_the_frames_channels_in_either_chunk_layout(tmp_path
         assert radar.raw.chunks[1:3] == chunk_channels
         np.testing.assert_array_equal(radar.frames(5, 69, [(0, 0), (2, 3), (1, 2)]), raw[5:69, [0, 2, 1], [0, 3, 2]])
         np.testing.assert_array_equal(radar.frames(40, 80, every), raw[40:].reshape(30, 12, 16, 2))
+
+
+def test_appends_that_end_inside_a_chunk_read_back_whole(tmp_path: Path) -> None:
+    """Appends of 37, 100 and 5 frames (chunks hold 64): every frame reads back as written, whole or by channel."""
+    raw = np.random.default_rng(6).normal(0, 300, size=(142, 3, 4, 16, 2)).astype(np.int16)
+    w = DriveWriter(tmp_path / "drive.h5", {"autosar_version": "test"})
+    cube = w.radar("radar/scanbrick", (3, 4, 16), {})
+    for lo, hi in ((0, 37), (37, 137), (137, 142)):
+        cube.append_frames(np.arange(lo, hi, dtype=np.int64), np.arange(lo, hi), raw[lo:hi].copy())
+    path = w.commit()
+    with Drive(path) as d:
+        np.testing.assert_array_equal(d.radar().frames(0, 142), raw)
+        np.testing.assert_array_equal(d.radar().frames(30, 140, [(1, 3), (0, 0)]), raw[30:140, [1, 0], [3, 0]])
