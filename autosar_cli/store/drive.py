@@ -235,12 +235,12 @@ class RadarCube(Table):
         """Append frames; ``raw`` (n, tx, rx, sample, 2) int16 is handed over (do not modify it afterwards)."""
         start = self.rows
         self.append({"t_ns": t_ns, "frame_index": frame_index})
-        f = self._writer._file
         n = len(raw)
 
         def write() -> None:
             self._writer.ensure_space(raw.nbytes)
-            ds = self._raw if self._raw is not None else f[self.path]["raw"]
+            ds = self._raw
+            assert ds is not None  # create() ran first, on the same thread
             ds.resize(start + n, axis=0)
             ds[start:] = raw
 
