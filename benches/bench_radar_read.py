@@ -3,14 +3,14 @@ per chunk (drives written before), side by side.
 
 Usage: python benches/bench_radar_read.py [--drive DRIVE.h5] [--scenario test2] [--seed 1] [--repeat 5]
 
-Takes a drive's raw cube (default: ``autosar simulate`` of test2 seed 1, full dynamics, ingested), writes it into
-two scratch files with the writer's compression and checksums: the writer's layout (``store.drive.radar_layout``:
-64 frames of one channel per chunk, a chunk cache of two chunk rows) and whole frames, 32 per chunk, as drives were
-written before (h5py's default cache). Then, alternating the layouts in each of ``--repeat`` rounds, times
-writing the cube in blocks of 128 frames as ingest appends a log's frames, and reading it back in blocks of 512
-frames (focus's) with :meth:`RadarStream.frames`: every channel, the product image's 8 and the autofocus's 2
-(``sar.focus.channel_pairs``). Prints medians and the per-channel layout's time over the whole-frame one's; writes
-benches/results/radar_read.json.
+Takes a drive's raw cube (default: test2 seed 1, full dynamics, simulated and ingested by
+``bench_af_pass_ranges.kept_drive``), writes it into two scratch files with the writer's compression and
+checksums: the writer's layout (``store.drive.radar_layout``: 64 frames of one channel per chunk, a chunk cache of
+two chunk rows) and whole frames, 32 per chunk, as drives were written before (h5py's default cache). Then,
+alternating the layouts in each of ``--repeat`` rounds, times writing the cube in blocks of 128 frames as ingest
+appends a log's frames, and reading it back in blocks of 512 frames (focus's) with :meth:`RadarStream.frames`:
+every channel, the product image's 8 and the autofocus's 2 (``sar.focus.channel_pairs``). Prints medians and the
+per-channel layout's time over the whole-frame one's; writes benches/results/radar_read.json.
 """
 
 from __future__ import annotations
@@ -18,7 +18,6 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -32,19 +31,13 @@ from autosar_cli.ingest.decoders import RadarDecoder
 from autosar_cli.sar.focus import channel_pairs
 from autosar_cli.store.drive import Drive, RadarStream, radar_compression, radar_layout
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_af_pass_ranges import kept_drive  # noqa: E402
+
 RESULTS = Path(__file__).resolve().parent / "results"
 WRITE_FRAMES = RadarDecoder.BLOCK  #: ingest's appends of RawFrame messages
 READ_FRAMES = 512
 WHOLE_FRAME_CHUNK_FRAMES = 32  #: the chunks of drives written before per-channel chunks
-
-
-def simulated_drive(work: Path, scenario: str, seed: int) -> Path:
-    """``autosar simulate`` + ``autosar ingest`` of one drive into ``work``."""
-    log, drive = work / f"{scenario}_s{seed}.mcap", work / f"{scenario}_s{seed}.h5"
-    for args in (["simulate", "--scenario", scenario, "--seed", str(seed), "--output", str(log), "--overwrite"],
-                 ["ingest", str(log), "--output", str(drive), "--overwrite"]):
-        subprocess.run([sys.executable, "-m", "autosar_cli.cli", *args], check=True, capture_output=True)
-    return drive
 
 
 def write_cube(path: Path, raw: h5py.Dataset, layout: dict[str, Any]) -> float:
@@ -85,7 +78,7 @@ def main() -> None:
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
-        drive = args.drive or simulated_drive(work, args.scenario, args.seed)
+        drive = args.drive or kept_drive(args.scenario, args.seed, work / "drive") / "drive.h5"
         with Drive(drive) as d:
             source = d.radar().raw
             n_tx, n_rx = source.shape[1:3]

@@ -361,12 +361,12 @@ class RadarStream:
         dataset."""
         if pairs is None:
             return read_rows(self.raw, start, stop)
-        tx, rx = (np.array([p[i] for p in pairs], dtype=np.intp) for i in (0, 1))
         n_tx, n_rx = self.raw.shape[1:3]
-        chunks = self.raw.chunks
         if list(pairs) == [(t, r) for t in range(n_tx) for r in range(n_rx)]:
             raw = read_rows(self.raw, start, stop)
             return raw.reshape(len(raw), n_tx * n_rx, *raw.shape[3:])
+        tx, rx = (np.array([p[i] for p in pairs], dtype=np.intp) for i in (0, 1))
+        chunks = self.raw.chunks
         if chunks is None or chunks[1] * chunks[2] > 1:
             # a chunk holds several channels (drives written before chunks were per channel): reading a channel
             # decompresses its chunk whole, so the frames are read once and the channels taken from them
