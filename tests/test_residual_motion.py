@@ -321,6 +321,33 @@ def test_history_kernel_gives_the_same_bits_on_one_thread_as_on_all() -> None:
         np.testing.assert_array_equal(a, b)
 
 
+def test_range_windows_are_the_referenced_profiles_bins() -> None:
+    """take_windows copies each window from the unreferenced profiles and multiplies it by the ramp's own bins:
+    the same bits as slicing the referenced profiles (numpy's product, element by element); a window beyond its
+    profile is an error, not a clipped copy."""
+    from autosar_cli.sar.history_kernel import take_windows
+    from autosar_cli.sar.range_compression import range_compress, reference_ramp
+
+    rng = np.random.default_rng(11)
+    raw = rng.integers(-2000, 2000, size=(40, 2, 64, 2)).astype(np.int16)
+    kw = dict(sample_rate_hz=10e6, slope_hz_per_s=30e12, window="hann", upsample=8)
+    referenced = range_compress(raw, **kw)
+    bare = range_compress(raw, referenced=False, **kw)
+    ramp = reference_ramp(64, 512, 10e6, 30e12)
+    w = 21  # an odd width: numpy's vector loops end in a remainder
+    row = rng.integers(0, 40, 300)
+    start = rng.integers(0, 512 - w + 1, size=(300, 2))
+    start[0] = [0, 512 - w]  # both ends
+    samples = np.empty((300, 2, w), np.complex64)
+    take_windows(bare, ramp, row, start, samples)
+    expected = np.stack([np.stack([referenced[r, c, s:s + w] for c, s in enumerate(st)])
+                         for r, st in zip(row, start, strict=True)])
+    np.testing.assert_array_equal(samples.view(np.uint32), expected.view(np.uint32))
+    start[5, 1] = 512 - w + 1
+    with pytest.raises(ValueError, match="beyond its profile"):
+        take_windows(bare, ramp, row, start, samples)
+
+
 def test_gathered_histories_are_each_pulses_own_range_profile(ci_drive: tuple[Path, Trajectory]) -> None:
     """gather_phase_histories against straightforward per-pulse code (float64 geometry, one pulse at a time): which
     pulses see each point (its side, the beam, the range), and each pair's window equals the bins of that pulse's

@@ -1,5 +1,7 @@
-"""Back-projection of kept range windows onto their points: the inner loop of the residual-motion autofocus's
-model (:func:`autosar_cli.sar.phase_history.focus_history` and ``range_offsets``). Array in, array out.
+"""Kept range windows: their taking from the range profiles (:func:`take_windows`, for
+:func:`autosar_cli.sar.phase_history.gather_phase_histories`), and their back-projection onto their points, the inner
+loop of the residual-motion autofocus's model (:func:`focus_windows`, for
+:func:`autosar_cli.sar.phase_history.focus_history` and ``range_offsets``). Array in, array out.
 
 Each (point, pulse) pair's channels hold a window of range bins around the point's predicted path
 (:class:`~autosar_cli.sar.phase_history.PhaseHistories`); the pair's value is the channels' samples at the exact
@@ -78,3 +80,29 @@ def focus_windows(samples: NDArray[np.complex64], bin0: NDArray[np.int64], tx: N
                    float(bin_m), float(cycles_per_m), np.ascontiguousarray(offsets_bins, dtype=np.float64),
                    z_re, z_im, inside, los)
     return z_re + 1j * z_im, inside, los
+
+
+@nb.njit(cache=True, nogil=True)
+def _take_windows(profiles, ramp, row, start, samples, ramp_windows):  # pragma: no cover - compiled
+    for n in range(row.shape[0]):
+        for c in range(start.shape[1]):
+            b = start[n, c]
+            for i in range(samples.shape[2]):
+                samples[n, c, i] = profiles[row[n], c, b + i]
+                ramp_windows[n, c, i] = ramp[b + i]
+
+
+def take_windows(profiles: NDArray[np.complex64], ramp: NDArray[np.complex64], row: NDArray[np.int64],
+                 start: NDArray[np.int64], samples: NDArray[np.complex64]) -> None:
+    """``samples[n, c] = profiles[row[n], c, start[n, c]:start[n, c] + W] * ramp[start[n, c]:start[n, c] + W]``.
+
+    ``profiles`` (B, C, K) complex range profiles before their reference ramp (``range_compress(...,
+    referenced=False)``); ``ramp`` (K,) the ramp; ``row`` (N,) each window's profile; ``start`` (N, C) first bins,
+    each in 0 ... K - W; ``samples`` (N, C, W) written in place. The product is numpy's, so the windows equal
+    those of the referenced profiles bit for bit (a window copy, not fancy indexing: 4 times faster on test2)."""
+    if len(row) and (start.min() < 0 or start.max() > profiles.shape[-1] - samples.shape[-1]):
+        raise ValueError("a range window reaches beyond its profile")
+    ramp_windows = np.empty_like(samples)
+    _take_windows(profiles, ramp, np.ascontiguousarray(row, dtype=np.int64),
+                  np.ascontiguousarray(start, dtype=np.int64), samples, ramp_windows)
+    samples *= ramp_windows

@@ -23,8 +23,8 @@ from numpy.typing import NDArray
 from autosar_cli.config import Config
 from autosar_cli.nav.trajectory import phase_centre_lever_arm, radar_phase_centres, radar_side
 from autosar_cli.sar.focus import FocusOptions, RadarParameters, channel_pairs
-from autosar_cli.sar.history_kernel import focus_windows
-from autosar_cli.sar.range_compression import range_compress
+from autosar_cli.sar.history_kernel import focus_windows, take_windows
+from autosar_cli.sar.range_compression import range_compress, reference_ramp
 from autosar_cli.store.drive import Drive
 from autosar_cli.types import Trajectory
 
@@ -90,7 +90,11 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         bin0 = np.empty((n_pairs, len(pairs)), np.int64)
         tx_idx = np.array([p[0] for p in pairs])
         rx_idx = np.array([p[1] for p in pairs])
-        blocks = [used[start:start + block_frames] for start in range(0, len(used), block_frames)]
+        starts = range(0, len(used), block_frames)
+        blocks = [used[start:start + block_frames] for start in starts]
+        pc = radar_phase_centres(traj, t[used], offsets, config)  # elementwise in time: once for all blocks
+        tx_all, rx_all = pc.tx[:, tx_idx], pc.rx[:, tx_idx, rx_idx]  # (U, C, 3)
+        ramp = reference_ramp(rp.n_samples, n_bins, fs, slope)
 
         def read(sel: NDArray[np.int64]) -> NDArray[np.int16]:
             raw = radar.frames(int(frames[sel[0]]), int(frames[sel[-1]]) + 1, pairs)
@@ -99,26 +103,21 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         # the next block is read while this one is compressed (h5py's reads and the FFTs release the GIL)
         with ThreadPoolExecutor(1) as reader:
             pending = reader.submit(read, blocks[0]) if blocks else None
-            for b, sel in enumerate(blocks):
+            for b, (start, sel) in enumerate(zip(starts, blocks, strict=True)):
                 raw = pending.result()
                 if b + 1 < len(blocks):
                     pending = reader.submit(read, blocks[b + 1])
+                # the ramp goes on the windows only (test2's are 7 % of the profiles' bins)
                 profiles = range_compress(raw, sample_rate_hz=fs, slope_hz_per_s=slope, window=focus.window,
-                                          upsample=focus.upsample)  # (B, C, bins)
-                pc = radar_phase_centres(traj, t[sel], offsets, config)
+                                          upsample=focus.upsample, referenced=False)  # (B, C, bins)
                 lo, hi = np.searchsorted(frame_of, sel[0]), np.searchsorted(frame_of, sel[-1], side="right")
                 kk = np.searchsorted(sel, frame_of[lo:hi])
-                jj = point_of[lo:hi]
-                tx = pc.tx[kk][:, tx_idx]  # (n, C, 3)
-                rx = pc.rx[kk][:, tx_idx, rx_idx]
-                p = points[jj][:, None, :]
+                tx, rx = tx_all[start + kk], rx_all[start + kk]  # (n, C, 3)
+                p = points[point_of[lo:hi]][:, None, :]
                 path = np.linalg.norm(tx - p, axis=-1) + np.linalg.norm(rx - p, axis=-1)
                 b0 = np.floor(path / bin_m).astype(np.int64) - (w // 2 - 1)
                 b0 = np.clip(b0, 0, n_bins - w)
-                # the windows straight from the profiles' flat buffer: a copy of each pair's whole profile (its
-                # frame's, repeated for every point it sees) would move the profiles ~P times over
-                row = (kk[:, None] * len(pairs) + np.arange(len(pairs))) * profiles.shape[-1] + b0  # (n, C)
-                np.take(profiles.reshape(-1), row[..., None] + np.arange(w), out=samples[lo:hi], mode="clip")
+                take_windows(profiles, ramp, kk, b0, samples[lo:hi])
                 bin0[lo:hi] = b0
     return PhaseHistories(point_of, frame_of, t, bin0, samples, pairs, offsets, bin_m, rp.cycles_per_m, slope)
 

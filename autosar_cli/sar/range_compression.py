@@ -48,11 +48,14 @@ def taper(name: str, n: int) -> NDArray[np.float64]:
 
 
 @functools.lru_cache(maxsize=8)
-def _reference_ramp(n: int, nfft: int, sample_rate_hz: float, slope_hz_per_s: float) -> NDArray[np.complex64]:
-    """Window-centre reference and RVP removal for each compressed bin, in one float64 phase ramp."""
+def reference_ramp(n: int, nfft: int, sample_rate_hz: float, slope_hz_per_s: float) -> NDArray[np.complex64]:
+    """Window-centre reference and RVP removal (nfft,) for each compressed bin of ``n`` samples, in one float64
+    phase ramp (read-only: cached)."""
     k = np.arange(nfft)
     f = k * sample_rate_hz / nfft
-    return np.exp(1j * (np.pi * k * (n - 1) / nfft + np.pi * f**2 / slope_hz_per_s)).astype(np.complex64)
+    ramp = np.exp(1j * (np.pi * k * (n - 1) / nfft + np.pi * f**2 / slope_hz_per_s)).astype(np.complex64)
+    ramp.flags.writeable = False
+    return ramp
 
 
 @functools.lru_cache(maxsize=8)
@@ -62,17 +65,22 @@ def _taper32(name: str, n: int) -> NDArray[np.float32]:
 
 @nb.njit(cache=True, nogil=True)
 def _load_iq_tapered(raw, w, out):  # pragma: no cover - compiled
-    """out[..., n] = (I + jQ)[..., n] * w[n] for int16 pairs raw (P, N, 2) (any strides); out (P, >= N)."""
+    """out[..., n] = (I + jQ)[..., n] * w[n] for int16 pairs raw (P, N, 2) (any strides), zero beyond N; out
+    (P, >= N)."""
     for p in range(raw.shape[0]):
         for n in range(raw.shape[1]):
             out[p, n] = complex(np.float32(raw[p, n, 0]) * w[n], np.float32(raw[p, n, 1]) * w[n])
+        for n in range(raw.shape[1], out.shape[1]):
+            out[p, n] = 0.0
 
 
 def range_compress(beat: ArrayLike, *, sample_rate_hz: float, slope_hz_per_s: float, window: str = "hann",
-                   upsample: int = 8, workers: int = -1) -> NDArray[np.complex64]:
+                   upsample: int = 8, workers: int = -1, referenced: bool = True) -> NDArray[np.complex64]:
     """Compress complex beat samples (..., N) to (..., N * upsample) range profiles (complex64).
 
-    ``beat``: complex samples along fast time (last axis), or int16 I/Q pairs (..., N, 2).
+    ``beat``: complex samples along fast time (last axis), or int16 I/Q pairs (..., N, 2). ``referenced=False``
+    leaves out the multiplication by :func:`reference_ramp` (a caller that keeps only some bins applies it to
+    those: numpy's product is the same there, bit for bit).
     """
     x = np.asarray(beat)
     iq = x.dtype == np.int16 and x.shape[-1] == 2
@@ -80,15 +88,17 @@ def range_compress(beat: ArrayLike, *, sample_rate_hz: float, slope_hz_per_s: fl
     nfft = n * upsample
     w = _taper32(window, n)
     # tapered and zero-padded by hand: scipy's own padding (n=nfft) made the FFT ~30 % slower (measured)
-    padded = np.zeros((*x.shape[:-2], nfft) if iq else (*x.shape[:-1], nfft), np.complex64)
     if iq:
+        padded = np.empty((*x.shape[:-2], nfft), np.complex64)
         _load_iq_tapered(x.reshape(-1, n, 2), w, padded.reshape(-1, nfft))
     else:
+        padded = np.zeros((*x.shape[:-1], nfft), np.complex64)
         padded[..., :n] = x * w
     import scipy.fft  # here, not at the top: focus's own path (range_fft) never needs it, and it costs ~0.2 s to import
 
     spec = scipy.fft.fft(padded, axis=-1, workers=workers, overwrite_x=True)
-    spec *= _reference_ramp(n, nfft, float(sample_rate_hz), float(slope_hz_per_s))
+    if referenced:
+        spec *= reference_ramp(n, nfft, float(sample_rate_hz), float(slope_hz_per_s))
     return spec.astype(np.complex64, copy=False)
 
 
@@ -105,7 +115,7 @@ def range_compress_into(beat: ArrayLike, out_re: NDArray[np.float32], out_im: ND
     x = np.asarray(beat)
     if x.dtype == np.int16 and x.ndim == 3 and x.shape[-1] == 2 and radices(x.shape[1]) is not None:
         n = x.shape[1]
-        compress_iq(x, _taper32(window, n), _reference_ramp(n, n * upsample, float(sample_rate_hz),
+        compress_iq(x, _taper32(window, n), reference_ramp(n, n * upsample, float(sample_rate_hz),
                                                             float(slope_hz_per_s)), upsample, out_re, out_im)
         return
     spec = range_compress(beat, sample_rate_hz=sample_rate_hz, slope_hz_per_s=slope_hz_per_s, window=window,
