@@ -115,8 +115,8 @@ def range_compress_into(beat: ArrayLike, out_re: NDArray[np.float32], out_im: ND
     x = np.asarray(beat)
     if x.dtype == np.int16 and x.ndim == 3 and x.shape[-1] == 2 and radices(x.shape[1]) is not None:
         n = x.shape[1]
-        compress_iq(x, _taper32(window, n), reference_ramp(n, n * upsample, float(sample_rate_hz),
-                                                            float(slope_hz_per_s)), upsample, out_re, out_im)
+        ramp = reference_ramp(n, n * upsample, float(sample_rate_hz), float(slope_hz_per_s))
+        compress_iq(x, _taper32(window, n), ramp, upsample, out_re, out_im)
         return
     spec = range_compress(beat, sample_rate_hz=sample_rate_hz, slope_hz_per_s=slope_hz_per_s, window=window,
                           upsample=upsample, workers=workers)
