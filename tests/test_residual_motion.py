@@ -106,6 +106,36 @@ def test_a_track_that_climbs_the_data_do_not_is_no_scale(ci_drive: tuple[Path, T
     assert flat.scale < -1e-3 and flat.scale < -2.5 * flat.scale_std
 
 
+def test_without_the_scale_the_motion_is_fitted_from_the_points_as_given(ci_drive: tuple[Path, Trajectory],
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where the track scale is not kept, the residual motion is fitted from the points where the track without it
+    focuses them, not where the scale's own fit left them (moved with a scale that is then dropped, and wherever its
+    capped iterations stopped): those points moved by 5 mm change no bit of the correction. (Started there, urban
+    seed 8's correction moved by 2.5 mm for a change of 1 nm in the track.)"""
+    import autosar_cli.sar.residual_motion as rm
+
+    drive, truth = ci_drive
+    across = frame_geometry(truth, truth.t_ns, CFG)[1]
+    # a fifth of the issue's error: the scale's fit, the motion held, still takes its points (it moves them by 2 cm)
+    wrong = replace(truth, correction=MotionCorrection(truth.t_ns, 0.2 * injected_error(truth)[:, None] * across,
+                                                       np.zeros((len(truth.t_ns), 3))))
+    points = _reflector_points(drive, truth)
+    opts = AutofocusOptions(max_scale_std=0.0)  # every scale refused
+    base = estimate_residual_motion(drive, wrong, CFG, points, opts=opts)
+    assert base.applied and "track scale not measured (its std" in base.scale_note, base.summary()
+    fit, calls = rm._fit, []
+
+    def nudged(*args: object, **kwargs: object) -> rm.ResidualMotion:
+        res = fit(*args, **kwargs)  # type: ignore[arg-type]
+        calls.append(res)
+        return replace(res, points_enu=res.points_enu + np.array([0.005, -0.005, 0.0])) if len(calls) == 1 else res
+
+    monkeypatch.setattr(rm, "_fit", nudged)
+    again = estimate_residual_motion(drive, wrong, CFG, points, opts=opts)
+    assert len(calls) == 2 and again.correction is not None and base.correction is not None
+    np.testing.assert_array_equal(again.correction.offset_enu, base.correction.offset_enu)
+
+
 def test_each_point_is_weighed_by_its_own_noise(ci_drive: tuple[Path, Trajectory],
                                                 monkeypatch: pytest.MonkeyPatch) -> None:
     """The injected error of the test above, with a second scatterer beside each reflector whose pulses carry
