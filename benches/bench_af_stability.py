@@ -57,6 +57,11 @@ def drive_row(work: Path, shift_m: float) -> dict[str, Any]:
     return row
 
 
+def moves_summary(moves: list[float], prefix: str = "") -> dict[str, float | int]:
+    """The largest of the drives' largest moves (mm) and how many exceed 0.1 mm, keys named with ``prefix``."""
+    return {f"{prefix}move_max_mm": max(moves), f"{prefix}drives_moved_over_0.1mm": sum(m > 0.1 for m in moves)}
+
+
 def with_before(rows: list[dict[str, Any]], summary: dict[str, Any], before: dict[str, Any]) -> None:
     """``before``'s (another run's output) moves beside each of ``rows`` of the same drive, and in ``summary``."""
     theirs = {(r["scenario"], r["seed"]): r for r in before["rows"]}
@@ -67,8 +72,7 @@ def with_before(rows: list[dict[str, Any]], summary: dict[str, Any], before: dic
             row["before_points_used"] = [other["as_navigated_points_used"], other["shifted_points_used"]]
     moves = [r["before_move_max_mm"] for r in rows if "before_move_max_mm" in r]
     if moves:
-        summary["before_move_max_mm"] = max(moves)
-        summary["before_drives_moved_over_0.1mm"] = sum(m > 0.1 for m in moves)
+        summary.update(moves_summary(moves, "before_"))
 
 
 def main() -> None:
@@ -92,8 +96,7 @@ def main() -> None:
         print(json.dumps({k: row[k] for k in ("scenario", "seed", "move_max_mm", "move_rms_mm",
                                               "as_navigated_points_used", "shifted_points_used")}), flush=True)
         moves = [r["move_max_mm"] for r in rows]
-        summary = {"drives": len(rows), "move_max_mm": max(moves), "move_max_median_mm": float(np.median(moves)),
-                   "drives_moved_over_0.1mm": sum(m > 0.1 for m in moves)}
+        summary = {"drives": len(rows), **moves_summary(moves), "move_max_median_mm": float(np.median(moves))}
         if before is not None:
             with_before(rows, summary, before)
         result = {"benchmark": "af_stability", "shift_nm": args.shift_nm, "note": args.note, "summary": summary,

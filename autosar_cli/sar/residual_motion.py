@@ -366,7 +366,6 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
         chi2, n = first.scale_agreement
         scale, note = 0.0, (f"track scale not measured: its {n} points disagree on it (reduced chi-square "
                             f"{chi2:.1f}, above {_agreement_limit(n):.1f})")
-    points = first.points_enu if first.applied else points0
     used0 = first.points_used | ~near if first.applied else None
     motion = replace(opts, prior_scale=1e-9)  # the scale held
     if scale:
@@ -374,7 +373,8 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
         # motion the first fit held takes back the share of each aperture's quadratic phase that is its own
         # (test3 seed 1: +0.037 % alone, -0.002 % together, the track's error -0.017 %); the near points alone, for
         # the farther pull the scale (test1 seeds 0-9: -0.064 % mean against the track's error with them)
-        result = _fit(hist, trajectory, config, points, replace(opts, max_phase_rms_rad=opts.scale_max_phase_rms_rad),
+        result = _fit(hist, trajectory, config, first.points_enu,
+                      replace(opts, max_phase_rms_rad=opts.scale_max_phase_rms_rad),
                       used0=first.points_used, scale0=scale, posterior=False,
                       grade_stretch=grade)  # the fit below may replace it
         scale, scale_std = (result.scale, result.scale_std) if result.applied else (0.0, scale_std)
