@@ -305,6 +305,8 @@ class NavigationConfig:
     gnss_heading: bool = False
     gnss_heading_offset_std_deg: float = 1.0
     steering_min_speed_mps: float = 1.0  # below it the steering model atan(L omega / v) is not used
+    # where all four wheels read 0 for 1 s or more, the yaw rate is 0 to this std (per 0.1 s; 0: not used)
+    standstill_yaw_rate_std_dps: float = 0.001
     # fit the understeer gradient K and the yaw lag to the drive's turns on a pass without the steering, and keep that
     # pass where they show the car not steering as the kinematic bicycle (K's std at most
     # understeer_max_std_rad_per_mps2); else, and with estimate_understeer off, the steering is used
@@ -582,6 +584,7 @@ def _validate(cfg: Config) -> None:
         _positive(f"navigation.{name}", getattr(nav, name))
     _non_negative("navigation.position_noise_m", nav.position_noise_m)
     _non_negative("navigation.steering_min_speed_mps", nav.steering_min_speed_mps)
+    _non_negative("navigation.standstill_yaw_rate_std_dps", nav.standstill_yaw_rate_std_dps)
     _non_negative("navigation.understeer_max_std_rad_per_mps2", nav.understeer_max_std_rad_per_mps2)
     _non_negative("navigation.wheel_lag_max_std_m", nav.wheel_lag_max_std_m)
     _non_negative("navigation.wheel_radius_gain_max_std_per_mps2", nav.wheel_radius_gain_max_std_per_mps2)

@@ -302,6 +302,45 @@ def test_wheel_samples_whose_ecu_window_spans_a_standstill_are_left_out() -> Non
     assert without_restart_windows(steady, 0.3) == (steady, 0)
 
 
+def test_a_standstill_is_where_all_four_wheels_read_zero_and_the_car_stands() -> None:
+    """The same stop through the simulator's ECU (0 after 0.3 s without an edge): the standstill the wheels give
+    lies inside the 5 s the car stands (its speed 0 at every instant of it) and covers 4 s or more of them; a gap of
+    0.5 s, one wheel still turning, or a steady drive give none. Zero yaw rate is taken at the instants asked for
+    within it, and only there."""
+    from scipy.integrate import cumulative_trapezoid
+
+    from autosar_cli.nav.inputs import Measurements
+    from autosar_cli.nav.wheel_speeds import standstill_spans, standstill_yaw_rate
+    from autosar_cli.sim.sensors import tone_ring_speed
+
+    r, teeth = VEH.wheel_radius_m, 48
+
+    def speed(t):  # noqa: ANN001, ANN202
+        return np.clip(np.where(t < 12.0, 3.0 - 1.5 * np.clip(t - 5.0, 0.0, None), (t - 12.0)), 0.0, 3.0)
+
+    grid = np.arange(0.0, 20.0, 1e-4)
+    travel = cumulative_trapezoid(speed(grid), grid, initial=0.0)
+    t = np.arange(1.0, 19.0, 0.01)
+    v, _ = tone_ring_speed(grid, travel / r + 1.0, t, np.random.default_rng(3).normal(0.0, 0.002, teeth), 6, 0.3, r)
+    wheels = Measurements("wheels", t, np.repeat(v[:, None], 4, axis=1), np.full(4, 0.008))
+    spans = standstill_spans(wheels)
+    assert len(spans) == 1
+    a, b = spans[0]
+    assert 7.0 <= a and b <= 12.0 and b - a >= 4.0, spans
+    gyro_t = np.arange(0.0, 20.0, 0.002)
+    zero = standstill_yaw_rate(wheels, gyro_t, 1e-5)
+    assert zero is not None and np.all((zero.t >= a) & (zero.t <= b)) and np.all(zero.z == 0.0)
+    assert len(zero.t) == np.sum((gyro_t >= a) & (gyro_t <= b)) and zero.sigma[0] == 1e-5
+    one_turning = Measurements("wheels", t, wheels.z.copy(), wheels.sigma)
+    one_turning.z[:, 2] = 0.5
+    short = Measurements("wheels", t, np.where(((t > 3.0) & (t < 3.5))[:, None], 0.0, 3.0) * np.ones((1, 4)),
+                         wheels.sigma)
+    steady = Measurements("wheels", t, np.full((t.size, 4), 3.0), wheels.sigma)
+    for none in (one_turning, short, steady):
+        assert standstill_spans(none) == [] and standstill_yaw_rate(none, gyro_t, 1e-5) is None
+    print(f"standstill {a:.2f}-{b:.2f} s of the car's 7.00-12.00 s")
+
+
 def test_a_slip_gains_error_drifts_the_track_by_its_gain_times_the_change_of_half_the_speed_squared() -> None:
     """A slip gain ``dk`` off leaves the track ``v a dk`` fast under acceleration ``a``: by the end of a braking
     from 5 m/s to a stop it has run ``dk (0 - 5^2) / 2`` further, ``dk 5^2 / 2`` by the end of the pull-away, and

@@ -19,7 +19,7 @@ from autosar_cli.nav import models as m
 from autosar_cli.nav import sarmin_kernel as kern
 from autosar_cli.nav.baselines import from_truth
 from autosar_cli.nav.inputs import load_inputs
-from autosar_cli.nav.navigate import navigate
+from autosar_cli.nav.navigate import navigate, with_standstill
 from autosar_cli.nav.sarmin import SIGMA_ALPHA, SIGMA_BETA, NavSolution, chi2_gate, run_sarmin
 from autosar_cli.nav.trajectory import Trajectory, relative_pose_error
 from autosar_cli.nav.ukf import VectorUKF
@@ -67,6 +67,30 @@ def test_compiled_filter_equals_the_filterpy_reference(ci_drive: Path, gnss_erro
     np.testing.assert_allclose(fast.x, ref.x, atol=1e-7)
     np.testing.assert_allclose(fast.P, ref.P, atol=1e-10)
     assert fast.updates == ref.updates and fast.rejected == ref.rejected == {}
+
+
+def test_a_standstills_zero_yaw_rate_is_the_same_update_in_both_engines(ci_drive: Path) -> None:
+    """A standstill's yaw-rate update (here on the ci drive's middle 0.3 s, at its gyros' instants; the car moves
+    there, so the rate is the free filter's plus 0.5 mrad/s rather than 0) through the compiled filter and through
+    filterpy's: the same states; and it holds the yaw rate there to within a few times its std."""
+    from autosar_cli.nav.inputs import Measurements
+
+    with Drive(ci_drive) as d:
+        inputs = load_inputs(d, CFG)
+    free = run_sarmin(inputs, CFG, engine="numba", smooth=False)
+    t = np.unique(np.concatenate([g.t for g in inputs.gyros]))
+    at = t[np.abs(t - float(np.median(t))) < 0.15]
+    rate = np.interp(at, free.t, free.x[:, 4]) + 5e-4
+    held = dataclasses.replace(inputs, standstill=Measurements("standstill", at, rate[:, None], np.array([1e-5])))
+    fast = run_sarmin(held, CFG, engine="numba", smooth=False)
+    ref = run_sarmin(held, CFG, engine="numpy", smooth=False)
+    np.testing.assert_array_equal(fast.t, ref.t)
+    np.testing.assert_allclose(fast.x, ref.x, atol=1e-7)
+    np.testing.assert_allclose(fast.P, ref.P, atol=1e-10)
+    assert fast.updates["standstill"] == ref.updates["standstill"] == len(at)
+    off = np.abs(fast.x[np.searchsorted(fast.t, at), 4] - rate)
+    print(f"yaw rate where held: {off.max():.2e} rad/s from the rate given (the free filter's 5e-4 from it)")
+    assert off.max() < 5e-5
 
 
 def test_smoothed_states_alone_are_the_full_smoothers(ci_drive: Path) -> None:
@@ -765,7 +789,10 @@ def test_a_stop_does_not_turn_the_speed_backwards(tmp_path: Path) -> None:
     """Urban seed 0 on the kinematic car: it stops for 8 s at the junction and pulls away. ABS wheel speeds carry no
     sign, so wheel predictions that did not either (|v|) let the filter's speed drift through zero at the stop and
     go on backwards: 172 m off by the end, its GNSS updates gated out. With signed predictions the speed never goes
-    below -5 cm/s and the track stays within 5 cm of the truth after a rigid alignment (measured 1.8 cm)."""
+    below -5 cm/s and the track stays within 5 cm of the truth after a rigid alignment (measured 2.0 cm).
+    The wheels' standstill spans 5.8 s of the 6.1 s the car stands (its speed below 5 cm/s throughout). A step of
+    the gyros' biases over it turns the heading as a yaw rate would (0.0144 deg of the 0.0176 a yaw rate would
+    give), but for the standstill's zero yaw rate (0.0019 deg)."""
     from dataclasses import replace
 
     from autosar_cli.evaluate.alignment import fit_se2
@@ -782,6 +809,27 @@ def test_a_stop_does_not_turn_the_speed_backwards(tmp_path: Path) -> None:
     aligned = float(np.hypot(*(fit_se2(e_xy, r_xy).apply(e_xy) - r_xy).T).max())
     print(f"urban seed 0 kinematic: lowest speed {est.speed.min():.3f} m/s, aligned max {aligned * 100:.2f} cm")
     assert est.speed.min() > -0.05 and aligned < 0.05
+    # where the car stands its heading does not turn: the gyros' biases stepped by 0.003 deg/s over the standstill,
+    # which nothing but the standstill's zero yaw rate tells from a turn, turn it by that rate times its duration
+    (span,) = est.info["standstill_ns"]
+    within = (truth.t_ns >= span[0]) & (truth.t_ns <= span[1])
+    assert np.abs(truth.speed[within]).max() < 0.05 and span[1] - span[0] > 5e9
+    with Drive(tmp_path / "drive.h5") as d:
+        inputs = load_inputs(d, cfg)
+    inside = [(g.t * 1e9 + inputs.t0_ns >= span[0]) & (g.t * 1e9 + inputs.t0_ns <= span[1]) for g in inputs.gyros]
+    stepped = dataclasses.replace(inputs, gyros=[dataclasses.replace(g, z=g.z + np.deg2rad(0.003) * k[:, None])
+                                                 for g, k in zip(inputs.gyros, inside, strict=True)])
+    turned = {}
+    for std in (0.0, cfg.navigation.standstill_yaw_rate_std_dps):
+        held, _ = with_standstill(stepped, dataclasses.replace(cfg, navigation=dataclasses.replace(
+            cfg.navigation, standstill_yaw_rate_std_dps=std)))
+        sol = run_sarmin(held, cfg)
+        turned[std] = float(np.rad2deg(np.diff(np.interp((np.array(span) - inputs.t0_ns) / 1e9, sol.t,
+                                                         np.unwrap(sol.x[:, m.PSI])))[0]))
+    expected = 0.003 * (span[1] - span[0]) / 1e9
+    print(f"a 0.003 deg/s bias step over the {(span[1] - span[0]) / 1e9:.2f} s standstill turns the heading by "
+          f"{turned[0.0]:+.4f} deg without its zero yaw rate ({expected:.4f} expected), {turned[std]:+.4f} with it")
+    assert turned[0.0] > 0.6 * expected and abs(turned[std]) < 0.2 * expected
 
 
 def test_the_radar_stays_on_a_planar_body_where_no_attitude_is_measured(ci_drive: Path) -> None:

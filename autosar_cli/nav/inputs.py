@@ -60,6 +60,7 @@ class NavInputs:
     gnss_heading: Measurements | None = None  # the receiver's heading of the body (rad, ENU), where it gives one
     gnss_heading_offset_std: float = 0.0  # prior std of that heading's constant offset (rad)
     gnss_heading_missing: str = ""  # why there is no such heading, where navigation.gnss_heading asked for one
+    standstill: Measurements | None = None  # zero yaw rate (rad/s) where the wheels stand still
     gnss_lever_m: tuple[float, float, float] = (0.0, 0.0, 0.0)  # antenna in the body frame (from the CoG)
     attitude_imu: ImuSamples | None = None  # the 6-DoF IMU of navigation.attitude_imu, where the drive has it
     gyro_bias_std: list[float] = field(default_factory=list)  # prior std of each gyro's bias (rad/s)

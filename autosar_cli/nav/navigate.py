@@ -40,6 +40,8 @@ from autosar_cli.nav.wheel_speeds import (
     radius_corrected_wheels,
     raw_gyro_yaw_rate,
     restart_window_m,
+    standstill_spans,
+    standstill_yaw_rate,
     wheel_gaps,
     without_restart_windows,
 )
@@ -49,7 +51,7 @@ from autosar_cli.types import MotionCorrection
 METHODS = ("sar-min", "ins", "gnss", "none", "truth")
 #: what a trajectory's info reports of its navigation (navigate --json, run.json): updates and what was fitted
 REPORTED_INFO = ("updates", "rejected", "gnss_noise", "understeer", "rear_slip", "wheel_lag", "wheel_radii",
-                 "attitude", "wheel_gaps", "gnss_heading")
+                 "attitude", "wheel_gaps", "standstill_ns", "gnss_heading")
 SIGNIFICANT = 3.0  # a fitted lag or gradient is applied where it differs from the default by more stds than this
 # ... and by more than these: a tenth of a sedan's understeer gradient (rad per m/s^2), 5 ms of yaw lag, 1 cm of
 # wheel-speed lag distance, 0.1 % per m/s^2 of slip gain (at urban's 1 m/s^2 RMS, 1 mm per metre), 0.05 % per m/s^2
@@ -317,6 +319,16 @@ def _height_decision(att: BodyAttitude, config: Config) -> dict[str, Any]:
                                        "measured on the GNSS's vertical velocity"}
 
 
+def with_standstill(inputs: NavInputs, config: Config) -> tuple[NavInputs, list[tuple[float, float]]]:
+    """``inputs`` with a zero yaw rate at every gyro sample where the wheels stand still
+    (:func:`.wheel_speeds.standstill_yaw_rate`, std ``navigation.standstill_yaw_rate_std_dps``; none where it is 0),
+    and those standstills (s since ``inputs.t0_ns``)."""
+    spans = standstill_spans(inputs.wheels)
+    gyro_t = np.concatenate([g.t for g in inputs.gyros]) if inputs.gyros else np.zeros(0)
+    zero = standstill_yaw_rate(inputs.wheels, gyro_t, np.deg2rad(config.navigation.standstill_yaw_rate_std_dps))
+    return replace(inputs, standstill=zero), spans
+
+
 def sarmin_with_fits(inputs: NavInputs, config: Config, smooth: bool = True
                               ) -> tuple[NavSolution, dict, dict, float]:
     """SAR-MIN with the terms fitted to the drive on a first pass without the steering: the steering's understeer
@@ -422,6 +434,8 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                 raise NavInputError(f"{drive_path}: no truth sidecar found; give --truth LOG.truth.h5")
     if method == "sar-min":
         inputs, gnss_noise = gnss_noise_checked(inputs, config.navigation.estimate_gnss_noise)
+        # from the wheels as recorded: the lag's corrections below leave out rows at a standstill's ends
+        inputs, standstill = with_standstill(inputs, config)
         fits_config = with_fit_bounds_widened(config, gnss_noise)
         inputs, wheel_lag, wheel_radii = wheel_speeds_corrected(inputs, fits_config)
         attitude, attitude_reason = body_attitude(inputs, config)
@@ -438,6 +452,8 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                           info={"updates": sol.updates, "rejected": sol.rejected, "smoothed": smooth,
                                 "understeer": understeer, "rear_slip": rear_slip, "wheel_lag": wheel_lag,
                                 "wheel_radii": wheel_radii, "gnss_noise": gnss_noise,
+                                "standstill_ns": [[inputs.t0_ns + int(round(x * 1e9)) for x in span]
+                                                  for span in standstill],
                                 "wheel_gaps": [g.to_dict() for g in wheel_gaps(inputs.wheels, inputs.gnss_velocity,
                                                                                inputs.t0_ns)]})
         if config.navigation.gnss_heading:

@@ -200,7 +200,8 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
     # One event list: (time, sensor kind, sample index), in time order.
     sources: list[tuple[str, Measurements]] = [(f"gyro{i}", g) for i, g in enumerate(inputs.gyros)]
     for kind, meas in (("wheels", inputs.wheels), ("steering", inputs.steering), ("gnss_pos", inputs.gnss_position),
-                       ("gnss_vel", inputs.gnss_velocity), ("gnss_heading", inputs.gnss_heading)):
+                       ("gnss_vel", inputs.gnss_velocity), ("gnss_heading", inputs.gnss_heading),
+                       ("standstill", inputs.standstill)):
         if meas is not None:
             sources.append((kind, meas))
     times = np.concatenate([s.t for _, s in sources])
@@ -274,6 +275,8 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
             zp = ukf.x[m.PSI] + ukf.x[heading_i]
             ok = ukf.update(zp + wrap_angle(z - zp), lambda X: m.gnss_heading(X, heading_i),
                             np.diag(meas.sigma**2), gates[1])
+        elif kind == "standstill":
+            ok = ukf.update(z, lambda X: X[:, m.OMEGA:m.OMEGA + 1], np.diag(meas.sigma**2), gates[1])
         key = kind if not kind.startswith("gyro") else inputs.gyros[int(kind[4:])].name
         if ok is False:
             rejected[key] = rejected.get(key, 0) + 1
@@ -304,7 +307,8 @@ def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[t
     nav, veh = config.navigation, config.vehicle
     ng = len(inputs.gyros)
     # the kernel's event kinds (its module docstring): the gyros 0 .. ng-1, then these
-    code = {k: ng + i for i, k in enumerate(("wheels", "steering", "gnss_pos", "gnss_vel", "gnss_heading"))}
+    code = {k: ng + i for i, k in enumerate(("wheels", "steering", "gnss_pos", "gnss_vel", "gnss_heading",
+                                                     "standstill"))}
     src_code = np.array([int(k[4:]) if k.startswith("gyro") else code[k] for k, _ in sources], dtype=np.int64)
     E = len(order)
     zs = np.zeros((E, 4))

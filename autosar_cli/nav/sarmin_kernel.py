@@ -31,7 +31,8 @@ only within ~1e-9; the reference's ``Wm @ sigmas`` carries that factor (on an EN
 ~3e-8 m per step) and so does this form, without the cancellation error of summing the raw products.
 
 Event kinds: ``0 .. ng-1`` gyro i; ``ng`` wheels; ``ng+1`` steering; ``ng+2`` GNSS position;
-``ng+3`` GNSS velocity; ``ng+4`` GNSS heading (the heading plus the offset state ``heading_i``).
+``ng+3`` GNSS velocity; ``ng+4`` GNSS heading (the heading plus the offset state ``heading_i``);
+``ng+5`` a standstill's zero yaw rate.
 Measurement values are padded to 4 columns. ``geo``: wheelbase, front and rear track,
 GNSS lever (x, y), understeer gradient, rear-slip gain, and 1 for the rigid wheel model or 0 for the
 load-compliant one (:func:`~.models.measured_wheel_speeds`). ``gnss_i``: first of the two GNSS
@@ -364,15 +365,16 @@ def _update_nl(x, P, z, sigma, kind, ng, geo, scale_i, steer_i, gnss_i, gate, Wm
 @njit(cache=True)
 def _update_sum(x, P, z, sigma, i, j, circular, gate, ph):  # noqa: ANN001, ANN202
     """Update with z = x_i + x_j (a gyro: omega + its bias; the GNSS heading: psi + its offset, ``circular``: the
-    innovation taken on the circle). Linear in the state, so the Kalman update is what the unscented one computes
+    innovation taken on the circle), or z = x_i where ``j < 0`` (a standstill: omega).
+    Linear in the state, so the Kalman update is what the unscented one computes
     (the unscented transform is exact for linear functions), at O(n^2) without sigma points."""
     n = x.shape[0]
-    y = z - x[i] - x[j]
+    y = z - x[i] - (x[j] if j >= 0 else 0.0)
     if circular:
         y = _wrap(y)
     for r in range(n):
-        ph[r] = P[r, i] + P[r, j]  # P H^T
-    S = ph[i] + ph[j] + sigma * sigma
+        ph[r] = P[r, i] + (P[r, j] if j >= 0 else 0.0)  # P H^T
+    S = ph[i] + (ph[j] if j >= 0 else 0.0) + sigma * sigma
     if y * y / S > gate:
         return False
     g = y / S
@@ -411,8 +413,8 @@ def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, beta, Wm, Wc, lam, 
     FF = np.empty((cap, NK, NK))
     PK = np.empty((cap, NK, NK))
     DT = np.empty(cap)
-    used = np.zeros(ng + 5, dtype=np.int64)
-    rejected = np.zeros(ng + 5, dtype=np.int64)
+    used = np.zeros(ng + 6, dtype=np.int64)
+    rejected = np.zeros(ng + 6, dtype=np.int64)
     # work buffers
     L5 = np.zeros((NK, NK))
     inv5 = np.empty(NK)
@@ -466,6 +468,8 @@ def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, beta, Wm, Wc, lam, 
             ok = _update_sum(x, P, zs[e, 0], sigmas[e, 0], OMEGA, NK + kind, False, gates[1], ph)
         elif kind == ng + 4:
             ok = _update_sum(x, P, zs[e, 0], sigmas[e, 0], PSI, heading_i, True, gates[1], ph)
+        elif kind == ng + 5:
+            ok = _update_sum(x, P, zs[e, 0], sigmas[e, 0], OMEGA, -1, False, gates[1], ph)
         else:
             k_dim = 4 if kind == ng else (1 if kind == ng + 1 else 2)
             ok = _update_nl(x, P, zs[e], sigmas[e], kind, ng, geo, scale_i, steer_i, gnss_i, gates[k_dim], Wm, Wc, c,

@@ -348,6 +348,52 @@ def without_restart_windows(wheels: Measurements, window_m: float) -> tuple[Meas
     return Measurements(wheels.name, wheels.t[keep], wheels.z[keep], wheels.sigma), dropped
 
 
+STANDSTILL_MIN_S = 1.0  #: a standstill is all four wheels at 0 for at least this long
+STANDSTILL_SIGMAS = 4.0  #: "at 0": within this many of their stated std (an ECU reads exactly 0 there)
+#: its start is moved on by this: the ECU reads 0 once no edge has come for its timeout, when the car stands
+STANDSTILL_START_MARGIN_S = 0.1
+#: and its end back by this: the ECU still reads 0 until the first edge after the car moves off (0.29 s at
+#: 1 m/s^2 on a 48-tooth ring, 0.54 s at 0.3 m/s^2)
+STANDSTILL_END_MARGIN_S = 0.5
+
+
+def standstill_spans(wheels: Measurements | None, min_s: float = STANDSTILL_MIN_S,
+                     start_margin_s: float = STANDSTILL_START_MARGIN_S,
+                     end_margin_s: float = STANDSTILL_END_MARGIN_S) -> list[tuple[float, float]]:
+    """The spans (s) where all four wheel speeds read 0 (the ECU's "no edge" value; within ``STANDSTILL_SIGMAS``
+    of their std, for a sensor whose noise goes on at a standstill) for at least ``min_s``, less
+    ``start_margin_s`` at their start and ``end_margin_s`` at their end. A car creeping for over a second below
+    the ECU's lowest speed (a pitch per timeout: 0.14 m/s for 48 teeth and 0.3 s) reads as standing."""
+    if wheels is None or len(wheels.t) < 2:
+        return []
+    stopped = np.all(np.abs(wheels.z) <= STANDSTILL_SIGMAS * wheels.sigma, axis=1)
+    edges = np.flatnonzero(np.diff(np.r_[0, stopped.astype(np.int8), 0]))
+    spans = []
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        start, end = float(wheels.t[a]) + start_margin_s, float(wheels.t[b - 1]) - end_margin_s
+        if float(wheels.t[b - 1] - wheels.t[a]) >= min_s and end > start:
+            spans.append((start, end))
+    return spans
+
+
+def standstill_yaw_rate(wheels: Measurements | None, at: Array, std_radps: float) -> Measurements | None:
+    """A zero yaw rate (rad/s, std ``std_radps`` each) at the instants ``at`` (s; the gyros' samples) within the
+    wheels' standstills (:func:`standstill_spans`); None where the drive has none. A car standing on its tyres
+    does not turn, while the gyros' biases, which nothing else pins there, would turn its heading: on urban's 6 s
+    stop SAR-MIN's heading turned by 0.013 deg RMS (up to 0.025), a kink in its track that moves reflectors 100 m
+    on by ~2 cm. At every gyro sample, for the filter's yaw rate moves freely between samples (its process noise
+    is a turning car's), and where it is held each gyro sample measures its bias."""
+    spans = standstill_spans(wheels)
+    if not spans or std_radps <= 0.0:
+        return None
+    t = np.unique(at)
+    inside = np.zeros(len(t), dtype=bool)
+    for a, b in spans:
+        inside |= (t >= a) & (t <= b)
+    times = t[inside]
+    return Measurements("standstill", times, np.zeros((len(times), 1)), np.array([std_radps]))
+
+
 def lag_compensated_wheels(wheels: Measurements, fit: WheelLagFit) -> Measurements:
     """The wheel speeds as of their rows' own instants: each wheel's samples move to the instants they describe,
     ``t - c / v_w`` (``v_w`` that sample's own speed, at most ``MAX_DELAY_S`` back; a standing wheel's stay), and its
