@@ -23,6 +23,7 @@ from autosar_cli.nav.navigate import navigate, with_standstill
 from autosar_cli.nav.sarmin import SIGMA_ALPHA, SIGMA_BETA, NavSolution, chi2_gate, run_sarmin
 from autosar_cli.nav.trajectory import Trajectory, relative_pose_error
 from autosar_cli.nav.ukf import VectorUKF
+from autosar_cli.nav.wheel_speeds import standstill_spans
 from autosar_cli.store.drive import Drive
 from autosar_cli.store.trajectory import read_trajectory
 
@@ -789,10 +790,10 @@ def test_a_stop_does_not_turn_the_speed_backwards(tmp_path: Path) -> None:
     """Urban seed 0 on the kinematic car: it stops for 8 s at the junction and pulls away. ABS wheel speeds carry no
     sign, so wheel predictions that did not either (|v|) let the filter's speed drift through zero at the stop and
     go on backwards: 172 m off by the end, its GNSS updates gated out. With signed predictions the speed never goes
-    below -5 cm/s and the track stays within 5 cm of the truth after a rigid alignment (measured 2.0 cm).
-    The wheels' standstill spans 5.8 s of the 6.1 s the car stands (its speed below 5 cm/s throughout). A step of
-    the gyros' biases over it turns the heading as a yaw rate would (0.0144 deg of the 0.0176 a yaw rate would
-    give), but for the standstill's zero yaw rate (0.0019 deg)."""
+    below -5 cm/s and the track stays within 5 cm of the truth after a rigid alignment (measured 2.1 cm).
+    With the wheels at 0 where the car stands (as an ECU reads them) a step of the gyros' biases over the standstill
+    turns the heading as a yaw rate would (0.0143 deg of the 0.0166 a yaw rate would give), but for the standstill's
+    zero yaw rate (0.0018 deg)."""
     from dataclasses import replace
 
     from autosar_cli.evaluate.alignment import fit_se2
@@ -811,12 +812,15 @@ def test_a_stop_does_not_turn_the_speed_backwards(tmp_path: Path) -> None:
     assert est.speed.min() > -0.05 and aligned < 0.05
     # where the car stands its heading does not turn: the gyros' biases stepped by 0.003 deg/s over the standstill,
     # which nothing but the standstill's zero yaw rate tells from a turn, turn it by that rate times its duration
-    (span,) = est.info["standstill_ns"]
-    within = (truth.t_ns >= span[0]) & (truth.t_ns <= span[1])
-    assert np.abs(truth.speed[within]).max() < 0.05 and span[1] - span[0] > 5e9
     with Drive(tmp_path / "drive.h5") as d:
         inputs = load_inputs(d, cfg)
-    inside = [(g.t * 1e9 + inputs.t0_ns >= span[0]) & (g.t * 1e9 + inputs.t0_ns <= span[1]) for g in inputs.gyros]
+    # the kinematic simulator's wheels keep their white noise at a standstill, where an ECU reads 0
+    stands = np.interp(inputs.t0_ns + inputs.wheels.t * 1e9, truth.t_ns, np.abs(truth.speed)) < 1e-3
+    inputs = dataclasses.replace(inputs, wheels=dataclasses.replace(
+        inputs.wheels, z=np.where(stands[:, None], 0.0, inputs.wheels.z)))
+    (span,) = standstill_spans(inputs.wheels)
+    assert span[1] - span[0] > 5.0
+    inside = [(g.t >= span[0]) & (g.t <= span[1]) for g in inputs.gyros]
     stepped = dataclasses.replace(inputs, gyros=[dataclasses.replace(g, z=g.z + np.deg2rad(0.003) * k[:, None])
                                                  for g, k in zip(inputs.gyros, inside, strict=True)])
     turned = {}
@@ -824,10 +828,9 @@ def test_a_stop_does_not_turn_the_speed_backwards(tmp_path: Path) -> None:
         held, _ = with_standstill(stepped, dataclasses.replace(cfg, navigation=dataclasses.replace(
             cfg.navigation, standstill_yaw_rate_std_dps=std)))
         sol = run_sarmin(held, cfg)
-        turned[std] = float(np.rad2deg(np.diff(np.interp((np.array(span) - inputs.t0_ns) / 1e9, sol.t,
-                                                         np.unwrap(sol.x[:, m.PSI])))[0]))
-    expected = 0.003 * (span[1] - span[0]) / 1e9
-    print(f"a 0.003 deg/s bias step over the {(span[1] - span[0]) / 1e9:.2f} s standstill turns the heading by "
+        turned[std] = float(np.rad2deg(np.diff(np.interp(span, sol.t, np.unwrap(sol.x[:, m.PSI])))[0]))
+    expected = 0.003 * (span[1] - span[0])
+    print(f"a 0.003 deg/s bias step over the {span[1] - span[0]:.2f} s standstill turns the heading by "
           f"{turned[0.0]:+.4f} deg without its zero yaw rate ({expected:.4f} expected), {turned[std]:+.4f} with it")
     assert turned[0.0] > 0.6 * expected and abs(turned[std]) < 0.2 * expected
 

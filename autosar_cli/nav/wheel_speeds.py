@@ -349,7 +349,6 @@ def without_restart_windows(wheels: Measurements, window_m: float) -> tuple[Meas
 
 
 STANDSTILL_MIN_S = 1.0  #: a standstill is all four wheels at 0 for at least this long
-STANDSTILL_SIGMAS = 4.0  #: "at 0": within this many of their stated std (an ECU reads exactly 0 there)
 #: its start is moved on by this: the ECU reads 0 once no edge has come for its timeout, when the car stands
 STANDSTILL_START_MARGIN_S = 0.1
 #: and its end back by this: the ECU still reads 0 until the first edge after the car moves off (0.29 s at
@@ -360,13 +359,13 @@ STANDSTILL_END_MARGIN_S = 0.5
 def standstill_spans(wheels: Measurements | None, min_s: float = STANDSTILL_MIN_S,
                      start_margin_s: float = STANDSTILL_START_MARGIN_S,
                      end_margin_s: float = STANDSTILL_END_MARGIN_S) -> list[tuple[float, float]]:
-    """The spans (s) where all four wheel speeds read 0 (the ECU's "no edge" value; within ``STANDSTILL_SIGMAS``
-    of their std, for a sensor whose noise goes on at a standstill) for at least ``min_s``, less
+    """The spans (s) where all four wheel speeds read 0 (the ECU's "no edge" value: exactly 0, where a reading of
+    one step would be a wheel turning) for at least ``min_s``, less
     ``start_margin_s`` at their start and ``end_margin_s`` at their end. A car creeping for over a second below
     the ECU's lowest speed (a pitch per timeout: 0.14 m/s for 48 teeth and 0.3 s) reads as standing."""
     if wheels is None or len(wheels.t) < 2:
         return []
-    stopped = np.all(np.abs(wheels.z) <= STANDSTILL_SIGMAS * wheels.sigma, axis=1)
+    stopped = np.all(wheels.z == 0.0, axis=1)
     edges = np.flatnonzero(np.diff(np.r_[0, stopped.astype(np.int8), 0]))
     spans = []
     for a, b in zip(edges[::2], edges[1::2], strict=True):
