@@ -305,7 +305,7 @@ class NavigationConfig:
     gnss_heading: bool = False
     gnss_heading_offset_std_deg: float = 1.0
     steering_min_speed_mps: float = 1.0  # below it the steering model atan(L omega / v) is not used
-    # where all four wheels read 0 for 1 s or more, the yaw rate is 0 to this std (per 0.1 s; 0: not used)
+    # where all four wheels read exactly 0 for 1 s or more, the yaw rate is 0 to this std at each gyro sample (0: off)
     standstill_yaw_rate_std_dps: float = 0.001
     # fit the understeer gradient K and the yaw lag to the drive's turns on a pass without the steering, and keep that
     # pass where they show the car not steering as the kinematic bicycle (K's std at most

@@ -328,7 +328,7 @@ def test_a_standstill_is_where_all_four_wheels_read_zero_and_the_car_stands() ->
     a, b = spans[0]
     assert 7.0 <= a and b <= 12.0 and b - a >= 4.0, spans
     gyro_t = np.arange(0.0, 20.0, 0.002)
-    zero = standstill_yaw_rate(wheels, gyro_t, 1e-5)
+    zero = standstill_yaw_rate(spans, gyro_t, 1e-5)
     assert zero is not None and np.all((zero.t >= a) & (zero.t <= b)) and np.all(zero.z == 0.0)
     assert len(zero.t) == np.sum((gyro_t >= a) & (gyro_t <= b)) and zero.sigma[0] == 1e-5
     one_turning = Measurements("wheels", t, wheels.z.copy(), wheels.sigma)
@@ -337,7 +337,7 @@ def test_a_standstill_is_where_all_four_wheels_read_zero_and_the_car_stands() ->
                          wheels.sigma)
     steady = Measurements("wheels", t, np.full((t.size, 4), 3.0), wheels.sigma)
     for none in (one_turning, short, steady):
-        assert standstill_spans(none) == [] and standstill_yaw_rate(none, gyro_t, 1e-5) is None
+        assert standstill_spans(none) == [] and standstill_yaw_rate(standstill_spans(none), gyro_t, 1e-5) is None
     print(f"standstill {a:.2f}-{b:.2f} s of the car's 7.00-12.00 s")
 
 

@@ -325,7 +325,7 @@ def with_standstill(inputs: NavInputs, config: Config) -> tuple[NavInputs, list[
     and those standstills (s since ``inputs.t0_ns``)."""
     spans = standstill_spans(inputs.wheels)
     gyro_t = np.concatenate([g.t for g in inputs.gyros]) if inputs.gyros else np.zeros(0)
-    zero = standstill_yaw_rate(inputs.wheels, gyro_t, np.deg2rad(config.navigation.standstill_yaw_rate_std_dps))
+    zero = standstill_yaw_rate(spans, gyro_t, np.deg2rad(config.navigation.standstill_yaw_rate_std_dps))
     return replace(inputs, standstill=zero), spans
 
 

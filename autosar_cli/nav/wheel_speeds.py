@@ -375,14 +375,13 @@ def standstill_spans(wheels: Measurements | None, min_s: float = STANDSTILL_MIN_
     return spans
 
 
-def standstill_yaw_rate(wheels: Measurements | None, at: Array, std_radps: float) -> Measurements | None:
+def standstill_yaw_rate(spans: list[tuple[float, float]], at: Array, std_radps: float) -> Measurements | None:
     """A zero yaw rate (rad/s, std ``std_radps`` each) at the instants ``at`` (s; the gyros' samples) within the
-    wheels' standstills (:func:`standstill_spans`); None where the drive has none. A car standing on its tyres
+    standstills ``spans`` (s; :func:`standstill_spans`); None where there are none. A car standing on its tyres
     does not turn, while the gyros' biases, which nothing else pins there, would turn its heading: on urban's 6 s
     stop SAR-MIN's heading turned by 0.013 deg RMS (up to 0.025), a kink in its track that moves reflectors 100 m
     on by ~2 cm. At every gyro sample, for the filter's yaw rate moves freely between samples (its process noise
     is a turning car's), and where it is held each gyro sample measures its bias."""
-    spans = standstill_spans(wheels)
     if not spans or std_radps <= 0.0:
         return None
     t = np.unique(at)
