@@ -47,6 +47,9 @@ from typing import Any
 import numpy as np
 
 RESULTS = Path(__file__).resolve().parent / "results"
+#: (Tx, Rx) pairs of ``--elevation``: four of the lambda/4 row (Tx0, Tx2), then Tx1's four, each lambda/2 above the
+#: one four before it at the same place along the row (the config's array: Tx1 at y = lambda, z = lambda/2)
+ELEVATION_PAIRS = [(0, 2), (0, 3), (2, 0), (2, 1), (1, 0), (1, 1), (1, 2), (1, 3)]
 
 
 def bright_scatterers(drive: Path, traj: Any, config: Any) -> Any:
@@ -80,12 +83,16 @@ def _moving_average_removal(segment: Any, half: int) -> Any:
 def high_band_motion(drive: Path, traj: Any, config: Any, points: Any, cut_hz: float, node_s: float = 0.01,
                      taps: int = 31, every: int = 10, alias_hz: float = 80.0, window_s: float = 0.6,
                      prior_m: float = 3e-4, step_m: float = 1e-3, max_rms_rad: float = 0.5,
-                     vertical: bool = False) -> dict[str, Any]:
+                     vertical: bool = False, elevation: bool = False) -> dict[str, Any]:
     """The across-track correction (m, on ``node_s`` nodes from the track's start) above ``cut_hz`` that the
     histories of ``points`` measure along ``traj``; the histories used, and the share of the nodes they cover.
     ``vertical``: the fit also takes a vertical motion common to all histories, which each history sees with its
     own unknown gain (the sine of its elevation, its scatterer's height unknown): alternately the two motions with
-    the gains held and each gain with the motions held; only the across-track motion is returned."""
+    the gains held and each gain with the motions held; only the across-track motion is returned. ``elevation``:
+    that vertical motion with each history's gain measured by the array (``ELEVATION_PAIRS``: Tx1 sits lambda/2
+    above Tx0 and Tx2, so of two channels at one place along the row, one raised, the back-projected phases differ
+    by pi times the sine of the elevation of what the history holds less its pixel's; one gain per history), one
+    linear fit of both motions."""
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
     from scipy.ndimage import convolve1d
@@ -95,8 +102,11 @@ def high_band_motion(drive: Path, traj: Any, config: Any, points: Any, cut_hz: f
     from autosar_cli.sar.phase_history import focus_history, frame_geometry, gather_phase_histories, pair_antennas
 
     hist = gather_phase_histories(drive, traj, config, points, FocusOptions.from_config(config), half_beam_deg=28.0,
-                                  window_bins=32, channels=2)
-    z, los = focus_history(hist, *pair_antennas(hist, traj, config), points)
+                                  window_bins=32, channels=2, pairs=ELEVATION_PAIRS if elevation else None)
+    antennas = pair_antennas(hist, traj, config)
+    half = len(ELEVATION_PAIRS) // 2
+    z, los = focus_history(hist, *antennas, points, slice(0, half) if elevation else None)
+    raised = focus_history(hist, *antennas, points, slice(half, None))[0] if elevation else None
     t0 = int(traj.t_ns[0])
     t_f = (hist.frame_t_ns - t0) / 1e9
     prf = 1.0 / float(np.median(np.diff(t_f)))
@@ -104,7 +114,7 @@ def high_band_motion(drive: Path, traj: Any, config: Any, points: Any, cut_hz: f
     _, f_across, f_along = frame_geometry(traj, hist.frame_t_ns, config)
     taper = np.hanning(taps + 2)[1:-1]
     taper /= taper.sum()
-    times, steps, gains, segment = [], [], [], []
+    times, steps, gains, segment, up_gain = [], [], [], [], []
     for j in range(len(points)):
         sel = np.flatnonzero(hist.point == j)
         sel = sel[np.argsort(hist.frame[sel])]
@@ -126,6 +136,8 @@ def high_band_motion(drive: Path, traj: Any, config: Any, points: Any, cut_hz: f
             gains.append(np.stack([g[a], g[a + 1]], -1))
             steps.append(np.angle(low[keep][a + 1] * np.conj(low[keep][a])))
             segment.append(np.full(len(a), len(segment)))
+            if raised is not None:
+                up_gain.append(np.angle(np.nansum(raised[run] * np.conj(z[run]))) / math.pi)
     n_nodes = int(math.ceil((int(traj.t_ns[-1]) - t0) / 1e9 / node_s)) + 1
     nodes_ns = t0 + np.round(np.arange(n_nodes) * node_s * 1e9).astype(np.int64)
     if not steps:
@@ -153,16 +165,19 @@ def high_band_motion(drive: Path, traj: Any, config: Any, points: Any, cut_hz: f
     used = np.ones(n_seg, dtype=bool)
     var = np.full(n_seg, 0.3**2)
     # the vertical: its unit-gain design (each step's vertical line-of-sight change is the history's own gain)
-    unit = (detrend @ design_of(np.ones_like(gain))).tocsr() if vertical else None
+    unit = (detrend @ design_of(np.ones_like(gain))).tocsr() if vertical or elevation else None
     prior_both = (sp.block_diag([prior, sp.identity(n_nodes) / 3e-3**2 + change.T @ change / step_m**2]).tocsc()
-                  if vertical else None)
+                  if vertical or elevation else None)
+    if elevation and unit is not None:  # the gains measured: one linear fit of both motions
+        model = sp.hstack([model, unit.multiply(np.asarray(up_gain)[seg][:, None])]).tocsr()
+        prior, unit = prior_both, None
     h = np.full(n_seg, 0.1)
     e_up = np.zeros(n_nodes)
     for _ in range(12 if vertical else 5):
         w = used[seg] / var[seg]
         if unit is None:
-            e = spla.spsolve((model.T @ model.multiply(w[:, None])).tocsc() + prior, model.T @ (w * data))
-            fit = model @ e
+            x = spla.spsolve((model.T @ model.multiply(w[:, None])).tocsc() + prior, model.T @ (w * data))
+            fit, e = model @ x, x[:n_nodes]
         else:
             both = sp.hstack([model, unit.multiply(h[seg][:, None])]).tocsr()
             x = spla.spsolve((both.T @ both.multiply(w[:, None])).tocsc() + prior_both, both.T @ (w * data))
@@ -185,11 +200,15 @@ def high_band_motion(drive: Path, traj: Any, config: Any, points: Any, cut_hz: f
         span = t[seg == s, 0]
         seen[int(span.min() / node_s):int(span.max() / node_s) + 1] = True
     high = -sosfiltfilt(butter(4, cut_hz, "highpass", fs=1.0 / node_s, output="sos"), e)
+    gains_used = np.asarray(up_gain)[used] if elevation else np.zeros(0)
     return {"nodes_ns": nodes_ns, "correction_m": high, "histories": n_seg, "used": int(used.sum()),
-            "coverage": float(seen.mean()), "seen": seen}
+            "coverage": float(seen.mean()), "seen": seen,
+            "up_gain": [round(float(np.median(gains_used)), 4), round(float(gains_used.std()), 4)]
+            if len(gains_used) else None}
 
 
-def with_high_band(cut_hz: float, record: dict[str, Any], vertical: bool = False, prior_m: float = 3e-4) -> Any:
+def with_high_band(cut_hz: float, record: dict[str, Any], vertical: bool = False, prior_m: float = 3e-4,
+                   elevation: bool = False) -> Any:
     """A replacement for compare's ``autofocus_residual_motion``: the product's, then this stage."""
     from autosar_cli.sar.phase_history import frame_geometry
     from autosar_cli.sar.residual_motion import autofocus_residual_motion
@@ -200,7 +219,8 @@ def with_high_band(cut_hz: float, record: dict[str, Any], vertical: bool = False
         track = result.trajectory
         start = time.perf_counter()
         points = bright_scatterers(drive, track, config)
-        stage = high_band_motion(drive, track, config, points, cut_hz, vertical=vertical, prior_m=prior_m)
+        stage = high_band_motion(drive, track, config, points, cut_hz, vertical=vertical, prior_m=prior_m,
+                                 elevation=elevation)
         _, across, _ = frame_geometry(track, stage["nodes_ns"], config)
         base = track.correction.at(stage["nodes_ns"]) if track.correction is not None else np.zeros_like(across)
         moved = MotionCorrection(stage["nodes_ns"], base + stage["correction_m"][:, None] * across,
@@ -242,6 +262,7 @@ def table_row(row: dict[str, Any]) -> dict[str, Any]:
     before, after, stage = row["autofocus"], row["with_high_band"], row["stage"]
     sim = f" [{row['simulation']}]" if row.get("simulation") else ""
     sim += " [vertical]" if row.get("vertical") else ""
+    sim += " [elevation]" if row.get("elevation") else ""
     sim += f" [prior {row['prior_mm']:g} mm]" if row.get("prior_mm", 0.3) != 0.3 else ""
     return {"drive": f"{row['scenario']} s{row['seed']}{sim}",
             "far_entropy_pct": before["far_entropy_vs_truth_pct"],
@@ -258,6 +279,8 @@ def main() -> None:
     ap.add_argument("--simulation", default=None, help="[simulation] entries for the simulator, KEY=VALUE,...")
     ap.add_argument("--append", action="store_true", help="add the rows to those of --output")
     ap.add_argument("--vertical", action="store_true", help="the fit also takes a common vertical motion")
+    ap.add_argument("--elevation", action="store_true",
+                    help="... with each history's gain measured by the array's raised Tx (ELEVATION_PAIRS)")
     ap.add_argument("--prior-mm", type=float, default=0.3, help="prior std of the across-track correction (mm)")
     ap.add_argument("--output", type=Path, default=RESULTS / "af_high_band.json")
     args = ap.parse_args()
@@ -278,9 +301,9 @@ def main() -> None:
             cli("simulate", "--scenario", scenario, "--seed", seed, "--dynamics", "full", "--output", str(log),
                 *sim_config)
             row: dict[str, Any] = {"scenario": scenario, "seed": int(seed), "simulation": args.simulation,
-                                   "vertical": args.vertical, "prior_mm": args.prior_mm}
+                                   "vertical": args.vertical, "elevation": args.elevation, "prior_mm": args.prior_mm}
             record: dict[str, Any] = {}
-            stage = with_high_band(args.cut_hz, record, args.vertical, 1e-3 * args.prior_mm)
+            stage = with_high_band(args.cut_hz, record, args.vertical, 1e-3 * args.prior_mm, args.elevation)
             for case, autofocus in (("autofocus", None), ("with_high_band", stage)):
                 r = drive_row(scenario, int(seed), run_case(log, Path(tmp) / case, autofocus), 0.0, 0.0)
                 af = r["sar-min+af"]
@@ -290,6 +313,8 @@ def main() -> None:
             row["stage"] = {"scatterers": record["points"], "histories": record["histories"], "used": record["used"],
                             "coverage": round(record["coverage"], 3), "wall_s": round(record["wall_s"], 1),
                             "correction_rms_mm": round(1e3 * float(record["correction_m"].std()), 4),
+                            # the used histories' measured vertical gain (--elevation): median and std
+                            "up_gain": record.get("up_gain"),
                             "against_truth": against_truth(log.with_name(log.name + ".truth.h5"), record, config)}
         rows.append(row)
         print(json.dumps(row), flush=True)

@@ -64,10 +64,11 @@ def frame_geometry(traj: Trajectory, t_ns: NDArray[np.int64], config: Config) ->
 
 def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Config, points_enu: Array,
                            focus: FocusOptions, *, half_beam_deg: float, window_bins: int, channels: int,
-                           block_frames: int = 256) -> PhaseHistories:
-    """Read and range-compress (``channels``, sar.focus.channel_pairs; ``focus``'s window and upsampling) the
-    frames that see ``points_enu`` (P, 3) (ENU m) within ``half_beam_deg`` of broadside, and keep ``window_bins``
-    bins around each point's range per pulse and channel (one pass over the radar data)."""
+                           block_frames: int = 256, pairs: list[tuple[int, int]] | None = None) -> PhaseHistories:
+    """Read and range-compress (``channels``, sar.focus.channel_pairs, or the (Tx, Rx) ``pairs`` given;
+    ``focus``'s window and upsampling) the frames that see ``points_enu`` (P, 3) (ENU m) within ``half_beam_deg``
+    of broadside, and keep ``window_bins`` bins around each point's range per pulse and channel (one pass over the
+    radar data)."""
     points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
     w = int(window_bins)
     with Drive(drive_path) as drive:
@@ -75,7 +76,7 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         rp = RadarParameters.of(radar, config, focus.upsample)
         fs, slope, offsets, n_bins, bin_m = rp.sample_rate_hz, rp.slope_hz_per_s, rp.tx_start_offsets_s, rp.n_bins, \
             rp.bin_m
-        pairs = channel_pairs(rp.n_tx, rp.n_rx, channels)
+        pairs = list(pairs) if pairs is not None else channel_pairs(rp.n_tx, rp.n_rx, channels)
         t_all = radar.t_ns
         last_chirp_ns = int(round(offsets.max() * 1e9)) if offsets.size else 0
         frames = np.flatnonzero((t_all >= traj.t_ns[0]) & (t_all + last_chirp_ns <= traj.t_ns[-1]))
@@ -178,15 +179,17 @@ def pair_antennas(hist: PhaseHistories, traj: Trajectory, config: Config) -> tup
     return pc.tx[:, tx_idx][hist.frame], pc.rx[:, tx_idx, rx_idx][hist.frame]
 
 
-def focus_history(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array
-                  ) -> tuple[NDArray[np.complex128], Array]:
-    """Each pair's back-projected value (N,) (channels summed, exact path, linear interpolation between bins as
-    the kernel does) from antennas ``tx``, ``rx`` (N, C, 3) (:func:`pair_antennas`, ENU m) onto ``points_enu``
-    (P, 3), and its unit line of sight (N, 3) from the mean phase centre to the point. A pair whose path left its
-    bin window in any channel gives NaN."""
+def focus_history(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array,
+                  channels: slice | None = None) -> tuple[NDArray[np.complex128], Array]:
+    """Each pair's back-projected value (N,) (``channels`` summed, default all; exact path, linear interpolation
+    between bins as the kernel does) from antennas ``tx``, ``rx`` (N, C, 3) (:func:`pair_antennas`, ENU m) onto
+    ``points_enu`` (P, 3), and its unit line of sight (N, 3) from those channels' mean phase centre to the point.
+    A pair whose path left its bin window in any of them gives NaN."""
     points = np.asarray(points_enu, dtype=np.float64)
-    z, inside, los = focus_windows(hist.samples, hist.bin0, tx, rx, points, hist.point, hist.bin_m,
-                                   hist.cycles_per_m, np.zeros(1))
+    c = channels if channels is not None else slice(None)
+    z, inside, los = focus_windows(np.ascontiguousarray(hist.samples[:, c]), np.ascontiguousarray(hist.bin0[:, c]),
+                                   np.ascontiguousarray(tx[:, c]), np.ascontiguousarray(rx[:, c]), points, hist.point,
+                                   hist.bin_m, hist.cycles_per_m, np.zeros(1))
     z = z[:, 0]
     z[~inside[:, 0]] = np.nan
     return z, los
