@@ -1,11 +1,11 @@
 """Benchmark an experimental stage after the autofocus: the across-track motion above 2 Hz from many scatterers.
 
 Usage: python benches/bench_af_high_band.py [--drives test1:0,test2:1,test3:8] [--cut-hz 2]
-                                            [--simulation KEY=VALUE,...] [--append]
+                                            [--simulation KEY=VALUE,...] [--vertical | --elevation] [--append]
                                             [--output benches/results/af_high_band.json]
 
 Many: bright scatterers over the whole drive, the facade's pillars included. The product's autofocus fits a few
-isolated points (3-12 m from the track), which on test1 see 48 % of the drive; the far swath's entropy lacks the
+isolated points (3-16 m from the track), which on test1 see 61 % of the drive; the far swath's entropy lacks the
 across-track motion above 0.5 Hz where they do not see (bench_af_oracle.py). Here, after it, along its track
 (``sar-min+af``):
 
@@ -26,10 +26,10 @@ loss; the stage's scatterers, coverage and time; and how its correction compares
 true across-track motion less ``sar-min+af``'s) in 2-5 and 5-30 Hz, over the frames it covers; ``table`` has
 one line per drive of the main figures. ``--simulation``: entries of the simulator's [simulation] section for
 these drives (the processor keeps the config's), recorded in their rows; ``--append``: add the rows to the
-output's. The committed file: ``--drives test1:0,test2:1,test3:8,test1:1,test2:0,test3:1``, then ``--drives
-test1:1 --simulation vibration_vertical_rms_m=0.0 --append`` (the radar case's vertical vibration off), then
-``--drives urban:0 --append``, then ``--drives test1:1,test2:1,test1:0 --vertical --append``, then ``--drives
-test1:1,test3:8,test2:1 --prior-mm 0.1 --append`` and ``--drives test1:0,test2:0,test3:1 --prior-mm 0.1 --append``.
+output's. ``--elevation``: the fit takes the vertical motion too, each history's gain measured by the array's
+raised Tx (``high_band_motion``). The committed file: ``--drives test1:0,test2:1,test3:8,test1:1,test2:0,test3:1``,
+then ``--drives test1:1,test3:1 --simulation vibration_vertical_rms_m=0.0 --append`` (the radar case's vertical
+vibration off), then the six again with ``--elevation --append`` (its times under a second benchmark's load).
 """
 
 from __future__ import annotations

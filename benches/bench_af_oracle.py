@@ -5,7 +5,9 @@ Usage: python benches/bench_af_oracle.py [--scenario test1] [--seed 0] [--cutoff
 ``autosar simulate`` (full vehicle), then ``compare --methods sar-min,sar-min+af,truth`` once per case, with the
 autofocus inside compare replaced by an oracle: SAR-MIN's track plus the part of its phase-centre error (the
 sidecar's true phase centres less SAR-MIN's, per frame) above ``--cutoff-hz`` (zero-phase Butterworth high-pass),
-along the axes named (``across``, ``up``, ``along``, or all three); the case ``autofocus`` is the product's own.
+along the axes named (``across``, ``up``, ``along``, or all three); the case ``autofocus`` is the product's own,
+and ``autofocus_seen`` / ``autofocus_unseen`` are it plus the truth's across-track part above ``--cutoff-hz`` of
+what it leaves, on the frames its points see / do not see (``ResidualMotion.seen_t_ns``).
 A figure of the far-swath entropy with, say, the across-track axis alone close to the truth image's says that
 axis, in that band, is what the image lacks; the RMS of that part is what an autofocus would have to measure.
 Prints one line per case and writes benches/results/af_oracle.json; ``--cutoff-hz 4 --output
@@ -26,7 +28,7 @@ import numpy as np
 
 RESULTS = Path(__file__).resolve().parent / "results"
 CASES = {"none": (), "across": ("across",), "up": ("up",), "along": ("along",), "all": ("across", "up", "along"),
-         "autofocus": None}
+         "autofocus": None, "autofocus_seen": "seen", "autofocus_unseen": "unseen"}
 
 
 def oracle(truth_path: Path, axes: tuple[str, ...], cutoff_hz: float) -> Any:
@@ -57,6 +59,32 @@ def oracle(truth_path: Path, axes: tuple[str, ...], cutoff_hz: float) -> Any:
         measured = MotionCorrection(t, part, np.zeros_like(part))
         moved = dataclasses.replace(traj, correction=MotionCorrection(t, base + part, np.zeros_like(part)))
         return ResidualMotion(moved, measured, np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0), 0.0, 1.0, 1.0, 0)
+
+    return corrected
+
+
+def autofocus_then_oracle(truth_path: Path, where: str, cutoff_hz: float) -> Any:
+    """A replacement for compare's ``autofocus_residual_motion``: the product's, then the truth's across-track part
+    above ``cutoff_hz`` of what it leaves, on the frames its points see (``where`` "seen") or do not see ("unseen")."""
+    import h5py
+
+    from autosar_cli.sar.residual_motion import autofocus_residual_motion
+    from autosar_cli.types import MotionCorrection
+
+    def corrected(drive: Path, traj: Any, config: Any, *args: Any, **kwargs: Any) -> Any:
+        result = autofocus_residual_motion(drive, traj, config, *args, **kwargs)
+        track = result.trajectory
+        with h5py.File(truth_path) as f:
+            t = f["radar/t_ns"][:]
+        t = t[(t >= track.t_ns[0]) & (t <= track.t_ns[-1])]
+        seen = np.isin(t, result.seen_t_ns)
+        moved = oracle(truth_path, ("across",), cutoff_hz)(drive, track, config).trajectory
+        assert moved.correction is not None
+        keep = seen if where == "seen" else ~seen
+        base = track.correction.at(t) if track.correction is not None else np.zeros((len(t), 3))
+        added = np.where(keep[:, None], moved.correction.at(t) - base, 0.0)
+        correction = MotionCorrection(t, base + added, np.zeros_like(added))
+        return dataclasses.replace(result, trajectory=dataclasses.replace(track, correction=correction))
 
     return corrected
 
@@ -99,8 +127,9 @@ def main() -> None:
             str(log))
         truth_path = log.with_name(log.name + ".truth.h5")
         for case, axes in CASES.items():
-            comparison = run_case(log, Path(tmp) / case,
-                                  None if axes is None else oracle(truth_path, axes, args.cutoff_hz))
+            fix = (None if axes is None else autofocus_then_oracle(truth_path, axes, args.cutoff_hz)
+                   if isinstance(axes, str) else oracle(truth_path, axes, args.cutoff_hz))
+            comparison = run_case(log, Path(tmp) / case, fix)
             row = drive_row(args.scenario, args.seed, comparison, 0.0, 0.0)
             af = row.get("sar-min+af", {})
             rows.append({"case": case,
