@@ -23,7 +23,7 @@ from autosar_cli.nav.navigate import navigate, with_standstill
 from autosar_cli.nav.sarmin import SIGMA_ALPHA, SIGMA_BETA, NavSolution, chi2_gate, run_sarmin
 from autosar_cli.nav.trajectory import Trajectory, relative_pose_error
 from autosar_cli.nav.ukf import VectorUKF
-from autosar_cli.nav.wheel_speeds import standstill_spans
+from autosar_cli.nav.wheel_speeds import standstill_spans, turning_standstills
 from autosar_cli.store.drive import Drive
 from autosar_cli.store.trajectory import read_trajectory
 
@@ -833,6 +833,26 @@ def test_a_stop_does_not_turn_the_speed_backwards(tmp_path: Path) -> None:
     print(f"a 0.003 deg/s bias step over the {span[1] - span[0]:.2f} s standstill turns the heading by "
           f"{turned[0.0]:+.4f} deg without its zero yaw rate ({expected:.4f} expected), {turned[std]:+.4f} with it")
     assert turned[0.0] > 0.6 * expected and abs(turned[std]) < 0.2 * expected
+    # a car creeping below the wheels' lowest reading while it turns (0.3 deg/s, every gyro) is no standstill: held,
+    # its heading stops (the gate refuses the gyros, not the zero); the gyros less their biases say so, and the
+    # span is navigated without its zero yaw rate. The standing car's span is kept.
+    creeping = dataclasses.replace(inputs, gyros=[dataclasses.replace(g, z=g.z + np.deg2rad(0.3) * k[:, None])
+                                                  for g, k in zip(inputs.gyros, inside, strict=True)])
+    for gyros_in, rate in ((stepped, 0.0), (creeping, 0.3)):
+        held, spans = with_standstill(gyros_in, cfg)
+        sol = run_sarmin(held, cfg)
+        biases = sol.x[:, [sol.state_names.index(f"bias.{g.name}") for g in held.gyros]]
+        found = turning_standstills(spans, held.gyros, sol.t, sol.x[:, m.OMEGA], biases)
+        heading = float(np.rad2deg(np.diff(np.interp(span, sol.t, np.unwrap(sol.x[:, m.PSI])))[0]))
+        print(f"gyros turning {rate} deg/s over the standstill: held heading turns {heading:+.4f} deg; "
+              f"refused {[(round(float(np.rad2deg(r)), 4), round(float(np.rad2deg(s)), 4)) for _, r, s in found]}")
+        if rate == 0.0:
+            assert found == []
+            continue
+        assert [f[0] for f in found] == [span] and abs(heading) < 0.05 * rate * (span[1] - span[0])
+        freed = run_sarmin(with_standstill(gyros_in, cfg, [])[0], cfg)
+        heading = float(np.rad2deg(np.diff(np.interp(span, freed.t, np.unwrap(freed.x[:, m.PSI])))[0]))
+        assert heading > 0.6 * rate * (span[1] - span[0])
 
 
 def test_the_radar_stays_on_a_planar_body_where_no_attitude_is_measured(ci_drive: Path) -> None:

@@ -42,6 +42,7 @@ from autosar_cli.nav.wheel_speeds import (
     restart_window_m,
     standstill_spans,
     standstill_yaw_rate,
+    turning_standstills,
     wheel_gaps,
     without_restart_windows,
 )
@@ -51,7 +52,7 @@ from autosar_cli.types import MotionCorrection
 METHODS = ("sar-min", "ins", "gnss", "none", "truth")
 #: what a trajectory's info reports of its navigation (navigate --json, run.json): updates and what was fitted
 REPORTED_INFO = ("updates", "rejected", "gnss_noise", "understeer", "rear_slip", "wheel_lag", "wheel_radii",
-                 "attitude", "wheel_gaps", "standstill_ns", "gnss_heading")
+                 "attitude", "wheel_gaps", "standstill_ns", "standstill_refused", "gnss_heading")
 SIGNIFICANT = 3.0  # a fitted lag or gradient is applied where it differs from the default by more stds than this
 # ... and by more than these: a tenth of a sedan's understeer gradient (rad per m/s^2), 5 ms of yaw lag, 1 cm of
 # wheel-speed lag distance, 0.1 % per m/s^2 of slip gain (at urban's 1 m/s^2 RMS, 1 mm per metre), 0.05 % per m/s^2
@@ -319,11 +320,12 @@ def _height_decision(att: BodyAttitude, config: Config) -> dict[str, Any]:
                                        "measured on the GNSS's vertical velocity"}
 
 
-def with_standstill(inputs: NavInputs, config: Config) -> tuple[NavInputs, list[tuple[float, float]]]:
+def with_standstill(inputs: NavInputs, config: Config, spans: list[tuple[float, float]] | None = None
+                    ) -> tuple[NavInputs, list[tuple[float, float]]]:
     """``inputs`` with a zero yaw rate at every gyro sample where the wheels stand still
     (:func:`.wheel_speeds.standstill_yaw_rate`, std ``navigation.standstill_yaw_rate_std_dps``; none where it is 0),
-    and those standstills (s since ``inputs.t0_ns``)."""
-    spans = standstill_spans(inputs.wheels)
+    and those standstills (s since ``inputs.t0_ns``; ``spans``: these, not the wheels' own)."""
+    spans = standstill_spans(inputs.wheels) if spans is None else spans
     gyro_t = np.concatenate([g.t for g in inputs.gyros]) if inputs.gyros else np.zeros(0)
     zero = standstill_yaw_rate(spans, gyro_t, np.deg2rad(config.navigation.standstill_yaw_rate_std_dps))
     return replace(inputs, standstill=zero), spans
@@ -442,6 +444,14 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
         if attitude is not None:
             inputs = gnss_on_level_body(inputs, attitude, config)
         sol, understeer, rear_slip, slip_gain = sarmin_with_fits(inputs, fits_config, smooth=smooth)
+        biases = sol.x[:, [sol.state_names.index(f"bias.{g.name}") for g in inputs.gyros]]
+        turning = (turning_standstills(standstill, inputs.gyros, sol.t, sol.x[:, m.OMEGA], biases)
+                   if inputs.standstill is not None else [])
+        if turning:  # the car crept below the wheels' lowest reading: navigated again without those spans
+            refused = [span for span, _, _ in turning]
+            standstill = [span for span in standstill if span not in refused]
+            inputs, _ = with_standstill(inputs, config, standstill)
+            sol, understeer, rear_slip, slip_gain = sarmin_with_fits(inputs, fits_config, smooth=smooth)
         t_ns = inputs.t0_ns + np.round(sol.t * 1e9).astype(np.int64)
         # the filter's heading is the body's; the trajectory's is the rear axle's course, the body turned from it
         course = np.unwrap(sol.x[:, m.PSI]) - slip_gain * sol.x[:, m.V] * sol.x[:, m.OMEGA]
@@ -454,6 +464,11 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                                 "wheel_radii": wheel_radii, "gnss_noise": gnss_noise,
                                 "standstill_ns": [[inputs.t0_ns + int(round(x * 1e9)) for x in span]
                                                   for span in standstill],
+                                # wheels at 0 that the gyros contradict: the car crept and turned (no zero yaw rate)
+                                "standstill_refused": [
+                                    {"span_ns": [inputs.t0_ns + int(round(x * 1e9)) for x in span],
+                                     "yaw_rate_dps": round(float(np.rad2deg(rate)), 4),
+                                     "std_dps": round(float(np.rad2deg(std)), 4)} for span, rate, std in turning],
                                 "wheel_gaps": [g.to_dict() for g in wheel_gaps(inputs.wheels, inputs.gnss_velocity,
                                                                                inputs.t0_ns)]})
         if config.navigation.gnss_heading:

@@ -392,6 +392,43 @@ def standstill_yaw_rate(spans: list[tuple[float, float]], at: Array, std_radps: 
     return Measurements("standstill", times, np.zeros((len(times), 1)), np.array([std_radps]))
 
 
+#: A standstill whose gyros, less their biases, turn faster than this over it is a car creeping below the wheel
+#: speeds' lowest reading, not standing (rad/s; 0.01 deg/s, 0.05 deg over 5 s; urban's full-vehicle stops read
+#: 0.0003-0.0032 deg/s, their std 0.002; a creeping turn leaves ~0.6 of its rate, the biases take the rest)
+CREEP_YAW_RATE_RADPS = np.deg2rad(0.01)
+
+
+def turning_standstills(spans: list[tuple[float, float]], gyros: list[Measurements], t: Array, omega: Array,
+                        biases: Array, significant: float = 5.0) -> list[tuple[tuple[float, float], float, float]]:
+    """The standstills ``spans`` (s) over which the gyros say the car turns: each gyro's samples there less the
+    solution's yaw rate ``omega`` (rad/s) and that gyro's bias (``biases`` (K, G), rad/s; both at the solution's
+    instants ``t``, s), averaged over the span and over the gyros by their samples' weight. Where that rate exceeds
+    ``significant`` times its noise and :data:`CREEP_YAW_RATE_RADPS`, the span is returned with the rate and its
+    std (rad/s). A car creeping below the ECU's lowest speed (0.14 m/s) reads 0 on all four wheels while it turns:
+    held at 0, its heading would stop (a 1 deg/s turn over urban's 5.5 s span: 0.004 deg instead of 5.5), for the
+    filter then gates the gyros out rather than the zero. The biases cannot take such a turn (their walk: 5e-4
+    deg/s over 5 s), so it stays in the residual."""
+    out = []
+    for a, b in spans:
+        weight = mean = 0.0
+        for g, gyro in enumerate(gyros):
+            inside = (gyro.t >= a) & (gyro.t <= b)
+            n = int(inside.sum())
+            if n == 0:
+                continue
+            at = gyro.t[inside]
+            residual = gyro.z[inside, 0] - np.interp(at, t, omega) - np.interp(at, t, biases[:, g])
+            w = n / float(gyro.sigma[0]) ** 2
+            mean += w * float(residual.mean())
+            weight += w
+        if weight == 0.0:
+            continue
+        rate, std = mean / weight, 1.0 / np.sqrt(weight)
+        if abs(rate) > max(significant * std, CREEP_YAW_RATE_RADPS):
+            out.append(((a, b), rate, std))
+    return out
+
+
 def lag_compensated_wheels(wheels: Measurements, fit: WheelLagFit) -> Measurements:
     """The wheel speeds as of their rows' own instants: each wheel's samples move to the instants they describe,
     ``t - c / v_w`` (``v_w`` that sample's own speed, at most ``MAX_DELAY_S`` back; a standing wheel's stay), and its
