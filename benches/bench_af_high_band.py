@@ -29,7 +29,9 @@ these drives (the processor keeps the config's), recorded in their rows; ``--app
 output's. ``--elevation``: the fit takes the vertical motion too, each history's gain measured by the array's
 raised Tx (``high_band_motion``). The committed file: ``--drives test1:0,test2:1,test3:8,test1:1,test2:0,test3:1``,
 then ``--drives test1:1,test3:1 --simulation vibration_vertical_rms_m=0.0 --append`` (the radar case's vertical
-vibration off), then the six again with ``--elevation --append`` (its times under a second benchmark's load).
+vibration off), then the six again with ``--elevation --append`` (its times under a second benchmark's load), then
+``--drives test1:2,test2:2,test3:2,test1:3,test2:3,test3:3,test1:4,test2:4,test3:4 --append`` and ``--drives
+urban:1,urban:2 --append``.
 """
 
 from __future__ import annotations
