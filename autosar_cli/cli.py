@@ -386,6 +386,8 @@ def navigate(
             gains = traj.info["wheel_radii"]["applied"]
             out.print("wheel speeds divided by their fitted gains (% per m/s^2): "
                       + ", ".join(f"{k} {100 * v:.3g}" for k, v in gains.items()))
+        for line in standstill_lines(traj.info, int(traj.t_ns[0])):
+            out.print(line)
         heading = traj.info.get("gnss_heading")
         if heading:
             out.print(f"GNSS heading fused ({heading['samples']} samples), its offset {heading['offset_deg']:+.3f} +- "
@@ -400,6 +402,19 @@ def navigate(
                          if height.get("applied") else height.get("reason", "")))
         if figure:
             out.print(f"figure [bold]{figure}[/]")
+
+
+def standstill_lines(info: dict[str, Any], t0_ns: int) -> list[str]:
+    """One line per standstill SAR-MIN held at a zero yaw rate, and per one it refused (the wheels at 0 while the
+    gyros turn: a creeping turn), its span in s from ``t0_ns`` (the trajectory's first instant)."""
+    def span(ns: list[int]) -> str:
+        return f"{(ns[0] - t0_ns) / 1e9:.1f}-{(ns[1] - t0_ns) / 1e9:.1f} s"
+
+    lines = [f"standstill {span(ns)}: yaw rate held at 0" for ns in info.get("standstill_ns", [])]
+    lines += [f"wheels at 0 over {span(r['span_ns'])} while the gyros turn {r['yaw_rate_dps']:+.3f} +- "
+              f"{r['std_dps']:.3f} deg/s: a creeping turn, not held as a standstill"
+              for r in info.get("standstill_refused", [])]
+    return lines
 
 
 class Channels(StrEnum):

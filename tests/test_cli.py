@@ -78,3 +78,19 @@ def test_console_script_exit_codes_and_complete_products(tmp_path):
     p = subprocess.run([sys.executable, "-m", "autosar_cli.cli", "simulate", "--no-such-option"], capture_output=True,
                        text=True)
     assert p.returncode == 2
+
+
+def test_navigate_says_which_standstills_it_held_and_which_it_refused() -> None:
+    """One console line per standstill SAR-MIN held (its span from the track's start) and per one it refused as a
+    creeping turn, with the gyros' rate (run.json's stages.navigate.standstill_ns / standstill_refused)."""
+    from autosar_cli.cli import standstill_lines
+
+    t0 = 1_600_000_000_000_000_000
+    info = {"standstill_ns": [[t0 + 30_100_000_000, t0 + 35_600_000_000]],
+            "standstill_refused": [{"span_ns": [t0 + 61_000_000_000, t0 + 64_250_000_000], "yaw_rate_dps": 0.0978,
+                                    "std_dps": 0.002}]}
+    assert standstill_lines(info, t0) == [
+        "standstill 30.1-35.6 s: yaw rate held at 0",
+        "wheels at 0 over 61.0-64.2 s while the gyros turn +0.098 +- 0.002 deg/s: a creeping turn, not held as a "
+        "standstill"]
+    assert standstill_lines({}, t0) == []
