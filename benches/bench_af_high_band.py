@@ -107,7 +107,7 @@ def high_band_motion(drive: Path, traj: Any, config: Any, points: Any, cut_hz: f
                                   window_bins=32, channels=2, pairs=ELEVATION_PAIRS if elevation else None)
     antennas = pair_antennas(hist, traj, config)
     half = len(ELEVATION_PAIRS) // 2
-    z, los = focus_history(hist, *antennas, points, slice(0, half) if elevation else None)
+    z, los = focus_history(hist, *antennas, points, slice(0, half) if elevation else slice(None))
     raised = focus_history(hist, *antennas, points, slice(half, None))[0] if elevation else None
     t0 = int(traj.t_ns[0])
     t_f = (hist.frame_t_ns - t0) / 1e9

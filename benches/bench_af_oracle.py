@@ -66,23 +66,19 @@ def oracle(truth_path: Path, axes: tuple[str, ...], cutoff_hz: float) -> Any:
 def autofocus_then_oracle(truth_path: Path, where: str, cutoff_hz: float) -> Any:
     """A replacement for compare's ``autofocus_residual_motion``: the product's, then the truth's across-track part
     above ``cutoff_hz`` of what it leaves, on the frames its points see (``where`` "seen") or do not see ("unseen")."""
-    import h5py
-
     from autosar_cli.sar.residual_motion import autofocus_residual_motion
     from autosar_cli.types import MotionCorrection
 
     def corrected(drive: Path, traj: Any, config: Any, *args: Any, **kwargs: Any) -> Any:
         result = autofocus_residual_motion(drive, traj, config, *args, **kwargs)
         track = result.trajectory
-        with h5py.File(truth_path) as f:
-            t = f["radar/t_ns"][:]
-        t = t[(t >= track.t_ns[0]) & (t <= track.t_ns[-1])]
+        part = oracle(truth_path, ("across",), cutoff_hz)(drive, track, config).correction  # at the truth's frames
+        assert part is not None
+        t = part.t_ns
         seen = np.isin(t, result.seen_t_ns)
-        moved = oracle(truth_path, ("across",), cutoff_hz)(drive, track, config).trajectory
-        assert moved.correction is not None
         keep = seen if where == "seen" else ~seen
         base = track.correction.at(t) if track.correction is not None else np.zeros((len(t), 3))
-        added = np.where(keep[:, None], moved.correction.at(t) - base, 0.0)
+        added = np.where(keep[:, None], part.offset_enu, 0.0)
         correction = MotionCorrection(t, base + added, np.zeros_like(added))
         return dataclasses.replace(result, trajectory=dataclasses.replace(track, correction=correction))
 

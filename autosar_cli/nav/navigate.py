@@ -444,8 +444,8 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
         if attitude is not None:
             inputs = gnss_on_level_body(inputs, attitude, config)
         sol, understeer, rear_slip, slip_gain = sarmin_with_fits(inputs, fits_config, smooth=smooth)
-        biases = sol.x[:, [sol.state_names.index(f"bias.{g.name}") for g in inputs.gyros]]
-        turning = (turning_standstills(standstill, inputs.gyros, sol.t, sol.x[:, m.OMEGA], biases)
+        turning = (turning_standstills(standstill, inputs.gyros, sol.t, sol.x[:, m.OMEGA],
+                                       sol.x[:, [sol.state_names.index(f"bias.{g.name}") for g in inputs.gyros]])
                    if inputs.standstill is not None else [])
         if turning:  # the car crept below the wheels' lowest reading: navigated again without those spans
             refused = [span for span, _, _ in turning]

@@ -180,16 +180,14 @@ def pair_antennas(hist: PhaseHistories, traj: Trajectory, config: Config) -> tup
 
 
 def focus_history(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array,
-                  channels: slice | None = None) -> tuple[NDArray[np.complex128], Array]:
+                  channels: slice = slice(None)) -> tuple[NDArray[np.complex128], Array]:
     """Each pair's back-projected value (N,) (``channels`` summed, default all; exact path, linear interpolation
     between bins as the kernel does) from antennas ``tx``, ``rx`` (N, C, 3) (:func:`pair_antennas`, ENU m) onto
     ``points_enu`` (P, 3), and its unit line of sight (N, 3) from those channels' mean phase centre to the point.
     A pair whose path left its bin window in any of them gives NaN."""
     points = np.asarray(points_enu, dtype=np.float64)
-    c = channels if channels is not None else slice(None)
-    z, inside, los = focus_windows(np.ascontiguousarray(hist.samples[:, c]), np.ascontiguousarray(hist.bin0[:, c]),
-                                   np.ascontiguousarray(tx[:, c]), np.ascontiguousarray(rx[:, c]), points, hist.point,
-                                   hist.bin_m, hist.cycles_per_m, np.zeros(1))
+    z, inside, los = focus_windows(*(np.ascontiguousarray(a[:, channels]) for a in (hist.samples, hist.bin0, tx, rx)),
+                                   points, hist.point, hist.bin_m, hist.cycles_per_m, np.zeros(1))
     z = z[:, 0]
     z[~inside[:, 0]] = np.nan
     return z, los
