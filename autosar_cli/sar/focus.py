@@ -100,7 +100,10 @@ class FocusReport:
 def channel_pairs(n_tx: int, n_rx: int, channels: int) -> list[tuple[int, int]]:
     """(Tx, Rx) pairs processed: 8 = Tx0 and Tx2 with every Rx (the 8-element lambda/2 virtual array), 12 = all;
     2 = Tx0-Rx0 and Tx2-Rx(last), the virtual array's ends (autofocus's coarse first image and phase histories:
-    a narrow processed beam, or one point's history, needs no more than one channel's along-track sampling)."""
+    a narrow processed beam, or one point's history, needs no more than one channel's along-track sampling); 1 =
+    Tx0-Rx0."""
+    if channels == 1:
+        return [(0, 0)]
     if channels == 2 and n_tx >= 3:
         return [(0, 0), (2, n_rx - 1)]
     if channels == 12 or n_tx < 3:

@@ -154,19 +154,24 @@ def _moving(traj: Trajectory, t_ns: NDArray[np.int64], focus: FocusOptions) -> N
 
 
 def _seen(traj: Trajectory, t_ns: NDArray[np.int64], config: Config, points: Array, moving: NDArray[np.bool_],
-          half_beam_deg: float, block_frames: int = 2048) -> NDArray[np.bool_]:
+          half_beam_deg: float, block_frames: int = 512) -> NDArray[np.bool_]:
     """(F, P) whether the radar at each frame ``t_ns`` sees each point (ENU m): on its side, within
     ``half_beam_deg`` of broadside, within its range, the car ``moving`` (F,); in blocks of frames, so the
     (frames, points, 3) geometry stays small."""
     seen = np.zeros((len(t_ns), len(points)), dtype=bool)
     sin_half_beam = math.sin(math.radians(half_beam_deg))
+    reach = config.radar.max_range_m
     for b in range(0, len(t_ns), block_frames):
         centre, across, along = frame_geometry(traj, t_ns[b:b + block_frames], config)
-        d = points[None, :, :] - centre[:, None, :]  # (B, P, 3)
+        # only the points within the radar's range of the block's box can be seen from it
+        lo, hi = centre.min(axis=0) - reach, centre.max(axis=0) + reach
+        near = np.flatnonzero(np.all((points >= lo) & (points <= hi), axis=1))
+        d = points[None, near, :] - centre[:, None, :]  # (B, P', 3)
         horiz = np.maximum(np.hypot(d[..., 0], d[..., 1]), 1e-9)
-        seen[b:b + block_frames] = (moving[b:b + block_frames, None] & (np.einsum("fpk,fk->fp", d, across) > 0.0)
-                                    & (np.abs(np.einsum("fpk,fk->fp", d, along)) <= sin_half_beam * horiz)
-                                    & (np.einsum("fpk,fpk->fp", d, d) <= config.radar.max_range_m ** 2))
+        seen[b:b + block_frames, near] = (moving[b:b + block_frames, None]
+                                          & (np.einsum("fpk,fk->fp", d, across) > 0.0)
+                                          & (np.abs(np.einsum("fpk,fk->fp", d, along)) <= sin_half_beam * horiz)
+                                          & (np.einsum("fpk,fpk->fp", d, d) <= reach ** 2))
     return seen
 
 

@@ -43,14 +43,14 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from autosar_cli.config import Config
-from autosar_cli.nav.trajectory import track_scale_std
+from autosar_cli.nav.trajectory import phase_centre_lever_arm, radar_track, track_scale_std, zero_doppler_times
 from autosar_cli.sar.autofocus import scale_track
+from autosar_cli.sar.fast_motion import FastMotion, FastMotionOptions, closest_approach_ns, fast_motion
 from autosar_cli.sar.focus import FocusOptions
-from autosar_cli.sar.normal_equations import factor_normal
+from autosar_cli.sar.normal_equations import factor_normal, node_posterior_std
 from autosar_cli.sar.pass_ranges import PassOptions, SlowMotion, estimate_slow_motion, pass_histories, with_correction
 from autosar_cli.sar.phase_history import (
     PhaseHistories,
@@ -61,6 +61,7 @@ from autosar_cli.sar.phase_history import (
     pair_antennas,
     range_offsets,
 )
+from autosar_cli.store.drive import radar_times
 from autosar_cli.types import FocusGrid, MotionCorrection, Trajectory
 
 Array = NDArray[np.float64]
@@ -133,10 +134,14 @@ class AutofocusOptions:
     #: config's ``processing.autofocus_slow_motion`` where the options are not given (on; its figures and cost:
     #: docs/AUTOFOCUS.md, "The slow motion from the points' passes")
     slow_motion: bool = True
+    #: last, the fast across-track motion from many scatterers (:mod:`autosar_cli.sar.fast_motion`). The config's
+    #: ``processing.autofocus_fast_motion`` where the options are not given (on)
+    fast_motion: bool = True
 
     @classmethod
     def from_config(cls, config: Config) -> AutofocusOptions:
-        return cls(slow_motion=config.processing.autofocus_slow_motion)
+        return cls(slow_motion=config.processing.autofocus_slow_motion,
+                   fast_motion=config.processing.autofocus_fast_motion)
 
 
 @dataclass
@@ -200,6 +205,9 @@ class ResidualMotion:
     #: the slow motion measured first (:mod:`autosar_cli.sar.pass_ranges`); where applied, ``trajectory`` and its
     #: correction hold it, and ``correction`` (the phases') does not
     slow_motion: SlowMotion | None = None
+    #: the fast motion measured last (:mod:`autosar_cli.sar.fast_motion`); where applied, ``trajectory`` and its
+    #: correction hold it, and ``correction`` does not
+    fast_motion: FastMotion | None = None
 
     @property
     def applied(self) -> bool:
@@ -222,6 +230,7 @@ class ResidualMotion:
     def to_dict(self) -> dict[str, object]:
         return {"applied": self.applied, "reason": self.reason,
                 "slow_motion": self.slow_motion.to_dict() if self.slow_motion is not None else None,
+                "fast_motion": self.fast_motion.to_dict() if self.fast_motion is not None else None,
                 "track_scale": self.scale,
                 "track_scale_std": self.scale_std, "track_scale_prior_std": self.scale_prior,
                 "track_scale_note": self.scale_note, "grade_stretch": self.grade_stretch,
@@ -239,7 +248,8 @@ class ResidualMotion:
         if self.reason:
             return f"{slow}track not corrected by the phases: {self.reason}" if slow else \
                 f"track not corrected: {self.reason}"
-        return slow + self._phase_summary()
+        fast = "" if self.fast_motion is None else "; " + self.fast_motion.summary()
+        return slow + self._phase_summary() + fast
 
     def _phase_summary(self) -> str:
         c = self.correction_summary()
@@ -717,9 +727,9 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
                               grade_stretch=float(np.mean(stretch[used])) if stretch is not None else 0.0)
 
     if posterior:
-        return finished(_posterior_std(lu, n_nodes))
+        return finished(node_posterior_std(lu, n_nodes, 2))
     return replace(finished(np.full((n_nodes, 2), np.nan)),
-                   with_posterior=lambda: finished(_posterior_std(lu, n_nodes)))
+                   with_posterior=lambda: finished(node_posterior_std(lu, n_nodes, 2)))
 
 
 def _point_scale_chi2(lin: _Linear, w: Array, shift0: int, used: NDArray[np.bool_], point_prior_m: float
@@ -745,21 +755,6 @@ def _point_scale_chi2(lin: _Linear, w: Array, shift0: int, used: NDArray[np.bool
         if cov[0, 0] > 0:
             z2.append(dx[0] ** 2 / cov[0, 0])
     return (float(np.mean(z2)), len(z2)) if z2 else (1.0, 0)
-
-
-def _posterior_std(lu: spla.SuperLU, n_nodes: int, every: int = 10) -> Array:
-    """Std (n_nodes, 2) of the across and up correction from the factorised normal matrix, computed every
-    ``every`` nodes and interpolated between."""
-    picks = np.unique(np.concatenate([np.arange(0, n_nodes, every), [n_nodes - 1]]))
-    out = np.empty((n_nodes, 2))
-    n = lu.shape[0]
-    for comp in range(2):
-        cols = comp * n_nodes + picks
-        e = np.zeros((n, len(cols)))
-        e[cols, np.arange(len(cols))] = 1.0
-        var = lu.solve(e)[cols, np.arange(len(cols))]
-        out[:, comp] = np.interp(np.arange(n_nodes), picks, np.sqrt(np.maximum(var, 0.0)))
-    return out
 
 
 def select_points(image: NDArray[np.complexfloating], grid: FocusGrid, range_m: Array, opts: AutofocusOptions,
@@ -805,40 +800,88 @@ def candidate_points(drive_path: str | Path, trajectory: Trajectory, config: Con
     grid, but only out to ``opts.max_range_m`` + 1 m, at twice the product's resolution and 1.5 times its pixel,
     from ``opts.channels`` channels (on test2 1/45 of the product's back-projections, and a quarter of its range
     compression; the fit refines each point's position)."""
-    from autosar_cli.nav.trajectory import radar_track, zero_doppler_times
+    return points_and_scatterers(drive_path, trajectory, config, focus, opts, None, **select)[0]
+
+
+def points_and_scatterers(drive_path: str | Path, trajectory: Trajectory, config: Config, focus: FocusOptions,
+                          opts: AutofocusOptions, fast: FastMotionOptions | None, **select: Any
+                          ) -> tuple[Array, Array]:
+    """The autofocus's points (:func:`candidate_points`) and, unless ``fast`` is None, the fast-motion stage's
+    scatterers (:mod:`autosar_cli.sar.fast_motion`) on one first image out to the radar's range. The grid's rows
+    start at the track whatever its range, and the pixels within ``opts.max_range_m`` + 1 m hold the same values as
+    on the shorter image (only the last rows, where its range cuts pulses off, differ), so the points are those of
+    :func:`candidate_points` (P, 3) and (S, 3), ENU m."""
     from autosar_cli.sar.focus import auto_grid, focus_images
     from autosar_cli.sar.grid import track_distance
-    from autosar_cli.store.drive import radar_times
 
-    near = replace(config, radar=replace(config.radar, max_range_m=min(config.radar.max_range_m,
-                                                                       opts.max_range_m + 1.0)))
+    def ranged(max_range_m: float) -> Config:
+        return replace(config, radar=replace(config.radar, max_range_m=min(config.radar.max_range_m, max_range_m)))
+
+    near = ranged(opts.max_range_m + 1.0)
+    far = config if fast is not None else near
     coarse = replace(focus, resolution_m=2.0 * focus.resolution_m, pixel_m=1.5 * focus.pixel_m, channels=opts.channels)
-    grid = auto_grid(drive_path, trajectory, near, coarse)
-    image = focus_images(drive_path, trajectory, near, coarse, grids=[grid]).images[0]
+    grid = auto_grid(drive_path, trajectory, far, coarse)
+    image = focus_images(drive_path, trajectory, far, coarse, grids=[grid]).images[0].image
     t_radar = radar_times(drive_path)
     t_radar = t_radar[(t_radar >= trajectory.t_ns[0]) & (t_radar <= trajectory.t_ns[-1])]
     # every 8th pulse (~3 cm apart at 30 km/h): the distance of a pixel 3 m away is off by < 0.1 mm
     track = radar_track(trajectory, t_radar[::8], config)
     distance = track_distance(grid, track)
+    rows = auto_grid(drive_path, trajectory, near, coarse).n_across if fast is not None else grid.n_across
     # the scale's points as they would be alone, and the motion's beyond them (ranked by reflectivity, the farther
     # would take the nearer's places)
     bands = [(opts.min_range_m, opts.scale_max_range_m), (opts.scale_max_range_m, opts.max_range_m)]
-    points = np.concatenate([select_points(image.image, grid, distance, opts, band_m=b, **select) for b in bands
-                             if b[1] > b[0]])
+    points = np.concatenate([select_points(image[:rows], grid, distance[:rows], opts, band_m=b, **select)
+                             for b in bands if b[1] > b[0]])
+    scatterers = np.zeros((0, 3))
+    if fast is not None:
+        wide = replace(opts, max_range_m=config.radar.max_range_m - 1.0)
+        bands = [(wide.min_range_m, wide.scale_max_range_m), (wide.scale_max_range_m, wide.max_range_m)]
+        scatterers = np.concatenate([select_points(image, grid, distance, wide, band_m=b, per_segment=fast.per_segment,
+                                                   min_concentration=fast.min_concentration,
+                                                   within_db=fast.within_db) for b in bands])
+        if len(scatterers):
+            scatterers[:, 2] += trajectory.height_offset(closest_approach_ns(track, t_radar[::8], scatterers))
     if len(points):  # on the focusing surface, as focus put them (sar.focus)
         points[:, 2] += trajectory.height_offset(zero_doppler_times(trajectory, points, config, t_radar))
-    return points
+    return points, scatterers
 
 
 def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, config: Config,
                               focus: FocusOptions | None = None, opts: AutofocusOptions | None = None,
-                              passes: PassOptions | None = None) -> ResidualMotion:
+                              passes: PassOptions | None = None, fast: FastMotionOptions | None = None
+                              ) -> ResidualMotion:
     """``trajectory`` corrected by the residual motion its own image's bright points (:func:`candidate_points`)
-    measure, with no truth (:func:`residual_motion_of_points`)."""
+    measure, with no truth (:func:`residual_motion_of_points`), then, unless ``opts.fast_motion`` is off, by the
+    fast across-track motion that many scatterers measure along that track (:mod:`autosar_cli.sar.fast_motion`;
+    ``fast``: its options)."""
     focus = focus or FocusOptions.from_config(config)
     opts = opts or AutofocusOptions.from_config(config)
-    points = candidate_points(drive_path, trajectory, config, focus, opts)
-    return residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes)
+    if not opts.fast_motion:
+        points = candidate_points(drive_path, trajectory, config, focus, opts)
+        return residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes)
+    fast = fast or FastMotionOptions()
+    points, scatterers = points_and_scatterers(drive_path, trajectory, config, focus, opts, fast)
+    result = residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes)
+    if not result.applied:
+        return result
+    if len(scatterers) == 0:
+        return replace(result, fast_motion=FastMotion(None, 0, 0, 0.0, "no bright scatterer in the first image"))
+    # each scatterer where the corrected track focuses it: moved as the radar moved at its closest approach
+    t_near = radar_times(drive_path)
+    t_near = t_near[(t_near >= trajectory.t_ns[0]) & (t_near <= trajectory.t_ns[-1])][::8]
+    t_zero = closest_approach_ns(radar_track(trajectory, t_near, config), t_near, scatterers)
+    lever = phase_centre_lever_arm(config)[None]
+    moved = scatterers + (result.trajectory.body_points(t_zero, lever)[:, 0]
+                          - trajectory.body_points(t_zero, lever)[:, 0])
+    histories = gather_phase_histories(drive_path, result.trajectory, config, moved, focus,
+                                       half_beam_deg=fast.half_beam_deg, window_bins=fast.window_bins,
+                                       channels=fast.channels)
+    stage = fast_motion(histories, result.trajectory, config, moved, fast)
+    if not stage.applied:
+        return replace(result, fast_motion=stage)
+    assert stage.correction is not None
+    return replace(result, trajectory=with_correction(result.trajectory, stage.correction), fast_motion=stage)
 
 
 def residual_motion_of_points(drive_path: str | Path, trajectory: Trajectory, config: Config, points_enu: Array,
