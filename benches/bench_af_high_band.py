@@ -2,7 +2,7 @@
 
 Usage: python benches/bench_af_high_band.py [--drives test1:0,test2:1,test3:8] [--cut-hz 2]
                                             [--simulation KEY=VALUE,...] [--vertical | --elevation]
-                                            [--fast KEY=VALUE,...] [--append]
+                                            [--fast KEY=VALUE,...] [--dynamics kinematic] [--append]
                                             [--output benches/results/af_high_band.json]
 
 The stage (``autosar_cli.sar.fast_motion``, last in ``run --autofocus``; docs/AUTOFOCUS.md) takes the motion the
@@ -20,7 +20,9 @@ each history's gain measured by the array's raised Tx (``high_band_motion``). Th
 ``--drives test1:0,test2:1,test3:8,test1:1,test2:0,test3:1``, then ``--drives test1:1,test3:1 --simulation
 vibration_vertical_rms_m=0.0 --append`` (the radar case's vertical vibration off), then the six again with
 ``--elevation --append``, then ``--drives test1:2,test2:2,test3:2,test1:3,test2:3,test3:3,test1:4,test2:4,test3:4
---append`` and ``--drives urban:1,urban:2 --append``.
+--append`` and ``--drives urban:1,urban:2 --append`` (the stage as this bench's function then: the file's note); then
+the product's: ``--drives test1:0,test2:1,test3:1 [--fast ...] --append`` and ``--drives test1:1 --dynamics kinematic
+--append``.
 """
 
 from __future__ import annotations
@@ -230,6 +232,7 @@ def table_row(row: dict[str, Any]) -> dict[str, Any]:
     sim += " [elevation]" if row.get("elevation") else ""
     sim += f" [prior {row['prior_mm']:g} mm]" if row.get("prior_mm", 0.3) != 0.3 else ""
     sim += f" [{row['fast']}]" if row.get("fast") else ""
+    sim += f" [{row['dynamics']}]" if row.get("dynamics") else ""
     return {"drive": f"{row['scenario']} s{row['seed']}{sim}",
             "far_entropy_pct": before["far_entropy_vs_truth_pct"],
             "far_entropy_with_pct": after["far_entropy_vs_truth_pct"],
@@ -248,6 +251,7 @@ def main() -> None:
     ap.add_argument("--elevation", action="store_true",
                     help="... with each history's gain measured by the array's raised Tx (ELEVATION_PAIRS)")
     ap.add_argument("--prior-mm", type=float, default=0.3, help="prior std of the across-track correction (mm)")
+    ap.add_argument("--dynamics", choices=("kinematic", "full"), default="full")
     ap.add_argument("--fast", default=None, help="the stage's options (FastMotionOptions), KEY=VALUE,...")
     ap.add_argument("--output", type=Path, default=RESULTS / "af_high_band.json")
     args = ap.parse_args()
@@ -265,11 +269,12 @@ def main() -> None:
             log = Path(tmp) / "drive.mcap"
             sim_config = (["--config", str(config_copy(None, None, Path(tmp), simulation=args.simulation))]
                           if args.simulation else [])
-            cli("simulate", "--scenario", scenario, "--seed", seed, "--dynamics", "full", "--output", str(log),
+            cli("simulate", "--scenario", scenario, "--seed", seed, "--dynamics", args.dynamics, "--output", str(log),
                 *sim_config)
             row: dict[str, Any] = {"scenario": scenario, "seed": int(seed), "simulation": args.simulation,
                                    "vertical": args.vertical, "elevation": args.elevation, "prior_mm": args.prior_mm,
-                                   "fast": args.fast}
+                                   "fast": args.fast,
+                                   **({"dynamics": args.dynamics} if args.dynamics != "full" else {})}
             record: dict[str, Any] = {}
             fast = ({k: json.loads(v) for k, v in (kv.split("=", 1) for kv in args.fast.split(","))}
                     if args.fast else None)

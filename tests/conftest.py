@@ -8,6 +8,7 @@ import os
 import pickle
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -64,6 +65,24 @@ def simulated(sim_dir: Path, scenario: str, fmt: str, seed: int, *, prf_hz: floa
                 _CACHE[key] = simulate(scenario, log, fmt=fmt, seed=seed, config=config, dynamics="kinematic")
                 made.write_bytes(pickle.dumps(_CACHE[key]))
     return _CACHE[key]
+
+
+@pytest.fixture(scope="session")
+def test1_drive(sim_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Any]:
+    """test1 seed 1 (kinematic; the paper comparison's drive) ingested, and its truth (``Truth``) in the drive's
+    frame."""
+    from autosar_cli.evaluate.evaluation import load_truth
+    from autosar_cli.ingest.pipeline import ingest
+    from autosar_cli.nav.inputs import load_inputs
+    from autosar_cli.store.drive import Drive
+
+    cfg = load_config()
+    sim = simulated(sim_dir, "test1", "mcap", 1)
+    drive = tmp_path_factory.mktemp("test1_drive") / "drive.h5"
+    ingest([sim.log_path], drive, config=cfg)
+    with Drive(drive) as d:
+        origin = load_inputs(d, cfg).origin
+    return drive, load_truth(sim.truth_path, origin, cfg)
 
 
 @pytest.fixture(scope="session")

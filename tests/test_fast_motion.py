@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -56,19 +57,19 @@ def test_step_design_is_the_phase_step_of_a_motion_interpolated_between_nodes() 
 
 
 @pytest.fixture(scope="module")
-def ci_drive(ci_mcap, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Trajectory, Trajectory]:
-    """The ci drive ingested (drive.h5), its navigated track and its truth trajectory in the drive's frame."""
+def ci_drive(ci_mcap, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Trajectory, Trajectory, Path]:
+    """The ci drive ingested (drive.h5), its navigated track, its truth trajectory in the drive's frame and the
+    truth file."""
     out = tmp_path_factory.mktemp("fast") / "run"
     r = runner.invoke(app, ["run", str(ci_mcap.log_path), "-o", str(out)])
     assert r.exit_code == 0, r.output
     nav = read_trajectory(out / "trajectory.h5", covariance=False)
-    return out / "drive.h5", nav, load_truth(ci_mcap.truth_path, nav.origin, CFG).trajectory
+    return out / "drive.h5", nav, load_truth(ci_mcap.truth_path, nav.origin, CFG).trajectory, ci_mcap.truth_path
 
 
-def test_the_first_images_points_are_the_same_out_to_the_radars_range(ci_drive: tuple[Path, Trajectory,
-                                                                                         Trajectory]) -> None:
+def test_the_first_images_points_are_the_same_out_to_the_radars_range(ci_drive: tuple[Any, ...]) -> None:
     """One first image out to the radar's range gives the autofocus the same points as its own out to 17 m."""
-    drive, nav, _ = ci_drive
+    drive, nav, _, _ = ci_drive
     focus, opts = FocusOptions.from_config(CFG), AutofocusOptions.from_config(CFG)
     points, scatterers = points_and_scatterers(drive, nav, CFG, focus, opts, FastMotionOptions())
     np.testing.assert_array_equal(points, candidate_points(drive, nav, CFG, focus, opts))
@@ -77,31 +78,47 @@ def test_the_first_images_points_are_the_same_out_to_the_radars_range(ci_drive: 
     assert reach.max() > 18.0  # the far swath's scatterers too
 
 
-def test_recovers_a_fast_across_track_error_from_many_scatterers(ci_drive: tuple[Path, Trajectory,
-                                                                                   Trajectory]) -> None:
-    """The truth track plus a fast across-track motion (0.3 mm at 7 Hz and 0.2 mm at 13 Hz, a body shaking on a
-    rough road): the stage's correction, from the scatterers of a first image along that track, takes it out to
-    a fraction of itself above its 2 Hz cut."""
-    drive, _, truth = ci_drive
-    t = truth.t
+def test_recovers_a_fast_across_track_error_from_many_scatterers(test1_drive: tuple[Path, Any]) -> None:
+    """test1's truth track (kinematic, seed 1: no motion but the track's) plus a fast across-track motion (0.3 mm at
+    7 Hz and 0.2 mm at 13 Hz, a body shaking on a rough road). The stage's correction along the truth track alone
+    is its noise floor on this drive (measured 0.049 mm RMS above 2 Hz, from 25 of 86 histories); along the track
+    with the motion, the same scatterers' correction follows it (measured: correlation 0.94, gain 0.89) and leaves
+    0.088 of its 0.255 mm RMS, about that floor."""
+    drive, truth = test1_drive
+    track = truth.trajectory
+    t = track.t
     err = 3e-4 * np.sin(2 * np.pi * 7.0 * t) + 2e-4 * np.sin(2 * np.pi * 13.0 * t + 1.0)
-    across = frame_geometry(truth, truth.t_ns, CFG)[1]
-    wrong = replace(truth, correction=MotionCorrection(truth.t_ns, err[:, None] * across, np.zeros((len(t), 3))))
+    across = frame_geometry(track, track.t_ns, CFG)[1]
+    wrong = replace(track, correction=MotionCorrection(track.t_ns, err[:, None] * across, np.zeros((len(t), 3))))
     focus, opts, fast = FocusOptions.from_config(CFG), AutofocusOptions.from_config(CFG), FastMotionOptions()
-    scatterers = points_and_scatterers(drive, wrong, CFG, focus, opts, fast)[1]
-    hist = gather_phase_histories(drive, wrong, CFG, scatterers, focus, half_beam_deg=fast.half_beam_deg,
-                                  window_bins=fast.window_bins, channels=fast.channels)
-    res = fast_motion(hist, wrong, CFG, scatterers, fast)
-    assert res.applied, res.reason
-    c = res.correction
-    assert c is not None and np.all(c.std_enu >= 0)
-    nodes = c.t_ns
-    err_nodes = np.interp(nodes, truth.t_ns, err)
-    left = err_nodes + np.einsum("kd,kd->k", c.at(nodes), frame_geometry(truth, nodes, CFG)[1])
+    scatterers = points_and_scatterers(drive, track, CFG, focus, opts, fast)[1]
+    fits = []
+    for along in (track, wrong):
+        hist = gather_phase_histories(drive, along, CFG, scatterers, focus, half_beam_deg=fast.half_beam_deg,
+                                      window_bins=fast.window_bins, channels=fast.channels)
+        res = fast_motion(hist, along, CFG, scatterers, fast)
+        assert res.applied and res.correction is not None, res.reason
+        assert np.all(res.correction.std_enu >= 0)
+        fits.append(res)
+    nodes = fits[0].correction.t_ns
+    across_nodes = frame_geometry(track, nodes, CFG)[1]
+    floor, moved = (np.einsum("kd,kd->k", r.correction.at(nodes), across_nodes) for r in fits)
+    injected = np.interp(nodes, track.t_ns, err)
     sos = butter(4, 2.0, "highpass", fs=1.0 / fast.node_s, output="sos")
-    seen = res.seen
-    before, after = (float(np.std(sosfiltfilt(sos, v)[seen])) for v in (err_nodes, left))
-    print(f"fast motion: {1e3 * before:.3f} -> {1e3 * after:.3f} mm RMS above 2 Hz over {seen.mean():.2f} "
-          f"of the nodes ({res.histories_used} of {res.histories} histories)")
-    assert before > 2.4e-4
-    assert after < 0.35 * before
+    seen = fits[0].seen & fits[1].seen
+
+    def rms(v: np.ndarray) -> float:
+        return float(np.std(sosfiltfilt(sos, v)[seen]))
+
+    injected_hp, moved_hp = (sosfiltfilt(sos, v)[seen] for v in (injected, moved))
+    gain = float(np.dot(-moved_hp, injected_hp) / np.dot(injected_hp, injected_hp))
+    correlation = float(np.corrcoef(injected_hp, -moved_hp)[0, 1])
+    print(f"fast motion: floor {1e3 * rms(floor):.3f} mm; {1e3 * rms(injected):.3f} -> "
+          f"{1e3 * rms(injected + moved):.3f} mm RMS above 2 Hz, gain {gain:.2f}, correlation {correlation:.3f}, "
+          f"over {seen.mean():.2f} of the nodes "
+          f"({fits[1].histories_used} of {fits[1].histories} histories)")
+    assert seen.mean() > 0.8
+    assert rms(floor) < 1.2e-4
+    assert rms(injected) > 2.4e-4
+    assert correlation > 0.85 and 0.7 < gain < 1.1
+    assert rms(injected + moved) < 0.45 * rms(injected)

@@ -9,13 +9,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import simulated
 
 from autosar_cli.config import load_config
-from autosar_cli.evaluate.evaluation import Truth, load_truth
+from autosar_cli.evaluate.evaluation import Truth
 from autosar_cli.evaluate.trajectory_metrics import radar_track_scale
-from autosar_cli.ingest.pipeline import ingest
-from autosar_cli.nav.inputs import load_inputs
 from autosar_cli.nav.trajectory import cumulative_travel, radar_track
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.sar.pass_ranges import (
@@ -27,21 +24,10 @@ from autosar_cli.sar.pass_ranges import (
     with_correction,
 )
 from autosar_cli.sar.phase_history import frame_geometry
-from autosar_cli.store.drive import Drive, radar_times
+from autosar_cli.store.drive import radar_times
 from autosar_cli.types import MotionCorrection, Trajectory
 
 CFG = load_config()
-
-
-@pytest.fixture(scope="module")
-def test1_drive(sim_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Truth]:
-    """test1 seed 1 (kinematic; the paper comparison's drive) ingested, and its truth in the drive's frame."""
-    sim = simulated(sim_dir, "test1", "mcap", 1)
-    drive = tmp_path_factory.mktemp("pass_ranges") / "drive.h5"
-    ingest([sim.log_path], drive, config=CFG)
-    with Drive(drive) as d:
-        origin = load_inputs(d, CFG).origin
-    return drive, load_truth(sim.truth_path, origin, CFG)
 
 
 def _along(traj: Trajectory, t_ns: np.ndarray) -> np.ndarray:
