@@ -211,7 +211,7 @@ class ProcessingConfig:
     range_upsample: int = 4
     channels: Literal[8, 12] = 8
     autofocus_slow_motion: bool = True  #: the autofocus takes the slow motion from the points' passes first
-    autofocus_fast_motion: bool = True  #: and, last, the fast across-track motion from many scatterers
+    autofocus_fast_motion: bool = False  #: and, last, the fast across-track motion from many scatterers
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,8 @@ Usage: python benches/bench_af_high_band.py [--drives test1:0,test2:1,test3:8] [
                                             [--fast KEY=VALUE,...] [--dynamics kinematic] [--append]
                                             [--output benches/results/af_high_band.json]
 
-The stage (``autosar_cli.sar.fast_motion``, last in ``run --autofocus``; docs/AUTOFOCUS.md) takes the motion the
+The stage (``autosar_cli.sar.fast_motion``, last in ``run --autofocus`` where the config's
+``processing.autofocus_fast_motion`` is on; docs/AUTOFOCUS.md) takes the motion the
 product's few isolated points (3-16 m from the track, which on test1 see 61 % of the drive) miss: the far swath's
 entropy lacks the across-track motion above 0.5 Hz where they do not see (bench_af_oracle.py). For every drive
 (``simulate --dynamics full``): ``compare --methods sar-min,sar-min+af,truth`` with the autofocus without the stage
@@ -160,7 +161,8 @@ def with_high_band(cut_hz: float, record: dict[str, Any], vertical: bool = False
         start = time.perf_counter()
         if not (vertical or elevation):
             options = FastMotionOptions(**{"cut_hz": cut_hz, "prior_m": prior_m, **(fast or {})})
-            result = autofocus_residual_motion(drive, traj, config, *args, fast=options, **kwargs)
+            result = autofocus_residual_motion(drive, traj, config, *args, opts=autofocus_options(config, True),
+                                               fast=options, **kwargs)
             stage = result.fast_motion
             nodes = stage.correction.t_ns
             centre, across, _ = frame_geometry(result.trajectory, nodes, config)
@@ -170,7 +172,8 @@ def with_high_band(cut_hz: float, record: dict[str, Any], vertical: bool = False
                           used=stage.histories_used, coverage=stage.coverage, seen=stage.seen, centre=centre - offset,
                           across=across, points=stage.histories, wall_s=time.perf_counter() - start)
             return result
-        result = autofocus_residual_motion(drive, traj, config, *args, opts=without_fast(config), **kwargs)
+        result = autofocus_residual_motion(drive, traj, config, *args, opts=autofocus_options(config, False),
+                                           **kwargs)
         track = result.trajectory
         points = bright_scatterers(drive, track, config)
         stage = high_band_motion(drive, track, config, points, cut_hz, vertical=vertical, prior_m=prior_m,
@@ -185,18 +188,18 @@ def with_high_band(cut_hz: float, record: dict[str, Any], vertical: bool = False
     return corrected
 
 
-def without_fast(config: Any) -> Any:
-    """The config's autofocus options without the fast-motion stage (the product's before it)."""
+def autofocus_options(config: Any, fast: bool) -> Any:
+    """The config's autofocus options with the fast-motion stage on or off."""
     from autosar_cli.sar.residual_motion import AutofocusOptions
 
-    return dataclasses.replace(AutofocusOptions.from_config(config), fast_motion=False)
+    return dataclasses.replace(AutofocusOptions.from_config(config), fast_motion=fast)
 
 
 def product_without_fast(drive: Path, traj: Any, config: Any, *args: Any, **kwargs: Any) -> Any:
     """A replacement for compare's ``autofocus_residual_motion``: the product's without its fast-motion stage."""
     from autosar_cli.sar.residual_motion import autofocus_residual_motion
 
-    return autofocus_residual_motion(drive, traj, config, *args, opts=without_fast(config), **kwargs)
+    return autofocus_residual_motion(drive, traj, config, *args, opts=autofocus_options(config, False), **kwargs)
 
 
 def against_truth(truth_path: Path, record: dict[str, Any], config: Any) -> dict[str, Any]:

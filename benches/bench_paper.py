@@ -36,7 +36,8 @@ config's car, a softer one (``--car``) and a radar case that shakes more (``--si
 for the simulator only), with ``--resume`` into the same file (commands in docs/AUTOFOCUS.md).
 SAR-MIN's own settings otherwise than the config (``--navigation``: entries of [navigation], e.g.
 ``wheel_lag_window_always=true``; rows and groups name them), side by side with the config's in
-benches/results/paper_fits.json.
+benches/results/paper_fits.json. The processor's own [processing] settings otherwise than the config
+(``--processing``, e.g. ``autofocus_fast_motion=true``): benches/results/paper_full_fast.json.
 """
 
 from __future__ import annotations
@@ -294,6 +295,7 @@ def group_key(row: dict[str, Any]) -> str:
             + (" [car]" if row.get("car") else "") + (" [sim]" if row.get("simulation") else "")
             + (" [sensors]" if row.get("sensors") else "")
             + (f" [{row['navigation']}]" if row.get("navigation") else "")
+            + (f" [{row['processing']}]" if row.get("processing") else "")
             + (f" [{row['label']}]" if row.get("label") else ""))
 
 
@@ -329,6 +331,9 @@ def main() -> None:
     ap.add_argument("--navigation", default=None,
                     help="SAR-MIN's own settings differ from the config's: [navigation] entries, e.g. "
                          "wheel_lag_window_always=true")
+    ap.add_argument("--processing", default=None,
+                    help="the processor's [processing] entries differ from the config's, e.g. "
+                         "autofocus_fast_motion=true")
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--keep", action="store_true", help="keep every drive's log and comparison")
     ap.add_argument("--resume", action="store_true", help="keep --output's rows and skip the drives already in it")
@@ -348,12 +353,13 @@ def main() -> None:
                "understeer_gradient": args.understeer_gradient, "rear_slip_gain": args.rear_slip_gain,
                "fits": not args.no_fits, "attitude": not args.planar, "radar_height": args.radar_height,
                "car": args.car, "simulation": args.simulation, "sensors": args.sensors, "navigation": args.navigation,
-               "label": args.label or None}
+               "processing": args.processing, "label": args.label or None}
 
     def drive_key(r: dict[str, Any]) -> tuple[Any, ...]:
         return (r["scenario"], r["seed"], r.get("dynamics"), r.get("components"), r.get("understeer_gradient"),
                 r.get("rear_slip_gain"), r.get("fits", True), r.get("attitude", True), r.get("radar_height", False),
-                r.get("car"), r.get("simulation"), r.get("sensors"), r.get("navigation"), r.get("label"))
+                r.get("car"), r.get("simulation"), r.get("sensors"), r.get("navigation"), r.get("processing"),
+                r.get("label"))
 
     done = {drive_key(r) for r in rows}
 
@@ -374,10 +380,10 @@ def main() -> None:
         work.mkdir(parents=True, exist_ok=True)
         custom = (args.components is not None or args.understeer_gradient is not None
                   or args.rear_slip_gain is not None or args.no_fits or args.planar or args.radar_height
-                  or args.navigation is not None)
+                  or args.navigation is not None or args.processing is not None)
         config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
                                                 not args.no_fits, not args.planar, args.radar_height,
-                                                navigation=args.navigation))]
+                                                navigation=args.navigation, processing=args.processing))]
                   if custom else [])
         # the simulated car, radar and sensors: the config's unless --car / --simulation / --sensors (then only the
         # simulator is given the changed one)
@@ -420,6 +426,8 @@ def main() -> None:
                 row |= {k: getattr(args, k) for k in OTHER_VEHICLE if getattr(args, k)}
                 if args.navigation:
                     row["navigation"] = args.navigation
+                if args.processing:
+                    row["processing"] = args.processing
                 if args.label:
                     row["label"] = args.label
                 row["sarmin_track_scale_pct"] = pct(track_scale(out))
