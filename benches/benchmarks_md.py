@@ -19,7 +19,7 @@ from typing import Any
 HERE = Path(__file__).resolve().parent
 MACHINE_KEYS = ("machine", "cores", "cpus", "python", "host_before", "host_after")
 MAX_COLUMNS = 12
-MAX_NAMED = 2  #: named records (a summary's groups) shown per table: the first and the aggregate "all"
+MAX_NAMED = 1  #: named records (a summary's groups) shown per table: the aggregate "all" alone
 MAX_ROWS = 2
 PER_RUN_KEYS = {"rows", "trials"}  #: per-drive / per-trial records: left in the JSON where a summary exists
 SUMMARY_KEYS = {"summary", "table"}
