@@ -135,8 +135,8 @@ class AutofocusOptions:
     #: docs/AUTOFOCUS.md, "The slow motion from the points' passes")
     slow_motion: bool = True
     #: last, the fast across-track motion from many scatterers (:mod:`autosar_cli.sar.fast_motion`). The config's
-    #: ``processing.autofocus_fast_motion`` where the options are not given (off: on urban its correction is noisier
-    #: than the track's own fast error, docs/AUTOFOCUS.md)
+    #: ``processing.autofocus_fast_motion`` where the options are not given (off: it costs 1.6-2.5 s on test2, and
+    #: its form that does not harm urban sharpens test1-3 less; docs/AUTOFOCUS.md)
     fast_motion: bool = False
 
     @classmethod
