@@ -246,10 +246,10 @@ class ResidualMotion:
     def summary(self) -> str:
         """One line: what was corrected, or why nothing was."""
         slow = "" if self.slow_motion is None else self.slow_motion.summary() + "; "
-        if self.reason:
-            return f"{slow}track not corrected by the phases: {self.reason}" if slow else \
-                f"track not corrected: {self.reason}"
         fast = "" if self.fast_motion is None else "; " + self.fast_motion.summary()
+        if self.reason:
+            return f"{slow}track not corrected by the phases: {self.reason}{fast}" if slow else \
+                f"track not corrected: {self.reason}"
         return slow + self._phase_summary() + fast
 
     def _phase_summary(self) -> str:
