@@ -215,10 +215,10 @@ def fast_motion(hist: PhaseHistories, track: Trajectory, config: Config, points_
     along ``track`` (:func:`~autosar_cli.sar.phase_history.gather_phase_histories` with ``opts``' beam, window and
     channels).
 
-    The scatterers are fitted in two halves (even and odd), each on its own; the correction is their mean times
-    its reliability, ``2 r / (1 + r)`` for ``r`` the halves' correlation above ``cut_hz`` where both see (the
-    Spearman-Brown reliability of the mean of two halves: the share of its variance that is motion, not noise, and
-    so the gain that leaves the least error). Where the halves disagree (``r`` <= 0) nothing is corrected."""
+    The scatterers are fitted in two halves (even and odd), each on its own, and all together; the correction is the
+    whole fit times its reliability, ``2 r / (1 + r)`` for ``r`` the halves' correlation above ``cut_hz`` where both
+    see (the Spearman-Brown reliability of twice a half's data: the share of its variance that is motion, not noise,
+    and so the gain that leaves the least error). Where the halves disagree (``r`` <= 0) nothing is corrected."""
     from scipy.signal import butter, sosfiltfilt
 
     opts = opts or FastMotionOptions()
@@ -229,7 +229,8 @@ def fast_motion(hist: PhaseHistories, track: Trajectory, config: Config, points_
     z, los = focus_history(hist, *pair_antennas(hist, track, config), points)
     hs = history_steps(hist, z, los, track, config, len(points), opts)
     parity = np.array([hist.point[run[0]] % 2 for run in hs.runs], dtype=np.int64)
-    fits = [_fit_histories(hs, parity == half, n_nodes, 4.0 * math.pi * hist.cycles_per_m, opts) for half in (0, 1)]
+    kappa = 4.0 * math.pi * hist.cycles_per_m
+    fits = [_fit_histories(hs, parity == half, n_nodes, kappa, opts) for half in (0, 1)]
     used = sum(int(f.used.sum()) for f in fits)
     seen = np.zeros(n_nodes, dtype=bool)
     for f in fits:
@@ -248,12 +249,12 @@ def fast_motion(hist: PhaseHistories, track: Trajectory, config: Config, points_
                           f"the two halves of its scatterers disagree (correlation {r:.2f} above {opts.cut_hz:g} Hz)",
                           seen=seen, halves_correlation=r)
     gain = 2.0 * r / (1.0 + r)
-    std = gain * 0.5 * np.hypot(fits[0].std, fits[1].std)
+    whole = _fit_histories(hs, np.ones(hs.n_histories, dtype=bool), n_nodes, kappa, opts)
     _, across, _ = frame_geometry(track, nodes_ns, config)
-    correction = MotionCorrection(nodes_ns, (gain * 0.5 * (high[0] + high[1]))[:, None] * across,
-                                  std[:, None] * np.abs(across))
-    return FastMotion(correction, hs.n_histories, used, float(seen.mean()), seen=seen, halves_correlation=r,
-                      reliability=gain)
+    correction = MotionCorrection(nodes_ns, (-gain * sosfiltfilt(sos, whole.motion))[:, None] * across,
+                                  (gain * whole.std)[:, None] * np.abs(across))
+    return FastMotion(correction, hs.n_histories, int(whole.used.sum()), float(whole.seen.mean()), seen=whole.seen,
+                      halves_correlation=r, reliability=gain)
 
 
 @dataclass
