@@ -23,7 +23,8 @@ vibration_vertical_rms_m=0.0 --append`` (the radar case's vertical vibration off
 ``--elevation --append``, then ``--drives test1:2,test2:2,test3:2,test1:3,test2:3,test3:3,test1:4,test2:4,test3:4
 --append`` and ``--drives urban:1,urban:2 --append`` (the stage as this bench's function then: the file's note); then
 the product's: ``--drives test1:0,test2:1,test3:1 [--fast ...] --append``, ``--drives test1:1 --dynamics kinematic
---append`` and ``--drives test1:0,urban:2,test3:1,test2:1,urban:7 --append``.
+--append``, ``--drives test1:0,urban:2,test3:1,test2:1,urban:7 --append`` (the halves' mean), then ``--drives
+test1:0,test3:1,urban:7 --append`` and ``--drives test2:1,urban:2 --append``.
 """
 
 from __future__ import annotations
