@@ -33,7 +33,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from autosar_cli.config import Config
-from autosar_cli.sar.normal_equations import factor_normal, node_posterior_std
+from autosar_cli.sar.normal_equations import factor_normal, node_difference, node_posterior_std
 from autosar_cli.sar.phase_history import PhaseHistories, focus_history, frame_geometry, pair_antennas
 from autosar_cli.types import MotionCorrection, Trajectory
 
@@ -195,7 +195,7 @@ def moving_average_removal(segment: NDArray[np.int64], half: int) -> sp.csr_matr
 def node_prior(n_nodes: int, prior_m: float, step_m: float) -> sp.csc_matrix:
     """(n, n) the inverse covariance of a correction on ``n_nodes`` nodes: ``prior_m`` on each, ``step_m`` on each
     change between neighbours."""
-    change = sp.diags([np.ones(n_nodes - 1), -np.ones(n_nodes - 1)], [1, 0], shape=(n_nodes - 1, n_nodes))
+    change = node_difference(n_nodes)
     return (sp.identity(n_nodes) / prior_m**2 + change.T @ change / step_m**2).tocsc()
 
 
@@ -309,8 +309,11 @@ def _fit_histories(hs: HistorySteps, chosen: NDArray[np.bool_], n_nodes: int, ka
         lu = factor_normal((model.T @ model.multiply(w[:, None])).tocsc() + prior)
         e = lu.solve(model.T @ (w * data))
     seen = np.zeros(n_nodes, dtype=bool)
-    for s in np.flatnonzero(used):
-        span = hs.t[hs.segment == s, 0]
-        seen[int(span.min() / opts.node_s):int(span.max() / opts.node_s) + 1] = True
+    first = np.full(n_seg, np.inf)
+    last = np.full(n_seg, -np.inf)
+    np.minimum.at(first, hs.segment, hs.t[:, 0])
+    np.maximum.at(last, hs.segment, hs.t[:, 0])
+    for s in np.flatnonzero(used):  # the nodes each used history's samples span
+        seen[int(first[s] / opts.node_s):int(last[s] / opts.node_s) + 1] = True
     std = node_posterior_std(lu, n_nodes, 1, every=50)[:, 0] if lu is not None else np.full(n_nodes, opts.prior_m)
     return _HistoryFit(e, std, used, seen)

@@ -31,3 +31,8 @@ def node_posterior_std(lu: spla.SuperLU, n_nodes: int, components: int, every: i
         var = lu.solve(e)[cols, np.arange(len(cols))]
         out[:, comp] = np.interp(np.arange(n_nodes), picks, np.sqrt(np.maximum(var, 0.0)))
     return out
+
+
+def node_difference(n_nodes: int) -> sp.dia_matrix:
+    """(n_nodes - 1, n_nodes): each node's value less the one before it (a correction's change between nodes)."""
+    return sp.diags([np.ones(n_nodes - 1), -np.ones(n_nodes - 1)], [1, 0], shape=(n_nodes - 1, n_nodes))

@@ -50,7 +50,7 @@ from autosar_cli.nav.trajectory import phase_centre_lever_arm, radar_track, trac
 from autosar_cli.sar.autofocus import scale_track
 from autosar_cli.sar.fast_motion import FastMotion, FastMotionOptions, closest_approach_ns, fast_motion
 from autosar_cli.sar.focus import FocusOptions
-from autosar_cli.sar.normal_equations import factor_normal, node_posterior_std
+from autosar_cli.sar.normal_equations import factor_normal, node_difference, node_posterior_std
 from autosar_cli.sar.pass_ranges import PassOptions, SlowMotion, estimate_slow_motion, pass_histories, with_correction
 from autosar_cli.sar.phase_history import (
     PhaseHistories,
@@ -533,7 +533,7 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     # priors: the correction's size (the navigation's own uncertainty), its change between nodes, the point shifts
     prior_diag = np.concatenate([1.0 / sigma_across**2, np.full(n_nodes, 1.0 / opts.prior_up_m**2),
                                  np.full(3 * n_pts, 1.0 / opts.point_prior_m**2), [1.0 / opts.prior_scale**2]])
-    diff = sp.diags([np.ones(n_nodes - 1), -np.ones(n_nodes - 1)], [1, 0], shape=(n_nodes - 1, n_nodes))
+    diff = node_difference(n_nodes)
     smooth = sp.block_diag([diff / opts.step_across_m, diff / opts.step_up_m,
                             sp.csr_matrix((0, 3 * n_pts + 1))]).tocsc()
     prior_normal = (sp.diags(prior_diag) + smooth.T @ smooth).tocsc()
