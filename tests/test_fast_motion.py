@@ -20,11 +20,15 @@ from autosar_cli.sar.fast_motion import (
     FastMotionOptions,
     fast_motion,
     moving_average_removal,
+    node_prior,
+    step_columns,
     step_design,
 )
 from autosar_cli.sar.focus import FocusOptions
+from autosar_cli.sar.normal_equations import BandedCholesky
 from autosar_cli.sar.phase_history import frame_geometry, gather_phase_histories
 from autosar_cli.sar.residual_motion import AutofocusOptions, candidate_points, points_and_scatterers
+from autosar_cli.sar.step_normals import add_normals, apply_model, history_normals, remove_moving_average
 from autosar_cli.store.trajectory import read_trajectory
 from autosar_cli.types import MotionCorrection, Trajectory
 
@@ -42,6 +46,48 @@ def test_moving_average_removal_is_each_sample_less_its_segments_neighbours() ->
         near = [j for j in range(len(x)) if segment[j] == segment[i] and abs(j - i) <= half]
         expected[i] = x[i] - np.mean(x[near])
     np.testing.assert_allclose(moving_average_removal(segment, half) @ x, expected, rtol=0, atol=1e-14)
+    starts = np.array([0, 7, 9, 20])
+    np.testing.assert_allclose(remove_moving_average(x, starts, half), expected, rtol=0, atol=1e-14)
+
+
+def test_the_histories_banded_normal_equations_are_the_sparse_products() -> None:
+    """Each history's normal equations formed in band form, weighted and summed, are the sparse model's
+    ``M^T W M`` and ``M^T W d`` (M = (I - A) S), and the banded Cholesky solves them as SuperLU does."""
+    rng = np.random.default_rng(11)
+    node_s, n_nodes, kappa, half = 0.01, 300, 4 * math.pi / 0.0039, 6
+    counts = [40, 5, 120, 77]  # steps of four histories, each its own span of time
+    t0 = [0.1, 0.9, 1.0, 2.2]
+    t = np.concatenate([t0[s] + 0.0101 * np.arange(c)[:, None] + [0.0, 0.0101] for s, c in enumerate(counts)])
+    gain = rng.uniform(0.3, 1.0, size=(len(t), 2))
+    segment = np.repeat(np.arange(len(counts)), counts)
+    starts = np.concatenate([[0], np.cumsum(counts)])
+    steps = rng.normal(scale=0.3, size=len(t))
+    weight = np.array([2.0, 0.0, 0.5, 11.0])
+    model = (moving_average_removal(segment, half) @ step_design(t, gain, n_nodes, node_s, kappa)).toarray()
+    data = moving_average_removal(segment, half) @ steps
+    w = weight[segment]
+    expected_normal = model.T @ (w[:, None] * model)
+    expected_rhs = model.T @ (w * data)
+    cols, vals = step_columns(t, gain, n_nodes, node_s, kappa)
+    normals = history_normals(cols, vals, remove_moving_average(steps, starts, half), starts, half)
+    band, rhs = add_normals(normals, weight, n_nodes)
+    dense = np.zeros((n_nodes, n_nodes))
+    for k in range(band.shape[0]):
+        dense[np.arange(k, n_nodes), np.arange(n_nodes - k)] = band[k, :n_nodes - k]
+    dense = np.tril(dense) + np.tril(dense, -1).T
+    scale = np.abs(expected_normal).max()
+    assert normals.bandwidth >= 2 * half  # a row reaches the nodes of its whole window
+    np.testing.assert_allclose(dense, expected_normal, rtol=0, atol=1e-12 * scale)
+    np.testing.assert_allclose(rhs, expected_rhs, rtol=0, atol=1e-12 * np.abs(expected_rhs).max())
+    e = rng.normal(scale=1e-4, size=n_nodes)
+    np.testing.assert_allclose(apply_model(cols, vals, starts, half, e), model @ e, rtol=0, atol=1e-10)
+    prior = node_prior(n_nodes, 3e-4, 1e-3).toarray()
+    full = expected_normal + prior
+    prior_band = np.zeros_like(band)
+    for k in range(2):
+        prior_band[k, :n_nodes - k] = np.diag(prior, -k)
+    solution = BandedCholesky(band + prior_band).solve(expected_rhs)
+    np.testing.assert_allclose(solution, np.linalg.solve(full, expected_rhs), rtol=1e-9, atol=0)
 
 
 def test_step_design_is_the_phase_step_of_a_motion_interpolated_between_nodes() -> None:
@@ -129,7 +175,7 @@ def test_recovers_a_fast_across_track_error_from_many_scatterers(test1_drive: tu
 def test_halves_of_pure_noise_hardly_agree() -> None:
     """Histories whose phase steps are pure noise (0.1 rad): the two halves' fits hardly agree, so the reliability
     that scales the correction, 2 r / (1 + r), stays small (and nothing is corrected where r <= 0)."""
-    from autosar_cli.sar.fast_motion import HistorySteps, _fit_histories
+    from autosar_cli.sar.fast_motion import HistorySteps, _fit_histories, _StepProblem
 
     rng = np.random.default_rng(11)
     n_hist, per, node_s = 12, 60, 0.01
@@ -140,8 +186,8 @@ def test_halves_of_pure_noise_hardly_agree() -> None:
                          [np.array([k]) for k in range(n_hist)], 1000.0)
     opts = FastMotionOptions()
     n_nodes = int(t.max() / node_s) + 2
-    fits = [_fit_histories(steps, (np.arange(n_hist) % 2) == half, n_nodes, 4 * math.pi / 0.0039, opts)
-            for half in (0, 1)]
+    problem = _StepProblem.of(steps, n_nodes, 4 * math.pi / 0.0039, opts)
+    fits = [_fit_histories(problem, (np.arange(n_hist) % 2) == half, opts) for half in (0, 1)]
     assert all(f.used.sum() == n_hist // 2 for f in fits)
     sos = butter(4, 2.0, "highpass", fs=1.0 / node_s, output="sos")
     a, b = (sosfiltfilt(sos, f.motion) for f in fits)

@@ -15,9 +15,11 @@ takes it, above ``cut_hz``, from many scatterers over the whole swath, after tha
 * the phase steps of each history, less their own average over 0.6 s (a column's scatterers interfere slowly as
   the aspect turns: each keeps its own slow phase), fitted by a correction across track on 10 ms nodes (a prior of
   0.3 mm, and 1 mm on each node's change), each history weighted by its own residual and dropped above 0.5 rad RMS.
-  The fit's part above ``cut_hz`` is the correction, scaled by its reliability: the scatterers fitted in two
-  halves, the correction is the halves' mean times ``2 r / (1 + r)``, ``r`` their correlation (on urban seed 2,
+  The fit's part above ``cut_hz`` is the correction, scaled by its reliability: the scatterers also fitted in two
+  halves, the correction is the whole fit times ``2 r / (1 + r)``, ``r`` the halves' correlation (on urban seed 2,
   where the whole fit's correction was noisier than the track's own fast error, r = 0.23; on test2 seed 1 0.66).
+  Each history's normal equations are formed once in band form (:mod:`autosar_cli.sar.step_normals`) and shared
+  by the three fits and their reweighting passes.
 
 Unlike the few points' fit, this one cannot tell a point's own motion from the track's at low frequencies: each
 history's slow phase is taken out, so it measures only the fast part, where the many histories agree.
@@ -33,8 +35,15 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from autosar_cli.config import Config
-from autosar_cli.sar.normal_equations import factor_normal, node_difference, node_posterior_std
+from autosar_cli.sar.normal_equations import BandedCholesky, node_difference, node_posterior_std
 from autosar_cli.sar.phase_history import PhaseHistories, focus_history, frame_geometry, pair_antennas
+from autosar_cli.sar.step_normals import (
+    HistoryNormals,
+    add_normals,
+    apply_model,
+    history_normals,
+    remove_moving_average,
+)
 from autosar_cli.types import MotionCorrection, Trajectory
 
 Array = NDArray[np.float64]
@@ -164,17 +173,23 @@ def history_steps(hist: PhaseHistories, z: NDArray[np.complex128], los: Array, t
     return HistorySteps(*(np.concatenate(v) for v in (times, steps, gains)), np.concatenate(segment), runs, prf)
 
 
-def step_design(t: Array, gain: Array, n_nodes: int, node_s: float, kappa: float) -> sp.csr_matrix:
-    """(M, n_nodes): each phase step's change with the motion ``e`` on the nodes (linear between them), as
-    ``step = kappa (g_b e(t_b) - g_a e(t_a))`` for the samples a, b at times ``t`` (M, 2) (s) and gains ``gain``."""
-    m = len(t)
+def step_columns(t: Array, gain: Array, n_nodes: int, node_s: float, kappa: float) -> tuple[NDArray[np.int64], Array]:
+    """Each phase step's change with the motion ``e`` on the nodes (linear between them), as ``step = kappa (g_b
+    e(t_b) - g_a e(t_a))`` for the samples a, b at times ``t`` (M, 2) (s) and gains ``gain``: the nodes (M, 4) and
+    rad per m (M, 4) of its four entries."""
     cols, vals = [], []
     for end, sign in ((0, -1.0), (1, 1.0)):
         pos = np.clip(t[:, end] / node_s, 0.0, n_nodes - 1.000001)
         n0 = np.floor(pos).astype(np.int64)
         cols += [n0, n0 + 1]
         vals += [sign * kappa * gain[:, end] * (1 - (pos - n0)), sign * kappa * gain[:, end] * (pos - n0)]
-    return sp.csr_matrix((np.concatenate(vals), (np.tile(np.arange(m), 4), np.concatenate(cols))), shape=(m, n_nodes))
+    return np.stack(cols, axis=1), np.stack(vals, axis=1)
+
+
+def step_design(t: Array, gain: Array, n_nodes: int, node_s: float, kappa: float) -> sp.csr_matrix:
+    """(M, n_nodes) sparse, :func:`step_columns`' entries as a matrix."""
+    cols, vals = step_columns(t, gain, n_nodes, node_s, kappa)
+    return sp.csr_matrix((vals.ravel(), (np.repeat(np.arange(len(t)), 4), cols.ravel())), shape=(len(t), n_nodes))
 
 
 def moving_average_removal(segment: NDArray[np.int64], half: int) -> sp.csr_matrix:
@@ -229,8 +244,8 @@ def fast_motion(hist: PhaseHistories, track: Trajectory, config: Config, points_
     z, los = focus_history(hist, *pair_antennas(hist, track, config), points)
     hs = history_steps(hist, z, los, track, config, len(points), opts)
     parity = np.array([hist.point[run[0]] % 2 for run in hs.runs], dtype=np.int64)
-    kappa = 4.0 * math.pi * hist.cycles_per_m
-    fits = [_fit_histories(hs, parity == half, n_nodes, kappa, opts) for half in (0, 1)]
+    problem = _StepProblem.of(hs, n_nodes, 4.0 * math.pi * hist.cycles_per_m, opts)
+    fits = [_fit_histories(problem, parity == half, opts) for half in (0, 1)]
     used = sum(int(f.used.sum()) for f in fits)
     seen = np.zeros(n_nodes, dtype=bool)
     for f in fits:
@@ -249,7 +264,7 @@ def fast_motion(hist: PhaseHistories, track: Trajectory, config: Config, points_
                           f"the two halves of its scatterers disagree (correlation {r:.2f} above {opts.cut_hz:g} Hz)",
                           seen=seen, halves_correlation=r)
     gain = 2.0 * r / (1.0 + r)
-    whole = _fit_histories(hs, np.ones(hs.n_histories, dtype=bool), n_nodes, kappa, opts)
+    whole = _fit_histories(problem, np.ones(hs.n_histories, dtype=bool), opts)
     _, across, _ = frame_geometry(track, nodes_ns, config)
     correction = MotionCorrection(nodes_ns, (-gain * sosfiltfilt(sos, whole.motion))[:, None] * across,
                                   (gain * whole.std)[:, None] * np.abs(across))
@@ -268,46 +283,71 @@ class _HistoryFit:
     seen: NDArray[np.bool_]
 
 
-def _fit_histories(hs: HistorySteps, chosen: NDArray[np.bool_], n_nodes: int, kappa: float,
-                   opts: FastMotionOptions) -> _HistoryFit:
-    """The motion the ``chosen`` histories (n_histories,) of ``hs`` measure: each history's phase steps less their
-    slow part, those that scatter by more than ``opts.screen_rms_rad`` left out, the rest fitted on the nodes,
+@dataclass
+class _StepProblem:
+    """What every fit of one set of histories shares: the steps' model (:func:`step_columns`), the steps less their
+    moving average, each history's normal equations (:mod:`autosar_cli.sar.step_normals`) and the prior's band."""
+
+    hs: HistorySteps
+    n_nodes: int
+    cols: NDArray[np.int64]  #: (M, 4)
+    vals: Array  #: (M, 4) rad per m
+    starts: NDArray[np.int64]  #: (S + 1,) each history's first step
+    half: int  #: steps either side in the moving average
+    data: Array  #: (M,) rad
+    normals: HistoryNormals
+    prior_band: Array  #: (bandwidth + 1, n_nodes)
+
+    @classmethod
+    def of(cls, hs: HistorySteps, n_nodes: int, kappa: float, opts: FastMotionOptions) -> _StepProblem:
+        half = max(1, int(round(0.5 * opts.window_s * hs.prf_hz / opts.every)))
+        starts = np.searchsorted(hs.segment, np.arange(hs.n_histories + 1)).astype(np.int64)
+        cols, vals = step_columns(hs.t, hs.gain, n_nodes, opts.node_s, kappa)
+        data = remove_moving_average(hs.step, starts, half)
+        normals = history_normals(cols, vals, data, starts, half)
+        prior = np.zeros((max(normals.bandwidth, 1) + 1, n_nodes))
+        # node_prior's band: prior_m on each node, step_m on each change between neighbours
+        prior[0] = 1.0 / opts.prior_m**2 + np.r_[1.0, np.full(n_nodes - 2, 2.0), 1.0][:n_nodes] / opts.step_m**2
+        prior[1, :-1] = -1.0 / opts.step_m**2
+        return cls(hs, n_nodes, cols, vals, starts, half, data, normals, prior)
+
+    def factor(self, weight: Array) -> tuple[BandedCholesky, Array]:
+        """The factorised normal matrix and right-hand side of the histories weighted by ``weight`` (S,)."""
+        added, rhs = add_normals(self.normals, weight, self.n_nodes)
+        band = self.prior_band.copy()
+        band[:len(added)] += added
+        return BandedCholesky(band), rhs
+
+
+def _fit_histories(problem: _StepProblem, chosen: NDArray[np.bool_], opts: FastMotionOptions) -> _HistoryFit:
+    """The motion the ``chosen`` histories (n_histories,) of ``problem`` measure: each history's phase steps less
+    their slow part, those that scatter by more than ``opts.screen_rms_rad`` left out, the rest fitted on the nodes,
     reweighted by each one's residual and dropped above ``opts.max_rms_rad``."""
-    half = max(1, int(round(0.5 * opts.window_s * hs.prf_hz / opts.every)))
+    hs, n_nodes, data = problem.hs, problem.n_nodes, problem.data
     n_seg = hs.n_histories
-    picked = chosen[hs.segment]
-    seg = hs.segment[picked]
-    data = moving_average_removal(seg, half) @ hs.step[picked]
+    counts = np.maximum(np.diff(problem.starts), 1)
     # a history whose phase steps scatter by more than ``screen_rms_rad`` before any fit cannot fit within
-    # ``max_rms_rad`` (the motion moves them by ~0.2 rad RMS): left out before the fit's matrices are formed
-    rms = np.sqrt(np.bincount(seg, data**2, n_seg) / np.maximum(np.bincount(seg, minlength=n_seg), 1))
+    # ``max_rms_rad`` (the motion moves them by ~0.2 rad RMS): left out of the fit
+    rms = np.sqrt(np.bincount(hs.segment, data**2, n_seg) / counts)
     used = chosen & (rms <= opts.screen_rms_rad)
-    rows = used[seg]
-    seg, data = seg[rows], data[rows]
-    sel = np.flatnonzero(picked)[rows]
-    model = (moving_average_removal(seg, half) @ step_design(hs.t[sel], hs.gain[sel], n_nodes, opts.node_s,
-                                                             kappa)).tocsr()
-    prior = node_prior(n_nodes, opts.prior_m, opts.step_m)
     var = np.full(n_seg, 0.3**2)
-    e, lu = np.zeros(n_nodes), None
+    e, chol = np.zeros(n_nodes), None
     for _ in range(opts.iterations):
         if not used.any():
             break
-        w = used[seg] / var[seg]
-        lu = factor_normal((model.T @ model.multiply(w[:, None])).tocsc() + prior)
-        e = lu.solve(model.T @ (w * data))
-        r = data - model @ e
-        rms = np.sqrt(np.bincount(seg, r**2, n_seg) / np.maximum(np.bincount(seg, minlength=n_seg), 1))
+        chol, rhs = problem.factor(used / var)
+        e = chol.solve(rhs)
+        r = data - apply_model(problem.cols, problem.vals, problem.starts, problem.half, e)
+        rms = np.sqrt(np.bincount(hs.segment, r**2, n_seg) / counts)
         var = np.maximum(rms, 0.02) ** 2
         bad = used & (rms > opts.max_rms_rad)
         if not bad.any():
             break
         used &= ~bad
-        lu = None
-    if lu is None and used.any():  # the last pass dropped some: the solution without them
-        w = used[seg] / var[seg]
-        lu = factor_normal((model.T @ model.multiply(w[:, None])).tocsc() + prior)
-        e = lu.solve(model.T @ (w * data))
+        chol = None
+    if chol is None and used.any():  # the last pass dropped some: the solution without them
+        chol, rhs = problem.factor(used / var)
+        e = chol.solve(rhs)
     seen = np.zeros(n_nodes, dtype=bool)
     first = np.full(n_seg, np.inf)
     last = np.full(n_seg, -np.inf)
@@ -315,5 +355,5 @@ def _fit_histories(hs: HistorySteps, chosen: NDArray[np.bool_], n_nodes: int, ka
     np.maximum.at(last, hs.segment, hs.t[:, 0])
     for s in np.flatnonzero(used):  # the nodes each used history's samples span
         seen[int(first[s] / opts.node_s):int(last[s] / opts.node_s) + 1] = True
-    std = node_posterior_std(lu, n_nodes, 1, every=50)[:, 0] if lu is not None else np.full(n_nodes, opts.prior_m)
+    std = node_posterior_std(chol, n_nodes, 1, every=50)[:, 0] if chol is not None else np.full(n_nodes, opts.prior_m)
     return _HistoryFit(e, std, used, seen)
