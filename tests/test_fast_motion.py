@@ -117,7 +117,7 @@ def test_the_first_images_points_are_the_same_out_to_the_radars_range(ci_drive: 
     """One first image out to the radar's range gives the autofocus the same points as its own out to 17 m."""
     drive, nav, _, _ = ci_drive
     focus, opts = FocusOptions.from_config(CFG), AutofocusOptions.from_config(CFG)
-    points, scatterers = points_and_scatterers(drive, nav, CFG, focus, opts, FastMotionOptions())
+    points, scatterers, _ = points_and_scatterers(drive, nav, CFG, focus, opts, FastMotionOptions())
     np.testing.assert_array_equal(points, candidate_points(drive, nav, CFG, focus, opts))
     assert len(scatterers) > 2 * len(points)
     reach = np.hypot(*(scatterers[:, :2] - nav.rear_axle_enu.mean(axis=0)[:2]).T)

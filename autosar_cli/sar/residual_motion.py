@@ -758,41 +758,54 @@ def _point_scale_chi2(lin: _Linear, w: Array, shift0: int, used: NDArray[np.bool
     return (float(np.mean(z2)), len(z2)) if z2 else (1.0, 0)
 
 
+@dataclass(frozen=True)
+class ImagePeaks:
+    """What :func:`select_points` measures on a first image's pixels, whatever its bands and limits."""
+
+    intensity: Array  #: |z|^2
+    local_max: NDArray[np.bool_]  #: the brightest within 1 m
+    concentration: Array  #: the share of the 7 x 7 pixels' intensity around it
+
+    @classmethod
+    def of(cls, image: NDArray[np.complexfloating], grid: FocusGrid) -> ImagePeaks:
+        from scipy.ndimage import maximum_filter, uniform_filter
+
+        intensity = np.abs(np.asarray(image).astype(np.complex128)) ** 2
+        size = max(3, 2 * int(round(0.5 / grid.pixel_m)) + 1)
+        local_max = (intensity == maximum_filter(intensity, size=size)) & (intensity > 0.0)
+        concentration = intensity / np.maximum(uniform_filter(intensity, size=7) * 49.0, np.finfo(np.float64).tiny)
+        return cls(intensity, local_max, concentration)
+
+
 def select_points(image: NDArray[np.complexfloating], grid: FocusGrid, range_m: Array, opts: AutofocusOptions,
                   *, band_m: tuple[float, float] | None = None, per_segment: int = 2, min_concentration: float = 0.2,
-                  within_db: float = 15.0) -> Array:
+                  within_db: float = 15.0, peaks: ImagePeaks | None = None) -> Array:
     """Bright, isolated, point-like pixels (P, 3) (ENU m, on the grid's plane) of a first image for the phase
     histories: local maxima (within 1 m) between ``band_m`` (default ``opts.min_range_m``, ``opts.max_range_m``)
     from the track (``range_m``, per pixel) that hold ``min_concentration`` of the intensity of the 7 x 7 pixels
     around them, ranked by |z|^2 R^2 (reflectivity, not nearness); of those within ``within_db`` of the most
-    reflective, the ``per_segment`` best in every ``opts.point_spacing_m`` of the grid's along axis.
+    reflective, the ``per_segment`` best in every ``opts.point_spacing_m`` of the grid's along axis. ``peaks``:
+    ``image``'s, where already measured (:class:`ImagePeaks`).
 
     Why reflectivity: in the simulated scenes and on real roads, corner reflectors, poles and sign posts stand
     10 dB or more above the brightest speckle of distributed clutter, whose peak-to-background ratio alone does
     not tell it apart (test1: 28-30 dB for both). A point that is not a point scatterer after all is dropped by its
     phase fit."""
-    from scipy.ndimage import maximum_filter, uniform_filter
-
-    intensity = np.abs(np.asarray(image).astype(np.complex128)) ** 2
-    size = max(3, 2 * int(round(0.5 / grid.pixel_m)) + 1)
-    local_max = (intensity == maximum_filter(intensity, size=size)) & (intensity > 0.0)
-    concentration = intensity / np.maximum(uniform_filter(intensity, size=7) * 49.0, np.finfo(np.float64).tiny)
+    peaks = peaks or ImagePeaks.of(image, grid)
     low, high = band_m or (opts.min_range_m, opts.max_range_m)
-    score = np.where(local_max & (range_m >= low) & (range_m <= high)
-                     & (concentration >= min_concentration), intensity * range_m**2, 0.0)
+    score = np.where(peaks.local_max & (range_m >= low) & (range_m <= high)
+                     & (peaks.concentration >= min_concentration), peaks.intensity * range_m**2, 0.0)
     if not np.any(score > 0):
         return np.zeros((0, 3))
     score[score < score.max() * 10 ** (-within_db / 10)] = 0.0
     cols = max(1, int(round(opts.point_spacing_m / grid.pixel_m)))
-    chosen: list[tuple[int, int]] = []
-    for c0 in range(0, grid.n_along, cols):
-        seg = score[:, c0:c0 + cols]
-        for k in np.argsort(seg.ravel())[::-1][:per_segment]:
-            if seg.flat[k] > 0:
-                r, c = divmod(int(k), seg.shape[1])
-                chosen.append((r, c0 + c))
-    rc = np.array(chosen)
-    return grid.pixel_enu(rc[:, 0], rc[:, 1])
+    # the best per_segment of each segment's scored pixels: by segment, then by score, highest first
+    r, c = np.nonzero(score > 0)
+    segment = c // cols
+    order = np.lexsort((-score[r, c], segment))
+    r, c, segment = r[order], c[order], segment[order]
+    keep = np.arange(len(segment)) - np.searchsorted(segment, segment) < per_segment
+    return grid.pixel_enu(r[keep], c[keep])
 
 
 def candidate_points(drive_path: str | Path, trajectory: Trajectory, config: Config, focus: FocusOptions,
@@ -806,12 +819,12 @@ def candidate_points(drive_path: str | Path, trajectory: Trajectory, config: Con
 
 def points_and_scatterers(drive_path: str | Path, trajectory: Trajectory, config: Config, focus: FocusOptions,
                           opts: AutofocusOptions, fast: FastMotionOptions | None, **select: Any
-                          ) -> tuple[Array, Array]:
+                          ) -> tuple[Array, Array, NDArray[np.int64]]:
     """The autofocus's points (:func:`candidate_points`) and, unless ``fast`` is None, the fast-motion stage's
     scatterers (:mod:`autosar_cli.sar.fast_motion`) on one first image out to the radar's range. The grid's rows
     start at the track whatever its range, and the pixels within ``opts.max_range_m`` + 1 m hold the same values as
     on the shorter image (only the last rows, where its range cuts pulses off, differ), so the points are those of
-    :func:`candidate_points` (P, 3) and (S, 3), ENU m."""
+    :func:`candidate_points`: (P, 3) and (S, 3), ENU m, and the scatterers' closest approach (S,) (ns)."""
     from autosar_cli.sar.focus import auto_grid, focus_images
     from autosar_cli.sar.grid import track_distance
 
@@ -832,20 +845,23 @@ def points_and_scatterers(drive_path: str | Path, trajectory: Trajectory, config
     # the scale's points as they would be alone, and the motion's beyond them (ranked by reflectivity, the farther
     # would take the nearer's places)
     bands = [(opts.min_range_m, opts.scale_max_range_m), (opts.scale_max_range_m, opts.max_range_m)]
-    points = np.concatenate([select_points(image[:rows], grid, distance[:rows], opts, band_m=b, **select)
-                             for b in bands if b[1] > b[0]])
-    scatterers = np.zeros((0, 3))
+    near_peaks = ImagePeaks.of(image[:rows], grid)
+    points = np.concatenate([select_points(image[:rows], grid, distance[:rows], opts, band_m=b, peaks=near_peaks,
+                                           **select) for b in bands if b[1] > b[0]])
+    scatterers, t_zero = np.zeros((0, 3)), np.zeros(0, np.int64)
     if fast is not None:
         wide = replace(opts, max_range_m=config.radar.max_range_m - 1.0)
         bands = [(wide.min_range_m, wide.scale_max_range_m), (wide.scale_max_range_m, wide.max_range_m)]
+        far_peaks = ImagePeaks.of(image, grid)
         scatterers = np.concatenate([select_points(image, grid, distance, wide, band_m=b, per_segment=fast.per_segment,
                                                    min_concentration=fast.min_concentration,
-                                                   within_db=fast.within_db) for b in bands])
+                                                   within_db=fast.within_db, peaks=far_peaks) for b in bands])
         if len(scatterers):
-            scatterers[:, 2] += trajectory.height_offset(closest_approach_ns(track, t_radar[::8], scatterers))
+            t_zero = closest_approach_ns(track, t_radar[::8], scatterers)
+            scatterers[:, 2] += trajectory.height_offset(t_zero)
     if len(points):  # on the focusing surface, as focus put them (sar.focus)
         points[:, 2] += trajectory.height_offset(zero_doppler_times(trajectory, points, config, t_radar))
-    return points, scatterers
+    return points, scatterers, t_zero
 
 
 def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, config: Config,
@@ -862,16 +878,13 @@ def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, co
         points = candidate_points(drive_path, trajectory, config, focus, opts)
         return residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes)
     fast = fast or FastMotionOptions()
-    points, scatterers = points_and_scatterers(drive_path, trajectory, config, focus, opts, fast)
+    points, scatterers, t_zero = points_and_scatterers(drive_path, trajectory, config, focus, opts, fast)
     result = residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes)
     if not result.applied:
         return result
     if len(scatterers) == 0:
         return replace(result, fast_motion=FastMotion(None, 0, 0, 0.0, "no bright scatterer in the first image"))
     # each scatterer where the corrected track focuses it: moved as the radar moved at its closest approach
-    t_near = radar_times(drive_path)
-    t_near = t_near[(t_near >= trajectory.t_ns[0]) & (t_near <= trajectory.t_ns[-1])][::8]
-    t_zero = closest_approach_ns(radar_track(trajectory, t_near, config), t_near, scatterers)
     lever = phase_centre_lever_arm(config)[None]
     moved = scatterers + (result.trajectory.body_points(t_zero, lever)[:, 0]
                           - trajectory.body_points(t_zero, lever)[:, 0])
