@@ -144,33 +144,36 @@ def history_steps(hist: PhaseHistories, z: NDArray[np.complex128], los: Array, t
     _, f_across, f_along = frame_geometry(track, hist.frame_t_ns, config)
     taper = np.hanning(opts.taps + 2)[1:-1]
     taper /= taper.sum()
-    times, steps, gains, segment, runs = [], [], [], [], []
+    # every (point, frame) pair in point then frame order; a run: one point's unbroken frames
     order = np.lexsort((hist.frame, hist.point))
-    bounds = np.searchsorted(hist.point[order], np.arange(n_points + 1))
-    for j in range(n_points):
-        sel = order[bounds[j]:bounds[j + 1]]
-        for run in np.split(sel, np.flatnonzero(np.diff(hist.frame[sel]) != 1) + 1):
-            if len(run) < 3 * opts.taps:
-                continue
-            zr = np.nan_to_num(z[run])
-            low = convolve1d(zr.real, taper, mode="constant") + 1j * convolve1d(zr.imag, taper, mode="constant")
-            keep = np.arange(opts.taps, len(run) - opts.taps, opts.every)
-            f, u = hist.frame[run][keep], los[run][keep]
-            mirror = 4.0 * speed[f] * np.einsum("nk,nk->n", u, f_along[f]) * hist.cycles_per_m
-            alias = np.abs((mirror + prf / 2) % prf - prf / 2)
-            ok = (alias > opts.alias_hz) | (np.abs(mirror) < opts.alias_hz / 4)
-            a = np.flatnonzero(ok[1:] & ok[:-1])
-            if len(a) < 5:
-                continue
-            g = np.einsum("nk,nk->n", u, f_across[f])
-            times.append(np.stack([t_f[f][a], t_f[f][a + 1]], -1))
-            gains.append(np.stack([g[a], g[a + 1]], -1))
-            steps.append(np.angle(low[keep][a + 1] * np.conj(low[keep][a])))
-            segment.append(np.full(len(a), len(runs)))
-            runs.append(run)
-    if not runs:
+    point, frame = hist.point[order], hist.frame[order]
+    run_start = np.flatnonzero(np.r_[True, (np.diff(point) != 0) | (np.diff(frame) != 1)])
+    run_len = np.diff(np.r_[run_start, len(order)])
+    long = run_len >= 3 * opts.taps
+    run_start, run_len = run_start[long], run_len[long]
+    # the low-passed samples kept: taps on from each run's start, every ``every``, ending taps before its end, so
+    # each one's taps lie within its run (low-passing all runs together gives each the same sums)
+    per_run = (run_len - 2 * opts.taps + opts.every - 1) // opts.every
+    run_of = np.repeat(np.arange(len(run_start)), per_run)
+    keep = run_start[run_of] + opts.taps + opts.every * (np.arange(len(run_of)) - np.repeat(
+        np.cumsum(per_run) - per_run, per_run))
+    zs = np.nan_to_num(z[order])
+    low = (convolve1d(zs.real, taper, mode="constant") + 1j * convolve1d(zs.imag, taper, mode="constant"))[keep]
+    f, u = frame[keep], los[order[keep]]
+    mirror = 4.0 * speed[f] * np.einsum("nk,nk->n", u, f_along[f]) * hist.cycles_per_m
+    alias = np.abs((mirror + prf / 2) % prf - prf / 2)
+    ok = (alias > opts.alias_hz) | (np.abs(mirror) < opts.alias_hz / 4)
+    a = np.flatnonzero(ok[1:] & ok[:-1] & (run_of[1:] == run_of[:-1]))
+    # runs with fewer than 5 steps left out; the rest numbered in order
+    fitted = np.bincount(run_of[a], minlength=len(run_start)) >= 5
+    a = a[fitted[run_of[a]]]
+    if len(a) == 0:
         return HistorySteps(np.zeros((0, 2)), np.zeros(0), np.zeros((0, 2)), np.zeros(0, np.int64), [], prf)
-    return HistorySteps(*(np.concatenate(v) for v in (times, steps, gains)), np.concatenate(segment), runs, prf)
+    g = np.einsum("nk,nk->n", u, f_across[f])
+    segment = (np.cumsum(fitted) - 1)[run_of[a]]
+    runs = [order[start:start + n] for start, n in zip(run_start[fitted], run_len[fitted], strict=True)]
+    return HistorySteps(np.stack([t_f[f][a], t_f[f][a + 1]], -1), np.angle(low[a + 1] * np.conj(low[a])),
+                        np.stack([g[a], g[a + 1]], -1), segment.astype(np.int64), runs, prf)
 
 
 def step_columns(t: Array, gain: Array, n_nodes: int, node_s: float, kappa: float) -> tuple[NDArray[np.int64], Array]:
