@@ -54,7 +54,8 @@ def node_posterior_std(lu: spla.SuperLU | BandedCholesky, n_nodes: int, componen
         cols = comp * n_nodes + picks
         e = np.zeros((lu.shape[0], len(cols)))
         e[cols, np.arange(len(cols))] = 1.0
-        var = lu.solve(e)[cols, np.arange(len(cols))]
+        with _BLAS.limit(limits=1, user_api="blas"):  # see BandedCholesky
+            var = lu.solve(e)[cols, np.arange(len(cols))]
         out[:, comp] = np.interp(np.arange(n_nodes), picks, np.sqrt(np.maximum(var, 0.0)))
     return out
 
