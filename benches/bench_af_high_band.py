@@ -89,7 +89,7 @@ def high_band_motion(drive: Path, traj: Any, config: Any, points: Any, cut_hz: f
     antennas = pair_antennas(hist, traj, config)
     half = len(ELEVATION_PAIRS) // 2
     z, los = focus_history(hist, *antennas, points, slice(0, half) if elevation else slice(None))
-    hs = history_steps(hist, z, los, traj, config, len(points), opts)
+    hs = history_steps(hist, z, los, traj, config, opts)
     t0 = int(traj.t_ns[0])
     n_nodes = int(math.ceil((int(traj.t_ns[-1]) - t0) / 1e9 / opts.node_s)) + 1
     nodes_ns = t0 + np.round(np.arange(n_nodes) * opts.node_s * 1e9).astype(np.int64)

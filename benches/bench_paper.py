@@ -258,7 +258,11 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         out[f"{key}_local_within_3cm"] = sum(r[m]["reflector_error_local_max_cm"] < 3.0 for r in ran)
         out[f"{key}_rpe_1m_across_mm_max"] = max((r[m]["rpe_1m_across_mm"] or 0.0) for r in ran)
         if "vs_truth_pct" in ran[0]["entropy_far"]:
-            out[f"{key}_entropy_far_vs_truth_pct_max"] = max(r["entropy_far"]["vs_truth_pct"][m] for r in ran)
+            far = [r["entropy_far"]["vs_truth_pct"][m] for r in ran]
+            out[f"{key}_entropy_far_vs_truth_pct_max"] = max(far)
+            # the bound on the far swath: within 0.2 % of the truth image's, either way / at most above it
+            out[f"{key}_entropy_far_within_0_2pct"] = sum(abs(v) <= 0.2 for v in far)
+            out[f"{key}_entropy_far_at_most_0_2pct_above"] = sum(v <= 0.2 for v in far)
         if m in ("none", "ins"):
             out[f"{key}_worse"] = sum(r[m]["worse"] for r in ran)
     for key in ENTROPIES:

@@ -133,7 +133,7 @@ class HistorySteps:
 
 
 def history_steps(hist: PhaseHistories, z: NDArray[np.complex128], los: Array, track: Trajectory, config: Config,
-                  n_points: int, opts: FastMotionOptions) -> HistorySteps:
+                  opts: FastMotionOptions) -> HistorySteps:
     """The low-passed phase steps of every scatterer's unbroken runs of pulses (the module's docstring) from its
     back-projected values ``z`` (N,) and lines of sight ``los`` (N, 3) (:func:`focus_history` along ``track``)."""
     from scipy.ndimage import convolve1d
@@ -245,7 +245,7 @@ def fast_motion(hist: PhaseHistories, track: Trajectory, config: Config, points_
     n_nodes = int(math.ceil((int(track.t_ns[-1]) - t0) / 1e9 / opts.node_s)) + 1
     nodes_ns = t0 + np.round(np.arange(n_nodes) * opts.node_s * 1e9).astype(np.int64)
     z, los = focus_history(hist, *pair_antennas(hist, track, config), points)
-    hs = history_steps(hist, z, los, track, config, len(points), opts)
+    hs = history_steps(hist, z, los, track, config, opts)
     parity = np.array([hist.point[run[0]] % 2 for run in hs.runs], dtype=np.int64)
     problem = _StepProblem.of(hs, n_nodes, 4.0 * math.pi * hist.cycles_per_m, opts)
     fits = [_fit_histories(problem, parity == half, opts) for half in (0, 1)]
