@@ -460,28 +460,6 @@ def test_narrowed_histories_are_those_gathered_along_the_nearby_track(ci_drive: 
         narrow_histories(wide, moved, CFG, points, focus, half_beam_deg=25.0, window_bins=48)
 
 
-def test_one_read_for_several_sets_of_points_keeps_what_a_read_for_each_keeps(ci_drive: tuple[Path, Trajectory]
-                                                                              ) -> None:
-    """Two sets of points, each with its own beam and window, read in one pass over the radar: each set's pairs,
-    windows and samples are those of a read of its own."""
-    from autosar_cli.sar.phase_history import HistoryRequest, gather_histories, gather_phase_histories
-
-    drive, traj = ci_drive
-    focus = FocusOptions.from_config(CFG)
-    at = np.linspace(traj.t_ns[0], traj.t_ns[-1], 6).astype(np.int64)[1:5]
-    centre, across, _ = frame_geometry(traj, at, CFG)
-    near = centre[:2] + np.array([2.5, 4.0])[:, None] * across[:2]
-    far = centre[2:] + np.array([9.0, 14.0])[:, None] * across[2:]
-    requests = [HistoryRequest(near, 60.0, 30), HistoryRequest(far, 25.0, 6)]
-    both = gather_histories(drive, traj, CFG, requests, focus, channels=2)
-    for req, got in zip(requests, both, strict=True):
-        own = gather_phase_histories(drive, traj, CFG, req.points_enu, focus, half_beam_deg=req.half_beam_deg,
-                                     window_bins=req.window_bins, channels=2)
-        assert len(own.point) > 500
-        for name in ("point", "frame", "frame_t_ns", "bin0", "samples"):
-            np.testing.assert_array_equal(getattr(got, name), getattr(own, name))
-
-
 def test_points_that_disagree_on_the_scale_are_told_apart() -> None:
     """The agreement statistic of the track scale: 8 points whose phase steps each carry a scale (their own
     position shift free) give a reduced chi-square near 1 when they share one scale (the 0.999 limit for 8

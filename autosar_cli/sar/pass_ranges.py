@@ -61,7 +61,6 @@ from autosar_cli.nav.wheel_speeds import slip_gain_drift
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.sar.normal_equations import factor_normal
 from autosar_cli.sar.phase_history import (
-    HistoryRequest,
     PhaseHistories,
     frame_geometry,
     gather_phase_histories,
@@ -188,15 +187,9 @@ def pass_histories(drive_path: str | Path, trajectory: Trajectory, config: Confi
                    focus: FocusOptions, opts: PassOptions, min_window_bins: int = 0) -> PhaseHistories:
     """The points' (P, 3) (ENU m) histories over their passes along ``trajectory``, as :func:`pass_blocks` takes
     them, their windows at least ``min_window_bins`` wide (for other fits to narrow from)."""
-    req = pass_request(points_enu, opts, min_window_bins)
-    return gather_phase_histories(drive_path, trajectory, config, req.points_enu, focus,
-                                  half_beam_deg=req.half_beam_deg, window_bins=req.window_bins, channels=opts.channels)
-
-
-def pass_request(points_enu: Array, opts: PassOptions, min_window_bins: int = 0) -> HistoryRequest:
-    """What :func:`pass_histories` gathers of the points (P, 3) (ENU m), for a read shared with other histories
-    (:func:`~autosar_cli.sar.phase_history.gather_histories`, ``opts.channels``)."""
-    return HistoryRequest(points_enu, opts.half_beam_deg, max(int(2 * opts.search_bins) + 18, min_window_bins))
+    return gather_phase_histories(drive_path, trajectory, config, points_enu, focus, half_beam_deg=opts.half_beam_deg,
+                                  window_bins=max(int(2 * opts.search_bins) + 18, min_window_bins),
+                                  channels=opts.channels)
 
 
 def pass_blocks(drive_path: str | Path, trajectory: Trajectory, config: Config, points_enu: Array,

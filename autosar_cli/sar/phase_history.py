@@ -62,16 +62,6 @@ def frame_geometry(traj: Trajectory, t_ns: NDArray[np.int64], config: Config) ->
     return centre, across, along
 
 
-@dataclass(frozen=True)
-class HistoryRequest:
-    """Points whose histories :func:`gather_histories` keeps: their echoes within ``half_beam_deg`` of broadside,
-    ``window_bins`` bins around each one's range per pulse and channel."""
-
-    points_enu: Array  #: (P, 3) ENU m
-    half_beam_deg: float
-    window_bins: int
-
-
 def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Config, points_enu: Array,
                            focus: FocusOptions, *, half_beam_deg: float, window_bins: int, channels: int,
                            block_frames: int = 256, pairs: list[tuple[int, int]] | None = None) -> PhaseHistories:
@@ -79,15 +69,8 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
     ``focus``'s window and upsampling) the frames that see ``points_enu`` (P, 3) (ENU m) within ``half_beam_deg``
     of broadside, and keep ``window_bins`` bins around each point's range per pulse and channel (one pass over the
     radar data)."""
-    return gather_histories(drive_path, traj, config, [HistoryRequest(points_enu, half_beam_deg, window_bins)], focus,
-                            channels=channels, block_frames=block_frames, pairs=pairs)[0]
-
-
-def gather_histories(drive_path: str | Path, traj: Trajectory, config: Config, requests: list[HistoryRequest],
-                     focus: FocusOptions, *, channels: int, block_frames: int = 256,
-                     pairs: list[tuple[int, int]] | None = None) -> list[PhaseHistories]:
-    """:func:`gather_phase_histories` of several sets of points, each with its own beam and window, in one pass over
-    the radar data: each frame that any of them sees is read and range-compressed once."""
+    points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
+    w = int(window_bins)
     with Drive(drive_path) as drive:
         radar = drive.radar()
         rp = RadarParameters.of(radar, config, focus.upsample)
@@ -98,20 +81,14 @@ def gather_histories(drive_path: str | Path, traj: Trajectory, config: Config, r
         last_chirp_ns = int(round(offsets.max() * 1e9)) if offsets.size else 0
         frames = np.flatnonzero((t_all >= traj.t_ns[0]) & (t_all + last_chirp_ns <= traj.t_ns[-1]))
         t = t_all[frames]
-        moving = _moving(traj, t, focus)
-        wanted = []
-        any_seen = np.zeros(len(t), dtype=bool)
-        for req in requests:
-            points = np.asarray(req.points_enu, dtype=np.float64).reshape(-1, 3)
-            seen = _seen(traj, t, config, points, moving, req.half_beam_deg)
-            any_seen |= seen.any(axis=1)
-            # every (frame, point) pair in frame order, its samples written in place (joining per-block lists at the
-            # end would cost as much again as taking the windows: test2's 130 MB)
-            frame_of, point_of = np.nonzero(seen)
-            w = int(req.window_bins)
-            wanted.append((points, w, frame_of, point_of, np.empty((len(frame_of), len(pairs), w), np.complex64),
-                           np.empty((len(frame_of), len(pairs)), np.int64)))
-        used = np.flatnonzero(any_seen)
+        seen = _seen(traj, t, config, points, _moving(traj, t, focus), half_beam_deg)
+        used = np.flatnonzero(seen.any(axis=1))
+        # every (frame, point) pair in frame order, its samples written in place (joining per-block lists at the
+        # end would cost as much again as taking the windows: test2's 130 MB)
+        frame_of, point_of = np.nonzero(seen)
+        n_pairs = len(frame_of)
+        samples = np.empty((n_pairs, len(pairs), w), np.complex64)
+        bin0 = np.empty((n_pairs, len(pairs)), np.int64)
         tx_idx = np.array([p[0] for p in pairs])
         rx_idx = np.array([p[1] for p in pairs])
         starts = range(0, len(used), block_frames)
@@ -134,18 +111,16 @@ def gather_histories(drive_path: str | Path, traj: Trajectory, config: Config, r
                 # the ramp goes on the windows only (test2's are 7 % of the profiles' bins)
                 profiles = range_compress(raw, sample_rate_hz=fs, slope_hz_per_s=slope, window=focus.window,
                                           upsample=focus.upsample, referenced=False)  # (B, C, bins)
-                for points, w, frame_of, point_of, samples, bin0 in wanted:
-                    lo, hi = np.searchsorted(frame_of, sel[0]), np.searchsorted(frame_of, sel[-1], side="right")
-                    kk = np.searchsorted(sel, frame_of[lo:hi])
-                    tx, rx = tx_all[start + kk], rx_all[start + kk]  # (n, C, 3)
-                    p = points[point_of[lo:hi]][:, None, :]
-                    path = np.linalg.norm(tx - p, axis=-1) + np.linalg.norm(rx - p, axis=-1)
-                    b0 = np.floor(path / bin_m).astype(np.int64) - (w // 2 - 1)
-                    b0 = np.clip(b0, 0, n_bins - w)
-                    take_windows(profiles, ramp, kk, b0, samples[lo:hi])
-                    bin0[lo:hi] = b0
-    return [PhaseHistories(point_of, frame_of, t, bin0, samples, pairs, offsets, bin_m, rp.cycles_per_m, slope)
-            for _, _, frame_of, point_of, samples, bin0 in wanted]
+                lo, hi = np.searchsorted(frame_of, sel[0]), np.searchsorted(frame_of, sel[-1], side="right")
+                kk = np.searchsorted(sel, frame_of[lo:hi])
+                tx, rx = tx_all[start + kk], rx_all[start + kk]  # (n, C, 3)
+                p = points[point_of[lo:hi]][:, None, :]
+                path = np.linalg.norm(tx - p, axis=-1) + np.linalg.norm(rx - p, axis=-1)
+                b0 = np.floor(path / bin_m).astype(np.int64) - (w // 2 - 1)
+                b0 = np.clip(b0, 0, n_bins - w)
+                take_windows(profiles, ramp, kk, b0, samples[lo:hi])
+                bin0[lo:hi] = b0
+    return PhaseHistories(point_of, frame_of, t, bin0, samples, pairs, offsets, bin_m, rp.cycles_per_m, slope)
 
 
 def narrow_histories(hist: PhaseHistories, traj: Trajectory, config: Config, points_enu: Array, focus: FocusOptions,

@@ -51,20 +51,11 @@ from autosar_cli.sar.autofocus import scale_track
 from autosar_cli.sar.fast_motion import FastMotion, FastMotionOptions, closest_approach_ns, fast_motion
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.sar.normal_equations import factor_normal, node_difference, node_posterior_std
-from autosar_cli.sar.pass_ranges import (
-    PassOptions,
-    SlowMotion,
-    estimate_slow_motion,
-    pass_histories,
-    pass_request,
-    with_correction,
-)
+from autosar_cli.sar.pass_ranges import PassOptions, SlowMotion, estimate_slow_motion, pass_histories, with_correction
 from autosar_cli.sar.phase_history import (
-    HistoryRequest,
     PhaseHistories,
     focus_history,
     frame_geometry,
-    gather_histories,
     gather_phase_histories,
     narrow_histories,
     pair_antennas,
@@ -84,10 +75,6 @@ NAV_SCALE_STD_FACTOR = 2.0
 #: Range bins kept beyond the phases' window on either side where their histories are narrowed from the passes'
 #: (:func:`residual_motion_of_points`): room for the slow motion's change of each pulse's path.
 NARROWING_SLACK_BINS = 6
-#: The same for the fast motion's scatterers (:func:`autofocus_residual_motion`), read with the points' passes along
-#: the navigated track: bins either side, and degrees of beam beyond the stage's own.
-FAST_SLACK_BINS = 3
-FAST_BEAM_SLACK_DEG = 1.0
 
 #: Probability of the points' agreement test on the track scale (:func:`_agreement_limit`): a scale that the points
 #: disagree on by more is not the track's (urban seed 0: reduced chi-square 80 over 10 points, the scale -0.12 % where
@@ -891,20 +878,8 @@ def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, co
         points = candidate_points(drive_path, trajectory, config, focus, opts)
         return residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes)
     fast = fast or FastMotionOptions()
-    passes = passes or PassOptions()
     points, scatterers, t_zero = points_and_scatterers(drive_path, trajectory, config, focus, opts, fast)
-    # the scatterers' echoes read with the points' (one pass over the radar), over a beam and window wide enough to
-    # narrow them to the stage's along the corrected track
-    wide = None
-    if _reads_passes(opts, passes, len(points)) and fast.channels == passes.channels and len(scatterers):
-        pass_hist, wide = gather_histories(
-            drive_path, trajectory, config,
-            [pass_request(points, passes, _pass_window_bins(opts)),
-             HistoryRequest(scatterers, fast.half_beam_deg + FAST_BEAM_SLACK_DEG,
-                            fast.window_bins + 2 * FAST_SLACK_BINS)], focus, channels=passes.channels)
-        result = residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes, pass_hist)
-    else:
-        result = residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes)
+    result = residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes)
     if not result.applied:
         return result
     if len(scatterers) == 0:
@@ -913,11 +888,9 @@ def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, co
     lever = phase_centre_lever_arm(config)[None]
     moved = scatterers + (result.trajectory.body_points(t_zero, lever)[:, 0]
                           - trajectory.body_points(t_zero, lever)[:, 0])
-    histories = (narrow_histories(wide, result.trajectory, config, moved, focus, half_beam_deg=fast.half_beam_deg,
-                                  window_bins=fast.window_bins) if wide is not None
-                 else gather_phase_histories(drive_path, result.trajectory, config, moved, focus,
-                                             half_beam_deg=fast.half_beam_deg, window_bins=fast.window_bins,
-                                             channels=fast.channels))
+    histories = gather_phase_histories(drive_path, result.trajectory, config, moved, focus,
+                                       half_beam_deg=fast.half_beam_deg, window_bins=fast.window_bins,
+                                       channels=fast.channels)
     stage = fast_motion(histories, result.trajectory, config, moved, fast)
     if not stage.applied:
         return replace(result, fast_motion=stage)
@@ -925,36 +898,23 @@ def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, co
     return replace(result, trajectory=with_correction(result.trajectory, stage.correction), fast_motion=stage)
 
 
-def _reads_passes(opts: AutofocusOptions, passes: PassOptions, n_points: int) -> bool:
-    """Whether :func:`residual_motion_of_points` reads the points' passes once for both of its fits."""
-    return (opts.slow_motion and n_points > 0 and passes.channels == opts.channels
-            and passes.half_beam_deg >= opts.half_beam_deg)
-
-
-def _pass_window_bins(opts: AutofocusOptions) -> int:
-    """The passes' windows, at least wide enough for the phases' fit to narrow its own from them (test2 seed 1's
-    shape correction, 32 mm at most, moves them by ~1 bin of the slack kept)."""
-    return opts.window_bins + 2 * NARROWING_SLACK_BINS
-
-
 def residual_motion_of_points(drive_path: str | Path, trajectory: Trajectory, config: Config, points_enu: Array,
-                              focus: FocusOptions, opts: AutofocusOptions, passes: PassOptions | None = None,
-                              histories: PhaseHistories | None = None) -> ResidualMotion:
+                              focus: FocusOptions, opts: AutofocusOptions, passes: PassOptions | None = None
+                              ) -> ResidualMotion:
     """``trajectory`` corrected by what the points ``points_enu`` (P, 3) (ENU m, where ``trajectory`` focuses them)
     measure: unless ``opts.slow_motion`` is off, the slow motion their ranges give over their passes
     (:func:`~autosar_cli.sar.pass_ranges.estimate_slow_motion`) less its whole-track stretch, then
     :func:`estimate_residual_motion` along the track so corrected, which measures the scale where the points agree on
-    it; where they do not, the passes' stretch is kept. ``histories``: the passes' histories, where already read
-    (:func:`~autosar_cli.sar.pass_ranges.pass_request`, at least :func:`_pass_window_bins` wide)."""
+    it; where they do not, the passes' stretch is kept."""
     points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
     if not opts.slow_motion or len(points) == 0:
         return estimate_residual_motion(drive_path, trajectory, config, points, focus, opts)
     passes = passes or PassOptions()
-    # one read of the radar for both: the passes' histories (``histories`` where already read so), their windows
-    # wide enough to narrow the phases' from
-    if histories is None and _reads_passes(opts, passes, len(points)):
-        histories = pass_histories(drive_path, trajectory, config, points, focus, passes,
-                                   min_window_bins=_pass_window_bins(opts))
+    # one read of the radar for both: the passes' histories, their windows wide enough that the phases' fit the
+    # shape correction's change of path (test2 seed 1's, 32 mm at most, moves them by ~1 bin of the 6 kept)
+    histories = (pass_histories(drive_path, trajectory, config, points, focus, passes,
+                                min_window_bins=opts.window_bins + 2 * NARROWING_SLACK_BINS)
+                 if passes.channels == opts.channels and passes.half_beam_deg >= opts.half_beam_deg else None)
     slow = estimate_slow_motion(drive_path, trajectory, config, points, focus, passes, histories)
     if not slow.applied:
         return replace(estimate_residual_motion(drive_path, trajectory, config, points, focus, opts,
