@@ -171,7 +171,8 @@ def with_high_band(cut_hz: float, record: dict[str, Any], vertical: bool = False
             # the track before the stage, as against_truth compares with it
             record.update(nodes_ns=nodes, correction_m=np.sum(offset * across, axis=1), histories=stage.histories,
                           used=stage.histories_used, coverage=stage.coverage, seen=stage.seen, centre=centre - offset,
-                          across=across, points=stage.histories, wall_s=time.perf_counter() - start)
+                          across=across, points=stage.histories, wall_s=time.perf_counter() - start,
+                          reliability=stage.reliability, halves_correlation=stage.halves_correlation)
             return result
         result = autofocus_residual_motion(drive, traj, config, *args, opts=autofocus_options(config, False),
                                            **kwargs)
@@ -292,6 +293,8 @@ def main() -> None:
             row["stage"] = {"scatterers": record["points"], "histories": record["histories"], "used": record["used"],
                             "coverage": round(record["coverage"], 3), "wall_s": round(record["wall_s"], 1),
                             "correction_rms_mm": round(1e3 * float(record["correction_m"].std()), 4),
+                            "halves_correlation": record.get("halves_correlation"),
+                            "reliability": record.get("reliability"),
                             # the used histories' measured vertical gain (--elevation): median and std
                             "up_gain": record.get("up_gain"),
                             "against_truth": against_truth(log.with_name(log.name + ".truth.h5"), record, config)}
