@@ -309,9 +309,8 @@ class _StepProblem:
         data = remove_moving_average(hs.step, starts, half)
         normals = history_normals(cols, vals, data, starts, half)
         prior = np.zeros((max(normals.bandwidth, 1) + 1, n_nodes))
-        # node_prior's band: prior_m on each node, step_m on each change between neighbours
-        prior[0] = 1.0 / opts.prior_m**2 + np.r_[1.0, np.full(n_nodes - 2, 2.0), 1.0][:n_nodes] / opts.step_m**2
-        prior[1, :-1] = -1.0 / opts.step_m**2
+        tridiagonal = node_prior(n_nodes, opts.prior_m, opts.step_m)
+        prior[0], prior[1, :-1] = tridiagonal.diagonal(), tridiagonal.diagonal(-1)
         return cls(hs, n_nodes, cols, vals, starts, half, data, normals, prior)
 
     def factor(self, weight: Array) -> tuple[BandedCholesky, Array]:
@@ -352,10 +351,8 @@ def _fit_histories(problem: _StepProblem, chosen: NDArray[np.bool_], opts: FastM
         chol, rhs = problem.factor(used / var)
         e = chol.solve(rhs)
     seen = np.zeros(n_nodes, dtype=bool)
-    first = np.full(n_seg, np.inf)
-    last = np.full(n_seg, -np.inf)
-    np.minimum.at(first, hs.segment, hs.t[:, 0])
-    np.maximum.at(last, hs.segment, hs.t[:, 0])
+    # each history's steps in time order: its first and last sample times
+    first, last = hs.t[problem.starts[:-1], 0], hs.t[problem.starts[1:] - 1, 0]
     for s in np.flatnonzero(used):  # the nodes each used history's samples span
         seen[int(first[s] / opts.node_s):int(last[s] / opts.node_s) + 1] = True
     std = node_posterior_std(chol, n_nodes, 1, every=50)[:, 0] if chol is not None else np.full(n_nodes, opts.prior_m)

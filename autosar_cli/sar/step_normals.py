@@ -71,12 +71,14 @@ def history_normals(cols: NDArray[np.int64], vals: Array, data: Array, starts: N
     average, :func:`remove_moving_average`), history s's steps ``starts[s]`` to ``starts[s + 1] - 1``."""
     cols = np.ascontiguousarray(cols, dtype=np.int64)
     starts = np.ascontiguousarray(starts, dtype=np.int64)
+    if len(cols) == 0:
+        return HistoryNormals(np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros((0, 1)), np.zeros(0))
     lo, hi = window_bounds(starts, half)
     # each row of S - A S spans the nodes of its window's steps (its own among them)
     row_lo, row_hi = _row_spans(cols, lo, hi)
-    bandwidth = int((row_hi - row_lo).max()) if len(cols) else 0
-    node_lo = np.minimum.reduceat(row_lo, starts[:-1]) if len(cols) else np.zeros(0, np.int64)
-    node_hi = np.maximum.reduceat(row_hi, starts[:-1]) if len(cols) else np.zeros(0, np.int64)
+    bandwidth = int((row_hi - row_lo).max())
+    node_lo = np.minimum.reduceat(row_lo, starts[:-1])
+    node_hi = np.maximum.reduceat(row_hi, starts[:-1])
     ptr = np.concatenate([[0], np.cumsum(node_hi - node_lo + 1)]).astype(np.int64)
     blocks = np.zeros((int(ptr[-1]), bandwidth + 1))
     rhs = np.zeros(int(ptr[-1]))
