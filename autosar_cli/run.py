@@ -189,9 +189,9 @@ def _prepare_later_stages(autofocus: bool = False) -> None:
     load_cached_kernels(sarmin_kernel, backprojection, range_fft, range_compression, stripmap)
     if autofocus:
         import autosar_cli.sar.residual_motion  # noqa: F401
-        from autosar_cli.sar import history_kernel, step_normals
+        from autosar_cli.sar import history_kernel
 
-        load_cached_kernels(history_kernel, step_normals)
+        load_cached_kernels(history_kernel)
     preload_quicklook()  # matplotlib's imports; a first draw here measured no gain (its CPU slows the ingest)
 
 

@@ -26,7 +26,7 @@ from autosar_cli.sar.fast_motion import (
 )
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.sar.normal_equations import BandedCholesky
-from autosar_cli.sar.phase_history import frame_geometry, gather_phase_histories, select_in_beam
+from autosar_cli.sar.phase_history import frame_geometry, gather_phase_histories
 from autosar_cli.sar.residual_motion import AutofocusOptions, candidate_points, points_and_scatterers
 from autosar_cli.sar.step_normals import add_normals, apply_model, history_normals, remove_moving_average
 from autosar_cli.store.trajectory import read_trajectory
@@ -192,35 +192,3 @@ def test_halves_of_pure_noise_hardly_agree() -> None:
     sos = butter(4, 2.0, "highpass", fs=1.0 / node_s, output="sos")
     a, b = (sosfiltfilt(sos, f.motion) for f in fits)
     assert abs(np.corrcoef(a, b)[0, 1]) < 0.3
-
-
-def test_the_scatterers_read_beside_the_phases_fit_are_those_of_a_read_of_their_own(
-        test1_drive: tuple[Path, Any], monkeypatch: pytest.MonkeyPatch) -> None:
-    """The autofocus reads the scatterers' echoes while it fits the points' phases, along the track that fit starts
-    from, and takes the stage's pairs from them along the corrected track: the stage then fits what a read along
-    that track gives it, to the bit (forced to read again, the same histories, result and correction). test1 seed
-    1's truth track."""
-    import autosar_cli.sar.residual_motion as rm
-
-    drive, truth = test1_drive
-    nav = truth.trajectory
-    focus, opts = FocusOptions.from_config(CFG), replace(AutofocusOptions.from_config(CFG), fast_motion=True)
-    taken: list[int] = []
-
-    def counted(*args: Any, **kwargs: Any) -> Any:
-        hist = select_in_beam(*args, **kwargs)
-        taken.append(-1 if hist is None else len(hist.point))
-        return hist
-
-    monkeypatch.setattr(rm, "select_in_beam", counted)
-    beside = rm.autofocus_residual_motion(drive, nav, CFG, focus, opts)
-    monkeypatch.setattr(rm, "_paths_within", lambda *args: False)
-    again = rm.autofocus_residual_motion(drive, nav, CFG, focus, opts)
-    assert len(taken) == 1 and taken[0] > 5000  # taken from the read beside the fit, once
-    assert beside.applied and beside.fast_motion is not None and again.fast_motion is not None
-    assert beside.fast_motion.applied, beside.fast_motion.reason
-    assert beside.fast_motion.to_dict() == again.fast_motion.to_dict()
-    for a, b in ((beside.trajectory.correction, again.trajectory.correction),):
-        assert a is not None and b is not None
-        np.testing.assert_array_equal(a.offset_enu, b.offset_enu)
-        np.testing.assert_array_equal(a.std_enu, b.std_enu)

@@ -460,45 +460,6 @@ def test_narrowed_histories_are_those_gathered_along_the_nearby_track(ci_drive: 
         narrow_histories(wide, moved, CFG, points, focus, half_beam_deg=25.0, window_bins=48)
 
 
-def test_pairs_selected_from_a_wider_read_focus_as_a_read_of_their_own(ci_drive: tuple[Path, Trajectory]) -> None:
-    """Histories read over a wider beam and window along a track, their pairs selected along that track moved by a
-    1 cm across-track sine (the points moved with it): the pairs of a read along the moved track, and their
-    back-projected values and lines of sight the same bit for bit, from windows of other widths and starts. A beam
-    too narrow to hold them gives None."""
-    from autosar_cli.sar.phase_history import focus_history, gather_phase_histories, pair_antennas, select_in_beam
-    from autosar_cli.sar.residual_motion import _paths_within
-
-    drive, traj = ci_drive
-    focus = FocusOptions.from_config(CFG)
-    at = np.linspace(traj.t_ns[0], traj.t_ns[-1], 5).astype(np.int64)[1:4]
-    centre, across, _ = frame_geometry(traj, at, CFG)
-    points = centre + np.array([3.0, 8.0, 14.0])[:, None] * across + [0.0, 0.0, -0.3]
-    wide = gather_phase_histories(drive, traj, CFG, points, focus, half_beam_deg=30.0, window_bins=10, channels=2)
-    _, across_k, _ = frame_geometry(traj, traj.t_ns, CFG)
-    moved = replace(traj, correction=MotionCorrection(traj.t_ns, 0.01 * np.sin(traj.t)[:, None] * across_k,
-                                                      np.zeros((len(traj.t_ns), 3))))
-    moved_points = points + 0.01 * np.sin((at - traj.t_ns[0]) / 1e9)[:, None] * across
-    picked = select_in_beam(wide, moved, CFG, moved_points, focus, half_beam_deg=28.0)
-    direct = gather_phase_histories(drive, moved, CFG, moved_points, focus, half_beam_deg=28.0, window_bins=4,
-                                    channels=2)
-    assert picked is not None
-    assert 1000 < len(direct.point) < len(wide.point)
-    np.testing.assert_array_equal(picked.point, direct.point)
-    np.testing.assert_array_equal(picked.frame, direct.frame)
-    assert not np.array_equal(picked.bin0, direct.bin0)  # other windows ...
-    z_picked, los_picked = focus_history(picked, *pair_antennas(picked, moved, CFG), moved_points)
-    z_direct, los_direct = focus_history(direct, *pair_antennas(direct, moved, CFG), moved_points)
-    assert np.isfinite(z_direct).all()
-    np.testing.assert_array_equal(z_picked, z_direct)  # ... the same values
-    np.testing.assert_array_equal(los_picked, los_direct)
-    assert select_in_beam(wide, moved, CFG, moved_points, focus, half_beam_deg=32.0) is None
-    # the 1 cm sine moves a path by at most 4 cm: within 3 bins (7.5 cm), not 1 (2.5 cm)
-    lever = phase_centre_lever_arm(CFG)[None]
-    t_zero = at[:3]
-    assert _paths_within(traj, moved, wide, t_zero, lever, 3)
-    assert not _paths_within(traj, moved, wide, t_zero, lever, 1)
-
-
 def test_points_that_disagree_on_the_scale_are_told_apart() -> None:
     """The agreement statistic of the track scale: 8 points whose phase steps each carry a scale (their own
     position shift free) give a reduced chi-square near 1 when they share one scale (the 0.999 limit for 8

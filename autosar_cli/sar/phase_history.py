@@ -64,12 +64,11 @@ def frame_geometry(traj: Trajectory, t_ns: NDArray[np.int64], config: Config) ->
 
 def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Config, points_enu: Array,
                            focus: FocusOptions, *, half_beam_deg: float, window_bins: int, channels: int,
-                           block_frames: int = 256, pairs: list[tuple[int, int]] | None = None,
-                           fft_workers: int = -1) -> PhaseHistories:
+                           block_frames: int = 256, pairs: list[tuple[int, int]] | None = None) -> PhaseHistories:
     """Read and range-compress (``channels``, sar.focus.channel_pairs, or the (Tx, Rx) ``pairs`` given;
     ``focus``'s window and upsampling) the frames that see ``points_enu`` (P, 3) (ENU m) within ``half_beam_deg``
     of broadside, and keep ``window_bins`` bins around each point's range per pulse and channel (one pass over the
-    radar data). ``fft_workers``: threads of the range FFTs (-1: one per core)."""
+    radar data)."""
     points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
     w = int(window_bins)
     with Drive(drive_path) as drive:
@@ -111,8 +110,7 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
                     pending = reader.submit(read, blocks[b + 1])
                 # the ramp goes on the windows only (test2's are 7 % of the profiles' bins)
                 profiles = range_compress(raw, sample_rate_hz=fs, slope_hz_per_s=slope, window=focus.window,
-                                          upsample=focus.upsample, referenced=False,
-                                          workers=fft_workers)  # (B, C, bins)
+                                          upsample=focus.upsample, referenced=False)  # (B, C, bins)
                 lo, hi = np.searchsorted(frame_of, sel[0]), np.searchsorted(frame_of, sel[-1], side="right")
                 kk = np.searchsorted(sel, frame_of[lo:hi])
                 tx, rx = tx_all[start + kk], rx_all[start + kk]  # (n, C, 3)
@@ -146,28 +144,6 @@ def narrow_histories(hist: PhaseHistories, traj: Trajectory, config: Config, poi
     start = np.clip(np.floor(path / hist.bin_m).astype(np.int64) - (w // 2 - 1) - sub.bin0, 0, wide - w)  # (n, C)
     samples = np.take_along_axis(sub.samples, start[..., None] + np.arange(w), axis=-1)
     return dataclasses.replace(sub, bin0=sub.bin0 + start, samples=samples)
-
-
-def select_in_beam(hist: PhaseHistories, traj: Trajectory, config: Config, points_enu: Array, focus: FocusOptions,
-                   *, half_beam_deg: float) -> PhaseHistories | None:
-    """The pairs of ``hist`` that :func:`gather_phase_histories` would keep along ``traj`` for the points
-    ``points_enu`` (P, 3) (ENU m; ``hist``'s, each moved a little) within ``half_beam_deg``, in its order, their
-    windows as ``hist`` holds them: ``hist`` read along a nearby track over a wider beam and window. Where every
-    kept pulse's path along ``traj`` lies within ``hist``'s window less the two bins the interpolation takes,
-    :func:`focus_history` gives each the value of a read of its own, bit for bit: its window holds the same
-    profile samples, and the interpolation's fraction is the same (the bins are integers, so the path's offset from
-    either window's first bin is exact). ``hist`` must have been read along a track over ``traj``'s time span (its
-    frames are then ``traj``'s). None where it lacks one of the pairs."""
-    points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
-    t = hist.frame_t_ns
-    seen = _seen(traj, t, config, points, _moving(traj, t, focus), half_beam_deg)
-    frame_of, point_of = np.nonzero(seen)
-    have = hist.frame * len(points) + hist.point  # in (frame, point) order, as gathered
-    want = frame_of * len(points) + point_of
-    at = np.minimum(np.searchsorted(have, want), max(len(have) - 1, 0))
-    if len(want) and (len(have) == 0 or not np.array_equal(have[at], want)):
-        return None
-    return dataclasses.replace(hist, point=point_of, frame=frame_of, bin0=hist.bin0[at], samples=hist.samples[at])
 
 
 def _moving(traj: Trajectory, t_ns: NDArray[np.int64], focus: FocusOptions) -> NDArray[np.bool_]:

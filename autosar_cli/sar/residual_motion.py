@@ -60,7 +60,6 @@ from autosar_cli.sar.phase_history import (
     narrow_histories,
     pair_antennas,
     range_offsets,
-    select_in_beam,
 )
 from autosar_cli.store.drive import radar_times
 from autosar_cli.types import FocusGrid, MotionCorrection, Trajectory
@@ -76,12 +75,6 @@ NAV_SCALE_STD_FACTOR = 2.0
 #: Range bins kept beyond the phases' window on either side where their histories are narrowed from the passes'
 #: (:func:`residual_motion_of_points`): room for the slow motion's change of each pulse's path.
 NARROWING_SLACK_BINS = 6
-#: The fast motion's scatterers, read before the phases' fit along the track it starts from
-#: (:func:`autofocus_residual_motion`): range bins kept beyond the stage's window on either side, and degrees of beam
-#: beyond its own, room for the fit's change of each pulse's path and angle (test2 seed 1: the fit moved the phase
-#: centre by 11 mm at most, a path by at most 4.4 cm of the 7.5 kept).
-FAST_SLACK_BINS = 3
-FAST_BEAM_SLACK_DEG = 1.0
 
 #: Probability of the points' agreement test on the track scale (:func:`_agreement_limit`): a scale that the points
 #: disagree on by more is not the track's (urban seed 0: reduced chi-square 80 over 10 points, the scale -0.12 % where
@@ -879,14 +872,7 @@ def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, co
     """``trajectory`` corrected by the residual motion its own image's bright points (:func:`candidate_points`)
     measure, with no truth (:func:`residual_motion_of_points`), then, unless ``opts.fast_motion`` is off, by the
     fast across-track motion that many scatterers measure along that track (:mod:`autosar_cli.sar.fast_motion`;
-    ``fast``: its options).
-
-    The scatterers' echoes are read while the points' phases are fitted, along the track that fit starts from, over
-    ``FAST_BEAM_SLACK_DEG`` more beam and ``FAST_SLACK_BINS`` more bins either side; the stage takes its pairs from
-    them along the corrected track (:func:`~autosar_cli.sar.phase_history.select_in_beam`), the same values as a read
-    along it, where the corrected track moved no path by more than the slack (else it reads them again)."""
-    from concurrent.futures import Future, ThreadPoolExecutor
-
+    ``fast``: its options)."""
     focus = focus or FocusOptions.from_config(config)
     opts = opts or AutofocusOptions.from_config(config)
     if not opts.fast_motion:
@@ -894,37 +880,18 @@ def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, co
         return residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes)
     fast = fast or FastMotionOptions()
     points, scatterers, t_zero = points_and_scatterers(drive_path, trajectory, config, focus, opts, fast)
-    lever = phase_centre_lever_arm(config)[None]
-
-    def moved_along(track: Trajectory) -> Array:
-        """Each scatterer where ``track`` focuses it: moved as the radar moved at its closest approach."""
-        return scatterers + (track.body_points(t_zero, lever)[:, 0] - trajectory.body_points(t_zero, lever)[:, 0])
-
-    reads: list[tuple[Trajectory, Future[PhaseHistories]]] = []
-    # the read releases the GIL in its FFTs and kernels: on a second core beside the phases' fit
-    with ThreadPoolExecutor(1) as beside:
-        def read_beside(track: Trajectory) -> None:
-            reads.append((track, beside.submit(
-                gather_phase_histories, drive_path, track, config, moved_along(track), focus,
-                half_beam_deg=fast.half_beam_deg + FAST_BEAM_SLACK_DEG,
-                window_bins=fast.window_bins + 2 * FAST_SLACK_BINS, channels=fast.channels, fft_workers=1)))
-
-        result = residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes,
-                                           before_phases=read_beside if len(scatterers) else None)
-        wide = [(track, read.result()) for track, read in reads if result.applied]
+    result = residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes)
     if not result.applied:
         return result
     if len(scatterers) == 0:
         return replace(result, fast_motion=FastMotion(None, 0, 0, 0.0, "no bright scatterer in the first image"))
-    moved = moved_along(result.trajectory)
-    histories = None
-    for read_along, hist in wide:
-        if _paths_within(read_along, result.trajectory, hist, t_zero, lever, FAST_SLACK_BINS):
-            histories = select_in_beam(hist, result.trajectory, config, moved, focus, half_beam_deg=fast.half_beam_deg)
-    if histories is None:
-        histories = gather_phase_histories(drive_path, result.trajectory, config, moved, focus,
-                                           half_beam_deg=fast.half_beam_deg, window_bins=fast.window_bins,
-                                           channels=fast.channels)
+    # each scatterer where the corrected track focuses it: moved as the radar moved at its closest approach
+    lever = phase_centre_lever_arm(config)[None]
+    moved = scatterers + (result.trajectory.body_points(t_zero, lever)[:, 0]
+                          - trajectory.body_points(t_zero, lever)[:, 0])
+    histories = gather_phase_histories(drive_path, result.trajectory, config, moved, focus,
+                                       half_beam_deg=fast.half_beam_deg, window_bins=fast.window_bins,
+                                       channels=fast.channels)
     stage = fast_motion(histories, result.trajectory, config, moved, fast)
     if not stage.applied:
         return replace(result, fast_motion=stage)
@@ -932,35 +899,16 @@ def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, co
     return replace(result, trajectory=with_correction(result.trajectory, stage.correction), fast_motion=stage)
 
 
-def _paths_within(read_along: Trajectory, track: Trajectory, hist: PhaseHistories, t_zero: NDArray[np.int64],
-                  lever: Array, slack_bins: int) -> bool:
-    """Whether every pulse's bistatic path to its scatterer along ``track`` is within ``slack_bins`` of the one along
-    ``read_along``, which ``hist``'s windows were read about (both tracks over one time span). Each antenna and each
-    scatterer (moved as the radar at its closest approach ``t_zero``) moves with the phase centre at ``lever``
-    (1, 3) (body m), give or take the rotation of a few centimetres' offset by the tracks' sub-milliradian
-    difference in attitude (the 0.1 mm margin): a path changes by at most twice the sum of the largest moves."""
-    if read_along.t_ns[0] != track.t_ns[0] or read_along.t_ns[-1] != track.t_ns[-1]:
-        return False
-    t = np.concatenate([hist.frame_t_ns, t_zero])
-    move = np.linalg.norm(track.body_points(t, lever)[:, 0] - read_along.body_points(t, lever)[:, 0], axis=-1)
-    largest = float(move[:len(hist.frame_t_ns)].max(initial=0.0) + move[len(hist.frame_t_ns):].max(initial=0.0))
-    return 2.0 * (largest + 1e-4) <= slack_bins * hist.bin_m
-
-
 def residual_motion_of_points(drive_path: str | Path, trajectory: Trajectory, config: Config, points_enu: Array,
-                              focus: FocusOptions, opts: AutofocusOptions, passes: PassOptions | None = None,
-                              before_phases: Callable[[Trajectory], None] | None = None) -> ResidualMotion:
+                              focus: FocusOptions, opts: AutofocusOptions, passes: PassOptions | None = None
+                              ) -> ResidualMotion:
     """``trajectory`` corrected by what the points ``points_enu`` (P, 3) (ENU m, where ``trajectory`` focuses them)
     measure: unless ``opts.slow_motion`` is off, the slow motion their ranges give over their passes
     (:func:`~autosar_cli.sar.pass_ranges.estimate_slow_motion`) less its whole-track stretch, then
     :func:`estimate_residual_motion` along the track so corrected, which measures the scale where the points agree on
-    it; where they do not, the passes' stretch is kept. ``before_phases`` is called, before the phases' fit, with
-    the track nearest the one it will end with that is known then: the slow motion's, stretch and all, or
-    ``trajectory`` where there is none."""
+    it; where they do not, the passes' stretch is kept."""
     points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
-    before = before_phases or (lambda track: None)
     if not opts.slow_motion or len(points) == 0:
-        before(trajectory)
         return estimate_residual_motion(drive_path, trajectory, config, points, focus, opts)
     passes = passes or PassOptions()
     # one read of the radar for both: the passes' histories, their windows wide enough that the phases' fit the
@@ -969,7 +917,6 @@ def residual_motion_of_points(drive_path: str | Path, trajectory: Trajectory, co
                                 min_window_bins=opts.window_bins + 2 * NARROWING_SLACK_BINS)
                  if passes.channels == opts.channels and passes.half_beam_deg >= opts.half_beam_deg else None)
     slow = estimate_slow_motion(drive_path, trajectory, config, points, focus, passes, histories)
-    before(slow.trajectory)
     if not slow.applied:
         return replace(estimate_residual_motion(drive_path, trajectory, config, points, focus, opts,
                                                 histories=histories), slow_motion=slow)
