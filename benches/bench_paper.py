@@ -37,7 +37,9 @@ for the simulator only), with ``--resume`` into the same file (commands in docs/
 SAR-MIN's own settings otherwise than the config (``--navigation``: entries of [navigation], e.g.
 ``wheel_lag_window_always=true``; rows and groups name them), side by side with the config's in
 benches/results/paper_fits.json. The processor's own [processing] settings otherwise than the config
-(``--processing``, e.g. ``autofocus_fast_motion=true``): benches/results/paper_full_fast.json.
+(``--processing``, e.g. ``autofocus_fast_motion=true``): benches/results/paper_full_fast.json, and with the stage's
+``FastMotionOptions.apply_reliability`` on (at b036e0c, where it was the stage's form):
+benches/results/paper_full_fast_reliability.json.
 """
 
 from __future__ import annotations

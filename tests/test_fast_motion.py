@@ -127,10 +127,9 @@ def test_the_first_images_points_are_the_same_out_to_the_radars_range(ci_drive: 
 def test_recovers_a_fast_across_track_error_from_many_scatterers(test1_drive: tuple[Path, Any]) -> None:
     """test1's truth track (kinematic, seed 1: no motion but the track's) plus a fast across-track motion (0.3 mm at
     7 Hz and 0.2 mm at 13 Hz, a body shaking on a rough road). The stage's correction along the truth track alone
-    is its noise floor on this drive (measured 0.019 mm RMS above 2 Hz: its two halves of the histories agree
-    little there, reliability 0.38, which scales the whole fit's 0.049 mm down); along the track with the motion,
-    the halves agree (reliability 0.95) and the correction follows it (measured: correlation 0.94, gain 0.84) and
-    leaves 0.089 of its 0.255 mm RMS."""
+    is its noise floor on this drive (measured 0.049 mm RMS above 2 Hz; its two halves of the histories agree
+    little there, reliability 0.38); along the track with the motion, the halves agree (reliability 0.95) and the
+    correction follows it (measured: correlation 0.94, gain 0.89) and leaves 0.088 of its 0.255 mm RMS."""
     drive, truth = test1_drive
     track = truth.trajectory
     t = track.t
