@@ -168,6 +168,13 @@ def test_recovers_a_fast_across_track_error_from_many_scatterers(test1_drive: tu
     assert rms(injected) > 2.4e-4
     assert correlation > 0.85 and 0.7 < gain < 1.05
     assert fits[0].reliability < 0.6 and fits[1].reliability > 0.8
+    # the option's form: the same whole fit, scaled by its reliability
+    scaled = fast_motion(hist, wrong, CFG, scatterers, replace(fast, apply_reliability=True))
+    assert scaled.correction is not None and scaled.reliability == fits[1].reliability
+    np.testing.assert_allclose(scaled.correction.offset_enu, fits[1].reliability * fits[1].correction.offset_enu,
+                               rtol=1e-12, atol=1e-18)
+    np.testing.assert_allclose(scaled.correction.std_enu, fits[1].reliability * fits[1].correction.std_enu,
+                               rtol=1e-12, atol=1e-18)
     assert rms(injected + moved) < 0.45 * rms(injected)
 
 

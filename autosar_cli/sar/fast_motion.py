@@ -16,11 +16,11 @@ takes it, above ``cut_hz``, from many scatterers over the whole swath, after tha
   the aspect turns: each keeps its own slow phase), fitted by a correction across track on 10 ms nodes (a prior of
   0.3 mm, and 1 mm on each node's change), each history weighted by its own residual and dropped above 0.5 rad RMS.
   The fit's part above ``cut_hz`` is the correction. The scatterers are also fitted in two halves: where those
-  disagree (correlation ``r`` <= 0) nothing is corrected, else ``r`` and the whole fit's reliability ``2 r / (1 +
-  r)``, the share of its variance the halves agree on, are reported (scaling the correction by it, ``apply_
-  reliability``, leaves it nearer the radar's own motion, but the far swath blurrier: docs/AUTOFOCUS.md). Each
-  history's normal equations are formed once in band form (:mod:`autosar_cli.sar.step_normals`) and shared by the
-  three fits and their reweighting passes.
+  disagree (correlation ``r`` <= 0) nothing is corrected, else ``r`` and the whole fit's reliability
+  ``2 r / (1 + r)``, the share of its variance the halves agree on, are reported (``apply_reliability`` scales the
+  correction by it: nearer the radar's own motion, but the far swath blurrier; docs/AUTOFOCUS.md). Each history's
+  normal equations are formed once in band form (:mod:`autosar_cli.sar.step_normals`) and shared by the three fits
+  and their reweighting passes.
 
 Unlike the few points' fit, this one cannot tell a point's own motion from the track's at low frequencies: each
 history's slow phase is taken out, so it measures only the fast part, where the many histories agree.
