@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import errno
 import gc
+import inspect
 import json
 import signal
 import sys
@@ -815,6 +816,13 @@ def batch(
                 err.print(f"[yellow]degraded:[/] {r['name']}: {escape(w)}", highlight=False, soft_wrap=True)
         if manifest["failed"]:
             raise typer.Exit(1)
+
+
+# The command list shows each command's first docstring paragraph; rich keeps its line breaks, which wrap it at the
+# source's width, not the terminal's: joined into one line here.
+for _info in app.registered_commands:
+    if _info.short_help is None and _info.callback is not None and _info.callback.__doc__:
+        _info.short_help = " ".join(inspect.cleandoc(_info.callback.__doc__).split("\n\n")[0].split())
 
 
 def main() -> None:

@@ -22,6 +22,15 @@ def test_help(command):
     assert "Usage" in r.output
 
 
+def test_the_command_list_wraps_each_summary_at_the_terminal_not_the_docstring():
+    r = runner.invoke(app, ["--help"], env={"COLUMNS": "200"}, terminal_width=200)
+    assert r.exit_code == 0
+    lines = {ln.split()[1]: ln for ln in r.output.splitlines() if ln.startswith("│ ") and len(ln.split()) > 2}
+    # evaluate's docstring breaks its first paragraph after "IRW,": at 200 columns the summary is one line
+    assert "(position, peak loss, IRW, PSLR, ISLR on fine patches)" in lines["evaluate"]
+    assert "dask.distributed cluster; exit code 1" in lines["batch"]
+
+
 def test_simulate_json_and_info(tmp_path):
     log = tmp_path / "ci.bag"
     r = runner.invoke(app, ["simulate", "-s", "ci", "-f", "ros1", "--seed", "5", "-o", str(log), "--json"])
