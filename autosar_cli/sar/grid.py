@@ -107,7 +107,10 @@ def track_lattice(grid: FocusGrid, track_xy: ArrayLike, lattice_m: float, *, cov
         rows = np.minimum(np.arange(0, grid.n_across, step) + step // 2, grid.n_across - 1)
         cols = np.minimum(np.arange(0, grid.n_along, step) + step // 2, grid.n_along - 1)
     lattice = grid.pixel_enu(rows[:, None], cols[None, :])[..., :2]
-    dist = cKDTree(np.asarray(track_xy, dtype=np.float64)[:, :2]).query(lattice.reshape(-1, 2))[0]
+    # a track is a thin line: with the tree's boxes shrunk to its points (compact nodes), the queries of test2's
+    # lattice take 4x as long (0.94 against 0.24 s); the distances are the same
+    tree = cKDTree(np.asarray(track_xy, dtype=np.float64)[:, :2], compact_nodes=False)
+    dist = tree.query(lattice.reshape(-1, 2))[0]
     return step, dist.reshape(lattice.shape[:2])
 
 
