@@ -233,6 +233,10 @@ class SimulationConfig:
     # tone ring ([vehicle_dynamics]), the window the wheel sensor's table states (lag_distance_m); false: each
     # wheel's instantaneous speed. The full model's wheels always pass through their ring (component wheel_ticks).
     kinematic_ecu_window: bool = False
+    # riders passing the car, each [along the path from the radar's start (m), to its left (m; the radar side is
+    # negative), speed along the path (m/s; negative: the other way)]: moving scatterers the processor does not
+    # model (sim.scene.SceneBuilder.cyclist)
+    cyclists: tuple[tuple[float, float, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -617,6 +621,8 @@ def _validate(cfg: Config) -> None:
         _positive("simulation.radar_amplitude_lsb", sim.radar_amplitude_lsb)
         _non_negative("simulation.vibration_vertical_rms_m", sim.vibration_vertical_rms_m)
         _non_negative("simulation.vibration_horizontal_rms_m", sim.vibration_horizontal_rms_m)
+        for i, rider in enumerate(sim.cyclists):
+            _finite_vector(f"simulation.cyclists[{i}]", rider)
         lo, hi = sim.vibration_band_hz
         if not 0 < lo < hi:
             raise ConfigError(f"simulation.vibration_band_hz: need 0 < low < high, got {[lo, hi]}")

@@ -131,9 +131,13 @@ def beat_reference(
     amplitude_lsb: float,
     beamwidth_az_deg: float,
     beamwidth_el_deg: float,
+    target_velocity: NDArray[np.float64] | None = None,
+    chirp_start_s: NDArray[np.float64] | None = None,
 ) -> NDArray[np.complex128]:
     """Straightforward float64 version of the simulator's beat synthesis (``synthesize_beat``): exact phase at
-    every sample, with the antenna positions interpolated linearly over the chirp. For tests on small cases."""
+    every sample, with the antenna positions interpolated linearly over the chirp and each target where its
+    velocity (m/s, (M, 3)) has taken it at that sample (``chirp_start_s`` (F, T): each chirp's first sample, s).
+    For tests on small cases."""
     c = C
     n = np.arange(num_samples)
     t = n / sample_rate_hz
@@ -143,8 +147,10 @@ def beat_reference(
     n_frames, n_tx = tx_start.shape[:2]
     n_rx = rx_start.shape[2]
     out = np.zeros((n_frames, n_tx, n_rx, num_samples), dtype=np.complex128)
+    velocity = np.zeros_like(targets) if target_velocity is None else np.asarray(target_velocity, np.float64)
+    starts = np.zeros((n_frames, n_tx)) if chirp_start_s is None else np.asarray(chirp_start_s, np.float64)
     for f in range(n_frames):
-        d = targets - radar_origin[f]
+        d = targets + velocity * starts[f, 0] - radar_origin[f]
         r = np.linalg.norm(d, axis=1)
         u = (enu_to_radar[f] @ d.T).T / r[:, None]
         horiz = np.hypot(u[:, 0], u[:, 1])
@@ -156,8 +162,8 @@ def beat_reference(
             tx = tx_start[f, k][None, :] + frac[:, None] * (tx_end[f, k] - tx_start[f, k])[None, :]
             for q in range(n_rx):
                 rx = rx_start[f, k, q][None, :] + frac[:, None] * (rx_end[f, k, q] - rx_start[f, k, q])[None, :]
-                path = (np.linalg.norm(targets[:, None, :] - tx[None], axis=2)
-                        + np.linalg.norm(targets[:, None, :] - rx[None], axis=2))
+                where = targets[:, None, :] + velocity[:, None, :] * (starts[f, k] + t)[None, :, None]  # (M, N, 3)
+                path = np.linalg.norm(where - tx[None], axis=2) + np.linalg.norm(where - rx[None], axis=2)
                 tau = path / c
                 phase = 2 * np.pi * (start_frequency_hz * tau + slope_hz_per_s * tau * t[None, :]
                                      - 0.5 * slope_hz_per_s * tau**2)

@@ -1,8 +1,8 @@
-"""FMCW beat-signal synthesis for a TDM-MIMO radar and a scene of point scatterers (numba kernel).
+"""FMCW beat-signal synthesis for a TDM-MIMO radar and a scene of point scatterers, still or moving (numba kernel).
 
 Signal model (one chirp, Tx k, Rx q, scatterer p, ADC sample time t = n / fs from the first sample):
 
-    tau(t)  = (|p - tx_k(t)| + |p - rx_q(t)|) / c               bistatic delay, linear over the chirp
+    tau(t)  = (|p(t) - tx_k(t)| + |p(t) - rx_q(t)|) / c         bistatic delay, linear over the chirp
     s(t)    = A * exp(+j 2 pi (f0 tau + K tau t - K tau^2 / 2))   complex I/Q beat (dechirp tx x conj(rx))
     A       = amplitude_lsb * sqrt(rcs) * P(az, el) / r^2       radar equation in amplitude
     P       = cos(az)^n_az cos(el)^n_el                         one-way power pattern = two-way amplitude
@@ -76,10 +76,11 @@ def _phasors(turns, amp, re, im, n):  # pragma: no cover - compiled
 
 
 @nb.njit(cache=True, parallel=True)
-def _synthesize(tx0, tx1, rx0, rx1, origin, enu_to_radar, targets, sqrt_rcs, f0, slope, fs,
+def _synthesize(tx0, tx1, rx0, rx1, origin, enu_to_radar, targets, sqrt_rcs, velocity, t_start, f0, slope, fs,
                 amplitude, n_az, n_el, max_path, out):  # pragma: no cover - compiled
     n_frames, n_tx, n_rx, n_samp = out.shape
     n_tgt = targets.shape[0]
+    first_moving = n_tgt - velocity.shape[0]  # the last targets move (velocity), the others stand still
     c = 299792458.0
     t_win = n_samp / fs
     t_mid = 0.5 * (n_samp - 1) / fs
@@ -91,6 +92,10 @@ def _synthesize(tx0, tx1, rx0, rx1, origin, enu_to_radar, targets, sqrt_rcs, f0,
             dx = targets[m, 0] - origin[f, 0]
             dy = targets[m, 1] - origin[f, 1]
             dz = targets[m, 2] - origin[f, 2]
+            if m >= first_moving:  # where the frame's first chirp starts
+                dx += velocity[m - first_moving, 0] * t_start[f, 0]
+                dy += velocity[m - first_moving, 1] * t_start[f, 0]
+                dz += velocity[m - first_moving, 2] * t_start[f, 0]
             r = math.sqrt(dx * dx + dy * dy + dz * dz)
             if r < 0.05 or 2.0 * r >= max_path:
                 continue
@@ -119,12 +124,23 @@ def _synthesize(tx0, tx1, rx0, rx1, origin, enu_to_radar, targets, sqrt_rcs, f0,
                     px = targets[m, 0]
                     py = targets[m, 1]
                     pz = targets[m, 2]
+                    # a mover's positions at the chirp's first and one-past-last ADC sample, as the antennas'
+                    qx, qy, qz = px, py, pz
+                    if m >= first_moving:
+                        j = m - first_moving
+                        t0 = t_start[f, k]
+                        qx = px + velocity[j, 0] * (t0 + t_win)
+                        qy = py + velocity[j, 1] * (t0 + t_win)
+                        qz = pz + velocity[j, 2] * (t0 + t_win)
+                        px = px + velocity[j, 0] * t0
+                        py = py + velocity[j, 1] * t0
+                        pz = pz + velocity[j, 2] * t0
                     d0 = (math.sqrt((px - tx0[f, k, 0]) ** 2 + (py - tx0[f, k, 1]) ** 2 + (pz - tx0[f, k, 2]) ** 2)
                           + math.sqrt((px - rx0[f, k, q, 0]) ** 2 + (py - rx0[f, k, q, 1]) ** 2
                                       + (pz - rx0[f, k, q, 2]) ** 2))
-                    d1 = (math.sqrt((px - tx1[f, k, 0]) ** 2 + (py - tx1[f, k, 1]) ** 2 + (pz - tx1[f, k, 2]) ** 2)
-                          + math.sqrt((px - rx1[f, k, q, 0]) ** 2 + (py - rx1[f, k, q, 1]) ** 2
-                                      + (pz - rx1[f, k, q, 2]) ** 2))
+                    d1 = (math.sqrt((qx - tx1[f, k, 0]) ** 2 + (qy - tx1[f, k, 1]) ** 2 + (qz - tx1[f, k, 2]) ** 2)
+                          + math.sqrt((qx - rx1[f, k, q, 0]) ** 2 + (qy - rx1[f, k, q, 1]) ** 2
+                                      + (qz - rx1[f, k, q, 2]) ** 2))
                     tau0 = d0 / c
                     tau_dot = (d1 - d0) / c / t_win
                     tau_m = tau0 + tau_dot * t_mid
@@ -162,6 +178,8 @@ def synthesize_beat(
     amplitude_lsb: float,
     beamwidth_az_deg: float,
     beamwidth_el_deg: float,
+    target_velocity: NDArray[np.float64] | None = None,
+    chirp_start_s: NDArray[np.float64] | None = None,
 ) -> NDArray[np.complex64]:
     """Noise-free complex beat samples (F, T, R, N), in ADC LSB.
 
@@ -172,17 +190,35 @@ def synthesize_beat(
         radar_origin: ENU position (m) of the radar frame origin per frame, (F, 3) (pattern, path loss).
         enu_to_radar: rotation ENU -> radar frame per frame, (F, 3, 3).
         targets: scatterer ENU positions (m), (M, 3); rcs_m2: their radar cross sections (M,).
+        target_velocity: each scatterer's ENU velocity (m/s), (M, 3), None: all stand still; a mover is at
+            ``targets + target_velocity * t`` at time t (s).
+        chirp_start_s: with ``target_velocity``, the time (s, the movers' clock) of each Tx chirp's first ADC
+            sample, (F, T): the instants of ``tx_start``.
     """
     n_frames, n_tx = tx_start.shape[:2]
     n_rx = rx_start.shape[2]
     out = np.zeros((n_frames, n_tx, n_rx, num_samples), dtype=np.complex64)
     max_path = IF_BAND_FRACTION * sample_rate_hz * SPEED_OF_LIGHT / slope_hz_per_s
+    targets = np.asarray(targets, np.float64)
+    sqrt_rcs = np.sqrt(np.asarray(rcs_m2, np.float64))
+    velocity = np.zeros((0, 3))
+    t_start = np.zeros((n_frames, n_tx))
+    if target_velocity is not None and np.any(target_velocity != 0.0):
+        if chirp_start_s is None:
+            raise ValueError("moving targets need the chirps' start times (chirp_start_s)")
+        # the kernel takes the movers last: the still ones' sum keeps its order
+        moving = np.any(np.asarray(target_velocity) != 0.0, axis=1)
+        order = np.concatenate([np.flatnonzero(~moving), np.flatnonzero(moving)])
+        targets, sqrt_rcs = targets[order], sqrt_rcs[order]
+        velocity = np.asarray(target_velocity, np.float64)[moving]
+        t_start = np.asarray(chirp_start_s, np.float64)
     _synthesize(
         np.ascontiguousarray(tx_start, np.float64), np.ascontiguousarray(tx_end, np.float64),
         np.ascontiguousarray(rx_start, np.float64), np.ascontiguousarray(rx_end, np.float64),
         np.ascontiguousarray(radar_origin, np.float64), np.ascontiguousarray(enu_to_radar, np.float64),
-        np.ascontiguousarray(targets, np.float64), np.sqrt(np.asarray(rcs_m2, np.float64)),
-        float(start_frequency_hz), float(slope_hz_per_s), float(sample_rate_hz), float(amplitude_lsb),
+        np.ascontiguousarray(targets), sqrt_rcs, np.ascontiguousarray(velocity),
+        np.ascontiguousarray(t_start), float(start_frequency_hz), float(slope_hz_per_s), float(sample_rate_hz),
+        float(amplitude_lsb),
         pattern_exponent(beamwidth_az_deg), pattern_exponent(beamwidth_el_deg), float(max_path), out,
     )
     return out

@@ -73,6 +73,14 @@ def _motion(config: Config, lateral: LateralProfile, length: float, direction: f
                        v.cog_height_m)
 
 
+def _riders(b: SceneBuilder, config: Config, u0: float) -> SceneBuilder:
+    """``b`` with the config's cyclists (simulation.cyclists) added last, their along-track start from ``u0`` (the
+    radar's): the other scatterers keep their draws and their order."""
+    for i, (du, w, speed) in enumerate(config.simulation.cyclists if config.simulation else ()):
+        b.cyclist(u0 + du, w, speed, name=f"cyclist {i + 1}")
+    return b
+
+
 def _radar_u0(config: Config) -> float:
     """Along-track position of the radar when the rear axle is at u = 0."""
     return config.vehicle.cog_to_rear_axle_m + config.radar.mounting.lever_arm_m[0]
@@ -90,7 +98,7 @@ def _ci(config: Config) -> Scenario:
     b.lamp_post(u0 + 1.5, -3.0)
     b.clutter(u0 - 6.0, u0 + 14.0, -2.5, -20.0, 0.4)
     return Scenario("ci", "tiny drive for tests: 2.4 m at ~2.4 m/s, gentle left curve, 3 corner reflectors",
-                    motion, finish_scene(b, 0.0, (0.0, 0.0)))
+                    motion, finish_scene(_riders(b, config, u0), 0.0, (0.0, 0.0)))
 
 
 def _test1(config: Config) -> Scenario:
@@ -112,7 +120,7 @@ def _test1(config: Config) -> Scenario:
         b.lamp_post(u0 + du, -2.8)
     b.clutter(u0 - 6.0, u0 + length + 20.0, -2.5, -16.5, 0.5)
     return Scenario("test1", "paper Test 1: ~50 m E->W, slow left turn (~0.5 m drift), speed up to ~18 km/h",
-                    motion, finish_scene(b, np.pi, (0.0, 0.0)))
+                    motion, finish_scene(_riders(b, config, u0), np.pi, (0.0, 0.0)))
 
 
 def _test2(config: Config) -> Scenario:
@@ -134,7 +142,7 @@ def _test2(config: Config) -> Scenario:
     b.facade(u0 + 20.0, u0 + length + 10.0, -20.0, pillar_spacing=4.0)
     b.clutter(u0 - 6.0, u0 + length + 20.0, -2.5, -20.0, 0.35)
     return Scenario("test2", "paper Test 2: ~120 m W->E, double curve of +-1 m", motion,
-                    finish_scene(b, 0.0, (0.0, 0.0)))
+                    finish_scene(_riders(b, config, u0), 0.0, (0.0, 0.0)))
 
 
 def _test3(config: Config) -> Scenario:
@@ -154,7 +162,7 @@ def _test3(config: Config) -> Scenario:
         b.lamp_post(u0 + du, -3.4)
     b.clutter(u0 - 6.0, u0 + length + 20.0, -3.2, -15.5, 0.4)
     return Scenario("test3", "paper Test 3: ~80 m zig-zag S->N (+-0.8 m, 25 m period), ~14 km/h", motion,
-                    finish_scene(b, np.pi / 2, (0.0, 0.0)))
+                    finish_scene(_riders(b, config, u0), np.pi / 2, (0.0, 0.0)))
 
 
 def _urban(config: Config) -> Scenario:
@@ -186,7 +194,7 @@ def _urban(config: Config) -> Scenario:
     road = RoadLayout(bumps=((128.0, 3.7, 0.07),), kerb_ramps=((20.0, 3.0, 0.06),),
                       rough_sections=((145.0, 175.0, "C"),))
     return Scenario("urban", "~200 m town drive: straight, right turn at a junction, S-bend, 6 s stop, speed bump,"
-                    " cobbles; 2-18 km/h", motion, finish_scene_along(b, motion.path), road)
+                    " cobbles; 2-18 km/h", motion, finish_scene_along(_riders(b, config, u0), motion.path), road)
 
 
 _MAKERS: dict[str, Callable[[Config], Scenario]] = {

@@ -1,7 +1,10 @@
-"""Scene of point scatterers: corner reflectors, facade, parked cars, kerb, lamp posts, railings, clutter.
+"""Scene of point scatterers: corner reflectors, facade, parked cars, kerb, lamp posts, railings, clutter, and
+cyclists riding past.
 
 Objects are laid out in the scenario's path frame (u along the nominal line, w to its left, z up from
-the road) and converted to ENU by the scenario. Radar cross sections are in m^2.
+the road) and converted to ENU by the scenario. Radar cross sections are in m^2. A scatterer moves at a constant
+velocity (m/s, ENU): at drive time t (s from the drive's start) it is at ``position + velocity * t``; all but the
+cyclists stand still.
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ from numpy.typing import NDArray
 
 from autosar_cli.config import SPEED_OF_LIGHT
 
-KINDS = ("corner_reflector", "facade", "car", "kerb", "lamp_post", "railing", "clutter")
+KINDS = ("corner_reflector", "facade", "car", "kerb", "lamp_post", "railing", "clutter", "cyclist")
 
 
 def trihedral_rcs_m2(edge_m: float, frequency_hz: float) -> float:
@@ -34,10 +37,13 @@ class SceneBuilder:
     kind: list[NDArray[np.int8]] = field(default_factory=list)
     names: list[str] = field(default_factory=list)
     name_index: list[NDArray[np.int32]] = field(default_factory=list)
+    velocity_uw: list[NDArray[np.float64]] = field(default_factory=list)  #: (n, 2) m/s along u and w
 
-    def _add(self, uwz: NDArray[np.float64], rcs: NDArray[np.float64], kind: str, name: str) -> None:
+    def _add(self, uwz: NDArray[np.float64], rcs: NDArray[np.float64], kind: str, name: str,
+             velocity_uw: tuple[float, float] = (0.0, 0.0)) -> None:
         uwz = np.atleast_2d(np.asarray(uwz, dtype=np.float64))
         self.uwz.append(uwz)
+        self.velocity_uw.append(np.tile(np.asarray(velocity_uw, dtype=np.float64), (len(uwz), 1)))
         self.rcs.append(np.broadcast_to(np.asarray(rcs, dtype=np.float64), (len(uwz),)).copy())
         self.kind.append(np.full(len(uwz), KINDS.index(kind), dtype=np.int8))
         self.name_index.append(np.full(len(uwz), len(self.names), dtype=np.int32))
@@ -101,17 +107,35 @@ class SceneBuilder:
                         np.zeros(n)], -1)
         self._add(pts, self._speckle(n, 5e-4), "clutter", "ground clutter")
 
+    def cyclist(self, u0: float, w: float, speed_mps: float, name: str = "cyclist") -> None:
+        """A rider on a bicycle at (u0, w) at the drive's start, riding along u at ``speed_mps`` (negative: the
+        other way): the wheels' hubs and rims, the frame, the rider's legs, torso and head (2 m^2 in all, a
+        bicycle's and its rider's RCS at 77 GHz)."""
+        uwz = np.array([[u0 - 0.55, w, 0.35], [u0 + 0.55, w, 0.35], [u0 - 0.55, w, 0.68], [u0 + 0.55, w, 0.68],
+                        [u0 - 0.1, w, 0.55], [u0 + 0.3, w, 0.8], [u0, w, 0.75], [u0 + 0.05, w, 1.25],
+                        [u0 + 0.1, w, 1.55]])
+        rcs = np.array([0.3, 0.3, 0.1, 0.1, 0.3, 0.2, 0.25, 0.35, 0.1])
+        self._add(uwz, rcs, "cyclist", name, velocity_uw=(speed_mps, 0.0))
+
 
 @dataclass(frozen=True)
 class Scene:
-    """Point scatterers in ENU: position (M, 3) m, rcs (M,) m^2, kind (M,) index into KINDS,
-    object (M,) index into names."""
+    """Point scatterers in ENU: position (M, 3) m at the drive's start, rcs (M,) m^2, kind (M,) index into KINDS,
+    object (M,) index into names, velocity (M, 3) m/s ENU (None: all stand still)."""
 
     position: NDArray[np.float64]
     rcs_m2: NDArray[np.float64]
     kind: NDArray[np.int8]
     object_index: NDArray[np.int32]
     names: tuple[str, ...]
+    velocity_enu: NDArray[np.float64] | None = None
+
+    @property
+    def moving(self) -> NDArray[np.bool_]:
+        """(M,) whether each scatterer moves."""
+        if self.velocity_enu is None:
+            return np.zeros(len(self.position), dtype=bool)
+        return np.any(self.velocity_enu != 0.0, axis=1)
 
     @property
     def corner_reflectors(self) -> NDArray[np.intp]:
@@ -125,7 +149,17 @@ def finish_scene(builder: SceneBuilder, direction_rad: float, start_enu: tuple[f
     enu = np.stack([start_enu[0] + c * uwz[:, 0] - s * uwz[:, 1],
                     start_enu[1] + s * uwz[:, 0] + c * uwz[:, 1], uwz[:, 2]], -1)
     return Scene(enu, np.concatenate(builder.rcs), np.concatenate(builder.kind),
-                 np.concatenate(builder.name_index), tuple(builder.names))
+                 np.concatenate(builder.name_index), tuple(builder.names), _velocity_enu(builder, c, s))
+
+
+def _velocity_enu(builder: SceneBuilder, cos_heading: NDArray[np.float64] | float,
+                  sin_heading: NDArray[np.float64] | float) -> NDArray[np.float64] | None:
+    """The builder's velocities (along u, w) turned into ENU by the path's heading; None where all stand still."""
+    vel = np.concatenate(builder.velocity_uw)
+    if not np.any(vel != 0.0):
+        return None
+    return np.stack([cos_heading * vel[:, 0] - sin_heading * vel[:, 1],
+                     sin_heading * vel[:, 0] + cos_heading * vel[:, 1], np.zeros(len(vel))], -1)
 
 
 def finish_scene_along(builder: SceneBuilder,
@@ -137,5 +171,7 @@ def finish_scene_along(builder: SceneBuilder,
     uwz = np.concatenate(builder.uwz)
     pos, psi = path(uwz[:, 0])[:2]
     enu = np.stack([pos[:, 0] - np.sin(psi) * uwz[:, 1], pos[:, 1] + np.cos(psi) * uwz[:, 1], uwz[:, 2]], -1)
+    # a mover keeps the heading of the path where it starts (a straight line: cyclists ride past, not round corners)
     return Scene(enu, np.concatenate(builder.rcs), np.concatenate(builder.kind),
-                 np.concatenate(builder.name_index), tuple(builder.names))
+                 np.concatenate(builder.name_index), tuple(builder.names), _velocity_enu(builder, np.cos(psi),
+                                                                                         np.sin(psi)))

@@ -301,7 +301,8 @@ def simulate(
                     start_frequency_hz=radar.start_frequency_hz, slope_hz_per_s=radar.slope_hz_per_s,
                     sample_rate_hz=radar.sample_rate_hz, num_samples=radar.num_samples,
                     amplitude_lsb=sim.radar_amplitude_lsb, beamwidth_az_deg=radar.beamwidth_az_deg,
-                    beamwidth_el_deg=radar.beamwidth_el_deg,
+                    beamwidth_el_deg=radar.beamwidth_el_deg, target_velocity=scenario.scene.velocity_enu,
+                    chirp_start_s=t_frames[:, None] + offsets[None, :],
                 )
                 iq = beat.view(np.float32).reshape(*beat.shape, 2)
                 iq += noise_rng.standard_normal(iq.shape, dtype=np.float32) * np.float32(sim.radar_noise_std_lsb)

@@ -16,8 +16,9 @@ Layout (format ``autosar-truth`` version 1; every array in SI units, ENU metres 
                            wheel_load N, rolling_radius m, longitudinal_slip, wheel_rotation rad,
                            road_height_at_wheels m; road_s (S,) m along the path, road_track_heights (S,2)
                            left/right roughness + features m, road_grade_height (S,) m
-    /targets/              position_enu (M,3), rcs_m2 (M,), kind (M,) int8 (attrs kinds), object (M,),
-                           object_names (K,), corner_reflectors (C,) indices
+    /targets/              position_enu (M,3) at the drive's start, rcs_m2 (M,), kind (M,) int8 (attrs kinds),
+                           object (M,), object_names (K,), corner_reflectors (C,) indices; velocity_enu (M,3) m/s
+                           where some move (at start_time_ns + t they are at position + velocity t)
     /sensors/<name>/       t_ns (n,) measurement instants, plus true values and error states
 """
 
@@ -101,6 +102,8 @@ class TruthWriter:
         self._put("targets", "object", scene.object_index)
         self._put("targets", "object_names", np.array(scene.names, dtype=h5py.string_dtype()))
         self._put("targets", "corner_reflectors", scene.corner_reflectors)
+        if scene.velocity_enu is not None:
+            self._put("targets", "velocity_enu", scene.velocity_enu)
         self.f["targets"].attrs["kinds"] = ",".join(KINDS)
 
     def write_sensor(self, samples: SensorSamples, t_ns: NDArray[np.int64], stamp_ns: NDArray[np.int64]) -> None:
@@ -138,6 +141,7 @@ class TruthTargets:
     kind: NDArray[np.int64]  #: index into KINDS
     names: list[str]  #: object name of each scatterer
     corner_reflectors: NDArray[np.int64]  #: indices of the corner reflectors
+    velocity_enu: NDArray[np.float64] | None = None  #: (N, 3) m/s where some move (None: all still)
 
     def corner_reflector_names(self) -> list[str]:
         return [self.names[i] for i in self.corner_reflectors]
@@ -154,7 +158,11 @@ def read_targets(truth_path: str | Path, origin: GeodeticOrigin) -> TruthTargets
         obj = g["object"][()].astype(np.int64)
         names = [n.decode() if isinstance(n, bytes) else str(n) for n in g["object_names"][()]]
         crs = g["corner_reflectors"][()].astype(np.int64)
+        velocity = g["velocity_enu"][()] if "velocity_enu" in g else None
         truth_origin = GeodeticOrigin(float(f.attrs["origin_lat_deg"]), float(f.attrs["origin_lon_deg"]),
                                       float(f.attrs["origin_height_m"]))
     enu = origin.to_enu(*truth_origin.to_geodetic(pos))
-    return TruthTargets(enu, kind, [names[i] for i in obj], crs)
+    if velocity is not None:  # the velocity turned into the origin's frame with the positions
+        ahead = origin.to_enu(*truth_origin.to_geodetic(pos + velocity))
+        velocity = ahead - enu
+    return TruthTargets(enu, kind, [names[i] for i in obj], crs, velocity)
