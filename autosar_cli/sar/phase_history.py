@@ -5,7 +5,8 @@ trajectory correction can be tried on them many times without reading the radar 
 of bins around each point's predicted range per pulse and channel (:func:`narrow_histories` takes a narrower beam
 and window from them along a nearby track); :func:`focus_history` back-projects a pulse onto
 its point from given antenna positions (exact bistatic path, linear interpolation between bins and the carrier
-phase, as the product's kernel does); :func:`range_offsets` measures each point's range from its envelope. Used by
+phase, as the product's kernel does); :func:`range_offsets` measures each point's range from its envelope; :func:`channel_phase` the phase
+between its first and last channel (which a moving scatterer's shows). Used by
 the residual-motion autofocus (:mod:`autosar_cli.sar.residual_motion`).
 """
 
@@ -222,3 +223,21 @@ def range_offsets(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array,
     mean_los = np.stack([np.bincount(hist.point, los[:, c], n_points) for c in range(3)], axis=-1)
     mean_los /= np.maximum(np.linalg.norm(mean_los, axis=-1, keepdims=True), 1e-12)
     return offset, power.max(axis=1), mean_los
+
+
+def channel_phase(hist: PhaseHistories, tx: Array, rx: Array, points_enu: Array, n_points: int) -> tuple[Array, Array]:
+    """Per point (P,), the phase (rad) between the histories' first and last channel once each is back-projected
+    onto it from ``tx``, ``rx`` (N, C, 3), summed over its pulses: arg sum(z_first conj(z_last)), and that sum's
+    coherence |sum(z_first conj(z_last))| / sum(|z_first| |z_last|) (0 where it has no pulse). The channels are the
+    virtual array's ends, apart along the road: a still point where the track puts it has one phase in both (its
+    own); a scatterer crossing the beam at v_c, which back-projection places v_c R / v further along, is seen
+    off that direction, by 2 pi/lambda times the channels' path difference (along-track interferometry)."""
+    points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
+    last = hist.samples.shape[1] - 1
+    first, _ = focus_history(hist, tx, rx, points, channels=slice(0, 1))
+    end, _ = focus_history(hist, tx, rx, points, channels=slice(last, last + 1))
+    ok = np.isfinite(first) & np.isfinite(end)
+    cross = np.where(ok, first * np.conj(end), 0.0)
+    total = np.bincount(hist.point, cross.real, n_points) + 1j * np.bincount(hist.point, cross.imag, n_points)
+    scale = np.bincount(hist.point, np.where(ok, np.abs(first) * np.abs(end), 0.0), n_points)
+    return np.angle(total), np.where(scale > 0, np.abs(total) / np.where(scale > 0, scale, 1.0), 0.0)
