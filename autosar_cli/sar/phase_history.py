@@ -3,11 +3,11 @@ trajectory correction can be tried on them many times without reading the radar 
 
 :func:`gather_phase_histories` reads the frames that see the points once, range-compresses them and keeps a window
 of bins around each point's predicted range per pulse and channel (:func:`narrow_histories` takes a narrower beam
-and window from them along a nearby track); :func:`focus_history` back-projects a pulse onto
-its point from given antenna positions (exact bistatic path, linear interpolation between bins and the carrier
-phase, as the product's kernel does); :func:`range_offsets` measures each point's range from its envelope; :func:`channel_phase` the phase
-between its first and last channel (which a moving scatterer's shows). Used by
-the residual-motion autofocus (:mod:`autosar_cli.sar.residual_motion`).
+and window from them along a nearby track); :func:`focus_history` back-projects a pulse onto its point from given
+antenna positions (exact bistatic path, linear interpolation between bins and the carrier phase, as the product's
+kernel does); :func:`range_offsets` measures each point's range from its envelope; :func:`channel_phase` the phase
+between its first and last channel (which a moving scatterer's shows). Used by the residual-motion autofocus
+(:mod:`autosar_cli.sar.residual_motion`).
 """
 
 from __future__ import annotations
