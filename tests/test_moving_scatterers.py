@@ -7,6 +7,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from autosar_cli.config import load_config
 from autosar_cli.run import run
@@ -50,16 +51,70 @@ def test_autofocus_refuses_where_its_only_points_move_along_the_road(tmp_path: P
     """The ci drive's corner reflectors carried along the road at 1 m/s (the parked car and the lamp post taken
     away): each one's phases follow no still point, so the autofocus refuses, says why, and the run keeps the
     navigated track."""
-    scene = build_scenario("ci", CFG).scene
-    keep = (scene.kind != KINDS.index("car")) & (scene.kind != KINDS.index("lamp_post"))
-    velocity = np.zeros((len(scene.position), 3))
-    velocity[scene.corner_reflectors] = [1.0, 0.0, 0.0]  # ci drives east
-    carried = replace(scene, position=scene.position[keep], rcs_m2=scene.rcs_m2[keep], kind=scene.kind[keep],
-                      object_index=scene.object_index[keep], velocity_enu=velocity[keep])
-    manifest, out = _run(tmp_path, "carried", scene=carried)
+    manifest, out = _run(tmp_path, "carried", scene=_ci_scene((1.0, 0.0, 0.0)))  # ci drives east
     stage = manifest["stages"]["autofocus"]
     assert not stage["applied"] and stage["method"] == "sar-min"
     assert "behave as stationary point scatterers" in stage["reason"], stage["reason"]
     assert any("behave as stationary point scatterers" in w for w in manifest["warnings"]), manifest["warnings"]
     traj = read_trajectory(out / "trajectory.h5", covariance=False)
     assert traj.method == "sar-min" and traj.correction is None
+
+
+def _ci_scene(reflector_velocity_enu: tuple[float, float, float]):
+    """The ci scene, its parked car and lamp post taken away, its corner reflectors moving at
+    ``reflector_velocity_enu`` (m/s)."""
+    scene = build_scenario("ci", CFG).scene
+    keep = (scene.kind != KINDS.index("car")) & (scene.kind != KINDS.index("lamp_post"))
+    velocity = np.zeros((len(scene.position), 3))
+    velocity[scene.corner_reflectors] = reflector_velocity_enu
+    return replace(scene, position=scene.position[keep], rcs_m2=scene.rcs_m2[keep], kind=scene.kind[keep],
+                   object_index=scene.object_index[keep], velocity_enu=velocity[keep])
+
+
+def test_autofocus_leaves_out_points_that_cross_the_beam(tmp_path: Path) -> None:
+    """A scatterer crossing the beam at a constant speed is, to second order, a still one further along, so its
+    phases fit one; its two channels (the virtual array's ends, along the road) see it off that direction. The ci
+    drive's corner reflectors walking towards the road at 0.5 m/s, and nothing else bright (taken as still, on the
+    full vehicle, they put 4.46 mm RMS into the track): each one's channels' phase is over 0.5 rad (2.7-3.0), so
+    they are left out and the autofocus refuses, naming them."""
+    # ci drives east, the radar looks right: towards the road is +y
+    manifest, out = _run(tmp_path, "walking", scene=_ci_scene((0.0, 0.5, 0.0)))
+    stage = manifest["stages"]["autofocus"]
+    assert not stage["applied"] and stage["method"] == "sar-min", stage["summary"]
+    moving = stage["moving_points"]
+    assert len(moving) >= 2 and all(abs(m["channel_phase_rad"]) > 0.5 for m in moving), moving
+    assert "moving point(s) left out" in stage["reason"] and "cross the beam" in stage["reason"]
+    assert any("cross the beam" in w for w in manifest["warnings"]), manifest["warnings"]
+    assert read_trajectory(out / "trajectory.h5", covariance=False).correction is None
+
+
+@pytest.mark.long
+def test_a_walker_among_test1s_reflectors_is_left_out(tmp_path: Path) -> None:
+    """test1 seed 1 (the full vehicle) with a corner reflector's worth of scatterer 1 m beyond its second reflector,
+    walking away from the road at 0.5 m/s: taken as still it was one of 6 points and moved that reflector from 0.27
+    to 0.39 cm; left out (its channels' phase 2.1 rad; the reflectors' <= 0.09), the correction is the one without
+    it."""
+    from autosar_cli.sim.scene import trihedral_rcs_m2
+
+    scene = build_scenario("test1", CFG).scene
+    cr = scene.position[scene.corner_reflectors]
+    side = np.sign(cr[1, 1])  # test1 drives west: the reflectors lie north
+    walker = np.array([[cr[1, 0] - 4.0, cr[1, 1] - side, 0.5]])
+    velocity = np.zeros((len(scene.position) + 1, 3))
+    velocity[-1] = [0.0, 0.5 * side, 0.0]
+    walked = replace(scene, position=np.concatenate([scene.position, walker]),
+                     rcs_m2=np.append(scene.rcs_m2, trihedral_rcs_m2(0.1, 77e9) / 4),
+                     kind=np.append(scene.kind, np.int8(KINDS.index("cyclist"))),
+                     object_index=np.append(scene.object_index, np.int32(len(scene.names))),
+                     names=(*scene.names, "walker"), velocity_enu=velocity)
+    runs = {}
+    for name, sc in (("still", None), ("walker", walked)):
+        log = tmp_path / f"{name}.mcap"
+        simulate("test1", log, seed=1, config=CFG, scene=sc)
+        runs[name] = run([log], tmp_path / name, CFG, autofocus=True)["stages"]["autofocus"]
+    a, b = runs["still"], runs["walker"]
+    assert a["applied"] and b["applied"] and not a["moving_points"]
+    assert len(b["moving_points"]) == 1 and abs(b["moving_points"][0]["channel_phase_rad"]) > 1.0, b["moving_points"]
+    assert b["points_used"] == a["points_used"]
+    ca, cb = (read_trajectory(tmp_path / n / "trajectory.h5", covariance=False).correction for n in runs)
+    assert np.sqrt(np.mean(np.sum((cb.offset_enu - ca.offset_enu) ** 2, axis=1))) < 1e-4  # 0.1 mm

@@ -54,6 +54,7 @@ from autosar_cli.sar.normal_equations import factor_normal, node_difference, nod
 from autosar_cli.sar.pass_ranges import PassOptions, SlowMotion, estimate_slow_motion, pass_histories, with_correction
 from autosar_cli.sar.phase_history import (
     PhaseHistories,
+    channel_phase,
     focus_history,
     frame_geometry,
     gather_phase_histories,
@@ -127,6 +128,11 @@ class AutofocusOptions:
     #: steps measures a noise power to about 2.3/sqrt(n) (43 % at 30), and a point seen by a few pulses would
     #: otherwise weigh as much as its luck (the used points of test2 seed 1 hold 185-255)
     min_steps_own_noise: int = 30
+    #: a used point whose phase between its first and last channel (:func:`~autosar_cli.sar.phase_history.
+    #: channel_phase`: the virtual array's ends, along the road) is larger than this moves across the beam, which
+    #: back-projection places further along: it is left out and the points fitted again (the 40 drives' used
+    #: points: benches/results/af_movers.json; one crossing at 0.5 m/s: 2.13 rad); None: no such test
+    max_channel_phase_rad: float | None = 0.5
     #: each point's aperture stretched by the road's grade (:func:`grade_stretch`), which the scale then leaves out
     grade_stretch: bool = True
     #: first the track's slow motion from the points' ranges over their whole passes (:mod:`autosar_cli.sar.
@@ -210,6 +216,9 @@ class ResidualMotion:
     #: the fast motion measured last (:mod:`autosar_cli.sar.fast_motion`); where applied, ``trajectory`` and its
     #: correction hold it, and ``correction`` does not
     fast_motion: FastMotion | None = None
+    #: (M, 3) candidate points left out as moving (where the first fit put them) and their channel phases (rad)
+    moving_points_enu: Array = field(default_factory=lambda: np.zeros((0, 3)))
+    moving_channel_phase_rad: Array = field(default_factory=lambda: np.zeros(0))
 
     @property
     def applied(self) -> bool:
@@ -242,16 +251,25 @@ class ResidualMotion:
                 "points_used": int(self.points_used.sum()), "coverage": round(self.coverage, 4),
                 "coherence_before": round(self.coherence_before, 4), "coherence_after": round(self.coherence_after, 4),
                 "iterations": self.iterations, "correction": self.correction_summary(),
-                "points_enu": np.round(self.points_enu, 4).tolist()}
+                "points_enu": np.round(self.points_enu, 4).tolist(),
+                "moving_points": [{"enu": np.round(p, 4).tolist(), "channel_phase_rad": round(float(a), 3)}
+                                  for p, a in zip(self.moving_points_enu, self.moving_channel_phase_rad, strict=True)]}
+
+    def _moving_summary(self) -> str:
+        if not len(self.moving_points_enu):
+            return ""
+        phases = ", ".join(f"{abs(a):.2f}" for a in self.moving_channel_phase_rad)
+        return (f"; {len(self.moving_points_enu)} moving point(s) left out (their channels' phase {phases} rad: "
+                "they cross the beam)")
 
     def summary(self) -> str:
         """One line: what was corrected, or why nothing was."""
         slow = "" if self.slow_motion is None else self.slow_motion.summary() + "; "
         fast = "" if self.fast_motion is None else "; " + self.fast_motion.summary()
-        if self.reason:
+        if self.reason:  # which says what moved, where that left too few points
             return f"{slow}track not corrected by the phases: {self.reason}{fast}" if slow else \
                 f"track not corrected: {self.reason}"
-        return slow + self._phase_summary() + fast
+        return slow + self._phase_summary() + self._moving_summary() + fast
 
     def _phase_summary(self) -> str:
         c = self.correction_summary()
@@ -906,16 +924,68 @@ def residual_motion_of_points(drive_path: str | Path, trajectory: Trajectory, co
     measure: unless ``opts.slow_motion`` is off, the slow motion their ranges give over their passes
     (:func:`~autosar_cli.sar.pass_ranges.estimate_slow_motion`) less its whole-track stretch, then
     :func:`estimate_residual_motion` along the track so corrected, which measures the scale where the points agree on
-    it; where they do not, the passes' stretch is kept."""
+    it; where they do not, the passes' stretch is kept. A used point whose channels' phase says it moves
+    (``opts.max_channel_phase_rad``) is left out and the rest fitted again."""
     points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
-    if not opts.slow_motion or len(points) == 0:
-        return estimate_residual_motion(drive_path, trajectory, config, points, focus, opts)
     passes = passes or PassOptions()
     # one read of the radar for both: the passes' histories, their windows wide enough that the phases' fit the
     # shape correction's change of path (test2 seed 1's, 32 mm at most, moves them by ~1 bin of the 6 kept)
     histories = (pass_histories(drive_path, trajectory, config, points, focus, passes,
                                 min_window_bins=opts.window_bins + 2 * NARROWING_SLACK_BINS)
-                 if passes.channels == opts.channels and passes.half_beam_deg >= opts.half_beam_deg else None)
+                 if opts.slow_motion and len(points) and passes.channels == opts.channels
+                 and passes.half_beam_deg >= opts.half_beam_deg else None)
+    moving_enu, moving_phase = np.zeros((0, 3)), np.zeros(0)
+    for _ in range(3):  # a point left out may leave another one used
+        result = _points_motion(drive_path, trajectory, config, points, focus, opts, passes, histories)
+        moving, phase = _moving_used(drive_path, result, config, focus, opts, histories)
+        if not moving.any():
+            break
+        moving_enu = np.concatenate([moving_enu, result.points_enu[moving]])
+        moving_phase = np.concatenate([moving_phase, phase[moving]])
+        points = points[~moving]
+        histories = _histories_without(histories, ~moving) if histories is not None else None
+    if not len(moving_enu):
+        return result
+    result = replace(result, moving_points_enu=moving_enu, moving_channel_phase_rad=moving_phase)
+    # where too few still points remain, the moving ones are the reason too
+    return replace(result, reason=result.reason + result._moving_summary()) if result.reason else result
+
+
+def _moving_used(drive_path: str | Path, result: ResidualMotion, config: Config, focus: FocusOptions,
+                 opts: AutofocusOptions, histories: PhaseHistories | None) -> tuple[NDArray[np.bool_], Array]:
+    """Which of ``result``'s candidate points a fit used (the phases' or the slow motion's) and moves across the
+    beam (``opts.max_channel_phase_rad``), and every point's channel phase (rad; 0 where not measured), along the
+    track ``result`` made: over +-``opts.half_beam_deg``, narrowed from ``histories`` where given, else read."""
+    points = result.points_enu
+    used = np.asarray(result.points_used, dtype=bool).copy()
+    slow = result.slow_motion
+    if slow is not None and slow.applied and len(slow.points_used) == len(points):
+        used |= slow.points_used
+    if opts.max_channel_phase_rad is None or not used.any() or not result.applied:
+        return np.zeros(len(points), dtype=bool), np.zeros(len(points))
+    track = result.trajectory
+    if histories is not None:
+        hist = narrow_histories(histories, track, config, points, focus, half_beam_deg=opts.half_beam_deg,
+                                window_bins=opts.window_bins)
+    else:
+        hist = gather_phase_histories(drive_path, track, config, points, focus, half_beam_deg=opts.half_beam_deg,
+                                      window_bins=opts.window_bins, channels=opts.channels)
+    phase, _ = channel_phase(hist, *pair_antennas(hist, track, config), points, len(points))
+    return used & (np.abs(phase) > opts.max_channel_phase_rad), phase
+
+
+def _histories_without(hist: PhaseHistories, keep: NDArray[np.bool_]) -> PhaseHistories:
+    """``hist`` with only the ``keep`` (P,) points' pulses, the points numbered as the kept ones are."""
+    sub, _ = _histories_of(hist, keep)
+    return replace(sub, point=(np.cumsum(keep) - 1)[sub.point])
+
+
+def _points_motion(drive_path: str | Path, trajectory: Trajectory, config: Config, points: Array,
+                   focus: FocusOptions, opts: AutofocusOptions, passes: PassOptions,
+                   histories: PhaseHistories | None) -> ResidualMotion:
+    """:func:`residual_motion_of_points` without its moving-point test, on the passes' ``histories`` (or None)."""
+    if not opts.slow_motion or len(points) == 0:
+        return estimate_residual_motion(drive_path, trajectory, config, points, focus, opts)
     slow = estimate_slow_motion(drive_path, trajectory, config, points, focus, passes, histories)
     if not slow.applied:
         return replace(estimate_residual_motion(drive_path, trajectory, config, points, focus, opts,
