@@ -1,5 +1,8 @@
-"""Benchmark what tells a moving scatterer from a still one among the autofocus's points: the phase between the
-histories' first and last channel (the virtual array's ends, apart along the road), on drives of still scenes.
+"""Benchmark the channel phase of the autofocus's used points on drives whose scatterers all stand still.
+
+The channel phase (the phase between the histories' first and last channel: the virtual array's ends, apart along
+the road) tells a scatterer crossing the beam from a still one; the autofocus leaves out a used point above
+``AutofocusOptions.max_channel_phase_rad``.
 
 Usage: python benches/bench_af_movers.py [--drives test1:0,...,urban:9] [--keep DIR]
                                          [--output benches/results/af_movers.json]
