@@ -131,7 +131,7 @@ class AutofocusOptions:
     #: a used point whose phase between its first and last channel (:func:`~autosar_cli.sar.phase_history.
     #: channel_phase`: the virtual array's ends, along the road) is larger than this moves across the beam, which
     #: back-projection places further along: it is left out and the points fitted again (the 40 drives' used
-    #: points: benches/results/af_movers.json; one crossing at 0.5 m/s: 2.13 rad); None: no such test
+    #: points: benches/results/af_movers.json; one crossing at 0.5 m/s: 2.1 rad); None: no such test
     max_channel_phase_rad: float | None = 0.5
     #: each point's aperture stretched by the road's grade (:func:`grade_stretch`), which the scale then leaves out
     grade_stretch: bool = True
