@@ -89,6 +89,17 @@ def variant_tag(options: str) -> str:
     return re.sub(r"[^A-Za-z0-9.]+", "_", options)
 
 
+def top_level_items(given: str) -> list[str]:
+    """``given`` ("key=value,...") split at the commas outside brackets: a list value, nested too, keeps its own."""
+    items, depth, start = [], 0, 0
+    for i, ch in enumerate(given):
+        depth += (ch == "[") - (ch == "]")
+        if ch == "," and depth == 0:
+            items.append(given[start:i])
+            start = i + 1
+    return [*items, given[start:]]
+
+
 def config_copy(components: str | None, understeer: float | None, work: Path, rear_slip: float | None = None,
                 fits: bool = True, attitude: bool = True, radar_height: bool = False, car: str | None = None,
                 simulation: str | None = None, sensors: str | None = None, navigation: str | None = None,
@@ -109,7 +120,7 @@ def config_copy(components: str | None, understeer: float | None, work: Path, re
     for option, section, given in (("--car", "vehicle_dynamics", car), ("--simulation", "simulation", simulation),
                                    ("--sensors", "sensors", sensors), ("--navigation", "navigation", navigation),
                                    ("--processing", "processing", processing)):
-        for item in re.split(r",(?![^\[]*\])", given or ""):  # a list value keeps its commas
+        for item in top_level_items(given or ""):  # a list value keeps its commas
             if item:
                 key, _, value = item.partition("=")
                 table, _, key = f"{section}.{key.strip()}".rpartition(".")
