@@ -104,6 +104,12 @@ def test_bench_configs_change_only_the_simulators_entries(tmp_path: Path) -> Non
     assert changed.navigation == base.navigation and changed.radar == base.radar
     with pytest.raises(SystemExit, match="not an entry of \\[simulation\\]"):
         bench.config_copy(None, None, tmp_path, simulation="vibration_rms_m=1.0")
+    # a list value, nested too, keeps its commas
+    path = bench.config_copy(None, None, tmp_path, simulation="cyclists=[[15.0,-6.5,3.0],[45.0,-7.5,-4.0]],"
+                                                              "vibration_band_hz=[2.0,15.0]")
+    riders = load_config(path).simulation
+    assert riders is not None and riders.cyclists == ((15.0, -6.5, 3.0), (45.0, -7.5, -4.0))
+    assert riders.vibration_band_hz == (2.0, 15.0)
     path = bench.config_copy(None, None, tmp_path, sensors="gnss_cog.gnss.velocity_std_mps=0.06,"
                                                            "wheel_speeds.wheel.noise_std_mps=0.016")
     sensors, before = load_config(path).sensors, base.sensors
