@@ -13,7 +13,8 @@ options) along SAR-MIN's track, then its candidate points' histories over +-28 d
 gathers them) along the track it made, and each point's channel phase and coherence
 (:func:`~autosar_cli.sar.phase_history.channel_phase`). Each row: the points the product used (the phases' fit's
 or the slow motion's) and the others, their phase and coherence; the summary: the largest |phase| of a used point
-over all drives, and how many unused candidates lie beyond a few limits. A limit above every used point's drops none
+over all drives, at any coherence and where the channels agree as well as the autofocus's test asks, and how many
+unused candidates lie beyond a few limits. A limit above every used point's drops none
 of them: on these drives a screen at it leaves the product as it is. The default drives: the 40 (test1-3, urban,
 seeds 0-9), ~1 min each.
 """
@@ -76,10 +77,17 @@ def drive_row(work: Path) -> dict[str, Any]:
 
 
 def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    from autosar_cli.sar.residual_motion import AutofocusOptions
+
+    least = AutofocusOptions().min_channel_coherence
     used_max = max((r["used_max_abs_phase_rad"] for r in rows), default=0.0)
+    coherent = [abs(p) for r in rows for p, c, u in zip(r["phase_rad"], r["coherence"], r["used_mask"], strict=True)
+                if u and c >= least]
     unused = [abs(p) for r in rows for p, u in zip(r["phase_rad"], r["used_mask"], strict=True) if not u]
     return {"drives": len(rows), "used_points": sum(r["used"] for r in rows),
             "used_max_abs_phase_rad": used_max,
+            # those whose channels agree as well as the autofocus's test asks (AutofocusOptions.min_channel_coherence)
+            "min_channel_coherence": least, "used_coherent_max_abs_phase_rad": max(coherent, default=0.0),
             "worst_drive": max(rows, key=lambda r: r["used_max_abs_phase_rad"])["drive"] if rows else None,
             "unused_points": len(unused),
             "unused_beyond": {f"{lim:g}": int(sum(p > lim for p in unused)) for lim in LIMITS_RAD}}

@@ -133,6 +133,9 @@ class AutofocusOptions:
     #: back-projection places further along: it is left out and the points fitted again (the 40 drives' used
     #: points: benches/results/af_movers.json; one crossing at 0.5 m/s: 2.1 rad); None: no such test
     max_channel_phase_rad: float | None = 0.5
+    #: where the channels agree at least this well (|sum z1 z2*| / sum |z1 z2|): a weak point's phase says nothing
+    #: (test3 seed 2 used one at 0.35 rad and 0.28; the movers measured: 0.89-0.99)
+    min_channel_coherence: float = 0.6
     #: each point's aperture stretched by the road's grade (:func:`grade_stretch`), which the scale then leaves out
     grade_stretch: bool = True
     #: first the track's slow motion from the points' ranges over their whole passes (:mod:`autosar_cli.sar.
@@ -954,8 +957,9 @@ def residual_motion_of_points(drive_path: str | Path, trajectory: Trajectory, co
 def _moving_used(drive_path: str | Path, result: ResidualMotion, config: Config, focus: FocusOptions,
                  opts: AutofocusOptions, histories: PhaseHistories | None) -> tuple[NDArray[np.bool_], Array]:
     """Which of ``result``'s candidate points a fit used (the phases' or the slow motion's) and moves across the
-    beam (``opts.max_channel_phase_rad``), and every point's channel phase (rad; 0 where not measured), along the
-    track ``result`` made: over +-``opts.half_beam_deg``, narrowed from ``histories`` where given, else read."""
+    beam (``opts.max_channel_phase_rad``, ``opts.min_channel_coherence``), and every point's channel phase (rad; 0
+    where not measured), along the track ``result`` made: over +-``opts.half_beam_deg``, narrowed from
+    ``histories`` where given, else read."""
     points = result.points_enu
     used = np.asarray(result.points_used, dtype=bool).copy()
     slow = result.slow_motion
@@ -970,8 +974,9 @@ def _moving_used(drive_path: str | Path, result: ResidualMotion, config: Config,
     else:
         hist = gather_phase_histories(drive_path, track, config, points, focus, half_beam_deg=opts.half_beam_deg,
                                       window_bins=opts.window_bins, channels=opts.channels)
-    phase, _ = channel_phase(hist, *pair_antennas(hist, track, config), points, len(points))
-    return used & (np.abs(phase) > opts.max_channel_phase_rad), phase
+    phase, coherence = channel_phase(hist, *pair_antennas(hist, track, config), points, len(points))
+    moving = (np.abs(phase) > opts.max_channel_phase_rad) & (coherence >= opts.min_channel_coherence)
+    return used & moving, phase
 
 
 def _histories_without(hist: PhaseHistories, keep: NDArray[np.bool_]) -> PhaseHistories:
