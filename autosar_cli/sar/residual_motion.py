@@ -145,7 +145,7 @@ class AutofocusOptions:
     slow_motion: bool = True
     #: last, the fast across-track motion from many scatterers (:mod:`autosar_cli.sar.fast_motion`). The config's
     #: ``processing.autofocus_fast_motion`` where the options are not given (off: with it ``run --autofocus`` takes
-    #: 1.46-1.65 times ``run`` on test2 as the host moves it, against the 1.5 asked; the far swath then within 0.2 %
+    #: 1.45-1.65 times ``run`` on test2 as the host moves it, against the 1.5 asked; the far swath then within 0.2 %
     #: of the truth's on 22 of the 40, at most 0.2 % above on 39; docs/AUTOFOCUS.md)
     fast_motion: bool = False
 
