@@ -12,10 +12,12 @@ import io
 import re
 import shutil
 import sqlite3
+import struct
 import subprocess
 from collections import Counter
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 from mcap.data_stream import ReadDataStream
@@ -64,18 +66,45 @@ def ros1_chunks(bag: Path) -> list[tuple[int, int, list[Msg]]]:
     return out
 
 
-def test_truncated_ros1_bag_keeps_every_chunk_before_the_cut(ci_ros1: SimulationResult, work: Path) -> None:
+def ros1_record_ends(data: bytes) -> list[tuple[int, int]]:
+    """(op, end offset) of every record of a decompressed ROS1 chunk, walked by its two length fields."""
+    out, at = [], 0
+    while at < len(data):
+        (hlen,) = struct.unpack_from("<I", data, at)
+        header = data[at + 4:at + 4 + hlen]
+        (dlen,) = struct.unpack_from("<I", data, at + 4 + hlen)
+        at += 8 + hlen + dlen
+        op = header[header.index(b"op=") + 3]
+        out.append((op, at))
+    return out
+
+
+def test_truncated_ros1_bag_keeps_every_whole_message_before_the_cut(ci_ros1: SimulationResult, work: Path) -> None:
+    """Cut two thirds into a chunk, the bag keeps every chunk before it and the cut chunk's messages whose
+    records its lz4 prefix holds whole: those of the intact chunk, decompressed whole, that end within the bytes
+    the warning says were decoded."""
+    import lz4.frame
+    from rosbags.rosbag1 import Reader
+
     chunks = ros1_chunks(ci_ros1.log_path)
     data = ci_ros1.log_path.read_bytes()
-    cut = len(data) // 2
-    bag = work / "half.bag"
+    start, end, cut_msgs = chunks[len(chunks) // 2]
+    cut = start + 2 * (end - start) // 3
+    bag = work / "cut.bag"
     bag.write_bytes(data[:cut])
     got, warnings = read_all(bag)
-    intact = [m for start, end, msgs in chunks if end <= cut for m in msgs]
+    intact = [m for s_, e, msgs in chunks if e <= cut for m in msgs]
     assert 0 < len(intact) < sum(len(c[2]) for c in chunks)
-    assert Counter(got) == Counter(intact)
-    first_lost = min(start for start, end, _ in chunks if end > cut)
-    assert any(str(bag) in w and f"bytes {first_lost}-{cut}" in w for w in warnings), warnings
+    hit = [w for w in warnings if str(bag) in w and f"bytes {start}-{cut}: a chunk the file's end cuts" in w]
+    assert len(hit) == 1, warnings
+    kept, decoded = (int(x) for x in re.search(r"its first (\d+) messages kept, from (\d+) of", hit[0]).groups())
+    with Reader(ci_ros1.log_path) as reader:
+        ch = reader.chunks[start]
+        whole = lz4.frame.decompress(data[ch.datapos:ch.datapos + ch.datasize])
+    ends = [e for op, e in ros1_record_ends(whole) if op == 0x02]
+    assert len(ends) == len(cut_msgs)
+    assert 0 < decoded < len(whole) and kept == sum(e <= decoded for e in ends) > 0
+    assert Counter(got) == Counter(intact + cut_msgs[:kept])
 
 
 def test_ros1_damaged_chunk_costs_only_that_chunk(ci_ros1: SimulationResult, work: Path) -> None:
@@ -226,6 +255,60 @@ def test_mcap_bad_first_chunk_opcode_costs_only_that_chunk(ci_mcap: SimulationRe
     # the channels it declared are taken from the summary: every other chunk is kept
     assert Counter(got) == Counter(m for s, _, msgs in chunks if s != start for m in msgs)
     assert any(str(log) in w and f"bytes 69-{end}" in w and "channel record" in w for w in warnings), warnings
+
+
+def mcap_record_ends(data: bytes) -> list[tuple[int, int]]:
+    """(opcode, end offset) of every record of a decompressed MCAP chunk."""
+    out, at = [], 0
+    while at < len(data):
+        op, length = struct.unpack_from("<BQ", data, at)
+        at += 9 + length
+        out.append((op, at))
+    return out
+
+
+def test_mcap_cut_inside_a_chunk_keeps_its_whole_messages(ci_mcap: SimulationResult, work: Path) -> None:
+    """Cut two thirds into a zstd chunk (a copy or a disk that ran out mid-write), the file keeps every chunk
+    before it and the cut chunk's messages whose records the decoded prefix holds whole: those of the intact
+    chunk, decompressed whole by the mcap library, that end within the bytes the warning says were decoded."""
+    chunks = mcap_chunks(ci_mcap.log_path)
+    data = ci_mcap.log_path.read_bytes()
+    start, end, cut_msgs = chunks[len(chunks) // 2]
+    cut = start + 2 * (end - start) // 3
+    log = work / "cut_inside.mcap"
+    log.write_bytes(data[:cut])
+    got, warnings = read_all(log)
+    assert len(warnings) == 1 and warnings[0].startswith(f"{log}: damaged MCAP at byte {start} of {cut}: "), warnings
+    kept, decoded, size = (int(x) for x in re.search(r"(\d+) whole messages kept from (\d+) of its (\d+) bytes "
+                                                       r"\(its CRC could not be checked\)", warnings[0]).groups())
+    chunk = Chunk.read(ReadDataStream(io.BytesIO(data[start + 9:end])))
+    import zstandard
+
+    whole = zstandard.ZstdDecompressor().decompress(chunk.data, max_output_size=chunk.uncompressed_size)
+    ends = [e for op, e in mcap_record_ends(whole) if op == 0x05]
+    assert size == len(whole) and len(ends) == len(cut_msgs)
+    assert 0 < decoded < size and kept == sum(e <= decoded for e in ends) > 0
+    assert Counter(got) == Counter([m for _, e, msgs in chunks if e <= start for m in msgs] + cut_msgs[:kept])
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", ""])
+def test_mcap_cut_chunk_prefix_decodes_for_every_codec(compression: str) -> None:
+    """A chunk's compressed data cut anywhere decodes to a prefix of its payload, for each MCAP codec."""
+    import lz4.frame
+    import zstandard
+
+    from autosar_cli.ingest.mcap_source import _decode
+
+    rng = np.random.default_rng(3)
+    payload = rng.integers(0, 16, 600_000, dtype=np.uint8).tobytes()  # compressible, not trivially
+    packed = {"zstd": zstandard.ZstdCompressor().compress, "lz4": lz4.frame.compress,
+              "": bytes}[compression](payload)
+    for frac in (0.3, 0.7, 1.0):
+        part = packed[:int(len(packed) * frac)]
+        out = _decode(Chunk(compression=compression, data=part, message_start_time=0, message_end_time=0,
+                            uncompressed_crc=0, uncompressed_size=len(payload)), prefix=True)
+        assert out == payload[:len(out)]
+        assert len(out) == len(payload) if frac == 1.0 else 0 < len(out) < len(payload)
 
 
 @pytest.mark.parametrize("where", ["message index length", "chunk length"])

@@ -10,7 +10,10 @@ quarter of the ingest time budget. Damage is contained:
 - a chunk that fails to decompress or whose CRC does not match is skipped with a warning naming its
   file offset, and reading goes on with the next record;
 - a broken record structure (truncated file, garbage length) ends the read with a warning naming the
-  offset; everything before it has been delivered.
+  offset; everything before it has been delivered;
+- a chunk cut by the file's end (a copy or a disk that ran out mid-write) gives up the messages whose bytes
+  are all there: its compressed data decoded as far as it goes (zstd and lz4 decode a stream's prefix), the
+  records parsed up to the one the cut breaks. Its CRC cannot be checked; the warning says so.
 
 Only a file that is not MCAP at all (bad magic) raises :class:`~.sources.LogReadError`.
 """
@@ -92,38 +95,49 @@ def _next_record(path: Path, start: int, total: int) -> int | None:
     return None
 
 
-def _parse_chunk(body: bytes) -> Chunk:
+def _parse_chunk(body: bytes, cut: bool = False) -> Chunk:
+    """A chunk record's body; ``cut``: it may end before its records do (they are then its prefix)."""
     _, _, size, crc, clen = _CHUNK_HEAD.unpack_from(body, 0)
     pos = _CHUNK_HEAD.size
     compression = body[pos:pos + clen].decode("ascii")
     pos += clen
     (nrec,) = struct.unpack_from("<Q", body, pos)
     pos += 8
-    if pos + nrec > len(body):
+    if pos + nrec > len(body) and not cut:
         raise ValueError("chunk records run past the chunk")
     return Chunk(compression=compression, data=memoryview(body)[pos:pos + nrec], message_end_time=0,
                  message_start_time=0, uncompressed_crc=crc, uncompressed_size=size)
 
 
-def _decompress(chunk: Chunk) -> bytes:
-    """Chunk payload, decompressed and CRC-checked (runs on a worker thread; the codecs release the GIL)."""
+def _decode(chunk: Chunk, prefix: bool = False) -> bytes:
+    """A chunk's payload decompressed; ``prefix``: its data may be cut, and what it gives is decoded (zstd and lz4
+    decode a stream's prefix), at most its uncompressed size."""
     try:
         if chunk.compression == "zstd":
             import zstandard
 
-            data = zstandard.ZstdDecompressor().decompress(chunk.data, max_output_size=chunk.uncompressed_size)
+            zstd = zstandard.ZstdDecompressor()
+            data = (zstd.decompressobj().decompress(chunk.data) if prefix
+                    else zstd.decompress(chunk.data, max_output_size=chunk.uncompressed_size))
         elif chunk.compression == "lz4":
             import lz4.frame
 
-            data = lz4.frame.decompress(chunk.data)
+            lz4_stream = lz4.frame.LZ4FrameDecompressor()
+            data = lz4_stream.decompress(chunk.data) if prefix else lz4.frame.decompress(chunk.data)
         elif chunk.compression == "":
-            data = chunk.data
+            data = bytes(chunk.data) if prefix else chunk.data
         else:
             raise _BadChunk(f"unsupported chunk compression {chunk.compression!r}")
     except _BadChunk:
         raise
     except Exception as exc:
         raise _BadChunk(f"chunk does not decompress ({exc})") from exc
+    return data[:chunk.uncompressed_size] if prefix else data
+
+
+def _decompress(chunk: Chunk) -> bytes:
+    """Chunk payload, decompressed and CRC-checked (runs on a worker thread; the codecs release the GIL)."""
+    data = _decode(chunk)
     if len(data) != chunk.uncompressed_size:
         raise _BadChunk(f"chunk decompresses to {len(data)} bytes, header says {chunk.uncompressed_size}")
     if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
@@ -198,6 +212,11 @@ class McapSource:
                 framing = _framing_problem(opcode, length, offset, total)
                 if framing:
                     nxt = _next_record(self.path, resync_from + 1, total)
+                    if nxt is None and opcode == _OP_CHUNK:
+                        while pending:
+                            yield from self._chunk_messages(*pending.popleft())
+                        yield from self._cut_chunk(f, offset, framing)
+                        break
                     if nxt is None:
                         self._damaged(offset, framing)
                         break
@@ -254,12 +273,41 @@ class McapSource:
         self.stats.warnings.append(f"{self.path}: damaged MCAP: bytes {start}-{end} skipped: {what}; reading "
                                    "went on after them")
 
+    def _cut_chunk(self, f: BinaryIO, offset: int, framing: str) -> Iterator[RawMessage]:
+        """The whole messages of the chunk record at ``offset`` that the file's end cuts (``framing``: why its
+        record does not fit), then the warning that names what was kept."""
+        f.seek(offset + 9)
+        body = f.read()
+        try:
+            chunk = _parse_chunk(body, cut=True)
+            data = _decode(chunk, prefix=True)
+        except (struct.error, ValueError, UnicodeDecodeError, _BadChunk):
+            self._damaged(offset, framing)
+            return
+        whole = len(data) == chunk.uncompressed_size and (not chunk.uncompressed_crc
+                                                          or zlib.crc32(data) == chunk.uncompressed_crc)
+        kept = 0
+        for msg in self._records_of(data, offset + 9 + len(body), cut=not whole):
+            kept += 1
+            yield msg
+        checked = "checked against its CRC" if whole else "its CRC could not be checked"
+        self.stats.warnings.append(
+            f"{self.path}: damaged MCAP at byte {offset} of {self.stats.bytes_total}: a chunk whose {framing}: "
+            f"{kept} whole messages kept from {len(data)} of its {chunk.uncompressed_size} bytes ({checked}); "
+            "everything before it was read")
+        self.stats.bytes_read = self.stats.bytes_total
+
     def _chunk_messages(self, end_offset: int, future: Future[bytes]) -> Iterator[RawMessage]:
         try:
             data = future.result()
         except _BadChunk as exc:
             self.stats.warnings.append(f"{self.path}: chunk ending at byte {end_offset} skipped: {exc}")
             return
+        yield from self._records_of(data, end_offset)
+
+    def _records_of(self, data: bytes, end_offset: int, cut: bool = False) -> Iterator[RawMessage]:
+        """The records of a chunk's payload ``data`` (whose record ends at file byte ``end_offset``); ``cut``: the
+        payload is a prefix, and the record it breaks off is where it ends, not damage."""
         view = memoryview(data)
         pos, n = 0, len(data)
         unpack_head, unpack_msg = _RECORD_HEAD.unpack_from, _MSG_HEAD.unpack_from
@@ -267,10 +315,14 @@ class McapSource:
         counts = self.stats.counts
         try:
             while pos < n:
+                if cut and pos + 9 > n:
+                    break
                 opcode, length = unpack_head(view, pos)
                 body = pos + 9
                 pos = body + length
                 if pos > n:
+                    if cut:
+                        break
                     raise ValueError("record runs past the end of the chunk")
                 if opcode == _OP_MESSAGE:  # the hot path, inlined
                     channel_id, _, log_time, _ = unpack_msg(view, body)

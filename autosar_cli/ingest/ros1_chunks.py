@@ -4,8 +4,9 @@ Used when a bag's index is missing or damaged (a truncated or killed recording, 
 file is scanned from the start (bag header, chunk records, the connection and message-data records
 inside each decompressed chunk), so every intact chunk is kept. A chunk whose record header is damaged
 is skipped by resynchronising on the next plausible chunk header; a chunk that does not decompress is
-skipped whole; a chunk whose inner records break keeps the messages before the break. Each loss is
-reported once, with its byte offsets in the file.
+skipped whole; a chunk whose inner records break keeps the messages before the break; a chunk cut by the
+file's end keeps the messages whose bytes are all there (its data decoded as far as it goes: lz4 and bz2
+decode a stream's prefix). Each loss is reported once, with its byte offsets in the file.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from __future__ import annotations
 import bz2
 import mmap
 import struct
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from dataclasses import dataclass, field
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
@@ -127,20 +128,43 @@ def normalise_topic(name: str) -> str:
     return f'{"/" * name.startswith("/")}{"/".join(x for x in name.split("/") if x)}'
 
 
-def _decompress(compression: str, data: bytes, size: int) -> bytes:
+def _decompress(compression: str, data: bytes, size: int, prefix: bool = False) -> bytes:
+    """A chunk's data decompressed to its ``size`` bytes; ``prefix``: ``data`` may be cut, and what it gives is
+    decoded (lz4 and bz2 decode a stream's prefix), at most ``size`` bytes."""
     if compression == "none":
-        out = data
+        out = bytes(data)
     elif compression == "bz2":
-        out = bz2.decompress(data)
+        out = bz2.BZ2Decompressor().decompress(data) if prefix else bz2.decompress(data)
     elif compression == "lz4":
         import lz4.frame
 
-        out = lz4.frame.decompress(data)
+        out = lz4.frame.LZ4FrameDecompressor().decompress(data) if prefix else lz4.frame.decompress(data)
     else:
         raise RecordError(f"unknown chunk compression {compression!r}")
+    if prefix:
+        return out[:size]
     if len(out) != size:
         raise RecordError(f"chunk decompresses to {len(out)} bytes, its header says {size}")
     return out
+
+
+def _cut_chunk(buf: Buffer, pos: int) -> tuple[dict[str, bytes], bytes] | None:
+    """The header fields of the chunk record at ``pos`` whose data the end of ``buf`` cuts, and that data's
+    decoded prefix; None if no chunk record starts there."""
+    n = len(buf)
+    try:
+        (hlen,) = _U32.unpack_from(buf, pos)
+        if hlen > _MAX_HEADER or pos + 4 + hlen + 4 > n:
+            return None
+        fields = parse_header(buf[pos + 4:pos + 4 + hlen])
+        if fields["op"][0] != OP_CHUNK:
+            return None
+        dstart = pos + 4 + hlen + 4
+        data = _decompress(fields.get("compression", b"").decode("ascii", "replace"), buf[dstart:n],
+                           _u32(fields, "size"), prefix=True)
+    except Exception:  # any codec or header error: nothing of it can be kept
+        return None
+    return fields, data
 
 
 def _next_chunk(buf: Buffer, start: int) -> int | None:
@@ -175,6 +199,12 @@ def scan_bag(buf: Buffer, report: ScanReport,
             op = fields["op"][0]
         except (RecordError, UnicodeDecodeError) as exc:
             nxt = _next_chunk(buf, pos + 1)
+            cut = _cut_chunk(buf, pos) if nxt is None else None
+            if cut is not None:  # the file's end cuts this chunk: its whole messages are kept
+                kept = yield from _records(cut[1], pos, n, report, connections, cut=True)
+                report.lost.append(f"bytes {pos}-{n}: a chunk the file's end cuts ({exc}); its first {kept} "
+                                   f"messages kept, from {len(cut[1])} of its {_u32(cut[0], 'size')} bytes")
+                return
             end = nxt if nxt is not None else n
             report.lost.append(f"bytes {pos}-{end} unreadable ({exc})")
             if nxt is None:
@@ -201,9 +231,18 @@ def _chunk(buf: Buffer, pos: int, fields: dict[str, bytes], dstart: int, dend: i
         report.lost.append(f"chunk at bytes {pos}-{dend} skipped: it does not decompress ({exc})")
         return
     report.chunks_read += 1
+    yield from _records(data, pos, dend, report, connections)
+
+
+def _records(data: bytes, pos: int, dend: int, report: ScanReport, connections: dict[int, Ros1Connection],
+             cut: bool = False) -> Generator[Ros1Message, None, int]:
+    """The messages of the decompressed ``data`` of the chunk record at bytes ``pos``-``dend``, returning how many;
+    ``cut``: ``data`` is a prefix, and the record it breaks off ends it (the caller says what was kept)."""
     at, kept = 0, 0
     try:
         while at < len(data):
+            if cut and not _whole_record(data, at):
+                return kept
             inner, istart, iend = read_record(data, at)
             op = inner["op"][0]
             if op == OP_MSG_DATA:
@@ -220,3 +259,15 @@ def _chunk(buf: Buffer, pos: int, fields: dict[str, bytes], dstart: int, dend: i
     except (RecordError, UnicodeDecodeError) as exc:
         report.lost.append(f"chunk at bytes {pos}-{dend} is corrupt after its first {kept} messages "
                            f"(uncompressed offset {at}: {exc}); the rest of it was skipped")
+    return kept
+
+
+def _whole_record(data: bytes, at: int) -> bool:
+    """Whether ``data`` holds the whole record at ``at`` (its two lengths and what they count)."""
+    if at + 4 > len(data):
+        return False
+    (hlen,) = _U32.unpack_from(data, at)
+    if at + 4 + hlen + 4 > len(data):
+        return False
+    (dlen,) = _U32.unpack_from(data, at + 4 + hlen)
+    return at + 8 + hlen + dlen <= len(data)

@@ -124,7 +124,7 @@ class Ros1BagSource:
         for lost in report.lost:
             self.stats.warnings.append(f"{self.path}: damaged ROS1 bag: {lost}")
         self.stats.warnings.append(f"{self.path}: {report.chunks_read} intact chunks read without the index "
-                                   f"({self.stats.messages} messages)")
+                                   f"({self.stats.messages} messages in all)")
 
 
 def _read_metadata(path: Path) -> dict[str, Any]:
