@@ -107,6 +107,47 @@ def test_truncated_ros1_bag_keeps_every_whole_message_before_the_cut(ci_ros1: Si
     assert Counter(got) == Counter(intact + cut_msgs[:kept])
 
 
+def ros1_record(fields: dict[str, bytes], data: bytes) -> bytes:
+    header = b"".join(struct.pack("<I", len(k) + 1 + len(v)) + k.encode() + b"=" + v for k, v in fields.items())
+    return struct.pack("<I", len(header)) + header + struct.pack("<I", len(data)) + data
+
+
+@pytest.mark.parametrize("compression", ["none", "lz4"])
+def test_ros1_chunk_a_killed_recording_left_open_keeps_its_whole_messages(compression: str,
+                                                                           ci_ros1: SimulationResult,
+                                                                           work: Path) -> None:
+    """``rosbag record`` writes a chunk's header with both sizes 0 and fills them in when it closes the chunk; killed
+    before, it leaves that chunk's messages after the header (uncompressed: records of their own; lz4: a stream
+    to the file's end). The bag built so from ci's, cut two thirds into a chunk, keeps every chunk before it and
+    the open chunk's messages whose records the bytes hold whole (walked by their two lengths here)."""
+    import lz4.frame
+    from rosbags.rosbag1 import Reader
+
+    chunks = ros1_chunks(ci_ros1.log_path)
+    data = ci_ros1.log_path.read_bytes()
+    start, end, open_msgs = chunks[len(chunks) // 2]
+    with Reader(ci_ros1.log_path) as reader:
+        ch = reader.chunks[start]
+        packed = data[ch.datapos:ch.datapos + ch.datasize]
+    records = lz4.frame.decompress(packed)
+    header = ros1_record({"compression": compression.encode(), "op": b"\x05", "size": bytes(4)}, b"")
+    if compression == "none":
+        body = records[:2 * len(records) // 3]
+        whole = sum(op == 0x02 and e <= len(body) for op, e in ros1_record_ends(records))
+    else:
+        body = packed[:2 * len(packed) // 3]
+        decoded = lz4.frame.LZ4FrameDecompressor().decompress(body)
+        whole = sum(op == 0x02 and e <= len(decoded) for op, e in ros1_record_ends(records))
+    bag = work / f"killed_{compression}.bag"
+    bag.write_bytes(data[:start] + header + body)
+    got, warnings = read_all(bag)
+    before = [m for s_, e, msgs in chunks if e <= start for m in msgs]
+    assert 0 < whole < len(open_msgs)
+    assert Counter(got) == Counter(before + open_msgs[:whole])
+    assert any(str(bag) in w and f"{start}" in w and "never closed" in w and f" {whole} " in w
+               for w in warnings), warnings
+
+
 def test_ros1_damaged_chunk_costs_only_that_chunk(ci_ros1: SimulationResult, work: Path) -> None:
     chunks = ros1_chunks(ci_ros1.log_path)
     start, end, lost = chunks[len(chunks) // 3]

@@ -6,7 +6,10 @@ inside each decompressed chunk), so every intact chunk is kept. A chunk whose re
 is skipped by resynchronising on the next plausible chunk header; a chunk that does not decompress is
 skipped whole; a chunk whose inner records break keeps the messages before the break; a chunk cut by the
 file's end keeps the messages whose bytes are all there (its data decoded as far as it goes: lz4 and bz2
-decode a stream's prefix). Each loss is reported once, with its byte offsets in the file.
+decode a stream's prefix). So does the chunk a killed ``rosbag record`` left open: its header's sizes still 0
+(filled in when a chunk closes), its messages after it as records of their own (uncompressed) or its
+compressed stream running to the file's end; ``rosbag reindex`` drops that chunk. Each loss is reported once,
+with its byte offsets in the file.
 """
 
 from __future__ import annotations
@@ -128,9 +131,9 @@ def normalise_topic(name: str) -> str:
     return f'{"/" * name.startswith("/")}{"/".join(x for x in name.split("/") if x)}'
 
 
-def _decompress(compression: str, data: bytes, size: int, prefix: bool = False) -> bytes:
+def _decompress(compression: str, data: bytes, size: int | None, prefix: bool = False) -> bytes:
     """A chunk's data decompressed to its ``size`` bytes; ``prefix``: ``data`` may be cut, and what it gives is
-    decoded (lz4 and bz2 decode a stream's prefix), at most ``size`` bytes."""
+    decoded (lz4 and bz2 decode a stream's prefix), at most ``size`` bytes (None: all of it)."""
     if compression == "none":
         out = bytes(data)
     elif compression == "bz2":
@@ -143,7 +146,7 @@ def _decompress(compression: str, data: bytes, size: int, prefix: bool = False) 
         raise RecordError(f"unknown chunk compression {compression!r}")
     if prefix:
         return out[:size]
-    if len(out) != size:
+    if size is None or len(out) != size:
         raise RecordError(f"chunk decompresses to {len(out)} bytes, its header says {size}")
     return out
 
@@ -193,6 +196,34 @@ def scan_bag(buf: Buffer, report: ScanReport,
         raise RecordError("not a ROS1 bag v2.0 (bad magic)")
     pos = len(ROS1_MAGIC)
     n = len(buf)
+    unclosed = _Unclosed()
+    try:
+        yield from _scan(buf, pos, n, report, connections, unclosed)
+    finally:
+        unclosed.close(report)
+
+
+@dataclass
+class _Unclosed:
+    """An uncompressed chunk ``rosbag record`` had not closed: its messages follow its header as records of their
+    own (the writer fills in the sizes when it closes the chunk)."""
+
+    pos: int | None = None
+    kept: int = 0
+
+    def open(self, pos: int, report: ScanReport) -> None:
+        self.close(report)
+        self.pos = pos
+
+    def close(self, report: ScanReport) -> None:
+        if self.pos is not None:
+            report.lost.append(f"chunk at byte {self.pos}: its writer never closed it (its header's sizes are 0: the "
+                               f"recording stopped first); the {self.kept} whole messages after it kept")
+        self.pos, self.kept = None, 0
+
+
+def _scan(buf: Buffer, pos: int, n: int, report: ScanReport, connections: dict[int, Ros1Connection],
+          unclosed: _Unclosed) -> Iterator[Ros1Message]:
     while pos < n:
         try:
             fields, dstart, dend = read_record(buf, pos)
@@ -211,8 +242,27 @@ def scan_bag(buf: Buffer, report: ScanReport,
                 return
             pos = nxt
             continue
-        if op == OP_CHUNK:
+        if op == OP_CHUNK and dend == dstart and fields.get("size") == bytes(4):
+            compression = fields.get("compression", b"").decode("ascii", "replace")
+            if compression == "none":
+                unclosed.open(pos, report)
+            else:  # a compressed stream to the file's end: what it decodes to
+                yield from _unclosed_compressed(buf, pos, dstart, n, compression, report, connections)
+                return
+        elif op == OP_CHUNK:
+            unclosed.close(report)
             yield from _chunk(buf, pos, fields, dstart, dend, report, connections)
+        elif op == OP_MSG_DATA and unclosed.pos is not None:
+            try:
+                conn = _u32(fields, "conn")
+                if conn not in connections:
+                    raise RecordError(f"message on undeclared connection {conn}")
+                msg = Ros1Message(conn, _time_ns(fields), bytes(buf[dstart:dend]), unclosed.pos)
+            except (RecordError, UnicodeDecodeError) as exc:
+                report.lost.append(f"message record at byte {pos} unreadable ({exc})")
+            else:
+                unclosed.kept += 1
+                yield msg
         elif op == OP_CONNECTION:
             try:
                 c = _connection(fields, buf[dstart:dend])
@@ -220,6 +270,20 @@ def scan_bag(buf: Buffer, report: ScanReport,
             except (RecordError, UnicodeDecodeError) as exc:
                 report.lost.append(f"connection record at byte {pos} unreadable ({exc})")
         pos = dend
+
+
+def _unclosed_compressed(buf: Buffer, pos: int, dstart: int, n: int, compression: str, report: ScanReport,
+                         connections: dict[int, Ros1Connection]) -> Iterator[Ros1Message]:
+    """The whole messages of the compressed chunk at ``pos`` whose writer never closed it: its stream runs from
+    ``dstart`` to the file's end ``n``."""
+    try:
+        data = _decompress(compression, buf[dstart:n], None, prefix=True)
+    except Exception as exc:  # any codec error: nothing of it can be kept
+        report.lost.append(f"bytes {pos}-{n}: a chunk its writer never closed, which does not decompress ({exc})")
+        return
+    kept = yield from _records(data, pos, n, report, connections, cut=True)
+    report.lost.append(f"bytes {pos}-{n}: a chunk its writer never closed (its header's sizes are 0: the recording "
+                       f"stopped first); its first {kept} messages kept, from {len(data)} bytes")
 
 
 def _chunk(buf: Buffer, pos: int, fields: dict[str, bytes], dstart: int, dend: int, report: ScanReport,
