@@ -210,6 +210,76 @@ def test_truncated_rosbag2_keeps_the_rows_before_the_cut(ci_ros2: SimulationResu
     assert sorted(p.name for p in bag.iterdir()) == [db3.name, "metadata.yaml"]
 
 
+def killed_wal_recording(intact: Path, bag: Path, batch: int = 50) -> tuple[int, int]:
+    """``intact``'s bag as a WAL-mode recording (rosbag2's ``resilient`` preset) killed before its last
+    checkpoint: its first two thirds of rows in the .db3, the rest committed ``batch`` rows per transaction into
+    the -wal beside it (no automatic checkpoint), the files copied while the writer still holds them. Returns
+    the first row id only the log holds and the last transaction's first id."""
+    writer = bag.with_name(bag.name + "_writer")
+    db3 = copy_bag(intact, writer)
+    con = sqlite3.connect(db3)
+    (n,) = con.execute("SELECT count(*) FROM messages").fetchone()
+    cut = 2 * n // 3
+    tail = con.execute("SELECT id, topic_id, timestamp, data FROM messages WHERE id > ? ORDER BY id",
+                       (cut,)).fetchall()
+    con.execute("DELETE FROM messages WHERE id > ?", (cut,))
+    con.commit()
+    con.execute("VACUUM")
+    assert con.execute("PRAGMA journal_mode=WAL").fetchone() == ("wal",)
+    con.execute("PRAGMA wal_autocheckpoint=0")
+    for i in range(0, len(tail), batch):
+        con.executemany("INSERT INTO messages (id, topic_id, timestamp, data) VALUES (?, ?, ?, ?)", tail[i:i + batch])
+        con.commit()
+    bag.mkdir()
+    for f in writer.iterdir():
+        if not f.name.endswith("-shm"):
+            shutil.copyfile(f, bag / f.name)
+    con.close()
+    return tail[0][0], tail[(len(tail) - 1) // batch * batch][0]
+
+
+@pytest.mark.parametrize("metadata", [True, False])
+def test_rosbag2_killed_wal_recording_keeps_what_its_log_committed(metadata: bool, ci_ros2: SimulationResult,
+                                                                   work: Path) -> None:
+    """A WAL-mode recording killed before its last checkpoint holds its last rows only in the -wal file, which
+    an immutable open (rosbags', and ours) never reads: every row is read, with the log's committed pages, and
+    nothing is written beside the input (no -shm, no checkpoint). Without metadata.yaml (``ros2 bag record``
+    writes it last) the directory is read from its storage files."""
+    rows = db_rows(ci_ros2.log_path)
+    bag = work / f"killed_wal_{metadata}"
+    first_in_log, _ = killed_wal_recording(ci_ros2.log_path, bag)
+    if not metadata:
+        (bag / "metadata.yaml").unlink()
+    db3 = next(bag.glob("*.db3"))
+    with sqlite3.connect(f"file:{db3}?immutable=1", uri=True) as db:  # the file alone: two thirds
+        assert db.execute("SELECT max(id) FROM messages").fetchone() == (first_in_log - 1,)
+    before = {f.name: f.read_bytes() for f in bag.iterdir()}
+    got, warnings = read_all(bag)
+    assert Counter(got) == Counter(m for _, m in rows)
+    assert any(str(db3) in w and "write-ahead log" in w and "committed pages" in w for w in warnings), warnings
+    assert {f.name: f.read_bytes() for f in bag.iterdir()} == before
+
+
+def test_rosbag2_wal_torn_last_transaction_is_left_out(ci_ros2: SimulationResult, work: Path) -> None:
+    """A log whose last frame is torn (the writer killed while appending it) loses only the transaction that
+    frame would have committed: the rows before it are read, none of it."""
+    rows = db_rows(ci_ros2.log_path)
+    bag = work / "torn_wal"
+    _, last_txn = killed_wal_recording(ci_ros2.log_path, bag)
+    wal = next(bag.glob("*.db3-wal"))
+    wal.write_bytes(wal.read_bytes()[:-100])
+    got, warnings = read_all(bag)
+    assert Counter(got) == Counter(m for i, m in rows if i < last_txn)
+    assert any("write-ahead log" in w for w in warnings), warnings
+
+
+def test_wal_with_a_bad_header_checksum_is_not_applied() -> None:
+    from autosar_cli.ingest.sqlite_wal import apply_wal
+
+    header = struct.pack(">8I", 0x377F0682, 3007000, 4096, 0, 1, 2, 0, 0)
+    assert apply_wal(b"SQLite format 3\x00" + bytes(4080), header + bytes(24 + 4096)) is None
+
+
 def test_rosbag2_zstd_error_names_file_row_and_topic(ci_ros2: SimulationResult, work: Path) -> None:
     rows = db_rows(ci_ros2.log_path)
     bag = work / "zstd_ros2"

@@ -35,6 +35,7 @@ from .sources import (
     register_container,
 )
 from .sqlite_pages import table_leaf_rows
+from .sqlite_wal import apply_wal
 
 
 class Ros1BagSource:
@@ -129,6 +130,9 @@ class Ros1BagSource:
 
 def _read_metadata(path: Path) -> dict[str, Any]:
     meta_path = path / "metadata.yaml"
+    if not meta_path.exists():
+        raise LogReadError(f"{path}: no metadata.yaml (ros2 bag record writes it last: a recording that did not "
+                           "finish)")
     try:
         meta = yaml.safe_load(meta_path.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
         meta["relative_file_paths"]  # noqa: B018  (required key)
@@ -215,6 +219,12 @@ class Rosbag2SqliteSource:
 
     def messages(self) -> Iterator[RawMessage]:
         seen: dict[str, int] = {}
+        if any(_wal_of(f) is not None for f in self.files):  # rosbags opens the files immutable: blind to the log
+            for msg in self._sql_messages(None):
+                seen[msg.channel.topic] = seen.get(msg.channel.topic, 0) + 1
+                yield msg
+            _check_declared(self.path, self.declared, seen, self.stats)
+            return
         yielded: Counter[tuple[str, int]] = Counter()  # (topic, t_ns) delivered by rosbags
         try:
             for msg in self._rosbags_messages():
@@ -332,19 +342,25 @@ _ROW_BATCH = 512
 
 
 def _open_storage(file: Path, warnings: list[str]) -> sqlite3.Connection:
-    """The sqlite3 file opened read-only and immutable; a truncated one is read from a padded copy in memory.
+    """The sqlite3 file opened read-only and immutable; with its write-ahead log's committed pages, where it has
+    one (:mod:`.sqlite_wal`), and a truncated one padded, from a copy in memory.
 
     A truncated file's schema points at pages past its end, which makes sqlite refuse the whole file;
     padded with zero pages to the size its header declares, only the lost pages' rows are unreadable.
     """
-    db = sqlite3.connect(f"file:{quote(str(file.resolve()))}?mode=ro&immutable=1", uri=True)
+    data = _with_wal(file, warnings)
+    if data is None:
+        db = sqlite3.connect(f"file:{quote(str(file.resolve()))}?mode=ro&immutable=1", uri=True)
+    else:
+        db = sqlite3.connect(":memory:")
+        db.deserialize(data)
     try:
         db.execute("SELECT name FROM sqlite_master").fetchall()
         return db
     except sqlite3.DatabaseError as exc:
         db.close()
         reason = exc
-    data = file.read_bytes()
+    data = data if data is not None else file.read_bytes()
     if len(data) < 100 or not data.startswith(b"SQLite format 3\x00"):
         raise LogReadError(f"{file}: not a readable sqlite3 file ({reason})")
     page_size = int.from_bytes(data[16:18], "big")
@@ -356,6 +372,29 @@ def _open_storage(file: Path, warnings: list[str]) -> sqlite3.Connection:
     db = sqlite3.connect(":memory:")
     db.deserialize(data + bytes(size - len(data)))
     return db
+
+
+def _wal_of(file: Path) -> Path | None:
+    """The non-empty write-ahead log beside a sqlite3 storage file, if there is one."""
+    wal = file.with_name(file.name + "-wal")
+    return wal if wal.is_file() and wal.stat().st_size > 0 else None
+
+
+def _with_wal(file: Path, warnings: list[str]) -> bytes | None:
+    """``file``'s bytes with its ``-wal`` log's committed transactions in place, if it has one that holds any."""
+    wal = _wal_of(file)
+    if wal is None:
+        return None
+    applied = apply_wal(file.read_bytes(), wal.read_bytes())
+    if applied is None:
+        warnings.append(f"{wal}: write-ahead log beside {file.name} holds no committed transaction; the file read "
+                        "as it is")
+        return None
+    left = (f"; its last {applied.frames_left} frames, of a transaction that never committed, left out"
+            if applied.frames_left else "")
+    warnings.append(f"{file}: its write-ahead log {wal.name} held {applied.frames_applied} committed pages (a "
+                    f"recording that stopped before its last checkpoint): read with them{left}")
+    return applied.image
 
 
 def _rows(db: sqlite3.Connection, file: Path, hint: int,
@@ -466,8 +505,11 @@ def _first_line(path: Path) -> str:
 
 
 def _is_rosbag2(path: Path) -> bool:
-    """A rosbag2 bag: its directory (with metadata.yaml) or that metadata.yaml itself."""
-    return (path / "metadata.yaml").exists() if path.is_dir() else path.name == "metadata.yaml"
+    """A rosbag2 bag: its directory (with metadata.yaml, or storage files without it: ``ros2 bag record`` writes it
+    last, so a killed recording has none) or that metadata.yaml itself."""
+    if not path.is_dir():
+        return path.name == "metadata.yaml"
+    return (path / "metadata.yaml").exists() or any(any(path.glob(f"*{s}")) for s in (".db3", ".mcap"))
 
 
 # any version: the reader says which it cannot read

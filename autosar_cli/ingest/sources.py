@@ -111,7 +111,7 @@ def _container(path: Path) -> Container:
         if container.detect(path):
             return container
     if path.is_dir():
-        raise LogReadError(f"{path}: a directory but not a rosbag2 bag (no metadata.yaml)")
+        raise LogReadError(f"{path}: a directory but not a rosbag2 bag (no metadata.yaml, no .db3 or .mcap files)")
     if path.suffix.lower() == ".bin":
         raise LogReadError(f"{path}: a raw .bin without a DCA1000 parameter file (*.mmwave.json or .cfg) beside it")
     names = [c.expected for c in _CONTAINERS]
