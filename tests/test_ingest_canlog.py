@@ -21,6 +21,7 @@ from cantools.database.can import Database
 
 from autosar_cli.candb import check_frame, encode_frame, load_dbc
 from autosar_cli.ingest.canlog import CAN_LOG_SUFFIXES, CanLogError, is_can_log, read_can_log
+from autosar_cli.ingest.mdf4_blocks import mdf4_cut
 from autosar_cli.ingest.records import CanRecord
 from tests.conftest import realdata
 
@@ -104,6 +105,49 @@ def test_real_mf4_counts_and_absolute_times(name: str) -> None:
     ids = {r.frame_id for r in records if r.channel == "2"}
     assert ids == (set(range(17, 26)) if "1089" in name else set(range(1, 10)) | {0x10})
     assert all(0x700 <= r.frame_id <= 0x7FF for r in records if r.channel == "1")
+
+
+def test_real_mf4_files_are_whole_record_by_record() -> None:
+    """The three CANedge files are unfinalised (their last data block runs to the file's end): walked record by
+    record (each record id's fixed length, or a VLSD record's own), each ends exactly at its last byte."""
+    for name in MF4_FACTS:
+        path = realdata(CSS, name)
+        assert path.read_bytes()[:8] == b"UnFinMF " and mdf4_cut(path) is None
+
+
+@pytest.mark.parametrize("fraction", [0.1, 0.5, 0.9])
+def test_truncated_real_mf4_keeps_every_whole_frame_then_errs(tmp_path: Path, fraction: float) -> None:
+    """A CANedge file cut short (its card pulled mid-write): asammdf alone ends early without a word, or stops
+    at the frame the cut breaks and loses the ones before it (the 0.9 cut: 4000 frames, then an error). The
+    frames before the cut are read, equal to the whole file's first ones and about as many as the bytes before
+    the cut hold (its records are 13 and 23 bytes long, in pairs), then a one-line error names the cut."""
+    whole = realdata(CSS, MF4_2022)
+    data = whole.read_bytes()
+    cut = tmp_path / "cut.MF4"
+    cut.write_bytes(data[:int(len(data) * fraction)])
+    reference = _real_records(MF4_2022)
+    got: list[CanRecord] = []
+    with pytest.raises(CanLogError) as info:
+        for rec in read_can_log(cut):
+            got.append(rec)
+    records_start = data.index(b"##DT") + 24
+    expected = len(reference) * (len(cut.read_bytes()) - records_start) / (len(data) - records_start)
+    assert got == list(reference[:len(got)]) and abs(len(got) - expected) < 20
+    message = str(info.value)
+    assert "cut.MF4" in message and "truncated MDF4" in message and f"{len(got)} frames" in message
+    assert "\n" not in message
+
+
+def test_truncated_finalised_mf4_names_the_cut(tmp_path: Path) -> None:
+    whole = tmp_path / "whole.mf4"
+    _write_mf4(whole, _frames())
+    assert whole.read_bytes()[:8] == b"MDF     " and mdf4_cut(whole) is None
+    cut = tmp_path / "cut.mf4"
+    cut.write_bytes(whole.read_bytes()[:whole.stat().st_size * 3 // 4])
+    found = mdf4_cut(cut)
+    assert found is not None and "byte" in found.reason
+    with pytest.raises(CanLogError, match="cut.mf4.*cut short|cut.mf4: truncated MDF4"):
+        list(read_can_log(cut))
 
 
 def test_real_mf4_suffix_and_streaming() -> None:
@@ -264,6 +308,13 @@ TIME_FACTS = {
 CHANNELS = {".asc": ("1", "2"), ".blf": ("1", "2"), ".trc": ("1", "2"), ".log": ("can0", "can1")}
 
 
+def _write_mf4(path: Path, frames: list[tuple[int, str, dict[str, float], can.Message]]) -> None:
+    """A finalised MDF4 file of ``frames`` (:func:`_frames`), written by python-can (asammdf)."""
+    with can.MF4Writer(path) as writer:
+        for *_, msg in frames:
+            writer.on_message_received(msg)
+
+
 def _write(path: Path, messages: list[can.Message]) -> None:
     with WRITERS[path.suffix](path) as writer:
         for msg in messages:
@@ -403,9 +454,7 @@ def test_mf4_support_is_loaded_when_the_first_mf4_log_is_opened(tmp_path: Path) 
     # as with python-can imported the usual way (this process).
     frames = _frames()
     path = tmp_path / "giulia.mf4"
-    with can.MF4Writer(path) as writer:
-        for _, _, _, msg in frames:
-            writer.on_message_received(msg)
+    _write_mf4(path, frames)
     expected = [[r.t_ns, r.frame_id, r.data.hex(), r.channel] for r in read_can_log(path)]
     assert len(expected) == len(frames) and [e[1] for e in expected] == [f[3].arbitration_id for f in frames]
     out = subprocess.run([sys.executable, "-c", _LEAN_MF4, str(path)], check=True, capture_output=True, text=True,

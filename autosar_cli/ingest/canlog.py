@@ -28,8 +28,11 @@ What python-can 4.6 gives as the timestamp, per format (all Unix seconds unless 
 Text logs are read as cp1252 (what Windows tools write, e.g. a German CANoe date "Mär"); python-can
 skips text lines it does not recognise (comments, statistics, a damaged line), except in candump logs.
 Damage python-can passes over silently: a BLF cut short often just ends early, so the file size in its
-header is checked after the last frame (:class:`CanLogError` if the file is shorter); an MDF4 cut in
-half may also end early without error (python-can gives no way to check that).
+header is checked after the last frame (:class:`CanLogError` if the file is shorter); an MDF4 cut short
+ends early too, or stops at the record the cut breaks and loses the frames before it, so its blocks and,
+in an unfinalised file (a CAN logger's), its last data block's records are walked first
+(:mod:`.mdf4_blocks`): the records before the cut are read from a temporary copy that ends there, then
+:class:`CanLogError` names the cut.
 
 Channels are named as the file numbers them: python-can makes ASC and BLF channels 0-based
 (file channel 1 -> 0) but not TRC or MF4; that shift is undone here so that "1" means CAN 1 in every
@@ -41,6 +44,7 @@ from __future__ import annotations
 import logging
 import math
 import re
+import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack
 from pathlib import Path
@@ -50,6 +54,7 @@ import can
 from can.io.generic import MessageReader
 
 from autosar_cli.ingest import mf4_support
+from autosar_cli.ingest.mdf4_blocks import Mdf4Cut, mdf4_cut
 from autosar_cli.ingest.records import CanRecord
 
 __all__ = ["CAN_LOG_SUFFIXES", "CanLogError", "is_can_log", "read_can_log"]
@@ -186,20 +191,23 @@ def _records(path: Path) -> Iterator[CanRecord]:
     to_channel: Callable[[object], str] = _channel_from_one if suffix in _ZERO_BASED_CHANNELS else _channel
     frames = 0
     with ExitStack() as stack:
+        cut = mdf4_cut(path) if suffix == ".mf4" else None
+        cut_note = f" (cut short: {cut.reason})" if cut else ""
         try:
-            reader = _open_reader(path, stack)
+            reader = _open_reader(_whole_records(path, cut, stack), stack)
             messages = iter(reader)
         except CanLogError:
             raise
         except Exception as exc:  # python-can/asammdf raise many types; the user needs file + reason
-            raise CanLogError(f"{path}: cannot open {kind} log: {_one_line(exc)}") from exc
+            raise CanLogError(f"{path}: cannot open {kind} log: {_one_line(exc)}{cut_note}") from exc
         while True:
             try:
                 msg = next(messages)
             except StopIteration:
                 break
             except Exception as exc:
-                raise CanLogError(f"{path}: cannot read {kind} log {_where(reader, frames)}: {_one_line(exc)}") from exc
+                raise CanLogError(f"{path}: cannot read {kind} log {_where(reader, frames)}: {_one_line(exc)}"
+                                  f"{cut_note}") from exc
             if frames == 0 and _relative_start(reader):
                 log.warning("%s: no start date in the header; times are offsets from the measurement start", path)
             frames += 1
@@ -214,6 +222,25 @@ def _records(path: Path) -> Iterator[CanRecord]:
                 channel=to_channel(msg.channel),
             )
         _check_complete(path, reader, frames)
+        if cut:
+            raise CanLogError(f"{path}: truncated MDF4 log: {cut.reason}; {frames} frames read before it")
+
+
+def _whole_records(path: Path, cut: Mdf4Cut | None, stack: ExitStack) -> Path:
+    """``path``, or where the end of an MDF4 log cuts a record, a temporary copy of it up to that record (asammdf
+    stops at the broken record, or reads a shape it cannot reshape and loses the frames before it)."""
+    if cut is None or cut.whole_bytes is None:
+        return path
+    copy = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="autosar-mf4-"))) / path.name
+    with open(path, "rb") as src, open(copy, "wb") as dst:
+        left = cut.whole_bytes
+        while left > 0:
+            block = src.read(min(left, 1 << 20))
+            if not block:
+                break
+            dst.write(block)
+            left -= len(block)
+    return copy
 
 
 def _check_complete(path: Path, reader: MessageReader, frames: int) -> None:
