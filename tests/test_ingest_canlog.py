@@ -400,6 +400,37 @@ def test_truncated_blf_yields_frames_then_error(tmp_path: Path) -> None:
     assert "cut.blf" in message and "truncated" in message and "\n" not in message
 
 
+@pytest.mark.parametrize("suffix", [".asc", ".trc", ".log"])
+def test_text_log_cut_inside_its_last_line_keeps_the_lines_before(tmp_path: Path, suffix: str) -> None:
+    """Every writer ends its lines; a text log whose end cuts its last frame's line (python-can skips a broken
+    TRC line without a word, and reads a broken candump line as a frame with fewer data bytes, a silently wrong
+    frame) keeps exactly the frames of its whole lines and ends in a one-line error naming the cut."""
+    frames = _frames()
+    whole = tmp_path / f"whole{suffix}"
+    _write(whole, [f[3] for f in frames])
+    reference = list(read_can_log(whole))
+    text = whole.read_bytes()
+    last_frame_line = text.rindex(b"\n", 0, text.rindex(b"\n", 0, len(text) - 1) if suffix == ".asc" else len(text) - 1)
+    cut_at = last_frame_line + 1 + 30  # 30 bytes into the last frame's line
+    cut = tmp_path / f"cut{suffix}"
+    cut.write_bytes(text[:cut_at])
+    got: list[CanRecord] = []
+    with pytest.raises(CanLogError) as info:
+        for rec in read_can_log(cut):
+            got.append(rec)
+    assert got == reference[:-1]
+    kind = {".asc": "ASC", ".trc": "TRC", ".log": "candump -L"}[suffix]
+    assert str(info.value) == (f"{cut}: truncated {kind} log: its last line is cut off (30 bytes "
+                               f"after the last line end); {len(got)} frames read before it")
+    at_line_end = tmp_path / f"at_line_end{suffix}"  # a cut between lines: a shorter log, but for ASC's block
+    at_line_end.write_bytes(text[:last_frame_line + 1])
+    if suffix == ".asc":
+        with pytest.raises(CanLogError, match="End TriggerBlock"):
+            list(read_can_log(at_line_end))
+    else:
+        assert list(read_can_log(at_line_end)) == reference[:-1]
+
+
 def test_corrupt_files(tmp_path: Path) -> None:
     bad = tmp_path / "garbage.blf"
     bad.write_bytes(b"not a binary logging file" * 10)

@@ -54,8 +54,8 @@ import can
 from can.io.generic import MessageReader
 
 from autosar_cli.ingest import mf4_support
-from autosar_cli.ingest.mdf4_blocks import Mdf4Cut, mdf4_cut
-from autosar_cli.ingest.records import CanRecord
+from autosar_cli.ingest.mdf4_blocks import mdf4_cut
+from autosar_cli.ingest.records import CanRecord, CutShort
 
 __all__ = ["CAN_LOG_SUFFIXES", "CanLogError", "is_can_log", "read_can_log"]
 
@@ -191,7 +191,7 @@ def _records(path: Path) -> Iterator[CanRecord]:
     to_channel: Callable[[object], str] = _channel_from_one if suffix in _ZERO_BASED_CHANNELS else _channel
     frames = 0
     with ExitStack() as stack:
-        cut = mdf4_cut(path) if suffix == ".mf4" else None
+        cut = mdf4_cut(path) if suffix == ".mf4" else None if suffix == ".blf" else _text_cut(path, suffix)
         cut_note = f" (cut short: {cut.reason})" if cut else ""
         try:
             reader = _open_reader(_whole_records(path, cut, stack), stack)
@@ -223,12 +223,38 @@ def _records(path: Path) -> Iterator[CanRecord]:
             )
         _check_complete(path, reader, frames)
         if cut:
-            raise CanLogError(f"{path}: truncated MDF4 log: {cut.reason}; {frames} frames read before it")
+            raise CanLogError(f"{path}: truncated {kind} log: {cut.reason}; {frames} frames read before it")
 
 
-def _whole_records(path: Path, cut: Mdf4Cut | None, stack: ExitStack) -> Path:
-    """``path``, or where the end of an MDF4 log cuts a record, a temporary copy of it up to that record (asammdf
-    stops at the broken record, or reads a shape it cannot reshape and loses the frames before it)."""
+def _text_cut(path: Path, suffix: str) -> CutShort | None:
+    """Where a text log's end cuts its last line (every writer ends its lines; python-can skips a broken TRC line
+    without a word and reads a broken candump line as a frame with fewer data bytes), or where an ASC log that
+    began a trigger block ends without closing it."""
+    size = path.stat().st_size
+    with open(path, "rb") as f:
+        f.seek(max(0, size - 4096))
+        tail = f.read()
+    last = tail.rfind(b"\n")
+    partial = tail[last + 1:]
+    if partial.strip() and not (suffix == ".asc" and partial.strip().lower().startswith(b"end triggerblock")):
+        whole = size - len(partial) if last >= 0 or size <= len(tail) else None
+        if whole is None:  # no line end in the last 4 KiB: no line to keep there
+            return CutShort(f"the file ends inside a line of over {len(tail)} bytes")
+        return CutShort(f"its last line is cut off ({len(partial)} bytes after the last line end)", whole)
+    if suffix == ".asc" and b"end triggerblock" not in tail.lower() and _begins_trigger_block(path):
+        return CutShort("it ends without the End TriggerBlock its Begin Triggerblock opened")
+    return None
+
+
+def _begins_trigger_block(path: Path) -> bool:
+    with open(path, "rb") as f:
+        return b"begin triggerblock" in f.read(_SNIFF_BYTES).lower()
+
+
+def _whole_records(path: Path, cut: CutShort | None, stack: ExitStack) -> Path:
+    """``path``, or where the end of a log cuts a record or line, a temporary copy of it up to there (asammdf stops
+    at a broken MDF4 record, or reads a shape it cannot reshape and loses the frames before it; python-can skips a
+    broken TRC line or reads a broken candump line as a shorter frame)."""
     if cut is None or cut.whole_bytes is None:
         return path
     copy = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="autosar-mf4-"))) / path.name

@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import mmap
 import struct
-from dataclasses import dataclass
 from pathlib import Path
+
+from .records import CutShort
 
 _HEAD = struct.Struct("<4s4xQQ")  # block id, length, link count
 _UNFINISHED_LAST_DT = 1 << 2  # id_unfin_flags: the last ##DT block's length is to be updated
@@ -32,19 +33,11 @@ def _block(buf: mmap.mmap, pos: int) -> tuple[bytes, int, tuple[int, ...], int]:
     return ident, length, struct.unpack_from(f"<{n_links}Q", buf, pos + _HEAD.size), data
 
 
-@dataclass(frozen=True)
-class Mdf4Cut:
-    """Where and why an MDF4 file looks cut short."""
-
-    reason: str  #: one clause naming the byte
-    whole_bytes: int | None = None  #: the file up to the record the end cuts: what a reader can take whole
-
-
-def mdf4_cut(path: Path) -> Mdf4Cut | None:
+def mdf4_cut(path: Path) -> CutShort | None:
     """Why the MDF4 file at ``path`` looks cut short, or None if it does not."""
     size = path.stat().st_size
     if size < 64:
-        return Mdf4Cut(f"the file ends inside its 64-byte identification block ({size} bytes)")
+        return CutShort(f"the file ends inside its 64-byte identification block ({size} bytes)")
     with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
         unfinished = buf[:8] == b"UnFinMF " and struct.unpack_from("<H", buf, 60)[0] & _UNFINISHED_LAST_DT
         todo, seen = [64], set()
@@ -57,7 +50,7 @@ def mdf4_cut(path: Path) -> Mdf4Cut | None:
                 seen.add(pos)
                 ident, length, links, _ = _block(buf, pos)
                 if pos + length > size and not (unfinished and ident == b"##DT"):
-                    return Mdf4Cut(f"its {ident.decode('latin-1')} block at byte {pos} runs past the end "
+                    return CutShort(f"its {ident.decode('latin-1')} block at byte {pos} runs past the end "
                                    f"({length} bytes)")
                 if ident == b"##DG" and len(links) > 2 and links[2]:
                     data_blocks.append((pos, links[2]))
@@ -68,11 +61,11 @@ def mdf4_cut(path: Path) -> Mdf4Cut | None:
                     if cut:
                         return cut
         except (ValueError, struct.error) as exc:
-            return Mdf4Cut(str(exc))
+            return CutShort(str(exc))
     return None
 
 
-def _cut_record(buf: mmap.mmap, dg: int, dt: int) -> Mdf4Cut | None:
+def _cut_record(buf: mmap.mmap, dg: int, dt: int) -> CutShort | None:
     """The record an unfinalised file's end cuts in the data block ``dt`` of data group ``dg``, if any; what can
     be read whole ends where every VLSD group has as many records as the group whose channel points to it (a
     CAN frame's fixed record without its data bytes' record is one asammdf cannot shape)."""
@@ -114,7 +107,7 @@ def _cut_record(buf: mmap.mmap, dg: int, dt: int) -> Mdf4Cut | None:
                 pos += 4
         if n is None or pos + n > end:
             there = f"{end - start} of its {pos + n - start} bytes" if n is not None else f"{end - start} bytes"
-            return Mdf4Cut(f"its last record at byte {start} is cut off ({there} there)", whole)
+            return CutShort(f"its last record at byte {start} is cut off ({there} there)", whole)
         pos += n
         counts[record_id] += 1
         if all(counts[vlsd] == counts[parent] for vlsd, parent in pairs):

@@ -60,3 +60,11 @@ class NmeaHeading:
 
 
 NmeaRecord = NmeaFix | NmeaVelocity | NmeaHeading
+
+
+@dataclass(frozen=True, slots=True)
+class CutShort:
+    """Where and why a log file looks cut short (a copy, a card or a disk that ran out mid-write)."""
+
+    reason: str  #: one clause naming the byte
+    whole_bytes: int | None = None  #: the file up to the record or line the end cuts: what a reader can take whole
