@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import simulated
 from typer.testing import CliRunner
 
 from autosar_cli.cli import app
@@ -483,6 +484,37 @@ def test_evaluate_errors_are_one_line(tmp_path: Path) -> None:
     assert r.exit_code == 1 and "missing.h5" in r.stderr
     r = runner.invoke(app, ["compare", str(tmp_path / "x.mcap"), "-o", str(tmp_path / "c"), "--methods", "ins,warp"])
     assert r.exit_code == 1 and "warp" in r.stderr and "Traceback" not in r.output
+
+
+def test_another_recordings_truth_is_refused(ci_run: Path, ci_mcap: Any, sim_dir: Path, tmp_path: Path) -> None:
+    """A truth sidecar keeps each radar frame's CRC-32 as a drive holds its samples: given beside a drive of
+    another recording (ci seed 8's truth beside seed 7's run), evaluate, navigate --method truth and compare refuse
+    it in one line rather than measure one drive against the other's truth. The same recording in another container
+    (seed 7's ROS1 bag) is its truth still; so is a cut log's (test_safety's degraded runs)."""
+    import zlib
+
+    import h5py
+
+    from autosar_cli.store.drive import Drive
+
+    other = simulated(sim_dir, "ci", "mcap", 8)
+    drive = ci_run / "drive.h5"
+    with h5py.File(ci_mcap.truth_path) as f, Drive(drive) as d:  # the CRCs are those of the drive's frames
+        radar = d.radar()
+        crc = f["radar/raw_crc32"][()]
+        assert len(crc) == len(radar.frame_index)
+        assert all(zlib.crc32(radar.raw[i].tobytes()) == crc[i] for i in (0, len(crc) // 2, len(crc) - 1))
+    for args in (["evaluate", str(ci_run), "-o", str(tmp_path / "rep")],
+                 ["navigate", str(drive), "-o", str(tmp_path / "t.h5"), "--method", "truth"],
+                 ["compare", str(ci_mcap.log_path), "-o", str(tmp_path / "cmp"), "--methods", "truth"]):
+        r = runner.invoke(app, [*args, "--truth", str(other.truth_path)])
+        assert r.exit_code == 1 and "Traceback" not in r.output, r.output
+        assert r.stderr.startswith(f"error: {other.truth_path}: the truth of another recording "
+                                   f"({other.log_path.name}): none of 8 radar frames of "), r.stderr
+    for truth in (ci_mcap.truth_path, simulated(sim_dir, "ci", "ros1", 7).truth_path):
+        r = runner.invoke(app, ["navigate", str(drive), "-o", str(tmp_path / "t.h5"), "--method", "truth",
+                                "--truth", str(truth), "--overwrite"])
+        assert r.exit_code == 0, r.output
 
 
 def test_reflectors_with_the_truth_trajectory_and_a_rigidly_moved_one(ci_run: Path) -> None:

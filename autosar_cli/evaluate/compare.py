@@ -66,6 +66,7 @@ from autosar_cli.sar.autofocus import TrackAutofocus, estimate_track_scale, scal
 from autosar_cli.sar.focus import FocusOptions, auto_grid, focus_images
 from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.sar.residual_motion import autofocus_residual_motion
+from autosar_cli.sim.truth import truth_radar_mismatch
 from autosar_cli.store.drive import Drive, radar_times
 from autosar_cli.store.image import write_image
 from autosar_cli.store.manifest import product_status
@@ -145,6 +146,8 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
             truth_path = default_truth_path(d)
     elif not Path(truth_path).is_file():
         raise CompareError(f"{truth_path}: no such truth sidecar")
+    if truth_path is not None and (why := truth_radar_mismatch(truth_path, out / DRIVE)):
+        raise CompareError(why)
     skipped: dict[str, str] = {}
     if truth_path is None:
         for m in methods:

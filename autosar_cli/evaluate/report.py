@@ -21,7 +21,7 @@ from autosar_cli.evaluate.evaluation import Evaluation, evaluate_image, load_tru
 from autosar_cli.evaluate.figures import plot_reflector_chips, plot_trajectory_errors
 from autosar_cli.nav.navigate import default_truth_path
 from autosar_cli.run import RunError, read_manifest
-from autosar_cli.sim.truth import truth_path_for
+from autosar_cli.sim.truth import truth_path_for, truth_radar_mismatch
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.drive import Drive
 from autosar_cli.store.image import read_image
@@ -100,6 +100,8 @@ def resolve_inputs(source: str | Path, truth_path: str | Path | None = None,
     if config is None:
         config = load_config(config_text) if config_text and Path(config_text).is_file() else load_config()
     truth = _find_truth(truth_path, manifest, drive)
+    if truth is not None and (why := truth_radar_mismatch(truth, drive)):
+        raise EvaluateError(why)
     return RunInputs(image, traj, drive, config, truth, manifest)
 
 

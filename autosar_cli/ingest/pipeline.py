@@ -525,6 +525,8 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
             raise IngestError(f"{path}: no such file or directory")
     sources: list[tuple[Path, str, LogSource | None]] = []
     for path, kind in inputs:
+        if kind == "log" and path.name == "metadata.yaml":  # a rosbag2 bag: the directory is the input (provenance)
+            path = path.parent
         try:
             sources.append((path, kind, open_source(path) if kind == "log" else None))
         except LogReadError as exc:

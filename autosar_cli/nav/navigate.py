@@ -431,9 +431,13 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
 
             ins_inputs = load_ins_inputs(drive, config, inputs.origin, inputs.t0_ns)
         if method == "truth":
+            from autosar_cli.sim.truth import truth_radar_mismatch
+
             truth_path = truth_path or default_truth_path(drive)
             if truth_path is None:
                 raise NavInputError(f"{drive_path}: no truth sidecar found; give --truth LOG.truth.h5")
+            if why := truth_radar_mismatch(truth_path, drive_path):
+                raise NavInputError(why)
     if method == "sar-min":
         inputs, gnss_noise = gnss_noise_checked(inputs, config.navigation.estimate_gnss_noise)
         # from the wheels as recorded: the lag's corrections below leave out rows at a standstill's ends

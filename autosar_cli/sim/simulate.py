@@ -337,6 +337,8 @@ def simulate(
                     "tx_position_enu": geo["tx_start"], "rx_position_enu": geo["rx_start"],
                     "phase_centre_enu": 0.5 * (geo["tx_start"][:, :, None, :] + geo["rx_start"]),
                     "vibration_enu": geo["vibration"],
+                    # each frame's samples as the drive will hold them: evaluation tells this drive's truth by them
+                    "raw_crc32": np.array([zlib.crc32(frame.tobytes()) for frame in raw], np.uint32),
                 })
                 if progress is not None:
                     progress(int(idx[-1]) + 1, n_frames)

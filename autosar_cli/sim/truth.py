@@ -25,6 +25,7 @@ Layout (format ``autosar-truth`` version 1; every array in SI units, ENU metres 
 from __future__ import annotations
 
 import os
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -82,6 +83,8 @@ class TruthWriter:
                                                  track_times=False),
             "vibration_enu": r.create_dataset("vibration_enu", (0, 3), np.float64, maxshape=(None, 3),
                                               chunks=(4096, 3), track_times=False),
+            "raw_crc32": r.create_dataset("raw_crc32", (0,), np.uint32, maxshape=(None,), chunks=(4096,),
+                                          track_times=False),
         }
 
     def _put(self, group: str, name: str, data: NDArray[Any]) -> None:
@@ -131,6 +134,37 @@ class TruthWriter:
                 self.f.close()
         finally:
             self.tmp.unlink(missing_ok=True)
+
+
+def truth_radar_mismatch(truth_path: str | Path, drive_path: str | Path, frames: int = 8) -> str | None:
+    """Why the truth sidecar at ``truth_path`` is not the truth of the drive at ``drive_path``: it keeps each
+    radar frame's CRC-32 (``radar/raw_crc32``, of its int16 samples as a drive holds them), and none of ``frames``
+    of the drive's frames, spread over it, matches the truth's frame of the same index. None where one does (a
+    damaged, cut or converted log of the same recording still has intact frames), or where nothing can be compared
+    (an older truth, no common frame index)."""
+    from autosar_cli.store.drive import Drive
+
+    with h5py.File(truth_path, "r") as f:
+        if "radar/raw_crc32" not in f:
+            return None
+        truth_index, truth_crc = f["radar/frame_index"][()], f["radar/raw_crc32"][()]
+        log_file = f.attrs.get("log_file", "")
+    order = np.argsort(truth_index, kind="stable")
+    truth_index, truth_crc = truth_index[order], truth_crc[order]
+    compared = 0
+    with Drive(drive_path) as drive:
+        radar = drive.radar()
+        index = np.asarray(radar.frame_index)
+        for i in np.unique(np.linspace(0, len(index) - 1, frames).astype(np.int64)) if len(index) else []:
+            k = int(np.searchsorted(truth_index, index[i]))
+            if k < len(truth_index) and truth_index[k] == index[i]:
+                compared += 1
+                if zlib.crc32(np.ascontiguousarray(radar.raw[i]).tobytes()) == truth_crc[k]:
+                    return None
+    if not compared:
+        return None
+    return (f"{truth_path}: the truth of another recording ({log_file}): none of {compared} radar frames of "
+            f"{drive_path} matches it")
 
 
 @dataclass(frozen=True)
