@@ -17,11 +17,15 @@ in subprocesses (minimum counts at ``--scale 1``):
                                     missing, a packet zero-filled or the data cut in the post-processed file,
                                     an edited number in its mmWave Studio JSON (flipped ADC sample bits are
                                     left out: the format carries no checksum to find them by)
+    canlog 40                       standalone CAN logs cut short at a random byte (``autosar info --json``):
+                                    ASC, TRC, candump -L and BLF written by python-can (2000 frames), and a
+                                    real CANedge MDF4 file (``../shared/realdata``; its trials skipped without)
 
 Outcomes: clean-error (exit != 0, one error line, no traceback), kept-with-warning, ok, crash-or-traceback,
 silent-wrong (exit 0, product differs from the undamaged one, no warning), input-harmed (an input's bytes
 changed), partial-left (a *.partial remains after the next run). For damaged MCAP and ROS1 logs the
-messages ingested are checked against the messages of the chunks the damage did not touch.
+messages ingested are checked against the messages of the chunks the damage did not touch; for a cut text CAN
+log, the frames read against python-can's count on the log's whole lines before the cut.
 
 Prints the counts per class and writes benches/results/fault_campaign.json (``--classes`` runs a subset
 and merges it into that file's earlier run of the same seed and scale).
@@ -56,7 +60,7 @@ OUTCOMES = ("clean-error", "kept-with-warning", "ok", "crash-or-traceback", "sil
             "partial-left")
 BAD = ("crash-or-traceback", "silent-wrong", "input-harmed", "partial-left")
 COUNTS = {"mcap": 100, "ros1": 40, "rosbag2": 40, "hdf5": 60, "config": 30, "kill": 30, "disk-full": 5, "path": 10,
-          "dca1000": 40}
+          "dca1000": 40, "canlog": 40}
 PACKET = 1456  #: the DCA1000's default data bytes per packet
 
 
@@ -87,6 +91,8 @@ class Base:
     dca_mcap: Path | None = None  #: the navigation log of the DCA1000 drive, with its frame-sync topic
     dca_flat: Path | None = None  #: its capture as post-processed data (adc_data.bin)
     dca_packets: Path | None = None  #: the same as recorded packets, one stream of bytes (cut into files per trial)
+    can_logs: dict[str, Path] = field(default_factory=dict)  #: suffix -> an undamaged CAN log
+    can_frames: dict[str, int] = field(default_factory=dict)  #: suffix -> its frames
     mcap_chunks: list[tuple[int, int, int]] = field(default_factory=list)  #: (start, end, messages)
     ros1_chunks: list[tuple[int, int, int]] = field(default_factory=list)
     digests: dict[str, str] = field(default_factory=dict)
@@ -266,7 +272,35 @@ def setup(work: Path) -> Base:
     from autosar_cli.ingest.dca1000_packets import packets_of
 
     base.dca_packets.write_bytes(b"".join(packets_of((base.dca_flat / "adc_data.bin").read_bytes(), PACKET)))
+    _can_logs(base, work)
     return base
+
+
+def _can_logs(base: Base, work: Path) -> None:
+    """2000 frames (two channels, standard IDs, 0-8 data bytes) written by python-can per text format and BLF,
+    and the real 2022 CANedge MDF4 file where ../shared/realdata has it."""
+    import can
+
+    rng = random.Random(7)
+    frames = [can.Message(timestamp=1.6e9 + 0.001 * i, arbitration_id=rng.randrange(0x7FF), channel=i % 2,
+                          data=bytes(rng.randrange(256) for _ in range(rng.randrange(9)))) for i in range(2000)]
+    for suffix, writer in ((".asc", can.ASCWriter), (".trc", can.TRCWriter), (".log", can.CanutilsLogWriter),
+                           (".blf", can.BLFWriter)):
+        path = work / f"can{suffix}"
+        with writer(path) as w:
+            for msg in frames:
+                w.on_message_received(msg)
+        base.can_logs[suffix] = path
+    real = REPO.parent / "shared" / "realdata" / "css-electronics" / "2F6913DB_00000004_00000001.MF4"
+    if real.is_file():
+        base.can_logs[".mf4"] = real
+    for suffix, path in base.can_logs.items():
+        base.can_frames[suffix] = _info_frames(cli(["info", str(path), "--json"], work))
+
+
+def _info_frames(r: subprocess.CompletedProcess[str]) -> int:
+    """Frames ``autosar info --json`` of a CAN log counts (over its streams)."""
+    return sum(int(s["count"]) for s in json.loads(r.stdout)["streams"])
 
 
 # ------------------------------------------------------------------------------------------ faults
@@ -625,6 +659,44 @@ def dca1000_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
     return trial
 
 
+def canlog_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
+    suffixes = sorted(base.can_logs)
+    suffix = suffixes[n % len(suffixes)] if suffixes else ""
+    if not suffix:
+        return Trial("canlog", n, "no CAN log", outcome="skipped")
+    src = base.can_logs[suffix]
+    data = src.read_bytes()
+    cut = rng.randrange(len(data) // 20, len(data))
+    log = tdir / f"log{suffix}"
+    log.write_bytes(data[:cut])
+    trial = Trial("canlog", n, f"{src.name} cut at byte {cut} of {len(data)}")
+    if suffix in (".asc", ".trc", ".log"):  # python-can's own count on the whole lines before the cut
+        import can
+
+        whole = tdir / f"whole{suffix}"
+        whole.write_bytes(data[:data.rfind(b"\n", 0, cut) + 1])
+        reader = {".asc": can.ASCReader, ".trc": can.TRCReader, ".log": can.CanutilsLogReader}[suffix]
+        with reader(str(whole)) as frames:
+            trial.chunks_expected = sum(1 for _ in frames)
+    before = tree_hash(log)
+    t0 = time.perf_counter()
+    r = cli(["info", str(log), "--json"], tdir)
+    trial.rc, trial.wall_s = r.returncode, time.perf_counter() - t0
+    if r.returncode == 0:
+        trial.messages_read = _info_frames(r)
+        warned = bool(json.loads(r.stdout).get("warnings")) or "warning:" in r.stderr
+        if trial.messages_read == base.can_frames[suffix] and not warned:
+            trial.outcome = "ok"
+        else:
+            trial.outcome, trial.detail = ("kept-with-warning", "") if warned else \
+                ("silent-wrong", f"{trial.messages_read} of {base.can_frames[suffix]} frames, no warning")
+    else:
+        trial.outcome, trial.detail = classify(r, None, None)
+    if tree_hash(log) != before:
+        trial.outcome = "input-harmed"
+    return trial
+
+
 # -------------------------------------------------------------------------------------------- main
 def run_trial(base: Base, cls: str, n: int, seed: int, root: Path) -> Trial:
     rng = random.Random(f"{seed}:{cls}:{n}")
@@ -634,7 +706,7 @@ def run_trial(base: Base, cls: str, n: int, seed: int, root: Path) -> Trial:
         if cls in ("mcap", "ros1", "rosbag2"):
             return container_trial(base, cls, n, rng, tdir)
         return {"hdf5": hdf5_trial, "config": config_trial, "kill": kill_trial, "disk-full": disk_trial,
-                "path": path_trial, "dca1000": dca1000_trial}[cls](base, n, rng, tdir)
+                "path": path_trial, "dca1000": dca1000_trial, "canlog": canlog_trial}[cls](base, n, rng, tdir)
     except subprocess.TimeoutExpired:
         return Trial(cls, n, "timeout", outcome="crash-or-traceback", detail="hung for 300 s")
     finally:
@@ -668,7 +740,8 @@ def main() -> None:
     print(f"{'class':10s} {'trials':>6s} " + " ".join(f"{o:>18s}" for o in cols))
     for c in classes:
         print(f"{c:10s} {sum(table[c].values()):6d} " + " ".join(f"{table[c].get(o, 0):18d}" for o in cols))
-    print(f"intact chunks kept (MCAP, ROS1): {len(chunk_checks) - len(chunk_fail)} of {len(chunk_checks)} trials")
+    print(f"intact chunks (MCAP, ROS1) or whole lines (text CAN logs) kept: {len(chunk_checks) - len(chunk_fail)} "
+          f"of {len(chunk_checks)} trials")
     for t in trials:
         if t.outcome in BAD:
             print(f"  {t.cls} #{t.n} {t.outcome}: {t.fault} -- {t.detail}")
