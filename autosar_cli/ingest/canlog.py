@@ -191,15 +191,16 @@ def _records(path: Path) -> Iterator[CanRecord]:
     to_channel: Callable[[object], str] = _channel_from_one if suffix in _ZERO_BASED_CHANNELS else _channel
     frames = 0
     with ExitStack() as stack:
-        cut = mdf4_cut(path) if suffix == ".mf4" else None if suffix == ".blf" else _text_cut(path, suffix)
-        cut_note = f" (cut short: {cut.reason})" if cut else ""
+        cut: CutShort | None = None
         try:
+            # python-can already reads a BLF's cut container as far as its zlib stream goes
+            cut = mdf4_cut(path) if suffix == ".mf4" else None if suffix == ".blf" else _text_cut(path, suffix)
             reader = _open_reader(_whole_records(path, cut, stack), stack)
             messages = iter(reader)
         except CanLogError:
             raise
         except Exception as exc:  # python-can/asammdf raise many types; the user needs file + reason
-            raise CanLogError(f"{path}: cannot open {kind} log: {_one_line(exc)}{cut_note}") from exc
+            raise CanLogError(f"{path}: cannot open {kind} log: {_one_line(exc)}{_cut_note(cut)}") from exc
         while True:
             try:
                 msg = next(messages)
@@ -207,7 +208,7 @@ def _records(path: Path) -> Iterator[CanRecord]:
                 break
             except Exception as exc:
                 raise CanLogError(f"{path}: cannot read {kind} log {_where(reader, frames)}: {_one_line(exc)}"
-                                  f"{cut_note}") from exc
+                                  f"{_cut_note(cut)}") from exc
             if frames == 0 and _relative_start(reader):
                 log.warning("%s: no start date in the header; times are offsets from the measurement start", path)
             frames += 1
@@ -224,6 +225,10 @@ def _records(path: Path) -> Iterator[CanRecord]:
         _check_complete(path, reader, frames)
         if cut:
             raise CanLogError(f"{path}: truncated {kind} log: {cut.reason}; {frames} frames read before it")
+
+
+def _cut_note(cut: CutShort | None) -> str:
+    return f" (cut short: {cut.reason})" if cut else ""
 
 
 def _text_cut(path: Path, suffix: str) -> CutShort | None:
@@ -257,7 +262,7 @@ def _whole_records(path: Path, cut: CutShort | None, stack: ExitStack) -> Path:
     broken TRC line or reads a broken candump line as a shorter frame)."""
     if cut is None or cut.whole_bytes is None:
         return path
-    copy = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="autosar-mf4-"))) / path.name
+    copy = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="autosar-canlog-"))) / path.name
     with open(path, "rb") as src, open(copy, "wb") as dst:
         left = cut.whole_bytes
         while left > 0:
