@@ -237,7 +237,10 @@ def _scan(buf: Buffer, pos: int, n: int, report: ScanReport, connections: dict[i
                                    f"messages kept, from {len(cut[1])} of its {_u32(cut[0], 'size')} bytes")
                 return
             end = nxt if nxt is not None else n
-            report.lost.append(f"bytes {pos}-{end} unreadable ({exc})")
+            if nxt is None and unclosed.pos is not None:  # the record the recording was writing when it stopped
+                report.lost.append(f"bytes {pos}-{n}: the open chunk's last record, cut by the file's end ({exc})")
+            else:
+                report.lost.append(f"bytes {pos}-{end} unreadable ({exc})")
             if nxt is None:
                 return
             pos = nxt
