@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import realdata
 from mcap.data_stream import ReadDataStream
 from mcap.reader import make_reader
 from mcap.records import Chunk, Message
@@ -402,6 +403,34 @@ def test_mcap_cut_inside_a_chunk_keeps_its_whole_messages(ci_mcap: SimulationRes
     assert Counter(got) == Counter([m for _, e, msgs in chunks if e <= start for m in msgs] + cut_msgs[:kept])
 
 
+@pytest.mark.parametrize("name, kept_whole", [("rosbag2_tests_mcap_cdr_test/cdr_test_0.mcap", True),
+                                              ("rosbag2_py_mcap_talker/talker.mcap", False)])
+def test_real_mcap_cut_inside_its_chunk(name: str, kept_whole: bool, tmp_path: Path) -> None:
+    """ROS 2's own MCAP files (rosbag2's test resources), each one chunk, cut two thirds into it: the uncompressed
+    chunk keeps the messages whose records end before the cut, by the mcap library's reading of the intact file;
+    the zstd one (2965 bytes, inside zstd's first block) gives none back, and says so, rather than anything else."""
+    src = realdata("ros2-rosbag2", *name.split("/"))
+    chunks = mcap_chunks(src)
+    assert len(chunks) == 1
+    start, end, msgs = chunks[0]
+    data = src.read_bytes()
+    cut = start + 2 * (end - start) // 3
+    log = tmp_path / "cut.mcap"
+    log.write_bytes(data[:cut])
+    got, warnings = read_all(log)
+    import zstandard
+
+    chunk = Chunk.read(ReadDataStream(io.BytesIO(data[start + 9:end])))
+    records_start = end - len(chunk.data)  # the records are the chunk record's last bytes
+    whole = bytes(chunk.data) if not chunk.compression else zstandard.ZstdDecompressor().decompress(
+        chunk.data, max_output_size=chunk.uncompressed_size)
+    ends = [e for op, e in mcap_record_ends(whole) if op == 0x05]
+    expected = sum(records_start + e <= cut for e in ends) if kept_whole else 0
+    assert len(ends) == len(msgs) and (expected > 0) == kept_whole
+    assert Counter(got) == Counter(msgs[:expected])
+    assert len(warnings) == 1 and f"{expected} whole messages kept" in warnings[0], warnings
+
+
 @pytest.mark.parametrize("compression", ["zstd", "lz4", ""])
 def test_mcap_cut_chunk_prefix_decodes_for_every_codec(compression: str) -> None:
     """A chunk's compressed data cut anywhere decodes to a prefix of its payload, for each MCAP codec."""
@@ -424,22 +453,27 @@ def test_mcap_cut_chunk_prefix_decodes_for_every_codec(compression: str) -> None
 
 @pytest.mark.parametrize("where", ["message index length", "chunk length"])
 def test_mcap_bad_record_length_resynchronises(where: str, ci_mcap: SimulationResult, work: Path) -> None:
+    """A record length that runs past the file's end: a message index's costs only that record (reading
+    resynchronises on the next one); a chunk's costs nothing, its own records length placing its end (it passes
+    its CRC there), and reading goes on after it."""
     chunks = mcap_chunks(ci_mcap.log_path)
     data = bytearray(ci_mcap.log_path.read_bytes())
-    start, end, lost = chunks[1]
+    start, end, _ = chunks[1]
     if where == "chunk length":
         data[start + 5] = 0x01  # length byte 4: +4 GiB
-        kept = [m for s, _, msgs in chunks if s != start for m in msgs]
     else:  # the message index record right after the first chunk: nothing of value is in it
         assert data[chunks[0][1]] == 0x07
         data[chunks[0][1] + 3] = 0x77
-        kept = [m for _, _, msgs in chunks for m in msgs]
     log = work / f"len_{where.replace(' ', '_')}.mcap"
     log.write_bytes(bytes(data))
     got, warnings = read_all(log)
-    assert Counter(got) == Counter(kept)
-    hits = [w for w in warnings if str(log) in w and re.search(r"bytes \d+-\d+ skipped", w)]
-    assert len(hits) == 1, warnings
+    assert Counter(got) == Counter(m for _, _, msgs in chunks for m in msgs)
+    if where == "chunk length":
+        assert warnings == [f"{log}: damaged MCAP: the chunk at byte {start} says it is {end - start - 9 + (1 << 32)} "
+                            f"bytes long, its records end at byte {end}: read by them"]
+    else:
+        hits = [w for w in warnings if str(log) in w and re.search(r"bytes \d+-\d+ skipped", w)]
+        assert len(hits) == 1, warnings
 
 
 def test_rosbag2_unreadable_metadata_reads_the_storage_anyway(ci_ros2: SimulationResult, work: Path) -> None:

@@ -95,6 +95,23 @@ def _next_record(path: Path, start: int, total: int) -> int | None:
     return None
 
 
+def _chunk_records_end(f: BinaryIO, offset: int, total: int) -> int | None:
+    """Where the chunk record at ``offset`` ends by its own records length, or None where its header does not parse
+    as a chunk's (a known compression, a length that could be real)."""
+    f.seek(offset + 9)
+    head = f.read(min(4096, max(0, total - offset - 9)))
+    try:
+        _, _, _, _, clen = _CHUNK_HEAD.unpack_from(head, 0)
+        pos = _CHUNK_HEAD.size
+        compression = head[pos:pos + clen].decode("ascii")
+        (nrec,) = struct.unpack_from("<Q", head, pos + clen)
+    except (struct.error, UnicodeDecodeError):
+        return None
+    if compression not in ("", "zstd", "lz4") or nrec >= 1 << 40:
+        return None
+    return offset + 9 + pos + clen + 8 + nrec
+
+
 def _parse_chunk(body: bytes, cut: bool = False) -> Chunk:
     """A chunk record's body; ``cut``: it may end before its records do (they are then its prefix)."""
     _, _, size, crc, clen = _CHUNK_HEAD.unpack_from(body, 0)
@@ -210,13 +227,22 @@ class McapSource:
                     break
                 opcode, length = _RECORD_HEAD.unpack(head)
                 framing = _framing_problem(opcode, length, offset, total)
-                if framing:
+                # a chunk running past the file's end: its own records length tells a damaged length field (the
+                # chunk fits: read it by that, go on after it) from a cut file (keep what the cut left of it)
+                records_end = _chunk_records_end(f, offset, total) if framing and opcode == _OP_CHUNK else None
+                if records_end is not None and records_end <= total:
+                    self.stats.warnings.append(
+                        f"{self.path}: damaged MCAP: the chunk at byte {offset} says it is {length} bytes long, its "
+                        f"records end at byte {records_end}: read by them")
+                    f.seek(offset + 9)
+                    length = records_end - offset - 9
+                elif records_end is not None:
+                    while pending:
+                        yield from self._chunk_messages(*pending.popleft())
+                    yield from self._cut_chunk(f, offset, framing)
+                    break
+                elif framing:
                     nxt = _next_record(self.path, resync_from + 1, total)
-                    if nxt is None and opcode == _OP_CHUNK:
-                        while pending:
-                            yield from self._chunk_messages(*pending.popleft())
-                        yield from self._cut_chunk(f, offset, framing)
-                        break
                     if nxt is None:
                         self._damaged(offset, framing)
                         break
