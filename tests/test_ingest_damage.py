@@ -165,6 +165,23 @@ def test_ros1_damaged_chunk_costs_only_that_chunk(ci_ros1: SimulationResult, wor
     assert any(str(bag) in w and f"chunk at bytes {start}-{end}" in w for w in warnings), warnings
 
 
+def test_ros1_chunk_with_a_damaged_data_length_costs_nothing(ci_ros1: SimulationResult, work: Path) -> None:
+    """A chunk record whose data length runs past the file's end but whose lz4 stream, decoded from its start,
+    gives exactly the size its header states: the length field is what was damaged; the chunk is read by its
+    stream's own end and reading goes on after it (before, the chunk was lost to the resynchronisation)."""
+    chunks = ros1_chunks(ci_ros1.log_path)
+    start, _, _ = chunks[2]
+    data = bytearray(ci_ros1.log_path.read_bytes())
+    (hlen,) = struct.unpack_from("<I", data, start)
+    data[start + 4 + hlen + 3] = 0x7F  # the data length's top byte: ~2 GiB
+    bag = work / "bad_data_length.bag"
+    bag.write_bytes(bytes(data))
+    got, warnings = read_all(bag)
+    assert Counter(got) == Counter(m for _, _, msgs in chunks for m in msgs)
+    assert any(str(bag) in w and f"chunk at byte {start}: its data length does not fit" in w for w in warnings), \
+        warnings
+
+
 def test_ros1_damaged_chunk_header_resynchronises(ci_ros1: SimulationResult, work: Path) -> None:
     chunks = ros1_chunks(ci_ros1.log_path)
     start, _, lost = chunks[2]

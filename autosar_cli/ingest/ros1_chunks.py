@@ -131,29 +131,46 @@ def normalise_topic(name: str) -> str:
     return f'{"/" * name.startswith("/")}{"/".join(x for x in name.split("/") if x)}'
 
 
-def _decompress(compression: str, data: bytes, size: int | None, prefix: bool = False) -> bytes:
-    """A chunk's data decompressed to its ``size`` bytes; ``prefix``: ``data`` may be cut, and what it gives is
-    decoded (lz4 and bz2 decode a stream's prefix), at most ``size`` bytes (None: all of it)."""
+def _decompress(compression: str, data: bytes, size: int) -> bytes:
     if compression == "none":
-        out = bytes(data)
+        out = data
     elif compression == "bz2":
-        out = bz2.BZ2Decompressor().decompress(data) if prefix else bz2.decompress(data)
+        out = bz2.decompress(data)
     elif compression == "lz4":
         import lz4.frame
 
-        out = lz4.frame.LZ4FrameDecompressor().decompress(data) if prefix else lz4.frame.decompress(data)
+        out = lz4.frame.decompress(data)
     else:
         raise RecordError(f"unknown chunk compression {compression!r}")
-    if prefix:
-        return out[:size]
-    if size is None or len(out) != size:
+    if len(out) != size:
         raise RecordError(f"chunk decompresses to {len(out)} bytes, its header says {size}")
     return out
 
 
-def _cut_chunk(buf: Buffer, pos: int) -> tuple[dict[str, bytes], bytes] | None:
-    """The header fields of the chunk record at ``pos`` whose data the end of ``buf`` cuts, and that data's
-    decoded prefix; None if no chunk record starts there."""
+def _decode_stream(compression: str, data: bytes, size: int | None) -> tuple[bytes, int]:
+    """A chunk's data decoded from the start of ``data``, which may run past its end or stop before it, as far as
+    it goes (lz4 and bz2 decode a stream's prefix and stop at its end), at most ``size`` bytes (None: all of it);
+    and how many bytes of ``data`` it took."""
+    if compression == "none":
+        out = bytes(data[:size] if size is not None else data)
+        return out, len(out)
+    if compression == "bz2":
+        stream = bz2.BZ2Decompressor()
+    elif compression == "lz4":
+        import lz4.frame
+
+        stream = lz4.frame.LZ4FrameDecompressor()
+    else:
+        raise RecordError(f"unknown chunk compression {compression!r}")
+    out = stream.decompress(data)
+    taken = len(data) - len(stream.unused_data) if stream.eof else len(data)
+    return (out[:size] if size is not None else out), taken
+
+
+def _chunk_stream(buf: Buffer, pos: int) -> tuple[dict[str, bytes], bytes, int] | None:
+    """The chunk record at ``pos`` whose data length field does not fit the file, read by its data instead: its
+    header fields, its data decoded from where it starts as far as it goes (:func:`_decode_stream`, up to its
+    ``size``), and where that data ended in ``buf``; None if no chunk record starts there."""
     n = len(buf)
     try:
         (hlen,) = _U32.unpack_from(buf, pos)
@@ -163,11 +180,11 @@ def _cut_chunk(buf: Buffer, pos: int) -> tuple[dict[str, bytes], bytes] | None:
         if fields["op"][0] != OP_CHUNK:
             return None
         dstart = pos + 4 + hlen + 4
-        data = _decompress(fields.get("compression", b"").decode("ascii", "replace"), buf[dstart:n],
-                           _u32(fields, "size"), prefix=True)
+        data, taken = _decode_stream(fields.get("compression", b"").decode("ascii", "replace"), buf[dstart:n],
+                                     _u32(fields, "size"))
     except Exception:  # any codec or header error: nothing of it can be kept
         return None
-    return fields, data
+    return fields, data, dstart + taken
 
 
 def _next_chunk(buf: Buffer, start: int) -> int | None:
@@ -229,12 +246,20 @@ def _scan(buf: Buffer, pos: int, n: int, report: ScanReport, connections: dict[i
             fields, dstart, dend = read_record(buf, pos)
             op = fields["op"][0]
         except (RecordError, UnicodeDecodeError) as exc:
+            stream = _chunk_stream(buf, pos)
+            if stream is not None and len(stream[1]) == _u32(stream[0], "size"):
+                # its data length field is damaged: its data, whole, places its end; reading goes on after it
+                report.lost.append(f"chunk at byte {pos}: its data length does not fit ({exc}); its data ends at "
+                                   f"byte {stream[2]}: read by that")
+                report.chunks_read += 1
+                yield from _records(stream[1], pos, stream[2], report, connections)
+                pos = stream[2]
+                continue
             nxt = _next_chunk(buf, pos + 1)
-            cut = _cut_chunk(buf, pos) if nxt is None else None
-            if cut is not None:  # the file's end cuts this chunk: its whole messages are kept
-                kept = yield from _records(cut[1], pos, n, report, connections, cut=True)
+            if stream is not None and nxt is None:  # the file's end cuts this chunk: its whole messages are kept
+                kept = yield from _records(stream[1], pos, n, report, connections, cut=True)
                 report.lost.append(f"bytes {pos}-{n}: a chunk the file's end cuts ({exc}); its first {kept} "
-                                   f"messages kept, from {len(cut[1])} of its {_u32(cut[0], 'size')} bytes")
+                                   f"messages kept, from {len(stream[1])} of its {_u32(stream[0], 'size')} bytes")
                 return
             end = nxt if nxt is not None else n
             if nxt is None and unclosed.pos is not None:  # the record the recording was writing when it stopped
@@ -280,7 +305,7 @@ def _unclosed_compressed(buf: Buffer, pos: int, dstart: int, n: int, compression
     """The whole messages of the compressed chunk at ``pos`` whose writer never closed it: its stream runs from
     ``dstart`` to the file's end ``n``."""
     try:
-        data = _decompress(compression, buf[dstart:n], None, prefix=True)
+        data, _ = _decode_stream(compression, buf[dstart:n], None)
     except Exception as exc:  # any codec error: nothing of it can be kept
         report.lost.append(f"bytes {pos}-{n}: a chunk its writer never closed, which does not decompress ({exc})")
         return

@@ -56,15 +56,15 @@ class Ros1BagSource:
         reader = Reader(self.path)
         try:
             reader.open()
-        except ReaderError as exc:
+        except Exception as exc:  # rosbags raises struct.error too, where a length field is damaged
             head = _first_line(self.path)
             if head.startswith("#ROSBAG V") and head != "#ROSBAG V2.0":  # rosbags says "version 102" for V1.2
                 raise LogReadError(f"{self.path}: a ROS1 bag of format {head[9:]!r}; only format 2.0 is read "
                                    "(ROS 1's `rosbag filter IN OUT True` rewrites it as 2.0)") from exc
-            if "magic" in str(exc) or "empty" in str(exc) or "version" in str(exc):
+            if isinstance(exc, ReaderError) and any(w in str(exc) for w in ("magic", "empty", "version")):
                 raise LogReadError(f"{self.path}: not a readable ROS1 bag ({exc})") from exc
-            self.stats.warnings.append(f"{self.path}: ROS1 bag index unusable ({exc}); read chunk by chunk "
-                                       "as `rosbag reindex` does")
+            self.stats.warnings.append(f"{self.path}: ROS1 bag index unusable ({type(exc).__name__}: {exc}); read "
+                                       "chunk by chunk as `rosbag reindex` does")
             yield from self._scan()
             return
         try:
