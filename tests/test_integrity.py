@@ -54,6 +54,24 @@ def test_a_flipped_byte_in_a_trajectory_is_an_error_naming_file_and_dataset(tmp_
         read_trajectory(path)
 
 
+def test_a_product_cut_short_says_by_how_much(tmp_path: Path) -> None:
+    """An HDF5 product cut short (an interrupted copy, a full disk) is named as such, with the bytes it has and
+    those its superblock declares, not as "not an HDF5 file"; a file that is not HDF5 at all still is."""
+    path = write_trajectory(tmp_path / "trajectory.h5", _straight_track())
+    data = path.read_bytes()
+    cut = tmp_path / "cut.h5"
+    cut.write_bytes(data[:len(data) // 2])
+    with pytest.raises(TrajectoryFormatError) as info:
+        read_trajectory(cut)
+    assert str(info.value) == (f"{cut}: cut short: {len(data) // 2} of the {len(data)} bytes its HDF5 superblock "
+                               "declares (an interrupted copy or a full disk); make it again")
+    r = runner.invoke(app, ["navigate", str(cut), "-o", str(tmp_path / "t.h5")])
+    assert r.exit_code == 1 and "cut short" in r.stderr and "Traceback" not in r.output
+    (tmp_path / "junk.h5").write_bytes(b"not hdf5" * 100)
+    with pytest.raises(TrajectoryFormatError, match="junk.h5: not an HDF5 file"):
+        read_trajectory(tmp_path / "junk.h5")
+
+
 def test_a_flipped_byte_in_the_radar_cube_is_an_error_naming_file_and_dataset(tmp_path: Path) -> None:
     rng = np.random.default_rng(3)
     raw = rng.normal(0, 300, size=(64, 3, 4, 540, 2)).astype(np.int16)

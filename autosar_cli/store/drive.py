@@ -39,7 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from autosar_cli.store.atomic import partial_path
-from autosar_cli.store.hdf5_read import dataset_errors, read_dataset, read_rows
+from autosar_cli.store.hdf5_read import dataset_errors, open_hdf5, read_dataset, read_rows
 from autosar_cli.store.outputs import check_free_space
 
 FORMAT = "autosar-drive"
@@ -380,10 +380,7 @@ class Drive:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        try:
-            self._file = h5py.File(self.path, "r")
-        except OSError as exc:
-            raise DriveFormatError(f"{self.path}: not an HDF5 file ({exc})") from exc
+        self._file = open_hdf5(self.path, DriveFormatError)
         fmt = self._file.attrs.get("format")
         version = self._file.attrs.get("format_version")
         if fmt != FORMAT:

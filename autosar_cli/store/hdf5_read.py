@@ -1,8 +1,9 @@
-"""Reading HDF5 products: h5py's errors (a missing dataset, a Fletcher-32 checksum or a decompression
-failure) become one line naming the file and the dataset."""
+"""Reading HDF5 products: h5py's errors (a file cut short or not HDF5 at all, a missing dataset, a Fletcher-32
+checksum or a decompression failure) become one line naming the file and the dataset."""
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -14,6 +15,19 @@ import numpy as np
 
 class DamagedFileError(ValueError):
     """A dataset of an autosar HDF5 file is missing or cannot be read back intact."""
+
+
+def open_hdf5(path: Path, error: type[Exception]) -> h5py.File:
+    """``path`` opened for reading; ``error`` where it cannot be: one cut short (an interrupted copy, a full disk)
+    says by how much, anything else that it is not an HDF5 file."""
+    try:
+        return h5py.File(path, "r")
+    except OSError as exc:
+        cut = re.search(r"truncated file: eof = (\d+), .*stored_eof = (\d+)", str(exc))
+        if cut:
+            raise error(f"{path}: cut short: {cut[1]} of the {cut[2]} bytes its HDF5 superblock declares (an "
+                        "interrupted copy or a full disk); make it again") from exc
+        raise error(f"{path}: not an HDF5 file ({exc})") from exc
 
 
 @contextmanager

@@ -26,6 +26,7 @@ from rasterio.windows import Window
 
 from autosar_cli import __version__
 from autosar_cli.store.atomic import atomic_output
+from autosar_cli.store.hdf5_read import open_hdf5
 from autosar_cli.store.manifest import json_default
 from autosar_cli.store.outputs import SMALL_FILE_MARGIN_BYTES, check_free_space
 from autosar_cli.store.quicklook import draw_quicklook, preload_quicklook  # noqa: F401  (focus, run preload it)
@@ -249,11 +250,7 @@ def read_image(path: Path) -> FocusedImage:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file")
-    try:
-        f = h5py.File(path, "r")
-    except OSError as exc:
-        raise ImageFormatError(f"{path}: not an HDF5 file ({exc})") from exc
-    with f:
+    with open_hdf5(path, ImageFormatError) as f:
         fmt = f.attrs.get("format")
         if fmt != FORMAT:
             raise ImageFormatError(f"{path}: not an autosar image.h5 (format attribute {fmt!r}, "

@@ -22,7 +22,7 @@ import numpy as np
 
 from autosar_cli import __version__
 from autosar_cli.store.atomic import partial_path
-from autosar_cli.store.hdf5_read import read_dataset
+from autosar_cli.store.hdf5_read import open_hdf5, read_dataset
 from autosar_cli.store.outputs import SMALL_FILE_MARGIN_BYTES, check_free_space
 from autosar_cli.types import GeodeticOrigin, MotionCorrection, Trajectory
 
@@ -77,11 +77,7 @@ def read_trajectory(path: str | Path, *, covariance: bool = True) -> Trajectory:
     """Read a trajectory.h5; ``covariance=False`` leaves out the (K, n, n) covariance (28 MB on test1), which
     focusing does not use."""
     path = Path(path)
-    try:
-        f = h5py.File(path, "r")
-    except OSError as exc:
-        raise TrajectoryFormatError(f"{path}: not an HDF5 file ({exc})") from exc
-    with f:
+    with open_hdf5(path, TrajectoryFormatError) as f:
         if f.attrs.get("format") != FORMAT:
             raise TrajectoryFormatError(f"{path}: not a trajectory.h5 (format {f.attrs.get('format')!r})")
         version = f.attrs.get("format_version")
