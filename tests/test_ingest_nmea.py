@@ -316,6 +316,25 @@ def test_held_records_are_bounded() -> None:
     assert lost.flush() == [] and lost.skipped == Counter({"no date": 1})  # never dated
 
 
+def test_a_capture_cut_inside_its_last_sentence_says_so(tmp_path: Path) -> None:
+    """The real NEO-M8N capture cut inside its last sentence (a GGA): every record of the sentences before it, as
+    from the whole file, and the broken one counted as cut off by the file's end (not as a sentence without
+    checksum); the same capture without its final line end but whole reads as the whole file."""
+    data = realdata("gpsd", "neo-m8n.log").read_bytes()
+    whole = list(NmeaLogReader(realdata("gpsd", "neo-m8n.log")))
+    cut = tmp_path / "cut.log"
+    cut.write_bytes(data[:data.rindex(b"$GNGGA") + 30])
+    reader = NmeaLogReader(cut)
+    recs = list(reader)
+    last_fix = max(r.fix_time_ns for r in of_type(whole, NmeaFix))
+    assert recs == [r for r in whole if not (isinstance(r, NmeaFix) and r.fix_time_ns == last_fix)]
+    assert reader.skipped["cut off by the file's end"] == 1 and "no checksum" not in reader.skipped
+    unended = tmp_path / "unended.log"
+    unended.write_bytes(data.rstrip(b"\r\n"))
+    reader = NmeaLogReader(unended)
+    assert list(reader) == whole and "cut off by the file's end" not in reader.skipped
+
+
 def test_log_reader_comments_junk_and_joined_sentences(tmp_path: Path) -> None:
     gga, rmc = sentence(GGA.format(t="101010")), sentence(RMC.format(t="101010", d="150621"))
     path = tmp_path / "capture.nmea"

@@ -377,13 +377,19 @@ class NmeaLogReader:
     def __iter__(self) -> Iterator[NmeaRecord]:
         decoder = self._decoder = NmeaDecoder(self.anchor_ns)
         with self.path.open("rb") as f:
-            for line in f:
-                line = line.strip()
+            for raw in f:
+                line = raw.strip()
                 if not line or line.startswith(b"#"):
                     continue
                 for part in re.split(rb"(?=\$)", line):
                     if part.strip():
+                        before = decoder.skipped.copy()
                         yield from decoder.feed(part)
+                        new = decoder.skipped - before
+                        if not raw.endswith(b"\n") and new and not any(r.startswith("unsupported") for r in new):
+                            # the file's last line, without its end, broken: a capture cut short
+                            decoder.skipped = before
+                            decoder.skipped["cut off by the file's end"] += 1
         yield from decoder.flush()
 
 
