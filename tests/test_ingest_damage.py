@@ -291,6 +291,26 @@ def test_rosbag2_wal_torn_last_transaction_is_left_out(ci_ros2: SimulationResult
     assert any("write-ahead log" in w for w in warnings), warnings
 
 
+def test_rosbag2_storage_file_given_on_its_own(ci_ros2: SimulationResult, work: Path) -> None:
+    """A bag's .db3 given on its own (a copied file, a killed recording's) reads its rows, by SQL, those of that
+    file only: where its directory's metadata.yaml lists more files, a warning says the bag has more."""
+    rows = db_rows(ci_ros2.log_path)
+    db3 = next(ci_ros2.log_path.glob("*.db3"))
+    got, warnings = read_all(db3)
+    assert Counter(got) == Counter(m for _, m in rows) and warnings == []
+    bag = work / "two_files"
+    bag.mkdir()
+    for name in ("b_0.db3", "b_1.db3"):
+        shutil.copyfile(db3, bag / name)
+    meta = yaml.safe_load((ci_ros2.log_path / "metadata.yaml").read_text())
+    meta["rosbag2_bagfile_information"]["relative_file_paths"] = ["b_0.db3", "b_1.db3"]
+    (bag / "metadata.yaml").write_text(yaml.safe_dump(meta))
+    got, warnings = read_all(bag / "b_1.db3")
+    assert Counter(got) == Counter(m for _, m in rows)
+    assert warnings == [f"{bag / 'b_1.db3'}: one of the 2 storage files of the bag {bag}; give the directory to read "
+                        "them all"]
+
+
 def test_wal_with_a_bad_header_checksum_is_not_applied() -> None:
     from autosar_cli.ingest.sqlite_wal import apply_wal
 

@@ -192,10 +192,12 @@ class Rosbag2SqliteSource:
 
     container = "rosbag2"
 
-    def __init__(self, path: Path, meta: dict[str, Any]) -> None:
+    def __init__(self, path: Path, meta: dict[str, Any], *, direct: bool = False) -> None:
         self.path = path
         self.meta = meta
         self.files = [path / PurePath(p).name for p in meta["relative_file_paths"]]
+        #: read these files with SQL, not the whole bag with rosbags (one storage file given on its own)
+        self.direct = direct
         self.declared = _declared_counts(meta)
         self.stats = ReadStats(bytes_total=sum(p.stat().st_size for p in self.files if p.exists()))
         self.compressed = (meta.get("compression_mode") or "").lower() == "message"
@@ -219,7 +221,8 @@ class Rosbag2SqliteSource:
 
     def messages(self) -> Iterator[RawMessage]:
         seen: dict[str, int] = {}
-        if any(_wal_of(f) is not None for f in self.files):  # rosbags opens the files immutable: blind to the log
+        # rosbags reads the whole bag, and opens its files immutable: blind to a write-ahead log
+        if self.direct or any(_wal_of(f) is not None for f in self.files):
             for msg in self._sql_messages(None):
                 seen[msg.channel.topic] = seen.get(msg.channel.topic, 0) + 1
                 yield msg
@@ -473,14 +476,34 @@ def open_rosbag2(path: Path) -> LogSource:
 
 def _metadata_from_files(path: Path, exc: LogReadError) -> dict[str, Any]:
     """Stand-in metadata for a bag whose metadata.yaml is unreadable: its storage files, by suffix."""
-    for suffix, storage in ((".db3", "sqlite3"), (".mcap", "mcap")):
-        files = sorted(p.name for p in path.glob(f"*{suffix}"))
+    for suffix in (".db3", ".mcap"):
+        files = sorted(path.glob(f"*{suffix}"))
         if files:
-            meta: dict[str, Any] = {"relative_file_paths": files, "storage_identifier": storage}
-            if storage == "sqlite3" and _first_payload(path / files[0]).startswith(_ZSTD_MAGIC):
-                meta["compression_mode"], meta["compression_format"] = "message", "zstd"
-            return meta
+            return _storage_metadata(files)
     raise exc
+
+
+def _storage_metadata(files: list[Path]) -> dict[str, Any]:
+    """Stand-in metadata for storage files of one kind (``.db3`` or ``.mcap``) read without a metadata.yaml."""
+    storage = "sqlite3" if files[0].suffix.lower() == ".db3" else "mcap"
+    meta: dict[str, Any] = {"relative_file_paths": [f.name for f in files], "storage_identifier": storage}
+    if storage == "sqlite3" and _first_payload(files[0]).startswith(_ZSTD_MAGIC):
+        meta["compression_mode"], meta["compression_format"] = "message", "zstd"
+    return meta
+
+
+def open_rosbag2_file(path: Path) -> LogSource:
+    """One sqlite3 storage file of a rosbag2 bag, read on its own (no metadata.yaml counts to check against);
+    where its directory's metadata.yaml lists others, a warning says the bag has more."""
+    src = Rosbag2SqliteSource(path.parent, _storage_metadata([path]), direct=True)
+    try:
+        listed = [PurePath(f).name for f in _read_metadata(path.parent)["relative_file_paths"]]
+    except LogReadError:
+        listed = []
+    if len(listed) > 1 and path.name in listed:
+        src.stats.warnings.append(f"{path}: one of the {len(listed)} storage files of the bag {path.parent}; give the "
+                                  "directory to read them all")
+    return src
 
 
 _ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
@@ -506,14 +529,15 @@ def _first_line(path: Path) -> str:
 
 def _is_rosbag2(path: Path) -> bool:
     """A rosbag2 bag: its directory (with metadata.yaml, or storage files without it: ``ros2 bag record`` writes it
-    last, so a killed recording has none) or that metadata.yaml itself."""
+    last, so a killed recording has none), that metadata.yaml itself, or one of its sqlite3 storage files."""
     if not path.is_dir():
-        return path.name == "metadata.yaml"
+        return path.name == "metadata.yaml" or path.suffix.lower() == ".db3"
     return (path / "metadata.yaml").exists() or any(any(path.glob(f"*{s}")) for s in (".db3", ".mcap"))
 
 
 # any version: the reader says which it cannot read
 register_container("ros1", ".bag", lambda path: not path.is_dir() and path.suffix.lower() == ".bag", Ros1BagSource,
                    magic=b"#ROSBAG V")
-register_container("rosbag2", "a rosbag2 directory", _is_rosbag2,
-                   lambda path: open_rosbag2(path.parent if path.name == "metadata.yaml" else path))
+register_container("rosbag2", "a rosbag2 directory (or its .db3)", _is_rosbag2,
+                   lambda path: open_rosbag2_file(path) if path.suffix.lower() == ".db3"
+                   else open_rosbag2(path.parent if path.name == "metadata.yaml" else path))
