@@ -381,12 +381,13 @@ class NmeaLogReader:
                 line = raw.strip()
                 if not line or line.startswith(b"#"):
                     continue
+                unended = not raw.endswith(b"\n")  # only ever the file's last line
                 for part in re.split(rb"(?=\$)", line):
                     if part.strip():
-                        before = decoder.skipped.copy()
+                        before = decoder.skipped.copy() if unended else decoder.skipped
                         yield from decoder.feed(part)
-                        new = decoder.skipped - before
-                        if not raw.endswith(b"\n") and new and not any(r.startswith("unsupported") for r in new):
+                        new = decoder.skipped - before if unended else None
+                        if new and not any(r.startswith("unsupported") for r in new):
                             # the file's last line, without its end, broken: a capture cut short
                             decoder.skipped = before
                             decoder.skipped["cut off by the file's end"] += 1
