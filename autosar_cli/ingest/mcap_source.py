@@ -95,31 +95,32 @@ def _next_record(path: Path, start: int, total: int) -> int | None:
     return None
 
 
+def _chunk_header(body: bytes) -> tuple[int, int, str, int, int]:
+    """(uncompressed size, CRC, compression, where its records start in ``body``, their length) of a chunk
+    record's body (only its header need be there)."""
+    _, _, size, crc, clen = _CHUNK_HEAD.unpack_from(body, 0)
+    pos = _CHUNK_HEAD.size
+    compression = body[pos:pos + clen].decode("ascii")
+    (nrec,) = struct.unpack_from("<Q", body, pos + clen)
+    return size, crc, compression, pos + clen + 8, nrec
+
+
 def _chunk_records_end(f: BinaryIO, offset: int, total: int) -> int | None:
     """Where the chunk record at ``offset`` ends by its own records length, or None where its header does not parse
     as a chunk's (a known compression, a length that could be real)."""
     f.seek(offset + 9)
-    head = f.read(min(4096, max(0, total - offset - 9)))
     try:
-        _, _, _, _, clen = _CHUNK_HEAD.unpack_from(head, 0)
-        pos = _CHUNK_HEAD.size
-        compression = head[pos:pos + clen].decode("ascii")
-        (nrec,) = struct.unpack_from("<Q", head, pos + clen)
+        _, _, compression, records, nrec = _chunk_header(f.read(min(4096, max(0, total - offset - 9))))
     except (struct.error, UnicodeDecodeError):
         return None
     if compression not in ("", "zstd", "lz4") or nrec >= 1 << 40:
         return None
-    return offset + 9 + pos + clen + 8 + nrec
+    return offset + 9 + records + nrec
 
 
 def _parse_chunk(body: bytes, cut: bool = False) -> Chunk:
     """A chunk record's body; ``cut``: it may end before its records do (they are then its prefix)."""
-    _, _, size, crc, clen = _CHUNK_HEAD.unpack_from(body, 0)
-    pos = _CHUNK_HEAD.size
-    compression = body[pos:pos + clen].decode("ascii")
-    pos += clen
-    (nrec,) = struct.unpack_from("<Q", body, pos)
-    pos += 8
+    size, crc, compression, pos, nrec = _chunk_header(body)
     if pos + nrec > len(body) and not cut:
         raise ValueError("chunk records run past the chunk")
     return Chunk(compression=compression, data=memoryview(body)[pos:pos + nrec], message_end_time=0,

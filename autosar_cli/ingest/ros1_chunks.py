@@ -132,16 +132,8 @@ def normalise_topic(name: str) -> str:
 
 
 def _decompress(compression: str, data: bytes, size: int) -> bytes:
-    if compression == "none":
-        out = data
-    elif compression == "bz2":
-        out = bz2.decompress(data)
-    elif compression == "lz4":
-        import lz4.frame
-
-        out = lz4.frame.decompress(data)
-    else:
-        raise RecordError(f"unknown chunk compression {compression!r}")
+    """A whole chunk's data, decompressed to the ``size`` its header states."""
+    out, _ = _decode_stream(compression, data, None)
     if len(out) != size:
         raise RecordError(f"chunk decompresses to {len(out)} bytes, its header says {size}")
     return out
@@ -163,7 +155,7 @@ def _decode_stream(compression: str, data: bytes, size: int | None) -> tuple[byt
     else:
         raise RecordError(f"unknown chunk compression {compression!r}")
     out = stream.decompress(data)
-    taken = len(data) - len(stream.unused_data) if stream.eof else len(data)
+    taken = len(data) - len(stream.unused_data or b"") if stream.eof else len(data)  # lz4: None when none
     return (out[:size] if size is not None else out), taken
 
 
