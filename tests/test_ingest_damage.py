@@ -40,6 +40,14 @@ def read_all(path: Path) -> tuple[list[Msg], list[str]]:
     return msgs, src.stats.warnings
 
 
+def cut_two_thirds_in(data: bytes, start: int, end: int, out: Path) -> int:
+    """``data`` cut two thirds into its record at bytes ``start``-``end`` (a copy or a disk that ran out
+    mid-write), written to ``out``; returns the byte of the cut."""
+    cut = start + 2 * (end - start) // 3
+    out.write_bytes(data[:cut])
+    return cut
+
+
 @pytest.fixture(scope="module")
 def work(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return tmp_path_factory.mktemp("damage")
@@ -90,9 +98,8 @@ def test_truncated_ros1_bag_keeps_every_whole_message_before_the_cut(ci_ros1: Si
     chunks = ros1_chunks(ci_ros1.log_path)
     data = ci_ros1.log_path.read_bytes()
     start, end, cut_msgs = chunks[len(chunks) // 2]
-    cut = start + 2 * (end - start) // 3
     bag = work / "cut.bag"
-    bag.write_bytes(data[:cut])
+    cut = cut_two_thirds_in(data, start, end, bag)
     got, warnings = read_all(bag)
     intact = [m for s_, e, msgs in chunks if e <= cut for m in msgs]
     assert 0 < len(intact) < sum(len(c[2]) for c in chunks)
@@ -423,9 +430,8 @@ def test_mcap_cut_inside_a_chunk_keeps_its_whole_messages(ci_mcap: SimulationRes
     chunks = mcap_chunks(ci_mcap.log_path)
     data = ci_mcap.log_path.read_bytes()
     start, end, cut_msgs = chunks[len(chunks) // 2]
-    cut = start + 2 * (end - start) // 3
     log = work / "cut_inside.mcap"
-    log.write_bytes(data[:cut])
+    cut = cut_two_thirds_in(data, start, end, log)
     got, warnings = read_all(log)
     assert len(warnings) == 1 and warnings[0].startswith(f"{log}: damaged MCAP at byte {start} of {cut}: "), warnings
     kept, decoded, size = (int(x) for x in re.search(r"(\d+) whole messages kept from (\d+) of its (\d+) bytes "
@@ -451,9 +457,8 @@ def test_real_mcap_cut_inside_its_chunk(name: str, kept_whole: bool, tmp_path: P
     assert len(chunks) == 1
     start, end, msgs = chunks[0]
     data = src.read_bytes()
-    cut = start + 2 * (end - start) // 3
     log = tmp_path / "cut.mcap"
-    log.write_bytes(data[:cut])
+    cut = cut_two_thirds_in(data, start, end, log)
     got, warnings = read_all(log)
     import zstandard
 

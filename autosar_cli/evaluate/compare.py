@@ -141,13 +141,12 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
     warnings = [str(w) for w in report.warnings]  # a damaged log, dropped data: every product is degraded
     timings["ingest"] = time.perf_counter() - t0
 
-    if truth_path is None:
-        with Drive(out / DRIVE) as d:
-            truth_path = default_truth_path(d)
-    elif not Path(truth_path).is_file():
+    if truth_path is not None and not Path(truth_path).is_file():
         raise CompareError(f"{truth_path}: no such truth sidecar")
-    if truth_path is not None and (why := truth_radar_mismatch(truth_path, out / DRIVE)):
-        raise CompareError(why)
+    with Drive(out / DRIVE) as d:
+        truth_path = truth_path or default_truth_path(d)
+        if truth_path is not None and (why := truth_radar_mismatch(truth_path, d)):
+            raise CompareError(why)
     skipped: dict[str, str] = {}
     if truth_path is None:
         for m in methods:

@@ -99,13 +99,14 @@ def resolve_inputs(source: str | Path, truth_path: str | Path | None = None,
             raise EvaluateError(f"{p}: the {what} of {src} is missing")
     if config is None:
         config = load_config(config_text) if config_text and Path(config_text).is_file() else load_config()
-    truth = _find_truth(truth_path, manifest, drive)
-    if truth is not None and (why := truth_radar_mismatch(truth, drive)):
-        raise EvaluateError(why)
+    with Drive(drive) as d:
+        truth = _find_truth(truth_path, manifest, d)
+        if truth is not None and (why := truth_radar_mismatch(truth, d)):
+            raise EvaluateError(why)
     return RunInputs(image, traj, drive, config, truth, manifest)
 
 
-def _find_truth(explicit: str | Path | None, manifest: dict[str, Any] | None, drive: Path) -> Path | None:
+def _find_truth(explicit: str | Path | None, manifest: dict[str, Any] | None, drive: Drive) -> Path | None:
     if explicit is not None:
         p = Path(explicit)
         if not p.is_file():
@@ -113,8 +114,7 @@ def _find_truth(explicit: str | Path | None, manifest: dict[str, Any] | None, dr
         return p
     if manifest and manifest.get("truth") and Path(manifest["truth"]).is_file():
         return Path(manifest["truth"])
-    with Drive(drive) as d:
-        found = default_truth_path(d)
+    found = default_truth_path(drive)
     if found is not None:
         return found
     for item in (manifest or {}).get("inputs", []):

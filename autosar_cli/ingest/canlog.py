@@ -43,7 +43,9 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import re
+import shutil
 import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack
@@ -263,14 +265,8 @@ def _whole_records(path: Path, cut: CutShort | None, stack: ExitStack) -> Path:
     if cut is None or cut.whole_bytes is None:
         return path
     copy = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="autosar-canlog-"))) / path.name
-    with open(path, "rb") as src, open(copy, "wb") as dst:
-        left = cut.whole_bytes
-        while left > 0:
-            block = src.read(min(left, 1 << 20))
-            if not block:
-                break
-            dst.write(block)
-            left -= len(block)
+    shutil.copyfile(path, copy)
+    os.truncate(copy, cut.whole_bytes)
     return copy
 
 

@@ -384,14 +384,18 @@ class NmeaLogReader:
                 unended = not raw.endswith(b"\n")  # only ever the file's last line
                 for part in re.split(rb"(?=\$)", line):
                     if part.strip():
-                        before = decoder.skipped.copy() if unended else decoder.skipped
+                        before = decoder.skipped.copy() if unended else None
                         yield from decoder.feed(part)
-                        new = decoder.skipped - before if unended else None
-                        if new and not any(r.startswith("unsupported") for r in new):
+                        if before is not None and _broken(decoder.skipped - before):
                             # the file's last line, without its end, broken: a capture cut short
                             decoder.skipped = before
                             decoder.skipped["cut off by the file's end"] += 1
         yield from decoder.flush()
+
+
+def _broken(reasons: Counter[str]) -> bool:
+    """Whether a sentence skipped for ``reasons`` was damaged, not merely of a kind not decoded."""
+    return bool(reasons) and not any(r.startswith("unsupported") for r in reasons)
 
 
 def read_nmea_log(path: Path) -> Iterator[NmeaRecord]:

@@ -436,7 +436,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
             truth_path = truth_path or default_truth_path(drive)
             if truth_path is None:
                 raise NavInputError(f"{drive_path}: no truth sidecar found; give --truth LOG.truth.h5")
-            if why := truth_radar_mismatch(truth_path, drive_path):
+            if why := truth_radar_mismatch(truth_path, drive):
                 raise NavInputError(why)
     if method == "sar-min":
         inputs, gnss_noise = gnss_noise_checked(inputs, config.navigation.estimate_gnss_noise)

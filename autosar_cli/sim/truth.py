@@ -28,7 +28,7 @@ import os
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import h5py
 import numpy as np
@@ -36,6 +36,9 @@ from numpy.typing import NDArray
 
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.sim.scene import KINDS, Scene
+
+if TYPE_CHECKING:
+    from autosar_cli.store.drive import Drive
 from autosar_cli.sim.sensors import SensorSamples
 
 FORMAT = "autosar-truth"
@@ -136,14 +139,12 @@ class TruthWriter:
             self.tmp.unlink(missing_ok=True)
 
 
-def truth_radar_mismatch(truth_path: str | Path, drive_path: str | Path, frames: int = 8) -> str | None:
-    """Why the truth sidecar at ``truth_path`` is not the truth of the drive at ``drive_path``: it keeps each
+def truth_radar_mismatch(truth_path: str | Path, drive: Drive, frames: int = 8) -> str | None:
+    """Why the truth sidecar at ``truth_path`` is not the truth of the open ``drive``: it keeps each
     radar frame's CRC-32 (``radar/raw_crc32``, of its int16 samples as a drive holds them), and none of ``frames``
     of the drive's frames, spread over it, matches the truth's frame of the same index. None where one does (a
     damaged, cut or converted log of the same recording still has intact frames), or where nothing can be compared
     (an older truth, no common frame index)."""
-    from autosar_cli.store.drive import Drive
-
     with h5py.File(truth_path, "r") as f:
         if "radar/raw_crc32" not in f:
             return None
@@ -152,19 +153,18 @@ def truth_radar_mismatch(truth_path: str | Path, drive_path: str | Path, frames:
     order = np.argsort(truth_index, kind="stable")
     truth_index, truth_crc = truth_index[order], truth_crc[order]
     compared = 0
-    with Drive(drive_path) as drive:
-        radar = drive.radar()
-        index = np.asarray(radar.frame_index)
-        for i in np.unique(np.linspace(0, len(index) - 1, frames).astype(np.int64)) if len(index) else []:
-            k = int(np.searchsorted(truth_index, index[i]))
-            if k < len(truth_index) and truth_index[k] == index[i]:
-                compared += 1
-                if zlib.crc32(np.ascontiguousarray(radar.raw[i]).tobytes()) == truth_crc[k]:
-                    return None
+    radar = drive.radar()
+    index = np.asarray(radar.frame_index)
+    for i in np.unique(np.linspace(0, len(index) - 1, frames).astype(np.int64)) if len(index) else []:
+        k = int(np.searchsorted(truth_index, index[i]))
+        if k < len(truth_index) and truth_index[k] == index[i]:
+            compared += 1
+            if zlib.crc32(np.ascontiguousarray(radar.raw[i]).tobytes()) == truth_crc[k]:
+                return None
     if not compared:
         return None
     return (f"{truth_path}: the truth of another recording ({log_file}): none of {compared} radar frames of "
-            f"{drive_path} matches it")
+            f"{drive.path} matches it")
 
 
 @dataclass(frozen=True)
