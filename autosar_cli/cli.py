@@ -679,8 +679,9 @@ def info(
         folder = path if path.is_dir() else path.parent
         stale = [str(p) for p in stale_partials(folder)]
         from autosar_cli.ingest.dca1000 import is_capture
+        from autosar_cli.ingest.sources import is_log_directory
 
-        if path.is_dir() and not (path / "metadata.yaml").exists() and not is_capture(path):  # a plain directory
+        if path.is_dir() and not is_log_directory(path) and not is_capture(path):  # a plain directory
             if as_json:
                 out.print_json(json.dumps({"path": str(path), "stale_partials": stale}))
                 return

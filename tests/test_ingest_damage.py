@@ -9,6 +9,7 @@ nothing inside it is invented, and a warning names the file and the byte offsets
 from __future__ import annotations
 
 import io
+import json
 import re
 import shutil
 import sqlite3
@@ -283,6 +284,12 @@ def test_rosbag2_killed_wal_recording_keeps_what_its_log_committed(metadata: boo
     assert Counter(got) == Counter(m for _, m in rows)
     assert any(str(db3) in w and "write-ahead log" in w and "committed pages" in w for w in warnings), warnings
     assert {f.name: f.read_bytes() for f in bag.iterdir()} == before
+    from typer.testing import CliRunner
+
+    from autosar_cli.cli import app
+
+    r = CliRunner().invoke(app, ["info", str(bag), "--json"])  # a bag, not a plain directory, without its yaml
+    assert r.exit_code == 0 and sum(s["count"] for s in json.loads(r.stdout)["streams"]) == len(rows), r.output
 
 
 def test_rosbag2_wal_torn_last_transaction_is_left_out(ci_ros2: SimulationResult, work: Path) -> None:

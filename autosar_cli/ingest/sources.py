@@ -119,6 +119,11 @@ def _container(path: Path) -> Container:
     raise LogReadError(f"{path}: unknown log container (expected {expected})")
 
 
+def is_log_directory(path: Path) -> bool:
+    """Whether the directory ``path`` is a log some registered container reads (a rosbag2 bag)."""
+    return any(c.detect(path) for c in _CONTAINERS)
+
+
 def container_of(path: Path) -> str:
     """The registered container that takes `path`: "mcap", "ros1" or "rosbag2" (a rosbag2 bag is a
     directory with metadata.yaml)."""
