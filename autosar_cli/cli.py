@@ -205,7 +205,7 @@ def simulate(
     fmt: Annotated[LogFormat, typer.Option("--format", "-f", help="Log container; dca1000: an MCAP of the "
                                            "navigation plus the radar as a TI DCA1000 capture in <log>.dca1000/ "
                                            "(ingest with --radar).")] = LogFormat.mcap,
-    seed: Annotated[int, typer.Option("--seed", help="Random seed: same seed, same bytes.")] = 0,
+    seed: Annotated[int, typer.Option("--seed", min=0, help="Random seed: same seed, same bytes.")] = 0,
     dynamics: Annotated[Dynamics | None, typer.Option(
         "--dynamics", help="Vehicle model: kinematic bicycle or full 3-D dynamics (default: the config's).")] = None,
     config: ConfigOpt = None,
@@ -268,7 +268,7 @@ def ingest(
     allow_time_gap: Annotated[bool, typer.Option(
         "--allow-time-gap", help="Ingest inputs that lie more than --max-time-gap apart as recorded.")] = False,
     max_time_gap: Annotated[float, typer.Option(
-        "--max-time-gap", help="Seconds inputs may lie apart before they are refused.")] = 3600.0,
+        "--max-time-gap", min=0.0, help="Seconds inputs may lie apart before they are refused.")] = 3600.0,
     overwrite: OverwriteOpt = False,
     as_json: JsonOpt = False,
 ) -> None:

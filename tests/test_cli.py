@@ -62,6 +62,9 @@ def test_errors_are_one_line_without_traceback(tmp_path):
     assert "Traceback" not in r.output and str(bad_cfg) in r.stderr
     r = runner.invoke(app, ["info", str(tmp_path / "missing.mcap")])
     assert r.exit_code == 1 and "no such file" in r.stderr
+    # a negative seed is named as the option (numpy's "expected non-negative integer" named nothing)
+    r = runner.invoke(app, ["simulate", "-o", str(tmp_path / "x.mcap"), "--seed", "-1"])
+    assert r.exit_code == 2 and "--seed" in r.output and not (tmp_path / "x.mcap").exists()
     # a corrupt MCAP: error names the file, no traceback, via the real console script
     corrupt = tmp_path / "corrupt.mcap"
     corrupt.write_bytes(b"\x89MCAP0\r\n" + bytes(range(256)) * 4)

@@ -317,6 +317,15 @@ def test_focus_errors(ci_drive: Drive, tmp_path: Path) -> None:
     res = runner.invoke(app, ["focus", str(d.drive), "-t", str(d.trajectory), "-o", str(tmp_path / "g"),
                               "--grid", "1,2,3"])
     assert res.exit_code == 1 and "--grid" in res.output
+    # a value the config would refuse is refused on the command line too, before anything is written (inf once
+    # focused an image with no aperture: rc 0)
+    for option, value, said in (("--resolution", "inf", "cross-range resolution inf m"),
+                                ("--resolution", "nan", "cross-range resolution nan m"),
+                                ("--height", "nan", "focusing plane height nan m")):
+        res = runner.invoke(app, ["focus", str(d.drive), "-t", str(d.trajectory), "-o", str(tmp_path / "n"),
+                                  option, value])
+        assert res.exit_code == 1 and said in res.output and "Traceback" not in res.output, res.output
+    assert not list(tmp_path.glob("n*"))
     (tmp_path / "y.tif").write_text("keep")
     with pytest.raises(FocusError, match="overwrite"):
         focus(d.drive, d.trajectory, tmp_path / "y", d.config, FocusOptions.from_config(d.config))

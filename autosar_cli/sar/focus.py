@@ -66,6 +66,15 @@ class FocusOptions:
     block_pulses: int = 512  #: pulses per processing block
     min_speed_mps: float = 0.2  #: frames slower than this are skipped (no synthetic aperture)
 
+    def __post_init__(self) -> None:
+        # a CLI override is checked here, as the config's values are in config.py
+        for name, label in (("pixel_m", "pixel size"), ("resolution_m", "cross-range resolution")):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise FocusError(f"focus: {label} {value} m: must be a positive finite number")
+        if not math.isfinite(self.height_m):
+            raise FocusError(f"focus: focusing plane height {self.height_m} m: must be a finite number")
+
     @classmethod
     def from_config(cls, config: Config, **overrides: Any) -> FocusOptions:
         p = config.processing
