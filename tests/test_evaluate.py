@@ -517,6 +517,35 @@ def test_another_recordings_truth_is_refused(ci_run: Path, ci_mcap: Any, sim_dir
         assert r.exit_code == 0, r.output
 
 
+def test_another_recordings_trajectory_is_refused(ci_run: Path, sim_dir: Path, tmp_path: Path) -> None:
+    """A trajectory names 16 radar frames of the drive it was navigated from (index and CRC-32): focus refuses, in
+    one line and writing nothing, a drive none of whose frames of those indices match (ci seed 8's trajectory beside
+    seed 7's drive: their clocks overlap, and the radar was once focused along the other track, rc 0); tiled too.
+    The same recording in another container (seed 7's ROS1 bag, ingested and navigated) focuses."""
+    from autosar_cli.ingest.pipeline import ingest
+    from autosar_cli.store.drive import Drive
+    from autosar_cli.store.trajectory import write_trajectory
+
+    drive = ci_run / "drive.h5"
+    with Drive(drive) as d:
+        named = read_trajectory(ci_run / "trajectory.h5").info["drive_radar_frames"]
+        assert len(named["frame_index"]) == 16 and named == d.radar().fingerprint()
+    paths = {}
+    for name, log in (("other", simulated(sim_dir, "ci", "mcap", 8).log_path),
+                      ("ros1", simulated(sim_dir, "ci", "ros1", 7).log_path)):
+        ingest([log], tmp_path / f"{name}.h5", config=CFG)
+        paths[name] = write_trajectory(tmp_path / f"{name}_traj.h5", navigate(tmp_path / f"{name}.h5", "sar-min", CFG))
+    for tiles in ("1", "2"):
+        r = runner.invoke(app, ["focus", str(drive), "-t", str(paths["other"]), "-o", str(tmp_path / "img"),
+                                "--tiles", tiles])
+        assert r.exit_code == 1 and "Traceback" not in r.output, r.output
+        assert r.stderr.startswith(f"error: {paths['other']}: navigated from another recording than {drive} (none "
+                                   "of 16 radar frames it names matches the drive's)"), r.stderr
+        assert not list(tmp_path.glob("img*"))
+    r = runner.invoke(app, ["focus", str(drive), "-t", str(paths["ros1"]), "-o", str(tmp_path / "img")])
+    assert r.exit_code == 0, r.output
+
+
 def test_reflectors_with_the_truth_trajectory_and_a_rigidly_moved_one(ci_run: Path) -> None:
     """Truth trajectory: every reflector within 1 cm of its true position with no peak loss; the same track moved
     rigidly by 0.4 m and 0.05 deg: the alignment recovers the motion, the reflectors stay within 1 cm of where they

@@ -426,6 +426,8 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
     t0 = time.perf_counter()
     with Drive(drive_path) as drive:
         inputs = load_inputs(drive, config)
+        # which recording this is: focus refuses a drive none of whose frames match (another drive's trajectory)
+        recording = drive.radar().fingerprint() if drive.radar_names() else None
         if method == "ins":
             from autosar_cli.nav.ins import load_ins_inputs
 
@@ -490,5 +492,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
         traj = from_truth(str(truth_path), inputs.origin, config, radar_motion=True)
         traj.info["truth"] = str(truth_path)
     traj.info["drive"] = str(drive_path)
+    if recording is not None:
+        traj.info["drive_radar_frames"] = recording
     traj.info["elapsed_s"] = time.perf_counter() - t0
     return traj

@@ -192,6 +192,17 @@ def _usable_frames(radar: RadarStream, traj: Trajectory, config: Config, min_spe
     return _Geometry(frames[moving], t[frames][moving], ref[moving], vel[moving], skipped)
 
 
+def check_same_recording(radar: RadarStream, traj: Trajectory, drive_path: str | Path, traj_name: str) -> None:
+    """Refuse a trajectory navigated from another recording than ``radar``'s: none of the radar frames it names
+    (``info["drive_radar_frames"]``, :meth:`RadarStream.fingerprint`) matches the drive's frame of that index. Two
+    drives whose clocks overlap (simulated ones, or a logger that starts at 1970 on every boot) would otherwise
+    focus one's radar along the other's track without a word."""
+    frames = traj.info.get("drive_radar_frames")
+    if frames and (n := radar.unmatched(frames["frame_index"], frames["crc32"])):
+        raise FocusError(f"{traj_name}: navigated from another recording than {drive_path} (none of {n} radar "
+                         f"frames it names matches the drive's); navigate {drive_path} itself")
+
+
 def make_grid(options: FocusOptions, geometry: _Geometry, config: Config) -> FocusGrid:
     box = parse_grid(options.grid)
     check_grid_size(options, config)
@@ -272,6 +283,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
             radar = drive.radar()
         except Exception as exc:  # noqa: BLE001 - any reader failure is an input problem here
             raise FocusError(f"{drive_path}: {exc}") from None
+        check_same_recording(radar, traj, drive_path, traj_name)
         rp = RadarParameters.of(radar, config, options.upsample)
         f0, slope, fs, n_samp, offsets = rp.start_frequency_hz, rp.slope_hz_per_s, rp.sample_rate_hz, rp.n_samples, \
             rp.tx_start_offsets_s

@@ -38,6 +38,7 @@ from autosar_cli.sar.focus import (
     FocusReport,
     _usable_frames,
     check_request,
+    check_same_recording,
     focus_images,
     make_grid,
 )
@@ -96,17 +97,20 @@ def _read_trajectory(trajectory: str | Path | Trajectory) -> tuple[Trajectory, s
 
 
 def plan_grid(drive_path: str | Path, trajectory: str | Path | Trajectory, config: Config,
-              options: FocusOptions) -> FocusGrid:
+              options: FocusOptions, trajectory_name: str | None = None) -> FocusGrid:
     """The grid :func:`~autosar_cli.sar.focus.focus_images` would focus onto (``options.grid``), without focusing.
 
-    Reads only the radar frame times of the drive and the trajectory.
+    Reads only the radar frame times of the drive and the trajectory (``trajectory_name``: how errors name a
+    :class:`Trajectory` given, e.g. the file it was read from).
     """
     traj, traj_name = _read_trajectory(trajectory)
+    traj_name = trajectory_name or traj_name
     with Drive(drive_path) as drive:
         try:
             radar = drive.radar()
         except Exception as exc:  # noqa: BLE001 - any reader failure is an input problem here
             raise FocusError(f"{drive_path}: {exc}") from None
+        check_same_recording(radar, traj, drive_path, traj_name)
         geometry = _usable_frames(radar, traj, config, options.min_speed_mps)
     if geometry.frames.size < 2:
         raise FocusError(f"{drive_path}: no radar frame lies inside the trajectory {traj_name} while moving")
@@ -152,8 +156,8 @@ def focus_tiled(drive_path: str | Path, trajectory_path: str | Path, output: str
     """
     check_request(options, output, overwrite, [drive_path, trajectory_path])
     t_plan = time.perf_counter()
-    traj, _ = _read_trajectory(trajectory_path)
-    grid = plan_grid(drive_path, traj, config, options)
+    traj, traj_name = _read_trajectory(trajectory_path)
+    grid = plan_grid(drive_path, traj, config, options, traj_name)
     parts = split_grid(grid, tiles)
     timings: Counter[str] = Counter()
     timings["geometry"] += time.perf_counter() - t_plan

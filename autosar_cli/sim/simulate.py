@@ -36,6 +36,7 @@ from autosar_cli.sim.scenario import Scenario, build_scenario
 from autosar_cli.sim.scene import Scene
 from autosar_cli.sim.trajectory import TruthMotion
 from autosar_cli.sim.truth import TruthWriter, truth_path_for
+from autosar_cli.store.drive import frame_crc32
 
 LogFormat = Literal["mcap", "ros1", "ros2", "dca1000"]
 RADAR_SYNC_TOPIC = "/dca1000/sync"  #: dca1000 format: std_msgs/Header stamped at each frame's start
@@ -338,7 +339,7 @@ def simulate(
                     "phase_centre_enu": 0.5 * (geo["tx_start"][:, :, None, :] + geo["rx_start"]),
                     "vibration_enu": geo["vibration"],
                     # each frame's samples as the drive will hold them: evaluation tells this drive's truth by them
-                    "raw_crc32": np.array([zlib.crc32(frame.tobytes()) for frame in raw], np.uint32),
+                    "raw_crc32": np.array([frame_crc32(frame) for frame in raw], np.uint32),
                 })
                 if progress is not None:
                     progress(int(idx[-1]) + 1, n_frames)

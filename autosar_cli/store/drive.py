@@ -28,6 +28,7 @@ import json
 import os
 import queue
 import threading
+import zlib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -373,6 +374,38 @@ class RadarStream:
             return read_rows(self.raw, start, stop)[:, tx, rx]
         with dataset_errors(self.raw.file.filename, self.raw.name):
             return np.stack([self.raw[start:stop, t, r] for t, r in zip(tx, rx, strict=True)], axis=1)
+
+    def frame_crc32(self, i: int) -> int:
+        """CRC-32 of frame ``i``'s int16 samples as the drive holds them (the simulator's truth keeps the same)."""
+        return frame_crc32(read_rows(self.raw, i, i + 1)[0])
+
+    def fingerprint(self, frames: int = 16) -> dict[str, list[int]]:
+        """The frame indices and CRC-32s of ``frames`` frames spread over the stream: what names the recording a
+        product was made from (a trajectory's, :meth:`unmatched`)."""
+        picks = np.unique(np.linspace(0, len(self.frame_index) - 1, frames).astype(np.int64)) \
+            if len(self.frame_index) else np.zeros(0, np.int64)
+        return {"frame_index": [int(self.frame_index[i]) for i in picks],
+                "crc32": [self.frame_crc32(int(i)) for i in picks]}
+
+    def unmatched(self, frame_index: Sequence[int], crc32: Sequence[int]) -> int:
+        """How many of the frames given by index and CRC-32 (a :meth:`fingerprint`, or a truth's) this stream
+        holds, where none of them matches its own frame of that index; 0 where one does (a cut, damaged or
+        converted log of the same recording keeps intact frames) or where none can be compared."""
+        own = np.asarray(self.frame_index)
+        order = np.argsort(own, kind="stable")
+        compared = 0
+        for index, crc in zip(frame_index, crc32, strict=True):
+            k = int(np.searchsorted(own[order], index))
+            if k < len(own) and own[order[k]] == index:
+                compared += 1
+                if self.frame_crc32(int(order[k])) == int(crc):
+                    return 0
+        return compared
+
+
+def frame_crc32(frame: np.ndarray) -> int:
+    """CRC-32 of one raw frame (tx, rx, sample, I/Q) int16, as its bytes lie in C order."""
+    return zlib.crc32(np.ascontiguousarray(frame).tobytes())
 
 
 class Drive:
