@@ -441,6 +441,9 @@ def focus(
                                                  "road at the origin (config default 0.5).")] = None,
     grid: Annotated[str, typer.Option("--grid", help="'auto' (along the trajectory on the radar side, ground "
                                       "range 0.5 m to R_max) or x0,y0,x1,y1 in ENU metres.")] = "auto",
+    radar_stream: Annotated[str | None, typer.Option("--radar-stream", metavar="NAME", help="The drive's radar "
+                                                     "stream to focus (/radar/NAME; default: its first). Its "
+                                                     "mounting is the config's [radar].")] = None,
     tiles: Annotated[int, typer.Option("--tiles", min=1, help="Focus the grid in N tiles along the track, one "
                                        "after the other (same image; each holds only its tile in memory, but "
                                        "re-reads the pulses).")] = 1,
@@ -455,7 +458,7 @@ def focus(
 
         cfg = _load_config(config)
         options = FocusOptions.from_config(cfg, pixel_m=pixel, resolution_m=resolution, height_m=height, grid=grid,
-                                           channels=int(channels.value) if channels else None)
+                                           channels=int(channels.value) if channels else None, radar=radar_stream)
         with _progress("focusing", enabled=not as_json) as progress:
             if tiles > 1:
                 from autosar_cli.sar.tiles import focus_tiled
@@ -477,6 +480,8 @@ def focus(
                   f"({wall / max(report.drive_s, 1e-9):.2f} x the drive's {report.drive_s:.1f} s)")
         for reason, n in report.frames_skipped.items():
             err.print(f"[yellow]skipped[/] {n} frames: {reason}", highlight=False)
+        for w in report.warnings:
+            err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
 
 
 @app.command()

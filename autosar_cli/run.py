@@ -151,7 +151,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
                                    "grid_shape": list(frep.grid_shape), "frames_used": frep.frames_used,
                                    "frames_skipped": frep.frames_skipped,
                                    "backprojections": frep.backprojections,
-                                   "backprojections_per_s": frep.backprojections_per_s}
+                                   "backprojections_per_s": frep.backprojections_per_s, "warnings": frep.warnings}
     manifest["outputs"]["image"] = {k: os.path.relpath(v, out) for k, v in frep.outputs.items()}
     manifest["drive_s"] = frep.drive_s
     manifest["wall_s"] = sum(s["wall_s"] for s in manifest["stages"].values())
@@ -164,10 +164,12 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
 
 
 def run_warnings(manifest: dict[str, Any]) -> list[str]:
-    """What a run warned about (ingest: a truncated or damaged log, dropped data; autofocus not applied): a run
-    with any is ``degraded`` (run.json's ``status``, batch.json's drive record), not plain ``ok``."""
+    """What a run warned about (ingest: a truncated or damaged log, dropped data; focus: another radar of the drive
+    left unfocused; autofocus not applied): a run with any is ``degraded`` (run.json's ``status``, batch.json's
+    drive record), not plain ``ok``."""
     st = manifest.get("stages", {})
     warnings = [str(w) for w in st.get("ingest", {}).get("warnings", [])]
+    warnings += [str(w) for w in st.get("focus", {}).get("warnings", [])]
     af = st.get("autofocus")
     if af and not af.get("applied", True):
         warnings.append(f"autofocus: {af.get('summary', 'not applied')}")

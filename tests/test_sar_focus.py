@@ -7,6 +7,7 @@ the responses widen by ~20 % (measured; see the issue notes), which is the effec
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -305,6 +306,37 @@ def test_range_upsampling_of_four_keeps_the_theoretical_response(ci_drive: Drive
         assert a.range_cut.width_m == pytest.approx(b.range_cut.width_m, rel=0.02)
         assert a.range_cut.pslr_db == pytest.approx(b.range_cut.pslr_db, abs=1.0)
     assert max(t.peak_error_m for t in m[2]) > 2 * max(t.peak_error_m for t in m[4])
+
+
+def test_a_drive_with_two_radars_says_which_it_focused(ci_drive: Drive, tmp_path: Path) -> None:
+    """A drive holding two radar streams (a car with a radar each side): focus takes the first and warns, naming
+    the other (before: nothing said); ``--radar-stream`` focuses the one named, without a warning, and the image
+    records it; an unknown name is a one-line error listing the streams. The second stream here is the first's
+    copy with its samples zeroed, so that which one was focused shows in the image."""
+    import shutil
+
+    drive = tmp_path / "two.h5"
+    shutil.copy(ci_drive.drive, drive)
+    with h5py.File(drive, "r+") as f:
+        own = f["radar"].keys().__iter__().__next__()
+        f.copy(f"radar/{own}", "radar/a_right")  # sorts first: the default
+        f["radar/a_right/raw"][...] = 0
+    runner = CliRunner()
+    common = ["focus", str(drive), "-t", str(ci_drive.trajectory), "--pixel", "0.08", "--json"]
+    res = runner.invoke(app, [*common, "-o", str(tmp_path / "first")])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["warnings"] == [f"{drive}: holds 2 radar streams; focused a_right, not {own} "
+                                                  "(autosar focus --radar-stream NAME focuses another)"]
+    assert read_image(tmp_path / "first.h5").params["radar"] == "a_right"
+    assert np.abs(read_image(tmp_path / "first.h5").image).max() == 0.0
+    res = runner.invoke(app, [*common, "-o", str(tmp_path / "own"), "--radar-stream", own])
+    assert res.exit_code == 0 and json.loads(res.stdout)["warnings"] == [], res.output
+    named = read_image(tmp_path / "own.h5")
+    assert named.params["radar"] == own and np.abs(named.image).max() > 0.0
+    res = runner.invoke(app, [*common, "-o", str(tmp_path / "none"), "--radar-stream", "left"])
+    assert res.exit_code == 1 and res.stderr.strip() == (f"error: {drive}: no radar stream 'left' (it holds "
+                                                         f"a_right, {own})"), res.output
+    assert not list(tmp_path.glob("none*"))
 
 
 def test_focus_errors(ci_drive: Drive, tmp_path: Path) -> None:

@@ -63,7 +63,7 @@ from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm
 from autosar_cli.run import FORMAT as RUN_FORMAT
 from autosar_cli.run import FORMAT_VERSION as RUN_FORMAT_VERSION
 from autosar_cli.sar.autofocus import TrackAutofocus, estimate_track_scale, scale_track
-from autosar_cli.sar.focus import FocusOptions, auto_grid, focus_images
+from autosar_cli.sar.focus import FocusOptions, auto_grid, focus_images, unfocused_radars
 from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.sar.residual_motion import autofocus_residual_motion
 from autosar_cli.sim.truth import truth_radar_mismatch
@@ -140,6 +140,7 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
                     progress=lambda done, total: tick("ingest", done, total))
     warnings = [str(w) for w in report.warnings]  # a damaged log, dropped data: every product is degraded
     timings["ingest"] = time.perf_counter() - t0
+    warnings += unfocused_radars(out / DRIVE, options)  # another radar of the drive: in no image
 
     if truth_path is not None and not Path(truth_path).is_file():
         raise CompareError(f"{truth_path}: no such truth sidecar")
@@ -201,7 +202,7 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
     names = truth.targets.corner_reflector_names() if has_reflectors and truth else []
     true_cr = truth.targets.position_enu[truth.targets.corner_reflectors] if has_reflectors and truth else None
     if truth is not None:
-        t_radar = radar_times(out / DRIVE)
+        t_radar = radar_times(out / DRIVE, options.radar)
         lever = phase_centre_lever_arm(config)
 
         def register(m: str) -> None:

@@ -65,6 +65,7 @@ class FocusOptions:
     upsample: int = 4  #: range zero-padding factor
     block_pulses: int = 512  #: pulses per processing block
     min_speed_mps: float = 0.2  #: frames slower than this are skipped (no synthetic aperture)
+    radar: str | None = None  #: the drive's radar stream to focus (``/radar/<name>``; None: its first)
 
     def __post_init__(self) -> None:
         # a CLI override is checked here, as the config's values are in config.py
@@ -93,6 +94,7 @@ class FocusReport:
     backprojections: int  #: pixels x pulses x channels actually summed
     timings_s: dict[str, float] = field(default_factory=dict)
     drive_s: float = 0.0
+    warnings: list[str] = field(default_factory=list)  #: what the image leaves out (another radar of the drive)
 
     @property
     def backprojections_per_s(self) -> float:
@@ -192,13 +194,29 @@ def _usable_frames(radar: RadarStream, traj: Trajectory, config: Config, min_spe
     return _Geometry(frames[moving], t[frames][moving], ref[moving], vel[moving], skipped)
 
 
-def check_same_recording(radar: RadarStream, traj: Trajectory, drive_path: str | Path, traj_name: str) -> None:
-    """Refuse a trajectory navigated from another recording than ``radar``'s: none of the radar frames it names
-    (``info["drive_radar_frames"]``, :meth:`RadarStream.fingerprint`) matches the drive's frame of that index. Two
-    drives whose clocks overlap (simulated ones, or a logger that starts at 1970 on every boot) would otherwise
+def open_radar(drive: Drive, options: FocusOptions) -> RadarStream:
+    """The radar stream ``options`` focuses (``options.radar``, else the drive's first); any reader failure is a
+    :class:`FocusError` naming the drive."""
+    try:
+        return drive.radar(options.radar)
+    except Exception as exc:  # noqa: BLE001 - any reader failure is an input problem here
+        msg = str(exc)
+        raise FocusError(msg if str(drive.path) in msg else f"{drive.path}: {msg}") from None
+
+
+def check_same_recording(drive: Drive, radar: RadarStream, traj: Trajectory, traj_name: str) -> None:
+    """Refuse a trajectory navigated from another recording than ``drive``'s: none of the radar frames it names
+    (``info["drive_radar_frames"]``, :meth:`RadarStream.fingerprint`) matches the drive's frame of that index, in
+    the stream they were taken from where the drive holds one of that name, else in ``radar`` (the stream focused).
+    Two drives whose clocks overlap (simulated ones, or a logger that starts at 1970 on every boot) would otherwise
     focus one's radar along the other's track without a word."""
     frames = traj.info.get("drive_radar_frames")
-    if frames and (n := radar.unmatched(frames["frame_index"], frames["crc32"])):
+    if not frames:
+        return
+    if frames.get("stream") in drive.radar_names() and frames["stream"] != radar.name:
+        radar = drive.radar(frames["stream"])
+    drive_path = drive.path
+    if n := radar.unmatched(frames["frame_index"], frames["crc32"]):
         raise FocusError(f"{traj_name}: navigated from another recording than {drive_path} (none of {n} radar "
                          f"frames it names matches the drive's); navigate {drive_path} itself")
 
@@ -222,7 +240,7 @@ def make_grid(options: FocusOptions, geometry: _Geometry, config: Config) -> Foc
 def auto_grid(drive_path: str | Path, trajectory: Trajectory, config: Config, options: FocusOptions) -> FocusGrid:
     """The grid ``autosar focus --grid auto`` would use along ``trajectory``."""
     with Drive(drive_path) as d:
-        geometry = _usable_frames(d.radar(), trajectory, config, options.min_speed_mps)
+        geometry = _usable_frames(open_radar(d, options), trajectory, config, options.min_speed_mps)
     return make_grid(replace(options, grid="auto"), geometry, config)
 
 
@@ -279,11 +297,8 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
             msg = str(exc)
             raise FocusError(msg if traj_name in msg else f"{traj_name}: {msg}") from None
     with Drive(drive_path) as drive:
-        try:
-            radar = drive.radar()
-        except Exception as exc:  # noqa: BLE001 - any reader failure is an input problem here
-            raise FocusError(f"{drive_path}: {exc}") from None
-        check_same_recording(radar, traj, drive_path, traj_name)
+        radar = open_radar(drive, options)
+        check_same_recording(drive, radar, traj, traj_name)
         rp = RadarParameters.of(radar, config, options.upsample)
         f0, slope, fs, n_samp, offsets = rp.start_frequency_hz, rp.slope_hz_per_s, rp.sample_rate_hz, rp.n_samples, \
             rp.tx_start_offsets_s
@@ -391,13 +406,28 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
     params = {**asdict(options), "channel_pairs": [list(p) for p in pairs], "start_frequency_hz": f0,
               "slope_hz_per_s": slope, "sample_rate_hz": fs, "num_samples": n_samp, "bin_m": bin_m,
               "cycles_per_m": cycles_per_m, "wavelength_m": wavelength, "half_width_rad": half_width,
-              "trajectory_method": traj.method, "frames_used": int(len(frames)), "backprojections": n_bp}
+              "trajectory_method": traj.method, "frames_used": int(len(frames)), "backprojections": n_bp,
+              "radar": radar.name}
     provenance = {"drive": str(drive_path), "trajectory": traj_name, "autosar_version": __version__,
                   "command": command, "config": config.source}
     out = [FocusedImage(img.reshape(g.shape), g, traj.origin, dict(params), dict(provenance))
            for g, img in zip(grid_list, images, strict=True)]
     return FocusResult(out, int(len(frames)), {k: v for k, v in geometry.skipped.items() if v}, n_bp, dict(timings),
                        drive_s)
+
+
+def unfocused_radars(drive_path: str | Path, options: FocusOptions) -> list[str]:
+    """A warning naming the drive's radar streams left unfocused where ``options`` chose none (a car with two
+    radars: the first is focused), else none."""
+    if options.radar is not None:
+        return []
+    with Drive(drive_path) as d:
+        names = d.radar_names()
+    focused, others = names[0] if names else None, names[1:]
+    if not others:
+        return []
+    return [f"{drive_path}: holds {len(names)} radar streams; focused {focused}, not {', '.join(others)} "
+            "(autosar focus --radar-stream NAME focuses another)"]
 
 
 def check_grid_size(options: FocusOptions, config: Config | None = None, grid: FocusGrid | None = None) -> None:
@@ -447,4 +477,4 @@ def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Pat
     timings = dict(res.timings_s)
     timings["write"] = time.perf_counter() - t0
     return FocusReport({k: str(v) for k, v in outputs.items()}, img.grid.shape, res.frames_used, res.frames_skipped,
-                       res.backprojections, timings, res.drive_s)
+                       res.backprojections, timings, res.drive_s, unfocused_radars(drive_path, options))

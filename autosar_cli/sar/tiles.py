@@ -41,6 +41,8 @@ from autosar_cli.sar.focus import (
     check_same_recording,
     focus_images,
     make_grid,
+    open_radar,
+    unfocused_radars,
 )
 from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.store.drive import Drive
@@ -106,11 +108,8 @@ def plan_grid(drive_path: str | Path, trajectory: str | Path | Trajectory, confi
     traj, traj_name = _read_trajectory(trajectory)
     traj_name = trajectory_name or traj_name
     with Drive(drive_path) as drive:
-        try:
-            radar = drive.radar()
-        except Exception as exc:  # noqa: BLE001 - any reader failure is an input problem here
-            raise FocusError(f"{drive_path}: {exc}") from None
-        check_same_recording(radar, traj, drive_path, traj_name)
+        radar = open_radar(drive, options)
+        check_same_recording(drive, radar, traj, traj_name)
         geometry = _usable_frames(radar, traj, config, options.min_speed_mps)
     if geometry.frames.size < 2:
         raise FocusError(f"{drive_path}: no radar frame lies inside the trajectory {traj_name} while moving")
@@ -198,7 +197,8 @@ def focus_tiled(drive_path: str | Path, trajectory_path: str | Path, output: str
         t0 = time.perf_counter()
     timings["write"] += time.perf_counter() - t0  # closing: tags, quicklook, flush, rename
     return FocusReport({k: str(v) for k, v in writer.paths.items()}, grid.shape, first.frames_used,
-                       first.frames_skipped, n_bp, dict(timings), first.drive_s)
+                       first.frames_skipped, n_bp, dict(timings), first.drive_s,
+                       unfocused_radars(drive_path, options))
 
 
 def _token() -> str:

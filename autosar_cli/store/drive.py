@@ -379,12 +379,12 @@ class RadarStream:
         """CRC-32 of frame ``i``'s int16 samples as the drive holds them (the simulator's truth keeps the same)."""
         return frame_crc32(read_rows(self.raw, i, i + 1)[0])
 
-    def fingerprint(self, frames: int = 16) -> dict[str, list[int]]:
-        """The frame indices and CRC-32s of ``frames`` frames spread over the stream: what names the recording a
-        product was made from (a trajectory's, :meth:`unmatched`)."""
+    def fingerprint(self, frames: int = 16) -> dict[str, Any]:
+        """The stream's name and the frame indices and CRC-32s of ``frames`` frames spread over it: what names the
+        recording a product was made from (a trajectory's, :meth:`unmatched`)."""
         picks = np.unique(np.linspace(0, len(self.frame_index) - 1, frames).astype(np.int64)) \
             if len(self.frame_index) else np.zeros(0, np.int64)
-        return {"frame_index": [int(self.frame_index[i]) for i in picks],
+        return {"stream": self.name, "frame_index": [int(self.frame_index[i]) for i in picks],
                 "crc32": [self.frame_crc32(int(i)) for i in picks]}
 
     def unmatched(self, frame_index: Sequence[int], crc32: Sequence[int]) -> int:
@@ -480,6 +480,8 @@ class Drive:
         if not names:
             raise DriveFormatError(f"{self.path}: no radar stream")
         name = name or names[0]
+        if name not in names:
+            raise DriveFormatError(f"{self.path}: no radar stream {name!r} (it holds {', '.join(names)})")
         with dataset_errors(self.path, f"radar/{name}/raw"):
             g = self._file["radar"][name]
             raw = g["raw"]
@@ -492,7 +494,7 @@ class Drive:
         return json.loads(self._file["provenance"].attrs.get("report", "{}"))
 
 
-def radar_times(drive_path: str | Path) -> NDArray[np.int64]:
-    """Frame start times (ns) of a drive's radar."""
+def radar_times(drive_path: str | Path, name: str | None = None) -> NDArray[np.int64]:
+    """Frame start times (ns) of a drive's radar stream ``name`` (None: its first)."""
     with Drive(drive_path) as d:
-        return np.asarray(d.radar().t_ns, dtype=np.int64)
+        return np.asarray(d.radar(name).t_ns, dtype=np.int64)
