@@ -105,6 +105,65 @@ def test_cli_time_gap_options(ci_mcap: SimulationResult, work: Path, drive_start
     assert r.exit_code == 0, r.output
 
 
+# ------------------------------------------------------------------------------- two recordings
+def split_mcap(log: Path, first: Path, second: Path, late_topic: str = "/imu/cog_a", late_s: float = 0.1) -> None:
+    """``log``'s messages in two MCAPs, those logged before its middle time and the rest (a recorder's split),
+    but for every other message of ``late_topic`` in the ``late_s`` before the middle: in the second, as if they
+    had come late."""
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+
+    with open(log, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert summary is not None and summary.statistics is not None
+        middle = (summary.statistics.message_start_time + summary.statistics.message_end_time) // 2
+        with open(first, "wb") as fa, open(second, "wb") as fb:
+            writers = [Writer(fa), Writer(fb)]
+            ids: list[dict[int, int]] = []
+            for w in writers:
+                w.start(profile="ros2", library="test")
+                schemas = {k: w.register_schema(v.name, v.encoding, v.data) for k, v in summary.schemas.items()}
+                ids.append({k: w.register_channel(c.topic, c.message_encoding, schemas[c.schema_id], c.metadata)
+                            for k, c in summary.channels.items()})
+            late = 0
+            for _, channel, m in reader.iter_messages(log_time_order=True):
+                k = int(m.log_time >= middle)
+                if channel.topic == late_topic and middle - late_s * 1e9 <= m.log_time < middle:
+                    late += 1
+                    k = late % 2
+                writers[k].add_message(ids[k][channel.id], m.log_time, m.data, m.publish_time, m.sequence)
+            for w in writers:
+                w.finish()
+
+
+def test_two_recordings_of_a_stream_are_refused(ci_mcap: SimulationResult, sim_dir: Path, work: Path,
+                                                cfg: Config) -> None:
+    """Two logs whose rows of one stream interleave would make a drive of two recordings (ci seeds 7 and 8 share
+    their clock: their IMUs at 1000 Hz, each one's GNSS where its stamps came first; before, rc 0 and no
+    warning): refused in one line naming both logs and the stream. A recording split into two files by log time
+    (the second's first messages stamped before the first's last) reads as the whole; the same log twice as
+    duplicates, dropped."""
+    from conftest import simulated
+
+    other = simulated(sim_dir, "ci", "mcap", 8).log_path
+    out = work / "two.h5"
+    with pytest.raises(IngestError) as exc:
+        run([ci_mcap.log_path, other], out, cfg)
+    msg = str(exc.value)
+    assert msg.startswith(f"{other}: its ") and f"interleaves with {ci_mcap.log_path}'s over 0.9" in msg, msg
+    assert "two recordings of one stream" in msg and not out.exists()
+    whole = run([ci_mcap.log_path], work / "whole.h5", cfg)
+    split_mcap(ci_mcap.log_path, work / "part0.mcap", work / "part1.mcap")
+    parts = run([work / "part0.mcap", work / "part1.mcap"], work / "parts.h5", cfg)
+    written = {s["path"]: s["written"] for s in whole.streams}
+    assert {s["path"]: s["written"] for s in parts.streams} == written
+    # what the check lets through: the late half of 0.1 s of imu_cog_a's 500 Hz put back in order
+    assert {s["path"]: s["reordered"] for s in parts.streams if s["reordered"]} == {"imu/imu_cog_a": 25}
+    twice = run([ci_mcap.log_path, ci_mcap.log_path], work / "twice.h5", cfg)
+    assert {s["path"]: s["written"] for s in twice.streams} == written
+
+
 # ------------------------------------------------------------------------------------------- NMEA
 def test_dateless_nmea_is_dated_by_the_other_streams(ci_mcap: SimulationResult, work: Path, cfg: Config,
                                                      drive_start_s: float) -> None:

@@ -82,6 +82,10 @@ class TableStream:
         self.series.stats.received += 1
         self.series.stats.skipped[reason] += 1
 
+    def named_series(self) -> list[tuple[str, Series]]:
+        """(drive.h5 path, series) of what this stream writes."""
+        return [(self.info.path, self.series)]
+
     def finish(self) -> StreamInfo:
         stats = self.series.finish()
         self.table.write_dataset("gaps", np.asarray(stats.gaps, dtype=np.int64).reshape(-1, 2))
@@ -193,6 +197,10 @@ class NmeaStreams:
                     self.velocity.push(r.t_ns, lg, (float(r.fix_time_ns), r.speed_mps, r.course_rad))
             elif isinstance(r, NmeaHeading):
                 self.heading.push(r.t_ns, lg, (r.heading_rad,))
+
+    def named_series(self) -> list[tuple[str, Series]]:
+        """(drive.h5 path, series) of what this stream writes."""
+        return [pair for s in (self.fix, self.velocity, self.vtg, self.heading) for pair in s.named_series()]
 
     def finish(self) -> list[StreamInfo]:
         self.route(self.decoder.flush(), None)
@@ -347,6 +355,10 @@ class CanDecoder:
         stream.push(header_ns, log_ns, row)
         st.decoded += 1
 
+    def named_series(self) -> list[tuple[str, Series]]:
+        """(drive.h5 path, series) of every CAN message table."""
+        return [pair for lay in self._layouts.values() if lay.stream is not None for pair in lay.stream.named_series()]
+
     def finish(self) -> list[StreamInfo]:
         out = []
         for lay in self._layouts.values():
@@ -444,6 +456,10 @@ class RadarDecoder:
         raw = np.stack([r[1] for r in rows]).reshape(len(rows), *self.shape, 2)
         self._frame_stats.append(frame_statistics(idx, raw))
         self.cube.append_frames(t_ns, idx, raw)
+
+    def named_series(self) -> list[tuple[str, Series]]:
+        """(drive.h5 path, series) of the radar frames."""
+        return [(self.path, self.series)]
 
     def finish(self) -> StreamInfo | None:
         stats = self.series.finish()

@@ -67,6 +67,9 @@ KIND_OF_TYPE = {
 }
 NMEA_SUFFIXES = (".nmea", ".txt", ".gps")
 MAX_TIME_GAP_S = 3600.0  #: inputs further apart than this are refused (unless --allow-time-gap)
+#: rows of one stream from two inputs interleaving over longer than this are refused: a split recording's files
+#: reorder across their boundary only by the messages' latency
+INTERLEAVE_NS = 250_000_000
 
 ProgressFn = Callable[[int, int], None]
 
@@ -479,6 +482,27 @@ class _Ingest:
             self.spans[str(path)] = (first, last)
         return n
 
+    def end_input(self, path: Path | str) -> None:
+        """Every stream's rows since the last input came from ``path``."""
+        for _, series in self.named_series():
+            series.end_input(str(path))
+
+    def named_series(self) -> list[tuple[str, Any]]:
+        return [pair for s in self.streams.values() for pair in s.named_series()] + self.can.named_series()
+
+    def check_interleaved(self) -> None:
+        """Refuse inputs whose rows of one stream interleave for longer than a split recording's boundary
+        reorders them (:meth:`Series.interleaved`): the drive would mix two recordings of that stream."""
+        for path, series in self.named_series():
+            got = series.interleaved(INTERLEAVE_NS)
+            if got is not None:
+                a, b, t0, t1 = got
+                raise IngestError(
+                    f"{b}: its {path} interleaves with {a}'s over {(t1 - t0) / 1e9:.2f} s "
+                    f"({_iso(t0, 'milliseconds')} to {_iso(t1, 'milliseconds')}): two recordings of one stream, "
+                    "or one sensor recorded twice on other clocks? Give the logs of one recording (the same "
+                    "messages in two files are duplicates, dropped)")
+
     def finish(self) -> list[StreamInfo]:
         infos: list[StreamInfo] = []
         for stream in self.streams.values():
@@ -554,9 +578,11 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
                     report.messages += job.run_nmea_log(path, offsets.get(path, 0))
             except (LogReadError, RadarParamsError) as exc:
                 raise IngestError(str(exc)) from exc
+            job.end_input(path)
             done += _input_bytes(path, src)
             report_progress(0)
         check_time_gaps(job.spans, max_time_gap_s, allow_time_gap, job.warnings)
+        job.check_interleaved()
         infos = job.finish()
         _check_content(inputs, infos, job, allow_partial, report)
         _plausibility(infos, job)
@@ -622,9 +648,12 @@ class _Finished:
     def finish(self) -> StreamInfo:
         return self.info
 
+    def named_series(self) -> list[tuple[str, Any]]:
+        return []
 
-def _iso(t_ns: int) -> str:
-    return datetime.fromtimestamp(t_ns / 1e9, UTC).isoformat(timespec="seconds")
+
+def _iso(t_ns: int, timespec: str = "seconds") -> str:
+    return datetime.fromtimestamp(t_ns / 1e9, UTC).isoformat(timespec=timespec)
 
 
 def _shifted(rec: NmeaRecord, offset_ns: int) -> NmeaRecord:

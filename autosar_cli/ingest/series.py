@@ -10,6 +10,9 @@ Every decoded stream goes through one :class:`Series` before it reaches drive.h5
    order. A message older than what has already been written is dropped and counted ("late"); one with
    the same time as its neighbour is a duplicate, dropped and counted.
 4. Gaps: a step longer than ``gap_factor`` × the stream's typical period is recorded.
+5. Inputs: the rows each input file gave (:meth:`Series.end_input`), by which ingest refuses two inputs whose
+   rows of one stream interleave (two recordings of it, or one sensor recorded twice on other clocks; the same
+   messages twice are duplicates, dropped).
 
 Memory is bounded by the window and the flush size, whatever the length of the log.
 """
@@ -75,6 +78,9 @@ class Series:
         self._out_rows: list[Any] = []
         self._last_t: int | None = None
         self._period: float | None = None
+        self._input_span: list[int] = []  #: [first, last] time of the rows taken since the last input ended
+        self._input_rows = 0
+        self.inputs: list[tuple[str, int, int, int]] = []  #: (input, first, last row time ns, rows) it gave
 
     def push(self, header_ns: int | None, log_ns: int, row: Any) -> None:
         """Add one message: its header stamp (None or 0 if it has none), log time (ns) and decoded row."""
@@ -121,6 +127,12 @@ class Series:
                 return
             self.stats.reordered += 1
             buf.insert(i, (t, row))
+        span = self._input_span
+        if span:
+            span[0], span[1] = min(span[0], t), max(span[1], t)
+        else:
+            span[:] = [t, t]
+        self._input_rows += 1
         if len(buf) >= 2 * self.window:
             self._emit(self.window)
 
@@ -156,6 +168,22 @@ class Series:
             s.first_ns = int(t[0])
         s.written += len(t)
         s.last_ns = int(t[-1])
+
+    def end_input(self, name: str) -> None:
+        """The rows taken since the last call came from the input ``name`` (a file)."""
+        if self._input_rows:
+            self.inputs.append((name, self._input_span[0], self._input_span[1], self._input_rows))
+        self._input_span, self._input_rows = [], 0
+
+    def interleaved(self, min_overlap_ns: int) -> tuple[str, str, int, int] | None:
+        """Two inputs whose rows of this stream interleave over more than ``min_overlap_ns`` (two recordings of
+        it): (first input, second input, overlap start, end ns), else None. Cross-file reordering at a split
+        recording's boundary stays below it."""
+        for k, (a, a0, a1, _) in enumerate(self.inputs):
+            for b, b0, b1, _ in self.inputs[k + 1:]:
+                if b != a and min(a1, b1) - max(a0, b0) > min_overlap_ns:
+                    return a, b, max(a0, b0), min(a1, b1)
+        return None
 
     def finish(self) -> SeriesStats:
         """Write out everything still buffered; returns the statistics."""
