@@ -522,6 +522,10 @@ def test_another_recordings_trajectory_is_refused(ci_run: Path, sim_dir: Path, t
     one line and writing nothing, a drive none of whose frames of those indices match (ci seed 8's trajectory beside
     seed 7's drive: their clocks overlap, and the radar was once focused along the other track, rc 0); tiled too.
     The same recording in another container (seed 7's ROS1 bag, ingested and navigated) focuses."""
+    import shutil
+
+    import h5py
+
     from autosar_cli.ingest.pipeline import ingest
     from autosar_cli.store.drive import Drive
     from autosar_cli.store.trajectory import write_trajectory
@@ -530,6 +534,17 @@ def test_another_recordings_trajectory_is_refused(ci_run: Path, sim_dir: Path, t
     with Drive(drive) as d:
         named = read_trajectory(ci_run / "trajectory.h5").info["drive_radar_frames"]
         assert len(named["frame_index"]) == 16 and named == d.radar().fingerprint()
+    # a frame whose chunk is damaged is left out of the names (the navigation, which reads no radar, still runs)
+    damaged = shutil.copy(drive, tmp_path / "damaged.h5")
+    with h5py.File(damaged) as f:
+        chunk = f[f"radar/{named['stream']}/raw"].id.get_chunk_info(0)
+    with open(damaged, "r+b") as f:
+        f.seek(chunk.byte_offset + chunk.size // 2)
+        byte = f.read(1)
+        f.seek(-1, 1)
+        f.write(bytes([byte[0] ^ 0xFF]))
+    with Drive(damaged) as d:
+        assert d.radar().fingerprint()["frame_index"] == named["frame_index"][1:]
     paths = {}
     for name, log in (("other", simulated(sim_dir, "ci", "mcap", 8).log_path),
                       ("ros1", simulated(sim_dir, "ci", "ros1", 7).log_path)):

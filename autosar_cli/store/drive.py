@@ -40,7 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from autosar_cli.store.atomic import partial_path
-from autosar_cli.store.hdf5_read import dataset_errors, open_hdf5, read_dataset, read_rows
+from autosar_cli.store.hdf5_read import DamagedFileError, dataset_errors, open_hdf5, read_dataset, read_rows
 from autosar_cli.store.outputs import check_free_space
 
 FORMAT = "autosar-drive"
@@ -375,17 +375,22 @@ class RadarStream:
         with dataset_errors(self.raw.file.filename, self.raw.name):
             return np.stack([self.raw[start:stop, t, r] for t, r in zip(tx, rx, strict=True)], axis=1)
 
-    def frame_crc32(self, i: int) -> int:
-        """CRC-32 of frame ``i``'s int16 samples as the drive holds them (the simulator's truth keeps the same)."""
-        return frame_crc32(read_rows(self.raw, i, i + 1)[0])
+    def frame_crc32(self, i: int) -> int | None:
+        """CRC-32 of frame ``i``'s int16 samples as the drive holds them (the simulator's truth keeps the same);
+        None where its chunk is damaged (its checksum fails)."""
+        try:
+            return frame_crc32(read_rows(self.raw, i, i + 1)[0])
+        except DamagedFileError:
+            return None
 
     def fingerprint(self, frames: int = 16) -> dict[str, Any]:
-        """The stream's name and the frame indices and CRC-32s of ``frames`` frames spread over it: what names the
-        recording a product was made from (a trajectory's, :meth:`unmatched`)."""
+        """The stream's name and the frame indices and CRC-32s of ``frames`` frames spread over it (those that
+        can be read): what names the recording a product was made from (a trajectory's, :meth:`unmatched`)."""
         picks = np.unique(np.linspace(0, len(self.frame_index) - 1, frames).astype(np.int64)) \
             if len(self.frame_index) else np.zeros(0, np.int64)
-        return {"stream": self.name, "frame_index": [int(self.frame_index[i]) for i in picks],
-                "crc32": [self.frame_crc32(int(i)) for i in picks]}
+        crcs = [(int(self.frame_index[i]), self.frame_crc32(int(i))) for i in picks]
+        return {"stream": self.name, "frame_index": [i for i, c in crcs if c is not None],
+                "crc32": [c for _, c in crcs if c is not None]}
 
     def unmatched(self, frame_index: Sequence[int], crc32: Sequence[int]) -> int:
         """How many of the frames given by index and CRC-32 (a :meth:`fingerprint`, or a truth's) this stream
@@ -396,9 +401,9 @@ class RadarStream:
         compared = 0
         for index, crc in zip(frame_index, crc32, strict=True):
             k = int(np.searchsorted(own[order], index))
-            if k < len(own) and own[order[k]] == index:
+            if k < len(own) and own[order[k]] == index and (mine := self.frame_crc32(int(order[k]))) is not None:
                 compared += 1
-                if self.frame_crc32(int(order[k])) == int(crc):
+                if mine == int(crc):
                     return 0
         return compared
 
