@@ -215,10 +215,9 @@ def check_same_recording(drive: Drive, radar: RadarStream, traj: Trajectory, tra
         return
     if frames.get("stream") in drive.radar_names() and frames["stream"] != radar.name:
         radar = drive.radar(frames["stream"])
-    drive_path = drive.path
     if n := radar.unmatched(frames["frame_index"], frames["crc32"]):
-        raise FocusError(f"{traj_name}: navigated from another recording than {drive_path} (none of {n} radar "
-                         f"frames it names matches the drive's); navigate {drive_path} itself")
+        raise FocusError(f"{traj_name}: navigated from another recording than {drive.path} (none of {n} radar "
+                         f"frames it names matches the drive's); navigate {drive.path} itself")
 
 
 def make_grid(options: FocusOptions, geometry: _Geometry, config: Config) -> FocusGrid:
