@@ -57,6 +57,9 @@ RadarSyncOpt = Annotated[str, typer.Option("--radar-sync", help="Topic whose fir
 RadarOverrideOpt = Annotated[bool, typer.Option("--radar-override", help="Where the recording's radar parameters "
                                                 "contradict the config's, keep the recording's (warned) instead of "
                                                 "stopping.")]
+RadarStreamOpt = Annotated[str | None, typer.Option("--radar-stream", metavar="NAME", help="The drive's radar "
+                                                   "stream to focus (/radar/NAME; default: its first). Its "
+                                                   "mounting is the config's [radar].")]
 AutofocusOpt = Annotated[bool, typer.Option("--autofocus", help="Before focusing, correct the track by the motion "
                                             "the radar itself measures: the phase histories of a first image's "
                                             "bright isolated points (residual motion across track and up, and the "
@@ -441,9 +444,7 @@ def focus(
                                                  "road at the origin (config default 0.5).")] = None,
     grid: Annotated[str, typer.Option("--grid", help="'auto' (along the trajectory on the radar side, ground "
                                       "range 0.5 m to R_max) or x0,y0,x1,y1 in ENU metres.")] = "auto",
-    radar_stream: Annotated[str | None, typer.Option("--radar-stream", metavar="NAME", help="The drive's radar "
-                                                     "stream to focus (/radar/NAME; default: its first). Its "
-                                                     "mounting is the config's [radar].")] = None,
+    radar_stream: RadarStreamOpt = None,
     tiles: Annotated[int, typer.Option("--tiles", min=1, help="Focus the grid in N tiles along the track, one "
                                        "after the other (same image; each holds only its tile in memory, but "
                                        "re-reads the pulses).")] = 1,
@@ -498,6 +499,7 @@ def run(
     radar_start: RadarStartOpt = None,
     radar_sync: RadarSyncOpt = "/dca1000/sync",
     radar_override: RadarOverrideOpt = False,
+    radar_stream: RadarStreamOpt = None,
     autofocus: AutofocusOpt = False,
     config: ConfigOpt = None,
     overwrite: OverwriteOpt = False,
@@ -506,12 +508,14 @@ def run(
     """Ingest, navigate and focus a drive in one go; every product in one directory plus a run.json manifest."""
     with _errors(output):
         from autosar_cli.run import run as run_chain
+        from autosar_cli.sar.focus import FocusOptions
 
         cfg = _load_config(config)
+        options = FocusOptions.from_config(cfg, radar=radar_stream)
         with _stages(not as_json) as update:
             manifest = run_chain([*logs, *([radar] if radar else [])], output, cfg, method=method.value,
-                                 truth_path=truth, autofocus=autofocus, overwrite=overwrite, progress=update,
-                                 command=" ".join(sys.argv), fork_ingest=True,
+                                 options=options, truth_path=truth, autofocus=autofocus, overwrite=overwrite,
+                                 progress=update, command=" ".join(sys.argv), fork_ingest=True,
                                  radar_options=_radar_options(radar_start, radar_sync, radar_override))
         if as_json:
             out.print_json(json.dumps(manifest, default=str))

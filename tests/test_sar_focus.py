@@ -327,7 +327,7 @@ def test_a_drive_with_two_radars_says_which_it_focused(ci_drive: Drive, tmp_path
     res = runner.invoke(app, [*common, "-o", str(tmp_path / "first")])
     assert res.exit_code == 0, res.output
     assert json.loads(res.stdout)["warnings"] == [f"{drive}: holds 2 radar streams; focused a_right, not {own} "
-                                                  "(autosar focus --radar-stream NAME focuses another)"]
+                                                  "(--radar-stream NAME focuses another)"]
     assert read_image(tmp_path / "first.h5").params["radar"] == "a_right"
     assert np.abs(read_image(tmp_path / "first.h5").image).max() == 0.0
     res = runner.invoke(app, [*common, "-o", str(tmp_path / "own"), "--radar-stream", own])
@@ -338,6 +338,44 @@ def test_a_drive_with_two_radars_says_which_it_focused(ci_drive: Drive, tmp_path
     assert res.exit_code == 1 and res.stderr.strip() == (f"error: {drive}: no radar stream 'left' (it holds "
                                                          f"a_right, {own})"), res.output
     assert not list(tmp_path.glob("none*"))
+
+
+def test_run_of_a_log_with_two_radars_says_which_it_focused(sim_dir: Path, tmp_path: Path) -> None:
+    """A log with a second radar topic (ci's frames again, on /scanbrick_right/raw_frames): ``run`` focuses the
+    drive's first stream and says so, the run degraded; ``run --radar-stream`` focuses the one named, not
+    degraded."""
+    from conftest import simulated
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+
+    log = tmp_path / "two.mcap"
+    with open(simulated(sim_dir, "ci", "mcap", 7).log_path, "rb") as f, open(log, "wb") as out:
+        reader, writer = make_reader(f), Writer(out)
+        summary = reader.get_summary()
+        assert summary is not None
+        writer.start(profile="ros2", library="test")
+        schemas = {k: writer.register_schema(v.name, v.encoding, v.data) for k, v in summary.schemas.items()}
+        ids = {k: writer.register_channel(c.topic, c.message_encoding, schemas[c.schema_id], c.metadata)
+               for k, c in summary.channels.items()}
+        radar = next(k for k, c in summary.channels.items() if c.topic == "/scanbrick/raw_frames")
+        right = writer.register_channel("/scanbrick_right/raw_frames", summary.channels[radar].message_encoding,
+                                        schemas[summary.channels[radar].schema_id])
+        for _, channel, m in reader.iter_messages(log_time_order=True):
+            writer.add_message(ids[channel.id], m.log_time, m.data, m.publish_time, m.sequence)
+            if channel.id == radar:
+                writer.add_message(right, m.log_time, m.data, m.publish_time, m.sequence)
+        writer.finish()
+    runner = CliRunner()
+    res = runner.invoke(app, ["run", str(log), "-o", str(tmp_path / "first"), "--json"])
+    assert res.exit_code == 0, res.output
+    first = json.loads(res.stdout)
+    assert first["status"] == "degraded" and any("holds 2 radar streams" in w for w in first["warnings"])
+    res = runner.invoke(app, ["run", str(log), "-o", str(tmp_path / "named"), "--json", "--radar-stream",
+                              "scanbrick_w43"])
+    assert res.exit_code == 0, res.output
+    named = json.loads(res.stdout)
+    assert named["status"] == "ok" and named["warnings"] == []
+    assert read_image(tmp_path / "named" / "image.h5").params["radar"] == "scanbrick_w43"
 
 
 def test_focus_errors(ci_drive: Drive, tmp_path: Path) -> None:

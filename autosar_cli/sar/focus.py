@@ -426,7 +426,7 @@ def unfocused_radars(drive_path: str | Path, options: FocusOptions) -> list[str]
     if not others:
         return []
     return [f"{drive_path}: holds {len(names)} radar streams; focused {focused}, not {', '.join(others)} "
-            "(autosar focus --radar-stream NAME focuses another)"]
+            "(--radar-stream NAME focuses another)"]
 
 
 def check_grid_size(options: FocusOptions, config: Config | None = None, grid: FocusGrid | None = None) -> None:
