@@ -23,7 +23,7 @@ from autosar_cli.nav.navigate import navigate, with_standstill
 from autosar_cli.nav.sarmin import SIGMA_ALPHA, SIGMA_BETA, NavSolution, chi2_gate, run_sarmin
 from autosar_cli.nav.trajectory import Trajectory, relative_pose_error
 from autosar_cli.nav.ukf import VectorUKF
-from autosar_cli.nav.wheel_speeds import standstill_spans, turning_standstills
+from autosar_cli.nav.wheel_speeds import standstill_spans, turning_standstills, wheel_scale_error
 from autosar_cli.store.drive import Drive
 from autosar_cli.store.trajectory import read_trajectory
 
@@ -313,6 +313,26 @@ def _drive(sim_dir: Path, tmp_path_factory: pytest.TempPathFactory, scenario: st
         ingest([sim.log_path], drive, config=CFG)
         _DRIVES[scenario] = (sim, drive)
     return _DRIVES[scenario]
+
+
+def test_wheel_speeds_in_another_unit_are_refused(sim_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> None:
+    """A DBC that labels the wheel speeds km/h where they are m/s (the ingest divides them by 3.6): SAR-MIN gated
+    out 125 of the 127 GNSS fixes and all the velocities of test1 seed 1 (full vehicle) and wrote a track without a
+    word. It refuses such wheels in one line, naming their ratio to the GNSS speed; the drive's own pass."""
+    from autosar_cli.config import DEFAULT_CONFIG
+    from autosar_cli.nav.inputs import NavInputError
+
+    sim, drive = _drive(sim_dir, tmp_path_factory, "test1")
+    dbc = tmp_path_factory.mktemp("kmh") / "kmh.dbc"
+    text = (DEFAULT_CONFIG.parent / "autosar_giulia.dbc").read_text()
+    dbc.write_text("\n".join(ln.replace('"m/s"', '"km/h"') if "WHEEL_SPEED_" in ln else ln
+                             for ln in text.splitlines()) + "\n")
+    relabelled = dbc.with_name("drive.h5")
+    ingest([sim.log_path], relabelled, config=CFG, dbc=dbc)
+    with pytest.raises(NavInputError, match=r"the wheel speeds read 0\.27\d times the GNSS speed \(\d+ samples"):
+        navigate(relabelled, "sar-min", CFG)
+    with Drive(drive) as d:
+        assert wheel_scale_error(load_inputs(d, CFG)) is None
 
 
 @pytest.mark.slow

@@ -44,6 +44,7 @@ from autosar_cli.nav.wheel_speeds import (
     standstill_yaw_rate,
     turning_standstills,
     wheel_gaps,
+    wheel_scale_error,
     without_restart_windows,
 )
 from autosar_cli.store.drive import Drive
@@ -441,6 +442,8 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
             if why := truth_radar_mismatch(truth_path, drive):
                 raise NavInputError(why)
     if method == "sar-min":
+        if why := wheel_scale_error(inputs):
+            raise NavInputError(f"{drive_path}: {why}")
         inputs, gnss_noise = gnss_noise_checked(inputs, config.navigation.estimate_gnss_noise)
         # from the wheels as recorded: the lag's corrections below leave out rows at a standstill's ends
         inputs, standstill = with_standstill(inputs, config)

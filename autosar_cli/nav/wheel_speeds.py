@@ -348,6 +348,31 @@ def without_restart_windows(wheels: Measurements, window_m: float) -> tuple[Meas
     return Measurements(wheels.name, wheels.t[keep], wheels.z[keep], wheels.sigma), dropped
 
 
+#: the wheels' speed over the GNSS's, above 2 m/s, outside which they are refused: a tyre's rolling radius is off by a
+#: few per cent, a unit error far more (km/h read as m/s: 3.6)
+MAX_WHEEL_SCALE_ERROR = 0.2
+SCALE_MIN_SPEED_MPS = 2.0
+
+
+def wheel_scale_error(inputs: NavInputs) -> str | None:
+    """Why the wheel speeds cannot be this drive's: their mean over the four wheels against the GNSS's horizontal
+    speed (the median ratio where the GNSS reads above ``SCALE_MIN_SPEED_MPS``, at least 10 samples) off 1 by more
+    than ``MAX_WHEEL_SCALE_ERROR``; else None (or where there is too little to compare)."""
+    wheels, vel = inputs.wheels, inputs.gnss_velocity
+    if wheels is None or vel is None or len(wheels.t) < 2:
+        return None
+    gnss_speed = np.hypot(vel.z[:, 0], vel.z[:, 1])
+    inside = (gnss_speed > SCALE_MIN_SPEED_MPS) & (vel.t >= wheels.t[0]) & (vel.t <= wheels.t[-1])
+    if inside.sum() < 10:
+        return None
+    ratio = float(np.median(np.interp(vel.t[inside], wheels.t, wheels.z.mean(axis=1)) / gnss_speed[inside]))
+    if abs(ratio - 1.0) <= MAX_WHEEL_SCALE_ERROR:
+        return None
+    return (f"the wheel speeds read {ratio:.3f} times the GNSS speed ({int(inside.sum())} samples above "
+            f"{SCALE_MIN_SPEED_MPS:g} m/s): a unit or scale error in the DBC or the config (km/h read as m/s is 3.6), "
+            "or another drive's CAN")
+
+
 STANDSTILL_MIN_S = 1.0  #: a standstill is all four wheels at 0 for at least this long
 #: its start is moved on by this: the ECU reads 0 once no edge has come for its timeout, when the car stands
 STANDSTILL_START_MARGIN_S = 0.1
