@@ -376,6 +376,8 @@ def navigate(
                   f"{dist:.1f} m travelled, in {traj.info['elapsed_s']:.1f} s")
         if traj.info.get("rejected"):
             out.print("gated out: " + ", ".join(f"{k} {v}" for k, v in traj.info["rejected"].items()))
+        for w in traj.info.get("warnings", []):
+            err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
         for stream, noise in traj.info.get("gnss_noise", {}).items():
             if noise.get("applied"):
                 out.print(f"GNSS {stream} noise {noise['ratio']:.2f} times its table's: {noise['reason']}")

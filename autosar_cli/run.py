@@ -164,11 +164,12 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
 
 
 def run_warnings(manifest: dict[str, Any]) -> list[str]:
-    """What a run warned about (ingest: a truncated or damaged log, dropped data; focus: another radar of the drive
-    left unfocused; autofocus not applied): a run with any is ``degraded`` (run.json's ``status``, batch.json's
-    drive record), not plain ``ok``."""
+    """What a run warned about (ingest: a truncated or damaged log, dropped data; navigate: the GNSS mostly gated
+    out; focus: another radar of the drive left unfocused; autofocus not applied): a run with any is ``degraded``
+    (run.json's ``status``, batch.json's drive record), not plain ``ok``."""
     st = manifest.get("stages", {})
     warnings = [str(w) for w in st.get("ingest", {}).get("warnings", [])]
+    warnings += [str(w) for w in st.get("navigate", {}).get("warnings", [])]
     warnings += [str(w) for w in st.get("focus", {}).get("warnings", [])]
     af = st.get("autofocus")
     if af and not af.get("applied", True):

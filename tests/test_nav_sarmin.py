@@ -315,10 +315,12 @@ def _drive(sim_dir: Path, tmp_path_factory: pytest.TempPathFactory, scenario: st
     return _DRIVES[scenario]
 
 
-def test_wheel_speeds_in_another_unit_are_refused(sim_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> None:
+def test_wheel_speeds_in_another_unit_are_refused(sim_dir: Path, tmp_path_factory: pytest.TempPathFactory,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     """A DBC that labels the wheel speeds km/h where they are m/s (the ingest divides them by 3.6): SAR-MIN gated
     out 125 of the 127 GNSS fixes and all the velocities of test1 seed 1 (full vehicle) and wrote a track without a
-    word. It refuses such wheels in one line, naming their ratio to the GNSS speed; the drive's own pass."""
+    word. It refuses such wheels in one line, naming their ratio to the GNSS speed; the drive's own pass. Without
+    that check, the gate's refusals are a warning of their own (``info["warnings"]``, run.json's)."""
     from autosar_cli.config import DEFAULT_CONFIG
     from autosar_cli.nav.inputs import NavInputError
 
@@ -333,6 +335,13 @@ def test_wheel_speeds_in_another_unit_are_refused(sim_dir: Path, tmp_path_factor
         navigate(relabelled, "sar-min", CFG)
     with Drive(drive) as d:
         assert wheel_scale_error(load_inputs(d, CFG)) is None
+    assert "warnings" not in navigate(drive, "sar-min", CFG).info
+    import autosar_cli.nav.navigate as navigate_module
+
+    monkeypatch.setattr(navigate_module, "wheel_scale_error", lambda inputs: None)
+    warnings = navigate(relabelled, "sar-min", CFG).info["warnings"]
+    assert len(warnings) == 2 and all(w.startswith("SAR-MIN's gate refused ") for w in warnings), warnings
+    assert " GNSS fixes: " in warnings[0] and " GNSS velocities: " in warnings[1]
 
 
 @pytest.mark.slow

@@ -53,7 +53,25 @@ from autosar_cli.types import MotionCorrection
 METHODS = ("sar-min", "ins", "gnss", "none", "truth")
 #: what a trajectory's info reports of its navigation (navigate --json, run.json): updates and what was fitted
 REPORTED_INFO = ("updates", "rejected", "gnss_noise", "understeer", "rear_slip", "wheel_lag", "wheel_radii",
-                 "attitude", "wheel_gaps", "standstill_ns", "standstill_refused", "gnss_heading")
+                 "attitude", "wheel_gaps", "standstill_ns", "standstill_refused", "gnss_heading", "warnings")
+#: a GNSS stream whose updates SAR-MIN's gate refused more than this share of (of at least MIN_GATED) is warned of
+MAX_GATED_SHARE = 0.5
+MIN_GATED = 10
+
+
+def gnss_disagreement(updates: dict[str, int], rejected: dict[str, int]) -> list[str]:
+    """A warning for each GNSS stream (``gnss_pos``, ``gnss_vel``) whose updates SAR-MIN's gate refused more than
+    ``MAX_GATED_SHARE`` of: the car's own sensors and the GNSS disagree, and the track follows the former (the
+    simulated drives: none refused, or 11 of 127 velocities with the GNSS's stamps 0.5 s late)."""
+    out = []
+    for stream, what in (("gnss_pos", "fixes"), ("gnss_vel", "velocities")):
+        gated = int(rejected.get(stream, 0))
+        total = gated + int(updates.get(stream, 0))
+        if total >= MIN_GATED and gated > MAX_GATED_SHARE * total:
+            out.append(f"SAR-MIN's gate refused {gated} of {total} GNSS {what}: the car's own sensors and the GNSS "
+                       "disagree (a unit, a lever arm, a latency, another drive's data?), and the track follows the "
+                       "car's sensors")
+    return out
 SIGNIFICANT = 3.0  # a fitted lag or gradient is applied where it differs from the default by more stds than this
 # ... and by more than these: a tenth of a sedan's understeer gradient (rad per m/s^2), 5 ms of yaw lag, 1 cm of
 # wheel-speed lag distance, 0.1 % per m/s^2 of slip gain (at urban's 1 m/s^2 RMS, 1 mm per metre), 0.05 % per m/s^2
@@ -482,6 +500,8 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                                                                                inputs.t0_ns)]})
         if config.navigation.gnss_heading:
             traj.info["gnss_heading"] = gnss_heading_info(sol, inputs)
+        if warnings := gnss_disagreement(sol.updates, sol.rejected):
+            traj.info["warnings"] = warnings
         traj = with_attitude(traj, attitude, attitude_reason, inputs.t0_ns, config)
     elif method == "ins":
         from autosar_cli.nav.ins import run_ins
