@@ -54,6 +54,21 @@ METHODS = ("sar-min", "ins", "gnss", "none", "truth")
 #: what a trajectory's info reports of its navigation (navigate --json, run.json): updates and what was fitted
 REPORTED_INFO = ("updates", "rejected", "gnss_noise", "understeer", "rear_slip", "wheel_lag", "wheel_radii",
                  "attitude", "wheel_gaps", "standstill_ns", "standstill_refused", "gnss_heading", "warnings")
+SIGNIFICANT = 3.0  # a fitted lag or gradient is applied where it differs from the default by more stds than this
+# ... and by more than these: a tenth of a sedan's understeer gradient (rad per m/s^2), 5 ms of yaw lag, 1 cm of
+# wheel-speed lag distance, 0.1 % per m/s^2 of slip gain (at urban's 1 m/s^2 RMS, 1 mm per metre), 0.05 % per m/s^2
+# of load gain. Smaller ones, significant or not, are below what changes a track: a kinematic drive's sensors
+# show sub-millisecond timing offsets at several sigma, and load gains up to 0.033 % at 3.7 sigma on test3 (the
+# full vehicle's are 0.06-0.12 %)
+MIN_UNDERSTEER_CHANGE = 2e-4
+MIN_YAW_LAG_S = 0.005
+MIN_WHEEL_LAG_M = 0.01
+MIN_SLIP_GAIN = 1e-3
+MIN_LOAD_GAIN = 5e-4
+#: ... and 1 mrad of rear slip per m/s^2 (a sixth of the full vehicle's 6.6)
+MIN_REAR_SLIP_CHANGE = 1e-3
+#: the attitude estimate's error (rad, 1 sigma): 0.76 / 0.47 mrad RMS roll / pitch on test3 seed 2 (nav.attitude)
+ATTITUDE_STD_RAD = 1e-3
 #: a GNSS stream whose updates SAR-MIN's gate refused more than this share of (of at least MIN_GATED) is warned of
 MAX_GATED_SHARE = 0.5
 MIN_GATED = 10
@@ -72,21 +87,6 @@ def gnss_disagreement(updates: dict[str, int], rejected: dict[str, int]) -> list
                        "disagree (a unit, a lever arm, a latency, another drive's data?), and the track follows the "
                        "car's sensors")
     return out
-SIGNIFICANT = 3.0  # a fitted lag or gradient is applied where it differs from the default by more stds than this
-# ... and by more than these: a tenth of a sedan's understeer gradient (rad per m/s^2), 5 ms of yaw lag, 1 cm of
-# wheel-speed lag distance, 0.1 % per m/s^2 of slip gain (at urban's 1 m/s^2 RMS, 1 mm per metre), 0.05 % per m/s^2
-# of load gain. Smaller ones, significant or not, are below what changes a track: a kinematic drive's sensors
-# show sub-millisecond timing offsets at several sigma, and load gains up to 0.033 % at 3.7 sigma on test3 (the
-# full vehicle's are 0.06-0.12 %)
-MIN_UNDERSTEER_CHANGE = 2e-4
-MIN_YAW_LAG_S = 0.005
-MIN_WHEEL_LAG_M = 0.01
-MIN_SLIP_GAIN = 1e-3
-MIN_LOAD_GAIN = 5e-4
-#: ... and 1 mrad of rear slip per m/s^2 (a sixth of the full vehicle's 6.6)
-MIN_REAR_SLIP_CHANGE = 1e-3
-#: the attitude estimate's error (rad, 1 sigma): 0.76 / 0.47 mrad RMS roll / pitch on test3 seed 2 (nav.attitude)
-ATTITUDE_STD_RAD = 1e-3
 
 
 def default_truth_path(drive: Drive) -> Path | None:

@@ -68,11 +68,9 @@ class FocusOptions:
     radar: str | None = None  #: the drive's radar stream to focus (``/radar/<name>``; None: its first)
 
     def __post_init__(self) -> None:
-        # a CLI override is checked here, as the config's values are in config.py
-        for name, label in (("pixel_m", "pixel size"), ("resolution_m", "cross-range resolution")):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise FocusError(f"focus: {label} {value} m: must be a positive finite number")
+        # a CLI override is checked here, as the config's values are in config.py (the pixel: sar.grid, first)
+        if not (math.isfinite(self.resolution_m) and self.resolution_m > 0):
+            raise FocusError(f"focus: cross-range resolution {self.resolution_m} m: must be a positive finite number")
         if not math.isfinite(self.height_m):
             raise FocusError(f"focus: focusing plane height {self.height_m} m: must be a finite number")
 

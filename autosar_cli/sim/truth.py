@@ -150,15 +150,12 @@ def truth_radar_mismatch(truth_path: str | Path, drive: Drive, frames: int = 8) 
         truth_index, truth_crc = f["radar/frame_index"][()], f["radar/raw_crc32"][()]
         log_file = f.attrs.get("log_file", "")
     radar = drive.radar()
-    # the drive's frames spread over it, looked up in the truth (which holds every frame)
-    picks = radar.fingerprint(frames)
-    order = np.argsort(truth_index, kind="stable")
-    truth_index, truth_crc = truth_index[order], truth_crc[order]
-    k = np.clip(np.searchsorted(truth_index, picks["frame_index"]), 0, max(len(truth_index) - 1, 0))
-    common = [i for i, kk in enumerate(k) if len(truth_index) and truth_index[kk] == picks["frame_index"][i]]
-    if not common or any(picks["crc32"][i] == int(truth_crc[k[i]]) for i in common):
+    # the truth's frames of the indices of the drive's frames spread over it (the truth holds every frame)
+    named = np.isin(truth_index, np.asarray(radar.frame_index)[radar.spread(frames)])
+    n = radar.unmatched(truth_index[named].tolist(), truth_crc[named].tolist())
+    if not n:
         return None
-    return (f"{truth_path}: the truth of another recording ({log_file}): none of {len(common)} radar frames of "
+    return (f"{truth_path}: the truth of another recording ({log_file}): none of {n} radar frames of "
             f"{drive.path} matches it")
 
 

@@ -386,11 +386,14 @@ class RadarStream:
     def fingerprint(self, frames: int = 16) -> dict[str, Any]:
         """The stream's name and the frame indices and CRC-32s of ``frames`` frames spread over it (those that
         can be read): what names the recording a product was made from (a trajectory's, :meth:`unmatched`)."""
-        picks = np.unique(np.linspace(0, len(self.frame_index) - 1, frames).astype(np.int64)) \
-            if len(self.frame_index) else np.zeros(0, np.int64)
-        crcs = [(int(self.frame_index[i]), self.frame_crc32(int(i))) for i in picks]
+        crcs = [(int(self.frame_index[i]), self.frame_crc32(int(i))) for i in self.spread(frames)]
         return {"stream": self.name, "frame_index": [i for i, c in crcs if c is not None],
                 "crc32": [c for _, c in crcs if c is not None]}
+
+    def spread(self, frames: int) -> NDArray[np.int64]:
+        """Positions of ``frames`` frames spread evenly over the stream (fewer where it holds fewer)."""
+        n = len(self.frame_index)
+        return np.unique(np.linspace(0, n - 1, frames).astype(np.int64)) if n else np.zeros(0, np.int64)
 
     def unmatched(self, frame_index: Sequence[int], crc32: Sequence[int]) -> int:
         """How many of the frames given by index and CRC-32 (a :meth:`fingerprint`, or a truth's) this stream
