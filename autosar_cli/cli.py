@@ -381,6 +381,10 @@ def navigate(
         for stream, noise in traj.info.get("gnss_noise", {}).items():
             if noise.get("applied"):
                 out.print(f"GNSS {stream} noise {noise['ratio']:.2f} times its table's: {noise['reason']}")
+        if traj.info.get("gnss_latency", {}).get("applied"):
+            latency = traj.info["gnss_latency"]
+            err.print(f"[yellow]GNSS latency:[/] {escape(latency['reason'])} (+- {latency['std_s'] * 1000:.0f} ms, "
+                      f"against imu/{latency['imu']})", highlight=False, soft_wrap=True)
         if "understeer" in traj.info:
             us = traj.info["understeer"]
             fitted = f" +- {us['std']:.2g}" if "std" in us else ""

@@ -328,6 +328,11 @@ class NavigationConfig:
     # each axle's slip (per m/s^2 of acceleration, drive and brake) and lateral load gain (per m/s^2 of lateral
     # acceleration) fitted to the drive, and the wheel speeds divided by those whose std is at most this
     estimate_wheel_radii: bool = True
+    # the GNSS receiver's latency measured against the 6-DoF IMU of attitude_imu (nav.gnss_latency), and the GNSS
+    # samples moved by it where the fit is unambiguous, its std at most gnss_latency_max_std_s, and it differs from
+    # the sensor's stated latency_s by more than 4 std and 20 ms
+    estimate_gnss_latency: bool = True
+    gnss_latency_max_std_s: float = 0.02
     # the rear tyres' slip gain (the rear axle's course = heading - g v omega) fitted against the GNSS velocity on a
     # first pass, and SAR-MIN's final pass run with it where its std is at most rear_slip_max_std_rad_per_mps2
     estimate_rear_slip: bool = True
@@ -594,6 +599,7 @@ def _validate(cfg: Config) -> None:
     _non_negative("navigation.wheel_lag_max_std_m", nav.wheel_lag_max_std_m)
     _non_negative("navigation.wheel_radius_gain_max_std_per_mps2", nav.wheel_radius_gain_max_std_per_mps2)
     _non_negative("navigation.rear_slip_max_std_rad_per_mps2", nav.rear_slip_max_std_rad_per_mps2)
+    _non_negative("navigation.gnss_latency_max_std_s", nav.gnss_latency_max_std_s)
     _positive("navigation.gnss_heading_offset_std_deg", nav.gnss_heading_offset_std_deg)
     if nav.attitude_imu:
         imu = cfg.sensors.get(nav.attitude_imu)

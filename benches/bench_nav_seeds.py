@@ -115,6 +115,11 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
             # the white noise each GNSS stream shows over its table's, and whether SAR-MIN weighed it so
             **{f"gnss_{k}_noise_ratio": v["ratio"] for k, v in est.info.get("gnss_noise", {}).items()},
             "gnss_noise_applied": any(v["applied"] for v in est.info.get("gnss_noise", {}).values()),
+            # the GNSS latency's change from its table against the 6-DoF IMU, and whether the samples moved by it
+            "gnss_latency_change_ms": 1000 * est.info["gnss_latency"].get("change_s", float("nan")),
+            "gnss_latency_std_ms": 1000 * est.info["gnss_latency"].get("std_s", float("nan")),
+            "gnss_latency_ambiguous": bool(est.info["gnss_latency"].get("ambiguous")),
+            "gnss_latency_applied": bool(est.info["gnss_latency"]["applied"]),
             # the updates the chi-square gate refused, all kinds together
             "rejected": int(sum(est.info.get("rejected", {}).values()))}
 
@@ -152,6 +157,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "wheel_radii_applied": sum(r.get("wheel_radii_applied", False) for r in rows),
             "rear_slip_applied": sum(r.get("rear_slip_applied", False) for r in rows),
             "gnss_noise_applied": sum(r.get("gnss_noise_applied", False) for r in rows),
+            "gnss_latency_applied": sum(r.get("gnss_latency_applied", False) for r in rows),
             "rejected_median": statistics.median(r.get("rejected", 0) for r in rows)}
 
 
@@ -239,7 +245,8 @@ def main() -> None:
                       f"{s['steering_left_out']} / {s['wheel_lag_applied']} / {s['wheel_radii_applied']}; at the "
                       f"reflectors the track's worst median {s['reflector_track_max_median_cm']:.2f} cm, across "
                       f"{s['reflector_across_max_median_cm']:.2f} cm, across within 2 cm on "
-                      f"{s['reflector_across_within_2cm']} ({time.perf_counter() - t:.0f} s)",
+                      f"{s['reflector_across_within_2cm']}, GNSS latency moved on {s['gnss_latency_applied']} "
+                      f"({time.perf_counter() - t:.0f} s)",
                       flush=True)
     if args.append and args.output.exists():
         old = json.loads(args.output.read_text())

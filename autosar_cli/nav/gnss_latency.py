@@ -1,0 +1,195 @@
+"""The GNSS receiver's latency, measured against a 6-DoF IMU: how late its samples are stamped.
+
+SAR-MIN moves every sample to the instant it refers to by its sensor's stated ``latency_s``. A GNSS receiver's is
+taken on trust, and its error is costly: where a receiver's velocity refers to 0 or 150 ms before its stamp instead
+of the table's 50 ms, the rear-slip and wheel-lag fits read the velocity's lag as tyre slip and SAR-MIN puts test1-3's
+reflectors 5.4-15.2 cm off (1.2-1.4 cm at the true latency).
+
+The measurement needs no model of the car: the antenna's velocity is the IMU's, integrated, plus the lever arm's
+``omega x r`` between them. So the GNSS velocity at its instants ``t_k`` is compared with
+
+    v(t_k - d) = v_0 + integral_0^(t_k - d) R(psi) (M f + b) dt + omega R(psi) J r
+
+``f`` the IMU's horizontal specific force (body axes), ``psi`` the heading from the IMU's own yaw rate (its constant
+and drift fitted to the GNSS course), ``M`` a 2 x 2 matrix (the IMU's scales and misalignment, and the gravity the
+body's roll and pitch add in proportion to its accelerations; it also takes a constant heading error), ``b`` the
+accelerometers' biases, ``r`` the antenna from the IMU. Both sides are high-passed alike (zero-phase, at
+:data:`CUTOFF_HZ`), which takes out ``v_0``, the biases' slow integral and the road's grade. ``d``, the latency's
+change from the table, is the one that leaves the least residual (a search over ±:data:`SEARCH_S`, refined by a
+parabola); its std is the linearised regression's, counting the residual's serial correlation.
+
+What measures ``d`` is the change of the car's acceleration vector, ``d`` times it against the GNSS velocity's noise
+(0.03 m/s per sample): on test1-3 (12-26 s) the std is 12-18 ms. The policy (whether the samples move) is in
+:mod:`.navigate`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.integrate import cumulative_trapezoid
+
+from autosar_cli.nav.attitude import GRAVITY_MPS2, BodyAttitude, tilt_offsets
+from autosar_cli.nav.inputs import Measurements, NavInputs
+
+Array = NDArray[np.float64]
+
+#: Both velocities are high-passed above this (Hz) before they are compared. On test1 and test3 seed 42, the table's
+#: latency: 0.05 Hz reads +27 / +45 ms (the grade), 0.1 Hz +1 / +3 ms, 0.2 Hz -2 / +4 ms, 0.4 Hz -1 / +2 ms.
+CUTOFF_HZ = 0.2
+#: The latency's change from the table is searched for within ± this (s), on a grid of :data:`SEARCH_STEP_S`.
+SEARCH_S = 0.4
+SEARCH_STEP_S = 0.01
+#: The std is the profile's curvature over +- this (s) about its minimum. GNSS noise drawn 30 times onto test3 seed
+#: 42's true velocity: the fit scatters by 16.2 ms, the std states 15.2 (median; 13.2 over +-0.04 s).
+PROFILE_SPAN_S = 0.06
+#: GNSS velocity samples above this speed (m/s) set the heading's constant and drift: the course is noise below it.
+MIN_SPEED_MPS = 1.0
+#: A latency elsewhere that fits within this many std of the best makes the fit ambiguous.
+SIGNIFICANT = 3.0
+#: A drive with fewer GNSS velocity samples than this (or over less than :data:`MIN_SPAN_S`) is not measured.
+MIN_SAMPLES = 50
+MIN_SPAN_S = 5.0
+
+
+@dataclass(frozen=True)
+class GnssLatencyFit:
+    """How much later than its table states the GNSS samples refer to: ``change_s`` (s; a sample stamped ``t``
+    refers to ``t - latency_s - change_s``)."""
+
+    imu: str  #: the IMU it was measured against
+    table_latency_s: float  #: the GNSS sensor's stated latency
+    change_s: float  #: fitted latency minus the table's
+    std_s: float  #: its standard deviation (inf where the search found no minimum inside its span)
+    samples: int  #: GNSS velocity samples compared
+    accel_change_rms_mps2: float  #: RMS of the high-passed horizontal acceleration: how much the drive shows
+    residual_rms_mps: float  #: the velocities' residual after the fit
+    #: where another latency fits within SIGNIFICANT std of the best, away from its dip (or the best is at the search's
+    #: edge): which; "" where the fit is unambiguous
+    ambiguous: str = ""
+    applied: bool = False
+    reason: str = ""
+
+    def to_dict(self) -> dict[str, object]:
+        return asdict(self)
+
+
+def _heading(inputs: NavInputs, t: Array, yaw_rate: Array) -> Array:
+    """The heading (rad, ENU) at the IMU's instants ``t``: its yaw rate integrated, with the constant and the
+    drift (the gyro's bias) that bring it nearest the GNSS course above :data:`MIN_SPEED_MPS`."""
+    vel = inputs.gnss_velocity
+    assert vel is not None
+    integrated = cumulative_trapezoid(yaw_rate, t, initial=0.0)
+    moving = (np.hypot(*vel.z.T) > MIN_SPEED_MPS) & (vel.t >= t[0]) & (vel.t <= t[-1])
+    if moving.sum() < 2:
+        return integrated
+    course = np.unwrap(np.arctan2(vel.z[moving, 1], vel.z[moving, 0]))
+    offset = course - np.interp(vel.t[moving], t, integrated)
+    # the course wraps where the integral does not: bring each offset to the first's turn
+    offset = offset[0] + np.angle(np.exp(1j * (offset - offset[0])))
+    design = np.stack([np.ones(moving.sum()), vel.t[moving] - t[0]], axis=-1)
+    coef, *_ = np.linalg.lstsq(design, offset, rcond=None)
+    return integrated + coef[0] + coef[1] * (t - t[0])
+
+
+def fit_gnss_latency(inputs: NavInputs, table_latency_s: float = 0.0,
+                     attitude: BodyAttitude | None = None) -> GnssLatencyFit | None:
+    """The GNSS latency's change from ``table_latency_s`` (the one ``inputs``' GNSS times were corrected by) against
+    the drive's 6-DoF IMU (``inputs.attitude_imu``); with the body's ``attitude`` (that IMU's,
+    :func:`.attitude.estimate_attitude`) its specific force less gravity, and the antenna's motion from the IMU as
+    the body rolls and pitches. None without that IMU or a GNSS velocity, or with fewer than :data:`MIN_SAMPLES`
+    velocities over :data:`MIN_SPAN_S` inside the IMU's span."""
+    imu, vel = inputs.attitude_imu, inputs.gnss_velocity
+    if imu is None or vel is None or len(imu.t) < 10:
+        return None
+    inside = (vel.t >= imu.t[0] + SEARCH_S) & (vel.t <= imu.t[-1] - SEARCH_S)
+    tg, z = vel.t[inside], vel.z[inside]
+    if len(tg) < MIN_SAMPLES or tg[-1] - tg[0] < MIN_SPAN_S:
+        return None
+    t, yaw_rate = imu.t, imu.angular_velocity[:, 2]
+    psi = _heading(inputs, t, yaw_rate)
+    east, north = np.stack([np.cos(psi), np.sin(psi)], -1), np.stack([-np.sin(psi), np.cos(psi)], -1)
+    f = imu.specific_force[:, :2]
+    r = np.asarray(inputs.gnss_lever_m) - np.asarray(imu.lever_arm_m)  # antenna from the IMU, body
+    r_enu = east * r[0] + north * r[1]
+    lever_velocity = yaw_rate[:, None] * np.stack([-r_enu[:, 1], r_enu[:, 0]], axis=-1)
+    if attitude is not None:
+        roll, pitch = np.interp(t, attitude.t, attitude.roll), np.interp(t, attitude.t, attitude.pitch)
+        f = np.stack([f[:, 0] + GRAVITY_MPS2 * np.sin(pitch),
+                      f[:, 1] - GRAVITY_MPS2 * np.cos(pitch) * np.sin(roll)], axis=-1)
+        lever_velocity = lever_velocity + np.gradient(tilt_offsets(roll, pitch, psi, r), t, axis=0)
+    # each unknown's velocity (N, 2): M's four entries (body axis i from force j), then the two biases
+    accelerations = [axis * src[:, None] for axis in (east, north) for src in (f[:, 0], f[:, 1], np.ones_like(t))]
+    columns = [cumulative_trapezoid(a, t, axis=0, initial=0.0) for a in accelerations]
+
+    # the slow part of both sides, a cosine series up to CUTOFF_HZ per axis, is a nuisance fitted beside the unknowns:
+    # a high-pass with no edges (a filter's transient at a 12 s drive's ends had swung test1's d by 180 ms)
+    span = float(tg[-1] - tg[0])
+    orders = np.arange(int(math.ceil(2.0 * span * CUTOFF_HZ)) + 1)
+    series = np.cos(np.pi * orders[None, :] * ((tg - tg[0]) / span)[:, None])
+    slow = np.zeros((2 * len(tg), 2 * len(orders)))
+    slow[0::2, :len(orders)], slow[1::2, len(orders):] = series, series
+
+    def at(x: Array, delay: float) -> Array:
+        return np.stack([np.interp(tg - delay, t, x[:, k]) for k in range(2)], axis=-1)
+
+    measured = z.reshape(-1)
+
+    def regression(delay: float) -> tuple[float, Array, Array, Array]:
+        design = np.column_stack([np.stack([at(c, delay).reshape(-1) for c in columns], axis=-1), slow])
+        y = measured - at(lever_velocity, delay).reshape(-1)
+        coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+        res = y - design @ coef
+        return float(res @ res), coef, design, y
+
+    delays = np.arange(-SEARCH_S, SEARCH_S + SEARCH_STEP_S / 2, SEARCH_STEP_S)
+    sse = np.array([regression(float(d))[0] for d in delays])
+    k = int(np.argmin(sse))
+    _, coef, design, y = regression(float(delays[k]))
+    res = (y - design @ coef).reshape(-1, 2)
+    # the profile's chi-square: the residual's variance at the minimum, its samples counted as independent ones
+    # (lag-1 correlation rho per axis: N (1 - rho) / (1 + rho))
+    rho = float(np.clip(np.mean([np.corrcoef(res[:-1, i], res[1:, i])[0, 1] for i in range(2)]), 0.0, 0.999))
+    independent = res.size * (1.0 - rho) / (1.0 + rho)
+    chi2 = (sse - sse[k]) / sse[k] * independent
+    std, best, ambiguous = math.inf, float(delays[k]), ""
+    if 0 < k < len(delays) - 1:
+        s0, s1, s2 = chi2[k - 1:k + 2]
+        best = float(delays[k] + SEARCH_STEP_S * 0.5 * (s0 - s2) / (s0 - 2.0 * s1 + s2))
+        # the std from a parabola through the profile over +-PROFILE_SPAN_S, chi2 = (d - best)^2 / std^2: the
+        # profile is rough on the scale of the IMU's samples (the road's vibration is in both velocities), and its
+        # curvature there, or the linearised regression's, stated 10-12 ms where the fit scatters by 16 ms
+        near = np.abs(delays - delays[k]) <= PROFILE_SPAN_S + 1e-9
+        curvature = np.polyfit(delays[near] - delays[k], chi2[near], 2)[0]
+        std = math.sqrt(1.0 / curvature) if curvature > 0 else math.inf
+    # another delay that fits nearly as well, away from the minimum's own dip: the drive does not pin it down
+    minima = [i for i in range(len(delays)) if (i == 0 or chi2[i] <= chi2[i - 1])
+              and (i == len(delays) - 1 or chi2[i] <= chi2[i + 1]) and i != k]
+    rivals = [i for i in minima if chi2[i] < SIGNIFICANT**2 and abs(delays[i] - best) > SIGNIFICANT * std]
+    if rivals:
+        i = min(rivals, key=lambda i: chi2[i])
+        ambiguous = (f"a latency {delays[i] * 1000:+.0f} ms from the table's fits within {SIGNIFICANT:g} std too "
+                     f"(chi-square {chi2[i]:.1f})")
+    elif not math.isfinite(std):
+        ambiguous = f"the best fit lies at the search's edge, {best * 1000:+.0f} ms from the table's"
+    # the IMU's own velocity (M the identity) less its slow part, differentiated: the acceleration that measures d
+    imu_velocity = at(columns[0], 0.0).reshape(-1)
+    fast = imu_velocity - slow @ np.linalg.lstsq(slow, imu_velocity, rcond=None)[0]
+    accel = np.gradient(fast.reshape(-1, 2), tg, axis=0)
+    return GnssLatencyFit(imu.name, table_latency_s, best, std, int(len(tg)),
+                          float(np.sqrt(np.mean(np.sum(accel**2, axis=-1)))), float(np.sqrt(np.mean(res**2))),
+                          ambiguous=ambiguous)
+
+
+def delayed_gnss(inputs: NavInputs, change_s: float) -> NavInputs:
+    """``inputs`` with every GNSS sample (fix, velocity, climb, heading) moved ``change_s`` earlier: to the instant
+    it refers to where the receiver's latency is its table's plus ``change_s``."""
+
+    def moved(m: Measurements | None) -> Measurements | None:
+        return None if m is None else replace(m, t=m.t - change_s)
+
+    return replace(inputs, gnss_position=moved(inputs.gnss_position), gnss_velocity=moved(inputs.gnss_velocity),
+                   gnss_climb=moved(inputs.gnss_climb), gnss_heading=moved(inputs.gnss_heading))
