@@ -332,7 +332,7 @@ class NavigationConfig:
     # samples moved by it where the fit is unambiguous, its std at most gnss_latency_max_std_s, and it differs from
     # the sensor's stated latency_s by more than 4 std and 20 ms
     estimate_gnss_latency: bool = True
-    gnss_latency_max_std_s: float = 0.02
+    gnss_latency_max_std_s: float = 0.025
     # the rear tyres' slip gain (the rear axle's course = heading - g v omega) fitted against the GNSS velocity on a
     # first pass, and SAR-MIN's final pass run with it where its std is at most rear_slip_max_std_rad_per_mps2
     estimate_rear_slip: bool = True
