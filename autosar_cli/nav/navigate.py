@@ -54,8 +54,9 @@ from autosar_cli.types import MotionCorrection
 
 METHODS = ("sar-min", "ins", "gnss", "none", "truth")
 #: what a trajectory's info reports of its navigation (navigate --json, run.json): updates and what was fitted
-REPORTED_INFO = ("updates", "rejected", "gnss_noise", "understeer", "rear_slip", "wheel_lag", "wheel_radii",
-                 "attitude", "wheel_gaps", "standstill_ns", "standstill_refused", "gnss_heading", "warnings")
+REPORTED_INFO = ("updates", "rejected", "gnss_noise", "gnss_latency", "understeer", "rear_slip", "wheel_lag",
+                 "wheel_radii", "attitude", "wheel_gaps", "standstill_ns", "standstill_refused", "gnss_heading",
+                 "warnings")
 SIGNIFICANT = 3.0  # a fitted lag or gradient is applied where it differs from the default by more stds than this
 # ... and by more than these: a tenth of a sedan's understeer gradient (rad per m/s^2), 5 ms of yaw lag, 1 cm of
 # wheel-speed lag distance, 0.1 % per m/s^2 of slip gain (at urban's 1 m/s^2 RMS, 1 mm per metre), 0.05 % per m/s^2
