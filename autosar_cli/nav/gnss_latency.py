@@ -28,6 +28,7 @@ is often ambiguous. The policy (whether the samples move) is in :mod:`.navigate`
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 
 import numpy as np
@@ -56,6 +57,8 @@ SIGNIFICANT = 3.0
 #: A drive with fewer GNSS velocity samples than this (or over less than :data:`MIN_SPAN_S`) is not measured.
 MIN_SAMPLES = 50
 MIN_SPAN_S = 5.0
+#: The slow part is fitted over segments of at most this long (s).
+SEGMENT_S = 60.0
 
 
 @dataclass(frozen=True)
@@ -98,6 +101,31 @@ def _heading(inputs: NavInputs, t: Array, yaw_rate: Array) -> Array:
     return integrated + coef[0] + coef[1] * (t - t[0])
 
 
+def _slow_projection(t: Array) -> Callable[[Array], Array]:
+    """The projection off the slow part: ``(2N, ...)`` rows (E, N interleaved at the instants ``t`` (N,)) less their
+    least-squares fit by a cosine series up to :data:`CUTOFF_HZ` per axis, over segments of at most
+    :data:`SEGMENT_S` (the cost grows with the segment's length cubed)."""
+    count = max(1, int(math.ceil((t[-1] - t[0]) / SEGMENT_S)))
+    edges = np.searchsorted(t, np.linspace(t[0], t[-1], count + 1)[1:-1])
+    bases = []
+    for rows in np.split(np.arange(len(t)), edges):
+        ts = t[rows]
+        span = max(float(ts[-1] - ts[0]), 1e-9)
+        orders = np.arange(int(math.ceil(2.0 * span * CUTOFF_HZ)) + 1)
+        series = np.cos(np.pi * orders[None, :] * ((ts - ts[0]) / span)[:, None])
+        slow = np.zeros((2 * len(ts), 2 * len(orders)))
+        slow[0::2, :len(orders)], slow[1::2, len(orders):] = series, series
+        bases.append((slice(2 * rows[0], 2 * rows[-1] + 2), np.linalg.qr(slow)[0]))
+
+    def project(x: Array) -> Array:
+        out = np.array(x, dtype=np.float64, copy=True)
+        for rows, q in bases:
+            out[rows] -= q @ (q.T @ out[rows])
+        return out
+
+    return project
+
+
 def fit_gnss_latency(inputs: NavInputs, table_latency_s: float = 0.0,
                      attitude: BodyAttitude | None = None) -> GnssLatencyFit | None:
     """The GNSS latency's change from ``table_latency_s`` (the one ``inputs``' GNSS times were corrected by) against
@@ -128,22 +156,27 @@ def fit_gnss_latency(inputs: NavInputs, table_latency_s: float = 0.0,
     accelerations = [axis * src[:, None] for axis in (east, north) for src in (f[:, 0], f[:, 1], np.ones_like(t))]
     columns = [cumulative_trapezoid(a, t, axis=0, initial=0.0) for a in accelerations]
 
-    # the slow part of both sides, a cosine series up to CUTOFF_HZ per axis, is a nuisance fitted beside the unknowns:
-    # a high-pass with no edges (a filter's transient at a 12 s drive's ends had swung test1's d by 180 ms)
-    span = float(tg[-1] - tg[0])
-    orders = np.arange(int(math.ceil(2.0 * span * CUTOFF_HZ)) + 1)
-    series = np.cos(np.pi * orders[None, :] * ((tg - tg[0]) / span)[:, None])
-    slow = np.zeros((2 * len(tg), 2 * len(orders)))
-    slow[0::2, :len(orders)], slow[1::2, len(orders):] = series, series
+    # the slow part of both sides, a cosine series up to CUTOFF_HZ per axis over each segment of at most SEGMENT_S, is
+    # a nuisance fitted beside the unknowns: a high-pass with no edges (a filter's transient at a 12 s drive's ends had
+    # swung test1's d by 180 ms). It is the same at every delay, so it is projected out once per segment
+    project = _slow_projection(tg)
 
-    def at(x: Array, delay: float) -> Array:
-        return np.stack([np.interp(tg - delay, t, x[:, k]) for k in range(2)], axis=-1)
+    stacked = np.stack([*columns, lever_velocity], axis=1)  # (N_imu, 7, 2)
+
+    def at(delay: float) -> Array:
+        """Every column and the lever's velocity at the GNSS instants less ``delay``, linearly interpolated (N, 7, 2):
+        one search for all of them."""
+        when = np.clip(tg - delay, t[0], t[-1])
+        i = np.clip(np.searchsorted(t, when, side="right"), 1, len(t) - 1)
+        w = ((when - t[i - 1]) / (t[i] - t[i - 1]))[:, None, None]
+        return stacked[i - 1] * (1.0 - w) + stacked[i] * w
 
     measured = z.reshape(-1)
 
     def regression(delay: float) -> tuple[float, Array, Array, Array]:
-        design = np.column_stack([np.stack([at(c, delay).reshape(-1) for c in columns], axis=-1), slow])
-        y = measured - at(lever_velocity, delay).reshape(-1)
+        values = at(delay)
+        design = project(values[:, :-1].transpose(0, 2, 1).reshape(-1, len(columns)))
+        y = project(measured - values[:, -1].reshape(-1))
         coef, *_ = np.linalg.lstsq(design, y, rcond=None)
         res = y - design @ coef
         return float(res @ res), coef, design, y
@@ -179,8 +212,7 @@ def fit_gnss_latency(inputs: NavInputs, table_latency_s: float = 0.0,
     elif not math.isfinite(std):
         ambiguous = f"the best fit lies at the search's edge, {best * 1000:+.0f} ms from the table's"
     # the IMU's own velocity (M the identity) less its slow part, differentiated: the acceleration that measures d
-    imu_velocity = at(columns[0], 0.0).reshape(-1)
-    fast = imu_velocity - slow @ np.linalg.lstsq(slow, imu_velocity, rcond=None)[0]
+    fast = project((at(0.0)[:, 0] + at(0.0)[:, 4]).reshape(-1))
     accel = np.gradient(fast.reshape(-1, 2), tg, axis=0)
     return GnssLatencyFit(imu.name, table_latency_s, best, std, int(len(tg)),
                           float(np.sqrt(np.mean(np.sum(accel**2, axis=-1)))), float(np.sqrt(np.mean(res**2))),
