@@ -116,8 +116,8 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
             **{f"gnss_{k}_noise_ratio": v["ratio"] for k, v in est.info.get("gnss_noise", {}).items()},
             "gnss_noise_applied": any(v["applied"] for v in est.info.get("gnss_noise", {}).values()),
             # the GNSS latency's change from its table against the 6-DoF IMU, and whether the samples moved by it
-            "gnss_latency_change_ms": 1000 * est.info["gnss_latency"].get("change_s", float("nan")),
-            "gnss_latency_std_ms": 1000 * est.info["gnss_latency"].get("std_s", float("nan")),
+            **{f"gnss_latency_{k}_ms": float("nan") if (v := est.info["gnss_latency"].get(f"{k}_s")) is None
+               else 1000 * v for k in ("change", "std")},
             "gnss_latency_ambiguous": bool(est.info["gnss_latency"].get("ambiguous")),
             "gnss_latency_applied": bool(est.info["gnss_latency"]["applied"]),
             # the updates the chi-square gate refused, all kinds together

@@ -80,7 +80,8 @@ class GnssLatencyFit:
     reason: str = ""
 
     def to_dict(self) -> dict[str, object]:
-        return asdict(self)
+        """The fields, an unbounded std as None (JSON has no infinity)."""
+        return {k: None if isinstance(v, float) and not math.isfinite(v) else v for k, v in asdict(self).items()}
 
 
 def _heading(inputs: NavInputs, t: Array, yaw_rate: Array) -> Array:

@@ -70,6 +70,7 @@ MIN_SLIP_GAIN = 1e-3
 MIN_LOAD_GAIN = 5e-4
 #: ... and 1 mrad of rear slip per m/s^2 (a sixth of the full vehicle's 6.6)
 MIN_REAR_SLIP_CHANGE = 1e-3
+#: ... and 20 ms of GNSS latency (a 15-20 ms error costs test1-3 0.5-2 cm: NAVIGATION.md)
 MIN_GNSS_LATENCY_CHANGE_S = 0.02
 #: the GNSS latency's fit moves the samples only beyond this many std: GNSS noise drawn 40 times onto test3 seed 42's
 #: true velocity at the table's latency, the fit scattered by 20.6 ms where its std stated 16.9 (median), and at
@@ -120,7 +121,7 @@ def gnss_latency_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
     """``inputs`` with the GNSS samples moved to the latency the drive shows against its 6-DoF IMU
     (:mod:`.gnss_latency`, ``navigation.estimate_gnss_latency``), where the fit is unambiguous, its std at most
     ``navigation.gnss_latency_max_std_s`` and it differs from the GNSS sensor's stated ``latency_s`` by more than
-    ``SIGNIFICANT`` std and ``MIN_GNSS_LATENCY_CHANGE_S``; and what the fit found, and why."""
+    ``GNSS_LATENCY_SIGNIFICANT`` std and ``MIN_GNSS_LATENCY_CHANGE_S``; and what the fit found, and why."""
     nav = config.navigation
     sensor = config.sensors.get(nav.gnss)
     table = sensor.latency_s if sensor else 0.0
