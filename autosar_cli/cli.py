@@ -529,8 +529,11 @@ def run(
         table = Table("stage", "wall (s)", "summary")
         st = manifest["stages"]
         table.add_row("ingest", f"{st['ingest']['wall_s']:.2f}", f"{st['ingest']['messages']} messages")
+        latency = st["navigate"].get("gnss_latency", {})
         table.add_row("navigate", f"{st['navigate']['wall_s']:.2f}",
-                      f"{st['navigate']['method']}, {st['navigate']['distance_m']:.1f} m")
+                      f"{st['navigate']['method']}, {st['navigate']['distance_m']:.1f} m"
+                      + (f", GNSS latency {1000 * (latency['table_latency_s'] + latency['change_s']):.0f} ms "
+                         f"(its table {1000 * latency['table_latency_s']:g})" if latency.get("applied") else ""))
         if "autofocus" in st:
             table.add_row("autofocus", f"{st['autofocus']['wall_s']:.2f}", st["autofocus"]["summary"])
         table.add_row("focus", f"{st['focus']['wall_s']:.2f}",

@@ -102,3 +102,12 @@ def test_navigate_moves_the_gnss_by_the_latency_the_full_car_shows(tmp_path, lat
     change = latency_s - cfg.sensors["gnss_cog"].latency_s
     assert abs(info["change_s"] - change) < 3 * info["std_s"]
     assert info["applied"] == (change > 0), info["reason"]
+    if change > 0:  # the user is told, with the latency to set
+        from typer.testing import CliRunner
+
+        from autosar_cli.cli import app
+
+        result = CliRunner().invoke(app, ["navigate", str(drive), "-o", str(tmp_path / "trajectory.h5")])
+        assert result.exit_code == 0, result.output
+        said = " ".join(result.output.split())
+        assert "GNSS latency: the samples refer to" in said and "set [sensors.gnss_cog] latency_s" in said
