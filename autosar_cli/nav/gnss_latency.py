@@ -213,7 +213,8 @@ def fit_gnss_latency(inputs: NavInputs, table_latency_s: float = 0.0,
     elif not math.isfinite(std):
         ambiguous = f"the best fit lies at the search's edge, {best * 1000:+.0f} ms from the table's"
     # the IMU's own velocity (M the identity) less its slow part, differentiated: the acceleration that measures d
-    fast = project((at(0.0)[:, 0] + at(0.0)[:, 4]).reshape(-1))
+    undelayed = at(0.0)
+    fast = project((undelayed[:, 0] + undelayed[:, 4]).reshape(-1))
     accel = np.gradient(fast.reshape(-1, 2), tg, axis=0)
     return GnssLatencyFit(imu.name, table_latency_s, best, std, int(len(tg)),
                           float(np.sqrt(np.mean(np.sum(accel**2, axis=-1)))), float(np.sqrt(np.mean(res**2))),
