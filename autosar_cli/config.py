@@ -170,6 +170,9 @@ class GnssErrors:
     white_std_m: float
     velocity_std_mps: float
     heading_std_deg: float
+    #: the velocity noise's correlation time (s; first-order Gauss-Markov, std ``velocity_std_mps`` per sample).
+    #: 0: white. A receiver's own filter smooths its Doppler velocity, so its errors persist over samples.
+    velocity_correlation_time_s: float = 0.0
 
 
 SensorKind = Literal["wheel_speeds", "steering", "can_imu", "imu", "gnss"]

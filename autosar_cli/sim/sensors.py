@@ -8,6 +8,7 @@ sidecar. Times are float64 seconds from the drive start; ``t_meas`` is the insta
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -56,6 +57,20 @@ def gauss_markov(n: int, dt: float, sigma: float, tau: float, rng: np.random.Gen
     from scipy.signal import lfilter
 
     return lfilter([1.0], [1.0, -a], w)
+
+
+def correlated(white: NDArray[np.float64], dt: float, tau: float) -> NDArray[np.float64]:
+    """Unit white draws ``white`` (N, ...) made a stationary first-order Gauss-Markov sequence along axis 0 with
+    correlation time ``tau`` (s) at spacing ``dt`` (s), each sample still of unit std; ``white`` itself where ``tau``
+    is 0 (the same draws either way, so the rest of the drive's random streams do not move)."""
+    if tau <= 0.0 or len(white) == 0:
+        return white
+    from scipy.signal import lfilter
+
+    a = math.exp(-dt / tau)
+    gain = math.sqrt(1.0 - a * a)
+    # the first sample is the stationary one itself: its state (1 - gain) w0 makes y0 = w0
+    return lfilter([gain], [1.0, -a], white, axis=0, zi=((1.0 - gain) * white[:1]))[0]
 
 
 def turn_on_bias(nominal: float, rng: np.random.Generator, size: int | None = None) -> NDArray[np.float64]:
@@ -267,7 +282,8 @@ def gnss(motion: Motion, name: str, s: SensorConfig, rng: np.random.Generator) -
                     gauss_markov(n, dt, e.horizontal_std_m, e.correlation_time_s, rng),
                     gauss_markov(n, dt, e.vertical_std_m, e.correlation_time_s, rng)], -1)
     err += rng.standard_normal((n, 3)) * e.white_std_m * np.array([1.0, 1.0, 2.0])
-    vel = k.velocity + rng.standard_normal((n, 3)) * e.velocity_std_mps * np.array([1.0, 1.0, 1.5])
+    vel = k.velocity + correlated(rng.standard_normal((n, 3)), dt, e.velocity_correlation_time_s) \
+        * e.velocity_std_mps * np.array([1.0, 1.0, 1.5])
     heading = motion.states(t)["heading"]
     true_heading_deg = course_deg_from_heading(heading)
     heading_deg = np.mod(true_heading_deg + rng.standard_normal(n) * e.heading_std_deg, 360.0)
