@@ -44,6 +44,12 @@ MIN_DIFFERENCES = 40
 #: the measured white noise must exceed the table's by this factor before the table is raised: with ~120
 #: differences per axis (a 13 s drive at 10 Hz, two axes) the estimate's own spread is ~8 %, so 1.4 is ~5 of it
 MIN_RATIO = 1.4
+#: the GNSS velocity's sigma is multiplied by its error's long-run factor where that is at least this much (a
+#: successive correlation of 0.51, ~0.15 s at 10 Hz): on white noise the robust correlation of 120-480 pairs
+#: scatters by ~0.1, and urban's turns leave up to 0.3 in the wheels' model of the speed
+MIN_CORRELATION_FACTOR = 1.75
+#: the largest successive correlation taken (a long-run factor of ~14)
+MAX_CORRELATION = 0.99
 
 
 @dataclass(frozen=True)
@@ -65,15 +71,14 @@ class WhiteNoise:
         return asdict(self) | {"ratio": self.ratio}
 
 
-def white_noise_std(t: Array, z: Array, order: int = ORDER) -> tuple[float, int]:
-    """The white noise (per axis, the unit of ``z``) of samples ``z`` (N, k) at times ``t`` (N,) (s) of a smooth
-    motion, from the robust spread of their ``order``-th divided differences, each scaled to unit noise gain (on a
-    regular stream, the plain differences over ``sqrt(C(2 order, order))``); and how many were used. NaN with
-    fewer than :data:`MIN_DIFFERENCES` per axis."""
+def unit_differences(t: Array, z: Array, order: int = ORDER) -> Array:
+    """The ``order``-th divided differences (D, k) of samples ``z`` (N, k) at times ``t`` (N,) (s), each scaled to
+    unit gain for white noise (on a regular stream, the plain differences over ``sqrt(C(2 order, order))``); those
+    spanning a gap (:data:`MAX_GAP_RATIO`) or a non-finite sample are left out."""
     t = np.asarray(t, dtype=np.float64)
     z = np.asarray(z, dtype=np.float64).reshape(len(t), -1)
     if len(t) <= order:
-        return math.nan, 0
+        return np.zeros((0, z.shape[1]))
     dt = np.diff(t)
     typical = float(np.median(dt))
     steady = (dt > 0) & (dt <= MAX_GAP_RATIO * typical)
@@ -87,12 +92,113 @@ def white_noise_std(t: Array, z: Array, order: int = ORDER) -> tuple[float, int]
     w = 1.0 / np.prod(gaps, axis=2)
     w /= np.linalg.norm(w, axis=1, keepdims=True)
     d = np.einsum("dki,di->dk", zw, w)
-    d = d[np.isfinite(d).all(axis=1)]
+    return d[np.isfinite(d).all(axis=1)]
+
+
+def _mad(x: Array) -> float:
+    return float(1.4826 * np.median(np.abs(x - np.median(x))))
+
+
+def _robust_std(d: Array) -> float:
+    """The spread of differences ``d`` (D, k), RMS over the axes of each one's median absolute deviation."""
+    per_axis = 1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0)
+    return float(np.sqrt(np.mean(per_axis**2)))
+
+
+def white_noise_std(t: Array, z: Array, order: int = ORDER) -> tuple[float, int]:
+    """The white noise (per axis, the unit of ``z``) of samples ``z`` (N, k) at times ``t`` (N,) (s) of a smooth
+    motion, from the robust spread of their ``order``-th divided differences (:func:`unit_differences`); and how
+    many were used. NaN with fewer than :data:`MIN_DIFFERENCES` per axis."""
+    d = unit_differences(t, z, order)
     if len(d) < MIN_DIFFERENCES:
         return math.nan, int(d.size)
-    mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
-    per_axis = 1.4826 * mad
-    return float(np.sqrt(np.mean(per_axis**2))), int(d.size)
+    return _robust_std(d), int(d.size)
+
+
+@dataclass(frozen=True)
+class VelocityCorrelation:
+    """How the GNSS velocity's error correlates from one sample to the next, and what SAR-MIN made of it."""
+
+    correlation: float  #: between successive samples' errors (first-order Gauss-Markov), 0 for white noise
+    pairs: int  #: how many successive pairs measured it
+    spacing_s: float  #: the velocity stream's sample interval (s)
+    applied: bool = False
+    sigma_mps: float = math.nan  #: the velocity's sigma SAR-MIN weighs each sample by (m/s, per axis)
+    reason: str = ""
+
+    @property
+    def long_run_factor(self) -> float:
+        """How much more the mean of many samples scatters than that of as many independent ones:
+        sqrt((1 + rho) / (1 - rho))."""
+        rho = min(max(self.correlation, 0.0), MAX_CORRELATION)
+        return math.sqrt((1.0 + rho) / (1.0 - rho))
+
+    @property
+    def correlation_time_s(self) -> float:
+        return -self.spacing_s / math.log(self.correlation) if 0 < self.correlation < 1 else 0.0
+
+    def to_dict(self) -> dict[str, object]:
+        return asdict(self) | {"long_run_factor": self.long_run_factor,
+                               "correlation_time_s": self.correlation_time_s}
+
+
+def successive_correlation(t: Array, r: Array) -> tuple[float, int]:
+    """The correlation of ``r`` (N,) between samples one regular interval apart (times ``t`` (N,), s; pairs across
+    a gap left out), robust to a minority of outlying pairs, and how many pairs; NaN with fewer than
+    :data:`MIN_DIFFERENCES`."""
+    t, r = np.asarray(t, dtype=np.float64), np.asarray(r, dtype=np.float64)
+    if len(t) < 3:
+        return math.nan, 0
+    dt = np.diff(t)
+    regular = np.abs(dt - np.median(dt)) <= 0.25 * np.median(dt)
+    a, b = r[:-1][regular], r[1:][regular]
+    if len(a) < MIN_DIFFERENCES:
+        return math.nan, int(len(a))
+    # robust (Gnanadesikan-Kettenring): from the spreads of the sums and differences, each a median absolute
+    # deviation, so that a few seconds the wheels' model misses (urban's turns and brakings) do not read as noise
+    plus, minus = _mad(a + b) ** 2, _mad(a - b) ** 2
+    return float((plus - minus) / (plus + minus)) if plus + minus > 0 else 0.0, int(len(a))
+
+
+def velocity_decorrelated(inputs: NavInputs, residual: tuple[Array, Array] | None, enabled: bool = True
+                          ) -> tuple[NavInputs, dict[str, object]]:
+    """The inputs with the GNSS velocity's sigma multiplied by its error's long-run factor
+    (:attr:`VelocityCorrelation.long_run_factor`) where that is at least :data:`MIN_CORRELATION_FACTOR`, measured
+    on ``residual``: the instants (s) and what the wheel speeds leave of the GNSS speed there
+    (:func:`~autosar_cli.nav.wheel_speeds.gnss_speed_residual`); and what was measured and done.
+
+    SAR-MIN takes each sample's error as independent of the next. A receiver whose own filter smooths its Doppler
+    velocity repeats its error over several samples, and a filter that counts them as independent trusts their
+    mean by the long-run factor too much: the gyros' biases and the track's scale follow that mean, and the std
+    they state (which the autofocus takes as its priors) is too small by that factor. Weighed by it, the
+    samples' slow part, which sets the biases and the scale, counts as much as it holds. The wheel speeds follow the
+    car's speed well enough within a second that what they leave is the GNSS speed's error (its along-track part;
+    the across one is taken to be alike, one filter in the receiver making both)."""
+    vel = inputs.gnss_velocity
+    if vel is None:
+        return inputs, {"applied": False, "reason": "no GNSS velocity"}
+    spacing = float(np.median(np.diff(vel.t))) if len(vel.t) > 1 else math.nan
+    if residual is None:
+        return inputs, VelocityCorrelation(math.nan, 0, spacing, reason="no wheel speeds to measure it against "
+                                                                         "while moving: the samples as independent"
+                                           ).to_dict()
+    rho, pairs = successive_correlation(*residual)
+    fit = VelocityCorrelation(rho, pairs, spacing, sigma_mps=float(np.max(vel.sigma)))
+    if not np.isfinite(rho):
+        return inputs, replace(fit, reason=f"fewer than {MIN_DIFFERENCES} successive samples while moving: the "
+                                           "samples as independent").to_dict()
+    if not enabled:
+        return inputs, replace(fit, reason="navigation.estimate_gnss_noise is off: the samples as "
+                                           "independent").to_dict()
+    factor = fit.long_run_factor
+    if factor < MIN_CORRELATION_FACTOR:
+        return inputs, replace(fit, reason=f"long-run factor {factor:.2f} below {MIN_CORRELATION_FACTOR:g}: the "
+                                           "samples as independent").to_dict()
+    weighed = replace(vel, sigma=vel.sigma * factor)
+    return replace(inputs, gnss_velocity=weighed), replace(
+        fit, applied=True, sigma_mps=float(np.max(weighed.sigma)),
+        reason=f"successive errors correlate by {rho:.2f} (~{fit.correlation_time_s:.2f} s): each sample weighed "
+               f"by {factor:.2f} times its sigma").to_dict()
 
 
 def _checked(stream: str, meas: Measurements | None, enabled: bool) -> tuple[Measurements | None, WhiteNoise | None]:

@@ -199,12 +199,10 @@ def longitudinal_regression(wheels: Measurements, ts: Array, v: Array, w: Array,
     return design, np.concatenate([rear - v, front - vf])
 
 
-def _fit_longitudinal(inputs: NavInputs, lever_rear_m: tuple[float, float], wheelbase_m: float,
-                      min_speed_mps: float, window_always: bool = False
-                      ) -> tuple[Array, Array, int, float, float, float, tuple[float, float] | None] | None:
-    """Coefficients [s_rear, s_front, c, k_front_drive, k_front_brake, k_rear_drive, k_rear_brake] of both axles'
-    mean speed less the GNSS speed at the rear axle, their stds, samples, a / v RMS, a RMS, residual RMS, and the
-    lag fitted alone (c, std) where the wheel sensor's stated window conditions them (:func:`_with_lag_prior`)."""
+def _longitudinal_problem(inputs: NavInputs, lever_rear_m: tuple[float, float], wheelbase_m: float,
+                          min_speed_mps: float) -> tuple[Array, Array, Array, Array, Array] | None:
+    """The GNSS instants (s) :func:`_fit_longitudinal` uses, the rear axle's speed there (m/s), the car's
+    acceleration (m/s^2), and :func:`longitudinal_regression`'s design and data; None with fewer than 10."""
     wheels, gnss = inputs.wheels, inputs.gnss_velocity
     assert wheels is not None and gnss is not None
     inside = (gnss.t > wheels.t[0] + ACCEL_WINDOW_S) & (gnss.t < wheels.t[-1] - ACCEL_WINDOW_S)
@@ -224,12 +222,40 @@ def _fit_longitudinal(inputs: NavInputs, lever_rear_m: tuple[float, float], whee
     ts, v, w, v_wheels = ts[use], v[use], w[use], v_wheels[use]
     a = wheel_acceleration(wheels, ts)
     design, y = longitudinal_regression(wheels, ts, v, w, a, wheelbase_m, v_design=v_wheels)
+    return ts, v, a, design, y
+
+
+def gnss_speed_residual(inputs: NavInputs, lever_rear_m: tuple[float, float], wheelbase_m: float,
+                        min_speed_mps: float = 1.0) -> tuple[Array, Array] | None:
+    """What the wheel speeds' longitudinal fit (:func:`_fit_longitudinal`) leaves at each GNSS instant (s) while
+    moving: the rear axle's (m/s; no steering in its geometry), the GNSS speed's error and the wheels' own noise; None
+    without wheel speeds, GNSS velocity or 10 samples above ``min_speed_mps``."""
+    if inputs.wheels is None or inputs.gnss_velocity is None or len(inputs.wheels.t) < 3:
+        return None
+    problem = _longitudinal_problem(inputs, lever_rear_m, wheelbase_m, min_speed_mps)
+    if problem is None:
+        return None
+    ts, _, _, design, y = problem
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    return ts, (y - design @ coef)[:len(ts)]
+
+
+def _fit_longitudinal(inputs: NavInputs, lever_rear_m: tuple[float, float], wheelbase_m: float,
+                      min_speed_mps: float, window_always: bool = False
+                      ) -> tuple[Array, Array, int, float, float, float, tuple[float, float] | None] | None:
+    """Coefficients [s_rear, s_front, c, k_front_drive, k_front_brake, k_rear_drive, k_rear_brake] of both axles'
+    mean speed less the GNSS speed at the rear axle, their stds, samples, a / v RMS, a RMS, residual RMS, and the
+    lag fitted alone (c, std) where the wheel sensor's stated window conditions them (:func:`_with_lag_prior`)."""
+    problem = _longitudinal_problem(inputs, lever_rear_m, wheelbase_m, min_speed_mps)
+    if problem is None:
+        return None
+    ts, v, a, design, y = problem
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
     res = y - design @ coef
     coef, cov, alone = _with_lag_prior(coef, _effective_covariance(design, res, groups=2),
                                         *inputs.wheel_lag_prior_m, always=window_always)
     std = np.sqrt(np.diag(cov))
-    return (coef, std, int(use.sum()), float(np.std(a / v)), float(np.std(a)), float(np.sqrt(np.mean(res**2))),
+    return (coef, std, len(ts), float(np.std(a / v)), float(np.std(a)), float(np.sqrt(np.mean(res**2))),
             alone)
 
 
