@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.nav.gnss_noise import MIN_RATIO, gnss_noise_checked, white_noise_std
@@ -71,3 +72,90 @@ def test_the_fits_against_a_noisier_gnss_velocity_take_wider_bounds() -> None:
     assert wide.wheel_lag_max_std_m == 1.96 * nav.wheel_lag_max_std_m
     assert wide.wheel_radius_gain_max_std_per_mps2 == 1.96 * nav.wheel_radius_gain_max_std_per_mps2
     assert wide.understeer_max_std_rad_per_mps2 == nav.understeer_max_std_rad_per_mps2  # fitted against the gyros
+
+
+def _gauss_markov(n: int, rho: float, rng: np.random.Generator) -> np.ndarray:
+    """A stationary first-order Gauss-Markov sequence of unit std, successive samples correlated by ``rho``."""
+    from autosar_cli.sim.sensors import correlated
+
+    return correlated(rng.standard_normal(n), 1.0, -1.0 / np.log(rho)) if rho > 0 else rng.standard_normal(n)
+
+
+def test_the_long_run_factor_is_how_much_more_a_correlated_mean_scatters() -> None:
+    from autosar_cli.nav.gnss_noise import VelocityCorrelation
+
+    rng = np.random.default_rng(3)
+    means = [np.mean(_gauss_markov(500, 0.82, rng)) for _ in range(2000)]
+    factor = VelocityCorrelation(0.82, 500, 0.1).long_run_factor  # sqrt(1.82 / 0.18) = 3.18
+    assert abs(factor - np.sqrt(1.82 / 0.18)) < 1e-12
+    assert abs(np.std(means) / (factor / np.sqrt(500)) - 1.0) < 0.08  # independent samples: 1 / sqrt(500)
+    assert VelocityCorrelation(0.0, 500, 0.1).correlation_time_s == 0.0
+    assert abs(VelocityCorrelation(np.exp(-0.2), 500, 0.1).correlation_time_s - 0.5) < 1e-12
+
+
+def test_the_successive_correlation_reads_smoothed_noise_and_not_white_noise_or_a_burst() -> None:
+    from autosar_cli.nav.gnss_noise import MIN_CORRELATION_FACTOR, successive_correlation
+
+    t = np.arange(0.0, 13.0, 0.1)  # test1's 13 s at 10 Hz: the fewest samples a drive gives it
+    smoothed = [successive_correlation(t, _gauss_markov(len(t), 0.82, np.random.default_rng(s)))[0]
+                for s in range(200)]
+    assert abs(np.median(smoothed) - 0.82) < 0.05
+    white = np.array([successive_correlation(t, np.random.default_rng(s).standard_normal(len(t)))[0]
+                      for s in range(200)])
+    rho_limit = (MIN_CORRELATION_FACTOR**2 - 1.0) / (MIN_CORRELATION_FACTOR**2 + 1.0)  # 0.51
+    assert abs(np.median(white)) < 0.05 and np.max(white) < rho_limit
+    # 2 s of the wheels' model missing by 3 sigma (a braking into a turn) in white noise
+    burst = np.random.default_rng(7).standard_normal(len(t)) + np.where((t > 5) & (t < 7), 3.0, 0.0)
+    assert successive_correlation(t, burst)[0] < 0.3
+    gap = np.concatenate([t[:60], t[60:] + 5.0])  # a pair across a gap is not a pair
+    assert successive_correlation(gap, burst)[1] == len(t) - 2
+
+
+def test_a_velocity_whose_errors_correlate_is_weighed_by_their_long_run_factor() -> None:
+    from autosar_cli.nav.gnss_noise import velocity_decorrelated
+
+    t = np.arange(0.0, 40.0, 0.1)
+    vel = np.gradient(_drive_positions(t), t, axis=0)
+    inputs = NavInputs(0, GeodeticOrigin(45.0, 9.0, 100.0))
+    inputs.gnss_velocity = Measurements("gnss", t, vel, np.full(2, 0.03))
+    rng = np.random.default_rng(5)
+    smoothed = 0.03 * _gauss_markov(len(t), np.exp(-0.1 / 0.5), rng)  # a receiver smoothing over 0.5 s
+    weighed, info = velocity_decorrelated(inputs, (t, smoothed))
+    assert info["applied"] and 0.25 < info["correlation_time_s"] < 0.95, info  # 99 % of 500 draws: 0.26-0.92
+    assert abs(weighed.gnss_velocity.sigma[0] / 0.03 - info["long_run_factor"]) < 1e-9
+    assert 2.3 < info["long_run_factor"] < 4.3  # sqrt(1.82 / 0.18) = 3.18; 99 % of draws 2.31-4.28
+    assert np.array_equal(weighed.gnss_velocity.z, vel)  # the samples themselves stay
+    white, info = velocity_decorrelated(inputs, (t, 0.03 * rng.standard_normal(len(t))))
+    assert not info["applied"] and white.gnss_velocity is inputs.gnss_velocity and "below" in info["reason"]
+    off, info = velocity_decorrelated(inputs, (t, smoothed), enabled=False)
+    assert off is inputs and "is off" in info["reason"]
+    none, info = velocity_decorrelated(inputs, None)
+    assert none is inputs and "no wheel speeds" in info["reason"]
+
+
+@pytest.mark.parametrize("tau_s", [0.0, 0.5])
+def test_navigate_weighs_the_velocity_of_a_receiver_that_smooths_it(tmp_path, tau_s: float) -> None:  # noqa: ANN001
+    """The simulator's full car on test1 (seed 0), its receiver's velocity errors correlated over ``tau_s``:
+    navigate measures that against the wheel speeds and weighs the samples by it; white, it leaves them."""
+    import dataclasses
+
+    from autosar_cli.config import load_config
+    from autosar_cli.ingest.pipeline import ingest
+    from autosar_cli.nav.navigate import navigate
+    from autosar_cli.sim.simulate import simulate
+
+    base = load_config()
+    cfg = dataclasses.replace(base, radar=dataclasses.replace(base.radar, prf_hz=20.0))
+    gnss = cfg.sensors["gnss_cog"]
+    assert gnss.gnss is not None
+    sensors = {**cfg.sensors, "gnss_cog": dataclasses.replace(
+        gnss, gnss=dataclasses.replace(gnss.gnss, velocity_correlation_time_s=tau_s))}
+    sim = simulate("test1", tmp_path / "t1.mcap", seed=0, config=dataclasses.replace(cfg, sensors=sensors),
+                   dynamics="full")
+    drive = tmp_path / "t1.h5"
+    ingest([sim.log_path], drive, config=cfg)
+    info = navigate(drive, "sar-min", cfg).info["gnss_velocity_correlation"]
+    assert info["applied"] == (tau_s > 0), info["reason"]
+    if tau_s > 0:
+        assert abs(info["correlation_time_s"] / tau_s - 1.0) < 0.3
+        assert abs(info["sigma_mps"] / (gnss.gnss.velocity_std_mps * info["long_run_factor"]) - 1.0) < 1e-9
