@@ -425,3 +425,19 @@ def test_full_model_without_its_effects_is_the_kinematic_motion(config: Config) 
     assert np.allclose(motion.body_rates(t)[:, 2], sc.motion.states(t)["yaw_rate"], atol=1e-9)
     only_road = full_motion("ci", sc.motion, sc.road, config.vehicle, replace(bare, components=("road",)))
     assert np.abs(only_road.attitude(t)[:, 0]).max() > 0.005  # 2 % cross-fall rolls the body
+
+
+def test_a_gnss_velocity_noise_with_a_correlation_time_is_gauss_markov_and_white_without() -> None:
+    """sim.sensors.correlated against the closed form: unit std, successive samples correlated by exp(-dt / tau),
+    samples k apart by its k-th power; tau 0 leaves the draws as they were (every drive made before is unchanged)."""
+    from autosar_cli.sim.sensors import correlated
+
+    white = np.random.default_rng(11).standard_normal((100_000, 2))
+    assert correlated(white, 0.1, 0.0) is white
+    smoothed = correlated(white, 0.1, 0.5)
+    rho = np.exp(-0.1 / 0.5)
+    assert np.all(np.abs(smoothed.std(axis=0) - 1.0) < 0.02)
+    for k in (1, 2, 5):
+        measured = np.mean([np.corrcoef(smoothed[:-k, i], smoothed[k:, i])[0, 1] for i in range(2)])
+        assert abs(measured - rho**k) < 0.01
+    assert np.array_equal(smoothed[0], white[0])  # stationary from its first sample
