@@ -50,6 +50,8 @@ MIN_RATIO = 1.4
 MIN_CORRELATION_FACTOR = 1.75
 #: the largest successive correlation taken (a long-run factor of ~14)
 MAX_CORRELATION = 0.99
+#: the share of a correlated velocity's sigma its samples keep as white noise, the rest carried as a state
+WHITE_SHARE = 0.2
 
 
 @dataclass(frozen=True)
@@ -123,7 +125,7 @@ class VelocityCorrelation:
     pairs: int  #: how many successive pairs measured it
     spacing_s: float  #: the velocity stream's sample interval (s)
     applied: bool = False
-    sigma_mps: float = math.nan  #: the velocity's sigma SAR-MIN weighs each sample by (m/s, per axis)
+    sigma_mps: float = math.nan  #: the velocity's white sigma SAR-MIN weighs each sample by (m/s, per axis)
     reason: str = ""
 
     @property
@@ -162,18 +164,22 @@ def successive_correlation(t: Array, r: Array) -> tuple[float, int]:
 
 def velocity_decorrelated(inputs: NavInputs, residual: tuple[Array, Array] | None, enabled: bool = True
                           ) -> tuple[NavInputs, dict[str, object]]:
-    """The inputs with the GNSS velocity's sigma multiplied by its error's long-run factor
-    (:attr:`VelocityCorrelation.long_run_factor`) where that is at least :data:`MIN_CORRELATION_FACTOR`, measured
-    on ``residual``: the instants (s) and what the wheel speeds leave of the GNSS speed there
-    (:func:`~autosar_cli.nav.wheel_speeds.gnss_speed_residual`); and what was measured and done.
+    """The inputs with the GNSS velocity's error carried by SAR-MIN as two Gauss-Markov states where its samples'
+    errors correlate by a long-run factor (:attr:`VelocityCorrelation.long_run_factor`) of at least
+    :data:`MIN_CORRELATION_FACTOR`, measured on ``residual``: the instants (s) and what the wheel speeds leave of
+    the GNSS speed there (:func:`~autosar_cli.nav.wheel_speeds.gnss_speed_residual`); and what was measured and
+    done.
 
     SAR-MIN takes each sample's error as independent of the next. A receiver whose own filter smooths its Doppler
-    velocity repeats its error over several samples, and a filter that counts them as independent trusts their
-    mean by the long-run factor too much: the gyros' biases and the track's scale follow that mean, and the std
-    they state (which the autofocus takes as its priors) is too small by that factor. Weighed by it, the
-    samples' slow part, which sets the biases and the scale, counts as much as it holds. The wheel speeds follow the
-    car's speed well enough within a second that what they leave is the GNSS speed's error (its along-track part;
-    the across one is taken to be alike, one filter in the receiver making both)."""
+    velocity repeats its error over several samples; counted as independent, their mean is trusted by the long-run
+    factor too much: the gyros' biases and the track's scale follow it, and the std they state (the autofocus's
+    priors) is too small by that factor. Carried as a state (per axis, std ``sqrt(1 - WHITE_SHARE^2)`` of the
+    samples' sigma, its correlation time the measured one; the samples keep ``WHITE_SHARE`` of their sigma as
+    white noise), the slow part counts as much as it holds while the changes from sample to sample still measure
+    the car's accelerations (weighing every sample by the long-run factor instead lost those: urban's stops moved
+    its track along by up to 10 cm). The wheel speeds follow the car's speed well enough within a second that what
+    they leave is the GNSS speed's error (its along-track part; the across one is taken to be alike, one filter in
+    the receiver making both)."""
     vel = inputs.gnss_velocity
     if vel is None:
         return inputs, {"applied": False, "reason": "no GNSS velocity"}
@@ -183,7 +189,8 @@ def velocity_decorrelated(inputs: NavInputs, residual: tuple[Array, Array] | Non
                                                                          "while moving: the samples as independent"
                                            ).to_dict()
     rho, pairs = successive_correlation(*residual)
-    fit = VelocityCorrelation(rho, pairs, spacing, sigma_mps=float(np.max(vel.sigma)))
+    sigma = float(np.max(vel.sigma))
+    fit = VelocityCorrelation(rho, pairs, spacing, sigma_mps=sigma)
     if not np.isfinite(rho):
         return inputs, replace(fit, reason=f"fewer than {MIN_DIFFERENCES} successive samples while moving: the "
                                            "samples as independent").to_dict()
@@ -194,11 +201,17 @@ def velocity_decorrelated(inputs: NavInputs, residual: tuple[Array, Array] | Non
     if factor < MIN_CORRELATION_FACTOR:
         return inputs, replace(fit, reason=f"long-run factor {factor:.2f} below {MIN_CORRELATION_FACTOR:g}: the "
                                            "samples as independent").to_dict()
-    weighed = replace(vel, sigma=vel.sigma * factor)
-    return replace(inputs, gnss_velocity=weighed), replace(
-        fit, applied=True, sigma_mps=float(np.max(weighed.sigma)),
-        reason=f"successive errors correlate by {rho:.2f} (~{fit.correlation_time_s:.2f} s): each sample weighed "
-               f"by {factor:.2f} times its sigma").to_dict()
+    # the state's own correlation: the white share dilutes what the samples show
+    state_rho = min(rho / (1.0 - WHITE_SHARE**2), MAX_CORRELATION)
+    error_std = sigma * math.sqrt(1.0 - WHITE_SHARE**2)
+    time_s = -spacing / math.log(state_rho)
+    carried = replace(inputs, gnss_velocity=replace(vel, sigma=vel.sigma * WHITE_SHARE),
+                      gnss_velocity_error_std_mps=error_std, gnss_velocity_error_time_s=time_s)
+    return carried, replace(
+        fit, applied=True, sigma_mps=sigma * WHITE_SHARE,
+        reason=f"successive errors correlate by {rho:.2f} (long-run factor {factor:.2f}): carried as a state of "
+               f"{error_std:.3f} m/s over {time_s:.2f} s").to_dict() | {"error_std_mps": error_std,
+                                                                        "error_time_s": time_s}
 
 
 def _checked(stream: str, meas: Measurements | None, enabled: bool) -> tuple[Measurements | None, WhiteNoise | None]:

@@ -75,6 +75,10 @@ class NavInputs:
     # of gnss_position.sigma (white, per fix); std 0 means the fixes are taken as independent.
     gnss_error_std_m: float = 0.0
     gnss_error_time_s: float = 0.0
+    #: the GNSS velocity's correlated error (m/s per axis, s), carried as two Gauss-Markov states where it is > 0
+    #: (:func:`~autosar_cli.nav.gnss_noise.velocity_decorrelated`); the samples' sigma is then its white part
+    gnss_velocity_error_std_mps: float = 0.0
+    gnss_velocity_error_time_s: float = 0.0
 
 
 def lsb_of(values: Array) -> float:

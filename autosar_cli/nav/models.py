@@ -75,15 +75,17 @@ def gnss_position(X: Array, lever_xy: tuple[float, float], error_index: int) -> 
     return p + X[:, error_index:error_index + 2] if error_index >= 0 else p
 
 
-def point_velocity(X: Array, lever_xy: tuple[float, float], slip_gain: float = 0.0) -> Array:
+def point_velocity(X: Array, lever_xy: tuple[float, float], slip_gain: float = 0.0, error_i: int = -1) -> Array:
     """ENU ground velocity (m/s) of a body point ``lever_xy`` relative to the rear-axle centre, the rear axle moving
-    at the slip angle ``slip_gain v omega`` (see :func:`ctrv_step`); (m, 2)."""
+    at the slip angle ``slip_gain v omega`` (see :func:`ctrv_step`); (m, 2). ``error_i``: first of two states
+    (east, north) added to it, a GNSS velocity's correlated error (-1: none)."""
     c, s = np.cos(X[:, PSI]), np.sin(X[:, PSI])
     lx, ly = lever_xy
     alpha = slip_gain * X[:, V] * X[:, OMEGA]
     bx = X[:, V] * np.cos(alpha) - X[:, OMEGA] * ly  # body-frame velocity of the point
     by = -X[:, V] * np.sin(alpha) + X[:, OMEGA] * lx
-    return np.stack([c * bx - s * by, s * bx + c * by], axis=1)
+    v = np.stack([c * bx - s * by, s * bx + c * by], axis=1)
+    return v + X[:, error_i:error_i + 2] if error_i >= 0 else v
 
 
 def wheel_speeds(X: Array, wheelbase_m: float, track_front_m: float, track_rear_m: float,

@@ -95,10 +95,17 @@ def models_gnss_error(inputs: NavInputs) -> bool:
     return inputs.gnss_error_std_m > 0.0 and inputs.gnss_error_time_s > 0.0
 
 
+def models_gnss_velocity_error(inputs: NavInputs) -> bool:
+    """Whether the filter carries the GNSS velocity's correlated error as two Gauss-Markov states."""
+    return inputs.gnss_velocity_error_std_mps > 0.0 and inputs.gnss_velocity_error_time_s > 0.0
+
+
 def _state_names(inputs: NavInputs) -> list[str]:
     return (["px", "py", "v", "psi", "omega"] + [f"bias.{g.name}" for g in inputs.gyros] + ["bias.steering"]
             + [f"scale.wheel_{w}" for w in ("fl", "fr", "rl", "rr")]
             + (["gnss_error.east", "gnss_error.north"] if models_gnss_error(inputs) else [])
+            + (["gnss_velocity_error.east", "gnss_velocity_error.north"] if models_gnss_velocity_error(inputs)
+               else [])
             + (["offset.gnss_heading"] if inputs.gnss_heading is not None else []))
 
 
@@ -146,6 +153,8 @@ def _initial_state(inputs: NavInputs, config: Config, n: int, gnss_i: int) -> tu
     diag += [max(inputs.wheel_scale_std, 1e-4) ** 2] * 4
     if gnss_i >= 0:
         diag += [inputs.gnss_error_std_m**2] * 2
+    if models_gnss_velocity_error(inputs):
+        diag += [inputs.gnss_velocity_error_std_mps**2] * 2
     if inputs.gnss_heading is not None:
         diag += [inputs.gnss_heading_offset_std**2]
     P0[np.diag_indices(n)] = diag
@@ -196,6 +205,11 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
     if gnss_i >= 0:
         beta[gnss_i:gnss_i + 2] = 1.0 / inputs.gnss_error_time_s
         q[gnss_i:gnss_i + 2] = 2.0 * inputs.gnss_error_std_m**2 * beta[gnss_i]
+    # the GNSS velocity's correlated error (east, north)
+    vel_i = names.index("gnss_velocity_error.east") if models_gnss_velocity_error(inputs) else -1
+    if vel_i >= 0:
+        beta[vel_i:vel_i + 2] = 1.0 / inputs.gnss_velocity_error_time_s
+        q[vel_i:vel_i + 2] = 2.0 * inputs.gnss_velocity_error_std_mps**2 * beta[vel_i]
 
     # One event list: (time, sensor kind, sample index), in time order.
     sources: list[tuple[str, Measurements]] = [(f"gyro{i}", g) for i, g in enumerate(inputs.gyros)]
@@ -269,7 +283,8 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
         elif kind == "gnss_pos":
             ok = ukf.update(z, lambda X: m.gnss_position(X, gnss_lever, gnss_i), np.diag(meas.sigma**2), gates[2])
         elif kind == "gnss_vel":
-            ok = ukf.update(z, lambda X: m.point_velocity(X, gnss_lever, slip), np.diag(meas.sigma**2), gates[2])
+            ok = ukf.update(z, lambda X: m.point_velocity(X, gnss_lever, slip, vel_i), np.diag(meas.sigma**2),
+                            gates[2])
         elif kind == "gnss_heading":
             # the heading nearest the prediction: the innovation on the circle
             zp = ukf.x[m.PSI] + ukf.x[heading_i]
@@ -323,7 +338,8 @@ def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[t
     for k in (1, 2, 4):
         gates[k] = chi2_gate(nav.gate_probability, k)
     geo = np.array([veh.wheelbase_m, veh.track_front_m, veh.track_rear_m, gnss_lever[0], gnss_lever[1],
-                    veh.understeer_gradient_rad_per_mps2, veh.rear_slip_gain_rad_per_mps2, float(inputs.rigid_wheels)])
+                    veh.understeer_gradient_rad_per_mps2, veh.rear_slip_gain_rad_per_mps2, float(inputs.rigid_wheels),
+                    float(names.index("gnss_velocity_error.east") if "gnss_velocity_error.east" in names else -1)])
     steer_hold = np.zeros(len(x0), dtype=np.bool_)
     steer_hold[list(steering_held_states(scale_i))] = True
     wm, wc, lam = kern.merwe_weights(len(x0), SIGMA_ALPHA, SIGMA_BETA, 3.0 - len(x0))

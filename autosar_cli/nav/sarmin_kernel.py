@@ -34,9 +34,10 @@ Event kinds: ``0 .. ng-1`` gyro i; ``ng`` wheels; ``ng+1`` steering; ``ng+2`` GN
 ``ng+3`` GNSS velocity; ``ng+4`` GNSS heading (the heading plus the offset state ``heading_i``);
 ``ng+5`` a standstill's zero yaw rate.
 Measurement values are padded to 4 columns. ``geo``: wheelbase, front and rear track,
-GNSS lever (x, y), understeer gradient, rear-slip gain, and 1 for the rigid wheel model or 0 for the
-load-compliant one (:func:`~.models.measured_wheel_speeds`). ``gnss_i``: first of the two GNSS
-position error states (east, north), or -1 when the filter has none.
+GNSS lever (x, y), understeer gradient, rear-slip gain, 1 for the rigid wheel model or 0 for the
+load-compliant one (:func:`~.models.measured_wheel_speeds`), and the first of the two GNSS velocity error
+states (east, north; -1: none). ``gnss_i``: first of the two GNSS position error states (east, north), or -1
+when the filter has none.
 """
 
 from __future__ import annotations
@@ -258,6 +259,9 @@ def _measure(sig, kind, ng, geo, scale_i, steer_i, gnss_i, zsig):  # noqa: ANN00
             by = -sig[i, V] * np.sin(alpha) + sig[i, OMEGA] * lx
             zsig[i, 0] = c * bx - s * by
             zsig[i, 1] = s * bx + c * by
+            if geo[8] >= 0:  # plus its correlated error
+                zsig[i, 0] += sig[i, int(geo[8])]
+                zsig[i, 1] += sig[i, int(geo[8]) + 1]
     return 2
 
 
