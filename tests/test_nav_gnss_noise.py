@@ -111,8 +111,8 @@ def test_the_successive_correlation_reads_smoothed_noise_and_not_white_noise_or_
     assert successive_correlation(gap, burst)[1] == len(t) - 2
 
 
-def test_a_velocity_whose_errors_correlate_is_weighed_by_their_long_run_factor() -> None:
-    from autosar_cli.nav.gnss_noise import velocity_decorrelated
+def test_a_velocity_whose_errors_correlate_is_carried_as_a_gauss_markov_state() -> None:
+    from autosar_cli.nav.gnss_noise import WHITE_SHARE, velocity_decorrelated
 
     t = np.arange(0.0, 40.0, 0.1)
     vel = np.gradient(_drive_positions(t), t, axis=0)
@@ -120,13 +120,17 @@ def test_a_velocity_whose_errors_correlate_is_weighed_by_their_long_run_factor()
     inputs.gnss_velocity = Measurements("gnss", t, vel, np.full(2, 0.03))
     rng = np.random.default_rng(5)
     smoothed = 0.03 * _gauss_markov(len(t), np.exp(-0.1 / 0.5), rng)  # a receiver smoothing over 0.5 s
-    weighed, info = velocity_decorrelated(inputs, (t, smoothed))
+    carried, info = velocity_decorrelated(inputs, (t, smoothed))
     assert info["applied"] and 0.25 < info["correlation_time_s"] < 0.95, info  # 99 % of 500 draws: 0.26-0.92
-    assert abs(weighed.gnss_velocity.sigma[0] / 0.03 - info["long_run_factor"]) < 1e-9
     assert 2.3 < info["long_run_factor"] < 4.3  # sqrt(1.82 / 0.18) = 3.18; 99 % of draws 2.31-4.28
-    assert np.array_equal(weighed.gnss_velocity.z, vel)  # the samples themselves stay
+    # the error as a state of the samples' whole sigma less their white share, over the correlation it shows
+    assert abs(carried.gnss_velocity.sigma[0] - WHITE_SHARE * 0.03) < 1e-12
+    assert abs(carried.gnss_velocity_error_std_mps ** 2 + (WHITE_SHARE * 0.03) ** 2 - 0.03**2) < 1e-12
+    rho_state = np.exp(-0.1 / carried.gnss_velocity_error_time_s)
+    assert abs(rho_state * (1 - WHITE_SHARE**2) - info["correlation"]) < 1e-9
+    assert np.array_equal(carried.gnss_velocity.z, vel)  # the samples themselves stay
     white, info = velocity_decorrelated(inputs, (t, 0.03 * rng.standard_normal(len(t))))
-    assert not info["applied"] and white.gnss_velocity is inputs.gnss_velocity and "below" in info["reason"]
+    assert not info["applied"] and white is inputs and "below" in info["reason"]
     off, info = velocity_decorrelated(inputs, (t, smoothed), enabled=False)
     assert off is inputs and "is off" in info["reason"]
     none, info = velocity_decorrelated(inputs, None)
@@ -136,7 +140,7 @@ def test_a_velocity_whose_errors_correlate_is_weighed_by_their_long_run_factor()
 @pytest.mark.parametrize("tau_s", [0.0, 0.5])
 def test_navigate_weighs_the_velocity_of_a_receiver_that_smooths_it(tmp_path, tau_s: float) -> None:  # noqa: ANN001
     """The simulator's full car on test1 (seed 0), its receiver's velocity errors correlated over ``tau_s``:
-    navigate measures that against the wheel speeds and weighs the samples by it; white, it leaves them."""
+    navigate measures that against the wheel speeds and carries it as a state; white, it leaves the samples."""
     import dataclasses
 
     from autosar_cli.config import load_config
@@ -154,8 +158,10 @@ def test_navigate_weighs_the_velocity_of_a_receiver_that_smooths_it(tmp_path, ta
                    dynamics="full")
     drive = tmp_path / "t1.h5"
     ingest([sim.log_path], drive, config=cfg)
-    info = navigate(drive, "sar-min", cfg).info["gnss_velocity_correlation"]
+    traj = navigate(drive, "sar-min", cfg)
+    info = traj.info["gnss_velocity_correlation"]
     assert info["applied"] == (tau_s > 0), info["reason"]
+    assert ("gnss_velocity_error.east" in traj.state_names) == (tau_s > 0)
     if tau_s > 0:
         assert abs(info["correlation_time_s"] / tau_s - 1.0) < 0.3
-        assert abs(info["sigma_mps"] / (gnss.gnss.velocity_std_mps * info["long_run_factor"]) - 1.0) < 1e-9
+        assert abs(info["error_time_s"] / tau_s - 1.0) < 0.4

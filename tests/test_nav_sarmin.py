@@ -49,21 +49,31 @@ def ci_drive(ci_mcap, tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-@pytest.mark.parametrize(("gnss_error_model", "rear_slip_gain", "gnss_heading"),
-                         [("gauss_markov", 0.0, False), ("white", 0.0, False), ("gauss_markov", 0.05, True)])
-def test_compiled_filter_equals_the_filterpy_reference(ci_drive: Path, gnss_error_model: str,
-                                                       rear_slip_gain: float, gnss_heading: bool) -> None:
+@pytest.mark.parametrize(("gnss_error_model", "rear_slip_gain", "gnss_heading", "velocity_error"),
+                         [("gauss_markov", 0.0, False, False), ("white", 0.0, False, False),
+                          ("gauss_markov", 0.05, True, False), ("gauss_markov", 0.0, True, True),
+                          ("white", 0.0, False, True)])
+def test_compiled_filter_equals_the_filterpy_reference(ci_drive: Path, gnss_error_model: str, rear_slip_gain: float,
+                                                       gnss_heading: bool, velocity_error: bool) -> None:
     """The numba engine against the filterpy one, state by state, with the GNSS error states or not, the rear axle's
-    slip or not, and the receiver's heading fused or not."""
+    slip or not, the receiver's heading fused or not, and its velocity's correlated error carried or not."""
     cfg = dataclasses.replace(CFG, navigation=dataclasses.replace(CFG.navigation, gnss_error_model=gnss_error_model,
                                                                   gnss_heading=gnss_heading),
                               vehicle=dataclasses.replace(CFG.vehicle, rear_slip_gain_rad_per_mps2=rear_slip_gain))
     with Drive(ci_drive) as d:
         inputs = load_inputs(d, cfg)
+    if velocity_error:  # as nav.gnss_noise.velocity_decorrelated leaves them for a receiver smoothing over 0.5 s
+        assert inputs.gnss_velocity is not None
+        inputs = dataclasses.replace(inputs, gnss_velocity=dataclasses.replace(
+            inputs.gnss_velocity, sigma=0.2 * inputs.gnss_velocity.sigma), gnss_velocity_error_std_mps=0.03,
+            gnss_velocity_error_time_s=0.5)
     fast = run_sarmin(inputs, cfg, engine="numba")
     ref = run_sarmin(inputs, cfg, engine="numpy")
     assert ("gnss_error.east" in fast.state_names) == (gnss_error_model == "gauss_markov")
     assert ("offset.gnss_heading" in fast.state_names) == gnss_heading
+    assert ("gnss_velocity_error.north" in fast.state_names) == velocity_error
+    if gnss_heading:  # the heading's offset stays the last state (nav.sarmin._initial_state)
+        assert fast.state_names[-1] == "offset.gnss_heading"
     np.testing.assert_array_equal(fast.t, ref.t)
     np.testing.assert_allclose(fast.x, ref.x, atol=1e-7)
     np.testing.assert_allclose(fast.P, ref.P, atol=1e-10)
