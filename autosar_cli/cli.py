@@ -381,8 +381,12 @@ def navigate(
         for stream, noise in traj.info.get("gnss_noise", {}).items():
             if noise.get("applied"):
                 out.print(f"GNSS {stream} noise {noise['ratio']:.2f} times its table's: {noise['reason']}")
-        if traj.info.get("gnss_velocity_correlation", {}).get("applied"):
-            out.print(f"GNSS velocity: {traj.info['gnss_velocity_correlation']['reason']}")
+        correlation = traj.info.get("gnss_velocity_correlation", {})
+        if correlation.get("applied"):
+            out.print(f"GNSS velocity: {correlation['reason']}")
+        elif correlation.get("correlated"):
+            err.print(f"[yellow]warning:[/] GNSS velocity: {escape(correlation['reason'])}", highlight=False,
+                      soft_wrap=True)
         if traj.info.get("gnss_latency", {}).get("applied"):
             latency = traj.info["gnss_latency"]
             err.print(f"[yellow]GNSS latency:[/] {escape(latency['reason'])} (+- {latency['std_s'] * 1000:.0f} ms, "

@@ -511,7 +511,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
         inputs, velocity_correlation = velocity_decorrelated(
             inputs, gnss_speed_residual(inputs, gnss_lever_rear(inputs, config), config.vehicle.wheelbase_m,
                                         config.navigation.steering_min_speed_mps),
-            config.navigation.estimate_gnss_noise)
+            config.navigation.estimate_gnss_noise, config.navigation.gnss_velocity_error_states)
         # from the wheels as recorded: the lag's corrections below leave out rows at a standstill's ends
         inputs, standstill = with_standstill(inputs, config)
         fits_config = with_fit_bounds_widened(config, gnss_noise)
