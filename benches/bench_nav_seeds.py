@@ -121,7 +121,8 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
             "gnss_latency_ambiguous": bool(est.info["gnss_latency"].get("ambiguous")),
             "gnss_latency_applied": bool(est.info["gnss_latency"]["applied"]),
             # how the GNSS velocity's errors correlate from sample to sample, and whether SAR-MIN weighed them so
-            "gnss_velocity_correlation": est.info.get("gnss_velocity_correlation", {}).get("correlation", float("nan")),
+            "gnss_velocity_correlation": float("nan") if (rho := est.info.get("gnss_velocity_correlation", {})
+                                                          .get("correlation")) is None else rho,
             "gnss_velocity_decorrelated": bool(est.info.get("gnss_velocity_correlation", {}).get("applied")),
             # the updates the chi-square gate refused, all kinds together
             "rejected": int(sum(est.info.get("rejected", {}).values()))}

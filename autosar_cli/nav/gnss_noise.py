@@ -44,9 +44,9 @@ MIN_DIFFERENCES = 40
 #: the measured white noise must exceed the table's by this factor before the table is raised: with ~120
 #: differences per axis (a 13 s drive at 10 Hz, two axes) the estimate's own spread is ~8 %, so 1.4 is ~5 of it
 MIN_RATIO = 1.4
-#: the GNSS velocity's sigma is multiplied by its error's long-run factor where that is at least this much (a
-#: successive correlation of 0.51, ~0.15 s at 10 Hz): on white noise the robust correlation of 120-480 pairs
-#: scatters by ~0.1, and urban's turns leave up to 0.3 in the wheels' model of the speed
+#: the GNSS velocity's errors count as correlated (warned of; carried as states where asked) where their long-run
+#: factor is at least this much (a successive correlation of 0.51, ~0.15 s at 10 Hz): white, the 40 drives of seeds
+#: 0-9 read -0.31 ... 0.30 (120-480 pairs; urban's turns leave some in the wheels' model of the speed)
 MIN_CORRELATION_FACTOR = 1.75
 #: the largest successive correlation taken (a long-run factor of ~14)
 MAX_CORRELATION = 0.99
@@ -103,8 +103,7 @@ def _mad(x: Array) -> float:
 
 def _robust_std(d: Array) -> float:
     """The spread of differences ``d`` (D, k), RMS over the axes of each one's median absolute deviation."""
-    per_axis = 1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0)
-    return float(np.sqrt(np.mean(per_axis**2)))
+    return float(np.sqrt(np.mean([_mad(d[:, k]) ** 2 for k in range(d.shape[1])])))
 
 
 def white_noise_std(t: Array, z: Array, order: int = ORDER) -> tuple[float, int]:
@@ -140,7 +139,11 @@ class VelocityCorrelation:
         return -self.spacing_s / math.log(self.correlation) if 0 < self.correlation < 1 else 0.0
 
     def to_dict(self) -> dict[str, object]:
-        return asdict(self) | {"long_run_factor": self.long_run_factor,
+        """The fields and the derived figures; an unmeasured correlation (and its factor) as None, JSON having no
+        NaN."""
+        measured = math.isfinite(self.correlation)
+        return asdict(self) | {"correlation": self.correlation if measured else None,
+                               "long_run_factor": self.long_run_factor if measured else None,
                                "correlation_time_s": self.correlation_time_s}
 
 
@@ -189,12 +192,12 @@ def velocity_decorrelated(inputs: NavInputs, residual: tuple[Array, Array] | Non
     if vel is None:
         return inputs, {"applied": False, "reason": "no GNSS velocity"}
     spacing = float(np.median(np.diff(vel.t))) if len(vel.t) > 1 else math.nan
-    if residual is None:
-        return inputs, VelocityCorrelation(math.nan, 0, spacing, reason="no wheel speeds to measure it against "
-                                                                         "while moving: the samples as independent"
-                                           ).to_dict()
-    rho, pairs = successive_correlation(*residual)
     sigma = float(np.max(vel.sigma))
+    if residual is None:
+        return inputs, VelocityCorrelation(math.nan, 0, spacing, sigma_mps=sigma,
+                                           reason="no wheel speeds to measure it against while moving: the samples "
+                                                  "as independent").to_dict()
+    rho, pairs = successive_correlation(*residual)
     fit = VelocityCorrelation(rho, pairs, spacing, sigma_mps=sigma)
     if not np.isfinite(rho):
         return inputs, replace(fit, reason=f"fewer than {MIN_DIFFERENCES} successive samples while moving: the "
