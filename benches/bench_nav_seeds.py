@@ -256,8 +256,9 @@ def main() -> None:
                       flush=True)
     if args.append and args.output.exists():
         old = json.loads(args.output.read_text())
-        summary = {**{k: v for k, v in old["summary"].items() if k not in summary}, **summary}
-        rows = [r for r in old["rows"] if r.get("group") not in summary] + rows
+        ran = set(summary)  # this run's groups replace only themselves, rows and all
+        summary = {**{k: v for k, v in old["summary"].items() if k not in ran}, **summary}
+        rows = [r for r in old["rows"] if r.get("group") not in ran] + rows
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(json.dumps({"benchmark": "nav_seeds", "radar_prf_hz": NAV_ONLY_PRF_HZ, "summary": summary,
                                        "rows": rows}, indent=2) + "\n")
