@@ -195,8 +195,8 @@ def velocity_decorrelated(inputs: NavInputs, residual: tuple[Array, Array] | Non
     sigma = float(np.max(vel.sigma))
     if residual is None:
         return inputs, VelocityCorrelation(math.nan, 0, spacing, sigma_mps=sigma,
-                                           reason="no wheel speeds to measure it against while moving: the samples "
-                                                  "as independent").to_dict()
+                                           reason="no wheel speeds or under 10 GNSS velocities while moving to "
+                                                  "measure it against: the samples as independent").to_dict()
     rho, pairs = successive_correlation(*residual)
     fit = VelocityCorrelation(rho, pairs, spacing, sigma_mps=sigma)
     if not np.isfinite(rho):
