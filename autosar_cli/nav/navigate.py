@@ -509,8 +509,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
         inputs, gnss_latency = gnss_latency_corrected(inputs, config)
         inputs, gnss_noise = gnss_noise_checked(inputs, config.navigation.estimate_gnss_noise)
         inputs, velocity_correlation = velocity_decorrelated(
-            inputs, gnss_speed_residual(inputs, gnss_lever_rear(inputs, config), config.vehicle.wheelbase_m,
-                                        config.navigation.steering_min_speed_mps),
+            inputs, gnss_speed_residual(inputs, gnss_lever_rear(inputs, config), config.vehicle.wheelbase_m),
             config.navigation.estimate_gnss_noise, config.navigation.gnss_velocity_error_states)
         # from the wheels as recorded: the lag's corrections below leave out rows at a standstill's ends
         inputs, standstill = with_standstill(inputs, config)

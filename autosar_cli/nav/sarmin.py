@@ -228,7 +228,7 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
     gnss_lever = gnss_lever_rear(inputs, config)
     if engine == "numba":
         return _run_kernel(inputs, config, smooth, sources, times, kinds, index, order, t_start, x0, P0, q,
-                           beta, names, steer_i, scale_i, gnss_i, heading_i, gnss_lever, smoothed_covariance)
+                           beta, names, steer_i, scale_i, gnss_i, heading_i, vel_i, gnss_lever, smoothed_covariance)
     from .ukf import FilterHistory, VectorUKF, rts_smooth  # filterpy (and its scipy.stats): ~0.4 s to import
 
     slip = veh.rear_slip_gain_rad_per_mps2
@@ -315,7 +315,7 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
 def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[tuple[str, Measurements]],
                 times: Array, kinds: NDArray[np.int32], index: NDArray[np.int64], order: NDArray[np.int64],
                 t_start: float, x0: Array, P0: Array, q: Array, beta: Array, names: list[str], steer_i: int,
-                scale_i: int, gnss_i: int, heading_i: int, gnss_lever: tuple[float, float],
+                scale_i: int, gnss_i: int, heading_i: int, vel_i: int, gnss_lever: tuple[float, float],
                 smoothed_covariance: bool) -> NavSolution:
     from . import sarmin_kernel as kern
 
@@ -339,7 +339,7 @@ def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[t
         gates[k] = chi2_gate(nav.gate_probability, k)
     geo = np.array([veh.wheelbase_m, veh.track_front_m, veh.track_rear_m, gnss_lever[0], gnss_lever[1],
                     veh.understeer_gradient_rad_per_mps2, veh.rear_slip_gain_rad_per_mps2, float(inputs.rigid_wheels),
-                    float(names.index("gnss_velocity_error.east") if "gnss_velocity_error.east" in names else -1)])
+                    float(vel_i)])
     steer_hold = np.zeros(len(x0), dtype=np.bool_)
     steer_hold[list(steering_held_states(scale_i))] = True
     wm, wc, lam = kern.merwe_weights(len(x0), SIGMA_ALPHA, SIGMA_BETA, 3.0 - len(x0))
