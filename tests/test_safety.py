@@ -541,3 +541,51 @@ def test_simulate_overwrite_replaces_its_own_log_once_the_new_one_is_complete(tm
     assert r.exit_code == 0, r.output
     assert log.read_bytes() == first  # the same seed again, written over the first
     assert not list(tmp_path.glob("*partial*"))
+
+
+def test_a_ctrl_c_while_a_kernel_runs_is_raised_once_it_has_returned() -> None:
+    """interrupts_held: a SIGINT inside the block is noted, not raised, and raised as KeyboardInterrupt after it
+    (a KeyboardInterrupt raised while numba boxed run_filter's result crashed navigate: SIGSEGV); the handler
+    before it is back; without a SIGINT nothing is raised."""
+    import signal
+
+    from autosar_cli.interrupts import interrupts_held
+
+    before = signal.getsignal(signal.SIGINT)
+    finished = []
+    with pytest.raises(KeyboardInterrupt):
+        with interrupts_held():
+            signal.raise_signal(signal.SIGINT)
+            finished.append(True)  # what the kernel would do after the signal came
+    assert finished == [True] and signal.getsignal(signal.SIGINT) is before
+    with interrupts_held():
+        pass
+    assert signal.getsignal(signal.SIGINT) is before
+
+
+def test_sarmins_kernel_finishes_before_a_ctrl_c_stops_navigate(monkeypatch: pytest.MonkeyPatch, ci_mcap,  # noqa: ANN001
+                                                                  tmp_path: Path) -> None:
+    """A SIGINT arriving while SAR-MIN's compiled filter runs stops navigate with KeyboardInterrupt only after
+    the filter has returned its result whole."""
+    import signal
+
+    from autosar_cli.config import load_config
+    from autosar_cli.ingest.pipeline import ingest
+    from autosar_cli.nav import sarmin_kernel
+    from autosar_cli.nav.navigate import navigate
+
+    cfg = load_config()
+    drive = tmp_path / "drive.h5"
+    ingest([ci_mcap.log_path], drive, config=cfg)
+    kernel, returned = sarmin_kernel.run_filter, []
+
+    def interrupted_filter(*args):  # noqa: ANN002, ANN202
+        signal.raise_signal(signal.SIGINT)  # as if Ctrl-C came while the compiled loop ran
+        out = kernel(*args)
+        returned.append(len(out))
+        return out
+
+    monkeypatch.setattr(sarmin_kernel, "run_filter", interrupted_filter)
+    with pytest.raises(KeyboardInterrupt):
+        navigate(drive, "sar-min", cfg)
+    assert returned == [9]

@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 from scipy.special import chdtri
 
 from autosar_cli.config import Config
+from autosar_cli.interrupts import interrupts_held
 
 from . import models as m
 from .frames import wrap_angle
@@ -66,7 +67,8 @@ def with_smoothed_covariance(sol: NavSolution) -> NavSolution:
     sol.filtered = None
     from . import sarmin_kernel as kern
 
-    xs, Ps = kern.smooth(h.x, h.P, h.x_pred, h.transition, h.P_pred_kinematic, h.dt, h.q, h.beta)
+    with interrupts_held():
+        xs, Ps = kern.smooth(h.x, h.P, h.x_pred, h.transition, h.P_pred_kinematic, h.dt, h.q, h.beta)
     return NavSolution(sol.t, xs, Ps, sol.state_names, sol.rejected, sol.updates)
 
 
@@ -346,17 +348,18 @@ def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[t
     if E == 0:
         raise NavInputError("no measurement after the initial GNSS fix: nothing to navigate")
     # wsum: the exact sum of filterpy's weights (see the kernel's docstring).
-    T, X, PP, XP, FF, PK, DT, used, rejected = kern.run_filter(
-        times[order], ev_kind, zs, sig, t_start, x0, P0, q, beta, wm, wc, lam, ng, geo, scale_i, steer_i, gnss_i,
-        heading_i, nav.steering_min_speed_mps, gates, nav.max_step_s, math.fsum(wm), steer_hold)
-    filtered = None
-    if not smooth:
-        xs, Ps = X, PP
-    elif smoothed_covariance:
-        xs, Ps = kern.smooth(X, PP, XP, FF, PK, DT, q, beta)
-    else:
-        filtered = _FilterHistory(X.copy(), PP, XP, FF, PK, DT, q, beta)
-        xs, Ps = kern.smooth_means(X, PP, XP, FF, PK, DT, q, beta), PP
+    with interrupts_held():
+        T, X, PP, XP, FF, PK, DT, used, rejected = kern.run_filter(
+            times[order], ev_kind, zs, sig, t_start, x0, P0, q, beta, wm, wc, lam, ng, geo, scale_i, steer_i, gnss_i,
+            heading_i, nav.steering_min_speed_mps, gates, nav.max_step_s, math.fsum(wm), steer_hold)
+        filtered = None
+        if not smooth:
+            xs, Ps = X, PP
+        elif smoothed_covariance:
+            xs, Ps = kern.smooth(X, PP, XP, FF, PK, DT, q, beta)
+        else:
+            filtered = _FilterHistory(X.copy(), PP, XP, FF, PK, DT, q, beta)
+            xs, Ps = kern.smooth_means(X, PP, XP, FF, PK, DT, q, beta), PP
     label = [g.name for g in inputs.gyros] + list(code)
     # One state per distinct instant already (the kernel refines a state for measurements at its instant).
     return NavSolution(T, xs, Ps, names,
