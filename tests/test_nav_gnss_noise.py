@@ -142,8 +142,8 @@ def test_a_velocity_whose_errors_correlate_is_carried_as_a_gauss_markov_state() 
 @pytest.mark.parametrize("tau_s", [0.0, 0.5])
 def test_navigate_weighs_the_velocity_of_a_receiver_that_smooths_it(tmp_path, tau_s: float) -> None:  # noqa: ANN001
     """The simulator's full car on test1 (seed 0), its receiver's velocity errors correlated over ``tau_s``:
-    navigate measures that against the wheel speeds and, asked to, carries it as a state, else warns; white, it
-    leaves the samples."""
+    navigate measures that against the wheel speeds and carries it as a state (with the states off, it warns);
+    white, it leaves the samples."""
     import dataclasses
 
     from autosar_cli.config import load_config
@@ -152,8 +152,7 @@ def test_navigate_weighs_the_velocity_of_a_receiver_that_smooths_it(tmp_path, ta
     from autosar_cli.sim.simulate import simulate
 
     base = load_config()
-    cfg = dataclasses.replace(base, radar=dataclasses.replace(base.radar, prf_hz=20.0),
-                              navigation=dataclasses.replace(base.navigation, gnss_velocity_error_states=True))
+    cfg = dataclasses.replace(base, radar=dataclasses.replace(base.radar, prf_hz=20.0))
     gnss = cfg.sensors["gnss_cog"]
     assert gnss.gnss is not None
     sensors = {**cfg.sensors, "gnss_cog": dataclasses.replace(
@@ -169,13 +168,20 @@ def test_navigate_weighs_the_velocity_of_a_receiver_that_smooths_it(tmp_path, ta
     if tau_s > 0:
         assert abs(info["correlation_time_s"] / tau_s - 1.0) < 0.3
         assert abs(info["error_time_s"] / tau_s - 1.0) < 0.4
-        # the config's default: measured and reported, the samples independent; the CLI warns
+        # the states off: measured and reported, the samples independent; the CLI warns
         from typer.testing import CliRunner
 
         from autosar_cli.cli import app
+        from autosar_cli.config import DEFAULT_CONFIG
 
-        assert not navigate(drive, "sar-min", base).info["gnss_velocity_correlation"]["applied"]
-        result = CliRunner().invoke(app, ["navigate", str(drive), "-o", str(tmp_path / "trajectory.h5")])
+        default = DEFAULT_CONFIG.read_text()
+        off = default.replace("gnss_velocity_error_states = true", "gnss_velocity_error_states = false")
+        assert off != default
+        (tmp_path / "off.toml").write_text(off)
+        assert not navigate(drive, "sar-min", load_config(tmp_path / "off.toml")).info[
+            "gnss_velocity_correlation"]["applied"]
+        result = CliRunner().invoke(app, ["navigate", str(drive), "-o", str(tmp_path / "trajectory.h5"),
+                                          "--config", str(tmp_path / "off.toml")])
         assert result.exit_code == 0, result.output
         said = " ".join(result.output.split())
         assert "GNSS velocity: successive errors correlate by" in said and "too confident" in said

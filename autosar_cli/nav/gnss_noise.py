@@ -184,10 +184,12 @@ def velocity_decorrelated(inputs: NavInputs, residual: tuple[Array, Array] | Non
     they leave is the GNSS speed's error (its along-track part; the across one is taken to be alike, one filter in
     the receiver making both).
 
-    ``carry`` False (``navigation.gnss_velocity_error_states``, off by default): measured and reported
-    (``correlated``: navigate warns), the samples left independent. The states make the stated std honest and
-    test1-3's scale better where the errors last 2 s, but on urban's stop-and-go they biased the scale (seeds 0-9:
-    mean -0.16 %, RMS 0.12 -> 0.19 %), which is not understood yet (docs/NAVIGATION.md)."""
+    With the states the scale rests on the speed's changes, where the tyres' slip acts: navigate then applies the
+    wheels' measured slip gains even where the smoothed velocity shows them at under 3 std
+    (:func:`~autosar_cli.nav.navigate.wheel_speeds_corrected`).
+
+    ``carry`` False (``navigation.gnss_velocity_error_states = false``): measured and reported (``correlated``:
+    navigate warns), the samples left independent."""
     vel = inputs.gnss_velocity
     if vel is None:
         return inputs, {"applied": False, "reason": "no GNSS velocity"}
