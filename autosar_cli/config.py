@@ -173,6 +173,11 @@ class GnssErrors:
     #: the velocity noise's correlation time (s; first-order Gauss-Markov, std ``velocity_std_mps`` per sample).
     #: 0: white. A receiver's own filter smooths its Doppler velocity, so its errors persist over samples.
     velocity_correlation_time_s: float = 0.0
+    #: spans with no fix, velocity or heading: (start s from the drive's start, duration s) each (a tunnel, trees)
+    outages: tuple[tuple[float, float], ...] = ()
+    #: spans whose fixes a reflection moves: (start s, duration s, east m, north m) each; the receiver reports them
+    #: with its usual sigma, as one that cannot tell does
+    multipath: tuple[tuple[float, float, float, float], ...] = ()
 
 
 SensorKind = Literal["wheel_speeds", "steering", "can_imu", "imu", "gnss"]
@@ -594,7 +599,15 @@ def _validate(cfg: Config) -> None:
             errors = getattr(s, sub)
             if errors is not None:
                 for f in fields(errors):
-                    _non_negative(f"{base}.{sub}.{f.name}", getattr(errors, f.name))
+                    if f.name not in ("outages", "multipath"):
+                        _non_negative(f"{base}.{sub}.{f.name}", getattr(errors, f.name))
+        if s.gnss is not None:
+            for what, spans in (("outages", s.gnss.outages), ("multipath", s.gnss.multipath)):
+                for i, span in enumerate(spans):
+                    where = f"{base}.gnss.{what}[{i}]"
+                    _finite_vector(where, span)
+                    if not (span[0] >= 0 and span[1] > 0):
+                        raise ConfigError(f"{where}: needs a start >= 0 s and a duration > 0 s, got {list(span)!r}")
 
     nav = cfg.navigation
     for name in ("speed_noise_mps2", "yaw_rate_noise_radps2", "gnss_position_std_m", "max_step_s"):

@@ -55,6 +55,8 @@ def _write_variant(tmp_path: Path, pattern: str, replacement: str) -> Path:
         (r"^range_window = .*$", 'range_window = "kaiser"', "processing.range_window"),
         (r"^attitude_imu = .*$", 'attitude_imu = "imu_cog_a"', "navigation.attitude_imu"),
         (r"^roll_axis_height_m = .*$", "roll_axis_height_m = 0.9", "vehicle.roll_axis_height_m"),
+        (r"^outages = \[\]", "outages = [[12.0, -3.0]]", "sensors.gnss_cog.gnss.outages[0]"),
+        (r"^multipath = \[\]", "multipath = [[12.0, 3.0, 1.0]]", "sensors.gnss_cog.gnss.multipath[0]"),
     ],
 )
 def test_bad_values_are_rejected_naming_the_key(tmp_path, pattern, replacement, key):

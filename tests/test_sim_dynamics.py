@@ -441,3 +441,28 @@ def test_a_gnss_velocity_noise_with_a_correlation_time_is_gauss_markov_and_white
         measured = np.mean([np.corrcoef(smoothed[:-k, i], smoothed[k:, i])[0, 1] for i in range(2)])
         assert abs(measured - rho**k) < 0.01
     assert np.array_equal(smoothed[0], white[0])  # stationary from its first sample
+
+
+def test_a_gnss_outage_drops_its_samples_and_multipath_moves_only_its_fixes(config: Config) -> None:
+    """An outage leaves no GNSS sample in its span and a reflection moves the fixes in its span by exactly its
+    offset; every other sample is the one the same seed gives without them (the errors are drawn for every instant
+    first)."""
+    from autosar_cli.sim.sensors import gnss
+
+    sc = build_scenario("ci", config)
+    s = config.sensors["gnss_cog"]
+    assert s.gnss is not None
+    clear = gnss(sc.motion, "gnss_cog", s, np.random.default_rng(5))
+    damaged = replace(s, gnss=replace(s.gnss, outages=((0.3, 0.25),), multipath=((0.7, 0.2, 1.5, -2.0),)))
+    seen = gnss(sc.motion, "gnss_cog", damaged, np.random.default_rng(5))
+    t = clear.t_meas
+    out = (t >= 0.3) & (t < 0.55)
+    moved = (t >= 0.7) & (t < 0.9)
+    assert out.sum() >= 2 and moved.sum() >= 2 and sc.motion.duration_s > 0.9
+    assert np.array_equal(seen.t_meas, t[~out]) and np.array_equal(seen.t_stamp, clear.t_stamp[~out])
+    for key in ("velocity_enu", "heading_deg", "course_deg"):
+        assert np.array_equal(seen.values[key], clear.values[key][~out])
+    shift = seen.values["position_enu"] - clear.values["position_enu"][~out]
+    assert np.allclose(shift[moved[~out]], [1.5, -2.0, 0.0], atol=1e-12)
+    assert np.array_equal(shift[~moved[~out]], np.zeros_like(shift[~moved[~out]]))
+    assert np.allclose(seen.truth["position_error"] - clear.truth["position_error"][~out], shift)

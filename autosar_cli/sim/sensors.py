@@ -36,6 +36,11 @@ class SensorSamples:
     values: dict[str, NDArray[np.float64]]
     truth: dict[str, NDArray[np.float64]] = field(default_factory=dict)
 
+    def select(self, keep: NDArray[np.bool_]) -> SensorSamples:
+        """The samples where ``keep`` (N,) is true."""
+        return SensorSamples(self.name, self.kind, self.t_meas[keep], self.t_stamp[keep],
+                             {k: v[keep] for k, v in self.values.items()}, {k: v[keep] for k, v in self.truth.items()})
+
 
 def sample_times(rate_hz: float, duration_s: float, rng: np.random.Generator, latency_s: float,
                  aligned: bool = False) -> NDArray[np.float64]:
@@ -288,9 +293,16 @@ def gnss(motion: Motion, name: str, s: SensorConfig, rng: np.random.Generator) -
     true_heading_deg = course_deg_from_heading(heading)
     heading_deg = np.mod(true_heading_deg + rng.standard_normal(n) * e.heading_std_deg, 360.0)
     cog_deg = np.mod(np.rad2deg(np.arctan2(vel[:, 0], vel[:, 1])), 360.0)
-    return SensorSamples(
+    # drawn for every instant first, so that an outage or a reflection leaves the other samples' errors as they were
+    for start, duration, east, north in e.multipath:
+        err[(t >= start) & (t < start + duration), :2] += (east, north)
+    keep = np.ones(n, dtype=bool)
+    for start, duration in e.outages:
+        keep &= ~((t >= start) & (t < start + duration))
+    samples = SensorSamples(
         name, s.kind, t, t + s.latency_s,
         {"position_enu": k.position + err, "velocity_enu": vel, "heading_deg": heading_deg, "course_deg": cog_deg},
         {"position_enu": k.position, "velocity_enu": k.velocity, "heading_deg": true_heading_deg,
          "position_error": err},
     )
+    return samples if keep.all() else samples.select(keep)
