@@ -387,6 +387,10 @@ def navigate(
         elif correlation.get("correlated"):
             err.print(f"[yellow]warning:[/] GNSS velocity: {escape(correlation['reason'])}", highlight=False,
                       soft_wrap=True)
+        if (start := traj.info.get("before_first_fix", {})).get("applied"):
+            err.print(f"[yellow]start:[/] {escape(start['reason'])} (its heading +- "
+                      f"{start['heading_std_rad'] * 1000:.1f} mrad at the drive's start)", highlight=False,
+                      soft_wrap=True)
         if traj.info.get("gnss_latency", {}).get("applied"):
             latency = traj.info["gnss_latency"]
             err.print(f"[yellow]GNSS latency:[/] {escape(latency['reason'])} (+- {latency['std_s'] * 1000:.0f} ms, "

@@ -31,6 +31,7 @@ from autosar_cli.nav.gnss_latency import delayed_gnss, fit_gnss_latency
 from autosar_cli.nav.gnss_noise import gnss_noise_checked, velocity_decorrelated, with_fit_bounds_widened
 from autosar_cli.nav.inputs import NavInputError, NavInputs, load_inputs
 from autosar_cli.nav.rear_slip import fit_rear_slip
+from autosar_cli.nav.dead_reckoning import dead_reckoned_start
 from autosar_cli.nav.sarmin import NavSolution, gnss_lever_rear, run_sarmin, with_smoothed_covariance
 from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm, wheel_scale_mean_std
 from autosar_cli.nav.understeer import fit_understeer
@@ -55,8 +56,8 @@ from autosar_cli.types import MotionCorrection
 
 METHODS = ("sar-min", "ins", "gnss", "none", "truth")
 #: what a trajectory's info reports of its navigation (navigate --json, run.json): updates and what was fitted
-REPORTED_INFO = ("updates", "rejected", "gnss_noise", "gnss_velocity_correlation", "gnss_latency", "understeer",
-                 "rear_slip", "wheel_lag", "wheel_radii", "attitude", "wheel_gaps", "standstill_ns",
+REPORTED_INFO = ("updates", "rejected", "gnss_noise", "gnss_velocity_correlation", "gnss_latency", "before_first_fix",
+                 "understeer", "rear_slip", "wheel_lag", "wheel_radii", "attitude", "wheel_gaps", "standstill_ns",
                  "standstill_refused", "gnss_heading", "warnings")
 SIGNIFICANT = 3.0  # a fitted lag or gradient is applied where it differs from the default by more stds than this
 # ... and by more than these: a tenth of a sedan's understeer gradient (rad per m/s^2), 5 ms of yaw lag, 1 cm of
@@ -531,6 +532,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
             standstill = [span for span in standstill if span not in refused]
             inputs, _ = with_standstill(inputs, config, standstill)
             sol, understeer, rear_slip, slip_gain = sarmin_with_fits(inputs, fits_config, smooth=smooth)
+        sol, before_first_fix = dead_reckoned_start(sol, inputs, slip_gain)
         t_ns = inputs.t0_ns + np.round(sol.t * 1e9).astype(np.int64)
         # the filter's heading is the body's; the trajectory's is the rear axle's course, the body turned from it
         course = np.unwrap(sol.x[:, m.PSI]) - slip_gain * sol.x[:, m.V] * sol.x[:, m.OMEGA]
@@ -542,6 +544,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                                 "understeer": understeer, "rear_slip": rear_slip, "wheel_lag": wheel_lag,
                                 "wheel_radii": wheel_radii, "gnss_noise": gnss_noise,
                                 "gnss_latency": gnss_latency, "gnss_velocity_correlation": velocity_correlation,
+                                "before_first_fix": before_first_fix,
                                 "standstill_ns": [[inputs.t0_ns + int(round(x * 1e9)) for x in span]
                                                   for span in standstill],
                                 # wheels at 0 that the gyros contradict: the car crept and turned (no zero yaw rate)
