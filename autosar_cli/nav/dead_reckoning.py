@@ -115,7 +115,7 @@ def dead_reckoned_start(sol: NavSolution, inputs: NavInputs, slip_gain: float = 
         P[k][m.OMEGA, m.OMEGA] += float(np.mean([g.sigma[0] ** 2 for g in gyros])) / max(count[k], 1)
     info = DeadReckonedStart(span, float(np.sqrt(P[0][m.PSI, m.PSI])),
                              float(np.sqrt(P[0][m.PX, m.PX] + P[0][m.PY, m.PY])), applied=True,
-                             reason=f"no GNSS fix over the drive's first {span:.1f} s: the track there is dead-reckoned "
-                                    "back from the first fix on the wheel speeds and gyros")
+                             reason=f"no GNSS fix over the drive's first {span:.1f} s: the track there is "
+                                    "dead-reckoned back from the first fix on the wheel speeds and gyros")
     return replace(sol, t=np.concatenate([t, sol.t]), x=np.concatenate([x, sol.x]), P=np.concatenate([P, sol.P]),
                    filtered=None), info.to_dict()

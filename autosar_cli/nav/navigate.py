@@ -26,12 +26,12 @@ from autosar_cli.nav.attitude import (
     without_pitch_bias,
 )
 from autosar_cli.nav.baselines import from_truth, gnss_only, straight_line
+from autosar_cli.nav.dead_reckoning import dead_reckoned_start
 from autosar_cli.nav.gnss_latency import MIN_SPAN_S as MIN_LATENCY_SPAN_S
 from autosar_cli.nav.gnss_latency import delayed_gnss, fit_gnss_latency
 from autosar_cli.nav.gnss_noise import gnss_noise_checked, velocity_decorrelated, with_fit_bounds_widened
 from autosar_cli.nav.inputs import NavInputError, NavInputs, load_inputs
 from autosar_cli.nav.rear_slip import fit_rear_slip
-from autosar_cli.nav.dead_reckoning import dead_reckoned_start
 from autosar_cli.nav.sarmin import NavSolution, gnss_lever_rear, run_sarmin, with_smoothed_covariance
 from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm, wheel_scale_mean_std
 from autosar_cli.nav.understeer import fit_understeer
