@@ -391,6 +391,11 @@ def navigate(
             err.print(f"[yellow]start:[/] {escape(start['reason'])} (its heading +- "
                       f"{start['heading_std_rad'] * 1000:.1f} mrad at the drive's start)", highlight=False,
                       soft_wrap=True)
+        for gap in traj.info.get("gnss_gaps", []):
+            at = (gap["start_ns"] - int(traj.t_ns[0])) / 1e9
+            end = at + gap["duration_s"]
+            err.print(f"[yellow]GNSS:[/] no fix over {gap['duration_s']:.1f} s ({at:.1f}-{end:.1f} s into the track): "
+                      "the track there rests on the wheel speeds and gyros", highlight=False, soft_wrap=True)
         if traj.info.get("gnss_latency", {}).get("applied"):
             latency = traj.info["gnss_latency"]
             err.print(f"[yellow]GNSS latency:[/] {escape(latency['reason'])} (+- {latency['std_s'] * 1000:.0f} ms, "

@@ -1,4 +1,5 @@
-"""The track before the first GNSS fix, dead-reckoned back from it (nav/dead_reckoning.py)."""
+"""The track where the GNSS is missing: dead-reckoned back before the first fix (nav/dead_reckoning.py), and the gaps
+after it reported (nav.navigate.gnss_gaps)."""
 
 from __future__ import annotations
 
@@ -120,3 +121,19 @@ def test_navigate_covers_a_drive_whose_first_seconds_have_no_gnss(tmp_path) -> N
     # what it inherits from the first fix's state: the heading, within the std it states
     heading_error = np.angle(np.exp(1j * (traj.state[0, m.PSI] - np.interp(traj.t_ns[0], truth.t_ns, truth.heading))))
     assert abs(heading_error) < 2.0 * info["heading_std_rad"], (heading_error, info)
+
+
+def test_gnss_gaps_are_the_spans_after_the_first_fix_without_one() -> None:
+    """10 Hz fixes with none over 3-6.5 s and none after 8 s while the wheels run to 12 s: two gaps (3.5 and 4 s);
+    a 1 s gap is the receiver's ordinary hiccup, not reported."""
+    from autosar_cli.nav.geodesy import GeodeticOrigin
+    from autosar_cli.nav.inputs import Measurements, NavInputs
+    from autosar_cli.nav.navigate import gnss_gaps
+
+    t = np.round(np.arange(0.0, 8.05, 0.1), 6)
+    t = t[((t <= 3.0) | (t >= 6.5)) & ((t <= 1.0) | (t >= 2.0))]
+    fixes = Measurements("gnss", t, np.zeros((t.size, 2)), np.full(2, 0.25))
+    wheels = Measurements("wheels", np.arange(0.0, 12.0, 0.01), np.zeros((1200, 4)), np.full(4, 0.02))
+    gaps = gnss_gaps(NavInputs(10**18, GeodeticOrigin(45.0, 7.0, 0.0), gnss_position=fixes, wheels=wheels))
+    assert [g["duration_s"] for g in gaps] == [3.5, 3.99]
+    assert gaps[0]["start_ns"] == 10**18 + 3 * 10**9 and gaps[1]["end_ns"] == 10**18 + 11_990_000_000

@@ -57,8 +57,8 @@ from autosar_cli.types import MotionCorrection
 METHODS = ("sar-min", "ins", "gnss", "none", "truth")
 #: what a trajectory's info reports of its navigation (navigate --json, run.json): updates and what was fitted
 REPORTED_INFO = ("updates", "rejected", "gnss_noise", "gnss_velocity_correlation", "gnss_latency", "before_first_fix",
-                 "understeer", "rear_slip", "wheel_lag", "wheel_radii", "attitude", "wheel_gaps", "standstill_ns",
-                 "standstill_refused", "gnss_heading", "warnings")
+                 "gnss_gaps", "understeer", "rear_slip", "wheel_lag", "wheel_radii", "attitude", "wheel_gaps",
+                 "standstill_ns", "standstill_refused", "gnss_heading", "warnings")
 SIGNIFICANT = 3.0  # a fitted lag or gradient is applied where it differs from the default by more stds than this
 # ... and by more than these: a tenth of a sedan's understeer gradient (rad per m/s^2), 5 ms of yaw lag, 1 cm of
 # wheel-speed lag distance, 0.1 % per m/s^2 of slip gain (at urban's 1 m/s^2 RMS, 1 mm per metre), 0.05 % per m/s^2
@@ -98,6 +98,23 @@ def gnss_disagreement(updates: dict[str, int], rejected: dict[str, int]) -> list
                        "disagree (a unit, a lever arm, a latency, another drive's data?), and the track follows the "
                        "car's sensors")
     return out
+
+
+#: a span this long without a GNSS fix, and five of the receiver's intervals, is reported (``info["gnss_gaps"]``)
+MIN_GNSS_GAP_S = 2.0
+
+
+def gnss_gaps(inputs: NavInputs) -> list[dict[str, float | int]]:
+    """The spans after the first GNSS fix without one (a tunnel, trees; the drive's start is
+    ``info["before_first_fix"]``), to the drive's last wheel speed: start and end (ns), and their length (s). There
+    the track rests on the wheels and gyros alone."""
+    pos = inputs.gnss_position
+    if pos is None or len(pos.t) < 2:
+        return []
+    ends = np.append(pos.t, inputs.wheels.t[-1] if inputs.wheels is not None else pos.t[-1])
+    longest = max(MIN_GNSS_GAP_S, 5.0 * float(np.median(np.diff(pos.t))))
+    return [{"start_ns": inputs.t0_ns + int(round(a * 1e9)), "end_ns": inputs.t0_ns + int(round(b * 1e9)),
+             "duration_s": round(float(b - a), 3)} for a, b in zip(ends[:-1], ends[1:], strict=True) if b - a > longest]
 
 
 def default_truth_path(drive: Drive) -> Path | None:
@@ -544,7 +561,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                                 "understeer": understeer, "rear_slip": rear_slip, "wheel_lag": wheel_lag,
                                 "wheel_radii": wheel_radii, "gnss_noise": gnss_noise,
                                 "gnss_latency": gnss_latency, "gnss_velocity_correlation": velocity_correlation,
-                                "before_first_fix": before_first_fix,
+                                "before_first_fix": before_first_fix, "gnss_gaps": gnss_gaps(inputs),
                                 "standstill_ns": [[inputs.t0_ns + int(round(x * 1e9)) for x in span]
                                                   for span in standstill],
                                 # wheels at 0 that the gyros contradict: the car crept and turned (no zero yaw rate)
