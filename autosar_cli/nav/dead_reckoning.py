@@ -84,35 +84,34 @@ def dead_reckoned_start(sol: NavSolution, inputs: NavInputs, slip_gain: float = 
     d_xy_d_bias = -np.cumsum((turn * (to_fix / np.maximum(count, 1))[:, None])[::-1], axis=0)[::-1]
     x = np.repeat(x0[None], len(t), axis=0)
     x[:, m.PX], x[:, m.PY], x[:, m.PSI], x[:, m.V], x[:, m.OMEGA] = xy[:, 0], xy[:, 1], psi, v, omega
-    P = np.empty((len(t), n, n))
     wheel_var = float(np.mean(wheels.sigma[2:] ** 2)) / 2.0
     wheel_dt = float(np.median(np.diff(wheels.t))) if len(wheels.t) > 1 else 0.01
     gyro_var_dt = float(np.mean([g.sigma[0] ** 2 * np.median(np.diff(g.t)) for g in gyros])) / len(gyros)
-    for k in range(len(t)):
-        J = np.eye(n)
-        offset = x0[[m.PX, m.PY]] - xy[k]
-        J[m.PX, m.PSI], J[m.PY, m.PSI] = offset[1], -offset[0]
-        for b in bias_i:
-            J[m.PSI, b] = to_fix[k] / max(count[k], 1)
-            J[m.OMEGA, b] = -1.0 / max(count[k], 1)
-            J[[m.PX, m.PY], b] = d_xy_d_bias[k]
-        for s in scale_i:
-            J[[m.PX, m.PY], s] = offset / (2.0 * one_plus_scale)
-            J[m.V, s] = -v[k] / (2.0 * one_plus_scale)
-        J[m.V, m.V] = J[m.OMEGA, m.OMEGA] = 0.0
-        P[k] = J @ P0 @ J.T
-        # white noise over the span: the heading's random walk, the path's along-track and, through it, across
-        T = to_fix[k]
-        distance = float(np.abs(v[k:]) @ dt[k:])
-        heading_var = gyro_var_dt * T
-        along_var = wheel_var * wheel_dt * T
-        across_var = distance**2 * heading_var / 3.0
-        c, s_ = np.cos(course[k]), np.sin(course[k])
-        P[k][np.ix_([m.PX, m.PY], [m.PX, m.PY])] += (along_var * np.outer([c, s_], [c, s_])
-                                                      + across_var * np.outer([-s_, c], [-s_, c]))
-        P[k][m.PSI, m.PSI] += heading_var
-        P[k][m.V, m.V] += wheel_var
-        P[k][m.OMEGA, m.OMEGA] += float(np.mean([g.sigma[0] ** 2 for g in gyros])) / max(count[k], 1)
+    gyros_seen = np.maximum(count, 1)
+    offset = x0[[m.PX, m.PY]] - xy  # (K, 2): the path from each instant to the first fix
+    J = np.repeat(np.eye(n)[None], len(t), axis=0)
+    J[:, m.PX, m.PSI], J[:, m.PY, m.PSI] = offset[:, 1], -offset[:, 0]
+    for b in bias_i:
+        J[:, m.PSI, b] = to_fix / gyros_seen
+        J[:, m.OMEGA, b] = -1.0 / gyros_seen
+        J[:, m.PX, b], J[:, m.PY, b] = d_xy_d_bias[:, 0], d_xy_d_bias[:, 1]
+    for i in scale_i:
+        J[:, m.PX, i], J[:, m.PY, i] = offset[:, 0] / (2.0 * one_plus_scale), offset[:, 1] / (2.0 * one_plus_scale)
+        J[:, m.V, i] = -v / (2.0 * one_plus_scale)
+    J[:, m.V, m.V] = J[:, m.OMEGA, m.OMEGA] = 0.0
+    P = np.einsum("kij,jl,kml->kim", J, P0, J, optimize=True)
+    # white noise over the span: the heading's random walk, the path's along-track and, through it, across
+    distance = np.cumsum((np.abs(v) * dt)[::-1])[::-1]
+    heading_var = gyro_var_dt * to_fix
+    along_var = wheel_var * wheel_dt * to_fix
+    across_var = distance**2 * heading_var / 3.0
+    along = np.stack([np.cos(course), np.sin(course)], axis=1)
+    across = np.stack([-along[:, 1], along[:, 0]], axis=1)
+    P[:, m.PX:m.PY + 1, m.PX:m.PY + 1] += (along_var[:, None, None] * along[:, :, None] * along[:, None, :]
+                                           + across_var[:, None, None] * across[:, :, None] * across[:, None, :])
+    P[:, m.PSI, m.PSI] += heading_var
+    P[:, m.V, m.V] += wheel_var
+    P[:, m.OMEGA, m.OMEGA] += float(np.mean([g.sigma[0] ** 2 for g in gyros])) / gyros_seen
     info = DeadReckonedStart(span, float(np.sqrt(P[0][m.PSI, m.PSI])),
                              float(np.sqrt(P[0][m.PX, m.PX] + P[0][m.PY, m.PY])), applied=True,
                              reason=f"no GNSS fix over the drive's first {span:.1f} s: the track there is "
