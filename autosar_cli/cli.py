@@ -396,6 +396,10 @@ def navigate(
             end = at + gap["duration_s"]
             err.print(f"[yellow]GNSS:[/] no fix over {gap['duration_s']:.1f} s ({at:.1f}-{end:.1f} s into the track): "
                       "the track there rests on the wheel speeds and gyros", highlight=False, soft_wrap=True)
+        if traj.info.get("can_latency", {}).get("applied"):
+            delay = traj.info["can_latency"]
+            err.print(f"[yellow]CAN latency:[/] {escape(delay['reason'])} (+- {delay['std_s'] * 1000:.1f} ms, against "
+                      f"{', '.join(delay['imu_gyros'])})", highlight=False, soft_wrap=True)
         if traj.info.get("gnss_latency", {}).get("applied"):
             latency = traj.info["gnss_latency"]
             err.print(f"[yellow]GNSS latency:[/] {escape(latency['reason'])} (+- {latency['std_s'] * 1000:.0f} ms, "

@@ -341,6 +341,11 @@ class NavigationConfig:
     # the sensor's stated latency_s by more than 4 std and 20 ms
     estimate_gnss_latency: bool = True
     gnss_latency_max_std_s: float = 0.025
+    # the CAN bus's delay beyond its sensors' tables measured by the CAN gyros against the IMUs' (nav.can_latency),
+    # and every CAN signal moved by it where its std is at most can_latency_max_std_s and it differs from 0 by more
+    # than 3 std and 10 ms
+    estimate_can_latency: bool = True
+    can_latency_max_std_s: float = 0.005
     # the rear tyres' slip gain (the rear axle's course = heading - g v omega) fitted against the GNSS velocity on a
     # first pass, and SAR-MIN's final pass run with it where its std is at most rear_slip_max_std_rad_per_mps2
     estimate_rear_slip: bool = True
@@ -620,6 +625,7 @@ def _validate(cfg: Config) -> None:
     _non_negative("navigation.wheel_radius_gain_max_std_per_mps2", nav.wheel_radius_gain_max_std_per_mps2)
     _non_negative("navigation.rear_slip_max_std_rad_per_mps2", nav.rear_slip_max_std_rad_per_mps2)
     _non_negative("navigation.gnss_latency_max_std_s", nav.gnss_latency_max_std_s)
+    _non_negative("navigation.can_latency_max_std_s", nav.can_latency_max_std_s)
     _positive("navigation.gnss_heading_offset_std_deg", nav.gnss_heading_offset_std_deg)
     if nav.attitude_imu:
         imu = cfg.sensors.get(nav.attitude_imu)

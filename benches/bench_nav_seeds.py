@@ -120,6 +120,8 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
                else 1000 * v for k in ("change", "std")},
             "gnss_latency_ambiguous": bool(est.info["gnss_latency"].get("ambiguous")),
             "gnss_latency_applied": bool(est.info["gnss_latency"]["applied"]),
+            "can_delay_ms": 1000 * (est.info["can_latency"].get("delay_s") or float("nan")),
+            "can_latency_applied": bool(est.info["can_latency"]["applied"]),
             # how the GNSS velocity's errors correlate from sample to sample, and whether SAR-MIN weighed them so
             "gnss_velocity_correlation": float("nan") if (rho := est.info.get("gnss_velocity_correlation", {})
                                                           .get("correlation")) is None else rho,
@@ -162,6 +164,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "rear_slip_applied": sum(r.get("rear_slip_applied", False) for r in rows),
             "gnss_noise_applied": sum(r.get("gnss_noise_applied", False) for r in rows),
             "gnss_latency_applied": sum(r.get("gnss_latency_applied", False) for r in rows),
+            "can_latency_applied": sum(r.get("can_latency_applied", False) for r in rows),
             "gnss_velocity_decorrelated": sum(r.get("gnss_velocity_decorrelated", False) for r in rows),
             "rejected_median": statistics.median(r.get("rejected", 0) for r in rows)}
 
@@ -251,6 +254,7 @@ def main() -> None:
                       f"reflectors the track's worst median {s['reflector_track_max_median_cm']:.2f} cm, across "
                       f"{s['reflector_across_max_median_cm']:.2f} cm, across within 2 cm on "
                       f"{s['reflector_across_within_2cm']}, GNSS latency moved on {s['gnss_latency_applied']}, "
+                      f"CAN on {s['can_latency_applied']}, "
                       f"velocity weighed by its correlation on {s['gnss_velocity_decorrelated']}, scale z RMS "
                       f"{s['scale_z_rms']:.2f} ({time.perf_counter() - t:.0f} s)",
                       flush=True)

@@ -26,6 +26,8 @@ from autosar_cli.nav.attitude import (
     without_pitch_bias,
 )
 from autosar_cli.nav.baselines import from_truth, gnss_only, straight_line
+from autosar_cli.nav.can_latency import MIN_SAMPLES as MIN_CAN_SAMPLES
+from autosar_cli.nav.can_latency import delayed_can, fit_can_latency
 from autosar_cli.nav.dead_reckoning import dead_reckoned_start
 from autosar_cli.nav.gnss_latency import MIN_SPAN_S as MIN_LATENCY_SPAN_S
 from autosar_cli.nav.gnss_latency import delayed_gnss, fit_gnss_latency
@@ -56,9 +58,9 @@ from autosar_cli.types import MotionCorrection
 
 METHODS = ("sar-min", "ins", "gnss", "none", "truth")
 #: what a trajectory's info reports of its navigation (navigate --json, run.json): updates and what was fitted
-REPORTED_INFO = ("updates", "rejected", "gnss_noise", "gnss_velocity_correlation", "gnss_latency", "before_first_fix",
-                 "gnss_gaps", "understeer", "rear_slip", "wheel_lag", "wheel_radii", "attitude", "wheel_gaps",
-                 "standstill_ns", "standstill_refused", "gnss_heading", "warnings")
+REPORTED_INFO = ("updates", "rejected", "gnss_noise", "gnss_velocity_correlation", "gnss_latency", "can_latency",
+                 "before_first_fix", "gnss_gaps", "understeer", "rear_slip", "wheel_lag", "wheel_radii", "attitude",
+                 "wheel_gaps", "standstill_ns", "standstill_refused", "gnss_heading", "warnings")
 SIGNIFICANT = 3.0  # a fitted lag or gradient is applied where it differs from the default by more stds than this
 # ... and by more than these: a tenth of a sedan's understeer gradient (rad per m/s^2), 5 ms of yaw lag, 1 cm of
 # wheel-speed lag distance, 0.1 % per m/s^2 of slip gain (at urban's 1 m/s^2 RMS, 1 mm per metre), 0.05 % per m/s^2
@@ -72,6 +74,11 @@ MIN_SLIP_GAIN = 1e-3
 MIN_LOAD_GAIN = 5e-4
 #: ... and 1 mrad of rear slip per m/s^2 (a sixth of the full vehicle's 6.6)
 MIN_REAR_SLIP_CHANGE = 1e-3
+#: ... and 10 ms of CAN delay (a 40 ms bus put test1's reflectors 2.2 cm further off), where the drive turns
+#: enough to show it: the yaw rate's change over 0.25 s means at least this RMS (test3 and urban 0.09-0.11 rad/s^2,
+#: where the delay's std is 0.5-0.6 ms; test1-2, straight, 0.01, where the fit wanders by 50 ms)
+MIN_CAN_DELAY_S = 0.01
+MIN_YAW_ACCELERATION_RADPS2 = 0.03
 #: ... and 20 ms of GNSS latency (a 15-20 ms error costs test1-3 0.5-2 cm: NAVIGATION.md)
 MIN_GNSS_LATENCY_CHANGE_S = 0.02
 #: the GNSS latency's fit moves the samples only beyond this many std: GNSS noise drawn 40 times onto test3 seed 42's
@@ -167,6 +174,35 @@ def gnss_latency_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
             fit, applied=True, reason=f"the samples refer to {(table + fit.change_s) * 1000:.0f} ms before their "
                                       f"stamps, not the table's {table * 1000:g} ms: moved by the fitted latency"
                                       f" (set [sensors.{nav.gnss}] latency_s)").to_dict()
+    return inputs, replace(fit, reason=why).to_dict()
+
+
+def can_latency_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs, dict]:
+    """``inputs`` with every CAN signal moved by the delay beyond the tables that the CAN gyros show against the IMUs'
+    (:mod:`.can_latency`, ``navigation.estimate_can_latency``), where the drive turns enough to measure it
+    (``MIN_YAW_ACCELERATION_RADPS2``), its std is at most ``navigation.can_latency_max_std_s`` and it differs from 0
+    by more than ``SIGNIFICANT`` std and ``MIN_CAN_DELAY_S``; and what the fit found, and why."""
+    nav = config.navigation
+    if not nav.estimate_can_latency:
+        return inputs, {"applied": False, "reason": "navigation.estimate_can_latency is off: the tables' latencies"}
+    can = [name for name, s in config.sensors.items() if s.kind == "can_imu"]
+    imu = [name for name, s in config.sensors.items() if s.kind == "imu"]
+    fit = fit_can_latency(inputs, can, imu)
+    if fit is None:
+        return inputs, {"applied": False, "reason": "no CAN gyro and IMU gyro over a common span of "
+                                                    f"{MIN_CAN_SAMPLES} samples: the tables' latencies"}
+    if fit.yaw_acceleration_rms_radps2 < MIN_YAW_ACCELERATION_RADPS2:
+        why = (f"the drive hardly turns (yaw rate's change {fit.yaw_acceleration_rms_radps2:.3f} rad/s^2 RMS, under "
+               f"{MIN_YAW_ACCELERATION_RADPS2:g}): unmeasured, the tables' latencies")
+    elif not fit.std_s <= nav.can_latency_max_std_s:
+        why = f"std {fit.std_s * 1000:.1f} ms above navigation.can_latency_max_std_s: the tables' latencies"
+    elif not _shows(fit.delay_s, fit.std_s, MIN_CAN_DELAY_S):
+        why = f"within {SIGNIFICANT:g} std or {MIN_CAN_DELAY_S * 1000:g} ms of the tables: their latencies"
+    else:
+        return delayed_can(inputs, fit.delay_s, can), replace(
+            fit, applied=True, reason=f"the CAN signals refer to {fit.delay_s * 1000:.0f} ms before their tables "
+                                      "say: moved by it (the logger's clock or the bus; set the CAN sensors' "
+                                      "latency_s)").to_dict()
     return inputs, replace(fit, reason=why).to_dict()
 
 
@@ -528,6 +564,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
     if method == "sar-min":
         if why := wheel_scale_error(inputs):
             raise NavInputError(f"{drive_path}: {why}")
+        inputs, can_latency = can_latency_corrected(inputs, config)
         inputs, gnss_latency = gnss_latency_corrected(inputs, config)
         inputs, gnss_noise = gnss_noise_checked(inputs, config.navigation.estimate_gnss_noise)
         inputs, velocity_correlation = velocity_decorrelated(
@@ -560,7 +597,8 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                           info={"updates": sol.updates, "rejected": sol.rejected, "smoothed": smooth,
                                 "understeer": understeer, "rear_slip": rear_slip, "wheel_lag": wheel_lag,
                                 "wheel_radii": wheel_radii, "gnss_noise": gnss_noise,
-                                "gnss_latency": gnss_latency, "gnss_velocity_correlation": velocity_correlation,
+                                "gnss_latency": gnss_latency, "can_latency": can_latency,
+                                "gnss_velocity_correlation": velocity_correlation,
                                 "before_first_fix": before_first_fix, "gnss_gaps": gnss_gaps(inputs),
                                 "standstill_ns": [[inputs.t0_ns + int(round(x * 1e9)) for x in span]
                                                   for span in standstill],
