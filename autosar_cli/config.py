@@ -355,7 +355,7 @@ class NavigationConfig:
     estimate_gnss_noise: bool = True
     # a GNSS velocity whose errors correlate from sample to sample (measured against the wheel speeds whenever
     # estimate_gnss_noise is on, and reported) carried as two Gauss-Markov states; off, the samples stay independent
-    # and navigate warns that the scale and heading it states are too confident (docs/NAVIGATION.md)
+    # and navigate warns that the scale and heading it states are too confident (docs/SENSOR_ERRORS.md)
     gnss_velocity_error_states: bool = True
     # the 6-DoF IMU whose roll and pitch move SAR-MIN's radar (nav.attitude; "" = none): the radar's motion as the
     # body rolls and pitches, grade included, as the trajectory's correction

@@ -4,7 +4,7 @@ are stamped.
 A logger that stamps CAN frames on arrival, on another clock than the IMUs' and the GNSS's, puts every CAN signal
 (wheel speeds, steering, the ECUs' yaw rates) late by one offset that no sensor table states. SAR-MIN takes the
 tables' ``latency_s`` on trust; the whole bus 40 ms later than they say put test1's worst reflector along the track
-1.48 -> 3.66 cm off (median of seeds 0-9, full vehicle; docs/NAVIGATION.md).
+1.48 -> 3.66 cm off (median of seeds 0-9, full vehicle; docs/SENSOR_ERRORS.md).
 
 The measurement needs no model of the car: a CAN gyro and an IMU gyro measure the same yaw rate. At each CAN gyro
 sample ``t`` (its table's latency removed)

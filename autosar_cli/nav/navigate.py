@@ -79,7 +79,7 @@ MIN_REAR_SLIP_CHANGE = 1e-3
 #: where the delay's std is 0.5-0.6 ms; test1-2, straight, 0.01, where the fit wanders by 50 ms)
 MIN_CAN_DELAY_S = 0.01
 MIN_YAW_ACCELERATION_RADPS2 = 0.03
-#: ... and 20 ms of GNSS latency (a 15-20 ms error costs test1-3 0.5-2 cm: NAVIGATION.md)
+#: ... and 20 ms of GNSS latency (a 15-20 ms error costs test1-3 0.5-2 cm: SENSOR_ERRORS.md)
 MIN_GNSS_LATENCY_CHANGE_S = 0.02
 #: the GNSS latency's fit moves the samples only beyond this many std: GNSS noise drawn 40 times onto test3 seed 42's
 #: true velocity at the table's latency, the fit scattered by 20.6 ms where its std stated 16.9 (median), and at
