@@ -35,7 +35,9 @@ Array = NDArray[np.float64]
 TURN_WINDOW_S = 0.25
 #: the delay is searched for within ± this (s) on a grid of SEARCH_STEP_S
 SEARCH_S = 0.2
-SEARCH_STEP_S = 0.002
+SEARCH_STEP_S = 0.005
+#: the averaged CAN samples are compared every this (s): closer ones, averaged over TURN_WINDOW_S, repeat each other
+COMPARE_STEP_S = 0.05
 #: fewer CAN gyro samples than this leave it unmeasured
 MIN_SAMPLES = 500
 
@@ -78,7 +80,8 @@ def fit_can_latency(inputs: NavInputs, can_gyros: list[str], imu_gyros: list[str
 
     # both sides averaged alike over TURN_WINDOW_S: what is left is the turns' yaw rate, which both gyros see alike;
     # faster content is their noise and the body's roll and pitch, which each one's mounting leaks differently
-    smoothed = [(g, running_mean(g.t[keep], g.z[keep, 0], TURN_WINDOW_S)) for g, keep in inside]
+    smoothed = [(g, _every(running_mean(g.t[keep], g.z[keep, 0], TURN_WINDOW_S), COMPARE_STEP_S))
+                for g, keep in inside]
 
     def reference(at: Array) -> Array:
         return np.mean([np.interp(at, *mean) for mean in means], axis=0)
@@ -115,6 +118,14 @@ def fit_can_latency(inputs: NavInputs, can_gyros: list[str], imu_gyros: list[str
     accel = np.concatenate([row[:, 0] for row in rows])
     return CanLatencyFit(best + float(coef[0]), std, tuple(g.name for g, _ in inside), tuple(g.name for g in imu),
                          int(len(res)), float(np.sqrt(np.mean(accel**2))))
+
+
+def _every(samples: tuple[Array, Array] | None, step_s: float) -> tuple[Array, Array]:
+    """Every sample ``step_s`` (s) apart of ``samples`` (times s, values)."""
+    assert samples is not None
+    t, z = samples
+    k = max(int(round(step_s / float(np.median(np.diff(t))))), 1) if len(t) > 1 else 1
+    return t[::k], z[::k]
 
 
 def delayed_can(inputs: NavInputs, delay_s: float, can_gyros: list[str]) -> NavInputs:
