@@ -80,8 +80,10 @@ def fit_can_latency(inputs: NavInputs, can_gyros: list[str], imu_gyros: list[str
 
     # both sides averaged alike over TURN_WINDOW_S: what is left is the turns' yaw rate, which both gyros see alike;
     # faster content is their noise and the body's roll and pitch, which each one's mounting leaks differently
-    smoothed = [(g, _every(running_mean(g.t[keep], g.z[keep, 0], TURN_WINDOW_S), COMPARE_STEP_S))
-                for g, keep in inside]
+    means_can = [(g, running_mean(g.t[keep], g.z[keep, 0], TURN_WINDOW_S)) for g, keep in inside]
+    smoothed = [(g, _every(mean, COMPARE_STEP_S)) for g, mean in means_can if mean is not None and len(mean[0]) > 2]
+    if not smoothed:
+        return None
 
     def reference(at: Array) -> Array:
         return np.mean([np.interp(at, *mean) for mean in means], axis=0)
@@ -116,13 +118,12 @@ def fit_can_latency(inputs: NavInputs, can_gyros: list[str], imu_gyros: list[str
     coef, *_ = np.linalg.lstsq(blocks, res, rcond=None)
     std = float(_effective_std(blocks, res - blocks @ coef)[0])
     accel = np.concatenate([row[:, 0] for row in rows])
-    return CanLatencyFit(best + float(coef[0]), std, tuple(g.name for g, _ in inside), tuple(g.name for g in imu),
+    return CanLatencyFit(best + float(coef[0]), std, tuple(g.name for g, _ in smoothed), tuple(g.name for g in imu),
                          int(len(res)), float(np.sqrt(np.mean(accel**2))))
 
 
-def _every(samples: tuple[Array, Array] | None, step_s: float) -> tuple[Array, Array]:
+def _every(samples: tuple[Array, Array], step_s: float) -> tuple[Array, Array]:
     """Every sample ``step_s`` (s) apart of ``samples`` (times s, values)."""
-    assert samples is not None
     t, z = samples
     k = max(int(round(step_s / float(np.median(np.diff(t))))), 1) if len(t) > 1 else 1
     return t[::k], z[::k]
