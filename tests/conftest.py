@@ -151,3 +151,26 @@ def stop_and_go(brake_mps2: float = 1.7, drive_mps2: float = 1.25, slip_std: flo
     traj = Trajectory("sar-min", np.round(t * 1e9).astype(np.int64) + 10**18, np.column_stack([x, np.zeros_like(x)]),
                       np.zeros_like(t), v, np.zeros_like(t), GeodeticOrigin(45.0, 9.0, 100.0), 1.4, 0.5, info=info)
     return traj, speed
+
+
+def full_car_drive(tmp_path: Path, scenario: str, sensors: dict[str, Any] | None = None, seed: int = 0
+                   ) -> tuple[Path, SimulationResult, Any]:
+    """``scenario`` by the simulator's full car, its sensors those of the config with ``sensors`` (name: SensorConfig)
+    put in for the simulator alone, ingested: the drive.h5, the simulation and the config that navigates it (the
+    radar at 20 Hz: navigation only)."""
+    from autosar_cli.ingest.pipeline import ingest
+
+    base = load_config()
+    cfg = replace(base, radar=replace(base.radar, prf_hz=20.0))
+    sim = simulate(scenario, tmp_path / f"{scenario}.mcap", seed=seed,
+                   config=replace(cfg, sensors={**cfg.sensors, **(sensors or {})}), dynamics="full")
+    drive = tmp_path / f"{scenario}.h5"
+    ingest([sim.log_path], drive, config=cfg)
+    return drive, sim, cfg
+
+
+def with_gnss_errors(**changes: Any) -> dict[str, Any]:
+    """The config's ``gnss_cog`` sensor with ``changes`` to its error table, for :func:`full_car_drive`."""
+    gnss = load_config().sensors["gnss_cog"]
+    assert gnss.gnss is not None
+    return {"gnss_cog": replace(gnss, gnss=replace(gnss.gnss, **changes))}

@@ -70,19 +70,14 @@ def test_navigate_moves_a_late_can_bus_back(tmp_path) -> None:  # noqa: ANN001
     stamped 40 ms later than the tables say: navigate measures 40 ms (within 2 ms) and moves it back."""
     import dataclasses
 
-    from autosar_cli.config import load_config
-    from autosar_cli.ingest.pipeline import ingest
-    from autosar_cli.nav.navigate import navigate
-    from autosar_cli.sim.simulate import simulate
+    from conftest import full_car_drive
 
-    base = load_config()
-    cfg = dataclasses.replace(base, radar=dataclasses.replace(base.radar, prf_hz=20.0))
-    late = {name: dataclasses.replace(s, latency_s=s.latency_s + 0.04) for name, s in cfg.sensors.items()
+    from autosar_cli.config import load_config
+    from autosar_cli.nav.navigate import navigate
+
+    late = {name: dataclasses.replace(s, latency_s=s.latency_s + 0.04) for name, s in load_config().sensors.items()
             if s.kind in ("wheel_speeds", "steering", "can_imu")}
     assert len(late) == 4
-    sim = simulate("test3", tmp_path / "t3.mcap", seed=0,
-                   config=dataclasses.replace(cfg, sensors={**cfg.sensors, **late}), dynamics="full")
-    drive = tmp_path / "t3.h5"
-    ingest([sim.log_path], drive, config=cfg)
+    drive, _, cfg = full_car_drive(tmp_path, "test3", late)
     info = navigate(drive, "sar-min", cfg).info["can_latency"]
     assert info["applied"] and abs(info["delay_s"] - 0.04) < 0.002, info

@@ -87,26 +87,14 @@ def test_navigate_covers_a_drive_whose_first_seconds_have_no_gnss(tmp_path) -> N
     wheel speeds, not 5 s later, and over those 5 s (25 m) its rear axle stays within 6 cm of the truth's after the
     whole track's rigid alignment (measured 4.9 cm: the filter's speed at the first fix is 13 mm/s low), its heading
     at the start within twice the std it states (1.0 against 2.9 mrad)."""
-    import dataclasses
+    from conftest import full_car_drive, with_gnss_errors
 
-    from autosar_cli.config import load_config
     from autosar_cli.evaluate.alignment import fit_se2
     from autosar_cli.evaluate.evaluation import load_truth
     from autosar_cli.evaluate.trajectory_metrics import common_instants
-    from autosar_cli.ingest.pipeline import ingest
     from autosar_cli.nav.navigate import navigate
-    from autosar_cli.sim.simulate import simulate
 
-    base = load_config()
-    cfg = dataclasses.replace(base, radar=dataclasses.replace(base.radar, prf_hz=20.0))
-    gnss = cfg.sensors["gnss_cog"]
-    assert gnss.gnss is not None
-    sensors = {**cfg.sensors, "gnss_cog": dataclasses.replace(gnss, gnss=dataclasses.replace(gnss.gnss,
-                                                                                               outages=((0.0, 5.0),)))}
-    sim = simulate("test1", tmp_path / "t1.mcap", seed=0, config=dataclasses.replace(cfg, sensors=sensors),
-                   dynamics="full")
-    drive = tmp_path / "t1.h5"
-    ingest([sim.log_path], drive, config=cfg)
+    drive, sim, cfg = full_car_drive(tmp_path, "test1", with_gnss_errors(outages=((0.0, 5.0),)))
     traj = navigate(drive, "sar-min", cfg)
     info = traj.info["before_first_fix"]
     assert info["applied"] and 4.8 < info["span_s"] < 5.2, info

@@ -144,23 +144,12 @@ def test_navigate_weighs_the_velocity_of_a_receiver_that_smooths_it(tmp_path, ta
     """The simulator's full car on test1 (seed 0), its receiver's velocity errors correlated over ``tau_s``:
     navigate measures that against the wheel speeds and carries it as a state (with the states off, it warns);
     white, it leaves the samples."""
-    import dataclasses
+    from conftest import full_car_drive, with_gnss_errors
 
     from autosar_cli.config import load_config
-    from autosar_cli.ingest.pipeline import ingest
     from autosar_cli.nav.navigate import navigate
-    from autosar_cli.sim.simulate import simulate
 
-    base = load_config()
-    cfg = dataclasses.replace(base, radar=dataclasses.replace(base.radar, prf_hz=20.0))
-    gnss = cfg.sensors["gnss_cog"]
-    assert gnss.gnss is not None
-    sensors = {**cfg.sensors, "gnss_cog": dataclasses.replace(
-        gnss, gnss=dataclasses.replace(gnss.gnss, velocity_correlation_time_s=tau_s))}
-    sim = simulate("test1", tmp_path / "t1.mcap", seed=0, config=dataclasses.replace(cfg, sensors=sensors),
-                   dynamics="full")
-    drive = tmp_path / "t1.h5"
-    ingest([sim.log_path], drive, config=cfg)
+    drive, _, cfg = full_car_drive(tmp_path, "test1", with_gnss_errors(velocity_correlation_time_s=tau_s))
     traj = navigate(drive, "sar-min", cfg)
     info = traj.info["gnss_velocity_correlation"]
     assert info["applied"] == (tau_s > 0), info["reason"]
