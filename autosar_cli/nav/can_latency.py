@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .inputs import Measurements, NavInputs
-from .wheel_speeds import _effective_std, running_mean
+from .wheel_speeds import effective_std, running_mean
 
 Array = NDArray[np.float64]
 
@@ -102,22 +102,18 @@ def fit_can_latency(inputs: NavInputs, can_gyros: list[str], imu_gyros: list[str
     best = float(grid[int(np.argmin(cost))])
     # refined by the linearised model about the best: z - fit(best) = -(1 + s) omega'(t - best) delta
     res, coefs = residual(best)
+    # the delay's column beside each gyro's own scale and bias (a column pair per gyro, zero on the others' rows)
     h = 1e-3
     rows = []
-    for (_, (t, _)), coef in zip(smoothed, coefs, strict=True):
+    for i, ((_, (t, _)), coef) in enumerate(zip(smoothed, coefs, strict=True)):
         slope = (reference(t - best + h) - reference(t - best - h)) / (2 * h)
-        rows.append(np.stack([-coef[0] * slope, reference(t - best), np.ones_like(t)], axis=1))
-    design = np.concatenate(rows)
-    # each gyro's own scale and bias beside the delay: one column pair per gyro
-    blocks = np.zeros((len(design), 1 + 2 * len(rows)))
-    blocks[:, 0] = design[:, 0]
-    start = 0
-    for i, block in enumerate(rows):
-        blocks[start:start + len(block), 1 + 2 * i:3 + 2 * i] = block[:, 1:]
-        start += len(block)
+        row = np.zeros((len(t), 1 + 2 * len(smoothed)))
+        row[:, 0], row[:, 1 + 2 * i], row[:, 2 + 2 * i] = -coef[0] * slope, reference(t - best), 1.0
+        rows.append(row)
+    blocks = np.concatenate(rows)
     coef, *_ = np.linalg.lstsq(blocks, res, rcond=None)
-    std = float(_effective_std(blocks, res - blocks @ coef)[0])
-    accel = np.concatenate([row[:, 0] for row in rows])
+    std = float(effective_std(blocks, res - blocks @ coef)[0])
+    accel = blocks[:, 0]
     return CanLatencyFit(best + float(coef[0]), std, tuple(g.name for g, _ in smoothed), tuple(g.name for g in imu),
                          int(len(res)), float(np.sqrt(np.mean(accel**2))))
 

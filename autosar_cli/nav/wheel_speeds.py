@@ -154,7 +154,7 @@ def _effective_covariance(design: Array, res: Array, groups: int = 1) -> Array:
     return m / serial(res.reshape(groups, m).sum(axis=0)) * inverse @ (score.T @ score) @ inverse
 
 
-def _effective_std(design: Array, res: Array) -> Array:
+def effective_std(design: Array, res: Array) -> Array:
     """1-sigma of least-squares coefficients (see :func:`_effective_covariance`)."""
     return np.sqrt(np.diag(_effective_covariance(design, res)))
 
@@ -289,7 +289,7 @@ def _fit_lateral(inputs: NavInputs, wheelbase_m: float, tracks_m: tuple[float, f
         y = (z[:, right] - z[:, left]) - (model_r - model_l)
         design = np.stack([np.ones_like(v), v, a_y * (side_l + side_r)], axis=1)
         coef, *_ = np.linalg.lstsq(design, y, rcond=None)
-        gains[i], stds[i] = coef[2], _effective_std(design, y - design @ coef)[2]
+        gains[i], stds[i] = coef[2], effective_std(design, y - design @ coef)[2]
     return gains, stds, float(np.std(a_y))
 
 
