@@ -220,6 +220,7 @@ class ProcessingConfig:
     channels: Literal[8, 12] = 8
     autofocus_slow_motion: bool = True  #: the autofocus takes the slow motion from the points' passes first
     autofocus_fast_motion: bool = False  #: and, last, the fast across-track motion from many scatterers
+    autofocus_channel_gains: bool = True  #: the autofocus measures the radar's channel gains first, undone where off
 
 
 @dataclass(frozen=True)
@@ -234,6 +235,11 @@ class SimulationConfig:
     vibration_vertical_rms_m: float = 1.0e-3
     vibration_horizontal_rms_m: float = 0.08e-3
     vibration_band_hz: tuple[float, float] = (4.0, 25.0)
+    # the radar's channels as an uncalibrated front end leaves them: each Tx's and each Rx's path adds its own
+    # phase (deg) and gain (dB), drawn once per drive (normal, these stds), so virtual channel (tx, rx) carries
+    # their sum; 0 (the config's): channels matched, as the processor assumes unless it calibrates them
+    channel_phase_std_deg: float = 0.0
+    channel_gain_std_db: float = 0.0
     # "kinematic": planar kinematic bicycle on a level road (the motion SAR-MIN assumes); "full": single-track
     # dynamics with tyre slip, body roll/pitch/heave on the suspension, a rough road ([vehicle_dynamics]).
     dynamics: Literal["kinematic", "full"] = "full"
@@ -653,6 +659,8 @@ def _validate(cfg: Config) -> None:
         _positive("simulation.radar_amplitude_lsb", sim.radar_amplitude_lsb)
         _non_negative("simulation.vibration_vertical_rms_m", sim.vibration_vertical_rms_m)
         _non_negative("simulation.vibration_horizontal_rms_m", sim.vibration_horizontal_rms_m)
+        _non_negative("simulation.channel_phase_std_deg", sim.channel_phase_std_deg)
+        _non_negative("simulation.channel_gain_std_db", sim.channel_gain_std_db)
         for i, rider in enumerate(sim.cyclists):
             _finite_vector(f"simulation.cyclists[{i}]", rider)
         lo, hi = sim.vibration_band_hz

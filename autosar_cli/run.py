@@ -25,7 +25,7 @@ import threading
 import time
 import traceback
 from collections.abc import Callable, Sequence
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -135,6 +135,8 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         focused = autofocus_residual_motion(out / DRIVE, traj, config, options)
         if focused.applied:
             traj = focused.labelled(f"{traj.method}+af")
+        elif focused.channel_gains is not None:  # the track kept, the channels measured: the image undoes them
+            options = replace(options, channel_gains=focused.channel_gains)
         write_trajectory(out / TRAJECTORY, traj)
         if progress:
             progress("autofocus", 1, 1)

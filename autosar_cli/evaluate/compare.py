@@ -179,6 +179,8 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
         tick("autofocus sar-min's residual motion", 1, 1)
         timings["autofocus"] = time.perf_counter() - t0
         autofocus = {k: v for k, v in focused.to_dict().items() if k != "points_enu"}
+        if focused.channel_gains is not None:  # a property of the radar: every method's image undoes them
+            options = replace(options, channel_gains=focused.channel_gains)
         if not focused.applied:
             run_methods.remove(SARMIN_AUTOFOCUS)
             skipped[SARMIN_AUTOFOCUS] = f"SAR-MIN's {focused.summary()}"

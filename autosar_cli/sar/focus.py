@@ -35,6 +35,7 @@ from autosar_cli.nav.trajectory import (
     radar_side,
 )
 from autosar_cli.sar.backprojection import PulseBlock, backproject_block
+from autosar_cli.sar.channel_gains import ChannelGains, trajectory_channel_gains
 from autosar_cli.sar.grid import FocusGrid, GridError, box_grid, check_image_size, track_grid
 from autosar_cli.sar.range_compression import range_compress_into
 from autosar_cli.sar.stripmap import (
@@ -66,6 +67,9 @@ class FocusOptions:
     block_pulses: int = 512  #: pulses per processing block
     min_speed_mps: float = 0.2  #: frames slower than this are skipped (no synthetic aperture)
     radar: str | None = None  #: the drive's radar stream to focus (``/radar/<name>``; None: its first)
+    #: the front end's channel gains, undone before the channels are summed, where the trajectory carries none
+    #: (its ``info["channel_gains"]``: those its autofocus measured and applied, or the truth's); None: matched
+    channel_gains: ChannelGains | None = None
 
     def __post_init__(self) -> None:
         # a CLI override is checked here, as the config's values are in config.py (the pixel: sar.grid, first)
@@ -73,6 +77,8 @@ class FocusOptions:
             raise FocusError(f"focus: cross-range resolution {self.resolution_m} m: must be a positive finite number")
         if not math.isfinite(self.height_m):
             raise FocusError(f"focus: focusing plane height {self.height_m} m: must be a finite number")
+        if isinstance(self.channel_gains, dict):  # as an image's parameters store them
+            object.__setattr__(self, "channel_gains", ChannelGains.from_dict(self.channel_gains))
 
     @classmethod
     def from_config(cls, config: Config, **overrides: Any) -> FocusOptions:
@@ -301,6 +307,8 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
             rp.tx_start_offsets_s
         n_bins, bin_m, cycles_per_m, wavelength = rp.n_bins, rp.bin_m, rp.cycles_per_m, rp.wavelength_m
         pairs = channel_pairs(rp.n_tx, rp.n_rx, options.channels)
+        gains = trajectory_channel_gains(traj.info) or options.channel_gains
+        correction = [None] * len(pairs) if gains is None else list(gains.correction(pairs))
         geometry = _usable_frames(radar, traj, config, options.min_speed_mps)
         if geometry.frames.size < 2:
             raise FocusError(f"{drive_path}: no radar frame lies inside the trajectory {traj_name} while moving")
@@ -384,7 +392,8 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
                 beats = [raw[:, c] for c in range(len(pairs))]
                 compress = partial(range_compress_into, sample_rate_hz=fs, slope_hz_per_s=slope, window=options.window,
                                    upsample=options.upsample, workers=1)
-                list(pool.map(compress, beats, block.re, block.im))
+                list(pool.map(lambda beat, re, im, gain, f=compress: f(beat, re, im, gain=gain), beats, block.re,
+                              block.im, correction))
                 timings["range_compression"] += time.perf_counter() - t0
 
                 t0 = time.perf_counter()
@@ -404,7 +413,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
               "slope_hz_per_s": slope, "sample_rate_hz": fs, "num_samples": n_samp, "bin_m": bin_m,
               "cycles_per_m": cycles_per_m, "wavelength_m": wavelength, "half_width_rad": half_width,
               "trajectory_method": traj.method, "frames_used": int(len(frames)), "backprojections": n_bp,
-              "radar": radar.name}
+              "radar": radar.name, "channel_gains": gains.to_dict() if gains is not None else None}
     provenance = {"drive": str(drive_path), "trajectory": traj_name, "autosar_version": __version__,
                   "command": command, "config": config.source}
     out = [FocusedImage(img.reshape(g.shape), g, traj.origin, dict(params), dict(provenance))

@@ -65,11 +65,13 @@ def frame_geometry(traj: Trajectory, t_ns: NDArray[np.int64], config: Config) ->
 
 def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Config, points_enu: Array,
                            focus: FocusOptions, *, half_beam_deg: float, window_bins: int, channels: int,
-                           block_frames: int = 256, pairs: list[tuple[int, int]] | None = None) -> PhaseHistories:
+                           block_frames: int = 256, pairs: list[tuple[int, int]] | None = None,
+                           frame_step: int = 1) -> PhaseHistories:
     """Read and range-compress (``channels``, sar.focus.channel_pairs, or the (Tx, Rx) ``pairs`` given;
     ``focus``'s window and upsampling) the frames that see ``points_enu`` (P, 3) (ENU m) within ``half_beam_deg``
     of broadside, and keep ``window_bins`` bins around each point's range per pulse and channel (one pass over the
-    radar data)."""
+    radar data). ``focus.channel_gains``, where given, are undone on the windows kept; ``frame_step``: only every
+    so many of the drive's frames."""
     points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
     w = int(window_bins)
     with Drive(drive_path) as drive:
@@ -83,6 +85,8 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         frames = np.flatnonzero((t_all >= traj.t_ns[0]) & (t_all + last_chirp_ns <= traj.t_ns[-1]))
         t = t_all[frames]
         seen = _seen(traj, t, config, points, _moving(traj, t, focus), half_beam_deg)
+        if frame_step > 1:
+            seen[np.arange(len(t)) % frame_step != 0] = False
         used = np.flatnonzero(seen.any(axis=1))
         # every (frame, point) pair in frame order, its samples written in place (joining per-block lists at the
         # end would cost as much again as taking the windows: test2's 130 MB)
@@ -97,6 +101,7 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         pc = radar_phase_centres(traj, t[used], offsets, config)  # elementwise in time: once for all blocks
         tx_all, rx_all = pc.tx[:, tx_idx], pc.rx[:, tx_idx, rx_idx]  # (U, C, 3)
         ramp = reference_ramp(rp.n_samples, n_bins, fs, slope)
+        gain = None if focus.channel_gains is None else focus.channel_gains.correction(pairs)[:, None]
 
         def read(sel: NDArray[np.int64]) -> NDArray[np.int16]:
             raw = radar.frames(int(frames[sel[0]]), int(frames[sel[-1]]) + 1, pairs)
@@ -120,6 +125,8 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
                 b0 = np.floor(path / bin_m).astype(np.int64) - (w // 2 - 1)
                 b0 = np.clip(b0, 0, n_bins - w)
                 take_windows(profiles, ramp, kk, b0, samples[lo:hi])
+                if gain is not None:
+                    samples[lo:hi] *= gain
                 bin0[lo:hi] = b0
     return PhaseHistories(point_of, frame_of, t, bin0, samples, pairs, offsets, bin_m, rp.cycles_per_m, slope)
 

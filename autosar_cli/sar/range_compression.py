@@ -104,22 +104,27 @@ def range_compress(beat: ArrayLike, *, sample_rate_hz: float, slope_hz_per_s: fl
 
 def range_compress_into(beat: ArrayLike, out_re: NDArray[np.float32], out_im: NDArray[np.float32], *,
                         sample_rate_hz: float, slope_hz_per_s: float, window: str = "hann", upsample: int = 8,
-                        workers: int = -1) -> None:
+                        workers: int = -1, gain: complex | None = None) -> None:
     """Compress (P, N) beat samples (complex, or int16 I/Q (P, N, 2)) into planar (bin, pulse) arrays.
 
     ``out_re``/``out_im`` (N * upsample, >= P) float32 receive the profiles transposed: bin-major with pulses
     contiguous, the layout the back-projection kernel reads. int16 I/Q input whose N factors into 2, 3 and 5
     goes through the batched FFT of :mod:`.range_fft` (no transposes; equal to this path to -137 dB; one thread,
-    whatever ``workers`` says).
+    whatever ``workers`` says). ``gain``: a complex factor on every profile (a channel's calibration,
+    :meth:`autosar_cli.sar.channel_gains.ChannelGains.correction`), put on the reference ramp.
     """
     x = np.asarray(beat)
     if x.dtype == np.int16 and x.ndim == 3 and x.shape[-1] == 2 and radices(x.shape[1]) is not None:
         n = x.shape[1]
         ramp = reference_ramp(n, n * upsample, float(sample_rate_hz), float(slope_hz_per_s))
+        if gain is not None:
+            ramp = (ramp * np.complex64(gain)).astype(ramp.dtype)
         compress_iq(x, _taper32(window, n), ramp, upsample, out_re, out_im)
         return
     spec = range_compress(beat, sample_rate_hz=sample_rate_hz, slope_hz_per_s=slope_hz_per_s, window=window,
                           upsample=upsample, workers=workers)
+    if gain is not None:
+        spec *= np.complex64(gain)
     p = spec.shape[0]
     # numpy's strided copy transposes ~3x faster here than a tiled numba loop (measured)
     np.copyto(out_re[:, :p], spec.real.T)

@@ -48,6 +48,8 @@ from numpy.typing import NDArray
 from autosar_cli.config import Config
 from autosar_cli.nav.trajectory import phase_centre_lever_arm, radar_track, track_scale_std, zero_doppler_times
 from autosar_cli.sar.autofocus import scale_track
+from autosar_cli.sar.channel_calibration import ChannelCalibration, measure_channel_gains
+from autosar_cli.sar.channel_gains import ChannelGains
 from autosar_cli.sar.fast_motion import FastMotion, FastMotionOptions, closest_approach_ns, fast_motion
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.sar.normal_equations import factor_normal, node_difference, node_posterior_std
@@ -148,11 +150,15 @@ class AutofocusOptions:
     #: 1.45-1.65 times ``run`` on test2 as the host moves it, against the 1.5 asked; the far swath then within 0.2 %
     #: of the truth's on 22 of the 40, at most 0.2 % above on 39; docs/AUTOFOCUS.md)
     fast_motion: bool = False
+    #: first, the radar's channel gains from the points (:mod:`autosar_cli.sar.channel_calibration`), undone where
+    #: they are off; the config's ``processing.autofocus_channel_gains`` where the options are not given (on)
+    channel_gains: bool = True
 
     @classmethod
     def from_config(cls, config: Config) -> AutofocusOptions:
         return cls(slow_motion=config.processing.autofocus_slow_motion,
-                   fast_motion=config.processing.autofocus_fast_motion)
+                   fast_motion=config.processing.autofocus_fast_motion,
+                   channel_gains=config.processing.autofocus_channel_gains)
 
 
 @dataclass
@@ -222,6 +228,15 @@ class ResidualMotion:
     #: (M, 3) candidate points left out as moving (where the first fit put them) and their channel phases (rad)
     moving_points_enu: Array = field(default_factory=lambda: np.zeros((0, 3)))
     moving_channel_phase_rad: Array = field(default_factory=lambda: np.zeros(0))
+    #: the radar's channel gains measured first (:mod:`autosar_cli.sar.channel_calibration`); where applied, every
+    #: read after it, and the image focused along ``trajectory``, undo them
+    channel_calibration: ChannelCalibration | None = None
+
+    @property
+    def channel_gains(self) -> ChannelGains | None:
+        """The channel gains applied (None: the channels as matched)."""
+        c = self.channel_calibration
+        return c.gains if c is not None and c.applied else None
 
     @property
     def applied(self) -> bool:
@@ -230,8 +245,9 @@ class ResidualMotion:
 
     def labelled(self, method: str) -> Trajectory:
         """The corrected trajectory named ``method``, its info holding what autofocus measured."""
+        gains = {"channel_gains": self.channel_gains.to_dict()} if self.channel_gains is not None else {}
         return replace(self.trajectory, method=method, info={**self.trajectory.info, "track_scale": self.scale,
-                                                             "autofocus": self.to_dict()})
+                                                             "autofocus": self.to_dict(), **gains})
 
     def correction_summary(self) -> dict[str, float]:
         c = self.correction
@@ -243,6 +259,7 @@ class ResidualMotion:
 
     def to_dict(self) -> dict[str, object]:
         return {"applied": self.applied, "reason": self.reason,
+                "channel_gains": self.channel_calibration.to_dict() if self.channel_calibration is not None else None,
                 "slow_motion": self.slow_motion.to_dict() if self.slow_motion is not None else None,
                 "fast_motion": self.fast_motion.to_dict() if self.fast_motion is not None else None,
                 "track_scale": self.scale,
@@ -267,12 +284,14 @@ class ResidualMotion:
 
     def summary(self) -> str:
         """One line: what was corrected, or why nothing was."""
+        gains = "" if self.channel_gains is None or self.channel_calibration is None else \
+            self.channel_calibration.summary() + "; "
         slow = "" if self.slow_motion is None else self.slow_motion.summary() + "; "
         fast = "" if self.fast_motion is None else "; " + self.fast_motion.summary()
         if self.reason:  # which says what moved, where that left too few points
-            return f"{slow}track not corrected by the phases: {self.reason}{fast}" if slow else \
-                f"track not corrected: {self.reason}"
-        return slow + self._phase_summary() + self._moving_summary() + fast
+            return gains + (f"{slow}track not corrected by the phases: {self.reason}{fast}" if slow else
+                            f"track not corrected: {self.reason}")
+        return gains + slow + self._phase_summary() + self._moving_summary() + fast
 
     def _phase_summary(self) -> str:
         c = self.correction_summary()
@@ -896,13 +915,15 @@ def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, co
     ``fast``: its options)."""
     focus = focus or FocusOptions.from_config(config)
     opts = opts or AutofocusOptions.from_config(config)
-    if not opts.fast_motion:
-        points = candidate_points(drive_path, trajectory, config, focus, opts)
-        return residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes)
-    fast = fast or FastMotionOptions()
+    fast = (fast or FastMotionOptions()) if opts.fast_motion else None
     points, scatterers, t_zero = points_and_scatterers(drive_path, trajectory, config, focus, opts, fast)
-    result = residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes)
-    if not result.applied:
+    calibration = measure_channel_gains(drive_path, trajectory, config, points, focus) if opts.channel_gains \
+        else None
+    if calibration is not None and calibration.applied:  # every read from here on undoes them
+        focus = replace(focus, channel_gains=calibration.gains)
+    result = replace(residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes),
+                     channel_calibration=calibration)
+    if fast is None or not result.applied:
         return result
     if len(scatterers) == 0:
         return replace(result, fast_motion=FastMotion(None, 0, 0, 0.0, "no bright scatterer in the first image"))

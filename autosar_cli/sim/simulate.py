@@ -72,6 +72,17 @@ def stream_rng(seed: int, stream: str) -> np.random.Generator:
     return np.random.default_rng([seed, zlib.crc32(stream.encode())])
 
 
+def channel_errors(rng: np.random.Generator, num_tx: int, num_rx: int, phase_std_deg: float, gain_std_db: float
+                   ) -> NDArray[np.complex64]:
+    """The complex gain (num_tx, num_rx) an uncalibrated front end puts on each virtual channel: each Tx's and each
+    Rx's path its own phase (normal, ``phase_std_deg``) and gain (normal, ``gain_std_db``), the channel their sum.
+    Drawn in one order whatever the stds, so a drive's other samples do not move with them."""
+    phase = np.radians(phase_std_deg) * rng.standard_normal(num_tx + num_rx)
+    gain_db = gain_std_db * rng.standard_normal(num_tx + num_rx)
+    path = 10 ** (gain_db / 20) * np.exp(1j * phase)
+    return (path[:num_tx, None] * path[None, num_tx:]).astype(np.complex64)
+
+
 def start_time_ns(config: Config) -> int:
     assert config.simulation is not None
     dt = datetime.fromisoformat(config.simulation.start_time_utc.replace("Z", "+00:00"))
@@ -264,6 +275,8 @@ def simulate(
     vib = Vibration(stream_rng(seed, "radar/vibration"), sim.vibration_horizontal_rms_m,
                     sim.vibration_vertical_rms_m, sim.vibration_band_hz)
     noise_rng = stream_rng(seed, "radar/noise")
+    channel_gain = channel_errors(stream_rng(seed, "radar/channels"), radar.num_tx, radar.num_rx,
+                                  sim.channel_phase_std_deg, sim.channel_gain_std_db)
 
     attrs = {
         "scenario": scenario.name, "description": scenario.description, "seed": seed,
@@ -271,6 +284,8 @@ def simulate(
         "origin_height_m": origin.height_m, "start_time_ns": t0_ns, "duration_s": motion.duration_s,
         "config_toml": Path(config.source).read_text() if config.source else "",
         "log_format": fmt, "log_file": output.name,
+        # the front end's channel mismatch the samples carry (tx, rx): 0 deg, 0 dB where matched
+        "channel_phase_deg": np.degrees(np.angle(channel_gain)), "channel_gain_db": 20 * np.log10(np.abs(channel_gain)),
     }
     if dynamics == "full":
         attrs["dynamics"] = dynamics
@@ -305,6 +320,8 @@ def simulate(
                     beamwidth_el_deg=radar.beamwidth_el_deg, target_velocity=scenario.scene.velocity_enu,
                     chirp_start_s=t_frames[:, None] + offsets[None, :],
                 )
+                if sim.channel_phase_std_deg or sim.channel_gain_std_db:
+                    beat *= channel_gain[None, :, :, None]
                 iq = beat.view(np.float32).reshape(*beat.shape, 2)
                 iq += noise_rng.standard_normal(iq.shape, dtype=np.float32) * np.float32(sim.radar_noise_std_lsb)
                 raw = np.clip(np.rint(iq), -32768, 32767).astype(np.int16)

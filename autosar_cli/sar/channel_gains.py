@@ -1,0 +1,61 @@
+"""The radar's channel gains: the complex gain each virtual channel's front end puts on its echoes.
+
+A MIMO radar's Tx and Rx paths each add their own phase and gain (TI's mmWave devices leave them to a calibration
+against a corner reflector). Back-projection sums the channels coherently, so an uncalibrated front end costs the
+image its peak, spreads the virtual array's ghosts into the far swath, and makes every still point look like a
+mover to the autofocus (its channels' phases differ). :class:`ChannelGains` holds them per (Tx, Rx), as measured
+(:mod:`autosar_cli.sar.channel_calibration`); focus divides each channel's range profiles by its gain
+(:meth:`ChannelGains.correction`). Phases are relative to the channels' mean, gains to their geometric mean: a
+common phase or gain changes no image.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+
+@dataclass(frozen=True)
+class ChannelGains:
+    """Per (Tx, Rx): the phase (deg) and gain (dB) the channel's front end adds, ``[tx][rx]``."""
+
+    phase_deg: tuple[tuple[float, ...], ...]
+    gain_db: tuple[tuple[float, ...], ...]
+
+    @classmethod
+    def from_complex(cls, gains: NDArray[np.complexfloating], measured: NDArray[np.bool_] | None = None
+                     ) -> ChannelGains:
+        """From complex gains (T, R), normalised over the ``measured`` ones (default all): their sum's phase 0,
+        their magnitudes' geometric mean 1; the others 1 (0 deg, 0 dB)."""
+        g = np.asarray(gains, dtype=np.complex128)
+        m = np.ones(g.shape, bool) if measured is None else np.asarray(measured, bool)
+        g = np.where(m, g / np.exp(1j * np.angle(g[m].sum())) / np.exp(np.mean(np.log(np.abs(g[m])))), 1.0)
+        return cls(tuple(tuple(round(float(v), 3) for v in row) for row in np.degrees(np.angle(g))),
+                   tuple(tuple(round(float(v), 4) for v in row) for row in 20 * np.log10(np.abs(g))))
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> ChannelGains:
+        return cls(tuple(tuple(float(v) for v in row) for row in d["phase_deg"]),
+                   tuple(tuple(float(v) for v in row) for row in d["gain_db"]))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"phase_deg": [list(r) for r in self.phase_deg], "gain_db": [list(r) for r in self.gain_db]}
+
+    def complex(self) -> NDArray[np.complex128]:
+        """The complex gains (T, R)."""
+        return 10 ** (np.asarray(self.gain_db) / 20) * np.exp(1j * np.radians(np.asarray(self.phase_deg)))
+
+    def correction(self, pairs: list[tuple[int, int]]) -> NDArray[np.complex64]:
+        """What each of ``pairs`` (Tx, Rx) is multiplied by to undo its gain (C,)."""
+        g = self.complex()
+        return np.array([1.0 / g[t, r] for t, r in pairs], dtype=np.complex64)
+
+
+def trajectory_channel_gains(info: dict[str, Any]) -> ChannelGains | None:
+    """The channel gains a trajectory's ``info`` carries (``channel_gains``: those its autofocus measured and
+    applied, or the truth's), else None."""
+    d = info.get("channel_gains")
+    return ChannelGains.from_dict(d) if d else None
