@@ -49,9 +49,12 @@ class ChannelGains:
         return 10 ** (np.asarray(self.gain_db) / 20) * np.exp(1j * np.radians(np.asarray(self.phase_deg)))
 
     def correction(self, pairs: list[tuple[int, int]]) -> NDArray[np.complex64]:
-        """What each of ``pairs`` (Tx, Rx) is multiplied by to undo its gain (C,)."""
+        """What each of ``pairs`` (Tx, Rx) is multiplied by to undo its gain (C,), normalised over those pairs (so
+        an image's level does not depend on the channels it leaves out)."""
         g = self.complex()
-        return np.array([1.0 / g[t, r] for t, r in pairs], dtype=np.complex64)
+        g = np.array([g[t, r] for t, r in pairs])
+        g = g / np.exp(1j * np.angle(g.sum())) / np.exp(np.mean(np.log(np.abs(g))))
+        return (1.0 / g).astype(np.complex64)
 
 
 def trajectory_channel_gains(info: dict[str, Any]) -> ChannelGains | None:
