@@ -151,3 +151,29 @@ def test_focus_undoes_the_measured_gains(mismatched_ci: tuple[Path, Any, Any]) -
     ideal = peak_db(truth.trajectory, opts)  # the truth carries the true gains in its info
     assert peak_db(plain, opts) < ideal - 0.4
     assert abs(peak_db(plain, replace(opts, channel_gains=cal.gains)) - ideal) < 0.05
+
+
+def test_gains_the_drive_states_are_kept_where_the_points_agree(mismatched_ci: tuple[Path, Any, Any],
+                                                                 tmp_path: Path) -> None:
+    """A drive whose radar states its true gains (as a TI capture's calibration does): the measurement agrees
+    and keeps them; stating matched channels instead, it measures and applies its own."""
+    import shutil
+
+    from autosar_cli.sar.channel_calibration import with_stated_gains
+
+    drive, truth, true = mismatched_ci
+    stated = tmp_path / "stated.h5"
+    shutil.copy(drive, stated)
+    with h5py.File(stated, "r+") as f:
+        radar = f["radar"][next(iter(f["radar"]))]
+        radar.attrs["channel_phase_deg"] = np.degrees(np.angle(true))
+        radar.attrs["channel_gain_db"] = 20 * np.log10(np.abs(true))
+    plain = replace(truth.trajectory, info={})
+    focus = with_stated_gains(stated, FocusOptions.from_config(CFG))
+    assert focus.channel_gains is not None
+    points = candidate_points(stated, plain, CFG, focus, AutofocusOptions())
+    cal = measure_channel_gains(stated, plain, CFG, points, focus)
+    assert not cal.applied and "the gains the drive states" in cal.reason and cal.phase_rms_deg < 3.0
+    cal = measure_channel_gains(stated, plain, CFG, points, replace(focus, channel_gains=ChannelGains(
+        ((0.0,) * 4,) * 3, ((0.0,) * 4,) * 3)))
+    assert cal.applied

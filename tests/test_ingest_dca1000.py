@@ -646,3 +646,40 @@ def test_real_ti_frames_through_a_capture(tmp_path: Path) -> None:
     ref_range = k_ref * 3e8 * 2.5e6 / (2 * 60e12 * 128 * up)
     assert axis[k] == pytest.approx(ref_range, abs=3e8 / (2 * 60e12 * 128 / 2.5e6) / up * 1.01)
     assert 1.0 < axis[k] < 3.0
+
+
+def test_the_sdk_cfgs_channel_calibration_is_the_drives_stated_gains(tmp_path: Path) -> None:
+    """``compRangeBiasAndRxChanPhase`` (TI's per-channel compensation, Tx-major over the device's 3 Tx x 4 Rx) is
+    kept as the radar's channel gains, their inverse, on the drive's (Tx, Rx) axes; focus undoes them."""
+    from autosar_cli.sar.channel_calibration import with_stated_gains
+    from autosar_cli.sar.channel_gains import stated_channel_gains
+    from autosar_cli.sar.focus import FocusOptions, channel_pairs
+
+    rng = np.random.default_rng(5)
+    coeff = np.exp(1j * rng.uniform(-np.pi, np.pi, 12)) * rng.uniform(0.7, 1.3, 12)
+    cap = sdk_cfg(tmp_path / "cap")
+    cfg = cap / "capture.cfg"
+    line = "compRangeBiasAndRxChanPhase 0.05 " + " ".join(f"{c.real:.6f} {c.imag:.6f}" for c in coeff)
+    cfg.write_text(cfg.read_text().replace("sensorStart", line + "\nsensorStart"))
+    code, stderr = cli_ingest(cap, tmp_path / "d.h5")
+    assert code == 0, stderr
+    with Drive(tmp_path / "d.h5") as d:
+        attrs = dict(d.radar().attrs)
+    gains = 1.0 / coeff.reshape(3, 4)
+    assert np.allclose(attrs["channel_gain_db"], 20 * np.log10(np.abs(gains)), atol=1e-6)
+    assert np.allclose(np.exp(1j * np.radians(attrs["channel_phase_deg"])), np.exp(1j * np.angle(gains)), atol=1e-6)
+    stated = stated_channel_gains(attrs)
+    assert stated is not None
+    pairs = channel_pairs(3, 4, 8)
+    undone = stated.correction(pairs) * np.array([gains[t, r] for t, r in pairs])
+    assert np.allclose(undone, undone[0], rtol=1e-3)  # every channel alike once undone
+    assert with_stated_gains(tmp_path / "d.h5", FocusOptions()).channel_gains == stated
+    # the identity (TI's default) states nothing; a line of the wrong length is one line's error
+    cfg.write_text(cfg.read_text().replace(line, "compRangeBiasAndRxChanPhase 0.0" + " 1 0" * 12))
+    assert cli_ingest(cap, tmp_path / "e.h5")[0] == 0
+    with Drive(tmp_path / "e.h5") as d:
+        assert "channel_phase_deg" not in d.radar().attrs
+    cfg.write_text(cfg.read_text().replace("compRangeBiasAndRxChanPhase 0.0" + " 1 0" * 12,
+                                           "compRangeBiasAndRxChanPhase 0.0" + " 1 0" * 5))
+    code, stderr = cli_ingest(cap, tmp_path / "f.h5")
+    assert_one_line_error(code, stderr, "compRangeBiasAndRxChanPhase has 11 values")

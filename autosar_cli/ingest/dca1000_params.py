@@ -8,12 +8,13 @@ go through decimal text, so a value written and read back is the same float (77 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from decimal import Decimal
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .sources import LogReadError
 
@@ -58,6 +59,9 @@ class CaptureParams:
     #: frames start on an external trigger (triggerSelect 2), not every frame period: their times come from the
     #: frame-trigger topic, one message per frame
     hardware_trigger: bool = False
+    #: the SDK's ``compRangeBiasAndRxChanPhase`` coefficients (re, im) per (Tx, Rx) of the device, Tx-major, 4 Rx
+    #: each: what TI multiplies each virtual channel by to calibrate it (() where the file states none)
+    channel_compensation: tuple[tuple[float, float], ...] = ()
 
     @property
     def start_frequency_hz(self) -> float:
@@ -65,6 +69,14 @@ class CaptureParams:
         if self.adc_start_s == 0.0:
             return self.profile_start_frequency_hz
         return self.profile_start_frequency_hz + self.slope_hz_per_s * self.adc_start_s
+
+    def channel_gains(self) -> NDArray[np.complex128] | None:
+        """The front end's complex gain (num_tx, num_rx) per channel of the drive's axes (Tx ascending, the enabled
+        Rx): the inverse of :attr:`channel_compensation`; None where it states none, or only 1 (no correction)."""
+        coeff = np.array([complex(re, im) for re, im in self.channel_compensation]).reshape(-1, 4)
+        if not coeff.size or np.allclose(coeff, 1.0):
+            return None
+        return 1.0 / coeff[np.ix_(self.tx_order, self.rx_channels)]
 
     @property
     def tx_order(self) -> tuple[int, ...]:
@@ -245,6 +257,15 @@ def parse_sdk_cfg(path: Path) -> CaptureParams:
             hardware_trigger=len(frame) > 5 and int(frame[5]) == 2,
             adc_format=ADC_FORMATS[adc_fmt] if 0 <= adc_fmt < 3 else str(adc_fmt), lanes=2, source=src,
             adc_bits=ADC_BITS[adc_bits_code] if 0 <= adc_bits_code < 3 else adc_bits_code)
+        if "compRangeBiasAndRxChanPhase" in cmds:  # <rangeBias> <Re(0,0)> <Im(0,0)> ... <Re(T-1,R-1)> <Im(T-1,R-1)>
+            values = [float(v) for v in one("compRangeBiasAndRxChanPhase", 1)[1:]]
+            pairs = list(zip(values[0::2], values[1::2], strict=False))
+            if len(values) % 8 or len(values) // 8 <= max(params.chirp_tx):
+                raise CaptureError(f"{src}: compRangeBiasAndRxChanPhase has {len(values) + 1} values, expected 1 + "
+                                   "2 x 4 Rx x the device's Tx (17 or 25)")
+            if any(re == 0.0 and im == 0.0 for re, im in pairs):
+                raise CaptureError(f"{src}: compRangeBiasAndRxChanPhase zeroes a channel: it cannot be undone")
+            params = replace(params, channel_compensation=tuple(pairs))
     except (ValueError, IndexError) as exc:
         raise CaptureError(f"{src}: unreadable value ({exc})") from None
     if set(params.chirp_tx) - set(_mask_bits(tx_mask)):
@@ -274,7 +295,10 @@ def write_sdk_cfg(path: Path, p: CaptureParams) -> None:
         *(f"chirpCfg {c} {c} 0 0 0 0 0 {1 << t}" for c, t in enumerate(p.chirp_tx)),
         f"frameCfg 0 {p.num_tx - 1} {p.num_loops} {p.num_frames} {_in_unit(p.frame_period_s, -3)} "
         f"{2 if p.hardware_trigger else 1} 0",
-        "lvdsStreamCfg -1 0 1 0", "sensorStart", "",
+        "lvdsStreamCfg -1 0 1 0",
+        *([f"compRangeBiasAndRxChanPhase 0.0 {' '.join(f'{re:g} {im:g}' for re, im in p.channel_compensation)}"]
+          if p.channel_compensation else []),
+        "sensorStart", "",
     ]
     path.write_text("\n".join(lines), encoding="utf-8")
 

@@ -124,7 +124,16 @@ def recorded_from_capture(cap: Dca1000Capture) -> Recorded:
         prf_hz=p.prf_hz, tx_channels=p.tx_order, rx_channels=p.rx_channels,
         extra={"adc_format": p.adc_format, "lvds_lanes": p.lanes, "chirp_tx_order": list(p.chirp_tx),
                "frame_period_s": p.frame_period_s, "loops_per_frame": p.num_loops,
-               "parameter_file": str(p.source)})
+               "parameter_file": str(p.source), **_stated_gains(p.channel_gains())})
+
+
+def _stated_gains(gains: NDArray[np.complex128] | None) -> dict[str, Any]:
+    """The radar attributes of the channel gains a capture's calibration states (none where it states none)."""
+    if gains is None:
+        return {}
+    return {"channel_phase_deg": np.degrees(np.angle(gains)).tolist(),
+            "channel_gain_db": (20 * np.log10(np.abs(gains))).tolist(),
+            "channel_gains_source": "compRangeBiasAndRxChanPhase"}
 
 
 def capture_frame_starts(cap: Dca1000Capture, start_ns: int | None, triggers: Sequence[int], topic: str,

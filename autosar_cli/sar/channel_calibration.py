@@ -1,19 +1,20 @@
 """The radar's channel gains measured on the drive's own still points, with no calibration target.
 
-Each candidate point's echoes (:func:`autosar_cli.sar.phase_history.gather_phase_histories`, every Tx-Rx pair,
-within ``half_beam_deg`` of broadside) are back-projected onto it pulse by pulse, channel by channel, along the
-navigated track. A pulse's channels lie millimetres apart, so the track's error, however large, puts one phase on
-all of them: the pulse's channel cross-products ``z z^H`` hold the channels' own gains, and summed over the point's
-pulses they make its (C, C) cross-spectral matrix. A point scatterer's is of rank one, its eigenvector the gains.
+Each candidate point's echoes (:func:`autosar_cli.sar.phase_history.gather_phase_histories`, the channels the image
+sums, within ``half_beam_deg`` of broadside, every ``frame_step``-th frame) are back-projected onto it pulse by
+pulse, channel by channel, along the navigated track. A pulse's channels lie millimetres apart, so the track's
+error, however large, puts one phase on all of them: the pulse's channel cross-products ``z z^H`` hold the channels'
+own gains, and summed over the point's pulses they make its (C, C) cross-spectral matrix. A point scatterer's is of
+rank one, its eigenvector the gains.
 
 Not every bright point is one: a scatterer seen over part of its aperture, or whose echo turns with the look angle,
 adds a phase ramp along the virtual array. So the gains are those of the largest set of points whose own
 eigenvectors (coherence ``>= min_coherence``) agree within ``agree_deg`` RMS, from the normalised sum of their
 matrices. The std of each channel's phase and gain is the spread of those points' own over their number.
 
-Applied only where the mismatch matters: its phase RMS of ``min_phase_rms_deg`` or its gain RMS of
-``min_gain_rms_db``. Matched channels measure 2-4 deg and 0.1-0.4 dB (the simulator's echoes against the processor's
-model; docs/FOCUS.md), and a mismatch below the limits costs the image's peak under 0.1 dB.
+Applied only where the mismatch with what is assumed (matched channels, or the calibration a TI capture states)
+matters: its phase RMS of ``min_phase_rms_deg`` or its gain RMS of ``min_gain_rms_db``. Matched channels measure
+well under both (docs/FOCUS.md), and a mismatch below them costs the image's peak under 0.2 dB.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from autosar_cli.config import Config
-from autosar_cli.sar.channel_gains import ChannelGains
+from autosar_cli.sar.channel_gains import ChannelGains, stated_channel_gains
 from autosar_cli.sar.focus import FocusOptions, channel_pairs
 from autosar_cli.sar.phase_history import focus_history, gather_phase_histories, pair_antennas
 from autosar_cli.store.drive import Drive
@@ -58,11 +59,13 @@ class ChannelCalibration:
     reason: str
     points: int = 0  #: candidate points
     points_used: int = 0  #: the agreeing set's
-    phase_rms_deg: float = float("nan")  #: the measured phases' RMS about their mean
-    gain_rms_db: float = float("nan")  #: the measured gains' RMS
+    #: the measured phases' RMS about their mean, and the gains' RMS, against those assumed (matched channels, or
+    #: those the drive states)
+    phase_rms_deg: float = float("nan")
+    gain_rms_db: float = float("nan")
     phase_std_deg: float = float("nan")  #: median over channels of each phase's std
     gain_std_db: float = float("nan")
-    peak_loss_db: float = float("nan")  #: what the measured mismatch costs a point's peak, channels summed
+    peak_loss_db: float = float("nan")  #: what that mismatch costs a point's peak, channels summed
     pairs: list[tuple[int, int]] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
@@ -128,10 +131,19 @@ def gains_from_spectra(spectra: NDArray[np.complex128], opts: ChannelCalibration
     return _normalised(np.linalg.eigh(total)[1][:, -1]), used, own
 
 
+def with_stated_gains(drive_path: str | Path, focus: FocusOptions) -> FocusOptions:
+    """``focus`` with the channel gains its drive's radar states, where it gives none itself."""
+    if focus.channel_gains is not None:
+        return focus
+    with Drive(drive_path) as drive:
+        return replace(focus, channel_gains=stated_channel_gains(drive.radar(focus.radar).attrs))
+
+
 def measure_channel_gains(drive_path: str | Path, trajectory: Trajectory, config: Config, points_enu: Array,
                           focus: FocusOptions, opts: ChannelCalibrationOptions | None = None) -> ChannelCalibration:
     """The radar's channel gains from ``points_enu`` (P, 3) (ENU m: the autofocus's candidate points) along
-    ``trajectory`` (module docstring)."""
+    ``trajectory`` (module docstring), applied where they differ from ``focus.channel_gains`` (the gains the drive
+    states, :func:`with_stated_gains`; None: matched channels) beyond the options' limits."""
     opts = opts or ChannelCalibrationOptions()
     points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
     with Drive(drive_path) as drive:
@@ -155,15 +167,19 @@ def measure_channel_gains(drive_path: str | Path, trajectory: Trajectory, config
     for (t, r), v in zip(pairs, g, strict=True):
         grid[t, r], measured[t, r] = v, True
     gains = ChannelGains.from_complex(grid, measured)
-    phase, level = np.angle(g), 20 * np.log10(np.abs(g))
+    # against what the reads assume: the gains the drive states (or given), else matched channels
+    assumed = np.ones(len(pairs)) if focus.channel_gains is None else 1.0 / focus.channel_gains.correction(pairs)
+    rel = _normalised(g / assumed)
+    phase, level = np.angle(rel), 20 * np.log10(np.abs(rel))
     dev = own[used] / g[None, :]
     k = max(1, int(used.sum()) - 1)
     phase_std = float(np.degrees(np.median(np.sqrt(np.sum(np.angle(dev) ** 2, axis=0) / k / used.sum()))))
     gain_std = float(np.median(np.sqrt(np.sum((20 * np.log10(np.abs(dev))) ** 2, axis=0) / k / used.sum())))
     phase_rms, gain_rms = float(np.degrees(np.sqrt(np.mean(phase**2)))), float(np.sqrt(np.mean(level**2)))
-    loss = float(-10 * np.log10(np.abs(np.sum(g)) ** 2 / (len(g) * np.sum(np.abs(g) ** 2))))
+    loss = float(-10 * np.log10(np.abs(np.sum(rel)) ** 2 / (len(rel) * np.sum(np.abs(rel) ** 2))))
     applied = phase_rms >= opts.min_phase_rms_deg or gain_rms >= opts.min_gain_rms_db
-    reason = "" if applied else (f"under {opts.min_phase_rms_deg:g} deg and {opts.min_gain_rms_db:g} dB RMS: "
-                                 "the channels as matched")
+    reason = "" if applied else (f"under {opts.min_phase_rms_deg:g} deg and {opts.min_gain_rms_db:g} dB RMS from "
+                                 + ("the channels as matched" if focus.channel_gains is None else
+                                    "the gains the drive states: those kept"))
     return ChannelCalibration(gains, applied, reason, len(points), int(used.sum()), phase_rms, gain_rms, phase_std,
                               gain_std, loss, pairs)

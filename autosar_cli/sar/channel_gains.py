@@ -2,11 +2,11 @@
 
 A MIMO radar's Tx and Rx paths each add their own phase and gain (TI's mmWave devices leave them to a calibration
 against a corner reflector). Back-projection sums the channels coherently, so an uncalibrated front end costs the
-image its peak, spreads the virtual array's ghosts into the far swath, and makes every still point look like a
-mover to the autofocus (its channels' phases differ). :class:`ChannelGains` holds them per (Tx, Rx), as measured
-(:mod:`autosar_cli.sar.channel_calibration`); focus divides each channel's range profiles by its gain
-(:meth:`ChannelGains.correction`). Phases are relative to the channels' mean, gains to their geometric mean: a
-common phase or gain changes no image.
+image its peak and blurs its far swath, and makes every still point look like a mover to the autofocus (its
+channels' phases differ). :class:`ChannelGains` holds them per (Tx, Rx), as measured
+(:mod:`autosar_cli.sar.channel_calibration`) or as a TI capture's calibration states them; focus divides each
+channel's range profiles by its gain (:meth:`ChannelGains.correction`). Phases are relative to the channels' mean,
+gains to their geometric mean: a common phase or gain changes no image.
 """
 
 from __future__ import annotations
@@ -55,6 +55,16 @@ class ChannelGains:
         g = np.array([g[t, r] for t, r in pairs])
         g = g / np.exp(1j * np.angle(g.sum())) / np.exp(np.mean(np.log(np.abs(g))))
         return (1.0 / g).astype(np.complex64)
+
+
+def stated_channel_gains(radar_attrs: Any) -> ChannelGains | None:
+    """The channel gains a drive's radar stream states (``channel_phase_deg``, ``channel_gain_db``: a TI capture's
+    calibration, ``compRangeBiasAndRxChanPhase``), else None."""
+    if "channel_phase_deg" not in radar_attrs:
+        return None
+    gain = np.asarray(radar_attrs.get("channel_gain_db", 0.0), dtype=np.float64)
+    phase = np.asarray(radar_attrs["channel_phase_deg"], dtype=np.float64)
+    return ChannelGains.from_complex(10 ** (gain / 20) * np.exp(1j * np.radians(phase)))
 
 
 def trajectory_channel_gains(info: dict[str, Any]) -> ChannelGains | None:

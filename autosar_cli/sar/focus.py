@@ -35,7 +35,7 @@ from autosar_cli.nav.trajectory import (
     radar_side,
 )
 from autosar_cli.sar.backprojection import PulseBlock, backproject_block
-from autosar_cli.sar.channel_gains import ChannelGains, trajectory_channel_gains
+from autosar_cli.sar.channel_gains import ChannelGains, stated_channel_gains, trajectory_channel_gains
 from autosar_cli.sar.grid import FocusGrid, GridError, box_grid, check_image_size, track_grid
 from autosar_cli.sar.range_compression import range_compress_into
 from autosar_cli.sar.stripmap import (
@@ -68,7 +68,8 @@ class FocusOptions:
     min_speed_mps: float = 0.2  #: frames slower than this are skipped (no synthetic aperture)
     radar: str | None = None  #: the drive's radar stream to focus (``/radar/<name>``; None: its first)
     #: the front end's channel gains, undone before the channels are summed, where the trajectory carries none
-    #: (its ``info["channel_gains"]``: those its autofocus measured and applied, or the truth's); None: matched
+    #: (its ``info["channel_gains"]``: those its autofocus measured and applied, or the truth's); None: those the
+    #: drive's radar states (a TI capture's calibration), else matched channels
     channel_gains: ChannelGains | None = None
 
     def __post_init__(self) -> None:
@@ -307,7 +308,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
             rp.tx_start_offsets_s
         n_bins, bin_m, cycles_per_m, wavelength = rp.n_bins, rp.bin_m, rp.cycles_per_m, rp.wavelength_m
         pairs = channel_pairs(rp.n_tx, rp.n_rx, options.channels)
-        gains = trajectory_channel_gains(traj.info) or options.channel_gains
+        gains = trajectory_channel_gains(traj.info) or options.channel_gains or stated_channel_gains(radar.attrs)
         correction = [None] * len(pairs) if gains is None else list(gains.correction(pairs))
         geometry = _usable_frames(radar, traj, config, options.min_speed_mps)
         if geometry.frames.size < 2:

@@ -48,7 +48,7 @@ from numpy.typing import NDArray
 from autosar_cli.config import Config
 from autosar_cli.nav.trajectory import phase_centre_lever_arm, radar_track, track_scale_std, zero_doppler_times
 from autosar_cli.sar.autofocus import scale_track
-from autosar_cli.sar.channel_calibration import ChannelCalibration, measure_channel_gains
+from autosar_cli.sar.channel_calibration import ChannelCalibration, measure_channel_gains, with_stated_gains
 from autosar_cli.sar.channel_gains import ChannelGains
 from autosar_cli.sar.fast_motion import FastMotion, FastMotionOptions, closest_approach_ns, fast_motion
 from autosar_cli.sar.focus import FocusOptions
@@ -913,7 +913,7 @@ def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, co
     measure, with no truth (:func:`residual_motion_of_points`), then, unless ``opts.fast_motion`` is off, by the
     fast across-track motion that many scatterers measure along that track (:mod:`autosar_cli.sar.fast_motion`;
     ``fast``: its options)."""
-    focus = focus or FocusOptions.from_config(config)
+    focus = with_stated_gains(drive_path, focus or FocusOptions.from_config(config))
     opts = opts or AutofocusOptions.from_config(config)
     fast = (fast or FastMotionOptions()) if opts.fast_motion else None
     points, scatterers, t_zero = points_and_scatterers(drive_path, trajectory, config, focus, opts, fast)
