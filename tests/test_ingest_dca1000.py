@@ -663,6 +663,7 @@ def test_the_sdk_cfgs_channel_calibration_is_the_drives_stated_gains(tmp_path: P
     cfg.write_text(cfg.read_text().replace("sensorStart", line + "\nsensorStart"))
     code, stderr = cli_ingest(cap, tmp_path / "d.h5")
     assert code == 0, stderr
+    assert "range bias 0.05 m is not applied" in stderr
     with Drive(tmp_path / "d.h5") as d:
         attrs = dict(d.radar().attrs)
     gains = 1.0 / coeff.reshape(3, 4)

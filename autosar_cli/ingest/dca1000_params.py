@@ -62,6 +62,7 @@ class CaptureParams:
     #: the SDK's ``compRangeBiasAndRxChanPhase`` coefficients (re, im) per (Tx, Rx) of the device, Tx-major, 4 Rx
     #: each: what TI multiplies each virtual channel by to calibrate it (() where the file states none)
     channel_compensation: tuple[tuple[float, float], ...] = ()
+    range_bias_m: float = 0.0  #: its range bias (m): not applied, ingest warns where it is not 0
 
     @property
     def start_frequency_hz(self) -> float:
@@ -265,7 +266,8 @@ def parse_sdk_cfg(path: Path) -> CaptureParams:
                                    "2 x 4 Rx x the device's Tx (17 or 25)")
             if any(re == 0.0 and im == 0.0 for re, im in pairs):
                 raise CaptureError(f"{src}: compRangeBiasAndRxChanPhase zeroes a channel: it cannot be undone")
-            params = replace(params, channel_compensation=tuple(pairs))
+            params = replace(params, channel_compensation=tuple(pairs),
+                             range_bias_m=float(one("compRangeBiasAndRxChanPhase", 1)[0]))
     except (ValueError, IndexError) as exc:
         raise CaptureError(f"{src}: unreadable value ({exc})") from None
     if set(params.chirp_tx) - set(_mask_bits(tx_mask)):

@@ -387,6 +387,9 @@ class _Ingest:
                       "layout": "frame, tx, rx, sample, I/Q"})
         info = write_capture_stream(self.writer, group, cap, frame_starts, attrs, progress)
         self.warnings.extend(cap.warnings)  # after the stream: the PRIs left out are known once it is read
+        if cap.params.range_bias_m:
+            self.warnings.append(f"{cap.params.source}: compRangeBiasAndRxChanPhase's range bias "
+                                 f"{cap.params.range_bias_m:g} m is not applied: ranges as the capture measures them")
         self.streams[group] = _Finished(info)
         return cap.num_pris
 
