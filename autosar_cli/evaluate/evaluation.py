@@ -50,7 +50,6 @@ from autosar_cli.nav.trajectory import (
     radar_track,
     zero_doppler_times,
 )
-from autosar_cli.sar.channel_gains import ChannelGains
 from autosar_cli.sar.focus import FocusOptions, focus_images
 from autosar_cli.sar.grid import FocusGrid, track_distance, track_lattice
 from autosar_cli.sim.scene import KINDS
@@ -99,20 +98,15 @@ def load_truth(path: str | Path, origin: GeodeticOrigin, config: Config) -> Trut
     image's or a drive's). The trajectory carries the radar's true motion (``from_truth(radar_motion=True)``):
     the alignment, the trajectory errors and the peak-loss reference follow the phase centres the echoes came
     from, not the planar track of the car; and, where the simulator put them on, the front end's true channel
-    gains (its ``info["channel_gains"]``), which focusing along it undoes."""
+    gains (``from_truth``)."""
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"{p}: no such truth sidecar")
     with h5py.File(p, "r") as f:
         road = GeodeticOrigin(float(f.attrs["origin_lat_deg"]), float(f.attrs["origin_lon_deg"]),
                               float(f.attrs["origin_height_m"]))
-        phase, gain = (np.asarray(f.attrs.get(k, 0.0)) for k in ("channel_phase_deg", "channel_gain_db"))
     road_z = float(origin.to_enu(road.lat_deg, road.lon_deg, road.height_m)[2])
-    trajectory = from_truth(str(p), origin, config, radar_motion=True)
-    if np.any(phase != 0.0) or np.any(gain != 0.0):  # the front end's true channel gains: undone as focus would
-        gains = ChannelGains.from_complex(10 ** (gain / 20) * np.exp(1j * np.radians(phase)))
-        trajectory.info = {**trajectory.info, "channel_gains": gains.to_dict()}
-    return Truth(p, trajectory, read_targets(p, origin), road_z)
+    return Truth(p, from_truth(str(p), origin, config, radar_motion=True), read_targets(p, origin), road_z)
 
 
 @dataclass(frozen=True)

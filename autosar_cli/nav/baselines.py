@@ -74,7 +74,9 @@ def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config, *, radar
     pitch, the grade's fore-aft offset of a radar mounted above the road, vibration), so that its body points
     follow the radar as it really moved. Focusing and the reflector metrics use it; the navigation benchmarks,
     which compare filter states, do not. Its height is the radar's above the road at the start (the grade, the
-    body's tilt and heave), which the focusing surface follows (:meth:`Trajectory.height_offset`).
+    body's tilt and heave), which the focusing surface follows (:meth:`Trajectory.height_offset`). Where the
+    simulator gave the radar's channels their own phase and gain, its ``info["channel_gains"]`` holds them (focus
+    undoes them along it).
     """
     import h5py
 
@@ -89,6 +91,10 @@ def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config, *, radar
         yaw_rate = tr["yaw_rate"][()]
         truth_origin = GeodeticOrigin(float(f.attrs["origin_lat_deg"]), float(f.attrs["origin_lon_deg"]),
                                       float(f.attrs["origin_height_m"]))
+        # the front end's true channel gains, where the simulator put them on: focusing along the truth undoes them
+        gains = {"phase_deg": np.asarray(f.attrs["channel_phase_deg"]).tolist(),
+                 "gain_db": np.asarray(f.attrs["channel_gain_db"]).tolist()} \
+            if np.any(f.attrs.get("channel_phase_deg", 0.0)) or np.any(f.attrs.get("channel_gain_db", 0.0)) else None
         radar = f.get("radar")
         phase_centres = None
         if radar_motion and radar is not None and len(radar["t_ns"]):
@@ -103,6 +109,8 @@ def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config, *, radar
     psi = np.unwrap(np.arctan2(ahead[:, 1] - enu[:, 1], ahead[:, 0] - enu[:, 0]))
     psi += np.round((heading[0] - psi[0]) / (2 * np.pi)) * 2 * np.pi
     traj = Trajectory("truth", t_ns, enu[:, :2], psi, speed, yaw_rate, origin, **_geometry(config))
+    if gains is not None:
+        traj.info = {**traj.info, "channel_gains": gains}
     if phase_centres is not None:
         traj.correction = _radar_motion(traj, truth_origin, config, *phase_centres)
     return traj
