@@ -57,6 +57,8 @@ def _write_variant(tmp_path: Path, pattern: str, replacement: str) -> Path:
         (r"^roll_axis_height_m = .*$", "roll_axis_height_m = 0.9", "vehicle.roll_axis_height_m"),
         (r"^outages = \[\]", "outages = [[12.0, -3.0]]", "sensors.gnss_cog.gnss.outages[0]"),
         (r"^multipath = \[\]", "multipath = [[12.0, 3.0, 1.0]]", "sensors.gnss_cog.gnss.multipath[0]"),
+        (r"^channel_phase_std_deg = .*$", "channel_phase_std_deg = -30.0", "simulation.channel_phase_std_deg"),
+        (r"^autofocus_channel_gains = .*$", 'autofocus_channel_gains = "yes"', "processing.autofocus_channel_gains"),
     ],
 )
 def test_bad_values_are_rejected_naming_the_key(tmp_path, pattern, replacement, key):
