@@ -1,7 +1,7 @@
 """The radar's channel gains measured on the drive's own still points, with no calibration target.
 
 Each candidate point's echoes (:func:`autosar_cli.sar.phase_history.gather_phase_histories`, the channels the image
-sums, within ``half_beam_deg`` of broadside, every ``frame_step``-th frame) are back-projected onto it pulse by
+sums, within ``half_beam_deg`` of broadside, in runs of ``frame_runs``) are back-projected onto it pulse by
 pulse, channel by channel, along the navigated track. A pulse's channels lie millimetres apart, so the track's
 error, however large, puts one phase on all of them: the pulse's channel cross-products ``z z^H`` hold the channels'
 own gains, and summed over the point's pulses they make its (C, C) cross-spectral matrix. A point scatterer's is of
@@ -38,11 +38,12 @@ Array = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class ChannelCalibrationOptions:
-    half_beam_deg: float = 8.0  #: each point's pulses within this of broadside
+    half_beam_deg: float = 10.0  #: each point's pulses within this of broadside
     window_bins: int = 8  #: range bins kept around each pulse's expected range
-    #: every so many frames: a pulse's cross-products need no neighbour, and a point's 70-400 pulses at this step
-    #: measure its channels to a fraction of a degree (test1-2)
-    frame_step: int = 4
+    #: the frames read, runs of ``run`` in every ``period`` (:func:`~autosar_cli.sar.phase_history.
+    #: gather_phase_histories`): a pulse's cross-products need no neighbour, and one chunk of the raw cube (64
+    #: frames) in four reads a quarter of it (test2 seed 1: 0.7 s for every fourth frame, which reads it all)
+    frame_runs: tuple[int, int] = (64, 256)
     min_coherence: float = 0.9  #: a point's largest eigenvalue's share of its matrix's trace
     agree_deg: float = 15.0  #: points whose gains agree within this RMS phase (deg) form one set
     min_points: int = 2  #: fewer agreeing points: not measured
@@ -154,7 +155,7 @@ def measure_channel_gains(drive_path: str | Path, trajectory: Trajectory, config
                                   len(points), pairs=pairs)
     hist = gather_phase_histories(drive_path, trajectory, config, points, replace(focus, channel_gains=None),
                                   half_beam_deg=opts.half_beam_deg, window_bins=opts.window_bins,
-                                  channels=focus.channels, pairs=pairs, frame_step=opts.frame_step)
+                                  channels=focus.channels, pairs=pairs, frame_runs=opts.frame_runs)
     tx, rx = pair_antennas(hist, trajectory, config)
     z = np.stack([focus_history(hist, tx, rx, points, channels=slice(c, c + 1))[0] for c in range(len(pairs))],
                  axis=1)

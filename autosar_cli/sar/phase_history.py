@@ -66,12 +66,13 @@ def frame_geometry(traj: Trajectory, t_ns: NDArray[np.int64], config: Config) ->
 def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Config, points_enu: Array,
                            focus: FocusOptions, *, half_beam_deg: float, window_bins: int, channels: int,
                            block_frames: int = 256, pairs: list[tuple[int, int]] | None = None,
-                           frame_step: int = 1) -> PhaseHistories:
+                           frame_runs: tuple[int, int] | None = None) -> PhaseHistories:
     """Read and range-compress (``channels``, sar.focus.channel_pairs, or the (Tx, Rx) ``pairs`` given;
     ``focus``'s window and upsampling) the frames that see ``points_enu`` (P, 3) (ENU m) within ``half_beam_deg``
     of broadside, and keep ``window_bins`` bins around each point's range per pulse and channel (one pass over the
-    radar data). ``focus.channel_gains``, where given, are undone on the windows kept; ``frame_step``: only every
-    so many of the drive's frames."""
+    radar data). ``focus.channel_gains``, where given, are undone on the windows kept; ``frame_runs`` (run,
+    period): only the drive's frames ``i`` with ``i % period < run`` (runs of whole chunks of the raw cube, whose
+    reads are what a sparse sample of frames costs)."""
     points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
     w = int(window_bins)
     with Drive(drive_path) as drive:
@@ -85,8 +86,8 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         frames = np.flatnonzero((t_all >= traj.t_ns[0]) & (t_all + last_chirp_ns <= traj.t_ns[-1]))
         t = t_all[frames]
         seen = _seen(traj, t, config, points, _moving(traj, t, focus), half_beam_deg)
-        if frame_step > 1:
-            seen[np.arange(len(t)) % frame_step != 0] = False
+        if frame_runs is not None:
+            seen[frames % frame_runs[1] >= frame_runs[0]] = False
         used = np.flatnonzero(seen.any(axis=1))
         # every (frame, point) pair in frame order, its samples written in place (joining per-block lists at the
         # end would cost as much again as taking the windows: test2's 130 MB)
@@ -96,8 +97,10 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         bin0 = np.empty((n_pairs, len(pairs)), np.int64)
         tx_idx = np.array([p[0] for p in pairs])
         rx_idx = np.array([p[1] for p in pairs])
-        starts = range(0, len(used), block_frames)
-        blocks = [used[start:start + block_frames] for start in starts]
+        starts = list(range(0, len(used), block_frames))
+        if frame_runs is not None:  # no block spans the frames between two runs: their chunks are not read
+            starts = sorted(set(starts) | set((np.flatnonzero(np.diff(frames[used]) > 1) + 1).tolist()))
+        blocks = [used[a:b] for a, b in zip(starts, starts[1:] + [len(used)], strict=True)]
         pc = radar_phase_centres(traj, t[used], offsets, config)  # elementwise in time: once for all blocks
         tx_all, rx_all = pc.tx[:, tx_idx], pc.rx[:, tx_idx, rx_idx]  # (U, C, 3)
         ramp = reference_ramp(rp.n_samples, n_bins, fs, slope)
