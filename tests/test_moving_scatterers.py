@@ -76,7 +76,8 @@ def test_autofocus_leaves_out_points_that_cross_the_beam(tmp_path: Path) -> None
     phases fit one; its two channels (the virtual array's ends, along the road) see it off that direction. The ci
     drive's corner reflectors walking towards the road at 0.5 m/s, and nothing else bright (taken as still, on the
     full vehicle, they put 4.46 mm RMS into the track): each one's channels' phase is over 0.5 rad (2.7-3.0), so
-    they are left out and the autofocus refuses, naming them."""
+    they are left out and the autofocus refuses, naming them. Their channels agree with one another, but as a ramp
+    along the array, which the channel gains' measurement leaves to them."""
     # ci drives east, the radar looks right: towards the road is +y
     manifest, out = _run(tmp_path, "walking", scene=_ci_scene((0.0, 0.5, 0.0)))
     stage = manifest["stages"]["autofocus"]
@@ -86,6 +87,9 @@ def test_autofocus_leaves_out_points_that_cross_the_beam(tmp_path: Path) -> None
     assert "moving point(s) left out" in stage["reason"] and "cross the beam" in stage["reason"]
     assert any("cross the beam" in w for w in manifest["warnings"]), manifest["warnings"]
     assert read_trajectory(out / "trajectory.h5", covariance=False).correction is None
+    # their common phase along the array, a ramp, is not taken for the channels' gains
+    gains = stage["channel_gains"]
+    assert not gains["applied"] and "ramp along the array" in gains["reason"], gains
 
 
 @pytest.mark.long

@@ -13,7 +13,8 @@ eigenvectors (coherence ``>= min_coherence``) agree within ``agree_deg`` RMS, fr
 matrices. The std of each channel's phase and gain is the spread of those points' own over their number.
 
 Applied only where the mismatch with what is assumed (matched channels, or the calibration a TI capture states)
-matters: its phase RMS of ``min_phase_rms_deg`` or its gain RMS of ``min_gain_rms_db``. Matched channels measure
+matters: its phase RMS of ``min_phase_rms_deg`` beyond a ramp along the array (which points crossing the beam alike
+show too: along-track interferometry), or its gain RMS of ``min_gain_rms_db``. Matched channels measure
 well under both (docs/FOCUS.md), and a mismatch below them costs the image's peak under 0.2 dB.
 """
 
@@ -29,7 +30,13 @@ from numpy.typing import NDArray
 from autosar_cli.config import Config
 from autosar_cli.sar.channel_gains import ChannelGains, stated_channel_gains
 from autosar_cli.sar.focus import FocusOptions, channel_pairs
-from autosar_cli.sar.phase_history import focus_history, gather_phase_histories, pair_antennas
+from autosar_cli.sar.phase_history import (
+    PhaseHistories,
+    focus_history,
+    frame_geometry,
+    gather_phase_histories,
+    pair_antennas,
+)
 from autosar_cli.store.drive import Drive
 from autosar_cli.types import Trajectory
 
@@ -68,6 +75,9 @@ class ChannelCalibration:
     gain_std_db: float = float("nan")
     peak_loss_db: float = float("nan")  #: what that mismatch costs a point's peak, channels summed
     pairs: list[tuple[int, int]] = field(default_factory=list)
+    #: the phases' RMS beyond their ramp along the array, and that ramp end to end (deg)
+    phase_beyond_ramp_rms_deg: float = float("nan")
+    ramp_deg: float = float("nan")
 
     def to_dict(self) -> dict[str, Any]:
         def num(v: float, nd: int) -> float | None:
@@ -78,7 +88,8 @@ class ChannelCalibration:
                 "points": self.points, "points_used": self.points_used,
                 "phase_rms_deg": num(self.phase_rms_deg, 2), "gain_rms_db": num(self.gain_rms_db, 3),
                 "phase_std_deg": num(self.phase_std_deg, 2), "gain_std_db": num(self.gain_std_db, 3),
-                "peak_loss_db": num(self.peak_loss_db, 3)}
+                "peak_loss_db": num(self.peak_loss_db, 3),
+                "phase_beyond_ramp_rms_deg": num(self.phase_beyond_ramp_rms_deg, 2), "ramp_deg": num(self.ramp_deg, 1)}
 
     def summary(self) -> str:
         if self.gains is None:
@@ -178,9 +189,28 @@ def measure_channel_gains(drive_path: str | Path, trajectory: Trajectory, config
     gain_std = float(np.median(np.sqrt(np.sum((20 * np.log10(np.abs(dev))) ** 2, axis=0) / k / used.sum())))
     phase_rms, gain_rms = float(np.degrees(np.sqrt(np.mean(phase**2)))), float(np.sqrt(np.mean(level**2)))
     loss = float(-10 * np.log10(np.abs(np.sum(rel)) ** 2 / (len(rel) * np.sum(np.abs(rel) ** 2))))
-    applied = phase_rms >= opts.min_phase_rms_deg or gain_rms >= opts.min_gain_rms_db
-    reason = "" if applied else (f"under {opts.min_phase_rms_deg:g} deg and {opts.min_gain_rms_db:g} dB RMS from "
-                                 + ("the channels as matched" if focus.channel_gains is None else
-                                    "the gains the drive states: those kept"))
+    # a phase linear along the array is also what points moving across the beam alike show (along-track
+    # interferometry): what the points measure of the channels is the rest
+    x = along_track_positions(hist, tx, rx, trajectory, config)
+    design = np.column_stack([np.ones_like(x), x])
+    ramp = design @ np.linalg.lstsq(design, phase, rcond=None)[0]
+    rest_rms = float(np.degrees(np.sqrt(np.mean((phase - ramp) ** 2))))
+    ramp_deg = float(np.degrees(ramp[np.argmax(x)] - ramp[np.argmin(x)]))
+    applied = rest_rms >= opts.min_phase_rms_deg or gain_rms >= opts.min_gain_rms_db
+    assumed_text = "the channels as matched" if focus.channel_gains is None else \
+        "the gains the drive states: those kept"
+    reason = "" if applied else (
+        f"a phase ramp along the array alone ({ramp_deg:+.0f} deg end to end), which points that cross the beam alike "
+        f"show as well: {assumed_text}" if phase_rms >= opts.min_phase_rms_deg else
+        f"under {opts.min_phase_rms_deg:g} deg and {opts.min_gain_rms_db:g} dB RMS from {assumed_text}")
     return ChannelCalibration(gains, applied, reason, len(points), int(used.sum()), phase_rms, gain_rms, phase_std,
-                              gain_std, loss, pairs)
+                              gain_std, loss, pairs, rest_rms, ramp_deg)
+
+
+def along_track_positions(hist: PhaseHistories, tx: Array, rx: Array, trajectory: Trajectory, config: Config
+                          ) -> Array:
+    """Each channel's bistatic midpoint along the track (C,) (m, about the channels' mean), from ``tx``, ``rx``
+    (N, C, 3) (ENU m, :func:`~autosar_cli.sar.phase_history.pair_antennas`), averaged over the pulses."""
+    along = frame_geometry(trajectory, hist.frame_t_ns, config)[2][hist.frame]  # (N, 3)
+    mid = 0.5 * (tx + rx)
+    return np.mean(np.einsum("nck,nk->nc", mid - mid.mean(axis=1, keepdims=True), along), axis=0)

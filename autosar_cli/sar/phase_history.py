@@ -100,7 +100,7 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         starts = list(range(0, len(used), block_frames))
         if frame_runs is not None:  # no block spans the frames between two runs: their chunks are not read
             starts = sorted(set(starts) | set((np.flatnonzero(np.diff(frames[used]) > 1) + 1).tolist()))
-        blocks = [used[a:b] for a, b in zip(starts, starts[1:] + [len(used)], strict=True)]
+        blocks = [used[a:b] for a, b in zip(starts, [*starts[1:], len(used)], strict=False)]
         pc = radar_phase_centres(traj, t[used], offsets, config)  # elementwise in time: once for all blocks
         tx_all, rx_all = pc.tx[:, tx_idx], pc.rx[:, tx_idx, rx_idx]  # (U, C, 3)
         ramp = reference_ramp(rp.n_samples, n_bins, fs, slope)
