@@ -20,7 +20,7 @@ well under both (docs/FOCUS.md), and a mismatch below them costs the image's pea
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from autosar_cli.config import Config
-from autosar_cli.sar.channel_gains import ChannelGains, stated_channel_gains
+from autosar_cli.sar.channel_gains import ChannelGains, normalised, stated_channel_gains
 from autosar_cli.sar.focus import FocusOptions, channel_pairs
 from autosar_cli.sar.phase_history import (
     PhaseHistories,
@@ -74,7 +74,6 @@ class ChannelCalibration:
     phase_std_deg: float = float("nan")  #: median over channels of each phase's std
     gain_std_db: float = float("nan")
     peak_loss_db: float = float("nan")  #: what that mismatch costs a point's peak, channels summed
-    pairs: list[tuple[int, int]] = field(default_factory=list)
     #: the phases' RMS beyond their ramp along the array, and that ramp end to end (deg)
     phase_beyond_ramp_rms_deg: float = float("nan")
     ramp_deg: float = float("nan")
@@ -109,11 +108,6 @@ def cross_spectra(z: NDArray[np.complexfloating], point: NDArray[np.int64], n_po
     return out
 
 
-def _normalised(g: NDArray[np.complex128]) -> NDArray[np.complex128]:
-    g = g / np.exp(1j * np.angle(g.sum()))
-    return g / np.exp(np.mean(np.log(np.maximum(np.abs(g), 1e-300))))
-
-
 def gains_from_spectra(spectra: NDArray[np.complex128], opts: ChannelCalibrationOptions
                        ) -> tuple[NDArray[np.complex128] | None, NDArray[np.bool_], NDArray[np.complex128]]:
     """The channels' complex gains (C,) from the points' cross-spectral matrices (P, C, C) (None where fewer than
@@ -126,7 +120,7 @@ def gains_from_spectra(spectra: NDArray[np.complex128], opts: ChannelCalibration
         if trace[p] <= 0:
             continue
         w, v = np.linalg.eigh(spectra[p])
-        coherence[p], own[p] = w[-1] / trace[p], _normalised(v[:, -1])
+        coherence[p], own[p] = w[-1] / trace[p], normalised(v[:, -1])
     candidates = np.flatnonzero(coherence >= opts.min_coherence)
     if len(candidates) < opts.min_points:
         return None, np.zeros(n, bool), own
@@ -140,7 +134,7 @@ def gains_from_spectra(spectra: NDArray[np.complex128], opts: ChannelCalibration
     if used.sum() < opts.min_points:
         return None, used, own
     total = np.sum(spectra[used] / trace[used, None, None], axis=0)
-    return _normalised(np.linalg.eigh(total)[1][:, -1]), used, own
+    return normalised(np.linalg.eigh(total)[1][:, -1]), used, own
 
 
 def with_stated_gains(drive_path: str | Path, focus: FocusOptions) -> FocusOptions:
@@ -163,7 +157,7 @@ def measure_channel_gains(drive_path: str | Path, trajectory: Trajectory, config
     pairs = channel_pairs(n_tx, n_rx, focus.channels)  # those the image sums
     if len(points) < opts.min_points or len(pairs) < 2:
         return ChannelCalibration(None, False, f"{len(points)} candidate point(s), {len(pairs)} channel(s)",
-                                  len(points), pairs=pairs)
+                                  len(points))
     hist = gather_phase_histories(drive_path, trajectory, config, points, replace(focus, channel_gains=None),
                                   half_beam_deg=opts.half_beam_deg, window_bins=opts.window_bins,
                                   channels=focus.channels, pairs=pairs, frame_runs=opts.frame_runs)
@@ -174,14 +168,14 @@ def measure_channel_gains(drive_path: str | Path, trajectory: Trajectory, config
     g, used, own = gains_from_spectra(spectra, opts)
     if g is None:
         return ChannelCalibration(None, False, f"fewer than {opts.min_points} point scatterers agree on them",
-                                  len(points), int(used.sum()), pairs=pairs)
+                                  len(points), int(used.sum()))
     grid, measured = np.ones((n_tx, n_rx), np.complex128), np.zeros((n_tx, n_rx), bool)
     for (t, r), v in zip(pairs, g, strict=True):
         grid[t, r], measured[t, r] = v, True
     gains = ChannelGains.from_complex(grid, measured)
     # against what the reads assume: the gains the drive states (or given), else matched channels
     assumed = np.ones(len(pairs)) if focus.channel_gains is None else 1.0 / focus.channel_gains.correction(pairs)
-    rel = _normalised(g / assumed)
+    rel = normalised(g / assumed)
     phase, level = np.angle(rel), 20 * np.log10(np.abs(rel))
     dev = own[used] / g[None, :]
     k = max(1, int(used.sum()) - 1)
@@ -204,7 +198,7 @@ def measure_channel_gains(drive_path: str | Path, trajectory: Trajectory, config
         f"show as well: {assumed_text}" if phase_rms >= opts.min_phase_rms_deg else
         f"under {opts.min_phase_rms_deg:g} deg and {opts.min_gain_rms_db:g} dB RMS from {assumed_text}")
     return ChannelCalibration(gains, applied, reason, len(points), int(used.sum()), phase_rms, gain_rms, phase_std,
-                              gain_std, loss, pairs, rest_rms, ramp_deg)
+                              gain_std, loss, rest_rms, ramp_deg)
 
 
 def along_track_positions(hist: PhaseHistories, tx: Array, rx: Array, trajectory: Trajectory, config: Config

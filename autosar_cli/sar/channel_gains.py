@@ -32,7 +32,8 @@ class ChannelGains:
         their magnitudes' geometric mean 1; the others 1 (0 deg, 0 dB)."""
         g = np.asarray(gains, dtype=np.complex128)
         m = np.ones(g.shape, bool) if measured is None else np.asarray(measured, bool)
-        g = np.where(m, g / np.exp(1j * np.angle(g[m].sum())) / np.exp(np.mean(np.log(np.abs(g[m])))), 1.0)
+        g = g.copy()
+        g[m], g[~m] = normalised(g[m]), 1.0
         return cls(tuple(tuple(round(float(v), 3) for v in row) for row in np.degrees(np.angle(g))),
                    tuple(tuple(round(float(v), 4) for v in row) for row in 20 * np.log10(np.abs(g))))
 
@@ -52,9 +53,15 @@ class ChannelGains:
         """What each of ``pairs`` (Tx, Rx) is multiplied by to undo its gain (C,), normalised over those pairs (so
         an image's level does not depend on the channels it leaves out)."""
         g = self.complex()
-        g = np.array([g[t, r] for t, r in pairs])
-        g = g / np.exp(1j * np.angle(g.sum())) / np.exp(np.mean(np.log(np.abs(g))))
-        return (1.0 / g).astype(np.complex64)
+        return (1.0 / normalised(np.array([g[t, r] for t, r in pairs]))).astype(np.complex64)
+
+
+def normalised(gains: NDArray[np.complexfloating]) -> NDArray[np.complex128]:
+    """Complex gains (any shape) with their sum's phase 0 and their magnitudes' geometric mean 1: a common phase or
+    gain changes no image."""
+    g = np.asarray(gains, dtype=np.complex128)
+    g = g / np.exp(1j * np.angle(g.sum()))
+    return g / np.exp(np.mean(np.log(np.maximum(np.abs(g), 1e-300))))
 
 
 def stated_channel_gains(radar_attrs: Any) -> ChannelGains | None:

@@ -284,8 +284,8 @@ class ResidualMotion:
 
     def summary(self) -> str:
         """One line: what was corrected, or why nothing was."""
-        gains = "" if self.channel_gains is None or self.channel_calibration is None else \
-            self.channel_calibration.summary() + "; "
+        cal = self.channel_calibration
+        gains = f"{cal.summary()}; " if cal is not None and cal.applied else ""
         slow = "" if self.slow_motion is None else self.slow_motion.summary() + "; "
         fast = "" if self.fast_motion is None else "; " + self.fast_motion.summary()
         if self.reason:  # which says what moved, where that left too few points
