@@ -240,6 +240,9 @@ class SimulationConfig:
     # their sum; 0 (the config's): channels matched, as the processor assumes unless it calibrates them
     channel_phase_std_deg: float = 0.0
     channel_gain_std_db: float = 0.0
+    # the radar's frame stamps minus the instants its frames start (s): a capture timed by its host's clock or a sync
+    # message that is not the first frame's trigger; 0 (the config's): stamped exactly, as the processor assumes
+    radar_clock_offset_s: float = 0.0
     # "kinematic": planar kinematic bicycle on a level road (the motion SAR-MIN assumes); "full": single-track
     # dynamics with tyre slip, body roll/pitch/heave on the suspension, a rough road ([vehicle_dynamics]).
     dynamics: Literal["kinematic", "full"] = "full"
@@ -661,6 +664,9 @@ def _validate(cfg: Config) -> None:
         _non_negative("simulation.vibration_horizontal_rms_m", sim.vibration_horizontal_rms_m)
         _non_negative("simulation.channel_phase_std_deg", sim.channel_phase_std_deg)
         _non_negative("simulation.channel_gain_std_db", sim.channel_gain_std_db)
+        if not (math.isfinite(sim.radar_clock_offset_s) and abs(sim.radar_clock_offset_s) <= 1.0):
+            raise ConfigError(f"simulation.radar_clock_offset_s: {sim.radar_clock_offset_s} is not a time offset of at "
+                              "most 1 s either way")
         for i, rider in enumerate(sim.cyclists):
             _finite_vector(f"simulation.cyclists[{i}]", rider)
         lo, hi = sim.vibration_band_hz

@@ -175,7 +175,7 @@ def test_a_slip_gains_error_is_fitted_from_the_points_seen_through_a_braking() -
     braked = np.array([np.any((tbs[point == j] > 8.5) & (tbs[point == j] < t_stop - 0.5)) for j in range(len(pts))])
     results = {}
     for on in (True, False):
-        opts = PassOptions(slip_gains=on)
+        opts = PassOptions(slip_gains=on, radar_clock_std_s=0.0)
         sigma, span = point_sigmas(blocks, traj, clock, opts)
         good = (sigma <= opts.max_point_sigma_m) & (span >= opts.min_span_m)
         res = _fit(blocks, traj, CFG, clock, opts, good, sigma)
@@ -201,7 +201,7 @@ def test_a_slip_gains_error_is_fitted_from_the_points_seen_through_a_braking() -
     cov = np.zeros((len(traj.t_ns), len(names), len(names)))
     cov[:, 5, 5] = np.radians(0.002) ** 2
     stated = replace(traj, state_names=names, covariance=cov)
-    opts = PassOptions()
+    opts = PassOptions(radar_clock_std_s=0.0)
     sigma, span = point_sigmas(blocks, stated, clock, opts)
     with_bias = _fit(blocks, stated, CFG, clock, opts, (sigma <= opts.max_point_sigma_m) & (span >= opts.min_span_m),
                      sigma)
@@ -312,3 +312,84 @@ def test_the_config_turns_the_slow_motion_on() -> None:
     raw["processing"]["autofocus_slow_motion"] = "yes"
     with pytest.raises(ConfigError, match="autofocus_slow_motion"):
         config_from_dict(raw)
+
+
+def _stop_and_go_blocks(err_of_t, seed: int = 7):
+    """The roadside points of :func:`test_a_slip_gains_error_is_fitted_from_the_points_seen_through_a_braking`,
+    each seen from 70 deg ahead to broadside, their paths measured to 0.5 mm, the track ``err_of_t(t)`` (m, t in s)
+    ahead of the truth along it: the stop and go, its blocks (no radar) and its 0.1 s block times."""
+    from conftest import stop_and_go
+
+    from autosar_cli.sar.pass_ranges import PassBlocks
+
+    traj, speed = stop_and_go()
+    t_ns = traj.t_ns[::20]
+    x = np.interp(t_ns, traj.t_ns, traj.rear_axle_enu[:, 0])
+    err = err_of_t((t_ns - traj.t_ns[0]) / 1e9, speed)
+    rng = np.random.default_rng(seed)
+    rows = []
+    for j, px in enumerate(np.arange(12.0, x[-1] - 2.0, 20.0)):
+        p = np.array([px, -6.0, 0.0])
+        ahead = px - x
+        seen = (ahead > -0.5) & (np.degrees(np.arctan2(ahead, 6.0)) < 70.0)
+        radar = np.column_stack([x[seen], np.zeros(seen.sum()), np.full(seen.sum(), 0.5)])
+        los = (radar - p) / np.linalg.norm(radar - p, axis=1)[:, None]
+        rows.append((np.full(seen.sum(), j), t_ns[seen], los,
+                     -2 * los[:, 0] * err[seen] + rng.normal(0.0, 0.0005, seen.sum())))
+    point, tb, los, offset = (np.concatenate([r[i] for r in rows]) for i in range(4))
+    n = len(tb)
+    blocks = PassBlocks(point, tb, los, np.tile([1.0, 0.0, 0.0], (n, 1)), np.tile([0.0, -1.0, 0.0], (n, 1)), offset,
+                        np.zeros(n), np.ones(n, dtype=bool), int(point.max()) + 1)
+    return traj, blocks, t_ns, err
+
+
+@pytest.mark.parametrize("late_ms", [12.0, -6.0, 0.0])
+def test_a_radar_clock_running_late_is_measured_where_the_speed_changes(late_ms: float) -> None:
+    """The radar's frame stamps ``late_ms`` behind the instants its frames started (a capture on its host's clock):
+    focusing along a right track at those stamps puts the radar ahead by its speed times that, 6 cm at 5 m/s for
+    12 ms, 0 through the stop. The passes measure the offset where the speed changes (within 3 std, the std under
+    1 ms) and take out its drift; with none, the offset is not shown and the fit is the one without it, bit for
+    bit."""
+    from autosar_cli.sar.pass_ranges import fit_blocks
+
+    delta = late_ms / 1e3
+    traj, blocks, t_ns, err = _stop_and_go_blocks(lambda t, speed: delta * speed(t))
+    res = fit_blocks(blocks, traj, CFG, PassOptions())
+    held = fit_blocks(blocks, traj, CFG, PassOptions(radar_clock_std_s=0.0))
+    assert res.applied and held.applied
+    along = err + res.correction.at(t_ns)[:, 0]
+    along_held = err + held.correction.at(t_ns)[:, 0]
+    print(f"{late_ms:+.0f} ms late: measured {1e3 * res.radar_clock_offset_s:+.2f} ± "
+          f"{1e3 * res.radar_clock_offset_std_s:.2f} ms, applied {res.radar_clock_applied}; along-track error "
+          f"{observable_rms(err) * 1e3:.1f} mm RMS about its mean -> {observable_rms(along) * 1e3:.2f} mm "
+          f"(the fit without the clock {observable_rms(along_held) * 1e3:.2f} mm); {res.summary()}")
+    assert res.radar_clock_offset_std_s < 0.001
+    assert abs(res.radar_clock_offset_s - delta) < 3 * res.radar_clock_offset_std_s
+    assert res.to_dict()["radar_clock"]["applied"] is res.radar_clock_applied
+    if late_ms:
+        assert res.radar_clock_applied and "ms late on the navigation's clock" in res.summary()
+        assert observable_rms(along) < 0.1 * observable_rms(err)
+        assert observable_rms(along_held) > 2 * observable_rms(along)
+    else:
+        assert not res.radar_clock_applied and "ms late" not in res.summary()
+        assert np.array_equal(res.correction.offset_enu, held.correction.offset_enu)
+
+
+def test_a_slip_gains_error_is_not_taken_for_the_radar_clock() -> None:
+    """The stop and go's slip gains off (brake +0.4 %, drive -0.4 % per m/s^2, as in the test above): their drift
+    follows v^2 through each braking and pull-away, the clock's v, so the passes keep the gains and show no clock
+    offset: the fit is the one without the clock."""
+    from autosar_cli.sar.pass_ranges import fit_blocks
+
+    def slip_error(t, speed):
+        v, t_stop = speed(t), 8.0 + 5.0 / 1.7
+        brake = np.where(t < 8.0, 0.0, np.where(t < t_stop, (v**2 - 25.0) / 2, -12.5))
+        return 0.004 * brake - 0.004 * np.where(t < t_stop + 3.0, 0.0, v**2 / 2)
+
+    traj, blocks, t_ns, err = _stop_and_go_blocks(slip_error)
+    res = fit_blocks(blocks, traj, CFG, PassOptions())
+    print(f"measured {1e3 * res.radar_clock_offset_s:+.2f} ± {1e3 * res.radar_clock_offset_std_s:.2f} ms; "
+          f"{res.summary()}")
+    assert res.applied and not res.radar_clock_applied
+    assert abs(res.radar_clock_offset_s) < 3 * res.radar_clock_offset_std_s
+    assert np.all(np.abs(res.slip_gain_error - [-0.004, 0.004]) < 3 * res.slip_gain_error_std)

@@ -76,7 +76,9 @@ def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config, *, radar
     which compare filter states, do not. Its height is the radar's above the road at the start (the grade, the
     body's tilt and heave), which the focusing surface follows (:meth:`Trajectory.height_offset`). Where the
     simulator gave the radar's channels their own phase and gain, its ``info["channel_gains"]`` holds them (focus
-    undoes them along it).
+    undoes them along it). Where it stamped the radar's frames late (``radar_clock_offset_s``), the radar's motion
+    is given on the radar's clock: each instant that much later, so that focusing along it at the frames' stamps
+    finds the radar where it was.
     """
     import h5py
 
@@ -95,6 +97,8 @@ def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config, *, radar
         gains = {"phase_deg": np.asarray(f.attrs["channel_phase_deg"]).tolist(),
                  "gain_db": np.asarray(f.attrs["channel_gain_db"]).tolist()} \
             if np.any(f.attrs.get("channel_phase_deg", 0.0)) or np.any(f.attrs.get("channel_gain_db", 0.0)) else None
+        # the radar's frame stamps run this late: its motion is given on that clock
+        clock_ns = int(round(float(f.attrs.get("radar_clock_offset_s", 0.0)) * 1e9)) if radar_motion else 0
         radar = f.get("radar")
         phase_centres = None
         if radar_motion and radar is not None and len(radar["t_ns"]):
@@ -108,7 +112,7 @@ def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config, *, radar
     ahead = origin.to_enu(*ref)
     psi = np.unwrap(np.arctan2(ahead[:, 1] - enu[:, 1], ahead[:, 0] - enu[:, 0]))
     psi += np.round((heading[0] - psi[0]) / (2 * np.pi)) * 2 * np.pi
-    traj = Trajectory("truth", t_ns, enu[:, :2], psi, speed, yaw_rate, origin, **_geometry(config))
+    traj = Trajectory("truth", t_ns + clock_ns, enu[:, :2], psi, speed, yaw_rate, origin, **_geometry(config))
     if gains is not None:
         traj.info = {**traj.info, "channel_gains": gains}
     if phase_centres is not None:

@@ -101,6 +101,15 @@ class PassOptions:
     #: the navigation's drive and brake slip gains are fitted again, within the std it stated, as a drift along the
     #: track wherever the car speeds up or slows down (:func:`~autosar_cli.nav.wheel_speeds.slip_gain_drift`)
     slip_gains: bool = True
+    #: prior std (s) of how late the radar's frame stamps run against the navigation's clock (a capture on its
+    #: host's clock, a sync message that is not the first frame's trigger): the track is then ahead along by the
+    #: radar's speed times it. Fitted beside the rest where the speed changes, and applied only where the passes
+    #: show it (:func:`radar_clock_significant`); 0: not fitted
+    radar_clock_std_s: float = 0.05
+    #: applied where it is this many of its std from 0 ...
+    radar_clock_min_sigmas: float = 4.0
+    #: ... and moves the track by at least this much at its fastest (m)
+    radar_clock_min_effect_m: float = 0.002
 
 
 @dataclass(frozen=True)
@@ -147,6 +156,11 @@ class SlowMotion:
     #: what the navigation's yaw-rate uncertainty leaves in it (:func:`heading_ramp_scale_std`)
     scale: float = 0.0
     scale_std: float = 0.0
+    #: how late the radar's frame stamps run against the navigation's clock (s), and its std, as the passes measure
+    #: it (nan where not fitted); applied: the correction holds it (its along-track part, the radar's speed times it)
+    radar_clock_offset_s: float = float("nan")
+    radar_clock_offset_std_s: float = float("nan")
+    radar_clock_applied: bool = False
 
     @property
     def applied(self) -> bool:
@@ -163,6 +177,9 @@ class SlowMotion:
             out["slip_gain_error"] = {mode: {"value": float(v), "std": float(sd)} for mode, v, sd in
                                       zip(("drive", "brake"), self.slip_gain_error, self.slip_gain_error_std,
                                           strict=True)}
+        if np.isfinite(self.radar_clock_offset_s):
+            out["radar_clock"] = {"offset_s": self.radar_clock_offset_s, "std_s": self.radar_clock_offset_std_s,
+                                  "applied": self.radar_clock_applied}
         if c is not None:
             mag = np.linalg.norm(c.offset_enu, axis=-1)
             out["correction"] = {"rms_mm": round(float(1e3 * np.sqrt(np.mean(mag**2))), 3),
@@ -180,7 +197,10 @@ class SlowMotion:
                         for mode, g in self.to_dict().get("slip_gain_error", {}).items())
         return (f"slow motion corrected by {c['rms_mm']:.1f} mm RMS ({c['max_mm']:.1f} max, ±{c['std_median_mm']:.1f}"
                 f" mm) from {int(self.points_used.sum())} points' ranges over their passes"
-                + (f" (the navigation's slip gains off by{gains[1:]} per m/s²)" if gains else ""))
+                + (f" (the navigation's slip gains off by{gains[1:]} per m/s²)" if gains else "")
+                + (f"; the radar's frame stamps {1e3 * self.radar_clock_offset_s:+.1f} ± "
+                   f"{1e3 * self.radar_clock_offset_std_s:.1f} ms late on the navigation's clock, taken out"
+                   if self.radar_clock_applied else ""))
 
 
 def pass_histories(drive_path: str | Path, trajectory: Trajectory, config: Config, points_enu: Array,
@@ -263,6 +283,35 @@ def slip_drift(trajectory: Trajectory, t_ns: NDArray[np.int64], opts: PassOption
     return slip_gain_drift(trajectory, t_ns)
 
 
+def radar_clock_drift(trajectory: Trajectory, clock: tuple[Array, Array], t_ns: NDArray[np.int64],
+                      opts: PassOptions) -> tuple[Array, Array]:
+    """(N, 1): how far along (m) the track puts the radar at ``t_ns`` per second its frame stamps run late (the
+    radar's speed, from ``clock``: :func:`_travel`), and the prior std (1,) (s); (N, 0) and (0,) where
+    ``opts.radar_clock_std_s`` is 0."""
+    if opts.radar_clock_std_s <= 0.0:
+        return np.zeros((len(t_ns), 0)), np.zeros(0)
+    t_s, travel = clock
+    speed = np.gradient(travel, t_s) if len(t_s) > 1 else np.zeros(len(t_s))
+    return np.interp((np.asarray(t_ns) - trajectory.t_ns[0]) / 1e9, t_s, speed)[:, None], np.array(
+        [opts.radar_clock_std_s])
+
+
+def along_drifts(trajectory: Trajectory, clock: tuple[Array, Array], t_ns: NDArray[np.int64], opts: PassOptions
+                 ) -> tuple[Array, Array]:
+    """The along-track drifts the slow motion fits beside its nodes, per unit of each (N, G) (m), and their prior
+    std (G,): the slip gains' (:func:`slip_drift`), then the radar clock's (:func:`radar_clock_drift`)."""
+    slip, slip_std = slip_drift(trajectory, t_ns, opts)
+    late, late_std = radar_clock_drift(trajectory, clock, t_ns, opts)
+    return np.hstack([slip, late]), np.concatenate([slip_std, late_std])
+
+
+def radar_clock_significant(offset_s: float, std_s: float, speed_mps: float, opts: PassOptions) -> bool:
+    """Whether a radar clock offset the passes measured (s, and its std) is shown (``opts.radar_clock_min_sigmas``
+    from 0) and matters (the track moved by ``opts.radar_clock_min_effect_m`` at ``speed_mps``, the fastest)."""
+    return bool(abs(offset_s) >= opts.radar_clock_min_sigmas * std_s
+                and abs(offset_s) * speed_mps >= opts.radar_clock_min_effect_m)
+
+
 def point_sigmas(blocks: PassBlocks, trajectory: Trajectory, clock: tuple[Array, Array], opts: PassOptions
                  ) -> tuple[Array, Array]:
     """Per point: the robust std (m) of its blocks about its own fit (its 3-D shift, the track's stretch about it,
@@ -271,7 +320,7 @@ def point_sigmas(blocks: PassBlocks, trajectory: Trajectory, clock: tuple[Array,
     t_s, travel = clock
     s = np.interp((blocks.t_ns - trajectory.t_ns[0]) / 1e9, t_s, travel)
     ramps = gap_ramps(blocks.t_ns, _gaps(trajectory, opts))
-    drift, drift_std = slip_drift(trajectory, blocks.t_ns, opts)
+    drift, drift_std = along_drifts(trajectory, clock, blocks.t_ns, opts)
     sigma, span = np.full(blocks.n_points, np.inf), np.zeros(blocks.n_points)
     for j in range(blocks.n_points):
         m = (blocks.point == j) & blocks.usable
@@ -284,7 +333,8 @@ def point_sigmas(blocks: PassBlocks, trajectory: Trajectory, clock: tuple[Array,
                   and min(np.sum(ramps[m, g] == 0.0), np.sum(ramps[m, g] == 1.0)) >= opts.min_blocks // 2]
         design = np.column_stack([u_along * (sj - sj.mean()), 2 * u, u_along[:, None] * ramps[m][:, inside],
                                   u_along[:, None] * (drift[m] - drift[m].mean(axis=0))])
-        # the slip gains within their stated std (a prior row each, at the point's own noise level so far)
+        # the slip gains within their stated std, the radar clock within its prior (a prior row each, at the
+        # point's own noise level so far)
         prior = np.zeros((len(drift_std), design.shape[1]))
         prior[:, design.shape[1] - len(drift_std):] = np.diag(1.0 / drift_std)
         keep, sg = np.ones(len(y), dtype=bool), opts.max_point_sigma_m
@@ -311,22 +361,46 @@ def estimate_slow_motion(drive_path: str | Path, trajectory: Trajectory, config:
     focus = focus or FocusOptions.from_config(config)
     opts = opts or PassOptions()
     points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
-    n_pts = len(points)
+    if len(points) == 0:
+        return _refused(trajectory, 0, "no bright point")
+    return fit_blocks(pass_blocks(drive_path, trajectory, config, points, focus, opts, histories), trajectory, config,
+                      opts)
 
-    def refused(reason: str, sigma: Array | None = None) -> SlowMotion:
-        return SlowMotion(trajectory, None, np.zeros((n_pts, 3)), np.zeros(n_pts, dtype=bool),
-                          np.full(n_pts, np.inf) if sigma is None else sigma, float("nan"), reason)
 
-    if n_pts == 0:
-        return refused("no bright point")
-    blocks = pass_blocks(drive_path, trajectory, config, points, focus, opts, histories)
+def _refused(trajectory: Trajectory, n_pts: int, reason: str, sigma: Array | None = None) -> SlowMotion:
+    return SlowMotion(trajectory, None, np.zeros((n_pts, 3)), np.zeros(n_pts, dtype=bool),
+                      np.full(n_pts, np.inf) if sigma is None else sigma, float("nan"), reason)
+
+
+def fit_blocks(blocks: PassBlocks, trajectory: Trajectory, config: Config, opts: PassOptions) -> SlowMotion:
+    """The slow motion the points' envelopes ``blocks`` (:func:`pass_blocks` along ``trajectory``) measure: the
+    points that fit a point over their pass, then the joint fit; the radar's clock fitted beside the rest and kept
+    only where the passes show it (:func:`radar_clock_significant`). Elsewhere the motion is the fit without it:
+    what a weakly measured offset would add, its std times the speed, stays out."""
     clock = _travel(trajectory, config)
-    sigma, span = point_sigmas(blocks, trajectory, clock, opts)
-    good = (sigma <= opts.max_point_sigma_m) & (span >= opts.min_span_m)
-    if good.sum() < opts.min_points:
-        return refused(f"{int(good.sum())} of {n_pts} points fit a point over {opts.min_span_m:g} m of their pass to "
-                       f"{1e3 * opts.max_point_sigma_m:g} mm (at least {opts.min_points} needed)", sigma)
-    return _fit(blocks, trajectory, config, clock, opts, good, sigma)
+    n_pts = blocks.n_points
+
+    def fitted(o: PassOptions) -> SlowMotion:
+        sigma, span = point_sigmas(blocks, trajectory, clock, o)
+        good = (sigma <= o.max_point_sigma_m) & (span >= o.min_span_m)
+        if good.sum() < o.min_points:
+            return _refused(trajectory, n_pts, f"{int(good.sum())} of {n_pts} points fit a point over "
+                            f"{o.min_span_m:g} m of their pass to {1e3 * o.max_point_sigma_m:g} mm (at least "
+                            f"{o.min_points} needed)", sigma)
+        return _fit(blocks, trajectory, config, clock, o, good, sigma)
+
+    held = fitted(dataclasses.replace(opts, radar_clock_std_s=0.0))
+    if opts.radar_clock_std_s <= 0.0:
+        return held
+    late = fitted(opts)
+    if not late.applied:
+        return held
+    t_s, travel = clock
+    fastest = float(np.max(np.gradient(travel, t_s))) if len(t_s) > 1 else 0.0
+    if radar_clock_significant(late.radar_clock_offset_s, late.radar_clock_offset_std_s, fastest, opts):
+        return dataclasses.replace(late, radar_clock_applied=True)
+    return dataclasses.replace(held, radar_clock_offset_s=late.radar_clock_offset_s,
+                               radar_clock_offset_std_s=late.radar_clock_offset_std_s)
 
 
 def _node_weights(nodes_s: Array, t_s: Array) -> tuple[NDArray[np.intp], Array]:
@@ -351,9 +425,11 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tupl
     comps = [(u_along, opts.step_along)] + ([(u_across, opts.step_across)] if opts.step_across > 0 else [])
     n_nodes = len(comps) * k_n  # the along nodes, then the across ones where they are fitted
     t_nodes = t0 + np.round(nodes * 1e9).astype(np.int64)
-    # then each point's shift, then the slip gains' errors, whose drift adds to the along nodes' correction
-    drift, drift_std = slip_drift(trajectory, np.concatenate([blocks.t_ns, t_nodes]), opts)
+    # then each point's shift, then the slip gains' errors and the radar clock's offset, whose drift adds to the
+    # along nodes' correction
+    drift, drift_std = along_drifts(trajectory, clock, np.concatenate([blocks.t_ns, t_nodes]), opts)
     drift_nodes, n_slip = drift[len(tb):], len(drift_std)
+    n_late = 1 if opts.radar_clock_std_s > 0.0 else 0
     n_var = n_nodes + 3 * n_pts + n_slip
     entries: list[tuple[NDArray[np.int64], Array]] = []
     for c, (u, _) in enumerate(comps):
@@ -403,8 +479,8 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tupl
     if used.sum() < opts.min_points:
         return SlowMotion(trajectory, None, np.zeros((n_pts, 3)), used, point_sigma, float("nan"),
                           f"{int(used.sum())} points kept fitting the joint model (at least {opts.min_points} needed)")
-    # posterior covariance of the nodes (the along ones with the slip gains' drift) from the normal matrix's
-    # inverse (one column per node: a few dozen to hundreds)
+    # posterior covariance of the nodes (the along ones with the slip gains' and the clock's drift) from the normal
+    # matrix's inverse (one column per node: a few dozen to hundreds)
     cols = np.concatenate([np.arange(n_nodes), np.arange(n_var - n_slip, n_var)])
     e = np.zeros((n_var, len(cols)))
     e[cols, np.arange(len(cols))] = 1.0
@@ -416,6 +492,7 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tupl
     std = np.sqrt(np.maximum(np.diag(cov), 0.0))
     across, across_std = (-x[k_n:n_nodes], std[k_n:]) if len(comps) == 2 else (np.zeros(k_n), np.zeros(k_n))
     along = -(x[:k_n] + drift_nodes @ x[n_var - n_slip:])
+    drift_error_std = np.sqrt(np.maximum(np.diag(full)[n_nodes:], 0.0))
     correction = node_correction(trajectory, config, t_nodes, along, across, std[:k_n], across_std)
     shift = x[n_nodes:n_nodes + 3 * n_pts].reshape(n_pts, 3) * used[:, None]
     # the stretch: a straight line through the along nodes against their travel, weighted by their std
@@ -446,9 +523,10 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tupl
     return SlowMotion(with_correction(trajectory, correction), correction, shift, used, point_sigma,
                       float(np.median(sigma[used])), stretch=stretch, stretch_std=stretch_std,
                       shape_correction=shape, shape_point_shift_enu=shape_shift,
-                      slip_gain_error=x[n_var - n_slip:].copy(),
-                      slip_gain_error_std=np.sqrt(np.maximum(np.diag(full)[n_nodes:], 0.0)), scale=scale,
-                      scale_std=scale_std)
+                      slip_gain_error=x[n_var - n_slip:n_var - n_late].copy(),
+                      slip_gain_error_std=drift_error_std[:n_slip - n_late], scale=scale, scale_std=scale_std,
+                      radar_clock_offset_s=float(x[-1]) if n_late else float("nan"),
+                      radar_clock_offset_std_s=float(drift_error_std[-1]) if n_late else float("nan"))
 
 
 #: the evaluation's moving instants (:func:`autosar_cli.evaluate.trajectory_metrics.common_instants`)

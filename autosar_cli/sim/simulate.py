@@ -286,6 +286,8 @@ def simulate(
         "log_format": fmt, "log_file": output.name,
         # the front end's channel mismatch the samples carry (tx, rx): 0 deg, 0 dB where matched
         "channel_phase_deg": np.degrees(np.angle(channel_gain)), "channel_gain_db": 20 * np.log10(np.abs(channel_gain)),
+        # /radar's times are the frames' stamps: the instants they started plus this
+        "radar_clock_offset_s": sim.radar_clock_offset_s,
     }
     if dynamics == "full":
         attrs["dynamics"] = dynamics
@@ -325,7 +327,8 @@ def simulate(
                 iq = beat.view(np.float32).reshape(*beat.shape, 2)
                 iq += noise_rng.standard_normal(iq.shape, dtype=np.float32) * np.float32(sim.radar_noise_std_lsb)
                 raw = np.clip(np.rint(iq), -32768, 32767).astype(np.int16)
-                stamps = t0_ns + np.round(t_frames * 1e9).astype(np.int64)
+                # the frames as the drive stamps them: on the radar's clock, sim.radar_clock_offset_s late
+                stamps = t0_ns + np.round((t_frames + sim.radar_clock_offset_s) * 1e9).astype(np.int64)
                 if capture is not None:
                     capture.write(raw)
                 for j, fi in enumerate(idx):
@@ -351,7 +354,7 @@ def simulate(
                 chirp_s = t_frames[:, None] + offsets[None, :]
                 truth.append_radar({
                     "frame_index": idx, "t_ns": stamps,
-                    "chirp_t_ns": t0_ns + np.round(chirp_s * 1e9).astype(np.int64),
+                    "chirp_t_ns": t0_ns + np.round((chirp_s + sim.radar_clock_offset_s) * 1e9).astype(np.int64),
                     "tx_position_enu": geo["tx_start"], "rx_position_enu": geo["rx_start"],
                     "phase_centre_enu": 0.5 * (geo["tx_start"][:, :, None, :] + geo["rx_start"]),
                     "vibration_enu": geo["vibration"],
