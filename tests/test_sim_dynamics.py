@@ -380,6 +380,44 @@ def test_truth_with_radar_motion_puts_every_antenna_where_the_simulator_did(ci_f
     assert heights[True] < 1e-3 < heights[False], heights
 
 
+@pytest.mark.slow
+def test_a_radar_clock_running_late_moves_only_the_frames_stamps(ci_full_log: SimulationResult, config: Config,
+                                                                   tmp_path: Path) -> None:
+    """``simulation.radar_clock_offset_s``: the same drive's frames, sample for sample, stamped 20 ms late; the
+    navigation's sensors as they were. The truth's radar motion is on the radar's clock: along it, at the late
+    stamps, every antenna is where the simulator put it (to 0.05 mm, as on time); the radar's motion on time puts
+    it ahead by the speed times 20 ms."""
+    from autosar_cli.nav.baselines import from_truth
+    from autosar_cli.nav.geodesy import GeodeticOrigin
+    from autosar_cli.nav.trajectory import radar_phase_centres
+
+    late_cfg = replace(config, simulation=replace(config.simulation, radar_clock_offset_s=0.02))
+    late = simulate("ci", tmp_path / "ci_late.mcap", seed=7, config=late_cfg, dynamics="full")
+    with h5py.File(ci_full_log.truth_path) as a, h5py.File(late.truth_path) as b:
+        assert float(b.attrs["radar_clock_offset_s"]) == 0.02
+        assert np.array_equal(b["radar/t_ns"][()] - a["radar/t_ns"][()], np.full(len(a["radar/t_ns"]), 20_000_000))
+        assert np.array_equal(a["radar/raw_crc32"][()], b["radar/raw_crc32"][()])
+        assert np.array_equal(a["sensors/gnss_cog/t_ns"][()], b["sensors/gnss_cog/t_ns"][()])
+        origin = GeodeticOrigin(*(float(b.attrs[k]) for k in ("origin_lat_deg", "origin_lon_deg",
+                                                               "origin_height_m")))
+        t_ns, chirp_ns = b["radar/t_ns"][::20], b["radar/chirp_t_ns"][::20]
+        tx = b["radar/tx_position_enu"][::20]
+    offsets_s = (chirp_ns[0] - t_ns[0]) / 1e9
+    radar_clock = from_truth(str(late.truth_path), origin, config, radar_motion=True)
+    inside = t_ns <= radar_clock.t_ns[-1] - 10**8
+    pc = radar_phase_centres(radar_clock, t_ns[inside], offsets_s, config)
+    miss = np.abs(pc.tx - tx[inside])[..., :2].max()
+    on_time = from_truth(str(ci_full_log.truth_path), origin, config, radar_motion=True)
+    ahead = np.linalg.norm((radar_phase_centres(on_time, t_ns[inside], offsets_s, config).tx - tx[inside])[:, 0, :2],
+                           axis=-1)
+    speed = np.interp(t_ns[inside], on_time.t_ns, on_time.speed)
+    moving = speed > 1.0
+    print(f"on the radar's clock {miss * 1e3:.4f} mm; the radar's motion on time, at the late stamps, ahead by "
+          f"{np.median(ahead[moving] / speed[moving]) * 1e3:.2f} ms of its speed")
+    assert miss < 5e-5
+    assert moving.sum() > 10 and np.allclose(ahead[moving] / speed[moving], 0.02, rtol=0.1)
+
+
 @pytest.mark.long
 def test_urban_focuses_at_truth_along_its_6dof_phase_centres(tmp_path: Path) -> None:
     """The junction turn, the S-bend, the stop, the bump and the cobbles: 11 reflectors, two 58 s drives
