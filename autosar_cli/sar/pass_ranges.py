@@ -106,7 +106,10 @@ class PassOptions:
     #: radar's speed times it. Fitted beside the rest where the speed changes, and applied only where the passes
     #: show it (:func:`radar_clock_significant`); 0: not fitted
     radar_clock_std_s: float = 0.05
-    #: applied where it is this many of its std from 0 ...
+    #: applied where it is this many of its std from 0, its correlation with each slip gain's error at most this (a
+    #: drive that only speeds up moves the track by v^2 / 2 per unit of the drive gain and by v per second of clock:
+    #: test1's took -67 ms for a +1.4 % gain, with neither there) ...
+    radar_clock_max_correlation: float = 0.8
     radar_clock_min_sigmas: float = 4.0
     #: ... and moves the track by at least this much at its fastest (m)
     radar_clock_min_effect_m: float = 0.002
@@ -161,6 +164,8 @@ class SlowMotion:
     radar_clock_offset_s: float = float("nan")
     radar_clock_offset_std_s: float = float("nan")
     radar_clock_applied: bool = False
+    #: the largest correlation of that offset's error with a slip gain's, in the joint fit (0 where none is fitted)
+    radar_clock_correlation: float = 0.0
 
     @property
     def applied(self) -> bool:
@@ -179,7 +184,7 @@ class SlowMotion:
                                           strict=True)}
         if np.isfinite(self.radar_clock_offset_s):
             out["radar_clock"] = {"offset_s": self.radar_clock_offset_s, "std_s": self.radar_clock_offset_std_s,
-                                  "applied": self.radar_clock_applied}
+                                  "correlation": self.radar_clock_correlation, "applied": self.radar_clock_applied}
         if c is not None:
             mag = np.linalg.norm(c.offset_enu, axis=-1)
             out["correction"] = {"rms_mm": round(float(1e3 * np.sqrt(np.mean(mag**2))), 3),
@@ -305,11 +310,14 @@ def along_drifts(trajectory: Trajectory, clock: tuple[Array, Array], t_ns: NDArr
     return np.hstack([slip, late]), np.concatenate([slip_std, late_std])
 
 
-def radar_clock_significant(offset_s: float, std_s: float, speed_mps: float, opts: PassOptions) -> bool:
-    """Whether a radar clock offset the passes measured (s, and its std) is shown (``opts.radar_clock_min_sigmas``
-    from 0) and matters (the track moved by ``opts.radar_clock_min_effect_m`` at ``speed_mps``, the fastest)."""
-    return bool(abs(offset_s) >= opts.radar_clock_min_sigmas * std_s
-                and abs(offset_s) * speed_mps >= opts.radar_clock_min_effect_m)
+def radar_clock_significant(fit: SlowMotion, speed_mps: float, opts: PassOptions) -> bool:
+    """Whether the radar clock offset the passes measured is told apart from the slip gains
+    (``opts.radar_clock_max_correlation``), shown (``opts.radar_clock_min_sigmas`` from 0) and matters (the track
+    moved by ``opts.radar_clock_min_effect_m`` at ``speed_mps``, the fastest)."""
+    offset = abs(fit.radar_clock_offset_s)
+    return bool(fit.radar_clock_correlation <= opts.radar_clock_max_correlation
+                and offset >= opts.radar_clock_min_sigmas * fit.radar_clock_offset_std_s
+                and offset * speed_mps >= opts.radar_clock_min_effect_m)
 
 
 def point_sigmas(blocks: PassBlocks, trajectory: Trajectory, clock: tuple[Array, Array], opts: PassOptions
@@ -397,10 +405,11 @@ def fit_blocks(blocks: PassBlocks, trajectory: Trajectory, config: Config, opts:
         return held
     t_s, travel = clock
     fastest = float(np.max(np.gradient(travel, t_s))) if len(t_s) > 1 else 0.0
-    if radar_clock_significant(late.radar_clock_offset_s, late.radar_clock_offset_std_s, fastest, opts):
+    if radar_clock_significant(late, fastest, opts):
         return dataclasses.replace(late, radar_clock_applied=True)
     return dataclasses.replace(held, radar_clock_offset_s=late.radar_clock_offset_s,
-                               radar_clock_offset_std_s=late.radar_clock_offset_std_s)
+                               radar_clock_offset_std_s=late.radar_clock_offset_std_s,
+                               radar_clock_correlation=late.radar_clock_correlation)
 
 
 def _node_weights(nodes_s: Array, t_s: Array) -> tuple[NDArray[np.intp], Array]:
@@ -493,6 +502,8 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tupl
     across, across_std = (-x[k_n:n_nodes], std[k_n:]) if len(comps) == 2 else (np.zeros(k_n), np.zeros(k_n))
     along = -(x[:k_n] + drift_nodes @ x[n_var - n_slip:])
     drift_error_std = np.sqrt(np.maximum(np.diag(full)[n_nodes:], 0.0))
+    clock_correlation = float(np.max(np.abs(full[-1, n_nodes:-1]) / np.maximum(
+        drift_error_std[-1] * drift_error_std[:-1], 1e-300))) if n_late and n_slip > n_late else 0.0
     correction = node_correction(trajectory, config, t_nodes, along, across, std[:k_n], across_std)
     shift = x[n_nodes:n_nodes + 3 * n_pts].reshape(n_pts, 3) * used[:, None]
     # the stretch: a straight line through the along nodes against their travel, weighted by their std
@@ -526,7 +537,8 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tupl
                       slip_gain_error=x[n_var - n_slip:n_var - n_late].copy(),
                       slip_gain_error_std=drift_error_std[:n_slip - n_late], scale=scale, scale_std=scale_std,
                       radar_clock_offset_s=float(x[-1]) if n_late else float("nan"),
-                      radar_clock_offset_std_s=float(drift_error_std[-1]) if n_late else float("nan"))
+                      radar_clock_offset_std_s=float(drift_error_std[-1]) if n_late else float("nan"),
+                      radar_clock_correlation=clock_correlation)
 
 
 #: the evaluation's moving instants (:func:`autosar_cli.evaluate.trajectory_metrics.common_instants`)
