@@ -49,12 +49,14 @@ def flat_correction(stage: dict[str, Any]) -> dict[str, Any]:
 
 def flat_slow_motion(slow: dict[str, Any] | None) -> dict[str, Any] | None:
     """run.json's ``slow_motion`` with each slip gain's error as two scalars (``slip_gain_error_drive`` and its
-    ``_std``) and the correction's figures as ``correction_*``, not tables of their own."""
+    ``_std``), the radar clock's figures as ``radar_clock_*`` and the correction's as ``correction_*``, not tables
+    of their own."""
     if not slow:
         return slow
     gains = slow.get("slip_gain_error") or {}
-    return {**{k: v for k, v in slow.items() if k not in ("slip_gain_error", "correction")},
+    return {**{k: v for k, v in slow.items() if k not in ("slip_gain_error", "correction", "radar_clock")},
             **flat_correction(slow),
+            **{f"radar_clock_{k}": v for k, v in (slow.get("radar_clock") or {}).items()},
             **{f"slip_gain_error_{name}{tail}": g[key] for name, g in gains.items()
                for key, tail in (("value", ""), ("std", "_std"))}}
 
