@@ -242,6 +242,8 @@ def test_autofocus_takes_the_slow_motion_first_where_asked(test1_drive: tuple[Pa
     else:
         assert res.scale == res.slow_motion.scale and "from the points' passes" in res.scale_note, res.summary()
     assert left < 0.25 * observable_rms(err), (left, observable_rms(err))
+    # test1 only speeds up: the radar's clock is not fitted (what it took there was the track's error along)
+    assert "radar_clock" not in res.slow_motion.to_dict()
 
 
 @pytest.mark.slow
@@ -393,3 +395,20 @@ def test_a_slip_gains_error_is_not_taken_for_the_radar_clock() -> None:
     assert res.applied and not res.radar_clock_applied
     assert abs(res.radar_clock_offset_s) < 3 * res.radar_clock_offset_std_s
     assert np.all(np.abs(res.slip_gain_error - [-0.004, 0.004]) < 3 * res.slip_gain_error_std)
+
+
+def test_the_speed_dip_is_a_slowing_and_speeding_up_again() -> None:
+    """The clock is fitted only on a drive whose speed falls and rises again (:func:`speed_dip`): the stop and go
+    from 5 m/s, 5; a drive that only speeds up (test1: 2 -> 5 m/s), or only slows down, 0; a dip to 3 m/s between
+    4 and 5 m/s, 1."""
+    from conftest import stop_and_go
+
+    from autosar_cli.sar.pass_ranges import _travel, speed_dip
+
+    traj, _ = stop_and_go()
+    assert speed_dip(_travel(traj, CFG)) == pytest.approx(5.0, abs=0.05)
+    t = np.linspace(0.0, 20.0, 2001)
+    for v, dip in ((2.0 + 0.15 * t, 0.0), (5.0 - 0.2 * t, 0.0), (np.where(t < 10, 4.0 - 0.1 * t, 3.0 + 0.2 * (t - 10)),
+                                                                    1.0)):
+        travel = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+        assert speed_dip((t, travel)) == pytest.approx(dip, abs=0.02)
