@@ -80,6 +80,10 @@ class RadarConfig:
     tx_positions_wavelengths: tuple[tuple[float, float, float], ...]
     rx_positions_wavelengths: tuple[tuple[float, float, float], ...]
     mounting: MountingConfig
+    #: how late the radar's frame stamps run against the navigation's clock (s): a capture timed by its host's
+    #: clock, or by a sync message sent before the first frame's trigger; focus takes each frame as started this
+    #: much before its stamp (the autofocus measures it on a drive that stops: docs/SENSOR_ERRORS.md)
+    clock_offset_s: float = 0.0
 
     @property
     def wavelength_m(self) -> float:
@@ -577,6 +581,8 @@ def _validate(cfg: Config) -> None:
         )
     if r.num_tx * r.chirp_period_s > 1.0 / r.prf_hz:
         raise ConfigError(f"radar.prf_hz: {r.num_tx} chirps of {r.chirp_period_s} s do not fit in one PRI")
+    if not (math.isfinite(r.clock_offset_s) and abs(r.clock_offset_s) <= 1.0):
+        raise ConfigError(f"radar.clock_offset_s: {r.clock_offset_s} is not a time offset of at most 1 s either way")
     if len(r.tx_positions_wavelengths) != r.num_tx:
         raise ConfigError(f"radar.tx_positions_wavelengths: expected {r.num_tx} positions")
     if len(r.rx_positions_wavelengths) != r.num_rx:

@@ -60,6 +60,7 @@ def _write_variant(tmp_path: Path, pattern: str, replacement: str) -> Path:
         (r"^channel_phase_std_deg = .*$", "channel_phase_std_deg = -30.0", "simulation.channel_phase_std_deg"),
         (r"^autofocus_channel_gains = .*$", 'autofocus_channel_gains = "yes"', "processing.autofocus_channel_gains"),
         (r"^radar_clock_offset_s = .*$", "radar_clock_offset_s = 5.0", "simulation.radar_clock_offset_s"),
+        (r"^clock_offset_s = .*$", "clock_offset_s = -3.0", "radar.clock_offset_s"),
     ],
 )
 def test_bad_values_are_rejected_naming_the_key(tmp_path, pattern, replacement, key):

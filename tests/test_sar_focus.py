@@ -420,3 +420,31 @@ def test_focus_cli_writes_the_three_products(ci_drive: Drive, tmp_path: Path) ->
 def test_test1_corner_reflectors_focus_at_truth(tmp_path_factory: pytest.TempPathFactory) -> None:
     rows = check_reflectors(prepare(tmp_path_factory.mktemp("focus_test1"), "test1"), "test1")
     assert len(rows) >= 4
+
+
+@pytest.mark.slow
+def test_a_stated_radar_clock_offset_focuses_a_late_capture_where_it_was(tmp_path: Path) -> None:
+    """The ci drive with its radar frames stamped 20 ms late (``simulation.radar_clock_offset_s``), focused along
+    the true track on the navigation's clock: read at their stamps, the frames put every reflector along the
+    track by the speed times 20 ms (4-6 cm); with ``radar.clock_offset_s = 0.02`` stated, focus takes each frame
+    as started 20 ms before its stamp, and the reflectors are where they are (within 2 mm)."""
+    base = still_config()
+    late = replace(base, simulation=replace(base.simulation, radar_clock_offset_s=0.02))
+    sim = simulate("ci", tmp_path / "ci_late.mcap", seed=3, config=late)
+    drive = tmp_path / "drive.h5"
+    ingest([sim.log_path], drive, config=base)
+    stated = replace(base, radar=replace(base.radar, clock_offset_s=0.02))
+    track = navigate(drive, "truth", stated, truth_path=sim.truth_path)  # the radar's motion on the nav's clock
+    targets = read_targets(sim.truth_path, track.origin)
+    grids = [box_grid(x - 0.5, y - 0.5, x + 0.5, y + 0.5, pixel_m=0.005, height_m=base.processing.focus_height_m)
+             for x, y in targets.position_enu[targets.corner_reflectors, :2]]
+    errors = {}
+    for name, cfg in (("read at the stamps", base), ("stated", stated)):
+        opts = FocusOptions.from_config(cfg, pixel_m=0.005)
+        images = focus_images(drive, track, cfg, opts, grids=grids).images
+        errors[name] = np.array([analyse_point_target(img, targets.position_enu[i], patch_m=0.9).peak_error_m
+                                 for i, img in zip(targets.corner_reflectors, images, strict=True)])
+    speed = float(np.median(track.speed[track.speed > 0.5]))
+    print({k: np.round(v * 1e3, 2) for k, v in errors.items()}, f"mm; speed x 20 ms = {speed * 20:.1f} mm")
+    assert np.all(errors["stated"] < 0.002)
+    assert np.all(np.abs(errors["read at the stamps"] - 0.02 * speed) < 0.25 * 0.02 * speed)

@@ -77,8 +77,8 @@ def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config, *, radar
     body's tilt and heave), which the focusing surface follows (:meth:`Trajectory.height_offset`). Where the
     simulator gave the radar's channels their own phase and gain, its ``info["channel_gains"]`` holds them (focus
     undoes them along it). Where it stamped the radar's frames late (``radar_clock_offset_s``), the radar's motion
-    is given on the radar's clock: each instant that much later, so that focusing along it at the frames' stamps
-    finds the radar where it was.
+    is given on the radar's clock, each instant that much later less what ``config.radar.clock_offset_s`` states,
+    so that focusing along it at the frames' stamps (less that) finds the radar where it was.
     """
     import h5py
 
@@ -97,14 +97,16 @@ def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config, *, radar
         gains = {"phase_deg": np.asarray(f.attrs["channel_phase_deg"]).tolist(),
                  "gain_db": np.asarray(f.attrs["channel_gain_db"]).tolist()} \
             if np.any(f.attrs.get("channel_phase_deg", 0.0)) or np.any(f.attrs.get("channel_gain_db", 0.0)) else None
-        # the radar's frame stamps run this late: its motion is given on that clock
-        clock_ns = int(round(float(f.attrs.get("radar_clock_offset_s", 0.0)) * 1e9)) if radar_motion else 0
+        # the radar's frame stamps run this late, less what the config states of it (focus takes that out of the
+        # stamps): its motion is given on the clock focus reads them by
+        stated_ns = int(round(config.radar.clock_offset_s * 1e9))
+        clock_ns = int(round(float(f.attrs.get("radar_clock_offset_s", 0.0)) * 1e9)) - stated_ns if radar_motion else 0
         radar = f.get("radar")
         phase_centres = None
         if radar_motion and radar is not None and len(radar["t_ns"]):
             offsets = radar.get("chirp_t_ns")
-            phase_centres = (radar["t_ns"][()], radar["phase_centre_enu"][()],
-                             None if offsets is None else offsets[()])
+            phase_centres = (radar["t_ns"][()] - stated_ns, radar["phase_centre_enu"][()],
+                             None if offsets is None else offsets[()] - stated_ns)
     lat, lon, h = truth_origin.to_geodetic(np.c_[rear, np.zeros(len(rear))])
     enu = origin.to_enu(lat, lon, h)
     # The two tangent planes differ by a tiny rotation: apply it to the heading too.

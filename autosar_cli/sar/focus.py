@@ -71,6 +71,9 @@ class FocusOptions:
     #: (its ``info["channel_gains"]``: those its autofocus measured and applied, or the truth's); None: those the
     #: drive's radar states (a TI capture's calibration), else matched channels
     channel_gains: ChannelGains | None = None
+    #: how late the radar's frame stamps run against the navigation's clock (s; ``radar.clock_offset_s``): each
+    #: frame is taken as started this much before its stamp (:func:`open_radar`)
+    radar_clock_offset_s: float = 0.0
 
     def __post_init__(self) -> None:
         # a CLI override is checked here, as the config's values are in config.py (the pixel: sar.grid, first)
@@ -85,7 +88,8 @@ class FocusOptions:
     def from_config(cls, config: Config, **overrides: Any) -> FocusOptions:
         p = config.processing
         base = dict(pixel_m=p.pixel_m, resolution_m=p.cross_range_resolution_m, channels=int(p.channels),
-                    height_m=p.focus_height_m, window=p.range_window, upsample=p.range_upsample)
+                    height_m=p.focus_height_m, window=p.range_window, upsample=p.range_upsample,
+                    radar_clock_offset_s=config.radar.clock_offset_s)
         base.update({k: v for k, v in overrides.items() if v is not None})
         return cls(**base)
 
@@ -200,10 +204,11 @@ def _usable_frames(radar: RadarStream, traj: Trajectory, config: Config, min_spe
 
 
 def open_radar(drive: Drive, options: FocusOptions) -> RadarStream:
-    """The radar stream ``options`` focuses (``options.radar``, else the drive's first); any reader failure is a
+    """The radar stream ``options`` focuses (``options.radar``, else the drive's first), its frames' times on the
+    navigation's clock (their stamps less ``options.radar_clock_offset_s``); any reader failure is a
     :class:`FocusError` naming the drive."""
     try:
-        return drive.radar(options.radar)
+        return drive.radar(options.radar).on_clock(options.radar_clock_offset_s)
     except Exception as exc:  # noqa: BLE001 - any reader failure is an input problem here
         msg = str(exc)
         raise FocusError(msg if str(drive.path) in msg else f"{drive.path}: {msg}") from None

@@ -76,7 +76,7 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
     points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
     w = int(window_bins)
     with Drive(drive_path) as drive:
-        radar = drive.radar(focus.radar)
+        radar = drive.radar(focus.radar).on_clock(focus.radar_clock_offset_s)
         rp = RadarParameters.of(radar, config, focus.upsample)
         fs, slope, offsets, n_bins, bin_m = rp.sample_rate_hz, rp.slope_hz_per_s, rp.tx_start_offsets_s, rp.n_bins, \
             rp.bin_m

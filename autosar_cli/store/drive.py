@@ -30,7 +30,7 @@ import queue
 import threading
 import zlib
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -356,6 +356,13 @@ class RadarStream:
     raw: h5py.Dataset  #: (frame, tx, rx, sample, I/Q) int16; read it in blocks of frames (:meth:`frames`)
     attrs: dict[str, Any]
 
+    def on_clock(self, late_s: float) -> RadarStream:
+        """The stream with its frames' times ``late_s`` (s) earlier than their stamps: on the navigation's clock
+        where the stamps run that late (itself where 0)."""
+        if not late_s:
+            return self
+        return replace(self, t_ns=self.t_ns - int(round(late_s * 1e9)))
+
     def frames(self, start: int, stop: int, pairs: Sequence[tuple[int, int]] | None = None) -> np.ndarray:
         """Raw frames ``start:stop`` (n, tx, rx, sample, I/Q), or with ``pairs`` only those (Tx, Rx) channels
         (n, len(pairs), sample, I/Q); a damaged chunk (checksum, decompression) is an error naming file and
@@ -502,7 +509,8 @@ class Drive:
         return json.loads(self._file["provenance"].attrs.get("report", "{}"))
 
 
-def radar_times(drive_path: str | Path, name: str | None = None) -> NDArray[np.int64]:
-    """Frame start times (ns) of a drive's radar stream ``name`` (None: its first)."""
+def radar_times(drive_path: str | Path, name: str | None = None, late_s: float = 0.0) -> NDArray[np.int64]:
+    """Frame start times (ns) of a drive's radar stream ``name`` (None: its first), ``late_s`` (s) before their
+    stamps (:meth:`RadarStream.on_clock`)."""
     with Drive(drive_path) as d:
-        return np.asarray(d.radar(name).t_ns, dtype=np.int64)
+        return np.asarray(d.radar(name).on_clock(late_s).t_ns, dtype=np.int64)
