@@ -412,3 +412,14 @@ def test_the_speed_dip_is_a_slowing_and_speeding_up_again() -> None:
                                                                     1.0)):
         travel = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
         assert speed_dip((t, travel)) == pytest.approx(dip, abs=0.02)
+
+
+def test_a_stop_and_go_with_no_slip_gain_stated_fits_the_clock_alone() -> None:
+    """A track whose navigation stated no slip gain (the truth's, a drive without wheel radii) still fits the clock
+    on its stop and go: its correlation with no gain is 0."""
+    from autosar_cli.sar.pass_ranges import fit_blocks
+
+    traj, blocks, _, _ = _stop_and_go_blocks(lambda t, speed: 0.012 * speed(t))
+    res = fit_blocks(blocks, replace(traj, info={}), CFG, PassOptions())
+    assert res.radar_clock_correlation == 0.0 and len(res.slip_gain_error) == 0
+    assert res.radar_clock_applied and abs(res.radar_clock_offset_s - 0.012) < 3 * res.radar_clock_offset_std_s

@@ -31,8 +31,10 @@ through the rest.
   brake slip gains' errors, the integral of ``v a`` over the time the car speeds up or slows down times each
   (:func:`~autosar_cli.nav.wheel_speeds.slip_gain_drift`, their prior the std the navigation stated): one error
   for every braking of the drive, so a gain the points measure at one stop corrects another no point sees, and a
-  point seen through a braking fits its own point (its own fit holds them too). Weighted least squares, each point
-  weighted by its own residual, blocks beyond ``reject_sigma`` dropped and the fit repeated.
+  point seen through a braking fits its own point (its own fit holds them too). On a drive that slows and speeds
+  up again, ``a`` also holds how late the radar's frame stamps run, times its speed (:func:`fit_blocks`). Weighted
+  least squares, each point weighted by its own residual, blocks beyond ``reject_sigma`` dropped and the fit
+  repeated.
 
 What it cannot see: a rigid motion of the whole track (it moves every point alike), the track between points'
 passes, where the priors keep the navigated shape, and the bend of a yaw-rate error (well under a millimetre over a
@@ -103,8 +105,8 @@ class PassOptions:
     slip_gains: bool = True
     #: prior std (s) of how late the radar's frame stamps run against the navigation's clock (a capture on its
     #: host's clock, a sync message that is not the first frame's trigger): the track is then ahead along by the
-    #: radar's speed times it. Fitted beside the rest where the speed changes, and applied only where the passes
-    #: show it (:func:`radar_clock_significant`); 0: not fitted
+    #: radar's speed times it. Fitted beside the rest on a drive that slows and speeds up again, and applied only
+    #: where the passes show it (:func:`radar_clock_significant`); 0: not fitted
     radar_clock_std_s: float = 0.05
     #: fitted only on a drive whose speed falls by this much and rises again (m/s; a stop and a pull-away): on one
     #: that only speeds up, the track's speed, travel and drive gain rise alike, and what the passes took for the
@@ -321,8 +323,7 @@ def speed_dip(clock: tuple[Array, Array]) -> float:
 def along_drifts(trajectory: Trajectory, clock: tuple[Array, Array], t_ns: NDArray[np.int64], opts: PassOptions
                  ) -> tuple[Array, Array]:
     """The along-track drifts the slow motion fits beside its nodes, per unit of each (N, G) (m), and their prior
-    std (G,): the slip gains' (:func:`slip_drift`), then a stretch's and the radar clock's
-    (:func:`radar_clock_drift`)."""
+    std (G,): the slip gains' (:func:`slip_drift`), then the radar clock's (:func:`radar_clock_drift`)."""
     slip, slip_std = slip_drift(trajectory, t_ns, opts)
     late, late_std = radar_clock_drift(trajectory, clock, t_ns, opts)
     return np.hstack([slip, late]), np.concatenate([slip_std, late_std])
@@ -520,7 +521,7 @@ def _fit(blocks: PassBlocks, trajectory: Trajectory, config: Config, clock: tupl
     along = -(x[:k_n] + drift_nodes @ x[n_var - n_slip:])
     drift_error_std = np.sqrt(np.maximum(np.diag(full)[n_nodes:], 0.0))
     clock_correlation = float(np.max(np.abs(full[-1, n_nodes:-1]) / np.maximum(
-        drift_error_std[-1] * drift_error_std[:-1], 1e-300))) if n_late else 0.0
+        drift_error_std[-1] * drift_error_std[:-1], 1e-300))) if n_late and n_slip > n_late else 0.0
     correction = node_correction(trajectory, config, t_nodes, along, across, std[:k_n], across_std)
     shift = x[n_nodes:n_nodes + 3 * n_pts].reshape(n_pts, 3) * used[:, None]
     # the stretch: a straight line through the along nodes against their travel, weighted by their std
