@@ -28,7 +28,7 @@ frame); the CoG lies ``cog_to_rear_axle_m`` ahead of the rear axle and ``cog_hei
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from typing import TYPE_CHECKING, Any
 
@@ -242,6 +242,21 @@ class Trajectory:
         if self.correction is not None:
             points += self.correction.at(np.asarray(t_ns).reshape(-1))[:, None, :]
         return points
+
+    def on_radar_clock(self, late_ns: int) -> Trajectory:
+        """The same motion with every instant ``late_ns`` (ns) later: the track as a radar whose frame stamps run
+        that late reads it, at its stamps. Its ``info["radar_clock_offset_s"]`` adds up the shifts; the wheel gaps'
+        and standstills' times move with it."""
+        info = dict(self.info)
+        if "wheel_gaps" in info:
+            info["wheel_gaps"] = [{**g, "start_ns": g["start_ns"] + late_ns, "end_ns": g["end_ns"] + late_ns}
+                                  for g in info["wheel_gaps"]]
+        if "standstill_ns" in info:
+            info["standstill_ns"] = [[a + late_ns, b + late_ns] for a, b in info["standstill_ns"]]
+        info["radar_clock_offset_s"] = info.get("radar_clock_offset_s", 0.0) + late_ns / 1e9
+        c = self.correction
+        return replace(self, t_ns=self.t_ns + late_ns, info=info,
+                       correction=None if c is None else replace(c, t_ns=c.t_ns + late_ns))
 
     def height_offset(self, t_ns: ArrayLike) -> Array:
         """How far (M,) (m) the body rises above its planar track at times ``t_ns`` (M,): the vertical part of the

@@ -423,3 +423,22 @@ def test_a_stop_and_go_with_no_slip_gain_stated_fits_the_clock_alone() -> None:
     res = fit_blocks(blocks, replace(traj, info={}), CFG, PassOptions())
     assert res.radar_clock_correlation == 0.0 and len(res.slip_gain_error) == 0
     assert res.radar_clock_applied and abs(res.radar_clock_offset_s - 0.012) < 3 * res.radar_clock_offset_std_s
+
+
+def test_a_track_on_the_radars_clock_is_the_same_motion_later() -> None:
+    """``Trajectory.on_radar_clock``: every body point where it was, 20 ms later (to the nanometre), with the wheel
+    gaps' times and the correction moved alike, and the shifts added up in ``info["radar_clock_offset_s"]``."""
+    from conftest import stop_and_go
+
+    traj, _ = stop_and_go()
+    gap = {"start_ns": int(traj.t_ns[100]), "end_ns": int(traj.t_ns[200]), "along_std_m": 0.01}
+    traj = replace(traj, info={**traj.info, "wheel_gaps": [gap]},
+                   correction=MotionCorrection(traj.t_ns, np.tile([0.0, 0.001, 0.0], (len(traj.t_ns), 1)),
+                                               np.zeros((len(traj.t_ns), 3))))
+    late = traj.on_radar_clock(15_000_000).on_radar_clock(5_000_000)
+    t = traj.t_ns[50:-50:7]
+    lever = np.array([[2.2, -0.75, 0.5]])
+    assert np.abs(late.body_points(t + 20_000_000, lever) - traj.body_points(t, lever)).max() < 1e-9
+    assert late.info["radar_clock_offset_s"] == pytest.approx(0.02)
+    assert late.info["wheel_gaps"][0]["start_ns"] == gap["start_ns"] + 20_000_000
+    assert traj.info["wheel_gaps"][0]["start_ns"] == gap["start_ns"] and "radar_clock_offset_s" not in traj.info

@@ -113,12 +113,13 @@ class PassOptions:
     #: clock was what the navigation left along (test1 seed 0, on time: -67 +- 5 ms; its truth track with a 0.1 %
     #: stretch: +6 +- 1.5 ms)
     radar_clock_min_dip_mps: float = 2.0
-    #: applied where its correlation with each slip gain's error is at most this (urban's 0.81-0.87), it is this
-    #: many of its std from 0 ...
-    radar_clock_max_correlation: float = 0.9
+    #: applied where it is this many of its std from 0 ...
     radar_clock_min_sigmas: float = 4.0
     #: ... and moves the track by at least this much at its fastest (m)
     radar_clock_min_effect_m: float = 0.002
+    #: the autofocus reads the passes again along the track on the radar's clock so measured, at most this many
+    #: times (:func:`~autosar_cli.sar.residual_motion.radar_clock_rereads`)
+    radar_clock_rereads: int = 3
 
 
 @dataclass(frozen=True)
@@ -330,12 +331,10 @@ def along_drifts(trajectory: Trajectory, clock: tuple[Array, Array], t_ns: NDArr
 
 
 def radar_clock_significant(fit: SlowMotion, speed_mps: float, opts: PassOptions) -> bool:
-    """Whether the radar clock offset the passes measured is told apart from the slip gains
-    (``opts.radar_clock_max_correlation``), shown (``opts.radar_clock_min_sigmas`` from 0) and matters (the track
-    moved by ``opts.radar_clock_min_effect_m`` at ``speed_mps``, the fastest)."""
+    """Whether the radar clock offset the passes measured is shown (``opts.radar_clock_min_sigmas`` from 0) and
+    matters (the track moved by ``opts.radar_clock_min_effect_m`` at ``speed_mps``, the fastest)."""
     offset = abs(fit.radar_clock_offset_s)
-    return bool(fit.radar_clock_correlation <= opts.radar_clock_max_correlation
-                and offset >= opts.radar_clock_min_sigmas * fit.radar_clock_offset_std_s
+    return bool(offset >= opts.radar_clock_min_sigmas * fit.radar_clock_offset_std_s
                 and offset * speed_mps >= opts.radar_clock_min_effect_m)
 
 

@@ -231,6 +231,11 @@ class ResidualMotion:
     #: the radar's channel gains measured first (:mod:`autosar_cli.sar.channel_calibration`); where applied, every
     #: read after it, and the image focused along ``trajectory``, undo them
     channel_calibration: ChannelCalibration | None = None
+    #: how late (s) the radar's frame stamps run on the navigation's clock, as the points' passes measured it and
+    #: read again along the track so shifted (:func:`radar_clock_rereads`); ``trajectory`` is on the radar's clock
+    #: by this much (0: on the navigation's)
+    radar_clock_offset_s: float = 0.0
+    radar_clock_rereads: int = 0
 
     @property
     def channel_gains(self) -> ChannelGains | None:
@@ -261,6 +266,7 @@ class ResidualMotion:
         return {"applied": self.applied, "reason": self.reason,
                 "channel_gains": self.channel_calibration.to_dict() if self.channel_calibration is not None else None,
                 "slow_motion": self.slow_motion.to_dict() if self.slow_motion is not None else None,
+                "radar_clock": {"offset_s": self.radar_clock_offset_s, "rereads": self.radar_clock_rereads},
                 "fast_motion": self.fast_motion.to_dict() if self.fast_motion is not None else None,
                 "track_scale": self.scale,
                 "track_scale_std": self.scale_std, "track_scale_prior_std": self.scale_prior,
@@ -287,6 +293,10 @@ class ResidualMotion:
         cal = self.channel_calibration
         gains = f"{cal.summary()}; " if cal is not None and cal.applied else ""
         slow = "" if self.slow_motion is None else self.slow_motion.summary() + "; "
+        if self.radar_clock_offset_s:
+            slow = (f"the radar's frame stamps {1e3 * self.radar_clock_offset_s:+.1f} ms late on the navigation's "
+                    f"clock (the passes read {self.radar_clock_rereads + 1} times), the track put on the radar's; "
+                    + slow)
         fast = "" if self.fast_motion is None else "; " + self.fast_motion.summary()
         if self.reason:  # which says what moved, where that left too few points
             return gains + (f"{slow}track not corrected by the phases: {self.reason}{fast}" if slow else
@@ -923,6 +933,13 @@ def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, co
         focus = replace(focus, channel_gains=calibration.gains)
     result = replace(residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes),
                      channel_calibration=calibration)
+    late_s, rereads = radar_clock_rereads(drive_path, trajectory, config, points, focus, passes or PassOptions(),
+                                          result.slow_motion)
+    if late_s:  # the motion along the track on the radar's clock, its points where that track puts them
+        on_clock = trajectory.on_radar_clock(int(round(late_s * 1e9)))
+        result = replace(residual_motion_of_points(drive_path, on_clock, config,
+                                                   _moved(points, trajectory, on_clock, config), focus, opts, passes),
+                         channel_calibration=calibration, radar_clock_offset_s=late_s, radar_clock_rereads=rereads)
     if fast is None or not result.applied:
         return result
     if len(scatterers) == 0:
@@ -939,6 +956,35 @@ def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, co
         return replace(result, fast_motion=stage)
     assert stage.correction is not None
     return replace(result, trajectory=with_correction(result.trajectory, stage.correction), fast_motion=stage)
+
+
+def _moved(points: Array, before: Trajectory, after: Trajectory, config: Config) -> Array:
+    """``points`` (P, 3) (ENU m, where ``before`` focuses them) moved as the radar moved from ``before`` to
+    ``after`` at their closest approach."""
+    if len(points) == 0:
+        return points
+    lever = phase_centre_lever_arm(config)[None]
+    track = before.body_points(before.t_ns, lever)[:, 0, :2]
+    t_zero = closest_approach_ns(track, before.t_ns, points)
+    return points + (after.body_points(t_zero, lever)[:, 0] - before.body_points(t_zero, lever)[:, 0])
+
+
+def radar_clock_rereads(drive_path: str | Path, trajectory: Trajectory, config: Config, points: Array,
+                        focus: FocusOptions, passes: PassOptions, slow: SlowMotion | None) -> tuple[float, int]:
+    """How late (s) the radar's frame stamps run on ``trajectory``'s clock, where the points' passes (``slow``,
+    along ``trajectory``) showed it: each offset shown is added and the passes read again along the track on that
+    clock, until none shows (at most ``passes.radar_clock_rereads`` times), and how many times they were read
+    again. An offset moves a point's envelope by its speed times it along the line of sight, so a large one leaves
+    the passes only the blocks near broadside, and the slip gains take the rest (urban 30 ms late: 10 ms on the
+    first read, 29 on the second, 31 on the third). 0 where none showed."""
+    late_s, rereads = 0.0, 0
+    while slow is not None and slow.radar_clock_applied and rereads < passes.radar_clock_rereads:
+        late_s += slow.radar_clock_offset_s
+        rereads += 1
+        on_clock = trajectory.on_radar_clock(int(round(late_s * 1e9)))
+        slow = estimate_slow_motion(drive_path, on_clock, config, _moved(points, trajectory, on_clock, config), focus,
+                                    passes)
+    return late_s, rereads
 
 
 def residual_motion_of_points(drive_path: str | Path, trajectory: Trajectory, config: Config, points_enu: Array,
