@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from autosar_cli.config import Config
 from autosar_cli.nav.trajectory import phase_centre_lever_arm, radar_phase_centres, radar_side
-from autosar_cli.sar.focus import FocusOptions, RadarParameters, channel_pairs
+from autosar_cli.sar.focus import FocusOptions, RadarParameters, channel_pairs, open_radar
 from autosar_cli.sar.history_kernel import focus_windows, take_windows
 from autosar_cli.sar.range_compression import range_compress, reference_ramp
 from autosar_cli.store.drive import Drive
@@ -76,7 +76,7 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
     points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
     w = int(window_bins)
     with Drive(drive_path) as drive:
-        radar = drive.radar(focus.radar).on_clock(focus.radar_clock_offset_s)
+        radar = open_radar(drive, focus)
         rp = RadarParameters.of(radar, config, focus.upsample)
         fs, slope, offsets, n_bins, bin_m = rp.sample_rate_hz, rp.slope_hz_per_s, rp.tx_start_offsets_s, rp.n_bins, \
             rp.bin_m

@@ -938,16 +938,15 @@ def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, co
     if late_s:  # the motion along the track on the radar's clock, its points where that track puts them
         on_clock = trajectory.on_radar_clock(int(round(late_s * 1e9)))
         result = replace(residual_motion_of_points(drive_path, on_clock, config,
-                                                   _moved(points, trajectory, on_clock, config), focus, opts, passes),
+                                                   _moved(points, trajectory, on_clock, config), focus, opts,
+                                                   passes),
                          channel_calibration=calibration, radar_clock_offset_s=late_s, radar_clock_rereads=rereads)
     if fast is None or not result.applied:
         return result
     if len(scatterers) == 0:
         return replace(result, fast_motion=FastMotion(None, 0, 0, 0.0, "no bright scatterer in the first image"))
-    # each scatterer where the corrected track focuses it: moved as the radar moved at its closest approach
-    lever = phase_centre_lever_arm(config)[None]
-    moved = scatterers + (result.trajectory.body_points(t_zero, lever)[:, 0]
-                          - trajectory.body_points(t_zero, lever)[:, 0])
+    # each scatterer where the corrected track focuses it
+    moved = moved_with_track(scatterers, t_zero, trajectory, result.trajectory, config)
     histories = gather_phase_histories(drive_path, result.trajectory, config, moved, focus,
                                        half_beam_deg=fast.half_beam_deg, window_bins=fast.window_bins,
                                        channels=fast.channels)
@@ -958,15 +957,20 @@ def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, co
     return replace(result, trajectory=with_correction(result.trajectory, stage.correction), fast_motion=stage)
 
 
-def _moved(points: Array, before: Trajectory, after: Trajectory, config: Config) -> Array:
+def moved_with_track(points: Array, t_zero: NDArray[np.int64], before: Trajectory, after: Trajectory,
+                     config: Config) -> Array:
     """``points`` (P, 3) (ENU m, where ``before`` focuses them) moved as the radar moved from ``before`` to
-    ``after`` at their closest approach."""
+    ``after`` at their closest approach ``t_zero`` (P,) (ns)."""
+    lever = phase_centre_lever_arm(config)[None]
+    return points + (after.body_points(t_zero, lever)[:, 0] - before.body_points(t_zero, lever)[:, 0])
+
+
+def _moved(points: Array, before: Trajectory, after: Trajectory, config: Config) -> Array:
+    """:func:`moved_with_track`, each point's closest approach to ``before``'s radar found here."""
     if len(points) == 0:
         return points
-    lever = phase_centre_lever_arm(config)[None]
-    track = before.body_points(before.t_ns, lever)[:, 0, :2]
-    t_zero = closest_approach_ns(track, before.t_ns, points)
-    return points + (after.body_points(t_zero, lever)[:, 0] - before.body_points(t_zero, lever)[:, 0])
+    track = before.body_points(before.t_ns, phase_centre_lever_arm(config)[None])[:, 0, :2]
+    return moved_with_track(points, closest_approach_ns(track, before.t_ns, points), before, after, config)
 
 
 def radar_clock_rereads(drive_path: str | Path, trajectory: Trajectory, config: Config, points: Array,
