@@ -20,6 +20,7 @@ SPEED_OF_LIGHT = 299_792_458.0
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"
 DEFAULT_CONFIG = CONFIG_DIR / "giulia_scanbrick.toml"
 MSG_DIR = CONFIG_DIR / "msg"
+MAX_CLOCK_DRIFT_PPM = 1000.0  #: the largest radar clock drift a config may state or simulate (ppm)
 
 
 class ConfigError(ValueError):
@@ -84,6 +85,11 @@ class RadarConfig:
     #: clock, or by a sync message sent before the first frame's trigger; focus takes each frame as started this
     #: much before its stamp (the autofocus measures it on a drive that stops: docs/SENSOR_ERRORS.md)
     clock_offset_s: float = 0.0
+    #: how fast the radar's frame clock runs against the navigation's (ppm; parts per million of elapsed time): a
+    #: capture timed by its own crystal's frame counter (a DCA1000 capture's frame period) gains this much from its
+    #: first frame on; focus takes each frame as started ``clock_offset_s`` plus this share of the time since the
+    #: stream's first stamp before its stamp
+    clock_drift_ppm: float = 0.0
 
     @property
     def wavelength_m(self) -> float:
@@ -247,6 +253,10 @@ class SimulationConfig:
     # the radar's frame stamps minus the instants its frames start (s): a capture timed by its host's clock or a sync
     # message that is not the first frame's trigger; 0 (the config's): stamped exactly, as the processor assumes
     radar_clock_offset_s: float = 0.0
+    # how fast the radar's frame clock runs against the true time (ppm): its frames start every frame period on its
+    # own clock, so the frames are that much closer together than their stamps say, from the first frame on; 0 (the
+    # config's): a crystal on its nominal frequency, as the processor assumes
+    radar_clock_drift_ppm: float = 0.0
     # "kinematic": planar kinematic bicycle on a level road (the motion SAR-MIN assumes); "full": single-track
     # dynamics with tyre slip, body roll/pitch/heave on the suspension, a rough road ([vehicle_dynamics]).
     dynamics: Literal["kinematic", "full"] = "full"
@@ -536,6 +546,12 @@ def _non_negative(path: str, value: float) -> None:
         raise ConfigError(f"{path}: must be a non-negative finite number, got {value!r}")
 
 
+def _clock_drift(path: str, value: float) -> None:
+    # a crystal off by more than 0.1 % is a wrong frame period, not a drift
+    if not (math.isfinite(value) and abs(value) <= MAX_CLOCK_DRIFT_PPM):
+        raise ConfigError(f"{path}: {value!r} is not a clock drift of at most {MAX_CLOCK_DRIFT_PPM:g} ppm either way")
+
+
 def _finite_vector(path: str, values: tuple[float, ...]) -> None:
     if not all(math.isfinite(v) for v in values):
         raise ConfigError(f"{path}: every component must be finite, got {list(values)!r}")
@@ -583,6 +599,7 @@ def _validate(cfg: Config) -> None:
         raise ConfigError(f"radar.prf_hz: {r.num_tx} chirps of {r.chirp_period_s} s do not fit in one PRI")
     if not (math.isfinite(r.clock_offset_s) and abs(r.clock_offset_s) <= 1.0):
         raise ConfigError(f"radar.clock_offset_s: {r.clock_offset_s} is not a time offset of at most 1 s either way")
+    _clock_drift("radar.clock_drift_ppm", r.clock_drift_ppm)
     if len(r.tx_positions_wavelengths) != r.num_tx:
         raise ConfigError(f"radar.tx_positions_wavelengths: expected {r.num_tx} positions")
     if len(r.rx_positions_wavelengths) != r.num_rx:
@@ -673,6 +690,7 @@ def _validate(cfg: Config) -> None:
         if not (math.isfinite(sim.radar_clock_offset_s) and abs(sim.radar_clock_offset_s) <= 1.0):
             raise ConfigError(f"simulation.radar_clock_offset_s: {sim.radar_clock_offset_s} is not a time offset of at "
                               "most 1 s either way")
+        _clock_drift("simulation.radar_clock_drift_ppm", sim.radar_clock_drift_ppm)
         for i, rider in enumerate(sim.cyclists):
             _finite_vector(f"simulation.cyclists[{i}]", rider)
         lo, hi = sim.vibration_band_hz

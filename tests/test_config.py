@@ -61,6 +61,8 @@ def _write_variant(tmp_path: Path, pattern: str, replacement: str) -> Path:
         (r"^autofocus_channel_gains = .*$", 'autofocus_channel_gains = "yes"', "processing.autofocus_channel_gains"),
         (r"^radar_clock_offset_s = .*$", "radar_clock_offset_s = 5.0", "simulation.radar_clock_offset_s"),
         (r"^clock_offset_s = .*$", "clock_offset_s = -3.0", "radar.clock_offset_s"),
+        (r"^clock_drift_ppm = .*$", "clock_drift_ppm = 2500.0", "radar.clock_drift_ppm"),
+        (r"^radar_clock_drift_ppm = .*$", 'radar_clock_drift_ppm = "fast"', "simulation.radar_clock_drift_ppm"),
     ],
 )
 def test_bad_values_are_rejected_naming_the_key(tmp_path, pattern, replacement, key):

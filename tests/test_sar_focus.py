@@ -24,6 +24,7 @@ from autosar_cli.config import SPEED_OF_LIGHT, Config, load_config
 from autosar_cli.evaluate.point_target import analyse_point_target
 from autosar_cli.ingest.pipeline import ingest
 from autosar_cli.nav.navigate import navigate
+from autosar_cli.nav.trajectory import radar_phase_centres
 from autosar_cli.sar.focus import FocusError, FocusOptions, focus, focus_images
 from autosar_cli.sar.grid import box_grid
 from autosar_cli.sim.simulate import simulate
@@ -423,28 +424,42 @@ def test_test1_corner_reflectors_focus_at_truth(tmp_path_factory: pytest.TempPat
 
 
 @pytest.mark.slow
-def test_a_stated_radar_clock_offset_focuses_a_late_capture_where_it_was(tmp_path: Path) -> None:
-    """The ci drive with its radar frames stamped 20 ms late (``simulation.radar_clock_offset_s``), focused along
-    the true track on the navigation's clock: read at their stamps, the frames put every reflector along the
-    track by the speed times 20 ms (4-6 cm); with ``radar.clock_offset_s = 0.02`` stated, focus takes each frame
-    as started 20 ms before its stamp, and the reflectors are where they are (within 2 mm)."""
+def test_a_stated_radar_clock_focuses_a_late_drifting_capture_where_it_was(tmp_path: Path) -> None:
+    """The ci drive with its radar frames stamped 20 ms late (``simulation.radar_clock_offset_s``) by a clock
+    1000 ppm fast (``radar_clock_drift_ppm``: 1 ms more over its second), focused along the true track on the
+    navigation's clock. Read at their stamps, the frames put every reflector along the track by the speed times
+    20-21 ms (5 cm); with ``radar.clock_offset_s = 0.02`` stated, by the speed times the drift's share (up to
+    2.5 mm); with ``clock_drift_ppm = 1000`` stated too, focus takes each frame as started when it did and the
+    reflectors are where they are along the track (within 1 mm). Measured along the track, where a clock moves
+    them: across, a reflector's range peak moves by up to 3 mm with a 0.1 ms shift of the frames' times (its
+    place between the interpolated range samples)."""
     base = still_config()
-    late = replace(base, simulation=replace(base.simulation, radar_clock_offset_s=0.02))
+    late = replace(base, simulation=replace(base.simulation, radar_clock_offset_s=0.02, radar_clock_drift_ppm=1000.0))
     sim = simulate("ci", tmp_path / "ci_late.mcap", seed=3, config=late)
     drive = tmp_path / "drive.h5"
     ingest([sim.log_path], drive, config=base)
-    stated = replace(base, radar=replace(base.radar, clock_offset_s=0.02))
+    stated = replace(base, radar=replace(base.radar, clock_offset_s=0.02, clock_drift_ppm=1000.0))
     track = navigate(drive, "truth", stated, truth_path=sim.truth_path)  # the radar's motion on the nav's clock
     targets = read_targets(sim.truth_path, track.origin)
+    reflectors = targets.corner_reflectors
     grids = [box_grid(x - 0.5, y - 0.5, x + 0.5, y + 0.5, pixel_m=0.005, height_m=base.processing.focus_height_m)
-             for x, y in targets.position_enu[targets.corner_reflectors, :2]]
-    errors = {}
-    for name, cfg in (("read at the stamps", base), ("stated", stated)):
+             for x, y in targets.position_enu[reflectors, :2]]
+    # each reflector's closest approach to the radar: the track's direction of travel there
+    radar_xy = radar_phase_centres(track, track.t_ns, np.zeros(base.radar.num_tx), base).tx[:, 0, :2]
+    closest = [int(np.argmin(np.linalg.norm(radar_xy - targets.position_enu[i, :2], axis=1))) for i in reflectors]
+    ahead = np.c_[np.cos(track.heading[closest]), np.sin(track.heading[closest])]
+    along = {}
+    offset_only = replace(base, radar=replace(base.radar, clock_offset_s=0.02))
+    for name, cfg in (("read at the stamps", base), ("offset stated", offset_only), ("stated", stated)):
         opts = FocusOptions.from_config(cfg, pixel_m=0.005)
         images = focus_images(drive, track, cfg, opts, grids=grids).images
-        errors[name] = np.array([analyse_point_target(img, targets.position_enu[i], patch_m=0.9).peak_error_m
-                                 for i, img in zip(targets.corner_reflectors, images, strict=True)])
+        miss = np.array([np.subtract(analyse_point_target(img, targets.position_enu[i], patch_m=0.9).peak_enu,
+                                     targets.position_enu[i, :2]) for i, img in zip(reflectors, images, strict=True)])
+        along[name] = np.sum(miss * ahead, axis=1)
     speed = float(np.median(track.speed[track.speed > 0.5]))
-    print({k: np.round(v * 1e3, 2) for k, v in errors.items()}, f"mm; speed x 20 ms = {speed * 20:.1f} mm")
-    assert np.all(errors["stated"] < 0.002)
-    assert np.all(np.abs(errors["read at the stamps"] - 0.02 * speed) < 0.25 * 0.02 * speed)
+    since_first_s = (track.t_ns[closest] - track.t_ns[0]) / 1e9
+    print({k: np.round(v * 1e3, 2) for k, v in along.items()}, f"mm along; speed x 20 ms = {speed * 20:.1f} mm, "
+          f"x the drift at closest approach {np.round(speed * since_first_s, 2)} mm")
+    assert np.all(np.abs(along["stated"]) < 0.001)
+    assert np.all(np.abs(along["offset stated"] - speed * since_first_s * 1e-3) < 0.001)  # ahead by the drift
+    assert np.all(np.abs(np.abs(along["read at the stamps"]) - 0.02 * speed) < 0.25 * 0.02 * speed)

@@ -418,6 +418,57 @@ def test_a_radar_clock_running_late_moves_only_the_frames_stamps(ci_full_log: Si
     assert moving.sum() > 10 and np.allclose(ahead[moving] / speed[moving], 0.02, rtol=0.1)
 
 
+@pytest.mark.slow
+def test_a_radar_clock_running_fast_stamps_frames_a_nominal_period_apart(ci_full_log: SimulationResult,
+                                                                        config: Config, tmp_path: Path) -> None:
+    """``simulation.radar_clock_drift_ppm``: a crystal 800 ppm fast starts its frames every frame period on its own
+    clock, so they lie 1 / 1.0008 of a period apart in truth while their stamps stay a period apart. The sidecar's
+    antennas are those of the same motion at the true instants: along the truth's radar motion (on the radar's
+    clock) every antenna is where the simulator put it, to 0.05 mm; store.drive.stamps_on_navigation_clock takes
+    the stamps back to the true instants to 1 ns."""
+    from autosar_cli.nav.baselines import from_truth
+    from autosar_cli.nav.geodesy import GeodeticOrigin
+    from autosar_cli.nav.trajectory import radar_phase_centres
+    from autosar_cli.store.drive import stamps_on_navigation_clock
+
+    ppm, late_s = 800.0, 0.005
+    fast_cfg = replace(config, simulation=replace(config.simulation, radar_clock_drift_ppm=ppm,
+                                                  radar_clock_offset_s=late_s))
+    fast = simulate("ci", tmp_path / "ci_fast.mcap", seed=7, config=fast_cfg, dynamics="full")
+    with h5py.File(ci_full_log.truth_path) as a, h5py.File(fast.truth_path) as b:
+        assert float(b.attrs["radar_clock_drift_ppm"]) == ppm
+        on_time, stamps = a["radar/t_ns"][()], b["radar/t_ns"][()]
+        assert np.array_equal(a["sensors/gnss_cog/t_ns"][()], b["sensors/gnss_cog/t_ns"][()])
+        origin = GeodeticOrigin(*(float(b.attrs[k]) for k in ("origin_lat_deg", "origin_lon_deg",
+                                                               "origin_height_m")))
+        t_ns, chirp_ns = stamps[::20], b["radar/chirp_t_ns"][::20]
+        tx = b["radar/tx_position_enu"][::20]
+    n = min(len(on_time), len(stamps))
+    assert len(stamps) >= len(on_time)  # more frames fit in the drive where they come faster
+    # stamps: the on-time drive's, late; true instants: 1 / (1 + 800e-6) of the time since the first frame
+    assert np.array_equal(stamps[:n] - on_time[:n], np.full(n, 5_000_000))
+    true_ns = on_time[0] + np.round((on_time[:n] - on_time[0]) / (1 + ppm * 1e-6)).astype(np.int64)
+    assert np.abs(stamps_on_navigation_clock(stamps[:n], stamps[0], late_s, ppm) - true_ns).max() <= 1
+    offsets_s = (chirp_ns[0] - t_ns[0]) / 1e9
+    radar_clock = from_truth(str(fast.truth_path), origin, config, radar_motion=True)
+    inside = t_ns <= radar_clock.t_ns[-1] - 10**8
+    miss = np.abs(radar_phase_centres(radar_clock, t_ns[inside], offsets_s, config).tx - tx[inside])[..., :2].max()
+    # the clock stated: the truth's radar motion is on the navigation's clock again, and the frames read at their
+    # stamps taken back put the antennas where they were
+    stated = replace(config, radar=replace(config.radar, clock_offset_s=late_s, clock_drift_ppm=ppm))
+    on_nav = from_truth(str(fast.truth_path), origin, stated, radar_motion=True)
+    back = stamps_on_navigation_clock(t_ns[inside], stamps[0], late_s, ppm)
+    miss_stated = np.abs(radar_phase_centres(on_nav, back, offsets_s, config).tx - tx[inside])[..., :2].max()
+    unstated = np.linalg.norm((radar_phase_centres(on_nav, t_ns[inside] - 5_000_000, offsets_s, config).tx
+                               - tx[inside])[:, 0, :2], axis=-1)
+    print(f"on the radar's clock {miss * 1e3:.4f} mm, stated {miss_stated * 1e3:.4f} mm; the drift unstated: "
+          f"{unstated[-1] * 1e3:.2f} mm at the last frame")
+    assert miss < 5e-5 and miss_stated < 5e-5
+    speed = np.interp(t_ns[inside][-1], on_nav.t_ns, on_nav.speed)
+    elapsed_s = (t_ns[inside][-1] - stamps[0]) / 1e9
+    assert unstated[-1] == pytest.approx(speed * elapsed_s * ppm * 1e-6, rel=0.15)
+
+
 @pytest.mark.long
 def test_urban_focuses_at_truth_along_its_6dof_phase_centres(tmp_path: Path) -> None:
     """The junction turn, the S-bend, the stop, the bump and the cobbles: 11 reflectors, two 58 s drives

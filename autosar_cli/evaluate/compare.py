@@ -204,7 +204,7 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
     names = truth.targets.corner_reflector_names() if has_reflectors and truth else []
     true_cr = truth.targets.position_enu[truth.targets.corner_reflectors] if has_reflectors and truth else None
     if truth is not None:
-        t_radar = radar_times(out / DRIVE, options.radar, options.radar_clock_offset_s)
+        t_radar = radar_times(out / DRIVE, options.radar, options.radar_clock_offset_s, options.radar_clock_drift_ppm)
         lever = phase_centre_lever_arm(config)
 
         def register(m: str) -> None:

@@ -339,7 +339,7 @@ def evaluate_image(image: FocusedImage, trajectory: Trajectory, drive_path: str 
     with Drive(drive_path) as drive:
         ev.input_warnings = [str(w) for w in drive.report().get("warnings", [])]
     options = options_from_image(image, config)
-    frames = radar_times(drive_path, options.radar, options.radar_clock_offset_s)
+    frames = radar_times(drive_path, options.radar, options.radar_clock_offset_s, options.radar_clock_drift_ppm)
     fine = [product_metrics_grid(image)] if metrics_image is None else []
     if truth is None:
         if metrics_image is None:

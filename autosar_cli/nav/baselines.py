@@ -3,6 +3,9 @@ simulator's ground truth. Array-in, array-out like SAR-MIN."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -10,6 +13,7 @@ from autosar_cli.config import Config
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.nav.inputs import NavInputError, NavInputs
 from autosar_cli.nav.trajectory import Trajectory, radar_phase_centres, rear_axle_from_body_point
+from autosar_cli.store.drive import stamps_on_navigation_clock
 from autosar_cli.types import MotionCorrection
 
 Array = NDArray[np.float64]
@@ -76,9 +80,10 @@ def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config, *, radar
     which compare filter states, do not. Its height is the radar's above the road at the start (the grade, the
     body's tilt and heave), which the focusing surface follows (:meth:`Trajectory.height_offset`). Where the
     simulator gave the radar's channels their own phase and gain, its ``info["channel_gains"]`` holds them (focus
-    undoes them along it). Where it stamped the radar's frames late (``radar_clock_offset_s``), the radar's motion
-    is given on the radar's clock, each instant that much later less what ``config.radar.clock_offset_s`` states,
-    so that focusing along it at the frames' stamps (less that) finds the radar where it was.
+    undoes them along it). Where it stamped the radar's frames on a clock of their own (``radar_clock_offset_s``
+    late, ``radar_clock_drift_ppm`` fast), the radar's motion is given on that clock less what ``config.radar``
+    states of it (:func:`_focus_clock`), so that focusing along it at the frames' stamps (less that) finds the
+    radar where it was.
     """
     import h5py
 
@@ -97,16 +102,14 @@ def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config, *, radar
         gains = {"phase_deg": np.asarray(f.attrs["channel_phase_deg"]).tolist(),
                  "gain_db": np.asarray(f.attrs["channel_gain_db"]).tolist()} \
             if np.any(f.attrs.get("channel_phase_deg", 0.0)) or np.any(f.attrs.get("channel_gain_db", 0.0)) else None
-        # the radar's frame stamps run this late, less what the config states of it (focus takes that out of the
-        # stamps): its motion is given on the clock focus reads them by
-        stated_ns = int(round(config.radar.clock_offset_s * 1e9))
-        clock_ns = int(round(float(f.attrs.get("radar_clock_offset_s", 0.0)) * 1e9)) - stated_ns if radar_motion else 0
         radar = f.get("radar")
         phase_centres = None
+        on_focus_clock = None
         if radar_motion and radar is not None and len(radar["t_ns"]):
+            on_focus_clock = _focus_clock(f.attrs, radar["t_ns"][()], config)
             offsets = radar.get("chirp_t_ns")
-            phase_centres = (radar["t_ns"][()] - stated_ns, radar["phase_centre_enu"][()],
-                             None if offsets is None else offsets[()] - stated_ns)
+            phase_centres = (on_focus_clock(radar["t_ns"][()], stamps=True), radar["phase_centre_enu"][()],
+                             None if offsets is None else on_focus_clock(offsets[()], stamps=True))
     lat, lon, h = truth_origin.to_geodetic(np.c_[rear, np.zeros(len(rear))])
     enu = origin.to_enu(lat, lon, h)
     # The two tangent planes differ by a tiny rotation: apply it to the heading too.
@@ -114,12 +117,33 @@ def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config, *, radar
     ahead = origin.to_enu(*ref)
     psi = np.unwrap(np.arctan2(ahead[:, 1] - enu[:, 1], ahead[:, 0] - enu[:, 0]))
     psi += np.round((heading[0] - psi[0]) / (2 * np.pi)) * 2 * np.pi
-    traj = Trajectory("truth", t_ns + clock_ns, enu[:, :2], psi, speed, yaw_rate, origin, **_geometry(config))
+    traj = Trajectory("truth", t_ns if on_focus_clock is None else on_focus_clock(t_ns), enu[:, :2], psi, speed,
+                      yaw_rate, origin, **_geometry(config))
     if gains is not None:
         traj.info = {**traj.info, "channel_gains": gains}
     if phase_centres is not None:
         traj.correction = _radar_motion(traj, truth_origin, config, *phase_centres)
     return traj
+
+
+def _focus_clock(attrs: Any, stamps_ns: NDArray[np.int64], config: Config
+                 ) -> Callable[..., NDArray[np.int64]]:
+    """The instants (ns) focus reads a drive's radar frames at, as a function of true instants ``t`` (ns, the
+    navigation's clock) or, with ``stamps=True``, of the radar's own stamps: the sidecar's radar clock (its frames
+    stamped ``radar_clock_offset_s`` late, counting ``radar_clock_drift_ppm`` fast from the first frame on, whose
+    stamp is ``stamps_ns[0]``) less what ``config.radar`` states of it (store.drive.stamps_on_navigation_clock)."""
+    late_ns = int(round(float(attrs.get("radar_clock_offset_s", 0.0)) * 1e9))
+    drift = float(attrs.get("radar_clock_drift_ppm", 0.0)) * 1e-6
+    first_ns = int(stamps_ns[0])
+
+    def on_focus_clock(t: NDArray[np.int64], stamps: bool = False) -> NDArray[np.int64]:
+        t = np.asarray(t, dtype=np.int64)
+        if not stamps:  # the radar's clock reads a true instant late, plus its gain since its first frame
+            since_first = (t - (first_ns - late_ns)).astype(np.float64)
+            t = t + late_ns + np.round(since_first * drift).astype(np.int64)
+        return stamps_on_navigation_clock(t, first_ns, config.radar.clock_offset_s, config.radar.clock_drift_ppm)
+
+    return on_focus_clock
 
 
 def _radar_motion(planar: Trajectory, truth_origin: GeodeticOrigin, config: Config, frame_t_ns: NDArray[np.int64],

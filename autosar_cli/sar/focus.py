@@ -74,6 +74,9 @@ class FocusOptions:
     #: how late the radar's frame stamps run against the navigation's clock (s; ``radar.clock_offset_s``): each
     #: frame is taken as started this much before its stamp (:func:`open_radar`)
     radar_clock_offset_s: float = 0.0
+    #: how fast the radar's frame clock runs against the navigation's (ppm; ``radar.clock_drift_ppm``), from the
+    #: stream's first stamp on (:func:`open_radar`)
+    radar_clock_drift_ppm: float = 0.0
 
     def __post_init__(self) -> None:
         # a CLI override is checked here, as the config's values are in config.py (the pixel: sar.grid, first)
@@ -89,7 +92,8 @@ class FocusOptions:
         p = config.processing
         base = dict(pixel_m=p.pixel_m, resolution_m=p.cross_range_resolution_m, channels=int(p.channels),
                     height_m=p.focus_height_m, window=p.range_window, upsample=p.range_upsample,
-                    radar_clock_offset_s=config.radar.clock_offset_s)
+                    radar_clock_offset_s=config.radar.clock_offset_s,
+                    radar_clock_drift_ppm=config.radar.clock_drift_ppm)
         base.update({k: v for k, v in overrides.items() if v is not None})
         return cls(**base)
 
@@ -205,10 +209,10 @@ def _usable_frames(radar: RadarStream, traj: Trajectory, config: Config, min_spe
 
 def open_radar(drive: Drive, options: FocusOptions) -> RadarStream:
     """The radar stream ``options`` focuses (``options.radar``, else the drive's first), its frames' times on the
-    navigation's clock (their stamps less ``options.radar_clock_offset_s``); any reader failure is a
-    :class:`FocusError` naming the drive."""
+    navigation's clock (their stamps less ``options.radar_clock_offset_s`` and the clock's drift); any reader
+    failure is a :class:`FocusError` naming the drive."""
     try:
-        return drive.radar(options.radar).on_clock(options.radar_clock_offset_s)
+        return drive.radar(options.radar).on_clock(options.radar_clock_offset_s, options.radar_clock_drift_ppm)
     except Exception as exc:  # noqa: BLE001 - any reader failure is an input problem here
         msg = str(exc)
         raise FocusError(msg if str(drive.path) in msg else f"{drive.path}: {msg}") from None

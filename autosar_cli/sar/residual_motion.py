@@ -887,7 +887,7 @@ def points_and_scatterers(drive_path: str | Path, trajectory: Trajectory, config
     coarse = replace(focus, resolution_m=2.0 * focus.resolution_m, pixel_m=1.5 * focus.pixel_m, channels=opts.channels)
     grid = auto_grid(drive_path, trajectory, far, coarse)
     image = focus_images(drive_path, trajectory, far, coarse, grids=[grid]).images[0].image
-    t_radar = radar_times(drive_path, focus.radar, focus.radar_clock_offset_s)
+    t_radar = radar_times(drive_path, focus.radar, focus.radar_clock_offset_s, focus.radar_clock_drift_ppm)
     t_radar = t_radar[(t_radar >= trajectory.t_ns[0]) & (t_radar <= trajectory.t_ns[-1])]
     # every 8th pulse (~3 cm apart at 30 km/h): the distance of a pixel 3 m away is off by < 0.1 mm
     track = radar_track(trajectory, t_radar[::8], config)

@@ -270,7 +270,9 @@ def simulate(
 
     # --- radar frame schedule
     t_needed = (radar.num_tx - 1) * radar.chirp_period_s + radar.chirp_duration_s
-    n_frames = int(np.floor((motion.duration_s - t_needed) * radar.prf_hz)) + 1
+    # the radar's frame timer runs on its own clock: a frame period on it is 1 / (1 + drift) of one in truth
+    clock_rate = 1.0 + sim.radar_clock_drift_ppm * 1e-6
+    n_frames = int(np.floor((motion.duration_s - t_needed) * radar.prf_hz * clock_rate)) + 1
     geom = RadarGeometry.from_config(config)
     vib = Vibration(stream_rng(seed, "radar/vibration"), sim.vibration_horizontal_rms_m,
                     sim.vibration_vertical_rms_m, sim.vibration_band_hz)
@@ -288,6 +290,9 @@ def simulate(
         "channel_phase_deg": np.degrees(np.angle(channel_gain)), "channel_gain_db": 20 * np.log10(np.abs(channel_gain)),
         # /radar's times are the frames' stamps: the instants they started plus this
         "radar_clock_offset_s": sim.radar_clock_offset_s,
+        # and that clock counts 1 + this * 1e-6 s per true second from the first frame on (store.drive's
+        # stamps_on_navigation_clock takes them back)
+        "radar_clock_drift_ppm": sim.radar_clock_drift_ppm,
     }
     if dynamics == "full":
         attrs["dynamics"] = dynamics
@@ -311,7 +316,7 @@ def simulate(
             nav_i = 0
             for b0 in range(0, n_frames, RADAR_BLOCK_FRAMES):
                 idx = np.arange(b0, min(b0 + RADAR_BLOCK_FRAMES, n_frames))
-                t_frames = idx / radar.prf_hz
+                t_frames = idx / (radar.prf_hz * clock_rate)
                 geo = radar_block(motion, config, geom, vib, t_frames)
                 beat = synthesize_beat(
                     geo["tx_start"], geo["tx_end"], geo["rx_start"], geo["rx_end"], geo["origin"],
@@ -327,8 +332,10 @@ def simulate(
                 iq = beat.view(np.float32).reshape(*beat.shape, 2)
                 iq += noise_rng.standard_normal(iq.shape, dtype=np.float32) * np.float32(sim.radar_noise_std_lsb)
                 raw = np.clip(np.rint(iq), -32768, 32767).astype(np.int16)
-                # the frames as the drive stamps them: on the radar's clock, sim.radar_clock_offset_s late
-                stamps = t0_ns + np.round((t_frames + sim.radar_clock_offset_s) * 1e9).astype(np.int64)
+                # the frames as the drive stamps them: on the radar's clock, a frame period apart from
+                # sim.radar_clock_offset_s late on
+                t_counted = idx / radar.prf_hz
+                stamps = t0_ns + np.round((t_counted + sim.radar_clock_offset_s) * 1e9).astype(np.int64)
                 if capture is not None:
                     capture.write(raw)
                 for j, fi in enumerate(idx):
@@ -351,10 +358,10 @@ def simulate(
                     writer.write(radar.topic, log_ns, msg)
                 frame_topic = RADAR_SYNC_TOPIC if capture else radar.topic
                 counts[frame_topic] = counts.get(frame_topic, 0) + len(idx)
-                chirp_s = t_frames[:, None] + offsets[None, :]
                 truth.append_radar({
                     "frame_index": idx, "t_ns": stamps,
-                    "chirp_t_ns": t0_ns + np.round((chirp_s + sim.radar_clock_offset_s) * 1e9).astype(np.int64),
+                    "chirp_t_ns": t0_ns + np.round((t_counted[:, None] + offsets[None, :]
+                                                      + sim.radar_clock_offset_s) * 1e9).astype(np.int64),
                     "tx_position_enu": geo["tx_start"], "rx_position_enu": geo["rx_start"],
                     "phase_centre_enu": 0.5 * (geo["tx_start"][:, :, None, :] + geo["rx_start"]),
                     "vibration_enu": geo["vibration"],

@@ -356,12 +356,14 @@ class RadarStream:
     raw: h5py.Dataset  #: (frame, tx, rx, sample, I/Q) int16; read it in blocks of frames (:meth:`frames`)
     attrs: dict[str, Any]
 
-    def on_clock(self, late_s: float) -> RadarStream:
-        """The stream with its frames' times ``late_s`` (s) earlier than their stamps: on the navigation's clock
-        where the stamps run that late (itself where 0)."""
-        if not late_s:
+    def on_clock(self, late_s: float, drift_ppm: float = 0.0) -> RadarStream:
+        """The stream with its frames' times on the navigation's clock, where its stamps run ``late_s`` (s) late
+        and its clock ``drift_ppm`` fast from its first stamp on (:func:`stamps_on_navigation_clock`; itself where
+        both are 0)."""
+        if not late_s and not drift_ppm:
             return self
-        return replace(self, t_ns=self.t_ns - int(round(late_s * 1e9)))
+        first = int(self.t_ns[0]) if len(self.t_ns) else 0
+        return replace(self, t_ns=stamps_on_navigation_clock(self.t_ns, first, late_s, drift_ppm))
 
     def frames(self, start: int, stop: int, pairs: Sequence[tuple[int, int]] | None = None) -> np.ndarray:
         """Raw frames ``start:stop`` (n, tx, rx, sample, I/Q), or with ``pairs`` only those (Tx, Rx) channels
@@ -509,8 +511,25 @@ class Drive:
         return json.loads(self._file["provenance"].attrs.get("report", "{}"))
 
 
-def radar_times(drive_path: str | Path, name: str | None = None, late_s: float = 0.0) -> NDArray[np.int64]:
-    """Frame start times (ns) of a drive's radar stream ``name`` (None: its first), ``late_s`` (s) before their
-    stamps (:meth:`RadarStream.on_clock`)."""
+def radar_times(drive_path: str | Path, name: str | None = None, late_s: float = 0.0,
+                drift_ppm: float = 0.0) -> NDArray[np.int64]:
+    """Frame start times (ns) of a drive's radar stream ``name`` (None: its first) on the navigation's clock, where
+    its stamps run ``late_s`` (s) late and ``drift_ppm`` fast (:meth:`RadarStream.on_clock`)."""
     with Drive(drive_path) as d:
-        return np.asarray(d.radar(name).on_clock(late_s).t_ns, dtype=np.int64)
+        return np.asarray(d.radar(name).on_clock(late_s, drift_ppm).t_ns, dtype=np.int64)
+
+
+def stamps_on_navigation_clock(stamps_ns: NDArray[np.int64], first_ns: int, late_s: float,
+                               drift_ppm: float) -> NDArray[np.int64]:
+    """The navigation clock's instants (ns) of a radar's ``stamps_ns`` (ns, its clock): a clock that reads
+    ``first_ns`` ``late_s`` (s) after the navigation's instant, and from then on counts ``1 + drift_ppm * 1e-6``
+    seconds for each of the navigation's. The one definition of the radar's clock: the simulator's stamps invert
+    it (sim.simulate), the truth's radar motion follows it (nav.baselines.from_truth)."""
+    stamps = np.asarray(stamps_ns, dtype=np.int64)
+    out = stamps - int(round(late_s * 1e9))
+    if drift_ppm:
+        rate = drift_ppm * 1e-6
+        # int64 differences keep ns exact over a drive; the drift's share is at most 1e-3 of them
+        elapsed = (stamps - int(first_ns)).astype(np.float64)
+        out = out - np.round(elapsed * (rate / (1.0 + rate))).astype(np.int64)
+    return out
