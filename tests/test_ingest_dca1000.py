@@ -427,6 +427,49 @@ def test_hardware_triggered_frames_take_their_triggers_times(tmp_path: Path) -> 
         in r.stderr, r.stderr.splitlines()
 
 
+def test_a_frame_clock_that_drifts_is_timed_by_its_triggers(tmp_path: Path) -> None:
+    """A software-triggered capture whose radar crystal runs 500 ppm fast: its 40 per-frame triggers on the
+    logger's clock come every 1.0101 ms / 1.0005. Ingest measures the frame clock against them and times the frames
+    by the triggers' period (to 1 ns of each trigger, where the stated period leaves the last 20 us off), says so
+    in one line and in the radar's attributes; triggers a period apart leave the frames as the period times them."""
+    pris = np.random.default_rng(4).integers(-500, 500, (40, 3, 4, 540, 2), dtype=np.int16)
+    write_capture(tmp_path / "sw", params_from_radar(CFG.radar, lanes=4), [pris], param_format="json")
+    start, period_ns = 1_714_557_600_000_000_000, 1e9 / CFG.radar.prf_hz
+    for name, ppm in (("fast", 500.0), ("nominal", 0.0)):
+        stamps = start + np.round(np.arange(40) * period_ns / (1 + ppm * 1e-6)).astype(np.int64)
+        log = trigger_log(tmp_path / f"{name}.mcap", stamps)
+        r = runner.invoke(app, ["ingest", str(log), "--radar", str(tmp_path / "sw"), "--allow-partial",
+                                "-o", str(tmp_path / f"{name}.h5")])
+        assert r.exit_code == 0, r.output
+        with Drive(tmp_path / f"{name}.h5") as d:
+            t_ns, attrs = d.radar().t_ns[()], d.radar().attrs
+        assert np.abs(t_ns - stamps).max() <= 1
+        assert attrs["frame_clock_applied"] == bool(ppm)
+        assert attrs["frame_clock_drift_ppm"] == pytest.approx(ppm, abs=4 * attrs["frame_clock_drift_std_ppm"] + 0.5)
+        assert ("its 40 triggers on topic /dca1000/sync come every 1.009596 ms" in r.stderr) == bool(ppm), r.stderr
+        if ppm:
+            assert "the radar's frame clock runs +500.0 ± " in r.stderr
+            assert np.abs(start + np.round(np.arange(40) * period_ns) - stamps).max() > 19_000  # the period alone
+
+
+def test_the_frame_clock_is_measured_through_jitter_and_late_triggers() -> None:
+    """3000 triggers 1 ms apart on the radar's clock, 60 ppm fast, stamped with 20 us of jitter and five messages
+    50 ms late: the line through them reads the drift within 3 std (std under 1 ppm) and applies it; the same
+    triggers on a clock without drift apply nothing."""
+    from autosar_cli.ingest.radar_block import frame_clock_against_triggers
+
+    rng = np.random.default_rng(11)
+    k = np.arange(3000)
+    for ppm in (60.0, 0.0):
+        stamps = 10**18 + np.round(k * 1e6 / (1 + ppm * 1e-6) + rng.normal(0, 20e3, k.size)).astype(np.int64)
+        stamps[rng.choice(k.size, 5, replace=False)] += 50_000_000
+        clock = frame_clock_against_triggers(stamps, 1e-3)
+        print(clock)
+        assert abs(clock.drift_ppm - ppm) < 3 * clock.drift_std_ppm
+        assert clock.drift_std_ppm < 1.0
+        assert clock.applied == bool(ppm)
+
+
 PACKET = 1456  # the DCA1000's default data bytes per packet
 
 

@@ -370,8 +370,8 @@ class _Ingest:
         cap = Dca1000Capture(path)
         self.source_file = str(path)
         try:
-            frame_starts = capture_frame_starts(cap, self.radar_options.start_ns, self.sync_stamps,
-                                                self.radar_options.sync_topic, warn=self.warnings.append)
+            frame_starts, timing = capture_frame_starts(cap, self.radar_options.start_ns, self.sync_stamps,
+                                                        self.radar_options.sync_topic, warn=self.warnings.append)
         except ValueError as exc:
             raise IngestError(f"{path}: {exc}") from None
         name = self.config.radar.name
@@ -384,7 +384,7 @@ class _Ingest:
                       "start_time_source": f"topic {self.radar_options.sync_topic}, a trigger per frame"
                       if cap.params.hardware_trigger else "--radar-start" if self.radar_options.start_ns is not None
                       else f"topic {self.radar_options.sync_topic}",
-                      "layout": "frame, tx, rx, sample, I/Q"})
+                      "layout": "frame, tx, rx, sample, I/Q", **timing})
         info = write_capture_stream(self.writer, group, cap, frame_starts, attrs, progress)
         self.warnings.extend(cap.warnings)  # after the stream: the PRIs left out are known once it is read
         if cap.params.range_bias_m:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from autosar_cli.config import RadarConfig
+from autosar_cli.config import MAX_CLOCK_DRIFT_PPM, RadarConfig
 from autosar_cli.store.drive import DriveWriter
 
 from .dca1000 import Dca1000Capture
@@ -137,11 +137,13 @@ def _stated_gains(gains: NDArray[np.complex128] | None) -> dict[str, Any]:
 
 
 def capture_frame_starts(cap: Dca1000Capture, start_ns: int | None, triggers: Sequence[int], topic: str,
-                         warn: Callable[[str], None]) -> NDArray[np.int64]:
-    """Each frame's start (ns since the epoch). A capture's files hold no time: the frames of a software-triggered
-    capture start every frame period from ``start_ns`` (``--radar-start``) or from the first of ``triggers`` (the
-    frame-trigger topic's stamps, as recorded); those of a hardware-triggered one (triggerSelect 2) start on
-    their own triggers, one each. Raises ValueError where the times cannot be known; ``warn`` where the
+                         warn: Callable[[str], None]) -> tuple[NDArray[np.int64], dict[str, Any]]:
+    """Each frame's start (ns since the epoch), and the radar attributes that say how its frames were timed. A
+    capture's files hold no time: the frames of a software-triggered capture start every frame period from
+    ``start_ns`` (``--radar-start``) or from the first of ``triggers`` (the frame-trigger topic's stamps, as
+    recorded); those of a hardware-triggered one (triggerSelect 2) start on their own triggers, one each. Where a
+    software-triggered capture has a trigger per frame, its frame clock is measured against them
+    (:func:`frame_clock_against_triggers`). Raises ValueError where the times cannot be known; ``warn`` where the
     triggers contradict the frame period."""
     p, n = cap.params, cap.num_frames
     stamps = np.asarray(triggers, dtype=np.int64)
@@ -154,19 +156,74 @@ def capture_frame_starts(cap: Dca1000Capture, start_ns: int | None, triggers: Se
         starts = stamps[:n]
         if np.any(np.diff(starts) <= 0):
             raise ValueError(f"the triggers on topic {topic} do not rise: they cannot time its frames")
-        return starts
+        return starts, {}
     if start_ns is None and not len(stamps):
         raise ValueError(f"no start time for the DCA1000 capture: give --radar-start, or record its first frame "
                          f"trigger on topic {topic} in a log")
     start = start_ns if start_ns is not None else int(stamps[0])
     starts = cap.frame_starts_ns(start)
-    if start_ns is None and len(stamps) == n and n > 1:  # a trigger per frame: they must follow the period
+    attrs: dict[str, Any] = {}
+    if start_ns is None and len(stamps) == n and n > 2:  # a trigger per frame: they must follow the period
+        clock = frame_clock_against_triggers(stamps, p.frame_period_s)
+        attrs = clock.attrs()
+        if clock.applied:
+            starts = start + np.round(np.arange(n) * (clock.period_s * 1e9)).astype(np.int64)
+            warn(f"{cap.name}: its {n} triggers on topic {topic} come every {clock.period_s * 1e3:.7g} ms, not "
+                 f"every {p.frame_period_s * 1e3:g} ms: the radar's frame clock runs {clock.drift_ppm:+.1f} ± "
+                 f"{clock.drift_std_ppm:.1f} ppm fast; its frames timed by the triggers' period")
         drift = np.abs(stamps - starts)
         if drift.max() > p.frame_period_s * 1e9 / 2:
             warn(f"{cap.name}: frames every {p.frame_period_s * 1e3:g} ms drift up to {drift.max() / 1e6:.3g} ms "
                  f"from their {n} triggers on topic {topic} (frame {int(np.argmax(drift))}): a frame period or "
                  "trigger mode that differs from the recording's?")
-    return starts
+    return starts, attrs
+
+
+@dataclass(frozen=True)
+class FrameClock:
+    """A radar's frame clock measured against its per-frame triggers' clock (the logger's)."""
+
+    period_s: float  #: the frames' period on the triggers' clock (s)
+    drift_ppm: float  #: how fast the radar's frame clock runs (ppm; ``radar.clock_drift_ppm``'s sign)
+    drift_std_ppm: float  #: its 1-sigma from the triggers' scatter about the line (ppm)
+    applied: bool  #: the frames are timed by ``period_s`` (not by the stated frame period)
+
+    def attrs(self) -> dict[str, Any]:
+        return {"frame_clock_drift_ppm": self.drift_ppm, "frame_clock_drift_std_ppm": self.drift_std_ppm,
+                "frame_clock_applied": self.applied}
+
+
+#: a measured drift is taken where it is this many sigma from 0 and moves the last frame by this much (s); beyond
+#: MAX_CLOCK_DRIFT_PPM it is a wrong period
+FRAME_CLOCK_MIN_SIGMAS = 4.0
+FRAME_CLOCK_MIN_SHIFT_S = 1e-5
+
+
+def frame_clock_against_triggers(stamps_ns: NDArray[np.int64], frame_period_s: float) -> FrameClock:
+    """The line through the frames' triggers ``stamps_ns`` (ns, one per frame in order) against their index: its
+    slope is the frame period on the triggers' clock. A robust fit: triggers more than 5 scaled MADs off the
+    first line (a late message) are left out of the second. Applied where its drift from ``frame_period_s`` is
+    at least ``FRAME_CLOCK_MIN_SIGMAS`` std, moves the last frame by ``FRAME_CLOCK_MIN_SHIFT_S`` (not the ns
+    rounding of triggers a period apart) and is at most ``MAX_CLOCK_DRIFT_PPM`` (more is a period that is not the
+    recording's, which :func:`capture_frame_starts` reports)."""
+    k = np.arange(len(stamps_ns), dtype=np.float64)
+    y = (stamps_ns - stamps_ns[0]).astype(np.float64)  # ns since the first trigger: exact in float64
+    keep = np.ones(len(k), dtype=bool)
+    for _ in range(2):
+        slope, intercept = np.polyfit(k[keep], y[keep], 1)
+        residual = y - (slope * k + intercept)
+        mad = 1.4826 * np.median(np.abs(residual[keep] - np.median(residual[keep])))
+        keep = np.abs(residual) <= max(5 * mad, 1.0)
+    kk = k[keep]
+    scatter = float(np.sqrt(np.sum(residual[keep] ** 2) / max(len(kk) - 2, 1)))
+    slope_std = max(scatter, 0.5) / math.sqrt(max(np.sum((kk - kk.mean()) ** 2), 1.0))  # ns: at least the rounding
+    period_ns = frame_period_s * 1e9
+    drift_ppm = (period_ns / slope - 1.0) * 1e6
+    drift_std_ppm = period_ns / slope ** 2 * slope_std * 1e6
+    shift_s = abs(drift_ppm) * 1e-6 * frame_period_s * (len(k) - 1)
+    applied = bool(FRAME_CLOCK_MIN_SIGMAS * drift_std_ppm <= abs(drift_ppm) <= MAX_CLOCK_DRIFT_PPM
+                   and shift_s >= FRAME_CLOCK_MIN_SHIFT_S)
+    return FrameClock(float(slope / 1e9), float(drift_ppm), float(drift_std_ppm), applied)
 
 
 def write_capture_stream(writer: DriveWriter, path: str, cap: Dca1000Capture, frame_starts_ns: NDArray[np.int64],
