@@ -450,6 +450,11 @@ def test_a_frame_clock_that_drifts_is_timed_by_its_triggers(tmp_path: Path) -> N
         if ppm:
             assert "the radar's frame clock runs +500.0 ± " in r.stderr
             assert np.abs(start + np.round(np.arange(40) * period_ns) - stamps).max() > 19_000  # the period alone
+            # a drift stated as well would be taken out twice: focus refuses it in one line
+            from autosar_cli.sar.focus import FocusError, FocusOptions, open_radar
+
+            with Drive(tmp_path / f"{name}.h5") as d, pytest.raises(FocusError, match="would take a drift out twice"):
+                open_radar(d, FocusOptions(radar_clock_drift_ppm=500.0))
 
 
 def test_the_frame_clock_is_measured_through_jitter_and_late_triggers() -> None:

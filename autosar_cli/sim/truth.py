@@ -8,7 +8,8 @@ Layout (format ``autosar-truth`` version 1; every array in SI units, ENU metres 
                            speed (N,) rear-axle m/s, yaw_rate (N,) rad/s, accel (N,) m/s^2, curvature (N,) 1/m,
                            road_wheel_angle (N,) rad, radar_origin_enu (N,3) (without vibration)
     /radar/                frame_index (F,), t_ns (F,) PRI start, chirp_t_ns (F,T) chirp start per Tx, both as
-                           the drive stamps them (the radar's clock: the true instant plus attr radar_clock_offset_s),
+                           the drive stamps them (the radar's clock: the true instant plus attr radar_clock_offset_s,
+                           plus attr radar_clock_drift_ppm of the time since the first frame),
                            tx_position_enu (F,T,3), rx_position_enu (F,T,R,3) at each chirp start,
                            phase_centre_enu (F,T,R,3) = (tx + rx) / 2, vibration_enu (F,3)
     /dynamics/             only for the full vehicle model (attrs dynamics = "full"): t_ns (N,), attitude (N,3)
