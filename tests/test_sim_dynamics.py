@@ -467,6 +467,24 @@ def test_a_radar_clock_running_fast_stamps_frames_a_nominal_period_apart(ci_full
     speed = np.interp(t_ns[inside][-1], on_nav.t_ns, on_nav.speed)
     elapsed_s = (t_ns[inside][-1] - stamps[0]) / 1e9
     assert unstated[-1] == pytest.approx(speed * elapsed_s * ppm * 1e-6, rel=0.15)
+    # the logger takes the frames in on the navigation's clock: ingest reads the drift off their log times, says so
+    # in one line naming the value to state, and keeps the stamps as they are
+    from autosar_cli.ingest.pipeline import ingest
+    from autosar_cli.store.drive import Drive
+
+    report = ingest([fast.log_path], tmp_path / "fast.h5", config=config)
+    with Drive(tmp_path / "fast.h5") as d:
+        radar = d.radar()
+        assert np.array_equal(radar.t_ns, stamps[:len(radar.t_ns)])
+        measured, std = radar.attrs["log_clock_drift_ppm"], radar.attrs["log_clock_drift_std_ppm"]
+    print(f"ingest: {measured:+.2f} ± {std:.2f} ppm")
+    assert abs(measured - ppm) < 0.5 and std < 0.5
+    assert any("frame stamps run +800.0 ± " in w and "state radar.clock_drift_ppm = 800.0" in w
+               for w in report.warnings)
+    on_time = ingest([ci_full_log.log_path], tmp_path / "on_time.h5", config=config)
+    with Drive(tmp_path / "on_time.h5") as d:
+        assert abs(d.radar().attrs["log_clock_drift_ppm"]) < 0.5
+    assert not any("frame stamps run" in w for w in on_time.warnings)
 
 
 @pytest.mark.long

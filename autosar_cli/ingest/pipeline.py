@@ -13,6 +13,7 @@ import hashlib
 import json
 import math
 import re
+import statistics
 import time
 from collections import Counter
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -588,6 +589,7 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
         job.check_interleaved()
         infos = job.finish()
         _check_content(inputs, infos, job, allow_partial, report)
+        _radar_clock_rates(infos, writer, job.warnings)
         _plausibility(infos, job)
         roles, missing_roles = _resolve_roles(job, infos)
         report.streams = [i.to_dict() for i in infos]
@@ -680,6 +682,36 @@ def parse_time_offsets(items: Iterable[str]) -> dict[Path, float]:
             raise IngestError(f"--time-offset {item!r}: expected PATH=SECONDS, e.g. can.asc=-3600")
         out[Path(path)] = seconds
     return out
+
+
+#: a radar stream's stamps against its log times are reported where their rate differs from the navigation
+#: streams' by this many std and moves the last frame by this much (s)
+LOG_CLOCK_MIN_SIGMAS = 4.0
+LOG_CLOCK_MIN_SHIFT_S = 1e-4
+
+
+def _radar_clock_rates(infos: list[StreamInfo], writer: DriveWriter, warnings: list[str]) -> None:
+    """How fast each radar stream's frame stamps run against the log times, less the navigation streams' rate
+    (their median; 0 where none has header stamps): a radar that stamps its frames by its own frame counter runs
+    at its crystal's rate, which the logger's reception times show. Stored on the radar's group
+    (``log_clock_drift_ppm``, ``_std_ppm``) and, where it shows, one warning that names the value to state
+    (``radar.clock_drift_ppm``). Not applied: a logger that falls further behind under load looks the same."""
+    nav = [(i.stats.clock_rate_ppm, i.stats.clock_rate_std_ppm) for i in infos if i.kind != "radar"
+           and i.stats is not None and i.stats.clock_rate_ppm is not None]
+    reference = float(statistics.median(r for r, _ in nav)) if nav else 0.0
+    reference_std = float(statistics.median(s or 0.0 for _, s in nav)) if nav else 0.0
+    for info in infos:
+        st = info.stats
+        if info.kind != "radar" or st is None or st.clock_rate_ppm is None or st.clock_rate_std_ppm is None:
+            continue
+        drift, std = st.clock_rate_ppm - reference, math.hypot(st.clock_rate_std_ppm, reference_std)
+        writer.set_attrs(info.path, {"log_clock_drift_ppm": drift, "log_clock_drift_std_ppm": std})
+        shift_s = abs(drift) * 1e-6 * (st.last_ns - st.first_ns) / 1e9
+        if abs(drift) >= LOG_CLOCK_MIN_SIGMAS * std and shift_s >= LOG_CLOCK_MIN_SHIFT_S:
+            warnings.append(f"{info.path}: its frame stamps run {drift:+.1f} ± {std:.1f} ppm fast against the log "
+                            f"times (the navigation's streams: {reference:+.1f} ppm), {shift_s * 1e3:.2g} ms over "
+                            f"the drive: a radar clock of its own? state radar.clock_drift_ppm = {drift:.1f} (a "
+                            "logger that falls behind under load looks the same)")
 
 
 def check_time_gaps(spans: dict[str, tuple[int, int]], max_gap_s: float, allow: bool, warnings: list[str]) -> None:

@@ -20,6 +20,7 @@ Memory is bounded by the window and the flush size, whatever the length of the l
 from __future__ import annotations
 
 import bisect
+import math
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -48,6 +49,10 @@ class SeriesStats:
     clock_offset_ns: int = 0
     first_ns: int = 0
     last_ns: int = 0
+    #: how fast the header stamps run against the log times (ppm) and its 1-sigma (:class:`ClockRate`); None
+    #: where too few messages carry a header stamp
+    clock_rate_ppm: float | None = None
+    clock_rate_std_ppm: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         d: dict[str, Any] = {k: v for k, v in self.__dict__.items() if k not in ("gaps", "skipped")}
@@ -55,6 +60,48 @@ class SeriesStats:
         d["largest_gap_s"] = max(((b - a) / 1e9 for a, b in self.gaps), default=0.0)
         d["skipped"] = dict(self.skipped)
         return d
+
+
+class ClockRate:
+    """A streaming least-squares line of a stream's header stamps less its log times against its log times: how
+    fast the clock that stamps the messages runs against the logger's (ppm), in O(1) memory. The log times carry
+    the transfer's jitter, which the line averages out over the drive; a logger that falls further behind under
+    load looks the same as a fast clock, which is why ingest reports the rate and applies nothing."""
+
+    MIN_MESSAGES = 16
+    MIN_SPAN_S = 0.5
+
+    def __init__(self) -> None:
+        self._ref: tuple[int, int] | None = None
+        self.n = 0
+        self._sums = [0.0] * 5  # x, y, xx, xy, yy: plain floats, a message's cost stays under a microsecond
+
+    def add(self, header_ns: int, log_ns: int) -> None:
+        if self._ref is None:
+            self._ref = (log_ns, header_ns - log_ns)
+        x = (log_ns - self._ref[0]) / 1e9  # s since the first
+        y = float(header_ns - log_ns - self._ref[1])  # ns, small: the first offset taken out
+        sums = self._sums
+        sums[0] += x
+        sums[1] += y
+        sums[2] += x * x
+        sums[3] += x * y
+        sums[4] += y * y
+        self.n += 1
+
+    def fit(self) -> tuple[float, float] | None:
+        """(rate, its std) in ppm, or None with fewer than MIN_MESSAGES or a span under MIN_SPAN_S."""
+        n = self.n
+        if n < self.MIN_MESSAGES:
+            return None
+        sx, sy, sxx, sxy, syy = self._sums
+        vxx = sxx - sx * sx / n
+        if vxx <= 0 or math.sqrt(12 * vxx / n) < self.MIN_SPAN_S:
+            return None
+        slope = (sxy - sx * sy / n) / vxx  # ns per s
+        residual = max(syy - sy * sy / n - slope * (sxy - sx * sy / n), 0.0) / (n - 2)
+        std = math.sqrt(max(residual, 0.25) / vxx)  # at least the stamps' ns rounding
+        return slope / 1e3, std / 1e3
 
 
 class Series:
@@ -81,6 +128,7 @@ class Series:
         self._input_span: list[int] = []  #: [first, last] time of the rows taken since the last input ended
         self._input_rows = 0
         self.inputs: list[tuple[str, int, int, int]] = []  #: (input, first, last row time ns, rows) it gave
+        self.clock_rate = ClockRate()
 
     def push(self, header_ns: int | None, log_ns: int, row: Any) -> None:
         """Add one message: its header stamp (None or 0 if it has none), log time (ns) and decoded row."""
@@ -108,6 +156,7 @@ class Series:
         if abs(header_ns - log_ns - self._offset) > self.max_step_ns:
             self.stats.time_jumps += 1
             return log_ns + self._offset
+        self.clock_rate.add(header_ns, log_ns)
         return header_ns
 
     def _add(self, t: int, row: Any) -> None:
@@ -191,5 +240,8 @@ class Series:
             self._settle_offset()
         self._emit(len(self._buf))
         self._flush()
+        rate = self.clock_rate.fit()
+        if rate is not None:
+            self.stats.clock_rate_ppm, self.stats.clock_rate_std_ppm = rate
         return self.stats
 

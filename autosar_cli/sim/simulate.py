@@ -338,8 +338,10 @@ def simulate(
                 stamps = t0_ns + np.round((t_counted + sim.radar_clock_offset_s) * 1e9).astype(np.int64)
                 if capture is not None:
                     capture.write(raw)
+                # the logger takes each frame in on its own clock, the navigation's: the true start plus the transfer
+                received = t0_ns + np.round(t_frames * 1e9).astype(np.int64) + RADAR_TRANSFER_DELAY_NS
                 for j, fi in enumerate(idx):
-                    log_ns = int(stamps[j]) + RADAR_TRANSFER_DELAY_NS
+                    log_ns = int(received[j])
                     while nav_i < len(nav_messages) and nav_messages[nav_i][0] <= log_ns:
                         lt, topic, m = nav_messages[nav_i]
                         writer.write(topic, lt, m)
