@@ -445,6 +445,11 @@ def test_a_frame_clock_that_drifts_is_timed_by_its_triggers(tmp_path: Path) -> N
             t_ns, attrs = d.radar().t_ns[()], d.radar().attrs
         assert np.abs(t_ns - stamps).max() <= 1
         assert attrs["frame_clock_applied"] == bool(ppm)
+        # the crystal times the ramp and the ADC too: the chirp as the triggers' clock sees it
+        rate = 1 + attrs["frame_clock_drift_ppm"] * 1e-6 if ppm else 1.0
+        assert attrs["slope_hz_per_s"] == pytest.approx(CFG.radar.slope_hz_per_s * rate**2, rel=1e-12)
+        assert attrs["sample_rate_hz"] == pytest.approx(CFG.radar.sample_rate_hz * rate, rel=1e-12)
+        assert ("configured_start_frequency_hz" in attrs) == bool(ppm)
         assert attrs["frame_clock_drift_ppm"] == pytest.approx(ppm, abs=4 * attrs["frame_clock_drift_std_ppm"] + 0.5)
         assert ("its 40 triggers on topic /dca1000/sync come every 1.009596 ms" in r.stderr) == bool(ppm), r.stderr
         if ppm:

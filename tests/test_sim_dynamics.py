@@ -481,6 +481,36 @@ def test_a_radar_clock_running_fast_stamps_frames_a_nominal_period_apart(ci_full
     assert abs(measured - ppm) < 0.5 and std < 0.5
     assert any("frame stamps run +800.0 ± " in w and "state radar.clock_drift_ppm = 800.0" in w
                for w in report.warnings)
+    # the ramp and the ADC run on the same crystal: a corner reflector's range peak in frame 0 lies at its true
+    # bistatic path with the clock stated (RadarStream.on_clock), 800 ppm of it further without
+    from autosar_cli.sar.focus import RadarParameters
+    from autosar_cli.sar.range_compression import bistatic_range_axis, range_compress
+    from autosar_cli.sim.truth import read_targets
+
+    targets = read_targets(fast.truth_path, origin)
+    with h5py.File(fast.truth_path) as b:
+        tx0, rx0 = b["radar/tx_position_enu"][0, 0], b["radar/rx_position_enu"][0, 0, 0]
+    reflectors = targets.position_enu[targets.corner_reflectors]
+    paths = np.linalg.norm(reflectors - tx0, axis=1) + np.linalg.norm(reflectors - rx0, axis=1)
+    with Drive(tmp_path / "fast.h5") as d:
+        beat = d.radar().frames(0, 1)[0, 0, 0]
+        peaks = {}
+        for name, stream in (("stated", d.radar().on_clock(late_s, ppm)), ("nominal", d.radar())):
+            rp = RadarParameters.of(stream, config, 1)
+            profile = np.abs(range_compress(beat, sample_rate_hz=rp.sample_rate_hz, slope_hz_per_s=rp.slope_hz_per_s,
+                                            upsample=32))
+            axis = bistatic_range_axis(len(profile), sample_rate_hz=rp.sample_rate_hz, slope_hz_per_s=rp.slope_hz_per_s)
+            found = []
+            for path in paths:
+                near = np.flatnonzero(np.abs(axis - path) < 0.03)
+                k = near[np.argmax(profile[near])]
+                a, b_, c = np.log(profile[k - 1:k + 2])
+                found.append(axis[k] + 0.5 * (a - c) / (a - 2 * b_ + c) * (axis[1] - axis[0]))
+            peaks[name] = np.array(found)
+    print(f"bistatic paths {np.round(paths, 3)} m; peaks stated {np.round((peaks['stated'] - paths) * 1e3, 2)} mm, "
+          f"nominal {np.round((peaks['nominal'] - paths) * 1e3, 2)} mm off")
+    assert np.all(np.abs(peaks["nominal"] - peaks["stated"] - paths * ppm * 1e-6) < 0.1 * paths * ppm * 1e-6)
+    assert np.all(np.abs(peaks["stated"] - paths) < 0.002)
     on_time = ingest([ci_full_log.log_path], tmp_path / "on_time.h5", config=config)
     with Drive(tmp_path / "on_time.h5") as d:
         assert abs(d.radar().attrs["log_clock_drift_ppm"]) < 0.5

@@ -26,7 +26,7 @@ from typing import Any
 from autosar_cli import __version__, msgs
 from autosar_cli.candb import DbcError, load_dbc
 from autosar_cli.config import Config
-from autosar_cli.store.drive import DriveWriter
+from autosar_cli.store.drive import DriveWriter, chirp_on_navigation_clock
 from autosar_cli.store.outputs import input_bytes
 
 from . import fastcdr
@@ -386,6 +386,8 @@ class _Ingest:
                       if cap.params.hardware_trigger else "--radar-start" if self.radar_options.start_ns is not None
                       else f"topic {self.radar_options.sync_topic}",
                       "layout": "frame, tx, rx, sample, I/Q", **timing})
+        if timing.get("frame_clock_applied"):  # the crystal the frames showed times the chirps too
+            attrs = chirp_on_navigation_clock(attrs, timing["frame_clock_drift_ppm"])
         info = write_capture_stream(self.writer, group, cap, frame_starts, attrs, progress)
         self.warnings.extend(cap.warnings)  # after the stream: the PRIs left out are known once it is read
         if cap.params.range_bias_m:

@@ -321,8 +321,10 @@ def simulate(
                 beat = synthesize_beat(
                     geo["tx_start"], geo["tx_end"], geo["rx_start"], geo["rx_end"], geo["origin"],
                     geo["enu_to_radar"], scenario.scene.position, scenario.scene.rcs_m2,
-                    start_frequency_hz=radar.start_frequency_hz, slope_hz_per_s=radar.slope_hz_per_s,
-                    sample_rate_hz=radar.sample_rate_hz, num_samples=radar.num_samples,
+                    # the ramp and the ADC run on the crystal too (store.drive.chirp_on_navigation_clock)
+                    start_frequency_hz=radar.start_frequency_hz * clock_rate,
+                    slope_hz_per_s=radar.slope_hz_per_s * clock_rate**2,
+                    sample_rate_hz=radar.sample_rate_hz * clock_rate, num_samples=radar.num_samples,
                     amplitude_lsb=sim.radar_amplitude_lsb, beamwidth_az_deg=radar.beamwidth_az_deg,
                     beamwidth_el_deg=radar.beamwidth_el_deg, target_velocity=scenario.scene.velocity_enu,
                     chirp_start_s=t_frames[:, None] + offsets[None, :],
