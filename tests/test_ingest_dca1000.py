@@ -322,6 +322,31 @@ def simulated_capture(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, P
     return tmp / "ci.mcap", capture, tmp / "a"
 
 
+def test_a_capture_whose_sync_runs_on_the_radars_crystal_reports_its_drift(tmp_path: Path) -> None:
+    """`simulate -f dca1000` with the radar's crystal 800 ppm fast: the sync topic stamps each frame on the radar's
+    clock, a frame period apart, so the triggers show no drift of their own (nothing applied), but the logger took
+    them in on the navigation's clock: ingest reads +800 ppm off their log times and names the value to state."""
+    import shutil
+
+    cfg_path = tmp_path / "fast.toml"
+    text = Path(CFG.source).read_text()
+    shutil.copy(Path(CFG.source).parent / "autosar_giulia.dbc", tmp_path)  # the config names its DBC beside it
+    cfg_path.write_text(text.replace("\nradar_clock_drift_ppm = 0.0 ", "\nradar_clock_drift_ppm = 800.0 "))
+    assert load_config(cfg_path).simulation.radar_clock_drift_ppm == 800.0
+    r = runner.invoke(app, ["simulate", "-s", "ci", "--seed", "7", "-f", "dca1000", "--dynamics", "kinematic",
+                            "--config", str(cfg_path), "-o", str(tmp_path / "ci.mcap"), "--json"])
+    assert r.exit_code == 0, r.output
+    capture = Path(json.loads(r.stdout)["radar_capture"])
+    r = runner.invoke(app, ["ingest", str(tmp_path / "ci.mcap"), "--radar", str(capture), "-o",
+                            str(tmp_path / "drive.h5")])
+    assert r.exit_code == 0, r.output
+    with Drive(tmp_path / "drive.h5") as d:
+        attrs = d.radar().attrs
+    assert not attrs["frame_clock_applied"]
+    assert attrs["log_clock_drift_ppm"] == pytest.approx(800.0, abs=0.5)
+    assert "frame stamps run +800.0 ± " in r.stderr and "state radar.clock_drift_ppm = 800.0" in r.stderr, r.stderr
+
+
 def test_simulated_capture_ingests_to_the_rawframe_cube(ci_run: Path, simulated_capture: tuple[Path, Path, Path]
                                                         ) -> None:
     """`simulate --format dca1000` (capture + navigation MCAP with a frame-sync topic) ingests to the same

@@ -54,6 +54,7 @@ from .radar_block import (
     write_capture_stream,
 )
 from .records import UNKNOWN_TIME, CanRecord, NmeaHeading, NmeaRecord
+from .series import ClockRate
 from .sources import Channel, LogReadError, LogSource, RawMessage, open_source
 from .typesys import MessageTypes, SchemaError
 
@@ -151,6 +152,7 @@ class _Ingest:
         self.config = config
         self.radar_options = radar_options
         self.sync_stamps: list[int] = []  #: every frame trigger on the sync topic (ns), as recorded
+        self.sync_log_ns: list[int] = []  #: and when the logger took each in
         self.types = MessageTypes()
         self.warnings: list[str] = []
         self.skipped_channels: dict[tuple[str, str], dict[str, Any]] = {}
@@ -243,6 +245,7 @@ class _Ingest:
         def handle(raw: RawMessage) -> None:
             m = deser(raw.data)
             self.sync_stamps.append(_stamp_ns(getattr(m, "header", m)))
+            self.sync_log_ns.append(raw.log_ns)
 
         return handle
 
@@ -389,6 +392,14 @@ class _Ingest:
         if timing.get("frame_clock_applied"):  # the crystal the frames showed times the chirps too
             attrs = chirp_on_navigation_clock(attrs, timing["frame_clock_drift_ppm"])
         info = write_capture_stream(self.writer, group, cap, frame_starts, attrs, progress)
+        if info.stats is not None and self.radar_options.start_ns is None:
+            # the triggers' stamps against when the logger took them in: their clock's rate (_radar_clock_rates)
+            rate = ClockRate()
+            for stamp, log_ns in zip(self.sync_stamps, self.sync_log_ns, strict=True):
+                if stamp > 0:
+                    rate.add(stamp, log_ns)
+            if (fit := rate.fit()) is not None:
+                info.stats.clock_rate_ppm, info.stats.clock_rate_std_ppm = fit
         self.warnings.extend(cap.warnings)  # after the stream: the PRIs left out are known once it is read
         if cap.params.range_bias_m:
             self.warnings.append(f"{cap.params.source}: compRangeBiasAndRxChanPhase's range bias "
