@@ -152,11 +152,12 @@ def antenna_positions(motion: Motion, geom: RadarGeometry, vib: Vibration, t: ND
 
 
 def radar_block(motion: Motion, config: Config, geom: RadarGeometry, vib: Vibration,
-                t_frames: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
-    """Antenna positions at chirp start and ADC end for frames starting at t_frames (s)."""
+                t_frames: NDArray[np.float64], clock_rate: float = 1.0) -> dict[str, NDArray[np.float64]]:
+    """Antenna positions at chirp start and ADC end for frames starting at t_frames (s), the chirps timed by a
+    crystal ``clock_rate`` times its nominal frequency."""
     r = config.radar
-    offsets = np.asarray(r.tx_start_offsets_s)
-    t_win = r.chirp_duration_s
+    offsets = np.asarray(r.tx_start_offsets_s) / clock_rate
+    t_win = r.chirp_duration_s / clock_rate
     F, T, R = t_frames.size, r.num_tx, r.num_rx
     out: dict[str, NDArray[np.float64]] = {}
     for tag, extra in (("start", 0.0), ("end", t_win)):
@@ -317,7 +318,7 @@ def simulate(
             for b0 in range(0, n_frames, RADAR_BLOCK_FRAMES):
                 idx = np.arange(b0, min(b0 + RADAR_BLOCK_FRAMES, n_frames))
                 t_frames = idx / (radar.prf_hz * clock_rate)
-                geo = radar_block(motion, config, geom, vib, t_frames)
+                geo = radar_block(motion, config, geom, vib, t_frames, clock_rate)
                 beat = synthesize_beat(
                     geo["tx_start"], geo["tx_end"], geo["rx_start"], geo["rx_end"], geo["origin"],
                     geo["enu_to_radar"], scenario.scene.position, scenario.scene.rcs_m2,
@@ -327,7 +328,7 @@ def simulate(
                     sample_rate_hz=radar.sample_rate_hz * clock_rate, num_samples=radar.num_samples,
                     amplitude_lsb=sim.radar_amplitude_lsb, beamwidth_az_deg=radar.beamwidth_az_deg,
                     beamwidth_el_deg=radar.beamwidth_el_deg, target_velocity=scenario.scene.velocity_enu,
-                    chirp_start_s=t_frames[:, None] + offsets[None, :],
+                    chirp_start_s=t_frames[:, None] + offsets[None, :] / clock_rate,
                 )
                 if sim.channel_phase_std_deg or sim.channel_gain_std_db:
                     beat *= channel_gain[None, :, :, None]
