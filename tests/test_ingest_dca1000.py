@@ -345,6 +345,11 @@ def test_a_capture_whose_sync_runs_on_the_radars_crystal_reports_its_drift(tmp_p
     assert not attrs["frame_clock_applied"]
     assert attrs["log_clock_drift_ppm"] == pytest.approx(800.0, abs=0.5)
     assert "frame stamps run +800.0 ± " in r.stderr and "state radar.clock_drift_ppm = 800.0" in r.stderr, r.stderr
+    r = runner.invoke(app, ["info", str(tmp_path / "drive.h5"), "--json"])
+    shown = json.loads(r.stdout)["radar_parameters"]
+    assert shown["log_clock_drift_ppm"]["value"].startswith("+800.0")
+    assert shown["log_clock_drift_ppm"]["source"] == "the log times"
+    assert "(applied)" not in shown["frame_clock_drift_ppm"]["value"]
 
 
 def test_simulated_capture_ingests_to_the_rawframe_cube(ci_run: Path, simulated_capture: tuple[Path, Path, Path]
@@ -480,6 +485,9 @@ def test_a_frame_clock_that_drifts_is_timed_by_its_triggers(tmp_path: Path) -> N
         if ppm:
             assert "the radar's frame clock runs +500.0 ± " in r.stderr
             assert np.abs(start + np.round(np.arange(40) * period_ns) - stamps).max() > 19_000  # the period alone
+            shown = json.loads(runner.invoke(app, ["info", str(tmp_path / f"{name}.h5"), "--json"]).stdout)
+            assert shown["radar_parameters"]["frame_clock_drift_ppm"]["value"].endswith("ppm (applied)")
+            assert shown["radar_parameters"]["slope_hz_per_s"]["source"].endswith("on the triggers' clock")
             # a drift stated as well would be taken out twice: focus refuses it in one line
             from autosar_cli.sar.focus import FocusError, FocusOptions, open_radar
 

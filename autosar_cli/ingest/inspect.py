@@ -180,8 +180,16 @@ def _radar_parameters(attrs: dict[str, Any]) -> dict[str, dict[str, Any]]:
     out = {}
     for key, source in sources.items():
         v = attrs.get(key)
+        if f"configured_{key}" in attrs:  # taken onto the triggers' clock at ingest
+            source = f"{source}, on the triggers' clock"
         out[key] = {"value": v.tolist() if isinstance(v, np.ndarray) else v.item() if isinstance(v, np.generic)
                     else v, "source": source}
+    # the radar's clock as ingest measured it (ingest.radar_block, ingest.pipeline._radar_clock_rates)
+    for key, source in (("frame_clock_drift_ppm", "its triggers"), ("log_clock_drift_ppm", "the log times")):
+        if key in attrs:
+            std = float(attrs.get(key.replace("_ppm", "_std_ppm"), float("nan")))
+            applied = " (applied)" if key == "frame_clock_drift_ppm" and attrs.get("frame_clock_applied") else ""
+            out[key] = {"value": f"{float(attrs[key]):+.2f} ± {std:.2f} ppm{applied}", "source": source}
     return out
 
 
