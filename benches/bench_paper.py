@@ -103,7 +103,7 @@ def top_level_items(given: str) -> list[str]:
 def config_copy(components: str | None, understeer: float | None, work: Path, rear_slip: float | None = None,
                 fits: bool = True, attitude: bool = True, radar_height: bool = False, car: str | None = None,
                 simulation: str | None = None, sensors: str | None = None, navigation: str | None = None,
-                processing: str | None = None) -> Path:
+                processing: str | None = None, radar: str | None = None) -> Path:
     """A copy of the default config whose full vehicle model has only ``components`` (comma-separated; None: all),
     whose steering model has the understeer gradient ``understeer`` and whose trajectory the rear-slip gain
     ``rear_slip`` (rad per m/s^2; None: the config's); ``fits`` False: SAR-MIN in one pass, without the fitted
@@ -112,14 +112,15 @@ def config_copy(components: str | None, understeer: float | None, work: Path, re
     ``simulation``: the same for [simulation]; ``sensors``: "sensor.table.key=value,..." entries of the sensors'
     error tables, e.g. gnss_cog.gnss.velocity_std_mps=0.06 (a copy so changed is for the simulator alone: the
     processor reads its noises from the same tables); ``navigation``: "key=value,..." entries of [navigation], SAR-MIN's
-    own settings; ``processing``: the same for [processing]."""
+    own settings; ``processing``: the same for [processing]; ``radar``: the same for [radar], what the processor is
+    told of the radar (e.g. clock_drift_ppm=500.0; the simulator takes its radar's own from [simulation])."""
     from autosar_cli.config import DEFAULT_CONFIG
 
     text = DEFAULT_CONFIG.read_text()
     entries: list[tuple[str, str, str, str]] = []  # (option, section, key, value)
     for option, section, given in (("--car", "vehicle_dynamics", car), ("--simulation", "simulation", simulation),
                                    ("--sensors", "sensors", sensors), ("--navigation", "navigation", navigation),
-                                   ("--processing", "processing", processing)):
+                                   ("--processing", "processing", processing), ("--radar", "radar", radar)):
         for item in top_level_items(given or ""):  # a list value keeps its commas
             if item:
                 key, _, value = item.partition("=")
@@ -313,6 +314,7 @@ def group_key(row: dict[str, Any]) -> str:
             + (" [sensors]" if row.get("sensors") else "")
             + (f" [{row['navigation']}]" if row.get("navigation") else "")
             + (f" [{row['processing']}]" if row.get("processing") else "")
+            + (f" [radar {row['radar']}]" if row.get("radar") else "")
             + (f" [{row['label']}]" if row.get("label") else ""))
 
 
@@ -351,6 +353,9 @@ def main() -> None:
     ap.add_argument("--processing", default=None,
                     help="the processor's [processing] entries differ from the config's, e.g. "
                          "autofocus_fast_motion=true")
+    ap.add_argument("--radar", default=None,
+                    help="what the processor is told of the radar differs from the config's: [radar] entries, e.g. "
+                         "clock_drift_ppm=500.0")
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--keep", action="store_true", help="keep every drive's log and comparison")
     ap.add_argument("--resume", action="store_true", help="keep --output's rows and skip the drives already in it")
@@ -370,13 +375,13 @@ def main() -> None:
                "understeer_gradient": args.understeer_gradient, "rear_slip_gain": args.rear_slip_gain,
                "fits": not args.no_fits, "attitude": not args.planar, "radar_height": args.radar_height,
                "car": args.car, "simulation": args.simulation, "sensors": args.sensors, "navigation": args.navigation,
-               "processing": args.processing, "label": args.label or None}
+               "processing": args.processing, "radar": args.radar, "label": args.label or None}
 
     def drive_key(r: dict[str, Any]) -> tuple[Any, ...]:
         return (r["scenario"], r["seed"], r.get("dynamics"), r.get("components"), r.get("understeer_gradient"),
                 r.get("rear_slip_gain"), r.get("fits", True), r.get("attitude", True), r.get("radar_height", False),
                 r.get("car"), r.get("simulation"), r.get("sensors"), r.get("navigation"), r.get("processing"),
-                r.get("label"))
+                r.get("radar"), r.get("label"))
 
     done = {drive_key(r) for r in rows}
 
@@ -397,10 +402,11 @@ def main() -> None:
         work.mkdir(parents=True, exist_ok=True)
         custom = (args.components is not None or args.understeer_gradient is not None
                   or args.rear_slip_gain is not None or args.no_fits or args.planar or args.radar_height
-                  or args.navigation is not None or args.processing is not None)
+                  or args.navigation is not None or args.processing is not None or args.radar is not None)
         config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
                                                 not args.no_fits, not args.planar, args.radar_height,
-                                                navigation=args.navigation, processing=args.processing))]
+                                                navigation=args.navigation, processing=args.processing,
+                                                radar=args.radar))]
                   if custom else [])
         # the simulated car, radar and sensors: the config's unless --car / --simulation / --sensors (then only the
         # simulator is given the changed one)
@@ -445,6 +451,8 @@ def main() -> None:
                     row["navigation"] = args.navigation
                 if args.processing:
                     row["processing"] = args.processing
+                if args.radar:
+                    row["radar"] = args.radar
                 if args.label:
                     row["label"] = args.label
                 row["sarmin_track_scale_pct"] = pct(track_scale(out))
