@@ -429,7 +429,7 @@ def test_a_radar_clock_running_fast_stamps_frames_a_nominal_period_apart(ci_full
     from autosar_cli.nav.baselines import from_truth
     from autosar_cli.nav.geodesy import GeodeticOrigin
     from autosar_cli.nav.trajectory import radar_phase_centres
-    from autosar_cli.store.drive import stamps_on_navigation_clock
+    from autosar_cli.store.drive import radar_clock_reading, stamps_on_navigation_clock
 
     ppm, late_s = 800.0, 0.005
     fast_cfg = replace(config, simulation=replace(config.simulation, radar_clock_drift_ppm=ppm,
@@ -449,6 +449,7 @@ def test_a_radar_clock_running_fast_stamps_frames_a_nominal_period_apart(ci_full
     assert np.array_equal(stamps[:n] - on_time[:n], np.full(n, 5_000_000))
     true_ns = on_time[0] + np.round((on_time[:n] - on_time[0]) / (1 + ppm * 1e-6)).astype(np.int64)
     assert np.abs(stamps_on_navigation_clock(stamps[:n], stamps[0], late_s, ppm) - true_ns).max() <= 1
+    assert np.abs(radar_clock_reading(true_ns, stamps[0], late_s, ppm) - stamps[:n]).max() <= 1  # its inverse
     offsets_s = (chirp_ns[0] - t_ns[0]) / 1e9
     radar_clock = from_truth(str(fast.truth_path), origin, config, radar_motion=True)
     inside = t_ns <= radar_clock.t_ns[-1] - 10**8

@@ -13,7 +13,7 @@ from autosar_cli.config import Config
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.nav.inputs import NavInputError, NavInputs
 from autosar_cli.nav.trajectory import Trajectory, radar_phase_centres, rear_axle_from_body_point
-from autosar_cli.store.drive import stamps_on_navigation_clock
+from autosar_cli.store.drive import radar_clock_reading, stamps_on_navigation_clock
 from autosar_cli.types import MotionCorrection
 
 Array = NDArray[np.float64]
@@ -132,16 +132,12 @@ def _focus_clock(attrs: Any, stamps_ns: NDArray[np.int64], config: Config
     navigation's clock) or, with ``stamps=True``, of the radar's own stamps: the sidecar's radar clock (its frames
     stamped ``radar_clock_offset_s`` late, counting ``radar_clock_drift_ppm`` fast from the first frame on, whose
     stamp is ``stamps_ns[0]``) less what ``config.radar`` states of it (store.drive.stamps_on_navigation_clock)."""
-    late_ns = int(round(float(attrs.get("radar_clock_offset_s", 0.0)) * 1e9))
-    drift = float(attrs.get("radar_clock_drift_ppm", 0.0)) * 1e-6
+    late_s, drift_ppm = (float(attrs.get(k, 0.0)) for k in ("radar_clock_offset_s", "radar_clock_drift_ppm"))
     first_ns = int(stamps_ns[0])
 
     def on_focus_clock(t: NDArray[np.int64], stamps: bool = False) -> NDArray[np.int64]:
-        t = np.asarray(t, dtype=np.int64)
-        if not stamps:  # the radar's clock reads a true instant late, plus its gain since its first frame
-            since_first = (t - (first_ns - late_ns)).astype(np.float64)
-            t = t + late_ns + np.round(since_first * drift).astype(np.int64)
-        return stamps_on_navigation_clock(t, first_ns, config.radar.clock_offset_s, config.radar.clock_drift_ppm)
+        read = np.asarray(t, dtype=np.int64) if stamps else radar_clock_reading(t, first_ns, late_s, drift_ppm)
+        return stamps_on_navigation_clock(read, first_ns, config.radar.clock_offset_s, config.radar.clock_drift_ppm)
 
     return on_focus_clock
 

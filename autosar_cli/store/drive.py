@@ -539,12 +539,26 @@ def chirp_on_navigation_clock(attrs: Mapping[str, Any], drift_ppm: float) -> dic
     return out
 
 
+def radar_clock_reading(t_ns: NDArray[np.int64], first_ns: int, late_s: float, drift_ppm: float
+                        ) -> NDArray[np.int64]:
+    """What a radar's clock reads (ns) at the navigation's instants ``t_ns`` (ns): the inverse of
+    :func:`stamps_on_navigation_clock`, the clock reading ``first_ns`` at its first frame."""
+    t = np.asarray(t_ns, dtype=np.int64)
+    late_ns = int(round(late_s * 1e9))
+    out = t + late_ns
+    if drift_ppm:
+        since_first = (t - (int(first_ns) - late_ns)).astype(np.float64)
+        out = out + np.round(since_first * drift_ppm * 1e-6).astype(np.int64)
+    return out
+
+
 def stamps_on_navigation_clock(stamps_ns: NDArray[np.int64], first_ns: int, late_s: float,
                                drift_ppm: float) -> NDArray[np.int64]:
     """The navigation clock's instants (ns) of a radar's ``stamps_ns`` (ns, its clock): a clock that reads
     ``first_ns`` ``late_s`` (s) after the navigation's instant, and from then on counts ``1 + drift_ppm * 1e-6``
-    seconds for each of the navigation's. The one definition of the radar's clock: the simulator's stamps invert
-    it (sim.simulate), the truth's radar motion follows it (nav.baselines.from_truth)."""
+    seconds for each of the navigation's. The one definition of the radar's clock (with its inverse,
+    :func:`radar_clock_reading`): the simulator's stamps invert it (sim.simulate), the truth's radar motion follows
+    it (nav.baselines.from_truth)."""
     stamps = np.asarray(stamps_ns, dtype=np.int64)
     out = stamps - int(round(late_s * 1e9))
     if drift_ppm:
