@@ -668,3 +668,34 @@ def test_a_streams_clock_rate_is_read_off_its_log_times_through_jitter() -> None
     for k in range(100):
         short.add(10**18 + k * 4_000_000, 10**18 + k * 4_000_000)
     assert short.fit() is None
+
+
+def test_the_radars_clock_is_reported_against_the_navigation_streams() -> None:
+    """``_radar_clock_rates``: a logger whose own clock runs 20 ppm slow against the sensors' stamps shows every
+    navigation stream 20 ppm fast; a radar stream 120 ppm fast against the log times is 100 ppm fast against the
+    navigation, which the warning names; one within 4 std of the navigation's is stored and not reported."""
+    from autosar_cli.ingest.decoders import StreamInfo
+    from autosar_cli.ingest.pipeline import _radar_clock_rates
+    from autosar_cli.ingest.series import SeriesStats
+
+    def info(path: str, kind: str, rate: float, std: float) -> StreamInfo:
+        stats = SeriesStats(first_ns=10**18, last_ns=10**18 + 60 * 10**9, clock_rate_ppm=rate, clock_rate_std_ppm=std)
+        return StreamInfo(path, kind, stats=stats)
+
+    class Attrs:
+        def __init__(self) -> None:
+            self.set: dict[str, dict[str, float]] = {}
+
+        def set_attrs(self, path: str, attrs: dict[str, float]) -> None:
+            self.set[path] = attrs
+
+    for radar_rate, reported in ((120.0, True), (21.0, False)):
+        writer, warnings = Attrs(), []
+        infos = [info("gnss/a/fix", "gnss", 19.8, 0.5), info("imu/a", "imu", 20.0, 0.2),
+                 info("can/ABS_1", "can", 20.1, 0.3), info("radar/r", "radar", radar_rate, 0.1)]
+        _radar_clock_rates(infos, writer, warnings)  # type: ignore[arg-type]
+        assert writer.set["radar/r"]["log_clock_drift_ppm"] == pytest.approx(radar_rate - 20.0)
+        assert bool(warnings) == reported, warnings
+        if reported:
+            assert "radar/r: its frame stamps run +100.0 ± 0.3 ppm fast" in warnings[0]
+            assert "state radar.clock_drift_ppm = 100.0" in warnings[0]
