@@ -39,7 +39,9 @@ SAR-MIN's own settings otherwise than the config (``--navigation``: entries of [
 benches/results/paper_fits.json. The processor's own [processing] settings otherwise than the config
 (``--processing``, e.g. ``autofocus_fast_motion=true``): benches/results/paper_full_fast.json, and with the stage's
 ``FastMotionOptions.apply_reliability`` on (at b036e0c, where it was the stage's form):
-benches/results/paper_full_fast_reliability.json.
+benches/results/paper_full_fast_reliability.json. What the processor is told of the radar otherwise than the config
+(``--radar``: entries of [radar], e.g. ``clock_drift_ppm=500.0`` beside ``--simulation radar_clock_drift_ppm=500.0``):
+benches/results/paper_full_car.json, groups "[radar ...]".
 """
 
 from __future__ import annotations
