@@ -261,10 +261,12 @@ class Dca1000Capture:
         return (f"DCA1000 packets of {k.data_bytes} data bytes: {k.packets} recorded, {k.lost_packets} lost, "
                 f"{k.late} out of order, {k.duplicates} repeated{trigger}")
 
-    def frame_starts_ns(self, start_ns: int) -> NDArray[np.int64]:
-        """Each frame's start (ns since the epoch) of a frame every frame period from ``start_ns``."""
+    def frame_starts_ns(self, start_ns: int, period_s: float | None = None) -> NDArray[np.int64]:
+        """Each frame's start (ns since the epoch) of a frame every ``period_s`` (None: the frame period) from
+        ``start_ns``."""
         frames = np.arange(self.num_frames, dtype=np.float64)
-        return int(start_ns) + np.round(frames * (self.params.frame_period_s * 1e9)).astype(np.int64)
+        period = self.params.frame_period_s if period_s is None else period_s
+        return int(start_ns) + np.round(frames * (period * 1e9)).astype(np.int64)
 
     def pri_times_ns(self, frame_starts_ns: NDArray[np.int64]) -> NDArray[np.int64]:
         """Start of every PRI (ns since the epoch): its frame's start (one per frame, :meth:`frame_starts_ns` for

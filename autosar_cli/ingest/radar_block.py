@@ -167,7 +167,7 @@ def capture_frame_starts(cap: Dca1000Capture, start_ns: int | None, triggers: Se
         clock = frame_clock_against_triggers(stamps, p.frame_period_s)
         attrs = clock.attrs()
         if clock.applied:
-            starts = start + np.round(np.arange(n) * (clock.period_s * 1e9)).astype(np.int64)
+            starts = cap.frame_starts_ns(start, clock.period_s)
             warn(f"{cap.name}: its {n} triggers on topic {topic} come every {clock.period_s * 1e3:.7g} ms, not "
                  f"every {p.frame_period_s * 1e3:g} ms: the radar's frame clock runs {clock.drift_ppm:+.1f} ± "
                  f"{clock.drift_std_ppm:.1f} ppm fast; its frames timed by the triggers' period")

@@ -104,12 +104,14 @@ def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config, *, radar
             if np.any(f.attrs.get("channel_phase_deg", 0.0)) or np.any(f.attrs.get("channel_gain_db", 0.0)) else None
         radar = f.get("radar")
         phase_centres = None
-        on_focus_clock = None
+        clock_ns = t_ns
         if radar_motion and radar is not None and len(radar["t_ns"]):
-            on_focus_clock = _focus_clock(f.attrs, radar["t_ns"][()], config)
+            stamps = radar["t_ns"][()]
+            on_focus_clock = _focus_clock(int(stamps[0]), config)
+            clock_ns = on_focus_clock(_sidecar_clock_reading(f.attrs, int(stamps[0]), t_ns))
             offsets = radar.get("chirp_t_ns")
-            phase_centres = (on_focus_clock(radar["t_ns"][()], stamps=True), radar["phase_centre_enu"][()],
-                             None if offsets is None else on_focus_clock(offsets[()], stamps=True))
+            phase_centres = (on_focus_clock(stamps), radar["phase_centre_enu"][()],
+                             None if offsets is None else on_focus_clock(offsets[()]))
     lat, lon, h = truth_origin.to_geodetic(np.c_[rear, np.zeros(len(rear))])
     enu = origin.to_enu(lat, lon, h)
     # The two tangent planes differ by a tiny rotation: apply it to the heading too.
@@ -117,8 +119,7 @@ def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config, *, radar
     ahead = origin.to_enu(*ref)
     psi = np.unwrap(np.arctan2(ahead[:, 1] - enu[:, 1], ahead[:, 0] - enu[:, 0]))
     psi += np.round((heading[0] - psi[0]) / (2 * np.pi)) * 2 * np.pi
-    traj = Trajectory("truth", t_ns if on_focus_clock is None else on_focus_clock(t_ns), enu[:, :2], psi, speed,
-                      yaw_rate, origin, **_geometry(config))
+    traj = Trajectory("truth", clock_ns, enu[:, :2], psi, speed, yaw_rate, origin, **_geometry(config))
     if gains is not None:
         traj.info = {**traj.info, "channel_gains": gains}
     if phase_centres is not None:
@@ -126,20 +127,20 @@ def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config, *, radar
     return traj
 
 
-def _focus_clock(attrs: Any, stamps_ns: NDArray[np.int64], config: Config
-                 ) -> Callable[..., NDArray[np.int64]]:
-    """The instants (ns) focus reads a drive's radar frames at, as a function of true instants ``t`` (ns, the
-    navigation's clock) or, with ``stamps=True``, of the radar's own stamps: the sidecar's radar clock (its frames
-    stamped ``radar_clock_offset_s`` late, counting ``radar_clock_drift_ppm`` fast from the first frame on, whose
-    stamp is ``stamps_ns[0]``) less what ``config.radar`` states of it (store.drive.stamps_on_navigation_clock)."""
-    late_s, drift_ppm = (float(attrs.get(k, 0.0)) for k in ("radar_clock_offset_s", "radar_clock_drift_ppm"))
-    first_ns = int(stamps_ns[0])
+def _focus_clock(first_stamp_ns: int, config: Config) -> Callable[[NDArray[np.int64]], NDArray[np.int64]]:
+    """The instants (ns) focus reads a drive's radar frames at, from what the sidecar's radar clock reads (ns; its
+    first frame stamped ``first_stamp_ns``): that reading less what ``config.radar`` states of the clock
+    (store.drive.stamps_on_navigation_clock; :func:`_sidecar_clock_reading` gives the reading of true instants)."""
+    return lambda read: stamps_on_navigation_clock(read, first_stamp_ns, config.radar.clock_offset_s,
+                                                   config.radar.clock_drift_ppm)
 
-    def on_focus_clock(t: NDArray[np.int64], stamps: bool = False) -> NDArray[np.int64]:
-        read = np.asarray(t, dtype=np.int64) if stamps else radar_clock_reading(t, first_ns, late_s, drift_ppm)
-        return stamps_on_navigation_clock(read, first_ns, config.radar.clock_offset_s, config.radar.clock_drift_ppm)
 
-    return on_focus_clock
+def _sidecar_clock_reading(attrs: Any, first_stamp_ns: int, t_ns: NDArray[np.int64]) -> NDArray[np.int64]:
+    """What the sidecar's radar clock reads (ns) at true instants ``t_ns``: its frames stamped
+    ``radar_clock_offset_s`` late, counting ``radar_clock_drift_ppm`` fast from the first frame on
+    (store.drive.radar_clock_reading)."""
+    return radar_clock_reading(t_ns, first_stamp_ns, float(attrs.get("radar_clock_offset_s", 0.0)),
+                               float(attrs.get("radar_clock_drift_ppm", 0.0)))
 
 
 def _radar_motion(planar: Trajectory, truth_origin: GeodeticOrigin, config: Config, frame_t_ns: NDArray[np.int64],

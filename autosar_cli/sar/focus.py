@@ -212,15 +212,7 @@ def open_radar(drive: Drive, options: FocusOptions) -> RadarStream:
     navigation's clock (their stamps less ``options.radar_clock_offset_s`` and the clock's drift); any reader
     failure is a :class:`FocusError` naming the drive."""
     try:
-        radar = drive.radar(options.radar)
-        if options.radar_clock_drift_ppm and radar.attrs.get("frame_clock_applied"):
-            raise FocusError(f"{drive.path}: radar {radar.name}'s frames are timed by its triggers' period (its clock "
-                             f"{float(radar.attrs['frame_clock_drift_ppm']):+.1f} ppm fast, measured at ingest): "
-                             f"radar.clock_drift_ppm = {options.radar_clock_drift_ppm:g} would take a drift out "
-                             "twice; state 0")
-        return radar.on_clock(options.radar_clock_offset_s, options.radar_clock_drift_ppm)
-    except FocusError:
-        raise
+        return drive.radar(options.radar).on_clock(options.radar_clock_offset_s, options.radar_clock_drift_ppm)
     except Exception as exc:  # noqa: BLE001 - any reader failure is an input problem here
         msg = str(exc)
         raise FocusError(msg if str(drive.path) in msg else f"{drive.path}: {msg}") from None

@@ -359,9 +359,13 @@ class RadarStream:
     def on_clock(self, late_s: float, drift_ppm: float = 0.0) -> RadarStream:
         """The stream with its frames' times on the navigation's clock, where its stamps run ``late_s`` (s) late
         and its clock ``drift_ppm`` fast from its first stamp on (:func:`stamps_on_navigation_clock`; itself where
-        both are 0)."""
+        both are 0). A drift on frames ingest already timed by their triggers' period is a ValueError."""
         if not late_s and not drift_ppm:
             return self
+        if drift_ppm and self.attrs.get("frame_clock_applied"):
+            raise ValueError(f"radar {self.name}'s frames are timed by its triggers' period (its clock "
+                             f"{float(self.attrs['frame_clock_drift_ppm']):+.1f} ppm fast, measured at ingest): "
+                             f"radar.clock_drift_ppm = {drift_ppm:g} would take a drift out twice; state 0")
         first = int(self.t_ns[0]) if len(self.t_ns) else 0
         return replace(self, t_ns=stamps_on_navigation_clock(self.t_ns, first, late_s, drift_ppm),
                        attrs=chirp_on_navigation_clock(self.attrs, drift_ppm))
