@@ -281,6 +281,7 @@ class VehicleDynamicsConfig:
     friction_coefficient: float = 0.9
     slip_stiffness_per_load: float = 15.0  # longitudinal: F_x / (F_z * slip)
     brake_front_fraction: float = 0.7
+    drive_front_fraction: float = 0.0  # share of the drive torque on the front axle: 0 rear-driven, 1 front-driven
     rolling_resistance: float = 0.012
     drag_area_m2: float = 0.65  # C_d * A
     heave_frequency_hz: float = 1.3
@@ -673,6 +674,12 @@ def _validate(cfg: Config) -> None:
     _finite_vector("processing.focus_height_m", (p.focus_height_m,))
     if p.range_upsample < 1:
         raise ConfigError(f"processing.range_upsample: must be at least 1, got {p.range_upsample}")
+
+    dyn = cfg.vehicle_dynamics
+    for name in ("brake_front_fraction", "drive_front_fraction"):
+        if not 0.0 <= getattr(dyn, name) <= 1.0:
+            raise ConfigError(f"vehicle_dynamics.{name}: must lie between 0 and 1 (the front axle's share), got "
+                              f"{getattr(dyn, name)!r}")
 
     sim = cfg.simulation
     if sim is not None:

@@ -63,6 +63,8 @@ def _write_variant(tmp_path: Path, pattern: str, replacement: str) -> Path:
         (r"^clock_offset_s = .*$", "clock_offset_s = -3.0", "radar.clock_offset_s"),
         (r"^clock_drift_ppm = .*$", "clock_drift_ppm = 2500.0", "radar.clock_drift_ppm"),
         (r"^radar_clock_drift_ppm = .*$", 'radar_clock_drift_ppm = "fast"', "simulation.radar_clock_drift_ppm"),
+        (r"^drive_front_fraction = .*$", "drive_front_fraction = 1.5", "vehicle_dynamics.drive_front_fraction"),
+        (r"^brake_front_fraction = .*$", "brake_front_fraction = -0.2", "vehicle_dynamics.brake_front_fraction"),
     ],
 )
 def test_bad_values_are_rejected_naming_the_key(tmp_path, pattern, replacement, key):

@@ -136,6 +136,11 @@ def body_to_enu(att: NDArray[np.float64]) -> NDArray[np.float64]:
     ], -2)
 
 
+def wheel_shares(front_fraction: float) -> NDArray[np.float64]:
+    """Each wheel's share (4,) (FL, FR, RL, RR) of a longitudinal force whose front axle takes ``front_fraction``."""
+    return np.array([front_fraction / 2] * 2 + [(1 - front_fraction) / 2] * 2)
+
+
 def rolled_wheel_angle(t: NDArray[np.float64],
                        wheel_rate: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Wheel angle (rad, from 0 at t[0]) integrated from wheel_rate (rad/s, (N,) or (N, wheels)) on t (s),
@@ -236,8 +241,8 @@ class FullMotion:
                                * (1.0 + dyn.rolling_radius_speed_growth_per_mps2 * v[:, None] ** 2))
         force_x = m * accel_x + drag
         drive = np.where(force_x >= 0, 1.0, 0.0)
-        share = drive[:, None] * np.array([0.0, 0.0, 0.5, 0.5]) + (1 - drive[:, None]) * np.array(
-            [dyn.brake_front_fraction / 2] * 2 + [(1 - dyn.brake_front_fraction) / 2] * 2)
+        share = (drive[:, None] * wheel_shares(dyn.drive_front_fraction)
+                 + (1 - drive[:, None]) * wheel_shares(dyn.brake_front_fraction))
         self.longitudinal_slip = force_x[:, None] * share / (dyn.slip_stiffness_per_load * self.wheel_load)
         if "tyre_radius" not in on:
             self.rolling_radius = np.full_like(self.rolling_radius, vehicle.wheel_radius_m)
