@@ -228,6 +228,10 @@ class ResidualMotion:
     #: (M, 3) candidate points left out as moving (where the first fit put them) and their channel phases (rad)
     moving_points_enu: Array = field(default_factory=lambda: np.zeros((0, 3)))
     moving_channel_phase_rad: Array = field(default_factory=lambda: np.zeros(0))
+    #: the radar's boresight (deg, from ``radar.mounting.yaw_deg``) that would put every moving point's channel phase
+    #: at 0, where they agree on one (:func:`mounting_yaw_agreed`): a still scene seen through a radar mounted
+    #: otherwise than stated shows as points that all cross the beam alike; None where they do not agree
+    moving_mounting_yaw_deg: float | None = None
     #: the radar's channel gains measured first (:mod:`autosar_cli.sar.channel_calibration`); where applied, every
     #: read after it, and the image focused along ``trajectory``, undo them
     channel_calibration: ChannelCalibration | None = None
@@ -279,14 +283,20 @@ class ResidualMotion:
                 "iterations": self.iterations, "correction": self.correction_summary(),
                 "points_enu": np.round(self.points_enu, 4).tolist(),
                 "moving_points": [{"enu": np.round(p, 4).tolist(), "channel_phase_rad": round(float(a), 3)}
-                                  for p, a in zip(self.moving_points_enu, self.moving_channel_phase_rad, strict=True)]}
+                                  for p, a in zip(self.moving_points_enu, self.moving_channel_phase_rad, strict=True)],
+                "moving_points_mounting_yaw_deg": None if self.moving_mounting_yaw_deg is None
+                else round(self.moving_mounting_yaw_deg, 2)}
 
     def _moving_summary(self) -> str:
         if not len(self.moving_points_enu):
             return ""
         phases = ", ".join(f"{abs(a):.2f}" for a in self.moving_channel_phase_rad)
+        yaw = self.moving_mounting_yaw_deg
+        mounting = "" if yaw is None else (
+            f"; or they are still, seen by a radar whose boresight lies at radar.mounting.yaw_deg {yaw:+.1f} deg, on "
+            "which they all agree: check the radar's mounting")
         return (f"; {len(self.moving_points_enu)} moving point(s) left out (their channels' phase {phases} rad: "
-                "they cross the beam)")
+                f"they cross the beam{mounting})")
 
     def summary(self) -> str:
         """One line: what was corrected, or why nothing was."""
@@ -1008,36 +1018,40 @@ def residual_motion_of_points(drive_path: str | Path, trajectory: Trajectory, co
                                 min_window_bins=opts.window_bins + 2 * NARROWING_SLACK_BINS)
                  if opts.slow_motion and len(points) and passes.channels == opts.channels
                  and passes.half_beam_deg >= opts.half_beam_deg else None)
-    moving_enu, moving_phase = np.zeros((0, 3)), np.zeros(0)
+    moving_enu, moving_phase, moving_yaw = np.zeros((0, 3)), np.zeros(0), np.zeros(0)
     for _ in range(3):  # a point left out may leave another one used
         result = _points_motion(drive_path, trajectory, config, points, focus, opts, passes, histories)
-        moving, phase = _moving_used(drive_path, result, config, focus, opts, histories)
+        moving, phase, yaw = _moving_used(drive_path, result, config, focus, opts, histories)
         if not moving.any():
             break
         moving_enu = np.concatenate([moving_enu, result.points_enu[moving]])
         moving_phase = np.concatenate([moving_phase, phase[moving]])
+        moving_yaw = np.concatenate([moving_yaw, yaw[moving]])
         points = points[~moving]
         histories = _histories_without(histories, ~moving) if histories is not None else None
     if not len(moving_enu):
         return result
-    result = replace(result, moving_points_enu=moving_enu, moving_channel_phase_rad=moving_phase)
+    result = replace(result, moving_points_enu=moving_enu, moving_channel_phase_rad=moving_phase,
+                     moving_mounting_yaw_deg=mounting_yaw_agreed(moving_yaw))
     # where too few still points remain, the moving ones are the reason too
     return replace(result, reason=result.reason + result._moving_summary()) if result.reason else result
 
 
 def _moving_used(drive_path: str | Path, result: ResidualMotion, config: Config, focus: FocusOptions,
-                 opts: AutofocusOptions, histories: PhaseHistories | None) -> tuple[NDArray[np.bool_], Array]:
+                 opts: AutofocusOptions, histories: PhaseHistories | None
+                 ) -> tuple[NDArray[np.bool_], Array, Array]:
     """Which of ``result``'s candidate points a fit used (the phases' or the slow motion's) and moves across the
-    beam (``opts.max_channel_phase_rad``, ``opts.min_channel_coherence``), and every point's channel phase (rad; 0
+    beam (``opts.max_channel_phase_rad``, ``opts.min_channel_coherence``), every point's channel phase (rad; 0
     where not measured), along the track ``result`` made: over +-``opts.half_beam_deg``, narrowed from
-    ``histories`` where given, else read."""
+    ``histories`` where given, else read; and the radar boresight (deg from the stated) at which each moving one's
+    channel phase would be 0 (:func:`mounting_yaw_of_phase`; NaN for the others)."""
     points = result.points_enu
     used = np.asarray(result.points_used, dtype=bool).copy()
     slow = result.slow_motion
     if slow is not None and slow.applied and len(slow.points_used) == len(points):
         used |= slow.points_used
     if opts.max_channel_phase_rad is None or not used.any() or not result.applied:
-        return np.zeros(len(points), dtype=bool), np.zeros(len(points))
+        return np.zeros(len(points), dtype=bool), np.zeros(len(points)), np.full(len(points), np.nan)
     track = result.trajectory
     if histories is not None:
         hist = narrow_histories(histories, track, config, points, focus, half_beam_deg=opts.half_beam_deg,
@@ -1046,8 +1060,44 @@ def _moving_used(drive_path: str | Path, result: ResidualMotion, config: Config,
         hist = gather_phase_histories(drive_path, track, config, points, focus, half_beam_deg=opts.half_beam_deg,
                                       window_bins=opts.window_bins, channels=opts.channels)
     phase, coherence = channel_phase(hist, *pair_antennas(hist, track, config), points, len(points))
-    moving = (np.abs(phase) > opts.max_channel_phase_rad) & (coherence >= opts.min_channel_coherence)
-    return used & moving, phase
+    moving = used & (np.abs(phase) > opts.max_channel_phase_rad) & (coherence >= opts.min_channel_coherence)
+    yaw = np.full(len(points), np.nan)
+    if moving.any():
+        yaw[moving] = mounting_yaw_of_phase(hist, track, config, points, phase)[moving]
+    return moving, phase, yaw
+
+
+#: a boresight further than this (deg) from the stated one is no mounting error: points that all cross the beam
+MAX_MOUNTING_YAW_DEG = 5.0
+#: the moving points' boresights agree where their spread (std, deg) is at most this
+MOUNTING_YAW_AGREE_DEG = 0.5
+
+
+def mounting_yaw_of_phase(hist: PhaseHistories, track: Trajectory, config: Config, points: Array, phase: Array
+                          ) -> Array:
+    """Per point (P,), the radar boresight (deg from ``config.radar.mounting.yaw_deg``) at which its channel phase
+    (:func:`~autosar_cli.sar.phase_history.channel_phase`, ``phase`` (P,) rad along the stated mounting) would be 0:
+    the virtual array's ends turn with the radar, so the phase a still point shows is linear in the boresight's
+    error (0.3 rad per deg on test1-3's, 45 deg off the direction of motion); its slope is measured here by turning
+    the stated mounting by 1 deg (NaN where that moves no phase)."""
+    m = config.radar.mounting
+    turned = replace(config, radar=replace(config.radar, mounting=replace(m, yaw_deg=m.yaw_deg + 1.0)))
+    per_deg = np.angle(np.exp(1j * (channel_phase(hist, *pair_antennas(hist, track, turned), points, len(points))[0]
+                                    - phase)))
+    return np.where(np.abs(per_deg) > 1e-6, -phase / np.where(np.abs(per_deg) > 1e-6, per_deg, 1.0), np.nan)
+
+
+def mounting_yaw_agreed(yaw_deg: Array) -> float | None:
+    """The boresight error (deg) that the moving points' own (``yaw_deg``, :func:`mounting_yaw_of_phase`) agree on:
+    their median, where at least two give one, within ``MOUNTING_YAW_AGREE_DEG`` std and ``MAX_MOUNTING_YAW_DEG``
+    of the stated; else None. Points crossing the beam alike agree too (a whole column walking at one speed), but
+    at a phase a mounting error of a few degrees does not give (test_moving_scatterers: 2.7-3.0 rad, ~9 deg)."""
+    yaw = np.asarray(yaw_deg, dtype=np.float64)
+    yaw = yaw[np.isfinite(yaw)]
+    if len(yaw) < 2 or np.std(yaw) > MOUNTING_YAW_AGREE_DEG:
+        return None
+    median = float(np.median(yaw))
+    return median if abs(median) <= MAX_MOUNTING_YAW_DEG else None
 
 
 def _histories_without(hist: PhaseHistories, keep: NDArray[np.bool_]) -> PhaseHistories:
