@@ -110,6 +110,17 @@ def test_a_radar_mounted_off_its_stated_boresight_is_named_not_taken_for_movers(
     assert "boresight" in stage["reason"] and "radar.mounting.yaw_deg" in stage["reason"], stage["reason"]
 
 
+def test_the_mounting_the_moving_points_agree_on() -> None:
+    """Their median, robust to one point of another kind; none where fewer than two, where they scatter by more
+    than 0.5 deg, or where it lies beyond 5 deg of the stated (points crossing the beam alike)."""
+    from autosar_cli.sar.residual_motion import mounting_yaw_agreed
+
+    assert mounting_yaw_agreed(np.array([2.9, 3.0, 3.1, 3.0, 4.8])) == pytest.approx(3.0)
+    assert mounting_yaw_agreed(np.array([3.0, np.nan])) is None
+    assert mounting_yaw_agreed(np.array([1.0, 2.5, 4.0])) is None
+    assert mounting_yaw_agreed(np.array([-9.1, -9.0, -8.9])) is None
+
+
 @pytest.mark.long
 def test_a_walker_among_test1s_reflectors_is_left_out(tmp_path: Path) -> None:
     """test1 seed 1 (the full vehicle) with a corner reflector's worth of scatterer 1 m beyond its second reflector,

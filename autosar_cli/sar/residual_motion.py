@@ -1089,15 +1089,16 @@ def mounting_yaw_of_phase(hist: PhaseHistories, track: Trajectory, config: Confi
 
 def mounting_yaw_agreed(yaw_deg: Array) -> float | None:
     """The boresight error (deg) that the moving points' own (``yaw_deg``, :func:`mounting_yaw_of_phase`) agree on:
-    their median, where at least two give one, within ``MOUNTING_YAW_AGREE_DEG`` std and ``MAX_MOUNTING_YAW_DEG``
-    of the stated; else None. Points crossing the beam alike agree too (a whole column walking at one speed), but
+    their median, where at least two give one, within ``MOUNTING_YAW_AGREE_DEG`` (a robust std: 1.4826 times their
+    median absolute deviation) and ``MAX_MOUNTING_YAW_DEG`` of the stated; else None. Points crossing the beam alike agree too (a whole column walking at one speed), but
     at a phase a mounting error of a few degrees does not give (test_moving_scatterers: 2.7-3.0 rad, ~9 deg)."""
     yaw = np.asarray(yaw_deg, dtype=np.float64)
     yaw = yaw[np.isfinite(yaw)]
-    if len(yaw) < 2 or np.std(yaw) > MOUNTING_YAW_AGREE_DEG:
+    if len(yaw) < 2:
         return None
     median = float(np.median(yaw))
-    return median if abs(median) <= MAX_MOUNTING_YAW_DEG else None
+    spread = 1.4826 * float(np.median(np.abs(yaw - median)))  # a std that one point of another kind does not move
+    return median if spread <= MOUNTING_YAW_AGREE_DEG and abs(median) <= MAX_MOUNTING_YAW_DEG else None
 
 
 def _histories_without(hist: PhaseHistories, keep: NDArray[np.bool_]) -> PhaseHistories:
