@@ -59,7 +59,7 @@ from autosar_cli.ingest.pipeline import ingest
 from autosar_cli.nav.inputs import NavInputError
 from autosar_cli.nav.navigate import METHODS as NAV_METHODS
 from autosar_cli.nav.navigate import default_truth_path, navigate
-from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm
+from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm, with_mounting_yaw
 from autosar_cli.run import FORMAT as RUN_FORMAT
 from autosar_cli.run import FORMAT_VERSION as RUN_FORMAT_VERSION
 from autosar_cli.sar.autofocus import TrackAutofocus, estimate_track_scale, scale_track
@@ -181,6 +181,8 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
         autofocus = {k: v for k, v in focused.to_dict().items() if k != "points_enu"}
         if focused.channel_gains is not None:  # a property of the radar: every method's image undoes them
             options = replace(options, channel_gains=focused.channel_gains)
+        if focused.radar_mounting_yaw_deg is not None:  # and is focused along the boresight the points agreed on
+            config = with_mounting_yaw(config, focused.radar_mounting_yaw_deg)
         if not focused.applied:
             run_methods.remove(SARMIN_AUTOFOCUS)
             skipped[SARMIN_AUTOFOCUS] = f"SAR-MIN's {focused.summary()}"

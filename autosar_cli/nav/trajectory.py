@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -51,6 +51,18 @@ def antenna_lever_arms(config: Config) -> tuple[Array, Array]:
     rot = mounting_rotation(r.mounting.yaw_deg, r.mounting.pitch_deg, r.mounting.roll_deg)
     lever = np.asarray(r.mounting.lever_arm_m, dtype=np.float64)
     return lever + np.asarray(r.tx_positions_m) @ rot.T, lever + np.asarray(r.rx_positions_m) @ rot.T
+
+
+def with_mounting_yaw(config: Config, yaw_deg: float) -> Config:
+    """``config`` with the radar's boresight at ``yaw_deg`` (deg, ``radar.mounting.yaw_deg``'s convention)."""
+    return replace(config, radar=replace(config.radar, mounting=replace(config.radar.mounting, yaw_deg=yaw_deg)))
+
+
+def measured_mounting(config: Config, trajectory: Trajectory) -> Config:
+    """``config`` with the radar's boresight that ``trajectory``'s autofocus measured on its points, where it took
+    one (its ``info["radar_mounting_yaw_deg"]``, :mod:`autosar_cli.sar.residual_motion`), else ``config``."""
+    yaw = trajectory.info.get("radar_mounting_yaw_deg")
+    return config if yaw is None else with_mounting_yaw(config, float(yaw))
 
 
 def radar_side(config: Config) -> float:

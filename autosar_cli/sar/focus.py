@@ -31,6 +31,7 @@ from autosar_cli.nav.trajectory import (
     Trajectory,
     antenna_lever_arms,
     cumulative_travel,
+    measured_mounting,
     radar_phase_centres,
     radar_side,
 )
@@ -309,6 +310,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         except (OSError, ValueError) as exc:
             msg = str(exc)
             raise FocusError(msg if traj_name in msg else f"{traj_name}: {msg}") from None
+    config = measured_mounting(config, traj)  # a radar boresight its autofocus measured, where it took one
     with Drive(drive_path) as drive:
         radar = open_radar(drive, options)
         check_same_recording(drive, radar, traj, traj_name)
@@ -423,7 +425,8 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
               "slope_hz_per_s": slope, "sample_rate_hz": fs, "num_samples": n_samp, "bin_m": bin_m,
               "cycles_per_m": cycles_per_m, "wavelength_m": wavelength, "half_width_rad": half_width,
               "trajectory_method": traj.method, "frames_used": int(len(frames)), "backprojections": n_bp,
-              "radar": radar.name, "channel_gains": gains.to_dict() if gains is not None else None}
+              "radar": radar.name, "channel_gains": gains.to_dict() if gains is not None else None,
+              "radar_mounting_yaw_deg": config.radar.mounting.yaw_deg}
     provenance = {"drive": str(drive_path), "trajectory": traj_name, "autosar_version": __version__,
                   "command": command, "config": config.source}
     out = [FocusedImage(img.reshape(g.shape), g, traj.origin, dict(params), dict(provenance))

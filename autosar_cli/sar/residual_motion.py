@@ -46,7 +46,13 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from autosar_cli.config import Config
-from autosar_cli.nav.trajectory import phase_centre_lever_arm, radar_track, track_scale_std, zero_doppler_times
+from autosar_cli.nav.trajectory import (
+    phase_centre_lever_arm,
+    radar_track,
+    track_scale_std,
+    with_mounting_yaw,
+    zero_doppler_times,
+)
 from autosar_cli.sar.autofocus import scale_track
 from autosar_cli.sar.channel_calibration import ChannelCalibration, measure_channel_gains, with_stated_gains
 from autosar_cli.sar.channel_gains import ChannelGains
@@ -232,6 +238,10 @@ class ResidualMotion:
     #: at 0, where they agree on one (:func:`mounting_yaw_agreed`): a still scene seen through a radar mounted
     #: otherwise than stated shows as points that all cross the beam alike; None where they do not agree
     moving_mounting_yaw_deg: float | None = None
+    #: the radar's boresight (deg, ``radar.mounting.yaw_deg``'s convention) the points were fitted along, where the
+    #: stated one left them all moving and the one they agreed on let them fit (:func:`autofocus_residual_motion`):
+    #: the corrected trajectory's ``info`` carries it, and focus takes it; None: the stated one
+    radar_mounting_yaw_deg: float | None = None
     #: the radar's channel gains measured first (:mod:`autosar_cli.sar.channel_calibration`); where applied, every
     #: read after it, and the image focused along ``trajectory``, undo them
     channel_calibration: ChannelCalibration | None = None
@@ -255,8 +265,10 @@ class ResidualMotion:
     def labelled(self, method: str) -> Trajectory:
         """The corrected trajectory named ``method``, its info holding what autofocus measured."""
         gains = {"channel_gains": self.channel_gains.to_dict()} if self.channel_gains is not None else {}
+        yaw = self.radar_mounting_yaw_deg
+        mounting = {} if yaw is None else {"radar_mounting_yaw_deg": yaw}
         return replace(self.trajectory, method=method, info={**self.trajectory.info, "track_scale": self.scale,
-                                                             "autofocus": self.to_dict(), **gains})
+                                                             "autofocus": self.to_dict(), **gains, **mounting})
 
     def correction_summary(self) -> dict[str, float]:
         c = self.correction
@@ -285,7 +297,8 @@ class ResidualMotion:
                 "moving_points": [{"enu": np.round(p, 4).tolist(), "channel_phase_rad": round(float(a), 3)}
                                   for p, a in zip(self.moving_points_enu, self.moving_channel_phase_rad, strict=True)],
                 "moving_points_mounting_yaw_deg": None if self.moving_mounting_yaw_deg is None
-                else round(self.moving_mounting_yaw_deg, 2)}
+                else round(self.moving_mounting_yaw_deg, 2),
+                "radar_mounting_yaw_deg": self.radar_mounting_yaw_deg}
 
     def _moving_summary(self) -> str:
         if not len(self.moving_points_enu):
@@ -308,6 +321,9 @@ class ResidualMotion:
                     f"clock (the passes read {self.radar_clock_rereads + 1} times), the track put on the radar's; "
                     + slow)
         fast = "" if self.fast_motion is None else "; " + self.fast_motion.summary()
+        if self.radar_mounting_yaw_deg is not None:
+            gains = (f"the radar's boresight taken at yaw {self.radar_mounting_yaw_deg:.1f} deg, on which its points "
+                     "agreed where the stated one had them all cross the beam; " + gains)
         if self.reason:  # which says what moved, where that left too few points
             return gains + (f"{slow}track not corrected by the phases: {self.reason}{fast}" if slow else
                             f"track not corrected: {self.reason}")
@@ -932,7 +948,25 @@ def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, co
     """``trajectory`` corrected by the residual motion its own image's bright points (:func:`candidate_points`)
     measure, with no truth (:func:`residual_motion_of_points`), then, unless ``opts.fast_motion`` is off, by the
     fast across-track motion that many scatterers measure along that track (:mod:`autosar_cli.sar.fast_motion`;
-    ``fast``: its options)."""
+    ``fast``: its options).
+
+    Where that refuses because every point it used crossed the beam alike, at a phase a radar boresight within a
+    few degrees of the stated would give (``moving_mounting_yaw_deg``), it runs once more along that boresight,
+    and keeps that run where its points fit as still ones (``radar_mounting_yaw_deg``)."""
+    result = _autofocus_along(drive_path, trajectory, config, focus, opts, passes, fast)
+    yaw = result.moving_mounting_yaw_deg
+    if result.applied or yaw is None:
+        return result
+    boresight = config.radar.mounting.yaw_deg + yaw
+    turned = _autofocus_along(drive_path, trajectory, with_mounting_yaw(config, boresight), focus, opts, passes,
+                              fast)
+    return replace(turned, radar_mounting_yaw_deg=boresight) if turned.applied else result
+
+
+def _autofocus_along(drive_path: str | Path, trajectory: Trajectory, config: Config, focus: FocusOptions | None,
+                     opts: AutofocusOptions | None, passes: PassOptions | None, fast: FastMotionOptions | None
+                     ) -> ResidualMotion:
+    """:func:`autofocus_residual_motion` along the radar mounting ``config`` states."""
     focus = with_stated_gains(drive_path, focus or FocusOptions.from_config(config))
     opts = opts or AutofocusOptions.from_config(config)
     fast = (fast or FastMotionOptions()) if opts.fast_motion else None
@@ -1090,8 +1124,9 @@ def mounting_yaw_of_phase(hist: PhaseHistories, track: Trajectory, config: Confi
 def mounting_yaw_agreed(yaw_deg: Array) -> float | None:
     """The boresight error (deg) that the moving points' own (``yaw_deg``, :func:`mounting_yaw_of_phase`) agree on:
     their median, where at least two give one, within ``MOUNTING_YAW_AGREE_DEG`` (a robust std: 1.4826 times their
-    median absolute deviation) and ``MAX_MOUNTING_YAW_DEG`` of the stated; else None. Points crossing the beam alike agree too (a whole column walking at one speed), but
-    at a phase a mounting error of a few degrees does not give (test_moving_scatterers: 2.7-3.0 rad, ~9 deg)."""
+    median absolute deviation) and ``MAX_MOUNTING_YAW_DEG`` of the stated; else None. Points crossing the beam
+    alike agree too (a whole column walking at one speed), but at a phase a mounting error of a few degrees does not
+    give (test_moving_scatterers: 2.7-3.0 rad, ~9 deg)."""
     yaw = np.asarray(yaw_deg, dtype=np.float64)
     yaw = yaw[np.isfinite(yaw)]
     if len(yaw) < 2:
