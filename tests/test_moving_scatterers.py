@@ -93,17 +93,19 @@ def test_autofocus_leaves_out_points_that_cross_the_beam(tmp_path: Path) -> None
     assert not gains["applied"] and "ramp along the array" in gains["reason"], gains
 
 
-def test_a_radar_mounted_off_its_stated_boresight_is_measured_not_taken_for_movers(tmp_path: Path) -> None:
-    """The ci drive recorded by a radar whose boresight is 3 deg further forward than ``radar.mounting.yaw_deg``
-    says: the virtual array's ends, turned with it, see every still point off its direction, as if each crossed the
+@pytest.mark.parametrize("off_deg", [3.0, -3.0])
+def test_a_radar_mounted_off_its_stated_boresight_is_measured_not_taken_for_movers(tmp_path: Path,
+                                                                                  off_deg: float) -> None:
+    """The ci drive recorded by a radar whose boresight is 3 deg further forward (or back) than
+    ``radar.mounting.yaw_deg`` says: the virtual array's ends, turned with it, see every still point off its direction, as if each crossed the
     beam, so along the stated boresight every point is left out. They agree on one boresight, within 0.5 deg of the
-    true one (measured +2.9x); along it they fit as still points, and the run takes it: the autofocus corrects the
+    true one (measured -42.1 for -42, -48.2 for -48); along it they fit as still points, and the run takes it: the autofocus corrects the
     track, its trajectory carries that boresight, and the image is focused along it. The walkers of the test above,
     whose phases agree too, are named no mounting."""
     from autosar_cli.store.trajectory import read_trajectory as read
 
     m = CFG.radar.mounting
-    turned = replace(CFG, radar=replace(CFG.radar, mounting=replace(m, yaw_deg=m.yaw_deg + 3.0)))
+    turned = replace(CFG, radar=replace(CFG.radar, mounting=replace(m, yaw_deg=m.yaw_deg + off_deg)))
     log = tmp_path / "turned.mcap"
     simulate("ci", log, seed=7, config=turned, dynamics="kinematic")
     manifest = run([log], tmp_path / "turned", CFG, autofocus=True)
@@ -111,7 +113,7 @@ def test_a_radar_mounted_off_its_stated_boresight_is_measured_not_taken_for_move
     print(stage["summary"])
     assert stage["applied"] and stage["method"] == "sar-min+af", stage["summary"]
     yaw = stage["radar_mounting_yaw_deg"]
-    assert yaw is not None and abs(yaw - (m.yaw_deg + 3.0)) < 0.5, yaw
+    assert yaw is not None and abs(yaw - (m.yaw_deg + off_deg)) < 0.5, yaw
     assert "boresight taken at yaw" in stage["summary"]
     assert read(tmp_path / "turned" / "trajectory.h5", covariance=False).info["radar_mounting_yaw_deg"] == yaw
     assert read_image(tmp_path / "turned" / "image.h5").params["radar_mounting_yaw_deg"] == yaw
