@@ -97,11 +97,11 @@ def test_autofocus_leaves_out_points_that_cross_the_beam(tmp_path: Path) -> None
 def test_a_radar_mounted_off_its_stated_boresight_is_measured_not_taken_for_movers(tmp_path: Path,
                                                                                   off_deg: float) -> None:
     """The ci drive recorded by a radar whose boresight is 3 deg further forward (or back) than
-    ``radar.mounting.yaw_deg`` says: the virtual array's ends, turned with it, see every still point off its direction, as if each crossed the
-    beam, so along the stated boresight every point is left out. They agree on one boresight, within 0.5 deg of the
-    true one (measured -42.1 for -42, -48.2 for -48); along it they fit as still points, and the run takes it: the autofocus corrects the
-    track, its trajectory carries that boresight, and the image is focused along it. The walkers of the test above,
-    whose phases agree too, are named no mounting."""
+    ``radar.mounting.yaw_deg`` says: the virtual array's ends, turned with it, see every still point off its
+    direction, as if each crossed the beam, so along the stated boresight every point is left out. They agree on one
+    boresight, within 0.5 deg of the true one (measured -42.1 for -42, -48.2 for -48); along it they fit as still
+    points, and the run takes it: the autofocus corrects the track, its trajectory carries that boresight, and the
+    image is focused along it."""
     from autosar_cli.store.trajectory import read_trajectory as read
 
     m = CFG.radar.mounting
