@@ -1103,7 +1103,7 @@ def _moving_used(drive_path: str | Path, result: ResidualMotion, config: Config,
 
 #: a boresight further than this (deg) from the stated one is no mounting error: points that all cross the beam
 MAX_MOUNTING_YAW_DEG = 5.0
-#: the moving points' boresights agree where their spread (std, deg) is at most this
+#: the moving points' boresights agree where their spread (a robust std, deg) is at most this
 MOUNTING_YAW_AGREE_DEG = 0.5
 
 
@@ -1114,8 +1114,7 @@ def mounting_yaw_of_phase(hist: PhaseHistories, track: Trajectory, config: Confi
     the virtual array's ends turn with the radar, so the phase a still point shows is linear in the boresight's
     error (0.3 rad per deg on test1-3's, 45 deg off the direction of motion); its slope is measured here by turning
     the stated mounting by 1 deg (NaN where that moves no phase)."""
-    m = config.radar.mounting
-    turned = replace(config, radar=replace(config.radar, mounting=replace(m, yaw_deg=m.yaw_deg + 1.0)))
+    turned = with_mounting_yaw(config, config.radar.mounting.yaw_deg + 1.0)
     per_deg = np.angle(np.exp(1j * (channel_phase(hist, *pair_antennas(hist, track, turned), points, len(points))[0]
                                     - phase)))
     return np.where(np.abs(per_deg) > 1e-6, -phase / np.where(np.abs(per_deg) > 1e-6, per_deg, 1.0), np.nan)
