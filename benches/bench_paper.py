@@ -359,7 +359,7 @@ def main() -> None:
                          "autofocus_fast_motion=true")
     ap.add_argument("--radar", default=None,
                     help="what the processor is told of the radar differs from the config's: [radar] entries, e.g. "
-                         "clock_drift_ppm=500.0")
+                         "clock_drift_ppm=500.0 or mounting.yaw_deg=-42.0 (the simulator keeps the config's radar)")
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--keep", action="store_true", help="keep every drive's log and comparison")
     ap.add_argument("--resume", action="store_true", help="keep --output's rows and skip the drives already in it")
@@ -413,8 +413,9 @@ def main() -> None:
                                                 radar=args.radar))]
                   if custom else [])
         # the simulated car, radar and sensors: the config's unless --car / --simulation / --sensors (then only the
-        # simulator is given the changed one)
-        other_vehicle = any(getattr(args, k) for k in OTHER_VEHICLE)
+        # simulator is given the changed one); --radar is what the processor is told, so the simulator keeps the
+        # config's radar (e.g. its mounting)
+        other_vehicle = any(getattr(args, k) for k in OTHER_VEHICLE) or bool(args.radar)
         sim_config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
                                                     not args.no_fits, not args.planar, args.radar_height, args.car,
                                                     args.simulation, args.sensors, args.navigation))]
