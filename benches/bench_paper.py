@@ -159,7 +159,9 @@ def config_copy(components: str | None, understeer: float | None, work: Path, re
     variant = (("" if fits else "_nofits") + ("" if attitude else "_planar") + ("_height" if radar_height else "")
                + ("_car" + variant_tag(car) if car else "") + ("_sim" + variant_tag(simulation) if simulation else "")
                + ("_sensors" + variant_tag(sensors) if sensors else "")
-               + ("_nav" + variant_tag(navigation) if navigation else ""))
+               + ("_nav" + variant_tag(navigation) if navigation else "")
+               + ("_proc" + variant_tag(processing) if processing else "")
+               + ("_radar" + variant_tag(radar) if radar else ""))
     name = f"config_{tag}_us{understeer}_slip{rear_slip}{variant}"
     if len(name) > 200:  # a file name has at most 255 bytes
         name = f"config_{hashlib.sha256(name.encode()).hexdigest()[:16]}"

@@ -136,4 +136,11 @@ def test_bench_configs_change_only_the_simulators_entries(tmp_path: Path) -> Non
     assert changed.sensors == base.sensors and changed.vehicle_dynamics == base.vehicle_dynamics
     with pytest.raises(SystemExit, match="'gate' is not an entry of \\[navigation\\]"):
         bench.config_copy(None, None, tmp_path, navigation="gate=0.9")
+    # what the processor is told of the radar (--radar), its mounting a table below [radar], beside the simulator's
+    # copy, which keeps the config's radar: two files, neither overwriting the other
+    told = bench.config_copy(None, None, tmp_path, radar="mounting.yaw_deg=-42.0")
+    simulated = bench.config_copy(None, None, tmp_path)
+    assert told != simulated
+    assert load_config(told).radar.mounting.yaw_deg == -42.0
+    assert load_config(simulated).radar == base.radar
 
