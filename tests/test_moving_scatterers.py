@@ -119,15 +119,34 @@ def test_a_radar_mounted_off_its_stated_boresight_is_measured_not_taken_for_move
     assert read_image(tmp_path / "turned" / "image.h5").params["radar_mounting_yaw_deg"] == yaw
 
 
+def test_a_radar_mounted_further_off_than_a_mounting_error_is_named_and_refused(tmp_path: Path) -> None:
+    """The ci drive recorded by a radar whose boresight is 7 deg further forward than stated: its points agree on
+    a boresight ~7 deg off, beyond the 5 deg the autofocus takes for a mounting error (a column of points crossing
+    the beam alike agrees too, at 2.7-3.0 rad, ~9 deg), so it refuses, keeps SAR-MIN's track, and its reason names
+    that boresight and the bound."""
+    m = CFG.radar.mounting
+    turned = replace(CFG, radar=replace(CFG.radar, mounting=replace(m, yaw_deg=m.yaw_deg + 7.0)))
+    log = tmp_path / "turned.mcap"
+    simulate("ci", log, seed=7, config=turned, dynamics="kinematic")
+    manifest = run([log], tmp_path / "turned", CFG, autofocus=True)
+    stage = manifest["stages"]["autofocus"]
+    assert not stage["applied"] and stage["method"] == "sar-min", stage["summary"]
+    assert stage["radar_mounting_yaw_deg"] is None
+    yaw = stage["moving_points_mounting_yaw_deg"]
+    assert yaw is not None and abs(yaw - 7.0) < 0.6, yaw
+    assert f"boresight at radar.mounting.yaw_deg {yaw:+.1f} deg, beyond the 5 deg" in stage["reason"], stage["reason"]
+    assert read_trajectory(tmp_path / "turned" / "trajectory.h5", covariance=False).correction is None
+
+
 def test_the_mounting_the_moving_points_agree_on() -> None:
-    """Their median, robust to one point of another kind; none where fewer than two, where they scatter by more
-    than 0.5 deg, or where it lies beyond 5 deg of the stated (points crossing the beam alike)."""
+    """Their median, robust to one point of another kind; none where fewer than two or where they scatter by more
+    than 0.5 deg. Agreeing beyond 5 deg (points crossing the beam alike) is for the autofocus to refuse (above)."""
     from autosar_cli.sar.residual_motion import mounting_yaw_agreed
 
     assert mounting_yaw_agreed(np.array([2.9, 3.0, 3.1, 3.0, 4.8])) == pytest.approx(3.0)
     assert mounting_yaw_agreed(np.array([3.0, np.nan])) is None
     assert mounting_yaw_agreed(np.array([1.0, 2.5, 4.0])) is None
-    assert mounting_yaw_agreed(np.array([-9.1, -9.0, -8.9])) is None
+    assert mounting_yaw_agreed(np.array([-9.1, -9.0, -8.9])) == pytest.approx(-9.0)
 
 
 @pytest.mark.long

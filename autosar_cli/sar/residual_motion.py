@@ -236,7 +236,8 @@ class ResidualMotion:
     moving_channel_phase_rad: Array = field(default_factory=lambda: np.zeros(0))
     #: the radar's boresight (deg, from ``radar.mounting.yaw_deg``) that would put every moving point's channel phase
     #: at 0, where they agree on one (:func:`mounting_yaw_agreed`): a still scene seen through a radar mounted
-    #: otherwise than stated shows as points that all cross the beam alike; None where they do not agree
+    #: otherwise than stated shows as points that all cross the beam alike; None where they do not agree. Taken
+    #: for a mounting error (and the autofocus run along it) only within ``MAX_MOUNTING_YAW_DEG``
     moving_mounting_yaw_deg: float | None = None
     #: the radar's boresight (deg, ``radar.mounting.yaw_deg``'s convention) the points were fitted along, where the
     #: stated one left them all moving and the one they agreed on let them fit (:func:`autofocus_residual_motion`):
@@ -305,9 +306,15 @@ class ResidualMotion:
             return ""
         phases = ", ".join(f"{abs(a):.2f}" for a in self.moving_channel_phase_rad)
         yaw = self.moving_mounting_yaw_deg
-        mounting = "" if yaw is None else (
-            f"; or they are still, seen by a radar whose boresight lies at radar.mounting.yaw_deg {yaw:+.1f} deg, on "
-            "which they all agree: check the radar's mounting")
+        if yaw is None:
+            mounting = ""
+        elif abs(yaw) <= MAX_MOUNTING_YAW_DEG:
+            mounting = (f"; or they are still, seen by a radar whose boresight lies at radar.mounting.yaw_deg "
+                        f"{yaw:+.1f} deg, on which they all agree: check the radar's mounting")
+        else:
+            mounting = (f"; they agree on a boresight at radar.mounting.yaw_deg {yaw:+.1f} deg, beyond the "
+                        f"{MAX_MOUNTING_YAW_DEG:g} deg taken for a mounting error: points crossing alike, or a radar "
+                        "mounted that far off its stated boresight")
         return (f"; {len(self.moving_points_enu)} moving point(s) left out (their channels' phase {phases} rad: "
                 f"they cross the beam{mounting})")
 
@@ -950,12 +957,12 @@ def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, co
     fast across-track motion that many scatterers measure along that track (:mod:`autosar_cli.sar.fast_motion`;
     ``fast``: its options).
 
-    Where that refuses because every point it used crossed the beam alike, at a phase a radar boresight within a
-    few degrees of the stated would give (``moving_mounting_yaw_deg``), it runs once more along that boresight,
-    and keeps that run where its points fit as still ones (``radar_mounting_yaw_deg``)."""
+    Where that refuses because every point it used crossed the beam alike, at a phase a radar boresight within
+    ``MAX_MOUNTING_YAW_DEG`` of the stated would give (``moving_mounting_yaw_deg``), it runs once more along that
+    boresight, and keeps that run where its points fit as still ones (``radar_mounting_yaw_deg``)."""
     result = _autofocus_along(drive_path, trajectory, config, focus, opts, passes, fast)
     yaw = result.moving_mounting_yaw_deg
-    if result.applied or yaw is None:
+    if result.applied or yaw is None or abs(yaw) > MAX_MOUNTING_YAW_DEG:
         return result
     boresight = config.radar.mounting.yaw_deg + yaw
     turned = _autofocus_along(drive_path, trajectory, with_mounting_yaw(config, boresight), focus, opts, passes,
@@ -1123,16 +1130,16 @@ def mounting_yaw_of_phase(hist: PhaseHistories, track: Trajectory, config: Confi
 def mounting_yaw_agreed(yaw_deg: Array) -> float | None:
     """The boresight error (deg) that the moving points' own (``yaw_deg``, :func:`mounting_yaw_of_phase`) agree on:
     their median, where at least two give one, within ``MOUNTING_YAW_AGREE_DEG`` (a robust std: 1.4826 times their
-    median absolute deviation) and ``MAX_MOUNTING_YAW_DEG`` of the stated; else None. Points crossing the beam
-    alike agree too (a whole column walking at one speed), but at a phase a mounting error of a few degrees does not
-    give (test_moving_scatterers: 2.7-3.0 rad, ~9 deg)."""
+    median absolute deviation); else None. Points crossing the beam alike agree too (a whole column walking at one
+    speed), at a phase a mounting error of a few degrees does not give (test_moving_scatterers: 2.7-3.0 rad, ~9 deg):
+    :func:`autofocus_residual_motion` takes one for a mounting error only within ``MAX_MOUNTING_YAW_DEG``."""
     yaw = np.asarray(yaw_deg, dtype=np.float64)
     yaw = yaw[np.isfinite(yaw)]
     if len(yaw) < 2:
         return None
     median = float(np.median(yaw))
     spread = 1.4826 * float(np.median(np.abs(yaw - median)))  # a std that one point of another kind does not move
-    return median if spread <= MOUNTING_YAW_AGREE_DEG and abs(median) <= MAX_MOUNTING_YAW_DEG else None
+    return median if spread <= MOUNTING_YAW_AGREE_DEG else None
 
 
 def _histories_without(hist: PhaseHistories, keep: NDArray[np.bool_]) -> PhaseHistories:
