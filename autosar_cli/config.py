@@ -388,6 +388,10 @@ class NavigationConfig:
     # bias taken out against the GNSS's vertical velocity; off (the default: it biases the autofocus's track scale on
     # straight drives, docs/NAVIGATION.md), or without a vertical velocity: a fixed height
     radar_height: bool = False
+    # that IMU's pitch bias, measured on the GNSS's vertical velocity, taken out even with radar_height off: the roof
+    # antenna, moved to a level body by the biased pitch, then sits fore-aft of where it is, which the GNSS velocity
+    # in turns reads as rear slip (docs/NAVIGATION.md); off: no better on the 40 drives, navigation only
+    attitude_pitch_bias: bool = False
     wheel_radius_gain_max_std_per_mps2: float = 0.01
     gate_probability: float = 0.9999  # chi-square gate of each update
     max_step_s: float = 0.05  # longest single prediction step (dead reckoning through gaps)

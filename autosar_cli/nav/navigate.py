@@ -318,7 +318,7 @@ def body_attitude(inputs: NavInputs, config: Config) -> tuple[BodyAttitude | Non
     if att is None:
         return None, (f"imu/{nav.attitude_imu} covers less than {1 / CROSSOVER_HZ:g} s of the drive: the radar and "
                       "the GNSS antenna as on a planar body")
-    if nav.radar_height and inputs.gnss_climb is not None:
+    if (nav.radar_height or nav.attitude_pitch_bias) and inputs.gnss_climb is not None:
         antenna = _lever_from_roll_axis(np.asarray(inputs.gnss_lever_m), config)
         att = without_pitch_bias(att, *pitch_bias(att, np.interp(att.t, t, speed), inputs.gnss_climb, antenna))
     return att, "the body's roll and pitch from the IMU"
