@@ -93,6 +93,16 @@ def test_autofocus_leaves_out_points_that_cross_the_beam(tmp_path: Path) -> None
     assert not gains["applied"] and "ramp along the array" in gains["reason"], gains
 
 
+def _run_with_radar_turned(tmp_path: Path, off_deg: float) -> dict:
+    """``run --autofocus`` (into ``tmp_path / "turned"``), told the config's mounting, of the ci drive recorded by a
+    radar whose boresight is ``off_deg`` further forward than that: the run's autofocus stage."""
+    m = CFG.radar.mounting
+    turned = replace(CFG, radar=replace(CFG.radar, mounting=replace(m, yaw_deg=m.yaw_deg + off_deg)))
+    log = tmp_path / "turned.mcap"
+    simulate("ci", log, seed=7, config=turned, dynamics="kinematic")
+    return run([log], tmp_path / "turned", CFG, autofocus=True)["stages"]["autofocus"]
+
+
 @pytest.mark.parametrize("off_deg", [3.0, -3.0])
 def test_a_radar_mounted_off_its_stated_boresight_is_measured_not_taken_for_movers(tmp_path: Path,
                                                                                   off_deg: float) -> None:
@@ -102,20 +112,14 @@ def test_a_radar_mounted_off_its_stated_boresight_is_measured_not_taken_for_move
     boresight, within 0.5 deg of the true one (measured -42.1 for -42, -48.2 for -48); along it they fit as still
     points, and the run takes it: the autofocus corrects the track, its trajectory carries that boresight, and the
     image is focused along it."""
-    from autosar_cli.store.trajectory import read_trajectory as read
-
-    m = CFG.radar.mounting
-    turned = replace(CFG, radar=replace(CFG.radar, mounting=replace(m, yaw_deg=m.yaw_deg + off_deg)))
-    log = tmp_path / "turned.mcap"
-    simulate("ci", log, seed=7, config=turned, dynamics="kinematic")
-    manifest = run([log], tmp_path / "turned", CFG, autofocus=True)
-    stage = manifest["stages"]["autofocus"]
+    stage = _run_with_radar_turned(tmp_path, off_deg)
     print(stage["summary"])
     assert stage["applied"] and stage["method"] == "sar-min+af", stage["summary"]
     yaw = stage["radar_mounting_yaw_deg"]
-    assert yaw is not None and abs(yaw - (m.yaw_deg + off_deg)) < 0.5, yaw
+    assert yaw is not None and abs(yaw - (CFG.radar.mounting.yaw_deg + off_deg)) < 0.5, yaw
     assert "boresight taken at yaw" in stage["summary"]
-    assert read(tmp_path / "turned" / "trajectory.h5", covariance=False).info["radar_mounting_yaw_deg"] == yaw
+    trajectory = read_trajectory(tmp_path / "turned" / "trajectory.h5", covariance=False)
+    assert trajectory.info["radar_mounting_yaw_deg"] == yaw
     assert read_image(tmp_path / "turned" / "image.h5").params["radar_mounting_yaw_deg"] == yaw
 
 
@@ -124,12 +128,7 @@ def test_a_radar_mounted_further_off_than_a_mounting_error_is_named_and_refused(
     a boresight ~7 deg off, beyond the 5 deg the autofocus takes for a mounting error (a column of points crossing
     the beam alike agrees too, at 2.7-3.0 rad, ~9 deg), so it refuses, keeps SAR-MIN's track, and its reason names
     that boresight and the bound."""
-    m = CFG.radar.mounting
-    turned = replace(CFG, radar=replace(CFG.radar, mounting=replace(m, yaw_deg=m.yaw_deg + 7.0)))
-    log = tmp_path / "turned.mcap"
-    simulate("ci", log, seed=7, config=turned, dynamics="kinematic")
-    manifest = run([log], tmp_path / "turned", CFG, autofocus=True)
-    stage = manifest["stages"]["autofocus"]
+    stage = _run_with_radar_turned(tmp_path, 7.0)
     assert not stage["applied"] and stage["method"] == "sar-min", stage["summary"]
     assert stage["radar_mounting_yaw_deg"] is None
     yaw = stage["moving_points_mounting_yaw_deg"]

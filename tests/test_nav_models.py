@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -1150,7 +1151,7 @@ def test_rear_slip_gain_is_the_full_vehicles_closed_form() -> None:
         assert none is not None and abs(none.gain) < 3 * none.std, none
 
 
-def test_the_imus_pitch_bias_taken_out_of_the_antennas_tilt_frees_the_rear_slip_gain(tmp_path) -> None:
+def test_the_imus_pitch_bias_taken_out_of_the_antennas_tilt_frees_the_rear_slip_gain(tmp_path: Path) -> None:
     """Urban seed 10 on the full vehicle, every navigation sensor exact but the attitude IMU (its mounting and
     accelerometer bias tilt its pitch by -14 mrad, measured on the GNSS climb): the roof antenna, 1.35 m above the
     roll axis, is moved to a level body by that biased pitch and so sits ~1.9 cm fore-aft of where it is; in a turn

@@ -1124,7 +1124,7 @@ def mounting_yaw_of_phase(hist: PhaseHistories, track: Trajectory, config: Confi
     turned = with_mounting_yaw(config, config.radar.mounting.yaw_deg + 1.0)
     per_deg = np.angle(np.exp(1j * (channel_phase(hist, *pair_antennas(hist, track, turned), points, len(points))[0]
                                     - phase)))
-    return np.where(np.abs(per_deg) > 1e-6, -phase / np.where(np.abs(per_deg) > 1e-6, per_deg, 1.0), np.nan)
+    return np.divide(-phase, per_deg, out=np.full(len(phase), np.nan), where=np.abs(per_deg) > 1e-6)
 
 
 def mounting_yaw_agreed(yaw_deg: Array) -> float | None:
