@@ -9,7 +9,8 @@ track over 1 m and 10 m; the entropies (whole image, range-normalised, far swath
 fall in the paper's order; SAR-MIN's track scale against the truth's (the similarity fitted to the phase-centre
 tracks) beside what the GNSS velocity alone allows (its mean along-track error over the drive), and the wall times.
 Prints one line per drive and a summary (medians, counts of drives meeting each criterion); writes
-benches/results/paper.json after every drive, and ``--resume`` skips the drives already in it.
+benches/results/paper.json after every drive (the committed file: the kinematic car, ``--dynamics kinematic``,
+as ``make bench-paper`` runs it), and ``--resume`` skips the drives already in it.
 A drive's outputs are deleted after it is measured unless --keep (test2 is ~0.5 GB of log and ~1 GB of products).
 The full vehicle model's runs: the ablation, one run per ``--components`` set, to
 benches/results/paper_ablation.json with ``--resume`` (``make bench-ablation``); ``--understeer-gradient K`` and
