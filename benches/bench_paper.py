@@ -20,13 +20,12 @@ wheel-speed lag, slip and load gains, rear slip and the steering test (the A/B: 
 before the slip and load gains). With them: ``--scenarios test3,urban --seeds 0,1 --methods sar-min,sar-min+af
 --dynamics full --output benches/results/paper_wheel_radii.json``; ``--planar`` leaves SAR-MIN's radar on a planar
 body, not moved by the IMU's roll and pitch (for an A/B).
-The 40 drives (``make bench-paper-full``): ``--scenarios test1,test2,test3,urban --seeds 0-9 --methods
-sar-min,sar-min+af --dynamics full --output benches/results/paper_full_level.json`` (which drives ran at which
-commit: the file's ``note``); at 7118539, before the level GNSS antenna, the load-compliant wheels, the lag's stated
-window and the rear slip: benches/results/paper_full_fits.json. With ``--radar-height`` (run at a2a231f-8ba6ebe,
-where it was the default, so its rows lack the flag; stopped after 29 drives, test1 seeds 1 and 4 without the
-autofocus, which refused): benches/results/paper_full_height.json. The product with the slow motion from the points'
-passes first (on by default), test1-3 of the 40: benches/results/paper_full_slow.json (its note: the commands).
+The 40 drives, the product as it is (``make bench-paper-full``): ``--scenarios test1,test2,test3,urban --seeds 0-9
+--methods sar-min,sar-min+af --dynamics full --output benches/results/paper_full_slow.json``. Older states of the
+autofocus on them (the file's ``note`` says which): the phases alone, benches/results/paper_full_level.json; before
+the level GNSS antenna, the load-compliant wheels, the lag's stated window and the rear slip:
+benches/results/paper_full_fits.json; with ``--radar-height`` (its rows lack the flag; 29 drives):
+benches/results/paper_full_height.json.
 Another car (``--car``: entries of the simulated car's [vehicle_dynamics]; the processor keeps the config's):
 ``--scenarios test1,test2,test3 --seeds 10,11 --dynamics full --methods sar-min,sar-min+af --car
 mass_kg=1900,cornering_stiffness_front_n_per_rad=70000.0,cornering_stiffness_rear_n_per_rad=95000.0,
