@@ -457,3 +457,36 @@ def test_a_track_on_the_radars_clock_is_the_same_motion_later() -> None:
     assert late.info["radar_clock_offset_s"] == pytest.approx(0.02)
     assert late.info["wheel_gaps"][0]["start_ns"] == gap["start_ns"] + 20_000_000
     assert traj.info["wheel_gaps"][0]["start_ns"] == gap["start_ns"] and "radar_clock_offset_s" not in traj.info
+
+
+def test_every_read_of_the_radar_clock_is_kept_with_whether_it_was_applied(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The autofocus reads the passes again along the track put on the radar's clock while an offset is applied:
+    reads of 10 and 19 ms applied and 1.2 ms not add up to 29 ms after two reads again, and all three reads are
+    kept (run.json's ``radar_clock.reads``), so a read that was not applied is not mistaken for the drive's."""
+    from conftest import stop_and_go
+
+    from autosar_cli.sar import residual_motion
+    from autosar_cli.sar.pass_ranges import _refused
+
+    traj, _ = stop_and_go()
+    read = [(0.019, 0.002, True), (0.0012, 0.0007, False)]
+    shifts: list[int] = []
+
+    def again(_drive, on_clock, *_args):
+        shifts.append(int(on_clock.info.get("radar_clock_offset_s", 0.0) * 1e9))
+        o, e, a = read[len(shifts) - 1]
+        return replace(_refused(on_clock, 0, ""), radar_clock_offset_s=o, radar_clock_offset_std_s=e,
+                       radar_clock_applied=a)
+
+    monkeypatch.setattr(residual_motion, "estimate_slow_motion", again)
+    first = replace(_refused(traj, 0, ""), radar_clock_offset_s=0.010, radar_clock_offset_std_s=0.002,
+                    radar_clock_applied=True)
+    late_s, reads = residual_motion.radar_clock_rereads("drive.h5", traj, CFG, np.zeros((0, 3)), None, PassOptions(),
+                                                        first)
+    assert late_s == pytest.approx(0.029)
+    assert shifts == [10_000_000, 29_000_000]
+    assert reads == ((0.010, 0.002, True), (0.019, 0.002, True), (0.0012, 0.0007, False))
+    motion = residual_motion.ResidualMotion(traj, None, np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0), 0.0, 0.0,
+                                            0.0, 0, radar_clock_offset_s=late_s, radar_clock_rereads=len(reads) - 1,
+                                            radar_clock_reads=reads)
+    assert motion.to_dict()["radar_clock"]["reads"][2] == {"offset_s": 0.0012, "std_s": 0.0007, "applied": False}

@@ -251,6 +251,9 @@ class ResidualMotion:
     #: by this much (0: on the navigation's)
     radar_clock_offset_s: float = 0.0
     radar_clock_rereads: int = 0
+    #: each read's measured offset (s), its std (s) and whether it was applied, the first read first (empty where
+    #: the passes fitted no clock): what a read not applied showed is kept too
+    radar_clock_reads: tuple[tuple[float, float, bool], ...] = ()
 
     @property
     def channel_gains(self) -> ChannelGains | None:
@@ -283,7 +286,9 @@ class ResidualMotion:
         return {"applied": self.applied, "reason": self.reason,
                 "channel_gains": self.channel_calibration.to_dict() if self.channel_calibration is not None else None,
                 "slow_motion": self.slow_motion.to_dict() if self.slow_motion is not None else None,
-                "radar_clock": {"offset_s": self.radar_clock_offset_s, "rereads": self.radar_clock_rereads},
+                "radar_clock": {"offset_s": self.radar_clock_offset_s, "rereads": self.radar_clock_rereads,
+                                "reads": [{"offset_s": o, "std_s": e, "applied": a}
+                                          for o, e, a in self.radar_clock_reads]},
                 "fast_motion": self.fast_motion.to_dict() if self.fast_motion is not None else None,
                 "track_scale": self.scale,
                 "track_scale_std": self.scale_std, "track_scale_prior_std": self.scale_prior,
@@ -984,14 +989,17 @@ def _autofocus_along(drive_path: str | Path, trajectory: Trajectory, config: Con
         focus = replace(focus, channel_gains=calibration.gains)
     result = replace(residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes),
                      channel_calibration=calibration)
-    late_s, rereads = radar_clock_rereads(drive_path, trajectory, config, points, focus, passes or PassOptions(),
-                                          result.slow_motion)
+    late_s, reads = radar_clock_rereads(drive_path, trajectory, config, points, focus, passes or PassOptions(),
+                                        result.slow_motion)
+    rereads = max(len(reads) - 1, 0)
+    result = replace(result, radar_clock_reads=reads)
     if late_s:  # the motion along the track on the radar's clock, its points where that track puts them
         on_clock = trajectory.on_radar_clock(int(round(late_s * 1e9)))
         result = replace(residual_motion_of_points(drive_path, on_clock, config,
                                                    _moved(points, trajectory, on_clock, config), focus, opts,
                                                    passes),
-                         channel_calibration=calibration, radar_clock_offset_s=late_s, radar_clock_rereads=rereads)
+                         channel_calibration=calibration, radar_clock_offset_s=late_s, radar_clock_rereads=rereads,
+                         radar_clock_reads=reads)
     if fast is None or not result.applied:
         return result
     if len(scatterers) == 0:
@@ -1025,21 +1033,26 @@ def _moved(points: Array, before: Trajectory, after: Trajectory, config: Config)
 
 
 def radar_clock_rereads(drive_path: str | Path, trajectory: Trajectory, config: Config, points: Array,
-                        focus: FocusOptions, passes: PassOptions, slow: SlowMotion | None) -> tuple[float, int]:
+                        focus: FocusOptions, passes: PassOptions, slow: SlowMotion | None
+                        ) -> tuple[float, tuple[tuple[float, float, bool], ...]]:
     """How late (s) the radar's frame stamps run on ``trajectory``'s clock, where the points' passes (``slow``,
     along ``trajectory``) showed it: each offset shown is added and the passes read again along the track on that
-    clock, until none shows (at most ``passes.radar_clock_rereads`` times), and how many times they were read
-    again. An offset moves a point's envelope by its speed times it along the line of sight, so a large one leaves
-    the passes only the blocks near broadside, and the slip gains take the rest (urban 30 ms late: 10 ms on the
-    first read, 29 on the second, 31 on the third). 0 where none showed."""
-    late_s, rereads = 0.0, 0
-    while slow is not None and slow.radar_clock_applied and rereads < passes.radar_clock_rereads:
+    clock, until none shows (at most ``passes.radar_clock_rereads`` times); and every read's measured offset (s),
+    std (s) and whether it was applied, the first (``slow``'s) first. An offset moves a point's envelope by its
+    speed times it along the line of sight, so a large one leaves the passes only the blocks near broadside, and
+    the slip gains take the rest (urban 30 ms late: 10 ms on the first read). 0 where none showed."""
+    late_s, reads = 0.0, []
+    while slow is not None and math.isfinite(slow.radar_clock_offset_s):
+        reads.append((float(slow.radar_clock_offset_s), float(slow.radar_clock_offset_std_s),
+                      bool(slow.radar_clock_applied)))
+        if not slow.radar_clock_applied or len(reads) > passes.radar_clock_rereads:
+            reads[-1] = (*reads[-1][:2], False)  # not shown, or shown after the last read allowed: not added
+            break
         late_s += slow.radar_clock_offset_s
-        rereads += 1
         on_clock = trajectory.on_radar_clock(int(round(late_s * 1e9)))
         slow = estimate_slow_motion(drive_path, on_clock, config, _moved(points, trajectory, on_clock, config), focus,
                                     passes)
-    return late_s, rereads
+    return late_s, tuple(reads)
 
 
 def residual_motion_of_points(drive_path: str | Path, trajectory: Trajectory, config: Config, points_enu: Array,
