@@ -487,6 +487,5 @@ def test_every_read_of_the_radar_clock_is_kept_with_whether_it_was_applied(monke
     assert shifts == [10_000_000, 29_000_000]
     assert reads == ((0.010, 0.002, True), (0.019, 0.002, True), (0.0012, 0.0007, False))
     motion = residual_motion.ResidualMotion(traj, None, np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0), 0.0, 0.0,
-                                            0.0, 0, radar_clock_offset_s=late_s, radar_clock_rereads=len(reads) - 1,
-                                            radar_clock_reads=reads)
+                                            0.0, 0, radar_clock_offset_s=late_s, radar_clock_reads=reads)
     assert motion.to_dict()["radar_clock"]["reads"][2] == {"offset_s": 0.0012, "std_s": 0.0007, "applied": False}

@@ -250,10 +250,14 @@ class ResidualMotion:
     #: read again along the track so shifted (:func:`radar_clock_rereads`); ``trajectory`` is on the radar's clock
     #: by this much (0: on the navigation's)
     radar_clock_offset_s: float = 0.0
-    radar_clock_rereads: int = 0
     #: each read's measured offset (s), its std (s) and whether it was applied, the first read first (empty where
     #: the passes fitted no clock): what a read not applied showed is kept too
     radar_clock_reads: tuple[tuple[float, float, bool], ...] = ()
+
+    @property
+    def radar_clock_rereads(self) -> int:
+        """How many times the passes were read again along the track on the radar's clock."""
+        return max(len(self.radar_clock_reads) - 1, 0)
 
     @property
     def channel_gains(self) -> ChannelGains | None:
@@ -991,15 +995,13 @@ def _autofocus_along(drive_path: str | Path, trajectory: Trajectory, config: Con
                      channel_calibration=calibration)
     late_s, reads = radar_clock_rereads(drive_path, trajectory, config, points, focus, passes or PassOptions(),
                                         result.slow_motion)
-    rereads = max(len(reads) - 1, 0)
     result = replace(result, radar_clock_reads=reads)
     if late_s:  # the motion along the track on the radar's clock, its points where that track puts them
         on_clock = trajectory.on_radar_clock(int(round(late_s * 1e9)))
         result = replace(residual_motion_of_points(drive_path, on_clock, config,
                                                    _moved(points, trajectory, on_clock, config), focus, opts,
                                                    passes),
-                         channel_calibration=calibration, radar_clock_offset_s=late_s, radar_clock_rereads=rereads,
-                         radar_clock_reads=reads)
+                         channel_calibration=calibration, radar_clock_offset_s=late_s, radar_clock_reads=reads)
     if fast is None or not result.applied:
         return result
     if len(scatterers) == 0:
@@ -1043,10 +1045,10 @@ def radar_clock_rereads(drive_path: str | Path, trajectory: Trajectory, config: 
     the slip gains take the rest (urban 30 ms late: 10 ms on the first read). 0 where none showed."""
     late_s, reads = 0.0, []
     while slow is not None and math.isfinite(slow.radar_clock_offset_s):
-        reads.append((float(slow.radar_clock_offset_s), float(slow.radar_clock_offset_std_s),
-                      bool(slow.radar_clock_applied)))
-        if not slow.radar_clock_applied or len(reads) > passes.radar_clock_rereads:
-            reads[-1] = (*reads[-1][:2], False)  # not shown, or shown after the last read allowed: not added
+        # shown after the last read allowed, it is not added
+        added = slow.radar_clock_applied and len(reads) < passes.radar_clock_rereads
+        reads.append((float(slow.radar_clock_offset_s), float(slow.radar_clock_offset_std_s), bool(added)))
+        if not added:
             break
         late_s += slow.radar_clock_offset_s
         on_clock = trajectory.on_radar_clock(int(round(late_s * 1e9)))
