@@ -198,3 +198,54 @@ def test_halves_of_pure_noise_hardly_agree() -> None:
     sos = butter(4, 2.0, "highpass", fs=1.0 / node_s, output="sos")
     a, b = (sosfiltfilt(sos, f.motion) for f in fits)
     assert abs(np.corrcoef(a, b)[0, 1]) < 0.3
+
+
+def test_the_unseen_weight_and_spans_leave_out_where_the_points_see() -> None:
+    """Points seen from 1.0 to 2.0 s of a 4 s drive: the weight is 0 there, 1 where they do not see, a 50 ms taper
+    about each edge between; the spans it reads are where it is above 0, 0.3 s longer either side; spans that then
+    overlap are one."""
+    from autosar_cli.sar.fast_motion import unseen_spans, unseen_weight
+
+    node_s = 0.01
+    nodes = np.arange(401, dtype=np.int64) * 10_000_000
+    seen = np.arange(1_000_000_000, 2_000_000_001, 1_010_101, dtype=np.int64)  # frames at ~990 Hz
+    w = unseen_weight(nodes, seen, node_s, 0.05)
+    t = nodes / 1e9
+    assert np.all(w[(t > 1.025) & (t < 1.975)] == 0.0)
+    assert np.all(w[(t < 0.975) | (t > 2.025)] == 1.0)
+    taper = (t > 0.975) & (t < 1.015)  # two nodes either side of the first seen one
+    assert taper.sum() == 4 and np.all((w[taper] > 0.0) & (w[taper] < 1.0)) and np.all(np.diff(w[taper]) < 0)
+    spans = unseen_spans(w, nodes, 0.3)
+    np.testing.assert_array_equal(spans, [[-300_000_000, 1_310_000_000], [1_690_000_000, 4_300_000_000]])
+    # a seen stretch shorter than twice the margin leaves one span
+    short = unseen_weight(nodes, seen[seen < 1_400_000_000], node_s, 0.05)
+    np.testing.assert_array_equal(unseen_spans(short, nodes, 0.3), [[-300_000_000, 4_300_000_000]])
+    assert len(unseen_spans(np.zeros(10), nodes[:10], 0.3)) == 0
+
+
+def test_a_read_within_spans_keeps_those_frames_pairs_as_they_are(ci_drive: tuple[Any, ...]) -> None:
+    """Histories read within spans of the drive are the whole read's pairs at those frames, sample for sample, and
+    no others."""
+    from autosar_cli.sar.phase_history import within_spans
+
+    drive, nav, _, _ = ci_drive
+    focus, opts, fast = FocusOptions.from_config(CFG), AutofocusOptions.from_config(CFG), FastMotionOptions()
+    scatterers = points_and_scatterers(drive, nav, CFG, focus, opts, fast)[1]
+
+    def read(spans: np.ndarray | None) -> Any:
+        return gather_phase_histories(drive, nav, CFG, scatterers, focus, half_beam_deg=fast.half_beam_deg,
+                                      window_bins=fast.window_bins, channels=fast.channels, spans_ns=spans)
+
+    whole = read(None)
+    t = whole.frame_t_ns[whole.frame]
+    t0, t1 = int(t.min()), int(t.max())
+    spans = np.array([[t0 + (t1 - t0) // 10, t0 + (t1 - t0) // 3], [t0 + (t1 - t0) // 2, t0 + 3 * (t1 - t0) // 4]])
+    part = read(spans)
+    inside = within_spans(t, spans)
+    assert 0.2 < inside.mean() < 0.7
+    t_part = part.frame_t_ns[part.frame]
+    assert within_spans(t_part, spans).all()
+    np.testing.assert_array_equal(t_part, t[inside])
+    np.testing.assert_array_equal(part.point, whole.point[inside])
+    np.testing.assert_array_equal(part.bin0, whole.bin0[inside])
+    np.testing.assert_array_equal(part.samples, whole.samples[inside])
