@@ -83,10 +83,6 @@ class FastMotionOptions:
     #: bands, than the track's), but the far swath within 0.2 % of the truth's on 22 of the 40, at most 0.2 % above
     #: on 31 (the whole fit: 22 and 39; docs/AUTOFOCUS.md)
     apply_reliability: bool = False
-    #: the correction only where no point the phases' fit used sees (tapered over ``unseen_taper_s``)
-    unseen_only: bool = False
-    unseen_taper_s: float = 0.05
-    unseen_margin_s: float = 0.3  #: the histories read this far into the seen spans either side
 
 
 @dataclass
@@ -101,7 +97,6 @@ class FastMotion:
     seen: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))  #: (M,) the nodes covered
     halves_correlation: float = 0.0  #: the two halves' correlation above ``cut_hz`` (:func:`fast_motion`)
     reliability: float = 0.0  #: the whole fit's, 2 r / (1 + r) (its gain where ``apply_reliability``)
-    weighted_share: float = 1.0  #: the mean of the weight on the correction's nodes: the share of the drive it takes
 
     @property
     def applied(self) -> bool:
@@ -115,17 +110,14 @@ class FastMotion:
         return {"applied": self.applied, "reason": self.reason, "histories": self.histories,
                 "histories_used": self.histories_used, "coverage": round(self.coverage, 4),
                 "halves_correlation": round(self.halves_correlation, 4), "reliability": round(self.reliability, 4),
-                "weighted_share": round(self.weighted_share, 4),
                 "correction_rms_mm": round(self.correction_rms_mm(), 4)}
 
     def summary(self) -> str:
         if not self.applied:
             return f"fast motion not corrected: {self.reason}"
-        where = ("" if self.weighted_share >= 1.0 else
-                 f", where the points do not see ({100 * self.weighted_share:.0f} % of the drive)")
         return (f"fast motion corrected by {self.correction_rms_mm():.3f} mm RMS from {self.histories_used} of "
-                f"{self.histories} scatterer histories seen over {100 * self.coverage:.0f} % of the drive{where} "
-                f"(their halves' correlation {self.halves_correlation:.2f}, its reliability {self.reliability:.2f})")
+                f"{self.histories} scatterer histories seen over {100 * self.coverage:.0f} % of the drive (their "
+                f"halves' correlation {self.halves_correlation:.2f}, its reliability {self.reliability:.2f})")
 
 
 @dataclass
@@ -230,46 +222,6 @@ def node_prior(n_nodes: int, prior_m: float, step_m: float) -> sp.csc_matrix:
     return (sp.identity(n_nodes) / prior_m**2 + change.T @ change / step_m**2).tocsc()
 
 
-def fast_nodes(track: Trajectory, node_s: float) -> NDArray[np.int64]:
-    """(M,) ns: the correction's nodes, every ``node_s`` from ``track``'s start to past its end."""
-    t0 = int(track.t_ns[0])
-    n_nodes = int(math.ceil((int(track.t_ns[-1]) - t0) / 1e9 / node_s)) + 1
-    return t0 + np.round(np.arange(n_nodes) * node_s * 1e9).astype(np.int64)
-
-
-def unseen_weight(nodes_ns: NDArray[np.int64], seen_t_ns: NDArray[np.int64], node_s: float, taper_s: float
-                  ) -> Array:
-    """(M,) 1 at the nodes ``nodes_ns`` (M,) (ns, ``node_s`` apart) no frame of ``seen_t_ns`` (ns) lies near, 0 where
-    one does, a Hann taper ``taper_s`` long about each edge between."""
-    seen = np.zeros(len(nodes_ns))
-    if len(seen_t_ns):
-        idx = np.clip(np.round((np.asarray(seen_t_ns) - nodes_ns[0]) / 1e9 / node_s).astype(np.int64), 0,
-                      len(nodes_ns) - 1)
-        seen[idx] = 1.0
-    taps = max(3, int(round(taper_s / node_s)) | 1)
-    window = np.hanning(taps + 2)[1:-1]
-    spread = np.convolve(seen, window / window.sum(), mode="same")
-    return np.clip(1.0 - spread, 0.0, 1.0)
-
-
-def unseen_spans(weight: Array, nodes_ns: NDArray[np.int64], margin_s: float) -> NDArray[np.int64]:
-    """(K, 2) ns: the spans of the nodes ``nodes_ns`` whose ``weight`` (:func:`unseen_weight`) is above 0, each
-    ``margin_s`` longer either side, joined where they then overlap."""
-    on = np.concatenate([[False], weight > 0.0, [False]])
-    edges = np.flatnonzero(np.diff(on.astype(np.int8)))
-    if len(edges) == 0:
-        return np.zeros((0, 2), np.int64)
-    margin = int(round(margin_s * 1e9))
-    spans = np.stack([nodes_ns[edges[0::2]] - margin, nodes_ns[edges[1::2] - 1] + margin], axis=-1)
-    joined = [spans[0]]
-    for a, b in spans[1:]:
-        if a <= joined[-1][1]:
-            joined[-1] = np.array([joined[-1][0], max(joined[-1][1], b)])
-        else:
-            joined.append(np.array([a, b]))
-    return np.asarray(joined, dtype=np.int64)
-
-
 def closest_approach_ns(track_xy: Array, t_ns: NDArray[np.int64], points_enu: Array) -> NDArray[np.int64]:
     """For each point (P, 3) (ENU m), the time (ns) of the sample of ``track_xy`` (K, 2) (ENU m, at ``t_ns``) nearest
     it: its closest approach to the nearest sample (the slow quantities moved by it change little over a sample)."""
@@ -279,20 +231,8 @@ def closest_approach_ns(track_xy: Array, t_ns: NDArray[np.int64], points_enu: Ar
     return np.asarray(t_ns, dtype=np.int64)[cKDTree(track_xy).query(points[:, :2])[1]]
 
 
-def unseen_part(track: Trajectory, seen_t_ns: NDArray[np.int64], opts: FastMotionOptions
-                ) -> tuple[Array | None, NDArray[np.int64] | None]:
-    """Where ``opts.unseen_only``: the weight of the correction on its nodes along ``track``
-    (:func:`unseen_weight` of the frames the points see, ``seen_t_ns`` (ns)) and the spans of the drive to read
-    (:func:`unseen_spans`); else (None, None): the whole drive."""
-    if not opts.unseen_only:
-        return None, None
-    nodes = fast_nodes(track, opts.node_s)
-    weight = unseen_weight(nodes, seen_t_ns, opts.node_s, opts.unseen_taper_s)
-    return weight, unseen_spans(weight, nodes, opts.unseen_margin_s)
-
-
 def fast_motion(hist: PhaseHistories, track: Trajectory, config: Config, points_enu: Array,
-                opts: FastMotionOptions | None = None, weight: Array | None = None) -> FastMotion:
+                opts: FastMotionOptions | None = None) -> FastMotion:
     """The across-track correction of ``track`` above ``opts.cut_hz`` that the histories ``hist`` of the
     scatterers ``points_enu`` (P, 3) (ENU m, where ``track`` focuses them) measure (the module's docstring), read
     along ``track`` (:func:`~autosar_cli.sar.phase_history.gather_phase_histories` with ``opts``' beam, window and
@@ -302,14 +242,14 @@ def fast_motion(hist: PhaseHistories, track: Trajectory, config: Config, points_
     whole fit's. Where the halves disagree (``r`` <= 0, their correlation above ``cut_hz`` where both see) nothing is
     corrected. Its reliability ``2 r / (1 + r)`` (Spearman-Brown's, of twice a half's data: the share of its variance
     that the halves agree on) is reported, and with ``opts.apply_reliability`` scales the correction: the gain that
-    leaves the least error against what the halves agree on. ``weight`` (M,) (:func:`unseen_part`), where given,
-    scales the correction and its std on its nodes (:func:`fast_nodes`)."""
+    leaves the least error against what the halves agree on."""
     from scipy.signal import butter, sosfiltfilt
 
     opts = opts or FastMotionOptions()
     points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
-    nodes_ns = fast_nodes(track, opts.node_s)
-    n_nodes = len(nodes_ns)
+    t0 = int(track.t_ns[0])
+    n_nodes = int(math.ceil((int(track.t_ns[-1]) - t0) / 1e9 / opts.node_s)) + 1
+    nodes_ns = t0 + np.round(np.arange(n_nodes) * opts.node_s * 1e9).astype(np.int64)
     z, los = focus_history(hist, *pair_antennas(hist, track, config), points)
     hs = history_steps(hist, z, los, track, config, opts)
     parity = np.array([hist.point[run[0]] % 2 for run in hs.runs], dtype=np.int64)
@@ -336,12 +276,10 @@ def fast_motion(hist: PhaseHistories, track: Trajectory, config: Config, points_
     gain = reliability if opts.apply_reliability else 1.0
     whole = _fit_histories(problem, np.ones(hs.n_histories, dtype=bool), opts)
     _, across, _ = frame_geometry(track, nodes_ns, config)
-    taken = gain * (np.ones(n_nodes) if weight is None else np.asarray(weight, dtype=np.float64))
-    correction = MotionCorrection(nodes_ns, (-taken * sosfiltfilt(sos, whole.motion))[:, None] * across,
-                                  (taken * whole.std)[:, None] * np.abs(across))
+    correction = MotionCorrection(nodes_ns, (-gain * sosfiltfilt(sos, whole.motion))[:, None] * across,
+                                  (gain * whole.std)[:, None] * np.abs(across))
     return FastMotion(correction, hs.n_histories, int(whole.used.sum()), float(whole.seen.mean()), seen=whole.seen,
-                      halves_correlation=r, reliability=reliability,
-                      weighted_share=1.0 if weight is None else float(np.mean(weight)))
+                      halves_correlation=r, reliability=reliability)
 
 
 @dataclass

@@ -66,15 +66,13 @@ def frame_geometry(traj: Trajectory, t_ns: NDArray[np.int64], config: Config) ->
 def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Config, points_enu: Array,
                            focus: FocusOptions, *, half_beam_deg: float, window_bins: int, channels: int,
                            block_frames: int = 256, pairs: list[tuple[int, int]] | None = None,
-                           frame_runs: tuple[int, int] | None = None,
-                           spans_ns: NDArray[np.int64] | None = None) -> PhaseHistories:
+                           frame_runs: tuple[int, int] | None = None) -> PhaseHistories:
     """Read and range-compress (``channels``, sar.focus.channel_pairs, or the (Tx, Rx) ``pairs`` given;
     ``focus``'s window and upsampling) the frames that see ``points_enu`` (P, 3) (ENU m) within ``half_beam_deg``
     of broadside, and keep ``window_bins`` bins around each point's range per pulse and channel (one pass over the
     radar data). ``focus.channel_gains``, where given, are undone on the windows kept; ``frame_runs`` (run,
     period): only the drive's frames ``i`` with ``i % period < run`` (runs of whole chunks of the raw cube, whose
-    reads are what a sparse sample of frames costs); ``spans_ns`` (K, 2) (ns, sorted and apart): only the frames
-    within one of these spans."""
+    reads are what a sparse sample of frames costs)."""
     points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
     w = int(window_bins)
     with Drive(drive_path) as drive:
@@ -90,8 +88,6 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         seen = _seen(traj, t, config, points, _moving(traj, t, focus), half_beam_deg)
         if frame_runs is not None:
             seen[frames % frame_runs[1] >= frame_runs[0]] = False
-        if spans_ns is not None:
-            seen[~within_spans(t, spans_ns)] = False
         used = np.flatnonzero(seen.any(axis=1))
         # every (frame, point) pair in frame order, its samples written in place (joining per-block lists at the
         # end would cost as much again as taking the windows: test2's 130 MB)
@@ -102,7 +98,7 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
         tx_idx = np.array([p[0] for p in pairs])
         rx_idx = np.array([p[1] for p in pairs])
         starts = list(range(0, len(used), block_frames))
-        if frame_runs is not None or spans_ns is not None:  # no block spans the frames between two runs: not read
+        if frame_runs is not None:  # no block spans the frames between two runs: their chunks are not read
             starts = sorted(set(starts) | set((np.flatnonzero(np.diff(frames[used]) > 1) + 1).tolist()))
         blocks = [used[a:b] for a, b in zip(starts, [*starts[1:], len(used)], strict=False)]
         pc = radar_phase_centres(traj, t[used], offsets, config)  # elementwise in time: once for all blocks
@@ -136,14 +132,6 @@ def gather_phase_histories(drive_path: str | Path, traj: Trajectory, config: Con
                     samples[lo:hi] *= gain
                 bin0[lo:hi] = b0
     return PhaseHistories(point_of, frame_of, t, bin0, samples, pairs, offsets, bin_m, rp.cycles_per_m, slope)
-
-
-def within_spans(t_ns: NDArray[np.int64], spans_ns: NDArray[np.int64]) -> NDArray[np.bool_]:
-    """(N,) whether each time ``t_ns`` (N,) (ns) lies within one of the spans ``spans_ns`` (K, 2) (ns, start and
-    end, sorted and apart)."""
-    spans = np.asarray(spans_ns, dtype=np.int64).reshape(-1, 2)
-    k = np.searchsorted(spans[:, 0], t_ns, side="right") - 1
-    return (k >= 0) & (t_ns <= spans[np.maximum(k, 0), 1])
 
 
 def narrow_histories(hist: PhaseHistories, traj: Trajectory, config: Config, points_enu: Array, focus: FocusOptions,

@@ -56,7 +56,7 @@ from autosar_cli.nav.trajectory import (
 from autosar_cli.sar.autofocus import scale_track
 from autosar_cli.sar.channel_calibration import ChannelCalibration, measure_channel_gains, with_stated_gains
 from autosar_cli.sar.channel_gains import ChannelGains
-from autosar_cli.sar.fast_motion import FastMotion, FastMotionOptions, closest_approach_ns, fast_motion, unseen_part
+from autosar_cli.sar.fast_motion import FastMotion, FastMotionOptions, closest_approach_ns, fast_motion
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.sar.normal_equations import factor_normal, node_difference, node_posterior_std
 from autosar_cli.sar.pass_ranges import PassOptions, SlowMotion, estimate_slow_motion, pass_histories, with_correction
@@ -1008,12 +1008,10 @@ def _autofocus_along(drive_path: str | Path, trajectory: Trajectory, config: Con
         return replace(result, fast_motion=FastMotion(None, 0, 0, 0.0, "no bright scatterer in the first image"))
     # each scatterer where the corrected track focuses it
     moved = moved_with_track(scatterers, t_zero, trajectory, result.trajectory, config)
-    # where the points see, their fit holds (fast_motion's docstring): only the rest is read and corrected
-    weight, spans = unseen_part(result.trajectory, result.seen_t_ns, fast)
     histories = gather_phase_histories(drive_path, result.trajectory, config, moved, focus,
                                        half_beam_deg=fast.half_beam_deg, window_bins=fast.window_bins,
-                                       channels=fast.channels, spans_ns=spans)
-    stage = fast_motion(histories, result.trajectory, config, moved, fast, weight)
+                                       channels=fast.channels)
+    stage = fast_motion(histories, result.trajectory, config, moved, fast)
     if not stage.applied:
         return replace(result, fast_motion=stage)
     assert stage.correction is not None
