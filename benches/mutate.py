@@ -40,6 +40,26 @@ NMEA_SIM = "tests/test_ingest_nmea.py::test_simulator_round_trip"
 WHEEL_LAG = "tests/test_nav_models.py::test_each_wheel_is_moved_by_its_own_window_in_a_turn"
 PASS_DOPPLER = "tests/test_pass_ranges.py::test_the_envelopes_doppler_shift_is_the_beat_frequencys"
 PASS_INJECTED = "tests/test_pass_ranges.py::test_recovers_an_injected_along_track_error"
+AF_REF = "tests/test_residual_motion.py::test_focus_history_is_the_reference_backprojection_pulse_by_pulse"
+AF_INJECTED = "tests/test_residual_motion.py::test_recovers_an_injected_across_track_error"
+AF_CLUTTER = "tests/test_residual_motion.py::test_refuses_distributed_clutter"
+AF_OWN_NOISE = "tests/test_residual_motion.py::test_each_point_is_weighed_by_its_own_noise"
+AF_CLIMB = "tests/test_residual_motion.py::test_a_track_that_climbs_the_data_do_not_is_no_scale"
+AF_WINDOWS = "tests/test_residual_motion.py::test_gathered_histories_are_each_pulses_own_range_profile"
+AF_GUARD = "tests/test_residual_motion.py::test_a_correction_that_does_not_sharpen_the_points_is_not_applied"
+FAST = "tests/test_fast_motion.py::test_recovers_a_fast_across_track_error_from_many_scatterers"
+FAST_NORMALS = "tests/test_fast_motion.py::test_the_histories_banded_normal_equations_are_the_sparse_products"
+FAST_HALVES = "tests/test_fast_motion.py::test_halves_that_measure_opposite_motions_correct_nothing"
+FAST_MIRROR = "tests/test_fast_motion.py::test_steps_where_a_walls_mirror_image_aliases_onto_the_point_are_left_out"
+PASS_BRAKING = "tests/test_pass_ranges.py::test_a_slip_gains_error_is_fitted_from_the_points_seen_through_a_braking"
+GAINS_UNDONE = "tests/test_channel_gains.py::test_gains_normalise_and_their_correction_undoes_them"
+ENGINES_SLIP = ("tests/test_nav_sarmin.py::"
+                "test_compiled_filter_equals_the_filterpy_reference[gauss_markov-0.05-True-False]")
+ATTITUDE = "tests/test_nav_models.py::test_attitude_from_the_imu_is_the_full_vehicles"
+TILT = "tests/test_nav_models.py::test_tilt_offsets_are_the_rigid_rotation"
+RADAR_SLOPE = "tests/test_nav_models.py::test_radar_slope_from_the_gnss_climb_and_the_imu_is_the_full_vehicles"
+SLIP_DRIFT = ("tests/test_nav_models.py::"
+              "test_a_slip_gains_error_drifts_the_track_by_its_gain_times_the_change_of_half_the_speed_squared")
 
 
 @dataclass(frozen=True)
@@ -126,6 +146,59 @@ MUTATIONS: list[Mutation] = [
        "    offset = offset - doppler\n", "    offset = offset + doppler\n", PASS_DOPPLER),
     _m("pass-ranges-stretch-left-in-the-shape", "autofocus", "sar/pass_ranges.py",
        "along - stretch * (s_nodes - s_centre), across", "along, across", PASS_INJECTED),
+    # --- the residual-motion autofocus: its model, fits and refusals (sar/residual_motion.py, sar/history_kernel.py)
+    _m("af-history-carrier-conjugated", "autofocus", "sar/history_kernel.py",
+       "phase = -2.0 * math.pi * (turns - math.floor(turns))", "phase = 2.0 * math.pi * (turns - math.floor(turns))",
+       AF_REF),
+    _m("af-history-nearest-lower-bin", "autofocus", "sar/history_kernel.py",
+       "s_re = float(s0.real) + f * (float(s1.real) - float(s0.real))", "s_re = float(s0.real)", AF_REF),
+    _m("af-point-shift-sign", "autofocus", "sar/residual_motion.py",
+       "vals.append(-kappa * du[:, k])", "vals.append(kappa * du[:, k])", AF_INJECTED),
+    _m("af-scale-lever-sign", "autofocus", "sar/residual_motion.py",
+       'vals.append(kappa * (np.einsum("nk,nk->n", smp.los[b_idx], smp.lever[b_idx])',
+       'vals.append(-kappa * (np.einsum("nk,nk->n", smp.los[b_idx], smp.lever[b_idx])', AF_CLIMB, AF_INJECTED),
+    _m("af-correction-interpolation-swapped", "autofocus", "sar/residual_motion.py",
+       "moved = at_nodes[f_node] * (1.0 - f_frac) + at_nodes[f_node + 1] * f_frac + x[-1] * scale_lever",
+       "moved = at_nodes[f_node] * f_frac + at_nodes[f_node + 1] * (1.0 - f_frac) + x[-1] * scale_lever",
+       AF_INJECTED),
+    _m("af-phase-residual-limit-ignored", "autofocus", "sar/residual_motion.py",
+       "bad = used & (phase_rms > opts.max_phase_rms_rad)", "bad = used & (phase_rms > 100.0)", AF_CLUTTER),
+    _m("af-coherence-check-skipped", "autofocus", "sar/residual_motion.py",
+       "if coherence_after <= coherence_before:", "if False:", AF_GUARD),
+    _m("af-one-noise-for-all-points", "autofocus", "sar/residual_motion.py",
+       "opts.min_steps_own_noise if point_noise else None", "None", AF_OWN_NOISE),
+    _m("af-window-off-its-range", "autofocus", "sar/phase_history.py",
+       "b0 = np.floor(path / bin_m).astype(np.int64) - (w // 2 - 1)",
+       "b0 = np.floor(path / bin_m).astype(np.int64) - (w // 2 + 1)", AF_WINDOWS, AF_INJECTED),
+    _m("af-beam-twice-as-wide", "autofocus", "sar/phase_history.py",
+       '& (np.abs(np.einsum("fpk,fk->fp", d, along)) <= sin_half_beam * horiz)',
+       '& (np.abs(np.einsum("fpk,fk->fp", d, along)) <= 2.0 * sin_half_beam * horiz)', AF_WINDOWS, AF_INJECTED),
+    _m("channel-gains-applied-not-undone", "autofocus", "sar/channel_gains.py",
+       "return (1.0 / normalised(np.array([g[t, r] for t, r in pairs]))).astype(np.complex64)",
+       "return normalised(np.array([g[t, r] for t, r in pairs])).astype(np.complex64)", GAINS_UNDONE),
+    _m("pass-ranges-slip-drift-of-braking-as-driving", "autofocus", "nav/wheel_speeds.py",
+       "ramps[1:, 1] = np.cumsum(v_mid * np.minimum(dv, 0.0))", "ramps[1:, 1] = np.cumsum(v_mid * np.maximum(dv, 0.0))",
+       SLIP_DRIFT, PASS_BRAKING),
+    # --- the fast motion from many scatterers (sar/fast_motion.py, sar/step_normals.py)
+    _m("fast-correction-sign", "autofocus", "sar/fast_motion.py",
+       "MotionCorrection(nodes_ns, (-gain * sosfiltfilt(sos, whole.motion))",
+       "MotionCorrection(nodes_ns, (gain * sosfiltfilt(sos, whole.motion))", FAST),
+    _m("fast-mirror-alias-kept", "autofocus", "sar/fast_motion.py",
+       "ok = (alias > opts.alias_hz) | (np.abs(mirror) < opts.alias_hz / 4)", "ok = alias == alias", FAST_MIRROR),
+    _m("fast-halves-disagreeing-applied", "autofocus", "sar/fast_motion.py",
+       "    if not r > 0.0:\n", "    if False:\n", FAST_HALVES),
+    _m("fast-normals-weight-squared", "autofocus", "sar/step_normals.py",
+       "band[k, j] += w * blocks[ptr[s] + p, k]", "band[k, j] += w * w * blocks[ptr[s] + p, k]", FAST_NORMALS),
+    # --- SAR-MIN's vehicle terms: rear slip, attitude, the radar's tilt and slope
+    _m("nav-rear-slip-angle-sign", "sar-min", "nav/sarmin_kernel.py",
+       "alpha = slip * sig[i, V] * sig[i, OMEGA]", "alpha = -slip * sig[i, V] * sig[i, OMEGA]", ENGINES_SLIP),
+    _m("attitude-roll-from-the-accelerometers-sign", "sar-min", "nav/attitude.py",
+       "roll_g = np.arcsin(np.clip((f[:, 1] - a_y)", "roll_g = np.arcsin(np.clip((a_y - f[:, 1])", ATTITUDE),
+    _m("tilt-offsets-roll-sign", "sar-min", "nav/attitude.py",
+       "dy = cr * ly - sr * lz - ly", "dy = cr * ly + sr * lz - ly", TILT),
+    _m("radar-slope-tilt-from-the-antenna-to-the-radar-reversed", "sar-min", "nav/navigate.py",
+       "above = tilt_heights(att.roll, att.pitch, radar) - tilt_heights(att.roll, att.pitch, antenna)",
+       "above = tilt_heights(att.roll, att.pitch, antenna) - tilt_heights(att.roll, att.pitch, radar)", RADAR_SLOPE),
     # --- geodesy and GeoTIFF georeferencing
     _m("geodesy-east-north-swapped", "geodesy", "types.py",
        "pymap3d.enu2geodetic(p[..., 0], p[..., 1], p[..., 2]", "pymap3d.enu2geodetic(p[..., 1], p[..., 0], p[..., 2]",
