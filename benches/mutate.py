@@ -40,6 +40,16 @@ NMEA_SIM = "tests/test_ingest_nmea.py::test_simulator_round_trip"
 WHEEL_LAG = "tests/test_nav_models.py::test_each_wheel_is_moved_by_its_own_window_in_a_turn"
 PASS_DOPPLER = "tests/test_pass_ranges.py::test_the_envelopes_doppler_shift_is_the_beat_frequencys"
 PASS_INJECTED = "tests/test_pass_ranges.py::test_recovers_an_injected_along_track_error"
+FOREIGN = "tests/test_safety.py::test_overwrite_never_replaces_a_directory_or_a_foreign_file"
+OWN_INPUT = "tests/test_safety.py::test_ingest_output_same_as_its_log_is_refused"
+INSIDE_INPUT = "tests/test_safety.py::test_compare_output_inside_its_rosbag2_log_is_refused"
+STALE = "tests/test_safety.py::test_stale_partial_of_a_killed_ingest_is_listed_and_removed_by_the_next_command"
+DEGRADED = "tests/test_safety.py::test_run_of_a_truncated_log_says_it_is_degraded"
+CUBE_CRC = "tests/test_integrity.py::test_a_flipped_byte_in_the_radar_cube_is_an_error_naming_file_and_dataset"
+TRACK_CRC = "tests/test_integrity.py::test_a_flipped_byte_in_a_trajectory_is_an_error_naming_file_and_dataset"
+OTHER_RECORDING = "tests/test_evaluate.py::test_another_recordings_trajectory_is_refused"
+CAN_FAULTS = "tests/test_ingest_robustness.py::test_can_integrity_faults_counted_never_fatal"
+NMEA_BAD = "tests/test_ingest_nmea.py::test_bad_input_is_counted_not_raised"
 AF_REF = "tests/test_residual_motion.py::test_focus_history_is_the_reference_backprojection_pulse_by_pulse"
 AF_INJECTED = "tests/test_residual_motion.py::test_recovers_an_injected_across_track_error"
 AF_CLUTTER = "tests/test_residual_motion.py::test_refuses_distributed_clutter"
@@ -207,6 +217,29 @@ MUTATIONS: list[Mutation] = [
        "zone = int((self.lon_deg + 180.0) // 6.0) + 1", "zone = int((self.lon_deg + 180.0) // 6.0) + 2", GEOTIFF),
     _m("geotiff-half-pixel-shift", "geotiff", "store/image.py",
        "grid.pixel_enu(v - 0.5, u - 0.5)", "grid.pixel_enu(v, u)", GEOTIFF),
+    # --- inputs are sacred, damage is named: output guards, checksums, integrity checks, degraded runs
+    _m("overwrite-replaces-a-foreign-file", "safety", "store/outputs.py",
+       "    if not is_autosar_product(path):\n        what =", "    if False:\n        what =", FOREIGN),
+    _m("output-may-be-its-input", "safety", "store/outputs.py",
+       'raise OutputError(f"{path}: is an input of this command; choose another output")', "pass", OWN_INPUT),
+    _m("output-may-lie-inside-its-input", "safety", "store/outputs.py",
+       "        if source in target.parents:\n", "        if False:\n", INSIDE_INPUT),
+    _m("stale-partials-left-behind", "safety", "store/outputs.py",
+       "    remove_stale_partials(path.parent)\n", "\n", STALE),
+    _m("degraded-run-reported-as-complete", "safety", "cli.py",
+       'return f" [yellow]degraded[/] ({len(warnings)} warnings above, in {record})" if warnings else ""',
+       'return ""', DEGRADED),
+    _m("radar-cube-without-checksums", "integrity", "store/drive.py",
+       "dtype=np.int16, fletcher32=True,", "dtype=np.int16, fletcher32=False,", CUBE_CRC),
+    _m("trajectory-without-checksums", "integrity", "store/trajectory.py",
+       "f.create_dataset(name, data=getattr(traj, name), fletcher32=True)",
+       "f.create_dataset(name, data=getattr(traj, name), fletcher32=False)", TRACK_CRC),
+    _m("another-recordings-track-focused", "integrity", "sar/focus.py",
+       'if n := radar.unmatched(frames["frame_index"], frames["crc32"]):', "if n := 0:", OTHER_RECORDING),
+    _m("can-frame-with-a-bad-checksum-kept", "integrity", "ingest/decoders.py",
+       'if int(raw["CHECKSUM"]) != giorgio_checksum(m.frame_id, data):', "if False:", CAN_FAULTS),
+    _m("nmea-sentence-with-a-bad-checksum-kept", "integrity", "ingest/nmea.py",
+       "if checksum.strip().upper() != calc_checksum(content):", "if False:", NMEA_BAD),
     # --- ingest scaling
     _m("can-degrees-as-gradians", "ingest", "candb.py",
        '"deg": (math.pi / 180.0, "rad"),', '"deg": (math.pi / 200.0, "rad"),', CAN_UNITS),
