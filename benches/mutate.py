@@ -50,6 +50,9 @@ TRACK_CRC = "tests/test_integrity.py::test_a_flipped_byte_in_a_trajectory_is_an_
 OTHER_RECORDING = "tests/test_evaluate.py::test_another_recordings_trajectory_is_refused"
 CAN_FAULTS = "tests/test_ingest_robustness.py::test_can_integrity_faults_counted_never_fatal"
 NMEA_BAD = "tests/test_ingest_nmea.py::test_bad_input_is_counted_not_raised"
+DCA_LAYOUTS = "tests/test_ingest_dca1000.py::test_layout_round_trips"
+DCA_NARROW = "tests/test_ingest_dca1000.py::test_narrow_adc_samples_are_sign_extended"
+DCA_ZEROS = "tests/test_ingest_dca1000.py::test_zero_filled_packets_of_post_processed_data_are_left_out"
 AF_REF = "tests/test_residual_motion.py::test_focus_history_is_the_reference_backprojection_pulse_by_pulse"
 AF_INJECTED = "tests/test_residual_motion.py::test_recovers_an_injected_across_track_error"
 AF_CLUTTER = "tests/test_residual_motion.py::test_refuses_distributed_clutter"
@@ -217,6 +220,19 @@ MUTATIONS: list[Mutation] = [
        "zone = int((self.lon_deg + 180.0) // 6.0) + 1", "zone = int((self.lon_deg + 180.0) // 6.0) + 2", GEOTIFF),
     _m("geotiff-half-pixel-shift", "geotiff", "store/image.py",
        "grid.pixel_enu(v - 0.5, u - 0.5)", "grid.pixel_enu(v, u)", GEOTIFF),
+    # --- a real radar's raw data: TI DCA1000 captures (ingest/dca1000.py)
+    _m("dca1000-2-lane-samples-not-interleaved", "radar", "ingest/dca1000.py",
+       "out.reshape(-1)[...] = _swap_middle_pair(values).reshape(-1)", "out.reshape(-1)[...] = values.reshape(-1)",
+       DCA_LAYOUTS),
+    _m("dca1000-4-lane-i-and-q-swapped", "radar", "ingest/dca1000.py",
+       "out[...] = v[:, :, :, lanes].transpose(0, 3, 1, 2)",
+       "out[...] = v[:, :, ::-1][:, :, :, lanes].transpose(0, 3, 1, 2)", DCA_LAYOUTS),
+    _m("dca1000-chirps-not-regrouped-by-tx", "radar", "ingest/dca1000.py",
+       "return chirps if order == list(range(p.num_tx)) else chirps[:, order]", "return chirps", DCA_LAYOUTS),
+    _m("dca1000-narrow-samples-not-sign-extended", "radar", "ingest/dca1000.py",
+       "values[values >= 1 << (p.adc_bits - 1)] -= np.int16(1 << p.adc_bits)", "pass", DCA_NARROW),
+    _m("dca1000-zero-fill-taken-for-echoes", "radar", "ingest/dca1000_packets.py",
+       "ZERO_RUN_VALUES = 256", "ZERO_RUN_VALUES = 1 << 30", DCA_ZEROS),
     # --- inputs are sacred, damage is named: output guards, checksums, integrity checks, degraded runs
     _m("overwrite-replaces-a-foreign-file", "safety", "store/outputs.py",
        "    if not is_autosar_product(path):\n        what =", "    if False:\n        what =", FOREIGN),
