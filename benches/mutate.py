@@ -53,6 +53,12 @@ NMEA_BAD = "tests/test_ingest_nmea.py::test_bad_input_is_counted_not_raised"
 DCA_LAYOUTS = "tests/test_ingest_dca1000.py::test_layout_round_trips"
 DCA_NARROW = "tests/test_ingest_dca1000.py::test_narrow_adc_samples_are_sign_extended"
 DCA_ZEROS = "tests/test_ingest_dca1000.py::test_zero_filled_packets_of_post_processed_data_are_left_out"
+UNDERSTEER = ("tests/test_nav_models.py::"
+              "test_understeer_fit_finds_the_full_vehicles_gradient_and_none_on_a_kinematic_car")
+STANDSTILL = "tests/test_nav_models.py::test_a_standstill_is_where_all_four_wheels_read_zero_and_the_car_stands"
+GNSS_DELAYED = "tests/test_nav_gnss_latency.py::test_delayed_gnss_moves_every_gnss_stream_and_nothing_else"
+CAN_LATE = "tests/test_nav_can_latency.py::test_the_can_gyros_delay_against_the_imus_is_found_within_its_std"
+GNSS_NOISIER = "tests/test_nav_gnss_noise.py::test_only_a_receiver_noisier_than_its_table_is_reweighed"
 AF_REF = "tests/test_residual_motion.py::test_focus_history_is_the_reference_backprojection_pulse_by_pulse"
 AF_INJECTED = "tests/test_residual_motion.py::test_recovers_an_injected_across_track_error"
 AF_CLUTTER = "tests/test_residual_motion.py::test_refuses_distributed_clutter"
@@ -220,6 +226,19 @@ MUTATIONS: list[Mutation] = [
        "zone = int((self.lon_deg + 180.0) // 6.0) + 1", "zone = int((self.lon_deg + 180.0) // 6.0) + 2", GEOTIFF),
     _m("geotiff-half-pixel-shift", "geotiff", "store/image.py",
        "grid.pixel_enu(v - 0.5, u - 0.5)", "grid.pixel_enu(v, u)", GEOTIFF),
+    # --- SAR-MIN's fits to the drive: understeer, standstill, the GNSS's and the CAN bus's latency, the GNSS noise
+    _m("understeer-against-the-bicycle-sign", "sar-min", "nav/understeer.py",
+       "r = z - np.arctan(wheelbase_m * w / v)", "r = z + np.arctan(wheelbase_m * w / v)", UNDERSTEER),
+    _m("standstill-from-one-wheel", "sar-min", "nav/wheel_speeds.py",
+       "stopped = np.all(wheels.z == 0.0, axis=1)", "stopped = wheels.z[:, 0] == 0.0", STANDSTILL),
+    _m("gnss-latency-moved-later", "sar-min", "nav/gnss_latency.py",
+       "return None if m is None else replace(m, t=m.t - change_s)",
+       "return None if m is None else replace(m, t=m.t + change_s)", GNSS_DELAYED),
+    _m("can-latency-moved-later", "sar-min", "nav/can_latency.py",
+       "return None if meas is None else replace(meas, t=meas.t - delay_s)",
+       "return None if meas is None else replace(meas, t=meas.t + delay_s)", CAN_LATE),
+    _m("gnss-noise-of-a-quieter-receiver-taken", "sar-min", "nav/gnss_noise.py",
+       "    if fit.ratio < MIN_RATIO:\n", "    if fit.ratio < 0.0:\n", GNSS_NOISIER),
     # --- a real radar's raw data: TI DCA1000 captures (ingest/dca1000.py)
     _m("dca1000-2-lane-samples-not-interleaved", "radar", "ingest/dca1000.py",
        "out.reshape(-1)[...] = _swap_middle_pair(values).reshape(-1)", "out.reshape(-1)[...] = values.reshape(-1)",
