@@ -59,6 +59,12 @@ STANDSTILL = "tests/test_nav_models.py::test_a_standstill_is_where_all_four_whee
 GNSS_DELAYED = "tests/test_nav_gnss_latency.py::test_delayed_gnss_moves_every_gnss_stream_and_nothing_else"
 CAN_LATE = "tests/test_nav_can_latency.py::test_the_can_gyros_delay_against_the_imus_is_found_within_its_std"
 GNSS_NOISIER = "tests/test_nav_gnss_noise.py::test_only_a_receiver_noisier_than_its_table_is_reweighed"
+ENTROPY = "tests/test_evaluate.py::test_entropy_and_contrast_exact"
+FAR_SWATH = "tests/test_evaluate.py::test_far_swath_is_the_pixels_far_from_the_radars_track"
+SE2 = "tests/test_evaluate.py::test_se2_fit_recovers_a_known_rigid_motion"
+REFLECTORS = "tests/test_evaluate.py::test_reflectors_with_the_truth_trajectory_and_a_rigidly_moved_one"
+PEAK_LOSS = "tests/test_evaluate.py::test_peak_loss_is_what_a_blurring_track_costs_each_reflector"
+RPE = "tests/test_nav_models.py::test_relative_pose_error_ignores_rigid_motion_and_sees_bends"
 AF_REF = "tests/test_residual_motion.py::test_focus_history_is_the_reference_backprojection_pulse_by_pulse"
 AF_INJECTED = "tests/test_residual_motion.py::test_recovers_an_injected_across_track_error"
 AF_CLUTTER = "tests/test_residual_motion.py::test_refuses_distributed_clutter"
@@ -218,6 +224,21 @@ MUTATIONS: list[Mutation] = [
     _m("radar-slope-tilt-from-the-antenna-to-the-radar-reversed", "sar-min", "nav/navigate.py",
        "above = tilt_heights(att.roll, att.pitch, radar) - tilt_heights(att.roll, att.pitch, antenna)",
        "above = tilt_heights(att.roll, att.pitch, antenna) - tilt_heights(att.roll, att.pitch, radar)", RADAR_SLOPE),
+    # --- the measuring stick: entropy, far swath, alignment, reflector errors, peak loss, RPE (evaluate/)
+    _m("entropy-in-bits", "evaluation", "evaluate/image_quality.py",
+       "return float(-np.sum(p * np.log(p)))", "return float(-np.sum(p * np.log2(p)))", ENTROPY),
+    _m("far-swath-the-near-pixels", "evaluation", "evaluate/evaluation.py",
+       "far = dist >= min_range_m", "far = dist < min_range_m", FAR_SWATH),
+    _m("alignment-rotated-the-other-way", "evaluation", "evaluate/alignment.py",
+       "angle = math.atan2(cross, dot) if", "angle = math.atan2(-cross, dot) if", SE2),
+    _m("reflector-error-against-the-true-position", "evaluation", "evaluate/reflectors.py",
+       "        d = peak - xy\n", "        d = peak - true[:2]\n", REFLECTORS),
+    _m("peak-loss-sign", "evaluation", "evaluate/reflectors.py",
+       "peak_loss_db=None if ref is None else ref - m.peak_db", "peak_loss_db=None if ref is None else m.peak_db - ref",
+       PEAK_LOSS),
+    _m("rpe-across-sign", "evaluation", "nav/trajectory.py",
+       "return np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], axis=1)",
+       "return np.stack([c * d[:, 0] + s * d[:, 1], s * d[:, 0] + c * d[:, 1]], axis=1)", RPE),
     # --- geodesy and GeoTIFF georeferencing
     _m("geodesy-east-north-swapped", "geodesy", "types.py",
        "pymap3d.enu2geodetic(p[..., 0], p[..., 1], p[..., 2]", "pymap3d.enu2geodetic(p[..., 1], p[..., 0], p[..., 2]",
