@@ -65,6 +65,11 @@ SE2 = "tests/test_evaluate.py::test_se2_fit_recovers_a_known_rigid_motion"
 REFLECTORS = "tests/test_evaluate.py::test_reflectors_with_the_truth_trajectory_and_a_rigidly_moved_one"
 PEAK_LOSS = "tests/test_evaluate.py::test_peak_loss_is_what_a_blurring_track_costs_each_reflector"
 RPE = "tests/test_nav_models.py::test_relative_pose_error_ignores_rigid_motion_and_sees_bends"
+STEADY_TURN = "tests/test_sim_dynamics.py::test_steady_turn_side_slip_and_roll_match_the_linear_single_track"
+SUSPENSION_STEP = "tests/test_sim_dynamics.py::test_suspension_step_response_is_the_second_order_model"
+ROAD_PSD = "tests/test_sim_dynamics.py::test_road_psd_matches_iso8608"
+FULL_POSE = "tests/test_sim_dynamics.py::test_full_pose_derivatives_are_consistent"
+CLIMB_PITCH = "tests/test_sim_dynamics.py::test_a_body_on_a_climbing_road_pitches_nose_up_with_it"
 AF_REF = "tests/test_residual_motion.py::test_focus_history_is_the_reference_backprojection_pulse_by_pulse"
 AF_INJECTED = "tests/test_residual_motion.py::test_recovers_an_injected_across_track_error"
 AF_CLUTTER = "tests/test_residual_motion.py::test_refuses_distributed_clutter"
@@ -121,6 +126,23 @@ MUTATIONS: list[Mutation] = [
     _m("sim-beat-rvp-sign", "kernel", "sim/echo.py",
        "cycles_mid = f0 * tau_m + slope * tau_m * t_mid - 0.5 * slope * tau_m * tau_m",
        "cycles_mid = f0 * tau_m + slope * tau_m * t_mid + 0.5 * slope * tau_m * tau_m", BEAT_REF),
+    # --- the simulator's full vehicle, the model the processor is checked against (sim/dynamics.py, sim/road.py)
+    _m("sim-rear-slip-angle-sign", "simulator", "sim/dynamics.py",
+       "alpha_r = math.atan((b * r - vy) / veff)", "alpha_r = math.atan((vy - b * r) / veff)", STEADY_TURN),
+    _m("sim-body-rolls-into-the-turn", "simulator", "sim/dynamics.py",
+       "roll = suspension_response(dt, roll_road, k_roll * accel_y,",
+       "roll = suspension_response(dt, roll_road, -k_roll * accel_y,", STEADY_TURN),
+    _m("sim-suspension-base-undamped", "simulator", "sim/dynamics.py",
+       "for num, u in (([2.0 * damping_ratio * w, w * w], base_input)", "for num, u in (([w * w], base_input)",
+       SUSPENSION_STEP),
+    _m("sim-road-rougher-at-short-wavelengths", "simulator", "sim/road.py",
+       "(np.asarray(n) / ISO8608_N0) ** (-ISO8608_WAVINESS)",
+       "(np.asarray(n) / ISO8608_N0) ** (-ISO8608_WAVINESS + 0.5)", ROAD_PSD),
+    _m("sim-road-pitch-sign", "simulator", "sim/dynamics.py",
+       "pitch_road = -(0.5 * (h[:, 0] + h[:, 1]) - 0.5 * (h[:, 2] + h[:, 3])) / wheelbase",
+       "pitch_road = (0.5 * (h[:, 0] + h[:, 1]) - 0.5 * (h[:, 2] + h[:, 3])) / wheelbase", CLIMB_PITCH),
+    _m("sim-euler-rates-yaw-into-pitch-sign", "simulator", "sim/dynamics.py",
+       "dth * cf + dpsi * ct * sf", "dth * cf - dpsi * ct * sf", FULL_POSE),
     # --- channel mapping and phase centres
     _m("rx-order-reversed", "channels", "sar/focus.py",
        "np.stack([pc.rx[:, t, r] for t, r in pairs])", "np.stack([pc.rx[:, t, 3 - r] for t, r in pairs])", RAD8),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -86,6 +87,36 @@ def test_steady_turn_side_slip_and_roll_match_the_linear_single_track(config: Co
     assert abs(beta.mean() - b / radius) > 0.01
     # and the driver steers more than L kappa (understeer)
     assert np.all(motion.road_wheel_angle(t, veh.wheelbase_m) > np.arctan(veh.wheelbase_m / radius) + 1e-3)
+
+
+class _GradeRoad:
+    """A smooth road climbing at a constant grade, the same under both wheel tracks."""
+
+    def __init__(self, grade: float) -> None:
+        self.grade = grade
+
+    def height(self, s: np.ndarray, w: np.ndarray, side: int) -> np.ndarray:
+        return self.grade * np.broadcast_to(np.asarray(s, dtype=np.float64), np.broadcast(s, w).shape)
+
+    def grade_height(self, s: np.ndarray) -> np.ndarray:
+        return self.grade * np.asarray(s, dtype=np.float64)
+
+
+def test_a_body_on_a_climbing_road_pitches_nose_up_with_it(config: Config) -> None:
+    """Straight at a constant speed up a 4 % grade: the body lies along the road, nose up (pitch -atan(0.04); the
+    model's pitch is positive nose down), so the front axle rides 4 % of the wheelbase above the rear one."""
+    v, grade = 5.0, 0.04
+    veh, dyn = config.vehicle, config.vehicle_dynamics
+    path = ArcPathMotion([(5.0, 200.0, 0.0)], 3.0, 80.0, 0.0, (0.0, 0.0), [(0.0, v), (100.0, v)],
+                         veh.cog_to_rear_axle_m, veh.cog_height_m)
+    motion = FullMotion(path, veh, dyn, _GradeRoad(grade), 1000.0)
+    t = np.linspace(7.0, 12.0, 50)
+    pitch = motion.attitude(t)[:, 1]
+    np.testing.assert_allclose(pitch, -math.atan(grade), rtol=0.02)
+    b = veh.cog_to_rear_axle_m
+    front = motion.point(t, [veh.wheelbase_m - b, 0.0, -veh.cog_height_m]).position[:, 2]
+    rear = motion.point(t, [-b, 0.0, -veh.cog_height_m]).position[:, 2]
+    np.testing.assert_allclose(front - rear, grade * veh.wheelbase_m, rtol=0.02)
 
 
 def _second_order_step(t: np.ndarray, fn: float, zeta: float) -> np.ndarray:
