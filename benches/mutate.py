@@ -70,6 +70,9 @@ SUSPENSION_STEP = "tests/test_sim_dynamics.py::test_suspension_step_response_is_
 ROAD_PSD = "tests/test_sim_dynamics.py::test_road_psd_matches_iso8608"
 FULL_POSE = "tests/test_sim_dynamics.py::test_full_pose_derivatives_are_consistent"
 CLIMB_PITCH = "tests/test_sim_dynamics.py::test_a_body_on_a_climbing_road_pitches_nose_up_with_it"
+CLOCK_FOCUS = "tests/test_sar_focus.py::test_a_stated_radar_clock_focuses_a_late_drifting_capture_where_it_was"
+CLOCK_DEFINITION = "tests/test_sim_dynamics.py::test_the_radar_clocks_definition_in_hand_numbers"
+TILES = "tests/test_batch.py::test_split_grid_positions_bit_identical"
 AF_REF = "tests/test_residual_motion.py::test_focus_history_is_the_reference_backprojection_pulse_by_pulse"
 AF_INJECTED = "tests/test_residual_motion.py::test_recovers_an_injected_across_track_error"
 AF_CLUTTER = "tests/test_residual_motion.py::test_refuses_distributed_clutter"
@@ -261,6 +264,15 @@ MUTATIONS: list[Mutation] = [
     _m("rpe-across-sign", "evaluation", "nav/trajectory.py",
        "return np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], axis=1)",
        "return np.stack([c * d[:, 0] + s * d[:, 1], s * d[:, 0] + c * d[:, 1]], axis=1)", RPE),
+    # --- the radar's clock and the image's tiles (store/drive.py, sar/tiles.py)
+    _m("radar-clock-stated-but-not-applied", "focus", "store/drive.py",
+       "        if not late_s and not drift_ppm:\n            return self\n",
+       "        if True:\n            return self\n", CLOCK_FOCUS),
+    _m("radar-clock-late-taken-as-early", "focus", "store/drive.py",
+       "    out = stamps - int(round(late_s * 1e9))\n", "    out = stamps + int(round(late_s * 1e9))\n",
+       CLOCK_DEFINITION),
+    _m("tiles-start-a-column-late", "focus", "sar/tiles.py",
+       "        first = grid.pixel_enu(0, c0)\n", "        first = grid.pixel_enu(0, c0 + 1)\n", TILES),
     # --- geodesy and GeoTIFF georeferencing
     _m("geodesy-east-north-swapped", "geodesy", "types.py",
        "pymap3d.enu2geodetic(p[..., 0], p[..., 1], p[..., 2]", "pymap3d.enu2geodetic(p[..., 1], p[..., 0], p[..., 2]",

@@ -449,6 +449,24 @@ def test_a_radar_clock_running_late_moves_only_the_frames_stamps(ci_full_log: Si
     assert moving.sum() > 10 and np.allclose(ahead[moving] / speed[moving], 0.02, rtol=0.1)
 
 
+def test_the_radar_clocks_definition_in_hand_numbers() -> None:
+    """store.drive's one definition of the radar's clock, which the simulator and the processor share, pinned by
+    numbers worked by hand: a frame stamped 10 ms late was captured 10 ms before its stamp; a crystal 100 ppm fast
+    has counted 10.001 s of its own where the navigation's clock counted 10 s since its first frame; both at once;
+    and radar_clock_reading undoes it."""
+    from autosar_cli.store.drive import radar_clock_reading, stamps_on_navigation_clock
+
+    first = 1_000_000_000
+    stamps = np.array([first, first + 10_000_000, first + 10_001_000_000], dtype=np.int64)
+    np.testing.assert_array_equal(stamps_on_navigation_clock(stamps, first, 0.01, 0.0),
+                                  [990_000_000, 1_000_000_000, 10_991_000_000])
+    np.testing.assert_array_equal(stamps_on_navigation_clock(stamps, first, 0.0, 100.0),
+                                  [first, first + 9_999_000, first + 10_000_000_000])
+    both = stamps_on_navigation_clock(stamps, first, 0.01, 100.0)
+    np.testing.assert_array_equal(both, [990_000_000, 990_000_000 + 9_999_000, 990_000_000 + 10_000_000_000])
+    np.testing.assert_array_equal(radar_clock_reading(both, first, 0.01, 100.0), stamps)
+
+
 @pytest.mark.slow
 def test_a_radar_clock_running_fast_stamps_frames_a_nominal_period_apart(ci_full_log: SimulationResult,
                                                                         config: Config, tmp_path: Path) -> None:
