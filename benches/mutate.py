@@ -73,6 +73,7 @@ CLIMB_PITCH = "tests/test_sim_dynamics.py::test_a_body_on_a_climbing_road_pitche
 CLOCK_FOCUS = "tests/test_sar_focus.py::test_a_stated_radar_clock_focuses_a_late_drifting_capture_where_it_was"
 CLOCK_DEFINITION = "tests/test_sim_dynamics.py::test_the_radar_clocks_definition_in_hand_numbers"
 TILES = "tests/test_batch.py::test_split_grid_positions_bit_identical"
+MOUNTING = "tests/test_nav_frames.py::test_mounting_angles_turn_the_radar_as_the_config_says"
 AF_REF = "tests/test_residual_motion.py::test_focus_history_is_the_reference_backprojection_pulse_by_pulse"
 AF_INJECTED = "tests/test_residual_motion.py::test_recovers_an_injected_across_track_error"
 AF_CLUTTER = "tests/test_residual_motion.py::test_refuses_distributed_clutter"
@@ -157,6 +158,11 @@ MUTATIONS: list[Mutation] = [
        "return [(t, r) for t in (0, 2) for r in range(n_rx)][1:]", RAD8),
     _m("antenna-layout-mirrored", "channels", "nav/trajectory.py",
        "lever + np.asarray(r.rx_positions_m) @ rot.T", "lever + np.asarray(r.rx_positions_m) @ rot", RAD8),
+    _m("radar-pitched-up-where-stated-down", "channels", "nav/frames.py",
+       "rot_y(np.deg2rad(pitch_deg))", "rot_y(np.deg2rad(-pitch_deg))", MOUNTING),
+    _m("radar-mounting-angles-applied-x-y-z", "channels", "nav/frames.py",
+       "return rot_z(np.deg2rad(yaw_deg)) @ rot_y(np.deg2rad(pitch_deg)) @ rot_x(np.deg2rad(roll_deg))",
+       "return rot_x(np.deg2rad(roll_deg)) @ rot_y(np.deg2rad(pitch_deg)) @ rot_z(np.deg2rad(yaw_deg))", MOUNTING),
     _m("radar-lever-arm-1-percent-long", "channels", "nav/trajectory.py",
        "    lever = np.asarray(r.mounting.lever_arm_m, dtype=np.float64)\n    return lever",
        "    lever = 1.01 * np.asarray(r.mounting.lever_arm_m, dtype=np.float64)\n    return lever", RAD8),
