@@ -171,6 +171,8 @@ MUTATIONS: list[Mutation] = [
        "range0_m=0.0, bin_m=bin_m", "range0_m=bin_m, bin_m=bin_m", RAD8),
     _m("range-shift-half-bin", "range axis", "sar/focus.py",
        "range0_m=0.0, bin_m=bin_m", "range0_m=0.5 * bin_m, bin_m=bin_m", RAD8),
+    _m("speed-of-light-rounded", "range axis", "config.py",
+       "SPEED_OF_LIGHT = 299_792_458.0", "SPEED_OF_LIGHT = 3.0e8", RAD8, RANGE_REF),
     _m("range-bin-size-of-the-unpadded-fft", "range axis", "sar/focus.py",
        "SPEED_OF_LIGHT * fs / (n_bins * slope),", "SPEED_OF_LIGHT * fs / ((n_bins - 4) * slope),",
        RAD8),
