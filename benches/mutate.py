@@ -74,6 +74,8 @@ CLOCK_FOCUS = "tests/test_sar_focus.py::test_a_stated_radar_clock_focuses_a_late
 CLOCK_DEFINITION = "tests/test_sim_dynamics.py::test_the_radar_clocks_definition_in_hand_numbers"
 TILES = "tests/test_batch.py::test_split_grid_positions_bit_identical"
 MOUNTING = "tests/test_nav_frames.py::test_mounting_angles_turn_the_radar_as_the_config_says"
+MCAP_RESYNC = "tests/test_ingest_damage.py::test_mcap_bad_record_length_resynchronises"
+ROS1_RESYNC = "tests/test_ingest_damage.py::test_ros1_damaged_chunk_header_resynchronises"
 AF_REF = "tests/test_residual_motion.py::test_focus_history_is_the_reference_backprojection_pulse_by_pulse"
 AF_INJECTED = "tests/test_residual_motion.py::test_recovers_an_injected_across_track_error"
 AF_CLUTTER = "tests/test_residual_motion.py::test_refuses_distributed_clutter"
@@ -327,6 +329,11 @@ MUTATIONS: list[Mutation] = [
     _m("degraded-run-reported-as-complete", "safety", "cli.py",
        'return f" [yellow]degraded[/] ({len(warnings)} warnings above, in {record})" if warnings else ""',
        'return ""', DEGRADED),
+    _m("mcap-damage-ends-the-read", "integrity", "ingest/mcap_source.py",
+       "nxt = _next_record(self.path, resync_from + 1, total)", "nxt = None", MCAP_RESYNC),
+    _m("ros1-damaged-chunk-ends-the-read", "integrity", "ingest/ros1_chunks.py",
+       "    at = start\n    while (hit := buf.find(_CHUNK_OP, at)) >= 0:\n",
+       "    at = start\n    while False and (hit := buf.find(_CHUNK_OP, at)) >= 0:\n", ROS1_RESYNC),
     _m("radar-cube-without-checksums", "integrity", "store/drive.py",
        "dtype=np.int16, fletcher32=True,", "dtype=np.int16, fletcher32=False,", CUBE_CRC),
     _m("trajectory-without-checksums", "integrity", "store/trajectory.py",
