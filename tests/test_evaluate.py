@@ -563,14 +563,20 @@ def test_another_recordings_trajectory_is_refused(ci_run: Path, sim_dir: Path, t
     assert r.exit_code == 0, r.output
 
 
-def test_reflectors_with_the_truth_trajectory_and_a_rigidly_moved_one(ci_run: Path) -> None:
-    """Truth trajectory: every reflector within 1 cm of its true position with no peak loss; the same track moved
-    rigidly by 0.4 m and 0.05 deg: the alignment recovers the motion, the reflectors stay within 1 cm of where they
-    should appear, 0.4 m from their true position, with the same peaks."""
+def _ci_image_and_truth(ci_run: Path) -> tuple[FocusedImage, Any]:
+    """The ci run's image and its drive's truth, in the image's frame."""
     manifest = json.loads((ci_run / "run.json").read_text())
     image = read_image(ci_run / "image.h5")
     truth = load_truth(manifest["truth"] if manifest.get("truth") else
                        Path(manifest["inputs"][0]["path"] + ".truth.h5"), image.origin, CFG)
+    return image, truth
+
+
+def test_reflectors_with_the_truth_trajectory_and_a_rigidly_moved_one(ci_run: Path) -> None:
+    """Truth trajectory: every reflector within 1 cm of its true position with no peak loss; the same track moved
+    rigidly by 0.4 m and 0.05 deg: the alignment recovers the motion, the reflectors stay within 1 cm of where they
+    should appear, 0.4 m from their true position, with the same peaks."""
+    image, truth = _ci_image_and_truth(ci_run)
     drive = ci_run / "drive.h5"
     ev = evaluate_image(image, truth.trajectory, drive, CFG, truth)
     assert len(ev.reflectors) == 3
@@ -598,9 +604,7 @@ def test_peak_loss_is_what_a_blurring_track_costs_each_reflector(ci_run: Path) -
     """The truth track with 0.5 mm of across-track motion at 20 Hz added (several cycles over each reflector's
     aperture): their patches, focused along it, peak below the truth image's, and the peak loss (the truth's peak
     less this one, dB) says by how much, positive (measured 2.6-4.2 dB on ci's three reflectors)."""
-    manifest = json.loads((ci_run / "run.json").read_text())
-    image = read_image(ci_run / "image.h5")
-    truth = load_truth(Path(manifest["inputs"][0]["path"] + ".truth.h5"), image.origin, CFG)
+    image, truth = _ci_image_and_truth(ci_run)
     drive, tr = ci_run / "drive.h5", truth.trajectory
     ev = evaluate_image(image, tr, drive, CFG, truth)
     across = frame_geometry(tr, tr.t_ns, CFG)[1]

@@ -125,6 +125,14 @@ def test_the_first_images_points_are_the_same_out_to_the_radars_range(ci_drive: 
     assert reach.max() > 18.0  # the far swath's scatterers too
 
 
+def _scatterer_histories(drive: Path, track: Trajectory, fast: FastMotionOptions) -> tuple[np.ndarray, Any]:
+    """The stage's scatterers in the first image along ``track`` (P, 3) (ENU m) and their histories read along it."""
+    focus, opts = FocusOptions.from_config(CFG), AutofocusOptions.from_config(CFG)
+    scatterers = points_and_scatterers(drive, track, CFG, focus, opts, fast)[1]
+    return scatterers, gather_phase_histories(drive, track, CFG, scatterers, focus, half_beam_deg=fast.half_beam_deg,
+                                              window_bins=fast.window_bins, channels=fast.channels)
+
+
 def test_steps_where_a_walls_mirror_image_aliases_onto_the_point_are_left_out(ci_drive: tuple[Any, ...]) -> None:
     """A pulse's range sample holds a point on a wall and the wall's mirror image about broadside, whose Doppler is
     twice the point's own, 4 v (u . along) / lambda: where that aliases (PRF 990 Hz) to within ``alias_hz`` of the
@@ -133,10 +141,8 @@ def test_steps_where_a_walls_mirror_image_aliases_onto_the_point_are_left_out(ci
     rule, computed here from the track's speed and the scatterer's direction from the radar; without the rule a
     fifth of the steps would hold one that is not."""
     drive, _, truth, _ = ci_drive
-    focus, opts, fast = FocusOptions.from_config(CFG), AutofocusOptions.from_config(CFG), FastMotionOptions()
-    scatterers = points_and_scatterers(drive, truth, CFG, focus, opts, fast)[1]
-    hist = gather_phase_histories(drive, truth, CFG, scatterers, focus, half_beam_deg=fast.half_beam_deg,
-                                  window_bins=fast.window_bins, channels=fast.channels)
+    fast = FastMotionOptions()
+    scatterers, hist = _scatterer_histories(drive, truth, fast)
     z, los = focus_history(hist, *pair_antennas(hist, truth, CFG), scatterers)
     kept, every = (history_steps(hist, z, los, truth, CFG, replace(fast, alias_hz=a)) for a in (fast.alias_hz, 0.0))
     prf = kept.prf_hz
@@ -169,11 +175,8 @@ def test_halves_that_measure_opposite_motions_correct_nothing(ci_drive: tuple[An
     other, they disagree (-0.54) and the track is left alone, the reason said. (ci's few scatterers: two that fit
     per half are let through.)"""
     drive, _, truth, _ = ci_drive
-    focus, opts = FocusOptions.from_config(CFG), AutofocusOptions.from_config(CFG)
     fast = FastMotionOptions(min_histories=2)
-    scatterers = points_and_scatterers(drive, truth, CFG, focus, opts, fast)[1]
-    hist = gather_phase_histories(drive, truth, CFG, scatterers, focus, half_beam_deg=fast.half_beam_deg,
-                                  window_bins=fast.window_bins, channels=fast.channels)
+    scatterers, hist = _scatterer_histories(drive, truth, fast)
     turn = 0.5 * np.sin(2 * np.pi * 7.0 * (hist.frame_t_ns[hist.frame] - truth.t_ns[0]) / 1e9)
     results = {}
     for name, sign in (("alike", np.ones(len(hist.point))), ("opposite", np.where(hist.point % 2 == 0, 1.0, -1.0))):
