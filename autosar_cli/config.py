@@ -268,6 +268,10 @@ class SimulationConfig:
     # negative), speed along the path (m/s; negative: the other way)]: moving scatterers the processor does not
     # model (sim.scene.SceneBuilder.cyclist)
     cyclists: tuple[tuple[float, float, float], ...] = ()
+    # the road's specular amplitude reflection coefficient at grazing incidence (real, -1 < Gamma < 1): every
+    # scatterer above the road is also seen by way of it (multipath: four paths, the image in the road;
+    # sim.echo), which the processor does not model; 0 (the config's): no path by way of the road
+    road_reflection: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -702,6 +706,9 @@ def _validate(cfg: Config) -> None:
             raise ConfigError(f"simulation.radar_clock_offset_s: {sim.radar_clock_offset_s} is not a time offset of at "
                               "most 1 s either way")
         _clock_drift("simulation.radar_clock_drift_ppm", sim.radar_clock_drift_ppm)
+        if not (math.isfinite(sim.road_reflection) and abs(sim.road_reflection) < 1.0):
+            raise ConfigError(f"simulation.road_reflection: {sim.road_reflection} is not a reflection coefficient "
+                              "(-1 < Gamma < 1)")
         for i, rider in enumerate(sim.cyclists):
             _finite_vector(f"simulation.cyclists[{i}]", rider)
         lo, hi = sim.vibration_band_hz

@@ -133,11 +133,17 @@ def beat_reference(
     beamwidth_el_deg: float,
     target_velocity: NDArray[np.float64] | None = None,
     chirp_start_s: NDArray[np.float64] | None = None,
+    road_reflection: float = 0.0,
+    road_height: NDArray[np.float64] | None = None,
+    retroreflector: NDArray[np.bool_] | None = None,
 ) -> NDArray[np.complex128]:
     """Straightforward float64 version of the simulator's beat synthesis (``synthesize_beat``): exact phase at
     every sample, with the antenna positions interpolated linearly over the chirp and each target where its
     velocity (m/s, (M, 3)) has taken it at that sample (``chirp_start_s`` (F, T): each chirp's first sample, s).
-    For tests on small cases."""
+    With ``road_reflection`` Gamma, a target more than 1 cm above ``road_height`` (M,) is also reached by way of
+    its image mirrored in that plane: out and back each direct or by the image, each leg with its own one-way
+    pattern (the square root of the two-way one) and 1/r spreading, Gamma per bounce; a ``retroreflector`` only
+    straight back (direct-direct and image-image). For tests on small cases."""
     c = C
     n = np.arange(num_samples)
     t = n / sample_rate_hz
@@ -149,25 +155,49 @@ def beat_reference(
     out = np.zeros((n_frames, n_tx, n_rx, num_samples), dtype=np.complex128)
     velocity = np.zeros_like(targets) if target_velocity is None else np.asarray(target_velocity, np.float64)
     starts = np.zeros((n_frames, n_tx)) if chirp_start_s is None else np.asarray(chirp_start_s, np.float64)
-    for f in range(n_frames):
-        d = targets + velocity * starts[f, 0] - radar_origin[f]
+    ground = np.zeros(len(targets)) if road_height is None else np.asarray(road_height, np.float64)
+    retro = np.zeros(len(targets), bool) if retroreflector is None else np.asarray(retroreflector, bool)
+    bounces = road_reflection != 0.0
+    mirror = np.array([1.0, 1.0, -1.0])
+
+    def leg(where: NDArray[np.float64], f: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Range (M,) and one-way amplitude pattern (M,) from the radar's origin to ``where`` (M, 3)."""
+        d = where - radar_origin[f]
         r = np.linalg.norm(d, axis=1)
         u = (enu_to_radar[f] @ d.T).T / r[:, None]
         horiz = np.hypot(u[:, 0], u[:, 1])
-        visible = (u[:, 0] > 0) & (2 * r < max_path) & (r >= 0.05)
-        cos_az = np.where(visible, u[:, 0] / np.maximum(horiz, 1e-300), 0.0)
-        gain = amplitude_lsb * np.sqrt(rcs_m2) * np.abs(cos_az) ** n_az * np.minimum(horiz, 1.0) ** n_el / r**2
-        gain = np.where(visible, gain, 0.0)
+        power = np.where(u[:, 0] > 0, np.abs(u[:, 0] / np.maximum(horiz, 1e-300)) ** n_az
+                         * np.minimum(horiz, 1.0) ** n_el, 0.0)
+        return r, np.sqrt(power)
+
+    for f in range(n_frames):
+        at_start = targets + velocity * starts[f, 0]
+        image_at_start = (at_start - ground[:, None] * [0, 0, 1]) * mirror + ground[:, None] * [0, 0, 1]
+        r, g = leg(at_start, f)
+        ri, gi = leg(image_at_start, f)
+        above = at_start[:, 2] - ground > 0.01
+        # (tx leg by the image, rx leg by the image, amplitude (M,)) of each path
+        paths = [(False, False, np.where((2 * r < max_path) & (r >= 0.05), g * g / r**2, 0.0))]
+        if bounces:
+            cross = np.where(above & ~retro & (r + ri < max_path) & (r >= 0.05), road_reflection * g * gi / (r * ri),
+                             0.0)
+            paths += [(True, False, cross), (False, True, cross),
+                      (True, True, np.where(above & (2 * ri < max_path) & (r >= 0.05),
+                                            road_reflection**2 * gi * gi / ri**2, 0.0))]
         for k in range(n_tx):
             tx = tx_start[f, k][None, :] + frac[:, None] * (tx_end[f, k] - tx_start[f, k])[None, :]
             for q in range(n_rx):
                 rx = rx_start[f, k, q][None, :] + frac[:, None] * (rx_end[f, k, q] - rx_start[f, k, q])[None, :]
                 where = targets[:, None, :] + velocity[:, None, :] * (starts[f, k] + t)[None, :, None]  # (M, N, 3)
-                path = np.linalg.norm(where - tx[None], axis=2) + np.linalg.norm(where - rx[None], axis=2)
-                tau = path / c
-                phase = 2 * np.pi * (start_frequency_hz * tau + slope_hz_per_s * tau * t[None, :]
-                                     - 0.5 * slope_hz_per_s * tau**2)
-                out[f, k, q] = (gain[:, None] * np.exp(1j * phase)).sum(axis=0)
+                image = (where - ground[:, None, None] * [0, 0, 1]) * mirror + ground[:, None, None] * [0, 0, 1]
+                for tx_image, rx_image, amplitude in paths:
+                    path = (np.linalg.norm((image if tx_image else where) - tx[None], axis=2)
+                            + np.linalg.norm((image if rx_image else where) - rx[None], axis=2))
+                    tau = path / c
+                    phase = 2 * np.pi * (start_frequency_hz * tau + slope_hz_per_s * tau * t[None, :]
+                                         - 0.5 * slope_hz_per_s * tau**2)
+                    gain = amplitude_lsb * np.sqrt(rcs_m2) * amplitude
+                    out[f, k, q] += (gain[:, None] * np.exp(1j * phase)).sum(axis=0)
     return out
 
 

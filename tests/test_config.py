@@ -65,6 +65,7 @@ def _write_variant(tmp_path: Path, pattern: str, replacement: str) -> Path:
         (r"^radar_clock_drift_ppm = .*$", 'radar_clock_drift_ppm = "fast"', "simulation.radar_clock_drift_ppm"),
         (r"^drive_front_fraction = .*$", "drive_front_fraction = 1.5", "vehicle_dynamics.drive_front_fraction"),
         (r"^brake_front_fraction = .*$", "brake_front_fraction = -0.2", "vehicle_dynamics.brake_front_fraction"),
+        (r"^road_reflection = .*$", "road_reflection = -1.0", "simulation.road_reflection"),
     ],
 )
 def test_bad_values_are_rejected_naming_the_key(tmp_path, pattern, replacement, key):

@@ -24,6 +24,8 @@ from numpy.typing import NDArray
 from autosar_cli.config import SPEED_OF_LIGHT
 
 IF_BAND_FRACTION = 0.98
+#: a scatterer within this height (m) of the road is on it: its image in the road is itself
+ON_ROAD_M = 0.01
 SEGMENT = 136  # samples between exact re-anchoring of the tone recurrence
 # fastmath without "contract": whether LLVM fuses a multiply and an add into an FMA depends on the context it
 # optimises in, and the copy numba caches is optimised once more than the one a fresh compile runs, so with
@@ -75,9 +77,22 @@ def _phasors(turns, amp, re, im, n):  # pragma: no cover - compiled
         im[i] = a * s_out
 
 
+@nb.njit(cache=True)
+def _leg(dx, dy, dz, enu_to_radar, f, n_az, n_el):  # pragma: no cover - compiled
+    """Range (m) towards (dx, dy, dz) (ENU m from the radar's origin at frame f) and the two-way amplitude
+    pattern's azimuth and elevation factors there (cos^n each; 0 behind the antenna plane)."""
+    r = math.sqrt(dx * dx + dy * dy + dz * dz)
+    ux = (enu_to_radar[f, 0, 0] * dx + enu_to_radar[f, 0, 1] * dy + enu_to_radar[f, 0, 2] * dz) / r
+    if ux <= 0.0:
+        return r, 0.0, 0.0
+    uy = (enu_to_radar[f, 1, 0] * dx + enu_to_radar[f, 1, 1] * dy + enu_to_radar[f, 1, 2] * dz) / r
+    horiz = math.sqrt(ux * ux + uy * uy)
+    return r, (ux / horiz) ** n_az, min(horiz, 1.0) ** n_el
+
+
 @nb.njit(cache=True, parallel=True)
 def _synthesize(tx0, tx1, rx0, rx1, origin, enu_to_radar, targets, sqrt_rcs, velocity, t_start, f0, slope, fs,
-                amplitude, n_az, n_el, max_path, out):  # pragma: no cover - compiled
+                amplitude, n_az, n_el, max_path, mirror_z, cross_gain, bounce_gain, out):  # pragma: no cover
     n_frames, n_tx, n_rx, n_samp = out.shape
     n_tgt = targets.shape[0]
     first_moving = n_tgt - velocity.shape[0]  # the last targets move (velocity), the others stand still
@@ -85,8 +100,10 @@ def _synthesize(tx0, tx1, rx0, rx1, origin, enu_to_radar, targets, sqrt_rcs, vel
     t_win = n_samp / fs
     t_mid = 0.5 * (n_samp - 1) / fs
     for f in nb.prange(n_frames):
-        idx = np.empty(n_tgt, np.int64)
-        gain = np.empty(n_tgt, np.float64)
+        # tone i: target idx[i] by way of path[i] (bit 0: the Tx leg mirrored in the road, bit 1: the Rx leg)
+        idx = np.empty(4 * n_tgt, np.int64)
+        path = np.empty(4 * n_tgt, np.int64)
+        gain = np.empty(4 * n_tgt, np.float64)
         nv = 0
         for m in range(n_tgt):
             dx = targets[m, 0] - origin[f, 0]
@@ -97,18 +114,31 @@ def _synthesize(tx0, tx1, rx0, rx1, origin, enu_to_radar, targets, sqrt_rcs, vel
                 dy += velocity[m - first_moving, 1] * t_start[f, 0]
                 dz += velocity[m - first_moving, 2] * t_start[f, 0]
             r = math.sqrt(dx * dx + dy * dy + dz * dz)
-            if r < 0.05 or 2.0 * r >= max_path:
+            if r < 0.05:
                 continue
-            ux = (enu_to_radar[f, 0, 0] * dx + enu_to_radar[f, 0, 1] * dy + enu_to_radar[f, 0, 2] * dz) / r
-            if ux <= 0.0:
+            r, g_az, g_el = _leg(dx, dy, dz, enu_to_radar, f, n_az, n_el)
+            a = amplitude * sqrt_rcs[m]
+            if g_az > 0.0 and 2.0 * r < max_path:
+                gain[nv] = a * g_az * g_el / (r * r)
+                idx[nv] = m
+                path[nv] = 0
+                nv += 1
+            if cross_gain[m] == 0.0 and bounce_gain[m] == 0.0:
                 continue
-            uy = (enu_to_radar[f, 1, 0] * dx + enu_to_radar[f, 1, 1] * dy + enu_to_radar[f, 1, 2] * dz) / r
-            horiz = math.sqrt(ux * ux + uy * uy)
-            cos_az = ux / horiz
-            cos_el = min(horiz, 1.0)
-            gain[nv] = amplitude * sqrt_rcs[m] * cos_az**n_az * cos_el**n_el / (r * r)
-            idx[nv] = m
-            nv += 1
+            # the image in the road: the scatterer mirrored in the horizontal plane at mirror_z
+            ri, gi_az, gi_el = _leg(dx, dy, 2.0 * (mirror_z[m] - origin[f, 2]) - dz, enu_to_radar, f, n_az, n_el)
+            # a one-way leg carries the square root of the two-way pattern
+            if cross_gain[m] != 0.0 and g_az > 0.0 and gi_az > 0.0 and r + ri < max_path:
+                for leg in (1, 2):
+                    gain[nv] = a * cross_gain[m] * math.sqrt(g_az * g_el * gi_az * gi_el) / (r * ri)
+                    idx[nv] = m
+                    path[nv] = leg
+                    nv += 1
+            if bounce_gain[m] != 0.0 and gi_az > 0.0 and 2.0 * ri < max_path:
+                gain[nv] = a * bounce_gain[m] * gi_az * gi_el / (ri * ri)
+                idx[nv] = m
+                path[nv] = 3
+                nv += 1
         p_re = np.empty(nv, np.float32)
         p_im = np.empty(nv, np.float32)
         s_re = np.empty(nv, np.float32)
@@ -135,12 +165,17 @@ def _synthesize(tx0, tx1, rx0, rx1, origin, enu_to_radar, targets, sqrt_rcs, vel
                         px = px + velocity[j, 0] * t0
                         py = py + velocity[j, 1] * t0
                         pz = pz + velocity[j, 2] * t0
-                    d0 = (math.sqrt((px - tx0[f, k, 0]) ** 2 + (py - tx0[f, k, 1]) ** 2 + (pz - tx0[f, k, 2]) ** 2)
+                    # each leg to the scatterer or to its image in the road
+                    ptz = 2.0 * mirror_z[m] - pz if path[i] & 1 else pz
+                    prz = 2.0 * mirror_z[m] - pz if path[i] & 2 else pz
+                    qtz = 2.0 * mirror_z[m] - qz if path[i] & 1 else qz
+                    qrz = 2.0 * mirror_z[m] - qz if path[i] & 2 else qz
+                    d0 = (math.sqrt((px - tx0[f, k, 0]) ** 2 + (py - tx0[f, k, 1]) ** 2 + (ptz - tx0[f, k, 2]) ** 2)
                           + math.sqrt((px - rx0[f, k, q, 0]) ** 2 + (py - rx0[f, k, q, 1]) ** 2
-                                      + (pz - rx0[f, k, q, 2]) ** 2))
-                    d1 = (math.sqrt((qx - tx1[f, k, 0]) ** 2 + (qy - tx1[f, k, 1]) ** 2 + (qz - tx1[f, k, 2]) ** 2)
+                                      + (prz - rx0[f, k, q, 2]) ** 2))
+                    d1 = (math.sqrt((qx - tx1[f, k, 0]) ** 2 + (qy - tx1[f, k, 1]) ** 2 + (qtz - tx1[f, k, 2]) ** 2)
                           + math.sqrt((qx - rx1[f, k, q, 0]) ** 2 + (qy - rx1[f, k, q, 1]) ** 2
-                                      + (qz - rx1[f, k, q, 2]) ** 2))
+                                      + (qrz - rx1[f, k, q, 2]) ** 2))
                     tau0 = d0 / c
                     tau_dot = (d1 - d0) / c / t_win
                     tau_m = tau0 + tau_dot * t_mid
@@ -180,6 +215,9 @@ def synthesize_beat(
     beamwidth_el_deg: float,
     target_velocity: NDArray[np.float64] | None = None,
     chirp_start_s: NDArray[np.float64] | None = None,
+    road_reflection: float = 0.0,
+    road_height: NDArray[np.float64] | None = None,
+    retroreflector: NDArray[np.bool_] | None = None,
 ) -> NDArray[np.complex64]:
     """Noise-free complex beat samples (F, T, R, N), in ADC LSB.
 
@@ -194,6 +232,10 @@ def synthesize_beat(
             ``targets + target_velocity * t`` at time t (s).
         chirp_start_s: with ``target_velocity``, the time (s, the movers' clock) of each Tx chirp's first ADC
             sample, (F, T): the instants of ``tx_start``.
+        road_reflection: the road's specular amplitude reflection coefficient Gamma (real, -1 < Gamma < 1; 0: no
+            path by way of the road), for every scatterer more than ``ON_ROAD_M`` above ``road_height``, the ENU
+            height (m) of the road beneath each (M,) (0 where not given); ``retroreflector`` (M,): those that
+            return only their direct and two-bounce paths.
     """
     n_frames, n_tx = tx_start.shape[:2]
     n_rx = rx_start.shape[2]
@@ -201,6 +243,11 @@ def synthesize_beat(
     max_path = IF_BAND_FRACTION * sample_rate_hz * SPEED_OF_LIGHT / slope_hz_per_s
     targets = np.asarray(targets, np.float64)
     sqrt_rcs = np.sqrt(np.asarray(rcs_m2, np.float64))
+    mirror_z = np.zeros(len(targets)) if road_height is None else np.asarray(road_height, np.float64).copy()
+    above = targets[:, 2] - mirror_z > ON_ROAD_M
+    retro = np.zeros(len(targets), bool) if retroreflector is None else np.asarray(retroreflector, bool)
+    cross_gain = np.where(above & ~retro, road_reflection, 0.0)
+    bounce_gain = np.where(above, road_reflection ** 2, 0.0)
     velocity = np.zeros((0, 3))
     t_start = np.zeros((n_frames, n_tx))
     if target_velocity is not None and np.any(target_velocity != 0.0):
@@ -210,6 +257,7 @@ def synthesize_beat(
         moving = np.any(np.asarray(target_velocity) != 0.0, axis=1)
         order = np.concatenate([np.flatnonzero(~moving), np.flatnonzero(moving)])
         targets, sqrt_rcs = targets[order], sqrt_rcs[order]
+        mirror_z, cross_gain, bounce_gain = mirror_z[order], cross_gain[order], bounce_gain[order]
         velocity = np.asarray(target_velocity, np.float64)[moving]
         t_start = np.asarray(chirp_start_s, np.float64)
     _synthesize(
@@ -219,6 +267,8 @@ def synthesize_beat(
         np.ascontiguousarray(targets), sqrt_rcs, np.ascontiguousarray(velocity),
         np.ascontiguousarray(t_start), float(start_frequency_hz), float(slope_hz_per_s), float(sample_rate_hz),
         float(amplitude_lsb),
-        pattern_exponent(beamwidth_az_deg), pattern_exponent(beamwidth_el_deg), float(max_path), out,
+        pattern_exponent(beamwidth_az_deg), pattern_exponent(beamwidth_el_deg), float(max_path),
+        np.ascontiguousarray(mirror_z), np.ascontiguousarray(cross_gain, np.float64),
+        np.ascontiguousarray(bounce_gain, np.float64), out,
     )
     return out

@@ -121,7 +121,8 @@ class SceneBuilder:
 @dataclass(frozen=True)
 class Scene:
     """Point scatterers in ENU: position (M, 3) m at the drive's start, rcs (M,) m^2, kind (M,) index into KINDS,
-    object (M,) index into names, velocity (M, 3) m/s ENU (None: all stand still)."""
+    object (M,) index into names, velocity (M, 3) m/s ENU (None: all stand still), road_height (M,) ENU m of the
+    road beneath each (None: 0, a level road)."""
 
     position: NDArray[np.float64]
     rcs_m2: NDArray[np.float64]
@@ -129,6 +130,7 @@ class Scene:
     object_index: NDArray[np.int32]
     names: tuple[str, ...]
     velocity_enu: NDArray[np.float64] | None = None
+    road_height: NDArray[np.float64] | None = None
 
     @property
     def moving(self) -> NDArray[np.bool_]:

@@ -182,8 +182,9 @@ def on_road(scene: Scene, motion: FullMotion) -> Scene:
     xy = motion.reference.path(s_path)[0]
     _, nearest = cKDTree(xy).query(scene.position[:, :2])
     pos = scene.position.copy()
-    pos[:, 2] += motion.road.grade_height(s_path[nearest])
-    return replace(scene, position=pos)
+    lift = motion.road.grade_height(s_path[nearest])
+    pos[:, 2] += lift
+    return replace(scene, position=pos, road_height=lift)
 
 
 def _sensor_samples(motion: Motion, config: Config, seed: int) -> list[sensor_models.SensorSamples]:
@@ -294,6 +295,7 @@ def simulate(
         # and that clock counts 1 + this * 1e-6 s per true second from the first frame on (store.drive's
         # stamps_on_navigation_clock takes them back)
         "radar_clock_drift_ppm": sim.radar_clock_drift_ppm,
+        "road_reflection": sim.road_reflection,
     }
     if dynamics == "full":
         attrs["dynamics"] = dynamics
@@ -329,6 +331,8 @@ def simulate(
                     amplitude_lsb=sim.radar_amplitude_lsb, beamwidth_az_deg=radar.beamwidth_az_deg,
                     beamwidth_el_deg=radar.beamwidth_el_deg, target_velocity=scenario.scene.velocity_enu,
                     chirp_start_s=t_frames[:, None] + offsets[None, :] / clock_rate,
+                    road_reflection=sim.road_reflection, road_height=scenario.scene.road_height,
+                    retroreflector=np.isin(np.arange(len(scenario.scene.kind)), scenario.scene.corner_reflectors),
                 )
                 if sim.channel_phase_std_deg or sim.channel_gain_std_db:
                     beat *= channel_gain[None, :, :, None]
