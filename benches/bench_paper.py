@@ -237,6 +237,9 @@ def drive_row(scenario: str, seed: int, comparison: dict[str, Any], sim_s: float
                   "reflector_error_local_max_cm": round(100 * max(r["local_aligned_error_m"] for r in refl), 2),
                   "peak_loss_max_db": round(max(r["peak_loss_db"] for r in refl), 2),
                   "peak_loss_min_db": round(min(r["peak_loss_db"] for r in refl), 2),
+                  # against where the truth image has each (its own offset, e.g. a road's multipath, left out)
+                  "reflector_error_vs_truth_image_max_cm": round(100 * max(r.get("reference_error_m") or 0.0
+                                                                            for r in refl), 2),
                   "aligned_rmse_cm": round(100 * traj["aligned_rmse_m"], 2),
                   "rpe_1m_across_mm": mm(traj["rpe_1m_across_m"]), "rpe_10m_across_mm": mm(traj["rpe_10m_across_m"])}
         s = row[m]

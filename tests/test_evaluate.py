@@ -26,11 +26,13 @@ from autosar_cli.evaluate.evaluation import (
     image_metrics,
     load_truth,
     metrics_grid,
+    options_from_image,
     product_metrics_grid,
     product_pixels,
 )
 from autosar_cli.evaluate.image_quality import fit_line, image_contrast, image_entropy, line_straightness
 from autosar_cli.evaluate.point_target import analyse_point_target, refine_peak
+from autosar_cli.evaluate.reflectors import focus_patches, measure_reflectors
 from autosar_cli.evaluate.trajectory_metrics import (
     common_instants,
     trajectory_errors,
@@ -615,6 +617,30 @@ def test_peak_loss_is_what_a_blurring_track_costs_each_reflector(ci_run: Path) -
     for m in ev2.reflectors:
         assert m.peak_loss_db is not None and m.reference_peak_db is not None
         assert m.peak_db < m.reference_peak_db - 1.0 and m.peak_loss_db > 1.0
+
+
+def test_the_error_from_the_truth_images_peak_leaves_out_that_images_own_offset(ci_run: Path) -> None:
+    """Where the truth image's own peaks lie off the true positions (a road's multipath moves them; here a
+    reference focused along the truth track 1 cm across, not aligned), each reflector's error against the
+    reference's peak (``reference_error_m``) is its aligned error less that reference's own offset: the truth
+    image's reflectors read 0.8-1.2 cm from the reference's peaks, as the two images' aligned errors differ (range
+    and cross-range components), whatever the truth image's own (ci's: up to 6.5 mm); against its own patches, 0."""
+    image, truth = _ci_image_and_truth(ci_run)
+    drive, tr = ci_run / "drive.h5", truth.trajectory
+    ev = evaluate_image(image, tr, drive, CFG, truth)
+    across = frame_geometry(tr, tr.t_ns, CFG)[1]
+    off = replace(tr, method="off", correction=MotionCorrection(tr.t_ns, 0.01 * across, np.zeros((len(tr.t), 3))))
+    crs = truth.targets.corner_reflectors
+    reference = focus_patches(drive, off, CFG, options_from_image(image, CFG), truth.targets.corner_reflector_names(),
+                              truth.targets.position_enu[crs])[0]
+    own = measure_reflectors(reference, ev.range_dir)
+    against = measure_reflectors(ev.patches, ev.range_dir, reference)
+    assert len(against) == 3
+    for m, r, m0 in zip(against, own, ev.reflectors, strict=True):
+        assert m0.reference_error_m == 0.0  # the truth against its own patches
+        apart = math.hypot(m.aligned_error_range_m - r.aligned_error_range_m,
+                           m.aligned_error_cross_m - r.aligned_error_cross_m)
+        assert 0.008 < apart < 0.012 and m.reference_error_m == pytest.approx(apart, abs=1e-9), (apart, m)
 
 
 def test_trajectory_metrics_of_a_rigid_copy() -> None:

@@ -370,14 +370,14 @@ def compare_markdown(result: dict[str, Any], evaluations: dict[str, Evaluation],
         rows.append([m, fmt(s["abs_rmse_m"], 100), fmt(s["aligned_rmse_m"], 100), fmt(s["rpe_1m_across_m"], 1000),
                      fmt(s["rpe_10m_across_m"], 1000), fmt(s["aligned_error_mean_m"], 100),
                      fmt(s["aligned_error_max_m"], 100), fmt(s["local_aligned_error_max_m"], 100),
-                     fmt(s["peak_loss_mean_db"], signed=True),
+                     fmt(s["reference_error_max_m"], 100), fmt(s["peak_loss_mean_db"], signed=True),
                      fmt(s["peak_loss_max_db"], signed=True), fmt(s["entropy"], digits=4),
                      fmt(s["contrast"], digits=1), fmt(s["entropy_rn"], digits=4), fmt(s["entropy_far"], digits=4),
                      fmt(s["contrast_far"], digits=1)]
                     + [fmt(s[f"straightness_{k}_m"], 100) for k in LINE_KINDS])
     parts.append(markdown_table(["method", "abs RMSE (cm)", "aligned RMSE (cm)", "RPE 1 m across (mm)",
                                  "RPE 10 m across (mm)", "reflector aligned error mean (cm)", "max (cm)",
-                                 "max, local alignment (cm)",
+                                 "max, local alignment (cm)", "max, from the truth image's (cm)",
                                  "peak loss mean (dB)", "max (dB)", "entropy (nats)", "contrast",
                                  "range-normalised entropy (nats)", "far swath entropy (nats)", "far swath contrast"]
                                 + [f"{k} straightness (cm)" for k in LINE_KINDS], rows))
