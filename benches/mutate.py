@@ -64,6 +64,9 @@ FAR_SWATH = "tests/test_evaluate.py::test_far_swath_is_the_pixels_far_from_the_r
 SE2 = "tests/test_evaluate.py::test_se2_fit_recovers_a_known_rigid_motion"
 REFLECTORS = "tests/test_evaluate.py::test_reflectors_with_the_truth_trajectory_and_a_rigidly_moved_one"
 PEAK_LOSS = "tests/test_evaluate.py::test_peak_loss_is_what_a_blurring_track_costs_each_reflector"
+ROAD_RAYS = "tests/test_sim_kernels.py::test_a_point_over_a_reflecting_road_lobes_as_the_two_ray_model"
+ROAD_REF = "tests/test_sim_kernels.py::test_beat_kernel_matches_float64_reference_by_way_of_the_road"
+REFERENCE_ERROR = "tests/test_evaluate.py::test_the_error_from_the_truth_images_peak_leaves_out_that_images_own_offset"
 RPE = "tests/test_nav_models.py::test_relative_pose_error_ignores_rigid_motion_and_sees_bends"
 STEADY_TURN = "tests/test_sim_dynamics.py::test_steady_turn_side_slip_and_roll_match_the_linear_single_track"
 SUSPENSION_STEP = "tests/test_sim_dynamics.py::test_suspension_step_response_is_the_second_order_model"
@@ -132,6 +135,16 @@ MUTATIONS: list[Mutation] = [
     _m("sim-beat-rvp-sign", "kernel", "sim/echo.py",
        "cycles_mid = f0 * tau_m + slope * tau_m * t_mid - 0.5 * slope * tau_m * tau_m",
        "cycles_mid = f0 * tau_m + slope * tau_m * t_mid + 0.5 * slope * tau_m * tau_m", BEAT_REF),
+    # the road's paths: the image mirrored about the road, a trihedral's one-bounce paths, the two-bounce Gamma^2
+    _m("sim-road-image-not-mirrored", "kernel", "sim/echo.py",
+       "ptz = 2.0 * mirror_z[m] - pz if path[i] & 1 else pz", "ptz = 2.0 * mirror_z[m] + pz if path[i] & 1 else pz",
+       ROAD_RAYS),
+    _m("sim-trihedral-returns-one-bounce-paths", "kernel", "sim/echo.py",
+       "cross_gain = np.where(above & ~retro, road_reflection, 0.0)",
+       "cross_gain = np.where(above, road_reflection, 0.0)", ROAD_RAYS),
+    _m("sim-two-bounce-path-with-gamma", "kernel", "sim/echo.py",
+       "bounce_gain = np.where(above, road_reflection ** 2, 0.0)",
+       "bounce_gain = np.where(above, road_reflection, 0.0)", ROAD_REF),
     # --- the simulator's full vehicle, the model the processor is checked against (sim/dynamics.py, sim/road.py)
     _m("sim-rear-slip-angle-sign", "simulator", "sim/dynamics.py",
        "alpha_r = math.atan((b * r - vy) / veff)", "alpha_r = math.atan((vy - b * r) / veff)", STEADY_TURN),
@@ -268,6 +281,9 @@ MUTATIONS: list[Mutation] = [
        "angle = math.atan2(cross, dot) if", "angle = math.atan2(-cross, dot) if", SE2),
     _m("reflector-error-against-the-true-position", "evaluation", "evaluate/reflectors.py",
        "        d = peak - xy\n", "        d = peak - true[:2]\n", REFLECTORS),
+    _m("reference-error-with-the-references-offset-added", "evaluation", "evaluate/reflectors.py",
+       "reference_error_m=float(np.hypot(*(d - ref_offset[name])))",
+       "reference_error_m=float(np.hypot(*(d + ref_offset[name])))", REFERENCE_ERROR),
     _m("peak-loss-sign", "evaluation", "evaluate/reflectors.py",
        "peak_loss_db=None if ref is None else ref - m.peak_db", "peak_loss_db=None if ref is None else m.peak_db - ref",
        PEAK_LOSS),
