@@ -141,7 +141,12 @@ class Scene:
 
     @property
     def corner_reflectors(self) -> NDArray[np.intp]:
-        return np.flatnonzero(self.kind == KINDS.index("corner_reflector"))
+        return np.flatnonzero(self.retroreflector)
+
+    @property
+    def retroreflector(self) -> NDArray[np.bool_]:
+        """(M,) whether each scatterer sends a ray back the way it came (a trihedral corner reflector)."""
+        return self.kind == KINDS.index("corner_reflector")
 
 
 def finish_scene(builder: SceneBuilder, direction_rad: float, start_enu: tuple[float, float]) -> Scene:

@@ -332,7 +332,7 @@ def simulate(
                     beamwidth_el_deg=radar.beamwidth_el_deg, target_velocity=scenario.scene.velocity_enu,
                     chirp_start_s=t_frames[:, None] + offsets[None, :] / clock_rate,
                     road_reflection=sim.road_reflection, road_height=scenario.scene.road_height,
-                    retroreflector=np.isin(np.arange(len(scenario.scene.kind)), scenario.scene.corner_reflectors),
+                    retroreflector=scenario.scene.retroreflector,
                 )
                 if sim.channel_phase_std_deg or sim.channel_gain_std_db:
                     beat *= channel_gain[None, :, :, None]
