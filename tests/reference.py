@@ -158,7 +158,12 @@ def beat_reference(
     ground = np.zeros(len(targets)) if road_height is None else np.asarray(road_height, np.float64)
     retro = np.zeros(len(targets), bool) if retroreflector is None else np.asarray(retroreflector, bool)
     bounces = road_reflection != 0.0
-    mirror = np.array([1.0, 1.0, -1.0])
+
+    def in_the_road(where: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``where`` (M, ..., 3) mirrored in the horizontal plane of each target's road."""
+        image = where.copy()
+        image[..., 2] = 2 * ground.reshape((-1,) + (1,) * (where.ndim - 2)) - where[..., 2]
+        return image
 
     def leg(where: NDArray[np.float64], f: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Range (M,) and one-way amplitude pattern (M,) from the radar's origin to ``where`` (M, 3)."""
@@ -172,9 +177,8 @@ def beat_reference(
 
     for f in range(n_frames):
         at_start = targets + velocity * starts[f, 0]
-        image_at_start = (at_start - ground[:, None] * [0, 0, 1]) * mirror + ground[:, None] * [0, 0, 1]
         r, g = leg(at_start, f)
-        ri, gi = leg(image_at_start, f)
+        ri, gi = leg(in_the_road(at_start), f)
         above = at_start[:, 2] - ground > 0.01
         # (tx leg by the image, rx leg by the image, amplitude (M,)) of each path
         paths = [(False, False, np.where((2 * r < max_path) & (r >= 0.05), g * g / r**2, 0.0))]
@@ -189,7 +193,7 @@ def beat_reference(
             for q in range(n_rx):
                 rx = rx_start[f, k, q][None, :] + frac[:, None] * (rx_end[f, k, q] - rx_start[f, k, q])[None, :]
                 where = targets[:, None, :] + velocity[:, None, :] * (starts[f, k] + t)[None, :, None]  # (M, N, 3)
-                image = (where - ground[:, None, None] * [0, 0, 1]) * mirror + ground[:, None, None] * [0, 0, 1]
+                image = in_the_road(where)
                 for tx_image, rx_image, amplitude in paths:
                     path = (np.linalg.norm((image if tx_image else where) - tx[None], axis=2)
                             + np.linalg.norm((image if rx_image else where) - rx[None], axis=2))

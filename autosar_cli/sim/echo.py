@@ -80,8 +80,10 @@ def _phasors(turns, amp, re, im, n):  # pragma: no cover - compiled
 @nb.njit(cache=True)
 def _leg(dx, dy, dz, enu_to_radar, f, n_az, n_el):  # pragma: no cover - compiled
     """Range (m) towards (dx, dy, dz) (ENU m from the radar's origin at frame f) and the two-way amplitude
-    pattern's azimuth and elevation factors there (cos^n each; 0 behind the antenna plane)."""
+    pattern's azimuth and elevation factors there (cos^n each; 0 behind the antenna plane or within 5 cm)."""
     r = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if r < 0.05:
+        return r, 0.0, 0.0
     ux = (enu_to_radar[f, 0, 0] * dx + enu_to_radar[f, 0, 1] * dy + enu_to_radar[f, 0, 2] * dz) / r
     if ux <= 0.0:
         return r, 0.0, 0.0
@@ -113,10 +115,9 @@ def _synthesize(tx0, tx1, rx0, rx1, origin, enu_to_radar, targets, sqrt_rcs, vel
                 dx += velocity[m - first_moving, 0] * t_start[f, 0]
                 dy += velocity[m - first_moving, 1] * t_start[f, 0]
                 dz += velocity[m - first_moving, 2] * t_start[f, 0]
-            r = math.sqrt(dx * dx + dy * dy + dz * dz)
+            r, g_az, g_el = _leg(dx, dy, dz, enu_to_radar, f, n_az, n_el)
             if r < 0.05:
                 continue
-            r, g_az, g_el = _leg(dx, dy, dz, enu_to_radar, f, n_az, n_el)
             a = amplitude * sqrt_rcs[m]
             if g_az > 0.0 and 2.0 * r < max_path:
                 gain[nv] = a * g_az * g_el / (r * r)
