@@ -231,6 +231,7 @@ class ProcessingConfig:
     autofocus_slow_motion: bool = True  #: the autofocus takes the slow motion from the points' passes first
     autofocus_fast_motion: bool = False  #: and, last, the fast across-track motion from many scatterers
     autofocus_channel_gains: bool = True  #: the autofocus measures the radar's channel gains first, undone where off
+    autofocus_pass_block_s: float = 0.1  #: the slow motion sums each point's pulses over blocks this long (s)
 
 
 @dataclass(frozen=True)
@@ -682,6 +683,8 @@ def _validate(cfg: Config) -> None:
     _finite_vector("processing.focus_height_m", (p.focus_height_m,))
     if p.range_upsample < 1:
         raise ConfigError(f"processing.range_upsample: must be at least 1, got {p.range_upsample}")
+    if not 0.0 < p.autofocus_pass_block_s <= 1.0:  # a block no longer than the slow motion's 1 s nodes
+        raise ConfigError(f"processing.autofocus_pass_block_s: must lie in (0, 1] s, got {p.autofocus_pass_block_s!r}")
 
     dyn = cfg.vehicle_dynamics
     for name in ("brake_front_fraction", "drive_front_fraction"):

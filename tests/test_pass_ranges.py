@@ -316,6 +316,37 @@ def test_the_config_turns_the_slow_motion_on() -> None:
         config_from_dict(raw)
 
 
+@pytest.mark.parametrize("block_s", [0.2, 0.0, 1.5])
+def test_the_config_sets_the_passes_block(block_s: float, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``processing.autofocus_pass_block_s`` is the slow motion's block where no options are given (0.1 s in the
+    shipped config); no block, or one longer than the 1 s nodes, is a config error naming the key."""
+    import tomllib
+
+    from autosar_cli.config import DEFAULT_CONFIG, ConfigError, config_from_dict
+    from autosar_cli.sar import pass_ranges
+
+    assert PassOptions.from_config(CFG).block_s == 0.1
+    raw = tomllib.loads(DEFAULT_CONFIG.read_text())
+    raw["processing"]["autofocus_pass_block_s"] = block_s
+    if not 0.0 < block_s <= 1.0:
+        with pytest.raises(ConfigError, match=r"processing.autofocus_pass_block_s: must lie in \(0, 1\] s"):
+            config_from_dict(raw)
+        return
+    cfg = config_from_dict(raw)
+    assert PassOptions.from_config(cfg).block_s == block_s
+    seen: list[float] = []
+
+    def fit_blocks(blocks, trajectory, config, opts):  # type: ignore[no-untyped-def]
+        seen.append(opts.block_s)
+        raise RuntimeError("stop")
+
+    monkeypatch.setattr(pass_ranges, "pass_blocks", lambda *a, **k: None)
+    monkeypatch.setattr(pass_ranges, "fit_blocks", fit_blocks)
+    with pytest.raises(RuntimeError, match="stop"):
+        estimate_slow_motion("drive.h5", None, cfg, np.zeros((1, 3)), focus=FocusOptions.from_config(cfg))  # type: ignore[arg-type]
+    assert seen == [block_s]
+
+
 def _stop_and_go_blocks(err_of_t, seed: int = 7):
     """The roadside points of :func:`test_a_slip_gains_error_is_fitted_from_the_points_seen_through_a_braking`,
     each seen from 70 deg ahead to broadside, their paths measured to 0.5 mm, the track ``err_of_t(t)`` (m, t in s)

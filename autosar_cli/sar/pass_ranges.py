@@ -81,7 +81,11 @@ class PassOptions:
 
     half_beam_deg: float = 70.0  #: each point's echoes within this of broadside (the beam: 45 deg forward +- 60)
     channels: int = 2  #: channels summed per block (sar.focus.channel_pairs)
-    block_s: float = 0.1  #: pulses summed per envelope (0.5 m of travel at 5 m/s)
+    #: pulses summed per envelope (0.5 m of travel at 5 m/s; the config's ``processing.autofocus_pass_block_s``).
+    #: A point above a road that reflects is also seen by way of its image in the road; the paths' interference
+    #: cycles every ~0.4-0.8 m of travel at 10 m and moves the envelope's peak by centimetres, which a block of 1 m
+    #: averages better than one of 0.5 m (docs/SIMULATION.md, "A road that reflects")
+    block_s: float = 0.1
     search_bins: float = 6.0  #: the envelope's peak is sought within +- this many bins of the predicted range
     min_relative_power: float = 0.3  #: blocks weaker than this times the point's median are left out
     max_point_sigma_m: float = 0.008  #: a point whose own fit leaves more (robust std of its path) is no point
@@ -126,6 +130,10 @@ class PassOptions:
     #: the autofocus reads the passes again along the track on the radar's clock so measured, at most this many
     #: times (:func:`~autosar_cli.sar.residual_motion.radar_clock_rereads`)
     radar_clock_rereads: int = 3
+
+    @classmethod
+    def from_config(cls, config: Config) -> PassOptions:
+        return cls(block_s=config.processing.autofocus_pass_block_s)
 
 
 @dataclass(frozen=True)
@@ -393,7 +401,7 @@ def estimate_slow_motion(drive_path: str | Path, trajectory: Trajectory, config:
     (P, 3) (ENU m, where ``trajectory`` focuses them) measure over their passes; see the module's docstring.
     ``histories``: their histories gathered already (:func:`pass_histories`)."""
     focus = focus or FocusOptions.from_config(config)
-    opts = opts or PassOptions()
+    opts = opts or PassOptions.from_config(config)
     points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
     if len(points) == 0:
         return _refused(trajectory, 0, "no bright point")

@@ -985,6 +985,7 @@ def _autofocus_along(drive_path: str | Path, trajectory: Trajectory, config: Con
     """:func:`autofocus_residual_motion` along the radar mounting ``config`` states."""
     focus = with_stated_gains(drive_path, focus or FocusOptions.from_config(config))
     opts = opts or AutofocusOptions.from_config(config)
+    passes = passes or PassOptions.from_config(config)
     fast = (fast or FastMotionOptions()) if opts.fast_motion else None
     points, scatterers, t_zero = points_and_scatterers(drive_path, trajectory, config, focus, opts, fast)
     calibration = measure_channel_gains(drive_path, trajectory, config, points, focus) if opts.channel_gains \
@@ -993,7 +994,7 @@ def _autofocus_along(drive_path: str | Path, trajectory: Trajectory, config: Con
         focus = replace(focus, channel_gains=calibration.gains)
     result = replace(residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes),
                      channel_calibration=calibration)
-    late_s, reads = radar_clock_rereads(drive_path, trajectory, config, points, focus, passes or PassOptions(),
+    late_s, reads = radar_clock_rereads(drive_path, trajectory, config, points, focus, passes,
                                         result.slow_motion)
     result = replace(result, radar_clock_reads=reads)
     if late_s:  # the motion along the track on the radar's clock, its points where that track puts them
@@ -1067,7 +1068,7 @@ def residual_motion_of_points(drive_path: str | Path, trajectory: Trajectory, co
     it; where they do not, the passes' stretch is kept. A used point whose channels' phase says it moves
     (``opts.max_channel_phase_rad``) is left out and the rest fitted again."""
     points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
-    passes = passes or PassOptions()
+    passes = passes or PassOptions.from_config(config)
     # one read of the radar for both: the passes' histories, their windows wide enough that the phases' fit the
     # shape correction's change of path (test2 seed 1's, 32 mm at most, moves them by ~1 bin of the 6 kept)
     histories = (pass_histories(drive_path, trajectory, config, points, focus, passes,
