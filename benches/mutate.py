@@ -91,6 +91,7 @@ FAST_NORMALS = "tests/test_fast_motion.py::test_the_histories_banded_normal_equa
 FAST_HALVES = "tests/test_fast_motion.py::test_halves_that_measure_opposite_motions_correct_nothing"
 FAST_MIRROR = "tests/test_fast_motion.py::test_steps_where_a_walls_mirror_image_aliases_onto_the_point_are_left_out"
 PASS_BRAKING = "tests/test_pass_ranges.py::test_a_slip_gains_error_is_fitted_from_the_points_seen_through_a_braking"
+PASS_BLOCK_CONFIG = "tests/test_pass_ranges.py::test_the_config_sets_the_passes_block"
 GAINS_UNDONE = "tests/test_channel_gains.py::test_gains_normalise_and_their_correction_undoes_them"
 ENGINES_SLIP = ("tests/test_nav_sarmin.py::"
                 "test_compiled_filter_equals_the_filterpy_reference[gauss_markov-0.05-True-False]")
@@ -219,6 +220,10 @@ MUTATIONS: list[Mutation] = [
        "    offset = offset - doppler\n", "    offset = offset + doppler\n", PASS_DOPPLER),
     _m("pass-ranges-stretch-left-in-the-shape", "autofocus", "sar/pass_ranges.py",
        "along - stretch * (s_nodes - s_centre), across", "along, across", PASS_INJECTED),
+    _m("pass-block-not-from-the-config", "autofocus", "sar/pass_ranges.py",
+       "return cls(block_s=config.processing.autofocus_pass_block_s)", "return cls()", PASS_BLOCK_CONFIG),
+    _m("pass-block-config-not-bounded", "autofocus", "config.py",
+       "if not 0.0 < p.autofocus_pass_block_s <= 1.0:", "if p.autofocus_pass_block_s < 0.0:", PASS_BLOCK_CONFIG),
     # --- the residual-motion autofocus: its model, fits and refusals (sar/residual_motion.py, sar/history_kernel.py)
     _m("af-history-carrier-conjugated", "autofocus", "sar/history_kernel.py",
        "phase = -2.0 * math.pi * (turns - math.floor(turns))", "phase = 2.0 * math.pi * (turns - math.floor(turns))",
