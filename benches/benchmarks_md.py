@@ -176,7 +176,8 @@ def render(results: Path, max_rows: int) -> str:
         out += [""] + body if body else []
     # a heading may follow a paragraph directly (an ATX heading interrupts one): no blank line between them
     out = [line for i, line in enumerate(out) if not (line == "" and 0 < i < len(out) - 1 and out[i - 1]
-                                                       and not out[i - 1].startswith("|") and out[i + 1].startswith("#"))]
+                                                       and not out[i - 1].startswith("|")
+                                                       and out[i + 1].startswith("#"))]
     return "\n".join(out).rstrip() + "\n"
 
 
