@@ -73,7 +73,7 @@ def measure(drive: Path, truth_path: Path, config_path: Path, blocks_s: list[flo
         points = candidate_points(drive, track, config, focus, af)
         histories = pass_ranges.pass_histories(drive, track, config, points, focus, pass_ranges.PassOptions())
         for block_s in blocks_s:
-            opts = dataclasses.replace(pass_ranges.PassOptions(), block_s=block_s)
+            opts = pass_ranges.PassOptions(block_s=block_s)
             blocks = pass_ranges.pass_blocks(drive, track, config, points, focus, opts, histories)
             fit = pass_ranges.fit_blocks(blocks, track, config, opts)
             out[f"{name} {block_s:g} s"] = fit_record(fit, along_error_mm)
