@@ -255,6 +255,9 @@ def drive_row(scenario: str, seed: int, comparison: dict[str, Any], sim_s: float
         row["af_track_scale_prior_pct"] = pct(af.get("track_scale_prior_std", 0.0))
         if af.get("radar_mounting_yaw_deg") is not None:  # the boresight it measured, where it took one
             row["af_radar_mounting_yaw_deg"] = round(af["radar_mounting_yaw_deg"], 2)
+        slow = af.get("slow_motion")
+        if slow:  # the slow motion from the points' passes: applied, its points and what their joint fit leaves
+            row["af_slow_motion"] = {k: slow.get(k) for k in ("applied", "points_used", "residual_mm")}
     for key in ENTROPIES:
         e = {m: res[m]["summary"][key] for m in res}
         row[key] = {**{m: round(v, 4) for m, v in e.items()}, "paper_order": in_paper_order(e)}
