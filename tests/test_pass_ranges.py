@@ -195,6 +195,9 @@ def test_a_slip_gains_error_is_fitted_from_the_points_seen_through_a_braking() -
     print(fitted.summary())
     said = "(the navigation's slip gains off by drive -0.38 ± 0.02 %, brake +0.40 ± 0.02 % per m/s²)"
     assert said in fitted.summary()
+    # the envelopes' scatter it reports is the paths' noise, 0.5 mm (less what the fit's own parameters take)
+    assert 0.00035 < fitted.residual_m < 0.0006
+    assert f"their paths {1e3 * fitted.residual_m:.1f} mm about the fit (the navigation's" in fitted.summary()
     assert "slip gains" not in results[False][3].summary()
     # a navigation that states its gyros' bias adds what that leaves in the scale, which no pass measures
     names = ["px", "py", "v", "psi", "omega", "bias.a"]

@@ -160,7 +160,10 @@ class SlowMotion:
     point_shift_enu: Array  #: (P, 3) each point's position error d_j (m; 0 for the points not used)
     points_used: NDArray[np.bool_]  #: (P,)
     point_sigma_m: Array  #: (P,) each point's own fit's robust std of its path (inf: too few blocks)
-    residual_m: float  #: median over the used points of their joint fit's robust std
+    #: median over the used points of their joint fit's robust std: the envelopes' scatter. SAR-MIN's tracks on the
+    #: simulator's dry roads leave 0.3-1.0 mm, on a wet one (a point's image in the road swinging its envelope) 1.6-6.8
+    #: mm, where the correction can be centimetres off (docs/SIMULATION.md, "A road that reflects")
+    residual_m: float
     reason: str = ""
     #: the correction's whole-track stretch: its along-track part's slope against the travel (distances times
     #: 1 + stretch), fitted over the nodes by their std, and that fit's std
@@ -222,7 +225,8 @@ class SlowMotion:
         gains = "".join(f", {mode} {100 * g['value']:+.2f} ± {100 * g['std']:.2f} %"
                         for mode, g in self.to_dict().get("slip_gain_error", {}).items())
         return (f"slow motion corrected by {c['rms_mm']:.1f} mm RMS ({c['max_mm']:.1f} max, ±{c['std_median_mm']:.1f}"
-                f" mm) from {int(self.points_used.sum())} points' ranges over their passes"
+                f" mm) from {int(self.points_used.sum())} points' ranges over their passes, their paths"
+                f" {1e3 * self.residual_m:.1f} mm about the fit"
                 + (f" (the navigation's slip gains off by{gains[1:]} per m/s²)" if gains else "")
                 + (f"; the radar's frame stamps {1e3 * self.radar_clock_offset_s:+.1f} ± "
                    f"{1e3 * self.radar_clock_offset_std_s:.1f} ms late on the navigation's clock, taken out"
