@@ -93,15 +93,23 @@ def measure(drive: Path, truth_path: Path, config_path: Path, blocks_s: list[flo
 
 
 def summary(rows: list[dict[str, Any]]) -> dict[str, str]:
-    """Per road (``simulation``) and fit, the along-track error (mm) of each drive in turn, joined by " / "."""
+    """Per road (``simulation``): its drives, and per fit the along-track error (mm) of each in turn ("refused" where
+    the fit was) and the scatter of its points' paths about it (:attr:`~autosar_cli.sar.pass_ranges.SlowMotion.
+    residual_m`), joined by " / "."""
     out: dict[str, str] = {}
     for row in rows:
         road = row["simulation"] or "no road reflection"
-        fits = {"SAR-MIN": row["sarmin_along_error_mm"]} | {
-            k: v["along_error_mm"] for k, v in row.items() if isinstance(v, dict) and v.get("applied")}
+        fits = {"drive": f"{row['scenario']} seed {row['seed']}", "SAR-MIN": f"{row['sarmin_along_error_mm']:g}"} | {
+            k: f"{v['along_error_mm']:g}" if v["applied"] else "refused" for k, v in row.items()
+            if isinstance(v, dict) and "applied" in v}
+        scatter = {f"{k}: the points' scatter about the fit (mm)": f"{v['residual_mm']:g}" if v["applied"] else "-"
+                   for k, v in row.items() if isinstance(v, dict) and "applied" in v}
         for name, value in fits.items():
-            key = f"{road}, {name}: along-track error (mm)"
-            out[key] = f"{out[key]} / {value:g}" if key in out else f"{value:g}"
+            key = f"{road}, {name}" + ("s" if name == "drive" else ": along-track error (mm)")
+            out[key] = f"{out[key]} / {value}" if key in out else value
+        for name, value in scatter.items():
+            key = f"{road}, {name}"
+            out[key] = f"{out[key]} / {value}" if key in out else value
     return out
 
 
