@@ -83,8 +83,9 @@ class PassOptions:
     channels: int = 2  #: channels summed per block (sar.focus.channel_pairs)
     #: pulses summed per envelope (0.5 m of travel at 5 m/s; the config's ``processing.autofocus_pass_block_s``).
     #: A point above a road that reflects is also seen by way of its image in the road; the paths' interference
-    #: cycles every ~0.4-0.8 m of travel at 10 m and moves the envelope's peak by centimetres, which a block of 1 m
-    #: averages better than one of 0.5 m, and on a dry road costs (docs/SIMULATION.md, "A road that reflects")
+    #: cycles every ~0.4-0.8 m of travel at 10 m and moves the envelope's peak by centimetres. A block of 1 m averages
+    #: more of it, which helped urban seeds 1-2 on a wet road but not seeds 3-5, and costs on a dry road
+    #: (docs/SIMULATION.md, "A road that reflects")
     block_s: float = 0.1
     search_bins: float = 6.0  #: the envelope's peak is sought within +- this many bins of the predicted range
     min_relative_power: float = 0.3  #: blocks weaker than this times the point's median are left out
