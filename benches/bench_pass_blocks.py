@@ -94,8 +94,8 @@ def measure(drive: Path, truth_path: Path, config_path: Path, blocks_s: list[flo
 
 def summary(rows: list[dict[str, Any]]) -> dict[str, str]:
     """Per road (``simulation``): its drives, and per fit the along-track error (mm) of each in turn ("refused" where
-    the fit was) and the scatter of its points' paths about it (:attr:`~autosar_cli.sar.pass_ranges.SlowMotion.
-    residual_m`), joined by " / "."""
+    the fit was) and the scatter of its points' paths about it
+    (:attr:`~autosar_cli.sar.pass_ranges.SlowMotion.residual_m`), joined by " / "."""
     out: dict[str, str] = {}
     for row in rows:
         road = row["simulation"] or "no road reflection"
