@@ -164,8 +164,8 @@ class SlowMotion:
     #: median over the used points of their joint fit's robust std: the envelopes' scatter. SAR-MIN's tracks on the
     #: simulator's dry roads leave 0.3-1.8 mm (what of their error the fit's model does not hold: the truth tracks
     #: 0.1 mm), on a wet one 1.9-6.8 mm (the truth tracks 1.2-3.0: a point's image in the road swings its envelope),
-    #: where the correction can be centimetres off (benches/results/pass_blocks.json; docs/SIMULATION.md, "A road
-    #: that reflects")
+    #: where the correction can be centimetres off (benches/results/pass_blocks.json;
+    #: docs/SIMULATION.md, "A road that reflects")
     residual_m: float
     reason: str = ""
     #: the correction's whole-track stretch: its along-track part's slope against the travel (distances times
