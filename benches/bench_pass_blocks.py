@@ -99,16 +99,14 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, str]:
     out: dict[str, str] = {}
     for row in rows:
         road = row["simulation"] or "no road reflection"
-        fits = {"drive": f"{row['scenario']} seed {row['seed']}", "SAR-MIN": f"{row['sarmin_along_error_mm']:g}"} | {
-            k: f"{v['along_error_mm']:g}" if v["applied"] else "refused" for k, v in row.items()
-            if isinstance(v, dict) and "applied" in v}
-        scatter = {f"{k}: the points' scatter about the fit (mm)": f"{v['residual_mm']:g}" if v["applied"] else "-"
-                   for k, v in row.items() if isinstance(v, dict) and "applied" in v}
-        for name, value in fits.items():
-            key = f"{road}, {name}" + ("s" if name == "drive" else ": along-track error (mm)")
-            out[key] = f"{out[key]} / {value}" if key in out else value
-        for name, value in scatter.items():
-            key = f"{road}, {name}"
+        fits = {k: v for k, v in row.items() if isinstance(v, dict) and "applied" in v}
+        cells = {f"{road}, drives": f"{row['scenario']} seed {row['seed']}",
+                 f"{road}, SAR-MIN: along-track error (mm)": f"{row['sarmin_along_error_mm']:g}"}
+        cells |= {f"{road}, {k}: along-track error (mm)": f"{v['along_error_mm']:g}" if v["applied"] else "refused"
+                  for k, v in fits.items()}
+        cells |= {f"{road}, {k}: the points' scatter about the fit (mm)": f"{v['residual_mm']:g}" if v["applied"]
+                  else "-" for k, v in fits.items()}
+        for key, value in cells.items():
             out[key] = f"{out[key]} / {value}" if key in out else value
     return out
 
