@@ -2,7 +2,7 @@
 run.json.
 
 The optional autofocus stage corrects the navigated track by what the radar itself measures
-(:func:`autosar_cli.sar.residual_motion.autofocus_residual_motion`: the phase-centre motion that makes the phase
+(:func:`autosar_cli.sar.autofocus_stage.autofocus_residual_motion`: the phase-centre motion that makes the phase
 histories of a first image's bright isolated points coherent, and the track's along-track scale where they measure
 it; docs/FOCUS.md). Where it cannot measure, the navigated track is kept and run.json says why.
 
@@ -127,7 +127,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
                                       "distance_m": float(np.sum(np.hypot(*np.diff(traj.rear_axle_enu, axis=0).T))),
                                       **{k: traj.info[k] for k in REPORTED_INFO if k in traj.info}}
     if autofocus:
-        from autosar_cli.sar.residual_motion import autofocus_residual_motion
+        from autosar_cli.sar.autofocus_stage import autofocus_residual_motion
 
         t = time.perf_counter()
         if progress:
@@ -193,7 +193,7 @@ def _prepare_later_stages(autofocus: bool = False) -> None:
 
     load_cached_kernels(sarmin_kernel, backprojection, range_fft, range_compression, stripmap)
     if autofocus:
-        import autosar_cli.sar.residual_motion  # noqa: F401
+        import autosar_cli.sar.autofocus_stage  # noqa: F401
         from autosar_cli.sar import history_kernel
 
         load_cached_kernels(history_kernel)

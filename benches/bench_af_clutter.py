@@ -195,8 +195,8 @@ def main() -> None:
     from autosar_cli.ingest.pipeline import ingest
     from autosar_cli.nav.baselines import from_truth
     from autosar_cli.nav.navigate import navigate
+    from autosar_cli.sar.autofocus_stage import autofocus_residual_motion
     from autosar_cli.sar.phase_history import frame_geometry
-    from autosar_cli.sar.residual_motion import autofocus_residual_motion
     from autosar_cli.sim.simulate import simulate
 
     config = load_config()

@@ -51,7 +51,8 @@ def bright_scatterers(drive: Path, traj: Any, config: Any) -> Any:
     """(S, 3) ENU m: the fast-motion stage's scatterers on the first image along ``traj``."""
     from autosar_cli.sar.fast_motion import FastMotionOptions
     from autosar_cli.sar.focus import FocusOptions
-    from autosar_cli.sar.residual_motion import AutofocusOptions, points_and_scatterers
+    from autosar_cli.sar.point_selection import points_and_scatterers
+    from autosar_cli.sar.residual_motion import AutofocusOptions
 
     return points_and_scatterers(drive, traj, config, FocusOptions.from_config(config),
                                  AutofocusOptions.from_config(config), FastMotionOptions())[1]
@@ -153,9 +154,9 @@ def with_high_band(cut_hz: float, record: dict[str, Any], vertical: bool = False
     """A replacement for compare's ``autofocus_residual_motion``: the product's without its fast-motion stage,
     then ``high_band_motion`` with a vertical motion (``vertical`` or ``elevation``); or else the product's own, the
     stage recorded (``fast``: its options other than the defaults)."""
+    from autosar_cli.sar.autofocus_stage import autofocus_residual_motion
     from autosar_cli.sar.fast_motion import FastMotionOptions
     from autosar_cli.sar.phase_history import frame_geometry
-    from autosar_cli.sar.residual_motion import autofocus_residual_motion
     from autosar_cli.types import MotionCorrection
 
     def corrected(drive: Path, traj: Any, config: Any, *args: Any, **kwargs: Any) -> Any:
@@ -199,7 +200,7 @@ def autofocus_options(config: Any, fast: bool) -> Any:
 
 def product_without_fast(drive: Path, traj: Any, config: Any, *args: Any, **kwargs: Any) -> Any:
     """A replacement for compare's ``autofocus_residual_motion``: the product's without its fast-motion stage."""
-    from autosar_cli.sar.residual_motion import autofocus_residual_motion
+    from autosar_cli.sar.autofocus_stage import autofocus_residual_motion
 
     return autofocus_residual_motion(drive, traj, config, *args, opts=autofocus_options(config, False), **kwargs)
 

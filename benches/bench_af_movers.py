@@ -52,9 +52,10 @@ def prepared(scenario: str, seed: int, work: Path) -> Path:
 def drive_row(work: Path) -> dict[str, Any]:
     """The product's autofocus on ``work``'s drive, and its candidates' channel phases along the track it made."""
     from autosar_cli.config import load_config
+    from autosar_cli.sar.autofocus_stage import autofocus_residual_motion
     from autosar_cli.sar.focus import FocusOptions
     from autosar_cli.sar.phase_history import channel_phase, gather_phase_histories, pair_antennas
-    from autosar_cli.sar.residual_motion import AutofocusOptions, autofocus_residual_motion
+    from autosar_cli.sar.residual_motion import AutofocusOptions
     from autosar_cli.store.trajectory import read_trajectory
 
     config = load_config()

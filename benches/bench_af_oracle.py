@@ -66,7 +66,7 @@ def oracle(truth_path: Path, axes: tuple[str, ...], cutoff_hz: float) -> Any:
 def autofocus_then_oracle(truth_path: Path, where: str, cutoff_hz: float) -> Any:
     """A replacement for compare's ``autofocus_residual_motion``: the product's, then the truth's across-track part
     above ``cutoff_hz`` of what it leaves, on the frames its points see (``where`` "seen") or do not see ("unseen")."""
-    from autosar_cli.sar.residual_motion import autofocus_residual_motion
+    from autosar_cli.sar.autofocus_stage import autofocus_residual_motion
     from autosar_cli.types import MotionCorrection
 
     def corrected(drive: Path, traj: Any, config: Any, *args: Any, **kwargs: Any) -> Any:

@@ -67,14 +67,11 @@ def measured_row(work: Path, passes: Any = None, product_only: bool = False, nav
     from autosar_cli.config import load_config
     from autosar_cli.evaluate.evaluation import load_truth
     from autosar_cli.evaluate.trajectory_metrics import radar_track_scale
+    from autosar_cli.sar.autofocus_stage import residual_motion_of_points
     from autosar_cli.sar.focus import FocusOptions
     from autosar_cli.sar.pass_ranges import PassOptions, estimate_slow_motion
-    from autosar_cli.sar.residual_motion import (
-        AutofocusOptions,
-        candidate_points,
-        estimate_residual_motion,
-        residual_motion_of_points,
-    )
+    from autosar_cli.sar.point_selection import candidate_points
+    from autosar_cli.sar.residual_motion import AutofocusOptions, estimate_residual_motion
     from autosar_cli.store.drive import radar_times
     from autosar_cli.store.trajectory import read_trajectory
 

@@ -34,8 +34,8 @@ def drive_row(work: Path, shift_m: float) -> dict[str, Any]:
     """The phase centre's move between the autofocus along ``work``'s sarmin.h5 and along it shifted east."""
     from autosar_cli.config import load_config
     from autosar_cli.nav.trajectory import phase_centre_lever_arm
+    from autosar_cli.sar.autofocus_stage import autofocus_residual_motion
     from autosar_cli.sar.focus import FocusOptions
-    from autosar_cli.sar.residual_motion import autofocus_residual_motion
     from autosar_cli.store.trajectory import read_trajectory
 
     config = load_config()

@@ -7,7 +7,7 @@ Usage: python benches/bench_af_truth.py [--scenario test1] [--seeds 0,9]
 
 For every seed and components set (``kinematic``: the kinematic car; otherwise the full model with only those
 effects, empty: none of them): ``simulate``, ``ingest``, then the residual-motion autofocus
-(``sar.residual_motion.autofocus_residual_motion``) on the simulator's own truth track. The truth's scale is
+(``sar.autofocus_stage.autofocus_residual_motion``) on the simulator's own truth track. The truth's scale is
 exact, so the scale the autofocus applies to it is its bias there, to compare with its stated std; the same on
 the truth track carrying the radar's motion as the IMU's roll and pitch move it (``navigate.with_attitude``, what
 SAR-MIN's trajectory carries); and on the truth track carrying the radar's true 6-DOF motion
@@ -39,7 +39,8 @@ def measure(scenario: str, seed: int, components: str, work: Path, car: str | No
     from autosar_cli.nav.baselines import from_truth
     from autosar_cli.nav.inputs import load_inputs
     from autosar_cli.nav.navigate import body_attitude, navigate, with_attitude
-    from autosar_cli.sar.residual_motion import AutofocusOptions, autofocus_residual_motion
+    from autosar_cli.sar.autofocus_stage import autofocus_residual_motion
+    from autosar_cli.sar.residual_motion import AutofocusOptions
     from autosar_cli.sim.simulate import simulate
     from autosar_cli.store.drive import Drive
 

@@ -132,7 +132,8 @@ def drive_row(work: Path) -> dict[str, Any]:
     from autosar_cli.evaluate.trajectory_metrics import common_instants, radar_track_scale
     from autosar_cli.sar.focus import FocusOptions
     from autosar_cli.sar.pass_ranges import estimate_slow_motion, heading_ramp_scale_std
-    from autosar_cli.sar.residual_motion import AutofocusOptions, candidate_points
+    from autosar_cli.sar.point_selection import candidate_points
+    from autosar_cli.sar.residual_motion import AutofocusOptions
     from autosar_cli.store.drive import radar_times
     from autosar_cli.store.trajectory import read_trajectory
 

@@ -35,7 +35,8 @@ from autosar_cli.nav.trajectory import phase_centre_lever_arm  # noqa: E402
 from autosar_cli.sar import pass_ranges  # noqa: E402
 from autosar_cli.sar.channel_calibration import with_stated_gains  # noqa: E402
 from autosar_cli.sar.focus import FocusOptions  # noqa: E402
-from autosar_cli.sar.residual_motion import AutofocusOptions, candidate_points  # noqa: E402
+from autosar_cli.sar.point_selection import candidate_points  # noqa: E402
+from autosar_cli.sar.residual_motion import AutofocusOptions  # noqa: E402
 from autosar_cli.types import Trajectory  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"

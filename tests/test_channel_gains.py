@@ -18,8 +18,9 @@ from autosar_cli.nav.inputs import load_inputs
 from autosar_cli.sar.channel_calibration import ChannelCalibrationOptions, gains_from_spectra, measure_channel_gains
 from autosar_cli.sar.channel_gains import ChannelGains
 from autosar_cli.sar.focus import FocusOptions, channel_pairs, focus_images
+from autosar_cli.sar.point_selection import candidate_points
 from autosar_cli.sar.range_compression import range_compress_into
-from autosar_cli.sar.residual_motion import AutofocusOptions, candidate_points
+from autosar_cli.sar.residual_motion import AutofocusOptions
 from autosar_cli.sim.simulate import channel_errors, simulate, stream_rng
 from autosar_cli.store.drive import Drive
 

@@ -420,13 +420,13 @@ def test_run_autofocus_leaves_the_track_alone_when_it_cannot_measure(failure: st
                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
     """No bright isolated point in the first image, or candidates that are distributed clutter, not point
     scatterers: the run goes on with the navigated track (named sar-min), run.json says why, the console warns."""
-    import autosar_cli.sar.residual_motion as rm
+    import autosar_cli.sar.point_selection as selection
 
     if failure == "no point":
-        monkeypatch.setattr(rm, "select_points", lambda *a, **k: np.zeros((0, 3)))
+        monkeypatch.setattr(selection, "select_points", lambda *a, **k: np.zeros((0, 3)))
     else:  # ground clutter 2-3 m beyond the corner reflectors, away from every bright object
-        monkeypatch.setattr(rm, "select_points", lambda *a, **k: np.array([[2.2, -8.0, 0.5], [3.6, -8.6, 0.5],
-                                                                           [1.5, -9.2, 0.5]]))
+        monkeypatch.setattr(selection, "select_points", lambda *a, **k: np.array([[2.2, -8.0, 0.5], [3.6, -8.6, 0.5],
+                                                                                  [1.5, -9.2, 0.5]]))
     out = tmp_path / "af"
     r = runner.invoke(app, ["run", str(ci_mcap.log_path), "-o", str(out), "--autofocus"])
     assert r.exit_code == 0, r.output

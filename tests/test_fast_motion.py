@@ -28,7 +28,8 @@ from autosar_cli.sar.fast_motion import (
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.sar.normal_equations import BandedCholesky
 from autosar_cli.sar.phase_history import focus_history, frame_geometry, gather_phase_histories, pair_antennas
-from autosar_cli.sar.residual_motion import AutofocusOptions, candidate_points, points_and_scatterers
+from autosar_cli.sar.point_selection import candidate_points, points_and_scatterers
+from autosar_cli.sar.residual_motion import AutofocusOptions
 from autosar_cli.sar.step_normals import add_normals, apply_model, history_normals, remove_moving_average
 from autosar_cli.store.trajectory import read_trajectory
 from autosar_cli.types import MotionCorrection, Trajectory

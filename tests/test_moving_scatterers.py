@@ -140,7 +140,7 @@ def test_a_radar_mounted_further_off_than_a_mounting_error_is_named_and_refused(
 def test_the_mounting_the_moving_points_agree_on() -> None:
     """Their median, robust to one point of another kind; none where fewer than two or where they scatter by more
     than 0.5 deg. Agreeing beyond 5 deg (points crossing the beam alike) is for the autofocus to refuse (above)."""
-    from autosar_cli.sar.residual_motion import mounting_yaw_agreed
+    from autosar_cli.sar.autofocus_stage import mounting_yaw_agreed
 
     assert mounting_yaw_agreed(np.array([2.9, 3.0, 3.1, 3.0, 4.8])) == pytest.approx(3.0)
     assert mounting_yaw_agreed(np.array([3.0, np.nan])) is None

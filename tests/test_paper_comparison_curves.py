@@ -63,7 +63,8 @@ def test_autofocus_fits_the_scale_with_the_motion(sim_dir: Path, tmp_path_factor
     from autosar_cli.nav.trajectory import cumulative_travel
     from autosar_cli.sar.focus import FocusOptions
     from autosar_cli.sar.phase_history import frame_geometry
-    from autosar_cli.sar.residual_motion import AutofocusOptions, candidate_points, estimate_residual_motion
+    from autosar_cli.sar.point_selection import candidate_points
+    from autosar_cli.sar.residual_motion import AutofocusOptions, estimate_residual_motion
     from autosar_cli.types import MotionCorrection
 
     out = Path(pc.comparison(sim_dir, tmp_path_factory, "test1")["directory"])

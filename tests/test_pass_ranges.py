@@ -224,7 +224,8 @@ def test_autofocus_takes_the_slow_motion_first_where_asked(test1_drive: tuple[Pa
     corrected, which measure the scale; or, where the phases may not (``max_scale_std`` below any they reach), the
     passes' stretch kept and their whole correction's scale said. The result says both, and its track keeps under a
     quarter of the injected error."""
-    from autosar_cli.sar.residual_motion import AutofocusOptions, autofocus_residual_motion
+    from autosar_cli.sar.autofocus_stage import autofocus_residual_motion
+    from autosar_cli.sar.residual_motion import AutofocusOptions
 
     drive, truth = test1_drive
     track = truth.trajectory
@@ -499,8 +500,9 @@ def test_every_read_of_the_radar_clock_is_kept_with_whether_it_was_applied(monke
     kept (run.json's ``radar_clock.reads``), so a read that was not applied is not mistaken for the drive's."""
     from conftest import stop_and_go
 
-    from autosar_cli.sar import residual_motion
+    from autosar_cli.sar import autofocus_stage
     from autosar_cli.sar.pass_ranges import _refused
+    from autosar_cli.sar.residual_motion import ResidualMotion
 
     traj, _ = stop_and_go()
     read = [(0.019, 0.002, True), (0.0012, 0.0007, False)]
@@ -512,14 +514,14 @@ def test_every_read_of_the_radar_clock_is_kept_with_whether_it_was_applied(monke
         return replace(_refused(on_clock, 0, ""), radar_clock_offset_s=o, radar_clock_offset_std_s=e,
                        radar_clock_applied=a)
 
-    monkeypatch.setattr(residual_motion, "estimate_slow_motion", again)
+    monkeypatch.setattr(autofocus_stage, "estimate_slow_motion", again)
     first = replace(_refused(traj, 0, ""), radar_clock_offset_s=0.010, radar_clock_offset_std_s=0.002,
                     radar_clock_applied=True)
-    late_s, reads = residual_motion.radar_clock_rereads("drive.h5", traj, CFG, np.zeros((0, 3)), None, PassOptions(),
+    late_s, reads = autofocus_stage.radar_clock_rereads("drive.h5", traj, CFG, np.zeros((0, 3)), None, PassOptions(),
                                                         first)
     assert late_s == pytest.approx(0.029)
     assert shifts == [10_000_000, 29_000_000]
     assert reads == ((0.010, 0.002, True), (0.019, 0.002, True), (0.0012, 0.0007, False))
-    motion = residual_motion.ResidualMotion(traj, None, np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0), 0.0, 0.0,
-                                            0.0, 0, radar_clock_offset_s=late_s, radar_clock_reads=reads)
+    motion = ResidualMotion(traj, None, np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0), 0.0, 0.0, 0.0, 0,
+                            radar_clock_offset_s=late_s, radar_clock_reads=reads)
     assert motion.to_dict()["radar_clock"]["reads"][2] == {"offset_s": 0.0012, "std_s": 0.0007, "applied": False}

@@ -18,12 +18,12 @@ from autosar_cli.evaluate.evaluation import load_truth
 from autosar_cli.nav.trajectory import cumulative_travel, phase_centre_lever_arm
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.sar.phase_history import PhaseHistories, frame_geometry, gather_phase_histories
+from autosar_cli.sar.point_selection import select_points
 from autosar_cli.sar.residual_motion import (
     AutofocusOptions,
     _fit,
     _measured_noise,
     estimate_residual_motion,
-    select_points,
     with_scale_prior,
 )
 from autosar_cli.store.trajectory import read_trajectory, write_trajectory
@@ -177,7 +177,7 @@ def test_each_point_is_weighed_by_its_own_noise(ci_drive: tuple[Path, Trajectory
 
 def _reflector_points(drive: Path, truth: Trajectory) -> np.ndarray:
     """Candidate points from the truth track's own first image (the same selection the product makes)."""
-    from autosar_cli.sar.residual_motion import candidate_points
+    from autosar_cli.sar.point_selection import candidate_points
 
     return candidate_points(drive, truth, CFG, FocusOptions.from_config(CFG), AutofocusOptions())
 
@@ -559,7 +559,7 @@ def test_a_rough_roads_motion_does_not_take_the_track_scale(tmp_path: Path) -> N
     from autosar_cli.evaluate.trajectory_metrics import radar_track_scale
     from autosar_cli.ingest.pipeline import ingest
     from autosar_cli.nav.navigate import navigate
-    from autosar_cli.sar.residual_motion import autofocus_residual_motion
+    from autosar_cli.sar.autofocus_stage import autofocus_residual_motion
     from autosar_cli.sim.simulate import simulate
     from autosar_cli.store.drive import radar_times
 

@@ -63,9 +63,9 @@ from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm, with_
 from autosar_cli.run import FORMAT as RUN_FORMAT
 from autosar_cli.run import FORMAT_VERSION as RUN_FORMAT_VERSION
 from autosar_cli.sar.autofocus import TrackAutofocus, estimate_track_scale, scale_track
+from autosar_cli.sar.autofocus_stage import autofocus_residual_motion
 from autosar_cli.sar.focus import FocusOptions, auto_grid, focus_images, unfocused_radars
 from autosar_cli.sar.grid import FocusGrid
-from autosar_cli.sar.residual_motion import autofocus_residual_motion
 from autosar_cli.sim.truth import truth_radar_mismatch
 from autosar_cli.store.drive import Drive, radar_times
 from autosar_cli.store.image import write_image
@@ -79,7 +79,7 @@ DEFAULT_METHODS = ("none", "ins", "sar-min", "truth")
 #: SAR-MIN with its track's scale measured by the radar on the corner reflectors (sar/autofocus.py); it needs the
 #: truth's reflector list to know where they are, and costs ~20 wide-beam focusings
 SARMIN_SCALED = "sar-min+scale"
-#: SAR-MIN corrected by the residual-motion autofocus (sar/residual_motion.py) on the bright isolated points of its
+#: SAR-MIN corrected by the residual-motion autofocus (sar/autofocus_stage.py) on the bright isolated points of its
 #: own image: no truth needed
 SARMIN_AUTOFOCUS = "sar-min+af"
 DERIVED = (SARMIN_SCALED, SARMIN_AUTOFOCUS)  # made from SAR-MIN's track, which is navigated for them

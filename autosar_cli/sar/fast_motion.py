@@ -7,7 +7,7 @@ takes it, above ``cut_hz``, from many scatterers over the whole swath, after tha
 
 * the scatterers: local maxima of the autofocus's first image out to the radar's range, two per 1.5 m of
   travel in each of its bands, within 25 dB of the most reflective, holding 10 % of their 7 x 7 neighbourhood
-  (:func:`~autosar_cli.sar.residual_motion.select_points` with looser limits);
+  (:func:`~autosar_cli.sar.point_selection.select_points` with looser limits);
 * each one's history over +-28 deg (two channels, :mod:`autosar_cli.sar.phase_history`), low-passed along the
   pulses (31-pulse Hann) and taken every 10 pulses. A pulse's range sample holds every scatterer at that range in
   the real beam; for a point on a wall, the wall's mirror image about broadside is one, at twice the point's

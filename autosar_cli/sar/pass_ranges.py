@@ -8,7 +8,7 @@ falls by metres while the car moves along. The range then measures the track's m
 angle and no phase: along the track through the line of sight's forward component (up to sin 70 deg), across it
 through the rest.
 
-* the points: the first image's (:func:`~autosar_cli.sar.residual_motion.candidate_points`), their echoes over
+* the points: the first image's (:func:`~autosar_cli.sar.point_selection.candidate_points`), their echoes over
   +-``half_beam_deg`` (:func:`~autosar_cli.sar.phase_history.gather_phase_histories`);
 * every ``block_s`` of a point's pulses summed coherently along the track's predicted phase, and the peak of that
   sum's range envelope (:func:`~autosar_cli.sar.phase_history.range_offsets`): how much longer the point's
@@ -129,7 +129,7 @@ class PassOptions:
     #: ... and moves the track by at least this much at its fastest (m)
     radar_clock_min_effect_m: float = 0.002
     #: the autofocus reads the passes again along the track on the radar's clock so measured, at most this many
-    #: times (:func:`~autosar_cli.sar.residual_motion.radar_clock_rereads`)
+    #: times (:func:`~autosar_cli.sar.autofocus_stage.radar_clock_rereads`)
     radar_clock_rereads: int = 3
 
     @classmethod

@@ -52,6 +52,13 @@ class PhaseHistories:
     slope_hz_per_s: float = math.nan  #: the chirp's slope (the stream's own, as focus takes it)
 
 
+def histories_of(hist: PhaseHistories, used: NDArray[np.bool_]) -> tuple[PhaseHistories, NDArray[np.bool_]]:
+    """The histories of the ``used`` (P,) points' pulses only, and the mask of those pulses."""
+    keep = used[hist.point]
+    return dataclasses.replace(hist, point=hist.point[keep], frame=hist.frame[keep], bin0=hist.bin0[keep],
+                               samples=hist.samples[keep]), keep
+
+
 def frame_geometry(traj: Trajectory, t_ns: NDArray[np.int64], config: Config) -> tuple[Array, Array, Array]:
     """Mean phase centre (F, 3), unit across-track vector towards the radar side (F, 3), unit along (F, 3)."""
     centre = traj.body_points(t_ns, phase_centre_lever_arm(config)[None])[:, 0]

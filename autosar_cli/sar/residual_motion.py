@@ -8,8 +8,8 @@ phase-gradient autofocus (Wahl et al. 1994), but solved for a correction of the 
 (generalised PGA, as in torchbp; "Residual Motion Compensation in Automotive MIMO SAR Imaging", RadarConf 2022):
 
 * the points: the brightest isolated point-like pixels 3-12 m from the track in a first image along the
-  navigated track (:func:`select_points`), about one per ``point_spacing_m`` of travel, and as many again 12-16 m
-  out, which measure the motion but not the scale;
+  navigated track (:func:`~autosar_cli.sar.point_selection.select_points`), about one per ``point_spacing_m`` of
+  travel, and as many again 12-16 m out, which measure the motion but not the scale;
 * their histories over a wide beam (+-28 deg), each pulse's channels summed, ``presum`` pulses summed after
   compensation (:func:`gather_phase_histories` keeps a few range bins per pulse and channel, so the iterations do
   not read the radar again);
@@ -39,39 +39,31 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from autosar_cli.config import Config
-from autosar_cli.nav.trajectory import (
-    phase_centre_lever_arm,
-    radar_track,
-    track_scale_std,
-    with_mounting_yaw,
-    zero_doppler_times,
-)
+from autosar_cli.nav.trajectory import radar_track, track_scale_std
 from autosar_cli.sar.autofocus import scale_track
-from autosar_cli.sar.channel_calibration import ChannelCalibration, measure_channel_gains, with_stated_gains
+from autosar_cli.sar.channel_calibration import ChannelCalibration
 from autosar_cli.sar.channel_gains import ChannelGains
-from autosar_cli.sar.fast_motion import FastMotion, FastMotionOptions, closest_approach_ns, fast_motion
+from autosar_cli.sar.fast_motion import FastMotion
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.sar.normal_equations import factor_normal, node_difference, node_posterior_std
-from autosar_cli.sar.pass_ranges import PassOptions, SlowMotion, estimate_slow_motion, pass_histories, with_correction
+from autosar_cli.sar.pass_ranges import SlowMotion
 from autosar_cli.sar.phase_history import (
     PhaseHistories,
-    channel_phase,
     focus_history,
     frame_geometry,
     gather_phase_histories,
+    histories_of,
     narrow_histories,
     pair_antennas,
     range_offsets,
 )
-from autosar_cli.store.drive import radar_times
-from autosar_cli.types import FocusGrid, MotionCorrection, Trajectory
+from autosar_cli.types import MotionCorrection, Trajectory
 
 Array = NDArray[np.float64]
 
@@ -82,13 +74,18 @@ Array = NDArray[np.float64]
 NAV_SCALE_STD_FACTOR = 2.0
 
 #: Range bins kept beyond the phases' window on either side where their histories are narrowed from the passes'
-#: (:func:`residual_motion_of_points`): room for the slow motion's change of each pulse's path.
+#: (:func:`~autosar_cli.sar.autofocus_stage.residual_motion_of_points`): room for the slow motion's change of each
+#: pulse's path.
 NARROWING_SLACK_BINS = 6
 
 #: Probability of the points' agreement test on the track scale (:func:`_agreement_limit`): a scale that the points
 #: disagree on by more is not the track's (urban seed 0: reduced chi-square 80 over 10 points, the scale -0.12 % where
 #: the truth says 0; test3 seed 2: 1.5 over 5, test1 seed 0: 0.5 over 4).
 SCALE_AGREEMENT_PROBABILITY = 0.999
+
+#: a boresight further than this (deg) from the stated one is no mounting error: points that all cross the beam
+#: alike (:func:`~autosar_cli.sar.autofocus_stage.autofocus_residual_motion`)
+MAX_MOUNTING_YAW_DEG = 5.0
 
 
 @dataclass(frozen=True)
@@ -200,7 +197,8 @@ def _presum(hist: PhaseHistories, z: NDArray[np.complex128], los: Array, presum:
 
 @dataclass(frozen=True)
 class ResidualMotion:
-    """Result of :func:`estimate_residual_motion` / :func:`autofocus_residual_motion`."""
+    """Result of :func:`estimate_residual_motion` /
+    :func:`~autosar_cli.sar.autofocus_stage.autofocus_residual_motion`."""
 
     trajectory: Trajectory  #: the input with its correction (unchanged where ``reason`` says why not)
     #: what the radar data measured (None where refused); the trajectory's correction is this plus the one the
@@ -235,20 +233,22 @@ class ResidualMotion:
     moving_points_enu: Array = field(default_factory=lambda: np.zeros((0, 3)))
     moving_channel_phase_rad: Array = field(default_factory=lambda: np.zeros(0))
     #: the radar's boresight (deg, from ``radar.mounting.yaw_deg``) that would put every moving point's channel phase
-    #: at 0, where they agree on one (:func:`mounting_yaw_agreed`): a still scene seen through a radar mounted
-    #: otherwise than stated shows as points that all cross the beam alike; None where they do not agree. Taken
-    #: for a mounting error (and the autofocus run along it) only within ``MAX_MOUNTING_YAW_DEG``
+    #: at 0, where they agree on one (:func:`~autosar_cli.sar.autofocus_stage.mounting_yaw_agreed`): a still scene
+    #: seen through a radar mounted otherwise than stated shows as points that all cross the beam alike; None where
+    #: they do not agree. Taken for a mounting error (and the autofocus run along it) only within
+    #: ``MAX_MOUNTING_YAW_DEG``
     moving_mounting_yaw_deg: float | None = None
     #: the radar's boresight (deg, ``radar.mounting.yaw_deg``'s convention) the points were fitted along, where the
-    #: stated one left them all moving and the one they agreed on let them fit (:func:`autofocus_residual_motion`):
-    #: the corrected trajectory's ``info`` carries it, and focus takes it; None: the stated one
+    #: stated one left them all moving and the one they agreed on let them fit
+    #: (:func:`~autosar_cli.sar.autofocus_stage.autofocus_residual_motion`): the corrected trajectory's ``info``
+    #: carries it, and focus takes it; None: the stated one
     radar_mounting_yaw_deg: float | None = None
     #: the radar's channel gains measured first (:mod:`autosar_cli.sar.channel_calibration`); where applied, every
     #: read after it, and the image focused along ``trajectory``, undo them
     channel_calibration: ChannelCalibration | None = None
     #: how late (s) the radar's frame stamps run on the navigation's clock, as the points' passes measured it and
-    #: read again along the track so shifted (:func:`radar_clock_rereads`); ``trajectory`` is on the radar's clock
-    #: by this much (0: on the navigation's)
+    #: read again along the track so shifted (:func:`~autosar_cli.sar.autofocus_stage.radar_clock_rereads`);
+    #: ``trajectory`` is on the radar's clock by this much (0: on the navigation's)
     radar_clock_offset_s: float = 0.0
     #: each read's measured offset (s), its std (s) and whether it was applied, the first read first (empty where
     #: the passes fitted no clock): what a read not applied showed is kept too
@@ -379,13 +379,6 @@ class _Linear:
     range_design: sp.csr_matrix | None = None  #: (Q, unknowns): its change with the increment
 
 
-def _histories_of(hist: PhaseHistories, used: NDArray[np.bool_]) -> tuple[PhaseHistories, NDArray[np.bool_]]:
-    """The histories of the ``used`` (P,) points' pulses only, and the mask of those pulses."""
-    keep = used[hist.point]
-    return replace(hist, point=hist.point[keep], frame=hist.frame[keep], bin0=hist.bin0[keep],
-                   samples=hist.samples[keep]), keep
-
-
 def _phase_steps(smp: _Samples, used: NDArray[np.bool_]) -> tuple[NDArray[np.int64], Array]:
     """The first sample's index of each step between successive valid samples of a used point, and the step (rad,
     wrapped)."""
@@ -437,8 +430,9 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
     """The correction of ``trajectory`` that makes the phase histories of the points ``points_enu`` (P, 3) (ENU m,
     where ``trajectory`` focuses them) coherent; see the module's docstring. ``unscaled``: where the points do not
     measure the scale, the motion is fitted along this trajectory instead, the points (P, 3) where it focuses them
-    (the passes' stretch, :func:`residual_motion_of_points`), on the same histories. ``histories``: the points'
-    histories over a wider beam and window along a track near ``trajectory``, narrowed here
+    (the passes' stretch, :func:`~autosar_cli.sar.autofocus_stage.residual_motion_of_points`), on the same
+    histories. ``histories``: the points' histories over a wider beam and window along a track near ``trajectory``,
+    narrowed here
     (:func:`~autosar_cli.sar.phase_history.narrow_histories`) instead of read again."""
     focus = focus or FocusOptions.from_config(config)
     opts = with_scale_prior(opts or AutofocusOptions(), trajectory)
@@ -555,7 +549,7 @@ def _phase_rms(hist: PhaseHistories, trajectory: Trajectory, config: Config, poi
                used: NDArray[np.bool_], presum: int) -> Array:
     """Each used point's (P,) phase residual (rad RMS of its presummed phase steps) along ``trajectory`` as it is,
     with no fit (inf for the others); ``points_enu`` (P, 3) ENU m."""
-    h, _ = _histories_of(hist, used)
+    h, _ = histories_of(hist, used)
     z, los = focus_history(h, *pair_antennas(h, trajectory, config), points_enu)
     smp = _presum(h, z, los, presum, int(trajectory.t_ns[0]), np.zeros((len(h.frame_t_ns), 3)))
     a_idx, step = _phase_steps(smp, used)
@@ -567,7 +561,6 @@ def _phase_rms(hist: PhaseHistories, trajectory: Trajectory, config: Config, poi
 
 def _ground_distance(trajectory: Trajectory, config: Config, points_enu: Array) -> Array:
     """Each point's (P, 3) (ENU m) horizontal distance (m) from the radar's track."""
-    from autosar_cli.nav.trajectory import radar_track
 
     track = radar_track(trajectory, trajectory.t_ns, config)[:, :2]
     return np.array([float(np.min(np.hypot(*(track - p[:2]).T))) for p in points_enu])
@@ -660,7 +653,7 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
         """The histories and antennas of the used points' pulses only (a dropped point costs nothing more)."""
         key = used.tobytes()
         if key not in active_cache:
-            h, keep = _histories_of(hist, used)
+            h, keep = histories_of(hist, used)
             active_cache.clear()
             active_cache[key] = (h, tx0[keep], rx0[keep])
         return active_cache[key]
@@ -849,345 +842,3 @@ def _point_scale_chi2(lin: _Linear, w: Array, shift0: int, used: NDArray[np.bool
         if cov[0, 0] > 0:
             z2.append(dx[0] ** 2 / cov[0, 0])
     return (float(np.mean(z2)), len(z2)) if z2 else (1.0, 0)
-
-
-@dataclass(frozen=True)
-class ImagePeaks:
-    """What :func:`select_points` measures on a first image's pixels, whatever its bands and limits."""
-
-    intensity: Array  #: |z|^2
-    local_max: NDArray[np.bool_]  #: the brightest within 1 m
-    concentration: Array  #: the share of the 7 x 7 pixels' intensity around it
-
-    @classmethod
-    def of(cls, image: NDArray[np.complexfloating], grid: FocusGrid) -> ImagePeaks:
-        from scipy.ndimage import maximum_filter, uniform_filter
-
-        intensity = np.abs(np.asarray(image).astype(np.complex128)) ** 2
-        size = max(3, 2 * int(round(0.5 / grid.pixel_m)) + 1)
-        local_max = (intensity == maximum_filter(intensity, size=size)) & (intensity > 0.0)
-        concentration = intensity / np.maximum(uniform_filter(intensity, size=7) * 49.0, np.finfo(np.float64).tiny)
-        return cls(intensity, local_max, concentration)
-
-
-def select_points(image: NDArray[np.complexfloating], grid: FocusGrid, range_m: Array, opts: AutofocusOptions,
-                  *, band_m: tuple[float, float] | None = None, per_segment: int = 2, min_concentration: float = 0.2,
-                  within_db: float = 15.0, peaks: ImagePeaks | None = None) -> Array:
-    """Bright, isolated, point-like pixels (P, 3) (ENU m, on the grid's plane) of a first image for the phase
-    histories: local maxima (within 1 m) between ``band_m`` (default ``opts.min_range_m``, ``opts.max_range_m``)
-    from the track (``range_m``, per pixel) that hold ``min_concentration`` of the intensity of the 7 x 7 pixels
-    around them, ranked by |z|^2 R^2 (reflectivity, not nearness); of those within ``within_db`` of the most
-    reflective, the ``per_segment`` best in every ``opts.point_spacing_m`` of the grid's along axis. ``peaks``:
-    ``image``'s, where already measured (:class:`ImagePeaks`).
-
-    Why reflectivity: in the simulated scenes and on real roads, corner reflectors, poles and sign posts stand
-    10 dB or more above the brightest speckle of distributed clutter, whose peak-to-background ratio alone does
-    not tell it apart (test1: 28-30 dB for both). A point that is not a point scatterer after all is dropped by its
-    phase fit."""
-    peaks = peaks or ImagePeaks.of(image, grid)
-    low, high = band_m or (opts.min_range_m, opts.max_range_m)
-    score = np.where(peaks.local_max & (range_m >= low) & (range_m <= high)
-                     & (peaks.concentration >= min_concentration), peaks.intensity * range_m**2, 0.0)
-    if not np.any(score > 0):
-        return np.zeros((0, 3))
-    score[score < score.max() * 10 ** (-within_db / 10)] = 0.0
-    cols = max(1, int(round(opts.point_spacing_m / grid.pixel_m)))
-    # the best per_segment of each segment's scored pixels: by segment, then by score, highest first
-    r, c = np.nonzero(score > 0)
-    segment = c // cols
-    order = np.lexsort((-score[r, c], segment))
-    r, c, segment = r[order], c[order], segment[order]
-    keep = np.arange(len(segment)) - np.searchsorted(segment, segment) < per_segment
-    return grid.pixel_enu(r[keep], c[keep])
-
-
-def candidate_points(drive_path: str | Path, trajectory: Trajectory, config: Config, focus: FocusOptions,
-                     opts: AutofocusOptions, **select: Any) -> Array:
-    """:func:`select_points` (``select``: its keyword options) on a first image along ``trajectory``: the product's
-    grid, but only out to ``opts.max_range_m`` + 1 m, at twice the product's resolution and 1.5 times its pixel,
-    from ``opts.channels`` channels (on test2 1/45 of the product's back-projections, and a quarter of its range
-    compression; the fit refines each point's position)."""
-    return points_and_scatterers(drive_path, trajectory, config, focus, opts, None, **select)[0]
-
-
-def points_and_scatterers(drive_path: str | Path, trajectory: Trajectory, config: Config, focus: FocusOptions,
-                          opts: AutofocusOptions, fast: FastMotionOptions | None, **select: Any
-                          ) -> tuple[Array, Array, NDArray[np.int64]]:
-    """The autofocus's points (:func:`candidate_points`) and, unless ``fast`` is None, the fast-motion stage's
-    scatterers (:mod:`autosar_cli.sar.fast_motion`) on one first image out to the radar's range. The grid's rows
-    start at the track whatever its range, and the pixels within ``opts.max_range_m`` + 1 m hold the same values as
-    on the shorter image (only the last rows, where its range cuts pulses off, differ), so the points are those of
-    :func:`candidate_points`: (P, 3) and (S, 3), ENU m, and the scatterers' closest approach (S,) (ns)."""
-    from autosar_cli.sar.focus import auto_grid, focus_images
-    from autosar_cli.sar.grid import track_distance
-
-    def ranged(max_range_m: float) -> Config:
-        return replace(config, radar=replace(config.radar, max_range_m=min(config.radar.max_range_m, max_range_m)))
-
-    near = ranged(opts.max_range_m + 1.0)
-    far = config if fast is not None else near
-    coarse = replace(focus, resolution_m=2.0 * focus.resolution_m, pixel_m=1.5 * focus.pixel_m, channels=opts.channels)
-    grid = auto_grid(drive_path, trajectory, far, coarse)
-    image = focus_images(drive_path, trajectory, far, coarse, grids=[grid]).images[0].image
-    t_radar = radar_times(drive_path, focus.radar, focus.radar_clock_offset_s, focus.radar_clock_drift_ppm)
-    t_radar = t_radar[(t_radar >= trajectory.t_ns[0]) & (t_radar <= trajectory.t_ns[-1])]
-    # every 8th pulse (~3 cm apart at 30 km/h): the distance of a pixel 3 m away is off by < 0.1 mm
-    track = radar_track(trajectory, t_radar[::8], config)
-    distance = track_distance(grid, track)
-    rows = auto_grid(drive_path, trajectory, near, coarse).n_across if fast is not None else grid.n_across
-    # the scale's points as they would be alone, and the motion's beyond them (ranked by reflectivity, the farther
-    # would take the nearer's places)
-    bands = [(opts.min_range_m, opts.scale_max_range_m), (opts.scale_max_range_m, opts.max_range_m)]
-    near_peaks = ImagePeaks.of(image[:rows], grid)
-    points = np.concatenate([select_points(image[:rows], grid, distance[:rows], opts, band_m=b, peaks=near_peaks,
-                                           **select) for b in bands if b[1] > b[0]])
-    scatterers, t_zero = np.zeros((0, 3)), np.zeros(0, np.int64)
-    if fast is not None:
-        wide = replace(opts, max_range_m=config.radar.max_range_m - 1.0)
-        bands = [(wide.min_range_m, wide.scale_max_range_m), (wide.scale_max_range_m, wide.max_range_m)]
-        far_peaks = ImagePeaks.of(image, grid)
-        scatterers = np.concatenate([select_points(image, grid, distance, wide, band_m=b, per_segment=fast.per_segment,
-                                                   min_concentration=fast.min_concentration,
-                                                   within_db=fast.within_db, peaks=far_peaks) for b in bands])
-        if len(scatterers):
-            t_zero = closest_approach_ns(track, t_radar[::8], scatterers)
-            scatterers[:, 2] += trajectory.height_offset(t_zero)
-    if len(points):  # on the focusing surface, as focus put them (sar.focus)
-        points[:, 2] += trajectory.height_offset(zero_doppler_times(trajectory, points, config, t_radar))
-    return points, scatterers, t_zero
-
-
-def autofocus_residual_motion(drive_path: str | Path, trajectory: Trajectory, config: Config,
-                              focus: FocusOptions | None = None, opts: AutofocusOptions | None = None,
-                              passes: PassOptions | None = None, fast: FastMotionOptions | None = None
-                              ) -> ResidualMotion:
-    """``trajectory`` corrected by the residual motion its own image's bright points (:func:`candidate_points`)
-    measure, with no truth (:func:`residual_motion_of_points`), then, unless ``opts.fast_motion`` is off, by the
-    fast across-track motion that many scatterers measure along that track (:mod:`autosar_cli.sar.fast_motion`;
-    ``fast``: its options).
-
-    Where that refuses because every point it used crossed the beam alike, at a phase a radar boresight within
-    ``MAX_MOUNTING_YAW_DEG`` of the stated would give (``moving_mounting_yaw_deg``), it runs once more along that
-    boresight, and keeps that run where its points fit as still ones (``radar_mounting_yaw_deg``)."""
-    result = _autofocus_along(drive_path, trajectory, config, focus, opts, passes, fast)
-    yaw = result.moving_mounting_yaw_deg
-    if result.applied or yaw is None or abs(yaw) > MAX_MOUNTING_YAW_DEG:
-        return result
-    boresight = config.radar.mounting.yaw_deg + yaw
-    turned = _autofocus_along(drive_path, trajectory, with_mounting_yaw(config, boresight), focus, opts, passes,
-                              fast)
-    return replace(turned, radar_mounting_yaw_deg=boresight) if turned.applied else result
-
-
-def _autofocus_along(drive_path: str | Path, trajectory: Trajectory, config: Config, focus: FocusOptions | None,
-                     opts: AutofocusOptions | None, passes: PassOptions | None, fast: FastMotionOptions | None
-                     ) -> ResidualMotion:
-    """:func:`autofocus_residual_motion` along the radar mounting ``config`` states."""
-    focus = with_stated_gains(drive_path, focus or FocusOptions.from_config(config))
-    opts = opts or AutofocusOptions.from_config(config)
-    passes = passes or PassOptions.from_config(config)
-    fast = (fast or FastMotionOptions()) if opts.fast_motion else None
-    points, scatterers, t_zero = points_and_scatterers(drive_path, trajectory, config, focus, opts, fast)
-    calibration = measure_channel_gains(drive_path, trajectory, config, points, focus) if opts.channel_gains \
-        else None
-    if calibration is not None and calibration.applied:  # every read from here on undoes them
-        focus = replace(focus, channel_gains=calibration.gains)
-    result = replace(residual_motion_of_points(drive_path, trajectory, config, points, focus, opts, passes),
-                     channel_calibration=calibration)
-    late_s, reads = radar_clock_rereads(drive_path, trajectory, config, points, focus, passes,
-                                        result.slow_motion)
-    result = replace(result, radar_clock_reads=reads)
-    if late_s:  # the motion along the track on the radar's clock, its points where that track puts them
-        on_clock = trajectory.on_radar_clock(int(round(late_s * 1e9)))
-        result = replace(residual_motion_of_points(drive_path, on_clock, config,
-                                                   _moved(points, trajectory, on_clock, config), focus, opts,
-                                                   passes),
-                         channel_calibration=calibration, radar_clock_offset_s=late_s, radar_clock_reads=reads)
-    if fast is None or not result.applied:
-        return result
-    if len(scatterers) == 0:
-        return replace(result, fast_motion=FastMotion(None, 0, 0, 0.0, "no bright scatterer in the first image"))
-    # each scatterer where the corrected track focuses it
-    moved = moved_with_track(scatterers, t_zero, trajectory, result.trajectory, config)
-    histories = gather_phase_histories(drive_path, result.trajectory, config, moved, focus,
-                                       half_beam_deg=fast.half_beam_deg, window_bins=fast.window_bins,
-                                       channels=fast.channels)
-    stage = fast_motion(histories, result.trajectory, config, moved, fast)
-    if not stage.applied:
-        return replace(result, fast_motion=stage)
-    assert stage.correction is not None
-    return replace(result, trajectory=with_correction(result.trajectory, stage.correction), fast_motion=stage)
-
-
-def moved_with_track(points: Array, t_zero: NDArray[np.int64], before: Trajectory, after: Trajectory,
-                     config: Config) -> Array:
-    """``points`` (P, 3) (ENU m, where ``before`` focuses them) moved as the radar moved from ``before`` to
-    ``after`` at their closest approach ``t_zero`` (P,) (ns)."""
-    lever = phase_centre_lever_arm(config)[None]
-    return points + (after.body_points(t_zero, lever)[:, 0] - before.body_points(t_zero, lever)[:, 0])
-
-
-def _moved(points: Array, before: Trajectory, after: Trajectory, config: Config) -> Array:
-    """:func:`moved_with_track`, each point's closest approach to ``before``'s radar found here."""
-    if len(points) == 0:
-        return points
-    track = before.body_points(before.t_ns, phase_centre_lever_arm(config)[None])[:, 0, :2]
-    return moved_with_track(points, closest_approach_ns(track, before.t_ns, points), before, after, config)
-
-
-def radar_clock_rereads(drive_path: str | Path, trajectory: Trajectory, config: Config, points: Array,
-                        focus: FocusOptions, passes: PassOptions, slow: SlowMotion | None
-                        ) -> tuple[float, tuple[tuple[float, float, bool], ...]]:
-    """How late (s) the radar's frame stamps run on ``trajectory``'s clock, where the points' passes (``slow``,
-    along ``trajectory``) showed it: each offset shown is added and the passes read again along the track on that
-    clock, until none shows (at most ``passes.radar_clock_rereads`` times); and every read's measured offset (s),
-    std (s) and whether it was applied, the first (``slow``'s) first. An offset moves a point's envelope by its
-    speed times it along the line of sight, so a large one leaves the passes only the blocks near broadside, and
-    the slip gains take the rest (urban 30 ms late: 10 ms on the first read). 0 where none showed."""
-    late_s, reads = 0.0, []
-    while slow is not None and math.isfinite(slow.radar_clock_offset_s):
-        # shown after the last read allowed, it is not added
-        added = slow.radar_clock_applied and len(reads) < passes.radar_clock_rereads
-        reads.append((float(slow.radar_clock_offset_s), float(slow.radar_clock_offset_std_s), bool(added)))
-        if not added:
-            break
-        late_s += slow.radar_clock_offset_s
-        on_clock = trajectory.on_radar_clock(int(round(late_s * 1e9)))
-        slow = estimate_slow_motion(drive_path, on_clock, config, _moved(points, trajectory, on_clock, config), focus,
-                                    passes)
-    return late_s, tuple(reads)
-
-
-def residual_motion_of_points(drive_path: str | Path, trajectory: Trajectory, config: Config, points_enu: Array,
-                              focus: FocusOptions, opts: AutofocusOptions, passes: PassOptions | None = None
-                              ) -> ResidualMotion:
-    """``trajectory`` corrected by what the points ``points_enu`` (P, 3) (ENU m, where ``trajectory`` focuses them)
-    measure: unless ``opts.slow_motion`` is off, the slow motion their ranges give over their passes
-    (:func:`~autosar_cli.sar.pass_ranges.estimate_slow_motion`) less its whole-track stretch, then
-    :func:`estimate_residual_motion` along the track so corrected, which measures the scale where the points agree on
-    it; where they do not, the passes' stretch is kept. A used point whose channels' phase says it moves
-    (``opts.max_channel_phase_rad``) is left out and the rest fitted again."""
-    points = np.asarray(points_enu, dtype=np.float64).reshape(-1, 3)
-    passes = passes or PassOptions.from_config(config)
-    # one read of the radar for both: the passes' histories, their windows wide enough that the phases' fit the
-    # shape correction's change of path (test2 seed 1's, 32 mm at most, moves them by ~1 bin of the 6 kept)
-    histories = (pass_histories(drive_path, trajectory, config, points, focus, passes,
-                                min_window_bins=opts.window_bins + 2 * NARROWING_SLACK_BINS)
-                 if opts.slow_motion and len(points) and passes.channels == opts.channels
-                 and passes.half_beam_deg >= opts.half_beam_deg else None)
-    moving_enu, moving_phase, moving_yaw = np.zeros((0, 3)), np.zeros(0), np.zeros(0)
-    for _ in range(3):  # a point left out may leave another one used
-        result = _points_motion(drive_path, trajectory, config, points, focus, opts, passes, histories)
-        moving, phase, yaw = _moving_used(drive_path, result, config, focus, opts, histories)
-        if not moving.any():
-            break
-        moving_enu = np.concatenate([moving_enu, result.points_enu[moving]])
-        moving_phase = np.concatenate([moving_phase, phase[moving]])
-        moving_yaw = np.concatenate([moving_yaw, yaw[moving]])
-        points = points[~moving]
-        histories = _histories_without(histories, ~moving) if histories is not None else None
-    if not len(moving_enu):
-        return result
-    result = replace(result, moving_points_enu=moving_enu, moving_channel_phase_rad=moving_phase,
-                     moving_mounting_yaw_deg=mounting_yaw_agreed(moving_yaw))
-    # where too few still points remain, the moving ones are the reason too
-    return replace(result, reason=result.reason + result._moving_summary()) if result.reason else result
-
-
-def _moving_used(drive_path: str | Path, result: ResidualMotion, config: Config, focus: FocusOptions,
-                 opts: AutofocusOptions, histories: PhaseHistories | None
-                 ) -> tuple[NDArray[np.bool_], Array, Array]:
-    """Which of ``result``'s candidate points a fit used (the phases' or the slow motion's) and moves across the
-    beam (``opts.max_channel_phase_rad``, ``opts.min_channel_coherence``), every point's channel phase (rad; 0
-    where not measured), along the track ``result`` made: over +-``opts.half_beam_deg``, narrowed from
-    ``histories`` where given, else read; and the radar boresight (deg from the stated) at which each moving one's
-    channel phase would be 0 (:func:`mounting_yaw_of_phase`; NaN for the others)."""
-    points = result.points_enu
-    used = np.asarray(result.points_used, dtype=bool).copy()
-    slow = result.slow_motion
-    if slow is not None and slow.applied and len(slow.points_used) == len(points):
-        used |= slow.points_used
-    if opts.max_channel_phase_rad is None or not used.any() or not result.applied:
-        return np.zeros(len(points), dtype=bool), np.zeros(len(points)), np.full(len(points), np.nan)
-    track = result.trajectory
-    if histories is not None:
-        hist = narrow_histories(histories, track, config, points, focus, half_beam_deg=opts.half_beam_deg,
-                                window_bins=opts.window_bins)
-    else:
-        hist = gather_phase_histories(drive_path, track, config, points, focus, half_beam_deg=opts.half_beam_deg,
-                                      window_bins=opts.window_bins, channels=opts.channels)
-    phase, coherence = channel_phase(hist, *pair_antennas(hist, track, config), points, len(points))
-    moving = used & (np.abs(phase) > opts.max_channel_phase_rad) & (coherence >= opts.min_channel_coherence)
-    yaw = np.full(len(points), np.nan)
-    if moving.any():
-        yaw[moving] = mounting_yaw_of_phase(hist, track, config, points, phase)[moving]
-    return moving, phase, yaw
-
-
-#: a boresight further than this (deg) from the stated one is no mounting error: points that all cross the beam
-MAX_MOUNTING_YAW_DEG = 5.0
-#: the moving points' boresights agree where their spread (a robust std, deg) is at most this
-MOUNTING_YAW_AGREE_DEG = 0.5
-
-
-def mounting_yaw_of_phase(hist: PhaseHistories, track: Trajectory, config: Config, points: Array, phase: Array
-                          ) -> Array:
-    """Per point (P,), the radar boresight (deg from ``config.radar.mounting.yaw_deg``) at which its channel phase
-    (:func:`~autosar_cli.sar.phase_history.channel_phase`, ``phase`` (P,) rad along the stated mounting) would be 0:
-    the virtual array's ends turn with the radar, so the phase a still point shows is linear in the boresight's
-    error (0.3 rad per deg on test1-3's, 45 deg off the direction of motion); its slope is measured here by turning
-    the stated mounting by 1 deg (NaN where that moves no phase)."""
-    turned = with_mounting_yaw(config, config.radar.mounting.yaw_deg + 1.0)
-    per_deg = np.angle(np.exp(1j * (channel_phase(hist, *pair_antennas(hist, track, turned), points, len(points))[0]
-                                    - phase)))
-    return np.divide(-phase, per_deg, out=np.full(len(phase), np.nan), where=np.abs(per_deg) > 1e-6)
-
-
-def mounting_yaw_agreed(yaw_deg: Array) -> float | None:
-    """The boresight error (deg) that the moving points' own (``yaw_deg``, :func:`mounting_yaw_of_phase`) agree on:
-    their median, where at least two give one, within ``MOUNTING_YAW_AGREE_DEG`` (a robust std: 1.4826 times their
-    median absolute deviation); else None. Points crossing the beam alike agree too (a whole column walking at one
-    speed), at a phase a mounting error of a few degrees does not give (test_moving_scatterers: 2.7-3.0 rad, ~9 deg):
-    :func:`autofocus_residual_motion` takes one for a mounting error only within ``MAX_MOUNTING_YAW_DEG``."""
-    yaw = np.asarray(yaw_deg, dtype=np.float64)
-    yaw = yaw[np.isfinite(yaw)]
-    if len(yaw) < 2:
-        return None
-    median = float(np.median(yaw))
-    spread = 1.4826 * float(np.median(np.abs(yaw - median)))  # a std that one point of another kind does not move
-    return median if spread <= MOUNTING_YAW_AGREE_DEG else None
-
-
-def _histories_without(hist: PhaseHistories, keep: NDArray[np.bool_]) -> PhaseHistories:
-    """``hist`` with only the ``keep`` (P,) points' pulses, the points numbered as the kept ones are."""
-    sub, _ = _histories_of(hist, keep)
-    return replace(sub, point=(np.cumsum(keep) - 1)[sub.point])
-
-
-def _points_motion(drive_path: str | Path, trajectory: Trajectory, config: Config, points: Array,
-                   focus: FocusOptions, opts: AutofocusOptions, passes: PassOptions,
-                   histories: PhaseHistories | None) -> ResidualMotion:
-    """:func:`residual_motion_of_points` without its moving-point test, on the passes' ``histories`` (or None)."""
-    if not opts.slow_motion or len(points) == 0:
-        return estimate_residual_motion(drive_path, trajectory, config, points, focus, opts)
-    slow = estimate_slow_motion(drive_path, trajectory, config, points, focus, passes, histories)
-    if not slow.applied:
-        return replace(estimate_residual_motion(drive_path, trajectory, config, points, focus, opts,
-                                                histories=histories), slow_motion=slow)
-    # the passes' shape, their stretch left to the phases, so that the scale is one, the phases' where their points
-    # agree on it (test2 seeds 0 / 1 / 3: the worst reflector 1.46 / 1.17 / 1.43 cm along the passes' stretch, 1.60 /
-    # 0.56 / 1.60 along the phases'); where they do not, the passes' stretch too, and the points where that track
-    # focuses them
-    assert slow.shape_correction is not None and slow.shape_point_shift_enu is not None
-    result = estimate_residual_motion(drive_path, with_correction(trajectory, slow.shape_correction), config,
-                                      points - slow.shape_point_shift_enu, focus, opts,
-                                      unscaled=(slow.trajectory, points - slow.point_shift_enu), histories=histories)
-    if not (result.scale_note or result.reason):
-        return replace(result, slow_motion=slow)
-    phases = result.scale_note.removeprefix("track scale ") or f"not measured: {result.reason}"
-    # the scale reported is the whole correction's, as the evaluation reads a track's (the stretch, a line weighted by
-    # where the points are, missed SAR-MIN's by 0.026 % RMS on urban at 29 times its std; this by 0.013 % at 3.2)
-    note = (f"track scale {slow.scale * 100:+.4f} ± {slow.scale_std * 100:.4f} % from the points' passes; by "
-            f"their phases {phases}")
-    return replace(result, trajectory=slow.trajectory if result.reason else result.trajectory, slow_motion=slow,
-                   scale=slow.scale, scale_std=slow.scale_std, scale_note=note)
