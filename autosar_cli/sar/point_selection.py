@@ -1,12 +1,8 @@
-"""The autofocus's points: bright, isolated, point-like scatterers picked from a coarse first image.
-
-A corner reflector, a pole or a sign post stands 10 dB or more above the brightest speckle of distributed clutter
-in reflectivity (|z|^2 R^2), while its peak-to-background ratio alone does not tell it apart (test1: 28-30 dB for
-both). So the first image's local maxima are ranked by reflectivity and kept where they hold a share of their
-neighbourhood's energy, a few per stretch of travel (:func:`select_points`): 3-12 m from the track for the scale
-and the motion, 12-16 m for the motion only (:func:`candidate_points`), and, for the fast motion, many more out to
-the radar's range (:func:`points_and_scatterers`). A point that is no point scatterer after all is dropped by its
-fits (:mod:`autosar_cli.sar.residual_motion`, :mod:`autosar_cli.sar.pass_ranges`).
+"""The autofocus's points: bright, isolated, point-like scatterers of a coarse first image along the navigated track,
+ranked by reflectivity (:func:`select_points`): 3-12 m from the track for the scale and the motion, 12-16 m for the
+motion only (:func:`candidate_points`), and, for the fast motion, many more out to the radar's range
+(:func:`points_and_scatterers`). A point that is no point scatterer after all is dropped by its fits
+(:mod:`autosar_cli.sar.residual_motion`, :mod:`autosar_cli.sar.pass_ranges`).
 """
 
 from __future__ import annotations
