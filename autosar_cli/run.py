@@ -4,7 +4,7 @@ run.json.
 The optional autofocus stage corrects the navigated track by what the radar itself measures
 (:func:`autosar_cli.sar.autofocus_stage.autofocus_residual_motion`: the phase-centre motion that makes the phase
 histories of a first image's bright isolated points coherent, and the track's along-track scale where they measure
-it; docs/FOCUS.md). Where it cannot measure, the navigated track is kept and run.json says why.
+it; docs/AUTOFOCUS.md). Where it cannot measure, the navigated track is kept and run.json says why.
 
 run.json (format ``autosar-run`` version 1) records the inputs (path, size), the autosar version, the
 config file, the method and focus parameters, per-stage wall times and summaries, and the outputs
