@@ -41,7 +41,9 @@ benches/results/paper_fits.json. The processor's own [processing] settings other
 ``FastMotionOptions.apply_reliability`` on (at b036e0c, where it was the stage's form):
 benches/results/paper_full_fast_reliability.json. What the processor is told of the radar otherwise than the config
 (``--radar``: entries of [radar], e.g. ``clock_drift_ppm=500.0`` beside ``--simulation radar_clock_drift_ppm=500.0``):
-benches/results/paper_full_car.json, groups "[radar ...]".
+benches/results/paper_full_car.json, groups "[radar ...]". A radar mounted otherwise than the config's, the
+processor told so (``--mounted-radar``: entries of [radar] for both, e.g. ``mounting.yaw_deg=-90.0``): the same file,
+groups "[mounted ...]".
 """
 
 from __future__ import annotations
@@ -327,6 +329,7 @@ def group_key(row: dict[str, Any]) -> str:
             + (f" [{row['navigation']}]" if row.get("navigation") else "")
             + (f" [{row['processing']}]" if row.get("processing") else "")
             + (f" [radar {row['radar']}]" if row.get("radar") else "")
+            + (f" [mounted {row['mounted_radar']}]" if row.get("mounted_radar") else "")
             + (f" [{row['label']}]" if row.get("label") else ""))
 
 
@@ -368,6 +371,9 @@ def main() -> None:
     ap.add_argument("--radar", default=None,
                     help="what the processor is told of the radar differs from the config's: [radar] entries, e.g. "
                          "clock_drift_ppm=500.0 or mounting.yaw_deg=-42.0 (the simulator keeps the config's radar)")
+    ap.add_argument("--mounted-radar", default=None,
+                    help="the radar is mounted otherwise than the config's and the processor is told so: [radar] "
+                         "entries for both, e.g. mounting.yaw_deg=-90.0 (broadside)")
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--keep", action="store_true", help="keep every drive's log and comparison")
     ap.add_argument("--resume", action="store_true", help="keep --output's rows and skip the drives already in it")
@@ -387,13 +393,14 @@ def main() -> None:
                "understeer_gradient": args.understeer_gradient, "rear_slip_gain": args.rear_slip_gain,
                "fits": not args.no_fits, "attitude": not args.planar, "radar_height": args.radar_height,
                "car": args.car, "simulation": args.simulation, "sensors": args.sensors, "navigation": args.navigation,
-               "processing": args.processing, "radar": args.radar, "label": args.label or None}
+               "processing": args.processing, "radar": args.radar, "mounted_radar": args.mounted_radar,
+               "label": args.label or None}
 
     def drive_key(r: dict[str, Any]) -> tuple[Any, ...]:
         return (r["scenario"], r["seed"], r.get("dynamics"), r.get("components"), r.get("understeer_gradient"),
                 r.get("rear_slip_gain"), r.get("fits", True), r.get("attitude", True), r.get("radar_height", False),
                 r.get("car"), r.get("simulation"), r.get("sensors"), r.get("navigation"), r.get("processing"),
-                r.get("radar"), r.get("label"))
+                r.get("radar"), r.get("mounted_radar"), r.get("label"))
 
     done = {drive_key(r) for r in rows}
 
@@ -414,19 +421,21 @@ def main() -> None:
         work.mkdir(parents=True, exist_ok=True)
         custom = (args.components is not None or args.understeer_gradient is not None
                   or args.rear_slip_gain is not None or args.no_fits or args.planar or args.radar_height
-                  or args.navigation is not None or args.processing is not None or args.radar is not None)
+                  or args.navigation is not None or args.processing is not None or args.radar is not None
+                  or args.mounted_radar is not None)
         config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
                                                 not args.no_fits, not args.planar, args.radar_height,
                                                 navigation=args.navigation, processing=args.processing,
-                                                radar=args.radar))]
+                                                radar=",".join(r for r in (args.mounted_radar, args.radar) if r)))]
                   if custom else [])
         # the simulated car, radar and sensors: the config's unless --car / --simulation / --sensors (then only the
         # simulator is given the changed one); --radar is what the processor is told, so the simulator keeps the
         # config's radar (e.g. its mounting)
-        other_vehicle = any(getattr(args, k) for k in OTHER_VEHICLE) or bool(args.radar)
+        other_vehicle = any(getattr(args, k) for k in OTHER_VEHICLE) or bool(args.radar) or bool(args.mounted_radar)
         sim_config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
                                                     not args.no_fits, not args.planar, args.radar_height, args.car,
-                                                    args.simulation, args.sensors, args.navigation))]
+                                                    args.simulation, args.sensors, args.navigation,
+                                                    radar=args.mounted_radar))]
                       if other_vehicle else config)
         for seed in parse_seeds(args.seeds):
             for scenario in args.scenarios.split(","):
@@ -435,7 +444,8 @@ def main() -> None:
                 tag = (f"_{args.dynamics}" if args.dynamics else "") + (
                     f"_{args.components.replace(',', '+')}" if args.components is not None else "") + (
                     "_car" if args.car else "") + ("_sim" if args.simulation else "") + (
-                    "_sensors" if args.sensors else "")
+                    "_sensors" if args.sensors else "") + (
+                    "_mounted" + variant_tag(args.mounted_radar) if args.mounted_radar else "")
                 log = work / f"{scenario}_s{seed}{tag}.mcap"
                 t = time.perf_counter()
                 if not log.exists():
@@ -466,6 +476,8 @@ def main() -> None:
                     row["processing"] = args.processing
                 if args.radar:
                     row["radar"] = args.radar
+                if args.mounted_radar:
+                    row["mounted_radar"] = args.mounted_radar
                 if args.label:
                     row["label"] = args.label
                 row["sarmin_track_scale_pct"] = pct(track_scale(out))
