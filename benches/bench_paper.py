@@ -430,7 +430,7 @@ def main() -> None:
                   if custom else [])
         # the simulated car, radar and sensors: the config's unless --car / --simulation / --sensors (then only the
         # simulator is given the changed one); --radar is what the processor is told, so the simulator keeps the
-        # config's radar (e.g. its mounting)
+        # config's radar (e.g. its mounting); --mounted-radar changes both
         other_vehicle = any(getattr(args, k) for k in OTHER_VEHICLE) or bool(args.radar) or bool(args.mounted_radar)
         sim_config = (["--config", str(config_copy(args.components, args.understeer_gradient, work, args.rear_slip_gain,
                                                     not args.no_fits, not args.planar, args.radar_height, args.car,
