@@ -161,11 +161,9 @@ class SlowMotion:
     point_shift_enu: Array  #: (P, 3) each point's position error d_j (m; 0 for the points not used)
     points_used: NDArray[np.bool_]  #: (P,)
     point_sigma_m: Array  #: (P,) each point's own fit's robust std of its path (inf: too few blocks)
-    #: median over the used points of their joint fit's robust std: the envelopes' scatter. SAR-MIN's tracks on the
-    #: simulator's dry roads leave 0.3-1.8 mm (what of their error the fit's model does not hold: the truth tracks
-    #: 0.1 mm), on a wet one 1.9-6.8 mm (the truth tracks 1.2-3.0: a point's image in the road swings its envelope),
-    #: where the correction can be centimetres off (benches/results/pass_blocks.json;
-    #: docs/SIMULATION.md, "A road that reflects")
+    #: median over the used points of their joint fit's robust std: the envelopes' scatter, a few tenths of a mm on a
+    #: dry road, millimetres where a point's image in the road swings its envelope and the correction can be
+    #: centimetres off (the measured ranges: docs/SIMULATION.md, "A road that reflects")
     residual_m: float
     reason: str = ""
     #: the correction's whole-track stretch: its along-track part's slope against the travel (distances times
@@ -223,10 +221,10 @@ class SlowMotion:
     def summary(self) -> str:
         if not self.applied:
             return f"slow motion not corrected: {self.reason}"
-        c = self.to_dict()["correction"]
-        assert isinstance(c, dict)
-        gains = "".join(f", {mode} {100 * g['value']:+.2f} ± {100 * g['std']:.2f} %"
-                        for mode, g in self.to_dict().get("slip_gain_error", {}).items())
+        d = self.to_dict()
+        c, slip = d["correction"], d.get("slip_gain_error", {})
+        assert isinstance(c, dict) and isinstance(slip, dict)
+        gains = "".join(f", {mode} {100 * g['value']:+.2f} ± {100 * g['std']:.2f} %" for mode, g in slip.items())
         return (f"slow motion corrected by {c['rms_mm']:.1f} mm RMS ({c['max_mm']:.1f} max, ±{c['std_median_mm']:.1f}"
                 f" mm) from {int(self.points_used.sum())} points' ranges over their passes, their paths"
                 f" {1e3 * self.residual_m:.1f} mm about the fit"
