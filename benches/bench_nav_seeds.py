@@ -13,7 +13,8 @@ sensors draw from their own random streams, so their samples are those of the fu
 instead of ~35 s), ``ingest``, ``navigate --method sar-min``, and against the truth at 100 Hz while moving, at the
 radar's mean phase centre: the track's scale (similarity fitted to the truth's, - 1; below 0 the track is too long),
 its aligned RMSE and maximum after the rigid SE(2) alignment, the maximum with the scale removed too (the shape),
-the absolute RMSE, and what the GNSS velocity alone
+the absolute RMSE and the absolute error over the std SAR-MIN's covariance states for the position (along and across,
+RMS: 1 where that std is right), and what the GNSS velocity alone
 says of the scale (its mean along-track error over the drive: benches/bench_paper.py). A reflector's whole-track
 aligned error is about the scale times its along-track distance from the track's centre: 0.055 % is 3 cm at 55 m.
 Prints one line per setting and scenario; writes the rows and the summary as JSON, with which of SAR-MIN's fitted
@@ -71,7 +72,7 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
     """One drive: simulated from ``sim_config`` (None: ``config``), navigated with ``config``."""
     from autosar_cli.evaluate.alignment import fit_se2, fit_similarity_scale
     from autosar_cli.evaluate.evaluation import load_truth
-    from autosar_cli.evaluate.trajectory_metrics import common_instants
+    from autosar_cli.evaluate.trajectory_metrics import common_instants, stated_position_z, trajectory_errors
     from autosar_cli.ingest.pipeline import ingest
     from autosar_cli.nav.navigate import navigate
     from autosar_cli.nav.trajectory import phase_centre_lever_arm, track_scale_std
@@ -93,6 +94,9 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
     scaled = e_xy.mean(axis=0) + scale * (e_xy - e_xy.mean(axis=0))
     shape = np.hypot(*(fit_se2(scaled, r_xy).apply(scaled) - r_xy).T)
     along, across = reflector_track_errors(est, scene, config, t)
+    z = stated_position_z(est, trajectory_errors(est, truth, lever[0], t))
+    assert z is not None  # SAR-MIN states its position's covariance
+    z_along, z_across = z
     gnss, _ = gnss_velocity_scale(scenario, seed, sim_config)
     for p in (log, drive, sim.truth_path):
         Path(p).unlink(missing_ok=True)
@@ -106,6 +110,10 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
             "reflector_track_max_cm": 100 * float(np.hypot(across, along).max()),
             "reflector_across_max_cm": 100 * float(np.abs(across).max()),
             "abs_rmse_m": float(np.sqrt(np.mean(np.sum((e_xy - r_xy) ** 2, axis=1)))),
+            # the absolute error over the std SAR-MIN states for its position (its covariance), RMS over the instants
+            "position_z_along_rms": float(np.sqrt(np.mean(z_along**2))),
+            "position_z_across_rms": float(np.sqrt(np.mean(z_across**2))),
+            "position_z_mean_along": float(np.mean(z_along)), "position_z_mean_across": float(np.mean(z_across)),
             # which of the fitted lags SAR-MIN applied (docs/NAVIGATION.md)
             "steering_left_out": bool(est.info["understeer"]["steering_left_out"]),
             "wheel_lag_applied": bool(est.info["wheel_lag"]["applied"]),
@@ -158,6 +166,9 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
                                                                       for r in rows), 2),
             "reflector_across_within_2cm": sum(r.get("reflector_across_max_cm", np.inf) <= 2.0 for r in rows),
             "abs_rmse_mean_m": round(statistics.fmean(r["abs_rmse_m"] for r in rows), 4),
+            # the position's error over its stated std, RMS over the drives' instants: 1 where that std is right
+            **{f"position_z_{a}_rms": round(float(np.sqrt(np.mean([r[f"position_z_{a}_rms"] ** 2 for r in rows]))), 2)
+               for a in ("along", "across") if all(f"position_z_{a}_rms" in r for r in rows)},
             "steering_left_out": sum(r["steering_left_out"] for r in rows),
             "wheel_lag_applied": sum(r["wheel_lag_applied"] for r in rows),
             "wheel_radii_applied": sum(r.get("wheel_radii_applied", False) for r in rows),
@@ -256,7 +267,8 @@ def main() -> None:
                       f"{s['reflector_across_within_2cm']}, GNSS latency moved on {s['gnss_latency_applied']}, "
                       f"CAN on {s['can_latency_applied']}, "
                       f"velocity weighed by its correlation on {s['gnss_velocity_decorrelated']}, scale z RMS "
-                      f"{s['scale_z_rms']:.2f} ({time.perf_counter() - t:.0f} s)",
+                      f"{s['scale_z_rms']:.2f}, position z RMS along / across {s['position_z_along_rms']:.2f} / "
+                      f"{s['position_z_across_rms']:.2f} ({time.perf_counter() - t:.0f} s)",
                       flush=True)
     if args.append and args.output.exists():
         old = json.loads(args.output.read_text())

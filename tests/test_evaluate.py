@@ -178,6 +178,40 @@ def test_scaled_track_is_the_same_path_driven_faster() -> None:
     from autosar_cli.evaluate.trajectory_metrics import radar_track_scale
 
     assert radar_track_scale(traj, scaled, traj.t_ns[::10], CFG) == pytest.approx(s, abs=2e-5)
+
+
+def test_an_applied_scale_carries_the_filters_state_and_covariance() -> None:
+    """scale_track with the scale's std (the scale the autofocus applies): the filter's position and speed states
+    move with the track, and the covariance is the first-order propagation J P J^T + std^2 g g^T, checked against
+    dense float64 matrices; the other states and their covariance with each other are left as they were."""
+    from autosar_cli.nav.trajectory import Trajectory
+
+    rng = np.random.default_rng(3)
+    k, names = 50, ["px", "py", "v", "psi", "scale.wheel_fl"]
+    xy = np.c_[np.linspace(0.0, 20.0, k), np.linspace(0.0, 2.0, k)]
+    speed, heading = np.full(k, 5.0), np.full(k, 0.1)
+    state = np.c_[xy, speed, heading, np.full(k, 1.002)]
+    root = rng.normal(size=(k, 5, 5)) * 0.1
+    covariance = root @ root.transpose(0, 2, 1)
+    traj = Trajectory("sar-min", np.arange(k, dtype=np.int64) * 10**8 + 10**18, xy, heading, speed, np.zeros(k),
+                      ORIGIN, 1.4, 0.5, state=state, state_names=names, covariance=covariance)
+    s, s_std, c = -8e-4, 1.2e-4, np.array([9.0, 1.0])
+    scaled = scale_track(traj, s, c, scale_std=s_std)
+    np.testing.assert_allclose(scaled.state[:, :2], scaled.rear_axle_enu, atol=1e-12)
+    np.testing.assert_allclose(scaled.state[:, 2], scaled.speed, atol=1e-12)
+    np.testing.assert_array_equal(scaled.state[:, 3:], state[:, 3:])
+    jacobian = np.diag([1 + s, 1 + s, 1 + s, 1.0, 1.0])
+    for i in (0, 17, 49):
+        g = np.array([xy[i, 0] - c[0], xy[i, 1] - c[1], speed[i], 0.0, 0.0])
+        expected = jacobian @ covariance[i] @ jacobian.T + s_std**2 * np.outer(g, g)
+        np.testing.assert_allclose(scaled.covariance[i], expected, rtol=1e-12, atol=1e-15)
+    # the position's std grows by the scale's std times the distance from the centre: 1.2 mm at 10 m
+    assert math.sqrt(scaled.covariance[0, 0, 0]) > math.sqrt(covariance[0, 0, 0]) * (1 + s)
+    # a trial scale (no std) drops them, and a track with no filter states has none to carry
+    assert scale_track(traj, s, c).covariance is None and scale_track(traj, s, c).state is None
+    bare = scale_track(Trajectory("gnss", traj.t_ns, xy, heading, speed, np.zeros(k), ORIGIN, 1.4, 0.5), s, c,
+                       scale_std=s_std)
+    assert bare.state is None and bare.covariance is None
     x = np.linspace(-3e-3, 3e-3, 21)
     assert _parabola_peak(x, 5.0 - 4e5 * (x + 1.234e-3) ** 2) == pytest.approx(-1.234e-3, abs=1e-12)
 
@@ -393,10 +427,14 @@ def test_run_autofocus_corrects_the_track_before_focusing(ci_run: Path, ci_mcap,
     assert af["coherence_before"] < af["coherence_after"] and af["coherence_after"] > 0.99
     assert af["track_scale"] == 0.0 and "track scale not measured" in af["track_scale_note"]
     assert 0.01 < af["correction"]["rms_mm"] < 1.0 and af["correction"]["std_median_mm"] > 0
-    traj = read_trajectory(out / "trajectory.h5", covariance=False)
-    base = read_trajectory(ci_run / "trajectory.h5", covariance=False)  # the same log without --autofocus
+    traj = read_trajectory(out / "trajectory.h5")
+    base = read_trajectory(ci_run / "trajectory.h5")  # the same log without --autofocus
     assert traj.method == "sar-min+af" and traj.info["autofocus"]["points_used"] == af["points_used"]
     np.testing.assert_array_equal(traj.rear_axle_enu, base.rear_axle_enu)
+    # the navigation's own uncertainty stays with the track (no scale applied: as navigated); the correction's is
+    # its own
+    assert traj.covariance is not None and traj.state_names == base.state_names
+    np.testing.assert_array_equal(traj.covariance, base.covariance)
     c = traj.correction
     assert c is not None and c.offset_enu.shape == c.std_enu.shape == (len(c.t_ns), 3)
     lever = phase_centre_lever_arm(CFG)[None]
@@ -662,6 +700,39 @@ def test_trajectory_metrics_of_a_rigid_copy() -> None:
     assert m.rpe_1m_across_m < 1e-9 and m.rpe_10m_along_m < 1e-9 and m.aligned_rmse_m < 1e-9
     assert m.alignment_angle_deg == pytest.approx(-math.degrees(0.01), abs=1e-9)
     assert m.abs_rmse_m > 0.2 and m.distance_m == pytest.approx(80.0, rel=0.01)
+    assert math.isnan(m.position_z_along_rms)  # no covariance: no stated std to hold
+
+
+def test_the_position_error_over_the_std_the_trajectory_states() -> None:
+    """stated_position_z: a track 0.3 m east of the truth's (heading 30 deg), its covariance stating 0.2 m east and
+    0.1 m north with a correction of 0.05 m east in quadrature: along (cos, sin) and across (-sin, cos) the error and
+    the std are the closed forms; without the covariance, nothing is stated."""
+    from autosar_cli.evaluate.trajectory_metrics import stated_position_z
+    from autosar_cli.nav.trajectory import Trajectory
+
+    t = np.linspace(0.0, 10.0, 1001)
+    psi = np.full_like(t, math.radians(30.0))
+    v = np.full_like(t, 4.0)
+    xy = np.c_[v * t * np.cos(psi), v * t * np.sin(psi)]
+    t_ns = (t * 1e9).astype(np.int64) + 1_600_000_000_000_000_000
+    ref = Trajectory("truth", t_ns, xy, psi, v, np.zeros_like(t), ORIGIN, 1.4, 0.5)
+    cov = np.zeros((len(t), 3, 3))
+    cov[:, 0, 0], cov[:, 1, 1], cov[:, 2, 2] = 0.2**2, 0.1**2, 1.0
+    std = np.zeros((2, 3))
+    std[:, 0] = 0.05
+    est = replace(ref, method="sar-min", rear_axle_enu=xy + [0.3, 0.0], state=np.c_[xy + [0.3, 0.0], v],
+                  state_names=["px", "py", "v"], covariance=cov,
+                  correction=MotionCorrection(t_ns[[0, -1]], np.zeros((2, 3)), std))
+    err = trajectory_errors(est, ref, phase_centre_lever_arm(CFG), common_instants(est, ref))
+    z = stated_position_z(est, err)
+    assert z is not None
+    c, s = math.cos(psi[0]), math.sin(psi[0])
+    var_east, var_north = 0.2**2 + 0.05**2, 0.1**2
+    np.testing.assert_allclose(z[0], 0.3 * c / math.sqrt(c * c * var_east + s * s * var_north), rtol=1e-9)
+    np.testing.assert_allclose(z[1], -0.3 * s / math.sqrt(s * s * var_east + c * c * var_north), rtol=1e-9)
+    m = trajectory_metrics(est, err)
+    assert m.position_z_along_rms == pytest.approx(abs(float(z[0][0])), rel=1e-9)
+    assert stated_position_z(replace(est, covariance=None), err) is None
 
 
 def test_compare_cli_on_ci(ci_mcap, tmp_path: Path) -> None:

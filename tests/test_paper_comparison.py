@@ -109,5 +109,16 @@ def test_radar_autofocus_without_truth_brings_test2s_reflectors_within_3_cm(
     """sar-min+af: the residual-motion autofocus on the bright isolated points of SAR-MIN's own image, no truth; its
     scale comes from the points' phase histories with their ranges pinned by the range envelope. Measured on test2
     seed 1: scale -0.063 % against the truth's -0.065 % (SAR-MIN alone: 0)."""
-    _, true_scale, radar_scale = _scaled_comparison(sim_dir, tmp_path_factory, "sar-min+af")
+    result, true_scale, radar_scale = _scaled_comparison(sim_dir, tmp_path_factory, "sar-min+af")
     assert abs(radar_scale - true_scale) < 4e-4
+    # the track written keeps the navigation's covariance, scaled with the track about its centre, the applied
+    # scale's variance added along it (2e-5 m at most here, against the GNSS's 0.23 m)
+    out = Path(result["directory"])
+    nav, af = (read_trajectory(out / m / "trajectory.h5") for m in ("sar-min", "sar-min+af"))
+    assert af.covariance is not None and af.state_names == nav.state_names
+    i = nav.state_names.index("px")
+    np.testing.assert_allclose(af.state[:, i], af.rear_axle_enu[:, 0], atol=1e-9)
+    scale, scale_std = af.info["track_scale"], af.info["autofocus"]["track_scale_std"]
+    reach = nav.rear_axle_enu[:, 0] - nav.rear_axle_enu[:, 0].mean()
+    np.testing.assert_allclose(af.covariance[:, i, i], (1 + scale) ** 2 * nav.covariance[:, i, i]
+                               + (scale_std * reach) ** 2, rtol=1e-9)

@@ -244,7 +244,9 @@ def report_markdown(ev: Evaluation, figures: dict[str, str]) -> str:
                                                               f"({a.translation[0]:.3f}, {a.translation[1]:.3f}) m"],
                       ["RMSE after alignment (max), across", f"{fmt(tm.aligned_rmse_m, 100)} cm "
                                                              f"({fmt(tm.aligned_max_m, 100)} cm), "
-                                                             f"{fmt(tm.aligned_rmse_across_m, 100)} cm"]])]
+                                                             f"{fmt(tm.aligned_rmse_across_m, 100)} cm"],
+                      ["absolute error over its stated std, RMS along / across (1: that std holds)",
+                       f"{fmt(tm.position_z_along_rms, digits=2)} / {fmt(tm.position_z_across_rms, digits=2)}"]])]
     if ev.reflectors:
         parts += ["\n## Corner reflectors (1 m patches of 5 mm pixels)\n\n",
                   "Aligned error: distance of the peak from where the reflector should appear in this image "

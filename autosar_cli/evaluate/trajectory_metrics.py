@@ -67,6 +67,10 @@ class TrajectoryMetrics:
     aligned_rmse_m: float  #: horizontal RMSE after the alignment
     aligned_rmse_across_m: float
     aligned_max_m: float
+    #: the absolute error over the std the trajectory states for its position, RMS (:func:`stated_position_z`;
+    #: 1 where that std is right, NaN where it states none)
+    position_z_along_rms: float = math.nan
+    position_z_across_rms: float = math.nan
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -125,6 +129,29 @@ def trajectory_errors(est: Trajectory, ref: Trajectory, lever_arm: ArrayLike, t_
     return TrajectoryErrors(est.method, t, dist, est_xy, ref_xy, ref_psi, along, across, align, a_along, a_across)
 
 
+def stated_position_z(est: Trajectory, errors: TrajectoryErrors) -> tuple[Array, Array] | None:
+    """``errors``' absolute error along and across (M,) each over the std ``est`` states for its position there:
+    its filter's covariance of the rear axle's position (px, py) at the preceding sample and, in quadrature, its
+    correction's ``std_enu``. None where ``est`` carries no such covariance."""
+    names = est.state_names
+    if est.covariance is None or not {"px", "py"} <= set(names):
+        return None
+    t = errors.t_ns
+    k = np.clip(np.searchsorted(est.t_ns, t, side="right") - 1, 0, len(est.t_ns) - 1)
+    i = [names.index("px"), names.index("py")]
+    cov = est.covariance[k][:, i][:, :, i]
+    if est.correction is not None:
+        std = est.correction.std_at(t)[:, :2]
+        cov = cov + np.einsum("mi,ij->mij", std**2, np.eye(2))
+    c, s = np.cos(errors.ref_heading), np.sin(errors.ref_heading)
+    along, across = np.stack([c, s], axis=1), np.stack([-s, c], axis=1)
+
+    def std(u: Array) -> Array:
+        return np.sqrt(np.einsum("mi,mij,mj->m", u, cov, u))
+
+    return errors.error_along / std(along), errors.error_across / std(across)
+
+
 def trajectory_metrics(est: Trajectory, errors: TrajectoryErrors,
                        deltas_m: tuple[float, float] = RPE_DELTAS_M) -> TrajectoryMetrics:
     """Summarise ``errors`` and add the relative pose error over ``deltas_m`` (1 m and 10 m) of true travel.
@@ -141,6 +168,7 @@ def trajectory_metrics(est: Trajectory, errors: TrajectoryErrors,
     abs_err = np.hypot(errors.error_along, errors.error_across)
     aligned = np.hypot(errors.aligned_along, errors.aligned_across)
     d1, d10 = deltas_m
+    z = stated_position_z(est, errors)
     return TrajectoryMetrics(
         method=est.method, samples=int(len(t)), duration_s=float((t[-1] - t[0]) / 1e9),
         distance_m=float(errors.distance_m[-1]), abs_rmse_m=_rms(abs_err), abs_max_m=float(abs_err.max()),
@@ -148,7 +176,9 @@ def trajectory_metrics(est: Trajectory, errors: TrajectoryErrors,
         rpe_1m_along_m=rpe[d1][0], rpe_1m_across_m=rpe[d1][1], rpe_10m_along_m=rpe[d10][0],
         rpe_10m_across_m=rpe[d10][1], alignment_angle_deg=math.degrees(errors.alignment.angle_rad),
         alignment_translation_m=errors.alignment.translation, aligned_rmse_m=_rms(aligned),
-        aligned_rmse_across_m=_rms(errors.aligned_across), aligned_max_m=float(aligned.max()))
+        aligned_rmse_across_m=_rms(errors.aligned_across), aligned_max_m=float(aligned.max()),
+        position_z_along_rms=_rms(z[0]) if z is not None else math.nan,
+        position_z_across_rms=_rms(z[1]) if z is not None else math.nan)
 
 
 #: Half-length (m of true travel) of the track the local alignment of a reflector is fitted on.

@@ -40,14 +40,40 @@ Array = NDArray[np.float64]
 DEFAULT_SCALES = np.arange(-30, 31, 3) * 1e-4
 
 
-def scale_track(trajectory: Trajectory, scale: float, centre_xy: ArrayLike | None = None) -> Trajectory:
+def scale_track(trajectory: Trajectory, scale: float, centre_xy: ArrayLike | None = None, *,
+                scale_std: float | None = None) -> Trajectory:
     """``trajectory`` with its distances multiplied by ``1 + scale``: rear-axle positions (ENU m) about
     ``centre_xy`` (default: their mean) and speeds; headings and yaw rates unchanged (the same path shape,
-    driven ``1 + scale`` times faster). Filter states and covariances are dropped (they no longer match)."""
+    driven ``1 + scale`` times faster). Without ``scale_std`` the filter's states and covariances are dropped (a
+    trial scale); with it (the scale applied, its 1-sigma) they are carried: the positions' and speed's states
+    scaled as the track is and, to first order, the scale's own variance added along them."""
     xy = trajectory.rear_axle_enu
     c = xy.mean(axis=0) if centre_xy is None else np.asarray(centre_xy, dtype=np.float64)
+    state, covariance = _scaled_filter(trajectory, scale, c, scale_std)
     return replace(trajectory, rear_axle_enu=c + (1.0 + scale) * (xy - c), speed=trajectory.speed * (1.0 + scale),
-                   state=None, covariance=None)
+                   state=state, covariance=covariance)
+
+
+def _scaled_filter(trajectory: Trajectory, scale: float, centre_xy: Array, scale_std: float | None
+                   ) -> tuple[Array | None, Array | None]:
+    """The filter's state (K, n) and covariance (K, n, n) of ``trajectory`` scaled by ``1 + scale`` about
+    ``centre_xy`` (ENU m): J x and J P J^T + scale_std^2 g g^T, where J scales the rear axle's position (px, py)
+    and the speed (v) and g is their derivative by the scale. None where there is nothing to carry."""
+    names = trajectory.state_names
+    if scale_std is None or trajectory.state is None or not {"px", "py", "v"} <= set(names):
+        return None, None
+    i = [names.index("px"), names.index("py"), names.index("v")]
+    state = trajectory.state.copy()
+    gradient = np.column_stack([state[:, i[:2]] - centre_xy, state[:, i[2]]])  # (K, 3): d(px, py, v) / d scale
+    state[:, i] += scale * gradient
+    if trajectory.covariance is None:
+        return state, None
+    jacobian = np.ones(len(names))
+    jacobian[i] = 1.0 + scale
+    covariance = trajectory.covariance * (jacobian[:, None] * jacobian[None, :])
+    rows, cols = np.ix_(i, i)
+    covariance[:, rows, cols] += scale_std**2 * gradient[:, :, None] * gradient[:, None, :]
+    return state, covariance
 
 
 @dataclass(frozen=True)

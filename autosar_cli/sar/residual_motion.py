@@ -486,7 +486,7 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
             moved[~result.points_used, :2] = centre + (1.0 + scale) * (moved[~result.points_used, :2] - centre)
             extra &= _phase_rms(hist, result.trajectory, config, moved, extra, opts.presum) <= opts.screen_phase_rms_rad
             if np.any(extra):
-                every = _fit(hist, scale_track(trajectory, scale, centre), config, moved, motion,
+                every = _fit(hist, scale_track(trajectory, scale, centre, scale_std=scale_std), config, moved, motion,
                              used0=result.points_used | extra, motion0=result.correction, point_noise=True,
                              grade_stretch=grade)
                 result = every if every.applied else result
@@ -801,7 +801,7 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     scale_agreement = (_point_scale_chi2(lin, w, 2 * n_nodes, used, opts.point_prior_m) if opts.prior_scale > 1e-9
                        else (1.0, 0))
     measured = cross[:, :1] * node_across + cross[:, 1:] * up
-    scaled = scale_track(trajectory, scale, centre) if scale else trajectory
+    scaled = scale_track(trajectory, scale, centre, scale_std=scale_std) if scale else trajectory
 
     def finished(std: Array) -> ResidualMotion:
         std_enu = np.stack([np.abs(std[:, 0] * node_across[:, 0]), np.abs(std[:, 0] * node_across[:, 1]),
