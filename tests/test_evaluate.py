@@ -41,7 +41,7 @@ from autosar_cli.evaluate.trajectory_metrics import (
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.nav.navigate import navigate
 from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm
-from autosar_cli.sar.autofocus import _parabola_peak, point_sharpness, scale_track
+from autosar_cli.sar.autofocus import _parabola_peak, point_sharpness, scale_track, scaled_filter
 from autosar_cli.sar.grid import FocusGrid, box_grid, track_distance
 from autosar_cli.sar.phase_history import frame_geometry
 from autosar_cli.store.image import FocusedImage, read_image
@@ -178,12 +178,14 @@ def test_scaled_track_is_the_same_path_driven_faster() -> None:
     from autosar_cli.evaluate.trajectory_metrics import radar_track_scale
 
     assert radar_track_scale(traj, scaled, traj.t_ns[::10], CFG) == pytest.approx(s, abs=2e-5)
+    x = np.linspace(-3e-3, 3e-3, 21)
+    assert _parabola_peak(x, 5.0 - 4e5 * (x + 1.234e-3) ** 2) == pytest.approx(-1.234e-3, abs=1e-12)
 
 
 def test_an_applied_scale_carries_the_filters_state_and_covariance() -> None:
-    """scale_track with the scale's std (the scale the autofocus applies): the filter's position and speed states
-    move with the track, and the covariance is the first-order propagation J P J^T + std^2 g g^T, checked against
-    dense float64 matrices; the other states and their covariance with each other are left as they were."""
+    """scaled_filter (the scale the autofocus applies, with its std): the filter's position and speed states move as
+    scale_track moves the track, and the covariance is the first-order propagation J P J^T + std^2 g g^T, checked
+    against dense float64 matrices; the other states and their covariance with each other are left as they were."""
     from autosar_cli.nav.trajectory import Trajectory
 
     rng = np.random.default_rng(3)
@@ -196,24 +198,21 @@ def test_an_applied_scale_carries_the_filters_state_and_covariance() -> None:
     traj = Trajectory("sar-min", np.arange(k, dtype=np.int64) * 10**8 + 10**18, xy, heading, speed, np.zeros(k),
                       ORIGIN, 1.4, 0.5, state=state, state_names=names, covariance=covariance)
     s, s_std, c = -8e-4, 1.2e-4, np.array([9.0, 1.0])
-    scaled = scale_track(traj, s, c, scale_std=s_std)
-    np.testing.assert_allclose(scaled.state[:, :2], scaled.rear_axle_enu, atol=1e-12)
-    np.testing.assert_allclose(scaled.state[:, 2], scaled.speed, atol=1e-12)
-    np.testing.assert_array_equal(scaled.state[:, 3:], state[:, 3:])
+    track = scale_track(traj, s, c)
+    assert track.state is None and track.covariance is None  # a trial scale carries none
+    scaled, scaled_cov = scaled_filter(traj, s, c, s_std)
+    assert scaled is not None and scaled_cov is not None
+    np.testing.assert_allclose(scaled[:, :2], track.rear_axle_enu, atol=1e-12)
+    np.testing.assert_allclose(scaled[:, 2], track.speed, atol=1e-12)
+    np.testing.assert_array_equal(scaled[:, 3:], state[:, 3:])
     jacobian = np.diag([1 + s, 1 + s, 1 + s, 1.0, 1.0])
     for i in (0, 17, 49):
         g = np.array([xy[i, 0] - c[0], xy[i, 1] - c[1], speed[i], 0.0, 0.0])
         expected = jacobian @ covariance[i] @ jacobian.T + s_std**2 * np.outer(g, g)
-        np.testing.assert_allclose(scaled.covariance[i], expected, rtol=1e-12, atol=1e-15)
-    # the position's std grows by the scale's std times the distance from the centre: 1.2 mm at 10 m
-    assert math.sqrt(scaled.covariance[0, 0, 0]) > math.sqrt(covariance[0, 0, 0]) * (1 + s)
-    # a trial scale (no std) drops them, and a track with no filter states has none to carry
-    assert scale_track(traj, s, c).covariance is None and scale_track(traj, s, c).state is None
-    bare = scale_track(Trajectory("gnss", traj.t_ns, xy, heading, speed, np.zeros(k), ORIGIN, 1.4, 0.5), s, c,
-                       scale_std=s_std)
-    assert bare.state is None and bare.covariance is None
-    x = np.linspace(-3e-3, 3e-3, 21)
-    assert _parabola_peak(x, 5.0 - 4e5 * (x + 1.234e-3) ** 2) == pytest.approx(-1.234e-3, abs=1e-12)
+        np.testing.assert_allclose(scaled_cov[i], expected, rtol=1e-12, atol=1e-15)
+    # a track with no filter states has none to carry
+    bare = Trajectory("gnss", traj.t_ns, xy, heading, speed, np.zeros(k), ORIGIN, 1.4, 0.5)
+    assert scaled_filter(bare, s, c, s_std) == (None, None)
 
 
 def test_point_sharpness_ignores_where_the_response_falls_between_pixels() -> None:

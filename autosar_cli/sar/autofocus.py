@@ -40,27 +40,26 @@ Array = NDArray[np.float64]
 DEFAULT_SCALES = np.arange(-30, 31, 3) * 1e-4
 
 
-def scale_track(trajectory: Trajectory, scale: float, centre_xy: ArrayLike | None = None, *,
-                scale_std: float | None = None) -> Trajectory:
+def scale_track(trajectory: Trajectory, scale: float, centre_xy: ArrayLike | None = None) -> Trajectory:
     """``trajectory`` with its distances multiplied by ``1 + scale``: rear-axle positions (ENU m) about
     ``centre_xy`` (default: their mean) and speeds; headings and yaw rates unchanged (the same path shape,
-    driven ``1 + scale`` times faster). Without ``scale_std`` the filter's states and covariances are dropped (a
-    trial scale); with it (the scale applied, its 1-sigma) they are carried: the positions' and speed's states
-    scaled as the track is and, to first order, the scale's own variance added along them."""
+    driven ``1 + scale`` times faster). Filter states and covariances are dropped (a trial scale; the one applied
+    carries them: :func:`scaled_filter`)."""
     xy = trajectory.rear_axle_enu
     c = xy.mean(axis=0) if centre_xy is None else np.asarray(centre_xy, dtype=np.float64)
-    state, covariance = _scaled_filter(trajectory, scale, c, scale_std)
     return replace(trajectory, rear_axle_enu=c + (1.0 + scale) * (xy - c), speed=trajectory.speed * (1.0 + scale),
-                   state=state, covariance=covariance)
+                   state=None, covariance=None)
 
 
-def _scaled_filter(trajectory: Trajectory, scale: float, centre_xy: Array, scale_std: float | None
-                   ) -> tuple[Array | None, Array | None]:
-    """The filter's state (K, n) and covariance (K, n, n) of ``trajectory`` scaled by ``1 + scale`` about
-    ``centre_xy`` (ENU m): J x and J P J^T + scale_std^2 g g^T, where J scales the rear axle's position (px, py)
-    and the speed (v) and g is their derivative by the scale. None where there is nothing to carry."""
+def scaled_filter(trajectory: Trajectory, scale: float, centre_xy: ArrayLike, scale_std: float
+                  ) -> tuple[Array | None, Array | None]:
+    """The filter's state (K, n) and covariance (K, n, n) of ``trajectory`` scaled as :func:`scale_track` scales it
+    about ``centre_xy`` (ENU m), the scale applied with its 1-sigma ``scale_std``: J x and, to first order,
+    J P J^T + scale_std^2 g g^T, where J scales the rear axle's position (px, py) and the speed (v) by ``1 + scale``
+    and g is their derivative by the scale. None where there is nothing to carry."""
     names = trajectory.state_names
-    if scale_std is None or trajectory.state is None or not {"px", "py", "v"} <= set(names):
+    centre_xy = np.asarray(centre_xy, dtype=np.float64)
+    if trajectory.state is None or not {"px", "py", "v"} <= set(names):
         return None, None
     i = [names.index("px"), names.index("py"), names.index("v")]
     state = trajectory.state.copy()
@@ -68,9 +67,9 @@ def _scaled_filter(trajectory: Trajectory, scale: float, centre_xy: Array, scale
     state[:, i] += scale * gradient
     if trajectory.covariance is None:
         return state, None
-    jacobian = np.ones(len(names))
-    jacobian[i] = 1.0 + scale
-    covariance = trajectory.covariance * (jacobian[:, None] * jacobian[None, :])
+    covariance = trajectory.covariance.copy()
+    covariance[:, i, :] *= 1.0 + scale
+    covariance[:, :, i] *= 1.0 + scale
     rows, cols = np.ix_(i, i)
     covariance[:, rows, cols] += scale_std**2 * gradient[:, :, None] * gradient[:, None, :]
     return state, covariance

@@ -46,7 +46,7 @@ from numpy.typing import NDArray
 
 from autosar_cli.config import Config
 from autosar_cli.nav.trajectory import radar_track, track_scale_std
-from autosar_cli.sar.autofocus import scale_track
+from autosar_cli.sar.autofocus import scale_track, scaled_filter
 from autosar_cli.sar.channel_calibration import ChannelCalibration
 from autosar_cli.sar.channel_gains import ChannelGains
 from autosar_cli.sar.fast_motion import FastMotion
@@ -486,7 +486,7 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
             moved[~result.points_used, :2] = centre + (1.0 + scale) * (moved[~result.points_used, :2] - centre)
             extra &= _phase_rms(hist, result.trajectory, config, moved, extra, opts.presum) <= opts.screen_phase_rms_rad
             if np.any(extra):
-                every = _fit(hist, scale_track(trajectory, scale, centre, scale_std=scale_std), config, moved, motion,
+                every = _fit(hist, scale_track(trajectory, scale, centre), config, moved, motion,
                              used0=result.points_used | extra, motion0=result.correction, point_noise=True,
                              grade_stretch=grade)
                 result = every if every.applied else result
@@ -502,6 +502,10 @@ def estimate_residual_motion(drive_path: str | Path, trajectory: Trajectory, con
         result = _fit(hist, trajectory, config, points0, motion, used0=used0, point_noise=True, grade_stretch=grade)
     if result.with_posterior is not None:
         result = result.with_posterior()
+    if scale and result.applied:
+        # the track as scaled keeps the navigation's state and covariance, carried once here rather than by each fit
+        state, covariance = scaled_filter(trajectory, scale, trajectory.rear_axle_enu.mean(axis=0), scale_std)
+        result = replace(result, trajectory=replace(result.trajectory, state=state, covariance=covariance))
     return replace(result, scale=scale, scale_std=scale_std, scale_note=note,
                    scale_agreement=first.scale_agreement if first.applied else (1.0, 0), scale_prior=opts.prior_scale)
 
@@ -801,7 +805,7 @@ def _fit(hist: PhaseHistories, trajectory: Trajectory, config: Config, points0: 
     scale_agreement = (_point_scale_chi2(lin, w, 2 * n_nodes, used, opts.point_prior_m) if opts.prior_scale > 1e-9
                        else (1.0, 0))
     measured = cross[:, :1] * node_across + cross[:, 1:] * up
-    scaled = scale_track(trajectory, scale, centre, scale_std=scale_std) if scale else trajectory
+    scaled = scale_track(trajectory, scale, centre) if scale else trajectory
 
     def finished(std: Array) -> ResidualMotion:
         std_enu = np.stack([np.abs(std[:, 0] * node_across[:, 0]), np.abs(std[:, 0] * node_across[:, 1]),
