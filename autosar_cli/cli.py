@@ -381,6 +381,8 @@ def navigate(
         for stream, noise in traj.info.get("gnss_noise", {}).items():
             if noise.get("applied"):
                 out.print(f"GNSS {stream} noise {noise['ratio']:.2f} times its table's: {noise['reason']}")
+        if (slow := traj.info.get("gnss_slow_error", {})).get("applied"):
+            out.print(f"GNSS slow error: {slow['reason']}")
         correlation = traj.info.get("gnss_velocity_correlation", {})
         if correlation.get("applied"):
             out.print(f"GNSS velocity: {correlation['reason']}")

@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 
 from autosar_cli.nav.geodesy import GeodeticOrigin
-from autosar_cli.nav.gnss_noise import MIN_RATIO, gnss_noise_checked, white_noise_std
+from autosar_cli.nav.gnss_noise import (
+    MIN_RATIO,
+    MIN_REPORTED_RATIO,
+    gnss_noise_checked,
+    gnss_slow_error_checked,
+    white_noise_std,
+)
 from autosar_cli.nav.inputs import Measurements, NavInputs
 
 
@@ -57,6 +63,60 @@ def test_only_a_receiver_noisier_than_its_table_is_reweighed() -> None:
     off, info_off = gnss_noise_checked(inputs, enabled=False)
     assert off.gnss_position is inputs.gnss_position and not info_off["position"]["applied"]
     assert "is off" in info_off["position"]["reason"]
+
+
+def test_only_a_receiver_stating_more_than_its_table_raises_the_slow_error() -> None:
+    """The slow error's std is raised to what the receiver states less the fixes' white sigma, in quadrature, where
+    the statement exceeds the table's total by MIN_REPORTED_RATIO; otherwise, and where nothing is stated, the slow
+    error is off, or the estimate is off, the inputs are left as they are, with the reason."""
+    t = np.arange(0.0, 13.0, 0.1)
+    inputs = NavInputs(0, GeodeticOrigin(45.0, 9.0, 100.0), gnss_error_std_m=0.25, gnss_error_time_s=60.0)
+    inputs.gnss_position = Measurements("gnss", t, _drive_positions(t), np.full(2, 0.03))
+    table = float(np.hypot(0.25, 0.03))
+    for reported, applied in ((0.5, True), (table, False), (MIN_REPORTED_RATIO * table * 0.999, False),
+                              (float("nan"), False)):
+        inputs.gnss_reported_std_m = reported
+        checked, info = gnss_slow_error_checked(inputs)
+        assert info["applied"] == applied, info["reason"]
+        assert info["table_std_m"] == pytest.approx(table, rel=1e-12)
+        if applied:
+            assert checked.gnss_error_std_m == pytest.approx(np.sqrt(0.5**2 - 0.03**2), rel=1e-12)
+            assert checked.gnss_position is inputs.gnss_position  # the white sigma is the white test's
+        else:
+            assert checked is inputs
+    assert "no covariance" in info["reason"]
+    inputs.gnss_reported_std_m = 0.5
+    assert not gnss_slow_error_checked(inputs, enabled=False)[1]["applied"]
+    white = NavInputs(0, GeodeticOrigin(45.0, 9.0, 100.0), gnss_reported_std_m=0.5)
+    assert "no slow error" in gnss_slow_error_checked(white)[1]["reason"]
+
+
+def test_navigate_takes_the_slow_error_a_receiver_states_and_its_position_std_holds(tmp_path) -> None:  # noqa: ANN001
+    """test1's full car, its receiver's slow error twice the table's (0.5 m; it states so in its fixes' covariance,
+    as the simulator's does): SAR-MIN takes 0.5 m and states the position's std by it. With the table's 0.25 m the
+    error over the std was 1.93 / 1.82 RMS (along / across) over the 40 drives of bench_nav_seeds.py; with it, the
+    std the covariance states is about twice the table's here."""
+    from conftest import full_car_drive, with_gnss_errors
+
+    from autosar_cli.nav.navigate import navigate
+
+    drive, _, cfg = full_car_drive(tmp_path, "test1", with_gnss_errors(horizontal_std_m=0.5))
+    traj = navigate(drive, "sar-min", cfg)
+    info = traj.info["gnss_slow_error"]
+    assert info["applied"], info["reason"]
+    assert info["reported_std_m"] == pytest.approx(np.hypot(0.5, 0.03), rel=1e-6)
+    assert info["slow_std_m"] == pytest.approx(0.5, rel=1e-6)
+    i = traj.state_names.index("px")
+    std = float(np.sqrt(np.median(traj.covariance[:, i, i])))
+    assert 0.4 < std < 0.55, std  # the table's: 0.23 m
+    from typer.testing import CliRunner
+
+    from autosar_cli.cli import app
+
+    result = CliRunner().invoke(app, ["navigate", str(drive), "-o", str(tmp_path / "trajectory.h5")])
+    assert result.exit_code == 0, result.output
+    said = " ".join(result.output.split())
+    assert "GNSS slow error: the receiver states 0.501 m, 1.99 times the table's 0.252 m" in said
 
 
 def test_the_fits_against_a_noisier_gnss_velocity_take_wider_bounds() -> None:

@@ -256,6 +256,39 @@ def gnss_noise_checked(inputs: NavInputs, enabled: bool = True) -> tuple[NavInpu
     return replace(inputs, gnss_position=position, gnss_velocity=velocity), info
 
 
+#: a receiver stating a horizontal std at least this times its table's total (slow and white) has its slow error's
+#: std raised to match: it knows its own fix better than a datasheet does (0.1: what a covariance rounded for
+#: transport can move it by, and no more)
+MIN_REPORTED_RATIO = 1.1
+
+
+def gnss_slow_error_checked(inputs: NavInputs, enabled: bool = True) -> tuple[NavInputs, dict[str, object]]:
+    """The inputs with the GNSS's slow (Gauss-Markov) error std raised to what the receiver states for its own fixes
+    (``inputs.gnss_reported_std_m``, per axis) where that is at least :data:`MIN_REPORTED_RATIO` times the table's
+    total (the slow std and the fixes' white sigma in quadrature), and what was compared and why. The slow error does
+    not show in the samples (it moves every fix alike, over a minute): only the receiver can say it is larger than its
+    table, and the position's std SAR-MIN states holds only as far as that size is right (docs/NAVIGATION.md)."""
+    slow, reported = inputs.gnss_error_std_m, inputs.gnss_reported_std_m
+    white = float(np.max(inputs.gnss_position.sigma)) if inputs.gnss_position is not None else 0.0
+    table = math.hypot(slow, white)
+    info: dict[str, object] = {"table_std_m": table, "reported_std_m": None if math.isnan(reported) else reported,
+                               "slow_std_m": slow, "applied": False}
+    if inputs.gnss_error_time_s <= 0.0:
+        return inputs, info | {"reason": "no slow error modelled (navigation.gnss_error_model)"}
+    if math.isnan(reported):
+        return inputs, info | {"reason": "the receiver states no covariance for its fixes: the table's"}
+    if not enabled:
+        return inputs, info | {"reason": "navigation.estimate_gnss_noise is off: the table's"}
+    if reported < MIN_REPORTED_RATIO * table:
+        return inputs, info | {"reason": f"the receiver states {reported:.3f} m, within {MIN_REPORTED_RATIO:g} times "
+                                          f"the table's {table:.3f} m: the table's"}
+    raised = math.sqrt(reported**2 - white**2)
+    return replace(inputs, gnss_error_std_m=raised), info | {
+        "slow_std_m": raised, "applied": True,
+        "reason": f"the receiver states {reported:.3f} m, {reported / table:.2f} times the table's {table:.3f} m: its "
+                  f"slow error taken at {raised:.3f} m"}
+
+
 def with_fit_bounds_widened(config: Config, gnss_noise: dict[str, dict[str, object]]) -> Config:
     """``config`` whose bounds on the std of the fits made against the GNSS velocity (wheel lag, wheel radii, rear
     slip) are widened by the factor its sigma was raised by (``gnss_noise``: :func:`gnss_noise_checked`'s report);

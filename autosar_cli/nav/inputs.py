@@ -7,6 +7,7 @@ ENU metres at ``origin``, whose height is the road surface under the first GNSS 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -75,6 +76,9 @@ class NavInputs:
     # of gnss_position.sigma (white, per fix); std 0 means the fixes are taken as independent.
     gnss_error_std_m: float = 0.0
     gnss_error_time_s: float = 0.0
+    #: the horizontal std per axis (m) the receiver states for its fixes (NavSatFix position_covariance of a known
+    #: type, the median over the fixes); NaN where it states none (NMEA, type 0)
+    gnss_reported_std_m: float = math.nan
     #: the GNSS velocity's correlated error (m/s per axis, s), carried as two Gauss-Markov states where it is > 0
     #: (:func:`~autosar_cli.nav.gnss_noise.velocity_decorrelated`); the samples' sigma is then its white part
     gnss_velocity_error_std_mps: float = 0.0
@@ -93,6 +97,19 @@ def lsb_of(values: Array) -> float:
 def _columns(group: h5py.Group, names: tuple[str, ...]) -> dict[str, np.ndarray]:
     """The named datasets of a series group (only those: a group holds many more columns than navigation uses)."""
     return {k: read_dataset(group, k) for k in names}
+
+
+def _reported_horizontal_std(fix: h5py.Group) -> float:
+    """The median over the fixes of the horizontal std per axis (m) the receiver states (the mean of the east and
+    north variances of ``position_covariance``, where its type is known and the variances finite and positive); NaN
+    where no fix states one."""
+    if "position_covariance" not in fix or "position_covariance_type" not in fix:
+        return math.nan
+    cov = np.asarray(read_dataset(fix, "position_covariance"), dtype=np.float64).reshape(-1, 9)
+    known = np.asarray(read_dataset(fix, "position_covariance_type")) > 0
+    var = 0.5 * (cov[:, 0] + cov[:, 4])
+    ok = known & np.isfinite(var) & (var > 0)
+    return float(np.sqrt(np.median(var[ok]))) if ok.any() else math.nan
 
 
 def _load_gnss_heading(out: NavInputs, gnss: h5py.Group, source: str, errors: GnssErrors | None,
@@ -163,6 +180,7 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
     else:
         pos_std = np.full(2, nav.gnss_position_std_m)
     out.gnss_position = Measurements(nav.gnss, rel(fix["t_ns"], nav.gnss), enu[:, :2], pos_std)
+    out.gnss_reported_std_m = _reported_horizontal_std(gnss["fix"])
     if "velocity" in gnss:
         vel = _columns(gnss["velocity"], ("t_ns", "velocity_enu"))
         std = errors.velocity_std_mps if errors else 0.05

@@ -31,7 +31,12 @@ from autosar_cli.nav.can_latency import delayed_can, fit_can_latency
 from autosar_cli.nav.dead_reckoning import dead_reckoned_start
 from autosar_cli.nav.gnss_latency import MIN_SPAN_S as MIN_LATENCY_SPAN_S
 from autosar_cli.nav.gnss_latency import delayed_gnss, fit_gnss_latency
-from autosar_cli.nav.gnss_noise import gnss_noise_checked, velocity_decorrelated, with_fit_bounds_widened
+from autosar_cli.nav.gnss_noise import (
+    gnss_noise_checked,
+    gnss_slow_error_checked,
+    velocity_decorrelated,
+    with_fit_bounds_widened,
+)
 from autosar_cli.nav.inputs import NavInputError, NavInputs, load_inputs
 from autosar_cli.nav.rear_slip import fit_rear_slip
 from autosar_cli.nav.sarmin import NavSolution, gnss_lever_rear, run_sarmin, with_smoothed_covariance
@@ -58,9 +63,9 @@ from autosar_cli.types import MotionCorrection
 
 METHODS = ("sar-min", "ins", "gnss", "none", "truth")
 #: what a trajectory's info reports of its navigation (navigate --json, run.json): updates and what was fitted
-REPORTED_INFO = ("updates", "rejected", "gnss_noise", "gnss_velocity_correlation", "gnss_latency", "can_latency",
-                 "before_first_fix", "gnss_gaps", "understeer", "rear_slip", "wheel_lag", "wheel_radii", "attitude",
-                 "wheel_gaps", "standstill_ns", "standstill_refused", "gnss_heading", "warnings")
+REPORTED_INFO = ("updates", "rejected", "gnss_noise", "gnss_slow_error", "gnss_velocity_correlation", "gnss_latency",
+                 "can_latency", "before_first_fix", "gnss_gaps", "understeer", "rear_slip", "wheel_lag", "wheel_radii",
+                 "attitude", "wheel_gaps", "standstill_ns", "standstill_refused", "gnss_heading", "warnings")
 SIGNIFICANT = 3.0  # a fitted lag or gradient is applied where it differs from the default by more stds than this
 # ... and by more than these: a tenth of a sedan's understeer gradient (rad per m/s^2), 5 ms of yaw lag, 1 cm of
 # wheel-speed lag distance, 0.1 % per m/s^2 of slip gain (at urban's 1 m/s^2 RMS, 1 mm per metre), 0.05 % per m/s^2
@@ -566,6 +571,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
             raise NavInputError(f"{drive_path}: {why}")
         inputs, can_latency = can_latency_corrected(inputs, config)
         inputs, gnss_latency = gnss_latency_corrected(inputs, config)
+        inputs, gnss_slow_error = gnss_slow_error_checked(inputs, config.navigation.estimate_gnss_noise)
         inputs, gnss_noise = gnss_noise_checked(inputs, config.navigation.estimate_gnss_noise)
         inputs, velocity_correlation = velocity_decorrelated(
             inputs, gnss_speed_residual(inputs, gnss_lever_rear(inputs, config), config.vehicle.wheelbase_m),
@@ -597,7 +603,8 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                           info={"updates": sol.updates, "rejected": sol.rejected, "smoothed": smooth,
                                 "understeer": understeer, "rear_slip": rear_slip, "wheel_lag": wheel_lag,
                                 "wheel_radii": wheel_radii, "gnss_noise": gnss_noise,
-                                "gnss_latency": gnss_latency, "can_latency": can_latency,
+                                "gnss_slow_error": gnss_slow_error, "gnss_latency": gnss_latency,
+                                "can_latency": can_latency,
                                 "gnss_velocity_correlation": velocity_correlation,
                                 "before_first_fix": before_first_fix, "gnss_gaps": gnss_gaps(inputs),
                                 "standstill_ns": [[inputs.t0_ns + int(round(x * 1e9)) for x in span]
