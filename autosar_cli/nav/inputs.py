@@ -105,8 +105,10 @@ def _reported_horizontal_std(fix: h5py.Group) -> float:
     where no fix states one."""
     if "position_covariance" not in fix or "position_covariance_type" not in fix:
         return math.nan
-    cov = np.asarray(read_dataset(fix, "position_covariance"), dtype=np.float64).reshape(-1, 9)
+    cov = np.asarray(read_dataset(fix, "position_covariance"), dtype=np.float64)
     known = np.asarray(read_dataset(fix, "position_covariance_type")) > 0
+    if cov.ndim != 2 or cov.shape[1] != 9 or known.shape != (len(cov),):
+        return math.nan  # not NavSatFix's row-major 3 x 3 per fix: nothing the receiver states that can be read
     var = 0.5 * (cov[:, 0] + cov[:, 4])
     ok = known & np.isfinite(var) & (var > 0)
     return float(np.sqrt(np.median(var[ok]))) if ok.any() else math.nan
