@@ -276,7 +276,7 @@ def gnss_slow_error_checked(inputs: NavInputs, enabled: bool = True) -> tuple[Na
     if inputs.gnss_error_time_s <= 0.0:
         return inputs, info | {"reason": "no slow error modelled (navigation.gnss_error_model)"}
     if math.isnan(reported):
-        return inputs, info | {"reason": "the receiver states no covariance for its fixes: the table's"}
+        return inputs, info | {"reason": "the receiver states no covariance of a known type for its fixes: the table's"}
     if not enabled:
         return inputs, info | {"reason": "navigation.estimate_gnss_noise is off: the table's"}
     if reported < MIN_REPORTED_RATIO * table:
