@@ -52,15 +52,17 @@ NAV_ONLY_PRF_HZ = 20.0
 SCALE_LIMIT = 5.5e-4  #: |scale| above it puts a reflector 55 m from the track's centre more than 3 cm off
 
 
-def reflector_track_errors(est: Any, scene: Any, config: Any, t_ns: Any) -> tuple[Any, Any]:
+def reflector_track_errors(est: Any, scene: Any, config: Any, t_ns: Any, errors: Any = None) -> tuple[Any, Any]:
     """The track's aligned error (m) along and across where each corner reflector is imaged (its zero-Doppler
     instant), (C,) each: the rigid alignment over the instants ``t_ns`` (ns), as the evaluation makes it; ``scene``:
-    the drive's ``load_truth``."""
+    the drive's ``load_truth``; ``errors``: ``est``'s ``trajectory_errors`` at the radar's phase centre over
+    ``t_ns``, where already made."""
     from autosar_cli.evaluate.trajectory_metrics import trajectory_errors
     from autosar_cli.nav.trajectory import phase_centre_lever_arm, zero_doppler_times
 
     t = np.asarray(t_ns, dtype=np.int64)
-    errors = trajectory_errors(est, scene.trajectory, phase_centre_lever_arm(config), t)
+    if errors is None:
+        errors = trajectory_errors(est, scene.trajectory, phase_centre_lever_arm(config), t)
     crs = scene.targets.corner_reflectors
     at = np.searchsorted(t, np.asarray(zero_doppler_times(scene.trajectory, scene.targets_above_road(crs), config,
                                                           t))).clip(0, len(t) - 1)
@@ -86,15 +88,15 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
     scene = load_truth(sim.truth_path, est.origin, config)
     truth = scene.trajectory
     t = common_instants(est, truth)
-    lever = phase_centre_lever_arm(config)[None]
-    e_xy, r_xy = est.body_points(t, lever)[:, 0, :2], truth.body_points(t, lever)[:, 0, :2]
+    errors = trajectory_errors(est, truth, phase_centre_lever_arm(config), t)
+    e_xy, r_xy = errors.est_xy, errors.ref_xy
     residual = np.hypot(*(fit_se2(e_xy, r_xy).apply(e_xy) - r_xy).T)
     # the shape: what is left with the scale removed too (a similarity fit), which no scale estimate corrects
     scale = fit_similarity_scale(e_xy, r_xy)
     scaled = e_xy.mean(axis=0) + scale * (e_xy - e_xy.mean(axis=0))
     shape = np.hypot(*(fit_se2(scaled, r_xy).apply(scaled) - r_xy).T)
-    along, across = reflector_track_errors(est, scene, config, t)
-    z = stated_position_z(est, trajectory_errors(est, truth, lever[0], t))
+    along, across = reflector_track_errors(est, scene, config, t, errors)
+    z = stated_position_z(est, errors)
     assert z is not None  # SAR-MIN states its position's covariance
     z_along, z_across = z
     gnss, _ = gnss_velocity_scale(scenario, seed, sim_config)
