@@ -70,6 +70,14 @@ def test_a_product_cut_short_says_by_how_much(tmp_path: Path) -> None:
     (tmp_path / "junk.h5").write_bytes(b"not hdf5" * 100)
     with pytest.raises(TrajectoryFormatError, match="junk.h5: not an HDF5 file"):
         read_trajectory(tmp_path / "junk.h5")
+    # absent, or a directory: said so, not "not an HDF5 file ([Errno 2] Unable to synchronously open file ...)"
+    (tmp_path / "a_dir").mkdir()
+    for cmd, missing in ((["navigate", str(tmp_path / "gone.h5"), "-o", str(tmp_path / "t2.h5")], "gone.h5"),
+                         (["focus", str(tmp_path / "a_dir"), "-t", str(path), "-o", str(tmp_path / "img")], "a_dir")):
+        r = runner.invoke(app, cmd)
+        assert r.exit_code == 1 and "Traceback" not in r.output
+        why = "no such file or directory" if missing == "gone.h5" else "a directory, not an HDF5 file"
+        assert r.stderr.strip().endswith(f"{missing}: {why}"), r.stderr
 
 
 def test_a_flipped_byte_in_the_radar_cube_is_an_error_naming_file_and_dataset(tmp_path: Path) -> None:

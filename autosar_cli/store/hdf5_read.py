@@ -19,10 +19,14 @@ class DamagedFileError(ValueError):
 
 def open_hdf5(path: Path, error: type[Exception]) -> h5py.File:
     """``path`` opened for reading; ``error`` where it cannot be: one cut short (an interrupted copy, a full disk)
-    says by how much, anything else that it is not an HDF5 file."""
+    says by how much, one absent or a directory says so, anything else that it is not an HDF5 file."""
     try:
         return h5py.File(path, "r")
     except OSError as exc:
+        if isinstance(exc, FileNotFoundError) or not Path(path).exists():
+            raise error(f"{path}: no such file or directory") from exc
+        if Path(path).is_dir():
+            raise error(f"{path}: a directory, not an HDF5 file") from exc
         cut = re.search(r"truncated file: eof = (\d+), .*stored_eof = (\d+)", str(exc))
         if cut:
             raise error(f"{path}: cut short: {cut[1]} of the {cut[2]} bytes its HDF5 superblock declares (an "
