@@ -207,6 +207,9 @@ class SensorConfig:
     rate_hz: float
     latency_s: float = 0.0
     lever_arm_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: an IMU's axes turned into the body's: yaw, pitch, roll (deg), z-y-x as the radar's mounting
+    #: (``nav.frames.mounting_rotation``); a 3-DoF IMU (yaw rate only) may only be turned in yaw
+    mounting_ypr_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
     topic: str = ""
     frame_id: str = ""
     dof: int = 6
@@ -642,6 +645,12 @@ def _validate(cfg: Config) -> None:
             raise ConfigError(f"{base}.topic: a {s.kind} sensor needs a topic")
         if s.kind == "imu" and s.dof not in (3, 6):
             raise ConfigError(f"{base}.dof: must be 3 or 6, got {s.dof}")
+        _finite_vector(f"{base}.mounting_ypr_deg", s.mounting_ypr_deg)
+        if any(s.mounting_ypr_deg) and s.kind != "imu":
+            raise ConfigError(f"{base}.mounting_ypr_deg: only an IMU's axes are turned into the body's")
+        if s.kind == "imu" and s.dof == 3 and any(s.mounting_ypr_deg[1:]):
+            raise ConfigError(f"{base}.mounting_ypr_deg: a 3-DoF IMU measures the yaw rate alone, which a pitch or "
+                              f"roll of its mounting would mix with axes it does not have")
         for sub in ("gyro", "accel", "wheel", "steering", "gnss"):
             errors = getattr(s, sub)
             if errors is not None:

@@ -53,6 +53,17 @@ def mounting_rotation(yaw_deg: float, pitch_deg: float = 0.0, roll_deg: float = 
     return rot_z(np.deg2rad(yaw_deg)) @ rot_y(np.deg2rad(pitch_deg)) @ rot_x(np.deg2rad(roll_deg))
 
 
+def sensor_to_body(vectors: ArrayLike, mounting_ypr_deg: tuple[float, float, float]) -> NDArray[np.float64]:
+    """Vectors (N, 3) on a sensor's axes turned onto the body's by its mounting (yaw, pitch, roll, deg:
+    :func:`mounting_rotation`). An axis the sensor does not have (NaN) reaches only the body axes it turns into:
+    a 3-DoF IMU's yaw rate stays a number under a yaw."""
+    v = np.asarray(vectors, dtype=np.float64)
+    if not any(mounting_ypr_deg):
+        return v
+    r = mounting_rotation(*mounting_ypr_deg)
+    return np.stack([sum(r[i, j] * v[:, j] for j in range(3) if r[i, j] != 0.0) for i in range(3)], axis=-1)
+
+
 def body_to_enu(heading: ArrayLike, offsets_body: ArrayLike) -> NDArray[np.float64]:
     """Rotate body-frame vectors (..., 3) into ENU for a level vehicle with heading (rad)."""
     return np.einsum("...ij,...j->...i", rot_z(heading), np.asarray(offsets_body, dtype=np.float64))

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from autosar_cli.config import Config, GnssErrors
+from autosar_cli.nav.frames import sensor_to_body
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.store.drive import Drive
 from autosar_cli.store.hdf5_read import dataset_errors, read_dataset
@@ -131,13 +132,51 @@ def _load_gnss_heading(out: NavInputs, gnss: h5py.Group, source: str, errors: Gn
     out.gnss_heading_offset_std = float(np.deg2rad(offset_std_deg))
 
 
+#: an IMU whose accelerometers read gravity farther than this from the body's up, its mounting applied, is mounted
+#: turned: its z gyro is then not the yaw rate (a road's grade and a car's roll or pitch are a few degrees)
+MAX_GRAVITY_TILT_DEG = 30.0
+
+
+def read_imu(drive: Drive, name: str, config: Config) -> dict[str, Array]:
+    """The IMU stream ``imu/<name>`` (``t_ns``, ``angular_velocity``, ``linear_acceleration``) on the body's axes,
+    turned by the sensor's ``mounting_ypr_deg``. Refused, naming the stream, where its accelerometers (all three
+    axes) read gravity more than ``MAX_GRAVITY_TILT_DEG`` from the body's up."""
+    cols = _columns(drive.h5["imu"][name], ("t_ns", "angular_velocity", "linear_acceleration"))
+    s = config.sensors.get(name)
+    mounting = tuple(s.mounting_ypr_deg) if s else (0.0, 0.0, 0.0)
+    w = sensor_to_body(cols["angular_velocity"], mounting)  # type: ignore[arg-type]
+    f = sensor_to_body(cols["linear_acceleration"], mounting)  # type: ignore[arg-type]
+    whole = np.isfinite(f).all(axis=1)
+    if whole.any():
+        g = np.median(f[whole], axis=0)
+        tilt = float(np.degrees(np.arctan2(np.hypot(g[0], g[1]), g[2])))
+        if tilt > MAX_GRAVITY_TILT_DEG:
+            turned = f"with its mounting_ypr_deg {list(mounting)}" if any(mounting) else "as mounted in the config"
+            raise NavInputError(
+                f"{drive.path}: imu/{name}: its accelerometers read gravity {tilt:.0f} deg from the body's up "
+                f"{turned} (median [{g[0]:.2f}, {g[1]:.2f}, {g[2]:.2f}] m/s^2 on the body's x, y, z), so its z gyro "
+                f"is not the yaw rate: give the sensor's mounting_ypr_deg (yaw, pitch, roll of its axes)")
+    return {"t_ns": cols["t_ns"], "angular_velocity": w, "linear_acceleration": f}
+
+
+def streams_held(drive: Drive, kind: str) -> str:
+    """What the drive holds of ``kind`` ("gnss" or "imu"), for an error that names a missing stream: the config
+    names a sensor's stream by its topic, so a drive logged on other topics holds them under names of its own."""
+    names = drive.gnss_sources() if kind == "gnss" else drive.imu_sources()
+    if not names:
+        return f"the drive has no {kind} stream"
+    return (f"the drive has {', '.join(f'{kind}/{n}' for n in names)}: name the sensors in a --config "
+            f"(each [sensors.*] topic, as in configs/giulia_scanbrick.toml) and ingest again")
+
+
 def load_inputs(drive: Drive, config: Config) -> NavInputs:
     """Collect the SAR-MIN measurements of ``drive`` as the config names them."""
     nav = config.navigation
     gnss_cfg = config.sensors.get(nav.gnss)
     h5 = drive.h5
     if nav.gnss not in drive.gnss_sources() or "fix" not in h5["gnss"][nav.gnss]:
-        raise NavInputError(f"{drive.path}: no GNSS fix stream gnss/{nav.gnss} (config navigation.gnss)")
+        raise NavInputError(f"{drive.path}: no GNSS fix stream gnss/{nav.gnss} (config navigation.gnss); "
+                            f"{streams_held(drive, 'gnss')}")
     gnss = h5["gnss"][nav.gnss]
     fix = _columns(gnss["fix"], ("t_ns", "latitude_deg", "longitude_deg", "altitude_m"))
     if len(fix["t_ns"]) == 0:
@@ -208,8 +247,9 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
             raise NavInputError(f"navigation.gyros: {name!r} is not a sensor with a gyro in the config")
         if s.kind == "imu":
             if name not in imu_sources:
-                raise NavInputError(f"{drive.path}: no IMU stream imu/{name}")
-            imu = _columns(h5["imu"][name], ("t_ns", "angular_velocity"))
+                raise NavInputError(f"{drive.path}: no IMU stream imu/{name} (config navigation.gyros); "
+                                    f"{streams_held(drive, 'imu')}")
+            imu = read_imu(drive, name, config)
             t_ns, z = imu["t_ns"], imu["angular_velocity"][:, 2]
         else:
             try:
@@ -245,7 +285,7 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
     if not out.gyros:
         raise NavInputError(f"{drive.path}: no gyro to fuse (config navigation.gyros is empty)")
     if nav.attitude_imu and nav.attitude_imu in imu_sources:
-        imu = _columns(h5["imu"][nav.attitude_imu], ("t_ns", "angular_velocity", "linear_acceleration"))
+        imu = read_imu(drive, nav.attitude_imu, config)
         w, f = imu["angular_velocity"], imu["linear_acceleration"]
         ok = np.isfinite(w).all(axis=1) & np.isfinite(f).all(axis=1)
         if ok.any():  # a 3-DoF stream (NaN axes) has no attitude to give: left out, and navigate says why

@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from autosar_cli.config import Config
 from autosar_cli.nav.frames import wrap_angle
 from autosar_cli.nav.geodesy import GeodeticOrigin
-from autosar_cli.nav.inputs import NavInputError
+from autosar_cli.nav.inputs import NavInputError, read_imu, streams_held
 from autosar_cli.nav.trajectory import Trajectory, rear_axle_from_body_point
 from autosar_cli.store.drive import Drive
 
@@ -65,9 +65,13 @@ def load_ins_inputs(drive: Drive, config: Config, origin: GeodeticOrigin, t0_ns:
     imu_cfg, gnss_cfg = config.sensors.get(nav.ins_imu), config.sensors.get(nav.ins_gnss)
     if imu_cfg is None or gnss_cfg is None:
         raise NavInputError(f"navigation.ins_imu / ins_gnss ({nav.ins_imu}, {nav.ins_gnss}) are not configured sensors")
-    if nav.ins_imu not in drive.imu_sources() or nav.ins_gnss not in drive.gnss_sources():
-        raise NavInputError(f"{drive.path}: the INS baseline needs imu/{nav.ins_imu} and gnss/{nav.ins_gnss}")
-    imu = drive.series(f"imu/{nav.ins_imu}")
+    if nav.ins_imu not in drive.imu_sources():
+        raise NavInputError(f"{drive.path}: the INS baseline needs imu/{nav.ins_imu} (config navigation.ins_imu); "
+                            f"{streams_held(drive, 'imu')}")
+    if nav.ins_gnss not in drive.gnss_sources():
+        raise NavInputError(f"{drive.path}: the INS baseline needs gnss/{nav.ins_gnss} (config navigation.ins_gnss); "
+                            f"{streams_held(drive, 'gnss')}")
+    imu = read_imu(drive, nav.ins_imu, config)
     fix = drive.series(f"gnss/{nav.ins_gnss}/fix")
     vel = drive.series(f"gnss/{nav.ins_gnss}/velocity")
     if np.isnan(imu["angular_velocity"]).any() or np.isnan(imu["linear_acceleration"]).any():

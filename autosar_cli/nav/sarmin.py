@@ -122,6 +122,7 @@ def _initial_state(inputs: NavInputs, config: Config, n: int, gnss_i: int) -> tu
     P0 = np.zeros((n, n))
     t_start = float(pos.t[0])
     psi, psi_std = 0.0, np.pi
+    v_fixes: tuple[float, float] | None = None
     if vel is not None:
         speed = np.hypot(vel.z[:, 0], vel.z[:, 1])
         moving = np.flatnonzero(speed > 0.5)
@@ -130,6 +131,10 @@ def _initial_state(inputs: NavInputs, config: Config, n: int, gnss_i: int) -> tu
             psi = float(np.arctan2(vel.z[k, 1], vel.z[k, 0]))
             psi_std = float(3 * vel.sigma[0] / speed[k]) + 0.02
             t_start = max(t_start, float(vel.t[k]))
+    else:  # a receiver logging fixes alone: the course of its first move clear of their noise
+        start = _first_move(pos, inputs.gnss_error_std_m)
+        if start is not None:
+            t_start, psi, psi_std, v_fixes = start
     k = int(np.searchsorted(pos.t, t_start - 1e-9))
     k = min(k, len(pos.t) - 1)
     t_start = max(t_start, float(pos.t[k]))
@@ -145,6 +150,8 @@ def _initial_state(inputs: NavInputs, config: Config, n: int, gnss_i: int) -> tu
             v0, v_std = float(np.median(inputs.wheels.z[near][:, 2:])), 0.1
     elif vel is not None:
         v0 = float(np.hypot(*vel.z[np.argmin(np.abs(vel.t - t_start))]))
+    elif v_fixes is not None:
+        v0, v_std = v_fixes
     x0[m.V] = v0
     rates = [float(np.median(g.z[np.abs(g.t - t_start) < 0.1, 0])) for g in inputs.gyros
              if (np.abs(g.t - t_start) < 0.1).any()]
@@ -164,6 +171,30 @@ def _initial_state(inputs: NavInputs, config: Config, n: int, gnss_i: int) -> tu
         e, var = gnss_i, inputs.gnss_error_std_m**2
         P0[m.PX, e] = P0[e, m.PX] = P0[m.PY, e + 1] = P0[e + 1, m.PY] = -var
     return t_start, x0, P0
+
+
+#: a start course from fixes alone: the first move this many times their per-fix noise (white and slow)
+FIRST_MOVE_SIGMAS = 8.0
+
+
+def _first_move(pos: Measurements, slow_std_m: float) -> tuple[float, float, float, tuple[float, float]] | None:
+    """Where a drive has fixes but no GNSS velocity: (start time, course, its std, (speed, its std)) of the first
+    move between two fixes that clears ``FIRST_MOVE_SIGMAS`` times the fixes' noise (the shortest such move ending
+    at the first fix that far from the drive's first), taken at its middle; None where the fixes never move so far.
+    The slow error moves both ends alike over a few seconds, so the white noise sets the course's std; the slow
+    error only sets how far is clear."""
+    white = float(pos.sigma[0])
+    need = FIRST_MOVE_SIGMAS * float(np.hypot(white, slow_std_m))
+    far = np.flatnonzero(np.hypot(*(pos.z[:, :2] - pos.z[0, :2]).T) > need)
+    if not len(far):
+        return None
+    k = int(far[0])
+    j = int(np.flatnonzero(np.hypot(*(pos.z[k, :2] - pos.z[:k, :2]).T) > need)[-1])  # fix 0 is one
+    step = pos.z[k, :2] - pos.z[j, :2]
+    dist = float(np.hypot(*step))
+    speed = dist / max(float(pos.t[k] - pos.t[j]), 1e-3)
+    course_std = float(np.sqrt(2.0) * white / dist) + 0.05  # + a turn within the move
+    return 0.5 * float(pos.t[j] + pos.t[k]), float(np.arctan2(step[1], step[0])), course_std, (speed, 0.5 * speed + 0.2)
 
 
 def gnss_lever_rear(inputs: NavInputs, config: Config) -> tuple[float, float]:
