@@ -19,6 +19,7 @@ from conftest import realdata
 
 from autosar_cli.config import DEFAULT_CONFIG, Config, ConfigError, config_from_dict, load_config
 from autosar_cli.ingest.pipeline import ingest
+from autosar_cli.nav.baselines import fix_velocity
 from autosar_cli.nav.frames import mounting_rotation, sensor_to_body
 from autosar_cli.nav.inputs import Measurements, NavInputError, read_imu
 from autosar_cli.nav.navigate import navigate
@@ -152,3 +153,30 @@ def test_a_3dof_imu_may_only_be_turned_in_yaw() -> None:
         _with_mounting("gnss_cog", [1.0, 0.0, 0.0])
     with pytest.raises(ConfigError, match="ins_cog.mounting_ypr_deg"):
         _with_mounting("ins_cog", [0.0, math.nan, 0.0])
+
+
+def test_the_gnss_baseline_takes_the_fixes_own_velocity_where_none_is_logged(husky_drive: Path, odometry) -> None:
+    """The Husky's receiver logs fixes alone: the gnss baseline's speed is their central differences over 2 s,
+    which follow the wheel odometry's; the straight line runs from the first fix to the last."""
+    t_odo, v_odo, _ = odometry
+    config = _husky_config((0.0, 0.0, 90.0))
+    gnss = navigate(husky_drive, "gnss", config)
+    inside = (t_odo > gnss.t_ns[0]) & (t_odo < gnss.t_ns[-1])
+    assert len(gnss.t_ns) == 989
+    assert np.median(np.abs(np.interp(t_odo[inside], gnss.t_ns, gnss.speed) - v_odo[inside])) < 0.2
+    line = navigate(husky_drive, "none", config)
+    np.testing.assert_allclose(line.rear_axle_enu[[0, -1]], gnss.rear_axle_enu[[0, -1]], atol=1e-9)
+
+
+def test_the_fixes_own_velocity_is_their_central_difference() -> None:
+    """Closed form: fixes at 4 Hz on a circle of 20 m at 0.25 rad/s: the velocity over 2 s (4 fixes either side) is
+    the chord's, |v| = 5 sin(0.25) / 0.25 m/s along the tangent; one-sided at the ends; its std sqrt(2) sigma / 2."""
+    t = np.arange(0.0, 20.0, 0.25)
+    z = 20.0 * np.stack([np.cos(0.25 * t), np.sin(0.25 * t)], axis=1)
+    vel = fix_velocity(Measurements("gnss", t, z, np.array([0.3, 0.3])))
+    mid = slice(4, -4)
+    np.testing.assert_allclose(np.hypot(*vel.z[mid].T), 5.0 * math.sin(0.25) / 0.25, rtol=1e-12)
+    tangent = np.stack([-np.sin(0.25 * t), np.cos(0.25 * t)], axis=1)
+    np.testing.assert_allclose(np.einsum("ij,ij->i", vel.z[mid], tangent[mid]), np.hypot(*vel.z[mid].T), rtol=1e-12)
+    np.testing.assert_allclose(vel.z[0], (z[4] - z[0]) / 1.0, rtol=1e-12)
+    np.testing.assert_allclose(vel.sigma, math.sqrt(2.0) * 0.3 / 2.0)

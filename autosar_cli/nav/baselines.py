@@ -3,6 +3,7 @@ simulator's ground truth. Array-in, array-out like SAR-MIN."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -11,7 +12,7 @@ from numpy.typing import NDArray
 
 from autosar_cli.config import Config
 from autosar_cli.nav.geodesy import GeodeticOrigin
-from autosar_cli.nav.inputs import NavInputError, NavInputs
+from autosar_cli.nav.inputs import Measurements, NavInputError, NavInputs
 from autosar_cli.nav.trajectory import Trajectory, radar_phase_centres, rear_axle_from_body_point
 from autosar_cli.store.drive import radar_clock_reading, stamps_on_navigation_clock
 from autosar_cli.types import MotionCorrection
@@ -23,11 +24,35 @@ def _geometry(config: Config) -> dict[str, float]:
     return {"cog_to_rear_axle_m": config.vehicle.cog_to_rear_axle_m, "cog_height_m": config.vehicle.cog_height_m}
 
 
-def _gnss_heading(inputs: NavInputs, t: Array) -> Array:
-    """Course of the GNSS velocity (rad, ENU), interpolated to ``t``; needs a velocity stream."""
-    vel = inputs.gnss_velocity
-    if vel is None:
-        raise NavInputError("the gnss/none baselines need a GNSS velocity stream")
+#: the span (s) of the fixes' central differences that stand for the velocity of a receiver logging fixes alone
+FIX_VELOCITY_SPAN_S = 2.0
+
+
+def fix_velocity(pos: Measurements, span_s: float = FIX_VELOCITY_SPAN_S) -> Measurements:
+    """The fixes' own velocity (ENU m/s) where a receiver logs no velocity: central differences over about
+    ``span_s`` (fixes ``n`` either side, ``n`` the fixes in half of it, at least 1; one-sided at the ends), so a
+    fix's white noise sigma leaves sqrt(2) sigma / span_s on it."""
+    t, z = pos.t, pos.z[:, :2]
+    if len(t) < 2:
+        raise NavInputError("the gnss/none baselines need a GNSS velocity stream or at least two fixes")
+    rate = (len(t) - 1) / max(float(t[-1] - t[0]), 1e-9)
+    n = max(1, round(0.5 * span_s * rate))
+    i = np.arange(len(t))
+    a, b = np.clip(i - n, 0, len(t) - 1), np.clip(i + n, 0, len(t) - 1)
+    v = (z[b] - z[a]) / (t[b] - t[a])[:, None]
+    return Measurements(pos.name, t, v, np.full(2, math.sqrt(2.0) * float(pos.sigma[0]) / span_s))
+
+
+def _ground_velocity(inputs: NavInputs) -> Measurements:
+    """The GNSS velocity stream, or the fixes' own where the receiver logs none (:func:`fix_velocity`)."""
+    if inputs.gnss_velocity is not None:
+        return inputs.gnss_velocity
+    assert inputs.gnss_position is not None
+    return fix_velocity(inputs.gnss_position)
+
+
+def _gnss_heading(vel: Measurements, t: Array) -> Array:
+    """Course of the ground velocity ``vel`` (rad, ENU), interpolated to ``t``."""
     speed = np.hypot(vel.z[:, 0], vel.z[:, 1])
     ok = speed > 0.3
     if not ok.any():
@@ -37,14 +62,14 @@ def _gnss_heading(inputs: NavInputs, t: Array) -> Array:
 
 
 def gnss_only(inputs: NavInputs, config: Config) -> Trajectory:
-    """GNSS fixes moved from the antenna to the rear axle with the GNSS course as heading."""
+    """GNSS fixes moved from the antenna to the rear axle with the GNSS course as heading (of the receiver's
+    velocity, or of the fixes' own where it logs none)."""
     pos = inputs.gnss_position
     assert pos is not None
     t = pos.t
-    psi = _gnss_heading(inputs, t)
+    vel = _ground_velocity(inputs)
+    psi = _gnss_heading(vel, t)
     rear = rear_axle_from_body_point(pos.z, psi, inputs.gnss_lever_m, config.vehicle.cog_to_rear_axle_m)
-    vel = inputs.gnss_velocity
-    assert vel is not None
     speed = np.interp(t, vel.t, np.hypot(vel.z[:, 0], vel.z[:, 1]))
     yaw_rate = np.gradient(psi, t) if len(t) > 1 else np.zeros_like(t)
     t_ns = inputs.t0_ns + np.round(t * 1e9).astype(np.int64)
