@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import shutil
+from collections.abc import Callable
 from pathlib import Path
 
 import h5py
@@ -353,6 +355,47 @@ def test_wheel_speeds_in_another_unit_are_refused(sim_dir: Path, tmp_path_factor
     warnings = navigate(relabelled, "sar-min", CFG).info["warnings"]
     assert len(warnings) == 2 and all(w.startswith("SAR-MIN's gate refused ") for w in warnings), warnings
     assert " GNSS fixes: " in warnings[0] and " GNSS velocities: " in warnings[1]
+
+
+def _with_column(drive: Path, out: Path, dataset: str, change: Callable[[np.ndarray], np.ndarray]) -> Path:
+    """A copy of ``drive`` at ``out`` whose ``dataset`` holds ``change`` of its values (checksummed, attributes
+    kept): a log whose unit the drive mislabels."""
+    shutil.copy(drive, out)
+    with h5py.File(out, "r+") as f:
+        group, name = dataset.rsplit("/", 1)
+        values, attrs = f[dataset][()], dict(f[dataset].attrs)
+        del f[group][name]
+        f[group].create_dataset(name, data=change(values), fletcher32=True).attrs.update(attrs)
+    return out
+
+
+def test_a_gyro_the_gate_refuses_is_warned_of(ci_drive: Path, tmp_path: Path) -> None:
+    """A gyro logged in deg/s where the drive says rad/s (57.3 times its rate): SAR-MIN's gate refuses all 494 of
+    the ci drive's imu_cog_a samples and the track follows the other gyros, which it says in a warning naming the
+    stream; the drive as recorded has none. Below half refused, or under ten samples, nothing is said."""
+    from autosar_cli.nav.navigate import gated_streams
+
+    bad = _with_column(ci_drive, tmp_path / "deg_per_s.h5", "imu/imu_cog_a/angular_velocity", np.degrees)
+    warnings = navigate(bad, "sar-min", CFG).info["warnings"]
+    assert warnings == ["SAR-MIN's gate refused 494 of 494 samples of imu_cog_a: they disagree with the other sensors "
+                        "(a unit, e.g. deg/s read as rad/s, a sign, a mounting, another drive's data?), and the track "
+                        "follows the others"]
+    assert "warnings" not in navigate(ci_drive, "sar-min", CFG).info
+    said = gated_streams({"orc": 5, "esc": 9}, {"orc": 6, "esc": 2})  # 6 of 11 is over half; 2 of 11 is not
+    assert [w.split(" samples of ")[1].split(":")[0] for w in said] == ["orc"]
+    assert len(gated_streams({"orc": 4}, {"orc": 6, "gnss_pos": 9})) == 1  # 9 refused fixes alone are too few
+
+
+def test_an_imu_logging_its_accelerations_in_g_is_refused(ci_drive: Path, tmp_path: Path) -> None:
+    """The attitude IMU's specific force in g where the drive says m/s^2: navigate refuses it, naming the stream and
+    the magnitude gravity reads (about 1: the simulated drive's 9.8 m/s^2 over 9.80665), rather than turning the radar
+    and the GNSS antenna by a tilt ten times too small."""
+    from autosar_cli.nav.inputs import NavInputError
+
+    bad = _with_column(ci_drive, tmp_path / "in_g.h5", "imu/ins_cog/linear_acceleration", lambda a: a / 9.80665)
+    in_g = r"imu/ins_cog: its accelerometers read gravity as (0\.99|1\.00|1\.01) m/s\^2 "
+    with pytest.raises(NavInputError, match=in_g):
+        navigate(bad, "sar-min", CFG)
 
 
 @pytest.mark.slow

@@ -135,12 +135,14 @@ def _load_gnss_heading(out: NavInputs, gnss: h5py.Group, source: str, errors: Gn
 #: an IMU whose accelerometers read gravity farther than this from the body's up, its mounting applied, is mounted
 #: turned: its z gyro is then not the yaw rate (a road's grade and a car's roll or pitch are a few degrees)
 MAX_GRAVITY_TILT_DEG = 30.0
+#: the median magnitude of a 6-DoF IMU's specific force over a drive (m/s^2): gravity and the car's accelerations
+GRAVITY_RANGE_MPS2 = (7.0, 12.5)
 
 
 def read_imu(drive: Drive, name: str, config: Config) -> dict[str, Array]:
     """The IMU stream ``imu/<name>`` (``t_ns``, ``angular_velocity``, ``linear_acceleration``) on the body's axes,
     turned by the sensor's ``mounting_ypr_deg``. Refused, naming the stream, where its accelerometers (all three
-    axes) read gravity more than ``MAX_GRAVITY_TILT_DEG`` from the body's up."""
+    axes) read gravity outside ``GRAVITY_RANGE_MPS2`` or more than ``MAX_GRAVITY_TILT_DEG`` from the body's up."""
     cols = _columns(drive.h5["imu"][name], ("t_ns", "angular_velocity", "linear_acceleration"))
     s = config.sensors.get(name)
     mounting = tuple(s.mounting_ypr_deg) if s else (0.0, 0.0, 0.0)
@@ -149,6 +151,11 @@ def read_imu(drive: Drive, name: str, config: Config) -> dict[str, Array]:
     whole = np.isfinite(f).all(axis=1)
     if whole.any():
         g = np.median(f[whole], axis=0)
+        magnitude = float(np.median(np.linalg.norm(f[whole], axis=1)))
+        if not GRAVITY_RANGE_MPS2[0] <= magnitude <= GRAVITY_RANGE_MPS2[1]:
+            raise NavInputError(
+                f"{drive.path}: imu/{name}: its accelerometers read gravity as {magnitude:.2f} m/s^2 (median "
+                f"magnitude), not about 9.81: a unit (g read as m/s^2 is 1.0) or a scale in the log")
         tilt = float(np.degrees(np.arctan2(np.hypot(g[0], g[1]), g[2])))
         if tilt > MAX_GRAVITY_TILT_DEG:
             turned = f"with its mounting_ypr_deg {list(mounting)}" if any(mounting) else "as mounted in the config"

@@ -92,23 +92,32 @@ MIN_GNSS_LATENCY_CHANGE_S = 0.02
 GNSS_LATENCY_SIGNIFICANT = 4.0
 #: the attitude estimate's error (rad, 1 sigma): 0.76 / 0.47 mrad RMS roll / pitch on test3 seed 2 (nav.attitude)
 ATTITUDE_STD_RAD = 1e-3
-#: a GNSS stream whose updates SAR-MIN's gate refused more than this share of (of at least MIN_GATED) is warned of
+#: a stream whose updates SAR-MIN's gate refused more than this share of (of at least MIN_GATED) is warned of
 MAX_GATED_SHARE = 0.5
 MIN_GATED = 10
 
 
-def gnss_disagreement(updates: dict[str, int], rejected: dict[str, int]) -> list[str]:
-    """A warning for each GNSS stream (``gnss_pos``, ``gnss_vel``) whose updates SAR-MIN's gate refused more than
-    ``MAX_GATED_SHARE`` of: the car's own sensors and the GNSS disagree, and the track follows the former (the
-    simulated drives: none refused, or 11 of 127 velocities with the GNSS's stamps 0.5 s late)."""
+def gated_streams(updates: dict[str, int], rejected: dict[str, int]) -> list[str]:
+    """A warning for each stream whose updates SAR-MIN's gate refused more than ``MAX_GATED_SHARE`` of. The GNSS
+    (``gnss_pos``, ``gnss_vel``): the car's own sensors and the GNSS disagree, and the track follows the former (the
+    simulated drives: none refused, or 11 of 127 velocities with the GNSS's stamps 0.5 s late). Any other (a gyro,
+    the wheels, the steering): it disagrees with the rest, which the track follows without it (a gyro in deg/s read
+    as rad/s: all refused)."""
     out = []
-    for stream, what in (("gnss_pos", "fixes"), ("gnss_vel", "velocities")):
+    for stream in sorted(set(updates) | set(rejected), key=lambda s: (not s.startswith("gnss_"), s)):
         gated = int(rejected.get(stream, 0))
         total = gated + int(updates.get(stream, 0))
-        if total >= MIN_GATED and gated > MAX_GATED_SHARE * total:
+        if total < MIN_GATED or gated <= MAX_GATED_SHARE * total:
+            continue
+        if stream in ("gnss_pos", "gnss_vel"):
+            what = "fixes" if stream == "gnss_pos" else "velocities"
             out.append(f"SAR-MIN's gate refused {gated} of {total} GNSS {what}: the car's own sensors and the GNSS "
                        "disagree (a unit, a lever arm, a latency, another drive's data?), and the track follows the "
                        "car's sensors")
+        else:
+            out.append(f"SAR-MIN's gate refused {gated} of {total} samples of {stream}: they disagree with the other "
+                       "sensors (a unit, e.g. deg/s read as rad/s, a sign, a mounting, another drive's data?), and the "
+                       "track follows the others")
     return out
 
 
@@ -618,7 +627,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                                                                                inputs.t0_ns)]})
         if config.navigation.gnss_heading:
             traj.info["gnss_heading"] = gnss_heading_info(sol, inputs)
-        if warnings := gnss_disagreement(sol.updates, sol.rejected):
+        if warnings := gated_streams(sol.updates, sol.rejected):
             traj.info["warnings"] = warnings
         traj = with_attitude(traj, attitude, attitude_reason, inputs.t0_ns, config)
     elif method == "ins":
