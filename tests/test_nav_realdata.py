@@ -157,7 +157,8 @@ def test_a_3dof_imu_may_only_be_turned_in_yaw() -> None:
 
 def test_the_gnss_baseline_takes_the_fixes_own_velocity_where_none_is_logged(husky_drive: Path, odometry) -> None:
     """The Husky's receiver logs fixes alone: the gnss baseline's speed is their central differences over 2 s,
-    which follow the wheel odometry's; the straight line runs from the first fix to the last."""
+    which follow the wheel odometry's; the straight line runs from the first fix to the last; the INS, which
+    needs the receiver's velocity, says so."""
     t_odo, v_odo, _ = odometry
     config = _husky_config((0.0, 0.0, 90.0))
     gnss = navigate(husky_drive, "gnss", config)
@@ -166,6 +167,10 @@ def test_the_gnss_baseline_takes_the_fixes_own_velocity_where_none_is_logged(hus
     assert np.median(np.abs(np.interp(t_odo[inside], gnss.t_ns, gnss.speed) - v_odo[inside])) < 0.2
     line = navigate(husky_drive, "none", config)
     np.testing.assert_allclose(line.rear_axle_enu[[0, -1]], gnss.rear_axle_enu[[0, -1]], atol=1e-9)
+    ins = dataclasses.replace(config, navigation=dataclasses.replace(config.navigation, ins_imu="imu_cog_a",
+                                                                     ins_gnss="gnss_cog"))
+    with pytest.raises(NavInputError, match="the INS baseline needs the GNSS velocity gnss/gnss_cog/velocity"):
+        navigate(husky_drive, "ins", ins)
 
 
 def test_the_fixes_own_velocity_is_their_central_difference() -> None:

@@ -72,6 +72,9 @@ def load_ins_inputs(drive: Drive, config: Config, origin: GeodeticOrigin, t0_ns:
         raise NavInputError(f"{drive.path}: the INS baseline needs gnss/{nav.ins_gnss} (config navigation.ins_gnss); "
                             f"{streams_held(drive, 'gnss')}")
     imu = read_imu(drive, nav.ins_imu, config)
+    if "velocity" not in drive.h5["gnss"][nav.ins_gnss]:
+        raise NavInputError(f"{drive.path}: the INS baseline needs the GNSS velocity gnss/{nav.ins_gnss}/velocity, "
+                            "which the receiver did not log (its fixes alone: --method sar-min or gnss)")
     fix = drive.series(f"gnss/{nav.ins_gnss}/fix")
     vel = drive.series(f"gnss/{nav.ins_gnss}/velocity")
     if np.isnan(imu["angular_velocity"]).any() or np.isnan(imu["linear_acceleration"]).any():
