@@ -434,24 +434,57 @@ class Config:
 
 
 def load_config(path: str | Path | None = None) -> Config:
-    """Load and validate a TOML config (default: ``configs/giulia_scanbrick.toml``)."""
+    """Load and validate a TOML config (default: ``configs/giulia_scanbrick.toml``). A config whose top level
+    says ``base = "PATH"`` (relative to itself; ``"default"`` for the default config) holds only what differs
+    from that one: its tables are merged over the base's, key by key, its values (arrays too) replace the base's."""
     p = Path(path) if path is not None else DEFAULT_CONFIG
+    raw = _layered(p, ())
+    try:
+        cfg = config_from_dict(raw, source=str(p.resolve()))
+    except ConfigError as exc:
+        raise ConfigError(f"{p}: {exc}") from None
+    return cfg
+
+
+def _read_toml(p: Path) -> dict[str, Any]:
     try:
         with open(p, "rb") as f:
-            raw = tomllib.load(f)
+            return tomllib.load(f)
     except FileNotFoundError:
         raise ConfigError(f"{p}: config file not found") from None
+    except IsADirectoryError:
+        raise ConfigError(f"{p}: a directory, not a config file") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{p}: not valid TOML: {exc}") from None
     except UnicodeDecodeError as exc:
         raise ConfigError(f"{p}: not valid TOML: not UTF-8 text (byte {exc.start})") from None
     except OSError as exc:
         raise ConfigError(f"{p}: cannot read the config: {exc.strerror}") from None
-    try:
-        cfg = config_from_dict(raw, source=str(p.resolve()))
-    except ConfigError as exc:
-        raise ConfigError(f"{p}: {exc}") from None
-    return cfg
+
+
+def _layered(p: Path, below: tuple[Path, ...]) -> dict[str, Any]:
+    """The TOML at ``p`` merged over its ``base`` chain; a relative ``can.dbc`` made absolute beside the file
+    that names it (a config elsewhere that takes the default's DBC still finds it)."""
+    raw = _read_toml(p)
+    can = raw.get("can")
+    if isinstance(can, dict) and isinstance(can.get("dbc"), str) and not Path(can["dbc"]).is_absolute():
+        can["dbc"] = str(p.resolve().parent / can["dbc"])
+    if "base" not in raw:
+        return raw
+    base = raw.pop("base")
+    if not isinstance(base, str) or not base:
+        raise ConfigError(f"{p}: base: expected the path of the config this one changes, or \"default\"")
+    base_path = DEFAULT_CONFIG if base == "default" else p.parent / base
+    if base_path.resolve() in below + (p.resolve(),):
+        raise ConfigError(f"{p}: base: {base_path} is this config or one it is the base of (a circle)")
+    return _merged(_layered(base_path, below + (p.resolve(),)), raw)
+
+
+def _merged(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    out = dict(base)
+    for key, value in over.items():
+        out[key] = _merged(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
+    return out
 
 
 def config_from_dict(raw: dict[str, Any], source: str = "") -> Config:
@@ -481,8 +514,8 @@ def _build(cls: Any, value: Any, path: str) -> Any:
                 kwargs[f.name] = _build(hints[f.name], value[f.name], _join(path, f.name))
             elif f.default is MISSING and f.default_factory is MISSING:
                 what = "table" if is_dataclass(hints[f.name]) else "key"
-                raise ConfigError(f"{_join(path, f.name)}: missing required {what} (a config is complete: copy "
-                                  "configs/giulia_scanbrick.toml and edit it)")
+                raise ConfigError(f"{_join(path, f.name)}: missing required {what} (a config is complete, or "
+                                  "says base = \"default\" and holds only what differs from it)")
         return cls(**kwargs)
     if origin in (types.UnionType, typing.Union):
         args = [a for a in typing.get_args(cls) if a is not type(None)]

@@ -79,7 +79,8 @@ def test_bad_values_are_rejected_naming_the_key(tmp_path, pattern, replacement, 
 
 def test_missing_key_and_missing_file(tmp_path):
     path = _write_variant(tmp_path, r"^steering_ratio = .*$", "")
-    with pytest.raises(ConfigError, match=r"vehicle\.steering_ratio: missing required key \(a config is complete"):
+    with pytest.raises(ConfigError, match=r"vehicle\.steering_ratio: missing required key \(a config is complete, or "
+                                          r"says base = \"default\""):
         load_config(path)
     partial = tmp_path / "partial.toml"
     partial.write_text("[radar]\nprf_hz = 500.0\n")  # a whole table missing is named as a table
@@ -91,6 +92,39 @@ def test_missing_key_and_missing_file(tmp_path):
     bad.write_text("[vehicle\nname = 1")
     with pytest.raises(ConfigError, match="not valid TOML"):
         load_config(bad)
+
+
+def test_a_config_on_a_base_holds_only_what_differs(tmp_path: Path) -> None:
+    """``base = "default"`` (or a path beside the config): tables merged key by key over the base's, values and arrays
+    replaced, a chain of bases followed, the default's DBC found from a config elsewhere, its own DBC beside itself;
+    a circle, a missing base and a base that is no path are named."""
+    default = load_config()
+    mine = tmp_path / "mine.toml"
+    mine.write_text('base = "default"\n[vehicle]\nwheelbase_m = 2.9\n[navigation]\ngyros = ["esc"]\n'
+                    '[sensors.gnss_cog.gnss]\nhorizontal_std_m = 0.5\n')
+    cfg = load_config(mine)
+    assert cfg.vehicle == replace(default.vehicle, wheelbase_m=2.9)
+    assert cfg.navigation.gyros == ("esc",) and cfg.navigation.gnss == default.navigation.gnss
+    assert cfg.sensors["gnss_cog"].gnss == replace(default.sensors["gnss_cog"].gnss, horizontal_std_m=0.5)
+    assert cfg.sensors["gnss_cog"].topic == default.sensors["gnss_cog"].topic
+    assert cfg.dbc_path == default.dbc_path and cfg.dbc_path.exists() and cfg.radar == default.radar
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "own.dbc").write_text("VERSION \"\"\n")
+    on_mine = tmp_path / "sub" / "on_mine.toml"
+    on_mine.write_text('base = "../mine.toml"\n[can]\ndbc = "own.dbc"\n[vehicle]\nsteering_ratio = 14.0\n')
+    chained = load_config(on_mine)
+    assert (chained.vehicle.wheelbase_m, chained.vehicle.steering_ratio) == (2.9, 14.0)
+    assert chained.dbc_path == tmp_path / "sub" / "own.dbc"
+    circle = tmp_path / "circle.toml"
+    circle.write_text('base = "circle.toml"\n')
+    with pytest.raises(ConfigError, match=r"circle.toml: base: .*circle.toml is this config or one it is the base of"):
+        load_config(circle)
+    (tmp_path / "gone.toml").write_text('base = "nowhere.toml"\n')
+    with pytest.raises(ConfigError, match=r"nowhere.toml: config file not found"):
+        load_config(tmp_path / "gone.toml")
+    (tmp_path / "num.toml").write_text("base = 3\n")
+    with pytest.raises(ConfigError, match=r"num.toml: base: expected the path of the config this one changes"):
+        load_config(tmp_path / "num.toml")
 
 
 def test_bench_configs_change_only_the_simulators_entries(tmp_path: Path) -> None:

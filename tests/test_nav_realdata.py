@@ -30,18 +30,31 @@ HUSKY = ("robot_localization", "test1.bag")
 ODOM = "/husky_velocity_controller/odom"
 
 
+#: the shipped worked example: only what differs from the default config (``base = "default"``)
+HUSKY_CONFIG = DEFAULT_CONFIG.parent / "examples" / "husky_test1.toml"
+
+
 def _husky_config(mounting_ypr_deg: tuple[float, float, float]) -> Config:
-    """The config's sensors pinned to the Husky's topics, its IMU (6-DoF, 30 Hz) turned by ``mounting_ypr_deg``,
-    its GNSS at 2.5 Hz with the 0.8 m its fixes state, both at the robot's centre (no car's lever arms)."""
-    base = load_config()
-    imu = dataclasses.replace(base.sensors["imu_cog_a"], topic="/imu/data", dof=6, rate_hz=30.0, lever_arm_m=(0, 0, 0),
-                              mounting_ypr_deg=mounting_ypr_deg)
-    table = dataclasses.replace(base.sensors["gnss_cog"].gnss, horizontal_std_m=0.8, white_std_m=0.3)
-    gnss = dataclasses.replace(base.sensors["gnss_cog"], topic="/fix", rate_hz=2.5, latency_s=0.0,
-                               lever_arm_m=(0.0, 0.0, 0.5), gnss=table)
-    return dataclasses.replace(base, sensors={**base.sensors, "imu_cog_a": imu, "gnss_cog": gnss},
-                               vehicle=dataclasses.replace(base.vehicle, cog_to_rear_axle_m=0.0),
-                               navigation=dataclasses.replace(base.navigation, gyros=("imu_cog_a",)))
+    """The worked example's config (the Husky's topics; its IMU 6-DoF at 30 Hz; its GNSS at 2.5 Hz with the 0.8 m
+    its fixes state; both at the robot's centre), its IMU turned by ``mounting_ypr_deg`` instead of its own."""
+    config = load_config(HUSKY_CONFIG)
+    imu = dataclasses.replace(config.sensors["imu_cog_a"], mounting_ypr_deg=mounting_ypr_deg)
+    return dataclasses.replace(config, sensors={**config.sensors, "imu_cog_a": imu})
+
+
+def test_the_worked_example_changes_only_what_it_says() -> None:
+    """configs/examples/husky_test1.toml names only what differs from the default: the rest is the default's (the
+    IMU's error tables, the DBC beside the default config), what it names replaces it."""
+    example, default = load_config(HUSKY_CONFIG), load_config()
+    imu, imu0 = example.sensors["imu_cog_a"], default.sensors["imu_cog_a"]
+    assert (imu.topic, imu.dof, imu.rate_hz, imu.mounting_ypr_deg) == ("/imu/data", 6, 30.0, (0.0, 0.0, 90.0))
+    assert imu.gyro == imu0.gyro and imu.accel == imu0.accel
+    assert example.sensors["gnss_cog"].gnss.horizontal_std_m == 0.8
+    assert example.sensors["gnss_cog"].gnss.velocity_std_mps == default.sensors["gnss_cog"].gnss.velocity_std_mps
+    assert example.navigation.gyros == ("imu_cog_a",) and example.vehicle.cog_to_rear_axle_m == 0.0
+    assert example.dbc_path == default.dbc_path and example.dbc_path.exists()
+    assert dataclasses.replace(example, sensors=default.sensors, navigation=default.navigation, vehicle=default.vehicle,
+                               source="", can=default.can) == dataclasses.replace(default, source="")
 
 
 @pytest.fixture(scope="module")
@@ -98,12 +111,14 @@ def test_the_mounting_turns_the_real_imus_yaw_rate_onto_the_body(husky_drive: Pa
 def test_sarmin_starts_from_the_fixes_alone_on_a_real_robot(husky_drive: Path, odometry) -> None:
     """No GNSS velocity, no wheel speeds: SAR-MIN takes its start course and speed from the fixes' first move. Its
     speed then follows the wheel odometry's (median 0.12 m/s off at 0.9 m/s; from a course of 0 +- pi it drove
-    the robot backwards, 1.88 m/s off), and the fixes all pass its gate."""
-    t_odo, v_odo, _ = odometry
+    the robot backwards, 1.88 m/s off), its yaw rate too (0.44 deg/s), and the fixes all pass its gate."""
+    t_odo, v_odo, w_odo = odometry
     traj = navigate(husky_drive, "sar-min", _husky_config((0.0, 0.0, 90.0)))
     inside = (t_odo > traj.t_ns[0]) & (t_odo < traj.t_ns[-1])
     speed = np.interp(t_odo[inside], traj.t_ns, traj.speed)
     assert np.median(np.abs(speed - v_odo[inside])) < 0.25
+    yaw_rate = np.interp(t_odo[inside], traj.t_ns, traj.yaw_rate)
+    assert np.degrees(np.median(np.abs(yaw_rate - w_odo[inside]))) < 0.8  # 0.44 deg/s
     assert np.median(speed) > 0.5
     assert traj.info["updates"]["gnss_pos"] > 950 and "gnss_pos" not in traj.info["rejected"]
 
