@@ -418,6 +418,19 @@ class Config:
     vehicle_dynamics: VehicleDynamicsConfig = field(default_factory=VehicleDynamicsConfig)
     navigation: NavigationConfig = field(default_factory=NavigationConfig)
     source: str = ""
+    bases: tuple[str, ...] = ()  #: the configs ``source`` is laid over (``base = ...``), nearest first
+
+    @property
+    def files(self) -> tuple[str, ...]:
+        """Every file this config was read from: ``source``, then its bases."""
+        return ((self.source,) if self.source else ()) + self.bases
+
+    def text(self) -> str:
+        """The TOML this config was read from, for provenance: its file's, or, laid over bases, each file's
+        after a comment line naming it."""
+        if not self.bases:
+            return Path(self.source).read_text(encoding="utf-8") if self.source else ""
+        return "".join(f"# autosar config layer: {f}\n{Path(f).read_text(encoding='utf-8')}\n" for f in self.files)
 
     @property
     def dbc_path(self) -> Path:
@@ -438,9 +451,10 @@ def load_config(path: str | Path | None = None) -> Config:
     says ``base = "PATH"`` (relative to itself; ``"default"`` for the default config) holds only what differs
     from that one: its tables are merged over the base's, key by key, its values (arrays too) replace the base's."""
     p = Path(path) if path is not None else DEFAULT_CONFIG
-    raw = _layered(p, ())
+    bases: list[str] = []
+    raw = _layered(p, (), bases)
     try:
-        cfg = config_from_dict(raw, source=str(p.resolve()))
+        cfg = config_from_dict(raw, source=str(p.resolve()), bases=tuple(bases))
     except ConfigError as exc:
         raise ConfigError(f"{p}: {exc}") from None
     return cfg
@@ -462,9 +476,10 @@ def _read_toml(p: Path) -> dict[str, Any]:
         raise ConfigError(f"{p}: cannot read the config: {exc.strerror}") from None
 
 
-def _layered(p: Path, below: tuple[Path, ...]) -> dict[str, Any]:
-    """The TOML at ``p`` merged over its ``base`` chain; a relative ``can.dbc`` made absolute beside the file
-    that names it (a config elsewhere that takes the default's DBC still finds it)."""
+def _layered(p: Path, below: tuple[Path, ...], bases: list[str]) -> dict[str, Any]:
+    """The TOML at ``p`` merged over its ``base`` chain, whose files are appended to ``bases``; a relative
+    ``can.dbc`` made absolute beside the file that names it (a config elsewhere that takes the default's DBC still
+    finds it)."""
     raw = _read_toml(p)
     can = raw.get("can")
     if isinstance(can, dict) and isinstance(can.get("dbc"), str) and not Path(can["dbc"]).is_absolute():
@@ -477,7 +492,8 @@ def _layered(p: Path, below: tuple[Path, ...]) -> dict[str, Any]:
     base_path = DEFAULT_CONFIG if base == "default" else p.parent / base
     if base_path.resolve() in below + (p.resolve(),):
         raise ConfigError(f"{p}: base: {base_path} is this config or one it is the base of (a circle)")
-    return _merged(_layered(base_path, below + (p.resolve(),)), raw)
+    bases.append(str(base_path.resolve()))
+    return _merged(_layered(base_path, below + (p.resolve(),), bases), raw)
 
 
 def _merged(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
@@ -487,10 +503,11 @@ def _merged(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def config_from_dict(raw: dict[str, Any], source: str = "") -> Config:
-    """Build a validated :class:`Config` from a parsed TOML mapping."""
+def config_from_dict(raw: dict[str, Any], source: str = "", bases: tuple[str, ...] = ()) -> Config:
+    """Build a validated :class:`Config` from a parsed TOML mapping (``source`` and ``bases``: the files it was
+    read from)."""
     data = dict(raw)
-    data["source"] = source
+    data["source"], data["bases"] = source, bases
     cfg = _build(Config, data, "")
     _validate(cfg)
     return cfg

@@ -75,7 +75,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         raise RunError(f"{out}: already holds a run (run.json); pass --overwrite to replace it")
     # every check that needs no data before the ingest starts: outputs (never an input, only autosar's replaced)
     # and the image's size
-    inputs = [*logs, *([truth_path] if truth_path else []), *([config.source] if config.source else [])]
+    inputs = [*logs, *([truth_path] if truth_path else []), *config.files]
     check_output(out, inputs, overwrite=overwrite, directory=True)
     check_products(out, [DRIVE, TRAJECTORY, "run.json"], inputs, overwrite=True)
     check_products(out, [f"{IMAGE}.tif", f"{IMAGE}.h5", f"{IMAGE}.png"], inputs, overwrite=True)

@@ -115,6 +115,12 @@ def test_a_config_on_a_base_holds_only_what_differs(tmp_path: Path) -> None:
     chained = load_config(on_mine)
     assert (chained.vehicle.wheelbase_m, chained.vehicle.steering_ratio) == (2.9, 14.0)
     assert chained.dbc_path == tmp_path / "sub" / "own.dbc"
+    assert chained.files == (str(on_mine.resolve()), str(mine.resolve()), str(DEFAULT_CONFIG.resolve()))
+    text = chained.text()  # provenance (drive.h5's config_toml): every layer, each named
+    assert [ln for ln in text.splitlines() if ln.startswith("# autosar config layer: ")] == [
+        f"# autosar config layer: {f}" for f in chained.files]
+    assert 'steering_ratio = 14.0' in text and 'wheelbase_m = 2.9' in text and DEFAULT_CONFIG.read_text() in text
+    assert default.files == (str(DEFAULT_CONFIG.resolve()),) and default.text() == DEFAULT_CONFIG.read_text()
     circle = tmp_path / "circle.toml"
     circle.write_text('base = "circle.toml"\n')
     with pytest.raises(ConfigError, match=r"circle.toml: base: .*circle.toml is this config or one it is the base of"):

@@ -757,7 +757,7 @@ def _human(seconds: float) -> str:
 
 def _config_text(config: Config) -> str:
     try:
-        return Path(config.source).read_text(encoding="utf-8") if config.source else ""
+        return config.text()
     except OSError:
         return ""
 

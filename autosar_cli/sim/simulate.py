@@ -286,7 +286,7 @@ def simulate(
         "scenario": scenario.name, "description": scenario.description, "seed": seed,
         "autosar_version": __version__, "origin_lat_deg": origin.lat_deg, "origin_lon_deg": origin.lon_deg,
         "origin_height_m": origin.height_m, "start_time_ns": t0_ns, "duration_s": motion.duration_s,
-        "config_toml": Path(config.source).read_text() if config.source else "",
+        "config_toml": config.text(),
         "log_format": fmt, "log_file": output.name,
         # the front end's channel mismatch the samples carry (tx, rx): 0 deg, 0 dB where matched
         "channel_phase_deg": np.degrees(np.angle(channel_gain)), "channel_gain_db": 20 * np.log10(np.abs(channel_gain)),
