@@ -21,7 +21,7 @@ from autosar_cli.config import DEFAULT_CONFIG, Config, ConfigError, config_from_
 from autosar_cli.ingest.pipeline import ingest
 from autosar_cli.nav.baselines import fix_velocity
 from autosar_cli.nav.frames import mounting_rotation, sensor_to_body
-from autosar_cli.nav.inputs import Measurements, NavInputError, read_imu
+from autosar_cli.nav.inputs import Measurements, NavInputError, levelling_pitch_roll_deg, read_imu
 from autosar_cli.nav.navigate import navigate
 from autosar_cli.nav.sarmin import FIRST_MOVE_SIGMAS, _first_move
 from autosar_cli.store.drive import Drive
@@ -53,8 +53,9 @@ def test_the_worked_example_changes_only_what_it_says() -> None:
     assert example.sensors["gnss_cog"].gnss.velocity_std_mps == default.sensors["gnss_cog"].gnss.velocity_std_mps
     assert example.navigation.gyros == ("imu_cog_a",) and example.vehicle.cog_to_rear_axle_m == 0.0
     assert example.dbc_path == default.dbc_path and example.dbc_path.exists()
+    assert example.files == (str(HUSKY_CONFIG.resolve()), str(DEFAULT_CONFIG.resolve()))
     assert dataclasses.replace(example, sensors=default.sensors, navigation=default.navigation, vehicle=default.vehicle,
-                               source="", can=default.can) == dataclasses.replace(default, source="")
+                               source="", bases=(), can=default.can) == dataclasses.replace(default, source="")
 
 
 @pytest.fixture(scope="module")
@@ -79,6 +80,17 @@ def odometry() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.array(t), np.array(v), np.array(w)
 
 
+def test_the_drive_keeps_every_layer_of_its_config(husky_drive: Path) -> None:
+    """drive.h5's provenance holds the worked example's text and its base's, each named: the drive can be made
+    again from it."""
+    import h5py
+
+    with h5py.File(husky_drive) as f:
+        text = f.attrs["config_toml"]
+    assert f"# autosar config layer: {HUSKY_CONFIG.resolve()}\n{HUSKY_CONFIG.read_text()}" in text
+    assert f"# autosar config layer: {DEFAULT_CONFIG.resolve()}\n{DEFAULT_CONFIG.read_text()}" in text
+
+
 def test_an_imu_mounted_turned_is_refused_with_where_its_gravity_reads(husky_drive: Path) -> None:
     """The Husky's IMU reads gravity on its y axis: as the config mounts it (axes on the body's) its z gyro is not
     the yaw rate, which navigate says rather than fusing a yaw rate of about nothing."""
@@ -88,6 +100,7 @@ def test_an_imu_mounted_turned_is_refused_with_where_its_gravity_reads(husky_dri
     msg = str(info.value)
     assert "imu/imu_cog_a" in msg and "gravity 89 deg from the body's up" in msg and "mounting_ypr_deg" in msg
     assert "[-0.22, 9.79, 0.09]" in msg  # the median specific force as recorded
+    assert "levels it at about [yaw, 1.3, 89.5]" in msg  # the worked example's [0, 0, 90]
     with pytest.raises(NavInputError, match="gravity 89 deg"):
         navigate(husky_drive, "sar-min", _husky_config((0.0, 0.0, 0.0)))
 
@@ -157,6 +170,14 @@ def _with_mounting(sensor: str, mounting: list[float]) -> Config:
     raw = tomllib.loads(DEFAULT_CONFIG.read_text())
     raw["sensors"][sensor]["mounting_ypr_deg"] = mounting
     return config_from_dict(raw)
+
+
+def test_the_levelling_pitch_and_roll_turn_gravity_onto_up() -> None:
+    """Closed form: for gravity read along any direction, the suggested pitch and roll turn it onto +z."""
+    rng = np.random.default_rng(3)
+    for g in [*rng.normal(size=(20, 3)), np.array([0.0, 0.0, -9.8]), np.array([9.8, 0.0, 0.0])]:
+        turned = sensor_to_body(g[None], (0.0, *levelling_pitch_roll_deg(g)))[0]
+        np.testing.assert_allclose(turned, [0.0, 0.0, np.linalg.norm(g)], atol=1e-12)
 
 
 def test_a_3dof_imu_may_only_be_turned_in_yaw() -> None:

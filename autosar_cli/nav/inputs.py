@@ -139,6 +139,14 @@ MAX_GRAVITY_TILT_DEG = 30.0
 GRAVITY_RANGE_MPS2 = (7.0, 12.5)
 
 
+def levelling_pitch_roll_deg(gravity: Array) -> tuple[float, float]:
+    """The pitch and roll (deg, :func:`~autosar_cli.nav.frames.mounting_rotation`'s) that turn an accelerometer
+    triad's reading of gravity ``gravity`` (3,) onto +z: roll = atan2(g_y, g_z), pitch = atan2(-g_x, hypot(g_y,
+    g_z)). Gravity says nothing of the yaw."""
+    gx, gy, gz = (float(v) for v in gravity)
+    return math.degrees(math.atan2(-gx, math.hypot(gy, gz))), math.degrees(math.atan2(gy, gz))
+
+
 def read_imu(drive: Drive, name: str, config: Config) -> dict[str, Array]:
     """The IMU stream ``imu/<name>`` (``t_ns``, ``angular_velocity``, ``linear_acceleration``) on the body's axes,
     turned by the sensor's ``mounting_ypr_deg``. Refused, naming the stream, where its accelerometers (all three
@@ -159,10 +167,13 @@ def read_imu(drive: Drive, name: str, config: Config) -> dict[str, Array]:
         tilt = float(np.degrees(np.arctan2(np.hypot(g[0], g[1]), g[2])))
         if tilt > MAX_GRAVITY_TILT_DEG:
             turned = f"with its mounting_ypr_deg {list(mounting)}" if any(mounting) else "as mounted in the config"
+            raw_g = np.median(np.asarray(cols["linear_acceleration"])[whole], axis=0)
+            pitch, roll = levelling_pitch_roll_deg(raw_g)
             raise NavInputError(
                 f"{drive.path}: imu/{name}: its accelerometers read gravity {tilt:.0f} deg from the body's up "
                 f"{turned} (median [{g[0]:.2f}, {g[1]:.2f}, {g[2]:.2f}] m/s^2 on the body's x, y, z), so its z gyro "
-                f"is not the yaw rate: give the sensor's mounting_ypr_deg (yaw, pitch, roll of its axes)")
+                f"is not the yaw rate: give the sensor's mounting_ypr_deg (yaw, pitch, roll of its axes; gravity "
+                f"levels it at about [yaw, {pitch:.1f}, {roll:.1f}], the yaw yours to give)")
     return {"t_ns": cols["t_ns"], "angular_velocity": w, "linear_acceleration": f}
 
 
