@@ -709,10 +709,22 @@ def info(
     path: Annotated[Path, typer.Argument(help="A drive log (.mcap, .bag, rosbag2 directory), a TI DCA1000 capture "
                                          "or a drive.h5; or any directory, for its stale partial files.")],
     as_json: JsonOpt = False,
+    config_sketch: Annotated[bool, typer.Option(
+        "--config-sketch", help="Of a drive.h5: print a config (TOML, laid over --config) that pins its streams' "
+        "topics to the config's sensors, for a log recorded on other topics (docs/LOGS.md).")] = False,
+    config: ConfigOpt = None,
 ) -> None:
     """Summarise a log or drive.h5: streams, message types, counts, rates, time span and gaps; and list the
     partial files that killed autosar processes left beside it."""
     with _errors(kernels=False):
+        if config_sketch:
+            from autosar_cli.config_sketch import config_sketch as sketch
+
+            if path.suffix.lower() not in (".h5", ".hdf5"):
+                raise typer.BadParameter(f"{path}: --config-sketch reads a drive.h5; ingest the log first "
+                                         "(autosar ingest LOG -o drive.h5, --allow-partial without a radar)")
+            out.print(sketch(path, _load_config(config)), markup=False, highlight=False, soft_wrap=True, end="")
+            return
         from autosar_cli.store.atomic import stale_partials
 
         folder = path if path.is_dir() else path.parent

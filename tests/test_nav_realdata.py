@@ -16,12 +16,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import realdata
+from typer.testing import CliRunner
 
+from autosar_cli.cli import app
 from autosar_cli.config import DEFAULT_CONFIG, Config, ConfigError, config_from_dict, load_config
+from autosar_cli.config_sketch import config_sketch
 from autosar_cli.ingest.pipeline import ingest
 from autosar_cli.nav.baselines import fix_velocity
-from autosar_cli.nav.frames import mounting_rotation, sensor_to_body
-from autosar_cli.nav.inputs import Measurements, NavInputError, levelling_pitch_roll_deg, read_imu
+from autosar_cli.nav.frames import levelling_pitch_roll_deg, mounting_rotation, sensor_to_body
+from autosar_cli.nav.inputs import Measurements, NavInputError, read_imu
 from autosar_cli.nav.navigate import navigate
 from autosar_cli.nav.sarmin import FIRST_MOVE_SIGMAS, _first_move
 from autosar_cli.store.drive import Drive
@@ -221,3 +224,49 @@ def test_the_fixes_own_velocity_is_their_central_difference() -> None:
     np.testing.assert_allclose(np.einsum("ij,ij->i", vel.z[mid], tangent[mid]), np.hypot(*vel.z[mid].T), rtol=1e-12)
     np.testing.assert_allclose(vel.z[0], (z[4] - z[0]) / 1.0, rtol=1e-12)
     np.testing.assert_allclose(vel.sigma, math.sqrt(2.0) * 0.3 / 2.0)
+
+
+def test_the_config_sketch_of_a_drive_ingested_as_configured_is_the_config(tmp_path: Path, ci_mcap) -> None:
+    """The simulated ci drive, ingested with the default config: its sketch pins every stream to the sensor it was
+    ingested as, the same topics, degrees of freedom and rates (measured), no IMU turned, the default's gyros."""
+    drive = tmp_path / "ci.h5"
+    ingest([ci_mcap.log_path], drive, config=load_config())
+    sketch = tmp_path / "sketch.toml"
+    sketch.write_text(config_sketch(drive, load_config()))
+    cfg, default = load_config(sketch), load_config()
+    for name in ("gnss_cog", "gnss_radar", "imu_cog_a", "imu_cog_b", "ins_cog", "ins_radar"):
+        s, s0 = cfg.sensors[name], default.sensors[name]
+        assert (s.topic, s.velocity_topic, s.dof, s.mounting_ypr_deg) == (s0.topic, s0.velocity_topic, s0.dof,
+                                                                        (0.0, 0.0, 0.0)), name
+        assert s.rate_hz == pytest.approx(s0.rate_hz, rel=0.02), name
+    assert cfg.navigation == default.navigation and cfg.radar == default.radar
+
+
+def test_the_config_sketch_of_a_real_robot_navigates_it(husky_drive: Path, tmp_path: Path, odometry) -> None:
+    """The Husky's bag ingested with the default config (its streams named by their topics: gnss/gnss,
+    imu/imu_data), sketched: /fix as the default's GNSS, fixes alone; /imu/data a 6-DoF IMU at 30 Hz levelled by
+    [0, 1.3, 89.5]; its gyro fused. With what a log cannot show given (the robot's reference point, the antenna's
+    lever arm, the fixes' stated 0.8 m), it navigates the robot as the worked example does."""
+    as_default = tmp_path / "default.h5"
+    ingest([realdata(*HUSKY)], as_default, config=load_config(), allow_partial=True)
+    sketch = tmp_path / "sketch.toml"
+    sketch.write_text(config_sketch(as_default, load_config()))
+    cfg = load_config(sketch)
+    gnss, imu = cfg.sensors["gnss_cog"], cfg.sensors["ins_cog"]
+    assert (gnss.topic, gnss.velocity_topic, gnss.rate_hz) == ("/fix", "", 2.5)
+    assert (imu.topic, imu.dof, imu.rate_hz, imu.mounting_ypr_deg) == ("/imu/data", 6, 30.0, (0.0, 1.3, 89.5))
+    assert cfg.navigation.gyros == ("ins_cog",) and cfg.navigation.attitude_imu == "ins_cog"
+    table = dataclasses.replace(gnss.gnss, horizontal_std_m=0.8, white_std_m=0.3)
+    cfg = dataclasses.replace(cfg, vehicle=dataclasses.replace(cfg.vehicle, cog_to_rear_axle_m=0.0), sensors={
+        **cfg.sensors, "gnss_cog": dataclasses.replace(gnss, lever_arm_m=(0.0, 0.0, 0.5), latency_s=0.0, gnss=table),
+        "ins_cog": dataclasses.replace(imu, lever_arm_m=(0.0, 0.0, 0.0))})
+    drive = tmp_path / "sketched.h5"
+    ingest([realdata(*HUSKY)], drive, config=cfg, allow_partial=True)
+    traj = navigate(drive, "sar-min", cfg)
+    t_odo, v_odo, _ = odometry
+    inside = (t_odo > traj.t_ns[0]) & (t_odo < traj.t_ns[-1])
+    assert np.median(np.abs(np.interp(t_odo[inside], traj.t_ns, traj.speed) - v_odo[inside])) < 0.25  # 0.12
+    r = CliRunner().invoke(app, ["info", str(realdata(*HUSKY)), "--config-sketch"])
+    assert r.exit_code != 0 and "--config-sketch reads a drive.h5; ingest the log first" in r.output
+    r = CliRunner().invoke(app, ["info", str(as_default), "--config-sketch"])
+    assert r.exit_code == 0 and tomllib.loads(r.stdout) == tomllib.loads(sketch.read_text())

@@ -10,6 +10,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -62,6 +64,14 @@ def sensor_to_body(vectors: ArrayLike, mounting_ypr_deg: tuple[float, float, flo
         return v
     r = mounting_rotation(*mounting_ypr_deg)
     return np.stack([sum(r[i, j] * v[:, j] for j in range(3) if r[i, j] != 0.0) for i in range(3)], axis=-1)
+
+
+def levelling_pitch_roll_deg(gravity: ArrayLike) -> tuple[float, float]:
+    """The pitch and roll (deg, :func:`mounting_rotation`'s) that turn an accelerometer
+    triad's reading of gravity ``gravity`` (3,) onto +z: roll = atan2(g_y, g_z), pitch = atan2(-g_x, hypot(g_y,
+    g_z)). Gravity says nothing of the yaw."""
+    gx, gy, gz = (float(v) for v in gravity)
+    return math.degrees(math.atan2(-gx, math.hypot(gy, gz))), math.degrees(math.atan2(gy, gz))
 
 
 def body_to_enu(heading: ArrayLike, offsets_body: ArrayLike) -> NDArray[np.float64]:

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from autosar_cli.config import Config, GnssErrors
-from autosar_cli.nav.frames import sensor_to_body
+from autosar_cli.nav.frames import levelling_pitch_roll_deg, sensor_to_body
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.store.drive import Drive
 from autosar_cli.store.hdf5_read import dataset_errors, read_dataset
@@ -137,14 +137,6 @@ def _load_gnss_heading(out: NavInputs, gnss: h5py.Group, source: str, errors: Gn
 MAX_GRAVITY_TILT_DEG = 30.0
 #: the median magnitude of a 6-DoF IMU's specific force over a drive (m/s^2): gravity and the car's accelerations
 GRAVITY_RANGE_MPS2 = (7.0, 12.5)
-
-
-def levelling_pitch_roll_deg(gravity: Array) -> tuple[float, float]:
-    """The pitch and roll (deg, :func:`~autosar_cli.nav.frames.mounting_rotation`'s) that turn an accelerometer
-    triad's reading of gravity ``gravity`` (3,) onto +z: roll = atan2(g_y, g_z), pitch = atan2(-g_x, hypot(g_y,
-    g_z)). Gravity says nothing of the yaw."""
-    gx, gy, gz = (float(v) for v in gravity)
-    return math.degrees(math.atan2(-gx, math.hypot(gy, gz))), math.degrees(math.atan2(gy, gz))
 
 
 def read_imu(drive: Drive, name: str, config: Config) -> dict[str, Array]:

@@ -1,0 +1,140 @@
+"""A config sketched from a drive.h5: the streams it holds pinned by their topics to the default config's sensors.
+
+A log recorded on other topics than the config's is ingested under names of its own (``imu/imu_data``,
+``gnss/gnss``); navigate then needs a config naming them. The sketch is that config's start, laid over the one the
+drive was ingested with (``base = ...``): each GNSS receiver's fix, velocity and NMEA topics, each IMU's topic, its
+degrees of freedom (NaN axes), rate and, where gravity shows it turned, the pitch and roll that level it; the radar's
+topic; the gyros to fuse. What a log cannot show stays the base's, and the sketch says so: lever arms, the vehicle's
+geometry, the sensors' error tables, an IMU's yaw on the body.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from autosar_cli.config import DEFAULT_CONFIG, Config
+from autosar_cli.nav.frames import levelling_pitch_roll_deg
+from autosar_cli.store.drive import Drive
+from autosar_cli.store.hdf5_read import read_dataset
+
+#: an IMU whose gravity reads this far from its z axis is sketched with the pitch and roll that level it (a car's
+#: mounting errors and a road's grade are a few degrees, which navigation measures itself)
+SKETCH_TILT_DEG = 10.0
+
+
+def config_sketch(drive_path: str | Path, config: Config) -> str:
+    """TOML: ``config`` (the one the drive was ingested with) with the drive's streams pinned to its sensors."""
+    with Drive(drive_path) as drive:
+        gnss = _gnss_tables(drive, config)
+        imus = _imu_tables(drive, config)
+        radar = [drive.h5["radar"][n].attrs.get("topic", "") for n in drive.radar_names()]
+        roles = json.loads(drive.h5["can"].attrs.get("roles", "{}")) if "can" in drive.h5 else {}
+    base = "default" if Path(config.source or DEFAULT_CONFIG).resolve() == DEFAULT_CONFIG.resolve() \
+        else str(Path(config.source).resolve())
+    lines = [f"# autosar config sketched from {drive_path} (autosar info DRIVE --config-sketch): the drive's streams",
+             "# pinned to the base's sensors. Check what a log cannot show: each [sensors.*] lever_arm_m, the",
+             "# [vehicle] geometry (cog_to_rear_axle_m: the reference point), the sensors' error tables, an IMU's yaw.",
+             "# Then: autosar ingest LOG -o drive.h5 --config THIS; autosar navigate drive.h5 --config THIS",
+             f'base = "{base}"', ""]
+    for name, table in gnss + imus:
+        lines.append(f"[sensors.{name}]")
+        lines += [f"{key} = {_toml(value)}" + (f"  # {note}" if note else "") for key, value, note in table]
+        lines.append("")
+    if radar and radar[0]:
+        lines += ["[radar]", f"topic = {_toml(radar[0])}", ""]
+    # the base's gyros the drive has; where it has none of them, every IMU it has
+    present = {name for name, _ in imus} | {n for n in config.sensors if f"yaw_rate.{n}" in roles}
+    gyros = [g for g in config.navigation.gyros if g in present] or [name for name, _ in imus]
+    lines += ["[navigation]", f"gyros = {_toml(gyros)}"]
+    if gnss:
+        lines.append(f"gnss = {_toml(gnss[0][0])}")
+    six = [name for name, table in imus if ("dof", 6, "") in table]
+    lines.append(f"attitude_imu = {_toml(six[0] if six else '')}")
+    return "\n".join(lines) + "\n"
+
+
+Table = list[tuple[str, object, str]]
+
+
+def _names(drive_names: list[str], wanted: list[str], config: Config, kind: str) -> list[str]:
+    """A config sensor name for each stream: its own where the config has it, else the next of ``wanted``."""
+    taken = {n for n in drive_names if n in config.sensors and config.sensors[n].kind == kind}
+    free = [n for n in wanted if n not in taken]
+    return [n if n in taken else (free.pop(0) if free else n) for n in drive_names]
+
+
+def _gnss_tables(drive: Drive, config: Config) -> list[tuple[str, Table]]:
+    sources = [s for s in drive.gnss_sources() if "fix" in drive.h5["gnss"][s]]
+    nav = config.navigation
+    wanted = [nav.gnss, nav.ins_gnss] + [n for n, s in config.sensors.items() if s.kind == "gnss"]
+    out = []
+    for source, name in zip(sources, _names(sources, list(dict.fromkeys(wanted)), config, "gnss"), strict=True):
+        g = drive.h5["gnss"][source]
+        table: Table = [("topic", g["fix"].attrs.get("topic", ""), "")]
+        if "velocity" in g:
+            vtype = "twist_with_covariance" if "WithCovariance" in str(g["velocity"].attrs.get("msgtype", "")) \
+                else "twist"
+            table += [("velocity_topic", g["velocity"].attrs.get("topic", ""), ""), ("velocity_type", vtype, "")]
+        else:
+            table.append(("velocity_topic", "", "none logged: SAR-MIN starts on the fixes' first move"))
+        nmea = [k for k in g if k.startswith("nmea_")]
+        table.append(("nmea_topic", g[nmea[0]].attrs.get("topic", "") if nmea else "", ""))
+        table.append(("rate_hz", _rate(drive, f"gnss/{source}/fix"), "measured"))
+        out.append((name, table))
+    return out
+
+
+def _imu_tables(drive: Drive, config: Config) -> list[tuple[str, Table]]:
+    sources = drive.imu_sources()
+    dof = {s: _dof(drive, s) for s in sources}
+    nav = config.navigation
+    imu_names = [n for n, s in config.sensors.items() if s.kind == "imu"]
+    six = [n for n in [nav.attitude_imu, nav.ins_imu, *imu_names] if n and config.sensors.get(n)
+           and config.sensors[n].dof == 6]
+    three = [n for n in imu_names if config.sensors[n].dof == 3]
+    names = {}
+    for want, of in ((list(dict.fromkeys(six)), 6), (three, 3)):
+        group = [s for s in sources if dof[s] == of]
+        names.update(zip(group, _names(group, want, config, "imu"), strict=True))
+    out = []
+    for source in sources:
+        cols = drive.h5["imu"][source]
+        table: Table = [("topic", cols.attrs.get("topic", ""), ""), ("dof", dof[source], ""),
+                        ("rate_hz", _rate(drive, f"imu/{source}"), "measured")]
+        if dof[source] == 6:
+            f = np.asarray(read_dataset(cols, "linear_acceleration"))
+            g = np.median(f[np.isfinite(f).all(axis=1)], axis=0)
+            tilt = float(np.degrees(np.arctan2(np.hypot(g[0], g[1]), g[2])))
+            if tilt > SKETCH_TILT_DEG:
+                pitch, roll = levelling_pitch_roll_deg(g)
+                table.append(("mounting_ypr_deg", [0.0, round(pitch, 1), round(roll, 1)],
+                              f"gravity reads {tilt:.0f} deg off its z: these level it; the yaw is yours"))
+        out.append((names[source], table))
+    return out
+
+
+def _dof(drive: Drive, source: str) -> int:
+    """6 where the stream's rates and accelerations are numbers on all three axes, else 3 (NaN axes)."""
+    cols = drive.h5["imu"][source]
+    w = np.asarray(read_dataset(cols, "angular_velocity"))
+    f = np.asarray(read_dataset(cols, "linear_acceleration"))
+    return 6 if (np.isfinite(w).all(axis=1) & np.isfinite(f).all(axis=1)).any() else 3
+
+
+def _rate(drive: Drive, path: str) -> float:
+    t = np.asarray(read_dataset(drive.h5[path], "t_ns"), dtype=np.int64)
+    return round(float((len(t) - 1) / ((t[-1] - t[0]) / 1e9)), 1) if len(t) > 1 and t[-1] > t[0] else 0.0
+
+
+def _toml(value: object) -> str:
+    """A TOML value: a string, a list, an integer or a float (numpy's too)."""
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    if isinstance(value, int | np.integer):
+        return str(int(value))
+    return repr(float(value))  # type: ignore[arg-type]
