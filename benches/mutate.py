@@ -58,6 +58,16 @@ UNDERSTEER = ("tests/test_nav_models.py::"
 STANDSTILL = "tests/test_nav_models.py::test_a_standstill_is_where_all_four_wheels_read_zero_and_the_car_stands"
 GNSS_DELAYED = "tests/test_nav_gnss_latency.py::test_delayed_gnss_moves_every_gnss_stream_and_nothing_else"
 CAN_LATE = "tests/test_nav_can_latency.py::test_the_can_gyros_delay_against_the_imus_is_found_within_its_std"
+TURNED = "tests/test_nav_realdata.py::test_sensor_to_body_is_the_mounting_rotation_and_keeps_a_3dof_yaw_rate"
+GRAVITY_TILT = "tests/test_nav_realdata.py::test_an_imu_mounted_turned_is_refused_with_where_its_gravity_reads"
+IN_G = "tests/test_nav_sarmin.py::test_an_imu_logging_its_accelerations_in_g_is_refused"
+LEVELLING = "tests/test_nav_realdata.py::test_the_levelling_pitch_and_roll_turn_gravity_onto_up"
+FIRST_MOVE = "tests/test_nav_realdata.py::test_the_first_move_of_fixes_alone_is_their_course_and_speed"
+FIXES_ALONE = "tests/test_nav_realdata.py::test_sarmin_starts_from_the_fixes_alone_on_a_real_robot"
+FIX_VELOCITY = "tests/test_nav_realdata.py::test_the_fixes_own_velocity_is_their_central_difference"
+GATED_GYRO = "tests/test_nav_sarmin.py::test_a_gyro_the_gate_refuses_is_warned_of"
+CONFIG_BASE = "tests/test_config.py::test_a_config_on_a_base_holds_only_what_differs"
+CUT_SHORT = "tests/test_integrity.py::test_a_product_cut_short_says_by_how_much"
 GNSS_NOISIER = "tests/test_nav_gnss_noise.py::test_only_a_receiver_noisier_than_its_table_is_reweighed"
 ENTROPY = "tests/test_evaluate.py::test_entropy_and_contrast_exact"
 FAR_SWATH = "tests/test_evaluate.py::test_far_swath_is_the_pixels_far_from_the_radars_track"
@@ -374,6 +384,29 @@ MUTATIONS: list[Mutation] = [
     _m("can-dbc-scale-and-offset-not-applied", "ingest", "ingest/decoders.py",
        "values = m.decode(data, decode_choices=False, scaling=lay.unscaled_integrity)",
        "values = m.decode(data, decode_choices=False, scaling=False)", CAN_SI),
+    # --- drives logged on other sensors: an IMU's mounting and gravity, fixes alone, a config's layers
+    _m("imu-mounting-transposed", "inputs", "nav/frames.py",
+       "sum(r[i, j] * v[:, j] for j in range(3) if r[i, j] != 0.0)",
+       "sum(r[j, i] * v[:, j] for j in range(3) if r[j, i] != 0.0)", TURNED),
+    _m("imu-turned-by-gravity-accepted", "inputs", "nav/inputs.py",
+       "if tilt > MAX_GRAVITY_TILT_DEG:", "if tilt > 180.0:", GRAVITY_TILT),
+    _m("imu-in-g-accepted", "inputs", "nav/inputs.py",
+       "if not GRAVITY_RANGE_MPS2[0] <= magnitude <= GRAVITY_RANGE_MPS2[1]:", "if False:", IN_G),
+    _m("imu-levelling-roll-sign", "inputs", "nav/frames.py",
+       "math.degrees(math.atan2(gy, gz))", "math.degrees(math.atan2(-gy, gz))", LEVELLING),
+    _m("fixes-first-move-reversed", "inputs", "nav/sarmin.py",
+       "step = pos.z[k, :2] - pos.z[j, :2]", "step = pos.z[j, :2] - pos.z[k, :2]", FIRST_MOVE, FIXES_ALONE),
+    _m("fix-velocity-one-sided", "inputs", "nav/baselines.py",
+       "a, b = np.clip(i - n, 0, len(t) - 1), np.clip(i + n, 0, len(t) - 1)",
+       "a, b = i, np.clip(i + n, 0, len(t) - 1)", FIX_VELOCITY),
+    _m("gate-warns-of-the-gnss-alone", "inputs", "nav/navigate.py",
+       "if total < MIN_GATED or gated <= MAX_GATED_SHARE * total:",
+       'if total < MIN_GATED or gated <= MAX_GATED_SHARE * total or not stream.startswith("gnss_"):', GATED_GYRO),
+    _m("config-base-table-replaced-whole", "inputs", "config.py",
+       "out[key] = _merged(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value",
+       "out[key] = value", CONFIG_BASE),
+    _m("missing-hdf5-read-as-not-hdf5", "inputs", "store/hdf5_read.py",
+       "if isinstance(exc, FileNotFoundError) or not Path(path).exists():", "if False:", CUT_SHORT),
 ]
 
 
