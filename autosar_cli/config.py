@@ -190,7 +190,7 @@ class GnssErrors:
     multipath: tuple[tuple[float, float, float, float], ...] = ()
 
 
-SensorKind = Literal["wheel_speeds", "steering", "can_imu", "imu", "gnss"]
+SensorKind = Literal["wheel_speeds", "steering", "can_imu", "imu", "gnss", "can_gnss"]
 
 _REQUIRED_ERRORS: dict[str, tuple[str, ...]] = {
     "wheel_speeds": ("wheel",),
@@ -198,6 +198,7 @@ _REQUIRED_ERRORS: dict[str, tuple[str, ...]] = {
     "can_imu": ("gyro", "accel"),
     "imu": ("gyro", "accel"),
     "gnss": ("gnss",),
+    "can_gnss": ("gnss",),
 }
 
 

@@ -202,6 +202,22 @@ def css(tmp_path_factory: pytest.TempPathFactory, config: Config) -> tuple[Inges
     return report, out
 
 
+def test_a_role_names_one_of_two_frame_ids_a_dbc_gives_one_name(tmp_path: Path, config: Config) -> None:
+    """gnss.dbc names frame ids 0x3 and 0x13 both gnss_pos; the three files hold both. A role by the message's
+    name is then ambiguous and says so; by its group's name (gnss_pos_0x13) it is that one. Before, the name led to
+    the DBC's first (0x3) whatever the log held, and a group's name to nothing."""
+    roles = {"latitude.a": "gnss_pos.Latitude", "latitude.b": "gnss_pos_0x13.Latitude"}
+    cfg = dataclasses.replace(config, can=dataclasses.replace(config.can, roles=roles))
+    report = ingest([], tmp_path / "drive.h5", config=cfg, dbc=realdata("css-electronics", "gnss.dbc"),
+                    can_logs=[realdata("css-electronics", f) for f in CSS_FILES], allow_partial=True,
+                    allow_time_gap=True)
+    assert report.can["roles"] == {"latitude.b": "gnss_pos_0x13/Latitude"}
+    assert report.can["missing_roles"] == ["latitude.a (gnss_pos is gnss_pos_0x3 and gnss_pos_0x13: name one)"]
+    one = ingest([], tmp_path / "one.h5", config=cfg, dbc=realdata("css-electronics", "gnss.dbc"),
+                 can_logs=[realdata("css-electronics", CSS_FILES[1])], allow_partial=True)
+    assert one.can["roles"] == {"latitude.a": "gnss_pos_0x13/Latitude", "latitude.b": "gnss_pos_0x13/Latitude"}
+
+
 @pytest.fixture(scope="module")
 def css_frames() -> list[can.Message]:
     """All frames of the three MF4 files, read with python-can alone."""

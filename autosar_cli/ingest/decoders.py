@@ -292,11 +292,10 @@ class CanDecoder:
                 m, group, sig_names, factors, "CHECKSUM" in sig_names, "COUNTER" in sig_names, plain,
                 ranges=ranges)
 
-    def group_of(self, message_name: str) -> str | None:
-        for lay in self._layouts.values():
-            if lay.message.name == message_name:
-                return lay.group
-        return None
+    def groups_of(self, message: str) -> list[str]:
+        """The drive.h5 groups a role's message may name: the DBC messages of that name (a DBC may give two frame
+        ids one name: each its own group, ``NAME_0xID``), or the group itself."""
+        return [lay.group for lay in self._layouts.values() if message in (lay.message.name, lay.group)]
 
     def _stream(self, lay: _CanLayout) -> TableStream:
         columns: dict[str, Column] = {"t_ns": Column(np.int64, (), "ns")}

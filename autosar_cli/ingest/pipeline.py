@@ -810,15 +810,18 @@ def _listed(values: Sequence[int], n: int = 8) -> str:
 
 
 def _resolve_roles(job: _Ingest, infos: list[StreamInfo]) -> tuple[dict[str, str], list[str]]:
-    """Role -> "GROUP/SIGNAL" for every configured CAN role whose message was ingested."""
+    """Role -> "GROUP/SIGNAL" for every configured CAN role whose message was ingested (by its DBC name, or by its
+    group's where the DBC names two frame ids alike); the roles without one, those the log holds twice named."""
     groups = {i.path.split("/", 1)[1] for i in infos if i.kind == "can" and i.stats is not None and i.stats.written}
     roles: dict[str, str] = {}
     missing: list[str] = []
     for role, ref in job.config.can.roles.items():
         message, _, signal = ref.partition(".")
-        group = job.can.group_of(message)
-        if group in groups:
-            roles[role] = f"{group}/{signal}"
+        found = [g for g in job.can.groups_of(message) if g in groups]
+        if len(found) == 1:
+            roles[role] = f"{found[0]}/{signal}"
+        elif found:  # one name, several frame ids in the log: which one the role means is the config's to say
+            missing.append(f"{role} ({message} is {' and '.join(found)}: name one)")
         else:
             missing.append(role)
     return roles, missing

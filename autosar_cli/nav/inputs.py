@@ -169,6 +169,36 @@ def read_imu(drive: Drive, name: str, config: Config) -> dict[str, Array]:
     return {"t_ns": cols["t_ns"], "angular_velocity": w, "linear_acceleration": f}
 
 
+def can_gnss_streams(drive: Drive, name: str) -> tuple[dict[str, Array], dict[str, Array] | None]:
+    """A GNSS receiver on CAN (config kind ``can_gnss``) as its fixes and velocities, in the columns of a
+    NavSatFix stream's (``t_ns``, ``latitude_deg``, ``longitude_deg``, ``altitude_m``) and a twist's
+    (``t_ns``, ``velocity_enu`` with NaN up). Its CAN roles: ``latitude.<name>`` and ``longitude.<name>`` (deg),
+    optional ``altitude.<name>`` (m; else 0) and ``position_valid.<name>`` (fixes where it reads 0 left out), and
+    ``speed.<name>`` (m/s) with ``course.<name>`` (rad from north, clockwise: the direction of travel) for the
+    velocity; without them, the fixes alone."""
+    roles = drive.can_roles()
+    need = [f"latitude.{name}", f"longitude.{name}"]
+    if missing := [r for r in need if r not in roles]:
+        raise NavInputError(f"{drive.path}: the GNSS receiver {name} is on CAN (config kind can_gnss) but the drive "
+                            f"has no CAN signal for {', '.join(missing)} (its roles: {', '.join(sorted(roles))})")
+    t_ns, lat = drive.can_role(f"latitude.{name}")
+    lon = drive.can_role(f"longitude.{name}")[1]
+    alt = drive.can_role(f"altitude.{name}")[1] if f"altitude.{name}" in roles else np.zeros(len(t_ns))
+    keep = np.isfinite(lat) & np.isfinite(lon)
+    if f"position_valid.{name}" in roles:
+        t_valid, valid = drive.can_role(f"position_valid.{name}")
+        keep &= np.interp(t_ns, t_valid, valid) > 0.5 if len(t_valid) else False
+    fix = {"t_ns": t_ns[keep], "latitude_deg": lat[keep], "longitude_deg": lon[keep], "altitude_m": alt[keep]}
+    if f"speed.{name}" not in roles or f"course.{name}" not in roles:
+        return fix, None
+    t_speed, speed = drive.can_role(f"speed.{name}")
+    t_course, course = drive.can_role(f"course.{name}")
+    c = np.interp(t_speed, t_course, np.unwrap(course)) if len(t_course) else np.full(len(t_speed), np.nan)
+    enu = np.stack([speed * np.sin(c), speed * np.cos(c), np.full(len(c), np.nan)], axis=1)
+    ok = np.isfinite(enu[:, :2]).all(axis=1)
+    return fix, {"t_ns": t_speed[ok], "velocity_enu": enu[ok]}
+
+
 def streams_held(drive: Drive, kind: str) -> str:
     """What the drive holds of ``kind`` ("gnss" or "imu"), for an error that names a missing stream: the config
     names a sensor's stream by its topic, so a drive logged on other topics holds them under names of its own."""
@@ -184,11 +214,16 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
     nav = config.navigation
     gnss_cfg = config.sensors.get(nav.gnss)
     h5 = drive.h5
-    if nav.gnss not in drive.gnss_sources() or "fix" not in h5["gnss"][nav.gnss]:
-        raise NavInputError(f"{drive.path}: no GNSS fix stream gnss/{nav.gnss} (config navigation.gnss); "
-                            f"{streams_held(drive, 'gnss')}")
-    gnss = h5["gnss"][nav.gnss]
-    fix = _columns(gnss["fix"], ("t_ns", "latitude_deg", "longitude_deg", "altitude_m"))
+    gnss: h5py.Group | None = None
+    if gnss_cfg is not None and gnss_cfg.kind == "can_gnss":
+        fix, vel = can_gnss_streams(drive, nav.gnss)
+    else:
+        if nav.gnss not in drive.gnss_sources() or "fix" not in h5["gnss"][nav.gnss]:
+            raise NavInputError(f"{drive.path}: no GNSS fix stream gnss/{nav.gnss} (config navigation.gnss); "
+                                f"{streams_held(drive, 'gnss')}")
+        gnss = h5["gnss"][nav.gnss]
+        fix = _columns(gnss["fix"], ("t_ns", "latitude_deg", "longitude_deg", "altitude_m"))
+        vel = _columns(gnss["velocity"], ("t_ns", "velocity_enu")) if "velocity" in gnss else None
     if len(fix["t_ns"]) == 0:
         raise NavInputError(f"{drive.path}: gnss/{nav.gnss}/fix is empty")
     lever = tuple(gnss_cfg.lever_arm_m) if gnss_cfg else (0.0, 0.0, 0.0)
@@ -231,9 +266,8 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
     else:
         pos_std = np.full(2, nav.gnss_position_std_m)
     out.gnss_position = Measurements(nav.gnss, rel(fix["t_ns"], nav.gnss), enu[:, :2], pos_std)
-    out.gnss_reported_std_m = _reported_horizontal_std(gnss["fix"])
-    if "velocity" in gnss:
-        vel = _columns(gnss["velocity"], ("t_ns", "velocity_enu"))
+    out.gnss_reported_std_m = _reported_horizontal_std(gnss["fix"]) if gnss is not None else math.nan
+    if vel is not None:
         std = errors.velocity_std_mps if errors else 0.05
         out.gnss_velocity = Measurements(nav.gnss, rel(vel["t_ns"], nav.gnss), vel["velocity_enu"][:, :2],
                                          np.full(2, std))
@@ -241,15 +275,17 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         # a receiver without a vertical velocity writes NaN there, or 0 throughout
         if np.isfinite(up).any() and np.any(up[np.isfinite(up)] != 0.0):
             # its stated variance where the stream has one; else receivers' usual 1.5 x the horizontal
-            var = (read_dataset(gnss["velocity"], "velocity_variance")[:, 2] if "velocity_variance" in
-                   gnss["velocity"] else np.zeros(0))
+            var = (read_dataset(gnss["velocity"], "velocity_variance")[:, 2] if gnss is not None
+                   and "velocity_variance" in gnss["velocity"] else np.zeros(0))
             var = np.median(var[np.isfinite(var)]) if np.isfinite(var).any() else 0.0
             up_std = float(np.sqrt(var)) if var > 0 else 1.5 * std
             ok = np.isfinite(up)
             out.gnss_climb = Measurements(nav.gnss, rel(vel["t_ns"][ok], nav.gnss), up[ok, None],
                                           np.array([up_std]))
-    if nav.gnss_heading:
+    if nav.gnss_heading and gnss is not None:
         _load_gnss_heading(out, gnss, nav.gnss, errors, nav.gnss_heading_offset_std_deg, rel)
+    elif nav.gnss_heading:
+        out.gnss_heading_missing = f"{nav.gnss} is a receiver on CAN: no NMEA heading"
     imu_sources = drive.imu_sources()
     for name in nav.gyros:
         s = config.sensors.get(name)
