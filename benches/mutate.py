@@ -68,6 +68,8 @@ FIX_VELOCITY = "tests/test_nav_realdata.py::test_the_fixes_own_velocity_is_their
 GATED_GYRO = "tests/test_nav_sarmin.py::test_a_gyro_the_gate_refuses_is_warned_of"
 CONFIG_BASE = "tests/test_config.py::test_a_config_on_a_base_holds_only_what_differs"
 CUT_SHORT = "tests/test_integrity.py::test_a_product_cut_short_says_by_how_much"
+CAN_VELOCITY = "tests/test_nav_realdata.py::test_a_can_receivers_speed_and_course_are_its_velocity"
+TWICE_NAMED = "tests/test_ingest_realdata.py::test_a_role_names_one_of_two_frame_ids_a_dbc_gives_one_name"
 GNSS_NOISIER = "tests/test_nav_gnss_noise.py::test_only_a_receiver_noisier_than_its_table_is_reweighed"
 ENTROPY = "tests/test_evaluate.py::test_entropy_and_contrast_exact"
 FAR_SWATH = "tests/test_evaluate.py::test_far_swath_is_the_pixels_far_from_the_radars_track"
@@ -405,6 +407,11 @@ MUTATIONS: list[Mutation] = [
     _m("config-base-table-replaced-whole", "inputs", "config.py",
        "out[key] = _merged(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value",
        "out[key] = value", CONFIG_BASE),
+    _m("can-receiver-course-east-and-north-swapped", "inputs", "nav/inputs.py",
+       "enu = np.stack([speed * np.sin(c), speed * np.cos(c), np.full(len(c), np.nan)], axis=1)",
+       "enu = np.stack([speed * np.cos(c), speed * np.sin(c), np.full(len(c), np.nan)], axis=1)", CAN_VELOCITY),
+    _m("can-role-of-a-twice-named-message-guessed", "inputs", "ingest/pipeline.py",
+       "if len(found) == 1:", "if found:", TWICE_NAMED),
     _m("missing-hdf5-read-as-not-hdf5", "inputs", "store/hdf5_read.py",
        "if isinstance(exc, FileNotFoundError) or not Path(path).exists():", "if False:", CUT_SHORT),
 ]
