@@ -313,7 +313,7 @@ def test_a_car_navigated_from_its_can_loggers_gnss_and_imu(css_drive: Path) -> N
 def test_a_can_receivers_speed_and_course_are_its_velocity(tmp_path: Path) -> None:
     """With speed.<name> and course.<name> given (the module's Speed and Heading), the receiver's velocity is
     speed x (sin, cos) of the course at each speed sample (course interpolated, its up NaN); its fixes the rows
-    where PositionValid reads 1; a receiver on CAN without its latitude role is named."""
+    where PositionValid reads 1, their altitude (another message) at their times; a receiver on CAN without its latitude role is named."""
     import h5py
 
     base = load_config(CSS_CONFIG)
@@ -326,6 +326,9 @@ def test_a_can_receivers_speed_and_course_are_its_velocity(tmp_path: Path) -> No
         pos, spd, att = f["can/gnss_pos_0x13"], f["can/gnss_speed_0x17"], f["can/gnss_attitude_0x15"]
         ok = pos["PositionValid"][()] > 0.5
         np.testing.assert_array_equal(fix["latitude_deg"], pos["Latitude"][()][ok])
+        alt = f["can/gnss_altitude_0x14"]  # another message, stamped 0.35 ms apart: at the fixes' times
+        np.testing.assert_allclose(fix["altitude_m"], np.interp(pos["t_ns"][()], alt["t_ns"][()],
+                                                                alt["Altitude"][()])[ok], atol=1e-9)
         course = np.interp(spd["t_ns"][()], att["t_ns"][()], np.unwrap(att["Heading"][()]))
         expect = spd["Speed"][()][:, None] * np.stack([np.sin(course), np.cos(course)], axis=1)
     assert vel is not None and np.isnan(vel["velocity_enu"][:, 2]).all()

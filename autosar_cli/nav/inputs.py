@@ -182,12 +182,17 @@ def can_gnss_streams(drive: Drive, name: str) -> tuple[dict[str, Array], dict[st
         raise NavInputError(f"{drive.path}: the GNSS receiver {name} is on CAN (config kind can_gnss) but the drive "
                             f"has no CAN signal for {', '.join(missing)} (its roles: {', '.join(sorted(roles))})")
     t_ns, lat = drive.can_role(f"latitude.{name}")
-    lon = drive.can_role(f"longitude.{name}")[1]
-    alt = drive.can_role(f"altitude.{name}")[1] if f"altitude.{name}" in roles else np.zeros(len(t_ns))
+
+    def at_fixes(role: str) -> Array:  # a signal of another message than the latitude's, at the latitude's times
+        t, v = drive.can_role(role)
+        same = len(t) == len(t_ns) and np.array_equal(t, t_ns)
+        return v if same else np.interp(t_ns, t, v) if len(t) else np.full(len(t_ns), np.nan)
+
+    lon = at_fixes(f"longitude.{name}")
+    alt = at_fixes(f"altitude.{name}") if f"altitude.{name}" in roles else np.zeros(len(t_ns))
     keep = np.isfinite(lat) & np.isfinite(lon)
     if f"position_valid.{name}" in roles:
-        t_valid, valid = drive.can_role(f"position_valid.{name}")
-        keep &= np.interp(t_ns, t_valid, valid) > 0.5 if len(t_valid) else False
+        keep &= at_fixes(f"position_valid.{name}") > 0.5
     fix = {"t_ns": t_ns[keep], "latitude_deg": lat[keep], "longitude_deg": lon[keep], "altitude_m": alt[keep]}
     if f"speed.{name}" not in roles or f"course.{name}" not in roles:
         return fix, None
