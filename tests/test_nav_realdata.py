@@ -313,7 +313,8 @@ def test_a_car_navigated_from_its_can_loggers_gnss_and_imu(css_drive: Path) -> N
 def test_a_can_receivers_speed_and_course_are_its_velocity(tmp_path: Path) -> None:
     """With speed.<name> and course.<name> given (the module's Speed and Heading), the receiver's velocity is
     speed x (sin, cos) of the course at each speed sample (course interpolated, its up NaN); its fixes the rows
-    where PositionValid reads 1, their altitude (another message) at their times; a receiver on CAN without its latitude role is named."""
+    where PositionValid reads 1, their altitude (another message) at their times; a receiver on CAN without its
+    latitude role is named."""
     import h5py
 
     base = load_config(CSS_CONFIG)
