@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from autosar_cli.config import DEFAULT_CONFIG, Config
-from autosar_cli.nav.frames import levelling_pitch_roll_deg
+from autosar_cli.nav.frames import gravity_tilt_deg, levelling_pitch_roll_deg
 from autosar_cli.store.drive import Drive
 from autosar_cli.store.hdf5_read import read_dataset
 
@@ -89,7 +89,11 @@ def _gnss_tables(drive: Drive, config: Config) -> list[tuple[str, Table]]:
 
 def _imu_tables(drive: Drive, config: Config) -> list[tuple[str, Table]]:
     sources = drive.imu_sources()
-    dof = {s: _dof(drive, s) for s in sources}
+    rates = {s: np.asarray(read_dataset(drive.h5["imu"][s], "angular_velocity")) for s in sources}
+    forces = {s: np.asarray(read_dataset(drive.h5["imu"][s], "linear_acceleration")) for s in sources}
+    # 6 where the rates and accelerations are numbers on all three axes, else 3 (NaN axes)
+    dof = {s: 6 if (np.isfinite(rates[s]).all(axis=1) & np.isfinite(forces[s]).all(axis=1)).any() else 3
+           for s in sources}
     nav = config.navigation
     imu_names = [n for n, s in config.sensors.items() if s.kind == "imu"]
     six = [n for n in [nav.attitude_imu, nav.ins_imu, *imu_names] if n and config.sensors.get(n)
@@ -105,23 +109,15 @@ def _imu_tables(drive: Drive, config: Config) -> list[tuple[str, Table]]:
         table: Table = [("topic", cols.attrs.get("topic", ""), ""), ("dof", dof[source], ""),
                         ("rate_hz", _rate(drive, f"imu/{source}"), "measured")]
         if dof[source] == 6:
-            f = np.asarray(read_dataset(cols, "linear_acceleration"))
+            f = forces[source]
             g = np.median(f[np.isfinite(f).all(axis=1)], axis=0)
-            tilt = float(np.degrees(np.arctan2(np.hypot(g[0], g[1]), g[2])))
+            tilt = gravity_tilt_deg(g)
             if tilt > SKETCH_TILT_DEG:
                 pitch, roll = levelling_pitch_roll_deg(g)
                 table.append(("mounting_ypr_deg", [0.0, round(pitch, 1), round(roll, 1)],
                               f"gravity reads {tilt:.0f} deg off its z: these level it; the yaw is yours"))
         out.append((names[source], table))
     return out
-
-
-def _dof(drive: Drive, source: str) -> int:
-    """6 where the stream's rates and accelerations are numbers on all three axes, else 3 (NaN axes)."""
-    cols = drive.h5["imu"][source]
-    w = np.asarray(read_dataset(cols, "angular_velocity"))
-    f = np.asarray(read_dataset(cols, "linear_acceleration"))
-    return 6 if (np.isfinite(w).all(axis=1) & np.isfinite(f).all(axis=1)).any() else 3
 
 
 def _rate(drive: Drive, path: str) -> float:

@@ -66,6 +66,12 @@ def sensor_to_body(vectors: ArrayLike, mounting_ypr_deg: tuple[float, float, flo
     return np.stack([sum(r[i, j] * v[:, j] for j in range(3) if r[i, j] != 0.0) for i in range(3)], axis=-1)
 
 
+def gravity_tilt_deg(gravity: ArrayLike) -> float:
+    """How far (deg) an accelerometer triad's reading of gravity ``gravity`` (3,) lies from its +z axis."""
+    gx, gy, gz = (float(v) for v in gravity)
+    return math.degrees(math.atan2(math.hypot(gx, gy), gz))
+
+
 def levelling_pitch_roll_deg(gravity: ArrayLike) -> tuple[float, float]:
     """The pitch and roll (deg, :func:`mounting_rotation`'s) that turn an accelerometer
     triad's reading of gravity ``gravity`` (3,) onto +z: roll = atan2(g_y, g_z), pitch = atan2(-g_x, hypot(g_y,

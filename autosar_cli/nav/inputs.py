@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from autosar_cli.config import Config, GnssErrors
-from autosar_cli.nav.frames import levelling_pitch_roll_deg, sensor_to_body
+from autosar_cli.nav.frames import gravity_tilt_deg, levelling_pitch_roll_deg, sensor_to_body
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.store.drive import Drive
 from autosar_cli.store.hdf5_read import dataset_errors, read_dataset
@@ -156,7 +156,7 @@ def read_imu(drive: Drive, name: str, config: Config) -> dict[str, Array]:
             raise NavInputError(
                 f"{drive.path}: imu/{name}: its accelerometers read gravity as {magnitude:.2f} m/s^2 (median "
                 f"magnitude), not about 9.81: a unit (g read as m/s^2 is 1.0) or a scale in the log")
-        tilt = float(np.degrees(np.arctan2(np.hypot(g[0], g[1]), g[2])))
+        tilt = gravity_tilt_deg(g)
         if tilt > MAX_GRAVITY_TILT_DEG:
             turned = f"with its mounting_ypr_deg {list(mounting)}" if any(mounting) else "as mounted in the config"
             raw_g = np.median(np.asarray(cols["linear_acceleration"])[whole], axis=0)
@@ -292,6 +292,7 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
     elif nav.gnss_heading:
         out.gnss_heading_missing = f"{nav.gnss} is a receiver on CAN: no NMEA heading"
     imu_sources = drive.imu_sources()
+    imus: dict[str, dict[str, Array]] = {}  # read_imu's per stream: a gyro's may be the attitude IMU's too
     for name in nav.gyros:
         s = config.sensors.get(name)
         if s is None or s.gyro is None:
@@ -300,7 +301,7 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
             if name not in imu_sources:
                 raise NavInputError(f"{drive.path}: no IMU stream imu/{name} (config navigation.gyros); "
                                     f"{streams_held(drive, 'imu')}")
-            imu = read_imu(drive, name, config)
+            imu = imus.setdefault(name, read_imu(drive, name, config))
             t_ns, z = imu["t_ns"], imu["angular_velocity"][:, 2]
         else:
             try:
@@ -336,7 +337,7 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
     if not out.gyros:
         raise NavInputError(f"{drive.path}: no gyro to fuse (config navigation.gyros is empty)")
     if nav.attitude_imu and nav.attitude_imu in imu_sources:
-        imu = read_imu(drive, nav.attitude_imu, config)
+        imu = imus.get(nav.attitude_imu) or read_imu(drive, nav.attitude_imu, config)
         w, f = imu["angular_velocity"], imu["linear_acceleration"]
         ok = np.isfinite(w).all(axis=1) & np.isfinite(f).all(axis=1)
         if ok.any():  # a 3-DoF stream (NaN axes) has no attitude to give: left out, and navigate says why
