@@ -17,8 +17,10 @@ negative when turning right).
 
 from __future__ import annotations
 
+import logging
 import math
 import re
+from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -100,8 +102,15 @@ class DbcError(ValueError):
 
 
 def _parse(text: str) -> Database:
-    """Parse DBC text in cantools' strict mode."""
-    db = cantools.database.load_string(text, database_format="dbc", strict=True)
+    """Parse DBC text in cantools' strict mode. Its log lines on names or frame ids given twice are held back:
+    :func:`_reuse_warnings` says what they mean for the drive, once per file."""
+    log = logging.getLogger("cantools.database.can.database")
+    was = log.disabled
+    log.disabled = True
+    try:
+        db = cantools.database.load_string(text, database_format="dbc", strict=True)
+    finally:
+        log.disabled = was
     if not isinstance(db, Database):  # pragma: no cover - 'dbc' always gives a CAN database
         raise TypeError("not a CAN database")
     return db
@@ -138,7 +147,7 @@ def load_dbc(path: str | Path) -> tuple[Database, list[str]]:
     except cantools.database.UnsupportedDatabaseFormatError as exc:
         first = exc
     else:
-        return _nonempty(db, path), []
+        return _nonempty(db, path), _reuse_warnings(db, path)
     bad = {
         int(frame_id): name
         for frame_id, name in _BO_LINE.findall(text)
@@ -162,7 +171,30 @@ def load_dbc(path: str | Path) -> tuple[Database, list[str]]:
         "extended-frame bit; loaded as extended"
         for frame_id, name in sorted(bad.items())
     ]
-    return _nonempty(db, path), warnings
+    return _nonempty(db, path), warnings + _reuse_warnings(db, path)
+
+
+def _reuse_warnings(db: Database, path: Path) -> list[str]:
+    """What a DBC's reused names and frame ids do: a name on several frame ids makes a stream per id
+    (``NAME_0xID``, the name a CAN role gives to pick one); a frame id defined twice is decoded by its last
+    definition alone."""
+    out = []
+    ids_of: dict[str, list[int]] = {}
+    for m in db.messages:
+        ids_of.setdefault(m.name, []).append(m.frame_id)
+    shared = {name: ids for name, ids in ids_of.items() if len(ids) > 1}
+    if shared:
+        listed = "; ".join(f"{name} {' / '.join(f'0x{i:X}' for i in ids)}" for name, ids in list(shared.items())[:3])
+        listed += f" and {len(shared) - 3} more" if len(shared) > 3 else ""
+        out.append(f"{path.name}: {len(shared)} message names are given to several frame ids ({listed}): each id is "
+                   "its own stream, NAME_0xID, which a CAN role names to pick one")
+    names_at = Counter((m.frame_id, m.is_extended_frame) for m in db.messages)
+    for (frame_id, extended), n in names_at.items():
+        if n > 1:
+            names = [m.name for m in db.messages if (m.frame_id, m.is_extended_frame) == (frame_id, extended)]
+            out.append(f"{path.name}: frame id 0x{frame_id:X} is defined {n} times ({', '.join(names)}): its frames "
+                       f"are decoded as {names[-1]} alone")
+    return out
 
 
 def _nonempty(db: Database, path: Path) -> Database:

@@ -320,7 +320,9 @@ def ingest(
         if can.get("frames"):
             out.print(f"CAN: {can['frames']} frames, {can['decoded']} decoded"
                       + "".join(f", {k.replace('_', ' ')} {v}" for k, v in problems.items()))
-        if can.get("missing_roles"):
+        if can.get("missing_roles") and not can.get("frames"):
+            out.print(f"no CAN frames in this log: the config's {len(can['missing_roles'])} CAN roles go unused")
+        elif can.get("missing_roles"):
             out.print(f"CAN roles not found: {', '.join(can['missing_roles'])}")
         for sk in report.skipped_channels:
             out.print(f"skipped {sk['topic']} ({sk['msgtype']}): {sk['reason']}", highlight=False)

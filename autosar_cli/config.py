@@ -450,7 +450,8 @@ class Config:
 def load_config(path: str | Path | None = None) -> Config:
     """Load and validate a TOML config (default: ``configs/giulia_scanbrick.toml``). A config whose top level
     says ``base = "PATH"`` (relative to itself; ``"default"`` for the default config) holds only what differs
-    from that one: its tables are merged over the base's, key by key, its values (arrays too) replace the base's."""
+    from that one: its tables are merged over the base's, key by key, its values (arrays too) replace the base's; a
+    CAN role set to ``""`` is unset (the car has no such signal)."""
     p = Path(path) if path is not None else DEFAULT_CONFIG
     bases: list[str] = []
     raw = _layered(p, (), bases)
@@ -508,6 +509,10 @@ def config_from_dict(raw: dict[str, Any], source: str = "", bases: tuple[str, ..
     """Build a validated :class:`Config` from a parsed TOML mapping (``source`` and ``bases``: the files it was
     read from)."""
     data = dict(raw)
+    can = data.get("can")
+    if isinstance(can, dict) and isinstance(can.get("roles"), dict):
+        # TOML has no null: a role set to "" says this car has no such signal (a layer unsets its base's role)
+        data["can"] = {**can, "roles": {role: ref for role, ref in can["roles"].items() if ref != ""}}
     data["source"], data["bases"] = source, bases
     cfg = _build(Config, data, "")
     _validate(cfg)

@@ -5,7 +5,7 @@ A log recorded on other topics than the config's is ingested under names of its 
 drive was ingested with (``base = ...``): each GNSS receiver's fix, velocity and NMEA topics, each IMU's topic, its
 degrees of freedom (NaN axes), rate and, where gravity shows it turned, the pitch and roll that level it; the radar's
 topic; the gyros to fuse. What a log cannot show stays the base's, and the sketch says so: lever arms, the vehicle's
-geometry, the sensors' error tables, an IMU's yaw on the body.
+geometry, the sensors' error tables, an IMU's yaw on the body. The base's CAN roles the drive lacks are unset.
 """
 
 from __future__ import annotations
@@ -45,6 +45,10 @@ def config_sketch(drive_path: str | Path, config: Config) -> str:
         lines.append("")
     if radar and radar[0]:
         lines += ["[radar]", f"topic = {_toml(radar[0])}", ""]
+    absent = [role for role in config.can.roles if role not in roles]
+    if absent:
+        lines.append("[can.roles]  # the base's roles this drive's CAN lacks, unset: give your DBC's MESSAGE.SIGNAL")
+        lines += [f'{_toml(role) if "." in role else role} = ""' for role in absent] + [""]
     # the base's gyros the drive has; where it has none of them, every IMU it has
     present = {name for name, _ in imus} | {n for n in config.sensors if f"yaw_rate.{n}" in roles}
     gyros = [g for g in config.navigation.gyros if g in present] or [name for name, _ in imus]

@@ -240,6 +240,26 @@ def test_other_defects_are_not_repaired(tmp_path: Path) -> None:
         load_dbc(tmp_path / "missing.dbc")
 
 
+def test_a_dbcs_reused_names_and_frame_ids_are_said_once_in_its_own_words(tmp_path: Path,
+                                                                        capfd: pytest.CaptureFixture[str]) -> None:
+    """A frame id defined twice is decoded by its last definition (cantools' lookup, and the ingest's), a name on two
+    frame ids makes a stream per id: each is one warning naming the file, and cantools' own log lines (one per
+    message, on stderr) are not printed."""
+    path = tmp_path / "reused.dbc"
+    path.write_text('VERSION ""\n\nBU_: ECU\n\n'
+                    'BO_ 256 FIRST: 8 ECU\n SG_ A : 0|8@1+ (1,0) [0|255] "" Vector__XXX\n\n'
+                    'BO_ 256 SECOND: 8 ECU\n SG_ B : 0|16@1+ (1,0) [0|65535] "" Vector__XXX\n\n'
+                    'BO_ 3 POS: 8 ECU\n SG_ C : 0|8@1+ (1,0) [0|255] "" Vector__XXX\n\n'
+                    'BO_ 19 POS: 8 ECU\n SG_ C : 0|8@1+ (1,0) [0|255] "" Vector__XXX\n')
+    db, warnings = load_dbc(path)
+    assert warnings == ["reused.dbc: 1 message names are given to several frame ids (POS 0x3 / 0x13): each id is its "
+                        "own stream, NAME_0xID, which a CAN role names to pick one",
+                        "reused.dbc: frame id 0x100 is defined 2 times (FIRST, SECOND): its frames are decoded as "
+                        "SECOND alone"]
+    assert db.get_message_by_frame_id(256).name == "SECOND"
+    assert capfd.readouterr().err == ""
+
+
 # --- checksum -------------------------------------------------------------------------------------
 
 

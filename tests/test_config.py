@@ -133,6 +133,25 @@ def test_a_config_on_a_base_holds_only_what_differs(tmp_path: Path) -> None:
         load_config(tmp_path / "num.toml")
 
 
+def test_a_layer_unsets_its_bases_can_roles_with_an_empty_string(tmp_path: Path) -> None:
+    """TOML has no null: a role given as "" says the car has no such signal, so a layer for a car without the
+    default's wheel speeds drops them (the rest of the base's roles and the layer's own stay)."""
+    default = load_config()
+    mine = tmp_path / "mine.toml"
+    mine.write_text('base = "default"\n[can.roles]\nwheel_speed_fl = ""\n"yaw_rate.esc" = ""\n'
+                    '"yaw_rate.css" = "GNSS_IMU.RATE_Z"\n')
+    roles = load_config(mine).can.roles
+    assert roles == {**{r: ref for r, ref in default.can.roles.items() if r not in ("wheel_speed_fl", "yaw_rate.esc")},
+                     "yaw_rate.css": "GNSS_IMU.RATE_Z"}
+    again = tmp_path / "again.toml"  # a layer above it may give the role back
+    again.write_text('base = "mine.toml"\n[can.roles]\nwheel_speed_fl = "ABS_1.WHEEL_SPEED_FL"\n')
+    assert load_config(again).can.roles["wheel_speed_fl"] == "ABS_1.WHEEL_SPEED_FL"
+    bad = tmp_path / "bad.toml"
+    bad.write_text('base = "default"\n[can.roles]\nwheel_speed_fl = "ABS_1"\n')
+    with pytest.raises(ConfigError, match=r"can.roles.wheel_speed_fl: expected 'MESSAGE.SIGNAL', got 'ABS_1'"):
+        load_config(bad)
+
+
 def test_bench_configs_change_only_the_simulators_entries(tmp_path: Path) -> None:
     """benches/bench_paper.py's other car (``--car``), other radar (``--simulation``) and other sensors
     (``--sensors``) edit only the entries named, in their own sections, and refuse a name the section lacks."""

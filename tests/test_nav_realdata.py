@@ -57,6 +57,7 @@ def test_the_worked_example_changes_only_what_it_says() -> None:
     assert example.navigation.gyros == ("imu_cog_a",) and example.vehicle.cog_to_rear_axle_m == 0.0
     assert example.dbc_path == default.dbc_path and example.dbc_path.exists()
     assert example.files == (str(HUSKY_CONFIG.resolve()), str(DEFAULT_CONFIG.resolve()))
+    assert example.can.roles == {}
     assert dataclasses.replace(example, sensors=default.sensors, navigation=default.navigation, vehicle=default.vehicle,
                                source="", bases=(), can=default.can) == dataclasses.replace(default, source="")
 
@@ -252,6 +253,7 @@ def test_the_config_sketch_of_a_real_robot_navigates_it(husky_drive: Path, tmp_p
     sketch = tmp_path / "sketch.toml"
     sketch.write_text(config_sketch(as_default, load_config()))
     cfg = load_config(sketch)
+    assert cfg.can.roles == {}  # the default's, which a robot without CAN has not, unset
     gnss, imu = cfg.sensors["gnss_cog"], cfg.sensors["ins_cog"]
     assert (gnss.topic, gnss.velocity_topic, gnss.rate_hz) == ("/fix", "", 2.5)
     assert (imu.topic, imu.dof, imu.rate_hz, imu.mounting_ypr_deg) == ("/imu/data", 6, 30.0, (0.0, 1.3, 89.5))
@@ -270,6 +272,18 @@ def test_the_config_sketch_of_a_real_robot_navigates_it(husky_drive: Path, tmp_p
     assert r.exit_code != 0 and "--config-sketch reads a drive.h5; ingest the log first" in r.output
     r = CliRunner().invoke(app, ["info", str(as_default), "--config-sketch"])
     assert r.exit_code == 0 and tomllib.loads(r.stdout) == tomllib.loads(sketch.read_text())
+
+
+
+def test_a_log_without_can_is_told_its_roles_go_unused_in_one_line(tmp_path: Path) -> None:
+    """The Husky's bag holds no CAN: ingested with the default config, its twelve CAN roles are one line, not a list of
+    what a log without CAN cannot hold; with a config that unsets them, not a word."""
+    r = CliRunner().invoke(app, ["ingest", str(realdata(*HUSKY)), "-o", str(tmp_path / "d.h5"), "--allow-partial"])
+    assert r.exit_code == 0 and "no CAN frames in this log: the config's 12 CAN roles go unused" in r.output
+    assert "CAN roles not found" not in r.output
+    r = CliRunner().invoke(app, ["ingest", str(realdata(*HUSKY)), "-o", str(tmp_path / "e.h5"), "--allow-partial",
+                                 "--config", str(HUSKY_CONFIG)])
+    assert r.exit_code == 0 and "CAN roles" not in r.output
 
 
 # ------------------------------------------------------------------ a real car's GNSS receiver and IMU on CAN
