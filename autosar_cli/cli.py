@@ -143,6 +143,8 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
         if _state["debug"]:
             raise
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        for warning in getattr(exc, "warnings", ()):  # what went wrong before, which may be the cause
+            err.print(f"[yellow]warning:[/] {escape(warning)}", highlight=False, soft_wrap=True)
         if isinstance(exc, OSError) and exc.errno == errno.ENOSPC and str(writing or "") not in msg:
             msg = f"{exc.filename or writing}: no space left on the device"
         # escaped: a message quoting a value such as [inf] or a path with brackets is not rich markup
@@ -277,7 +279,7 @@ def ingest(
 ) -> None:
     """Decode CAN (with a DBC), GNSS, IMU and raw radar frames of drive logs into one drive.h5, streaming."""
     with _errors(output, kernels=False):
-        from autosar_cli.ingest.pipeline import classify_input, parse_time_offsets
+        from autosar_cli.ingest.pipeline import check_input, classify_input, parse_time_offsets
         from autosar_cli.ingest.pipeline import ingest as run_ingest
 
         cfg = _load_config(config)
@@ -285,6 +287,9 @@ def ingest(
                                         "radar": [radar] if radar else []}
         for p in logs or []:
             kinds[classify_input(p)].append(p)
+        for kind, paths in kinds.items():
+            for p in paths:
+                check_input(p, kind)
         _prepare_output(output, overwrite, [*(logs or []), *kinds["can"], *kinds["nmea"], dbc, cfg.source])
         from autosar_cli.store.outputs import check_free_space, input_bytes
 
@@ -719,6 +724,10 @@ def info(
     """Summarise a log or drive.h5: streams, message types, counts, rates, time span and gaps; and list the
     partial files that killed autosar processes left beside it."""
     with _errors(kernels=False):
+        from autosar_cli.store.outputs import input_problem
+
+        if (problem := input_problem(path)) is not None and (path.exists() or path.is_symlink()):
+            raise ValueError(f"{path}: {problem}")
         if config_sketch:
             from autosar_cli.config_sketch import config_sketch as sketch
 

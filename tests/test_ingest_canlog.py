@@ -152,6 +152,40 @@ def test_truncated_finalised_mf4_names_the_cut(tmp_path: Path) -> None:
         list(read_can_log(cut))
 
 
+def test_an_mf4_asammdf_cannot_open_is_one_line_and_no_traceback(tmp_path: Path) -> None:
+    """asammdf prints the traceback of an error to stdout before it raises it: on a CANedge file cut inside its
+    blocks, or one with 4 KiB pasted into it, that went to the terminal (and into --json's output) above our error.
+    The CLI now says one line on stderr, with what our block walk found: a cut, or a link to no block (damaged,
+    not cut), and nothing on stdout."""
+    from typer.testing import CliRunner
+
+    from autosar_cli.cli import app
+
+    data = realdata(CSS, MF4_2022).read_bytes()
+    cut = tmp_path / "cut.MF4"
+    cut.write_bytes(data[:11957])
+    pasted = tmp_path / "pasted.MF4"
+    data = realdata(CSS, MF4_2023_1).read_bytes()
+    pasted.write_bytes(data[:42345] + data[96663:96663 + 4096] + data[42345:])
+    for log, says in ((cut, "(cut short: block header at byte 14608 cut off)"),
+                      (pasted, "where a link points (it reads b'\\x00\\x00\\x00\\x00'): damaged there)")):
+        r = CliRunner().invoke(app, ["ingest", "--can-log", str(log), "-o", str(tmp_path / "d.h5"), "--json",
+                                     "--allow-partial", "--dbc", str(realdata(CSS, "gnss.dbc"))])
+        assert r.exit_code == 1 and r.stdout == "" and "Traceback" not in r.output
+        lines = r.stderr.strip().splitlines()
+        assert lines[-1].startswith(f"error: {log}: cannot open MDF4 log: ") and lines[-1].endswith(says), lines
+        assert "cut short" not in lines[-1] or log == cut
+
+
+def test_a_can_log_error_names_the_users_file_not_a_cut_copy(tmp_path: Path) -> None:
+    """A text log whose last line is cut is read from a copy up to its last whole line; what is wrong with it
+    names the file the user gave."""
+    log = tmp_path / "random.log"
+    log.write_bytes(b"\x8c\x10garbage that is no candump line\nand a cut las")
+    with pytest.raises(CanLogError, match=f"^{log}: not a candump -L log"):
+        list(read_can_log(log))
+
+
 def test_real_mf4_suffix_and_streaming() -> None:
     path = realdata(CSS, MF4_2023_2)
     assert path.suffix == ".MF4" and is_can_log(path)

@@ -566,3 +566,89 @@ def test_mcap_cut_between_records_is_told_from_an_unindexed_one(ci_mcap: Simulat
     assert Counter(got) == Counter(m for _, e, msgs in chunks if e <= cut for m in msgs)
     assert warnings == [f"{log}: damaged MCAP at byte {cut} of {cut}: file ends without its footer (truncated, "
                         "or its writer never finished); everything before it was read"]
+
+
+@pytest.mark.parametrize("shift", [4096, -4096], ids=["bytes added", "bytes lost"])
+def test_mcap_shifted_summary_is_found_by_its_data_end(shift: int, ci_mcap: SimulationResult, work: Path) -> None:
+    """4 KiB added to (or lost from) the first chunk: the footer's summary offset then misses the summary, and the
+    first chunk held the only schema and channel records of the data section. The summary is found by its DataEnd
+    record: every other chunk is kept (before, the whole log was "no known sensor streams")."""
+    chunks = mcap_chunks(ci_mcap.log_path)
+    start, end, _ = chunks[0]
+    data = ci_mcap.log_path.read_bytes()
+    at = (start + end) // 2
+    damaged = data[:at] + data[100:100 + shift] + data[at:] if shift > 0 else data[:at] + data[at - shift:]
+    log = work / f"shifted_{shift}.mcap"
+    log.write_bytes(damaged)
+    got, warnings = read_all(log)
+    assert Counter(got) == Counter(m for s, _, msgs in chunks if s != start for m in msgs)
+    assert f"{log}: the footer's summary offset misses the summary (bytes added or lost before it); its schemas " \
+           "and channels found by its DataEnd record, the chunk indexes not used" in warnings
+    assert any(f"chunk ending at byte {end} skipped" in w for w in warnings), warnings
+
+
+def test_rosbag2_topics_metadata_yaml_does_not_list_are_read_from_the_storage(ci_ros2: SimulationResult,
+                                                                           work: Path) -> None:
+    """rosbags reads the topics metadata.yaml lists: one it leaves out (hand-edited, or cut off at a line end so
+    that it still parses) was lost without a word. The storage's own topics table is read too; a metadata.yaml cut
+    so short that rosbags refuses it reads every topic the storage holds."""
+    rows = db_rows(ci_ros2.log_path)
+    bag = work / "unlisted_ros2"
+    copy_bag(ci_ros2.log_path, bag)
+    meta_path = bag / "metadata.yaml"
+    meta = yaml.safe_load(meta_path.read_text())
+    listed = meta["rosbag2_bagfile_information"]["topics_with_message_count"]
+    gone = next(e["topic_metadata"]["name"] for e in listed if e["topic_metadata"]["name"].endswith("/fix"))
+    meta["rosbag2_bagfile_information"]["topics_with_message_count"] = [
+        e for e in listed if e["topic_metadata"]["name"] != gone]
+    meta_path.write_text(yaml.safe_dump(meta))
+    got, warnings = read_all(bag)
+    assert Counter(got) == Counter(m for _, m in rows)
+    n = sum(1 for _, m in rows if m[0] == gone)
+    assert f"{bag}: metadata.yaml does not list {gone} ({n} messages); read from the sqlite3 storage" in warnings
+    text = (ci_ros2.log_path / "metadata.yaml").read_text()
+    meta_path.write_text(text[:text.index("topics_with_message_count")])  # still YAML; rosbags refuses it
+    got, warnings = read_all(bag)
+    assert Counter(got) == Counter(m for _, m in rows)
+    assert any("rosbags failed when opened" in w for w in warnings), warnings
+
+
+def test_rosbag2_sqlite_header_that_declares_gigabytes_pads_nothing_in_memory(ci_ros2: SimulationResult,
+                                                                           work: Path) -> None:
+    """A storage file whose header's page count is damaged to 500000 pages (2 GB at 4 KiB): sqlite refuses it as
+    it is, and the padding to the declared size that lets it read a cut file goes to a sparse temporary file (it
+    took 4.2 GB of memory and 12 s in memory). Every row is read; random bytes behind sqlite's magic are refused,
+    naming the file."""
+    rows = db_rows(ci_ros2.log_path)
+    bag = work / "pages_ros2"
+    db3 = copy_bag(ci_ros2.log_path, bag)
+    data = bytearray(db3.read_bytes())
+    data[28:32] = (500_000).to_bytes(4, "big")
+    db3.write_bytes(bytes(data))
+    got, warnings = read_all(bag)
+    assert Counter(got) == Counter(m for _, m in rows)
+    assert any(f"{db3}: damaged sqlite3 storage: {len(data)} bytes, its header declares " in w for w in warnings)
+    assert sorted(p.name for p in bag.iterdir()) == [db3.name, "metadata.yaml"]
+    rng = np.random.default_rng(1200)
+    db3.write_bytes(b"SQLite format 3\x00" + rng.integers(0, 256, 65536, dtype=np.uint8).tobytes())
+    with pytest.raises(Exception, match=f"{re.escape(str(db3))}: not a readable sqlite3 file"):
+        read_all(bag)
+
+
+def test_what_went_wrong_before_an_ingest_error_is_said_with_it(ci_ros2: SimulationResult, work: Path) -> None:
+    """A rosbag2 bag whose storage file is gone ends in "no known sensor streams"; the warnings gathered before it
+    (the file metadata.yaml lists is missing, each topic's shortfall) were dropped with the drive. They come first,
+    then the error, and no drive is written."""
+    from typer.testing import CliRunner
+
+    from autosar_cli.cli import app
+
+    bag = work / "no_storage_ros2"
+    db3 = copy_bag(ci_ros2.log_path, bag)
+    db3.unlink()
+    r = CliRunner().invoke(app, ["ingest", str(bag), "-o", str(work / "no_storage.h5")])
+    lines = r.stderr.strip().splitlines()
+    assert r.exit_code == 1 and "Traceback" not in r.output and not (work / "no_storage.h5").exists()
+    assert lines[0] == f"warning: {bag}: storage file {db3.name} listed in metadata.yaml is missing", lines
+    assert lines[-1].startswith(f"error: {bag}: no known sensor streams") and all(
+        ln.startswith("warning: ") for ln in lines[:-1]), lines

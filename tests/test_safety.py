@@ -100,6 +100,31 @@ def test_overwrite_never_replaces_a_directory_or_a_foreign_file(tmp_path: Path) 
     assert foreign.read_bytes() == keep
 
 
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes are POSIX")
+def test_an_input_that_is_a_pipe_a_link_loop_or_a_directory_is_one_line(tmp_path: Path) -> None:
+    """A named pipe given as a log blocked every command on a writer that never came (killed by a timeout, no
+    word); a symbolic link loop was Python's "Symlink loop from ..."; a directory given as an NMEA log, its
+    "[Errno 21]". Each is now one line naming the input, before anything is read or written."""
+    fifo = tmp_path / "log.mcap"
+    os.mkfifo(fifo)
+    (tmp_path / "loop_a").symlink_to(tmp_path / "loop_b")
+    (tmp_path / "loop_b").symlink_to(tmp_path / "loop_a")
+    out = tmp_path / "out"
+    for args in (["info", str(fifo)], ["ingest", str(fifo), "-o", str(out / "d.h5")],
+                 ["navigate", str(fifo), "-o", str(out / "t.h5")], ["run", str(fifo), "-o", str(out)],
+                 ["compare", str(fifo), "-o", str(out)]):
+        _one_line_error(runner.invoke(app, args), str(fifo), "not a regular file (a pipe, socket or device)")
+    loop = tmp_path / "loop_a"
+    for args in (["info", str(loop)], ["ingest", str(loop), "-o", str(out / "d.h5")]):
+        r = runner.invoke(app, args)
+        assert r.exit_code == 1 and r.stderr.startswith(f"error: {loop}: ") and "loop" in r.stderr.lower(), r.stderr
+    folder = tmp_path / "nmea"
+    folder.mkdir()
+    _one_line_error(runner.invoke(app, ["ingest", "--nmea", str(folder), "-o", str(out / "d.h5")]), str(folder),
+                    "a directory, not an NMEA log file")
+    assert not out.exists()
+
+
 def test_output_whose_parent_is_a_file_names_it(tmp_path: Path) -> None:
     log = tmp_path / "log.mcap"
     _foreign(log)

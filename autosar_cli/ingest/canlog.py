@@ -41,6 +41,8 @@ format (MF4 ``BusChannel``, TRC bus, ASC/BLF channel). candump interface names (
 
 from __future__ import annotations
 
+import contextlib
+import io
 import logging
 import math
 import os
@@ -128,8 +130,9 @@ class _MF4Reader(can.MF4Reader):
             raise
 
 
-def _open_reader(path: Path, stack: ExitStack) -> MessageReader:
-    """Open the python-can reader of the file's format; files we open are closed by ``stack``."""
+def _open_reader(path: Path, stack: ExitStack, shown: Path) -> MessageReader:
+    """Open the python-can reader of the file's format; files we open are closed by ``stack``. ``shown``: the
+    user's file, which ``path`` may be a cut copy of."""
     suffix = _suffix(path)
     if suffix == ".mf4":
         mf4_support.ensure()
@@ -145,7 +148,7 @@ def _open_reader(path: Path, stack: ExitStack) -> MessageReader:
         return stack.enter_context(can.TRCReader(text))
     first = _first_line(path)
     if first is not None and _CANDUMP_LINE.match(first) is None:
-        raise CanLogError(f"{path}: not a candump -L log (first line {first[:40]!r})")
+        raise CanLogError(f"{shown}: not a candump -L log (first line {first[:40]!r})")
     return stack.enter_context(can.CanutilsLogReader(text))
 
 
@@ -169,11 +172,12 @@ def _where(reader: MessageReader, frames: int) -> str:
     return where
 
 
-def read_can_log(path: Path) -> Iterator[CanRecord]:
+def read_can_log(path: Path, warn: Callable[[str], None] = log.warning) -> Iterator[CanRecord]:
     """Stream the frames of a standalone CAN log in file order (never load the whole file into a list).
 
     Raises :class:`CanLogError` at once for an unsupported suffix or a missing file. A file that
-    cannot be parsed raises it from the iterator, after the frames read before the damage.
+    cannot be parsed raises it from the iterator, after the frames read before the damage. ``warn`` is told,
+    one line each, what is read but doubtful (a log without a start date, a reader that went on past an error).
     """
     path = Path(path)
     if _suffix(path) not in CAN_LOG_SUFFIXES:
@@ -183,36 +187,42 @@ def read_can_log(path: Path) -> Iterator[CanRecord]:
         )
     if not path.is_file():
         raise CanLogError(f"{path}: no such file" if not path.exists() else f"{path}: not a file")
-    return _records(path)
+    return _records(path, warn)
 
 
-def _records(path: Path) -> Iterator[CanRecord]:
+def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:
     """Generator behind :func:`read_can_log`: the reader is closed when it ends or is closed."""
     suffix = _suffix(path)
     kind = _FORMAT_NAMES[suffix]
     to_channel: Callable[[object], str] = _channel_from_one if suffix in _ZERO_BASED_CHANNELS else _channel
     frames = 0
+    # asammdf prints the traceback of an error to stdout before it raises it or reads on: held back (it would break
+    # --json's output), the error is ours to word
+    printed = io.StringIO()
+    quiet = (lambda: contextlib.redirect_stdout(printed)) if suffix == ".mf4" else contextlib.nullcontext
     with ExitStack() as stack:
         cut: CutShort | None = None
         try:
             # python-can already reads a BLF's cut container as far as its zlib stream goes
             cut = mdf4_cut(path) if suffix == ".mf4" else None if suffix == ".blf" else _text_cut(path, suffix)
-            reader = _open_reader(_whole_records(path, cut, stack), stack)
-            messages = iter(reader)
+            with quiet():
+                reader = _open_reader(_whole_records(path, cut, stack), stack, path)
+                messages = iter(reader)
         except CanLogError:
             raise
         except Exception as exc:  # python-can/asammdf raise many types; the user needs file + reason
             raise CanLogError(f"{path}: cannot open {kind} log: {_one_line(exc)}{_cut_note(cut)}") from exc
         while True:
             try:
-                msg = next(messages)
+                with quiet():
+                    msg = next(messages)
             except StopIteration:
                 break
             except Exception as exc:
                 raise CanLogError(f"{path}: cannot read {kind} log {_where(reader, frames)}: {_one_line(exc)}"
                                   f"{_cut_note(cut)}") from exc
             if frames == 0 and _relative_start(reader):
-                log.warning("%s: no start date in the header; times are offsets from the measurement start", path)
+                warn(f"{path}: no start date in the header; times are offsets from the measurement start")
             frames += 1
             yield CanRecord(
                 t_ns=_to_ns(msg.timestamp),
@@ -225,12 +235,16 @@ def _records(path: Path) -> Iterator[CanRecord]:
                 channel=to_channel(msg.channel),
             )
         _check_complete(path, reader, frames)
+        errors = [ln for ln in printed.getvalue().splitlines() if ln and not ln.startswith((" ", "Traceback"))]
+        if errors:
+            warn(f"{path}: the {kind} reader went on past {len(errors)} error(s) of its own, the last: {errors[-1]}")
         if cut:
-            raise CanLogError(f"{path}: truncated {kind} log: {cut.reason}; {frames} frames read before it")
+            raise CanLogError(f"{path}: {'damaged' if cut.damaged else 'truncated'} {kind} log: {cut.reason}; "
+                              f"{frames} frames read before it")
 
 
 def _cut_note(cut: CutShort | None) -> str:
-    return f" (cut short: {cut.reason})" if cut else ""
+    return "" if cut is None else f" ({cut.reason})" if cut.damaged else f" (cut short: {cut.reason})"
 
 
 def _text_cut(path: Path, suffix: str) -> CutShort | None:

@@ -92,7 +92,7 @@ def summarize_can_log(path: Path) -> LogSummary:
     summary = LogSummary(str(path), f"CAN log ({path.suffix.lower().lstrip('.')})", path.stat().st_size)
     streams: dict[str, StreamSummary] = {}
     try:
-        for rec in read_can_log(path):
+        for rec in read_can_log(path, summary.warnings.append):
             ch = f"ch{rec.channel or '?'}"
             if rec.is_error:  # an error frame's ID field means nothing
                 _add(streams, f"{ch} error frames", "CAN error frame", rec.t_ns)

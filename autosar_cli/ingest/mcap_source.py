@@ -59,6 +59,43 @@ class _BadChunk(Exception):
     pass
 
 
+_DATA_END = _RECORD_HEAD.pack(0x0F, 4)  # opcode and length of the DataEnd record the summary section follows
+_SUMMARY_TRIES = 4
+
+
+def _summary_by_its_data_end(path: Path) -> tuple[dict[int, Schema], dict[int, McapChannel], dict[int, int]] | None:
+    """The summary's schemas, channels and message counts of a file whose footer's summary offset misses it (a
+    block of bytes added or lost before it): after the last DataEnd record whose following records parse as far
+    as the footer. None where no such section is found."""
+    from mcap.records import Footer, Statistics
+    from mcap.stream_reader import StreamReader
+
+    with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+        if buf[-len(MCAP_MAGIC):] != MCAP_MAGIC:
+            return None
+        pos = len(buf)
+        for _ in range(_SUMMARY_TRIES):  # a DataEnd's bytes inside an uncompressed chunk are not the record
+            pos = buf.rfind(_DATA_END, 0, pos)
+            if pos < 0:
+                return None
+            schemas: dict[int, Schema] = {}
+            channels: dict[int, McapChannel] = {}
+            counts: dict[int, int] = {}
+            try:
+                for rec in StreamReader(BytesIO(buf[pos + _RECORD_HEAD.size + 4:]), skip_magic=True).records:
+                    if isinstance(rec, Schema):
+                        schemas[rec.id] = rec
+                    elif isinstance(rec, McapChannel):
+                        channels[rec.id] = rec
+                    elif isinstance(rec, Statistics):
+                        counts = dict(rec.channel_message_counts)
+                    elif isinstance(rec, Footer):
+                        return (schemas, channels, counts) if channels else None
+            except Exception:  # not the summary: the mcap library raises what it meets
+                continue
+    return None
+
+
 def _framing_problem(opcode: int, length: int, offset: int, total: int) -> str:
     """Why the record header at ``offset`` cannot be a real one ("" if it can)."""
     if opcode == 0 or _LAST_OPCODE < opcode < 0x80:
@@ -193,7 +230,13 @@ class McapSource:
         try:
             summary = SeekingReader(f).get_summary()  # type: ignore[arg-type]
         except Exception:
-            summary = None
+            found = _summary_by_its_data_end(self.path)
+            if found is not None:
+                self._summary_records, self._summary_counts = found[:2], found[2]
+                self.stats.warnings.append(f"{self.path}: the footer's summary offset misses the summary (bytes "
+                                           "added or lost before it); its schemas and channels found by its "
+                                           "DataEnd record, the chunk indexes not used")
+            return
         if summary is None or summary.statistics is None:
             # no counts to check the messages against: the file's end tells a finished writer (its footer) from a
             # cut one (:meth:`_records`)

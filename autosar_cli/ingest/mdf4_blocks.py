@@ -12,12 +12,14 @@ A cut that falls between two records cannot be told from a shorter recording. La
 from __future__ import annotations
 
 import mmap
+import re
 import struct
 from pathlib import Path
 
 from .records import CutShort
 
 _HEAD = struct.Struct("<4s4xQQ")  # block id, length, link count
+_BLOCK_ID = re.compile(rb"##[A-Z]{2}")
 _UNFINISHED_LAST_DT = 1 << 2  # id_unfin_flags: the last ##DT block's length is to be updated
 _VLSD = 1  # cg_flags: a variable-length signal data group
 
@@ -27,6 +29,8 @@ def _block(buf: mmap.mmap, pos: int) -> tuple[bytes, int, tuple[int, ...], int]:
     if pos + _HEAD.size > len(buf):
         raise ValueError(f"block header at byte {pos} cut off")
     ident, length, n_links = _HEAD.unpack_from(buf, pos)
+    if not _BLOCK_ID.fullmatch(ident):
+        raise ValueError(f"no block at byte {pos}, where a link points (it reads {ident!r}): damaged there")
     data = pos + _HEAD.size + 8 * n_links
     if data > len(buf):
         raise ValueError(f"{ident.decode('latin-1')} block at byte {pos} cut off in its links")
@@ -61,7 +65,7 @@ def mdf4_cut(path: Path) -> CutShort | None:
                     if cut:
                         return cut
         except (ValueError, struct.error) as exc:
-            return CutShort(str(exc))
+            return CutShort(str(exc), damaged="cut off" not in str(exc))  # a block or record the end does not cut
     return None
 
 

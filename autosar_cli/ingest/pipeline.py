@@ -27,7 +27,7 @@ from autosar_cli import __version__, msgs
 from autosar_cli.candb import DbcError, load_dbc
 from autosar_cli.config import Config
 from autosar_cli.store.drive import DriveWriter, chirp_on_navigation_clock
-from autosar_cli.store.outputs import input_bytes
+from autosar_cli.store.outputs import input_bytes, input_problem
 
 from . import fastcdr
 from .dca1000 import Dca1000Capture, is_capture
@@ -77,7 +77,12 @@ ProgressFn = Callable[[int, int], None]
 
 
 class IngestError(RuntimeError):
-    """Ingest cannot produce a useful drive.h5; the message says which file and why."""
+    """Ingest cannot produce a useful drive.h5; the message says which file and why, ``warnings`` what ingest had
+    found wrong before it gave up (a storage file missing, a chunk skipped), which may be the cause."""
+
+    def __init__(self, message: str, warnings: Iterable[str] = ()) -> None:
+        super().__init__(message)
+        self.warnings = list(warnings)
 
 
 @dataclass
@@ -113,6 +118,19 @@ def classify_input(path: Path) -> str:
     if path.suffix.lower() in NMEA_SUFFIXES or path.suffix.lower() == ".log":
         return "nmea"
     return "log"
+
+
+def check_input(path: Path, kind: str) -> None:
+    """Refuse, naming it, an input that is not there or not a file to read (a rosbag2 bag and a DCA1000 capture
+    may be directories)."""
+    problem = input_problem(path)
+    if problem is not None:
+        raise IngestError(f"{path}: {problem}")
+    if path.is_dir() and kind in _FILE_KINDS:
+        raise IngestError(f"{path}: a directory, not {_FILE_KINDS[kind]}")
+
+
+_FILE_KINDS = {"can": "a CAN log file", "nmea": "an NMEA log file"}
 
 
 def _sanitise(topic: str) -> str:
@@ -448,7 +466,7 @@ class _Ingest:
         n = 0
         first = last = 0
         try:
-            for rec in read_can_log(path):
+            for rec in read_can_log(path, self.warnings.append):
                 if offset_ns:
                     rec = dataclasses.replace(rec, t_ns=rec.t_ns + offset_ns)
                 self.can.feed(rec, None, rec.t_ns, f"file:{path.name}")
@@ -458,7 +476,7 @@ class _Ingest:
         except CanLogError as exc:
             if n == 0:
                 raise LogReadError(str(exc)) from exc
-            self.warnings.append(f"{exc}; the {n} frames before it were read")
+            self.warnings.append(str(exc))  # it says how many frames came before the damage
         if n:
             self.spans[str(path)] = (first, last)
         return n
@@ -561,9 +579,8 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
         if (p, "can") not in inputs and (p, "nmea") not in inputs:
             raise IngestError(f"--time-offset {p}: not one of the CAN or NMEA logs given (a container log's "
                               "header stamps cannot be shifted; use --allow-time-gap)")
-    for path, _ in inputs:
-        if not path.exists():
-            raise IngestError(f"{path}: no such file or directory")
+    for path, kind in inputs:
+        check_input(path, kind)
     sources: list[tuple[Path, str, LogSource | None]] = []
     for path, kind in inputs:
         if kind == "log" and path.name == "metadata.yaml":  # a rosbag2 bag: the directory is the input (provenance)
@@ -580,6 +597,7 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
              "config_path": config.source, "config_toml": _config_text(config)}
     done = 0
     writer = DriveWriter(output, attrs)
+    job: _Ingest | None = None
     try:
         job = _Ingest(writer, config, dbc, radar_options)
         for path, kind, src in sources:
@@ -594,7 +612,7 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
                 else:
                     report.messages += job.run_nmea_log(path, offsets.get(path, 0))
             except (LogReadError, RadarParamsError) as exc:
-                raise IngestError(str(exc)) from exc
+                raise IngestError(str(exc), src.stats.warnings if src is not None else ()) from exc
             job.end_input(path)
             done += _input_bytes(path, src)
             report_progress(0)
@@ -627,6 +645,10 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
         writer.write_inputs(report.inputs)
         writer.set_attrs("provenance", {"command": command, "report": json.dumps(report.to_dict())})
         writer.commit()
+    except IngestError as exc:
+        writer.abort()
+        exc.warnings = list(dict.fromkeys((job.warnings if job is not None else []) + exc.warnings))
+        raise
     except BaseException:
         writer.abort()
         raise

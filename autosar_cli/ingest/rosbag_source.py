@@ -13,7 +13,9 @@ rosbag2 traps handled here (see the real-data notes in docs/FORMATS.md):
 from __future__ import annotations
 
 import mmap
+import os
 import sqlite3
+import tempfile
 from collections import Counter
 from collections.abc import Iterator
 from pathlib import Path, PurePath
@@ -221,6 +223,9 @@ class Rosbag2SqliteSource:
 
     def messages(self) -> Iterator[RawMessage]:
         seen: dict[str, int] = {}
+        for file in self.files:
+            if not file.exists():
+                self.stats.warnings.append(f"{self.path}: storage file {file.name} listed in metadata.yaml is missing")
         # rosbags reads the whole bag, and opens its files immutable: blind to a write-ahead log
         if self.direct or any(_wal_of(f) is not None for f in self.files):
             for msg in self._sql_messages(None):
@@ -240,7 +245,7 @@ class Rosbag2SqliteSource:
             what = f"after {sum(seen.values())} messages" if seen else "when opened"
             self.stats.warnings.append(f"{self.path}: rosbags failed {what} ({type(exc).__name__}: {exc}); "
                                        "the sqlite3 storage is read directly, row range by row range")
-            for msg in self._sql_messages(set(self.declared) or None, skip=yielded):
+            for msg in self._sql_messages(None, skip=yielded):  # every topic the storage holds: metadata may lack some
                 seen[msg.channel.topic] = seen.get(msg.channel.topic, 0) + 1
                 yield msg
             _check_declared(self.path, self.declared, seen, self.stats)
@@ -258,7 +263,32 @@ class Rosbag2SqliteSource:
             for msg in self._sql_messages(unmatched):
                 seen[msg.channel.topic] = seen.get(msg.channel.topic, 0) + 1
                 yield msg
+        # rosbags knows the topics metadata.yaml lists; a damaged or hand-edited one may leave some out
+        unlisted = self._storage_topics() - set(self.declared) - set(seen)
+        if unlisted:
+            found: Counter[str] = Counter()
+            for msg in self._sql_messages(unlisted):
+                found[msg.channel.topic] += 1
+                yield msg
+            if found:
+                self.stats.warnings.append(f"{self.path}: metadata.yaml does not list " + ", ".join(
+                    f"{t} ({n} messages)" for t, n in sorted(found.items())) + "; read from the sqlite3 storage")
         _check_declared(self.path, self.declared, seen, self.stats)
+
+    def _storage_topics(self) -> set[str]:
+        """The topics the storage files' own tables hold."""
+        out: set[str] = set()
+        for file in self.files:
+            if not file.exists():
+                continue
+            db = sqlite3.connect(f"file:{quote(str(file.resolve()))}?mode=ro&immutable=1", uri=True)
+            try:
+                out |= {name for (name,) in db.execute("SELECT name FROM topics")}
+            except sqlite3.DatabaseError:
+                pass  # rosbags read these files: a table it did not need is not this check's to judge
+            finally:
+                db.close()
+        return out
 
     def _rosbags_messages(self) -> Iterator[RawMessage]:
         from rosbags.rosbag2 import Reader
@@ -369,12 +399,35 @@ def _open_storage(file: Path, warnings: list[str]) -> sqlite3.Connection:
     page_size = int.from_bytes(data[16:18], "big")
     page_size = 65536 if page_size == 1 else page_size
     pages = int.from_bytes(data[28:32], "big")
-    size = max(pages * page_size, -(-len(data) // page_size) * page_size)
-    warnings.append(f"{file}: damaged sqlite3 storage: {len(data)} bytes, its header declares "
-                    f"{pages * page_size} ({reason}); read what its pages hold")
-    db = sqlite3.connect(":memory:")
-    db.deserialize(data + bytes(size - len(data)))
-    return db
+    declared = pages * page_size
+    warnings.append(f"{file}: damaged sqlite3 storage: {len(data)} bytes, its header declares {declared} ({reason}); "
+                    "read what its pages hold")
+    try:
+        return _padded_copy(data, max(declared, -(-len(data) // page_size) * page_size))
+    except sqlite3.DatabaseError as exc:
+        raise LogReadError(f"{file}: not a readable sqlite3 file ({exc})") from None
+
+
+def _padded_copy(data: bytes, size: int) -> sqlite3.Connection:
+    """``data`` padded with zero pages to ``size`` bytes (where the file system takes it), opened read-only: in a
+    sparse temporary file, so that the padding takes neither memory nor disk, unlinked once open."""
+    fd, name = tempfile.mkstemp(prefix="autosar-sqlite-", suffix=".db3")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            try:
+                f.truncate(size)
+            except OSError:  # a size no file here may have: the header's page count is itself damaged
+                pass
+        db = sqlite3.connect(f"file:{quote(name)}?mode=ro&immutable=1", uri=True)
+        try:
+            db.execute("SELECT name FROM sqlite_master").fetchall()  # opens the file before it is unlinked
+        except sqlite3.DatabaseError:
+            db.close()
+            raise
+        return db
+    finally:
+        os.unlink(name)
 
 
 def _wal_of(file: Path) -> Path | None:

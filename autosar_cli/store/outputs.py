@@ -14,6 +14,7 @@ import errno
 import json
 import os
 import shutil
+import stat
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -39,9 +40,12 @@ def check_output(path: str | Path, inputs: Iterable[str | Path] = (), *, overwri
     path = Path(path)
     _check_parent(path)
     remove_stale_partials(path.parent)
-    target = path.resolve()
+    target = _resolved(path)
     for inp in inputs:
-        source = Path(inp).resolve()
+        problem = input_problem(Path(inp))
+        if problem is not None and (Path(inp).exists() or Path(inp).is_symlink()):  # a missing one: its command's
+            raise OutputError(f"{inp}: {problem}")
+        source = _resolved(Path(inp))
         if target == source or (path.exists() and Path(inp).exists() and os.path.samefile(path, inp)):
             raise OutputError(f"{path}: is an input of this command; choose another output")
         if source in target.parents:
@@ -62,6 +66,27 @@ def check_output(path: str | Path, inputs: Iterable[str | Path] = (), *, overwri
         what = "a directory" if path.is_dir() else "a file"
         raise OutputError(f"{path}: is {what} autosar did not write (no autosar metadata); refusing to replace "
                           f"it, even with --overwrite")
+
+
+def input_problem(path: Path) -> str | None:
+    """Why ``path`` cannot be read as an input (a file, or a directory such as a rosbag2 bag), or None: a pipe or
+    a device would be read without end, or block on a writer that never comes."""
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        return "no such file or directory"
+    except OSError as exc:  # a symbolic link loop, a path through a file, no permission
+        return f"cannot be read: {exc.strerror}"
+    if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+        return "not a regular file (a pipe, socket or device); give the recorded file"
+    return None
+
+
+def _resolved(path: Path) -> Path:
+    try:
+        return path.resolve()
+    except (RuntimeError, OSError):  # Python 3.11 raises RuntimeError for a loop, 3.13 OSError
+        raise OutputError(f"{path}: a symbolic link loop (it leads to itself)") from None
 
 
 def check_products(directory: Path, names: Iterable[str], inputs: Iterable[str | Path], *, overwrite: bool) -> None:
