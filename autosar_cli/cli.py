@@ -312,7 +312,8 @@ def ingest(
         for st in report.streams:
             span = (st["last_ns"] - st["first_ns"]) / 1e9
             rate = (st["written"] - 1) / span if span > 0 else 0.0
-            notes = [f"{k} {st[k]}" for k in ("duplicates", "late_dropped", "time_jumps", "reordered") if st.get(k)]
+            notes = [f"{k} {st[k]}" for k in ("duplicates", "late_dropped", "time_jumps", "stamp_outliers",
+                                                      "reordered") if st.get(k)]
             notes += [f"{k} {v}" for k, v in st["skipped"].items()]
             if st.get("missing_frames"):
                 notes.append(f"missing frames {st['missing_frames']}")

@@ -11,7 +11,8 @@ in subprocesses (minimum counts at ``--scale 1``):
     config 30                       non-finite, negative, huge, mistyped, missing and non-UTF-8 values
     kill 30                         SIGKILL / SIGINT at a random moment of ingest or focus, then a rerun
     disk-full 5                     ingest and focus onto a 5 MiB tmpfs (skipped with a message if no mount)
-    path 10                         outputs that are inputs, directories, under files, 255-byte names
+    path 12                         outputs that are inputs, directories, under files, 255-byte names; a named
+                                    pipe and a symbolic link loop as inputs
     dca1000 40                      a TI DCA1000 capture (beside its navigation MCAP): packets lost, reordered,
                                     repeated or overwritten in a recording split across files, a split file
                                     missing, a packet zero-filled or the data cut in the post-processed file,
@@ -20,6 +21,9 @@ in subprocesses (minimum counts at ``--scale 1``):
     canlog 40                       standalone CAN logs cut short at a random byte (``autosar info --json``):
                                     ASC, TRC, candump -L and BLF written by python-can (2000 frames), and a
                                     real CANedge MDF4 file (``../shared/realdata``; its trials skipped without)
+    realfiles 70                    other people's recordings (``../shared/realdata``: the Husky's ROS1 bag, two
+                                    CANedge MDF4 files, two NMEA captures) cut, with 1, 8 or 64 bytes overwritten,
+                                    4 KiB zeroed, added or lost at a random place, then ingested
 
 Outcomes: clean-error (exit != 0, one error line, no traceback), kept-with-warning, ok, crash-or-traceback,
 silent-wrong (exit 0, product differs from the undamaged one, no warning), input-harmed (an input's bytes
@@ -59,8 +63,8 @@ CLI = [sys.executable, "-m", "autosar_cli.cli"]
 OUTCOMES = ("clean-error", "kept-with-warning", "ok", "crash-or-traceback", "silent-wrong", "input-harmed",
             "partial-left")
 BAD = ("crash-or-traceback", "silent-wrong", "input-harmed", "partial-left")
-COUNTS = {"mcap": 100, "ros1": 40, "rosbag2": 40, "hdf5": 60, "config": 30, "kill": 30, "disk-full": 5, "path": 10,
-          "dca1000": 40, "canlog": 40}
+COUNTS = {"mcap": 100, "ros1": 40, "rosbag2": 40, "hdf5": 60, "config": 30, "kill": 30, "disk-full": 5, "path": 12,
+          "dca1000": 40, "canlog": 40, "realfiles": 70}
 PACKET = 1456  #: the DCA1000's default data bytes per packet
 
 
@@ -276,7 +280,34 @@ def setup(work: Path) -> Base:
 
     base.dca_packets.write_bytes(b"".join(packets_of((base.dca_flat / "adc_data.bin").read_bytes(), PACKET)))
     _can_logs(base, work)
+    _real_files(base, work)
     return base
+
+
+REAL = REPO.parent / "shared" / "realdata"
+_CSS = ["--dbc", str(REAL / "css-electronics" / "gnss.dbc"), "--config",
+        str(REPO / "configs" / "examples" / "css_canedge_gnss.toml")]
+#: (name, file under ../shared/realdata, the ingest arguments that read it, given its damaged copy)
+REAL_INPUTS: list[tuple[str, str, Callable[[Path], list[str]]]] = [
+    ("Husky ROS1 bag", "robot_localization/test1.bag",
+     lambda p: [str(p), "--config", str(REPO / "configs" / "examples" / "husky_test1.toml")]),
+    ("CANedge MF4 2022", "css-electronics/2F6913DB_00000004_00000001.MF4", lambda p: ["--can-log", str(p), *_CSS]),
+    ("CANedge MF4 2023", "css-electronics/2F6913DB_00001089_00000001-63BEF5CD.MF4",
+     lambda p: ["--can-log", str(p), *_CSS]),
+    ("NEO-M8N NMEA", "gpsd/neo-m8n.log", lambda p: ["--nmea", str(p)]),
+    ("UM981 NMEA", "pynmeagps/pygpsdata-um981.log", lambda p: ["--nmea", str(p)]),
+]
+REAL_DAMAGE = ("cut", "1 byte overwritten", "8 bytes overwritten", "64 bytes overwritten", "4 KiB zeroed",
+               "4 KiB added", "4 KiB lost")
+
+
+def _real_files(base: Base, work: Path) -> None:
+    """Each real input's drive.h5 as it ingests undamaged (the reference its damaged copies are held to)."""
+    for name, rel, args in REAL_INPUTS:
+        if (REAL / rel).is_file():
+            r = cli(["ingest", *args(REAL / rel), "-o", f"ref_real_{len(base.digests)}.h5", "--allow-partial"], work)
+            assert r.returncode == 0, r.stderr
+            base.digests[f"real:{name}"] = product_digest(work / f"ref_real_{len(base.digests)}.h5")
 
 
 def _can_logs(base: Base, work: Path) -> None:
@@ -563,7 +594,20 @@ PATH_CASES: list[tuple[str, Callable[[Path], list[str]], list[str]]] = [
     ("input does not exist", lambda d: ["ingest", "missing.mcap", "-o", "out.h5"], ["ci.mcap"]),
     ("focus -t the drive itself", lambda d: ["focus", "drive.h5", "-t", "drive.h5", "-o", "img"], ["drive.h5"]),
     ("ingest -o inside a rosbag2 input", lambda d: ["ingest", "bag", "-o", "bag/drive.h5", "--overwrite"], ["bag"]),
+    ("input is a named pipe", lambda d: _named_pipe(d / "pipe.mcap"), ["ci.mcap"]),
+    ("input is a symbolic link loop", lambda d: _link_loop(d / "loop.mcap"), ["ci.mcap"]),
 ]
+
+
+def _named_pipe(path: Path) -> list[str]:
+    os.mkfifo(path)  # no writer ever comes
+    return ["ingest", path.name, "-o", "out.h5"]
+
+
+def _link_loop(path: Path) -> list[str]:
+    path.symlink_to(path.with_name("other.mcap"))
+    path.with_name("other.mcap").symlink_to(path)
+    return ["ingest", path.name, "-o", "out.h5"]
 
 
 def path_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
@@ -700,6 +744,45 @@ def canlog_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
     return trial
 
 
+def realfiles_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
+    name, rel, args = REAL_INPUTS[n % len(REAL_INPUTS)]
+    kind = REAL_DAMAGE[n // len(REAL_INPUTS) % len(REAL_DAMAGE)]
+    if f"real:{name}" not in base.digests:
+        return Trial("realfiles", n, f"{name}: not in ../shared/realdata", outcome="skipped")
+    data = (REAL / rel).read_bytes()
+    at = rng.randrange(1, len(data) - 4096)
+    if kind == "cut":
+        damaged = data[:at]
+    elif kind.endswith("overwritten"):
+        k = int(kind.split()[0])
+        damaged = data[:at] + bytes(rng.randrange(256) for _ in range(k)) + data[at + k:]
+    elif kind == "4 KiB zeroed":
+        damaged = data[:at] + bytes(4096) + data[at + 4096:]
+    elif kind == "4 KiB added":
+        block = rng.randrange(0, len(data) - 4096)
+        damaged = data[:at] + data[block:block + 4096] + data[at:]
+    else:
+        damaged = data[:at] + data[at + 4096:]
+    log = tdir / Path(rel).name
+    log.write_bytes(damaged)
+    trial = Trial("realfiles", n, f"{name}: {kind} at byte {at} of {len(data)}")
+    t0 = time.perf_counter()
+    r = cli(["ingest", *args(log), "-o", "d.h5", "--allow-partial", "--json"], tdir, timeout=120)
+    trial.rc, trial.wall_s = r.returncode, time.perf_counter() - t0
+    warned = False
+    if r.returncode == 0:
+        try:
+            warned = bool(json.loads(r.stdout).get("warnings"))
+        except json.JSONDecodeError:  # --json's output broken (a library printing on stdout) is a fault too
+            trial.outcome, trial.detail = "crash-or-traceback", f"--json output not JSON: {r.stdout[:120]!r}"
+            return trial
+    trial.outcome, trial.detail = classify(r, tdir / "d.h5" if r.returncode == 0 else None,
+                                           base.digests[f"real:{name}"], warned)
+    if r.returncode == 0 and r.stdout.lstrip()[:1] != "{":
+        trial.outcome, trial.detail = "crash-or-traceback", f"--json output not JSON: {r.stdout[:120]!r}"
+    return trial
+
+
 # -------------------------------------------------------------------------------------------- main
 def run_trial(base: Base, cls: str, n: int, seed: int, root: Path) -> Trial:
     rng = random.Random(f"{seed}:{cls}:{n}")
@@ -709,7 +792,8 @@ def run_trial(base: Base, cls: str, n: int, seed: int, root: Path) -> Trial:
         if cls in ("mcap", "ros1", "rosbag2"):
             return container_trial(base, cls, n, rng, tdir)
         return {"hdf5": hdf5_trial, "config": config_trial, "kill": kill_trial, "disk-full": disk_trial,
-                "path": path_trial, "dca1000": dca1000_trial, "canlog": canlog_trial}[cls](base, n, rng, tdir)
+                "path": path_trial, "dca1000": dca1000_trial, "canlog": canlog_trial,
+                "realfiles": realfiles_trial}[cls](base, n, rng, tdir)
     except subprocess.TimeoutExpired:
         return Trial(cls, n, "timeout", outcome="crash-or-traceback", detail="hung for 300 s")
     finally:

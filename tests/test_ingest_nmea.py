@@ -335,6 +335,33 @@ def test_a_capture_cut_inside_its_last_sentence_says_so(tmp_path: Path) -> None:
     assert list(reader) == whole and "cut off by the file's end" not in reader.skipped
 
 
+def test_a_block_of_nul_bytes_in_a_capture_is_one_damage_warning_with_its_place(tmp_path: Path) -> None:
+    """4 KiB of the real NEO-M8N capture zeroed (a card block never written): before, ingest said only "no checksum
+    1" in its table. The reader now counts the damaged line, its bytes and where it starts; ingest warns with them.
+    Every record of the lines outside the block is read as from the whole file."""
+    from autosar_cli.config import load_config
+    from autosar_cli.ingest.pipeline import ingest
+
+    data = realdata("gpsd", "neo-m8n.log").read_bytes()
+    at = 8518
+    zeroed = tmp_path / "zeroed.log"
+    zeroed.write_bytes(data[:at] + bytes(4096) + data[at + 4096:])
+    line_start, line_end = data.rindex(b"\n", 0, at) + 1, data.index(b"\n", at + 4096) + 1
+    reader = NmeaLogReader(zeroed)
+    recs = list(reader)
+    assert (reader.damaged_lines, reader.first_damage_byte, reader.damaged_bytes) == (
+        1, line_start, line_end - line_start)
+    kept = tmp_path / "kept.log"
+    kept.write_bytes(data[:line_start] + data[line_end:])
+    assert recs == list(NmeaLogReader(kept))
+    whole = NmeaLogReader(realdata("gpsd", "neo-m8n.log"))
+    list(whole)
+    assert whole.damaged_lines == 0
+    report = ingest([], tmp_path / "d.h5", config=load_config(), nmea_logs=[zeroed], allow_partial=True)
+    assert f"{zeroed}: 1 damaged line(s), {line_end - line_start} bytes, skipped (a bad or no checksum, or bytes " \
+           f"that are no sentence; the first at byte {line_start})" in report.warnings
+
+
 def test_log_reader_comments_junk_and_joined_sentences(tmp_path: Path) -> None:
     gga, rmc = sentence(GGA.format(t="101010")), sentence(RMC.format(t="101010", d="150621"))
     path = tmp_path / "capture.nmea"

@@ -670,6 +670,33 @@ def test_a_streams_clock_rate_is_read_off_its_log_times_through_jitter() -> None
     assert short.fit() is None
 
 
+def test_a_stamp_far_after_both_its_neighbours_is_an_outlier_a_real_gap_is_not() -> None:
+    """``ingest.series.Series`` on a 100 Hz stream stamped on one clock (a CAN log's frames): one byte of a stamp
+    damaged to +502 s (a real CANedge file's, found by fuzzing) made the drive 510 s long and put the 3946 frames
+    after it in the reorder window; it is dropped and counted. A real 5 s gap, the frames going on after it, is
+    kept, as is a last frame far after the others (nothing after it tells)."""
+    from autosar_cli.ingest.series import Series
+
+    def run(stamps: list[int]) -> tuple[list[int], int, int]:
+        out: list[int] = []
+        series = Series(lambda t, rows: out.extend(t.tolist()))
+        for k, t in enumerate(stamps):
+            series.push(None, t, k)
+        stats = series.finish()
+        return out, stats.stamp_outliers, stats.reordered
+
+    ms = 1_000_000
+    clean = [10**18 + 10 * ms * k for k in range(2000)]
+    damaged = clean.copy()
+    damaged[1009] += 502 * 10**9
+    out, outliers, reordered = run(damaged)
+    assert out == clean[:1009] + clean[1010:] and (outliers, reordered) == (1, 0)
+    gap = clean[:1000] + [t + 5 * 10**9 for t in clean[1000:]]
+    assert run(gap) == (gap, 0, 0)
+    last = clean[:-1] + [clean[-1] + 300 * 10**9]
+    assert run(last) == (last, 0, 0)
+
+
 def test_the_radars_clock_is_reported_against_the_navigation_streams() -> None:
     """``_radar_clock_rates``: a logger whose own clock runs 20 ppm slow against the sensors' stamps shows every
     navigation stream 20 ppm fast; a radar stream 120 ppm fast against the log times is 100 ppm fast against the

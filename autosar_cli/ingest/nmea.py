@@ -363,6 +363,9 @@ class NmeaLogReader:
         self.path = Path(path)
         self.anchor_ns = anchor_ns
         self._decoder = NmeaDecoder(anchor_ns)
+        self.damaged_lines = 0  #: lines holding a sentence with a bad or no checksum, or bytes that are no sentence
+        self.damaged_bytes = 0  #: their length
+        self.first_damage_byte: int | None = None  #: where the first of them starts in the file
 
     @property
     def skipped(self) -> Counter[str]:
@@ -376,12 +379,16 @@ class NmeaLogReader:
 
     def __iter__(self) -> Iterator[NmeaRecord]:
         decoder = self._decoder = NmeaDecoder(self.anchor_ns)
+        self.damaged_lines, self.damaged_bytes, self.first_damage_byte = 0, 0, None
+        at = 0
         with self.path.open("rb") as f:
             for raw in f:
+                start, at = at, at + len(raw)
                 line = raw.strip()
                 if not line or line.startswith(b"#"):
                     continue
                 unended = not raw.endswith(b"\n")  # only ever the file's last line
+                damaged = _damage(decoder.skipped)
                 for part in re.split(rb"(?=\$)", line):
                     if part.strip():
                         before = decoder.skipped.copy() if unended else None
@@ -390,7 +397,19 @@ class NmeaLogReader:
                             # the file's last line, without its end, broken: a capture cut short
                             decoder.skipped = before
                             decoder.skipped["cut off by the file's end"] += 1
+                if _damage(decoder.skipped) > damaged:
+                    self.damaged_lines += 1
+                    self.damaged_bytes += len(raw)
+                    self.first_damage_byte = start if self.first_damage_byte is None else self.first_damage_byte
         yield from decoder.flush()
+
+
+_DAMAGE = ("bad checksum", "no checksum", "unparseable")
+
+
+def _damage(skipped: Counter[str]) -> int:
+    """How many of the skipped sentences were damaged (not merely of a kind not decoded, or without a fix)."""
+    return sum(skipped[r] for r in _DAMAGE)
 
 
 def _broken(reasons: Counter[str]) -> bool:

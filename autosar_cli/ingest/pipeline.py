@@ -509,6 +509,10 @@ class _Ingest:
             raise LogReadError(f"{path}: no NMEA 0183 sentence in this file (read as an NMEA text capture"
                                + (": its name ends in .log but it is not a CAN log either)" if
                                   path.suffix.lower() == ".log" else ")"))
+        if reader.damaged_lines:
+            self.warnings.append(f"{path}: {reader.damaged_lines} damaged line(s), {reader.damaged_bytes} bytes, "
+                                 "skipped (a bad or no checksum, or bytes that are no sentence; the first at byte "
+                                 f"{reader.first_damage_byte})")
         if dec.anchored:
             self.warnings.append(f"{path}: no RMC or ZDA sentence gives the date; {dec.anchored} NMEA records dated "
                                  "by the other inputs (the day that puts them within 12 h of "
@@ -814,6 +818,9 @@ def _check_content(inputs: list[tuple[Path, str]], infos: list[StreamInfo], job:
 def _plausibility(infos: list[StreamInfo], job: _Ingest) -> None:
     """Warnings for data that decoded but cannot be right (ROS containers carry no checksums)."""
     for info in infos:
+        if info.stats is not None and info.stats.stamp_outliers:
+            job.warnings.append(f"{info.path}: {info.stats.stamp_outliers} message(s) stamped over a second after the "
+                                "ones before and after them dropped (a damaged stamp)")
         bad = info.extra.get("implausible_frames")
         if bad:
             job.warnings.append(f"{info.path}: {len(bad)} radar frames have a crest factor (peak/RMS) far above "

@@ -8,7 +8,10 @@ Every decoded stream goes through one :class:`Series` before it reaches drive.h5
    clock jump, uninitialised header): its time becomes ``log time + offset`` and it is counted.
 3. Reordering: a bounded buffer (``window`` messages) puts slightly out-of-order messages back in
    order. A message older than what has already been written is dropped and counted ("late"); one with
-   the same time as its neighbour is a duplicate, dropped and counted.
+   the same time as its neighbour is a duplicate, dropped and counted. A message more than ``max_clock_step_s``
+   after the one before it is held until the next: if that one is more than ``max_clock_step_s`` before it, the
+   held one's stamp is an outlier (a damaged byte; the stream's own clock has no second one to repair it from),
+   dropped and counted; else it opened a real gap and is taken.
 4. Gaps: a step longer than ``gap_factor`` × the stream's typical period is recorded.
 5. Inputs: the rows each input file gave (:meth:`Series.end_input`), by which ingest refuses two inputs whose
    rows of one stream interleave (two recordings of it, or one sensor recorded twice on other clocks; the same
@@ -44,6 +47,7 @@ class SeriesStats:
     duplicates: int = 0
     late_dropped: int = 0
     time_jumps: int = 0
+    stamp_outliers: int = 0
     gaps: list[tuple[int, int]] = field(default_factory=list)
     skipped: Counter[str] = field(default_factory=Counter)
     clock_offset_ns: int = 0
@@ -127,6 +131,7 @@ class Series:
         self._period: float | None = None
         self._input_span: list[int] = []  #: [first, last] time of the rows taken since the last input ended
         self._input_rows = 0
+        self._ahead: tuple[int, Any] | None = None  #: a row stamped far after the one before it, until the next
         self.inputs: list[tuple[str, int, int, int]] = []  #: (input, first, last row time ns, rows) it gave
         self.clock_rate = ClockRate()
 
@@ -160,6 +165,26 @@ class Series:
         return header_ns
 
     def _add(self, t: int, row: Any) -> None:
+        ahead = self._ahead
+        if ahead is not None:
+            self._ahead = None
+            if t < ahead[0] - self.max_step_ns:
+                self.stats.stamp_outliers += 1
+            else:
+                self._take(*ahead)
+        newest = self._buf[-1][0] if self._buf else self._last_t
+        if newest is not None and t > newest + self.max_step_ns:
+            self._ahead = (t, row)
+            return
+        self._take(t, row)
+
+    def _take_ahead(self) -> None:
+        """The row held ahead, taken: no row came after it to tell an outlier from a gap."""
+        if self._ahead is not None:
+            ahead, self._ahead = self._ahead, None
+            self._take(*ahead)
+
+    def _take(self, t: int, row: Any) -> None:
         buf = self._buf
         if self._last_t is not None and t <= self._last_t:
             if t == self._last_t:
@@ -220,6 +245,7 @@ class Series:
 
     def end_input(self, name: str) -> None:
         """The rows taken since the last call came from the input ``name`` (a file)."""
+        self._take_ahead()
         if self._input_rows:
             self.inputs.append((name, self._input_span[0], self._input_span[1], self._input_rows))
         self._input_span, self._input_rows = [], 0
@@ -238,6 +264,7 @@ class Series:
         """Write out everything still buffered; returns the statistics."""
         if self._offset is None:
             self._settle_offset()
+        self._take_ahead()
         self._emit(len(self._buf))
         self._flush()
         rate = self.clock_rate.fit()
