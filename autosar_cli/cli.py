@@ -143,7 +143,7 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
         if _state["debug"]:
             raise
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        for warning in getattr(exc, "warnings", ()):  # what went wrong before, which may be the cause
+        for warning in (w for w in getattr(exc, "warnings", ()) if w not in msg):  # what went wrong before it
             err.print(f"[yellow]warning:[/] {escape(warning)}", highlight=False, soft_wrap=True)
         if isinstance(exc, OSError) and exc.errno == errno.ENOSPC and str(writing or "") not in msg:
             msg = f"{exc.filename or writing}: no space left on the device"
@@ -321,8 +321,8 @@ def ingest(
         out.print(table)
         can = report.can
         problems = {k: sum(v.values()) if isinstance(v, dict) else v for k in (
-            "unknown_ids", "dlc_mismatch", "checksum_errors", "counter_errors", "error_frames", "remote_frames",
-            "out_of_range") if (v := can.get(k))}
+            "unknown_ids", "impossible_ids", "dlc_mismatch", "checksum_errors", "counter_errors", "error_frames",
+            "remote_frames", "out_of_range") if (v := can.get(k))}
         if can.get("frames"):
             out.print(f"CAN: {can['frames']} frames, {can['decoded']} decoded"
                       + "".join(f", {k.replace('_', ' ')} {v}" for k, v in problems.items()))

@@ -177,6 +177,52 @@ def test_an_mf4_asammdf_cannot_open_is_one_line_and_no_traceback(tmp_path: Path)
         assert "cut short" not in lines[-1] or log == cut
 
 
+@pytest.mark.parametrize("at, damage", [(100000, bytes(range(7, 71))), (120000, bytes(4096))],
+                         ids=["64 bytes overwritten", "4 KiB zeroed"])
+def test_a_real_mf4_damaged_inside_its_records_keeps_the_frames_before(tmp_path: Path, at: int,
+                                                                        damage: bytes) -> None:
+    """Bytes overwritten or zeroed inside a CANedge file's records (not at its end): asammdf read on into them
+    (an array-shape mismatch, a SystemError) or lost every frame. The record walk finds the first record no group
+    owns; the frames before it less the last two (the 64 bytes parse as records for 16 bytes, the frame before them
+    read with two wrong data bytes) are read, equal to the whole file's first ones, and the error says damaged (not
+    cut), where, and from which byte on nothing was read."""
+    data = realdata(CSS, MF4_2022).read_bytes()
+    log = tmp_path / "damaged.MF4"
+    log.write_bytes(data[:at] + damage + data[at + len(damage):])
+    got: list[CanRecord] = []
+    with pytest.raises(CanLogError) as info:
+        for rec in read_can_log(log):
+            got.append(rec)
+    reference = _real_records(MF4_2022)
+    assert got == list(reference[:len(got)]) and len(got) > 0.35 * len(reference) * at / len(data)
+    message = str(info.value)
+    assert message.startswith(f"{log}: damaged MDF4 log: record at byte ") and "damaged there" in message
+    kept_to = int(message.split(" bytes on from byte ")[1].split()[0])
+    assert kept_to < at and f"not read; {len(got)} frames read before it" in message and "cut" not in message
+
+
+def test_a_frame_whose_damaged_id_no_frame_can_have_is_warned_of(tmp_path: Path) -> None:
+    """8 bytes of the real 2022 CANedge file overwritten inside one frame's fixed record (a fault campaign trial's):
+    its id reads 1614028 on a standard frame, which no standard frame can have (0x7FF at most), and its stamp the
+    recording's start. Before, it was one more unknown id in the CAN counts; now it is skipped with a warning, and
+    the drive is the whole file's less that frame."""
+    from autosar_cli.config import load_config
+    from autosar_cli.ingest.pipeline import ingest
+
+    data = realdata(CSS, MF4_2022).read_bytes()
+    log = tmp_path / "damaged.MF4"
+    log.write_bytes(data[:38920] + bytes.fromhex("45d55f1abe6406c5") + data[38928:])
+    damaged = list(read_can_log(log))
+    changed = [(a, b) for a, b in zip(_real_records(MF4_2022), damaged, strict=True) if a != b]
+    assert len(changed) == 1 and changed[0][1].frame_id == 1614028 and not changed[0][1].is_extended
+    config = load_config(REPO / "configs" / "examples" / "css_canedge_gnss.toml")
+    report = ingest([], tmp_path / "d.h5", config=config, dbc=realdata(CSS, "gnss.dbc"), can_logs=[log],
+                    allow_partial=True)
+    assert report.can["impossible_ids"] == 1 and "0x18A0CC" not in report.can["unknown_ids"]
+    assert "1 CAN frames with an id no frame of theirs can have (a standard id over 0x7FF) skipped (damaged " \
+           "data?)" in report.warnings
+
+
 def test_a_can_log_error_names_the_users_file_not_a_cut_copy(tmp_path: Path) -> None:
     """A text log whose last line is cut is read from a copy up to its last whole line; what is wrong with it
     names the file the user gave."""

@@ -333,6 +333,14 @@ def test_a_capture_cut_inside_its_last_sentence_says_so(tmp_path: Path) -> None:
     unended.write_bytes(data.rstrip(b"\r\n"))
     reader = NmeaLogReader(unended)
     assert list(reader) == whole and "cut off by the file's end" not in reader.skipped
+    from autosar_cli.config import load_config
+    from autosar_cli.ingest.pipeline import ingest
+
+    said = ingest([], tmp_path / "d.h5", config=load_config(), nmea_logs=[cut], allow_partial=True).warnings
+    assert f"{cut}: its last line is cut off by the file's end (a capture cut short); the sentence there skipped" \
+           in said  # before, only the table's "cut off by the file's end 1"
+    said = ingest([], tmp_path / "e.h5", config=load_config(), nmea_logs=[unended], allow_partial=True).warnings
+    assert not any("cut off" in w for w in said)
 
 
 def test_a_block_of_nul_bytes_in_a_capture_is_one_damage_warning_with_its_place(tmp_path: Path) -> None:

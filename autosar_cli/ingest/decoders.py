@@ -213,6 +213,10 @@ class NmeaStreams:
 
 
 # ------------------------------------------------------------------------------------------------- CAN
+_MAX_STANDARD_ID = 0x7FF
+_MAX_EXTENDED_ID = 0x1FFFFFFF
+
+
 @dataclass
 class CanStats:
     frames: int = 0
@@ -223,6 +227,8 @@ class CanStats:
     counter_errors: Counter[str] = field(default_factory=Counter)
     error_frames: int = 0
     remote_frames: int = 0
+    #: frames whose id no frame of theirs can have (a standard id over 0x7FF) and no DBC message takes: damage
+    impossible_ids: int = 0
     #: "MESSAGE.SIGNAL" -> values outside the DBC's [minimum, maximum] (kept: flagged, not dropped)
     out_of_range: Counter[str] = field(default_factory=Counter)
 
@@ -230,7 +236,8 @@ class CanStats:
         return {"frames": self.frames, "decoded": self.decoded, "unknown_ids": dict(self.unknown_ids),
                 "dlc_mismatch": dict(self.dlc_mismatch), "checksum_errors": dict(self.checksum_errors),
                 "counter_errors": dict(self.counter_errors), "error_frames": self.error_frames,
-                "remote_frames": self.remote_frames, "out_of_range": dict(self.out_of_range)}
+                "remote_frames": self.remote_frames, "impossible_ids": self.impossible_ids,
+                "out_of_range": dict(self.out_of_range)}
 
 
 def _meaningful_range(sg: Any) -> bool:
@@ -319,7 +326,10 @@ class CanDecoder:
         if lay is None:
             lay = self._layouts.get((frame.frame_id, not frame.is_extended))
         if lay is None:
-            st.unknown_ids[f"0x{frame.frame_id:X}"] += 1
+            if frame.frame_id > (_MAX_EXTENDED_ID if frame.is_extended else _MAX_STANDARD_ID):
+                st.impossible_ids += 1
+            else:
+                st.unknown_ids[f"0x{frame.frame_id:X}"] += 1
             return
         m = lay.message
         data = frame.data

@@ -6,7 +6,11 @@ file's end. An unfinalised one (``UnFinMF ``, what CAN loggers such as the CANed
 length "to be updated", flag bit 2) runs its last ``##DT`` block to the file's end, so a cut shows only as a
 record it breaks off: each record is its channel group's record id and then that group's fixed bytes, or,
 for a VLSD group (variable-length signal data: a CAN frame's data bytes), a 4-byte length and that many bytes.
-A cut that falls between two records cannot be told from a shorter recording. Layout: ASAM MDF 4.1/4.2.
+A cut that falls between two records cannot be told from a shorter recording. A record with no group's id, or a
+length no logger's record has, is damage inside the file: the records before it are read from a copy that ends
+there, less the last two frames (bytes damaged inside a record parse as well as any); the ones after it are not
+(a frame's fixed record points into its data bytes' records by their offset, which a hole would shift). A link to
+no block is damage to the file's structure. Layout: ASAM MDF 4.1/4.2.
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ from __future__ import annotations
 import mmap
 import re
 import struct
+from collections import deque
 from pathlib import Path
 
 from .records import CutShort
@@ -22,6 +27,8 @@ _HEAD = struct.Struct("<4s4xQQ")  # block id, length, link count
 _BLOCK_ID = re.compile(rb"##[A-Z]{2}")
 _UNFINISHED_LAST_DT = 1 << 2  # id_unfin_flags: the last ##DT block's length is to be updated
 _VLSD = 1  # cg_flags: a variable-length signal data group
+_MAX_VLSD_BYTES = 1 << 16  # a logger's variable-length record (a CAN FD frame's data: 64 bytes) is far shorter
+_DAMAGE_MARGIN = 2  # whole frames left out before a damaged record
 
 
 def _block(buf: mmap.mmap, pos: int) -> tuple[bytes, int, tuple[int, ...], int]:
@@ -95,6 +102,9 @@ def _cut_record(buf: mmap.mmap, dg: int, dt: int) -> CutShort | None:
         raise ValueError(f"data group at byte {dg} has a record id of {id_size} bytes")
     counts = dict.fromkeys(sizes, 0)
     end, pos, whole = len(buf), records, records
+    # the ends of the last whole records: damage shows only where it breaks a record's id or length, so the
+    # record or two before that may hold damaged bytes that parse (a frame's data bytes are not checked)
+    wholes = deque([records], maxlen=_DAMAGE_MARGIN + 1)
     while pos < end:
         start = pos
         n: int | None = None
@@ -104,11 +114,16 @@ def _cut_record(buf: mmap.mmap, dg: int, dt: int) -> CutShort | None:
             (record_id,) = struct.unpack_from(id_format, buf, pos)
             pos += id_size
             if record_id not in sizes:
-                raise ValueError(f"record at byte {start} has an unknown record id {record_id}")
+                return CutShort(f"record at byte {start} has an unknown record id {record_id}: damaged there, its "
+                                f"{end - wholes[0]} bytes on from byte {wholes[0]} not read", wholes[0], damaged=True)
             n = sizes[record_id]
             if n is None and pos + 4 <= end:
                 (n,) = struct.unpack_from("<I", buf, pos)
                 pos += 4
+                if n > _MAX_VLSD_BYTES and pos + n > end:  # no cut leaves a length no record has
+                    return CutShort(f"record at byte {start} says it holds {n} bytes: damaged there, its "
+                                    f"{end - wholes[0]} bytes on from byte {wholes[0]} not read", wholes[0],
+                                    damaged=True)
         if n is None or pos + n > end:
             there = f"{end - start} of its {pos + n - start} bytes" if n is not None else f"{end - start} bytes"
             return CutShort(f"its last record at byte {start} is cut off ({there} there)", whole)
@@ -116,6 +131,7 @@ def _cut_record(buf: mmap.mmap, dg: int, dt: int) -> CutShort | None:
         counts[record_id] += 1
         if all(counts[vlsd] == counts[parent] for vlsd, parent in pairs):
             whole = pos
+            wholes.append(pos)
     return None
 
 

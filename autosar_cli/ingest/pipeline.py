@@ -509,6 +509,9 @@ class _Ingest:
             raise LogReadError(f"{path}: no NMEA 0183 sentence in this file (read as an NMEA text capture"
                                + (": its name ends in .log but it is not a CAN log either)" if
                                   path.suffix.lower() == ".log" else ")"))
+        if reader.skipped["cut off by the file's end"]:
+            self.warnings.append(f"{path}: its last line is cut off by the file's end (a capture cut short); the "
+                                 "sentence there skipped")
         if reader.damaged_lines:
             self.warnings.append(f"{path}: {reader.damaged_lines} damaged line(s), {reader.damaged_bytes} bytes, "
                                  "skipped (a bad or no checksum, or bytes that are no sentence; the first at byte "
@@ -826,6 +829,9 @@ def _plausibility(infos: list[StreamInfo], job: _Ingest) -> None:
             job.warnings.append(f"{info.path}: {len(bad)} radar frames have a crest factor (peak/RMS) far above "
                                 f"the stream's, or are all zero (damaged data?): frame indices {_listed(bad)}")
     can = job.can.stats
+    if can.impossible_ids:
+        job.warnings.append(f"{can.impossible_ids} CAN frames with an id no frame of theirs can have (a standard id "
+                            "over 0x7FF) skipped (damaged data?)")
     if can.out_of_range:
         job.warnings.append(f"{sum(can.out_of_range.values())} CAN values outside their DBC range (damaged data?): "
                             + ", ".join(f"{k} ×{v}" for k, v in can.out_of_range.most_common(8)))

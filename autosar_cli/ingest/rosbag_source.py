@@ -84,9 +84,9 @@ class Ros1BagSource:
                     self.stats.bytes_read = self.stats.bytes_total
                     return
                 except Exception as exc:  # damaged chunk (or index pointing at garbage): rescan the file
+                    why = f"{type(exc).__name__}: {exc}" if str(exc) else f"rosbags' {type(exc).__name__}"
                     self.stats.warnings.append(f"{self.path}: ROS1 bag damaged after {n} messages read through "
-                                               f"its index ({type(exc).__name__}: {exc}); the rest read chunk by "
-                                               "chunk")
+                                               f"its index ({why}); the rest read chunk by chunk")
                     break
                 n += 1
                 ch = channels[conn.id]
