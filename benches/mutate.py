@@ -70,6 +70,15 @@ CONFIG_BASE = "tests/test_config.py::test_a_config_on_a_base_holds_only_what_dif
 CUT_SHORT = "tests/test_integrity.py::test_a_product_cut_short_says_by_how_much"
 CAN_VELOCITY = "tests/test_nav_realdata.py::test_a_can_receivers_speed_and_course_are_its_velocity"
 TWICE_NAMED = "tests/test_ingest_realdata.py::test_a_role_names_one_of_two_frame_ids_a_dbc_gives_one_name"
+ROLE_UNSET = "tests/test_config.py::test_a_layer_unsets_its_bases_can_roles_with_an_empty_string"
+STAMP_OUTLIER = ("tests/test_ingest_robustness.py::"
+                 "test_a_stamp_far_after_both_its_neighbours_is_an_outlier_a_real_gap_is_not")
+SHIFTED_SUMMARY = "tests/test_ingest_damage.py::test_mcap_shifted_summary_is_found_by_its_data_end"
+UNLISTED_TOPICS = ("tests/test_ingest_damage.py::"
+                   "test_rosbag2_topics_metadata_yaml_does_not_list_are_read_from_the_storage")
+MF4_DAMAGE = "tests/test_ingest_canlog.py::test_a_real_mf4_damaged_inside_its_records_keeps_the_frames_before"
+ODD_INPUTS = "tests/test_safety.py::test_an_input_that_is_a_pipe_a_link_loop_or_a_directory_is_one_line"
+NMEA_DAMAGE = "tests/test_ingest_nmea.py::test_a_block_of_nul_bytes_in_a_capture_is_one_damage_warning_with_its_place"
 GNSS_NOISIER = "tests/test_nav_gnss_noise.py::test_only_a_receiver_noisier_than_its_table_is_reweighed"
 ENTROPY = "tests/test_evaluate.py::test_entropy_and_contrast_exact"
 FAR_SWATH = "tests/test_evaluate.py::test_far_swath_is_the_pixels_far_from_the_radars_track"
@@ -414,6 +423,21 @@ MUTATIONS: list[Mutation] = [
        "if len(found) == 1:", "if found:", TWICE_NAMED),
     _m("missing-hdf5-read-as-not-hdf5", "inputs", "store/hdf5_read.py",
        "if isinstance(exc, FileNotFoundError) or not Path(path).exists():", "if False:", CUT_SHORT),
+    # --- damaged and odd inputs (the fault campaign's realfiles and path classes)
+    _m("empty-role-kept", "inputs", "config.py", 'if ref != ""}}', "}}", ROLE_UNSET),
+    _m("stamp-outlier-taken", "ingest", "ingest/series.py",
+       "            if t < ahead[0] - self.max_step_ns:", "            if False:", STAMP_OUTLIER),
+    _m("shifted-mcap-summary-not-sought", "ingest", "ingest/mcap_source.py",
+       "            found = _summary_by_its_data_end(self.path)", "            found = None", SHIFTED_SUMMARY),
+    _m("rosbag2-unlisted-topics-left", "ingest", "ingest/rosbag_source.py",
+       "        unlisted = self._storage_topics() - set(self.declared) - set(seen)", "        unlisted = set()",
+       UNLISTED_TOPICS),
+    _m("mf4-damage-margin-none", "ingest", "ingest/mdf4_blocks.py",
+       "_DAMAGE_MARGIN = 2", "_DAMAGE_MARGIN = 0", MF4_DAMAGE),
+    _m("pipe-taken-as-a-file", "inputs", "store/outputs.py",
+       "if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):", "if False:", ODD_INPUTS),
+    _m("nmea-damaged-lines-uncounted", "ingest", "ingest/nmea.py",
+       "                if _damage(decoder.skipped) > damaged:", "                if False:", NMEA_DAMAGE),
 ]
 
 
