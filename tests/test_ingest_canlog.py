@@ -155,8 +155,8 @@ def test_truncated_finalised_mf4_names_the_cut(tmp_path: Path) -> None:
 def test_an_mf4_asammdf_cannot_open_is_one_line_and_no_traceback(tmp_path: Path) -> None:
     """asammdf prints the traceback of an error to stdout before it raises it: on a CANedge file cut inside its
     blocks, or one with 4 KiB pasted into it, that went to the terminal (and into --json's output) above our error.
-    The CLI now says one line on stderr, with what our block walk found: a cut, or a link to no block (damaged,
-    not cut), and nothing on stdout."""
+    The CLI now says one line on stderr, led by what our block walk found (a cut, or a link to no block: damaged,
+    not cut) with the reader's own error after it, and nothing on stdout."""
     from typer.testing import CliRunner
 
     from autosar_cli.cli import app
@@ -167,14 +167,14 @@ def test_an_mf4_asammdf_cannot_open_is_one_line_and_no_traceback(tmp_path: Path)
     pasted = tmp_path / "pasted.MF4"
     data = realdata(CSS, MF4_2023_1).read_bytes()
     pasted.write_bytes(data[:42345] + data[96663:96663 + 4096] + data[42345:])
-    for log, says in ((cut, "(cut short: block header at byte 14608 cut off)"),
-                      (pasted, "where a link points (it reads b'\\x00\\x00\\x00\\x00'): damaged there)")):
+    for log, says in ((cut, "truncated MDF4 log, no frame read: block header at byte 14608 cut off (the reader: "),
+                      (pasted, "damaged MDF4 log, no frame read: no block at byte 106776, where a link points (it "
+                               "reads b'\\x00\\x00\\x00\\x00'): damaged there (the reader: ")):
         r = CliRunner().invoke(app, ["ingest", "--can-log", str(log), "-o", str(tmp_path / "d.h5"), "--json",
                                      "--allow-partial", "--dbc", str(realdata(CSS, "gnss.dbc"))])
         assert r.exit_code == 1 and r.stdout == "" and "Traceback" not in r.output
         lines = r.stderr.strip().splitlines()
-        assert lines[-1].startswith(f"error: {log}: cannot open MDF4 log: ") and lines[-1].endswith(says), lines
-        assert "cut short" not in lines[-1] or log == cut
+        assert lines[-1].startswith(f"error: {log}: {says}"), lines
 
 
 @pytest.mark.parametrize("at, damage", [(100000, bytes(range(7, 71))), (120000, bytes(4096))],

@@ -211,7 +211,10 @@ def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:
         except CanLogError:
             raise
         except Exception as exc:  # python-can/asammdf raise many types; the user needs file + reason
-            raise CanLogError(f"{path}: cannot open {kind} log: {_one_line(exc)}{_cut_note(cut)}") from exc
+            if cut is not None:  # what our walk of its structure found says more than the reader's own error
+                raise CanLogError(f"{path}: {'damaged' if cut.damaged else 'truncated'} {kind} log, no frame read: "
+                                  f"{cut.reason} (the reader: {_one_line(exc)})") from exc
+            raise CanLogError(f"{path}: cannot open {kind} log: {_one_line(exc)}") from exc
         while True:
             try:
                 with quiet():
