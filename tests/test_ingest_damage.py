@@ -652,3 +652,17 @@ def test_what_went_wrong_before_an_ingest_error_is_said_with_it(ci_ros2: Simulat
     assert lines[0] == f"warning: {bag}: storage file {db3.name} listed in metadata.yaml is missing", lines
     assert lines[-1].startswith(f"error: {bag}: no known sensor streams") and all(
         ln.startswith("warning: ") for ln in lines[:-1]), lines
+
+
+def test_rosbag2_storage_mislabelled_in_metadata_is_read_as_what_its_files_are(ci_ros2: SimulationResult,
+                                                                              work: Path) -> None:
+    """metadata.yaml saying "mcap" over a sqlite3 storage file: before, "not an MCAP file" and nothing read; the
+    files' own first bytes decide, every row is read, and a warning names the disagreement."""
+    rows = db_rows(ci_ros2.log_path)
+    bag = work / "mislabelled_ros2"
+    copy_bag(ci_ros2.log_path, bag)
+    meta_path = bag / "metadata.yaml"
+    meta_path.write_text(meta_path.read_text().replace("storage_identifier: sqlite3", "storage_identifier: mcap"))
+    got, warnings = read_all(bag)
+    assert Counter(got) == Counter(m for _, m in rows)
+    assert f"{bag}: metadata.yaml says 'mcap' storage, its files are sqlite3: read as what they are" in warnings

@@ -24,7 +24,7 @@ from urllib.parse import quote
 
 import yaml
 
-from .mcap_source import McapSource
+from .mcap_source import MCAP_MAGIC, McapSource
 from .ros1_chunks import RecordError, Ros1Connection, ScanReport, scan_bag
 from .ros1_chunks import normalise_topic as ros1_topic
 from .sources import (
@@ -514,6 +514,11 @@ def open_rosbag2(path: Path) -> LogSource:
         meta = _metadata_from_files(path, exc)
         lost = str(exc)
     storage = meta["storage_identifier"]
+    found = _storage_by_magic([path / PurePath(p).name for p in meta.get("relative_file_paths") or []])
+    mislabelled = found is not None and found != storage  # the files are what they are, whatever metadata says
+    if mislabelled:
+        said, storage = storage, found
+        meta = {**meta, "storage_identifier": found}
     src: Rosbag2McapSource | Rosbag2SqliteSource
     if storage == "mcap":
         src = Rosbag2McapSource(path, meta)
@@ -524,7 +529,23 @@ def open_rosbag2(path: Path) -> LogSource:
     if lost:
         src.stats.warnings.append(f"{lost}; read its storage files {', '.join(p.name for p in src.files)} "
                                   "without it (no message counts to check against)")
+    if mislabelled:
+        src.stats.warnings.append(f"{path}: metadata.yaml says {said!r} storage, its files are {storage}: read "
+                                  "as what they are")
     return src
+
+
+_SQLITE_MAGIC = b"SQLite format 3\x00"
+
+
+def _storage_by_magic(files: list[Path]) -> str | None:
+    """The storage the first of ``files`` there is holds, by its first bytes: "mcap", "sqlite3" or None."""
+    for file in files:
+        if file.is_file():
+            with open(file, "rb") as f:
+                head = f.read(16)
+            return "mcap" if head.startswith(MCAP_MAGIC) else "sqlite3" if head.startswith(_SQLITE_MAGIC) else None
+    return None
 
 
 def _metadata_from_files(path: Path, exc: LogReadError) -> dict[str, Any]:
