@@ -79,6 +79,11 @@ UNLISTED_TOPICS = ("tests/test_ingest_damage.py::"
 MF4_DAMAGE = "tests/test_ingest_canlog.py::test_a_real_mf4_damaged_inside_its_records_keeps_the_frames_before"
 ODD_INPUTS = "tests/test_safety.py::test_an_input_that_is_a_pipe_a_link_loop_or_a_directory_is_one_line"
 NMEA_DAMAGE = "tests/test_ingest_nmea.py::test_a_block_of_nul_bytes_in_a_capture_is_one_damage_warning_with_its_place"
+MISLABELLED = ("tests/test_ingest_damage.py::"
+               "test_rosbag2_storage_mislabelled_in_metadata_is_read_as_what_its_files_are")
+IMPOSSIBLE_ID = "tests/test_ingest_canlog.py::test_a_frame_whose_damaged_id_no_frame_can_have_is_warned_of"
+SAID_BEFORE = "tests/test_ingest_damage.py::test_what_went_wrong_before_an_ingest_error_is_said_with_it"
+NMEA_CUT = "tests/test_ingest_nmea.py::test_a_capture_cut_inside_its_last_sentence_says_so"
 GNSS_NOISIER = "tests/test_nav_gnss_noise.py::test_only_a_receiver_noisier_than_its_table_is_reweighed"
 ENTROPY = "tests/test_evaluate.py::test_entropy_and_contrast_exact"
 FAR_SWATH = "tests/test_evaluate.py::test_far_swath_is_the_pixels_far_from_the_radars_track"
@@ -438,6 +443,16 @@ MUTATIONS: list[Mutation] = [
        "if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):", "if False:", ODD_INPUTS),
     _m("nmea-damaged-lines-uncounted", "ingest", "ingest/nmea.py",
        "                if _damage(decoder.skipped) > damaged:", "                if False:", NMEA_DAMAGE),
+    _m("rosbag2-storage-label-trusted", "ingest", "ingest/rosbag_source.py",
+       "    mislabelled = found is not None and found != storage", "    mislabelled = False", MISLABELLED),
+    _m("impossible-can-id-taken-as-unknown", "ingest", "ingest/decoders.py",
+       "            if frame.frame_id > (_MAX_EXTENDED_ID if frame.is_extended else _MAX_STANDARD_ID):",
+       "            if False:", IMPOSSIBLE_ID),
+    _m("warnings-before-an-ingest-error-dropped", "ingest", "ingest/pipeline.py",
+       "        exc.warnings = list(dict.fromkeys((job.warnings if job is not None else []) + exc.warnings))",
+       "        exc.warnings = []", SAID_BEFORE),
+    _m("nmea-cut-last-line-unwarned", "ingest", "ingest/pipeline.py",
+       """        if reader.skipped["cut off by the file's end"]:""", "        if False:", NMEA_CUT),
 ]
 
 
