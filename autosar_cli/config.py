@@ -463,6 +463,8 @@ def load_config(path: str | Path | None = None) -> Config:
 
 
 def _read_toml(p: Path) -> dict[str, Any]:
+    if p.exists() and not (p.is_file() or p.is_dir()):  # a pipe would block on a writer that never comes
+        raise ConfigError(f"{p}: not a regular file (a pipe, socket or device); give the config file")
     try:
         with open(p, "rb") as f:
             return tomllib.load(f)

@@ -123,7 +123,8 @@ def test_an_input_that_is_a_pipe_a_link_loop_or_a_directory_is_one_line(tmp_path
     try:
         for args in (["info", str(fifo)], ["ingest", str(fifo), "-o", str(out / "d.h5")],
                      ["navigate", str(fifo), "-o", str(out / "t.h5")], ["run", str(fifo), "-o", str(out)],
-                     ["compare", str(fifo), "-o", str(out)]):
+                     ["compare", str(fifo), "-o", str(out)], ["simulate", "-o", str(out / "s.mcap"), "--config",
+                                                               str(fifo)]):
             _one_line_error(runner.invoke(app, args), str(fifo), "not a regular file (a pipe, socket or device)")
     finally:
         done.set()
