@@ -20,7 +20,6 @@ from __future__ import annotations
 import logging
 import math
 import re
-from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -180,20 +179,20 @@ def _reuse_warnings(db: Database, path: Path) -> list[str]:
     definition alone."""
     out = []
     ids_of: dict[str, list[int]] = {}
+    names_at: dict[tuple[int, bool], list[str]] = {}
     for m in db.messages:
         ids_of.setdefault(m.name, []).append(m.frame_id)
+        names_at.setdefault((m.frame_id, m.is_extended_frame), []).append(m.name)
     shared = {name: ids for name, ids in ids_of.items() if len(ids) > 1}
     if shared:
         listed = "; ".join(f"{name} {' / '.join(f'0x{i:X}' for i in ids)}" for name, ids in list(shared.items())[:3])
         listed += f" and {len(shared) - 3} more" if len(shared) > 3 else ""
         out.append(f"{path.name}: {len(shared)} message names are given to several frame ids ({listed}): each id is "
                    "its own stream, NAME_0xID, which a CAN role names to pick one")
-    names_at = Counter((m.frame_id, m.is_extended_frame) for m in db.messages)
-    for (frame_id, extended), n in names_at.items():
-        if n > 1:
-            names = [m.name for m in db.messages if (m.frame_id, m.is_extended_frame) == (frame_id, extended)]
-            out.append(f"{path.name}: frame id 0x{frame_id:X} is defined {n} times ({', '.join(names)}): its frames "
-                       f"are decoded as {names[-1]} alone")
+    for (frame_id, _), names in names_at.items():
+        if len(names) > 1:
+            out.append(f"{path.name}: frame id 0x{frame_id:X} is defined {len(names)} times ({', '.join(names)}): its "
+                       f"frames are decoded as {names[-1]} alone")
     return out
 
 

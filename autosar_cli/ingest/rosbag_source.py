@@ -281,7 +281,7 @@ class Rosbag2SqliteSource:
         for file in self.files:
             if not file.exists():
                 continue
-            db = sqlite3.connect(f"file:{quote(str(file.resolve()))}?mode=ro&immutable=1", uri=True)
+            db = _read_only(file)
             try:
                 out |= {name for (name,) in db.execute("SELECT name FROM topics")}
             except sqlite3.DatabaseError:
@@ -374,6 +374,14 @@ class Rosbag2SqliteSource:
 _ROW_BATCH = 512
 
 
+_SQLITE_MAGIC = b"SQLite format 3\x00"
+
+
+def _read_only(file: Path) -> sqlite3.Connection:
+    """The sqlite3 file opened read-only and immutable: nothing is written beside it, read-only media work."""
+    return sqlite3.connect(f"file:{quote(str(file.resolve()))}?mode=ro&immutable=1", uri=True)
+
+
 def _open_storage(file: Path, warnings: list[str]) -> sqlite3.Connection:
     """The sqlite3 file opened read-only and immutable; with its write-ahead log's committed pages, where it has
     one (:mod:`.sqlite_wal`), and a truncated one padded, from a copy in memory.
@@ -383,7 +391,7 @@ def _open_storage(file: Path, warnings: list[str]) -> sqlite3.Connection:
     """
     data = _with_wal(file, warnings)
     if data is None:
-        db = sqlite3.connect(f"file:{quote(str(file.resolve()))}?mode=ro&immutable=1", uri=True)
+        db = _read_only(file)
     else:
         db = sqlite3.connect(":memory:")
         db.deserialize(data)
@@ -394,7 +402,7 @@ def _open_storage(file: Path, warnings: list[str]) -> sqlite3.Connection:
         db.close()
         reason = exc
     data = data if data is not None else file.read_bytes()
-    if len(data) < 100 or not data.startswith(b"SQLite format 3\x00"):
+    if len(data) < 100 or not data.startswith(_SQLITE_MAGIC):
         raise LogReadError(f"{file}: not a readable sqlite3 file ({reason})")
     page_size = int.from_bytes(data[16:18], "big")
     page_size = 65536 if page_size == 1 else page_size
@@ -419,7 +427,7 @@ def _padded_copy(data: bytes, size: int) -> sqlite3.Connection:
                 f.truncate(size)
             except OSError:  # a size no file here may have: the header's page count is itself damaged
                 pass
-        db = sqlite3.connect(f"file:{quote(name)}?mode=ro&immutable=1", uri=True)
+        db = _read_only(Path(name))
         try:
             db.execute("SELECT name FROM sqlite_master").fetchall()  # opens the file before it is unlinked
         except sqlite3.DatabaseError:
@@ -535,9 +543,6 @@ def open_rosbag2(path: Path) -> LogSource:
     return src
 
 
-_SQLITE_MAGIC = b"SQLite format 3\x00"
-
-
 def _storage_by_magic(files: list[Path]) -> str | None:
     """The storage the first of ``files`` there is holds, by its first bytes: "mcap", "sqlite3" or None."""
     for file in files:
@@ -585,7 +590,7 @@ _ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
 
 def _first_payload(file: Path) -> bytes:
     """The first message payload of a sqlite3 storage file (b"" if none can be read)."""
-    db = sqlite3.connect(f"file:{quote(str(file.resolve()))}?mode=ro&immutable=1", uri=True)
+    db = _read_only(file)
     try:
         row = db.execute("SELECT data FROM messages ORDER BY id LIMIT 1").fetchone()
     except sqlite3.DatabaseError:
