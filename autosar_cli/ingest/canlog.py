@@ -58,7 +58,7 @@ import can
 from can.io.generic import MessageReader
 
 from autosar_cli.ingest import mf4_support
-from autosar_cli.ingest.mdf4_blocks import mdf4_cut
+from autosar_cli.ingest.mdf4_blocks import mdf4_cut, write_without_holes
 from autosar_cli.ingest.records import CanRecord, CutShort
 
 __all__ = ["CAN_LOG_SUFFIXES", "CanLogError", "is_can_log", "read_can_log"]
@@ -243,7 +243,7 @@ def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:
             warn(f"{path}: the {kind} reader went on past {len(errors)} error(s) of its own, the last: {errors[-1]}")
         if cut:
             raise CanLogError(f"{path}: {'damaged' if cut.damaged else 'truncated'} {kind} log: {cut.reason}; "
-                              f"{frames} frames read before it")
+                              f"{frames} frames read{'' if cut.holes else ' before it'}")
 
 
 def _cut_note(cut: CutShort | None) -> str:
@@ -278,10 +278,14 @@ def _begins_trigger_block(path: Path) -> bool:
 def _whole_records(path: Path, cut: CutShort | None, stack: ExitStack) -> Path:
     """``path``, or where the end of a log cuts a record or line, a temporary copy of it up to there (asammdf stops
     at a broken MDF4 record, or reads a shape it cannot reshape and loses the frames before it; python-can skips a
-    broken TRC line or reads a broken candump line as a shorter frame)."""
-    if cut is None or cut.whole_bytes is None:
+    broken TRC line or reads a broken candump line as a shorter frame); where damage inside an MDF4 file leaves
+    records to read after it, a copy without the damaged bytes (:func:`write_without_holes`)."""
+    if cut is None or (cut.whole_bytes is None and not cut.holes):
         return path
     copy = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="autosar-canlog-"))) / path.name
+    if cut.holes:
+        write_without_holes(path, copy, cut)
+        return copy
     shutil.copyfile(path, copy)
     os.truncate(copy, cut.whole_bytes)
     return copy

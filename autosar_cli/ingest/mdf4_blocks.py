@@ -7,10 +7,12 @@ length "to be updated", flag bit 2) runs its last ``##DT`` block to the file's e
 record it breaks off: each record is its channel group's record id and then that group's fixed bytes, or,
 for a VLSD group (variable-length signal data: a CAN frame's data bytes), a 4-byte length and that many bytes.
 A cut that falls between two records cannot be told from a shorter recording. A record with no group's id, or a
-length no logger's record has, is damage inside the file: the records before it are read from a copy that ends
-there, less the last two frames (bytes damaged inside a record parse as well as any); the ones after it are not
-(a frame's fixed record points into its data bytes' records by their offset, which a hole would shift). A link to
-no block is damage to the file's structure. Layout: ASAM MDF 4.1/4.2.
+length no logger's record has, is damage inside the file: the records before it are read less the last two
+frames (bytes damaged inside a record parse as well as any), and the records after it from the second frame of
+the first run whose data offsets agree again (a frame's fixed record points into its data bytes' records by
+their offset, counted from the file's first record): a copy without the damaged bytes, its offsets after them
+lessened by the data bytes the copy lacks (:func:`write_without_holes`), is what the reader reads. A link to no
+block is damage to the file's structure. Layout: ASAM MDF 4.1/4.2.
 """
 
 from __future__ import annotations
@@ -19,6 +21,8 @@ import mmap
 import re
 import struct
 from collections import deque
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 from .records import CutShort
@@ -27,8 +31,14 @@ _HEAD = struct.Struct("<4s4xQQ")  # block id, length, link count
 _BLOCK_ID = re.compile(rb"##[A-Z]{2}")
 _UNFINISHED_LAST_DT = 1 << 2  # id_unfin_flags: the last ##DT block's length is to be updated
 _VLSD = 1  # cg_flags: a variable-length signal data group
+_VLSD_CHANNEL = 1  # cn_type: its record holds an offset into a VLSD group's bytes
+_MASTER_CHANNEL = 2  # cn_type: the record's time
+_ORDERED_TYPES = (0, 4)  # cn_data_type: unsigned integer, float, little-endian
 _MAX_VLSD_BYTES = 1 << 16  # a logger's variable-length record (a CAN FD frame's data: 64 bytes) is far shorter
 _DAMAGE_MARGIN = 2  # whole frames left out before a damaged record
+_RESYNC_RECORDS = 16  # fixed records that agree with themselves, after damage, before they are read again
+_RESYNC_SCAN_BYTES = 1 << 20  # how far past damage such records are sought
+_ID_FORMATS = {0: "", 1: "<B", 2: "<H", 4: "<I", 8: "<Q"}  # a record id's bytes -> its struct format
 
 
 def _block(buf: mmap.mmap, pos: int) -> tuple[bytes, int, tuple[int, ...], int]:
@@ -51,24 +61,16 @@ def mdf4_cut(path: Path) -> CutShort | None:
         return CutShort(f"the file ends inside its 64-byte identification block ({size} bytes)")
     with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
         unfinished = buf[:8] == b"UnFinMF " and struct.unpack_from("<H", buf, 60)[0] & _UNFINISHED_LAST_DT
-        todo, seen = [64], set()
-        data_blocks: list[tuple[int, int]] = []  # (DG block, its DT block)
+        blocks: list[tuple[int, bytes, int, tuple[int, ...]]] = []
         try:
-            while todo:
-                pos = todo.pop()
-                if pos in seen:
-                    continue
-                seen.add(pos)
-                ident, length, links, _ = _block(buf, pos)
+            for pos, ident, length, links in _blocks(buf):
                 if pos + length > size and not (unfinished and ident == b"##DT"):
                     return CutShort(f"its {ident.decode('latin-1')} block at byte {pos} runs past the end "
-                                   f"({length} bytes)")
-                if ident == b"##DG" and len(links) > 2 and links[2]:
-                    data_blocks.append((pos, links[2]))
-                todo.extend(link for link in links if link)
+                                    f"({length} bytes)")
+                blocks.append((pos, ident, length, links))
             if unfinished:
-                for dg, dt in data_blocks:
-                    cut = _cut_record(buf, dg, dt)
+                for dg, dt in _data_blocks(blocks):
+                    cut = _cut_record(buf, dg, dt, last=all(pos <= dt for pos, *_ in blocks))
                     if cut:
                         return cut
         except (ValueError, struct.error) as exc:
@@ -76,77 +78,296 @@ def mdf4_cut(path: Path) -> CutShort | None:
     return None
 
 
-def _cut_record(buf: mmap.mmap, dg: int, dt: int) -> CutShort | None:
-    """The record an unfinalised file's end cuts in the data block ``dt`` of data group ``dg``, if any; what can
-    be read whole ends where every VLSD group has as many records as the group whose channel points to it (a
-    CAN frame's fixed record without its data bytes' record is one asammdf cannot shape)."""
+def _blocks(buf: mmap.mmap) -> Iterator[tuple[int, bytes, int, tuple[int, ...]]]:
+    """(byte, id, length, links) of every block the file's links reach from its header, as found; ValueError
+    where one is cut off or a link points to no block."""
+    todo, seen = [64], set()
+    while todo:
+        pos = todo.pop()
+        if pos in seen:
+            continue
+        seen.add(pos)
+        ident, length, links, _ = _block(buf, pos)
+        yield pos, ident, length, links
+        todo.extend(link for link in links if link)
+
+
+def _data_blocks(blocks: list[tuple[int, bytes, int, tuple[int, ...]]]) -> list[tuple[int, int]]:
+    """(DG block, its data block) of each data group that has data."""
+    return [(pos, links[2]) for pos, ident, _, links in blocks if ident == b"##DG" and len(links) > 2 and links[2]]
+
+
+#: a field of a record: (its first byte after the record id, its bytes), an unsigned little-endian integer
+Field = tuple[int, int]
+
+
+@dataclass(frozen=True)
+class _Records:
+    """How the records of one data group's ``##DT`` block are laid out."""
+
+    start: int  #: byte of the first record
+    id_size: int  #: bytes of each record's id (0: one group, no id)
+    sizes: dict[int, int | None]  #: record id -> its bytes after the id (None: VLSD, length-prefixed)
+    pairs: list[tuple[int, int]]  #: (a VLSD group's record id, the group's whose channel points into it)
+    #: record id -> (the VLSD record id its channel points into, that offset's field)
+    offsets: dict[int, tuple[int, Field]]
+    #: record id -> its time (master channel) where stored whole bytes of an unsigned integer or a float (whose
+    #: bytes order as their value does where it is not negative)
+    times: dict[int, Field]
+    last: bool  #: no block lies after the records: a hole cut out of them moves no link
+
+
+def _field(buf: mmap.mmap | bytearray, at: int, size: int) -> int:
+    return int.from_bytes(buf[at:at + size], "little")
+
+
+def _records_of(buf: mmap.mmap, dg: int, dt: int, last: bool) -> _Records | None:
+    """The layout of data group ``dg``'s records in ``dt`` (``last``: no block lies after it); None where ``dt`` is
+    no plain ``##DT`` block."""
     _, _, dg_links, dg_data = _block(buf, dg)
     dt_ident, _, _, records = _block(buf, dt)
     if dt_ident != b"##DT":  # a list or compressed block: not what a logger leaves open
         return None
     id_size = buf[dg_data]
-    sizes: dict[int, int | None] = {}  # record id -> its bytes after the id (None: VLSD, length-prefixed)
+    if id_size not in _ID_FORMATS:
+        raise ValueError(f"data group at byte {dg} has a record id of {id_size} bytes")
+    sizes: dict[int, int | None] = {}
     ids: dict[int, int] = {}  # CG block -> record id
-    pointers: list[tuple[int, int]] = []  # (record id, the CG block one of its channels' data link points to)
+    pointers: list[tuple[int, int, Field | None]] = []  # (record id, the CG block a channel points into, its field)
+    times: dict[int, Field] = {}
     cg = dg_links[1]
     while cg:
         _, _, cg_links, cg_data = _block(buf, cg)
         record_id, _, flags, _, data_bytes, inval_bytes = struct.unpack_from("<QQHH4xII", buf, cg_data)
         sizes[record_id] = None if flags & _VLSD else data_bytes + inval_bytes
         ids[cg] = record_id
-        pointers += [(record_id, link) for link in _channel_data_links(buf, cg_links[1])]
+        for kind, data_type, field, link in _channels(buf, cg_links[1]):
+            if link:
+                pointers.append((record_id, link, field if kind == _VLSD_CHANNEL else None))
+            elif kind == _MASTER_CHANNEL and data_type in _ORDERED_TYPES and field is not None:
+                times[record_id] = field
         cg = cg_links[0]
-    pairs = [(ids[link], rid) for rid, link in pointers if link in ids and sizes[ids[link]] is None]
-    id_format = {0: None, 1: "<B", 2: "<H", 4: "<I", 8: "<Q"}.get(id_size)
-    if id_size and id_format is None:
-        raise ValueError(f"data group at byte {dg} has a record id of {id_size} bytes")
-    counts = dict.fromkeys(sizes, 0)
-    end, pos, whole = len(buf), records, records
-    # the ends of the last whole records: damage shows only where it breaks a record's id or length, so the
-    # record or two before that may hold damaged bytes that parse (a frame's data bytes are not checked)
-    wholes = deque([records], maxlen=_DAMAGE_MARGIN + 1)
+    vlsd = [(ids[link], rid, field) for rid, link, field in pointers if link in ids and sizes[ids[link]] is None]
+    return _Records(records, id_size, sizes, [(v, rid) for v, rid, _ in vlsd],
+                    {rid: (v, field) for v, rid, field in vlsd if field is not None}, times, last)
+
+
+def _next_record(buf: mmap.mmap, pos: int, end: int, rec: _Records) -> tuple[int, int, int] | str:
+    """(record id, byte after its id, byte after it) of the record at ``pos``, or why none is there: "id" (no
+    group's), "length" (a VLSD length no logger's record has), "cut" (the end breaks it off)."""
+    if not rec.id_size:
+        record_id, body = next(iter(rec.sizes)), pos
+    elif pos + rec.id_size > end:
+        return "cut"
+    else:
+        (record_id,) = struct.unpack_from(_ID_FORMATS[rec.id_size], buf, pos)
+        body = pos + rec.id_size
+        if record_id not in rec.sizes:
+            return "id"
+    n = rec.sizes[record_id]
+    if n is None:
+        if body + 4 > end:
+            return "cut"
+        (n,) = struct.unpack_from("<I", buf, body)
+        if n > _MAX_VLSD_BYTES and body + 4 + n > end:  # no cut leaves a length no record has
+            return "length"
+        n += 4
+    return (record_id, body, body + n) if body + n <= end else "cut"
+
+
+def _cut_record(buf: mmap.mmap, dg: int, dt: int, last: bool) -> CutShort | None:
+    """The record an unfinalised file's end cuts in the data block ``dt`` of data group ``dg``, if any, and the
+    damaged bytes inside it; what can be read whole ends where every VLSD group has as many records as the group
+    whose channel points to it (a CAN frame's fixed record without its data bytes' record is one asammdf cannot
+    shape). After damage the records are read on from where they agree again (:func:`_resync`); where none do,
+    nothing after the damage is read."""
+    rec = _records_of(buf, dg, dt, last)
+    if rec is None:
+        return None
+    end = len(buf)
+    pos = start = rec.start
+    # each VLSD group's offset (as the file counts its bytes) where the records read since the last hole begin
+    base: dict[int, int] = {}
+    counts = dict.fromkeys(rec.sizes, 0)
+    holes: list[tuple[int, int]] = []
+    said: list[str] = []
+    time = -1  # the last record's time, as its field reads
+    # the ends of the last whole records and the time there: damage shows only where it breaks a record's id or
+    # length, so the record or two before that may hold damaged bytes that parse (a frame's data is not checked)
+    wholes = deque([(pos, time)], maxlen=_DAMAGE_MARGIN + 1)
     while pos < end:
-        start = pos
-        n: int | None = None
-        if id_format is None:
-            record_id = next(iter(sizes))
-        elif pos + id_size <= end:
-            (record_id,) = struct.unpack_from(id_format, buf, pos)
-            pos += id_size
-            if record_id not in sizes:
-                return CutShort(f"record at byte {start} has an unknown record id {record_id}: damaged there, its "
-                                f"{end - wholes[0]} bytes on from byte {wholes[0]} not read", wholes[0], damaged=True)
-            n = sizes[record_id]
-            if n is None and pos + 4 <= end:
-                (n,) = struct.unpack_from("<I", buf, pos)
-                pos += 4
-                if n > _MAX_VLSD_BYTES and pos + n > end:  # no cut leaves a length no record has
-                    return CutShort(f"record at byte {start} says it holds {n} bytes: damaged there, its "
-                                    f"{end - wholes[0]} bytes on from byte {wholes[0]} not read", wholes[0],
-                                    damaged=True)
-        if n is None or pos + n > end:
-            there = f"{end - start} of its {pos + n - start} bytes" if n is not None else f"{end - start} bytes"
-            return CutShort(f"its last record at byte {start} is cut off ({there} there)", whole)
-        pos += n
+        found = _next_record(buf, pos, end, rec)
+        if found == "cut":
+            said.append(f"its last record at byte {pos} is cut off ({_cut_there(buf, pos, rec)} there)")
+            return CutShort("; ".join(said), wholes[-1][0], damaged=bool(holes), holes=tuple(holes))
+        if isinstance(found, str):
+            what = ("has an unknown record id" if found == "id" else
+                    f"says it holds {struct.unpack_from('<I', buf, pos + rec.id_size)[0]} bytes")
+            kept_to, kept_time = wholes[0]
+            read = _stream_bytes(buf, start, kept_to, rec)
+            kept = {v: base.get(v, 0) + read.get(v, 0) for v in {*base, *read}}
+            again = _resync(buf, pos + 1, kept_to, kept, kept_time, rec) if rec.last else None
+            if again is None:
+                said.append(f"record at byte {pos} {what}: damaged there, its {end - kept_to} bytes on from byte "
+                            f"{kept_to} not read")
+                return CutShort("; ".join(said), kept_to, damaged=True, holes=tuple(holes))
+            said.append(f"record at byte {pos} {what}: damaged there, bytes {kept_to} to {again[0]} left out and "
+                        f"the records after them read")
+            pos, base, time = again
+            holes.append((kept_to, pos))
+            start = pos
+            counts = dict.fromkeys(rec.sizes, 0)
+            wholes = deque([(pos, time)], maxlen=_DAMAGE_MARGIN + 1)
+            continue
+        record_id, body, pos = found
         counts[record_id] += 1
-        if all(counts[vlsd] == counts[parent] for vlsd, parent in pairs):
-            whole = pos
-            wholes.append(pos)
+        if record_id in rec.times:
+            time = _field(buf, body + rec.times[record_id][0], rec.times[record_id][1])
+        if all(counts[vlsd] == counts[parent] for vlsd, parent in rec.pairs):
+            wholes.append((pos, time))
+    return CutShort("; ".join(said), damaged=True, holes=tuple(holes)) if holes else None
+
+
+def _cut_there(buf: mmap.mmap, pos: int, rec: _Records) -> str:
+    """How much of the record the file's end cuts at ``pos`` is there: "N of its M bytes" where its length can
+    be read, else "N bytes"."""
+    end = len(buf)
+    length: int | None = None
+    if pos + rec.id_size <= end:
+        record_id = (struct.unpack_from(_ID_FORMATS[rec.id_size], buf, pos)[0] if rec.id_size
+                     else next(iter(rec.sizes)))
+        length = rec.sizes[record_id]
+        if length is None and pos + rec.id_size + 4 <= end:
+            length = 4 + struct.unpack_from("<I", buf, pos + rec.id_size)[0]
+    return f"{end - pos} of its {rec.id_size + length} bytes" if length is not None else f"{end - pos} bytes"
+
+
+def _resync(buf: mmap.mmap, after: int, kept_to: int, kept: dict[int, int], kept_time: int, rec: _Records
+            ) -> tuple[int, dict[int, int], int] | None:
+    """Where the records after damage found at ``after`` can be read again: the second record of the first run
+    (:func:`_agreeing_run`) that goes on from what was kept up to ``kept_to``: its times from ``kept_time`` on, and
+    each VLSD group's offset beyond ``kept`` (that group's offset there) by no more than the bytes left out (a
+    frame's offset counts its group's bytes from the file's first record), so that records pasted from earlier in
+    the file, or from elsewhere before a data offset, are not taken. Also each VLSD group's offset and the time
+    there. None within ``_RESYNC_SCAN_BYTES``, or where the records have neither times nor offsets to check."""
+    if not (rec.times or rec.offsets):
+        return None
+    for pos in range(after, min(len(buf), after + _RESYNC_SCAN_BYTES)):
+        run = _agreeing_run(buf, pos, rec, kept_time)
+        if run is not None and all(0 <= run[1][v] - kept.get(v, 0) <= run[0] - kept_to for v in run[1]):
+            return run
     return None
 
 
-def _channel_data_links(buf: mmap.mmap, cn: int) -> list[int]:
-    """The data links (``cn_data``) of the channels from ``cn`` on, their compositions' included."""
+def _agreeing_run(buf: mmap.mmap, pos: int, rec: _Records, not_before: int
+                  ) -> tuple[int, dict[int, int], int] | None:
+    """Whether the records from ``pos`` agree with themselves for ``_RESYNC_RECORDS`` fixed records (or at least
+    two up to the file's end): each parses, each VLSD record follows the fixed one that points to it, at the
+    offset it gives, and their times do not fall, from ``not_before`` on. The second fixed record's byte (the
+    first may hold damaged bytes before its offset and time), each VLSD group's offset there and the time before
+    it; None where the run breaks or has nothing to check."""
+    end = len(buf)
+    frames, checked, second = 0, 0, None
+    expected: dict[int, int] = {}  # VLSD record id -> the offset its next record has
+    pending: dict[int, int] = {}  # VLSD record id -> how many of its records the fixed ones point to ahead
+    at_second: dict[int, int] = {}
+    time = time_at_second = not_before
+    while frames < _RESYNC_RECORDS:
+        found = _next_record(buf, pos, end, rec)
+        if isinstance(found, str):
+            if found == "cut" and pos >= end and frames >= 2:
+                break
+            return None
+        record_id, body, after = found
+        if rec.sizes[record_id] is None:
+            if not pending.get(record_id):
+                return None
+            pending[record_id] -= 1
+            expected[record_id] += after - body
+        else:
+            if frames == 1:
+                second, at_second, time_at_second = pos, dict(expected), time
+            frames += 1
+            if record_id in rec.times:
+                now = _field(buf, body + rec.times[record_id][0], rec.times[record_id][1])
+                if now < time:
+                    return None
+                time, checked = now, checked + 1
+            if record_id in rec.offsets:
+                vlsd, (byte, size) = rec.offsets[record_id]
+                offset = _field(buf, body + byte, size)
+                if expected.setdefault(vlsd, offset) != offset:
+                    return None
+                pending[vlsd] = pending.get(vlsd, 0) + 1
+                checked += 1
+        pos = after
+    return (second, at_second, time_at_second) if second is not None and checked >= 2 else None
+
+
+def _stream_bytes(buf: mmap.mmap, start: int, stop: int, rec: _Records) -> dict[int, int]:
+    """Each VLSD group's bytes (lengths and data) in the whole records from ``start`` to ``stop``."""
+    out: dict[int, int] = {}
+    pos = start
+    while pos < stop:
+        found = _next_record(buf, pos, stop, rec)
+        if isinstance(found, str):
+            break
+        record_id, body, pos = found
+        if rec.sizes[record_id] is None:
+            out[record_id] = out.get(record_id, 0) + pos - body
+    return out
+
+
+def write_without_holes(path: Path, dest: Path, cut: CutShort) -> None:
+    """Write to ``dest`` the MDF4 file at ``path`` without ``cut``'s holes, up to its ``whole_bytes``: each fixed
+    record after a hole pointing into its VLSD group's bytes by an offset lessened by that group's bytes the copy
+    lacks, so that the reader (asammdf) finds each frame's data bytes where the copy has them. Only for holes
+    :func:`mdf4_cut` found (they lie in the last data block, after which no block lies)."""
+    with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+        blocks = list(_blocks(buf))
+        rec = max((r for r in (_records_of(buf, dg, dt, True) for dg, dt in _data_blocks(blocks))
+                   if r is not None and r.start <= cut.holes[0][0]), key=lambda r: r.start)
+        stop = len(buf) if cut.whole_bytes is None else cut.whole_bytes
+        pieces = [(0, cut.holes[0][0])] + [(b, nxt[0] if nxt else stop)
+                                           for (_, b), nxt in zip(cut.holes, [*cut.holes[1:], None], strict=True)]
+        written = _stream_bytes(buf, rec.start, pieces[0][1], rec)
+        with open(dest, "wb") as out:
+            out.write(buf[:pieces[0][1]])
+            for a, b in pieces[1:]:
+                piece = bytearray(buf[a:b])
+                shift: dict[int, int] = {}  # VLSD record id -> what this piece's offsets exceed the copy's by
+                pos = a
+                while pos < b:
+                    found = _next_record(buf, pos, b, rec)
+                    if isinstance(found, str):
+                        break
+                    record_id, body, pos = found
+                    if rec.sizes[record_id] is None:
+                        written[record_id] = written.get(record_id, 0) + pos - body
+                    elif record_id in rec.offsets:
+                        vlsd, (byte, size) = rec.offsets[record_id]
+                        at = body + byte - a
+                        offset = _field(piece, at, size)
+                        moved = shift.setdefault(vlsd, offset - written.get(vlsd, 0))
+                        piece[at:at + size] = (offset - moved).to_bytes(size, "little")
+                out.write(piece)
+
+
+def _channels(buf: mmap.mmap, cn: int) -> list[tuple[int, int, Field | None, int]]:
+    """(channel type, data type, field where whole bytes hold its value, data link) of the channels from ``cn``
+    on, their compositions' included."""
     out, todo, seen = [], [cn], set()
     while todo:
         pos = todo.pop()
         if not pos or pos in seen:
             continue
         seen.add(pos)
-        ident, _, links, _ = _block(buf, pos)
+        ident, _, links, data = _block(buf, pos)
         if ident != b"##CN":
             continue
         todo += [links[0], links[1]]  # the next channel, its composition
-        if len(links) > 5 and links[5]:
-            out.append(links[5])
+        kind, _, data_type, bit_offset, byte_offset, bit_count = struct.unpack_from("<BBBBII", buf, data)
+        whole = bit_offset == 0 and bit_count % 8 == 0 and 0 < bit_count <= 64
+        out.append((kind, data_type, (byte_offset, bit_count // 8) if whole else None,
+                    links[5] if len(links) > 5 else 0))
     return out

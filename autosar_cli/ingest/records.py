@@ -69,3 +69,5 @@ class CutShort:
     reason: str  #: one clause naming the byte
     whole_bytes: int | None = None  #: the file up to the record or line the end cuts: what a reader can take whole
     damaged: bool = False  #: not cut but damaged inside (a link to no block): ``reason`` says where
+    #: damaged byte ranges [start, end) left out, what follows each read on (a reader's copy without them)
+    holes: tuple[tuple[int, int], ...] = ()
