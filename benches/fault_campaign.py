@@ -78,6 +78,7 @@ class Trial:
     detail: str = ""
     chunks_expected: int | None = None  #: messages of the chunks the damage left intact (MCAP, ROS1)
     messages_read: int | None = None
+    messages_whole: int | None = None  #: realfiles: the messages of the file undamaged
     wall_s: float = 0.0
 
 
@@ -101,6 +102,7 @@ class Base:
     ros1_chunks: list[tuple[int, int, int]] = field(default_factory=list)
     digests: dict[str, str] = field(default_factory=dict)
     real_warnings: dict[str, set[str]] = field(default_factory=dict)  #: a real input's warnings, undamaged
+    real_messages: dict[str, int] = field(default_factory=dict)  #: the messages a real input gives, undamaged
 
 
 # ------------------------------------------------------------------------------------------ helpers
@@ -310,7 +312,9 @@ def _real_files(base: Base, work: Path) -> None:
             r = cli(["ingest", *args(REAL / rel), "-o", str(out), "--allow-partial", "--json"], work)
             assert r.returncode == 0, r.stderr
             base.digests[f"real:{name}"] = product_digest(out)
-            base.real_warnings[name] = {w.replace(str(REAL / rel), "LOG") for w in json.loads(r.stdout)["warnings"]}
+            report = json.loads(r.stdout)
+            base.real_warnings[name] = {w.replace(str(REAL / rel), "LOG") for w in report["warnings"]}
+            base.real_messages[name] = int(report["messages"])
 
 
 def _can_logs(base: Base, work: Path) -> None:
@@ -775,11 +779,13 @@ def realfiles_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial
     warned = False
     if r.returncode == 0:
         try:
-            said = {w.replace(str(log), "LOG") for w in json.loads(r.stdout).get("warnings", [])}
+            report = json.loads(r.stdout)
         except json.JSONDecodeError:  # --json's output broken (a library printing on stdout) is a fault too
             trial.outcome, trial.detail = "crash-or-traceback", f"--json output not JSON: {r.stdout[:120]!r}"
             return trial
+        said = {w.replace(str(log), "LOG") for w in report.get("warnings", [])}
         warned = bool(said - base.real_warnings[name])  # a word about the damage, not what it says undamaged
+        trial.messages_read, trial.messages_whole = int(report["messages"]), base.real_messages[name]
     trial.outcome, trial.detail = classify(r, tdir / "d.h5" if r.returncode == 0 else None,
                                            base.digests[f"real:{name}"], warned)
     if r.returncode == 0 and r.stdout.lstrip()[:1] != "{":
@@ -833,6 +839,14 @@ def main() -> None:
         print(f"{c:10s} {sum(table[c].values()):6d} " + " ".join(f"{table[c].get(o, 0):18d}" for o in cols))
     print(f"intact chunks (MCAP, ROS1) or whole lines (text CAN logs) kept: {len(chunk_checks) - len(chunk_fail)} "
           f"of {len(chunk_checks)} trials")
+    for c in classes:
+        read = [t for t in trials if t.cls == c and t.messages_whole]
+        if read:
+            print(f"{c}: messages read of the undamaged files' where the ingest ended well ({len(read)} trials): "
+                  f"{sum(t.messages_read or 0 for t in read)} of {sum(t.messages_whole or 0 for t in read)}; "
+                  + ", ".join(f"{k} {sum(t.messages_read or 0 for t in read if k in t.fault)} of "
+                              f"{sum(t.messages_whole or 0 for t in read if k in t.fault)}"
+                              for k in sorted({t.fault.split(':')[0] for t in read})))
     for t in trials:
         if t.outcome in BAD:
             print(f"  {t.cls} #{t.n} {t.outcome}: {t.fault} -- {t.detail}")

@@ -76,7 +76,8 @@ STAMP_OUTLIER = ("tests/test_ingest_robustness.py::"
 SHIFTED_SUMMARY = "tests/test_ingest_damage.py::test_mcap_shifted_summary_is_found_by_its_data_end"
 UNLISTED_TOPICS = ("tests/test_ingest_damage.py::"
                    "test_rosbag2_topics_metadata_yaml_does_not_list_are_read_from_the_storage")
-MF4_DAMAGE = "tests/test_ingest_canlog.py::test_a_real_mf4_damaged_inside_its_records_keeps_the_frames_before"
+MF4_DAMAGE = "tests/test_ingest_canlog.py::test_a_real_mf4_damaged_inside_its_records_keeps_the_frames_around_it"
+MF4_PASTED = "tests/test_ingest_canlog.py::test_records_pasted_from_elsewhere_in_an_mf4_are_not_read_twice"
 ODD_INPUTS = "tests/test_safety.py::test_an_input_that_is_a_pipe_a_link_loop_or_a_directory_is_one_line"
 NMEA_DAMAGE = "tests/test_ingest_nmea.py::test_a_block_of_nul_bytes_in_a_capture_is_one_damage_warning_with_its_place"
 MISLABELLED = ("tests/test_ingest_damage.py::"
@@ -453,6 +454,14 @@ MUTATIONS: list[Mutation] = [
        "        exc.warnings = []", SAID_BEFORE),
     _m("nmea-cut-last-line-unwarned", "ingest", "ingest/pipeline.py",
        """        if reader.skipped["cut off by the file's end"]:""", "        if False:", NMEA_CUT),
+    _m("mf4-offsets-after-a-hole-unmended", "ingest", "ingest/mdf4_blocks.py",
+       """piece[at:at + size] = (offset - moved).to_bytes(size, "little")""",
+       """piece[at:at + size] = offset.to_bytes(size, "little")""", MF4_DAMAGE),
+    _m("mf4-resync-offsets-unbounded", "ingest", "ingest/mdf4_blocks.py",
+       "if run is not None and all(0 <= run[1][v] - kept.get(v, 0) <= run[0] - kept_to for v in run[1]):",
+       "if run is not None:", MF4_PASTED),
+    _m("mf4-resync-times-unchecked", "ingest", "ingest/mdf4_blocks.py",
+       "                if now < time:", "                if False:", MF4_PASTED),
 ]
 
 
