@@ -191,22 +191,22 @@ def _cut_record(buf: mmap.mmap, dg: int, dt: int, last: bool) -> CutShort | None
     counts = dict.fromkeys(rec.sizes, 0)
     holes: list[tuple[int, int]] = []
     said: list[str] = []
-    time = -1  # the last record's time, as its field reads
-    # the ends of the last whole records and the time there: damage shows only where it breaks a record's id or
-    # length, so the record or two before that may hold damaged bytes that parse (a frame's data is not checked)
-    wholes = deque([(pos, time)], maxlen=_DAMAGE_MARGIN + 1)
+    time = -1  # the time of the last record read before the last hole, as its field reads
+    # the ends of the last whole records: damage shows only where it breaks a record's id or length, so the
+    # record or two before that may hold damaged bytes that parse (a frame's data bytes are not checked)
+    wholes = deque([pos], maxlen=_DAMAGE_MARGIN + 1)
     while pos < end:
         found = _next_record(buf, pos, end, rec)
         if found == "cut":
             said.append(f"its last record at byte {pos} is cut off ({_cut_there(buf, pos, rec)} there)")
-            return CutShort("; ".join(said), wholes[-1][0], damaged=bool(holes), holes=tuple(holes))
+            return CutShort("; ".join(said), wholes[-1], damaged=bool(holes), holes=tuple(holes))
         if isinstance(found, str):
             what = ("has an unknown record id" if found == "id" else
                     f"says it holds {struct.unpack_from('<I', buf, pos + rec.id_size)[0]} bytes")
-            kept_to, kept_time = wholes[0]
-            read = _stream_bytes(buf, start, kept_to, rec)
+            kept_to = wholes[0]
+            read, kept_time = _read_between(buf, start, kept_to, rec)
             kept = {v: base.get(v, 0) + read.get(v, 0) for v in {*base, *read}}
-            again = _resync(buf, pos + 1, kept_to, kept, kept_time, rec) if rec.last else None
+            again = _resync(buf, pos + 1, kept_to, kept, max(time, kept_time), rec) if rec.last else None
             if again is None:
                 said.append(f"record at byte {pos} {what}: damaged there, its {end - kept_to} bytes on from byte "
                             f"{kept_to} not read")
@@ -217,14 +217,12 @@ def _cut_record(buf: mmap.mmap, dg: int, dt: int, last: bool) -> CutShort | None
             holes.append((kept_to, pos))
             start = pos
             counts = dict.fromkeys(rec.sizes, 0)
-            wholes = deque([(pos, time)], maxlen=_DAMAGE_MARGIN + 1)
+            wholes = deque([pos], maxlen=_DAMAGE_MARGIN + 1)
             continue
-        record_id, body, pos = found
+        record_id, _, pos = found
         counts[record_id] += 1
-        if record_id in rec.times:
-            time = _field(buf, body + rec.times[record_id][0], rec.times[record_id][1])
         if all(counts[vlsd] == counts[parent] for vlsd, parent in rec.pairs):
-            wholes.append((pos, time))
+            wholes.append(pos)
     return CutShort("; ".join(said), damaged=True, holes=tuple(holes)) if holes else None
 
 
@@ -304,10 +302,11 @@ def _agreeing_run(buf: mmap.mmap, pos: int, rec: _Records, not_before: int
     return (second, at_second, time_at_second) if second is not None and checked >= 2 else None
 
 
-def _stream_bytes(buf: mmap.mmap, start: int, stop: int, rec: _Records) -> dict[int, int]:
-    """Each VLSD group's bytes (lengths and data) in the whole records from ``start`` to ``stop``."""
+def _read_between(buf: mmap.mmap, start: int, stop: int, rec: _Records) -> tuple[dict[int, int], int]:
+    """Each VLSD group's bytes (lengths and data) in the whole records from ``start`` to ``stop``, and the time of
+    the last of them that has one (-1: none)."""
     out: dict[int, int] = {}
-    pos = start
+    pos, time = start, -1
     while pos < stop:
         found = _next_record(buf, pos, stop, rec)
         if isinstance(found, str):
@@ -315,7 +314,9 @@ def _stream_bytes(buf: mmap.mmap, start: int, stop: int, rec: _Records) -> dict[
         record_id, body, pos = found
         if rec.sizes[record_id] is None:
             out[record_id] = out.get(record_id, 0) + pos - body
-    return out
+        elif record_id in rec.times:
+            time = _field(buf, body + rec.times[record_id][0], rec.times[record_id][1])
+    return out, time
 
 
 def write_without_holes(path: Path, dest: Path, cut: CutShort) -> None:
@@ -330,7 +331,7 @@ def write_without_holes(path: Path, dest: Path, cut: CutShort) -> None:
         stop = len(buf) if cut.whole_bytes is None else cut.whole_bytes
         pieces = [(0, cut.holes[0][0])] + [(b, nxt[0] if nxt else stop)
                                            for (_, b), nxt in zip(cut.holes, [*cut.holes[1:], None], strict=True)]
-        written = _stream_bytes(buf, rec.start, pieces[0][1], rec)
+        written, _ = _read_between(buf, rec.start, pieces[0][1], rec)
         with open(dest, "wb") as out:
             out.write(buf[:pieces[0][1]])
             for a, b in pieces[1:]:
