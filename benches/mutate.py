@@ -78,6 +78,8 @@ UNLISTED_TOPICS = ("tests/test_ingest_damage.py::"
                    "test_rosbag2_topics_metadata_yaml_does_not_list_are_read_from_the_storage")
 MF4_DAMAGE = "tests/test_ingest_canlog.py::test_a_real_mf4_damaged_inside_its_records_keeps_the_frames_around_it"
 MF4_PASTED = "tests/test_ingest_canlog.py::test_records_pasted_from_elsewhere_in_an_mf4_are_not_read_twice"
+MF4_SORTED = "tests/test_ingest_canlog.py::test_a_finalised_mf4_damaged_in_its_records_keeps_every_other_frame"
+MF4_CLAIMS = "tests/test_ingest_canlog.py::test_a_finalised_mf4_whose_group_claims_more_records_than_it_holds"
 ODD_INPUTS = "tests/test_safety.py::test_an_input_that_is_a_pipe_a_link_loop_or_a_directory_is_one_line"
 NMEA_DAMAGE = "tests/test_ingest_nmea.py::test_a_block_of_nul_bytes_in_a_capture_is_one_damage_warning_with_its_place"
 MISLABELLED = ("tests/test_ingest_damage.py::"
@@ -462,6 +464,12 @@ MUTATIONS: list[Mutation] = [
        "if run is not None:", MF4_PASTED),
     _m("mf4-resync-times-unchecked", "ingest", "ingest/mdf4_blocks.py",
        "                if now < time:", "                if False:", MF4_PASTED),
+    _m("mf4-sorted-neighbours-kept", "ingest", "ingest/mdf4_sorted.py",
+       "            bad[:-1] |= broken[1:]\n            bad[1:] |= broken[:-1]\n", "", MF4_SORTED),
+    _m("mf4-sorted-order-unchecked", "ingest", "ingest/mdf4_sorted.py",
+       "    if n < 2 or np.mean(follows & leads) < _IN_ORDER:", "    if True:", MF4_SORTED),
+    _m("mf4-sorted-claimed-count-kept", "ingest", "ingest/mdf4_sorted.py",
+       """        struct.pack_into("<Q", dest_bytes, cg_data + 8, len(rows))\n""", "", MF4_CLAIMS),
 ]
 
 

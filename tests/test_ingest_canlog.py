@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import json
 import math
+import mmap
 import random
+import struct
 import subprocess
 import sys
 from collections import Counter
@@ -23,6 +25,8 @@ from cantools.database.can import Database
 from autosar_cli.candb import check_frame, encode_frame, load_dbc
 from autosar_cli.ingest.canlog import CAN_LOG_SUFFIXES, CanLogError, is_can_log, read_can_log
 from autosar_cli.ingest.mdf4_blocks import mdf4_cut
+from autosar_cli.ingest.mdf4_layout import blocks
+from autosar_cli.ingest.mdf4_sorted import _sorted_groups
 from autosar_cli.ingest.records import CanRecord
 from tests.conftest import realdata
 
@@ -247,6 +251,57 @@ def test_an_mf4_whose_records_never_agree_again_keeps_the_frames_before_the_dama
     assert got == list(_real_records(MF4_2022)[:len(got)]) and len(got) > 3000
     kept_to = int(message.split(" bytes on from byte ")[1].split()[0])
     assert kept_to < 130000 and message.endswith(f"not read; {len(got)} frames read before it")
+
+
+@pytest.fixture(scope="module")
+def finalised_2022(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The real 2022 CANedge file finalised by asammdf: its frames sorted into a group of fixed 22-byte records in
+    one ``##DT`` block (from byte 752), their data bytes in an ``##SD`` block (from byte 126680)."""
+    out = tmp_path_factory.mktemp("finalised") / "finalised.mf4"
+    with MDF(realdata(CSS, MF4_2022)) as mdf:
+        mdf.save(out, overwrite=True, compression=0)
+    return out
+
+
+@pytest.mark.parametrize("at, damage, lost_at_most", [
+    (20956, bytes(range(100, 164)), 5), (88180, bytes(4096), 190), (155290, b"\xff", 3)],
+    ids=["64 bytes in its records", "4 KiB zeroed in its records", "a data length's byte"])
+def test_a_finalised_mf4_damaged_in_its_records_keeps_every_other_frame(tmp_path: Path, finalised_2022: Path,
+                                                                         at: int, damage: bytes,
+                                                                         lost_at_most: int) -> None:
+    """A finalised MDF4 (one sorted group per kind of frame, the data bytes in an SD block) damaged inside its
+    records: asammdf read it in blocks of 1000 records until the damage broke one (an array-shape mismatch, a
+    SystemError, a MemoryError for terabytes from a damaged length) and lost the records of that block and every
+    one after. The records whose data offsets point to no whole data bytes in the SD block (or, the SD block
+    holding the data in the records' order, do not follow on from their neighbours) are left out with the
+    records either side of them, through a copy whose data block holds the others: every other frame is read,
+    in order, and the error says how many were left out and where the first was."""
+    data = finalised_2022.read_bytes()
+    assert list(read_can_log(finalised_2022)) == list(_real_records(MF4_2022))  # undamaged: no check fires
+    log = tmp_path / "damaged.mf4"
+    log.write_bytes(data[:at] + damage + data[at + len(damage):])
+    got, message = _read_until_error(log)
+    reference = _real_records(MF4_2022)
+    assert _in_order_within(got, reference) and len(reference) - lost_at_most <= len(got) < len(reference)
+    assert message.startswith(f"{log}: damaged MDF4 log: ") and "point to no whole data bytes (the first at" in message
+    assert message.endswith(f"({len(reference) - len(got)}); {len(got)} frames read")
+
+
+def test_a_finalised_mf4_whose_group_claims_more_records_than_it_holds(tmp_path: Path,
+                                                                        finalised_2022: Path) -> None:
+    """A group's record count damaged upwards: asammdf read every record its block holds and then failed with an
+    error of its own ("IndexError: index 0 is out of bounds for axis 0 with size 0"). Now the copy's count is the
+    block's, and the error says what the group claimed."""
+    data = bytearray(finalised_2022.read_bytes())
+    with open(finalised_2022, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+        cycles_at = next(cg_data + 8 for cg_data, *_ in _sorted_groups(buf, list(blocks(buf))))
+    struct.pack_into("<Q", data, cycles_at, 5588 + 700)
+    log = tmp_path / "claims.mf4"
+    log.write_bytes(bytes(data))
+    got, message = _read_until_error(log)
+    assert got == list(_real_records(MF4_2022))
+    assert message == (f"{log}: damaged MDF4 log: the group of the data block at byte 728 says it has 6288 records, "
+                       f"the block holds 5588; 5588 frames read")
 
 
 def test_a_frame_whose_damaged_id_no_frame_can_have_is_warned_of(tmp_path: Path) -> None:

@@ -8,50 +8,45 @@ record it breaks off: each record is its channel group's record id and then that
 for a VLSD group (variable-length signal data: a CAN frame's data bytes), a 4-byte length and that many bytes.
 A cut that falls between two records cannot be told from a shorter recording. A record with no group's id, or a
 length no logger's record has, is damage inside the file: the records before it are read less the last two
-frames (bytes damaged inside a record parse as well as any), and the records after it from the second frame of
-the first run whose data offsets agree again (a frame's fixed record points into its data bytes' records by
-their offset, counted from the file's first record): a copy without the damaged bytes, its offsets after them
-lessened by the data bytes the copy lacks (:func:`write_without_holes`), is what the reader reads. A link to no
-block is damage to the file's structure. Layout: ASAM MDF 4.1/4.2.
+frames (bytes damaged inside a record parse as well as any), and the records after it from the second record
+of the first run that agrees again (:func:`_resync`: a frame's fixed record points into its data bytes' records
+by their offset, counted from the file's first record; times do not fall): a copy without the damaged bytes, its
+offsets after them lessened by the data bytes the copy lacks (:func:`write_without_holes`), is what the reader
+reads. A link to no block is damage to the file's structure. A finalised file's groups are checked against their
+data bytes by :mod:`.mdf4_sorted`.
 """
 
 from __future__ import annotations
 
 import mmap
-import re
 import struct
 from collections import deque
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+from .mdf4_layout import (
+    CG_DATA,
+    MASTER_CHANNEL,
+    MAX_VLSD_BYTES,
+    ORDERED_TYPES,
+    VLSD_CHANNEL,
+    VLSD_GROUP,
+    Block,
+    Field,
+    block,
+    blocks,
+    channels,
+    data_blocks,
+    field,
+)
+from .mdf4_sorted import sorted_damage, write_sorted_without
 from .records import CutShort
 
-_HEAD = struct.Struct("<4s4xQQ")  # block id, length, link count
-_BLOCK_ID = re.compile(rb"##[A-Z]{2}")
 _UNFINISHED_LAST_DT = 1 << 2  # id_unfin_flags: the last ##DT block's length is to be updated
-_VLSD = 1  # cg_flags: a variable-length signal data group
-_VLSD_CHANNEL = 1  # cn_type: its record holds an offset into a VLSD group's bytes
-_MASTER_CHANNEL = 2  # cn_type: the record's time
-_ORDERED_TYPES = (0, 4)  # cn_data_type: unsigned integer, float, little-endian
-_MAX_VLSD_BYTES = 1 << 16  # a logger's variable-length record (a CAN FD frame's data: 64 bytes) is far shorter
 _DAMAGE_MARGIN = 2  # whole frames left out before a damaged record
 _RESYNC_RECORDS = 16  # fixed records that agree with themselves, after damage, before they are read again
 _RESYNC_SCAN_BYTES = 1 << 20  # how far past damage such records are sought
 _ID_FORMATS = {0: "", 1: "<B", 2: "<H", 4: "<I", 8: "<Q"}  # a record id's bytes -> its struct format
-
-
-def _block(buf: mmap.mmap, pos: int) -> tuple[bytes, int, tuple[int, ...], int]:
-    """(id, length, links, data offset) of the block at ``pos``; ValueError where its header or links are cut."""
-    if pos + _HEAD.size > len(buf):
-        raise ValueError(f"block header at byte {pos} cut off")
-    ident, length, n_links = _HEAD.unpack_from(buf, pos)
-    if not _BLOCK_ID.fullmatch(ident):
-        raise ValueError(f"no block at byte {pos}, where a link points (it reads {ident!r}): damaged there")
-    data = pos + _HEAD.size + 8 * n_links
-    if data > len(buf):
-        raise ValueError(f"{ident.decode('latin-1')} block at byte {pos} cut off in its links")
-    return ident, length, struct.unpack_from(f"<{n_links}Q", buf, pos + _HEAD.size), data
 
 
 def mdf4_cut(path: Path) -> CutShort | None:
@@ -61,44 +56,25 @@ def mdf4_cut(path: Path) -> CutShort | None:
         return CutShort(f"the file ends inside its 64-byte identification block ({size} bytes)")
     with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
         unfinished = buf[:8] == b"UnFinMF " and struct.unpack_from("<H", buf, 60)[0] & _UNFINISHED_LAST_DT
-        blocks: list[tuple[int, bytes, int, tuple[int, ...]]] = []
+        found: list[Block] = []
         try:
-            for pos, ident, length, links in _blocks(buf):
+            for pos, ident, length, links in blocks(buf):
                 if pos + length > size and not (unfinished and ident == b"##DT"):
                     return CutShort(f"its {ident.decode('latin-1')} block at byte {pos} runs past the end "
                                     f"({length} bytes)")
-                blocks.append((pos, ident, length, links))
+                found.append((pos, ident, length, links))
             if unfinished:
-                for dg, dt in _data_blocks(blocks):
-                    cut = _cut_record(buf, dg, dt, last=all(pos <= dt for pos, *_ in blocks))
+                for dg, dt in data_blocks(found):
+                    cut = _cut_record(buf, dg, dt, last=all(pos <= dt for pos, *_ in found))
                     if cut:
                         return cut
+            else:
+                damage = sorted_damage(buf, found)
+                if damage:
+                    return CutShort(damage[0], damaged=True, holes=damage[1])
         except (ValueError, struct.error) as exc:
             return CutShort(str(exc), damaged="cut off" not in str(exc))  # a block or record the end does not cut
     return None
-
-
-def _blocks(buf: mmap.mmap) -> Iterator[tuple[int, bytes, int, tuple[int, ...]]]:
-    """(byte, id, length, links) of every block the file's links reach from its header, as found; ValueError
-    where one is cut off or a link points to no block."""
-    todo, seen = [64], set()
-    while todo:
-        pos = todo.pop()
-        if pos in seen:
-            continue
-        seen.add(pos)
-        ident, length, links, _ = _block(buf, pos)
-        yield pos, ident, length, links
-        todo.extend(link for link in links if link)
-
-
-def _data_blocks(blocks: list[tuple[int, bytes, int, tuple[int, ...]]]) -> list[tuple[int, int]]:
-    """(DG block, its data block) of each data group that has data."""
-    return [(pos, links[2]) for pos, ident, _, links in blocks if ident == b"##DG" and len(links) > 2 and links[2]]
-
-
-#: a field of a record: (its first byte after the record id, its bytes), an unsigned little-endian integer
-Field = tuple[int, int]
 
 
 @dataclass(frozen=True)
@@ -117,15 +93,11 @@ class _Records:
     last: bool  #: no block lies after the records: a hole cut out of them moves no link
 
 
-def _field(buf: mmap.mmap | bytearray, at: int, size: int) -> int:
-    return int.from_bytes(buf[at:at + size], "little")
-
-
 def _records_of(buf: mmap.mmap, dg: int, dt: int, last: bool) -> _Records | None:
     """The layout of data group ``dg``'s records in ``dt`` (``last``: no block lies after it); None where ``dt`` is
     no plain ``##DT`` block."""
-    _, _, dg_links, dg_data = _block(buf, dg)
-    dt_ident, _, _, records = _block(buf, dt)
+    _, _, dg_links, dg_data = block(buf, dg)
+    dt_ident, _, _, records = block(buf, dt)
     if dt_ident != b"##DT":  # a list or compressed block: not what a logger leaves open
         return None
     id_size = buf[dg_data]
@@ -137,15 +109,15 @@ def _records_of(buf: mmap.mmap, dg: int, dt: int, last: bool) -> _Records | None
     times: dict[int, Field] = {}
     cg = dg_links[1]
     while cg:
-        _, _, cg_links, cg_data = _block(buf, cg)
-        record_id, _, flags, _, data_bytes, inval_bytes = struct.unpack_from("<QQHH4xII", buf, cg_data)
-        sizes[record_id] = None if flags & _VLSD else data_bytes + inval_bytes
+        _, _, cg_links, cg_data = block(buf, cg)
+        record_id, _, flags, _, data_bytes, inval_bytes = CG_DATA.unpack_from(buf, cg_data)
+        sizes[record_id] = None if flags & VLSD_GROUP else data_bytes + inval_bytes
         ids[cg] = record_id
-        for kind, data_type, field, link in _channels(buf, cg_links[1]):
+        for kind, data_type, place, link in channels(buf, cg_links[1]):
             if link:
-                pointers.append((record_id, link, field if kind == _VLSD_CHANNEL else None))
-            elif kind == _MASTER_CHANNEL and data_type in _ORDERED_TYPES and field is not None:
-                times[record_id] = field
+                pointers.append((record_id, link, place if kind == VLSD_CHANNEL else None))
+            elif kind == MASTER_CHANNEL and data_type in ORDERED_TYPES and place is not None:
+                times[record_id] = place
         cg = cg_links[0]
     vlsd = [(ids[link], rid, field) for rid, link, field in pointers if link in ids and sizes[ids[link]] is None]
     return _Records(records, id_size, sizes, [(v, rid) for v, rid, _ in vlsd],
@@ -169,7 +141,7 @@ def _next_record(buf: mmap.mmap, pos: int, end: int, rec: _Records) -> tuple[int
         if body + 4 > end:
             return "cut"
         (n,) = struct.unpack_from("<I", buf, body)
-        if n > _MAX_VLSD_BYTES and body + 4 + n > end:  # no cut leaves a length no record has
+        if n > MAX_VLSD_BYTES and body + 4 + n > end:  # no cut leaves a length no record has
             return "length"
         n += 4
     return (record_id, body, body + n) if body + n <= end else "cut"
@@ -287,13 +259,13 @@ def _agreeing_run(buf: mmap.mmap, pos: int, rec: _Records, not_before: int
                 second, at_second, time_at_second = pos, dict(expected), time
             frames += 1
             if record_id in rec.times:
-                now = _field(buf, body + rec.times[record_id][0], rec.times[record_id][1])
+                now = field(buf, body + rec.times[record_id][0], rec.times[record_id][1])
                 if now < time:
                     return None
                 time, checked = now, checked + 1
             if record_id in rec.offsets:
                 vlsd, (byte, size) = rec.offsets[record_id]
-                offset = _field(buf, body + byte, size)
+                offset = field(buf, body + byte, size)
                 if expected.setdefault(vlsd, offset) != offset:
                     return None
                 pending[vlsd] = pending.get(vlsd, 0) + 1
@@ -315,7 +287,7 @@ def _read_between(buf: mmap.mmap, start: int, stop: int, rec: _Records) -> tuple
         if rec.sizes[record_id] is None:
             out[record_id] = out.get(record_id, 0) + pos - body
         elif record_id in rec.times:
-            time = _field(buf, body + rec.times[record_id][0], rec.times[record_id][1])
+            time = field(buf, body + rec.times[record_id][0], rec.times[record_id][1])
     return out, time
 
 
@@ -323,10 +295,15 @@ def write_without_holes(path: Path, dest: Path, cut: CutShort) -> None:
     """Write to ``dest`` the MDF4 file at ``path`` without ``cut``'s holes, up to its ``whole_bytes``: each fixed
     record after a hole pointing into its VLSD group's bytes by an offset lessened by that group's bytes the copy
     lacks, so that the reader (asammdf) finds each frame's data bytes where the copy has them. Only for holes
-    :func:`mdf4_cut` found (they lie in the last data block, after which no block lies)."""
+    :func:`mdf4_cut` found (they lie in the last data block, after which no block lies); a finalised file's are
+    whole records of its sorted groups (:func:`~.mdf4_sorted.write_sorted_without`)."""
     with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
-        blocks = list(_blocks(buf))
-        rec = max((r for r in (_records_of(buf, dg, dt, True) for dg, dt in _data_blocks(blocks))
+        if buf[:8] != b"UnFinMF ":  # a finalised file's holes are records of its sorted groups
+            copy = bytearray(buf)
+            write_sorted_without(buf, copy, cut.holes, list(blocks(buf)))
+            dest.write_bytes(copy)
+            return
+        rec = max((r for r in (_records_of(buf, dg, dt, True) for dg, dt in data_blocks(list(blocks(buf))))
                    if r is not None and r.start <= cut.holes[0][0]), key=lambda r: r.start)
         stop = len(buf) if cut.whole_bytes is None else cut.whole_bytes
         pieces = [(0, cut.holes[0][0])] + [(b, nxt[0] if nxt else stop)
@@ -348,27 +325,9 @@ def write_without_holes(path: Path, dest: Path, cut: CutShort) -> None:
                     elif record_id in rec.offsets:
                         vlsd, (byte, size) = rec.offsets[record_id]
                         at = body + byte - a
-                        offset = _field(piece, at, size)
+                        offset = field(piece, at, size)
                         moved = shift.setdefault(vlsd, offset - written.get(vlsd, 0))
                         piece[at:at + size] = (offset - moved).to_bytes(size, "little")
                 out.write(piece)
 
 
-def _channels(buf: mmap.mmap, cn: int) -> list[tuple[int, int, Field | None, int]]:
-    """(channel type, data type, field where whole bytes hold its value, data link) of the channels from ``cn``
-    on, their compositions' included."""
-    out, todo, seen = [], [cn], set()
-    while todo:
-        pos = todo.pop()
-        if not pos or pos in seen:
-            continue
-        seen.add(pos)
-        ident, _, links, data = _block(buf, pos)
-        if ident != b"##CN":
-            continue
-        todo += [links[0], links[1]]  # the next channel, its composition
-        kind, _, data_type, bit_offset, byte_offset, bit_count = struct.unpack_from("<BBBBII", buf, data)
-        whole = bit_offset == 0 and bit_count % 8 == 0 and 0 < bit_count <= 64
-        out.append((kind, data_type, (byte_offset, bit_count // 8) if whole else None,
-                    links[5] if len(links) > 5 else 0))
-    return out

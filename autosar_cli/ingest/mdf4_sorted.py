@@ -1,0 +1,134 @@
+"""Damaged records in a finalised MDF4 file's sorted groups, which asammdf reads until they break it.
+
+A finalised file (``MDF     ``, as asammdf, a CAN logger's converter or a measurement tool writes one) keeps each
+channel group in its own data group: its ``##DT`` block holds the group's fixed-size records one after another,
+and a variable-length channel (a CAN frame's data bytes) holds in each record an offset into the group's ``##SD``
+block, where a 4-byte length and that many bytes stand. No byte of a fixed record can be told damaged by itself,
+but an offset can: one that points to no whole length and bytes inside the SD block, and, where the SD block holds
+its records' data in their order (what every writer does: checked on the group's own records), one that does
+not begin where the record before it ends nor end where the next begins, or a length that does not end where the
+next record's data begin. asammdf reads such a group in blocks of 1000 records until the damage breaks it (a
+SystemError, an array-shape mismatch, or an allocation of terabytes for a length read from damaged bytes): the
+records before that block and every one after it were lost. Here each damaged record is a hole (its bytes), and
+the reader reads a copy whose data block holds the others (:func:`write_sorted_without`).
+"""
+
+from __future__ import annotations
+
+import mmap
+import struct
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .mdf4_layout import CG_DATA, HEAD, MAX_VLSD_BYTES, VLSD_CHANNEL, VLSD_GROUP, Block, block, channels, data_blocks
+
+#: the share of a group's records whose data follow on from the record before's, from which its SD block is taken as
+#: written in their order (every writer's: near 1; a writer that shares or shuffles data: near 0)
+_IN_ORDER = 0.5
+
+
+def _sorted_groups(buf: mmap.mmap, found: list[Block]) -> list[tuple[int, int, int, int, int]]:
+    """(CG block's data byte, its first channel, DT block, first record's byte, record bytes) of each sorted group
+    with a plain ``##DT`` block: one group, no record id, fixed-size records."""
+    out = []
+    for dg, dt in data_blocks(found):
+        _, _, dg_links, dg_data = block(buf, dg)
+        if buf[dg_data] != 0 or not dg_links[1]:
+            continue
+        _, _, cg_links, cg_data = block(buf, dg_links[1])
+        _, _, flags, _, data_bytes, inval_bytes = CG_DATA.unpack_from(buf, cg_data)
+        ident, _, _, records = block(buf, dt)
+        if cg_links[0] or flags & VLSD_GROUP or ident != b"##DT" or data_bytes + inval_bytes == 0:
+            continue
+        out.append((cg_data, cg_links[1], dt, records, data_bytes + inval_bytes))
+    return out
+
+
+def sorted_damage(buf: mmap.mmap, found: list[Block]) -> tuple[str, tuple[tuple[int, int], ...]] | None:
+    """Why and where (byte ranges of whole records) the sorted groups of the finalised file ``buf`` (its blocks
+    ``found``) hold damaged records; None where none do."""
+    holes: list[tuple[int, int]] = []
+    said: list[str] = []
+    for cg_data, cn, dt, records, size in _sorted_groups(buf, found):
+        _, cycles, *_ = CG_DATA.unpack_from(buf, cg_data)
+        _, length, _, _ = block(buf, dt)
+        n = min(cycles, (length - HEAD.size) // size)
+        if n != cycles:  # the records it claims beyond its block: a hole where no record is
+            said.append(f"the group of the data block at byte {dt} says it has {cycles} records, the block holds "
+                        f"{n}")
+            holes.append((records + n * size, records + cycles * size))
+        rows = np.frombuffer(buf, np.uint8, n * size, records).reshape(n, size)
+        bad = np.zeros(n, dtype=bool)
+        for kind, _, place, link in channels(buf, cn):
+            if kind != VLSD_CHANNEL or place is None or not link:
+                continue
+            ident, sd_length, _, sd_data = block(buf, link)
+            if ident != b"##SD":  # a list of them, or a VLSD group: not what this check reads
+                continue
+            bad |= ~_whole_data(rows, place, np.frombuffer(buf, np.uint8, sd_length - HEAD.size, sd_data))
+        if bad.any():
+            # the damaged bytes may reach into the records either side of those whose offsets they broke
+            broken = bad.copy()
+            bad[:-1] |= broken[1:]
+            bad[1:] |= broken[:-1]
+            said.append(f"{int(broken.sum())} of the {n} records of the data block at byte {dt} point to no whole "
+                        f"data bytes (the first at byte {records + int(np.argmax(broken)) * size}): those and the "
+                        f"records either side of them left out ({int(bad.sum())})")
+            holes += _runs(bad, records, size)
+    return ("; ".join(said), tuple(holes)) if said else None
+
+
+def _whole_data(rows: NDArray[np.uint8], place: tuple[int, int], sd: NDArray[np.uint8]) -> NDArray[np.bool_]:
+    """(N,) whether each record's offset (``place``: its byte and bytes in the records ``rows`` (N, record bytes))
+    points to a whole length and data in ``sd`` (the SD block's data), and, where the SD block holds the records'
+    data in their order, begins where the record before it ends or ends where the next begins (a damaged offset),
+    and ends where the next record's data begin (a damaged length)."""
+    byte, size = place
+    n = len(rows)
+    if n == 0 or len(sd) < 4:
+        return np.zeros(n, dtype=bool)
+    offsets = np.zeros(n, np.int64)
+    for k in range(size):  # little-endian, whatever the width
+        offsets |= rows[:, byte + k].astype(np.int64) << (8 * k)
+    inside = (offsets >= 0) & (offsets + 4 <= len(sd))
+    at = np.where(inside, offsets, 0)
+    lengths = np.zeros(n, np.int64)
+    for k in range(4):
+        lengths |= sd[at + k].astype(np.int64) << (8 * k)
+    whole = inside & (lengths <= MAX_VLSD_BYTES) & (at + 4 + lengths <= len(sd))
+    ends = at + 4 + lengths
+    follows = np.r_[offsets[0] == 0, ends[:-1] == offsets[1:]]  # from where the one before ends
+    leads = np.r_[ends[:-1] == offsets[1:], ends[-1] <= len(sd)]  # to where the next begins
+    if n < 2 or np.mean(follows & leads) < _IN_ORDER:
+        return whole
+    anchored = whole & (follows | leads)
+    # a length is checked against the next record's offset where that offset is the file's own
+    return anchored & (leads | ~np.r_[anchored[1:], True])
+
+
+def _runs(bad: NDArray[np.bool_], start: int, size: int) -> list[tuple[int, int]]:
+    """Byte ranges of the runs of ``bad`` records (each ``size`` bytes, the first at byte ``start``)."""
+    edges = np.flatnonzero(np.diff(np.r_[0, bad.astype(np.int8), 0]))
+    return [(start + int(a) * size, start + int(b) * size) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
+def write_sorted_without(buf: mmap.mmap, dest_bytes: bytearray, holes: tuple[tuple[int, int], ...],
+                         found: list[Block]) -> None:
+    """Take ``holes`` (whole records) out of the sorted groups' data blocks in ``dest_bytes`` (a copy of ``buf``):
+    each group's other records moved up in its data block, the block's length and the group's record count
+    lessened, the bytes freed at its end zeroed (no link points there)."""
+    for cg_data, _, dt, records, size in _sorted_groups(buf, found):
+        _, length, _, _ = block(buf, dt)
+        _, cycles, *_ = CG_DATA.unpack_from(buf, cg_data)
+        n = min(cycles, (length - HEAD.size) // size)
+        mine = [(a, b) for a, b in holes if records <= a < records + n * size]
+        keep = np.ones(n, dtype=bool)
+        for a, b in mine:
+            keep[(a - records) // size:(b - records) // size] = False
+        if keep.all() and n == cycles:
+            continue
+        rows = np.frombuffer(buf, np.uint8, n * size, records).reshape(n, size)[keep]
+        dest_bytes[records:records + n * size] = rows.tobytes() + bytes((n - len(rows)) * size)
+        struct.pack_into("<Q", dest_bytes, dt + 8, HEAD.size + len(rows) * size)
+        struct.pack_into("<Q", dest_bytes, cg_data + 8, len(rows))
