@@ -24,6 +24,8 @@ in subprocesses (minimum counts at ``--scale 1``):
     realfiles 56                    other people's recordings (``../shared/realdata``: the Husky's ROS1 bag, two
                                     CANedge MDF4 files, a u-blox NMEA capture) cut, with 1, 8 or 64 bytes
                                     overwritten, 4 KiB zeroed, added or lost at a random place, then ingested
+    finalised 28                    the two CANedge MDF4 files as asammdf finalises them (sorted groups, the
+                                    data bytes in SD blocks), damaged as realfiles' are
 
 Outcomes: clean-error (exit != 0, one error line, no traceback), kept-with-warning, ok, crash-or-traceback,
 silent-wrong (exit 0, product differs from the undamaged one, no warning), input-harmed (an input's bytes
@@ -64,7 +66,7 @@ OUTCOMES = ("clean-error", "kept-with-warning", "ok", "crash-or-traceback", "sil
             "partial-left")
 BAD = ("crash-or-traceback", "silent-wrong", "input-harmed", "partial-left")
 COUNTS = {"mcap": 100, "ros1": 40, "rosbag2": 40, "hdf5": 60, "config": 30, "kill": 30, "disk-full": 5, "path": 12,
-          "dca1000": 40, "canlog": 40, "realfiles": 56}
+          "dca1000": 40, "canlog": 40, "realfiles": 56, "finalised": 28}
 PACKET = 1456  #: the DCA1000's default data bytes per packet
 
 
@@ -299,6 +301,9 @@ REAL_INPUTS: list[tuple[str, str, Callable[[Path], list[str]]]] = [
      lambda p: ["--can-log", str(p), *_CSS]),
     ("NEO-M8N NMEA", "gpsd/neo-m8n.log", lambda p: ["--nmea", str(p)]),
 ]
+#: the CANedge files as asammdf finalises them (sorted groups, data bytes in SD blocks), written at setup
+FINALISED_INPUTS = [(f"finalised {name}", f"finalised/{Path(rel).stem}.mf4", args)
+                    for name, rel, args in REAL_INPUTS if rel.endswith(".MF4")]
 REAL_DAMAGE = ("cut", "1 byte overwritten", "8 bytes overwritten", "64 bytes overwritten", "4 KiB zeroed",
                "4 KiB added", "4 KiB lost")
 
@@ -306,14 +311,23 @@ REAL_DAMAGE = ("cut", "1 byte overwritten", "8 bytes overwritten", "64 bytes ove
 def _real_files(base: Base, work: Path) -> None:
     """Each real input's drive.h5 as it ingests undamaged (the reference its damaged copies are held to), and the
     warnings it gives undamaged (no radar, a DBC's reused names), which say nothing of damage."""
-    for name, rel, args in REAL_INPUTS:
+    from asammdf import MDF
+
+    for (_, rel, _), (_, finalised, _) in zip([i for i in REAL_INPUTS if i[1].endswith(".MF4")], FINALISED_INPUTS,
+                                              strict=True):
         if (REAL / rel).is_file():
+            (work / finalised).parent.mkdir(exist_ok=True)
+            with MDF(REAL / rel) as mdf:
+                mdf.save(work / finalised, overwrite=True, compression=0)
+    for name, rel, args in [*REAL_INPUTS, *FINALISED_INPUTS]:
+        root = work if rel.startswith("finalised/") else REAL
+        if (root / rel).is_file():
             out = work / f"ref_real_{len(base.digests)}.h5"
-            r = cli(["ingest", *args(REAL / rel), "-o", str(out), "--allow-partial", "--json"], work)
+            r = cli(["ingest", *args(root / rel), "-o", str(out), "--allow-partial", "--json"], work)
             assert r.returncode == 0, r.stderr
             base.digests[f"real:{name}"] = product_digest(out)
             report = json.loads(r.stdout)
-            base.real_warnings[name] = {w.replace(str(REAL / rel), "LOG") for w in report["warnings"]}
+            base.real_warnings[name] = {w.replace(str(root / rel), "LOG") for w in report["warnings"]}
             base.real_messages[name] = int(report["messages"])
 
 
@@ -751,12 +765,13 @@ def canlog_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
     return trial
 
 
-def realfiles_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
-    name, rel, args = REAL_INPUTS[n % len(REAL_INPUTS)]
-    kind = REAL_DAMAGE[n // len(REAL_INPUTS) % len(REAL_DAMAGE)]
+def realfiles_trial(base: Base, n: int, rng: random.Random, tdir: Path, cls: str = "realfiles") -> Trial:
+    inputs, root = (FINALISED_INPUTS, base.dir) if cls == "finalised" else (REAL_INPUTS, REAL)
+    name, rel, args = inputs[n % len(inputs)]
+    kind = REAL_DAMAGE[n // len(inputs) % len(REAL_DAMAGE)]
     if f"real:{name}" not in base.digests:
-        return Trial("realfiles", n, f"{name}: not in ../shared/realdata", outcome="skipped")
-    data = (REAL / rel).read_bytes()
+        return Trial(cls, n, f"{name}: not in ../shared/realdata", outcome="skipped")
+    data = (root / rel).read_bytes()
     at = rng.randrange(1, len(data) - 4096)
     if kind == "cut":
         damaged = data[:at]
@@ -772,7 +787,7 @@ def realfiles_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial
         damaged = data[:at] + data[at + 4096:]
     log = tdir / Path(rel).name
     log.write_bytes(damaged)
-    trial = Trial("realfiles", n, f"{name}: {kind} at byte {at} of {len(data)}")
+    trial = Trial(cls, n, f"{name}: {kind} at byte {at} of {len(data)}")
     t0 = time.perf_counter()
     r = cli(["ingest", *args(log), "-o", "d.h5", "--allow-partial", "--json"], tdir, timeout=120)
     trial.rc, trial.wall_s = r.returncode, time.perf_counter() - t0
@@ -803,7 +818,8 @@ def run_trial(base: Base, cls: str, n: int, seed: int, root: Path) -> Trial:
             return container_trial(base, cls, n, rng, tdir)
         return {"hdf5": hdf5_trial, "config": config_trial, "kill": kill_trial, "disk-full": disk_trial,
                 "path": path_trial, "dca1000": dca1000_trial, "canlog": canlog_trial,
-                "realfiles": realfiles_trial}[cls](base, n, rng, tdir)
+                "realfiles": realfiles_trial,
+                "finalised": lambda *a: realfiles_trial(*a, cls="finalised")}[cls](base, n, rng, tdir)
     except subprocess.TimeoutExpired:
         return Trial(cls, n, "timeout", outcome="crash-or-traceback", detail="hung for 300 s")
     finally:

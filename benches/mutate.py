@@ -468,6 +468,8 @@ MUTATIONS: list[Mutation] = [
        "            bad[:-1] |= broken[1:]\n            bad[1:] |= broken[:-1]\n", "", MF4_SORTED),
     _m("mf4-sorted-order-unchecked", "ingest", "ingest/mdf4_sorted.py",
        "    if n < 2 or np.mean(follows & leads) < _IN_ORDER:", "    if True:", MF4_SORTED),
+    _m("mf4-sorted-times-unchecked", "ingest", "ingest/mdf4_sorted.py",
+       "                bad |= _out_of_order(", "                bad |= 0 * _out_of_order(", MF4_SORTED),
     _m("mf4-sorted-claimed-count-kept", "ingest", "ingest/mdf4_sorted.py",
        """        struct.pack_into("<Q", dest_bytes, cg_data + 8, len(rows))\n""", "", MF4_CLAIMS),
 ]

@@ -11,7 +11,7 @@ import struct
 import subprocess
 import sys
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from datetime import UTC, datetime
 from functools import cache
 from pathlib import Path
@@ -254,46 +254,57 @@ def test_an_mf4_whose_records_never_agree_again_keeps_the_frames_before_the_dama
 
 
 @pytest.fixture(scope="module")
-def finalised_2022(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The real 2022 CANedge file finalised by asammdf: its frames sorted into a group of fixed 22-byte records in
-    one ``##DT`` block (from byte 752), their data bytes in an ``##SD`` block (from byte 126680)."""
-    out = tmp_path_factory.mktemp("finalised") / "finalised.mf4"
-    with MDF(realdata(CSS, MF4_2022)) as mdf:
-        mdf.save(out, overwrite=True, compression=0)
-    return out
+def finalised(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str], Path]:
+    """A real CANedge file finalised by asammdf (a function of its name, each written once): its frames sorted
+    into groups of fixed-size records, each group's in one ``##DT`` block; the 2022 file's data bytes in an
+    ``##SD`` block (22-byte records from byte 752, the SD block from byte 126680), the 2023 file's in the records."""
+    root = tmp_path_factory.mktemp("finalised")
+
+    @cache
+    def write(name: str) -> Path:
+        out = root / f"{Path(name).stem}.mf4"
+        with MDF(realdata(CSS, name)) as mdf:
+            mdf.save(out, overwrite=True, compression=0)
+        return out
+    return write
 
 
-@pytest.mark.parametrize("at, damage, lost_at_most", [
-    (20956, bytes(range(100, 164)), 5), (88180, bytes(4096), 190), (155290, b"\xff", 3)],
-    ids=["64 bytes in its records", "4 KiB zeroed in its records", "a data length's byte"])
-def test_a_finalised_mf4_damaged_in_its_records_keeps_every_other_frame(tmp_path: Path, finalised_2022: Path,
-                                                                         at: int, damage: bytes,
-                                                                         lost_at_most: int) -> None:
-    """A finalised MDF4 (one sorted group per kind of frame, the data bytes in an SD block) damaged inside its
-    records: asammdf read it in blocks of 1000 records until the damage broke one (an array-shape mismatch, a
-    SystemError, a MemoryError for terabytes from a damaged length) and lost the records of that block and every
-    one after. The records whose data offsets point to no whole data bytes in the SD block (or, the SD block
-    holding the data in the records' order, do not follow on from their neighbours) are left out with the
-    records either side of them, through a copy whose data block holds the others: every other frame is read,
-    in order, and the error says how many were left out and where the first was."""
-    data = finalised_2022.read_bytes()
-    assert list(read_can_log(finalised_2022)) == list(_real_records(MF4_2022))  # undamaged: no check fires
+@pytest.mark.parametrize("name, at, damage, lost_at_most, block", [
+    (MF4_2022, 20956, bytes(range(100, 164)), 7, 728), (MF4_2022, 88180, bytes(4096), 190, 728),
+    (MF4_2022, 155290, b"\xff", 3, 728), (MF4_2023_1, 44525, bytes(4096), 260, 17008)],
+    ids=["64 bytes in its records", "4 KiB zeroed in its records", "a data length's byte", "2023: 4 KiB zeroed"])
+def test_a_finalised_mf4_damaged_in_its_records_keeps_every_other_frame(tmp_path: Path,
+                                                                         finalised: Callable[[str], Path],
+                                                                         name: str, at: int, damage: bytes,
+                                                                         lost_at_most: int, block: int) -> None:
+    """A finalised MDF4 (one sorted group per kind of frame) damaged inside its records: asammdf read it in blocks
+    of 1000 records until the damage broke one (an array-shape mismatch, a SystemError, a MemoryError for
+    terabytes from a damaged length) and lost the records of that block and every one after; where a frame's data
+    bytes stand in its record, it read zeroed records as frames at time 0. The records whose data offsets point to
+    no whole data bytes in the SD block (or, the SD block holding the data in the records' order, do not follow on
+    from their neighbours), and those whose times fall outside the group's longest run in time order, are left out
+    with the records either side of them, through a copy whose data block holds the others: every other frame is
+    read, in order, and the error says how many were left out and where the first was."""
+    path = finalised(name)
+    data = path.read_bytes()
+    reference = _real_records(name)
+    assert list(read_can_log(path)) == list(reference)  # undamaged: no check fires
     log = tmp_path / "damaged.mf4"
     log.write_bytes(data[:at] + damage + data[at + len(damage):])
     got, message = _read_until_error(log)
-    reference = _real_records(MF4_2022)
     assert _in_order_within(got, reference) and len(reference) - lost_at_most <= len(got) < len(reference)
-    assert message.startswith(f"{log}: damaged MDF4 log: ") and "point to no whole data bytes (the first at" in message
+    assert message.startswith(f"{log}: damaged MDF4 log: ") and f"records of the data block at byte {block} are " \
+        f"damaged" in message
     assert message.endswith(f"({len(reference) - len(got)}); {len(got)} frames read")
 
 
 def test_a_finalised_mf4_whose_group_claims_more_records_than_it_holds(tmp_path: Path,
-                                                                        finalised_2022: Path) -> None:
+                                                                        finalised: Callable[[str], Path]) -> None:
     """A group's record count damaged upwards: asammdf read every record its block holds and then failed with an
     error of its own ("IndexError: index 0 is out of bounds for axis 0 with size 0"). Now the copy's count is the
     block's, and the error says what the group claimed."""
-    data = bytearray(finalised_2022.read_bytes())
-    with open(finalised_2022, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+    data = bytearray(finalised(MF4_2022).read_bytes())
+    with open(finalised(MF4_2022), "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
         cycles_at = next(cg_data + 8 for cg_data, *_ in _sorted_groups(buf, list(blocks(buf))))
     struct.pack_into("<Q", data, cycles_at, 5588 + 700)
     log = tmp_path / "claims.mf4"

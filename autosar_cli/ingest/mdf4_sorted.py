@@ -15,13 +15,26 @@ the reader reads a copy whose data block holds the others (:func:`write_sorted_w
 
 from __future__ import annotations
 
+import bisect
 import mmap
 import struct
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .mdf4_layout import CG_DATA, HEAD, MAX_VLSD_BYTES, VLSD_CHANNEL, VLSD_GROUP, Block, block, channels, data_blocks
+from .mdf4_layout import (
+    CG_DATA,
+    HEAD,
+    MASTER_CHANNEL,
+    MAX_VLSD_BYTES,
+    ORDERED_TYPES,
+    VLSD_CHANNEL,
+    VLSD_GROUP,
+    Block,
+    block,
+    channels,
+    data_blocks,
+)
 
 #: the share of a group's records whose data follow on from the record before's, from which its SD block is taken as
 #: written in their order (every writer's: near 1; a writer that shares or shuffles data: near 0)
@@ -60,7 +73,9 @@ def sorted_damage(buf: mmap.mmap, found: list[Block]) -> tuple[str, tuple[tuple[
             holes.append((records + n * size, records + cycles * size))
         rows = np.frombuffer(buf, np.uint8, n * size, records).reshape(n, size)
         bad = np.zeros(n, dtype=bool)
-        for kind, _, place, link in channels(buf, cn):
+        for kind, data_type, place, link in channels(buf, cn):
+            if kind == MASTER_CHANNEL and data_type in ORDERED_TYPES and place is not None:
+                bad |= _out_of_order(_values(rows, place, float_bytes=place[1] if data_type else 0))
             if kind != VLSD_CHANNEL or place is None or not link:
                 continue
             ident, sd_length, _, sd_data = block(buf, link)
@@ -68,13 +83,14 @@ def sorted_damage(buf: mmap.mmap, found: list[Block]) -> tuple[str, tuple[tuple[
                 continue
             bad |= ~_whole_data(rows, place, np.frombuffer(buf, np.uint8, sd_length - HEAD.size, sd_data))
         if bad.any():
-            # the damaged bytes may reach into the records either side of those whose offsets they broke
+            # the damaged bytes may reach into the records either side of those they showed in
             broken = bad.copy()
             bad[:-1] |= broken[1:]
             bad[1:] |= broken[:-1]
-            said.append(f"{int(broken.sum())} of the {n} records of the data block at byte {dt} point to no whole "
-                        f"data bytes (the first at byte {records + int(np.argmax(broken)) * size}): those and the "
-                        f"records either side of them left out ({int(bad.sum())})")
+            said.append(f"{int(broken.sum())} of the {n} records of the data block at byte {dt} are damaged (a data "
+                        f"offset to no whole data bytes, or a time out of order; the first at byte "
+                        f"{records + int(np.argmax(broken)) * size}): those and the records either side of them left "
+                        f"out ({int(bad.sum())})")
             holes += _runs(bad, records, size)
     return ("; ".join(said), tuple(holes)) if said else None
 
@@ -84,13 +100,10 @@ def _whole_data(rows: NDArray[np.uint8], place: tuple[int, int], sd: NDArray[np.
     points to a whole length and data in ``sd`` (the SD block's data), and, where the SD block holds the records'
     data in their order, begins where the record before it ends or ends where the next begins (a damaged offset),
     and ends where the next record's data begin (a damaged length)."""
-    byte, size = place
     n = len(rows)
     if n == 0 or len(sd) < 4:
         return np.zeros(n, dtype=bool)
-    offsets = np.zeros(n, np.int64)
-    for k in range(size):  # little-endian, whatever the width
-        offsets |= rows[:, byte + k].astype(np.int64) << (8 * k)
+    offsets = _values(rows, place).astype(np.int64)
     inside = (offsets >= 0) & (offsets + 4 <= len(sd))
     at = np.where(inside, offsets, 0)
     lengths = np.zeros(n, np.int64)
@@ -105,6 +118,45 @@ def _whole_data(rows: NDArray[np.uint8], place: tuple[int, int], sd: NDArray[np.
     anchored = whole & (follows | leads)
     # a length is checked against the next record's offset where that offset is the file's own
     return anchored & (leads | ~np.r_[anchored[1:], True])
+
+
+def _values(rows: NDArray[np.uint8], place: tuple[int, int], float_bytes: int = 0) -> NDArray[np.float64 | np.uint64]:
+    """(N,) the field ``place`` (its byte and bytes) of each record in ``rows`` (N, record bytes): an unsigned
+    little-endian integer, or with ``float_bytes`` (4 or 8) a float of that many bytes."""
+    byte, size = place
+    if float_bytes in (4, 8) and size == float_bytes:
+        return np.ascontiguousarray(rows[:, byte:byte + size]).view(f"<f{size}").ravel().astype(np.float64)
+    out = np.zeros(len(rows), np.uint64)
+    for k in range(size):  # little-endian, whatever the width
+        out |= rows[:, byte + k].astype(np.uint64) << np.uint64(8 * k)
+    return out
+
+
+def _out_of_order(times: NDArray[np.float64 | np.uint64]) -> NDArray[np.bool_]:
+    """(N,) which records' ``times`` lie outside the longest run of them that does not fall (a group's records are
+    in time order: a damaged time stands out of it); none where half or more of the steps fall (a group not kept
+    in time order)."""
+    n = len(times)
+    if n < 2 or not np.any(times[1:] < times[:-1]) or np.mean(times[1:] >= times[:-1]) < _IN_ORDER:
+        return np.zeros(n, dtype=bool)
+    # the longest non-decreasing subsequence (patience sorting): tails[k] ends the best run of length k + 1
+    tails: list[float] = []
+    ends: list[int] = []
+    before = np.full(n, -1)
+    for i, t in enumerate(times.tolist()):
+        k = bisect.bisect_right(tails, t)
+        before[i] = ends[k - 1] if k else -1
+        if k == len(tails):
+            tails.append(t)
+            ends.append(i)
+        else:
+            tails[k], ends[k] = t, i
+    outside = np.ones(n, dtype=bool)
+    i = ends[-1]
+    while i >= 0:
+        outside[i] = False
+        i = before[i]
+    return outside
 
 
 def _runs(bad: NDArray[np.bool_], start: int, size: int) -> list[tuple[int, int]]:
