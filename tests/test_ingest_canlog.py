@@ -315,6 +315,22 @@ def test_a_finalised_mf4_whose_group_claims_more_records_than_it_holds(tmp_path:
                        f"the block holds 5588; 5588 frames read")
 
 
+@pytest.mark.parametrize("at, says", [
+    (88, "a link points to byte 9223372036854775807, past any file: damaged there"),
+    (5352 + 8, "its ##CG block at byte 5352 runs past the end (9223372036854775807 bytes)")],
+    ids=["a link", "a block's length"])
+def test_an_mf4_link_or_length_past_any_file_is_damage_not_a_cut(tmp_path: Path, at: int, says: str) -> None:
+    """A link or block length damaged to a value no file reaches (over 2^40 bytes) was reported as the file cut
+    short ("truncated ... block header at byte 9520860662089567504 cut off", the fault campaign's): it is damage."""
+    data = bytearray(realdata(CSS, MF4_2022).read_bytes())
+    struct.pack_into("<Q", data, at, (1 << 63) - 1)
+    log = tmp_path / "damaged.MF4"
+    log.write_bytes(bytes(data))
+    with pytest.raises(CanLogError) as info:
+        list(read_can_log(log))
+    assert str(info.value).startswith(f"{log}: damaged MDF4 log, no frame read: {says} (the reader: ")
+
+
 def test_a_frame_whose_damaged_id_no_frame_can_have_is_warned_of(tmp_path: Path) -> None:
     """8 bytes of the real 2022 CANedge file overwritten inside one frame's fixed record (a fault campaign trial's):
     its id reads 1614028 on a standard frame, which no standard frame can have (0x7FF at most), and its stamp the

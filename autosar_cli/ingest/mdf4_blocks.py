@@ -29,6 +29,7 @@ from .mdf4_layout import (
     MASTER_CHANNEL,
     MAX_VLSD_BYTES,
     ORDERED_TYPES,
+    PAST_ANY_FILE,
     VLSD_CHANNEL,
     VLSD_GROUP,
     Block,
@@ -61,7 +62,7 @@ def mdf4_cut(path: Path) -> CutShort | None:
             for pos, ident, length, links in blocks(buf):
                 if pos + length > size and not (unfinished and ident == b"##DT"):
                     return CutShort(f"its {ident.decode('latin-1')} block at byte {pos} runs past the end "
-                                    f"({length} bytes)")
+                                    f"({length} bytes)", damaged=length > PAST_ANY_FILE)
                 found.append((pos, ident, length, links))
             if unfinished:
                 for dg, dt in data_blocks(found):

@@ -15,6 +15,7 @@ VLSD_CHANNEL = 1  #: cn_type: its record holds an offset into a VLSD group's or 
 MASTER_CHANNEL = 2  #: cn_type: the record's time
 ORDERED_TYPES = (0, 4)  #: cn_data_type: unsigned integer, float, little-endian
 MAX_VLSD_BYTES = 1 << 16  #: a logger's variable-length record (a CAN FD frame's data: 64 bytes) is far shorter
+PAST_ANY_FILE = 1 << 40  #: bytes no MDF4 file reaches: a link or length beyond is damage, not a cut
 CG_DATA = struct.Struct("<QQHH4xII")  #: a CG block's record id, cycle count, flags, path separator, bytes, inval bytes
 
 #: a field of a record: (its first byte after the record id, its bytes), an unsigned little-endian integer
@@ -24,7 +25,10 @@ Block = tuple[int, bytes, int, tuple[int, ...]]
 
 
 def block(buf: mmap.mmap, pos: int) -> tuple[bytes, int, tuple[int, ...], int]:
-    """(id, length, links, data offset) of the block at ``pos``; ValueError where its header or links are cut."""
+    """(id, length, links, data offset) of the block at ``pos``; ValueError where its header or links are cut, or
+    where ``pos`` lies beyond any file (a damaged link, not a cut)."""
+    if pos > PAST_ANY_FILE:
+        raise ValueError(f"a link points to byte {pos}, past any file: damaged there")
     if pos + HEAD.size > len(buf):
         raise ValueError(f"block header at byte {pos} cut off")
     ident, length, n_links = HEAD.unpack_from(buf, pos)
