@@ -298,6 +298,20 @@ def test_a_finalised_mf4_damaged_in_its_records_keeps_every_other_frame(tmp_path
     assert message.endswith(f"({len(reference) - len(got)}); {len(got)} frames read")
 
 
+def test_a_finalised_mf4_frame_stamped_a_step_early_is_not_damage(tmp_path: Path,
+                                                                    finalised: Callable[[str], Path]) -> None:
+    """Two neighbouring records of the finalised 2022 file with their times swapped (a writer that stamps a frame
+    a step early: its time falls by one step): not damage, every frame read, no error."""
+    data = bytearray(finalised(MF4_2022).read_bytes())
+    first = 752 + 22 * 3000  # record 3000's time, an 8-byte float at its start
+    a, b = data[first:first + 8], data[first + 22:first + 30]
+    data[first:first + 8], data[first + 22:first + 30] = b, a
+    log = tmp_path / "early.mf4"
+    log.write_bytes(bytes(data))
+    got = list(read_can_log(log))
+    assert len(got) == 5588 and sorted(r.t_ns for r in got) == sorted(r.t_ns for r in _real_records(MF4_2022))
+
+
 def test_a_finalised_mf4_whose_group_claims_more_records_than_it_holds(tmp_path: Path,
                                                                         finalised: Callable[[str], Path]) -> None:
     """A group's record count damaged upwards: asammdf read every record its block holds and then failed with an

@@ -39,6 +39,9 @@ from .mdf4_layout import (
 #: the share of a group's records whose data follow on from the record before's, from which its SD block is taken as
 #: written in their order (every writer's: near 1; a writer that shares or shuffles data: near 0)
 _IN_ORDER = 0.5
+#: a time out of order is damaged where it lies beyond its in-order neighbours' by more than this many of the group's
+#: median steps
+_STEP_SLACK = 1000
 
 
 def _sorted_groups(buf: mmap.mmap, found: list[Block]) -> list[tuple[int, int, int, int, int]]:
@@ -134,8 +137,8 @@ def _values(rows: NDArray[np.uint8], place: tuple[int, int], float_bytes: int = 
 
 def _out_of_order(times: NDArray[np.float64 | np.uint64]) -> NDArray[np.bool_]:
     """(N,) which records' ``times`` lie outside the longest run of them that does not fall (a group's records are
-    in time order: a damaged time stands out of it); none where half or more of the steps fall (a group not kept
-    in time order)."""
+    in time order: a damaged time stands out of it), and beyond the times of that run's records either side by
+    ``_STEP_SLACK`` median steps; none where half or more of the steps fall (a group not kept in time order)."""
     n = len(times)
     if n < 2 or not np.any(times[1:] < times[:-1]) or np.mean(times[1:] >= times[:-1]) < _IN_ORDER:
         return np.zeros(n, dtype=bool)
@@ -156,7 +159,15 @@ def _out_of_order(times: NDArray[np.float64 | np.uint64]) -> NDArray[np.bool_]:
     while i >= 0:
         outside[i] = False
         i = before[i]
-    return outside
+    # only a time far outside its in-order neighbours' (a writer may stamp a frame a step or two early)
+    ordered = np.flatnonzero(~outside)
+    steps = np.diff(times[ordered].astype(np.float64))
+    slack = _STEP_SLACK * float(np.median(steps[steps > 0])) if np.any(steps > 0) else 0.0
+    t = times.astype(np.float64)
+    k = np.searchsorted(ordered, np.arange(n))
+    low = np.where(k > 0, t[ordered[np.maximum(k - 1, 0)]], -np.inf)
+    high = np.where(k < len(ordered), t[ordered[np.minimum(k, len(ordered) - 1)]], np.inf)
+    return outside & ((t < low - slack) | (t > high + slack))
 
 
 def _runs(bad: NDArray[np.bool_], start: int, size: int) -> list[tuple[int, int]]:
