@@ -79,6 +79,8 @@ UNLISTED_TOPICS = ("tests/test_ingest_damage.py::"
 MF4_DAMAGE = "tests/test_ingest_canlog.py::test_a_real_mf4_damaged_inside_its_records_keeps_the_frames_around_it"
 MF4_PASTED = "tests/test_ingest_canlog.py::test_records_pasted_from_elsewhere_in_an_mf4_are_not_read_twice"
 MF4_SORTED = "tests/test_ingest_canlog.py::test_a_finalised_mf4_damaged_in_its_records_keeps_every_other_frame"
+MF4_STAMPS = "tests/test_ingest_canlog.py::test_an_mf4_frame_whose_stamp_falls_out_of_its_groups_order_is_left_out"
+MF4_EARLY = "tests/test_ingest_canlog.py::test_a_finalised_mf4_frame_stamped_a_step_early_is_not_damage"
 MF4_CLAIMS = "tests/test_ingest_canlog.py::test_a_finalised_mf4_whose_group_claims_more_records_than_it_holds"
 ODD_INPUTS = "tests/test_safety.py::test_an_input_that_is_a_pipe_a_link_loop_or_a_directory_is_one_line"
 NMEA_DAMAGE = "tests/test_ingest_nmea.py::test_a_block_of_nul_bytes_in_a_capture_is_one_damage_warning_with_its_place"
@@ -469,7 +471,11 @@ MUTATIONS: list[Mutation] = [
     _m("mf4-sorted-order-unchecked", "ingest", "ingest/mdf4_sorted.py",
        "    if n < 2 or np.mean(follows & leads) < _IN_ORDER:", "    if True:", MF4_SORTED),
     _m("mf4-sorted-times-unchecked", "ingest", "ingest/mdf4_sorted.py",
-       "                bad |= _out_of_order(", "                bad |= 0 * _out_of_order(", MF4_SORTED),
+       "                bad |= out_of_order(", "                bad |= 0 * out_of_order(", MF4_SORTED),
+    _m("mf4-stamps-unchecked", "ingest", "ingest/mdf4_blocks.py",
+       "            flagged[mine] = out_of_order(times.astype(np.float64))", "            pass", MF4_STAMPS),
+    _m("mf4-sorted-time-slack-none", "ingest", "ingest/mdf4_sorted.py", "_STEP_SLACK = 1000", "_STEP_SLACK = 0",
+       MF4_EARLY),
     _m("mf4-sorted-claimed-count-kept", "ingest", "ingest/mdf4_sorted.py",
        """        struct.pack_into("<Q", dest_bytes, cg_data + 8, len(rows))\n""", "", MF4_CLAIMS),
 ]

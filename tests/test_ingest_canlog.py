@@ -346,16 +346,16 @@ def test_an_mf4_link_or_length_past_any_file_is_damage_not_a_cut(tmp_path: Path,
 
 
 def test_a_frame_whose_damaged_id_no_frame_can_have_is_warned_of(tmp_path: Path) -> None:
-    """8 bytes of the real 2022 CANedge file overwritten inside one frame's fixed record (a fault campaign trial's):
-    its id reads 1614028 on a standard frame, which no standard frame can have (0x7FF at most), and its stamp the
-    recording's start. Before, it was one more unknown id in the CAN counts; now it is skipped with a warning, and
-    the drive is the whole file's less that frame."""
+    """3 bytes of a frame's id in the real 2022 CANedge file overwritten (a fault campaign trial's, less its bytes
+    in the stamp): its id reads 1614028 on a standard frame, which no standard frame can have (0x7FF at most).
+    Before, it was one more unknown id in the CAN counts; now it is skipped with a warning, and the drive is the
+    whole file's less that frame."""
     from autosar_cli.config import load_config
     from autosar_cli.ingest.pipeline import ingest
 
     data = realdata(CSS, MF4_2022).read_bytes()
     log = tmp_path / "damaged.MF4"
-    log.write_bytes(data[:38920] + bytes.fromhex("45d55f1abe6406c5") + data[38928:])
+    log.write_bytes(data[:38925] + bytes.fromhex("6406c5") + data[38928:])
     damaged = list(read_can_log(log))
     changed = [(a, b) for a, b in zip(_real_records(MF4_2022), damaged, strict=True) if a != b]
     assert len(changed) == 1 and changed[0][1].frame_id == 1614028 and not changed[0][1].is_extended
@@ -365,6 +365,25 @@ def test_a_frame_whose_damaged_id_no_frame_can_have_is_warned_of(tmp_path: Path)
     assert report.can["impossible_ids"] == 1 and "0x18A0CC" not in report.can["unknown_ids"]
     assert "1 CAN frames with an id no frame of theirs can have (a standard id over 0x7FF) skipped (damaged " \
            "data?)" in report.warnings
+
+
+@pytest.mark.parametrize("name, at, damage", [(MF4_2022, 38920, bytes.fromhex("45d55f1abe6406c5")),
+                                              (MF4_2023_1, 161711, bytes(8))],
+                         ids=["2022: a stamp's high bytes", "2023: 8 bytes zeroed"])
+def test_an_mf4_frame_whose_stamp_falls_out_of_its_groups_order_is_left_out(tmp_path: Path, name: str, at: int,
+                                                                            damage: bytes) -> None:
+    """Bytes of a frame's stamp overwritten inside a CANedge file's records (fault campaign trials': they parse, so
+    the walk saw nothing and the frame went into the drive at the recording's start, or at time 0). Each group's
+    frames are in time order (checked on the three real files); a stamp far out of it is damage: that frame and
+    those either side are left out, every other frame read, and the error says so."""
+    data = realdata(CSS, name).read_bytes()
+    log = tmp_path / "damaged.MF4"
+    log.write_bytes(data[:at] + damage + data[at + len(damage):])
+    got, message = _read_until_error(log)
+    reference = _real_records(name)
+    assert _in_order_within(got, reference) and len(reference) - 4 <= len(got) < len(reference)
+    assert "1 of the records read have a time out of their group's order (a damaged stamp; the first at byte " \
+        in message and message.endswith(f"their frames and those either side left out; {len(got)} frames read")
 
 
 def test_a_can_log_error_names_the_users_file_not_a_cut_copy(tmp_path: Path) -> None:

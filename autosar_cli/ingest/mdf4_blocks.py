@@ -24,6 +24,9 @@ from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+from numpy.typing import NDArray
+
 from .mdf4_layout import (
     CG_DATA,
     MASTER_CHANNEL,
@@ -40,7 +43,7 @@ from .mdf4_layout import (
     data_blocks,
     field,
 )
-from .mdf4_sorted import sorted_damage, write_sorted_without
+from .mdf4_sorted import out_of_order, sorted_damage, write_sorted_without
 from .records import CutShort
 
 _UNFINISHED_LAST_DT = 1 << 2  # id_unfin_flags: the last ##DT block's length is to be updated
@@ -91,6 +94,7 @@ class _Records:
     #: record id -> its time (master channel) where stored whole bytes of an unsigned integer or a float (whose
     #: bytes order as their value does where it is not negative)
     times: dict[int, Field]
+    float_times: frozenset[int]  #: the record ids among ``times``' whose time is a float
     last: bool  #: no block lies after the records: a hole cut out of them moves no link
 
 
@@ -108,6 +112,7 @@ def _records_of(buf: mmap.mmap, dg: int, dt: int, last: bool) -> _Records | None
     ids: dict[int, int] = {}  # CG block -> record id
     pointers: list[tuple[int, int, Field | None]] = []  # (record id, the CG block a channel points into, its field)
     times: dict[int, Field] = {}
+    float_times: set[int] = set()
     cg = dg_links[1]
     while cg:
         _, _, cg_links, cg_data = block(buf, cg)
@@ -119,10 +124,13 @@ def _records_of(buf: mmap.mmap, dg: int, dt: int, last: bool) -> _Records | None
                 pointers.append((record_id, link, place if kind == VLSD_CHANNEL else None))
             elif kind == MASTER_CHANNEL and data_type in ORDERED_TYPES and place is not None:
                 times[record_id] = place
+                if data_type:
+                    float_times.add(record_id)
         cg = cg_links[0]
     vlsd = [(ids[link], rid, field) for rid, link, field in pointers if link in ids and sizes[ids[link]] is None]
     return _Records(records, id_size, sizes, [(v, rid) for v, rid, _ in vlsd],
-                    {rid: (v, field) for v, rid, field in vlsd if field is not None}, times, last)
+                    {rid: (v, field) for v, rid, field in vlsd if field is not None}, times, frozenset(float_times),
+                    last)
 
 
 def _next_record(buf: mmap.mmap, pos: int, end: int, rec: _Records) -> tuple[int, int, int] | str:
@@ -164,6 +172,7 @@ def _cut_record(buf: mmap.mmap, dg: int, dt: int, last: bool) -> CutShort | None
     counts = dict.fromkeys(rec.sizes, 0)
     holes: list[tuple[int, int]] = []
     said: list[str] = []
+    fixed: list[int] = []  # where each fixed record read begins
     time = -1  # the time of the last record read before the last hole, as its field reads
     # the ends of the last whole records: damage shows only where it breaks a record's id or length, so the
     # record or two before that may hold damaged bytes that parse (a frame's data bytes are not checked)
@@ -172,7 +181,7 @@ def _cut_record(buf: mmap.mmap, dg: int, dt: int, last: bool) -> CutShort | None
         found = _next_record(buf, pos, end, rec)
         if found == "cut":
             said.append(f"its last record at byte {pos} is cut off ({_cut_there(buf, pos, rec)} there)")
-            return CutShort("; ".join(said), wholes[-1], damaged=bool(holes), holes=tuple(holes))
+            return _with_stamps(buf, rec, fixed, said, holes, wholes[-1], damaged=bool(holes))
         if isinstance(found, str):
             what = ("has an unknown record id" if found == "id" else
                     f"says it holds {struct.unpack_from('<I', buf, pos + rec.id_size)[0]} bytes")
@@ -183,7 +192,7 @@ def _cut_record(buf: mmap.mmap, dg: int, dt: int, last: bool) -> CutShort | None
             if again is None:
                 said.append(f"record at byte {pos} {what}: damaged there, its {end - kept_to} bytes on from byte "
                             f"{kept_to} not read")
-                return CutShort("; ".join(said), kept_to, damaged=True, holes=tuple(holes))
+                return _with_stamps(buf, rec, fixed, said, holes, kept_to, damaged=True)
             said.append(f"record at byte {pos} {what}: damaged there, bytes {kept_to} to {again[0]} left out and "
                         f"the records after them read")
             pos, base, time = again
@@ -192,11 +201,71 @@ def _cut_record(buf: mmap.mmap, dg: int, dt: int, last: bool) -> CutShort | None
             counts = dict.fromkeys(rec.sizes, 0)
             wholes = deque([pos], maxlen=_DAMAGE_MARGIN + 1)
             continue
-        record_id, _, pos = found
+        record_id, _, after = found
+        if rec.sizes[record_id] is not None:
+            fixed.append(pos)
+        pos = after
         counts[record_id] += 1
         if all(counts[vlsd] == counts[parent] for vlsd, parent in rec.pairs):
             wholes.append(pos)
-    return CutShort("; ".join(said), damaged=True, holes=tuple(holes)) if holes else None
+    return _with_stamps(buf, rec, fixed, said, holes, None, damaged=bool(holes))
+
+
+def _with_stamps(buf: mmap.mmap, rec: _Records, fixed: list[int], said: list[str], holes: list[tuple[int, int]],
+                 whole_bytes: int | None, damaged: bool) -> CutShort | None:
+    """What the walk found (``said``, ``holes``, the bytes whole up to ``whole_bytes``), and the frames among the
+    fixed records read (starting at bytes ``fixed``) whose times fall out of their group's order
+    (:func:`~.mdf4_sorted.out_of_order`: a damaged stamp that parses), left out with the frames either side of
+    them: a hole from the frame before each to the frame after it. None where nothing was found."""
+    stop = len(buf) if whole_bytes is None else whole_bytes
+    starts = np.array(fixed, dtype=np.int64)
+    keep = starts < stop
+    for a, b in holes:
+        keep &= (starts < a) | (starts >= b)
+    starts = starts[keep]
+    flagged = np.zeros(len(starts), dtype=bool)
+    if len(starts) and rec.times:
+        raw = np.frombuffer(buf, np.uint8)
+        ids = _gathered(raw, starts, rec.id_size) if rec.id_size else np.full(len(starts), next(iter(rec.sizes)))
+        for record_id, (byte, size) in rec.times.items():
+            mine = np.flatnonzero(ids == record_id)
+            at = starts[mine] + rec.id_size + byte
+            if record_id in rec.float_times and size in (4, 8):
+                times = np.ascontiguousarray(raw[at[:, None] + np.arange(size)]).view(f"<f{size}").ravel()
+            else:
+                times = _gathered(raw, at, size).astype(np.float64)
+            flagged[mine] = out_of_order(times.astype(np.float64))
+        del raw  # a view of the file, which closes after this
+    if flagged.any():
+        bad = np.flatnonzero(flagged)
+        ends = np.r_[starts[1:], stop]  # a frame: its fixed record and the data bytes after it
+        said.append(f"{len(bad)} of the records read have a time out of their group's order (a damaged stamp; the "
+                    f"first at byte {int(starts[bad[0]])}): their frames and those either side left out")
+        holes = _merged([*holes, *((int(starts[max(i - 1, 0)]), int(ends[min(i + 1, len(starts) - 1)]))
+                                   for i in bad.tolist())])
+        damaged = True
+    if not said:
+        return None
+    return CutShort("; ".join(said), whole_bytes, damaged=damaged, holes=tuple(holes))
+
+
+def _gathered(raw: NDArray[np.uint8], at: NDArray[np.int64], size: int) -> NDArray[np.uint64]:
+    """The unsigned little-endian integers of ``size`` bytes at bytes ``at`` of ``raw``."""
+    out = np.zeros(len(at), np.uint64)
+    for k in range(size):
+        out |= raw[at + k].astype(np.uint64) << np.uint64(8 * k)
+    return out
+
+
+def _merged(ranges: list[tuple[int, int]]) -> list[tuple[int, int]]:
+    """``ranges`` [a, b) sorted, those that touch or overlap joined."""
+    out: list[tuple[int, int]] = []
+    for a, b in sorted(ranges):
+        if out and a <= out[-1][1]:
+            out[-1] = (out[-1][0], max(out[-1][1], b))
+        else:
+            out.append((a, b))
+    return out
 
 
 def _cut_there(buf: mmap.mmap, pos: int, rec: _Records) -> str:

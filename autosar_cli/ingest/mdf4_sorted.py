@@ -78,7 +78,7 @@ def sorted_damage(buf: mmap.mmap, found: list[Block]) -> tuple[str, tuple[tuple[
         bad = np.zeros(n, dtype=bool)
         for kind, data_type, place, link in channels(buf, cn):
             if kind == MASTER_CHANNEL and data_type in ORDERED_TYPES and place is not None:
-                bad |= _out_of_order(_values(rows, place, float_bytes=place[1] if data_type else 0))
+                bad |= out_of_order(_values(rows, place, float_bytes=place[1] if data_type else 0))
             if kind != VLSD_CHANNEL or place is None or not link:
                 continue
             ident, sd_length, _, sd_data = block(buf, link)
@@ -135,7 +135,7 @@ def _values(rows: NDArray[np.uint8], place: tuple[int, int], float_bytes: int = 
     return out
 
 
-def _out_of_order(times: NDArray[np.float64 | np.uint64]) -> NDArray[np.bool_]:
+def out_of_order(times: NDArray[np.float64 | np.uint64]) -> NDArray[np.bool_]:
     """(N,) which records' ``times`` lie outside the longest run of them that does not fall (a group's records are
     in time order: a damaged time stands out of it), and beyond the times of that run's records either side by
     ``_STEP_SLACK`` median steps; none where half or more of the steps fall (a group not kept in time order)."""
