@@ -474,7 +474,7 @@ MUTATIONS: list[Mutation] = [
        "                bad |= out_of_order(", "                bad |= 0 * out_of_order(", MF4_SORTED),
     _m("mf4-stamps-unchecked", "ingest", "ingest/mdf4_blocks.py",
        "            flagged[mine] = out_of_order(times.astype(np.float64))", "            pass", MF4_STAMPS),
-    _m("mf4-sorted-time-slack-none", "ingest", "ingest/mdf4_sorted.py", "_STEP_SLACK = 1000", "_STEP_SLACK = 0",
+    _m("mf4-sorted-time-slack-none", "ingest", "ingest/mdf4_sorted.py", "_STEP_SLACK = 10", "_STEP_SLACK = 0",
        MF4_EARLY),
     _m("mf4-sorted-claimed-count-kept", "ingest", "ingest/mdf4_sorted.py",
        """        struct.pack_into("<Q", dest_bytes, cg_data + 8, len(rows))\n""", "", MF4_CLAIMS),

@@ -271,8 +271,9 @@ def finalised(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str], Path]
 
 @pytest.mark.parametrize("name, at, damage, lost_at_most, block", [
     (MF4_2022, 20956, bytes(range(100, 164)), 7, 728), (MF4_2022, 88180, bytes(4096), 190, 728),
-    (MF4_2022, 155290, b"\xff", 3, 728), (MF4_2023_1, 44525, bytes(4096), 260, 17008)],
-    ids=["64 bytes in its records", "4 KiB zeroed in its records", "a data length's byte", "2023: 4 KiB zeroed"])
+    (MF4_2022, 155290, b"\xff", 3, 728), (MF4_2023_1, 21610, bytes(4096), 260, 17008)],
+    ids=["64 bytes in its records", "4 KiB zeroed in its records", "a data length's byte",
+         "2023: 4 KiB zeroed near its start"])
 def test_a_finalised_mf4_damaged_in_its_records_keeps_every_other_frame(tmp_path: Path,
                                                                          finalised: Callable[[str], Path],
                                                                          name: str, at: int, damage: bytes,

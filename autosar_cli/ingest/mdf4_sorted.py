@@ -40,8 +40,9 @@ from .mdf4_layout import (
 #: written in their order (every writer's: near 1; a writer that shares or shuffles data: near 0)
 _IN_ORDER = 0.5
 #: a time out of order is damaged where it lies beyond its in-order neighbours' by more than this many of the group's
-#: median steps
-_STEP_SLACK = 1000
+#: median steps (a writer may stamp a frame a step or two early; a time base that starts at 0 puts a zeroed stamp
+#: only as many steps below its neighbours as records came before them)
+_STEP_SLACK = 10
 
 
 def _sorted_groups(buf: mmap.mmap, found: list[Block]) -> list[tuple[int, int, int, int, int]]:
