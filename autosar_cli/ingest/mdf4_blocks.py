@@ -224,7 +224,7 @@ def _with_stamps(buf: mmap.mmap, rec: _Records, fixed: list[int], said: list[str
         keep &= (starts < a) | (starts >= b)
     starts = starts[keep]
     flagged = np.zeros(len(starts), dtype=bool)
-    if len(starts) and rec.times:
+    if len(starts) and rec.times and rec.last:  # holes are cut out of the file: no block may lie after them
         raw = np.frombuffer(buf, np.uint8)
         ids = _gathered(raw, starts, rec.id_size) if rec.id_size else np.full(len(starts), next(iter(rec.sizes)))
         for record_id, (byte, size) in rec.times.items():
