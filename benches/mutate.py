@@ -473,7 +473,7 @@ MUTATIONS: list[Mutation] = [
     _m("mf4-sorted-times-unchecked", "ingest", "ingest/mdf4_sorted.py",
        "                bad |= out_of_order(", "                bad |= 0 * out_of_order(", MF4_SORTED),
     _m("mf4-stamps-unchecked", "ingest", "ingest/mdf4_blocks.py",
-       "            flagged[mine] = out_of_order(times.astype(np.float64))", "            pass", MF4_STAMPS),
+       "            flagged[mine] = out_of_order(", "            flagged[mine] = 0 * out_of_order(", MF4_STAMPS),
     _m("mf4-sorted-time-slack-none", "ingest", "ingest/mdf4_sorted.py", "_STEP_SLACK = 10", "_STEP_SLACK = 0",
        MF4_EARLY),
     _m("mf4-sorted-claimed-count-kept", "ingest", "ingest/mdf4_sorted.py",

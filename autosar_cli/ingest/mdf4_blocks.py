@@ -21,11 +21,11 @@ from __future__ import annotations
 import mmap
 import struct
 from collections import deque
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
 from .mdf4_layout import (
     CG_DATA,
@@ -42,6 +42,7 @@ from .mdf4_layout import (
     channels,
     data_blocks,
     field,
+    fields_at,
 )
 from .mdf4_sorted import out_of_order, sorted_damage, write_sorted_without
 from .records import CutShort
@@ -226,15 +227,12 @@ def _with_stamps(buf: mmap.mmap, rec: _Records, fixed: list[int], said: list[str
     flagged = np.zeros(len(starts), dtype=bool)
     if len(starts) and rec.times and rec.last:  # holes are cut out of the file: no block may lie after them
         raw = np.frombuffer(buf, np.uint8)
-        ids = _gathered(raw, starts, rec.id_size) if rec.id_size else np.full(len(starts), next(iter(rec.sizes)))
+        ids = (fields_at(raw, starts, rec.id_size) if rec.id_size
+               else np.full(len(starts), next(iter(rec.sizes)), dtype=np.uint64))
         for record_id, (byte, size) in rec.times.items():
             mine = np.flatnonzero(ids == record_id)
-            at = starts[mine] + rec.id_size + byte
-            if record_id in rec.float_times and size in (4, 8):
-                times = np.ascontiguousarray(raw[at[:, None] + np.arange(size)]).view(f"<f{size}").ravel()
-            else:
-                times = _gathered(raw, at, size).astype(np.float64)
-            flagged[mine] = out_of_order(times.astype(np.float64))
+            flagged[mine] = out_of_order(fields_at(raw, starts[mine] + rec.id_size + byte, size,
+                                                   record_id in rec.float_times))
         del raw  # a view of the file, which closes after this
     if flagged.any():
         bad = np.flatnonzero(flagged)
@@ -247,14 +245,6 @@ def _with_stamps(buf: mmap.mmap, rec: _Records, fixed: list[int], said: list[str
     if not said:
         return None
     return CutShort("; ".join(said), whole_bytes, damaged=damaged, holes=tuple(holes))
-
-
-def _gathered(raw: NDArray[np.uint8], at: NDArray[np.int64], size: int) -> NDArray[np.uint64]:
-    """The unsigned little-endian integers of ``size`` bytes at bytes ``at`` of ``raw``."""
-    out = np.zeros(len(at), np.uint64)
-    for k in range(size):
-        out |= raw[at + k].astype(np.uint64) << np.uint64(8 * k)
-    return out
 
 
 def _merged(ranges: list[tuple[int, int]]) -> list[tuple[int, int]]:
@@ -344,18 +334,26 @@ def _agreeing_run(buf: mmap.mmap, pos: int, rec: _Records, not_before: int
     return (second, at_second, time_at_second) if second is not None and checked >= 2 else None
 
 
+def _whole_records(buf: mmap.mmap, start: int, stop: int, rec: _Records) -> Iterator[tuple[int, int, int]]:
+    """(record id, byte after its id, byte after it) of each whole record from ``start`` on, up to ``stop`` or the
+    first that does not parse."""
+    pos = start
+    while pos < stop:
+        found = _next_record(buf, pos, stop, rec)
+        if isinstance(found, str):
+            return
+        yield found
+        pos = found[2]
+
+
 def _read_between(buf: mmap.mmap, start: int, stop: int, rec: _Records) -> tuple[dict[int, int], int]:
     """Each VLSD group's bytes (lengths and data) in the whole records from ``start`` to ``stop``, and the time of
     the last of them that has one (-1: none)."""
     out: dict[int, int] = {}
-    pos, time = start, -1
-    while pos < stop:
-        found = _next_record(buf, pos, stop, rec)
-        if isinstance(found, str):
-            break
-        record_id, body, pos = found
+    time = -1
+    for record_id, body, after in _whole_records(buf, start, stop, rec):
         if rec.sizes[record_id] is None:
-            out[record_id] = out.get(record_id, 0) + pos - body
+            out[record_id] = out.get(record_id, 0) + after - body
         elif record_id in rec.times:
             time = field(buf, body + rec.times[record_id][0], rec.times[record_id][1])
     return out, time
@@ -384,14 +382,9 @@ def write_without_holes(path: Path, dest: Path, cut: CutShort) -> None:
             for a, b in pieces[1:]:
                 piece = bytearray(buf[a:b])
                 shift: dict[int, int] = {}  # VLSD record id -> what this piece's offsets exceed the copy's by
-                pos = a
-                while pos < b:
-                    found = _next_record(buf, pos, b, rec)
-                    if isinstance(found, str):
-                        break
-                    record_id, body, pos = found
+                for record_id, body, after in _whole_records(buf, a, b, rec):
                     if rec.sizes[record_id] is None:
-                        written[record_id] = written.get(record_id, 0) + pos - body
+                        written[record_id] = written.get(record_id, 0) + after - body
                     elif record_id in rec.offsets:
                         vlsd, (byte, size) = rec.offsets[record_id]
                         at = body + byte - a

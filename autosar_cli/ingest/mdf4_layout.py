@@ -8,6 +8,9 @@ import re
 import struct
 from collections.abc import Iterator
 
+import numpy as np
+from numpy.typing import NDArray
+
 HEAD = struct.Struct("<4s4xQQ")  #: a block's id, length and link count
 _BLOCK_ID = re.compile(rb"##[A-Z]{2}")
 VLSD_GROUP = 1  #: cg_flags: a variable-length signal data group
@@ -57,6 +60,18 @@ def blocks(buf: mmap.mmap) -> Iterator[Block]:
 def data_blocks(found: list[Block]) -> list[tuple[int, int]]:
     """(DG block, its data block) of each data group among ``found`` that has data."""
     return [(pos, links[2]) for pos, ident, _, links in found if ident == b"##DG" and len(links) > 2 and links[2]]
+
+
+def fields_at(raw: NDArray[np.uint8], at: NDArray[np.int64], size: int, is_float: bool = False
+              ) -> NDArray[np.uint64] | NDArray[np.float64]:
+    """The fields of ``size`` bytes at bytes ``at`` of ``raw``: little-endian unsigned integers (uint64), or with
+    ``is_float`` floats of 4 or 8 bytes (float64)."""
+    if is_float and size in (4, 8):
+        return np.ascontiguousarray(raw[at[:, None] + np.arange(size)]).view(f"<f{size}").ravel().astype(np.float64)
+    out = np.zeros(len(at), np.uint64)
+    for k in range(size):  # little-endian, whatever the width
+        out |= raw[at + k].astype(np.uint64) << np.uint64(8 * k)
+    return out
 
 
 def field(buf: mmap.mmap | bytearray, at: int, size: int) -> int:

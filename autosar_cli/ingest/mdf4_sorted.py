@@ -34,6 +34,7 @@ from .mdf4_layout import (
     block,
     channels,
     data_blocks,
+    fields_at,
 )
 
 #: the share of a group's records whose data follow on from the record before's, from which its SD block is taken as
@@ -79,7 +80,7 @@ def sorted_damage(buf: mmap.mmap, found: list[Block]) -> tuple[str, tuple[tuple[
         bad = np.zeros(n, dtype=bool)
         for kind, data_type, place, link in channels(buf, cn):
             if kind == MASTER_CHANNEL and data_type in ORDERED_TYPES and place is not None:
-                bad |= out_of_order(_values(rows, place, float_bytes=place[1] if data_type else 0))
+                bad |= out_of_order(_column(rows, place, is_float=data_type != 0))
             if kind != VLSD_CHANNEL or place is None or not link:
                 continue
             ident, sd_length, _, sd_data = block(buf, link)
@@ -107,7 +108,7 @@ def _whole_data(rows: NDArray[np.uint8], place: tuple[int, int], sd: NDArray[np.
     n = len(rows)
     if n == 0 or len(sd) < 4:
         return np.zeros(n, dtype=bool)
-    offsets = _values(rows, place).astype(np.int64)
+    offsets = _column(rows, place).astype(np.int64)
     inside = (offsets >= 0) & (offsets + 4 <= len(sd))
     at = np.where(inside, offsets, 0)
     lengths = np.zeros(n, np.int64)
@@ -122,18 +123,6 @@ def _whole_data(rows: NDArray[np.uint8], place: tuple[int, int], sd: NDArray[np.
     anchored = whole & (follows | leads)
     # a length is checked against the next record's offset where that offset is the file's own
     return anchored & (leads | ~np.r_[anchored[1:], True])
-
-
-def _values(rows: NDArray[np.uint8], place: tuple[int, int], float_bytes: int = 0) -> NDArray[np.float64 | np.uint64]:
-    """(N,) the field ``place`` (its byte and bytes) of each record in ``rows`` (N, record bytes): an unsigned
-    little-endian integer, or with ``float_bytes`` (4 or 8) a float of that many bytes."""
-    byte, size = place
-    if float_bytes in (4, 8) and size == float_bytes:
-        return np.ascontiguousarray(rows[:, byte:byte + size]).view(f"<f{size}").ravel().astype(np.float64)
-    out = np.zeros(len(rows), np.uint64)
-    for k in range(size):  # little-endian, whatever the width
-        out |= rows[:, byte + k].astype(np.uint64) << np.uint64(8 * k)
-    return out
 
 
 def out_of_order(times: NDArray[np.float64 | np.uint64]) -> NDArray[np.bool_]:
@@ -169,6 +158,14 @@ def out_of_order(times: NDArray[np.float64 | np.uint64]) -> NDArray[np.bool_]:
     low = np.where(k > 0, t[ordered[np.maximum(k - 1, 0)]], -np.inf)
     high = np.where(k < len(ordered), t[ordered[np.minimum(k, len(ordered) - 1)]], np.inf)
     return outside & ((t < low - slack) | (t > high + slack))
+
+
+def _column(rows: NDArray[np.uint8], place: tuple[int, int], is_float: bool = False
+            ) -> NDArray[np.uint64] | NDArray[np.float64]:
+    """(N,) the field ``place`` (its byte and bytes) of each record in ``rows`` (N, record bytes)
+    (:func:`~.mdf4_layout.fields_at`)."""
+    byte, size = place
+    return fields_at(rows.reshape(-1), np.arange(len(rows), dtype=np.int64) * rows.shape[1] + byte, size, is_float)
 
 
 def _runs(bad: NDArray[np.bool_], start: int, size: int) -> list[tuple[int, int]]:
