@@ -388,7 +388,7 @@ def navigate(
             err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
         for stream, noise in traj.info.get("gnss_noise", {}).items():
             if noise.get("applied"):
-                out.print(f"GNSS {stream} noise {noise['ratio']:.2f} times its table's: {noise['reason']}")
+                out.print(f"GNSS {stream} noise: {noise['reason']}")
         if (slow := traj.info.get("gnss_slow_error", {})).get("applied"):
             out.print(f"GNSS slow error: {slow['reason']}")
         correlation = traj.info.get("gnss_velocity_correlation", {})

@@ -4,8 +4,9 @@ A log recorded on other topics than the config's is ingested under names of its 
 ``gnss/gnss``); navigate then needs a config naming them. The sketch is that config's start, laid over the one the
 drive was ingested with (``base = ...``): each GNSS receiver's fix, velocity and NMEA topics, each IMU's topic, its
 degrees of freedom (NaN axes), rate and, where gravity shows it turned, the pitch and roll that level it; the radar's
-topic; the gyros to fuse. What a log cannot show stays the base's, and the sketch says so: lever arms, the vehicle's
-geometry, the sensors' error tables, an IMU's yaw on the body. The base's CAN roles the drive lacks are unset.
+topic; the gyros to fuse; the INS baseline's IMU and receiver. What a log cannot show stays the base's, and the
+sketch says so: lever arms, the vehicle's geometry, the sensors' error tables, an IMU's yaw on the body. The base's
+CAN roles the drive lacks are unset.
 """
 
 from __future__ import annotations
@@ -57,6 +58,13 @@ def config_sketch(drive_path: str | Path, config: Config) -> str:
         lines.append(f"gnss = {_toml(gnss[0][0])}")
     six = [name for name, table in imus if ("dof", 6, "") in table]
     lines.append(f"attitude_imu = {_toml(six[0] if six else '')}")
+    # the INS baseline's IMU and receiver: the base's where the drive has them, else its first 6-DoF IMU and receiver
+    nav = config.navigation
+    if six:
+        lines.append(f"ins_imu = {_toml(nav.ins_imu if nav.ins_imu in six else six[0])}")
+    if gnss:
+        receivers = [name for name, _ in gnss]
+        lines.append(f"ins_gnss = {_toml(nav.ins_gnss if nav.ins_gnss in receivers else receivers[0])}")
     return "\n".join(lines) + "\n"
 
 

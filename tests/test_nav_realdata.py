@@ -258,6 +258,7 @@ def test_the_config_sketch_of_a_real_robot_navigates_it(husky_drive: Path, tmp_p
     assert (gnss.topic, gnss.velocity_topic, gnss.rate_hz) == ("/fix", "", 2.5)
     assert (imu.topic, imu.dof, imu.rate_hz, imu.mounting_ypr_deg) == ("/imu/data", 6, 30.0, (0.0, 1.3, 89.5))
     assert cfg.navigation.gyros == ("ins_cog",) and cfg.navigation.attitude_imu == "ins_cog"
+    assert (cfg.navigation.ins_imu, cfg.navigation.ins_gnss) == ("ins_cog", "gnss_cog")  # the base's are absent
     table = dataclasses.replace(gnss.gnss, horizontal_std_m=0.8, white_std_m=0.3)
     cfg = dataclasses.replace(cfg, vehicle=dataclasses.replace(cfg.vehicle, cog_to_rear_axle_m=0.0), sensors={
         **cfg.sensors, "gnss_cog": dataclasses.replace(gnss, lever_arm_m=(0.0, 0.0, 0.5), latency_s=0.0, gnss=table),
@@ -265,6 +266,8 @@ def test_the_config_sketch_of_a_real_robot_navigates_it(husky_drive: Path, tmp_p
     drive = tmp_path / "sketched.h5"
     ingest([realdata(*HUSKY)], drive, config=cfg, allow_partial=True)
     traj = navigate(drive, "sar-min", cfg)
+    with pytest.raises(NavInputError, match="the INS baseline needs the GNSS velocity gnss/gnss_cog/velocity"):
+        navigate(drive, "ins", cfg)  # the sketched IMU and receiver: what it lacks is the receiver's velocity
     t_odo, v_odo, _ = odometry
     inside = (t_odo > traj.t_ns[0]) & (t_odo < traj.t_ns[-1])
     assert np.median(np.abs(np.interp(t_odo[inside], traj.t_ns, traj.speed) - v_odo[inside])) < 0.25  # 0.12
