@@ -400,7 +400,9 @@ def container_trial(base: Base, cls: str, n: int, rng: random.Random, tdir: Path
         fault = f"record header byte {i} set to {data[i]:#04x}"
     elif cls == "ros1":  # the index and connection records at the end, or the bag header
         lo = max(e for _, e, _ in base.ros1_chunks)
-        damaged = flip(data, rng, rng.randint(1, 4), lo=rng.choice([13, lo]), hi=None)
+        # the bag header record: after the 13-byte magic, padded to 4096 bytes by every writer
+        lo, hi = rng.choice([(13, 13 + 4096), (lo, None)])
+        damaged = flip(data, rng, rng.randint(1, 4), lo=lo, hi=hi)
         fault = f"{len(damaged)} flipped bytes in the bag header/index"
     else:
         damaged = flip(data, rng, rng.randint(1, 6))
