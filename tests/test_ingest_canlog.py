@@ -26,7 +26,7 @@ from autosar_cli.candb import check_frame, encode_frame, load_dbc
 from autosar_cli.ingest.canlog import CAN_LOG_SUFFIXES, CanLogError, is_can_log, read_can_log
 from autosar_cli.ingest.mdf4_blocks import mdf4_cut
 from autosar_cli.ingest.mdf4_layout import blocks
-from autosar_cli.ingest.mdf4_sorted import _sorted_groups
+from autosar_cli.ingest.mdf4_sorted import _sorted_groups, out_of_order
 from autosar_cli.ingest.records import CanRecord
 from tests.conftest import realdata
 
@@ -299,6 +299,18 @@ def test_a_finalised_mf4_damaged_in_its_records_keeps_every_other_frame(tmp_path
     assert message.endswith(f"({len(reference) - len(got)}); {len(got)} frames read")
 
 
+def test_zeroed_stamps_outnumbering_the_whole_ones_are_the_damage() -> None:
+    """A group's last 167 records zeroed after 80 whole ones (4 KiB over the finalised 2023 file's second data
+    block): the longest run that did not fall was the zeros', so the 80 were left out and the 167 read as frames
+    at the recording's start. A run of equal times counts once; equal stamps beside a whole one stay."""
+    times = np.r_[np.arange(1, 81) * 1000.0, np.zeros(167)]
+    flagged = out_of_order(times)
+    assert not flagged[:80].any() and flagged[80:].all()
+    pairs = np.repeat(np.arange(1, 101) * 1000.0, 2)  # frames logged in pairs, one stamp each
+    pairs[101] = 0.0
+    assert np.flatnonzero(out_of_order(pairs)).tolist() == [101]
+
+
 def test_a_finalised_mf4_frame_stamped_a_step_early_is_not_damage(tmp_path: Path,
                                                                     finalised: Callable[[str], Path]) -> None:
     """Two neighbouring records of the finalised 2022 file with their times swapped (a writer that stamps a frame
@@ -330,20 +342,128 @@ def test_a_finalised_mf4_whose_group_claims_more_records_than_it_holds(tmp_path:
                        f"the block holds 5588; 5588 frames read")
 
 
-@pytest.mark.parametrize("at, says", [
-    (88, "a link points to byte 9223372036854775807, past any file: damaged there"),
-    (5352 + 8, "its ##CG block at byte 5352 runs past the end (9223372036854775807 bytes)")],
+@pytest.mark.parametrize("at, says, then", [
+    (88, "a link points to byte 9223372036854775807, past any file: damaged there",
+     "the data groups' chain broken at byte 9223372036854775807, 1 found again after it; 5588 frames read"),
+    (5352 + 8, "its ##CG block at byte 5352 runs past the end (9223372036854775807 bytes)", None)],
     ids=["a link", "a block's length"])
-def test_an_mf4_link_or_length_past_any_file_is_damage_not_a_cut(tmp_path: Path, at: int, says: str) -> None:
+def test_an_mf4_link_or_length_past_any_file_is_damage_not_a_cut(tmp_path: Path, at: int, says: str,
+                                                                 then: str | None) -> None:
     """A link or block length damaged to a value no file reaches (over 2^40 bytes) was reported as the file cut
-    short ("truncated ... block header at byte 9520860662089567504 cut off", the fault campaign's): it is damage."""
+    short ("truncated ... block header at byte 9520860662089567504 cut off", the fault campaign's): it is damage.
+    The header's link to its one data group damaged, that group is found again by its block and read whole; the
+    block of the group that holds the frames damaged, none is read."""
     data = bytearray(realdata(CSS, MF4_2022).read_bytes())
     struct.pack_into("<Q", data, at, (1 << 63) - 1)
     log = tmp_path / "damaged.MF4"
     log.write_bytes(bytes(data))
-    with pytest.raises(CanLogError) as info:
+    got, message = _read_until_error(log)
+    if then is None:
+        assert got == [] and message.startswith(f"{log}: damaged MDF4 log, no frame read: {says} (the reader: ")
+    else:
+        assert got == list(_real_records(MF4_2022)) and message == f"{log}: damaged MDF4 log: {says}: {then}"
+
+
+@pytest.mark.parametrize("name, at, damage, says", [
+    (MF4_2023_1, 77824, bytes(4096), "no block at byte 78456, where a link points (it reads b'\\x00\\x00\\x00\\x00'): "
+     "damaged there: 3 channel groups left out, their blocks damaged (at bytes 13320, 13472, 13632)"),
+    (MF4_2023_1, 16281, bytes(range(7, 71)), "no block at byte 16312, where a link points (it reads b\"&'()\"): "
+     "damaged there: the channel groups' chain broken at byte 16312, 5 found again after it"),
+    (MF4_2022, 9000, bytes(range(7, 71)), "no block at byte 9008, where a link points (it reads "
+     "b'\\x0f\\x10\\x11\\x12'): damaged there: 1 channel group left out, its blocks damaged (at byte 5664)")],
+    ids=["2023: 4 KiB zeroed in its channels", "2023: a group's block overwritten", "2022: a channel overwritten"])
+def test_an_mf4_whose_damaged_blocks_describe_empty_groups_reads_every_frame(tmp_path: Path, name: str, at: int,
+                                                                            damage: bytes, says: str) -> None:
+    """A CANedge file describes more groups than it records into (the 2023 files 73, three holding frames; the
+    2022 file 9, two): damage to the blocks of the others (their channels, or a group's own block, which breaks the
+    chain of those after it) lost the whole file ("damaged MDF4 log, no frame read"). The damaged groups are left
+    out of a copy's chain, those after a break found again by their blocks' ids: every frame is read."""
+    data = realdata(CSS, name).read_bytes()
+    log = tmp_path / "damaged.MF4"
+    log.write_bytes(data[:at] + damage + data[at + len(damage):])
+    got, message = _read_until_error(log)
+    assert got == list(_real_records(name))
+    assert message == f"{log}: damaged MDF4 log: {says}; {len(got)} frames read"
+
+
+def test_an_mf4_group_left_out_with_its_frames_keeps_the_other_groups(tmp_path: Path) -> None:
+    """4 KiB zeroed across the channels of four of the 2023 file's groups, one of them holding 764 frames: its
+    records, whose size no intact block gives, are damage the record walk reads past; the other groups' frames are
+    read, in order, and the error names the first places and counts the others."""
+    data = realdata(CSS, MF4_2023_1).read_bytes()
+    log = tmp_path / "damaged.MF4"
+    log.write_bytes(data[:40960] + bytes(4096) + data[40960 + 4096:])
+    got, message = _read_until_error(log)
+    reference = _real_records(MF4_2023_1)
+    assert _in_order_within(got, reference) and len(got) == 3005  # of 4024: the group's 764 and those beside them
+    assert message.startswith(f"{log}: damaged MDF4 log: no block at byte 41976, where a link points (it reads "
+                              "b'\\x00\\x00\\x00\\x00'): damaged there: 4 channel groups left out, their blocks "
+                              "damaged (at bytes 9376, 9520, 9664 ...); record at byte 118377 has an unknown record id")
+    assert "; 72 more places damaged as these; " in message and message.endswith("; 3005 frames read")
+
+
+def test_a_link_count_no_file_holds_is_damage_not_a_cut(tmp_path: Path) -> None:
+    """64 bytes over a channel block of the 2022 file's frame group, its link count among them: it was read as the
+    file cut inside that block's links ("truncated MDF4 log"). It is damage; the group holding every frame is left
+    out, so none is read, and the error says so."""
+    data = realdata(CSS, MF4_2022).read_bytes()
+    log = tmp_path / "damaged.MF4"
+    log.write_bytes(data[:6300] + bytes(range(7, 71)) + data[6300 + 64:])
+    got, message = _read_until_error(log)
+    assert got == [] and "truncated" not in message
+    assert message.startswith(f"{log}: damaged MDF4 log: ##CN block at byte 6288 says it has 1301839424133073931 "
+                              "links, more than any file holds: damaged there: 1 channel group left out")
+
+
+@pytest.mark.parametrize("name, at, says", [
+    (MF4_2023_1, 120832, "no block at byte 122680, where a link points (it reads b'\\x00\\x00\\x00\\x00'): damaged "
+     "there: 2 channel groups (and the 2 data groups that held them) left out, their blocks damaged (at bytes 122680, "
+     "124856)"),
+    (MF4_2022, 196000, "no block at byte 197096, where a link points (it reads b'\\x00\\x00\\x00\\x00'): damaged "
+     "there: 6 channel groups (and the 6 data groups that held them) left out, their blocks damaged (at bytes "
+     "197096, 199752, 201520 ...)")], ids=["2023", "2022"])
+def test_a_finalised_mf4_whose_damaged_blocks_describe_empty_groups_reads_every_frame(
+        tmp_path: Path, finalised: Callable[[str], Path], name: str, at: int, says: str) -> None:
+    """A finalised file keeps its blocks after its data, each group in a data group of its own: 4 KiB zeroed over
+    the blocks of groups without frames lost the whole file. Their data groups are left out of a copy's chain:
+    every frame is read."""
+    data = finalised(name).read_bytes()
+    log = tmp_path / "damaged.mf4"
+    log.write_bytes(data[:at] + bytes(4096) + data[at + 4096:])
+    got, message = _read_until_error(log)
+    assert got == list(_real_records(name))
+    assert message == f"{log}: damaged MDF4 log: {says}; {len(got)} frames read"
+
+
+def test_a_group_whose_data_bytes_lie_in_a_damaged_group_is_left_out_with_it(tmp_path: Path) -> None:
+    """The 2022 file's frames hold their data bytes in a group of their own (variable-length records): that group's
+    comment link damaged, it is left out, and the frames' group with it (asammdf read no frame from a copy that
+    kept it: "Wrong signal data block refence"); nothing is read, and the error says which groups."""
+    data = bytearray(realdata(CSS, MF4_2022).read_bytes())
+    struct.pack_into("<Q", data, 5456 + 24 + 5 * 8, 0x0123456789AB)
+    log = tmp_path / "damaged.MF4"
+    log.write_bytes(bytes(data))
+    got, message = _read_until_error(log)
+    assert got == [] and message.startswith(
+        f"{log}: damaged MDF4 log: a link points to byte 1250999896491, past any file: damaged there: 2 channel "
+        "groups left out, their blocks damaged (at bytes 5352, 5456); record at byte 14632 has an unknown record id")
+
+
+def test_a_failed_mf4_open_leaves_no_half_built_reader_to_the_garbage_collector(tmp_path: Path) -> None:
+    """asammdf leaves the MDF4 object of a failed open half built, its __del__ raising; the error's frames held it
+    until the garbage collector ran that __del__ at some later moment, which inside compile() (numpy parsing the
+    next file's dtypes) made CPython 3.11 fail a whole file ("SystemError: AST constructor recursion depth
+    mismatch"), and pytest warn. It is freed when the open fails."""
+    import gc
+
+    from asammdf.blocks.mdf_v4 import MDF4
+
+    log = tmp_path / "cut.MF4"
+    log.write_bytes(realdata(CSS, MF4_2022).read_bytes()[:11957])
+    with pytest.raises(CanLogError, match="truncated MDF4 log, no frame read") as info:
         list(read_can_log(log))
-    assert str(info.value).startswith(f"{log}: damaged MDF4 log, no frame read: {says} (the reader: ")
+    half_built = [o for o in gc.get_referrers(MDF4) if isinstance(o, MDF4) and not hasattr(o, "_file")]
+    assert info.value.__cause__ is not None and half_built == []
 
 
 def test_a_frame_whose_damaged_id_no_frame_can_have_is_warned_of(tmp_path: Path) -> None:

@@ -44,13 +44,16 @@ format (MF4 ``BusChannel``, TRC bus, ASC/BLF channel). candump interface names (
 from __future__ import annotations
 
 import contextlib
+import gc
 import io
 import logging
 import math
 import os
 import re
 import shutil
+import sys
 import tempfile
+import traceback
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack
 from pathlib import Path
@@ -61,6 +64,7 @@ from can.io.generic import MessageReader
 
 from autosar_cli.ingest import mf4_support
 from autosar_cli.ingest.mdf4_blocks import mdf4_cut, write_without_holes
+from autosar_cli.ingest.mdf4_mend import write_mended
 from autosar_cli.ingest.records import CanRecord, CutShort
 
 __all__ = ["CAN_LOG_SUFFIXES", "CanLogError", "is_can_log", "read_can_log"]
@@ -125,11 +129,27 @@ class _MF4Reader(can.MF4Reader):
     def __init__(self, file: Path) -> None:
         try:
             super().__init__(file)
-        except BaseException:
+        except BaseException as exc:
             opened = getattr(self, "file", None)
             if opened is not None:
                 opened.close()
+            _release_half_built(exc)
             raise
+
+
+def _release_half_built(exc: BaseException) -> None:
+    """Free now the MDF4 object a failed open left half built, which ``exc``'s frames hold: its ``__del__`` raises
+    (AttributeError: no ``_file``), and run by the garbage collector at a later moment it can fall inside
+    ``compile()`` (numpy parsing the dtypes of the next file opened), where CPython 3.11 then fails that whole file
+    ("SystemError: AST constructor recursion depth mismatch"). Its own error, printed by the interpreter, is held
+    back: the open's error is the one the user gets."""
+    hook = sys.unraisablehook
+    sys.unraisablehook = lambda raised: None if isinstance(raised.exc_value, AttributeError) else hook(raised)
+    try:
+        traceback.clear_frames(exc.__traceback__)
+        gc.collect()
+    finally:
+        sys.unraisablehook = hook
 
 
 def _open_reader(path: Path, stack: ExitStack, shown: Path) -> MessageReader:
@@ -208,7 +228,8 @@ def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:
             # python-can already reads a BLF's cut container as far as its zlib stream goes
             cut = mdf4_cut(path) if suffix == ".mf4" else None if suffix == ".blf" else _text_cut(path, suffix)
             with quiet():
-                reader = _open_reader(_whole_records(path, cut, stack), stack, path)
+                source, cut = _mended(path, cut, stack)
+                reader = _open_reader(_whole_records(source, cut, stack), stack, path)
                 messages = iter(reader)
         except CanLogError:
             raise
@@ -245,7 +266,7 @@ def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:
             warn(f"{path}: the {kind} reader went on past {len(errors)} error(s) of its own, the last: {errors[-1]}")
         if cut:
             raise CanLogError(f"{path}: {'damaged' if cut.damaged else 'truncated'} {kind} log: {cut.reason}; "
-                              f"{frames} frames read{'' if cut.holes else ' before it'}")
+                              f"{frames} frames read{'' if cut.holes or cut.patches else ' before it'}")
 
 
 def _cut_note(cut: CutShort | None) -> str:
@@ -275,6 +296,22 @@ def _text_cut(path: Path, suffix: str) -> CutShort | None:
 def _begins_trigger_block(path: Path) -> bool:
     with open(path, "rb") as f:
         return b"begin triggerblock" in f.read(_SNIFF_BYTES).lower()
+
+
+def _mended(path: Path, cut: CutShort | None, stack: ExitStack) -> tuple[Path, CutShort | None]:
+    """``path`` and ``cut``, or where damage to an MDF4 file's blocks leaves groups to read, a temporary copy whose
+    chains step over the damaged ones (:func:`write_mended`) and what the copy's records then lack."""
+    if cut is None or not cut.patches:
+        return path, cut
+    copy = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="autosar-canlog-"))) / path.name
+    write_mended(path, copy, cut.patches)
+    rest = mdf4_cut(copy)
+    if rest is not None and rest.patches:  # the copy's chains still reach damage: not mended
+        return path, CutShort(cut.reason, damaged=True)
+    if rest is None:
+        return copy, cut
+    return copy, CutShort(f"{cut.reason}; {rest.reason}", rest.whole_bytes, damaged=True, holes=rest.holes,
+                          patches=cut.patches)
 
 
 def _whole_records(path: Path, cut: CutShort | None, stack: ExitStack) -> Path:

@@ -44,6 +44,7 @@ from .mdf4_layout import (
     field,
     fields_at,
 )
+from .mdf4_mend import mend_chains
 from .mdf4_sorted import out_of_order, sorted_damage, write_sorted_without
 from .records import CutShort
 
@@ -51,6 +52,7 @@ _UNFINISHED_LAST_DT = 1 << 2  # id_unfin_flags: the last ##DT block's length is 
 _DAMAGE_MARGIN = 2  # whole frames left out before a damaged record
 _RESYNC_RECORDS = 16  # fixed records that agree with themselves, after damage, before they are read again
 _RESYNC_SCAN_BYTES = 1 << 20  # how far past damage such records are sought
+_SAID_AT_MOST = 4  # places of damage a report names one by one
 _ID_FORMATS = {0: "", 1: "<B", 2: "<H", 4: "<I", 8: "<Q"}  # a record id's bytes -> its struct format
 
 
@@ -65,8 +67,8 @@ def mdf4_cut(path: Path) -> CutShort | None:
         try:
             for pos, ident, length, links in blocks(buf):
                 if pos + length > size and not (unfinished and ident == b"##DT"):
-                    return CutShort(f"its {ident.decode('latin-1')} block at byte {pos} runs past the end "
-                                    f"({length} bytes)", damaged=length > PAST_ANY_FILE)
+                    why = f"its {ident.decode('latin-1')} block at byte {pos} runs past the end ({length} bytes)"
+                    return _mended(buf, why) if length > PAST_ANY_FILE else CutShort(why)
                 found.append((pos, ident, length, links))
             if unfinished:
                 for dg, dt in data_blocks(found):
@@ -78,8 +80,19 @@ def mdf4_cut(path: Path) -> CutShort | None:
                 if damage:
                     return CutShort(damage[0], damaged=True, holes=damage[1])
         except (ValueError, struct.error) as exc:
-            return CutShort(str(exc), damaged="cut off" not in str(exc))  # a block or record the end does not cut
+            if "cut off" in str(exc):  # the end cuts a block or record
+                return CutShort(str(exc))
+            return _mended(buf, str(exc))
     return None
+
+
+def _mended(buf: mmap.mmap, why: str) -> CutShort:
+    """Damage to the file's block structure (``why``): what a copy whose chains leave the damaged groups out
+    changes (:mod:`.mdf4_mend`), where any intact group is left."""
+    mend = mend_chains(buf)
+    if mend is None:
+        return CutShort(why, damaged=True)
+    return CutShort(f"{why}: {mend.reason}", damaged=True, patches=mend.patches)
 
 
 @dataclass(frozen=True)
@@ -244,6 +257,8 @@ def _with_stamps(buf: mmap.mmap, rec: _Records, fixed: list[int], said: list[str
         damaged = True
     if not said:
         return None
+    if len(said) > _SAID_AT_MOST:  # one line: the first two places and the last, the count of the others
+        said = [*said[:2], f"{len(said) - 3} more places damaged as these", said[-1]]
     return CutShort("; ".join(said), whole_bytes, damaged=damaged, holes=tuple(holes))
 
 

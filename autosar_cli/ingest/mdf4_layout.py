@@ -38,6 +38,9 @@ def block(buf: mmap.mmap, pos: int) -> tuple[bytes, int, tuple[int, ...], int]:
     if not _BLOCK_ID.fullmatch(ident):
         raise ValueError(f"no block at byte {pos}, where a link points (it reads {ident!r}): damaged there")
     data = pos + HEAD.size + 8 * n_links
+    if data > PAST_ANY_FILE:
+        raise ValueError(f"{ident.decode('latin-1')} block at byte {pos} says it has {n_links} links, more than any "
+                         "file holds: damaged there")
     if data > len(buf):
         raise ValueError(f"{ident.decode('latin-1')} block at byte {pos} cut off in its links")
     return ident, length, struct.unpack_from(f"<{n_links}Q", buf, pos + HEAD.size), data

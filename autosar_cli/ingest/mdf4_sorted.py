@@ -126,18 +126,19 @@ def _whole_data(rows: NDArray[np.uint8], place: tuple[int, int], sd: NDArray[np.
 
 
 def out_of_order(times: NDArray[np.float64 | np.uint64]) -> NDArray[np.bool_]:
-    """(N,) which records' ``times`` lie outside the longest run of them that does not fall (a group's records are
-    in time order: a damaged time stands out of it), and beyond the times of that run's records either side by
-    ``_STEP_SLACK`` median steps; none where half or more of the steps fall (a group not kept in time order)."""
+    """(N,) which records' ``times`` lie outside the longest run of them that rises (a group's records are in time
+    order: a damaged time stands out of it; a run of equal times, as zeroed records have, counts once), and beyond
+    the times of that run's records either side by ``_STEP_SLACK`` median steps (so equal stamps of frames logged
+    together stay); none where half or more of the steps fall (a group not kept in time order)."""
     n = len(times)
     if n < 2 or not np.any(times[1:] < times[:-1]) or np.mean(times[1:] >= times[:-1]) < _IN_ORDER:
         return np.zeros(n, dtype=bool)
-    # the longest non-decreasing subsequence (patience sorting): tails[k] ends the best run of length k + 1
+    # the longest rising subsequence (patience sorting): tails[k] ends the best run of length k + 1
     tails: list[float] = []
     ends: list[int] = []
     before = np.full(n, -1)
     for i, t in enumerate(times.tolist()):
-        k = bisect.bisect_right(tails, t)
+        k = bisect.bisect_left(tails, t)
         before[i] = ends[k - 1] if k else -1
         if k == len(tails):
             tails.append(t)
