@@ -82,6 +82,11 @@ MF4_SORTED = "tests/test_ingest_canlog.py::test_a_finalised_mf4_damaged_in_its_r
 MF4_STAMPS = "tests/test_ingest_canlog.py::test_an_mf4_frame_whose_stamp_falls_out_of_its_groups_order_is_left_out"
 MF4_EARLY = "tests/test_ingest_canlog.py::test_a_finalised_mf4_frame_stamped_a_step_early_is_not_damage"
 MF4_CLAIMS = "tests/test_ingest_canlog.py::test_a_finalised_mf4_whose_group_claims_more_records_than_it_holds"
+MF4_MEND = "tests/test_ingest_canlog.py::test_an_mf4_whose_damaged_blocks_describe_empty_groups_reads_every_frame"
+MF4_MEND_DATA = "tests/test_ingest_canlog.py::test_a_group_whose_data_bytes_lie_in_a_damaged_group_is_left_out_with_it"
+MF4_ZEROED_STAMPS = "tests/test_ingest_canlog.py::test_zeroed_stamps_outnumbering_the_whole_ones_are_the_damage"
+MF4_HALF_BUILT = ("tests/test_ingest_canlog.py::"
+                  "test_a_failed_mf4_open_leaves_no_half_built_reader_to_the_garbage_collector")
 ODD_INPUTS = "tests/test_safety.py::test_an_input_that_is_a_pipe_a_link_loop_or_a_directory_is_one_line"
 NMEA_DAMAGE = "tests/test_ingest_nmea.py::test_a_block_of_nul_bytes_in_a_capture_is_one_damage_warning_with_its_place"
 MISLABELLED = ("tests/test_ingest_damage.py::"
@@ -478,6 +483,18 @@ MUTATIONS: list[Mutation] = [
        MF4_EARLY),
     _m("mf4-sorted-claimed-count-kept", "ingest", "ingest/mdf4_sorted.py",
        """        struct.pack_into("<Q", dest_bytes, cg_data + 8, len(rows))\n""", "", MF4_CLAIMS),
+    _m("mf4-block-damage-not-mended", "ingest", "ingest/mdf4_blocks.py",
+       "    mend = mend_chains(buf)", "    mend = None", MF4_MEND),
+    _m("mf4-broken-chain-not-sought-on", "ingest", "ingest/mdf4_mend.py",
+       """            more = _found(buf, b"##CG", cgs, _CG_LINKS, [r for r in data if r is not None])""",
+       "            more = []", MF4_MEND),
+    _m("mf4-group-kept-whose-data-bytes-are-left-out", "ingest", "ingest/mdf4_mend.py",
+       "out = [cg for cg, groups in reached.items() if all(g in reached for g in groups)]",
+       "out = list(reached)", MF4_MEND_DATA),
+    _m("mf4-equal-stamps-make-a-run", "ingest", "ingest/mdf4_sorted.py",
+       "        k = bisect.bisect_left(tails, t)", "        k = bisect.bisect_right(tails, t)", MF4_ZEROED_STAMPS),
+    _m("mf4-half-built-reader-left-to-the-collector", "ingest", "ingest/canlog.py",
+       "            _release_half_built(exc)\n", "", MF4_HALF_BUILT),
 ]
 
 

@@ -1,0 +1,152 @@
+"""MDF4 damage sweep: frames read from real CANedge files, and their asammdf-finalised copies, damaged at every place.
+
+Each of the three CANedge files under ``../shared/realdata/css-electronics`` and a finalised copy of two of them
+(written by asammdf, uncompressed) gets 4 KiB zeroed at every 4 KiB, and 64 random bytes (seeded) at every 2 KiB,
+one damage per trial, and is read with ``read_can_log`` as ingest reads it. Per trial: the frames read, whether none
+were, how many of them the undamaged file does not have (foreign: wrong and not reported; a damaged conversion block
+that still parses gives these), and whether anything but a ``CanLogError`` came out (a traceback). ``--against DIR``
+runs the same trials with the package of another checkout beside this one's (``git worktree add DIR REV``), in the
+same run. Results: ``benches/results/mdf4_damage.json``.
+
+Usage: python benches/bench_mdf4_damage.py [--against DIR] [--zero-step 4096] [--random-step 2048]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import random
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent
+REAL = REPO.parent / "shared" / "realdata" / "css-electronics"
+FILES = ("2F6913DB_00000004_00000001.MF4", "2F6913DB_00001089_00000001-63BEF5CD.MF4",
+         "2F6913DB_00001089_00000002-63BEFDF9.MF4")
+FINALISED = FILES[:2]
+ZEROED = 4096
+OVERWRITTEN = 64
+
+
+def _damages(size: int, zero_step: int, random_step: int, seed: int) -> list[tuple[str, int, bytes]]:
+    """(kind, byte, the bytes put there) of each trial on a file of ``size`` bytes."""
+    rng = random.Random(seed)
+    out = [("zeroed", at, bytes(min(ZEROED, size - at))) for at in range(0, size, zero_step)]
+    out += [("overwritten", at, rng.randbytes(min(OVERWRITTEN, size - at))) for at in range(0, size, random_step)]
+    return out
+
+
+def _sweep(files: list[Path], zero_step: int, random_step: int) -> list[dict[str, object]]:
+    """The trials on ``files`` with the package importable now (a worker's: its checkout first on sys.path)."""
+    import logging
+
+    from autosar_cli.ingest.canlog import CanLogError, read_can_log
+
+    logging.getLogger("asammdf").setLevel(logging.CRITICAL)  # asammdf logs the damage it meets; the trial counts it
+
+    def frames(path: Path) -> tuple[list[tuple[object, ...]], str]:
+        got: list[tuple[object, ...]] = []
+        try:
+            for r in read_can_log(path):
+                got.append((r.t_ns, r.frame_id, r.is_extended, r.dlc, r.data, r.channel))
+        except CanLogError:
+            return got, "error"
+        except Exception as exc:  # what the user would see as a traceback
+            return got, f"traceback: {type(exc).__name__}"
+        return got, ""
+
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="bench-mdf4-") as scratch:
+        for src in files:
+            data = src.read_bytes()
+            whole, _ = frames(src)
+            known = set(whole)
+            for n, (kind, at, put) in enumerate(_damages(len(data), zero_step, random_step, seed=len(data))):
+                trial = Path(scratch) / f"{n}_{src.name}"
+                trial.write_bytes(data[:at] + put + data[at + len(put):])
+                got, ended = frames(trial)
+                trial.unlink()
+                rows.append({"file": src.name, "kind": kind, "at": at, "frames_read": len(got),
+                             "frames_whole": len(whole), "foreign": sum(1 for g in got if g not in known),
+                             "ended": ended})
+    return rows
+
+
+def _summary(rows: list[dict[str, object]]) -> dict[str, object]:
+    read = sum(int(r["frames_read"]) for r in rows)  # type: ignore[call-overload]
+    whole = sum(int(r["frames_whole"]) for r in rows)  # type: ignore[call-overload]
+    return {"trials": len(rows), "frames_read": read, "frames_whole": whole, "share_read": round(read / whole, 4),
+            "none_read": sum(1 for r in rows if r["frames_read"] == 0),
+            "foreign_frames": sum(int(r["foreign"]) for r in rows),  # type: ignore[call-overload]
+            "tracebacks": sum(1 for r in rows if str(r["ended"]).startswith("traceback"))}
+
+
+def _revision(root: Path) -> str:
+    """The checkout's commit (short), with "+" where its tree differs from it."""
+    def git(*cmd: str) -> str:
+        return subprocess.run(["git", "-C", str(root), *cmd], capture_output=True, text=True).stdout.strip()
+    return git("rev-parse", "--short", "HEAD") + ("+" if git("status", "--porcelain", "--untracked-files=no") else "")
+
+
+def _worker(root: Path, files: list[Path], zero_step: int, random_step: int, out: Path) -> list[dict[str, object]]:
+    """The sweep in a process of its own, ``root``'s package first on its path."""
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", str(out), "--zero-step", str(zero_step),
+           "--random-step", str(random_step), *map(str, files)]
+    subprocess.run(cmd, env=env, check=True, cwd=root)
+    return json.loads(out.read_text())
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--against", type=Path, help="another checkout whose package runs the same trials beside")
+    ap.add_argument("--zero-step", type=int, default=4096)
+    ap.add_argument("--random-step", type=int, default=2048)
+    ap.add_argument("--output", type=Path, default=HERE / "results" / "mdf4_damage.json")
+    ap.add_argument("--worker", type=Path, help=argparse.SUPPRESS)
+    ap.add_argument("files", nargs="*", type=Path, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.worker:
+        args.worker.write_text(json.dumps(_sweep(args.files, args.zero_step, args.random_step)))
+        return
+    if not REAL.is_dir():
+        sys.exit(f"{REAL} is absent: the sweep needs the real CANedge files")
+    from asammdf import MDF
+
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="bench-mdf4-") as scratch:
+        files = [REAL / name for name in FILES]
+        for name in FINALISED:
+            copy = Path(scratch) / name.replace(".MF4", ".mf4")
+            with MDF(REAL / name) as mdf:
+                mdf.save(copy, overwrite=True, compression=0)
+            files.append(copy)
+        roots = {"this": REPO, **({"against": args.against.resolve()} if args.against else {})}
+        with ThreadPoolExecutor(len(roots)) as pool:  # the two checkouts side by side, a process each
+            runs = {name: pool.submit(_worker, root, files, args.zero_step, args.random_step,
+                                      Path(scratch) / f"{name}.json") for name, root in roots.items()}
+            rows = {name: run.result() for name, run in runs.items()}
+    result: dict[str, object] = {
+        "benchmark": "mdf4_damage", "damage": f"{ZEROED} B zeroed every {args.zero_step} B, {OVERWRITTEN} random B "
+        f"every {args.random_step} B", "files": len(files),
+        "summary": {"revision": _revision(REPO), **_summary(rows["this"])}}
+    if args.against:
+        result["against"] = {"revision": _revision(roots["against"]), **_summary(rows["against"])}
+    result |= {"wall_s": round(time.perf_counter() - t0, 1), "rows": rows["this"],
+               "python": platform.python_version(), "cores": os.cpu_count()}
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    args.output.write_text(json.dumps(result, indent=1) + "\n")
+    for name in roots:
+        print(name, json.dumps(_summary(rows[name])))
+    print(f"wrote {args.output}")
+
+
+if __name__ == "__main__":
+    main()
