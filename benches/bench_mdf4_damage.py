@@ -89,10 +89,10 @@ def _summary(rows: list[dict[str, object]]) -> dict[str, object]:
 
 
 def _revision(root: Path) -> str:
-    """The checkout's commit (short), with "+" where its tree differs from it."""
+    """The checkout's commit (short), with "+" where its package differs from it."""
     def git(*cmd: str) -> str:
         return subprocess.run(["git", "-C", str(root), *cmd], capture_output=True, text=True).stdout.strip()
-    return git("rev-parse", "--short", "HEAD") + ("+" if git("status", "--porcelain", "--untracked-files=no") else "")
+    return git("rev-parse", "--short", "HEAD") + ("+" if git("status", "--porcelain", "--", "autosar_cli") else "")
 
 
 def _worker(root: Path, files: list[Path], zero_step: int, random_step: int, out: Path) -> list[dict[str, object]]:
