@@ -33,8 +33,8 @@ ends early too, or stops at the record the cut breaks and loses the frames befor
 in an unfinalised file (a CAN logger's), its last data block's records are walked first
 (:mod:`.mdf4_blocks`): the records before the cut are read from a temporary copy that ends there, then
 :class:`CanLogError` names the cut. Damage inside an MDF4's records (either kind of file: :mod:`.mdf4_sorted` for a
-finalised one) is read past from a copy without the damaged records, and :class:`CanLogError` names what was left
-out.
+finalised one) is read past from a copy without the damaged records; damage to its blocks, from a copy whose chains
+leave the damaged groups out (:mod:`.mdf4_mend`); :class:`CanLogError` names what was left out.
 
 Channels are named as the file numbers them: python-can makes ASC and BLF channels 0-based
 (file channel 1 -> 0) but not TRC or MF4; that shift is undone here so that "1" means CAN 1 in every
