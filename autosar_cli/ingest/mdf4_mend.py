@@ -46,11 +46,16 @@ class Mend:
 def mend_chains(buf: mmap.mmap) -> Mend | None:
     """The links to change so that the file's intact groups chain again without its damaged ones; None where the
     header is damaged, or no data group with a channel group is left."""
-    unfinished = buf[:8] == b"UnFinMF "
     try:
-        ident, _, hd_links, _ = block(buf, _HEADER)
-    except (ValueError, struct.error):
+        return _mend(buf)
+    except (ValueError, struct.error):  # a block read whole on the way proves damaged after all: not mended
         return None
+
+
+def _mend(buf: mmap.mmap) -> Mend | None:
+    """:func:`mend_chains`, raising where a block it reads is damaged in a way its checks did not see."""
+    unfinished = buf[:8] == b"UnFinMF "
+    ident, _, hd_links, _ = block(buf, _HEADER)
     if ident != b"##HD" or len(hd_links) < _HD_LINKS:
         return None
     patches: dict[int, int] = {}
