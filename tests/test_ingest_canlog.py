@@ -3,6 +3,7 @@ through the formats python-can writes (ASC, BLF, TRC, candump -L)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import mmap
@@ -764,6 +765,74 @@ def test_truncated_blf_yields_frames_then_error(tmp_path: Path) -> None:
     assert 0 < len(got) < len(frames) and got == reference[: len(got)]
     message = str(info.value)
     assert "cut.blf" in message and "truncated" in message and "\n" not in message
+
+
+def _blf_in_containers(path: Path) -> tuple[list[CanRecord], list[int]]:
+    """A BLF of :func:`_frames` in many small log containers (frames run on from one into the next), as read, and
+    the byte of each container."""
+    with can.BLFWriter(path, max_container_size=1024) as writer:
+        for *_, msg in _frames():
+            writer.on_message_received(msg)
+    data = path.read_bytes()
+    starts, pos = [], struct.unpack_from("<L", data, 4)[0]
+    while pos < len(data):
+        size = struct.unpack_from("<L", data, pos + 8)[0]
+        starts.append(pos)
+        pos += size + size % 4
+    return list(read_can_log(path)), starts
+
+
+def _python_can_reads(log: Path) -> int:
+    """The frames python-can's BLFReader gives before it ends or raises."""
+    n = 0
+    with contextlib.suppress(Exception), can.BLFReader(log) as reader:
+        for _ in reader:
+            n += 1
+    return n
+
+
+@pytest.mark.parametrize("damage, says, moved", [
+    (lambda data, at: data[:at + 40] + bytes(64) + data[at + 104:], "does not inflate", 0),
+    (lambda data, at: data[:at] + bytes(16) + data[at + 16:], "has no object header (it reads b'\\x00\\x00\\x00\\x00')",
+     0),
+    (lambda data, at: data[:at + 100] + data[at + 300:], "does not inflate", -200)],
+    ids=["64 bytes zeroed in its stream", "its header zeroed", "200 bytes lost"])
+def test_a_blf_damaged_inside_keeps_the_frames_of_every_other_container(tmp_path: Path, damage, says: str,
+                                                                       moved: int) -> None:
+    """A BLF whose fifth log container is damaged: python-can stopped there (a zlib error, a BLFParseError, or
+    silently where a damaged size took it past the end) and every frame after it was lost. The damaged container
+    is left out (the frames its neighbours share with it too), every other one read from a copy: the file's frames
+    less those, in order, and the error says where."""
+    whole = tmp_path / "whole.blf"
+    reference, starts = _blf_in_containers(whole)
+    assert len(reference) == 2 * N_CYCLES and len(starts) >= 8
+    at = starts[4]
+    log = tmp_path / "damaged.blf"
+    log.write_bytes(damage(whole.read_bytes(), at))
+    per_container = len(reference) / len(starts)
+    assert _python_can_reads(log) < 5 * per_container + 2
+    got, message = _read_until_error(log)
+    assert _in_order_within(got, reference) and len(reference) - per_container - 2 <= len(got) < len(reference)
+    assert message == (f"{log}: damaged BLF log: the container at byte {at} {says}: damaged there, bytes {at} to "
+                       f"{starts[5] + moved} left out and the containers after them read; {len(got)} frames read")
+
+
+def test_a_blf_container_whose_size_is_damaged_is_read_to_its_streams_end(tmp_path: Path) -> None:
+    """The fifth container's size damaged upwards: python-can took the containers after it for its bytes and read
+    on from inside one of them, silently short. Its zlib stream says where it ends: every frame is read, and the
+    error names the container."""
+    whole = tmp_path / "whole.blf"
+    reference, starts = _blf_in_containers(whole)
+    data = whole.read_bytes()
+    at = starts[4]
+    size = struct.unpack_from("<L", data, at + 8)[0]
+    log = tmp_path / "damaged.blf"
+    log.write_bytes(data[:at + 8] + struct.pack("<L", 3000) + data[at + 12:])
+    assert _python_can_reads(log) < len(reference) - 80
+    got, message = _read_until_error(log)
+    assert got == reference
+    assert message == (f"{log}: damaged BLF log: the container at byte {at} says it holds 3000 bytes, its stream "
+                       f"{size}: read to there; {len(reference)} frames read")
 
 
 @pytest.mark.parametrize("suffix", [".asc", ".trc", ".log"])

@@ -63,6 +63,7 @@ import can
 from can.io.generic import MessageReader
 
 from autosar_cli.ingest import mf4_support
+from autosar_cli.ingest.blf_damage import blf_damage, write_blf_without
 from autosar_cli.ingest.mdf4_blocks import mdf4_cut, write_without_holes
 from autosar_cli.ingest.mdf4_mend import write_mended
 from autosar_cli.ingest.records import CanRecord, CutShort
@@ -225,11 +226,14 @@ def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:
     with ExitStack() as stack:
         cut: CutShort | None = None
         try:
-            # python-can already reads a BLF's cut container as far as its zlib stream goes
-            cut = mdf4_cut(path) if suffix == ".mf4" else None if suffix == ".blf" else _text_cut(path, suffix)
+            # python-can already reads a BLF's cut container as far as its zlib stream goes; what it stops at inside
+            # is blf_damage's
+            cut = mdf4_cut(path) if suffix == ".mf4" else blf_damage(path) if suffix == ".blf" \
+                else _text_cut(path, suffix)
             with quiet():
                 source, cut = _mended(path, cut, stack)
-                reader = _open_reader(_whole_records(source, cut, stack), stack, path)
+                source = _whole_records(source, cut, stack)
+                reader = _open_reader(source, stack, path)
                 messages = iter(reader)
         except CanLogError:
             raise
@@ -260,7 +264,7 @@ def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:
                 is_remote=msg.is_remote_frame,
                 channel=to_channel(msg.channel),
             )
-        _check_complete(path, reader, frames)
+        _check_complete(source, reader, frames, path)
         errors = [ln for ln in printed.getvalue().splitlines() if ln and not ln.startswith((" ", "Traceback"))]
         if errors:
             warn(f"{path}: the {kind} reader went on past {len(errors)} error(s) of its own, the last: {errors[-1]}")
@@ -323,18 +327,22 @@ def _whole_records(path: Path, cut: CutShort | None, stack: ExitStack) -> Path:
         return path
     copy = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="autosar-canlog-"))) / path.name
     if cut.holes:
-        write_without_holes(path, copy, cut)
+        if _suffix(path) == ".blf":
+            write_blf_without(path, copy)
+        else:
+            write_without_holes(path, copy, cut)
         return copy
     shutil.copyfile(path, copy)
     os.truncate(copy, cut.whole_bytes)
     return copy
 
 
-def _check_complete(path: Path, reader: MessageReader, frames: int) -> None:
-    """Raise for a BLF shorter than its header says: python-can often ends such a file silently."""
+def _check_complete(read: Path, reader: MessageReader, frames: int, path: Path) -> None:
+    """Raise for a BLF shorter than its header says: python-can often ends such a file silently. ``read``: the
+    file read, ``path`` or a copy of it."""
     if isinstance(reader, can.BLFReader):
         try:
-            size = path.stat().st_size
+            size = read.stat().st_size
         except OSError:
             return
         if size < reader.file_size:

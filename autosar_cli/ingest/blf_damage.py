@@ -1,0 +1,206 @@
+"""Damage inside a BLF file (Vector's binary logging format): its damaged log containers left out, the others read.
+
+A BLF is a file header (``LOGG``, its own size, the file's size) and a run of objects, each ``LOBJ``, its header's
+size and version, the object's size (the next one begins after it and ``size % 4`` bytes of padding) and type. A
+CAN logger's objects are log containers: each a zlib stream (or stored bytes) of inner objects (CAN frames, bus
+statistics ...) that run on from one container into the next. python-can reads the containers in turn and stops
+at the first whose header is broken or whose stream does not inflate (zlib checks its own stream): every frame
+after it was lost. Here each container is inflated in turn (its stream to its end and its checksum); a damaged one,
+or bytes that hold no object where the next should begin, are a hole that reaches to the next container that
+inflates. A cut (no container after the damage) is python-can's: it reads the last container as far as its stream
+goes. The reader reads a copy without the holes (:func:`write_blf_without`): each container stored uncompressed,
+the inner objects whole (the one broken by a hole, before or after it, left out), and the file's size in its
+header the copy's.
+"""
+
+from __future__ import annotations
+
+import mmap
+import struct
+import zlib
+from collections.abc import Iterator
+from pathlib import Path
+
+from .records import CutShort
+
+_FILE_HEADER = struct.Struct("<4sL")  #: "LOGG", the header's size
+_FILE_SIZE_AT = 16  #: the header's 8-byte file size
+_OBJECT = struct.Struct("<4sHHLL")  #: "LOBJ", header size, header version, object size, object type
+_CONTAINER = struct.Struct("<H6xL4x")  #: a log container's compression method and inflated size
+_LOG_CONTAINER = 10
+_STORED, _DEFLATED = 0, 2
+#: an inner object's bytes (a CAN FD frame's is under 200): beyond, a "LOBJ" found after a hole is taken for data
+_MAX_INNER_OBJECT = 1 << 16
+_SCAN_BYTES = 1 << 24  #: how far past damage the next container is sought
+_PADDING = 8  #: bytes a writer may leave after a container's stream
+
+
+def blf_damage(path: Path) -> CutShort | None:
+    """Where damage inside the BLF file at ``path`` leaves containers to read after it (its holes), or None."""
+    with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+        if len(buf) < _FILE_HEADER.size or buf[:4] != b"LOGG":
+            return None
+        holes: list[tuple[int, int]] = []
+        said: list[str] = []
+        for pos, end, inner, why in _walk(buf):
+            if why is None:
+                continue
+            if inner is not None:  # read on: a container whose stated size its stream belies
+                holes.append((end, end))
+                said.append(f"the container at byte {pos} {why}: read to there")
+                continue
+            if end is None:  # nothing to read after it: a cut, or damage up to the end, which python-can reads to
+                if holes:
+                    said.append(f"the container at byte {pos} {why}, and none after it: read as far as it goes")
+                break
+            holes.append((pos, end))
+            said.append(f"the container at byte {pos} {why}: damaged there, bytes {pos} to {end} left out and the "
+                        "containers after them read")
+    if not holes:
+        return None
+    if len(said) > 3:
+        said = [*said[:2], f"{len(said) - 3} more places damaged as these", said[-1]]
+    return CutShort("; ".join(said), damaged=True, holes=tuple(holes))
+
+
+def write_blf_without(path: Path, dest: Path) -> None:
+    """Write to ``dest`` the BLF file at ``path`` without its damaged containers (:func:`blf_damage`'s holes): its
+    containers stored, each holding the inner objects whole (an object a hole breaks is left out), and its
+    header's file size the copy's."""
+    with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf, open(dest, "wb") as out:
+        out.write(buf[:_FILE_HEADER.unpack_from(buf, 0)[1]])
+        pending = b""  # inner bytes that begin an object the next container ends
+        after_hole = False
+        for pos, end, inner, why in _walk(buf):
+            if why is not None and inner is None:
+                after_hole = True
+                if end is not None:
+                    continue
+                inner = _partial(buf, pos)  # the last container, cut: as far as its stream goes
+            if inner is None:
+                continue
+            if after_hole:  # the object the hole broke: its end here is left out with it
+                pending, first = b"", _first_object(inner)
+                inner, after_hole = (inner[first:] if first is not None else b""), False
+            stream = pending + inner
+            whole = _whole_objects(stream)
+            pending = stream[whole:]
+            if whole:
+                body = _CONTAINER.pack(_STORED, whole) + stream[:whole]
+                size = _OBJECT.size + len(body)
+                out.write(_OBJECT.pack(b"LOBJ", _OBJECT.size, 1, size, _LOG_CONTAINER) + body + bytes(size % 4))
+        out.flush()
+        size = out.tell()
+    with open(dest, "r+b") as fixed:
+        fixed.seek(_FILE_SIZE_AT)
+        fixed.write(struct.pack("<Q", size))
+
+
+#: an object as :func:`_walk` gives it: (its byte, the byte after it (after damage: the next container that
+#: inflates, None if none), a container's inner bytes (None: another object, or damage), why it is damaged (with
+#: inner bytes: a stated size its stream belies))
+Walked = tuple[int, int | None, bytes | None, str | None]
+
+
+def _walk(buf: mmap.mmap) -> Iterator[Walked]:
+    """The file's objects in turn, each damaged stretch as one, to the end or to damage with nothing after it."""
+    pos = _FILE_HEADER.unpack_from(buf, 0)[1]
+    while pos < len(buf):
+        found = _object(buf, pos)
+        if isinstance(found, str):
+            after = _next_container(buf, pos + 1)
+            yield pos, after, None, found
+            if after is None:
+                return
+            pos = after
+            continue
+        yield pos, *found
+        pos = found[0]
+
+
+def _object(buf: mmap.mmap, pos: int) -> tuple[int, bytes | None, str | None] | str:
+    """(the byte after it, a container's inner bytes, what was wrong with it) of the object at ``pos``, or why it
+    is damaged: a header no object's, an object that runs past the end, a container that does not inflate (to its
+    stream's end, the size it says). A container whose stream ends before its stated size does (past the file's
+    end or not) is read to its stream's end."""
+    if pos + _OBJECT.size > len(buf):
+        return "is cut off in its header"
+    signature, header_size, _, size, kind = _OBJECT.unpack_from(buf, pos)
+    if signature != b"LOBJ" or size < header_size or header_size < _OBJECT.size:
+        return f"has no object header (it reads {bytes(buf[pos:pos + 4])!r})"
+    past = f"says it holds {size} bytes, past the file's end"
+    if kind != _LOG_CONTAINER:
+        return past if pos + size > len(buf) else (pos + size + size % 4, None, None)
+    body = pos + header_size
+    if body + _CONTAINER.size > min(pos + size, len(buf)):
+        return past if pos + size > len(buf) else "does not inflate"
+    method, inflated_size = _CONTAINER.unpack_from(buf, body)
+    data = buf[body + _CONTAINER.size:min(pos + size, len(buf))]
+    if method == _STORED:
+        return past if pos + size > len(buf) else (pos + size + size % 4, bytes(data), None)
+    inflate = zlib.decompressobj()
+    try:
+        inner = inflate.decompress(data) if method == _DEFLATED else b""
+    except zlib.error:
+        return "does not inflate"
+    if method != _DEFLATED or not inflate.eof or len(inner) != inflated_size:
+        return past if pos + size > len(buf) else "does not inflate"
+    if pos + size <= len(buf) and len(inflate.unused_data) <= _PADDING:
+        return pos + size + size % 4, inner, None
+    whole = header_size + _CONTAINER.size + len(data) - len(inflate.unused_data)  # its stream says where it ends
+    return pos + whole + whole % 4, inner, f"says it holds {size} bytes, its stream {whole}"
+
+
+def _partial(buf: mmap.mmap, pos: int) -> bytes | None:
+    """The inner bytes of a container the file's end cuts, as far as its stream goes (as python-can reads it)."""
+    header_size = _OBJECT.unpack_from(buf, pos)[1] if pos + _OBJECT.size <= len(buf) else len(buf)
+    body = pos + header_size + _CONTAINER.size
+    if body > len(buf) or _OBJECT.unpack_from(buf, pos)[4] != _LOG_CONTAINER:
+        return None
+    method = _CONTAINER.unpack_from(buf, pos + header_size)[0]
+    if method == _STORED:
+        return bytes(buf[body:])
+    try:
+        return zlib.decompressobj().decompress(buf[body:]) if method == _DEFLATED else None
+    except zlib.error:
+        return None
+
+
+def _next_container(buf: mmap.mmap, pos: int) -> int | None:
+    """The byte of the first log container from ``pos`` on (within :data:`_SCAN_BYTES`) that inflates."""
+    stop = min(len(buf), pos + _SCAN_BYTES)
+    at = buf.find(b"LOBJ", pos, stop)
+    while at >= 0:
+        if at + _OBJECT.size <= len(buf) and _OBJECT.unpack_from(buf, at)[4] == _LOG_CONTAINER \
+                and not isinstance(_object(buf, at), str):
+            return at
+        at = buf.find(b"LOBJ", at + 1, stop)
+    return None
+
+
+def _whole_objects(stream: bytes) -> int:
+    """The bytes of ``stream`` (beginning with an object) that hold whole objects."""
+    pos = 0
+    while True:
+        at = stream.find(b"LOBJ", pos, pos + 8)  # objects are padded to 4 bytes (or 8: python-can's search)
+        if at < 0 or at + _OBJECT.size > len(stream):
+            return pos
+        size = _OBJECT.unpack_from(stream, at)[3]
+        if size < _OBJECT.size or at + size > len(stream):
+            return pos
+        pos = at + size
+
+
+def _first_object(data: bytes) -> int | None:
+    """Where the first inner object that begins in ``data`` lies (the bytes before it end an object from a
+    container left out): an ``LOBJ`` whose size fits and after which the next object begins, or the data end."""
+    at = data.find(b"LOBJ")
+    while at >= 0:
+        if at + _OBJECT.size <= len(data):
+            header_size, size = _OBJECT.unpack_from(data, at)[1], _OBJECT.unpack_from(data, at)[3]
+            end = at + size
+            if _OBJECT.size <= header_size <= size <= _MAX_INNER_OBJECT and (
+                    end + 4 > len(data) or data.find(b"LOBJ", end, end + 8) >= 0):
+                return at
+        at = data.find(b"LOBJ", at + 1)
+    return None
