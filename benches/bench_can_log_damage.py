@@ -1,14 +1,15 @@
-"""MDF4 damage sweep: frames read from real CANedge files, and their asammdf-finalised copies, damaged at every place.
+"""CAN log damage sweep: frames read from real CANedge MDF4 files, finalised copies and a BLF, damaged everywhere.
 
-Each of the three CANedge files under ``../shared/realdata/css-electronics`` and a finalised copy of two of them
-(written by asammdf, uncompressed) gets 4 KiB zeroed at every 4 KiB, and 64 random bytes (seeded) at every 2 KiB,
-one damage per trial, and is read with ``read_can_log`` as ingest reads it. Per trial: the frames read, whether none
-were, how many of them the undamaged file does not have (foreign: wrong and not reported; a damaged conversion block
-that still parses gives these), and whether anything but a ``CanLogError`` came out (a traceback). ``--against DIR``
-runs the same trials with the package of another checkout beside this one's (``git worktree add DIR REV``), in the
-same run. Results: ``benches/results/mdf4_damage.json``.
+Each of the three CANedge files under ``../shared/realdata/css-electronics``, a finalised copy of two of them
+(written by asammdf, uncompressed), and a BLF of the three files' frames (written by python-can, its default
+128 KiB log containers) gets 4 KiB zeroed at every 4 KiB, and 64 random bytes (seeded) at every 2 KiB, one damage
+per trial, and is read with ``read_can_log`` as ingest reads it. Per trial: the frames read, whether none were, how
+many of them the undamaged file does not have (foreign: wrong and not reported; an MDF4 conversion block damaged so
+that it still parses gives these), and whether anything but a ``CanLogError`` came out (a traceback). ``--against
+DIR`` runs the same trials with the package of another checkout beside this one's (``git worktree add DIR REV``), in
+the same run. Results: ``benches/results/can_log_damage.json``, summed per format (``mdf4``, ``blf``).
 
-Usage: python benches/bench_mdf4_damage.py [--against DIR] [--zero-step 4096] [--random-step 2048]
+Usage: python benches/bench_can_log_damage.py [--against DIR] [--zero-step 4096] [--random-step 2048]
 """
 
 from __future__ import annotations
@@ -63,7 +64,7 @@ def _sweep(files: list[Path], zero_step: int, random_step: int) -> list[dict[str
         return got, ""
 
     rows = []
-    with tempfile.TemporaryDirectory(prefix="bench-mdf4-") as scratch:
+    with tempfile.TemporaryDirectory(prefix="bench-can-log-") as scratch:
         for src in files:
             data = src.read_bytes()
             whole, _ = frames(src)
@@ -88,6 +89,21 @@ def _summary(rows: list[dict[str, object]]) -> dict[str, object]:
             "tracebacks": sum(1 for r in rows if str(r["ended"]).startswith("traceback"))}
 
 
+def _blf_of(logs: list[Path], dest: Path) -> Path:
+    """A BLF of the frames of ``logs``, in turn, written by python-can."""
+    import can
+
+    from autosar_cli.ingest.canlog import read_can_log
+
+    with can.BLFWriter(dest) as writer:
+        for log in logs:
+            for r in read_can_log(log):
+                writer.on_message_received(can.Message(
+                    timestamp=r.t_ns / 1e9, arbitration_id=r.frame_id, is_extended_id=r.is_extended, dlc=r.dlc,
+                    data=r.data, is_error_frame=r.is_error, is_remote_frame=r.is_remote, channel=int(r.channel) - 1))
+    return dest
+
+
 def _revision(root: Path) -> str:
     """The checkout's commit (short), with "+" where its package differs from it."""
     def git(*cmd: str) -> str:
@@ -109,7 +125,7 @@ def main() -> None:
     ap.add_argument("--against", type=Path, help="another checkout whose package runs the same trials beside")
     ap.add_argument("--zero-step", type=int, default=4096)
     ap.add_argument("--random-step", type=int, default=2048)
-    ap.add_argument("--output", type=Path, default=HERE / "results" / "mdf4_damage.json")
+    ap.add_argument("--output", type=Path, default=HERE / "results" / "can_log_damage.json")
     ap.add_argument("--worker", type=Path, help=argparse.SUPPRESS)
     ap.add_argument("files", nargs="*", type=Path, help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -121,30 +137,34 @@ def main() -> None:
     from asammdf import MDF
 
     t0 = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="bench-mdf4-") as scratch:
+    with tempfile.TemporaryDirectory(prefix="bench-can-log-") as scratch:
         files = [REAL / name for name in FILES]
         for name in FINALISED:
             copy = Path(scratch) / name.replace(".MF4", ".mf4")
             with MDF(REAL / name) as mdf:
                 mdf.save(copy, overwrite=True, compression=0)
             files.append(copy)
+        files.append(_blf_of(files[:len(FILES)], Path(scratch) / "css_frames.blf"))
         roots = {"this": REPO, **({"against": args.against.resolve()} if args.against else {})}
         with ThreadPoolExecutor(len(roots)) as pool:  # the two checkouts side by side, a process each
             runs = {name: pool.submit(_worker, root, files, args.zero_step, args.random_step,
                                       Path(scratch) / f"{name}.json") for name, root in roots.items()}
             rows = {name: run.result() for name, run in runs.items()}
     result: dict[str, object] = {
-        "benchmark": "mdf4_damage", "damage": f"{ZEROED} B zeroed every {args.zero_step} B, {OVERWRITTEN} random B "
-        f"every {args.random_step} B", "files": len(files),
-        "summary": {"revision": _revision(REPO), **_summary(rows["this"])}}
-    if args.against:
-        result["against"] = {"revision": _revision(roots["against"]), **_summary(rows["against"])}
+        "benchmark": "can_log_damage", "damage": f"{ZEROED} B zeroed every {args.zero_step} B, {OVERWRITTEN} random "
+        f"B every {args.random_step} B", "files": len(files)}
+    for kind, suffixes in (("mdf4", (".mf4",)), ("blf", (".blf",))):
+        for name in roots:
+            mine = [r for r in rows[name] if Path(str(r["file"])).suffix.lower() in suffixes]
+            key = kind if name == "this" else f"{kind}_against"
+            result[key] = {"revision": _revision(roots[name]), **_summary(mine)}
     result |= {"wall_s": round(time.perf_counter() - t0, 1), "rows": rows["this"],
                "python": platform.python_version(), "cores": os.cpu_count()}
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(json.dumps(result, indent=1) + "\n")
-    for name in roots:
-        print(name, json.dumps(_summary(rows[name])))
+    for key, summary in result.items():
+        if isinstance(summary, dict):
+            print(key, json.dumps(summary))
     print(f"wrote {args.output}")
 
 
