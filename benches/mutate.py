@@ -87,6 +87,8 @@ MF4_MEND_DATA = "tests/test_ingest_canlog.py::test_a_group_whose_data_bytes_lie_
 MF4_ZEROED_STAMPS = "tests/test_ingest_canlog.py::test_zeroed_stamps_outnumbering_the_whole_ones_are_the_damage"
 MF4_HALF_BUILT = ("tests/test_ingest_canlog.py::"
                   "test_a_failed_mf4_open_leaves_no_half_built_reader_to_the_garbage_collector")
+BLF_DAMAGE = "tests/test_ingest_canlog.py::test_a_blf_damaged_inside_keeps_the_frames_of_every_other_container"
+BLF_SIZE = "tests/test_ingest_canlog.py::test_a_blf_container_whose_size_is_damaged_is_read_to_its_streams_end"
 ODD_INPUTS = "tests/test_safety.py::test_an_input_that_is_a_pipe_a_link_loop_or_a_directory_is_one_line"
 NMEA_DAMAGE = "tests/test_ingest_nmea.py::test_a_block_of_nul_bytes_in_a_capture_is_one_damage_warning_with_its_place"
 MISLABELLED = ("tests/test_ingest_damage.py::"
@@ -495,6 +497,16 @@ MUTATIONS: list[Mutation] = [
        "        k = bisect.bisect_left(tails, t)", "        k = bisect.bisect_right(tails, t)", MF4_ZEROED_STAMPS),
     _m("mf4-half-built-reader-left-to-the-collector", "ingest", "ingest/canlog.py",
        "            _release_half_built(exc)\n", "", MF4_HALF_BUILT),
+    _m("blf-damage-not-sought", "ingest", "ingest/canlog.py",
+       'else blf_damage(path) if suffix == ".blf"', 'else None if suffix == ".blf"', BLF_DAMAGE),
+    _m("blf-object-broken-by-a-hole-kept", "ingest", "ingest/blf_damage.py",
+       'pending, first = b"", _first_object(inner)', "first = 0", BLF_DAMAGE),
+    _m("blf-stated-size-trusted", "ingest", "ingest/blf_damage.py",
+       "    if pos + size <= len(buf) and len(inflate.unused_data) <= _PADDING:", "    if pos + size <= len(buf):",
+       BLF_SIZE),
+    _m("blf-stream-end-unchecked", "ingest", "ingest/blf_damage.py",
+       "    if method != _DEFLATED or not inflate.eof or len(inner) != inflated_size:",
+       "    if method != _DEFLATED:", BLF_DAMAGE),
 ]
 
 

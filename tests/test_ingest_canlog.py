@@ -773,13 +773,17 @@ def _blf_in_containers(path: Path) -> tuple[list[CanRecord], list[int]]:
     with can.BLFWriter(path, max_container_size=1024) as writer:
         for *_, msg in _frames():
             writer.on_message_received(msg)
-    data = path.read_bytes()
+    return list(read_can_log(path)), _container_starts(path.read_bytes())
+
+
+def _container_starts(data: bytes) -> list[int]:
+    """The byte of each of a BLF's objects (its log containers), by their sizes."""
     starts, pos = [], struct.unpack_from("<L", data, 4)[0]
     while pos < len(data):
         size = struct.unpack_from("<L", data, pos + 8)[0]
         starts.append(pos)
         pos += size + size % 4
-    return list(read_can_log(path)), starts
+    return starts
 
 
 def _python_can_reads(log: Path) -> int:
@@ -815,6 +819,33 @@ def test_a_blf_damaged_inside_keeps_the_frames_of_every_other_container(tmp_path
     assert _in_order_within(got, reference) and len(reference) - per_container - 2 <= len(got) < len(reference)
     assert message == (f"{log}: damaged BLF log: the container at byte {at} {says}: damaged there, bytes {at} to "
                        f"{starts[5] + moved} left out and the containers after them read; {len(got)} frames read")
+
+
+def test_a_blf_whose_last_container_is_damaged_keeps_what_its_stream_gave_before(tmp_path: Path) -> None:
+    """The end of the last container's stream zeroed: what zlib gives before it
+    fails is kept, in time order, less its last two frames (their bytes may already be the damage's). python-can
+    read those and a frame zlib made of the zeros (id 0 on channel 511, 1100 s late), then stopped with an error of
+    its own; the last container dropped whole would have lost 2400 good frames."""
+    whole = tmp_path / "whole.blf"
+    with can.BLFWriter(whole) as writer:  # 40 s of frames: python-can's 128 KiB containers, 3 of them
+        for second in range(40):
+            for *_, msg in _frames():
+                writer.on_message_received(can.Message(timestamp=msg.timestamp + second, channel=msg.channel,
+                                                       arbitration_id=msg.arbitration_id, data=msg.data,
+                                                       is_extended_id=False))
+    reference = list(read_can_log(whole))
+    data = whole.read_bytes()
+    log = tmp_path / "damaged.blf"
+    log.write_bytes(data[:-44] + bytes(44))
+    by_python_can = 0
+    with contextlib.suppress(can.io.blf.BLFParseError), can.BLFReader(log) as reader:
+        for _ in reader:
+            by_python_can += 1
+    got, message = _read_until_error(log)
+    assert by_python_can - 2 <= len(got) < len(reference) and got == reference[:len(got)]
+    last = _container_starts(data)[-1]
+    assert message == (f"{log}: damaged BLF log: the container at byte {last} does not inflate: damaged there, no "
+                       f"container after it, bytes {last} to {len(data)} left out; {len(got)} frames read")
 
 
 def test_a_blf_container_whose_size_is_damaged_is_read_to_its_streams_end(tmp_path: Path) -> None:

@@ -20,6 +20,7 @@ import struct
 import zlib
 from collections.abc import Iterator
 from pathlib import Path
+from typing import BinaryIO
 
 from .records import CutShort
 
@@ -33,6 +34,10 @@ _STORED, _DEFLATED = 0, 2
 _MAX_INNER_OBJECT = 1 << 16
 _SCAN_BYTES = 1 << 24  #: how far past damage the next container is sought
 _PADDING = 8  #: bytes a writer may leave after a container's stream
+_INFLATE_STEP = 256  #: bytes of a damaged stream inflated at a time
+#: an inner object's header: the base, then its flags (its time's unit) and time (the same place in versions 1, 2)
+_INNER_HEADER = struct.Struct("<4sHHLLL4xQ")
+_TEN_MICROSECONDS, _NANOSECONDS = 1, 2
 
 
 def blf_damage(path: Path) -> CutShort | None:
@@ -48,14 +53,17 @@ def blf_damage(path: Path) -> CutShort | None:
             if inner is not None:  # read on: a container whose stated size its stream belies
                 holes.append((end, end))
                 said.append(f"the container at byte {pos} {why}: read to there")
-                continue
-            if end is None:  # nothing to read after it: a cut, or damage up to the end, which python-can reads to
+            elif end is None:  # the file's end cuts it: python-can reads it as far as its stream goes
                 if holes:
-                    said.append(f"the container at byte {pos} {why}, and none after it: read as far as it goes")
-                break
-            holes.append((pos, end))
-            said.append(f"the container at byte {pos} {why}: damaged there, bytes {pos} to {end} left out and the "
-                        "containers after them read")
+                    said.append(f"the container at byte {pos} {why}: read as far as it goes")
+            elif end == len(buf):  # its frames would be what zlib made of damaged bytes until it failed
+                holes.append((pos, end))
+                said.append(f"the container at byte {pos} {why}: damaged there, no container after it, bytes {pos} "
+                            f"to {end} left out")
+            else:
+                holes.append((pos, end))
+                said.append(f"the container at byte {pos} {why}: damaged there, bytes {pos} to {end} left out and "
+                            "the containers after them read")
     if not holes:
         return None
     if len(said) > 3:
@@ -73,10 +81,12 @@ def write_blf_without(path: Path, dest: Path) -> None:
         after_hole = False
         for pos, end, inner, why in _walk(buf):
             if why is not None and inner is None:
-                after_hole = True
-                if end is not None:
+                inner = _partial(buf, pos, len(buf) if end is None else end)  # as far as its stream goes
+                if end is not None:  # damaged: the frames its stream gave in time order, less the last two
+                    stream = pending + (inner or b"")
+                    _write_container(out, stream[:_in_time_order(stream)])
+                    pending, after_hole = b"", True
                     continue
-                inner = _partial(buf, pos)  # the last container, cut: as far as its stream goes
             if inner is None:
                 continue
             if after_hole:  # the object the hole broke: its end here is left out with it
@@ -85,10 +95,7 @@ def write_blf_without(path: Path, dest: Path) -> None:
             stream = pending + inner
             whole = _whole_objects(stream)
             pending = stream[whole:]
-            if whole:
-                body = _CONTAINER.pack(_STORED, whole) + stream[:whole]
-                size = _OBJECT.size + len(body)
-                out.write(_OBJECT.pack(b"LOBJ", _OBJECT.size, 1, size, _LOG_CONTAINER) + body + bytes(size % 4))
+            _write_container(out, stream[:whole])
         out.flush()
         size = out.tell()
     with open(dest, "r+b") as fixed:
@@ -96,22 +103,35 @@ def write_blf_without(path: Path, dest: Path) -> None:
         fixed.write(struct.pack("<Q", size))
 
 
+def _write_container(out: BinaryIO, inner: bytes) -> None:
+    """A log container of ``inner`` (whole objects), stored, unless there are none."""
+    if inner:
+        body = _CONTAINER.pack(_STORED, len(inner)) + inner
+        size = _OBJECT.size + len(body)
+        out.write(_OBJECT.pack(b"LOBJ", _OBJECT.size, 1, size, _LOG_CONTAINER) + body + bytes(size % 4))
+
+
+class _Cut(str):
+    """Why an object is broken off: the file's end cuts it (its bytes so far are whole)."""
+
+
 #: an object as :func:`_walk` gives it: (its byte, the byte after it (after damage: the next container that
-#: inflates, None if none), a container's inner bytes (None: another object, or damage), why it is damaged (with
-#: inner bytes: a stated size its stream belies))
+#: inflates, the file's end if none; None: the end cuts it), a container's inner bytes (None: another object, or
+#: damage), why it is damaged (with inner bytes: a stated size its stream belies))
 Walked = tuple[int, int | None, bytes | None, str | None]
 
 
 def _walk(buf: mmap.mmap) -> Iterator[Walked]:
-    """The file's objects in turn, each damaged stretch as one, to the end or to damage with nothing after it."""
+    """The file's objects in turn, each damaged stretch as one, to the end or to a cut (its end None)."""
     pos = _FILE_HEADER.unpack_from(buf, 0)[1]
     while pos < len(buf):
         found = _object(buf, pos)
         if isinstance(found, str):
             after = _next_container(buf, pos + 1)
-            yield pos, after, None, found
-            if after is None:
+            if after is None:  # a cut, or damage to the end
+                yield pos, None if isinstance(found, _Cut) else len(buf), None, found
                 return
+            yield pos, after, None, found
             pos = after
             continue
         yield pos, *found
@@ -124,11 +144,11 @@ def _object(buf: mmap.mmap, pos: int) -> tuple[int, bytes | None, str | None] | 
     stream's end, the size it says). A container whose stream ends before its stated size does (past the file's
     end or not) is read to its stream's end."""
     if pos + _OBJECT.size > len(buf):
-        return "is cut off in its header"
+        return _Cut("is cut off in its header")
     signature, header_size, _, size, kind = _OBJECT.unpack_from(buf, pos)
     if signature != b"LOBJ" or size < header_size or header_size < _OBJECT.size:
         return f"has no object header (it reads {bytes(buf[pos:pos + 4])!r})"
-    past = f"says it holds {size} bytes, past the file's end"
+    past = _Cut(f"says it holds {size} bytes, past the file's end")
     if kind != _LOG_CONTAINER:
         return past if pos + size > len(buf) else (pos + size + size % 4, None, None)
     body = pos + header_size
@@ -151,19 +171,45 @@ def _object(buf: mmap.mmap, pos: int) -> tuple[int, bytes | None, str | None] | 
     return pos + whole + whole % 4, inner, f"says it holds {size} bytes, its stream {whole}"
 
 
-def _partial(buf: mmap.mmap, pos: int) -> bytes | None:
-    """The inner bytes of a container the file's end cuts, as far as its stream goes (as python-can reads it)."""
-    header_size = _OBJECT.unpack_from(buf, pos)[1] if pos + _OBJECT.size <= len(buf) else len(buf)
+def _partial(buf: mmap.mmap, pos: int, end: int) -> bytes | None:
+    """The inner bytes of a broken container (cut by the file's end, or damaged: its bytes up to ``end``) as far as
+    its stream inflates; None where its header is no container's."""
+    if pos + _OBJECT.size > len(buf):
+        return None
+    signature, header_size, _, size, kind = _OBJECT.unpack_from(buf, pos)
     body = pos + header_size + _CONTAINER.size
-    if body > len(buf) or _OBJECT.unpack_from(buf, pos)[4] != _LOG_CONTAINER:
+    if signature != b"LOBJ" or kind != _LOG_CONTAINER or body > min(end, len(buf)):
         return None
     method = _CONTAINER.unpack_from(buf, pos + header_size)[0]
+    data = buf[body:min(pos + size, end, len(buf))]
     if method == _STORED:
-        return bytes(buf[body:])
-    try:
-        return zlib.decompressobj().decompress(buf[body:]) if method == _DEFLATED else None
-    except zlib.error:
+        return bytes(data)
+    if method != _DEFLATED:
         return None
+    inflate, out = zlib.decompressobj(), []
+    for at in range(0, len(data), _INFLATE_STEP):  # in steps: zlib gives nothing of a call that fails
+        try:
+            out.append(inflate.decompress(data[at:at + _INFLATE_STEP]))
+        except zlib.error:
+            break
+    return b"".join(out)
+
+
+def _in_time_order(stream: bytes) -> int:
+    """The bytes of ``stream`` (beginning with an object) that hold whole objects whose times do not fall, less
+    the last two such: what a damaged stream gave before zlib failed, whose end may already be the damage's."""
+    ends, pos, last = [], 0, -1
+    while True:
+        at = stream.find(b"LOBJ", pos, pos + 8)
+        if at < 0 or at + _INNER_HEADER.size > len(stream):
+            break
+        _, header_size, _, size, _, flags, stamp = _INNER_HEADER.unpack_from(stream, at)
+        time = stamp * 10_000 if flags == _TEN_MICROSECONDS else stamp if flags == _NANOSECONDS else -1
+        if size < header_size or header_size < _INNER_HEADER.size or at + size > len(stream) or time < last:
+            break
+        ends.append(at + size)
+        pos, last = at + size, time
+    return ends[-3] if len(ends) > 2 else 0
 
 
 def _next_container(buf: mmap.mmap, pos: int) -> int | None:
