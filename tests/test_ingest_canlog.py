@@ -824,8 +824,8 @@ def test_a_blf_damaged_inside_keeps_the_frames_of_every_other_container(tmp_path
 def test_a_blf_whose_last_container_is_damaged_keeps_what_its_stream_gave_before(tmp_path: Path) -> None:
     """The end of the last container's stream zeroed: what zlib gives before it
     fails is kept, in time order, less its last two frames (their bytes may already be the damage's). python-can
-    read those and a frame zlib made of the zeros (id 0 on channel 511, 1100 s late), then stopped with an error of
-    its own; the last container dropped whole would have lost 2400 good frames."""
+    read those and a frame zlib made of the zeros (id 0 on channel 511, 1100 s after the start), then stopped with
+    an error of its own; the last container dropped whole would have lost 2400 good frames."""
     whole = tmp_path / "whole.blf"
     with can.BLFWriter(whole) as writer:  # 40 s of frames: python-can's 128 KiB containers, 3 of them
         for second in range(40):
