@@ -7,7 +7,8 @@ per trial, and is read with ``read_can_log`` as ingest reads it. Per trial: the 
 many of them the undamaged file does not have (foreign: wrong and not reported; an MDF4 conversion block damaged so
 that it still parses gives these), and whether anything but a ``CanLogError`` came out (a traceback). ``--against
 DIR`` runs the same trials with the package of another checkout beside this one's (``git worktree add DIR REV``), in
-the same run. Results: ``benches/results/can_log_damage.json``, summed per format (``mdf4``, ``blf``).
+the same run. Results: ``benches/results/can_log_damage.json``, summed per format (``summary``: the MDF4 files,
+``blf``; ``..._against``: the other checkout's).
 
 Usage: python benches/bench_can_log_damage.py [--against DIR] [--zero-step 4096] [--random-step 2048]
 """
@@ -156,7 +157,7 @@ def main() -> None:
     for kind, suffixes in (("mdf4", (".mf4",)), ("blf", (".blf",))):
         for name in roots:
             mine = [r for r in rows[name] if Path(str(r["file"])).suffix.lower() in suffixes]
-            key = kind if name == "this" else f"{kind}_against"
+            key = ("summary" if kind == "mdf4" else kind) if name == "this" else f"{kind}_against"
             result[key] = {"revision": _revision(roots[name]), **_summary(mine)}
     result |= {"wall_s": round(time.perf_counter() - t0, 1), "rows": rows["this"],
                "python": platform.python_version(), "cores": os.cpu_count()}
