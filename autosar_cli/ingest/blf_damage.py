@@ -5,12 +5,14 @@ size and version, the object's size (the next one begins after it and ``size % 4
 CAN logger's objects are log containers: each a zlib stream (or stored bytes) of inner objects (CAN frames, bus
 statistics ...) that run on from one container into the next. python-can reads the containers in turn and stops
 at the first whose header is broken or whose stream does not inflate (zlib checks its own stream): every frame
-after it was lost. Here each container is inflated in turn (its stream to its end and its checksum); a damaged one,
-or bytes that hold no object where the next should begin, are a hole that reaches to the next container that
-inflates. A cut (no container after the damage) is python-can's: it reads the last container as far as its stream
-goes. The reader reads a copy without the holes (:func:`write_blf_without`): each container stored uncompressed,
-the inner objects whole (the one broken by a hole, before or after it, left out), and the file's size in its
-header the copy's.
+after it was lost; a damaged stream that did not fail it read as zlib made it. Here each container is inflated in
+turn (its stream to its end and its checksum); a damaged one, or bytes that hold no object where the next should
+begin, are a hole that reaches to the next container that inflates, or to the file's end; a container whose
+stated size its stream belies is read to its stream's end. What a damaged stream gives before zlib fails is kept:
+its whole objects in time order, less the last two. A file whose end cuts its last container, and is otherwise
+whole, is python-can's: it reads that container as far as its stream goes. The reader reads a copy
+(:func:`write_blf_without`): each container stored uncompressed, holding whole inner objects (the one a hole
+breaks left out), and the file's size in its header the copy's.
 """
 
 from __future__ import annotations
