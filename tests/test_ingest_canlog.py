@@ -848,22 +848,24 @@ def test_a_blf_whose_last_container_is_damaged_keeps_what_its_stream_gave_before
                        f"container after it, bytes {last} to {len(data)} left out; {len(got)} frames read")
 
 
-def test_a_blf_container_whose_size_is_damaged_is_read_to_its_streams_end(tmp_path: Path) -> None:
-    """The fifth container's size damaged upwards: python-can took the containers after it for its bytes and read
-    on from inside one of them, silently short. Its zlib stream says where it ends: every frame is read, and the
-    error names the container."""
+@pytest.mark.parametrize("more", [500, 3000], ids=["inside the file", "past its end"])
+def test_a_blf_container_whose_size_is_damaged_is_read_to_its_streams_end(tmp_path: Path, more: int) -> None:
+    """The fifth container's size damaged upwards: python-can took the bytes after it for its own and read on from
+    inside the next container (a BLFParseError), or past the end (silently short). Its zlib stream says where it
+    ends: every frame is read, and the error names the container."""
     whole = tmp_path / "whole.blf"
     reference, starts = _blf_in_containers(whole)
     data = whole.read_bytes()
     at = starts[4]
     size = struct.unpack_from("<L", data, at + 8)[0]
     log = tmp_path / "damaged.blf"
-    log.write_bytes(data[:at + 8] + struct.pack("<L", 3000) + data[at + 12:])
+    log.write_bytes(data[:at + 8] + struct.pack("<L", size + more) + data[at + 12:])
+    assert (at + size + more > len(data)) == (more == 3000)
     assert _python_can_reads(log) < len(reference) - 80
     got, message = _read_until_error(log)
     assert got == reference
-    assert message == (f"{log}: damaged BLF log: the container at byte {at} says it holds 3000 bytes, its stream "
-                       f"{size}: read to there; {len(reference)} frames read")
+    assert message == (f"{log}: damaged BLF log: the container at byte {at} says it holds {size + more} bytes, its "
+                       f"stream {size}: read to there; {len(reference)} frames read")
 
 
 @pytest.mark.parametrize("suffix", [".asc", ".trc", ".log"])
