@@ -34,7 +34,9 @@ in an unfinalised file (a CAN logger's), its last data block's records are walke
 (:mod:`.mdf4_blocks`): the records before the cut are read from a temporary copy that ends there, then
 :class:`CanLogError` names the cut. Damage inside an MDF4's records (either kind of file: :mod:`.mdf4_sorted` for a
 finalised one) is read past from a copy without the damaged records; damage to its blocks, from a copy whose chains
-leave the damaged groups out (:mod:`.mdf4_mend`); :class:`CanLogError` names what was left out.
+leave the damaged groups out (:mod:`.mdf4_mend`). A BLF damaged inside (python-can stops at the first log container
+that does not inflate) is read from a copy of its intact containers (:mod:`.blf_damage`). :class:`CanLogError`
+names what was left out.
 
 Channels are named as the file numbers them: python-can makes ASC and BLF channels 0-based
 (file channel 1 -> 0) but not TRC or MF4; that shift is undone here so that "1" means CAN 1 in every
@@ -322,7 +324,8 @@ def _whole_records(path: Path, cut: CutShort | None, stack: ExitStack) -> Path:
     """``path``, or where the end of a log cuts a record or line, a temporary copy of it up to there (asammdf stops
     at a broken MDF4 record, or reads a shape it cannot reshape and loses the frames before it; python-can skips a
     broken TRC line or reads a broken candump line as a shorter frame); where damage inside an MDF4 file leaves
-    records to read after it, a copy without the damaged bytes (:func:`write_without_holes`)."""
+    records to read after it, a copy without the damaged bytes (:func:`write_without_holes`); inside a BLF, a copy
+    of its intact containers (:func:`write_blf_without`)."""
     if cut is None or (cut.whole_bytes is None and not cut.holes):
         return path
     copy = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="autosar-canlog-"))) / path.name
