@@ -868,6 +868,41 @@ def test_a_blf_container_whose_size_is_damaged_is_read_to_its_streams_end(tmp_pa
                        f"stream {size}: read to there; {len(reference)} frames read")
 
 
+_KIND = {".asc": "ASC", ".trc": "TRC", ".log": "candump -L"}
+
+
+@pytest.mark.parametrize("suffix", [".asc", ".trc", ".log"])
+@pytest.mark.parametrize("damage", ["zeroed", "a data byte lost"])
+def test_a_text_log_damaged_in_a_line_keeps_every_other_line(tmp_path: Path, suffix: str, damage: str) -> None:
+    """16 bytes zeroed in a frame line in the middle of a text log, or its last data byte lost: python-can raised
+    at the line it could not parse (every frame after it lost), skipped a line no pattern of its matched without a
+    word, or read a frame short of its data bytes (DLC 8, 7 bytes) as a whole one. Such a line is left out and
+    counted, the reader started again with the header's lines (its start date, base, columns) and the lines after:
+    every other frame read, at its own time. candump states no length: a frame a byte short reads whole."""
+    log = tmp_path / f"whole{suffix}"
+    _write(log, [f[3] for f in _frames()])
+    reference = list(read_can_log(log))
+    text = log.read_bytes()
+    start = text.index(b"\n", len(text) // 2) + 1  # the frame line after the middle
+    end = text.index(b"\n", start)
+    line = text[:start].count(b"\n") + 1
+    damaged = tmp_path / f"damaged{suffix}"
+    if damage == "zeroed":
+        damaged.write_bytes(text[:start + 20] + bytes(16) + text[start + 36:])
+    elif suffix == ".log":  # the first data byte: "0EE#16F8..." -> "0EE#F8..."
+        hash_at = text.index(b"#", start)
+        damaged.write_bytes(text[:hash_at + 1] + text[hash_at + 3:])
+        got = list(read_can_log(damaged))
+        assert len(got) == len(reference) and got[line - 1].data == reference[line - 1].data[1:]
+        return
+    else:
+        damaged.write_bytes(text[:end - 3] + text[end:])
+    got, message = _read_until_error(damaged)
+    assert _in_order_within(got, reference) and len(got) == len(reference) - 1
+    assert message == (f"{damaged}: damaged {_KIND[suffix]} log: 1 line no frame could be read from left out (line "
+                       f"{line}), the lines after read; {len(got)} frames read")
+
+
 @pytest.mark.parametrize("suffix", [".asc", ".trc", ".log"])
 def test_text_log_cut_inside_its_last_line_keeps_the_lines_before(tmp_path: Path, suffix: str) -> None:
     """Every writer ends its lines; a text log whose end cuts its last frame's line (python-can skips a broken
@@ -911,7 +946,8 @@ def test_corrupt_files(tmp_path: Path) -> None:
     candump = tmp_path / "bad.log"
     candump.write_text("(1600000000.000000) can0 0EE#1260\nthis line is not candump output at all\n")
     got = []
-    with pytest.raises(CanLogError, match=r"bad\.log.*after 1 frame"):
+    with pytest.raises(CanLogError, match=r"bad\.log: damaged candump -L log: 1 line no frame could be read from left "
+                                          r"out \(line 2\), the lines after read; 1 frames read"):
         for rec in read_can_log(candump):
             got.append(rec)
     assert [r.data for r in got] == [b"\x12\x60"]

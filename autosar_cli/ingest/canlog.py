@@ -69,6 +69,7 @@ from autosar_cli.ingest.blf_damage import blf_damage, write_blf_without
 from autosar_cli.ingest.mdf4_blocks import mdf4_cut, write_without_holes
 from autosar_cli.ingest.mdf4_mend import write_mended
 from autosar_cli.ingest.records import CanRecord, CutShort
+from autosar_cli.ingest.text_lines import LineFeed
 
 __all__ = ["CAN_LOG_SUFFIXES", "CanLogError", "is_can_log", "read_can_log"]
 
@@ -166,15 +167,19 @@ def _open_reader(path: Path, stack: ExitStack, shown: Path) -> MessageReader:
         return stack.enter_context(_MF4Reader(path))
     if suffix == ".blf":
         return stack.enter_context(can.BLFReader(stack.enter_context(path.open("rb"))))
-    text: IO[str] = stack.enter_context(path.open("r", encoding="cp1252", errors="replace"))
-    if suffix == ".asc":
-        return stack.enter_context(can.ASCReader(text, relative_timestamp=False))
-    if suffix == ".trc":
-        return stack.enter_context(can.TRCReader(text))
-    first = _first_line(path)
-    if first is not None and _CANDUMP_LINE.match(first) is None:
+    if suffix == ".log" and (first := _first_line(path)) is not None and _CANDUMP_LINE.match(first) is None:
         raise CanLogError(f"{shown}: not a candump -L log (first line {first[:40]!r})")
-    return stack.enter_context(can.CanutilsLogReader(text))
+    text: IO[str] = stack.enter_context(path.open("r", encoding="cp1252", errors="replace"))
+    return stack.enter_context(_text_reader(suffix, LineFeed(text)))
+
+
+def _text_reader(suffix: str, feed: LineFeed) -> MessageReader:
+    """python-can's reader of a text log of ``suffix``, reading ``feed``."""
+    if suffix == ".asc":
+        return can.ASCReader(feed, relative_timestamp=False)
+    if suffix == ".trc":
+        return can.TRCReader(feed)
+    return can.CanutilsLogReader(feed)
 
 
 def _relative_start(reader: MessageReader) -> bool:
@@ -244,6 +249,7 @@ def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:
                 raise CanLogError(f"{path}: {'damaged' if cut.damaged else 'truncated'} {kind} log, no frame read: "
                                   f"{cut.reason} (the reader: {_one_line(exc)})") from exc
             raise CanLogError(f"{path}: cannot open {kind} log: {_one_line(exc)}") from exc
+        feed = reader.file if isinstance(getattr(reader, "file", None), LineFeed) else None
         while True:
             try:
                 with quiet():
@@ -251,10 +257,19 @@ def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:
             except StopIteration:
                 break
             except Exception as exc:
+                if feed is not None and feed.after_damage():  # a text log: read on from the next line
+                    reader = stack.enter_context(_text_reader(suffix, feed))
+                    messages = iter(reader)
+                    continue
                 raise CanLogError(f"{path}: cannot read {kind} log {_where(reader, frames)}: {_one_line(exc)}"
                                   f"{_cut_note(cut)}") from exc
             if frames == 0 and _relative_start(reader):
                 warn(f"{path}: no start date in the header; times are offsets from the measurement start")
+            if feed is not None:
+                feed.first_frame()
+                if msg.dlc != len(msg.data) and not (msg.is_remote_frame or msg.is_error_frame):
+                    feed.damaged.append(feed.line)  # a line short of its data bytes ("d 8 F2 F2 F2 F2 2")
+                    continue
             frames += 1
             yield CanRecord(
                 t_ns=_to_ns(msg.timestamp),
@@ -270,9 +285,16 @@ def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:
         errors = [ln for ln in printed.getvalue().splitlines() if ln and not ln.startswith((" ", "Traceback"))]
         if errors:
             warn(f"{path}: the {kind} reader went on past {len(errors)} error(s) of its own, the last: {errors[-1]}")
-        if cut:
-            raise CanLogError(f"{path}: {'damaged' if cut.damaged else 'truncated'} {kind} log: {cut.reason}; "
-                              f"{frames} frames read{'' if cut.holes or cut.patches else ' before it'}")
+        said = [cut.reason] if cut else []
+        if feed is not None and feed.damaged:
+            lines = ", ".join(map(str, feed.damaged[:3])) + (" ..." if len(feed.damaged) > 3 else "")
+            said.insert(0, f"{len(feed.damaged)} line{'s' if len(feed.damaged) > 1 else ''} no frame could be read "
+                           f"from left out (line {lines}), the lines after read")
+        if said:
+            damaged = (cut is not None and cut.damaged) or bool(feed and feed.damaged)
+            before = cut is not None and not (cut.holes or cut.patches)  # a cut: every frame read lies before it
+            raise CanLogError(f"{path}: {'damaged' if damaged else 'truncated'} {kind} log: {'; '.join(said)}; "
+                              f"{frames} frames read{' before it' if before else ''}")
 
 
 def _cut_note(cut: CutShort | None) -> str:

@@ -1,0 +1,72 @@
+"""A text CAN log's lines fed to python-can's reader, so that a line it cannot read costs that line, not the rest.
+
+python-can's ASC, TRC and candump readers read their file line by line, the header's lines first (the start
+date, the number base, the columns), and raise at the first frame line they cannot parse (a damaged byte, a line
+cut short): every frame after it was lost; and they skip a line of zeroed or overwritten bytes that no pattern of
+theirs matches without a word. :class:`LineFeed` hands them the file's lines one at a time, holding back (and
+counting) a line with bytes no text log holds, and keeps the lines before the first frame; where the reader fails,
+a new reader is given those header lines again and then the file's lines after the one it failed on
+(:meth:`LineFeed.after_damage`), and that line is counted too.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from typing import IO
+
+#: what no text log holds: NUL and other control bytes (zeroed or overwritten bytes), and the character its
+#: decoding puts for bytes that are no text
+_DAMAGED = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\x7f\ufffd]")
+#: header lines kept for a new reader (a log's header is a few lines; beyond, frames were read before the first)
+_MAX_HEADER_LINES = 1000
+
+
+class LineFeed:
+    """The lines of an open text log as the file a python-can reader iterates, counted (``line``: lines of the
+    file handed out so far, so the one a reader failed on)."""
+
+    def __init__(self, file: IO[str]) -> None:
+        self._file = file
+        self._replay: list[str] = []
+        self._before_first: list[str] | None = []  # lines handed out before the reader's first frame
+        self.header: list[str] | None = None  #: the lines before the first frame, once the reader gave one
+        self.line = 0
+        self.damaged: list[int] = []  #: the lines readers failed on
+
+    def __iter__(self) -> Iterator[str]:
+        return self
+
+    def __next__(self) -> str:
+        if self._replay:
+            return self._replay.pop(0)
+        line = next(self._file)
+        self.line += 1
+        while _DAMAGED.search(line):  # no writer puts these in a text log: the line is not the writer's
+            self.damaged.append(self.line)
+            line = next(self._file)
+            self.line += 1
+        if self._before_first is not None:
+            self._before_first.append(line)
+            if len(self._before_first) > _MAX_HEADER_LINES:
+                self._before_first = None
+        return line
+
+    def first_frame(self) -> None:
+        """The reader gave its first frame, read from the last line handed out: the lines before it are the
+        header a new reader needs."""
+        if self.header is None and self._before_first is not None:
+            self.header = self._before_first[:-1]
+        self._before_first = None
+
+    def after_damage(self) -> bool:
+        """After a reader failed on the last line handed out: count it, and feed the header's lines again before
+        the file's next line (for a new reader). False where no frame was read yet (nothing to go on from)."""
+        if self.header is None:
+            return False
+        self.damaged.append(self.line)
+        self._replay = list(self.header)
+        return True
+
+    def close(self) -> None:
+        """What a python-can reader calls at its end: the file is the caller's to close."""
