@@ -91,6 +91,7 @@ BLF_DAMAGE = "tests/test_ingest_canlog.py::test_a_blf_damaged_inside_keeps_the_f
 BLF_SIZE = "tests/test_ingest_canlog.py::test_a_blf_container_whose_size_is_damaged_is_read_to_its_streams_end"
 BLF_LAST = ("tests/test_ingest_canlog.py::"
             "test_a_blf_whose_last_container_is_damaged_keeps_what_its_stream_gave_before")
+TEXT_DAMAGE = "tests/test_ingest_canlog.py::test_a_text_log_damaged_in_a_line_keeps_every_other_line"
 ODD_INPUTS = "tests/test_safety.py::test_an_input_that_is_a_pipe_a_link_loop_or_a_directory_is_one_line"
 NMEA_DAMAGE = "tests/test_ingest_nmea.py::test_a_block_of_nul_bytes_in_a_capture_is_one_damage_warning_with_its_place"
 MISLABELLED = ("tests/test_ingest_damage.py::"
@@ -509,6 +510,15 @@ MUTATIONS: list[Mutation] = [
     _m("blf-stream-end-unchecked", "ingest", "ingest/blf_damage.py",
        "    if method != _DEFLATED or not inflate.eof or len(inner) != inflated_size:",
        "    if method != _DEFLATED:", BLF_LAST),
+    _m("text-line-a-reader-fails-on-ends-the-read", "ingest", "ingest/canlog.py",
+       "                if feed is not None and feed.after_damage():", "                if False:", TEXT_DAMAGE),
+    _m("text-header-not-read-again", "ingest", "ingest/text_lines.py",
+       "        self._replay = list(self.header)\n", "", TEXT_DAMAGE),
+    _m("text-line-of-nul-bytes-handed-on", "ingest", "ingest/text_lines.py",
+       "        while _DAMAGED.search(line):", "        while False:", TEXT_DAMAGE),
+    _m("text-frame-short-of-its-bytes-kept", "ingest", "ingest/canlog.py",
+       "                if msg.dlc != len(msg.data) and not (msg.is_remote_frame or msg.is_error_frame):",
+       "                if False:", TEXT_DAMAGE),
 ]
 
 

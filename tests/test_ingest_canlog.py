@@ -872,13 +872,14 @@ _KIND = {".asc": "ASC", ".trc": "TRC", ".log": "candump -L"}
 
 
 @pytest.mark.parametrize("suffix", [".asc", ".trc", ".log"])
-@pytest.mark.parametrize("damage", ["zeroed", "a data byte lost"])
+@pytest.mark.parametrize("damage", ["zeroed", "a data byte lost", "a data byte overwritten"])
 def test_a_text_log_damaged_in_a_line_keeps_every_other_line(tmp_path: Path, suffix: str, damage: str) -> None:
-    """16 bytes zeroed in a frame line in the middle of a text log, or its last data byte lost: python-can raised
-    at the line it could not parse (every frame after it lost), skipped a line no pattern of its matched without a
-    word, or read a frame short of its data bytes (DLC 8, 7 bytes) as a whole one. Such a line is left out and
-    counted, the reader started again with the header's lines (its start date, base, columns) and the lines after:
-    every other frame read, at its own time. candump states no length: a frame a byte short reads whole."""
+    """16 bytes zeroed in a frame line in the middle of a text log, its last data byte lost, or a data byte made
+    "ZZ": python-can skipped a line no pattern of its matched without a word, read a frame short of its data bytes
+    (DLC 8, 7 bytes) as a whole one, or raised at the line it could not parse (every frame after it lost). Such a
+    line is left out and counted, the reader started again with the header's lines (its start date, base, columns)
+    and the lines after: every other frame read, at its own time. candump states no length: a frame a byte short
+    reads whole."""
     log = tmp_path / f"whole{suffix}"
     _write(log, [f[3] for f in _frames()])
     reference = list(read_can_log(log))
@@ -889,6 +890,9 @@ def test_a_text_log_damaged_in_a_line_keeps_every_other_line(tmp_path: Path, suf
     damaged = tmp_path / f"damaged{suffix}"
     if damage == "zeroed":
         damaged.write_bytes(text[:start + 20] + bytes(16) + text[start + 36:])
+    elif damage == "a data byte overwritten":
+        at = text.index(b"#", start) + 1 if suffix == ".log" else end - 2
+        damaged.write_bytes(text[:at] + b"ZZ" + text[at + 2:])
     elif suffix == ".log":  # the first data byte: "0EE#16F8..." -> "0EE#F8..."
         hash_at = text.index(b"#", start)
         damaged.write_bytes(text[:hash_at + 1] + text[hash_at + 3:])

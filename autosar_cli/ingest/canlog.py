@@ -69,7 +69,7 @@ from autosar_cli.ingest.blf_damage import blf_damage, write_blf_without
 from autosar_cli.ingest.mdf4_blocks import mdf4_cut, write_without_holes
 from autosar_cli.ingest.mdf4_mend import write_mended
 from autosar_cli.ingest.records import CanRecord, CutShort
-from autosar_cli.ingest.text_lines import LineFeed
+from autosar_cli.ingest.text_lines import LineFeed, damaged_lines
 
 __all__ = ["CAN_LOG_SUFFIXES", "CanLogError", "is_can_log", "read_can_log"]
 
@@ -170,7 +170,7 @@ def _open_reader(path: Path, stack: ExitStack, shown: Path) -> MessageReader:
     if suffix == ".log" and (first := _first_line(path)) is not None and _CANDUMP_LINE.match(first) is None:
         raise CanLogError(f"{shown}: not a candump -L log (first line {first[:40]!r})")
     text: IO[str] = stack.enter_context(path.open("r", encoding="cp1252", errors="replace"))
-    return stack.enter_context(_text_reader(suffix, LineFeed(text)))
+    return stack.enter_context(_text_reader(suffix, LineFeed(text, damaged_lines(path))))
 
 
 def _text_reader(suffix: str, feed: LineFeed) -> MessageReader:
@@ -266,7 +266,8 @@ def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:
             if frames == 0 and _relative_start(reader):
                 warn(f"{path}: no start date in the header; times are offsets from the measurement start")
             if feed is not None:
-                feed.first_frame()
+                if frames == 0:
+                    feed.first_frame()
                 if msg.dlc != len(msg.data) and not (msg.is_remote_frame or msg.is_error_frame):
                     feed.damaged.append(feed.line)  # a line short of its data bytes ("d 8 F2 F2 F2 F2 2")
                     continue
