@@ -1,14 +1,14 @@
-"""CAN log damage sweep: frames read from real CANedge MDF4 files, finalised copies and a BLF, damaged everywhere.
+"""CAN log damage sweep: frames read from real CANedge MDF4 files, finalised copies, a BLF, an ASC, damaged everywhere.
 
 Each of the three CANedge files under ``../shared/realdata/css-electronics``, a finalised copy of two of them
-(written by asammdf, uncompressed), and a BLF of the three files' frames (written by python-can, its default
-128 KiB log containers) gets 4 KiB zeroed at every 4 KiB, and 64 random bytes (seeded) at every 2 KiB, one damage
-per trial, and is read with ``read_can_log`` as ingest reads it. Per trial: the frames read, whether none were, how
+(written by asammdf, uncompressed), a BLF of the three files' frames (written by python-can, its default 128 KiB
+log containers) and an ASC of the 2023 file's (python-can) gets 4 KiB zeroed at every 4 KiB, and 64 random bytes
+(seeded) at every 2 KiB, one damage per trial, and is read with ``read_can_log`` as ingest reads it. Per trial: the frames read, whether none were, how
 many of them the undamaged file does not have (foreign: wrong and not reported; an MDF4 conversion block damaged so
 that it still parses gives these), and whether anything but a ``CanLogError`` came out (a traceback). ``--against
 DIR`` runs the same trials with the package of another checkout beside this one's (``git worktree add DIR REV``), in
 the same run. Results: ``benches/results/can_log_damage.json``, summed per format (``summary``: the MDF4 files,
-``blf``; ``..._against``: the other checkout's).
+``blf``, ``asc``; ``..._against``: the other checkout's).
 
 Usage: python benches/bench_can_log_damage.py [--against DIR] [--zero-step 4096] [--random-step 2048]
 """
@@ -90,13 +90,13 @@ def _summary(rows: list[dict[str, object]]) -> dict[str, object]:
             "tracebacks": sum(1 for r in rows if str(r["ended"]).startswith("traceback"))}
 
 
-def _blf_of(logs: list[Path], dest: Path) -> Path:
-    """A BLF of the frames of ``logs``, in turn, written by python-can."""
+def _log_of(logs: list[Path], dest: Path) -> Path:
+    """A log of the frames of ``logs``, in turn, written by python-can in ``dest``'s format (BLF, ASC)."""
     import can
 
     from autosar_cli.ingest.canlog import read_can_log
 
-    with can.BLFWriter(dest) as writer:
+    with (can.BLFWriter if dest.suffix == ".blf" else can.ASCWriter)(dest) as writer:
         for log in logs:
             for r in read_can_log(log):
                 writer.on_message_received(can.Message(
@@ -145,7 +145,8 @@ def main() -> None:
             with MDF(REAL / name) as mdf:
                 mdf.save(copy, overwrite=True, compression=0)
             files.append(copy)
-        files.append(_blf_of(files[:len(FILES)], Path(scratch) / "css_frames.blf"))
+        files.append(_log_of(files[:len(FILES)], Path(scratch) / "css_frames.blf"))
+        files.append(_log_of(files[1:2], Path(scratch) / "css_2023.asc"))
         roots = {"this": REPO, **({"against": args.against.resolve()} if args.against else {})}
         with ThreadPoolExecutor(len(roots)) as pool:  # the two checkouts side by side, a process each
             runs = {name: pool.submit(_worker, root, files, args.zero_step, args.random_step,
@@ -154,7 +155,7 @@ def main() -> None:
     result: dict[str, object] = {
         "benchmark": "can_log_damage", "damage": f"{ZEROED} B zeroed every {args.zero_step} B, {OVERWRITTEN} random "
         f"B every {args.random_step} B", "files": len(files)}
-    for kind, suffixes in (("mdf4", (".mf4",)), ("blf", (".blf",))):
+    for kind, suffixes in (("mdf4", (".mf4",)), ("blf", (".blf",)), ("asc", (".asc",))):
         for name in roots:
             mine = [r for r in rows[name] if Path(str(r["file"])).suffix.lower() in suffixes]
             key = ("summary" if kind == "mdf4" else kind) if name == "this" else f"{kind}_against"
