@@ -3,9 +3,10 @@
 Each of the three CANedge files under ``../shared/realdata/css-electronics``, a finalised copy of two of them
 (written by asammdf, uncompressed), a BLF of the three files' frames (written by python-can, its default 128 KiB
 log containers) and an ASC of the 2023 file's (python-can) gets 4 KiB zeroed at every 4 KiB, and 64 random bytes
-(seeded) at every 2 KiB, one damage per trial, and is read with ``read_can_log`` as ingest reads it. Per trial: the frames read, whether none were, how
-many of them the undamaged file does not have (foreign: wrong and not reported; an MDF4 conversion block damaged so
-that it still parses gives these), and whether anything but a ``CanLogError`` came out (a traceback). ``--against
+(seeded) at every 2 KiB, one damage per trial, and is read with ``read_can_log`` as ingest reads it. Per trial:
+the frames read, whether none were, how many of them the undamaged file does not have (foreign: wrong and not
+reported; an MDF4 conversion block damaged so that it still parses gives these), and whether anything but a
+``CanLogError`` came out (a traceback). ``--against
 DIR`` runs the same trials with the package of another checkout beside this one's (``git worktree add DIR REV``), in
 the same run. Results: ``benches/results/can_log_damage.json``, summed per format (``summary``: the MDF4 files,
 ``blf``, ``asc``; ``..._against``: the other checkout's).
