@@ -908,6 +908,30 @@ def test_a_text_log_damaged_in_a_line_keeps_every_other_line(tmp_path: Path, suf
 
 
 @pytest.mark.parametrize("suffix", [".asc", ".trc", ".log"])
+def test_a_text_log_whose_first_frame_line_is_damaged_reads_the_others_at_their_times(tmp_path: Path,
+                                                                                     suffix: str) -> None:
+    """The first frame line's last data byte made "ZZ": python-can raised before any frame and the log gave none.
+    The header is then the lines before that one: every other frame read, at its own time (the header's date)."""
+    log = tmp_path / f"whole{suffix}"
+    _write(log, [f[3] for f in _frames()])
+    reference = list(read_can_log(log))
+    text = log.read_bytes()
+    lines = text.split(b"\n")
+    data = reference[0].data.hex().upper().encode()
+    spaced = b" ".join(data[i:i + 2] for i in range(0, len(data), 2))
+    first = next(i for i, ln in enumerate(lines) if data in ln or spaced in ln)  # the first frame's line
+    damaged_line = lines[first]
+    at = damaged_line.index(b"#") + 1 if suffix == ".log" else len(damaged_line.rstrip()) - 2
+    lines[first] = damaged_line[:at] + b"ZZ" + damaged_line[at + 2:]
+    damaged = tmp_path / f"damaged{suffix}"
+    damaged.write_bytes(b"\n".join(lines))
+    got, message = _read_until_error(damaged)
+    assert got == reference[1:]
+    assert message == (f"{damaged}: damaged {_KIND[suffix]} log: 1 line no frame could be read from left out (line "
+                       f"{first + 1}), the lines after read; {len(got)} frames read")
+
+
+@pytest.mark.parametrize("suffix", [".asc", ".trc", ".log"])
 def test_text_log_cut_inside_its_last_line_keeps_the_lines_before(tmp_path: Path, suffix: str) -> None:
     """Every writer ends its lines; a text log whose end cuts its last frame's line (python-can skips a broken
     TRC line without a word, and reads a broken candump line as a frame with fewer data bytes, a silently wrong

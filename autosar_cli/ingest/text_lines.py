@@ -63,9 +63,14 @@ class LineFeed:
 
     def after_damage(self) -> bool:
         """After a reader failed on the last line handed out: count it, and feed the header's lines again before
-        the file's next line (for a new reader). False where no frame was read yet (nothing to go on from)."""
-        if self.header is None:
+        the file's next line (for a new reader); before the first frame, the header is the lines before that one.
+        False where the reader failed again without a line of the file read since (nothing to go on from)."""
+        if self.damaged and self.damaged[-1] == self.line or self.line == 0:
             return False
+        if self.header is None:
+            if self._before_first is None:
+                return False
+            self.header, self._before_first = self._before_first[:-1], None
         self.damaged.append(self.line)
         self._replay = list(self.header)
         return True
