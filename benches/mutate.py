@@ -92,6 +92,8 @@ BLF_SIZE = "tests/test_ingest_canlog.py::test_a_blf_container_whose_size_is_dama
 BLF_LAST = ("tests/test_ingest_canlog.py::"
             "test_a_blf_whose_last_container_is_damaged_keeps_what_its_stream_gave_before")
 TEXT_DAMAGE = "tests/test_ingest_canlog.py::test_a_text_log_damaged_in_a_line_keeps_every_other_line"
+TEXT_BLOCKS = ("tests/test_ingest_canlog.py::"
+               "test_an_asc_damaged_in_its_second_trigger_block_reads_on_at_that_blocks_times")
 TEXT_FIRST = ("tests/test_ingest_canlog.py::"
               "test_a_text_log_whose_first_frame_line_is_damaged_reads_the_others_at_their_times")
 ODD_INPUTS = "tests/test_safety.py::test_an_input_that_is_a_pipe_a_link_loop_or_a_directory_is_one_line"
@@ -515,12 +517,15 @@ MUTATIONS: list[Mutation] = [
     _m("text-line-a-reader-fails-on-ends-the-read", "ingest", "ingest/canlog.py",
        "                if feed is not None and feed.after_damage():", "                if False:", TEXT_DAMAGE),
     _m("text-header-not-read-again", "ingest", "ingest/text_lines.py",
-       "        self._replay = list(self.header)\n", "", TEXT_DAMAGE),
+       "        self._replay = [*self.header, *([self._last_mark] if self._last_mark is not None else [])]\n", "",
+       TEXT_DAMAGE),
     _m("text-line-of-nul-bytes-handed-on", "ingest", "ingest/text_lines.py",
        "            if held_back and self.line in held_back:", "            if False:", TEXT_DAMAGE),
     _m("text-damaged-first-frame-line-ends-the-read", "ingest", "ingest/text_lines.py",
        "            if self._before_first is None:\n                return False", "            return False",
        TEXT_FIRST),
+    _m("text-asc-trigger-block-not-read-again", "ingest", "ingest/canlog.py",
+       """    marks = ("Begin Trigger", "begin trigger") if suffix == ".asc" else ()""", "    marks = ()", TEXT_BLOCKS),
     _m("text-frame-short-of-its-bytes-kept", "ingest", "ingest/canlog.py",
        "                if msg.dlc != len(msg.data) and not (msg.is_remote_frame or msg.is_error_frame):",
        "                if False:", TEXT_DAMAGE),

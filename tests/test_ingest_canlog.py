@@ -13,7 +13,7 @@ import subprocess
 import sys
 from collections import Counter
 from collections.abc import Callable, Iterator
-from datetime import UTC, datetime
+from datetime import UTC, datetime, timedelta
 from functools import cache
 from pathlib import Path
 
@@ -905,6 +905,36 @@ def test_a_text_log_damaged_in_a_line_keeps_every_other_line(tmp_path: Path, suf
     assert _in_order_within(got, reference) and len(got) == len(reference) - 1
     assert message == (f"{damaged}: damaged {_KIND[suffix]} log: 1 line no frame could be read from left out (line "
                        f"{line}), the lines after read; {len(got)} frames read")
+
+
+def test_an_asc_damaged_in_its_second_trigger_block_reads_on_at_that_blocks_times(tmp_path: Path) -> None:
+    """An ASC whose second half is a trigger block of its own (dated at its first frame, its times counted from
+    that date), damaged in a line there: the reader started again reads the header and then the second block's
+    "Begin Triggerblock" line again, so the frames after the damage keep their times (from the first block's date
+    they would be half a second early, without a word)."""
+    log = tmp_path / "whole.asc"
+    _write(log, [f[3] for f in _frames()])
+    lines = log.read_text().split("\n")
+    begin = next(i for i, ln in enumerate(lines) if ln.startswith("Begin Triggerblock "))
+    date = datetime.strptime(lines[begin].removeprefix("Begin Triggerblock "), "%a %b %d %H:%M:%S.%f %Y")
+    middle = len(lines) // 2
+    shift = math.floor(float(lines[middle].split(None, 1)[0]) * 1000) / 1000  # at its first frame, to the ms
+    later = (date + timedelta(seconds=shift)).strftime("%a %b %d %H:%M:%S.%f")[:-3] + date.strftime(" %Y")
+    second = [f"{float(ln.split(None, 1)[0]) - shift:9.6f} {ln.split(None, 1)[1]}" if ln.strip() and
+              ln.split(None, 1)[0][0].isdigit() else ln for ln in lines[middle:]]
+    two_blocks = tmp_path / "two_blocks.asc"
+    two_blocks.write_text("\n".join([*lines[:middle], "End TriggerBlock", f"Begin Triggerblock {later}", *second]))
+    reference = list(read_can_log(two_blocks))
+    one_block = list(read_can_log(log))
+    assert len(reference) == len(one_block)
+    assert max(abs(a.t_ns - b.t_ns) for a, b in zip(reference, one_block, strict=True)) < 1000  # the same times
+    text = two_blocks.read_bytes()
+    start = text.index(b"\n", 3 * len(text) // 4) + 1  # a frame line in the second block
+    end = text.index(b"\n", start)
+    damaged = tmp_path / "damaged.asc"
+    damaged.write_bytes(text[:end - 2] + b"ZZ" + text[end:])
+    got, _ = _read_until_error(damaged)
+    assert len(got) == len(reference) - 1 and _in_order_within(got, reference)
 
 
 @pytest.mark.parametrize("suffix", [".asc", ".trc", ".log"])

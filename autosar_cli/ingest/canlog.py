@@ -170,7 +170,8 @@ def _open_reader(path: Path, stack: ExitStack, shown: Path) -> MessageReader:
     if suffix == ".log" and (first := _first_line(path)) is not None and _CANDUMP_LINE.match(first) is None:
         raise CanLogError(f"{shown}: not a candump -L log (first line {first[:40]!r})")
     text: IO[str] = stack.enter_context(path.open("r", encoding="cp1252", errors="replace"))
-    return stack.enter_context(_text_reader(suffix, LineFeed(text, damaged_lines(path))))
+    marks = ("Begin Trigger", "begin trigger") if suffix == ".asc" else ()  # an ASC's "Begin Triggerblock <date>"
+    return stack.enter_context(_text_reader(suffix, LineFeed(text, damaged_lines(path), marks)))
 
 
 def _text_reader(suffix: str, feed: LineFeed) -> MessageReader:

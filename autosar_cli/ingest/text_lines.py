@@ -6,7 +6,9 @@ cut short): every frame after it was lost; and they skip a line of zeroed or ove
 theirs matches without a word. :class:`LineFeed` hands them the file's lines one at a time, holding back (and
 counting) a line with bytes no text log holds (:func:`damaged_lines`, found in the file's bytes first), and keeps
 the lines before the first frame; where the reader fails, a new reader is given those header lines again and then
-the file's lines after the one it failed on (:meth:`LineFeed.after_damage`), and that line is counted too.
+the file's lines after the one it failed on (:meth:`LineFeed.after_damage`), and that line is counted too. An
+ASC's times count from the date of the trigger block they lie in: the last ``Begin Triggerblock`` line read is given
+again after the header.
 """
 
 from __future__ import annotations
@@ -28,10 +30,15 @@ class LineFeed:
     """The lines of an open text log as the file a python-can reader iterates, counted (``line``: lines of the
     file handed out so far, so the one a reader failed on)."""
 
-    def __init__(self, file: IO[str], damaged_lines: frozenset[int] = frozenset()) -> None:
-        """``damaged_lines``: the numbers of the file's lines to hold back (:func:`damaged_lines`)."""
+    def __init__(self, file: IO[str], damaged_lines: frozenset[int] = frozenset(), marks: tuple[str, ...] = ()
+                 ) -> None:
+        """``damaged_lines``: the numbers of the file's lines to hold back (:func:`damaged_lines`); ``marks``: text
+        of the lines that set the reader's clock on the way (an ASC's ``Begin Triggerblock``, whose date the times
+        after it count from), the last of which is read again after the header."""
         self._file = file
         self._held_back = damaged_lines
+        self._marks = marks
+        self._last_mark: str | None = None
         self._replay: list[str] = []
         self._before_first: list[str] | None = []  # lines handed out before the reader's first frame
         self.header: list[str] | None = None  #: the lines before the first frame, once the reader gave one
@@ -43,11 +50,14 @@ class LineFeed:
         # file is, the header's lines first where they are to be read again
         while self._replay:
             yield self._replay.pop(0)
-        held_back = self._held_back
+        held_back, marks = self._held_back, self._marks
         for self.line, line in enumerate(self._file, self.line + 1):  # noqa: B020 (the count is the feed's)
             if held_back and self.line in held_back:  # no writer puts such bytes in a text log: not the writer's
                 self.damaged.append(self.line)
                 continue
+            for mark in marks:
+                if mark in line:
+                    self._last_mark = line
             if self._before_first is not None:
                 self._before_first.append(line)
                 if len(self._before_first) > _MAX_HEADER_LINES:
@@ -72,7 +82,7 @@ class LineFeed:
                 return False
             self.header, self._before_first = self._before_first[:-1], None
         self.damaged.append(self.line)
-        self._replay = list(self.header)
+        self._replay = [*self.header, *([self._last_mark] if self._last_mark is not None else [])]
         return True
 
     def close(self) -> None:
