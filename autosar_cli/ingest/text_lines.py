@@ -43,7 +43,7 @@ class LineFeed:
         self._before_first: list[str] | None = []  # lines handed out before the reader's first frame
         self.header: list[str] | None = None  #: the lines before the first frame, once the reader gave one
         self.line = 0
-        self.damaged: list[int] = []  #: the lines readers failed on
+        self.damaged: list[int] = []  #: the lines left out: held back, failed on, short of their bytes
 
     def __iter__(self) -> Iterator[str]:
         # a reader iterates anew after its header (ASC) and a new reader after damage: each picks up where the
