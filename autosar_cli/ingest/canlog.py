@@ -26,7 +26,8 @@ What python-can 4.6 gives as the timestamp, per format (all Unix seconds unless 
 - ``.log`` (``CanutilsLogReader``, ``candump -L``): absolute, as recorded (1 us).
 
 Text logs are read as cp1252 (what Windows tools write, e.g. a German CANoe date "Mär"); python-can
-skips text lines it does not recognise (comments, statistics, a damaged line), except in candump logs.
+skips text lines it does not recognise (comments, statistics), except in candump logs; a damaged line is left out
+and counted, the lines after it read (:mod:`.text_lines`).
 Damage python-can passes over silently: a BLF cut short often just ends early, so the file size in its
 header is checked after the last frame (:class:`CanLogError` if the file is shorter); an MDF4 cut short
 ends early too, or stops at the record the cut breaks and loses the frames before it, so its blocks and,
