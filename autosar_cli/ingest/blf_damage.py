@@ -20,11 +20,12 @@ from __future__ import annotations
 import mmap
 import struct
 import zlib
+from collections import deque
 from collections.abc import Iterator
 from pathlib import Path
 from typing import BinaryIO
 
-from .records import CutShort
+from .records import CutShort, places_said
 
 _FILE_HEADER = struct.Struct("<4sL")  #: "LOGG", the header's size
 _FILE_SIZE_AT = 16  #: the header's 8-byte file size
@@ -68,9 +69,7 @@ def blf_damage(path: Path) -> CutShort | None:
                             "the containers after them read")
     if not holes:
         return None
-    if len(said) > 3:
-        said = [*said[:2], f"{len(said) - 3} more places damaged as these", said[-1]]
-    return CutShort("; ".join(said), damaged=True, holes=tuple(holes))
+    return CutShort(places_said(said), damaged=True, holes=tuple(holes))
 
 
 def write_blf_without(path: Path, dest: Path) -> None:
@@ -200,17 +199,12 @@ def _partial(buf: mmap.mmap, pos: int, end: int) -> bytes | None:
 def _in_time_order(stream: bytes) -> int:
     """The bytes of ``stream`` (beginning with an object) that hold whole objects whose times do not fall, less
     the last two such: what a damaged stream gave before zlib failed, whose end may already be the damage's."""
-    ends, pos, last = [], 0, -1
-    while True:
-        at = stream.find(b"LOBJ", pos, pos + 8)
-        if at < 0 or at + _INNER_HEADER.size > len(stream):
+    ends, last = [], -1
+    for end, time in _inner_objects(stream):
+        if time is None or time < last:
             break
-        _, header_size, _, size, _, flags, stamp = _INNER_HEADER.unpack_from(stream, at)
-        time = stamp * 10_000 if flags == _TEN_MICROSECONDS else stamp if flags == _NANOSECONDS else -1
-        if size < header_size or header_size < _INNER_HEADER.size or at + size > len(stream) or time < last:
-            break
-        ends.append(at + size)
-        pos, last = at + size, time
+        ends.append(end)
+        last = time
     return ends[-3] if len(ends) > 2 else 0
 
 
@@ -228,14 +222,26 @@ def _next_container(buf: mmap.mmap, pos: int) -> int | None:
 
 def _whole_objects(stream: bytes) -> int:
     """The bytes of ``stream`` (beginning with an object) that hold whole objects."""
+    last = deque((end for end, _ in _inner_objects(stream)), maxlen=1)
+    return last[0] if last else 0
+
+
+def _inner_objects(stream: bytes) -> Iterator[tuple[int, int | None]]:
+    """(the byte after it, its time in ns: -1 in a unit not known, None where its header holds none) of each whole
+    inner object of ``stream``, from its start."""
     pos = 0
     while True:
         at = stream.find(b"LOBJ", pos, pos + 8)  # objects are padded to 4 bytes (or 8: python-can's search)
         if at < 0 or at + _OBJECT.size > len(stream):
-            return pos
-        size = _OBJECT.unpack_from(stream, at)[3]
+            return
+        _, header_size, _, size, _ = _OBJECT.unpack_from(stream, at)
         if size < _OBJECT.size or at + size > len(stream):
-            return pos
+            return
+        time = None
+        if _INNER_HEADER.size <= header_size <= size:
+            flags, stamp = _INNER_HEADER.unpack_from(stream, at)[5:]
+            time = stamp * 10_000 if flags == _TEN_MICROSECONDS else stamp if flags == _NANOSECONDS else -1
+        yield at + size, time
         pos = at + size
 
 

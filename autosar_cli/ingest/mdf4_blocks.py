@@ -46,13 +46,12 @@ from .mdf4_layout import (
 )
 from .mdf4_mend import mend_chains
 from .mdf4_sorted import out_of_order, sorted_damage, write_sorted_without
-from .records import CutShort
+from .records import CutShort, places_said
 
 _UNFINISHED_LAST_DT = 1 << 2  # id_unfin_flags: the last ##DT block's length is to be updated
 _DAMAGE_MARGIN = 2  # whole frames left out before a damaged record
 _RESYNC_RECORDS = 16  # fixed records that agree with themselves, after damage, before they are read again
 _RESYNC_SCAN_BYTES = 1 << 20  # how far past damage such records are sought
-_SAID_AT_MOST = 4  # places of damage a report names one by one
 _ID_FORMATS = {0: "", 1: "<B", 2: "<H", 4: "<I", 8: "<Q"}  # a record id's bytes -> its struct format
 
 
@@ -257,9 +256,7 @@ def _with_stamps(buf: mmap.mmap, rec: _Records, fixed: list[int], said: list[str
         damaged = True
     if not said:
         return None
-    if len(said) > _SAID_AT_MOST:  # one line: the first two places and the last, the count of the others
-        said = [*said[:2], f"{len(said) - 3} more places damaged as these", said[-1]]
-    return CutShort("; ".join(said), whole_bytes, damaged=damaged, holes=tuple(holes))
+    return CutShort(places_said(said), whole_bytes, damaged=damaged, holes=tuple(holes))
 
 
 def _merged(ranges: list[tuple[int, int]]) -> list[tuple[int, int]]:

@@ -74,3 +74,14 @@ class CutShort:
     #: (byte, value) of the 8-byte links a reader's copy changes to step over damaged blocks (MDF4: the chains of
     #: its groups without the damaged ones)
     patches: tuple[tuple[int, int], ...] = ()
+
+
+#: places of damage a report names one by one; beyond, the first two, the count of the others and the last
+SAID_AT_MOST = 4
+
+
+def places_said(said: list[str]) -> str:
+    """The places of damage a walk of a file found, ``said`` one clause each, as one clause list for one line."""
+    if len(said) > SAID_AT_MOST:
+        said = [*said[:2], f"{len(said) - 3} more places damaged as these", said[-1]]
+    return "; ".join(said)
