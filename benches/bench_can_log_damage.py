@@ -3,13 +3,18 @@
 Each of the three CANedge files under ``../shared/realdata/css-electronics``, a finalised copy of two of them
 (written by asammdf, uncompressed), a BLF of the three files' frames (written by python-can, its default 128 KiB
 log containers) and an ASC of the 2023 file's (python-can) gets 4 KiB zeroed at every 4 KiB, and 64 random bytes
-(seeded) at every 2 KiB, one damage per trial, and is read with ``read_can_log`` as ingest reads it. Per trial:
+(seeded) at every 2 KiB, one damage per trial, and is read with ``read_can_log`` as ingest reads it. The ASC and
+a TRC of the same frames (python-can) also get one printable byte (seeded, not the one there) overwritten at a
+seeded place of every 8th frame line: the damage a text log's reader may take for an event it does not read. Per
+trial:
 the frames read, whether none were, how many of them the undamaged file does not have (foreign: wrong and not
 reported; an MDF4 conversion block damaged so that it still parses gives these), and whether anything but a
-``CanLogError`` came out (a traceback). ``--against
+``CanLogError`` came out (a traceback); summed, the trials that lost frames or read foreign ones without a word
+(``unsaid_loss``, ``unsaid_foreign``: a data byte's hex digit made another reads as a frame, which no text log's
+checksum shows). ``--against
 DIR`` runs the same trials with the package of another checkout beside this one's (``git worktree add DIR REV``), in
 the same run. Results: ``benches/results/can_log_damage.json``, summed per format (``summary``: the MDF4 files,
-``blf``, ``asc``; ``..._against``: the other checkout's).
+``blf``, ``asc``, ``trc``; the line trials ``asc_lines``, ``trc_lines``; ``..._against``: the other checkout's).
 
 Usage: python benches/bench_can_log_damage.py [--against DIR] [--zero-step 4096] [--random-step 2048]
 """
@@ -36,6 +41,7 @@ FILES = ("2F6913DB_00000004_00000001.MF4", "2F6913DB_00001089_00000001-63BEF5CD.
 FINALISED = FILES[:2]
 ZEROED = 4096
 OVERWRITTEN = 64
+LINE_STEP = 8  # every 8th frame line of a text log gets a printable byte
 
 
 def _damages(size: int, zero_step: int, random_step: int, seed: int) -> list[tuple[str, int, bytes]]:
@@ -43,6 +49,25 @@ def _damages(size: int, zero_step: int, random_step: int, seed: int) -> list[tup
     rng = random.Random(seed)
     out = [("zeroed", at, bytes(min(ZEROED, size - at))) for at in range(0, size, zero_step)]
     out += [("overwritten", at, rng.randbytes(min(OVERWRITTEN, size - at))) for at in range(0, size, random_step)]
+    return out
+
+
+def _line_damages(data: bytes, seed: int) -> list[tuple[str, int, bytes]]:
+    """("printable byte", byte, the byte put there) of each line trial on a text log's bytes ``data``: a seeded
+    place of every :data:`LINE_STEP`-th frame line (a line whose first non-blank is a digit, not "Start of
+    measurement")."""
+    rng = random.Random(seed)
+    out, start = [], 0
+    frame_lines = 0
+    for line in data.split(b"\n"):
+        body = line.rstrip(b"\r")
+        if body.strip()[:1].isdigit() and b"Start of" not in body:
+            if frame_lines % LINE_STEP == 0:
+                at = rng.randrange(len(body))
+                put = bytes([rng.choice([c for c in range(0x20, 0x7F) if c != body[at]])])
+                out.append(("printable byte", start + at, put))
+            frame_lines += 1
+        start += len(line) + 1
     return out
 
 
@@ -71,7 +96,10 @@ def _sweep(files: list[Path], zero_step: int, random_step: int) -> list[dict[str
             data = src.read_bytes()
             whole, _ = frames(src)
             known = set(whole)
-            for n, (kind, at, put) in enumerate(_damages(len(data), zero_step, random_step, seed=len(data))):
+            trials = _damages(len(data), zero_step, random_step, seed=len(data))
+            if src.suffix.lower() in (".asc", ".trc"):
+                trials += _line_damages(data, seed=len(data))
+            for n, (kind, at, put) in enumerate(trials):
                 trial = Path(scratch) / f"{n}_{src.name}"
                 trial.write_bytes(data[:at] + put + data[at + len(put):])
                 got, ended = frames(trial)
@@ -88,16 +116,18 @@ def _summary(rows: list[dict[str, object]]) -> dict[str, object]:
     return {"trials": len(rows), "frames_read": read, "frames_whole": whole, "share_read": round(read / whole, 4),
             "none_read": sum(1 for r in rows if r["frames_read"] == 0),
             "foreign_frames": sum(int(r["foreign"]) for r in rows),  # type: ignore[call-overload]
-            "tracebacks": sum(1 for r in rows if str(r["ended"]).startswith("traceback"))}
+            "tracebacks": sum(1 for r in rows if str(r["ended"]).startswith("traceback")),
+            "unsaid_loss": sum(1 for r in rows if not r["ended"] and r["frames_read"] < r["frames_whole"]),
+            "unsaid_foreign": sum(1 for r in rows if not r["ended"] and r["foreign"])}
 
 
 def _log_of(logs: list[Path], dest: Path) -> Path:
-    """A log of the frames of ``logs``, in turn, written by python-can in ``dest``'s format (BLF, ASC)."""
+    """A log of the frames of ``logs``, in turn, written by python-can in ``dest``'s format (BLF, ASC, TRC)."""
     import can
 
     from autosar_cli.ingest.canlog import read_can_log
 
-    with (can.BLFWriter if dest.suffix == ".blf" else can.ASCWriter)(dest) as writer:
+    with {".blf": can.BLFWriter, ".asc": can.ASCWriter, ".trc": can.TRCWriter}[dest.suffix](dest) as writer:
         for log in logs:
             for r in read_can_log(log):
                 writer.on_message_received(can.Message(
@@ -148,6 +178,7 @@ def main() -> None:
             files.append(copy)
         files.append(_log_of(files[:len(FILES)], Path(scratch) / "css_frames.blf"))
         files.append(_log_of(files[1:2], Path(scratch) / "css_2023.asc"))
+        files.append(_log_of(files[1:2], Path(scratch) / "css_2023.trc"))
         roots = {"this": REPO, **({"against": args.against.resolve()} if args.against else {})}
         with ThreadPoolExecutor(len(roots)) as pool:  # the two checkouts side by side, a process each
             runs = {name: pool.submit(_worker, root, files, args.zero_step, args.random_step,
@@ -156,9 +187,12 @@ def main() -> None:
     result: dict[str, object] = {
         "benchmark": "can_log_damage", "damage": f"{ZEROED} B zeroed every {args.zero_step} B, {OVERWRITTEN} random "
         f"B every {args.random_step} B", "files": len(files)}
-    for kind, suffixes in (("mdf4", (".mf4",)), ("blf", (".blf",)), ("asc", (".asc",))):
+    kinds = (("mdf4", (".mf4",), False), ("blf", (".blf",), False), ("asc", (".asc",), False),
+             ("trc", (".trc",), False), ("asc_lines", (".asc",), True), ("trc_lines", (".trc",), True))
+    for kind, suffixes, lines in kinds:
         for name in roots:
-            mine = [r for r in rows[name] if Path(str(r["file"])).suffix.lower() in suffixes]
+            mine = [r for r in rows[name] if Path(str(r["file"])).suffix.lower() in suffixes
+                    and (r["kind"] == "printable byte") == lines]
             key = ("summary" if kind == "mdf4" else kind) if name == "this" else f"{kind}_against"
             result[key] = {"revision": _revision(roots[name]), **_summary(mine)}
     result |= {"wall_s": round(time.perf_counter() - t0, 1), "rows": rows["this"],

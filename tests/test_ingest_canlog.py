@@ -4,6 +4,7 @@ through the formats python-can writes (ASC, BLF, TRC, candump -L)."""
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import math
 import mmap
@@ -25,10 +26,12 @@ from cantools.database.can import Database
 
 from autosar_cli.candb import check_frame, encode_frame, load_dbc
 from autosar_cli.ingest.canlog import CAN_LOG_SUFFIXES, CanLogError, is_can_log, read_can_log
+from autosar_cli.ingest.decoders import CanDecoder
 from autosar_cli.ingest.mdf4_blocks import mdf4_cut
 from autosar_cli.ingest.mdf4_layout import blocks
 from autosar_cli.ingest.mdf4_sorted import _sorted_groups, out_of_order
 from autosar_cli.ingest.records import CanRecord
+from autosar_cli.store.drive import DriveWriter
 from tests.conftest import realdata
 
 REPO = Path(__file__).resolve().parents[1]
@@ -959,6 +962,96 @@ def test_a_text_log_whose_first_frame_line_is_damaged_reads_the_others_at_their_
     assert got == reference[1:]
     assert message == (f"{damaged}: damaged {_KIND[suffix]} log: 1 line no frame could be read from left out (line "
                        f"{first + 1}), the lines after read; {len(got)} frames read")
+
+
+def _frame_line_damaged(text: bytes, first: bool, damage: str) -> tuple[bytes, int]:
+    """``text`` with one byte of a frame line overwritten where python-can's pattern looks (the middle line, or the
+    first frame's), and that line's number: the time's last digit made "F", or the blank after the time "i"."""
+    lines = text.split(b"\n")
+    frame_lines = [i for i, ln in enumerate(lines) if ln.strip()[:1].isdigit() and b"Start of" not in ln]
+    at_line = frame_lines[0] if first else frame_lines[len(frame_lines) // 2]
+    line = lines[at_line]
+    time_ends = line.index(b".") + line[line.index(b"."):].index(b" ")  # the time: the token with the point
+    at = time_ends - 1 if damage == "a letter in the time" else time_ends
+    lines[at_line] = line[:at] + (b"F" if damage == "a letter in the time" else b"i") + line[at + 1:]
+    return b"\n".join(lines), at_line + 1
+
+
+@pytest.mark.parametrize("suffix", [".asc", ".trc"])
+@pytest.mark.parametrize("damage", ["a letter in the time", "the blank after the time a letter"])
+@pytest.mark.parametrize("first", [False, True], ids=["a frame line", "the first frame line"])
+def test_a_text_log_frame_line_damaged_where_the_reader_looks_is_counted(tmp_path: Path, suffix: str, damage: str,
+                                                                        first: bool) -> None:
+    """One byte overwritten where python-can's ASC or TRC pattern looks: its reader skipped that line as an event it
+    does not read, without a word (a single printable byte overwritten anywhere in an ASC's frame lines lost that
+    frame silently 44 % of the time). The line no frame came from is shaped as the frame lines around it: counted,
+    and named, as a damaged one; the other frames read."""
+    log = tmp_path / f"whole{suffix}"
+    _write(log, [f[3] for f in _frames()])
+    reference = list(read_can_log(log))
+    text, line = _frame_line_damaged(log.read_bytes(), first, damage)
+    damaged = tmp_path / f"damaged{suffix}"
+    damaged.write_bytes(text)
+    got, message = _read_until_error(damaged)
+    assert _in_order_within(got, reference) and len(got) == len(reference) - 1
+    assert message == (f"{damaged}: damaged {_KIND[suffix]} log: 1 line no frame could be read from left out (line "
+                       f"{line}), the lines after read; {len(got)} frames read")
+
+
+def test_an_ascs_other_events_are_not_taken_for_damaged_frames(tmp_path: Path) -> None:
+    """Lines of events python-can does not read (a comment, a chip status, bus statistics, a system variable, a
+    J1939 transport message) between the frames of an ASC are shaped otherwise than its frame lines: every frame
+    read, no line counted as damage."""
+    log = tmp_path / "whole.asc"
+    _write(log, [f[3] for f in _frames()])
+    reference = list(read_can_log(log))
+    lines = log.read_text().split("\n")
+    frame_lines = [i for i, ln in enumerate(lines) if ln.strip()[:1].isdigit() and "Start of" not in ln]
+    events = ["// logging resumed by the user", "   {t} CAN 1 Status:chip status error active",
+              "   {t} 1  Statistic: D 3 R 0 XD 0 XR 0 E 0 O 0 B 0.14%", "   {t} SV: 1 0 1 ::Sys::Engine::Mode = 1",
+              "   {t} J1939TP FEECp 3j R 1 0 18 00 ff 7 d 8 aa bb cc dd ee ff 01 02"]
+    with_events = list(lines)
+    for n, i in enumerate(reversed(frame_lines[10::37])):
+        t = lines[i].split(None, 1)[0]
+        with_events.insert(i, events[n % len(events)].format(t=t))
+    assert len(with_events) - len(lines) >= len(events)
+    other = tmp_path / "with_events.asc"
+    other.write_text("\n".join(with_events))
+    assert list(read_can_log(other)) == reference
+
+
+def test_an_ascs_classic_frame_with_a_dlc_over_8_is_read_as_8_bytes(tmp_path: Path) -> None:
+    """A classic frame's DLC 9-15 states 8 data bytes (ISO 11898-1; a CANalyzer log's "d D 55 AA 01 02 03 04 05
+    06  Length = ..."). python-can reads the code as the CAN FD length (32), so the frame was left out as short of
+    its bytes and the log called damaged: it is read, its DLC the code (13), and decoded as its 8-byte message.
+    A classic line holding 64 bytes ("d 40 ..."), or a damaged one python-can reads as DLC 13 ('Rx " d 8 12 60 ...':
+    "d" the DLC, "8" the first byte), is not such a frame: still left out."""
+    log = tmp_path / "whole.asc"
+    _write(log, [f[3] for f in _frames()])
+    reference = list(read_can_log(log))
+    text = log.read_text()
+    first = reference[0]
+    line = next(ln for ln in text.split("\n") if first.data.hex(" ").upper() in ln)
+    long_dlc = line.replace(" d 8 ", " d D ") + "  Length = 232016 BitCount = 119 ID = 1023"
+    sixty_four = line.replace(" d 8 ", " d 40 ") + " 00" * 56
+    (tmp_path / "long_dlc.asc").write_text(text.replace(line, long_dlc, 1))
+    got = list(read_can_log(tmp_path / "long_dlc.asc"))
+    assert got == [dataclasses.replace(first, dlc=13), *reference[1:]]
+    writer = DriveWriter(tmp_path / "drive.h5", {})
+    try:
+        decoder = CanDecoder(writer, _giulia(), "fca_giorgio", dict)
+        decoder.feed(got[0], None, got[0].t_ns)
+        assert (decoder.stats.decoded, dict(decoder.stats.dlc_mismatch)) == (1, {})
+        decoder.feed(dataclasses.replace(got[0], data=got[0].data[:7]), None, got[0].t_ns)  # 7 bytes: short
+        assert (decoder.stats.decoded, dict(decoder.stats.dlc_mismatch)) == (1, {"ABS_1": 1})
+    finally:
+        writer.abort()
+    junk_before_d = line.replace("Rx   d 8 ", 'Rx " d 8 ')  # python-can: DLC "d" (32), data "8 12 60 ..."
+    assert junk_before_d != line
+    for name, damaged_line in (("sixty_four", sixty_four), ("junk_before_d", junk_before_d)):
+        (tmp_path / f"{name}.asc").write_text(text.replace(line, damaged_line, 1))
+        got, message = _read_until_error(tmp_path / f"{name}.asc")
+        assert got == reference[1:] and "1 line no frame could be read from left out" in message
 
 
 @pytest.mark.parametrize("suffix", [".asc", ".trc", ".log"])

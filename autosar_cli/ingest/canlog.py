@@ -81,6 +81,9 @@ CAN_LOG_SUFFIXES: tuple[str, ...] = (".blf", ".asc", ".trc", ".log", ".mf4")
 #: Formats whose python-can reader numbers channels from 0 where the file numbers them from 1.
 _ZERO_BASED_CHANNELS = (".asc", ".blf")
 _CANDUMP_LINE = re.compile(r"\(\s*\d+(?:\.\d*)?\)\s+\S+\s+[0-9A-Fa-f]{1,8}#")
+#: a whole ASC classic frame line with a DLC of 9-15 and its 8 data bytes (CANalyzer's "Length = ..." after them)
+_ASC_CLASSIC_LONG_DLC = re.compile(r"\s*\d+\.\d+\s+\d+\s+[0-9A-Fa-f]+x?\s+[RT]x\s+[dD]\s+[9A-Fa-f]"
+                                   r"(?:\s+[0-9A-Fa-f]{2}){8}(?:\s+Length\s*=.*)?\s*$")
 _SNIFF_BYTES = 4096
 _FORMAT_NAMES = {".blf": "BLF", ".asc": "ASC", ".trc": "TRC", ".log": "candump -L", ".mf4": "MDF4"}
 
@@ -270,9 +273,12 @@ def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:
             if feed is not None:
                 if frames == 0:
                     feed.first_frame()
-                if msg.dlc != len(msg.data) and not (msg.is_remote_frame or msg.is_error_frame):
-                    feed.damaged.append(feed.line)  # a line short of its data bytes ("d 8 F2 F2 F2 F2 2")
+                whole = _holds_its_bytes(msg, feed.last_line())  # "d 8 F2 F2 F2 F2 2" is left out
+                feed.frame_read(whole)
+                if not whole:
                     continue
+                if not msg.is_fd and msg.dlc > 8:  # the classic frame's code, which python-can read as a length
+                    msg.dlc = can.util.len2dlc(msg.dlc)
             frames += 1
             yield CanRecord(
                 t_ns=_to_ns(msg.timestamp),
@@ -284,13 +290,15 @@ def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:
                 is_remote=msg.is_remote_frame,
                 channel=to_channel(msg.channel),
             )
+        if feed is not None:
+            feed.end()
         _check_complete(source, reader, frames, path)
         errors = [ln for ln in printed.getvalue().splitlines() if ln and not ln.startswith((" ", "Traceback"))]
         if errors:
             warn(f"{path}: the {kind} reader went on past {len(errors)} error(s) of its own, the last: {errors[-1]}")
         said = [cut.reason] if cut else []
         if feed is not None and feed.damaged:
-            lines = ", ".join(map(str, feed.damaged[:3])) + (" ..." if len(feed.damaged) > 3 else "")
+            lines = ", ".join(map(str, sorted(feed.damaged)[:3])) + (" ..." if len(feed.damaged) > 3 else "")
             said.insert(0, f"{len(feed.damaged)} line{'s' if len(feed.damaged) > 1 else ''} no frame could be read "
                            f"from left out (line {lines}), the lines after read")
         if said:
@@ -298,6 +306,18 @@ def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:
             before = cut is not None and not (cut.holes or cut.patches)  # a cut: every frame read lies before it
             raise CanLogError(f"{path}: {'damaged' if damaged else 'truncated'} {kind} log: {'; '.join(said)}; "
                               f"{frames} frames read{' before it' if before else ''}")
+
+
+def _holds_its_bytes(msg: can.Message, line: str | None) -> bool:
+    """Whether a frame read from a text log's ``line`` holds the data bytes its DLC states. A classic frame's DLC
+    9-15 states 8 bytes (a CANalyzer log's "d D 55 AA 01 02 03 04 05 06"), which python-can's ASC reader reads as
+    the CAN FD length that code means: whole where its line is such a frame's (not a damaged line python-can reads
+    so: in 'Rx " d 8 9C ...' it takes "d" for the DLC and "8" for a data byte)."""
+    if msg.is_remote_frame or msg.is_error_frame or len(msg.data) == msg.dlc:
+        return True
+    if msg.is_fd or msg.dlc <= 8 or len(msg.data) != 8 or line is None:
+        return False
+    return _ASC_CLASSIC_LONG_DLC.match(line) is not None
 
 
 def _cut_note(cut: CutShort | None) -> str:

@@ -333,7 +333,9 @@ class CanDecoder:
             return
         m = lay.message
         data = frame.data
-        if frame.dlc != m.length or len(data) < m.length:
+        # a classic frame's DLC 9-15 states its 8 bytes (ISO 11898-1)
+        stated = 8 if 8 < frame.dlc <= 15 and len(data) == 8 else frame.dlc
+        if stated != m.length or len(data) < m.length:
             st.dlc_mismatch[m.name] += 1
             lay.skip_counter()  # a rejected frame still took its counter value: no counter error next
             return

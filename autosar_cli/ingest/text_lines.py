@@ -9,6 +9,14 @@ the lines before the first frame; where the reader fails, a new reader is given 
 the file's lines after the one it failed on (:meth:`LineFeed.after_damage`), and that line is counted too. An
 ASC's times count from the date of the trigger block they lie in: the last ``Begin Triggerblock`` line read is given
 again after the header.
+
+The ASC and TRC readers also skip, without a word, a frame line damaged where their pattern looks (a letter in the
+time, the direction's ``Rx`` overwritten, a byte in the blanks between columns): a line no frame came from that is
+shaped as the frame lines read before it (blank and non-blank at the same places but for two,
+:func:`shaped_as_a_frame`) is counted as a damaged frame line (:meth:`LineFeed.frame_read`). A writer's other
+events (comments, statistics, status lines) and the header's lines are shaped otherwise and pass. A line shaped as
+no frame line read before it is judged again at the end, against every shape read (a message sent once a second, a
+time with one digit more, may show a shape first after the damaged line).
 """
 
 from __future__ import annotations
@@ -24,6 +32,36 @@ from typing import IO
 _DAMAGED = re.compile(rb"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
 #: header lines kept for a new reader (a log's header is a few lines; beyond, frames were read before the first)
 _MAX_HEADER_LINES = 1000
+#: lines no frame came from and not shaped as the frame lines read so far, kept to be judged again at the end
+#: against every shape read (a message sent once a second, or a time with one digit more, takes a shape first seen
+#: after the damaged line)
+_DOUBTFUL_KEPT = 10000
+#: places where a damaged frame line's blanks and non-blanks may differ from a whole one's (one byte overwritten
+#: turns a blank into a non-blank or splits a column: one place; two bytes side by side: two)
+_SHAPE_SLACK = 2
+_NON_BLANK = re.compile(r"\S")
+
+
+def _shape(line: str) -> str:
+    """Where ``line`` has blanks (" ") and non-blanks ("x"), trailing blanks and line end left off."""
+    return _NON_BLANK.sub("x", line.rstrip())
+
+
+def shaped_as_a_frame(line: str, *frame_lines: dict[int, str]) -> bool:
+    """True where ``line`` has its blanks and non-blanks where a line of ``frame_lines`` (frame lines read, by their
+    length) has them, but for at most :data:`_SHAPE_SLACK` places (a longer line's extra characters counted)."""
+    shape = _shape(line)
+    if not shape:
+        return False
+    for length in range(len(line) - _SHAPE_SLACK, len(line) + _SHAPE_SLACK + 1):
+        for by_length in frame_lines:
+            if (frame_line := by_length.get(length)) is None:
+                continue
+            other = _shape(frame_line)
+            places = abs(len(shape) - len(other)) + sum(a != b for a, b in zip(shape, other, strict=False))
+            if places <= _SHAPE_SLACK:
+                return True
+    return False
 
 
 class LineFeed:
@@ -43,7 +81,13 @@ class LineFeed:
         self._before_first: list[str] | None = []  # lines handed out before the reader's first frame
         self.header: list[str] | None = None  #: the lines before the first frame, once the reader gave one
         self.line = 0
-        self.damaged: list[int] = []  #: the lines left out: held back, failed on, short of their bytes
+        self.damaged: list[int] = []  #: the lines left out: held back, failed on, short of their bytes, skipped
+        self._since: list[tuple[int, str]] = []  # the file's lines handed out since the last frame's
+        # the first and the last frame line read of each length: the log's frame shapes (a fixed-width writer's
+        # counters and times take more digits and fewer blanks as the log goes on)
+        self._first_frame_lines: dict[int, str] = {}
+        self._frame_lines: dict[int, str] = {}
+        self._doubtful: list[tuple[int, str]] = []
 
     def __iter__(self) -> Iterator[str]:
         # a reader iterates anew after its header (ASC) and a new reader after damage: each picks up where the
@@ -62,6 +106,10 @@ class LineFeed:
                 self._before_first.append(line)
                 if len(self._before_first) > _MAX_HEADER_LINES:
                     self._before_first = None
+            self._since.append((self.line, line))
+            if len(self._since) > _MAX_HEADER_LINES:  # a long run of other events: judged now, not held
+                self._judge(self._since[:-1])
+                del self._since[:-1]
             yield line
 
     def first_frame(self) -> None:
@@ -70,6 +118,43 @@ class LineFeed:
         if self.header is None and self._before_first is not None:
             self.header = self._before_first[:-1]
         self._before_first = None
+
+    def last_line(self) -> str | None:
+        """The text of the last line handed out (None where it was a header line given again)."""
+        since = self._since
+        return since[-1][1] if since and since[-1][0] == self.line else None
+
+    def frame_read(self, whole: bool = True) -> None:
+        """The reader gave a frame, read from the last line handed out (``whole``: False where it is short of its
+        stated bytes, which counts that line): the lines since the frame before that no frame came from are judged
+        (:func:`shaped_as_a_frame`)."""
+        since = self._since
+        frame = since.pop() if since and since[-1][0] == self.line else None
+        if frame is not None:
+            if whole:
+                self._frame_lines[len(frame[1])] = frame[1]
+                self._first_frame_lines.setdefault(len(frame[1]), frame[1])
+            else:
+                self.damaged.append(frame[0])
+        self._judge(since)
+        since.clear()
+
+    def end(self) -> None:
+        """The reader read to the file's end: the lines after the last frame are judged, and the doubtful ones
+        again, against every shape read."""
+        self._judge(self._since)
+        self._since.clear()
+        doubtful, self._doubtful = self._doubtful, []
+        self.damaged += [number for number, line in doubtful
+                         if shaped_as_a_frame(line, self._frame_lines, self._first_frame_lines)]
+
+    def _judge(self, lines: list[tuple[int, str]]) -> None:
+        """Lines no frame came from: counted where shaped as a frame line read, else kept as doubtful."""
+        for number, line in lines:
+            if self._frame_lines and shaped_as_a_frame(line, self._frame_lines, self._first_frame_lines):
+                self.damaged.append(number)
+            elif len(self._doubtful) < _DOUBTFUL_KEPT:
+                self._doubtful.append((number, line))
 
     def after_damage(self) -> bool:
         """After a reader failed on the last line handed out: count it, and feed the header's lines again before
@@ -82,6 +167,8 @@ class LineFeed:
                 return False
             self.header, self._before_first = self._before_first[:-1], None
         self.damaged.append(self.line)
+        if self._since and self._since[-1][0] == self.line:  # counted: not to be judged again
+            self._since.pop()
         self._replay = [*self.header, *([self._last_mark] if self._last_mark is not None else [])]
         return True
 

@@ -1,0 +1,125 @@
+"""CAN log read speed: undamaged BLF, ASC, TRC and candump logs read by ``read_can_log``, beside another checkout.
+
+Each log holds the same ``--frames`` frames (seeded ids and data, two channels), written by python-can. A round
+reads every log with this checkout's package and, with ``--against DIR`` (``git worktree add DIR REV``), with the
+other's, each in a fresh process, one after the other, the order turned each round; a read is timed as the best of
+three. Given: each format's median over ``--rounds`` rounds and the ratio of the medians (this / the other). This
+measures what reading an undamaged log costs for the damage checks (the text logs' line feed, the BLF's container
+walk); the MDF4 reader's are only run on a damaged file. Results: ``benches/results/can_log_read.json``.
+
+Usage: python benches/bench_can_log_read.py [--against DIR] [--frames 100000] [--rounds 7]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import random
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent
+SUFFIXES = (".blf", ".asc", ".trc", ".log")
+
+
+def _write_logs(directory: Path, frames: int) -> list[Path]:
+    """One log per format of the same ``frames`` frames (python-can's writers)."""
+    import can
+
+    rng = random.Random(0)
+    messages = []
+    for i in range(frames):
+        dlc = rng.choice((8, 8, 8, 6, 4))
+        extended = rng.random() < 0.2
+        messages.append(can.Message(
+            timestamp=1_600_000_000.0 + i * 5e-4, arbitration_id=rng.randrange(0x1FFFFFFF if extended else 0x7FF),
+            is_extended_id=extended, dlc=dlc, data=rng.randbytes(dlc), channel=i % 2))
+    writers = {".blf": can.BLFWriter, ".asc": can.ASCWriter, ".trc": can.TRCWriter, ".log": can.CanutilsLogWriter}
+    paths = []
+    for suffix in SUFFIXES:
+        path = directory / f"frames{suffix}"
+        with writers[suffix](path) as writer:
+            for msg in messages:
+                writer.on_message_received(msg)
+        paths.append(path)
+    return paths
+
+
+def _time_reads(files: list[Path]) -> dict[str, float]:
+    """Seconds to read each of ``files`` (best of three) with the package importable now."""
+    from autosar_cli.ingest.canlog import read_can_log
+
+    out = {}
+    for path in files:
+        best = float("inf")
+        for _ in range(3):
+            t0 = time.perf_counter()
+            n = sum(1 for _ in read_can_log(path))
+            best = min(best, time.perf_counter() - t0)
+        out[path.suffix] = best
+        out[f"{path.suffix}_frames"] = n
+    return out
+
+
+def _worker(root: Path, files: list[Path], out: Path) -> dict[str, float]:
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    subprocess.run([sys.executable, str(Path(__file__).resolve()), "--worker", str(out), *map(str, files)],
+                   env=env, check=True, cwd=root)
+    return json.loads(out.read_text())
+
+
+def _revision(root: Path) -> str:
+    def git(*cmd: str) -> str:
+        return subprocess.run(["git", "-C", str(root), *cmd], capture_output=True, text=True).stdout.strip()
+    return git("rev-parse", "--short", "HEAD") + ("+" if git("status", "--porcelain", "--", "autosar_cli") else "")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--against", type=Path, help="another checkout whose package reads the same logs beside")
+    ap.add_argument("--frames", type=int, default=100_000)
+    ap.add_argument("--rounds", type=int, default=7)
+    ap.add_argument("--output", type=Path, default=HERE / "results" / "can_log_read.json")
+    ap.add_argument("--worker", type=Path, help=argparse.SUPPRESS)
+    ap.add_argument("files", nargs="*", type=Path, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.worker:
+        args.worker.write_text(json.dumps(_time_reads(args.files)))
+        return
+    roots = {"this": REPO, **({"against": args.against.resolve()} if args.against else {})}
+    rows = []
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="bench-can-read-") as scratch:
+        files = _write_logs(Path(scratch), args.frames)
+        for n in range(args.rounds):
+            order = list(roots) if n % 2 == 0 else list(reversed(roots))
+            for name in order:
+                rows.append({"round": n, "checkout": name,
+                             **_worker(roots[name], files, Path(scratch) / f"{name}.json")})
+                print(json.dumps(rows[-1]))
+    summary: dict[str, object] = {name: _revision(root) for name, root in roots.items()}
+    for suffix in SUFFIXES:
+        medians = {name: statistics.median(float(r[suffix]) for r in rows if r["checkout"] == name)
+                   for name in roots}
+        frames = {int(r[f"{suffix}_frames"]) for r in rows}
+        summary[suffix.lstrip(".")] = {f"{name}_s": round(m, 4) for name, m in medians.items()} | (
+            {"ratio": round(medians["this"] / medians["against"], 3)} if "against" in medians else {}) | {
+            "frames": sorted(frames)}
+    result = {"benchmark": "can_log_read", "frames": args.frames, "rounds": args.rounds, "summary": summary,
+              "wall_s": round(time.perf_counter() - t0, 1), "rows": rows, "python": platform.python_version(),
+              "cores": os.cpu_count()}
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    args.output.write_text(json.dumps(result, indent=1) + "\n")
+    print("summary", json.dumps(summary))
+    print(f"wrote {args.output}")
+
+
+if __name__ == "__main__":
+    main()
