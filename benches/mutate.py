@@ -96,6 +96,8 @@ TEXT_BLOCKS = ("tests/test_ingest_canlog.py::"
                "test_an_asc_damaged_in_its_second_trigger_block_reads_on_at_that_blocks_times")
 TEXT_FIRST = ("tests/test_ingest_canlog.py::"
               "test_a_text_log_whose_first_frame_line_is_damaged_reads_the_others_at_their_times")
+TEXT_SKIPPED = "tests/test_ingest_canlog.py::test_a_text_log_frame_line_damaged_where_the_reader_looks_is_counted"
+TEXT_LONG_DLC = "tests/test_ingest_canlog.py::test_an_ascs_classic_frame_with_a_dlc_over_8_is_read_as_8_bytes"
 ODD_INPUTS = "tests/test_safety.py::test_an_input_that_is_a_pipe_a_link_loop_or_a_directory_is_one_line"
 NMEA_DAMAGE = "tests/test_ingest_nmea.py::test_a_block_of_nul_bytes_in_a_capture_is_one_damage_warning_with_its_place"
 MISLABELLED = ("tests/test_ingest_damage.py::"
@@ -527,8 +529,25 @@ MUTATIONS: list[Mutation] = [
     _m("text-asc-trigger-block-not-read-again", "ingest", "ingest/canlog.py",
        """    marks = ("Begin Trigger", "begin trigger") if suffix == ".asc" else ()""", "    marks = ()", TEXT_BLOCKS),
     _m("text-frame-short-of-its-bytes-kept", "ingest", "ingest/canlog.py",
-       "                if msg.dlc != len(msg.data) and not (msg.is_remote_frame or msg.is_error_frame):",
-       "                if False:", TEXT_DAMAGE),
+       "                whole = len(msg.data) == msg.dlc or _holds_its_bytes(msg, feed.last_line())",
+       "                whole = True", TEXT_DAMAGE),
+    _m("text-skipped-frame-line-not-judged", "ingest", "ingest/text_lines.py",
+       "            self._judge(self._skipped)\n            self._skipped.clear()\n",
+       "            self._skipped.clear()\n", TEXT_SKIPPED),
+    _m("text-doubtful-line-not-judged-again", "ingest", "ingest/text_lines.py",
+       "        self.damaged += [number for number, line in doubtful",
+       "        self.damaged += [number for number, line in []", TEXT_SKIPPED),
+    _m("text-first-frame-shapes-forgotten", "ingest", "ingest/text_lines.py",
+       "                self._first_frame_lines[length] = text\n", "                pass\n", TEXT_SKIPPED),
+    _m("text-shape-slack-none", "ingest", "ingest/text_lines.py", "_SHAPE_SLACK = 2\n", "_SHAPE_SLACK = 0\n",
+       TEXT_SKIPPED),
+    _m("asc-classic-long-dlc-called-short", "ingest", "ingest/canlog.py",
+       "    return _ASC_CLASSIC_LONG_DLC.match(line) is not None", "    return False", TEXT_LONG_DLC),
+    _m("asc-damaged-dlc-token-read-as-long-dlc", "ingest", "ingest/canlog.py",
+       "    return _ASC_CLASSIC_LONG_DLC.match(line) is not None", "    return True", TEXT_LONG_DLC),
+    _m("can-classic-long-dlc-a-mismatch", "ingest", "ingest/decoders.py",
+       "        stated = 8 if 8 < frame.dlc <= 15 and len(data) == 8 else frame.dlc", "        stated = frame.dlc",
+       TEXT_LONG_DLC),
 ]
 
 

@@ -3,6 +3,7 @@ file and dataset, and a trajectory no car could drive is refused."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import h5py
@@ -13,8 +14,10 @@ from typer.testing import CliRunner
 from autosar_cli.cli import app
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.nav.trajectory import Trajectory
+from autosar_cli.sar.focus import DAMAGED_FRAMES
 from autosar_cli.store.drive import Column, Drive, DriveWriter
 from autosar_cli.store.hdf5_read import DamagedFileError
+from autosar_cli.store.image import read_image
 from autosar_cli.store.trajectory import TrajectoryFormatError, read_trajectory, write_trajectory
 
 runner = CliRunner()
@@ -105,6 +108,83 @@ def test_a_flipped_byte_in_the_radar_cube_is_an_error_naming_file_and_dataset(tm
         f["can"].attrs["roles"] = '{"wheel_speed_fl": "ABS_1/speed"}'
     with Drive(path) as d, pytest.raises(DamagedFileError, match=r"drive\.h5: dataset /can/ABS_1/speed is missing"):
         d.can_role("wheel_speed_fl")
+
+
+def _flip_byte_in_chunk(path: Path, dataset: str, frame: int, tx: int, rx: int) -> None:
+    """Flip one byte in the middle of the stored chunk of ``dataset`` that holds ``frame`` of channel (tx, rx)."""
+    with h5py.File(path, "r") as f:
+        ds = f[dataset]
+        info = ds.id.get_chunk_info_by_coord((frame - frame % ds.chunks[0], tx, rx, 0, 0))
+    with open(path, "r+b") as fh:
+        fh.seek(info.byte_offset + info.size // 2)
+        b = fh.read(1)[0]
+        fh.seek(info.byte_offset + info.size // 2)
+        fh.write(bytes([b ^ 0x10]))
+
+
+def test_a_damaged_radar_chunk_costs_only_its_frames(tmp_path: Path) -> None:
+    """A flipped byte in Tx 0 / Rx 0's chunk of frames 64-127: reading frames 10-179 with that channel gives the
+    others as stored and frames 64-127 zeroed in every channel, not intact; without that channel, all intact."""
+    rng = np.random.default_rng(4)
+    raw = rng.normal(0, 300, size=(192, 3, 4, 64, 2)).astype(np.int16)
+    w = DriveWriter(tmp_path / "drive.h5", {"autosar_version": "test"})
+    w.radar("radar/scanbrick", (3, 4, 64), {}).append_frames(np.arange(192, dtype=np.int64) * 1_000_000,
+                                                             np.arange(192, dtype=np.int64), raw)
+    path = w.commit()
+    _flip_byte_in_chunk(path, "radar/scanbrick/raw", 100, 0, 0)
+    pairs = [(0, 0), (2, 3)]
+    with Drive(path) as d:
+        radar = d.radar()
+        with pytest.raises(DamagedFileError):
+            radar.frames(10, 180, pairs)
+        got, intact = radar.intact_frames(10, 180, pairs)
+        whole, all_intact = radar.intact_frames(10, 180, [(2, 3), (1, 1)])
+        everything, intact_all = radar.intact_frames(0, 192)
+    bad = (np.arange(10, 180) >= 64) & (np.arange(10, 180) < 128)
+    np.testing.assert_array_equal(intact, ~bad)
+    np.testing.assert_array_equal(got[~bad], raw[10:180][~bad][:, [0, 2], [0, 3]])
+    assert not got[bad].any()
+    assert all_intact.all() and np.array_equal(whole, raw[10:180][:, [2, 1], [3, 1]])
+    assert intact_all.sum() == 128 and np.array_equal(everything[intact_all], raw[intact_all])
+
+
+@pytest.mark.parametrize("tiles", [1, 2])
+def test_focus_of_a_drive_damaged_in_a_radar_chunk_leaves_out_its_frames_and_says_so(
+        ci_run: Path, tmp_path: Path, tiles: int) -> None:
+    """The ci drive with a flipped byte in a radar chunk of a channel the image uses: focus failed whole ("dataset
+    ... is damaged and cannot be read"). It makes the image without that chunk's 64 frames: the warning names them
+    by frame index, the image's parameters and the report count them, and the image is the undamaged one's but
+    for those frames' part: its peak where the undamaged one's is, and the pixels those frames' beam never reaches
+    the same to the bit."""
+    for name in ("drive.h5", "trajectory.h5"):
+        (tmp_path / name).write_bytes((ci_run / name).read_bytes())
+    drive, traj = tmp_path / "drive.h5", tmp_path / "trajectory.h5"
+    args = ["-t", str(traj), "--json", "--tiles", str(tiles)]
+    r = runner.invoke(app, ["focus", str(drive), "-o", str(tmp_path / "whole"), *args])
+    assert r.exit_code == 0, r.output
+    whole = json.loads(r.stdout)
+    with Drive(drive) as d:
+        radar = d.radar()
+        middle = len(radar.t_ns) // 2
+        first = middle - middle % radar.raw.chunks[0]
+        index = radar.frame_index[first:first + radar.raw.chunks[0]]
+        dataset = radar.raw.name
+    _flip_byte_in_chunk(drive, dataset, middle, 0, 1)
+    r = runner.invoke(app, ["focus", str(drive), "-o", str(tmp_path / "damaged"), *args])
+    assert r.exit_code == 0, r.output
+    damaged = json.loads(r.stdout)
+    assert damaged["frames_skipped"][DAMAGED_FRAMES] == 64
+    assert damaged["frames_used"] == whole["frames_used"] - 64
+    assert damaged["warnings"][0] == (f"{drive}: 64 frames of radar {radar.name} (frame index {index[0]}-{index[-1]}) "
+                                      "failed their checksum (the drive is damaged there): left out of the image, "
+                                      "which lacks their part")
+    a, b = read_image(tmp_path / "whole.h5"), read_image(tmp_path / "damaged.h5")
+    assert b.params["frames_damaged"] == 64 and a.params["frames_damaged"] == 0
+    peak = np.unravel_index(np.argmax(np.abs(a.image)), a.image.shape)
+    assert np.unravel_index(np.argmax(np.abs(b.image)), b.image.shape) == peak
+    assert abs(b.image[peak]) <= abs(a.image[peak]) * (1 + 1e-6)
+    assert 0.3 < np.mean(a.image == b.image) < 0.95  # ci seed 7: 66 % to the bit
+    assert 0.99 < np.linalg.norm(b.image) / np.linalg.norm(a.image) < 1.0  # 64 of ~2000 frames: 0.9985
 
 
 def test_a_heading_no_car_can_have_is_refused(tmp_path: Path) -> None:

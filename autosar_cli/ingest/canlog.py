@@ -175,7 +175,8 @@ def _open_reader(path: Path, stack: ExitStack, shown: Path) -> MessageReader:
         raise CanLogError(f"{shown}: not a candump -L log (first line {first[:40]!r})")
     text: IO[str] = stack.enter_context(path.open("r", encoding="cp1252", errors="replace"))
     marks = ("Begin Trigger", "begin trigger") if suffix == ".asc" else ()  # an ASC's "Begin Triggerblock <date>"
-    return stack.enter_context(_text_reader(suffix, LineFeed(text, damaged_lines(path), marks)))
+    feed = LineFeed(text, damaged_lines(path), marks, judge_skipped=suffix != ".log")
+    return stack.enter_context(_text_reader(suffix, feed))
 
 
 def _text_reader(suffix: str, feed: LineFeed) -> MessageReader:
@@ -273,7 +274,8 @@ def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:
             if feed is not None:
                 if frames == 0:
                     feed.first_frame()
-                whole = _holds_its_bytes(msg, feed.last_line())  # "d 8 F2 F2 F2 F2 2" is left out
+                # "d 8 F2 F2 F2 F2 2" is left out
+                whole = len(msg.data) == msg.dlc or _holds_its_bytes(msg, feed.last_line())
                 feed.frame_read(whole)
                 if not whole:
                     continue
@@ -308,14 +310,14 @@ def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:
                               f"{frames} frames read{' before it' if before else ''}")
 
 
-def _holds_its_bytes(msg: can.Message, line: str | None) -> bool:
+def _holds_its_bytes(msg: can.Message, line: str) -> bool:
     """Whether a frame read from a text log's ``line`` holds the data bytes its DLC states. A classic frame's DLC
     9-15 states 8 bytes (a CANalyzer log's "d D 55 AA 01 02 03 04 05 06"), which python-can's ASC reader reads as
     the CAN FD length that code means: whole where its line is such a frame's (not a damaged line python-can reads
     so: in 'Rx " d 8 9C ...' it takes "d" for the DLC and "8" for a data byte)."""
     if msg.is_remote_frame or msg.is_error_frame or len(msg.data) == msg.dlc:
         return True
-    if msg.is_fd or msg.dlc <= 8 or len(msg.data) != 8 or line is None:
+    if msg.is_fd or msg.dlc <= 8 or len(msg.data) != 8:
         return False
     return _ASC_CLASSIC_LONG_DLC.match(line) is not None
 

@@ -68,11 +68,14 @@ class LineFeed:
     """The lines of an open text log as the file a python-can reader iterates, counted (``line``: lines of the
     file handed out so far, so the one a reader failed on)."""
 
-    def __init__(self, file: IO[str], damaged_lines: frozenset[int] = frozenset(), marks: tuple[str, ...] = ()
-                 ) -> None:
+    def __init__(self, file: IO[str], damaged_lines: frozenset[int] = frozenset(), marks: tuple[str, ...] = (),
+                 judge_skipped: bool = True) -> None:
         """``damaged_lines``: the numbers of the file's lines to hold back (:func:`damaged_lines`); ``marks``: text
         of the lines that set the reader's clock on the way (an ASC's ``Begin Triggerblock``, whose date the times
-        after it count from), the last of which is read again after the header."""
+        after it count from), the last of which is read again after the header; ``judge_skipped``: whether the
+        lines the reader skips are judged (False for a reader that skips none: python-can's candump reader raises
+        at a line it cannot read)."""
+        self._judge_skipped = judge_skipped
         self._file = file
         self._held_back = damaged_lines
         self._marks = marks
@@ -82,7 +85,9 @@ class LineFeed:
         self.header: list[str] | None = None  #: the lines before the first frame, once the reader gave one
         self.line = 0
         self.damaged: list[int] = []  #: the lines left out: held back, failed on, short of their bytes, skipped
-        self._since: list[tuple[int, str]] = []  # the file's lines handed out since the last frame's
+        self._text = ""  # the last line of the file handed out
+        self._claimed = True  # whether a frame came from it
+        self._skipped: list[tuple[int, str]] = []  # the file's lines handed out since the last frame that gave none
         # the first and the last frame line read of each length: the log's frame shapes (a fixed-width writer's
         # counters and times take more digits and fewer blanks as the log goes on)
         self._first_frame_lines: dict[int, str] = {}
@@ -92,9 +97,12 @@ class LineFeed:
     def __iter__(self) -> Iterator[str]:
         # a reader iterates anew after its header (ASC) and a new reader after damage: each picks up where the
         # file is, the header's lines first where they are to be read again
+        if not self._claimed:  # the reader before left its last line for another (TRC: its header's end)
+            self._skipped.append((self.line, self._text))
+            self._claimed = True
         while self._replay:
             yield self._replay.pop(0)
-        held_back, marks = self._held_back, self._marks
+        held_back, marks, judge_skipped = self._held_back, self._marks, self._judge_skipped
         for self.line, line in enumerate(self._file, self.line + 1):  # noqa: B020 (the count is the feed's)
             if held_back and self.line in held_back:  # no writer puts such bytes in a text log: not the writer's
                 self.damaged.append(self.line)
@@ -106,11 +114,19 @@ class LineFeed:
                 self._before_first.append(line)
                 if len(self._before_first) > _MAX_HEADER_LINES:
                     self._before_first = None
-            self._since.append((self.line, line))
-            if len(self._since) > _MAX_HEADER_LINES:  # a long run of other events: judged now, not held
-                self._judge(self._since[:-1])
-                del self._since[:-1]
+            if not judge_skipped:
+                yield line
+                continue
+            self._text, self._claimed = line, False
             yield line
+            # the reader asks for the next line: no frame came from this one (a reader that failed on it asks a
+            # new feed, and this is not reached)
+            if not self._claimed:
+                self._skipped.append((self.line, line))
+                self._claimed = True
+                if len(self._skipped) > _MAX_HEADER_LINES:  # a long run of other events: judged now, not held
+                    self._judge(self._skipped)
+                    self._skipped.clear()
 
     def first_frame(self) -> None:
         """The reader gave its first frame, read from the last line handed out: the lines before it are the
@@ -119,31 +135,36 @@ class LineFeed:
             self.header = self._before_first[:-1]
         self._before_first = None
 
-    def last_line(self) -> str | None:
-        """The text of the last line handed out (None where it was a header line given again)."""
-        since = self._since
-        return since[-1][1] if since and since[-1][0] == self.line else None
+    def last_line(self) -> str:
+        """The text of the last line of the file handed out."""
+        return self._text
 
     def frame_read(self, whole: bool = True) -> None:
         """The reader gave a frame, read from the last line handed out (``whole``: False where it is short of its
         stated bytes, which counts that line): the lines since the frame before that no frame came from are judged
         (:func:`shaped_as_a_frame`)."""
-        since = self._since
-        frame = since.pop() if since and since[-1][0] == self.line else None
-        if frame is not None:
-            if whole:
-                self._frame_lines[len(frame[1])] = frame[1]
-                self._first_frame_lines.setdefault(len(frame[1]), frame[1])
-            else:
-                self.damaged.append(frame[0])
-        self._judge(since)
-        since.clear()
+        if not self._judge_skipped:
+            if not whole:
+                self.damaged.append(self.line)
+            return
+        self._claimed = True
+        if whole:
+            text = self._text
+            length = len(text)
+            self._frame_lines[length] = text
+            if length not in self._first_frame_lines:
+                self._first_frame_lines[length] = text
+        else:
+            self.damaged.append(self.line)
+        if self._skipped:
+            self._judge(self._skipped)
+            self._skipped.clear()
 
     def end(self) -> None:
         """The reader read to the file's end: the lines after the last frame are judged, and the doubtful ones
         again, against every shape read."""
-        self._judge(self._since)
-        self._since.clear()
+        self._judge(self._skipped)
+        self._skipped.clear()
         doubtful, self._doubtful = self._doubtful, []
         self.damaged += [number for number, line in doubtful
                          if shaped_as_a_frame(line, self._frame_lines, self._first_frame_lines)]
@@ -167,8 +188,7 @@ class LineFeed:
                 return False
             self.header, self._before_first = self._before_first[:-1], None
         self.damaged.append(self.line)
-        if self._since and self._since[-1][0] == self.line:  # counted: not to be judged again
-            self._since.pop()
+        self._claimed = True
         self._replay = [*self.header, *([self._last_mark] if self._last_mark is not None else [])]
         return True
 

@@ -279,6 +279,10 @@ def _candidate_pixels(grid: FocusGrid, ref: NDArray[np.float64], vel: NDArray[np
     return slice(r0, max(r0, r1)), slice(c0, max(c0, c1))
 
 
+#: frames_skipped's reason for the frames of a damaged drive left out
+DAMAGED_FRAMES = "damaged in the drive (their stored radar data failed its checksum)"
+
+
 @dataclass
 class FocusResult:
     """In-memory result of :func:`focus_images`: one image per grid plus what it took."""
@@ -289,6 +293,8 @@ class FocusResult:
     backprojections: int
     timings_s: dict[str, float]
     drive_s: float
+    warnings: list[str] = field(default_factory=list)  #: what the images lack (frames of a damaged drive)
+    damaged_frame_index: list[int] = field(default_factory=list)  #: those frames, by index in the recording
 
 
 def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, config: Config, options: FocusOptions,
@@ -342,6 +348,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         rise = traj.height_offset(geometry.t_ns)
         lifted = bool(np.any(rise != 0.0))
         margin = look_angle_margin_m(config.radar.max_range_m, half_width)
+        damaged: list[int] = []  # positions in the stream of frames whose stored chunks are damaged
 
         def prepare(b: int) -> tuple[slice, list[tuple[int, Any, Any, Any]], NDArray[np.int16] | None,
                                      NDArray[np.float64] | None]:
@@ -371,7 +378,8 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
             if not work:  # a block no grid needs is not even read
                 return sel, work, None, None
             idx = frames[sel]
-            raw = radar.frames(int(idx[0]), int(idx[-1]) + 1, pairs)  # (n, C, samples, 2)
+            raw, intact = radar.intact_frames(int(idx[0]), int(idx[-1]) + 1, pairs)  # (n, C, samples, 2)
+            damaged.extend(idx[~intact[idx - idx[0]]].tolist())  # zeroed: they add nothing
             pc = radar_phase_centres(traj, geometry.t_ns[sel], offsets, config)
             ant = np.concatenate([pc.tx[:, used_tx].transpose(1, 0, 2),
                                   np.stack([pc.rx[:, t, r] for t, r in pairs])], axis=0)
@@ -420,19 +428,36 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
             reader.shutdown(cancel_futures=True)
             pool.shutdown()
         drive_s = float((geometry.t_ns[-1] - geometry.t_ns[0]) / 1e9)
+        damaged_index = sorted(int(i) for i in np.asarray(radar.frame_index)[np.asarray(damaged, np.int64)])
+        warnings = [damaged_frames_warning(drive_path, radar.name, damaged_index)] if damaged else []
 
     params = {**asdict(options), "channel_pairs": [list(p) for p in pairs], "start_frequency_hz": f0,
               "slope_hz_per_s": slope, "sample_rate_hz": fs, "num_samples": n_samp, "bin_m": bin_m,
               "cycles_per_m": cycles_per_m, "wavelength_m": wavelength, "half_width_rad": half_width,
-              "trajectory_method": traj.method, "frames_used": int(len(frames)), "backprojections": n_bp,
+              "trajectory_method": traj.method, "frames_used": int(len(frames)) - len(damaged),
+              "frames_damaged": len(damaged), "backprojections": n_bp,
               "radar": radar.name, "channel_gains": gains.to_dict() if gains is not None else None,
               "radar_mounting_yaw_deg": config.radar.mounting.yaw_deg}
     provenance = {"drive": str(drive_path), "trajectory": traj_name, "autosar_version": __version__,
                   "command": command, "config": config.source}
     out = [FocusedImage(img.reshape(g.shape), g, traj.origin, dict(params), dict(provenance))
            for g, img in zip(grid_list, images, strict=True)]
-    return FocusResult(out, int(len(frames)), {k: v for k, v in geometry.skipped.items() if v}, n_bp, dict(timings),
-                       drive_s)
+    skipped = {k: v for k, v in geometry.skipped.items() if v}
+    if damaged:
+        skipped[DAMAGED_FRAMES] = len(damaged)
+    return FocusResult(out, int(len(frames)) - len(damaged), skipped, n_bp, dict(timings), drive_s, warnings,
+                       damaged_index)
+
+
+def damaged_frames_warning(drive_path: str | Path, radar: str, frame_index: Sequence[int]) -> str:
+    """One line naming the frames (``frame_index``: their sorted indices in the recording, named as runs) of the
+    drive's radar stream ``radar`` left out of an image because their stored data failed its checksum."""
+    index = np.asarray(frame_index, np.int64)
+    runs = [f"{r[0]}-{r[-1]}" if len(r) > 1 else f"{r[0]}" for r in np.split(index, np.flatnonzero(np.diff(index) != 1)
+                                                                                     + 1)]
+    named = ", ".join(runs[:3]) + (f" and {len(runs) - 3} more runs" if len(runs) > 3 else "")
+    return (f"{drive_path}: {len(index)} frames of radar {radar} (frame index {named}) failed their checksum (the "
+            "drive is damaged there): left out of the image, which lacks their part")
 
 
 def unfocused_radars(drive_path: str | Path, options: FocusOptions) -> list[str]:
@@ -496,4 +521,5 @@ def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Pat
     timings = dict(res.timings_s)
     timings["write"] = time.perf_counter() - t0
     return FocusReport({k: str(v) for k, v in outputs.items()}, img.grid.shape, res.frames_used, res.frames_skipped,
-                       res.backprojections, timings, res.drive_s, unfocused_radars(drive_path, options))
+                       res.backprojections, timings, res.drive_s,
+                       [*res.warnings, *unfocused_radars(drive_path, options)])

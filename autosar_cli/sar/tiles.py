@@ -33,12 +33,14 @@ from numpy.typing import ArrayLike, NDArray
 from autosar_cli.config import Config
 from autosar_cli.nav.trajectory import Trajectory
 from autosar_cli.sar.focus import (
+    DAMAGED_FRAMES,
     FocusError,
     FocusOptions,
     FocusReport,
     _usable_frames,
     check_request,
     check_same_recording,
+    damaged_frames_warning,
     focus_images,
     make_grid,
     open_radar,
@@ -130,6 +132,7 @@ class TileResult:
     params: dict[str, Any] = field(default_factory=dict)
     provenance: dict[str, Any] = field(default_factory=dict)
     wall_s: float = 0.0
+    damaged_frame_index: list[int] = field(default_factory=list)  #: frames of a damaged drive the tile left out
 
 
 def focus_tile(drive_path: str | Path, trajectory: str | Path | Trajectory, config: Config, options: FocusOptions,
@@ -140,7 +143,8 @@ def focus_tile(drive_path: str | Path, trajectory: str | Path | Trajectory, conf
     res = focus_images(drive_path, trajectory, config, options, [tile], progress=progress, command=command)
     img = res.images[0]
     return TileResult(getattr(tile, "col0", 0), img.image, res.frames_used, res.frames_skipped, res.backprojections,
-                      res.timings_s, res.drive_s, img.params, img.provenance, time.perf_counter() - t0)
+                      res.timings_s, res.drive_s, img.params, img.provenance, time.perf_counter() - t0,
+                      res.damaged_frame_index)
 
 
 def focus_tiled(drive_path: str | Path, trajectory_path: str | Path, output: str | Path, config: Config,
@@ -193,12 +197,19 @@ def focus_tiled(drive_path: str | Path, trajectory_path: str | Path, output: str
 
         first = min(results, key=lambda r: r.col0)
         n_bp = sum(r.backprojections for r in results)
-        writer.set_metadata({**first.params, "backprojections": n_bp}, {**first.provenance, "tiles": len(parts)})
+        # each tile reads the frames its columns need: the frames left out are those any tile found damaged
+        damaged = sorted({i for r in results for i in r.damaged_frame_index})
+        frames_used = first.frames_used + len(first.damaged_frame_index) - len(damaged)
+        skipped = {k: v for k, v in first.frames_skipped.items() if k != DAMAGED_FRAMES}
+        if damaged:
+            skipped[DAMAGED_FRAMES] = len(damaged)
+        writer.set_metadata({**first.params, "backprojections": n_bp, "frames_used": frames_used,
+                             "frames_damaged": len(damaged)}, {**first.provenance, "tiles": len(parts)})
         t0 = time.perf_counter()
     timings["write"] += time.perf_counter() - t0  # closing: tags, quicklook, flush, rename
-    return FocusReport({k: str(v) for k, v in writer.paths.items()}, grid.shape, first.frames_used,
-                       first.frames_skipped, n_bp, dict(timings), first.drive_s,
-                       unfocused_radars(drive_path, options))
+    warnings = [damaged_frames_warning(drive_path, str(first.params["radar"]), damaged)] if damaged else []
+    return FocusReport({k: str(v) for k, v in writer.paths.items()}, grid.shape, frames_used, skipped, n_bp,
+                       dict(timings), first.drive_s, [*warnings, *unfocused_radars(drive_path, options)])
 
 
 def _token() -> str:

@@ -389,6 +389,27 @@ class RadarStream:
         with dataset_errors(self.raw.file.filename, self.raw.name):
             return np.stack([self.raw[start:stop, t, r] for t, r in zip(tx, rx, strict=True)], axis=1)
 
+    def intact_frames(self, start: int, stop: int, pairs: Sequence[tuple[int, int]] | None = None
+                      ) -> tuple[np.ndarray, NDArray[np.bool_]]:
+        """:meth:`frames` ``start:stop``, and which of them are intact (n,) bool: where a stored chunk of a channel
+        read fails its checksum or does not decompress, the frames it holds are zeroed in every channel (its
+        channels must agree) and not intact; the rest of a damaged drive is read."""
+        try:
+            return self.frames(start, stop, pairs), np.ones(stop - start, bool)
+        except DamagedFileError:
+            pass
+        rows = self.raw.chunks[0] if self.raw.chunks is not None else 1
+        shape = tuple(self.raw.shape[1:]) if pairs is None else (len(pairs), *self.raw.shape[3:])
+        parts, intact = [], np.ones(stop - start, bool)
+        for first in range(start - start % rows, stop, rows):  # a row of chunks at a time
+            a, b = max(first, start), min(first + rows, stop)
+            try:
+                parts.append(self.frames(a, b, pairs))
+            except DamagedFileError:
+                parts.append(np.zeros((b - a, *shape), self.raw.dtype))
+                intact[a - start:b - start] = False
+        return np.concatenate(parts), intact
+
     def frame_crc32(self, i: int) -> int | None:
         """CRC-32 of frame ``i``'s int16 samples as the drive holds them (the simulator's truth keeps the same);
         None where its chunk is damaged (its checksum fails)."""
