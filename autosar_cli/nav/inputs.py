@@ -19,7 +19,7 @@ from autosar_cli.config import Config, GnssErrors
 from autosar_cli.nav.frames import gravity_tilt_deg, levelling_pitch_roll_deg, sensor_to_body
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.store.drive import Drive
-from autosar_cli.store.hdf5_read import dataset_errors, read_dataset
+from autosar_cli.store.hdf5_read import dataset_errors
 
 Array = NDArray[np.float64]
 
@@ -95,19 +95,15 @@ def lsb_of(values: Array) -> float:
     return float(gaps[gaps > 1e-12].min()) if (gaps > 1e-12).any() else 0.0
 
 
-def _columns(group: h5py.Group, names: tuple[str, ...]) -> dict[str, np.ndarray]:
-    """The named datasets of a series group (only those: a group holds many more columns than navigation uses)."""
-    return {k: read_dataset(group, k) for k in names}
-
-
-def _reported_horizontal_std(fix: h5py.Group) -> float:
+def _reported_horizontal_std(drive: Drive, fix: h5py.Group) -> float:
     """The median over the fixes of the horizontal std per axis (m) the receiver states (the mean of the east and
     north variances of ``position_covariance``, where its type is known and the variances finite and positive); NaN
     where no fix states one."""
     if "position_covariance" not in fix or "position_covariance_type" not in fix:
         return math.nan
-    cov = np.asarray(read_dataset(fix, "position_covariance"), dtype=np.float64)
-    known = np.asarray(read_dataset(fix, "position_covariance_type")) > 0
+    stated = drive.columns(fix, ("position_covariance", "position_covariance_type"))
+    cov = np.asarray(stated["position_covariance"], dtype=np.float64)
+    known = np.asarray(stated["position_covariance_type"]) > 0
     if cov.ndim != 2 or cov.shape[1] != 9 or known.shape != (len(cov),):
         return math.nan  # not NavSatFix's row-major 3 x 3 per fix: nothing the receiver states that can be read
     var = 0.5 * (cov[:, 0] + cov[:, 4])
@@ -115,13 +111,13 @@ def _reported_horizontal_std(fix: h5py.Group) -> float:
     return float(np.sqrt(np.median(var[ok]))) if ok.any() else math.nan
 
 
-def _load_gnss_heading(out: NavInputs, gnss: h5py.Group, source: str, errors: GnssErrors | None,
+def _load_gnss_heading(out: NavInputs, drive: Drive, gnss: h5py.Group, source: str, errors: GnssErrors | None,
                        offset_std_deg: float, rel: Callable[[Array, str], Array]) -> None:
     """``out``'s receiver heading from ``gnss``' NMEA heading stream, or why there is none."""
     if "nmea_heading" not in gnss:
         out.gnss_heading_missing = f"the drive has no NMEA heading (gnss/{source}/nmea_heading)"
         return
-    hdt = _columns(gnss["nmea_heading"], ("t_ns", "heading_rad"))
+    hdt = drive.columns(gnss["nmea_heading"], ("t_ns", "heading_rad"))
     ok = np.isfinite(hdt["heading_rad"])
     if not ok.any():
         out.gnss_heading_missing = f"gnss/{source}/nmea_heading has no valid heading (all {len(ok)} samples are NaN)"
@@ -143,7 +139,7 @@ def read_imu(drive: Drive, name: str, config: Config) -> dict[str, Array]:
     """The IMU stream ``imu/<name>`` (``t_ns``, ``angular_velocity``, ``linear_acceleration``) on the body's axes,
     turned by the sensor's ``mounting_ypr_deg``. Refused, naming the stream, where its accelerometers (all three
     axes) read gravity outside ``GRAVITY_RANGE_MPS2`` or more than ``MAX_GRAVITY_TILT_DEG`` from the body's up."""
-    cols = _columns(drive.h5["imu"][name], ("t_ns", "angular_velocity", "linear_acceleration"))
+    cols = drive.columns(drive.h5["imu"][name], ("t_ns", "angular_velocity", "linear_acceleration"))
     s = config.sensors.get(name)
     mounting = tuple(s.mounting_ypr_deg) if s else (0.0, 0.0, 0.0)
     w = sensor_to_body(cols["angular_velocity"], mounting)  # type: ignore[arg-type]
@@ -227,8 +223,8 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
             raise NavInputError(f"{drive.path}: no GNSS fix stream gnss/{nav.gnss} (config navigation.gnss); "
                                 f"{streams_held(drive, 'gnss')}")
         gnss = h5["gnss"][nav.gnss]
-        fix = _columns(gnss["fix"], ("t_ns", "latitude_deg", "longitude_deg", "altitude_m"))
-        vel = _columns(gnss["velocity"], ("t_ns", "velocity_enu")) if "velocity" in gnss else None
+        fix = drive.columns(gnss["fix"], ("t_ns", "latitude_deg", "longitude_deg", "altitude_m"))
+        vel = drive.columns(gnss["velocity"], ("t_ns", "velocity_enu")) if "velocity" in gnss else None
     if len(fix["t_ns"]) == 0:
         raise NavInputError(f"{drive.path}: gnss/{nav.gnss}/fix is empty")
     lever = tuple(gnss_cfg.lever_arm_m) if gnss_cfg else (0.0, 0.0, 0.0)
@@ -253,8 +249,8 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         with dataset_errors(drive.path, f"/can/{message}"):
             g = h5["can"][message]
         if message not in can_times:
-            can_times[message] = read_dataset(g, "t_ns", drive.path)
-        return can_times[message], read_dataset(g, signal, drive.path)
+            can_times[message] = drive.columns(g, ("t_ns",))["t_ns"]
+        return can_times[message], drive.columns(g, (signal,))[signal]
 
     out = NavInputs(t0, origin, gnss_lever_m=lever)  # type: ignore[arg-type]
     enu = origin.to_enu(fix["latitude_deg"], fix["longitude_deg"], fix["altitude_m"])
@@ -271,7 +267,7 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
     else:
         pos_std = np.full(2, nav.gnss_position_std_m)
     out.gnss_position = Measurements(nav.gnss, rel(fix["t_ns"], nav.gnss), enu[:, :2], pos_std)
-    out.gnss_reported_std_m = _reported_horizontal_std(gnss["fix"]) if gnss is not None else math.nan
+    out.gnss_reported_std_m = _reported_horizontal_std(drive, gnss["fix"]) if gnss is not None else math.nan
     if vel is not None:
         std = errors.velocity_std_mps if errors else 0.05
         out.gnss_velocity = Measurements(nav.gnss, rel(vel["t_ns"], nav.gnss), vel["velocity_enu"][:, :2],
@@ -280,7 +276,8 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         # a receiver without a vertical velocity writes NaN there, or 0 throughout
         if np.isfinite(up).any() and np.any(up[np.isfinite(up)] != 0.0):
             # its stated variance where the stream has one; else receivers' usual 1.5 x the horizontal
-            var = (read_dataset(gnss["velocity"], "velocity_variance")[:, 2] if gnss is not None
+            var = (drive.columns(gnss["velocity"], ("velocity_variance",))["velocity_variance"][:, 2]
+                   if gnss is not None
                    and "velocity_variance" in gnss["velocity"] else np.zeros(0))
             var = np.median(var[np.isfinite(var)]) if np.isfinite(var).any() else 0.0
             up_std = float(np.sqrt(var)) if var > 0 else 1.5 * std
@@ -288,7 +285,7 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
             out.gnss_climb = Measurements(nav.gnss, rel(vel["t_ns"][ok], nav.gnss), up[ok, None],
                                           np.array([up_std]))
     if nav.gnss_heading and gnss is not None:
-        _load_gnss_heading(out, gnss, nav.gnss, errors, nav.gnss_heading_offset_std_deg, rel)
+        _load_gnss_heading(out, drive, gnss, nav.gnss, errors, nav.gnss_heading_offset_std_deg, rel)
     elif nav.gnss_heading:
         out.gnss_heading_missing = f"{nav.gnss} is a receiver on CAN: no NMEA heading"
     imu_sources = drive.imu_sources()

@@ -575,6 +575,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                 raise NavInputError(f"{drive_path}: no truth sidecar found; give --truth LOG.truth.h5")
             if why := truth_radar_mismatch(truth_path, drive):
                 raise NavInputError(why)
+        damage = list(drive.damage)  # rows of a damaged drive left out of its tables: gaps the filter bridges
     if method == "sar-min":
         if why := wheel_scale_error(inputs):
             raise NavInputError(f"{drive_path}: {why}")
@@ -642,6 +643,8 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
         traj = from_truth(str(truth_path), inputs.origin, config, radar_motion=True)
         traj.info["truth"] = str(truth_path)
     traj.info["drive"] = str(drive_path)
+    if damage:
+        traj.info["warnings"] = [*damage, *traj.info.get("warnings", [])]
     if recording is not None:
         traj.info["drive_radar_frames"] = recording
     traj.info["elapsed_s"] = time.perf_counter() - t0

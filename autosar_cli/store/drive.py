@@ -446,6 +446,15 @@ class RadarStream:
         return compared
 
 
+def _intact_rows_of(ds: h5py.Dataset, intact: NDArray[np.bool_]) -> np.ndarray:
+    """The rows of a table's column ``ds`` where ``intact``, read a stored chunk at a time (those that hold none
+    are not read: a damaged chunk's rows are not intact)."""
+    step = ds.chunks[0] if ds.chunks is not None else len(intact)
+    parts = [read_rows(ds, a, a + step)[intact[a:a + step]] for a in range(0, len(intact), step)
+             if intact[a:a + step].any()]
+    return np.concatenate(parts) if parts else np.zeros((0, *ds.shape[1:]), ds.dtype)
+
+
 def frame_crc32(frame: np.ndarray) -> int:
     """CRC-32 of one raw frame (tx, rx, sample, I/Q) int16, as its bytes lie in C order."""
     return zlib.crc32(np.ascontiguousarray(frame).tobytes())
@@ -470,6 +479,9 @@ class Drive:
             raise DriveFormatError(f"{self.path}: drive format version {version} is newer than this autosar "
                                    f"reads ({FORMAT_VERSION})")
         self.attrs = dict(self._file.attrs)
+        #: one line per table read whose damaged rows were left out (:meth:`series`, :meth:`can_role`)
+        self.damage: list[str] = []
+        self._intact_rows: dict[str, NDArray[np.bool_]] = {}  # per damaged table read: its intact rows
 
     def __enter__(self) -> Drive:
         return self
@@ -503,7 +515,48 @@ class Drive:
         """All columns of a series group (``"imu/imu_cog_a"``, ``"gnss/gnss_cog/fix"``, ``"can/ABS_1"``)."""
         with dataset_errors(self.path, path):
             g = self._file[path]
-        return {k: read_dataset(g, k, self.path) for k in g if isinstance(g[k], h5py.Dataset) and k != "raw"}
+        return self.columns(g, [k for k in g if isinstance(g[k], h5py.Dataset) and k != "raw"])
+
+    def columns(self, group: h5py.Group | str, names: Sequence[str]) -> dict[str, np.ndarray]:
+        """Columns ``names`` of a table (a series group, or its path). Where a stored chunk of any of the table's
+        columns fails its checksum or does not decompress, its rows are left out of every column, so that the
+        columns read at any time agree row for row, and :attr:`damage` says so (one line per table)."""
+        if isinstance(group, str):
+            with dataset_errors(self.path, group):
+                group = self._file[group]
+        intact = self._intact_rows.get(group.name)
+        if intact is None:
+            try:
+                return {k: read_dataset(group, k, self.path) for k in names}
+            except DamagedFileError as exc:
+                intact = self._table_damage(group, exc)
+        return {k: _intact_rows_of(group[k], intact) if group[k].shape[:1] == intact.shape
+                else read_dataset(group, k, self.path) for k in names}
+
+    def _table_damage(self, group: h5py.Group, error: DamagedFileError) -> NDArray[np.bool_]:
+        """Which rows of the table ``group`` every column's stored chunks hold intact (kept for the next read);
+        ``error``, the read's, where the trouble lies elsewhere (a column missing, a damaged dataset of its own)."""
+        rows = len(group["t_ns"]) if "t_ns" in group else -1
+        intact = np.ones(max(rows, 0), bool)
+        for k in group:
+            ds = group[k]
+            if not isinstance(ds, h5py.Dataset) or ds.chunks is None or ds.shape[:1] != (rows,):
+                continue
+            for a in range(0, rows, ds.chunks[0]):
+                try:
+                    read_rows(ds, a, a + ds.chunks[0])
+                except DamagedFileError:
+                    intact[a:a + ds.chunks[0]] = False
+        if intact.all():
+            raise error
+        if not intact.any():
+            raise DamagedFileError(f"{self.path}: every stored chunk of {group.name} ({rows} rows) holds a damaged "
+                                   "column: the table cannot be read")
+        lost = np.flatnonzero(~intact)
+        self.damage.append(f"{self.path}: rows {lost[0]}-{lost[-1]} of {group.name} ({len(lost)} of {rows}) failed "
+                           "their checksum (the drive is damaged there): left out, a gap in that stream")
+        self._intact_rows[group.name] = intact
+        return intact
 
     def can_role(self, role: str) -> tuple[np.ndarray, np.ndarray]:
         """(t_ns, value in SI units) of a CAN signal by its role in the vehicle config (``wheel_speed_fl``)."""
@@ -513,7 +566,8 @@ class Drive:
         message, signal = roles[role].split("/")
         with dataset_errors(self.path, f"can/{message}"):
             g = self._file["can"][message]
-        return read_dataset(g, "t_ns", self.path), read_dataset(g, signal, self.path)
+        columns = self.columns(g, ["t_ns", signal])
+        return columns["t_ns"], columns[signal]
 
     def can_roles(self) -> dict[str, str]:
         return json.loads(self._file["can"].attrs.get("roles", "{}")) if "can" in self._file else {}
