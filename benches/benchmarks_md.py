@@ -142,7 +142,11 @@ def section(data: Any, max_rows: int, depth: int = 0) -> list[str]:
             continue
         sub = section(value, max_rows, depth + 1)
         if len(sub) == 2 and not sub[1] and not sub[0].startswith(("|", "#", "(")):
-            lines += [f"**{key}**: {sub[0]}", ""]  # one paragraph needs no heading (which costs 2 lines)
+            # one paragraph needs no heading (which costs 2 lines), and shares the figures' paragraph
+            if len(lines) >= 2 and lines[-1] == "" and lines[-2] and not lines[-2].startswith(("|", "#", "(")):
+                lines[-2] += f"; **{key}**: {sub[0]}"
+            else:
+                lines += [f"**{key}**: {sub[0]}", ""]
         else:
             lines += [f"{'#' * min(3 + depth, 6)} {key}", "", *sub]
     return lines

@@ -68,6 +68,10 @@ FIX_VELOCITY = "tests/test_nav_realdata.py::test_the_fixes_own_velocity_is_their
 GATED_GYRO = "tests/test_nav_sarmin.py::test_a_gyro_the_gate_refuses_is_warned_of"
 CONFIG_BASE = "tests/test_config.py::test_a_config_on_a_base_holds_only_what_differs"
 CUT_SHORT = "tests/test_integrity.py::test_a_product_cut_short_says_by_how_much"
+CUBE_DAMAGE = "tests/test_integrity.py::test_a_damaged_radar_chunk_costs_only_its_frames"
+FOCUS_DAMAGE = ("tests/test_integrity.py::"
+                "test_focus_of_a_drive_damaged_in_a_radar_chunk_leaves_out_its_frames_and_says_so[1]")
+TABLE_DAMAGE = "tests/test_integrity.py::test_a_damaged_table_chunk_costs_only_its_rows"
 CAN_VELOCITY = "tests/test_nav_realdata.py::test_a_can_receivers_speed_and_course_are_its_velocity"
 TWICE_NAMED = "tests/test_ingest_realdata.py::test_a_role_names_one_of_two_frame_ids_a_dbc_gives_one_name"
 ROLE_UNSET = "tests/test_config.py::test_a_layer_unsets_its_bases_can_roles_with_an_empty_string"
@@ -545,6 +549,18 @@ MUTATIONS: list[Mutation] = [
        "    return _ASC_CLASSIC_LONG_DLC.match(line) is not None", "    return False", TEXT_LONG_DLC),
     _m("asc-damaged-dlc-token-read-as-long-dlc", "ingest", "ingest/canlog.py",
        "    return _ASC_CLASSIC_LONG_DLC.match(line) is not None", "    return True", TEXT_LONG_DLC),
+    _m("radar-damaged-chunk-ends-the-read", "integrity", "store/drive.py",
+       "            except DamagedFileError:\n                parts.append(np.zeros((b - a, *shape), self.raw.dtype))",
+       "            except ValueError:\n                parts.append(np.zeros((b - a, *shape), self.raw.dtype))",
+       CUBE_DAMAGE),
+    _m("focus-damaged-frames-not-counted", "focus", "sar/focus.py",
+       "            damaged.extend(idx[~intact[idx - idx[0]]].tolist())  # zeroed: they add nothing\n", "",
+       FOCUS_DAMAGE),
+    _m("table-damaged-rows-end-the-read", "integrity", "store/drive.py",
+       "                intact = self._table_damage(group, exc)", "                raise", TABLE_DAMAGE),
+    _m("table-damaged-rows-kept-unsaid", "integrity", "store/drive.py",
+       "            raise error\n        if not intact.any():", "            raise error\n        return intact\n"
+       "        if not intact.any():", TABLE_DAMAGE),
     _m("can-classic-long-dlc-a-mismatch", "ingest", "ingest/decoders.py",
        "        stated = 8 if 8 < frame.dlc <= 15 and len(data) == 8 else frame.dlc", "        stated = frame.dlc",
        TEXT_LONG_DLC),
