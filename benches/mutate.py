@@ -551,7 +551,7 @@ MUTATIONS: list[Mutation] = [
        "    return _ASC_CLASSIC_LONG_DLC.match(line) is not None", "    return True", TEXT_LONG_DLC),
     _m("radar-damaged-chunk-ends-the-read", "integrity", "store/drive.py",
        "            except DamagedFileError:\n                parts.append(np.zeros((b - a, *shape), self.raw.dtype))",
-       "            except ValueError:\n                parts.append(np.zeros((b - a, *shape), self.raw.dtype))",
+       "            except DamagedFileError:\n                raise",
        CUBE_DAMAGE),
     _m("focus-damaged-frames-not-counted", "focus", "sar/focus.py",
        "            damaged.extend(idx[~intact[idx - idx[0]]].tolist())  # zeroed: they add nothing\n", "",
