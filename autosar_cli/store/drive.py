@@ -479,7 +479,8 @@ class Drive:
             raise DriveFormatError(f"{self.path}: drive format version {version} is newer than this autosar "
                                    f"reads ({FORMAT_VERSION})")
         self.attrs = dict(self._file.attrs)
-        #: one line per table read whose damaged rows were left out (:meth:`series`, :meth:`can_role`)
+        #: one line per table read whose damaged rows were left out (:meth:`columns`, and so :meth:`series`,
+        #: :meth:`can_role`)
         self.damage: list[str] = []
         self._intact_rows: dict[str, NDArray[np.bool_]] = {}  # per damaged table read: its intact rows
 
