@@ -712,6 +712,36 @@ def compare(
             err.print(f"[yellow]note:[/] {note}", highlight=False, soft_wrap=True)
 
 
+#: damaged chunks named one per line, beyond which a count stands for the rest
+_DAMAGED_NAMED = 20
+
+
+def _verify(path: Path, as_json: bool) -> None:
+    """``autosar info PATH --verify``: every stored chunk of an autosar HDF5 file read and its checksum checked."""
+    from autosar_cli.store.hdf5_read import verify
+
+    if path.is_dir() or path.suffix.lower() not in (".h5", ".hdf5"):
+        raise typer.BadParameter(f"{path}: --verify reads a file autosar wrote (drive.h5, trajectory.h5, image.h5)")
+    found = verify(path, ValueError)
+    if as_json:
+        out.print_json(json.dumps(found.to_dict()))
+    elif not found.damaged:
+        out.print(f"[bold]{escape(str(path))}[/]: {found.datasets} datasets, {found.chunks} stored chunks, every "
+                  "checksum holds")
+    else:
+        for d in found.damaged[:_DAMAGED_NAMED]:
+            at = f" at {list(d.at)}" if d.at else ""
+            err.print(f"[red]damaged:[/] {escape(d.dataset)} rows {d.rows[0]}-{d.rows[1] - 1}{at}: {escape(d.reason)}",
+                      highlight=False, soft_wrap=True)
+        if len(found.damaged) > _DAMAGED_NAMED:
+            err.print(f"[red]damaged:[/] {len(found.damaged) - _DAMAGED_NAMED} more chunks", highlight=False)
+        names = len({d.dataset for d in found.damaged})
+        out.print(f"[bold]{escape(str(path))}[/]: {len(found.damaged)} of {found.chunks} stored chunks damaged, in "
+                  f"{names} of {found.datasets} datasets")
+    if found.damaged:
+        raise typer.Exit(1)
+
+
 @app.command()
 def info(
     path: Annotated[Path, typer.Argument(help="A drive log (.mcap, .bag, rosbag2 directory), a TI DCA1000 capture "
@@ -720,6 +750,9 @@ def info(
     config_sketch: Annotated[bool, typer.Option(
         "--config-sketch", help="Of a drive.h5: print a config (TOML, laid over --config) that pins its streams' "
         "topics to the config's sensors, for a log recorded on other topics (docs/LOGS.md).")] = False,
+    verify: Annotated[bool, typer.Option(
+        "--verify", help="Of a file autosar wrote (drive.h5, trajectory.h5, image.h5): read every stored chunk and "
+        "check its checksum; exit 1 naming each damaged one.")] = False,
     config: ConfigOpt = None,
 ) -> None:
     """Summarise a log or drive.h5: streams, message types, counts, rates, time span and gaps; and list the
@@ -729,6 +762,9 @@ def info(
 
         if (problem := input_problem(path)) is not None and (path.exists() or path.is_symlink()):
             raise ValueError(f"{path}: {problem}")
+        if verify:
+            _verify(path, as_json)
+            return
         if config_sketch:
             from autosar_cli.config_sketch import config_sketch as sketch
 

@@ -236,6 +236,35 @@ def test_navigate_on_a_drive_damaged_in_an_imu_table_bridges_the_rows_it_lost(te
     assert off.max() < 0.005
 
 
+def test_info_verify_names_each_damaged_chunk_and_exits_1(tmp_path: Path) -> None:
+    """``autosar info FILE --verify`` reads every stored chunk of a file autosar wrote: an intact drive and
+    trajectory pass (exit 0); with a byte flipped in a radar chunk (frames 64-127 of Tx 0 / Rx 1) and one in a
+    table's column (rows 4096-8191), each is named by dataset, rows and channel, and the exit code is 1."""
+    rng = np.random.default_rng(5)
+    w = DriveWriter(tmp_path / "drive.h5", {"autosar_version": "test"})
+    w.radar("radar/scanbrick", (3, 4, 64), {}).append_frames(
+        np.arange(192, dtype=np.int64) * 1_000_000, np.arange(192, dtype=np.int64),
+        rng.normal(0, 300, size=(192, 3, 4, 64, 2)).astype(np.int16))
+    w.table("can/ABS_1", {"t_ns": Column(np.int64), "speed": Column(np.float64)}, {}).append(
+        {"t_ns": np.arange(10000, dtype=np.int64), "speed": rng.normal(size=10000)})
+    drive = w.commit()
+    traj = tmp_path / "trajectory.h5"
+    write_trajectory(traj, _straight_track())
+    for path in (drive, traj):
+        r = runner.invoke(app, ["info", str(path), "--verify"])
+        assert r.exit_code == 0 and "every checksum holds" in r.stdout, r.output
+    _flip_byte_in_chunk(drive, "radar/scanbrick/raw", 100, 0, 1)
+    _flip_byte_in_chunk(drive, "can/ABS_1/speed", 5000, None, None)
+    r = runner.invoke(app, ["info", str(drive), "--verify", "--json"])
+    assert r.exit_code == 1
+    found = json.loads(r.stdout)
+    assert not found["intact"] and found["chunks"] == 192 // 64 * 12 + 2 + 2 * 3  # cube, its times and indices, table
+    assert [(d["dataset"], d["rows"], d["at"]) for d in found["damaged"]] == [
+        ("/can/ABS_1/speed", [4096, 8192], []), ("/radar/scanbrick/raw", [64, 128], [0, 1])]
+    r = runner.invoke(app, ["info", str(drive), "--verify"])
+    assert r.exit_code == 1 and "2 of" in r.stdout and "/radar/scanbrick/raw rows 64-127 at [0, 1]" in r.stderr
+
+
 def test_a_heading_no_car_can_have_is_refused(tmp_path: Path) -> None:
     traj = _straight_track()
     traj.heading[57] = -1.9e171  # what a flipped exponent byte made of a heading (finite, absurd)
