@@ -56,7 +56,8 @@ def test_a_flipped_byte_in_a_trajectory_is_an_error_naming_file_and_dataset(tmp_
     path = write_trajectory(tmp_path / "trajectory.h5", _straight_track())
     np.testing.assert_array_equal(read_trajectory(path).heading, _straight_track().heading)
     _flip_byte_in(path, "heading")
-    with pytest.raises(DamagedFileError, match=r"trajectory\.h5: dataset /heading is damaged"):
+    with pytest.raises(DamagedFileError, match=r"trajectory\.h5: dataset /heading is damaged .*; make the trajectory "
+                                               r"again from its drive \(autosar navigate\)$"):
         read_trajectory(path)
 
 

@@ -22,7 +22,7 @@ import numpy as np
 
 from autosar_cli import __version__
 from autosar_cli.store.atomic import partial_path
-from autosar_cli.store.hdf5_read import open_hdf5, read_dataset
+from autosar_cli.store.hdf5_read import DamagedFileError, open_hdf5, read_dataset
 from autosar_cli.store.outputs import SMALL_FILE_MARGIN_BYTES, check_free_space
 from autosar_cli.types import GeodeticOrigin, MotionCorrection, Trajectory
 
@@ -92,20 +92,30 @@ def read_trajectory(path: str | Path, *, covariance: bool = True) -> Trajectory:
             method, lever, height = str(a["method"]), float(a["cog_to_rear_axle_m"]), float(a["cog_height_m"])
         except KeyError as exc:
             raise TrajectoryFormatError(f"{path}: attribute {exc.args[0]} is missing") from None
-        traj = Trajectory(
-            method, read_dataset(f, "t_ns", path), read_dataset(f, "rear_axle_enu", path),
-            read_dataset(f, "heading", path), read_dataset(f, "speed", path), read_dataset(f, "yaw_rate", path),
-            origin, lever, height,
-            state=read_dataset(f, "state", path) if "state" in f else None,
-            state_names=json.loads(f["state"].attrs["names"]) if "state" in f else [],
-            covariance=read_dataset(f, "covariance", path) if covariance and "covariance" in f else None,
-            info=json.loads(a.get("info", "{}")),
-            correction=MotionCorrection(*(read_dataset(f, f"correction/{name}", path) for name in
-                                          ("t_ns", "offset_enu", "std_enu"))) if "correction" in f else None,
-            rear_slip_gain=float(a.get("rear_slip_gain", 0.0)),
-        )
+        try:
+            traj = _trajectory_of(f, path, method, origin, lever, height, covariance)
+        except DamagedFileError as exc:  # nothing of a track is usable without the rest: it is cheap to make again
+            raise DamagedFileError(f"{exc}; make the trajectory again from its drive (autosar navigate)") from None
     check_plausible(traj, path)
     return traj
+
+
+def _trajectory_of(f: h5py.File, path: Path, method: str, origin: GeodeticOrigin, lever: float, height: float,
+                   covariance: bool) -> Trajectory:
+    """The trajectory of an open trajectory.h5 (``covariance``: with it), its attributes read."""
+    a = f.attrs
+    return Trajectory(
+        method, read_dataset(f, "t_ns", path), read_dataset(f, "rear_axle_enu", path),
+        read_dataset(f, "heading", path), read_dataset(f, "speed", path), read_dataset(f, "yaw_rate", path),
+        origin, lever, height,
+        state=read_dataset(f, "state", path) if "state" in f else None,
+        state_names=json.loads(f["state"].attrs["names"]) if "state" in f else [],
+        covariance=read_dataset(f, "covariance", path) if covariance and "covariance" in f else None,
+        info=json.loads(a.get("info", "{}")),
+        correction=MotionCorrection(*(read_dataset(f, f"correction/{name}", path) for name in
+                                      ("t_ns", "offset_enu", "std_enu"))) if "correction" in f else None,
+        rear_slip_gain=float(a.get("rear_slip_gain", 0.0)),
+    )
 
 
 #: Limits of a car's motion that no trajectory may exceed (a damaged file or a diverged filter does).
