@@ -756,7 +756,7 @@ def info(
     config: ConfigOpt = None,
 ) -> None:
     """Summarise a log or drive.h5: streams, message types, counts, rates, time span and gaps; and list the
-    partial files that killed autosar processes left beside it."""
+    partial files that killed autosar processes left beside it. --verify checks a stored file's checksums."""
     with _errors(kernels=False):
         from autosar_cli.store.outputs import input_problem
 
