@@ -5,8 +5,9 @@ Each of the three CANedge files under ``../shared/realdata/css-electronics``, a 
 log containers) and an ASC of the 2023 file's (python-can) gets 4 KiB zeroed at every 4 KiB, and 64 random bytes
 (seeded) at every 2 KiB, one damage per trial, and is read with ``read_can_log`` as ingest reads it. The ASC and
 a TRC of the same frames (python-can) also get one printable byte (seeded, not the one there) overwritten at a
-seeded place of every 8th frame line: the damage a text log's reader may take for an event it does not read. Per
-trial:
+seeded place of every 8th frame line: the damage a text log's reader may take for an event it does not read; and
+each CANedge file 40 trials of random bytes added, or bytes lost, at a seeded place before its data (8 B to 8 KiB:
+every block after the place moves). Per trial:
 the frames read, whether none were, how many of them the undamaged file does not have (foreign: wrong and not
 reported; an MDF4 conversion block damaged so that it still parses gives these), and whether anything but a
 ``CanLogError`` came out (a traceback); summed, the trials that lost frames or read foreign ones without a word
@@ -14,7 +15,8 @@ reported; an MDF4 conversion block damaged so that it still parses gives these),
 checksum shows). ``--against
 DIR`` runs the same trials with the package of another checkout beside this one's (``git worktree add DIR REV``), in
 the same run. Results: ``benches/results/can_log_damage.json``, summed per format (``summary``: the MDF4 files,
-``blf``, ``asc``, ``trc``; the line trials ``asc_lines``, ``trc_lines``; ``..._against``: the other checkout's).
+``blf``, ``asc``, ``trc``; the shift trials ``mdf4_shifted``; the line trials ``asc_lines``, ``trc_lines``;
+``..._against``: the other checkout's).
 
 Usage: python benches/bench_can_log_damage.py [--against DIR] [--zero-step 4096] [--random-step 2048]
 """
@@ -42,6 +44,8 @@ FINALISED = FILES[:2]
 ZEROED = 4096
 OVERWRITTEN = 64
 LINE_STEP = 8  # every 8th frame line of a text log gets a printable byte
+SHIFT_TRIALS = 40  # bytes added or lost before a CANedge file's data, per file
+SHIFT_LENGTHS = (8, 16, 24, 100, 512, 1000, 4096, 8192)
 
 
 def _damages(size: int, zero_step: int, random_step: int, seed: int) -> list[tuple[str, int, bytes]]:
@@ -71,6 +75,19 @@ def _line_damages(data: bytes, seed: int) -> list[tuple[str, int, bytes]]:
     return out
 
 
+def _shift_damages(data: bytes, seed: int) -> list[tuple[str, int, bytes, int]]:
+    """("added"/"lost", byte, the bytes put there, the bytes taken out) of each shift trial on an MDF4 file's bytes
+    ``data``: :data:`SHIFT_TRIALS` seeded places before its first data block, random bytes added or bytes lost,
+    of seeded lengths (every block after the place moves)."""
+    rng = random.Random(seed)
+    first_data = data.find(b"##DT\x00\x00\x00\x00")
+    out = []
+    for k in range(SHIFT_TRIALS):
+        at, n = rng.randrange(200, first_data), rng.choice(SHIFT_LENGTHS)
+        out.append(("added", at, rng.randbytes(n), 0) if k % 2 == 0 else ("lost", at, b"", n))
+    return out
+
+
 def _sweep(files: list[Path], zero_step: int, random_step: int) -> list[dict[str, object]]:
     """The trials on ``files`` with the package importable now (a worker's: its checkout first on sys.path)."""
     import logging
@@ -96,12 +113,15 @@ def _sweep(files: list[Path], zero_step: int, random_step: int) -> list[dict[str
             data = src.read_bytes()
             whole, _ = frames(src)
             known = set(whole)
-            trials = _damages(len(data), zero_step, random_step, seed=len(data))
+            trials = [(kind, at, put, len(put)) for kind, at, put in
+                      _damages(len(data), zero_step, random_step, seed=len(data))]
             if src.suffix.lower() in (".asc", ".trc"):
-                trials += _line_damages(data, seed=len(data))
-            for n, (kind, at, put) in enumerate(trials):
+                trials += [(kind, at, put, len(put)) for kind, at, put in _line_damages(data, seed=len(data))]
+            if src.suffix.lower() == ".mf4" and src.parent == REAL:  # the loggers' own files
+                trials += _shift_damages(data, seed=len(data))
+            for n, (kind, at, put, taken) in enumerate(trials):
                 trial = Path(scratch) / f"{n}_{src.name}"
-                trial.write_bytes(data[:at] + put + data[at + len(put):])
+                trial.write_bytes(data[:at] + put + data[at + taken:])
                 got, ended = frames(trial)
                 trial.unlink()
                 rows.append({"file": src.name, "kind": kind, "at": at, "frames_read": len(got),
@@ -187,12 +207,14 @@ def main() -> None:
     result: dict[str, object] = {
         "benchmark": "can_log_damage", "damage": f"{ZEROED} B zeroed every {args.zero_step} B, {OVERWRITTEN} random "
         f"B every {args.random_step} B", "files": len(files)}
-    kinds = (("mdf4", (".mf4",), False), ("blf", (".blf",), False), ("asc", (".asc",), False),
-             ("trc", (".trc",), False), ("asc_lines", (".asc",), True), ("trc_lines", (".trc",), True))
-    for kind, suffixes, lines in kinds:
+    kinds = (("mdf4", (".mf4",), ("zeroed", "overwritten")), ("mdf4_shifted", (".mf4",), ("added", "lost")),
+             ("blf", (".blf",), ("zeroed", "overwritten")), ("asc", (".asc",), ("zeroed", "overwritten")),
+             ("trc", (".trc",), ("zeroed", "overwritten")), ("asc_lines", (".asc",), ("printable byte",)),
+             ("trc_lines", (".trc",), ("printable byte",)))
+    for kind, suffixes, damages in kinds:
         for name in roots:
             mine = [r for r in rows[name] if Path(str(r["file"])).suffix.lower() in suffixes
-                    and (r["kind"] == "printable byte") == lines]
+                    and r["kind"] in damages]
             key = ("summary" if kind == "mdf4" else kind) if name == "this" else f"{kind}_against"
             result[key] = {"revision": _revision(roots[name]), **_summary(mine)}
     result |= {"wall_s": round(time.perf_counter() - t0, 1), "rows": rows["this"],

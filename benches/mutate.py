@@ -100,6 +100,8 @@ TEXT_BLOCKS = ("tests/test_ingest_canlog.py::"
                "test_an_asc_damaged_in_its_second_trigger_block_reads_on_at_that_blocks_times")
 TEXT_FIRST = ("tests/test_ingest_canlog.py::"
               "test_a_text_log_whose_first_frame_line_is_damaged_reads_the_others_at_their_times")
+MF4_SHIFT = "tests/test_ingest_canlog.py::test_a_real_mf4_with_bytes_added_or_lost_before_its_data_reads_its_frames"
+MF4_SHIFT_NAMED = "tests/test_ingest_canlog.py::test_a_shift_moves_no_link_onto_a_block_an_intact_link_names"
 TEXT_SKIPPED = "tests/test_ingest_canlog.py::test_a_text_log_frame_line_damaged_where_the_reader_looks_is_counted"
 TEXT_LONG_DLC = "tests/test_ingest_canlog.py::test_an_ascs_classic_frame_with_a_dlc_over_8_is_read_as_8_bytes"
 ODD_INPUTS = "tests/test_safety.py::test_an_input_that_is_a_pipe_a_link_loop_or_a_directory_is_one_line"
@@ -535,6 +537,10 @@ MUTATIONS: list[Mutation] = [
     _m("text-frame-short-of-its-bytes-kept", "ingest", "ingest/canlog.py",
        "                whole = len(msg.data) == msg.dlc or _holds_its_bytes(msg, feed.last_line())",
        "                whole = True", TEXT_DAMAGE),
+    _m("mdf4-shift-not-tried", "ingest", "ingest/mdf4_blocks.py", "    shift = shifted_links(buf)\n",
+       "    shift = None\n", MF4_SHIFT),
+    _m("mdf4-shift-lands-on-named-blocks", "ingest", "ingest/mdf4_shift.py",
+       "if link + by in known and link + by not in named)", "if link + by in known)", MF4_SHIFT_NAMED),
     _m("text-skipped-frame-line-not-judged", "ingest", "ingest/text_lines.py",
        "            self._judge(self._skipped)\n            self._skipped.clear()\n",
        "            self._skipped.clear()\n", TEXT_SKIPPED),

@@ -29,6 +29,7 @@ from autosar_cli.ingest.canlog import CAN_LOG_SUFFIXES, CanLogError, is_can_log,
 from autosar_cli.ingest.decoders import CanDecoder
 from autosar_cli.ingest.mdf4_blocks import mdf4_cut
 from autosar_cli.ingest.mdf4_layout import blocks
+from autosar_cli.ingest.mdf4_shift import block_starts, shifted_links
 from autosar_cli.ingest.mdf4_sorted import _sorted_groups, out_of_order
 from autosar_cli.ingest.records import CanRecord
 from autosar_cli.store.drive import DriveWriter
@@ -173,17 +174,16 @@ def test_an_mf4_asammdf_cannot_open_is_one_line_and_no_traceback(tmp_path: Path)
     data = realdata(CSS, MF4_2022).read_bytes()
     cut = tmp_path / "cut.MF4"
     cut.write_bytes(data[:11957])
-    pasted = tmp_path / "pasted.MF4"
-    data = realdata(CSS, MF4_2023_1).read_bytes()
-    pasted.write_bytes(data[:42345] + data[96663:96663 + 4096] + data[42345:])
+    pasted = tmp_path / "pasted.MF4"  # inside a text block: its links moved, the block itself asammdf cannot read
+    pasted.write_bytes(data[:1346] + data[10000:10000 + 4096] + data[1346:])
     for log, says in ((cut, "truncated MDF4 log, no frame read: block header at byte 14608 cut off (the reader: "),
-                      (pasted, "damaged MDF4 log, no frame read: no block at byte 106776, where a link points (it "
-                               "reads b'\\x00\\x00\\x00\\x00'): damaged there (the reader: ")):
+                      (pasted, "damaged MDF4 log, no frame read: no block at byte 2496, where a link points (it "
+                               "reads b'\\x00\\x00\\x00\\x00'): damaged there: 4096 bytes added before byte 5480: ")):
         r = CliRunner().invoke(app, ["ingest", "--can-log", str(log), "-o", str(tmp_path / "d.h5"), "--json",
                                      "--allow-partial", "--dbc", str(realdata(CSS, "gnss.dbc"))])
         assert r.exit_code == 1 and r.stdout == "" and "Traceback" not in r.output
         lines = r.stderr.strip().splitlines()
-        assert lines[-1].startswith(f"error: {log}: {says}"), lines
+        assert lines[-1].startswith(f"error: {log}: {says}") and "(the reader: " in lines[-1], lines
 
 
 def _read_until_error(log: Path) -> tuple[list[CanRecord], str]:
@@ -199,6 +199,47 @@ def _in_order_within(got: list[CanRecord], reference: tuple[CanRecord, ...]) -> 
     """Whether ``got`` is ``reference`` with some frames left out, the rest in their order."""
     rest = iter(reference)
     return all(any(rec == ref for ref in rest) for rec in got)
+
+
+@pytest.mark.parametrize("name, at, added, lost", [
+    (MF4_2023_1, 27374, 4096, 0), (MF4_2023_1, 54154, 0, 4096), (MF4_2023_2, 41503, 0, 1000),
+    (MF4_2023_2, 92625, 4096, 0)], ids=["4 KiB added", "4 KiB lost", "1000 bytes lost", "4 KiB added late"])
+def test_a_real_mf4_with_bytes_added_or_lost_before_its_data_reads_its_frames(tmp_path: Path, name: str, at: int,
+                                                                               added: int, lost: int) -> None:
+    """Bytes added to or lost from a CANedge file's blocks (before its data): every block after that place lies
+    that many bytes off where the links say, and no frame was read ("no block at byte 106776, where a link
+    points"). The blocks are found by their ids, the links moved by the one shift most of them agree on (not onto a
+    block an intact link names): every frame read, none the undamaged file lacks, and the error says how many bytes
+    and where."""
+    path = realdata(CSS, name)
+    data = path.read_bytes()
+    whole = list(read_can_log(path))
+    damaged = tmp_path / name
+    damaged.write_bytes(data[:at] + random.Random(at).randbytes(added) + data[at + lost:])
+    got, message = _read_until_error(damaged)
+    assert got == whole
+    what = f"{added} bytes added" if added else f"{lost} bytes lost"
+    assert f": {what} before byte " in message and f"links that point to no block moved by {added - lost:+d}" \
+        in message
+
+
+def test_a_shift_moves_no_link_onto_a_block_an_intact_link_names(tmp_path: Path) -> None:
+    """512 bytes added inside a text block near the start of a CANedge file: the shift (+512) lands 36 of the 1112
+    links that point to no block on blocks that intact links name (blocks before the place, which did not move:
+    a run of channel blocks at one spacing). Those are not moved (moved, a copy's chains looped: 3 GB and minutes in
+    asammdf); the file is then one clean error, its damaged text block's group unread."""
+    data = realdata(CSS, MF4_2023_2).read_bytes()
+    damaged = tmp_path / MF4_2023_2
+    damaged.write_bytes(data[:1625] + bytes(512) + data[1625:])
+    with open(damaged, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+        shift = shifted_links(buf)
+        starts = set(block_starts(buf))
+        links = (struct.unpack_from(f"<{struct.unpack_from('<Q', buf, pos + 16)[0]}Q", buf, pos + 24) for pos in starts)
+        named = {link for block_links in links for link in block_links if link in starts}
+    assert shift is not None and (shift.by, shift.dangling, len(shift.patches)) == (512, 1112, 1076)
+    assert not {value for _, value in shift.patches} & named
+    got, message = _read_until_error(damaged)
+    assert got == [] and ": 512 bytes added before byte 2160: 1076 of the 1112 links" in message
 
 
 @pytest.mark.parametrize("name, at, damage, lost_at_most", [

@@ -353,18 +353,25 @@ def _begins_trigger_block(path: Path) -> bool:
 
 def _mended(path: Path, cut: CutShort | None, stack: ExitStack) -> tuple[Path, CutShort | None]:
     """``path`` and ``cut``, or where damage to an MDF4 file's blocks leaves groups to read, a temporary copy whose
-    chains step over the damaged ones (:func:`write_mended`) and what the copy's records then lack."""
+    links step over the damaged ones (:func:`write_mended`) and what the copy's records then lack. Two rounds: a
+    copy whose links moved with bytes added or lost may still reach blocks the lost bytes held, whose groups a
+    second copy leaves out."""
     if cut is None or not cut.patches:
         return path, cut
-    copy = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="autosar-canlog-"))) / path.name
-    write_mended(path, copy, cut.patches)
-    rest = mdf4_cut(copy)
-    if rest is not None and rest.patches:  # the copy's chains still reach damage: not mended
-        return path, CutShort(cut.reason, damaged=True)
-    if rest is None:
-        return copy, cut
-    return copy, CutShort(f"{cut.reason}; {rest.reason}", rest.whole_bytes, damaged=True, holes=rest.holes,
-                          patches=cut.patches)
+    scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="autosar-canlog-")))
+    source, said = path, []
+    for round_ in range(2):
+        copy = scratch / f"{round_}_{path.name}"
+        write_mended(source, copy, cut.patches)
+        said.append(cut.reason)
+        rest = mdf4_cut(copy)
+        if rest is None:
+            return copy, CutShort("; ".join(said), damaged=True, patches=cut.patches)
+        if not rest.patches:
+            return copy, CutShort("; ".join([*said, rest.reason]), rest.whole_bytes, damaged=True, holes=rest.holes,
+                                  patches=cut.patches)
+        source, cut = copy, rest
+    return path, CutShort(said[0], damaged=True)  # the copy's links still reach damage: not mended
 
 
 def _whole_records(path: Path, cut: CutShort | None, stack: ExitStack) -> Path:

@@ -45,6 +45,7 @@ from .mdf4_layout import (
     fields_at,
 )
 from .mdf4_mend import mend_chains
+from .mdf4_shift import shifted_links
 from .mdf4_sorted import out_of_order, sorted_damage, write_sorted_without
 from .records import CutShort, places_said
 
@@ -86,8 +87,12 @@ def mdf4_cut(path: Path) -> CutShort | None:
 
 
 def _mended(buf: mmap.mmap, why: str) -> CutShort:
-    """Damage to the file's block structure (``why``): what a copy whose chains leave the damaged groups out
-    changes (:mod:`.mdf4_mend`), where any intact group is left."""
+    """Damage to the file's block structure (``why``): what a copy whose links move with the blocks where bytes
+    were added or lost (:mod:`.mdf4_shift`), or whose chains leave the damaged groups out (:mod:`.mdf4_mend`),
+    changes, where any intact group is left."""
+    shift = shifted_links(buf)
+    if shift is not None:
+        return CutShort(f"{why}: {shift.reason}", damaged=True, patches=shift.patches)
     mend = mend_chains(buf)
     if mend is None:
         return CutShort(why, damaged=True)

@@ -1,0 +1,122 @@
+"""Bytes added to or lost from an MDF4 file before its last blocks: every block after that place lies the same
+number of bytes off where the file's links (absolute byte offsets) say, and the reader finds no block where the
+first of them points. The blocks themselves are intact: found by their ids in the file's bytes, the links that point
+to no block but lie one common shift off a block are moved by it in a copy (:func:`write_mended`). Blocks the lost
+bytes held stay lost: the groups they break are then left out as for any damaged block (:mod:`.mdf4_mend`).
+"""
+
+from __future__ import annotations
+
+import mmap
+import re
+import struct
+from dataclasses import dataclass
+
+import numpy as np
+
+from .mdf4_layout import HEAD
+
+#: a block's header as it lies in the file: its id and 4 reserved zero bytes
+_HEADER = re.compile(rb"##[A-Z]{2}\x00\x00\x00\x00")
+#: of the links that point to no block, the share one shift must bring to a block (the rest: blocks the lost bytes
+#: held, or links damaged on their own)
+_AGREEING = 0.5
+
+
+#: what a block's links may point to, by the block's id and the link's place (MDF 4.1); a link not listed may
+#: point to any block
+_TARGETS: dict[bytes, tuple[frozenset[bytes], ...]] = {
+    b"##HD": tuple(map(frozenset, ([b"##DG"], [b"##FH"], [b"##CH"], [b"##AT"], [b"##EV"], [b"##MD", b"##TX"]))),
+    b"##DG": tuple(map(frozenset, ([b"##DG"], [b"##CG"], [b"##DT", b"##DL", b"##DZ", b"##HL", b"##RD"],
+                                   [b"##MD", b"##TX"]))),
+    b"##CG": tuple(map(frozenset, ([b"##CG"], [b"##CN"], [b"##TX"], [b"##SI"], [b"##SR"], [b"##MD", b"##TX"]))),
+    b"##CN": tuple(map(frozenset, ([b"##CN"], [b"##CA", b"##CN"], [b"##TX"], [b"##SI"], [b"##CC"]))),
+    b"##SI": tuple(map(frozenset, ([b"##TX"], [b"##TX"], [b"##MD", b"##TX"]))),
+    b"##FH": tuple(map(frozenset, ([b"##FH"], [b"##MD"]))),
+    b"##DL": (frozenset([b"##DL"]),),
+}
+#: the shifts whose links' kinds are checked, of those that land the most links on blocks no intact link names
+_CANDIDATES = 16
+
+
+@dataclass(frozen=True)
+class Shift:
+    """Links to move where the blocks after a place in the file lie ``by`` bytes off where they point."""
+
+    by: int  #: bytes added (> 0) or lost (< 0)
+    after: int  #: the least target (the file's byte before the shift) of the links moved
+    patches: tuple[tuple[int, int], ...]  #: (byte of a link, the value the copy gives it)
+    dangling: int  #: links that pointed to no block
+
+    @property
+    def reason(self) -> str:
+        what = "added" if self.by > 0 else "lost"
+        return (f"{abs(self.by)} bytes {what} before byte {self.after + max(self.by, 0)}: {len(self.patches)} of the "
+                f"{self.dangling} links that point to no block moved by {self.by:+d} to the blocks they name")
+
+
+def block_starts(buf: mmap.mmap) -> list[int]:
+    """Bytes where a block's header lies whole: its id, reserved bytes, a length and links within the file."""
+    starts = []
+    for found in _HEADER.finditer(buf):
+        pos = found.start()
+        if pos + HEAD.size > len(buf):
+            continue
+        _, length, n_links = HEAD.unpack_from(buf, pos)
+        if length >= HEAD.size + 8 * n_links and pos + HEAD.size + 8 * n_links <= len(buf):
+            starts.append(pos)
+    return starts
+
+
+def shifted_links(buf: mmap.mmap) -> Shift | None:
+    """The shift that brings most of the links pointing to no block to one, and the links it moves; None where no
+    shift brings half of them to a block, or every link points to one."""
+    starts = block_starts(buf)
+    known = set(starts)
+    dangling: list[tuple[int, int, int, int]] = []  # (its block, its place there, byte of the link, its value)
+    for pos in starts:
+        n_links = HEAD.unpack_from(buf, pos)[2]
+        for k, link in enumerate(struct.unpack_from(f"<{n_links}Q", buf, pos + HEAD.size)):
+            if link and link not in known:
+                dangling.append((pos, k, pos + HEAD.size + 8 * k, link))
+    if not dangling:
+        return None
+    # every block start less every dangling link's value: the shift is the difference most of them share (each
+    # link gives it one vote; a regular run of blocks gives others some)
+    shifts, votes = np.unique(np.subtract.outer(np.asarray(starts, np.int64),
+                                                np.asarray([d[3] for d in dangling], np.int64)),
+                              return_counts=True)
+    votes[shifts == 0] = 0
+    ids = {pos: bytes(buf[pos:pos + 4]) for pos in starts}
+    # a block an intact link names lies where it lay: the moved blocks are named only by the links that moved with
+    # them (a run of channel blocks at one spacing lands many shifts' links on blocks, and lost bytes' links on the
+    # blocks before them)
+    named = {link for pos in starts for link in struct.unpack_from(f"<{HEAD.unpack_from(buf, pos)[2]}Q", buf,
+                                                                   pos + HEAD.size) if link in known}
+    # first by how many links land on a block no intact link names (whole arrays), then by the kinds they land on
+    targets = np.asarray([d[3] for d in dangling], np.int64)
+    starts_at, named_at = np.asarray(starts, np.int64), np.asarray(sorted(named), np.int64)
+    tried = shifts[votes >= _AGREEING * votes.max()]
+    rough = np.asarray([np.isin(targets + by, starts_at).sum() - 2 * np.isin(targets + by, named_at).sum()
+                        for by in tried.tolist()])
+    best: tuple[int, int] | None = None  # (links it lands on a block of a kind they may name, the shift)
+    for by in tried[np.argsort(rough)[::-1][:_CANDIDATES]].tolist():
+        score = sum(_lands_right(ids, owner, k, link + by) - 2 * (link + by in named)
+                    for owner, k, _, link in dangling)
+        best = max(best, (score, by)) if best is not None else (score, by)
+    if best is None or best[0] <= 0:
+        return None
+    by = best[1]
+    moved = tuple((at, link + by) for _, _, at, link in dangling if link + by in known and link + by not in named)
+    if len(moved) < max(2, _AGREEING * len(dangling)):
+        return None
+    return Shift(by, min(link for *_, link in dangling if link + by in known), moved, len(dangling))
+
+
+def _lands_right(ids: dict[int, bytes], owner: int, k: int, target: int) -> bool:
+    """Whether link ``k`` of the block at ``owner``, pointing to ``target``, finds a block of a kind it may name."""
+    found = ids.get(target)
+    if found is None:
+        return False
+    kinds = _TARGETS.get(ids[owner], ())
+    return k >= len(kinds) or found in kinds[k]
