@@ -227,7 +227,8 @@ def test_a_shift_moves_no_link_onto_a_block_an_intact_link_names(tmp_path: Path)
     """512 bytes added inside a text block near the start of a CANedge file: the shift (+512) lands 36 of the 1112
     links that point to no block on blocks that intact links name (blocks before the place, which did not move:
     a run of channel blocks at one spacing). Those are not moved (moved, a copy's chains looped: 3 GB and minutes in
-    asammdf); the file is then one clean error, its damaged text block's group unread."""
+    asammdf); the block the bytes went into is marked torn, and its group left out: the other group's 98 frames
+    read, each as the undamaged file has it."""
     data = realdata(CSS, MF4_2023_2).read_bytes()
     damaged = tmp_path / MF4_2023_2
     damaged.write_bytes(data[:1625] + bytes(512) + data[1625:])
@@ -236,10 +237,13 @@ def test_a_shift_moves_no_link_onto_a_block_an_intact_link_names(tmp_path: Path)
         starts = set(block_starts(buf))
         links = (struct.unpack_from(f"<{struct.unpack_from('<Q', buf, pos + 16)[0]}Q", buf, pos + 24) for pos in starts)
         named = {link for block_links in links for link in block_links if link in starts}
-    assert shift is not None and (shift.by, shift.dangling, len(shift.patches)) == (512, 1112, 1076)
-    assert not {value for _, value in shift.patches} & named
+    assert shift is not None and (shift.by, shift.dangling, len(shift.patches), shift.torn) == (512, 1112, 1077, 1592)
+    assert shift.patches[-1] == (1592, 0)  # the text block the bytes went into: its id cleared in the copy
+    assert not {value for _, value in shift.patches[:-1]} & named
     got, message = _read_until_error(damaged)
-    assert got == [] and ": 512 bytes added before byte 2160: 1076 of the 1112 links" in message
+    assert _in_order_within(got, _real_records(MF4_2023_2)) and len(got) == 98
+    assert ": 512 bytes added before byte 2160: 1076 of the 1112 links that point to no block moved by +512 to the " \
+           "blocks they name; the block at byte 1592 before them torn" in message
 
 
 @pytest.mark.parametrize("name, at, damage, lost_at_most", [

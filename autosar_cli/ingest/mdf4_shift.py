@@ -35,6 +35,10 @@ _TARGETS: dict[bytes, tuple[frozenset[bytes], ...]] = {
     b"##FH": tuple(map(frozenset, ([b"##FH"], [b"##MD"]))),
     b"##DL": (frozenset([b"##DL"]),),
 }
+#: blocks a data group's data link names
+_DATA_BLOCKS = frozenset([b"##DT", b"##DL", b"##DZ", b"##HL", b"##RD"])
+#: the file's header block, right after its identification block: never marked torn (the file has no other)
+_HEADER_BLOCK = 64
 #: the shifts whose links' kinds are checked, of those that land the most links on blocks no intact link names
 _CANDIDATES = 16
 
@@ -45,14 +49,17 @@ class Shift:
 
     by: int  #: bytes added (> 0) or lost (< 0)
     after: int  #: the least target (the file's byte before the shift) of the links moved
-    patches: tuple[tuple[int, int], ...]  #: (byte of a link, the value the copy gives it)
+    patches: tuple[tuple[int, int], ...]  #: (byte of a link, the value the copy gives it; a torn block's id: 0)
     dangling: int  #: links that pointed to no block
+    torn: int | None = None  #: the block the place lies in or after, marked damaged in the copy
 
     @property
     def reason(self) -> str:
         what = "added" if self.by > 0 else "lost"
-        return (f"{abs(self.by)} bytes {what} before byte {self.after + max(self.by, 0)}: {len(self.patches)} of the "
-                f"{self.dangling} links that point to no block moved by {self.by:+d} to the blocks they name")
+        moved = len(self.patches) - (self.torn is not None)
+        torn = f"; the block at byte {self.torn} before them torn" if self.torn is not None else ""
+        return (f"{abs(self.by)} bytes {what} before byte {self.after + max(self.by, 0)}: {moved} of the "
+                f"{self.dangling} links that point to no block moved by {self.by:+d} to the blocks they name{torn}")
 
 
 def block_starts(buf: mmap.mmap) -> list[int]:
@@ -107,10 +114,19 @@ def shifted_links(buf: mmap.mmap) -> Shift | None:
     if best is None or best[0] <= 0:
         return None
     by = best[1]
-    moved = tuple((at, link + by) for _, _, at, link in dangling if link + by in known and link + by not in named)
-    if len(moved) < max(2, _AGREEING * len(dangling)):
+    moved = [(at, link + by) for _, _, at, link in dangling if link + by in known and link + by not in named]
+    # bytes added or lost before the data move the data: a shift none of whose data groups' data links it moves
+    # onto a data block is damage in the blocks (a zeroed run of them), which the mending reads past
+    if len(moved) < max(2, _AGREEING * len(dangling)) or not any(
+            ids[owner] == b"##DG" and k == 2 and ids.get(link + by) in _DATA_BLOCKS for owner, k, _, link in dangling):
         return None
-    return Shift(by, min(link for *_, link in dangling if link + by in known), moved, len(dangling))
+    # the place lies in the last block before the first that moved, or between the two: that block's bytes after
+    # it moved, or were lost; it is marked damaged in the copy (its id cleared), so that its group is left out
+    first_moved = min(value for _, value in moved)
+    torn = max((pos for pos in starts if pos < first_moved), default=None)
+    if torn is not None and torn > _HEADER_BLOCK:
+        moved.append((torn, 0))
+    return Shift(by, min(link for *_, link in dangling if link + by in known), tuple(moved), len(dangling), torn)
 
 
 def _lands_right(ids: dict[int, bytes], owner: int, k: int, target: int) -> bool:
