@@ -101,6 +101,7 @@ TEXT_BLOCKS = ("tests/test_ingest_canlog.py::"
 TEXT_FIRST = ("tests/test_ingest_canlog.py::"
               "test_a_text_log_whose_first_frame_line_is_damaged_reads_the_others_at_their_times")
 MF4_SHIFT = "tests/test_ingest_canlog.py::test_a_real_mf4_with_bytes_added_or_lost_before_its_data_reads_its_frames"
+MF4_PAST_ANY_FILE = "tests/test_ingest_canlog.py::test_links_overwritten_past_any_file_are_damage_not_a_shift"
 MF4_SHIFT_NAMED = "tests/test_ingest_canlog.py::test_a_shift_moves_no_link_onto_a_block_an_intact_link_names"
 TEXT_SKIPPED = "tests/test_ingest_canlog.py::test_a_text_log_frame_line_damaged_where_the_reader_looks_is_counted"
 TEXT_LONG_DLC = "tests/test_ingest_canlog.py::test_an_ascs_classic_frame_with_a_dlc_over_8_is_read_as_8_bytes"
@@ -541,6 +542,9 @@ MUTATIONS: list[Mutation] = [
        "    shift = None\n", MF4_SHIFT),
     _m("mdf4-shift-lands-on-named-blocks", "ingest", "ingest/mdf4_shift.py",
        "if link + by in known and link + by not in named)", "if link + by in known)", MF4_SHIFT_NAMED),
+    _m("mdf4-shift-takes-links-past-any-file", "ingest", "ingest/mdf4_shift.py",
+       "            if link and link not in known and link < PAST_ANY_FILE:",
+       "            if link and link not in known:", MF4_PAST_ANY_FILE),
     _m("text-skipped-frame-line-not-judged", "ingest", "ingest/text_lines.py",
        "            self._judge(self._skipped)\n            self._skipped.clear()\n",
        "            self._skipped.clear()\n", TEXT_SKIPPED),

@@ -223,6 +223,20 @@ def test_a_real_mf4_with_bytes_added_or_lost_before_its_data_reads_its_frames(tm
         in message
 
 
+def test_links_overwritten_past_any_file_are_damage_not_a_shift(tmp_path: Path) -> None:
+    """64 bytes of 0xFF over two channel groups' blocks of a CANedge file: their links point past any file (2^64 -
+    1). They are damage the mending steps over (both groups left out, every frame read), not links a shift moved
+    (taken as one, a number past any int64 raised before the mending)."""
+    data = realdata(CSS, MF4_2023_1).read_bytes()
+    damaged = tmp_path / MF4_2023_1
+    damaged.write_bytes(data[:8192] + b"\xff" * 64 + data[8192 + 64:])
+    with open(damaged, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+        assert shifted_links(buf) is None
+    got, message = _read_until_error(damaged)
+    assert got == list(_real_records(MF4_2023_1))
+    assert "past any file: damaged there: 2 channel groups left out" in message
+
+
 def test_a_shift_moves_no_link_onto_a_block_an_intact_link_names(tmp_path: Path) -> None:
     """512 bytes added inside a text block near the start of a CANedge file: the shift (+512) lands 36 of the 1112
     links that point to no block on blocks that intact links name (blocks before the place, which did not move:

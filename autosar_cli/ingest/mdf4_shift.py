@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .mdf4_layout import HEAD
+from .mdf4_layout import HEAD, PAST_ANY_FILE
 
 #: a block's header as it lies in the file: its id and 4 reserved zero bytes
 _HEADER = re.compile(rb"##[A-Z]{2}\x00\x00\x00\x00")
@@ -84,7 +84,7 @@ def shifted_links(buf: mmap.mmap) -> Shift | None:
     for pos in starts:
         n_links = HEAD.unpack_from(buf, pos)[2]
         for k, link in enumerate(struct.unpack_from(f"<{n_links}Q", buf, pos + HEAD.size)):
-            if link and link not in known:
+            if link and link not in known and link < PAST_ANY_FILE:  # beyond: a damaged value, not a moved one
                 dangling.append((pos, k, pos + HEAD.size + 8 * k, link))
     if not dangling:
         return None
