@@ -541,7 +541,7 @@ MUTATIONS: list[Mutation] = [
     _m("mdf4-shift-not-tried", "ingest", "ingest/mdf4_blocks.py", "    shift = shifted_links(buf)\n",
        "    shift = None\n", MF4_SHIFT),
     _m("mdf4-shift-lands-on-named-blocks", "ingest", "ingest/mdf4_shift.py",
-       "if link + by in known and link + by not in named)", "if link + by in known)", MF4_SHIFT_NAMED),
+       "if link + by in known and link + by not in named]", "if link + by in known]", MF4_SHIFT_NAMED),
     _m("mdf4-shift-takes-links-past-any-file", "ingest", "ingest/mdf4_shift.py",
        "            if link and link not in known and link < PAST_ANY_FILE:",
        "            if link and link not in known:", MF4_PAST_ANY_FILE),
