@@ -1,8 +1,11 @@
 """Bytes added to or lost from an MDF4 file before its last blocks: every block after that place lies the same
 number of bytes off where the file's links (absolute byte offsets) say, and the reader finds no block where the
 first of them points. The blocks themselves are intact: found by their ids in the file's bytes, the links that point
-to no block but lie one common shift off a block are moved by it in a copy (:func:`write_mended`). Blocks the lost
-bytes held stay lost: the groups they break are then left out as for any damaged block (:mod:`.mdf4_mend`).
+to no block but lie one common shift off a block are moved by it in a copy (:func:`write_mended`), never onto a
+block an intact link names (one before the place, which did not move), and only where the shift moves a data
+group's data link onto a data block (else the damage is a zeroed run of blocks, which :mod:`.mdf4_mend` reads
+past). The block the place lies in is torn: its id is cleared in the copy, so that its group is left out. Blocks
+the lost bytes held stay lost: the groups they break are then left out as for any damaged block.
 """
 
 from __future__ import annotations
