@@ -28,12 +28,13 @@ import json
 import os
 import platform
 import random
-import subprocess
 import sys
 import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+
+from checkouts import in_checkout, revision
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
@@ -156,20 +157,10 @@ def _log_of(logs: list[Path], dest: Path) -> Path:
     return dest
 
 
-def _revision(root: Path) -> str:
-    """The checkout's commit (short), with "+" where its package differs from it."""
-    def git(*cmd: str) -> str:
-        return subprocess.run(["git", "-C", str(root), *cmd], capture_output=True, text=True).stdout.strip()
-    return git("rev-parse", "--short", "HEAD") + ("+" if git("status", "--porcelain", "--", "autosar_cli") else "")
-
-
 def _worker(root: Path, files: list[Path], zero_step: int, random_step: int, out: Path) -> list[dict[str, object]]:
     """The sweep in a process of its own, ``root``'s package first on its path."""
-    env = {**os.environ, "PYTHONPATH": str(root)}
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", str(out), "--zero-step", str(zero_step),
-           "--random-step", str(random_step), *map(str, files)]
-    subprocess.run(cmd, env=env, check=True, cwd=root)
-    return json.loads(out.read_text())
+    return in_checkout(__file__, root, ["--zero-step", str(zero_step), "--random-step", str(random_step),
+                                        *map(str, files)], out)
 
 
 def main() -> None:
@@ -216,7 +207,7 @@ def main() -> None:
             mine = [r for r in rows[name] if Path(str(r["file"])).suffix.lower() in suffixes
                     and r["kind"] in damages]
             key = ("summary" if kind == "mdf4" else kind) if name == "this" else f"{kind}_against"
-            result[key] = {"revision": _revision(roots[name]), **_summary(mine)}
+            result[key] = {"revision": revision(roots[name]), **_summary(mine)}
     result |= {"wall_s": round(time.perf_counter() - t0, 1), "rows": rows["this"],
                "python": platform.python_version(), "cores": os.cpu_count()}
     args.output.parent.mkdir(parents=True, exist_ok=True)

@@ -18,11 +18,11 @@ import os
 import platform
 import random
 import statistics
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
+
+from checkouts import in_checkout, revision
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
@@ -68,19 +68,6 @@ def _time_reads(files: list[Path]) -> dict[str, float]:
     return out
 
 
-def _worker(root: Path, files: list[Path], out: Path) -> dict[str, float]:
-    env = {**os.environ, "PYTHONPATH": str(root)}
-    subprocess.run([sys.executable, str(Path(__file__).resolve()), "--worker", str(out), *map(str, files)],
-                   env=env, check=True, cwd=root)
-    return json.loads(out.read_text())
-
-
-def _revision(root: Path) -> str:
-    def git(*cmd: str) -> str:
-        return subprocess.run(["git", "-C", str(root), *cmd], capture_output=True, text=True).stdout.strip()
-    return git("rev-parse", "--short", "HEAD") + ("+" if git("status", "--porcelain", "--", "autosar_cli") else "")
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--against", type=Path, help="another checkout whose package reads the same logs beside")
@@ -101,10 +88,10 @@ def main() -> None:
         for n in range(args.rounds):
             order = list(roots) if n % 2 == 0 else list(reversed(roots))
             for name in order:
-                rows.append({"round": n, "checkout": name,
-                             **_worker(roots[name], files, Path(scratch) / f"{name}.json")})
+                times = in_checkout(__file__, roots[name], list(map(str, files)), Path(scratch) / f"{name}.json")
+                rows.append({"round": n, "checkout": name, **times})
                 print(json.dumps(rows[-1]))
-    summary: dict[str, object] = {name: _revision(root) for name, root in roots.items()}
+    summary: dict[str, object] = {name: revision(root) for name, root in roots.items()}
     for suffix in SUFFIXES:
         medians = {name: statistics.median(float(r[suffix]) for r in rows if r["checkout"] == name)
                    for name in roots}

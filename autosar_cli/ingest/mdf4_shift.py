@@ -84,28 +84,25 @@ def shifted_links(buf: mmap.mmap) -> Shift | None:
     starts = block_starts(buf)
     known = set(starts)
     dangling: list[tuple[int, int, int, int]] = []  # (its block, its place there, byte of the link, its value)
+    links = {pos: struct.unpack_from(f"<{HEAD.unpack_from(buf, pos)[2]}Q", buf, pos + HEAD.size) for pos in starts}
     for pos in starts:
-        n_links = HEAD.unpack_from(buf, pos)[2]
-        for k, link in enumerate(struct.unpack_from(f"<{n_links}Q", buf, pos + HEAD.size)):
+        for k, link in enumerate(links[pos]):
             if link and link not in known and link < PAST_ANY_FILE:  # beyond: a damaged value, not a moved one
                 dangling.append((pos, k, pos + HEAD.size + 8 * k, link))
     if not dangling:
         return None
     # every block start less every dangling link's value: the shift is the difference most of them share (each
     # link gives it one vote; a regular run of blocks gives others some)
-    shifts, votes = np.unique(np.subtract.outer(np.asarray(starts, np.int64),
-                                                np.asarray([d[3] for d in dangling], np.int64)),
-                              return_counts=True)
+    targets, starts_at = np.asarray([d[3] for d in dangling], np.int64), np.asarray(starts, np.int64)
+    shifts, votes = np.unique(np.subtract.outer(starts_at, targets), return_counts=True)
     votes[shifts == 0] = 0
     ids = {pos: bytes(buf[pos:pos + 4]) for pos in starts}
     # a block an intact link names lies where it lay: the moved blocks are named only by the links that moved with
     # them (a run of channel blocks at one spacing lands many shifts' links on blocks, and lost bytes' links on the
     # blocks before them)
-    named = {link for pos in starts for link in struct.unpack_from(f"<{HEAD.unpack_from(buf, pos)[2]}Q", buf,
-                                                                   pos + HEAD.size) if link in known}
+    named = {link for block_links in links.values() for link in block_links if link in known}
     # first by how many links land on a block no intact link names (whole arrays), then by the kinds they land on
-    targets = np.asarray([d[3] for d in dangling], np.int64)
-    starts_at, named_at = np.asarray(starts, np.int64), np.asarray(sorted(named), np.int64)
+    named_at = np.asarray(sorted(named), np.int64)
     tried = shifts[votes >= _AGREEING * votes.max()]
     rough = np.asarray([np.isin(targets + by, starts_at).sum() - 2 * np.isin(targets + by, named_at).sum()
                         for by in tried.tolist()])
