@@ -59,7 +59,7 @@ RadarOverrideOpt = Annotated[bool, typer.Option("--radar-override", help="Where 
                                                 "stopping.")]
 RadarStreamOpt = Annotated[str | None, typer.Option("--radar-stream", metavar="NAME", help="The drive's radar "
                                                    "stream to focus (/radar/NAME; default: its first). Its "
-                                                   "mounting is the config's [radar].")]
+                                                   "mounting is the config's \\[radar].")]
 AutofocusOpt = Annotated[bool, typer.Option("--autofocus", help="Before focusing, correct the track by the motion "
                                             "the radar itself measures: the phase histories of a first image's "
                                             "bright isolated points (residual motion across track and up, and the "

@@ -31,6 +31,26 @@ def test_the_command_list_wraps_each_summary_at_the_terminal_not_the_docstring()
     assert "dask.distributed cluster; exit code 1" in lines["batch"]
 
 
+def _commands_and_params(command, path=()):
+    yield path, "help", command.help or ""
+    for param in command.params:
+        yield path, param.name, getattr(param, "help", None) or ""
+    for name, sub in getattr(command, "commands", {}).items():
+        yield from _commands_and_params(sub, (*path, name))
+
+
+def test_no_help_text_loses_a_bracketed_word_to_rich_markup():
+    # typer renders help through rich: an unescaped "[radar]" is taken for a style tag and vanishes from --help
+    from rich.markup import render
+    from typer.main import get_command
+
+    lost = [(" ".join(path), name) for path, name, text in _commands_and_params(get_command(app))
+            if render(text).plain != text.replace("\\[", "[")]
+    assert lost == []
+    r = runner.invoke(app, ["focus", "--help"], env={"COLUMNS": "300"}, terminal_width=300)
+    assert "config's [radar]" in r.output
+
+
 def test_simulate_json_and_info(tmp_path):
     log = tmp_path / "ci.bag"
     r = runner.invoke(app, ["simulate", "-s", "ci", "-f", "ros1", "--seed", "5", "-o", str(log), "--json"])
