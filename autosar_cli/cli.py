@@ -95,6 +95,11 @@ class LogFormat(StrEnum):
     dca1000 = "dca1000"
 
 
+def _lit(value: object) -> str:
+    """``value`` as literal text in rich markup: a path or reason holding "[name]" is printed, not taken for a style."""
+    return escape(str(value))
+
+
 def _radar_options(start: str | None, sync: str, override: bool) -> Any:
     from autosar_cli.ingest.pipeline import RadarCaptureOptions, parse_time_ns
 
@@ -242,11 +247,12 @@ def simulate(
         if as_json:
             out.print_json(json.dumps(summary))
         else:
-            out.print(f"wrote [bold]{result.log_path}[/] ({result.duration_s:.1f} s drive, {result.radar_frames} radar "
-                      f"frames, {sum(result.message_counts.values())} messages) in {result.elapsed_s:.1f} s")
-            out.print(f"truth  [bold]{result.truth_path}[/]")
+            out.print(f"wrote [bold]{_lit(result.log_path)}[/] ({result.duration_s:.1f} s drive, "
+                      f"{result.radar_frames} radar frames, {sum(result.message_counts.values())} messages) "
+                      f"in {result.elapsed_s:.1f} s")
+            out.print(f"truth  [bold]{_lit(result.truth_path)}[/]")
             if result.radar_capture is not None:
-                out.print(f"radar  [bold]{result.radar_capture}[/] (DCA1000 capture: autosar ingest "
+                out.print(f"radar  [bold]{_lit(result.radar_capture)}[/] (DCA1000 capture: autosar ingest "
                           f"{result.log_path} --radar {result.radar_capture})")
 
 
@@ -306,7 +312,7 @@ def ingest(
         if as_json:
             out.print_json(json.dumps(d))
             return
-        out.print(f"wrote [bold]{output}[/]: {d['duration_s']:.2f} s of drive, {report.messages} messages, "
+        out.print(f"wrote [bold]{_lit(output)}[/]: {d['duration_s']:.2f} s of drive, {report.messages} messages, "
                   f"{report.bytes_read / 1e6:.1f} MB in {report.wall_s:.1f} s ({d['throughput_mb_s']:.0f} MB/s)")
         table = Table("stream", "written", "rate (Hz)", "gaps", "dropped / repaired")
         for st in report.streams:
@@ -331,7 +337,7 @@ def ingest(
         elif can.get("missing_roles"):
             out.print(f"CAN roles not found: {', '.join(can['missing_roles'])}")
         for sk in report.skipped_channels:
-            out.print(f"skipped {sk['topic']} ({sk['msgtype']}): {sk['reason']}", highlight=False)
+            out.print(f"skipped {sk['topic']} ({sk['msgtype']}): {_lit(sk['reason'])}", highlight=False)
         for w in report.warnings:
             err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
 
@@ -380,7 +386,7 @@ def navigate(
         if as_json:
             out.print_json(json.dumps(summary))
             return
-        out.print(f"wrote [bold]{output}[/]: {traj.method}, {len(traj.t_ns)} samples over {span:.2f} s, "
+        out.print(f"wrote [bold]{_lit(output)}[/]: {traj.method}, {len(traj.t_ns)} samples over {span:.2f} s, "
                   f"{dist:.1f} m travelled, in {traj.info['elapsed_s']:.1f} s")
         if traj.info.get("rejected"):
             out.print("gated out: " + ", ".join(f"{k} {v}" for k, v in traj.info["rejected"].items()))
@@ -388,12 +394,12 @@ def navigate(
             err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
         for stream, noise in traj.info.get("gnss_noise", {}).items():
             if noise.get("applied"):
-                out.print(f"GNSS {stream} noise: {noise['reason']}")
+                out.print(f"GNSS {stream} noise: {_lit(noise['reason'])}")
         if (slow := traj.info.get("gnss_slow_error", {})).get("applied"):
-            out.print(f"GNSS slow error: {slow['reason']}")
+            out.print(f"GNSS slow error: {_lit(slow['reason'])}")
         correlation = traj.info.get("gnss_velocity_correlation", {})
         if correlation.get("applied"):
-            out.print(f"GNSS velocity: {correlation['reason']}")
+            out.print(f"GNSS velocity: {_lit(correlation['reason'])}")
         elif correlation.get("correlated"):
             err.print(f"[yellow]warning:[/] GNSS velocity: {escape(correlation['reason'])}", highlight=False,
                       soft_wrap=True)
@@ -417,7 +423,7 @@ def navigate(
         if "understeer" in traj.info:
             us = traj.info["understeer"]
             fitted = f" +- {us['std']:.2g}" if "std" in us else ""
-            out.print(f"understeer gradient {us['gradient']:.3g}{fitted} rad per m/s^2: {us['reason']}")
+            out.print(f"understeer gradient {us['gradient']:.3g}{fitted} rad per m/s^2: {_lit(us['reason'])}")
         if traj.info.get("wheel_lag", {}).get("applied"):
             lag = traj.info["wheel_lag"]
             out.print(f"wheel speeds moved back by {lag['lag_distance_m']:.3f} +- {lag['std_m']:.2g} m / speed")
@@ -440,7 +446,7 @@ def navigate(
                          f"{attitude['pitch_bias_mrad']:+.1f} +- {attitude['pitch_bias_std_mrad']:.1f} mrad out"
                          if height.get("applied") else height.get("reason", "")))
         if figure:
-            out.print(f"figure [bold]{figure}[/]")
+            out.print(f"figure [bold]{_lit(figure)}[/]")
 
 
 def standstill_lines(info: dict[str, Any], t0_ns: int) -> list[str]:
@@ -510,12 +516,13 @@ def focus(
             return
         rows, cols = report.grid_shape
         wall = summary["wall_s"]
-        out.print(f"wrote [bold]{report.outputs['tif']}[/], {report.outputs['h5']}, {report.outputs['png']}: "
+        out.print(f"wrote [bold]{_lit(report.outputs['tif'])}[/], {_lit(report.outputs['h5'])}, "
+                  f"{_lit(report.outputs['png'])}: "
                   f"{rows} x {cols} pixels at {options.pixel_m * 100:g} cm, {report.frames_used} frames, "
                   f"{report.backprojections / 1e9:.2f} G back-projections in {wall:.1f} s "
                   f"({wall / max(report.drive_s, 1e-9):.2f} x the drive's {report.drive_s:.1f} s)")
         for reason, n in report.frames_skipped.items():
-            err.print(f"[yellow]skipped[/] {n} frames: {reason}", highlight=False)
+            err.print(f"[yellow]skipped[/] {n} frames: {_lit(reason)}", highlight=False)
         for w in report.warnings:
             err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
 
@@ -570,7 +577,7 @@ def run(
                       f"{st['focus']['backprojections'] / 1e9:.2f} G back-projections")
         out.print(table)
         degraded = _degraded(manifest["warnings"], "run.json")  # a damaged log, dropped data, no autofocus
-        out.print(f"wrote [bold]{output}[/] (run.json, drive.h5, trajectory.h5, image.tif/.h5/.png) in "
+        out.print(f"wrote [bold]{_lit(output)}[/] (run.json, drive.h5, trajectory.h5, image.tif/.h5/.png) in "
                   f"{manifest['wall_s']:.1f} s = {manifest['fraction_of_drive']:.2f} x the drive's "
                   f"{manifest['drive_s']:.1f} s{degraded}")
 
@@ -651,10 +658,10 @@ def evaluate(
                 table.add_row(f"{kind} straightness (RMS)", f"{_cm(s[f'straightness_{kind}_m'], digits=2)} cm")
         out.print(table)
         degraded = _degraded(result["input_warnings"], "metrics.json")
-        out.print(f"wrote [bold]{output}[/] ({', '.join(Path(p).name for p in result['outputs'].values())})"
+        out.print(f"wrote [bold]{_lit(output)}[/] ({', '.join(Path(p).name for p in result['outputs'].values())})"
                   f"{degraded}")
         for note in result.get("notes", []):
-            err.print(f"[yellow]note:[/] {note}", highlight=False, soft_wrap=True)
+            err.print(f"[yellow]note:[/] {_lit(note)}", highlight=False, soft_wrap=True)
 
 
 @app.command()
@@ -704,12 +711,12 @@ def compare(
         out.print(table)
         figures = [v for k, v in result["outputs"].items() if isinstance(v, str)]
         degraded = _degraded(result["warnings"], "compare.json")
-        out.print(f"wrote [bold]{output}[/] ({', '.join(figures)}; per method: "
+        out.print(f"wrote [bold]{_lit(output)}[/] ({', '.join(figures)}; per method: "
                   f"{', '.join(m + '/' for m in result['methods'])}) in {result['wall_s']:.1f} s{degraded}")
         for m, why in result["skipped"].items():
-            err.print(f"[yellow]skipped[/] {m}: {why}", highlight=False, soft_wrap=True)
+            err.print(f"[yellow]skipped[/] {m}: {_lit(why)}", highlight=False, soft_wrap=True)
         for note in result["notes"]:
-            err.print(f"[yellow]note:[/] {note}", highlight=False, soft_wrap=True)
+            err.print(f"[yellow]note:[/] {_lit(note)}", highlight=False, soft_wrap=True)
 
 
 #: damaged chunks named one per line, beyond which a count stands for the rest
@@ -726,7 +733,7 @@ def _verify(path: Path, as_json: bool) -> None:
     if as_json:
         out.print_json(json.dumps(found.to_dict()))
     elif not found.damaged:
-        out.print(f"[bold]{escape(str(path))}[/]: {found.datasets} datasets, {found.chunks} stored chunks, every "
+        out.print(f"[bold]{_lit(path)}[/]: {found.datasets} datasets, {found.chunks} stored chunks, every "
                   "checksum holds")
     else:
         for d in found.damaged[:_DAMAGED_NAMED]:
@@ -736,7 +743,7 @@ def _verify(path: Path, as_json: bool) -> None:
         if len(found.damaged) > _DAMAGED_NAMED:
             err.print(f"[red]damaged:[/] {len(found.damaged) - _DAMAGED_NAMED} more chunks", highlight=False)
         names = len({d.dataset for d in found.damaged})
-        out.print(f"[bold]{escape(str(path))}[/]: {len(found.damaged)} of {found.chunks} stored chunks damaged, in "
+        out.print(f"[bold]{_lit(path)}[/]: {len(found.damaged)} of {found.chunks} stored chunks damaged, in "
                   f"{names} of {found.datasets} datasets")
     if found.damaged:
         raise typer.Exit(1)
@@ -784,7 +791,7 @@ def info(
             if as_json:
                 out.print_json(json.dumps({"path": str(path), "stale_partials": stale}))
                 return
-            out.print(f"[bold]{escape(str(path))}[/]: {len(stale)} stale partial file(s)"
+            out.print(f"[bold]{_lit(path)}[/]: {len(stale)} stale partial file(s)"
                       + "".join(f"\n  {escape(p)}" for p in stale))
             return
         from autosar_cli.ingest.inspect import summarize
@@ -794,7 +801,7 @@ def info(
             out.print_json(json.dumps({**summary.to_dict(), "stale_partials": stale}))
             return
         d = summary.to_dict()
-        out.print(f"[bold]{path}[/]  {summary.container}, {summary.size_bytes / 1e6:.1f} MB, "
+        out.print(f"[bold]{_lit(path)}[/]  {summary.container}, {summary.size_bytes / 1e6:.1f} MB, "
                   f"{d['duration_s']:.2f} s")
         table = Table("stream", "type", "count", "rate (Hz)", "gaps")
         for s in summary.streams:
@@ -884,7 +891,8 @@ def batch(
             threads = info["numba_threads_per_task"] or "the workers' default"
             err.print(f"{info['kind']} cluster {info['scheduler']}: {info['workers']} workers x "
                       f"{info['threads_per_worker']} task, numba threads per task {threads}", highlight=False)
-            err.print(f"dashboard: {info['dashboard']}" if info["dashboard"] else "dashboard: none", highlight=False)
+            err.print(f"dashboard: {_lit(info['dashboard'])}" if info["dashboard"] else "dashboard: none",
+                      highlight=False)
 
         with _batch_progress(len(logs), enabled=not as_json) as update:
             manifest = run_batch(logs, output, cfg, method=method.value, autofocus=autofocus, scheduler=scheduler,
@@ -906,7 +914,7 @@ def batch(
             out.print(table)
             rate = manifest["drives_per_minute"]
             degraded = f" ({manifest['degraded']} degraded)" if manifest.get("degraded") else ""
-            out.print(f"wrote [bold]{Path(output) / 'batch.json'}[/]: "
+            out.print(f"wrote [bold]{_lit(Path(output) / 'batch.json')}[/]: "
                       f"{manifest['ok'] + manifest.get('degraded', 0)} of {len(manifest['drives'])} drives done"
                       f"{degraded} in {manifest['wall_s']:.1f} s" + (f" ({rate:.1f} drives/min)" if rate else ""))
         for r in manifest["drives"]:

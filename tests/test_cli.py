@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import realdata
 from typer.testing import CliRunner
 
 from autosar_cli.cli import app
@@ -49,6 +50,15 @@ def test_no_help_text_loses_a_bracketed_word_to_rich_markup():
     assert lost == []
     r = runner.invoke(app, ["focus", "--help"], env={"COLUMNS": "300"}, terminal_width=300)
     assert "config's [radar]" in r.output
+
+
+def test_a_path_holding_a_bracketed_word_is_printed_as_it_is(tmp_path):
+    log = tmp_path / "run[a]" / "gps[raw].log"
+    log.parent.mkdir()
+    log.symlink_to(realdata("gpsd", "neo-m8n.log"))
+    r = runner.invoke(app, ["info", str(log)], env={"COLUMNS": "300"}, terminal_width=300)
+    assert r.exit_code == 0, r.output
+    assert r.output.splitlines()[0].startswith(f"{log}  NMEA text")
 
 
 def test_simulate_json_and_info(tmp_path):
