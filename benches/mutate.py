@@ -103,6 +103,8 @@ TEXT_FIRST = ("tests/test_ingest_canlog.py::"
 MF4_SHIFT = "tests/test_ingest_canlog.py::test_a_real_mf4_with_bytes_added_or_lost_before_its_data_reads_its_frames"
 MF4_PAST_ANY_FILE = "tests/test_ingest_canlog.py::test_links_overwritten_past_any_file_are_damage_not_a_shift"
 MF4_SHIFT_NAMED = "tests/test_ingest_canlog.py::test_a_shift_moves_no_link_onto_a_block_an_intact_link_names"
+MF4_DLC_TABLE = "tests/test_ingest_canlog.py::test_an_mf4_whose_dlc_table_is_damaged_reads_each_frame_with_its_own_bytes"
+DLC_TABLE_JUDGED = "tests/test_ingest_canlog.py::test_a_dlc_table_is_judged_by_iso_11898_1"
 TEXT_SKIPPED = "tests/test_ingest_canlog.py::test_a_text_log_frame_line_damaged_where_the_reader_looks_is_counted"
 TEXT_LONG_DLC = "tests/test_ingest_canlog.py::test_an_ascs_classic_frame_with_a_dlc_over_8_is_read_as_8_bytes"
 ODD_INPUTS = "tests/test_safety.py::test_an_input_that_is_a_pipe_a_link_loop_or_a_directory_is_one_line"
@@ -540,6 +542,11 @@ MUTATIONS: list[Mutation] = [
        "                whole = True", TEXT_DAMAGE),
     _m("mdf4-shift-not-tried", "ingest", "ingest/mdf4_blocks.py", "    shift = shifted_links(buf)\n",
        "    shift = None\n", MF4_SHIFT),
+    _m("mdf4-dlc-table-not-judged", "ingest", "ingest/mdf4_blocks.py",
+       "            tables = damaged_length_tables(buf, found)\n", "            tables = None\n", MF4_DLC_TABLE),
+    _m("mdf4-dlc-table-classic-taken-for-damage", "ingest", "ingest/mdf4_dlc.py",
+       "    return fd >= sum(1 for _, n in long_codes if n == CLASSIC_MAX_BYTES)", "    return True",
+       DLC_TABLE_JUDGED),
     _m("mdf4-shift-lands-on-named-blocks", "ingest", "ingest/mdf4_shift.py",
        "if link + by in known and link + by not in named]", "if link + by in known]", MF4_SHIFT_NAMED),
     _m("mdf4-shift-takes-links-past-any-file", "ingest", "ingest/mdf4_shift.py",

@@ -449,6 +449,81 @@ def test_an_mf4_whose_damaged_blocks_describe_empty_groups_reads_every_frame(tmp
     assert message == f"{log}: damaged MDF4 log: {says}; {len(got)} frames read"
 
 
+_ISO_FD_TABLE = struct.pack("<32d", *(v for k, n in enumerate((0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64))
+                                    for v in (k, n)))
+
+
+@pytest.mark.parametrize("name, final", [(MF4_2023_1, False), (MF4_2023_2, True)], ids=["2023", "2023 finalised"])
+def test_an_mf4_whose_dlc_table_is_damaged_reads_each_frame_with_its_own_bytes(
+        tmp_path: Path, finalised: Callable[[str], Path], name: str, final: bool) -> None:
+    """A CANedge's DataLength channel is the frame's DLC through a value-to-value table (ISO 11898-1's: 0-8, 12, 16
+    ... 64). Two of its values overwritten (DLC 1 read as 5 bytes, DLC 4 as 6) read every frame of those DLCs with
+    bytes of its data field that are no part of it, without a word; the reader's copy gets the standard's table
+    back and every frame is read as it was, with the damage named."""
+    data = (finalised(name) if final else realdata(CSS, name)).read_bytes()
+    table = data.index(_ISO_FD_TABLE)
+    assert data.count(_ISO_FD_TABLE) == 1
+    damaged = bytearray(data)
+    struct.pack_into("<d", damaged, table + 8 * 3, 5.0)  # DLC 1's length
+    struct.pack_into("<d", damaged, table + 8 * 9, 6.0)  # DLC 4's
+    log = tmp_path / "damaged.MF4"
+    log.write_bytes(damaged)
+    got, message = _read_until_error(log)
+    whole = list(read_can_log(finalised(name))) if final else list(_real_records(name))
+    assert got == whole
+    assert sum(1 for r in whole if r.dlc in (1, 4)) > 100  # frames the damage reached
+    block = table - 80  # the ##CC block: 24 header bytes, 4 links, 24 bytes before its values (type ... range)
+    assert data[block:block + 4] == b"##CC"
+    assert message == (f"{log}: damaged MDF4 log: the DLC-to-length table of its DataLength channel (conversion "
+                       f"block at byte {block}) damaged (DLC 1 read as 5 bytes, DLC 4 read as 6 bytes): read with "
+                       f"ISO 11898-1's; {len(got)} frames read")
+
+
+def _cc_table(pairs: list[tuple[float, float]], count: int | None = None) -> bytes:
+    """A ##CC block of type 5 (value to value) at byte 0 holding ``pairs``; ``count``: the value count it says."""
+    fixed = struct.pack("<BBHHHdd", 5, 0, 0, 0, 2 * len(pairs) if count is None else count, 0.0, 0.0)
+    values = struct.pack(f"<{2 * len(pairs)}d", *(v for pair in pairs for v in pair))
+    body = struct.pack("<4Q", 0, 0, 0, 0) + fixed + values
+    return struct.pack("<4s4xQQ", b"##CC", 24 + len(body), 4) + body
+
+
+@pytest.mark.parametrize("pairs, count, wrong", [
+    ([(k, min(k, 8)) for k in range(16)], None, None),  # a classic logger's table: DLC 9-15 carry 8 bytes
+    ([(k, k) for k in range(9)], None, None),  # DLC 0-8 only
+    ([(k, (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)[k]) for k in range(16)], None, None),
+    ([(k, min(k, 8)) for k in range(15)] + [(15, float("nan"))], None, [(15, 8.0)]),
+    ([(k, k) for k in range(9)], 12, []),
+    ([(k, k) for k in range(4)] + [(4.5, 4)] + [(k, k) for k in range(5, 9)], None, [(4, 4.0)])],
+    ids=["classic", "0-8", "CAN FD", "a NaN in a classic table", "its count", "a key"])
+def test_a_dlc_table_is_judged_by_iso_11898_1(pairs: list[tuple[float, float]], count: int | None,
+                                              wrong: list[tuple[int, float]] | None) -> None:
+    from autosar_cli.ingest.mdf4_dlc import _judged_table
+
+    cc = _cc_table(pairs, count)
+    judged = _judged_table(cc, 0)  # type: ignore[arg-type]
+    if wrong is None:
+        assert judged is None
+        return
+    assert judged is not None
+    mended = bytearray(cc)
+    for at, value in judged[0]:
+        mended[at:at + 8] = value.to_bytes(8, "little")
+    assert _judged_table(bytes(mended), 0) is None  # type: ignore[arg-type]
+    got = struct.unpack_from(f"<{2 * len(pairs)}d", mended, 80)
+    assert [(int(k), n) for k, n in zip(got[0::2], got[1::2], strict=True)] == [(k, _n(k, pairs)) for k in
+                                                                               range(len(pairs))]
+    assert struct.unpack_from("<H", mended, 62)[0] == 2 * len(pairs)
+    for k, n in wrong:
+        assert (got[2 * k], got[2 * k + 1]) == (k, n)
+
+
+def _n(k: int, pairs: list[tuple[float, float]]) -> float:
+    """The standard's length of DLC ``k`` in the convention of the test table ``pairs`` (classic where 15 is 8)."""
+    fd = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
+    classic = len(pairs) == 16 and pairs[9][1] == 8
+    return float(min(k, 8) if classic else fd[k])
+
+
 def test_an_mf4_group_left_out_with_its_frames_keeps_the_other_groups(tmp_path: Path) -> None:
     """4 KiB zeroed across the channels of four of the 2023 file's groups, one of them holding 764 frames: its
     records, whose size no intact block gives, are damage the record walk reads past; the other groups' frames are

@@ -353,14 +353,15 @@ def _begins_trigger_block(path: Path) -> bool:
 
 def _mended(path: Path, cut: CutShort | None, stack: ExitStack) -> tuple[Path, CutShort | None]:
     """``path`` and ``cut``, or where damage to an MDF4 file's blocks leaves groups to read, a temporary copy whose
-    links step over the damaged ones (:func:`write_mended`) and what the copy's records then lack. Two rounds: a
-    copy whose links moved with bytes added or lost may still reach blocks the lost bytes held, whose groups a
-    second copy leaves out."""
+    links step over the damaged ones (:func:`write_mended`), or whose DLC table is the standard's, and what the
+    copy's records then lack. Three rounds: a copy whose links moved with bytes added or lost may still reach blocks
+    the lost bytes held, whose groups a second copy leaves out, and a damaged DLC table is found once the blocks
+    are whole."""
     if cut is None or not cut.patches:
         return path, cut
     scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="autosar-canlog-")))
     source, said = path, []
-    for round_ in range(2):
+    for round_ in range(3):
         copy = scratch / f"{round_}_{path.name}"
         write_mended(source, copy, cut.patches)
         said.append(cut.reason)

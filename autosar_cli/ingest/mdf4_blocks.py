@@ -44,6 +44,7 @@ from .mdf4_layout import (
     field,
     fields_at,
 )
+from .mdf4_dlc import damaged_length_tables
 from .mdf4_mend import mend_chains
 from .mdf4_shift import shifted_links
 from .mdf4_sorted import out_of_order, sorted_damage, write_sorted_without
@@ -70,6 +71,9 @@ def mdf4_cut(path: Path) -> CutShort | None:
                     why = f"its {ident.decode('latin-1')} block at byte {pos} runs past the end ({length} bytes)"
                     return _mended(buf, why) if length > PAST_ANY_FILE else CutShort(why)
                 found.append((pos, ident, length, links))
+            tables = damaged_length_tables(buf, found)
+            if tables is not None:
+                return CutShort(tables.reason, damaged=True, patches=tables.patches)
             if unfinished:
                 for dg, dt in data_blocks(found):
                     cut = _cut_record(buf, dg, dt, last=all(pos <= dt for pos, *_ in found))

@@ -71,8 +71,8 @@ class CutShort:
     damaged: bool = False  #: not cut but damaged inside (a link to no block): ``reason`` says where
     #: damaged byte ranges [start, end) left out, what follows each read on (a reader's copy without them)
     holes: tuple[tuple[int, int], ...] = ()
-    #: (byte, value) of the 8-byte links a reader's copy changes to step over damaged blocks (MDF4: the chains of
-    #: its groups without the damaged ones)
+    #: (byte, value) of the 8-byte fields a reader's copy changes (MDF4: links, so that the chains of its groups step
+    #: over the damaged ones; a damaged DLC table's values, as a little-endian integer)
     patches: tuple[tuple[int, int], ...] = ()
 
 
