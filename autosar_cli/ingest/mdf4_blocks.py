@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .mdf4_dlc import damaged_length_tables
 from .mdf4_layout import (
     CG_DATA,
     MASTER_CHANNEL,
@@ -44,7 +45,6 @@ from .mdf4_layout import (
     field,
     fields_at,
 )
-from .mdf4_dlc import damaged_length_tables
 from .mdf4_mend import mend_chains
 from .mdf4_shift import shifted_links
 from .mdf4_sorted import out_of_order, sorted_damage, write_sorted_without
