@@ -106,6 +106,7 @@ MF4_SHIFT_NAMED = "tests/test_ingest_canlog.py::test_a_shift_moves_no_link_onto_
 MF4_DLC_TABLE = ("tests/test_ingest_canlog.py::"
                  "test_an_mf4_whose_dlc_table_is_damaged_reads_each_frame_with_its_own_bytes")
 DLC_TABLE_JUDGED = "tests/test_ingest_canlog.py::test_a_dlc_table_is_judged_by_iso_11898_1"
+MF4_UNNEEDED = "tests/test_ingest_canlog.py::test_a_damaged_block_no_record_needs_is_unlinked_and_its_groups_kept"
 TEXT_SKIPPED = "tests/test_ingest_canlog.py::test_a_text_log_frame_line_damaged_where_the_reader_looks_is_counted"
 TEXT_LONG_DLC = "tests/test_ingest_canlog.py::test_an_ascs_classic_frame_with_a_dlc_over_8_is_read_as_8_bytes"
 ODD_INPUTS = "tests/test_safety.py::test_an_input_that_is_a_pipe_a_link_loop_or_a_directory_is_one_line"
@@ -548,11 +549,18 @@ MUTATIONS: list[Mutation] = [
     _m("mdf4-dlc-table-classic-taken-for-damage", "ingest", "ingest/mdf4_dlc.py",
        "    return fd >= sum(1 for _, n in long_codes if n == CLASSIC_MAX_BYTES)", "    return True",
        DLC_TABLE_JUDGED),
+    _m("mdf4-every-link-needed", "ingest", "ingest/mdf4_mend.py",
+       "            if k not in _NEEDED_LINKS.get(bytes(buf[holder:holder + 4]), ()):", "            if False:",
+       MF4_UNNEEDED),
+    _m("mdf4-shift-trusts-a-link-to-another-kind", "ingest", "ingest/mdf4_shift.py",
+       "              if link in known and _lands_right(ids, pos, k, link)}", "              if link in known}",
+       MF4_SHIFT_NAMED),
     _m("mdf4-shift-lands-on-named-blocks", "ingest", "ingest/mdf4_shift.py",
-       "if link + by in known and link + by not in named]", "if link + by in known]", MF4_SHIFT_NAMED),
+       "             if link + by not in named and _lands_right(ids, owner, k, link + by)]",
+       "             if _lands_right(ids, owner, k, link + by)]", MF4_SHIFT_NAMED),
     _m("mdf4-shift-takes-links-past-any-file", "ingest", "ingest/mdf4_shift.py",
-       "            if link and link not in known and link < PAST_ANY_FILE:",
-       "            if link and link not in known:", MF4_PAST_ANY_FILE),
+       "            if link and (pos, k) not in intact and link < PAST_ANY_FILE:",
+       "            if link and (pos, k) not in intact:", MF4_PAST_ANY_FILE),
     _m("text-skipped-frame-line-not-judged", "ingest", "ingest/text_lines.py",
        "            self._judge(self._skipped)\n            self._skipped.clear()\n",
        "            self._skipped.clear()\n", TEXT_SKIPPED),

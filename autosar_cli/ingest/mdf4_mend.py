@@ -6,7 +6,9 @@ records; their blocks are 60 % of its one-minute file). A link that points to no
 links or running past the file's end, is damage; a channel group is damaged where its own block is, or any block
 it reaches through its channels, names, conversions and sources. Such a group is left out of its data group's
 chain, and with it a group whose channel points into its bytes (variable-length data); a data group whose own
-block or data block is damaged, or which keeps no channel group, is left out of the file's chain. A comment, file
+block or data block is damaged, or which keeps no channel group, is left out of the file's chain. A damaged block
+that only describes (a comment, a unit, a source, an acquisition name, a sample reduction, a conversion's name) is
+unlinked where a link names it, and its group kept: the reader needs none of them for a record. A comment, file
 history or attachment of the file's header that is damaged is unlinked. Where a group's own block is damaged, the
 chain after it is lost with it: the groups after it are found again by their blocks' ids in the file's bytes
 outside its data blocks (a file with one data group: its channel groups; with several: the data groups), each
@@ -31,6 +33,12 @@ _HD_LINKS = 6  #: dg, fh, ch, at, ev, md
 _DG_LINKS = 4  #: next dg, first cg, data, md
 _CG_LINKS = 6  #: next cg, first cn, acquisition name, acquisition source, first sr, md
 _GROUPS = (b"##DG", b"##CG")  #: blocks a group's links may reach that are groups of their own: checked, not entered
+#: the links of each block that reading a record follows (MDF 4.1: a channel group's next group and first channel;
+#: a channel's next channel, composition, name, conversion and data; a conversion's references from its fifth link
+#: on, its texts and scales); a block not listed only describes (a source, a sample reduction, a text), none needed
+_NEEDED_LINKS: dict[bytes, frozenset[int] | range] = {
+    b"##CG": frozenset((0, 1)), b"##CN": frozenset((0, 1, 2, 4, 5)), b"##CC": range(4, 1 << 16),
+    b"##CA": range(1 << 16), b"##DL": range(1 << 16), b"##HL": range(1 << 16)}
 #: blocks whose declared length an unfinalised file leaves "to be updated": its last data block runs to the end
 _OPEN_LENGTH = (b"##DT",)
 
@@ -60,10 +68,9 @@ def _mend(buf: mmap.mmap) -> Mend | None:
         return None
     patches: dict[int, int] = {}
     said: list[str] = []
-    for i in range(1, _HD_LINKS):  # the file's history, channel hierarchy, attachments, events, comment
-        if hd_links[i] and _reached_groups(buf, [hd_links[i]], unfinished) is None:
-            patches[_link(_HEADER, i)] = 0
-            said.append(f"the header's link to a damaged block at byte {hd_links[i]} unlinked")
+    unlinked: dict[int, int] = {}  # links to damaged blocks no record needs
+    # the file's history, channel hierarchy, attachments, events and comment: no record needs them
+    _reached_groups(buf, _HEADER, range(1, _HD_LINKS), unfinished, unlinked)
     dgs, dg_break = _chain(buf, hd_links[0], b"##DG", _DG_LINKS)
     data = [_data_range(buf, dg, unfinished) for dg in dgs]
     if dg_break is not None:
@@ -86,18 +93,22 @@ def _mend(buf: mmap.mmap) -> Mend | None:
             cgs += more
         elif cg_break is not None:
             left.append(cg_break)
-        kept = _whole_groups(buf, cgs, unfinished)
+        kept = _whole_groups(buf, cgs, unfinished, unlinked)
         left += [cg for cg in cgs if cg not in kept]
         if not kept or (cg_break is not None and not buf[dg_data]):  # a sorted group without its channels
             alone.append(dg)
             continue
         kept_dgs.append(dg)
         _chain_to(patches, dg, 1, kept)
-        if dg_links[3] and _reached_groups(buf, [dg_links[3]], unfinished) is None:
-            patches[_link(dg, 3)] = 0
+        _reached_groups(buf, dg, range(3, 4), unfinished, unlinked)  # its comment
     if not kept_dgs:
         return None
     _chain_to(patches, _HEADER, 0, kept_dgs)
+    unlinked = {at: v for at, v in unlinked.items() if at not in patches}
+    if unlinked:
+        said.append(f"{_count(len(unlinked), 'link')} to damaged blocks no record needs (comments, sources, names) "
+                    "unlinked")
+        patches.update(unlinked)
     if left:
         at = ", ".join(str(pos) for pos in left[:3]) + (" ..." if len(left) > 3 else "")
         with_them = f" (and the {_count(len(alone), 'data group')} that held them)" if alone else ""
@@ -189,15 +200,14 @@ def _data_range(buf: mmap.mmap, dg: int, unfinished: bool) -> tuple[int, int] | 
     return (links[2], links[2] + length) if links[2] + length <= len(buf) else None
 
 
-def _whole_groups(buf: mmap.mmap, cgs: list[int], unfinished: bool) -> list[int]:
+def _whole_groups(buf: mmap.mmap, cgs: list[int], unfinished: bool, unlinked: dict[int, int]) -> list[int]:
     """Those of ``cgs`` whose blocks are whole, each with a record id no group before it took, less those whose
-    channels point into a group left out."""
+    channels point into a group left out; links to damaged blocks no record needs go into ``unlinked``."""
     reached: dict[int, list[int]] = {}
     ids: set[int] = set()
     for cg in cgs:
-        _, _, links, data = block(buf, cg)
-        record_id = CG_DATA.unpack_from(buf, data)[0]
-        groups = _reached_groups(buf, links[1:], unfinished)
+        record_id = CG_DATA.unpack_from(buf, block(buf, cg)[3])[0]
+        groups = _reached_groups(buf, cg, range(1, _CG_LINKS), unfinished, unlinked)
         if groups is not None and record_id not in ids:
             ids.add(record_id)
             reached[cg] = groups
@@ -208,24 +218,31 @@ def _whole_groups(buf: mmap.mmap, cgs: list[int], unfinished: bool) -> list[int]
         reached = {cg: reached[cg] for cg in out}
 
 
-def _reached_groups(buf: mmap.mmap, links: list[int] | tuple[int, ...], unfinished: bool) -> list[int] | None:
-    """The channel groups the blocks reached from ``links`` point to (not entered), or None where one of those
-    blocks is damaged."""
+def _reached_groups(buf: mmap.mmap, owner: int, places: range, unfinished: bool, unlinked: dict[int, int]
+                    ) -> list[int] | None:
+    """The channel groups the blocks reached from the links ``places`` of the block at ``owner`` point to (not
+    entered), or None where a block a record needs is damaged. A damaged block reached through a link no record
+    needs (:data:`_NEEDED_LINKS`) is not: that link goes into ``unlinked`` (its byte: 0)."""
     groups: list[int] = []
-    todo, seen = [link for link in links if link], set()
+    todo = [(owner, k, link) for k, link in enumerate(block(buf, owner)[2]) if k in places and link]
+    seen: set[int] = set()
     while todo:
-        pos = todo.pop()
+        holder, k, pos = todo.pop()
+        try:
+            ident, length, more, _ = block(buf, pos)
+            whole = pos + length <= len(buf) or (unfinished and ident in _OPEN_LENGTH)
+        except (ValueError, struct.error):
+            whole = False
+        if not whole:
+            if k not in _NEEDED_LINKS.get(bytes(buf[holder:holder + 4]), ()):
+                unlinked[_link(holder, k)] = 0
+                continue
+            return None
         if pos in seen:
             continue
         seen.add(pos)
-        try:
-            ident, length, more, _ = block(buf, pos)
-        except (ValueError, struct.error):
-            return None
         if ident in _GROUPS:
             groups.append(pos)
             continue
-        if pos + length > len(buf) and not (unfinished and ident in _OPEN_LENGTH):
-            return None
-        todo += [link for link in more if link]
+        todo += [(pos, j, link) for j, link in enumerate(more) if link]
     return groups

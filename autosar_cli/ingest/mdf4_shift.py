@@ -1,8 +1,9 @@
 """Bytes added to or lost from an MDF4 file before its last blocks: every block after that place lies the same
 number of bytes off where the file's links (absolute byte offsets) say, and the reader finds no block where the
 first of them points. The blocks themselves are intact: found by their ids in the file's bytes, the links that point
-to no block but lie one common shift off a block are moved by it in a copy (:func:`write_mended`), never onto a
-block an intact link names (one before the place, which did not move), and only where the shift moves a data
+to no block, or to a block of a kind they may not name (another block moved to where theirs lay), but lie one common
+shift off a block of their kind are moved by it in a copy (:func:`write_mended`), never onto a block an intact link
+names (one before the place, which did not move), and only where the shift moves a data
 group's data link onto a data block (else the damage is a zeroed run of blocks, which :mod:`.mdf4_mend` reads
 past). The block the place lies in is torn: its id is cleared in the copy, so that its group is left out. Blocks
 the lost bytes held stay lost: the groups they break are then left out as for any damaged block.
@@ -21,8 +22,8 @@ from .mdf4_layout import HEAD, PAST_ANY_FILE
 
 #: a block's header as it lies in the file: its id and 4 reserved zero bytes
 _HEADER = re.compile(rb"##[A-Z]{2}\x00\x00\x00\x00")
-#: of the links that point to no block, the share one shift must bring to a block (the rest: blocks the lost bytes
-#: held, or links damaged on their own)
+#: of the links that find no block of their kind, the share one shift must bring to a block (the rest: blocks the
+#: lost bytes held, or links damaged on their own)
 _AGREEING = 0.5
 
 
@@ -62,7 +63,8 @@ class Shift:
         moved = len(self.patches) - (self.torn is not None)
         torn = f"; the block at byte {self.torn} before them torn" if self.torn is not None else ""
         return (f"{abs(self.by)} bytes {what} before byte {self.after + max(self.by, 0)}: {moved} of the "
-                f"{self.dangling} links that point to no block moved by {self.by:+d} to the blocks they name{torn}")
+                f"{self.dangling} links that find no block of their kind moved by {self.by:+d} to the blocks they name"
+                f"{torn}")
 
 
 def block_starts(buf: mmap.mmap) -> list[int]:
@@ -83,11 +85,16 @@ def shifted_links(buf: mmap.mmap) -> Shift | None:
     shift brings half of them to a block, or every link points to one."""
     starts = block_starts(buf)
     known = set(starts)
+    ids = {pos: bytes(buf[pos:pos + 4]) for pos in starts}
     dangling: list[tuple[int, int, int, int]] = []  # (its block, its place there, byte of the link, its value)
     links = {pos: struct.unpack_from(f"<{HEAD.unpack_from(buf, pos)[2]}Q", buf, pos + HEAD.size) for pos in starts}
+    # a link points to no block, or to one of a kind it may not name (another block moved to where its own lay)
+    intact = {(pos, k) for pos in starts for k, link in enumerate(links[pos])
+              if link in known and _lands_right(ids, pos, k, link)}
     for pos in starts:
         for k, link in enumerate(links[pos]):
-            if link and link not in known and link < PAST_ANY_FILE:  # beyond: a damaged value, not a moved one
+            # beyond any file: a damaged value, not a moved one
+            if link and (pos, k) not in intact and link < PAST_ANY_FILE:
                 dangling.append((pos, k, pos + HEAD.size + 8 * k, link))
     if not dangling:
         return None
@@ -96,11 +103,10 @@ def shifted_links(buf: mmap.mmap) -> Shift | None:
     targets, starts_at = np.asarray([d[3] for d in dangling], np.int64), np.asarray(starts, np.int64)
     shifts, votes = np.unique(np.subtract.outer(starts_at, targets), return_counts=True)
     votes[shifts == 0] = 0
-    ids = {pos: bytes(buf[pos:pos + 4]) for pos in starts}
     # a block an intact link names lies where it lay: the moved blocks are named only by the links that moved with
     # them (a run of channel blocks at one spacing lands many shifts' links on blocks, and lost bytes' links on the
     # blocks before them)
-    named = {link for block_links in links.values() for link in block_links if link in known}
+    named = {links[pos][k] for pos, k in intact}
     # first by how many links land on a block no intact link names (whole arrays), then by the kinds they land on
     named_at = np.asarray(sorted(named), np.int64)
     tried = shifts[votes >= _AGREEING * votes.max()]
@@ -114,7 +120,8 @@ def shifted_links(buf: mmap.mmap) -> Shift | None:
     if best is None or best[0] <= 0:
         return None
     by = best[1]
-    moved = [(at, link + by) for _, _, at, link in dangling if link + by in known and link + by not in named]
+    moved = [(at, link + by) for owner, k, at, link in dangling
+             if link + by not in named and _lands_right(ids, owner, k, link + by)]
     # bytes added or lost before the data move the data: a shift none of whose data groups' data links it moves
     # onto a data block is damage in the blocks (a zeroed run of them), which the mending reads past
     if len(moved) < max(2, _AGREEING * len(dangling)) or not any(
