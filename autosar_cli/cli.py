@@ -727,8 +727,12 @@ def _verify(path: Path, as_json: bool) -> None:
     """``autosar info PATH --verify``: every stored chunk of an autosar HDF5 file read and its checksum checked."""
     from autosar_cli.store.hdf5_read import verify
 
+    if not path.is_dir() and path.suffix.lower() in (".tif", ".tiff"):
+        _verify_geotiff(path, as_json)
+        return
     if path.is_dir() or path.suffix.lower() not in (".h5", ".hdf5"):
-        raise typer.BadParameter(f"{path}: --verify reads a file autosar wrote (drive.h5, trajectory.h5, image.h5)")
+        raise typer.BadParameter(f"{path}: --verify reads a file autosar wrote (drive.h5, trajectory.h5, image.h5, "
+                                 "image.tif)")
     found = verify(path, ValueError)
     if as_json:
         out.print_json(json.dumps(found.to_dict()))
@@ -749,6 +753,30 @@ def _verify(path: Path, as_json: bool) -> None:
         raise typer.Exit(1)
 
 
+def _verify_geotiff(path: Path, as_json: bool) -> None:
+    """``autosar info image.tif --verify``: every tile read, its columns, georeference and tags checked."""
+    from autosar_cli.store.tif_checksum import verify_geotiff
+
+    found = verify_geotiff(path)
+    if as_json:
+        out.print_json(json.dumps(found.to_dict()))
+    elif found.intact:
+        out.print(f"[bold]{_lit(path)}[/]: {found.tiles} tiles, {found.columns} columns, its georeference and every "
+                  "column's checksum hold")
+    else:
+        said = [*([] if found.checksummed else ["carries no autosar checksum: nothing to check it against"]),
+                *([] if found.georeference_intact else ["its georeference (transform, CRS) is not the one written"]),
+                *([] if found.tags_intact else ["its columns' checksum tag is damaged"]),
+                *[f"tile at {u}" for u in found.unreadable[:_DAMAGED_NAMED]],
+                *[f"columns {a}-{b - 1} differ from those written" for a, b in found.damaged_columns[:_DAMAGED_NAMED]]]
+        for line in said:
+            err.print(f"[red]damaged:[/] {_lit(line)}" if found.checksummed else f"[yellow]note:[/] {_lit(line)}",
+                      highlight=False, soft_wrap=True)
+        out.print(f"[bold]{_lit(path)}[/]: not verified intact")
+    if not found.intact:
+        raise typer.Exit(1)
+
+
 @app.command()
 def info(
     path: Annotated[Path, typer.Argument(help="A drive log (.mcap, .bag, rosbag2 directory), a TI DCA1000 capture "
@@ -758,8 +786,8 @@ def info(
         "--config-sketch", help="Of a drive.h5: print a config (TOML, laid over --config) that pins its streams' "
         "topics to the config's sensors, for a log recorded on other topics (docs/LOGS.md).")] = False,
     verify: Annotated[bool, typer.Option(
-        "--verify", help="Of a file autosar wrote (drive.h5, trajectory.h5, image.h5): read every stored chunk and "
-        "check its checksum; exit 1 naming each damaged one.")] = False,
+        "--verify", help="Of a file autosar wrote (drive.h5, trajectory.h5, image.h5, image.tif): read every stored "
+        "chunk or tile and check its checksum; exit 1 naming each damaged one.")] = False,
     config: ConfigOpt = None,
 ) -> None:
     """Summarise a log or drive.h5: streams, message types, counts, rates, time span and gaps; and list the

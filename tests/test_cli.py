@@ -58,7 +58,7 @@ def test_a_path_holding_a_bracketed_word_is_printed_as_it_is(tmp_path):
     log.symlink_to(realdata("gpsd", "neo-m8n.log"))
     r = runner.invoke(app, ["info", str(log)], env={"COLUMNS": "300"}, terminal_width=300)
     assert r.exit_code == 0, r.output
-    assert r.output.splitlines()[0].startswith(f"{log}  NMEA text")
+    assert r.output.replace("\n", "").startswith(f"{log}  NMEA text")  # rich wraps at its console's width
 
 
 def test_simulate_json_and_info(tmp_path):

@@ -7,6 +7,7 @@ import math
 import os
 import struct
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
@@ -14,8 +15,10 @@ import pytest
 import rasterio
 from numpy.typing import NDArray
 from pyproj import Proj, Transformer
+from typer.testing import CliRunner
 
 from autosar_cli import __version__
+from autosar_cli.cli import app
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.store import image as image_mod
@@ -29,6 +32,7 @@ from autosar_cli.store.image import (
     write_image,
 )
 
+runner = CliRunner()
 ORIGIN = GeodeticOrigin(45.06, 7.66, 240.0)  # Turin: UTM zone 32N, 1.34 deg west of the central meridian
 PIXEL = 0.04
 C30, S30 = math.cos(math.radians(30.0)), math.sin(math.radians(30.0))
@@ -304,3 +308,79 @@ def test_strip_writer_leaves_nothing_when_incomplete_or_failing(tmp_path: Path) 
             w.write_columns(0, img)
             raise RuntimeError("worker lost")
     assert list(tmp_path.iterdir()) == []
+
+
+def _tile(tif: Path, row: int, col: int) -> tuple[int, int, Any]:
+    """(byte offset, bytes, window) of tile (row, col) of band 1 of ``tif``."""
+    with rasterio.open(tif) as src:
+        return (int(src.get_tag_item(f"BLOCK_OFFSET_{col}_{row}", "TIFF", bidx=1)),
+                int(src.get_tag_item(f"BLOCK_SIZE_{col}_{row}", "TIFF", bidx=1)), src.block_window(1, row, col))
+
+
+def test_the_geotiff_carries_checksums_that_name_what_is_damaged(
+        tmp_path: Path, rotated_products: tuple[FocusedImage, dict[str, Path]]) -> None:
+    """TIFF has no checksum of its tags, and its deflate tiles do not always fail where damaged: a byte flipped in
+    the middle of a tile's stream read as other pixels without an error from GDAL. The GeoTIFF carries the CRC-32
+    of each column and of its georeference (tif_checksum); ``verify_geotiff`` names a tile that does not decode,
+    the columns whose pixels differ from those written, a moved georeference and a damaged checksum tag."""
+    from autosar_cli.store.tif_checksum import COLUMNS_TAG, verify_geotiff
+
+    img, paths = rotated_products
+    tif = paths["tif"]
+    found = verify_geotiff(tif)
+    assert found.intact and found.columns == img.grid.shape[1] == 400 and found.tiles == 2 * 2
+    at, size, window = _tile(tif, 0, 1)
+    assert (window.col_off, window.row_off, window.width, window.height) == (256, 0, 144, 240)
+
+    def damaged(name: str, change: Any) -> Path:
+        copy = tmp_path / name
+        copy.write_bytes(tif.read_bytes())
+        change(copy)
+        return copy
+
+    def flip(offset: int) -> Any:
+        def at_byte(copy: Path) -> None:
+            data = bytearray(copy.read_bytes())
+            data[offset] ^= 0x5A
+            copy.write_bytes(bytes(data))
+        return at_byte
+
+    outcomes = [verify_geotiff(damaged(f"tile_{k}.tif", flip(at + size * k // 8))) for k in range(1, 8)]
+    for f in outcomes:
+        assert not f.intact and f.georeference_intact and f.tags_intact
+        gdal_says = f"{Path(f.path).name}, band 1: IReadBlock failed at X offset 1, Y offset 0: TIFFReadEncodedTile()"
+        assert f.unreadable in ([], [f"rows 0-239, columns 256-399: {gdal_says} failed."])
+        assert all(256 <= a < b <= 400 for a, b in f.damaged_columns) and bool(f.unreadable) != bool(f.damaged_columns)
+    assert any(f.damaged_columns for f in outcomes)  # decoded without an error: other pixels, told by their CRCs
+
+    def one_pixel(copy: Path) -> None:
+        with rasterio.open(copy, "r+") as dst:
+            dst.write(np.array([[12.5]], np.float32), 1, window=rasterio.windows.Window(123, 45, 1, 1))
+    assert verify_geotiff(damaged("pixel.tif", one_pixel)).damaged_columns == [(123, 124)]
+
+    def moved(copy: Path) -> None:
+        with rasterio.open(copy, "r+") as dst:
+            dst.transform = dst.transform @ dst.transform.translation(0.0, 25.0)  # a flipped bit: one metre off
+    found = verify_geotiff(damaged("moved.tif", moved))
+    assert not found.georeference_intact and not found.damaged_columns and not found.intact
+
+    def tag(copy: Path) -> None:
+        with rasterio.open(copy, "r+") as dst:
+            text = dst.tags()[COLUMNS_TAG]
+            dst.update_tags(**{COLUMNS_TAG: text[:40] + ("B" if text[40] != "B" else "C") + text[41:]})
+    found = verify_geotiff(damaged("tag.tif", tag))
+    assert not found.tags_intact and found.georeference_intact and not found.intact
+
+    r = runner.invoke(app, ["info", str(tmp_path / "pixel.tif"), "--verify"])
+    assert r.exit_code == 1 and "columns 123-123 differ from those written" in r.stderr
+    r = runner.invoke(app, ["info", str(tif), "--verify", "--json"])
+    assert r.exit_code == 0 and json.loads(r.stdout)["intact"]
+
+
+def test_a_geotiff_without_autosars_checksums_is_not_called_intact(tmp_path: Path) -> None:
+    tif = tmp_path / "other.tif"
+    with rasterio.open(tif, "w", driver="GTiff", width=20, height=10, count=1, dtype="float32", crs="EPSG:32632",
+                       transform=rasterio.Affine(0.04, 0, 400000, 0, -0.04, 5000000)) as dst:
+        dst.write(np.ones((1, 10, 20), np.float32))
+    r = runner.invoke(app, ["info", str(tif), "--verify"])
+    assert r.exit_code == 1 and "carries no autosar checksum" in r.stderr

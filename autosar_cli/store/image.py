@@ -30,6 +30,7 @@ from autosar_cli.store.hdf5_read import open_hdf5
 from autosar_cli.store.manifest import json_default
 from autosar_cli.store.outputs import SMALL_FILE_MARGIN_BYTES, check_free_space
 from autosar_cli.store.quicklook import draw_quicklook, preload_quicklook  # noqa: F401  (focus, run preload it)
+from autosar_cli.store.tif_checksum import checksum_tags, column_crc32
 from autosar_cli.types import FocusGrid, GeodeticOrigin
 
 FORMAT = "autosar-image"
@@ -135,6 +136,7 @@ class ImageWriter:
         f = self._pool
         self._pooled = np.full((-(-rows // f), -(-cols // f)), np.nan, np.float32)  # absolute dB, NaN = none yet
         self._written = np.zeros(cols, bool)
+        self._column_crc32 = np.zeros(cols, np.uint32)  #: of the GeoTIFF's columns as written (its checksum tags)
         self._params_json: dict[str, str] | None = None
         self._params: dict[str, Any] = {}
         self._provenance_json = "{}"
@@ -176,6 +178,7 @@ class ImageWriter:
             raise ValueError(f"columns {col0}..{col0 + n - 1}: some were written already")
         db = magnitude_db(strip)
         self._tif.write(db, 1, window=Window(col0, 0, n, rows))
+        self._column_crc32[col0: col0 + n] = column_crc32(db)
         self._image_ds[:, col0: col0 + n] = strip
         self._pool_into(np.where(strip == 0, np.float32(-np.inf), db), col0)
         self._written[col0: col0 + n] = True
@@ -222,6 +225,7 @@ class ImageWriter:
         if self._params_json is None:
             raise ValueError(f"{self.paths['h5']}: processing parameters never set")
         self._tif.update_tags(**_tif_tags(self._params_json, self._provenance_json))
+        self._tif.update_tags(**checksum_tags(self._column_crc32, self.transform, self.epsg))
         self._tif.update_tags(1, units=DB_UNITS)
         self._tif.set_band_description(1, "magnitude_db")
         self._tif.set_band_unit(1, "dB")
