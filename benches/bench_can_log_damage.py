@@ -143,12 +143,23 @@ def _summary(rows: list[dict[str, object]]) -> dict[str, object]:
 
 
 def _log_of(logs: list[Path], dest: Path) -> Path:
-    """A log of the frames of ``logs``, in turn, written by python-can in ``dest``'s format (BLF, ASC, TRC)."""
+    """A log of the frames of ``logs``, in turn, written by python-can in ``dest``'s format (BLF, ASC, TRC). An ASC's
+    header dates are its writing's ("date ...", "Begin Triggerblock ..."): held to one moment, so that every run
+    damages the same bytes of the same lines."""
+    from datetime import datetime
+    from unittest import mock
+
     import can
 
     from autosar_cli.ingest.canlog import read_can_log
 
-    with {".blf": can.BLFWriter, ".asc": can.ASCWriter, ".trc": can.TRCWriter}[dest.suffix](dest) as writer:
+    class _Written(datetime):
+        @classmethod
+        def now(cls, tz: object = None) -> _Written:  # type: ignore[override]
+            return cls(2023, 1, 11, 18, 42, 9, 103000)
+
+    with mock.patch("can.io.asc.datetime", _Written), \
+            {".blf": can.BLFWriter, ".asc": can.ASCWriter, ".trc": can.TRCWriter}[dest.suffix](dest) as writer:
         for log in logs:
             for r in read_can_log(log):
                 writer.on_message_received(can.Message(

@@ -107,6 +107,8 @@ MF4_DLC_TABLE = ("tests/test_ingest_canlog.py::"
                  "test_an_mf4_whose_dlc_table_is_damaged_reads_each_frame_with_its_own_bytes")
 DLC_TABLE_JUDGED = "tests/test_ingest_canlog.py::test_a_dlc_table_is_judged_by_iso_11898_1"
 MF4_UNNEEDED = "tests/test_ingest_canlog.py::test_a_damaged_block_no_record_needs_is_unlinked_and_its_groups_kept"
+MF4_GARBAGE_LINK = ("tests/test_ingest_canlog.py::"
+                    "test_a_block_whose_descriptive_link_is_garbage_is_damaged_with_its_group")
 TEXT_SKIPPED = "tests/test_ingest_canlog.py::test_a_text_log_frame_line_damaged_where_the_reader_looks_is_counted"
 TEXT_LONG_DLC = "tests/test_ingest_canlog.py::test_an_ascs_classic_frame_with_a_dlc_over_8_is_read_as_8_bytes"
 ODD_INPUTS = "tests/test_safety.py::test_an_input_that_is_a_pipe_a_link_loop_or_a_directory_is_one_line"
@@ -550,8 +552,12 @@ MUTATIONS: list[Mutation] = [
        "    return fd >= sum(1 for _, n in long_codes if n == CLASSIC_MAX_BYTES)", "    return True",
        DLC_TABLE_JUDGED),
     _m("mdf4-every-link-needed", "ingest", "ingest/mdf4_mend.py",
-       "            if k not in _NEEDED_LINKS.get(bytes(buf[holder:holder + 4]), ()):", "            if False:",
-       MF4_UNNEEDED),
+       "and k not in _NEEDED_LINKS.get(bytes(buf[holder:holder + 4]), ()):", "and False:", MF4_UNNEEDED),
+    _m("mdf4-garbage-link-unlinked", "ingest", "ingest/mdf4_mend.py",
+       "            if pos < len(buf) and pos % 8 == 0 and k not in", "            if k not in", MF4_GARBAGE_LINK),
+    _m("mdf4-shift-leaves-stale-links-past-the-place", "ingest", "ingest/mdf4_shift.py",
+       "    moved += [(pos + HEAD.size + 8 * k, link + by) for pos, k in intact\n",
+       "    moved += [(pos + HEAD.size + 8 * k, link + by) for pos, k in ()\n", MF4_SHIFT_NAMED),
     _m("mdf4-shift-trusts-a-link-to-another-kind", "ingest", "ingest/mdf4_shift.py",
        "              if link in known and _lands_right(ids, pos, k, link)}", "              if link in known}",
        MF4_SHIFT_NAMED),

@@ -228,7 +228,7 @@ def test_a_real_mf4_with_bytes_added_or_lost_before_its_data_reads_its_frames(tm
     assert got == whole
     what = f"{added} bytes added" if added else f"{lost} bytes lost"
     assert f": {what} before byte " in message
-    assert f"links that find no block of their kind moved by {added - lost:+d}" in message
+    assert f"links moved by {added - lost:+d} to the blocks they name (" in message
 
 
 def test_links_overwritten_past_any_file_are_damage_not_a_shift(tmp_path: Path) -> None:
@@ -249,7 +249,8 @@ def test_a_shift_moves_no_link_onto_a_block_an_intact_link_names(tmp_path: Path)
     """512 bytes added inside a text block near the start of a CANedge file: the shift (+512) lands some of the
     links that find no block of their kind on blocks that intact links name (blocks before the place, which did not
     move: a run of channel blocks at one spacing). Those are not moved (moved, a copy's chains looped: 3 GB and
-    minutes in asammdf). 29 links point where another block now lies (a source where their conversion lay): they
+    minutes in asammdf). 42 links point where another block now lies: 29 of a kind they may not name (a source
+    where their conversion lay), 13 of their own (the next in a run of channel groups); being past the place, they
     are moved too (left, asammdf read the frames' groups without their conversions and dropped them: 98 frames
     read). The block the bytes went into is marked torn; the groups it breaks are left out, the links to
     descriptions it broke unlinked: every frame read, each as the undamaged file has it."""
@@ -260,14 +261,14 @@ def test_a_shift_moves_no_link_onto_a_block_an_intact_link_names(tmp_path: Path)
         shift = shifted_links(buf)
         starts = set(block_starts(buf))
         pointing_at_blocks = sum(1 for at, _ in shift.patches[:-1] if struct.unpack_from("<Q", buf, at)[0] in starts)
-    assert shift is not None and (shift.by, shift.dangling, len(shift.patches), shift.torn) == (512, 1141, 1131, 1592)
-    assert pointing_at_blocks == 29
+    assert shift is not None and (shift.by, shift.dangling, len(shift.patches), shift.torn) == (512, 1141, 1144, 1592)
+    assert pointing_at_blocks == 42
     assert shift.patches[-1] == (1592, 0)  # the text block the bytes went into: its id cleared in the copy
     assert min(value for _, value in shift.patches[:-1]) >= 1625 + 512  # only onto blocks that moved
     got, message = _read_until_error(damaged)
     assert got == list(_real_records(MF4_2023_2))
-    assert ": 512 bytes added before byte 2160: 1130 of the 1141 links that find no block of their kind moved by " \
-           "+512 to the blocks they name; the block at byte 1592 before them torn" in message
+    assert ": 512 bytes added before byte 2160: 1143 links moved by +512 to the blocks they name (1141 found no " \
+           "block of their kind); the block at byte 1592 before them torn" in message
 
 
 @pytest.mark.parametrize("name, at, damage, lost_at_most", [
@@ -598,19 +599,36 @@ def test_a_group_whose_data_bytes_lie_in_a_damaged_group_is_left_out_with_it(tmp
         "groups left out, their blocks damaged (at bytes 5352, 5456); record at byte 14632 has an unknown record id")
 
 
-@pytest.mark.parametrize("name, at, size, links", [
-    (MF4_2022, 5456 + 24 + 5 * 8, 8, 1), (MF4_2022, 5080, 56, 5), (MF4_2022, 2496, 822, 1),
-    (MF4_2023_1, 3728, 649, 3)],
-    ids=["the data bytes' group's comment link", "a source block five groups name", "the file's comment",
+def test_a_block_whose_descriptive_link_is_garbage_is_damaged_with_its_group(tmp_path: Path) -> None:
+    """64 bytes overwritten over a channel block of a group without frames: its comment link and its data fields
+    (bit count, data type). The link points past any file, so the block is damaged, not only the comment it
+    named: its group is left out and every frame read (unlinking the comment alone kept the group, and asammdf
+    failed on its fields: "data type '<u167164795' not understood", no frame read)."""
+    data = bytearray(realdata(CSS, MF4_2023_1).read_bytes())
+    data[53248:53312] = bytes(range(7, 71))  # the channel block at byte 53176: link 7 and the fields after it
+    log = tmp_path / "damaged.MF4"
+    log.write_bytes(bytes(data))
+    got, message = _read_until_error(log)
+    assert got == list(_real_records(MF4_2023_1))
+    assert message.endswith("damaged there: 1 channel group left out, its blocks damaged (at byte 10528); "
+                            "4024 frames read")
+
+
+@pytest.mark.parametrize("name, at, damage, links", [
+    (MF4_2022, 5456 + 24 + 5 * 8, struct.pack("<Q", 5464), 1), (MF4_2022, 5080, bytes(56), 5),
+    (MF4_2022, 2496, bytes(822), 1), (MF4_2023_1, 3728, bytes(649), 3)],
+    ids=["the data bytes' group's comment link into its own block", "a source block five groups name",
+         "the file's comment",
          "2023: the sources' comment"])
 def test_a_damaged_block_no_record_needs_is_unlinked_and_its_groups_kept(tmp_path: Path, name: str, at: int,
-                                                                          size: int, links: int) -> None:
+                                                                          damage: bytes, links: int) -> None:
     """A comment, a source, a name of the acquisition: asammdf reads them, none is needed for a record. Damaged,
     the group that names it was left out with its frames (the 2023 source's comment: 51 groups and every frame,
     the records of the groups left out then unknown to the record walk); now the links to it are unlinked in the
-    reader's copy and every frame is read."""
+    reader's copy and every frame is read. (A link that points past the file or off a block's alignment is damaged
+    itself, and its block with it: that group is left out, as the test above shows.)"""
     data = bytearray(realdata(CSS, name).read_bytes())
-    data[at:at + size] = b"\xab" * 8 if size == 8 else bytes(size)
+    data[at:at + len(damage)] = damage
     log = tmp_path / "damaged.MF4"
     log.write_bytes(bytes(data))
     got, message = _read_until_error(log)

@@ -8,7 +8,8 @@ it reaches through its channels, names, conversions and sources. Such a group is
 chain, and with it a group whose channel points into its bytes (variable-length data); a data group whose own
 block or data block is damaged, or which keeps no channel group, is left out of the file's chain. A damaged block
 that only describes (a comment, a unit, a source, an acquisition name, a sample reduction, a conversion's name) is
-unlinked where a link names it, and its group kept: the reader needs none of them for a record. A comment, file
+unlinked where a link names it, and its group kept: the reader needs none of them for a record (a link that points
+past the file's end or off a block's alignment is damaged itself, and its block with it). A comment, file
 history or attachment of the file's header that is damaged is unlinked. Where a group's own block is damaged, the
 chain after it is lost with it: the groups after it are found again by their blocks' ids in the file's bytes
 outside its data blocks (a file with one data group: its channel groups; with several: the data groups), each
@@ -234,7 +235,9 @@ def _reached_groups(buf: mmap.mmap, owner: int, places: range, unfinished: bool,
         except (ValueError, struct.error):
             whole = False
         if not whole:
-            if k not in _NEEDED_LINKS.get(bytes(buf[holder:holder + 4]), ()):
+            # a link into the file at a block's alignment names a damaged block; any other value is a damaged link,
+            # its own block damaged with it
+            if pos < len(buf) and pos % 8 == 0 and k not in _NEEDED_LINKS.get(bytes(buf[holder:holder + 4]), ()):
                 unlinked[_link(holder, k)] = 0
                 continue
             return None

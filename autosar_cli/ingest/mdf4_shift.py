@@ -5,8 +5,10 @@ to no block, or to a block of a kind they may not name (another block moved to w
 shift off a block of their kind are moved by it in a copy (:func:`write_mended`), never onto a block an intact link
 names (one before the place, which did not move), and only where the shift moves a data
 group's data link onto a data block (else the damage is a zeroed run of blocks, which :mod:`.mdf4_mend` reads
-past). The block the place lies in is torn: its id is cleared in the copy, so that its group is left out. Blocks
-the lost bytes held stay lost: the groups they break are then left out as for any damaged block.
+past). Every other link past the first block moved points where its block lay too (one that found a block of its
+kind there, the next of a run of channel groups, skipped the groups between): it moves with them. The block the
+place lies in is torn: its id is cleared in the copy, so that its group is left out. Blocks the lost bytes held
+stay lost: the groups they break are then left out as for any damaged block.
 """
 
 from __future__ import annotations
@@ -54,7 +56,7 @@ class Shift:
     by: int  #: bytes added (> 0) or lost (< 0)
     after: int  #: the least target (the file's byte before the shift) of the links moved
     patches: tuple[tuple[int, int], ...]  #: (byte of a link, the value the copy gives it; a torn block's id: 0)
-    dangling: int  #: links that pointed to no block
+    dangling: int  #: links that found no block of their kind
     torn: int | None = None  #: the block the place lies in or after, marked damaged in the copy
 
     @property
@@ -62,9 +64,8 @@ class Shift:
         what = "added" if self.by > 0 else "lost"
         moved = len(self.patches) - (self.torn is not None)
         torn = f"; the block at byte {self.torn} before them torn" if self.torn is not None else ""
-        return (f"{abs(self.by)} bytes {what} before byte {self.after + max(self.by, 0)}: {moved} of the "
-                f"{self.dangling} links that find no block of their kind moved by {self.by:+d} to the blocks they name"
-                f"{torn}")
+        return (f"{abs(self.by)} bytes {what} before byte {self.after + max(self.by, 0)}: {moved} links moved by "
+                f"{self.by:+d} to the blocks they name ({self.dangling} found no block of their kind){torn}")
 
 
 def block_starts(buf: mmap.mmap) -> list[int]:
@@ -130,6 +131,12 @@ def shifted_links(buf: mmap.mmap) -> Shift | None:
     # the place lies in the last block before the first that moved, or between the two: that block's bytes after
     # it moved, or were lost; it is marked damaged in the copy (its id cleared), so that its group is left out
     first_moved = min(value for _, value in moved)
+    # every link to a block past the place points where that block lay, also one that finds another block of its
+    # kind there (a run of channel groups at one spacing): it moves with the rest
+    since, moving = first_moved - by, {at for at, _ in moved}
+    moved += [(pos + HEAD.size + 8 * k, link + by) for pos, k in intact
+              if since <= (link := links[pos][k]) and pos + HEAD.size + 8 * k not in moving
+              and _lands_right(ids, pos, k, link + by)]
     torn = max((pos for pos in starts if pos < first_moved), default=None)
     if torn is not None and torn > _HEADER_BLOCK:
         moved.append((torn, 0))
