@@ -107,6 +107,7 @@ MF4_DLC_TABLE = ("tests/test_ingest_canlog.py::"
                  "test_an_mf4_whose_dlc_table_is_damaged_reads_each_frame_with_its_own_bytes")
 DLC_TABLE_JUDGED = "tests/test_ingest_canlog.py::test_a_dlc_table_is_judged_by_iso_11898_1"
 MF4_UNNEEDED = "tests/test_ingest_canlog.py::test_a_damaged_block_no_record_needs_is_unlinked_and_its_groups_kept"
+MF4_DG_COMMENT = "tests/test_ingest_canlog.py::test_a_data_groups_garbage_comment_link_is_unlinked"
 MF4_GARBAGE_LINK = ("tests/test_ingest_canlog.py::"
                     "test_a_block_whose_descriptive_link_is_garbage_is_damaged_with_its_group")
 TEXT_SKIPPED = "tests/test_ingest_canlog.py::test_a_text_log_frame_line_damaged_where_the_reader_looks_is_counted"
@@ -553,6 +554,9 @@ MUTATIONS: list[Mutation] = [
        DLC_TABLE_JUDGED),
     _m("mdf4-every-link-needed", "ingest", "ingest/mdf4_mend.py",
        "and k not in _NEEDED_LINKS.get(bytes(buf[holder:holder + 4]), ()):", "and False:", MF4_UNNEEDED),
+    _m("mdf4-damaged-dg-comment-kept", "ingest", "ingest/mdf4_mend.py",
+       "  # its comment\n            unlinked[_link(dg, 3)] = 0\n", "  # its comment\n            pass\n",
+       MF4_DG_COMMENT),
     _m("mdf4-garbage-link-unlinked", "ingest", "ingest/mdf4_mend.py",
        "            if pos < len(buf) and pos % 8 == 0 and k not in", "            if k not in", MF4_GARBAGE_LINK),
     _m("mdf4-shift-leaves-stale-links-past-the-place", "ingest", "ingest/mdf4_shift.py",

@@ -614,6 +614,21 @@ def test_a_block_whose_descriptive_link_is_garbage_is_damaged_with_its_group(tmp
                             "4024 frames read")
 
 
+def test_a_data_groups_garbage_comment_link_is_unlinked(tmp_path: Path, finalised: Callable[[str], Path]) -> None:
+    """A data group's comment link, and the header's links (history, hierarchy, attachments, events, comment), lead
+    to nothing a record needs: whatever is damaged behind one, the link itself is unlinked (kept, the copy still
+    reached the garbage and asammdf read no frame: "Incomplete block ... exceeds the file size")."""
+    data = bytearray(finalised(MF4_2023_1).read_bytes())
+    first_dg = struct.unpack_from("<Q", data, 64 + 24)[0]
+    struct.pack_into("<Q", data, first_dg + 24 + 3 * 8, 0x7B626A5D7D6F9934)
+    log = tmp_path / "damaged.mf4"
+    log.write_bytes(bytes(data))
+    got, message = _read_until_error(log)
+    assert got == list(_real_records(MF4_2023_1))
+    assert message.endswith("past any file: damaged there: 1 link to damaged blocks no record needs (comments, "
+                            "sources, names) unlinked; 4024 frames read")
+
+
 @pytest.mark.parametrize("name, at, damage, links", [
     (MF4_2022, 5456 + 24 + 5 * 8, struct.pack("<Q", 5464), 1), (MF4_2022, 5080, bytes(56), 5),
     (MF4_2022, 2496, bytes(822), 1), (MF4_2023_1, 3728, bytes(649), 3)],

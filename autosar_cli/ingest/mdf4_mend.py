@@ -70,8 +70,9 @@ def _mend(buf: mmap.mmap) -> Mend | None:
     patches: dict[int, int] = {}
     said: list[str] = []
     unlinked: dict[int, int] = {}  # links to damaged blocks no record needs
-    # the file's history, channel hierarchy, attachments, events and comment: no record needs them
-    _reached_groups(buf, _HEADER, range(1, _HD_LINKS), unfinished, unlinked)
+    for i in range(1, _HD_LINKS):  # the file's history, channel hierarchy, attachments, events, comment: unneeded
+        if hd_links[i] and _reached_groups(buf, _HEADER, range(i, i + 1), unfinished, unlinked) is None:
+            unlinked[_link(_HEADER, i)] = 0
     dgs, dg_break = _chain(buf, hd_links[0], b"##DG", _DG_LINKS)
     data = [_data_range(buf, dg, unfinished) for dg in dgs]
     if dg_break is not None:
@@ -101,7 +102,8 @@ def _mend(buf: mmap.mmap) -> Mend | None:
             continue
         kept_dgs.append(dg)
         _chain_to(patches, dg, 1, kept)
-        _reached_groups(buf, dg, range(3, 4), unfinished, unlinked)  # its comment
+        if dg_links[3] and _reached_groups(buf, dg, range(3, 4), unfinished, unlinked) is None:  # its comment
+            unlinked[_link(dg, 3)] = 0
     if not kept_dgs:
         return None
     _chain_to(patches, _HEADER, 0, kept_dgs)
