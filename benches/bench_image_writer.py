@@ -1,13 +1,15 @@
 """Benchmark the product writer's memory: a large image written strip by strip vs whole.
 
-Usage: python benches/bench_image_writer.py [--rows 1500] [--cols 20000] [--strips 16]
+Usage: python benches/bench_image_writer.py [--rows 1500] [--cols 20000] [--strips 16] [--rounds 5]
 
 A (rows x cols) complex64 image (default 1500 x 20000 = 240 MB, a 60 m x 800 m scene at 4 cm) is made
 strip by strip from a seeded generator, as tiles of ``focus --tiles`` arrive, and written with
 :class:`~autosar_cli.store.image.ImageWriter` (GeoTIFF + image.h5 + quicklook); for comparison the same
 image is assembled whole and written with ``write_image``. Each case runs in a fresh process; its peak
-RSS, the RSS of the bare process (imports only) and the wall time are reported. Writes
-benches/results/image_writer.json.
+RSS, the RSS of the bare process (imports only) and the wall time are reported. The GeoTIFF's column checksums
+(``store/tif_checksum.py``) are timed side by side: ``--rounds`` alternated strip-by-strip writes with them and
+without (``column_crc32`` made a no-op), medians and their ratio; and ``autosar info image.tif --verify``'s check
+of the written GeoTIFF (``verify_geotiff``). Writes benches/results/image_writer.json.
 """
 
 from __future__ import annotations
@@ -19,15 +21,21 @@ import sys
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 RESULTS = Path(__file__).resolve().parent / "results"
 
 CHILD = r"""
 import json, resource, sys, time
+from pathlib import Path
 import numpy as np
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.store.image import FocusedImage, ImageWriter, write_image
 mode, out, rows, cols, n_strips = sys.argv[1], sys.argv[2], *map(int, sys.argv[3:6])
+if mode == "unchecked":  # the strips without the GeoTIFF's column checksums
+    import autosar_cli.store.image as image_module
+    image_module.column_crc32 = lambda db, prior=None: np.zeros(db.shape[1], np.uint32)
 grid = FocusGrid((0.0, 0.0), (1.0, 0.0), (0.0, -1.0), 0.04, cols, rows, 0.0)
 origin = GeodeticOrigin(45.06, 7.66, 240.0)
 bounds = np.linspace(0, cols, n_strips + 1).astype(int)
@@ -38,7 +46,10 @@ def strip(k):
     return z.astype(np.complex64)
 base_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 t = time.perf_counter()
-if mode == "strips":
+if mode == "verify":
+    from autosar_cli.store.tif_checksum import verify_geotiff
+    assert verify_geotiff(Path(out).with_suffix(".tif")).intact
+elif mode in ("strips", "unchecked"):
     with ImageWriter(out, grid, origin, overwrite=True) as w:
         for k in range(n_strips):
             w.write_columns(int(bounds[k]), strip(k))
@@ -56,19 +67,31 @@ def main() -> None:
     ap.add_argument("--rows", type=int, default=1500)
     ap.add_argument("--cols", type=int, default=20000)
     ap.add_argument("--strips", type=int, default=16)
+    ap.add_argument("--rounds", type=int, default=5, help="alternated writes with and without column checksums")
     args = ap.parse_args()
     image_mb = args.rows * args.cols * 8 / 1e6
     result: dict[str, object] = {"benchmark": "image_writer", "rows": args.rows, "cols": args.cols,
                                  "strips": args.strips, "image_mb": round(image_mb, 1),
                                  "strip_mb": round(image_mb / args.strips, 1)}
     with tempfile.TemporaryDirectory() as tmp:
-        for mode in ("strips", "whole"):
-            res = subprocess.run([sys.executable, "-c", CHILD, mode, str(Path(tmp) / mode), str(args.rows),
+        def child(mode: str, out: str) -> dict[str, float]:
+            res = subprocess.run([sys.executable, "-c", CHILD, mode, str(Path(tmp) / out), str(args.rows),
                                   str(args.cols), str(args.strips)], check=True, capture_output=True, text=True)
             row = json.loads(res.stdout.strip().splitlines()[-1])
             row["growth_mb"] = round(row["peak_rss_mb"] - row["imports_rss_mb"], 1)
             print(json.dumps(row))
-            result[mode] = row
+            return row
+        for mode in ("strips", "whole"):
+            result[mode] = child(mode, mode)
+        walls: dict[str, list[float]] = {"strips": [], "unchecked": []}
+        for _ in range(args.rounds):
+            for mode in walls:
+                walls[mode].append(child(mode, mode)["wall_s"])
+        checked, unchecked = float(np.median(walls["strips"])), float(np.median(walls["unchecked"]))
+        verify = [child("verify", "strips")["wall_s"] for _ in range(3)]
+        result["column_checksums"] = {"rounds": args.rounds, "median_wall_s": checked,
+                                      "median_wall_without_s": unchecked, "ratio": round(checked / unchecked, 3),
+                                      "verify_median_wall_s": float(np.median(verify))}
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "image_writer.json").write_text(json.dumps(result, indent=2) + "\n")
 
