@@ -723,58 +723,86 @@ def compare(
 _DAMAGED_NAMED = 20
 
 
-def _verify(path: Path, as_json: bool) -> None:
-    """``autosar info PATH --verify``: every stored chunk of an autosar HDF5 file read and its checksum checked."""
-    from autosar_cli.store.hdf5_read import verify
+#: the files ``info --verify`` checks: those autosar writes with checksums
+_VERIFIED_SUFFIXES = (".h5", ".hdf5", ".tif", ".tiff")
 
-    if not path.is_dir() and path.suffix.lower() in (".tif", ".tiff"):
-        _verify_geotiff(path, as_json)
-        return
-    if path.is_dir() or path.suffix.lower() not in (".h5", ".hdf5"):
-        raise typer.BadParameter(f"{path}: --verify reads a file autosar wrote (drive.h5, trajectory.h5, image.h5, "
-                                 "image.tif)")
-    found = verify(path, ValueError)
-    if as_json:
-        out.print_json(json.dumps(found.to_dict()))
-    elif not found.damaged:
-        out.print(f"[bold]{_lit(path)}[/]: {found.datasets} datasets, {found.chunks} stored chunks, every "
-                  "checksum holds")
+
+def _verify(path: Path, as_json: bool) -> None:
+    """``autosar info PATH --verify``: every stored chunk of an autosar HDF5 file, or every tile of its GeoTIFF, read
+    and checked against its checksums; of a directory (a run's), each such file in it."""
+    if path.is_dir():
+        files = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in _VERIFIED_SUFFIXES
+                       and ".partial-" not in p.name)
+        if not files:
+            raise typer.BadParameter(f"{path}: holds no file autosar writes with checksums (drive.h5, trajectory.h5, "
+                                     "image.h5, image.tif)")
+    elif path.suffix.lower() in _VERIFIED_SUFFIXES:
+        files = [path]
     else:
-        for d in found.damaged[:_DAMAGED_NAMED]:
-            at = f" at {list(d.at)}" if d.at else ""
-            err.print(f"[red]damaged:[/] {escape(d.dataset)} rows {d.rows[0]}-{d.rows[1] - 1}{at}: {escape(d.reason)}",
-                      highlight=False, soft_wrap=True)
-        if len(found.damaged) > _DAMAGED_NAMED:
-            err.print(f"[red]damaged:[/] {len(found.damaged) - _DAMAGED_NAMED} more chunks", highlight=False)
-        names = len({d.dataset for d in found.damaged})
-        out.print(f"[bold]{_lit(path)}[/]: {len(found.damaged)} of {found.chunks} stored chunks damaged, in "
-                  f"{names} of {found.datasets} datasets")
-    if found.damaged:
+        raise typer.BadParameter(f"{path}: --verify reads a file autosar wrote (drive.h5, trajectory.h5, image.h5, "
+                                 "image.tif) or a directory of them")
+    found = [_checked(p, in_directory=path.is_dir()) for p in files]
+    if as_json:
+        out.print_json(json.dumps({"path": str(path), "files": found, "intact": all(f["intact"] for f in found)}
+                                  if path.is_dir() else found[0]))
+    else:
+        for f in found:
+            _print_checked(f)
+    if not all(f["intact"] for f in found):
         raise typer.Exit(1)
 
 
-def _verify_geotiff(path: Path, as_json: bool) -> None:
-    """``autosar info image.tif --verify``: every tile read, its columns, georeference and tags checked."""
+def _checked(path: Path, in_directory: bool) -> dict[str, Any]:
+    """What the check of one file found (``intact`` among it); in a directory, a file that cannot be opened as one
+    autosar wrote is found so, not an error that ends the check."""
+    from autosar_cli.store.hdf5_read import verify
     from autosar_cli.store.tif_checksum import verify_geotiff
 
-    found = verify_geotiff(path)
-    if as_json:
-        out.print_json(json.dumps(found.to_dict()))
-    elif found.intact:
-        out.print(f"[bold]{_lit(path)}[/]: {found.tiles} tiles, {found.columns} columns, its georeference and every "
-                  "column's checksum hold")
-    else:
-        said = [*([] if found.checksummed else ["carries no autosar checksum: nothing to check it against"]),
-                *([] if found.georeference_intact else ["its georeference (transform, CRS) is not the one written"]),
-                *([] if found.tags_intact else ["its columns' checksum tag is damaged"]),
-                *[f"tile at {u}" for u in found.unreadable[:_DAMAGED_NAMED]],
-                *[f"columns {a}-{b - 1} differ from those written" for a, b in found.damaged_columns[:_DAMAGED_NAMED]]]
-        for line in said:
-            err.print(f"[red]damaged:[/] {_lit(line)}" if found.checksummed else f"[yellow]note:[/] {_lit(line)}",
-                      highlight=False, soft_wrap=True)
-        out.print(f"[bold]{_lit(path)}[/]: not verified intact")
-    if not found.intact:
-        raise typer.Exit(1)
+    try:
+        if path.suffix.lower() in (".tif", ".tiff"):
+            return verify_geotiff(path).to_dict()
+        return verify(path, ValueError).to_dict()
+    except (ValueError, OSError) as exc:
+        if not in_directory:
+            raise
+        return {"path": str(path), "error": str(exc), "intact": False}
+
+
+def _print_checked(found: dict[str, Any]) -> None:
+    """One file's check as ``info --verify`` prints it: what is damaged on stderr, a summary line on stdout."""
+    path = found["path"]
+    if "error" in found:
+        err.print(f"[red]error:[/] {_lit(found['error'])}", highlight=False, soft_wrap=True)
+        return
+    if "datasets" in found:  # an HDF5 file
+        damaged = found["damaged"]
+        for d in damaged[:_DAMAGED_NAMED]:
+            at = f" at {list(d['at'])}" if d["at"] else ""
+            err.print(f"[red]damaged:[/] {_lit(d['dataset'])} rows {d['rows'][0]}-{d['rows'][1] - 1}{at}: "
+                      f"{_lit(d['reason'])}", highlight=False, soft_wrap=True)
+        if len(damaged) > _DAMAGED_NAMED:
+            err.print(f"[red]damaged:[/] {len(damaged) - _DAMAGED_NAMED} more chunks", highlight=False)
+        if not damaged:
+            out.print(f"[bold]{_lit(path)}[/]: {found['datasets']} datasets, {found['chunks']} stored chunks, every "
+                      "checksum holds")
+        else:
+            names = len({d["dataset"] for d in damaged})
+            out.print(f"[bold]{_lit(path)}[/]: {len(damaged)} of {found['chunks']} stored chunks damaged, in "
+                      f"{names} of {found['datasets']} datasets")
+        return
+    if found["intact"]:
+        out.print(f"[bold]{_lit(path)}[/]: {found['tiles']} tiles, {found['columns']} columns, its georeference and "
+                  "every column's checksum hold")
+        return
+    said = [*([] if found["checksummed"] else ["carries no autosar checksum: nothing to check it against"]),
+            *([] if found["georeference_intact"] else ["its georeference (transform, CRS) is not the one written"]),
+            *([] if found["tags_intact"] else ["its columns' checksum tag is damaged"]),
+            *[f"tile at {u}" for u in found["unreadable"][:_DAMAGED_NAMED]],
+            *[f"columns {a}-{b - 1} differ from those written" for a, b in found["damaged_columns"][:_DAMAGED_NAMED]]]
+    for line in said:
+        err.print(f"[red]damaged:[/] {_lit(line)}" if found["checksummed"] else f"[yellow]note:[/] {_lit(line)}",
+                  highlight=False, soft_wrap=True)
+    out.print(f"[bold]{_lit(path)}[/]: not verified intact")
 
 
 @app.command()
@@ -786,8 +814,9 @@ def info(
         "--config-sketch", help="Of a drive.h5: print a config (TOML, laid over --config) that pins its streams' "
         "topics to the config's sensors, for a log recorded on other topics (docs/LOGS.md).")] = False,
     verify: Annotated[bool, typer.Option(
-        "--verify", help="Of a file autosar wrote (drive.h5, trajectory.h5, image.h5, image.tif): read every stored "
-        "chunk or tile and check its checksum; exit 1 naming each damaged one.")] = False,
+        "--verify", help="Of a file autosar wrote (drive.h5, trajectory.h5, image.h5, image.tif), or a run's "
+        "directory of them: read every stored chunk or tile and check its checksum; exit 1 naming each damaged "
+        "one.")] = False,
     config: ConfigOpt = None,
 ) -> None:
     """Summarise a log or drive.h5: streams, message types, counts, rates, time span and gaps; and list the
