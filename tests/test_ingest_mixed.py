@@ -87,8 +87,22 @@ def test_inputs_a_year_apart_are_refused_unless_shifted_or_allowed(ci_mcap: Simu
 
     shifted = run([ci_mcap.log_path], work / "gap_shifted.h5", cfg, can_logs=[log],
                   time_offsets={log: -YEAR_S})
-    assert not any("apart" in w or "away" in w for w in shifted.warnings), shifted.warnings
+    assert not any("apart" in w or "away" in w or "shares no time" in w for w in shifted.warnings), shifted.warnings
     assert shifted.can["unknown_ids"]["0x555"] == 20
+
+
+def test_a_log_an_hour_off_within_the_gap_allowed_is_warned_of(ci_mcap: SimulationResult, work: Path,
+                                                               cfg: Config, drive_start_s: float) -> None:
+    """A CAN log whose clock is off by a time zone's hour (an ASC's or BLF's local time) lies within the hour
+    allowed of a short drive: nothing in it joins the drive, which ingest said nowhere. It is now warned of, with
+    the shift that mends it."""
+    log = candump(work / "an_hour_late.log", [can.Message(timestamp=drive_start_s + 3600 + 0.01 * i,
+                                                          arbitration_id=0x555, is_extended_id=False, data=bytes(8))
+                                              for i in range(20)])
+    report = run([ci_mcap.log_path], work / "an_hour_late.h5", cfg, can_logs=[log])
+    said = [w for w in report.warnings if "shares no time" in w]
+    assert len(said) == 1 and said[0].startswith(f"{log} (") and f"after {ci_mcap.log_path}" in said[0]
+    assert "--time-offset" in said[0] and "lies 60.0 min after" in said[0], said[0]
 
 
 def test_cli_time_gap_options(ci_mcap: SimulationResult, work: Path, drive_start_s: float) -> None:

@@ -69,6 +69,9 @@ KIND_OF_TYPE = {
 }
 NMEA_SUFFIXES = (".nmea", ".txt", ".gps")
 MAX_TIME_GAP_S = 3600.0  #: inputs further apart than this are refused (unless --allow-time-gap)
+#: inputs apart by more than this, less than MAX_TIME_GAP_S, are warned of: a recorder's split files meet (a few ms
+#: apart), a log whose clock is off by a time zone's hours does not
+APART_WARN_S = 60.0
 #: rows of one stream from two inputs interleaving over longer than this are refused: a split recording's files
 #: reorder across their boundary only by the messages' latency
 INTERLEAVE_NS = 250_000_000
@@ -767,6 +770,11 @@ def check_time_gaps(spans: dict[str, tuple[int, int]], max_gap_s: float, allow: 
         near, (c, d) = min(others, key=lambda o: max(0, a - o[1][1], o[1][0] - b))
         gap = max(0, a - d, c - b)
         if gap <= max_gap_s * 1e9:
+            if gap > APART_WARN_S * 1e9 and a > c:  # said once, of the later of the two
+                warnings.append(f"{path} ({_iso(a)} to {_iso(b)}) shares no time with the other inputs: it lies "
+                                f"{_human(gap / 1e9)} after {near} ({_iso(c)} to {_iso(d)}), so nothing in it joins "
+                                "them. A clock set wrong? (ASC and BLF logs carry the recording PC's local time.) "
+                                "Shift a CAN or NMEA log with --time-offset PATH=SECONDS")
             continue
         what = (f"{path} ({_iso(a)} to {_iso(b)}) lies {_human(gap / 1e9)} away from {near} ({_iso(c)} to "
                 f"{_iso(d)}), more than the {max_gap_s:g} s allowed")
