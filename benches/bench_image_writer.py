@@ -8,8 +8,9 @@ strip by strip from a seeded generator, as tiles of ``focus --tiles`` arrive, an
 image is assembled whole and written with ``write_image``. Each case runs in a fresh process; its peak
 RSS, the RSS of the bare process (imports only) and the wall time are reported. The GeoTIFF's column checksums
 (``store/tif_checksum.py``) are timed side by side: ``--rounds`` alternated strip-by-strip writes with them and
-without (``column_crc32`` made a no-op), medians and their ratio; and ``autosar info image.tif --verify``'s check
-of the written GeoTIFF (``verify_geotiff``). Writes benches/results/image_writer.json.
+without (``column_crc32`` made a no-op; ABBA order, in one process, the strips made beforehand), medians and their
+ratio; and ``autosar info image.tif
+--verify``'s check of the written GeoTIFF (``verify_geotiff``). Writes benches/results/image_writer.json.
 """
 
 from __future__ import annotations
@@ -33,9 +34,6 @@ from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.store.image import FocusedImage, ImageWriter, write_image
 mode, out, rows, cols, n_strips = sys.argv[1], sys.argv[2], *map(int, sys.argv[3:6])
-if mode == "unchecked":  # the strips without the GeoTIFF's column checksums
-    import autosar_cli.store.image as image_module
-    image_module.column_crc32 = lambda db, prior=None: np.zeros(db.shape[1], np.uint32)
 grid = FocusGrid((0.0, 0.0), (1.0, 0.0), (0.0, -1.0), 0.04, cols, rows, 0.0)
 origin = GeodeticOrigin(45.06, 7.66, 240.0)
 bounds = np.linspace(0, cols, n_strips + 1).astype(int)
@@ -49,7 +47,24 @@ t = time.perf_counter()
 if mode == "verify":
     from autosar_cli.store.tif_checksum import verify_geotiff
     assert verify_geotiff(Path(out).with_suffix(".tif")).intact
-elif mode in ("strips", "unchecked"):
+elif mode.startswith("checksums"):  # "checksums:ROUNDS": with and without them, ABBA, in this one process
+    import autosar_cli.store.image as image_module
+    with_them = image_module.column_crc32
+    without = lambda db, prior=None: np.zeros(db.shape[1], np.uint32)
+    strips = [strip(k) for k in range(n_strips)]
+    walls = {"with": [], "without": []}
+    for r in range(int(mode.split(":")[1])):
+        for case in (("with", "without") if r % 2 == 0 else ("without", "with")):
+            image_module.column_crc32 = with_them if case == "with" else without
+            t0 = time.perf_counter()
+            with ImageWriter(out, grid, origin, overwrite=True) as w:
+                for k in range(n_strips):
+                    w.write_columns(int(bounds[k]), strips[k])
+                w.set_metadata({"bench": True})
+            walls[case].append(time.perf_counter() - t0)
+    print(json.dumps({case: sorted(v) for case, v in walls.items()}))
+    sys.exit(0)
+elif mode == "strips":
     with ImageWriter(out, grid, origin, overwrite=True) as w:
         for k in range(n_strips):
             w.write_columns(int(bounds[k]), strip(k))
@@ -83,14 +98,16 @@ def main() -> None:
             return row
         for mode in ("strips", "whole"):
             result[mode] = child(mode, mode)
-        walls: dict[str, list[float]] = {"strips": [], "unchecked": []}
-        for _ in range(args.rounds):
-            for mode in walls:
-                walls[mode].append(child(mode, mode)["wall_s"])
-        checked, unchecked = float(np.median(walls["strips"])), float(np.median(walls["unchecked"]))
+        res = subprocess.run([sys.executable, "-c", CHILD, f"checksums:{args.rounds}", str(Path(tmp) / "ab"),
+                              str(args.rows), str(args.cols), str(args.strips)], check=True, capture_output=True,
+                             text=True)
+        walls = json.loads(res.stdout.strip().splitlines()[-1])
+        print(json.dumps(walls))
+        checked, unchecked = float(np.median(walls["with"])), float(np.median(walls["without"]))
         verify = [child("verify", "strips")["wall_s"] for _ in range(3)]
-        result["column_checksums"] = {"rounds": args.rounds, "median_wall_s": checked,
-                                      "median_wall_without_s": unchecked, "ratio": round(checked / unchecked, 3),
+        result["column_checksums"] = {"rounds": args.rounds, "median_wall_s": round(checked, 3),
+                                      "median_wall_without_s": round(unchecked, 3),
+                                      "ratio": round(checked / unchecked, 3),
                                       "verify_median_wall_s": float(np.median(verify))}
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "image_writer.json").write_text(json.dumps(result, indent=2) + "\n")

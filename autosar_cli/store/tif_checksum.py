@@ -35,7 +35,7 @@ def column_crc32(block: NDArray[np.float32], prior: NDArray[np.uint32] | None = 
     ``prior`` (the CRCs of the rows above, one per column)."""
     values = np.ascontiguousarray(np.asarray(block, dtype="<f4").T)
     start = np.zeros(values.shape[0], np.uint32) if prior is None else prior
-    return np.array([zlib.crc32(values[j].tobytes(), int(start[j])) for j in range(values.shape[0])], np.uint32)
+    return np.array([zlib.crc32(values[j], int(start[j])) for j in range(values.shape[0])], np.uint32)
 
 
 def georeference_crc32(transform: Affine, epsg: int | None) -> int:
