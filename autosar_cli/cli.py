@@ -724,7 +724,7 @@ _DAMAGED_NAMED = 20
 
 
 #: the files ``info --verify`` checks: those autosar writes with checksums
-_VERIFIED_SUFFIXES = (".h5", ".hdf5", ".tif", ".tiff")
+_VERIFIED_SUFFIXES = (".h5", ".hdf5", ".tif", ".tiff", ".png")
 
 
 def _verify(path: Path, as_json: bool) -> None:
@@ -735,12 +735,12 @@ def _verify(path: Path, as_json: bool) -> None:
                        and ".partial-" not in p.name)
         if not files:
             raise typer.BadParameter(f"{path}: holds no file autosar writes with checksums (drive.h5, trajectory.h5, "
-                                     "image.h5, image.tif)")
+                                     "image.h5, image.tif, image.png)")
     elif path.suffix.lower() in _VERIFIED_SUFFIXES:
         files = [path]
     else:
         raise typer.BadParameter(f"{path}: --verify reads a file autosar wrote (drive.h5, trajectory.h5, image.h5, "
-                                 "image.tif) or a directory of them")
+                                 "image.tif, image.png) or a directory of them")
     found = [_checked(p, in_directory=path.is_dir()) for p in files]
     if as_json:
         out.print_json(json.dumps({"path": str(path), "files": found, "intact": all(f["intact"] for f in found)}
@@ -756,11 +756,14 @@ def _checked(path: Path, in_directory: bool) -> dict[str, Any]:
     """What the check of one file found (``intact`` among it); in a directory, a file that cannot be opened as one
     autosar wrote is found so, not an error that ends the check."""
     from autosar_cli.store.hdf5_read import verify
+    from autosar_cli.store.png_check import verify_png
     from autosar_cli.store.tif_checksum import verify_geotiff
 
     try:
         if path.suffix.lower() in (".tif", ".tiff"):
             return verify_geotiff(path).to_dict()
+        if path.suffix.lower() == ".png":
+            return verify_png(path).to_dict()
         return verify(path, ValueError).to_dict()
     except (ValueError, OSError) as exc:
         if not in_directory:
@@ -773,6 +776,12 @@ def _print_checked(found: dict[str, Any]) -> None:
     path = found["path"]
     if "error" in found:
         err.print(f"[red]error:[/] {_lit(found['error'])}", highlight=False, soft_wrap=True)
+        return
+    if "chunks" in found and "datasets" not in found:  # a PNG
+        for line in found["damaged"]:
+            err.print(f"[red]damaged:[/] {_lit(line)}", highlight=False, soft_wrap=True)
+        state = "every chunk's CRC-32 and its pixels' stream hold" if found["intact"] else "not verified intact"
+        out.print(f"[bold]{_lit(path)}[/]: {found['chunks']} chunks, {state}")
         return
     if "datasets" in found:  # an HDF5 file
         damaged = found["damaged"]
@@ -814,9 +823,9 @@ def info(
         "--config-sketch", help="Of a drive.h5: print a config (TOML, laid over --config) that pins its streams' "
         "topics to the config's sensors, for a log recorded on other topics (docs/LOGS.md).")] = False,
     verify: Annotated[bool, typer.Option(
-        "--verify", help="Of a file autosar wrote (drive.h5, trajectory.h5, image.h5, image.tif), or a run's "
-        "directory of them: read every stored chunk or tile and check its checksum; exit 1 naming each damaged "
-        "one.")] = False,
+        "--verify", help="Of a file autosar wrote (drive.h5, trajectory.h5, image.h5, image.tif, image.png), or a "
+        "run's directory of them: read every stored chunk or tile and check its checksum; exit 1 naming each "
+        "damaged one.")] = False,
     config: ConfigOpt = None,
 ) -> None:
     """Summarise a log or drive.h5: streams, message types, counts, rates, time span and gaps; and list the

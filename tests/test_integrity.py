@@ -285,7 +285,7 @@ def test_info_verify_of_a_run_directory_checks_each_product(tmp_path: Path) -> N
     assert r.exit_code == 0, r.output
     found = json.loads(r.stdout)
     assert found["intact"] and [Path(f["path"]).name for f in found["files"]] == [
-        "image.h5", "image.tif", "trajectory.h5"]
+        "image.h5", "image.png", "image.tif", "trajectory.h5"]
     with rasterio.open(tmp_path / "image.tif", "r+") as dst:
         dst.write(np.array([[3.0]], np.float32), 1, window=rasterio.windows.Window(207, 11, 1, 1))
     (tmp_path / "notes.h5").write_bytes(b"not an HDF5 file at all")
@@ -294,6 +294,37 @@ def test_info_verify_of_a_run_directory_checks_each_product(tmp_path: Path) -> N
     assert "damaged: columns 207-207 differ from those written" in r.stderr and "notes.h5" in r.stderr
     shown = r.stdout.replace("\n", "")  # rich wraps at its console's width
     assert f"{tmp_path / 'trajectory.h5'}: 6 datasets, 6 stored chunks, every checksum holds" in shown
+
+
+def test_the_quicklooks_own_checksums_are_checked(tmp_path: Path) -> None:
+    """A PNG carries a CRC-32 after every chunk and the Adler-32 of its pixels' zlib stream: ``verify_png`` names
+    the chunk whose CRC differs (a bit flipped in the pixels, or in the header), a stream that does not inflate, and
+    a file cut inside a chunk; the quicklook as written holds."""
+    from autosar_cli.sar.grid import FocusGrid
+    from autosar_cli.store.image import FocusedImage, write_image
+    from autosar_cli.store.png_check import verify_png
+
+    grid = FocusGrid((0.0, 2.0), (1.0, 0.0), (0.0, -1.0), 0.04, 300, 40, 0.0)
+    rng = np.random.default_rng(4)
+    z = (rng.normal(size=grid.shape) + 1j * rng.normal(size=grid.shape)).astype(np.complex64)
+    png = write_image(tmp_path / "image", FocusedImage(z, grid, GeodeticOrigin(45.06, 7.66, 240.0), {}))["png"]
+    assert verify_png(png).intact and verify_png(png).chunks >= 4
+    data = png.read_bytes()
+    idat = data.index(b"IDAT") - 4
+    flipped = bytearray(data)
+    flipped[idat + 8 + 100] ^= 0x10
+    damaged = tmp_path / "flipped.png"
+    damaged.write_bytes(bytes(flipped))
+    assert verify_png(damaged).damaged[0] == f"IDAT chunk at byte {idat}: its CRC-32 differs"
+    assert verify_png(damaged).damaged[1].startswith("the pixels' zlib stream: ")
+    flipped = bytearray(data)
+    flipped[8 + 8 + 3] ^= 0x01  # the width's lowest byte
+    damaged.write_bytes(bytes(flipped))
+    assert verify_png(damaged).damaged[0] == "IHDR chunk at byte 8: its CRC-32 differs"
+    damaged.write_bytes(data[:idat + 50])
+    assert verify_png(damaged).damaged == [f"IDAT chunk at byte {idat}: says "
+                                          f"{int.from_bytes(data[idat:idat + 4], 'big')} bytes, the file ends 38 "
+                                          "after its header"]
 
 
 def test_a_heading_no_car_can_have_is_refused(tmp_path: Path) -> None:
