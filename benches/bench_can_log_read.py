@@ -1,11 +1,15 @@
-"""CAN log read speed: undamaged BLF, ASC, TRC and candump logs read by ``read_can_log``, beside another checkout.
+"""CAN log read speed: undamaged BLF, ASC, TRC, candump and MDF4 logs read by ``read_can_log``, beside another
+checkout.
 
-Each log holds the same ``--frames`` frames (seeded ids and data, two channels), written by python-can. A round
+Each log holds the same ``--frames`` frames (seeded ids and data, two channels), written by python-can; the MDF4
+figure is the three real CANedge files of ``../shared/realdata/css-electronics`` read in turn (13199 frames; left
+out where that folder is absent). A round
 reads every log with this checkout's package and, with ``--against DIR`` (``git worktree add DIR REV``), with the
 other's, each in a fresh process, one after the other, the order turned each round; a read is timed as the best of
 three. Given: each format's median over ``--rounds`` rounds and the ratio of the medians (this / the other). This
 measures what reading an undamaged log costs for the damage checks (the text logs' line feed, the BLF's container
-walk); the MDF4 reader's are only run on a damaged file. Results: ``benches/results/can_log_read.json``.
+walk, the MDF4's block walk and DLC tables; its mending runs only on a damaged file). Results:
+``benches/results/can_log_read.json``.
 
 Usage: python benches/bench_can_log_read.py [--against DIR] [--frames 100000] [--rounds 7]
 """
@@ -27,6 +31,8 @@ from checkouts import in_checkout, revision
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 SUFFIXES = (".blf", ".asc", ".trc", ".log")
+#: the real CANedge MDF4 files, read as one figure
+REAL_MF4 = REPO.parent / "shared" / "realdata" / "css-electronics"
 
 
 def _write_logs(directory: Path, frames: int) -> list[Path]:
@@ -56,15 +62,16 @@ def _time_reads(files: list[Path]) -> dict[str, float]:
     """Seconds to read each of ``files`` (best of three) with the package importable now."""
     from autosar_cli.ingest.canlog import read_can_log
 
-    out = {}
+    out: dict[str, float] = {}
     for path in files:
         best = float("inf")
         for _ in range(3):
             t0 = time.perf_counter()
             n = sum(1 for _ in read_can_log(path))
             best = min(best, time.perf_counter() - t0)
-        out[path.suffix] = best
-        out[f"{path.suffix}_frames"] = n
+        suffix = path.suffix.lower()  # the MDF4 files add up to one figure
+        out[suffix] = out.get(suffix, 0.0) + best
+        out[f"{suffix}_frames"] = out.get(f"{suffix}_frames", 0) + n
     return out
 
 
@@ -84,7 +91,7 @@ def main() -> None:
     rows = []
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="bench-can-read-") as scratch:
-        files = _write_logs(Path(scratch), args.frames)
+        files = _write_logs(Path(scratch), args.frames) + sorted(REAL_MF4.glob("*.MF4"))
         for n in range(args.rounds):
             order = list(roots) if n % 2 == 0 else list(reversed(roots))
             for name in order:
@@ -92,7 +99,7 @@ def main() -> None:
                 rows.append({"round": n, "checkout": name, **times})
                 print(json.dumps(rows[-1]))
     summary: dict[str, object] = {name: revision(root) for name, root in roots.items()}
-    for suffix in SUFFIXES:
+    for suffix in (*SUFFIXES, *((".mf4",) if any(".mf4" in r for r in rows) else ())):
         medians = {name: statistics.median(float(r[suffix]) for r in rows if r["checkout"] == name)
                    for name in roots}
         frames = {int(r[f"{suffix}_frames"]) for r in rows}
