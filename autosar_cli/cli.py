@@ -723,20 +723,18 @@ def compare(
 _DAMAGED_NAMED = 20
 
 
-#: the files ``info --verify`` checks: those autosar writes with checksums
-_VERIFIED_SUFFIXES = (".h5", ".hdf5", ".tif", ".tiff", ".png")
-
-
 def _verify(path: Path, as_json: bool) -> None:
     """``autosar info PATH --verify``: every stored chunk of an autosar HDF5 file, or every tile of its GeoTIFF, read
     and checked against its checksums; of a directory (a run's), each such file in it."""
+    from autosar_cli.store.verify import VERIFIED_SUFFIXES
+
     if path.is_dir():
-        files = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in _VERIFIED_SUFFIXES
+        files = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in VERIFIED_SUFFIXES
                        and ".partial-" not in p.name)
         if not files:
             raise typer.BadParameter(f"{path}: holds no file autosar writes with checksums (drive.h5, trajectory.h5, "
                                      "image.h5, image.tif, image.png)")
-    elif path.suffix.lower() in _VERIFIED_SUFFIXES:
+    elif path.suffix.lower() in VERIFIED_SUFFIXES:
         files = [path]
     else:
         raise typer.BadParameter(f"{path}: --verify reads a file autosar wrote (drive.h5, trajectory.h5, image.h5, "
@@ -755,16 +753,10 @@ def _verify(path: Path, as_json: bool) -> None:
 def _checked(path: Path, in_directory: bool) -> dict[str, Any]:
     """What the check of one file found (``intact`` among it); in a directory, a file that cannot be opened as one
     autosar wrote is found so, not an error that ends the check."""
-    from autosar_cli.store.hdf5_read import verify
-    from autosar_cli.store.png_check import verify_png
-    from autosar_cli.store.tif_checksum import verify_geotiff
+    from autosar_cli.store.verify import verify_file
 
     try:
-        if path.suffix.lower() in (".tif", ".tiff"):
-            return verify_geotiff(path).to_dict()
-        if path.suffix.lower() == ".png":
-            return verify_png(path).to_dict()
-        return verify(path, ValueError).to_dict()
+        return verify_file(path)
     except (ValueError, OSError) as exc:
         if not in_directory:
             raise
