@@ -559,6 +559,8 @@ MUTATIONS: list[Mutation] = [
        MF4_DG_COMMENT),
     _m("mdf4-garbage-link-unlinked", "ingest", "ingest/mdf4_mend.py",
        "            if pos < len(buf) and pos % 8 == 0 and k not in", "            if k not in", MF4_GARBAGE_LINK),
+    _m("mdf4-shift-leaves-blocks-off-their-boundaries", "ingest", "ingest/mdf4_shift.py", "    pad = -by % 8\n",
+       "    pad = 0\n", MF4_SHIFT),
     _m("mdf4-shift-leaves-stale-links-past-the-place", "ingest", "ingest/mdf4_shift.py",
        "    moved += [(pos + HEAD.size + 8 * k, link + by) for pos, k in intact\n",
        "    moved += [(pos + HEAD.size + 8 * k, link + by) for pos, k in ()\n", MF4_SHIFT_NAMED),

@@ -211,14 +211,16 @@ def _in_order_within(got: list[CanRecord], reference: tuple[CanRecord, ...]) -> 
 
 @pytest.mark.parametrize("name, at, added, lost", [
     (MF4_2023_1, 27374, 4096, 0), (MF4_2023_1, 54154, 0, 4096), (MF4_2023_2, 41503, 0, 1000),
-    (MF4_2023_2, 92625, 4096, 0)], ids=["4 KiB added", "4 KiB lost", "1000 bytes lost", "4 KiB added late"])
+    (MF4_2023_2, 92625, 4096, 0), (MF4_2022, 3154, 0, 100), (MF4_2023_1, 27374, 13, 0)],
+    ids=["4 KiB added", "4 KiB lost", "1000 bytes lost", "4 KiB added late", "100 bytes lost", "13 bytes added"])
 def test_a_real_mf4_with_bytes_added_or_lost_before_its_data_reads_its_frames(tmp_path: Path, name: str, at: int,
                                                                                added: int, lost: int) -> None:
     """Bytes added to or lost from a CANedge file's blocks (before its data): every block after that place lies
     that many bytes off where the links say, and no frame was read ("no block at byte 106776, where a link
     points"). The blocks are found by their ids, the links moved by the one shift most of them agree on (not onto a
     block an intact link names): every frame read, none the undamaged file lacks, and the error says how many bytes
-    and where."""
+    and where. A count not a multiple of 8 moves the blocks off the 8-byte boundaries asammdf finds an unfinalised
+    file's blocks on (100 bytes lost read no frame: "KeyError: b'##DG'"); the copy puts them back on theirs."""
     path = realdata(CSS, name)
     data = path.read_bytes()
     whole = list(read_can_log(path))

@@ -363,7 +363,7 @@ def _mended(path: Path, cut: CutShort | None, stack: ExitStack) -> tuple[Path, C
     source, said = path, []
     for round_ in range(3):
         copy = scratch / f"{round_}_{path.name}"
-        write_mended(source, copy, cut.patches)
+        write_mended(source, copy, cut.patches, cut.inserted)
         said.append(cut.reason)
         rest = mdf4_cut(copy)
         if rest is None:

@@ -127,9 +127,18 @@ def _count(n: int, thing: str) -> str:
     return f"{n} {thing}{'' if n == 1 else 's'}"
 
 
-def write_mended(path: Path, dest: Path, mend: tuple[tuple[int, int], ...]) -> None:
-    """Copy the MDF4 file at ``path`` to ``dest`` with the links ``mend`` changes (byte, value)."""
-    shutil.copyfile(path, dest)
+def write_mended(path: Path, dest: Path, mend: tuple[tuple[int, int], ...],
+                 inserted: tuple[int, int] | tuple[()] = ()) -> None:
+    """Copy the MDF4 file at ``path`` to ``dest`` with ``inserted`` (byte, count: zero bytes put before that byte)
+    and the links ``mend`` changes (byte of the copy, value)."""
+    if inserted:
+        at, count = inserted
+        with open(path, "rb") as src, open(dest, "wb") as out:
+            out.write(src.read(at))
+            out.write(bytes(count))
+            shutil.copyfileobj(src, out)
+    else:
+        shutil.copyfile(path, dest)
     with open(dest, "r+b") as out:
         for at, value in mend:
             out.seek(at)

@@ -7,8 +7,10 @@ names (one before the place, which did not move), and only where the shift moves
 group's data link onto a data block (else the damage is a zeroed run of blocks, which :mod:`.mdf4_mend` reads
 past). Every other link past the first block moved points where its block lay too (one that found a block of its
 kind there, the next of a run of channel groups, skipped the groups between): it moves with them. The block the
-place lies in is torn: its id is cleared in the copy, so that its group is left out. Blocks the lost bytes held
-stay lost: the groups they break are then left out as for any damaged block.
+place lies in is torn: its id is cleared in the copy, so that its group is left out. A count not a multiple of 8
+leaves the blocks off the 8-byte boundaries asammdf finds an unfinalised file's blocks on: the copy puts zero bytes
+before the first moved block. Blocks the lost bytes held stay lost: the groups they break are then left out as for
+any damaged block.
 """
 
 from __future__ import annotations
@@ -58,6 +60,9 @@ class Shift:
     patches: tuple[tuple[int, int], ...]  #: (byte of a link, the value the copy gives it; a torn block's id: 0)
     dangling: int  #: links that found no block of their kind
     torn: int | None = None  #: the block the place lies in or after, marked damaged in the copy
+    #: (byte, count): zero bytes the copy inserts before that byte, the first moved block's, so that the blocks
+    #: after it lie on 8-byte boundaries again; the patches are the copy's (positions and values past it moved)
+    inserted: tuple[int, int] | tuple[()] = ()
 
     @property
     def reason(self) -> str:
@@ -140,7 +145,13 @@ def shifted_links(buf: mmap.mmap) -> Shift | None:
     torn = max((pos for pos in starts if pos < first_moved), default=None)
     if torn is not None and torn > _HEADER_BLOCK:
         moved.append((torn, 0))
-    return Shift(by, min(link for *_, link in dangling if link + by in known), tuple(moved), len(dangling), torn)
+    # blocks lie on 8-byte boundaries (asammdf finds an unfinalised file's blocks by their ids there): zero bytes
+    # before the first moved block put them back on theirs, and the links past it move by as many
+    pad = -by % 8
+    moved = [(at + pad if at >= first_moved else at, value + pad if value >= first_moved else value)
+             for at, value in moved]
+    return Shift(by, min(link for *_, link in dangling if link + by in known), tuple(moved), len(dangling), torn,
+                 (first_moved, pad) if pad else ())
 
 
 def _lands_right(ids: dict[int, bytes], owner: int, k: int, target: int) -> bool:

@@ -74,6 +74,9 @@ class CutShort:
     #: (byte, value) of the 8-byte fields a reader's copy changes (MDF4: links, so that the chains of its groups step
     #: over the damaged ones; a damaged DLC table's values, as a little-endian integer)
     patches: tuple[tuple[int, int], ...] = ()
+    #: (byte, count): zero bytes a reader's copy inserts before that byte, ahead of the patches (MDF4: blocks that
+    #: bytes added or lost moved off their 8-byte boundaries put back on them)
+    inserted: tuple[int, int] | tuple[()] = ()
 
 
 #: places of damage a report names one by one; beyond, the first two, the count of the others and the last
