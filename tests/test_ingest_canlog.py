@@ -203,6 +203,12 @@ def _read_until_error(log: Path) -> tuple[list[CanRecord], str]:
     return got, str(info.value)
 
 
+def _read_damaged(path: Path, data: bytes | bytearray) -> tuple[list[CanRecord], str]:
+    """``data`` written to ``path``, then :func:`_read_until_error` of it."""
+    path.write_bytes(bytes(data))
+    return _read_until_error(path)
+
+
 def _in_order_within(got: list[CanRecord], reference: tuple[CanRecord, ...]) -> bool:
     """Whether ``got`` is ``reference`` with some frames left out, the rest in their order."""
     rest = iter(reference)
@@ -609,8 +615,7 @@ def test_a_block_whose_descriptive_link_is_garbage_is_damaged_with_its_group(tmp
     data = bytearray(realdata(CSS, MF4_2023_1).read_bytes())
     data[53248:53312] = bytes(range(7, 71))  # the channel block at byte 53176: link 7 and the fields after it
     log = tmp_path / "damaged.MF4"
-    log.write_bytes(bytes(data))
-    got, message = _read_until_error(log)
+    got, message = _read_damaged(log, data)
     assert got == list(_real_records(MF4_2023_1))
     assert message.endswith("damaged there: 1 channel group left out, its blocks damaged (at byte 10528); "
                             "4024 frames read")
@@ -624,8 +629,7 @@ def test_a_data_groups_garbage_comment_link_is_unlinked(tmp_path: Path, finalise
     first_dg = struct.unpack_from("<Q", data, 64 + 24)[0]
     struct.pack_into("<Q", data, first_dg + 24 + 3 * 8, 0x7B626A5D7D6F9934)
     log = tmp_path / "damaged.mf4"
-    log.write_bytes(bytes(data))
-    got, message = _read_until_error(log)
+    got, message = _read_damaged(log, data)
     assert got == list(_real_records(MF4_2023_1))
     assert message.endswith("past any file: damaged there: 1 link to damaged blocks no record needs (comments, "
                             "sources, names) unlinked; 4024 frames read")
@@ -647,8 +651,7 @@ def test_a_damaged_block_no_record_needs_is_unlinked_and_its_groups_kept(tmp_pat
     data = bytearray(realdata(CSS, name).read_bytes())
     data[at:at + len(damage)] = damage
     log = tmp_path / "damaged.MF4"
-    log.write_bytes(bytes(data))
-    got, message = _read_until_error(log)
+    got, message = _read_damaged(log, data)
     assert got == list(_real_records(name))
     said = "link" if links == 1 else "links"
     assert message.endswith(f"damaged there: {links} {said} to damaged blocks no record needs (comments, sources, "
