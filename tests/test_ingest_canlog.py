@@ -1076,6 +1076,46 @@ def test_a_blf_container_whose_size_is_damaged_is_read_to_its_streams_end(tmp_pa
                        f"stream {size}: read to there; {len(reference)} frames read")
 
 
+@pytest.mark.parametrize("at, damage, says", [
+    (0, b"LOGX", "has no signature (it reads b'LOGX')"),
+    (4, struct.pack("<L", 0x7FFF0000), "says it holds 2147418112 bytes"),
+    (4, struct.pack("<L", 16), "says it holds 16 bytes")],
+    ids=["its signature", "its size, past the end", "its size, inside itself"])
+def test_a_blf_whose_file_header_is_damaged_is_read_with_it_rebuilt(tmp_path: Path, at: int, damage: bytes,
+                                                                    says: str) -> None:
+    """python-can refused a BLF whose header's signature was damaged, read none of its frames without a word where
+    its size said more than the file holds (it skipped them all as the header's), and raised where it said less.
+    The first object lies after a header of the standard 144 bytes: every frame is read, at its own time, from a
+    copy whose header is rebuilt (the start time and the other fields kept), and the error says so."""
+    whole = tmp_path / "whole.blf"
+    reference, _ = _blf_in_containers(whole)
+    data = whole.read_bytes()
+    log = tmp_path / "damaged.blf"
+    log.write_bytes(data[:at] + damage + data[at + len(damage):])
+    assert _python_can_reads(log) == 0
+    got, message = _read_until_error(log)
+    assert got == reference
+    assert message == (f"{log}: damaged BLF log: its file header {says}: rebuilt, its fields after the first 8 bytes "
+                       f"kept; {len(reference)} frames read")
+
+
+def test_a_blf_whose_start_time_is_no_date_is_read_at_offsets_with_a_warning(tmp_path: Path) -> None:
+    """The header's start time (a SYSTEMTIME at byte 40) zeroed: python-can reads it as 0 and every frame at its
+    offset from the measurement's start, near 1970, without a word. The frames are those of the file at their
+    offsets, and the reader says their times are no dates."""
+    whole = tmp_path / "whole.blf"
+    reference, _ = _blf_in_containers(whole)
+    data = whole.read_bytes()
+    log = tmp_path / "damaged.blf"
+    log.write_bytes(data[:40] + bytes(16) + data[56:])
+    warned: list[str] = []
+    got = list(read_can_log(log, warned.append))
+    assert len(got) == len(reference) and reference[0].t_ns > 10**18 and 0 <= got[0].t_ns < 10**9
+    start_ns = reference[0].t_ns - got[0].t_ns  # python-can's float seconds: each time within 1 us of the file's
+    assert all(abs(r.t_ns + start_ns - ref.t_ns) < 1000 for r, ref in zip(got, reference, strict=True))
+    assert [dataclasses.replace(r, t_ns=0) for r in got] == [dataclasses.replace(r, t_ns=0) for r in reference]
+    assert warned == [f"{log}: no start date in the header; times are offsets from the measurement start"]
+
 _KIND = {".asc": "ASC", ".trc": "TRC", ".log": "candump -L"}
 
 

@@ -12,7 +12,10 @@ stated size its stream belies is read to its stream's end. What a damaged stream
 its whole objects in time order, less the last two. A file whose end cuts its last container, and is otherwise
 whole, is python-can's: it reads that container as far as its stream goes. The reader reads a copy
 (:func:`write_blf_without`): each container stored uncompressed, holding whole inner objects (the one a hole
-breaks left out), and the file's size in its header the copy's.
+breaks left out), and the file's size in its header the copy's. A file header damaged where python-can looks
+(``LOGG``, its size: it refuses the file, or skips every object) is rebuilt in the copy, its other fields kept; a
+start time damaged so that it is no date, python-can reads as 0: the frames' times are then offsets from the
+measurement's start, which the reader says.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from .records import CutShort, places_said
 
 _FILE_HEADER = struct.Struct("<4sL")  #: "LOGG", the header's size
 _FILE_SIZE_AT = 16  #: the header's 8-byte file size
+_HEADER_SIZE = 144  #: the file header's size as Vector's and python-can's writers make it
 _OBJECT = struct.Struct("<4sHHLL")  #: "LOBJ", header size, header version, object size, object type
 _CONTAINER = struct.Struct("<H6xL4x")  #: a log container's compression method and inflated size
 _LOG_CONTAINER = 10
@@ -46,10 +50,14 @@ _TEN_MICROSECONDS, _NANOSECONDS = 1, 2
 def blf_damage(path: Path) -> CutShort | None:
     """Where damage inside the BLF file at ``path`` leaves containers to read after it (its holes), or None."""
     with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
-        if len(buf) < _FILE_HEADER.size or buf[:4] != b"LOGG":
-            return None
+        if len(buf) < _HEADER_SIZE or (buf[:4] != b"LOGG" and _next_container(buf, 0) is None):
+            return None  # no BLF: python-can's error says so
         holes: list[tuple[int, int]] = []
         said: list[str] = []
+        first, why = _header(buf)
+        if why is not None:
+            holes.append((0, 0))
+            said.append(f"its file header {why}: rebuilt, its fields after the first 8 bytes kept")
         for pos, end, inner, why in _walk(buf):
             if why is None:
                 continue
@@ -77,7 +85,8 @@ def write_blf_without(path: Path, dest: Path) -> None:
     containers stored, each holding the inner objects whole (an object a hole breaks is left out), and its
     header's file size the copy's."""
     with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf, open(dest, "wb") as out:
-        out.write(buf[:_FILE_HEADER.unpack_from(buf, 0)[1]])
+        first, why = _header(buf)
+        out.write(buf[:first] if why is None else _FILE_HEADER.pack(b"LOGG", _HEADER_SIZE) + buf[8:_HEADER_SIZE])
         pending = b""  # inner bytes that begin an object the next container ends
         after_hole = False
         for pos, end, inner, why in _walk(buf):
@@ -122,9 +131,22 @@ class _Cut(str):
 Walked = tuple[int, int | None, bytes | None, str | None]
 
 
+def _header(buf: mmap.mmap) -> tuple[int, str | None]:
+    """The byte of the file's first object, and what is damaged in its header (None: nothing python-can reads: its
+    signature and its size, which must end where an object begins)."""
+    signature, size = _FILE_HEADER.unpack_from(buf, 0)
+    if signature == b"LOGG" and (size == _HEADER_SIZE or (
+            _HEADER_SIZE < size <= len(buf) and buf[size:size + 4] in (b"LOBJ", b""))):
+        return size, None
+    first = size if _HEADER_SIZE <= size < len(buf) and buf[size:size + 4] == b"LOBJ" else _HEADER_SIZE
+    if signature != b"LOGG":
+        return first, f"has no signature (it reads {bytes(signature)!r})"
+    return first, f"says it holds {size} bytes"
+
+
 def _walk(buf: mmap.mmap) -> Iterator[Walked]:
     """The file's objects in turn, each damaged stretch as one, to the end or to a cut (its end None)."""
-    pos = _FILE_HEADER.unpack_from(buf, 0)[1]
+    pos = _header(buf)[0]
     while pos < len(buf):
         found = _object(buf, pos)
         if isinstance(found, str):

@@ -194,6 +194,8 @@ def _relative_start(reader: MessageReader) -> bool:
         return reader.start_time == 0.0
     if isinstance(reader, can.TRCReader):
         return reader.start_time is None
+    if isinstance(reader, can.BLFReader):  # python-can's time of a start that is no date (a damaged header)
+        return reader.start_timestamp == 0
     return False
 
 
