@@ -274,6 +274,9 @@ def ingest(
     radar_override: RadarOverrideOpt = False,
     allow_partial: Annotated[bool, typer.Option("--allow-partial",
                                                 help="Write a drive without radar or without navigation.")] = False,
+    allow_unverified: Annotated[bool, typer.Option(
+        "--allow-unverified", help="Read the MCAP chunks whose CRC fails (the damage is somewhere in them; each is "
+                                   "named) rather than leave them out.")] = False,
     time_offset: Annotated[list[str] | None, typer.Option(
         "--time-offset", metavar="PATH=SECONDS", help="Shift a CAN or NMEA log's times (repeatable).")] = None,
     allow_time_gap: Annotated[bool, typer.Option(
@@ -307,7 +310,8 @@ def ingest(
                                 radar_options=_radar_options(radar_start, radar_sync, radar_override),
                                 allow_partial=allow_partial, progress=update, command=" ".join(sys.argv),
                                 time_offsets=parse_time_offsets(time_offset or []),
-                                max_time_gap_s=max_time_gap, allow_time_gap=allow_time_gap)
+                                max_time_gap_s=max_time_gap, allow_time_gap=allow_time_gap,
+                                allow_unverified=allow_unverified)
         d = report.to_dict()
         if as_json:
             out.print_json(json.dumps(d))

@@ -31,7 +31,9 @@ Outcomes: clean-error (exit != 0, one error line, no traceback), kept-with-warni
 silent-wrong (exit 0, product differs from the undamaged one, no warning), input-harmed (an input's bytes
 changed), partial-left (a *.partial remains after the next run). For damaged MCAP and ROS1 logs the
 messages ingested are checked against the messages of the chunks the damage did not touch; for a cut text CAN
-log, the frames read against python-can's count on the log's whole lines before the cut.
+log, the frames read against python-can's count on the log's whole lines before the cut. Each MCAP trial's log is
+also read by the MCAP reader in this process without and with ``--allow-unverified`` (chunks whose CRC alone fails
+read too): the messages read, and of them those the undamaged file does not hold (``mcap_allow_unverified``).
 
 Prints the counts per class and writes benches/results/fault_campaign.json (``--classes`` runs a subset
 and merges it into that file's earlier run of the same seed and scale).
@@ -81,6 +83,9 @@ class Trial:
     chunks_expected: int | None = None  #: messages of the chunks the damage left intact (MCAP, ROS1)
     messages_read: int | None = None
     messages_whole: int | None = None  #: realfiles: the messages of the file undamaged
+    #: MCAP: (messages read, of them not in the undamaged file) by the reader as ingest runs it, and with
+    #: ``--allow-unverified`` (chunks whose CRC alone fails read too)
+    unverified: dict[str, int] | None = None
     wall_s: float = 0.0
 
 
@@ -101,6 +106,7 @@ class Base:
     can_logs: dict[str, Path] = field(default_factory=dict)  #: suffix -> an undamaged CAN log
     can_frames: dict[str, int] = field(default_factory=dict)  #: suffix -> its frames
     mcap_chunks: list[tuple[int, int, int]] = field(default_factory=list)  #: (start, end, messages)
+    mcap_messages: Counter[tuple[str, int, bytes]] = field(default_factory=Counter)  #: (topic, time, digest)
     ros1_chunks: list[tuple[int, int, int]] = field(default_factory=list)
     digests: dict[str, str] = field(default_factory=dict)
     real_warnings: dict[str, set[str]] = field(default_factory=dict)  #: a real input's warnings, undamaged
@@ -247,6 +253,31 @@ def ros1_chunks(path: Path) -> list[tuple[int, int, int]]:
         return [(pos, reader.chunks[pos].datapos + reader.chunks[pos].datasize, n) for pos, n in sorted(per.items())]
 
 
+def mcap_messages(path: Path, keep_unverified: bool) -> Counter[tuple[str, int, bytes]]:
+    """(topic, log time, payload digest) of every message the MCAP reader gives of ``path``."""
+    sys.path.insert(0, str(REPO))
+    from autosar_cli.ingest.mcap_source import McapSource
+
+    got: Counter[tuple[str, int, bytes]] = Counter()
+    for m in McapSource(path, keep_unverified=keep_unverified).messages():
+        got[(m.channel.topic, m.log_ns, hashlib.blake2b(m.data, digest_size=8).digest())] += 1
+    return got
+
+
+def unverified_read(base: Base, log: Path) -> dict[str, int]:
+    """What the MCAP reader gives of the damaged ``log`` without and with ``--allow-unverified``: messages read,
+    and of them, those the undamaged file does not hold (wrong)."""
+    out = {"messages_whole": base.mcap_messages.total()}
+    for name, keep in (("read", False), ("read_unverified", True)):
+        try:
+            got = mcap_messages(log, keep)
+        except Exception:  # a file the reader refuses: the CLI trial says how
+            got = Counter()
+        out[name] = got.total()
+        out[name.replace("read", "wrong")] = (got - base.mcap_messages).total()
+    return out
+
+
 def intact(chunks: list[tuple[int, int, int]], damaged: list[tuple[int, int]]) -> int:
     """Messages of the chunks no damaged byte range [a, b) touches."""
     return sum(n for s, e, n in chunks if not any(a < e and b > s for a, b in damaged))
@@ -273,6 +304,7 @@ def setup(work: Path) -> Base:
     base.digests["image"] = product_digest(base.image)
     base.digests["traj"] = product_digest(base.traj)
     base.mcap_chunks = mcap_chunks(base.mcap)
+    base.mcap_messages = mcap_messages(base.mcap, keep_unverified=False)
     base.ros1_chunks = ros1_chunks(base.ros1)
     r = cli(["simulate", "-s", "ci", "-f", "dca1000", "--seed", "7", "-o", "dca.mcap"], work)
     assert r.returncode == 0, r.stderr
@@ -426,6 +458,8 @@ def container_trial(base: Base, cls: str, n: int, rng: random.Random, tdir: Path
     chunks = {"mcap": base.mcap_chunks, "ros1": base.ros1_chunks}.get(cls)
     if chunks is not None:
         trial.chunks_expected = intact(chunks, damaged)
+    if cls == "mcap":
+        trial.unverified = unverified_read(base, dst)
     if tree_hash(dst) != before:
         trial.outcome = "input-harmed"
     elif partials(tdir):
@@ -886,6 +920,11 @@ def main() -> None:
     checked = [t for t in out["trials"] if t["chunks_expected"] is not None]
     out["intact_chunks_kept"] = {"trials": len(checked), "failed": sum(
         1 for t in checked if (t["messages_read"] or 0) < t["chunks_expected"])}
+    mcap = [t["unverified"] for t in out["trials"] if t.get("unverified")]
+    if mcap:
+        out["mcap_allow_unverified"] = {"trials": len(mcap), **{k: sum(u[k] for u in mcap) for k in mcap[0]}}
+        print("MCAP messages read of the undamaged file's, without / with --allow-unverified (not in it): "
+              + ", ".join(f"{k} {v}" for k, v in out["mcap_allow_unverified"].items()))
     path.write_text(json.dumps(out, indent=1) + "\n")
     print(f"{len(trials)} trials in {wall:.0f} s; wrote {RESULTS / 'fault_campaign.json'}")
     if args.workdir is None:

@@ -666,3 +666,41 @@ def test_rosbag2_storage_mislabelled_in_metadata_is_read_as_what_its_files_are(c
     got, warnings = read_all(bag)
     assert Counter(got) == Counter(m for _, m in rows)
     assert f"{bag}: metadata.yaml says 'mcap' storage, its files are sqlite3: read as what they are" in warnings
+
+
+def test_an_uncompressed_chunk_failing_its_crc_is_read_when_asked_its_damage_in_one_message(work: Path) -> None:
+    """An uncompressed MCAP of 300 messages in small chunks, one payload byte changed in the third chunk: its CRC
+    fails. Left out by default, counted; read when asked: every message, the changed one alone differing."""
+    from mcap.writer import CompressionType, Writer
+
+    log = work / "uncompressed.mcap"
+    sent = [("/blob", 1_600_000_000_000_000_000 + k * 1_000_000, bytes([k % 256]) * 100) for k in range(300)]
+    with open(log, "wb") as f:
+        writer = Writer(f, compression=CompressionType.NONE, chunk_size=4096)
+        writer.start()
+        schema = writer.register_schema("test_msgs/msg/Blob", "ros2msg", b"uint8[] data")
+        channel = writer.register_channel("/blob", "cdr", schema)
+        for k, (_, t, payload) in enumerate(sent):
+            writer.add_message(channel, t, payload, t, sequence=k)
+        writer.finish()
+    chunks = mcap_chunks(log)
+    assert len(chunks) > 4 and [m for *_, msgs in chunks for m in msgs] == sent
+    start, end, inside = chunks[2]
+    data = bytearray(log.read_bytes())
+    at = data.index(inside[3][2], start)
+    data[at + 50] ^= 0xFF
+    log.write_bytes(bytes(data))
+
+    got, warnings = read_all(log)
+    assert got == [m for m in sent if m not in inside]
+    assert f"{log}: damaged MCAP: chunk ending at byte {end} skipped: its CRC does not match (its {len(inside)} " \
+           "messages; autosar ingest --allow-unverified keeps them)" in warnings
+
+    src = open_source(log, keep_unverified=True)
+    got = [(m.channel.topic, m.log_ns, bytes(m.data)) for m in src.messages()]
+    assert len(got) == len(sent) and [k for k, (a, b) in enumerate(zip(got, sent, strict=True)) if a != b] == \
+        [sent.index(inside[3])]
+    first, last = (f"2020-09-13T12:26:40.{t // 10**6 % 1000:03d}Z" for _, t, _ in (inside[0], inside[-1]))
+    assert f"{log}: damaged MCAP: chunk ending at byte {end} read although its CRC does not match " \
+           f"(--allow-unverified): its {len(inside)} messages logged {first} to {last} kept, one or more of their " \
+           "bytes not as written" in src.stats.warnings

@@ -14,6 +14,7 @@ import math
 import re
 import shutil
 import sqlite3
+import zlib
 from collections import Counter
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -453,6 +454,59 @@ def test_corrupt_chunk_is_skipped_the_rest_is_read(ci_mcap: SimulationResult, wo
     assert got.report.can["frames"] == 392 - lost[ids[CAN_TOPIC]]
     # the summary's counts show the shortfall per topic
     assert any(f"topic {RADAR_TOPIC}: {981 - lost_radar} of the 981" in w for w in got.report.warnings)
+
+
+def _crc_failing_copy(log: Path, start: int, length: int, out: Path) -> int:
+    """``log`` with one byte changed inside its chunk record at ``start`` so that the chunk still decompresses (zstd)
+    to its size but fails its CRC, written to ``out``; returns the byte changed."""
+    import zstandard
+
+    data = bytearray(log.read_bytes())
+    chunk = Chunk.read(ReadDataStream(io.BytesIO(bytes(data[start + 9:start + length]))))
+    records_at = start + length - len(chunk.data)
+    for at in range(records_at + len(chunk.data) // 2, records_at + len(chunk.data), 997):
+        damaged = bytearray(chunk.data)
+        damaged[at - records_at] ^= 0x01
+        try:
+            inflated = zstandard.ZstdDecompressor().decompress(bytes(damaged),
+                                                                max_output_size=chunk.uncompressed_size)
+        except zstandard.ZstdError:
+            continue
+        if len(inflated) == chunk.uncompressed_size and zlib.crc32(inflated) != chunk.uncompressed_crc:
+            data[at] ^= 0x01
+            out.write_bytes(bytes(data))
+            return at
+    raise AssertionError("no byte found whose change leaves the chunk decompressing")
+
+
+def test_a_chunk_failing_its_crc_is_read_only_when_asked(ci_mcap: SimulationResult, work: Path, cfg: Config,
+                                                         base: Ingested) -> None:
+    """One bit changed in a zstd chunk so that it still decompresses: its CRC fails. By default the chunk is left out
+    (its radar frames missing), and the warning counts its messages and names the option; with allow_unverified it
+    is read, every radar frame written, and the warning names the chunk, its messages and their span."""
+    with open(ci_mcap.log_path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    bad = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)[1]
+    lost = _chunk_messages(ci_mcap.log_path, bad.chunk_start_offset, bad.chunk_length)
+    log = work / "crc_fails.mcap"
+    _crc_failing_copy(ci_mcap.log_path, bad.chunk_start_offset, bad.chunk_length, log)
+    end = bad.chunk_start_offset + bad.chunk_length
+    n = sum(lost.values())
+
+    skipped = run(log, work / "crc_skipped", cfg)
+    lost_radar = lost[channel_ids(ci_mcap.log_path)[RADAR_TOPIC]]
+    assert 0 < lost_radar and skipped.streams[RADAR]["written"] == 981 - lost_radar
+    assert f"{log}: damaged MCAP: chunk ending at byte {end} skipped: its CRC does not match (its {n} messages; " \
+           "autosar ingest --allow-unverified keeps them)" in skipped.report.warnings
+
+    kept = run(log, work / "crc_kept", cfg, allow_unverified=True)
+    assert kept.streams[RADAR]["written"] == 981
+    said = [w for w in kept.report.warnings if f"chunk ending at byte {end}" in w]
+    assert len(said) == 1 and said[0].startswith(
+        f"{log}: damaged MCAP: chunk ending at byte {end} read although its CRC does not match (--allow-unverified): "
+        f"its {n} messages logged 20")
+    assert said[0].endswith(" kept, one or more of their bytes not as written")
 
 
 @pytest.mark.parametrize("head", [b"", b"\x89MCAP0\r\n"], ids=["random", "magic-then-garbage"])

@@ -8,7 +8,9 @@ radar-heavy log (it parses every message index entry and reads field by field), 
 quarter of the ingest time budget. Damage is contained:
 
 - a chunk that fails to decompress or whose CRC does not match is skipped with a warning naming its
-  file offset, and reading goes on with the next record;
+  file offset, and reading goes on with the next record; a chunk whose CRC alone fails (it decompresses to its
+  size) is read when asked (``keep_unverified``: ``autosar ingest --allow-unverified``), with a warning: the
+  damage is somewhere in its bytes, and a CRC does not say where;
 - a broken record structure (truncated file, garbage length) ends the read with a warning naming the
   offset; everything before it has been delivered;
 - a chunk cut by the file's end (a copy or a disk that ran out mid-write) gives up the messages whose bytes
@@ -27,6 +29,7 @@ import zlib
 from collections import deque
 from collections.abc import Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
+from datetime import UTC, datetime
 from io import BytesIO
 from pathlib import Path
 from typing import BinaryIO
@@ -57,6 +60,29 @@ _PLAUSIBLE_HEAD = re.compile(rb"(?=[\x01-\x0f\x80-\xff][\x00-\xff]{4}\x00\x00\x0
 
 class _BadChunk(Exception):
     pass
+
+
+class _CrcMismatch(_BadChunk):
+    """A chunk that decompresses to its stated size but fails its CRC: ``data``, the bytes it decompressed to."""
+
+    def __init__(self, data: bytes) -> None:
+        super().__init__("its CRC does not match")
+        self.data = data
+
+
+def _utc(t_ns: int) -> str:
+    """A log time (ns since the Unix epoch) as UTC to the millisecond."""
+    return datetime.fromtimestamp(t_ns / 1e9, UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def _message_records(data: bytes) -> int:
+    """The message records in a chunk's payload, as far as its framing goes."""
+    pos, n, found = 0, len(data), 0
+    while pos + 9 <= n:
+        opcode, length = _RECORD_HEAD.unpack_from(data, pos)
+        pos += 9 + length
+        found += pos <= n and opcode == _OP_MESSAGE
+    return found
 
 
 _DATA_END = _RECORD_HEAD.pack(0x0F, 4)  # opcode and length of the DataEnd record the summary section follows
@@ -196,15 +222,17 @@ def _decompress(chunk: Chunk) -> bytes:
     if len(data) != chunk.uncompressed_size:
         raise _BadChunk(f"chunk decompresses to {len(data)} bytes, header says {chunk.uncompressed_size}")
     if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
-        raise _BadChunk("chunk CRC mismatch")
+        raise _CrcMismatch(data)
     return data
 
 
 class McapSource:
     container = "mcap"
 
-    def __init__(self, path: Path, declared: dict[str, int] | None = None) -> None:
+    def __init__(self, path: Path, declared: dict[str, int] | None = None, keep_unverified: bool = False) -> None:
         self.path = Path(path)
+        #: read the messages of a chunk whose CRC alone fails (the damage unlocated in them), with a warning
+        self.keep_unverified = keep_unverified
         self.stats = ReadStats(bytes_total=self.path.stat().st_size)
         self._schemas: dict[int, Schema] = {}
         self._channels: dict[int, Channel] = {}
@@ -370,8 +398,25 @@ class McapSource:
     def _chunk_messages(self, end_offset: int, future: Future[bytes]) -> Iterator[RawMessage]:
         try:
             data = future.result()
+        except _CrcMismatch as exc:
+            if not self.keep_unverified:
+                self.stats.warnings.append(
+                    f"{self.path}: damaged MCAP: chunk ending at byte {end_offset} skipped: {exc} (its "
+                    f"{_message_records(exc.data)} messages; autosar ingest --allow-unverified keeps them)")
+                return
+            kept, first, last = 0, None, None
+            for msg in self._records_of(exc.data, end_offset):
+                kept += 1
+                first = msg.log_ns if first is None else min(first, msg.log_ns)
+                last = msg.log_ns if last is None else max(last, msg.log_ns)
+                yield msg
+            span = f" logged {_utc(first)} to {_utc(last)}" if first is not None and last is not None else ""
+            self.stats.warnings.append(
+                f"{self.path}: damaged MCAP: chunk ending at byte {end_offset} read although {exc} "
+                f"(--allow-unverified): its {kept} messages{span} kept, one or more of their bytes not as written")
+            return
         except _BadChunk as exc:
-            self.stats.warnings.append(f"{self.path}: chunk ending at byte {end_offset} skipped: {exc}")
+            self.stats.warnings.append(f"{self.path}: damaged MCAP: chunk ending at byte {end_offset} skipped: {exc}")
             return
         yield from self._records_of(data, end_offset)
 

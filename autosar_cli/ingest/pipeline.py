@@ -571,11 +571,13 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
            can_logs: Iterable[Path] = (), nmea_logs: Iterable[Path] = (), radar_captures: Iterable[Path] = (),
            radar_options: RadarCaptureOptions = RadarCaptureOptions(), allow_partial: bool = False,
            progress: ProgressFn | None = None, command: str = "", time_offsets: Mapping[Path, float] | None = None,
-           max_time_gap_s: float = MAX_TIME_GAP_S, allow_time_gap: bool = False) -> IngestReport:
+           max_time_gap_s: float = MAX_TIME_GAP_S, allow_time_gap: bool = False,
+           allow_unverified: bool = False) -> IngestReport:
     """Ingest ``logs`` (+ standalone CAN and NMEA logs, DCA1000 captures) into ``output`` (drive.h5), atomically.
 
     ``time_offsets``: seconds added to every time of a standalone CAN or NMEA log (a logger's clock set
     wrong). Inputs whose spans lie more than ``max_time_gap_s`` apart are refused unless ``allow_time_gap``.
+    ``allow_unverified``: read the MCAP chunks whose CRC fails (each named in a warning) rather than leave them out.
     """
     t0 = time.perf_counter()
     radar_captures = list(radar_captures) + [p for p in logs if is_capture(Path(p))]
@@ -596,7 +598,7 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
         if kind == "log" and path.name == "metadata.yaml":  # a rosbag2 bag: the directory is the input (provenance)
             path = path.parent
         try:
-            sources.append((path, kind, open_source(path) if kind == "log" else None))
+            sources.append((path, kind, open_source(path, allow_unverified) if kind == "log" else None))
         except LogReadError as exc:
             raise IngestError(str(exc)) from exc
     total = sum(_input_bytes(path, s) for path, _, s in sources)

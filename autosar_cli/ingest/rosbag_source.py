@@ -161,6 +161,7 @@ class Rosbag2McapSource:
         self.files = [path / PurePath(p).name for p in meta["relative_file_paths"]]
         self.declared = _declared_counts(meta)
         self.stats = ReadStats(bytes_total=sum(p.stat().st_size for p in self.files if p.exists()))
+        self.keep_unverified = False  #: as McapSource's, for each of its files
 
     def messages(self) -> Iterator[RawMessage]:
         done = 0
@@ -169,7 +170,7 @@ class Rosbag2McapSource:
             if not file.exists():
                 self.stats.warnings.append(f"{self.path}: storage file {file.name} listed in metadata.yaml is missing")
                 continue
-            src = McapSource(file, declared={})
+            src = McapSource(file, declared={}, keep_unverified=self.keep_unverified)
             for msg in src.messages():
                 seen[msg.channel.topic] = seen.get(msg.channel.topic, 0) + 1
                 self.stats.bytes_read = done + src.stats.bytes_read

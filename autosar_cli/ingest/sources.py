@@ -13,7 +13,7 @@ import re
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 
 class LogReadError(RuntimeError):
@@ -130,9 +130,21 @@ def container_of(path: Path) -> str:
     return _container(path).name
 
 
-def open_source(path: Path) -> LogSource:
-    """The reader for one log (file or rosbag2 directory)."""
+@runtime_checkable
+class KeepsUnverified(Protocol):
+    """A reader of a container whose parts carry checksums (MCAP chunks' CRCs): it can read a part whose checksum
+    fails, when asked, instead of leaving it out."""
+
+    keep_unverified: bool
+
+
+def open_source(path: Path, keep_unverified: bool = False) -> LogSource:
+    """The reader for one log (file or rosbag2 directory). ``keep_unverified``: read the parts whose checksum fails
+    (a warning names each) where the container has such parts."""
     path = Path(path)
     if not path.exists():
         raise LogReadError(f"{path}: no such file or directory")
-    return _container(path).open(path)
+    source = _container(path).open(path)
+    if isinstance(source, KeepsUnverified):
+        source.keep_unverified = keep_unverified
+    return source
