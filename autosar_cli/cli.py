@@ -259,13 +259,16 @@ def simulate(
 @app.command()
 def ingest(
     logs: Annotated[list[Path] | None, typer.Argument(
+        metavar="LOG",
         help="Drive logs: .mcap, .bag, rosbag2 directories; CAN logs (.blf .asc .trc .log .mf4) and NMEA text "
              "captures are recognised too.")] = None,
     output: Annotated[Path, typer.Option("--output", "-o", help="drive.h5 to write.")] = Path("drive.h5"),
     config: ConfigOpt = None,
     dbc: Annotated[Path | None, typer.Option("--dbc", help="CAN database (default: the config's).")] = None,
-    can_log: Annotated[list[Path] | None, typer.Option("--can-log", help="Standalone CAN log (repeatable).")] = None,
-    nmea: Annotated[list[Path] | None, typer.Option("--nmea", help="NMEA text capture (repeatable).")] = None,
+    can_log: Annotated[list[Path] | None, typer.Option("--can-log", metavar="FILE",
+                                                                       help="Standalone CAN log (repeatable).")] = None,
+    nmea: Annotated[list[Path] | None, typer.Option("--nmea", metavar="FILE",
+                                                                    help="NMEA text capture (repeatable).")] = None,
     radar: Annotated[Path | None, typer.Option("--radar", help="TI DCA1000 capture (directory, adc_data.bin or "
                                                "<name>_0.bin, with its .cfg or *.mmwave.json) joining the logs' "
                                                "navigation.")] = None,
@@ -533,8 +536,9 @@ def focus(
 
 @app.command()
 def run(
-    logs: Annotated[list[Path], typer.Argument(help="Drive log(s): .mcap, .bag, rosbag2 directory (and CAN/NMEA "
-                                               "log files), as for `autosar ingest`.")],
+    logs: Annotated[list[Path], typer.Argument(
+        metavar="LOG", help="Drive log(s): .mcap, .bag, rosbag2 directory (and CAN/NMEA log files), as for "
+                            "`autosar ingest`.")],
     output: Annotated[Path, typer.Option("--output", "-o", help="Run directory: drive.h5, trajectory.h5, "
                                          "image.tif/.h5/.png and run.json.")],
     method: Annotated[NavMethod, typer.Option("--method", "-m", help="Navigation method (see `autosar navigate`).")]
@@ -670,7 +674,7 @@ def evaluate(
 
 @app.command()
 def compare(
-    logs: Annotated[list[Path], typer.Argument(help="Drive log(s), as for `autosar run`.")],
+    logs: Annotated[list[Path], typer.Argument(metavar="LOG", help="Drive log(s), as for `autosar run`.")],
     output: Annotated[Path, typer.Option("--output", "-o", help="Comparison directory: drive.h5, one directory "
                                          "per method, compare.png, across_track.png, compare.md, compare.json.")],
     methods: Annotated[str, typer.Option("--methods", help="Comma-separated navigation methods (sar-min, ins, gnss, "
@@ -916,7 +920,8 @@ def _batch_progress(n_drives: int, enabled: bool = True) -> Iterator[Callable[[d
 
 @app.command()
 def batch(
-    logs: Annotated[list[Path], typer.Argument(help="Drive logs, one drive each (.mcap, .bag, rosbag2 directory).")],
+    logs: Annotated[list[Path], typer.Argument(
+        metavar="LOG", help="Drive logs, one drive each (.mcap, .bag, rosbag2 directory).")],
     output: Annotated[Path, typer.Option("--output", "-o", help="Batch directory: one run directory per drive "
                                          "(named after its log, as `autosar run` writes it) and batch.json.")],
     scheduler: Annotated[str | None, typer.Option("--scheduler", help="Address of a running Dask scheduler "
@@ -930,7 +935,8 @@ def batch(
                                                       "workers' own setting on an existing one).")] = None,
     method: Annotated[NavMethod, typer.Option("--method", "-m", help="Navigation method (see `autosar navigate`).")]
     = NavMethod.sar_min,
-    radar: Annotated[list[Path] | None, typer.Option("--radar", help="TI DCA1000 capture of each drive, in the "
+    radar: Annotated[list[Path] | None, typer.Option("--radar", metavar="CAPTURE",
+                                                                 help="TI DCA1000 capture of each drive, in the "
                                                      "order of the logs (repeat once per log).")] = None,
     radar_start: RadarStartOpt = None,
     radar_sync: RadarSyncOpt = "/dca1000/sync",
