@@ -93,6 +93,10 @@ MF4_HALF_BUILT = ("tests/test_ingest_canlog.py::"
                   "test_a_failed_mf4_open_leaves_no_half_built_reader_to_the_garbage_collector")
 BLF_DAMAGE = "tests/test_ingest_canlog.py::test_a_blf_damaged_inside_keeps_the_frames_of_every_other_container"
 BLF_SIZE = "tests/test_ingest_canlog.py::test_a_blf_container_whose_size_is_damaged_is_read_to_its_streams_end"
+BLF_HEADER = "tests/test_ingest_canlog.py::test_a_blf_whose_file_header_is_damaged_is_read_with_it_rebuilt"
+BLF_START = "tests/test_ingest_canlog.py::test_a_blf_whose_start_time_is_no_date_is_read_at_offsets_with_a_warning"
+MCAP_UNVERIFIED = ("tests/test_ingest_damage.py::"
+                   "test_an_uncompressed_chunk_failing_its_crc_is_read_when_asked_its_damage_in_one_message")
 BLF_LAST = ("tests/test_ingest_canlog.py::"
             "test_a_blf_whose_last_container_is_damaged_keeps_what_its_stream_gave_before")
 TEXT_DAMAGE = "tests/test_ingest_canlog.py::test_a_text_log_damaged_in_a_line_keeps_every_other_line"
@@ -527,6 +531,13 @@ MUTATIONS: list[Mutation] = [
     _m("blf-stated-size-trusted", "ingest", "ingest/blf_damage.py",
        "    if pos + size <= len(buf) and len(inflate.unused_data) <= _PADDING:", "    if pos + size <= len(buf):",
        BLF_SIZE),
+    _m("blf-header-size-trusted", "ingest", "ingest/blf_damage.py",
+       "    if signature == b\"LOGG\" and (size == _HEADER_SIZE or (",
+       "    if signature == b\"LOGG\" and (True or (", BLF_HEADER),
+    _m("blf-start-time-no-date-unsaid", "ingest", "ingest/canlog.py",
+       "        return reader.start_timestamp == 0\n", "        return False\n", BLF_START),
+    _m("mcap-unverified-chunk-left-out-when-asked", "integrity", "ingest/mcap_source.py",
+       "            if not self.keep_unverified:\n", "            if True:\n", MCAP_UNVERIFIED),
     _m("blf-stream-end-unchecked", "ingest", "ingest/blf_damage.py",
        "    if method != _DEFLATED or not inflate.eof or len(inner) != inflated_size:",
        "    if method != _DEFLATED:", BLF_LAST),
