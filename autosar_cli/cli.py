@@ -265,10 +265,10 @@ def ingest(
     output: Annotated[Path, typer.Option("--output", "-o", help="drive.h5 to write.")] = Path("drive.h5"),
     config: ConfigOpt = None,
     dbc: Annotated[Path | None, typer.Option("--dbc", help="CAN database (default: the config's).")] = None,
-    can_log: Annotated[list[Path] | None, typer.Option("--can-log", metavar="FILE",
-                                                                       help="Standalone CAN log (repeatable).")] = None,
-    nmea: Annotated[list[Path] | None, typer.Option("--nmea", metavar="FILE",
-                                                                    help="NMEA text capture (repeatable).")] = None,
+    can_log: Annotated[list[Path] | None, typer.Option(
+        "--can-log", metavar="FILE", help="Standalone CAN log (repeatable).")] = None,
+    nmea: Annotated[list[Path] | None, typer.Option(
+        "--nmea", metavar="FILE", help="NMEA text capture (repeatable).")] = None,
     radar: Annotated[Path | None, typer.Option("--radar", help="TI DCA1000 capture (directory, adc_data.bin or "
                                                "<name>_0.bin, with its .cfg or *.mmwave.json) joining the logs' "
                                                "navigation.")] = None,
@@ -935,9 +935,9 @@ def batch(
                                                       "workers' own setting on an existing one).")] = None,
     method: Annotated[NavMethod, typer.Option("--method", "-m", help="Navigation method (see `autosar navigate`).")]
     = NavMethod.sar_min,
-    radar: Annotated[list[Path] | None, typer.Option("--radar", metavar="CAPTURE",
-                                                                 help="TI DCA1000 capture of each drive, in the "
-                                                     "order of the logs (repeat once per log).")] = None,
+    radar: Annotated[list[Path] | None, typer.Option(
+        "--radar", metavar="CAPTURE", help="TI DCA1000 capture of each drive, in the order of the logs (repeat once "
+                                           "per log).")] = None,
     radar_start: RadarStartOpt = None,
     radar_sync: RadarSyncOpt = "/dca1000/sync",
     radar_override: RadarOverrideOpt = False,

@@ -55,7 +55,7 @@ def blf_damage(path: Path) -> CutShort | None:
         holes: list[tuple[int, int]] = []
         said: list[str] = []
         first, why = _header(buf)
-        if why is not None:
+        if why is not None:  # a hole of no bytes: the reader's copy, whose header is rebuilt
             holes.append((0, 0))
             said.append(f"its file header {why}: rebuilt, its fields after the first 8 bytes kept")
         for pos, end, inner, why in _walk(buf):
