@@ -21,6 +21,7 @@ CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"
 DEFAULT_CONFIG = CONFIG_DIR / "giulia_scanbrick.toml"
 MSG_DIR = CONFIG_DIR / "msg"
 MAX_CLOCK_DRIFT_PPM = 1000.0  #: the largest radar clock drift a config may state or simulate (ppm)
+MAX_LATENCY_S = 2.0  #: the largest latency a sensor's table may state (s)
 
 
 class ConfigError(ValueError):
@@ -592,19 +593,55 @@ def _join(path: str, key: str) -> str:
 # ----------------------------------------------------------------------------- validation
 
 
-def _all_finite(node: Any, path: str) -> None:
-    """Every number anywhere in the config is finite (nan or inf has no meaning in any setting)."""
+#: the largest magnitude a number may have, by the unit its name ends in (longest suffix first): beyond what any car,
+#: road or sensor has; a value past it is a typo or another unit, and would overflow or empty the filter's arithmetic
+_LARGEST_BY_UNIT: tuple[tuple[str, float], ...] = (
+    ("_hz_per_s", 1e16), ("_error_std", 1.0), ("_dps_rthz", 1e3), ("_mps2_rthz", 1e3), ("_rad_per_mps2", 1.0),
+    ("_per_mps2", 1.0), ("_n_per_rad", 1e7), ("_n_per_m", 1e8), ("_deg_per_g", 90.0), ("_radps2", 100.0),
+    ("_mps2", 1e3), ("_mps", 1e3), ("_dps", 1e4), ("_kgm2", 1e6), ("_kg", 1e5), ("_m2", 100.0), ("_hz", 1e12),
+    ("_ppm", 1e6), ("_s", 1e7), ("_m", 1e5), ("_deg", 360.0), ("_db", 100.0), ("_lsb", 1e5), ("_percent", 100.0),
+    ("_cpm", 1e3), ("_wavelengths", 1e3),
+)
+#: any other number's (counts, ratios, gains, fractions)
+_LARGEST_OTHERWISE = 1e6
+#: tighter bounds where a looser one still leaves nonsense the stages run on without a word (a car 1 km long)
+_LARGEST_BY_NAME: dict[str, tuple[float, str]] = {
+    "wheelbase_m": (20.0, "no road vehicle's"), "track_front_m": (10.0, "no road vehicle's"),
+    "track_rear_m": (10.0, "no road vehicle's"), "wheel_radius_m": (3.0, "no road vehicle's"),
+    "cog_height_m": (10.0, "no road vehicle's"), "steering_ratio": (100.0, "no road vehicle's"),
+    "latency_s": (MAX_LATENCY_S, "a sensor whose stamps lag its values by more is on another clock"),
+}
+
+
+def _largest(name: str) -> tuple[float, str]:
+    """The largest magnitude a number named ``name`` may have, and why."""
+    if name in _LARGEST_BY_NAME:
+        return _LARGEST_BY_NAME[name]
+    unit = next(((suffix, cap) for suffix, cap in _LARGEST_BY_UNIT if name.endswith(suffix)), None)
+    if unit is None:
+        return _LARGEST_OTHERWISE, "beyond any setting's"
+    return unit[1], f"beyond any car's, road's or sensor's in {unit[0].lstrip('_')}"
+
+
+def _all_finite(node: Any, path: str, name: str = "") -> None:
+    """Every number anywhere in the config is finite (nan or inf has no meaning in any setting) and within the
+    largest magnitude its unit allows (:data:`_LARGEST_BY_UNIT`)."""
     if is_dataclass(node):
         for f in fields(node):
-            _all_finite(getattr(node, f.name), _join(path, f.name))
+            _all_finite(getattr(node, f.name), _join(path, f.name), f.name)
     elif isinstance(node, dict):
         for k, v in node.items():
-            _all_finite(v, _join(path, str(k)))
+            _all_finite(v, _join(path, str(k)), str(k))
     elif isinstance(node, tuple):
         for i, v in enumerate(node):
-            _all_finite(v, f"{path}[{i}]")
+            _all_finite(v, f"{path}[{i}]", name)
     elif isinstance(node, float) and not math.isfinite(node):
         raise ConfigError(f"{path}: must be finite, got {node!r}")
+    elif isinstance(node, int | float) and not isinstance(node, bool):
+        largest, why = _largest(name)
+        if abs(node) > largest:
+            raise ConfigError(f"{path}: {node!r} is more than {largest:g} in magnitude ({why}): a typo, or another "
+                              "unit?")
 
 
 def _positive(path: str, value: float) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import re
 from dataclasses import replace
@@ -204,3 +205,56 @@ def test_bench_configs_change_only_the_simulators_entries(tmp_path: Path) -> Non
     assert load_config(told).radar.mounting.yaw_deg == -42.0
     assert load_config(simulated).radar == base.radar
 
+
+
+def _numeric_lines() -> list[tuple[int, str]]:
+    """(line index, dotted key) of every number the default config states, as written there."""
+    out, section = [], ""
+    for i, line in enumerate(Path(DEFAULT_CONFIG).read_text(encoding="utf-8").splitlines()):
+        if line.startswith("["):
+            section = line.strip("[] ")
+        elif "=" in line and not line.lstrip().startswith("#"):
+            key, value = (s.strip() for s in line.split("#")[0].split("=", 1))
+            with contextlib.suppress(ValueError):
+                float(value)
+                out.append((i, f"{section}.{key}"))
+    return out
+
+
+def test_every_number_far_beyond_its_unit_is_rejected_naming_its_key(tmp_path: Path) -> None:
+    """1e300 in place of each number of the default config (a typo, or a value in another unit): each is refused
+    when the config is loaded, naming the key, where before the stages ran on some without a word (a wheelbase,
+    a steering ratio, a gyro's noise) and failed on others with no key named ("float division by zero")."""
+    lines = Path(DEFAULT_CONFIG).read_text(encoding="utf-8").splitlines()
+    numbers = _numeric_lines()
+    assert len(numbers) > 120
+    (tmp_path / "autosar_giulia.dbc").write_text((DEFAULT_CONFIG.parent / "autosar_giulia.dbc").read_text())
+    accepted = []
+    for i, key in numbers:
+        variant = list(lines)
+        variant[i] = f"{key.rsplit('.', 1)[1]} = 1e300"
+        path = tmp_path / "far.toml"
+        path.write_text("\n".join(variant), encoding="utf-8")
+        try:
+            load_config(path)
+        except ConfigError as exc:
+            assert str(exc).startswith(f"{path}: {key}: "), str(exc)
+        else:
+            accepted.append(key)
+    assert accepted == []
+
+
+@pytest.mark.parametrize("replacement, key, said", [
+    ("latency_s = 10.0", "sensors.wheel_speeds.latency_s",
+     "10.0 is more than 2 in magnitude (a sensor whose stamps lag its values by more is on another clock)"),
+    ("wheelbase_m = 282.0", "vehicle.wheelbase_m", "282.0 is more than 20 in magnitude (no road vehicle's)"),
+    ("bias_tau_s = 1e9", "sensors.esc.gyro.bias_tau_s",
+     "1000000000.0 is more than 1e+07 in magnitude (beyond any car's, road's or sensor's in s)")],
+    ids=["a latency", "a wheelbase in cm", "a time"])
+def test_a_number_past_its_bound_says_the_bound_and_why(tmp_path: Path, replacement: str, key: str,
+                                                        said: str) -> None:
+    name = replacement.split(" =")[0]
+    path = _write_variant(tmp_path, rf"^{name} = .*$", replacement)
+    with pytest.raises(ConfigError) as exc:
+        load_config(path)
+    assert str(exc.value) == f"{path}: {key}: {said}: a typo, or another unit?"
