@@ -791,6 +791,22 @@ def _validate(cfg: Config) -> None:
         raise ConfigError(f"processing.autofocus_pass_block_s: must lie in (0, 1] s, got {p.autofocus_pass_block_s!r}")
 
     dyn = cfg.vehicle_dynamics
+    for name in ("mass_kg", "yaw_inertia_kgm2", "cornering_stiffness_front_n_per_rad",
+                 "cornering_stiffness_rear_n_per_rad", "friction_coefficient", "slip_stiffness_per_load",
+                 "heave_frequency_hz", "pitch_frequency_hz", "roll_frequency_hz", "heave_damping_ratio",
+                 "pitch_damping_ratio", "roll_damping_ratio", "tyre_vertical_stiffness_n_per_m", "tone_ring_teeth",
+                 "edges_per_speed_estimate", "wheel_speed_timeout_s", "road_grade_wavelength_m",
+                 "road_max_frequency_cpm"):
+        _positive(f"vehicle_dynamics.{name}", getattr(dyn, name))
+    for name in ("rolling_resistance", "drag_area_m2", "roll_gradient_deg_per_g", "pitch_gradient_deg_per_g",
+                 "roll_centre_height_m", "rolling_radius_deflection_fraction", "rolling_radius_speed_growth_per_mps2",
+                 "driver_preview_s", "driver_lateral_gain", "driver_heading_gain", "tooth_pitch_error_std",
+                 "road_coherence_decay"):
+        _non_negative(f"vehicle_dynamics.{name}", getattr(dyn, name))
+    _finite_vector("vehicle_dynamics.imu_misalignment_deg", dyn.imu_misalignment_deg)
+    if min(dyn.imu_misalignment_deg) < 0:
+        raise ConfigError(f"vehicle_dynamics.imu_misalignment_deg: magnitudes are not negative, got "
+                          f"{list(dyn.imu_misalignment_deg)}")
     for name in ("brake_front_fraction", "drive_front_fraction"):
         if not 0.0 <= getattr(dyn, name) <= 1.0:
             raise ConfigError(f"vehicle_dynamics.{name}: must lie between 0 and 1 (the front axle's share), got "

@@ -67,6 +67,10 @@ def _write_variant(tmp_path: Path, pattern: str, replacement: str) -> Path:
         (r"^drive_front_fraction = .*$", "drive_front_fraction = 1.5", "vehicle_dynamics.drive_front_fraction"),
         (r"^brake_front_fraction = .*$", "brake_front_fraction = -0.2", "vehicle_dynamics.brake_front_fraction"),
         (r"^road_reflection = .*$", "road_reflection = -1.0", "simulation.road_reflection"),
+        (r"^tyre_vertical_stiffness_n_per_m = .*$", "tyre_vertical_stiffness_n_per_m = 0.0",
+         "vehicle_dynamics.tyre_vertical_stiffness_n_per_m"),
+        (r"^mass_kg = .*$", "mass_kg = -1600.0", "vehicle_dynamics.mass_kg"),
+        (r"^driver_preview_s = .*$", "driver_preview_s = -0.3", "vehicle_dynamics.driver_preview_s"),
     ],
 )
 def test_bad_values_are_rejected_naming_the_key(tmp_path, pattern, replacement, key):
