@@ -1099,6 +1099,24 @@ def test_a_blf_whose_file_header_is_damaged_is_read_with_it_rebuilt(tmp_path: Pa
                        f"kept; {len(reference)} frames read")
 
 
+def test_a_blf_whose_file_size_is_damaged_is_told_from_one_cut_short(tmp_path: Path) -> None:
+    """The header's file size damaged upwards, every container there: read whole, the error says the size is
+    damaged, not that the file was cut. A file cut where a container ends, its size undamaged: the containers its
+    header's uncompressed size counts are not all there, so it is said to be cut, its frames before the cut read."""
+    whole = tmp_path / "whole.blf"
+    reference, starts = _blf_in_containers(whole)
+    data = whole.read_bytes()
+    sized = tmp_path / "sized.blf"
+    got, message = _read_damaged(sized, data[:16] + struct.pack("<Q", 10**9) + data[24:])
+    assert got == reference
+    assert message == (f"{sized}: damaged BLF log: its header says 1000000000 bytes, the file has {len(data)} and "
+                       f"every log container its uncompressed size counts; {len(reference)} frames read")
+    cut = tmp_path / "cut.blf"
+    got, message = _read_damaged(cut, data[:starts[5]])
+    assert 0 < len(got) < len(reference) and got == reference[:len(got)]
+    assert message.startswith(f"{cut}: truncated BLF log: header says {len(data)} bytes, file has {starts[5]} ")
+
+
 def test_a_blf_whose_start_time_is_no_date_is_read_at_offsets_with_a_warning(tmp_path: Path) -> None:
     """The header's start time (a SYSTEMTIME at byte 40) zeroed: python-can reads it as 0 and every frame at its
     offset from the measurement's start, near 1970, without a word. The frames are those of the file at their

@@ -32,6 +32,9 @@ from .records import CutShort, places_said
 
 _FILE_HEADER = struct.Struct("<4sL")  #: "LOGG", the header's size
 _FILE_SIZE_AT = 16  #: the header's 8-byte file size
+#: the header's 8-byte "uncompressed size": its own size plus each log container's object and container headers
+#: and inflated bytes (what the file would hold uncompressed)
+_UNCOMPRESSED_SIZE_AT = 24
 _HEADER_SIZE = 144  #: the file header's size as Vector's and python-can's writers make it
 _OBJECT = struct.Struct("<4sHHLL")  #: "LOBJ", header size, header version, object size, object type
 _CONTAINER = struct.Struct("<H6xL4x")  #: a log container's compression method and inflated size
@@ -78,6 +81,23 @@ def blf_damage(path: Path) -> CutShort | None:
     if not holes:
         return None
     return CutShort(places_said(said), damaged=True, holes=tuple(holes))
+
+
+def holds_every_container(path: Path) -> bool:
+    """Whether the BLF file at ``path`` holds every log container its header counts: the header's own size and each
+    container's headers and inflated bytes sum to the uncompressed size it states (a file cut short lacks some)."""
+    with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+        if len(buf) < _HEADER_SIZE:
+            return False
+        first, why = _header(buf)
+        total = first
+        for pos, _, inner, damaged in _walk(buf):
+            if damaged is not None or inner is None:
+                if damaged is not None:
+                    return False
+                continue
+            total += _OBJECT.unpack_from(buf, pos)[1] + _CONTAINER.size + len(inner)
+        return why is None and total == struct.unpack_from("<Q", buf, _UNCOMPRESSED_SIZE_AT)[0]
 
 
 def write_blf_without(path: Path, dest: Path) -> None:

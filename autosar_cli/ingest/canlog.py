@@ -66,7 +66,7 @@ import can
 from can.io.generic import MessageReader
 
 from autosar_cli.ingest import mf4_support
-from autosar_cli.ingest.blf_damage import blf_damage, write_blf_without
+from autosar_cli.ingest.blf_damage import blf_damage, holds_every_container, write_blf_without
 from autosar_cli.ingest.mdf4_blocks import mdf4_cut, write_without_holes
 from autosar_cli.ingest.mdf4_mend import write_mended
 from autosar_cli.ingest.records import CanRecord, CutShort
@@ -406,6 +406,10 @@ def _check_complete(read: Path, reader: MessageReader, frames: int, path: Path) 
         except OSError:
             return
         if size < reader.file_size:
+            if holds_every_container(read):  # a cut file lacks some: its header's file size is what is damaged
+                raise CanLogError(f"{path}: damaged BLF log: its header says {reader.file_size} bytes, the file has "
+                                  f"{size} and every log container its uncompressed size counts; {frames} frames "
+                                  "read")
             raise CanLogError(
                 f"{path}: truncated BLF log: header says {reader.file_size} bytes, file has {size} "
                 f"({frames} frames read before the cut)"
