@@ -623,18 +623,18 @@ def _largest(name: str) -> tuple[float, str]:
     return unit[1], f"beyond any car's, road's or sensor's in {unit[0].lstrip('_')}"
 
 
-def _all_finite(node: Any, path: str, name: str = "") -> None:
+def _all_plausible(node: Any, path: str, name: str = "") -> None:
     """Every number anywhere in the config is finite (nan or inf has no meaning in any setting) and within the
     largest magnitude its unit allows (:data:`_LARGEST_BY_UNIT`)."""
     if is_dataclass(node):
         for f in fields(node):
-            _all_finite(getattr(node, f.name), _join(path, f.name), f.name)
+            _all_plausible(getattr(node, f.name), _join(path, f.name), f.name)
     elif isinstance(node, dict):
         for k, v in node.items():
-            _all_finite(v, _join(path, str(k)), str(k))
+            _all_plausible(v, _join(path, str(k)), str(k))
     elif isinstance(node, tuple):
         for i, v in enumerate(node):
-            _all_finite(v, f"{path}[{i}]", name)
+            _all_plausible(v, f"{path}[{i}]", name)
     elif isinstance(node, float) and not math.isfinite(node):
         raise ConfigError(f"{path}: must be finite, got {node!r}")
     elif isinstance(node, int | float) and not isinstance(node, bool):
@@ -666,7 +666,7 @@ def _finite_vector(path: str, values: tuple[float, ...]) -> None:
 
 
 def _validate(cfg: Config) -> None:
-    _all_finite(cfg, "")
+    _all_plausible(cfg, "")
     v = cfg.vehicle
     for name in ("wheelbase_m", "track_front_m", "track_rear_m", "steering_ratio", "wheel_radius_m"):
         _positive(f"vehicle.{name}", getattr(v, name))
