@@ -1117,22 +1117,51 @@ def test_a_blf_whose_file_size_is_damaged_is_told_from_one_cut_short(tmp_path: P
     assert message.startswith(f"{cut}: truncated BLF log: header says {len(data)} bytes, file has {starts[5]} ")
 
 
-def test_a_blf_whose_start_time_is_no_date_is_read_at_offsets_with_a_warning(tmp_path: Path) -> None:
+@pytest.mark.parametrize("damage", ["start and stop times zeroed", "start time zeroed, the last container lost"])
+def test_a_blf_whose_start_time_is_no_date_is_read_at_offsets_with_a_warning(tmp_path: Path, damage: str) -> None:
     """The header's start time (a SYSTEMTIME at byte 40) zeroed: python-can reads it as 0 and every frame at its
-    offset from the measurement's start, near 1970, without a word. The frames are those of the file at their
-    offsets, and the reader says their times are no dates."""
+    offset from the measurement's start, near 1970, without a word. Where the stop time (byte 56) is lost too, or the
+    file's last objects are (the stop time is the last object's), nothing gives the start back: the frames are read
+    at their offsets, and the reader says their times are no dates."""
     whole = tmp_path / "whole.blf"
-    reference, _ = _blf_in_containers(whole)
+    reference, starts = _blf_in_containers(whole)
+    data = whole.read_bytes()
+    damaged = data[:40] + bytes(32) + data[72:] if "stop" in damage else data[:40] + bytes(16) + data[56:starts[-1]]
+    log = tmp_path / "damaged.blf"
+    log.write_bytes(damaged)
+    warned: list[str] = []
+    got: list[CanRecord] = []
+    with contextlib.suppress(CanLogError):  # the lost container is named at the end
+        for rec in read_can_log(log, warned.append):
+            got.append(rec)
+    assert 0 < len(got) <= len(reference) and reference[0].t_ns > 10**18 and 0 <= got[0].t_ns < 10**9
+    start_ns = reference[0].t_ns - got[0].t_ns  # python-can's float seconds: each time within 1 us of the file's
+    assert all(abs(r.t_ns + start_ns - ref.t_ns) < 1000 for r, ref in zip(got, reference, strict=False))
+    assert [dataclasses.replace(r, t_ns=0) for r in got] == [dataclasses.replace(r, t_ns=0) for r in reference][
+        :len(got)]
+    assert warned == [f"{log}: no start date in the header; times are offsets from the measurement start"]
+
+
+def test_a_blf_whose_start_time_alone_is_lost_takes_it_from_its_stop_time(tmp_path: Path) -> None:
+    """The header's start time zeroed, its stop time (the last object's, to the millisecond) and every container
+    whole: the start is the stop time less the last object's time, every frame within 1 ms of its own time and all
+    by one offset, and the error says so."""
+    whole = tmp_path / "whole.blf"
+    with can.BLFWriter(whole, max_container_size=1024) as writer:
+        for k, (*_, msg) in enumerate(_frames()):  # times off the millisecond grid
+            writer.on_message_received(can.Message(timestamp=msg.timestamp + 0.000_437 * k, channel=msg.channel,
+                                                   arbitration_id=msg.arbitration_id, data=msg.data,
+                                                   is_extended_id=msg.is_extended_id))
+    reference = list(read_can_log(whole))
     data = whole.read_bytes()
     log = tmp_path / "damaged.blf"
-    log.write_bytes(data[:40] + bytes(16) + data[56:])
-    warned: list[str] = []
-    got = list(read_can_log(log, warned.append))
-    assert len(got) == len(reference) and reference[0].t_ns > 10**18 and 0 <= got[0].t_ns < 10**9
-    start_ns = reference[0].t_ns - got[0].t_ns  # python-can's float seconds: each time within 1 us of the file's
-    assert all(abs(r.t_ns + start_ns - ref.t_ns) < 1000 for r, ref in zip(got, reference, strict=True))
+    got, message = _read_damaged(log, data[:40] + bytes(16) + data[56:])
+    offsets = {r.t_ns - ref.t_ns for r, ref in zip(got, reference, strict=True)}
+    assert max(offsets) - min(offsets) < 1000 and all(abs(o) <= 1_000_000 for o in offsets)
     assert [dataclasses.replace(r, t_ns=0) for r in got] == [dataclasses.replace(r, t_ns=0) for r in reference]
-    assert warned == [f"{log}: no start date in the header; times are offsets from the measurement start"]
+    assert message == (f"{log}: damaged BLF log: its file header's start time is no date: taken from its stop time "
+                       f"less its last object's time (to 1 ms); {len(reference)} frames read")
+
 
 _KIND = {".asc": "ASC", ".trc": "TRC", ".log": "candump -L"}
 

@@ -13,9 +13,11 @@ its whole objects in time order, less the last two. A file whose end cuts its la
 whole, is python-can's: it reads that container as far as its stream goes. The reader reads a copy
 (:func:`write_blf_without`): each container stored uncompressed, holding whole inner objects (the one a hole
 breaks left out), and the file's size in its header the copy's. A file header damaged where python-can looks
-(``LOGG``, its size: it refuses the file, or skips every object) is rebuilt in the copy, its other fields kept; a
-start time damaged so that it is no date, python-can reads as 0: the frames' times are then offsets from the
-measurement's start, which the reader says.
+(``LOGG``, its size: it refuses the file, or skips every object) is rebuilt in the copy, its other fields kept. A
+start time damaged so that it is no date, python-can reads as 0: in a file whose every container is whole it is
+the header's stop time less the last object's time (python-can and Vector write the stop time as the last
+object's, to the millisecond); else the frames' times are offsets from the measurement's start, which the reader
+says.
 """
 
 from __future__ import annotations
@@ -28,6 +30,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import BinaryIO
 
+from can.io.blf import systemtime_to_timestamp, timestamp_to_systemtime
+
 from .records import CutShort, places_said
 
 _FILE_HEADER = struct.Struct("<4sL")  #: "LOGG", the header's size
@@ -35,6 +39,9 @@ _FILE_SIZE_AT = 16  #: the header's 8-byte file size
 #: the header's 8-byte "uncompressed size": its own size plus each log container's object and container headers
 #: and inflated bytes (what the file would hold uncompressed)
 _UNCOMPRESSED_SIZE_AT = 24
+#: the header's start and stop times (Windows SYSTEMTIME: year, month, weekday, day, hour, minute, second, ms)
+_START_AT, _STOP_AT = 40, 56
+_SYSTEMTIME = struct.Struct("<8H")
 _HEADER_SIZE = 144  #: the file header's size as Vector's and python-can's writers make it
 _OBJECT = struct.Struct("<4sHHLL")  #: "LOBJ", header size, header version, object size, object type
 _CONTAINER = struct.Struct("<H6xL4x")  #: a log container's compression method and inflated size
@@ -61,6 +68,10 @@ def blf_damage(path: Path) -> CutShort | None:
         if why is not None:  # a hole of no bytes: the reader's copy, whose header is rebuilt
             holes.append((0, 0))
             said.append(f"its file header {why}: rebuilt, its fields after the first 8 bytes kept")
+        if _start_lost(buf) and _last_object_time(buf) is not None:
+            holes.append((0, 0))
+            said.append("its file header's start time is no date: taken from its stop time less its last object's "
+                        "time (to 1 ms)")
         for pos, end, inner, why in _walk(buf):
             if why is None:
                 continue
@@ -84,20 +95,11 @@ def blf_damage(path: Path) -> CutShort | None:
 
 
 def holds_every_container(path: Path) -> bool:
-    """Whether the BLF file at ``path`` holds every log container its header counts: the header's own size and each
-    container's headers and inflated bytes sum to the uncompressed size it states (a file cut short lacks some)."""
+    """Whether the BLF file at ``path`` holds every log container its header counts, each undamaged: the header's
+    own size and each container's headers and inflated bytes sum to the uncompressed size it states (a file cut
+    short lacks some)."""
     with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
-        if len(buf) < _HEADER_SIZE:
-            return False
-        first, why = _header(buf)
-        total = first
-        for pos, _, inner, damaged in _walk(buf):
-            if damaged is not None or inner is None:
-                if damaged is not None:
-                    return False
-                continue
-            total += _OBJECT.unpack_from(buf, pos)[1] + _CONTAINER.size + len(inner)
-        return why is None and total == struct.unpack_from("<Q", buf, _UNCOMPRESSED_SIZE_AT)[0]
+        return len(buf) >= _HEADER_SIZE and _whole(buf)[0]
 
 
 def write_blf_without(path: Path, dest: Path) -> None:
@@ -128,9 +130,15 @@ def write_blf_without(path: Path, dest: Path) -> None:
             _write_container(out, stream[:whole])
         out.flush()
         size = out.tell()
+        start = _SYSTEMTIME.unpack_from(buf, _START_AT)
+        if _start_lost(buf) and (last := _last_object_time(buf)) is not None:
+            stop = systemtime_to_timestamp(_SYSTEMTIME.unpack_from(buf, _STOP_AT))
+            start = timestamp_to_systemtime(stop - last / 1e9)
     with open(dest, "r+b") as fixed:
         fixed.seek(_FILE_SIZE_AT)
         fixed.write(struct.pack("<Q", size))
+        fixed.seek(_START_AT)
+        fixed.write(_SYSTEMTIME.pack(*start))
 
 
 def _write_container(out: BinaryIO, inner: bytes) -> None:
@@ -162,6 +170,41 @@ def _header(buf: mmap.mmap) -> tuple[int, str | None]:
     if signature != b"LOGG":
         return first, f"has no signature (it reads {bytes(signature)!r})"
     return first, f"says it holds {size} bytes"
+
+
+def _start_lost(buf: mmap.mmap) -> bool:
+    """Whether the header's start time is no date (python-can reads it as 0) where its stop time is one."""
+    return systemtime_to_timestamp(_SYSTEMTIME.unpack_from(buf, _START_AT)) == 0 != \
+        systemtime_to_timestamp(_SYSTEMTIME.unpack_from(buf, _STOP_AT))
+
+
+def _whole(buf: mmap.mmap) -> tuple[bool, int | None]:
+    """Whether every log container the header's uncompressed size counts is here, each undamaged, and if so the
+    time (ns from the start) of the last inner object (None: an object's time in no unit known)."""
+    first, why = _header(buf)
+    total, pending, last = first, b"", None
+    known = True
+    for pos, _, inner, damaged in _walk(buf):
+        if damaged is not None:
+            return False, None
+        if inner is None:
+            continue
+        total += _OBJECT.unpack_from(buf, pos)[1] + _CONTAINER.size + len(inner)
+        stream = pending + inner
+        whole = _whole_objects(stream)
+        for _, time in _inner_objects(stream[:whole]):
+            known, last = known and time is not None and time >= 0, time
+        pending = stream[whole:]
+    if why is not None or pending or total != struct.unpack_from("<Q", buf, _UNCOMPRESSED_SIZE_AT)[0]:
+        return False, None
+    return True, last if known else None
+
+
+def _last_object_time(buf: mmap.mmap) -> int | None:
+    """The time (ns from the start) of the last inner object of a BLF file that holds every container its header
+    counts, each whole; None where one is damaged or lost (the objects lost may be the last), or an object's time
+    is in no unit known."""
+    return _whole(buf)[1]
 
 
 def _walk(buf: mmap.mmap) -> Iterator[Walked]:
