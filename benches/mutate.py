@@ -95,6 +95,8 @@ BLF_DAMAGE = "tests/test_ingest_canlog.py::test_a_blf_damaged_inside_keeps_the_f
 BLF_SIZE = "tests/test_ingest_canlog.py::test_a_blf_container_whose_size_is_damaged_is_read_to_its_streams_end"
 BLF_HEADER = "tests/test_ingest_canlog.py::test_a_blf_whose_file_header_is_damaged_is_read_with_it_rebuilt"
 BLF_START = "tests/test_ingest_canlog.py::test_a_blf_whose_start_time_is_no_date_is_read_at_offsets_with_a_warning"
+BLF_START_KEPT = "tests/test_ingest_canlog.py::test_a_blf_whose_start_time_alone_is_lost_takes_it_from_its_stop_time"
+BLF_FILE_SIZE = "tests/test_ingest_canlog.py::test_a_blf_whose_file_size_is_damaged_is_told_from_one_cut_short"
 MCAP_UNVERIFIED = ("tests/test_ingest_damage.py::"
                    "test_an_uncompressed_chunk_failing_its_crc_is_read_when_asked_its_damage_in_one_message")
 BLF_LAST = ("tests/test_ingest_canlog.py::"
@@ -536,6 +538,14 @@ MUTATIONS: list[Mutation] = [
        "    if signature == b\"LOGG\" and (True or (", BLF_HEADER),
     _m("blf-start-time-no-date-unsaid", "ingest", "ingest/canlog.py",
        "        return reader.start_timestamp == 0\n", "        return False\n", BLF_START),
+    _m("blf-start-time-not-taken-from-its-stop-time", "ingest", "ingest/blf_damage.py",
+       "        if _start_lost(buf) and (last := _last_object_time(buf)) is not None:\n",
+       "        if False and (last := _last_object_time(buf)) is not None:\n", BLF_START_KEPT),
+    _m("blf-start-time-taken-from-a-file-that-lost-its-end", "ingest", "ingest/blf_damage.py",
+       "    if why is not None or pending or total != struct.unpack_from(\"<Q\", buf, _UNCOMPRESSED_SIZE_AT)[0]:\n",
+       "    if why is not None or pending:\n", BLF_START, BLF_FILE_SIZE),
+    _m("blf-damaged-file-size-read-as-a-cut", "ingest", "ingest/canlog.py",
+       "            if holds_every_container(read):", "            if False:", BLF_FILE_SIZE),
     _m("mcap-unverified-chunk-left-out-when-asked", "integrity", "ingest/mcap_source.py",
        "            if not self.keep_unverified:\n", "            if True:\n", MCAP_UNVERIFIED),
     _m("blf-stream-end-unchecked", "ingest", "ingest/blf_damage.py",
