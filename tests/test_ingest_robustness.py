@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import io
+import json
 import math
 import re
 import shutil
@@ -507,6 +508,27 @@ def test_a_chunk_failing_its_crc_is_read_only_when_asked(ci_mcap: SimulationResu
         f"{log}: damaged MCAP: chunk ending at byte {end} read although its CRC does not match (--allow-unverified): "
         f"its {n} messages logged 20")
     assert said[0].endswith(" kept, one or more of their bytes not as written")
+
+
+def test_allow_unverified_reaches_the_reader_from_the_command_line(ci_mcap: SimulationResult, work: Path) -> None:
+    """`autosar ingest --allow-unverified` reads the chunk whose CRC fails, and says so; without it the chunk is left
+    out."""
+    with open(ci_mcap.log_path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    bad = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)[2]
+    log = work / "crc_fails_cli.mcap"
+    _crc_failing_copy(ci_mcap.log_path, bad.chunk_start_offset, bad.chunk_length, log)
+    end = bad.chunk_start_offset + bad.chunk_length
+    for flag, written in (([], False), (["--allow-unverified"], True)):
+        out = work / f"crc_cli{len(flag)}"
+        r = runner.invoke(app, ["ingest", str(log), "-o", str(out / "drive.h5"), "--json", *flag])
+        assert r.exit_code == 0, r.output
+        report = json.loads(r.stdout)
+        said = [w for w in report["warnings"] if f"chunk ending at byte {end}" in w]
+        assert len(said) == 1 and ("read although" in said[0]) == written, said
+        radar = next(s for s in report["streams"] if s["path"] == RADAR)
+        assert (radar["written"] == 981) == written
 
 
 @pytest.mark.parametrize("head", [b"", b"\x89MCAP0\r\n"], ids=["random", "magic-then-garbage"])
