@@ -64,7 +64,7 @@ def blf_damage(path: Path) -> CutShort | None:
             return None  # no BLF: python-can's error says so
         holes: list[tuple[int, int]] = []
         said: list[str] = []
-        first, why = _header(buf)
+        why = _header(buf)[1]
         if why is not None:  # a hole of no bytes: the reader's copy, whose header is rebuilt
             holes.append((0, 0))
             said.append(f"its file header {why}: rebuilt, its fields after the first 8 bytes kept")
