@@ -668,12 +668,15 @@ def test_rosbag2_storage_mislabelled_in_metadata_is_read_as_what_its_files_are(c
     assert f"{bag}: metadata.yaml says 'mcap' storage, its files are sqlite3: read as what they are" in warnings
 
 
-def test_an_uncompressed_chunk_failing_its_crc_is_read_when_asked_its_damage_in_one_message(work: Path) -> None:
-    """An uncompressed MCAP of 300 messages in small chunks, one payload byte changed in the third chunk: its CRC
-    fails. Left out by default, counted; read when asked: every message, the changed one alone differing."""
+@pytest.mark.parametrize("where", ["payload", "log time"])
+def test_an_uncompressed_chunk_failing_its_crc_is_read_when_asked_its_damage_in_one_message(work: Path,
+                                                                                         where: str) -> None:
+    """An uncompressed MCAP of 300 messages in small chunks, one byte changed in a message of the third chunk: its
+    CRC fails. Left out by default, counted; read when asked: every message, the changed one alone differing where
+    the byte lay in its payload, left out where it lay in its log time (its chunk's message index does not list it)."""
     from mcap.writer import CompressionType, Writer
 
-    log = work / "uncompressed.mcap"
+    log = work / f"uncompressed_{where.replace(' ', '_')}.mcap"
     sent = [("/blob", 1_600_000_000_000_000_000 + k * 1_000_000, bytes([k % 256]) * 100) for k in range(300)]
     with open(log, "wb") as f:
         writer = Writer(f, compression=CompressionType.NONE, chunk_size=4096)
@@ -687,8 +690,8 @@ def test_an_uncompressed_chunk_failing_its_crc_is_read_when_asked_its_damage_in_
     assert len(chunks) > 4 and [m for *_, msgs in chunks for m in msgs] == sent
     start, end, inside = chunks[2]
     data = bytearray(log.read_bytes())
-    at = data.index(inside[3][2], start)
-    data[at + 50] ^= 0xFF
+    at = data.index(inside[3][2], start)  # its payload; its log time 16 bytes before (then the publish time)
+    data[at + 50 if where == "payload" else at - 14] ^= 0xFF
     log.write_bytes(bytes(data))
 
     got, warnings = read_all(log)
@@ -698,9 +701,14 @@ def test_an_uncompressed_chunk_failing_its_crc_is_read_when_asked_its_damage_in_
 
     src = open_source(log, keep_unverified=True)
     got = [(m.channel.topic, m.log_ns, bytes(m.data)) for m in src.messages()]
-    assert len(got) == len(sent) and [k for k, (a, b) in enumerate(zip(got, sent, strict=True)) if a != b] == \
-        [sent.index(inside[3])]
+    k = sent.index(inside[3])
+    if where == "payload":
+        assert len(got) == len(sent) and [n for n, (a, b) in enumerate(zip(got, sent, strict=True)) if a != b] == [k]
+    else:
+        assert got == sent[:k] + sent[k + 1:]
     first, last = (f"2020-09-13T12:26:40.{t // 10**6 % 1000:03d}Z" for _, t, _ in (inside[0], inside[-1]))
+    unlisted = int(where != "payload")
     assert f"{log}: damaged MCAP: chunk ending at byte {end} read although its CRC does not match " \
-           f"(--allow-unverified): its {len(inside)} messages logged {first} to {last} kept, one or more of their " \
-           "bytes not as written" in src.stats.warnings
+           f"(--allow-unverified): its {len(inside) - unlisted} messages logged {first} to {last} kept, checked " \
+           f"against its message index ({unlisted} it does not list left out); one or more of their bytes not as " \
+           "written" in src.stats.warnings, src.stats.warnings

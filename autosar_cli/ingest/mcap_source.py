@@ -46,6 +46,7 @@ _OP_SCHEMA = 0x03
 _OP_CHANNEL = 0x04
 _OP_MESSAGE = 0x05
 _OP_CHUNK = 0x06
+_OP_MESSAGE_INDEX = 0x07
 _CHUNK_HEAD = struct.Struct("<QQQII")  # start time, end time, uncompressed size, crc, compression length
 _MSG_HEAD = struct.Struct("<HIQQ")  # channel_id, sequence, log_time, publish_time
 _RECORD_HEAD = struct.Struct("<BQ")
@@ -73,6 +74,21 @@ class _CrcMismatch(_BadChunk):
 def _utc(t_ns: int) -> str:
     """A log time (ns since the Unix epoch) as UTC to the millisecond."""
     return datetime.fromtimestamp(t_ns / 1e9, UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def _listed(records: list[bytes] | None) -> set[tuple[int, int, int]] | None:
+    """(channel id, log time, record offset in the chunk's payload) of every entry of a chunk's message index
+    records; None where it has none, or one does not parse."""
+    if not records:
+        return None
+    out: set[tuple[int, int, int]] = set()
+    try:
+        for body in records:
+            channel_id, size = struct.unpack_from("<HI", body, 0)
+            out.update((channel_id, t, o) for t, o in struct.iter_unpack("<QQ", body[6:6 + size]))
+    except struct.error:
+        return None
+    return out
 
 
 def _message_records(data: bytes) -> int:
@@ -241,6 +257,9 @@ class McapSource:
         #: the summary's schemas and channels: stand-ins for records damaged in the data section
         self._summary_records: tuple[dict[int, Schema], dict[int, McapChannel]] = ({}, {})
         self._undeclared = 0
+        #: the message index records that follow each chunk (by the byte its record ends at), kept while the chunk
+        #: waits to be read when a chunk whose CRC fails is to be read too
+        self._indexes: dict[int, list[bytes]] = {}
 
     # -- public -------------------------------------------------------------------------------------
     def messages(self) -> Iterator[RawMessage]:
@@ -350,6 +369,8 @@ class McapSource:
                         msg = None
                     if msg is not None:
                         yield msg
+                elif opcode == _OP_MESSAGE_INDEX and self.keep_unverified and pending:
+                    self._indexes.setdefault(pending[-1][0], []).append(f.read(length))
                 elif length < 1 << 20:  # message indexes etc.: reading is cheaper than a buffered seek
                     f.read(length)
                 else:  # attachments, large metadata: not needed here
@@ -396,6 +417,7 @@ class McapSource:
         self.stats.bytes_read = self.stats.bytes_total
 
     def _chunk_messages(self, end_offset: int, future: Future[bytes]) -> Iterator[RawMessage]:
+        index = self._indexes.pop(end_offset, None)
         try:
             data = future.result()
         except _CrcMismatch as exc:
@@ -404,25 +426,34 @@ class McapSource:
                     f"{self.path}: damaged MCAP: chunk ending at byte {end_offset} skipped: {exc} (its "
                     f"{_message_records(exc.data)} messages; autosar ingest --allow-unverified keeps them)")
                 return
+            listed = _listed(index)
+            unlisted = [0]
             kept, first, last = 0, None, None
-            for msg in self._records_of(exc.data, end_offset):
+            for msg in self._records_of(exc.data, end_offset, listed=listed, unlisted=unlisted):
                 kept += 1
                 first = msg.log_ns if first is None else min(first, msg.log_ns)
                 last = msg.log_ns if last is None else max(last, msg.log_ns)
                 yield msg
             span = f" logged {_utc(first)} to {_utc(last)}" if first is not None and last is not None else ""
+            checked = (f", checked against its message index ({unlisted[0]} it does not list left out)"
+                       if listed is not None else ", no message index to check them against")
             self.stats.warnings.append(
                 f"{self.path}: damaged MCAP: chunk ending at byte {end_offset} read although {exc} "
-                f"(--allow-unverified): its {kept} messages{span} kept, one or more of their bytes not as written")
+                f"(--allow-unverified): its {kept} messages{span} kept{checked}; one or more of their bytes not as "
+                "written")
             return
         except _BadChunk as exc:
             self.stats.warnings.append(f"{self.path}: damaged MCAP: chunk ending at byte {end_offset} skipped: {exc}")
             return
         yield from self._records_of(data, end_offset)
 
-    def _records_of(self, data: bytes, end_offset: int, cut: bool = False) -> Iterator[RawMessage]:
+    def _records_of(self, data: bytes, end_offset: int, cut: bool = False,
+                    listed: set[tuple[int, int, int]] | None = None, unlisted: list[int] | None = None
+                    ) -> Iterator[RawMessage]:
         """The records of a chunk's payload ``data`` (whose record ends at file byte ``end_offset``); ``cut``: the
-        payload is a prefix, and the record it breaks off is where it ends, not damage."""
+        payload is a prefix, and the record it breaks off is where it ends, not damage. ``listed``: the (channel id,
+        log time, record offset) its message index gives; a message it does not list is left out, counted in
+        ``unlisted[0]``."""
         view = memoryview(data)
         pos, n = 0, len(data)
         unpack_head, unpack_msg = _RECORD_HEAD.unpack_from, _MSG_HEAD.unpack_from
@@ -433,7 +464,7 @@ class McapSource:
                 if cut and pos + 9 > n:
                     break
                 opcode, length = unpack_head(view, pos)
-                body = pos + 9
+                at, body = pos, pos + 9
                 pos = body + length
                 if pos > n:
                     if cut:
@@ -441,6 +472,9 @@ class McapSource:
                     raise ValueError("record runs past the end of the chunk")
                 if opcode == _OP_MESSAGE:  # the hot path, inlined
                     channel_id, _, log_time, _ = unpack_msg(view, body)
+                    if listed is not None and (channel_id, log_time, at) not in listed:
+                        unlisted[0] += 1  # type: ignore[index]
+                        continue
                     channel = channels.get(channel_id) or self._summary_channel(channel_id)
                     if channel is None:
                         self._undeclared += 1
