@@ -255,7 +255,6 @@ def ros1_chunks(path: Path) -> list[tuple[int, int, int]]:
 
 def mcap_messages(path: Path, keep_unverified: bool) -> Counter[tuple[str, int, bytes]]:
     """(topic, log time, payload digest) of every message the MCAP reader gives of ``path``."""
-    sys.path.insert(0, str(REPO))
     from autosar_cli.ingest.mcap_source import McapSource
 
     got: Counter[tuple[str, int, bytes]] = Counter()

@@ -68,7 +68,7 @@ def blf_damage(path: Path) -> CutShort | None:
         if why is not None:  # a hole of no bytes: the reader's copy, whose header is rebuilt
             holes.append((0, 0))
             said.append(f"its file header {why}: rebuilt, its fields after the first 8 bytes kept")
-        if _start_lost(buf) and _last_object_time(buf) is not None:
+        if _start_lost(buf) and _whole(buf)[1] is not None:
             holes.append((0, 0))
             said.append("its file header's start time is no date: taken from its stop time less its last object's "
                         "time (to 1 ms)")
@@ -131,7 +131,7 @@ def write_blf_without(path: Path, dest: Path) -> None:
         out.flush()
         size = out.tell()
         start = _SYSTEMTIME.unpack_from(buf, _START_AT)
-        if _start_lost(buf) and (last := _last_object_time(buf)) is not None:
+        if _start_lost(buf) and (last := _whole(buf)[1]) is not None:
             stop = systemtime_to_timestamp(_SYSTEMTIME.unpack_from(buf, _STOP_AT))
             start = timestamp_to_systemtime(stop - last / 1e9)
     with open(dest, "r+b") as fixed:
@@ -198,13 +198,6 @@ def _whole(buf: mmap.mmap) -> tuple[bool, int | None]:
     if why is not None or pending or total != struct.unpack_from("<Q", buf, _UNCOMPRESSED_SIZE_AT)[0]:
         return False, None
     return True, last if known else None
-
-
-def _last_object_time(buf: mmap.mmap) -> int | None:
-    """The time (ns from the start) of the last inner object of a BLF file that holds every container its header
-    counts, each whole; None where one is damaged or lost (the objects lost may be the last), or an object's time
-    is in no unit known."""
-    return _whole(buf)[1]
 
 
 def _walk(buf: mmap.mmap) -> Iterator[Walked]:

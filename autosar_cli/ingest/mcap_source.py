@@ -29,7 +29,6 @@ import zlib
 from collections import deque
 from collections.abc import Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
-from datetime import UTC, datetime
 from io import BytesIO
 from pathlib import Path
 from typing import BinaryIO
@@ -38,6 +37,7 @@ from mcap.data_stream import ReadDataStream
 from mcap.records import Channel as McapChannel
 from mcap.records import Chunk, Schema
 
+from .records import utc_text
 from .sources import Channel, LogReadError, RawMessage, ReadStats, normalise_type, register_container
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -69,11 +69,6 @@ class _CrcMismatch(_BadChunk):
     def __init__(self, data: bytes) -> None:
         super().__init__("its CRC does not match")
         self.data = data
-
-
-def _utc(t_ns: int) -> str:
-    """A log time (ns since the Unix epoch) as UTC to the millisecond."""
-    return datetime.fromtimestamp(t_ns / 1e9, UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
 def _listed(records: list[bytes] | None) -> set[tuple[int, int, int]] | None:
@@ -434,7 +429,8 @@ class McapSource:
                 first = msg.log_ns if first is None else min(first, msg.log_ns)
                 last = msg.log_ns if last is None else max(last, msg.log_ns)
                 yield msg
-            span = f" logged {_utc(first)} to {_utc(last)}" if first is not None and last is not None else ""
+            span = (f" logged {utc_text(first, 'milliseconds')} to {utc_text(last, 'milliseconds')}"
+                    .replace("+00:00", "Z") if first is not None and last is not None else "")
             checked = (f", checked against its message index ({unlisted[0]} it does not list left out)"
                        if listed is not None else ", no message index to check them against")
             self.stats.warnings.append(

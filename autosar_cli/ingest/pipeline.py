@@ -53,7 +53,7 @@ from .radar_block import (
     resolve,
     write_capture_stream,
 )
-from .records import UNKNOWN_TIME, CanRecord, NmeaHeading, NmeaRecord
+from .records import UNKNOWN_TIME, CanRecord, NmeaHeading, NmeaRecord, utc_text
 from .series import ClockRate
 from .sources import Channel, LogReadError, LogSource, RawMessage, open_source
 from .typesys import MessageTypes, SchemaError
@@ -522,7 +522,7 @@ class _Ingest:
         if dec.anchored:
             self.warnings.append(f"{path}: no RMC or ZDA sentence gives the date; {dec.anchored} NMEA records dated "
                                  "by the other inputs (the day that puts them within 12 h of "
-                                 f"{_iso(anchor or 0)})")
+                                 f"{utc_text(anchor or 0)})")
         if n:
             self.spans[str(path)] = (first, last)
         return n
@@ -544,8 +544,8 @@ class _Ingest:
                 a, b, t0, t1 = got
                 raise IngestError(
                     f"{b}: its {path} interleaves with {a}'s over {(t1 - t0) / 1e9:.2f} s "
-                    f"({_iso(t0, 'milliseconds')} to {_iso(t1, 'milliseconds')}): two recordings of one stream, "
-                    "or one sensor recorded twice on other clocks? Give the logs of one recording (the same "
+                    f"({utc_text(t0, 'milliseconds')} to {utc_text(t1, 'milliseconds')}): two recordings of one "
+                    "stream, or one sensor recorded twice on other clocks? Give the logs of one recording (the same "
                     "messages in two files are duplicates, dropped)")
 
     def finish(self) -> list[StreamInfo]:
@@ -704,10 +704,6 @@ class _Finished:
         return []
 
 
-def _iso(t_ns: int, timespec: str = "seconds") -> str:
-    return datetime.fromtimestamp(t_ns / 1e9, UTC).isoformat(timespec=timespec)
-
-
 def _shifted(rec: NmeaRecord, offset_ns: int) -> NmeaRecord:
     """``rec`` with its times moved by ``offset_ns`` (``--time-offset``)."""
     if isinstance(rec, NmeaHeading):
@@ -773,13 +769,13 @@ def check_time_gaps(spans: dict[str, tuple[int, int]], max_gap_s: float, allow: 
         gap = max(0, a - d, c - b)
         if gap <= max_gap_s * 1e9:
             if gap > APART_WARN_S * 1e9 and a > c:  # said once, of the later of the two
-                warnings.append(f"{path} ({_iso(a)} to {_iso(b)}) shares no time with the other inputs: it lies "
-                                f"{_human(gap / 1e9)} after {near} ({_iso(c)} to {_iso(d)}), so nothing in it joins "
-                                "them. A clock set wrong? (ASC and BLF logs carry the recording PC's local time.) "
-                                "Shift a CAN or NMEA log with --time-offset PATH=SECONDS")
+                warnings.append(f"{path} ({utc_text(a)} to {utc_text(b)}) shares no time with the other inputs: it "
+                                f"lies {_human(gap / 1e9)} after {near} ({utc_text(c)} to {utc_text(d)}), so nothing "
+                                "in it joins them. A clock set wrong? (ASC and BLF logs carry the recording PC's local "
+                                "time.) Shift a CAN or NMEA log with --time-offset PATH=SECONDS")
             continue
-        what = (f"{path} ({_iso(a)} to {_iso(b)}) lies {_human(gap / 1e9)} away from {near} ({_iso(c)} to "
-                f"{_iso(d)}), more than the {max_gap_s:g} s allowed")
+        what = (f"{path} ({utc_text(a)} to {utc_text(b)}) lies {_human(gap / 1e9)} away from {near} "
+                f"({utc_text(c)} to {utc_text(d)}), more than the {max_gap_s:g} s allowed")
         if allow:
             warnings.append(what + "; ingested as recorded (--allow-time-gap)")
             continue

@@ -8,6 +8,7 @@ clockwise" are converted once, by the NMEA decoder, through :mod:`autosar_cli.na
 from __future__ import annotations
 
 from dataclasses import dataclass
+from datetime import UTC, datetime
 
 #: Marks an unknown time (e.g. an NMEA fix time before any sentence carried the date).
 UNKNOWN_TIME = -1
@@ -88,3 +89,8 @@ def places_said(said: list[str]) -> str:
     if len(said) > SAID_AT_MOST:
         said = [*said[:2], f"{len(said) - 3} more places damaged as these", said[-1]]
     return "; ".join(said)
+
+
+def utc_text(t_ns: int, timespec: str = "seconds") -> str:
+    """A time (ns since the Unix epoch) as ISO 8601 UTC, to ``timespec``, for a report's line."""
+    return datetime.fromtimestamp(t_ns / 1e9, UTC).isoformat(timespec=timespec)
