@@ -22,7 +22,6 @@ them for all its drives.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import logging
 import os
@@ -38,7 +37,7 @@ from typing import Any
 from autosar_cli import __version__
 from autosar_cli.config import Config
 from autosar_cli.ingest.canlog import CanLogError
-from autosar_cli.ingest.pipeline import IngestError
+from autosar_cli.ingest.pipeline import IngestError, IngestOptions
 from autosar_cli.ingest.sources import LogReadError
 from autosar_cli.run import run, run_warnings
 from autosar_cli.sar.focus import FocusOptions
@@ -111,7 +110,7 @@ def _reporter(topic: str | None, name: str, min_interval_s: float = 0.25) -> Cal
 
 def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, method: str = "sar-min",
               options: FocusOptions | None = None, truth_path: str | None = None, autofocus: bool = False,
-              overwrite: bool = False, radar_options: Any = None,
+              overwrite: bool = False, ingest_options: IngestOptions | None = None,
               numba_threads: int | None = None, progress_topic: str | None = None,
               command: str = "") -> dict[str, Any]:
     """The Dask task of one drive: :func:`autosar_cli.run.run` into ``out_dir``; returns its status record.
@@ -131,10 +130,8 @@ def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, m
     try:
         manifest = run(logs, out_dir, config, method=method, options=options, truth_path=truth_path,
                        autofocus=autofocus, overwrite=overwrite, progress=report, command=command,
-                       radar_options=radar_options)
+                       ingest_options=ingest_options)
     except INPUT_ERRORS as exc:
-        with contextlib.suppress(OSError):
-            Path(out_dir).rmdir()  # only if run() left it empty: never touches an earlier run's products
         record.update(status="failed", error=_message(exc), error_type=type(exc).__name__,
                       wall_s=time.perf_counter() - t0)
         report("failed", 1, 1)
@@ -189,7 +186,8 @@ def _dashboard(client: Any) -> str | None:
 def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, method: str = "sar-min",
               autofocus: bool = False, options: FocusOptions | None = None, scheduler: str | None = None,
               workers: int | None = None, retries: int = DEFAULT_RETRIES, numba_threads: int | None = None,
-              overwrite: bool = False, radars: Sequence[str | Path] | None = None, radar_options: Any = None,
+              overwrite: bool = False, radars: Sequence[str | Path] | None = None,
+              ingest_options: IngestOptions | None = None,
               progress: Callable[[dict[str, Any]], None] | None = None,
               on_cluster: Callable[[dict[str, Any]], None] | None = None, command: str = "") -> dict[str, Any]:
     """Run every log as its own drive into ``out_dir/<name>/`` on a Dask cluster; returns batch.json's content.
@@ -200,7 +198,8 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
     ``navigate``, ``autofocus`` (with ``autofocus``), ``focus``, ``done`` or ``failed``) and
     ``{"drive", "stage": "finished", "record"}`` once a drive's record is final. ``on_cluster(info)`` is called
     once the cluster is up (scheduler address, dashboard link, workers). Never raises for a failing drive: look
-    at ``failed``. ``radars``: a DCA1000 capture per log (same order), ingested with ``radar_options``.
+    at ``failed``. ``radars``: a DCA1000 capture per log (same order). ``ingest_options``: how each drive is read
+    (:class:`autosar_cli.ingest.pipeline.IngestOptions`: the DBC, the captures' start, damaged chunks, time gaps).
     """
     if not logs:
         raise BatchError("no drive logs given")
@@ -276,7 +275,7 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
         for name, log, capture in zip(names, paths, captures, strict=True):
             fut = client.submit(run_drive, name, [log, *capture], str(out / name), config, method=method,
                                 options=options, autofocus=autofocus, overwrite=overwrite,
-                                radar_options=radar_options, numba_threads=numba_threads,
+                                ingest_options=ingest_options, numba_threads=numba_threads,
                                 progress_topic=topic, command=command, retries=retries, pure=False,
                                 key=f"autosar-run-{name}-{topic[-12:]}")
             futures[fut] = (name, log)

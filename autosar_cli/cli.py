@@ -60,6 +60,16 @@ RadarOverrideOpt = Annotated[bool, typer.Option("--radar-override", help="Where 
 RadarStreamOpt = Annotated[str | None, typer.Option("--radar-stream", metavar="NAME", help="The drive's radar "
                                                    "stream to focus (/radar/NAME; default: its first). Its "
                                                    "mounting is the config's \\[radar].")]
+DbcOpt = Annotated[Path | None, typer.Option("--dbc", help="CAN database (default: the config's).")]
+AllowUnverifiedOpt = Annotated[bool, typer.Option(
+    "--allow-unverified", help="Read the MCAP chunks whose CRC fails (the damage is somewhere in them; each is "
+                               "named) rather than leave them out.")]
+TimeOffsetOpt = Annotated[list[str] | None, typer.Option(
+    "--time-offset", metavar="PATH=SECONDS", help="Shift a CAN or NMEA log's times (repeatable).")]
+AllowTimeGapOpt = Annotated[bool, typer.Option(
+    "--allow-time-gap", help="Ingest inputs that lie more than --max-time-gap apart as recorded.")]
+MaxTimeGapOpt = Annotated[float, typer.Option(
+    "--max-time-gap", min=0.0, help="Seconds inputs may lie apart before they are refused.")]
 AutofocusOpt = Annotated[bool, typer.Option("--autofocus", help="Before focusing, correct the track by the motion "
                                             "the radar itself measures: the phase histories of a first image's "
                                             "bright isolated points (residual motion across track and up, and the "
@@ -104,6 +114,16 @@ def _radar_options(start: str | None, sync: str, override: bool) -> Any:
     from autosar_cli.ingest.pipeline import RadarCaptureOptions, parse_time_ns
 
     return RadarCaptureOptions(parse_time_ns(start) if start is not None else None, sync, override)
+
+
+def _ingest_options(dbc: Path | None, radar_start: str | None, radar_sync: str, radar_override: bool,
+                    allow_unverified: bool, time_offset: list[str] | None, allow_time_gap: bool,
+                    max_time_gap: float) -> Any:
+    """``autosar run``'s and ``batch``'s ingest options as the library takes them."""
+    from autosar_cli.ingest.pipeline import IngestOptions, parse_time_offsets
+
+    return IngestOptions(dbc, _radar_options(radar_start, radar_sync, radar_override),
+                         parse_time_offsets(time_offset or []), max_time_gap, allow_time_gap, allow_unverified)
 
 
 def _version(value: bool) -> None:
@@ -264,7 +284,7 @@ def ingest(
              "captures are recognised too.")] = None,
     output: Annotated[Path, typer.Option("--output", "-o", help="drive.h5 to write.")] = Path("drive.h5"),
     config: ConfigOpt = None,
-    dbc: Annotated[Path | None, typer.Option("--dbc", help="CAN database (default: the config's).")] = None,
+    dbc: DbcOpt = None,
     can_log: Annotated[list[Path] | None, typer.Option(
         "--can-log", metavar="FILE", help="Standalone CAN log (repeatable).")] = None,
     nmea: Annotated[list[Path] | None, typer.Option(
@@ -277,15 +297,10 @@ def ingest(
     radar_override: RadarOverrideOpt = False,
     allow_partial: Annotated[bool, typer.Option("--allow-partial",
                                                 help="Write a drive without radar or without navigation.")] = False,
-    allow_unverified: Annotated[bool, typer.Option(
-        "--allow-unverified", help="Read the MCAP chunks whose CRC fails (the damage is somewhere in them; each is "
-                                   "named) rather than leave them out.")] = False,
-    time_offset: Annotated[list[str] | None, typer.Option(
-        "--time-offset", metavar="PATH=SECONDS", help="Shift a CAN or NMEA log's times (repeatable).")] = None,
-    allow_time_gap: Annotated[bool, typer.Option(
-        "--allow-time-gap", help="Ingest inputs that lie more than --max-time-gap apart as recorded.")] = False,
-    max_time_gap: Annotated[float, typer.Option(
-        "--max-time-gap", min=0.0, help="Seconds inputs may lie apart before they are refused.")] = 3600.0,
+    allow_unverified: AllowUnverifiedOpt = False,
+    time_offset: TimeOffsetOpt = None,
+    allow_time_gap: AllowTimeGapOpt = False,
+    max_time_gap: MaxTimeGapOpt = 3600.0,
     overwrite: OverwriteOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
@@ -551,6 +566,11 @@ def run(
     radar_override: RadarOverrideOpt = False,
     radar_stream: RadarStreamOpt = None,
     autofocus: AutofocusOpt = False,
+    dbc: DbcOpt = None,
+    allow_unverified: AllowUnverifiedOpt = False,
+    time_offset: TimeOffsetOpt = None,
+    allow_time_gap: AllowTimeGapOpt = False,
+    max_time_gap: MaxTimeGapOpt = 3600.0,
     config: ConfigOpt = None,
     overwrite: OverwriteOpt = False,
     as_json: JsonOpt = False,
@@ -566,7 +586,9 @@ def run(
             manifest = run_chain([*logs, *([radar] if radar else [])], output, cfg, method=method.value,
                                  options=options, truth_path=truth, autofocus=autofocus, overwrite=overwrite,
                                  progress=update, command=" ".join(sys.argv), fork_ingest=True,
-                                 radar_options=_radar_options(radar_start, radar_sync, radar_override))
+                                 ingest_options=_ingest_options(dbc, radar_start, radar_sync, radar_override,
+                                                                allow_unverified, time_offset, allow_time_gap,
+                                                                max_time_gap))
         if as_json:
             out.print_json(json.dumps(manifest, default=str))
             return
@@ -595,7 +617,8 @@ def _degraded(warnings: list[str], record: str) -> str:
     there is any (``record``: the file that keeps them)."""
     for w in warnings:
         err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
-    return f" [yellow]degraded[/] ({len(warnings)} warnings above, in {record})" if warnings else ""
+    n = len(warnings)
+    return f" [yellow]degraded[/] ({n} warning{'' if n == 1 else 's'} above, in {record})" if warnings else ""
 
 
 @contextmanager
@@ -942,6 +965,10 @@ def batch(
     radar_sync: RadarSyncOpt = "/dca1000/sync",
     radar_override: RadarOverrideOpt = False,
     autofocus: AutofocusOpt = False,
+    dbc: DbcOpt = None,
+    allow_unverified: AllowUnverifiedOpt = False,
+    allow_time_gap: AllowTimeGapOpt = False,
+    max_time_gap: MaxTimeGapOpt = 3600.0,
     config: ConfigOpt = None,
     overwrite: OverwriteOpt = False,
     as_json: JsonOpt = False,
@@ -965,7 +992,9 @@ def batch(
         with _batch_progress(len(logs), enabled=not as_json) as update:
             manifest = run_batch(logs, output, cfg, method=method.value, autofocus=autofocus, scheduler=scheduler,
                                  workers=workers, retries=retries, numba_threads=numba_threads, overwrite=overwrite,
-                                 radars=radar, radar_options=_radar_options(radar_start, radar_sync, radar_override),
+                                 radars=radar,
+                                 ingest_options=_ingest_options(dbc, radar_start, radar_sync, radar_override,
+                                                                allow_unverified, None, allow_time_gap, max_time_gap),
                                  progress=update, on_cluster=on_cluster, command=" ".join(sys.argv))
         if as_json:
             out.print_json(json.dumps(manifest, default=str))

@@ -39,6 +39,7 @@ from autosar_cli.store.manifest import json_default, product_status, read_json_m
 from autosar_cli.store.outputs import check_free_space, check_output, check_products, input_bytes
 
 if TYPE_CHECKING:
+    from autosar_cli.ingest.pipeline import IngestOptions
     from autosar_cli.sar.focus import FocusOptions
 
 FORMAT = "autosar-run"
@@ -59,7 +60,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         options: FocusOptions | None = None, truth_path: str | Path | None = None, autofocus: bool = False,
         overwrite: bool = False,
         progress: Callable[[str, int, int], None] | None = None, command: str = "",
-        fork_ingest: bool = False, radar_options: Any = None) -> dict[str, Any]:
+        fork_ingest: bool = False, ingest_options: IngestOptions | None = None) -> dict[str, Any]:
     """Run the whole chain on ``logs`` into ``out_dir``; returns the manifest (also written as run.json).
 
     ``autofocus``: scale the navigated track by the radar's own measure of it before focusing (the trajectory
@@ -67,7 +68,8 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     ``progress(stage, done, total)`` is called as each stage advances. ``fork_ingest``: ingest in a forked child
     process while this one imports the later stages (see :func:`_ingest_beside_imports`; the ``autosar run``
     command sets it, library callers such as ``autosar batch``'s workers keep one process). ``logs`` may hold
-    a DCA1000 capture; ``radar_options`` (:class:`autosar_cli.ingest.pipeline.RadarCaptureOptions`) places it.
+    CAN logs, NMEA captures and a DCA1000 capture, as for ``autosar ingest``; ``ingest_options``
+    (:class:`autosar_cli.ingest.pipeline.IngestOptions`) reads them: the DBC, the capture's start, time offsets.
     """
     out = Path(out_dir)
     manifest_path = out / "run.json"
@@ -75,7 +77,8 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         raise RunError(f"{out}: already holds a run (run.json); pass --overwrite to replace it")
     # every check that needs no data before the ingest starts: outputs (never an input, only autosar's replaced)
     # and the image's size
-    inputs = [*logs, *([truth_path] if truth_path else []), *config.files]
+    inputs = [*logs, *([truth_path] if truth_path else []), *config.files,
+              *(ingest_options.files() if ingest_options else [])]
     check_output(out, inputs, overwrite=overwrite, directory=True)
     check_products(out, [DRIVE, TRAJECTORY, "run.json"], inputs, overwrite=True)
     check_products(out, [f"{IMAGE}.tif", f"{IMAGE}.h5", f"{IMAGE}.png"], inputs, overwrite=True)
@@ -89,6 +92,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         from autosar_cli.sar.focus import check_request
 
         check_request(options, out / IMAGE, True, inputs, config)
+    created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     inputs = [{"path": str(Path(p)), "size_bytes": input_bytes([p])} for p in logs]
     manifest: dict[str, Any] = {
@@ -101,8 +105,19 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         return lambda done, total: progress(stage, done, total) if progress else None
 
     t = time.perf_counter()
-    rep = _ingest_beside_imports([Path(p) for p in logs], out / DRIVE, config, stage_progress("ingest"), command,
-                                 fork=fork_ingest, radar_options=radar_options, autofocus=autofocus)
+    try:
+        rep = _ingest_beside_imports([Path(p) for p in logs], out / DRIVE, config, stage_progress("ingest"), command,
+                                     fork=fork_ingest, ingest_options=ingest_options, autofocus=autofocus)
+    except BaseException as exc:
+        if created:  # the ingest writes atomically: a directory made for this run holds nothing
+            with contextlib.suppress(OSError):
+                out.rmdir()
+        from autosar_cli.ingest.pipeline import PARTIAL_HINT, IngestError  # in the child where the ingest forks
+
+        if not (isinstance(exc, IngestError) and str(exc).endswith(PARTIAL_HINT)):
+            raise
+        raise IngestError(str(exc)[:-len(PARTIAL_HINT)] + " (a run needs radar and navigation; `autosar ingest "
+                          "--allow-partial` writes such a drive on its own)", exc.warnings) from exc
     manifest["stages"]["ingest"] = {"wall_s": time.perf_counter() - t, "messages": rep.get("messages"),
                                     "bytes_read": rep.get("bytes_read"), "warnings": rep.get("warnings", [])}
     manifest["outputs"]["drive"] = DRIVE
@@ -212,7 +227,8 @@ def _fork_context() -> Any:
 
 
 def _ingest_beside_imports(logs: list[Path], drive: Path, config: Config, progress: Callable[[int, int], None],
-                           command: str, *, fork: bool, radar_options: Any = None, autofocus: bool = False
+                           command: str, *, fork: bool, ingest_options: IngestOptions | None = None,
+                           autofocus: bool = False
                            ) -> dict[str, Any]:
     """Ingest ``logs`` into ``drive``; returns the ingest report as a dict.
 
@@ -225,11 +241,11 @@ def _ingest_beside_imports(logs: list[Path], drive: Path, config: Config, progre
     """
     ctx = _fork_context() if fork else None
     if ctx is None:
-        return _ingest(logs, drive, config, progress, command, radar_options)
+        return _ingest(logs, drive, config, progress, command, ingest_options)
     receive, send = ctx.Pipe(duplex=False)
     sys.stdout.flush()
     sys.stderr.flush()
-    child = ctx.Process(target=_ingest_child, args=(send, logs, drive, config, command, radar_options),
+    child = ctx.Process(target=_ingest_child, args=(send, logs, drive, config, command, ingest_options),
                         name="autosar-ingest")
     child_pid: list[int] = []
     forwarded: list[bool] = []
@@ -300,15 +316,17 @@ class _RemoteTraceback(Exception):
 
 
 def _ingest(logs: list[Path], drive: Path, config: Config, progress: Callable[[int, int], None], command: str,
-            radar_options: Any) -> dict[str, Any]:
-    from autosar_cli.ingest.pipeline import RadarCaptureOptions, ingest
+            options: IngestOptions | None) -> dict[str, Any]:
+    from autosar_cli.ingest.pipeline import IngestOptions, ingest
 
-    return ingest(logs, drive, config=config, progress=progress, command=command,
-                  radar_options=radar_options or RadarCaptureOptions()).to_dict()
+    o = options or IngestOptions()
+    return ingest(logs, drive, config=config, progress=progress, command=command, dbc=o.dbc,
+                  radar_options=o.radar, time_offsets=o.time_offsets, max_time_gap_s=o.max_time_gap_s,
+                  allow_time_gap=o.allow_time_gap, allow_unverified=o.allow_unverified).to_dict()
 
 
 def _ingest_child(send: Any, logs: list[Path], drive: Path, config: Config, command: str,
-                  radar_options: Any = None) -> None:
+                  options: IngestOptions | None = None) -> None:
     """The forked ingest: progress at most every 0.1 s (the parent reads only after its imports), then the
     report, or the error (its class if it pickles, else a RunError with its message) and its traceback."""
     last = [0.0]
@@ -320,7 +338,7 @@ def _ingest_child(send: Any, logs: list[Path], drive: Path, config: Config, comm
             send.send(("progress", done, total))
 
     try:
-        send.send(("report", _ingest(logs, drive, config, progress, command, radar_options)))
+        send.send(("report", _ingest(logs, drive, config, progress, command, options)))
     except BaseException as exc:  # noqa: BLE001 - every failure goes back to the parent
         remote = traceback.format_exc()
         try:

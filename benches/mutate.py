@@ -94,6 +94,10 @@ MF4_HALF_BUILT = ("tests/test_ingest_canlog.py::"
 BLF_DAMAGE = "tests/test_ingest_canlog.py::test_a_blf_damaged_inside_keeps_the_frames_of_every_other_container"
 BLF_SIZE = "tests/test_ingest_canlog.py::test_a_blf_container_whose_size_is_damaged_is_read_to_its_streams_end"
 BLF_HEADER = "tests/test_ingest_canlog.py::test_a_blf_whose_file_header_is_damaged_is_read_with_it_rebuilt"
+UNUSED_INPUT = "tests/test_ingest_mixed.py::test_an_input_nothing_of_which_reaches_the_drive_is_named_with_why"
+RUN_CAN_LOG = "tests/test_ingest_mixed.py::test_run_reads_can_logs_beside_the_drive_log_with_ingests_options"
+BATCH_INGEST = "tests/test_batch.py::test_batch_reads_every_drive_with_its_ingest_options"
+RUN_NO_RADAR = "tests/test_ingest_mixed.py::test_a_run_of_a_log_without_radar_names_the_ingest_that_writes_it"
 BLF_START = "tests/test_ingest_canlog.py::test_a_blf_whose_start_time_is_no_date_is_read_at_offsets_with_a_warning"
 BLF_START_KEPT = "tests/test_ingest_canlog.py::test_a_blf_whose_start_time_alone_is_lost_takes_it_from_its_stop_time"
 BLF_FILE_SIZE = "tests/test_ingest_canlog.py::test_a_blf_whose_file_size_is_damaged_is_told_from_one_cut_short"
@@ -415,7 +419,7 @@ MUTATIONS: list[Mutation] = [
     _m("stale-partials-left-behind", "safety", "store/outputs.py",
        "    remove_stale_partials(path.parent)\n", "\n", STALE),
     _m("degraded-run-reported-as-complete", "safety", "cli.py",
-       'return f" [yellow]degraded[/] ({len(warnings)} warnings above, in {record})" if warnings else ""',
+       "return f\" [yellow]degraded[/] ({n} warning{'' if n == 1 else 's'} above, in {record})\" if warnings else \"\"",
        'return ""', DEGRADED),
     _m("mcap-damage-ends-the-read", "integrity", "ingest/mcap_source.py",
        "nxt = _next_record(self.path, resync_from + 1, total)", "nxt = None", MCAP_RESYNC),
@@ -551,6 +555,16 @@ MUTATIONS: list[Mutation] = [
        "                    if False:\n", MCAP_UNVERIFIED),
     _m("mcap-unverified-chunk-left-out-when-asked", "integrity", "ingest/mcap_source.py",
        "            if not self.keep_unverified:\n", "            if True:\n", MCAP_UNVERIFIED),
+    _m("input-adding-nothing-unsaid", "ingest", "ingest/pipeline.py",
+       "        job.warnings += job.unused\n", "\n", UNUSED_INPUT),
+    _m("can-log-among-a-runs-logs-read-as-a-container", "ingest", "ingest/pipeline.py",
+       "        by_kind[classify_input(Path(p))].append(Path(p))\n", "        by_kind[\"log\"].append(Path(p))\n",
+       RUN_CAN_LOG),
+    _m("batch-drive-read-without-the-ingest-options", "batch", "batch.py",
+       "                       ingest_options=ingest_options)", "                       ingest_options=None)",
+       BATCH_INGEST),
+    _m("failed-run-leaves-its-empty-directory", "safety", "run.py",
+       "        if created:  # the ingest writes", "        if False:  # the ingest writes", RUN_NO_RADAR),
     _m("blf-stream-end-unchecked", "ingest", "ingest/blf_damage.py",
        "    if method != _DEFLATED or not inflate.eof or len(inner) != inflated_size:",
        "    if method != _DEFLATED:", BLF_LAST),

@@ -16,6 +16,7 @@ from autosar_cli import batch as batch_mod
 from autosar_cli.batch import BatchError, drive_names, read_batch, run_batch
 from autosar_cli.cli import app
 from autosar_cli.config import load_config
+from autosar_cli.ingest.pipeline import IngestOptions, RadarCaptureOptions
 from autosar_cli.run import run
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.sar.grid import FocusGrid
@@ -126,6 +127,26 @@ def test_batch_existing_scheduler_retries_transient_errors(thread_cluster, tmp_p
     assert recs["broken"]["status"] == "failed" and recs["broken"]["attempts"] == 3
     assert "broken.mcap: transient I/O error (attempt 3)" in recs["broken"]["error"]
     assert calls == {"flaky": 2, "broken": 3}
+
+
+def test_batch_reads_every_drive_with_its_ingest_options(thread_cluster, tmp_path, monkeypatch):
+    seen = []
+
+    def fake_run(logs, out_dir, config, **kw):
+        seen.append(kw["ingest_options"])
+        return _fake_manifest()
+
+    monkeypatch.setattr(batch_mod, "run", fake_run)
+    logs = [tmp_path / "a.mcap", tmp_path / "b.mcap"]
+    for log in logs:
+        log.write_bytes(b"")
+    dbc = Path("configs/autosar_giulia.dbc")
+    r = runner.invoke(app, ["batch", *map(str, logs), "-o", str(tmp_path / "out"), "--scheduler",
+                            thread_cluster.scheduler_address, "--dbc", str(dbc), "--allow-unverified",
+                            "--allow-time-gap", "--max-time-gap", "60", "--radar-sync", "/dca/sync"])
+    assert r.exit_code == 0, r.output
+    want = IngestOptions(dbc, RadarCaptureOptions(None, "/dca/sync", False), {}, 60.0, True, True)
+    assert seen == [want, want]
 
 
 def test_split_grid_positions_bit_identical():

@@ -6,7 +6,9 @@ and by hand (NMEA checksums computed independently), so every expected count is 
 
 from __future__ import annotations
 
+import json
 import re
+import shutil
 from datetime import UTC, datetime
 from functools import reduce
 from pathlib import Path
@@ -16,6 +18,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from autosar_cli.candb import giorgio_checksum
 from autosar_cli.cli import app
 from autosar_cli.config import Config, load_config
 from autosar_cli.ingest.inspect import summarize
@@ -232,6 +235,86 @@ def test_can_error_and_remote_frames_listed_and_counted(ci_mcap: SimulationResul
     r = runner.invoke(app, ["ingest", str(ci_mcap.log_path), "--can-log", str(log), "-o", str(work / "err.h5")])
     assert r.exit_code == 0, r.output
     assert re.search(r"CAN: 399 frames, 392 decoded.*error frames 4.*remote frames 3", r.stdout), r.stdout
+
+
+def eps3(t: float) -> can.Message:
+    """An EPS_3 frame (in the DBC, not in the ci drive) with its FCA Giorgio checksum."""
+    body = bytes(4)
+    return can.Message(timestamp=t, arbitration_id=0x122, is_extended_id=False,
+                       data=body[:3] + bytes([giorgio_checksum(0x122, body)]))
+
+
+def test_an_input_nothing_of_which_reaches_the_drive_is_named_with_why(ci_mcap: SimulationResult, work: Path,
+                                                                       cfg: Config, drive_start_s: float) -> None:
+    """A CAN log given beside a drive log that adds nothing to the drive was read without a word: its IDs not
+    in the DBC, only error and remote frames, an empty file, a log python-can finds no frame line in."""
+    t = drive_start_s + 0.2
+    foreign = candump(work / "foreign_ids.log", [can.Message(timestamp=t + 0.01 * i, arbitration_id=0x555 + i % 2,
+                                                             is_extended_id=False, data=bytes(8)) for i in range(20)])
+    errors = candump(work / "only_errors.log", [can.Message(timestamp=t + 0.01 * i, is_error_frame=True,
+                                                            arbitration_id=0, dlc=0) for i in range(4)])
+    (empty := work / "empty.log").write_bytes(b"")
+    (no_frame := work / "no_frame.asc").write_text("date Sun Dec 6 10:00:00.000 am 2026\nbase hex  timestamps "
+                                                   "absolute\n   0.010000 1  555  Rx   d 2 01 02\n")
+    known = candump(work / "eps3.log", [eps3(t + 0.01 * i) for i in range(20)])
+    report = run([ci_mcap.log_path], work / "unused.h5", cfg, can_logs=[foreign, errors, empty, no_frame, known])
+    said = {w.split(": nothing of it is in the drive: ")[0]: w.split(": nothing of it is in the drive: ")[1]
+            for w in report.warnings if ": nothing of it is in the drive: " in w}
+    assert said == {
+        str(foreign): f"none of its 20 CAN frames decoded: 20 with an ID not in the DBC {cfg.dbc_path} (0x555, 0x556)",
+        str(errors): "none of its 4 CAN frames decoded: 4 error frames",
+        str(empty): "the file is empty",
+        str(no_frame): "no CAN frame read from it (a file of its kind, but no frame python-can reads)",
+    }, report.warnings
+    with Drive(work / "unused.h5") as d:
+        assert len(d.h5["can/EPS_3/t_ns"]) == 20  # the log whose frames the DBC decodes: no warning
+    copy = work / "copy_of_ci.mcap"  # the same recording under another name: its rows all duplicates
+    shutil.copy(ci_mcap.log_path, copy)
+    report = run([ci_mcap.log_path, copy], work / "copy.h5", cfg)
+    said = [w for w in report.warnings if "nothing of it is in the drive" in w]
+    assert len(said) == 1 and said[0].startswith(f"{copy}: nothing of it is in the drive: every row of it dropped: ")
+    assert "the same as rows read before (duplicates)" in said[0], said
+
+
+def test_run_reads_can_logs_beside_the_drive_log_with_ingests_options(ci_mcap: SimulationResult, work: Path,
+                                                                      drive_start_s: float) -> None:
+    """`autosar run` said it took CAN and NMEA logs "as for autosar ingest", then refused one as an unknown log
+    container; and its errors named --time-offset, which it lacked."""
+    log = candump(work / "eps3_late.log", [eps3(drive_start_s + 7200.2 + 0.01 * i) for i in range(20)])
+    out = work / "run_with_can_log"
+    r = runner.invoke(app, ["run", str(ci_mcap.log_path), str(log), "-o", str(out)])
+    assert r.exit_code == 1 and "--time-offset" in r.stderr and "Traceback" not in r.output, r.output
+    r = runner.invoke(app, ["run", str(ci_mcap.log_path), str(log), "-o", str(out), "--time-offset", f"{log}=-7200",
+                            "--dbc", "configs/autosar_giulia.dbc", "--json"])
+    assert r.exit_code == 0, r.output
+    with Drive(out / "drive.h5") as d:
+        t = d.h5["can/EPS_3/t_ns"][()]
+    assert len(t) == 20 and abs(t[0] / 1e9 - (drive_start_s + 0.2)) < 1e-3
+    assert json.loads(r.stdout)["stages"]["ingest"]["warnings"] == []
+
+
+def test_a_run_of_a_log_without_radar_names_the_ingest_that_writes_it(ci_mcap: SimulationResult, work: Path) -> None:
+    """`autosar run` has no --allow-partial (it focuses the radar): its error said "use --allow-partial"."""
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+
+    log = work / "no_radar.mcap"
+    with open(ci_mcap.log_path, "rb") as f, open(log, "wb") as g:
+        w = Writer(g)
+        w.start()
+        ids: dict[int, int] = {}
+        for schema, channel, m in make_reader(f).iter_messages():
+            if schema is None or schema.name.endswith("RawFrame"):
+                continue
+            if channel.id not in ids:
+                ids[channel.id] = w.register_channel(channel.topic, channel.message_encoding,
+                                                     w.register_schema(schema.name, schema.encoding, schema.data))
+            w.add_message(ids[channel.id], m.log_time, m.data, m.publish_time)
+        w.finish()
+    r = runner.invoke(app, ["run", str(log), "-o", str(work / "no_radar_run")])
+    assert r.exit_code == 1 and "Traceback" not in r.output, r.output
+    assert f"{log}: no radar stream (a run needs radar and navigation; `autosar ingest --allow-partial` " in r.stderr
+    assert not (work / "no_radar_run").exists()
 
 
 # ----------------------------------------------------------------------------------- plausibility

@@ -21,7 +21,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from autosar_cli import __version__, msgs
 from autosar_cli.candb import DbcError, load_dbc
@@ -36,6 +36,7 @@ from .decoders import (
     IMU_COLUMNS,
     VELOCITY_COLUMNS,
     CanDecoder,
+    CanStats,
     NmeaStreams,
     RadarDecoder,
     StreamInfo,
@@ -68,6 +69,8 @@ KIND_OF_TYPE = {
     msgs.RAW_FRAME: "radar",
 }
 NMEA_SUFFIXES = (".nmea", ".txt", ".gps")
+#: how the error of a drive without radar or navigation ends (``autosar run``, which has no such option, says its own)
+PARTIAL_HINT = " (use --allow-partial to write the drive anyway)"
 MAX_TIME_GAP_S = 3600.0  #: inputs further apart than this are refused (unless --allow-time-gap)
 #: inputs apart by more than this, less than MAX_TIME_GAP_S, are warned of: a recorder's split files meet (a few ms
 #: apart), a log whose clock is off by a time zone's hours does not
@@ -166,6 +169,33 @@ class RadarCaptureOptions:
     override: bool = False
 
 
+@dataclass(frozen=True)
+class IngestOptions:
+    """How :func:`ingest` reads a drive's inputs, as ``autosar run`` and ``batch`` pass it on: each field is the
+    :func:`ingest` argument of its name (``radar``: ``radar_options``)."""
+
+    dbc: Path | None = None
+    radar: RadarCaptureOptions = RadarCaptureOptions()
+    time_offsets: Mapping[Path, float] = field(default_factory=dict)
+    max_time_gap_s: float = MAX_TIME_GAP_S
+    allow_time_gap: bool = False
+    allow_unverified: bool = False
+
+    def files(self) -> list[Path]:
+        """The files these options name (inputs too: never written)."""
+        return [self.dbc] if self.dbc is not None else []
+
+
+class _Tally(NamedTuple):
+    """Counts of an ingest at one moment, for :meth:`_Ingest.check_used`."""
+
+    can: CanStats  #: a copy
+    skipped: set[tuple[str, str]]  #: channels (topic, type) skipped
+    triggers: int  #: the radar's frame triggers taken
+    duplicates: int  #: rows of every stream dropped as duplicates
+    dropped: int  #: rows dropped as late or stamp outliers
+
+
 class _Ingest:
     def __init__(self, writer: DriveWriter, config: Config, dbc: Path | None,
                  radar_options: RadarCaptureOptions = RadarCaptureOptions()) -> None:
@@ -176,6 +206,8 @@ class _Ingest:
         self.sync_log_ns: list[int] = []  #: and when the logger took each in
         self.types = MessageTypes()
         self.warnings: list[str] = []
+        #: inputs of which nothing went into the drive, and why: said once the drive is known to be written
+        self.unused: list[str] = []
         self.skipped_channels: dict[tuple[str, str], dict[str, Any]] = {}
         self.streams: dict[str, Any] = {}  # drive.h5 group -> TableStream / NmeaStreams / RadarDecoder
         self.handlers: dict[tuple[str, int], Callable[[RawMessage], None] | None] = {}
@@ -527,6 +559,48 @@ class _Ingest:
             self.spans[str(path)] = (first, last)
         return n
 
+    def tally(self) -> _Tally:
+        """What :meth:`check_used` compares, so far."""
+        st = self.can.stats
+        series = [s.stats for _, s in self.named_series()]
+        return _Tally(dataclasses.replace(st, unknown_ids=Counter(st.unknown_ids)), set(self.skipped_channels),
+                      len(self.sync_stamps), sum(s.duplicates for s in series),
+                      sum(s.late_dropped + s.stamp_outliers for s in series))
+
+    def check_used(self, path: Path, kind: str, read: int, before: _Tally) -> None:
+        """Where nothing of the input just read (``read`` messages, frames or records) went into the drive, why
+        (``before``: :meth:`tally` before it), in :attr:`unused`."""
+        if len(self.sync_stamps) > before.triggers or any(series.inputs and series.inputs[-1][0] == str(path)
+                                                          for _, series in self.named_series()):
+            return
+        now, can, was = self.tally(), self.can.stats, before.can
+        frames = can.frames - was.frames
+        if now.duplicates > before.duplicates or now.dropped > before.dropped:
+            dup, late = now.duplicates - before.duplicates, now.dropped - before.dropped
+            why = "every row of it dropped: " + ", ".join(p for p in (
+                f"{dup} the same as rows read before (duplicates)" if dup else "",
+                f"{late} stamped before rows already written (repeats of them, or late)" if late else "") if p)
+        elif frames:
+            unknown = can.unknown_ids - was.unknown_ids
+            ids = ", ".join(k for k, _ in unknown.most_common(5))
+            parts = [f"{unknown.total()} with an ID not in the DBC {self.dbc_path} ({ids})" if unknown else "",
+                     f"{can.error_frames - was.error_frames} error frames" if can.error_frames > was.error_frames
+                     else "",
+                     f"{can.remote_frames - was.remote_frames} remote frames" if can.remote_frames > was.remote_frames
+                     else ""]
+            said = ", ".join(p for p in parts if p)
+            why = f"none of its {frames} CAN frames decoded" + (f": {said}" if said else " (the CAN counts say why)")
+        elif kind == "can":
+            why = "the file is empty" if path.stat().st_size == 0 else \
+                "no CAN frame read from it (a file of its kind, but no frame python-can reads)"
+        elif read:
+            seen = [f"{t} ({m})" for t, m in self.skipped_channels if (t, m) not in before.skipped]
+            why = f"none of its {read} messages is of a known sensor stream" + (f"; found {', '.join(seen[:5])}"
+                                                                                 if seen else "")
+        else:
+            why = "no message in it"
+        self.unused.append(f"{path}: nothing of it is in the drive: {why}")
+
     def end_input(self, path: Path | str) -> None:
         """Every stream's rows since the last input came from ``path``."""
         for _, series in self.named_series():
@@ -578,10 +652,14 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
     ``time_offsets``: seconds added to every time of a standalone CAN or NMEA log (a logger's clock set
     wrong). Inputs whose spans lie more than ``max_time_gap_s`` apart are refused unless ``allow_time_gap``.
     ``allow_unverified``: read the MCAP chunks whose CRC fails (each named in a warning) rather than leave them out.
+    A CAN log, NMEA capture or DCA1000 capture among ``logs`` is read as one (:func:`classify_input`).
     """
     t0 = time.perf_counter()
-    radar_captures = list(radar_captures) + [p for p in logs if is_capture(Path(p))]
-    logs = [p for p in logs if not is_capture(Path(p))]
+    by_kind: dict[str, list[Path]] = {"log": [], "can": list(can_logs), "nmea": list(nmea_logs),
+                                      "radar": list(radar_captures)}
+    for p in logs:  # a CAN log, NMEA capture or DCA1000 capture among the logs is read as what it is
+        by_kind[classify_input(Path(p))].append(Path(p))
+    logs, can_logs, nmea_logs, radar_captures = by_kind["log"], by_kind["can"], by_kind["nmea"], by_kind["radar"]
     inputs = [(Path(p), "log") for p in logs] + [(Path(p), "can") for p in can_logs] + \
              [(Path(p), "nmea") for p in nmea_logs] + [(Path(p), "radar") for p in radar_captures]
     if not inputs:
@@ -614,24 +692,28 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
         job = _Ingest(writer, config, dbc, radar_options)
         for path, kind, src in sources:
             report_progress = (lambda b, base=done: progress(base + b, total)) if progress else (lambda b: None)
+            before = job.tally()
             try:
                 if src is not None:
-                    report.messages += job.run_source(src, report_progress)
+                    read = job.run_source(src, report_progress)
                 elif kind == "can":
-                    report.messages += job.run_can_log(path, offsets.get(path, 0))
+                    read = job.run_can_log(path, offsets.get(path, 0))
                 elif kind == "radar":
-                    report.messages += job.run_capture(path, report_progress)
+                    read = job.run_capture(path, report_progress)
                 else:
-                    report.messages += job.run_nmea_log(path, offsets.get(path, 0))
+                    read = job.run_nmea_log(path, offsets.get(path, 0))
             except (LogReadError, RadarParamsError) as exc:
                 raise IngestError(str(exc), src.stats.warnings if src is not None else ()) from exc
+            report.messages += read
             job.end_input(path)
+            job.check_used(path, kind, read, before)
             done += _input_bytes(path, src)
             report_progress(0)
         check_time_gaps(job.spans, max_time_gap_s, allow_time_gap, job.warnings)
         job.check_interleaved()
         infos = job.finish()
         _check_content(inputs, infos, job, allow_partial, report)
+        job.warnings += job.unused
         _radar_clock_rates(infos, writer, job.warnings)
         _plausibility(infos, job)
         roles, missing_roles = _resolve_roles(job, infos)
@@ -761,6 +843,7 @@ def check_time_gaps(spans: dict[str, tuple[int, int]], max_gap_s: float, allow: 
     """Refuse inputs whose time spans lie more than ``max_gap_s`` apart (different drives, or a clock set
     wrong), unless ``allow``: then warn. ``spans``: input -> (first, last) time, ns since the epoch."""
     items = sorted(spans.items(), key=lambda kv: kv[1][0])
+    said: set[tuple[str, str]] = set()
     for path, (a, b) in items:
         others = [(p, span) for p, span in items if p != path]
         if not others:
@@ -777,7 +860,9 @@ def check_time_gaps(spans: dict[str, tuple[int, int]], max_gap_s: float, allow: 
         what = (f"{path} ({utc_text(a)} to {utc_text(b)}) lies {_human(gap / 1e9)} away from {near} "
                 f"({utc_text(c)} to {utc_text(d)}), more than the {max_gap_s:g} s allowed")
         if allow:
-            warnings.append(what + "; ingested as recorded (--allow-time-gap)")
+            if (near, path) not in said:  # a pair each the other's nearest: said once
+                warnings.append(what + "; ingested as recorded (--allow-time-gap)")
+                said.add((path, near))
             continue
         raise IngestError(what + ": different drives, or a clock set wrong? Shift a CAN or NMEA log with "
                           "--time-offset PATH=SECONDS, or give --allow-time-gap to ingest the inputs as recorded")
@@ -819,7 +904,7 @@ def _check_content(inputs: list[tuple[Path, str]], infos: list[StreamInfo], job:
     if missing:
         msg = f"{names}: no {' and no '.join(missing)} stream"
         if not allow_partial:
-            raise IngestError(msg + " (use --allow-partial to write the drive anyway)")
+            raise IngestError(msg + PARTIAL_HINT)
         report.partial = True
         report.warnings.append(msg + "; written anyway (--allow-partial)")
 

@@ -245,6 +245,8 @@ class Series:
 
     def end_input(self, name: str) -> None:
         """The rows taken since the last call came from the input ``name`` (a file)."""
+        if self._offset is None and self._pending:  # an input of fewer rows than the offset takes: its own
+            self._settle_offset()
         self._take_ahead()
         if self._input_rows:
             self.inputs.append((name, self._input_span[0], self._input_span[1], self._input_rows))
