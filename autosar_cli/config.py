@@ -7,6 +7,7 @@ unknown keys and impossible values raise :class:`ConfigError` naming the key pat
 
 from __future__ import annotations
 
+import difflib
 import math
 import tomllib
 import types
@@ -522,6 +523,29 @@ def config_from_dict(raw: dict[str, Any], source: str = "", bases: tuple[str, ..
     return cfg
 
 
+def _suggestion(key: str, names: list[str]) -> str:
+    """What an unknown ``key`` was likely meant to be: a near spelling of a key of its table (``names``), or
+    where a key of that name belongs; "" if neither."""
+    near = difflib.get_close_matches(key, names, n=1, cutoff=0.75)
+    if near:
+        return f" (did you mean {near[0]}?)"
+    homes = [p for p in _key_paths(Config, "") if p.rsplit(".", 1)[-1] == key]
+    tables = [f"[{p.rsplit('.', 1)[0]}]" if "." in p else "the top level" for p in homes]
+    return f" (a key of {' and '.join(tables)})" if homes else ""
+
+
+def _key_paths(cls: Any, path: str) -> list[str]:
+    """Every key path of the config's tables (``cls`` a dataclass), ``path`` its own."""
+    hints = typing.get_type_hints(cls)
+    out = []
+    for f in fields(cls):
+        sub = _join(path, f.name)
+        out.append(sub)
+        if is_dataclass(hints[f.name]):
+            out += _key_paths(hints[f.name], sub)
+    return out
+
+
 def _build(cls: Any, value: Any, path: str) -> Any:
     """Convert parsed TOML into the annotated type ``cls``; reject unknown keys."""
     origin = typing.get_origin(cls)
@@ -533,7 +557,7 @@ def _build(cls: Any, value: Any, path: str) -> Any:
         names = {f.name for f in fields(cls)}
         unknown = sorted(set(value) - names)
         if unknown:
-            raise ConfigError(f"{_join(path, unknown[0])}: unknown key")
+            raise ConfigError(f"{_join(path, unknown[0])}: unknown key{_suggestion(unknown[0], sorted(names))}")
         kwargs = {}
         for f in fields(cls):
             if f.name in value:

@@ -82,6 +82,20 @@ def test_bad_values_are_rejected_naming_the_key(tmp_path, pattern, replacement, 
     assert key in msg, msg
 
 
+@pytest.mark.parametrize(("text", "said"), [
+    ("[vehicle]\nwheelbse_m = 2.8\n", "vehicle.wheelbse_m: unknown key (did you mean wheelbase_m?)"),
+    ("wheelbase_m = 2.8\n", "wheelbase_m: unknown key (a key of [vehicle])"),
+    ("[radar]\nwheelbase_m = 2.8\n", "radar.wheelbase_m: unknown key (a key of [vehicle])"),
+    ("[vehicle]\ncolour = 2.8\n", "vehicle.colour: unknown key"),
+])
+def test_an_unknown_key_names_the_key_it_likely_is(tmp_path: Path, text: str, said: str) -> None:
+    path = tmp_path / "layer.toml"
+    path.write_text('base = "default"\n' + text)
+    with pytest.raises(ConfigError) as exc:
+        load_config(path)
+    assert str(exc.value) == f"{path}: {said}"
+
+
 def test_missing_key_and_missing_file(tmp_path):
     path = _write_variant(tmp_path, r"^steering_ratio = .*$", "")
     with pytest.raises(ConfigError, match=r"vehicle\.steering_ratio: missing required key \(a config is complete, or "
