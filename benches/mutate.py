@@ -74,6 +74,7 @@ FOCUS_DAMAGE = ("tests/test_integrity.py::"
 TABLE_DAMAGE = "tests/test_integrity.py::test_a_damaged_table_chunk_costs_only_its_rows"
 CAN_VELOCITY = "tests/test_nav_realdata.py::test_a_can_receivers_speed_and_course_are_its_velocity"
 TWICE_NAMED = "tests/test_ingest_realdata.py::test_a_role_names_one_of_two_frame_ids_a_dbc_gives_one_name"
+BY_WHAT_IT_HOLDS = "tests/test_ingest_containers.py::test_a_log_is_read_by_what_it_holds_not_by_its_name"
 CONFIG_UNKNOWN = "tests/test_config.py::test_an_unknown_key_names_the_key_it_likely_is"
 ROLE_UNSET = "tests/test_config.py::test_a_layer_unsets_its_bases_can_roles_with_an_empty_string"
 STAMP_OUTLIER = ("tests/test_ingest_robustness.py::"
@@ -558,6 +559,8 @@ MUTATIONS: list[Mutation] = [
        "                    if False:\n", MCAP_UNVERIFIED),
     _m("mcap-unverified-chunk-left-out-when-asked", "integrity", "ingest/mcap_source.py",
        "            if not self.keep_unverified:\n", "            if True:\n", MCAP_UNVERIFIED),
+    _m("log-named-as-a-can-log-read-by-its-name", "ingest", "ingest/pipeline.py",
+       "    if begins_as_a_container(path):  # an MCAP", "    if False:  # an MCAP", BY_WHAT_IT_HOLDS),
     _m("input-adding-nothing-unsaid", "ingest", "ingest/pipeline.py",
        "        job.warnings += job.unused\n", "\n", UNUSED_INPUT),
     _m("can-log-among-a-runs-logs-read-as-a-container", "ingest", "ingest/pipeline.py",

@@ -56,7 +56,7 @@ from .radar_block import (
 )
 from .records import UNKNOWN_TIME, CanRecord, NmeaHeading, NmeaRecord, utc_text
 from .series import ClockRate
-from .sources import Channel, LogReadError, LogSource, RawMessage, open_source
+from .sources import Channel, LogReadError, LogSource, RawMessage, begins_as_a_container, open_source
 from .typesys import MessageTypes, SchemaError
 
 KIND_OF_TYPE = {
@@ -119,6 +119,8 @@ def classify_input(path: Path) -> str:
 
     if is_capture(path):
         return "radar"
+    if begins_as_a_container(path):  # an MCAP or a bag saved as .log or .txt
+        return "log"
     if path.is_file() and is_can_log(path):
         return "can"
     if path.suffix.lower() in NMEA_SUFFIXES or path.suffix.lower() == ".log":

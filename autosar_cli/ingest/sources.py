@@ -100,13 +100,25 @@ def _head(path: Path, size: int) -> bytes:
         return b""
 
 
-def _container(path: Path) -> Container:
-    # a file's first bytes before its name: an MCAP saved without its suffix, or a bag renamed, is still what it is
+def _by_magic(path: Path) -> Container | None:
+    """The container whose first bytes the file ``path`` begins with, if any."""
     if path.is_file():
         head = _head(path, max((len(c.magic) for c in _CONTAINERS), default=0))
         for container in _CONTAINERS:
             if container.magic and head.startswith(container.magic):
                 return container
+    return None
+
+
+def begins_as_a_container(path: Path) -> bool:
+    """Whether ``path`` is a file that begins as a log container does (an MCAP, a ROS 1 bag), whatever its name."""
+    return _by_magic(Path(path)) is not None
+
+
+def _container(path: Path) -> Container:
+    # a file's first bytes before its name: an MCAP saved without its suffix, or a bag renamed, is still what it is
+    if (container := _by_magic(path)) is not None:
+        return container
     for container in _CONTAINERS:
         if container.detect(path):
             return container
