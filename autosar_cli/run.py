@@ -7,8 +7,9 @@ histories of a first image's bright isolated points coherent, and the track's al
 it; docs/AUTOFOCUS.md). Where it cannot measure, the navigated track is kept and run.json says why.
 
 run.json (format ``autosar-run`` version 1) records the inputs (path, size), the autosar version, the
-config file, the method and focus parameters, per-stage wall times and summaries, and the outputs
-(paths relative to the run directory), so ``autosar evaluate DIR`` can find everything.
+config file, how the inputs were read (``ingest_options``: DBC, time offsets, ...), the method and focus
+parameters, per-stage wall times and summaries, and the outputs (paths relative to the run directory), so
+``autosar evaluate DIR`` can find everything.
 """
 
 from __future__ import annotations
@@ -99,6 +100,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
         "python": platform.python_version(), "command": command, "config": config.source, "inputs": inputs,
         "method": method, "autofocus": autofocus, "focus_options": None, "stages": {}, "outputs": {},
+        "ingest_options": ingest_options.to_dict() if ingest_options else None,
     }
 
     def stage_progress(stage: str) -> Callable[[int, int], None]:

@@ -290,7 +290,10 @@ def test_run_reads_can_logs_beside_the_drive_log_with_ingests_options(ci_mcap: S
     with Drive(out / "drive.h5") as d:
         t = d.h5["can/EPS_3/t_ns"][()]
     assert len(t) == 20 and abs(t[0] / 1e9 - (drive_start_s + 0.2)) < 1e-3
-    assert json.loads(r.stdout)["stages"]["ingest"]["warnings"] == []
+    manifest = json.loads(r.stdout)
+    assert manifest["stages"]["ingest"]["warnings"] == []
+    assert manifest["ingest_options"]["time_offsets"] == {str(log): -7200.0}  # run.json keeps how it read them
+    assert manifest["ingest_options"]["dbc"] == "configs/autosar_giulia.dbc"
 
 
 def test_a_run_of_a_log_without_radar_names_the_ingest_that_writes_it(ci_mcap: SimulationResult, work: Path) -> None:

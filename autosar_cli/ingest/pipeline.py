@@ -187,6 +187,13 @@ class IngestOptions:
         """The files these options name (inputs too: never written)."""
         return [self.dbc] if self.dbc is not None else []
 
+    def to_dict(self) -> dict[str, Any]:
+        """As run.json records them (paths as text)."""
+        return {"dbc": None if self.dbc is None else str(self.dbc), "radar": dataclasses.asdict(self.radar),
+                "time_offsets": {str(p): float(s) for p, s in self.time_offsets.items()},
+                "max_time_gap_s": self.max_time_gap_s, "allow_time_gap": self.allow_time_gap,
+                "allow_unverified": self.allow_unverified}
+
 
 class _Tally(NamedTuple):
     """Counts of an ingest at one moment, for :meth:`_Ingest.check_used`."""
