@@ -60,6 +60,8 @@ RadarOverrideOpt = Annotated[bool, typer.Option("--radar-override", help="Where 
 RadarStreamOpt = Annotated[str | None, typer.Option("--radar-stream", metavar="NAME", help="The drive's radar "
                                                    "stream to focus (/radar/NAME; default: its first). Its "
                                                    "mounting is the config's \\[radar].")]
+RadarCaptureOpt = Annotated[Path | None, typer.Option("--radar", metavar="CAPTURE", help="TI DCA1000 capture of "
+                                                     "the drive (see `autosar ingest`).")]
 DbcOpt = Annotated[Path | None, typer.Option("--dbc", help="CAN database (default: the config's).")]
 AllowUnverifiedOpt = Annotated[bool, typer.Option(
     "--allow-unverified", help="Read the MCAP chunks whose CRC fails (the damage is somewhere in them; each is "
@@ -289,7 +291,8 @@ def ingest(
         "--can-log", metavar="FILE", help="Standalone CAN log (repeatable).")] = None,
     nmea: Annotated[list[Path] | None, typer.Option(
         "--nmea", metavar="FILE", help="NMEA text capture (repeatable).")] = None,
-    radar: Annotated[Path | None, typer.Option("--radar", help="TI DCA1000 capture (directory, adc_data.bin or "
+    radar: Annotated[Path | None, typer.Option("--radar", metavar="CAPTURE", help="TI DCA1000 capture (directory, "
+                                               "adc_data.bin or "
                                                "<name>_0.bin, with its .cfg or *.mmwave.json) joining the logs' "
                                                "navigation.")] = None,
     radar_start: RadarStartOpt = None,
@@ -559,8 +562,7 @@ def run(
     method: Annotated[NavMethod, typer.Option("--method", "-m", help="Navigation method (see `autosar navigate`).")]
     = NavMethod.sar_min,
     truth: Annotated[Path | None, typer.Option("--truth", help="Truth sidecar for --method truth.")] = None,
-    radar: Annotated[Path | None, typer.Option("--radar", help="TI DCA1000 capture of the drive (see `autosar "
-                                               "ingest`).")] = None,
+    radar: RadarCaptureOpt = None,
     radar_start: RadarStartOpt = None,
     radar_sync: RadarSyncOpt = "/dca1000/sync",
     radar_override: RadarOverrideOpt = False,
@@ -706,6 +708,15 @@ def compare(
                                          "sar-min+af: SAR-MIN corrected by the residual-motion autofocus, as "
                                          "`autosar run --autofocus`, no truth needed).")] = "none,ins,sar-min,truth",
     truth: Annotated[Path | None, typer.Option("--truth", help="Truth sidecar (default: <log>.truth.h5).")] = None,
+    radar: RadarCaptureOpt = None,
+    radar_start: RadarStartOpt = None,
+    radar_sync: RadarSyncOpt = "/dca1000/sync",
+    radar_override: RadarOverrideOpt = False,
+    dbc: DbcOpt = None,
+    allow_unverified: AllowUnverifiedOpt = False,
+    time_offset: TimeOffsetOpt = None,
+    allow_time_gap: AllowTimeGapOpt = False,
+    max_time_gap: MaxTimeGapOpt = 3600.0,
     config: ConfigOpt = None,
     overwrite: OverwriteOpt = False,
     as_json: JsonOpt = False,
@@ -718,8 +729,11 @@ def compare(
         cfg = _load_config(config)
         chosen = parse_methods(methods)
         with _stages(not as_json) as update:
-            result = run_compare(logs, output, cfg, methods=chosen, truth_path=truth, overwrite=overwrite,
-                                 progress=update, command=" ".join(sys.argv))
+            result = run_compare([*logs, *([radar] if radar else [])], output, cfg, methods=chosen, truth_path=truth,
+                                 overwrite=overwrite, progress=update, command=" ".join(sys.argv),
+                                 ingest_options=_ingest_options(dbc, radar_start, radar_sync, radar_override,
+                                                                allow_unverified, time_offset, allow_time_gap,
+                                                                max_time_gap))
         if as_json:
             out.print_json(json.dumps(result))
             return

@@ -37,7 +37,13 @@ from autosar_cli.config import Config
 from autosar_cli.sar.grid import GridError, check_image_size
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.manifest import json_default, product_status, read_json_manifest
-from autosar_cli.store.outputs import check_free_space, check_output, check_products, input_bytes
+from autosar_cli.store.outputs import (
+    check_free_space,
+    check_output,
+    check_products,
+    input_bytes,
+    make_output_directory,
+)
 
 if TYPE_CHECKING:
     from autosar_cli.ingest.pipeline import IngestOptions
@@ -93,8 +99,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         from autosar_cli.sar.focus import check_request
 
         check_request(options, out / IMAGE, True, inputs, config)
-    created = not out.exists()
-    out.mkdir(parents=True, exist_ok=True)
+    undo_directory = make_output_directory(out)
     inputs = [{"path": str(Path(p)), "size_bytes": input_bytes([p])} for p in logs]
     manifest: dict[str, Any] = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
@@ -110,16 +115,9 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     try:
         rep = _ingest_beside_imports([Path(p) for p in logs], out / DRIVE, config, stage_progress("ingest"), command,
                                      fork=fork_ingest, ingest_options=ingest_options, autofocus=autofocus)
-    except BaseException as exc:
-        if created:  # the ingest writes atomically: a directory made for this run holds nothing
-            with contextlib.suppress(OSError):
-                out.rmdir()
-        from autosar_cli.ingest.pipeline import PARTIAL_HINT, IngestError  # in the child where the ingest forks
-
-        if not (isinstance(exc, IngestError) and str(exc).endswith(PARTIAL_HINT)):
-            raise
-        raise IngestError(str(exc)[:-len(PARTIAL_HINT)] + " (a run needs radar and navigation; `autosar ingest "
-                          "--allow-partial` writes such a drive on its own)", exc.warnings) from exc
+    except BaseException:
+        undo_directory()  # the ingest writes atomically: a directory made for this run holds nothing
+        raise
     manifest["stages"]["ingest"] = {"wall_s": time.perf_counter() - t, "messages": rep.get("messages"),
                                     "bytes_read": rep.get("bytes_read"), "warnings": rep.get("warnings", [])}
     manifest["outputs"]["drive"] = DRIVE
@@ -319,12 +317,10 @@ class _RemoteTraceback(Exception):
 
 def _ingest(logs: list[Path], drive: Path, config: Config, progress: Callable[[int, int], None], command: str,
             options: IngestOptions | None) -> dict[str, Any]:
-    from autosar_cli.ingest.pipeline import IngestOptions, ingest
+    from autosar_cli.ingest.pipeline import IngestOptions, chain_hint, ingest
 
-    o = options or IngestOptions()
-    return ingest(logs, drive, config=config, progress=progress, command=command, dbc=o.dbc,
-                  radar_options=o.radar, time_offsets=o.time_offsets, max_time_gap_s=o.max_time_gap_s,
-                  allow_time_gap=o.allow_time_gap, allow_unverified=o.allow_unverified).to_dict()
+    return ingest(logs, drive, config=config, progress=progress, command=command, partial_hint=chain_hint("a run"),
+                  **(options or IngestOptions()).ingest_kwargs()).to_dict()
 
 
 def _ingest_child(send: Any, logs: list[Path], drive: Path, config: Config, command: str,

@@ -99,6 +99,7 @@ BLF_HEADER = "tests/test_ingest_canlog.py::test_a_blf_whose_file_header_is_damag
 UNUSED_INPUT = "tests/test_ingest_mixed.py::test_an_input_nothing_of_which_reaches_the_drive_is_named_with_why"
 RUN_CAN_LOG = "tests/test_ingest_mixed.py::test_run_reads_can_logs_beside_the_drive_log_with_ingests_options"
 BATCH_INGEST = "tests/test_batch.py::test_batch_reads_every_drive_with_its_ingest_options"
+COMPARE_INGEST = "tests/test_ingest_mixed.py::test_compare_reads_can_logs_and_the_ingest_options_as_run_does"
 RUN_NO_RADAR = "tests/test_ingest_mixed.py::test_a_run_of_a_log_without_radar_names_the_ingest_that_writes_it"
 BLF_START = "tests/test_ingest_canlog.py::test_a_blf_whose_start_time_is_no_date_is_read_at_offsets_with_a_warning"
 BLF_START_KEPT = "tests/test_ingest_canlog.py::test_a_blf_whose_start_time_alone_is_lost_takes_it_from_its_stop_time"
@@ -569,8 +570,11 @@ MUTATIONS: list[Mutation] = [
     _m("batch-drive-read-without-the-ingest-options", "batch", "batch.py",
        "                       ingest_options=ingest_options)", "                       ingest_options=None)",
        BATCH_INGEST),
-    _m("failed-run-leaves-its-empty-directory", "safety", "run.py",
-       "        if created:  # the ingest writes", "        if False:  # the ingest writes", RUN_NO_RADAR),
+    _m("compare-ingests-without-its-options", "evaluate", "evaluate/compare.py",
+       'partial_hint=chain_hint("a comparison"), **ingest_options.ingest_kwargs())',
+       'partial_hint=chain_hint("a comparison"))', COMPARE_INGEST),
+    _m("failed-run-leaves-its-empty-directory", "safety", "store/outputs.py",
+       "        if created:\n", "        if False:\n", RUN_NO_RADAR),
     _m("blf-stream-end-unchecked", "ingest", "ingest/blf_damage.py",
        "    if method != _DEFLATED or not inflate.eof or len(inner) != inflated_size:",
        "    if method != _DEFLATED:", BLF_LAST),

@@ -296,8 +296,23 @@ def test_run_reads_can_logs_beside_the_drive_log_with_ingests_options(ci_mcap: S
     assert manifest["ingest_options"]["dbc"] == "configs/autosar_giulia.dbc"
 
 
+def test_compare_reads_can_logs_and_the_ingest_options_as_run_does(ci_mcap: SimulationResult, work: Path,
+                                                                   drive_start_s: float) -> None:
+    """`autosar compare` said it took logs "as for `autosar run`" and refused a CAN log as an unknown container; it
+    had no --time-offset, --dbc or --radar."""
+    log = candump(work / "eps3_late_compare.log", [eps3(drive_start_s + 7200.2 + 0.01 * i) for i in range(20)])
+    out = work / "compare_with_can_log"
+    r = runner.invoke(app, ["compare", str(ci_mcap.log_path), str(log), "-o", str(out), "--methods", "none",
+                            "--time-offset", f"{log}=-7200", "--dbc", "configs/autosar_giulia.dbc"])
+    assert r.exit_code == 0, r.output
+    with Drive(out / "drive.h5") as d:
+        t = d.h5["can/EPS_3/t_ns"][()]
+    assert len(t) == 20 and abs(t[0] / 1e9 - (drive_start_s + 0.2)) < 1e-3
+
+
 def test_a_run_of_a_log_without_radar_names_the_ingest_that_writes_it(ci_mcap: SimulationResult, work: Path) -> None:
-    """`autosar run` has no --allow-partial (it focuses the radar): its error said "use --allow-partial"."""
+    """`autosar run` and `compare` have no --allow-partial (they focus the radar): their error said "use
+    --allow-partial", and left an empty output directory."""
     from mcap.reader import make_reader
     from mcap.writer import Writer
 
@@ -314,10 +329,13 @@ def test_a_run_of_a_log_without_radar_names_the_ingest_that_writes_it(ci_mcap: S
                                                      w.register_schema(schema.name, schema.encoding, schema.data))
             w.add_message(ids[channel.id], m.log_time, m.data, m.publish_time)
         w.finish()
-    r = runner.invoke(app, ["run", str(log), "-o", str(work / "no_radar_run")])
-    assert r.exit_code == 1 and "Traceback" not in r.output, r.output
-    assert f"{log}: no radar stream (a run needs radar and navigation; `autosar ingest --allow-partial` " in r.stderr
-    assert not (work / "no_radar_run").exists()
+    for command, what in (("run", "a run"), ("compare", "a comparison")):
+        out = work / f"no_radar_{command}"
+        r = runner.invoke(app, [command, str(log), "-o", str(out)])
+        assert r.exit_code == 1 and "Traceback" not in r.output, r.output
+        assert f"{log}: no radar stream ({what} needs radar and navigation; `autosar ingest --allow-partial` " \
+            in r.stderr, r.stderr
+        assert not out.exists()
 
 
 # ----------------------------------------------------------------------------------- plausibility

@@ -55,7 +55,7 @@ from autosar_cli.evaluate.report import (
     write_text,
 )
 from autosar_cli.evaluate.trajectory_metrics import common_instants, trajectory_errors
-from autosar_cli.ingest.pipeline import ingest
+from autosar_cli.ingest.pipeline import IngestOptions, chain_hint, ingest
 from autosar_cli.nav.inputs import NavInputError
 from autosar_cli.nav.navigate import METHODS as NAV_METHODS
 from autosar_cli.nav.navigate import default_truth_path, navigate
@@ -70,7 +70,7 @@ from autosar_cli.sim.truth import truth_radar_mismatch
 from autosar_cli.store.drive import Drive, radar_times
 from autosar_cli.store.image import write_image
 from autosar_cli.store.manifest import product_status
-from autosar_cli.store.outputs import check_output
+from autosar_cli.store.outputs import check_output, make_output_directory
 from autosar_cli.store.trajectory import write_trajectory
 
 FORMAT = "autosar-compare"
@@ -122,22 +122,30 @@ def transform_grid(grid: FocusGrid, motion: Se2) -> FocusGrid:
 def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
             methods: Sequence[str] = DEFAULT_METHODS, truth_path: str | Path | None = None,
             options: FocusOptions | None = None, overwrite: bool = False, progress: Progress | None = None,
-            command: str = "") -> dict[str, Any]:
-    """Compare navigation methods on one drive; returns the comparison (also written as compare.json)."""
+            command: str = "", ingest_options: IngestOptions | None = None) -> dict[str, Any]:
+    """Compare navigation methods on one drive; returns the comparison (also written as compare.json).
+    ``logs`` and ``ingest_options`` as for :func:`autosar_cli.run.run`."""
     out = Path(out_dir)
     if (out / "compare.json").exists() and not overwrite:
         raise CompareError(f"{out}: already holds a comparison (compare.json); pass --overwrite to replace it")
-    check_output(out, [*logs, *([truth_path] if truth_path else [])], overwrite=overwrite, directory=True)
+    ingest_options = ingest_options or IngestOptions()
+    check_output(out, [*logs, *([truth_path] if truth_path else []), *ingest_options.files()], overwrite=overwrite,
+                 directory=True)
     methods = parse_methods(methods)
     options = options or FocusOptions.from_config(config)
     tick = progress or (lambda stage, done, total: None)
-    out.mkdir(parents=True, exist_ok=True)
+    undo_directory = make_output_directory(out)
     timings: dict[str, float] = {}
     notes: list[str] = []
 
     t0 = time.perf_counter()
-    report = ingest([Path(p) for p in logs], out / DRIVE, config=config, command=command,
-                    progress=lambda done, total: tick("ingest", done, total))
+    try:
+        report = ingest([Path(p) for p in logs], out / DRIVE, config=config, command=command,
+                        progress=lambda done, total: tick("ingest", done, total),
+                        partial_hint=chain_hint("a comparison"), **ingest_options.ingest_kwargs())
+    except BaseException:
+        undo_directory()  # the ingest writes atomically: a directory made for this comparison holds nothing
+        raise
     warnings = [str(w) for w in report.warnings]  # a damaged log, dropped data: every product is degraded
     timings["ingest"] = time.perf_counter() - t0
     warnings += unfocused_radars(out / DRIVE, options)  # another radar of the drive: in no image

@@ -69,8 +69,14 @@ KIND_OF_TYPE = {
     msgs.RAW_FRAME: "radar",
 }
 NMEA_SUFFIXES = (".nmea", ".txt", ".gps")
-#: how the error of a drive without radar or navigation ends (``autosar run``, which has no such option, says its own)
+#: how the error of a drive without radar or navigation ends (a command that focuses says :func:`chain_hint`)
 PARTIAL_HINT = " (use --allow-partial to write the drive anyway)"
+
+
+def chain_hint(what: str) -> str:
+    """:data:`PARTIAL_HINT` as a command that focuses the drive, so has no ``--allow-partial``, says it (``what``:
+    "a run", "a comparison")."""
+    return f" ({what} needs radar and navigation; `autosar ingest --allow-partial` writes such a drive on its own)"
 MAX_TIME_GAP_S = 3600.0  #: inputs further apart than this are refused (unless --allow-time-gap)
 #: inputs apart by more than this, less than MAX_TIME_GAP_S, are warned of: a recorder's split files meet (a few ms
 #: apart), a log whose clock is off by a time zone's hours does not
@@ -186,6 +192,12 @@ class IngestOptions:
     def files(self) -> list[Path]:
         """The files these options name (inputs too: never written)."""
         return [self.dbc] if self.dbc is not None else []
+
+    def ingest_kwargs(self) -> dict[str, Any]:
+        """These options as :func:`ingest`'s keyword arguments."""
+        return {"dbc": self.dbc, "radar_options": self.radar, "time_offsets": self.time_offsets,
+                "max_time_gap_s": self.max_time_gap_s, "allow_time_gap": self.allow_time_gap,
+                "allow_unverified": self.allow_unverified}
 
     def to_dict(self) -> dict[str, Any]:
         """As run.json records them (paths as text)."""
@@ -655,13 +667,14 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
            radar_options: RadarCaptureOptions = RadarCaptureOptions(), allow_partial: bool = False,
            progress: ProgressFn | None = None, command: str = "", time_offsets: Mapping[Path, float] | None = None,
            max_time_gap_s: float = MAX_TIME_GAP_S, allow_time_gap: bool = False,
-           allow_unverified: bool = False) -> IngestReport:
+           allow_unverified: bool = False, partial_hint: str = PARTIAL_HINT) -> IngestReport:
     """Ingest ``logs`` (+ standalone CAN and NMEA logs, DCA1000 captures) into ``output`` (drive.h5), atomically.
 
     ``time_offsets``: seconds added to every time of a standalone CAN or NMEA log (a logger's clock set
     wrong). Inputs whose spans lie more than ``max_time_gap_s`` apart are refused unless ``allow_time_gap``.
     ``allow_unverified``: read the MCAP chunks whose CRC fails (each named in a warning) rather than leave them out.
-    A CAN log, NMEA capture or DCA1000 capture among ``logs`` is read as one (:func:`classify_input`).
+    ``partial_hint``: how the error of a drive without radar or navigation ends. A CAN log, NMEA capture or DCA1000
+    capture among ``logs`` is read as one (:func:`classify_input`).
     """
     t0 = time.perf_counter()
     by_kind: dict[str, list[Path]] = {"log": [], "can": list(can_logs), "nmea": list(nmea_logs),
@@ -721,7 +734,7 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
         check_time_gaps(job.spans, max_time_gap_s, allow_time_gap, job.warnings)
         job.check_interleaved()
         infos = job.finish()
-        _check_content(inputs, infos, job, allow_partial, report)
+        _check_content(inputs, infos, job, allow_partial, report, partial_hint)
         job.warnings += job.unused
         _radar_clock_rates(infos, writer, job.warnings)
         _plausibility(infos, job)
@@ -892,7 +905,7 @@ def _config_text(config: Config) -> str:
 
 
 def _check_content(inputs: list[tuple[Path, str]], infos: list[StreamInfo], job: _Ingest, allow_partial: bool,
-                   report: IngestReport) -> None:
+                   report: IngestReport, partial_hint: str = PARTIAL_HINT) -> None:
     names = ", ".join(str(p) for p, _ in inputs)
     written = [i for i in infos if i.stats is not None and i.stats.written]
     if not written:
@@ -913,7 +926,7 @@ def _check_content(inputs: list[tuple[Path, str]], infos: list[StreamInfo], job:
     if missing:
         msg = f"{names}: no {' and no '.join(missing)} stream"
         if not allow_partial:
-            raise IngestError(msg + PARTIAL_HINT)
+            raise IngestError(msg + partial_hint)
         report.partial = True
         report.warnings.append(msg + "; written anyway (--allow-partial)")
 

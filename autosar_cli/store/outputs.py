@@ -10,12 +10,13 @@ Anything else is refused with one line.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import json
 import os
 import shutil
 import stat
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from autosar_cli.store.atomic import remove_stale_partials
@@ -94,6 +95,20 @@ def check_products(directory: Path, names: Iterable[str], inputs: Iterable[str |
     inputs = list(inputs)
     for name in names:
         check_output(directory / name, inputs, overwrite=overwrite)
+
+
+def make_output_directory(path: Path) -> Callable[[], None]:
+    """Make the directory ``path`` (and its parents) for a command's products; returns what undoes it after a
+    failure: it is removed again where this call made it and nothing has been written in it since."""
+    created = not path.exists()
+    path.mkdir(parents=True, exist_ok=True)
+
+    def undo() -> None:
+        if created:
+            with contextlib.suppress(OSError):  # not empty: what is in it stays
+                path.rmdir()
+
+    return undo
 
 
 def remove_product_directory(path: Path) -> None:
