@@ -121,7 +121,7 @@ def _radar_options(start: str | None, sync: str, override: bool) -> Any:
 def _ingest_options(dbc: Path | None, radar_start: str | None, radar_sync: str, radar_override: bool,
                     allow_unverified: bool, time_offset: list[str] | None, allow_time_gap: bool,
                     max_time_gap: float) -> Any:
-    """``autosar run``'s and ``batch``'s ingest options as the library takes them."""
+    """The ingest options of ``autosar run``, ``compare`` and ``batch`` as the library takes them."""
     from autosar_cli.ingest.pipeline import IngestOptions, parse_time_offsets
 
     return IngestOptions(dbc, _radar_options(radar_start, radar_sync, radar_override),
@@ -292,9 +292,8 @@ def ingest(
     nmea: Annotated[list[Path] | None, typer.Option(
         "--nmea", metavar="FILE", help="NMEA text capture (repeatable).")] = None,
     radar: Annotated[Path | None, typer.Option("--radar", metavar="CAPTURE", help="TI DCA1000 capture (directory, "
-                                               "adc_data.bin or "
-                                               "<name>_0.bin, with its .cfg or *.mmwave.json) joining the logs' "
-                                               "navigation.")] = None,
+                                               "adc_data.bin or <name>_0.bin, with its .cfg or *.mmwave.json) "
+                                               "joining the logs' navigation.")] = None,
     radar_start: RadarStartOpt = None,
     radar_sync: RadarSyncOpt = "/dca1000/sync",
     radar_override: RadarOverrideOpt = False,

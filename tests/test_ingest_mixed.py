@@ -268,6 +268,24 @@ def test_an_input_nothing_of_which_reaches_the_drive_is_named_with_why(ci_mcap: 
     }, report.warnings
     with Drive(work / "unused.h5") as d:
         assert len(d.h5["can/EPS_3/t_ns"]) == 20  # the log whose frames the DBC decodes: no warning
+    garbled = work / "garbled_fix.mcap"  # a receiver's fixes, every payload cut to 3 bytes
+    with open(ci_mcap.log_path, "rb") as f, open(garbled, "wb") as g:
+        from mcap.reader import make_reader
+        from mcap.writer import Writer
+
+        w = Writer(g)
+        w.start()
+        channel = None
+        for schema, ch, m in make_reader(f).iter_messages(topics=["/ins_cog/fix"]):
+            if channel is None:
+                channel = w.register_channel("/other/fix", ch.message_encoding,
+                                             w.register_schema(schema.name, schema.encoding, schema.data))
+            w.add_message(channel, m.log_time, m.data[:3], m.publish_time)
+        w.finish()
+    report = run([ci_mcap.log_path, garbled], work / "garbled.h5", cfg)
+    said = [w for w in report.warnings if "nothing of it is in the drive" in w]
+    assert said == [f"{garbled}: nothing of it is in the drive: 10 messages of its sensor streams could not be decoded "
+                    "(the warning of undecodable messages names them)"], report.warnings
     copy = work / "copy_of_ci.mcap"  # the same recording under another name: its rows all duplicates
     shutil.copy(ci_mcap.log_path, copy)
     report = run([ci_mcap.log_path, copy], work / "copy.h5", cfg)

@@ -71,12 +71,6 @@ KIND_OF_TYPE = {
 NMEA_SUFFIXES = (".nmea", ".txt", ".gps")
 #: how the error of a drive without radar or navigation ends (a command that focuses says :func:`chain_hint`)
 PARTIAL_HINT = " (use --allow-partial to write the drive anyway)"
-
-
-def chain_hint(what: str) -> str:
-    """:data:`PARTIAL_HINT` as a command that focuses the drive, so has no ``--allow-partial``, says it (``what``:
-    "a run", "a comparison")."""
-    return f" ({what} needs radar and navigation; `autosar ingest --allow-partial` writes such a drive on its own)"
 MAX_TIME_GAP_S = 3600.0  #: inputs further apart than this are refused (unless --allow-time-gap)
 #: inputs apart by more than this, less than MAX_TIME_GAP_S, are warned of: a recorder's split files meet (a few ms
 #: apart), a log whose clock is off by a time zone's hours does not
@@ -86,6 +80,12 @@ APART_WARN_S = 60.0
 INTERLEAVE_NS = 250_000_000
 
 ProgressFn = Callable[[int, int], None]
+
+
+def chain_hint(what: str) -> str:
+    """:data:`PARTIAL_HINT` as a command that focuses the drive, so has no ``--allow-partial``, says it (``what``:
+    "a run", "a comparison")."""
+    return f" ({what} needs radar and navigation; `autosar ingest --allow-partial` writes such a drive on its own)"
 
 
 class IngestError(RuntimeError):
@@ -179,8 +179,8 @@ class RadarCaptureOptions:
 
 @dataclass(frozen=True)
 class IngestOptions:
-    """How :func:`ingest` reads a drive's inputs, as ``autosar run`` and ``batch`` pass it on: each field is the
-    :func:`ingest` argument of its name (``radar``: ``radar_options``)."""
+    """How :func:`ingest` reads a drive's inputs, as ``autosar run``, ``compare`` and ``batch`` pass it on: each
+    field is the :func:`ingest` argument of its name (``radar``: ``radar_options``)."""
 
     dbc: Path | None = None
     radar: RadarCaptureOptions = RadarCaptureOptions()
@@ -201,10 +201,8 @@ class IngestOptions:
 
     def to_dict(self) -> dict[str, Any]:
         """As run.json records them (paths as text)."""
-        return {"dbc": None if self.dbc is None else str(self.dbc), "radar": dataclasses.asdict(self.radar),
-                "time_offsets": {str(p): float(s) for p, s in self.time_offsets.items()},
-                "max_time_gap_s": self.max_time_gap_s, "allow_time_gap": self.allow_time_gap,
-                "allow_unverified": self.allow_unverified}
+        return {**dataclasses.asdict(self), "dbc": None if self.dbc is None else str(self.dbc),
+                "time_offsets": {str(p): float(s) for p, s in self.time_offsets.items()}}
 
 
 class _Tally(NamedTuple):
@@ -215,6 +213,7 @@ class _Tally(NamedTuple):
     triggers: int  #: the radar's frame triggers taken
     duplicates: int  #: rows of every stream dropped as duplicates
     dropped: int  #: rows dropped as late or stamp outliers
+    undecodable: int  #: messages of sensor streams that could not be decoded
 
 
 class _Ingest:
@@ -586,7 +585,7 @@ class _Ingest:
         series = [s.stats for _, s in self.named_series()]
         return _Tally(dataclasses.replace(st, unknown_ids=Counter(st.unknown_ids)), set(self.skipped_channels),
                       len(self.sync_stamps), sum(s.duplicates for s in series),
-                      sum(s.late_dropped + s.stamp_outliers for s in series))
+                      sum(s.late_dropped + s.stamp_outliers for s in series), self.bad_messages.total())
 
     def check_used(self, path: Path, kind: str, read: int, before: _Tally) -> None:
         """Where nothing of the input just read (``read`` messages, frames or records) went into the drive, why
@@ -601,6 +600,9 @@ class _Ingest:
             why = "every row of it dropped: " + ", ".join(p for p in (
                 f"{dup} the same as rows read before (duplicates)" if dup else "",
                 f"{late} stamped before rows already written (repeats of them, or late)" if late else "") if p)
+        elif now.undecodable > before.undecodable:
+            why = (f"{now.undecodable - before.undecodable} messages of its sensor streams could not be decoded "
+                   "(the warning of undecodable messages names them)")
         elif frames:
             unknown = can.unknown_ids - was.unknown_ids
             ids = ", ".join(k for k, _ in unknown.most_common(5))
