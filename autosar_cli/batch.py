@@ -29,7 +29,7 @@ import platform
 import time
 import uuid
 from collections.abc import Callable, Sequence
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -43,6 +43,7 @@ from autosar_cli.run import run, run_warnings
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.manifest import product_status, read_json_manifest
+from autosar_cli.store.outputs import input_problem
 
 FORMAT = "autosar-batch"
 FORMAT_VERSION = 1
@@ -209,14 +210,18 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
         raise BatchError(f"--workers {workers}: must be at least 1")
     if scheduler and workers:
         raise BatchError("give either --scheduler (an existing cluster) or --workers (a local one), not both")
+    if radars and len(radars) != len(logs):
+        raise BatchError(f"--radar given {len(radars)} times for {len(logs)} logs; give one capture per log")
+    if ingest_options is not None and ingest_options.dbc is not None:  # every drive's: refused once, not per drive
+        if (problem := input_problem(Path(ingest_options.dbc))) is not None:
+            raise BatchError(f"{ingest_options.dbc}: {problem}")
+        ingest_options = replace(ingest_options, dbc=Path(ingest_options.dbc).resolve())  # as the workers find it
     out = Path(out_dir).resolve()
     if (out / MANIFEST).exists() and not overwrite:
         raise BatchError(f"{out}: already holds a batch ({MANIFEST}); pass --overwrite to replace it")
     out.mkdir(parents=True, exist_ok=True)
     options = options or FocusOptions.from_config(config)
     names = drive_names(logs)
-    if radars and len(radars) != len(logs):
-        raise BatchError(f"--radar given {len(radars)} times for {len(logs)} logs; give one capture per log")
     captures = [[str(Path(r).resolve())] for r in radars] if radars else [[] for _ in logs]
     paths = [str(Path(p).resolve()) for p in logs]
 

@@ -145,8 +145,11 @@ def test_batch_reads_every_drive_with_its_ingest_options(thread_cluster, tmp_pat
                             thread_cluster.scheduler_address, "--dbc", str(dbc), "--allow-unverified",
                             "--allow-time-gap", "--max-time-gap", "60", "--radar-sync", "/dca/sync"])
     assert r.exit_code == 0, r.output
-    want = IngestOptions(dbc, RadarCaptureOptions(None, "/dca/sync", False), {}, 60.0, True, True)
-    assert seen == [want, want]
+    want = IngestOptions(dbc.resolve(), RadarCaptureOptions(None, "/dca/sync", False), {}, 60.0, True, True)
+    assert seen == [want, want]  # the DBC where the workers find it, as the logs
+    r = runner.invoke(app, ["batch", *map(str, logs), "-o", str(tmp_path / "out2"), "--dbc", str(tmp_path / "no.dbc")])
+    assert r.exit_code == 1 and r.stderr.strip() == f"error: {tmp_path / 'no.dbc'}: no such file or directory"
+    assert len(seen) == 2 and not (tmp_path / "out2").exists()  # refused before any drive, not once per drive
 
 
 def test_split_grid_positions_bit_identical():
