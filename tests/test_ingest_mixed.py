@@ -204,6 +204,17 @@ def test_nmea_option_on_a_file_without_nmea_is_an_error(ci_mcap: SimulationResul
         run([ci_mcap.log_path], work / "junk.h5", cfg, nmea_logs=[junk])
 
 
+@pytest.mark.parametrize("option", ["can_logs", "nmea_logs"])
+def test_a_drive_log_given_as_a_can_log_or_nmea_capture_says_how_to_give_it(ci_mcap: SimulationResult, work: Path,
+                                                                           cfg: Config, option: str) -> None:
+    """Was "unsupported CAN log format '.mcap'" and "no NMEA 0183 sentence in this file"."""
+    what = "a CAN log file" if option == "can_logs" else "an NMEA log file"
+    flag = "--can-log" if option == "can_logs" else "--nmea"
+    with pytest.raises(IngestError) as exc:
+        run([], work / "misplaced.h5", cfg, **{option: [ci_mcap.log_path]})
+    assert str(exc.value) == f"{ci_mcap.log_path}: an MCAP log, not {what}: give it as a LOG, without {flag}"
+
+
 def test_zda_sentences_are_counted(work: Path) -> None:
     text = work / "zda.nmea"
     text.write_text("\n".join([nmea("GPZDA,120000.00,27,11,2026,00,00"), gga(1_795_780_800.0),

@@ -56,7 +56,15 @@ from .radar_block import (
 )
 from .records import UNKNOWN_TIME, CanRecord, NmeaHeading, NmeaRecord, utc_text
 from .series import ClockRate
-from .sources import Channel, LogReadError, LogSource, RawMessage, begins_as_a_container, open_source
+from .sources import (
+    Channel,
+    LogReadError,
+    LogSource,
+    RawMessage,
+    begins_as_a_container,
+    container_of,
+    open_source,
+)
 from .typesys import MessageTypes, SchemaError
 
 KIND_OF_TYPE = {
@@ -142,6 +150,10 @@ def check_input(path: Path, kind: str) -> None:
         raise IngestError(f"{path}: {problem}")
     if path.is_dir() and kind in _FILE_KINDS:
         raise IngestError(f"{path}: a directory, not {_FILE_KINDS[kind]}")
+    if kind in _FILE_KINDS and begins_as_a_container(path):
+        what = {"mcap": "an MCAP log", "ros1": "a ROS 1 bag"}.get(container_of(path), "a log container")
+        raise IngestError(f"{path}: {what}, not {_FILE_KINDS[kind]}: give it as a LOG, without "
+                          f"--{'can-log' if kind == 'can' else 'nmea'}")
 
 
 _FILE_KINDS = {"can": "a CAN log file", "nmea": "an NMEA log file"}
