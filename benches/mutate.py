@@ -100,6 +100,7 @@ UNUSED_INPUT = "tests/test_ingest_mixed.py::test_an_input_nothing_of_which_reach
 RUN_CAN_LOG = "tests/test_ingest_mixed.py::test_run_reads_can_logs_beside_the_drive_log_with_ingests_options"
 BATCH_INGEST = "tests/test_batch.py::test_batch_reads_every_drive_with_its_ingest_options"
 COMPARE_INGEST = "tests/test_ingest_mixed.py::test_compare_reads_can_logs_and_the_ingest_options_as_run_does"
+CAPTURE_USED = "tests/test_ingest_dca1000.py::test_simulated_capture_ingests_to_the_rawframe_cube"
 RUN_NO_RADAR = "tests/test_ingest_mixed.py::test_a_run_of_a_log_without_radar_names_the_ingest_that_writes_it"
 BLF_START = "tests/test_ingest_canlog.py::test_a_blf_whose_start_time_is_no_date_is_read_at_offsets_with_a_warning"
 BLF_START_KEPT = "tests/test_ingest_canlog.py::test_a_blf_whose_start_time_alone_is_lost_takes_it_from_its_stop_time"
@@ -573,6 +574,8 @@ MUTATIONS: list[Mutation] = [
     _m("compare-ingests-without-its-options", "evaluate", "evaluate/compare.py",
        'partial_hint=chain_hint("a comparison"), **ingest_options.ingest_kwargs())',
        'partial_hint=chain_hint("a comparison"))', COMPARE_INGEST),
+    _m("capture-said-to-add-nothing-to-the-drive", "ingest", "ingest/pipeline.py",
+       '        if kind == "radar" and read:  # a capture', "        if False:  # a capture", CAPTURE_USED),
     _m("failed-run-leaves-its-empty-directory", "safety", "store/outputs.py",
        "        if created:\n", "        if False:\n", RUN_NO_RADAR),
     _m("blf-stream-end-unchecked", "ingest", "ingest/blf_damage.py",

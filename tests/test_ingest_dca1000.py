@@ -375,6 +375,8 @@ def test_simulated_capture_ingests_to_the_rawframe_cube(ci_run: Path, simulated_
         assert ra.attrs["start_time_source"] == "topic /dca1000/sync"
         # the navigation is the same too
         np.testing.assert_array_equal(a["imu/ins_radar/t_ns"][()], b["imu/ins_radar/t_ns"][()])
+    # the capture's frames are the drive's radar: not an input nothing of which reached it (it was said to be)
+    assert json.loads((whole / "run.json").read_text())["warnings"] == []
 
 
 def test_a_capture_that_lost_packets_focuses_its_reflectors_where_the_whole_one_does(

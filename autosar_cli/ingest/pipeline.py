@@ -602,6 +602,8 @@ class _Ingest:
     def check_used(self, path: Path, kind: str, read: int, before: _Tally) -> None:
         """Where nothing of the input just read (``read`` messages, frames or records) went into the drive, why
         (``before``: :meth:`tally` before it), in :attr:`unused`."""
+        if kind == "radar" and read:  # a capture writes its own group, or fails saying why
+            return
         if len(self.sync_stamps) > before.triggers or any(series.inputs and series.inputs[-1][0] == str(path)
                                                           for _, series in self.named_series()):
             return
