@@ -16,6 +16,8 @@ from pathlib import Path
 import can
 import numpy as np
 import pytest
+from mcap.reader import make_reader
+from mcap.writer import Writer
 from typer.testing import CliRunner
 
 from autosar_cli.candb import giorgio_checksum
@@ -42,8 +44,6 @@ def work(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def drive_start_s(ci_mcap: SimulationResult) -> float:
-    from mcap.reader import make_reader
-
     with open(ci_mcap.log_path, "rb") as f:
         summary = make_reader(f).get_summary()
     assert summary is not None and summary.statistics is not None
@@ -127,9 +127,6 @@ def split_mcap(log: Path, first: Path, second: Path, late_topic: str = "/imu/cog
     """``log``'s messages in two MCAPs, those logged before its middle time and the rest (a recorder's split),
     but for every other message of ``late_topic`` in the ``late_s`` before the middle: in the second, as if they
     had come late."""
-    from mcap.reader import make_reader
-    from mcap.writer import Writer
-
     with open(log, "rb") as f:
         reader = make_reader(f)
         summary = reader.get_summary()
@@ -257,8 +254,9 @@ def eps3(t: float) -> can.Message:
 
 def test_an_input_nothing_of_which_reaches_the_drive_is_named_with_why(ci_mcap: SimulationResult, work: Path,
                                                                        cfg: Config, drive_start_s: float) -> None:
-    """A CAN log given beside a drive log that adds nothing to the drive was read without a word: its IDs not
-    in the DBC, only error and remote frames, an empty file, a log python-can finds no frame line in."""
+    """An input given beside a drive log that adds nothing to the drive was read without a word: a CAN log whose IDs
+    are not in the DBC, of error and remote frames only, empty, or with no frame line python-can reads; a log whose
+    sensor messages cannot be decoded; a copy of the drive log (its rows all duplicates)."""
     t = drive_start_s + 0.2
     foreign = candump(work / "foreign_ids.log", [can.Message(timestamp=t + 0.01 * i, arbitration_id=0x555 + i % 2,
                                                              is_extended_id=False, data=bytes(8)) for i in range(20)])
@@ -281,8 +279,6 @@ def test_an_input_nothing_of_which_reaches_the_drive_is_named_with_why(ci_mcap: 
         assert len(d.h5["can/EPS_3/t_ns"]) == 20  # the log whose frames the DBC decodes: no warning
     garbled = work / "garbled_fix.mcap"  # a receiver's fixes, every payload cut to 3 bytes
     with open(ci_mcap.log_path, "rb") as f, open(garbled, "wb") as g:
-        from mcap.reader import make_reader
-        from mcap.writer import Writer
 
         w = Writer(g)
         w.start()
@@ -342,9 +338,6 @@ def test_compare_reads_can_logs_and_the_ingest_options_as_run_does(ci_mcap: Simu
 def test_a_run_of_a_log_without_radar_names_the_ingest_that_writes_it(ci_mcap: SimulationResult, work: Path) -> None:
     """`autosar run` and `compare` have no --allow-partial (they focus the radar): their error said "use
     --allow-partial", and left an empty output directory."""
-    from mcap.reader import make_reader
-    from mcap.writer import Writer
-
     log = work / "no_radar.mcap"
     with open(ci_mcap.log_path, "rb") as f, open(log, "wb") as g:
         w = Writer(g)
