@@ -575,7 +575,7 @@ MUTATIONS: list[Mutation] = [
        'partial_hint=chain_hint("a comparison"), **ingest_options.ingest_kwargs())',
        'partial_hint=chain_hint("a comparison"))', COMPARE_INGEST),
     _m("capture-said-to-add-nothing-to-the-drive", "ingest", "ingest/pipeline.py",
-       '        if kind == "radar" and read:  # a capture', "        if False:  # a capture", CAPTURE_USED),
+       'rows = read if kind == "radar" else', 'rows = 0 if kind == "radar" else', CAPTURE_USED),
     _m("failed-run-leaves-its-empty-directory", "safety", "store/outputs.py",
        "        if created:\n", "        if False:\n", RUN_NO_RADAR),
     _m("blf-stream-end-unchecked", "ingest", "ingest/blf_damage.py",

@@ -277,6 +277,9 @@ def test_an_input_nothing_of_which_reaches_the_drive_is_named_with_why(ci_mcap: 
     }, report.warnings
     with Drive(work / "unused.h5") as d:
         assert len(d.h5["can/EPS_3/t_ns"]) == 20  # the log whose frames the DBC decodes: no warning
+    rows = {i["path"]: i["rows_in_drive"] for i in report.inputs}  # the report and drive.h5 say what each gave
+    assert rows == {str(ci_mcap.log_path): sum(s["written"] for s in report.streams) - 20, str(foreign): 0,
+                    str(errors): 0, str(empty): 0, str(no_frame): 0, str(known): 20}
     garbled = work / "garbled_fix.mcap"  # a receiver's fixes, every payload cut to 3 bytes
     with open(ci_mcap.log_path, "rb") as f, open(garbled, "wb") as g:
 

@@ -226,6 +226,7 @@ class _Tally(NamedTuple):
     duplicates: int  #: rows of every stream dropped as duplicates
     dropped: int  #: rows dropped as late or stamp outliers
     undecodable: int  #: messages of sensor streams that could not be decoded
+    rows: int  #: rows the streams took from the inputs ended so far
 
 
 class _Ingest:
@@ -240,6 +241,7 @@ class _Ingest:
         self.warnings: list[str] = []
         #: inputs of which nothing went into the drive, and why: said once the drive is known to be written
         self.unused: list[str] = []
+        self.rows_in_drive: list[int] = []  #: rows of the drive's streams each input gave, in their order
         self.skipped_channels: dict[tuple[str, str], dict[str, Any]] = {}
         self.streams: dict[str, Any] = {}  # drive.h5 group -> TableStream / NmeaStreams / RadarDecoder
         self.handlers: dict[tuple[str, int], Callable[[RawMessage], None] | None] = {}
@@ -594,20 +596,22 @@ class _Ingest:
     def tally(self) -> _Tally:
         """What :meth:`check_used` compares, so far."""
         st = self.can.stats
-        series = [s.stats for _, s in self.named_series()]
+        series = [s for _, s in self.named_series()]
         return _Tally(dataclasses.replace(st, unknown_ids=Counter(st.unknown_ids)), set(self.skipped_channels),
-                      len(self.sync_stamps), sum(s.duplicates for s in series),
-                      sum(s.late_dropped + s.stamp_outliers for s in series), self.bad_messages.total())
+                      len(self.sync_stamps), sum(s.stats.duplicates for s in series),
+                      sum(s.stats.late_dropped + s.stats.stamp_outliers for s in series), self.bad_messages.total(),
+                      sum(rows for s in series for *_, rows in s.inputs))
 
     def check_used(self, path: Path, kind: str, read: int, before: _Tally) -> None:
-        """Where nothing of the input just read (``read`` messages, frames or records) went into the drive, why
-        (``before``: :meth:`tally` before it), in :attr:`unused`."""
-        if kind == "radar" and read:  # a capture writes its own group, or fails saying why
-            return
-        if len(self.sync_stamps) > before.triggers or any(series.inputs and series.inputs[-1][0] == str(path)
-                                                          for _, series in self.named_series()):
-            return
+        """What the input just read (``read`` messages, frames or records; ended with :meth:`end_input`) gave the
+        drive (``before``: :meth:`tally` before it), in :attr:`rows_in_drive`; where nothing, why, in
+        :attr:`unused`."""
         now, can, was = self.tally(), self.can.stats, before.can
+        # a capture writes its own group (or fails saying why); frame triggers time one
+        rows = read if kind == "radar" else now.rows - before.rows + now.triggers - before.triggers
+        self.rows_in_drive.append(rows)
+        if rows:
+            return
         frames = can.frames - was.frames
         if now.duplicates > before.duplicates or now.dropped > before.dropped:
             dup, late = now.duplicates - before.duplicates, now.dropped - before.dropped
@@ -767,9 +771,10 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
         written = [i.stats for i in infos if i.stats is not None and i.stats.written]
         report.start_ns = min((s.first_ns for s in written), default=0)
         report.end_ns = max((s.last_ns for s in written), default=0)
-        for (path, kind, _), fut in zip(sources, hashes, strict=True):
+        for (path, kind, _), fut, rows in zip(sources, hashes, job.rows_in_drive, strict=True):
             size, digest = fut.result()
-            report.inputs.append({"path": str(path), "kind": kind, "size_bytes": size, "sha256": digest})
+            report.inputs.append({"path": str(path), "kind": kind, "size_bytes": size, "sha256": digest,
+                                  "rows_in_drive": rows})
         report.bytes_read = total
         report.wall_s = time.perf_counter() - t0
         writer.set_attrs("can", {"roles": roles, "dbc_path": str(job.dbc_path)})
