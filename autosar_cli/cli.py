@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
+import typer.core
 from rich.console import Console
 from rich.markup import escape
 from rich.progress import (
@@ -32,7 +33,29 @@ from rich.table import Column, Table
 
 from autosar_cli import __version__, exit_interrupted
 
+
+
+class _FlagsShownBare:
+    """Help that shows a flag as it is given (``--overwrite``), not beside a type (``--overwrite <bool>``)."""
+
+    def get_params(self, ctx: Any) -> list[Any]:
+        params = super().get_params(ctx)  # type: ignore[misc]
+        for param in params:
+            if isinstance(param, typer.core.TyperOption) and param.is_flag and param.metavar is None:
+                param.metavar = ""  # typer shows a parameter's metavar, where it has one, in place of its type
+        return params
+
+
+class _Group(_FlagsShownBare, typer.core.TyperGroup):
+    pass
+
+
+class _Command(_FlagsShownBare, typer.core.TyperCommand):
+    pass
+
+
 app = typer.Typer(
+    cls=_Group,
     name="autosar",
     help="Navigation-aided automotive SAR: recorded drives in, centimetre-accurate radar maps out.",
     no_args_is_help=True,
@@ -230,7 +253,7 @@ def _progress(label: str, enabled: bool = True, in_bytes: bool = False) -> Itera
         yield update
 
 
-@app.command()
+@app.command(cls=_Command)
 def simulate(
     output: Annotated[Path, typer.Option("--output", "-o", help="Log to write (.mcap, .bag, or a rosbag2 directory).")],
     scenario: Annotated[Scenario, typer.Option("--scenario", "-s", help="Drive to simulate.")] = Scenario.ci,
@@ -278,7 +301,7 @@ def simulate(
                           f"{result.log_path} --radar {result.radar_capture})")
 
 
-@app.command()
+@app.command(cls=_Command)
 def ingest(
     logs: Annotated[list[Path] | None, typer.Argument(
         metavar="LOG",
@@ -366,7 +389,7 @@ def ingest(
             err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
 
 
-@app.command()
+@app.command(cls=_Command)
 def navigate(
     drive: Annotated[Path, typer.Argument(help="drive.h5 written by `autosar ingest`.")],
     output: Annotated[Path, typer.Option("--output", "-o", help="trajectory.h5 to write.")] = Path("trajectory.h5"),
@@ -491,7 +514,7 @@ class Channels(StrEnum):
     twelve = "12"
 
 
-@app.command()
+@app.command(cls=_Command)
 def focus(
     drive: Annotated[Path, typer.Argument(help="drive.h5 written by `autosar ingest`.")],
     trajectory: Annotated[Path, typer.Option("--trajectory", "-t", help="trajectory.h5 written by "
@@ -551,7 +574,7 @@ def focus(
             err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
 
 
-@app.command()
+@app.command(cls=_Command)
 def run(
     logs: Annotated[list[Path], typer.Argument(
         metavar="LOG", help="Drive log(s): .mcap, .bag, rosbag2 directory (and CAN/NMEA log files), as for "
@@ -644,7 +667,7 @@ def _cm(value: float | None, scale: float = 100.0, digits: int = 1) -> str:
     return "–" if value is None else f"{value * scale:.{digits}f}"
 
 
-@app.command()
+@app.command(cls=_Command)
 def evaluate(
     source: Annotated[Path, typer.Argument(help="A run directory (run.json; from `autosar run` or a method directory "
                                            "of `autosar compare`) or an image.h5.")],
@@ -696,7 +719,7 @@ def evaluate(
             err.print(f"[yellow]note:[/] {_lit(note)}", highlight=False, soft_wrap=True)
 
 
-@app.command()
+@app.command(cls=_Command)
 def compare(
     logs: Annotated[list[Path], typer.Argument(metavar="LOG", help="Drive log(s), as for `autosar run`.")],
     output: Annotated[Path, typer.Option("--output", "-o", help="Comparison directory: drive.h5, one directory "
@@ -850,7 +873,7 @@ def _print_checked(found: dict[str, Any]) -> None:
     out.print(f"[bold]{_lit(path)}[/]: not verified intact")
 
 
-@app.command()
+@app.command(cls=_Command)
 def info(
     path: Annotated[Path, typer.Argument(help="A drive log (.mcap, .bag, rosbag2 directory), a TI DCA1000 capture "
                                          "or a drive.h5; or any directory, for its stale partial files.")],
@@ -954,7 +977,7 @@ def _batch_progress(n_drives: int, enabled: bool = True) -> Iterator[Callable[[d
         yield update
 
 
-@app.command()
+@app.command(cls=_Command)
 def batch(
     logs: Annotated[list[Path], typer.Argument(
         metavar="LOG", help="Drive logs, one drive each (.mcap, .bag, rosbag2 directory).")],

@@ -76,6 +76,7 @@ CAN_VELOCITY = "tests/test_nav_realdata.py::test_a_can_receivers_speed_and_cours
 TWICE_NAMED = "tests/test_ingest_realdata.py::test_a_role_names_one_of_two_frame_ids_a_dbc_gives_one_name"
 BY_WHAT_IT_HOLDS = "tests/test_ingest_containers.py::test_a_log_is_read_by_what_it_holds_not_by_its_name"
 CONFIG_UNKNOWN = "tests/test_config.py::test_an_unknown_key_names_the_key_it_likely_is"
+FLAGS_BARE = "tests/test_cli.py::test_every_commands_flags_read_as_they_are_given_not_as_taking_a_value"
 ROLE_UNSET = "tests/test_config.py::test_a_layer_unsets_its_bases_can_roles_with_an_empty_string"
 STAMP_OUTLIER = ("tests/test_ingest_robustness.py::"
                  "test_a_stamp_far_after_both_its_neighbours_is_an_outlier_a_real_gap_is_not")
@@ -469,6 +470,8 @@ MUTATIONS: list[Mutation] = [
        'if total < MIN_GATED or gated <= MAX_GATED_SHARE * total or not stream.startswith("gnss_"):', GATED_GYRO),
     _m("config-unknown-key-said-without-the-key-it-likely-is", "inputs", "config.py",
        "unknown key{_suggestion(unknown[0], sorted(names))}", "unknown key", CONFIG_UNKNOWN),
+    _m("help-shows-every-flag-beside-a-type", "inputs", "cli.py",
+       'param.metavar = ""', "param.metavar = None", FLAGS_BARE),
     _m("config-base-table-replaced-whole", "inputs", "config.py",
        "out[key] = _merged(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value",
        "out[key] = value", CONFIG_BASE),

@@ -41,3 +41,11 @@ def test_each_mutations_tests_are_collected() -> None:
     collected = {line.strip() for line in listed.splitlines()}
     # a node id without a parameter's id runs all of them
     assert [t for t in wanted if t not in collected and not any(c.startswith(t + "[") for c in collected)] == []
+
+
+def test_the_documents_state_as_many_mutations_as_the_list_holds() -> None:
+    import re
+
+    stated = {name: re.findall(r"(\d+) (?:curated mutations|in ~\d+ min on 2 cores|are caught)",
+                               (ROOT / name).read_text()) for name in ("README.md", "Makefile", "docs/ARCHITECTURE.md")}
+    assert stated == {name: [str(len(_mutations()))] for name in stated}
