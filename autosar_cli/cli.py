@@ -34,7 +34,6 @@ from rich.table import Column, Table
 from autosar_cli import __version__, exit_interrupted
 
 
-
 class _FlagsShownBare:
     """Help that shows a flag as it is given (``--overwrite``), not beside a type (``--overwrite <bool>``)."""
 
