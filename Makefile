@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: setup test test-long demo bench bench-paper benchmarks-md figures lint clean sample-logs mutate
+.PHONY: setup test test-long demo bench bench-paper benchmarks-md modules-md figures lint clean sample-logs mutate
 
 setup: $(STAMP)
 
@@ -65,6 +65,10 @@ bench-ablation: setup
 benchmarks-md: setup
 	$(BIN)/python benches/benchmarks_md.py
 
+# docs/MODULES.md from the modules' docstrings.
+modules-md: setup
+	$(BIN)/python docs/modules_md.py
+
 # The README's pictures (docs/figures/): test1 seed 0 simulated and compared (none, ins, sar-min, truth), ~5 min.
 FIGURES_WORK := demo_out/figures
 figures: setup
@@ -77,7 +81,7 @@ mutate: setup
 	$(BIN)/python benches/mutate.py --json benches/results/mutate.json
 
 lint: setup
-	$(BIN)/ruff check autosar_cli tests benches
+	$(BIN)/ruff check autosar_cli tests benches docs
 
 # Regenerates the committed sample logs (see sample_logs/README.md).
 sample-logs: setup

@@ -69,6 +69,19 @@ def test_benchmarks_md_is_generated_from_the_results() -> None:
     assert expected.count("Command `python benches/") == n_results  # every result names its command
 
 
+def test_modules_md_is_generated_from_the_docstrings() -> None:
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("modules_md", ROOT / "docs" / "modules_md.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    expected = module.render()
+    assert (ROOT / "docs" / "MODULES.md").read_text() == expected, "stale docs/MODULES.md: run make modules-md"
+    modules = [p for p in (ROOT / "autosar_cli").rglob("*.py") if p.name != "__init__.py"]
+    assert expected.count("| [`") == len(modules) and "|  |" not in expected  # every module, each with its line
+
+
 def test_code_points_at_sections_that_exist() -> None:
     """A reference like `docs/FOCUS.md, "Back-projection kernel"` in the code names a heading of that document."""
     cited = re.compile(r'docs/(\w+\.md),? "([^"]+)"')

@@ -1,16 +1,17 @@
-"""Bytes added to or lost from an MDF4 file before its last blocks: every block after that place lies the same
-number of bytes off where the file's links (absolute byte offsets) say, and the reader finds no block where the
-first of them points. The blocks themselves are intact: found by their ids in the file's bytes, the links that point
-to no block, or to a block of a kind they may not name (another block moved to where theirs lay), but lie one common
-shift off a block of their kind are moved by it in a copy (:func:`write_mended`), never onto a block an intact link
-names (one before the place, which did not move), and only where the shift moves a data
-group's data link onto a data block (else the damage is a zeroed run of blocks, which :mod:`.mdf4_mend` reads
-past). Every other link past the first block moved points where its block lay too (one that found a block of its
-kind there, the next of a run of channel groups, skipped the groups between): it moves with them. The block the
-place lies in is torn: its id is cleared in the copy, so that its group is left out. A count not a multiple of 8
-leaves the blocks off the 8-byte boundaries asammdf finds an unfinalised file's blocks on: the copy puts zero bytes
-before the first moved block. Blocks the lost bytes held stay lost: the groups they break are then left out as for
-any damaged block.
+"""Bytes added to or lost from an MDF4 file before its last blocks: the links past that place mended in a copy.
+
+Every block after that place lies the same number of bytes off where the file's links (absolute byte offsets) say,
+and the reader finds no block where the first of them points. The blocks themselves are intact: found by their ids in
+the file's bytes, the links that point to no block, or to a block of a kind they may not name (another block moved to
+where theirs lay), but lie one common shift off a block of their kind are moved by it in a copy
+(:func:`write_mended`), never onto a block an intact link names (one before the place, which did not move), and only
+where the shift moves a data group's data link onto a data block (else the damage is a zeroed run of blocks, which
+:mod:`.mdf4_mend` reads past). Every other link past the first block moved points where its block lay too (one that
+found a block of its kind there, the next of a run of channel groups, skipped the groups between): it moves with
+them. The block the place lies in is torn: its id is cleared in the copy, so that its group is left out. A count not
+a multiple of 8 leaves the blocks off the 8-byte boundaries asammdf finds an unfinalised file's blocks on: the copy
+puts zero bytes before the first moved block. Blocks the lost bytes held stay lost: the groups they break are then
+left out as for any damaged block.
 """
 
 from __future__ import annotations

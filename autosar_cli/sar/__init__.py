@@ -1,0 +1,1 @@
+"""Focusing: range compression, stripmap MIMO back-projection, tiles, and the autofocus from the radar's own echoes."""

@@ -1,6 +1,7 @@
-"""Kept range windows: their taking from the range profiles (:func:`take_windows`, for
-:func:`autosar_cli.sar.phase_history.gather_phase_histories`), and their back-projection onto their points, the inner
-loop of the residual-motion autofocus's model (:func:`focus_windows`, for
+"""Kept range windows: taken from the range profiles and back-projected onto their points (numba kernels).
+
+Their taking (:func:`take_windows`, for :func:`autosar_cli.sar.phase_history.gather_phase_histories`), and their
+back-projection, the inner loop of the residual-motion autofocus's model (:func:`focus_windows`, for
 :func:`autosar_cli.sar.phase_history.focus_history` and ``range_offsets``). Array in, array out.
 
 Each (point, pulse) pair's channels hold a window of range bins around the point's predicted path

@@ -1,6 +1,7 @@
-"""The autofocus's points: bright, isolated, point-like scatterers of a coarse first image along the navigated track,
-ranked by reflectivity (:func:`select_points`): 3-12 m from the track for the scale and the motion, 12-16 m for the
-motion only (:func:`candidate_points`), and, for the fast motion, many more out to the radar's range
+"""The autofocus's points: bright, isolated, point-like scatterers of a coarse first image along the navigated track.
+
+They are ranked by reflectivity (:func:`select_points`): 3-12 m from the track for the scale and the motion, 12-16 m
+for the motion only (:func:`candidate_points`), and, for the fast motion, many more out to the radar's range
 (:func:`points_and_scatterers`). A point that is no point scatterer after all is dropped by its fits
 (:mod:`autosar_cli.sar.residual_motion`, :mod:`autosar_cli.sar.pass_ranges`).
 """

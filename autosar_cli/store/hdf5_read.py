@@ -1,6 +1,8 @@
-"""Reading HDF5 products: h5py's errors (a file cut short or not HDF5 at all, a missing dataset, a Fletcher-32
-checksum or a decompression failure) become one line naming the file and the dataset; and :func:`verify`, which
-reads a whole file a stored chunk at a time and names each one that fails (``autosar info --verify``)."""
+"""Reading HDF5 products: h5py's errors as one line naming the file and the dataset, and every chunk's checksum.
+
+h5py's errors (a file cut short or not HDF5 at all, a missing dataset, a Fletcher-32 checksum or a decompression
+failure) become one line naming the file and the dataset; :func:`verify` reads a whole file a stored chunk at a time
+and names each one that fails (``autosar info --verify``)."""
 
 from __future__ import annotations
 
