@@ -42,7 +42,7 @@ from autosar_cli.store.outputs import (
     check_output,
     check_products,
     input_bytes,
-    make_output_directory,
+    output_directory,
 )
 
 if TYPE_CHECKING:
@@ -99,7 +99,6 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         from autosar_cli.sar.focus import check_request
 
         check_request(options, out / IMAGE, True, inputs, config)
-    undo_directory = make_output_directory(out)
     inputs = [{"path": str(Path(p)), "size_bytes": input_bytes([p])} for p in logs]
     manifest: dict[str, Any] = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
@@ -112,12 +111,9 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         return lambda done, total: progress(stage, done, total) if progress else None
 
     t = time.perf_counter()
-    try:
+    with output_directory(out):
         rep = _ingest_beside_imports([Path(p) for p in logs], out / DRIVE, config, stage_progress("ingest"), command,
                                      fork=fork_ingest, ingest_options=ingest_options, autofocus=autofocus)
-    except BaseException:
-        undo_directory()  # the ingest writes atomically: a directory made for this run holds nothing
-        raise
     manifest["stages"]["ingest"] = {"wall_s": time.perf_counter() - t, "messages": rep.get("messages"),
                                     "bytes_read": rep.get("bytes_read"), "warnings": rep.get("warnings", [])}
     manifest["outputs"]["drive"] = DRIVE

@@ -70,7 +70,7 @@ from autosar_cli.sim.truth import truth_radar_mismatch
 from autosar_cli.store.drive import Drive, radar_times
 from autosar_cli.store.image import write_image
 from autosar_cli.store.manifest import product_status
-from autosar_cli.store.outputs import check_output, make_output_directory
+from autosar_cli.store.outputs import check_output, output_directory
 from autosar_cli.store.trajectory import write_trajectory
 
 FORMAT = "autosar-compare"
@@ -134,18 +134,14 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
     methods = parse_methods(methods)
     options = options or FocusOptions.from_config(config)
     tick = progress or (lambda stage, done, total: None)
-    undo_directory = make_output_directory(out)
     timings: dict[str, float] = {}
     notes: list[str] = []
 
     t0 = time.perf_counter()
-    try:
+    with output_directory(out):
         report = ingest([Path(p) for p in logs], out / DRIVE, config=config, command=command,
                         progress=lambda done, total: tick("ingest", done, total),
                         partial_hint=chain_hint("a comparison"), **ingest_options.ingest_kwargs())
-    except BaseException:
-        undo_directory()  # the ingest writes atomically: a directory made for this comparison holds nothing
-        raise
     warnings = [str(w) for w in report.warnings]  # a damaged log, dropped data: every product is degraded
     timings["ingest"] = time.perf_counter() - t0
     warnings += unfocused_radars(out / DRIVE, options)  # another radar of the drive: in no image

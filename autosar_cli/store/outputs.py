@@ -16,7 +16,7 @@ import json
 import os
 import shutil
 import stat
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from autosar_cli.store.atomic import remove_stale_partials
@@ -97,18 +97,19 @@ def check_products(directory: Path, names: Iterable[str], inputs: Iterable[str |
         check_output(directory / name, inputs, overwrite=overwrite)
 
 
-def make_output_directory(path: Path) -> Callable[[], None]:
-    """Make the directory ``path`` (and its parents) for a command's products; returns what undoes it after a
-    failure: it is removed again where this call made it and nothing has been written in it since."""
+@contextlib.contextmanager
+def output_directory(path: Path) -> Iterator[None]:
+    """Make the directory ``path`` (and its parents) for a command's products, and remove it again where the block
+    fails, this call made it and nothing has been written in it (a failed ingest, which writes atomically)."""
     created = not path.exists()
     path.mkdir(parents=True, exist_ok=True)
-
-    def undo() -> None:
+    try:
+        yield
+    except BaseException:
         if created:
             with contextlib.suppress(OSError):  # not empty: what is in it stays
                 path.rmdir()
-
-    return undo
+        raise
 
 
 def remove_product_directory(path: Path) -> None:
