@@ -93,3 +93,26 @@ def test_code_points_at_sections_that_exist() -> None:
             if section not in headings:
                 missing.append(f"{path.relative_to(ROOT)}: {doc} \"{section}\"")
     assert not missing, "\n".join(missing)
+
+
+def test_every_option_the_documents_give_a_command_is_one_it_takes() -> None:
+    """`autosar CMD ... --opt` in README.md and docs/ (code spans and code blocks): CMD takes --opt."""
+    from typer.main import get_command
+
+    from autosar_cli.cli import app
+
+    root = get_command(app)
+    takes = {name: {o for p in [*cmd.params, *root.params] for o in (*p.opts, *p.secondary_opts)}
+             for name, cmd in root.commands.items()}
+    command = re.compile(r"autosar (?:--debug )?(" + "|".join(takes) + r")\b([^#]*)")
+    unknown, given = [], 0
+    for doc in [ROOT / "README.md", *DOCS]:
+        text = doc.read_text()
+        code = re.findall(r"`([^`\n]+)`", text) + [ln for block in re.findall(r"```[a-z]*\n(.*?)```", text, re.S)
+                                                   for ln in block.splitlines()]
+        for snippet in code:
+            for m in command.finditer(snippet):
+                options = re.findall(r"(?<![\w-])(--?[a-zA-Z][\w-]*)", re.split(r"&&|;|\|(?!\|)", m.group(2))[0])
+                given += len(options)
+                unknown += [f"{doc.name}: autosar {m.group(1)} {o}" for o in options if o not in takes[m.group(1)]]
+    assert unknown == [] and given > 100
