@@ -134,20 +134,16 @@ def _lit(value: object) -> str:
     return escape(str(value))
 
 
-def _radar_options(start: str | None, sync: str, override: bool) -> Any:
-    from autosar_cli.ingest.pipeline import RadarCaptureOptions, parse_time_ns
-
-    return RadarCaptureOptions(parse_time_ns(start) if start is not None else None, sync, override)
-
-
 def _ingest_options(dbc: Path | None, radar_start: str | None, radar_sync: str, radar_override: bool,
                     allow_unverified: bool, time_offset: list[str] | None, allow_time_gap: bool,
                     max_time_gap: float) -> Any:
-    """The ingest options of ``autosar run``, ``compare`` and ``batch`` as the library takes them."""
-    from autosar_cli.ingest.pipeline import IngestOptions, parse_time_offsets
+    """The ingest options of ``autosar ingest``, ``run``, ``compare`` and ``batch`` as the library takes them."""
+    from autosar_cli.ingest.pipeline import IngestOptions, RadarCaptureOptions, parse_time_ns, parse_time_offsets
 
-    return IngestOptions(dbc, _radar_options(radar_start, radar_sync, radar_override),
-                         parse_time_offsets(time_offset or []), max_time_gap, allow_time_gap, allow_unverified)
+    radar = RadarCaptureOptions(parse_time_ns(radar_start) if radar_start is not None else None, radar_sync,
+                                radar_override)
+    return IngestOptions(dbc, radar, parse_time_offsets(time_offset or []), max_time_gap, allow_time_gap,
+                         allow_unverified)
 
 
 def _version(value: bool) -> None:
@@ -330,10 +326,12 @@ def ingest(
 ) -> None:
     """Decode CAN (with a DBC), GNSS, IMU and raw radar frames of drive logs into one drive.h5, streaming."""
     with _errors(output, kernels=False):
-        from autosar_cli.ingest.pipeline import check_input, classify_input, parse_time_offsets
+        from autosar_cli.ingest.pipeline import check_input, classify_input
         from autosar_cli.ingest.pipeline import ingest as run_ingest
 
         cfg = _load_config(config)
+        options = _ingest_options(dbc, radar_start, radar_sync, radar_override, allow_unverified, time_offset,
+                                  allow_time_gap, max_time_gap)
         kinds: dict[str, list[Path]] = {"log": [], "can": list(can_log or []), "nmea": list(nmea or []),
                                         "radar": [radar] if radar else []}
         for p in logs or []:
@@ -347,13 +345,9 @@ def ingest(
         check_free_space(output, input_bytes([*(logs or []), *kinds["can"], *kinds["nmea"], *kinds["radar"]]),
                          "the drive")
         with _progress("ingest", not as_json, in_bytes=True) as update:
-            report = run_ingest(kinds["log"], output, config=cfg, dbc=dbc, can_logs=kinds["can"],
-                                nmea_logs=kinds["nmea"], radar_captures=kinds["radar"],
-                                radar_options=_radar_options(radar_start, radar_sync, radar_override),
-                                allow_partial=allow_partial, progress=update, command=" ".join(sys.argv),
-                                time_offsets=parse_time_offsets(time_offset or []),
-                                max_time_gap_s=max_time_gap, allow_time_gap=allow_time_gap,
-                                allow_unverified=allow_unverified)
+            report = run_ingest(kinds["log"], output, config=cfg, can_logs=kinds["can"], nmea_logs=kinds["nmea"],
+                                radar_captures=kinds["radar"], allow_partial=allow_partial, progress=update,
+                                command=" ".join(sys.argv), **options.ingest_kwargs())
         d = report.to_dict()
         if as_json:
             out.print_json(json.dumps(d))
