@@ -53,6 +53,7 @@ NMEA_BAD = "tests/test_ingest_nmea.py::test_bad_input_is_counted_not_raised"
 DCA_LAYOUTS = "tests/test_ingest_dca1000.py::test_layout_round_trips"
 DCA_NARROW = "tests/test_ingest_dca1000.py::test_narrow_adc_samples_are_sign_extended"
 DCA_ZEROS = "tests/test_ingest_dca1000.py::test_zero_filled_packets_of_post_processed_data_are_left_out"
+DCA_CLI_CONFIG = "tests/test_ingest_dca1000.py::test_the_dca1000_clis_config_beside_an_sdk_capture_must_agree"
 UNDERSTEER = ("tests/test_nav_models.py::"
               "test_understeer_fit_finds_the_full_vehicles_gradient_and_none_on_a_kinematic_car")
 STANDSTILL = "tests/test_nav_models.py::test_a_standstill_is_where_all_four_wheels_read_zero_and_the_car_stands"
@@ -470,6 +471,11 @@ MUTATIONS: list[Mutation] = [
        'if total < MIN_GATED or gated <= MAX_GATED_SHARE * total or not stream.startswith("gnss_"):', GATED_GYRO),
     _m("config-unknown-key-said-without-the-key-it-likely-is", "inputs", "config.py",
        "unknown key{_suggestion(unknown[0], sorted(names))}", "unknown key", CONFIG_UNKNOWN),
+    _m("dca1000-word-bits-unchecked", "radar", "ingest/dca1000_params.py",
+       "if fmt is not None and DCA_FORMAT_BITS.get(_int_or_none(fmt)) != params.adc_bits:",
+       "if False:", DCA_CLI_CONFIG),
+    _m("dca1000-cli-config-beside-an-sdk-cfg-unread", "radar", "ingest/dca1000_params.py",
+       'if not p.name.endswith(".mmwave.json")', 'if p.name.endswith(".setup.json")', DCA_CLI_CONFIG),
     _m("help-shows-every-flag-beside-a-type", "inputs", "cli.py",
        'param.metavar = ""', "param.metavar = None", FLAGS_BARE),
     _m("config-base-table-replaced-whole", "inputs", "config.py",

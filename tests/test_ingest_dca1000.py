@@ -195,7 +195,7 @@ def test_studio_json_layouts_that_are_not_read_are_refused(tmp_path: Path, field
 
 @pytest.mark.parametrize(("change", "needle"), [
     ({"dataLoggingMode": "multi"}, "DCA1000Config.dataLoggingMode is 'multi'; only raw captures"),
-    ({"lvdsMode": 2}, "DCA1000Config.lvdsMode is 2 (2 lanes) but capture.mmwave.json enables 4 lanes"),
+    ({"lvdsMode": 2}, "DCA1000Config.lvdsMode is 2 (2 lanes) but the device of capture.mmwave.json sends 4"),
 ])
 def test_the_setup_json_twin_must_agree(tmp_path: Path, change: dict[str, object], needle: str) -> None:
     """mmWave Studio's ``*.setup.json`` says how the DCA1000 logged: a multi-mode capture, or one logged over
@@ -207,6 +207,41 @@ def test_the_setup_json_twin_must_agree(tmp_path: Path, change: dict[str, object
     doc["DCA1000Config"].update(change)
     setup.write_text(json.dumps(doc))
     assert_one_line_error(*cli_ingest(tmp_path, tmp_path / "d.h5"), needle, "capture.setup.json")
+
+
+#: the DCA1000 CLI's cf.json as TI's user guide gives it, for a 2-lane device sending 16-bit samples
+CLI_CF_JSON = {"DCA1000Config": {
+    "dataLoggingMode": "raw", "dataTransferMode": "LVDSCapture", "dataCaptureMode": "ethernetStream", "lvdsMode": 2,
+    "dataFormatMode": 3, "packetDelay_us": 25,
+    "ethernetConfig": {"DCA1000IPAddress": "192.168.33.180", "DCA1000ConfigPort": 4096, "DCA1000DataPort": 4098},
+    "captureConfig": {"fileBasePath": "C:\\capture", "filePrefix": "adc_data", "maxRecFileSize_MB": 1024,
+                      "sequenceNumberEnable": 1, "captureStopMode": "infinite"}}}
+
+
+@pytest.mark.parametrize(("change", "needle"), [
+    ({}, ""),
+    ({"dataFormatMode": 1}, "cf.json: DCA1000Config.dataFormatMode is 1 (12-bit words) but capture.cfg gives 16-bit"),
+    ({"lvdsMode": 1}, "cf.json: DCA1000Config.lvdsMode is 1 (4 lanes) but the device of capture.cfg sends 2"),
+    ({"dataLoggingMode": "multi"}, "cf.json: DCA1000Config.dataLoggingMode is 'multi'; only raw captures"),
+    ({"dataFormatMode": "3"}, ""),
+])
+def test_the_dca1000_clis_config_beside_an_sdk_capture_must_agree(tmp_path: Path, change: dict[str, object],
+                                                                  needle: str) -> None:
+    """A capture recorded with TI's DCA1000 CLI keeps its configuration (cf.json) beside the SDK .cfg: words of
+    other bits than the ADC's, other LVDS lanes or multi mode would read as wrong samples: a one-line error naming
+    it. One that agrees reads as without it."""
+    cap = sdk_cfg(tmp_path / "cap")
+    (cap / "cf.json").write_text(json.dumps({"DCA1000Config": {**CLI_CF_JSON["DCA1000Config"], **change}}))
+    if needle:
+        assert_one_line_error(*cli_ingest(cap, tmp_path / "d.h5"), needle)
+        assert not (tmp_path / "d.h5").exists()
+    else:
+        code, stderr = cli_ingest(cap, tmp_path / "d.h5")
+        assert code == 0, stderr
+        with h5py.File(tmp_path / "d.h5") as f:
+            assert f["radar"][next(iter(f["radar"]))]["raw"].shape[0] == 3
+        r = runner.invoke(app, ["info", str(cap), "--json"])
+        assert "(2-lane complex1x, 1 file, capture.cfg + cf.json;" in json.loads(r.stdout)["container"]
 
 
 @pytest.mark.parametrize(("stream", "needle"), [

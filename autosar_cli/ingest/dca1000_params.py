@@ -367,7 +367,6 @@ def parse_studio_json(path: Path) -> CaptureParams:
         if packet0 != 1:
             raise CaptureError(f"{src}: rlDevDataPathCfg_t.transferFmtPkt0 is {packet0:#x}: the capture holds more "
                                "than ADC data (chirp parameters, chirp quality); only ADC data (0x1) is read")
-        _check_setup(path, params.lanes)
         expected = 0 if params.lanes == 4 else 1
         interleave = _mask_int(data_fmt.get("chInterleave", expected))
         if interleave != expected:
@@ -382,24 +381,60 @@ def parse_studio_json(path: Path) -> CaptureParams:
     return params
 
 
-def _check_setup(mmwave_json: Path, lanes: int) -> None:
-    """The ``*.setup.json`` twin, where there is one and it reads: the DCA1000 must have logged raw data (multi
-    mode splits it into per-type files) over as many LVDS lanes as the device sends (lvdsMode 1: 4, 2: 2)."""
-    twin = mmwave_json.with_name(mmwave_json.name[: -len(".mmwave.json")] + ".setup.json")
+#: ``DCA1000Config.lvdsMode``: the LVDS lanes the DCA1000 takes in
+DCA_LVDS_LANES = {1: 4, 2: 2}
+#: ``DCA1000Config.dataFormatMode``: the bits of the LVDS words it takes in (TI's DCA1000 CLI user guide)
+DCA_FORMAT_BITS = {1: 12, 2: 14, 3: 16}
+#: a JSON beside a capture larger than this is no DCA1000 configuration (not read)
+_CONFIG_JSON_MAX_BYTES = 1 << 20
+
+
+def _dca1000_section(path: Path) -> dict[str, Any] | None:
+    """The ``DCA1000Config`` table of a JSON file, or None where it holds none or does not read."""
     try:
-        dca = json.loads(twin.read_text(encoding="utf-8")).get("DCA1000Config", {})
+        if path.stat().st_size > _CONFIG_JSON_MAX_BYTES:
+            return None
+        section = json.loads(path.read_text(encoding="utf-8")).get("DCA1000Config")
     except (OSError, ValueError, AttributeError):
-        return  # the twin is not needed for the layout
-    mode = dca.get("dataLoggingMode", "raw")
-    if str(mode).lower() != "raw":
-        raise CaptureError(f"{twin}: DCA1000Config.dataLoggingMode is {mode!r}; only raw captures (one stream of "
-                           "ADC data) are read")
-    lvds = dca.get("lvdsMode")
-    if lvds is not None:
-        logged = {"1": 4, "2": 2}.get(str(lvds))
-        if logged != lanes:
-            raise CaptureError(f"{twin}: DCA1000Config.lvdsMode is {lvds} ({logged or 'no known'} lanes) but "
-                               f"{mmwave_json.name} enables {lanes} lanes")
+        return None  # not needed for the layout
+    return section if isinstance(section, dict) else None
+
+
+def dca1000_configs(param_file: Path) -> list[tuple[Path, dict[str, Any]]]:
+    """The DCA1000's own configurations beside a capture's parameter file, with their ``DCA1000Config``: every JSON
+    there that holds one (mmWave Studio's ``*.setup.json``, the DCA1000 CLI's ``cf.json``)."""
+    found = [(p, _dca1000_section(p)) for p in sorted(param_file.parent.glob("*.json"))
+             if not p.name.endswith(".mmwave.json")]
+    return [(p, section) for p, section in found if section is not None]
+
+
+def check_dca1000_configs(param_file: Path, params: CaptureParams) -> None:
+    """The DCA1000's configurations beside ``param_file`` must have logged what ``params`` reads: raw data (multi
+    mode splits it into per-type files), over as many LVDS lanes as the device sends (``lvdsMode``), in words of
+    its ADC's bits (``dataFormatMode``): another would read as wrong samples."""
+    for path, dca in dca1000_configs(param_file):
+        mode = dca.get("dataLoggingMode", "raw")
+        if str(mode).lower() != "raw":
+            raise CaptureError(f"{path}: DCA1000Config.dataLoggingMode is {mode!r}; only raw captures (one stream "
+                               "of ADC data) are read")
+        lvds = dca.get("lvdsMode")
+        if lvds is not None and DCA_LVDS_LANES.get(_int_or_none(lvds)) != params.lanes:
+            logged = DCA_LVDS_LANES.get(_int_or_none(lvds))
+            raise CaptureError(f"{path}: DCA1000Config.lvdsMode is {lvds} ({logged or 'no known'} lanes) but "
+                               f"the device of {param_file.name} sends {params.lanes}")
+        fmt = dca.get("dataFormatMode")
+        if fmt is not None and DCA_FORMAT_BITS.get(_int_or_none(fmt)) != params.adc_bits:
+            logged = DCA_FORMAT_BITS.get(_int_or_none(fmt))
+            words = f"{logged}-bit" if logged else "no known"
+            raise CaptureError(f"{path}: DCA1000Config.dataFormatMode is {fmt} ({words} words) but "
+                               f"{param_file.name} gives {params.adc_bits}-bit ADC samples")
+
+
+def _int_or_none(value: Any) -> int | None:
+    try:
+        return _mask_int(value)
+    except (ValueError, TypeError):
+        return None
 
 
 def _mask_int(v: int | str) -> int:
@@ -441,10 +476,10 @@ def write_studio_json(base: Path, p: CaptureParams) -> tuple[Path, Path]:
 
 
 def load_params(path: Path) -> CaptureParams:
-    """Parameters from a ``.cfg`` or ``*.mmwave.json`` file."""
-    if path.name.endswith(".mmwave.json"):
-        return parse_studio_json(path)
-    return parse_sdk_cfg(path)
+    """Parameters from a ``.cfg`` or ``*.mmwave.json`` file, checked against the DCA1000's configurations beside it."""
+    params = parse_studio_json(path) if path.name.endswith(".mmwave.json") else parse_sdk_cfg(path)
+    check_dca1000_configs(path, params)
+    return params
 
 
 def params_from_radar(radar: Any, *, lanes: int = 4, adc_format: str = "complex1x",

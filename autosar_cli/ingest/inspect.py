@@ -153,10 +153,13 @@ def summarize_capture(path: Path) -> LogSummary:
     from .dca1000 import Dca1000Capture
     from .radar_block import recorded_from_capture
 
+    from .dca1000_params import dca1000_configs
+
     cap = Dca1000Capture(path)
     p = cap.params
+    stated_by = " + ".join([cap.param_file.name, *(c.name for c, _ in dca1000_configs(cap.param_file))])
     summary = LogSummary(str(path), f"TI DCA1000 capture ({p.lanes}-lane {p.adc_format}, {len(cap.files)} file"
-                         f"{'s' if len(cap.files) > 1 else ''}, {cap.param_file.name}; {cap.layout})", cap.bytes_total)
+                         f"{'s' if len(cap.files) > 1 else ''}, {stated_by}; {cap.layout})", cap.bytes_total)
     t = cap.pri_times_ns(cap.frame_starts_ns(0))
     summary.streams.append(StreamSummary("radar frames (PRIs)", p.describe_layout(), cap.num_pris,
                                          int(t[0]) if len(t) else 0, int(t[-1]) if len(t) else 0))
