@@ -64,7 +64,8 @@ app = typer.Typer(
 err = Console(stderr=True)
 out = Console()
 
-_state: dict[str, Any] = {"debug": False}
+#: ``undo_on_failure``: what a failing command undoes (the directories its outputs' gate made), in :func:`_errors`
+_state: dict[str, Any] = {"debug": False, "undo_on_failure": []}
 
 ConfigOpt = Annotated[
     Path | None, typer.Option("--config", "-c", help="TOML config (default: configs/giulia_scanbrick.toml).")
@@ -177,14 +178,18 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
         signal.signal(signal.SIGINT, signal.default_int_handler)
     unraisable_hook = sys.unraisablehook
     sys.unraisablehook = _interrupt_again(unraisable_hook)
+    undo_on_failure: list[Callable[[], None]] = []
+    _state["undo_on_failure"] = undo_on_failure
     try:
         yield
     except (typer.Exit, typer.Abort):
         raise
     except KeyboardInterrupt:
+        _undo(undo_on_failure)
         err.print("[red]error:[/] interrupted")
         raise typer.Exit(130) from None
     except Exception as exc:
+        _undo(undo_on_failure)
         if _state["debug"]:
             raise
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
@@ -201,6 +206,11 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
             signal.signal(signal.SIGINT, exit_interrupted)
 
 
+def _undo(steps: list[Callable[[], None]]) -> None:
+    for step in reversed(steps):
+        step()
+
+
 def _interrupt_again(hook: Callable[[Any], None]) -> Callable[[Any], None]:
     """An unraisable-exception hook that raises a Ctrl-C swallowed in a destructor (or a callback) again, where
     it can stop the command, instead of printing "Exception ignored ..." and going on."""
@@ -214,6 +224,15 @@ def _interrupt_again(hook: Callable[[Any], None]) -> Callable[[Any], None]:
     return interrupt_again
 
 
+def _not_a_log(path: Path, wanted: str, maker: str) -> None:
+    """Refuse a drive log given where autosar's own file ``wanted`` is read, naming the command (``maker``, LOG for
+    the log's name) that makes one of it."""
+    from autosar_cli.ingest.sources import begins_as_a_container, is_log_directory
+
+    if begins_as_a_container(path) or (path.is_dir() and is_log_directory(path)):
+        raise ValueError(f"{path}: a drive log, not {wanted}: `{maker.replace('LOG', path.name)}` makes one")
+
+
 def _load_config(path: Path | None) -> Any:
     from autosar_cli.config import load_config
 
@@ -224,12 +243,12 @@ def _prepare_output(path: Path, overwrite: bool, inputs: list[Path | str | None]
                     replaces_directory: bool = False) -> None:
     """Pass ``path`` through the output gate (store.outputs: never an input, --overwrite only replaces what
     autosar made); a file is then replaced atomically by its writer, a directory (rosbag2) removed here."""
-    from autosar_cli.store.outputs import check_output, remove_product_directory
+    from autosar_cli.store.outputs import check_output, make_directories, remove_product_directory
 
     check_output(path, [p for p in inputs if p], overwrite=overwrite, replaces_directory=replaces_directory)
     if path.is_dir():
         remove_product_directory(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    _state["undo_on_failure"].append(make_directories(path.parent))
 
 
 @contextmanager
@@ -407,6 +426,7 @@ def navigate(
         from autosar_cli.nav.navigate import navigate as run_navigate
         from autosar_cli.store.trajectory import write_trajectory
 
+        _not_a_log(drive, "a drive.h5", "autosar ingest LOG -o drive.h5")
         cfg = _load_config(config)
         _prepare_output(output, overwrite, [drive, truth, cfg.source])
         traj = run_navigate(drive, method.value, cfg, smooth=not no_smooth, truth_path=truth)
@@ -538,6 +558,8 @@ def focus(
         from autosar_cli.sar.focus import FocusOptions
         from autosar_cli.sar.focus import focus as run_focus
 
+        _not_a_log(drive, "a drive.h5", "autosar ingest LOG -o drive.h5")
+        _not_a_log(trajectory, "a trajectory.h5", "autosar run LOG -o DIR")
         cfg = _load_config(config)
         options = FocusOptions.from_config(cfg, pixel_m=pixel, resolution_m=resolution, height_m=height, grid=grid,
                                            channels=int(channels.value) if channels else None, radar=radar_stream)
@@ -678,6 +700,7 @@ def evaluate(
     with _errors():
         from autosar_cli.evaluate.report import evaluate_run
 
+        _not_a_log(source, "a run directory or image.h5", "autosar run LOG -o DIR")
         cfg = _load_config(config) if config else None
         with _stages(not as_json) as update:
             result = evaluate_run(source, output, truth, config=cfg, overwrite=overwrite, progress=update)

@@ -77,6 +77,7 @@ CAN_VELOCITY = "tests/test_nav_realdata.py::test_a_can_receivers_speed_and_cours
 TWICE_NAMED = "tests/test_ingest_realdata.py::test_a_role_names_one_of_two_frame_ids_a_dbc_gives_one_name"
 BY_WHAT_IT_HOLDS = "tests/test_ingest_containers.py::test_a_log_is_read_by_what_it_holds_not_by_its_name"
 CONFIG_UNKNOWN = "tests/test_config.py::test_an_unknown_key_names_the_key_it_likely_is"
+LOG_OR_PRODUCT = "tests/test_safety.py::test_a_log_and_a_product_given_for_each_other_say_what_they_are"
 FLAGS_BARE = "tests/test_cli.py::test_every_commands_flags_read_as_they_are_given_not_as_taking_a_value"
 ROLE_UNSET = "tests/test_config.py::test_a_layer_unsets_its_bases_can_roles_with_an_empty_string"
 STAMP_OUTLIER = ("tests/test_ingest_robustness.py::"
@@ -585,8 +586,13 @@ MUTATIONS: list[Mutation] = [
        'partial_hint=chain_hint("a comparison"))', COMPARE_INGEST),
     _m("capture-said-to-add-nothing-to-the-drive", "ingest", "ingest/pipeline.py",
        'rows = read if kind == "radar" else', 'rows = 0 if kind == "radar" else', CAPTURE_USED),
-    _m("failed-run-leaves-its-empty-directory", "safety", "store/outputs.py",
-       "        if created:\n", "        if False:\n", RUN_NO_RADAR),
+    _m("failed-command-leaves-the-empty-directories-it-made", "safety", "store/outputs.py",
+       "                directory.rmdir()", "                pass", RUN_NO_RADAR, LOG_OR_PRODUCT),
+    _m("product-given-as-a-log-said-to-be-an-unknown-container", "safety", "ingest/sources.py",
+       "if (product := what_autosar_wrote(path)) is not None:", "if (product := None) is not None:", LOG_OR_PRODUCT),
+    _m("log-given-as-a-product-said-to-be-no-hdf5-file", "safety", "cli.py",
+       "if begins_as_a_container(path) or (path.is_dir() and is_log_directory(path)):", "if False:",
+       LOG_OR_PRODUCT),
     _m("blf-stream-end-unchecked", "ingest", "ingest/blf_damage.py",
        "    if method != _DEFLATED or not inflate.eof or len(inner) != inflated_size:",
        "    if method != _DEFLATED:", BLF_LAST),

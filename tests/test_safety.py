@@ -139,6 +139,27 @@ def test_an_input_that_is_a_pipe_a_link_loop_or_a_directory_is_one_line(tmp_path
     assert not out.exists()
 
 
+def test_a_log_and_a_product_given_for_each_other_say_what_they_are(ci_mcap, ci_run: Path, tmp_path: Path) -> None:
+    """A drive.h5 given to run was "unknown log container (expected .mcap, ...)", a log given to navigate "not an
+    HDF5 file (Unable to synchronously open file ...)": each says what it is and the command that makes what is
+    wanted, before anything is written."""
+    log, out = ci_mcap.log_path, tmp_path / "out"
+    for args, product in ((["run", str(ci_run / "drive.h5"), "-o", str(out)], "a drive.h5 autosar wrote (`autosar "
+                           "navigate` and `autosar focus` read it), not a log"),
+                          (["ingest", str(ci_run / "trajectory.h5"), "-o", str(out / "d.h5")], "a trajectory.h5 "
+                           "autosar wrote (`autosar focus --trajectory` reads it), not a log"),
+                          (["compare", str(ci_run / "image.h5"), "-o", str(out)], "an image.h5 autosar wrote")):
+        _one_line_error(runner.invoke(app, args), f"error: {args[1]}: {product}")
+    for args, wanted in ((["navigate", str(log), "-o", str(out / "t.h5")],
+                          f"a drive log, not a drive.h5: `autosar ingest {log.name} -o drive.h5` makes one"),
+                         (["focus", str(ci_run / "drive.h5"), "-t", str(log), "-o", str(out / "i")],
+                          f"a drive log, not a trajectory.h5: `autosar run {log.name} -o DIR` makes one"),
+                         (["evaluate", str(log), "-o", str(out)],
+                          f"a drive log, not a run directory or image.h5: `autosar run {log.name} -o DIR`")):
+        _one_line_error(runner.invoke(app, args), f"error: {log}: {wanted}")
+    assert not out.exists()
+
+
 def test_output_whose_parent_is_a_file_names_it(tmp_path: Path) -> None:
     log = tmp_path / "log.mcap"
     _foreign(log)

@@ -151,9 +151,8 @@ def summarize_capture(path: Path) -> LogSummary:
     Frame times are relative to the first frame: the capture's absolute start comes with ingest.
     """
     from .dca1000 import Dca1000Capture
-    from .radar_block import recorded_from_capture
-
     from .dca1000_params import dca1000_configs
+    from .radar_block import recorded_from_capture
 
     cap = Dca1000Capture(path)
     p = cap.params

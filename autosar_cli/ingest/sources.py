@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol, runtime_checkable
 
+from autosar_cli.store.outputs import what_autosar_wrote
+
 
 class LogReadError(RuntimeError):
     """A log cannot be opened or read; the message names the file (and offset) and the problem."""
@@ -126,6 +128,8 @@ def _container(path: Path) -> Container:
         raise LogReadError(f"{path}: a directory but not a rosbag2 bag (no metadata.yaml, no .db3 or .mcap files)")
     if path.suffix.lower() == ".bin":
         raise LogReadError(f"{path}: a raw .bin without a DCA1000 parameter file (*.mmwave.json or .cfg) beside it")
+    if (product := what_autosar_wrote(path)) is not None:
+        raise LogReadError(f"{path}: {product}, not a log")
     names = [c.expected for c in _CONTAINERS]
     expected = " or ".join([", ".join(names[:-1]), names[-1]] if len(names) > 1 else names)
     raise LogReadError(f"{path}: unknown log container (expected {expected})")

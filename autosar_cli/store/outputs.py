@@ -16,7 +16,7 @@ import json
 import os
 import shutil
 import stat
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 from autosar_cli.store.atomic import remove_stale_partials
@@ -97,18 +97,29 @@ def check_products(directory: Path, names: Iterable[str], inputs: Iterable[str |
         check_output(directory / name, inputs, overwrite=overwrite)
 
 
+def make_directories(path: Path) -> Callable[[], None]:
+    """Make the directory ``path`` and its missing parents for a command's products; returns what removes again
+    those it made where nothing has been written in them (after the command failed)."""
+    made = [p for p in (path, *path.parents) if not (p.exists() or p.is_symlink())]  # the deepest first
+    path.mkdir(parents=True, exist_ok=True)
+
+    def undo() -> None:
+        for directory in made:
+            with contextlib.suppress(OSError):  # not empty: what is in it stays, and so do its parents
+                directory.rmdir()
+
+    return undo
+
+
 @contextlib.contextmanager
 def output_directory(path: Path) -> Iterator[None]:
-    """Make the directory ``path`` (and its parents) for a command's products, and remove it again where the block
-    fails, this call made it and nothing has been written in it (a failed ingest, which writes atomically)."""
-    created = not path.exists()
-    path.mkdir(parents=True, exist_ok=True)
+    """Make the directory ``path`` (and its parents) for a command's products, and remove again those this made
+    where the block fails and nothing has been written in them (a failed ingest, which writes atomically)."""
+    undo = make_directories(path)
     try:
         yield
     except BaseException:
-        if created:
-            with contextlib.suppress(OSError):  # not empty: what is in it stays
-                path.rmdir()
+        undo()
         raise
 
 
@@ -126,19 +137,19 @@ def is_autosar_product(path: Path) -> bool:
         if any(_json_format(path / m) for m in DIRECTORY_MANIFESTS):
             return True
         if path.suffix == ".dca1000":  # a simulated DCA1000 capture beside its navigation MCAP
-            return _hdf5_format(_truth_sidecar(path.with_suffix(".mcap"))) == "autosar-truth"
-        return _hdf5_format(_truth_sidecar(path)) == "autosar-truth"  # a simulated rosbag2 log
+            return hdf5_format(_truth_sidecar(path.with_suffix(".mcap"))) == "autosar-truth"
+        return hdf5_format(_truth_sidecar(path)) == "autosar-truth"  # a simulated rosbag2 log
     suffix = path.suffix.lower()
-    if _hdf5_format(path):
+    if hdf5_format(path):
         return True
     if suffix in (".tif", ".tiff"):
         return _tif_is_autosar(path)
     if suffix == ".json":
         return _json_format(path)
     if suffix == ".png":
-        return bool(_hdf5_format(path.with_suffix(".h5")))
+        return bool(hdf5_format(path.with_suffix(".h5")))
     if suffix in (".mcap", ".bag"):
-        return _hdf5_format(_truth_sidecar(path)) == "autosar-truth"
+        return hdf5_format(_truth_sidecar(path)) == "autosar-truth"
     return False
 
 
@@ -154,8 +165,8 @@ def _truth_sidecar(log: Path) -> Path:
     return log.with_name(log.name + ".truth.h5")
 
 
-def _hdf5_format(path: Path) -> str | None:
-    """The ``format`` attribute of an HDF5 file written by autosar, else None."""
+def hdf5_format(path: Path) -> str | None:
+    """The ``format`` attribute of an HDF5 file written by autosar (``autosar-drive``, ...), else None."""
     try:
         with open(path, "rb") as fh:
             if fh.read(8) != HDF5_SIGNATURE:
@@ -168,6 +179,25 @@ def _hdf5_format(path: Path) -> str | None:
         return None
     fmt = fmt.decode() if isinstance(fmt, bytes) else fmt
     return fmt if isinstance(fmt, str) and fmt.startswith(AUTOSAR_FORMAT_PREFIX) else None
+
+
+#: autosar's HDF5 files by their format: what each is, and what reads it
+_HDF5_READERS = {
+    "autosar-drive": ("a drive.h5", "`autosar navigate` and `autosar focus` read it"),
+    "autosar-trajectory": ("a trajectory.h5", "`autosar focus --trajectory` reads it"),
+    "autosar-image": ("an image.h5", "`autosar evaluate` reads it"),
+    "autosar-truth": ("a simulated drive's truth sidecar", "the log beside it is the drive"),
+}
+
+
+def what_autosar_wrote(path: Path) -> str | None:
+    """Of an HDF5 file autosar wrote, what it is and what reads it ("a drive.h5: `autosar navigate` ..."), to say
+    where it is given as something else (a log); None for any other file."""
+    fmt = hdf5_format(path)
+    if fmt is None:
+        return None
+    name, reader = _HDF5_READERS.get(fmt, (f"an {fmt} file", ""))
+    return f"{name} autosar wrote" + (f" ({reader})" if reader else "")
 
 
 def _json_format(path: Path) -> bool:
