@@ -188,6 +188,7 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
               autofocus: bool = False, options: FocusOptions | None = None, scheduler: str | None = None,
               workers: int | None = None, retries: int = DEFAULT_RETRIES, numba_threads: int | None = None,
               overwrite: bool = False, radars: Sequence[str | Path] | None = None,
+              can_logs: Sequence[str | Path] | None = None, nmea_logs: Sequence[str | Path] | None = None,
               ingest_options: IngestOptions | None = None,
               progress: Callable[[dict[str, Any]], None] | None = None,
               on_cluster: Callable[[dict[str, Any]], None] | None = None, command: str = "") -> dict[str, Any]:
@@ -199,8 +200,10 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
     ``navigate``, ``autofocus`` (with ``autofocus``), ``focus``, ``done`` or ``failed``) and
     ``{"drive", "stage": "finished", "record"}`` once a drive's record is final. ``on_cluster(info)`` is called
     once the cluster is up (scheduler address, dashboard link, workers). Never raises for a failing drive: look
-    at ``failed``. ``radars``: a DCA1000 capture per log (same order). ``ingest_options``: how each drive is read
-    (:class:`autosar_cli.ingest.pipeline.IngestOptions`: the DBC, the captures' start, damaged chunks, time gaps).
+    at ``failed``. ``radars``, ``can_logs``, ``nmea_logs``: a DCA1000 capture, a CAN log, an NMEA capture per log
+    (same order), read with it as one drive. ``ingest_options``: how each drive is read
+    (:class:`autosar_cli.ingest.pipeline.IngestOptions`: the DBC, the captures' start, damaged chunks, time gaps;
+    a time offset goes to the drive that holds its log).
     """
     if not logs:
         raise BatchError("no drive logs given")
@@ -210,19 +213,27 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
         raise BatchError(f"--workers {workers}: must be at least 1")
     if scheduler and workers:
         raise BatchError("give either --scheduler (an existing cluster) or --workers (a local one), not both")
-    if radars and len(radars) != len(logs):
-        raise BatchError(f"--radar given {len(radars)} times for {len(logs)} logs; give one capture per log")
-    if ingest_options is not None and ingest_options.dbc is not None:  # every drive's: refused once, not per drive
+    companions: list[list[str]] = [[] for _ in logs]  #: each drive's inputs beside its log, as the workers find them
+    for option, what, given in (("--radar", "capture", radars), ("--can-log", "CAN log", can_logs),
+                                ("--nmea", "NMEA capture", nmea_logs)):
+        if given and len(given) != len(logs):
+            raise BatchError(f"{option} given {len(given)} times for {len(logs)} logs; give one {what} per log")
+        for inputs, path in zip(companions, given or (), strict=False):
+            inputs.append(str(Path(path).resolve()))
+    ingest_options = ingest_options or IngestOptions()
+    if ingest_options.dbc is not None:  # every drive's: refused once, not per drive
         if (problem := input_problem(Path(ingest_options.dbc))) is not None:
             raise BatchError(f"{ingest_options.dbc}: {problem}")
         ingest_options = replace(ingest_options, dbc=Path(ingest_options.dbc).resolve())  # as the workers find it
+    offsets = {str(Path(p).resolve()): s for p, s in ingest_options.time_offsets.items()}
+    if unknown := sorted(offsets.keys() - {p for inputs in companions for p in inputs}):
+        raise BatchError(f"--time-offset {unknown[0]}: not one of the drives' --can-log or --nmea logs")
     out = Path(out_dir).resolve()
     if (out / MANIFEST).exists() and not overwrite:
         raise BatchError(f"{out}: already holds a batch ({MANIFEST}); pass --overwrite to replace it")
     out.mkdir(parents=True, exist_ok=True)
     options = options or FocusOptions.from_config(config)
     names = drive_names(logs)
-    captures = [[str(Path(r).resolve())] for r in radars] if radars else [[] for _ in logs]
     paths = [str(Path(p).resolve()) for p in logs]
 
     from distributed import Client, LocalCluster, as_completed
@@ -277,10 +288,11 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
         client.subscribe_topic(topic, on_event)
         t_submit = time.perf_counter()
         futures = {}
-        for name, log, capture in zip(names, paths, captures, strict=True):
-            fut = client.submit(run_drive, name, [log, *capture], str(out / name), config, method=method,
+        for name, log, inputs in zip(names, paths, companions, strict=True):
+            drive_options = replace(ingest_options, time_offsets={Path(p): offsets[p] for p in inputs if p in offsets})
+            fut = client.submit(run_drive, name, [log, *inputs], str(out / name), config, method=method,
                                 options=options, autofocus=autofocus, overwrite=overwrite,
-                                ingest_options=ingest_options, numba_threads=numba_threads,
+                                ingest_options=drive_options, numba_threads=numba_threads,
                                 progress_topic=topic, command=command, retries=retries, pure=False,
                                 key=f"autosar-run-{name}-{topic[-12:]}")
             futures[fut] = (name, log)

@@ -1013,12 +1013,19 @@ def batch(
     radar: Annotated[list[Path] | None, typer.Option(
         "--radar", metavar="CAPTURE", help="TI DCA1000 capture of each drive, in the order of the logs (repeat once "
                                            "per log).")] = None,
+    can_log: Annotated[list[Path] | None, typer.Option(
+        "--can-log", metavar="FILE", help="CAN log of each drive, read with its log, in the order of the logs "
+                                          "(repeat once per log).")] = None,
+    nmea: Annotated[list[Path] | None, typer.Option(
+        "--nmea", metavar="FILE", help="NMEA capture of each drive, read with its log, in the order of the logs "
+                                       "(repeat once per log).")] = None,
     radar_start: RadarStartOpt = None,
     radar_sync: RadarSyncOpt = "/dca1000/sync",
     radar_override: RadarOverrideOpt = False,
     autofocus: AutofocusOpt = False,
     dbc: DbcOpt = None,
     allow_unverified: AllowUnverifiedOpt = False,
+    time_offset: TimeOffsetOpt = None,
     allow_time_gap: AllowTimeGapOpt = False,
     max_time_gap: MaxTimeGapOpt = 3600.0,
     config: ConfigOpt = None,
@@ -1044,9 +1051,10 @@ def batch(
         with _batch_progress(len(logs), enabled=not as_json) as update:
             manifest = run_batch(logs, output, cfg, method=method.value, autofocus=autofocus, scheduler=scheduler,
                                  workers=workers, retries=retries, numba_threads=numba_threads, overwrite=overwrite,
-                                 radars=radar,
+                                 radars=radar, can_logs=can_log, nmea_logs=nmea,
                                  ingest_options=_ingest_options(dbc, radar_start, radar_sync, radar_override,
-                                                                allow_unverified, None, allow_time_gap, max_time_gap),
+                                                                allow_unverified, time_offset, allow_time_gap,
+                                                                max_time_gap),
                                  progress=update, on_cluster=on_cluster, command=" ".join(sys.argv))
         if as_json:
             out.print_json(json.dumps(manifest, default=str))

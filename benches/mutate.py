@@ -78,6 +78,7 @@ TWICE_NAMED = "tests/test_ingest_realdata.py::test_a_role_names_one_of_two_frame
 BY_WHAT_IT_HOLDS = "tests/test_ingest_containers.py::test_a_log_is_read_by_what_it_holds_not_by_its_name"
 CONFIG_UNKNOWN = "tests/test_config.py::test_an_unknown_key_names_the_key_it_likely_is"
 LOG_OR_PRODUCT = "tests/test_safety.py::test_a_log_and_a_product_given_for_each_other_say_what_they_are"
+BATCH_COMPANIONS = "tests/test_batch.py::test_batch_reads_each_drives_can_and_nmea_logs_with_it"
 FLAGS_BARE = "tests/test_cli.py::test_every_commands_flags_read_as_they_are_given_not_as_taking_a_value"
 ROLE_UNSET = "tests/test_config.py::test_a_layer_unsets_its_bases_can_roles_with_an_empty_string"
 STAMP_OUTLIER = ("tests/test_ingest_robustness.py::"
@@ -477,6 +478,11 @@ MUTATIONS: list[Mutation] = [
        "if False:", DCA_CLI_CONFIG),
     _m("dca1000-cli-config-beside-an-sdk-cfg-unread", "radar", "ingest/dca1000_params.py",
        'if not p.name.endswith(".mmwave.json")', 'if p.name.endswith(".setup.json")', DCA_CLI_CONFIG),
+    _m("batch-time-offset-given-to-every-drive", "inputs", "batch.py",
+       "time_offsets={Path(p): offsets[p] for p in inputs if p in offsets}",
+       "time_offsets={Path(p): s for p, s in offsets.items()}", BATCH_COMPANIONS),
+    _m("batch-drive-read-without-its-can-log", "inputs", "batch.py",
+       "run_drive, name, [log, *inputs],", "run_drive, name, [log],", BATCH_COMPANIONS),
     _m("help-shows-every-flag-beside-a-type", "inputs", "cli.py",
        'param.metavar = ""', "param.metavar = None", FLAGS_BARE),
     _m("config-base-table-replaced-whole", "inputs", "config.py",

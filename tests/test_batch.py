@@ -152,6 +152,34 @@ def test_batch_reads_every_drive_with_its_ingest_options(thread_cluster, tmp_pat
     assert len(seen) == 2 and not (tmp_path / "out2").exists()  # refused before any drive, not once per drive
 
 
+def test_batch_reads_each_drives_can_and_nmea_logs_with_it(thread_cluster, tmp_path, monkeypatch):
+    """`--can-log` and `--nmea` once per log, in the logs' order: each drive's run reads its own with its log, and a
+    `--time-offset` goes to the drive that holds its log (batch had neither: a CAN log was a drive of its own)."""
+    seen = {}
+
+    def fake_run(logs, out_dir, config, **kw):
+        seen[Path(out_dir).name] = ([Path(p).name for p in logs], kw["ingest_options"].time_offsets)
+        return _fake_manifest()
+
+    monkeypatch.setattr(batch_mod, "run", fake_run)
+    for name in ("a.mcap", "b.mcap", "a.asc", "b.asc", "a.nmea", "b.nmea"):
+        (tmp_path / name).write_bytes(b"")
+    args = ["batch", str(tmp_path / "a.mcap"), str(tmp_path / "b.mcap"), "--scheduler",
+            thread_cluster.scheduler_address, "--can-log", str(tmp_path / "a.asc"), "--can-log",
+            str(tmp_path / "b.asc"), "--nmea", str(tmp_path / "a.nmea"), "--nmea", str(tmp_path / "b.nmea")]
+    r = runner.invoke(app, [*args, "-o", str(tmp_path / "out"), "--time-offset", f"{tmp_path / 'b.asc'}=7200"])
+    assert r.exit_code == 0, r.output
+    assert seen == {"a": (["a.mcap", "a.asc", "a.nmea"], {}),
+                    "b": (["b.mcap", "b.asc", "b.nmea"], {(tmp_path / "b.asc").resolve(): 7200.0})}
+    for extra, message in ((["--can-log", str(tmp_path / "a.asc")], "--can-log given 3 times for 2 logs; give one "
+                            "CAN log per log"),
+                           (["--time-offset", f"{tmp_path / 'c.asc'}=1"], f"--time-offset {tmp_path / 'c.asc'}: not "
+                            "one of the drives' --can-log or --nmea logs")):
+        r = runner.invoke(app, [*args, *extra, "-o", str(tmp_path / "out2")])
+        assert r.exit_code == 1 and r.stderr.strip() == f"error: {message}", r.stderr
+    assert len(seen) == 2 and not (tmp_path / "out2").exists()
+
+
 def test_split_grid_positions_bit_identical():
     grid = FocusGrid((12.345678, -3.21), (0.6, 0.8), (0.8, -0.6), 0.04, 61, 7, 0.5)
     tiles = split_grid(grid, 4)
