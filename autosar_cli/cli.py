@@ -403,7 +403,7 @@ def ingest(
 
 @app.command(cls=_Command)
 def navigate(
-    drive: Annotated[Path, typer.Argument(help="drive.h5 written by `autosar ingest`.")],
+    drive: Annotated[Path, typer.Argument(metavar="DRIVE", help="drive.h5 written by `autosar ingest`.")],
     output: Annotated[Path, typer.Option("--output", "-o", help="trajectory.h5 to write.")] = Path("trajectory.h5"),
     method: Annotated[NavMethod, typer.Option("--method", "-m", help="sar-min (UKF fusion, paper Sec. II-B), ins "
                                               "(radar IMU + its GNSS, Sec. II-A), gnss (GNSS only), none (straight "
@@ -529,7 +529,7 @@ class Channels(StrEnum):
 
 @app.command(cls=_Command)
 def focus(
-    drive: Annotated[Path, typer.Argument(help="drive.h5 written by `autosar ingest`.")],
+    drive: Annotated[Path, typer.Argument(metavar="DRIVE", help="drive.h5 written by `autosar ingest`.")],
     trajectory: Annotated[Path, typer.Option("--trajectory", "-t", help="trajectory.h5 written by "
                                              "`autosar navigate`.")],
     output: Annotated[Path, typer.Option("--output", "-o", help="Output base name: writes OUT.tif (GeoTIFF, dB, "
@@ -684,8 +684,8 @@ def _cm(value: float | None, scale: float = 100.0, digits: int = 1) -> str:
 
 @app.command(cls=_Command)
 def evaluate(
-    source: Annotated[Path, typer.Argument(help="A run directory (run.json; from `autosar run` or a method directory "
-                                           "of `autosar compare`) or an image.h5.")],
+    source: Annotated[Path, typer.Argument(metavar="RUN", help="A run directory (run.json; from `autosar run` or a "
+                                           "method directory of `autosar compare`) or an image.h5.")],
     output: Annotated[Path, typer.Option("--output", "-o", help="Report directory: metrics.json, report.md, "
                                          "trajectory_error.png, reflector_chips.png.")],
     truth: Annotated[Path | None, typer.Option("--truth", help="Truth sidecar LOG.truth.h5 (default: the run's, or "
@@ -891,8 +891,9 @@ def _print_checked(found: dict[str, Any]) -> None:
 
 @app.command(cls=_Command)
 def info(
-    path: Annotated[Path, typer.Argument(help="A drive log (.mcap, .bag, rosbag2 directory), a TI DCA1000 capture "
-                                         "or a drive.h5; or any directory, for its stale partial files.")],
+    path: Annotated[Path, typer.Argument(metavar="PATH", help="A drive log (.mcap, .bag, rosbag2 directory), a TI "
+                                         "DCA1000 capture or a drive.h5; or any directory, for its stale partial "
+                                         "files.")],
     as_json: JsonOpt = False,
     config_sketch: Annotated[bool, typer.Option(
         "--config-sketch", help="Of a drive.h5: print a config (TOML, laid over --config) that pins its streams' "
