@@ -79,6 +79,8 @@ BY_WHAT_IT_HOLDS = "tests/test_ingest_containers.py::test_a_log_is_read_by_what_
 CONFIG_UNKNOWN = "tests/test_config.py::test_an_unknown_key_names_the_key_it_likely_is"
 LOG_OR_PRODUCT = "tests/test_safety.py::test_a_log_and_a_product_given_for_each_other_say_what_they_are"
 BATCH_COMPANIONS = "tests/test_batch.py::test_batch_reads_each_drives_can_and_nmea_logs_with_it"
+LUA_TI_DEMO = "tests/test_ingest_dca1000_lua.py::test_ti_demo_script_reads_as_its_arguments_say"
+LUA_AS_JSON = "tests/test_ingest_dca1000_lua.py::test_a_capture_configured_by_its_lua_script_reads_as_by_its_json"
 FLAGS_BARE = "tests/test_cli.py::test_every_commands_flags_read_as_they_are_given_not_as_taking_a_value"
 ROLE_UNSET = "tests/test_config.py::test_a_layer_unsets_its_bases_can_roles_with_an_empty_string"
 STAMP_OUTLIER = ("tests/test_ingest_robustness.py::"
@@ -483,6 +485,13 @@ MUTATIONS: list[Mutation] = [
        "time_offsets={Path(p): s for p, s in offsets.items()}", BATCH_COMPANIONS),
     _m("batch-drive-read-without-its-can-log", "inputs", "batch.py",
        "run_drive, name, [log, *inputs],", "run_drive, name, [log],", BATCH_COMPANIONS),
+    _m("lua-profile-slope-read-from-the-rx-gain", "radar", "ingest/dca1000_lua.py",
+       "slope_hz_per_s=_scaled(str(prof[11]), 12)", "slope_hz_per_s=_scaled(str(prof[17]), 12)", LUA_TI_DEMO),
+    _m("lua-variables-left-unresolved", "radar", "ingest/dca1000_lua.py",
+       "if number is None and len(values.get(arg, ())) == 1:", "if False:", LUA_AS_JSON),
+    _m("lua-block-comment-read-as-code", "radar", "ingest/dca1000_lua.py",
+       'text = _BLOCK_COMMENT.sub(lambda m: "\\n" * m.group(0).count("\\n"),',
+       'text = _BLOCK_COMMENT.sub(lambda m: m.group(0),', LUA_TI_DEMO),
     _m("help-shows-every-flag-beside-a-type", "inputs", "cli.py",
        'param.metavar = ""', "param.metavar = None", FLAGS_BARE),
     _m("config-base-table-replaced-whole", "inputs", "config.py",

@@ -2,7 +2,7 @@
 
 A capture is a flat binary of int16 ADC values (mmWave Studio's post-processed ``adc_data.bin``, or its
 split files ``<base>_0.bin``, ``<base>_1.bin`` … read as one stream) plus the parameters it was recorded
-with: mmWave Studio's ``*.mmwave.json`` (+ ``*.setup.json``) or an mmWave SDK ``.cfg``. Layouts follow
+with: mmWave Studio's ``*.mmwave.json`` (+ ``*.setup.json``) or Lua script, or an mmWave SDK ``.cfg``. Layouts follow
 TI's application note "mmWave sensor raw data capture using the DCA1000" (SWRA581):
 
 * 4-lane LVDS (xWR12xx/14xx, e.g. the AWR1243): one lane per Rx, all four lanes always present (unused
@@ -128,7 +128,7 @@ _SPLIT = re.compile(r"^(.*)_(\d+)\.bin$")
 
 
 def is_capture(path: Path) -> bool:
-    """A DCA1000 capture: a directory or .bin file with a parameter file (.cfg / .mmwave.json) beside it."""
+    """A DCA1000 capture: a directory or .bin file with a parameter file (.mmwave.json / .cfg / .lua) beside it."""
     if not (path.is_dir() or path.suffix.lower() == ".bin"):
         return False
     try:
@@ -143,9 +143,10 @@ def find_capture(path: Path) -> tuple[list[Path], Path]:
     if path.is_file() and path.suffix.lower() != ".bin":  # the parameter file names its capture's folder
         path = path.parent
     folder = path if path.is_dir() else path.parent
-    params = sorted(folder.glob("*.mmwave.json")) or sorted(folder.glob("*.cfg"))
+    params = sorted(folder.glob("*.mmwave.json")) or sorted(folder.glob("*.cfg")) or sorted(folder.glob("*.lua"))
     if not params:
-        raise CaptureError(f"{path}: no DCA1000 parameter file (*.mmwave.json or mmWave SDK *.cfg) beside it")
+        raise CaptureError(f"{path}: no DCA1000 parameter file (*.mmwave.json, mmWave SDK *.cfg or mmWave Studio "
+                           "*.lua) beside it")
     if len(params) > 1:
         raise CaptureError(f"{path}: several parameter files ({', '.join(p.name for p in params)}); keep one")
     if path.is_file():

@@ -409,25 +409,31 @@ def dca1000_configs(param_file: Path) -> list[tuple[Path, dict[str, Any]]]:
 
 
 def check_dca1000_configs(param_file: Path, params: CaptureParams) -> None:
-    """The DCA1000's configurations beside ``param_file`` must have logged what ``params`` reads: raw data (multi
-    mode splits it into per-type files), over as many LVDS lanes as the device sends (``lvdsMode``), in words of
-    its ADC's bits (``dataFormatMode``): another would read as wrong samples."""
+    """The DCA1000's configurations beside ``param_file`` must have logged what ``params`` reads
+    (:func:`check_dca1000_logging`)."""
     for path, dca in dca1000_configs(param_file):
-        mode = dca.get("dataLoggingMode", "raw")
-        if str(mode).lower() != "raw":
-            raise CaptureError(f"{path}: DCA1000Config.dataLoggingMode is {mode!r}; only raw captures (one stream "
-                               "of ADC data) are read")
-        lvds = dca.get("lvdsMode")
-        if lvds is not None and DCA_LVDS_LANES.get(_int_or_none(lvds)) != params.lanes:
-            logged = DCA_LVDS_LANES.get(_int_or_none(lvds))
-            raise CaptureError(f"{path}: DCA1000Config.lvdsMode is {lvds} ({logged or 'no known'} lanes) but "
-                               f"the device of {param_file.name} sends {params.lanes}")
-        fmt = dca.get("dataFormatMode")
-        if fmt is not None and DCA_FORMAT_BITS.get(_int_or_none(fmt)) != params.adc_bits:
-            logged = DCA_FORMAT_BITS.get(_int_or_none(fmt))
-            words = f"{logged}-bit" if logged else "no known"
-            raise CaptureError(f"{path}: DCA1000Config.dataFormatMode is {fmt} ({words} words) but "
-                               f"{param_file.name} gives {params.adc_bits}-bit ADC samples")
+        check_dca1000_logging(f"{path}: DCA1000Config.", dca, param_file.name, params)
+
+
+def check_dca1000_logging(where: str, dca: dict[str, Any], param_name: str, params: CaptureParams) -> None:
+    """How a DCA1000 was set to log (``dca``: ``dataLoggingMode``, ``lvdsMode``, ``dataFormatMode``, each optional)
+    against what ``params`` reads: raw data (multi mode splits it into per-type files), over as many LVDS lanes as
+    the device sends, in words of its ADC's bits: another would read as wrong samples. ``where`` opens each
+    message (the file and its table)."""
+    mode = dca.get("dataLoggingMode", "raw")
+    if str(mode).lower() != "raw":
+        raise CaptureError(f"{where}dataLoggingMode is {mode!r}; only raw captures (one stream of ADC data) are read")
+    lvds = dca.get("lvdsMode")
+    if lvds is not None and DCA_LVDS_LANES.get(_int_or_none(lvds)) != params.lanes:
+        logged = DCA_LVDS_LANES.get(_int_or_none(lvds))
+        raise CaptureError(f"{where}lvdsMode is {lvds} ({logged or 'no known'} lanes) but the device of {param_name} "
+                           f"sends {params.lanes}")
+    fmt = dca.get("dataFormatMode")
+    if fmt is not None and DCA_FORMAT_BITS.get(_int_or_none(fmt)) != params.adc_bits:
+        logged = DCA_FORMAT_BITS.get(_int_or_none(fmt))
+        words = f"{logged}-bit" if logged else "no known"
+        raise CaptureError(f"{where}dataFormatMode is {fmt} ({words} words) but {param_name} gives "
+                           f"{params.adc_bits}-bit ADC samples")
 
 
 def _int_or_none(value: Any) -> int | None:
@@ -476,8 +482,14 @@ def write_studio_json(base: Path, p: CaptureParams) -> tuple[Path, Path]:
 
 
 def load_params(path: Path) -> CaptureParams:
-    """Parameters from a ``.cfg`` or ``*.mmwave.json`` file, checked against the DCA1000's configurations beside it."""
-    params = parse_studio_json(path) if path.name.endswith(".mmwave.json") else parse_sdk_cfg(path)
+    """Parameters from a ``.cfg``, ``*.mmwave.json`` or mmWave Studio ``.lua`` file, checked against the DCA1000's
+    configurations beside it."""
+    if path.suffix.lower() == ".lua":
+        from .dca1000_lua import parse_studio_lua
+
+        params = parse_studio_lua(path)
+    else:
+        params = parse_studio_json(path) if path.name.endswith(".mmwave.json") else parse_sdk_cfg(path)
     check_dca1000_configs(path, params)
     return params
 
