@@ -100,6 +100,8 @@ def test_a_capture_configured_by_its_lua_script_reads_as_by_its_json(tmp_path: P
     (("slope, 0, adc_samples", "slope * 2, 0, adc_samples"), "argument 'slope * 2': no number the script assigns"),
     (("ar1.FrameConfig(", "ar1.ProfileConfig(1, 60, 7, 6, 60, 0, 0, 0, 0, 0, 0, 29.982, 0, 256, 10000, 0, 0, 30)\n"
                           "ar1.FrameConfig("), "ar1.ProfileConfig with other arguments on lines 7, 11; keep the call"),
+    (("ar1.FrameConfig(", "ar1.ChirpConfig(1, 1, 0, 0, 0, 0, 0, 0, 1, 0)\nar1.FrameConfig("),
+     "chirp 1 configured otherwise on lines 9 and 11 (ar1.ChirpConfig)"),
     (("1, 2, 1, 0)\n", "1, 2, 1, 1)\n"), "ar1.ChanNAdcConfig swaps I and Q (iqSwap 1)"),
     (("ar1.CaptureCardConfig_Mode(1, 1,", "ar1.CaptureCardConfig_Mode(1, 2,"),
      "ar1.CaptureCardConfig_Mode's lvdsMode is 2 (2 lanes) but the device of capture.lua sends 4"),

@@ -138,11 +138,15 @@ def parse_studio_lua(path: Path) -> CaptureParams:
                            "stated")
     table: dict[int, int] = {}
     shape: dict[int, tuple[int, tuple[float, ...]]] = {}
+    defined: dict[int, _Call] = {}
     for call in calls.get("ChirpConfig", []):
         a = call.args
         for c in range(int(a[0]), int(a[1]) + 1):
-            table[c] = sum(1 << k for k in range(3) if a[7 + k])
-            shape[c] = int(a[2]), tuple(float(v) for v in a[3:7])
+            mask, chirp = sum(1 << k for k in range(3) if a[7 + k]), (int(a[2]), tuple(float(v) for v in a[3:7]))
+            if c in defined and (table[c], shape[c]) != (mask, chirp):
+                raise CaptureError(f"{src}: chirp {c} configured otherwise on lines {defined[c].line} and {call.line} "
+                                   "(ar1.ChirpConfig); keep the calls of this capture's device")
+            table[c], shape[c], defined[c] = mask, chirp, call
     first, last = int(frame[0]), int(frame[1])
     _same_chirps(src, shape, first, last, int(prof[0]))
     bits, fmt = int(chan[7]), int(chan[8])
