@@ -228,8 +228,10 @@ def _not_a_log(path: Path, wanted: str, maker: str) -> None:
     """Refuse a drive log given where autosar's own file ``wanted`` is read, naming the command (``maker``, LOG for
     the log's name) that makes one of it."""
     from autosar_cli.ingest.sources import begins_as_a_container, is_log_directory
+    from autosar_cli.store.outputs import is_autosar_product
 
-    if begins_as_a_container(path) or (path.is_dir() and is_log_directory(path)):
+    # a run written into the log's own directory holds the log, and is still a run
+    if begins_as_a_container(path) or (path.is_dir() and is_log_directory(path) and not is_autosar_product(path)):
         raise ValueError(f"{path}: a drive log, not {wanted}: `{maker.replace('LOG', path.name)}` makes one")
 
 

@@ -158,6 +158,13 @@ def test_a_log_and_a_product_given_for_each_other_say_what_they_are(ci_mcap, ci_
                           f"a drive log, not a run directory or image.h5: `autosar run {log.name} -o DIR`")):
         _one_line_error(runner.invoke(app, args), f"error: {log}: {wanted}")
     assert not out.exists()
+    # a run written into the log's own directory holds the log (read as a rosbag2 bag of its .mcap), and is a run
+    beside = tmp_path / "drive"
+    beside.mkdir()
+    (beside / log.name).symlink_to(log)
+    shutil.copy(ci_run / "run.json", beside / "run.json")
+    r = runner.invoke(app, ["evaluate", str(beside), "-o", str(out)])
+    assert r.exit_code == 1 and "a drive log" not in r.stderr and str(beside / "image.h5") in r.stderr, r.stderr
 
 
 def test_output_whose_parent_is_a_file_names_it(tmp_path: Path) -> None:

@@ -137,19 +137,19 @@ def is_autosar_product(path: Path) -> bool:
         if any(_json_format(path / m) for m in DIRECTORY_MANIFESTS):
             return True
         if path.suffix == ".dca1000":  # a simulated DCA1000 capture beside its navigation MCAP
-            return hdf5_format(_truth_sidecar(path.with_suffix(".mcap"))) == "autosar-truth"
-        return hdf5_format(_truth_sidecar(path)) == "autosar-truth"  # a simulated rosbag2 log
+            return _hdf5_format(_truth_sidecar(path.with_suffix(".mcap"))) == "autosar-truth"
+        return _hdf5_format(_truth_sidecar(path)) == "autosar-truth"  # a simulated rosbag2 log
     suffix = path.suffix.lower()
-    if hdf5_format(path):
+    if _hdf5_format(path):
         return True
     if suffix in (".tif", ".tiff"):
         return _tif_is_autosar(path)
     if suffix == ".json":
         return _json_format(path)
     if suffix == ".png":
-        return bool(hdf5_format(path.with_suffix(".h5")))
+        return bool(_hdf5_format(path.with_suffix(".h5")))
     if suffix in (".mcap", ".bag"):
-        return hdf5_format(_truth_sidecar(path)) == "autosar-truth"
+        return _hdf5_format(_truth_sidecar(path)) == "autosar-truth"
     return False
 
 
@@ -165,7 +165,7 @@ def _truth_sidecar(log: Path) -> Path:
     return log.with_name(log.name + ".truth.h5")
 
 
-def hdf5_format(path: Path) -> str | None:
+def _hdf5_format(path: Path) -> str | None:
     """The ``format`` attribute of an HDF5 file written by autosar (``autosar-drive``, ...), else None."""
     try:
         with open(path, "rb") as fh:
@@ -193,7 +193,7 @@ _HDF5_READERS = {
 def what_autosar_wrote(path: Path) -> str | None:
     """Of an HDF5 file autosar wrote, what it is and what reads it ("a drive.h5: `autosar navigate` ..."), to say
     where it is given as something else (a log); None for any other file."""
-    fmt = hdf5_format(path)
+    fmt = _hdf5_format(path)
     if fmt is None:
         return None
     name, reader = _HDF5_READERS.get(fmt, (f"an {fmt} file", ""))
