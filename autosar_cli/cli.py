@@ -73,10 +73,10 @@ ConfigOpt = Annotated[
 OverwriteOpt = Annotated[bool, typer.Option("--overwrite", help="Replace existing outputs.")]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print a machine-readable JSON summary on stdout.")]
 RadarStartOpt = Annotated[str | None, typer.Option(
-    "--radar-start", help="Start of a DCA1000 capture's first frame: ns since the Unix epoch or ISO 8601 (UTC); "
-                          "default: the first message of --radar-sync in the logs.")]
-RadarSyncOpt = Annotated[str, typer.Option("--radar-sync", help="Topic whose first message stamps a DCA1000 "
-                                           "capture's first frame.")]
+    "--radar-start", metavar="TIME", help="Start of a DCA1000 capture's first frame: ns since the Unix epoch or ISO "
+                                          "8601 (UTC); default: the first message of --radar-sync in the logs.")]
+RadarSyncOpt = Annotated[str, typer.Option("--radar-sync", metavar="TOPIC", help="Topic whose first message stamps a "
+                                           "DCA1000 capture's first frame.")]
 RadarOverrideOpt = Annotated[bool, typer.Option("--radar-override", help="Where the recording's radar parameters "
                                                 "contradict the config's, keep the recording's (warned) instead of "
                                                 "stopping.")]
@@ -545,8 +545,9 @@ def focus(
                                                       "array), 12: all Tx (config default 8).")] = None,
     height: Annotated[float | None, typer.Option("--height", help="Focusing plane height, ENU metres above the "
                                                  "road at the origin (config default 0.5).")] = None,
-    grid: Annotated[str, typer.Option("--grid", help="'auto' (along the trajectory on the radar side, ground "
-                                      "range 0.5 m to R_max) or x0,y0,x1,y1 in ENU metres.")] = "auto",
+    grid: Annotated[str, typer.Option("--grid", metavar="auto|X0,Y0,X1,Y1", help="'auto' (along the trajectory on the "
+                                      "radar side, ground range 0.5 m to R_max) or x0,y0,x1,y1 in ENU "
+                                      "metres.")] = "auto",
     radar_stream: RadarStreamOpt = None,
     tiles: Annotated[int, typer.Option("--tiles", min=1, help="Focus the grid in N tiles along the track, one "
                                        "after the other (same image; each holds only its tile in memory, but "
@@ -742,9 +743,10 @@ def compare(
     logs: Annotated[list[Path], typer.Argument(metavar="LOG", help="Drive log(s), as for `autosar run`.")],
     output: Annotated[Path, typer.Option("--output", "-o", help="Comparison directory: drive.h5, one directory "
                                          "per method, compare.png, across_track.png, compare.md, compare.json.")],
-    methods: Annotated[str, typer.Option("--methods", help="Comma-separated navigation methods (sar-min, ins, gnss, "
-                                         "none, truth; sar-min+scale: SAR-MIN with its track's scale measured by "
-                                         "the radar on the truth's corner reflectors, ~20 wide-beam focusings; "
+    methods: Annotated[str, typer.Option("--methods", metavar="M1,M2,...", help="Comma-separated navigation methods "
+                                         "(sar-min, ins, gnss, none, truth; sar-min+scale: SAR-MIN with its track's "
+                                         "scale measured by the radar on the truth's corner reflectors, ~20 wide-beam "
+                                         "focusings; "
                                          "sar-min+af: SAR-MIN corrected by the residual-motion autofocus, as "
                                          "`autosar run --autofocus`, no truth needed).")] = "none,ins,sar-min,truth",
     truth: Annotated[Path | None, typer.Option("--truth", help="Truth sidecar (default: <log>.truth.h5).")] = None,
@@ -1002,8 +1004,8 @@ def batch(
         metavar="LOG", help="Drive logs, one drive each (.mcap, .bag, rosbag2 directory).")],
     output: Annotated[Path, typer.Option("--output", "-o", help="Batch directory: one run directory per drive "
                                          "(named after its log, as `autosar run` writes it) and batch.json.")],
-    scheduler: Annotated[str | None, typer.Option("--scheduler", help="Address of a running Dask scheduler "
-                                                  "(tcp://host:8786); default: a local cluster.")] = None,
+    scheduler: Annotated[str | None, typer.Option("--scheduler", metavar="ADDRESS", help="Address of a running Dask "
+                                                  "scheduler (tcp://host:8786); default: a local cluster.")] = None,
     workers: Annotated[int | None, typer.Option("--workers", "-w", min=1, help="Worker processes of the local "
                                                 "cluster (default: one per core, at most one per drive).")] = None,
     retries: Annotated[int, typer.Option("--retries", min=0, help="Retries of a drive after an unexpected error "
