@@ -331,7 +331,7 @@ def ingest(
     nmea: Annotated[list[Path] | None, typer.Option(
         "--nmea", metavar="FILE", help="NMEA text capture (repeatable).")] = None,
     radar: Annotated[Path | None, typer.Option("--radar", metavar="CAPTURE", help="TI DCA1000 capture (directory, "
-                                               "adc_data.bin or <name>_0.bin, with its .cfg or *.mmwave.json) "
+                                               "adc_data.bin or <name>_0.bin, with its *.mmwave.json, .cfg or .lua) "
                                                "joining the logs' navigation.")] = None,
     radar_start: RadarStartOpt = None,
     radar_sync: RadarSyncOpt = "/dca1000/sync",
