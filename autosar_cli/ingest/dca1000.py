@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .dca1000_lua import parse_studio_lua
 from .dca1000_packets import (
     HEADER_BYTES,
     MAX_PACKET_DATA,
@@ -44,8 +45,10 @@ from .dca1000_params import (
     LANE_SLOTS_4,
     CaptureError,
     CaptureParams,
-    load_params,
+    check_dca1000_configs,
     params_from_radar,
+    parse_sdk_cfg,
+    parse_studio_json,
     write_sdk_cfg,
     write_studio_json,
 )
@@ -163,6 +166,17 @@ def find_capture(path: Path) -> tuple[list[Path], Path]:
         return bins, params[0]
     raise CaptureError(f"{path}: expected adc_data.bin or one series of split files <name>_0.bin, <name>_1.bin …, "
                        f"found {', '.join(p.name for p in bins) or 'no .bin file'}")
+
+
+def load_params(path: Path) -> CaptureParams:
+    """Parameters from a ``*.mmwave.json``, ``.cfg`` or mmWave Studio ``.lua`` file, checked against the DCA1000's
+    configurations beside it."""
+    if path.suffix.lower() == ".lua":
+        params = parse_studio_lua(path)
+    else:
+        params = parse_studio_json(path) if path.name.endswith(".mmwave.json") else parse_sdk_cfg(path)
+    check_dca1000_configs(path, params)
+    return params
 
 
 def _split_series(folder: Path, base: str) -> list[Path]:

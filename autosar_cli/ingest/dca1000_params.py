@@ -481,19 +481,6 @@ def write_studio_json(base: Path, p: CaptureParams) -> tuple[Path, Path]:
     return mm, setup
 
 
-def load_params(path: Path) -> CaptureParams:
-    """Parameters from a ``.cfg``, ``*.mmwave.json`` or mmWave Studio ``.lua`` file, checked against the DCA1000's
-    configurations beside it."""
-    if path.suffix.lower() == ".lua":
-        from .dca1000_lua import parse_studio_lua
-
-        params = parse_studio_lua(path)
-    else:
-        params = parse_studio_json(path) if path.name.endswith(".mmwave.json") else parse_sdk_cfg(path)
-    check_dca1000_configs(path, params)
-    return params
-
-
 def params_from_radar(radar: Any, *, lanes: int = 4, adc_format: str = "complex1x",
                       chirp_tx: tuple[int, ...] | None = None, num_frames: int = 0) -> CaptureParams:
     """Capture parameters that state a configured radar (``config.RadarConfig``): one loop per frame."""
