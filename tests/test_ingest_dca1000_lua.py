@@ -123,3 +123,21 @@ def test_lua_scripts_that_cannot_be_read_as_one_capture_are_refused(tmp_path: Pa
     (tmp_path / "capture.lua").write_text(text.replace(edit[0], edit[1]))
     assert_one_line_error(*cli_ingest(tmp_path, tmp_path / "d.h5"), "capture.lua: ", needle)
     assert not (tmp_path / "d.h5").exists()
+
+
+def test_a_script_named_as_the_capture_is_the_one_read_beside_others(tmp_path: Path) -> None:
+    """mmWave Studio's scripts often lie together: the folder alone is refused naming them, the script named as
+    CAPTURE is read with its folder's data."""
+    p = params_from_radar(CFG.radar, lanes=4)
+    pris = np.random.default_rng(4).integers(-800, 800, (p.num_loops, 3, 4, p.num_samples, 2), dtype=np.int16)
+    write_capture(tmp_path, p, [pris], param_format="json")
+    for twin in tmp_path.glob("*.json"):
+        twin.unlink()
+    (tmp_path / "capture.lua").write_text(studio_lua(p))
+    (tmp_path / "other_device.lua").write_text(TI_DEMO)
+    assert_one_line_error(*cli_ingest(tmp_path, tmp_path / "d.h5"), "several parameter files (capture.lua, "
+                          "other_device.lua); give the capture's as CAPTURE")
+    code, stderr = cli_ingest(tmp_path / "capture.lua", tmp_path / "d.h5")
+    assert code == 0, stderr
+    np.testing.assert_array_equal(np.concatenate([b for _, b, _ in Dca1000Capture(tmp_path / "capture.lua").blocks()]),
+                                  pris)

@@ -142,16 +142,20 @@ def is_capture(path: Path) -> bool:
 
 
 def find_capture(path: Path) -> tuple[list[Path], Path]:
-    """(data files in stream order, parameter file) of a capture directory, data file or parameter file."""
+    """(data files in stream order, parameter file) of a capture directory, data file or parameter file (which is
+    then the one read, whatever else lies beside it)."""
+    named = None
     if path.is_file() and path.suffix.lower() != ".bin":  # the parameter file names its capture's folder
-        path = path.parent
+        named, path = path, path.parent
     folder = path if path.is_dir() else path.parent
-    params = sorted(folder.glob("*.mmwave.json")) or sorted(folder.glob("*.cfg")) or sorted(folder.glob("*.lua"))
+    params = [named] if named else (sorted(folder.glob("*.mmwave.json")) or sorted(folder.glob("*.cfg"))
+                                    or sorted(folder.glob("*.lua")))
     if not params:
         raise CaptureError(f"{path}: no DCA1000 parameter file (*.mmwave.json, mmWave SDK *.cfg or mmWave Studio "
                            "*.lua) beside it")
     if len(params) > 1:
-        raise CaptureError(f"{path}: several parameter files ({', '.join(p.name for p in params)}); keep one")
+        raise CaptureError(f"{path}: several parameter files ({', '.join(p.name for p in params)}); give the "
+                           "capture's as CAPTURE, or keep one")
     if path.is_file():
         m = _SPLIT.match(path.name)
         files = _split_series(folder, m.group(1)) if m else [path]
