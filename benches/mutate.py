@@ -81,6 +81,7 @@ LOG_OR_PRODUCT = "tests/test_safety.py::test_a_log_and_a_product_given_for_each_
 BATCH_COMPANIONS = "tests/test_batch.py::test_batch_reads_each_drives_can_and_nmea_logs_with_it"
 LUA_TI_DEMO = "tests/test_ingest_dca1000_lua.py::test_ti_demo_script_reads_as_its_arguments_say"
 LUA_AS_JSON = "tests/test_ingest_dca1000_lua.py::test_a_capture_configured_by_its_lua_script_reads_as_by_its_json"
+LUA_NAMED = "tests/test_ingest_dca1000_lua.py::test_a_script_named_as_the_capture_is_the_one_read_beside_others"
 FLAGS_BARE = "tests/test_cli.py::test_every_commands_flags_read_as_they_are_given_not_as_taking_a_value"
 ROLE_UNSET = "tests/test_config.py::test_a_layer_unsets_its_bases_can_roles_with_an_empty_string"
 STAMP_OUTLIER = ("tests/test_ingest_robustness.py::"
@@ -492,6 +493,8 @@ MUTATIONS: list[Mutation] = [
     _m("lua-block-comment-read-as-code", "radar", "ingest/dca1000_lua.py",
        'text = _BLOCK_COMMENT.sub(lambda m: "\\n" * m.group(0).count("\\n"),',
        'text = _BLOCK_COMMENT.sub(lambda m: m.group(0),', LUA_TI_DEMO),
+    _m("capture-parameter-file-named-yet-its-folder-searched", "radar", "ingest/dca1000.py",
+       "params = [named] if named else (", "params = [named] if named and False else (", LUA_NAMED),
     _m("help-shows-every-flag-beside-a-type", "inputs", "cli.py",
        'param.metavar = ""', "param.metavar = None", FLAGS_BARE),
     _m("config-base-table-replaced-whole", "inputs", "config.py",
