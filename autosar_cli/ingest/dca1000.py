@@ -172,15 +172,14 @@ def find_capture(path: Path) -> tuple[list[Path], Path]:
                        f"found {', '.join(p.name for p in bins) or 'no .bin file'}")
 
 
-def load_params(path: Path) -> CaptureParams:
+def load_params(path: Path) -> tuple[CaptureParams, list[Path]]:
     """Parameters from a ``*.mmwave.json``, ``.cfg`` or mmWave Studio ``.lua`` file, checked against the DCA1000's
-    configurations beside it."""
+    configurations beside it; and those configurations."""
     if path.suffix.lower() == ".lua":
         params = parse_studio_lua(path)
     else:
         params = parse_studio_json(path) if path.name.endswith(".mmwave.json") else parse_sdk_cfg(path)
-    check_dca1000_configs(path, params)
-    return params
+    return params, check_dca1000_configs(path, params)
 
 
 def _split_series(folder: Path, base: str) -> list[Path]:
@@ -223,7 +222,7 @@ class Dca1000Capture:
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
         self.files, self.param_file = find_capture(self.path)
-        self.params = load_params(self.param_file)
+        self.params, self.config_files = load_params(self.param_file)  #: config_files: the DCA1000's, checked
         self.warnings: list[str] = []
         p = self.params
         with open(self.files[0], "rb") as f:

@@ -98,17 +98,20 @@ def _calls(path: Path) -> dict[str, list[_Call]]:
     return calls
 
 
-def _one(src: str, calls: dict[str, list[_Call]], name: str, needed: bool = True) -> _Call | None:
-    """The one configuration ``name`` sets (the same call repeated is one); None where absent and not needed."""
+def _optional(src: str, calls: dict[str, list[_Call]], name: str) -> _Call | None:
+    """The one configuration ``name`` sets (the same call repeated is one), None where the script makes no such call."""
     found = calls.get(name, [])
-    if not found:
-        if needed:
-            raise CaptureError(f"{src}: no ar1.{name} call")
-        return None
     if len({c.args for c in found}) > 1:
         raise CaptureError(f"{src}: ar1.{name} with other arguments on lines {', '.join(str(c.line) for c in found)}"
                            "; keep the call of this capture's device")
-    return found[0]
+    return found[0] if found else None
+
+
+def _one(src: str, calls: dict[str, list[_Call]], name: str) -> tuple[Decimal, ...]:
+    """The arguments of the one configuration ``name`` sets, which the script must make."""
+    if (call := _optional(src, calls, name)) is None:
+        raise CaptureError(f"{src}: no ar1.{name} call")
+    return call.args
 
 
 def parse_studio_lua(path: Path) -> CaptureParams:
@@ -118,17 +121,15 @@ def parse_studio_lua(path: Path) -> CaptureParams:
         calls = _calls(path)
     except OSError as exc:
         raise CaptureError(f"{src}: cannot be read ({exc.strerror or exc})") from None
-    chan = _one(src, calls, "ChanNAdcConfig").args  # type: ignore[union-attr]
-    prof = _one(src, calls, "ProfileConfig").args  # type: ignore[union-attr]
-    frame = _one(src, calls, "FrameConfig").args  # type: ignore[union-attr]
+    chan, prof, frame = (_one(src, calls, name) for name in ("ChanNAdcConfig", "ProfileConfig", "FrameConfig"))
     if chan[9]:
         raise CaptureError(f"{src}: ar1.ChanNAdcConfig swaps I and Q (iqSwap {chan[9]}); the DCA1000 layouts read "
                            "here put I first")
-    if (path_cfg := _one(src, calls, "DataPathConfig", needed=False)) is not None and path_cfg.args[1] != 1:
+    if (path_cfg := _optional(src, calls, "DataPathConfig")) is not None and path_cfg.args[1] != 1:
         raise CaptureError(f"{src}: ar1.DataPathConfig sends transferFmtPkt0 {int(path_cfg.args[1]):#x}: the capture "
                            "holds more than ADC data; only ADC data (0x1) is read")
-    lanes_cfg = _one(src, calls, "LVDSLaneConfig", needed=False)
-    mode = _one(src, calls, "CaptureCardConfig_Mode", needed=False)
+    lanes_cfg = _optional(src, calls, "LVDSLaneConfig")
+    mode = _optional(src, calls, "CaptureCardConfig_Mode")
     if lanes_cfg is not None:
         lanes = int(sum(1 for v in lanes_cfg.args[1:5] if v))
     elif mode is not None and int(mode.args[1]) in (1, 2):

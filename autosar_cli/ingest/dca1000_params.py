@@ -408,11 +408,13 @@ def dca1000_configs(param_file: Path) -> list[tuple[Path, dict[str, Any]]]:
     return [(p, section) for p, section in found if section is not None]
 
 
-def check_dca1000_configs(param_file: Path, params: CaptureParams) -> None:
+def check_dca1000_configs(param_file: Path, params: CaptureParams) -> list[Path]:
     """The DCA1000's configurations beside ``param_file`` must have logged what ``params`` reads
-    (:func:`check_dca1000_logging`)."""
-    for path, dca in dca1000_configs(param_file):
+    (:func:`check_dca1000_logging`); returns them."""
+    configs = dca1000_configs(param_file)
+    for path, dca in configs:
         check_dca1000_logging(f"{path}: DCA1000Config.", dca, param_file.name, params)
+    return [path for path, _ in configs]
 
 
 def check_dca1000_logging(where: str, dca: dict[str, Any], param_name: str, params: CaptureParams) -> None:

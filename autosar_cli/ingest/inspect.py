@@ -151,12 +151,11 @@ def summarize_capture(path: Path) -> LogSummary:
     Frame times are relative to the first frame: the capture's absolute start comes with ingest.
     """
     from .dca1000 import Dca1000Capture
-    from .dca1000_params import dca1000_configs
     from .radar_block import recorded_from_capture
 
     cap = Dca1000Capture(path)
     p = cap.params
-    stated_by = " + ".join([cap.param_file.name, *(c.name for c, _ in dca1000_configs(cap.param_file))])
+    stated_by = " + ".join([cap.param_file.name, *(c.name for c in cap.config_files)])
     summary = LogSummary(str(path), f"TI DCA1000 capture ({p.lanes}-lane {p.adc_format}, {len(cap.files)} file"
                          f"{'s' if len(cap.files) > 1 else ''}, {stated_by}; {cap.layout})", cap.bytes_total)
     t = cap.pri_times_ns(cap.frame_starts_ns(0))
