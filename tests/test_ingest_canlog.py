@@ -381,6 +381,34 @@ def test_a_finalised_mf4_damaged_in_its_records_keeps_every_other_frame(tmp_path
     assert message.endswith(f"({len(reference) - len(got)}); {len(got)} frames read")
 
 
+@pytest.mark.parametrize("at, added, lost, kept", [
+    (120004, 4096, 0, 4024), (150000, 0, 4096, 4024), (30004, 0, 4096, 1011), (30004, 4096, 0, 1011)],
+    ids=["4 KiB added to its blocks", "4 KiB lost from its blocks", "4 KiB lost from its data",
+         "4 KiB added to its data"])
+def test_a_finalised_mf4_with_bytes_added_or_lost_keeps_the_groups_they_spare(
+        tmp_path: Path, finalised: Callable[[str], Path], at: int, added: int, lost: int, kept: int) -> None:
+    """A finalised file (the 2023 CANedge file as asammdf writes it: its records in three ``##DT`` blocks first,
+    then every group's blocks) with bytes added or lost: every block after that place lies that many bytes off
+    where the links say, and no frame was read ("no block at byte 65448, where a link points"). No data group's
+    data link moves (the data lie before the blocks that describe them), so the shift is taken from the
+    descriptions' links alone; the block the place lies in is the last one a link names before those that moved
+    (the bytes added may hold copies of block headers, which no link names). Bytes added or lost among the blocks:
+    every frame read; inside the records of the third data block: that group left out (its records after the place
+    are read off their boundaries), the others' 1011 frames read, none the undamaged file lacks."""
+    path = finalised(MF4_2023_1)
+    data = path.read_bytes()
+    reference = _real_records(MF4_2023_1)
+    damaged = tmp_path / "damaged.mf4"
+    # added: a copy of some of its own blocks (their headers in it)
+    damaged.write_bytes(data[:at] + data[70004:70004 + added] + data[at + lost:])
+    got, message = _read_until_error(damaged)
+    assert _in_order_within(got, reference) and len(got) == kept
+    what = f"{added} bytes added" if added else f"{lost} bytes lost"
+    assert f": {what} before byte " in message and f"links moved by {added - lost:+d} to the blocks" in message
+    if kept < len(reference):
+        assert "(its data block at byte 17008 damaged)" in message
+
+
 def test_zeroed_stamps_outnumbering_the_whole_ones_are_the_damage() -> None:
     """A group's last 167 records zeroed after 80 whole ones (4 KiB over the finalised 2023 file's second data
     block): the longest run that did not fall was the zeros', so the 80 were left out and the 167 read as frames

@@ -4,11 +4,14 @@ Every block after that place lies the same number of bytes off where the file's 
 and the reader finds no block where the first of them points. The blocks themselves are intact: found by their ids in
 the file's bytes, the links that point to no block, or to a block of a kind they may not name (another block moved to
 where theirs lay), but lie one common shift off a block of their kind are moved by it in a copy
-(:func:`write_mended`), never onto a block an intact link names (one before the place, which did not move), and only
-where the shift moves a data group's data link onto a data block (else the damage is a zeroed run of blocks, which
-:mod:`.mdf4_mend` reads past). Every other link past the first block moved points where its block lay too (one that
-found a block of its kind there, the next of a run of channel groups, skipped the groups between): it moves with
-them. The block the place lies in is torn: its id is cleared in the copy, so that its group is left out. A count not
+(:func:`write_mended`), never onto a block an intact link names (one before the place, which did not move). In an
+unfinalised file, whose blocks come before its data, only where the shift moves a data group's data link onto a
+data block (else the damage is a zeroed run of blocks, which :mod:`.mdf4_mend` reads past); a finalised file
+(asammdf's) writes its data first and the blocks that describe them after, so no data link moves there. Every
+other link past the first block moved points where its block lay too (one that found a block of its kind there,
+the next of a run of channel groups, skipped the groups between): it moves with them. The block the place lies in
+is torn: its id is cleared in the copy, so that its group is left out; in a finalised file it is the last block a
+link names before the first moved (bytes added may hold copies of block headers, which no link names). A count not
 a multiple of 8 leaves the blocks off the 8-byte boundaries asammdf finds an unfinalised file's blocks on: the copy
 puts zero bytes before the first moved block. Blocks the lost bytes held stay lost: the groups they break are then
 left out as for any damaged block.
@@ -129,9 +132,10 @@ def shifted_links(buf: mmap.mmap) -> Shift | None:
     by = best[1]
     moved = [(at, link + by) for owner, k, at, link in dangling
              if link + by not in named and _lands_right(ids, owner, k, link + by)]
-    # bytes added or lost before the data move the data: a shift none of whose data groups' data links it moves
-    # onto a data block is damage in the blocks (a zeroed run of them), which the mending reads past
-    if len(moved) < max(2, _AGREEING * len(dangling)) or not any(
+    finalised = buf[:8] != b"UnFinMF "
+    # bytes added or lost before an unfinalised file's data move the data: a shift none of whose data groups' data
+    # links it moves onto a data block is damage in the blocks (a zeroed run of them), which the mending reads past
+    if len(moved) < max(2, _AGREEING * len(dangling)) or not finalised and not any(
             ids[owner] == b"##DG" and k == 2 and ids.get(link + by) in _DATA_BLOCKS for owner, k, _, link in dangling):
         return None
     # the place lies in the last block before the first that moved, or between the two: that block's bytes after
@@ -143,7 +147,7 @@ def shifted_links(buf: mmap.mmap) -> Shift | None:
     moved += [(pos + HEAD.size + 8 * k, link + by) for pos, k in intact
               if since <= (link := links[pos][k]) and pos + HEAD.size + 8 * k not in moving
               and _lands_right(ids, pos, k, link + by)]
-    torn = max((pos for pos in starts if pos < first_moved), default=None)
+    torn = max((pos for pos in (named if finalised else starts) if pos < first_moved), default=None)
     if torn is not None and torn > _HEADER_BLOCK:
         moved.append((torn, 0))
     # blocks lie on 8-byte boundaries (asammdf finds an unfinalised file's blocks by their ids there): zero bytes
