@@ -7,7 +7,8 @@ log containers) and an ASC of the 2023 file's (python-can) gets 4 KiB zeroed at 
 a TRC of the same frames (python-can) also get one printable byte (seeded, not the one there) overwritten at a
 seeded place of every 8th frame line: the damage a text log's reader may take for an event it does not read; and
 each CANedge file 40 trials of random bytes added, or bytes lost, at a seeded place before its data (8 B to 8 KiB:
-every block after the place moves). Per trial:
+every block after the place moves), and each finalised copy 40 trials of its own bytes (seeded, block headers among
+them) added, or bytes lost, at a seeded place anywhere (its data come before its blocks). Per trial:
 the frames read, whether none were, how many of them the undamaged file does not have (foreign: wrong and not
 reported; an MDF4 conversion block damaged so that it still parses gives these), and whether anything but a
 ``CanLogError`` came out (a traceback); summed, the trials that lost frames or read foreign ones without a word
@@ -15,7 +16,8 @@ reported; an MDF4 conversion block damaged so that it still parses gives these),
 checksum shows). ``--against
 DIR`` runs the same trials with the package of another checkout beside this one's (``git worktree add DIR REV``), in
 the same run. Results: ``benches/results/can_log_damage.json``, summed per format (``summary``: the MDF4 files,
-``blf``, ``asc``, ``trc``; the shift trials ``mdf4_shifted``; the line trials ``asc_lines``, ``trc_lines``;
+``blf``, ``asc``, ``trc``; the shift trials ``mdf4_shifted``, ``finalised_shifted``; the line trials ``asc_lines``,
+``trc_lines``;
 ``..._against``: the other checkout's).
 
 Usage: python benches/bench_can_log_damage.py [--against DIR] [--zero-step 4096] [--random-step 2048]
@@ -89,6 +91,19 @@ def _shift_damages(data: bytes, seed: int) -> list[tuple[str, int, bytes, int]]:
     return out
 
 
+def _finalised_shift_damages(data: bytes, seed: int) -> list[tuple[str, int, bytes, int]]:
+    """("added"/"lost", byte, the bytes put there, the bytes taken out) of each shift trial on a finalised MDF4
+    file's bytes ``data``: :data:`SHIFT_TRIALS` seeded places anywhere past its header, a seeded stretch of its own
+    bytes added (copies of block headers among them) or bytes lost, of seeded lengths."""
+    rng = random.Random(seed)
+    out = []
+    for k in range(SHIFT_TRIALS):
+        at, n = rng.randrange(200, len(data) - max(SHIFT_LENGTHS)), rng.choice(SHIFT_LENGTHS)
+        source = rng.randrange(0, len(data) - n)
+        out.append(("added", at, data[source:source + n], 0) if k % 2 == 0 else ("lost", at, b"", n))
+    return out
+
+
 def _sweep(files: list[Path], zero_step: int, random_step: int) -> list[dict[str, object]]:
     """The trials on ``files`` with the package importable now (a worker's: its checkout first on sys.path)."""
     import logging
@@ -118,8 +133,8 @@ def _sweep(files: list[Path], zero_step: int, random_step: int) -> list[dict[str
                       _damages(len(data), zero_step, random_step, seed=len(data))]
             if src.suffix.lower() in (".asc", ".trc"):
                 trials += [(kind, at, put, len(put)) for kind, at, put in _line_damages(data, seed=len(data))]
-            if src.suffix.lower() == ".mf4" and src.parent == REAL:  # the loggers' own files
-                trials += _shift_damages(data, seed=len(data))
+            if src.suffix.lower() == ".mf4":
+                trials += (_shift_damages if src.parent == REAL else _finalised_shift_damages)(data, seed=len(data))
             for n, (kind, at, put, taken) in enumerate(trials):
                 trial = Path(scratch) / f"{n}_{src.name}"
                 trial.write_bytes(data[:at] + put + data[at + taken:])
@@ -209,13 +224,15 @@ def main() -> None:
     result: dict[str, object] = {
         "benchmark": "can_log_damage", "damage": f"{ZEROED} B zeroed every {args.zero_step} B, {OVERWRITTEN} random "
         f"B every {args.random_step} B", "files": len(files)}
-    kinds = (("mdf4", (".mf4",), ("zeroed", "overwritten")), ("mdf4_shifted", (".mf4",), ("added", "lost")),
+    # the loggers' own files end in .MF4, the finalised copies in .mf4
+    kinds = (("mdf4", (".mf4", ".MF4"), ("zeroed", "overwritten")), ("mdf4_shifted", (".MF4",), ("added", "lost")),
+             ("finalised_shifted", (".mf4",), ("added", "lost")),
              ("blf", (".blf",), ("zeroed", "overwritten")), ("asc", (".asc",), ("zeroed", "overwritten")),
              ("trc", (".trc",), ("zeroed", "overwritten")), ("asc_lines", (".asc",), ("printable byte",)),
              ("trc_lines", (".trc",), ("printable byte",)))
     for kind, suffixes, damages in kinds:
         for name in roots:
-            mine = [r for r in rows[name] if Path(str(r["file"])).suffix.lower() in suffixes
+            mine = [r for r in rows[name] if Path(str(r["file"])).suffix in suffixes
                     and r["kind"] in damages]
             key = ("summary" if kind == "mdf4" else kind) if name == "this" else f"{kind}_against"
             result[key] = {"revision": revision(roots[name]), **_summary(mine)}

@@ -124,6 +124,8 @@ TEXT_FIRST = ("tests/test_ingest_canlog.py::"
 MF4_SHIFT = "tests/test_ingest_canlog.py::test_a_real_mf4_with_bytes_added_or_lost_before_its_data_reads_its_frames"
 MF4_PAST_ANY_FILE = "tests/test_ingest_canlog.py::test_links_overwritten_past_any_file_are_damage_not_a_shift"
 MF4_SHIFT_NAMED = "tests/test_ingest_canlog.py::test_a_shift_moves_no_link_onto_a_block_an_intact_link_names"
+MF4_SHIFT_FINALISED = ("tests/test_ingest_canlog.py::"
+                       "test_a_finalised_mf4_with_bytes_added_or_lost_keeps_the_groups_they_spare")
 MF4_DLC_TABLE = ("tests/test_ingest_canlog.py::"
                  "test_an_mf4_whose_dlc_table_is_damaged_reads_each_frame_with_its_own_bytes")
 DLC_TABLE_JUDGED = "tests/test_ingest_canlog.py::test_a_dlc_table_is_judged_by_iso_11898_1"
@@ -655,6 +657,10 @@ MUTATIONS: list[Mutation] = [
     _m("mdf4-shift-lands-on-named-blocks", "ingest", "ingest/mdf4_shift.py",
        "             if link + by not in named and _lands_right(ids, owner, k, link + by)]",
        "             if _lands_right(ids, owner, k, link + by)]", MF4_SHIFT_NAMED),
+    _m("mdf4-shift-in-a-finalised-file-needs-a-data-link-moved", "ingest", "ingest/mdf4_shift.py",
+       " or not finalised and not any(", " or not any(", MF4_SHIFT_FINALISED),
+    _m("mdf4-shift-tears-a-copied-header-in-a-finalised-file", "ingest", "ingest/mdf4_shift.py",
+       "(named if finalised else starts)", "starts", MF4_SHIFT_FINALISED),
     _m("mdf4-shift-takes-links-past-any-file", "ingest", "ingest/mdf4_shift.py",
        "            if link and (pos, k) not in intact and link < PAST_ANY_FILE:",
        "            if link and (pos, k) not in intact:", MF4_PAST_ANY_FILE),
