@@ -125,7 +125,7 @@ MF4_SHIFT = "tests/test_ingest_canlog.py::test_a_real_mf4_with_bytes_added_or_lo
 MF4_PAST_ANY_FILE = "tests/test_ingest_canlog.py::test_links_overwritten_past_any_file_are_damage_not_a_shift"
 MF4_SHIFT_NAMED = "tests/test_ingest_canlog.py::test_a_shift_moves_no_link_onto_a_block_an_intact_link_names"
 MF4_SHIFT_FINALISED = ("tests/test_ingest_canlog.py::"
-                       "test_a_finalised_mf4_with_bytes_added_or_lost_keeps_the_groups_they_spare")
+                       "test_a_finalised_mf4_with_bytes_added_or_lost_keeps_the_frames_they_spare")
 MF4_DLC_TABLE = ("tests/test_ingest_canlog.py::"
                  "test_an_mf4_whose_dlc_table_is_damaged_reads_each_frame_with_its_own_bytes")
 DLC_TABLE_JUDGED = "tests/test_ingest_canlog.py::test_a_dlc_table_is_judged_by_iso_11898_1"
@@ -661,6 +661,19 @@ MUTATIONS: list[Mutation] = [
        " or not finalised and not any(", " or not any(", MF4_SHIFT_FINALISED),
     _m("mdf4-shift-tears-a-copied-header-in-a-finalised-file", "ingest", "ingest/mdf4_shift.py",
        "(named if finalised else starts)", "starts", MF4_SHIFT_FINALISED),
+    _m("mdf4-finalised-data-block-torn-not-put-back", "ingest", "ingest/mdf4_shift.py",
+       "    if finalised and torn is not None and ids[torn] in _PLAIN_DATA:",
+       "    if False and torn is not None and ids[torn] in _PLAIN_DATA:", MF4_SHIFT_FINALISED),
+    _m("mdf4-put-back-place-records-kept", "ingest", "ingest/mdf4_shift.py",
+       "            return ties[0], holes, last - first", "            return ties[0], (), last - first",
+       MF4_SHIFT_FINALISED),
+    _m("mdf4-put-back-counts-the-zeros-put-in", "ingest", "ingest/mdf4_shift.py",
+       "        near, far = at - _PLACE_MARGIN, at + max(-by, 0) + _PLACE_MARGIN\n", "        near, far = at, at\n",
+       MF4_SHIFT_FINALISED),
+    _m("mdf4-put-back-takes-the-first-of-places-apart", "ingest", "ingest/mdf4_shift.py",
+       "        if step == 1 or ties[-1] - ties[0] > step:\n", "        if step == 1:\n", MF4_SHIFT_FINALISED),
+    _m("mdf4-copy-keeps-the-bytes-added", "ingest", "ingest/mdf4_mend.py",
+       "            src.seek(max(-count, 0), 1)\n", "", MF4_SHIFT_FINALISED),
     _m("mdf4-shift-takes-links-past-any-file", "ingest", "ingest/mdf4_shift.py",
        "            if link and (pos, k) not in intact and link < PAST_ANY_FILE:",
        "            if link and (pos, k) not in intact:", MF4_PAST_ANY_FILE),

@@ -307,7 +307,8 @@ def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:
                            f"from left out (line {lines}), the lines after read")
         if said:
             damaged = (cut is not None and cut.damaged) or bool(feed and feed.damaged)
-            before = cut is not None and not (cut.holes or cut.patches)  # a cut: every frame read lies before it
+            # a cut: every frame read lies before it
+            before = cut is not None and not (cut.holes or cut.patches or cut.inserted)
             raise CanLogError(f"{path}: {'damaged' if damaged else 'truncated'} {kind} log: {'; '.join(said)}; "
                               f"{frames} frames read{' before it' if before else ''}")
 
@@ -359,7 +360,7 @@ def _mended(path: Path, cut: CutShort | None, stack: ExitStack) -> tuple[Path, C
     copy's records then lack. Three rounds: a copy whose links moved with bytes added or lost may still reach blocks
     the lost bytes held, whose groups a second copy leaves out, and a damaged DLC table is found once the blocks
     are whole."""
-    if cut is None or not cut.patches:
+    if cut is None or not (cut.patches or cut.inserted):
         return path, cut
     scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="autosar-canlog-")))
     source, said = path, []
@@ -369,10 +370,11 @@ def _mended(path: Path, cut: CutShort | None, stack: ExitStack) -> tuple[Path, C
         said.append(cut.reason)
         rest = mdf4_cut(copy)
         if rest is None:
-            return copy, CutShort("; ".join(said), damaged=True, patches=cut.patches)
-        if not rest.patches:
-            return copy, CutShort("; ".join([*said, rest.reason]), rest.whole_bytes, damaged=True, holes=rest.holes,
-                                  patches=cut.patches)
+            return copy, CutShort("; ".join(said), damaged=True, holes=cut.holes, patches=cut.patches,
+                                  inserted=cut.inserted)
+        if not (rest.patches or rest.inserted):  # the records a put-back place broke, and those the checks show
+            return copy, CutShort("; ".join([*said, rest.reason]), rest.whole_bytes, damaged=True,
+                                  holes=cut.holes + rest.holes, patches=cut.patches, inserted=cut.inserted)
         source, cut = copy, rest
     return path, CutShort(said[0], damaged=True)  # the copy's links still reach damage: not mended
 

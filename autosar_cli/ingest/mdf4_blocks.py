@@ -96,7 +96,8 @@ def _mended(buf: mmap.mmap, why: str) -> CutShort:
     changes, where any intact group is left."""
     shift = shifted_links(buf)
     if shift is not None:
-        return CutShort(f"{why}: {shift.reason}", damaged=True, patches=shift.patches, inserted=shift.inserted)
+        return CutShort(f"{why}: {shift.reason}", damaged=True, patches=shift.patches, inserted=shift.inserted,
+                        holes=shift.holes)
     mend = mend_chains(buf)
     if mend is None:
         return CutShort(why, damaged=True)

@@ -129,13 +129,14 @@ def _count(n: int, thing: str) -> str:
 
 def write_mended(path: Path, dest: Path, mend: tuple[tuple[int, int], ...],
                  inserted: tuple[int, int] | tuple[()] = ()) -> None:
-    """Copy the MDF4 file at ``path`` to ``dest`` with ``inserted`` (byte, count: zero bytes put before that byte)
-    and the links ``mend`` changes (byte of the copy, value)."""
+    """Copy the MDF4 file at ``path`` to ``dest`` with ``inserted`` (byte, count: zero bytes put before that byte;
+    a negative count, bytes taken out from it on) and the links ``mend`` changes (byte of the copy, value)."""
     if inserted:
         at, count = inserted
         with open(path, "rb") as src, open(dest, "wb") as out:
             out.write(src.read(at))
-            out.write(bytes(count))
+            out.write(bytes(max(count, 0)))
+            src.seek(max(-count, 0), 1)
             shutil.copyfileobj(src, out)
     else:
         shutil.copyfile(path, dest)

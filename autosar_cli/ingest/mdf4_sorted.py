@@ -100,6 +100,32 @@ def sorted_damage(buf: mmap.mmap, found: list[Block]) -> tuple[str, tuple[tuple[
     return ("; ".join(said), tuple(holes)) if said else None
 
 
+def records_touching(buf: mmap.mmap, found: list[Block], start: int, end: int) -> tuple[tuple[int, int], ...]:
+    """Byte ranges of the records of the finalised file ``buf``'s sorted groups (its blocks ``found``) that lie in
+    bytes ``start`` to ``end``, or whose data bytes in an SD block do, with the records either side of them: the
+    records a known place of damage (``start`` = ``end``: a single byte) breaks, whether or not a check shows it."""
+    holes: list[tuple[int, int]] = []
+    for _, cn, dt, records, size in _sorted_groups(buf, found):
+        _, length, _, _ = block(buf, dt)
+        n = (length - HEAD.size) // size
+        at = records + np.arange(n, dtype=np.int64) * size
+        bad = (at <= max(end - 1, start)) & (at + size > start)
+        rows = np.frombuffer(buf, np.uint8, n * size, records).reshape(n, size)
+        for kind, _, place, link in channels(buf, cn):
+            if kind != VLSD_CHANNEL or place is None or not link:
+                continue
+            ident, sd_length, _, sd_data = block(buf, link)
+            if ident == b"##SD":  # each record's data: a 4-byte length and that many bytes, up to the next's
+                first = sd_data + _column(rows, place).astype(np.int64)
+                last = np.r_[first[1:], sd_data + sd_length - HEAD.size] - 1
+                bad |= (first <= max(end - 1, start)) & (np.maximum(last, first + 4) >= start)
+        broken = bad.copy()
+        bad[:-1] |= broken[1:]
+        bad[1:] |= broken[:-1]
+        holes += _runs(bad, records, size)
+    return tuple(holes)
+
+
 def _whole_data(rows: NDArray[np.uint8], place: tuple[int, int], sd: NDArray[np.uint8]) -> NDArray[np.bool_]:
     """(N,) whether each record's offset (``place``: its byte and bytes in the records ``rows`` (N, record bytes))
     points to a whole length and data in ``sd`` (the SD block's data), and, where the SD block holds the records'
