@@ -25,9 +25,11 @@ CG_DATA = struct.Struct("<QQHH4xII")  #: a CG block's record id, cycle count, fl
 Field = tuple[int, int]
 #: a block as :func:`blocks` finds it: (byte, id, length, links)
 Block = tuple[int, bytes, int, tuple[int, ...]]
+#: a file's bytes as the readers here take them: mapped, or a copy made in memory
+FileBytes = mmap.mmap | bytes
 
 
-def block(buf: mmap.mmap, pos: int) -> tuple[bytes, int, tuple[int, ...], int]:
+def block(buf: FileBytes, pos: int) -> tuple[bytes, int, tuple[int, ...], int]:
     """(id, length, links, data offset) of the block at ``pos``; ValueError where its header or links are cut, or
     where ``pos`` lies beyond any file (a damaged link, not a cut)."""
     if pos > PAST_ANY_FILE:
@@ -46,7 +48,7 @@ def block(buf: mmap.mmap, pos: int) -> tuple[bytes, int, tuple[int, ...], int]:
     return ident, length, struct.unpack_from(f"<{n_links}Q", buf, pos + HEAD.size), data
 
 
-def blocks(buf: mmap.mmap) -> Iterator[Block]:
+def blocks(buf: FileBytes) -> Iterator[Block]:
     """(byte, id, length, links) of every block the file's links reach from its header, as found; ValueError
     where one is cut off or a link points to no block."""
     todo, seen = [64], set()
@@ -77,12 +79,12 @@ def fields_at(raw: NDArray[np.uint8], at: NDArray[np.int64], size: int, is_float
     return out
 
 
-def field(buf: mmap.mmap | bytearray, at: int, size: int) -> int:
+def field(buf: FileBytes | bytearray, at: int, size: int) -> int:
     """The unsigned little-endian integer of ``size`` bytes at byte ``at``."""
     return int.from_bytes(buf[at:at + size], "little")
 
 
-def channels(buf: mmap.mmap, cn: int) -> list[tuple[int, int, Field | None, int]]:
+def channels(buf: FileBytes, cn: int) -> list[tuple[int, int, Field | None, int]]:
     """(channel type, data type, field where whole bytes hold its value, data link) of the channels from ``cn``
     on, their compositions' included."""
     out, todo, seen = [], [cn], set()

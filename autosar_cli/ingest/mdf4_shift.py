@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .mdf4_layout import HEAD, PAST_ANY_FILE, blocks
+from .mdf4_layout import HEAD, PAST_ANY_FILE, FileBytes, blocks
 from .mdf4_sorted import records_touching, sorted_damage
 
 #: a block's header as it lies in the file: its id and 4 reserved zero bytes
@@ -191,7 +191,7 @@ def shifted_links(buf: mmap.mmap) -> Shift | None:
                  (first_moved, pad) if pad else ())
 
 
-def put_back(data: bytes | mmap.mmap, at: int, count: int) -> bytes:
+def _put_back(data: FileBytes, at: int, count: int) -> bytes:
     """``data`` with ``count`` zero bytes put in before byte ``at``, or (``count`` < 0) ``-count`` bytes from ``at``
     taken out."""
     return data[:at] + (bytes(count) + data[at:] if count >= 0 else data[at - count:])
@@ -203,22 +203,21 @@ def _put_back_place(buf: mmap.mmap, data_block: int, by: int, first_moved: int
     now at ``first_moved``) where taking out the bytes added (``by`` > 0), or putting in zeros for those lost, leaves
     the fewest bytes of the file's sorted records damaged (:func:`~.mdf4_sorted.sorted_damage`), and the copy's
     records there (:func:`~.mdf4_sorted.records_touching`: what is left of the bytes added, the zeros), and whether
-    the records showed the place (to within a few records); None where
-    the copy's blocks do not all parse (the lost bytes held some). Damage grows with the distance from the place:
-    the search narrows a grid of places round the best one, down to single bytes, unless places apart are as good
-    (then every record between them is left out)."""
+    the records showed the place (to within a few records); None where the copy's blocks do not all parse (the lost
+    bytes held some). Damage grows with the distance from the place: the search narrows a grid of places round the
+    best one, down to single bytes, unless places apart are as good (then every record between them is left out)."""
     lo, hi = data_block + HEAD.size, first_moved - max(by, 0)
     if hi < lo:
         return None
     try:
-        found = list(blocks(put_back(buf, lo, -by)))  # type: ignore[arg-type]
+        found = list(blocks(_put_back(buf, lo, -by)))
     except (ValueError, struct.error):
         return None
 
     def damaged(at: int) -> int:
         """Bytes of damaged records away from the place tried (the zeros put in there show as damage or not, as
         they happen to lie)."""
-        damage = sorted_damage(put_back(buf, at, -by), found)  # type: ignore[arg-type]
+        damage = sorted_damage(_put_back(buf, at, -by), found)
         near, far = at - _PLACE_MARGIN, at + max(-by, 0) + _PLACE_MARGIN
         return 0 if damage is None else sum(max(0, min(end, near) - start) + max(0, end - max(start, far))
                                             for start, end in damage[1])
@@ -233,8 +232,8 @@ def _put_back_place(buf: mmap.mmap, data_block: int, by: int, first_moved: int
             # alone, or bytes added or lost a whole number of records long), the place lies anywhere between them,
             # and a record it cut in two may read as a frame: every record between them is left out
             first, last = max(lo, ties[0] - (step > 1) * step), min(hi, ties[-1] + (step > 1) * step)
-            copy = put_back(buf, ties[0], -by)
-            holes = records_touching(copy, found, first, last - min(by, 0))  # type: ignore[arg-type]
+            copy = _put_back(buf, ties[0], -by)
+            holes = records_touching(copy, found, first, last - min(by, 0))
             return ties[0], holes, last - first <= 2 * _PLACE_MARGIN
         lo, hi = max(lo, ties[0] - step), min(hi, ties[0] + step)
 

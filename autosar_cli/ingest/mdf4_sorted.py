@@ -16,7 +16,6 @@ the reader reads a copy whose data block holds the others (:func:`write_sorted_w
 from __future__ import annotations
 
 import bisect
-import mmap
 import struct
 
 import numpy as np
@@ -31,6 +30,7 @@ from .mdf4_layout import (
     VLSD_CHANNEL,
     VLSD_GROUP,
     Block,
+    FileBytes,
     block,
     channels,
     data_blocks,
@@ -46,7 +46,7 @@ _IN_ORDER = 0.5
 _STEP_SLACK = 10
 
 
-def _sorted_groups(buf: mmap.mmap, found: list[Block]) -> list[tuple[int, int, int, int, int]]:
+def _sorted_groups(buf: FileBytes, found: list[Block]) -> list[tuple[int, int, int, int, int]]:
     """(CG block's data byte, its first channel, DT block, first record's byte, record bytes) of each sorted group
     with a plain ``##DT`` block: one group, no record id, fixed-size records."""
     out = []
@@ -63,7 +63,7 @@ def _sorted_groups(buf: mmap.mmap, found: list[Block]) -> list[tuple[int, int, i
     return out
 
 
-def sorted_damage(buf: mmap.mmap, found: list[Block]) -> tuple[str, tuple[tuple[int, int], ...]] | None:
+def sorted_damage(buf: FileBytes, found: list[Block]) -> tuple[str, tuple[tuple[int, int], ...]] | None:
     """Why and where (byte ranges of whole records) the sorted groups of the finalised file ``buf`` (its blocks
     ``found``) hold damaged records; None where none do."""
     holes: list[tuple[int, int]] = []
@@ -100,7 +100,7 @@ def sorted_damage(buf: mmap.mmap, found: list[Block]) -> tuple[str, tuple[tuple[
     return ("; ".join(said), tuple(holes)) if said else None
 
 
-def records_touching(buf: mmap.mmap, found: list[Block], start: int, end: int) -> tuple[tuple[int, int], ...]:
+def records_touching(buf: FileBytes, found: list[Block], start: int, end: int) -> tuple[tuple[int, int], ...]:
     """Byte ranges of the records of the finalised file ``buf``'s sorted groups (its blocks ``found``) that lie in
     bytes ``start`` to ``end``, or whose data bytes in an SD block do, with the records either side of them: the
     records a known place of damage (``start`` = ``end``: a single byte) breaks, whether or not a check shows it."""
@@ -201,7 +201,7 @@ def _runs(bad: NDArray[np.bool_], start: int, size: int) -> list[tuple[int, int]
     return [(start + int(a) * size, start + int(b) * size) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
-def write_sorted_without(buf: mmap.mmap, dest_bytes: bytearray, holes: tuple[tuple[int, int], ...],
+def write_sorted_without(buf: FileBytes, dest_bytes: bytearray, holes: tuple[tuple[int, int], ...],
                          found: list[Block]) -> None:
     """Take ``holes`` (whole records) out of the sorted groups' data blocks in ``dest_bytes`` (a copy of ``buf``):
     each group's other records moved up in its data block, the block's length and the group's record count
