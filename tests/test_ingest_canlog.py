@@ -386,12 +386,12 @@ def test_a_finalised_mf4_damaged_in_its_records_keeps_every_other_frame(tmp_path
     (MF4_2023_1, 150000, 0, 4096, (4024, 4024), "4096 bytes lost before byte "),
     (MF4_2022, 89075, 0, 4096, (5588 - 200, 5588), "4096 bytes lost inside the data block at byte 728, found near"),
     (MF4_2022, 156372, 4096, 0, (5588 - 8, 5588), "4096 bytes added inside the data block at byte 126656, found"),
-    (MF4_2023_1, 30004, 4096, 0, (4024 - 24, 4024), "4096 bytes added inside the data block at byte 17008, found"),
-    (MF4_2023_1, 30004, 0, 4096, (1011, 1011), "4096 bytes lost inside the data block at byte 17008, its records "
-                                               "do not show where")],
+    (MF4_2022, 60000, 0, 4400, (5588 - 213, 5588), "4400 bytes lost inside the data block at byte 728, found"),
+    (MF4_2022, 150004, 0, 4092, (5588 - 349, 5588), "4092 bytes lost inside the data block at byte 126656, found"),
+    (MF4_2023_1, 30004, 4096, 0, (1011, 1011), "(its data block at byte 17008 damaged)")],
     ids=["4 KiB added to its blocks", "4 KiB lost from its blocks", "4 KiB lost from its records",
-         "4 KiB added to its records' data bytes", "2023: 4 KiB added to its records",
-         "2023: 4 KiB lost from its records, a whole number of them"])
+         "4 KiB added to its records' data bytes", "200 records lost", "341 records' data bytes lost",
+         "2023: 4 KiB added to its records, checked by their times alone"])
 def test_a_finalised_mf4_with_bytes_added_or_lost_keeps_the_frames_they_spare(
         tmp_path: Path, finalised: Callable[[str], Path], name: str, at: int, added: int, lost: int,
         kept: tuple[int, int], said: str) -> None:
@@ -404,9 +404,10 @@ def test_a_finalised_mf4_with_bytes_added_or_lost_keeps_the_frames_they_spare(
     names), the copy takes the bytes added out, or puts zeros in for those lost, where its records show the place
     (the fewest damaged records away from it), so that every block after it lies where its links say, and leaves
     out the records there: the frames before and after read (the group was left out, or its records read off their
-    boundaries as frames the file lacks). Records whose checks cannot show the place (the 2023 file's, times alone,
-    4096 bytes a whole number of them) are left out wherever it may lie, with the records it may have cut in two:
-    the other groups' 1011 frames read, none the undamaged file lacks."""
+    boundaries as frames the file lacks), also where the bytes lost are whole records or whole data bytes (the gap
+    in the data offsets shows the place). Records checked by their times alone (the 2023 file's: records read off
+    their boundaries may rise as true ones do) are not put back: their group is left out, the other groups' 1011
+    frames read, none the undamaged file lacks."""
     path = finalised(name)
     data = path.read_bytes()
     reference = _real_records(name)
@@ -416,6 +417,11 @@ def test_a_finalised_mf4_with_bytes_added_or_lost_keeps_the_frames_they_spare(
     got, message = _read_until_error(damaged)
     assert _in_order_within(got, reference) and kept[0] <= len(got) <= kept[1]
     assert said in message and message.endswith(f"; {len(got)} frames read")
+    with open(damaged, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+        shift = shifted_links(buf)
+    if shift is not None and shift.data_block is not None:  # put back: the records at the place left out whatever
+        at, _ = shift.inserted                                # the checks say (in the records, the one it lies in)
+        assert shift.holes and (shift.data_block != 728 or any(a <= at < b for a, b in shift.holes))
 
 
 def test_zeroed_stamps_outnumbering_the_whole_ones_are_the_damage() -> None:

@@ -14,9 +14,9 @@ is torn: its id is cleared in the copy, so that its group is left out; in a fina
 link names before the first moved (bytes added may hold copies of block headers, which no link names). Where that
 is a finalised file's data block (its records, or their data bytes), its bytes after the place are put back where
 they lay instead: the copy takes the bytes added out, or puts zeros in for those lost, at the place its records
-show (the fewest damaged records away from it, :mod:`.mdf4_sorted`'s checks), so that every block after it lies
-where its links say, and the records at the place are left out (where the checks cannot show it, all those where
-it may lie). A count not
+show (the fewest damaged records, :mod:`.mdf4_sorted`'s checks), so that every block after it lies where its links
+say, and the records at the place are left out; only where the records are checked by their data offsets (a time
+alone does not tell a record read off its boundaries: such a block is torn). A count not
 a multiple of 8 leaves the blocks off the 8-byte boundaries asammdf finds an unfinalised file's blocks on: the copy
 puts zero bytes before the first moved block. Blocks the lost bytes held stay lost: the groups they break are then
 left out as for any damaged block.
@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .mdf4_layout import HEAD, PAST_ANY_FILE, FileBytes, blocks
-from .mdf4_sorted import records_touching, sorted_damage
+from .mdf4_sorted import checked_by_offsets, records_touching, sorted_damage
 
 #: a block's header as it lies in the file: its id and 4 reserved zero bytes
 _HEADER = re.compile(rb"##[A-Z]{2}\x00\x00\x00\x00")
@@ -63,9 +63,9 @@ _CANDIDATES = 16
 _PLAIN_DATA = frozenset([b"##DT", b"##SD"])
 #: the places tried in each round of the search for where, inside a data block, bytes were added or lost
 _PLACES_PER_ROUND = 64
-#: bytes either side of a place tried whose damaged records the search does not count: the records either side of
-#: it (a CAN logger's are 20-30 bytes)
-_PLACE_MARGIN = 128
+#: bytes either side of the places a round of the search tries whose records it checks too (after the first round,
+#: which checks every record)
+_SEARCH_MARGIN = 4096
 
 
 @dataclass(frozen=True)
@@ -86,18 +86,16 @@ class Shift:
     data_block: int | None = None
     #: the copy's records (byte ranges, whole records) the place breaks, left out whether or not a check shows it
     holes: tuple[tuple[int, int], ...] = ()
-    located: bool = True  #: whether the data block's records showed the place (else ``holes`` span where it may lie)
 
     @property
     def reason(self) -> str:
         what = "added" if self.by > 0 else "lost"
         if self.data_block is not None and self.inserted:
             done = "taken out" if self.by > 0 else "put back as zeros"
-            where = (f"found near byte {self.inserted[0]} by its records: {done} there" if self.located else
-                     f"its records do not show where ({done} at byte {self.inserted[0]})")
-            return (f"{abs(self.by)} bytes {what} inside the data block at byte {self.data_block}, {where}, so that "
-                    f"every block after it lies where its links say ({self.dangling} found no block of their kind); "
-                    f"the records where the place may lie left out ({sum(b - a for a, b in self.holes)} bytes)")
+            return (f"{abs(self.by)} bytes {what} inside the data block at byte {self.data_block}, found near byte "
+                    f"{self.inserted[0]} by its records: {done} there, so that every block after it lies where its "
+                    f"links say ({self.dangling} found no block of their kind); the records there left out "
+                    f"({sum(b - a for a, b in self.holes)} bytes)")
         moved = len(self.patches) - (self.torn is not None)
         torn = f"; the block at byte {self.torn} before them torn" if self.torn is not None else ""
         return (f"{abs(self.by)} bytes {what} before byte {self.after + max(self.by, 0)}: {moved} links moved by "
@@ -179,7 +177,7 @@ def shifted_links(buf: mmap.mmap) -> Shift | None:
         # a finalised file's records, or their data bytes: those after the place put back where they lay
         put = _put_back_place(buf, torn, by, first_moved)
         if put is not None:
-            return Shift(by, put[0], (), len(dangling), None, (put[0], -by), torn, put[1], put[2])
+            return Shift(by, put[0], (), len(dangling), None, (put[0], -by), torn, put[1])
     if torn is not None and torn > _HEADER_BLOCK:
         moved.append((torn, 0))
     # blocks lie on 8-byte boundaries (asammdf finds an unfinalised file's blocks by their ids there): zero bytes
@@ -198,14 +196,15 @@ def _put_back(data: FileBytes, at: int, count: int) -> bytes:
 
 
 def _put_back_place(buf: mmap.mmap, data_block: int, by: int, first_moved: int
-                    ) -> tuple[int, tuple[tuple[int, int], ...], bool] | None:
-    """The byte inside the data block at ``data_block`` (the bytes after the place moved by ``by``, the next block
-    now at ``first_moved``) where taking out the bytes added (``by`` > 0), or putting in zeros for those lost, leaves
-    the fewest bytes of the file's sorted records damaged (:func:`~.mdf4_sorted.sorted_damage`), and the copy's
-    records there (:func:`~.mdf4_sorted.records_touching`: what is left of the bytes added, the zeros), and whether
-    the records showed the place (to within a few records); None where the copy's blocks do not all parse (the lost
-    bytes held some). Damage grows with the distance from the place: the search narrows a grid of places round the
-    best one, down to single bytes, unless places apart are as good (then every record between them is left out)."""
+                    ) -> tuple[int, tuple[tuple[int, int], ...]] | None:
+    """The byte inside the data block at ``data_block`` (the bytes after the place moved by ``by``, the next block now
+    at ``first_moved``) where taking out the bytes added (``by`` > 0), or putting in zeros for those lost, leaves the
+    fewest bytes of the file's sorted records damaged (:func:`~.mdf4_sorted.sorted_damage`, its groups taken as kept
+    in order), and the copy's records there (:func:`~.mdf4_sorted.records_touching`: what is left of the bytes added,
+    the zeros); None where the copy's blocks do not all parse (the lost bytes held some), or where the block's records
+    are not checked by their data offsets (times alone: records read off their boundaries may rise as true ones do).
+    Damage grows with the distance from the place: the search narrows a grid of places round the best one, down to
+    single bytes, checking after the first round only the records near the places it tries."""
     lo, hi = data_block + HEAD.size, first_moved - max(by, 0)
     if hi < lo:
         return None
@@ -213,29 +212,23 @@ def _put_back_place(buf: mmap.mmap, data_block: int, by: int, first_moved: int
         found = list(blocks(_put_back(buf, lo, -by)))
     except (ValueError, struct.error):
         return None
+    if not checked_by_offsets(_put_back(buf, lo, -by), found, data_block):
+        return None
+
+    within: tuple[int, int] | None = None  # the whole file in the first round, then the bytes the places reach
 
     def damaged(at: int) -> int:
-        """Bytes of damaged records away from the place tried (the zeros put in there show as damage or not, as
-        they happen to lie)."""
-        damage = sorted_damage(_put_back(buf, at, -by), found)
-        near, far = at - _PLACE_MARGIN, at + max(-by, 0) + _PLACE_MARGIN
-        return 0 if damage is None else sum(max(0, min(end, near) - start) + max(0, end - max(start, far))
-                                            for start, end in damage[1])
+        damage = sorted_damage(_put_back(buf, at, -by), found, within, in_order=True)
+        return 0 if damage is None else sum(end - start for start, end in damage[1])
 
     while True:
         step = max(1, (hi - lo) // _PLACES_PER_ROUND)
-        places = range(lo, hi + 1, step)
-        damage = [damaged(at) for at in places]
-        ties = [at for at, d in zip(places, damage, strict=True) if d == min(damage)]
-        if step == 1 or ties[-1] - ties[0] > step:
-            # where places apart leave as few damaged (records whose checks cannot tell where the place is: times
-            # alone, or bytes added or lost a whole number of records long), the place lies anywhere between them,
-            # and a record it cut in two may read as a frame: every record between them is left out
-            first, last = max(lo, ties[0] - (step > 1) * step), min(hi, ties[-1] + (step > 1) * step)
-            copy = _put_back(buf, ties[0], -by)
-            holes = records_touching(copy, found, first, last - min(by, 0))
-            return ties[0], holes, last - first <= 2 * _PLACE_MARGIN
-        lo, hi = max(lo, ties[0] - step), min(hi, ties[0] + step)
+        best = min(range(lo, hi + 1, step), key=damaged)
+        if step == 1:
+            return best, records_touching(_put_back(buf, best, -by), found, best, best - min(by, 0))
+        lo, hi = max(lo, best - step), min(hi, best + step)
+        # the records whose place the next round's places can change, and more: those farther lie as they do
+        within = (lo - _SEARCH_MARGIN, hi + max(-by, 0) + _SEARCH_MARGIN)
 
 
 def _lands_right(ids: dict[int, bytes], owner: int, k: int, target: int) -> bool:

@@ -63,30 +63,39 @@ def _sorted_groups(buf: FileBytes, found: list[Block]) -> list[tuple[int, int, i
     return out
 
 
-def sorted_damage(buf: FileBytes, found: list[Block]) -> tuple[str, tuple[tuple[int, int], ...]] | None:
+def sorted_damage(buf: FileBytes, found: list[Block], within: tuple[int, int] | None = None, in_order: bool = False
+                  ) -> tuple[str, tuple[tuple[int, int], ...]] | None:
     """Why and where (byte ranges of whole records) the sorted groups of the finalised file ``buf`` (its blocks
-    ``found``) hold damaged records; None where none do."""
+    ``found``) hold damaged records; None where none do. ``within`` (bytes start to end): only the records that lie
+    there, or whose data bytes in an SD block do, are checked (each check then among them alone). ``in_order``: the
+    groups' times and data bytes are taken as kept in order however many records fall out of it (a copy whose
+    records may be read off their boundaries; else a group mostly out of order is taken as written so)."""
     holes: list[tuple[int, int]] = []
     said: list[str] = []
     for cg_data, cn, dt, records, size in _sorted_groups(buf, found):
         _, cycles, *_ = CG_DATA.unpack_from(buf, cg_data)
         _, length, _, _ = block(buf, dt)
         n = min(cycles, (length - HEAD.size) // size)
-        if n != cycles:  # the records it claims beyond its block: a hole where no record is
+        if n != cycles and within is None:  # the records it claims beyond its block: a hole where no record is
             said.append(f"the group of the data block at byte {dt} says it has {cycles} records, the block holds "
                         f"{n}")
             holes.append((records + n * size, records + cycles * size))
+        first, stop = (0, n) if within is None else _rows_within(buf, cn, records, size, n, within)
+        if stop <= first:
+            continue
+        records += first * size
+        n = stop - first
         rows = np.frombuffer(buf, np.uint8, n * size, records).reshape(n, size)
         bad = np.zeros(n, dtype=bool)
         for kind, data_type, place, link in channels(buf, cn):
             if kind == MASTER_CHANNEL and data_type in ORDERED_TYPES and place is not None:
-                bad |= out_of_order(_column(rows, place, is_float=data_type != 0))
+                bad |= out_of_order(_column(rows, place, is_float=data_type != 0), in_order)
             if kind != VLSD_CHANNEL or place is None or not link:
                 continue
             ident, sd_length, _, sd_data = block(buf, link)
             if ident != b"##SD":  # a list of them, or a VLSD group: not what this check reads
                 continue
-            bad |= ~_whole_data(rows, place, np.frombuffer(buf, np.uint8, sd_length - HEAD.size, sd_data))
+            bad |= ~_whole_data(rows, place, np.frombuffer(buf, np.uint8, sd_length - HEAD.size, sd_data), in_order)
         if bad.any():
             # the damaged bytes may reach into the records either side of those they showed in
             broken = bad.copy()
@@ -98,6 +107,36 @@ def sorted_damage(buf: FileBytes, found: list[Block]) -> tuple[str, tuple[tuple[
                         f"out ({int(bad.sum())})")
             holes += _runs(bad, records, size)
     return ("; ".join(said), tuple(holes)) if said else None
+
+
+def checked_by_offsets(buf: FileBytes, found: list[Block], data_block: int) -> bool:
+    """Whether every sorted group of the finalised file ``buf`` whose records, or whose data bytes, the block at
+    ``data_block`` holds keeps its data bytes in an SD block: each record's offset into it tells a record read off
+    its boundaries (a time alone does not: one read off them may rise as well as a true one)."""
+    groups = []
+    for _, cn, dt, _, _ in _sorted_groups(buf, found):
+        sds = [link for kind, _, place, link in channels(buf, cn)
+               if kind == VLSD_CHANNEL and place is not None and link and block(buf, link)[0] == b"##SD"]
+        if dt == data_block or data_block in sds:
+            groups.append(bool(sds))
+    return bool(groups) and all(groups)
+
+
+def _rows_within(buf: FileBytes, cn: int, records: int, size: int, n: int, within: tuple[int, int]
+                 ) -> tuple[int, int]:
+    """The first and past the last of a group's ``n`` records (of ``size`` bytes from byte ``records``, its first
+    channel at ``cn``) that lie in bytes ``within``, or whose data bytes in an SD block begin there."""
+    start, end = within
+    first, stop = max(0, (start - records) // size), min(n, max(0, -((records - end) // size)))
+    rows = np.frombuffer(buf, np.uint8, n * size, records).reshape(n, size)
+    for kind, _, place, link in channels(buf, cn):
+        if kind == VLSD_CHANNEL and place is not None and link and block(buf, link)[0] == b"##SD":
+            at = block(buf, link)[3] + _column(rows, place).astype(np.int64)
+            there = np.flatnonzero((at >= start) & (at < end))
+            if there.size:
+                first, stop = (int(there[0]), int(there[-1]) + 1) if stop <= first else \
+                    (min(first, int(there[0])), max(stop, int(there[-1]) + 1))
+    return first, stop
 
 
 def records_touching(buf: FileBytes, found: list[Block], start: int, end: int) -> tuple[tuple[int, int], ...]:
@@ -126,11 +165,12 @@ def records_touching(buf: FileBytes, found: list[Block], start: int, end: int) -
     return tuple(holes)
 
 
-def _whole_data(rows: NDArray[np.uint8], place: tuple[int, int], sd: NDArray[np.uint8]) -> NDArray[np.bool_]:
+def _whole_data(rows: NDArray[np.uint8], place: tuple[int, int], sd: NDArray[np.uint8], in_order: bool = False
+                ) -> NDArray[np.bool_]:
     """(N,) whether each record's offset (``place``: its byte and bytes in the records ``rows`` (N, record bytes))
     points to a whole length and data in ``sd`` (the SD block's data), and, where the SD block holds the records'
     data in their order, begins where the record before it ends or ends where the next begins (a damaged offset),
-    and ends where the next record's data begin (a damaged length)."""
+    and ends where the next record's data begin (a damaged length); ``in_order``: the SD block taken as in order."""
     n = len(rows)
     if n == 0 or len(sd) < 4:
         return np.zeros(n, dtype=bool)
@@ -144,20 +184,20 @@ def _whole_data(rows: NDArray[np.uint8], place: tuple[int, int], sd: NDArray[np.
     ends = at + 4 + lengths
     follows = np.r_[offsets[0] == 0, ends[:-1] == offsets[1:]]  # from where the one before ends
     leads = np.r_[ends[:-1] == offsets[1:], ends[-1] <= len(sd)]  # to where the next begins
-    if n < 2 or np.mean(follows & leads) < _IN_ORDER:
+    if n < 2 or not in_order and np.mean(follows & leads) < _IN_ORDER:
         return whole
     anchored = whole & (follows | leads)
     # a length is checked against the next record's offset where that offset is the file's own
     return anchored & (leads | ~np.r_[anchored[1:], True])
 
 
-def out_of_order(times: NDArray[np.float64 | np.uint64]) -> NDArray[np.bool_]:
+def out_of_order(times: NDArray[np.float64 | np.uint64], in_order: bool = False) -> NDArray[np.bool_]:
     """(N,) which records' ``times`` lie outside the longest run of them that rises (a group's records are in time
     order: a damaged time stands out of it; a run of equal times, as zeroed records have, counts once), and beyond
     the times of that run's records either side by ``_STEP_SLACK`` median steps (so equal stamps of frames logged
-    together stay); none where half or more of the steps fall (a group not kept in time order)."""
+    together stay); none where half or more of the steps fall (a group not kept in time order), unless ``in_order``."""
     n = len(times)
-    if n < 2 or not np.any(times[1:] < times[:-1]) or np.mean(times[1:] >= times[:-1]) < _IN_ORDER:
+    if n < 2 or not np.any(times[1:] < times[:-1]) or not in_order and np.mean(times[1:] >= times[:-1]) < _IN_ORDER:
         return np.zeros(n, dtype=bool)
     # the longest rising subsequence (patience sorting): tails[k] ends the best run of length k + 1
     tails: list[float] = []
