@@ -204,7 +204,8 @@ def _put_back_place(buf: mmap.mmap, data_block: int, by: int, first_moved: int
     the zeros); None where the copy's blocks do not all parse (the lost bytes held some), or where the block's records
     are not checked by their data offsets (times alone: records read off their boundaries may rise as true ones do).
     Damage grows with the distance from the place: the search narrows a grid of places round the best one, down to
-    single bytes, checking after the first round only the records near the places it tries."""
+    single bytes, checking after the first round only the records near the places it tries; where places apart are
+    as good, the records between them are those left out."""
     lo, hi = data_block + HEAD.size, first_moved - max(by, 0)
     if hi < lo:
         return None
@@ -223,10 +224,16 @@ def _put_back_place(buf: mmap.mmap, data_block: int, by: int, first_moved: int
 
     while True:
         step = max(1, (hi - lo) // _PLACES_PER_ROUND)
-        best = min(range(lo, hi + 1, step), key=damaged)
-        if step == 1:
-            return best, records_touching(_put_back(buf, best, -by), found, best, best - min(by, 0))
-        lo, hi = max(lo, best - step), min(hi, best + step)
+        places = range(lo, hi + 1, step)
+        damage = [damaged(at) for at in places]
+        ties = [at for at, d in zip(places, damage, strict=True) if d == min(damage)]
+        if step == 1 or ties[-1] - ties[0] > step:
+            # places apart as good (bytes lost or added a whole number of equal records or data bytes long: those
+            # between the place tried and the true one are read off by whole ones, which no check sees): the
+            # place may lie anywhere between them, and every record there is left out
+            first, last = max(lo, ties[0] - (step > 1) * step), min(hi, ties[-1] + (step > 1) * step)
+            return ties[0], records_touching(_put_back(buf, ties[0], -by), found, first, last - min(by, 0))
+        lo, hi = max(lo, ties[0] - step), min(hi, ties[0] + step)
         # the records whose place the next round's places can change, and more: those farther lie as they do
         within = (lo - _SEARCH_MARGIN, hi + max(-by, 0) + _SEARCH_MARGIN)
 
