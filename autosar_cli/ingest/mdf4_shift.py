@@ -209,11 +209,12 @@ def _put_back_place(buf: mmap.mmap, data_block: int, by: int, first_moved: int
     lo, hi = data_block + HEAD.size, first_moved - max(by, 0)
     if hi < lo:
         return None
+    copy = _put_back(buf, lo, -by)
     try:
-        found = list(blocks(_put_back(buf, lo, -by)))
+        found = list(blocks(copy))
     except (ValueError, struct.error):
         return None
-    if not checked_by_offsets(_put_back(buf, lo, -by), found, data_block):
+    if not checked_by_offsets(copy, found, data_block):
         return None
 
     within: tuple[int, int] | None = None  # the whole file in the first round, then the bytes the places reach

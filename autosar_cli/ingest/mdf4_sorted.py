@@ -30,6 +30,7 @@ from .mdf4_layout import (
     VLSD_CHANNEL,
     VLSD_GROUP,
     Block,
+    Field,
     FileBytes,
     block,
     channels,
@@ -87,20 +88,13 @@ def sorted_damage(buf: FileBytes, found: list[Block], within: tuple[int, int] | 
         n = stop - first
         rows = np.frombuffer(buf, np.uint8, n * size, records).reshape(n, size)
         bad = np.zeros(n, dtype=bool)
-        for kind, data_type, place, link in channels(buf, cn):
+        for kind, data_type, place, _ in channels(buf, cn):
             if kind == MASTER_CHANNEL and data_type in ORDERED_TYPES and place is not None:
                 bad |= out_of_order(_column(rows, place, is_float=data_type != 0), in_order)
-            if kind != VLSD_CHANNEL or place is None or not link:
-                continue
-            ident, sd_length, _, sd_data = block(buf, link)
-            if ident != b"##SD":  # a list of them, or a VLSD group: not what this check reads
-                continue
-            bad |= ~_whole_data(rows, place, np.frombuffer(buf, np.uint8, sd_length - HEAD.size, sd_data), in_order)
+        for place, sd_block in _sd_channels(buf, cn):
+            bad |= ~_whole_data(rows, place, _sd_bytes(buf, sd_block), in_order)
         if bad.any():
-            # the damaged bytes may reach into the records either side of those they showed in
-            broken = bad.copy()
-            bad[:-1] |= broken[1:]
-            bad[1:] |= broken[:-1]
+            broken, bad = bad, _with_neighbours(bad)
             said.append(f"{int(broken.sum())} of the {n} records of the data block at byte {dt} are damaged (a data "
                         f"offset to no whole data bytes, or a time out of order; the first at byte "
                         f"{records + int(np.argmax(broken)) * size}): those and the records either side of them left "
@@ -115,11 +109,31 @@ def checked_by_offsets(buf: FileBytes, found: list[Block], data_block: int) -> b
     its boundaries (a time alone does not: one read off them may rise as well as a true one)."""
     groups = []
     for _, cn, dt, _, _ in _sorted_groups(buf, found):
-        sds = [link for kind, _, place, link in channels(buf, cn)
-               if kind == VLSD_CHANNEL and place is not None and link and block(buf, link)[0] == b"##SD"]
+        sds = [sd_block for _, sd_block in _sd_channels(buf, cn)]
         if dt == data_block or data_block in sds:
             groups.append(bool(sds))
     return bool(groups) and all(groups)
+
+
+def _sd_channels(buf: FileBytes, cn: int) -> list[tuple[Field, int]]:
+    """(the offset's field in a record, the SD block) of each channel, from the one at ``cn`` on, whose records hold
+    an offset into an ``##SD`` block (not a list of them, nor a VLSD group: what these checks do not read)."""
+    return [(place, link) for kind, _, place, link in channels(buf, cn)
+            if kind == VLSD_CHANNEL and place is not None and link and block(buf, link)[0] == b"##SD"]
+
+
+def _sd_bytes(buf: FileBytes, sd_block: int) -> NDArray[np.uint8]:
+    """The data of the ``##SD`` block at ``sd_block``: each record's 4-byte length and that many bytes."""
+    _, length, _, data = block(buf, sd_block)
+    return np.frombuffer(buf, np.uint8, length - HEAD.size, data)
+
+
+def _with_neighbours(broken: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """(N,) the records ``broken`` marks and those either side of each: the damaged bytes may reach into them."""
+    bad = broken.copy()
+    bad[:-1] |= broken[1:]
+    bad[1:] |= broken[:-1]
+    return bad
 
 
 def _rows_within(buf: FileBytes, cn: int, records: int, size: int, n: int, within: tuple[int, int]
@@ -129,13 +143,12 @@ def _rows_within(buf: FileBytes, cn: int, records: int, size: int, n: int, withi
     start, end = within
     first, stop = max(0, (start - records) // size), min(n, max(0, -((records - end) // size)))
     rows = np.frombuffer(buf, np.uint8, n * size, records).reshape(n, size)
-    for kind, _, place, link in channels(buf, cn):
-        if kind == VLSD_CHANNEL and place is not None and link and block(buf, link)[0] == b"##SD":
-            at = block(buf, link)[3] + _column(rows, place).astype(np.int64)
-            there = np.flatnonzero((at >= start) & (at < end))
-            if there.size:
-                first, stop = (int(there[0]), int(there[-1]) + 1) if stop <= first else \
-                    (min(first, int(there[0])), max(stop, int(there[-1]) + 1))
+    for place, sd_block in _sd_channels(buf, cn):
+        at = block(buf, sd_block)[3] + _column(rows, place).astype(np.int64)
+        there = np.flatnonzero((at >= start) & (at < end))
+        if there.size:
+            first, stop = (int(there[0]), int(there[-1]) + 1) if stop <= first else \
+                (min(first, int(there[0])), max(stop, int(there[-1]) + 1))
     return first, stop
 
 
@@ -150,18 +163,13 @@ def records_touching(buf: FileBytes, found: list[Block], start: int, end: int) -
         at = records + np.arange(n, dtype=np.int64) * size
         bad = (at <= max(end - 1, start)) & (at + size > start)
         rows = np.frombuffer(buf, np.uint8, n * size, records).reshape(n, size)
-        for kind, _, place, link in channels(buf, cn):
-            if kind != VLSD_CHANNEL or place is None or not link:
-                continue
-            ident, sd_length, _, sd_data = block(buf, link)
-            if ident == b"##SD":  # each record's data: a 4-byte length and that many bytes, up to the next's
-                first = sd_data + _column(rows, place).astype(np.int64)
-                last = np.r_[first[1:], sd_data + sd_length - HEAD.size] - 1
-                bad |= (first <= max(end - 1, start)) & (np.maximum(last, first + 4) >= start)
-        broken = bad.copy()
-        bad[:-1] |= broken[1:]
-        bad[1:] |= broken[:-1]
-        holes += _runs(bad, records, size)
+        for place, sd_block in _sd_channels(buf, cn):
+            # each record's data: a 4-byte length and that many bytes, up to where the next record's begin
+            _, sd_length, _, sd_data = block(buf, sd_block)
+            first = sd_data + _column(rows, place).astype(np.int64)
+            last = np.r_[first[1:], sd_data + sd_length - HEAD.size] - 1
+            bad |= (first <= max(end - 1, start)) & (np.maximum(last, first + 4) >= start)
+        holes += _runs(_with_neighbours(bad), records, size)
     return tuple(holes)
 
 
