@@ -1,4 +1,4 @@
-"""Benchmark the paper's comparison over several seeds: how often each "Done when" figure of issue 6 holds.
+"""Benchmark the paper's comparison over several seeds: how often each accuracy criterion holds per method.
 
 Usage: python benches/bench_paper.py [--scenarios test1,test2,test3] [--seeds 0-9] [--dynamics full] [--keep]
 
