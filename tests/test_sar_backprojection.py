@@ -21,7 +21,8 @@ HALF_WIDTH = processed_half_width(C / F_CENTRE, 0.04)
 
 
 def _antennas(track: np.ndarray, heading: np.ndarray) -> np.ndarray:
-    """10 phase centres per pulse like the 8-channel ScanBrick: 2 Tx and 4 Rx per Tx chirp (ENU m).
+    """10 antenna positions per pulse as the default 8 channels use the ScanBrick (3 Tx x 4 Rx): Tx0 and Tx2, 2 lambda
+    apart, and the 4 Rx at each of their chirps (ENU m).
 
     The radar looks right, 45 deg forward; antennas spread along its horizontal row by lambda/2, and the
     Rx of the second chirp are displaced by the motion during 120 us (about 0.6 mm).
