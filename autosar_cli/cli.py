@@ -86,6 +86,10 @@ RadarStreamOpt = Annotated[str | None, typer.Option("--radar-stream", metavar="N
 RadarCaptureOpt = Annotated[Path | None, typer.Option("--radar", metavar="CAPTURE", help="TI DCA1000 capture of "
                                                      "the drive (see `autosar ingest`).")]
 DbcOpt = Annotated[Path | None, typer.Option("--dbc", help="CAN database (default: the config's).")]
+CanLogOpt = Annotated[list[Path] | None, typer.Option(
+    "--can-log", metavar="FILE", help="Standalone CAN log (repeatable).")]
+NmeaOpt = Annotated[list[Path] | None, typer.Option(
+    "--nmea", metavar="FILE", help="NMEA text capture (repeatable).")]
 AllowUnverifiedOpt = Annotated[bool, typer.Option(
     "--allow-unverified", help="Read the MCAP chunks whose CRC fails (the damage is somewhere in them; each is "
                                "named) rather than leave them out.")]
@@ -326,10 +330,8 @@ def ingest(
     output: Annotated[Path, typer.Option("--output", "-o", help="drive.h5 to write.")] = Path("drive.h5"),
     config: ConfigOpt = None,
     dbc: DbcOpt = None,
-    can_log: Annotated[list[Path] | None, typer.Option(
-        "--can-log", metavar="FILE", help="Standalone CAN log (repeatable).")] = None,
-    nmea: Annotated[list[Path] | None, typer.Option(
-        "--nmea", metavar="FILE", help="NMEA text capture (repeatable).")] = None,
+    can_log: CanLogOpt = None,
+    nmea: NmeaOpt = None,
     radar: Annotated[Path | None, typer.Option("--radar", metavar="CAPTURE", help="TI DCA1000 capture (directory, "
                                                "adc_data.bin or <name>_0.bin, with its *.mmwave.json, .cfg or .lua) "
                                                "joining the logs' navigation.")] = None,
@@ -609,6 +611,8 @@ def run(
     radar_stream: RadarStreamOpt = None,
     autofocus: AutofocusOpt = False,
     dbc: DbcOpt = None,
+    can_log: CanLogOpt = None,
+    nmea: NmeaOpt = None,
     allow_unverified: AllowUnverifiedOpt = False,
     time_offset: TimeOffsetOpt = None,
     allow_time_gap: AllowTimeGapOpt = False,
@@ -628,6 +632,7 @@ def run(
             manifest = run_chain([*logs, *([radar] if radar else [])], output, cfg, method=method.value,
                                  options=options, truth_path=truth, autofocus=autofocus, overwrite=overwrite,
                                  progress=update, command=" ".join(sys.argv), fork_ingest=True,
+                                 can_logs=can_log or [], nmea_logs=nmea or [],
                                  ingest_options=_ingest_options(dbc, radar_start, radar_sync, radar_override,
                                                                 allow_unverified, time_offset, allow_time_gap,
                                                                 max_time_gap))
@@ -755,6 +760,8 @@ def compare(
     radar_sync: RadarSyncOpt = "/dca1000/sync",
     radar_override: RadarOverrideOpt = False,
     dbc: DbcOpt = None,
+    can_log: CanLogOpt = None,
+    nmea: NmeaOpt = None,
     allow_unverified: AllowUnverifiedOpt = False,
     time_offset: TimeOffsetOpt = None,
     allow_time_gap: AllowTimeGapOpt = False,
@@ -773,6 +780,7 @@ def compare(
         with _stages(not as_json) as update:
             result = run_compare([*logs, *([radar] if radar else [])], output, cfg, methods=chosen, truth_path=truth,
                                  overwrite=overwrite, progress=update, command=" ".join(sys.argv),
+                                 can_logs=can_log or [], nmea_logs=nmea or [],
                                  ingest_options=_ingest_options(dbc, radar_start, radar_sync, radar_override,
                                                                 allow_unverified, time_offset, allow_time_gap,
                                                                 max_time_gap))

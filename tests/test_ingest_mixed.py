@@ -338,6 +338,61 @@ def test_compare_reads_can_logs_and_the_ingest_options_as_run_does(ci_mcap: Simu
     assert len(t) == 20 and abs(t[0] / 1e9 - (drive_start_s + 0.2)) < 1e-3
 
 
+def drive_content(path: Path) -> dict[str, tuple[tuple[int, ...], str]]:
+    """Every dataset of a drive.h5 but its provenance (which names the command): shape and a digest of its values."""
+    import hashlib
+
+    import h5py
+
+    found: dict[str, tuple[tuple[int, ...], str]] = {}
+
+    def visit(name: str, item: object) -> None:
+        if isinstance(item, h5py.Dataset) and not name.startswith("provenance"):
+            found[name] = (item.shape, hashlib.sha256(np.ascontiguousarray(item[()]).tobytes()).hexdigest())
+
+    with h5py.File(path, "r") as f:
+        f.visititems(visit)
+    return found
+
+
+def test_run_takes_can_log_and_nmea_options_as_ingest_does(ci_mcap: SimulationResult, work: Path,
+                                                          drive_start_s: float) -> None:
+    """`autosar run` took CAN logs and NMEA captures only among its LOGs (told by their content); ingest and batch
+    had --can-log and --nmea. Given either way, the drive is the same, and run.json lists them as inputs."""
+    log = candump(work / "eps3_for_options.log", [eps3(drive_start_s + 0.2 + 0.01 * i) for i in range(20)])
+    text = work / "gga_for_options.nmea"
+    text.write_text("\n".join(gga(drive_start_s + 0.5 + k) for k in range(5)) + "\n")
+    by_option, by_content = work / "run_can_log_option", work / "run_can_log_positional"
+    r = runner.invoke(app, ["run", str(ci_mcap.log_path), "--can-log", str(log), "--nmea", str(text),
+                            "-o", str(by_option), "--json"])
+    assert r.exit_code == 0, r.output
+    manifest = json.loads(r.stdout)
+    assert [i["path"] for i in manifest["inputs"]] == [str(ci_mcap.log_path), str(log), str(text)]
+    r = runner.invoke(app, ["run", str(ci_mcap.log_path), str(log), str(text), "-o", str(by_content)])
+    assert r.exit_code == 0, r.output
+    got = drive_content(by_option / "drive.h5")
+    assert got["can/EPS_3/t_ns"][0] == (20,) and got["gnss/gga_for_options/nmea_fix/t_ns"][0] == (5,), got.keys()
+    assert got == drive_content(by_content / "drive.h5")
+
+
+@pytest.mark.parametrize("command", ["run", "compare"])
+def test_run_and_compare_refuse_a_drive_log_given_as_a_can_log(ci_mcap: SimulationResult, work: Path,
+                                                               command: str) -> None:
+    """--can-log of run and compare reads the file as a CAN log: an MCAP given so is refused with ingest's error. A
+    file given with --nmea is an input, never the output."""
+    out = work / f"{command}_mcap_as_can_log"
+    r = runner.invoke(app, [command, str(ci_mcap.log_path), "--can-log", str(ci_mcap.log_path), "-o", str(out)])
+    assert r.exit_code == 1 and "Traceback" not in r.output, r.output
+    assert r.stderr.strip().splitlines() == [f"error: {ci_mcap.log_path}: an MCAP log, not a CAN log file: give it "
+                                             "as a LOG, without --can-log"], r.stderr
+    assert not out.exists()
+    text = work / f"{command}_gga_as_output.nmea"
+    text.write_text(gga(1_795_780_800.0) + "\n")
+    r = runner.invoke(app, [command, str(ci_mcap.log_path), "--nmea", str(text), "-o", str(text)])
+    assert r.exit_code == 1 and f"{text}: is an input of this command" in r.stderr, r.output
+    assert text.read_text() == gga(1_795_780_800.0) + "\n"
+
+
 def test_a_run_of_a_log_without_radar_names_the_ingest_that_writes_it(ci_mcap: SimulationResult, work: Path) -> None:
     """`autosar run` and `compare` have no --allow-partial (they focus the radar): their error said "use
     --allow-partial", and left an empty output directory."""

@@ -70,7 +70,7 @@ from autosar_cli.sim.truth import truth_radar_mismatch
 from autosar_cli.store.drive import Drive, radar_times
 from autosar_cli.store.image import write_image
 from autosar_cli.store.manifest import product_status
-from autosar_cli.store.outputs import check_output, output_directory
+from autosar_cli.store.outputs import check_free_space, check_output, input_bytes, output_directory
 from autosar_cli.store.trajectory import write_trajectory
 
 FORMAT = "autosar-compare"
@@ -122,15 +122,18 @@ def transform_grid(grid: FocusGrid, motion: Se2) -> FocusGrid:
 def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
             methods: Sequence[str] = DEFAULT_METHODS, truth_path: str | Path | None = None,
             options: FocusOptions | None = None, overwrite: bool = False, progress: Progress | None = None,
-            command: str = "", ingest_options: IngestOptions | None = None) -> dict[str, Any]:
+            command: str = "", ingest_options: IngestOptions | None = None, can_logs: Sequence[str | Path] = (),
+            nmea_logs: Sequence[str | Path] = ()) -> dict[str, Any]:
     """Compare navigation methods on one drive; returns the comparison (also written as compare.json).
-    ``logs`` and ``ingest_options`` as for :func:`autosar_cli.run.run`."""
+    ``logs``, ``can_logs``, ``nmea_logs`` and ``ingest_options`` as for :func:`autosar_cli.run.run`."""
     out = Path(out_dir)
     if (out / "compare.json").exists() and not overwrite:
         raise CompareError(f"{out}: already holds a comparison (compare.json); pass --overwrite to replace it")
     ingest_options = ingest_options or IngestOptions()
-    check_output(out, [*logs, *([truth_path] if truth_path else []), *ingest_options.files()], overwrite=overwrite,
+    given = [*logs, *can_logs, *nmea_logs]  # every input read into the drive (as the manifests list them)
+    check_output(out, [*given, *([truth_path] if truth_path else []), *ingest_options.files()], overwrite=overwrite,
                  directory=True)
+    check_free_space(out / DRIVE, input_bytes(given), "the drive")
     methods = parse_methods(methods)
     options = options or FocusOptions.from_config(config)
     tick = progress or (lambda stage, done, total: None)
@@ -140,6 +143,7 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
     t0 = time.perf_counter()
     with output_directory(out):
         report = ingest([Path(p) for p in logs], out / DRIVE, config=config, command=command,
+                        can_logs=[Path(p) for p in can_logs], nmea_logs=[Path(p) for p in nmea_logs],
                         progress=lambda done, total: tick("ingest", done, total),
                         partial_hint=chain_hint("a comparison"), **ingest_options.ingest_kwargs())
     warnings = [str(w) for w in report.warnings]  # a damaged log, dropped data: every product is degraded
@@ -279,7 +283,7 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
         focus_s = time.perf_counter() - t0
         write_trajectory(mdir / "trajectory.h5", traj)
         outputs = write_image(mdir / "image", image, overwrite=True)
-        _write_method_manifest(mdir, logs, config, m, traj, truth_path, options, res, focus_s, outputs, command,
+        _write_method_manifest(mdir, given, config, m, traj, truth_path, options, res, focus_s, outputs, command,
                                warnings)
         timings[f"focus_{m}"] = focus_s
         t0 = time.perf_counter()
@@ -312,7 +316,7 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
 
     result: dict[str, Any] = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__, "command": command,
-        "inputs": [str(p) for p in logs], "config": config.source, "truth": str(truth_path) if truth_path else None,
+        "inputs": [str(p) for p in given], "config": config.source, "truth": str(truth_path) if truth_path else None,
         "methods": run_methods, "skipped": skipped, "notes": notes,
         "status": product_status(warnings), "warnings": warnings,
         "grid": {"reference_trajectory": base_traj.method, "shape": list(base_grid.shape),
