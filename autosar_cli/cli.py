@@ -32,6 +32,7 @@ from rich.progress import (
 from rich.table import Column, Table
 
 from autosar_cli import __version__, exit_interrupted
+from autosar_cli.config import CAN_LOG_SUFFIXES
 
 
 class _FlagsShownBare:
@@ -325,16 +326,18 @@ def simulate(
 def ingest(
     logs: Annotated[list[Path] | None, typer.Argument(
         metavar="LOG",
-        help="Drive logs: .mcap, .bag, rosbag2 directories; CAN logs (.blf .asc .trc .log .mf4) and NMEA text "
+        help=f"Drive logs: .mcap, .bag, rosbag2 directories; CAN logs ({' '.join(CAN_LOG_SUFFIXES)}) and NMEA text "
              "captures are recognised too.")] = None,
     output: Annotated[Path, typer.Option("--output", "-o", help="drive.h5 to write.")] = Path("drive.h5"),
     config: ConfigOpt = None,
     dbc: DbcOpt = None,
     can_log: CanLogOpt = None,
     nmea: NmeaOpt = None,
-    radar: Annotated[Path | None, typer.Option("--radar", metavar="CAPTURE", help="TI DCA1000 capture (directory, "
-                                               "adc_data.bin or <name>_0.bin, with its *.mmwave.json, .cfg or .lua) "
-                                               "joining the logs' navigation.")] = None,
+    radar: Annotated[Path | None, typer.Option("--radar", metavar="CAPTURE", help="TI DCA1000 capture (its "
+                                               "directory or a .bin of it: adc_data.bin, or a split series such as "
+                                               "the raw mode's adc_data_Raw_0.bin, _1.bin … or <name>_0.bin …, read "
+                                               "as one stream; with its *.mmwave.json, .cfg or .lua beside it, or "
+                                               "that file itself) joining the logs' navigation.")] = None,
     radar_start: RadarStartOpt = None,
     radar_sync: RadarSyncOpt = "/dca1000/sync",
     radar_override: RadarOverrideOpt = False,

@@ -23,6 +23,9 @@ DEFAULT_CONFIG = CONFIG_DIR / "giulia_scanbrick.toml"
 MSG_DIR = CONFIG_DIR / "msg"
 MAX_CLOCK_DRIFT_PPM = 1000.0  #: the largest radar clock drift a config may state or simulate (ppm)
 MAX_LATENCY_S = 2.0  #: the largest latency a sensor's table may state (s)
+#: the standalone CAN logs' suffixes (any case) read by :mod:`autosar_cli.ingest.canlog`; here, where the command
+#: line's help can name them without importing python-can
+CAN_LOG_SUFFIXES: tuple[str, ...] = (".blf", ".asc", ".trc", ".log", ".mf4")
 
 
 class ConfigError(ValueError):

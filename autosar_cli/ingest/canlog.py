@@ -65,6 +65,7 @@ from typing import IO
 import can
 from can.io.generic import MessageReader
 
+from autosar_cli.config import CAN_LOG_SUFFIXES
 from autosar_cli.ingest import mf4_support
 from autosar_cli.ingest.blf_damage import blf_damage, holds_every_container, write_blf_without
 from autosar_cli.ingest.mdf4_blocks import mdf4_cut, write_without_holes
@@ -75,8 +76,6 @@ from autosar_cli.ingest.text_lines import LineFeed, damaged_lines
 __all__ = ["CAN_LOG_SUFFIXES", "CanLogError", "is_can_log", "read_can_log"]
 
 log = logging.getLogger(__name__)
-
-CAN_LOG_SUFFIXES: tuple[str, ...] = (".blf", ".asc", ".trc", ".log", ".mf4")
 
 #: Formats whose python-can reader numbers channels from 0 where the file numbers them from 1.
 _ZERO_BASED_CHANNELS = (".asc", ".blf")
