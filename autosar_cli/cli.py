@@ -546,8 +546,9 @@ def focus(
     resolution: Annotated[float | None, typer.Option("--resolution", help="Cross-range resolution rho in metres: the "
                                                      "processed beam is lambda/(4 rho) wide (config default 0.04).")]
     = None,
-    channels: Annotated[Channels | None, typer.Option("--channels", help="8: Tx0 + Tx2 (the lambda/2 virtual "
-                                                      "array), 12: all Tx (config default 8).")] = None,
+    channels: Annotated[Channels | None, typer.Option("--channels", help="8: Tx0 + Tx2 with the 4 Rx, whose "
+                                                      "channels' phase centres (Tx-Rx midpoints) lie lambda/4 apart "
+                                                      "in one row; 12: all Tx-Rx pairs (config default 8).")] = None,
     height: Annotated[float | None, typer.Option("--height", help="Focusing plane height, ENU metres above the "
                                                  "road at the origin (config default 0.5).")] = None,
     grid: Annotated[str, typer.Option("--grid", metavar="auto|X0,Y0,X1,Y1", help="'auto' (along the trajectory on the "
