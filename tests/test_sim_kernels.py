@@ -175,7 +175,8 @@ def test_scenarios_are_plausible_drives(name):
     m = sc.motion
     t = np.linspace(0, m.duration_s, 4001)
     st = m.states(t)
-    v_max_imaging = 990 * 8 * (cfg.radar.wavelength_m / 4) * np.cos(np.pi / 4)  # ~5.4 m/s (DESIGN.md)
+    # ~5.4 m/s: the ~19.5 km/h up to which the radar images unambiguously (docs/SIMULATION.md, Scenarios)
+    v_max_imaging = 990 * 8 * (cfg.radar.wavelength_m / 4) * np.cos(np.pi / 4)
     assert st["speed"].max() < v_max_imaging
     assert st["speed"].min() > 1.0 or name == "urban"  # urban stops for 6 s and goes
     assert np.abs(st["accel"]).max() < 3.0

@@ -168,7 +168,7 @@ def _test3(config: Config) -> Scenario:
 def _urban(config: Config) -> Scenario:
     # ~200 m through a town, starting East-bound: straight, a right turn at a junction (10 m radius), an S-bend,
     # a stop of 6 s and go, a speed bump, cobbles; the radar (right side) sees the junction's inner corner.
-    # Top speed 18 km/h: the radar images unambiguously up to ~19.5 km/h (DESIGN.md).
+    # Top speed 18 km/h: the radar images unambiguously up to ~19.5 km/h (docs/SIMULATION.md, Scenarios).
     length = 200.0
     v = config.vehicle
     turn = (40.0, 40.0 + 0.5 * np.pi * 10.0, -0.1)
