@@ -37,6 +37,7 @@ from typing import Any
 from autosar_cli import __version__
 from autosar_cli.config import Config
 from autosar_cli.ingest.canlog import CanLogError
+from autosar_cli.ingest.inputs import drive_folder
 from autosar_cli.ingest.pipeline import IngestError, IngestOptions
 from autosar_cli.ingest.sources import LogReadError
 from autosar_cli.run import run, run_warnings
@@ -226,8 +227,10 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
             raise BatchError(f"{ingest_options.dbc}: {problem}")
         ingest_options = replace(ingest_options, dbc=Path(ingest_options.dbc).resolve())  # as the workers find it
     offsets = {str(Path(p).resolve()): s for p, s in ingest_options.time_offsets.items()}
-    if unknown := sorted(offsets.keys() - {p for inputs in companions for p in inputs}):
-        raise BatchError(f"--time-offset {unknown[0]}: not one of the drives' --can-log or --nmea logs")
+    shiftable = [{*inputs, *_folder_logs(Path(log))} for log, inputs in zip(logs, companions, strict=True)]
+    if unknown := sorted(offsets.keys() - set().union(*shiftable)):
+        raise BatchError(f"--time-offset {unknown[0]}: not one of the drives' --can-log or --nmea logs, nor a CAN "
+                         "or NMEA log of a drive folder")
     out = Path(out_dir).resolve()
     if (out / MANIFEST).exists() and not overwrite:
         raise BatchError(f"{out}: already holds a batch ({MANIFEST}); pass --overwrite to replace it")
@@ -288,8 +291,8 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
         client.subscribe_topic(topic, on_event)
         t_submit = time.perf_counter()
         futures = {}
-        for name, log, inputs in zip(names, paths, companions, strict=True):
-            drive_options = replace(ingest_options, time_offsets={Path(p): offsets[p] for p in inputs if p in offsets})
+        for name, log, inputs, own in zip(names, paths, companions, shiftable, strict=True):
+            drive_options = replace(ingest_options, time_offsets={Path(p): offsets[p] for p in own if p in offsets})
             fut = client.submit(run_drive, name, [log, *inputs], str(out / name), config, method=method,
                                 options=options, autofocus=autofocus, overwrite=overwrite,
                                 ingest_options=drive_options, numba_threads=numba_threads,
@@ -332,6 +335,12 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
     with atomic_output(out / MANIFEST, overwrite=True) as tmp:
         tmp.write_text(json.dumps(manifest, indent=2, default=str) + "\n")
     return manifest
+
+
+def _folder_logs(log: Path) -> list[str]:
+    """The CAN and NMEA logs of a drive folder (resolved, as the workers find them), none of any other log."""
+    folder = drive_folder(log)
+    return [str(p.resolve()) for p in folder.inputs["can"] + folder.inputs["nmea"]] if folder else []
 
 
 def read_batch(out_dir: str | Path) -> dict[str, Any]:

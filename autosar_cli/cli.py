@@ -352,27 +352,22 @@ def ingest(
 ) -> None:
     """Decode CAN (with a DBC), GNSS, IMU and raw radar frames of drive logs into one drive.h5, streaming."""
     with _errors(output, kernels=False):
-        from autosar_cli.ingest.pipeline import check_input, classify_input
         from autosar_cli.ingest.pipeline import ingest as run_ingest
+        from autosar_cli.ingest.pipeline import sort_inputs
 
         cfg = _load_config(config)
         options = _ingest_options(dbc, radar_start, radar_sync, radar_override, allow_unverified, time_offset,
                                   allow_time_gap, max_time_gap)
-        kinds: dict[str, list[Path]] = {"log": [], "can": list(can_log or []), "nmea": list(nmea or []),
-                                        "radar": [radar] if radar else []}
-        for p in logs or []:
-            kinds[classify_input(p)].append(p)
-        for kind, paths in kinds.items():
-            for p in paths:
-                check_input(p, kind)
-        _prepare_output(output, overwrite, [*(logs or []), *kinds["can"], *kinds["nmea"], dbc, cfg.source])
+        given = sort_inputs(logs or [], can_log or [], nmea or [], [radar] if radar else []).all()
+        # a capture's folder may take the drive beside its data; a log's or a drive folder's may not
+        _prepare_output(output, overwrite, [*(logs or []), *(p for p, kind in given if kind != "radar"), dbc,
+                                            cfg.source])
         from autosar_cli.store.outputs import check_free_space, input_bytes
 
-        check_free_space(output, input_bytes([*(logs or []), *kinds["can"], *kinds["nmea"], *kinds["radar"]]),
-                         "the drive")
+        check_free_space(output, input_bytes([p for p, _ in given]), "the drive")
         with _progress("ingest", not as_json, in_bytes=True) as update:
-            report = run_ingest(kinds["log"], output, config=cfg, can_logs=kinds["can"], nmea_logs=kinds["nmea"],
-                                radar_captures=kinds["radar"], allow_partial=allow_partial, progress=update,
+            report = run_ingest(logs or [], output, config=cfg, can_logs=can_log or [], nmea_logs=nmea or [],
+                                radar_captures=[radar] if radar else [], allow_partial=allow_partial, progress=update,
                                 command=" ".join(sys.argv), **options.ingest_kwargs())
         d = report.to_dict()
         if as_json:
@@ -940,41 +935,59 @@ def info(
             return
         from autosar_cli.store.atomic import stale_partials
 
-        folder = path if path.is_dir() else path.parent
-        stale = [str(p) for p in stale_partials(folder)]
+        stale = [str(p) for p in stale_partials(path if path.is_dir() else path.parent)]
         from autosar_cli.ingest.dca1000 import is_capture
+        from autosar_cli.ingest.inputs import drive_folder
+        from autosar_cli.ingest.inspect import summarize
         from autosar_cli.ingest.sources import is_log_directory
 
-        if path.is_dir() and not is_log_directory(path) and not is_capture(path):  # a plain directory
+        folder = drive_folder(path)
+        if path.is_dir() and not is_log_directory(path) and not is_capture(path) and folder is None:  # plain
             if as_json:
                 out.print_json(json.dumps({"path": str(path), "stale_partials": stale}))
                 return
             out.print(f"[bold]{_lit(path)}[/]: {len(stale)} stale partial file(s)"
                       + "".join(f"\n  {escape(p)}" for p in stale))
             return
-        from autosar_cli.ingest.inspect import summarize
-
-        summary = summarize(path)
+        inputs = [(p, kind) for kind, ps in folder.inputs.items() for p in ps] if folder else [(path, "")]
+        summaries = [(p, kind, summarize(p)) for p, kind in inputs]
+        said = folder.warning() if folder else None
         if as_json:
-            out.print_json(json.dumps({**summary.to_dict(), "stale_partials": stale}))
+            if folder is None:
+                out.print_json(json.dumps({**summaries[0][2].to_dict(), "stale_partials": stale}))
+            else:
+                out.print_json(json.dumps({"path": str(path), "drive_folder": [
+                    {"kind": kind, **summary.to_dict()} for _, kind, summary in summaries],
+                    "left_out": [str(p) for p in folder.left_out], "stale_partials": stale}))
             return
-        d = summary.to_dict()
-        out.print(f"[bold]{_lit(path)}[/]  {summary.container}, {summary.size_bytes / 1e6:.1f} MB, "
-                  f"{d['duration_s']:.2f} s")
-        table = Table("stream", "type", "count", "rate (Hz)", "gaps")
-        for s in summary.streams:
-            table.add_row(s.topic, s.msgtype, str(s.count), f"{s.rate_hz:.1f}", str(s.gaps))
-        out.print(table)
-        if summary.radar_parameters:
-            radar = Table("radar parameter", "value", "from")
-            for key, item in summary.radar_parameters.items():
-                radar.add_row(key, str(item["value"]), item["source"])
-            out.print(radar)
-        for w in summary.warnings:
-            err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
+        if folder is not None:
+            out.print(f"[bold]{_lit(path)}[/]  a drive folder: {len(inputs)} input{'s' * (len(inputs) != 1)}, each "
+                      "read as if given on its own")
+        for p, _, summary in summaries:
+            _print_summary(p, summary)
+        if said:
+            err.print(f"[yellow]warning:[/] {escape(said)}", highlight=False, soft_wrap=True)
         for p in stale:
             err.print(f"[yellow]stale partial file:[/] {escape(p)} (left by a killed autosar; the next command "
                       f"writing there removes it)", highlight=False, soft_wrap=True)
+
+
+def _print_summary(path: Path, summary: Any) -> None:
+    """One log's summary (:class:`autosar_cli.ingest.inspect.LogSummary`): its streams, radar parameters, warnings."""
+    d = summary.to_dict()
+    out.print(f"[bold]{_lit(path)}[/]  {summary.container}, {summary.size_bytes / 1e6:.1f} MB, "
+              f"{d['duration_s']:.2f} s")
+    table = Table("stream", "type", "count", "rate (Hz)", "gaps")
+    for s in summary.streams:
+        table.add_row(s.topic, s.msgtype, str(s.count), f"{s.rate_hz:.1f}", str(s.gaps))
+    out.print(table)
+    if summary.radar_parameters:
+        radar = Table("radar parameter", "value", "from")
+        for key, item in summary.radar_parameters.items():
+            radar.add_row(key, str(item["value"]), item["source"])
+        out.print(radar)
+    for w in summary.warnings:
+        err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
 
 
 @contextmanager

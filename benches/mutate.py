@@ -105,6 +105,8 @@ BLF_SIZE = "tests/test_ingest_canlog.py::test_a_blf_container_whose_size_is_dama
 BLF_HEADER = "tests/test_ingest_canlog.py::test_a_blf_whose_file_header_is_damaged_is_read_with_it_rebuilt"
 UNUSED_INPUT = "tests/test_ingest_mixed.py::test_an_input_nothing_of_which_reaches_the_drive_is_named_with_why"
 RUN_CAN_LOG = "tests/test_ingest_mixed.py::test_run_reads_can_logs_beside_the_drive_log_with_ingests_options"
+DRIVE_FOLDER = "tests/test_ingest_drive_folder.py::test_a_drive_folder_reads_as_its_inputs_given_one_by_one"
+BATCH_FOLDER = "tests/test_batch.py::test_batch_takes_drive_folders_and_the_time_offsets_of_their_logs"
 BATCH_INGEST = "tests/test_batch.py::test_batch_reads_every_drive_with_its_ingest_options"
 COMPARE_INGEST = "tests/test_ingest_mixed.py::test_compare_reads_can_logs_and_the_ingest_options_as_run_does"
 CAPTURE_USED = "tests/test_ingest_dca1000.py::test_simulated_capture_ingests_to_the_rawframe_cube"
@@ -484,7 +486,7 @@ MUTATIONS: list[Mutation] = [
     _m("dca1000-cli-config-beside-an-sdk-cfg-unread", "radar", "ingest/dca1000_params.py",
        'if not p.name.endswith(".mmwave.json")', 'if p.name.endswith(".setup.json")', DCA_CLI_CONFIG),
     _m("batch-time-offset-given-to-every-drive", "inputs", "batch.py",
-       "time_offsets={Path(p): offsets[p] for p in inputs if p in offsets}",
+       "time_offsets={Path(p): offsets[p] for p in own if p in offsets}",
        "time_offsets={Path(p): s for p, s in offsets.items()}", BATCH_COMPANIONS),
     _m("batch-drive-read-without-its-can-log", "inputs", "batch.py",
        "run_drive, name, [log, *inputs],", "run_drive, name, [log],", BATCH_COMPANIONS),
@@ -591,13 +593,18 @@ MUTATIONS: list[Mutation] = [
        "                    if False:\n", MCAP_UNVERIFIED),
     _m("mcap-unverified-chunk-left-out-when-asked", "integrity", "ingest/mcap_source.py",
        "            if not self.keep_unverified:\n", "            if True:\n", MCAP_UNVERIFIED),
-    _m("log-named-as-a-can-log-read-by-its-name", "ingest", "ingest/pipeline.py",
+    _m("log-named-as-a-can-log-read-by-its-name", "ingest", "ingest/inputs.py",
        "    if begins_as_a_container(path):  # an MCAP", "    if False:  # an MCAP", BY_WHAT_IT_HOLDS),
     _m("input-adding-nothing-unsaid", "ingest", "ingest/pipeline.py",
        "        job.warnings += job.unused\n", "\n", UNUSED_INPUT),
-    _m("can-log-among-a-runs-logs-read-as-a-container", "ingest", "ingest/pipeline.py",
-       "        by_kind[classify_input(Path(p))].append(Path(p))\n", "        by_kind[\"log\"].append(Path(p))\n",
-       RUN_CAN_LOG),
+    _m("can-log-among-a-runs-logs-read-as-a-container", "ingest", "ingest/inputs.py",
+       "        kind = classify_input(p)\n", "        kind = \"log\"\n", RUN_CAN_LOG),
+    _m("drive-folder-read-as-a-bag", "ingest", "ingest/inputs.py",
+       "    if path.is_dir() and drive_folder(path) is not None:", "    if False:", DRIVE_FOLDER),
+    _m("drive-folder-left-out-unsaid", "ingest", "ingest/inputs.py",
+       "            sorted_.warnings.append(said)", "            pass", DRIVE_FOLDER),
+    _m("batch-drive-folder-time-offset-refused", "inputs", "batch.py",
+       "folder.inputs[\"nmea\"]] if folder else []", "folder.inputs[\"nmea\"]] if False else []", BATCH_FOLDER),
     _m("batch-drive-read-without-the-ingest-options", "batch", "batch.py",
        "                       ingest_options=ingest_options)", "                       ingest_options=None)",
        BATCH_INGEST),

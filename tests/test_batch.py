@@ -174,10 +174,32 @@ def test_batch_reads_each_drives_can_and_nmea_logs_with_it(thread_cluster, tmp_p
     for extra, message in ((["--can-log", str(tmp_path / "a.asc")], "--can-log given 3 times for 2 logs; give one "
                             "CAN log per log"),
                            (["--time-offset", f"{tmp_path / 'c.asc'}=1"], f"--time-offset {tmp_path / 'c.asc'}: not "
-                            "one of the drives' --can-log or --nmea logs")):
+                            "one of the drives' --can-log or --nmea logs, nor a CAN or NMEA log of a drive folder")):
         r = runner.invoke(app, [*args, *extra, "-o", str(tmp_path / "out2")])
         assert r.exit_code == 1 and r.stderr.strip() == f"error: {message}", r.stderr
     assert len(seen) == 2 and not (tmp_path / "out2").exists()
+
+
+def test_batch_takes_drive_folders_and_the_time_offsets_of_their_logs(thread_cluster, tmp_path, monkeypatch):
+    """A drive folder (its log, its CAN logger's two split files) is one drive named after it, run on the folder; a
+    `--time-offset` of one of its CAN logs was refused as naming no drive's --can-log."""
+    seen = {}
+
+    def fake_run(logs, out_dir, config, **kw):
+        seen[Path(out_dir).name] = ([Path(p).name for p in logs], kw["ingest_options"].time_offsets)
+        return _fake_manifest()
+
+    monkeypatch.setattr(batch_mod, "run", fake_run)
+    folder = tmp_path / "drive_7"
+    folder.mkdir()
+    for name in ("ros.mcap", "00000001.MF4", "00000002.MF4"):
+        (folder / name).write_bytes(b"")
+    (tmp_path / "b.mcap").write_bytes(b"")
+    r = runner.invoke(app, ["batch", str(folder), str(tmp_path / "b.mcap"), "--scheduler",
+                            thread_cluster.scheduler_address, "-o", str(tmp_path / "out"), "--time-offset",
+                            f"{folder / '00000002.MF4'}=-3.5"])
+    assert r.exit_code == 0, r.output
+    assert seen == {"drive_7": (["drive_7"], {(folder / "00000002.MF4").resolve(): -3.5}), "b": (["b.mcap"], {})}
 
 
 def test_split_grid_positions_bit_identical():

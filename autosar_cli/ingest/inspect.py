@@ -59,7 +59,7 @@ class LogSummary:
 
 def summarize(path: Path) -> LogSummary:
     """Summary of a drive log or of a drive.h5."""
-    from .pipeline import classify_input
+    from .inputs import classify_input
 
     path = Path(path)
     if path.is_file() and path.suffix.lower() in (".h5", ".hdf5"):
@@ -67,6 +67,9 @@ def summarize(path: Path) -> LogSummary:
     if not path.exists():
         raise LogReadError(f"{path}: no such file or directory")
     kind = classify_input(path)
+    if kind == "drive":
+        raise LogReadError(f"{path}: a drive folder, not one log: summarise each input it holds "
+                           "(autosar_cli.ingest.inputs.drive_folder)")
     if kind == "radar":
         return summarize_capture(path)
     if kind == "can":

@@ -27,10 +27,10 @@ from autosar_cli import __version__, msgs
 from autosar_cli.candb import DbcError, load_dbc
 from autosar_cli.config import Config
 from autosar_cli.store.drive import DriveWriter, chirp_on_navigation_clock
-from autosar_cli.store.outputs import input_bytes, input_problem
+from autosar_cli.store.outputs import input_bytes
 
 from . import fastcdr
-from .dca1000 import Dca1000Capture, is_capture
+from .dca1000 import Dca1000Capture
 from .decoders import (
     FIX_COLUMNS,
     IMU_COLUMNS,
@@ -46,6 +46,9 @@ from .decoders import (
     imu_row,
     velocity_row,
 )
+from .inputs import InputError, SortedInputs
+from .inputs import check_input as _check_input
+from .inputs import sort_inputs as _sort_inputs
 from .radar_block import (
     RadarParamsError,
     Recorded,
@@ -61,8 +64,6 @@ from .sources import (
     LogReadError,
     LogSource,
     RawMessage,
-    begins_as_a_container,
-    container_of,
     open_source,
 )
 from .typesys import MessageTypes, SchemaError
@@ -76,7 +77,6 @@ KIND_OF_TYPE = {
     msgs.IMU: "imu",
     msgs.RAW_FRAME: "radar",
 }
-NMEA_SUFFIXES = (".nmea", ".txt", ".gps")
 #: how the error of a drive without radar or navigation ends (a command that focuses says :func:`chain_hint`)
 PARTIAL_HINT = " (use --allow-partial to write the drive anyway)"
 MAX_TIME_GAP_S = 3600.0  #: inputs further apart than this are refused (unless --allow-time-gap)
@@ -127,36 +127,21 @@ class IngestReport:
         return d
 
 
-def classify_input(path: Path) -> str:
-    """"log" (MCAP / bag / rosbag2), "can" (CAN log), "nmea" (NMEA text) or "radar" (DCA1000 capture)."""
-    from .canlog import is_can_log
-
-    if is_capture(path):
-        return "radar"
-    if begins_as_a_container(path):  # an MCAP or a bag saved as .log or .txt
-        return "log"
-    if path.is_file() and is_can_log(path):
-        return "can"
-    if path.suffix.lower() in NMEA_SUFFIXES or path.suffix.lower() == ".log":
-        return "nmea"
-    return "log"
-
-
 def check_input(path: Path, kind: str) -> None:
-    """Refuse, naming it, an input that is not there or not a file to read (a rosbag2 bag and a DCA1000 capture
-    may be directories)."""
-    problem = input_problem(path)
-    if problem is not None:
-        raise IngestError(f"{path}: {problem}")
-    if path.is_dir() and kind in _FILE_KINDS:
-        raise IngestError(f"{path}: a directory, not {_FILE_KINDS[kind]}")
-    if kind in _FILE_KINDS and begins_as_a_container(path):
-        what = {"mcap": "an MCAP log", "ros1": "a ROS 1 bag"}.get(container_of(path), "a log container")
-        raise IngestError(f"{path}: {what}, not {_FILE_KINDS[kind]}: give it as a LOG, without "
-                          f"--{'can-log' if kind == 'can' else 'nmea'}")
+    """:func:`.inputs.check_input`, its refusal an :class:`IngestError`."""
+    try:
+        _check_input(path, kind)
+    except InputError as exc:
+        raise IngestError(str(exc)) from None
 
 
-_FILE_KINDS = {"can": "a CAN log file", "nmea": "an NMEA log file"}
+def sort_inputs(logs: Iterable[Path], can_logs: Iterable[Path] = (), nmea_logs: Iterable[Path] = (),
+                radar_captures: Iterable[Path] = ()) -> SortedInputs:
+    """:func:`.inputs.sort_inputs`, its refusal an :class:`IngestError`."""
+    try:
+        return _sort_inputs(logs, can_logs, nmea_logs, radar_captures)
+    except InputError as exc:
+        raise IngestError(str(exc)) from None
 
 
 def _sanitise(topic: str) -> str:
@@ -694,16 +679,11 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
     wrong). Inputs whose spans lie more than ``max_time_gap_s`` apart are refused unless ``allow_time_gap``.
     ``allow_unverified``: read the MCAP chunks whose CRC fails (each named in a warning) rather than leave them out.
     ``partial_hint``: how the error of a drive without radar or navigation ends. A CAN log, NMEA capture or DCA1000
-    capture among ``logs`` is read as one (:func:`classify_input`).
+    capture among ``logs`` is read as one, a drive folder as the inputs it holds (:func:`.inputs.sort_inputs`).
     """
     t0 = time.perf_counter()
-    by_kind: dict[str, list[Path]] = {"log": [], "can": list(can_logs), "nmea": list(nmea_logs),
-                                      "radar": list(radar_captures)}
-    for p in logs:  # a CAN log, NMEA capture or DCA1000 capture among the logs is read as what it is
-        by_kind[classify_input(Path(p))].append(Path(p))
-    logs, can_logs, nmea_logs, radar_captures = by_kind["log"], by_kind["can"], by_kind["nmea"], by_kind["radar"]
-    inputs = [(Path(p), "log") for p in logs] + [(Path(p), "can") for p in can_logs] + \
-             [(Path(p), "nmea") for p in nmea_logs] + [(Path(p), "radar") for p in radar_captures]
+    given = sort_inputs([] if logs is None else logs, can_logs, nmea_logs, radar_captures)
+    inputs = given.all()  # a CAN log, NMEA capture or DCA1000 capture among the logs is read as what it is
     if not inputs:
         raise IngestError("no input: give at least one log, --can-log or --nmea file")
     offsets = {Path(p): round(float(s) * 1e9) for p, s in (time_offsets or {}).items()}
@@ -711,8 +691,6 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
         if (p, "can") not in inputs and (p, "nmea") not in inputs:
             raise IngestError(f"--time-offset {p}: not one of the CAN or NMEA logs given (a container log's "
                               "header stamps cannot be shifted; use --allow-time-gap)")
-    for path, kind in inputs:
-        check_input(path, kind)
     sources: list[tuple[Path, str, LogSource | None]] = []
     for path, kind in inputs:
         if kind == "log" and path.name == "metadata.yaml":  # a rosbag2 bag: the directory is the input (provenance)
@@ -732,6 +710,7 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | No
     job: _Ingest | None = None
     try:
         job = _Ingest(writer, config, dbc, radar_options)
+        job.warnings += given.warnings  # what a drive folder holds that is no input
         for path, kind, src in sources:
             report_progress = (lambda b, base=done: progress(base + b, total)) if progress else (lambda b: None)
             before = job.tally()

@@ -1,0 +1,119 @@
+"""A drive folder: one directory holding a drive's inputs of several kinds, read as those inputs given one by one.
+
+The drive is the simulated ci drive (seed 7); the CAN and NMEA captures beside it are written here (known counts).
+Before drive folders, such a directory was taken for a rosbag2 bag killed before its metadata.yaml: its MCAP was read
+and every other file left unread without a word.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_ingest_mixed import candump, drive_start_s, eps3, gga, work  # noqa: F401  (fixtures)
+from typer.testing import CliRunner
+
+from autosar_cli.cli import app
+from autosar_cli.config import Config, load_config
+from autosar_cli.ingest.inputs import classify_input, drive_folder, sort_inputs
+from autosar_cli.ingest.pipeline import ingest
+from autosar_cli.sim.simulate import SimulationResult
+from autosar_cli.store.drive import Drive
+
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def cfg() -> Config:
+    return load_config()
+
+
+@pytest.fixture(scope="module")
+def folder(ci_mcap: SimulationResult, work: Path, drive_start_s: float) -> Path:  # noqa: F811
+    """The ci MCAP (hard-linked: an input is never copied where a link does), a candump CAN log of 20 EPS_3 frames,
+    an NMEA capture of 5 fixes, a note, a folder of photos and an earlier run's drive.h5 beside them."""
+    d = work / "drive_2026-12-07"
+    d.mkdir()
+    os.link(ci_mcap.log_path, d / "ros.mcap")
+    candump(d / "can.log", [eps3(drive_start_s + 0.2 + 0.01 * i) for i in range(20)])
+    (d / "gnss.nmea").write_text("\n".join(gga(drive_start_s + 0.5 + k) for k in range(5)) + "\n")
+    (d / "README.txt").write_text("drive of 7 December, test track\n")
+    (d / "photos").mkdir()
+    (d / "photos" / "mount.jpg").write_bytes(b"\xff\xd8\xff")
+    return d
+
+
+def test_a_drive_folder_reads_as_its_inputs_given_one_by_one(folder: Path, work: Path, cfg: Config) -> None:  # noqa: F811
+    found = drive_folder(folder)
+    assert found is not None and classify_input(folder) == "drive"
+    assert found.inputs == {"log": [folder / "ros.mcap"], "can": [folder / "can.log"],
+                            "nmea": [folder / "gnss.nmea"], "radar": []}
+    assert found.left_out == [folder / "README.txt", folder / "photos"]
+    by_folder = ingest([folder], work / "by_folder.h5", config=cfg)
+    by_file = ingest([folder / "ros.mcap"], work / "by_file.h5", config=cfg, can_logs=[folder / "can.log"],
+                     nmea_logs=[folder / "gnss.nmea"])
+    assert [w for w in by_folder.warnings if w not in by_file.warnings] == [
+        f"{folder}: not read, none of them a log, CAN log, NMEA capture or DCA1000 capture: README.txt, photos/"]
+    assert [(i["path"], i["kind"]) for i in by_folder.inputs] == [
+        (str(folder / "ros.mcap"), "log"), (str(folder / "can.log"), "can"), (str(folder / "gnss.nmea"), "nmea")]
+    with Drive(work / "by_folder.h5") as a, Drive(work / "by_file.h5") as b:
+        assert len(a.h5["can/EPS_3/t_ns"]) == 20 and len(a.h5["gnss/gnss/nmea_fix/t_ns"]) == 5
+        for name in ("can/EPS_3/t_ns", "gnss/gnss/nmea_fix/t_ns", "imu/imu_cog_a/t_ns"):
+            assert np.array_equal(a.h5[name][()], b.h5[name][()]), name
+        assert np.array_equal(a.radar().raw[:], b.radar().raw[:])
+
+
+def test_a_folder_of_a_bags_storage_files_alone_is_still_that_bag(ci_mcap: SimulationResult, work: Path) -> None:  # noqa: F811
+    """ros2 bag record writes metadata.yaml last: a folder of its storage files alone is a bag, a stray note in it
+    changes nothing; a bag with its metadata.yaml is a bag whatever lies beside its files."""
+    bag = work / "killed_bag"
+    bag.mkdir()
+    os.link(ci_mcap.log_path, bag / "killed_bag_0.mcap")
+    (bag / "notes.txt").write_text("not a GNSS capture\n")
+    assert drive_folder(bag) is None and classify_input(bag) == "log"
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    (bag / "extra.log").write_text("(1700000000.000000) can0 122#00000011\n")
+    assert drive_folder(bag) is None and classify_input(bag) == "log"
+
+
+def test_a_captures_files_beside_its_navigation_log_are_read_as_that_capture(tmp_path: Path) -> None:
+    """A DCA1000 capture's files (data and parameter file) lying in the folder beside the MCAP: the folder was
+    taken for the capture alone and its MCAP, the capture's navigation and clock, went unread."""
+    r = runner.invoke(app, ["simulate", "-s", "ci", "--seed", "7", "-f", "dca1000", "--dynamics", "kinematic",
+                            "-o", str(tmp_path / "sim" / "ci.mcap"), "--json"])
+    assert r.exit_code == 0, r.output
+    capture = Path(json.loads(r.stdout)["radar_capture"])
+    flat = tmp_path / "flat"
+    flat.mkdir()
+    os.link(tmp_path / "sim" / "ci.mcap", flat / "ci.mcap")
+    for f in capture.iterdir():
+        os.link(f, flat / f.name)
+    (flat / "adc_data_Raw_LogFile.csv").write_text("a DCA1000's own record of the capture\n")
+    given = sort_inputs([flat])
+    assert given.by_kind == {"log": [flat / "ci.mcap"], "can": [], "nmea": [], "radar": [flat]}
+    assert given.warnings == []  # the DCA1000's record of its capture is the capture's, not a stray file
+    r = runner.invoke(app, ["ingest", str(flat), "-o", str(tmp_path / "flat.h5"), "--json"])
+    assert r.exit_code == 0, r.output
+    r = runner.invoke(app, ["ingest", str(tmp_path / "sim" / "ci.mcap"), "--radar", str(capture), "-o",
+                            str(tmp_path / "apart.h5"), "--json"])
+    assert r.exit_code == 0, r.output
+    with Drive(tmp_path / "flat.h5") as a, Drive(tmp_path / "apart.h5") as b:
+        assert a.radar().raw.shape == b.radar().raw.shape
+        assert np.array_equal(a.radar().t_ns, b.radar().t_ns)
+
+
+def test_run_and_batch_take_a_drive_folder_and_mark_what_it_left_alone(folder: Path, work: Path) -> None:  # noqa: F811
+    from autosar_cli.batch import drive_names
+
+    out = work / "run_of_folder"
+    r = runner.invoke(app, ["run", str(folder), "-o", str(out), "--json"])
+    assert r.exit_code == 0, r.output
+    manifest = json.loads((out / "run.json").read_text())
+    assert manifest["status"] == "degraded"
+    assert any("README.txt, photos/" in w for w in manifest["warnings"]), manifest["warnings"]
+    assert drive_names([folder, folder.parent / "other" / "ros.mcap"]) == ["drive_2026-12-07", "ros"]
+    shutil.rmtree(out)
