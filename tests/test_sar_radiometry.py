@@ -30,7 +30,7 @@ from autosar_cli.sim.scene import Scene
 from autosar_cli.sim.simulate import simulate
 from autosar_cli.store.trajectory import read_trajectory, write_trajectory
 
-# (Tx, Rx) pairs the images should hold: 8 = Tx0 and Tx2 with the four Rx (the lambda/2 virtual array), 12 = all
+# (Tx, Rx) pairs the images should hold: 8 = Tx0 and Tx2 with the four Rx (phase centres lambda/4 apart), 12 = all
 PAIRS = {8: [(t, r) for t in (0, 2) for r in range(4)], 12: [(t, r) for t in range(3) for r in range(4)]}
 
 

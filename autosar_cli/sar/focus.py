@@ -60,7 +60,7 @@ class FocusError(ValueError):
 class FocusOptions:
     pixel_m: float = 0.04  #: pixel spacing (m)
     resolution_m: float = 0.04  #: target cross-range resolution rho (m): processed beam half-width lambda/(4 rho)
-    channels: int = 8  #: 8: Tx0 + Tx2 with the 4 Rx (the lambda/2 virtual array); 12: all Tx
+    channels: int = 8  #: 8: Tx0 + Tx2 with the 4 Rx (phase centres lambda/4 apart); 12: all Tx
     height_m: float = 0.5  #: focusing plane height (ENU z, m)
     grid: str = "auto"  #: "auto" (along the track, radar side) or "x0,y0,x1,y1" (ENU m)
     window: str = "hann"  #: range taper
@@ -123,7 +123,7 @@ class FocusReport:
 
 
 def channel_pairs(n_tx: int, n_rx: int, channels: int) -> list[tuple[int, int]]:
-    """(Tx, Rx) pairs processed: 8 = Tx0 and Tx2 with every Rx (the 8-element lambda/2 virtual array), 12 = all;
+    """(Tx, Rx) pairs processed: 8 = Tx0 and Tx2 with every Rx (8 phase centres lambda/4 apart in one row), 12 = all;
     2 = Tx0-Rx0 and Tx2-Rx(last), the virtual array's ends (autofocus's coarse first image and phase histories:
     a narrow processed beam, or one point's history, needs no more than one channel's along-track sampling); 1 =
     Tx0-Rx0."""
