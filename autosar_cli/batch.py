@@ -114,8 +114,9 @@ def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, m
               options: FocusOptions | None = None, truth_path: str | None = None, autofocus: bool = False,
               overwrite: bool = False, ingest_options: IngestOptions | None = None,
               numba_threads: int | None = None, progress_topic: str | None = None,
-              command: str = "") -> dict[str, Any]:
+              command: str = "", can_logs: Sequence[str] = (), nmea_logs: Sequence[str] = ()) -> dict[str, Any]:
     """The Dask task of one drive: :func:`autosar_cli.run.run` into ``out_dir``; returns its status record.
+    ``can_logs``, ``nmea_logs``: read as such, as ``run`` reads them.
 
     Input errors (:data:`INPUT_ERRORS`) give a ``failed`` record; any other exception propagates so that
     Dask retries the task.
@@ -126,13 +127,14 @@ def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, m
         numba.set_num_threads(max(1, min(int(numba_threads), numba.config.NUMBA_NUM_THREADS)))
     report = _reporter(progress_topic, name)
     report("start", 0, 1)
-    record: dict[str, Any] = {"name": name, "logs": [str(p) for p in logs], "output": str(out_dir),
+    record: dict[str, Any] = {"name": name, "logs": [str(p) for p in [*logs, *can_logs, *nmea_logs]],
+                              "output": str(out_dir),
                               "worker": _worker_address()}
     t0 = time.perf_counter()
     try:
         manifest = run(logs, out_dir, config, method=method, options=options, truth_path=truth_path,
                        autofocus=autofocus, overwrite=overwrite, progress=report, command=command,
-                       ingest_options=ingest_options)
+                       ingest_options=ingest_options, can_logs=can_logs, nmea_logs=nmea_logs)
     except INPUT_ERRORS as exc:
         record.update(status="failed", error=_message(exc), error_type=type(exc).__name__,
                       wall_s=time.perf_counter() - t0)
@@ -214,20 +216,23 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
         raise BatchError(f"--workers {workers}: must be at least 1")
     if scheduler and workers:
         raise BatchError("give either --scheduler (an existing cluster) or --workers (a local one), not both")
-    companions: list[list[str]] = [[] for _ in logs]  #: each drive's inputs beside its log, as the workers find them
-    for option, what, given in (("--radar", "capture", radars), ("--can-log", "CAN log", can_logs),
-                                ("--nmea", "NMEA capture", nmea_logs)):
+    #: each drive's inputs beside its log by kind (radar, can, nmea), as the workers find them
+    companions: list[dict[str, list[str]]] = [{"radar": [], "can": [], "nmea": []} for _ in logs]
+    for kind, option, what, given in (("radar", "--radar", "capture", radars),
+                                      ("can", "--can-log", "CAN log", can_logs),
+                                      ("nmea", "--nmea", "NMEA capture", nmea_logs)):
         if given and len(given) != len(logs):
             raise BatchError(f"{option} given {len(given)} times for {len(logs)} logs; give one {what} per log")
         for inputs, path in zip(companions, given or (), strict=False):
-            inputs.append(str(Path(path).resolve()))
+            inputs[kind].append(str(Path(path).resolve()))
     ingest_options = ingest_options or IngestOptions()
     if ingest_options.dbc is not None:  # every drive's: refused once, not per drive
         if (problem := input_problem(Path(ingest_options.dbc))) is not None:
             raise BatchError(f"{ingest_options.dbc}: {problem}")
         ingest_options = replace(ingest_options, dbc=Path(ingest_options.dbc).resolve())  # as the workers find it
     offsets = {str(Path(p).resolve()): s for p, s in ingest_options.time_offsets.items()}
-    shiftable = [{*inputs, *_folder_logs(Path(log))} for log, inputs in zip(logs, companions, strict=True)]
+    shiftable = [{*inputs["can"], *inputs["nmea"], *_folder_logs(Path(log))}
+                 for log, inputs in zip(logs, companions, strict=True)]
     if unknown := sorted(offsets.keys() - set().union(*shiftable)):
         raise BatchError(f"--time-offset {unknown[0]}: not one of the drives' --can-log or --nmea logs, nor a CAN "
                          "or NMEA log of a drive folder")
@@ -293,10 +298,11 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
         futures = {}
         for name, log, inputs, own in zip(names, paths, companions, shiftable, strict=True):
             drive_options = replace(ingest_options, time_offsets={Path(p): offsets[p] for p in own if p in offsets})
-            fut = client.submit(run_drive, name, [log, *inputs], str(out / name), config, method=method,
+            fut = client.submit(run_drive, name, [log, *inputs["radar"]], str(out / name), config, method=method,
                                 options=options, autofocus=autofocus, overwrite=overwrite,
                                 ingest_options=drive_options, numba_threads=numba_threads,
-                                progress_topic=topic, command=command, retries=retries, pure=False,
+                                progress_topic=topic, command=command, can_logs=inputs["can"],
+                                nmea_logs=inputs["nmea"], retries=retries, pure=False,
                                 key=f"autosar-run-{name}-{topic[-12:]}")
             futures[fut] = (name, log)
         records: dict[str, dict[str, Any]] = {}

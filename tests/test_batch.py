@@ -158,9 +158,12 @@ def test_batch_reads_each_drives_can_and_nmea_logs_with_it(thread_cluster, tmp_p
     seen = {}
 
     def fake_run(logs, out_dir, config, **kw):
-        seen[Path(out_dir).name] = ([Path(p).name for p in logs], kw["ingest_options"].time_offsets)
+        seen[Path(out_dir).name] = ([Path(p).name for p in [*logs, *kw["can_logs"], *kw["nmea_logs"]]],
+                                    kw["ingest_options"].time_offsets)
+        kinds[Path(out_dir).name] = [[Path(p).name for p in kw[k]] for k in ("can_logs", "nmea_logs")]
         return _fake_manifest()
 
+    kinds = {}
     monkeypatch.setattr(batch_mod, "run", fake_run)
     for name in ("a.mcap", "b.mcap", "a.asc", "b.asc", "a.nmea", "b.nmea"):
         (tmp_path / name).write_bytes(b"")
@@ -171,6 +174,8 @@ def test_batch_reads_each_drives_can_and_nmea_logs_with_it(thread_cluster, tmp_p
     assert r.exit_code == 0, r.output
     assert seen == {"a": (["a.mcap", "a.asc", "a.nmea"], {}),
                     "b": (["b.mcap", "b.asc", "b.nmea"], {(tmp_path / "b.asc").resolve(): 7200.0})}
+    # read as what they are given as (a log given as --can-log is refused, as by `run --can-log`)
+    assert kinds == {"a": [["a.asc"], ["a.nmea"]], "b": [["b.asc"], ["b.nmea"]]}
     for extra, message in ((["--can-log", str(tmp_path / "a.asc")], "--can-log given 3 times for 2 logs; give one "
                             "CAN log per log"),
                            (["--time-offset", f"{tmp_path / 'c.asc'}=1"], f"--time-offset {tmp_path / 'c.asc'}: not "
