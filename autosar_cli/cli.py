@@ -69,7 +69,8 @@ out = Console()
 _state: dict[str, Any] = {"debug": False, "undo_on_failure": []}
 
 ConfigOpt = Annotated[
-    Path | None, typer.Option("--config", "-c", help="TOML config (default: configs/giulia_scanbrick.toml).")
+    Path | None, typer.Option("--config", "-c", metavar="FILE",
+                              help="TOML config (default: configs/giulia_scanbrick.toml).")
 ]
 OverwriteOpt = Annotated[bool, typer.Option("--overwrite", help="Replace existing outputs.")]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print a machine-readable JSON summary on stdout.")]
@@ -86,7 +87,7 @@ RadarStreamOpt = Annotated[str | None, typer.Option("--radar-stream", metavar="N
                                                    "mounting is the config's \\[radar].")]
 RadarCaptureOpt = Annotated[Path | None, typer.Option("--radar", metavar="CAPTURE", help="TI DCA1000 capture of "
                                                      "the drive (see `autosar ingest`).")]
-DbcOpt = Annotated[Path | None, typer.Option("--dbc", help="CAN database (default: the config's).")]
+DbcOpt = Annotated[Path | None, typer.Option("--dbc", metavar="FILE", help="CAN database (default: the config's).")]
 CanLogOpt = Annotated[list[Path] | None, typer.Option(
     "--can-log", metavar="FILE", help="Standalone CAN log (repeatable).")]
 NmeaOpt = Annotated[list[Path] | None, typer.Option(
@@ -99,7 +100,7 @@ TimeOffsetOpt = Annotated[list[str] | None, typer.Option(
 AllowTimeGapOpt = Annotated[bool, typer.Option(
     "--allow-time-gap", help="Ingest inputs that lie more than --max-time-gap apart as recorded.")]
 MaxTimeGapOpt = Annotated[float, typer.Option(
-    "--max-time-gap", min=0.0, help="Seconds inputs may lie apart before they are refused.")]
+    "--max-time-gap", min=0.0, metavar="SECONDS", help="Seconds inputs may lie apart before they are refused.")]
 AutofocusOpt = Annotated[bool, typer.Option("--autofocus", help="Before focusing, correct the track by the motion "
                                             "the radar itself measures: the phase histories of a first image's "
                                             "bright isolated points (residual motion across track and up, and the "
@@ -276,12 +277,13 @@ def _progress(label: str, enabled: bool = True, in_bytes: bool = False) -> Itera
 
 @app.command(cls=_Command)
 def simulate(
-    output: Annotated[Path, typer.Option("--output", "-o", help="Log to write (.mcap, .bag, or a rosbag2 directory).")],
+    output: Annotated[Path, typer.Option("--output", "-o", metavar="LOG",
+                                         help="Log to write (.mcap, .bag, or a rosbag2 directory).")],
     scenario: Annotated[Scenario, typer.Option("--scenario", "-s", help="Drive to simulate.")] = Scenario.ci,
     fmt: Annotated[LogFormat, typer.Option("--format", "-f", help="Log container; dca1000: an MCAP of the "
                                            "navigation plus the radar as a TI DCA1000 capture in <log>.dca1000/ "
                                            "(ingest with --radar).")] = LogFormat.mcap,
-    seed: Annotated[int, typer.Option("--seed", min=0, help="Random seed: same seed, same bytes.")] = 0,
+    seed: Annotated[int, typer.Option("--seed", min=0, metavar="N", help="Random seed: same seed, same bytes.")] = 0,
     dynamics: Annotated[Dynamics | None, typer.Option(
         "--dynamics", help="Vehicle model: kinematic bicycle or full 3-D dynamics (default: the config's).")] = None,
     config: ConfigOpt = None,
@@ -328,7 +330,8 @@ def ingest(
         metavar="LOG",
         help=f"Drive logs: .mcap, .bag, rosbag2 directories; CAN logs ({' '.join(CAN_LOG_SUFFIXES)}) and NMEA text "
              "captures are recognised too.")] = None,
-    output: Annotated[Path, typer.Option("--output", "-o", help="drive.h5 to write.")] = Path("drive.h5"),
+    output: Annotated[Path, typer.Option("--output", "-o", metavar="FILE",
+                                         help="drive.h5 to write.")] = Path("drive.h5"),
     config: ConfigOpt = None,
     dbc: DbcOpt = None,
     can_log: CanLogOpt = None,
@@ -406,13 +409,14 @@ def ingest(
 @app.command(cls=_Command)
 def navigate(
     drive: Annotated[Path, typer.Argument(metavar="DRIVE", help="drive.h5 written by `autosar ingest`.")],
-    output: Annotated[Path, typer.Option("--output", "-o", help="trajectory.h5 to write.")] = Path("trajectory.h5"),
+    output: Annotated[Path, typer.Option("--output", "-o", metavar="FILE",
+                                         help="trajectory.h5 to write.")] = Path("trajectory.h5"),
     method: Annotated[NavMethod, typer.Option("--method", "-m", help="sar-min (UKF fusion, paper Sec. II-B), ins "
                                               "(radar IMU + its GNSS, Sec. II-A), gnss (GNSS only), none (straight "
                                               "line), truth (simulator sidecar).")]
     = NavMethod.sar_min,
     no_smooth: Annotated[bool, typer.Option("--no-smooth", help="Filter only (no RTS smoother).")] = False,
-    truth: Annotated[Path | None, typer.Option("--truth", help="Truth sidecar for --method truth "
+    truth: Annotated[Path | None, typer.Option("--truth", metavar="FILE", help="Truth sidecar for --method truth "
                                                "(default: <log>.truth.h5 of the drive's input log).")] = None,
     plot: Annotated[bool, typer.Option("--plot", help="Also write OUTPUT.png: track, across-track deviation, "
                                        "speed, heading, yaw rate, gyro biases.")] = False,
@@ -534,23 +538,28 @@ def focus(
     drive: Annotated[Path, typer.Argument(metavar="DRIVE", help="drive.h5 written by `autosar ingest`.")],
     trajectory: Annotated[Path, typer.Option("--trajectory", "-t", help="trajectory.h5 written by "
                                              "`autosar navigate`.")],
-    output: Annotated[Path, typer.Option("--output", "-o", help="Output base name: writes OUT.tif (GeoTIFF, dB, "
-                                         "UTM), OUT.h5 (complex image) and OUT.png (quicklook).")] = Path("image"),
-    pixel: Annotated[float | None, typer.Option("--pixel", help="Pixel spacing in metres (config default 0.04).")]
+    output: Annotated[Path, typer.Option("--output", "-o", metavar="BASE",
+                                         help="Output base name: writes BASE.tif (GeoTIFF, dB, "
+                                         "UTM), BASE.h5 (complex image) and BASE.png (quicklook).")] = Path("image"),
+    pixel: Annotated[float | None, typer.Option("--pixel", metavar="METRES",
+                                                help="Pixel spacing in metres (config default 0.04).")]
     = None,
-    resolution: Annotated[float | None, typer.Option("--resolution", help="Cross-range resolution rho in metres: the "
+    resolution: Annotated[float | None, typer.Option("--resolution", metavar="METRES",
+                                                     help="Cross-range resolution rho in metres: the "
                                                      "processed beam is lambda/(4 rho) wide (config default 0.04).")]
     = None,
     channels: Annotated[Channels | None, typer.Option("--channels", help="8: Tx0 + Tx2 with the 4 Rx, whose "
                                                       "channels' phase centres (Tx-Rx midpoints) lie lambda/4 apart "
                                                       "in one row; 12: all Tx-Rx pairs (config default 8).")] = None,
-    height: Annotated[float | None, typer.Option("--height", help="Focusing plane height, ENU metres above the "
+    height: Annotated[float | None, typer.Option("--height", metavar="METRES",
+                                                 help="Focusing plane height, ENU metres above the "
                                                  "road at the origin (config default 0.5).")] = None,
     grid: Annotated[str, typer.Option("--grid", metavar="auto|X0,Y0,X1,Y1", help="'auto' (along the trajectory on the "
                                       "radar side, ground range 0.5 m to R_max) or x0,y0,x1,y1 in ENU "
                                       "metres.")] = "auto",
     radar_stream: RadarStreamOpt = None,
-    tiles: Annotated[int, typer.Option("--tiles", min=1, help="Focus the grid in N tiles along the track, one "
+    tiles: Annotated[int, typer.Option("--tiles", min=1, metavar="N",
+                                       help="Focus the grid in N tiles along the track, one "
                                        "after the other (same image; each holds only its tile in memory, but "
                                        "re-reads the pulses).")] = 1,
     config: ConfigOpt = None,
@@ -598,11 +607,13 @@ def run(
     logs: Annotated[list[Path], typer.Argument(
         metavar="LOG", help="Drive log(s): .mcap, .bag, rosbag2 directory (and CAN/NMEA log files), as for "
                             "`autosar ingest`.")],
-    output: Annotated[Path, typer.Option("--output", "-o", help="Run directory: drive.h5, trajectory.h5, "
+    output: Annotated[Path, typer.Option("--output", "-o", metavar="DIR",
+                                         help="Run directory: drive.h5, trajectory.h5, "
                                          "image.tif/.h5/.png and run.json.")],
     method: Annotated[NavMethod, typer.Option("--method", "-m", help="Navigation method (see `autosar navigate`).")]
     = NavMethod.sar_min,
-    truth: Annotated[Path | None, typer.Option("--truth", help="Truth sidecar for --method truth.")] = None,
+    truth: Annotated[Path | None, typer.Option("--truth", metavar="FILE",
+                                               help="Truth sidecar for --method truth.")] = None,
     radar: RadarCaptureOpt = None,
     radar_start: RadarStartOpt = None,
     radar_sync: RadarSyncOpt = "/dca1000/sync",
@@ -693,11 +704,14 @@ def _cm(value: float | None, scale: float = 100.0, digits: int = 1) -> str:
 def evaluate(
     source: Annotated[Path, typer.Argument(metavar="RUN", help="A run directory (run.json; from `autosar run` or a "
                                            "method directory of `autosar compare`) or an image.h5.")],
-    output: Annotated[Path, typer.Option("--output", "-o", help="Report directory: metrics.json, report.md, "
+    output: Annotated[Path, typer.Option("--output", "-o", metavar="DIR",
+                                         help="Report directory: metrics.json, report.md, "
                                          "trajectory_error.png, reflector_chips.png.")],
-    truth: Annotated[Path | None, typer.Option("--truth", help="Truth sidecar LOG.truth.h5 (default: the run's, or "
+    truth: Annotated[Path | None, typer.Option("--truth", metavar="FILE",
+                                               help="Truth sidecar LOG.truth.h5 (default: the run's, or "
                                                "<log>.truth.h5 next to the drive's input log).")] = None,
-    config: Annotated[Path | None, typer.Option("--config", "-c", help="TOML config (default: the one the run "
+    config: Annotated[Path | None, typer.Option("--config", "-c", metavar="FILE",
+                                                help="TOML config (default: the one the run "
                                                 "used).")] = None,
     overwrite: OverwriteOpt = False,
     as_json: JsonOpt = False,
@@ -745,7 +759,8 @@ def evaluate(
 @app.command(cls=_Command)
 def compare(
     logs: Annotated[list[Path], typer.Argument(metavar="LOG", help="Drive log(s), as for `autosar run`.")],
-    output: Annotated[Path, typer.Option("--output", "-o", help="Comparison directory: drive.h5, one directory "
+    output: Annotated[Path, typer.Option("--output", "-o", metavar="DIR",
+                                         help="Comparison directory: drive.h5, one directory "
                                          "per method, compare.png, across_track.png, compare.md, compare.json.")],
     methods: Annotated[str, typer.Option("--methods", metavar="M1,M2,...", help="Comma-separated navigation methods "
                                          "(sar-min, ins, gnss, none, truth; sar-min+scale: SAR-MIN with its track's "
@@ -753,7 +768,8 @@ def compare(
                                          "focusings; "
                                          "sar-min+af: SAR-MIN corrected by the residual-motion autofocus, as "
                                          "`autosar run --autofocus`, no truth needed).")] = "none,ins,sar-min,truth",
-    truth: Annotated[Path | None, typer.Option("--truth", help="Truth sidecar (default: <log>.truth.h5).")] = None,
+    truth: Annotated[Path | None, typer.Option("--truth", metavar="FILE",
+                                               help="Truth sidecar (default: <log>.truth.h5).")] = None,
     radar: RadarCaptureOpt = None,
     radar_start: RadarStartOpt = None,
     radar_sync: RadarSyncOpt = "/dca1000/sync",
@@ -1027,15 +1043,19 @@ def _batch_progress(n_drives: int, enabled: bool = True) -> Iterator[Callable[[d
 def batch(
     logs: Annotated[list[Path], typer.Argument(
         metavar="LOG", help="Drive logs, one drive each (.mcap, .bag, rosbag2 directory).")],
-    output: Annotated[Path, typer.Option("--output", "-o", help="Batch directory: one run directory per drive "
+    output: Annotated[Path, typer.Option("--output", "-o", metavar="DIR",
+                                         help="Batch directory: one run directory per drive "
                                          "(named after its log, as `autosar run` writes it) and batch.json.")],
     scheduler: Annotated[str | None, typer.Option("--scheduler", metavar="ADDRESS", help="Address of a running Dask "
                                                   "scheduler (tcp://host:8786); default: a local cluster.")] = None,
-    workers: Annotated[int | None, typer.Option("--workers", "-w", min=1, help="Worker processes of the local "
+    workers: Annotated[int | None, typer.Option("--workers", "-w", min=1, metavar="N",
+                                                help="Worker processes of the local "
                                                 "cluster (default: one per core, at most one per drive).")] = None,
-    retries: Annotated[int, typer.Option("--retries", min=0, help="Retries of a drive after an unexpected error "
+    retries: Annotated[int, typer.Option("--retries", min=0, metavar="N",
+                                         help="Retries of a drive after an unexpected error "
                                          "(worker died, I/O error); a bad log fails at once.")] = 2,
-    numba_threads: Annotated[int | None, typer.Option("--numba-threads", min=1, help="Numba threads per drive "
+    numba_threads: Annotated[int | None, typer.Option("--numba-threads", min=1, metavar="N",
+                                                      help="Numba threads per drive "
                                                       "(default: cores // workers on a local cluster, the "
                                                       "workers' own setting on an existing one).")] = None,
     method: Annotated[NavMethod, typer.Option("--method", "-m", help="Navigation method (see `autosar navigate`).")]

@@ -24,7 +24,7 @@ def test_help(command):
 
 
 def test_every_commands_flags_read_as_they_are_given_not_as_taking_a_value():
-    # typer puts a flag beside "<bool>", which reads as if --overwrite took a value; values keep their types
+    # typer puts a flag beside "<bool>", which reads as if --overwrite took a value; values show what they take
     from typer.main import get_command
 
     for name in ["", *get_command(app).commands]:
@@ -33,7 +33,7 @@ def test_every_commands_flags_read_as_they_are_given_not_as_taking_a_value():
         assert "<bool>" not in r.output, name
     r = runner.invoke(app, ["run", "--help"], env={"COLUMNS": "200"}, terminal_width=200)
     rows = {ln.split()[1]: ln.split()[2] for ln in r.output.splitlines() if ln.startswith("│    --")}
-    assert rows["--overwrite"] == "Replace" and rows["--max-time-gap"] == "<float"
+    assert rows["--overwrite"] == "Replace" and rows["--max-time-gap"] == "SECONDS"
 
 
 def test_the_command_list_wraps_each_summary_at_the_terminal_not_the_docstring():
