@@ -106,6 +106,7 @@ BLF_HEADER = "tests/test_ingest_canlog.py::test_a_blf_whose_file_header_is_damag
 UNUSED_INPUT = "tests/test_ingest_mixed.py::test_an_input_nothing_of_which_reaches_the_drive_is_named_with_why"
 RUN_CAN_LOG = "tests/test_ingest_mixed.py::test_run_reads_can_logs_beside_the_drive_log_with_ingests_options"
 DRIVE_FOLDER = "tests/test_ingest_drive_folder.py::test_a_drive_folder_reads_as_its_inputs_given_one_by_one"
+DRIVE_FOLDER_NESTED = "tests/test_ingest_drive_folder.py::test_a_folder_inside_a_drive_folder_gives_its_inputs"
 BATCH_FOLDER = "tests/test_batch.py::test_batch_takes_drive_folders_and_the_time_offsets_of_their_logs"
 BATCH_INGEST = "tests/test_batch.py::test_batch_reads_every_drive_with_its_ingest_options"
 COMPARE_INGEST = "tests/test_ingest_mixed.py::test_compare_reads_can_logs_and_the_ingest_options_as_run_does"
@@ -601,6 +602,8 @@ MUTATIONS: list[Mutation] = [
        "        kind = classify_input(p)\n", "        kind = \"log\"\n", RUN_CAN_LOG),
     _m("drive-folder-read-as-a-bag", "ingest", "ingest/inputs.py",
        "    if path.is_dir() and drive_folder(path) is not None:", "    if False:", DRIVE_FOLDER),
+    _m("drive-folder-inner-folders-unread", "ingest", "ingest/inputs.py",
+       "elif depth < MAX_DEPTH and (inner :=", "elif False and (inner :=", DRIVE_FOLDER_NESTED),
     _m("drive-folder-left-out-unsaid", "ingest", "ingest/inputs.py",
        "            sorted_.warnings.append(said)", "            pass", DRIVE_FOLDER),
     _m("batch-drive-folder-time-offset-refused", "inputs", "batch.py",

@@ -67,6 +67,25 @@ def test_a_drive_folder_reads_as_its_inputs_given_one_by_one(folder: Path, work:
         assert np.array_equal(a.radar().raw[:], b.radar().raw[:])
 
 
+def test_a_folder_inside_a_drive_folder_gives_its_inputs(ci_mcap: SimulationResult, work: Path, cfg: Config,  # noqa: F811
+                                                        drive_start_s: float) -> None:  # noqa: F811
+    """A CAN logger's files in a folder of their own (split in two), a folder of notes beside them."""
+    d = work / "nested_drive"
+    (d / "can" / "2F6913DB").mkdir(parents=True)
+    (d / "misc").mkdir()
+    os.link(ci_mcap.log_path, d / "ros.mcap")
+    frames = [eps3(drive_start_s + 0.2 + 0.01 * i) for i in range(20)]
+    candump(d / "can" / "2F6913DB" / "00000001.log", frames[:10])
+    candump(d / "can" / "2F6913DB" / "00000002.log", frames[10:])
+    (d / "misc" / "notes.txt").write_text("tyres changed\n")
+    found = drive_folder(d)
+    assert found is not None and found.inputs["can"] == [d / "can" / "2F6913DB" / f"0000000{k}.log" for k in (1, 2)]
+    assert found.left_out == [d / "misc"] and found.warning() is not None and found.warning().endswith(": misc/")
+    ingest([d], work / "nested.h5", config=cfg)
+    with Drive(work / "nested.h5") as drive:
+        assert len(drive.h5["can/EPS_3/t_ns"]) == 20
+
+
 def test_a_folder_of_a_bags_storage_files_alone_is_still_that_bag(ci_mcap: SimulationResult, work: Path) -> None:  # noqa: F811
     """ros2 bag record writes metadata.yaml last: a folder of its storage files alone is a bag, a stray note in it
     changes nothing; a bag with its metadata.yaml is a bag whatever lies beside its files."""

@@ -3,7 +3,8 @@ or a drive folder, and the inputs sorted by kind.
 
 A drive folder is a directory that holds one drive's inputs of several kinds (a ROS log beside the CAN logger's
 files, an NMEA capture, a DCA1000 capture's files): each is read as if it were given on its own, a capture's files
-lying in the folder itself being the folder read as that capture. A directory stays what it was (a rosbag2 bag, its
+lying in the folder itself being the folder read as that capture, and a folder inside it that holds inputs (the CAN
+logger's ``can/``) giving those. A directory stays what it was (a rosbag2 bag, its
 ``metadata.yaml`` or its storage files alone; a DCA1000 capture alone) unless it holds a CAN log or an NMEA capture,
 or a capture's files beside a log: read as a bag, its other files went unread without a word. What a drive folder
 holds that is none of those (a note, a photo, a folder of its own) is named in a warning and left alone; autosar's
@@ -28,6 +29,7 @@ LOG_SUFFIXES = (".mcap", ".bag", ".db3")  #: a log container's files (a rosbag2 
 #: a DCA1000 capture's files: its data and the parameter files that state how it was recorded
 CAPTURE_SUFFIXES = (".bin", ".mmwave.json", ".setup.json", ".cfg", ".lua")
 _NMEA_SNIFF_BYTES = 65536
+MAX_DEPTH = 4  #: folders inside a drive folder read for inputs (a CAN logger's LOG/<device>/<session>/)
 _FILE_KINDS = {"can": "a CAN log file", "nmea": "an NMEA log file"}
 
 
@@ -79,13 +81,14 @@ class DriveFolder:
         """One line naming what the folder holds that no input is, or None."""
         if not self.left_out:
             return None
-        names = ", ".join(p.name + ("/" if p.is_dir() else "") for p in self.left_out)
+        names = ", ".join(str(p.relative_to(self.path)) + ("/" if p.is_dir() else "") for p in self.left_out)
         return (f"{self.path}: not read, none of them a log, CAN log, NMEA capture or DCA1000 capture: {names}")
 
 
-def drive_folder(path: Path) -> DriveFolder | None:
+def drive_folder(path: Path, depth: int = 0) -> DriveFolder | None:
     """The drive folder ``path`` is (module docstring), or None where it is a bag, a capture alone, a plain
-    directory of storage files, or no directory."""
+    directory of storage files, or no directory. A folder inside it that holds inputs (a logger's ``can/``, down to
+    :data:`MAX_DEPTH` folders deep) gives them too."""
     if not path.is_dir() or (path / "metadata.yaml").exists():
         return None
     from .canlog import is_can_log
@@ -103,6 +106,10 @@ def drive_folder(path: Path) -> DriveFolder | None:
                 found["radar"].append(entry)
             elif is_log_directory(entry):
                 found["log"].append(entry)
+            elif depth < MAX_DEPTH and (inner := drive_folder(entry, depth + 1)) is not None:
+                for kind in KINDS:
+                    found[kind] += inner.inputs[kind]
+                left_out += inner.left_out
             elif not is_autosar_product(entry):
                 left_out.append(entry)
         elif name.endswith(CAPTURE_SUFFIXES) or "_logfile." in name:
