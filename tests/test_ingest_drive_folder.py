@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import realdata
 from test_ingest_mixed import candump, drive_start_s, eps3, gga, work  # noqa: F401  (fixtures)
 from typer.testing import CliRunner
 
@@ -136,3 +137,26 @@ def test_run_and_batch_take_a_drive_folder_and_mark_what_it_left_alone(folder: P
     assert any("README.txt, photos/" in w for w in manifest["warnings"]), manifest["warnings"]
     assert drive_names([folder, folder.parent / "other" / "ros.mcap"]) == ["drive_2026-12-07", "ros"]
     shutil.rmtree(out)
+
+
+def test_real_folders_sort_as_what_their_files_hold(tmp_path: Path, cfg: Config) -> None:
+    """Two real third-party folders: a CANedge's three MF4 files beside their DBC and licence; gpsd's u-blox NMEA
+    capture (opening with # comment lines) beside its expected decode and licence."""
+    css = realdata("css-electronics", "gnss.dbc").parent
+    found = drive_folder(css)
+    assert found is not None and [p.name for p in found.inputs["can"]] == [
+        "2F6913DB_00000004_00000001.MF4", "2F6913DB_00001089_00000001-63BEF5CD.MF4",
+        "2F6913DB_00001089_00000002-63BEFDF9.MF4"]
+    assert found.warning() == (f"{css}: not read, none of them a log, CAN log, NMEA capture or DCA1000 capture: "
+                               "LICENSE, gnss.dbc (a CAN database is given with --dbc)")
+    gpsd = realdata("gpsd", "neo-m8n.log").parent
+    found = drive_folder(gpsd)
+    assert found is not None and found.inputs["nmea"] == [gpsd / "neo-m8n.log"]
+    assert [p.name for p in found.left_out] == ["COPYING", "neo-m8n.log.chk"]
+    ingest([gpsd], tmp_path / "folder.h5", config=cfg, allow_partial=True)
+    ingest([], tmp_path / "file.h5", config=cfg, nmea_logs=[gpsd / "neo-m8n.log"], allow_partial=True)
+    with Drive(tmp_path / "folder.h5") as a, Drive(tmp_path / "file.h5") as b:
+        fixes = [k for k in a.h5["gnss"] if "nmea_fix" in a.h5["gnss"][k]]
+        assert fixes and all(np.array_equal(a.h5["gnss"][k]["nmea_fix/latitude_deg"][()],
+                                            b.h5["gnss"][k]["nmea_fix/latitude_deg"][()]) for k in fixes)
+        assert len(a.h5["gnss"][fixes[0]]["nmea_fix/t_ns"]) > 10

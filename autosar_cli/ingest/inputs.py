@@ -82,7 +82,8 @@ class DriveFolder:
         if not self.left_out:
             return None
         names = ", ".join(str(p.relative_to(self.path)) + ("/" if p.is_dir() else "") for p in self.left_out)
-        return (f"{self.path}: not read, none of them a log, CAN log, NMEA capture or DCA1000 capture: {names}")
+        dbc = " (a CAN database is given with --dbc)" if any(p.suffix.lower() == ".dbc" for p in self.left_out) else ""
+        return f"{self.path}: not read, none of them a log, CAN log, NMEA capture or DCA1000 capture: {names}{dbc}"
 
 
 def drive_folder(path: Path, depth: int = 0) -> DriveFolder | None:
