@@ -126,6 +126,20 @@ def test_a_captures_files_beside_its_navigation_log_are_read_as_that_capture(tmp
         assert np.array_equal(a.radar().t_ns, b.radar().t_ns)
 
 
+def test_info_of_a_drive_folder_summarises_each_input(folder: Path) -> None:
+    r = runner.invoke(app, ["info", str(folder), "--json"])
+    assert r.exit_code == 0, r.output
+    d = json.loads(r.stdout)
+    assert [(Path(i["path"]).name, i["kind"]) for i in d["drive_folder"]] == [
+        ("ros.mcap", "log"), ("can.log", "can"), ("gnss.nmea", "nmea")]
+    can = d["drive_folder"][1]
+    assert sum(s["count"] for s in can["streams"]) == 20
+    assert [Path(p).name for p in d["left_out"]] == ["README.txt", "photos"]
+    r = runner.invoke(app, ["info", str(folder)])
+    assert r.exit_code == 0 and "a drive folder: 3 inputs" in " ".join(r.stdout.split())
+    assert "not read, none of them a log" in " ".join(r.stderr.split())
+
+
 def test_run_and_batch_take_a_drive_folder_and_mark_what_it_left_alone(folder: Path, work: Path) -> None:  # noqa: F811
     from autosar_cli.batch import drive_names
 

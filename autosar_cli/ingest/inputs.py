@@ -129,7 +129,7 @@ def drive_folder(path: Path, depth: int = 0) -> DriveFolder | None:
         left_out += capture_files
     kinds = [kind for kind in KINDS if found[kind]]
     if not (found["can"] or found["nmea"] or len(kinds) > 1):
-        return None  # a bag's storage files, or a capture, alone: read as before
+        return None  # a bag's storage files, or a capture, alone: read as that bag or capture
     return DriveFolder(path, {kind: found[kind] for kind in KINDS}, sorted(left_out))
 
 
