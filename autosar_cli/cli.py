@@ -328,8 +328,8 @@ def simulate(
 def ingest(
     logs: Annotated[list[Path] | None, typer.Argument(
         metavar="LOG",
-        help=f"Drive logs: .mcap, .bag, rosbag2 directories; CAN logs ({' '.join(CAN_LOG_SUFFIXES)}) and NMEA text "
-             "captures are recognised too.")] = None,
+        help=f"Drive logs: .mcap, .bag, rosbag2 directories; CAN logs ({' '.join(CAN_LOG_SUFFIXES)}), NMEA text "
+             "captures and DCA1000 captures are recognised too; a drive folder reads as the inputs it holds.")] = None,
     output: Annotated[Path, typer.Option("--output", "-o", metavar="FILE",
                                          help="drive.h5 to write.")] = Path("drive.h5"),
     config: ConfigOpt = None,
@@ -605,8 +605,8 @@ def focus(
 @app.command(cls=_Command)
 def run(
     logs: Annotated[list[Path], typer.Argument(
-        metavar="LOG", help="Drive log(s): .mcap, .bag, rosbag2 directory (and CAN/NMEA log files), as for "
-                            "`autosar ingest`.")],
+        metavar="LOG", help="Drive log(s): .mcap, .bag, rosbag2 directory (and CAN/NMEA log files, or a drive "
+                            "folder holding them), as for `autosar ingest`.")],
     output: Annotated[Path, typer.Option("--output", "-o", metavar="DIR",
                                          help="Run directory: drive.h5, trajectory.h5, "
                                          "image.tif/.h5/.png and run.json.")],
@@ -919,8 +919,8 @@ def _print_checked(found: dict[str, Any]) -> None:
 @app.command(cls=_Command)
 def info(
     path: Annotated[Path, typer.Argument(metavar="PATH", help="A drive log (.mcap, .bag, rosbag2 directory), a TI "
-                                         "DCA1000 capture or a drive.h5; or any directory, for its stale partial "
-                                         "files.")],
+                                         "DCA1000 capture, a drive folder (each input it holds) or a drive.h5; or "
+                                         "any directory, for its stale partial files.")],
     as_json: JsonOpt = False,
     config_sketch: Annotated[bool, typer.Option(
         "--config-sketch", help="Of a drive.h5: print a config (TOML, laid over --config) that pins its streams' "
@@ -1042,7 +1042,8 @@ def _batch_progress(n_drives: int, enabled: bool = True) -> Iterator[Callable[[d
 @app.command(cls=_Command)
 def batch(
     logs: Annotated[list[Path], typer.Argument(
-        metavar="LOG", help="Drive logs, one drive each (.mcap, .bag, rosbag2 directory).")],
+        metavar="LOG", help="Drive logs, one drive each (.mcap, .bag, rosbag2 directory, or a drive folder "
+                            "holding one drive's inputs).")],
     output: Annotated[Path, typer.Option("--output", "-o", metavar="DIR",
                                          help="Batch directory: one run directory per drive "
                                          "(named after its log, as `autosar run` writes it) and batch.json.")],
