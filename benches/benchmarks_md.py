@@ -186,11 +186,14 @@ def render(results: Path, max_rows: int) -> str:
             out[-1] += " Figures: " + body.pop(0)  # one paragraph, one line
             if body and not body[0]:
                 body.pop(0)
+            while len(body) > 1 and body[0].startswith("**") and not body[1]:  # a group's figures: the same line
+                out[-1] += "; " + body.pop(0)
+                body.pop(0)
         out += [""] + body if body else []
-    # a heading may follow a paragraph directly (an ATX heading interrupts one): no blank line between them
+    # a heading may follow a paragraph or a table directly (an ATX heading interrupts either, and a paragraph may
+    # follow one): no blank line between them
     out = [line for i, line in enumerate(out) if not (line == "" and 0 < i < len(out) - 1 and out[i - 1]
-                                                       and not out[i - 1].startswith("|")
-                                                       and out[i + 1].startswith("#"))]
+                                                       and (out[i + 1].startswith("#") or out[i - 1].startswith("#")))]
     return "\n".join(out).rstrip() + "\n"
 
 

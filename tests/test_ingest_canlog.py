@@ -389,11 +389,14 @@ def test_a_finalised_mf4_damaged_in_its_records_keeps_every_other_frame(tmp_path
     (MF4_2022, 60000, 0, 4400, (5588 - 213, 5588), "4400 bytes lost inside the data block at byte 728, found"),
     (MF4_2022, 150004, 0, 4092, (5588 - 349, 5588), "4092 bytes lost inside the data block at byte 126656, found"),
     (MF4_2022, 169512, 0, 24, (5588 - 120, 5588 - 100), "24 bytes lost inside the data block at byte 126656, found"),
-    (MF4_2023_1, 30004, 4096, 0, (1011, 1011), "(its data block at byte 17008 damaged)")],
+    (MF4_2023_1, 30004, 4096, 0, (1011, 1011), "(its data block at byte 17008 damaged)"),
+    (MF4_2023_1, 20477, 1, 0, (4024 - 4, 4024), "1 bytes added inside the data block at byte 17008, found near"),
+    (MF4_2023_1, 42315, 0, 4090, (4024 - 260, 4024), "4090 bytes lost inside the data block at byte 17008, found")],
     ids=["4 KiB added to its blocks", "4 KiB lost from its blocks", "4 KiB lost from its records",
          "4 KiB added to its records' data bytes", "200 records lost", "341 records' data bytes lost",
          "two records' data bytes lost",
-         "2023: 4 KiB added to its records, checked by their times alone"])
+         "2023: 4 KiB added to its records, checked by their times alone",
+         "2023: a byte added to its time-checked records", "2023: 4090 bytes lost from its time-checked records"])
 def test_a_finalised_mf4_with_bytes_added_or_lost_keeps_the_frames_they_spare(
         tmp_path: Path, finalised: Callable[[str], Path], name: str, at: int, added: int, lost: int,
         kept: tuple[int, int], said: str) -> None:
@@ -409,9 +412,12 @@ def test_a_finalised_mf4_with_bytes_added_or_lost_keeps_the_frames_they_spare(
     boundaries as frames the file lacks), also where the bytes lost are whole records or whole data bytes (the gap
     in the data offsets shows the place); where places apart are as good (24 bytes lost, two frames' data bytes of
     12: those between a place tried and the true one read their neighbours', which no check sees), the records
-    between them are left out. Records checked by their times alone (the 2023 file's: records read off
-    their boundaries may rise as true ones do) are not put back: their group is left out, the other groups' 1011
-    frames read, none the undamaged file lacks."""
+    between them are left out. Records checked by their times alone (the 2023 file's: records read off their
+    boundaries may rise as true ones do; a byte added read 2796 frames the file lacks) are put back where the fewest
+    records also break the bits the block's first and last records hold alike (a record read off its boundaries
+    nearly always does); where the bytes are a whole number of records, the one at the place joins two records'
+    bytes, which no check tells from a true one, so they are not put back: their group is left out, the other groups'
+    1011 frames read, none the undamaged file lacks."""
     path = finalised(name)
     data = path.read_bytes()
     reference = _real_records(name)

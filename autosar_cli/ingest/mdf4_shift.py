@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .mdf4_layout import HEAD, PAST_ANY_FILE, FileBytes, blocks
-from .mdf4_sorted import checked_by_offsets, records_touching, sorted_damage
+from .mdf4_sorted import checked_by_offsets, constant_bits, odd_records, records_touching, sorted_damage
 
 #: a block's header as it lies in the file: its id and 4 reserved zero bytes
 _HEADER = re.compile(rb"##[A-Z]{2}\x00\x00\x00\x00")
@@ -66,6 +66,7 @@ _PLACES_PER_ROUND = 64
 #: bytes either side of the places a round of the search tries whose records it checks too (after the first round,
 #: which checks every record)
 _SEARCH_MARGIN = 4096
+_ODD_RECORD_BYTES = 64  #: what a record breaking its group's alike bits weighs in the search, as damaged bytes
 
 
 @dataclass(frozen=True)
@@ -214,14 +215,22 @@ def _put_back_place(buf: mmap.mmap, data_block: int, by: int, first_moved: int
         found = list(blocks(copy))
     except (ValueError, struct.error):
         return None
-    if not checked_by_offsets(copy, found, data_block):
+    # records checked by their times alone: those read off their boundaries may rise as true ones do, but break
+    # the bits the block's first records hold alike
+    # the bits the block's first and last records hold alike; a number of whole records added or lost leaves every
+    # record whole, but the one at the place joins two records' bytes, which no check tells from a true one: not put
+    # back
+    alike = [] if checked_by_offsets(copy, found, data_block) else constant_bits(copy, found, data_block, buf, by)
+    if not checked_by_offsets(copy, found, data_block) and (not alike or any(by % len(m) == 0 for _, m, _ in alike)):
         return None
 
     within: tuple[int, int] | None = None  # the whole file in the first round, then the bytes the places reach
 
     def damaged(at: int) -> int:
-        damage = sorted_damage(_put_back(buf, at, -by), found, within, in_order=True)
-        return 0 if damage is None else sum(end - start for start, end in damage[1])
+        put = _put_back(buf, at, -by)
+        damage = sorted_damage(put, found, within, in_order=True)
+        odd = odd_records(put, found, alike, within) if alike else 0
+        return (0 if damage is None else sum(end - start for start, end in damage[1])) + odd * _ODD_RECORD_BYTES
 
     while True:
         step = max(1, (hi - lo) // _PLACES_PER_ROUND)

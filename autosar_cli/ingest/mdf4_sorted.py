@@ -45,6 +45,8 @@ _IN_ORDER = 0.5
 #: median steps (a writer may stamp a frame a step or two early; a time base that starts at 0 puts a zeroed stamp
 #: only as many steps below its neighbours as records came before them)
 _STEP_SLACK = 10
+#: a group's first records whose alike bits a record read off its boundaries breaks (:func:`constant_bits`)
+_CONSTANT_ROWS = 256
 
 
 def _sorted_groups(buf: FileBytes, found: list[Block]) -> list[tuple[int, int, int, int, int]]:
@@ -150,6 +152,46 @@ def _rows_within(buf: FileBytes, cn: int, records: int, size: int, n: int, withi
             first, stop = (int(there[0]), int(there[-1]) + 1) if stop <= first else \
                 (min(first, int(there[0])), max(stop, int(there[-1]) + 1))
     return first, stop
+
+
+def constant_bits(buf: FileBytes, found: list[Block], data_block: int, rows_of: FileBytes, by: int,
+                  count: int = _CONSTANT_ROWS) -> list[tuple[int, NDArray[np.uint8], NDArray[np.uint8]]]:
+    """(group's first channel, mask, value) per record byte of each sorted group of ``buf`` (its blocks ``found``)
+    whose records the block at ``data_block`` holds: the bits its first and last ``count`` records all hold alike (a
+    writer's unused bits, a time's high bytes, an identifier's unused high bits), and their value. They are read in
+    ``rows_of``, the file whose bytes after a place inside the block moved by ``by``: its first records lie before
+    that place, its last ``by`` bytes on, both on their boundaries."""
+    out = []
+    for _, cn, dt, records, size in _sorted_groups(buf, found):
+        n = (block(buf, dt)[1] - HEAD.size) // size
+        k = min(count, n // 2)
+        if dt != data_block or k < 2:
+            continue
+        rows = np.concatenate([np.frombuffer(rows_of, np.uint8, k * size, at).reshape(k, size)
+                               for at in (records, records + (n - k) * size + by)])
+        ones, zeros = np.bitwise_and.reduce(rows, axis=0), np.bitwise_or.reduce(rows, axis=0)
+        mask = ~(ones ^ zeros)  # bits the same in every one
+        out.append((cn, mask, ones & mask))
+    return out
+
+
+def odd_records(buf: FileBytes, found: list[Block], bits: list[tuple[int, NDArray[np.uint8], NDArray[np.uint8]]],
+                within: tuple[int, int] | None = None) -> int:
+    """How many records of the groups ``bits`` names (:func:`constant_bits`) hold another value in a bit their first
+    records all hold alike: a record read off its boundaries does, nearly always; ``within`` as for
+    :func:`sorted_damage`."""
+    odd = 0
+    for _, cn, dt, records, size in _sorted_groups(buf, found):
+        for group, mask, value in bits:
+            if group != cn:
+                continue
+            n = (block(buf, dt)[1] - HEAD.size) // size
+            first, stop = (0, n) if within is None else _rows_within(buf, cn, records, size, n, within)
+            if stop <= first:
+                continue
+            rows = np.frombuffer(buf, np.uint8, (stop - first) * size, records + first * size).reshape(-1, size)
+            odd += int(np.any((rows & mask) != value, axis=1).sum())
+    return odd
 
 
 def records_touching(buf: FileBytes, found: list[Block], start: int, end: int) -> tuple[tuple[int, int], ...]:
