@@ -15,8 +15,10 @@ link names before the first moved (bytes added may hold copies of block headers,
 is a finalised file's data block (its records, or their data bytes), its bytes after the place are put back where
 they lay instead: the copy takes the bytes added out, or puts zeros in for those lost, at the place its records
 show (the fewest damaged records, :mod:`.mdf4_sorted`'s checks), so that every block after it lies where its links
-say, and the records at the place are left out; only where the records are checked by their data offsets (a time
-alone does not tell a record read off its boundaries: such a block is torn). A count not
+say, and the records at the place are left out. Records checked by their times alone (no data offsets) may rise
+as true ones do when read off their boundaries: the search also counts those that break the bits the block's first
+and last records hold alike, and a whole number of records added or lost, which leaves every record whole but the
+one at the place (two records' bytes joined, which no check tells), tears the block. A count not
 a multiple of 8 leaves the blocks off the 8-byte boundaries asammdf finds an unfinalised file's blocks on: the copy
 puts zero bytes before the first moved block. Blocks the lost bytes held stay lost: the groups they break are then
 left out as for any damaged block.
@@ -202,11 +204,11 @@ def _put_back_place(buf: mmap.mmap, data_block: int, by: int, first_moved: int
     at ``first_moved``) where taking out the bytes added (``by`` > 0), or putting in zeros for those lost, leaves the
     fewest bytes of the file's sorted records damaged (:func:`~.mdf4_sorted.sorted_damage`, its groups taken as kept
     in order), and the copy's records there (:func:`~.mdf4_sorted.records_touching`: what is left of the bytes added,
-    the zeros); None where the copy's blocks do not all parse (the lost bytes held some), or where the block's records
-    are not checked by their data offsets (times alone: records read off their boundaries may rise as true ones do).
-    Damage grows with the distance from the place: the search narrows a grid of places round the best one, down to
-    single bytes, checking after the first round only the records near the places it tries; where places apart are
-    as good, the records between them are those left out."""
+    the zeros); None where the copy's blocks do not all parse (the lost bytes held some), or where records checked by
+    their times alone (no data offsets) have no alike bits to count (:func:`~.mdf4_sorted.constant_bits`) or were
+    added or lost whole. Damage grows with the distance from the place: the search narrows a grid of places round
+    the best one, down to single bytes, checking after the first round only the records near the places it tries;
+    where places apart are as good, the records between them are those left out."""
     lo, hi = data_block + HEAD.size, first_moved - max(by, 0)
     if hi < lo:
         return None
@@ -215,13 +217,12 @@ def _put_back_place(buf: mmap.mmap, data_block: int, by: int, first_moved: int
         found = list(blocks(copy))
     except (ValueError, struct.error):
         return None
-    # records checked by their times alone: those read off their boundaries may rise as true ones do, but break
-    # the bits the block's first records hold alike
-    # the bits the block's first and last records hold alike; a number of whole records added or lost leaves every
-    # record whole, but the one at the place joins two records' bytes, which no check tells from a true one: not put
-    # back
-    alike = [] if checked_by_offsets(copy, found, data_block) else constant_bits(copy, found, data_block, buf, by)
-    if not checked_by_offsets(copy, found, data_block) and (not alike or any(by % len(m) == 0 for _, m, _ in alike)):
+    # records checked by their times alone: those read off their boundaries may rise as true ones do, but break the
+    # bits the block's first and last records hold alike; a number of whole records added or lost leaves every
+    # record whole, but the one at the place joins two records' bytes, which no check tells from a true one
+    by_offsets = checked_by_offsets(copy, found, data_block)
+    alike = [] if by_offsets else constant_bits(copy, found, data_block, buf, by)
+    if not (by_offsets or alike) or any(by % len(m) == 0 for _, m, _ in alike):
         return None
 
     within: tuple[int, int] | None = None  # the whole file in the first round, then the bytes the places reach

@@ -45,7 +45,7 @@ _IN_ORDER = 0.5
 #: median steps (a writer may stamp a frame a step or two early; a time base that starts at 0 puts a zeroed stamp
 #: only as many steps below its neighbours as records came before them)
 _STEP_SLACK = 10
-#: a group's first records whose alike bits a record read off its boundaries breaks (:func:`constant_bits`)
+#: a group's first and last records whose alike bits a record read off its boundaries breaks (:func:`constant_bits`)
 _CONSTANT_ROWS = 256
 
 
@@ -178,7 +178,7 @@ def constant_bits(buf: FileBytes, found: list[Block], data_block: int, rows_of: 
 def odd_records(buf: FileBytes, found: list[Block], bits: list[tuple[int, NDArray[np.uint8], NDArray[np.uint8]]],
                 within: tuple[int, int] | None = None) -> int:
     """How many records of the groups ``bits`` names (:func:`constant_bits`) hold another value in a bit their first
-    records all hold alike: a record read off its boundaries does, nearly always; ``within`` as for
+    and last records all hold alike: a record read off its boundaries does, nearly always; ``within`` as for
     :func:`sorted_damage`."""
     odd = 0
     for _, cn, dt, records, size in _sorted_groups(buf, found):
