@@ -105,6 +105,7 @@ BLF_SIZE = "tests/test_ingest_canlog.py::test_a_blf_container_whose_size_is_dama
 BLF_HEADER = "tests/test_ingest_canlog.py::test_a_blf_whose_file_header_is_damaged_is_read_with_it_rebuilt"
 UNUSED_INPUT = "tests/test_ingest_mixed.py::test_an_input_nothing_of_which_reaches_the_drive_is_named_with_why"
 RUN_CAN_LOG = "tests/test_ingest_mixed.py::test_run_reads_can_logs_beside_the_drive_log_with_ingests_options"
+CONFIG_NOT_AN_OUTPUT = "tests/test_ingest_mixed.py::test_run_and_compare_never_write_over_their_config[compare]"
 DRIVE_FOLDER = "tests/test_ingest_drive_folder.py::test_a_drive_folder_reads_as_its_inputs_given_one_by_one"
 DRIVE_FOLDER_NESTED = "tests/test_ingest_drive_folder.py::test_a_folder_inside_a_drive_folder_gives_its_inputs"
 BATCH_FOLDER = "tests/test_batch.py::test_batch_takes_drive_folders_and_the_time_offsets_of_their_logs"
@@ -612,6 +613,8 @@ MUTATIONS: list[Mutation] = [
        "                       ingest_options=ingest_options, can_logs",
        "                       ingest_options=None, can_logs",
        BATCH_INGEST),
+    _m("compare-config-not-an-input", "evaluate", "evaluate/compare.py",
+       "*config.files, *ingest_options.files()],", "*ingest_options.files()],", CONFIG_NOT_AN_OUTPUT),
     _m("compare-ingests-without-its-options", "evaluate", "evaluate/compare.py",
        'partial_hint=chain_hint("a comparison"), **ingest_options.ingest_kwargs())',
        'partial_hint=chain_hint("a comparison"))', COMPARE_INGEST),

@@ -393,6 +393,18 @@ def test_run_and_compare_refuse_a_drive_log_given_as_a_can_log(ci_mcap: Simulati
     assert text.read_text() == gga(1_795_780_800.0) + "\n"
 
 
+@pytest.mark.parametrize("command", ["run", "compare"])
+def test_run_and_compare_never_write_over_their_config(ci_mcap: SimulationResult, tmp_path: Path,
+                                                       command: str) -> None:
+    """The config a command reads is an input: `compare` did not count it, and `-o` naming it replaced it."""
+    config = tmp_path / "mine.toml"
+    config.write_text('base = "default"\n')
+    r = runner.invoke(app, [command, str(ci_mcap.log_path), "--config", str(config), "-o", str(config),
+                            "--overwrite"])
+    assert r.exit_code == 1 and f"{config}: is an input of this command" in r.stderr, r.output
+    assert config.read_text() == 'base = "default"\n'
+
+
 def test_a_run_of_a_log_without_radar_names_the_ingest_that_writes_it(ci_mcap: SimulationResult, work: Path) -> None:
     """`autosar run` and `compare` have no --allow-partial (they focus the radar): their error said "use
     --allow-partial", and left an empty output directory."""

@@ -131,8 +131,8 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
         raise CompareError(f"{out}: already holds a comparison (compare.json); pass --overwrite to replace it")
     ingest_options = ingest_options or IngestOptions()
     given = [*logs, *can_logs, *nmea_logs]  # every input read into the drive (as the manifests list them)
-    check_output(out, [*given, *([truth_path] if truth_path else []), *ingest_options.files()], overwrite=overwrite,
-                 directory=True)
+    check_output(out, [*given, *([truth_path] if truth_path else []), *config.files, *ingest_options.files()],
+                 overwrite=overwrite, directory=True)
     check_free_space(out / DRIVE, input_bytes(given), "the drive")
     methods = parse_methods(methods)
     options = options or FocusOptions.from_config(config)
