@@ -162,12 +162,10 @@ def sort_inputs(logs: Iterable[Path], can_logs: Iterable[Path] = (), nmea_logs: 
     sorted_ = SortedInputs({"log": [], "can": [Path(p) for p in can_logs], "nmea": [Path(p) for p in nmea_logs],
                             "radar": [Path(p) for p in radar_captures]})
     for p in map(Path, logs):
-        kind = classify_input(p)
-        if kind != "drive":
-            sorted_.by_kind[kind].append(p)
+        folder = drive_folder(p)  # a drive folder walked once: classify_input would walk it again
+        if folder is None:
+            sorted_.by_kind[classify_input(p)].append(p)
             continue
-        folder = drive_folder(p)
-        assert folder is not None
         for k in KINDS:
             sorted_.by_kind[k] += folder.inputs[k]
         if (said := folder.warning()) is not None:

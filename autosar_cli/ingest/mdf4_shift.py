@@ -222,7 +222,7 @@ def _put_back_place(buf: mmap.mmap, data_block: int, by: int, first_moved: int
     # record whole, but the one at the place joins two records' bytes, which no check tells from a true one
     by_offsets = checked_by_offsets(copy, found, data_block)
     alike = [] if by_offsets else constant_bits(copy, found, data_block, buf, by)
-    if not (by_offsets or alike) or any(by % len(m) == 0 for _, m, _ in alike):
+    if not (by_offsets or alike) or any(by % g.size == 0 for g in alike):
         return None
 
     within: tuple[int, int] | None = None  # the whole file in the first round, then the bytes the places reach
@@ -230,7 +230,7 @@ def _put_back_place(buf: mmap.mmap, data_block: int, by: int, first_moved: int
     def damaged(at: int) -> int:
         put = _put_back(buf, at, -by)
         damage = sorted_damage(put, found, within, in_order=True)
-        odd = odd_records(put, found, alike, within) if alike else 0
+        odd = odd_records(put, alike, within) if alike else 0
         return (0 if damage is None else sum(end - start for start, end in damage[1])) + odd * _ODD_RECORD_BYTES
 
     while True:

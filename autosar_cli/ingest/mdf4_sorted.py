@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import bisect
 import struct
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -154,13 +155,25 @@ def _rows_within(buf: FileBytes, cn: int, records: int, size: int, n: int, withi
     return first, stop
 
 
+@dataclass(frozen=True)
+class AlikeBits:
+    """The bits every record of one sorted group holds alike (:func:`constant_bits`), and where its records lie."""
+
+    cn: int  #: the group's first channel
+    records: int  #: byte of its first record
+    size: int  #: bytes per record
+    count: int  #: records its data block holds
+    mask: NDArray[np.uint8]  #: (size,) the bits alike
+    value: NDArray[np.uint8]  #: (size,) their value
+
+
 def constant_bits(buf: FileBytes, found: list[Block], data_block: int, rows_of: FileBytes, by: int,
-                  count: int = _CONSTANT_ROWS) -> list[tuple[int, NDArray[np.uint8], NDArray[np.uint8]]]:
-    """(group's first channel, mask, value) per record byte of each sorted group of ``buf`` (its blocks ``found``)
-    whose records the block at ``data_block`` holds: the bits its first and last ``count`` records all hold alike (a
-    writer's unused bits, a time's high bytes, an identifier's unused high bits), and their value. They are read in
-    ``rows_of``, the file whose bytes after a place inside the block moved by ``by``: its first records lie before
-    that place, its last ``by`` bytes on, both on their boundaries."""
+                  count: int = _CONSTANT_ROWS) -> list[AlikeBits]:
+    """The bits alike of each sorted group of ``buf`` (its blocks ``found``) whose records the block at
+    ``data_block`` holds: the bits its first and last ``count`` records all hold alike (a writer's unused bits, a
+    time's high bytes, an identifier's unused high bits). They are read in ``rows_of``, the file whose bytes after a
+    place inside the block moved by ``by``: its first records lie before that place, its last ``by`` bytes on, both
+    on their boundaries."""
     out = []
     for _, cn, dt, records, size in _sorted_groups(buf, found):
         n = (block(buf, dt)[1] - HEAD.size) // size
@@ -171,26 +184,20 @@ def constant_bits(buf: FileBytes, found: list[Block], data_block: int, rows_of: 
                                for at in (records, records + (n - k) * size + by)])
         ones, zeros = np.bitwise_and.reduce(rows, axis=0), np.bitwise_or.reduce(rows, axis=0)
         mask = ~(ones ^ zeros)  # bits the same in every one
-        out.append((cn, mask, ones & mask))
+        out.append(AlikeBits(cn, records, size, n, mask, ones & mask))
     return out
 
 
-def odd_records(buf: FileBytes, found: list[Block], bits: list[tuple[int, NDArray[np.uint8], NDArray[np.uint8]]],
-                within: tuple[int, int] | None = None) -> int:
-    """How many records of the groups ``bits`` names (:func:`constant_bits`) hold another value in a bit their first
-    and last records all hold alike: a record read off its boundaries does, nearly always; ``within`` as for
-    :func:`sorted_damage`."""
+def odd_records(buf: FileBytes, bits: list[AlikeBits], within: tuple[int, int] | None = None) -> int:
+    """How many records of the groups ``bits`` describes, in ``buf`` (laid out as the file they were read from),
+    hold another value in a bit their first and last records all hold alike: a record read off its boundaries does,
+    nearly always; ``within`` as for :func:`sorted_damage`."""
     odd = 0
-    for _, cn, dt, records, size in _sorted_groups(buf, found):
-        for group, mask, value in bits:
-            if group != cn:
-                continue
-            n = (block(buf, dt)[1] - HEAD.size) // size
-            first, stop = (0, n) if within is None else _rows_within(buf, cn, records, size, n, within)
-            if stop <= first:
-                continue
-            rows = np.frombuffer(buf, np.uint8, (stop - first) * size, records + first * size).reshape(-1, size)
-            odd += int(np.any((rows & mask) != value, axis=1).sum())
+    for g in bits:
+        first, stop = (0, g.count) if within is None else _rows_within(buf, g.cn, g.records, g.size, g.count, within)
+        if stop > first:
+            rows = np.frombuffer(buf, np.uint8, (stop - first) * g.size, g.records + first * g.size)
+            odd += int(np.any((rows.reshape(-1, g.size) & g.mask) != g.value, axis=1).sum())
     return odd
 
 

@@ -47,7 +47,6 @@ from .decoders import (
     velocity_row,
 )
 from .inputs import InputError, SortedInputs
-from .inputs import check_input as _check_input
 from .inputs import sort_inputs as _sort_inputs
 from .radar_block import (
     RadarParamsError,
@@ -125,14 +124,6 @@ class IngestReport:
         d["duration_s"] = (self.end_ns - self.start_ns) / 1e9
         d["throughput_mb_s"] = self.bytes_read / 1e6 / self.wall_s if self.wall_s > 0 else 0.0
         return d
-
-
-def check_input(path: Path, kind: str) -> None:
-    """:func:`.inputs.check_input`, its refusal an :class:`IngestError`."""
-    try:
-        _check_input(path, kind)
-    except InputError as exc:
-        raise IngestError(str(exc)) from None
 
 
 def sort_inputs(logs: Iterable[Path], can_logs: Iterable[Path] = (), nmea_logs: Iterable[Path] = (),
