@@ -355,23 +355,21 @@ def ingest(
 ) -> None:
     """Decode CAN (with a DBC), GNSS, IMU and raw radar frames of drive logs into one drive.h5, streaming."""
     with _errors(output, kernels=False):
-        from autosar_cli.ingest.pipeline import ingest as run_ingest
-        from autosar_cli.ingest.pipeline import sort_inputs
+        from autosar_cli.ingest.pipeline import ingest_sorted, sort_inputs
 
         cfg = _load_config(config)
         options = _ingest_options(dbc, radar_start, radar_sync, radar_override, allow_unverified, time_offset,
                                   allow_time_gap, max_time_gap)
-        given = sort_inputs(logs or [], can_log or [], nmea or [], [radar] if radar else []).all()
+        given = sort_inputs(logs or [], can_log or [], nmea or [], [radar] if radar else [])
         # a capture's folder may take the drive beside its data; a log's or a drive folder's may not
-        _prepare_output(output, overwrite, [*(logs or []), *(p for p, kind in given if kind != "radar"), dbc,
+        _prepare_output(output, overwrite, [*(logs or []), *(p for p, kind in given.all() if kind != "radar"), dbc,
                                             cfg.source])
         from autosar_cli.store.outputs import check_free_space, input_bytes
 
-        check_free_space(output, input_bytes([p for p, _ in given]), "the drive")
+        check_free_space(output, input_bytes([p for p, _ in given.all()]), "the drive")
         with _progress("ingest", not as_json, in_bytes=True) as update:
-            report = run_ingest(logs or [], output, config=cfg, can_logs=can_log or [], nmea_logs=nmea or [],
-                                radar_captures=[radar] if radar else [], allow_partial=allow_partial, progress=update,
-                                command=" ".join(sys.argv), **options.ingest_kwargs())
+            report = ingest_sorted(given, output, config=cfg, allow_partial=allow_partial, progress=update,
+                                   command=" ".join(sys.argv), **options.ingest_kwargs())
         d = report.to_dict()
         if as_json:
             out.print_json(json.dumps(d))

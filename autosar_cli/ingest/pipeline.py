@@ -658,22 +658,31 @@ class _Ingest:
         return infos
 
 
-def ingest(logs: Sequence[Path], output: Path, *, config: Config, dbc: Path | None = None,
-           can_logs: Iterable[Path] = (), nmea_logs: Iterable[Path] = (), radar_captures: Iterable[Path] = (),
-           radar_options: RadarCaptureOptions = RadarCaptureOptions(), allow_partial: bool = False,
-           progress: ProgressFn | None = None, command: str = "", time_offsets: Mapping[Path, float] | None = None,
-           max_time_gap_s: float = MAX_TIME_GAP_S, allow_time_gap: bool = False,
-           allow_unverified: bool = False, partial_hint: str = PARTIAL_HINT) -> IngestReport:
+def ingest(logs: Sequence[Path], output: Path, *, config: Config, can_logs: Iterable[Path] = (),
+           nmea_logs: Iterable[Path] = (), radar_captures: Iterable[Path] = (), **options: Any) -> IngestReport:
     """Ingest ``logs`` (+ standalone CAN and NMEA logs, DCA1000 captures) into ``output`` (drive.h5), atomically.
+
+    A CAN log, NMEA capture or DCA1000 capture among ``logs`` is read as one, a drive folder as the inputs it holds
+    (:func:`.inputs.sort_inputs`); ``options`` as :func:`ingest_sorted` takes them.
+    """
+    given = sort_inputs([] if logs is None else logs, can_logs, nmea_logs, radar_captures)
+    return ingest_sorted(given, output, config=config, **options)
+
+
+def ingest_sorted(given: SortedInputs, output: Path, *, config: Config, dbc: Path | None = None,
+                  radar_options: RadarCaptureOptions = RadarCaptureOptions(), allow_partial: bool = False,
+                  progress: ProgressFn | None = None, command: str = "",
+                  time_offsets: Mapping[Path, float] | None = None, max_time_gap_s: float = MAX_TIME_GAP_S,
+                  allow_time_gap: bool = False, allow_unverified: bool = False,
+                  partial_hint: str = PARTIAL_HINT) -> IngestReport:
+    """Ingest inputs already sorted by :func:`sort_inputs` into ``output`` (drive.h5), atomically.
 
     ``time_offsets``: seconds added to every time of a standalone CAN or NMEA log (a logger's clock set
     wrong). Inputs whose spans lie more than ``max_time_gap_s`` apart are refused unless ``allow_time_gap``.
     ``allow_unverified``: read the MCAP chunks whose CRC fails (each named in a warning) rather than leave them out.
-    ``partial_hint``: how the error of a drive without radar or navigation ends. A CAN log, NMEA capture or DCA1000
-    capture among ``logs`` is read as one, a drive folder as the inputs it holds (:func:`.inputs.sort_inputs`).
+    ``partial_hint``: how the error of a drive without radar or navigation ends.
     """
     t0 = time.perf_counter()
-    given = sort_inputs([] if logs is None else logs, can_logs, nmea_logs, radar_captures)
     inputs = given.all()  # a CAN log, NMEA capture or DCA1000 capture among the logs is read as what it is
     if not inputs:
         raise IngestError("no input: give at least one log, --can-log or --nmea file")
