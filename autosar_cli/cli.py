@@ -281,7 +281,7 @@ def simulate(
                                          help="Log to write (.mcap, .bag, or a rosbag2 directory).")],
     scenario: Annotated[Scenario, typer.Option("--scenario", "-s", help="Drive to simulate.")] = Scenario.ci,
     fmt: Annotated[LogFormat, typer.Option("--format", "-f", help="Log container; dca1000: an MCAP of the "
-                                           "navigation plus the radar as a TI DCA1000 capture in <log>.dca1000/ "
+                                           "navigation plus the radar as a TI DCA1000 capture in <log stem>.dca1000/ "
                                            "(ingest with --radar).")] = LogFormat.mcap,
     seed: Annotated[int, typer.Option("--seed", min=0, metavar="N", help="Random seed: same seed, same bytes.")] = 0,
     dynamics: Annotated[Dynamics | None, typer.Option(
