@@ -231,8 +231,8 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
             raise BatchError(f"{ingest_options.dbc}: {problem}")
         ingest_options = replace(ingest_options, dbc=Path(ingest_options.dbc).resolve())  # as the workers find it
     offsets = {str(Path(p).resolve()): s for p, s in ingest_options.time_offsets.items()}
-    shiftable = [{*inputs["can"], *inputs["nmea"], *_folder_logs(Path(log))}
-                 for log, inputs in zip(logs, companions, strict=True)]
+    shiftable = [{*inputs["can"], *inputs["nmea"], *_folder_logs(Path(log))}  # the workers walk folders again
+                 for log, inputs in zip(logs, companions, strict=True)] if offsets else []
     if unknown := sorted(offsets.keys() - set().union(*shiftable)):
         raise BatchError(f"--time-offset {unknown[0]}: not one of the drives' --can-log or --nmea logs, nor a CAN "
                          "or NMEA log of a drive folder")
