@@ -116,3 +116,28 @@ def test_every_option_the_documents_give_a_command_is_one_it_takes() -> None:
                 given += len(options)
                 unknown += [f"{doc.name}: autosar {m.group(1)} {o}" for o in options if o not in takes[m.group(1)]]
     assert unknown == [] and given > 100
+
+
+#: a test cited in a doc: `test_x.py::test_name`, `tests/test_x.py`, `test_name`, `*` for any name's part (a
+#: placeholder such as `tests/test_<stage>_*.py` is not one)
+TEST_CITATION = re.compile(r"(?<![\w/.])(?:tests/)?test_[\w*]*(?:\.py)?(?:::test_[\w*]+)?(?![<{])")
+
+
+def test_every_cited_test_exists() -> None:
+    tests = {p.name: set(re.findall(r"^\s*(?:async\s+)?def (test_\w+)", p.read_text(), re.MULTILINE))
+             for p in sorted((ROOT / "tests").glob("*.py"))}
+    every = set().union(*tests.values())
+    stale = []
+    for doc in [ROOT / "README.md", *DOCS]:
+        for n, line in enumerate(doc.read_text().splitlines(), 1):
+            for span in re.findall(r"`([^`]+)`", line):
+                for cited in TEST_CITATION.findall(span):
+                    file, _, name = cited.removeprefix("tests/").rpartition("::")
+                    if name.endswith(".py"):
+                        file, name = name, ""
+                    files = [f for f in tests if re.fullmatch(file.replace("*", r"\w*"), f)] if file else list(tests)
+                    names = set().union(*(tests[f] for f in files)) if files else set()
+                    found = bool(files) and (not name or any(re.fullmatch(name.replace("*", r"\w*"), t) for t in names))
+                    if not found:
+                        stale.append(f"{doc.name}:{n}: {cited}")
+    assert every and not stale, "docs cite tests that do not exist:\n" + "\n".join(stale)
