@@ -12,7 +12,7 @@ import math
 import tomllib
 import types
 import typing
-from dataclasses import MISSING, dataclass, field, fields, is_dataclass
+from dataclasses import MISSING, dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -83,6 +83,8 @@ class RadarConfig:
     max_range_m: float
     beamwidth_az_deg: float
     beamwidth_el_deg: float
+    #: phase centres of the board's antennas in the radar frame (wavelengths at ``start_frequency_hz``), row k
+    #: the board's Tx (Rx) k; without ``tx_channels`` (``rx_channels``) one row per antenna in use
     tx_positions_wavelengths: tuple[tuple[float, float, float], ...]
     rx_positions_wavelengths: tuple[tuple[float, float, float], ...]
     mounting: MountingConfig
@@ -95,6 +97,10 @@ class RadarConfig:
     #: first frame on; focus takes each frame as started ``clock_offset_s`` plus this share of the time since the
     #: stream's first stamp before its stamp
     clock_drift_ppm: float = 0.0
+    #: the board's Tx (Rx) that the radar uses, in the order of the cube's Tx (Rx) axis: rows of
+    #: ``tx_positions_wavelengths`` (a capture on Tx 0 and 2 of a 3-Tx board: ``[0, 2]``); None: every row, in order
+    tx_channels: tuple[int, ...] | None = None
+    rx_channels: tuple[int, ...] | None = None
 
     @property
     def wavelength_m(self) -> float:
@@ -105,16 +111,35 @@ class RadarConfig:
         return self.start_frequency_hz + 0.5 * self.bandwidth_hz
 
     @property
-    def tx_positions_m(self) -> tuple[tuple[float, float, float], ...]:
-        """Tx phase centres in the radar frame (m)."""
+    def tx_in_use(self) -> tuple[int, ...]:
+        """The board's Tx the radar uses (rows of ``tx_positions_wavelengths``), in the cube's Tx order."""
+        return self.tx_channels if self.tx_channels is not None else tuple(range(self.num_tx))
+
+    @property
+    def rx_in_use(self) -> tuple[int, ...]:
+        """The board's Rx the radar uses (rows of ``rx_positions_wavelengths``), in the cube's Rx order."""
+        return self.rx_channels if self.rx_channels is not None else tuple(range(self.num_rx))
+
+    def board_positions_m(self, rows: tuple[tuple[float, float, float], ...]) -> tuple[tuple[float, float, float], ...]:
+        """``rows`` (the board's antennas, wavelengths) in metres, radar frame."""
         lam = self.wavelength_m
-        return tuple(tuple(c * lam for c in p) for p in self.tx_positions_wavelengths)  # type: ignore[misc]
+        return tuple(tuple(c * lam for c in p) for p in rows)  # type: ignore[misc]
+
+    @property
+    def tx_positions_m(self) -> tuple[tuple[float, float, float], ...]:
+        """Phase centres (m, radar frame) of the Tx in use, in the cube's Tx order."""
+        board = self.board_positions_m(self.tx_positions_wavelengths)
+        return tuple(board[k] for k in self.tx_in_use)
 
     @property
     def rx_positions_m(self) -> tuple[tuple[float, float, float], ...]:
-        """Rx phase centres in the radar frame (m)."""
-        lam = self.wavelength_m
-        return tuple(tuple(c * lam for c in p) for p in self.rx_positions_wavelengths)  # type: ignore[misc]
+        """Phase centres (m, radar frame) of the Rx in use, in the cube's Rx order."""
+        board = self.board_positions_m(self.rx_positions_wavelengths)
+        return tuple(board[k] for k in self.rx_in_use)
+
+    def using_channels(self, tx: tuple[int, ...], rx: tuple[int, ...]) -> RadarConfig:
+        """This radar on the board's Tx ``tx`` and Rx ``rx`` (a drive's recorded channels)."""
+        return replace(self, num_tx=len(tx), num_rx=len(rx), tx_channels=tuple(tx), rx_channels=tuple(rx))
 
     @property
     def tx_start_offsets_s(self) -> tuple[float, ...]:
@@ -613,6 +638,20 @@ def _build(cls: Any, value: Any, path: str) -> Any:
     raise TypeError(f"unsupported config type {cls!r} at {where}")  # a bug in this module, not in the file
 
 
+def _channels(kind: str, count: int, channels: tuple[int, ...] | None, rows: int) -> None:
+    """Check ``radar.<kind>_channels`` against ``num_<kind>`` and the board's ``rows``."""
+    name = f"radar.{kind}_positions_wavelengths"
+    if channels is None:
+        if rows != count:
+            raise ConfigError(f"{name}: {rows} rows for num_{kind} = {count} (one row per antenna in use; a board's "
+                              f"rows for some of its antennas: give radar.{kind}_channels, the rows in use)")
+        return
+    if len(channels) != count:
+        raise ConfigError(f"radar.{kind}_channels: {len(channels)} antennas for num_{kind} = {count}")
+    if len(set(channels)) != len(channels) or not all(0 <= c < rows for c in channels):
+        raise ConfigError(f"radar.{kind}_channels: {list(channels)} must be distinct rows of {name} (0-{rows - 1})")
+
+
 def _join(path: str, key: str) -> str:
     return f"{path}.{key}" if path else key
 
@@ -735,10 +774,8 @@ def _validate(cfg: Config) -> None:
     if not (math.isfinite(r.clock_offset_s) and abs(r.clock_offset_s) <= 1.0):
         raise ConfigError(f"radar.clock_offset_s: {r.clock_offset_s} is not a time offset of at most 1 s either way")
     _clock_drift("radar.clock_drift_ppm", r.clock_drift_ppm)
-    if len(r.tx_positions_wavelengths) != r.num_tx:
-        raise ConfigError(f"radar.tx_positions_wavelengths: expected {r.num_tx} positions")
-    if len(r.rx_positions_wavelengths) != r.num_rx:
-        raise ConfigError(f"radar.rx_positions_wavelengths: expected {r.num_rx} positions")
+    for kind, count in (("tx", r.num_tx), ("rx", r.num_rx)):
+        _channels(kind, count, getattr(r, f"{kind}_channels"), len(getattr(r, f"{kind}_positions_wavelengths")))
     for i, p in enumerate(r.tx_positions_wavelengths):
         _finite_vector(f"radar.tx_positions_wavelengths[{i}]", p)
     for i, p in enumerate(r.rx_positions_wavelengths):

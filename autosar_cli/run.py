@@ -124,10 +124,11 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     manifest["outputs"]["drive"] = DRIVE
 
     from autosar_cli.nav.navigate import REPORTED_INFO, navigate
-    from autosar_cli.sar.focus import FocusOptions, focus
+    from autosar_cli.sar.focus import FocusOptions, drive_radar_config, focus
     from autosar_cli.store.trajectory import write_trajectory
 
     options = options or FocusOptions.from_config(config)
+    config = drive_radar_config(config, out / DRIVE, options.radar)  # a radar ingested with --radar-override
     manifest["focus_options"] = asdict(options)
     t = time.perf_counter()
     if progress:

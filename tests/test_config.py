@@ -8,6 +8,7 @@ import re
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from autosar_cli.config import DEFAULT_CONFIG, ConfigError, load_config
@@ -40,6 +41,16 @@ def _write_variant(tmp_path: Path, pattern: str, replacement: str) -> Path:
     return p
 
 
+def test_a_board_with_more_antennas_than_the_radar_uses(tmp_path: Path) -> None:
+    """``tx_channels`` picks the board's rows the radar uses, in the cube's order: Tx 0 and 2 of the three."""
+    r = load_config(_write_variant(tmp_path, r"^num_tx = 3$", "num_tx = 2\ntx_channels = [0, 2]")).radar
+    board = load_config().radar
+    assert r.tx_in_use == (0, 2) and r.rx_in_use == (0, 1, 2, 3)
+    np.testing.assert_array_equal(r.tx_positions_m, np.asarray(board.tx_positions_m)[[0, 2]])
+    assert r.tx_start_offsets_s == (0.0, 60e-6)  # chirp slots of the two in use
+    assert r.using_channels((2, 1), (3,)).tx_positions_m == tuple(board.tx_positions_m[k] for k in (2, 1))
+
+
 @pytest.mark.parametrize(
     ("pattern", "replacement", "key"),
     [
@@ -50,7 +61,11 @@ def _write_variant(tmp_path: Path, pattern: str, replacement: str) -> Path:
         (r"^noise_density_dps_rthz = 0.008", "noise_dnsity_dps_rthz = 0.008", "sensors.imu_cog_a.gyro.noise_dnsity"),
         (r"^dof = 3 ", "dof = 4 ", "sensors.imu_cog_a.dof"),
         (r"^prf_hz = .*$", 'prf_hz = "fast"', "radar.prf_hz"),
-        (r"^num_tx = 3$", "num_tx = 2", "radar.tx_positions_wavelengths"),
+        (r"^num_tx = 3$", "num_tx = 2", "radar.tx_channels"),
+        (r"^num_tx = 3$", "num_tx = 2\ntx_channels = [0, 3]", "radar.tx_channels"),
+        (r"^num_tx = 3$", "num_tx = 2\ntx_channels = [2, 2]", "radar.tx_channels"),
+        (r"^num_tx = 3$", "num_tx = 3\ntx_channels = [0, 2]", "radar.tx_channels"),
+        (r"^num_rx = 4$", "num_rx = 4\nrx_channels = [0, 1, 2, 4]", "radar.rx_channels"),
         (r'^"yaw_rate.orc" = .*$', '"yaw_rate.orc" = "ORC_1_YAW"', "can.roles.yaw_rate.orc"),
         (r"^max_range_m = .*$", "max_range_m = 40.0", "radar.max_range_m"),
         (r"^range_window = .*$", 'range_window = "kaiser"', "processing.range_window"),

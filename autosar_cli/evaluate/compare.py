@@ -64,7 +64,7 @@ from autosar_cli.run import FORMAT as RUN_FORMAT
 from autosar_cli.run import FORMAT_VERSION as RUN_FORMAT_VERSION
 from autosar_cli.sar.autofocus import TrackAutofocus, estimate_track_scale, scale_track
 from autosar_cli.sar.autofocus_stage import autofocus_residual_motion
-from autosar_cli.sar.focus import FocusOptions, auto_grid, focus_images, unfocused_radars
+from autosar_cli.sar.focus import FocusOptions, auto_grid, drive_radar_config, focus_images, unfocused_radars
 from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.sim.truth import truth_radar_mismatch
 from autosar_cli.store.drive import Drive, radar_times
@@ -149,6 +149,7 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
     warnings = [str(w) for w in report.warnings]  # a damaged log, dropped data: every product is degraded
     timings["ingest"] = time.perf_counter() - t0
     warnings += unfocused_radars(out / DRIVE, options)  # another radar of the drive: in no image
+    config = drive_radar_config(config, out / DRIVE, options.radar)  # a radar ingested with --radar-override
 
     if truth_path is not None and not Path(truth_path).is_file():
         raise CompareError(f"{truth_path}: no such truth sidecar")

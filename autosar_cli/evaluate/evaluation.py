@@ -50,7 +50,7 @@ from autosar_cli.nav.trajectory import (
     radar_track,
     zero_doppler_times,
 )
-from autosar_cli.sar.focus import FocusOptions, focus_images
+from autosar_cli.sar.focus import FocusOptions, drive_radar_config, focus_images
 from autosar_cli.sar.grid import FocusGrid, track_distance, track_lattice
 from autosar_cli.sim.scene import KINDS
 from autosar_cli.sim.truth import TruthTargets, read_targets
@@ -334,11 +334,12 @@ def evaluate_image(image: FocusedImage, trajectory: Trajectory, drive_path: str 
     :func:`autosar_cli.evaluate.compare.compare`). ``range_dir``: the ground-range direction of the
     reflector cuts (default: :func:`range_direction`).
     """
+    options = options_from_image(image, config)
+    config = drive_radar_config(config, drive_path, options.radar)
     ev = Evaluation(trajectory.method, image, trajectory, ImageMetrics(0, math.nan, math.nan, math.nan),
                     range_dir=range_dir or range_direction(image, trajectory, config), inputs=dict(inputs or {}))
     with Drive(drive_path) as drive:
         ev.input_warnings = [str(w) for w in drive.report().get("warnings", [])]
-    options = options_from_image(image, config)
     frames = radar_times(drive_path, options.radar, options.radar_clock_offset_s, options.radar_clock_drift_ppm)
     fine = [product_metrics_grid(image)] if metrics_image is None else []
     if truth is None:

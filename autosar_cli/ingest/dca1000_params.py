@@ -489,8 +489,8 @@ def params_from_radar(radar: Any, *, lanes: int = 4, adc_format: str = "complex1
     p = CaptureParams(
         profile_start_frequency_hz=radar.start_frequency_hz, slope_hz_per_s=radar.slope_hz_per_s,
         sample_rate_hz=radar.sample_rate_hz, num_samples=radar.num_samples, adc_start_s=0.0,
-        chirp_period_s=radar.chirp_period_s, rx_channels=tuple(range(radar.num_rx)),
-        chirp_tx=chirp_tx or tuple(range(radar.num_tx)), num_loops=1, num_frames=num_frames,
+        chirp_period_s=radar.chirp_period_s, rx_channels=tuple(sorted(radar.rx_in_use)),
+        chirp_tx=chirp_tx or tuple(radar.tx_in_use), num_loops=1, num_frames=num_frames,
         frame_period_s=1.0 / radar.prf_hz, adc_format=adc_format, lanes=lanes)
     p.check()
     return p

@@ -65,7 +65,11 @@ def resolve(rec: Recorded, cfg: RadarConfig, *, what: str, override: bool,
 
     for name in ("num_tx", "num_rx", "num_samples"):
         if getattr(rec, name) != getattr(cfg, name):
-            clash(name, getattr(rec, name), getattr(cfg, name))
+            clash(name, getattr(rec, name), f"{getattr(cfg, name)}{_channels_hint(rec, name[4:])}")
+    for kind in ("tx", "rx"):
+        stated, configured = getattr(rec, f"{kind}_channels"), getattr(cfg, f"{kind}_channels")
+        if stated is not None and configured is not None and tuple(stated) != configured:
+            clash(f"{kind}_channels", list(stated), list(configured))
     for name in ("start_frequency_hz", "slope_hz_per_s", "sample_rate_hz"):
         if not math.isclose(getattr(rec, name), getattr(cfg, name), rel_tol=_REL_TOL):
             clash(name, f"{getattr(rec, name):.9g}", f"{getattr(cfg, name):.9g}")
@@ -84,14 +88,15 @@ def resolve(rec: Recorded, cfg: RadarConfig, *, what: str, override: bool,
                                    + f" (fix the config, or give {OVERRIDE_OPTION} to keep the recording's)")
         warn(f"{what}: " + "; ".join(clashes) + f"; kept the recording's ({OVERRIDE_OPTION})")
 
-    tx_rows = _rows(cfg.tx_positions_m, rec.tx_channels, rec.num_tx, "tx_positions_wavelengths", what)
-    rx_rows = _rows(cfg.rx_positions_m, rec.rx_channels, rec.num_rx, "rx_positions_wavelengths", what)
+    tx_used, tx_rows = _rows(cfg, "tx", rec.tx_channels, rec.num_tx, what)
+    rx_used, rx_rows = _rows(cfg, "rx", rec.rx_channels, rec.num_rx, what)
     m = cfg.mounting
     recorded = {"start_frequency_hz": rec.start_frequency_hz, "slope_hz_per_s": rec.slope_hz_per_s,
                 "sample_rate_hz": rec.sample_rate_hz, "tx_start_offsets_s": list(rec.tx_start_offsets_s),
                 "num_tx": rec.num_tx, "num_rx": rec.num_rx, "num_samples": rec.num_samples,
                 "bandwidth_hz": rec.bandwidth_hz, **rec.extra}
     configured: dict[str, Any] = {"tx_positions_m": tx_rows, "rx_positions_m": rx_rows,
+                                  "tx_channels": list(tx_used), "rx_channels": list(rx_used),
                                   "lever_arm_m": list(m.lever_arm_m), "yaw_deg": m.yaw_deg, "pitch_deg": m.pitch_deg,
                                   "roll_deg": m.roll_deg}
     if rec.prf_hz is not None:
@@ -99,21 +104,38 @@ def resolve(rec: Recorded, cfg: RadarConfig, *, what: str, override: bool,
     else:
         configured["prf_hz"] = cfg.prf_hz
     sources = {k: "recording" for k in recorded} | {k: "config" for k in configured}
+    for kind in ("tx", "rx"):
+        if getattr(rec, f"{kind}_channels") is not None:
+            sources[f"{kind}_channels"] = "recording"
     return {**configured, **recorded, "geometry_source": "config", "parameter_sources": sources}
 
 
-def _rows(positions: tuple[tuple[float, float, float], ...], channels: tuple[int, ...] | None, count: int,
-          name: str, what: str) -> list[list[float]]:
-    """The config's antenna rows for the recording's channels (all rows when it does not name them)."""
+def _channels_hint(rec: Recorded, kind: str) -> str:
+    """How a config states the board's antennas a recording uses (``kind`` "tx" or "rx"), where it names them."""
+    stated = getattr(rec, f"{kind}_channels", None)
+    if stated is None:
+        return ""
+    return (f" (the recording uses its board's {kind.title()} {list(stated)}: radar.num_{kind} = {len(stated)}, "
+            f"radar.{kind}_channels = {list(stated)}, a row of radar.{kind}_positions_wavelengths for each of the "
+            "board's antennas)")
+
+
+def _rows(cfg: RadarConfig, kind: str, channels: tuple[int, ...] | None, count: int,
+          what: str) -> tuple[tuple[int, ...], list[list[float]]]:
+    """The board's antennas (``kind`` "tx" or "rx") the recording uses and their config rows (m, radar frame): those
+    it names (``channels``), else the config's in use, which must be ``count``."""
+    name = f"radar.{kind}_positions_wavelengths"
+    board = cfg.board_positions_m(getattr(cfg, f"{kind}_positions_wavelengths"))
     if channels is None:
-        if len(positions) != count:
-            raise RadarParamsError(f"{what}: the recording has {count} antennas but the config's radar.{name} "
-                                   f"has {len(positions)} rows")
-        return [list(p) for p in positions]
-    if max(channels) >= len(positions):
-        raise RadarParamsError(f"{what}: the recording uses antenna {max(channels)} but the config's radar.{name} "
-                               f"has {len(positions)} rows (0-{len(positions) - 1})")
-    return [list(positions[c]) for c in channels]
+        channels = cfg.tx_in_use if kind == "tx" else cfg.rx_in_use
+        if len(channels) != count:
+            raise RadarParamsError(f"{what}: the recording has {count} {kind.title()} antennas but the config's "
+                                   f"radar uses {len(channels)} ({name}, radar.{kind}_channels)")
+    elif max(channels) >= len(board):
+        raise RadarParamsError(f"{what}: the recording uses {kind.title()} {max(channels)} of its board but the "
+                               f"config's {name} has {len(board)} rows (0-{len(board) - 1}): give a row for each of "
+                               f"the board's antennas and radar.{kind}_channels = {list(channels)}")
+    return tuple(channels), [list(board[c]) for c in channels]
 
 
 def recorded_from_capture(cap: Dca1000Capture) -> Recorded:

@@ -162,6 +162,11 @@ class RadarParameters:
         slope = float(a.get("slope_hz_per_s", config.radar.slope_hz_per_s))
         fs = float(a.get("sample_rate_hz", config.radar.sample_rate_hz))
         n_tx, n_rx, n_samp = (int(v) for v in radar.raw.shape[1:4])
+        if (len(config.radar.tx_in_use), len(config.radar.rx_in_use)) != (n_tx, n_rx):
+            where = getattr(getattr(radar.raw, "file", None), "filename", "drive")
+            raise FocusError(f"{where}: radar {radar.name} has {n_tx} Tx x {n_rx} Rx but the config's radar has "
+                             f"{len(config.radar.tx_in_use)} x {len(config.radar.rx_in_use)} (radar.num_tx, num_rx, "
+                             "tx_channels, rx_channels)")
         offsets = np.asarray(a.get("tx_start_offsets_s", config.radar.tx_start_offsets_s), dtype=np.float64)
         n_bins = n_samp * upsample
         return cls(f0, slope, fs, n_tx, n_rx, n_samp, offsets, n_bins, SPEED_OF_LIGHT * fs / (n_bins * slope),
@@ -206,6 +211,28 @@ def _usable_frames(radar: RadarStream, traj: Trajectory, config: Config, min_spe
     moving = np.linalg.norm(vel[:, :2], axis=1) >= min_speed
     skipped[f"slower than {min_speed} m/s"] = int((~moving).sum())
     return _Geometry(frames[moving], t[frames][moving], ref[moving], vel[moving], skipped)
+
+
+def drive_radar_config(config: Config, drive_path: str | Path, radar: str | None = None) -> Config:
+    """``config`` with its radar on the board's antennas that the drive's radar ``radar`` (its first where None)
+    recorded with (its ``tx_channels`` and ``rx_channels``, which ingest writes), so that every phase centre is one
+    of the cube's antennas: what the recording states wins, the config's rows give their positions. ``config`` as
+    it is where the drive states none."""
+    with Drive(drive_path) as drive:
+        attrs = drive.radar_attrs(radar)
+    if "tx_channels" not in attrs or "rx_channels" not in attrs:
+        return config
+    r = config.radar
+    tx, rx = (tuple(int(c) for c in attrs[f"{k}_channels"]) for k in ("tx", "rx"))
+    if (r.tx_in_use, r.rx_in_use) == (tx, rx):
+        return config
+    for kind, used in (("tx", tx), ("rx", rx)):
+        rows = len(getattr(r, f"{kind}_positions_wavelengths"))
+        if max(used, default=0) >= rows:
+            raise FocusError(f"{drive_path}: its radar used the board's {kind.title()} {list(used)} but the "
+                             f"config's radar.{kind}_positions_wavelengths has {rows} rows: give a row for each of "
+                             f"the board's antennas and radar.{kind}_channels = {list(used)}")
+    return replace(config, radar=r.using_channels(tx, rx))
 
 
 def open_radar(drive: Drive, options: FocusOptions) -> RadarStream:
@@ -504,6 +531,7 @@ def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Pat
           progress: Callable[[int, int], None] | None = None, command: str = "") -> FocusReport:
     """Focus the radar of ``drive_path`` along ``trajectory_path`` and write OUT.tif/.h5/.png."""
     check_request(options, output, overwrite, [drive_path, trajectory_path], config)
+    config = drive_radar_config(config, drive_path, options.radar)
     # the quicklook's imports run beside the focusing, from its first block on (its kernels and FFTs release the
     # GIL; before that, the imports would compete with numba's start-up for it)
     preload = threading.Thread(target=preload_quicklook, daemon=True)

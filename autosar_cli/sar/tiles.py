@@ -41,6 +41,7 @@ from autosar_cli.sar.focus import (
     check_request,
     check_same_recording,
     damaged_frames_warning,
+    drive_radar_config,
     focus_images,
     make_grid,
     open_radar,
@@ -158,6 +159,7 @@ def focus_tiled(drive_path: str | Path, trajectory_path: str | Path, output: str
     client. Timings in the report are summed over the tiles (processing time, not wall time).
     """
     check_request(options, output, overwrite, [drive_path, trajectory_path])
+    config = drive_radar_config(config, drive_path, options.radar)
     t_plan = time.perf_counter()
     traj, traj_name = _read_trajectory(trajectory_path)
     grid = plan_grid(drive_path, traj, config, options, traj_name)

@@ -512,6 +512,15 @@ class Drive:
     def radar_names(self) -> list[str]:
         return self._members("radar")
 
+    def radar_attrs(self, name: str | None = None) -> dict[str, Any]:
+        """The attributes of radar stream ``name`` (the first where None; {} where the drive holds none)."""
+        names = self.radar_names()
+        if not names or (name is not None and name not in names):
+            return {}
+        with dataset_errors(self.path, f"radar/{name or names[0]}"):
+            attrs = self._file["radar"][name or names[0]].attrs
+            return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in attrs.items()}
+
     def series(self, path: str) -> dict[str, np.ndarray]:
         """All columns of a series group (``"imu/imu_cog_a"``, ``"gnss/gnss_cog/fix"``, ``"can/ABS_1"``)."""
         with dataset_errors(self.path, path):
