@@ -922,7 +922,8 @@ def info(
     as_json: JsonOpt = False,
     config_sketch: Annotated[bool, typer.Option(
         "--config-sketch", help="Of a drive.h5: print a config (TOML, laid over --config) that pins its streams' "
-        "topics to the config's sensors, for a log recorded on other topics (docs/LOGS.md).")] = False,
+        "topics to the config's sensors, for a log recorded on other topics (docs/LOGS.md); of a TI DCA1000 capture: "
+        "the [radar] keys it states, for a config to ingest it with (docs/RADAR.md).")] = False,
     verify: Annotated[bool, typer.Option(
         "--verify", help="Of a file autosar wrote (drive.h5, trajectory.h5, image.h5, image.tif, image.png), or a "
         "run's directory of them: read every stored chunk or tile and check its checksum; exit 1 naming each "
@@ -940,11 +941,17 @@ def info(
             _verify(path, as_json)
             return
         if config_sketch:
-            from autosar_cli.config_sketch import config_sketch as sketch
+            from autosar_cli.config_sketch import capture_config_sketch, config_sketch
+            from autosar_cli.ingest.dca1000 import is_capture
 
-            if path.suffix.lower() not in (".h5", ".hdf5"):
-                raise typer.BadParameter(f"{path}: --config-sketch reads a drive.h5; ingest the log first "
-                                         "(autosar ingest LOG -o drive.h5, --allow-partial without a radar)")
+            if is_capture(path):
+                sketch = capture_config_sketch
+            elif path.suffix.lower() in (".h5", ".hdf5"):
+                sketch = config_sketch
+            else:
+                raise typer.BadParameter(f"{path}: --config-sketch reads a drive.h5 or a TI DCA1000 capture; ingest "
+                                         "the log first (autosar ingest LOG -o drive.h5, --allow-partial without a "
+                                         "radar)")
             out.print(sketch(path, _load_config(config)), markup=False, highlight=False, soft_wrap=True, end="")
             return
         from autosar_cli.store.atomic import stale_partials

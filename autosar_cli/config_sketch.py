@@ -12,11 +12,12 @@ CAN roles the drive lacks are unset.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
 
-from autosar_cli.config import DEFAULT_CONFIG, Config
+from autosar_cli.config import DEFAULT_CONFIG, SPEED_OF_LIGHT, Config
 from autosar_cli.nav.frames import gravity_tilt_deg, levelling_pitch_roll_deg
 from autosar_cli.store.drive import Drive
 from autosar_cli.store.hdf5_read import read_dataset
@@ -33,8 +34,7 @@ def config_sketch(drive_path: str | Path, config: Config) -> str:
         imus = _imu_tables(drive, config)
         radar = [drive.h5["radar"][n].attrs.get("topic", "") for n in drive.radar_names()]
         roles = json.loads(drive.h5["can"].attrs.get("roles", "{}")) if "can" in drive.h5 else {}
-    base = "default" if Path(config.source or DEFAULT_CONFIG).resolve() == DEFAULT_CONFIG.resolve() \
-        else str(Path(config.source).resolve())
+    base = _base(config)
     lines = [f"# autosar config sketched from {drive_path} (autosar info DRIVE --config-sketch): the drive's streams",
              "# pinned to the base's sensors. Check what a log cannot show: each [sensors.*] lever_arm_m, the",
              "# [vehicle] geometry (cog_to_rear_axle_m: the reference point), the sensors' error tables, an IMU's yaw.",
@@ -66,6 +66,46 @@ def config_sketch(drive_path: str | Path, config: Config) -> str:
         receivers = [name for name, _ in gnss]
         lines.append(f"ins_gnss = {_toml(nav.ins_gnss if nav.ins_gnss in receivers else receivers[0])}")
     return "\n".join(lines) + "\n"
+
+
+def capture_config_sketch(capture: str | Path, config: Config) -> str:
+    """TOML: ``config``'s radar with what a TI DCA1000 capture states (its chirp, counts, PRF and the board's antennas
+    it uses), for the capture to ingest with (``radar.*`` must agree with the recording: docs/RADAR.md)."""
+    from autosar_cli.ingest.dca1000 import Dca1000Capture
+    from autosar_cli.ingest.radar_block import recorded_from_capture
+
+    cap = Dca1000Capture(Path(capture))
+    p, rec = cap.params, recorded_from_capture(cap)
+    r = config.radar
+    lines = [f"# autosar config sketched from {capture} (autosar info CAPTURE --config-sketch): the [radar] keys the",
+             "# capture states, over the base's. Check what a capture cannot show: the board's antenna rows",
+             "# (tx_positions_wavelengths, rx_positions_wavelengths: the base's), [radar.mounting], beamwidths.",
+             "# Then: autosar ingest LOG --radar CAPTURE -o drive.h5 --config THIS",
+             f'base = "{_base(config)}"', "", "[radar]"]
+    keys: Table = [("start_frequency_hz", rec.start_frequency_hz, "at the first ADC sample"),
+                   ("slope_hz_per_s", rec.slope_hz_per_s, ""), ("sample_rate_hz", rec.sample_rate_hz, ""),
+                   ("num_samples", rec.num_samples, ""), ("bandwidth_hz", rec.bandwidth_hz, "slope x ADC window"),
+                   ("num_tx", rec.num_tx, ""), ("num_rx", rec.num_rx, ""),
+                   ("prf_hz", rec.prf_hz, "one PRI: a loop of the chirp table"),
+                   ("chirp_period_s", p.chirp_period_s, "idle + ramp end time")]
+    for kind, used in (("tx", p.tx_order), ("rx", p.rx_channels)):
+        if tuple(used) != tuple(range(len(getattr(r, f"{kind}_positions_wavelengths")))):
+            keys.append((f"{kind}_channels", list(used), f"the board's {kind.title()} in use: rows of "
+                         f"{kind}_positions_wavelengths"))
+    unambiguous = rec.sample_rate_hz * SPEED_OF_LIGHT / (2.0 * rec.slope_hz_per_s)
+    if r.max_range_m > unambiguous * 1.001:  # as the config's check allows
+        keys.append(("max_range_m", math.floor(unambiguous * 10) / 10, "the chirp's unambiguous range"))
+    lines += [f"{key} = {_toml(value)}" + (f"  # {note}" if note else "") for key, value, note in keys]
+    if list(p.chirp_tx) != sorted(p.chirp_tx):
+        lines.append(f"# its chirps go Tx {list(p.chirp_tx)}: the config's go in Tx order, so ingest needs "
+                     "--radar-override")
+    return "\n".join(lines) + "\n"
+
+
+def _base(config: Config) -> str:
+    """How a sketch names ``config`` as its base."""
+    return "default" if Path(config.source or DEFAULT_CONFIG).resolve() == DEFAULT_CONFIG.resolve() \
+        else str(Path(config.source).resolve())
 
 
 Table = list[tuple[str, object, str]]

@@ -141,3 +141,26 @@ def test_a_script_named_as_the_capture_is_the_one_read_beside_others(tmp_path: P
     assert code == 0, stderr
     np.testing.assert_array_equal(np.concatenate([b for _, b, _ in Dca1000Capture(tmp_path / "capture.lua").blocks()]),
                                   pris)
+
+
+def test_the_config_sketch_of_a_capture_is_a_config_it_ingests_with(tmp_path: Path) -> None:
+    """`autosar info CAPTURE --config-sketch` of TI's demo capture (one Tx of the board, 256 samples at 10 Msps,
+    29.982 MHz/us, 128 loops in 40 ms frames): a config that loads and that the capture ingests with, where the
+    default config stops naming seven keys that differ."""
+    from typer.testing import CliRunner
+
+    from autosar_cli.cli import app
+
+    script = tmp_path / "DataCaptureDemo_xWR.lua"
+    script.write_text(TI_DEMO)
+    p = dataclasses.replace(parse_studio_lua(script), num_frames=2)
+    pris = np.random.default_rng(4).integers(-500, 500, (256, 1, 4, 256, 2), dtype=np.int16)
+    write_capture(tmp_path / "cap", p, [pris], param_format="json")
+    code, stderr = cli_ingest(tmp_path / "cap", tmp_path / "d.h5")
+    assert code == 1 and stderr.count("but the config's") == 7, stderr
+    r = CliRunner().invoke(app, ["info", str(tmp_path / "cap"), "--config-sketch"])
+    assert r.exit_code == 0, r.output
+    assert "num_tx = 1\n" in r.stdout and "tx_channels = [0]" in r.stdout and "prf_hz = 3200.0" in r.stdout
+    (tmp_path / "sketch.toml").write_text(r.stdout)
+    code, stderr = cli_ingest(tmp_path / "cap", tmp_path / "d.h5", "--config", str(tmp_path / "sketch.toml"))
+    assert code == 0, stderr
