@@ -32,6 +32,7 @@ from mcap.writer import CompressionType, Writer
 from typer.testing import CliRunner
 
 from autosar_cli import msgs
+from autosar_cli.candb import giorgio_checksum
 from autosar_cli.cli import app
 from autosar_cli.config import Config, load_config
 from autosar_cli.ingest.pipeline import IngestError, IngestReport, ingest
@@ -301,6 +302,30 @@ def test_can_integrity_faults_counted_never_fatal(can_tampered: Ingested, base: 
     for path, st in b.items():
         if not path.startswith("can/"):
             assert s[path]["written"] == st["written"], path
+
+
+def test_a_car_with_other_checksums_than_the_rule_is_told_which_key_to_set(tmp_path: Path) -> None:
+    """A candump log of ABS_1 frames whose checksum byte is not the Giorgio CRC (another car's scheme under a DBC
+    of one's own with a CHECKSUM signal): with the default rule every frame is dropped and the error says so and
+    names [can] checksum = "none" (it said only "no known sensor streams"); with that rule all 300 decode."""
+    rng = np.random.default_rng(5)
+    lines = []
+    for k in range(300):
+        data = bytearray(rng.integers(0, 256, 8, dtype=np.uint8).tobytes())
+        data[7] = (giorgio_checksum(0xEE, bytes(data)) + 1) % 256  # never the rule's
+        lines.append(f"({1700000000 + k * 0.01:.6f}) can0 0EE#{data.hex().upper()}")
+    log = tmp_path / "mycar.log"
+    log.write_text("\n".join(lines) + "\n")
+    r = CliRunner().invoke(app, ["ingest", "--can-log", str(log), "-o", str(tmp_path / "a.h5")])
+    assert r.exit_code == 1 and r.stderr.count("\n") == 1, r.stderr
+    assert "no known sensor streams" in r.stderr and "300 CAN frames dropped by the checksum rule" in r.stderr
+    assert '[can] checksum = "none"' in r.stderr
+    cfg = tmp_path / "none.toml"
+    cfg.write_text('base = "default"\n\n[can]\nchecksum = "none"\n')
+    r = CliRunner().invoke(app, ["ingest", "--can-log", str(log), "-o", str(tmp_path / "b.h5"), "--config", str(cfg),
+                                 "--allow-partial", "--json"])
+    assert r.exit_code == 0, r.stderr
+    assert json.loads(r.stdout)["can"]["decoded"] == 300
 
 
 def test_can_rejected_frames_are_not_also_counter_errors(can_tampered: Ingested) -> None:

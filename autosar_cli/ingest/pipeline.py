@@ -917,8 +917,10 @@ def _check_content(inputs: list[tuple[Path, str]], infos: list[StreamInfo], job:
         seen = ", ".join(f"{s['topic']} ({s['msgtype']})" for s in job.skipped_channels.values())
         damage = sorted((w for w in job.warnings if "damaged" in w or "truncated" in w or "corrupt" in w),
                         key=lambda w: "byte" not in w)  # the warning with the offset first
+        dropped = _checksum_rule_misfit(job)
         raise IngestError(f"{names}: no known sensor streams (CAN frames, NavSatFix, NMEA, Imu, ScanBrick RawFrame)"
-                          + (f"; found only {seen}" if seen else "") + (f"; {damage[0]}" if damage else ""))
+                          + (f"; found only {seen}" if seen else "") + (f"; {damage[0]}" if damage else "")
+                          + (f"; {dropped}" if dropped else ""))
     has_radar = any(i.kind == "radar" for i in written)
     has_nav = any(i.kind in ("imu", "fix", "nmea_fix", "velocity") for i in written) or any(
         i.kind == "can" for i in written)
@@ -951,6 +953,20 @@ def _plausibility(infos: list[StreamInfo], job: _Ingest) -> None:
     if can.frames and not can.decoded and can.unknown_ids:
         job.warnings.append(f"none of the {can.frames} CAN frames has an ID in the DBC {job.dbc_path}; give the "
                             "vehicle's DBC with --dbc")
+    if (dropped := _checksum_rule_misfit(job)) is not None:
+        job.warnings.append(dropped)
+
+
+def _checksum_rule_misfit(job: _Ingest) -> str | None:
+    """What to say where the checksum rule dropped at least as many CAN frames as it passed: a car whose messages
+    carry another checksum than the rule's (a DBC of one's own with a CHECKSUM signal), not damage."""
+    can, rule = job.can.stats, job.config.can.checksum
+    failed = sum(can.checksum_errors.values())
+    if not failed or failed < can.decoded:
+        return None
+    return (f"{failed} CAN frames dropped by the checksum rule [can] checksum = \"{rule}\" ("
+            + ", ".join(f"{k} ×{v}" for k, v in can.checksum_errors.most_common(4))
+            + f", {can.decoded} frames passed); a car whose checksums are not that rule's: [can] checksum = \"none\"")
 
 
 def _listed(values: Sequence[int], n: int = 8) -> str:
