@@ -192,7 +192,7 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
               workers: int | None = None, retries: int = DEFAULT_RETRIES, numba_threads: int | None = None,
               overwrite: bool = False, radars: Sequence[str | Path] | None = None,
               can_logs: Sequence[str | Path] | None = None, nmea_logs: Sequence[str | Path] | None = None,
-              ingest_options: IngestOptions | None = None,
+              radar_starts: Sequence[int] | None = None, ingest_options: IngestOptions | None = None,
               progress: Callable[[dict[str, Any]], None] | None = None,
               on_cluster: Callable[[dict[str, Any]], None] | None = None, command: str = "") -> dict[str, Any]:
     """Run every log as its own drive into ``out_dir/<name>/`` on a Dask cluster; returns batch.json's content.
@@ -204,7 +204,8 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
     ``{"drive", "stage": "finished", "record"}`` once a drive's record is final. ``on_cluster(info)`` is called
     once the cluster is up (scheduler address, dashboard link, workers). Never raises for a failing drive: look
     at ``failed``. ``radars``, ``can_logs``, ``nmea_logs``: a DCA1000 capture, a CAN log, an NMEA capture per log
-    (same order), read with it as one drive. ``ingest_options``: how each drive is read
+    (same order), read with it as one drive; ``radar_starts``: each drive's capture's first frame (ns since the
+    epoch, same order), where its logs hold no sync topic. ``ingest_options``: how each drive is read
     (:class:`autosar_cli.ingest.pipeline.IngestOptions`: the DBC, the captures' start, damaged chunks, time gaps;
     a time offset goes to the drive that holds its log).
     """
@@ -225,6 +226,10 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
             raise BatchError(f"{option} given {len(given)} times for {len(logs)} logs; give one {what} per log")
         for inputs, path in zip(companions, given or (), strict=False):
             inputs[kind].append(str(Path(path).resolve()))
+    if radar_starts and len(radar_starts) != len(logs):
+        raise BatchError(f"--radar-start given {len(radar_starts)} times for {len(logs)} logs; give each drive's "
+                         "capture its own first frame's time, one per log")
+    starts_ns = list(radar_starts) if radar_starts else [None] * len(logs)
     ingest_options = ingest_options or IngestOptions()
     if ingest_options.dbc is not None:  # every drive's: refused once, not per drive
         if (problem := input_problem(Path(ingest_options.dbc))) is not None:
@@ -232,7 +237,7 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
         ingest_options = replace(ingest_options, dbc=Path(ingest_options.dbc).resolve())  # as the workers find it
     offsets = {str(Path(p).resolve()): s for p, s in ingest_options.time_offsets.items()}
     shiftable = [{*inputs["can"], *inputs["nmea"], *_folder_logs(Path(log))}  # the workers walk folders again
-                 for log, inputs in zip(logs, companions, strict=True)] if offsets else []
+                 for log, inputs in zip(logs, companions, strict=True)] if offsets else [set() for _ in logs]
     if unknown := sorted(offsets.keys() - set().union(*shiftable)):
         raise BatchError(f"--time-offset {unknown[0]}: not one of the drives' --can-log or --nmea logs, nor a CAN "
                          "or NMEA log of a drive folder")
@@ -296,8 +301,10 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
         client.subscribe_topic(topic, on_event)
         t_submit = time.perf_counter()
         futures = {}
-        for name, log, inputs, own in zip(names, paths, companions, shiftable, strict=True):
+        for name, log, inputs, own, start_ns in zip(names, paths, companions, shiftable, starts_ns, strict=True):
             drive_options = replace(ingest_options, time_offsets={Path(p): offsets[p] for p in own if p in offsets})
+            if start_ns is not None:
+                drive_options = replace(drive_options, radar=replace(drive_options.radar, start_ns=start_ns))
             fut = client.submit(run_drive, name, [log, *inputs["radar"]], str(out / name), config, method=method,
                                 options=options, autofocus=autofocus, overwrite=overwrite,
                                 ingest_options=drive_options, numba_threads=numba_threads,

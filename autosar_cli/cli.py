@@ -1075,7 +1075,10 @@ def batch(
     nmea: Annotated[list[Path] | None, typer.Option(
         "--nmea", metavar="FILE", help="NMEA capture of each drive, read with its log, in the order of the logs "
                                        "(repeat once per log).")] = None,
-    radar_start: RadarStartOpt = None,
+    radar_start: Annotated[list[str] | None, typer.Option(
+        "--radar-start", metavar="TIME", help="Start of each drive's DCA1000 capture's first frame, in the order of "
+                                              "the logs (repeat once per log): ns since the Unix epoch or ISO 8601 "
+                                              "(UTC); default: the first message of --radar-sync in its logs.")] = None,
     radar_sync: RadarSyncOpt = "/dca1000/sync",
     radar_override: RadarOverrideOpt = False,
     autofocus: AutofocusOpt = False,
@@ -1092,6 +1095,7 @@ def batch(
     exit code 1 if any drive failed."""
     with _errors(kernels=False):
         from autosar_cli.batch import run_batch
+        from autosar_cli.ingest.pipeline import parse_time_ns
 
         cfg = _load_config(config)
 
@@ -1108,7 +1112,8 @@ def batch(
             manifest = run_batch(logs, output, cfg, method=method.value, autofocus=autofocus, scheduler=scheduler,
                                  workers=workers, retries=retries, numba_threads=numba_threads, overwrite=overwrite,
                                  radars=radar, can_logs=can_log, nmea_logs=nmea,
-                                 ingest_options=_ingest_options(dbc, radar_start, radar_sync, radar_override,
+                                 radar_starts=[parse_time_ns(t) for t in radar_start] if radar_start else None,
+                                 ingest_options=_ingest_options(dbc, None, radar_sync, radar_override,
                                                                 allow_unverified, time_offset, allow_time_gap,
                                                                 max_time_gap),
                                  progress=update, on_cluster=on_cluster, command=" ".join(sys.argv))

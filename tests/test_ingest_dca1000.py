@@ -452,6 +452,28 @@ def test_simulated_capture_ingests_to_the_rawframe_cube(ci_run: Path, simulated_
     assert json.loads((whole / "run.json").read_text())["warnings"] == []
 
 
+def test_batch_gives_each_drives_capture_its_own_start(simulated_capture: tuple[Path, Path, Path],
+                                                       tmp_path: Path) -> None:
+    """`batch --radar-start` once per log: each drive's capture starts at its own time (the second 5 ms after its
+    sync, as a capture timed by hand would); given once for two logs it is refused (one time for every capture
+    would be wrong for all but one)."""
+    mcap, capture, whole = simulated_capture
+    with Drive(whole / "drive.h5") as d:
+        synced = int(d.radar().t_ns[0])
+    logs = [tmp_path / "a.mcap", tmp_path / "b.mcap"]
+    for log in logs:
+        log.write_bytes(mcap.read_bytes())
+    args = ["batch", *map(str, logs), "--radar", str(capture), "--radar", str(capture), "--workers", "1"]
+    r = runner.invoke(app, [*args, "--radar-start", str(synced), "-o", str(tmp_path / "x")])
+    assert_one_line_error(r.exit_code, r.stderr, "--radar-start given 1 times for 2 logs")
+    r = runner.invoke(app, [*args, "--radar-start", str(synced), "--radar-start", str(synced + 5_000_000),
+                            "-o", str(tmp_path / "out"), "--json"])
+    assert r.exit_code == 0, r.output
+    for name, start in (("a", synced), ("b", synced + 5_000_000)):
+        with Drive(tmp_path / "out" / name / "drive.h5") as d:
+            assert int(d.radar().t_ns[0]) == start
+
+
 def test_a_capture_that_lost_packets_focuses_its_reflectors_where_the_whole_one_does(
         simulated_capture: tuple[Path, Path, Path], tmp_path: Path) -> None:
     """The simulated capture recorded as the DCA1000's packets, 60 of its 17464 lost at random: `run` leaves out
