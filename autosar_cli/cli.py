@@ -33,6 +33,7 @@ from rich.table import Column, Table
 
 from autosar_cli import __version__, exit_interrupted
 from autosar_cli.config import CAN_LOG_SUFFIXES
+from autosar_cli.store.manifest import product_status
 
 
 class _FlagsShownBare:
@@ -370,7 +371,7 @@ def ingest(
         with _progress("ingest", not as_json, in_bytes=True) as update:
             report = ingest_sorted(given, output, config=cfg, allow_partial=allow_partial, progress=update,
                                    command=" ".join(sys.argv), **options.ingest_kwargs())
-        d = report.to_dict()
+        d = {**report.to_dict(), "status": product_status(report.warnings)}
         if as_json:
             out.print_json(json.dumps(d))
             return
@@ -400,8 +401,8 @@ def ingest(
             out.print(f"CAN roles not found: {', '.join(can['missing_roles'])}")
         for sk in report.skipped_channels:
             out.print(f"skipped {sk['topic']} ({sk['msgtype']}): {_lit(sk['reason'])}", highlight=False)
-        for w in report.warnings:
-            err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
+        if degraded := _degraded(report.warnings, "its /provenance report"):
+            out.print(f"{_lit(output)}:{degraded}")
 
 
 @app.command(cls=_Command)
@@ -583,7 +584,7 @@ def focus(
             else:
                 report = run_focus(drive, trajectory, output, cfg, options, overwrite=overwrite, progress=progress,
                                    command=" ".join(sys.argv))
-        summary = report.to_dict()
+        summary = {**report.to_dict(), "status": product_status(report.warnings)}
         if as_json:
             out.print_json(json.dumps(summary))
             return
@@ -596,8 +597,8 @@ def focus(
                   f"({wall / max(report.drive_s, 1e-9):.2f} x the drive's {report.drive_s:.1f} s)")
         for reason, n in report.frames_skipped.items():
             err.print(f"[yellow]skipped[/] {n} frames: {_lit(reason)}", highlight=False)
-        for w in report.warnings:
-            err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
+        if degraded := _degraded(report.warnings, None):
+            out.print(f"{_lit(report.outputs['h5'])}:{degraded}")
 
 
 @app.command(cls=_Command)
@@ -667,13 +668,14 @@ def run(
                   f"{manifest['drive_s']:.1f} s{degraded}")
 
 
-def _degraded(warnings: list[str], record: str) -> str:
+def _degraded(warnings: list[str], record: str | None) -> str:
     """Each warning of a product made from a damaged input on stderr; what the command's last line adds when
-    there is any (``record``: the file that keeps them)."""
+    there is any (``record``: the file that keeps them, where one does)."""
     for w in warnings:
         err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
     n = len(warnings)
-    return f" [yellow]degraded[/] ({n} warning{'' if n == 1 else 's'} above, in {record})" if warnings else ""
+    kept = f", in {record}" if record else ""
+    return f" [yellow]degraded[/] ({n} warning{'' if n == 1 else 's'} above{kept})" if warnings else ""
 
 
 @contextmanager
@@ -923,7 +925,7 @@ def info(
     config_sketch: Annotated[bool, typer.Option(
         "--config-sketch", help="Of a drive.h5: print a config (TOML, laid over --config) that pins its streams' "
         "topics to the config's sensors, for a log recorded on other topics (docs/LOGS.md); of a TI DCA1000 capture: "
-        "the [radar] keys it states, for a config to ingest it with (docs/RADAR.md).")] = False,
+        "the \\[radar] keys it states, for a config to ingest it with (docs/RADAR.md).")] = False,
     verify: Annotated[bool, typer.Option(
         "--verify", help="Of a file autosar wrote (drive.h5, trajectory.h5, image.h5, image.tif, image.png), or a "
         "run's directory of them: read every stored chunk or tile and check its checksum; exit 1 naming each "

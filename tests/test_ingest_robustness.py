@@ -450,6 +450,23 @@ def test_truncated_mcap_keeps_what_came_before(ci_mcap: SimulationResult, work: 
         assert st["late_dropped"] == st["duplicates"] == 0
 
 
+def test_the_drive_of_a_damaged_log_says_it_is_degraded(ci_mcap: SimulationResult, work: Path) -> None:
+    """`autosar ingest` of a log cut in half: its warning, then a last line that marks the drive degraded and says
+    where its warnings are kept; --json's "status" is "degraded" (a whole log's is "ok")."""
+    log = work / "cut.mcap"
+    log.write_bytes(ci_mcap.log_path.read_bytes()[: ci_mcap.log_path.stat().st_size // 2])
+    r = runner.invoke(app, ["ingest", str(log), "-o", str(work / "cut.h5")], env={"COLUMNS": "300"},
+                      terminal_width=300)
+    assert r.exit_code == 0, r.output
+    n = sum(ln.startswith("warning:") for ln in r.stderr.splitlines())
+    assert n >= 1 and r.stdout.strip().splitlines()[-1] == (
+        f"{work / 'cut.h5'}: degraded ({n} warning{'s' if n > 1 else ''} above, in its /provenance report)")
+    r = runner.invoke(app, ["ingest", str(log), "-o", str(work / "cut2.h5"), "--json"])
+    assert json.loads(r.stdout)["status"] == "degraded"
+    r = runner.invoke(app, ["ingest", str(ci_mcap.log_path), "-o", str(work / "whole.h5"), "--json"])
+    assert json.loads(r.stdout)["status"] == "ok"
+
+
 def test_corrupt_chunk_is_skipped_the_rest_is_read(ci_mcap: SimulationResult, work: Path, cfg: Config,
                                                    base: Ingested) -> None:
     with open(ci_mcap.log_path, "rb") as f:
