@@ -245,7 +245,7 @@ def test_read_image_rejects_other_files(tmp_path: Path, rotated_products: tuple[
         f["t_ns"] = np.arange(3)
     with pytest.raises(ImageFormatError, match="trajectory.h5") as exc:
         read_image(other)
-    assert "autosar-trajectory" in str(exc.value)
+    assert "not an image.h5 (it is a trajectory.h5 autosar wrote)" in str(exc.value)
 
     text = tmp_path / "notes.h5"
     text.write_text("not hdf5")

@@ -157,6 +157,14 @@ def test_a_log_and_a_product_given_for_each_other_say_what_they_are(ci_mcap, ci_
                          (["evaluate", str(log), "-o", str(out)],
                           f"a drive log, not a run directory or image.h5: `autosar run {log.name} -o DIR`")):
         _one_line_error(runner.invoke(app, args), f"error: {log}: {wanted}")
+    drive, trajectory = ci_run / "drive.h5", ci_run / "trajectory.h5"
+    for args, wanted in ((["focus", str(trajectory), "-t", str(trajectory), "-o", str(out / "i")],
+                          f"{trajectory}: not a drive.h5 (it is a trajectory.h5 autosar wrote); `autosar ingest LOG "
+                          "-o drive.h5` makes one"),
+                         (["focus", str(drive), "-t", str(drive), "-o", str(out / "i")],
+                          f"{drive}: not a trajectory.h5 (it is a drive.h5 autosar wrote); `autosar navigate "
+                          "drive.h5 -o trajectory.h5` makes one")):
+        _one_line_error(runner.invoke(app, args), f"error: {wanted}")
     assert not out.exists()
     # a run written into the log's own directory holds the log (read as a rosbag2 bag of its .mcap), and is a run
     beside = tmp_path / "drive"

@@ -41,7 +41,7 @@ from numpy.typing import NDArray
 
 from autosar_cli.store.atomic import partial_path
 from autosar_cli.store.hdf5_read import DamagedFileError, dataset_errors, open_hdf5, read_dataset, read_rows
-from autosar_cli.store.outputs import check_free_space
+from autosar_cli.store.outputs import check_free_space, not_the_format
 
 FORMAT = "autosar-drive"
 FORMAT_VERSION = 1
@@ -470,7 +470,7 @@ class Drive:
         version = self._file.attrs.get("format_version")
         if fmt != FORMAT:
             self._file.close()
-            raise DriveFormatError(f"{self.path}: not a drive.h5 (format attribute {fmt!r})")
+            raise DriveFormatError(not_the_format(self.path, fmt, FORMAT))
         if version is None:
             self._file.close()
             raise DriveFormatError(f"{self.path}: has no format_version attribute (damaged drive.h5)")

@@ -28,7 +28,7 @@ from autosar_cli import __version__
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.hdf5_read import open_hdf5
 from autosar_cli.store.manifest import json_default
-from autosar_cli.store.outputs import SMALL_FILE_MARGIN_BYTES, check_free_space
+from autosar_cli.store.outputs import SMALL_FILE_MARGIN_BYTES, check_free_space, not_the_format
 from autosar_cli.store.quicklook import draw_quicklook, preload_quicklook  # noqa: F401  (focus, run preload it)
 from autosar_cli.store.tif_checksum import checksum_tags, column_crc32
 from autosar_cli.types import FocusGrid, GeodeticOrigin
@@ -257,8 +257,7 @@ def read_image(path: Path) -> FocusedImage:
     with open_hdf5(path, ImageFormatError) as f:
         fmt = f.attrs.get("format")
         if fmt != FORMAT:
-            raise ImageFormatError(f"{path}: not an autosar image.h5 (format attribute {fmt!r}, "
-                                   f"expected {FORMAT!r})")
+            raise ImageFormatError(not_the_format(path, fmt, FORMAT))
         version = int(f.attrs.get("format_version", -1))
         if version != FORMAT_VERSION:
             raise ImageFormatError(f"{path}: image format version {version}, this autosar {__version__} reads "

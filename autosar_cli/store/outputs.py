@@ -190,6 +190,23 @@ _HDF5_READERS = {
 }
 
 
+#: the command that writes each of autosar's HDF5 files
+_HDF5_WRITERS = {
+    "autosar-drive": "`autosar ingest LOG -o drive.h5` makes one",
+    "autosar-trajectory": "`autosar navigate drive.h5 -o trajectory.h5` makes one",
+    "autosar-image": "`autosar focus drive.h5 -t trajectory.h5 -o image` makes one",
+}
+
+
+def not_the_format(path: Path, fmt: object, wanted: str) -> str:
+    """The error of an HDF5 file of format ``fmt`` given where one of format ``wanted`` goes: what it is, and the
+    command that writes the one wanted."""
+    fmt = fmt.decode() if isinstance(fmt, bytes) else fmt
+    got = _HDF5_READERS.get(fmt) if isinstance(fmt, str) else None
+    what = f"it is {got[0]} autosar wrote" if got else f"format attribute {fmt!r}"
+    return f"{path}: not {_HDF5_READERS[wanted][0]} ({what}); {_HDF5_WRITERS[wanted]}"
+
+
 def what_autosar_wrote(path: Path) -> str | None:
     """Of an HDF5 file autosar wrote, what it is and what reads it ("a drive.h5: `autosar navigate` ..."), to say
     where it is given as something else (a log); None for any other file."""

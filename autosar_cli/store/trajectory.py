@@ -23,7 +23,7 @@ import numpy as np
 from autosar_cli import __version__
 from autosar_cli.store.atomic import partial_path
 from autosar_cli.store.hdf5_read import DamagedFileError, open_hdf5, read_dataset
-from autosar_cli.store.outputs import SMALL_FILE_MARGIN_BYTES, check_free_space
+from autosar_cli.store.outputs import SMALL_FILE_MARGIN_BYTES, check_free_space, not_the_format
 from autosar_cli.types import GeodeticOrigin, MotionCorrection, Trajectory
 
 FORMAT = "autosar-trajectory"
@@ -79,7 +79,7 @@ def read_trajectory(path: str | Path, *, covariance: bool = True) -> Trajectory:
     path = Path(path)
     with open_hdf5(path, TrajectoryFormatError) as f:
         if f.attrs.get("format") != FORMAT:
-            raise TrajectoryFormatError(f"{path}: not a trajectory.h5 (format {f.attrs.get('format')!r})")
+            raise TrajectoryFormatError(not_the_format(path, f.attrs.get("format"), FORMAT))
         version = f.attrs.get("format_version")
         if version is None:
             raise TrajectoryFormatError(f"{path}: has no format_version attribute (damaged trajectory.h5)")
