@@ -11,8 +11,8 @@ pointing at ``../drive.h5``, and the evaluation report: metrics.json, report.md,
 - ``compare_chips.png``: the fine patch of every reflector (columns) for every method (rows);
 - ``compare.md`` and ``compare.json``: the comparison tables.
 
-All images share one grid: the automatic grid of the true trajectory (or of the first method's when there
-is no truth), moved into each method's frame by the inverse of its SE(2) alignment, so every panel shows
+All images share one grid: the automatic grid of the true trajectory (without truth, SAR-MIN's, else the
+first method's), moved into each method's frame by the inverse of its SE(2) alignment, so every panel shows
 the same piece of the scene and entropy / contrast are computed over the same area. One pass over the
 radar data per method serves the full image and the reflector patches. Methods that need the truth
 (``truth``) are skipped with a note when the log has no truth sidecar, and so is a method whose inputs the
