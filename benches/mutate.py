@@ -112,6 +112,14 @@ BATCH_FOLDER = "tests/test_batch.py::test_batch_takes_drive_folders_and_the_time
 BATCH_INGEST = "tests/test_batch.py::test_batch_reads_every_drive_with_its_ingest_options"
 COMPARE_INGEST = "tests/test_ingest_mixed.py::test_compare_reads_can_logs_and_the_ingest_options_as_run_does"
 CAPTURE_USED = "tests/test_ingest_dca1000.py::test_simulated_capture_ingests_to_the_rawframe_cube"
+BOARD_TX = "tests/test_ingest_dca1000.py::test_a_capture_on_two_of_the_boards_three_tx_focuses_its_reflectors"
+BOARD_CONFIG = "tests/test_config.py::test_a_board_with_more_antennas_than_the_radar_uses"
+BATCH_RADAR_START = "tests/test_ingest_dca1000.py::test_batch_gives_each_drives_capture_its_own_start"
+CAPTURE_SKETCH = "tests/test_ingest_dca1000_lua.py::test_the_config_sketch_of_a_capture_is_a_config_it_ingests_with"
+CHECKSUM_MISFIT = ("tests/test_ingest_robustness.py::"
+                   "test_a_car_with_other_checksums_than_the_rule_is_told_which_key_to_set")
+INGEST_DEGRADED = "tests/test_ingest_robustness.py::test_the_drive_of_a_damaged_log_says_it_is_degraded"
+PRODUCT_KIND = "tests/test_safety.py::test_a_log_and_a_product_given_for_each_other_say_what_they_are"
 RUN_NO_RADAR = "tests/test_ingest_mixed.py::test_a_run_of_a_log_without_radar_names_the_ingest_that_writes_it"
 BLF_START = "tests/test_ingest_canlog.py::test_a_blf_whose_start_time_is_no_date_is_read_at_offsets_with_a_warning"
 BLF_START_KEPT = "tests/test_ingest_canlog.py::test_a_blf_whose_start_time_alone_is_lost_takes_it_from_its_stop_time"
@@ -436,7 +444,7 @@ MUTATIONS: list[Mutation] = [
     _m("stale-partials-left-behind", "safety", "store/outputs.py",
        "    remove_stale_partials(path.parent)\n", "\n", STALE),
     _m("degraded-run-reported-as-complete", "safety", "cli.py",
-       "return f\" [yellow]degraded[/] ({n} warning{'' if n == 1 else 's'} above, in {record})\" if warnings else \"\"",
+       "return f\" [yellow]degraded[/] ({n} warning{'' if n == 1 else 's'} above{kept})\" if warnings else \"\"",
        'return ""', DEGRADED),
     _m("mcap-damage-ends-the-read", "integrity", "ingest/mcap_source.py",
        "nxt = _next_record(self.path, resync_from + 1, total)", "nxt = None", MCAP_RESYNC),
@@ -619,6 +627,22 @@ MUTATIONS: list[Mutation] = [
     _m("compare-ingests-without-its-options", "evaluate", "evaluate/compare.py",
        'partial_hint=chain_hint("a comparison"), **ingest_options.ingest_kwargs())',
        'partial_hint=chain_hint("a comparison"))', COMPARE_INGEST),
+    _m("focus-takes-the-configs-antennas-not-the-drives", "radar", "sar/focus.py",
+       "    return replace(config, radar=r.using_channels(tx, rx))", "    return config", BOARD_TX),
+    _m("board-rows-in-use-ignored", "radar", "config.py",
+       "        return tuple(board[k] for k in self.tx_in_use)", "        return board", BOARD_CONFIG),
+    _m("batch-radar-start-unused", "batch", "batch.py",
+       "            if start_ns is not None:\n", "            if False:\n", BATCH_RADAR_START),
+    _m("capture-sketch-without-the-boards-antennas", "radar", "config_sketch.py",
+       "        if tuple(used) != tuple(range(len(", "        if False and tuple(used) != tuple(range(len(",
+       CAPTURE_SKETCH),
+    _m("checksum-rule-misfit-unsaid", "ingest", "ingest/pipeline.py",
+       "    if not failed or failed < can.decoded:", "    if True:", CHECKSUM_MISFIT),
+    _m("ingest-of-damaged-input-not-marked-degraded", "safety", "cli.py",
+       '        if degraded := _degraded(report.warnings, "its /provenance report"):',
+       '        if degraded := _degraded([], "its /provenance report"):', INGEST_DEGRADED),
+    _m("product-of-another-kind-unnamed", "safety", "store/outputs.py",
+       '    what = f"it is {got[0]} autosar wrote" if got else', '    what = f"" if got else', PRODUCT_KIND),
     _m("capture-said-to-add-nothing-to-the-drive", "ingest", "ingest/pipeline.py",
        'rows = read if kind == "radar" else', 'rows = 0 if kind == "radar" else', CAPTURE_USED),
     _m("failed-command-leaves-the-empty-directories-it-made", "safety", "store/outputs.py",
