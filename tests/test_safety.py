@@ -399,6 +399,26 @@ def test_stale_partial_of_a_killed_ingest_is_listed_and_removed_by_the_next_comm
     assert sorted(p.name for p in out.iterdir()) == [alive.name]
 
 
+def test_files_named_as_partials_that_are_not_the_outputs_own_are_never_removed(tmp_path: Path, ci_mcap) -> None:
+    """The gate removed every stale ``*.partial-<n>.*`` beside an output: a user's log so named, the command's own
+    input among them (ingest then read a file it had just deleted), or another product's. Now only the output's
+    own partials go (``drive.partial-<n>.h5`` for drive.h5), and never an input."""
+    dead = 2**22 + 17  # above any pid this machine gives
+    given = tmp_path / f"rec.partial-{dead}.mcap"
+    given.symlink_to(ci_mcap.log_path)
+    beside = tmp_path / f"b.partial-{dead + 1}.mcap"
+    beside.write_bytes(b"a user's file")
+    own = tmp_path / f"out.partial-{dead + 2}.h5"
+    own.write_bytes(b"left by a killed ingest")
+    r = runner.invoke(app, ["ingest", str(given), "-o", str(tmp_path / "out.h5")])
+    assert r.exit_code == 0, r.output
+    assert given.is_symlink() and beside.read_bytes() == b"a user's file" and not own.exists()
+    kept = tmp_path / f"drive.partial-{dead + 3}.h5"  # stale, of the output's name, but the input itself
+    kept.symlink_to(ci_mcap.log_path)
+    r = runner.invoke(app, ["ingest", str(kept), "-o", str(tmp_path / "drive.h5")])
+    assert kept.is_symlink(), r.output
+
+
 def test_a_255_byte_file_name_is_written_through_its_partial(tmp_path: Path) -> None:
     from autosar_cli.store.atomic import atomic_output
 
@@ -664,3 +684,29 @@ def test_sarmins_kernel_finishes_before_a_ctrl_c_stops_navigate(monkeypatch: pyt
     with pytest.raises(KeyboardInterrupt):
         navigate(drive, "sar-min", cfg)
     assert returned == [9]
+
+
+def test_simulate_overwrite_replaces_only_a_directory_the_simulator_wrote(tmp_path: Path, ci_run: Path) -> None:
+    """`simulate -f ros2 --overwrite` removed any directory holding one of autosar's manifests, and everything in it:
+    a run written into the log's own folder, the log and the user's notes with it. Now it replaces a simulated bag
+    holding only what the simulator writes, and refuses a run's directory or a bag holding a file of the user's."""
+    import shutil
+
+    run_dir = tmp_path / "d3"
+    shutil.copytree(ci_run, run_dir, ignore=shutil.ignore_patterns("*.console.json"))
+    (run_dir / "my_notes.txt").write_text("precious")
+    (tmp_path / "d3.truth.h5").symlink_to(ci_run / "drive.h5")  # an autosar HDF5 where the sidecar would be
+    before = sorted(p.name for p in run_dir.iterdir())
+    r = runner.invoke(app, ["simulate", "-s", "ci", "-f", "ros2", "-o", str(run_dir), "--overwrite"])
+    _one_line_error(r, str(run_dir), "simulator did not write")
+    assert sorted(p.name for p in run_dir.iterdir()) == before
+    bag = tmp_path / "bag"
+    r = runner.invoke(app, ["simulate", "-s", "ci", "-f", "ros2", "-o", str(bag)])
+    assert r.exit_code == 0, r.output
+    (bag / "notes.txt").write_text("mine")
+    r = runner.invoke(app, ["simulate", "-s", "ci", "-f", "ros2", "-o", str(bag), "--overwrite"])
+    _one_line_error(r, str(bag), "holds notes.txt")
+    (bag / "notes.txt").unlink()
+    r = runner.invoke(app, ["simulate", "-s", "ci", "-f", "ros2", "-o", str(bag), "--overwrite", "--seed", "3"])
+    assert r.exit_code == 0, r.output
+

@@ -2,7 +2,7 @@
 
 The sibling's name carries the writing process's id (``out.partial-<pid>.tif``), so a partial file left by a
 killed process is recognised as stale (its process is gone) and removed by the next autosar command writing
-in that directory (:func:`remove_stale_partials`, called by the output gate) or listed by ``autosar info``.
+that product (:func:`remove_stale_partials`, called by the output gate) or listed by ``autosar info``.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from __future__ import annotations
 import hashlib
 import os
 import re
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -45,13 +45,18 @@ def stale_partials(folder: Path) -> list[Path]:
     return sorted(stale)
 
 
-def remove_stale_partials(folder: Path) -> list[Path]:
-    """Delete the partial files of ended autosar processes in ``folder`` (never one whose process runs, nor
-    one without a pid, which an older autosar or the simulator may still be writing); returns them."""
+def remove_stale_partials(path: Path, keep: Iterable[Path] = ()) -> list[Path]:
+    """Delete the partial files of ended autosar processes writing the product ``path`` (``<stem>.partial-<pid>
+    <suffix>`` beside it; never one whose process runs, nor one of ``keep``: the command's inputs); returns them.
+    Any other file of that name pattern, another product's or the user's, stays."""
+    path = Path(path)
+    own = re.compile(re.escape(path.stem) + r"\.partial-(?P<pid>\d+)" + re.escape(path.suffix) + "$")
+    digest = partial_path(path, 0).name.rsplit(".partial-", 1)[0]
+    kept = {_same_file_key(k) for k in keep}
     removed = []
-    for p in stale_partials(folder):
-        m = PARTIAL_NAME.search(p.name)
-        if m is None or m["pid"] is None or p.is_dir():
+    for p in stale_partials(path.parent):
+        m = own.match(p.name) or re.match(re.escape(digest) + r"\.partial-(?P<pid>\d+)", p.name)
+        if m is None or p.is_dir() or p.is_symlink() or _same_file_key(p) in kept:
             continue
         try:
             p.unlink()
@@ -59,6 +64,15 @@ def remove_stale_partials(folder: Path) -> list[Path]:
         except OSError:
             pass
     return removed
+
+
+def _same_file_key(path: Path) -> tuple[int, int] | Path:
+    """What tells a file from another: its device and inode where it exists, else its absolute path."""
+    try:
+        st = Path(path).stat()
+        return (st.st_dev, st.st_ino)
+    except OSError:
+        return Path(os.path.abspath(path))
 
 
 def _process_alive(pid: int) -> bool:

@@ -14,6 +14,7 @@ import contextlib
 import errno
 import json
 import os
+import re
 import shutil
 import stat
 from collections.abc import Callable, Iterable, Iterator
@@ -40,7 +41,7 @@ def check_output(path: str | Path, inputs: Iterable[str | Path] = (), *, overwri
     """
     path = Path(path)
     _check_parent(path)
-    remove_stale_partials(path.parent)
+    inputs = list(inputs)
     target = _resolved(path)
     for inp in inputs:
         problem = input_problem(Path(inp))
@@ -53,6 +54,8 @@ def check_output(path: str | Path, inputs: Iterable[str | Path] = (), *, overwri
             raise OutputError(f"{path}: lies inside the input {inp}; choose an output outside it")
         if target in source.parents and path.exists() and not directory:
             raise OutputError(f"{path}: holds the input {inp}; choose another output")
+    if not directory:
+        remove_stale_partials(path, keep=[Path(p) for p in inputs])
     if not (path.exists() or path.is_symlink()):
         return
     if directory:
@@ -123,10 +126,21 @@ def output_directory(path: Path) -> Iterator[None]:
         raise
 
 
+#: what the simulator writes inside a directory it writes whole: a rosbag2 log's storage and metadata, a DCA1000
+#: capture's data and parameter files
+_SIMULATED_FILES = re.compile(r"(metadata\.yaml|.+\.(db3|mcap)|adc_data(_Raw_\d+)?\.bin|capture\.(mmwave|setup)\.json"
+                              r"|capture\.cfg)")
+
+
 def remove_product_directory(path: Path) -> None:
-    """Delete a directory autosar made (a simulated rosbag2 log, a run), after :func:`is_autosar_product`."""
-    if not is_autosar_product(path):
-        raise OutputError(f"{path}: was not written by autosar; refusing to delete it")
+    """Delete a directory autosar's simulator wrote whole (a simulated rosbag2 log or DCA1000 capture, its truth
+    sidecar beside it) that holds nothing else: never a run's directory, nor one holding a file of the user's."""
+    if not is_autosar_product(path) or any((path / m).exists() for m in DIRECTORY_MANIFESTS):
+        raise OutputError(f"{path}: is a directory autosar's simulator did not write; refusing to delete it, even "
+                          "with --overwrite")
+    if others := sorted(p.name for p in path.iterdir() if not (p.is_file() and _SIMULATED_FILES.fullmatch(p.name))):
+        raise OutputError(f"{path}: holds {others[0]}, which autosar's simulator did not write; refusing to delete "
+                          "it, even with --overwrite")
     shutil.rmtree(path)
 
 
