@@ -434,6 +434,8 @@ def navigate(
         _not_a_log(drive, "a drive.h5", "autosar ingest LOG -o drive.h5")
         cfg = _load_config(config)
         _prepare_output(output, overwrite, [drive, truth, cfg.source])
+        if plot:
+            _prepare_output(output.with_suffix(".png"), overwrite, [drive, truth, cfg.source])
         traj = run_navigate(drive, method.value, cfg, smooth=not no_smooth, truth_path=truth)
         write_trajectory(output, traj)
         figure = None

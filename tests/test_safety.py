@@ -710,3 +710,23 @@ def test_simulate_overwrite_replaces_only_a_directory_the_simulator_wrote(tmp_pa
     r = runner.invoke(app, ["simulate", "-s", "ci", "-f", "ros2", "-o", str(bag), "--overwrite", "--seed", "3"])
     assert r.exit_code == 0, r.output
 
+
+
+def test_navigate_plot_passes_the_output_gate(tmp_path: Path, ci_run: Path) -> None:
+    """`navigate --plot` wrote OUTPUT.png past the gate: over a user's PNG without --overwrite, and over the drive
+    itself where the drive was named OUTPUT.png. Both are refused before anything is written."""
+    import shutil
+
+    user = tmp_path / "tp.png"
+    user.write_text("user png")
+    r = runner.invoke(app, ["navigate", str(ci_run / "drive.h5"), "-o", str(tmp_path / "tp.h5"), "--plot"])
+    _one_line_error(r, str(user), "already exists")
+    assert user.read_text() == "user png" and not (tmp_path / "tp.h5").exists()
+    r = runner.invoke(app, ["navigate", str(ci_run / "drive.h5"), "-o", str(tmp_path / "tp.h5"), "--plot",
+                            "--overwrite"])
+    _one_line_error(r, str(user), "autosar did not write")
+    drive = tmp_path / "x.png"
+    shutil.copy(ci_run / "drive.h5", drive)
+    r = runner.invoke(app, ["navigate", str(drive), "-o", str(tmp_path / "x.h5"), "--plot"])
+    _one_line_error(r, str(drive), "is an input of this command")
+    assert drive.read_bytes()[:8] == b"\x89HDF\r\n\x1a\n"
