@@ -91,8 +91,8 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     inputs = [*given, *([truth_path] if truth_path else []), *config.files,
               *(ingest_options.files() if ingest_options else [])]
     check_output(out, inputs, overwrite=overwrite, directory=True)
-    check_products(out, [DRIVE, TRAJECTORY, "run.json"], inputs, overwrite=True)
-    check_products(out, [f"{IMAGE}.tif", f"{IMAGE}.h5", f"{IMAGE}.png"], inputs, overwrite=True)
+    check_products(out, [DRIVE, TRAJECTORY, "run.json", f"{IMAGE}.tif", f"{IMAGE}.h5", f"{IMAGE}.png"], inputs,
+                   overwrite=overwrite)
     check_free_space(out / DRIVE, input_bytes(given), "the drive")
     if options is None:  # the config's automatic grid (focus's own modules are imported beside the ingest)
         try:

@@ -272,7 +272,8 @@ def test_the_config_sketch_of_a_real_robot_navigates_it(husky_drive: Path, tmp_p
     inside = (t_odo > traj.t_ns[0]) & (t_odo < traj.t_ns[-1])
     assert np.median(np.abs(np.interp(t_odo[inside], traj.t_ns, traj.speed) - v_odo[inside])) < 0.25  # 0.12
     r = CliRunner().invoke(app, ["info", str(realdata(*HUSKY)), "--config-sketch"])
-    assert r.exit_code != 0 and "--config-sketch reads a drive.h5 or a TI DCA1000 capture; ingest the log first" in r.output
+    assert r.exit_code != 0 and "--config-sketch reads a drive.h5 or a TI DCA1000 capture; ingest the log first" \
+        in r.output
     r = CliRunner().invoke(app, ["info", str(as_default), "--config-sketch"])
     assert r.exit_code == 0 and tomllib.loads(r.stdout) == tomllib.loads(sketch.read_text())
 

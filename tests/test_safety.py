@@ -730,3 +730,32 @@ def test_navigate_plot_passes_the_output_gate(tmp_path: Path, ci_run: Path) -> N
     r = runner.invoke(app, ["navigate", str(drive), "-o", str(tmp_path / "x.h5"), "--plot"])
     _one_line_error(r, str(drive), "is an input of this command")
     assert drive.read_bytes()[:8] == b"\x89HDF\r\n\x1a\n"
+
+
+def test_evaluate_compare_and_run_never_replace_a_users_file_in_their_directory(tmp_path: Path, ci_run: Path,
+                                                                               ci_mcap) -> None:
+    """evaluate and compare checked only their manifest (metrics.json, compare.json): a user's report.md or
+    compare.png in the directory was replaced without a word; run replaced a drive.h5 that a separate ingest wrote
+    there without --overwrite. Each is refused before anything is written; --overwrite replaces only autosar's."""
+    import shutil
+
+    evu = tmp_path / "evu"
+    evu.mkdir()
+    (evu / "report.md").write_text("user")
+    r = runner.invoke(app, ["evaluate", str(ci_run), "-o", str(evu)])
+    _one_line_error(r, str(evu / "report.md"), "already exists")
+    r = runner.invoke(app, ["evaluate", str(ci_run), "-o", str(evu), "--overwrite"])
+    _one_line_error(r, str(evu / "report.md"), "autosar did not write")
+    assert sorted(p.name for p in evu.iterdir()) == ["report.md"] and (evu / "report.md").read_text() == "user"
+    cmpu = tmp_path / "cmpu"
+    cmpu.mkdir()
+    (cmpu / "compare.png").write_text("user")
+    r = runner.invoke(app, ["compare", str(ci_mcap.log_path), "-o", str(cmpu)])
+    _one_line_error(r, str(cmpu / "compare.png"), "already exists")
+    assert sorted(p.name for p in cmpu.iterdir()) == ["compare.png"]
+    keep = tmp_path / "keep"
+    keep.mkdir()
+    shutil.copy(ci_run / "drive.h5", keep / "drive.h5")
+    r = runner.invoke(app, ["run", str(ci_mcap.log_path), "-o", str(keep)])
+    _one_line_error(r, str(keep / "drive.h5"), "already exists")
+    assert sorted(p.name for p in keep.iterdir()) == ["drive.h5"]

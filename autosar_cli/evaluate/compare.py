@@ -70,7 +70,7 @@ from autosar_cli.sim.truth import truth_radar_mismatch
 from autosar_cli.store.drive import Drive, radar_times
 from autosar_cli.store.image import write_image
 from autosar_cli.store.manifest import product_status
-from autosar_cli.store.outputs import check_free_space, check_output, input_bytes, output_directory
+from autosar_cli.store.outputs import check_free_space, check_output, check_products, input_bytes, output_directory
 from autosar_cli.store.trajectory import write_trajectory
 
 FORMAT = "autosar-compare"
@@ -86,6 +86,8 @@ DERIVED = (SARMIN_SCALED, SARMIN_AUTOFOCUS)  # made from SAR-MIN's track, which 
 COMPARE_METHODS = (*NAV_METHODS, *DERIVED)
 NEEDS_TRUTH = ("truth", SARMIN_SCALED)
 DRIVE = "drive.h5"
+#: what each method's directory holds (as ``autosar run`` writes it)
+METHOD_PRODUCTS = ("trajectory.h5", "image.tif", "image.h5", "image.png", "run.json")
 
 Progress = Callable[[str, int, int], None]
 
@@ -131,8 +133,11 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
         raise CompareError(f"{out}: already holds a comparison (compare.json); pass --overwrite to replace it")
     ingest_options = ingest_options or IngestOptions()
     given = [*logs, *can_logs, *nmea_logs]  # every input read into the drive (as the manifests list them)
-    check_output(out, [*given, *([truth_path] if truth_path else []), *config.files, *ingest_options.files()],
-                 overwrite=overwrite, directory=True)
+    read = [*given, *([truth_path] if truth_path else []), *config.files, *ingest_options.files()]
+    check_output(out, read, overwrite=overwrite, directory=True)
+    check_products(out, [DRIVE, "compare.png", "across_track.png", "compare_chips.png", "compare.md", "compare.json",
+                         *(f"{m}/{name}" for m in parse_methods(methods) for name in METHOD_PRODUCTS)],
+                   read, overwrite=overwrite, manifest="compare.json")
     check_free_space(out / DRIVE, input_bytes(given), "the drive")
     methods = parse_methods(methods)
     options = options or FocusOptions.from_config(config)

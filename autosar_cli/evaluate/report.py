@@ -25,13 +25,14 @@ from autosar_cli.sim.truth import truth_path_for, truth_radar_mismatch
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.drive import Drive
 from autosar_cli.store.image import read_image
-from autosar_cli.store.outputs import check_output
+from autosar_cli.store.outputs import check_output, check_products
 from autosar_cli.store.trajectory import read_trajectory
 
 METRICS = "metrics.json"
 REPORT = "report.md"
 TRAJECTORY_FIGURE = "trajectory_error.png"
 CHIPS_FIGURE = "reflector_chips.png"
+PRODUCTS = (METRICS, REPORT, TRAJECTORY_FIGURE, CHIPS_FIGURE)  #: what an evaluation writes into its directory
 
 
 class EvaluateError(ValueError):
@@ -135,8 +136,9 @@ def evaluate_run(source: str | Path, out_dir: str | Path, truth_path: str | Path
     if (out / METRICS).exists() and not overwrite:
         raise EvaluateError(f"{out}: already holds an evaluation ({METRICS}); pass --overwrite to replace it")
     inputs = resolve_inputs(source, truth_path, config)
-    check_output(out, [p for p in (inputs.image_path, inputs.trajectory_path, inputs.drive_path, inputs.truth_path)
-                       if p], overwrite=overwrite, directory=True)
+    read = [p for p in (inputs.image_path, inputs.trajectory_path, inputs.drive_path, inputs.truth_path) if p]
+    check_output(out, read, overwrite=overwrite, directory=True)
+    check_products(out, PRODUCTS, read, overwrite=overwrite, manifest=METRICS)
     if progress:
         progress("evaluate", 0, 1)
     image = read_image(inputs.image_path)

@@ -32,12 +32,13 @@ class OutputError(ValueError):
 
 
 def check_output(path: str | Path, inputs: Iterable[str | Path] = (), *, overwrite: bool,
-                 directory: bool = False, replaces_directory: bool = False) -> None:
+                 directory: bool = False, replaces_directory: bool = False, ours: bool = False) -> None:
     """Refuse ``path`` as an output unless writing it harms nothing; raises OutputError/FileExistsError.
 
     ``inputs``: every file or directory the command reads. ``directory``: the output is a directory that
     autosar fills (a run); else a file, or with ``replaces_directory`` a directory written whole (a
-    simulated rosbag2 log).
+    simulated rosbag2 log). ``ours``: an existing file at ``path`` is autosar's though it carries no metadata of
+    its own (a report's Markdown or plot, named by the autosar manifest beside it).
     """
     path = Path(path)
     _check_parent(path)
@@ -66,7 +67,7 @@ def check_output(path: str | Path, inputs: Iterable[str | Path] = (), *, overwri
         raise OutputError(f"{path}: is a directory; the output is a file")
     if not overwrite:
         raise FileExistsError(f"{path}: already exists (use --overwrite to replace it)")
-    if not is_autosar_product(path):
+    if not (ours and path.is_file() and not path.is_symlink()) and not is_autosar_product(path):
         what = "a directory" if path.is_dir() else "a file"
         raise OutputError(f"{path}: is {what} autosar did not write (no autosar metadata); refusing to replace "
                           f"it, even with --overwrite")
@@ -93,11 +94,15 @@ def _resolved(path: Path) -> Path:
         raise OutputError(f"{path}: a symbolic link loop (it leads to itself)") from None
 
 
-def check_products(directory: Path, names: Iterable[str], inputs: Iterable[str | Path], *, overwrite: bool) -> None:
-    """check_output for each of ``names`` inside ``directory`` (a run directory's products)."""
+def check_products(directory: Path, names: Iterable[str], inputs: Iterable[str | Path], *, overwrite: bool,
+                   manifest: str | None = None) -> None:
+    """check_output for each of ``names`` inside ``directory`` (a run's, an evaluation's products); where
+    ``directory``'s ``manifest`` (metrics.json, compare.json) is autosar's, the files named are taken as its own
+    (a report's Markdown and plots carry no metadata of their own), else an existing one is the user's."""
     inputs = list(inputs)
+    ours = manifest is not None and _json_format(Path(directory) / manifest)
     for name in names:
-        check_output(directory / name, inputs, overwrite=overwrite)
+        check_output(directory / name, inputs, overwrite=overwrite, ours=ours)
 
 
 def make_directories(path: Path) -> Callable[[], None]:
