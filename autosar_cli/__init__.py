@@ -6,17 +6,19 @@ __version__ = "0.1.0"
 
 
 def exit_interrupted(signum: int, frame: object) -> None:
-    """SIGINT handler of the ``autosar`` command outside a command's body (while it imports, parses its
-    arguments, or has finished): "interrupted", exit 130, no traceback. A command's body (``cli._errors``)
-    swaps in Python's KeyboardInterrupt instead, so that its writers stop and remove their partial files."""
+    """SIGINT and SIGTERM handler of the ``autosar`` command outside a command's body (while it imports, parses its
+    arguments, or has finished): "interrupted" (SIGINT, exit 130) or "terminated" (SIGTERM, 143), no traceback. A
+    command's body (``cli._errors``) raises a KeyboardInterrupt instead (:mod:`autosar_cli.interrupts`), so that
+    its writers stop and remove their partial files."""
     import os
+    import signal
 
-    os.write(2, b"error: interrupted\n")
-    os._exit(130)
+    os.write(2, b"error: terminated\n" if signum == signal.SIGTERM else b"error: interrupted\n")
+    os._exit(128 + signum)
 
 
 def _quiet_interrupt_while_starting() -> None:
-    """Install :func:`exit_interrupted` for the console script (a library import leaves the signal alone)."""
+    """Install :func:`exit_interrupted` for the console script (a library import leaves the signals alone)."""
     import os
     import signal
     import sys
@@ -25,6 +27,8 @@ def _quiet_interrupt_while_starting() -> None:
         return
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         signal.signal(signal.SIGINT, exit_interrupted)
+    if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:  # a service manager's or `timeout`'s stop
+        signal.signal(signal.SIGTERM, exit_interrupted)
 
 
 _quiet_interrupt_while_starting()

@@ -33,6 +33,7 @@ from rich.table import Column, Table
 
 from autosar_cli import __version__, exit_interrupted
 from autosar_cli.config import CAN_LOG_SUFFIXES
+from autosar_cli.interrupts import Terminated, raise_terminated
 from autosar_cli.store.manifest import product_status
 
 
@@ -183,6 +184,9 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
         import numba  # noqa: F401
     if quick_exit:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+    quick_term = signal.getsignal(signal.SIGTERM) is exit_interrupted
+    if quick_term:
+        signal.signal(signal.SIGTERM, raise_terminated)
     unraisable_hook = sys.unraisablehook
     sys.unraisablehook = _interrupt_again(unraisable_hook)
     undo_on_failure: list[Callable[[], None]] = []
@@ -191,10 +195,11 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
         yield
     except (typer.Exit, typer.Abort):
         raise
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         _undo(undo_on_failure)
-        err.print("[red]error:[/] interrupted")
-        raise typer.Exit(130) from None
+        terminated = isinstance(exc, Terminated)
+        err.print(f"[red]error:[/] {'terminated' if terminated else 'interrupted'}")
+        raise typer.Exit(143 if terminated else 130) from None
     except Exception as exc:
         _undo(undo_on_failure)
         if _state["debug"]:
@@ -211,6 +216,8 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
         sys.unraisablehook = unraisable_hook
         if quick_exit:
             signal.signal(signal.SIGINT, exit_interrupted)
+        if quick_term:
+            signal.signal(signal.SIGTERM, exit_interrupted)
 
 
 def _undo(steps: list[Callable[[], None]]) -> None:
@@ -223,8 +230,9 @@ def _interrupt_again(hook: Callable[[Any], None]) -> Callable[[Any], None]:
     it can stop the command, instead of printing "Exception ignored ..." and going on."""
 
     def interrupt_again(unraisable: Any) -> None:
-        if unraisable.exc_type is KeyboardInterrupt:  # raised from here it would be unraisable again: a moment later
-            threading.Timer(0.01, signal.raise_signal, (signal.SIGINT,)).start()
+        if unraisable.exc_type in (KeyboardInterrupt, Terminated):  # raised from here it would be unraisable again
+            stop = signal.SIGTERM if unraisable.exc_type is Terminated else signal.SIGINT
+            threading.Timer(0.01, signal.raise_signal, (stop,)).start()  # a moment later
             return
         hook(unraisable)
 
@@ -1165,9 +1173,10 @@ def main() -> None:
         code: int | str | None = 0
     except SystemExit as exc:
         code = exc.code
-    except KeyboardInterrupt:
-        err.print("[red]error:[/] interrupted")
-        code = 130
+    except KeyboardInterrupt as exc:
+        terminated = isinstance(exc, Terminated)
+        err.print(f"[red]error:[/] {'terminated' if terminated else 'interrupted'}")
+        code = 143 if terminated else 130
     # The command is over and its products are closed. Frozen, the objects of numba, scipy, pandas and matplotlib
     # are no longer walked by the collections of the interpreter's shutdown: 0.7-0.8 s -> 0.1 s after
     # `autosar run` (measured). atexit handlers still run.

@@ -1,10 +1,11 @@
-"""Ctrl-C held off while compiled code runs, and raised once it has returned.
+"""Ctrl-C (and SIGTERM) held off while compiled code runs, and raised once it has returned.
 
 Python runs its SIGINT handler at the next bytecode, and a numba kernel returns through C code (boxing its result
 tuple) that does not expect one: a KeyboardInterrupt raised there crashed ``autosar navigate`` (SIGSEGV on urban,
 Ctrl-C 1.9-2.0 s in) or ended it with "CPUDispatcher(...) returned a result with an exception set" (exit 1) instead
 of "interrupted" (130). Inside :func:`interrupts_held` a Ctrl-C is only noted; it is raised as a KeyboardInterrupt
-when the block ends, so the command still stops, after the kernel, with its writers cleaning up as ever.
+when the block ends, so the command still stops, after the kernel, with its writers cleaning up as ever. SIGTERM
+(a service manager's or ``timeout``'s stop) is a :class:`Terminated`, a KeyboardInterrupt the command tells apart.
 """
 
 from __future__ import annotations
@@ -16,10 +17,19 @@ from contextlib import contextmanager
 from types import FrameType
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM inside a command: it stops as at Ctrl-C, and says "terminated" (exit 143)."""
+
+
+def raise_terminated(signum: int, frame: FrameType | None) -> None:
+    """SIGTERM handler of a command's body: raise :class:`Terminated` where Python next runs bytecode."""
+    raise Terminated
+
+
 @contextmanager
 def interrupts_held() -> Iterator[None]:
-    """Hold SIGINT for the block (main thread only; elsewhere Python delivers none) and raise KeyboardInterrupt
-    after it where one came. An exception from the block itself goes on as it is."""
+    """Hold SIGINT and SIGTERM for the block (main thread only; elsewhere Python delivers none) and raise
+    KeyboardInterrupt (:class:`Terminated`) after it where one came. An exception from the block goes on as it is."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -28,10 +38,17 @@ def interrupts_held() -> Iterator[None]:
     def note(signum: int, frame: FrameType | None) -> None:
         came.append(signum)
 
-    previous = signal.signal(signal.SIGINT, note)
+    previous = {s: signal.signal(s, note) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
-    if came:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    if signal.SIGTERM in came:  # handled now as it would have been without this block
+        term = previous[signal.SIGTERM]
+        if callable(term):
+            term(signal.SIGTERM, None)
+        elif term == signal.SIG_DFL:
+            signal.raise_signal(signal.SIGTERM)
+    if signal.SIGINT in came:
         raise KeyboardInterrupt

@@ -759,3 +759,26 @@ def test_evaluate_compare_and_run_never_replace_a_users_file_in_their_directory(
     r = runner.invoke(app, ["run", str(ci_mcap.log_path), "-o", str(keep)])
     _one_line_error(r, str(keep / "drive.h5"), "already exists")
     assert sorted(p.name for p in keep.iterdir()) == ["drive.h5"]
+
+
+def test_sigterm_stops_a_command_as_ctrl_c_does(tmp_path: Path, ci_mcap) -> None:
+    """SIGTERM (`timeout`'s, a service manager's stop) ended the command at once: exit 143 without a word, its
+    partial file left behind. Now it stops as at Ctrl-C: "terminated", exit 143, the partial file removed."""
+    import signal
+    import subprocess
+    import time
+
+    script = _console_script()
+    if script is None:
+        pytest.skip("the autosar console script is not installed")
+    out = tmp_path / "out"
+    proc = subprocess.Popen([script, "ingest", str(ci_mcap.log_path), "-o", str(out / "drive.h5")],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not list(tmp_path.glob("out/*.partial*")) and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGTERM)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 143, stderr
+    assert stderr.strip().endswith("terminated") and "Traceback" not in stderr, stderr
+    assert not out.exists() or not list(out.iterdir())
