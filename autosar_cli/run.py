@@ -103,7 +103,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         from autosar_cli.sar.focus import check_request
 
         check_request(options, out / IMAGE, True, inputs, config)
-    inputs = [{"path": str(Path(p)), "size_bytes": input_bytes([p])} for p in given]
+    inputs = [{"path": os.path.abspath(p), "size_bytes": input_bytes([p])} for p in given]  # found from anywhere
     manifest: dict[str, Any] = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
         "python": platform.python_version(), "command": command, "config": config.source, "inputs": inputs,

@@ -518,6 +518,26 @@ def test_evaluate_cli_writes_the_report(ci_run: Path, tmp_path: Path) -> None:
     assert "entropy" in r.stdout
 
 
+def test_a_run_of_a_relative_path_is_evaluated_against_its_truth_from_anywhere(ci_mcap: Any, tmp_path: Path,
+                                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """A run given its log by a relative path recorded it so (drive.h5's provenance, run.json): evaluated from
+    another directory, its truth sidecar was not found, and the evaluation went on without it (exit 0, a note).
+    The inputs are recorded as absolute paths, and the truth is found from anywhere."""
+    work = tmp_path / "w"
+    work.mkdir()
+    (work / "s.mcap").symlink_to(ci_mcap.log_path)
+    (work / "s.mcap.truth.h5").symlink_to(ci_mcap.truth_path)
+    monkeypatch.chdir(work)
+    r = runner.invoke(app, ["run", "s.mcap", "-o", "runA"])
+    assert r.exit_code == 0, r.output
+    monkeypatch.chdir(tmp_path)
+    r = runner.invoke(app, ["evaluate", str(work / "runA"), "-o", str(tmp_path / "ev"), "--json"])
+    assert r.exit_code == 0, r.output
+    metrics = json.loads(r.stdout)
+    assert metrics["truth"] == str(work / "s.mcap.truth.h5") and metrics["summary"]["reflectors"] == 3
+    assert json.loads((work / "runA" / "run.json").read_text())["inputs"][0]["path"] == str(work / "s.mcap")
+
+
 def test_evaluate_errors_are_one_line(tmp_path: Path) -> None:
     r = runner.invoke(app, ["evaluate", str(tmp_path), "-o", str(tmp_path / "rep")])
     assert r.exit_code == 1 and "run.json" in r.stderr and "Traceback" not in r.output

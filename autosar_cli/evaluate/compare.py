@@ -322,7 +322,8 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
 
     result: dict[str, Any] = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__, "command": command,
-        "inputs": [str(p) for p in given], "config": config.source, "truth": str(truth_path) if truth_path else None,
+        "inputs": [os.path.abspath(p) for p in given], "config": config.source,
+        "truth": os.path.abspath(truth_path) if truth_path else None,
         "methods": run_methods, "skipped": skipped, "notes": notes,
         "status": product_status(warnings), "warnings": warnings,
         "grid": {"reference_trajectory": base_traj.method, "shape": list(base_grid.shape),

@@ -12,6 +12,7 @@ import dataclasses
 import hashlib
 import json
 import math
+import os
 import re
 import statistics
 import time
@@ -752,7 +753,8 @@ def ingest_sorted(given: SortedInputs, output: Path, *, config: Config, dbc: Pat
         report.end_ns = max((s.last_ns for s in written), default=0)
         for (path, kind, _), fut, rows in zip(sources, hashes, job.rows_in_drive, strict=True):
             size, digest = fut.result()
-            report.inputs.append({"path": str(path), "kind": kind, "size_bytes": size, "sha256": digest,
+            # absolute: a later command finds the input (its truth sidecar) from any directory
+            report.inputs.append({"path": os.path.abspath(path), "kind": kind, "size_bytes": size, "sha256": digest,
                                   "rows_in_drive": rows})
         report.bytes_read = total
         report.wall_s = time.perf_counter() - t0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -641,7 +642,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
         traj = straight_line(inputs, config)
     else:
         traj = from_truth(str(truth_path), inputs.origin, config, radar_motion=True)
-        traj.info["truth"] = str(truth_path)
+        traj.info["truth"] = os.path.abspath(truth_path)
     traj.info["drive"] = str(drive_path)
     if damage:
         traj.info["warnings"] = [*damage, *traj.info.get("warnings", [])]
