@@ -827,6 +827,8 @@ def _validate(cfg: Config) -> None:
     nav = cfg.navigation
     for name in ("speed_noise_mps2", "yaw_rate_noise_radps2", "gnss_position_std_m", "max_step_s"):
         _positive(f"navigation.{name}", getattr(nav, name))
+    if not 1e-3 <= nav.max_step_s <= 1.0:  # shorter: millions of steps between two measurements
+        raise ConfigError(f"navigation.max_step_s: must lie in [0.001, 1] s, got {nav.max_step_s!r}")
     _non_negative("navigation.position_noise_m", nav.position_noise_m)
     _non_negative("navigation.steering_min_speed_mps", nav.steering_min_speed_mps)
     _non_negative("navigation.standstill_yaw_rate_std_dps", nav.standstill_yaw_rate_std_dps)
@@ -848,6 +850,10 @@ def _validate(cfg: Config) -> None:
     p = cfg.processing
     _positive("processing.pixel_m", p.pixel_m)
     _positive("processing.cross_range_resolution_m", p.cross_range_resolution_m)
+    finest = cfg.radar.wavelength_m / (4 * math.radians(cfg.radar.beamwidth_az_deg / 2))
+    if p.cross_range_resolution_m < finest:
+        raise ConfigError(f"processing.cross_range_resolution_m: {p.cross_range_resolution_m!r} m asks for a wider "
+                          f"beam than the antenna's (radar.beamwidth_az_deg): the finest it holds is {finest:.3g} m")
     _finite_vector("processing.focus_height_m", (p.focus_height_m,))
     if p.range_upsample < 1:
         raise ConfigError(f"processing.range_upsample: must be at least 1, got {p.range_upsample}")

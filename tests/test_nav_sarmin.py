@@ -988,3 +988,21 @@ def test_a_receiver_without_a_vertical_velocity_gives_none(ci_drive: Path, tmp_p
     with Drive(drive) as d:
         inputs = load_inputs(d, CFG)
     assert inputs.gnss_climb is None and inputs.gnss_velocity is not None
+
+
+@pytest.mark.parametrize("method", ["sar-min", "ins"])
+def test_a_perfect_receivers_zero_velocity_noise_navigates(ci_drive: Path, method: str) -> None:
+    """A GNSS table with velocity_std_mps = 0 (a perfect simulated receiver) made the filter's measurement noise
+    singular ("covariance is not positive definite", naming no key): its velocity is weighed at 1 mm/s, and the
+    track stays within 1 mm of the one weighed so explicitly."""
+    sensors = dict(CFG.sensors)
+    for name in ("gnss_cog", "gnss_radar"):
+        s = sensors[name]
+        sensors[name] = dataclasses.replace(s, gnss=dataclasses.replace(s.gnss, velocity_std_mps=0.0))
+    zero = navigate(ci_drive, method, dataclasses.replace(CFG, sensors=sensors))
+    for name in ("gnss_cog", "gnss_radar"):
+        s = sensors[name]
+        sensors[name] = dataclasses.replace(s, gnss=dataclasses.replace(s.gnss, velocity_std_mps=1e-3))
+    floor = navigate(ci_drive, method, dataclasses.replace(CFG, sensors=sensors))
+    assert np.all(np.isfinite(zero.rear_axle_enu))
+    np.testing.assert_allclose(zero.rear_axle_enu, floor.rear_axle_enu, atol=1e-3)

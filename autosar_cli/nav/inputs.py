@@ -269,7 +269,7 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
     out.gnss_position = Measurements(nav.gnss, rel(fix["t_ns"], nav.gnss), enu[:, :2], pos_std)
     out.gnss_reported_std_m = _reported_horizontal_std(drive, gnss["fix"]) if gnss is not None else math.nan
     if vel is not None:
-        std = errors.velocity_std_mps if errors else 0.05
+        std = max(errors.velocity_std_mps if errors else 0.05, 1e-3)  # a perfect (simulated) receiver's 0: 1 mm/s
         out.gnss_velocity = Measurements(nav.gnss, rel(vel["t_ns"], nav.gnss), vel["velocity_enu"][:, :2],
                                          np.full(2, std))
         up = vel["velocity_enu"][:, 2] if vel["velocity_enu"].shape[1] > 2 else np.zeros(0)

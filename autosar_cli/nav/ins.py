@@ -103,7 +103,7 @@ def run_ins(ins: InsInputs, config: Config) -> Trajectory:
     a_walk = s_imu.accel.bias_instability_mps2 * np.sqrt(2.0 / s_imu.accel.bias_tau_s)
     e = s_gnss.gnss
     R_pos = np.diag([e.horizontal_std_m**2 + e.white_std_m**2] * 2 + [e.vertical_std_m**2 + e.white_std_m**2])
-    R_vel = np.diag([e.velocity_std_mps**2] * 3)
+    R_vel = np.diag([max(e.velocity_std_mps, 1e-3) ** 2] * 3)  # a perfect (simulated) receiver's 0: 1 mm/s
     lever_ga = ins.gnss_lever - ins.imu_lever  # GNSS antenna seen from the IMU, body frame
 
     # Alignment from the first GNSS data: position, velocity, yaw from the course; level start.

@@ -361,6 +361,10 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         timings["geometry"] += time.perf_counter() - t_start
 
         half_width = processed_half_width(wavelength, options.resolution_m)
+        if half_width > (beam := math.radians(config.radar.beamwidth_az_deg / 2)):
+            raise FocusError(f"focus: cross-range resolution {options.resolution_m:g} m asks for a beam of +-"
+                             f"{math.degrees(half_width):.3g} deg, wider than the antenna's +-{math.degrees(beam):g} "
+                             f"deg (radar.beamwidth_az_deg): the finest it holds is {wavelength / (4 * beam):.3g} m")
         side = radar_side(config)
         used_tx = sorted({t for t, _ in pairs})
         antenna_of_tx = {t: i for i, t in enumerate(used_tx)}
