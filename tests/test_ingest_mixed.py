@@ -156,8 +156,8 @@ def test_two_recordings_of_a_stream_are_refused(ci_mcap: SimulationResult, sim_d
     """Two logs whose rows of one stream interleave would make a drive of two recordings (ci seeds 7 and 8 share
     their clock: their IMUs at 1000 Hz, each one's GNSS where its stamps came first; before, rc 0 and no
     warning): refused in one line naming both logs and the stream. A recording split into two files by log time
-    (the second's first messages stamped before the first's last) reads as the whole; the same log twice as
-    duplicates, dropped."""
+    (the second's first messages stamped before the first's last) reads as the whole; the same log given twice is
+    refused (its messages were dropped as duplicates, but its CAN frames counted twice in the drive's report)."""
     from conftest import simulated
 
     other = simulated(sim_dir, "ci", "mcap", 8).log_path
@@ -174,8 +174,9 @@ def test_two_recordings_of_a_stream_are_refused(ci_mcap: SimulationResult, sim_d
     assert {s["path"]: s["written"] for s in parts.streams} == written
     # what the check lets through: the late half of 0.1 s of imu_cog_a's 500 Hz put back in order
     assert {s["path"]: s["reordered"] for s in parts.streams if s["reordered"]} == {"imu/imu_cog_a": 25}
-    twice = run([ci_mcap.log_path, ci_mcap.log_path], work / "twice.h5", cfg)
-    assert {s["path"]: s["written"] for s in twice.streams} == written
+    with pytest.raises(IngestError, match="given twice; give each input once"):
+        run([ci_mcap.log_path, ci_mcap.log_path], work / "twice.h5", cfg)
+    assert not (work / "twice.h5").exists()
 
 
 # ------------------------------------------------------------------------------------------- NMEA

@@ -170,8 +170,13 @@ def sort_inputs(logs: Iterable[Path], can_logs: Iterable[Path] = (), nmea_logs: 
             sorted_.by_kind[k] += folder.inputs[k]
         if (said := folder.warning()) is not None:
             sorted_.warnings.append(said)
+    seen: dict[tuple[int, int], Path] = {}
     for path, kind in sorted_.all():
         check_input(path, kind)
+        st = path.stat()
+        if (first := seen.setdefault((st.st_dev, st.st_ino), path)) is not path:
+            same = "given twice" if first == path else f"the same file as {first}"
+            raise InputError(f"{path}: {same}; give each input once (it would be read into the drive twice)")
     return sorted_
 
 
