@@ -186,6 +186,11 @@ def test_focus_of_a_drive_damaged_in_a_radar_chunk_leaves_out_its_frames_and_say
                                       "which lacks their part")
     a, b = read_image(tmp_path / "whole.h5"), read_image(tmp_path / "damaged.h5")
     assert b.params["frames_damaged"] == 64 and a.params["frames_damaged"] == 0
+    assert b.provenance["warnings"] == damaged["warnings"] and damaged["status"] == "degraded"
+    if tiles == 1:  # its evaluation is marked degraded by the image's own warning (it read only the drive's: ok)
+        r = runner.invoke(app, ["evaluate", str(tmp_path / "damaged.h5"), "-o", str(tmp_path / "ev"), "--json"])
+        assert r.exit_code == 0, r.output
+        assert json.loads(r.stdout)["status"] == "degraded"
     peak = np.unravel_index(np.argmax(np.abs(a.image)), a.image.shape)
     assert np.unravel_index(np.argmax(np.abs(b.image)), b.image.shape) == peak
     assert abs(b.image[peak]) <= abs(a.image[peak]) * (1 + 1e-6)

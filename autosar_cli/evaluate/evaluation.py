@@ -155,7 +155,8 @@ class Evaluation:
     range_dir: tuple[float, float] = (0.0, 1.0)
     notes: list[str] = field(default_factory=list)
     inputs: dict[str, str] = field(default_factory=dict)
-    input_warnings: list[str] = field(default_factory=list)  #: the drive's ingest warnings (a damaged log, ...)
+    #: the drive's ingest warnings (a damaged log, ...) and the image's own (frames left out of it)
+    input_warnings: list[str] = field(default_factory=list)
 
     @property
     def alignment(self) -> Se2:
@@ -340,6 +341,8 @@ def evaluate_image(image: FocusedImage, trajectory: Trajectory, drive_path: str 
                     range_dir=range_dir or range_direction(image, trajectory, config), inputs=dict(inputs or {}))
     with Drive(drive_path) as drive:
         ev.input_warnings = [str(w) for w in drive.report().get("warnings", [])]
+    # what focusing left out of the image (a damaged drive's frames), as its provenance keeps it
+    ev.input_warnings += [str(w) for w in image.provenance.get("warnings", []) if str(w) not in ev.input_warnings]
     frames = radar_times(drive_path, options.radar, options.radar_clock_offset_s, options.radar_clock_drift_ppm)
     fine = [product_metrics_grid(image)] if metrics_image is None else []
     if truth is None:

@@ -549,9 +549,10 @@ def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Pat
     res = focus_images(drive_path, trajectory_path, config, options, progress=on_block, command=command)
     t0 = time.perf_counter()
     img = res.images[0]
+    warnings = [*res.warnings, *unfocused_radars(drive_path, options)]
+    img.provenance["warnings"] = warnings  # what the image lacks, with it (evaluate reads them)
     outputs = write_image(Path(output), img, overwrite=overwrite)
     timings = dict(res.timings_s)
     timings["write"] = time.perf_counter() - t0
     return FocusReport({k: str(v) for k, v in outputs.items()}, img.grid.shape, res.frames_used, res.frames_skipped,
-                       res.backprojections, timings, res.drive_s,
-                       [*res.warnings, *unfocused_radars(drive_path, options)])
+                       res.backprojections, timings, res.drive_s, warnings)

@@ -205,13 +205,15 @@ def focus_tiled(drive_path: str | Path, trajectory_path: str | Path, output: str
         skipped = {k: v for k, v in first.frames_skipped.items() if k != DAMAGED_FRAMES}
         if damaged:
             skipped[DAMAGED_FRAMES] = len(damaged)
+        warnings = [damaged_frames_warning(drive_path, str(first.params["radar"]), damaged)] if damaged else []
+        warnings += unfocused_radars(drive_path, options)
         writer.set_metadata({**first.params, "backprojections": n_bp, "frames_used": frames_used,
-                             "frames_damaged": len(damaged)}, {**first.provenance, "tiles": len(parts)})
+                             "frames_damaged": len(damaged)},
+                            {**first.provenance, "tiles": len(parts), "warnings": warnings})
         t0 = time.perf_counter()
     timings["write"] += time.perf_counter() - t0  # closing: tags, quicklook, flush, rename
-    warnings = [damaged_frames_warning(drive_path, str(first.params["radar"]), damaged)] if damaged else []
     return FocusReport({k: str(v) for k, v in writer.paths.items()}, grid.shape, frames_used, skipped, n_bp,
-                       dict(timings), first.drive_s, [*warnings, *unfocused_radars(drive_path, options)])
+                       dict(timings), first.drive_s, warnings)
 
 
 def _token() -> str:
