@@ -33,7 +33,7 @@ from rich.table import Column, Table
 
 from autosar_cli import __version__, exit_interrupted
 from autosar_cli.config import CAN_LOG_SUFFIXES
-from autosar_cli.interrupts import Terminated, raise_terminated
+from autosar_cli.interrupts import Terminated
 from autosar_cli.store.manifest import product_status
 
 
@@ -182,11 +182,12 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
     quick_exit = signal.getsignal(signal.SIGINT) is exit_interrupted
     if quick_exit and kernels:
         import numba  # noqa: F401
+    _state["stopped_by"] = None
     if quick_exit:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGINT, _stop)
     quick_term = signal.getsignal(signal.SIGTERM) is exit_interrupted
     if quick_term:
-        signal.signal(signal.SIGTERM, raise_terminated)
+        signal.signal(signal.SIGTERM, _stop)
     unraisable_hook = sys.unraisablehook
     sys.unraisablehook = _interrupt_again(unraisable_hook)
     undo_on_failure: list[Callable[[], None]] = []
@@ -202,6 +203,10 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
         raise typer.Exit(143 if terminated else 130) from None
     except Exception as exc:
         _undo(undo_on_failure)
+        if (signum := _state["stopped_by"]) is not None and not _state["debug"]:
+            # the interrupt was swallowed (a destructor, a C extension's import) and this error followed from it
+            err.print(f"[red]error:[/] {'terminated' if signum == signal.SIGTERM else 'interrupted'}")
+            raise typer.Exit(128 + signum) from None
         if _state["debug"]:
             raise
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
@@ -218,6 +223,13 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
             signal.signal(signal.SIGINT, exit_interrupted)
         if quick_term:
             signal.signal(signal.SIGTERM, exit_interrupted)
+
+
+def _stop(signum: int, frame: Any) -> None:
+    """SIGINT and SIGTERM handler of a command's body: noted (an error that follows an interrupt swallowed on the
+    way is the interrupt's), then raised as KeyboardInterrupt (:class:`Terminated` for SIGTERM)."""
+    _state["stopped_by"] = signum
+    raise Terminated if signum == signal.SIGTERM else KeyboardInterrupt
 
 
 def _undo(steps: list[Callable[[], None]]) -> None:

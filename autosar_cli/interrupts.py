@@ -21,11 +21,6 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM inside a command: it stops as at Ctrl-C, and says "terminated" (exit 143)."""
 
 
-def raise_terminated(signum: int, frame: FrameType | None) -> None:
-    """SIGTERM handler of a command's body: raise :class:`Terminated` where Python next runs bytecode."""
-    raise Terminated
-
-
 @contextmanager
 def interrupts_held() -> Iterator[None]:
     """Hold SIGINT and SIGTERM for the block (main thread only; elsewhere Python delivers none) and raise

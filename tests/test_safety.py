@@ -353,12 +353,12 @@ def test_numba_is_imported_before_a_kernel_command_takes_ctrl_c_as_an_exception(
         "import signal, sys\n"
         "from autosar_cli import exit_interrupted\n"
         "signal.signal(signal.SIGINT, exit_interrupted)\n"
-        "from autosar_cli.cli import _errors\n"
+        "from autosar_cli.cli import _errors, _stop\n"
         "before = 'numba' in sys.modules\n"
         "with _errors(kernels=False):\n"
         "    plain = 'numba' in sys.modules\n"
         "with _errors():\n"
-        "    inside = signal.getsignal(signal.SIGINT) is signal.default_int_handler\n"
+        "    inside = signal.getsignal(signal.SIGINT) is _stop\n"
         "    print(before, plain, 'numba' in sys.modules, inside)\n"
         "print(signal.getsignal(signal.SIGINT) is exit_interrupted)\n"
     )
@@ -782,3 +782,30 @@ def test_sigterm_stops_a_command_as_ctrl_c_does(tmp_path: Path, ci_mcap) -> None
     assert proc.returncode == 143, stderr
     assert stderr.strip().endswith("terminated") and "Traceback" not in stderr, stderr
     assert not out.exists() or not list(out.iterdir())
+
+
+def test_an_error_that_follows_a_swallowed_ctrl_c_is_reported_as_the_interrupt() -> None:
+    """A Ctrl-C swallowed on its way (a C extension's import turned it into "initialization failed", matplotlib
+    returned without writing the PNG its atomic writer then could not open) ended the command with that error's
+    line and exit 1. The error that follows an interrupt is reported as the interrupt: "interrupted", 130."""
+    import subprocess
+
+    code = (
+        "import os, signal, time, typer\n"
+        "from autosar_cli import exit_interrupted\n"
+        "signal.signal(signal.SIGINT, exit_interrupted)\n"
+        "from autosar_cli.cli import _errors\n"
+        "try:\n"
+        "    with _errors(kernels=False):\n"
+        "        try:\n"
+        "            os.kill(os.getpid(), signal.SIGINT)\n"
+        "            time.sleep(1)\n"
+        "        except KeyboardInterrupt:\n"
+        "            pass\n"
+        "        open('/nonexistent/image.partial-1.png', 'rb+')\n"
+        "except typer.Exit as exc:\n"
+        "    print(exc.exit_code)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.stdout.split() == ["130"], (out.stdout, out.stderr)
+    assert out.stderr.strip() == "error: interrupted", out.stderr
