@@ -182,7 +182,7 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
     quick_exit = signal.getsignal(signal.SIGINT) is exit_interrupted
     if quick_exit and kernels:
         import numba  # noqa: F401
-    _state["stopped_by"] = None
+    _state["stopped_by"], _state["raised_again"] = None, False
     if quick_exit:
         signal.signal(signal.SIGINT, _stop)
     quick_term = signal.getsignal(signal.SIGTERM) is exit_interrupted
@@ -227,7 +227,11 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
 
 def _stop(signum: int, frame: Any) -> None:
     """SIGINT and SIGTERM handler of a command's body: noted (an error that follows an interrupt swallowed on the
-    way is the interrupt's), then raised as KeyboardInterrupt (:class:`Terminated` for SIGTERM)."""
+    way is the interrupt's), then raised as KeyboardInterrupt (:class:`Terminated` for SIGTERM). A second one while
+    the first's clean-up runs ends the process at once: raised inside h5py's clean-up, it left h5py's lock held and
+    the command hung; its partial files are then the next command's to remove (store.atomic)."""
+    if _state.get("stopped_by") is not None and not _state.pop("raised_again", False):
+        exit_interrupted(signum, frame)
     _state["stopped_by"] = signum
     raise Terminated if signum == signal.SIGTERM else KeyboardInterrupt
 
@@ -244,6 +248,7 @@ def _interrupt_again(hook: Callable[[Any], None]) -> Callable[[Any], None]:
     def interrupt_again(unraisable: Any) -> None:
         if unraisable.exc_type in (KeyboardInterrupt, Terminated):  # raised from here it would be unraisable again
             stop = signal.SIGTERM if unraisable.exc_type is Terminated else signal.SIGINT
+            _state["raised_again"] = True  # the same interrupt, not a second one
             threading.Timer(0.01, signal.raise_signal, (stop,)).start()  # a moment later
             return
         hook(unraisable)

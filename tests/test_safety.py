@@ -809,3 +809,25 @@ def test_an_error_that_follows_a_swallowed_ctrl_c_is_reported_as_the_interrupt()
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.stdout.split() == ["130"], (out.stdout, out.stderr)
     assert out.stderr.strip() == "error: interrupted", out.stderr
+
+
+def test_a_second_ctrl_c_during_the_clean_up_ends_the_command_at_once() -> None:
+    """Two Ctrl-Cs 30 ms apart during focus once hung the command for good: the second, raised inside h5py's
+    clean-up of the first, left h5py's lock held. The second now ends the process at once ("interrupted", 130)."""
+    import subprocess
+
+    code = (
+        "import os, signal, time\n"
+        "from autosar_cli import exit_interrupted\n"
+        "signal.signal(signal.SIGINT, exit_interrupted)\n"
+        "from autosar_cli.cli import _errors\n"
+        "with _errors(kernels=False):\n"
+        "    try:\n"
+        "        os.kill(os.getpid(), signal.SIGINT)\n"
+        "        time.sleep(1)\n"
+        "    finally:  # a writer's clean-up, interrupted again\n"
+        "        os.kill(os.getpid(), signal.SIGINT)\n"
+        "        time.sleep(30)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=20)
+    assert out.returncode == 130 and out.stderr.strip() == "error: interrupted", (out.returncode, out.stderr)
