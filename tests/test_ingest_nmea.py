@@ -382,3 +382,17 @@ def test_log_reader_comments_junk_and_joined_sentences(tmp_path: Path) -> None:
     assert reader.skipped == Counter({"unparseable": 2})
     assert list(read_nmea_log(path)) == recs  # same records; a second iteration starts afresh
     assert list(reader) == recs and reader.skipped == Counter({"unparseable": 2})
+
+
+def test_info_of_a_text_file_without_nmea_says_so() -> None:
+    """OpenRadar's chirp.txt (complex samples, one per line) is taken for an NMEA capture by its name: `info` said
+    "NMEA text" with no streams and exit 0, where ingest refuses it. It now refuses it as ingest does; a real NMEA
+    capture (gpsd's, with unsupported sentences among the read ones) is summarised as before."""
+    from typer.testing import CliRunner
+
+    from autosar_cli.cli import app
+
+    r = CliRunner().invoke(app, ["info", str(realdata("openradar", "chirp.txt"))])
+    assert r.exit_code == 1 and "no NMEA 0183 sentence in this file" in r.stderr, r.output
+    r = CliRunner().invoke(app, ["info", str(realdata("gpsd", "neo-m8n.log")), "--json"])
+    assert r.exit_code == 0 and json.loads(r.stdout)["container"] == "NMEA text", r.output

@@ -128,6 +128,9 @@ def summarize_nmea_log(path: Path) -> LogSummary:
                            if kind == "ZDA")
     if reader.skipped:
         summary.warnings.append("skipped sentences: " + ", ".join(f"{k} ×{v}" for k, v in reader.skipped.items()))
+    dec = reader.decoder
+    if not dec.sentences and not any(k.startswith("unsupported") for k in dec.skipped):  # as ingest refuses it
+        raise LogReadError(f"{path}: no NMEA 0183 sentence in this file (read as an NMEA text capture by its name)")
     return summary
 
 
