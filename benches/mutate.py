@@ -120,6 +120,18 @@ CHECKSUM_MISFIT = ("tests/test_ingest_robustness.py::"
                    "test_a_car_with_other_checksums_than_the_rule_is_told_which_key_to_set")
 INGEST_DEGRADED = "tests/test_ingest_robustness.py::test_the_drive_of_a_damaged_log_says_it_is_degraded"
 PRODUCT_KIND = "tests/test_safety.py::test_a_log_and_a_product_given_for_each_other_say_what_they_are"
+PARTIAL_NAMES = "tests/test_safety.py::test_files_named_as_partials_that_are_not_the_outputs_own_are_never_removed"
+SIMULATE_RMTREE = "tests/test_safety.py::test_simulate_overwrite_replaces_only_a_directory_the_simulator_wrote"
+PLOT_GATE = "tests/test_safety.py::test_navigate_plot_passes_the_output_gate"
+REPORT_FILES = "tests/test_safety.py::test_evaluate_compare_and_run_never_replace_a_users_file_in_their_directory"
+SIGTERM = "tests/test_safety.py::test_sigterm_stops_a_command_as_ctrl_c_does"
+SECOND_INTERRUPT = "tests/test_safety.py::test_a_second_ctrl_c_during_the_clean_up_ends_the_command_at_once"
+SWALLOWED_INTERRUPT = "tests/test_safety.py::test_an_error_that_follows_a_swallowed_ctrl_c_is_reported_as_the_interrupt"
+INPUT_TWICE = "tests/test_ingest_mixed.py::test_two_recordings_of_a_stream_are_refused"
+RELATIVE_RUN = ("tests/test_evaluate.py::"
+                "test_a_run_of_a_relative_path_is_evaluated_against_its_truth_from_anywhere")
+IMAGE_WARNINGS = ("tests/test_integrity.py::"
+                  "test_focus_of_a_drive_damaged_in_a_radar_chunk_leaves_out_its_frames_and_says_so[1]")
 RUN_NO_RADAR = "tests/test_ingest_mixed.py::test_a_run_of_a_log_without_radar_names_the_ingest_that_writes_it"
 BLF_START = "tests/test_ingest_canlog.py::test_a_blf_whose_start_time_is_no_date_is_read_at_offsets_with_a_warning"
 BLF_START_KEPT = "tests/test_ingest_canlog.py::test_a_blf_whose_start_time_alone_is_lost_takes_it_from_its_stop_time"
@@ -436,13 +448,14 @@ MUTATIONS: list[Mutation] = [
        "ZERO_RUN_VALUES = 256", "ZERO_RUN_VALUES = 1 << 30", DCA_ZEROS),
     # --- inputs are sacred, damage is named: output guards, checksums, integrity checks, degraded runs
     _m("overwrite-replaces-a-foreign-file", "safety", "store/outputs.py",
-       "    if not is_autosar_product(path):\n        what =", "    if False:\n        what =", FOREIGN),
+       "    if not (ours and path.is_file() and not path.is_symlink()) and not is_autosar_product(path):\n",
+       "    if False:\n", FOREIGN),
     _m("output-may-be-its-input", "safety", "store/outputs.py",
        'raise OutputError(f"{path}: is an input of this command; choose another output")', "pass", OWN_INPUT),
     _m("output-may-lie-inside-its-input", "safety", "store/outputs.py",
        "        if source in target.parents:\n", "        if False:\n", INSIDE_INPUT),
     _m("stale-partials-left-behind", "safety", "store/outputs.py",
-       "    remove_stale_partials(path.parent)\n", "\n", STALE),
+       "        remove_stale_partials(path, keep=[Path(p) for p in inputs])\n", "        pass\n", STALE),
     _m("degraded-run-reported-as-complete", "safety", "cli.py",
        "return f\" [yellow]degraded[/] ({n} warning{'' if n == 1 else 's'} above{kept})\" if warnings else \"\"",
        'return ""', DEGRADED),
@@ -623,7 +636,7 @@ MUTATIONS: list[Mutation] = [
        "                       ingest_options=None, can_logs",
        BATCH_INGEST),
     _m("compare-config-not-an-input", "evaluate", "evaluate/compare.py",
-       "*config.files, *ingest_options.files()],", "*ingest_options.files()],", CONFIG_NOT_AN_OUTPUT),
+       "*config.files, *ingest_options.files()]\n", "*ingest_options.files()]\n", CONFIG_NOT_AN_OUTPUT),
     _m("compare-ingests-without-its-options", "evaluate", "evaluate/compare.py",
        'partial_hint=chain_hint("a comparison"), **ingest_options.ingest_kwargs())',
        'partial_hint=chain_hint("a comparison"))', COMPARE_INGEST),
@@ -643,6 +656,35 @@ MUTATIONS: list[Mutation] = [
        '        if degraded := _degraded([], "its /provenance report"):', INGEST_DEGRADED),
     _m("product-of-another-kind-unnamed", "safety", "store/outputs.py",
        '    what = f"it is {got[0]} autosar wrote" if got else', '    what = f"" if got else', PRODUCT_KIND),
+    _m("stale-partials-of-any-name-removed", "safety", "store/atomic.py",
+       "        m = own.match(p.name) or re.match(", "        m = PARTIAL_NAME.search(p.name) or re.match(",
+       PARTIAL_NAMES),
+    _m("simulate-overwrite-removes-a-run-directory", "safety", "store/outputs.py",
+       "    if others := sorted(p.name for p in path.iterdir() if not (p.is_file() and _SIMULATED_FILES",
+       "    if False and (others := 0):  # ", SIMULATE_RMTREE),
+    _m("navigate-plot-past-the-output-gate", "safety", "cli.py",
+       "            _prepare_output(output.with_suffix(\".png\"), overwrite, [drive, truth, cfg.source])",
+       "            pass", PLOT_GATE),
+    _m("evaluate-replaces-the-users-report", "safety", "evaluate/report.py",
+       "    check_products(out, PRODUCTS, read, overwrite=overwrite, manifest=METRICS)", "    pass", REPORT_FILES),
+    _m("run-replaces-products-without-overwrite", "safety", "run.py",
+       "inputs,\n                   overwrite=overwrite)", "inputs,\n                   overwrite=True)", REPORT_FILES),
+    _m("sigterm-ends-the-command-at-once", "safety", "__init__.py",
+       "        signal.signal(signal.SIGTERM, exit_interrupted)\n", "        pass\n", SIGTERM),
+    _m("second-interrupt-waits-for-the-clean-up", "safety", "cli.py",
+       "        exit_interrupted(signum, frame)\n    _state[\"stopped_by\"] = signum",
+       "        pass\n    _state[\"stopped_by\"] = signum", SECOND_INTERRUPT),
+    _m("error-after-a-swallowed-interrupt-reported-as-itself", "safety", "cli.py",
+       "        if (signum := _state[\"stopped_by\"]) is not None and not _state[\"debug\"]:",
+       "        if (signum := None) is not None and not _state[\"debug\"]:", SWALLOWED_INTERRUPT),
+    _m("input-given-twice-read-twice", "inputs", "ingest/inputs.py",
+       "        if (first := seen.setdefault((st.st_dev, st.st_ino), path)) is not path:",
+       "        if (first := seen.setdefault((st.st_dev, st.st_ino), path)) is not path and False:", INPUT_TWICE),
+    _m("inputs-recorded-as-given", "safety", "run.py",
+       '{"path": os.path.abspath(p), "size_bytes"', '{"path": str(p), "size_bytes"', RELATIVE_RUN),
+    _m("image-warnings-not-evaluated", "safety", "evaluate/evaluation.py",
+       "    ev.input_warnings += [str(w) for w in image.provenance", "    _ = [str(w) for w in image.provenance",
+       IMAGE_WARNINGS),
     _m("capture-said-to-add-nothing-to-the-drive", "ingest", "ingest/pipeline.py",
        'rows = read if kind == "radar" else', 'rows = 0 if kind == "radar" else', CAPTURE_USED),
     _m("failed-command-leaves-the-empty-directories-it-made", "safety", "store/outputs.py",

@@ -140,7 +140,7 @@ _SIMULATED_FILES = re.compile(r"(metadata\.yaml|.+\.(db3|mcap)|adc_data(_Raw_\d+
 def remove_product_directory(path: Path) -> None:
     """Delete a directory autosar's simulator wrote whole (a simulated rosbag2 log or DCA1000 capture, its truth
     sidecar beside it) that holds nothing else: never a run's directory, nor one holding a file of the user's."""
-    if not is_autosar_product(path) or any((path / m).exists() for m in DIRECTORY_MANIFESTS):
+    if not is_autosar_product(path):
         raise OutputError(f"{path}: is a directory autosar's simulator did not write; refusing to delete it, even "
                           "with --overwrite")
     if others := sorted(p.name for p in path.iterdir() if not (p.is_file() and _SIMULATED_FILES.fullmatch(p.name))):
