@@ -134,7 +134,8 @@ def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, m
     try:
         manifest = run(logs, out_dir, config, method=method, options=options, truth_path=truth_path,
                        autofocus=autofocus, overwrite=overwrite, progress=report, command=command,
-                       ingest_options=ingest_options, can_logs=can_logs, nmea_logs=nmea_logs)
+                       ingest_options=ingest_options, can_logs=can_logs, nmea_logs=nmea_logs,
+                       replace_unfinished=True)  # a retry finds the products of its attempt before
     except INPUT_ERRORS as exc:
         record.update(status="failed", error=_message(exc), error_type=type(exc).__name__,
                       wall_s=time.perf_counter() - t0)

@@ -68,7 +68,8 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         overwrite: bool = False,
         progress: Callable[[str, int, int], None] | None = None, command: str = "",
         fork_ingest: bool = False, ingest_options: IngestOptions | None = None,
-        can_logs: Sequence[str | Path] = (), nmea_logs: Sequence[str | Path] = ()) -> dict[str, Any]:
+        can_logs: Sequence[str | Path] = (), nmea_logs: Sequence[str | Path] = (),
+        replace_unfinished: bool = False) -> dict[str, Any]:
     """Run the whole chain on ``logs`` into ``out_dir``; returns the manifest (also written as run.json).
 
     ``autofocus``: scale the navigated track by the radar's own measure of it before focusing (the trajectory
@@ -80,6 +81,8 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     logs and NMEA captures given as such (``autosar ingest``'s ``--can-log`` and ``--nmea``), not told by their
     content (one that is not what it is given as is refused). ``ingest_options``
     (:class:`autosar_cli.ingest.pipeline.IngestOptions`) reads them all: the DBC, the capture's start, time offsets.
+    ``replace_unfinished``: autosar's products in ``out_dir`` where it holds no run.json are replaced as with
+    ``overwrite`` (a batch's retry of a drive finds its first attempt's).
     """
     out = Path(out_dir)
     manifest_path = out / "run.json"
@@ -92,7 +95,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
               *(ingest_options.files() if ingest_options else [])]
     check_output(out, inputs, overwrite=overwrite, directory=True)
     check_products(out, [DRIVE, TRAJECTORY, "run.json", f"{IMAGE}.tif", f"{IMAGE}.h5", f"{IMAGE}.png"], inputs,
-                   overwrite=overwrite)
+                   overwrite=overwrite or (replace_unfinished and not manifest_path.exists()))
     check_free_space(out / DRIVE, input_bytes(given), "the drive")
     if options is None:  # the config's automatic grid (focus's own modules are imported beside the ingest)
         try:

@@ -240,3 +240,30 @@ def test_focus_in_four_tiles_equals_one_piece(solo, tmp_path, thread_cluster):
                           tiles=4, client=client)
     assert rep.grid_shape == one.grid.shape
     assert np.array_equal(read_image(tmp_path / "dask.h5").image, one.image)
+
+
+def test_a_drives_retry_replaces_its_first_attempts_products(ci_mcap, tmp_path, monkeypatch):
+    """A drive's task retried after an I/O error finds the drive.h5 its first attempt wrote: the retry failed on
+    it ("already exists (use --overwrite ...)") once run stopped replacing products without --overwrite. A
+    batch's run replaces autosar's products in a drive directory that holds no run.json yet."""
+    import autosar_cli.nav.navigate as nav_mod
+
+    real = nav_mod.navigate
+    attempts: list[int] = []
+
+    def flaky(*args, **kw):
+        attempts.append(1)
+        if len(attempts) == 1:
+            raise OSError("transient I/O error")
+        return real(*args, **kw)
+
+    monkeypatch.setattr(nav_mod, "navigate", flaky)
+    out = tmp_path / "ci"
+    with pytest.raises(OSError, match="transient"):  # not an input error: Dask retries it
+        batch_mod.run_drive("ci", [str(ci_mcap.log_path)], str(out), load_config())
+    assert (out / "drive.h5").exists() and not (out / "run.json").exists()
+    record = batch_mod.run_drive("ci", [str(ci_mcap.log_path)], str(out), load_config())
+    assert record["status"] == "ok", record.get("error")
+    # a finished drive is not replaced without --overwrite
+    record = batch_mod.run_drive("ci", [str(ci_mcap.log_path)], str(out), load_config())
+    assert record["status"] == "failed" and "already holds a run" in record["error"]

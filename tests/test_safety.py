@@ -403,20 +403,23 @@ def test_files_named_as_partials_that_are_not_the_outputs_own_are_never_removed(
     """The gate removed every stale ``*.partial-<n>.*`` beside an output: a user's log so named, the command's own
     input among them (ingest then read a file it had just deleted), or another product's. Now only the output's
     own partials go (``drive.partial-<n>.h5`` for drive.h5), and never an input."""
+    import shutil
+
     dead = 2**22 + 17  # above any pid this machine gives
     given = tmp_path / f"rec.partial-{dead}.mcap"
-    given.symlink_to(ci_mcap.log_path)
-    beside = tmp_path / f"b.partial-{dead + 1}.mcap"
-    beside.write_bytes(b"a user's file")
+    shutil.copy(ci_mcap.log_path, given)
+    beside = [tmp_path / f"b.partial-{dead + 1}.mcap", tmp_path / f"out.partial-{dead + 4}.txt"]
+    for p in beside:
+        p.write_bytes(b"a user's file")
     own = tmp_path / f"out.partial-{dead + 2}.h5"
     own.write_bytes(b"left by a killed ingest")
     r = runner.invoke(app, ["ingest", str(given), "-o", str(tmp_path / "out.h5")])
     assert r.exit_code == 0, r.output
-    assert given.is_symlink() and beside.read_bytes() == b"a user's file" and not own.exists()
+    assert given.is_file() and all(p.read_bytes() == b"a user's file" for p in beside) and not own.exists()
     kept = tmp_path / f"drive.partial-{dead + 3}.h5"  # stale, of the output's name, but the input itself
-    kept.symlink_to(ci_mcap.log_path)
+    kept.write_bytes(b"not a log")
     r = runner.invoke(app, ["ingest", str(kept), "-o", str(tmp_path / "drive.h5")])
-    assert kept.is_symlink(), r.output
+    assert r.exit_code == 1 and kept.read_bytes() == b"not a log", r.output
 
 
 def test_a_255_byte_file_name_is_written_through_its_partial(tmp_path: Path) -> None:
@@ -753,6 +756,11 @@ def test_evaluate_compare_and_run_never_replace_a_users_file_in_their_directory(
     r = runner.invoke(app, ["compare", str(ci_mcap.log_path), "-o", str(cmpu)])
     _one_line_error(r, str(cmpu / "compare.png"), "already exists")
     assert sorted(p.name for p in cmpu.iterdir()) == ["compare.png"]
+    (cmpu / "compare.png").unlink()
+    (cmpu / "sar-min").mkdir()
+    (cmpu / "sar-min" / "report.md").write_text("user")  # a method's evaluation writes its report.md there
+    r = runner.invoke(app, ["compare", str(ci_mcap.log_path), "-o", str(cmpu), "--methods", "sar-min"])
+    _one_line_error(r, str(cmpu / "sar-min" / "report.md"), "already exists")
     keep = tmp_path / "keep"
     keep.mkdir()
     shutil.copy(ci_run / "drive.h5", keep / "drive.h5")

@@ -46,6 +46,7 @@ from autosar_cli.evaluate.evaluation import (
 from autosar_cli.evaluate.figures import plot_across_track, plot_images_side_by_side, plot_reflector_chips
 from autosar_cli.evaluate.reflectors import ReflectorPatches, focus_patches, predict_image_positions
 from autosar_cli.evaluate.report import (
+    METRICS,
     degraded_markdown,
     fmt,
     json_safe,
@@ -54,6 +55,7 @@ from autosar_cli.evaluate.report import (
     write_report,
     write_text,
 )
+from autosar_cli.evaluate.report import PRODUCTS as REPORT_PRODUCTS
 from autosar_cli.evaluate.trajectory_metrics import common_instants, trajectory_errors
 from autosar_cli.ingest.pipeline import IngestOptions, chain_hint, ingest
 from autosar_cli.nav.inputs import NavInputError
@@ -86,8 +88,8 @@ DERIVED = (SARMIN_SCALED, SARMIN_AUTOFOCUS)  # made from SAR-MIN's track, which 
 COMPARE_METHODS = (*NAV_METHODS, *DERIVED)
 NEEDS_TRUTH = ("truth", SARMIN_SCALED)
 DRIVE = "drive.h5"
-#: what each method's directory holds (as ``autosar run`` writes it)
-METHOD_PRODUCTS = ("trajectory.h5", "image.tif", "image.h5", "image.png", "run.json")
+#: what each method's directory holds (as ``autosar run`` writes it, and its evaluation)
+METHOD_PRODUCTS = ("trajectory.h5", "image.tif", "image.h5", "image.png", "run.json", *REPORT_PRODUCTS)
 
 Progress = Callable[[str, int, int], None]
 
@@ -134,12 +136,13 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
     ingest_options = ingest_options or IngestOptions()
     given = [*logs, *can_logs, *nmea_logs]  # every input read into the drive (as the manifests list them)
     read = [*given, *([truth_path] if truth_path else []), *config.files, *ingest_options.files()]
-    check_output(out, read, overwrite=overwrite, directory=True)
-    check_products(out, [DRIVE, "compare.png", "across_track.png", "compare_chips.png", "compare.md", "compare.json",
-                         *(f"{m}/{name}" for m in parse_methods(methods) for name in METHOD_PRODUCTS)],
-                   read, overwrite=overwrite, manifest="compare.json")
-    check_free_space(out / DRIVE, input_bytes(given), "the drive")
     methods = parse_methods(methods)
+    check_output(out, read, overwrite=overwrite, directory=True)
+    check_products(out, [DRIVE, "compare.png", "across_track.png", "compare_chips.png", "compare.md", "compare.json"],
+                   read, overwrite=overwrite, manifest="compare.json")
+    for m in methods:  # each method's directory: a run's products and its evaluation's (its own metrics.json)
+        check_products(out / m, METHOD_PRODUCTS, read, overwrite=overwrite, manifest=METRICS)
+    check_free_space(out / DRIVE, input_bytes(given), "the drive")
     options = options or FocusOptions.from_config(config)
     tick = progress or (lambda stage, done, total: None)
     timings: dict[str, float] = {}

@@ -50,13 +50,12 @@ def remove_stale_partials(path: Path, keep: Iterable[Path] = ()) -> list[Path]:
     <suffix>`` beside it; never one whose process runs, nor one of ``keep``: the command's inputs); returns them.
     Any other file of that name pattern, another product's or the user's, stays."""
     path = Path(path)
-    own = re.compile(re.escape(path.stem) + r"\.partial-(?P<pid>\d+)" + re.escape(path.suffix) + "$")
-    digest = partial_path(path, 0).name.rsplit(".partial-", 1)[0]
+    stem, suffix = partial_path(path, 0).name.rsplit(".partial-0", 1)  # the stem, or the digest of a long name
+    own = re.compile(re.escape(stem) + r"\.partial-\d+" + re.escape(suffix) + "$")
     kept = {_same_file_key(k) for k in keep}
     removed = []
     for p in stale_partials(path.parent):
-        m = own.match(p.name) or re.match(re.escape(digest) + r"\.partial-(?P<pid>\d+)", p.name)
-        if m is None or p.is_dir() or p.is_symlink() or _same_file_key(p) in kept:
+        if not own.match(p.name) or p.is_dir() or p.is_symlink() or _same_file_key(p) in kept:
             continue
         try:
             p.unlink()
