@@ -39,11 +39,12 @@ def interrupts_held() -> Iterator[None]:
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
-    if signal.SIGTERM in came:  # handled now as it would have been without this block
-        term = previous[signal.SIGTERM]
-        if callable(term):
-            term(signal.SIGTERM, None)
-        elif term == signal.SIG_DFL:
-            signal.raise_signal(signal.SIGTERM)
-    if signal.SIGINT in came:
-        raise KeyboardInterrupt
+    for signum in (signal.SIGTERM, signal.SIGINT):  # each handled now as it would have been without this block
+        if signum in came:
+            handler = previous[signum]
+            if callable(handler):  # the command's own (cli._stop), Python's default_int_handler: they raise
+                handler(signum, None)
+            elif handler == signal.SIG_DFL:
+                if signum == signal.SIGINT:
+                    raise KeyboardInterrupt
+                signal.raise_signal(signum)

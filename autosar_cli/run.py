@@ -331,14 +331,46 @@ def _ingest(logs: list[Path], drive: Path, config: Config, progress: Callable[[i
                   **(options or IngestOptions()).ingest_kwargs()).to_dict()
 
 
+def _stop_once() -> Callable[[], None]:
+    """In the forked ingest: the first SIGINT or SIGTERM raises a KeyboardInterrupt, any later one is let be. A
+    signal to the whole process group (a terminal's Ctrl-C, `timeout`, a service manager) reaches the ingest and
+    then its parent's forward of the same signal: raised again, or taken by the command's handler (cli._stop) for
+    a second interrupt, it ended the ingest inside its clean-up, its partial file left. Returns the check its
+    progress calls: an interrupt swallowed on the way (in a destructor) stops it there."""
+    came: list[int] = []
+
+    def stop(signum: int, frame: Any) -> None:
+        if not came:
+            came.append(signum)
+            raise KeyboardInterrupt
+
+    def check() -> None:
+        if came:
+            raise KeyboardInterrupt
+
+    if threading.current_thread() is threading.main_thread():
+        for s in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(s, stop)
+    return check
+
+
 def _ingest_child(send: Any, logs: list[Path], drive: Path, config: Config, command: str,
                   options: IngestOptions | None = None, can_logs: Sequence[Path] = (),
                   nmea_logs: Sequence[Path] = ()) -> None:
     """The forked ingest: progress at most every 0.1 s (the parent reads only after its imports), then the
     report, or the error (its class if it pickles, else a RunError with its message) and its traceback."""
     last = [0.0]
+    stopped = _stop_once()
+    hook = sys.unraisablehook  # a swallowed interrupt: unsaid, and raised by the next progress report instead
+
+    def unraisable(unraisable: Any) -> None:
+        if not issubclass(unraisable.exc_type, KeyboardInterrupt):
+            (hook or sys.__unraisablehook__)(unraisable)
+
+    sys.unraisablehook = unraisable
 
     def progress(done: int, total: int) -> None:
+        stopped()
         now = time.perf_counter()
         if now - last[0] >= 0.1 or done >= total:
             last[0] = now
