@@ -25,6 +25,9 @@ def _quiet_interrupt_while_starting() -> None:
 
     if os.path.basename(sys.argv[0]) not in ("autosar", "autosar.exe"):
         return
+    mp = sys.modules.get("multiprocessing")  # a process it spawns (batch's Dask workers) keeps Python's handlers:
+    if mp is not None and mp.current_process().name != "MainProcess":  # named before the script is run in it
+        return
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         signal.signal(signal.SIGINT, exit_interrupted)
     if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:  # a service manager's or `timeout`'s stop

@@ -624,7 +624,7 @@ def focus(
                   f"({wall / max(report.drive_s, 1e-9):.2f} x the drive's {report.drive_s:.1f} s)")
         for reason, n in report.frames_skipped.items():
             err.print(f"[yellow]skipped[/] {n} frames: {_lit(reason)}", highlight=False)
-        if degraded := _degraded(report.warnings, None):
+        if degraded := _degraded(report.warnings, f"{Path(report.outputs['h5']).name}'s provenance"):
             out.print(f"{_lit(report.outputs['h5'])}:{degraded}")
 
 

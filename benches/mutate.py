@@ -130,6 +130,9 @@ SWALLOWED_INTERRUPT = "tests/test_safety.py::test_an_error_that_follows_a_swallo
 INPUT_TWICE = "tests/test_ingest_mixed.py::test_two_recordings_of_a_stream_are_refused"
 RELATIVE_RUN = ("tests/test_evaluate.py::"
                 "test_a_run_of_a_relative_path_is_evaluated_against_its_truth_from_anywhere")
+GROUP_SIGNAL = "tests/test_safety.py::test_a_signal_to_the_whole_process_group_stops_runs_forked_ingest_once"
+SPAWNED_HANDLERS = "tests/test_safety.py::test_a_process_the_command_spawns_keeps_pythons_signal_handlers"
+BATCH_RETRY = "tests/test_batch.py::test_a_drives_retry_replaces_its_first_attempts_products"
 IMAGE_WARNINGS = ("tests/test_integrity.py::"
                   "test_focus_of_a_drive_damaged_in_a_radar_chunk_leaves_out_its_frames_and_says_so[1]")
 RUN_NO_RADAR = "tests/test_ingest_mixed.py::test_a_run_of_a_log_without_radar_names_the_ingest_that_writes_it"
@@ -657,7 +660,7 @@ MUTATIONS: list[Mutation] = [
     _m("product-of-another-kind-unnamed", "safety", "store/outputs.py",
        '    what = f"it is {got[0]} autosar wrote" if got else', '    what = f"" if got else', PRODUCT_KIND),
     _m("stale-partials-of-any-name-removed", "safety", "store/atomic.py",
-       "        m = own.match(p.name) or re.match(", "        m = PARTIAL_NAME.search(p.name) or re.match(",
+       "        if not own.match(p.name) or p.is_dir()", "        if not PARTIAL_NAME.search(p.name) or p.is_dir()",
        PARTIAL_NAMES),
     _m("simulate-overwrite-removes-a-run-directory", "safety", "store/outputs.py",
        "    if others := sorted(p.name for p in path.iterdir() if not (p.is_file() and _SIMULATED_FILES",
@@ -668,7 +671,8 @@ MUTATIONS: list[Mutation] = [
     _m("evaluate-replaces-the-users-report", "safety", "evaluate/report.py",
        "    check_products(out, PRODUCTS, read, overwrite=overwrite, manifest=METRICS)", "    pass", REPORT_FILES),
     _m("run-replaces-products-without-overwrite", "safety", "run.py",
-       "inputs,\n                   overwrite=overwrite)", "inputs,\n                   overwrite=True)", REPORT_FILES),
+       "overwrite=overwrite or (replace_unfinished and not", "overwrite=True or (replace_unfinished and not",
+       REPORT_FILES),
     _m("sigterm-ends-the-command-at-once", "safety", "__init__.py",
        "        signal.signal(signal.SIGTERM, exit_interrupted)\n", "        pass\n", SIGTERM),
     _m("second-interrupt-waits-for-the-clean-up", "safety", "cli.py",
@@ -685,6 +689,14 @@ MUTATIONS: list[Mutation] = [
     _m("image-warnings-not-evaluated", "safety", "evaluate/evaluation.py",
        "    ev.input_warnings += [str(w) for w in image.provenance", "    _ = [str(w) for w in image.provenance",
        IMAGE_WARNINGS),
+    _m("forked-ingest-keeps-the-commands-handlers", "safety", "run.py",
+       "    stopped = _stop_once()\n", "    stopped = (lambda: None)\n", GROUP_SIGNAL),
+    _m("spawned-worker-takes-the-commands-quick-exit", "safety", "__init__.py",
+       '    if mp is not None and mp.current_process().name != "MainProcess":', "    if False:",
+       SPAWNED_HANDLERS),
+    _m("batch-retry-refuses-its-first-attempt", "batch", "batch.py",
+       "                       replace_unfinished=True)", "                       replace_unfinished=False)",
+       BATCH_RETRY),
     _m("capture-said-to-add-nothing-to-the-drive", "ingest", "ingest/pipeline.py",
        'rows = read if kind == "radar" else', 'rows = 0 if kind == "radar" else', CAPTURE_USED),
     _m("failed-command-leaves-the-empty-directories-it-made", "safety", "store/outputs.py",

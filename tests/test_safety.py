@@ -880,3 +880,21 @@ def test_a_signal_to_the_whole_process_group_stops_runs_forked_ingest_once(tmp_p
     code, said = (143, "terminated") if stop == "SIGTERM" else (130, "interrupted")
     assert proc.returncode == code and stderr.strip() == f"error: {said}", (proc.returncode, stderr)
     assert not list(out.glob("*partial*")) and not (out / "drive.h5").exists(), sorted(out.iterdir())
+
+
+def test_a_process_the_command_spawns_keeps_pythons_signal_handlers() -> None:
+    """batch's Dask workers are spawned with the command's argv, and imported autosar_cli as the command does:
+    each installed the command's quick exit, and a SIGTERM to the group printed "error: terminated" once per
+    worker. A spawned process (named before its script runs) keeps Python's handlers; the command installs its."""
+    import subprocess
+
+    code = (
+        "import multiprocessing, signal, sys\n"
+        "sys.argv[0] = '/venv/bin/autosar'\n"
+        "multiprocessing.current_process().name = sys.argv[1]\n"
+        "import autosar_cli\n"
+        "print(signal.getsignal(signal.SIGTERM) is autosar_cli.exit_interrupted)\n"
+    )
+    said = [subprocess.run([sys.executable, "-c", code, name], capture_output=True, text=True, timeout=60).stdout
+            for name in ("Dask Worker process (from Nanny)", "MainProcess")]
+    assert [s.strip() for s in said] == ["False", "True"], said
