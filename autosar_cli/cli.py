@@ -274,12 +274,14 @@ def _load_config(path: Path | None) -> Any:
 
 
 def _prepare_output(path: Path, overwrite: bool, inputs: list[Path | str | None],
-                    replaces_directory: bool = False) -> None:
+                    replaces_directory: bool = False, ours: bool = False) -> None:
     """Pass ``path`` through the output gate (store.outputs: never an input, --overwrite only replaces what
-    autosar made); a file is then replaced atomically by its writer, a directory (rosbag2) removed here."""
+    autosar made; ``ours``: an existing file there is autosar's, as the product it goes with says); a file is then
+    replaced atomically by its writer, a directory (rosbag2) removed here."""
     from autosar_cli.store.outputs import check_output, make_directories, remove_product_directory
 
-    check_output(path, [p for p in inputs if p], overwrite=overwrite, replaces_directory=replaces_directory)
+    check_output(path, [p for p in inputs if p], overwrite=overwrite, replaces_directory=replaces_directory,
+                 ours=ours)
     if path.is_dir():
         remove_product_directory(path)
     _state["undo_on_failure"].append(make_directories(path.parent))
@@ -458,9 +460,12 @@ def navigate(
 
         _not_a_log(drive, "a drive.h5", "autosar ingest LOG -o drive.h5")
         cfg = _load_config(config)
+        from autosar_cli.store.outputs import is_autosar_product
+
+        plotted = output.is_file() and is_autosar_product(output)  # its plot beside it is autosar's too
         _prepare_output(output, overwrite, [drive, truth, cfg.source])
         if plot:
-            _prepare_output(output.with_suffix(".png"), overwrite, [drive, truth, cfg.source])
+            _prepare_output(output.with_suffix(".png"), overwrite, [drive, truth, cfg.source], ours=plotted)
         traj = run_navigate(drive, method.value, cfg, smooth=not no_smooth, truth_path=truth)
         write_trajectory(output, traj)
         figure = None

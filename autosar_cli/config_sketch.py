@@ -88,8 +88,9 @@ def capture_config_sketch(capture: str | Path, config: Config) -> str:
                    ("num_tx", rec.num_tx, ""), ("num_rx", rec.num_rx, ""),
                    ("prf_hz", rec.prf_hz, "one PRI: a loop of the chirp table"),
                    ("chirp_period_s", p.chirp_period_s, "idle + ramp end time")]
-    for kind, used in (("tx", p.tx_order), ("rx", p.rx_channels)):
-        if tuple(used) != tuple(range(len(getattr(r, f"{kind}_positions_wavelengths")))):
+    for kind, used in (("tx", p.tx_order), ("rx", p.rx_channels)):  # over a base that names its own, always
+        if getattr(r, f"{kind}_channels") is not None or tuple(used) != tuple(range(len(getattr(
+                r, f"{kind}_positions_wavelengths")))):
             keys.append((f"{kind}_channels", list(used), f"the board's {kind.title()} in use: rows of "
                          f"{kind}_positions_wavelengths"))
     unambiguous = rec.sample_rate_hz * SPEED_OF_LIGHT / (2.0 * rec.slope_hz_per_s)

@@ -164,3 +164,14 @@ def test_the_config_sketch_of_a_capture_is_a_config_it_ingests_with(tmp_path: Pa
     (tmp_path / "sketch.toml").write_text(r.stdout)
     code, stderr = cli_ingest(tmp_path / "cap", tmp_path / "d.h5", "--config", str(tmp_path / "sketch.toml"))
     assert code == 0, stderr
+    # over a base that names the board's antennas in use (Tx 0 and 2), the sketch of a 3-Tx capture names all three
+    base = tmp_path / "base.toml"
+    base.write_text('base = "default"\n\n[radar]\nnum_tx = 2\ntx_channels = [0, 2]\n')
+    p3 = dataclasses.replace(params_from_radar(CFG.radar), num_frames=2)
+    three = np.random.default_rng(5).integers(-500, 500, (2, 3, 4, 540, 2), dtype=np.int16)
+    write_capture(tmp_path / "cap3", p3, [three], param_format="json")
+    r = CliRunner().invoke(app, ["info", str(tmp_path / "cap3"), "--config-sketch", "--config", str(base)])
+    assert r.exit_code == 0 and "tx_channels = [0, 1, 2]" in r.stdout, r.output
+    (tmp_path / "sketch3.toml").write_text(r.stdout)
+    code, stderr = cli_ingest(tmp_path / "cap3", tmp_path / "d3.h5", "--config", str(tmp_path / "sketch3.toml"))
+    assert code == 0, stderr

@@ -643,7 +643,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
     else:
         traj = from_truth(str(truth_path), inputs.origin, config, radar_motion=True)
         traj.info["truth"] = os.path.abspath(truth_path)
-    traj.info["drive"] = str(drive_path)
+    traj.info["drive"] = os.path.abspath(drive_path)
     if damage:
         traj.info["warnings"] = [*damage, *traj.info.get("warnings", [])]
     if recording is not None:

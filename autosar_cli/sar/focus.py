@@ -11,6 +11,7 @@ are prepared in a thread meanwhile.
 from __future__ import annotations
 
 import math
+import os
 import threading
 import time
 from collections import Counter
@@ -469,7 +470,10 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
               "frames_damaged": len(damaged), "backprojections": n_bp,
               "radar": radar.name, "channel_gains": gains.to_dict() if gains is not None else None,
               "radar_mounting_yaw_deg": config.radar.mounting.yaw_deg}
-    provenance = {"drive": str(drive_path), "trajectory": traj_name, "autosar_version": __version__,
+    # absolute: `autosar evaluate IMAGE` finds them from any directory
+    provenance = {"drive": os.path.abspath(drive_path),
+                  "trajectory": traj_name if isinstance(trajectory, Trajectory) else os.path.abspath(trajectory),
+                  "autosar_version": __version__,
                   "command": command, "config": config.source}
     out = [FocusedImage(img.reshape(g.shape), g, traj.origin, dict(params), dict(provenance))
            for g, img in zip(grid_list, images, strict=True)]
