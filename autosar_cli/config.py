@@ -816,6 +816,8 @@ def _validate(cfg: Config) -> None:
                 for f in fields(errors):
                     if f.name not in ("outages", "multipath"):
                         _non_negative(f"{base}.{sub}.{f.name}", getattr(errors, f.name))
+                if hasattr(errors, "bias_tau_s"):  # a bias's correlation time divides its random walk
+                    _positive(f"{base}.{sub}.bias_tau_s", errors.bias_tau_s)
         if s.gnss is not None:
             for what, spans in (("outages", s.gnss.outages), ("multipath", s.gnss.multipath)):
                 for i, span in enumerate(spans):

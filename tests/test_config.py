@@ -63,6 +63,7 @@ def test_a_board_with_more_antennas_than_the_radar_uses(tmp_path: Path) -> None:
         (r"^prf_hz = .*$", 'prf_hz = "fast"', "radar.prf_hz"),
         (r"^num_tx = 3$", "num_tx = 2", "radar.tx_channels"),
         (r"^max_step_s = .*$", "max_step_s = 1e-9", "navigation.max_step_s"),
+        (r"^bias_tau_s = 100.0", "bias_tau_s = 0.0", "sensors.esc.gyro.bias_tau_s"),
         (r"^cross_range_resolution_m = .*$", "cross_range_resolution_m = 1e-9", "processing.cross_range_resolution_m"),
         (r"^num_tx = 3$", "num_tx = 2\ntx_channels = [0, 3]", "radar.tx_channels"),
         (r"^num_tx = 3$", "num_tx = 2\ntx_channels = [2, 2]", "radar.tx_channels"),

@@ -867,3 +867,17 @@ def test_the_sdk_cfgs_channel_calibration_is_the_drives_stated_gains(tmp_path: P
                                            "compRangeBiasAndRxChanPhase 0.0" + " 1 0" * 5))
     code, stderr = cli_ingest(cap, tmp_path / "f.h5")
     assert_one_line_error(code, stderr, "compRangeBiasAndRxChanPhase has 11 values")
+
+
+@pytest.mark.parametrize(("args", "said"), [
+    (["--radar-start", "1612951200"], "not a time from 2000 on in ns since the Unix epoch (seconds"),
+    (["--radar-start", "99999999999999999999999999"], "not a time from 2000 on"),
+    (["--radar-start", "2021-02-10T10:00:00Z", "--time-offset", "x.asc=1e300"], "more than a century"),
+])
+def test_a_start_or_offset_no_clock_can_be_is_refused_naming_the_option(tmp_path: Path, args: list[str],
+                                                                          said: str) -> None:
+    """A capture's start given in seconds was taken for ns (the radar 1.6 s after 1970, exit 0); one too large for
+    an int64, or a time offset of 1e300 s, ended in "Python int too large to convert to C long" or "cannot convert
+    float infinity to integer". Each is one line naming the option."""
+    r = runner.invoke(app, ["ingest", str(tmp_path / "x.mcap"), "-o", str(tmp_path / "d.h5"), *args])
+    assert_one_line_error(r.exit_code, r.stderr, said)

@@ -172,3 +172,16 @@ def test_real_folders_sort_as_what_their_files_hold(tmp_path: Path, cfg: Config)
         assert fixes and all(np.array_equal(a.h5["gnss"][k]["nmea_fix/latitude_deg"][()],
                                             b.h5["gnss"][k]["nmea_fix/latitude_deg"][()]) for k in fixes)
         assert len(a.h5["gnss"][fixes[0]]["nmea_fix/t_ns"]) > 10
+
+
+def test_a_pipe_in_a_drive_folder_is_left_out_not_opened(ci_mcap: SimulationResult, tmp_path: Path) -> None:
+    """A named pipe among a drive folder's files was opened to be classified, and `info` and `ingest` waited on
+    it for ever. It is left out and named, as any file that is no input is."""
+    d = tmp_path / "D"
+    d.mkdir()
+    (d / ci_mcap.log_path.name).symlink_to(ci_mcap.log_path)
+    shutil.copy(realdata("gpsd", "neo-m8n.log"), d / "gps.log")
+    os.mkfifo(d / "notes")
+    found = drive_folder(d)
+    assert found is not None and found.left_out == [d / "notes"]
+    assert found.inputs["nmea"] == [d / "gps.log"]

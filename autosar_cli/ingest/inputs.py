@@ -102,7 +102,9 @@ def drive_folder(path: Path, depth: int = 0) -> DriveFolder | None:
         return None
     for entry in entries:
         name = entry.name.lower()
-        if entry.is_dir():
+        if not (entry.is_dir() or entry.is_file()):  # a pipe, socket or device: opening one waits for ever
+            left_out.append(entry)
+        elif entry.is_dir():
             if is_capture(entry):
                 found["radar"].append(entry)
             elif is_log_directory(entry):

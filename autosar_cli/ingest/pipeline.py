@@ -776,19 +776,28 @@ def ingest_sorted(given: SortedInputs, output: Path, *, config: Config, dbc: Pat
     return report
 
 
+_EARLIEST_START_NS = 946_684_800 * 1_000_000_000  #: 2000-01-01 UTC: no radar capture is older
+_CENTURY_S = 100 * 365.25 * 86400.0
+
+
 def parse_time_ns(text: str) -> int:
     """``--radar-start``: integer ns since the Unix epoch, or an ISO 8601 time (UTC unless it says otherwise)."""
     text = text.strip()
     if re.fullmatch(r"-?\d+", text):
-        return int(text)
-    try:
-        dt = datetime.fromisoformat(text.replace("Z", "+00:00"))
-    except ValueError:
-        raise IngestError(f"--radar-start {text!r}: expected ns since the Unix epoch or an ISO 8601 time") from None
-    if dt.tzinfo is None:
-        dt = dt.replace(tzinfo=UTC)
-    whole = int(dt.replace(microsecond=0).timestamp())
-    return whole * 1_000_000_000 + dt.microsecond * 1000
+        ns = int(text)
+    else:
+        try:
+            dt = datetime.fromisoformat(text.replace("Z", "+00:00"))
+        except ValueError:
+            raise IngestError(f"--radar-start {text!r}: expected ns since the Unix epoch or an ISO 8601 time") \
+                from None
+        if dt.tzinfo is None:
+            dt = dt.replace(tzinfo=UTC)
+        ns = int(dt.replace(microsecond=0).timestamp()) * 1_000_000_000 + dt.microsecond * 1000
+    if not _EARLIEST_START_NS <= ns < 2**63:  # seconds or ms given for ns would put the radar in 1970
+        raise IngestError(f"--radar-start {text!r}: not a time from 2000 on in ns since the Unix epoch (seconds "
+                          "or milliseconds given? give ns, or an ISO 8601 time)")
+    return ns
 
 
 def _input_bytes(path: Path, src: LogSource | None) -> int:
@@ -829,6 +838,8 @@ def parse_time_offsets(items: Iterable[str]) -> dict[Path, float]:
             seconds = math.nan
         if not sep or not path or not math.isfinite(seconds):
             raise IngestError(f"--time-offset {item!r}: expected PATH=SECONDS, e.g. can.asc=-3600")
+        if abs(seconds) > _CENTURY_S:  # a logger's clock set wrong is years off at most
+            raise IngestError(f"--time-offset {item!r}: more than a century either way")
         out[Path(path)] = seconds
     return out
 
