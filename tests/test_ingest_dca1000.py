@@ -881,3 +881,17 @@ def test_a_start_or_offset_no_clock_can_be_is_refused_naming_the_option(tmp_path
     float infinity to integer". Each is one line naming the option."""
     r = runner.invoke(app, ["ingest", str(tmp_path / "x.mcap"), "-o", str(tmp_path / "d.h5"), *args])
     assert_one_line_error(r.exit_code, r.stderr, said)
+
+
+def test_a_capture_cut_at_a_frames_end_says_how_many_frames_it_lacks(tmp_path: Path) -> None:
+    """A capture cut exactly at a frame's end (a copy stopped there) read as whole: no warning, the run ok, though
+    its parameter file configures twice its frames. It now names how many it holds of those configured."""
+    p = params_from_radar(CFG.radar, num_frames=4)
+    pris = np.random.default_rng(6).integers(-500, 500, (4, 3, 4, 540, 2), dtype=np.int16)
+    write_capture(tmp_path / "cap", p, [pris], param_format="json")
+    data = tmp_path / "cap" / "adc_data.bin"
+    data.write_bytes(data.read_bytes()[:2 * p.frame_bytes])
+    code, stderr = cli_ingest(tmp_path / "cap", tmp_path / "d.h5")
+    assert code == 0 and "adc_data.bin: holds 2 of the 4 frames capture.mmwave.json configures" in stderr, stderr
+    with Drive(tmp_path / "d.h5") as d:
+        assert len(d.radar().t_ns) == 2

@@ -256,6 +256,10 @@ class Dca1000Capture:
         if self.partial_bytes:  # a recording cut short (a full disk, an interrupted copy) keeps its whole frames
             self.warnings.append(f"{self.name}: trailing partial frame left out ({self.partial_bytes} of "
                                  f"{p.frame_bytes} bytes, 1 frame)")
+        if p.num_frames and self.num_frames < p.num_frames:  # cut at a frame's end, it looked whole
+            self.warnings.append(f"{self.name}: holds {self.num_frames} of the {p.num_frames} frames "
+                                 f"{self.param_file.name} configures: the capture stopped early or its file was cut "
+                                 "short")
         #: PRIs left out by :meth:`blocks`' flags, by cause, once the blocks are read
         self.damage = {"lost packets": 0, "zero-filled runs": 0, "PRIs": 0}
 
