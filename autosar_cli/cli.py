@@ -607,6 +607,9 @@ def focus(
         cfg = _load_config(config)
         options = FocusOptions.from_config(cfg, pixel_m=pixel, resolution_m=resolution, height_m=height, grid=grid,
                                            channels=int(channels.value) if channels else None, radar=radar_stream)
+        from autosar_cli.store.outputs import make_directories
+
+        _state["undo_on_failure"].append(make_directories(output.parent))  # as ingest and navigate make theirs
         with _progress("focusing", enabled=not as_json) as progress:
             if tiles > 1:
                 from autosar_cli.sar.tiles import focus_tiled

@@ -908,3 +908,23 @@ def test_navigate_replaces_its_own_plot_beside_an_output_of_any_name(tmp_path: P
                                 "--overwrite"])
         assert r.exit_code == 0, r.output
     assert (tmp_path / "tr.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize("tiles", ["1", "2"])
+def test_a_resolution_whose_beam_holds_no_pulse_is_refused(tmp_path: Path, ci_run: Path, tiles: str) -> None:
+    """`focus --resolution 1e300` wrote an all-zero image, exit 0, no word (its beam +-0 deg held no pulse)."""
+    r = runner.invoke(app, ["focus", str(ci_run / "drive.h5"), "-t", str(ci_run / "trajectory.h5"), "-o",
+                            str(tmp_path / "x"), "--resolution", "1e300", "--tiles", tiles])
+    _one_line_error(r, "no radar pulse reaches a pixel within the processed beam", "1e+300 m")
+    assert not list(tmp_path.iterdir())
+
+
+def test_focus_makes_the_folder_of_its_output(tmp_path: Path, ci_run: Path) -> None:
+    """`focus -o new/dir/x` failed after focusing, naming its own partial file ("No such file or directory:
+    x.partial-<pid>.png"); it makes the folder, as ingest and navigate do, and removes it again on failure."""
+    out = tmp_path / "new" / "dir" / "x"
+    r = runner.invoke(app, ["focus", str(ci_run / "drive.h5"), "-t", str(ci_run / "trajectory.h5"), "-o", str(out)])
+    assert r.exit_code == 0 and (out.parent / "x.tif").exists(), r.output
+    r = runner.invoke(app, ["focus", str(ci_run / "drive.h5"), "-t", str(ci_run / "trajectory.h5"), "-o",
+                            str(tmp_path / "other" / "x"), "--resolution", "1e300"])
+    assert r.exit_code == 1 and not (tmp_path / "other").exists(), r.output

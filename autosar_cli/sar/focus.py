@@ -484,6 +484,14 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
                        damaged_index)
 
 
+def check_some_backprojection(n: int, drive_path: str | Path, options: FocusOptions, half_width_rad: float) -> None:
+    """Refuse an image no pulse reached (all zero: a cross-range resolution so coarse its beam holds no pulse)."""
+    if n == 0:
+        raise FocusError(f"{drive_path}: no radar pulse reaches a pixel within the processed beam (cross-range "
+                         f"resolution {options.resolution_m:g} m: +-{math.degrees(half_width_rad):.3g} deg); the "
+                         "image would be empty")
+
+
 def damaged_frames_warning(drive_path: str | Path, radar: str, frame_index: Sequence[int]) -> str:
     """One line naming the frames (``frame_index``: their sorted indices in the recording, named as runs) of the
     drive's radar stream ``radar`` left out of an image because their stored data failed its checksum."""
@@ -551,6 +559,7 @@ def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Pat
             progress(done, total)
 
     res = focus_images(drive_path, trajectory_path, config, options, progress=on_block, command=command)
+    check_some_backprojection(res.backprojections, drive_path, options, res.images[0].params["half_width_rad"])
     t0 = time.perf_counter()
     img = res.images[0]
     warnings = [*res.warnings, *unfocused_radars(drive_path, options)]

@@ -40,6 +40,7 @@ from autosar_cli.sar.focus import (
     _usable_frames,
     check_request,
     check_same_recording,
+    check_some_backprojection,
     damaged_frames_warning,
     drive_radar_config,
     focus_images,
@@ -199,6 +200,7 @@ def focus_tiled(drive_path: str | Path, trajectory_path: str | Path, output: str
 
         first = min(results, key=lambda r: r.col0)
         n_bp = sum(r.backprojections for r in results)
+        check_some_backprojection(n_bp, drive_path, options, float(first.params["half_width_rad"]))
         # each tile reads the frames its columns need: the frames left out are those any tile found damaged
         damaged = sorted({i for r in results for i in r.damaged_frame_index})
         frames_used = first.frames_used + len(first.damaged_frame_index) - len(damaged)
