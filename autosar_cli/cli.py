@@ -924,6 +924,9 @@ def _print_checked(found: dict[str, Any]) -> None:
         damaged = found["damaged"]
         for d in damaged[:_DAMAGED_NAMED]:
             at = f" at {list(d['at'])}" if d["at"] else ""
+            if d["dataset"] == "attributes":
+                err.print(f"[red]damaged:[/] {_lit(d['reason'])}", highlight=False, soft_wrap=True)
+                continue
             err.print(f"[red]damaged:[/] {_lit(d['dataset'])} rows {d['rows'][0]}-{d['rows'][1] - 1}{at}: "
                       f"{_lit(d['reason'])}", highlight=False, soft_wrap=True)
         if len(damaged) > _DAMAGED_NAMED:
@@ -932,9 +935,12 @@ def _print_checked(found: dict[str, Any]) -> None:
             out.print(f"[bold]{_lit(path)}[/]: {found['datasets']} datasets, {found['chunks']} stored chunks, every "
                       "checksum holds")
         else:
-            names = len({d["dataset"] for d in damaged})
-            out.print(f"[bold]{_lit(path)}[/]: {len(damaged)} of {found['chunks']} stored chunks damaged, in "
-                      f"{names} of {found['datasets']} datasets")
+            chunks = [d for d in damaged if d["dataset"] != "attributes"]
+            said = [f"{len(chunks)} of {found['chunks']} stored chunks damaged, in "
+                    f"{len({d['dataset'] for d in chunks})} of {found['datasets']} datasets"] if chunks else []
+            if len(chunks) < len(damaged):
+                said.append("its attributes damaged")
+            out.print(f"[bold]{_lit(path)}[/]: {'; '.join(said)}")
         return
     if found["intact"]:
         out.print(f"[bold]{_lit(path)}[/]: {found['tiles']} tiles, {found['columns']} columns, its georeference and "

@@ -388,3 +388,42 @@ def test_appends_that_end_inside_a_chunk_read_back_whole(tmp_path: Path) -> None
     with Drive(path) as d:
         np.testing.assert_array_equal(d.radar().frames(0, 142), raw)
         np.testing.assert_array_equal(d.radar().frames(30, 140, [(1, 3), (0, 0)]), raw[30:140, [1, 0], [3, 0]])
+
+
+@pytest.mark.parametrize(("name", "group", "key"), [
+    ("trajectory.h5", "/", "origin_lat_deg"), ("image.h5", "/", "origin_lat_deg"), ("drive.h5", "/", "created_utc"),
+    ("drive.h5", "radar/scanbrick_w43", "start_frequency_hz")])
+def test_a_flipped_byte_in_an_attribute_is_damage_not_another_value(ci_run: Path, tmp_path: Path, name: str,
+                                                                      group: str, key: str) -> None:
+    """Attributes lie outside every dataset checksum: one bit of a trajectory's origin latitude moved the image
+    870 m, `info --verify` said every checksum held and focus went on. The attributes' CRC (store.attr_checksum)
+    makes it damage: --verify names it (exit 1); a trajectory or image is refused in one line, a drive read on with
+    a warning that marks its products degraded (as a damaged table's rows are)."""
+    from autosar_cli.store.attr_checksum import ATTRS_CRC
+
+    src = ci_run / name
+    with h5py.File(src) as f:
+        assert ATTRS_CRC in f.attrs
+        stored = f[group].attrs[key]
+        value = stored.encode() if isinstance(stored, str) else np.asarray(stored).tobytes()
+    data = bytearray(src.read_bytes())
+    assert data.count(value) == 1
+    data[data.index(value) + 5] ^= 0x01  # one bit: a float's mantissa 0.0003 % off, a date's digit: not absurd
+    damaged = tmp_path / name
+    damaged.write_bytes(bytes(data))
+    r = runner.invoke(app, ["info", str(damaged), "--verify"])
+    assert r.exit_code == 1 and "its attributes" in r.stderr, r.output
+    r = runner.invoke(app, ["focus", str(damaged if name == "drive.h5" else ci_run / "drive.h5"), "-t",
+                            str(damaged if name == "trajectory.h5" else ci_run / "trajectory.h5"), "-o",
+                            str(tmp_path / "img"), "--json"] if name != "image.h5" else
+                      ["evaluate", str(damaged), "-o", str(tmp_path / "ev")])
+    if name == "drive.h5" and group != "/":  # HDF5's own checksum of the radar's object header finds this one
+        assert r.exit_code == 1 and r.stderr.count("\n") == 1 and str(damaged) in r.stderr, r.output
+        assert "radar/scanbrick_w43 is damaged and cannot be read" in r.stderr
+        return
+    if name == "drive.h5":  # the rest of a drive is read, as a damaged table's is: the image marked degraded
+        assert r.exit_code == 0 and json.loads(r.stdout)["status"] == "degraded", r.output
+        assert "its attributes fail their checksum" in json.loads(r.stdout)["warnings"][0]
+        return
+    assert r.exit_code == 1 and r.stderr.count("\n") == 1 and "its attributes" in r.stderr, r.output
+    assert str(damaged) in r.stderr

@@ -29,6 +29,7 @@ from autosar_cli.sar.focus import FocusError, FocusOptions, focus, focus_images
 from autosar_cli.sar.grid import box_grid
 from autosar_cli.sim.simulate import simulate
 from autosar_cli.sim.truth import read_targets
+from autosar_cli.store.attr_checksum import stamp_attributes
 from autosar_cli.store.image import read_image
 from autosar_cli.store.trajectory import read_trajectory, write_trajectory
 
@@ -323,6 +324,7 @@ def test_a_drive_with_two_radars_says_which_it_focused(ci_drive: Drive, tmp_path
         f.copy(f"radar/{own}", "radar/a_right")  # sorts first: the default
         raw = f["radar/a_right/raw"]
         raw[...] = np.zeros(raw.shape, raw.dtype)  # an array: a scalar took 100 s here, this 0.03 s
+        stamp_attributes(f)  # a drive written so, not one damaged in its attributes
     runner = CliRunner()
     common = ["focus", str(drive), "-t", str(ci_drive.trajectory), "--pixel", "0.08", "--json"]
     res = runner.invoke(app, [*common, "-o", str(tmp_path / "first")])

@@ -462,6 +462,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         drive_s = float((geometry.t_ns[-1] - geometry.t_ns[0]) / 1e9)
         damaged_index = sorted(int(i) for i in np.asarray(radar.frame_index)[np.asarray(damaged, np.int64)])
         warnings = [damaged_frames_warning(drive_path, radar.name, damaged_index)] if damaged else []
+        warnings += drive.damage  # its attributes failing their checksum: the radar's chirp may be wrong
 
     params = {**asdict(options), "channel_pairs": [list(p) for p in pairs], "start_frequency_hz": f0,
               "slope_hz_per_s": slope, "sample_rate_hz": fs, "num_samples": n_samp, "bin_m": bin_m,

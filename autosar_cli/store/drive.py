@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from autosar_cli.store.atomic import partial_path
+from autosar_cli.store.attr_checksum import attributes_damage, stamp_attributes
 from autosar_cli.store.hdf5_read import DamagedFileError, dataset_errors, open_hdf5, read_dataset, read_rows
 from autosar_cli.store.outputs import check_free_space, not_the_format
 
@@ -316,6 +317,7 @@ class DriveWriter:
         for table in self._tables:
             table.flush()
         self._hdf.call(lambda: self.ensure_space(0))  # room for what closing flushes
+        self._hdf.call(lambda: stamp_attributes(self._file))  # the radar's parameters, the streams' attributes
         self._close()
         os.replace(self.partial, self.path)
         return self.path
@@ -466,8 +468,14 @@ class Drive:
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         self._file = open_hdf5(self.path, DriveFormatError)
-        fmt = self._file.attrs.get("format")
-        version = self._file.attrs.get("format_version")
+        try:
+            fmt = self._file.attrs.get("format")
+            version = self._file.attrs.get("format_version")
+            attrs = dict(self._file.attrs)
+        except (OSError, RuntimeError) as exc:  # its root's header fails HDF5's own checksum
+            self._file.close()
+            raise DriveFormatError(f"{self.path}: its attributes cannot be read ({str(exc).splitlines()[0]}); "
+                                   "damaged drive.h5 (ingest its logs again)") from None
         if fmt != FORMAT:
             self._file.close()
             raise DriveFormatError(not_the_format(self.path, fmt, FORMAT))
@@ -478,10 +486,12 @@ class Drive:
             self._file.close()
             raise DriveFormatError(f"{self.path}: drive format version {version} is newer than this autosar "
                                    f"reads ({FORMAT_VERSION})")
-        self.attrs = dict(self._file.attrs)
+        self.attrs = attrs
         #: one line per table read whose damaged rows were left out (:meth:`columns`, and so :meth:`series`,
         #: :meth:`can_role`)
         self.damage: list[str] = []
+        if (why := attributes_damage(self._file)) is not None:  # read on, as a damaged table is: the rest holds
+            self.damage.append(f"{self.path}: {why}: a value the drive states may be wrong (ingest its logs again)")
         self._intact_rows: dict[str, NDArray[np.bool_]] = {}  # per damaged table read: its intact rows
 
     def __enter__(self) -> Drive:
@@ -592,7 +602,7 @@ class Drive:
         with dataset_errors(self.path, f"radar/{name}/raw"):
             g = self._file["radar"][name]
             raw = g["raw"]
-        attrs = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in g.attrs.items()}
+        attrs = self.radar_attrs(name)
         return RadarStream(name, read_dataset(g, "t_ns", self.path), read_dataset(g, "frame_index", self.path), raw,
                            attrs)
 

@@ -46,7 +46,7 @@ def dataset_errors(path: str | Path, dataset: str) -> Iterator[None]:
         yield
     except KeyError:
         raise DamagedFileError(f"{path}: dataset {dataset} is missing") from None
-    except OSError as exc:
+    except (OSError, RuntimeError) as exc:  # RuntimeError: HDF5 iterating a damaged object header's attributes
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise DamagedFileError(f"{path}: dataset {dataset} is damaged and cannot be read ({reason})") from exc
 
@@ -62,6 +62,9 @@ def read_rows(ds: h5py.Dataset, start: int, stop: int) -> np.ndarray:
     """``ds[start:stop]``, with errors naming the file and the dataset."""
     with dataset_errors(ds.file.filename, ds.name):
         return ds[start:stop]
+
+
+ATTRIBUTES = "attributes"  #: a ChunkDamage's dataset where the file's attributes fail their checksum
 
 
 @dataclass(frozen=True)
@@ -90,8 +93,12 @@ class Verification:
 def verify(path: Path, error: type[Exception]) -> Verification:
     """Read every stored chunk of every dataset of the HDF5 file at ``path``, so that each one's Fletcher-32
     checksum (and its decompression) is checked; ``error`` where the file cannot be opened (:func:`open_hdf5`)."""
+    from autosar_cli.store.attr_checksum import attributes_damage
+
     found = Verification(str(path))
     with open_hdf5(path, error) as f:
+        if (why := attributes_damage(f)) is not None:
+            found.damaged.append(ChunkDamage(ATTRIBUTES, (0, 0), (), why))
         datasets: list[h5py.Dataset] = []
         f.visititems(lambda _, obj: datasets.append(obj) if isinstance(obj, h5py.Dataset) else None)
         for ds in datasets:

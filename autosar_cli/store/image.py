@@ -26,6 +26,7 @@ from rasterio.windows import Window
 
 from autosar_cli import __version__
 from autosar_cli.store.atomic import atomic_output
+from autosar_cli.store.attr_checksum import attributes_damage, stamp_attributes
 from autosar_cli.store.hdf5_read import open_hdf5
 from autosar_cli.store.manifest import json_default
 from autosar_cli.store.outputs import SMALL_FILE_MARGIN_BYTES, check_free_space, not_the_format
@@ -231,6 +232,7 @@ class ImageWriter:
         self._tif.set_band_unit(1, "dB")
         _write_params(self._h5.create_group("params"), self._params)
         self._h5.create_group("provenance").attrs["json"] = self._provenance_json
+        stamp_attributes(self._h5)  # the grid and georeference, which no dataset checksum covers
         draw_quicklook(self._tmp["png"], self._pooled, self._pool, self.grid, dynamic_range_db=self.dynamic_range_db)
 
 
@@ -262,6 +264,8 @@ def read_image(path: Path) -> FocusedImage:
         if version != FORMAT_VERSION:
             raise ImageFormatError(f"{path}: image format version {version}, this autosar {__version__} reads "
                                    f"version {FORMAT_VERSION}")
+        if (why := attributes_damage(f)) is not None:
+            raise ImageFormatError(f"{path}: {why}; damaged image.h5")
         try:
             a = f.attrs
             origin = GeodeticOrigin(float(a["origin_lat_deg"]), float(a["origin_lon_deg"]),

@@ -22,6 +22,7 @@ import numpy as np
 
 from autosar_cli import __version__
 from autosar_cli.store.atomic import partial_path
+from autosar_cli.store.attr_checksum import attributes_damage, stamp_attributes
 from autosar_cli.store.hdf5_read import DamagedFileError, open_hdf5, read_dataset
 from autosar_cli.store.outputs import SMALL_FILE_MARGIN_BYTES, check_free_space, not_the_format
 from autosar_cli.types import GeodeticOrigin, MotionCorrection, Trajectory
@@ -66,6 +67,7 @@ def write_trajectory(path: str | Path, traj: Trajectory, attrs: dict[str, Any] |
                 g = f.create_group("correction")
                 for name in ("t_ns", "offset_enu", "std_enu"):
                     g.create_dataset(name, data=getattr(traj.correction, name), fletcher32=True)
+            stamp_attributes(f)  # the georeference and the info, which no dataset checksum covers
         os.replace(partial, path)
     except BaseException:
         partial.unlink(missing_ok=True)
@@ -83,6 +85,8 @@ def read_trajectory(path: str | Path, *, covariance: bool = True) -> Trajectory:
         version = f.attrs.get("format_version")
         if version is None:
             raise TrajectoryFormatError(f"{path}: has no format_version attribute (damaged trajectory.h5)")
+        if (why := attributes_damage(f)) is not None:
+            raise TrajectoryFormatError(f"{path}: {why}; damaged trajectory.h5")
         if int(version) > FORMAT_VERSION:
             raise TrajectoryFormatError(f"{path}: format version {version} is too new")
         a = f.attrs
