@@ -130,6 +130,12 @@ SWALLOWED_INTERRUPT = "tests/test_safety.py::test_an_error_that_follows_a_swallo
 INPUT_TWICE = "tests/test_ingest_mixed.py::test_two_recordings_of_a_stream_are_refused"
 RELATIVE_RUN = ("tests/test_evaluate.py::"
                 "test_a_run_of_a_relative_path_is_evaluated_against_its_truth_from_anywhere")
+ATTR_CRC = "tests/test_integrity.py::test_a_flipped_byte_in_an_attribute_is_damage_not_another_value"
+PIPE_IN_FOLDER = "tests/test_ingest_drive_folder.py::test_a_pipe_in_a_drive_folder_is_left_out_not_opened"
+START_BOUNDS = "tests/test_ingest_dca1000.py::test_a_start_or_offset_no_clock_can_be_is_refused_naming_the_option"
+CAPTURE_SHORT = "tests/test_ingest_dca1000.py::test_a_capture_cut_at_a_frames_end_says_how_many_frames_it_lacks"
+EMPTY_BEAM = "tests/test_safety.py::test_a_resolution_whose_beam_holds_no_pulse_is_refused"
+FOCUS_FOLDER = "tests/test_safety.py::test_focus_makes_the_folder_of_its_output"
 GROUP_SIGNAL = "tests/test_safety.py::test_a_signal_to_the_whole_process_group_stops_runs_forked_ingest_once"
 SPAWNED_HANDLERS = "tests/test_safety.py::test_a_process_the_command_spawns_keeps_pythons_signal_handlers"
 BATCH_RETRY = "tests/test_batch.py::test_a_drives_retry_replaces_its_first_attempts_products"
@@ -698,6 +704,19 @@ MUTATIONS: list[Mutation] = [
     _m("batch-retry-refuses-its-first-attempt", "batch", "batch.py",
        "                       replace_unfinished=True)", "                       replace_unfinished=False)",
        BATCH_RETRY),
+    _m("attribute-checksum-unchecked", "integrity", "store/attr_checksum.py",
+       "    if stored != found:\n", "    if False:\n", ATTR_CRC),
+    _m("drive-folder-opens-a-pipe", "inputs", "ingest/inputs.py",
+       "        if not (entry.is_dir() or entry.is_file()):", "        if False:", PIPE_IN_FOLDER),
+    _m("radar-start-in-seconds-taken-for-ns", "radar", "ingest/pipeline.py",
+       "    if not _EARLIEST_START_NS <= ns < 2**63:", "    if not -2**63 <= ns < 2**63:", START_BOUNDS),
+    _m("capture-short-of-its-frames-unsaid", "radar", "ingest/dca1000.py",
+       "        if p.num_frames and self.num_frames < p.num_frames:", "        if False:", CAPTURE_SHORT),
+    _m("empty-beam-writes-a-zero-image", "sar", "sar/focus.py",
+       "    if n == 0:\n        raise FocusError(", "    if n < 0:\n        raise FocusError(", EMPTY_BEAM),
+    _m("focus-output-folder-not-made", "safety", "cli.py",
+       "        _state[\"undo_on_failure\"].append(make_directories(output.parent))  # as ingest and navigate",
+       "        pass  # as ingest and navigate", FOCUS_FOLDER),
     _m("capture-said-to-add-nothing-to-the-drive", "ingest", "ingest/pipeline.py",
        'rows = read if kind == "radar" else', 'rows = 0 if kind == "radar" else', CAPTURE_USED),
     _m("failed-command-leaves-the-empty-directories-it-made", "safety", "store/outputs.py",
