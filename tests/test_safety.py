@@ -10,6 +10,7 @@ import re
 import shutil
 import sys
 from pathlib import Path
+from typing import Any
 
 import h5py
 import pytest
@@ -594,10 +595,10 @@ def _sigint_pending(pid: int) -> bool:
     return False
 
 
-def test_ctrl_c_during_runs_ingest_stops_its_child_without_leaving_a_partial(tmp_path: Path, ci_mcap) -> None:
-    """The interrupt lands while the forked ingest is writing, every time: the ingest (the child holding the
-    partial file open) is stopped while it is found, stays stopped until its parent has passed the SIGINT on,
-    and then goes on only to abort. Without that, an ingest of the short ci drive could finish in between."""
+def _signal_run_while_its_ingest_writes(log: Path, out: Path, send: Any, **popen: Any) -> tuple[Any, str]:
+    """`autosar run LOG -o OUT`, its forked ingest stopped while it holds its partial file open; ``send(pid)``
+    signals the run, the ingest goes on once its parent has passed a SIGINT on (the signal and the forward both
+    before it then). Returns the finished process and its stderr."""
     import signal
     import subprocess
     import time
@@ -605,9 +606,8 @@ def test_ctrl_c_during_runs_ingest_stops_its_child_without_leaving_a_partial(tmp
     script = _console_script()
     if script is None or not Path("/proc/self/task").is_dir():
         pytest.skip("needs the autosar console script and Linux's /proc")
-    out = tmp_path / "run"
-    proc = subprocess.Popen([script, "run", str(ci_mcap.log_path), "-o", str(out)], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True, preexec_fn=_as_from_a_terminal)
+    proc = subprocess.Popen([script, "run", str(log), "-o", str(out)], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True, **popen)
     deadline = time.monotonic() + 60
     child = None
     try:
@@ -615,7 +615,7 @@ def test_ctrl_c_during_runs_ingest_stops_its_child_without_leaving_a_partial(tmp
             child = _child_writing(proc.pid, out)
             time.sleep(0.005)
         assert child is not None, "the forked ingest never wrote its partial file"
-        proc.send_signal(signal.SIGINT)  # to the parent alone, as `kill -INT` does
+        send(proc.pid)
         while not _sigint_pending(child) and time.monotonic() < deadline:  # the parent has forwarded it
             time.sleep(0.005)
         assert _sigint_pending(child), "the parent did not pass the SIGINT on to its ingest"
@@ -623,6 +623,19 @@ def test_ctrl_c_during_runs_ingest_stops_its_child_without_leaving_a_partial(tmp
         if child is not None:
             os.kill(child, signal.SIGCONT)
     _, stderr = proc.communicate(timeout=60)
+    return proc, stderr
+
+
+def test_ctrl_c_during_runs_ingest_stops_its_child_without_leaving_a_partial(tmp_path: Path, ci_mcap) -> None:
+    """The interrupt lands while the forked ingest is writing, every time: the ingest (the child holding the
+    partial file open) is stopped while it is found, stays stopped until its parent has passed the SIGINT on,
+    and then goes on only to abort. Without that, an ingest of the short ci drive could finish in between."""
+    import signal
+
+    out = tmp_path / "run"
+    proc, stderr = _signal_run_while_its_ingest_writes(
+        ci_mcap.log_path, out, lambda pid: os.kill(pid, signal.SIGINT),  # to the parent alone, as `kill -INT` does
+        preexec_fn=_as_from_a_terminal)
     assert proc.returncode == 130 and stderr.strip() == "error: interrupted", stderr
     assert not list(out.glob("*partial*")) and not (out / "drive.h5").exists()
 
@@ -854,29 +867,10 @@ def test_a_signal_to_the_whole_process_group_stops_runs_forked_ingest_once(tmp_p
     signal, then its parent's forward of it, took that for a second interrupt and ended inside its clean-up, its
     partial file left (4 of 4 with SIGTERM). The ingest takes the first alone; one line, no partial file."""
     import signal
-    import subprocess
-    import time
 
-    script = _console_script()
-    if script is None or not Path("/proc/self/task").is_dir():
-        pytest.skip("needs the autosar console script and Linux's /proc")
     out = tmp_path / "run"
-    proc = subprocess.Popen([script, "run", str(ci_mcap.log_path), "-o", str(out)], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True, start_new_session=True)
-    deadline = time.monotonic() + 60
-    child = None
-    try:
-        while child is None and time.monotonic() < deadline:
-            child = _child_writing(proc.pid, out)  # stopped: the group's signal and the parent's wait for it
-            time.sleep(0.005)
-        assert child is not None, "the forked ingest never wrote its partial file"
-        os.killpg(proc.pid, getattr(signal, stop))
-        while not _sigint_pending(child) and time.monotonic() < deadline:  # the parent's forward has come too
-            time.sleep(0.005)
-    finally:
-        if child is not None:
-            os.kill(child, signal.SIGCONT)
-    _, stderr = proc.communicate(timeout=60)
+    proc, stderr = _signal_run_while_its_ingest_writes(
+        ci_mcap.log_path, out, lambda pid: os.killpg(pid, getattr(signal, stop)), start_new_session=True)
     code, said = (143, "terminated") if stop == "SIGTERM" else (130, "interrupted")
     assert proc.returncode == code and stderr.strip() == f"error: {said}", (proc.returncode, stderr)
     assert not list(out.glob("*partial*")) and not (out / "drive.h5").exists(), sorted(out.iterdir())
