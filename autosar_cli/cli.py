@@ -885,6 +885,8 @@ def _verify(path: Path, as_json: bool) -> None:
         raise typer.BadParameter(f"{path}: --verify reads a file autosar wrote (drive.h5, trajectory.h5, image.h5, "
                                  "image.tif, image.png) or a directory of them")
     found = [_checked(p, in_directory=path.is_dir()) for p in files]
+    if path.is_dir() and (path / "run.json").exists():
+        found += _run_outputs_checked(path)
     if as_json:
         out.print_json(json.dumps({"path": str(path), "files": found, "intact": all(f["intact"] for f in found)}
                                   if path.is_dir() else found[0]))
@@ -893,6 +895,21 @@ def _verify(path: Path, as_json: bool) -> None:
             _print_checked(f)
     if not all(f["intact"] for f in found):
         raise typer.Exit(1)
+
+
+def _run_outputs_checked(run_dir: Path) -> list[dict[str, Any]]:
+    """A run directory's run.json, read, and each product it lists, there: an entry (not intact) for each that is
+    not, so that a run missing a product, or with its manifest cut, is not called intact."""
+    from autosar_cli.run import RunError, read_manifest
+
+    try:
+        outputs = read_manifest(run_dir).get("outputs", {})
+    except RunError as exc:
+        return [{"path": str(run_dir / "run.json"), "error": str(exc), "intact": False}]
+    listed = [v for v in outputs.values() if isinstance(v, str)] + [
+        v for group in outputs.values() if isinstance(group, dict) for v in group.values() if isinstance(v, str)]
+    return [{"path": str(run_dir / name), "error": f"{run_dir / name}: listed in run.json but missing", "intact": False}
+            for name in listed if not (run_dir / name).exists()]
 
 
 def _checked(path: Path, in_directory: bool) -> dict[str, Any]:

@@ -427,3 +427,23 @@ def test_a_flipped_byte_in_an_attribute_is_damage_not_another_value(ci_run: Path
         return
     assert r.exit_code == 1 and r.stderr.count("\n") == 1 and "its attributes" in r.stderr, r.output
     assert str(damaged) in r.stderr
+
+
+@pytest.mark.parametrize("damage", ["image.tif removed", "run.json cut"])
+def test_info_verify_of_a_run_missing_a_product_is_not_intact(ci_run: Path, tmp_path: Path, damage: str) -> None:
+    """`info RUN --verify` checked the files present: a run whose image.tif was gone, or whose run.json was cut,
+    was called intact (exit 0). The products run.json lists must be there, and run.json must read."""
+    import shutil
+
+    run_dir = tmp_path / "run"
+    shutil.copytree(ci_run, run_dir)
+    if damage == "image.tif removed":
+        (run_dir / "image.tif").unlink()
+    else:
+        (run_dir / "run.json").write_bytes((run_dir / "run.json").read_bytes()[:100])
+    r = runner.invoke(app, ["info", str(run_dir), "--verify", "--json"])
+    assert r.exit_code == 1 and json.loads(r.stdout)["intact"] is False, r.output
+    said = "image.tif: listed in run.json but missing" if damage == "image.tif removed" else "run manifest"
+    assert any(said in f.get("error", "") for f in json.loads(r.stdout)["files"]), r.stdout
+    r = runner.invoke(app, ["info", str(ci_run), "--verify"])
+    assert r.exit_code == 0, r.output
