@@ -198,15 +198,12 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
         raise
     except KeyboardInterrupt as exc:
         _undo(undo_on_failure)
-        terminated = isinstance(exc, Terminated)
-        err.print(f"[red]error:[/] {'terminated' if terminated else 'interrupted'}")
-        raise typer.Exit(143 if terminated else 130) from None
+        raise typer.Exit(_said_stopped(_signal_of(exc))) from None
     except Exception as exc:
         _undo(undo_on_failure)
         if (signum := _state["stopped_by"]) is not None and not _state["debug"]:
             # the interrupt was swallowed (a destructor, a C extension's import) and this error followed from it
-            err.print(f"[red]error:[/] {'terminated' if signum == signal.SIGTERM else 'interrupted'}")
-            raise typer.Exit(128 + signum) from None
+            raise typer.Exit(_said_stopped(signum)) from None
         if _state["debug"]:
             raise
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
@@ -223,6 +220,17 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
             signal.signal(signal.SIGINT, exit_interrupted)
         if quick_term:
             signal.signal(signal.SIGTERM, exit_interrupted)
+
+
+def _signal_of(exc: KeyboardInterrupt) -> int:
+    """The signal a KeyboardInterrupt stands for: SIGTERM for :class:`Terminated`, else SIGINT."""
+    return signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT
+
+
+def _said_stopped(signum: int) -> int:
+    """Say that the command stopped on ``signum`` ("terminated" on SIGTERM, else "interrupted"); its exit code."""
+    err.print(f"[red]error:[/] {'terminated' if signum == signal.SIGTERM else 'interrupted'}")
+    return 128 + signum
 
 
 def _stop(signum: int, frame: Any) -> None:
@@ -1222,9 +1230,7 @@ def main() -> None:
     except SystemExit as exc:
         code = exc.code
     except KeyboardInterrupt as exc:
-        terminated = isinstance(exc, Terminated)
-        err.print(f"[red]error:[/] {'terminated' if terminated else 'interrupted'}")
-        code = 143 if terminated else 130
+        code = _said_stopped(_signal_of(exc))
     # The command is over and its products are closed. Frozen, the objects of numba, scipy, pandas and matplotlib
     # are no longer walked by the collections of the interpreter's shutdown: 0.7-0.8 s -> 0.1 s after
     # `autosar run` (measured). atexit handlers still run.

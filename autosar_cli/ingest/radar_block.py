@@ -65,7 +65,8 @@ def resolve(rec: Recorded, cfg: RadarConfig, *, what: str, override: bool,
 
     for name in ("num_tx", "num_rx", "num_samples"):
         if getattr(rec, name) != getattr(cfg, name):
-            clash(name, getattr(rec, name), f"{getattr(cfg, name)}{_channels_hint(rec, name[4:])}")
+            hint = _channels_hint(rec, name[4:]) if name in ("num_tx", "num_rx") else ""
+            clash(name, getattr(rec, name), f"{getattr(cfg, name)}{hint}")
     for kind in ("tx", "rx"):
         stated, configured = getattr(rec, f"{kind}_channels"), getattr(cfg, f"{kind}_channels")
         if stated is not None and configured is not None and tuple(stated) != configured:
