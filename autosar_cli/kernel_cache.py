@@ -10,15 +10,25 @@ reading and linking its cached machine code (~0.1 s for navigation, ~0.3 s for f
 machine). :func:`load_cached_kernels` does that ahead of time, for every specialisation the cache holds that
 matches the current source and CPU, so a process with idle time (``autosar run`` while its ingest runs in a
 child) can take it out of the later stages. Nothing is compiled: entries of other sources or CPUs are left.
+
+A kernel with a parallel loop is, for numba, two functions: the loop's body is compiled on its own and a copy of
+it is linked into the kernel. A fresh compile runs the first; the cache keeps the copy, optimised once more, and
+under fastmath the two round differently, so the process that compiled such a kernel made an image that differed
+in the last bits from every later one's (the same drive and options). :func:`compile_in_child` has a child process
+compile it into the cache, so that every process runs the cached machine code.
 """
 
 from __future__ import annotations
 
 import os
+import pickle
+import subprocess
+import sys
 import tempfile
 from collections.abc import MutableMapping
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 
 def fallback_cache_dir(package_dir: Path, env: MutableMapping[str, str]) -> Path | None:
@@ -75,3 +85,40 @@ def load_cached_kernels(*modules: ModuleType) -> int:
             except Exception:  # noqa: BLE001 - an optimisation only
                 continue
     return loaded
+
+
+#: The child of :func:`compile_in_child`: argv = the package's parent folder, module, dispatcher, pickled signature.
+_COMPILE = """
+import importlib, pickle, sys
+sys.path.insert(0, sys.argv[1])
+dispatcher = getattr(importlib.import_module(sys.argv[2]), sys.argv[3])
+dispatcher.compile(pickle.loads(bytes.fromhex(sys.argv[4])))
+"""
+
+
+def compile_in_child(dispatcher: Any, args: tuple[Any, ...]) -> bool:
+    """Have a child process compile ``dispatcher`` (a numba kernel with ``cache=True``) for the types of ``args``
+    into the cache, unless this process holds that specialisation already or the cache does; then this process's
+    call loads it from the cache. Returns whether a child compiled it.
+
+    Where the child fails (or numba's cache internals differ from what this expects), nothing is done and the
+    call compiles in this process as numba always does.
+    """
+    try:
+        signature = tuple(dispatcher.typeof_pyval(a) for a in args)
+        if signature in dispatcher.overloads:
+            return False
+        cache = dispatcher._cache
+        key = cache._index_key(signature, dispatcher.targetctx.codegen())
+        if key in cache._cache_file._load_index():
+            return False
+        pickled = pickle.dumps(signature).hex()
+    except Exception:  # noqa: BLE001 - numba's internals: the call compiles as usual
+        return False
+    env = dict(os.environ)
+    if "NUMBA_CPU_FEATURES" not in env:  # this process's numba uses the CPU's defaults: the child must too
+        env["AUTOSAR_NO_AVX512"] = "1"
+    package_parent = str(Path(__file__).resolve().parent.parent)
+    child = subprocess.run([sys.executable, "-c", _COMPILE, package_parent, dispatcher.py_func.__module__,
+                            dispatcher.py_func.__name__, pickled], env=env, capture_output=True, cwd=package_parent)
+    return child.returncode == 0

@@ -1,6 +1,6 @@
 """Benchmark `autosar focus`: kernel throughput, end-to-end time on test1, peak memory vs drive length.
 
-Usage: python benches/bench_focus.py [--repeat 5] [--workdir DIR] [--kernel-only]
+Usage: python benches/bench_focus.py [--repeat 5] [--workdir DIR] [--kernel-only] [--against DIR]
 
 1. Kernel, fixed synthetic case (like the peers' published benchmarks): 512 pulses, 256 range bins,
    256 x 256 grid at 4 cm, 1 channel (one Tx/Rx pair), side-looking at 2-12 m ground range, 4 mm
@@ -19,7 +19,10 @@ Usage: python benches/bench_focus.py [--repeat 5] [--workdir DIR] [--kernel-only
    start so the car drives on): peak RSS must not grow beyond the larger image; and the same focused in
    8 tiles, written tile by tile (peak RSS must stay near the one-drive figure).
 A host reference (a fixed FFT workload) is timed before and after, since this host's speed varies by
-tens of per cent from minute to minute. Writes benches/results/focus.json.
+tens of per cent from minute to minute. ``--against DIR`` (another checkout, e.g. ``git worktree add DIR REV``)
+measures 1 and 2 there too, alternating with this one (the kernel case in a process of each checkout in turn,
+``--repeat`` times; test1's focus runs interleaved), and records each figure's ratio this / against.
+Writes benches/results/focus.json.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import statistics
 import subprocess
 import sys
@@ -35,10 +39,12 @@ import time
 from pathlib import Path
 
 import numpy as np
+from checkouts import in_checkout, revision
 
 import autosar_cli  # noqa: F401  (first: lets numba use 512-bit vectors, see autosar_cli/__init__.py)
 
-RESULTS = Path(__file__).resolve().parent / "results"
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = ROOT / "benches" / "results"
 C = 299_792_458.0
 
 
@@ -135,6 +141,30 @@ def kernel_case(repeat: int) -> list[dict[str, object]]:
     return rows
 
 
+def kernel_side_by_side(against: Path, repeat: int) -> tuple[list[dict[str, object]], dict[str, object]]:
+    """The kernel case in a process of this checkout and of ``against`` in turn, ``repeat`` times: this
+    checkout's rows (each the median over its processes' medians) and the other's, with the ratio of the two."""
+    runs: dict[str, list[list[dict[str, object]]]] = {"this": [], "against": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        for r in range(repeat):
+            for name, source in (("this", ROOT), ("against", against)):
+                runs[name].append(in_checkout(__file__, source, ["--repeat", str(repeat)], Path(tmp) / f"{name}{r}"))
+
+    def merged(rows_per_run: list[list[dict[str, object]]]) -> list[dict[str, object]]:
+        out = []
+        for i, row in enumerate(rows_per_run[0]):
+            medians = [rows[i]["median_s"] for rows in rows_per_run]
+            out.append({**row, "median_s": round(statistics.median(medians), 4), "process_medians_s": medians,
+                        "bp_per_s": round(row["backprojections"] / statistics.median(medians) / 1e9, 3)})
+        return out
+
+    this, other = merged(runs["this"]), merged(runs["against"])
+    for mine, theirs in zip(this, other, strict=True):
+        mine["ratio_to_against"] = round(mine["median_s"] / theirs["median_s"], 3)
+        print(json.dumps({"case": mine["case"], "threads": mine["threads"], "ratio": mine["ratio_to_against"]}))
+    return this, {"revision": revision(against), "kernel": other}
+
+
 CHILD = r"""
 import json, resource, sys, time
 from autosar_cli.config import load_config
@@ -156,12 +186,14 @@ print(json.dumps(d))
 """
 
 
-def run_focus(drive: Path, traj: Path, out: Path, tiles: int = 1) -> dict[str, object]:
-    """Focus in a fresh process: the focus call's wall time (``focus_wall_s``) and the whole process's
-    (``process_wall_s``: interpreter start, imports, the call and the exit, as ``autosar focus`` takes)."""
+def run_focus(drive: Path, traj: Path, out: Path, tiles: int = 1, source: Path | None = None) -> dict[str, object]:
+    """Focus in a fresh process (with ``source``'s package where given): the focus call's wall time
+    (``focus_wall_s``) and the whole process's (``process_wall_s``: interpreter start, imports, the call and the
+    exit, as ``autosar focus`` takes)."""
+    env = {**os.environ, "PYTHONPATH": str(source)} if source is not None else None
     t = time.perf_counter()
     res = subprocess.run([sys.executable, "-c", CHILD, str(drive), str(traj), str(out), str(tiles)], check=True,
-                         capture_output=True, text=True)
+                         capture_output=True, text=True, env=env, cwd=source)
     d = json.loads(res.stdout.strip().splitlines()[-1])
     d["process_wall_s"] = time.perf_counter() - t
     return d
@@ -242,10 +274,19 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--kernel-only", action="store_true")
+    ap.add_argument("--against", type=Path, default=None, help="another checkout, measured alternately")
+    ap.add_argument("--worker", type=Path, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
-    result: dict[str, object] = {"benchmark": "focus", "host_before": host_reference()}
+    if args.worker is not None:  # the kernel case in this process's package, for --against
+        args.worker.write_text(json.dumps(kernel_case(args.repeat)))
+        return
+    result: dict[str, object] = {"benchmark": "focus", "revision": revision(ROOT), "host_before": host_reference()}
     print(json.dumps(result["host_before"]))
-    result["kernel"] = kernel_case(args.repeat)
+    against = args.against.resolve() if args.against else None
+    if against is None:
+        result["kernel"] = kernel_case(args.repeat)
+    else:
+        result["kernel"], result["against"] = kernel_side_by_side(against, args.repeat)
     if not args.kernel_only:
         from autosar_cli.config import load_config
         from autosar_cli.ingest.pipeline import ingest
@@ -266,7 +307,13 @@ def main() -> None:
             traj = work / "test1_seed1.sarmin.h5"
             if not traj.exists():
                 write_trajectory(traj, navigate(drive, "sar-min", cfg))
-            runs = [run_focus(drive, traj, work / "image") for _ in range(args.repeat)]
+            runs, other = [], []
+            for source in (ROOT, against) if against is not None else ():
+                run_focus(drive, traj, work / "image_warmup", source=source)  # each checkout's kernels compiled
+            for _ in range(args.repeat):
+                runs.append(run_focus(drive, traj, work / "image", source=ROOT))
+                if against is not None:
+                    other.append(run_focus(drive, traj, work / "image_against", source=against))
             walls = [r["focus_wall_s"] for r in runs]
             procs = [r["process_wall_s"] for r in runs]
             med = runs[int(np.argsort(walls)[len(walls) // 2])]
@@ -283,6 +330,12 @@ def main() -> None:
                    "grid_shape": med["grid_shape"], "peak_rss_mb": round(max(r["peak_rss_mb"] for r in runs), 1)}
             print(json.dumps(row))
             result["test1"] = row
+            if against is not None:
+                theirs = [r["focus_wall_s"] for r in other]
+                result["against"]["test1"] = {"median_wall_s": round(statistics.median(theirs), 3),
+                                              "walls_s": [round(w, 3) for w in theirs],
+                                              "ratio": round(statistics.median(walls) / statistics.median(theirs), 3)}
+                print(json.dumps(result["against"]["test1"]))
             drive4, traj4 = work / "test1x4.drive.h5", work / "test1x4.traj.h5"
             if not (drive4.exists() and traj4.exists()):
                 repeat_drive(drive, traj, 4, drive4, traj4)

@@ -36,6 +36,8 @@ import numba as nb
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from autosar_cli.kernel_cache import compile_in_child
+
 LANES = 16  #: pulses per vector (one AVX-512 register of float32)
 DEFAULT_MAX_CHUNK = 512  #: pulses per reference (longer windows are split)
 MAX_ROWS = 6  #: the fast path reads 3, 4 or 6 neighbouring rows per chunk and channel
@@ -653,10 +655,12 @@ def backproject_block(block: PulseBlock, pixels: ArrayLike, windows: ArrayLike, 
     order = _balanced_order(win, n_threads, per_task)
     n_ch, n_bins, stride = block.re.shape
     ant = block.antennas
-    _tdbp(block.re.reshape(-1), block.im.reshape(-1), n_bins, stride, np.ascontiguousarray(ant[..., 0]),
-          np.ascontiguousarray(ant[..., 1]), np.ascontiguousarray(ant[..., 2]), block.channels[:, 0].copy(),
-          block.channels[:, 1].copy(), block.range0_m, 1.0 / block.bin_m, block.cycles_per_m, pix, win, order,
-          per_task, int(max_chunk), out_re, out_im)
+    args = (block.re.reshape(-1), block.im.reshape(-1), n_bins, stride, np.ascontiguousarray(ant[..., 0]),
+            np.ascontiguousarray(ant[..., 1]), np.ascontiguousarray(ant[..., 2]), block.channels[:, 0].copy(),
+            block.channels[:, 1].copy(), block.range0_m, 1.0 / block.bin_m, block.cycles_per_m, pix, win, order,
+            per_task, int(max_chunk), out_re, out_im)
+    compile_in_child(_tdbp, args)  # the same machine code in every process (autosar_cli.kernel_cache)
+    _tdbp(*args)
     out += out_re + 1j * out_im
     return out
 
