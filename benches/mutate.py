@@ -172,6 +172,7 @@ ODD_INPUTS = "tests/test_safety.py::test_an_input_that_is_a_pipe_a_link_loop_or_
 NMEA_DAMAGE = "tests/test_ingest_nmea.py::test_a_block_of_nul_bytes_in_a_capture_is_one_damage_warning_with_its_place"
 MISLABELLED = ("tests/test_ingest_damage.py::"
                "test_rosbag2_storage_mislabelled_in_metadata_is_read_as_what_its_files_are")
+SAME_BITS = "tests/test_kernel_determinism.py::test_backprojection_is_identical_with_compiled_and_cached_kernel"
 IMPOSSIBLE_ID = "tests/test_ingest_canlog.py::test_a_frame_whose_damaged_id_no_frame_can_have_is_warned_of"
 SAID_BEFORE = "tests/test_ingest_damage.py::test_what_went_wrong_before_an_ingest_error_is_said_with_it"
 NMEA_CUT = "tests/test_ingest_nmea.py::test_a_capture_cut_inside_its_last_sentence_says_so"
@@ -821,6 +822,9 @@ MUTATIONS: list[Mutation] = [
     _m("can-classic-long-dlc-a-mismatch", "ingest", "ingest/decoders.py",
        "        stated = 8 if 8 < frame.dlc <= 15 and len(data) == 8 else frame.dlc", "        stated = frame.dlc",
        TEXT_LONG_DLC),
+    _m("bp-compiled-in-the-calling-process", "kernel", "sar/backprojection.py",
+       "    compile_in_child(_tdbp, args)  # the same machine code in every process (autosar_cli.kernel_cache)\n", "",
+       SAME_BITS),
 ]
 
 
