@@ -22,7 +22,6 @@ them for all its drives.
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import platform
@@ -43,7 +42,7 @@ from autosar_cli.ingest.sources import LogReadError
 from autosar_cli.run import run, run_warnings
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.store.atomic import atomic_output
-from autosar_cli.store.manifest import product_status, read_json_manifest
+from autosar_cli.store.manifest import product_status, read_json_manifest, strict_json
 from autosar_cli.store.outputs import input_problem
 
 FORMAT = "autosar-batch"
@@ -347,7 +346,7 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
         "drives_per_minute": 60.0 * (n_ok + n_degraded) / wall if wall > 0 else None,
     }
     with atomic_output(out / MANIFEST, overwrite=True) as tmp:
-        tmp.write_text(json.dumps(manifest, indent=2, default=str) + "\n")
+        tmp.write_text(strict_json(manifest, indent=2) + "\n")
     return manifest
 
 

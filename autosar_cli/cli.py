@@ -5,7 +5,6 @@ from __future__ import annotations
 import errno
 import gc
 import inspect
-import json
 import signal
 import sys
 import threading
@@ -34,7 +33,7 @@ from rich.table import Column, Table
 from autosar_cli import __version__, exit_interrupted
 from autosar_cli.config import CAN_LOG_SUFFIXES
 from autosar_cli.interrupts import Terminated
-from autosar_cli.store.manifest import product_status
+from autosar_cli.store.manifest import product_status, strict_json
 
 
 class _FlagsShownBare:
@@ -349,7 +348,7 @@ def simulate(
         if result.radar_capture is not None:
             summary["radar_capture"] = str(result.radar_capture)
         if as_json:
-            out.print_json(json.dumps(summary))
+            out.print_json(strict_json(summary))
         else:
             out.print(f"wrote [bold]{_lit(result.log_path)}[/] ({result.duration_s:.1f} s drive, "
                       f"{result.radar_frames} radar frames, {sum(result.message_counts.values())} messages) "
@@ -408,7 +407,7 @@ def ingest(
                                    command=" ".join(sys.argv), **options.ingest_kwargs())
         d = {**report.to_dict(), "status": product_status(report.warnings)}
         if as_json:
-            out.print_json(json.dumps(d))
+            out.print_json(strict_json(d))
             return
         out.print(f"wrote [bold]{_lit(output)}[/]: {d['duration_s']:.2f} s of drive, {report.messages} messages, "
                   f"{report.bytes_read / 1e6:.1f} MB in {report.wall_s:.1f} s ({d['throughput_mb_s']:.0f} MB/s)")
@@ -489,7 +488,7 @@ def navigate(
                    **{k: traj.info[k] for k in REPORTED_INFO if k in traj.info},
                    **({"plot": str(figure)} if figure else {})}
         if as_json:
-            out.print_json(json.dumps(summary))
+            out.print_json(strict_json(summary))
             return
         out.print(f"wrote [bold]{_lit(output)}[/]: {traj.method}, {len(traj.t_ns)} samples over {span:.2f} s, "
                   f"{dist:.1f} m travelled, in {traj.info['elapsed_s']:.1f} s")
@@ -629,7 +628,7 @@ def focus(
                                    command=" ".join(sys.argv))
         summary = {**report.to_dict(), "status": product_status(report.warnings)}
         if as_json:
-            out.print_json(json.dumps(summary))
+            out.print_json(strict_json(summary))
             return
         rows, cols = report.grid_shape
         wall = summary["wall_s"]
@@ -689,7 +688,7 @@ def run(
                                                                 allow_unverified, time_offset, allow_time_gap,
                                                                 max_time_gap))
         if as_json:
-            out.print_json(json.dumps(manifest, default=str))
+            out.print_json(strict_json(manifest))
             return
         table = Table("stage", "wall (s)", "summary")
         st = manifest["stages"]
@@ -769,7 +768,7 @@ def evaluate(
         with _stages(not as_json) as update:
             result = evaluate_run(source, output, truth, config=cfg, overwrite=overwrite, progress=update)
         if as_json:
-            out.print_json(json.dumps(result))
+            out.print_json(strict_json(result))
             return
         s = result["summary"]
         table = Table("metric", "value")
@@ -843,7 +842,7 @@ def compare(
                                                                 allow_unverified, time_offset, allow_time_gap,
                                                                 max_time_gap))
         if as_json:
-            out.print_json(json.dumps(result))
+            out.print_json(strict_json(result))
             return
         # one column per method, so that it fits an 80-column terminal; contrasts and the rest are in compare.md
         summaries = {m: result["results"][m]["summary"] for m in result["methods"]}
@@ -896,7 +895,7 @@ def _verify(path: Path, as_json: bool) -> None:
     if path.is_dir() and (path / "run.json").exists():
         found += _run_outputs_checked(path)
     if as_json:
-        out.print_json(json.dumps({"path": str(path), "files": found, "intact": all(f["intact"] for f in found)}
+        out.print_json(strict_json({"path": str(path), "files": found, "intact": all(f["intact"] for f in found)}
                                   if path.is_dir() else found[0]))
     else:
         for f in found:
@@ -1033,7 +1032,7 @@ def info(
         folder = drive_folder(path)
         if path.is_dir() and not is_log_directory(path) and not is_capture(path) and folder is None:  # plain
             if as_json:
-                out.print_json(json.dumps({"path": str(path), "stale_partials": stale}))
+                out.print_json(strict_json({"path": str(path), "stale_partials": stale}))
                 return
             out.print(f"[bold]{_lit(path)}[/]: {len(stale)} stale partial file(s)"
                       + "".join(f"\n  {escape(p)}" for p in stale))
@@ -1043,9 +1042,9 @@ def info(
         said = folder.warning() if folder else None
         if as_json:
             if folder is None:
-                out.print_json(json.dumps({**summaries[0][2].to_dict(), "stale_partials": stale}))
+                out.print_json(strict_json({**summaries[0][2].to_dict(), "stale_partials": stale}))
             else:
-                out.print_json(json.dumps({"path": str(path), "drive_folder": [
+                out.print_json(strict_json({"path": str(path), "drive_folder": [
                     {"kind": kind, **summary.to_dict()} for _, kind, summary in summaries],
                     "left_out": [str(p) for p in folder.left_out], "stale_partials": stale}))
             return
@@ -1186,7 +1185,7 @@ def batch(
                                                                 max_time_gap),
                                  progress=update, on_cluster=on_cluster, command=" ".join(sys.argv))
         if as_json:
-            out.print_json(json.dumps(manifest, default=str))
+            out.print_json(strict_json(manifest))
         else:
             table = Table("drive", "status", "attempts", "wall (s)", "worker", "result")
             status = {"ok": "[green]ok[/]", "degraded": "[yellow]degraded[/]", "failed": "[red]failed[/]"}

@@ -15,7 +15,6 @@ parameters, per-stage wall times and summaries, and the outputs (paths relative 
 from __future__ import annotations
 
 import contextlib
-import json
 import multiprocessing
 import os
 import pickle
@@ -36,7 +35,7 @@ from autosar_cli import __version__
 from autosar_cli.config import Config
 from autosar_cli.sar.grid import GridError, check_image_size
 from autosar_cli.store.atomic import atomic_output
-from autosar_cli.store.manifest import json_default, product_status, read_json_manifest
+from autosar_cli.store.manifest import product_status, read_json_manifest, strict_json
 from autosar_cli.store.outputs import (
     check_free_space,
     check_output,
@@ -181,7 +180,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     manifest["warnings"] = run_warnings(manifest)
     manifest["status"] = product_status(manifest["warnings"])
     with atomic_output(manifest_path, overwrite=True) as tmp:
-        tmp.write_text(json.dumps(manifest, indent=2, default=json_default) + "\n")
+        tmp.write_text(strict_json(manifest, indent=2) + "\n")
     return manifest
 
 

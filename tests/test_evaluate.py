@@ -368,8 +368,15 @@ def test_transform_grid_moves_pixels_rigidly() -> None:
 # ci_run: `autosar run` of the ci drive through the CLI (sar-min), conftest's, shared by the session
 
 
+def strict_json(text: str) -> Any:
+    """JSON as RFC 8259 has it: NaN and Infinity are not JSON (jq, a browser or a strict parser refuses them)."""
+    def refuse(name: str) -> None:
+        raise ValueError(f"{name} is not JSON")
+    return json.loads(text, parse_constant=refuse)
+
+
 def test_run_writes_every_product_and_the_manifest(ci_run: Path) -> None:
-    manifest = json.loads((ci_run / "run.json").read_text())
+    manifest = strict_json((ci_run / "run.json").read_text())
     assert manifest["format"] == "autosar-run" and manifest["method"] == "sar-min"
     assert list(manifest["stages"]) == ["ingest", "navigate", "focus"]
     assert all(manifest["stages"][s]["wall_s"] > 0 for s in manifest["stages"])
@@ -417,8 +424,8 @@ def test_run_autofocus_corrects_the_track_before_focusing(ci_run: Path, ci_mcap,
     out = tmp_path / "af"
     r = runner.invoke(app, ["run", str(ci_mcap.log_path), "-o", str(out), "--autofocus", "--json"])
     assert r.exit_code == 0, r.output
-    manifest = json.loads(r.stdout)
-    assert manifest == json.loads((out / "run.json").read_text()) and manifest["autofocus"] is True
+    manifest = strict_json(r.stdout)
+    assert manifest == strict_json((out / "run.json").read_text()) and manifest["autofocus"] is True
     assert list(manifest["stages"]) == ["ingest", "navigate", "autofocus", "focus"]
     af = manifest["stages"]["autofocus"]
     assert af["applied"] and af["method"] == "sar-min+af" and af["wall_s"] > 0 and af["reason"] == ""

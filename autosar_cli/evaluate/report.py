@@ -9,7 +9,6 @@ reflector in dB with the expected position marked). Every file is written atomic
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -25,6 +24,7 @@ from autosar_cli.sim.truth import truth_path_for, truth_radar_mismatch
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.drive import Drive
 from autosar_cli.store.image import read_image
+from autosar_cli.store.manifest import json_safe, strict_json
 from autosar_cli.store.outputs import check_output, check_products
 from autosar_cli.store.trajectory import read_trajectory
 
@@ -155,23 +155,10 @@ def evaluate_run(source: str | Path, out_dir: str | Path, truth_path: str | Path
 
 
 # ------------------------------------------------------------------------------------------------ writing
-def json_safe(value: Any) -> Any:
-    """``value`` with NaN / inf floats replaced by None, tuples as lists, numpy scalars as Python numbers."""
-    if isinstance(value, dict):
-        return {str(k): json_safe(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [json_safe(v) for v in value]
-    if hasattr(value, "item") and not isinstance(value, str | bytes):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
 def write_json(path: Path, data: Any, *, overwrite: bool = True) -> Path:
     """Write ``data`` as indented JSON, atomically."""
     with atomic_output(path, overwrite) as tmp:
-        tmp.write_text(json.dumps(json_safe(data), indent=2) + "\n")
+        tmp.write_text(strict_json(data, indent=2) + "\n")
     return path
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +25,30 @@ def json_default(obj: Any) -> Any:
     if isinstance(obj, Path):
         return str(obj)
     raise TypeError(f"value {obj!r} ({type(obj).__name__}) is not JSON-serialisable")
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` with NaN / inf floats replaced by None, tuples as lists, numpy scalars and arrays as Python numbers
+    and lists, paths as strings."""
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, Path):
+        return str(value)
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def strict_json(value: Any, *, indent: int | None = None) -> str:
+    """``value`` as strict JSON (RFC 8259, which has no NaN or Infinity: a figure not measured is null), for every
+    manifest and ``--json`` output; see :func:`json_safe`."""
+    return json.dumps(json_safe(value), indent=indent, default=json_default, allow_nan=False)
 
 
 def read_json_manifest(path: Path, fmt: str, what: str, error: type[Exception]) -> dict[str, Any]:
