@@ -113,9 +113,10 @@ def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, m
               options: FocusOptions | None = None, truth_path: str | None = None, autofocus: bool = False,
               overwrite: bool = False, ingest_options: IngestOptions | None = None,
               numba_threads: int | None = None, progress_topic: str | None = None,
-              command: str = "", can_logs: Sequence[str] = (), nmea_logs: Sequence[str] = ()) -> dict[str, Any]:
+              command: str = "", can_logs: Sequence[str] = (), nmea_logs: Sequence[str] = (),
+              radar_captures: Sequence[str] = ()) -> dict[str, Any]:
     """The Dask task of one drive: :func:`autosar_cli.run.run` into ``out_dir``; returns its status record.
-    ``can_logs``, ``nmea_logs``: read as such, as ``run`` reads them.
+    ``can_logs``, ``nmea_logs``, ``radar_captures``: read as such, as ``run`` reads them.
 
     Input errors (:data:`INPUT_ERRORS`) give a ``failed`` record; any other exception propagates so that
     Dask retries the task.
@@ -126,7 +127,7 @@ def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, m
         numba.set_num_threads(max(1, min(int(numba_threads), numba.config.NUMBA_NUM_THREADS)))
     report = _reporter(progress_topic, name)
     report("start", 0, 1)
-    record: dict[str, Any] = {"name": name, "logs": [str(p) for p in [*logs, *can_logs, *nmea_logs]],
+    record: dict[str, Any] = {"name": name, "logs": [str(p) for p in [*logs, *can_logs, *nmea_logs, *radar_captures]],
                               "output": str(out_dir),
                               "worker": _worker_address()}
     t0 = time.perf_counter()
@@ -134,6 +135,7 @@ def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, m
         manifest = run(logs, out_dir, config, method=method, options=options, truth_path=truth_path,
                        autofocus=autofocus, overwrite=overwrite, progress=report, command=command,
                        ingest_options=ingest_options, can_logs=can_logs, nmea_logs=nmea_logs,
+                       radar_captures=radar_captures,
                        replace_unfinished=True)  # a retry finds the products of its attempt before
     except INPUT_ERRORS as exc:
         record.update(status="failed", error=_message(exc), error_type=type(exc).__name__,
@@ -305,11 +307,11 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
             drive_options = replace(ingest_options, time_offsets={Path(p): offsets[p] for p in own if p in offsets})
             if start_ns is not None:
                 drive_options = replace(drive_options, radar=replace(drive_options.radar, start_ns=start_ns))
-            fut = client.submit(run_drive, name, [log, *inputs["radar"]], str(out / name), config, method=method,
+            fut = client.submit(run_drive, name, [log], str(out / name), config, method=method,
                                 options=options, autofocus=autofocus, overwrite=overwrite,
                                 ingest_options=drive_options, numba_threads=numba_threads,
                                 progress_topic=topic, command=command, can_logs=inputs["can"],
-                                nmea_logs=inputs["nmea"], retries=retries, pure=False,
+                                nmea_logs=inputs["nmea"], radar_captures=inputs["radar"], retries=retries, pure=False,
                                 key=f"autosar-run-{name}-{topic[-12:]}")
             futures[fut] = (name, log)
         records: dict[str, dict[str, Any]] = {}

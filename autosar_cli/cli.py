@@ -680,7 +680,7 @@ def run(
         cfg = _load_config(config)
         options = FocusOptions.from_config(cfg, radar=radar_stream)
         with _stages(not as_json) as update:
-            manifest = run_chain([*logs, *([radar] if radar else [])], output, cfg, method=method.value,
+            manifest = run_chain(logs, output, cfg, method=method.value, radar_captures=[radar] if radar else [],
                                  options=options, truth_path=truth, autofocus=autofocus, overwrite=overwrite,
                                  progress=update, command=" ".join(sys.argv), fork_ingest=True,
                                  can_logs=can_log or [], nmea_logs=nmea or [],

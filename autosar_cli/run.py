@@ -68,7 +68,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         progress: Callable[[str, int, int], None] | None = None, command: str = "",
         fork_ingest: bool = False, ingest_options: IngestOptions | None = None,
         can_logs: Sequence[str | Path] = (), nmea_logs: Sequence[str | Path] = (),
-        replace_unfinished: bool = False) -> dict[str, Any]:
+        radar_captures: Sequence[str | Path] = (), replace_unfinished: bool = False) -> dict[str, Any]:
     """Run the whole chain on ``logs`` into ``out_dir``; returns the manifest (also written as run.json).
 
     ``autofocus``: scale the navigated track by the radar's own measure of it before focusing (the trajectory
@@ -76,9 +76,10 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     ``progress(stage, done, total)`` is called as each stage advances. ``fork_ingest``: ingest in a forked child
     process while this one imports the later stages (see :func:`_ingest_beside_imports`; the ``autosar run``
     command sets it, library callers such as ``autosar batch``'s workers keep one process). ``logs`` may hold
-    CAN logs, NMEA captures and a DCA1000 capture, as for ``autosar ingest``; ``can_logs`` and ``nmea_logs``: CAN
-    logs and NMEA captures given as such (``autosar ingest``'s ``--can-log`` and ``--nmea``), not told by their
-    content (one that is not what it is given as is refused). ``ingest_options``
+    CAN logs, NMEA captures and a DCA1000 capture, as for ``autosar ingest``; ``can_logs``, ``nmea_logs`` and
+    ``radar_captures``: CAN logs, NMEA captures and DCA1000 captures given as such (``autosar ingest``'s
+    ``--can-log``, ``--nmea`` and ``--radar``), not told by their content (one that is not what it is given as is
+    refused; a capture may be named by its parameter file). ``ingest_options``
     (:class:`autosar_cli.ingest.pipeline.IngestOptions`) reads them all: the DBC, the capture's start, time offsets.
     ``replace_unfinished``: autosar's products in ``out_dir`` where it holds no run.json are replaced as with
     ``overwrite`` (a batch's retry of a drive finds its first attempt's).
@@ -89,7 +90,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         raise RunError(f"{out}: already holds a run (run.json); pass --overwrite to replace it")
     # every check that needs no data before the ingest starts: outputs (never an input, only autosar's replaced)
     # and the image's size
-    given = [*logs, *can_logs, *nmea_logs]  # every input read into the drive
+    given = [*logs, *can_logs, *nmea_logs, *radar_captures]  # every input read into the drive
     inputs = [*given, *([truth_path] if truth_path else []), *config.files,
               *(ingest_options.files() if ingest_options else [])]
     check_output(out, inputs, overwrite=overwrite, directory=True)
@@ -120,7 +121,8 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     with output_directory(out):
         rep = _ingest_beside_imports([Path(p) for p in logs], out / DRIVE, config, stage_progress("ingest"), command,
                                      fork=fork_ingest, ingest_options=ingest_options, autofocus=autofocus,
-                                     can_logs=[Path(p) for p in can_logs], nmea_logs=[Path(p) for p in nmea_logs])
+                                     can_logs=[Path(p) for p in can_logs], nmea_logs=[Path(p) for p in nmea_logs],
+                                     radar_captures=[Path(p) for p in radar_captures])
     manifest["stages"]["ingest"] = {"wall_s": time.perf_counter() - t, "messages": rep.get("messages"),
                                     "bytes_read": rep.get("bytes_read"), "warnings": rep.get("warnings", [])}
     manifest["outputs"]["drive"] = DRIVE
@@ -232,10 +234,10 @@ def _fork_context() -> Any:
 
 def _ingest_beside_imports(logs: list[Path], drive: Path, config: Config, progress: Callable[[int, int], None],
                            command: str, *, fork: bool, ingest_options: IngestOptions | None = None,
-                           autofocus: bool = False, can_logs: Sequence[Path] = (), nmea_logs: Sequence[Path] = ()
-                           ) -> dict[str, Any]:
-    """Ingest ``logs`` (and ``can_logs``, ``nmea_logs``: read as such) into ``drive``; returns the ingest report as a
-    dict.
+                           autofocus: bool = False, can_logs: Sequence[Path] = (), nmea_logs: Sequence[Path] = (),
+                           radar_captures: Sequence[Path] = ()) -> dict[str, Any]:
+    """Ingest ``logs`` (and ``can_logs``, ``nmea_logs``, ``radar_captures``: read as such) into ``drive``; returns the
+    ingest report as a dict.
 
     With ``fork``, the ingest runs in a forked child while this process imports the later stages: ingest is
     Python work holding its process's GIL (~1.4 of the 2 CPUs with its writer thread), so those imports could
@@ -246,12 +248,12 @@ def _ingest_beside_imports(logs: list[Path], drive: Path, config: Config, progre
     """
     ctx = _fork_context() if fork else None
     if ctx is None:
-        return _ingest(logs, drive, config, progress, command, ingest_options, can_logs, nmea_logs)
+        return _ingest(logs, drive, config, progress, command, ingest_options, can_logs, nmea_logs, radar_captures)
     receive, send = ctx.Pipe(duplex=False)
     sys.stdout.flush()
     sys.stderr.flush()
     child = ctx.Process(target=_ingest_child, args=(send, logs, drive, config, command, ingest_options, can_logs,
-                                                    nmea_logs), name="autosar-ingest")
+                                                    nmea_logs, radar_captures), name="autosar-ingest")
     child_pid: list[int] = []
     forwarded: list[bool] = []
     restore_sigint = _forward_sigint_to(child_pid, forwarded)
@@ -321,11 +323,12 @@ class _RemoteTraceback(Exception):
 
 
 def _ingest(logs: list[Path], drive: Path, config: Config, progress: Callable[[int, int], None], command: str,
-            options: IngestOptions | None, can_logs: Sequence[Path] = (), nmea_logs: Sequence[Path] = ()
-            ) -> dict[str, Any]:
+            options: IngestOptions | None, can_logs: Sequence[Path] = (), nmea_logs: Sequence[Path] = (),
+            radar_captures: Sequence[Path] = ()) -> dict[str, Any]:
     from autosar_cli.ingest.pipeline import IngestOptions, chain_hint, ingest
 
-    return ingest(logs, drive, config=config, can_logs=can_logs, nmea_logs=nmea_logs, progress=progress,
+    return ingest(logs, drive, config=config, can_logs=can_logs, nmea_logs=nmea_logs, radar_captures=radar_captures,
+                  progress=progress,
                   command=command, partial_hint=chain_hint("a run"),
                   **(options or IngestOptions()).ingest_kwargs()).to_dict()
 
@@ -355,7 +358,7 @@ def _stop_once() -> Callable[[], None]:
 
 def _ingest_child(send: Any, logs: list[Path], drive: Path, config: Config, command: str,
                   options: IngestOptions | None = None, can_logs: Sequence[Path] = (),
-                  nmea_logs: Sequence[Path] = ()) -> None:
+                  nmea_logs: Sequence[Path] = (), radar_captures: Sequence[Path] = ()) -> None:
     """The forked ingest: progress at most every 0.1 s (the parent reads only after its imports), then the
     report, or the error (its class if it pickles, else a RunError with its message) and its traceback."""
     last = [0.0]
@@ -376,7 +379,8 @@ def _ingest_child(send: Any, logs: list[Path], drive: Path, config: Config, comm
             send.send(("progress", done, total))
 
     try:
-        send.send(("report", _ingest(logs, drive, config, progress, command, options, can_logs, nmea_logs)))
+        send.send(("report", _ingest(logs, drive, config, progress, command, options, can_logs, nmea_logs,
+                                     radar_captures)))
     except BaseException as exc:  # noqa: BLE001 - every failure goes back to the parent
         remote = traceback.format_exc()
         try:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import shutil
 from pathlib import Path
 
 import h5py
@@ -463,7 +464,9 @@ def test_batch_gives_each_drives_capture_its_own_start(simulated_capture: tuple[
     logs = [tmp_path / "a.mcap", tmp_path / "b.mcap"]
     for log in logs:
         log.write_bytes(mcap.read_bytes())
-    args = ["batch", *map(str, logs), "--radar", str(capture), "--radar", str(capture), "--workers", "1"]
+    # the second capture named by its parameter file, as ingest takes it
+    args = ["batch", *map(str, logs), "--radar", str(capture), "--radar", str(capture / "capture.mmwave.json"),
+            "--workers", "1"]
     r = runner.invoke(app, [*args, "--radar-start", str(synced), "-o", str(tmp_path / "x")])
     assert_one_line_error(r.exit_code, r.stderr, "--radar-start given 1 times for 2 logs")
     r = runner.invoke(app, [*args, "--radar-start", str(synced), "--radar-start", str(synced + 5_000_000),
@@ -472,6 +475,22 @@ def test_batch_gives_each_drives_capture_its_own_start(simulated_capture: tuple[
     for name, start in (("a", synced), ("b", synced + 5_000_000)):
         with Drive(tmp_path / "out" / name / "drive.h5") as d:
             assert int(d.radar().t_ns[0]) == start
+
+
+def test_run_reads_its_capture_as_ingest_does(simulated_capture: tuple[Path, Path, Path], tmp_path: Path) -> None:
+    """`run --radar` takes a capture named by its parameter file, as `ingest --radar` does (it was refused as "an
+    unknown log container"), and a folder without one is refused for that (it was called "not a rosbag2 bag")."""
+    mcap, capture, whole = simulated_capture
+    r = runner.invoke(app, ["run", str(mcap), "--radar", str(capture / "capture.mmwave.json"),
+                            "-o", str(tmp_path / "run")])
+    assert r.exit_code == 0, r.output
+    with h5py.File(tmp_path / "run" / "image.h5") as a, h5py.File(whole / "image.h5") as b:
+        np.testing.assert_array_equal(a["image"][()], b["image"][()])
+    bare = tmp_path / "bare"
+    bare.mkdir()
+    shutil.copy(capture / "adc_data.bin", bare / "adc_data.bin")
+    r = runner.invoke(app, ["run", str(mcap), "--radar", str(bare), "-o", str(tmp_path / "bare_run")])
+    assert_one_line_error(r.exit_code, r.stderr, f"{bare}: no DCA1000 parameter file")
 
 
 def test_a_capture_that_lost_packets_focuses_its_reflectors_where_the_whole_one_does(
