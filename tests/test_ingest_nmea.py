@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections import Counter
 from datetime import UTC, date, datetime, timedelta
 from pathlib import Path
@@ -396,3 +397,24 @@ def test_info_of_a_text_file_without_nmea_says_so() -> None:
     assert r.exit_code == 1 and "no NMEA 0183 sentence in this file" in r.stderr, r.output
     r = CliRunner().invoke(app, ["info", str(realdata("gpsd", "neo-m8n.log")), "--json"])
     assert r.exit_code == 0 and json.loads(r.stdout)["container"] == "NMEA text", r.output
+
+
+def test_a_capture_whose_every_checksum_fails_is_called_damaged_not_empty(tmp_path: Path) -> None:
+    """gpsd's capture with every sentence's checksum off by one bit: `info` and `ingest` said "no NMEA 0183
+    sentence in this file", as of a file that holds none; they now say that all its sentences fail their checksum,
+    how many, and where the first is."""
+    from typer.testing import CliRunner
+
+    from autosar_cli.cli import app
+
+    lines = realdata("gpsd", "neo-m8n.log").read_bytes().split(b"\n")
+    flipped = [re.sub(rb"\*([0-9A-F]{2})", lambda m: b"*%02X" % (int(m.group(1), 16) ^ 1), line) for line in lines]
+    capture = tmp_path / "flipped.nmea"
+    capture.write_bytes(b"\n".join(flipped))
+    n_sentences = sum(line.startswith(b"$") for line in lines)
+    first = len(b"\n".join(lines[:next(i for i, line in enumerate(lines) if line.startswith(b"$"))])) + 1
+    for args in (["info", str(capture)], ["ingest", "--nmea", str(capture), "-o", str(tmp_path / "d.h5")]):
+        r = CliRunner().invoke(app, args)
+        assert r.exit_code == 1 and r.stderr.count("\n") == 1, r.output
+        assert (f"{capture}: none of its {n_sentences} NMEA 0183 sentences passes its checksum "
+                f"({n_sentences} bad checksum; the first damaged line at byte {first})") in r.stderr, r.stderr

@@ -113,7 +113,7 @@ def summarize_can_log(path: Path) -> LogSummary:
 
 def summarize_nmea_log(path: Path) -> LogSummary:
     """Decoded records of an NMEA text capture per kind (GGA fixes, RMC/VTG velocities, HDT headings)."""
-    from .nmea import NmeaLogReader
+    from .nmea import NmeaLogReader, nothing_read
 
     summary = LogSummary(str(path), "NMEA text", path.stat().st_size)
     streams: dict[str, StreamSummary] = {}
@@ -128,9 +128,9 @@ def summarize_nmea_log(path: Path) -> LogSummary:
                            if kind == "ZDA")
     if reader.skipped:
         summary.warnings.append("skipped sentences: " + ", ".join(f"{k} ×{v}" for k, v in reader.skipped.items()))
-    dec = reader.decoder
-    if not dec.sentences and not any(k.startswith("unsupported") for k in dec.skipped):  # as ingest refuses it
-        raise LogReadError(f"{path}: no NMEA 0183 sentence in this file (read as an NMEA text capture by its name)")
+    unread = nothing_read(reader)
+    if unread:  # as ingest refuses it
+        raise LogReadError(f"{path}: {unread} (read as an NMEA text capture by its name)")
     return summary
 
 

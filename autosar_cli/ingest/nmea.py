@@ -407,6 +407,20 @@ class NmeaLogReader:
 _DAMAGE = ("bad checksum", "no checksum", "unparseable")
 
 
+def nothing_read(reader: NmeaLogReader) -> str | None:
+    """Why a capture just iterated gave nothing (no sentence decoded, none of a kind not decoded), else None:
+    every line that looks like a sentence damaged, or nothing like one at all."""
+    dec = reader.decoder
+    if dec.sentences or any(k.startswith("unsupported") for k in dec.skipped):
+        return None
+    failed = dec.skipped["bad checksum"] + dec.skipped["no checksum"]
+    if not failed:
+        return "no NMEA 0183 sentence in this file"
+    counts = ", ".join(f"{dec.skipped[r]} {r}" for r in _DAMAGE if dec.skipped[r])
+    return (f"none of its {failed} NMEA 0183 sentences passes its checksum ({counts}; the first damaged line at byte "
+            f"{reader.first_damage_byte}): damaged throughout")
+
+
 def _damage(skipped: Counter[str]) -> int:
     """How many of the skipped sentences were damaged (not merely of a kind not decoded, or without a fix)."""
     return sum(skipped[r] for r in _DAMAGE)

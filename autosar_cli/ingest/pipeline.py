@@ -528,7 +528,7 @@ class _Ingest:
         return n
 
     def run_nmea_log(self, path: Path, offset_ns: int = 0) -> int:
-        from .nmea import NmeaLogReader
+        from .nmea import NmeaLogReader, nothing_read
 
         self.source_file = str(path)
         name = _sanitise(path.stem)
@@ -551,8 +551,9 @@ class _Ingest:
             n += 1
         streams.decoder.skipped.update(reader.skipped)
         dec = reader.decoder
-        if not dec.sentences and not any(k.startswith("unsupported") for k in dec.skipped):
-            raise LogReadError(f"{path}: no NMEA 0183 sentence in this file (read as an NMEA text capture"
+        unread = nothing_read(reader)
+        if unread:
+            raise LogReadError(f"{path}: {unread} (read as an NMEA text capture"
                                + (": its name ends in .log but it is not a CAN log either)" if
                                   path.suffix.lower() == ".log" else ")"))
         if reader.skipped["cut off by the file's end"]:
