@@ -760,7 +760,7 @@ def evaluate(
 ) -> None:
     """Evaluate a focused run against the truth: trajectory errors, corner reflectors (position, peak loss, IRW,
     PSLR, ISLR on fine patches), entropy, contrast, straightness of the facade and kerb."""
-    with _errors():
+    with _errors(output):
         from autosar_cli.evaluate.report import evaluate_run
 
         _not_a_log(source, "a run directory or image.h5", "autosar run LOG -o DIR")
@@ -828,7 +828,7 @@ def compare(
     as_json: JsonOpt = False,
 ) -> None:
     """Focus one drive with several navigation methods and compare them side by side (paper Fig. 10/11)."""
-    with _errors():
+    with _errors(output):
         from autosar_cli.evaluate.compare import compare as run_compare
         from autosar_cli.evaluate.compare import parse_methods
 

@@ -797,6 +797,12 @@ def test_compare_cli_on_ci(ci_mcap, tmp_path: Path) -> None:
     assert r.exit_code == 0, r.output
     printed = json.loads(r.stdout)
     assert printed["methods"] == ["none"] and printed == json.loads((out / "compare.json").read_text())
+    # the comparison's directory given to evaluate: what it is and the runs it holds (was a raw errno)
+    r = runner.invoke(app, ["evaluate", str(out), "-o", str(tmp_path / "evaluated")])
+    assert r.exit_code == 1 and r.stderr.count("\n") == 1, r.output
+    assert (f"{out}: no run.json, so not a run directory but a comparison (compare.json); its runs: "
+            f"{out / 'ins'}") in r.stderr and str(out / "none") in r.stderr, r.stderr
+    assert not (tmp_path / "evaluated").exists()
 
 
 def _check_scaled_sarmin(result: dict[str, Any], out: Path, method: str) -> Trajectory:

@@ -278,6 +278,24 @@ def test_disk_filling_while_the_drive_is_written(tmp_path: Path, monkeypatch: py
     assert [p.name for p in out.iterdir()] == []
 
 
+def test_a_disk_filling_while_the_evaluation_is_written_leaves_no_part_of_it(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, ci_run: Path) -> None:
+    """The disk fills up at evaluate's second figure: the output named (it said a bare "[Errno 28] No space left on
+    device"), the first figure and the directory evaluate made removed again (it left them)."""
+    import errno
+
+    import autosar_cli.evaluate.report as report_module
+
+    def full_disk(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(report_module, "plot_reflector_chips", full_disk)
+    out = tmp_path / "reports" / "ci"
+    r = runner.invoke(app, ["evaluate", str(ci_run), "-o", str(out)])
+    _one_line_error(r, f"{out}: no space left on the device")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_numba_cache_falls_back_to_a_temporary_directory(tmp_path: Path) -> None:
     import tempfile
 

@@ -25,7 +25,7 @@ from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.drive import Drive
 from autosar_cli.store.image import read_image
 from autosar_cli.store.manifest import json_safe, strict_json
-from autosar_cli.store.outputs import check_output, check_products
+from autosar_cli.store.outputs import check_output, check_products, output_directory
 from autosar_cli.store.trajectory import read_trajectory
 
 METRICS = "metrics.json"
@@ -274,16 +274,26 @@ def write_report(ev: Evaluation, out_dir: str | Path, *, overwrite: bool = False
     out = Path(out_dir)
     if (out / METRICS).exists() and not overwrite:
         raise EvaluateError(f"{out}: already holds an evaluation ({METRICS}); pass --overwrite to replace it")
-    out.mkdir(parents=True, exist_ok=True)
     figures: dict[str, str] = {}
-    if ev.errors is not None:
-        figures["trajectory error"] = plot_trajectory_errors(ev.errors, out / TRAJECTORY_FIGURE).name
-    if ev.patches is not None and ev.reflectors:
-        rows = [(ev.method, ev.patches, ev.reflectors)]
-        figures["reflector chips"] = plot_reflector_chips(rows, out / CHIPS_FIGURE).name
+    written: list[Path] = []  # by this call: removed again where it fails (a report without all its parts is none)
     metrics = ev.to_dict()
-    metrics["outputs"] = {"metrics": METRICS, "report": REPORT, **{k.replace(" ", "_"): v for k, v in figures.items()}}
-    write_text(out / REPORT, report_markdown(ev, figures))
-    write_json(out / METRICS, metrics)
+    with output_directory(out):
+        try:
+            if ev.errors is not None:
+                figures["trajectory error"] = plot_trajectory_errors(ev.errors, out / TRAJECTORY_FIGURE).name
+                written.append(out / TRAJECTORY_FIGURE)
+            if ev.patches is not None and ev.reflectors:
+                rows = [(ev.method, ev.patches, ev.reflectors)]
+                figures["reflector chips"] = plot_reflector_chips(rows, out / CHIPS_FIGURE).name
+                written.append(out / CHIPS_FIGURE)
+            metrics["outputs"] = {"metrics": METRICS, "report": REPORT,
+                                  **{k.replace(" ", "_"): v for k, v in figures.items()}}
+            write_text(out / REPORT, report_markdown(ev, figures))
+            written.append(out / REPORT)
+            write_json(out / METRICS, metrics)
+        except BaseException:
+            for path in written:
+                path.unlink(missing_ok=True)
+            raise
     metrics["outputs"] = {k: str(out / v) for k, v in metrics["outputs"].items()}
     return json_safe(metrics)

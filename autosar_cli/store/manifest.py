@@ -53,6 +53,8 @@ def strict_json(value: Any, *, indent: int | None = None) -> str:
 
 def read_json_manifest(path: Path, fmt: str, what: str, error: type[Exception]) -> dict[str, Any]:
     """The JSON object in ``path`` if its ``format`` is ``fmt``; else ``error`` naming the file and ``what``."""
+    if not path.exists() and path.parent.is_dir():
+        raise error(f"{path.parent}: no {path.name}, so not a {what} directory{_what_it_holds(path.parent)}")
     try:
         manifest = json.loads(path.read_text())
     except (OSError, ValueError) as exc:
@@ -60,3 +62,14 @@ def read_json_manifest(path: Path, fmt: str, what: str, error: type[Exception]) 
     if not isinstance(manifest, dict) or manifest.get("format") != fmt:
         raise error(f"{path}: not an autosar {what} manifest")
     return manifest
+
+
+def _what_it_holds(folder: Path) -> str:
+    """A hint for a directory given where another kind goes: the run directories a comparison's or a batch's
+    directory holds."""
+    runs = sorted(str(p.parent) for p in folder.glob("*/run.json"))
+    shown = ", ".join(runs[:4]) + (f" and {len(runs) - 4} more" if len(runs) > 4 else "")
+    for manifest, kind in (("compare.json", "a comparison"), ("batch.json", "a batch")):
+        if (folder / manifest).is_file():
+            return f" but {kind} ({manifest})" + (f"; its runs: {shown}" if runs else "")
+    return f"; the runs in it: {shown}" if runs else ""
