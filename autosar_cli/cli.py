@@ -907,12 +907,15 @@ def _verify(path: Path, as_json: bool) -> None:
 def _run_outputs_checked(run_dir: Path) -> list[dict[str, Any]]:
     """A run directory's run.json, read, and each product it lists, there: an entry (not intact) for each that is
     not, so that a run missing a product, or with its manifest cut, is not called intact."""
-    from autosar_cli.run import RunError, read_manifest
+    from autosar_cli.run import RunError, not_finished, read_manifest
 
     try:
-        outputs = read_manifest(run_dir).get("outputs", {})
+        manifest = read_manifest(run_dir)
     except RunError as exc:
         return [{"path": str(run_dir / "run.json"), "error": str(exc), "intact": False}]
+    outputs = manifest.get("outputs", {})
+    if unfinished := not_finished(manifest):
+        return [{"path": str(run_dir / "run.json"), "error": f"{run_dir / 'run.json'}: {unfinished}", "intact": False}]
     listed = [v for v in outputs.values() if isinstance(v, str)] + [
         v for group in outputs.values() if isinstance(group, dict) for v in group.values() if isinstance(v, str)]
     return [{"path": str(run_dir / name), "error": f"{run_dir / name}: listed in run.json but missing", "intact": False}

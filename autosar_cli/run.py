@@ -9,7 +9,10 @@ it; docs/AUTOFOCUS.md). Where it cannot measure, the navigated track is kept and
 run.json (format ``autosar-run`` version 1) records the inputs (path, size), the autosar version, the
 config file, how the inputs were read (``ingest_options``: DBC, time offsets, ...), the method and focus
 parameters, per-stage wall times and summaries, and the outputs (paths relative to the run directory), so
-``autosar evaluate DIR`` can find everything.
+``autosar evaluate DIR`` can find everything. Its ``status`` is ``ok`` or ``degraded`` once the run has finished;
+from the ingest's end until then it is ``unfinished``, and a run that fails or is stopped after its ingest leaves
+``failed`` or ``interrupted`` (with its ``error``) beside the products it finished, so that no run directory
+looks complete that is not.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ import numpy as np
 
 from autosar_cli import __version__
 from autosar_cli.config import Config
+from autosar_cli.interrupts import Terminated
 from autosar_cli.sar.grid import GridError, check_image_size
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.manifest import product_status, read_json_manifest, strict_json
@@ -56,6 +60,8 @@ STAGES = ("ingest", "navigate", "autofocus", "focus")  #: in order; autofocus on
 DRIVE = "drive.h5"
 TRAJECTORY = "trajectory.h5"
 IMAGE = "image"  # image.tif, image.h5, image.png
+#: run.json's ``status`` of a run that has not finished (see the module docstring)
+UNFINISHED = ("unfinished", "failed", "interrupted")
 
 
 class RunError(ValueError):
@@ -86,8 +92,10 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     """
     out = Path(out_dir)
     manifest_path = out / "run.json"
-    if manifest_path.exists() and not overwrite:
-        raise RunError(f"{out}: already holds a run (run.json); pass --overwrite to replace it")
+    unfinished = not manifest_path.exists() or _status(manifest_path) in UNFINISHED
+    if manifest_path.exists() and not overwrite and not (replace_unfinished and unfinished):
+        said = f"run.json: {_status(manifest_path)}" if unfinished else "run.json"
+        raise RunError(f"{out}: already holds a run ({said}); pass --overwrite to replace it")
     # every check that needs no data before the ingest starts: outputs (never an input, only autosar's replaced)
     # and the image's size
     given = [*logs, *can_logs, *nmea_logs, *radar_captures]  # every input read into the drive
@@ -95,7 +103,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
               *(ingest_options.files() if ingest_options else [])]
     check_output(out, inputs, overwrite=overwrite, directory=True)
     check_products(out, [DRIVE, TRAJECTORY, "run.json", f"{IMAGE}.tif", f"{IMAGE}.h5", f"{IMAGE}.png"], inputs,
-                   overwrite=overwrite or (replace_unfinished and not manifest_path.exists()))
+                   overwrite=overwrite or (replace_unfinished and unfinished))
     check_free_space(out / DRIVE, input_bytes(given), "the drive")
     if options is None:  # the config's automatic grid (focus's own modules are imported beside the ingest)
         try:
@@ -126,7 +134,47 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     manifest["stages"]["ingest"] = {"wall_s": time.perf_counter() - t, "messages": rep.get("messages"),
                                     "bytes_read": rep.get("bytes_read"), "warnings": rep.get("warnings", [])}
     manifest["outputs"]["drive"] = DRIVE
+    _write_manifest(manifest_path, {**manifest, "status": "unfinished"})
+    try:
+        _run_after_ingest(manifest, out, config, method, options, truth_path, autofocus, command, stage_progress,
+                          progress)
+    except BaseException as exc:
+        status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
+        error = ("terminated" if isinstance(exc, Terminated) else "interrupted") if status == "interrupted" \
+            else (str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+        with contextlib.suppress(Exception):  # best effort: the disk may be what failed
+            _write_manifest(manifest_path, {**manifest, "status": status, "error": error})
+        raise
+    _write_manifest(manifest_path, manifest)
+    return manifest
 
+
+def not_finished(manifest: dict[str, Any]) -> str | None:
+    """"the run did not finish (STATUS: ERROR)" for a run.json whose run has not finished, else None."""
+    if manifest.get("status") not in UNFINISHED:
+        return None
+    error = f": {manifest['error']}" if manifest.get("error") else ""
+    return f"the run did not finish ({manifest['status']}{error})"
+
+
+def _status(manifest_path: Path) -> str | None:
+    """run.json's ``status``; None where it cannot be read."""
+    try:
+        return str(read_manifest(manifest_path.parent).get("status"))
+    except RunError:
+        return None
+
+
+def _write_manifest(path: Path, manifest: dict[str, Any]) -> None:
+    with atomic_output(path, overwrite=True) as tmp:
+        tmp.write_text(strict_json(manifest, indent=2) + "\n")
+
+
+def _run_after_ingest(manifest: dict[str, Any], out: Path, config: Config, method: str,
+                      options: FocusOptions | None, truth_path: str | Path | None, autofocus: bool, command: str,
+                      stage_progress: Callable[[str], Callable[[int, int], None]],
+                      progress: Callable[[str, int, int], None] | None) -> None:
+    """The stages after the ingest, each adding its summary and outputs to ``manifest`` (finished by the end)."""
     from autosar_cli.nav.navigate import REPORTED_INFO, navigate
     from autosar_cli.sar.focus import FocusOptions, drive_radar_config, focus
     from autosar_cli.store.trajectory import write_trajectory
@@ -181,9 +229,6 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     manifest["fraction_of_drive"] = manifest["wall_s"] / frep.drive_s if frep.drive_s > 0 else None
     manifest["warnings"] = run_warnings(manifest)
     manifest["status"] = product_status(manifest["warnings"])
-    with atomic_output(manifest_path, overwrite=True) as tmp:
-        tmp.write_text(strict_json(manifest, indent=2) + "\n")
-    return manifest
 
 
 def run_warnings(manifest: dict[str, Any]) -> list[str]:

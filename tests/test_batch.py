@@ -248,7 +248,7 @@ def test_focus_in_four_tiles_equals_one_piece(solo, tmp_path, thread_cluster):
 def test_a_drives_retry_replaces_its_first_attempts_products(ci_mcap, tmp_path, monkeypatch):
     """A drive's task retried after an I/O error finds the drive.h5 its first attempt wrote: the retry failed on
     it ("already exists (use --overwrite ...)") once run stopped replacing products without --overwrite. A
-    batch's run replaces autosar's products in a drive directory that holds no run.json yet."""
+    batch's run replaces autosar's products in a drive directory whose run.json says the run did not finish."""
     import autosar_cli.nav.navigate as nav_mod
 
     real = nav_mod.navigate
@@ -264,7 +264,7 @@ def test_a_drives_retry_replaces_its_first_attempts_products(ci_mcap, tmp_path, 
     out = tmp_path / "ci"
     with pytest.raises(OSError, match="transient"):  # not an input error: Dask retries it
         batch_mod.run_drive("ci", [str(ci_mcap.log_path)], str(out), load_config())
-    assert (out / "drive.h5").exists() and not (out / "run.json").exists()
+    assert (out / "drive.h5").exists() and json.loads((out / "run.json").read_text())["status"] == "failed"
     record = batch_mod.run_drive("ci", [str(ci_mcap.log_path)], str(out), load_config())
     assert record["status"] == "ok", record.get("error")
     # a finished drive is not replaced without --overwrite

@@ -107,3 +107,43 @@ def test_cached_kernels_load_before_their_first_call(tmp_path: Path) -> None:
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
     assert res.returncode == 0, res.stderr
     assert int(res.stdout.strip()) >= 1
+
+
+@pytest.mark.parametrize("stop", [RuntimeError("focus broke"), KeyboardInterrupt()])
+def test_a_run_stopped_after_its_ingest_is_marked_unfinished(ci_mcap, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                             stop: BaseException) -> None:
+    """A run that fails (or is interrupted) in focus kept its drive and trajectory without a run.json: `info
+    --verify` called the directory intact and a rerun said only "pass --overwrite". Its run.json now says
+    ``failed`` / ``interrupted`` with the error; `info --verify` and `evaluate` say the run did not finish, a rerun
+    names why it refuses, and a batch's retry (``replace_unfinished``) replaces it."""
+    import json
+
+    from typer.testing import CliRunner
+
+    import autosar_cli.sar.focus as focus_module
+    from autosar_cli.cli import app
+    from autosar_cli.run import run
+
+    def broken_focus(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise stop
+
+    out = tmp_path / "run"
+    with monkeypatch.context() as m:
+        m.setattr(focus_module, "focus", broken_focus)
+        with pytest.raises(type(stop)):
+            run([ci_mcap.log_path], out, CFG)
+    status = "failed" if isinstance(stop, RuntimeError) else "interrupted"
+    manifest = json.loads((out / "run.json").read_text())
+    assert manifest["status"] == status and manifest["error"] == ("focus broke" if status == "failed" else status)
+    assert manifest["outputs"] == {"drive": "drive.h5", "trajectory": "trajectory.h5"}
+    assert sorted(p.name for p in out.iterdir()) == ["drive.h5", "run.json", "trajectory.h5"]
+    said = f"the run did not finish ({status}: {manifest['error']})"
+    r = CliRunner().invoke(app, ["info", str(out), "--verify"])
+    assert r.exit_code == 1 and said in r.output.replace("\n", ""), r.output
+    r = CliRunner().invoke(app, ["evaluate", str(out), "-o", str(tmp_path / "ev")])
+    assert r.exit_code == 1 and said in r.stderr.replace("\n", ""), r.output
+    with pytest.raises(RunError, match=f"already holds a run \\(run.json: {status}\\); pass --overwrite"):
+        run([ci_mcap.log_path], out, CFG)
+    assert json.loads((out / "run.json").read_text())["status"] == status  # untouched by the refusal
+    manifest = run([ci_mcap.log_path], out, CFG, replace_unfinished=True)
+    assert manifest["status"] == "ok" and json.loads((out / "run.json").read_text())["status"] == "ok"

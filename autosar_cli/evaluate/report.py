@@ -19,7 +19,7 @@ from autosar_cli.config import Config, load_config
 from autosar_cli.evaluate.evaluation import Evaluation, evaluate_image, load_truth
 from autosar_cli.evaluate.figures import plot_reflector_chips, plot_trajectory_errors
 from autosar_cli.nav.navigate import default_truth_path
-from autosar_cli.run import RunError, read_manifest
+from autosar_cli.run import RunError, not_finished, read_manifest
 from autosar_cli.sim.truth import truth_path_for, truth_radar_mismatch
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.drive import Drive
@@ -70,6 +70,8 @@ def resolve_inputs(source: str | Path, truth_path: str | Path | None = None,
             manifest = read_manifest(src)
         except RunError as exc:
             raise EvaluateError(str(exc)) from None
+        if unfinished := not_finished(manifest):
+            raise EvaluateError(f"{src / 'run.json'}: {unfinished}; run it again with --overwrite")
         outs = manifest.get("outputs", {})
         try:
             image = src / outs["image"]["h5"]
