@@ -466,3 +466,21 @@ def test_a_stated_radar_clock_focuses_a_late_drifting_capture_where_it_was(tmp_p
     assert np.all(np.abs(along["stated"]) < 0.001)
     assert np.abs(along["offset stated"]).max() > 1.5 * np.abs(along["stated"]).max() + 0.001
     assert np.all(np.abs(np.abs(along["read at the stamps"]) - 0.02 * speed) < 0.25 * 0.02 * speed)
+
+
+def test_a_config_whose_antennas_are_not_the_drives_is_refused(ci_run: Path, tmp_path: Path) -> None:
+    """A config with another start frequency (every antenna row, in wavelengths, then lies elsewhere in metres)
+    focused the drive without a word: an image up to 10 % of its peak off, its parameters the drive's. focus and
+    evaluate now refuse it as ingest does, naming how far the antennas moved; the drive's own config focuses."""
+    lam_drive, lam_config = SPEED_OF_LIGHT / 77e9, SPEED_OF_LIGHT / 76e9
+    config = tmp_path / "c76.toml"
+    config.write_text('base = "default"\n[radar]\nstart_frequency_hz = 76.0e9\n')
+    rows = np.asarray(load_config().radar.tx_positions_wavelengths)
+    moved = np.max(np.abs(rows)) * (lam_config - lam_drive)
+    for args in (["focus", str(ci_run / "drive.h5"), "-t", str(ci_run / "trajectory.h5"), "-o", str(tmp_path / "f")],
+                 ["evaluate", str(ci_run), "-o", str(tmp_path / "e")]):
+        r = CliRunner().invoke(app, [*args, "--config", str(config)])
+        assert r.exit_code == 1 and r.stderr.count("\n") == 1, r.output
+        assert (f"{ci_run / 'drive.h5'}: the config's radar puts its Tx antennas elsewhere than the drive was "
+                f"ingested with") in r.stderr and f"differ by up to {moved:.3g} m" in r.stderr, r.stderr
+    assert not any(tmp_path.glob("f*")) and not (tmp_path / "e").exists()

@@ -225,15 +225,38 @@ def drive_radar_config(config: Config, drive_path: str | Path, radar: str | None
         return config
     r = config.radar
     tx, rx = (tuple(int(c) for c in attrs[f"{k}_channels"]) for k in ("tx", "rx"))
-    if (r.tx_in_use, r.rx_in_use) == (tx, rx):
-        return config
-    for kind, used in (("tx", tx), ("rx", rx)):
-        rows = len(getattr(r, f"{kind}_positions_wavelengths"))
-        if max(used, default=0) >= rows:
-            raise FocusError(f"{drive_path}: its radar used the board's {kind.title()} {list(used)} but the "
-                             f"config's radar.{kind}_positions_wavelengths has {rows} rows: give a row for each of "
-                             f"the board's antennas and radar.{kind}_channels = {list(used)}")
-    return replace(config, radar=r.using_channels(tx, rx))
+    if (r.tx_in_use, r.rx_in_use) != (tx, rx):
+        for kind, used in (("tx", tx), ("rx", rx)):
+            rows = len(getattr(r, f"{kind}_positions_wavelengths"))
+            if max(used, default=0) >= rows:
+                raise FocusError(f"{drive_path}: its radar used the board's {kind.title()} {list(used)} but the "
+                                 f"config's radar.{kind}_positions_wavelengths has {rows} rows: give a row for each "
+                                 f"of the board's antennas and radar.{kind}_channels = {list(used)}")
+        config = replace(config, radar=r.using_channels(tx, rx))
+    _check_same_antennas(config, attrs, drive_path)
+    return config
+
+
+def _check_same_antennas(config: Config, attrs: dict[str, Any], drive_path: str | Path) -> None:
+    """Refuse a config whose antennas (in metres: its rows times its wavelength) are not those the drive was
+    ingested with (its ``tx_positions_m``, ``rx_positions_m``): another start frequency, or other rows, would move
+    every phase centre while the image's phase follows the drive's recorded chirp."""
+    for kind in ("tx", "rx"):
+        stored = attrs.get(f"{kind}_positions_m")
+        if stored is None:
+            continue
+        configured = np.asarray(getattr(config.radar, f"{kind}_positions_m"), np.float64)
+        stored = np.asarray(stored, np.float64)
+        if configured.shape != stored.shape or not np.allclose(configured, stored, rtol=0.0, atol=1e-9):
+            raise FocusError(f"{drive_path}: the config's radar puts its {kind.title()} antennas elsewhere than the "
+                             f"drive was ingested with (radar.{kind}_positions_wavelengths x the wavelength of "
+                             f"radar.start_frequency_hz {config.radar.start_frequency_hz:.9g}; the drive's "
+                             f"{kind}_positions_m differ by up to {_largest_difference(configured, stored):.3g} m): "
+                             "give the config it was ingested with, or ingest it again with this one")
+
+
+def _largest_difference(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+    return float(np.max(np.abs(a - b))) if a.shape == b.shape else float("inf")
 
 
 def open_radar(drive: Drive, options: FocusOptions) -> RadarStream:
