@@ -877,23 +877,27 @@ _DAMAGED_NAMED = 20
 
 def _verify(path: Path, as_json: bool) -> None:
     """``autosar info PATH --verify``: every stored chunk of an autosar HDF5 file, or every tile of its GeoTIFF, read
-    and checked against its checksums; of a directory (a run's), each such file in it."""
+    and checked against its checksums; of a directory (a run's), each such file in it, and of one holding runs (a
+    comparison's methods, a batch's drives), each run's too."""
     from autosar_cli.store.verify import VERIFIED_SUFFIXES
 
     if path.is_dir():
-        files = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in VERIFIED_SUFFIXES
-                       and ".partial-" not in p.name)
-        if not files:
+        runs = sorted(p for p in path.iterdir() if (p / "run.json").is_file())
+        folders = [path, *runs]
+        files = sorted(p for folder in folders for p in folder.iterdir() if p.is_file()
+                       and p.suffix.lower() in VERIFIED_SUFFIXES and ".partial-" not in p.name)
+        if not files and not runs:
             raise typer.BadParameter(f"{path}: holds no file autosar writes with checksums (drive.h5, trajectory.h5, "
                                      "image.h5, image.tif, image.png)")
     elif path.suffix.lower() in VERIFIED_SUFFIXES:
-        files = [path]
+        files, folders = [path], []
     else:
         raise typer.BadParameter(f"{path}: --verify reads a file autosar wrote (drive.h5, trajectory.h5, image.h5, "
                                  "image.tif, image.png) or a directory of them")
     found = [_checked(p, in_directory=path.is_dir()) for p in files]
-    if path.is_dir() and (path / "run.json").exists():
-        found += _run_outputs_checked(path)
+    for folder in folders:
+        if (folder / "run.json").exists():
+            found += _run_outputs_checked(folder)
     if as_json:
         out.print_json(strict_json({"path": str(path), "files": found, "intact": all(f["intact"] for f in found)}
                                   if path.is_dir() else found[0]))

@@ -803,6 +803,12 @@ def test_compare_cli_on_ci(ci_mcap, tmp_path: Path) -> None:
     assert (f"{out}: no run.json, so not a run directory but a comparison (compare.json); its runs: "
             f"{out / 'ins'}") in r.stderr and str(out / "none") in r.stderr, r.stderr
     assert not (tmp_path / "evaluated").exists()
+    # info --verify of the comparison checks its methods' runs too (it checked its own files alone)
+    r = runner.invoke(app, ["info", str(out), "--verify"])
+    assert r.exit_code == 0 and f"{out / 'ins' / 'image.h5'}: " in r.stdout.replace("\n", ""), r.output
+    (out / "ins" / "image.tif").unlink()
+    r = runner.invoke(app, ["info", str(out), "--verify"])
+    assert r.exit_code == 1 and f"{out / 'ins' / 'image.tif'}: listed in run.json but missing" in r.output, r.output
 
 
 def _check_scaled_sarmin(result: dict[str, Any], out: Path, method: str) -> Trajectory:
