@@ -139,7 +139,7 @@ def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, m
                        replace_unfinished=True)  # a retry finds the products of its attempt before
     except INPUT_ERRORS as exc:
         record.update(status="failed", error=_message(exc), error_type=type(exc).__name__,
-                      wall_s=time.perf_counter() - t0)
+                      warnings=[str(w) for w in getattr(exc, "warnings", [])], wall_s=time.perf_counter() - t0)
         report("failed", 1, 1)
         return record
     st = manifest["stages"]

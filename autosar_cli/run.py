@@ -139,6 +139,9 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         _run_after_ingest(manifest, out, config, method, options, truth_path, autofocus, command, stage_progress,
                           progress)
     except BaseException as exc:
+        from autosar_cli.ingest.pipeline import carry_warnings
+
+        carry_warnings(exc, manifest["stages"]["ingest"]["warnings"])
         status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
         error = ("terminated" if isinstance(exc, Terminated) else "interrupted") if status == "interrupted" \
             else (str(exc).splitlines()[0] if str(exc) else type(exc).__name__)

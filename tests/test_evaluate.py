@@ -866,3 +866,27 @@ def test_compare_skips_truth_without_a_sidecar(ci_mcap, tmp_path: Path) -> None:
     assert "skipped" in (tmp_path / "cmp" / "compare.md").read_text()
     with pytest.raises(ValueError, match="overwrite"):
         compare([log], tmp_path / "cmp", CFG, methods=["sar-min"])
+
+
+def test_a_comparison_that_fails_leaves_nothing_it_wrote(ci_mcap, tmp_path: Path,
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """A truth sidecar that does not exist was found only after the ingest, and a comparison failing after its
+    ingest left its 18 MB drive.h5, which the next try refused without --overwrite. A missing sidecar is now refused
+    before any work; a failure later removes what the comparison wrote, not what was there before."""
+    import autosar_cli.evaluate.compare as compare_module
+
+    out = tmp_path / "cmp"
+    r = runner.invoke(app, ["compare", str(ci_mcap.log_path), "-o", str(out), "--truth", str(tmp_path / "typo.h5"),
+                            "--methods", "none"])
+    assert r.exit_code == 1 and f"{tmp_path / 'typo.h5'}: no such truth sidecar" in r.stderr, r.output
+    assert not out.exists()
+
+    def broken(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise RuntimeError("navigation broke")
+
+    monkeypatch.setattr(compare_module, "navigate", broken)
+    out.mkdir()
+    (out / "notes.txt").write_text("the user's")
+    r = runner.invoke(app, ["compare", str(ci_mcap.log_path), "-o", str(out), "--methods", "none"])
+    assert r.exit_code == 1 and "navigation broke" in r.stderr, r.output
+    assert [p.name for p in out.iterdir()] == ["notes.txt"]

@@ -79,7 +79,16 @@ def test_an_error_that_does_not_pickle_comes_back_as_a_run_error(monkeypatch: py
         def close(self) -> None:
             pass
 
-    _ingest_child(Pipe(), [tmp_path / "bad.mcap"], tmp_path / "drive.h5", CFG, "test")
+    # the forked child's own signal handlers and unraisable hook, set here in this process: put back after
+    import signal
+
+    monkeypatch.setattr(sys, "unraisablehook", sys.unraisablehook)
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        _ingest_child(Pipe(), [tmp_path / "bad.mcap"], tmp_path / "drive.h5", CFG, "test")
+    finally:
+        for signum, handler in handlers.items():
+            signal.signal(signum, handler)
     kind, exc, remote = sent[-1]
     assert kind == "error" and isinstance(exc, RunError) and str(exc) == "bad.mcap: the reader broke"
     assert "_Unpicklable" in remote
@@ -147,3 +156,25 @@ def test_a_run_stopped_after_its_ingest_is_marked_unfinished(ci_mcap, tmp_path: 
     assert json.loads((out / "run.json").read_text())["status"] == status  # untouched by the refusal
     manifest = run([ci_mcap.log_path], out, CFG, replace_unfinished=True)
     assert manifest["status"] == "ok" and json.loads((out / "run.json").read_text())["status"] == "ok"
+
+
+def test_a_stage_failing_after_a_damaged_ingest_says_what_the_ingest_found(ci_mcap, tmp_path: Path) -> None:
+    """The first 300 kB of a log: its ingest keeps 20 messages and warns of the cut; the navigation then finds no
+    GNSS. `run` and `compare` said only the navigation's error (about their own drive.h5), and batch's record of
+    the drive had no warnings: the cut, the cause, is now said before the error and kept in the record."""
+    from typer.testing import CliRunner
+
+    import autosar_cli.batch as batch_module
+    from autosar_cli.cli import app
+
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(Path(ci_mcap.log_path).read_bytes()[:300_000])
+    damage = f"{cut}: damaged MCAP at byte"
+    for args in (["run", str(cut), "-o", str(tmp_path / "run")], ["compare", str(cut), "-o", str(tmp_path / "cmp")]):
+        r = CliRunner().invoke(app, args)
+        lines = r.stderr.strip().splitlines()
+        assert r.exit_code == 1 and len(lines) == 2, r.output
+        assert lines[0].startswith(f"warning: {damage}") and lines[1].startswith("error: ") and "no GNSS" in lines[1]
+    record = batch_module.run_drive("cut", [str(cut)], str(tmp_path / "batch" / "cut"), CFG)
+    assert record["status"] == "failed" and "no GNSS" in record["error"]
+    assert len(record["warnings"]) == 1 and record["warnings"][0].startswith(damage)

@@ -56,7 +56,7 @@ from autosar_cli.evaluate.report import (
 )
 from autosar_cli.evaluate.report import PRODUCTS as REPORT_PRODUCTS
 from autosar_cli.evaluate.trajectory_metrics import common_instants, trajectory_errors
-from autosar_cli.ingest.pipeline import IngestOptions, chain_hint, ingest
+from autosar_cli.ingest.pipeline import IngestOptions, carry_warnings, chain_hint, ingest
 from autosar_cli.nav.inputs import NavInputError
 from autosar_cli.nav.navigate import METHODS as NAV_METHODS
 from autosar_cli.nav.navigate import default_truth_path, navigate
@@ -142,24 +142,44 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
     for m in methods:  # each method's directory: a run's products and its evaluation's (its own metrics.json)
         check_products(out / m, METHOD_PRODUCTS, read, overwrite=overwrite, manifest=METRICS)
     check_free_space(out / DRIVE, input_bytes(given), "the drive")
-    options = options or FocusOptions.from_config(config)
+    if truth_path is not None and not Path(truth_path).is_file():
+        raise CompareError(f"{truth_path}: no such truth sidecar")
+    with output_directory(out, whole=True):  # a comparison that fails leaves nothing it wrote
+        return _compare(logs, out, config, methods, truth_path, options or FocusOptions.from_config(config),
+                        progress, command, ingest_options, can_logs, nmea_logs, given)
+
+
+def _compare(logs: Sequence[str | Path], out: Path, config: Config, methods: list[str],
+             truth_path: str | Path | None, options: FocusOptions, progress: Progress | None, command: str,
+             ingest_options: IngestOptions, can_logs: Sequence[str | Path], nmea_logs: Sequence[str | Path],
+             given: list[str | Path]) -> dict[str, Any]:
+    """:func:`compare` once its outputs are checked (``given``: every input read into the drive)."""
     tick = progress or (lambda stage, done, total: None)
     timings: dict[str, float] = {}
     notes: list[str] = []
 
     t0 = time.perf_counter()
-    with output_directory(out):
-        report = ingest([Path(p) for p in logs], out / DRIVE, config=config, command=command,
-                        can_logs=[Path(p) for p in can_logs], nmea_logs=[Path(p) for p in nmea_logs],
-                        progress=lambda done, total: tick("ingest", done, total),
-                        partial_hint=chain_hint("a comparison"), **ingest_options.ingest_kwargs())
-    warnings = [str(w) for w in report.warnings]  # a damaged log, dropped data: every product is degraded
+    report = ingest([Path(p) for p in logs], out / DRIVE, config=config, command=command,
+                    can_logs=[Path(p) for p in can_logs], nmea_logs=[Path(p) for p in nmea_logs],
+                    progress=lambda done, total: tick("ingest", done, total),
+                    partial_hint=chain_hint("a comparison"), **ingest_options.ingest_kwargs())
     timings["ingest"] = time.perf_counter() - t0
+    warnings = [str(w) for w in report.warnings]  # a damaged log, dropped data: every product is degraded
+    try:
+        return _compare_drive(out, config, methods, truth_path, options, command, tick, timings, notes, given,
+                              list(warnings))
+    except BaseException as exc:
+        carry_warnings(exc, warnings)
+        raise
+
+
+def _compare_drive(out: Path, config: Config, methods: list[str], truth_path: str | Path | None,
+                   options: FocusOptions, command: str, tick: Progress, timings: dict[str, float], notes: list[str],
+                   given: list[str | Path], warnings: list[str]) -> dict[str, Any]:
+    """:func:`compare` once its drive is ingested (``warnings``: what the ingest warned of)."""
     warnings += unfocused_radars(out / DRIVE, options)  # another radar of the drive: in no image
     config = drive_radar_config(config, out / DRIVE, options.radar)  # a radar ingested with --radar-override
 
-    if truth_path is not None and not Path(truth_path).is_file():
-        raise CompareError(f"{truth_path}: no such truth sidecar")
     with Drive(out / DRIVE) as d:
         truth_path = truth_path or default_truth_path(d)
         if truth_path is not None and (why := truth_radar_mismatch(truth_path, d)):

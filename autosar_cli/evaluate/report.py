@@ -277,25 +277,16 @@ def write_report(ev: Evaluation, out_dir: str | Path, *, overwrite: bool = False
     if (out / METRICS).exists() and not overwrite:
         raise EvaluateError(f"{out}: already holds an evaluation ({METRICS}); pass --overwrite to replace it")
     figures: dict[str, str] = {}
-    written: list[Path] = []  # by this call: removed again where it fails (a report without all its parts is none)
     metrics = ev.to_dict()
-    with output_directory(out):
-        try:
-            if ev.errors is not None:
-                figures["trajectory error"] = plot_trajectory_errors(ev.errors, out / TRAJECTORY_FIGURE).name
-                written.append(out / TRAJECTORY_FIGURE)
-            if ev.patches is not None and ev.reflectors:
-                rows = [(ev.method, ev.patches, ev.reflectors)]
-                figures["reflector chips"] = plot_reflector_chips(rows, out / CHIPS_FIGURE).name
-                written.append(out / CHIPS_FIGURE)
-            metrics["outputs"] = {"metrics": METRICS, "report": REPORT,
-                                  **{k.replace(" ", "_"): v for k, v in figures.items()}}
-            write_text(out / REPORT, report_markdown(ev, figures))
-            written.append(out / REPORT)
-            write_json(out / METRICS, metrics)
-        except BaseException:
-            for path in written:
-                path.unlink(missing_ok=True)
-            raise
+    with output_directory(out, whole=True):  # a report without all its parts is none
+        if ev.errors is not None:
+            figures["trajectory error"] = plot_trajectory_errors(ev.errors, out / TRAJECTORY_FIGURE).name
+        if ev.patches is not None and ev.reflectors:
+            rows = [(ev.method, ev.patches, ev.reflectors)]
+            figures["reflector chips"] = plot_reflector_chips(rows, out / CHIPS_FIGURE).name
+        metrics["outputs"] = {"metrics": METRICS, "report": REPORT,
+                              **{k.replace(" ", "_"): v for k, v in figures.items()}}
+        write_text(out / REPORT, report_markdown(ev, figures))
+        write_json(out / METRICS, metrics)
     metrics["outputs"] = {k: str(out / v) for k, v in metrics["outputs"].items()}
     return json_safe(metrics)

@@ -8,6 +8,7 @@ without radar or without any navigation stream.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import json
@@ -103,6 +104,16 @@ class IngestError(RuntimeError):
     def __init__(self, message: str, warnings: Iterable[str] = ()) -> None:
         super().__init__(message)
         self.warnings = list(warnings)
+
+
+def carry_warnings(exc: BaseException, warnings: Iterable[str]) -> None:
+    """Have ``exc`` (a later stage's failure) carry what the ingest warned of before it, as an
+    :class:`IngestError`'s ``warnings`` do: the command says them before the error (a log cut short is what makes
+    the navigation find no GNSS)."""
+    warnings = list(warnings)
+    if warnings and isinstance(exc, Exception):
+        with contextlib.suppress(AttributeError, TypeError):  # an exception that takes no attributes
+            exc.warnings = list(dict.fromkeys([*warnings, *getattr(exc, "warnings", [])]))  # type: ignore[attr-defined]
 
 
 @dataclass

@@ -120,13 +120,20 @@ def make_directories(path: Path) -> Callable[[], None]:
 
 
 @contextlib.contextmanager
-def output_directory(path: Path) -> Iterator[None]:
+def output_directory(path: Path, *, whole: bool = False) -> Iterator[None]:
     """Make the directory ``path`` (and its parents) for a command's products, and remove again those this made
-    where the block fails and nothing has been written in them (a failed ingest, which writes atomically)."""
+    where the block fails and nothing has been written in them (a failed ingest, which writes atomically).
+    ``whole``: the products make one whole (a comparison, a report), so where the block fails every file and
+    directory it added under ``path`` is removed too (what was there before, replaced or not, stays)."""
+    before = set(path.rglob("*")) if whole and path.is_dir() else set()
     undo = make_directories(path)
     try:
         yield
     except BaseException:
+        if whole:
+            for added in sorted(set(path.rglob("*")) - before, key=lambda p: len(p.parts), reverse=True):
+                with contextlib.suppress(OSError):
+                    added.rmdir() if added.is_dir() and not added.is_symlink() else added.unlink()
         undo()
         raise
 
