@@ -447,3 +447,26 @@ def test_info_verify_of_a_run_missing_a_product_is_not_intact(ci_run: Path, tmp_
     assert any(said in f.get("error", "") for f in json.loads(r.stdout)["files"]), r.stdout
     r = runner.invoke(app, ["info", str(ci_run), "--verify"])
     assert r.exit_code == 0, r.output
+
+
+def test_evaluate_names_what_it_cannot_read(ci_run: Path, ci_mcap, tmp_path: Path) -> None:  # noqa: ANN001
+    """evaluate of a run whose image has a damaged chunk said only "Can't synchronously read data (filter returned
+    failure during read)"; given a drive, a log or a cut file as --truth, HDF5's own words ("can't locate attribute
+    in name index", "file signature not found"). Each now names the file (and the dataset), and what it is not."""
+    import shutil
+
+    run_dir = tmp_path / "run"
+    shutil.copytree(ci_run, run_dir)
+    _flip_byte_in(run_dir / "image.h5", "image")
+    r = runner.invoke(app, ["evaluate", str(run_dir), "-o", str(tmp_path / "e0")])
+    assert r.exit_code == 1 and r.stderr.count("\n") == 1, r.output
+    assert f"{run_dir / 'image.h5'}: dataset /image is damaged and cannot be read" in r.stderr, r.stderr
+    cut = tmp_path / "cut.truth.h5"
+    cut.write_bytes(Path(ci_mcap.truth_path).read_bytes()[:70_000])
+    for truth, said in ((ci_run / "drive.h5", "not an autosar truth sidecar but an autosar-drive file"),
+                        (ci_run / "image.png", "not an autosar truth sidecar (not a readable HDF5 file: file "
+                                               "signature not found)"),
+                        (cut, "not an autosar truth sidecar (not a readable HDF5 file: truncated file")):
+        r = runner.invoke(app, ["evaluate", str(ci_run), "-o", str(tmp_path / "e1"), "--truth", str(truth)])
+        assert r.exit_code == 1 and r.stderr.count("\n") == 1, r.output
+        assert f"{truth}: {said}" in r.stderr, r.stderr

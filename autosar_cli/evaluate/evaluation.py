@@ -12,7 +12,6 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
-import h5py
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -53,7 +52,7 @@ from autosar_cli.nav.trajectory import (
 from autosar_cli.sar.focus import FocusOptions, drive_radar_config, focus_images
 from autosar_cli.sar.grid import FocusGrid, track_distance, track_lattice
 from autosar_cli.sim.scene import KINDS
-from autosar_cli.sim.truth import TruthTargets, read_targets
+from autosar_cli.sim.truth import TruthTargets, open_truth, read_targets
 from autosar_cli.store.drive import Drive, radar_times
 from autosar_cli.store.image import FocusedImage
 from autosar_cli.store.manifest import product_status
@@ -102,7 +101,7 @@ def load_truth(path: str | Path, origin: GeodeticOrigin, config: Config) -> Trut
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"{p}: no such truth sidecar")
-    with h5py.File(p, "r") as f:
+    with open_truth(p) as f:
         road = GeodeticOrigin(float(f.attrs["origin_lat_deg"]), float(f.attrs["origin_lon_deg"]),
                               float(f.attrs["origin_height_m"]))
     road_z = float(origin.to_enu(road.lat_deg, road.lon_deg, road.height_m)[2])

@@ -110,11 +110,14 @@ def from_truth(truth_path: str, origin: GeodeticOrigin, config: Config, *, radar
     states of it (:func:`_focus_clock`), so that focusing along it at the frames' stamps (less that) finds the
     radar where it was.
     """
-    import h5py
 
-    with h5py.File(truth_path, "r") as f:
-        if f.attrs.get("format") != "autosar-truth":
-            raise NavInputError(f"{truth_path}: not an autosar truth sidecar")
+    from autosar_cli.sim.truth import open_truth
+
+    try:
+        truth = open_truth(truth_path)
+    except ValueError as exc:
+        raise NavInputError(str(exc)) from None
+    with truth as f:
         tr = f["trajectory"]
         t_ns = tr["t_ns"][()]
         rear = tr["rear_axle_enu"][()]

@@ -140,13 +140,28 @@ class TruthWriter:
             self.tmp.unlink(missing_ok=True)
 
 
+def open_truth(truth_path: str | Path) -> h5py.File:
+    """``truth_path`` open for reading (a ``with`` closes it), checked to be an autosar truth sidecar: a ValueError
+    naming it where it is not (not HDF5, cut short, another file of autosar's), before any content is looked for."""
+    try:
+        f = h5py.File(truth_path, "r")
+    except OSError as exc:
+        reason = str(exc).splitlines()[0].removeprefix("Unable to synchronously open file ").strip("()")
+        raise ValueError(f"{truth_path}: not an autosar truth sidecar (not a readable HDF5 file: {reason})") from None
+    if (fmt := f.attrs.get("format")) != FORMAT:
+        f.close()
+        raise ValueError(f"{truth_path}: not an autosar truth sidecar"
+                         + (f" but {'an' if str(fmt)[0] in 'aeiou' else 'a'} {fmt} file" if fmt else ""))
+    return f
+
+
 def truth_radar_mismatch(truth_path: str | Path, drive: Drive, frames: int = 8) -> str | None:
     """Why the truth sidecar at ``truth_path`` is not the truth of the open ``drive``: it keeps each
     radar frame's CRC-32 (``radar/raw_crc32``, of its int16 samples as a drive holds them), and none of ``frames``
     of the drive's frames, spread over it, matches the truth's frame of the same index. None where one does (a
     damaged, cut or converted log of the same recording still has intact frames), or where nothing can be compared
     (an older truth, no common frame index)."""
-    with h5py.File(truth_path, "r") as f:
+    with open_truth(truth_path) as f:
         if "radar/raw_crc32" not in f:
             return None
         truth_index, truth_crc = f["radar/frame_index"][()], f["radar/raw_crc32"][()]
@@ -177,9 +192,7 @@ class TruthTargets:
 
 def read_targets(truth_path: str | Path, origin: GeodeticOrigin) -> TruthTargets:
     """The targets of ``truth_path`` re-expressed in ``origin``'s ENU frame (e.g. a drive's or an image's)."""
-    with h5py.File(truth_path, "r") as f:
-        if f.attrs.get("format") != FORMAT:
-            raise ValueError(f"{truth_path}: not an autosar truth sidecar")
+    with open_truth(truth_path) as f:
         g = f["targets"]
         pos = g["position_enu"][()]
         kind = g["kind"][()].astype(np.int64)

@@ -27,7 +27,7 @@ from rasterio.windows import Window
 from autosar_cli import __version__
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.attr_checksum import attributes_damage, stamp_attributes
-from autosar_cli.store.hdf5_read import open_hdf5
+from autosar_cli.store.hdf5_read import open_hdf5, read_dataset
 from autosar_cli.store.manifest import json_default
 from autosar_cli.store.outputs import SMALL_FILE_MARGIN_BYTES, check_free_space, not_the_format
 from autosar_cli.store.quicklook import draw_quicklook, preload_quicklook  # noqa: F401  (focus, run preload it)
@@ -271,7 +271,7 @@ def read_image(path: Path) -> FocusedImage:
             origin = GeodeticOrigin(float(a["origin_lat_deg"]), float(a["origin_lon_deg"]),
                                     float(a["origin_height_m"]))
             grid = FocusGrid.from_attrs(dict(f["grid"].attrs))
-            image = np.asarray(f["image"][()], dtype=np.complex64)
+            image = np.asarray(read_dataset(f, "image", path), dtype=np.complex64)
             params = _read_params(f["params"])
             provenance = json.loads(f["provenance"].attrs["json"]) if "provenance" in f else {}
         except KeyError as exc:
