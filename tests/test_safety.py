@@ -940,3 +940,21 @@ def test_focus_makes_the_folder_of_its_output(tmp_path: Path, ci_run: Path) -> N
     r = runner.invoke(app, ["focus", str(ci_run / "drive.h5"), "-t", str(ci_run / "trajectory.h5"), "-o",
                             str(tmp_path / "other" / "x"), "--resolution", "1e300"])
     assert r.exit_code == 1 and not (tmp_path / "other").exists(), r.output
+
+
+def test_an_image_larger_than_the_machines_memory_is_refused_before_allocating_it(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, ci_run: Path) -> None:
+    """`--pixel 0.0001` passed the 64 GiB grid limit with 47.7 GiB and ended in numpy's "Unable to allocate 47.7
+    GiB for an array with shape ..."; focus now compares the image with the machine's memory and
+    names the way out; the tiled focus, which holds one tile at a time, is not refused for it (ci's image: 323 kB,
+    its eighth 40 kB, the memory made 64 kB)."""
+    import autosar_cli.sar.focus as focus_module
+
+    monkeypatch.setattr(focus_module, "physical_memory_bytes", lambda: 2**16)
+    args = ["focus", str(ci_run / "drive.h5"), "-t", str(ci_run / "trajectory.h5")]
+    r = runner.invoke(app, [*args, "-o", str(tmp_path / "whole")])
+    _one_line_error(r, "the image needs", "GiB, more than this machine's 6.1e-05 GiB of memory",
+                    "focus in tiles (--tiles)")
+    assert list(tmp_path.iterdir()) == []
+    r = runner.invoke(app, [*args, "-o", str(tmp_path / "tiled"), "--tiles", "8"])
+    assert r.exit_code == 0, r.output

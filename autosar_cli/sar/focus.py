@@ -394,6 +394,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         antenna_of_tx = {t: i for i, t in enumerate(used_tx)}
         channels = np.array([[antenna_of_tx[t], len(used_tx) + c] for c, (t, _) in enumerate(pairs)])
 
+        _check_memory(sum(g.size for g in grid_list) * np.dtype(np.complex64).itemsize, options)
         images = [np.zeros(g.size, np.complex64) for g in grid_list]
         n_bp = 0
         frames = geometry.frames
@@ -539,6 +540,24 @@ def unfocused_radars(drive_path: str | Path, options: FocusOptions) -> list[str]
         return []
     return [f"{drive_path}: holds {len(names)} radar streams; focused {focused}, not {', '.join(others)} "
             "(--radar-stream NAME focuses another)"]
+
+
+def physical_memory_bytes() -> int | None:
+    """This machine's memory (bytes); None where the system does not say (not POSIX)."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def _check_memory(image_bytes: int, options: FocusOptions) -> None:
+    """Refuse an image held whole that this machine's memory cannot hold (numpy's "Unable to allocate ..." after
+    the planning); the grid's own limit (sar.grid.MAX_IMAGE_BYTES) is the larger on most machines."""
+    memory = physical_memory_bytes()
+    if memory is not None and image_bytes > memory:
+        raise FocusError(f"grid: pixel size {options.pixel_m:g} m: the image needs {image_bytes / 2**30:.3g} GiB, more "
+                         f"than this machine's {memory / 2**30:.3g} GiB of memory; choose a larger pixel or a smaller "
+                         "grid, or focus in tiles (--tiles)")
 
 
 def check_grid_size(options: FocusOptions, config: Config | None = None, grid: FocusGrid | None = None) -> None:
