@@ -43,7 +43,7 @@ from autosar_cli.run import run, run_warnings
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.manifest import product_status, read_json_manifest, strict_json
-from autosar_cli.store.outputs import input_problem
+from autosar_cli.store.outputs import check_output, input_problem
 
 FORMAT = "autosar-batch"
 FORMAT_VERSION = 1
@@ -246,6 +246,9 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
     out = Path(out_dir).resolve()
     if (out / MANIFEST).exists() and not overwrite:
         raise BatchError(f"{out}: already holds a batch ({MANIFEST}); pass --overwrite to replace it")
+    read = [*logs, *(p for inputs in companions for kind in inputs.values() for p in kind), *config.files,
+            *ingest_options.files()]
+    check_output(out, read, overwrite=overwrite, directory=True)  # never an input, nor a file (its drives' folders)
     out.mkdir(parents=True, exist_ok=True)
     options = options or FocusOptions.from_config(config)
     names = drive_names(logs)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import errno
 import gc
 import inspect
+import os
 import signal
 import sys
 import threading
@@ -210,6 +211,9 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
             err.print(f"[yellow]warning:[/] {escape(warning)}", highlight=False, soft_wrap=True)
         if isinstance(exc, OSError) and exc.errno == errno.ENOSPC and str(writing or "") not in msg:
             msg = f"{exc.filename or writing}: no space left on the device"
+        elif writing is not None and _not_writable(exc, writing):
+            refused = "its partial file could not be kept" if exc.errno == errno.ENOENT else os.strerror(exc.errno)  # type: ignore[union-attr]
+            msg = f"{writing}: cannot be written there ({refused})"
         # escaped: a message quoting a value such as [inf] or a path with brackets is not rich markup
         err.print(f"[red]error:[/] {escape(msg)}", highlight=False, soft_wrap=True)
         raise typer.Exit(1) from None
@@ -219,6 +223,16 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
             signal.signal(signal.SIGINT, exit_interrupted)
         if quick_term:
             signal.signal(signal.SIGTERM, exit_interrupted)
+
+
+def _not_writable(exc: BaseException, output: Path) -> bool:
+    """Whether ``exc`` is the file system refusing the command's ``output`` (or its partial file, its folder): a
+    read-only or locked folder, no permission; h5py's and the OS's own words name a partial file or none."""
+    if not isinstance(exc, OSError) or exc.errno not in (errno.EPERM, errno.EACCES, errno.EROFS, errno.ENOENT):
+        return False
+    named = str(exc.filename or "") or str(exc)
+    stem = str(output.with_suffix("")) if output.suffix else str(output)
+    return stem in named and (exc.errno != errno.ENOENT or ".partial" in named)
 
 
 def _signal_of(exc: KeyboardInterrupt) -> int:
@@ -1167,7 +1181,7 @@ def batch(
 ) -> None:
     """Run many drives (`autosar run` each) as Dask tasks on a local or existing dask.distributed cluster;
     exit code 1 if any drive failed."""
-    with _errors(kernels=False):
+    with _errors(output, kernels=False):
         from autosar_cli.batch import run_batch
         from autosar_cli.ingest.pipeline import parse_time_ns
 

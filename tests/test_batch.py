@@ -79,6 +79,11 @@ def test_batch_local_cluster_two_workers(logs, solo, tmp_path):
 
 
 def test_batch_refuses_existing_and_bad_arguments(tmp_path, logs):
+    # an input, or a file, as the batch's folder: the output gate's words (a raw "[Errno 17] File exists")
+    for output, said in ((logs[0], "is an input of this command"), (tmp_path / "a_file", "exists and is not a dir")):
+        (tmp_path / "a_file").write_text("the user's")
+        r = runner.invoke(app, ["batch", str(logs[0]), "-o", str(output)])
+        assert r.exit_code == 1 and r.stderr.count("\n") == 1 and f"{output}: {said}" in r.stderr, r.output
     (tmp_path / "batch.json").write_text("{}")
     with pytest.raises(BatchError, match="already holds a batch"):
         run_batch(logs, tmp_path, load_config())

@@ -958,3 +958,33 @@ def test_an_image_larger_than_the_machines_memory_is_refused_before_allocating_i
     assert list(tmp_path.iterdir()) == []
     r = runner.invoke(app, [*args, "-o", str(tmp_path / "tiled"), "--tiles", "8"])
     assert r.exit_code == 0, r.output
+
+
+def test_an_output_folder_that_refuses_writing_is_named(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                         ci_run: Path) -> None:
+    """A locked folder (chattr +i, a read-only mount): h5py's own words naming a partial file ("[Errno 1] Unable
+    to synchronously create file (unable to open file: name = 'ro/t.partial-26078.h5', ...") or the bare OS error
+    ("[Errno 1] Operation not permitted: 'ro/r'"); now the command's output and why."""
+    import errno
+
+    import autosar_cli.store.trajectory as trajectory_module
+
+    out = tmp_path / "locked" / "t.h5"
+
+    def refused(path, *args, **kwargs):  # type: ignore[no-untyped-def]
+        raise OSError(errno.EPERM, f"Unable to synchronously create file (unable to open file: name = "
+                                   f"'{out.with_suffix('')}.partial-26078.h5', errno = 1, error message = "
+                                   "'Operation not permitted', flags = 13, o_flags = 242)")
+
+    monkeypatch.setattr(trajectory_module, "write_trajectory", refused)
+    r = runner.invoke(app, ["navigate", str(ci_run / "drive.h5"), "-o", str(out)])
+    _one_line_error(r, f"error: {out}: cannot be written there (Operation not permitted)")
+
+    import autosar_cli.evaluate.report as report_module
+
+    def locked(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise PermissionError(errno.EPERM, "Operation not permitted", str(tmp_path / "locked" / "e"))
+
+    monkeypatch.setattr(report_module, "output_directory", locked)
+    r = runner.invoke(app, ["evaluate", str(ci_run), "-o", str(tmp_path / "locked" / "e")])
+    _one_line_error(r, f"error: {tmp_path / 'locked' / 'e'}: cannot be written there (Operation not permitted)")
