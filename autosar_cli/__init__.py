@@ -20,11 +20,18 @@ def exit_interrupted(signum: int, frame: object) -> None:
 def _quiet_interrupt_while_starting() -> None:
     """Install :func:`exit_interrupted` for the console script (a library import leaves the signals alone)."""
     import os
+    import sys
+
+    if os.path.basename(sys.argv[0]) in ("autosar", "autosar.exe"):
+        install_interrupt_handlers()
+
+
+def install_interrupt_handlers() -> None:
+    """:func:`exit_interrupted` for SIGINT and SIGTERM where Python's defaults are in place, as the command's (the
+    console script at its import, ``python -m autosar_cli.cli`` before it runs), not in a process it spawns."""
     import signal
     import sys
 
-    if os.path.basename(sys.argv[0]) not in ("autosar", "autosar.exe"):
-        return
     mp = sys.modules.get("multiprocessing")  # a process it spawns (batch's Dask workers) keeps Python's handlers:
     if mp is not None and mp.current_process().name != "MainProcess":  # named before the script is run in it
         return

@@ -1259,4 +1259,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
+    from autosar_cli import install_interrupt_handlers
+
+    install_interrupt_handlers()  # as the `autosar` console script has them: SIGTERM cleans up and says so
     main()

@@ -10,9 +10,9 @@ run.json (format ``autosar-run`` version 1) records the inputs (path, size), the
 config file, how the inputs were read (``ingest_options``: DBC, time offsets, ...), the method and focus
 parameters, per-stage wall times and summaries, and the outputs (paths relative to the run directory), so
 ``autosar evaluate DIR`` can find everything. Its ``status`` is ``ok`` or ``degraded`` once the run has finished;
-from the ingest's end until then it is ``unfinished``, and a run that fails or is stopped after its ingest leaves
-``failed`` or ``interrupted`` (with its ``error``) beside the products it finished, so that no run directory
-looks complete that is not.
+until then it is ``unfinished``, and a run that fails or is stopped once its drive is written leaves ``failed`` or
+``interrupted`` (with its ``error``) beside the products it finished, so that no run directory looks complete that
+is not.
 """
 
 from __future__ import annotations
@@ -125,31 +125,44 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     def stage_progress(stage: str) -> Callable[[int, int], None]:
         return lambda done, total: progress(stage, done, total) if progress else None
 
-    t = time.perf_counter()
     with output_directory(out):
-        rep = _ingest_beside_imports([Path(p) for p in logs], out / DRIVE, config, stage_progress("ingest"), command,
-                                     fork=fork_ingest, ingest_options=ingest_options, autofocus=autofocus,
-                                     can_logs=[Path(p) for p in can_logs], nmea_logs=[Path(p) for p in nmea_logs],
-                                     radar_captures=[Path(p) for p in radar_captures])
-    manifest["stages"]["ingest"] = {"wall_s": time.perf_counter() - t, "messages": rep.get("messages"),
-                                    "bytes_read": rep.get("bytes_read"), "warnings": rep.get("warnings", [])}
-    manifest["outputs"]["drive"] = DRIVE
-    _write_manifest(manifest_path, {**manifest, "status": "unfinished"})
-    try:
-        _run_after_ingest(manifest, out, config, method, options, truth_path, autofocus, command, stage_progress,
-                          progress)
-    except BaseException as exc:
-        from autosar_cli.ingest.pipeline import carry_warnings
-
-        carry_warnings(exc, manifest["stages"]["ingest"]["warnings"])
-        status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
-        error = ("terminated" if isinstance(exc, Terminated) else "interrupted") if status == "interrupted" \
-            else (str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
-        with contextlib.suppress(Exception):  # best effort: the disk may be what failed
-            _write_manifest(manifest_path, {**manifest, "status": status, "error": error})
-        raise
+        _write_manifest(manifest_path, {**manifest, "status": "unfinished"})
+        try:
+            t = time.perf_counter()
+            rep = _ingest_beside_imports([Path(p) for p in logs], out / DRIVE, config, stage_progress("ingest"),
+                                         command, fork=fork_ingest, ingest_options=ingest_options,
+                                         autofocus=autofocus, can_logs=[Path(p) for p in can_logs],
+                                         nmea_logs=[Path(p) for p in nmea_logs],
+                                         radar_captures=[Path(p) for p in radar_captures])
+            manifest["stages"]["ingest"] = {"wall_s": time.perf_counter() - t, "messages": rep.get("messages"),
+                                            "bytes_read": rep.get("bytes_read"), "warnings": rep.get("warnings", [])}
+            manifest["outputs"]["drive"] = DRIVE
+            _write_manifest(manifest_path, {**manifest, "status": "unfinished"})
+            _run_after_ingest(manifest, out, config, method, options, truth_path, autofocus, command,
+                              stage_progress, progress)
+        except BaseException as exc:
+            _mark_stopped(exc, manifest, manifest_path)
+            raise
     _write_manifest(manifest_path, manifest)
     return manifest
+
+
+def _mark_stopped(exc: BaseException, manifest: dict[str, Any], manifest_path: Path) -> None:
+    """run.json of a run that ``exc`` stopped: none where it kept no drive (an ingest writes whole or nothing),
+    else ``failed`` or ``interrupted`` with the error, beside what it finished; the ingest's warnings go with the
+    error (what it found wrong may be the cause)."""
+    from autosar_cli.ingest.pipeline import carry_warnings
+
+    if not (manifest_path.parent / DRIVE).exists():
+        manifest_path.unlink(missing_ok=True)
+        return
+    carry_warnings(exc, manifest["stages"].get("ingest", {}).get("warnings", []))
+    if isinstance(exc, KeyboardInterrupt):
+        status, error = "interrupted", "terminated" if isinstance(exc, Terminated) else "interrupted"
+    else:
+        status, error = "failed", str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    with contextlib.suppress(Exception):  # best effort: the disk may be what failed
+        _write_manifest(manifest_path, {**manifest, "status": status, "error": error})
 
 
 def not_finished(manifest: dict[str, Any]) -> str | None:

@@ -178,3 +178,34 @@ def test_a_stage_failing_after_a_damaged_ingest_says_what_the_ingest_found(ci_mc
     record = batch_module.run_drive("cut", [str(cut)], str(tmp_path / "batch" / "cut"), CFG)
     assert record["status"] == "failed" and "no GNSS" in record["error"]
     assert len(record["warnings"]) == 1 and record["warnings"][0].startswith(damage)
+
+
+def test_a_run_stopped_as_its_ingest_ends_keeps_no_drive_unmarked(ci_mcap, tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """A stop that came after the ingest had written drive.h5 but before it reported back left the drive without a
+    run.json (SIGTERM under `python -m`, 3 s into a run). run.json is now written first, as `unfinished`: such a
+    run is marked `interrupted`; one whose ingest failed whole leaves nothing at all."""
+    import json
+
+    import autosar_cli.run as run_module
+
+    real = run_module._ingest_beside_imports
+
+    def ingest_then_stop(*args, **kwargs):  # type: ignore[no-untyped-def]
+        real(*args, **kwargs)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(run_module, "_ingest_beside_imports", ingest_then_stop)
+    out = tmp_path / "run"
+    with pytest.raises(KeyboardInterrupt):
+        run_module.run([ci_mcap.log_path], out, CFG)
+    assert sorted(p.name for p in out.iterdir()) == ["drive.h5", "run.json"]
+    assert json.loads((out / "run.json").read_text())["status"] == "interrupted"
+
+    def failing_ingest(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise IngestError("bad.mcap: unreadable")
+
+    monkeypatch.setattr(run_module, "_ingest_beside_imports", failing_ingest)
+    with pytest.raises(IngestError):
+        run_module.run([ci_mcap.log_path], tmp_path / "none", CFG)
+    assert not (tmp_path / "none").exists()

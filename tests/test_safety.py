@@ -800,18 +800,22 @@ def test_evaluate_compare_and_run_never_replace_a_users_file_in_their_directory(
     assert sorted(p.name for p in keep.iterdir()) == ["drive.h5"]
 
 
-def test_sigterm_stops_a_command_as_ctrl_c_does(tmp_path: Path, ci_mcap) -> None:
+@pytest.mark.parametrize("how", ["console script", "python -m"])
+def test_sigterm_stops_a_command_as_ctrl_c_does(tmp_path: Path, ci_mcap, how: str) -> None:
     """SIGTERM (`timeout`'s, a service manager's stop) ended the command at once: exit 143 without a word, its
-    partial file left behind. Now it stops as at Ctrl-C: "terminated", exit 143, the partial file removed."""
+    partial file left behind (under `python -m autosar_cli.cli` still). Now it stops as at Ctrl-C: "terminated",
+    exit 143, the partial file removed."""
     import signal
     import subprocess
+    import sys
     import time
 
     script = _console_script()
-    if script is None:
+    if script is None and how == "console script":
         pytest.skip("the autosar console script is not installed")
+    command = [script] if how == "console script" else [sys.executable, "-m", "autosar_cli.cli"]
     out = tmp_path / "out"
-    proc = subprocess.Popen([script, "ingest", str(ci_mcap.log_path), "-o", str(out / "drive.h5")],
+    proc = subprocess.Popen([*command, "ingest", str(ci_mcap.log_path), "-o", str(out / "drive.h5")],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 60
     while not list(tmp_path.glob("out/*.partial*")) and time.monotonic() < deadline and proc.poll() is None:
