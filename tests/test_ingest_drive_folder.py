@@ -192,3 +192,19 @@ def test_a_pipe_in_a_drive_folder_is_left_out_not_opened(ci_mcap: SimulationResu
     found = result[0]
     assert found is not None and found.left_out == [d / "notes"]  # type: ignore[attr-defined]
     assert found.inputs["nmea"] == [d / "gps.log"]
+
+
+def test_a_drive_folder_of_many_stray_files_names_ten_and_counts_the_rest(folder: Path, tmp_path: Path) -> None:
+    """A drive folder holding thousands of stray files (a camera's frames beside the logs) named every one in a
+    single warning line; it names the first ten and counts the others."""
+    import shutil
+
+    crowded = tmp_path / "crowded"
+    shutil.copytree(folder, crowded)
+    for k in range(25):
+        (crowded / f"frame_{k:05d}.jpg").write_bytes(b"\xff\xd8\xff")
+    found = drive_folder(crowded)
+    assert found is not None and len(found.left_out) == 27
+    names = [str(p.relative_to(crowded)) + ("/" if p.is_dir() else "") for p in found.left_out]
+    assert found.warning() == (f"{crowded}: not read, none of them a log, CAN log, NMEA capture or DCA1000 capture: "
+                               + ", ".join(names[:10]) + " and 17 more")

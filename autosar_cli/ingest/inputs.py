@@ -69,6 +69,10 @@ def check_input(path: Path, kind: str) -> None:
                          f"--{'can-log' if kind == 'can' else 'nmea'}")
 
 
+#: files and folders a drive folder leaves out named in its warning (then counted)
+SHOWN_LEFT_OUT = 10
+
+
 @dataclass(frozen=True)
 class DriveFolder:
     """What a drive folder holds: its inputs by kind (each in name order), and the entries it leaves alone."""
@@ -81,7 +85,9 @@ class DriveFolder:
         """One line naming what the folder holds that no input is, or None."""
         if not self.left_out:
             return None
-        names = ", ".join(str(p.relative_to(self.path)) + ("/" if p.is_dir() else "") for p in self.left_out)
+        shown = [str(p.relative_to(self.path)) + ("/" if p.is_dir() else "") for p in self.left_out[:SHOWN_LEFT_OUT]]
+        more = len(self.left_out) - len(shown)
+        names = ", ".join(shown) + (f" and {more} more" if more else "")
         dbc = " (a CAN database is given with --dbc)" if any(p.suffix.lower() == ".dbc" for p in self.left_out) else ""
         return f"{self.path}: not read, none of them a log, CAN log, NMEA capture or DCA1000 capture: {names}{dbc}"
 
