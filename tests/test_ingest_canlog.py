@@ -1493,3 +1493,25 @@ def test_mf4_support_is_loaded_when_the_first_mf4_log_is_opened(tmp_path: Path) 
     lean = json.loads(out.stdout)
     assert lean["before"] == [] and lean["after"] is True
     assert lean["records"] == expected
+
+
+def test_a_failed_read_of_an_unfinalised_mf4_leaves_no_copy_of_it(tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """asammdf reads an unfinalised MF4 (a logger's, CSS Electronics') from a copy of it in the system's temporary
+    folder; where the read failed (here a block's length damaged), that copy, the whole log, was left there. It is
+    now made in a folder of the reader's own, removed with it, read or not."""
+    import tempfile
+
+    scratch = tmp_path / "system_tmp"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    log = bytearray(realdata("css-electronics", "2F6913DB_00000004_00000001.MF4").read_bytes())
+    log[1810] ^= 0xFF
+    log[1811] ^= 0xFF
+    damaged = tmp_path / "damaged.mf4"
+    damaged.write_bytes(log)
+    with pytest.raises(CanLogError, match="its ##TX block at byte 1800 runs past the end"):
+        list(read_can_log(damaged))
+    assert list(scratch.iterdir()) == []
+    frames = list(read_can_log(realdata("css-electronics", "2F6913DB_00000004_00000001.MF4")))  # read whole
+    assert len(frames) > 0 and list(scratch.iterdir()) == []

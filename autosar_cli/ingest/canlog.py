@@ -131,9 +131,16 @@ def _one_line(exc: BaseException) -> str:
 
 
 class _MF4Reader(can.MF4Reader):
-    """MF4Reader that closes the file it opened when asammdf rejects the file."""
+    """MF4Reader that closes the file it opened when asammdf rejects the file, and keeps asammdf's working copy
+    of an unfinalised log (the whole file, made in the system's temporary folder and left there when the read
+    failed) in a folder of its own, removed with the reader."""
 
     def __init__(self, file: Path) -> None:
+        from asammdf.blocks.options import GLOBAL_OPTIONS
+
+        self._scratch = tempfile.TemporaryDirectory(prefix="autosar-mf4-")
+        previous = GLOBAL_OPTIONS["temporary_folder"]
+        GLOBAL_OPTIONS["temporary_folder"] = self._scratch.name  # read once, as the MDF object is made
         try:
             super().__init__(file)
         except BaseException as exc:
@@ -141,7 +148,16 @@ class _MF4Reader(can.MF4Reader):
             if opened is not None:
                 opened.close()
             _release_half_built(exc)
+            self._scratch.cleanup()
             raise
+        finally:
+            GLOBAL_OPTIONS["temporary_folder"] = previous
+
+    def stop(self) -> None:
+        try:
+            super().stop()
+        finally:
+            self._scratch.cleanup()
 
 
 def _release_half_built(exc: BaseException) -> None:
