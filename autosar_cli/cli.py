@@ -6,6 +6,7 @@ import errno
 import gc
 import inspect
 import os
+import re
 import signal
 import sys
 import threading
@@ -226,13 +227,18 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
 
 
 def _not_writable(exc: BaseException, output: Path) -> bool:
-    """Whether ``exc`` is the file system refusing the command's ``output`` (or its partial file, its folder): a
-    read-only or locked folder, no permission; h5py's and the OS's own words name a partial file or none."""
+    """Whether ``exc`` is the file system refusing the command's ``output``: the output itself, a folder on its way,
+    or a partial file of it (``<stem>...partial...`` beside it, or inside it where it is a directory), named by the
+    OS's error or by h5py's words ("name = '...'"); a read-only or locked folder, no permission."""
     if not isinstance(exc, OSError) or exc.errno not in (errno.EPERM, errno.EACCES, errno.EROFS, errno.ENOENT):
         return False
-    named = str(exc.filename or "") or str(exc)
-    stem = str(output.with_suffix("")) if output.suffix else str(output)
-    return stem in named and (exc.errno != errno.ENOENT or ".partial" in named)
+    named = exc.filename or (m.group(1) if (m := re.search(r"name = '([^']*)'", str(exc))) else None)
+    if not named:
+        return False
+    path, out = Path(os.path.abspath(named)), Path(os.path.abspath(output))
+    partial = ".partial" in path.name and (
+        (path.parent == out.parent and path.name.startswith(out.with_suffix("").name + ".")) or out in path.parents)
+    return partial or (exc.errno != errno.ENOENT and (path == out or path in out.parents))
 
 
 def _signal_of(exc: KeyboardInterrupt) -> int:

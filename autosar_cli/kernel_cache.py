@@ -115,10 +115,15 @@ def compile_in_child(dispatcher: Any, args: tuple[Any, ...]) -> bool:
         pickled = pickle.dumps(signature).hex()
     except Exception:  # noqa: BLE001 - numba's internals: the call compiles as usual
         return False
+    if not sys.executable or getattr(sys, "frozen", False):  # an embedded or frozen interpreter: no Python to run
+        return False
     env = dict(os.environ)
     if "NUMBA_CPU_FEATURES" not in env:  # this process's numba uses the CPU's defaults: the child must too
         env["AUTOSAR_NO_AVX512"] = "1"
     package_parent = str(Path(__file__).resolve().parent.parent)
-    child = subprocess.run([sys.executable, "-c", _COMPILE, package_parent, dispatcher.py_func.__module__,
-                            dispatcher.py_func.__name__, pickled], env=env, capture_output=True, cwd=package_parent)
+    try:  # in this process's folder: a relative NUMBA_CACHE_DIR or PYTHONPATH means the same there
+        child = subprocess.run([sys.executable, "-c", _COMPILE, package_parent, dispatcher.py_func.__module__,
+                                dispatcher.py_func.__name__, pickled], env=env, capture_output=True)
+    except OSError:  # no process to start (out of processes, no executable): the call compiles here
+        return False
     return child.returncode == 0

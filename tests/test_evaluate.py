@@ -804,11 +804,13 @@ def test_compare_cli_on_ci(ci_mcap, tmp_path: Path) -> None:
             f"{out / 'ins'}") in r.stderr and str(out / "none") in r.stderr, r.stderr
     assert not (tmp_path / "evaluated").exists()
     # info --verify of the comparison checks its methods' runs too (it checked its own files alone)
-    r = runner.invoke(app, ["info", str(out), "--verify"])
-    assert r.exit_code == 0 and f"{out / 'ins' / 'image.h5'}: " in r.stdout.replace("\n", ""), r.output
+    r = runner.invoke(app, ["info", str(out), "--verify", "--json"])
+    checked = {f["path"]: f for f in json.loads(r.stdout)["files"]}
+    assert r.exit_code == 0 and checked[str(out / "ins" / "image.h5")]["intact"], r.output
     (out / "ins" / "image.tif").unlink()
-    r = runner.invoke(app, ["info", str(out), "--verify"])
-    assert r.exit_code == 1 and f"{out / 'ins' / 'image.tif'}: listed in run.json but missing" in r.output, r.output
+    r = runner.invoke(app, ["info", str(out), "--verify", "--json"])
+    errors = [f.get("error", "") for f in json.loads(r.stdout)["files"]]
+    assert r.exit_code == 1 and f"{out / 'ins' / 'image.tif'}: listed in run.json but missing" in errors, r.output
 
 
 def _check_scaled_sarmin(result: dict[str, Any], out: Path, method: str) -> Trajectory:
@@ -872,7 +874,8 @@ def test_a_comparison_that_fails_leaves_nothing_it_wrote(ci_mcap, tmp_path: Path
                                                        monkeypatch: pytest.MonkeyPatch) -> None:
     """A truth sidecar that does not exist was found only after the ingest, and a comparison failing after its
     ingest left its 18 MB drive.h5, which the next try refused without --overwrite. A missing sidecar is now refused
-    before any work; a failure later removes what the comparison wrote, not what was there before."""
+    before any work; a failure later removes what the comparison wrote, not what was there before nor what another
+    process wrote beside it meanwhile."""
     import autosar_cli.evaluate.compare as compare_module
 
     out = tmp_path / "cmp"
@@ -882,6 +885,7 @@ def test_a_comparison_that_fails_leaves_nothing_it_wrote(ci_mcap, tmp_path: Path
     assert not out.exists()
 
     def broken(*args, **kwargs):  # type: ignore[no-untyped-def]
+        (out / "other.txt").write_text("another process's, written while the comparison ran")
         raise RuntimeError("navigation broke")
 
     monkeypatch.setattr(compare_module, "navigate", broken)
@@ -889,4 +893,4 @@ def test_a_comparison_that_fails_leaves_nothing_it_wrote(ci_mcap, tmp_path: Path
     (out / "notes.txt").write_text("the user's")
     r = runner.invoke(app, ["compare", str(ci_mcap.log_path), "-o", str(out), "--methods", "none"])
     assert r.exit_code == 1 and "navigation broke" in r.stderr, r.output
-    assert [p.name for p in out.iterdir()] == ["notes.txt"]
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "other.txt"]

@@ -233,8 +233,9 @@ def test_bad_input_is_counted_not_raised() -> None:
     for s in inputs:
         assert dec.feed(s) == []
     assert dec.flush() == []
-    assert dec.skipped == Counter({"bad checksum": 1, "no checksum": 1, "unparseable": 7, "unsupported GSV": 1,
-                                   "unsupported PUBX": 1, "no fix": 6})
+    # malformed: the checksum holds but the fields do not parse (quality, latitude); unparseable: no sentence
+    assert dec.skipped == Counter({"bad checksum": 1, "no checksum": 1, "malformed": 4, "unparseable": 3,
+                                   "unsupported GSV": 1, "unsupported PUBX": 1, "no fix": 6})
 
     # Valid VTG/HDT in a text log before any GGA/RMC: nothing gives them a time.
     dec = NmeaDecoder()
@@ -401,8 +402,9 @@ def test_info_of_a_text_file_without_nmea_says_so() -> None:
 
 def test_a_capture_whose_every_checksum_fails_is_called_damaged_not_empty(tmp_path: Path) -> None:
     """gpsd's capture with every sentence's checksum off by one bit: `info` and `ingest` said "no NMEA 0183
-    sentence in this file", as of a file that holds none; they now say that all its sentences fail their checksum,
-    how many, and where the first is."""
+    sentence in this file", as of a file that holds none; they now say that none of its sentences could be read,
+    how many failed how, and where the first is (a sentence whose checksum holds but whose fields do not parse:
+    malformed)."""
     from typer.testing import CliRunner
 
     from autosar_cli.cli import app
@@ -416,5 +418,11 @@ def test_a_capture_whose_every_checksum_fails_is_called_damaged_not_empty(tmp_pa
     for args in (["info", str(capture)], ["ingest", "--nmea", str(capture), "-o", str(tmp_path / "d.h5")]):
         r = CliRunner().invoke(app, args)
         assert r.exit_code == 1 and r.stderr.count("\n") == 1, r.output
-        assert (f"{capture}: none of its {n_sentences} NMEA 0183 sentences passes its checksum "
+        assert (f"{capture}: none of its {n_sentences} NMEA 0183 sentences could be read "
                 f"({n_sentences} bad checksum; the first damaged line at byte {first})") in r.stderr, r.stderr
+    # sentences whose checksums hold but which are no sentence of NMEA 0183 count as sentences too
+    malformed = tmp_path / "malformed.nmea"
+    malformed.write_text("\n".join(sentence("GP!!!,123519") for _ in range(10)) + "\n")
+    r = CliRunner().invoke(app, ["info", str(malformed)])
+    assert r.exit_code == 1 and (f"{malformed}: none of its 10 NMEA 0183 sentences could be read (10 malformed; "
+                                 "the first damaged line at byte 0)") in r.stderr, r.stderr

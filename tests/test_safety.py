@@ -992,3 +992,11 @@ def test_an_output_folder_that_refuses_writing_is_named(tmp_path: Path, monkeypa
     monkeypatch.setattr(report_module, "output_directory", locked)
     r = runner.invoke(app, ["evaluate", str(ci_run), "-o", str(tmp_path / "locked" / "e")])
     _one_line_error(r, f"error: {tmp_path / 'locked' / 'e'}: cannot be written there (Operation not permitted)")
+    # an input that cannot be read is not the output, though its folder is named as the output is (drive1/ drive1.h5)
+    from autosar_cli.cli import _not_writable
+
+    unreadable = PermissionError(errno.EACCES, "Permission denied", str(tmp_path / "drive1" / "ci.mcap"))
+    assert not _not_writable(unreadable, tmp_path / "drive1.h5")
+    assert not _not_writable(unreadable, Path("."))
+    assert _not_writable(PermissionError(errno.EACCES, "Permission denied", str(tmp_path / "drive1.partial-7.h5")),
+                         tmp_path / "drive1.h5")

@@ -88,6 +88,8 @@ COMPARE_METHODS = (*NAV_METHODS, *DERIVED)
 NEEDS_TRUTH = ("truth", SARMIN_SCALED)
 DRIVE = "drive.h5"
 #: what each method's directory holds (as ``autosar run`` writes it, and its evaluation)
+#: a comparison's own files beside its drive.h5 and method directories
+OWN_PRODUCTS = ("compare.png", "across_track.png", "compare_chips.png", "compare.md", "compare.json")
 METHOD_PRODUCTS = ("trajectory.h5", "image.tif", "image.h5", "image.png", "run.json", *REPORT_PRODUCTS)
 
 Progress = Callable[[str, int, int], None]
@@ -137,14 +139,15 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
     read = [*given, *([truth_path] if truth_path else []), *config.files, *ingest_options.files()]
     methods = parse_methods(methods)
     check_output(out, read, overwrite=overwrite, directory=True)
-    check_products(out, [DRIVE, "compare.png", "across_track.png", "compare_chips.png", "compare.md", "compare.json"],
-                   read, overwrite=overwrite, manifest="compare.json")
+    check_products(out, [DRIVE, *OWN_PRODUCTS], read, overwrite=overwrite, manifest="compare.json")
     for m in methods:  # each method's directory: a run's products and its evaluation's (its own metrics.json)
         check_products(out / m, METHOD_PRODUCTS, read, overwrite=overwrite, manifest=METRICS)
     check_free_space(out / DRIVE, input_bytes(given), "the drive")
     if truth_path is not None and not Path(truth_path).is_file():
         raise CompareError(f"{truth_path}: no such truth sidecar")
-    with output_directory(out, whole=True):  # a comparison that fails leaves nothing it wrote
+    products = [out / name for name in (DRIVE, *OWN_PRODUCTS)] + [out / m / name for m in methods
+                                                                   for name in METHOD_PRODUCTS]
+    with output_directory(out, products):  # a comparison that fails leaves nothing it wrote
         return _compare(logs, out, config, methods, truth_path, options or FocusOptions.from_config(config),
                         progress, command, ingest_options, can_logs, nmea_logs, given)
 

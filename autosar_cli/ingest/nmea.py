@@ -23,7 +23,8 @@ Fields
       satellite count -> -1.
 
 Skipped input is counted in ``NmeaDecoder.skipped`` (reason -> count), never raised: "bad checksum",
-"no checksum", "unparseable", "unsupported <TYPE>" (e.g. "unsupported GSV", "unsupported PUBX"), "no fix"
+"no checksum", "malformed" (its checksum holds, its fields do not parse), "unparseable" (no sentence at all),
+"unsupported <TYPE>" (e.g. "unsupported GSV", "unsupported PUBX"), "no fix"
 (GGA quality 0 or empty position, RMC status V, VTG mode N or no speed, HDT/ZDA empty), "no time",
 "no date".
 """
@@ -105,19 +106,19 @@ def parse_dmm(raw: str, hemisphere: str, is_lat: bool) -> float | None:
     if not raw:
         return None
     if hemisphere not in (("N", "S") if is_lat else ("E", "W")):
-        raise _Skip("unparseable")
+        raise _Skip("malformed")
     dp = raw.find(".")
     if dp < 0:
         dp = len(raw)
     if dp < 3 or not raw[: dp - 2].isdigit():
-        raise _Skip("unparseable")
+        raise _Skip("malformed")
     try:
         minutes = float(raw[dp - 2 :])
     except ValueError:
-        raise _Skip("unparseable") from None
+        raise _Skip("malformed") from None
     deg = int(raw[: dp - 2])
     if not 0.0 <= minutes < 60.0 or deg > (90 if is_lat else 180):
-        raise _Skip("unparseable")
+        raise _Skip("malformed")
     value = deg + minutes / 60.0
     return -value if hemisphere in ("S", "W") else value
 
@@ -208,15 +209,15 @@ class NmeaDecoder:
         if checksum.strip().upper() != calc_checksum(content):
             raise _Skip("bad checksum")
         if not _HEADER.fullmatch(talker + msgid):
-            raise _Skip("unparseable")
+            raise _Skip("malformed")
         if talker == "P" or msgid not in SUPPORTED:
             raise _Skip(f"unsupported {'P' + msgid if talker == 'P' else msgid}")
         try:
             msg = NMEAReader.parse(text, msgmode=GET, validate=VALCKSUM)
         except (NMEAMessageError, NMEAParseError, NMEATypeError, ValueError):
-            raise _Skip("unparseable") from None
+            raise _Skip("malformed") from None
         if msg is None:
-            raise _Skip("unparseable")
+            raise _Skip("malformed")
         return msgid, msg
 
     @staticmethod
@@ -346,7 +347,7 @@ class NmeaDecoder:
         try:
             d = date(*ymd)
         except ValueError:
-            raise _Skip("unparseable") from None
+            raise _Skip("malformed") from None
         self._learn_date(date_ns(d) + tod, out)
 
 
@@ -404,7 +405,7 @@ class NmeaLogReader:
         yield from decoder.flush()
 
 
-_DAMAGE = ("bad checksum", "no checksum", "unparseable")
+_DAMAGE = ("bad checksum", "no checksum", "malformed", "unparseable")
 
 
 def nothing_read(reader: NmeaLogReader) -> str | None:
@@ -413,11 +414,11 @@ def nothing_read(reader: NmeaLogReader) -> str | None:
     dec = reader.decoder
     if dec.sentences or any(k.startswith("unsupported") for k in dec.skipped):
         return None
-    failed = dec.skipped["bad checksum"] + dec.skipped["no checksum"]
-    if not failed:
+    sentences = dec.skipped["bad checksum"] + dec.skipped["no checksum"] + dec.skipped["malformed"]
+    if not sentences:
         return "no NMEA 0183 sentence in this file"
     counts = ", ".join(f"{dec.skipped[r]} {r}" for r in _DAMAGE if dec.skipped[r])
-    return (f"none of its {failed} NMEA 0183 sentences passes its checksum ({counts}; the first damaged line at byte "
+    return (f"none of its {sentences} NMEA 0183 sentences could be read ({counts}; the first damaged line at byte "
             f"{reader.first_damage_byte}): damaged throughout")
 
 

@@ -120,20 +120,24 @@ def make_directories(path: Path) -> Callable[[], None]:
 
 
 @contextlib.contextmanager
-def output_directory(path: Path, *, whole: bool = False) -> Iterator[None]:
+def output_directory(path: Path, products: Iterable[Path] = ()) -> Iterator[None]:
     """Make the directory ``path`` (and its parents) for a command's products, and remove again those this made
     where the block fails and nothing has been written in them (a failed ingest, which writes atomically).
-    ``whole``: the products make one whole (a comparison, a report), so where the block fails every file and
-    directory it added under ``path`` is removed too (what was there before, replaced or not, stays)."""
-    before = set(path.rglob("*")) if whole and path.is_dir() else set()
+    ``products``: files that make one whole with the others (a comparison's, a report's), removed where the block
+    fails if they were not there before it (what was, replaced or not, stays; nothing else is touched), and the
+    folders among them the block made, left empty."""
+    new = [p for p in products if not (p.exists() or p.is_symlink())]
+    folders = sorted({p.parent for p in new if not p.parent.exists()}, key=lambda p: len(p.parts), reverse=True)
     undo = make_directories(path)
     try:
         yield
     except BaseException:
-        if whole:
-            for added in sorted(set(path.rglob("*")) - before, key=lambda p: len(p.parts), reverse=True):
-                with contextlib.suppress(OSError):
-                    added.rmdir() if added.is_dir() and not added.is_symlink() else added.unlink()
+        for product in new:
+            with contextlib.suppress(OSError):
+                product.unlink(missing_ok=True)
+        for folder in folders:
+            with contextlib.suppress(OSError):  # not empty: what is in it stays
+                folder.rmdir()
         undo()
         raise
 
