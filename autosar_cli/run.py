@@ -87,8 +87,8 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     ``--can-log``, ``--nmea`` and ``--radar``), not told by their content (one that is not what it is given as is
     refused; a capture may be named by its parameter file). ``ingest_options``
     (:class:`autosar_cli.ingest.pipeline.IngestOptions`) reads them all: the DBC, the capture's start, time offsets.
-    ``replace_unfinished``: autosar's products in ``out_dir`` where it holds no run.json are replaced as with
-    ``overwrite`` (a batch's retry of a drive finds its first attempt's).
+    ``replace_unfinished``: autosar's products in ``out_dir`` where its run.json is missing or says the run did not
+    finish are replaced as with ``overwrite`` (a batch's retry of a drive finds its first attempt's).
     """
     out = Path(out_dir)
     manifest_path = out / "run.json"
