@@ -92,7 +92,7 @@ def main() -> None:
                     f["run_cached_s"].append(run_seconds(source, cache / "run", work))
                 print(name, {k: [round(x, 1) for x in v] for k, v in f.items()}, flush=True)
     # one row per source: the medians, then the runs
-    table = {f"{name} ({revision(source)})": {k: round(statistics.median(v), 2) for k, v in f.items() if v}
+    table = {f"{name} ({revision(sources[name])})": {k: round(statistics.median(v), 2) for k, v in f.items() if v}
              | {k.removesuffix("_s") + "_runs": [round(x, 1) for x in v] for k, v in f.items() if v}
              for name, f in figures.items()}
     result: dict[str, object] = {"benchmark": "compile", "cpus": os.cpu_count(), "repeat": args.repeat,
