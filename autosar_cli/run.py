@@ -104,7 +104,11 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     check_output(out, inputs, overwrite=overwrite, directory=True)
     check_products(out, [DRIVE, TRAJECTORY, "run.json", f"{IMAGE}.tif", f"{IMAGE}.h5", f"{IMAGE}.png"], inputs,
                    overwrite=overwrite or (replace_unfinished and unfinished))
-    check_free_space(out / DRIVE, input_bytes(given), "the drive")
+    from autosar_cli.ingest.pipeline import capture_files
+
+    # a capture named by its parameter file is its data files too
+    read_files = {str(p): [Path(p)] for p in given} | {str(p): capture_files(Path(p)) for p in radar_captures}
+    check_free_space(out / DRIVE, input_bytes(f for files in read_files.values() for f in files), "the drive")
     if options is None:  # the config's automatic grid (focus's own modules are imported beside the ingest)
         try:
             check_image_size(config.processing.pixel_m, max_range_m=config.radar.max_range_m)
@@ -114,7 +118,8 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         from autosar_cli.sar.focus import check_request
 
         check_request(options, out / IMAGE, True, inputs, config)
-    inputs = [{"path": os.path.abspath(p), "size_bytes": input_bytes([p])} for p in given]  # found from anywhere
+    inputs = [{"path": os.path.abspath(p), "size_bytes": input_bytes(read_files[str(p)])}  # found from anywhere
+              for p in given]
     manifest: dict[str, Any] = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
         "python": platform.python_version(), "command": command, "config": config.source, "inputs": inputs,

@@ -6,6 +6,7 @@ compression."""
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import shutil
 from pathlib import Path
@@ -486,6 +487,14 @@ def test_run_reads_its_capture_as_ingest_does(simulated_capture: tuple[Path, Pat
     assert r.exit_code == 0, r.output
     with h5py.File(tmp_path / "run" / "image.h5") as a, h5py.File(whole / "image.h5") as b:
         np.testing.assert_array_equal(a["image"][()], b["image"][()])
+    # what it read is the capture: its size and digest (run.json, the drive's provenance) cover the data, not only
+    # the 2 kB parameter file (which they did)
+    read = (capture / "capture.mmwave.json").stat().st_size + (capture / "adc_data.bin").stat().st_size
+    assert json.loads((tmp_path / "run" / "run.json").read_text())["inputs"][1]["size_bytes"] == read
+    with Drive(tmp_path / "run" / "drive.h5") as d:
+        radar_input = next(i for i in d.report()["inputs"] if i["kind"] == "radar")
+    assert radar_input["size_bytes"] == read
+    assert radar_input["sha256"] != hashlib.sha256((capture / "capture.mmwave.json").read_bytes()).hexdigest()
     bare = tmp_path / "bare"
     bare.mkdir()
     shutil.copy(capture / "adc_data.bin", bare / "adc_data.bin")

@@ -32,7 +32,7 @@ from autosar_cli.store.drive import DriveWriter, chirp_on_navigation_clock
 from autosar_cli.store.outputs import input_bytes
 
 from . import fastcdr
-from .dca1000 import Dca1000Capture
+from .dca1000 import CaptureError, Dca1000Capture, find_capture
 from .decoders import (
     FIX_COLUMNS,
     IMU_COLUMNS,
@@ -151,19 +151,34 @@ def _sanitise(topic: str) -> str:
     return re.sub(r"\W+", "_", topic.strip("/")) or "root"
 
 
-def _sha256(path: Path) -> tuple[int, str]:
-    """(size in bytes, sha256 hex) of a file; of a directory: sha256 over its files' names and digests."""
-    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+def capture_files(path: Path) -> list[Path]:
+    """The files a DCA1000 capture given as ``path`` reads: its parameter file and data files, where ``path`` names
+    one of them (a capture's folder holds them all; ``[path]`` where none is found, as ingest then refuses it)."""
+    if path.is_dir():
+        return [path]
+    try:
+        data, params = find_capture(path)
+    except CaptureError:
+        return [path]
+    return [params, *data]
+
+
+def _sha256(path: Path, files: Sequence[Path] | None = None) -> tuple[int, str]:
+    """(size in bytes, sha256 hex) of a file; of a directory, or of ``files`` (a capture named by one of its files):
+    sha256 over the files' names (relative to the directory, or to ``path``'s folder) and digests."""
+    folder = path if path.is_dir() else path.parent
+    if files is None:
+        files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
     digests = []
     for p in files:
         with open(p, "rb") as f:
             digests.append(hashlib.file_digest(f, "sha256"))
     size = sum(p.stat().st_size for p in files)
-    if not path.is_dir():
+    if not path.is_dir() and list(files) == [path]:
         return size, digests[0].hexdigest()
     h = hashlib.sha256()
     for p, d in zip(files, digests, strict=True):
-        h.update(str(p.relative_to(path)).encode() + d.digest())
+        h.update(str(p.relative_to(folder)).encode() + d.digest())
     return size, h.hexdigest()
 
 
@@ -715,7 +730,9 @@ def ingest_sorted(given: SortedInputs, output: Path, *, config: Config, dbc: Pat
     total = sum(_input_bytes(path, s) for path, _, s in sources)
     report = IngestReport(str(output))
     hasher = ThreadPoolExecutor(1, thread_name_prefix="sha256")
-    hashes: list[Future[tuple[int, str]]] = [hasher.submit(_sha256, p) for p, _, _ in sources]
+    hashes: list[Future[tuple[int, str]]] = [
+        hasher.submit(_sha256, p, capture_files(p) if kind == "radar" and p.is_file() else None)
+        for p, kind, _ in sources]
     attrs = {"autosar_version": __version__, "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
              "config_path": config.source, "config_toml": _config_text(config)}
     done = 0
