@@ -92,9 +92,10 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     """
     out = Path(out_dir)
     manifest_path = out / "run.json"
-    unfinished = not manifest_path.exists() or _status(manifest_path) in UNFINISHED
+    status = _status(manifest_path) if manifest_path.exists() else None  # run.json read once
+    unfinished = not manifest_path.exists() or status in UNFINISHED
     if manifest_path.exists() and not overwrite and not (replace_unfinished and unfinished):
-        said = f"run.json: {_status(manifest_path)}" if unfinished else "run.json"
+        said = f"run.json: {status}" if unfinished else "run.json"
         raise RunError(f"{out}: already holds a run ({said}); pass --overwrite to replace it")
     # every check that needs no data before the ingest starts: outputs (never an input, only autosar's replaced)
     # and the image's size
