@@ -22,18 +22,23 @@ def _quiet_interrupt_while_starting() -> None:
     import os
     import sys
 
-    if os.path.basename(sys.argv[0]) in ("autosar", "autosar.exe"):
+    if os.path.basename(sys.argv[0]) in ("autosar", "autosar.exe") or sys.argv[0].endswith(
+            os.path.join("autosar_cli", "cli.py")):  # a process `python -m autosar_cli.cli` spawns runs it by path
         install_interrupt_handlers()
 
 
 def install_interrupt_handlers() -> None:
     """:func:`exit_interrupted` for SIGINT and SIGTERM where Python's defaults are in place, as the command's (the
-    console script at its import, ``python -m autosar_cli.cli`` before it runs), not in a process it spawns."""
+    console script at its import, ``python -m autosar_cli.cli`` before it runs). A process the command spawns
+    (batch's Dask workers) ignores SIGINT: a terminal's Ctrl-C reaches the whole process group, and the command
+    stops its workers itself (each printed a traceback of whatever it was importing)."""
     import signal
     import sys
 
-    mp = sys.modules.get("multiprocessing")  # a process it spawns (batch's Dask workers) keeps Python's handlers:
+    mp = sys.modules.get("multiprocessing")
     if mp is not None and mp.current_process().name != "MainProcess":  # named before the script is run in it
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
         return
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         signal.signal(signal.SIGINT, exit_interrupted)

@@ -22,6 +22,7 @@ them for all its drives.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import platform
@@ -39,7 +40,8 @@ from autosar_cli.ingest.canlog import CanLogError
 from autosar_cli.ingest.inputs import drive_folder
 from autosar_cli.ingest.pipeline import IngestError, IngestOptions
 from autosar_cli.ingest.sources import LogReadError
-from autosar_cli.run import run, run_warnings
+from autosar_cli.interrupts import interrupts_held
+from autosar_cli.run import mark_interrupted, run, run_warnings
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.manifest import product_status, read_json_manifest, strict_json
@@ -142,16 +144,21 @@ def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, m
                       warnings=[str(w) for w in getattr(exc, "warnings", [])], wall_s=time.perf_counter() - t0)
         report("failed", 1, 1)
         return record
-    st = manifest["stages"]
-    warnings = run_warnings(manifest)
-    record.update(status=product_status(warnings), error=None, warnings=warnings,
-                  wall_s=time.perf_counter() - t0, drive_s=manifest.get("drive_s"),
-                  stages_s={k: v["wall_s"] for k, v in st.items()}, grid_shape=st["focus"]["grid_shape"],
-                  frames_used=st["focus"]["frames_used"], backprojections=st["focus"]["backprojections"],
-                  outputs={"run": "run.json", **{k: v for k, v in manifest["outputs"].items() if k != "image"},
-                           **{f"image_{k}": v for k, v in manifest["outputs"].get("image", {}).items()}})
+    record.update(_finished_run(manifest), wall_s=time.perf_counter() - t0)
     report("done", 1, 1)
     return record
+
+
+def _finished_run(manifest: dict[str, Any]) -> dict[str, Any]:
+    """What a drive's record says of its finished run, from its run.json."""
+    st = manifest["stages"]
+    warnings = run_warnings(manifest)
+    return {"status": product_status(warnings), "error": None, "warnings": warnings,
+            "drive_s": manifest.get("drive_s"), "stages_s": {k: v["wall_s"] for k, v in st.items()},
+            "grid_shape": st["focus"]["grid_shape"], "frames_used": st["focus"]["frames_used"],
+            "backprojections": st["focus"]["backprojections"],
+            "outputs": {"run": "run.json", **{k: v for k, v in manifest["outputs"].items() if k != "image"},
+                        **{f"image_{k}": v for k, v in manifest["outputs"].get("image", {}).items()}}}
 
 
 #: Imported on every worker before the first drive (the chain imports some of them on first use).
@@ -196,7 +203,8 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
               can_logs: Sequence[str | Path] | None = None, nmea_logs: Sequence[str | Path] | None = None,
               radar_starts: Sequence[int] | None = None, ingest_options: IngestOptions | None = None,
               progress: Callable[[dict[str, Any]], None] | None = None,
-              on_cluster: Callable[[dict[str, Any]], None] | None = None, command: str = "") -> dict[str, Any]:
+              on_cluster: Callable[[dict[str, Any]], None] | None = None, command: str = "",
+              resume: bool = False) -> dict[str, Any]:
     """Run every log as its own drive into ``out_dir/<name>/`` on a Dask cluster; returns batch.json's content.
 
     ``scheduler``: address of an existing scheduler (``tcp://host:8786``); else a LocalCluster of
@@ -209,7 +217,13 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
     (same order), read with it as one drive; ``radar_starts``: each drive's capture's first frame (ns since the
     epoch, same order), where its logs hold no sync topic. ``ingest_options``: how each drive is read
     (:class:`autosar_cli.ingest.pipeline.IngestOptions`: the DBC, the captures' start, damaged chunks, time gaps;
-    a time offset goes to the drive that holds its log).
+    a time offset goes to the drive that holds its log). ``resume``: ``out_dir`` holds a batch; its drives that
+    finished (``ok``, ``degraded``) with the same inputs are kept as they are, the others run.
+
+    Ctrl-C (a KeyboardInterrupt in this thread) stops the batch: the local cluster's workers with it, their runs
+    marked ``interrupted`` (:func:`autosar_cli.run.mark_interrupted`); batch.json is written with ``status``
+    ``interrupted`` and a record for every drive (``interrupted`` where it did not finish, ``attempts`` 0 where it
+    never started), and the KeyboardInterrupt raised again, carrying that document as ``batch_manifest``.
     """
     if not logs:
         raise BatchError("no drive logs given")
@@ -219,6 +233,8 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
         raise BatchError(f"--workers {workers}: must be at least 1")
     if scheduler and workers:
         raise BatchError("give either --scheduler (an existing cluster) or --workers (a local one), not both")
+    if resume and overwrite:
+        raise BatchError("give either --resume (keep the drives the batch finished) or --overwrite, not both")
     #: each drive's inputs beside its log by kind (radar, can, nmea), as the workers find them
     companions: list[dict[str, list[str]]] = [{"radar": [], "can": [], "nmea": []} for _ in logs]
     for kind, option, what, given in (("radar", "--radar", "capture", radars),
@@ -244,33 +260,51 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
         raise BatchError(f"--time-offset {unknown[0]}: not one of the drives' --can-log or --nmea logs, nor a CAN "
                          "or NMEA log of a drive folder")
     out = Path(out_dir).resolve()
-    if (out / MANIFEST).exists() and not overwrite:
-        raise BatchError(f"{out}: already holds a batch ({MANIFEST}); pass --overwrite to replace it")
+    if resume and not (out / MANIFEST).exists():
+        raise BatchError(f"{out}: holds no batch ({MANIFEST}) to resume")
+    if (out / MANIFEST).exists() and not overwrite and not resume:
+        raise BatchError(f"{out}: already holds a batch ({_batch_said(out)}); pass --resume to run the drives it "
+                         "did not finish, or --overwrite to replace it")
     read = [*logs, *(p for inputs in companions for kind in inputs.values() for p in kind), *config.files,
             *ingest_options.files()]
     check_output(out, read, overwrite=overwrite, directory=True)  # never an input, nor a file (its drives' folders)
+    made = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     options = options or FocusOptions.from_config(config)
     names = drive_names(logs)
     paths = [str(Path(p).resolve()) for p in logs]
+    #: what each drive's record lists as its inputs: its log, then those given with it (as run_drive lists them)
+    drive_inputs = [[log, *inputs["can"], *inputs["nmea"], *inputs["radar"]] for log, inputs in zip(paths, companions,
+                                                                                                    strict=True)]
+    records = _finished_drives(out, names, drive_inputs) if resume else {}
+    kept = list(records)
 
     from distributed import Client, LocalCluster, as_completed
 
     cores = os.cpu_count() or 1
     t_start = time.perf_counter()
-    started = datetime.now(UTC).isoformat(timespec="seconds")
-    cluster = None
-    if scheduler:
-        client = Client(scheduler, timeout="30s")
-        kind = "external"
-    else:
-        n = workers or max(1, min(len(logs), cores))
-        threads = numba_threads or max(1, cores // n)
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                               silence_logs=logging.ERROR, env={"NUMBA_NUM_THREADS": str(threads)})
-        client = Client(cluster)
-        kind = "local"
+    started_at = datetime.now(UTC)
+    started = started_at.isoformat(timespec="seconds")
+    cluster = client = None
+    manifest_args: dict[str, Any] = {"command": command, "config": config.source, "method": method,
+                                     "autofocus": autofocus, "options": options, "started": started,
+                                     "cluster": None, "retries": retries}
+    starts: dict[str, int] = {}
+    t_submit = time.perf_counter()
+    stopped: KeyboardInterrupt | None = None
+    finished = False
     try:
+        if scheduler:
+            client = Client(scheduler, timeout="30s")
+            kind = "external"
+        else:
+            n = workers or max(1, min(len(logs) - len(kept), cores))
+            threads = numba_threads or max(1, cores // n)
+            with interrupts_held():  # a cluster stopped half-started cannot be closed (and says so at exit)
+                cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                       silence_logs=logging.ERROR, env={"NUMBA_NUM_THREADS": str(threads)})
+            client = Client(cluster)
+            kind = "local"
         if kind == "external" and not client.scheduler_info().get("workers"):
             try:
                 client.wait_for_workers(1, timeout=60)
@@ -291,10 +325,10 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
                         "numba_threads_per_task": numba_threads, "cores_here": cores,
                         "numba_threads_max": {str(k): v["numba_threads"] for k, v in warm.items()},
                         "start_s": round(time.perf_counter() - t_start, 3)}
+        manifest_args["cluster"] = cluster_info
         if on_cluster is not None:
             on_cluster(cluster_info)
         topic = f"autosar-batch-{uuid.uuid4().hex[:12]}"
-        starts: dict[str, int] = {}
 
         def on_event(event: tuple[float, dict[str, Any]]) -> None:
             msg = event[1]
@@ -304,9 +338,14 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
                 progress(msg)
 
         client.subscribe_topic(topic, on_event)
+        for name in records:  # kept from the batch before
+            if progress is not None:
+                progress({"drive": name, "stage": "finished", "record": records[name]})
         t_submit = time.perf_counter()
         futures = {}
         for name, log, inputs, own, start_ns in zip(names, paths, companions, shiftable, starts_ns, strict=True):
+            if name in records:
+                continue
             drive_options = replace(ingest_options, time_offsets={Path(p): offsets[p] for p in own if p in offsets})
             if start_ns is not None:
                 drive_options = replace(drive_options, radar=replace(drive_options.radar, start_ns=start_ns))
@@ -316,15 +355,14 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
                                 progress_topic=topic, command=command, can_logs=inputs["can"],
                                 nmea_logs=inputs["nmea"], radar_captures=inputs["radar"], retries=retries, pure=False,
                                 key=f"autosar-run-{name}-{topic[-12:]}")
-            futures[fut] = (name, log)
-        records: dict[str, dict[str, Any]] = {}
+            futures[fut] = (name, drive_inputs[names.index(name)])
         for fut in as_completed(futures):
-            name, log = futures[fut]
+            name, inputs = futures[fut]
             try:
                 rec = fut.result()
                 rec["attempts"] = max(1, starts.get(name, 0))
             except Exception as exc:  # noqa: BLE001 - a drive that failed after its retries
-                rec = {"name": name, "logs": [log], "output": str(out / name), "status": "failed",
+                rec = {"name": name, "logs": inputs, "output": str(out / name), "status": "failed",
                        "error": _message(exc), "error_type": type(exc).__name__,
                        "attempts": max(retries + 1, starts.get(name, 0))}
             rec["output"] = os.path.relpath(rec["output"], out)
@@ -332,27 +370,127 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
             fut.release()
             if progress is not None:
                 progress({"drive": name, "stage": "finished", "record": rec})
-        wall = time.perf_counter() - t_submit
         client.unsubscribe_topic(topic)
+        finished = True
+    except KeyboardInterrupt as exc:
+        stopped = exc
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
-    ordered = [records[n] for n in names]
-    n_ok = sum(r["status"] == "ok" for r in ordered)
-    n_degraded = sum(r["status"] == "degraded" for r in ordered)
-    manifest = {
-        "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
-        "python": platform.python_version(), "command": command, "config": config.source, "method": method,
-        "autofocus": autofocus, "focus_options": asdict(options), "started": started, "cluster": cluster_info,
-        "retries": retries, "drives": ordered, "ok": n_ok, "degraded": n_degraded,
-        "failed": len(ordered) - n_ok - n_degraded, "wall_s": wall,
-        "total_wall_s": time.perf_counter() - t_start,
-        "drives_per_minute": 60.0 * (n_ok + n_degraded) / wall if wall > 0 else None,
-    }
+        try:
+            with interrupts_held():  # a Ctrl-C (another) while the workers stop is raised once they have
+                if client is not None:
+                    client.close()
+                if cluster is not None:
+                    cluster.close()
+        except KeyboardInterrupt as exc:  # every drive may have finished: what they made is recorded all the same
+            stopped = stopped or exc
+        if made and not finished and not starts and not kept:  # stopped before any drive: nothing left
+            with contextlib.suppress(OSError):
+                out.rmdir()
+    wall = time.perf_counter() - t_submit
+    if stopped is not None:
+        with interrupts_held():  # the record of what finished is written whole
+            stopped.batch_manifest = None  # type: ignore[attr-defined]
+            ran_any = bool(starts or records)  # else nothing to keep: no batch.json
+            for name, inputs in zip(names, drive_inputs, strict=True):
+                if name in records:
+                    continue
+                ran = starts.get(name, 0)
+                records[name] = {"name": name, "logs": inputs, "output": name, "status": "interrupted",
+                                 "error": "interrupted" if cluster is not None or not ran else
+                                 "interrupted; on the cluster its run may still finish (see its run.json)",
+                                 "attempts": ran}
+                if cluster is not None:  # its worker is gone with the cluster (its start may not have been heard)
+                    mark_interrupted(out / name)
+                # a run that finished after the Ctrl-C, before its worker stopped
+                if (finished := _finished_before_stop(out / name, started_at)) is not None:
+                    records[name].update(finished, attempts=max(1, ran))
+            if ran_any:
+                status = "interrupted" if any(r["status"] == "interrupted" for r in records.values()) else "finished"
+                manifest = _batch_manifest(**manifest_args, records=[records[n] for n in names], wall_s=wall,
+                                           total_wall_s=time.perf_counter() - t_start, status=status)
+                with atomic_output(out / MANIFEST, overwrite=True) as tmp:
+                    tmp.write_text(strict_json(manifest, indent=2) + "\n")
+                stopped.batch_manifest = manifest  # type: ignore[attr-defined]
+        raise stopped
+    manifest = _batch_manifest(**manifest_args, records=[records[n] for n in names], wall_s=wall,
+                               total_wall_s=time.perf_counter() - t_start, status="finished")
     with atomic_output(out / MANIFEST, overwrite=True) as tmp:
         tmp.write_text(strict_json(manifest, indent=2) + "\n")
     return manifest
+
+
+def _batch_manifest(records: list[dict[str, Any]], *, command: str, config: str | None, method: str,
+                    autofocus: bool, options: FocusOptions, started: str, cluster: dict[str, Any] | None,
+                    retries: int, wall_s: float, total_wall_s: float, status: str) -> dict[str, Any]:
+    """batch.json's content: ``status`` ``finished`` or ``interrupted``, the drives' records and their counts."""
+    count = {s: sum(r["status"] == s for r in records) for s in ("ok", "degraded", "failed", "interrupted")}
+    done_here = sum(r["status"] in ("ok", "degraded") and not r.get("kept") for r in records)
+    return {
+        "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
+        "python": platform.python_version(), "command": command, "config": config, "method": method,
+        "autofocus": autofocus, "focus_options": asdict(options), "started": started, "cluster": cluster,
+        "retries": retries, "status": status, "drives": records, **count,
+        "kept": sum(bool(r.get("kept")) for r in records),
+        "wall_s": wall_s, "total_wall_s": total_wall_s,
+        "drives_per_minute": 60.0 * done_here / wall_s if wall_s > 0 and done_here else None,
+    }
+
+
+def _finished_before_stop(run_dir: Path, since: datetime) -> dict[str, Any] | None:
+    """The record of a drive whose run finished while the batch that started at ``since`` stopped (its result never
+    reached the client); None where its run.json is older (an earlier batch's run: this one never started it)."""
+    from autosar_cli.run import RunError, read_manifest
+
+    try:
+        if (run_dir / "run.json").stat().st_mtime < since.timestamp() - 1.0:  # ``since`` is whole seconds
+            return None
+        manifest = read_manifest(run_dir)
+        return _finished_run(manifest) if manifest.get("status") in ("ok", "degraded") else None
+    except (OSError, RunError, KeyError, TypeError, AttributeError):
+        return None
+
+
+def _batch_said(out: Path) -> str:
+    """How the batch in ``out`` ended, for the refusal to run over it: "batch.json: interrupted, 2 of 6 drives
+    done", or just "batch.json" where it finished or cannot be read."""
+    try:
+        manifest = read_batch(out)
+    except BatchError:
+        return MANIFEST
+    drives = manifest.get("drives") or []
+    if manifest.get("status") != "interrupted" or not isinstance(drives, list):
+        return MANIFEST
+    done = sum(isinstance(r, dict) and r.get("status") in ("ok", "degraded") for r in drives)
+    return f"{MANIFEST}: interrupted, {done} of {len(drives)} drives done"
+
+
+def _finished_drives(out: Path, names: list[str], drive_inputs: list[list[str]]) -> dict[str, dict[str, Any]]:
+    """The records of the batch in ``out`` to keep at ``--resume``: each drive that finished there (``ok`` or
+    ``degraded``) from the same inputs, whose run.json still says so, or that was ``interrupted`` and whose run.json
+    says it finished after all (an existing cluster's worker goes on with a running task); marked ``kept``."""
+    from autosar_cli.run import RunError, read_manifest
+
+    before = read_batch(out)
+    try:
+        since = datetime.fromisoformat(str(before.get("started")))
+    except ValueError:
+        since = datetime.now(UTC)  # no start: no run of it is taken as finished after its stop
+    previous = {r.get("name"): r for r in before.get("drives") or [] if isinstance(r, dict)}
+    kept: dict[str, dict[str, Any]] = {}
+    for name, inputs in zip(names, drive_inputs, strict=True):
+        rec = previous.get(name)
+        if rec is None or rec.get("logs") != inputs:
+            continue
+        if rec.get("status") == "interrupted":  # on an existing cluster its run may have finished after the stop
+            if (finished := _finished_before_stop(out / name, since)) is not None:
+                kept[name] = {**rec, **finished, "kept": True}
+            continue
+        try:
+            if rec.get("status") in ("ok", "degraded") and read_manifest(out / name).get("status") == rec["status"]:
+                kept[name] = {**rec, "kept": True}
+        except RunError:
+            pass
+    return kept
 
 
 def _folder_logs(log: Path) -> list[str]:

@@ -1183,10 +1183,14 @@ def batch(
     max_time_gap: MaxTimeGapOpt = 3600.0,
     config: ConfigOpt = None,
     overwrite: OverwriteOpt = False,
+    resume: Annotated[bool, typer.Option(
+        "--resume", help="DIR holds a batch (one interrupted, or with failed drives): keep its drives that finished "
+                         "from the same inputs, run the others.")] = False,
     as_json: JsonOpt = False,
 ) -> None:
     """Run many drives (`autosar run` each) as Dask tasks on a local or existing dask.distributed cluster;
-    exit code 1 if any drive failed."""
+    exit code 1 if any drive failed. Ctrl-C stops the batch and writes batch.json of what finished; `--resume`
+    runs the rest."""
     with _errors(output, kernels=False):
         from autosar_cli.batch import run_batch
         from autosar_cli.ingest.pipeline import parse_time_ns
@@ -1202,7 +1206,7 @@ def batch(
             err.print(f"dashboard: {_lit(info['dashboard'])}" if info["dashboard"] else "dashboard: none",
                       highlight=False)
 
-        with _batch_progress(len(logs), enabled=not as_json) as update:
+        with _batch_progress(len(logs), enabled=not as_json) as update, _said_of_interrupted_batch(output):
             manifest = run_batch(logs, output, cfg, method=method.value, autofocus=autofocus, scheduler=scheduler,
                                  workers=workers, retries=retries, numba_threads=numba_threads, overwrite=overwrite,
                                  radars=radar, can_logs=can_log, nmea_logs=nmea,
@@ -1210,14 +1214,16 @@ def batch(
                                  ingest_options=_ingest_options(dbc, None, radar_sync, radar_override,
                                                                 allow_unverified, time_offset, allow_time_gap,
                                                                 max_time_gap),
-                                 progress=update, on_cluster=on_cluster, command=" ".join(sys.argv))
+                                 progress=update, on_cluster=on_cluster, command=" ".join(sys.argv),
+                                 resume=resume)
         if as_json:
             out.print_json(strict_json(manifest))
         else:
             table = Table("drive", "status", "attempts", "wall (s)", "worker", "result")
-            status = {"ok": "[green]ok[/]", "degraded": "[yellow]degraded[/]", "failed": "[red]failed[/]"}
+            status = {"ok": "[green]ok[/]", "degraded": "[yellow]degraded[/]", "failed": "[red]failed[/]",
+                      "interrupted": "[red]interrupted[/]"}
             for r in manifest["drives"]:
-                ok = r["status"] != "failed"
+                ok = r["status"] in ("ok", "degraded")
                 result = (f"{r['grid_shape'][0]} x {r['grid_shape'][1]} px, {r['output']}/image.tif" if ok
                           else r["error"])
                 table.add_row(r["name"], status[r["status"]], str(r.get("attempts") or ""),
@@ -1228,7 +1234,8 @@ def batch(
             degraded = f" ({manifest['degraded']} degraded)" if manifest.get("degraded") else ""
             out.print(f"wrote [bold]{_lit(Path(output) / 'batch.json')}[/]: "
                       f"{manifest['ok'] + manifest.get('degraded', 0)} of {len(manifest['drives'])} drives done"
-                      f"{degraded} in {manifest['wall_s']:.1f} s" + (f" ({rate:.1f} drives/min)" if rate else ""))
+                      f"{degraded}" + (f", {manifest['kept']} kept from before" if manifest.get("kept") else "")
+                      + f" in {manifest['wall_s']:.1f} s" + (f" ({rate:.1f} drives/min)" if rate else ""))
         for r in manifest["drives"]:
             if r["status"] == "failed":
                 err.print(f"[red]failed:[/] {r['name']}: {escape(r['error'])}", highlight=False, soft_wrap=True)
@@ -1236,6 +1243,21 @@ def batch(
                 err.print(f"[yellow]degraded:[/] {r['name']}: {escape(w)}", highlight=False, soft_wrap=True)
         if manifest["failed"]:
             raise typer.Exit(1)
+
+
+@contextmanager
+def _said_of_interrupted_batch(output: Path) -> Iterator[None]:
+    """At a Ctrl-C that stopped a batch, what its batch.json keeps: the drives done, how to run the rest."""
+    try:
+        yield
+    except KeyboardInterrupt as exc:
+        if (manifest := getattr(exc, "batch_manifest", None)) is not None:
+            done, drives = manifest["ok"] + manifest["degraded"], len(manifest["drives"])
+            said = ("every drive had finished" if manifest["status"] == "finished" else
+                    f"interrupted, {done} of {drives} drives done; `autosar batch` with the same logs and --resume "
+                    "runs the others")
+            err.print(f"wrote {_lit(Path(output) / 'batch.json')}: {said}", highlight=False, soft_wrap=True)
+        raise
 
 
 # The command list shows each command's first docstring paragraph; rich keeps its line breaks, which wrap it at the

@@ -38,7 +38,7 @@ from autosar_cli import __version__
 from autosar_cli.config import Config
 from autosar_cli.interrupts import Terminated
 from autosar_cli.sar.grid import GridError, check_image_size
-from autosar_cli.store.atomic import atomic_output
+from autosar_cli.store.atomic import atomic_output, stale_partials
 from autosar_cli.store.manifest import product_status, read_json_manifest, strict_json
 from autosar_cli.store.outputs import (
     check_free_space,
@@ -169,6 +169,25 @@ def _mark_stopped(exc: BaseException, manifest: dict[str, Any], manifest_path: P
         status, error = "failed", str(exc).splitlines()[0] if str(exc) else type(exc).__name__
     with contextlib.suppress(Exception):  # best effort: the disk may be what failed
         _write_manifest(manifest_path, {**manifest, "status": status, "error": error})
+
+
+def mark_interrupted(run_dir: Path) -> None:
+    """run.json of a run whose process was stopped from outside (a batch's worker, closed with its cluster), as the
+    run marks its own at an interrupt: ``interrupted`` where it kept a drive, else gone with the run's folder (its
+    partial files, their writer gone, with it). A run.json that does not say ``unfinished`` is left as it is."""
+    path = run_dir / "run.json"
+    try:
+        manifest = read_manifest(run_dir)
+    except RunError:
+        return
+    if manifest.get("status") != "unfinished":
+        return
+    _mark_stopped(KeyboardInterrupt(), {k: v for k, v in manifest.items() if k != "status"}, path)
+    if not path.exists():
+        for partial in stale_partials(run_dir):
+            partial.unlink(missing_ok=True)
+        with contextlib.suppress(OSError):
+            run_dir.rmdir()  # only where empty: nothing of the user's goes
 
 
 def not_finished(manifest: dict[str, Any]) -> str | None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import shutil
 from pathlib import Path
 
@@ -275,3 +276,118 @@ def test_a_drives_retry_replaces_its_first_attempts_products(ci_mcap, tmp_path, 
     # a finished drive is not replaced without --overwrite
     record = batch_mod.run_drive("ci", [str(ci_mcap.log_path)], str(out), load_config())
     assert record["status"] == "failed" and "already holds a run" in record["error"]
+
+
+def test_a_stopped_batch_keeps_what_finished_and_resume_runs_the_rest(thread_cluster, tmp_path, monkeypatch):
+    """Ctrl-C (a KeyboardInterrupt in the client) after the first drive: batch.json is written ``interrupted`` with
+    every drive's record; --resume keeps the drive that finished, and the one whose task went on on the existing
+    cluster and finished after the stop (its run.json says so), and runs only the last."""
+    import threading
+
+    ran: list[str] = []
+    release = threading.Event()
+
+    def fake_run(logs, out_dir, config, **kw):
+        name = Path(out_dir).name
+        ran.append(name)
+        if name == "b" and len(ran) == 2:
+            release.wait(30)  # running when the batch stops
+        Path(out_dir).mkdir(parents=True, exist_ok=True)
+        (Path(out_dir) / "run.json").write_text(json.dumps({"format": "autosar-run", "status": "ok",
+                                                            **_fake_manifest()}))
+        return _fake_manifest()
+
+    def stop_after_the_first(event):
+        if event.get("stage") == "finished":
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(batch_mod, "run", fake_run)
+    logs = [tmp_path / f"{n}.mcap" for n in "abc"]
+    out = tmp_path / "out"
+    with pytest.raises(KeyboardInterrupt) as stopped:
+        run_batch(logs, out, load_config(), scheduler=thread_cluster.scheduler_address,
+                  progress=stop_after_the_first)
+    m = read_batch(out)
+    assert stopped.value.batch_manifest == m and m["status"] == "interrupted"
+    assert [(d["name"], d["status"]) for d in m["drives"]] == [("a", "ok"), ("b", "interrupted"), ("c", "interrupted")]
+    assert (m["ok"], m["interrupted"]) == (1, 2)
+    assert m["drives"][2]["attempts"] == 0 and m["drives"][1]["logs"] == [str(logs[1].resolve())]
+    assert "may still finish" in m["drives"][1]["error"]  # on an existing cluster, its task goes on
+    release.set()
+    for _ in range(300):  # b's run finishes after the batch stopped
+        if (out / "b" / "run.json").exists():
+            break
+        threading.Event().wait(0.1)
+    with pytest.raises(BatchError, match=r"already holds a batch \(batch.json: interrupted, 1 of 3 drives done\); "
+                                         "pass --resume"):
+        run_batch(logs, out, load_config(), scheduler=thread_cluster.scheduler_address)
+    with pytest.raises(BatchError, match="not both"):
+        run_batch(logs, out, load_config(), scheduler=thread_cluster.scheduler_address, resume=True, overwrite=True)
+    r = runner.invoke(app, ["batch", *map(str, logs), "-o", str(out), "--scheduler", thread_cluster.scheduler_address,
+                            "--resume"])
+    assert r.exit_code == 0, r.output
+    assert ran == ["a", "b", "c"]  # only c ran again
+    m = read_batch(out)
+    assert m["status"] == "finished" and (m["ok"], m["kept"], m["interrupted"]) == (3, 2, 0)
+    assert [d.get("kept", False) for d in m["drives"]] == [True, True, False]
+    assert "3 of 3 drives done, 2 kept from before" in " ".join(r.stdout.split())
+    with pytest.raises(BatchError, match="holds no batch"):
+        run_batch(logs, tmp_path / "none", load_config(), scheduler=thread_cluster.scheduler_address, resume=True)
+
+
+def test_a_stopped_local_clusters_runs_are_marked(tmp_path):
+    """A run whose worker stopped with the local cluster is marked as the run marks its own at Ctrl-C: interrupted
+    where it kept a drive, else gone with its folder and its dead writer's partial file; nothing else changes."""
+    from autosar_cli.run import mark_interrupted, read_manifest
+
+    kept, empty, done, users = (tmp_path / n for n in ("kept", "empty", "done", "users"))
+    for d, status in ((kept, "unfinished"), (empty, "unfinished"), (done, "ok"), (users, "unfinished")):
+        d.mkdir()
+        (d / "run.json").write_text(json.dumps({"format": "autosar-run", "status": status, "stages": {}}))
+    (kept / "drive.h5").write_bytes(b"x")
+    (empty / "drive.partial-4194303.h5").write_bytes(b"x")  # a pid no process has (above Linux's pid_max)
+    (users / "notes.txt").write_text("the user's")
+    for d in (kept, empty, done, users):
+        mark_interrupted(d)
+    assert read_manifest(kept)["status"] == "interrupted" and read_manifest(kept)["error"] == "interrupted"
+    assert not empty.exists()
+    assert read_manifest(done)["status"] == "ok"
+    assert [p.name for p in users.iterdir()] == ["notes.txt"]
+
+
+def test_ctrl_c_while_the_local_clusters_workers_start_is_one_line(ci_mcap, tmp_path):
+    """Ctrl-C to the whole process group (a terminal's) while the workers import: each printed the traceback of
+    whatever it was importing, and the half-started cluster an AssertionError at exit. The workers ignore SIGINT
+    (the command stops them), and the command stops once its cluster is up: "interrupted", 130, nothing left.
+    Sent once a worker has numpy loaded, in the midst of its imports (in its interpreter's own first tens of ms,
+    before it has read autosar's package, Python's default handler still stands)."""
+    import signal
+    import subprocess
+    import time
+
+    from test_safety import _as_from_a_terminal, _console_script
+
+    script = _console_script()
+    if script is None:
+        pytest.skip("the autosar console script is not installed")
+    out = tmp_path / "out"
+    proc = subprocess.Popen([script, "batch", str(ci_mcap.log_path), str(ci_mcap.log_path), "-o", str(out),
+                             "--workers", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: (_as_from_a_terminal(), os.setpgrp()))
+    importing = False
+    deadline = time.monotonic() + 120
+    while not importing and time.monotonic() < deadline and proc.poll() is None:
+        for stat in Path("/proc").glob("[0-9]*/stat"):
+            try:
+                child = int(stat.read_text().rsplit(")", 1)[1].split()[1]) == proc.pid
+                importing = importing or (child and "numpy" in (stat.parent / "maps").read_text())
+            except OSError:
+                continue
+        time.sleep(0.02)
+    assert importing, "no worker process was seen importing"
+    os.killpg(proc.pid, signal.SIGINT)
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
+    assert stderr.strip().endswith("error: interrupted"), stderr
+    assert not out.exists()  # no drive had started: no batch.json, no folder
