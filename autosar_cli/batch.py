@@ -259,6 +259,15 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
     if unknown := sorted(offsets.keys() - set().union(*shiftable)):
         raise BatchError(f"--time-offset {unknown[0]}: not one of the drives' --can-log or --nmea logs, nor a CAN "
                          "or NMEA log of a drive folder")
+    #: what each drive's record lists as its inputs: its log, then those given with it (as run_drive lists them)
+    paths = [str(Path(p).resolve()) for p in logs]
+    drive_inputs = [[log, *inputs["can"], *inputs["nmea"], *inputs["radar"]]
+                    for log, inputs in zip(paths, companions, strict=True)]
+    seen: dict[tuple[str, ...], int] = {}
+    for i, inputs in enumerate(drive_inputs):
+        if (first := seen.setdefault(tuple(inputs), i)) != i:  # the same work twice, counted as two drives
+            raise BatchError(f"{logs[i]} (log {i + 1} of {len(logs)}): the same drive as log {first + 1} "
+                             f"({logs[first]}); give each drive once")
     out = Path(out_dir).resolve()
     if resume and not (out / MANIFEST).exists():
         raise BatchError(f"{out}: holds no batch ({MANIFEST}) to resume")
@@ -272,10 +281,6 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
     out.mkdir(parents=True, exist_ok=True)
     options = options or FocusOptions.from_config(config)
     names = drive_names(logs)
-    paths = [str(Path(p).resolve()) for p in logs]
-    #: what each drive's record lists as its inputs: its log, then those given with it (as run_drive lists them)
-    drive_inputs = [[log, *inputs["can"], *inputs["nmea"], *inputs["radar"]] for log, inputs in zip(paths, companions,
-                                                                                                    strict=True)]
     records = _finished_drives(out, names, drive_inputs) if resume else {}
     kept = list(records)
 

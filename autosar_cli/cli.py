@@ -33,7 +33,7 @@ from rich.progress import (
 from rich.table import Column, Table
 
 from autosar_cli import __version__, exit_interrupted
-from autosar_cli.config import CAN_LOG_SUFFIXES
+from autosar_cli.config import CAN_LOG_SUFFIXES, Config
 from autosar_cli.interrupts import Terminated
 from autosar_cli.store.manifest import product_status, strict_json
 
@@ -338,7 +338,8 @@ def simulate(
     fmt: Annotated[LogFormat, typer.Option("--format", "-f", help="Log container; dca1000: an MCAP of the "
                                            "navigation plus the radar as a TI DCA1000 capture in <log stem>.dca1000/ "
                                            "(ingest with --radar).")] = LogFormat.mcap,
-    seed: Annotated[int, typer.Option("--seed", min=0, metavar="N", help="Random seed: same seed, same bytes.")] = 0,
+    seed: Annotated[int, typer.Option("--seed", min=0, max=2**64 - 1, metavar="N",  # numpy's seeds: 64 bits
+                                      help="Random seed: same seed, same bytes.")] = 0,
     dynamics: Annotated[Dynamics | None, typer.Option(
         "--dynamics", help="Vehicle model: kinematic bicycle or full 3-D dynamics (default: the config's).")] = None,
     config: ConfigOpt = None,
@@ -449,10 +450,8 @@ def ingest(
         if can.get("frames"):
             out.print(f"CAN: {can['frames']} frames, {can['decoded']} decoded"
                       + "".join(f", {k.replace('_', ' ')} {v}" for k, v in problems.items()))
-        if can.get("missing_roles") and not can.get("frames"):
+        if can.get("missing_roles") and not can.get("frames"):  # with frames, a warning names them
             out.print(f"no CAN frames in this log: the config's {len(can['missing_roles'])} CAN roles go unused")
-        elif can.get("missing_roles"):
-            out.print(f"CAN roles not found: {', '.join(can['missing_roles'])}")
         for sk in report.skipped_channels:
             out.print(f"skipped {sk['topic']} ({sk['msgtype']}): {_lit(sk['reason'])}", highlight=False)
         if degraded := _degraded(report.warnings, "its /provenance report"):
@@ -1031,6 +1030,7 @@ def info(
 
         if (problem := input_problem(path)) is not None and (path.exists() or path.is_symlink()):
             raise ValueError(f"{path}: {problem}")
+        cfg = _load_config(config) if config is not None else None  # checked as every other command checks it
         if verify:
             _verify(path, as_json)
             return
@@ -1046,7 +1046,7 @@ def info(
                 raise typer.BadParameter(f"{path}: --config-sketch reads a drive.h5 or a TI DCA1000 capture; ingest "
                                          "the log first (autosar ingest LOG -o drive.h5, --allow-partial without a "
                                          "radar)")
-            out.print(sketch(path, _load_config(config)), markup=False, highlight=False, soft_wrap=True, end="")
+            out.print(sketch(path, cfg or _load_config(None)), markup=False, highlight=False, soft_wrap=True, end="")
             return
         from autosar_cli.store.atomic import stale_partials
 
@@ -1067,24 +1067,44 @@ def info(
         inputs = [(p, kind) for kind, ps in folder.inputs.items() for p in ps] if folder else [(path, "")]
         summaries = [(p, kind, summarize(p)) for p, kind in inputs]
         said = folder.warning() if folder else None
+        pinned = _pinned_in_logs(cfg, [summary for _, _, summary in summaries]) if cfg is not None else None
         if as_json:
             if folder is None:
-                out.print_json(strict_json({**summaries[0][2].to_dict(), "stale_partials": stale}))
+                out.print_json(strict_json({**summaries[0][2].to_dict(), "stale_partials": stale,
+                                            **({"config_topics": pinned} if pinned is not None else {})}))
             else:
                 out.print_json(strict_json({"path": str(path), "drive_folder": [
                     {"kind": kind, **summary.to_dict()} for _, kind, summary in summaries],
-                    "left_out": [str(p) for p in folder.left_out], "stale_partials": stale}))
+                    "left_out": [str(p) for p in folder.left_out], "stale_partials": stale,
+                    **({"config_topics": pinned} if pinned is not None else {})}))
             return
         if folder is not None:
             out.print(f"[bold]{_lit(path)}[/]  a drive folder: {len(inputs)} input{'s' * (len(inputs) != 1)}, each "
                       "read as if given on its own")
         for p, _, summary in summaries:
             _print_summary(p, summary)
+        if pinned is not None and pinned["in_logs"] + pinned["not_in_logs"]:
+            out.print(f"{_lit(config)}: the topics it pins, in the logs: "
+                      + (", ".join(f"{t['topic']} ({t['key']})" for t in pinned["in_logs"]) or "none")
+                      + "; not in them: "
+                      + (", ".join(f"{t['topic']} ({t['key']})" for t in pinned["not_in_logs"]) or "none"),
+                      highlight=False, soft_wrap=True)
         if said:
             err.print(f"[yellow]warning:[/] {escape(said)}", highlight=False, soft_wrap=True)
         for p in stale:
             err.print(f"[yellow]stale partial file:[/] {escape(p)} (left by a killed autosar; the next command "
                       f"writing there removes it)", highlight=False, soft_wrap=True)
+
+
+def _pinned_in_logs(cfg: Config, summaries: list[Any]) -> dict[str, list[dict[str, str]]] | None:
+    """The topics ``cfg`` pins, those the logs summarised hold and those they do not; None where no summary is of a
+    log with topics (a drive.h5's streams are named by sensor)."""
+    topics = {s.topic for summary in summaries for s in summary.streams if s.topic.startswith("/")}
+    if not topics:
+        return None
+    pinned = [{"topic": t, "key": key} for t, (_, _, key) in sorted(cfg.pinned_topics().items(), key=lambda i: i[1][2])]
+    return {"in_logs": [p for p in pinned if p["topic"] in topics],
+            "not_in_logs": [p for p in pinned if p["topic"] not in topics]}
 
 
 def _print_summary(path: Path, summary: Any) -> None:

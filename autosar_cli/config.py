@@ -473,6 +473,20 @@ class Config:
     def sensors_of_kind(self, kind: str) -> dict[str, SensorConfig]:
         return {name: s for name, s in self.sensors.items() if s.kind == kind}
 
+    def pinned_topics(self) -> dict[str, tuple[str, str, str]]:
+        """topic -> (stream kind, sensor name, config key) for every topic the config pins: the radar's, each IMU's,
+        each receiver's fixes, velocity and NMEA."""
+        out = {self.radar.topic: ("radar", self.radar.name, "radar.topic")}
+        for name, s in self.sensors.items():
+            if s.kind == "imu" and s.topic:
+                out[s.topic] = ("imu", name, f"sensors.{name}.topic")
+            elif s.kind == "gnss":
+                for topic, kind, key in ((s.topic, "fix", "topic"), (s.velocity_topic, "velocity", "velocity_topic"),
+                                         (s.nmea_topic, "nmea", "nmea_topic")):
+                    if topic:
+                        out[topic] = (kind, name, f"sensors.{name}.{key}")
+        return out
+
 
 # ----------------------------------------------------------------------------- loading
 
@@ -527,7 +541,14 @@ def _layered(p: Path, below: tuple[Path, ...], bases: list[str]) -> dict[str, An
     if base_path.resolve() in below + (p.resolve(),):
         raise ConfigError(f"{p}: base: {base_path} is this config or one it is the base of (a circle)")
     bases.append(str(base_path.resolve()))
-    return _merged(_layered(base_path, below + (p.resolve(),), bases), raw)
+    try:
+        under = _layered(base_path, below + (p.resolve(),), bases)
+    except ConfigError as exc:
+        said = str(exc)
+        if said.startswith(f"{base_path}: ") and not said.startswith(f"{base_path}: base: "):  # the base file itself
+            raise ConfigError(f"{p}: base: {said}") from None
+        raise
+    return _merged(under, raw)
 
 
 def _merged(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
@@ -549,6 +570,42 @@ def config_from_dict(raw: dict[str, Any], source: str = "", bases: tuple[str, ..
     cfg = _build(Config, data, "")
     _validate(cfg)
     return cfg
+
+
+#: the finest range interpolation taken (default 4): each range profile holds this many times its samples, in memory
+MAX_RANGE_UPSAMPLE = 64
+
+#: the CAN roles the stages read: the car's own, and per CAN sensor (``QUANTITY.<sensor>``) by its kind
+VEHICLE_ROLES = ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr", "steering_wheel_angle",
+                 "steering_wheel_rate")
+SENSOR_ROLES: dict[str, tuple[str, ...]] = {
+    "can_imu": ("yaw_rate", "accel_long", "accel_lat"),
+    "can_gnss": ("latitude", "longitude", "altitude", "position_valid", "speed", "course"),
+}
+
+
+def _known_role(role: str, sensors: dict[str, SensorConfig]) -> None:
+    """A role name is one the stages read: a misspelt one was a role nothing played (the wheel speeds gone from
+    navigation without a word)."""
+    quantity, dot, sensor = role.partition(".")
+    if not dot:
+        if role not in VEHICLE_ROLES:
+            dotted = [f"{q}.<sensor>" for qs in SENSOR_ROLES.values() for q in qs]
+            raise ConfigError(f"can.roles.{role}: not a role{_suggestion(role, list(VEHICLE_ROLES))}; the roles: "
+                              f"{', '.join(VEHICLE_ROLES)}, and per CAN sensor {', '.join(dotted)}")
+        return
+    kinds = [k for k, qs in SENSOR_ROLES.items() if quantity in qs]
+    if not kinds:
+        names = [q for qs in SENSOR_ROLES.values() for q in qs]
+        raise ConfigError(f"can.roles.{role}: {quantity!r} is not a quantity of a CAN sensor"
+                          f"{_suggestion(quantity, names)}; a can_imu's: {', '.join(SENSOR_ROLES['can_imu'])}; a "
+                          f"can_gnss's: {', '.join(SENSOR_ROLES['can_gnss'])}")
+    s = sensors.get(sensor)
+    if s is None or s.kind not in kinds:
+        theirs = sorted(n for n, t in sensors.items() if t.kind in kinds)
+        what = "no sensor of [sensors]" if s is None else f"a {s.kind} sensor, not a {' or '.join(kinds)}"
+        raise ConfigError(f"can.roles.{role}: {sensor!r} is {what}{_suggestion(sensor, theirs)}; the config's "
+                          f"{' or '.join(kinds)} sensors: {', '.join(theirs) or 'none'}")
 
 
 def _suggestion(key: str, names: list[str]) -> str:
@@ -676,6 +733,7 @@ _LARGEST_BY_NAME: dict[str, tuple[float, str]] = {
     "track_rear_m": (10.0, "no road vehicle's"), "wheel_radius_m": (3.0, "no road vehicle's"),
     "cog_height_m": (10.0, "no road vehicle's"), "steering_ratio": (100.0, "no road vehicle's"),
     "latency_s": (MAX_LATENCY_S, "a sensor whose stamps lag its values by more is on another clock"),
+    "lever_arm_m": (50.0, "no sensor on a road vehicle is so far from its reference point"),
 }
 
 
@@ -791,6 +849,7 @@ def _validate(cfg: Config) -> None:
         message, dot, signal = ref.partition(".")
         if not dot or not message or not signal:
             raise ConfigError(f"can.roles.{role}: expected 'MESSAGE.SIGNAL', got {ref!r}")
+        _known_role(role, cfg.sensors)
 
     for name, s in cfg.sensors.items():
         base = f"sensors.{name}"
@@ -841,6 +900,15 @@ def _validate(cfg: Config) -> None:
     _non_negative("navigation.gnss_latency_max_std_s", nav.gnss_latency_max_std_s)
     _non_negative("navigation.can_latency_max_std_s", nav.can_latency_max_std_s)
     _positive("navigation.gnss_heading_offset_std_deg", nav.gnss_heading_offset_std_deg)
+    for i, gyro in enumerate(nav.gyros):
+        if gyro in nav.gyros[:i]:  # each one its own bias state: the same samples fused as independent gyros
+            raise ConfigError(f"navigation.gyros: {gyro!r} listed {nav.gyros.count(gyro)} times")
+        s = cfg.sensors.get(gyro)
+        if s is None or s.kind not in ("imu", "can_imu"):
+            theirs = sorted(n for n, t in cfg.sensors.items() if t.kind in ("imu", "can_imu"))
+            what = "no sensor of [sensors]" if s is None else f"a {s.kind} sensor, which has no gyro"
+            raise ConfigError(f"navigation.gyros: {gyro!r} is {what}{_suggestion(gyro, theirs)}; the config's imu "
+                              f"and can_imu sensors: {', '.join(theirs) or 'none'}")
     if nav.attitude_imu:
         imu = cfg.sensors.get(nav.attitude_imu)
         if imu is None or imu.kind != "imu" or imu.dof != 6:
@@ -857,8 +925,8 @@ def _validate(cfg: Config) -> None:
         raise ConfigError(f"processing.cross_range_resolution_m: {p.cross_range_resolution_m!r} m asks for a wider "
                           f"beam than the antenna's (radar.beamwidth_az_deg): the finest it holds is {finest:.3g} m")
     _finite_vector("processing.focus_height_m", (p.focus_height_m,))
-    if p.range_upsample < 1:
-        raise ConfigError(f"processing.range_upsample: must be at least 1, got {p.range_upsample}")
+    if not 1 <= p.range_upsample <= MAX_RANGE_UPSAMPLE:  # beyond, the range profiles alone fill the memory
+        raise ConfigError(f"processing.range_upsample: must lie in [1, {MAX_RANGE_UPSAMPLE}], got {p.range_upsample}")
     if not 0.0 < p.autofocus_pass_block_s <= 1.0:  # a block no longer than the slow motion's 1 s nodes
         raise ConfigError(f"processing.autofocus_pass_block_s: must lie in (0, 1] s, got {p.autofocus_pass_block_s!r}")
 

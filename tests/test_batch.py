@@ -88,6 +88,10 @@ def test_batch_refuses_existing_and_bad_arguments(tmp_path, logs):
     (tmp_path / "batch.json").write_text("{}")
     with pytest.raises(BatchError, match="already holds a batch"):
         run_batch(logs, tmp_path, load_config())
+    # one drive given twice (here by two spellings of its path) was run twice and counted as two
+    with pytest.raises(BatchError, match=r"\(log 2 of 2\): the same drive as log 1 .*; give each drive once"):
+        run_batch([logs[0], logs[0].parent / "." / logs[0].name], tmp_path / "twice", load_config())
+    assert not (tmp_path / "twice").exists()
     with pytest.raises(BatchError, match="no drive logs"):
         run_batch([], tmp_path / "x", load_config())
     with pytest.raises(BatchError, match="either --scheduler"):
@@ -371,7 +375,9 @@ def test_ctrl_c_while_the_local_clusters_workers_start_is_one_line(ci_mcap, tmp_
     if script is None:
         pytest.skip("the autosar console script is not installed")
     out = tmp_path / "out"
-    proc = subprocess.Popen([script, "batch", str(ci_mcap.log_path), str(ci_mcap.log_path), "-o", str(out),
+    other = tmp_path / "other.mcap"  # two drives, two workers
+    shutil.copy(ci_mcap.log_path, other)
+    proc = subprocess.Popen([script, "batch", str(ci_mcap.log_path), str(other), "-o", str(out),
                              "--workers", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             preexec_fn=lambda: (_as_from_a_terminal(), os.setpgrp()))
     importing = False

@@ -108,6 +108,9 @@ def test_errors_are_one_line_without_traceback(tmp_path):
     # a negative seed is named as the option (numpy's "expected non-negative integer" named nothing)
     r = runner.invoke(app, ["simulate", "-o", str(tmp_path / "x.mcap"), "--seed", "-1"])
     assert r.exit_code == 2 and "--seed" in r.output and not (tmp_path / "x.mcap").exists()
+    # one past numpy's 64 bits: h5py's "Object dtype dtype('O') has no native HDF5 equivalent" after simulating
+    r = runner.invoke(app, ["simulate", "-o", str(tmp_path / "x.mcap"), "--seed", str(2**64)])
+    assert r.exit_code == 2 and "--seed" in r.output and not (tmp_path / "x.mcap").exists()
     # a corrupt MCAP: error names the file, no traceback, via the real console script
     corrupt = tmp_path / "corrupt.mcap"
     corrupt.write_bytes(b"\x89MCAP0\r\n" + bytes(range(256)) * 4)
@@ -149,3 +152,18 @@ def test_navigate_says_which_standstills_it_held_and_which_it_refused() -> None:
         "wheels at 0 over 61.0-64.2 s while the gyros turn +0.098 +- 0.002 deg/s: a creeping turn, not held as a "
         "standstill"]
     assert standstill_lines({}, t0) == []
+
+
+def test_info_with_a_config_checks_it_and_says_which_of_its_topics_the_log_holds(ci_mcap, tmp_path):
+    """`autosar info LOG --config mine.toml` read no config at all (a missing or misspelt one passed): it is checked
+    as every command checks it, and the topics it pins are told apart: those in the log, those not."""
+    r = runner.invoke(app, ["info", str(ci_mcap.log_path), "--config", str(tmp_path / "none.toml")])
+    assert r.exit_code == 1 and "none.toml: config file not found" in r.stderr
+    mine = tmp_path / "mine.toml"
+    mine.write_text('base = "default"\n[sensors.gnss_cog]\nvelocity_topic = "/ins_cog/fix_velocityy"\n')
+    r = runner.invoke(app, ["info", str(ci_mcap.log_path), "--config", str(mine), "--json"])
+    assert r.exit_code == 0, r.output
+    pinned = json.loads(r.stdout)["config_topics"]
+    assert pinned["not_in_logs"] == [{"topic": "/ins_cog/fix_velocityy", "key": "sensors.gnss_cog.velocity_topic"}]
+    assert {"topic": "/imu/cog_a", "key": "sensors.imu_cog_a.topic"} in pinned["in_logs"]
+    assert len(pinned["in_logs"]) == 9

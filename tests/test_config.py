@@ -163,8 +163,8 @@ def test_a_config_on_a_base_holds_only_what_differs(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match=r"circle.toml: base: .*circle.toml is this config or one it is the base of"):
         load_config(circle)
     (tmp_path / "gone.toml").write_text('base = "nowhere.toml"\n')
-    with pytest.raises(ConfigError, match=r"nowhere.toml: config file not found"):
-        load_config(tmp_path / "gone.toml")
+    with pytest.raises(ConfigError, match=r"gone.toml: base: .*nowhere.toml: config file not found"):
+        load_config(tmp_path / "gone.toml")  # the file that names it, and where: the base's own file is not the user's
     (tmp_path / "num.toml").write_text("base = 3\n")
     with pytest.raises(ConfigError, match=r"num.toml: base: expected the path of the config this one changes"):
         load_config(tmp_path / "num.toml")
@@ -176,10 +176,10 @@ def test_a_layer_unsets_its_bases_can_roles_with_an_empty_string(tmp_path: Path)
     default = load_config()
     mine = tmp_path / "mine.toml"
     mine.write_text('base = "default"\n[can.roles]\nwheel_speed_fl = ""\n"yaw_rate.esc" = ""\n'
-                    '"yaw_rate.css" = "GNSS_IMU.RATE_Z"\n')
+                    '"yaw_rate.orc" = "GNSS_IMU.RATE_Z"\n')
     roles = load_config(mine).can.roles
     assert roles == {**{r: ref for r, ref in default.can.roles.items() if r not in ("wheel_speed_fl", "yaw_rate.esc")},
-                     "yaw_rate.css": "GNSS_IMU.RATE_Z"}
+                     "yaw_rate.orc": "GNSS_IMU.RATE_Z"}
     again = tmp_path / "again.toml"  # a layer above it may give the role back
     again.write_text('base = "mine.toml"\n[can.roles]\nwheel_speed_fl = "ABS_1.WHEEL_SPEED_FL"\n')
     assert load_config(again).can.roles["wheel_speed_fl"] == "ABS_1.WHEEL_SPEED_FL"
@@ -294,3 +294,45 @@ def test_a_number_past_its_bound_says_the_bound_and_why(tmp_path: Path, replacem
     with pytest.raises(ConfigError) as exc:
         load_config(path)
     assert str(exc.value) == f"{path}: {key}: {said}: a typo, or another unit?"
+
+
+def _layer(tmp_path: Path, text: str) -> Path:
+    p = tmp_path / "mine.toml"
+    p.write_text('base = "default"\n' + text)
+    return p
+
+
+@pytest.mark.parametrize(("text", "said"), [
+    # a misspelt role was a role nothing played: SAR-MIN ran without that wheel speed, status ok, no word
+    ('[can.roles]\nwheel_speed_fll = "ABS_1.WHEEL_SPEED_FL"\n',
+     r"can.roles.wheel_speed_fll: not a role \(did you mean wheel_speed_fl\?\)"),
+    ('[can.roles]\n"yawrate.esc" = "ABS_2.YAW_RATE"\n',
+     r"can.roles.yawrate.esc: 'yawrate' is not a quantity of a CAN sensor \(did you mean yaw_rate\?\)"),
+    ('[can.roles]\n"yaw_rate.escc" = "ABS_2.YAW_RATE"\n',
+     r"can.roles.yaw_rate.escc: 'escc' is no sensor of \[sensors\] \(did you mean esc\?\); the config's can_imu "
+     r"sensors: esc, orc"),
+    ('[can.roles]\n"latitude.esc" = "ABS_2.YAW_RATE"\n',
+     r"can.roles.latitude.esc: 'esc' is a can_imu sensor, not a can_gnss"),
+    # each name its own bias state: one gyro listed twice was fused as two independent ones
+    ('[navigation]\ngyros = ["imu_cog_a", "imu_cog_a"]\n', r"navigation.gyros: 'imu_cog_a' listed 2 times"),
+    ('[navigation]\ngyros = ["imu_cog_c"]\n', r"navigation.gyros: 'imu_cog_c' is no sensor of \[sensors\] "
+                                               r"\(did you mean imu_cog_b\?\)"),
+    ('[navigation]\ngyros = ["wheel_speeds"]\n', r"'wheel_speeds' is a wheel_speeds sensor, which has no gyro"),
+    # a radar 1 km from the car: the image moved by a kilometre, turned, status ok
+    ('[radar.mounting]\nlever_arm_m = [1000.0, -0.75, 0.0]\n',
+     r"radar.mounting.lever_arm_m\[0\]: 1000.0 is more than 50 in magnitude"),
+    ('[sensors.gnss_cog]\nlever_arm_m = [0.0, 0.0, 60.0]\n',
+     r"sensors.gnss_cog.lever_arm_m\[2\]: 60.0 is more than 50"),
+    # numpy's "Unable to allocate 8.30 TiB" after the ingest and navigation had run
+    ('[processing]\nrange_upsample = 1000000\n', r"processing.range_upsample: must lie in \[1, 64\], got 1000000"),
+])
+def test_a_config_that_would_run_wrong_without_a_word_is_refused(tmp_path: Path, text: str, said: str) -> None:
+    with pytest.raises(ConfigError, match=said):
+        load_config(_layer(tmp_path, text))
+
+
+def test_the_roles_and_gyros_of_every_bundled_config_are_known() -> None:
+    """The check above refuses none of the configs we ship (their roles and gyros are all read by the stages)."""
+    for path in sorted((DEFAULT_CONFIG.parent).glob("**/*.toml")):
+        cfg = load_config(path)
+        assert cfg.navigation.gyros, path

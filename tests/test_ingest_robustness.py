@@ -845,3 +845,20 @@ def test_the_radars_clock_is_reported_against_the_navigation_streams() -> None:
         if reported:
             assert "radar/r: its frame stamps run +100.0 ± 0.3 ppm fast" in warnings[0]
             assert "state radar.clock_drift_ppm = 100.0" in warnings[0]
+
+
+def test_a_configs_topic_or_role_the_logs_lack_is_a_warning(ci_mcap, tmp_path: Path) -> None:
+    """A typo in a pinned topic put the velocity under a name of its own topic's, and a role naming a message the DBC
+    lacks played nothing: navigation went without them (half the drive's trajectory, no wheel speeds), status ok.
+    Each is a warning naming the key and what the logs hold; the drive is degraded."""
+    cfg = tmp_path / "typo.toml"
+    cfg.write_text('base = "default"\n[sensors.gnss_cog]\nvelocity_topic = "/ins_cog/fix_velocityy"\n'
+                   '[can.roles]\nwheel_speed_fl = "ABS_9.WHEEL_SPEED_FL"\n')
+    report = ingest([ci_mcap.log_path], tmp_path / "d.h5", config=load_config(cfg))
+    assert report.warnings == [
+        "sensors.gnss_cog.velocity_topic: /ins_cog/fix_velocityy is in none of the logs, which hold velocity on "
+        "/ins_cog/fix_velocity, a topic no sensor of the config names (a typo in the topic?): gnss_cog's velocity is "
+        "not in the drive",
+        "CAN roles of the config in no frame of the logs: wheel_speed_fl (a message or signal the DBC or the log does "
+        "not have): the stages go without them"], report.warnings
+    assert ingest([ci_mcap.log_path], tmp_path / "ok.h5", config=load_config()).warnings == []  # the right config: none

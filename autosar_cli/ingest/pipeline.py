@@ -264,28 +264,41 @@ class _Ingest:
         self.can = CanDecoder(writer, db, config.can.checksum, lambda: {"source_file": self.source_file})
         self.names = self._configured_names()
         self.used_names: dict[tuple[str, str], str] = {}
+        #: the streams named after their topic, no sensor of the config's naming it: (kind, topic) -> stream name
+        self.unnamed: dict[tuple[str, str], str] = {}
+        self.named: set[str] = set()  #: the pinned topics the logs hold
 
     # -- naming ------------------------------------------------------------------------------------
     def _configured_names(self) -> dict[str, tuple[str, str]]:
         """topic -> (kind, sensor name) for every topic the config pins."""
-        out: dict[str, tuple[str, str]] = {self.config.radar.topic: ("radar", self.config.radar.name)}
-        for name, s in self.config.sensors.items():
-            if s.kind == "imu" and s.topic:
-                out[s.topic] = ("imu", name)
-            elif s.kind == "gnss":
-                for topic, kind in ((s.topic, "fix"), (s.velocity_topic, "velocity"), (s.nmea_topic, "nmea")):
-                    if topic:
-                        out[topic] = (kind, name)
-        return out
+        return {topic: (kind, name) for topic, (kind, name, _) in self.config.pinned_topics().items()}
 
     def _name(self, kind: str, topic: str) -> str:
         pinned = self.names.get(topic)
         if pinned and pinned[0] == kind:
+            self.named.add(topic)
             return pinned[1]
         if kind in ("fix", "velocity", "nmea"):
             ns = topic.rsplit("/", 1)[0].strip("/")
-            return _sanitise(ns) if ns else "gnss"
-        return _sanitise(topic)
+            name = _sanitise(ns) if ns else "gnss"
+        else:
+            name = _sanitise(topic)
+        self.unnamed[(kind, topic)] = name
+        return name
+
+    def misnamed_topics(self) -> list[str]:
+        """A warning for each topic the config pins that no log holds where a stream of its kind came in named by
+        its own topic: a typo in the config's topic (navigation would go without that sensor, or without its
+        velocity, and say nothing)."""
+        said = []
+        for topic, (kind, sensor, key) in self.config.pinned_topics().items():
+            others = sorted(t for k, t in self.unnamed if k == kind and t != topic)
+            if not topic or topic in self.named or not others:
+                continue
+            shown = ", ".join(others[:3]) + (f" and {len(others) - 3} more" if len(others) > 3 else "")
+            said.append(f"{key}: {topic} is in none of the logs, which hold {kind} on {shown}, a topic no sensor of "
+                        f"the config names (a typo in the topic?): {sensor}'s {kind} is not in the drive")
+        return said
 
     def _attrs(self, ch: Channel, sensor: str) -> dict[str, Any]:
         attrs: dict[str, Any] = {"topic": ch.topic, "msgtype": ch.msgtype, "source_file": self.source_file,
@@ -764,10 +777,13 @@ def ingest_sorted(given: SortedInputs, output: Path, *, config: Config, dbc: Pat
         job.check_interleaved()
         infos = job.finish()
         _check_content(inputs, infos, job, allow_partial, report, partial_hint)
-        job.warnings += job.unused
+        job.warnings += job.unused + job.misnamed_topics()
         _radar_clock_rates(infos, writer, job.warnings)
         _plausibility(infos, job)
         roles, missing_roles = _resolve_roles(job, infos)
+        if missing_roles and job.can.stats.frames:  # with no CAN at all, `ingest` says the roles go unused
+            job.warnings.append(f"CAN roles of the config in no frame of the logs: {', '.join(missing_roles)} "
+                                "(a message or signal the DBC or the log does not have): the stages go without them")
         report.streams = [i.to_dict() for i in infos]
         report.can = {**job.can.stats.to_dict(), "roles": roles, "missing_roles": missing_roles}
         if job.bad_messages:
