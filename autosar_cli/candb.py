@@ -115,10 +115,20 @@ def _parse(text: str) -> Database:
     return db
 
 
+#: a parser's message quotes the line it failed on: of a binary file, kilobytes of it
+_REASON_CHARS = 160
+
+#: what a file given as the DBC is by its first bytes, where it is a log (``--dbc`` and ``--can-log`` swapped)
+_NOT_A_DBC = ((b"MDF     ", "an MDF4 log"), (b"UnFinMF ", "an MDF4 log"), (b"LOGG", "a BLF log"),
+              (b"\x89MCAP", "an MCAP log"), (b"#ROSBAG", "a ROS 1 bag"), (b"SQLite format 3", "a rosbag2 database"))
+
+
 def _reason(exc: BaseException) -> str:
-    """One-line description of a cantools load failure (its underlying cause)."""
+    """One-line description of a cantools load failure (its underlying cause), cut short and printable."""
     cause = exc.__cause__ or exc
-    return " ".join(str(cause).split()) or type(cause).__name__
+    said = " ".join(str(cause).split()) or type(cause).__name__
+    said = "".join(c if c.isprintable() else "?" for c in said)
+    return said if len(said) <= _REASON_CHARS else said[:_REASON_CHARS] + "..."
 
 
 def _read_text(path: Path) -> str:
@@ -141,6 +151,10 @@ def load_dbc(path: str | Path) -> tuple[Database, list[str]]:
     """
     path = Path(path)
     text = _read_text(path)
+    with open(path, "rb") as f:  # read whole just now
+        head = f.read(16)
+    if kind := next((what for magic, what in _NOT_A_DBC if head.startswith(magic)), None):
+        raise DbcError(f"{path}: {kind}, not a DBC (--dbc takes the CAN database, --can-log a CAN log)")
     try:
         db = _parse(text)
     except cantools.database.UnsupportedDatabaseFormatError as exc:

@@ -16,7 +16,7 @@ PACKAGE = ROOT / "autosar_cli"
 #: the stages in the order a drive goes through them, the simulator that feeds them last
 ORDER = ["", "ingest", "store", "nav", "sar", "evaluate", "sim"]
 #: a sentence ends at a full stop before a blank, not after an abbreviation
-SENTENCE_END = re.compile(r"(?<!e\.g)(?<!i\.e)(?<!\bFig)(?<!\bSec)(?<!\betc)\.(?:\s|$)")
+SENTENCE_END = re.compile(r"(?<!e\.g)(?<!i\.e)(?<!\bFig)(?<!\bSec)(?<!\betc)(?<!\beq)(?<!\beqs)\.(?:\s|$)")
 ROLE = re.compile(r":(?:func|mod|class|meth|data|attr):`~?\.?([^`]+)`")
 
 

@@ -231,6 +231,25 @@ def test_garbage_raises_dbc_error_naming_the_file(tmp_path: Path, ci_mcap) -> No
     assert str(info2.value) == str(info.value)
 
 
+def test_a_log_given_as_the_dbc_is_named_for_what_it_is(tmp_path: Path, ci_mcap) -> None:
+    """--dbc and --can-log swapped: the parser quoted kilobytes of the MF4's bytes; now what the file is, in one
+    short line; any parser's message is cut short and printable."""
+    with pytest.raises(DbcError) as info:
+        load_dbc(ci_mcap.log_path)
+    assert str(info.value) == (f"{ci_mcap.log_path}: an MCAP log, not a DBC (--dbc takes the CAN database, --can-log "
+                               "a CAN log)")
+    mf4 = tmp_path / "log.MF4"
+    mf4.write_bytes(b"UnFinMF 4.11    " + bytes(range(256)) * 16)
+    with pytest.raises(DbcError, match=r"log.MF4: an MDF4 log, not a DBC"):
+        load_dbc(mf4)
+    binary = tmp_path / "binary.dbc"
+    binary.write_bytes(b"VERSION \"\"\n" + b"BO_ \x01\x02" + bytes(range(1, 256)) * 16)
+    with pytest.raises(DbcError) as info:
+        load_dbc(binary)
+    said = str(info.value)[len(f"{binary}: "):]
+    assert len(said) <= 163 and said.isprintable(), said
+
+
 def test_other_defects_are_not_repaired(tmp_path: Path) -> None:
     path = tmp_path / "overflow.dbc"
     path.write_text(_SYNTHETIC.replace("7|8@0+", "7|12@0+"))  # X overlaps CHECKSUM
