@@ -73,7 +73,7 @@ from autosar_cli.ingest.mdf4_mend import write_mended
 from autosar_cli.ingest.records import CanRecord, CutShort
 from autosar_cli.ingest.text_lines import LineFeed, damaged_lines
 
-__all__ = ["CAN_LOG_SUFFIXES", "CanLogError", "is_can_log", "read_can_log"]
+__all__ = ["CAN_LOG_SUFFIXES", "CanLogError", "first_frame_ns", "is_can_log", "read_can_log"]
 
 log = logging.getLogger(__name__)
 
@@ -241,6 +241,21 @@ def read_can_log(path: Path, warn: Callable[[str], None] = log.warning) -> Itera
     if not path.is_file():
         raise CanLogError(f"{path}: no such file" if not path.exists() else f"{path}: not a file")
     return _records(path, warn)
+
+
+def first_frame_ns(path: Path) -> int | None:
+    """The time (ns) of a CAN log's first frame, read as :func:`read_can_log` reads it (its damage checks, then the
+    reader's first frame), or None where no frame is read: how ingest puts a logger's split files in time order."""
+    try:
+        frames = read_can_log(path, lambda said: None)
+    except CanLogError:
+        return None
+    try:
+        return next(frames).t_ns
+    except (StopIteration, CanLogError):
+        return None
+    finally:
+        frames.close()
 
 
 def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:

@@ -732,6 +732,7 @@ def ingest_sorted(given: SortedInputs, output: Path, *, config: Config, dbc: Pat
         if (p, "can") not in inputs and (p, "nmea") not in inputs:
             raise IngestError(f"--time-offset {p}: not one of the CAN or NMEA logs given (a container log's "
                               "header stamps cannot be shifted; use --allow-time-gap)")
+    inputs = can_logs_in_time_order(inputs, offsets)
     sources: list[tuple[Path, str, LogSource | None]] = []
     for path, kind in inputs:
         if kind == "log" and path.name == "metadata.yaml":  # a rosbag2 bag: the directory is the input (provenance)
@@ -843,6 +844,24 @@ def parse_time_ns(text: str) -> int:
         raise IngestError(f"--radar-start {text!r}: not a time from 2000 on in ns since the Unix epoch (seconds "
                           "or milliseconds given? give ns, or an ISO 8601 time)")
     return ns
+
+
+def can_logs_in_time_order(inputs: list[tuple[Path, str]], offsets: Mapping[Path, int]) -> list[tuple[Path, str]]:
+    """``inputs`` (path, kind) with their CAN logs in the order of their first frames' times (plus their
+    ``--time-offset``, ns), the other inputs where they are. A logger splits a drive into files that do not overlap,
+    and a stream's reorder buffer puts back a few hundred messages: read after a later file, an earlier one's frames
+    of a fast stream came too late and were dropped. A CAN log whose first frame is not read keeps its place (reading
+    it says why); logs of one first time keep their order."""
+    can = [path for path, kind in inputs if kind == "can"]
+    if len(can) < 2:
+        return inputs
+    from .canlog import first_frame_ns
+
+    firsts = {path: first_frame_ns(path) for path in can}
+    timed = iter(sorted((p for p in can if firsts[p] is not None),
+                        key=lambda p: (firsts[p] or 0) + offsets.get(p, 0)))
+    ordered = iter([next(timed) if firsts[p] is not None else p for p in can])
+    return [(next(ordered), kind) if kind == "can" else (path, kind) for path, kind in inputs]
 
 
 def _input_bytes(path: Path, src: LogSource | None) -> int:
@@ -994,6 +1013,10 @@ def _check_content(inputs: list[tuple[Path, str]], infos: list[StreamInfo], job:
 def _plausibility(infos: list[StreamInfo], job: _Ingest) -> None:
     """Warnings for data that decoded but cannot be right (ROS containers carry no checksums)."""
     for info in infos:
+        if info.stats is not None and info.stats.late_dropped:
+            job.warnings.append(f"{info.path}: {info.stats.late_dropped} message(s) dropped as late: stamped before "
+                                "rows already written, further out of order than its reorder buffer reaches (inputs "
+                                "of one stream out of time order, or their stamps damaged?)")
         if info.stats is not None and info.stats.stamp_outliers:
             job.warnings.append(f"{info.path}: {info.stats.stamp_outliers} message(s) stamped over a second after the "
                                 "ones before and after them dropped (a damaged stamp)")
