@@ -17,7 +17,7 @@ from __future__ import annotations
 import bz2
 import mmap
 import struct
-from collections.abc import Generator, Iterator
+from collections.abc import Generator, Iterable, Iterator
 from dataclasses import dataclass, field
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
@@ -41,6 +41,7 @@ class Ros1Connection:
     topic: str
     msgtype: str  #: as the bag spells it ("pkg/Name")
     msgdef: str
+    md5sum: str = ""  #: of the message definition, as the bag states it
 
 
 @dataclass(frozen=True, slots=True)
@@ -123,7 +124,45 @@ def _connection(fields: dict[str, bytes], data: bytes) -> Ros1Connection:
     conn = parse_fields(bytes(data))
     topic = fields.get("topic", b"").decode("utf-8")
     return Ros1Connection(_u32(fields, "conn"), topic, conn.get("type", b"").decode("utf-8"),
-                          conn.get("message_definition", b"").decode("utf-8"))
+                          conn.get("message_definition", b"").decode("utf-8"),
+                          conn.get("md5sum", b"").decode("ascii", "replace"))
+
+
+def chunk_connections(buf: Buffer, pos: int) -> dict[int, Ros1Connection]:
+    """The connection records inside the chunk record at ``pos`` (a connection's first copy, written before its
+    first message), by connection id; none where the chunk or a record before them does not read."""
+    found: dict[int, Ros1Connection] = {}
+    try:
+        fields, dstart, dend = read_record(buf, pos)
+        if fields["op"][0] != OP_CHUNK:
+            return found
+        data = _decompress(fields.get("compression", b"").decode("ascii", "replace"), buf[dstart:dend],
+                           _u32(fields, "size"))
+        at = 0
+        while at < len(data):
+            inner, istart, iend = read_record(data, at)
+            if inner["op"][0] == OP_CONNECTION:
+                c = _connection(inner, data[istart:iend])
+                found.setdefault(c.conn_id, c)
+            at = iend
+    except Exception:  # any codec or record error: the copies read so far; reading the chunk says what broke
+        pass
+    return found
+
+
+def chunk_copies(buf: Buffer, first_chunks: Iterable[tuple[int, int]]) -> dict[int, tuple[Ros1Connection, int]]:
+    """Each connection's copy in its first chunk, and that chunk's byte offset; ``first_chunks``: (connection id,
+    byte offset of the first chunk holding its messages). Each chunk is decompressed once."""
+    by_chunk: dict[int, list[int]] = {}
+    for conn_id, pos in first_chunks:
+        by_chunk.setdefault(pos, []).append(conn_id)
+    found: dict[int, tuple[Ros1Connection, int]] = {}
+    for pos, ids in sorted(by_chunk.items()):
+        copies = chunk_connections(buf, pos)
+        for conn_id in ids:
+            if conn_id in copies:
+                found[conn_id] = (copies[conn_id], pos)
+    return found
 
 
 def normalise_topic(name: str) -> str:

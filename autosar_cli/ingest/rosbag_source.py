@@ -8,10 +8,22 @@ rosbag2 traps handled here (see the real-data notes in docs/FORMATS.md):
   from the sqlite3 storage with SQL instead.
 - MCAP storage files are plain MCAP: they are read with :class:`~.mcap_source.McapSource`, which decodes
   per channel, so one unparseable embedded schema cannot take the whole bag down.
+
+A ROS1 bag writes each connection record twice: inside the chunk that holds the connection's first message, and in
+the index section after the chunks, which rosbags reads. A byte damaged in one copy (the type's name, its md5sum,
+its message definition or the topic) makes it disagree with the other (:func:`reconcile`). Each copy is judged by
+what it says of itself: whether its md5sum is that of its message definition (read as the type it names), and
+whether it is that of the known type of its name (:func:`autosar_cli.msgs.typestore_for`). The copy that bears out
+more of the two is read, the chunk's where they bear out as many (``rosbag reindex`` reads that one; the messages
+lie beside it), and a warning names the connection, what each copy says and which was read. A connection that
+names a type no one knows whose md5sum is a known type's, that type's name at most :data:`NEAR_MISS` letters from
+its own (both copies damaged, or a bag read chunk by chunk with one copy), is read as that type, with a warning
+(:func:`near_known_type`): else its stream would be skipped as no sensor stream.
 """
 
 from __future__ import annotations
 
+import functools
 import mmap
 import os
 import sqlite3
@@ -23,9 +35,12 @@ from typing import Any
 from urllib.parse import quote
 
 import yaml
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from autosar_cli.msgs import typestore_for
 
 from .mcap_source import MCAP_MAGIC, McapSource
-from .ros1_chunks import RecordError, Ros1Connection, ScanReport, scan_bag
+from .ros1_chunks import RecordError, Ros1Connection, ScanReport, chunk_copies, scan_bag
 from .ros1_chunks import normalise_topic as ros1_topic
 from .sources import (
     Channel,
@@ -38,6 +53,112 @@ from .sources import (
 )
 from .sqlite_pages import table_leaf_rows
 from .sqlite_wal import apply_wal
+
+NEAR_MISS = 2  #: letters (inserted, lost or changed) by which a damaged type's name misses the known one
+
+
+def _differences(a: Ros1Connection, b: Ros1Connection) -> list[tuple[str, str, str]]:
+    """(field, a's, b's) of each field the two copies state differently."""
+    pairs = (("topic", ros1_topic(a.topic), ros1_topic(b.topic)),
+             ("type", normalise_type(a.msgtype), normalise_type(b.msgtype)),
+             ("md5sum", a.md5sum, b.md5sum))
+    out = [(name, x, y) for name, x, y in pairs if x != y]
+    if a.msgdef != b.msgdef:
+        out.append(("message definition", *(f"whose md5 is {md5}" if (md5 := definition_md5(c.msgtype, c.msgdef))
+                                             else "that does not parse" for c in (a, b))))
+    return out
+
+
+@functools.lru_cache(maxsize=256)
+def definition_md5(msgtype: str, msgdef: str) -> str | None:
+    """The ROS1 md5sum of the message definition ``msgdef`` read as type ``msgtype``, or None where it does not
+    parse as that."""
+    name = normalise_type(msgtype)
+    try:
+        store = get_typestore(Stores.EMPTY)
+        store.register(get_types_from_msg(msgdef, name))
+        return store.generate_msgdef(name, ros_version=1)[1]
+    except Exception:  # rosbags raises several types for bad text
+        return None
+
+
+@functools.lru_cache(maxsize=256)
+def known_md5(msgtype: str) -> str | None:
+    """The ROS1 md5sum of the known type ``msgtype``, or None where no type of that name is known."""
+    store = typestore_for(1)
+    name = normalise_type(msgtype)
+    if name not in store.types:
+        return None
+    try:
+        return store.generate_msgdef(name, ros_version=1)[1]
+    except Exception:  # a known type whose definition rosbags cannot hash: nothing to tell by
+        return None
+
+
+def _consistency(c: Ros1Connection) -> int:
+    """How many of its own statements a copy bears out: its md5sum is its definition's, and its type's."""
+    return int(definition_md5(c.msgtype, c.msgdef) == c.md5sum) + int(known_md5(c.msgtype) == c.md5sum)
+
+
+def _said(differences: list[tuple[str, str, str]], which: int) -> str:
+    """What one copy (1: the first given to :func:`_differences`, 2: the other) says where they differ."""
+    return ", ".join(f"{d[0]} {d[which]}" for d in differences)
+
+
+def reconcile(index: Ros1Connection, chunk: Ros1Connection | None, chunk_pos: int, where: str
+              ) -> tuple[Ros1Connection, str | None]:
+    """The copy of a connection record to read, of its index copy and its copy in the chunk at byte
+    ``chunk_pos`` (None: none found), and the warning where they disagree (``where``: the bag)."""
+    if chunk is None:
+        return index, None
+    differences = _differences(index, chunk)
+    if not differences:
+        return index, None
+    chunk_score, index_score = _consistency(chunk), _consistency(index)
+    read, other = ("the index's", "the chunk's") if index_score > chunk_score else ("the chunk's", "the index's")
+    chosen = index if index_score > chunk_score else chunk
+    reason = ("its md5sum is its definition's and its type's" if max(chunk_score, index_score) == 2 else
+              "its md5sum is its definition's or its type's" if max(chunk_score, index_score) == 1 else
+              "neither copy's md5sum is its definition's or its type's")
+    if chunk_score == index_score:
+        reason = f"both as consistent ({reason}): the copy beside the messages"
+    topic = ros1_topic(chosen.topic)
+    return chosen, (f"{where}: damaged ROS1 bag: connection {index.conn_id} ({topic}) disagrees with itself: its "
+                    f"index copy says {_said(differences, 1)}, its copy in the chunk at byte {chunk_pos} "
+                    f"{_said(differences, 2)}; {read} read ({reason}), {other} damaged")
+
+
+def _distance(a: str, b: str, most: int) -> int:
+    """The edit distance of ``a`` and ``b``, or ``most + 1`` where it is over ``most``."""
+    if abs(len(a) - len(b)) > most:
+        return most + 1
+    row = list(range(len(b) + 1))
+    for i, x in enumerate(a, 1):
+        prev, row[0] = row[0], i
+        for j, y in enumerate(b, 1):
+            prev, row[j] = row[j], min(row[j] + 1, row[j - 1] + 1, prev + (x != y))
+        if min(row) > most:
+            return most + 1
+    return row[-1]
+
+
+def near_known_type(c: Ros1Connection, where: str) -> tuple[Ros1Connection, str | None]:
+    """``c``, or where its type is none known but its md5sum is that of a known type whose name is at most
+    :data:`NEAR_MISS` letters from its own, ``c`` as that type and the warning that says so."""
+    name = normalise_type(c.msgtype)
+    store = typestore_for(1)
+    if not c.md5sum or name in store.types:
+        return c, None
+    near = [(d, known) for known in store.types if (d := _distance(name, known, NEAR_MISS)) <= NEAR_MISS]
+    matches = sorted((d, known) for d, known in near if known_md5(known) == c.md5sum)
+    if not matches or (len(matches) > 1 and matches[0][0] == matches[1][0]):
+        return c, None
+    d, known = matches[0]
+    topic = ros1_topic(c.topic)
+    return (Ros1Connection(c.conn_id, c.topic, known, c.msgdef, c.md5sum),
+            f"{where}: damaged ROS1 bag: connection {c.conn_id} ({topic}) names type {c.msgtype}, which is none "
+            f"known, but its md5sum {c.md5sum} is {known}'s, whose name it misses by {d} letter{'s' * (d > 1)}: "
+            f"read as {known}")
 
 
 class Ros1BagSource:
@@ -70,10 +191,7 @@ class Ros1BagSource:
             yield from self._scan()
             return
         try:
-            channels = {}
-            for conn in reader.connections:
-                channels[conn.id] = Channel((str(self.path), conn.id), conn.topic, normalise_type(conn.msgtype),
-                                            "ros1", conn.msgdef.data, "ros1msg", conn.msgcount)
+            channels = self._index_channels(reader)
             total = sum(c.msgcount for c in reader.connections) or 1
             it = reader.messages()
             n = 0
@@ -100,6 +218,26 @@ class Ros1BagSource:
             reader.close()
         yield from self._scan()
 
+    def _index_channels(self, reader: Any) -> dict[int, Channel]:
+        """The channels of the connections rosbags' ``reader`` read from the bag's index, each checked against its
+        copy in the first chunk holding its messages (:func:`reconcile`), by connection id."""
+        first: dict[int, int] = {}
+        for info in sorted(reader.chunk_infos, key=lambda i: i.pos):
+            for conn_id in info.connection_counts:
+                first.setdefault(conn_id, info.pos)
+        with open(self.path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+            copies = chunk_copies(buf, first.items())
+        channels = {}
+        for conn in reader.connections:
+            chunk, pos = copies.get(conn.id, (None, 0))
+            c, disagree = reconcile(Ros1Connection(conn.id, conn.topic, conn.msgtype, conn.msgdef.data, conn.digest),
+                                    chunk, pos, str(self.path))
+            c, renamed = near_known_type(c, str(self.path))
+            self.stats.warnings += [w for w in (disagree, renamed) if w]
+            channels[conn.id] = Channel((str(self.path), conn.id), ros1_topic(c.topic), normalise_type(c.msgtype),
+                                        "ros1", c.msgdef, "ros1msg", conn.msgcount)
+        return channels
+
     def _scan(self) -> Iterator[RawMessage]:
         """Every message of every intact chunk not yet delivered through the index."""
         report = ScanReport()
@@ -114,7 +252,9 @@ class Ros1BagSource:
                         continue
                     ch = channels.get(msg.conn_id)
                     if ch is None:
-                        c = conns[msg.conn_id]
+                        c, renamed = near_known_type(conns[msg.conn_id], str(self.path))
+                        if renamed:
+                            self.stats.warnings.append(renamed)
                         ch = channels[msg.conn_id] = Channel((str(self.path), c.conn_id), ros1_topic(c.topic),
                                                              normalise_type(c.msgtype), "ros1", c.msgdef, "ros1msg")
                     self.stats.messages += 1
