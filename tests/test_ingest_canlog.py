@@ -323,6 +323,62 @@ def test_records_pasted_from_elsewhere_in_an_mf4_are_not_read_twice(tmp_path: Pa
     assert message.count("left out and the records after them read") == 1
 
 
+# The 2022 file's frame at byte 50478: its 23-byte fixed record (its data offset at byte 50493), then its 13-byte
+# data-bytes record at 50501 (a record id, a 4-byte length, 8 data bytes); the next frame's fixed record at 50514.
+_FRAME, _DATA, _NEXT = 50478, 50501, 50514
+
+
+@pytest.mark.parametrize("damage, kept, says", [
+    (lambda d: d[:_FRAME] + d[_NEXT:], 5587, "the frame at byte 50478 and those after it point 12 bytes past their "
+     "data-bytes records (12 bytes of data-bytes records lost before it): read at their own"),
+    (lambda d: d[:_NEXT] + d[_FRAME:], 5588, "1 frame whose data offset points to data bytes another frame reads "
+     "left out (byte 50514; the first's point to those of the frame at byte 50478)"),
+    (lambda d: d[:_DATA] + d[_NEXT:], 5587, "1 frame with no data-bytes record before the next frame left out (byte "
+     "50478); the frame at byte 50501 and those after it point 12 bytes past"),
+    (lambda d: d[:_NEXT] + d[_DATA:_NEXT] + d[_NEXT:], 5588, "1 data-bytes record no frame points to left out (byte "
+     "50514)"),
+    (lambda d: d[:14668] + d[14632:], 5588, "1 frame whose data offset points to data bytes another frame reads left "
+     "out (byte 14668; the first's point to those of the frame at byte 14632)")],
+    ids=["a frame lost", "a frame written twice", "a data-bytes record lost", "a data-bytes record written twice",
+         "the first frame written twice"])
+def test_an_mf4_frame_lost_or_written_twice_keeps_every_other_frame(tmp_path: Path, damage: Callable[[bytes], bytes],
+                                                                    kept: int, says: str) -> None:
+    """One frame's records (or its data-bytes record alone) lost from the 2022 file's records, or written twice:
+    every record still parses, but each frame after it points 12 bytes off its own data bytes, and asammdf read a
+    length from inside a record there ("Unable to allocate 3.81 TiB"): no frame at all. Each frame is paired with
+    the data-bytes record after it: a lost record's place is named and the frames after it read at their own
+    records, a second copy (which points to data bytes a frame before it reads) left out; every intact frame read
+    once, in order."""
+    data = realdata(CSS, MF4_2022).read_bytes()
+    got, message = _read_damaged(tmp_path / "damaged.MF4", damage(data))
+    reference = _real_records(MF4_2022)
+    assert len(got) == kept and len(set(got)) == kept and _in_order_within(got, reference)
+    assert message.startswith(f"{tmp_path / 'damaged.MF4'}: damaged MDF4 log: {says}")
+    assert message.endswith(f"; {kept} frames read") and "\n" not in message
+
+
+@pytest.mark.parametrize("offset, says", [
+    ("462e", "1 frame whose data offset points to data bytes another frame reads left out (byte 50514; the first's "
+     "point to those of the frame at byte 50478)"),
+    ("5e2e", "1 frame whose data offset points past or before its data-bytes record, the frames either side to "
+     "their own (a damaged offset), left out (byte 50514; the first's by +12 bytes)")],
+    ids=["to the frame before's", "to the frame after's"])
+def test_an_mf4_frame_whose_data_offset_points_to_another_frames_bytes_is_left_out(tmp_path: Path, offset: str,
+                                                                                   says: str) -> None:
+    """The data offset of the 2022 file's frame at byte 50514 overwritten to point to the data-bytes record of the
+    frame before it, or after it: asammdf read that frame's bytes as its own, without a word (the ingest's
+    AngularRateZ row 770 held the frame before's value). A data-bytes record is read by one frame, and each
+    frame's follows it: the frame whose offset disagrees is left out, named, and every other frame read."""
+    data = bytearray(realdata(CSS, MF4_2022).read_bytes())
+    data[_NEXT + 15:_NEXT + 17] = bytes.fromhex(offset)
+    got, message = _read_damaged(tmp_path / "damaged.MF4", data)
+    reference = _real_records(MF4_2022)
+    assert len(got) == len(reference) - 1 and _in_order_within(got, reference)
+    lost = Counter(reference) - Counter(got)
+    assert [r.data for r in lost] == [bytes(data[_NEXT + 28:_NEXT + 36])]  # the frame's own data bytes
+    assert message == f"{tmp_path / 'damaged.MF4'}: damaged MDF4 log: {says}; 5587 frames read"
+
+
 def test_an_mf4_whose_records_never_agree_again_keeps_the_frames_before_the_damage(tmp_path: Path) -> None:
     """Random bytes from inside the 2022 file's records to its end: no run of records agrees again, so the frames
     before the damage less the last two are read and the error says from which byte on nothing was."""

@@ -46,6 +46,7 @@ from .mdf4_layout import (
     fields_at,
 )
 from .mdf4_mend import mend_chains
+from .mdf4_offsets import offset_damage
 from .mdf4_shift import shifted_links
 from .mdf4_sorted import out_of_order, sorted_damage, write_sorted_without
 from .records import CutShort, places_said
@@ -196,6 +197,8 @@ def _cut_record(buf: mmap.mmap, dg: int, dt: int, last: bool) -> CutShort | None
     holes: list[tuple[int, int]] = []
     said: list[str] = []
     fixed: list[int] = []  # where each fixed record read begins
+    vlsd: list[int] = []  # where each VLSD record read begins
+    segments = [pos]  # where the walk read on after each hole (the first: where it began)
     time = -1  # the time of the last record read before the last hole, as its field reads
     # the ends of the last whole records: damage shows only where it breaks a record's id or length, so the
     # record or two before that may hold damaged bytes that parse (a frame's data bytes are not checked)
@@ -204,7 +207,7 @@ def _cut_record(buf: mmap.mmap, dg: int, dt: int, last: bool) -> CutShort | None
         found = _next_record(buf, pos, end, rec)
         if found == "cut":
             said.append(f"its last record at byte {pos} is cut off ({_cut_there(buf, pos, rec)} there)")
-            return _with_stamps(buf, rec, fixed, said, holes, wholes[-1], damaged=bool(holes))
+            return _with_stamps(buf, rec, (fixed, vlsd, segments), said, holes, wholes[-1], damaged=bool(holes))
         if isinstance(found, str):
             what = ("has an unknown record id" if found == "id" else
                     f"says it holds {struct.unpack_from('<I', buf, pos + rec.id_size)[0]} bytes")
@@ -215,11 +218,12 @@ def _cut_record(buf: mmap.mmap, dg: int, dt: int, last: bool) -> CutShort | None
             if again is None:
                 said.append(f"record at byte {pos} {what}: damaged there, its {end - kept_to} bytes on from byte "
                             f"{kept_to} not read")
-                return _with_stamps(buf, rec, fixed, said, holes, kept_to, damaged=True)
+                return _with_stamps(buf, rec, (fixed, vlsd, segments), said, holes, kept_to, damaged=True)
             said.append(f"record at byte {pos} {what}: damaged there, bytes {kept_to} to {again[0]} left out and "
                         f"the records after them read")
             pos, base, time = again
             holes.append((kept_to, pos))
+            segments.append(pos)
             start = pos
             counts = dict.fromkeys(rec.sizes, 0)
             wholes = deque([pos], maxlen=_DAMAGE_MARGIN + 1)
@@ -227,35 +231,45 @@ def _cut_record(buf: mmap.mmap, dg: int, dt: int, last: bool) -> CutShort | None
         record_id, _, after = found
         if rec.sizes[record_id] is not None:
             fixed.append(pos)
+        else:
+            vlsd.append(pos)
         pos = after
         counts[record_id] += 1
         if all(counts[vlsd] == counts[parent] for vlsd, parent in rec.pairs):
             wholes.append(pos)
-    return _with_stamps(buf, rec, fixed, said, holes, None, damaged=bool(holes))
+    return _with_stamps(buf, rec, (fixed, vlsd, segments), said, holes, None, damaged=bool(holes))
 
 
-def _with_stamps(buf: mmap.mmap, rec: _Records, fixed: list[int], said: list[str], holes: list[tuple[int, int]],
-                 whole_bytes: int | None, damaged: bool) -> CutShort | None:
-    """What the walk found (``said``, ``holes``, the bytes whole up to ``whole_bytes``), and the frames among the
-    fixed records read (starting at bytes ``fixed``) whose times fall out of their group's order
+def _with_stamps(buf: mmap.mmap, rec: _Records, read: tuple[list[int], list[int], list[int]], said: list[str],
+                 holes: list[tuple[int, int]], whole_bytes: int | None, damaged: bool) -> CutShort | None:
+    """What the walk found (``said``, ``holes``, the bytes whole up to ``whole_bytes``); the frames whose data
+    offsets do not point to their own data-bytes records (:func:`~.mdf4_offsets.offset_damage`), left out or read
+    at their own; and the frames among the fixed records read whose times fall out of their group's order
     (:func:`~.mdf4_sorted.out_of_order`: a damaged stamp that parses), left out with the frames either side of
-    them: a hole from the frame before each to the frame after it. None where nothing was found."""
+    them: a hole from the frame before each to the frame after it. ``read``: the bytes where the fixed and the
+    VLSD records read begin, and where the walk began and read on after each hole. None where nothing was found."""
+    fixed, vlsd, segments = read
     stop = len(buf) if whole_bytes is None else whole_bytes
-    starts = np.array(fixed, dtype=np.int64)
-    keep = starts < stop
-    for a, b in holes:
-        keep &= (starts < a) | (starts >= b)
-    starts = starts[keep]
+    starts = _outside(np.array(fixed, dtype=np.int64), holes, stop)
+    raw = np.frombuffer(buf, np.uint8)
+    if rec.offsets and rec.last:  # holes are cut out of the file: no block may lie after them
+        found = offset_damage(raw, rec.id_size, rec.sizes, rec.offsets, starts,
+                              _outside(np.array(vlsd, dtype=np.int64), holes, stop),
+                              np.array(segments, dtype=np.int64))
+        if found.holes:
+            said.extend(found.said)
+            holes = _merged([*holes, *found.holes])
+            starts = _outside(starts, holes, stop)
+            damaged = True
     flagged = np.zeros(len(starts), dtype=bool)
-    if len(starts) and rec.times and rec.last:  # holes are cut out of the file: no block may lie after them
-        raw = np.frombuffer(buf, np.uint8)
+    if len(starts) and rec.times and rec.last:
         ids = (fields_at(raw, starts, rec.id_size) if rec.id_size
                else np.full(len(starts), next(iter(rec.sizes)), dtype=np.uint64))
         for record_id, (byte, size) in rec.times.items():
             mine = np.flatnonzero(ids == record_id)
             flagged[mine] = out_of_order(fields_at(raw, starts[mine] + rec.id_size + byte, size,
                                                    record_id in rec.float_times))
-        del raw  # a view of the file, which closes after this
+    del raw  # a view of the file, which closes after this
     if flagged.any():
         bad = np.flatnonzero(flagged)
         ends = np.r_[starts[1:], stop]  # a frame: its fixed record and the data bytes after it
@@ -267,6 +281,14 @@ def _with_stamps(buf: mmap.mmap, rec: _Records, fixed: list[int], said: list[str
     if not said:
         return None
     return CutShort(places_said(said), whole_bytes, damaged=damaged, holes=tuple(holes))
+
+
+def _outside(starts: np.ndarray, holes: list[tuple[int, int]], stop: int) -> np.ndarray:
+    """The records at bytes ``starts`` that begin before ``stop`` and in no hole [a, b)."""
+    keep = starts < stop
+    for a, b in holes:
+        keep &= (starts < a) | (starts >= b)
+    return starts[keep]
 
 
 def _merged(ranges: list[tuple[int, int]]) -> list[tuple[int, int]]:
