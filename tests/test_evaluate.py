@@ -264,7 +264,8 @@ def test_point_target_peak_is_located_between_the_fine_samples() -> None:
     """A Hann-tapered range x uniform cross-range response (-3 dB 3.6 x 3.5 cm, ground range 20 deg off the
     grid's across axis) on 5 mm pixels at random sub-pixel positions: analyse_point_target (4x upsampling: 1.25 mm
     samples, then refine_peak) puts the peak within 0.01 mm of the target (measured: <= 0.6 um), where the fine
-    samples' argmax alone errs by up to half a sample diagonal (0.9 mm), and measures both widths within 2 %."""
+    samples' argmax alone errs by up to half a sample diagonal (0.9 mm), measures both widths within 2 %, and the
+    cuts' PSLR and ISLR within 0.15 and 0.1 dB of the response's own."""
     grid = FocusGrid(origin=(0.0, 0.0), along=(1.0, 0.0), across=(0.0, 1.0), pixel_m=0.005, n_along=200,
                      n_across=200, height_m=0.0)
     rd = np.array([math.sin(math.radians(20.0)), math.cos(math.radians(20.0))])
@@ -276,6 +277,18 @@ def test_point_target_peak_is_located_between_the_fine_samples() -> None:
     def hann_response(x: np.ndarray) -> np.ndarray:  # the Fourier transform of a Hann-tapered band
         return 0.5 * np.sinc(x) + 0.25 * (np.sinc(x - 1.0) + np.sinc(x + 1.0))
 
+    # PSLR and ISLR of the cuts in float64 from the response itself: the cuts run +-0.2 m (the 0.4 m patch) in
+    # 1.25 mm steps through the peak, the main lobe ends at the first nulls (2 bins for Hann, 1 for the uniform
+    # band), PSLR is the highest sidelobe (-31.5 and -13.26 dB), ISLR the sidelobe over main-lobe energy on
+    # those samples (-32.9 and -10.7 dB: the +-8 and +-5 bins the cuts reach).
+    t = np.arange(-160, 161) * 0.00125
+    dense = np.linspace(0.0, 8.0, 80001)
+    want = []
+    for amp, null in ((hann_response(t / delta_r) ** 2, 2 * delta_r), (np.sinc(t / rho_c) ** 2, rho_c)):
+        main = np.abs(t) < null
+        want.append(10 * math.log10(amp[~main].sum() / amp[main].sum()))
+    side_r, side_c = hann_response(dense[dense > 2.0]) / hann_response(0.0), np.sinc(dense[dense > 1.0])
+    want_pslr = (10 * math.log10((side_r**2).max()), 10 * math.log10((side_c**2).max()))
     worst_argmax = 0.0
     for _ in range(8):
         target = np.r_[0.5 + rng.uniform(0.0, 0.005), 0.5 + rng.uniform(0.0, 0.005), 0.0]
@@ -288,6 +301,11 @@ def test_point_target_peak_is_located_between_the_fine_samples() -> None:
         worst_argmax = max(worst_argmax, float(np.hypot(*(nearest - target[:2]))))
         assert m.range_cut.width_m == pytest.approx(1.44 * delta_r, rel=0.02)  # Hann: 1.44 bins
         assert m.cross_range_cut.width_m == pytest.approx(0.886 * rho_c, rel=0.02)
+        for cut, islr, pslr in zip((m.range_cut, m.cross_range_cut), want, want_pslr):
+            assert cut.pslr_db == pytest.approx(pslr, abs=0.15)  # measured: within 0.08 dB
+            assert cut.islr_db == pytest.approx(islr, abs=0.1)  # measured: within 0.03 dB
+    assert want == pytest.approx([-32.9, -10.7], abs=0.05)
+    assert want_pslr == pytest.approx([-31.47, -13.26], abs=0.01)
     assert worst_argmax > 3e-4
 
 

@@ -537,8 +537,19 @@ def test_relative_pose_error_ignores_rigid_motion_and_sees_bends() -> None:
     assert np.abs(err).max() < 1e-9
     bent = ref.copy()
     bent[:, 1] += 0.002 * np.sin(2 * np.pi * s / 2.0)  # 2 mm wiggle, 2 m period
-    lat = relative_pose_error(bent, psi, ref, psi, 1.0)[:, 1]
-    assert 1e-3 < np.sqrt(np.mean(lat**2)) < 4e-3
+    # The wiggle w(s) = 2 mm sin(pi s) only moves y, so pose i's across error is cos(psi_i) (w(s_i + D) - w(s_i))
+    # = cos(psi_i) 4 mm cos(pi (s_i + D/2)) sin(pi D/2), with s_j = s_i + D exactly on this 1 cm grid (the
+    # parabola's arc is a little longer than its x, so the first sample D of travel later is D further in x).
+    # Over whole periods its rms is 4 mm |sin(pi D/2)| / sqrt(2) (cos(psi) >= 0.9998): 2.828 mm over 1 m (19 m of
+    # poses, 19 periods), and nothing over one whole 2 m period.
+    for delta in (1.0, 0.5, 2.0):
+        lat = relative_pose_error(bent, psi, ref, psi, delta)[:, 1]
+        n = len(s) - round(delta / 0.01)  # the poses with a pose D of travel later
+        want = np.cos(psi[:n]) * 0.004 * np.cos(np.pi * (s[:n] + delta / 2)) * math.sin(np.pi * delta / 2)
+        np.testing.assert_allclose(lat, want, rtol=0, atol=1e-12, err_msg=str(delta))
+        if delta == 1.0:
+            assert np.sqrt(np.mean(lat**2)) == pytest.approx(0.004 / math.sqrt(2), rel=1e-3)
+
 
 
 def _circle(t: np.ndarray, speed: float, yaw_rate: float) -> Trajectory:
