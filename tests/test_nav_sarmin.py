@@ -693,8 +693,9 @@ def test_every_sensor_counts(ci_drive: Path, engine: str) -> None:
 
 
 def test_sarmin_accuracy_on_ci(ci_drive: Path, ci_mcap) -> None:  # noqa: ANN001 - the session's SimulationResult
-    """SAR-MIN against truth on the short ci drive, each bound about 3x what it achieves (seed 7: heading 0.47 mrad,
-    yaw rate 1.35 mrad/s, speed 4.1 mm/s RMS; position 0.302 m RMS, 0.013 m within the GNSS fixes' own 0.315 m)."""
+    """SAR-MIN against truth on the short ci drive (seed 7: heading 0.47 mrad, yaw rate 1.35 mrad/s, speed 4.1 mm/s
+    RMS; position 0.302 m RMS, 0.013 m within the GNSS fixes' own 0.315 m). The heading's bound is 1.6x what it
+    achieves: a GNSS lever arm read 15 cm off along the car gives 1.24 mrad; the others about 3x."""
     est = navigate(ci_drive, "sar-min", CFG)
     truth = from_truth(str(ci_mcap.truth_path), est.origin, CFG)
     t = est.t_ns[(est.t_ns >= truth.t_ns[0]) & (est.t_ns <= truth.t_ns[-1])]
@@ -709,7 +710,7 @@ def test_sarmin_accuracy_on_ci(ci_drive: Path, ci_mcap) -> None:  # noqa: ANN001
         gnss_rms = float(np.sqrt(np.mean(np.sum(f["sensors/gnss_cog/position_error"][()][:, :2] ** 2, axis=1))))
     print(f"ci sar-min: heading {heading * 1e3:.3f} mrad, yaw rate {yaw_rate * 1e3:.3f} mrad/s, speed "
           f"{speed * 1e3:.2f} mm/s, position {position:.3f} m (GNSS fixes {gnss_rms:.3f} m) RMS")
-    assert heading < 1.4e-3 and yaw_rate < 4e-3 and speed < 0.012
+    assert heading < 0.75e-3 and yaw_rate < 4e-3 and speed < 0.012
     assert abs(position - gnss_rms) < 0.04
 
 
