@@ -166,8 +166,14 @@ def test_point_target_focuses_at_its_position() -> None:
     img = np.abs(backproject(prof.astype(np.complex64), ant, CHANNELS, pix, win, range0_m=0.0, bin_m=BIN_M,
                              cycles_per_m=CYCLES_PER_M)).reshape(g.shape)
     r, c = np.unravel_index(np.argmax(img), img.shape)
-    peak = g.pixel_enu(r, c)
-    assert np.hypot(*(peak[:2] - target[:2])) <= 0.005
+    # the argmax alone is good to half a 5 mm pixel; the main lobe (10 cm in range, 4 cm across) spans many pixels,
+    # so near its top the intensity is a parabola in each axis, whose vertex through the 3 samples around the
+    # argmax places the peak to a small fraction of a pixel
+    i = img.astype(np.float64) ** 2
+    dr = 0.5 * (i[r - 1, c] - i[r + 1, c]) / (i[r - 1, c] - 2 * i[r, c] + i[r + 1, c])
+    dc = 0.5 * (i[r, c - 1] - i[r, c + 1]) / (i[r, c - 1] - 2 * i[r, c] + i[r, c + 1])
+    peak = g.pixel_enu(r + dr, c + dc)
+    assert np.hypot(*(peak[:2] - target[:2])) <= 0.0005  # measured 0.002 mm; the argmax alone 3.5 mm
     # coherent gain: every pulse and channel adds in phase at the peak
     assert img[r, c] == pytest.approx(np.sum(win[r * g.n_along + c, 1] - win[r * g.n_along + c, 0]) * 8, rel=0.02)
 
