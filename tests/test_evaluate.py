@@ -301,7 +301,7 @@ def test_point_target_peak_is_located_between_the_fine_samples() -> None:
         worst_argmax = max(worst_argmax, float(np.hypot(*(nearest - target[:2]))))
         assert m.range_cut.width_m == pytest.approx(1.44 * delta_r, rel=0.02)  # Hann: 1.44 bins
         assert m.cross_range_cut.width_m == pytest.approx(0.886 * rho_c, rel=0.02)
-        for cut, islr, pslr in zip((m.range_cut, m.cross_range_cut), want, want_pslr):
+        for cut, islr, pslr in zip((m.range_cut, m.cross_range_cut), want, want_pslr, strict=True):
             assert cut.pslr_db == pytest.approx(pslr, abs=0.15)  # measured: within 0.08 dB
             assert cut.islr_db == pytest.approx(islr, abs=0.1)  # measured: within 0.03 dB
     assert want == pytest.approx([-32.9, -10.7], abs=0.05)
