@@ -99,7 +99,8 @@ AllowUnverifiedOpt = Annotated[bool, typer.Option(
     "--allow-unverified", help="Read the MCAP chunks whose CRC fails (the damage is somewhere in them; each is "
                                "named) rather than leave them out.")]
 TimeOffsetOpt = Annotated[list[str] | None, typer.Option(
-    "--time-offset", metavar="PATH=SECONDS", help="Shift a CAN or NMEA log's times (repeatable).")]
+    "--time-offset", metavar="PATH=SECONDS",
+    help="Shift a CAN or NMEA log's times: SECONDS added to each (negative: earlier; repeatable).")]
 AllowTimeGapOpt = Annotated[bool, typer.Option(
     "--allow-time-gap", help="Ingest inputs that lie more than --max-time-gap apart as recorded.")]
 MaxTimeGapOpt = Annotated[float, typer.Option(
@@ -291,7 +292,7 @@ def _not_a_log(path: Path, wanted: str, maker: str) -> None:
 
     # a run written into the log's own directory holds the log, and is still a run
     if begins_as_a_container(path) or (path.is_dir() and is_log_directory(path) and not is_autosar_product(path)):
-        raise ValueError(f"{path}: a drive log, not {wanted}: `{maker.replace('LOG', path.name)}` makes one")
+        raise ValueError(f"{path}: a drive log, not {wanted}: `{maker.replace('LOG', str(path))}` makes one")
 
 
 def _load_config(path: Path | None) -> Any:
@@ -335,9 +336,10 @@ def simulate(
     output: Annotated[Path, typer.Option("--output", "-o", metavar="LOG",
                                          help="Log to write (.mcap, .bag, or a rosbag2 directory).")],
     scenario: Annotated[Scenario, typer.Option("--scenario", "-s", help="Drive to simulate.")] = Scenario.ci,
-    fmt: Annotated[LogFormat, typer.Option("--format", "-f", help="Log container; dca1000: an MCAP of the "
-                                           "navigation plus the radar as a TI DCA1000 capture in <log stem>.dca1000/ "
-                                           "(ingest with --radar).")] = LogFormat.mcap,
+    fmt: Annotated[LogFormat | None, typer.Option(
+        "--format", "-f", help="Log container (default: ros1 for a .bag, else mcap); dca1000: an MCAP of the "
+                               "navigation plus the radar as a TI DCA1000 capture in <log stem>.dca1000/ (ingest "
+                               "with --radar).")] = None,
     seed: Annotated[int, typer.Option("--seed", min=0, max=2**64 - 1, metavar="N",  # numpy's seeds: 64 bits
                                       help="Random seed: same seed, same bytes.")] = 0,
     dynamics: Annotated[Dynamics | None, typer.Option(
@@ -352,6 +354,11 @@ def simulate(
         from autosar_cli.sim.simulate import simulate as run_simulation
         from autosar_cli.sim.truth import truth_path_for
 
+        bag = output.suffix.lower() == ".bag"
+        fmt = fmt or (LogFormat.ros1 if bag else LogFormat.mcap)
+        if bag != (fmt is LogFormat.ros1) and (bag or output.suffix.lower() == ".mcap"):  # other tools go by it
+            raise typer.BadParameter(f"{output}: a {output.suffix} name for a --format {fmt.value} log; name it "
+                                     f"{'.bag' if fmt is LogFormat.ros1 else '.mcap'}, or give the --format it names")
         cfg = _load_config(config)
         _prepare_output(output, overwrite, [cfg.source], replaces_directory=fmt is LogFormat.ros2)
         _prepare_output(truth_path_for(output), overwrite, [cfg.source])

@@ -666,7 +666,18 @@ def _build(cls: Any, value: Any, path: str) -> Any:
         key_t, val_t = typing.get_args(cls)
         if not isinstance(value, dict):
             raise ConfigError(f"{where}: expected a table")
-        return {str(k): _build(val_t, v, _join(path, str(k))) for k, v in value.items()}
+        built = {}
+        for k, v in value.items():
+            try:
+                built[str(k)] = _build(val_t, v, _join(path, str(k)))
+            except ConfigError as exc:
+                kinds = [str(n) for n, t in value.items() if isinstance(t, dict) and "kind" in t]
+                if is_dataclass(val_t) and str(exc).startswith(f"{_join(path, str(k))}.kind: missing required key"):
+                    # a table without the kind every named one has: a name misspelt, or a new one half-given
+                    raise ConfigError(f"{_join(path, str(k))}: not one of [{path}]{_suggestion(str(k), kinds)}; a "
+                                      f"new one needs kind (the others: {', '.join(kinds)})") from None
+                raise
+        return built
     if origin is tuple:
         args = typing.get_args(cls)
         if not isinstance(value, list | tuple):

@@ -95,6 +95,10 @@ def test_simulate_json_and_info(tmp_path):
     assert r.exit_code == 1
     assert r.stderr.strip().count("\n") == 0 and "already exists" in r.stderr and "--overwrite" in r.stderr
     assert log.stat().st_mtime_ns == before
+    # a .bag named MCAP log: other tools refuse it as a bag, and nothing said so; the name gives the container
+    r = runner.invoke(app, ["simulate", "-s", "ci", "-f", "mcap", "-o", str(tmp_path / "mcap.bag")])
+    assert r.exit_code == 1 and "mcap.bag: a .bag name for a --format mcap log" in r.stderr
+    assert not (tmp_path / "mcap.bag").exists()
 
 
 def test_errors_are_one_line_without_traceback(tmp_path):

@@ -323,6 +323,9 @@ def _layer(tmp_path: Path, text: str) -> Path:
      r"radar.mounting.lever_arm_m\[0\]: 1000.0 is more than 50 in magnitude"),
     ('[sensors.gnss_cog]\nlever_arm_m = [0.0, 0.0, 60.0]\n',
      r"sensors.gnss_cog.lever_arm_m\[2\]: 60.0 is more than 50"),
+    # a misspelt sensor's table: "missing required key (a config ... says base = "default" ...)" where it did
+    ('[sensors.gnss_cgo]\ntopic = "/fix"\n',
+     r"sensors.gnss_cgo: not one of \[sensors\] \(did you mean gnss_cog\?\); a new one needs kind"),
     # numpy's "Unable to allocate 8.30 TiB" after the ingest and navigation had run
     ('[processing]\nrange_upsample = 1000000\n', r"processing.range_upsample: must lie in \[1, 64\], got 1000000"),
 ])

@@ -83,6 +83,7 @@ def test_inputs_a_year_apart_are_refused_unless_shifted_or_allowed(ci_mcap: Simu
     msg = str(exc.value)
     assert str(log) in msg and "--allow-time-gap" in msg and "--time-offset" in msg
     assert "365.0 days" in msg, msg
+    assert f"{log}=-{YEAR_S:.0f}" in msg, msg  # the offset that lines it up, to paste
     assert not out.exists() and not Path(f"{out}.partial").exists()
 
     allowed = run([ci_mcap.log_path], work / "gap_allowed.h5", cfg, can_logs=[log], allow_time_gap=True)

@@ -152,11 +152,11 @@ def test_a_log_and_a_product_given_for_each_other_say_what_they_are(ci_mcap, ci_
                           (["compare", str(ci_run / "image.h5"), "-o", str(out)], "an image.h5 autosar wrote")):
         _one_line_error(runner.invoke(app, args), f"error: {args[1]}: {product}")
     for args, wanted in ((["navigate", str(log), "-o", str(out / "t.h5")],
-                          f"a drive log, not a drive.h5: `autosar ingest {log.name} -o drive.h5` makes one"),
+                          f"a drive log, not a drive.h5: `autosar ingest {log} -o drive.h5` makes one"),
                          (["focus", str(ci_run / "drive.h5"), "-t", str(log), "-o", str(out / "i")],
-                          f"a drive log, not a trajectory.h5: `autosar run {log.name} -o DIR` makes one"),
+                          f"a drive log, not a trajectory.h5: `autosar run {log} -o DIR` makes one"),
                          (["evaluate", str(log), "-o", str(out)],
-                          f"a drive log, not a run directory or image.h5: `autosar run {log.name} -o DIR`")):
+                          f"a drive log, not a run directory or image.h5: `autosar run {log} -o DIR`")):
         _one_line_error(runner.invoke(app, args), f"error: {log}: {wanted}")
     drive, trajectory = ci_run / "drive.h5", ci_run / "trajectory.h5"
     for args, wanted in ((["focus", str(trajectory), "-t", str(trajectory), "-o", str(out / "i")],

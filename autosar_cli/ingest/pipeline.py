@@ -964,7 +964,8 @@ def check_time_gaps(spans: dict[str, tuple[int, int]], max_gap_s: float, allow: 
                 said.add((path, near))
             continue
         raise IngestError(what + ": different drives, or a clock set wrong? Shift a CAN or NMEA log with "
-                          "--time-offset PATH=SECONDS, or give --allow-time-gap to ingest the inputs as recorded")
+                          f"--time-offset PATH=SECONDS (the starts lined up: {path}={(c - a) / 1e9:.0f} or "
+                          f"{near}={(a - c) / 1e9:.0f}), or give --allow-time-gap to ingest the inputs as recorded")
 
 
 def _human(seconds: float) -> str:
