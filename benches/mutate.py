@@ -103,6 +103,13 @@ MF4_HALF_BUILT = ("tests/test_ingest_canlog.py::"
 BLF_DAMAGE = "tests/test_ingest_canlog.py::test_a_blf_damaged_inside_keeps_the_frames_of_every_other_container"
 BLF_SIZE = "tests/test_ingest_canlog.py::test_a_blf_container_whose_size_is_damaged_is_read_to_its_streams_end"
 BLF_HEADER = "tests/test_ingest_canlog.py::test_a_blf_whose_file_header_is_damaged_is_read_with_it_rebuilt"
+BATCH_CTRL_C = "tests/test_batch.py::test_ctrl_c_while_the_local_clusters_workers_start_is_one_line"
+BATCH_RESUME = "tests/test_batch.py::test_a_stopped_batch_keeps_what_finished_and_resume_runs_the_rest"
+CONFIG_SILENT = "tests/test_config.py::test_a_config_that_would_run_wrong_without_a_word_is_refused"
+CONFIG_LACKS = "tests/test_ingest_robustness.py::test_a_configs_topic_or_role_the_logs_lack_is_a_warning"
+SPLIT_ORDER = "tests/test_ingest_split_order.py::test_split_can_logs_out_of_time_order_lose_nothing"
+ROS1_COPIES = "tests/test_ingest_ros1_connections.py::test_a_damaged_index_copy_of_a_connection_gives_way_to_the_chunks"
+MDF4_OFFSETS = "tests/test_ingest_canlog.py::test_an_mf4_frame_lost_or_written_twice_keeps_every_other_frame"
 UNUSED_INPUT = "tests/test_ingest_mixed.py::test_an_input_nothing_of_which_reaches_the_drive_is_named_with_why"
 RUN_CAN_LOG = "tests/test_ingest_mixed.py::test_run_reads_can_logs_beside_the_drive_log_with_ingests_options"
 CONFIG_NOT_AN_OUTPUT = "tests/test_ingest_mixed.py::test_run_and_compare_never_write_over_their_config[compare]"
@@ -841,6 +848,24 @@ MUTATIONS: list[Mutation] = [
     _m("bp-compiled-in-the-calling-process", "kernel", "sar/backprojection.py",
        "    compile_in_child(_tdbp, args)  # the same machine code in every process (autosar_cli.kernel_cache)\n", "",
        SAME_BITS),
+    _m("batch-workers-take-ctrl-c", "safety", "__init__.py",
+       "            signal.signal(signal.SIGINT, signal.SIG_IGN)\n", "            pass\n", BATCH_CTRL_C),
+    _m("batch-stop-keeps-no-record", "safety", "batch.py",
+       "    except KeyboardInterrupt as exc:\n        stopped = exc\n",
+       "    except KeyboardInterrupt:\n        raise\n", BATCH_RESUME),
+    _m("can-role-names-unchecked", "config", "config.py", "        _known_role(role, cfg.sensors)\n", "",
+       CONFIG_SILENT),
+    _m("gyro-listed-twice-fused", "config", "config.py", "        if gyro in nav.gyros[:i]:", "        if False:",
+       CONFIG_SILENT),
+    _m("pinned-topic-typo-unsaid", "ingest", "ingest/pipeline.py",
+       "            said.append(f\"{key}: {topic} is in none of the logs",
+       "            said.count(f\"{key}: {topic} is in none of the logs", CONFIG_LACKS),
+    _m("can-logs-read-in-the-order-given", "ingest", "ingest/pipeline.py",
+       "    inputs = can_logs_in_time_order(inputs, offsets)\n", "", SPLIT_ORDER),
+    _m("ros1-connection-copies-unchecked", "ingest", "ingest/rosbag_source.py",
+       "            c, disagree = reconcile(", "            c, disagree = (lambda a, *_: (a, None))(", ROS1_COPIES),
+    _m("mdf4-offsets-unchecked", "ingest", "ingest/mdf4_blocks.py", "        if found.holes:\n",
+       "        if False:\n", MDF4_OFFSETS),
 ]
 
 

@@ -208,3 +208,22 @@ def test_a_drive_folder_of_many_stray_files_names_ten_and_counts_the_rest(folder
     names = [str(p.relative_to(crowded)) + ("/" if p.is_dir() else "") for p in found.left_out]
     assert found.warning() == (f"{crowded}: not read, none of them a log, CAN log, NMEA capture or DCA1000 capture: "
                                + ", ".join(names[:10]) + " and 17 more")
+
+
+def test_a_loggers_mf4_renamed_is_read_as_the_can_log_it_is(tmp_path: Path) -> None:
+    """A drive folder finds its inputs by what they hold: a CANedge MDF4 saved as .bag was read as a ROS 1 bag (the
+    whole drive refused: "not a ROS1 bag v2.0 (bad magic)"), as .dat said "none of them a log ... " of it."""
+    from autosar_cli.ingest.canlog import read_can_log
+    from autosar_cli.ingest.inputs import classify_input, drive_folder
+
+    mf4 = realdata("css-electronics", "2F6913DB_00000004_00000001.MF4")
+    d = tmp_path / "drive"
+    d.mkdir()
+    shutil.copy(mf4, d / "x.bag")
+    shutil.copy(mf4, d / "part3.dat")
+    folder = drive_folder(d)
+    assert folder is not None and sorted(p.name for p in folder.inputs["can"]) == ["part3.dat", "x.bag"]
+    assert folder.inputs["log"] == [] and folder.left_out == []
+    assert classify_input(d / "x.bag") == "can"
+    frames = sum(1 for _ in read_can_log(d / "x.bag", lambda said: None))
+    assert frames == sum(1 for _ in read_can_log(mf4, lambda said: None)) == 5588

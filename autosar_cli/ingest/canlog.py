@@ -91,8 +91,19 @@ class CanLogError(RuntimeError):
     """One-line message naming the file and the problem (and where in the file, where known)."""
 
 
+#: a binary CAN log by its first bytes, whatever its name says: its suffix as read
+_CAN_LOG_MAGIC = ((b"MDF     ", ".mf4"), (b"UnFinMF ", ".mf4"), (b"LOGG", ".blf"))
+
+
 def _suffix(path: Path) -> str:
-    return path.suffix.lower()
+    """The suffix a CAN log is read by: an MDF4 or BLF file's own, by its first bytes (a logger's file renamed, e.g.
+    .bag, was read as what its name said), else its name's."""
+    try:
+        with Path(path).open("rb") as f:
+            head = f.read(8)
+    except OSError:
+        head = b""
+    return next((suffix for magic, suffix in _CAN_LOG_MAGIC if head.startswith(magic)), path.suffix.lower())
 
 
 def _first_line(path: Path) -> str | None:

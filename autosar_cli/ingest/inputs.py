@@ -123,10 +123,12 @@ def drive_folder(path: Path, depth: int = 0) -> DriveFolder | None:
                 left_out.append(entry)
         elif name.endswith(CAPTURE_SUFFIXES) or "_logfile." in name:
             capture_files.append(entry)
-        elif begins_as_a_container(entry) or name.endswith(LOG_SUFFIXES):
+        elif begins_as_a_container(entry):
             found["log"].append(entry)
-        elif is_can_log(entry):
+        elif is_can_log(entry):  # before the name: a logger's MDF4 renamed .bag is still its CAN log
             found["can"].append(entry)
+        elif name.endswith(LOG_SUFFIXES):
+            found["log"].append(entry)
         elif name.endswith((*NMEA_SUFFIXES, ".log")) and _holds_nmea(entry):
             found["nmea"].append(entry)
         elif not (name.endswith(".truth.h5") or is_autosar_product(entry)):
