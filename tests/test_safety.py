@@ -1000,3 +1000,22 @@ def test_an_output_folder_that_refuses_writing_is_named(tmp_path: Path, monkeypa
     assert not _not_writable(unreadable, Path("."))
     assert _not_writable(PermissionError(errno.EACCES, "Permission denied", str(tmp_path / "drive1.partial-7.h5")),
                          tmp_path / "drive1.h5")
+
+
+def test_autosars_geotiff_manifest_or_run_directory_given_as_a_log_or_image_says_what_it_is(ci_run: Path,
+                                                                                            tmp_path: Path) -> None:
+    """`evaluate image.tif` (the GeoTIFF is "the image") gave h5py's "file signature not found"; a run.json or a run
+    directory given as a log, "unknown log container" or "not a rosbag2 bag": each says what it is."""
+    out = tmp_path / "out"
+    tif = ci_run / "image.tif"
+    _one_line_error(runner.invoke(app, ["evaluate", str(tif), "-o", str(out)]),
+                    f"error: {tif}: an image.tif autosar wrote (the GeoTIFF to view; `autosar evaluate` reads the "
+                    "image.h5 beside it)")
+    _one_line_error(runner.invoke(app, ["evaluate", str(ci_run / "run.json"), "-o", str(out)]),
+                    f"error: {ci_run / 'run.json'}: a run.json autosar wrote (the manifest of the directory it is in); "
+                    "evaluate reads its run directory or image.h5")
+    for given in (tif, ci_run / "run.json", ci_run):
+        r = runner.invoke(app, ["ingest", str(given), "-o", str(out / "d.h5")])
+        _one_line_error(r, f"error: {given}: a")
+        assert "autosar wrote" in r.output and "not a log" in r.output, r.output
+    assert not out.exists()

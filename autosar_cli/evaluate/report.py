@@ -25,7 +25,7 @@ from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.drive import Drive
 from autosar_cli.store.image import read_image
 from autosar_cli.store.manifest import json_safe, strict_json
-from autosar_cli.store.outputs import check_output, check_products, output_directory
+from autosar_cli.store.outputs import check_output, check_products, output_directory, what_autosar_wrote
 from autosar_cli.store.trajectory import read_trajectory
 
 METRICS = "metrics.json"
@@ -82,6 +82,9 @@ def resolve_inputs(source: str | Path, truth_path: str | Path | None = None,
                                 "output recorded)") from None
         config_text = manifest.get("config") or ""
     elif src.is_file():
+        if src.suffix.lower() not in (".h5", ".hdf5") and (product := what_autosar_wrote(src)) is not None:
+            raise EvaluateError(f"{src}: {product}" + ("" if "evaluate" in product else
+                                                          "; evaluate reads its run directory or image.h5"))
         try:
             prov = read_image(src).provenance
         except (OSError, ValueError) as exc:

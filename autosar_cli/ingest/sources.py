@@ -124,13 +124,13 @@ def _container(path: Path) -> Container:
     for container in _CONTAINERS:
         if container.detect(path):
             return container
+    if (product := what_autosar_wrote(path)) is not None:
+        raise LogReadError(f"{path}: {product}, not a log")
     if path.is_dir():
         raise LogReadError(f"{path}: a directory but not a rosbag2 bag (no metadata.yaml, no .db3 or .mcap files)")
     if path.suffix.lower() == ".bin":
         raise LogReadError(f"{path}: a raw .bin without a DCA1000 parameter file (*.mmwave.json, .cfg or .lua) "
                            "beside it")
-    if (product := what_autosar_wrote(path)) is not None:
-        raise LogReadError(f"{path}: {product}, not a log")
     names = [c.expected for c in _CONTAINERS]
     expected = " or ".join([", ".join(names[:-1]), names[-1]] if len(names) > 1 else names)
     raise LogReadError(f"{path}: unknown log container (expected {expected})")

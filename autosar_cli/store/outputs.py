@@ -238,10 +238,16 @@ def not_the_format(path: Path, fmt: object, wanted: str) -> str:
 
 
 def what_autosar_wrote(path: Path) -> str | None:
-    """Of an HDF5 file autosar wrote, what it is and what reads it ("a drive.h5: `autosar navigate` ..."), to say
-    where it is given as something else (a log); None for any other file."""
+    """Of a file or run directory autosar wrote, what it is and what reads it ("a drive.h5: `autosar navigate` ..."),
+    to say where it is given as something else (a log, an image.h5); None for any other."""
+    if path.is_dir():
+        return "a run directory autosar wrote (`autosar evaluate` reads it)" if (path / "run.json").is_file() else None
     fmt = _hdf5_format(path)
     if fmt is None:
+        if path.suffix.lower() in (".tif", ".tiff") and path.is_file() and _tif_is_autosar(path):
+            return "an image.tif autosar wrote (the GeoTIFF to view; `autosar evaluate` reads the image.h5 beside it)"
+        if path.suffix.lower() == ".json" and path.is_file() and _json_format(path):
+            return f"a {path.name} autosar wrote (the manifest of the directory it is in)"
         return None
     name, reader = _HDF5_READERS.get(fmt, (f"an {fmt} file", ""))
     return f"{name} autosar wrote" + (f" ({reader})" if reader else "")
