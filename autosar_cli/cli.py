@@ -829,7 +829,8 @@ def compare(
     logs: Annotated[list[Path], typer.Argument(metavar="LOG", help="Drive log(s), as for `autosar run`.")],
     output: Annotated[Path, typer.Option("--output", "-o", metavar="DIR",
                                          help="Comparison directory: drive.h5, one directory "
-                                         "per method, compare.png, across_track.png, compare.md, compare.json.")],
+                                         "per method, compare.png, across_track.png, compare_chips.png (with a "
+                                         "truth), compare.md, compare.json.")],
     methods: Annotated[str, typer.Option("--methods", metavar="M1,M2,...", help="Comma-separated navigation methods "
                                          "(sar-min, ins, gnss, none, truth; sar-min+scale: SAR-MIN with its track's "
                                          "scale measured by the radar on the truth's corner reflectors, ~20 wide-beam "

@@ -923,3 +923,20 @@ def test_a_capture_cut_at_a_frames_end_says_how_many_frames_it_lacks(tmp_path: P
     assert code == 0 and "adc_data.bin: holds 2 of the 4 frames capture.mmwave.json configures" in stderr, stderr
     with Drive(tmp_path / "d.h5") as d:
         assert len(d.radar().t_ns) == 2
+
+
+def test_a_drive_whose_capture_was_not_given_says_to_give_it(simulated_capture: tuple[Path, Path, Path],
+                                                            tmp_path: Path) -> None:
+    """`ingest LOG` of a DCA1000 drive without --radar said only "no radar stream (use --allow-partial ...)": it
+    names the capture beside the log, or, alone, the frame triggers the log holds, and the option to give."""
+    log, capture, _ = simulated_capture
+    r = runner.invoke(app, ["ingest", str(log), "-o", str(tmp_path / "d.h5")])
+    assert r.exit_code == 1 and f"no radar stream; a DCA1000 capture lies beside it ({capture}): give it with " \
+        f"--radar {capture}" in " ".join(r.stderr.split()), r.stderr
+    alone = tmp_path / "alone" / log.name
+    alone.parent.mkdir()
+    shutil.copy(log, alone)
+    r = runner.invoke(app, ["ingest", str(alone), "-o", str(tmp_path / "d.h5")])
+    assert r.exit_code == 1 and "no radar stream; the log holds 981 DCA1000 frame triggers on /dca1000/sync: give " \
+        "their capture with --radar CAPTURE" in " ".join(r.stderr.split()), r.stderr
+    assert not (tmp_path / "d.h5").exists()

@@ -1005,10 +1005,27 @@ def _check_content(inputs: list[tuple[Path, str]], infos: list[StreamInfo], job:
     missing = [what for what, ok in (("radar", has_radar), ("navigation (CAN, GNSS or IMU)", has_nav)) if not ok]
     if missing:
         msg = f"{names}: no {' and no '.join(missing)} stream"
+        if not has_radar and (hint := _capture_hint(inputs, job)):
+            msg += f"; {hint}"
         if not allow_partial:
             raise IngestError(msg + partial_hint)
         report.partial = True
         report.warnings.append(msg + "; written anyway (--allow-partial)")
+
+
+def _capture_hint(inputs: list[tuple[Path, str]], job: _Ingest) -> str | None:
+    """Where a drive without radar has a DCA1000 capture that was not given: its frame triggers in the log, or a
+    capture beside a log; what to give."""
+    from .dca1000 import is_capture
+
+    beside = sorted({d for p, kind in inputs if kind == "log" and p.parent.is_dir()
+                     for d in p.parent.iterdir() if d.is_dir() and d != p and is_capture(d)})
+    if beside:
+        return f"a DCA1000 capture lies beside it ({beside[0]}): give it with --radar {beside[0]}"
+    if job.sync_stamps:
+        return (f"the log holds {len(job.sync_stamps)} DCA1000 frame triggers on {job.radar_options.sync_topic}: "
+                "give their capture with --radar CAPTURE")
+    return None
 
 
 def _plausibility(infos: list[StreamInfo], job: _Ingest) -> None:
