@@ -572,6 +572,10 @@ def config_from_dict(raw: dict[str, Any], source: str = "", bases: tuple[str, ..
     return cfg
 
 
+#: the coarsest cross-range resolution taken (m): coarser, its processed beam (lambda / 4 rho, 1 mrad at 77 GHz)
+#: holds a pulse or two of a car's aperture, an image of single pulses that looks like a SAR image
+MAX_CROSS_RANGE_RESOLUTION_M = 1.0
+
 #: the finest range interpolation taken (default 4): each range profile holds this many times its samples, in memory
 MAX_RANGE_UPSAMPLE = 64
 
@@ -931,6 +935,9 @@ def _validate(cfg: Config) -> None:
     p = cfg.processing
     _positive("processing.pixel_m", p.pixel_m)
     _positive("processing.cross_range_resolution_m", p.cross_range_resolution_m)
+    if p.cross_range_resolution_m > MAX_CROSS_RANGE_RESOLUTION_M:
+        raise ConfigError(f"processing.cross_range_resolution_m: {p.cross_range_resolution_m!r} m is coarser than "
+                          f"{MAX_CROSS_RANGE_RESOLUTION_M:g} m: its beam would hold a pulse or two, no SAR image")
     finest = cfg.radar.wavelength_m / (4 * math.radians(cfg.radar.beamwidth_az_deg / 2))
     if p.cross_range_resolution_m < finest:
         raise ConfigError(f"processing.cross_range_resolution_m: {p.cross_range_resolution_m!r} m asks for a wider "

@@ -326,6 +326,9 @@ def _layer(tmp_path: Path, text: str) -> Path:
     # a misspelt sensor's table: "missing required key (a config ... says base = "default" ...)" where it did
     ('[sensors.gnss_cgo]\ntopic = "/fix"\n',
      r"sensors.gnss_cgo: not one of \[sensors\] \(did you mean gnss_cog\?\); a new one needs kind"),
+    # an image of single pulses (332 of 40443 pixels lit), exit 0
+    ('[processing]\ncross_range_resolution_m = 1000.0\n',
+     r"processing.cross_range_resolution_m: 1000.0 m is coarser than 1 m"),
     # numpy's "Unable to allocate 8.30 TiB" after the ingest and navigation had run
     ('[processing]\nrange_upsample = 1000000\n', r"processing.range_upsample: must lie in \[1, 64\], got 1000000"),
 ])

@@ -927,11 +927,17 @@ def test_navigate_replaces_its_own_plot_beside_an_output_of_any_name(tmp_path: P
 
 
 @pytest.mark.parametrize("tiles", ["1", "2"])
-def test_a_resolution_whose_beam_holds_no_pulse_is_refused(tmp_path: Path, ci_run: Path, tiles: str) -> None:
-    """`focus --resolution 1e300` wrote an all-zero image, exit 0, no word (its beam +-0 deg held no pulse)."""
+def test_an_image_no_pulse_reaches_is_refused(tmp_path: Path, ci_run: Path, tiles: str) -> None:
+    """`focus --resolution 1e300` wrote an all-zero image, exit 0, no word (its beam +-0 deg held no pulse), and
+    `--resolution 1000` one of single pulses (332 of 40443 pixels lit): a resolution coarser than 1 m is refused,
+    and an image no pulse reaches (a box 500 m off the drive) is one line."""
+    for resolution in ("1e300", "1000", "1.5"):
+        r = runner.invoke(app, ["focus", str(ci_run / "drive.h5"), "-t", str(ci_run / "trajectory.h5"), "-o",
+                                str(tmp_path / "x"), "--resolution", resolution, "--tiles", tiles])
+        _one_line_error(r, f"cross-range resolution {float(resolution):g} m: coarser than 1 m")
     r = runner.invoke(app, ["focus", str(ci_run / "drive.h5"), "-t", str(ci_run / "trajectory.h5"), "-o",
-                            str(tmp_path / "x"), "--resolution", "1e300", "--tiles", tiles])
-    _one_line_error(r, "no radar pulse reaches a pixel within the processed beam", "1e+300 m")
+                            str(tmp_path / "x"), "--grid", "500,500,501,501", "--tiles", tiles])
+    _one_line_error(r, "no radar pulse reaches a pixel within the processed beam")
     assert not list(tmp_path.iterdir())
 
 
@@ -942,7 +948,7 @@ def test_focus_makes_the_folder_of_its_output(tmp_path: Path, ci_run: Path) -> N
     r = runner.invoke(app, ["focus", str(ci_run / "drive.h5"), "-t", str(ci_run / "trajectory.h5"), "-o", str(out)])
     assert r.exit_code == 0 and (out.parent / "x.tif").exists(), r.output
     r = runner.invoke(app, ["focus", str(ci_run / "drive.h5"), "-t", str(ci_run / "trajectory.h5"), "-o",
-                            str(tmp_path / "other" / "x"), "--resolution", "1e300"])
+                            str(tmp_path / "other" / "x"), "--grid", "500,500,501,501"])  # no pulse reaches it
     assert r.exit_code == 1 and not (tmp_path / "other").exists(), r.output
 
 

@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from autosar_cli import __version__
-from autosar_cli.config import SPEED_OF_LIGHT, Config
+from autosar_cli.config import MAX_CROSS_RANGE_RESOLUTION_M, SPEED_OF_LIGHT, Config
 from autosar_cli.nav.trajectory import (
     Trajectory,
     antenna_lever_arms,
@@ -84,6 +84,9 @@ class FocusOptions:
         # a CLI override is checked here, as the config's values are in config.py (the pixel: sar.grid, first)
         if not (math.isfinite(self.resolution_m) and self.resolution_m > 0):
             raise FocusError(f"focus: cross-range resolution {self.resolution_m} m: must be a positive finite number")
+        if self.resolution_m > MAX_CROSS_RANGE_RESOLUTION_M:  # an image of single pulses, 332 of 40443 pixels lit
+            raise FocusError(f"focus: cross-range resolution {self.resolution_m:g} m: coarser than "
+                             f"{MAX_CROSS_RANGE_RESOLUTION_M:g} m, its beam would hold a pulse or two, no SAR image")
         if not math.isfinite(self.height_m):
             raise FocusError(f"focus: focusing plane height {self.height_m} m: must be a finite number")
         if isinstance(self.channel_gains, dict):  # as an image's parameters store them
