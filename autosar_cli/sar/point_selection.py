@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from autosar_cli.config import Config
+from autosar_cli.config import MAX_CROSS_RANGE_RESOLUTION_M, Config
 from autosar_cli.nav.trajectory import radar_track, zero_doppler_times
 from autosar_cli.sar.fast_motion import FastMotionOptions, closest_approach_ns
 from autosar_cli.sar.focus import FocusOptions
@@ -101,7 +101,8 @@ def points_and_scatterers(drive_path: str | Path, trajectory: Trajectory, config
 
     near = ranged(opts.max_range_m + 1.0)
     far = config if fast is not None else near
-    coarse = replace(focus, resolution_m=2.0 * focus.resolution_m, pixel_m=1.5 * focus.pixel_m, channels=opts.channels)
+    coarse = replace(focus, resolution_m=min(2.0 * focus.resolution_m, MAX_CROSS_RANGE_RESOLUTION_M),
+                     pixel_m=1.5 * focus.pixel_m, channels=opts.channels)
     grid = auto_grid(drive_path, trajectory, far, coarse)
     image = focus_images(drive_path, trajectory, far, coarse, grids=[grid]).images[0].image
     t_radar = radar_times(drive_path, focus.radar, focus.radar_clock_offset_s, focus.radar_clock_drift_ppm)
