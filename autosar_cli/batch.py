@@ -23,13 +23,14 @@ them for all its drives.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import logging
 import os
 import platform
 import time
 import uuid
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, replace
+from dataclasses import asdict, dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -281,7 +282,9 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
     out.mkdir(parents=True, exist_ok=True)
     options = options or FocusOptions.from_config(config)
     names = drive_names(logs)
-    records = _finished_drives(out, names, drive_inputs) if resume else {}
+    settings = _settings_digest(config, method, autofocus, options, ingest_options, starts_ns)
+    resumed = _resumed(out, names, drive_inputs, settings) if resume else _Resumed()
+    records = dict(resumed.kept)
     kept = list(records)
 
     from distributed import Client, LocalCluster, as_completed
@@ -293,7 +296,13 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
     cluster = client = None
     manifest_args: dict[str, Any] = {"command": command, "config": config.source, "method": method,
                                      "autofocus": autofocus, "options": options, "started": started,
-                                     "cluster": None, "retries": retries}
+                                     "cluster": None, "retries": retries, "settings": settings}
+    if len(kept) == len(names):  # nothing left to run: no cluster
+        manifest = _batch_manifest(**manifest_args, records=[records[n] for n in names], wall_s=0.0,
+                                   total_wall_s=time.perf_counter() - t_start, status="finished")
+        with atomic_output(out / MANIFEST, overwrite=True) as tmp:
+            tmp.write_text(strict_json(manifest, indent=2) + "\n")
+        return manifest
     starts: dict[str, int] = {}
     t_submit = time.perf_counter()
     stopped: KeyboardInterrupt | None = None
@@ -355,7 +364,7 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
             if start_ns is not None:
                 drive_options = replace(drive_options, radar=replace(drive_options.radar, start_ns=start_ns))
             fut = client.submit(run_drive, name, [log], str(out / name), config, method=method,
-                                options=options, autofocus=autofocus, overwrite=overwrite,
+                                options=options, autofocus=autofocus, overwrite=overwrite or name in resumed.replace,
                                 ingest_options=drive_options, numba_threads=numba_threads,
                                 progress_topic=topic, command=command, can_logs=inputs["can"],
                                 nmea_logs=inputs["nmea"], radar_captures=inputs["radar"], retries=retries, pure=False,
@@ -400,10 +409,13 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
                 if name in records:
                     continue
                 ran = starts.get(name, 0)
+                if not ran and resumed.previous.get(name, {}).get("status") == "failed":  # as it was: not run now
+                    records[name] = resumed.previous[name]
+                    continue
+                going = cluster is None and (ran or (out / name / "run.json").exists())  # its start maybe unheard
                 records[name] = {"name": name, "logs": inputs, "output": name, "status": "interrupted",
-                                 "error": "interrupted" if cluster is not None or not ran else
-                                 "interrupted; on the cluster its run may still finish (see its run.json)",
-                                 "attempts": ran}
+                                 "error": "interrupted; on the cluster its run may still finish (see its run.json)"
+                                 if going else "interrupted", "attempts": ran}
                 if cluster is not None:  # its worker is gone with the cluster (its start may not have been heard)
                     mark_interrupted(out / name)
                 # a run that finished after the Ctrl-C, before its worker stopped
@@ -426,7 +438,7 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
 
 def _batch_manifest(records: list[dict[str, Any]], *, command: str, config: str | None, method: str,
                     autofocus: bool, options: FocusOptions, started: str, cluster: dict[str, Any] | None,
-                    retries: int, wall_s: float, total_wall_s: float, status: str) -> dict[str, Any]:
+                    retries: int, settings: str, wall_s: float, total_wall_s: float, status: str) -> dict[str, Any]:
     """batch.json's content: ``status`` ``finished`` or ``interrupted``, the drives' records and their counts."""
     count = {s: sum(r["status"] == s for r in records) for s in ("ok", "degraded", "failed", "interrupted")}
     done_here = sum(r["status"] in ("ok", "degraded") and not r.get("kept") for r in records)
@@ -434,7 +446,7 @@ def _batch_manifest(records: list[dict[str, Any]], *, command: str, config: str 
         "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
         "python": platform.python_version(), "command": command, "config": config, "method": method,
         "autofocus": autofocus, "focus_options": asdict(options), "started": started, "cluster": cluster,
-        "retries": retries, "status": status, "drives": records, **count,
+        "retries": retries, "settings_sha256": settings, "status": status, "drives": records, **count,
         "kept": sum(bool(r.get("kept")) for r in records),
         "wall_s": wall_s, "total_wall_s": total_wall_s,
         "drives_per_minute": 60.0 * done_here / wall_s if wall_s > 0 and done_here else None,
@@ -469,33 +481,63 @@ def _batch_said(out: Path) -> str:
     return f"{MANIFEST}: interrupted, {done} of {len(drives)} drives done"
 
 
-def _finished_drives(out: Path, names: list[str], drive_inputs: list[list[str]]) -> dict[str, dict[str, Any]]:
-    """The records of the batch in ``out`` to keep at ``--resume``: each drive that finished there (``ok`` or
-    ``degraded``) from the same inputs, whose run.json still says so, or that was ``interrupted`` and whose run.json
-    says it finished after all (an existing cluster's worker goes on with a running task); marked ``kept``."""
+@dataclass
+class _Resumed:
+    """What ``--resume`` takes from the batch before: the records it keeps, every record it had, and the drives
+    whose folder holds another log's run (the log list changed under their name), replaced."""
+
+    kept: dict[str, dict[str, Any]] = field(default_factory=dict)
+    previous: dict[str, dict[str, Any]] = field(default_factory=dict)
+    replace: set[str] = field(default_factory=set)
+
+
+def _settings_digest(config: Config, method: str, autofocus: bool, options: FocusOptions,
+                     ingest_options: IngestOptions, radar_starts: Sequence[int | None]) -> str:
+    """What makes a drive's products besides its inputs (the config's text, the method, the options), as a digest:
+    a resumed batch keeps drives only of the same."""
+    said = {"config": config.text(), "method": method, "autofocus": autofocus, "focus": asdict(options),
+            "ingest": ingest_options.to_dict(), "radar_starts": list(radar_starts)}
+    return hashlib.sha256(strict_json(said).encode()).hexdigest()
+
+
+def _resumed(out: Path, names: list[str], drive_inputs: list[list[str]], settings: str) -> _Resumed:
+    """The batch in ``out`` as ``--resume`` takes it: each drive that finished there (``ok`` or ``degraded``) from
+    the same inputs, whose run.json still says so, or that was ``interrupted`` and whose run.json says it finished
+    after all (an existing cluster's worker goes on with a running task), kept and marked ``kept``. Refused where the
+    batch ran with other settings, or where a stopped drive's run may still be going on an existing cluster."""
     from autosar_cli.run import RunError, read_manifest
 
     before = read_batch(out)
+    if before.get("settings_sha256") != settings:
+        raise BatchError(f"{out}: its batch ran with other settings (the config, --method, --autofocus, or focus or "
+                         "ingest options differ); --resume keeps drives only of the same: give those, or --overwrite "
+                         "to run every drive again")
     try:
         since = datetime.fromisoformat(str(before.get("started")))
     except ValueError:
         since = datetime.now(UTC)  # no start: no run of it is taken as finished after its stop
-    previous = {r.get("name"): r for r in before.get("drives") or [] if isinstance(r, dict)}
-    kept: dict[str, dict[str, Any]] = {}
+    external = (before.get("cluster") or {}).get("kind") == "external"
+    got = _Resumed(previous={str(r.get("name")): r for r in before.get("drives") or [] if isinstance(r, dict)})
     for name, inputs in zip(names, drive_inputs, strict=True):
-        rec = previous.get(name)
-        if rec is None or rec.get("logs") != inputs:
+        rec = got.previous.get(name)
+        if rec is None:
             continue
-        if rec.get("status") == "interrupted":  # on an existing cluster its run may have finished after the stop
-            if (finished := _finished_before_stop(out / name, since)) is not None:
-                kept[name] = {**rec, **finished, "kept": True}
+        if rec.get("logs") != inputs:  # another log under this name now: its run is the batch's, superseded
+            got.replace.add(name)
             continue
         try:
-            if rec.get("status") in ("ok", "degraded") and read_manifest(out / name).get("status") == rec["status"]:
-                kept[name] = {**rec, "kept": True}
+            status = read_manifest(out / name).get("status")
         except RunError:
-            pass
-    return kept
+            status = None
+        if rec.get("status") == "interrupted":  # on an existing cluster its run may have finished after the stop
+            if (finished := _finished_before_stop(out / name, since)) is not None:
+                got.kept[name] = {**rec, **finished, "kept": True}
+            elif external and status == "unfinished":
+                raise BatchError(f"{out / name}: its run may still be going on the cluster the batch stopped on "
+                                 "(run.json: unfinished); wait for it to end and resume, or pass --overwrite")
+        elif rec.get("status") in ("ok", "degraded") and status == rec["status"]:
+            got.kept[name] = {**rec, "kept": True}
+    return got
 
 
 def _folder_logs(log: Path) -> list[str]:

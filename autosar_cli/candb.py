@@ -123,6 +123,21 @@ _NOT_A_DBC = ((b"MDF     ", "an MDF4 log"), (b"UnFinMF ", "an MDF4 log"), (b"LOG
               (b"\x89MCAP", "an MCAP log"), (b"#ROSBAG", "a ROS 1 bag"), (b"SQLite format 3", "a rosbag2 database"))
 
 
+#: a text log by its first line: (what it is, the line's pattern)
+_TEXT_LOGS = (("an ASC CAN log", re.compile(rb"^(date |base hex)")),
+              ("a TRC CAN log", re.compile(rb"^;\$FILEVERSION")),
+              ("a candump CAN log", re.compile(rb"^\(\d+\.\d+\)\s+\S+\s+[0-9A-Fa-f]+#")),
+              ("an NMEA capture", re.compile(rb"^[$!][A-Z]{5},")))
+
+
+def _other_kind(head: bytes) -> str | None:
+    """What a file given as the DBC is by its first bytes, where it is a log (``--dbc`` and ``--can-log`` swapped)."""
+    if kind := next((what for magic, what in _NOT_A_DBC if head.startswith(magic)), None):
+        return kind
+    first = next((line.strip() for line in head.splitlines() if line.strip() and not line.startswith(b"#")), b"")
+    return next((what for what, pattern in _TEXT_LOGS if pattern.match(first)), None)
+
+
 def _reason(exc: BaseException) -> str:
     """One-line description of a cantools load failure (its underlying cause), cut short and printable."""
     cause = exc.__cause__ or exc
@@ -150,11 +165,14 @@ def load_dbc(path: str | Path) -> tuple[Database, list[str]]:
     one-line message naming the file when the file cannot be read or parsed.
     """
     path = Path(path)
-    text = _read_text(path)
-    with open(path, "rb") as f:  # read whole just now
-        head = f.read(16)
-    if kind := next((what for magic, what in _NOT_A_DBC if head.startswith(magic)), None):
+    try:
+        with open(path, "rb") as f:  # before the whole: a log given by mistake may be gigabytes
+            head = f.read(4096)
+    except OSError:
+        head = b""  # _read_text names why
+    if kind := _other_kind(head):
         raise DbcError(f"{path}: {kind}, not a DBC (--dbc takes the CAN database, --can-log a CAN log)")
+    text = _read_text(path)
     try:
         db = _parse(text)
     except cantools.database.UnsupportedDatabaseFormatError as exc:

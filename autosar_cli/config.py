@@ -474,9 +474,11 @@ class Config:
         return {name: s for name, s in self.sensors.items() if s.kind == kind}
 
     def pinned_topics(self) -> dict[str, tuple[str, str, str]]:
-        """topic -> (stream kind, sensor name, config key) for every topic the config pins: the radar's, each IMU's,
-        each receiver's fixes, velocity and NMEA."""
+        """topic -> (stream kind, sensor name, config key) for every topic the config pins: the radar's, the CAN
+        bus's, each IMU's, each receiver's fixes, velocity and NMEA."""
         out = {self.radar.topic: ("radar", self.radar.name, "radar.topic")}
+        if self.can.topic:
+            out[self.can.topic] = ("can", "can", "can.topic")
         for name, s in self.sensors.items():
             if s.kind == "imu" and s.topic:
                 out[s.topic] = ("imu", name, f"sensors.{name}.topic")

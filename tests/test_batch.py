@@ -285,58 +285,71 @@ def test_a_drives_retry_replaces_its_first_attempts_products(ci_mcap, tmp_path, 
 def test_a_stopped_batch_keeps_what_finished_and_resume_runs_the_rest(thread_cluster, tmp_path, monkeypatch):
     """Ctrl-C (a KeyboardInterrupt in the client) after the first drive: batch.json is written ``interrupted`` with
     every drive's record; --resume keeps the drive that finished, and the one whose task went on on the existing
-    cluster and finished after the stop (its run.json says so), and runs only the last."""
+    cluster and finished after the stop (its run.json says so; resumed while it still runs, refused), and runs only
+    the last. Resumed with other settings, or after a drive's log changed, as those say."""
     import threading
 
     ran: list[str] = []
-    release = threading.Event()
+    release, b_started = threading.Event(), threading.Event()
 
     def fake_run(logs, out_dir, config, **kw):
         name = Path(out_dir).name
         ran.append(name)
-        if name == "b" and len(ran) == 2:
-            release.wait(30)  # running when the batch stops
         Path(out_dir).mkdir(parents=True, exist_ok=True)
+        if name == "b" and len(ran) == 2:  # running when the batch stops, as a run is: run.json unfinished
+            (Path(out_dir) / "run.json").write_text(json.dumps({"format": "autosar-run", "status": "unfinished"}))
+            b_started.set()
+            release.wait(30)
         (Path(out_dir) / "run.json").write_text(json.dumps({"format": "autosar-run", "status": "ok",
                                                             **_fake_manifest()}))
         return _fake_manifest()
 
     def stop_after_the_first(event):
-        if event.get("stage") == "finished":
+        if event.get("stage") == "finished":  # a's record, in the client's thread, while b runs
+            assert b_started.wait(30)
             raise KeyboardInterrupt
 
     monkeypatch.setattr(batch_mod, "run", fake_run)
     logs = [tmp_path / f"{n}.mcap" for n in "abc"]
     out = tmp_path / "out"
+    cluster = thread_cluster.scheduler_address
     with pytest.raises(KeyboardInterrupt) as stopped:
-        run_batch(logs, out, load_config(), scheduler=thread_cluster.scheduler_address,
-                  progress=stop_after_the_first)
+        run_batch(logs, out, load_config(), scheduler=cluster, progress=stop_after_the_first)
     m = read_batch(out)
     assert stopped.value.batch_manifest == m and m["status"] == "interrupted"
     assert [(d["name"], d["status"]) for d in m["drives"]] == [("a", "ok"), ("b", "interrupted"), ("c", "interrupted")]
     assert (m["ok"], m["interrupted"]) == (1, 2)
     assert m["drives"][2]["attempts"] == 0 and m["drives"][1]["logs"] == [str(logs[1].resolve())]
     assert "may still finish" in m["drives"][1]["error"]  # on an existing cluster, its task goes on
+    with pytest.raises(BatchError, match=r"out/b: its run may still be going on the cluster the batch stopped on"):
+        run_batch(logs, out, load_config(), scheduler=cluster, resume=True)
     release.set()
     for _ in range(300):  # b's run finishes after the batch stopped
-        if (out / "b" / "run.json").exists():
+        if '"ok"' in (out / "b" / "run.json").read_text():
             break
         threading.Event().wait(0.1)
     with pytest.raises(BatchError, match=r"already holds a batch \(batch.json: interrupted, 1 of 3 drives done\); "
                                          "pass --resume"):
-        run_batch(logs, out, load_config(), scheduler=thread_cluster.scheduler_address)
+        run_batch(logs, out, load_config(), scheduler=cluster)
     with pytest.raises(BatchError, match="not both"):
-        run_batch(logs, out, load_config(), scheduler=thread_cluster.scheduler_address, resume=True, overwrite=True)
-    r = runner.invoke(app, ["batch", *map(str, logs), "-o", str(out), "--scheduler", thread_cluster.scheduler_address,
-                            "--resume"])
+        run_batch(logs, out, load_config(), scheduler=cluster, resume=True, overwrite=True)
+    with pytest.raises(BatchError, match="its batch ran with other settings"):  # kept drives would not be these
+        run_batch(logs, out, load_config(), scheduler=cluster, resume=True, autofocus=True)
+    r = runner.invoke(app, ["batch", *map(str, logs), "-o", str(out), "--scheduler", cluster, "--resume"])
     assert r.exit_code == 0, r.output
     assert ran == ["a", "b", "c"]  # only c ran again
     m = read_batch(out)
     assert m["status"] == "finished" and (m["ok"], m["kept"], m["interrupted"]) == (3, 2, 0)
     assert [d.get("kept", False) for d in m["drives"]] == [True, True, False]
     assert "3 of 3 drives done, 2 kept from before" in " ".join(r.stdout.split())
+    # another log under a's name: its run is replaced (run() refused it: "already holds a run"), b and c kept
+    other = tmp_path / "elsewhere" / "a.mcap"
+    other.parent.mkdir()
+    m = run_batch([other, *logs[1:]], out, load_config(), scheduler=cluster, resume=True)
+    assert ran == ["a", "b", "c", "a"] and [d["status"] for d in m["drives"]] == ["ok"] * 3
+    assert m["drives"][0]["logs"] == [str(other.resolve())] and m["kept"] == 2
     with pytest.raises(BatchError, match="holds no batch"):
-        run_batch(logs, tmp_path / "none", load_config(), scheduler=thread_cluster.scheduler_address, resume=True)
+        run_batch(logs, tmp_path / "none", load_config(), scheduler=cluster, resume=True)
 
 
 def test_a_stopped_local_clusters_runs_are_marked(tmp_path):

@@ -242,6 +242,14 @@ def test_a_log_given_as_the_dbc_is_named_for_what_it_is(tmp_path: Path, ci_mcap)
     mf4.write_bytes(b"UnFinMF 4.11    " + bytes(range(256)) * 16)
     with pytest.raises(DbcError, match=r"log.MF4: an MDF4 log, not a DBC"):
         load_dbc(mf4)
+    for name, first, said in (("log.asc", "date Mon Dec 07 10:37:13.774 2026\nbase hex  timestamps absolute\n",
+                                "an ASC CAN log"),
+                               ("log.trc", ";$FILEVERSION=2.1\n", "a TRC CAN log"),
+                               ("log.log", "(1700000000.000000) can0 123#0102\n", "a candump CAN log"),
+                               ("gps.log", "# Name: BN-880\n$GPRMC,172047.00,A,4810.5,N\n", "an NMEA capture")):
+        (tmp_path / name).write_text(first)
+        with pytest.raises(DbcError, match=f"{name}: {said}, not a DBC"):
+            load_dbc(tmp_path / name)
     binary = tmp_path / "binary.dbc"
     binary.write_bytes(b"VERSION \"\"\n" + b"BO_ \x01\x02" + bytes(range(1, 256)) * 16)
     with pytest.raises(DbcError) as info:

@@ -84,6 +84,10 @@ def test_inputs_a_year_apart_are_refused_unless_shifted_or_allowed(ci_mcap: Simu
     assert str(log) in msg and "--allow-time-gap" in msg and "--time-offset" in msg
     assert "365.0 days" in msg, msg
     assert f"{log}=-{YEAR_S:.0f}" in msg, msg  # the offset that lines it up, to paste
+    assert f"{ci_mcap.log_path}=" not in msg  # a container's stamps cannot be shifted: not proposed
+    with pytest.raises(IngestError) as exc:  # an offset given already: the one proposed is the whole
+        run([ci_mcap.log_path], out, cfg, can_logs=[log], time_offsets={log: 1000.0})
+    assert f"{log}=-{YEAR_S:.0f}" in str(exc.value), str(exc.value)
     assert not out.exists() and not Path(f"{out}.partial").exists()
 
     allowed = run([ci_mcap.log_path], work / "gap_allowed.h5", cfg, can_logs=[log], allow_time_gap=True)

@@ -862,3 +862,13 @@ def test_a_configs_topic_or_role_the_logs_lack_is_a_warning(ci_mcap, tmp_path: P
         "CAN roles of the config in no frame of the logs: wheel_speed_fl (a message or signal the DBC or the log does "
         "not have): the stages go without them"], report.warnings
     assert ingest([ci_mcap.log_path], tmp_path / "ok.h5", config=load_config()).warnings == []  # the right config: none
+
+
+def test_a_log_on_other_topics_altogether_is_no_typo(tmp_path: Path) -> None:
+    """The default config on a robot's bag (its IMU on /imu/data, none of the default's topics): no "typo" warning
+    for each of the default's IMUs (each claimed the one stream); the config sketch maps such a log."""
+    from conftest import realdata
+
+    bag = realdata("robot_localization", "test1.bag")
+    report = ingest([bag], tmp_path / "d.h5", config=load_config(), allow_partial=True)
+    assert not [w for w in report.warnings if "typo" in w], report.warnings

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import difflib
 import hashlib
 import json
 import math
@@ -287,17 +288,21 @@ class _Ingest:
         return name
 
     def misnamed_topics(self) -> list[str]:
-        """A warning for each topic the config pins that no log holds where a stream of its kind came in named by
-        its own topic: a typo in the config's topic (navigation would go without that sensor, or without its
-        velocity, and say nothing)."""
+        """A warning for each topic the config pins that no log holds where a stream of its kind came in on a
+        topic of a near spelling no sensor names, and the logs hold another pinned topic of that kind (the config
+        is the drive's): a typo in the config's topic (navigation would go without that sensor, or without its
+        velocity, and say nothing). A log recorded on other topics altogether is the config sketch's to map."""
+        pinned = self.config.pinned_topics()
+        kinds_found = {pinned[t][0] for t in self.named if t in pinned}
         said = []
-        for topic, (kind, sensor, key) in self.config.pinned_topics().items():
-            others = sorted(t for k, t in self.unnamed if k == kind and t != topic)
-            if not topic or topic in self.named or not others:
+        for topic, (kind, sensor, key) in pinned.items():
+            if not topic or topic in self.named or kind not in kinds_found:
                 continue
-            shown = ", ".join(others[:3]) + (f" and {len(others) - 3} more" if len(others) > 3 else "")
-            said.append(f"{key}: {topic} is in none of the logs, which hold {kind} on {shown}, a topic no sensor of "
-                        f"the config names (a typo in the topic?): {sensor}'s {kind} is not in the drive")
+            near = difflib.get_close_matches(topic, [t for k, t in self.unnamed if k == kind], n=3, cutoff=0.75)
+            if near:
+                said.append(f"{key}: {topic} is in none of the logs, which hold {kind} on {', '.join(near)}, a topic "
+                            f"no sensor of the config names (a typo in the topic?): {sensor}'s {kind} is not in the "
+                            "drive")
         return said
 
     def _attrs(self, ch: Channel, sensor: str) -> dict[str, Any]:
@@ -774,7 +779,8 @@ def ingest_sorted(given: SortedInputs, output: Path, *, config: Config, dbc: Pat
             job.check_used(path, kind, read, before)
             done += _input_bytes(path, src)
             report_progress(0)
-        check_time_gaps(job.spans, max_time_gap_s, allow_time_gap, job.warnings)
+        check_time_gaps(job.spans, max_time_gap_s, allow_time_gap, job.warnings,
+                        {str(p): offsets.get(p, 0) for p, kind in inputs if kind in ("can", "nmea")})
         job.check_interleaved()
         infos = job.finish()
         _check_content(inputs, infos, job, allow_partial, report, partial_hint)
@@ -938,9 +944,13 @@ def _radar_clock_rates(infos: list[StreamInfo], writer: DriveWriter, warnings: l
                             "logger that falls behind under load looks the same)")
 
 
-def check_time_gaps(spans: dict[str, tuple[int, int]], max_gap_s: float, allow: bool, warnings: list[str]) -> None:
+def check_time_gaps(spans: dict[str, tuple[int, int]], max_gap_s: float, allow: bool, warnings: list[str],
+                    shiftable: Mapping[str, int] | None = None) -> None:
     """Refuse inputs whose time spans lie more than ``max_gap_s`` apart (different drives, or a clock set
-    wrong), unless ``allow``: then warn. ``spans``: input -> (first, last) time, ns since the epoch."""
+    wrong), unless ``allow``: then warn. ``spans``: input -> (first, last) time, ns since the epoch;
+    ``shiftable``: the CAN and NMEA logs among them -> the offset (ns) already added to their times, for the
+    ``--time-offset`` the refusal proposes."""
+    shiftable = shiftable or {}
     items = sorted(spans.items(), key=lambda kv: kv[1][0])
     said: set[tuple[str, str]] = set()
     for path, (a, b) in items:
@@ -963,9 +973,12 @@ def check_time_gaps(spans: dict[str, tuple[int, int]], max_gap_s: float, allow: 
                 warnings.append(what + "; ingested as recorded (--allow-time-gap)")
                 said.add((path, near))
             continue
+        proposed = [f"{p}={(shiftable[p] + move) / 1e9:.0f}" for p, move in ((path, c - a), (near, a - c))
+                    if p in shiftable]
         raise IngestError(what + ": different drives, or a clock set wrong? Shift a CAN or NMEA log with "
-                          f"--time-offset PATH=SECONDS (the starts lined up: {path}={(c - a) / 1e9:.0f} or "
-                          f"{near}={(a - c) / 1e9:.0f}), or give --allow-time-gap to ingest the inputs as recorded")
+                          "--time-offset PATH=SECONDS" + (f" (the starts lined up: {' or '.join(proposed)})"
+                                                          if proposed else "")
+                          + ", or give --allow-time-gap to ingest the inputs as recorded")
 
 
 def _human(seconds: float) -> str:

@@ -128,10 +128,12 @@ def _connection(fields: dict[str, bytes], data: bytes) -> Ros1Connection:
                           conn.get("md5sum", b"").decode("ascii", "replace"))
 
 
-def chunk_connections(buf: Buffer, pos: int) -> dict[int, Ros1Connection]:
+def chunk_connections(buf: Buffer, pos: int, wanted: Iterable[int] | None = None) -> dict[int, Ros1Connection]:
     """The connection records inside the chunk record at ``pos`` (a connection's first copy, written before its
-    first message), by connection id; none where the chunk or a record before them does not read."""
+    first message), by connection id, read up to the last of ``wanted`` (None: all); none where the chunk or a record
+    before them does not read."""
     found: dict[int, Ros1Connection] = {}
+    left = None if wanted is None else set(wanted)
     try:
         fields, dstart, dend = read_record(buf, pos)
         if fields["op"][0] != OP_CHUNK:
@@ -144,6 +146,10 @@ def chunk_connections(buf: Buffer, pos: int) -> dict[int, Ros1Connection]:
             if inner["op"][0] == OP_CONNECTION:
                 c = _connection(inner, data[istart:iend])
                 found.setdefault(c.conn_id, c)
+                if left is not None:
+                    left.discard(c.conn_id)
+                    if not left:  # the records after them are messages
+                        break
             at = iend
     except Exception:  # any codec or record error: the copies read so far; reading the chunk says what broke
         pass
@@ -158,7 +164,7 @@ def chunk_copies(buf: Buffer, first_chunks: Iterable[tuple[int, int]]) -> dict[i
         by_chunk.setdefault(pos, []).append(conn_id)
     found: dict[int, tuple[Ros1Connection, int]] = {}
     for pos, ids in sorted(by_chunk.items()):
-        copies = chunk_connections(buf, pos)
+        copies = chunk_connections(buf, pos, ids)
         for conn_id in ids:
             if conn_id in copies:
                 found[conn_id] = (copies[conn_id], pos)
