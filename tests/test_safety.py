@@ -754,7 +754,7 @@ def test_navigate_plot_passes_the_output_gate(tmp_path: Path, ci_run: Path) -> N
     user = tmp_path / "tp.png"
     user.write_text("user png")
     r = runner.invoke(app, ["navigate", str(ci_run / "drive.h5"), "-o", str(tmp_path / "tp.h5"), "--plot"])
-    _one_line_error(r, str(user), "already exists")
+    _one_line_error(r, str(user), "autosar did not write")  # at once: "already exists" advised a refused --overwrite
     assert user.read_text() == "user png" and not (tmp_path / "tp.h5").exists()
     r = runner.invoke(app, ["navigate", str(ci_run / "drive.h5"), "-o", str(tmp_path / "tp.h5"), "--plot",
                             "--overwrite"])
@@ -777,7 +777,7 @@ def test_evaluate_compare_and_run_never_replace_a_users_file_in_their_directory(
     evu.mkdir()
     (evu / "report.md").write_text("user")
     r = runner.invoke(app, ["evaluate", str(ci_run), "-o", str(evu)])
-    _one_line_error(r, str(evu / "report.md"), "already exists")
+    _one_line_error(r, str(evu / "report.md"), "autosar did not write")
     r = runner.invoke(app, ["evaluate", str(ci_run), "-o", str(evu), "--overwrite"])
     _one_line_error(r, str(evu / "report.md"), "autosar did not write")
     assert sorted(p.name for p in evu.iterdir()) == ["report.md"] and (evu / "report.md").read_text() == "user"
@@ -785,13 +785,13 @@ def test_evaluate_compare_and_run_never_replace_a_users_file_in_their_directory(
     cmpu.mkdir()
     (cmpu / "compare.png").write_text("user")
     r = runner.invoke(app, ["compare", str(ci_mcap.log_path), "-o", str(cmpu)])
-    _one_line_error(r, str(cmpu / "compare.png"), "already exists")
+    _one_line_error(r, str(cmpu / "compare.png"), "autosar did not write")
     assert sorted(p.name for p in cmpu.iterdir()) == ["compare.png"]
     (cmpu / "compare.png").unlink()
     (cmpu / "sar-min").mkdir()
     (cmpu / "sar-min" / "report.md").write_text("user")  # a method's evaluation writes its report.md there
     r = runner.invoke(app, ["compare", str(ci_mcap.log_path), "-o", str(cmpu), "--methods", "sar-min"])
-    _one_line_error(r, str(cmpu / "sar-min" / "report.md"), "already exists")
+    _one_line_error(r, str(cmpu / "sar-min" / "report.md"), "autosar did not write")
     keep = tmp_path / "keep"
     keep.mkdir()
     shutil.copy(ci_run / "drive.h5", keep / "drive.h5")

@@ -25,12 +25,13 @@ from autosar_cli.evaluate.point_target import analyse_point_target
 from autosar_cli.ingest.pipeline import ingest
 from autosar_cli.nav.navigate import navigate
 from autosar_cli.nav.trajectory import antenna_lever_arms, radar_phase_centres
-from autosar_cli.sar.focus import FocusError, FocusOptions, focus, focus_images
+from autosar_cli.sar.focus import FocusOptions, focus, focus_images
 from autosar_cli.sar.grid import box_grid
 from autosar_cli.sim.simulate import simulate
 from autosar_cli.sim.truth import read_targets
 from autosar_cli.store.attr_checksum import stamp_attributes
 from autosar_cli.store.image import read_image
+from autosar_cli.store.outputs import OutputError
 from autosar_cli.store.trajectory import read_trajectory, write_trajectory
 
 
@@ -411,7 +412,7 @@ def test_focus_errors(ci_drive: Drive, tmp_path: Path) -> None:
         assert res.exit_code == 1 and said in res.output and "Traceback" not in res.output, res.output
     assert not list(tmp_path.glob("n*"))
     (tmp_path / "y.tif").write_text("keep")
-    with pytest.raises(FocusError, match="overwrite"):
+    with pytest.raises(OutputError, match="y.tif: is a file autosar did not write"):  # --overwrite would not do
         focus(d.drive, d.trajectory, tmp_path / "y", d.config, FocusOptions.from_config(d.config))
     assert (tmp_path / "y.tif").read_text() == "keep"
 

@@ -581,11 +581,11 @@ def check_request(options: FocusOptions, output: str | Path, overwrite: bool,
     check_grid_size(options, config)
     if options.channels not in (8, 12):
         raise FocusError(f"--channels {options.channels}: choose 8 or 12")
+    for path in product_paths(Path(output)).values():  # what --overwrite would not replace (an input, another's
+        check_output(path, inputs, overwrite=True)     # file) before the advice to pass it
     existing = [str(p) for p in product_paths(Path(output)).values() if p.exists()]
     if existing and not overwrite:
         raise FocusError(f"{existing[0]} already exists; pass --overwrite to replace it")
-    for path in product_paths(Path(output)).values():
-        check_output(path, inputs, overwrite=overwrite)
 
 
 def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Path, config: Config,

@@ -65,12 +65,13 @@ def check_output(path: str | Path, inputs: Iterable[str | Path] = (), *, overwri
         return  # a run directory: its products are checked one by one (check_products)
     if path.is_dir() and not replaces_directory:
         raise OutputError(f"{path}: is a directory; the output is a file")
-    if not overwrite:
-        raise FileExistsError(f"{path}: already exists (use --overwrite to replace it)")
+    # another's file before the advice to pass --overwrite, which would not replace it either
     if not (ours and path.is_file() and not path.is_symlink()) and not is_autosar_product(path):
         what = "a directory" if path.is_dir() else "a file"
         raise OutputError(f"{path}: is {what} autosar did not write (no autosar metadata); refusing to replace "
                           f"it, even with --overwrite")
+    if not overwrite:
+        raise FileExistsError(f"{path}: already exists (use --overwrite to replace it)")
 
 
 def input_problem(path: Path) -> str | None:
