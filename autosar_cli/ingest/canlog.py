@@ -98,11 +98,13 @@ _CAN_LOG_MAGIC = ((b"MDF     ", ".mf4"), (b"UnFinMF ", ".mf4"), (b"LOGG", ".blf"
 def _suffix(path: Path) -> str:
     """The suffix a CAN log is read by: an MDF4 or BLF file's own, by its first bytes (a logger's file renamed, e.g.
     .bag, was read as what its name said), else its name's."""
+    head = b""
     try:
-        with Path(path).open("rb") as f:
-            head = f.read(8)
+        if Path(path).is_file():  # a pipe's open would wait for a writer
+            with Path(path).open("rb") as f:
+                head = f.read(8)
     except OSError:
-        head = b""
+        pass
     return next((suffix for magic, suffix in _CAN_LOG_MAGIC if head.startswith(magic)), path.suffix.lower())
 
 
