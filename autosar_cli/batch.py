@@ -282,7 +282,11 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
     out.mkdir(parents=True, exist_ok=True)
     options = options or FocusOptions.from_config(config)
     names = drive_names(logs)
-    settings = _settings_digest(config, method, autofocus, options, ingest_options, starts_ns)
+    drive_options = []  # each drive's ingest options: its own time offsets and capture start
+    for own, start_ns in zip(shiftable, starts_ns, strict=True):
+        o = replace(ingest_options, time_offsets={Path(p): offsets[p] for p in sorted(own) if p in offsets})
+        drive_options.append(replace(o, radar=replace(o.radar, start_ns=start_ns)) if start_ns is not None else o)
+    settings = [_settings_digest(config, method, autofocus, options, o) for o in drive_options]
     resumed = _resumed(out, names, drive_inputs, settings) if resume else _Resumed()
     records = dict(resumed.kept)
     kept = list(records)
@@ -296,7 +300,7 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
     cluster = client = None
     manifest_args: dict[str, Any] = {"command": command, "config": config.source, "method": method,
                                      "autofocus": autofocus, "options": options, "started": started,
-                                     "cluster": None, "retries": retries, "settings": settings}
+                                     "cluster": None, "retries": retries}
     if len(kept) == len(names):  # nothing left to run: no cluster
         manifest = _batch_manifest(**manifest_args, records=[records[n] for n in names], wall_s=0.0,
                                    total_wall_s=time.perf_counter() - t_start, status="finished")
@@ -357,15 +361,12 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
                 progress({"drive": name, "stage": "finished", "record": records[name]})
         t_submit = time.perf_counter()
         futures = {}
-        for name, log, inputs, own, start_ns in zip(names, paths, companions, shiftable, starts_ns, strict=True):
+        for name, log, inputs, these in zip(names, paths, companions, drive_options, strict=True):
             if name in records:
                 continue
-            drive_options = replace(ingest_options, time_offsets={Path(p): offsets[p] for p in own if p in offsets})
-            if start_ns is not None:
-                drive_options = replace(drive_options, radar=replace(drive_options.radar, start_ns=start_ns))
             fut = client.submit(run_drive, name, [log], str(out / name), config, method=method,
                                 options=options, autofocus=autofocus, overwrite=overwrite or name in resumed.replace,
-                                ingest_options=drive_options, numba_threads=numba_threads,
+                                ingest_options=these, numba_threads=numba_threads,
                                 progress_topic=topic, command=command, can_logs=inputs["can"],
                                 nmea_logs=inputs["nmea"], radar_captures=inputs["radar"], retries=retries, pure=False,
                                 key=f"autosar-run-{name}-{topic[-12:]}")
@@ -380,6 +381,7 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
                        "error": _message(exc), "error_type": type(exc).__name__,
                        "attempts": max(retries + 1, starts.get(name, 0))}
             rec["output"] = os.path.relpath(rec["output"], out)
+            rec["settings_sha256"] = settings[names.index(name)]  # what --resume keeps it by
             records[name] = rec
             fut.release()
             if progress is not None:
@@ -412,10 +414,11 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
                 if not ran and resumed.previous.get(name, {}).get("status") == "failed":  # as it was: not run now
                     records[name] = resumed.previous[name]
                     continue
-                going = cluster is None and (ran or (out / name / "run.json").exists())  # its start maybe unheard
+                going = cluster is None and (ran or _written_since(out / name / "run.json", started_at))
                 records[name] = {"name": name, "logs": inputs, "output": name, "status": "interrupted",
                                  "error": "interrupted; on the cluster its run may still finish (see its run.json)"
-                                 if going else "interrupted", "attempts": ran}
+                                 if going else "interrupted", "attempts": ran,
+                                 "settings_sha256": settings[names.index(name)]}
                 if cluster is not None:  # its worker is gone with the cluster (its start may not have been heard)
                     mark_interrupted(out / name)
                 # a run that finished after the Ctrl-C, before its worker stopped
@@ -438,7 +441,7 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
 
 def _batch_manifest(records: list[dict[str, Any]], *, command: str, config: str | None, method: str,
                     autofocus: bool, options: FocusOptions, started: str, cluster: dict[str, Any] | None,
-                    retries: int, settings: str, wall_s: float, total_wall_s: float, status: str) -> dict[str, Any]:
+                    retries: int, wall_s: float, total_wall_s: float, status: str) -> dict[str, Any]:
     """batch.json's content: ``status`` ``finished`` or ``interrupted``, the drives' records and their counts."""
     count = {s: sum(r["status"] == s for r in records) for s in ("ok", "degraded", "failed", "interrupted")}
     done_here = sum(r["status"] in ("ok", "degraded") and not r.get("kept") for r in records)
@@ -446,11 +449,19 @@ def _batch_manifest(records: list[dict[str, Any]], *, command: str, config: str 
         "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__,
         "python": platform.python_version(), "command": command, "config": config, "method": method,
         "autofocus": autofocus, "focus_options": asdict(options), "started": started, "cluster": cluster,
-        "retries": retries, "settings_sha256": settings, "status": status, "drives": records, **count,
+        "retries": retries, "status": status, "drives": records, **count,
         "kept": sum(bool(r.get("kept")) for r in records),
         "wall_s": wall_s, "total_wall_s": total_wall_s,
         "drives_per_minute": 60.0 * done_here / wall_s if wall_s > 0 and done_here else None,
     }
+
+
+def _written_since(path: Path, since: datetime) -> bool:
+    """Whether ``path`` was written at or after ``since`` (whole seconds, as batch.json's ``started``)."""
+    try:
+        return path.stat().st_mtime >= since.timestamp() - 1.0
+    except OSError:
+        return False
 
 
 def _finished_before_stop(run_dir: Path, since: datetime) -> dict[str, Any] | None:
@@ -458,12 +469,12 @@ def _finished_before_stop(run_dir: Path, since: datetime) -> dict[str, Any] | No
     reached the client); None where its run.json is older (an earlier batch's run: this one never started it)."""
     from autosar_cli.run import RunError, read_manifest
 
+    if not _written_since(run_dir / "run.json", since):
+        return None
     try:
-        if (run_dir / "run.json").stat().st_mtime < since.timestamp() - 1.0:  # ``since`` is whole seconds
-            return None
         manifest = read_manifest(run_dir)
         return _finished_run(manifest) if manifest.get("status") in ("ok", "degraded") else None
-    except (OSError, RunError, KeyError, TypeError, AttributeError):
+    except (RunError, KeyError, TypeError, AttributeError):
         return None
 
 
@@ -492,49 +503,47 @@ class _Resumed:
 
 
 def _settings_digest(config: Config, method: str, autofocus: bool, options: FocusOptions,
-                     ingest_options: IngestOptions, radar_starts: Sequence[int | None]) -> str:
-    """What makes a drive's products besides its inputs (the config's text, the method, the options), as a digest:
-    a resumed batch keeps drives only of the same."""
+                     ingest_options: IngestOptions) -> str:
+    """What makes a drive's products besides its inputs (the config's text, the method, the focus and ingest
+    options: its own time offsets and capture start), as a digest: a resumed batch keeps a drive only of the same."""
     said = {"config": config.text(), "method": method, "autofocus": autofocus, "focus": asdict(options),
-            "ingest": ingest_options.to_dict(), "radar_starts": list(radar_starts)}
+            "ingest": {**ingest_options.to_dict(),
+                       "time_offsets": sorted(ingest_options.to_dict()["time_offsets"].items())}}
     return hashlib.sha256(strict_json(said).encode()).hexdigest()
 
 
-def _resumed(out: Path, names: list[str], drive_inputs: list[list[str]], settings: str) -> _Resumed:
+def _resumed(out: Path, names: list[str], drive_inputs: list[list[str]], settings: list[str]) -> _Resumed:
     """The batch in ``out`` as ``--resume`` takes it: each drive that finished there (``ok`` or ``degraded``) from
-    the same inputs, whose run.json still says so, or that was ``interrupted`` and whose run.json says it finished
-    after all (an existing cluster's worker goes on with a running task), kept and marked ``kept``. Refused where the
-    batch ran with other settings, or where a stopped drive's run may still be going on an existing cluster."""
+    the same inputs and settings (``settings``: each drive's :func:`_settings_digest`), whose run.json still says
+    so, or that was ``interrupted`` and whose run.json says it finished after all (an existing cluster's worker goes
+    on with a running task), kept and marked ``kept``; a drive whose folder holds a run of other inputs or settings
+    is run again over it. Refused where a stopped drive's run may still be going on an existing cluster."""
     from autosar_cli.run import RunError, read_manifest
 
     before = read_batch(out)
-    if before.get("settings_sha256") != settings:
-        raise BatchError(f"{out}: its batch ran with other settings (the config, --method, --autofocus, or focus or "
-                         "ingest options differ); --resume keeps drives only of the same: give those, or --overwrite "
-                         "to run every drive again")
     try:
         since = datetime.fromisoformat(str(before.get("started")))
     except ValueError:
         since = datetime.now(UTC)  # no start: no run of it is taken as finished after its stop
     external = (before.get("cluster") or {}).get("kind") == "external"
     got = _Resumed(previous={str(r.get("name")): r for r in before.get("drives") or [] if isinstance(r, dict)})
-    for name, inputs in zip(names, drive_inputs, strict=True):
+    for name, inputs, these in zip(names, drive_inputs, settings, strict=True):
         rec = got.previous.get(name)
         if rec is None:
-            continue
-        if rec.get("logs") != inputs:  # another log under this name now: its run is the batch's, superseded
-            got.replace.add(name)
             continue
         try:
             status = read_manifest(out / name).get("status")
         except RunError:
             status = None
-        if rec.get("status") == "interrupted":  # on an existing cluster its run may have finished after the stop
+        if rec.get("status") == "interrupted" and external and status == "unfinished":
+            raise BatchError(f"{out / name}: its run may still be going on the cluster the batch stopped on "
+                             f"(run.json: unfinished); wait for it to end and resume, or remove {out / name} to run "
+                             "it again")
+        if rec.get("logs") != inputs or rec.get("settings_sha256") != these:  # its run is the batch's, superseded
+            got.replace.add(name)
+        elif rec.get("status") == "interrupted":  # on an existing cluster its run may have finished after the stop
             if (finished := _finished_before_stop(out / name, since)) is not None:
                 got.kept[name] = {**rec, **finished, "kept": True}
-            elif external and status == "unfinished":
-                raise BatchError(f"{out / name}: its run may still be going on the cluster the batch stopped on "
-                                 "(run.json: unfinished); wait for it to end and resume, or pass --overwrite")
         elif rec.get("status") in ("ok", "degraded") and status == rec["status"]:
             got.kept[name] = {**rec, "kept": True}
     return got

@@ -286,7 +286,7 @@ def test_a_stopped_batch_keeps_what_finished_and_resume_runs_the_rest(thread_clu
     """Ctrl-C (a KeyboardInterrupt in the client) after the first drive: batch.json is written ``interrupted`` with
     every drive's record; --resume keeps the drive that finished, and the one whose task went on on the existing
     cluster and finished after the stop (its run.json says so; resumed while it still runs, refused), and runs only
-    the last. Resumed with other settings, or after a drive's log changed, as those say."""
+    the last. A drive whose log or settings changed is run again over its run; a drive added runs alone."""
     import threading
 
     ran: list[str] = []
@@ -333,8 +333,6 @@ def test_a_stopped_batch_keeps_what_finished_and_resume_runs_the_rest(thread_clu
         run_batch(logs, out, load_config(), scheduler=cluster)
     with pytest.raises(BatchError, match="not both"):
         run_batch(logs, out, load_config(), scheduler=cluster, resume=True, overwrite=True)
-    with pytest.raises(BatchError, match="its batch ran with other settings"):  # kept drives would not be these
-        run_batch(logs, out, load_config(), scheduler=cluster, resume=True, autofocus=True)
     r = runner.invoke(app, ["batch", *map(str, logs), "-o", str(out), "--scheduler", cluster, "--resume"])
     assert r.exit_code == 0, r.output
     assert ran == ["a", "b", "c"]  # only c ran again
@@ -348,6 +346,15 @@ def test_a_stopped_batch_keeps_what_finished_and_resume_runs_the_rest(thread_clu
     m = run_batch([other, *logs[1:]], out, load_config(), scheduler=cluster, resume=True)
     assert ran == ["a", "b", "c", "a"] and [d["status"] for d in m["drives"]] == ["ok"] * 3
     assert m["drives"][0]["logs"] == [str(other.resolve())] and m["kept"] == 2
+    # other settings (here --autofocus): no drive is kept, each run again over its own
+    m = run_batch([other, *logs[1:]], out, load_config(), scheduler=cluster, resume=True, autofocus=True)
+    assert sorted(ran[4:]) == ["a", "b", "c"] and m["kept"] == 0 and m["ok"] == 3
+    # the same settings again, from another working directory and a log list grown by one: only the new one runs
+    extra = tmp_path / "d.mcap"
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    m = run_batch([Path("a.mcap"), *logs[1:], extra], out, load_config(), scheduler=cluster, resume=True,
+                  autofocus=True)
+    assert ran[7:] == ["d"] and m["kept"] == 3
     with pytest.raises(BatchError, match="holds no batch"):
         run_batch(logs, tmp_path / "none", load_config(), scheduler=cluster, resume=True)
 

@@ -940,3 +940,11 @@ def test_a_drive_whose_capture_was_not_given_says_to_give_it(simulated_capture: 
     assert r.exit_code == 1 and "no radar stream; the log holds 981 DCA1000 frame triggers on /dca1000/sync: give " \
         "their capture with --radar CAPTURE" in " ".join(r.stderr.split()), r.stderr
     assert not (tmp_path / "d.h5").exists()
+    # another drive's capture beside it too: the one named as the log is named (the first in order was)
+    pair = tmp_path / "pair"
+    pair.mkdir()
+    shutil.copy(log, pair / "x.mcap")
+    for name in ("a_other.dca1000", "x.dca1000"):
+        (pair / name).symlink_to(capture, target_is_directory=True)
+    r = runner.invoke(app, ["ingest", str(pair / "x.mcap"), "-o", str(tmp_path / "d.h5")])
+    assert f"--radar {pair / 'x.dca1000'}" in " ".join(r.stderr.split()), r.stderr

@@ -862,6 +862,11 @@ def test_a_configs_topic_or_role_the_logs_lack_is_a_warning(ci_mcap, tmp_path: P
         "CAN roles of the config in no frame of the logs: wheel_speed_fl (a message or signal the DBC or the log does "
         "not have): the stages go without them"], report.warnings
     assert ingest([ci_mcap.log_path], tmp_path / "ok.h5", config=load_config()).warnings == []  # the right config: none
+    cfg.write_text('base = "default"\n[sensors.gnss_cog]\nnmea_topic = "/ins_cog/nmae"\n')  # its kind's only one
+    said = ingest([ci_mcap.log_path], tmp_path / "n.h5", config=load_config(cfg)).warnings
+    assert [w for w in said if "typo" in w] == [
+        "sensors.gnss_cog.nmea_topic: /ins_cog/nmae is in none of the logs, which hold nmea on /ins_cog/nmea, a topic "
+        "no sensor of the config names (a typo in the topic?): gnss_cog's nmea is not in the drive"], said
 
 
 def test_a_log_on_other_topics_altogether_is_no_typo(tmp_path: Path) -> None:

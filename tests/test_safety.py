@@ -1019,7 +1019,7 @@ def test_autosars_geotiff_manifest_or_run_directory_given_as_a_log_or_image_says
                     "image.h5 beside it)")
     _one_line_error(runner.invoke(app, ["evaluate", str(ci_run / "run.json"), "-o", str(out)]),
                     f"error: {ci_run / 'run.json'}: a run.json autosar wrote (the manifest of the directory it is in); "
-                    "evaluate reads its run directory or image.h5")
+                    "evaluate reads a run directory or an image.h5")
     for given in (tif, ci_run / "run.json", ci_run):
         r = runner.invoke(app, ["ingest", str(given), "-o", str(out / "d.h5")])
         _one_line_error(r, f"error: {given}: a")

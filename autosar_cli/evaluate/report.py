@@ -82,9 +82,9 @@ def resolve_inputs(source: str | Path, truth_path: str | Path | None = None,
                                 "output recorded)") from None
         config_text = manifest.get("config") or ""
     elif src.is_file():
-        if src.suffix.lower() not in (".h5", ".hdf5") and (product := what_autosar_wrote(src)) is not None:
+        if src.suffix.lower() in (".tif", ".tiff", ".json") and (product := what_autosar_wrote(src)) is not None:
             raise EvaluateError(f"{src}: {product}" + ("" if "evaluate" in product else
-                                                          "; evaluate reads its run directory or image.h5"))
+                                                          "; evaluate reads a run directory or an image.h5"))
         try:
             prov = read_image(src).provenance
         except (OSError, ValueError) as exc:

@@ -290,13 +290,15 @@ class _Ingest:
     def misnamed_topics(self) -> list[str]:
         """A warning for each topic the config pins that no log holds where a stream of its kind came in on a
         topic of a near spelling no sensor names, and the logs hold another pinned topic of that kind (the config
-        is the drive's): a typo in the config's topic (navigation would go without that sensor, or without its
-        velocity, and say nothing). A log recorded on other topics altogether is the config sketch's to map."""
+        is the drive's) or it is its kind's only one: a typo in the config's topic (navigation would go without
+        that sensor, or without its velocity, and say nothing). A log recorded on other topics altogether is the
+        config sketch's to map."""
         pinned = self.config.pinned_topics()
         kinds_found = {pinned[t][0] for t in self.named if t in pinned}
+        pinned_per_kind = Counter(kind for kind, _, _ in pinned.values())
         said = []
         for topic, (kind, sensor, key) in pinned.items():
-            if not topic or topic in self.named or kind not in kinds_found:
+            if not topic or topic in self.named or (kind not in kinds_found and pinned_per_kind[kind] > 1):
                 continue
             near = difflib.get_close_matches(topic, [t for k, t in self.unnamed if k == kind], n=3, cutoff=0.75)
             if near:
@@ -975,10 +977,11 @@ def check_time_gaps(spans: dict[str, tuple[int, int]], max_gap_s: float, allow: 
             continue
         proposed = [f"{p}={(shiftable[p] + move) / 1e9:.0f}" for p, move in ((path, c - a), (near, a - c))
                     if p in shiftable]
-        raise IngestError(what + ": different drives, or a clock set wrong? Shift a CAN or NMEA log with "
-                          "--time-offset PATH=SECONDS" + (f" (the starts lined up: {' or '.join(proposed)})"
-                                                          if proposed else "")
-                          + ", or give --allow-time-gap to ingest the inputs as recorded")
+        shift = ("Shift a CAN or NMEA log with --time-offset PATH=SECONDS"
+                 + (f" (the starts lined up: {' or '.join(proposed)})" if proposed else "") + ", or give"
+                 if shiftable else "Give")  # a container log's stamps are not shifted
+        raise IngestError(what + f": different drives, or a clock set wrong? {shift} --allow-time-gap to ingest the "
+                          "inputs as recorded")
 
 
 def _human(seconds: float) -> str:
@@ -1031,10 +1034,15 @@ def _capture_hint(inputs: list[tuple[Path, str]], job: _Ingest) -> str | None:
     capture beside a log; what to give."""
     from .dca1000 import is_capture
 
-    beside = sorted({d for p, kind in inputs if kind == "log" and p.parent.is_dir()
-                     for d in p.parent.iterdir() if d.is_dir() and d != p and is_capture(d)})
+    logs = [p for p, kind in inputs if kind == "log" and p.parent.is_dir()]
+    beside = sorted({d for p in logs for d in p.parent.iterdir() if d.is_dir() and d != p and is_capture(d)})
+    named = [d for d in beside if any(d.name.startswith(p.name.split(".")[0]) for p in logs)]  # x.dca1000, x.mcap
+    if len(named) == 1 or len(beside) == 1:
+        capture = (named or beside)[0]
+        return f"a DCA1000 capture lies beside it ({capture}): give it with --radar {capture}"
     if beside:
-        return f"a DCA1000 capture lies beside it ({beside[0]}): give it with --radar {beside[0]}"
+        shown = ", ".join(d.name for d in beside[:3])
+        return f"{len(beside)} DCA1000 captures lie beside it ({shown}): give its own with --radar CAPTURE"
     if job.sync_stamps:
         return (f"the log holds {len(job.sync_stamps)} DCA1000 frame triggers on {job.radar_options.sync_topic}: "
                 "give their capture with --radar CAPTURE")

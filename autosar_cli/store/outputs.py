@@ -242,7 +242,9 @@ def what_autosar_wrote(path: Path) -> str | None:
     """Of a file or run directory autosar wrote, what it is and what reads it ("a drive.h5: `autosar navigate` ..."),
     to say where it is given as something else (a log, an image.h5); None for any other."""
     if path.is_dir():
-        return "a run directory autosar wrote (`autosar evaluate` reads it)" if (path / "run.json").is_file() else None
+        run = path / "run.json"
+        return "a run directory autosar wrote (`autosar evaluate` reads it)" if run.is_file() and _json_format(run) \
+            else None
     fmt = _hdf5_format(path)
     if fmt is None:
         if path.suffix.lower() in (".tif", ".tiff") and path.is_file() and _tif_is_autosar(path):
