@@ -611,6 +611,11 @@ def test_rosbag2_topics_metadata_yaml_does_not_list_are_read_from_the_storage(ci
     got, warnings = read_all(bag)
     assert Counter(got) == Counter(m for _, m in rows)
     assert any("rosbags failed when opened" in w for w in warnings), warnings
+    meta_path.write_text(text[:text.index("topics_with_message_count")] + "  bad: [unclosed\n")  # no YAML at all
+    got, warnings = read_all(bag)
+    assert Counter(got) == Counter(m for _, m in rows)
+    said = [w for w in warnings if "metadata" in w or "YAML" in w]
+    assert said and all("\n" not in w for w in said), said  # YAML's message drew the place over five lines
 
 
 def test_rosbag2_sqlite_header_that_declares_gigabytes_pads_nothing_in_memory(ci_ros2: SimulationResult,

@@ -280,7 +280,8 @@ def _read_metadata(path: Path) -> dict[str, Any]:
         meta["relative_file_paths"]  # noqa: B018  (required key)
         meta["storage_identifier"]  # noqa: B018
     except (OSError, yaml.YAMLError, KeyError, TypeError, ValueError) as exc:  # ValueError: not UTF-8
-        raise LogReadError(f"{meta_path}: not a valid rosbag2 metadata file ({exc})") from exc
+        said = " ".join(str(exc).split())  # YAML's own message runs over lines, with a drawing of the place
+        raise LogReadError(f"{meta_path}: not a valid rosbag2 metadata file ({said[:200]})") from exc
     return meta
 
 
@@ -384,7 +385,8 @@ class Rosbag2SqliteSource:
             raise
         except Exception as exc:  # malformed pages, a bad compressed message: read row range by row range
             what = f"after {sum(seen.values())} messages" if seen else "when opened"
-            self.stats.warnings.append(f"{self.path}: rosbags failed {what} ({type(exc).__name__}: {exc}); "
+            said = " ".join(str(exc).split())[:200]  # one line: a YAML error draws the place over several
+            self.stats.warnings.append(f"{self.path}: rosbags failed {what} ({type(exc).__name__}: {said}); "
                                        "the sqlite3 storage is read directly, row range by row range")
             for msg in self._sql_messages(None, skip=yielded):  # every topic the storage holds: metadata may lack some
                 seen[msg.channel.topic] = seen.get(msg.channel.topic, 0) + 1
