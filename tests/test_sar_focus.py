@@ -402,6 +402,10 @@ def test_focus_errors(ci_drive: Drive, tmp_path: Path) -> None:
     res = runner.invoke(app, ["focus", str(d.drive), "-t", str(d.trajectory), "-o", str(tmp_path / "g"),
                               "--grid", "1,2,3"])
     assert res.exit_code == 1 and "--grid" in res.output
+    # a box smaller than its pixel: a 1 x 1 image whose pixel's centre lay outside the box, exit 0
+    res = runner.invoke(app, ["focus", str(d.drive), "-t", str(d.trajectory), "-o", str(tmp_path / "g"),
+                              "--grid", "0,0,1,1", "--pixel", "5"])
+    assert res.exit_code == 1 and "--grid 0,0,1,1: smaller than one pixel (5 m)" in res.output, res.output
     # a value the config would refuse is refused on the command line too, before anything is written (inf once
     # focused an image with no aperture: rc 0)
     for option, value, said in (("--resolution", "inf", "cross-range resolution inf m"),

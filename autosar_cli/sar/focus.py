@@ -577,7 +577,9 @@ def check_request(options: FocusOptions, output: str | Path, overwrite: bool,
     """Fail before any work on a bad --grid, --channels or grid size, on products that are ``inputs`` (the
     drive, the trajectory), and on existing products without --overwrite or not written by autosar
     (store.outputs)."""
-    parse_grid(options.grid)
+    if (box := parse_grid(options.grid)) is not None and 0 < min(box[2] - box[0], box[3] - box[1]) < options.pixel_m:
+        raise FocusError(f"--grid {options.grid}: smaller than one pixel ({options.pixel_m:g} m), whose centre would "
+                         "lie outside it")  # a 1 x 1 image beside the box asked for, exit 0
     check_grid_size(options, config)
     if options.channels not in (8, 12):
         raise FocusError(f"--channels {options.channels}: choose 8 or 12")
