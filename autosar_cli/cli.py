@@ -437,7 +437,7 @@ def ingest(
         if as_json:
             out.print_json(strict_json(d))
             return
-        out.print(f"wrote [bold]{_lit(output)}[/]: {d['duration_s']:.2f} s of drive, {report.messages} messages, "
+        out.print(f"wrote [bold]{_lit(output)}[/]: {d['duration_s']:.2f} s of drive, {report.messages} messages read, "
                   f"{report.bytes_read / 1e6:.1f} MB in {report.wall_s:.1f} s ({d['throughput_mb_s']:.0f} MB/s)")
         table = Table("stream", "written", "rate (Hz)", "gaps", "dropped / repaired")
         for st in report.streams:
