@@ -44,8 +44,7 @@ from autosar_cli.ingest.sources import LogReadError
 from autosar_cli.interrupts import interrupts_held
 from autosar_cli.run import mark_interrupted, run, run_warnings
 from autosar_cli.sar.focus import FocusOptions
-from autosar_cli.store.atomic import atomic_output
-from autosar_cli.store.manifest import product_status, read_json_manifest, strict_json
+from autosar_cli.store.manifest import product_status, read_json_manifest, strict_json, write_json
 from autosar_cli.store.outputs import check_output, input_problem
 
 FORMAT = "autosar-batch"
@@ -286,7 +285,8 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
     for own, start_ns in zip(shiftable, starts_ns, strict=True):
         o = replace(ingest_options, time_offsets={Path(p): offsets[p] for p in sorted(own) if p in offsets})
         drive_options.append(replace(o, radar=replace(o.radar, start_ns=start_ns)) if start_ns is not None else o)
-    settings = [_settings_digest(config, method, autofocus, options, o) for o in drive_options]
+    config_text = config.text()  # its files, read once
+    settings = [_settings_digest(config_text, method, autofocus, options, o) for o in drive_options]
     resumed = _resumed(out, names, drive_inputs, settings) if resume else _Resumed()
     records = dict(resumed.kept)
     kept = list(records)
@@ -304,8 +304,7 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
     if len(kept) == len(names):  # nothing left to run: no cluster
         manifest = _batch_manifest(**manifest_args, records=[records[n] for n in names], wall_s=0.0,
                                    total_wall_s=time.perf_counter() - t_start, status="finished")
-        with atomic_output(out / MANIFEST, overwrite=True) as tmp:
-            tmp.write_text(strict_json(manifest, indent=2) + "\n")
+        write_json(out / MANIFEST, manifest)
         return manifest
     starts: dict[str, int] = {}
     t_submit = time.perf_counter()
@@ -361,7 +360,7 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
                 progress({"drive": name, "stage": "finished", "record": records[name]})
         t_submit = time.perf_counter()
         futures = {}
-        for name, log, inputs, these in zip(names, paths, companions, drive_options, strict=True):
+        for i, (name, log, inputs, these) in enumerate(zip(names, paths, companions, drive_options, strict=True)):
             if name in records:
                 continue
             fut = client.submit(run_drive, name, [log], str(out / name), config, method=method,
@@ -370,9 +369,9 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
                                 progress_topic=topic, command=command, can_logs=inputs["can"],
                                 nmea_logs=inputs["nmea"], radar_captures=inputs["radar"], retries=retries, pure=False,
                                 key=f"autosar-run-{name}-{topic[-12:]}")
-            futures[fut] = (name, drive_inputs[names.index(name)])
+            futures[fut] = i
         for fut in as_completed(futures):
-            name, inputs = futures[fut]
+            name, inputs = names[futures[fut]], drive_inputs[futures[fut]]
             try:
                 rec = fut.result()
                 rec["attempts"] = max(1, starts.get(name, 0))
@@ -381,7 +380,7 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
                        "error": _message(exc), "error_type": type(exc).__name__,
                        "attempts": max(retries + 1, starts.get(name, 0))}
             rec["output"] = os.path.relpath(rec["output"], out)
-            rec["settings_sha256"] = settings[names.index(name)]  # what --resume keeps it by
+            rec["settings_sha256"] = settings[futures[fut]]  # what --resume keeps it by
             records[name] = rec
             fut.release()
             if progress is not None:
@@ -407,7 +406,7 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
         with interrupts_held():  # the record of what finished is written whole
             stopped.batch_manifest = None  # type: ignore[attr-defined]
             ran_any = bool(starts or records)  # else nothing to keep: no batch.json
-            for name, inputs in zip(names, drive_inputs, strict=True):
+            for name, inputs, these_settings in zip(names, drive_inputs, settings, strict=True):
                 if name in records:
                     continue
                 ran = starts.get(name, 0)
@@ -418,24 +417,22 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
                 records[name] = {"name": name, "logs": inputs, "output": name, "status": "interrupted",
                                  "error": "interrupted; on the cluster its run may still finish (see its run.json)"
                                  if going else "interrupted", "attempts": ran,
-                                 "settings_sha256": settings[names.index(name)]}
+                                 "settings_sha256": these_settings}
                 if cluster is not None:  # its worker is gone with the cluster (its start may not have been heard)
                     mark_interrupted(out / name)
                 # a run that finished after the Ctrl-C, before its worker stopped
-                if (finished := _finished_before_stop(out / name, started_at)) is not None:
-                    records[name].update(finished, attempts=max(1, ran))
+                if (done := _finished_before_stop(out / name, started_at)) is not None:
+                    records[name].update(done, attempts=max(1, ran))
             if ran_any:
                 status = "interrupted" if any(r["status"] == "interrupted" for r in records.values()) else "finished"
                 manifest = _batch_manifest(**manifest_args, records=[records[n] for n in names], wall_s=wall,
                                            total_wall_s=time.perf_counter() - t_start, status=status)
-                with atomic_output(out / MANIFEST, overwrite=True) as tmp:
-                    tmp.write_text(strict_json(manifest, indent=2) + "\n")
+                write_json(out / MANIFEST, manifest)
                 stopped.batch_manifest = manifest  # type: ignore[attr-defined]
         raise stopped
     manifest = _batch_manifest(**manifest_args, records=[records[n] for n in names], wall_s=wall,
                                total_wall_s=time.perf_counter() - t_start, status="finished")
-    with atomic_output(out / MANIFEST, overwrite=True) as tmp:
-        tmp.write_text(strict_json(manifest, indent=2) + "\n")
+    write_json(out / MANIFEST, manifest)
     return manifest
 
 
@@ -502,13 +499,13 @@ class _Resumed:
     replace: set[str] = field(default_factory=set)
 
 
-def _settings_digest(config: Config, method: str, autofocus: bool, options: FocusOptions,
+def _settings_digest(config_text: str, method: str, autofocus: bool, options: FocusOptions,
                      ingest_options: IngestOptions) -> str:
     """What makes a drive's products besides its inputs (the config's text, the method, the focus and ingest
     options: its own time offsets and capture start), as a digest: a resumed batch keeps a drive only of the same."""
-    said = {"config": config.text(), "method": method, "autofocus": autofocus, "focus": asdict(options),
-            "ingest": {**ingest_options.to_dict(),
-                       "time_offsets": sorted(ingest_options.to_dict()["time_offsets"].items())}}
+    ingest = ingest_options.to_dict()
+    said = {"config": config_text, "method": method, "autofocus": autofocus, "focus": asdict(options),
+            "ingest": {**ingest, "time_offsets": sorted(ingest["time_offsets"].items())}}
     return hashlib.sha256(strict_json(said).encode()).hexdigest()
 
 

@@ -38,8 +38,8 @@ from autosar_cli import __version__
 from autosar_cli.config import Config
 from autosar_cli.interrupts import Terminated
 from autosar_cli.sar.grid import GridError, check_image_size
-from autosar_cli.store.atomic import atomic_output, stale_partials
-from autosar_cli.store.manifest import product_status, read_json_manifest, strict_json
+from autosar_cli.store.atomic import stale_partials
+from autosar_cli.store.manifest import product_status, read_json_manifest, write_json
 from autosar_cli.store.outputs import (
     check_free_space,
     check_output,
@@ -132,7 +132,7 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
         return lambda done, total: progress(stage, done, total) if progress else None
 
     with output_directory(out):
-        _write_manifest(manifest_path, {**manifest, "status": "unfinished"})
+        write_json(manifest_path, {**manifest, "status": "unfinished"})
         try:
             t = time.perf_counter()
             rep = _ingest_beside_imports([Path(p) for p in logs], out / DRIVE, config, stage_progress("ingest"),
@@ -143,13 +143,13 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
             manifest["stages"]["ingest"] = {"wall_s": time.perf_counter() - t, "messages": rep.get("messages"),
                                             "bytes_read": rep.get("bytes_read"), "warnings": rep.get("warnings", [])}
             manifest["outputs"]["drive"] = DRIVE
-            _write_manifest(manifest_path, {**manifest, "status": "unfinished"})
+            write_json(manifest_path, {**manifest, "status": "unfinished"})
             _run_after_ingest(manifest, out, config, method, options, truth_path, autofocus, command,
                               stage_progress, progress)
         except BaseException as exc:
             _mark_stopped(exc, manifest, manifest_path)
             raise
-    _write_manifest(manifest_path, manifest)
+    write_json(manifest_path, manifest)
     return manifest
 
 
@@ -168,7 +168,7 @@ def _mark_stopped(exc: BaseException, manifest: dict[str, Any], manifest_path: P
     else:
         status, error = "failed", str(exc).splitlines()[0] if str(exc) else type(exc).__name__
     with contextlib.suppress(Exception):  # best effort: the disk may be what failed
-        _write_manifest(manifest_path, {**manifest, "status": status, "error": error})
+        write_json(manifest_path, {**manifest, "status": status, "error": error})
 
 
 def mark_interrupted(run_dir: Path) -> None:
@@ -204,11 +204,6 @@ def _status(manifest_path: Path) -> str | None:
         return str(read_manifest(manifest_path.parent).get("status"))
     except RunError:
         return None
-
-
-def _write_manifest(path: Path, manifest: dict[str, Any]) -> None:
-    with atomic_output(path, overwrite=True) as tmp:
-        tmp.write_text(strict_json(manifest, indent=2) + "\n")
 
 
 def _run_after_ingest(manifest: dict[str, Any], out: Path, config: Config, method: str,

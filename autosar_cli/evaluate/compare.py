@@ -50,7 +50,6 @@ from autosar_cli.evaluate.report import (
     degraded_markdown,
     fmt,
     markdown_table,
-    write_json,
     write_report,
     write_text,
 )
@@ -70,7 +69,7 @@ from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.sim.truth import truth_radar_mismatch
 from autosar_cli.store.drive import Drive, radar_times
 from autosar_cli.store.image import write_image
-from autosar_cli.store.manifest import json_safe, product_status
+from autosar_cli.store.manifest import json_safe, product_status, write_json
 from autosar_cli.store.outputs import check_free_space, check_output, check_products, input_bytes, output_directory
 from autosar_cli.store.trajectory import write_trajectory
 

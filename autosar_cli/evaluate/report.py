@@ -24,7 +24,7 @@ from autosar_cli.sim.truth import truth_path_for, truth_radar_mismatch
 from autosar_cli.store.atomic import atomic_output
 from autosar_cli.store.drive import Drive
 from autosar_cli.store.image import read_image
-from autosar_cli.store.manifest import json_safe, strict_json
+from autosar_cli.store.manifest import json_safe, write_json
 from autosar_cli.store.outputs import check_output, check_products, output_directory, what_autosar_wrote
 from autosar_cli.store.trajectory import read_trajectory
 
@@ -160,12 +160,6 @@ def evaluate_run(source: str | Path, out_dir: str | Path, truth_path: str | Path
 
 
 # ------------------------------------------------------------------------------------------------ writing
-def write_json(path: Path, data: Any, *, overwrite: bool = True) -> Path:
-    """Write ``data`` as indented JSON, atomically."""
-    with atomic_output(path, overwrite) as tmp:
-        tmp.write_text(strict_json(data, indent=2) + "\n")
-    return path
-
 
 def write_text(path: Path, text: str, *, overwrite: bool = True) -> Path:
     with atomic_output(path, overwrite) as tmp:

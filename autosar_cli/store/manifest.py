@@ -51,6 +51,16 @@ def strict_json(value: Any, *, indent: int | None = None) -> str:
     return json.dumps(json_safe(value), indent=indent, default=json_default, allow_nan=False)
 
 
+def write_json(path: Path, data: Any, *, overwrite: bool = True) -> Path:
+    """Write ``data`` as indented strict JSON, atomically (every manifest autosar writes: run.json, batch.json,
+    compare.json, metrics.json)."""
+    from autosar_cli.store.atomic import atomic_output
+
+    with atomic_output(path, overwrite) as tmp:
+        tmp.write_text(strict_json(data, indent=2) + "\n")
+    return path
+
+
 def read_json_manifest(path: Path, fmt: str, what: str, error: type[Exception]) -> dict[str, Any]:
     """The JSON object in ``path`` if its ``format`` is ``fmt``; else ``error`` naming the file and ``what``."""
     if not path.exists() and path.parent.is_dir():
