@@ -265,8 +265,8 @@ class _Ingest:
         self.can = CanDecoder(writer, db, config.can.checksum, lambda: {"source_file": self.source_file})
         self.names = self._configured_names()
         self.used_names: dict[tuple[str, str], str] = {}
-        #: the streams named after their topic, no sensor of the config's naming it: (kind, topic) -> stream name
-        self.unnamed: dict[tuple[str, str], str] = {}
+        #: the streams named after their topic, no sensor of the config's naming it: (kind, topic)
+        self.unnamed: set[tuple[str, str]] = set()
         self.named: set[str] = set()  #: the pinned topics the logs hold
 
     # -- naming ------------------------------------------------------------------------------------
@@ -284,7 +284,7 @@ class _Ingest:
             name = _sanitise(ns) if ns else "gnss"
         else:
             name = _sanitise(topic)
-        self.unnamed[(kind, topic)] = name
+        self.unnamed.add((kind, topic))
         return name
 
     def misnamed_topics(self) -> list[str]:
