@@ -7,6 +7,9 @@ it once for reference products, then runs trials of these classes through ``pyth
 in subprocesses (minimum counts at ``--scale 1``):
 
     mcap 100, ros1 40, rosbag2 40   byte flips, truncations, damaged record headers / index / metadata
+    ros1-records 40                 the ROS1 bag rewritten with its chunks uncompressed (`rosbag record`'s
+                                    default: nothing but the records' lengths frames its messages), 1-3 bytes
+                                    of message records' framing (their two lengths and header) overwritten
     hdf5 60                         byte flips in drive.h5 and trajectory.h5, then focus
     config 30                       non-finite, negative, huge, mistyped, missing and non-UTF-8 values
     kill 30                         SIGKILL / SIGINT at a random moment of ingest or focus, then a rerun
@@ -67,7 +70,8 @@ CLI = [sys.executable, "-m", "autosar_cli.cli"]
 OUTCOMES = ("clean-error", "kept-with-warning", "ok", "crash-or-traceback", "silent-wrong", "input-harmed",
             "partial-left")
 BAD = ("crash-or-traceback", "silent-wrong", "input-harmed", "partial-left")
-COUNTS = {"mcap": 100, "ros1": 40, "rosbag2": 40, "hdf5": 60, "config": 30, "kill": 30, "disk-full": 5, "path": 12,
+COUNTS = {"mcap": 100, "ros1": 40, "ros1-records": 40, "rosbag2": 40, "hdf5": 60, "config": 30, "kill": 30,
+          "disk-full": 5, "path": 12,
           "dca1000": 40, "canlog": 40, "realfiles": 56, "finalised": 28}
 PACKET = 1456  #: the DCA1000's default data bytes per packet
 
@@ -108,6 +112,8 @@ class Base:
     mcap_chunks: list[tuple[int, int, int]] = field(default_factory=list)  #: (start, end, messages)
     mcap_messages: Counter[tuple[str, int, bytes]] = field(default_factory=Counter)  #: (topic, time, digest)
     ros1_chunks: list[tuple[int, int, int]] = field(default_factory=list)
+    ros1u: Path | None = None  #: the ROS1 bag with its chunks uncompressed
+    ros1u_records: list[tuple[int, int]] = field(default_factory=list)  #: (start, data start) of its messages
     digests: dict[str, str] = field(default_factory=dict)
     real_warnings: dict[str, set[str]] = field(default_factory=dict)  #: a real input's warnings, undamaged
     real_messages: dict[str, int] = field(default_factory=dict)  #: the messages a real input gives, undamaged
@@ -253,6 +259,30 @@ def ros1_chunks(path: Path) -> list[tuple[int, int, int]]:
         return [(pos, reader.chunks[pos].datapos + reader.chunks[pos].datasize, n) for pos, n in sorted(per.items())]
 
 
+def uncompressed_ros1(bag: Path, out: Path) -> tuple[Path, list[tuple[int, int]]]:
+    """``bag`` rewritten by rosbags' writer with its chunks uncompressed, and its message records' (start, data
+    start) in the file, walked by their two lengths."""
+    from rosbags.rosbag1 import Reader, Writer
+
+    with Reader(bag) as reader, Writer(out) as writer:
+        conns = {c.id: writer.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data, md5sum=c.digest)
+                 for c in reader.connections}
+        for c, t, d in reader.messages():
+            writer.write(conns[c.id], t, d)
+    data = out.read_bytes()
+    records = []
+    with Reader(out) as reader:
+        for ch in reader.chunks.values():
+            at = ch.datapos
+            while at < ch.datapos + ch.datasize:
+                (hlen,) = struct.unpack_from("<I", data, at)
+                (dlen,) = struct.unpack_from("<I", data, at + 4 + hlen)
+                if b"op=\x02" in data[at + 4:at + 4 + hlen]:
+                    records.append((at, at + 8 + hlen))
+                at += 8 + hlen + dlen
+    return out, sorted(records)
+
+
 def mcap_messages(path: Path, keep_unverified: bool) -> Counter[tuple[str, int, bytes]]:
     """(topic, log time, payload digest) of every message the MCAP reader gives of ``path``."""
     from autosar_cli.ingest.mcap_source import McapSource
@@ -302,6 +332,10 @@ def setup(work: Path) -> Base:
     base.mcap_chunks = mcap_chunks(base.mcap)
     base.mcap_messages = mcap_messages(base.mcap, keep_unverified=False)
     base.ros1_chunks = ros1_chunks(base.ros1)
+    base.ros1u, base.ros1u_records = uncompressed_ros1(base.ros1, work / "ci_uncompressed.bag")
+    r = cli(["ingest", base.ros1u.name, "-o", "ref_ros1-records.h5"], work)
+    assert r.returncode == 0, r.stderr
+    base.digests["ros1-records"] = product_digest(work / "ref_ros1-records.h5")
     r = cli(["simulate", "-s", "ci", "-f", "dca1000", "--seed", "7", "-o", "dca.mcap"], work)
     assert r.returncode == 0, r.stderr
     base.dca_mcap, base.dca_flat = work / "dca.mcap", work / "dca.dca1000"
@@ -436,9 +470,21 @@ def container_trial(base: Base, cls: str, n: int, rng: random.Random, tdir: Path
         damaged = flip(data, rng, rng.randint(1, 6))
         fault = f"{len(damaged)} flipped bytes in metadata.yaml"
     target.write_bytes(bytes(data))
-    before = tree_hash(dst)
+    trial = ingest_trial(base, cls, n, fault, dst, tdir)
+    chunks = {"mcap": base.mcap_chunks, "ros1": base.ros1_chunks}.get(cls)
+    if chunks is not None:
+        trial.chunks_expected = intact(chunks, damaged)
+    if cls == "mcap":
+        trial.unverified = unverified_read(base, dst)
+    return trial
+
+
+def ingest_trial(base: Base, cls: str, n: int, fault: str, log: Path, tdir: Path) -> Trial:
+    """``autosar ingest --json`` of the damaged ``log``, classified against the undamaged log's drive
+    (``ref_{cls}.h5``); the log must come out unchanged and no partial stay."""
+    before = tree_hash(log)
     t0 = time.perf_counter()
-    r = cli(["ingest", dst.name, "-o", "out/drive.h5", "--json"], tdir)
+    r = cli(["ingest", log.name, "-o", "out/drive.h5", "--json"], tdir)
     trial = Trial(cls, n, fault, rc=r.returncode, wall_s=time.perf_counter() - t0)
     report: dict[str, object] = {}
     if r.returncode == 0:
@@ -451,15 +497,30 @@ def container_trial(base: Base, cls: str, n: int, rng: random.Random, tdir: Path
                                            warned=bool(report.get("warnings")))
     if trial.outcome == "silent-wrong":
         trial.detail += ": " + drive_difference(tdir / "out" / "drive.h5", base.dir / f"ref_{cls}.h5")
-    chunks = {"mcap": base.mcap_chunks, "ros1": base.ros1_chunks}.get(cls)
-    if chunks is not None:
-        trial.chunks_expected = intact(chunks, damaged)
-    if cls == "mcap":
-        trial.unverified = unverified_read(base, dst)
-    if tree_hash(dst) != before:
+    if tree_hash(log) != before:
         trial.outcome = "input-harmed"
     elif partials(tdir):
         trial.outcome, trial.detail = "partial-left", ", ".join(partials(tdir))
+    return trial
+
+
+def ros1_records_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
+    """1-3 bytes of as many message records' framing in the uncompressed ROS1 bag overwritten; the messages of
+    the other records are expected kept."""
+    assert base.ros1u is not None
+    dst = tdir / "log.bag"
+    data = bytearray(base.ros1u.read_bytes())
+    hit = rng.sample(base.ros1u_records, rng.randint(1, 3))
+    spots = []
+    for start, dstart in hit:
+        i = rng.randrange(start, dstart)
+        data[i] ^= rng.randrange(1, 256)
+        spots.append(i)
+    dst.write_bytes(bytes(data))
+    trial = ingest_trial(base, "ros1-records", n, f"{len(hit)} message records' framing bytes overwritten (at "
+                         f"{spots})", dst, tdir)
+    trial.messages_whole = len(base.ros1u_records)
+    trial.chunks_expected = len(base.ros1u_records) - len(hit)
     return trial
 
 
@@ -850,7 +911,7 @@ def run_trial(base: Base, cls: str, n: int, seed: int, root: Path) -> Trial:
             return container_trial(base, cls, n, rng, tdir)
         return {"hdf5": hdf5_trial, "config": config_trial, "kill": kill_trial, "disk-full": disk_trial,
                 "path": path_trial, "dca1000": dca1000_trial, "canlog": canlog_trial,
-                "realfiles": realfiles_trial,
+                "realfiles": realfiles_trial, "ros1-records": ros1_records_trial,
                 "finalised": lambda *a: realfiles_trial(*a, cls="finalised")}[cls](base, n, rng, tdir)
     except subprocess.TimeoutExpired:
         return Trial(cls, n, "timeout", outcome="crash-or-traceback", detail="hung for 300 s")
@@ -885,8 +946,8 @@ def main() -> None:
     print(f"{'class':10s} {'trials':>6s} " + " ".join(f"{o:>18s}" for o in cols))
     for c in classes:
         print(f"{c:10s} {sum(table[c].values()):6d} " + " ".join(f"{table[c].get(o, 0):18d}" for o in cols))
-    print(f"intact chunks (MCAP, ROS1) or whole lines (text CAN logs) kept: {len(chunk_checks) - len(chunk_fail)} "
-          f"of {len(chunk_checks)} trials")
+    print(f"intact chunks (MCAP, ROS1), message records (ROS1 uncompressed) or whole lines (text CAN logs) kept: "
+          f"{len(chunk_checks) - len(chunk_fail)} of {len(chunk_checks)} trials")
     for c in classes:
         read = [t for t in trials if t.cls == c and t.messages_whole]
         if read:

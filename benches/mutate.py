@@ -209,6 +209,10 @@ TILES = "tests/test_batch.py::test_split_grid_positions_bit_identical"
 MOUNTING = "tests/test_nav_frames.py::test_mounting_angles_turn_the_radar_as_the_config_says"
 MCAP_RESYNC = "tests/test_ingest_damage.py::test_mcap_bad_record_length_resynchronises"
 ROS1_RESYNC = "tests/test_ingest_damage.py::test_ros1_damaged_chunk_header_resynchronises"
+ROS1_RECORDS = ("tests/test_ingest_damage.py::test_ros1_uncompressed_message_with_a_damaged_length_costs_only_that_"
+                "message")
+ROS1_CHUNK_LENGTH = "tests/test_ingest_damage.py::test_ros1_chunk_whose_data_length_is_off_but_fits_costs_nothing"
+ROS1_TIME_COPIES = "tests/test_ingest_damage.py::test_ros1_message_time_damaged_in_one_copy_is_read_at_the_other"
 AF_REF = "tests/test_residual_motion.py::test_focus_history_is_the_reference_backprojection_pulse_by_pulse"
 AF_INJECTED = "tests/test_residual_motion.py::test_recovers_an_injected_across_track_error"
 AF_CLUTTER = "tests/test_residual_motion.py::test_refuses_distributed_clutter"
@@ -486,6 +490,19 @@ MUTATIONS: list[Mutation] = [
     _m("ros1-damaged-chunk-ends-the-read", "integrity", "ingest/ros1_chunks.py",
        "    at = start\n    while (hit := buf.find(_CHUNK_OP, at)) >= 0:\n",
        "    at = start\n    while False and (hit := buf.find(_CHUNK_OP, at)) >= 0:\n", ROS1_RESYNC),
+    _m("ros1-record-damage-ends-the-chunk", "integrity", "ingest/ros1_chunks.py",
+       "            nxt = _next_record(data, pending[2] if pending else at + 1, connections, cut)",
+       "            nxt = None", ROS1_RECORDS),
+    _m("ros1-message-length-trusted", "integrity", "ingest/ros1_chunks.py",
+       "nxt is not None and nxt < at or not _header_like(data, at, nxt))", "False)", ROS1_RECORDS),
+    _m("ros1-index-read-on-unchained-records", "integrity", "ingest/rosbag_source.py",
+       "            broken = self._chunk_break(reader)", "            broken = None", ROS1_RECORDS),
+    _m("ros1-chunk-data-length-trusted", "integrity", "ingest/ros1_chunks.py",
+       "        stream = _chunk_stream(buf, pos)\n        if stream is None or len(stream[1])",
+       "        stream = None\n        if stream is None or len(stream[1])", ROS1_CHUNK_LENGTH),
+    _m("ros1-record-time-trusted-over-the-index", "integrity", "ingest/rosbag_source.py",
+       "                    if said is not None and said[:2] != (msg.conn_id, msg.t_ns):",
+       "                    if False:", ROS1_TIME_COPIES),
     _m("radar-cube-without-checksums", "integrity", "store/drive.py",
        "dtype=np.int16, fletcher32=True,", "dtype=np.int16, fletcher32=False,", CUBE_CRC),
     _m("trajectory-without-checksums", "integrity", "store/trajectory.py",

@@ -202,6 +202,132 @@ def test_ros1_damaged_chunk_header_resynchronises(ci_ros1: SimulationResult, wor
     assert any(str(bag) in w and f"bytes {start}-" in w for w in warnings), warnings
 
 
+@pytest.fixture(scope="module")
+def ci_ros1_uncompressed(ci_ros1: SimulationResult, work: Path) -> Path:
+    """ci's bag rewritten by rosbags' writer with its chunks uncompressed (`rosbag record`'s default): nothing but
+    the record lengths frames its messages."""
+    from rosbags.rosbag1 import Reader, Writer
+
+    out = work / "uncompressed.bag"
+    with Reader(ci_ros1.log_path) as reader, Writer(out) as writer:
+        conns = {c.id: writer.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data, md5sum=c.digest)
+                 for c in reader.connections}
+        for c, t, d in reader.messages():
+            writer.write(conns[c.id], t, d)
+    return out
+
+
+def ros1_message_records(bag: Path, chunk_pos: int) -> tuple[int, list[tuple[int, int, int, Msg]]]:
+    """(data start, records) of the uncompressed chunk at ``chunk_pos``: each message record's (start, data length
+    field offset, data length, message), walked by its two length fields."""
+    from rosbags.rosbag1 import Reader
+
+    data = bag.read_bytes()
+    with Reader(bag) as reader:
+        topics = {c.id: c.topic for c in reader.connections}
+        ch = reader.chunks[chunk_pos]
+    out, at, end = [], ch.datapos, ch.datapos + ch.datasize
+    while at < end:
+        (hlen,) = struct.unpack_from("<I", data, at)
+        fields = {}
+        f = at + 4
+        while f < at + 4 + hlen:
+            (size,) = struct.unpack_from("<I", data, f)
+            name, _, value = data[f + 4:f + 4 + size].partition(b"=")
+            fields[name] = value
+            f += 4 + size
+        (dlen,) = struct.unpack_from("<I", data, at + 4 + hlen)
+        if fields[b"op"] == b"\x02":
+            sec, nsec = struct.unpack("<II", fields[b"time"])
+            msg = (topics[struct.unpack("<I", fields[b"conn"])[0]], sec * 10**9 + nsec,
+                   data[at + 8 + hlen:at + 8 + hlen + dlen])
+            out.append((at, at + 4 + hlen, dlen, msg))
+        at += 8 + hlen + dlen
+    return ch.datapos, out
+
+
+@pytest.mark.parametrize("damage", ["shorter", "longer", "huge", "header"])
+@pytest.mark.parametrize("size", ["small", "radar"])
+def test_ros1_uncompressed_message_with_a_damaged_length_costs_only_that_message(
+        damage: str, size: str, ci_ros1_uncompressed: Path, work: Path) -> None:
+    """In an uncompressed chunk, a message record's data length set 40 bytes short or long (read through the index,
+    the message came out cut or run on into the next record's bytes, with no word) or to ~2 GiB, or its header
+    length flipped (the rest of the chunk was lost, ~100 messages): only that message is left out, the damage named
+    at its offset, and every other message kept byte for byte."""
+    bag = ci_ros1_uncompressed
+    chunks = ros1_chunks(bag)
+    start = chunks[5][0]
+    dstart, records = ros1_message_records(bag, start)
+    pick = [r for r in records if (len(r[3][2]) > 10_000) == (size == "radar")][3]
+    rec_start, dlen_at, dlen, lost = pick
+    data = bytearray(bag.read_bytes())
+    if damage == "header":
+        data[rec_start + 1] ^= 0x10
+    else:
+        struct.pack_into("<I", data, dlen_at, {"shorter": dlen - 40, "longer": dlen + 40, "huge": 0x7F00_0000}[damage])
+    out = work / f"uncompressed_{damage}_{size}.bag"
+    out.write_bytes(bytes(data))
+    got, warnings = read_all(out)
+    intact = [m for _, _, msgs in chunks for m in msgs]
+    assert Counter(got) == Counter(intact) - Counter([lost]) and len(got) == len(intact) - 1
+    offset = rec_start - dstart
+    assert any(str(out) in w and f"chunk at bytes {start}-" in w and f"offset {offset}" in w
+               and "read on from the next record" in w for w in warnings), warnings
+
+
+@pytest.mark.parametrize(("compressed", "by"), [(False, -1000), (False, 1000), (True, 1000)])
+def test_ros1_chunk_whose_data_length_is_off_but_fits_costs_nothing(compressed: bool, by: int,
+                                                                    ci_ros1: SimulationResult,
+                                                                    ci_ros1_uncompressed: Path, work: Path) -> None:
+    """A chunk's data length 1000 bytes short or long, inside the file: an uncompressed chunk's data is read to the
+    size its header states (it was lost whole, with the 111 messages of the chunk after it, the reading resumed
+    1000 bytes off); an lz4 chunk is read to its stream's end (its chunk-info records after it were skipped)."""
+    bag = ci_ros1.log_path if compressed else ci_ros1_uncompressed
+    chunks = ros1_chunks(bag)
+    start = chunks[5][0]
+    data = bytearray(bag.read_bytes())
+    (hlen,) = struct.unpack_from("<I", data, start)
+    (dlen,) = struct.unpack_from("<I", data, start + 4 + hlen)
+    struct.pack_into("<I", data, start + 4 + hlen, dlen + by)
+    out = work / f"chunk_length_{compressed}_{by}.bag"
+    out.write_bytes(bytes(data))
+    got, warnings = read_all(out)
+    assert Counter(got) == Counter(m for _, _, msgs in chunks for m in msgs)
+    assert any(str(out) in w and f"chunk at byte {start}: its data length" in w
+               and f"byte {start + 8 + hlen + dlen}: read by that" in w for w in warnings), warnings
+
+
+@pytest.mark.parametrize("copy", ["record", "index"])
+def test_ros1_message_time_damaged_in_one_copy_is_read_at_the_other(copy: str, ci_ros1_uncompressed: Path,
+                                                                    work: Path) -> None:
+    """A message's time is written twice, in its record and in the index (rosbags asserts they agree, and the bag
+    is scanned): its seconds' low byte changed in one copy puts that copy outside its chunk's time span (the chunk
+    info's, a third copy), and the message is read at the other's time, with a warning naming it (before, the
+    record's time was taken, whichever was damaged, without a word on which message)."""
+    bag = ci_ros1_uncompressed
+    chunks = ros1_chunks(bag)
+    start = chunks[5][0]
+    dstart, records = ros1_message_records(bag, start)
+    rec_start, dlen_at, _, msg = records[7]
+    data = bytearray(bag.read_bytes())
+    offset = rec_start - dstart
+    if copy == "record":
+        sec_at = data.index(b"time=", rec_start, dlen_at) + 5
+    else:  # the index data record of its connection, after the chunk: (sec, nsec, offset) entries
+        (hlen,) = struct.unpack_from("<I", data, start)
+        (dlen,) = struct.unpack_from("<I", data, start + 4 + hlen)
+        entry = struct.pack("<IiI", msg[1] // 10**9, msg[1] % 10**9, offset)
+        sec_at = data.index(entry, start + 8 + hlen + dlen)
+    data[sec_at] ^= 0x40  # 64 s off
+    out = work / f"time_in_{copy}.bag"
+    out.write_bytes(bytes(data))
+    got, warnings = read_all(out)
+    assert Counter(got) == Counter(m for _, _, msgs in chunks for m in msgs)
+    other = {"record": "index", "index": "record"}[copy]
+    assert any(str(out) in w and f"the chunk at byte {start}, offset {offset}" in w and f"read at the {other}'s time"
+               in w for w in warnings), warnings
+
+
 # ---------------------------------------------------------------------------------------- rosbag2
 def db_rows(bag: Path) -> list[tuple[int, Msg]]:
     """(row id, message) of the intact rosbag2, straight from sqlite3 (payloads decompressed as rosbag2 does)."""

@@ -4,7 +4,9 @@ Used when a bag's index is missing or damaged (a truncated or killed recording, 
 file is scanned from the start (bag header, chunk records, the connection and message-data records
 inside each decompressed chunk), so every intact chunk is kept. A chunk whose record header is damaged
 is skipped by resynchronising on the next plausible chunk header; a chunk that does not decompress is
-skipped whole; a chunk whose inner records break keeps the messages before the break; a chunk cut by the
+skipped whole (unless its data length alone was damaged: read by its data's own end); a record inside a chunk that
+does not read is skipped to the next record found by its header, and so is the message before it whose length does
+not lead to a record (:func:`_records`); a chunk cut by the
 file's end keeps the messages whose bytes are all there (its data decoded as far as it goes: lz4 and bz2
 decode a stream's prefix). So does the chunk a killed ``rosbag record`` left open: its header's sizes still 0
 (filled in when a chunk closes), its messages after it as records of their own (uncompressed) or its
@@ -50,6 +52,7 @@ class Ros1Message:
     t_ns: int
     data: bytes
     chunk_offset: int  #: file offset of the chunk record holding it
+    offset: int = -1  #: its record's offset in the chunk's decompressed data (as the index gives it); -1: none
 
 
 @dataclass
@@ -169,6 +172,37 @@ def chunk_copies(buf: Buffer, first_chunks: Iterable[tuple[int, int]]) -> dict[i
             if conn_id in copies:
                 found[conn_id] = (copies[conn_id], pos)
     return found
+
+
+def chain_break(buf: Buffer, pos: int, offsets: Iterable[int]) -> str | None:
+    """Where the records of the uncompressed chunk record at ``pos`` do not follow one another by their lengths to
+    its data's end, or where one of ``offsets`` (its messages' offsets in its data, as the bag's index gives them) is
+    not where a record starts; None where they do and it is (or the chunk is compressed: its codec checks its data).
+
+    Read through its index, a message's data length is trusted: damaged, it would give a message cut short or run
+    on into the next record's bytes, which nothing else checks in an uncompressed chunk."""
+    try:
+        fields, dstart, dend = read_record(buf, pos)
+    except (RecordError, UnicodeDecodeError) as exc:
+        return f"its record does not read ({exc})"
+    if fields.get("compression", b"") != b"none":
+        return None
+    starts, at = set(), dstart
+    while at < dend:
+        if at + 4 > dend:
+            return f"a record at byte {at} is cut by its data's end"
+        (hlen,) = _U32.unpack_from(buf, at)
+        if at + 8 + hlen > dend:
+            return f"the record at byte {at} has a header length ({hlen}) running past its data's end"
+        (dlen,) = _U32.unpack_from(buf, at + 4 + hlen)
+        if at + 8 + hlen + dlen > dend:
+            return f"the record at byte {at} has a data length ({dlen}) running past its data's end"
+        starts.add(at - dstart)
+        at += 8 + hlen + dlen
+    stray = sorted(set(offsets) - starts)
+    if stray:
+        return f"its index puts a message at byte {dstart + stray[0]}, where its records' lengths put none"
+    return None
 
 
 def normalise_topic(name: str) -> str:
@@ -316,7 +350,7 @@ def _scan(buf: Buffer, pos: int, n: int, report: ScanReport, connections: dict[i
                 return
         elif op == OP_CHUNK:
             unclosed.close(report)
-            yield from _chunk(buf, pos, fields, dstart, dend, report, connections)
+            dend = yield from _chunk(buf, pos, fields, dstart, dend, report, connections)
         elif op == OP_MSG_DATA and unclosed.pos is not None:
             try:
                 conn = _u32(fields, "conn")
@@ -352,43 +386,132 @@ def _unclosed_compressed(buf: Buffer, pos: int, dstart: int, n: int, compression
 
 
 def _chunk(buf: Buffer, pos: int, fields: dict[str, bytes], dstart: int, dend: int, report: ScanReport,
-           connections: dict[int, Ros1Connection]) -> Iterator[Ros1Message]:
+           connections: dict[int, Ros1Connection]) -> Generator[Ros1Message, None, int]:
+    """The messages of the chunk record at ``pos`` whose data its length field puts at ``dstart``-``dend``; returns
+    where the record after it starts: where its data, decoded from its start to the size its header states, ends,
+    should the length field disagree (a damaged length, or an uncompressed chunk's, which nothing else checks)."""
+    compression = fields.get("compression", b"").decode("ascii", "replace")
     try:
-        data = _decompress(fields.get("compression", b"").decode("ascii", "replace"), buf[dstart:dend],
-                           _u32(fields, "size"))
-    except Exception as exc:  # any codec error: the chunk is lost, the next one is not
-        report.lost.append(f"chunk at bytes {pos}-{dend} skipped: it does not decompress ({exc})")
-        return
+        size = _u32(fields, "size")
+        data, taken = _decode_stream(compression, buf[dstart:dend], None)
+        if len(data) != size:
+            raise RecordError(f"chunk decompresses to {len(data)} bytes, its header says {size}")
+    except Exception as exc:  # any codec error: the chunk is lost unless its data length alone was wrong
+        stream = _chunk_stream(buf, pos)
+        if stream is None or len(stream[1]) != _u32(stream[0], "size"):
+            report.lost.append(f"chunk at bytes {pos}-{dend} skipped: it does not decompress ({exc})")
+            return dend
+        data, dend = stream[1], stream[2]
+        report.lost.append(f"chunk at byte {pos}: its data length does not fit its data ({exc}); its data ends at "
+                           f"byte {dend}: read by that")
+    else:
+        if compression != "none" and dstart + taken != dend:  # a stream ending before its stated length
+            report.lost.append(f"chunk at byte {pos}: its data length says it ends at byte {dend}, its compressed "
+                               f"data ends at byte {dstart + taken}: read by that")
+            dend = dstart + taken
     report.chunks_read += 1
     yield from _records(data, pos, dend, report, connections)
+    return dend
 
 
 def _records(data: bytes, pos: int, dend: int, report: ScanReport, connections: dict[int, Ros1Connection],
              cut: bool = False) -> Generator[Ros1Message, None, int]:
     """The messages of the decompressed ``data`` of the chunk record at bytes ``pos``-``dend``, returning how many;
-    ``cut``: ``data`` is a prefix, and the record it breaks off ends it (the caller says what was kept)."""
+    ``cut``: ``data`` is a prefix, and the record it breaks off ends it (the caller says what was kept).
+
+    A record that does not read is skipped to the next record found by its header (:func:`_next_record`); so is the
+    message before it whose data length does not lead to a record (the length itself damaged): each message is
+    yielded once the record after it is found where its length says, as nothing else checks an uncompressed one."""
     at, kept = 0, 0
-    try:
-        while at < len(data):
-            if cut and not _whole_record(data, at):
-                return kept
+    where = f"chunk at bytes {pos}-{dend}"
+    pending: tuple[Ros1Message, int, int] | None = None  # (message, record start, data start), not yet yielded
+    while at < len(data):
+        if cut and not _whole_record(data, at):
+            break
+        try:
             inner, istart, iend = read_record(data, at)
+        except (RecordError, UnicodeDecodeError) as exc:
+            # the record after a message does not read: that message's length or this record is what is damaged
+            nxt = _next_record(data, pending[2] if pending else at + 1, connections, cut)
+            if pending is not None and (nxt is not None and nxt < at or not _header_like(data, at, nxt)):
+                skipped_from = pending[1]
+                why = (f"the message record at uncompressed offset {skipped_from} left out: its data length does not "
+                       f"lead to the next record ({exc} at offset {at})")
+            else:
+                if pending is not None:
+                    kept += 1
+                    yield pending[0]
+                skipped_from = at
+                why = f"the record at uncompressed offset {at} unreadable ({exc})"
+            pending = None
+            if nxt is None:
+                report.lost.append(f"{where} is corrupt after its first {kept} messages (uncompressed offset "
+                                   f"{skipped_from}: {exc}); the rest of it was skipped")
+                return kept
+            report.lost.append(f"{where}: {why}; read on from the next record, at offset {nxt}")
+            at = nxt
+            continue
+        if pending is not None:
+            kept += 1
+            yield pending[0]
+            pending = None
+        try:
             op = inner["op"][0]
             if op == OP_MSG_DATA:
                 conn = _u32(inner, "conn")
                 if conn not in connections:
                     raise RecordError(f"message on undeclared connection {conn}")
-                msg = Ros1Message(conn, _time_ns(inner), data[istart:iend], pos)
-                kept += 1
-                yield msg
+                pending = (Ros1Message(conn, _time_ns(inner), data[istart:iend], pos, at), at, istart)
             elif op == OP_CONNECTION:
                 c = _connection(inner, data[istart:iend])
                 connections.setdefault(c.conn_id, c)
-            at = iend
-    except (RecordError, UnicodeDecodeError) as exc:
-        report.lost.append(f"chunk at bytes {pos}-{dend} is corrupt after its first {kept} messages "
-                           f"(uncompressed offset {at}: {exc}); the rest of it was skipped")
+        except (RecordError, UnicodeDecodeError) as exc:  # its framing holds: only this record is lost
+            report.lost.append(f"{where}: the record at uncompressed offset {at} left out ({exc})")
+        at = iend
+    if pending is not None:
+        kept += 1
+        yield pending[0]
     return kept
+
+
+def _header_like(data: bytes, at: int, end: int | None) -> bool:
+    """Whether a record header, damaged, may start at ``at``: two of a message or connection record's field names
+    lie where its first fields would, before ``end`` (where the next whole record starts; None: none does)."""
+    head = bytes(data[at + 4:min(at + 68, len(data) if end is None else end)])
+    return sum(name in head for name in (b"conn=", b"op=", b"time=", b"topic=")) >= 2
+
+
+def _record_end(data: bytes, at: int, connections: dict[int, Ros1Connection]) -> int | None:
+    """Where the record at ``at`` ends, if a whole message record on a known connection or a connection record
+    starts there; else None."""
+    try:
+        inner, istart, iend = read_record(data, at)
+        op = inner["op"][0]
+        if op == OP_MSG_DATA:
+            if _u32(inner, "conn") not in connections:
+                return None
+            _time_ns(inner)
+        elif op == OP_CONNECTION:
+            _connection(inner, data[istart:iend])
+        else:
+            return None
+    except (RecordError, UnicodeDecodeError, struct.error):
+        return None
+    return iend
+
+
+def _next_record(data: bytes, start: int, connections: dict[int, Ros1Connection], cut: bool) -> int | None:
+    """The first offset from ``start`` where a record starts whose next record also reads (or that ends the data):
+    two chained records are not met by chance inside a message's data."""
+    at = start
+    while (hit := data.find(b"op=", at)) >= 0:
+        for pos in range(max(start, hit - 128), hit - 7):  # the op field lies in the record header's first bytes
+            end = _record_end(data, pos, connections)
+            if end is not None and (end == len(data) or _record_end(data, end, connections) is not None
+                                    or cut and not _whole_record(data, end)):
+                return pos
+        at = hit + 1
+    return None
 
 
 def _whole_record(data: bytes, at: int) -> bool:

@@ -40,7 +40,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from autosar_cli.msgs import typestore_for
 
 from .mcap_source import MCAP_MAGIC, McapSource
-from .ros1_chunks import RecordError, Ros1Connection, ScanReport, chunk_copies, scan_bag
+from .ros1_chunks import RecordError, Ros1Connection, Ros1Message, ScanReport, chain_break, chunk_copies, scan_bag
 from .ros1_chunks import normalise_topic as ros1_topic
 from .sources import (
     Channel,
@@ -161,6 +161,19 @@ def near_known_type(c: Ros1Connection, where: str) -> tuple[Ros1Connection, str 
             f"read as {known}")
 
 
+def _index_entries(reader: Any) -> dict[tuple[int, int], tuple[int, int, int, int]]:
+    """(chunk offset, record offset) -> (connection, t_ns, the chunk's first t_ns, its last t_ns + 1) of every
+    message rosbags' open ``reader`` read from the bag's index."""
+    spans = {i.pos: (i.start_time, i.end_time) for i in reader.chunk_infos}
+    return {(e.chunk_pos, e.offset): (conn_id, e.time, *spans.get(e.chunk_pos, (0, 0)))
+            for conn_id, entries in reader.indexes.items() for e in entries}
+
+
+def _why(exc: Exception) -> str:
+    """What rosbags raised, said (some of its errors carry no text)."""
+    return f"{type(exc).__name__}: {exc}" if str(exc) else f"rosbags' {type(exc).__name__}"
+
+
 class Ros1BagSource:
     """ROS1 bag v2.0. Read through its index with rosbags; a bag whose index is missing or damaged, or
     whose chunks break while reading, is scanned chunk by chunk instead (:mod:`.ros1_chunks`), keeping
@@ -172,6 +185,10 @@ class Ros1BagSource:
         self.path = Path(path)
         self.stats = ReadStats(bytes_total=self.path.stat().st_size)
         self._yielded: Counter[tuple[int, int]] = Counter()  # (connection, t_ns) already delivered
+        #: (chunk offset, record offset) -> (connection, t_ns, chunk's first t_ns, chunk's last t_ns + 1), as the
+        #: index says, for the scan that follows a read through it
+        self._indexed: dict[tuple[int, int], tuple[int, int, int, int]] = {}
+        self._disagree: dict[str, list[str]] = {}  # how a record that disagrees with the index was read -> where
 
     def messages(self) -> Iterator[RawMessage]:
         from rosbags.rosbag1 import Reader, ReaderError
@@ -186,25 +203,32 @@ class Ros1BagSource:
                                    "(ROS 1's `rosbag filter IN OUT True` rewrites it as 2.0)") from exc
             if isinstance(exc, ReaderError) and any(w in str(exc) for w in ("magic", "empty", "version")):
                 raise LogReadError(f"{self.path}: not a readable ROS1 bag ({exc})") from exc
-            self.stats.warnings.append(f"{self.path}: ROS1 bag index unusable ({type(exc).__name__}: {exc}); read "
-                                       "chunk by chunk as `rosbag reindex` does")
+            self.stats.warnings.append(f"{self.path}: ROS1 bag index unusable ({_why(exc)}); read chunk by chunk as "
+                                       "`rosbag reindex` does")
             yield from self._scan()
             return
         try:
             channels = self._index_channels(reader)
+            broken = self._chunk_break(reader)
+            if broken:
+                self.stats.warnings.append(f"{self.path}: ROS1 bag damaged: {broken}; read chunk by chunk as "
+                                           "`rosbag reindex` does")
+                self._indexed = _index_entries(reader)
             total = sum(c.msgcount for c in reader.connections) or 1
-            it = reader.messages()
+            it = reader.messages() if not broken else iter(())
             n = 0
             while True:
                 try:
                     conn, t_ns, data = next(it)
                 except StopIteration:
+                    if broken:
+                        break
                     self.stats.bytes_read = self.stats.bytes_total
                     return
                 except Exception as exc:  # damaged chunk (or index pointing at garbage): rescan the file
-                    why = f"{type(exc).__name__}: {exc}" if str(exc) else f"rosbags' {type(exc).__name__}"
                     self.stats.warnings.append(f"{self.path}: ROS1 bag damaged after {n} messages read through "
-                                               f"its index ({why}); the rest read chunk by chunk")
+                                               f"its index ({_why(exc)}); the rest read chunk by chunk")
+                    self._indexed = _index_entries(reader)
                     break
                 n += 1
                 ch = channels[conn.id]
@@ -217,6 +241,44 @@ class Ros1BagSource:
         finally:
             reader.close()
         yield from self._scan()
+
+    def _against_index(self, msg: Ros1Message, conn: int, t_ns: int, first_ns: int, end_ns: int
+                       ) -> Ros1Message | None:
+        """The message whose record's connection or time disagrees with its entry in the index (one of the two copies
+        damaged; nothing checks either): read at the time of the copy that lies in its chunk's time span (a third
+        copy, in the chunk's info record; the record's where both or neither do), or left out where the connections
+        disagree (its data may be another type's); noted for a warning."""
+        where = f"the chunk at byte {msg.chunk_offset}, offset {msg.offset}"
+        if conn != msg.conn_id:
+            self._disagree.setdefault("left out (their connections differ: which is damaged cannot be told)",
+                                      []).append(where)
+            return None
+        record_in, index_in = first_ns <= msg.t_ns < end_ns, first_ns <= t_ns < end_ns
+        if record_in == index_in:
+            self._disagree.setdefault("read at the record's time (both lie in their chunk's span: which is damaged "
+                                      "cannot be told)", []).append(f"{where}: {msg.t_ns} ns, the index {t_ns} ns")
+            return msg
+        if record_in:
+            self._disagree.setdefault("read at the record's time, the index's lying outside its chunk's span",
+                                      []).append(where)
+            return msg
+        self._disagree.setdefault("read at the index's time, the record's lying outside its chunk's span",
+                                  []).append(where)
+        return Ros1Message(msg.conn_id, t_ns, msg.data, msg.chunk_offset, msg.offset)
+
+    def _chunk_break(self, reader: Any) -> str | None:
+        """The first uncompressed chunk whose records do not chain as their lengths and the index say
+        (:func:`chain_break`), named; None if none."""
+        offsets: dict[int, list[int]] = {}
+        for entries in reader.indexes.values():
+            for e in entries:
+                offsets.setdefault(e.chunk_pos, []).append(e.offset)
+        with open(self.path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+            for pos in sorted(reader.chunks):
+                why = chain_break(buf, pos, offsets.get(pos, ()))
+                if why:
+                    return f"the chunk at byte {pos}: {why}"
+        return None
 
     def _index_channels(self, reader: Any) -> dict[int, Channel]:
         """The channels of the connections rosbags' ``reader`` read from the bag's index, each checked against its
@@ -246,6 +308,11 @@ class Ros1BagSource:
         with open(self.path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
             try:
                 for msg in scan_bag(buf, report, conns):
+                    said = self._indexed.get((msg.chunk_offset, msg.offset))
+                    if said is not None and said[:2] != (msg.conn_id, msg.t_ns):
+                        msg = self._against_index(msg, *said)
+                        if msg is None:
+                            continue
                     key = (msg.conn_id, msg.t_ns)
                     if self._yielded[key] > 0:
                         self._yielded[key] -= 1
@@ -266,6 +333,10 @@ class Ros1BagSource:
         self.stats.bytes_read = self.stats.bytes_total
         for lost in report.lost:
             self.stats.warnings.append(f"{self.path}: damaged ROS1 bag: {lost}")
+        for how, where in self._disagree.items():
+            self.stats.warnings.append(f"{self.path}: damaged ROS1 bag: {len(where)} message record"
+                                       f"{'s' * (len(where) > 1)} whose connection or time disagrees with the index's "
+                                       f"entry ({', '.join(where[:3])}{', ...' * (len(where) > 3)}): {how}")
         self.stats.warnings.append(f"{self.path}: {report.chunks_read} intact chunks read without the index "
                                    f"({self.stats.messages} messages in all)")
 
