@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import difflib
 import errno
 import gc
 import inspect
@@ -46,7 +47,33 @@ class _FlagsShownBare:
         for param in params:
             if isinstance(param, typer.core.TyperOption) and param.is_flag and param.metavar is None:
                 param.metavar = ""  # typer shows a parameter's metavar, where it has one, in place of its type
+            elif isinstance(param, typer.core.TyperArgument):
+                shown = param.display_type(ctx)
+                if shown and shown.startswith("<list["):  # an argument given many times: as an option's is shown
+                    label = f"<{shown[6:-2].lower()}>..."
+                    param.display_type_rich = lambda ctx, label=label: label  # type: ignore[method-assign]
         return params
+
+
+    def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
+        try:
+            return super().parse_args(ctx, args)  # type: ignore[misc, no-any-return]
+        except typer.BadParameter as exc:
+            exc.message = _said_plainly(exc.message)
+            raise
+
+
+def _said_plainly(message: str) -> str:
+    """A choice's refusal as typer's validation words it ("Value error, 'sarmin' is not one of 'sar-min', ...")
+    without the validator's prefix, and with the choice it likely meant."""
+    message = message.removeprefix("Value error, ")
+    m = re.fullmatch(r"(\'[^']*\') is not one of ((?:\'[^']*\'(?:, )?)+)\.?", message)
+    if m:
+        given, choices = m.group(1).strip("'"), re.findall(r"'([^']*)'", m.group(2))
+        near = difflib.get_close_matches(given.lower(), choices, n=1, cutoff=0.6)
+        if near:
+            message = f"{message.rstrip('.')}: did you mean {near[0]!r}?"
+    return message
 
 
 class _Group(_FlagsShownBare, typer.core.TyperGroup):

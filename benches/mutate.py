@@ -213,6 +213,7 @@ ROS1_RECORDS = ("tests/test_ingest_damage.py::test_ros1_uncompressed_message_wit
                 "message")
 ROS1_CHUNK_LENGTH = "tests/test_ingest_damage.py::test_ros1_chunk_whose_data_length_is_off_but_fits_costs_nothing"
 ROS1_TIME_COPIES = "tests/test_ingest_damage.py::test_ros1_message_time_damaged_in_one_copy_is_read_at_the_other"
+CHOICE_MEANT = "tests/test_cli.py::test_a_misspelt_choice_is_refused_with_the_one_it_likely_meant"
 AF_REF = "tests/test_residual_motion.py::test_focus_history_is_the_reference_backprojection_pulse_by_pulse"
 AF_INJECTED = "tests/test_residual_motion.py::test_recovers_an_injected_across_track_error"
 AF_CLUTTER = "tests/test_residual_motion.py::test_refuses_distributed_clutter"
@@ -503,6 +504,8 @@ MUTATIONS: list[Mutation] = [
     _m("ros1-record-time-trusted-over-the-index", "integrity", "ingest/rosbag_source.py",
        "                    if said is not None and said[:2] != (msg.conn_id, msg.t_ns):",
        "                    if False:", ROS1_TIME_COPIES),
+    _m("misspelt-choice-without-its-likely-meaning", "inputs", "cli.py",
+       "near = difflib.get_close_matches(given.lower(), choices, n=1, cutoff=0.6)", "near = []", CHOICE_MEANT),
     _m("radar-cube-without-checksums", "integrity", "store/drive.py",
        "dtype=np.int16, fletcher32=True,", "dtype=np.int16, fletcher32=False,", CUBE_CRC),
     _m("trajectory-without-checksums", "integrity", "store/trajectory.py",

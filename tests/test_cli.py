@@ -36,6 +36,29 @@ def test_every_commands_flags_read_as_they_are_given_not_as_taking_a_value():
     assert rows["--overwrite"] == "Replace" and rows["--max-time-gap"] == "SECONDS"
 
 
+def test_an_argument_given_many_times_is_shown_as_what_each_is_not_as_a_python_type():
+    from typer.main import get_command
+
+    for name in get_command(app).commands:
+        r = runner.invoke(app, [name, "--help"], env={"COLUMNS": "200"}, terminal_width=200)
+        assert "list[" not in r.output, name
+    r = runner.invoke(app, ["ingest", "--help"], env={"COLUMNS": "200"}, terminal_width=200)
+    assert any(ln.split()[1:3] == ["LOG", "<path>..."] for ln in r.output.splitlines() if ln.startswith("│ ")), r.output
+
+
+@pytest.mark.parametrize(("args", "meant"), [(["run", "x.mcap", "--method", "sarmin"], "'sar-min'"),
+                                             (["simulate", "-o", "x.mcap", "-s", "tset2"], "'test2'"),
+                                             (["simulate", "-o", "x.mcap", "--dynamics", "ful"], "'full'"),
+                                             (["simulate", "-o", "x.mcap", "-s", "zzz"], None)])
+def test_a_misspelt_choice_is_refused_with_the_one_it_likely_meant(args, meant, tmp_path):
+    r = runner.invoke(app, args, env={"COLUMNS": "300"}, terminal_width=300)
+    assert r.exit_code == 2
+    text = " ".join(r.output.replace("│", " ").split())
+    assert "Value error" not in text and f"{args[-1]!r} is not one of" in text
+    assert (f"did you mean {meant}?" in text) if meant else "did you mean" not in text
+    assert not (tmp_path / "x.mcap").exists()
+
+
 def test_the_command_list_wraps_each_summary_at_the_terminal_not_the_docstring():
     r = runner.invoke(app, ["--help"], env={"COLUMNS": "200"}, terminal_width=200)
     assert r.exit_code == 0
