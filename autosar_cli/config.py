@@ -232,6 +232,14 @@ _REQUIRED_ERRORS: dict[str, tuple[str, ...]] = {
 }
 
 
+_COMMON_SENSOR_KEYS = frozenset({"kind", "rate_hz", "latency_s", "lever_arm_m"})
+#: the keys of a sensor table each kind reads (beside the common ones and its error tables)
+_KIND_KEYS: dict[str, frozenset[str]] = {
+    "imu": frozenset({"mounting_ypr_deg", "topic", "frame_id", "dof"}),
+    "gnss": frozenset({"topic", "frame_id", "velocity_topic", "velocity_type", "nmea_topic"}),
+}
+
+
 @dataclass(frozen=True)
 class SensorConfig:
     kind: SensorKind
@@ -637,6 +645,22 @@ def _key_paths(cls: Any, path: str) -> list[str]:
     return out
 
 
+def _keys_of_its_kind(table: dict[str, Any], path: str) -> None:
+    """Refuse a sensor table's key that another kind of sensor reads (a wheel sensor's ``dof``, an IMU's ``gnss``
+    table): nothing would read it, so what it says would be silently ignored."""
+    kind = table["kind"]
+    own = _COMMON_SENSOR_KEYS | _KIND_KEYS.get(kind, frozenset()) | set(_REQUIRED_ERRORS[kind])
+    for key in sorted(set(table) - own):
+        theirs = sorted(k for k in _REQUIRED_ERRORS if key in _KIND_KEYS.get(k, ()) or key in _REQUIRED_ERRORS[k])
+        what = "table" if isinstance(table[key], dict) else "key"
+        raise ConfigError(f"{_join(path, key)}: {_a(kind)} sensor reads no {key} {what} ({_a(' or '.join(theirs))} "
+                          f"sensor's); {_a(kind)} sensor's: {', '.join(sorted(own - {'kind'}))}")
+
+
+def _a(noun: str) -> str:
+    return f"{'an' if noun[:1] in 'aeiou' else 'a'} {noun}"
+
+
 def _build(cls: Any, value: Any, path: str) -> Any:
     """Convert parsed TOML into the annotated type ``cls``; reject unknown keys."""
     origin = typing.get_origin(cls)
@@ -649,6 +673,8 @@ def _build(cls: Any, value: Any, path: str) -> Any:
         unknown = sorted(set(value) - names)
         if unknown:
             raise ConfigError(f"{_join(path, unknown[0])}: unknown key{_suggestion(unknown[0], sorted(names))}")
+        if cls is SensorConfig and value.get("kind") in _REQUIRED_ERRORS:
+            _keys_of_its_kind(value, path)
         kwargs = {}
         for f in fields(cls):
             if f.name in value:

@@ -506,6 +506,8 @@ MUTATIONS: list[Mutation] = [
        "                    if False:", ROS1_TIME_COPIES),
     _m("misspelt-choice-without-its-likely-meaning", "inputs", "cli.py",
        "near = difflib.get_close_matches(given.lower(), choices, n=1, cutoff=0.6)", "near = []", CHOICE_MEANT),
+    _m("sensor-key-of-another-kind-ignored", "inputs", "config.py",
+       '        if cls is SensorConfig and value.get("kind") in _REQUIRED_ERRORS:', "        if False:", CONFIG_SILENT),
     _m("radar-cube-without-checksums", "integrity", "store/drive.py",
        "dtype=np.int16, fletcher32=True,", "dtype=np.int16, fletcher32=False,", CUBE_CRC),
     _m("trajectory-without-checksums", "integrity", "store/trajectory.py",

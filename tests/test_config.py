@@ -331,6 +331,14 @@ def _layer(tmp_path: Path, text: str) -> Path:
      r"processing.cross_range_resolution_m: 1000.0 m is coarser than 1 m"),
     # numpy's "Unable to allocate 8.30 TiB" after the ingest and navigation had run
     ('[processing]\nrange_upsample = 1000000\n', r"processing.range_upsample: must lie in \[1, 64\], got 1000000"),
+    # a key another kind of sensor reads: nothing read it, what it said was ignored
+    ('[sensors.wheel_speeds]\ndof = 3\n', r"sensors.wheel_speeds.dof: a wheel_speeds sensor reads no dof key "
+                                          r"\(an imu sensor's\); a wheel_speeds sensor's: latency_s, lever_arm_m, "
+                                          r"rate_hz, wheel$"),
+    ('[sensors.imu_cog_a.gnss]\nsigma_h_m = 0.5\n', r"sensors.imu_cog_a.gnss: an imu sensor reads no gnss table \(a "
+                                                    r"can_gnss or gnss sensor's\)"),
+    ('[sensors.gnss_cog]\nmounting_ypr_deg = [0.0, 0.0, 0.0]\n', r"sensors.gnss_cog.mounting_ypr_deg: a gnss sensor "
+                                                                  r"reads no mounting_ypr_deg key"),
 ])
 def test_a_config_that_would_run_wrong_without_a_word_is_refused(tmp_path: Path, text: str, said: str) -> None:
     with pytest.raises(ConfigError, match=said):

@@ -189,7 +189,8 @@ def test_a_3dof_imu_may_only_be_turned_in_yaw() -> None:
     assert _with_mounting("ins_cog", [0.0, 3.0, 90.0]).sensors["ins_cog"].mounting_ypr_deg == (0.0, 3.0, 90.0)
     with pytest.raises(ConfigError, match="imu_cog_a.mounting_ypr_deg: a 3-DoF IMU"):
         _with_mounting("imu_cog_a", [0.0, 2.0, 0.0])
-    with pytest.raises(ConfigError, match="gnss_cog.mounting_ypr_deg: only an IMU's axes"):
+    with pytest.raises(ConfigError, match=r"gnss_cog.mounting_ypr_deg: a gnss sensor reads no mounting_ypr_deg key "
+                                          r"\(an imu sensor's\)"):
         _with_mounting("gnss_cog", [1.0, 0.0, 0.0])
     with pytest.raises(ConfigError, match="ins_cog.mounting_ypr_deg"):
         _with_mounting("ins_cog", [0.0, math.nan, 0.0])
