@@ -24,7 +24,8 @@ class Terminated(KeyboardInterrupt):
 @contextmanager
 def interrupts_held() -> Iterator[None]:
     """Hold SIGINT and SIGTERM for the block (main thread only; elsewhere Python delivers none) and raise
-    KeyboardInterrupt (:class:`Terminated`) after it where one came. An exception from the block goes on as it is."""
+    KeyboardInterrupt (:class:`Terminated`) after it where one came. An exception from the block goes on as it is,
+    unless a signal came meanwhile: then the signal's KeyboardInterrupt is raised, the block's error as its cause."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -34,17 +35,32 @@ def interrupts_held() -> Iterator[None]:
         came.append(signum)
 
     previous = {s: signal.signal(s, note) for s in (signal.SIGINT, signal.SIGTERM)}
+    failed: Exception | None = None
     try:
         yield
+    except Exception as exc:  # noqa: BLE001 - raised again below
+        if not came:
+            raise
+        # a signal came while the block ran and the block failed, likely of it: a process group's SIGTERM also
+        # stops the processes the block starts (a LocalCluster's nanny: "Nanny failed to start"), and the command
+        # must stop as at that signal (143, "terminated"), not fail with the error it caused
+        failed = exc
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
-    for signum in (signal.SIGTERM, signal.SIGINT):  # each handled now as it would have been without this block
-        if signum in came:
-            handler = previous[signum]
-            if callable(handler):  # the command's own (cli._stop), Python's default_int_handler: they raise
-                handler(signum, None)
-            elif handler == signal.SIG_DFL:
-                if signum == signal.SIGINT:
-                    raise KeyboardInterrupt
-                signal.raise_signal(signum)
+    try:
+        for signum in (signal.SIGTERM, signal.SIGINT):  # each handled now as it would have been without this block
+            if signum in came:
+                handler = previous[signum]
+                if callable(handler):  # the command's own (cli._stop), Python's default_int_handler: they raise
+                    handler(signum, None)
+                elif handler == signal.SIG_DFL:
+                    if signum == signal.SIGINT:
+                        raise KeyboardInterrupt
+                    signal.raise_signal(signum)
+    except KeyboardInterrupt as stop:
+        if failed is not None:
+            raise stop from failed
+        raise
+    if failed is not None:  # the signals that came were ignored (SIG_IGN): the block's error as it was
+        raise failed

@@ -692,6 +692,41 @@ def test_a_ctrl_c_while_a_kernel_runs_is_raised_once_it_has_returned() -> None:
     assert signal.getsignal(signal.SIGINT) is before
 
 
+def test_a_signal_held_while_the_block_fails_is_raised_not_lost() -> None:
+    """interrupts_held: a SIGTERM or SIGINT noted while the block then fails (a process group's SIGTERM also ends the
+    LocalCluster's nanny the block starts: "Nanny failed to start") is raised as its KeyboardInterrupt, the block's
+    error as its cause; before, the error went on alone and `autosar batch` under `timeout` exited 1 with "error:
+    Nanny failed to start." instead of 143 "terminated" (hunt/ kill campaign, 1 of 1 at 2 s). Without a signal the
+    error goes on as it is."""
+    import signal
+
+    from autosar_cli.interrupts import Terminated, interrupts_held
+
+    def stop(signum: int, frame: object) -> None:  # as cli._stop
+        raise Terminated if signum == signal.SIGTERM else KeyboardInterrupt
+
+    before = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        for signum, raised in ((signal.SIGTERM, Terminated), (signal.SIGINT, KeyboardInterrupt)):
+            with pytest.raises(raised) as stopped:
+                with interrupts_held():
+                    signal.raise_signal(signum)
+                    raise RuntimeError("Nanny failed to start.")
+            assert isinstance(stopped.value.__cause__, RuntimeError)
+            assert signal.getsignal(signum) is stop
+        with pytest.raises(RuntimeError, match="Nanny"):
+            with interrupts_held():
+                raise RuntimeError("Nanny failed to start.")
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        with pytest.raises(RuntimeError, match="Nanny"):  # an ignored signal changes nothing
+            with interrupts_held():
+                signal.raise_signal(signal.SIGTERM)
+                raise RuntimeError("Nanny failed to start.")
+    finally:
+        for s, handler in before.items():
+            signal.signal(s, handler)
+
+
 def test_sarmins_kernel_finishes_before_a_ctrl_c_stops_navigate(monkeypatch: pytest.MonkeyPatch, ci_mcap,  # noqa: ANN001
                                                                   tmp_path: Path) -> None:
     """A SIGINT arriving while SAR-MIN's compiled filter runs stops navigate with KeyboardInterrupt only after
