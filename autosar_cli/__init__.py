@@ -30,8 +30,9 @@ def _quiet_interrupt_while_starting() -> None:
 def install_interrupt_handlers() -> None:
     """:func:`exit_interrupted` for SIGINT and SIGTERM where Python's defaults are in place, as the command's (the
     console script at its import, ``python -m autosar_cli.cli`` before it runs). A process the command spawns
-    (batch's Dask workers) ignores SIGINT: a terminal's Ctrl-C reaches the whole process group, and the command
-    stops its workers itself (each printed a traceback of whatever it was importing)."""
+    (batch's Dask workers) ignores SIGINT and SIGTERM: a terminal's Ctrl-C or a service manager's stop reaches the
+    whole process group, and the command stops its workers itself (each printed a traceback of whatever it was
+    importing, and the scheduler its lost connections; their nanny kills one that does not stop when asked)."""
     import signal
     import sys
 
@@ -39,6 +40,8 @@ def install_interrupt_handlers() -> None:
     if mp is not None and mp.current_process().name != "MainProcess":  # named before the script is run in it
         if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
             signal.signal(signal.SIGINT, signal.SIG_IGN)
+        if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
         return
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         signal.signal(signal.SIGINT, exit_interrupted)

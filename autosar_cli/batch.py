@@ -318,8 +318,10 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
             n = workers or max(1, min(len(logs) - len(kept), cores))
             threads = numba_threads or max(1, cores // n)
             with interrupts_held():  # a cluster stopped half-started cannot be closed (and says so at exit)
+                # Dask's own log lines (a worker's lost heartbeat as the batch stops) are not the command's: each
+                # drive's failure is its record's, and the command says why it stopped
                 cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                                       silence_logs=logging.ERROR, env={"NUMBA_NUM_THREADS": str(threads)})
+                                       silence_logs=logging.CRITICAL, env={"NUMBA_NUM_THREADS": str(threads)})
             client = Client(cluster)
             kind = "local"
         if kind == "external" and not client.scheduler_info().get("workers"):

@@ -35,7 +35,7 @@ from rich.table import Column, Table
 
 from autosar_cli import __version__, exit_interrupted
 from autosar_cli.config import CAN_LOG_SUFFIXES, Config
-from autosar_cli.interrupts import Terminated
+from autosar_cli.interrupts import Terminated, interrupts_held
 from autosar_cli.store.manifest import product_status, strict_json
 
 
@@ -527,12 +527,21 @@ def navigate(
         if plot:
             _prepare_output(output.with_suffix(".png"), overwrite, [drive, truth, cfg.source], ours=plotted)
         traj = run_navigate(drive, method.value, cfg, smooth=not no_smooth, truth_path=truth)
-        write_trajectory(output, traj)
-        figure = None
+        figure, drawn = None, None
         if plot:
             from autosar_cli.nav.plot import plot_trajectory
+            from autosar_cli.store.atomic import partial_path
 
-            figure = plot_trajectory(traj, output.with_suffix(".png"))
+            figure = output.with_suffix(".png")
+            drawn = plot_trajectory(traj, partial_path(figure))
+        try:
+            with interrupts_held():  # the trajectory and its plot come into place together: stopped between
+                write_trajectory(output, traj)  # them, the new track stood beside the former's plot
+                if drawn is not None:
+                    os.replace(drawn, figure)
+        finally:
+            if drawn is not None:
+                drawn.unlink(missing_ok=True)
         span = (traj.t_ns[-1] - traj.t_ns[0]) / 1e9
         dist = float(np.sum(np.hypot(*np.diff(traj.rear_axle_enu, axis=0).T)))
         summary = {"trajectory": str(output), "method": traj.method, "samples": len(traj.t_ns),

@@ -146,7 +146,7 @@ def compare(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *,
         raise CompareError(f"{truth_path}: no such truth sidecar")
     products = [out / name for name in (DRIVE, *OWN_PRODUCTS)] + [out / m / name for m in methods
                                                                    for name in METHOD_PRODUCTS]
-    with output_directory(out, products):  # a comparison that fails leaves nothing it wrote
+    with output_directory(out, products, manifest=out / "compare.json"):  # a comparison that fails leaves none
         return _compare(logs, out, config, methods, truth_path, options or FocusOptions.from_config(config),
                         progress, command, ingest_options, can_logs, nmea_logs, given)
 

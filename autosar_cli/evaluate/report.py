@@ -275,7 +275,7 @@ def write_report(ev: Evaluation, out_dir: str | Path, *, overwrite: bool = False
         raise EvaluateError(f"{out}: already holds an evaluation ({METRICS}); pass --overwrite to replace it")
     figures: dict[str, str] = {}
     metrics = ev.to_dict()
-    with output_directory(out, [out / name for name in PRODUCTS]):  # a report without all its parts is none
+    with output_directory(out, [out / name for name in PRODUCTS], manifest=out / METRICS):  # all or none
         if ev.errors is not None:
             figures["trajectory error"] = plot_trajectory_errors(ev.errors, out / TRAJECTORY_FIGURE).name
         if ev.patches is not None and ev.reflectors:

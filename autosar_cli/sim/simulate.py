@@ -25,6 +25,7 @@ from autosar_cli import __version__, msgs
 from autosar_cli.candb import load_dbc
 from autosar_cli.config import Config, load_config
 from autosar_cli.ingest.dca1000 import CaptureWriter, params_from_radar
+from autosar_cli.interrupts import interrupts_held
 from autosar_cli.nav.frames import mounting_rotation, rot_z
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.sim import sensors as sensor_models
@@ -382,10 +383,14 @@ def simulate(
             for lt, topic, m in nav_messages[nav_i:]:
                 writer.write(topic, lt, m)
                 counts[topic] = counts.get(topic, 0) + 1
+            truth.finish()
+            with interrupts_held():  # the log, its capture and its truth come into place together: a log stopped
+                stack.close()        # between them was whole beside no truth, or a former drive's
+                writer.close()
+                truth.publish()
     except BaseException:
         truth.abort()
         raise
-    truth.close()
     return SimulationResult(output, truth_path, scenario.name, seed, fmt, motion.duration_s, n_frames, counts,
                             time.perf_counter() - t_start, capture_dir)
 

@@ -129,7 +129,15 @@ class TruthWriter:
             ds[old:] = block[k]
 
     def close(self) -> None:
+        self.finish()
+        self.publish()
+
+    def finish(self) -> None:
+        """Close the file, whole, at its partial path."""
         self.f.close()
+
+    def publish(self) -> None:
+        """Put the finished file in its place."""
         os.replace(self.tmp, self.path)
 
     def abort(self) -> None:

@@ -9,7 +9,9 @@ docs/FORMATS.md.
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 import warnings
 from contextlib import ExitStack
 from dataclasses import dataclass, field
@@ -214,9 +216,19 @@ class ImageWriter:
             try:
                 self._finish()
             except BaseException as err:
+                self._abandon()
                 stack.__exit__(type(err), err, err.__traceback__)  # deletes the temporaries, re-raises
                 raise
+        if exc_type is not None:
+            self._abandon()
         stack.__exit__(exc_type, exc, tb)  # closes the files, then renames them (or deletes them on error)
+
+    def _abandon(self) -> None:
+        """Empty the partial image.h5 before it is closed and deleted: closing flushes HDF5's caches, and on a full
+        disk that fails half-way, leaving the file half closed for the library's own clean-up at exit, which then
+        crashed the process (SIGSEGV, after the command's error line)."""
+        with contextlib.suppress(OSError):
+            os.truncate(self._tmp["h5"], 0)
 
     def _finish(self) -> None:
         if not self._written.all():

@@ -121,26 +121,45 @@ def make_directories(path: Path) -> Callable[[], None]:
 
 
 @contextlib.contextmanager
-def output_directory(path: Path, products: Iterable[Path] = ()) -> Iterator[None]:
+def output_directory(path: Path, products: Iterable[Path] = (), manifest: Path | None = None) -> Iterator[None]:
     """Make the directory ``path`` (and its parents) for a command's products, and remove again those this made
     where the block fails and nothing has been written in them (a failed ingest, which writes atomically).
-    ``products``: files that make one whole with the others (a comparison's, a report's), removed where the block
-    fails if they were not there before it (what was, replaced or not, stays; nothing else is touched), and the
-    folders among them the block made, left empty."""
-    new = [p for p in products if not (p.exists() or p.is_symlink())]
-    folders = sorted({p.parent for p in new if not p.parent.exists()}, key=lambda p: len(p.parts), reverse=True)
+    ``products``: files that make one whole with the others (a comparison's, a report's); where the block fails,
+    those it wrote are removed, and where it had replaced any that were there before (``--overwrite``), all of
+    them are: a set part old, part new would read as one whole. The folders among them the block made are removed,
+    left empty; nothing else is touched. ``manifest``: the product that says the set is whole (compare.json,
+    metrics.json); one there before is removed first, so a set the block does not finish (a SIGKILL, a power cut)
+    has none."""
+    products = list(products)
+    before = {p: _signature(p) for p in products}
+    folders = sorted({p.parent for p, was in before.items() if was is None and not p.parent.exists()},
+                     key=lambda p: len(p.parts), reverse=True)
     undo = make_directories(path)
     try:
+        if manifest is not None and before.get(manifest) is not None:
+            manifest.unlink()
         yield
     except BaseException:
-        for product in new:
-            with contextlib.suppress(OSError):
-                product.unlink(missing_ok=True)
+        replaced = any(_signature(p) != was for p, was in before.items() if was is not None)
+        for product in products:
+            if replaced or before[product] is None:
+                with contextlib.suppress(OSError):
+                    product.unlink(missing_ok=True)
         for folder in folders:
             with contextlib.suppress(OSError):  # not empty: what is in it stays
                 folder.rmdir()
         undo()
         raise
+
+
+def _signature(path: Path) -> tuple[int, int, int] | None:
+    """(inode, modification time ns, size) of the file at ``path``, None where there is none: whether a block
+    replaced or rewrote it."""
+    try:
+        st = os.stat(path, follow_symlinks=False)
+    except OSError:
+        return None
+    return st.st_ino, st.st_mtime_ns, st.st_size
 
 
 #: what the simulator writes inside a directory it writes whole: a rosbag2 log's storage and metadata, a DCA1000
