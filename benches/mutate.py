@@ -214,6 +214,12 @@ ROS1_RECORDS = ("tests/test_ingest_damage.py::test_ros1_uncompressed_message_wit
 ROS1_CHUNK_LENGTH = "tests/test_ingest_damage.py::test_ros1_chunk_whose_data_length_is_off_but_fits_costs_nothing"
 ROS1_TIME_COPIES = "tests/test_ingest_damage.py::test_ros1_message_time_damaged_in_one_copy_is_read_at_the_other"
 CHOICE_MEANT = "tests/test_cli.py::test_a_misspelt_choice_is_refused_with_the_one_it_likely_meant"
+SET_WHOLE = "tests/test_safety.py::test_a_set_of_products_the_block_replaced_in_part_goes_whole"
+SIM_TOGETHER = "tests/test_safety.py::test_a_simulation_stopped_as_its_log_comes_into_place_puts_its_truth_there_too"
+PLOT_TOGETHER = "tests/test_safety.py::test_a_trajectory_stopped_as_it_comes_into_place_brings_its_plot"
+IMAGE_DISK_FULL = "tests/test_safety.py::test_a_disk_that_fills_as_the_image_is_closed_is_an_error_not_a_crash"
+WORKER_SIGNALS = "tests/test_safety.py::test_a_process_the_command_spawns_keeps_pythons_signal_handlers"
+PEAK_GRID_PHASE = "tests/test_sar_focus.py::test_a_reflectors_peak_does_not_move_with_where_the_5mm_samples_fall"
 AF_REF = "tests/test_residual_motion.py::test_focus_history_is_the_reference_backprojection_pulse_by_pulse"
 AF_INJECTED = "tests/test_residual_motion.py::test_recovers_an_injected_across_track_error"
 AF_CLUTTER = "tests/test_residual_motion.py::test_refuses_distributed_clutter"
@@ -508,6 +514,23 @@ MUTATIONS: list[Mutation] = [
        "near = difflib.get_close_matches(given.lower(), choices, n=1, cutoff=0.6)", "near = []", CHOICE_MEANT),
     _m("sensor-key-of-another-kind-ignored", "inputs", "config.py",
        '        if cls is SensorConfig and value.get("kind") in _REQUIRED_ERRORS:', "        if False:", CONFIG_SILENT),
+    _m("overwritten-set-left-part-old", "safety", "store/outputs.py",
+       "            if replaced or before[product] is None:", "            if before[product] is None:", SET_WHOLE),
+    _m("former-manifest-kept-while-replacing", "safety", "store/outputs.py",
+       "            manifest.unlink()\n", "            pass\n", SET_WHOLE),
+    _m("simulated-log-and-truth-placed-apart", "safety", "sim/simulate.py",
+       "            with interrupts_held():  # the log, its capture and its truth",
+       "            with contextlib.nullcontext():  # the log, its capture and its truth", SIM_TOGETHER),
+    _m("trajectory-and-plot-placed-apart", "safety", "cli.py",
+       "            with interrupts_held():  # the trajectory and its plot",
+       "            with open(os.devnull):  # the trajectory and its plot", PLOT_TOGETHER),
+    _m("abandoned-image-flushed-on-a-full-disk", "safety", "store/image.py",
+       '            os.truncate(self._tmp["h5"], 0)', "            pass", IMAGE_DISK_FULL),
+    _m("workers-die-of-the-groups-sigterm", "safety", "__init__.py",
+       "            signal.signal(signal.SIGTERM, signal.SIG_IGN)\n", "            pass\n", WORKER_SIGNALS),
+    _m("reflector-peak-between-5mm-samples", "evaluation", "evaluate/point_target.py",
+       "    di, dj = lobe_top(fmag * fmag, int(fi), int(fj)) or refine_peak(fmag * fmag, int(fi), int(fj))",
+       "    di, dj = refine_peak(fmag * fmag, int(fi), int(fj))", PEAK_GRID_PHASE),
     _m("radar-cube-without-checksums", "integrity", "store/drive.py",
        "dtype=np.int16, fletcher32=True,", "dtype=np.int16, fletcher32=False,", CUBE_CRC),
     _m("trajectory-without-checksums", "integrity", "store/trajectory.py",
