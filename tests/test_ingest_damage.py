@@ -275,6 +275,38 @@ def test_ros1_uncompressed_message_with_a_damaged_length_costs_only_that_message
                and "read on from the next record" in w for w in warnings), warnings
 
 
+@pytest.mark.parametrize("damage", ["header", "data"])
+def test_ros1_damaged_connection_record_in_a_chunk_costs_no_message(damage: str, ci_ros1_uncompressed: Path,
+                                                                   work: Path) -> None:
+    """A connection record inside an uncompressed chunk with its header length flipped or its data length 1 byte
+    long: rosbags reads the connections from the index, not from the chunks, and the chain check sends the bag to
+    the scan; the scan takes them from the index too (it knew only the chunks' copies: every message on that
+    connection, in every chunk, was left out as on an undeclared connection, where b5f8fca read them all)."""
+    from rosbags.rosbag1 import Reader
+
+    bag = ci_ros1_uncompressed
+    chunks = ros1_chunks(bag)
+    start = chunks[0][0]
+    data = bytearray(bag.read_bytes())
+    with Reader(bag) as reader:
+        ch = reader.chunks[start]
+    at = ch.datapos
+    while True:  # the chunk's first connection record
+        (hlen,) = struct.unpack_from("<I", data, at)
+        (dlen,) = struct.unpack_from("<I", data, at + 4 + hlen)
+        if b"op=\x07" in data[at + 4:at + 4 + hlen]:
+            break
+        at += 8 + hlen + dlen
+    if damage == "header":
+        data[at + 1] ^= 0x10
+    else:
+        struct.pack_into("<I", data, at + 4 + hlen, dlen + 1)
+    out = work / f"connection_{damage}.bag"
+    out.write_bytes(bytes(data))
+    got, warnings = read_all(out)
+    assert Counter(got) == Counter(m for _, _, msgs in chunks for m in msgs), warnings
+
+
 @pytest.mark.parametrize(("compressed", "by"), [(False, -1000), (False, 1000), (True, 1000)])
 def test_ros1_chunk_whose_data_length_is_off_but_fits_costs_nothing(compressed: bool, by: int,
                                                                     ci_ros1: SimulationResult,

@@ -189,6 +189,9 @@ class Ros1BagSource:
         #: index says, for the scan that follows a read through it
         self._indexed: dict[tuple[int, int], tuple[int, int, int, int]] = {}
         self._disagree: dict[str, list[str]] = {}  # how a record that disagrees with the index was read -> where
+        #: the connections the index gives (each checked against its copy in a chunk), for the scan that follows a
+        #: read through it: a chunk's own connection record may be what is damaged
+        self._connections: dict[int, Ros1Connection] = {}
 
     def messages(self) -> Iterator[RawMessage]:
         from rosbags.rosbag1 import Reader, ReaderError
@@ -294,6 +297,7 @@ class Ros1BagSource:
             chunk, pos = copies.get(conn.id, (None, 0))
             c, disagree = reconcile(Ros1Connection(conn.id, conn.topic, conn.msgtype, conn.msgdef.data, conn.digest),
                                     chunk, pos, str(self.path))
+            self._connections[conn.id] = c
             c, renamed = near_known_type(c, str(self.path))
             self.stats.warnings += [w for w in (disagree, renamed) if w]
             channels[conn.id] = Channel((str(self.path), conn.id), ros1_topic(c.topic), normalise_type(c.msgtype),
@@ -303,7 +307,7 @@ class Ros1BagSource:
     def _scan(self) -> Iterator[RawMessage]:
         """Every message of every intact chunk not yet delivered through the index."""
         report = ScanReport()
-        conns: dict[int, Ros1Connection] = {}
+        conns: dict[int, Ros1Connection] = dict(self._connections)
         channels: dict[int, Channel] = {}
         with open(self.path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
             try:
