@@ -498,7 +498,7 @@ MUTATIONS: list[Mutation] = [
        "    at = start\n    while (hit := buf.find(_CHUNK_OP, at)) >= 0:\n",
        "    at = start\n    while False and (hit := buf.find(_CHUNK_OP, at)) >= 0:\n", ROS1_RESYNC),
     _m("ros1-record-damage-ends-the-chunk", "integrity", "ingest/ros1_chunks.py",
-       "            nxt = _next_record(data, pending[2] if pending else at + 1, connections, cut)",
+       "            nxt = _next_record(data, last if last is not None else at + 1, connections, cut)",
        "            nxt = None", ROS1_RECORDS),
     _m("ros1-message-length-trusted", "integrity", "ingest/ros1_chunks.py",
        "nxt is not None and nxt < at or not _header_like(data, at, nxt))", "False)", ROS1_RECORDS),

@@ -278,10 +278,12 @@ def test_ros1_uncompressed_message_with_a_damaged_length_costs_only_that_message
 @pytest.mark.parametrize("damage", ["header", "data"])
 def test_ros1_damaged_connection_record_in_a_chunk_costs_no_message(damage: str, ci_ros1_uncompressed: Path,
                                                                    work: Path) -> None:
-    """A connection record inside an uncompressed chunk with its header length flipped or its data length 1 byte
-    long: rosbags reads the connections from the index, not from the chunks, and the chain check sends the bag to
-    the scan; the scan takes them from the index too (it knew only the chunks' copies: every message on that
-    connection, in every chunk, was left out as on an undeclared connection, where b5f8fca read them all)."""
+    """The last connection record before a chunk's first message with its header length flipped, or its data length
+    run on into that message: rosbags reads the connections from the index, not from the chunks, and the chain check
+    sends the bag to the scan; the scan takes them from the index too (it knew only the chunks' copies: every message
+    on that connection, in every chunk, was left out as on an undeclared connection, where b5f8fca read them all),
+    and reads on from the connection record's data, not from where its length led (past the message it ran on
+    into)."""
     from rosbags.rosbag1 import Reader
 
     bag = ci_ros1_uncompressed
@@ -290,17 +292,21 @@ def test_ros1_damaged_connection_record_in_a_chunk_costs_no_message(damage: str,
     data = bytearray(bag.read_bytes())
     with Reader(bag) as reader:
         ch = reader.chunks[start]
-    at = ch.datapos
-    while True:  # the chunk's first connection record
+    at, conn = ch.datapos, None
+    while True:  # the last connection record before the chunk's first message
         (hlen,) = struct.unpack_from("<I", data, at)
         (dlen,) = struct.unpack_from("<I", data, at + 4 + hlen)
-        if b"op=\x07" in data[at + 4:at + 4 + hlen]:
+        if b"op=\x02" in data[at + 4:at + 4 + hlen]:
             break
+        conn = (at, hlen, dlen)
         at += 8 + hlen + dlen
+    assert conn is not None
+    message_length = 8 + hlen + dlen
+    at, hlen, dlen = conn
     if damage == "header":
         data[at + 1] ^= 0x10
     else:
-        struct.pack_into("<I", data, at + 4 + hlen, dlen + 1)
+        struct.pack_into("<I", data, at + 4 + hlen, dlen + message_length + 10)
     out = work / f"connection_{damage}.bag"
     out.write_bytes(bytes(data))
     got, warnings = read_all(out)

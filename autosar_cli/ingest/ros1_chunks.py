@@ -425,6 +425,7 @@ def _records(data: bytes, pos: int, dend: int, report: ScanReport, connections: 
     at, kept = 0, 0
     where = f"chunk at bytes {pos}-{dend}"
     pending: tuple[Ros1Message, int, int] | None = None  # (message, record start, data start), not yet yielded
+    last: int | None = None  # where the data of the last record read starts (its length may be what is damaged)
     while at < len(data):
         if cut and not _whole_record(data, at):
             break
@@ -432,7 +433,7 @@ def _records(data: bytes, pos: int, dend: int, report: ScanReport, connections: 
             inner, istart, iend = read_record(data, at)
         except (RecordError, UnicodeDecodeError) as exc:
             # the record after a message does not read: that message's length or this record is what is damaged
-            nxt = _next_record(data, pending[2] if pending else at + 1, connections, cut)
+            nxt = _next_record(data, last if last is not None else at + 1, connections, cut)
             if pending is not None and (nxt is not None and nxt < at or not _header_like(data, at, nxt)):
                 skipped_from = pending[1]
                 why = (f"the message record at uncompressed offset {skipped_from} left out: its data length does not "
@@ -455,6 +456,7 @@ def _records(data: bytes, pos: int, dend: int, report: ScanReport, connections: 
             kept += 1
             yield pending[0]
             pending = None
+        last = istart
         try:
             op = inner["op"][0]
             if op == OP_MSG_DATA:
