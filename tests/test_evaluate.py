@@ -929,4 +929,10 @@ def test_lobe_top_is_the_paraboloids_maximum_over_the_top() -> None:
     assert abs(r + dy - y0) < 0.02 and abs(c + dx - x0) < 0.02
     assert max(abs(r - y0), abs(c - x0)) > 0.3  # the highest sample alone
     assert lobe_top(bowl[:22, :], 20, 20) is None  # its top runs to the edge
-    assert lobe_top(2.0 - bowl, 20, 20) is None
+    assert lobe_top(2.0 - bowl, 20, 20) is None  # (its top runs to the edge too)
+    # a top with a dip in it (a split lobe), all within 1 dB and clear of the edge: the fit is a bowl, whose
+    # stationary point is the dip's bottom, not a maximum
+    ring = np.hypot(rows - y0, cols - x0)
+    crater = np.where(ring <= 5, 0.8 + 0.008 * ring**2, np.exp(-((ring - 5) ** 2) / 0.1))
+    r, c = np.unravel_index(int(np.argmax(crater)), crater.shape)
+    assert lobe_top(crater, int(r), int(c)) is None
