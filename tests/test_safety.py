@@ -1068,9 +1068,10 @@ def test_autosars_geotiff_manifest_or_run_directory_given_as_a_log_or_image_says
 def test_a_set_of_products_the_block_replaced_in_part_goes_whole(tmp_path: Path) -> None:
     """`compare --overwrite` or `evaluate --overwrite` stopped (Ctrl-C, an error) after replacing some of a former
     run's products left the old compare.json / metrics.json saying "ok" beside the new drive, images or figures
-    (a helper's kill hunt: `compare b.mcap -o cmp --overwrite` over a's, SIGINT at 9 s). Now the manifest goes
-    first, and a failed block that replaced any product removes the whole set; one that replaced none keeps it."""
-    from autosar_cli.store.outputs import output_directory
+    (a helper's kill hunt: `compare b.mcap -o cmp --overwrite` over a's, SIGINT at 9 s). Now the manifest is set
+    aside first (a set killed part way has none, and still reads as autosar's to the next --overwrite), and a failed
+    block that replaced any product removes the whole set; one that replaced none keeps it, its manifest put back."""
+    from autosar_cli.store.outputs import check_products, output_directory, set_aside
 
     out = tmp_path / "cmp"
     names = ["compare.json", "drive.h5", "none/run.json", "none/image.h5"]
@@ -1090,10 +1091,21 @@ def test_a_set_of_products_the_block_replaced_in_part_goes_whole(tmp_path: Path)
     assert sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file()) == ["notes.txt"]
 
     products = former()
-    with pytest.raises(RuntimeError), output_directory(out, products):
+    with pytest.raises(RuntimeError), output_directory(out, products, manifest=out / "compare.json"):
         raise RuntimeError("refused before writing")
     assert all(p.read_text().startswith("a's") for p in products)  # nothing replaced: the former set stays whole
+    assert not set_aside(out / "compare.json").exists()
 
+    # killed part way (no handler runs): the set has no manifest, and the next --overwrite may still replace it
+    (out / "compare.json").write_text('{"format": "autosar-compare"}')
+    (out / "compare.json").rename(set_aside(out / "compare.json"))
+    (out / "drive.h5").write_text("b's drive")
+    check_products(out, ["drive.h5", "compare.md"], [], overwrite=True, manifest="compare.json")
+    with output_directory(out, products, manifest=out / "compare.json"):
+        (out / "compare.json").write_text("c's")
+    assert (out / "compare.json").read_text() == "c's" and not set_aside(out / "compare.json").exists()
+
+    products = former()
     with pytest.raises(RuntimeError), output_directory(out, [*products, out / "ins" / "run.json"]):
         (out / "ins").mkdir()
         (out / "ins" / "run.json").write_text("b's")

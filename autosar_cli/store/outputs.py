@@ -101,7 +101,8 @@ def check_products(directory: Path, names: Iterable[str], inputs: Iterable[str |
     ``directory``'s ``manifest`` (metrics.json, compare.json) is autosar's, the files named are taken as its own
     (a report's Markdown and plots carry no metadata of their own), else an existing one is the user's."""
     inputs = list(inputs)
-    ours = manifest is not None and _json_format(Path(directory) / manifest)
+    ours = manifest is not None and any(_json_format(m) for m in (Path(directory) / manifest,
+                                                                  set_aside(Path(directory) / manifest)))
     for name in names:
         check_output(directory / name, inputs, overwrite=overwrite, ours=ours)
 
@@ -128,28 +129,46 @@ def output_directory(path: Path, products: Iterable[Path] = (), manifest: Path |
     those it wrote are removed, and where it had replaced any that were there before (``--overwrite``), all of
     them are: a set part old, part new would read as one whole. The folders among them the block made are removed,
     left empty; nothing else is touched. ``manifest``: the product that says the set is whole (compare.json,
-    metrics.json); one there before is removed first, so a set the block does not finish (a SIGKILL, a power cut)
-    has none."""
+    metrics.json); one there before is set aside (:func:`set_aside`) for the block, so a set the block does not
+    finish (a SIGKILL, a power cut) has none, yet reads as autosar's to the next ``--overwrite``; it is put back
+    where the block fails having replaced nothing else."""
     products = list(products)
-    before = {p: _signature(p) for p in products}
-    folders = sorted({p.parent for p, was in before.items() if was is None and not p.parent.exists()},
+    before = {p: _signature(p) for p in products if p != manifest}
+    folders = sorted({p.parent for p in products if before.get(p) is None and not p.parent.exists()},
                      key=lambda p: len(p.parts), reverse=True)
+    aside = set_aside(manifest) if manifest is not None else None
+    moved = False  # the manifest this block set aside (one left aside by a killed block is no whole set's)
     undo = make_directories(path)
     try:
-        if manifest is not None and before.get(manifest) is not None:
-            manifest.unlink()
+        if manifest is not None and aside is not None and (manifest.exists() or manifest.is_symlink()):
+            os.replace(manifest, aside)
+            moved = True
         yield
     except BaseException:
         replaced = any(_signature(p) != was for p, was in before.items() if was is not None)
         for product in products:
-            if replaced or before[product] is None:
+            if replaced or (product == manifest or before[product] is None):
                 with contextlib.suppress(OSError):
                     product.unlink(missing_ok=True)
+        if aside is not None and manifest is not None:
+            with contextlib.suppress(OSError):
+                if moved and not replaced:
+                    os.replace(aside, manifest)
+                elif replaced:
+                    aside.unlink(missing_ok=True)
         for folder in folders:
             with contextlib.suppress(OSError):  # not empty: what is in it stays
                 folder.rmdir()
         undo()
         raise
+    if aside is not None:
+        with contextlib.suppress(OSError):
+            aside.unlink(missing_ok=True)
+
+
+def set_aside(manifest: Path) -> Path:
+    """Where :func:`output_directory` keeps a set's former manifest while the set is written again."""
+    return manifest.with_name(f".{manifest.name}.former")
 
 
 def _signature(path: Path) -> tuple[int, int, int] | None:
