@@ -366,6 +366,30 @@ def test_ros1_message_time_damaged_in_one_copy_is_read_at_the_other(copy: str, c
                in w for w in warnings), warnings
 
 
+def test_ros1_uncompressed_chunk_whose_size_field_is_off_is_read_by_its_data_length(ci_ros1_uncompressed: Path,
+                                                                                  work: Path) -> None:
+    """An uncompressed chunk's size field 3000 bytes too large, in a bag read without its index (its header's
+    index_pos set to 0, as a recording not yet closed has it): the data length, which the next record follows, is
+    right. The scan read the chunk to the size, over the next chunk's records, and lost them; now it reads it by
+    its data length, with a warning, and keeps every message."""
+    bag = ci_ros1_uncompressed
+    chunks = ros1_chunks(bag)
+    start = chunks[5][0]
+    data = bytearray(bag.read_bytes())
+    at = data.index(b"index_pos=", 13) + len(b"index_pos=")
+    data[at:at + 8] = bytes(8)
+    (hlen,) = struct.unpack_from("<I", data, start)
+    size_at = data.index(b"size=", start, start + 4 + hlen) + len(b"size=")
+    (size,) = struct.unpack_from("<I", data, size_at)
+    struct.pack_into("<I", data, size_at, size + 3000)
+    out = work / "chunk_size_off.bag"
+    out.write_bytes(bytes(data))
+    got, warnings = read_all(out)
+    assert Counter(got) == Counter(m for _, _, msgs in chunks for m in msgs)
+    assert any(str(out) in w and f"chunk at byte {start}: its size field does not fit its data" in w
+               for w in warnings), warnings
+
+
 # ---------------------------------------------------------------------------------------- rosbag2
 def db_rows(bag: Path) -> list[tuple[int, Msg]]:
     """(row id, message) of the intact rosbag2, straight from sqlite3 (payloads decompressed as rosbag2 does)."""

@@ -398,12 +398,20 @@ def _chunk(buf: Buffer, pos: int, fields: dict[str, bytes], dstart: int, dend: i
             raise RecordError(f"chunk decompresses to {len(data)} bytes, its header says {size}")
     except Exception as exc:  # any codec error: the chunk is lost unless its data length alone was wrong
         stream = _chunk_stream(buf, pos)
-        if stream is None or len(stream[1]) != _u32(stream[0], "size"):
+        # uncompressed, the data length and the size are two numbers alike: the one a record follows is right
+        by_length = compression == "none" and dend <= len(buf) and _record_follows(buf, dend)
+        if by_length and not (stream is not None and _record_follows(buf, stream[2])):
+            data = bytes(buf[dstart:dend])
+            report.lost.append(f"chunk at byte {pos}: its size field does not fit its data ({exc}); a record follows "
+                               f"its data length, at byte {dend}: read by that")
+        elif stream is None or len(stream[1]) != _u32(stream[0], "size") or by_length \
+                or compression == "none" and not _record_follows(buf, stream[2]):
             report.lost.append(f"chunk at bytes {pos}-{dend} skipped: it does not decompress ({exc})")
             return dend
-        data, dend = stream[1], stream[2]
-        report.lost.append(f"chunk at byte {pos}: its data length does not fit its data ({exc}); its data ends at "
-                           f"byte {dend}: read by that")
+        else:
+            data, dend = stream[1], stream[2]
+            report.lost.append(f"chunk at byte {pos}: its data length does not fit its data ({exc}); its data ends "
+                               f"at byte {dend}: read by that")
     else:
         if compression != "none" and dstart + taken != dend:  # a stream ending before its stated length
             report.lost.append(f"chunk at byte {pos}: its data length says it ends at byte {dend}, its compressed "
@@ -412,6 +420,17 @@ def _chunk(buf: Buffer, pos: int, fields: dict[str, bytes], dstart: int, dend: i
     report.chunks_read += 1
     yield from _records(data, pos, dend, report, connections)
     return dend
+
+
+def _record_follows(buf: Buffer, pos: int) -> bool:
+    """Whether a bag's record starts at ``pos`` (one whose header reads, with a known op), or the file ends there."""
+    if pos == len(buf):
+        return True
+    try:
+        fields, _, _ = read_record(buf, pos)
+    except (RecordError, UnicodeDecodeError, struct.error):
+        return False
+    return fields["op"][0] in (OP_MSG_DATA, OP_BAG_HEADER, 0x04, OP_CHUNK, 0x06, OP_CONNECTION)
 
 
 def _records(data: bytes, pos: int, dend: int, report: ScanReport, connections: dict[int, Ros1Connection],
