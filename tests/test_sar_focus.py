@@ -388,6 +388,7 @@ def test_range_upsampling_of_four_keeps_the_theoretical_response(ci_drive: Drive
         assert a.range_cut.pslr_db == pytest.approx(b.range_cut.pslr_db, abs=1.0)
     assert max(t.range_cut.pslr_db for t in m[2]) > max(t.range_cut.pslr_db for t in m[4]) + 2.0
     assert all(a.peak_db < b.peak_db - 0.05 for a, b in zip(m[2], m[8], strict=True))
+    assert all(math.dist(a.peak_enu, b.peak_enu) < 0.5e-3 for a, b in zip(m[2], m[8], strict=True))
 
 
 def test_a_drive_with_two_radars_says_which_it_focused(ci_drive: Drive, tmp_path: Path) -> None:
