@@ -213,6 +213,8 @@ ROS1_RECORDS = ("tests/test_ingest_damage.py::test_ros1_uncompressed_message_wit
                 "message")
 ROS1_CHUNK_LENGTH = "tests/test_ingest_damage.py::test_ros1_chunk_whose_data_length_is_off_but_fits_costs_nothing"
 ROS1_TIME_COPIES = "tests/test_ingest_damage.py::test_ros1_message_time_damaged_in_one_copy_is_read_at_the_other"
+ROS1_SIZE_FIELD = ("tests/test_ingest_damage.py::test_ros1_uncompressed_chunk_whose_size_field_is_off_is_read_by_its_"
+                   "data_length")
 CHOICE_MEANT = "tests/test_cli.py::test_a_misspelt_choice_is_refused_with_the_one_it_likely_meant"
 SET_WHOLE = "tests/test_safety.py::test_a_set_of_products_the_block_replaced_in_part_goes_whole"
 SIM_TOGETHER = "tests/test_safety.py::test_a_simulation_stopped_as_its_log_comes_into_place_puts_its_truth_there_too"
@@ -505,8 +507,11 @@ MUTATIONS: list[Mutation] = [
     _m("ros1-index-read-on-unchained-records", "integrity", "ingest/rosbag_source.py",
        "            broken = self._chunk_break(reader)", "            broken = None", ROS1_RECORDS),
     _m("ros1-chunk-data-length-trusted", "integrity", "ingest/ros1_chunks.py",
-       "        stream = _chunk_stream(buf, pos)\n        if stream is None or len(stream[1])",
-       "        stream = None\n        if stream is None or len(stream[1])", ROS1_CHUNK_LENGTH),
+       "            data, dend = stream[1], stream[2]\n",
+       "            return dend\n", ROS1_CHUNK_LENGTH),
+    _m("ros1-uncompressed-size-field-trusted", "integrity", "ingest/ros1_chunks.py",
+       "        if by_length and not (stream is not None", "        if False and not (stream is not None",
+       ROS1_SIZE_FIELD),
     _m("ros1-record-time-trusted-over-the-index", "integrity", "ingest/rosbag_source.py",
        "                    if said is not None and said[:2] != (msg.conn_id, msg.t_ns):",
        "                    if False:", ROS1_TIME_COPIES),
@@ -515,9 +520,10 @@ MUTATIONS: list[Mutation] = [
     _m("sensor-key-of-another-kind-ignored", "inputs", "config.py",
        '        if cls is SensorConfig and value.get("kind") in _REQUIRED_ERRORS:', "        if False:", CONFIG_SILENT),
     _m("overwritten-set-left-part-old", "safety", "store/outputs.py",
-       "            if replaced or before[product] is None:", "            if before[product] is None:", SET_WHOLE),
+       "            if replaced or (product == manifest or before[product] is None):",
+       "            if product == manifest or before[product] is None:", SET_WHOLE),
     _m("former-manifest-kept-while-replacing", "safety", "store/outputs.py",
-       "            manifest.unlink()\n", "            pass\n", SET_WHOLE),
+       "            os.replace(manifest, aside)\n", "            pass\n", SET_WHOLE),
     _m("simulated-log-and-truth-placed-apart", "safety", "sim/simulate.py",
        "            with interrupts_held():  # the log, its capture and its truth",
        "            with contextlib.nullcontext():  # the log, its capture and its truth", SIM_TOGETHER),
