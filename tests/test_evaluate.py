@@ -263,7 +263,7 @@ def test_refine_peak_is_the_least_squares_quadratics_maximum() -> None:
 def test_point_target_peak_is_located_between_the_fine_samples() -> None:
     """A Hann-tapered range x uniform cross-range response (-3 dB 3.6 x 3.5 cm, ground range 20 deg off the
     grid's across axis) on 5 mm pixels at random sub-pixel positions: analyse_point_target (4x upsampling: 1.25 mm
-    samples, then refine_peak) puts the peak within 0.01 mm of the target (measured: <= 0.6 um), where the fine
+    samples, then the fit over the lobe's top) puts the peak within 0.01 mm of the target, where the fine
     samples' argmax alone errs by up to half a sample diagonal (0.9 mm), measures both widths within 2 %, and the
     cuts' PSLR and ISLR within 0.15 and 0.1 dB of the response's own."""
     grid = FocusGrid(origin=(0.0, 0.0), along=(1.0, 0.0), across=(0.0, 1.0), pixel_m=0.005, n_along=200,
