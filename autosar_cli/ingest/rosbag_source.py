@@ -213,19 +213,19 @@ class Ros1BagSource:
         try:
             channels = self._index_channels(reader)
             broken = self._chunk_break(reader)
-            if broken:
+            if broken:  # its record lengths are what rosbags would trust: the scan reads it without them
                 self.stats.warnings.append(f"{self.path}: ROS1 bag damaged: {broken}; read chunk by chunk as "
                                            "`rosbag reindex` does")
                 self._indexed = _index_entries(reader)
+                yield from self._scan()
+                return
             total = sum(c.msgcount for c in reader.connections) or 1
-            it = reader.messages() if not broken else iter(())
+            it = reader.messages()
             n = 0
             while True:
                 try:
                     conn, t_ns, data = next(it)
                 except StopIteration:
-                    if broken:
-                        break
                     self.stats.bytes_read = self.stats.bytes_total
                     return
                 except Exception as exc:  # damaged chunk (or index pointing at garbage): rescan the file
@@ -252,22 +252,20 @@ class Ros1BagSource:
         copy, in the chunk's info record; the record's where both or neither do), or left out where the connections
         disagree (its data may be another type's); noted for a warning."""
         where = f"the chunk at byte {msg.chunk_offset}, offset {msg.offset}"
-        if conn != msg.conn_id:
-            self._disagree.setdefault("left out (their connections differ: which is damaged cannot be told)",
-                                      []).append(where)
-            return None
         record_in, index_in = first_ns <= msg.t_ns < end_ns, first_ns <= t_ns < end_ns
-        if record_in == index_in:
-            self._disagree.setdefault("read at the record's time (both lie in their chunk's span: which is damaged "
-                                      "cannot be told)", []).append(f"{where}: {msg.t_ns} ns, the index {t_ns} ns")
-            return msg
-        if record_in:
-            self._disagree.setdefault("read at the record's time, the index's lying outside its chunk's span",
-                                      []).append(where)
-            return msg
-        self._disagree.setdefault("read at the index's time, the record's lying outside its chunk's span",
-                                  []).append(where)
-        return Ros1Message(msg.conn_id, t_ns, msg.data, msg.chunk_offset, msg.offset)
+        if conn != msg.conn_id:
+            how, kept = "left out (their connections differ: which is damaged cannot be told)", None
+        elif record_in == index_in:
+            how = "read at the record's time (both lie in their chunk's span: which is damaged cannot be told)"
+            kept = msg
+            where += f": {msg.t_ns} ns, the index {t_ns} ns"
+        elif record_in:
+            how, kept = "read at the record's time, the index's lying outside its chunk's span", msg
+        else:
+            how = "read at the index's time, the record's lying outside its chunk's span"
+            kept = Ros1Message(msg.conn_id, t_ns, msg.data, msg.chunk_offset, msg.offset)
+        self._disagree.setdefault(how, []).append(where)
+        return kept
 
     def _chunk_break(self, reader: Any) -> str | None:
         """The first uncompressed chunk whose records do not chain as their lengths and the index say
