@@ -646,8 +646,9 @@ def _key_paths(cls: Any, path: str) -> list[str]:
 
 
 def _keys_of_its_kind(table: dict[str, Any], path: str) -> None:
-    """Refuse a sensor table's key that another kind of sensor reads (a wheel sensor's ``dof``, an IMU's ``gnss``
-    table): nothing would read it, so what it says would be silently ignored."""
+    """Refuse a sensor table's key that another kind of sensor reads (a wheel sensor's ``dof`` or
+    ``mounting_ypr_deg``, an IMU's ``gnss`` table): nothing would read it, so what it says would be silently ignored.
+    The one place this rule lives: every config is built from such tables (:func:`config_from_dict`)."""
     kind = table["kind"]
     own = _COMMON_SENSOR_KEYS | _KIND_KEYS.get(kind, frozenset()) | set(_REQUIRED_ERRORS[kind])
     for key in sorted(set(table) - own):
@@ -907,8 +908,6 @@ def _validate(cfg: Config) -> None:
         if s.kind == "imu" and s.dof not in (3, 6):
             raise ConfigError(f"{base}.dof: must be 3 or 6, got {s.dof}")
         _finite_vector(f"{base}.mounting_ypr_deg", s.mounting_ypr_deg)
-        if any(s.mounting_ypr_deg) and s.kind != "imu":
-            raise ConfigError(f"{base}.mounting_ypr_deg: only an IMU's axes are turned into the body's")
         if s.kind == "imu" and s.dof == 3 and any(s.mounting_ypr_deg[1:]):
             raise ConfigError(f"{base}.mounting_ypr_deg: a 3-DoF IMU measures the yaw rate alone, which a pitch or "
                               f"roll of its mounting would mix with axes it does not have")
