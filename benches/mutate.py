@@ -215,6 +215,8 @@ ROS1_CHUNK_LENGTH = "tests/test_ingest_damage.py::test_ros1_chunk_whose_data_len
 ROS1_TIME_COPIES = "tests/test_ingest_damage.py::test_ros1_message_time_damaged_in_one_copy_is_read_at_the_other"
 ROS1_SIZE_FIELD = ("tests/test_ingest_damage.py::test_ros1_uncompressed_chunk_whose_size_field_is_off_is_read_by_its_"
                    "data_length")
+ROS1_RUN_ON = ("tests/test_ingest_damage.py::test_ros1_uncompressed_message_whose_length_runs_over_an_indexed_record_"
+               "costs_nothing")
 CHOICE_MEANT = "tests/test_cli.py::test_a_misspelt_choice_is_refused_with_the_one_it_likely_meant"
 SET_WHOLE = "tests/test_safety.py::test_a_set_of_products_the_block_replaced_in_part_goes_whole"
 SIM_TOGETHER = "tests/test_safety.py::test_a_simulation_stopped_as_its_log_comes_into_place_puts_its_truth_there_too"
@@ -515,6 +517,8 @@ MUTATIONS: list[Mutation] = [
     _m("ros1-record-time-trusted-over-the-index", "integrity", "ingest/rosbag_source.py",
        "                    if said is not None and said[:2] != (msg.conn_id, msg.t_ns):",
        "                    if False:", ROS1_TIME_COPIES),
+    _m("ros1-message-run-on-over-an-indexed-record", "integrity", "ingest/ros1_chunks.py",
+       "            if op == OP_MSG_DATA and starts:", "            if False:", ROS1_RUN_ON),
     _m("misspelt-choice-without-its-likely-meaning", "inputs", "cli.py",
        "near = difflib.get_close_matches(given.lower(), choices, n=1, cutoff=0.6)", "near = []", CHOICE_MEANT),
     _m("sensor-key-of-another-kind-ignored", "inputs", "config.py",

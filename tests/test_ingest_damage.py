@@ -246,14 +246,14 @@ def ros1_message_records(bag: Path, chunk_pos: int) -> tuple[int, list[tuple[int
     return ch.datapos, out
 
 
-@pytest.mark.parametrize("damage", ["shorter", "longer", "huge", "header"])
+@pytest.mark.parametrize("damage", ["shorter", "huge", "header"])
 @pytest.mark.parametrize("size", ["small", "radar"])
 def test_ros1_uncompressed_message_with_a_damaged_length_costs_only_that_message(
         damage: str, size: str, ci_ros1_uncompressed: Path, work: Path) -> None:
-    """In an uncompressed chunk, a message record's data length set 40 bytes short or long (read through the index,
-    the message came out cut or run on into the next record's bytes, with no word) or to ~2 GiB, or its header
-    length flipped (the rest of the chunk was lost, ~100 messages): only that message is left out, the damage named
-    at its offset, and every other message kept byte for byte."""
+    """In an uncompressed chunk, a message record's data length set 40 bytes short (read through the index, the
+    message came out cut, with no word) or to ~2 GiB, or its header length flipped (the rest of the chunk was lost,
+    ~100 messages): only that message is left out, the damage named at its offset, and every other message kept
+    byte for byte."""
     bag = ci_ros1_uncompressed
     chunks = ros1_chunks(bag)
     start = chunks[5][0]
@@ -264,7 +264,7 @@ def test_ros1_uncompressed_message_with_a_damaged_length_costs_only_that_message
     if damage == "header":
         data[rec_start + 1] ^= 0x10
     else:
-        struct.pack_into("<I", data, dlen_at, {"shorter": dlen - 40, "longer": dlen + 40, "huge": 0x7F00_0000}[damage])
+        struct.pack_into("<I", data, dlen_at, {"shorter": dlen - 40, "huge": 0x7F00_0000}[damage])
     out = work / f"uncompressed_{damage}_{size}.bag"
     out.write_bytes(bytes(data))
     got, warnings = read_all(out)
@@ -273,6 +273,33 @@ def test_ros1_uncompressed_message_with_a_damaged_length_costs_only_that_message
     offset = rec_start - dstart
     assert any(str(out) in w and f"chunk at bytes {start}-" in w and f"offset {offset}" in w
                and "read on from the next record" in w for w in warnings), warnings
+
+
+@pytest.mark.parametrize("run_on", ["40 bytes", "to the next record's end"])
+@pytest.mark.parametrize("size", ["small", "radar"])
+def test_ros1_uncompressed_message_whose_length_runs_over_an_indexed_record_costs_nothing(
+        run_on: str, size: str, ci_ros1_uncompressed: Path, work: Path) -> None:
+    """In an uncompressed chunk, a message record's data length run on 40 bytes into the next record, or to exactly
+    where the record after it starts: read through the index, the message came out with the next record's bytes,
+    with no word; the scan the chain check sends the bag to left the message out (40 bytes), or read it with the next
+    record's bytes and lost that record, with no warning naming either (to the next record's end). The index places
+    the record it ran over: the message is read up to it, both kept byte for byte, the damage named at its offset."""
+    bag = ci_ros1_uncompressed
+    chunks = ros1_chunks(bag)
+    start = chunks[5][0]
+    dstart, records = ros1_message_records(bag, start)
+    i = [k for k, r in enumerate(records[:-1]) if (len(r[3][2]) > 10_000) == (size == "radar")][3]
+    rec_start, dlen_at, dlen, _ = records[i]
+    over = 40 if run_on == "40 bytes" else records[i + 2][0] - records[i + 1][0]
+    data = bytearray(bag.read_bytes())
+    struct.pack_into("<I", data, dlen_at, dlen + over)
+    out = work / f"uncompressed_run_on_{over}_{size}.bag"
+    out.write_bytes(bytes(data))
+    got, warnings = read_all(out)
+    assert Counter(got) == Counter(m for _, _, msgs in chunks for m in msgs), warnings
+    assert any(str(out) in w and f"chunk at bytes {start}-" in w and f"offset {rec_start - dstart} has a data length "
+               f"({dlen + over} bytes) running over the record its index places at offset {records[i + 1][0] - dstart}"
+               in w for w in warnings), warnings
 
 
 @pytest.mark.parametrize("damage", ["header", "data"])

@@ -16,10 +16,11 @@ with its byte offsets in the file.
 
 from __future__ import annotations
 
+import bisect
 import bz2
 import mmap
 import struct
-from collections.abc import Generator, Iterable, Iterator
+from collections.abc import Generator, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
@@ -274,11 +275,14 @@ def _next_chunk(buf: Buffer, start: int) -> int | None:
     return None
 
 
-def scan_bag(buf: Buffer, report: ScanReport,
-             connections: dict[int, Ros1Connection]) -> Iterator[Ros1Message]:
+def scan_bag(buf: Buffer, report: ScanReport, connections: dict[int, Ros1Connection],
+             index_offsets: Mapping[int, Sequence[int]] | None = None) -> Iterator[Ros1Message]:
     """Every message of every intact chunk of the bag ``buf``, in file order.
 
     ``connections`` is filled as connection records are met (they precede their first message).
+    ``index_offsets``: chunk byte offset -> its message records' offsets in its data, ascending, where the bag's
+    index gives them (a scan that follows a read through the index): a message whose data length runs over one of
+    them is read up to it (:func:`_records`).
     """
     if buf[:len(ROS1_MAGIC)] != ROS1_MAGIC:
         raise RecordError("not a ROS1 bag v2.0 (bad magic)")
@@ -286,7 +290,7 @@ def scan_bag(buf: Buffer, report: ScanReport,
     n = len(buf)
     unclosed = _Unclosed()
     try:
-        yield from _scan(buf, pos, n, report, connections, unclosed)
+        yield from _scan(buf, pos, n, report, connections, unclosed, index_offsets or {})
     finally:
         unclosed.close(report)
 
@@ -311,7 +315,7 @@ class _Unclosed:
 
 
 def _scan(buf: Buffer, pos: int, n: int, report: ScanReport, connections: dict[int, Ros1Connection],
-          unclosed: _Unclosed) -> Iterator[Ros1Message]:
+          unclosed: _Unclosed, index_offsets: Mapping[int, Sequence[int]]) -> Iterator[Ros1Message]:
     while pos < n:
         try:
             fields, dstart, dend = read_record(buf, pos)
@@ -323,7 +327,7 @@ def _scan(buf: Buffer, pos: int, n: int, report: ScanReport, connections: dict[i
                 report.lost.append(f"chunk at byte {pos}: its data length does not fit ({exc}); its data ends at "
                                    f"byte {stream[2]}: read by that")
                 report.chunks_read += 1
-                yield from _records(stream[1], pos, stream[2], report, connections)
+                yield from _records(stream[1], pos, stream[2], report, connections, index_offsets.get(pos, ()))
                 pos = stream[2]
                 continue
             nxt = _next_chunk(buf, pos + 1)
@@ -350,7 +354,7 @@ def _scan(buf: Buffer, pos: int, n: int, report: ScanReport, connections: dict[i
                 return
         elif op == OP_CHUNK:
             unclosed.close(report)
-            dend = yield from _chunk(buf, pos, fields, dstart, dend, report, connections)
+            dend = yield from _chunk(buf, pos, fields, dstart, dend, report, connections, index_offsets.get(pos, ()))
         elif op == OP_MSG_DATA and unclosed.pos is not None:
             try:
                 conn = _u32(fields, "conn")
@@ -386,7 +390,7 @@ def _unclosed_compressed(buf: Buffer, pos: int, dstart: int, n: int, compression
 
 
 def _chunk(buf: Buffer, pos: int, fields: dict[str, bytes], dstart: int, dend: int, report: ScanReport,
-           connections: dict[int, Ros1Connection]) -> Generator[Ros1Message, None, int]:
+           connections: dict[int, Ros1Connection], starts: Sequence[int]) -> Generator[Ros1Message, None, int]:
     """The messages of the chunk record at ``pos`` whose data its length field puts at ``dstart``-``dend``; returns
     where the record after it starts: where its data, decoded from its start to the size its header states, ends,
     should the length field disagree (a damaged length, or an uncompressed chunk's, which nothing else checks)."""
@@ -418,7 +422,7 @@ def _chunk(buf: Buffer, pos: int, fields: dict[str, bytes], dstart: int, dend: i
                                f"data ends at byte {dstart + taken}: read by that")
             dend = dstart + taken
     report.chunks_read += 1
-    yield from _records(data, pos, dend, report, connections)
+    yield from _records(data, pos, dend, report, connections, starts)
     return dend
 
 
@@ -434,13 +438,17 @@ def _record_follows(buf: Buffer, pos: int) -> bool:
 
 
 def _records(data: bytes, pos: int, dend: int, report: ScanReport, connections: dict[int, Ros1Connection],
-             cut: bool = False) -> Generator[Ros1Message, None, int]:
+             starts: Sequence[int] = (), cut: bool = False) -> Generator[Ros1Message, None, int]:
     """The messages of the decompressed ``data`` of the chunk record at bytes ``pos``-``dend``, returning how many;
+    ``starts``: its message records' offsets in ``data`` as the bag's index gives them, ascending (none: no index);
     ``cut``: ``data`` is a prefix, and the record it breaks off ends it (the caller says what was kept).
 
     A record that does not read is skipped to the next record found by its header (:func:`_next_record`); so is the
     message before it whose data length does not lead to a record (the length itself damaged): each message is
-    yielded once the record after it is found where its length says, as nothing else checks an uncompressed one."""
+    yielded once the record after it is found where its length says, as nothing else checks an uncompressed one.
+    A message whose data length runs over a record the index places (and that reads there) is read up to that
+    record: its length is what is damaged, and the record it ran over would be lost, the message read with its bytes
+    (a length run on to exactly a later record's start leaves nothing else to tell)."""
     at, kept = 0, 0
     where = f"chunk at bytes {pos}-{dend}"
     pending: tuple[Ros1Message, int, int] | None = None  # (message, record start, data start), not yet yielded
@@ -478,6 +486,8 @@ def _records(data: bytes, pos: int, dend: int, report: ScanReport, connections: 
         last = istart
         try:
             op = inner["op"][0]
+            if op == OP_MSG_DATA and starts:
+                iend = _index_cut(data, at, istart, iend, starts, connections, report, where)
             if op == OP_MSG_DATA:
                 conn = _u32(inner, "conn")
                 if conn not in connections:
@@ -493,6 +503,19 @@ def _records(data: bytes, pos: int, dend: int, report: ScanReport, connections: 
         kept += 1
         yield pending[0]
     return kept
+
+
+def _index_cut(data: bytes, at: int, istart: int, iend: int, starts: Sequence[int],
+               connections: dict[int, Ros1Connection], report: ScanReport, where: str) -> int:
+    """Where the data of the message record at ``at`` (its data at ``istart``-``iend`` by its length) ends: at the
+    first record the index places (``starts``) inside that data, if one reads there, else at ``iend``."""
+    i = bisect.bisect_right(starts, istart)
+    if i == len(starts) or starts[i] >= iend or _record_end(data, starts[i], connections) is None:
+        return iend
+    report.lost.append(f"{where}: the message record at uncompressed offset {at} has a data length ({iend - istart} "
+                       f"bytes) running over the record its index places at offset {starts[i]}: read up to that "
+                       f"record ({starts[i] - istart} bytes)")
+    return starts[i]
 
 
 def _header_like(data: bytes, at: int, end: int | None) -> bool:

@@ -302,6 +302,13 @@ class Ros1BagSource:
                                         "ros1", c.msgdef, "ros1msg", conn.msgcount)
         return channels
 
+    def _index_offsets(self) -> dict[int, list[int]]:
+        """Chunk byte offset -> its message records' offsets in its data, ascending, as the index gives them."""
+        offsets: dict[int, list[int]] = {}
+        for chunk_pos, offset in sorted(self._indexed):
+            offsets.setdefault(chunk_pos, []).append(offset)
+        return offsets
+
     def _scan(self) -> Iterator[RawMessage]:
         """Every message of every intact chunk not yet delivered through the index."""
         report = ScanReport()
@@ -309,7 +316,7 @@ class Ros1BagSource:
         channels: dict[int, Channel] = {}
         with open(self.path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
             try:
-                for msg in scan_bag(buf, report, conns):
+                for msg in scan_bag(buf, report, conns, self._index_offsets()):
                     said = self._indexed.get((msg.chunk_offset, msg.offset))
                     if said is not None and said[:2] != (msg.conn_id, msg.t_ns):
                         msg = self._against_index(msg, *said)
