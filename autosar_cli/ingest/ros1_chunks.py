@@ -401,21 +401,17 @@ def _chunk(buf: Buffer, pos: int, fields: dict[str, bytes], dstart: int, dend: i
         if len(data) != size:
             raise RecordError(f"chunk decompresses to {len(data)} bytes, its header says {size}")
     except Exception as exc:  # any codec error: the chunk is lost unless its data length alone was wrong
-        stream = _chunk_stream(buf, pos)
-        # uncompressed, the data length and the size are two numbers alike: the one a record follows is right
-        by_length = compression == "none" and dend <= len(buf) and _record_follows(buf, dend)
-        if by_length and not (stream is not None and _record_follows(buf, stream[2])):
-            data = bytes(buf[dstart:dend])
-            report.lost.append(f"chunk at byte {pos}: its size field does not fit its data ({exc}); a record follows "
-                               f"its data length, at byte {dend}: read by that")
-        elif stream is None or len(stream[1]) != _u32(stream[0], "size") or by_length \
-                or compression == "none" and not _record_follows(buf, stream[2]):
+        read = _uncompressed_read_by(buf, pos, dstart, dend) if compression == "none" else _read_by_stream(buf, pos)
+        if read is None:
             report.lost.append(f"chunk at bytes {pos}-{dend} skipped: it does not decompress ({exc})")
             return dend
+        if compression == "none" and read[1] == dend:
+            report.lost.append(f"chunk at byte {pos}: its size field does not fit its data ({exc}); a record follows "
+                               f"its data length, at byte {dend}: read by that")
         else:
-            data, dend = stream[1], stream[2]
             report.lost.append(f"chunk at byte {pos}: its data length does not fit its data ({exc}); its data ends "
-                               f"at byte {dend}: read by that")
+                               f"at byte {read[1]}: read by that")
+        data, dend = read
     else:
         if compression != "none" and dstart + taken != dend:  # a stream ending before its stated length
             report.lost.append(f"chunk at byte {pos}: its data length says it ends at byte {dend}, its compressed "
@@ -424,6 +420,28 @@ def _chunk(buf: Buffer, pos: int, fields: dict[str, bytes], dstart: int, dend: i
     report.chunks_read += 1
     yield from _records(data, pos, dend, report, connections, starts)
     return dend
+
+
+def _read_by_stream(buf: Buffer, pos: int) -> tuple[bytes, int] | None:
+    """The compressed chunk record at ``pos`` whose data does not decompress within its data length, read by its
+    stream instead: its data, decoded whole to the size its header states, and where the stream ends in ``buf``;
+    None where it does not decode to that size (its data is what is damaged)."""
+    stream = _chunk_stream(buf, pos)
+    if stream is None or len(stream[1]) != _u32(stream[0], "size"):
+        return None
+    return stream[1], stream[2]
+
+
+def _uncompressed_read_by(buf: Buffer, pos: int, dstart: int, dend: int) -> tuple[bytes, int] | None:
+    """The uncompressed chunk record at ``pos`` whose data length (which puts its data at ``dstart``-``dend``) and
+    size field disagree: two numbers alike, either of which may be the damaged one. Its data and where it ends, by
+    the one a record follows (or the file's end); None where both or neither are followed by one."""
+    by_size = _read_by_stream(buf, pos)
+    size_holds = by_size is not None and _record_follows(buf, by_size[1])
+    length_holds = dend <= len(buf) and _record_follows(buf, dend)
+    if length_holds == size_holds:
+        return None
+    return (bytes(buf[dstart:dend]), dend) if length_holds else by_size
 
 
 def _record_follows(buf: Buffer, pos: int) -> bool:
