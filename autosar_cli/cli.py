@@ -716,7 +716,8 @@ def run(
     method: Annotated[NavMethod, typer.Option("--method", "-m", help="Navigation method (see `autosar navigate`).")]
     = NavMethod.sar_min,
     truth: Annotated[Path | None, typer.Option("--truth", metavar="FILE",
-                                               help="Truth sidecar for --method truth.")] = None,
+                                               help="Truth sidecar for --method truth (default: <log>.truth.h5 "
+                                                    "of the drive's input log).")] = None,
     radar: RadarCaptureOpt = None,
     radar_start: RadarStartOpt = None,
     radar_sync: RadarSyncOpt = "/dca1000/sync",
