@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -569,3 +570,19 @@ def test_a_config_whose_antennas_are_not_the_drives_is_refused(ci_run: Path, tmp
         assert (f"{ci_run / 'drive.h5'}: the config's radar puts its Tx antennas elsewhere than the drive was "
                 f"ingested with") in r.stderr and f"differ by up to {moved:.3g} m" in r.stderr, r.stderr
     assert not any(tmp_path.glob("f*")) and not (tmp_path / "e").exists()
+
+
+def test_a_trajectory_no_radar_frame_lies_inside_is_refused_for_that(ci_drive: Drive) -> None:
+    """A trajectory of another span than the radar's (a capture started at the wrong time, --allow-time-gap): the
+    automatic grid, which `compare` and the autofocus's point selection build first, said "the trajectory is shorter
+    than one pixel" (it is 2.4 m) after numpy's warnings about an empty mean; it now gives focus's own reason."""
+    from autosar_cli.sar.focus import FocusError, auto_grid
+
+    traj = read_trajectory(ci_drive.trajectory)
+    later = replace(traj, t_ns=traj.t_ns + 60 * 10**9)
+    options = FocusOptions.from_config(ci_drive.config)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy's RuntimeWarnings on empty slices fail the test
+        with pytest.raises(FocusError, match=r"drive\.h5: no radar frame lies inside the trajectory <truth "
+                                             r"trajectory> while moving$"):
+            auto_grid(ci_drive.drive, later, ci_drive.config, options)

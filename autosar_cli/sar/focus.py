@@ -217,6 +217,15 @@ def _usable_frames(radar: RadarStream, traj: Trajectory, config: Config, min_spe
     return _Geometry(frames[moving], t[frames][moving], ref[moving], vel[moving], skipped)
 
 
+def _frames_to_focus(radar: RadarStream, traj: Trajectory, config: Config, min_speed: float, drive_path: str | Path,
+                     traj_name: str) -> _Geometry:
+    """:func:`_usable_frames`, refused where fewer than two are (nothing to form an aperture of)."""
+    geometry = _usable_frames(radar, traj, config, min_speed)
+    if geometry.frames.size < 2:
+        raise FocusError(f"{drive_path}: no radar frame lies inside the trajectory {traj_name} while moving")
+    return geometry
+
+
 def drive_radar_config(config: Config, drive_path: str | Path, radar: str | None = None) -> Config:
     """``config`` with its radar on the board's antennas that the drive's radar ``radar`` (its first where None)
     recorded with (its ``tx_channels`` and ``rx_channels``, which ingest writes), so that every phase centre is one
@@ -308,7 +317,8 @@ def make_grid(options: FocusOptions, geometry: _Geometry, config: Config) -> Foc
 def auto_grid(drive_path: str | Path, trajectory: Trajectory, config: Config, options: FocusOptions) -> FocusGrid:
     """The grid ``autosar focus --grid auto`` would use along ``trajectory``."""
     with Drive(drive_path) as d:
-        geometry = _usable_frames(open_radar(d, options), trajectory, config, options.min_speed_mps)
+        geometry = _frames_to_focus(open_radar(d, options), trajectory, config, options.min_speed_mps, drive_path,
+                                    f"<{trajectory.method} trajectory>")
     return make_grid(replace(options, grid="auto"), geometry, config)
 
 
@@ -381,9 +391,7 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         pairs = channel_pairs(rp.n_tx, rp.n_rx, options.channels)
         gains = trajectory_channel_gains(traj.info) or options.channel_gains or stated_channel_gains(radar.attrs)
         correction = [None] * len(pairs) if gains is None else list(gains.correction(pairs))
-        geometry = _usable_frames(radar, traj, config, options.min_speed_mps)
-        if geometry.frames.size < 2:
-            raise FocusError(f"{drive_path}: no radar frame lies inside the trajectory {traj_name} while moving")
+        geometry = _frames_to_focus(radar, traj, config, options.min_speed_mps, drive_path, traj_name)
         grid_list = grids if grids else [make_grid(options, geometry, config)]
         timings["geometry"] += time.perf_counter() - t_start
 
