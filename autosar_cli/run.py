@@ -105,6 +105,8 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     check_output(out, inputs, overwrite=overwrite, directory=True)
     check_products(out, [DRIVE, TRAJECTORY, "run.json", f"{IMAGE}.tif", f"{IMAGE}.h5", f"{IMAGE}.png"], inputs,
                    overwrite=overwrite or (replace_unfinished and unfinished))
+    if method == "truth" and truth_path is not None:
+        _check_truth(truth_path)
     from autosar_cli.ingest.pipeline import capture_files
 
     # a capture named by its parameter file is its data files too
@@ -204,6 +206,18 @@ def _status(manifest_path: Path) -> str | None:
         return str(read_manifest(manifest_path.parent).get("status"))
     except RunError:
         return None
+
+
+def _check_truth(truth_path: str | Path) -> None:
+    """Refuse, before the ingest, a truth sidecar that is none (another file, not HDF5, missing): navigate would,
+    after the ingest's minutes. Whether it is this recording's truth needs the drive (navigate checks that)."""
+    from autosar_cli.sim.truth import open_truth
+
+    try:
+        with open_truth(truth_path):
+            pass
+    except ValueError as exc:
+        raise RunError(str(exc)) from None
 
 
 def _run_after_ingest(manifest: dict[str, Any], out: Path, config: Config, method: str,

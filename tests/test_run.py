@@ -209,3 +209,19 @@ def test_a_run_stopped_as_its_ingest_ends_keeps_no_drive_unmarked(ci_mcap, tmp_p
     with pytest.raises(IngestError):
         run_module.run([ci_mcap.log_path], tmp_path / "none", CFG)
     assert not (tmp_path / "none").exists()
+
+
+@pytest.mark.parametrize("given", ["a drive", "missing"])
+def test_a_truth_sidecar_that_is_none_is_refused_before_the_ingest(given: str, ci_mcap, ci_run: Path,
+                                                                   tmp_path: Path) -> None:
+    """`run -m truth --truth FILE` where FILE is another of autosar's files or missing: refused after the whole
+    ingest (minutes on a long drive), which left the run's directory with its drive.h5 and a failed run.json; now
+    refused first, nothing written."""
+    from autosar_cli.run import run
+
+    truth = ci_run / "drive.h5" if given == "a drive" else tmp_path / "typo.truth.h5"
+    said = "not an autosar truth sidecar but an autosar-drive file" if given == "a drive" else "no such truth sidecar"
+    out = tmp_path / "run"
+    with pytest.raises(RunError, match=f"^{truth}: {said}$"):
+        run([ci_mcap.log_path], out, load_config(), method="truth", truth_path=truth)
+    assert not out.exists()

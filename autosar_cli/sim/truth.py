@@ -150,7 +150,10 @@ class TruthWriter:
 
 def open_truth(truth_path: str | Path) -> h5py.File:
     """``truth_path`` open for reading (a ``with`` closes it), checked to be an autosar truth sidecar: a ValueError
-    naming it where it is not (not HDF5, cut short, another file of autosar's), before any content is looked for."""
+    naming it where it is not (missing, not HDF5, cut short, another file of autosar's), before any content is
+    looked for."""
+    if not os.path.exists(truth_path):
+        raise ValueError(f"{truth_path}: no such truth sidecar")
     try:
         f = h5py.File(truth_path, "r")
     except OSError as exc:
