@@ -893,8 +893,8 @@ def compare(
 ) -> None:
     """Focus one drive with several navigation methods and compare them side by side (paper Fig. 10/11)."""
     with _errors(output):
+        from autosar_cli.evaluate.compare import DRIVE, parse_methods
         from autosar_cli.evaluate.compare import compare as run_compare
-        from autosar_cli.evaluate.compare import parse_methods
 
         cfg = _load_config(config)
         chosen = parse_methods(methods)
@@ -925,9 +925,9 @@ def compare(
         for label, cell in rows:
             table.add_row(label, *(cell(s) for s in summaries.values()))
         out.print(table)
-        figures = [v for k, v in result["outputs"].items() if isinstance(v, str)]
+        written = [DRIVE, "compare.json", *(v for v in result["outputs"].values() if isinstance(v, str))]
         degraded = _degraded(result["warnings"], "compare.json")
-        out.print(f"wrote [bold]{_lit(output)}[/] ({', '.join(figures)}; per method: "
+        out.print(f"wrote [bold]{_lit(output)}[/] ({', '.join(written)}; per method: "
                   f"{', '.join(m + '/' for m in result['methods'])}) in {result['wall_s']:.1f} s{degraded}")
         for m, why in result["skipped"].items():
             err.print(f"[yellow]skipped[/] {m}: {_lit(why)}", highlight=False, soft_wrap=True)
@@ -1157,7 +1157,8 @@ def _print_summary(path: Path, summary: Any) -> None:
     d = summary.to_dict()
     out.print(f"[bold]{_lit(path)}[/]  {summary.container}, {summary.size_bytes / 1e6:.1f} MB, "
               f"{d['duration_s']:.2f} s")
-    table = Table("stream", "type", "count", "rate (Hz)", "gaps")
+    # a name cut short is no use to the config that must give it: folded onto a second line instead
+    table = Table(Column("stream", overflow="fold"), Column("type", overflow="fold"), "count", "rate (Hz)", "gaps")
     for s in summary.streams:
         table.add_row(s.topic, s.msgtype, str(s.count), f"{s.rate_hz:.1f}", str(s.gaps))
     out.print(table)

@@ -181,6 +181,18 @@ def test_navigate_says_which_standstills_it_held_and_which_it_refused() -> None:
     assert standstill_lines({}, t0) == []
 
 
+def test_info_on_a_narrow_terminal_gives_each_stream_and_type_whole(ci_mcap):
+    """`autosar info` on 80 columns (a pipe's width) cut names short, "scanbrick_msgs/msg/RawFr…", where the table is
+    what tells a user the names their config must give: a long name is folded onto a second line, whole."""
+    r = runner.invoke(app, ["info", str(ci_mcap.log_path)], env={"COLUMNS": "80"})
+    assert r.exit_code == 0, r.output
+    assert "\u2026" not in r.stdout
+    cells = [[c.strip() for c in line.split("\u2502")[1:3]] for line in r.stdout.splitlines() if "\u2502" in line]
+    joined = [("".join(c[0] for c in cells[i:i + 2]), "".join(c[1] for c in cells[i:i + 2])) for i in range(len(cells))]
+    assert ("/scanbrick/raw_frames", "scanbrick_msgs/msg/RawFrame") in joined or \
+        ("/scanbrick/raw_frames", "scanbrick_msgs/msg/RawFrame") in [tuple(c) for c in cells], r.stdout
+
+
 def test_info_with_a_config_checks_it_and_says_which_of_its_topics_the_log_holds(ci_mcap, tmp_path):
     """`autosar info LOG --config mine.toml` read no config at all (a missing or misspelt one passed): it is checked
     as every command checks it, and the topics it pins are told apart: those in the log, those not."""

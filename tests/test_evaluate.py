@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import shutil
 from dataclasses import replace
 from pathlib import Path
@@ -785,8 +786,10 @@ def test_compare_cli_on_ci(ci_mcap, tmp_path: Path) -> None:
     assert first.exit_code == 0, first.output
     result = json.loads((out / "compare.json").read_text())
     assert result["methods"] == ["none", "ins", "sar-min", "truth"] and result["skipped"] == {}
-    for name in ("compare.png", "across_track.png", "compare_chips.png", "compare.md", "drive.h5"):
+    for name in ("compare.png", "across_track.png", "compare_chips.png", "compare.md", "drive.h5", "compare.json"):
         assert (out / name).stat().st_size > 0, name
+        closing = " ".join(first.stdout.split()).rsplit("wrote ", 1)[-1]
+        assert name in re.split(r"[ ,;()]+", closing), (name, closing)  # the closing line names all it wrote
     for m in result["methods"]:
         for name in ("image.tif", "image.h5", "image.png", "trajectory.h5", "run.json", "metrics.json", "report.md"):
             assert (out / m / name).stat().st_size > 0, (m, name)

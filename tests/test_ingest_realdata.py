@@ -189,6 +189,11 @@ def test_info_ros1_counts(husky: tuple[IngestReport, Path]) -> None:
     got = {s["topic"]: (s["msgtype"], s["count"]) for s in json.loads(r.stdout)["streams"]}
     assert got == {"/fix": ("sensor_msgs/msg/NavSatFix", 989), "/imu/data": ("sensor_msgs/msg/Imu", 11865),
                    ODOM: ("nav_msgs/msg/Odometry", 3952)}
+    # the drive's own info repeats its ingest's warnings as the ingest's (they read as if info had written it anew)
+    r = runner.invoke(app, ["info", str(husky[1])])
+    warned = [line for line in r.stderr.splitlines() if line.startswith("warning:")]
+    assert r.exit_code == 0 and any("no radar stream; written anyway (--allow-partial)" in w for w in warned), r.stderr
+    assert all(w.startswith("warning: at ingest: ") for w in warned), warned
 
 
 # ------------------------------------------------------------------------------ MDF4: CSS Electronics

@@ -223,5 +223,6 @@ def summarize_drive(path: Path) -> LogSummary:
         drive.h5.visititems(visit)
         for name in drive.radar_names():
             summary.radar_parameters.update(_radar_parameters(dict(drive.h5["radar"][name].attrs)))
-        summary.warnings.extend(drive.report().get("warnings", []))
+        # the ingest's, as its report keeps them: said as such, not as what reading the drive now found
+        summary.warnings.extend(f"at ingest: {w}" for w in drive.report().get("warnings", []))
     return summary
