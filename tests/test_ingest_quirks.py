@@ -108,3 +108,47 @@ def test_a_stream_stamped_on_another_clock_is_warned_of(ci_mcap, tmp_path: Path,
     log = rewrite_mcap(ci_mcap.log_path, tmp_path / "clock.mcap", fn)
     report = ingest([log], tmp_path / "d.h5", config=load_config())
     assert [w for w in report.warnings if named in w or topic in w], report.warnings
+
+
+_DBC = '''VERSION ""
+
+NS_ :
+
+BS_:
+
+BU_: ECU
+
+BO_ 256 SPD: 8 ECU
+ SG_ SPEED_A : 8|16@1+ (0.01,0) [0|655.35] "m/s" ECU
+
+'''
+
+
+def _speed_frame(raw: int) -> str:
+    return bytes([0, raw & 0xFF, raw >> 8, 0, 0, 0, 0, 0]).hex().upper()
+
+
+@pytest.mark.parametrize("other", ["can0 00000100", "can1 100"], ids=["extended_id", "second_bus"])
+def test_another_message_with_the_same_number_is_not_decoded_as_the_dbcs(tmp_path: Path, other: str) -> None:
+    """A candump log of 0x100 (standard, 10 m/s) beside frames of another message numbered 0x100: an extended id
+    0x00000100 (a J1939-style ECU), or 0x100 on a second bus (can1). The decoder looks an unknown (id, extended) up
+    under the other flag and ignores the channel, so both land in /can/SPD: 400 rows alternating 10 and 30 m/s, exit
+    0, no warning of it (the warnings said are of the config's roles and the radar, which this log lacks). A DBC
+    without a CHECKSUM signal (any car but the Giulia, [can] checksum = "none") has nothing else to stop them."""
+    import h5py
+
+    dbc = tmp_path / "spd.dbc"
+    dbc.write_text(_DBC)
+    t = 1_700_000_000.0
+    lines = []
+    for i in range(200):
+        lines.append(f"({t + i * 0.01:.6f}) can0 100#{_speed_frame(1000)}")
+        lines.append(f"({t + i * 0.01 + 0.0003:.6f}) {other}#{_speed_frame(3000)}")
+    log = tmp_path / "two.log"
+    log.write_text("\n".join(lines) + "\n")
+    report = ingest([], tmp_path / "d.h5", config=load_config(), can_logs=[log], dbc=dbc, allow_partial=True)
+    with h5py.File(tmp_path / "d.h5", "r") as f:
+        speeds = f["can/SPD/SPEED_A"][()]
+    said = [w for w in report.warnings if "0x100" in w or "SPD" in w]
+    assert said or set(np.round(speeds, 2)) == {10.0}, (np.unique(speeds, return_counts=True), report.warnings)
+
