@@ -152,3 +152,19 @@ def test_another_message_with_the_same_number_is_not_decoded_as_the_dbcs(tmp_pat
     said = [w for w in report.warnings if "0x100" in w or "SPD" in w]
     assert said or set(np.round(speeds, 2)) == {10.0}, (np.unique(speeds, return_counts=True), report.warnings)
 
+
+def test_a_multiplexed_dbc_message_is_decoded_or_refused_clearly(tmp_path: Path) -> None:
+    """A DBC with a multiplexed message (one signal per multiplexer value, common in real DBCs): ingest failed with
+    "error: 'TEMP_B'" (a KeyError: the decoder asks every signal of each frame, and cantools gives only the ones its
+    multiplexer selects), the whole CAN log lost."""
+    dbc = tmp_path / "mux.dbc"
+    dbc.write_text(_DBC.replace(' SG_ SPEED_A : 8|16@1+ (0.01,0) [0|655.35] "m/s" ECU\n',
+                                ' SG_ MUX M : 0|8@1+ (1,0) [0|255] "" ECU\n'
+                                ' SG_ SPEED_A m0 : 8|16@1+ (0.01,0) [0|655.35] "m/s" ECU\n'
+                                ' SG_ TEMP_B m1 : 8|16@1+ (0.1,-40) [-40|6513.5] "degC" ECU\n'))
+    t = 1_700_000_000.0
+    log = tmp_path / "mux.log"
+    log.write_text("".join(f"({t + i * 0.01:.6f}) can0 100#{'00E8030000000000' if i % 2 == 0 else '01BC020000000000'}\n"
+                           for i in range(200)))
+    report = ingest([], tmp_path / "d.h5", config=load_config(), can_logs=[log], dbc=dbc, allow_partial=True)
+    assert report.can["decoded"] == 200
