@@ -22,6 +22,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+#: a bounded prediction step through a gap is taken only where it leaves more than this to the next instant (s): a
+#: step landing within a ns of a measurement's instant wrote two trajectory samples the same ns once rounded
+STEP_SLACK_S = 1e-9
+
 PX, PY, V, PSI, OMEGA = 0, 1, 2, 3, 4
 N_KINEMATIC = 5
 

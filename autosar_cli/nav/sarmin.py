@@ -283,7 +283,7 @@ def run_sarmin(inputs: NavInputs, config: Config, smooth: bool = True, engine: s
 
     def advance(t: float) -> None:
         nonlocal t_now
-        while t - t_now > nav.max_step_s:  # dead reckoning through gaps, in bounded steps
+        while t - t_now > nav.max_step_s + m.STEP_SLACK_S:  # dead reckoning through gaps, in bounded steps
             step = ukf.predict(nav.max_step_s, np.diag(m.process_noise(q, beta, nav.max_step_s)))
             t_now += nav.max_step_s
             hist.steps.append(step)

@@ -45,6 +45,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .models import STEP_SLACK_S
+
 PX, PY, V, PSI, OMEGA = 0, 1, 2, 3, 4
 NK = 5  # kinematic states (the only ones CTRV moves); the rest are constant parameters
 
@@ -447,7 +449,7 @@ def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, beta, Wm, Wc, lam, 
     K = 0
     for e in range(E):
         t = times[e]
-        while t - t_now > max_step:  # dead reckoning through gaps, in bounded steps
+        while t - t_now > max_step + STEP_SLACK_S:  # dead reckoning through gaps, in bounded steps
             _predict(X[K], PP[K], X[K + 1], PP[K + 1], max_step, q, beta, Wm, Wc, c, wsum, L5, inv5, pts, prop,
                      dy, FF[K], PK[K], a, qd, geo[6])
             XP[K] = X[K + 1]
