@@ -166,5 +166,20 @@ def test_a_multiplexed_dbc_message_is_decoded_or_refused_clearly(tmp_path: Path)
     log = tmp_path / "mux.log"
     log.write_text("".join(f"({t + i * 0.01:.6f}) can0 100#{'00E8030000000000' if i % 2 == 0 else '01BC020000000000'}\n"
                            for i in range(200)))
-    report = ingest([], tmp_path / "d.h5", config=load_config(), can_logs=[log], dbc=dbc, allow_partial=True)
+    mine = tmp_path / "mux.toml"  # the multiplexed signal as a role: the navigation reads the rows that carry it
+    mine.write_text('base = "default"\n[can.roles]\nsteering_wheel_angle = "SPD.SPEED_A"\n')
+    report = ingest([], tmp_path / "d.h5", config=load_config(mine), can_logs=[log], dbc=dbc, allow_partial=True)
     assert report.can["decoded"] == 200
+    import h5py
+
+    from autosar_cli.store.drive import Drive
+
+    with Drive(tmp_path / "d.h5") as d:
+        t, angle = d.can_role("steering_wheel_angle")
+    assert len(t) == 100 and np.all(angle == 10.0) and np.all(np.diff(t) > 0)
+
+    with h5py.File(tmp_path / "d.h5", "r") as f:  # each frame's row holds the signal its multiplexer selects
+        speed, temp = f["can/SPD/SPEED_A"][()], f["can/SPD/TEMP_B"][()]
+    assert np.array_equal(np.isnan(speed), np.arange(200) % 2 == 1) and np.all(speed[::2] == 10.0)
+    assert np.array_equal(np.isnan(temp), np.arange(200) % 2 == 0)
+    assert np.allclose(temp[1::2], 700 * 0.1 - 40), temp[1]  # 0x2BC at 0.1 degC, -40

@@ -346,20 +346,21 @@ class CanDecoder:
         else:
             raw = m.decode(data, decode_choices=False, scaling=False)
             values = m.decode(data, decode_choices=False, scaling=True)
-        if lay.has_checksum and self.checksum_rule == "fca_giorgio":
+        if lay.has_checksum and self.checksum_rule == "fca_giorgio" and "CHECKSUM" in raw:
             if int(raw["CHECKSUM"]) != giorgio_checksum(m.frame_id, data):
                 st.checksum_errors[m.name] += 1
                 lay.skip_counter()
                 return
-        if lay.has_counter:
+        if lay.has_counter and "COUNTER" in raw:
             c = int(raw["COUNTER"])
             if lay.last_counter is not None and c != (lay.last_counter + 1) % 16:
                 st.counter_errors[m.name] += 1
             lay.last_counter = c
         for name, lo, hi in lay.ranges:  # ROS containers have no checksums: a flipped bit shows here
-            if not lo <= values[name] <= hi:
+            if name in values and not lo <= values[name] <= hi:
                 st.out_of_range[f"{m.name}.{name}"] += 1
-        row = tuple(float(values[n]) * f for n, f in zip(lay.names, lay.factors, strict=True))
+        # a multiplexed message's frame carries only the signals its multiplexer selects: the others NaN in its row
+        row = tuple(float(values.get(n, math.nan)) * f for n, f in zip(lay.names, lay.factors, strict=True))
         stream = lay.stream or self._stream(lay)
         if topic:
             lay.topics.add(topic)

@@ -250,7 +250,9 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
             g = h5["can"][message]
         if message not in can_times:
             can_times[message] = drive.columns(g, ("t_ns",))["t_ns"]
-        return can_times[message], drive.columns(g, (signal,))[signal]
+        values = drive.columns(g, (signal,))[signal]
+        selected = np.isfinite(values)  # a multiplexed signal is NaN in the rows of the message's other values
+        return can_times[message][selected], values[selected]
 
     out = NavInputs(t0, origin, gnss_lever_m=lever)  # type: ignore[arg-type]
     enu = origin.to_enu(fix["latitude_deg"], fix["longitude_deg"], fix["altitude_m"])

@@ -587,7 +587,8 @@ class Drive:
         with dataset_errors(self.path, f"can/{message}"):
             g = self._file["can"][message]
         columns = self.columns(g, ["t_ns", signal])
-        return columns["t_ns"], columns[signal]
+        selected = np.isfinite(columns[signal])  # a multiplexed signal is NaN in the rows of the message's others
+        return columns["t_ns"][selected], columns[signal][selected]
 
     def can_roles(self) -> dict[str, str]:
         return json.loads(self._file["can"].attrs.get("roles", "{}")) if "can" in self._file else {}
