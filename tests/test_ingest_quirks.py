@@ -149,8 +149,9 @@ def test_another_message_with_the_same_number_is_not_decoded_as_the_dbcs(tmp_pat
     report = ingest([], tmp_path / "d.h5", config=load_config(), can_logs=[log], dbc=dbc, allow_partial=True)
     with h5py.File(tmp_path / "d.h5", "r") as f:
         speeds = f["can/SPD/SPEED_A"][()]
-    said = [w for w in report.warnings if "0x100" in w or "SPD" in w]
-    assert said or set(np.round(speeds, 2)) == {10.0}, (np.unique(speeds, return_counts=True), report.warnings)
+    assert len(speeds) == 200 and set(np.round(speeds, 2)) == {10.0}, np.unique(speeds, return_counts=True)
+    said = [w for w in report.warnings if "SPD (0x100) on can1, read from can0 ×200" in w]
+    assert bool(said) == (other == "can1 100"), report.warnings  # an extended 0x00000100 is simply not in the DBC
 
 
 def test_a_multiplexed_dbc_message_is_decoded_or_refused_clearly(tmp_path: Path) -> None:

@@ -231,13 +231,15 @@ class CanStats:
     impossible_ids: int = 0
     #: "MESSAGE.SIGNAL" -> values outside the DBC's [minimum, maximum] (kept: flagged, not dropped)
     out_of_range: Counter[str] = field(default_factory=Counter)
+    #: "MESSAGE (0xID) on BUS, read from BUS" -> its id's frames on a second bus, skipped (another message's)
+    other_bus: Counter[str] = field(default_factory=Counter)
 
     def to_dict(self) -> dict[str, Any]:
         return {"frames": self.frames, "decoded": self.decoded, "unknown_ids": dict(self.unknown_ids),
                 "dlc_mismatch": dict(self.dlc_mismatch), "checksum_errors": dict(self.checksum_errors),
                 "counter_errors": dict(self.counter_errors), "error_frames": self.error_frames,
                 "remote_frames": self.remote_frames, "impossible_ids": self.impossible_ids,
-                "out_of_range": dict(self.out_of_range)}
+                "out_of_range": dict(self.out_of_range), "other_bus": dict(self.other_bus)}
 
 
 def _meaningful_range(sg: Any) -> bool:
@@ -265,6 +267,7 @@ class _CanLayout:
     topics: set[str] = field(default_factory=set)
     #: (signal, minimum, maximum) of the signals whose DBC range is set (0|0 means "not given")
     ranges: list[tuple[str, float, float]] = field(default_factory=list)
+    bus: str | None = None  #: the channel its frames are read from: the first a frame of its id came on
 
     def skip_counter(self) -> None:
         if self.last_counter is not None:
@@ -323,7 +326,9 @@ class CanDecoder:
             st.remote_frames += 1
             return
         lay = self._layouts.get((frame.frame_id, frame.is_extended))
-        if lay is None:
+        if lay is None and frame.frame_id > _MAX_STANDARD_ID:
+            # a DBC may leave out an extended message's flag (opendbc's do); an extended frame of an id a standard
+            # one can have is another message (a J1939 ECU's 0x00000100 beside 0x100), not the DBC's
             lay = self._layouts.get((frame.frame_id, not frame.is_extended))
         if lay is None:
             if frame.frame_id > (_MAX_EXTENDED_ID if frame.is_extended else _MAX_STANDARD_ID):
@@ -332,6 +337,12 @@ class CanDecoder:
                 st.unknown_ids[f"0x{frame.frame_id:X}"] += 1
             return
         m = lay.message
+        if frame.channel:
+            if lay.bus is None:
+                lay.bus = frame.channel
+            elif frame.channel != lay.bus:  # one id on two buses: two messages, of which the DBC describes one
+                st.other_bus[f"{m.name} (0x{m.frame_id:X}) on {frame.channel}, read from {lay.bus}"] += 1
+                return
         data = frame.data
         # a classic frame's DLC 9-15 states its 8 bytes (ISO 11898-1)
         stated = 8 if 8 < frame.dlc <= 15 and len(data) == 8 else frame.dlc

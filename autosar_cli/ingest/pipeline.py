@@ -1067,6 +1067,10 @@ def _plausibility(infos: list[StreamInfo], job: _Ingest) -> None:
     if can.impossible_ids:
         job.warnings.append(f"{can.impossible_ids} CAN frames with an id no frame of theirs can have (a standard id "
                             "over 0x7FF) skipped (damaged data?)")
+    if can.other_bus:
+        job.warnings.append(f"{sum(can.other_bus.values())} CAN frames of a DBC message's id on a second bus skipped "
+                            "(another bus's message of that id; each read from the bus it came on first): "
+                            + ", ".join(f"{k} ×{v}" for k, v in can.other_bus.most_common(4)))
     if can.out_of_range:
         job.warnings.append(f"{sum(can.out_of_range.values())} CAN values outside their DBC range (damaged data?): "
                             + ", ".join(f"{k} ×{v}" for k, v in can.out_of_range.most_common(8)))
