@@ -590,6 +590,9 @@ def navigate(
             us = traj.info["understeer"]
             fitted = f" +- {us['std']:.2g}" if "std" in us else ""
             out.print(f"understeer gradient {us['gradient']:.3g}{fitted} rad per m/s^2: {_lit(us['reason'])}")
+        if traj.info.get("wheel_scale", {}).get("applied"):
+            err.print(f"[yellow]wheels:[/] {escape(traj.info['wheel_scale']['reason'])}", highlight=False,
+                      soft_wrap=True)
         if traj.info.get("wheel_lag", {}).get("applied"):
             lag = traj.info["wheel_lag"]
             out.print(f"wheel speeds moved back by {lag['lag_distance_m']:.3f} +- {lag['std_m']:.2g} m / speed")

@@ -1049,8 +1049,36 @@ def _capture_hint(inputs: list[tuple[Path, str]], job: _Ingest) -> str | None:
     return None
 
 
+#: a topic whose header stamps lie this far (s) from its log times beyond the other topics' (their median) is stamped
+#: on another clock: a boot clock, GPS time's leap seconds (18 s), a sensor's own unsynchronised one
+MAX_CLOCK_DISAGREEMENT_S = 1.0
+
+
+def _clock_disagreements(infos: list[StreamInfo]) -> list[str]:
+    """One warning per topic whose header stamps run on another clock than the other topics' (their offset from
+    the log times, :attr:`SeriesStats.clock_offset_ns`, over :data:`MAX_CLOCK_DISAGREEMENT_S` from the median of
+    the others'): its times are taken as stamped, and the stages would find it nowhere near the rest."""
+    offsets: dict[str, tuple[int, list[str]]] = {}
+    for info in infos:
+        st = info.stats
+        if st is None or not st.received or st.log_time_used >= st.received:  # timed by the log: nothing to compare
+            continue
+        for topic in info.topics:
+            offsets.setdefault(topic, (st.clock_offset_ns, []))[1].append(info.path)
+    if len(offsets) < 3:
+        return []
+    median = statistics.median(o for o, _ in offsets.values())
+    return [f"{topic}: stamped {(offset - median) / 1e9:+.3f} s from the other topics' clock (header stamps against "
+            f"the log's times: a boot clock, GPS time, a sensor's own?): {', '.join(sorted(paths)[:3])} "
+            f"{'hold' if len(paths) > 1 else 'holds'} its times as stamped, the stages find it beside the rest only "
+            "if the clock is right"
+            for topic, (offset, paths) in sorted(offsets.items())
+            if abs(offset - median) > MAX_CLOCK_DISAGREEMENT_S * 1e9]
+
+
 def _plausibility(infos: list[StreamInfo], job: _Ingest) -> None:
     """Warnings for data that decoded but cannot be right (ROS containers carry no checksums)."""
+    job.warnings += _clock_disagreements(infos)
     for info in infos:
         if info.stats is not None and info.stats.late_dropped:
             job.warnings.append(f"{info.path}: {info.stats.late_dropped} message(s) dropped as late: stamped before "

@@ -54,6 +54,8 @@ PROFILE_SPAN_S = 0.06
 MIN_SPEED_MPS = 1.0
 #: A latency elsewhere that fits within this many std of the best makes the fit ambiguous.
 SIGNIFICANT = 3.0
+#: what a fit whose best latency lies at its search's edge says first
+EDGE = "the best fit lies at the search's edge"
 #: A drive with fewer GNSS velocity samples than this (or over less than :data:`MIN_SPAN_S`) is not measured.
 MIN_SAMPLES = 50
 MIN_SPAN_S = 5.0
@@ -210,8 +212,10 @@ def fit_gnss_latency(inputs: NavInputs, table_latency_s: float = 0.0,
         i = min(rivals, key=lambda i: chi2[i])
         ambiguous = (f"a latency {delays[i] * 1000:+.0f} ms from the table's fits within {SIGNIFICANT:g} std too "
                      f"(chi-square {chi2[i]:.1f})")
+    elif k in (0, len(delays) - 1):
+        ambiguous = f"{EDGE}, {best * 1000:+.0f} ms from the table's"
     elif not math.isfinite(std):
-        ambiguous = f"the best fit lies at the search's edge, {best * 1000:+.0f} ms from the table's"
+        ambiguous = f"the fit's profile is flat about its best, {best * 1000:+.0f} ms from the table's"
     # the IMU's own velocity (M the identity) less its slow part, differentiated: the acceleration that measures d
     undelayed = at(0.0)
     fast = project((undelayed[:, 0] + undelayed[:, 4]).reshape(-1))

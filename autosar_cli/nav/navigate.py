@@ -30,8 +30,8 @@ from autosar_cli.nav.baselines import from_truth, gnss_only, straight_line
 from autosar_cli.nav.can_latency import MIN_SAMPLES as MIN_CAN_SAMPLES
 from autosar_cli.nav.can_latency import delayed_can, fit_can_latency
 from autosar_cli.nav.dead_reckoning import dead_reckoned_start
+from autosar_cli.nav.gnss_latency import EDGE, SEARCH_S, delayed_gnss, fit_gnss_latency
 from autosar_cli.nav.gnss_latency import MIN_SPAN_S as MIN_LATENCY_SPAN_S
-from autosar_cli.nav.gnss_latency import delayed_gnss, fit_gnss_latency
 from autosar_cli.nav.gnss_noise import (
     gnss_noise_checked,
     gnss_slow_error_checked,
@@ -56,6 +56,7 @@ from autosar_cli.nav.wheel_speeds import (
     standstill_yaw_rate,
     turning_standstills,
     wheel_gaps,
+    wheel_scale_corrected,
     wheel_scale_error,
     without_restart_windows,
 )
@@ -175,6 +176,11 @@ def gnss_latency_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
         return inputs, {"applied": False, "table_latency_s": table,
                         "reason": f"no 6-DoF IMU (navigation.attitude_imu) or GNSS velocity, or under "
                                   f"{MIN_LATENCY_SPAN_S:g} s of both: the table's latency"}
+    if fit.ambiguous.startswith(EDGE):
+        return inputs, replace(fit, reason=f"{fit.ambiguous}: the table's latency").to_dict() | {"warning": (
+            f"GNSS latency: its velocity fits the IMU {fit.imu}'s best {SEARCH_S * 1000:.0f} ms or more from the "
+            f"table's {table * 1000:g} ms, at the search's edge (its stamps or the IMU's on another clock?): the "
+            "table's latency kept")}
     if fit.ambiguous:
         why = f"{fit.ambiguous}: the table's latency"
     elif not fit.std_s <= nav.gnss_latency_max_std_s:
@@ -184,6 +190,12 @@ def gnss_latency_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
               and abs(fit.change_s) > MIN_GNSS_LATENCY_CHANGE_S):
         why = (f"within {GNSS_LATENCY_SIGNIFICANT:g} std or {MIN_GNSS_LATENCY_CHANGE_S * 1000:g} ms of the table's "
                f"{table * 1000:g} ms: the table's latency")
+    elif table + fit.change_s < -GNSS_LATENCY_SIGNIFICANT * fit.std_s:
+        said = (f"the samples would refer to {-(table + fit.change_s) * 1000:.0f} ms after their stamps against the "
+                f"IMU {fit.imu}'s (+- {fit.std_s * 1000:.0f} ms), which no receiver does: the IMU's stamps late, or "
+                "the GNSS's on another clock?")
+        return inputs, replace(fit, reason=f"{said}: the table's latency").to_dict() | {
+            "warning": f"GNSS latency: {said} The table's latency kept"}
     else:
         return delayed_gnss(inputs, fit.change_s), replace(
             fit, applied=True, reason=f"the samples refer to {(table + fit.change_s) * 1000:.0f} ms before their "
@@ -580,6 +592,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
     if method == "sar-min":
         if why := wheel_scale_error(inputs):
             raise NavInputError(f"{drive_path}: {why}")
+        inputs, wheel_scale = wheel_scale_corrected(inputs)
         inputs, can_latency = can_latency_corrected(inputs, config)
         inputs, gnss_latency = gnss_latency_corrected(inputs, config)
         inputs, gnss_slow_error = gnss_slow_error_checked(inputs, config.navigation.estimate_gnss_noise)
@@ -613,7 +626,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                           covariance=sol.P, rear_slip_gain=slip_gain,
                           info={"updates": sol.updates, "rejected": sol.rejected, "smoothed": smooth,
                                 "understeer": understeer, "rear_slip": rear_slip, "wheel_lag": wheel_lag,
-                                "wheel_radii": wheel_radii, "gnss_noise": gnss_noise,
+                                "wheel_radii": wheel_radii, "wheel_scale": wheel_scale, "gnss_noise": gnss_noise,
                                 "gnss_slow_error": gnss_slow_error, "gnss_latency": gnss_latency,
                                 "can_latency": can_latency,
                                 "gnss_velocity_correlation": velocity_correlation,
@@ -629,7 +642,8 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                                                                                inputs.t0_ns)]})
         if config.navigation.gnss_heading:
             traj.info["gnss_heading"] = gnss_heading_info(sol, inputs)
-        if warnings := gated_streams(sol.updates, sol.rejected):
+        warnings = [gnss_latency["warning"]] if "warning" in gnss_latency else []
+        if warnings := warnings + gated_streams(sol.updates, sol.rejected):
             traj.info["warnings"] = warnings
         traj = with_attitude(traj, attitude, attitude_reason, inputs.t0_ns, config)
     elif method == "ins":

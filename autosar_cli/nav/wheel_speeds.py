@@ -35,7 +35,8 @@ g = -3.8 % at "15 sigma"). A drive that does not excite a term (steady speed: no
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -378,12 +379,16 @@ def without_restart_windows(wheels: Measurements, window_m: float) -> tuple[Meas
 #: few per cent, a unit error far more (km/h read as m/s: 3.6)
 MAX_WHEEL_SCALE_ERROR = 0.2
 SCALE_MIN_SPEED_MPS = 2.0
+#: ... beyond which the wheel speeds are divided by it before the filter, whose four scale states start at 1 with the
+#: table's std (0.4 %): their mean is off by 0.2 % std, a drive's slip moves the median by a few 0.1 %. A wheel scale
+#: 3 / 5 / 10 % off left urban seed 1's track 4.1 / 6.1 / 9.2 cm RMS across once aligned (0.9 as recorded).
+MIN_WHEEL_SCALE_CORRECTION = 0.015
 
 
-def wheel_scale_error(inputs: NavInputs) -> str | None:
-    """Why the wheel speeds cannot be this drive's: their mean over the four wheels against the GNSS's horizontal
-    speed (the median ratio where the GNSS reads above ``SCALE_MIN_SPEED_MPS``, at least 10 samples) off 1 by more
-    than ``MAX_WHEEL_SCALE_ERROR``; else None (or where there is too little to compare)."""
+def wheel_gnss_speed_ratio(inputs: NavInputs) -> tuple[float, int] | None:
+    """The wheel speeds' mean over the four wheels against the GNSS's horizontal speed: the median ratio where the
+    GNSS reads above ``SCALE_MIN_SPEED_MPS``, and over how many samples (at least 10); None where there is too
+    little to compare."""
     wheels, vel = inputs.wheels, inputs.gnss_velocity
     if wheels is None or vel is None or len(wheels.t) < 2:
         return None
@@ -391,12 +396,41 @@ def wheel_scale_error(inputs: NavInputs) -> str | None:
     inside = (gnss_speed > SCALE_MIN_SPEED_MPS) & (vel.t >= wheels.t[0]) & (vel.t <= wheels.t[-1])
     if inside.sum() < 10:
         return None
-    ratio = float(np.median(np.interp(vel.t[inside], wheels.t, wheels.z.mean(axis=1)) / gnss_speed[inside]))
-    if abs(ratio - 1.0) <= MAX_WHEEL_SCALE_ERROR:
+    return float(np.median(np.interp(vel.t[inside], wheels.t, wheels.z.mean(axis=1)) / gnss_speed[inside])), \
+        int(inside.sum())
+
+
+def wheel_scale_error(inputs: NavInputs) -> str | None:
+    """Why the wheel speeds cannot be this drive's: their ratio to the GNSS speed (:func:`wheel_gnss_speed_ratio`)
+    off 1 by more than ``MAX_WHEEL_SCALE_ERROR``; else None (or where there is too little to compare)."""
+    measured = wheel_gnss_speed_ratio(inputs)
+    if measured is None or abs(measured[0] - 1.0) <= MAX_WHEEL_SCALE_ERROR:
         return None
-    return (f"the wheel speeds read {ratio:.3f} times the GNSS speed ({int(inside.sum())} samples above "
+    ratio, n = measured
+    return (f"the wheel speeds read {ratio:.3f} times the GNSS speed ({n} samples above "
             f"{SCALE_MIN_SPEED_MPS:g} m/s): a unit or scale error in the DBC or the config (km/h read as m/s is 3.6), "
             "or another drive's CAN")
+
+
+def wheel_scale_corrected(inputs: NavInputs) -> tuple[NavInputs, dict[str, Any]]:
+    """``inputs`` with the wheel speeds divided by their ratio to the GNSS speed where it is off 1 by more than
+    ``MIN_WHEEL_SCALE_CORRECTION`` (a tyre's radius or the DBC's factor off; the filter's scale states follow a few
+    0.1 %), and what was found."""
+    measured = wheel_gnss_speed_ratio(inputs)
+    if measured is None or inputs.wheels is None:
+        return inputs, {"applied": False, "reason": "too little GNSS speed above "
+                                                    f"{SCALE_MIN_SPEED_MPS:g} m/s to compare the wheels with"}
+    ratio, n = measured
+    if abs(ratio - 1.0) <= MIN_WHEEL_SCALE_CORRECTION:
+        return inputs, {"applied": False, "ratio": round(ratio, 5), "samples": n,
+                        "reason": f"within {MIN_WHEEL_SCALE_CORRECTION:.1%} of the GNSS speed: the filter's scale "
+                                  "states take it"}
+    w = inputs.wheels
+    scaled = replace(inputs, wheels=Measurements(w.name, w.t, w.z / ratio, w.sigma / ratio))
+    return scaled, {"applied": True, "ratio": round(ratio, 5), "samples": n,
+                    "reason": f"the wheel speeds read {ratio:.4f} times the GNSS speed ({n} samples above "
+                              f"{SCALE_MIN_SPEED_MPS:g} m/s; a tyre radius or the DBC's factor {ratio - 1:+.1%} off): "
+                              "divided by that"}
 
 
 STANDSTILL_MIN_S = 1.0  #: a standstill is all four wheels at 0 for at least this long
