@@ -217,6 +217,17 @@ ROS1_SIZE_FIELD = ("tests/test_ingest_damage.py::test_ros1_uncompressed_chunk_wh
                    "data_length")
 ROS1_RUN_ON = ("tests/test_ingest_damage.py::test_ros1_uncompressed_message_whose_length_runs_over_an_indexed_record_"
                "costs_nothing")
+_QUIRKS = "tests/test_ingest_quirks.py::"
+QUIRK_OUTLIVING = _QUIRKS + "test_gnss_outliving_the_imus_and_can_gives_a_trajectory_its_readers_take"
+QUIRK_MUX = _QUIRKS + "test_a_multiplexed_dbc_message_is_decoded_or_refused_clearly"
+QUIRK_SAME_ID = _QUIRKS + "test_another_message_with_the_same_number_is_not_decoded_as_the_dbcs"
+QUIRK_WHEEL_SCALE = _QUIRKS + "test_wheel_speeds_a_few_per_cent_off_are_scaled_to_the_gnss_speed"
+QUIRK_IMU_LATE = _QUIRKS + "test_an_imu_stamped_late_is_not_read_as_a_gnss_latency_after_the_stamps"
+QUIRK_GNSS_EDGE = _QUIRKS + "test_a_gnss_latency_beyond_the_search_is_warned_of"
+QUIRK_CLOCK = _QUIRKS + "test_a_stream_stamped_on_another_clock_is_warned_of"
+NO_FRAME_INSIDE = "tests/test_sar_focus.py::test_a_trajectory_no_radar_frame_lies_inside_is_refused_for_that"
+TRUTH_FIRST = "tests/test_run.py::test_a_truth_sidecar_that_is_none_is_refused_before_the_ingest"
+INFO_FOLD = "tests/test_cli.py::test_info_on_a_narrow_terminal_gives_each_stream_and_type_whole"
 CHOICE_MEANT = "tests/test_cli.py::test_a_misspelt_choice_is_refused_with_the_one_it_likely_meant"
 SET_WHOLE = "tests/test_safety.py::test_a_set_of_products_the_block_replaced_in_part_goes_whole"
 SIM_TOGETHER = "tests/test_safety.py::test_a_simulation_stopped_as_its_log_comes_into_place_puts_its_truth_there_too"
@@ -922,6 +933,35 @@ MUTATIONS: list[Mutation] = [
        "            c, disagree = reconcile(", "            c, disagree = (lambda a, *_: (a, None))(", ROS1_COPIES),
     _m("mdf4-offsets-unchecked", "ingest", "ingest/mdf4_blocks.py", "        if found.holes:\n",
        "        if False:\n", MDF4_OFFSETS),
+    _m("dead-reckoning-steps-onto-an-instant", "sar-min", "nav/sarmin_kernel.py",
+       "        while t - t_now > max_step + STEP_SLACK_S:", "        while t - t_now > max_step:", QUIRK_OUTLIVING),
+    _m("multiplexed-signal-read-from-every-frame", "ingest", "ingest/decoders.py",
+       "float(values.get(n, math.nan)) * f", "float(values[n]) * f", QUIRK_MUX),
+    _m("multiplexed-role-keeps-other-values-rows", "ingest", "store/drive.py",
+       "        selected = np.isfinite(columns[signal])", "        selected = np.ones(len(columns[signal]), bool)",
+       QUIRK_MUX),
+    _m("can-flag-fallback-for-any-id", "ingest", "ingest/decoders.py",
+       "        if lay is None and frame.frame_id > _MAX_STANDARD_ID:", "        if lay is None:", QUIRK_SAME_ID),
+    _m("can-second-bus-read-as-the-first", "ingest", "ingest/decoders.py",
+       "            elif frame.channel != lay.bus:", "            elif False:", QUIRK_SAME_ID),
+    _m("wheel-scale-not-divided", "sar-min", "nav/wheel_speeds.py",
+       "    scaled = replace(inputs, wheels=Measurements(w.name, w.t, w.z / ratio, w.sigma / ratio))",
+       "    scaled = inputs", QUIRK_WHEEL_SCALE),
+    _m("gnss-latency-after-the-stamps-applied", "sar-min", "nav/navigate.py",
+       "    elif table + fit.change_s < -GNSS_LATENCY_SIGNIFICANT * fit.std_s:", "    elif False:", QUIRK_IMU_LATE),
+    _m("gnss-latency-at-the-search-edge-silent", "sar-min", "nav/navigate.py",
+       "    if fit.ambiguous.startswith(EDGE):", "    if False:", QUIRK_GNSS_EDGE),
+    _m("stream-on-another-clock-silent", "ingest", "ingest/pipeline.py",
+       "    job.warnings += _clock_disagreements(infos)", "    job.warnings += []", QUIRK_CLOCK),
+    _m("auto-grid-without-frames", "focus", "sar/focus.py",
+       "    if geometry.frames.size < 2:\n        raise FocusError(f\"{drive_path}: no radar frame lies inside",
+       "    if False:\n        raise FocusError(f\"{drive_path}: no radar frame lies inside", NO_FRAME_INSIDE),
+    _m("run-truth-checked-after-the-ingest", "inputs", "run.py",
+       "    if method == \"truth\" and truth_path is not None:\n        _check_truth(truth_path)",
+       "    if False:\n        _check_truth(truth_path)", TRUTH_FIRST),
+    _m("info-names-cut-short", "inputs", "cli.py",
+       "Table(Column(\"stream\", overflow=\"fold\"), Column(\"type\", overflow=\"fold\"),",
+       "Table(Column(\"stream\"), Column(\"type\"),", INFO_FOLD),
 ]
 
 
