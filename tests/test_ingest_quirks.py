@@ -273,3 +273,33 @@ def test_a_gnss_latency_beyond_the_search_is_warned_of(sim_dir: Path, tmp_path: 
     assert not traj.info["gnss_latency"]["applied"]
     assert [w for w in traj.info.get("warnings", []) if w.startswith("GNSS latency: its velocity fits the IMU ")
             and "at the search's edge" in w], traj.info.get("warnings")
+
+
+def test_fixes_at_0_0_are_not_taken_for_the_drive_s_position(ci_mcap, tmp_path: Path) -> None:
+    """A receiver's first five fixes at 0°, 0° with a status that says fix (its placeholder before its first real
+    one): they were stored and the drive's origin put at 0°, 0°, 4582 km from the car (urban seed 1; the gate then
+    refused 578 of 580 fixes). They are skipped as such, counted, and the drive's fixes are the recording's others."""
+    import h5py
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    seen = {"n": 0}
+
+    def fn(topic: str, t: int, cdr: bytes) -> tuple[int, bytes]:
+        if topic != "/ins_cog/fix":
+            return t, cdr
+        seen["n"] += 1
+        if seen["n"] > 5:
+            return t, cdr
+        msg = store.deserialize_cdr(cdr, "sensor_msgs/msg/NavSatFix")
+        msg.latitude = msg.longitude = msg.altitude = 0.0
+        return t, bytes(store.serialize_cdr(msg, "sensor_msgs/msg/NavSatFix"))
+
+    log = rewrite_mcap(ci_mcap.log_path, tmp_path / "null_island.mcap", fn)
+    report = ingest([log], tmp_path / "d.h5", config=load_config())
+    ingest([ci_mcap.log_path], tmp_path / "ok.h5", config=load_config())
+    with h5py.File(tmp_path / "d.h5", "r") as f, h5py.File(tmp_path / "ok.h5", "r") as g:
+        lat, whole = f["gnss/gnss_cog/fix/latitude_deg"][()], g["gnss/gnss_cog/fix/latitude_deg"][()]
+    assert np.all(lat != 0.0) and np.array_equal(lat, whole[5:]), (lat[:3], whole[:6])
+    fix = next(s for s in report.streams if s["path"] == "gnss/gnss_cog/fix")
+    assert fix["skipped"] == {"at 0°, 0°": 5}, fix

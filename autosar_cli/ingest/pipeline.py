@@ -390,6 +390,8 @@ class _Ingest:
             row = fix_row(m)
             if row is None:
                 stream.skip("no fix")
+            elif row[0] == 0.0 and row[1] == 0.0:  # its status said fix: a receiver's placeholder before its first
+                stream.skip("at 0°, 0°")
             else:
                 stream.push(_stamp_ns(m.header), raw.log_ns, row)
 
