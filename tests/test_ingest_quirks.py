@@ -303,3 +303,42 @@ def test_fixes_at_0_0_are_not_taken_for_the_drive_s_position(ci_mcap, tmp_path: 
     assert np.all(lat != 0.0) and np.array_equal(lat, whole[5:]), (lat[:3], whole[:6])
     fix = next(s for s in report.streams if s["path"] == "gnss/gnss_cog/fix")
     assert fix["skipped"] == {"at 0°, 0°": 5}, fix
+
+
+def test_a_gyro_with_its_sign_turned_is_left_out_by_name(sim_dir: Path, tmp_path: Path) -> None:
+    """One of urban seed 1's four gyros (imu_cog_a) read with its yaw rate's sign turned (mounted upside down, a
+    DBC's sign): the gate refused most of its samples and the warning named the GNSS ('the car's own sensors and the
+    GNSS disagree'), the heading 52.8° off where the gate let it through. The gyro is left out, named, and the track
+    is the one the other three give."""
+    from dataclasses import replace
+
+    from conftest import NAV_ONLY_PRF_HZ, simulated
+    from rosbags.typesys import Stores, get_typestore
+
+    from autosar_cli.evaluate.evaluation import load_truth
+    from autosar_cli.evaluate.trajectory_metrics import trajectory_errors
+    from autosar_cli.nav.navigate import navigate
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+
+    def turned(topic: str, t: int, cdr: bytes) -> tuple[int, bytes]:
+        if topic != "/imu/cog_a":
+            return t, cdr
+        msg = store.deserialize_cdr(cdr, "sensor_msgs/msg/Imu")
+        msg.angular_velocity.z = -msg.angular_velocity.z
+        return t, bytes(store.serialize_cdr(msg, "sensor_msgs/msg/Imu"))
+
+    sim = simulated(sim_dir, "urban", "mcap", 1, prf_hz=NAV_ONLY_PRF_HZ)
+    log = rewrite_mcap(sim.log_path, tmp_path / "turned.mcap", turned)
+    base = load_config()
+    cfg = replace(base, radar=replace(base.radar, prf_hz=NAV_ONLY_PRF_HZ))
+    ingest([log], tmp_path / "d.h5", config=cfg)
+    traj = navigate(tmp_path / "d.h5", "sar-min", cfg)
+    warned = traj.info.get("warnings", [])
+    assert [w for w in warned if w.startswith("gyro imu_cog_a reads the other gyros' yaw rate with its sign turned")]
+    assert not [w for w in warned if "GNSS" in w], warned
+    assert "bias.imu_cog_a" not in traj.state_names
+    truth = load_truth(sim.truth_path, traj.origin, cfg).trajectory
+    t = traj.t_ns[(traj.t_ns > truth.t_ns[0]) & (traj.t_ns < truth.t_ns[-1])][::50]
+    across = float(np.sqrt(np.mean(trajectory_errors(traj, truth, [0, 0, 0], t).aligned_across ** 2)))
+    assert across < 0.015, across

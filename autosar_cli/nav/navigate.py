@@ -123,6 +123,41 @@ def gated_streams(updates: dict[str, int], rejected: dict[str, int]) -> list[str
     return out
 
 
+#: a gyro whose yaw rate correlates with the median of the others' below this reads them with its sign turned; told
+#: only where the drive turns (the others' median varies by over ``MIN_TURNING_RADPS`` RMS)
+FLIPPED_GYRO_CORRELATION = -0.5
+MIN_TURNING_RADPS = 0.02
+
+
+def without_flipped_gyros(inputs: NavInputs) -> tuple[NavInputs, list[str]]:
+    """``inputs`` without each gyro that reads the others' yaw rate with its sign turned (a mounting upside down, a
+    DBC signal's sign), where there are three or more to outvote it, and a warning for each: the filter's gate
+    refused most of its samples and named the GNSS, the heading followed it where the gate let it (52.8° off with one
+    of urban seed 1's four turned)."""
+    gyros = inputs.gyros
+    if len(gyros) < 3:
+        return inputs, []
+    start, end = max(g.t[0] for g in gyros), min(g.t[-1] for g in gyros)
+    grid = gyros[0].t[(gyros[0].t >= start) & (gyros[0].t <= end)]
+    if len(grid) < 10:
+        return inputs, []
+    rates = np.array([np.interp(grid, g.t, g.z[:, 0]) for g in gyros])
+    if np.std(np.median(rates, axis=0)) < MIN_TURNING_RADPS:
+        return inputs, []
+    flipped = {}
+    for i in range(len(gyros)):
+        others = np.median(np.delete(rates, i, axis=0), axis=0)
+        if (c := float(np.corrcoef(rates[i], others)[0, 1])) < FLIPPED_GYRO_CORRELATION:
+            flipped[i] = c
+    if not flipped or len(flipped) > (len(gyros) - 1) // 2:  # no majority left to trust
+        return inputs, []
+    keep = [i for i in range(len(gyros)) if i not in flipped]
+    return replace(inputs, gyros=[gyros[i] for i in keep], gyro_bias_std=[inputs.gyro_bias_std[i] for i in keep],
+                   gyro_bias_walk=[inputs.gyro_bias_walk[i] for i in keep]), [
+        f"gyro {gyros[i].name} reads the other gyros' yaw rate with its sign turned (correlation {c:.2f}): left out "
+        "(its mounting, or its DBC signal's sign?)" for i, c in flipped.items()]
+
+
 #: a span this long without a GNSS fix, and five of the receiver's intervals, is reported (``info["gnss_gaps"]``)
 MIN_GNSS_GAP_S = 2.0
 
@@ -593,6 +628,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
         if why := wheel_scale_error(inputs):
             raise NavInputError(f"{drive_path}: {why}")
         inputs, wheel_scale = wheel_scale_corrected(inputs)
+        inputs, flipped = without_flipped_gyros(inputs)
         inputs, can_latency = can_latency_corrected(inputs, config)
         inputs, gnss_latency = gnss_latency_corrected(inputs, config)
         inputs, gnss_slow_error = gnss_slow_error_checked(inputs, config.navigation.estimate_gnss_noise)
@@ -642,7 +678,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                                                                                inputs.t0_ns)]})
         if config.navigation.gnss_heading:
             traj.info["gnss_heading"] = gnss_heading_info(sol, inputs)
-        warnings = [gnss_latency["warning"]] if "warning" in gnss_latency else []
+        warnings = flipped + ([gnss_latency["warning"]] if "warning" in gnss_latency else [])
         if warnings := warnings + gated_streams(sol.updates, sol.rejected):
             traj.info["warnings"] = warnings
         traj = with_attitude(traj, attitude, attitude_reason, inputs.t0_ns, config)
