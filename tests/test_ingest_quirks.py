@@ -342,3 +342,27 @@ def test_a_gyro_with_its_sign_turned_is_left_out_by_name(sim_dir: Path, tmp_path
     t = traj.t_ns[(traj.t_ns > truth.t_ns[0]) & (traj.t_ns < truth.t_ns[-1])][::50]
     across = float(np.sqrt(np.mean(trajectory_errors(traj, truth, [0, 0, 0], t).aligned_across ** 2)))
     assert across < 0.015, across
+
+
+def test_a_capture_is_not_taken_for_a_topic_on_another_clock(tmp_path: Path) -> None:
+    """A recorder whose clock runs 5 s ahead of the one every header is stamped on (each topic 5 s off its log times
+    alike), with a DCA1000 capture timed by the sync topic's stamps: the capture was compared as if stamped on its
+    log times ('ci.dca1000: stamped +5.000 s from the other topics' clock'), the drive 'degraded', where its frames
+    lie where the recording's do. A capture has no log times of its own: it is left out of the comparison."""
+    import json
+
+    import h5py
+    from typer.testing import CliRunner
+
+    from autosar_cli.cli import app
+
+    r = CliRunner().invoke(app, ["simulate", "-s", "ci", "--seed", "7", "-f", "dca1000", "--dynamics", "kinematic",
+                                 "-o", str(tmp_path / "ci.mcap"), "--json"])
+    assert r.exit_code == 0, r.output
+    capture = tmp_path / json.loads(r.stdout)["radar_capture"]
+    ahead = rewrite_mcap(tmp_path / "ci.mcap", tmp_path / "ahead.mcap", lambda topic, t, cdr: (t + 5 * 10**9, cdr))
+    report = ingest([ahead], tmp_path / "d.h5", config=load_config(), radar_captures=[capture])
+    assert not [w for w in report.warnings if "from the other topics' clock" in w], report.warnings
+    with h5py.File(tmp_path / "d.h5", "r") as f:  # the frames where the recording's streams are: nothing to warn of
+        radar, imu = f["radar/scanbrick_w43/t_ns"][()], f["imu/ins_radar/t_ns"][()]
+    assert abs(int(radar[0]) - int(imu[0])) < 10**7 and abs(int(radar[-1]) - int(imu[-1])) < 10**7

@@ -52,6 +52,7 @@ from .decoders import (
 from .inputs import InputError, SortedInputs
 from .inputs import sort_inputs as _sort_inputs
 from .radar_block import (
+    CAPTURE_MSGTYPE,
     RadarParamsError,
     Recorded,
     capture_frame_starts,
@@ -496,7 +497,7 @@ class _Ingest:
             raise IngestError(f"{path}: the drive already has radar {name} from a log; give one radar source")
         attrs = resolve(recorded_from_capture(cap), self.config.radar, what=str(path),
                         override=self.radar_options.override, warn=self.warnings.append)
-        attrs.update({"topic": "", "msgtype": "TI DCA1000 capture", "source_file": str(path), "sensor": name,
+        attrs.update({"topic": "", "msgtype": CAPTURE_MSGTYPE, "source_file": str(path), "sensor": name,
                       "start_time_source": f"topic {self.radar_options.sync_topic}, a trigger per frame"
                       if cap.params.hardware_trigger else "--radar-start" if self.radar_options.start_ns is not None
                       else f"topic {self.radar_options.sync_topic}",
@@ -1064,6 +1065,8 @@ def _clock_disagreements(infos: list[StreamInfo]) -> list[str]:
     for info in infos:
         st = info.stats
         if st is None or not st.received or st.log_time_used >= st.received:  # timed by the log: nothing to compare
+            continue
+        if info.msgtype == CAPTURE_MSGTYPE:  # no log times: its frames on the sync topic's clock or --radar-start's
             continue
         for topic in info.topics:
             offsets.setdefault(topic, (st.clock_offset_ns, []))[1].append(info.path)

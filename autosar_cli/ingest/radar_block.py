@@ -25,6 +25,8 @@ from .decoders import FrameGaps, StreamInfo, frame_statistics, implausible_frame
 from .series import SeriesStats
 
 OVERRIDE_OPTION = "--radar-override"
+#: a DCA1000 capture's stream type: no log times of its own (its frames timed by the sync topic or --radar-start)
+CAPTURE_MSGTYPE = "TI DCA1000 capture"
 _REL_TOL = 1e-6
 _TIME_TOL_S = 1e-9
 
@@ -280,7 +282,7 @@ def write_capture_stream(writer: DriveWriter, path: str, cap: Dca1000Capture, fr
         stats.skipped["trailing partial frame"] = 1
     if done > written:
         stats.skipped["PRIs holding data the DCA1000 lost"] = done - written
-    info = StreamInfo(path, "radar", topics={str(cap.path)}, msgtype="TI DCA1000 capture", stats=stats)
+    info = StreamInfo(path, "radar", topics={str(cap.path)}, msgtype=CAPTURE_MSGTYPE, stats=stats)
     info.extra["missing_frames"] = gaps.missing
     flagged = implausible_frames(np.concatenate(frame_stats)) if frame_stats else []
     if len(flagged):
