@@ -480,7 +480,7 @@ def ingest(
         can = report.can
         problems = {k: sum(v.values()) if isinstance(v, dict) else v for k in (
             "unknown_ids", "impossible_ids", "dlc_mismatch", "checksum_errors", "counter_errors", "error_frames",
-            "remote_frames", "out_of_range") if (v := can.get(k))}
+            "remote_frames", "out_of_range", "other_bus") if (v := can.get(k))}
         if can.get("frames"):
             out.print(f"CAN: {can['frames']} frames, {can['decoded']} decoded"
                       + "".join(f", {k.replace('_', ' ')} {v}" for k, v in problems.items()))

@@ -366,3 +366,28 @@ def test_a_capture_is_not_taken_for_a_topic_on_another_clock(tmp_path: Path) -> 
     with h5py.File(tmp_path / "d.h5", "r") as f:  # the frames where the recording's streams are: nothing to warn of
         radar, imu = f["radar/scanbrick_w43/t_ns"][()], f["imu/ins_radar/t_ns"][()]
     assert abs(int(radar[0]) - int(imu[0])) < 10**7 and abs(int(radar[-1]) - int(imu[-1])) < 10**7
+
+
+def test_a_can_log_whose_every_frame_came_on_a_second_bus_says_so(tmp_path: Path) -> None:
+    """A drive's CAN split over two candump files whose logger named its interface can0, then can1 (an adapter
+    plugged in again): every frame of the second is skipped as another bus's message of that id. Its 'nothing of it
+    is in the drive' said 'none of its 100 CAN frames decoded (the CAN counts say why)', and the counts ingest prints
+    ('CAN: 200 frames, 100 decoded') left the second bus out: neither said why."""
+    from typer.testing import CliRunner
+
+    from autosar_cli.cli import app
+
+    dbc = tmp_path / "spd.dbc"
+    dbc.write_text(_DBC)
+    t = 1_700_000_000.0
+    first, second = tmp_path / "part1.log", tmp_path / "part2.log"
+    first.write_text("".join(f"({t + i * 0.01:.6f}) can0 100#{_speed_frame(1000)}\n" for i in range(100)))
+    second.write_text("".join(f"({t + 1 + i * 0.01:.6f}) can1 100#{_speed_frame(1000)}\n" for i in range(100)))
+    report = ingest([], tmp_path / "d.h5", config=load_config(), can_logs=[first, second], dbc=dbc,
+                    allow_partial=True)
+    assert report.can["decoded"] == 100 and report.can["other_bus"] == {"SPD (0x100) on can1, read from can0": 100}
+    assert f"{second}: nothing of it is in the drive: none of its 100 CAN frames decoded: 100 on a second bus " \
+           "(SPD (0x100) on can1, read from can0)" in report.warnings, report.warnings
+    r = CliRunner().invoke(app, ["ingest", str(first), str(second), "--dbc", str(dbc), "--allow-partial", "-o",
+                                 str(tmp_path / "e.h5")], env={"COLUMNS": "200"})
+    assert r.exit_code == 0 and "CAN: 200 frames, 100 decoded, other bus 100" in r.stdout, r.output

@@ -624,7 +624,8 @@ class _Ingest:
         """What :meth:`check_used` compares, so far."""
         st = self.can.stats
         series = [s for _, s in self.named_series()]
-        return _Tally(dataclasses.replace(st, unknown_ids=Counter(st.unknown_ids)), set(self.skipped_channels),
+        return _Tally(dataclasses.replace(st, unknown_ids=Counter(st.unknown_ids), other_bus=Counter(st.other_bus)),
+                      set(self.skipped_channels),
                       len(self.sync_stamps), sum(s.stats.duplicates for s in series),
                       sum(s.stats.late_dropped + s.stats.stamp_outliers for s in series), self.bad_messages.total(),
                       sum(rows for s in series for *_, rows in s.inputs))
@@ -652,6 +653,8 @@ class _Ingest:
             unknown = can.unknown_ids - was.unknown_ids
             ids = ", ".join(k for k, _ in unknown.most_common(5))
             parts = [f"{unknown.total()} with an ID not in the DBC {self.dbc_path} ({ids})" if unknown else "",
+                     f"{other.total()} on a second bus ({', '.join(k for k, _ in other.most_common(3))})"
+                     if (other := can.other_bus - was.other_bus) else "",
                      f"{can.error_frames - was.error_frames} error frames" if can.error_frames > was.error_frames
                      else "",
                      f"{can.remote_frames - was.remote_frames} remote frames" if can.remote_frames > was.remote_frames
