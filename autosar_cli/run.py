@@ -105,8 +105,8 @@ def run(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *, meth
     check_output(out, inputs, overwrite=overwrite, directory=True)
     check_products(out, [DRIVE, TRAJECTORY, "run.json", f"{IMAGE}.tif", f"{IMAGE}.h5", f"{IMAGE}.png"], inputs,
                    overwrite=overwrite or (replace_unfinished and unfinished))
-    if method == "truth" and truth_path is not None:
-        _check_truth(truth_path)
+    if method == "truth":
+        _check_truth(truth_path, given)
     from autosar_cli.ingest.pipeline import capture_files
 
     # a capture named by its parameter file is its data files too
@@ -208,11 +208,16 @@ def _status(manifest_path: Path) -> str | None:
         return None
 
 
-def _check_truth(truth_path: str | Path) -> None:
-    """Refuse, before the ingest, a truth sidecar that is none (another file, not HDF5, missing): navigate would,
-    after the ingest's minutes. Whether it is this recording's truth needs the drive (navigate checks that)."""
-    from autosar_cli.sim.truth import open_truth
+def _check_truth(truth_path: str | Path | None, given: Sequence[str | Path]) -> None:
+    """Refuse, before the ingest, a truth sidecar that is none (another file, not HDF5, missing), or, where none is
+    given, inputs with none beside them (navigate's default, :func:`~autosar_cli.sim.truth.truth_sidecar_of`):
+    navigate would, after the ingest's minutes. Whether it is this recording's truth needs the drive (navigate checks
+    that)."""
+    from autosar_cli.sim.truth import open_truth, truth_sidecar_of
 
+    if truth_path is None and (truth_path := truth_sidecar_of(given)) is None:
+        raise RunError(f"{', '.join(str(p) for p in given)}: no truth sidecar (<log>.truth.h5) beside the inputs; "
+                       "give --truth LOG.truth.h5")
     try:
         with open_truth(truth_path):
             pass

@@ -225,3 +225,20 @@ def test_a_truth_sidecar_that_is_none_is_refused_before_the_ingest(given: str, c
     with pytest.raises(RunError, match=f"^{truth}: {said}$"):
         run([ci_mcap.log_path], out, load_config(), method="truth", truth_path=truth)
     assert not out.exists()
+
+
+def test_run_m_truth_with_no_sidecar_beside_its_log_is_refused_before_the_ingest(ci_mcap, tmp_path: Path) -> None:
+    """`run -m truth` without --truth on a log with no <log>.truth.h5 beside it: the ingest ran whole, then navigate
+    said 'out/drive.h5: no truth sidecar found', leaving drive.h5 and a failed run.json (the check before the ingest
+    took only a --truth given); now refused first, nothing written."""
+    import shutil
+
+    from autosar_cli.run import run
+
+    lone = tmp_path / "lone.mcap"
+    shutil.copy(ci_mcap.log_path, lone)
+    out = tmp_path / "run"
+    with pytest.raises(RunError, match=f"^{lone}: no truth sidecar \\(<log>.truth.h5\\) beside the inputs; give "
+                                       "--truth LOG.truth.h5$"):
+        run([lone], out, load_config(), method="truth")
+    assert not out.exists()

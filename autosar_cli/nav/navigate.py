@@ -177,16 +177,12 @@ def gnss_gaps(inputs: NavInputs) -> list[dict[str, float | int]]:
 
 def default_truth_path(drive: Drive) -> Path | None:
     """``<log>.truth.h5`` next to the first input log of the drive, if it exists."""
-    from autosar_cli.sim.truth import truth_path_for
+    from autosar_cli.sim.truth import truth_sidecar_of
 
     if "provenance/inputs" not in drive.h5:
         return None
-    for row in drive.h5["provenance/inputs"][()]:
-        path = row["path"].decode() if isinstance(row["path"], bytes) else str(row["path"])
-        candidate = truth_path_for(Path(path))
-        if candidate.exists():
-            return candidate
-    return None
+    return truth_sidecar_of(row["path"].decode() if isinstance(row["path"], bytes) else str(row["path"])
+                            for row in drive.h5["provenance/inputs"][()])
 
 
 def _shows(change: float, std: float, minimum: float) -> bool:

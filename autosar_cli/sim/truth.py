@@ -27,6 +27,7 @@ Layout (format ``autosar-truth`` version 1; every array in SI units, ENU metres 
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -48,6 +49,11 @@ FORMAT_VERSION = 1
 
 def truth_path_for(log_path: Path) -> Path:
     return log_path.with_name(log_path.name + ".truth.h5")
+
+
+def truth_sidecar_of(log_paths: Iterable[str | Path]) -> Path | None:
+    """The ``<log>.truth.h5`` beside the first of ``log_paths`` that has one (a drive's default truth), or None."""
+    return next((c for p in log_paths if (c := truth_path_for(Path(p))).exists()), None)
 
 
 class TruthWriter:
