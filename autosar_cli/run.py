@@ -215,6 +215,8 @@ def _check_truth(truth_path: str | Path | None, given: Sequence[str | Path]) -> 
     that)."""
     from autosar_cli.sim.truth import open_truth, truth_sidecar_of
 
+    if truth_path is None and any(Path(p).is_dir() for p in given):
+        return  # a drive folder's sidecar lies beside one of the files in it: navigate looks among those
     if truth_path is None and (truth_path := truth_sidecar_of(given)) is None:
         raise RunError(f"{', '.join(str(p) for p in given)}: no truth sidecar (<log>.truth.h5) beside the inputs; "
                        "give --truth LOG.truth.h5")
