@@ -394,13 +394,13 @@ def test_a_can_log_whose_every_frame_came_on_a_second_bus_says_so(tmp_path: Path
 
 
 @pytest.mark.parametrize("frames", [98, 99])
-def test_wheel_speeds_multiplexed_apart_are_refused_by_name(ci_mcap, tmp_path: Path, frames: int) -> None:
+def test_wheel_speeds_multiplexed_apart_are_read_at_one_wheels_instants(ci_mcap, tmp_path: Path, frames: int) -> None:
     """A DBC whose wheel-speed message is multiplexed (FL and FR with the multiplexer 0, RL and RR with 1), now that
     ingest decodes such a message: the navigation stacked the four roles' values row by row. An odd number of frames
     (50 and 49 rows) failed with numpy's 'all input arrays must have the same shape', naming nothing; an even one
     paired each front wheel's sample with a rear wheel's of the next frame, taken at the front's time, without a
-    word. Four wheel speeds not sampled together are refused, naming the roles."""
-    from autosar_cli.nav.inputs import NavInputError, load_inputs
+    word. Wheels sampled at other instants than the front left's are read at its instants (interpolated)."""
+    from autosar_cli.nav.inputs import load_inputs
     from autosar_cli.store.drive import Drive
 
     dbc = tmp_path / "wheels.dbc"
@@ -417,11 +417,19 @@ def test_wheel_speeds_multiplexed_apart_are_refused_by_name(ci_mcap, tmp_path: P
     with open(ci_mcap.log_path, "rb") as f:
         start = make_reader(f).get_summary().statistics.message_start_time / 1e9
     log = tmp_path / "wheels.log"
-    speeds = bytes([0xE8, 3, 0xE8, 3, 0, 0, 0]).hex()  # 10 m/s each
-    log.write_text("".join(f"({start + 0.005 + i * 0.01:.6f}) can0 300#{i % 2:02x}{speeds}\n" for i in range(frames)))
+    def frame(i: int) -> str:  # the car speeding up by 0.5 m/s a frame: a rear sample of the next frame reads more
+        raw = 1000 + 50 * i
+        return bytes([i % 2, raw & 0xFF, raw >> 8, raw & 0xFF, raw >> 8, 0, 0, 0]).hex()
+
+    log.write_text("".join(f"({start + 0.005 + i * 0.01:.6f}) can0 300#{frame(i)}\n" for i in range(frames)))
     cfg = load_config(mine)
     ingest([ci_mcap.log_path], tmp_path / "d.h5", config=cfg, can_logs=[log], allow_partial=True)
-    with Drive(tmp_path / "d.h5") as d, pytest.raises(NavInputError, match=(
-            r"d\.h5: the wheel speeds are not sampled together: wheel_speed_rl \(WHEELS/RL\), wheel_speed_rr "
-            r"\(WHEELS/RR\) at other times than wheel_speed_fl \(WHEELS/FL\)")):
-        load_inputs(d, cfg)
+    with Drive(tmp_path / "d.h5") as d:
+        wheels = load_inputs(d, cfg).wheels
+    assert wheels is not None and len(wheels.t) == (frames + 1) // 2
+    front = 10.0 + 0.5 * np.arange(0, frames, 2)
+    assert np.allclose(wheels.z[:, 0], front) and np.allclose(wheels.z[:, 1], front)
+    # the rear wheels at the front's instants: between their frames before and after (the first: their first; with
+    # an odd count the front's last frame comes after the rear's last)
+    inside = slice(1, frames // 2)
+    assert np.allclose(wheels.z[inside, 2:], front[inside, None]) and np.allclose(wheels.z[0, 2:], 10.5), wheels.z[:3]

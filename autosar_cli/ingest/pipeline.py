@@ -1075,13 +1075,15 @@ def _clock_disagreements(infos: list[StreamInfo]) -> list[str]:
             offsets.setdefault(topic, (st.clock_offset_ns, []))[1].append(info.path)
     if len(offsets) < 3:
         return []
-    median = statistics.median(o for o, _ in offsets.values())
-    return [f"{topic}: stamped {(offset - median) / 1e9:+.3f} s from the other topics' clock (header stamps against "
-            f"the log's times: a boot clock, GPS time, a sensor's own?): {', '.join(sorted(paths)[:3])} "
-            f"{'hold' if len(paths) > 1 else 'holds'} its times as stamped, the stages find it beside the rest only "
-            "if the clock is right"
-            for topic, (offset, paths) in sorted(offsets.items())
-            if abs(offset - median) > MAX_CLOCK_DISAGREEMENT_S * 1e9]
+    out = []
+    for topic, (offset, paths) in sorted(offsets.items()):
+        others = statistics.median(o for t, (o, _) in offsets.items() if t != topic)
+        if abs(offset - others) > MAX_CLOCK_DISAGREEMENT_S * 1e9:
+            out.append(f"{topic}: stamped {(offset - others) / 1e9:+.3f} s from the other topics' clock (header stamps "
+                       f"against the log's times: a boot clock, GPS time, a sensor's own?): "
+                       f"{', '.join(sorted(paths)[:3])} {'hold' if len(paths) > 1 else 'holds'} its times as stamped, "
+                       "the stages find it beside the rest only if the clock is right")
+    return out
 
 
 def _plausibility(infos: list[StreamInfo], job: _Ingest) -> None:

@@ -78,6 +78,8 @@ class GnssLatencyFit:
     #: where another latency fits within SIGNIFICANT std of the best, away from its dip (or the best is at the search's
     #: edge): which; "" where the fit is unambiguous
     ambiguous: str = ""
+    #: the chi-square of the table's latency over the best one's: how much worse the table fits
+    table_chi2: float = 0.0
     applied: bool = False
     reason: str = ""
 
@@ -222,7 +224,7 @@ def fit_gnss_latency(inputs: NavInputs, table_latency_s: float = 0.0,
     accel = np.gradient(fast.reshape(-1, 2), tg, axis=0)
     return GnssLatencyFit(imu.name, table_latency_s, best, std, int(len(tg)),
                           float(np.sqrt(np.mean(np.sum(accel**2, axis=-1)))), float(np.sqrt(np.mean(res**2))),
-                          ambiguous=ambiguous)
+                          ambiguous=ambiguous, table_chi2=float(chi2[int(np.argmin(np.abs(delays)))]))
 
 
 def delayed_gnss(inputs: NavInputs, change_s: float) -> NavInputs:

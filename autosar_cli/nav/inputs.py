@@ -316,12 +316,8 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
     if wheels_cfg and all(f"wheel_speed_{w}" in roles for w in ("fl", "fr", "rl", "rr")):
         read = {w: can_role(f"wheel_speed_{w}") for w in ("fl", "fr", "rl", "rr")}
         t_ns = read["fl"][0]
-        if apart := [f"wheel_speed_{w} ({roles[f'wheel_speed_{w}']})" for w in ("fr", "rl", "rr")
-                     if not np.array_equal(read[w][0], t_ns)]:  # another message's, or another multiplexer value's
-            raise NavInputError(f"{drive.path}: the wheel speeds are not sampled together: {', '.join(apart)} at "
-                                f"other times than wheel_speed_fl ({roles['wheel_speed_fl']}); the four must come in "
-                                "the same frames")
-        z = np.stack([read[w][1] for w in ("fl", "fr", "rl", "rr")], axis=1)
+        # a wheel in another message, or under another multiplexer value, is read at the front left's instants
+        z = np.stack([v if np.array_equal(t, t_ns) else np.interp(t_ns, t, v) for t, v in read.values()], axis=1)
         s = config.sensors[wheels_cfg]
         q = lsb_of(z[:, 0])
         noise = s.wheel.noise_std_mps if s.wheel else 0.01

@@ -383,7 +383,8 @@ def _run_kernel(inputs: NavInputs, config: Config, smooth: bool, sources: list[t
         try:
             T, X, PP, XP, FF, PK, DT, used, rejected = kern.run_filter(
                 times[order], ev_kind, zs, sig, t_start, x0, P0, q, beta, wm, wc, lam, ng, geo, scale_i, steer_i,
-                gnss_i, heading_i, nav.steering_min_speed_mps, gates, nav.max_step_s, math.fsum(wm), steer_hold)
+                gnss_i, heading_i, nav.steering_min_speed_mps, gates, nav.max_step_s, m.STEP_SLACK_S, math.fsum(wm),
+                steer_hold)
         except np.linalg.LinAlgError as exc:  # the covariance lost its square root: numbers far off the drive's
             raise NavInputError(f"the filter failed ({exc}): a process noise (navigation.*_noise_*) or a sensor's "
                                 "error table far off what the drive shows?") from exc

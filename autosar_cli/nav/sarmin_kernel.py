@@ -45,8 +45,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .models import STEP_SLACK_S
-
 PX, PY, V, PSI, OMEGA = 0, 1, 2, 3, 4
 NK = 5  # kinematic states (the only ones CTRV moves); the rest are constant parameters
 
@@ -398,10 +396,12 @@ def _update_sum(x, P, z, sigma, i, j, circular, gate, ph):  # noqa: ANN001, ANN2
 
 @njit(cache=True)
 def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, beta, Wm, Wc, lam, ng, geo, scale_i, steer_i,  # noqa: ANN001, ANN201
-               gnss_i, heading_i, steer_min_speed, gates, max_step, wsum, steer_hold):
+               gnss_i, heading_i, steer_min_speed, gates, max_step, step_slack, wsum, steer_hold):
     """Filter all events in time order; one stored state per distinct instant.
 
     ``steer_hold`` (n,) bool: the states a steering update leaves alone (see :func:`_update_nl`).
+    ``step_slack`` (s): a bounded step of ``max_step`` is taken only where it leaves more than this to the next
+    instant (:data:`.models.STEP_SLACK_S`; an argument, not a global, so that a cached kernel cannot keep an old one).
 
     Returns ``T, X, PP`` (node times, filtered states and covariances), ``XP, FF, PK, DT`` (per step
     k -> k+1: predicted state, linearised kinematic transition, predicted kinematic covariance, dt) and
@@ -449,7 +449,7 @@ def run_filter(times, kinds, zs, sigmas, t_start, x0, P0, q, beta, Wm, Wc, lam, 
     K = 0
     for e in range(E):
         t = times[e]
-        while t - t_now > max_step + STEP_SLACK_S:  # dead reckoning through gaps, in bounded steps
+        while t - t_now > max_step + step_slack:  # dead reckoning through gaps, in bounded steps
             _predict(X[K], PP[K], X[K + 1], PP[K + 1], max_step, q, beta, Wm, Wc, c, wsum, L5, inv5, pts, prop,
                      dy, FF[K], PK[K], a, qd, geo[6])
             XP[K] = X[K + 1]

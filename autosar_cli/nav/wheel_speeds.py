@@ -416,8 +416,11 @@ def wheel_scale_corrected(inputs: NavInputs) -> tuple[NavInputs, dict[str, Any]]
     """``inputs`` with the wheel speeds divided by their ratio to the GNSS speed where it is off 1 by more than
     ``MIN_WHEEL_SCALE_CORRECTION`` (a tyre's radius or the DBC's factor off; the filter's scale states follow a few
     0.1 %), and what was found."""
+    if inputs.wheels is None or inputs.gnss_velocity is None:
+        return inputs, {"applied": False, "reason": f"no {'wheel speeds' if inputs.wheels is None else 'GNSS velocity'}"
+                                                    " to compare"}
     measured = wheel_gnss_speed_ratio(inputs)
-    if measured is None or inputs.wheels is None:
+    if measured is None:
         return inputs, {"applied": False, "reason": "too little GNSS speed above "
                                                     f"{SCALE_MIN_SPEED_MPS:g} m/s to compare the wheels with"}
     ratio, n = measured
@@ -425,6 +428,9 @@ def wheel_scale_corrected(inputs: NavInputs) -> tuple[NavInputs, dict[str, Any]]
         return inputs, {"applied": False, "ratio": round(ratio, 5), "samples": n,
                         "reason": f"within {MIN_WHEEL_SCALE_CORRECTION:.1%} of the GNSS speed: the filter's scale "
                                   "states take it"}
+    if abs(ratio - 1.0) > MAX_WHEEL_SCALE_ERROR:  # a unit, not a scale: refused (wheel_scale_error), not mended
+        return inputs, {"applied": False, "ratio": round(ratio, 5), "samples": n,
+                        "reason": f"over {MAX_WHEEL_SCALE_ERROR:.0%} off the GNSS speed: not a tyre's scale"}
     w = inputs.wheels
     scaled = replace(inputs, wheels=Measurements(w.name, w.t, w.z / ratio, w.sigma / ratio))
     return scaled, {"applied": True, "ratio": round(ratio, 5), "samples": n,
