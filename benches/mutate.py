@@ -938,7 +938,7 @@ MUTATIONS: list[Mutation] = [
     _m("multiplexed-signal-read-from-every-frame", "ingest", "ingest/decoders.py",
        "float(values.get(n, math.nan)) * f", "float(values[n]) * f", QUIRK_MUX),
     _m("multiplexed-role-keeps-other-values-rows", "ingest", "store/drive.py",
-       "        selected = np.isfinite(columns[signal])", "        selected = np.ones(len(columns[signal]), bool)",
+       "        selected = np.isfinite(values)", "        selected = np.ones(len(values), bool)",
        QUIRK_MUX),
     _m("can-flag-fallback-for-any-id", "ingest", "ingest/decoders.py",
        "        if lay is None and frame.frame_id > _MAX_STANDARD_ID:", "        if lay is None:", QUIRK_SAME_ID),

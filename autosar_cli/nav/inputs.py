@@ -19,7 +19,6 @@ from autosar_cli.config import Config, GnssErrors
 from autosar_cli.nav.frames import gravity_tilt_deg, levelling_pitch_roll_deg, sensor_to_body
 from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.store.drive import Drive
-from autosar_cli.store.hdf5_read import dataset_errors
 
 Array = NDArray[np.float64]
 
@@ -242,17 +241,8 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
     can_times: dict[str, np.ndarray] = {}
 
     def can_role(role: str) -> tuple[np.ndarray, np.ndarray]:
-        """Like :meth:`Drive.can_role`, reading each message's time stamps once."""
-        if role not in roles:
-            return drive.can_role(role)  # raises the KeyError naming the known roles
-        message, signal = roles[role].split("/")
-        with dataset_errors(drive.path, f"/can/{message}"):
-            g = h5["can"][message]
-        if message not in can_times:
-            can_times[message] = drive.columns(g, ("t_ns",))["t_ns"]
-        values = drive.columns(g, (signal,))[signal]
-        selected = np.isfinite(values)  # a multiplexed signal is NaN in the rows of the message's other values
-        return can_times[message][selected], values[selected]
+        """:meth:`Drive.can_role`, reading each message's time stamps once."""
+        return drive.can_role(role, can_times)
 
     out = NavInputs(t0, origin, gnss_lever_m=lever)  # type: ignore[arg-type]
     enu = origin.to_enu(fix["latitude_deg"], fix["longitude_deg"], fix["altitude_m"])

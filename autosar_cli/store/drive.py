@@ -578,17 +578,21 @@ class Drive:
         self._intact_rows[group.name] = intact
         return intact
 
-    def can_role(self, role: str) -> tuple[np.ndarray, np.ndarray]:
-        """(t_ns, value in SI units) of a CAN signal by its role in the vehicle config (``wheel_speed_fl``)."""
+    def can_role(self, role: str, times: dict[str, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(t_ns, value in SI units) of a CAN signal by its role in the vehicle config (``wheel_speed_fl``), the rows
+        that carry it; ``times``: each message's time stamps by its group, read once across calls."""
         roles = self.can_roles()
         if role not in roles:
             raise KeyError(f"{self.path}: no CAN signal has the role {role!r} (known: {', '.join(sorted(roles))})")
         message, signal = roles[role].split("/")
         with dataset_errors(self.path, f"can/{message}"):
             g = self._file["can"][message]
-        columns = self.columns(g, ["t_ns", signal])
-        selected = np.isfinite(columns[signal])  # a multiplexed signal is NaN in the rows of the message's others
-        return columns["t_ns"][selected], columns[signal][selected]
+        times = {} if times is None else times
+        if message not in times:
+            times[message] = self.columns(g, ["t_ns"])["t_ns"]
+        values = self.columns(g, [signal])[signal]
+        selected = np.isfinite(values)  # a multiplexed signal is NaN in the rows of the message's other values
+        return times[message][selected], values[selected]
 
     def can_roles(self) -> dict[str, str]:
         return json.loads(self._file["can"].attrs.get("roles", "{}")) if "can" in self._file else {}
