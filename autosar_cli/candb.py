@@ -28,6 +28,7 @@ import cantools
 from cantools.database.can import Database, Signal
 
 __all__ = [
+    "DBC_UNITS",
     "DbcError",
     "FrameCheck",
     "check_frame",
@@ -57,15 +58,22 @@ _GIORGIO_FINAL_XOR = {0xDE: 0x10, 0x106: 0xF6, 0x122: 0xF1}
 _GIORGIO_DEFAULT_XOR = 0x0A
 
 
-# DBC units that are not SI -> (factor to SI, SI unit). Degrees and km/h live only at this edge.
-_TO_SI: dict[str, tuple[float, str]] = {
+#: DBC units that are not SI -> (factor to SI, SI unit). Degrees and km/h live only at this edge.
+DBC_UNITS: dict[str, tuple[float, str]] = {
     "deg": (math.pi / 180.0, "rad"),
     "°": (math.pi / 180.0, "rad"),
+    "degree": (math.pi / 180.0, "rad"),
+    "degrees": (math.pi / 180.0, "rad"),
     "deg/s": (math.pi / 180.0, "rad/s"),
     "°/s": (math.pi / 180.0, "rad/s"),
+    "deg/sec": (math.pi / 180.0, "rad/s"),
+    "degree/s": (math.pi / 180.0, "rad/s"),
+    "degrees/s": (math.pi / 180.0, "rad/s"),
     "km/h": (1.0 / 3.6, "m/s"),
     "kph": (1.0 / 3.6, "m/s"),
     "kmh": (1.0 / 3.6, "m/s"),
+    "km/hr": (1.0 / 3.6, "m/s"),
+    "mph": (0.44704, "m/s"),
     "km": (1000.0, "m"),
     "m/s2": (1.0, "m/s^2"),
     "m/s²": (1.0, "m/s^2"),
@@ -78,7 +86,7 @@ def si_unit(unit: str | None) -> tuple[float, str]:
 
     Latitude/longitude keep degrees (they are coordinates, not angles of the vehicle): see :func:`si_factor`.
     """
-    return _TO_SI.get((unit or "").strip().lower(), (1.0, (unit or "").strip()))
+    return DBC_UNITS.get((unit or "").strip().lower(), (1.0, (unit or "").strip()))
 
 
 _GEODETIC = re.compile(r"^(lat|latitude|lon|lng|long|longitude)(_?deg)?$", re.IGNORECASE)

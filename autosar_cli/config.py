@@ -597,6 +597,18 @@ SENSOR_ROLES: dict[str, tuple[str, ...]] = {
     "can_gnss": ("latitude", "longitude", "altitude", "position_valid", "speed", "course"),
 }
 
+#: the SI unit each role's signal is read in (:func:`autosar_cli.candb.si_factor` converts a DBC's); the quantity of a
+#: sensor's role (``yaw_rate.esc``) by its part before the dot; ``position_valid`` is a flag, of no unit
+ROLE_UNITS = {"wheel_speed": "m/s", "steering_wheel_angle": "rad", "steering_wheel_rate": "rad/s",
+              "yaw_rate": "rad/s", "accel_long": "m/s^2", "accel_lat": "m/s^2", "latitude": "deg",
+              "longitude": "deg", "altitude": "m", "speed": "m/s", "course": "rad"}
+
+
+def role_unit(role: str) -> str | None:
+    """The SI unit the stages read a CAN role's signal in (``wheel_speed_fl``: m/s); None for a flag."""
+    quantity = role.partition(".")[0]
+    return ROLE_UNITS.get("wheel_speed" if quantity.startswith("wheel_speed_") else quantity)
+
 
 def _known_role(role: str, sensors: dict[str, SensorConfig]) -> None:
     """A role name is one the stages read: a misspelt one was a role nothing played (the wheel speeds gone from

@@ -118,6 +118,10 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
             "position_z_mean_along": float(np.mean(z_along)), "position_z_mean_across": float(np.mean(z_across)),
             # which of the fitted lags SAR-MIN applied (docs/NAVIGATION.md)
             "steering_left_out": bool(est.info["understeer"]["steering_left_out"]),
+            # the steering's slope against the kinematic angle, and whether it was refused as not this car's
+            "steering_gain": est.info["understeer"].get("gain"), "steering_gain_std": est.info["understeer"].get(
+                "gain_std"), "steering_refused": bool(est.info["understeer"].get("refused")),
+            "warnings": est.info.get("warnings", []),
             "wheel_lag_applied": bool(est.info["wheel_lag"]["applied"]),
             "wheel_radii_applied": bool(est.info["wheel_radii"]["applied"]),
             "rear_slip_applied": bool(est.info["rear_slip"]["applied"]),

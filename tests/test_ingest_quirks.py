@@ -433,3 +433,43 @@ def test_wheel_speeds_multiplexed_apart_are_read_at_one_wheels_instants(ci_mcap,
     # an odd count the front's last frame comes after the rear's last)
     inside = slice(1, frames // 2)
     assert np.allclose(wheels.z[inside, 2:], front[inside, None]) and np.allclose(wheels.z[0, 2:], 10.5), wheels.z[:3]
+
+
+@pytest.mark.parametrize(("field", "damaged", "said"), [
+    ('"deg" XXX', '"" XXX', "degrees read as radians"),
+    ("(0.1,-716.8)", "(-0.1,716.8)", "its sign turned")], ids=["no_unit", "sign_turned"])
+def test_a_steering_that_is_not_the_cars_road_wheel_angle_is_left_out_by_name(
+        sim_dir: Path, tmp_path: Path, field: str, damaged: str, said: str) -> None:
+    """urban seed 1 ingested with a DBC whose steering signal has no unit (read as radians where it counts degrees)
+    or its sign turned: the steering fit's K came out 11 / -0.40 at a std over its limit, and SAR-MIN took the
+    steering as recorded, its gate refusing 27 / 23 % of it, with no warning (full vehicle: 0.6 cm more across with
+    the sign turned). The steering's slope against the kinematic angle the gyros and wheels give (57.6 / -1.01, a
+    car's 0.79-1.31) names it, and the steering is left out; the DBC's empty unit is said at ingest."""
+    from dataclasses import replace
+
+    from conftest import NAV_ONLY_PRF_HZ, simulated
+
+    from autosar_cli.evaluate.evaluation import load_truth
+    from autosar_cli.evaluate.trajectory_metrics import trajectory_errors
+    from autosar_cli.nav.navigate import navigate
+
+    base = load_config()
+    text = base.dbc_path.read_text()
+    line = next(x for x in text.splitlines() if "SG_ STEERING_ANGLE " in x)
+    assert field in line, line
+    (tmp_path / "car.dbc").write_text(text.replace(line, line.replace(field, damaged)))
+    cfg = replace(base, radar=replace(base.radar, prf_hz=NAV_ONLY_PRF_HZ),
+                  can=replace(base.can, dbc=str(tmp_path / "car.dbc")))
+    sim = simulated(sim_dir, "urban", "mcap", 1, prf_hz=NAV_ONLY_PRF_HZ)
+    report = ingest([sim.log_path], tmp_path / "d.h5", config=cfg)
+    unit_warned = [w for w in report.warnings if w.startswith("can.roles.steering_wheel_angle = EPS_1.STEERING_ANGLE:"
+                                                                 " the DBC gives its unit as ''")]
+    assert bool(unit_warned) == (said == "degrees read as radians"), report.warnings
+    traj = navigate(tmp_path / "d.h5", "sar-min", cfg)
+    assert traj.info["understeer"]["steering_left_out"] and traj.info["understeer"]["refused"]
+    assert [w for w in traj.info.get("warnings", []) if w.startswith("steering: [sensors.steering] it reads")
+            and said in w], traj.info.get("warnings")
+    truth = load_truth(sim.truth_path, traj.origin, cfg).trajectory
+    t = traj.t_ns[(traj.t_ns > truth.t_ns[0]) & (traj.t_ns < truth.t_ns[-1])][::50]
+    across = float(np.sqrt(np.mean(trajectory_errors(traj, truth, [0, 0, 0], t).aligned_across ** 2)))
+    assert across < 0.015, across

@@ -302,6 +302,15 @@ class CanDecoder:
                 m, group, sig_names, factors, "CHECKSUM" in sig_names, "COUNTER" in sig_names, plain,
                 ranges=ranges)
 
+    def signal_unit(self, group: str, signal: str) -> tuple[str, str] | None:
+        """(the DBC's unit, the SI unit it is stored in) of a signal of the message whose drive.h5 group is
+        ``group``; None where no message or signal of those names is in the DBC."""
+        for lay in self._layouts.values():
+            if lay.group == group:
+                sig = next((s for s in lay.message.signals if s.name == signal), None)
+                return None if sig is None else ((sig.unit or "").strip(), si_factor(sig.name, sig.unit)[1])
+        return None
+
     def groups_of(self, message: str) -> list[str]:
         """The drive.h5 groups a role's message may name: the DBC messages of that name (a DBC may give two frame
         ids one name: each its own group, ``NAME_0xID``), or the group itself."""

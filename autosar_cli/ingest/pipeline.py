@@ -27,8 +27,8 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from autosar_cli import __version__, msgs
-from autosar_cli.candb import DbcError, load_dbc
-from autosar_cli.config import Config
+from autosar_cli.candb import DBC_UNITS, DbcError, load_dbc
+from autosar_cli.config import Config, role_unit
 from autosar_cli.store.drive import DriveWriter, chirp_on_navigation_clock
 from autosar_cli.store.outputs import input_bytes
 
@@ -796,6 +796,7 @@ def ingest_sorted(given: SortedInputs, output: Path, *, config: Config, dbc: Pat
         _radar_clock_rates(infos, writer, job.warnings)
         _plausibility(infos, job)
         roles, missing_roles = _resolve_roles(job, infos)
+        job.warnings += _role_unit_warnings(job, roles)
         if missing_roles and job.can.stats.frames:  # with no CAN at all, `ingest` says the roles go unused
             job.warnings.append(f"CAN roles of the config in no frame of the logs: {', '.join(missing_roles)} "
                                 "(a message or signal the DBC or the log does not have): the stages go without them")
@@ -1133,6 +1134,23 @@ def _checksum_rule_misfit(job: _Ingest) -> str | None:
 
 def _listed(values: Sequence[int], n: int = 8) -> str:
     return ", ".join(str(v) for v in values[:n]) + (f" and {len(values) - n} more" if len(values) > n else "")
+
+
+def _role_unit_warnings(job: _Ingest, roles: dict[str, str]) -> list[str]:
+    """A warning for each CAN role whose DBC signal's unit converts to another than the one the stages read it in
+    (an empty unit, 'degree', 'rpm'): its values are stored as they come, and a steering in degrees read as radians
+    or a wheel speed in km/h as m/s is wrong by a factor the stages only partly see."""
+    out = []
+    for role, ref in roles.items():
+        expected = role_unit(role)
+        group, _, signal = ref.partition("/")
+        units = job.can.signal_unit(group, signal)
+        if expected is None or units is None or units[1].lower() in (expected, "°" if expected == "deg" else expected):
+            continue
+        spellings = sorted({expected, *(u for u, (_, si) in DBC_UNITS.items() if si == expected)})
+        out.append(f"can.roles.{role} = {job.config.can.roles[role]}: the DBC gives its unit as {units[0]!r}, not one "
+                   f"read as {expected} ({', '.join(spellings)}): its values are taken as {expected} as they are")
+    return out
 
 
 def _resolve_roles(job: _Ingest, infos: list[StreamInfo]) -> tuple[dict[str, str], list[str]]:

@@ -42,7 +42,7 @@ from autosar_cli.nav.inputs import NavInputError, NavInputs, load_inputs
 from autosar_cli.nav.rear_slip import fit_rear_slip
 from autosar_cli.nav.sarmin import NavSolution, gnss_lever_rear, run_sarmin, with_smoothed_covariance
 from autosar_cli.nav.trajectory import Trajectory, phase_centre_lever_arm, wheel_scale_mean_std
-from autosar_cli.nav.understeer import fit_understeer
+from autosar_cli.nav.understeer import UndersteerFit, fit_understeer
 from autosar_cli.nav.wheel_speeds import (
     LOAD_GAINS,
     SLIP_GAINS,
@@ -96,6 +96,13 @@ GNSS_LATENCY_SIGNIFICANT = 4.0
 #: chi-square (the profile's, which overstates: test1 seed 1 as recorded, a drive that hardly accelerates, 17 at the
 #: edge; its GNSS 450 ms late on urban seed 1, 5671): elsewhere the drive does not show the latency
 EDGE_MIN_TABLE_CHI2 = 100.0
+#: a road car's understeer gradient lies within these (rad per m/s^2: -1 to 5.6 deg/g), and its steering within this
+#: factor of the steady state they give (a steering ratio that varies along the rack, Ackermann): a steering whose
+#: slope against the kinematic angle lies beyond them, by ``STEERING_GAIN_SIGNIFICANT`` std, is not this car's
+#: road-wheel angle (its sign, its unit, the steering ratio): left out, and said
+UNDERSTEER_RANGE = (-0.002, 0.01)
+STEERING_GAIN_TOLERANCE = 1.25
+STEERING_GAIN_SIGNIFICANT = 5.0
 #: the attitude estimate's error (rad, 1 sigma): 0.76 / 0.47 mrad RMS roll / pitch on test3 seed 2 (nav.attitude)
 ATTITUDE_STD_RAD = 1e-3
 #: a stream whose updates SAR-MIN's gate refused more than this share of (of at least MIN_GATED) is warned of
@@ -538,7 +545,8 @@ def sarmin_with_fits(inputs: NavInputs, config: Config, smooth: bool = True
         info = {"steering_left_out": False, "gradient": veh.understeer_gradient_rad_per_mps2,
                 "reason": f"{why}: the steering as recorded"}
     left_out = bool(info["steering_left_out"])
-    gain, slip_info = rear_slip_gain(inputs, config, first, tyres_slip=left_out)
+    # a steering refused as not this car's says nothing of its tyres
+    gain, slip_info = rear_slip_gain(inputs, config, first, tyres_slip=left_out and not info.get("refused"))
     slip_config = replace(config, vehicle=replace(veh, rear_slip_gain_rad_per_mps2=gain))
     if test_steering and not left_out:
         return run_sarmin(inputs, slip_config, smooth=smooth), info, slip_info, gain
@@ -558,6 +566,9 @@ def steering_fit(inputs: NavInputs, config: Config, first: NavSolution) -> dict:
     if fit is None:
         return {**vehicle_k, "reason": "no steering samples above navigation.steering_min_speed_mps: the steering "
                                        "as recorded"}
+    if said := steering_gain_error(fit, veh.wheelbase_m, veh.steering_ratio):
+        return replace(fit, steering_left_out=True, reason=f"{said}; navigated without the steering").to_dict() | {
+            "refused": True, "warning": f"steering: [sensors.{inputs.steering.name}] {said}; navigated without it"}
     if not fit.std <= nav.understeer_max_std_rad_per_mps2:
         return replace(fit, reason=f"K's std {fit.std:.2g} above navigation.understeer_max_std_rad_per_mps2 "
                                    f"(lateral acceleration {fit.lateral_accel_rms_mps2:.2f} m/s^2 RMS): the steering "
@@ -570,6 +581,33 @@ def steering_fit(inputs: NavInputs, config: Config, first: NavSolution) -> dict:
                                    "steering as recorded").to_dict()
     return replace(fit, steering_left_out=True, reason="the car does not steer as the kinematic bicycle: navigated "
                                                        "without the steering").to_dict()
+
+
+def steering_gain_error(fit: UndersteerFit, wheelbase_m: float, steering_ratio: float) -> str | None:
+    """Why the steering is not this car's road-wheel angle, where its slope against the kinematic angle (``fit.gain``)
+    lies beyond what a car steers at the drive's speeds (:data:`UNDERSTEER_RANGE`, :data:`STEERING_GAIN_TOLERANCE`)
+    by :data:`STEERING_GAIN_SIGNIFICANT` std; else None."""
+    v2_over_l = fit.gain_speed_mps**2 / wheelbase_m
+    low = (1.0 + UNDERSTEER_RANGE[0] * v2_over_l) / STEERING_GAIN_TOLERANCE
+    high = (1.0 + UNDERSTEER_RANGE[1] * v2_over_l) * STEERING_GAIN_TOLERANCE
+    margin = STEERING_GAIN_SIGNIFICANT * fit.gain_std
+    if low - margin <= fit.gain <= high + margin:
+        return None
+    size, within = abs(fit.gain), np.log(STEERING_GAIN_TOLERANCE)
+    causes = ["its sign turned"] if fit.gain < 0 else []
+    if size > 0 and abs(np.log(size * np.pi / 180.0)) < within:
+        causes.append("degrees read as radians (its DBC unit?)")
+    elif size > 0 and abs(np.log(size * 180.0 / np.pi)) < within:
+        causes.append("radians read as degrees")
+    elif size > 0 and abs(np.log(size * steering_ratio)) < within:
+        causes.append("the road wheels' angle where the steering wheel's is expected")
+    elif size < 0.1:
+        causes.append("it hardly follows the turns (a stuck sensor, another signal, another drive's?)")
+    elif abs(np.log(size)) > 2 * within:
+        causes.append(f"a DBC factor, or vehicle.steering_ratio {steering_ratio:g}?")
+    return (f"it reads {fit.gain:.3g} times the road-wheel angle the gyros and wheels give (+- {fit.gain_std:.2g}; a "
+            f"car steers {low:.2f}-{high:.2f} times it at the drive's {fit.gain_speed_mps:.1f} m/s)"
+            + (f": {', '.join(causes)}" if causes else ""))
 
 
 def rear_slip_gain(inputs: NavInputs, config: Config, first: NavSolution, tyres_slip: bool = False
@@ -678,7 +716,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                                                                                inputs.t0_ns)]})
         if config.navigation.gnss_heading:
             traj.info["gnss_heading"] = gnss_heading_info(sol, inputs)
-        warnings = flipped + ([gnss_latency["warning"]] if "warning" in gnss_latency else [])
+        warnings = flipped + [w["warning"] for w in (gnss_latency, understeer) if "warning" in w]
         if warnings := warnings + gated_streams(sol.updates, sol.rejected):
             traj.info["warnings"] = warnings
         traj = with_attitude(traj, attitude, attitude_reason, inputs.t0_ns, config)

@@ -49,6 +49,10 @@ class UndersteerFit:
     effective_samples: float  #: after the residual's serial correlation
     lateral_accel_rms_mps2: float  #: about its mean: the excitation that makes K observable
     residual_rms_rad: float
+    #: the slope of the steering against the kinematic angle atan(L omega / v) alone: 1 plus understeer's K v^2 / L
+    gain: float = 1.0
+    gain_std: float = 0.0
+    gain_speed_mps: float = 0.0  #: the speed whose K v^2 / L the gain holds: RMS, weighted as the slope weighs
     steering_left_out: bool = False  #: the fit showed another steering: SAR-MIN navigated without it
     reason: str = ""
 
@@ -124,5 +128,22 @@ def fit_understeer(inputs: NavInputs, t: Array, x: Array, wheelbase_m: float, mi
     else:
         std = lag_std = np.inf
     lag = float(coef[2]) / (wheelbase_m / v_mid + float(coef[1]) * v_mid)
+    kinematic = np.arctan(wheelbase_m * w_side / v)
+    gain, gain_std = steering_gain(z, kinematic)
+    weight = (kinematic - kinematic.mean()) ** 2
+    gain_speed = float(np.sqrt(np.sum(weight * v**2) / np.sum(weight))) if np.sum(weight) > 0 else v_mid
     return UndersteerFit(float(coef[1]), float(std), float(coef[2]), float(lag_std), lag, n, float(n_eff),
-                         float(np.std(a)), rms)
+                         float(np.std(a)), rms, gain, gain_std, gain_speed)
+
+
+def steering_gain(z: Array, kinematic: Array) -> tuple[float, float]:
+    """Least-squares slope (and its 1-sigma, counting the residual's serial correlation) of the road-wheel angle
+    ``z`` (rad) against the kinematic bicycle's ``kinematic`` (rad) at the same samples, with an offset."""
+    design = np.stack([np.ones_like(kinematic), kinematic - kinematic.mean()], axis=1)
+    coef, *_ = np.linalg.lstsq(design, z, rcond=None)
+    res = z - design @ coef
+    spread = float(np.sum((kinematic - kinematic.mean()) ** 2))
+    if spread <= 0 or len(z) < 3:
+        return float(coef[1]), float("inf")
+    rho = float(np.clip(np.corrcoef(res[:-1], res[1:])[0, 1], 0.0, 0.999)) if res.std() > 0 else 0.0
+    return float(coef[1]), float(np.sqrt(np.mean(res**2) / spread * (1.0 + rho) / (1.0 - rho)))
