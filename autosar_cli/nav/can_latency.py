@@ -118,6 +118,16 @@ def fit_can_latency(inputs: NavInputs, can_gyros: list[str], imu_gyros: list[str
                          int(len(res)), float(np.sqrt(np.mean(accel**2))))
 
 
+def imus_moved(inputs: NavInputs, late_s: float, imus: list[str]) -> NavInputs:
+    """``inputs`` with the gyros named ``imus`` and the 6-DoF IMU (where it is one of them) moved ``late_s`` (s)
+    earlier: their stamps ran that late."""
+    attitude = inputs.attitude_imu
+    if attitude is not None and attitude.name in imus:
+        attitude = replace(attitude, t=attitude.t - late_s)
+    return replace(inputs, attitude_imu=attitude,
+                   gyros=[replace(g, t=g.t - late_s) if g.name in imus else g for g in inputs.gyros])
+
+
 def _every(samples: tuple[Array, Array], step_s: float) -> tuple[Array, Array]:
     """Every sample ``step_s`` (s) apart of ``samples`` (times s, values)."""
     t, z = samples

@@ -28,7 +28,7 @@ from autosar_cli.nav.attitude import (
 )
 from autosar_cli.nav.baselines import from_truth, gnss_only, straight_line
 from autosar_cli.nav.can_latency import MIN_SAMPLES as MIN_CAN_SAMPLES
-from autosar_cli.nav.can_latency import delayed_can, fit_can_latency
+from autosar_cli.nav.can_latency import delayed_can, fit_can_latency, imus_moved
 from autosar_cli.nav.dead_reckoning import dead_reckoned_start
 from autosar_cli.nav.gnss_latency import EDGE, SEARCH_S, delayed_gnss, fit_gnss_latency
 from autosar_cli.nav.gnss_latency import MIN_SPAN_S as MIN_LATENCY_SPAN_S
@@ -103,6 +103,9 @@ EDGE_MIN_TABLE_CHI2 = 100.0
 UNDERSTEER_RANGE = (-0.002, 0.01)
 STEERING_GAIN_TOLERANCE = 1.25
 STEERING_GAIN_SIGNIFICANT = 5.0
+#: the CAN's and the GNSS's latencies against the IMUs, both after their stamps, are the IMUs' own where they agree
+#: within this (s) or 3 std
+IMUS_LATE_AGREE_S = 0.02
 #: the attitude estimate's error (rad, 1 sigma): 0.76 / 0.47 mrad RMS roll / pitch on test3 seed 2 (nav.attitude)
 ATTITUDE_STD_RAD = 1e-3
 #: a stream whose updates SAR-MIN's gate refused more than this share of (of at least MIN_GATED) is warned of
@@ -237,13 +240,37 @@ def gnss_latency_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs
                 f"IMU {fit.imu}'s (+- {fit.std_s * 1000:.0f} ms), which no receiver does: the IMU's stamps late, or "
                 "the GNSS's on another clock?")
         return inputs, replace(fit, reason=f"{said}: the table's latency").to_dict() | {
-            "warning": f"GNSS latency: {said} The table's latency kept"}
+            "after_stamps": True, "warning": f"GNSS latency: {said} The table's latency kept"}
     else:
         return delayed_gnss(inputs, fit.change_s), replace(
             fit, applied=True, reason=f"the samples refer to {(table + fit.change_s) * 1000:.0f} ms before their "
                                       f"stamps, not the table's {table * 1000:g} ms: moved by the fitted latency"
                                       f" (set [sensors.{nav.gnss}] latency_s)").to_dict()
     return inputs, replace(fit, reason=why).to_dict()
+
+
+def latencies_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs, dict, dict, list[str]]:
+    """``inputs`` with the CAN's and the GNSS's latencies measured against the IMUs (:func:`can_latency_corrected`,
+    :func:`gnss_latency_corrected`) and, where both put their samples after their stamps by one delay
+    (:data:`IMUS_LATE_AGREE_S` and 3 std), the IMUs moved by it instead: it is theirs, stamped late (urban seed 1
+    with its four IMUs 0.3 s late: the CAN moved by -296 ms to them, the GNSS refused by the gate, the track 6.6 m
+    across). The two latencies' findings, and a warning where the IMUs moved."""
+    moved, can = can_latency_corrected(inputs, config)
+    moved, gnss = gnss_latency_corrected(moved, config)
+    if not (gnss.get("after_stamps") and can.get("applied") and can["delay_s"] < 0
+            and abs(can["delay_s"] - gnss["change_s"]) <= max(IMUS_LATE_AGREE_S,
+                                                              3.0 * math.hypot(can["std_s"], gnss["std_s"]))):
+        return moved, can, gnss, []
+    weights = np.array([can["std_s"], gnss["std_s"]]) ** -2.0
+    late = -float(np.dot(weights, [can["delay_s"], gnss["change_s"]]) / weights.sum())
+    imus = sorted({*can["imu_gyros"], gnss["imu"]})
+    said = (f"IMUs {', '.join(imus)}: stamped {late * 1000:.0f} ms late against both the CAN's gyros "
+            f"({-can['delay_s'] * 1000:.0f} +- {can['std_s'] * 1000:.0f} ms) and the GNSS's velocity "
+            f"({-gnss['change_s'] * 1000:.0f} +- {gnss['std_s'] * 1000:.0f} ms): moved by it (their clock; set their "
+            "latency_s)")
+    inputs, can = can_latency_corrected(imus_moved(inputs, late, imus), config)
+    inputs, gnss = gnss_latency_corrected(inputs, config)
+    return inputs, can, gnss, [said]
 
 
 def can_latency_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs, dict]:
@@ -667,8 +694,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
             raise NavInputError(f"{drive_path}: {why}")
         inputs, wheel_scale = wheel_scale_corrected(inputs)
         inputs, flipped = without_flipped_gyros(inputs)
-        inputs, can_latency = can_latency_corrected(inputs, config)
-        inputs, gnss_latency = gnss_latency_corrected(inputs, config)
+        inputs, can_latency, gnss_latency, imus_late = latencies_corrected(inputs, config)
         inputs, gnss_slow_error = gnss_slow_error_checked(inputs, config.navigation.estimate_gnss_noise)
         inputs, gnss_noise = gnss_noise_checked(inputs, config.navigation.estimate_gnss_noise)
         inputs, velocity_correlation = velocity_decorrelated(
@@ -716,7 +742,7 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                                                                                inputs.t0_ns)]})
         if config.navigation.gnss_heading:
             traj.info["gnss_heading"] = gnss_heading_info(sol, inputs)
-        warnings = flipped + [w["warning"] for w in (gnss_latency, understeer) if "warning" in w]
+        warnings = flipped + imus_late + [w["warning"] for w in (gnss_latency, understeer) if "warning" in w]
         if warnings := warnings + gated_streams(sol.updates, sol.rejected):
             traj.info["warnings"] = warnings
         traj = with_attitude(traj, attitude, attitude_reason, inputs.t0_ns, config)
