@@ -217,6 +217,8 @@ ROS1_SIZE_FIELD = ("tests/test_ingest_damage.py::test_ros1_uncompressed_chunk_wh
                    "data_length")
 ROS1_RUN_ON = ("tests/test_ingest_damage.py::test_ros1_uncompressed_message_whose_length_runs_over_an_indexed_record_"
                "costs_nothing")
+ROS1_RUN_ON_CONNECTION = ("tests/test_ingest_damage.py::test_ros1_uncompressed_message_whose_length_runs_over_a_"
+                          "connection_record_costs_nothing")
 _QUIRKS = "tests/test_ingest_quirks.py::"
 QUIRK_OUTLIVING = _QUIRKS + "test_gnss_outliving_the_imus_and_can_gives_a_trajectory_its_readers_take"
 QUIRK_MUX = _QUIRKS + "test_a_multiplexed_dbc_message_is_decoded_or_refused_clearly"
@@ -530,6 +532,16 @@ MUTATIONS: list[Mutation] = [
        "                    if False:", ROS1_TIME_COPIES),
     _m("ros1-message-run-on-over-an-indexed-record", "integrity", "ingest/ros1_chunks.py",
        "            if op == OP_MSG_DATA and starts:", "            if False:", ROS1_RUN_ON),
+    _m("ros1-message-run-on-over-a-connection-record", "integrity", "ingest/ros1_chunks.py",
+       "                iend = _connection_cut(data, at, inner, istart, iend, connections, report, where)\n",
+       "                pass\n", ROS1_RUN_ON_CONNECTION),
+    _m("ros1-index-read-over-a-connection-record", "integrity", "ingest/ros1_chunks.py",
+       "        inside = _connection_within(buf, at + 8 + hlen, at + 8 + hlen + dlen, {})",
+       "        inside = None", ROS1_RUN_ON_CONNECTION),
+    _m("ros1-message-run-into-a-connection-record-left-out", "integrity", "ingest/ros1_chunks.py",
+       "            if pending is not None and nxt is not None and pending[2] <= nxt < at and _declared(",
+       "            if False and nxt is not None and pending[2] <= nxt < at and _declared(",
+       ROS1_RUN_ON_CONNECTION),
     _m("misspelt-choice-without-its-likely-meaning", "inputs", "cli.py",
        "near = difflib.get_close_matches(given.lower(), choices, n=1, cutoff=0.6)", "near = []", CHOICE_MEANT),
     _m("sensor-key-of-another-kind-ignored", "inputs", "config.py",

@@ -17,6 +17,7 @@ import struct
 import subprocess
 from collections import Counter
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -300,6 +301,80 @@ def test_ros1_uncompressed_message_whose_length_runs_over_an_indexed_record_cost
     assert any(str(out) in w and f"chunk at bytes {start}-" in w and f"offset {rec_start - dstart} has a data length "
                f"({dlen + over} bytes) running over the record its index places at offset {records[i + 1][0] - dstart}"
                in w for w in warnings), warnings
+
+
+@pytest.fixture(scope="module")
+def ci_ros1_connections_between(ci_ros1: SimulationResult, work: Path) -> Path:
+    """ci's bag rewritten uncompressed with each connection record written just before its connection's first
+    message, as `rosbag record` writes them: between message records, which the index does not place."""
+    from rosbags.rosbag1 import Reader, Writer
+
+    out = work / "connections_between.bag"
+    with Reader(ci_ros1.log_path) as reader, Writer(out) as writer:
+        conns: dict[int, Any] = {}
+        for c, t, d in reader.messages():
+            if c.id not in conns:
+                conns[c.id] = writer.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data, md5sum=c.digest)
+            writer.write(conns[c.id], t, d)
+    return out
+
+
+def ros1_chunk_records(bag: Path, chunk_pos: int) -> tuple[int, list[tuple[int, int, int, int, str]]]:
+    """(data start, records) of the uncompressed chunk at ``chunk_pos``: each record's (start, op, data length field
+    offset, data length, topic), walked by its two length fields."""
+    from rosbags.rosbag1 import Reader
+
+    data = bag.read_bytes()
+    with Reader(bag) as reader:
+        topics = {c.id: c.topic for c in reader.connections}
+        ch = reader.chunks[chunk_pos]
+    out, at = [], ch.datapos
+    while at < ch.datapos + ch.datasize:
+        (hlen,) = struct.unpack_from("<I", data, at)
+        header = data[at + 4:at + 4 + hlen]
+        (dlen,) = struct.unpack_from("<I", data, at + 4 + hlen)
+        conn = header.index(b"conn=") + len(b"conn=")
+        out.append((at, header[header.index(b"op=") + 3], at + 4 + hlen, dlen,
+                    topics[struct.unpack_from("<I", header, conn)[0]]))
+        at += 8 + hlen + dlen
+    return ch.datapos, out
+
+
+@pytest.mark.parametrize("indexed", [True, False])
+@pytest.mark.parametrize("run_on", ["to its end", "40 bytes past it", "40 bytes into it"])
+@pytest.mark.parametrize("before", ["radar", "imu"])
+def test_ros1_uncompressed_message_whose_length_runs_over_a_connection_record_costs_nothing(
+        before: str, run_on: str, indexed: bool, ci_ros1_connections_between: Path, work: Path) -> None:
+    """In an uncompressed chunk, the data length of the message record before a connection record (a radar frame,
+    or an IMU message before the CAN topic's) run on to exactly that record's end, 40 bytes past it or 40 bytes into
+    it, in the bag read through its index or without (its header's index_pos 0). Read through the index, the message
+    came out with the connection record's bytes without a word (to its end: the records chain, the index places only
+    messages; an IMU message decodes so), or with a warning naming the message record the index places (40 bytes
+    past it); without the index, the connection record was lost too, and the messages on its connection with it.
+    The connection record reads where the message's length says its data lies: the message is read up to it, both
+    kept, the damage named with the message's offset and both topics."""
+    bag = ci_ros1_connections_between
+    chunks = ros1_chunks(bag)
+    start = chunks[0][0]
+    dstart, records = ros1_chunk_records(bag, start)
+    i = next(k for k, r in enumerate(records[1:], 1) if r[1] == 0x07 and records[k - 1][1] == 0x02
+             and (records[k - 1][3] > 10_000) == (before == "radar"))
+    rec_start, _, dlen_at, dlen, topic = records[i - 1]
+    conn_start, _, _, _, conn_topic = records[i]
+    conn_length = records[i + 1][0] - conn_start
+    over = {"to its end": conn_length, "40 bytes past it": conn_length + 40, "40 bytes into it": 40}[run_on]
+    data = bytearray(bag.read_bytes())
+    struct.pack_into("<I", data, dlen_at, dlen + over)
+    if not indexed:
+        at = data.index(b"index_pos=", 13) + len(b"index_pos=")
+        data[at:at + 8] = bytes(8)
+    out = work / f"run_on_a_connection_{before}_{over}_{indexed}.bag"
+    out.write_bytes(bytes(data))
+    got, warnings = read_all(out)
+    assert Counter(got) == Counter(m for _, _, msgs in chunks for m in msgs), warnings
+    said = (f"offset {rec_start - dstart} ({topic}) has a data length ({dlen + over} bytes) running over the "
+            f"connection record of {conn_topic} at offset {conn_start - dstart}: read up to it ({dlen} bytes)")
+    assert any(str(out) in w and f"chunk at bytes {start}-" in w and said in w for w in warnings), warnings
 
 
 @pytest.mark.parametrize("damage", ["header", "data"])

@@ -6,7 +6,8 @@ inside each decompressed chunk), so every intact chunk is kept. A chunk whose re
 is skipped by resynchronising on the next plausible chunk header; a chunk that does not decompress is
 skipped whole (unless its data length alone was damaged: read by its data's own end); a record inside a chunk that
 does not read is skipped to the next record found by its header, and so is the message before it whose length does
-not lead to a record (:func:`_records`); a chunk cut by the
+not lead to a record (:func:`_records`); a message whose length runs over a record the index places, or over a
+connection record (which the index does not place), is read up to that record; a chunk cut by the
 file's end keeps the messages whose bytes are all there (its data decoded as far as it goes: lz4 and bz2
 decode a stream's prefix). So does the chunk a killed ``rosbag record`` left open: its header's sizes still 0
 (filled in when a chunk closes), its messages after it as records of their own (uncompressed) or its
@@ -20,8 +21,8 @@ import bisect
 import bz2
 import mmap
 import struct
-from collections.abc import Generator, Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Collection, Generator, Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
 OP_MSG_DATA = 0x02
@@ -31,6 +32,7 @@ OP_CONNECTION = 0x07
 _MAX_HEADER = 1 << 20  # a record header is a few hundred bytes; anything near this is garbage
 _U32 = struct.Struct("<I")
 _CHUNK_OP = b"op=\x05"
+_CONNECTION_OP = b"op=\x07"
 Buffer = bytes | mmap.mmap  #: the whole bag (an mmap of the file, or bytes in tests)
 
 
@@ -181,7 +183,9 @@ def chain_break(buf: Buffer, pos: int, offsets: Iterable[int]) -> str | None:
     not where a record starts; None where they do and it is (or the chunk is compressed: its codec checks its data).
 
     Read through its index, a message's data length is trusted: damaged, it would give a message cut short or run
-    on into the next record's bytes, which nothing else checks in an uncompressed chunk."""
+    on into the next record's bytes, which nothing else checks in an uncompressed chunk. One run on to exactly the end
+    of the connection record after it (which the index does not place) chains too: the connection record's bytes
+    inside a record's data tell it (:func:`_connection_within`)."""
     try:
         fields, dstart, dend = read_record(buf, pos)
     except (RecordError, UnicodeDecodeError) as exc:
@@ -198,6 +202,10 @@ def chain_break(buf: Buffer, pos: int, offsets: Iterable[int]) -> str | None:
         (dlen,) = _U32.unpack_from(buf, at + 4 + hlen)
         if at + 8 + hlen + dlen > dend:
             return f"the record at byte {at} has a data length ({dlen}) running past its data's end"
+        inside = _connection_within(buf, at + 8 + hlen, at + 8 + hlen + dlen, {})
+        if inside is not None:
+            return (f"the record at byte {at} has a data length ({dlen}) running over a connection record, at byte "
+                    f"{inside}")
         starts.add(at - dstart)
         at += 8 + hlen + dlen
     stray = sorted(set(offsets) - starts)
@@ -466,7 +474,9 @@ def _records(data: bytes, pos: int, dend: int, report: ScanReport, connections: 
     yielded once the record after it is found where its length says, as nothing else checks an uncompressed one.
     A message whose data length runs over a record the index places (and that reads there) is read up to that
     record: its length is what is damaged, and the record it ran over would be lost, the message read with its bytes
-    (a length run on to exactly a later record's start leaves nothing else to tell)."""
+    (a length run on to exactly a later record's start leaves nothing else to tell). So is one whose length runs over
+    a connection record (which the index does not place): to exactly its end or past it (:func:`_connection_cut`),
+    or into it (the next record found is that connection record, inside the message's data)."""
     at, kept = 0, 0
     where = f"chunk at bytes {pos}-{dend}"
     pending: tuple[Ros1Message, int, int] | None = None  # (message, record start, data start), not yet yielded
@@ -479,10 +489,21 @@ def _records(data: bytes, pos: int, dend: int, report: ScanReport, connections: 
         except (RecordError, UnicodeDecodeError) as exc:
             # the record after a message does not read: that message's length or this record is what is damaged
             nxt = _next_record(data, last if last is not None else at + 1, connections, cut)
+            if pending is not None and nxt is not None and pending[2] <= nxt < at and _declared(data, nxt) is not None:
+                # its length ran on into or past the connection record found next, inside its data (chained on to
+                # the record after it): it ends where that record starts, read on from (else the message was left
+                # out, or the connection record lost with the messages on its connection)
+                report.lost.append(_run_over(where, pending[1], pending[0].conn_id, at - pending[2], data, nxt,
+                                             nxt - pending[2], connections))
+                kept += 1
+                yield replace(pending[0], data=data[pending[2]:nxt])
+                pending, at = None, nxt
+                continue
             if pending is not None and (nxt is not None and nxt < at or not _header_like(data, at, nxt)):
                 skipped_from = pending[1]
-                why = (f"the message record at uncompressed offset {skipped_from} left out: its data length does not "
-                       f"lead to the next record ({exc} at offset {at})")
+                topic = _topic(pending[0].conn_id, connections)
+                why = (f"the message record at uncompressed offset {skipped_from} ({topic}) left out: its data length "
+                       f"does not lead to the next record ({exc} at offset {at})")
             else:
                 if pending is not None:
                     kept += 1
@@ -507,6 +528,7 @@ def _records(data: bytes, pos: int, dend: int, report: ScanReport, connections: 
             if op == OP_MSG_DATA and starts:
                 iend = _index_cut(data, at, istart, iend, starts, connections, report, where)
             if op == OP_MSG_DATA:
+                iend = _connection_cut(data, at, inner, istart, iend, connections, report, where)
                 conn = _u32(inner, "conn")
                 if conn not in connections:
                     raise RecordError(f"message on undeclared connection {conn}")
@@ -530,10 +552,88 @@ def _index_cut(data: bytes, at: int, istart: int, iend: int, starts: Sequence[in
     i = bisect.bisect_right(starts, istart)
     if i == len(starts) or starts[i] >= iend or _record_end(data, starts[i], connections) is None:
         return iend
+    if _connection_within(data, istart, starts[i], connections) is not None:
+        return starts[i]  # it ran over a connection record first: :func:`_connection_cut` cuts it there, and says so
     report.lost.append(f"{where}: the message record at uncompressed offset {at} has a data length ({iend - istart} "
                        f"bytes) running over the record its index places at offset {starts[i]}: read up to that "
                        f"record ({starts[i] - istart} bytes)")
     return starts[i]
+
+
+def _connection_cut(data: bytes, at: int, inner: dict[str, bytes], istart: int, iend: int,
+                    connections: dict[int, Ros1Connection], report: ScanReport, where: str) -> int:
+    """Where the data of the message record at ``at`` (header fields ``inner``, its data at ``istart``-``iend`` by
+    its length, or up to the record the index places) ends: at the first connection record inside that data from
+    which records chain to ``iend`` (:func:`_connection_within`), else at ``iend``."""
+    inside = _connection_within(data, istart, iend, connections)
+    if inside is None:
+        return iend
+    conn = _U32.unpack(inner["conn"])[0] if len(inner.get("conn", b"")) == 4 else -1
+    (length,) = _U32.unpack_from(data, istart - 4)  # its data length field, which the index may have cut already
+    report.lost.append(_run_over(where, at, conn, length, data, inside, inside - istart, connections))
+    return inside
+
+
+def _run_over(where: str, at: int, conn: int, length: int, data: bytes, inside: int, kept: int,
+              connections: Mapping[int, Ros1Connection]) -> str:
+    """The line saying the message record at ``at`` (on connection ``conn``, ``length`` bytes of data by its length
+    field) runs over the connection record at ``inside`` and is read up to it (``kept`` bytes)."""
+    fields = read_record(data, inside)[0]  # it reads: the caller found a connection record there
+    over = fields.get("topic", b"").decode("utf-8", "replace")  # its own: the index may not know its connection
+    return (f"{where}: the message record at uncompressed offset {at} ({_topic(conn, connections)}) has a data length "
+            f"({length} bytes) running over the connection record of {over} at offset {inside}: read up to it "
+            f"({kept} bytes)")
+
+
+def _topic(conn: int, connections: Mapping[int, Ros1Connection]) -> str:
+    """The topic of connection ``conn``, or its number where it is not known."""
+    c = connections.get(conn)
+    return c.topic if c is not None else f"connection {conn}"
+
+
+def _declared(data: Buffer, at: int) -> int | None:
+    """The connection id of the connection record at ``at``, if one reads there; else None."""
+    try:
+        inner, istart, iend = read_record(data, at)
+        if inner["op"][0] != OP_CONNECTION:
+            return None
+        return _connection(inner, data[istart:iend]).conn_id
+    except (RecordError, UnicodeDecodeError, struct.error):
+        return None
+
+
+def _connection_within(data: Buffer, start: int, end: int, connections: Mapping[int, Ros1Connection]) -> int | None:
+    """The first byte offset in ``start``-``end`` (a message record's data, by its length) where a connection record
+    starts from which records follow one another by their lengths to exactly ``end`` (connection records, and
+    messages on ``connections`` or on those declared on the way); None where none does.
+
+    The connection record is the one after the message, which the message's length ran on over (damaged): sensor
+    data does not hold a chain of records by chance. The index places message records only, not connection records
+    (``rosbag record`` writes each before its connection's first message, between other messages)."""
+    at = start
+    while (hit := data.find(_CONNECTION_OP, at, end)) >= 0:
+        for pos in range(max(start, hit - 128), hit - 7):  # the op field lies in the record header's first bytes
+            if _chains_to(data, pos, end, connections):
+                return pos
+        at = hit + 1
+    return None
+
+
+def _chains_to(data: Buffer, pos: int, end: int, connections: Mapping[int, Ros1Connection]) -> bool:
+    """Whether a connection record starts at ``pos`` and records follow it by their lengths to exactly ``end``."""
+    declared = _declared(data, pos)
+    if declared is None:
+        return False
+    known = {declared}
+    at = pos
+    while at < end:
+        nxt = _record_end(data, at, connections, known)
+        if nxt is None or nxt > end:
+            return False
+        if (d := _declared(data, at)) is not None:
+            known.add(d)
+        at = nxt
+    return at == end
 
 
 def _header_like(data: bytes, at: int, end: int | None) -> bool:
@@ -543,14 +643,16 @@ def _header_like(data: bytes, at: int, end: int | None) -> bool:
     return sum(name in head for name in (b"conn=", b"op=", b"time=", b"topic=")) >= 2
 
 
-def _record_end(data: bytes, at: int, connections: dict[int, Ros1Connection]) -> int | None:
-    """Where the record at ``at`` ends, if a whole message record on a known connection or a connection record
-    starts there; else None."""
+def _record_end(data: Buffer, at: int, connections: Mapping[int, Ros1Connection],
+                declared: Collection[int] = ()) -> int | None:
+    """Where the record at ``at`` ends, if a whole message record on a known connection (of ``connections``, or
+    ``declared`` by the connection records before it) or a connection record starts there; else None."""
     try:
         inner, istart, iend = read_record(data, at)
         op = inner["op"][0]
         if op == OP_MSG_DATA:
-            if _u32(inner, "conn") not in connections:
+            conn = _u32(inner, "conn")
+            if conn not in connections and conn not in declared:
                 return None
             _time_ns(inner)
         elif op == OP_CONNECTION:
@@ -569,7 +671,9 @@ def _next_record(data: bytes, start: int, connections: dict[int, Ros1Connection]
     while (hit := data.find(b"op=", at)) >= 0:
         for pos in range(max(start, hit - 128), hit - 7):  # the op field lies in the record header's first bytes
             end = _record_end(data, pos, connections)
-            if end is not None and (end == len(data) or _record_end(data, end, connections) is not None
+            declared = _declared(data, pos) if end is not None else None  # the message after it may be on it
+            if end is not None and (end == len(data) or _record_end(data, end, connections,
+                                                                    () if declared is None else (declared,)) is not None
                                     or cut and not _whole_record(data, end)):
                 return pos
         at = hit + 1
