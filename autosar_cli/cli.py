@@ -586,7 +586,7 @@ def navigate(
             latency = traj.info["gnss_latency"]
             err.print(f"[yellow]GNSS latency:[/] {escape(latency['reason'])} (+- {latency['std_s'] * 1000:.0f} ms, "
                       f"against imu/{latency['imu']})", highlight=False, soft_wrap=True)
-        if "understeer" in traj.info:
+        if "understeer" in traj.info and not traj.info["understeer"].get("refused"):  # a refusal is a warning
             us = traj.info["understeer"]
             fitted = f" +- {us['std']:.2g}" if "std" in us else ""
             out.print(f"understeer gradient {us['gradient']:.3g}{fitted} rad per m/s^2: {_lit(us['reason'])}")

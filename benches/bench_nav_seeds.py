@@ -121,6 +121,7 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
             # the steering's slope against the kinematic angle, and whether it was refused as not this car's
             "steering_gain": est.info["understeer"].get("gain"), "steering_gain_std": est.info["understeer"].get(
                 "gain_std"), "steering_refused": bool(est.info["understeer"].get("refused")),
+            "steering_yaw_rate_rms_radps": est.info["understeer"].get("yaw_rate_rms_radps"),
             "warnings": est.info.get("warnings", []),
             "wheel_lag_applied": bool(est.info["wheel_lag"]["applied"]),
             "wheel_radii_applied": bool(est.info["wheel_radii"]["applied"]),

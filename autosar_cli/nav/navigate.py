@@ -613,7 +613,10 @@ def steering_fit(inputs: NavInputs, config: Config, first: NavSolution) -> dict:
 def steering_gain_error(fit: UndersteerFit, wheelbase_m: float, steering_ratio: float) -> str | None:
     """Why the steering is not this car's road-wheel angle, where its slope against the kinematic angle (``fit.gain``)
     lies beyond what a car steers at the drive's speeds (:data:`UNDERSTEER_RANGE`, :data:`STEERING_GAIN_TOLERANCE`)
-    by :data:`STEERING_GAIN_SIGNIFICANT` std; else None."""
+    by :data:`STEERING_GAIN_SIGNIFICANT` std, on a drive that turns (the yaw rate varies by ``MIN_TURNING_RADPS`` RMS);
+    else None."""
+    if fit.yaw_rate_rms_radps < MIN_TURNING_RADPS:
+        return None
     v2_over_l = fit.gain_speed_mps**2 / wheelbase_m
     low = (1.0 + UNDERSTEER_RANGE[0] * v2_over_l) / STEERING_GAIN_TOLERANCE
     high = (1.0 + UNDERSTEER_RANGE[1] * v2_over_l) * STEERING_GAIN_TOLERANCE

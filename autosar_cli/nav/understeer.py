@@ -53,6 +53,9 @@ class UndersteerFit:
     gain: float = 1.0
     gain_std: float = 0.0
     gain_speed_mps: float = 0.0  #: the speed whose K v^2 / L the gain holds: RMS, weighted as the slope weighs
+    #: the gyros' yaw rate about its mean, RMS: on a straight drive their noise alone varies the kinematic angle, and
+    #: the gain reads ~0 (test1: 0.00 +- 0.01)
+    yaw_rate_rms_radps: float = 0.0
     steering_left_out: bool = False  #: the fit showed another steering: SAR-MIN navigated without it
     reason: str = ""
 
@@ -133,7 +136,7 @@ def fit_understeer(inputs: NavInputs, t: Array, x: Array, wheelbase_m: float, mi
     weight = (kinematic - kinematic.mean()) ** 2
     gain_speed = float(np.sqrt(np.sum(weight * v**2) / np.sum(weight))) if np.sum(weight) > 0 else v_mid
     return UndersteerFit(float(coef[1]), float(std), float(coef[2]), float(lag_std), lag, n, float(n_eff),
-                         float(np.std(a)), rms, gain, gain_std, gain_speed)
+                         float(np.std(a)), rms, gain, gain_std, gain_speed, float(np.std(w_side)))
 
 
 def steering_gain(z: Array, kinematic: Array) -> tuple[float, float]:
