@@ -504,3 +504,55 @@ def test_a_steering_that_is_not_the_cars_road_wheel_angle_is_left_out_by_name(
     t = traj.t_ns[(traj.t_ns > truth.t_ns[0]) & (traj.t_ns < truth.t_ns[-1])][::50]
     across = float(np.sqrt(np.mean(trajectory_errors(traj, truth, [0, 0, 0], t).aligned_across ** 2)))
     assert across < 0.015, across
+
+
+@pytest.mark.parametrize("quirk", ["velocity_nan", "altitude_nan", "no_altitude"])
+def test_a_receivers_nan_velocity_or_altitude_leaves_the_track_whole(sim_dir: Path, tmp_path: Path, quirk: str) -> None:
+    """Urban seed 1's receiver writing NaN where it has nothing: every tenth velocity NaN (a driver's twist before its
+    fix), every tenth altitude NaN, or every altitude NaN (NavSatFix's 'quiet NaN if no altitude is available': a 2-D
+    fix). Each made SAR-MIN's whole trajectory NaN (the velocity's NaN updates the filter; an altitude's NaN makes the
+    fix's ENU position NaN, the first one the drive's origin), exit 0, no warning. A NaN velocity is skipped and
+    counted; a missing altitude is interpolated from the others', or, where no fix gives one, taken as 0 and said."""
+    from dataclasses import replace
+
+    from conftest import NAV_ONLY_PRF_HZ, simulated
+    from rosbags.typesys import Stores, get_typestore
+
+    from autosar_cli.evaluate.evaluation import load_truth
+    from autosar_cli.evaluate.trajectory_metrics import trajectory_errors
+    from autosar_cli.nav.navigate import navigate
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    topic, msgtype = (("/ins_cog/fix_velocity", "geometry_msgs/msg/TwistWithCovarianceStamped")
+                      if quirk == "velocity_nan" else ("/ins_cog/fix", "sensor_msgs/msg/NavSatFix"))
+    seen = {"n": 0}
+
+    def fn(t_topic: str, t: int, cdr: bytes) -> tuple[int, bytes]:
+        if t_topic != topic:
+            return t, cdr
+        seen["n"] += 1
+        if quirk != "no_altitude" and seen["n"] % 10 != 3:
+            return t, cdr
+        msg = store.deserialize_cdr(cdr, msgtype)
+        if quirk == "velocity_nan":
+            msg.twist.twist.linear.x = msg.twist.twist.linear.y = msg.twist.twist.linear.z = float("nan")
+        else:
+            msg.altitude = float("nan")
+        return t, bytes(store.serialize_cdr(msg, msgtype))
+
+    sim = simulated(sim_dir, "urban", "mcap", 1, prf_hz=NAV_ONLY_PRF_HZ)
+    log = rewrite_mcap(sim.log_path, tmp_path / f"{quirk}.mcap", fn)
+    base = load_config()
+    cfg = replace(base, radar=replace(base.radar, prf_hz=NAV_ONLY_PRF_HZ))
+    report = ingest([log], tmp_path / "d.h5", config=cfg)
+    traj = navigate(tmp_path / "d.h5", "sar-min", cfg)
+    assert np.isfinite(traj.rear_axle_enu).all() and np.isfinite(traj.heading).all()
+    velocity = next(s for s in report.streams if s["path"] == "gnss/gnss_cog/velocity")
+    assert velocity["skipped"] == ({"no velocity": 58} if quirk == "velocity_nan" else {}), velocity
+    said = [w for w in traj.info.get("warnings", []) if w.startswith("gnss/gnss_cog/fix: none of its 580 fixes gives "
+                                                                       "an altitude (NaN): taken as 0 m")]
+    assert len(said) == (quirk == "no_altitude"), traj.info.get("warnings")
+    truth = load_truth(sim.truth_path, traj.origin, cfg).trajectory
+    t = traj.t_ns[(traj.t_ns > truth.t_ns[0]) & (traj.t_ns < truth.t_ns[-1])][::50]
+    across = float(np.sqrt(np.mean(trajectory_errors(traj, truth, [0, 0, 0], t).aligned_across ** 2)))
+    assert across < 0.015, across

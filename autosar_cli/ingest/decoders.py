@@ -155,7 +155,10 @@ def fix_row(m: Any) -> tuple[float, ...] | None:
             m.position_covariance_type)
 
 
-def velocity_row(m: Any) -> tuple[float, ...]:
+def velocity_row(m: Any) -> tuple[float, ...] | None:
+    """Row of a twist (ENU velocity), or None when its horizontal velocity is not finite (a receiver's NaN before its
+    first fix: one NaN sample made SAR-MIN's whole trajectory NaN). A NaN up velocity is kept: a receiver without one
+    writes NaN there."""
     twist = m.twist
     if hasattr(twist, "covariance"):  # TwistWithCovarianceStamped
         cov = twist.covariance
@@ -164,6 +167,8 @@ def velocity_row(m: Any) -> tuple[float, ...]:
     else:
         var = (math.nan, math.nan, math.nan)
     v, w = twist.linear, twist.angular
+    if not (math.isfinite(v.x) and math.isfinite(v.y)):
+        return None
     return (v.x, v.y, v.z, w.x, w.y, w.z, *var)
 
 

@@ -404,7 +404,11 @@ class _Ingest:
 
         def handle(raw: RawMessage) -> None:
             m = deser(raw.data)
-            stream.push(_stamp_ns(m.header), raw.log_ns, velocity_row(m))
+            row = velocity_row(m)
+            if row is None:
+                stream.skip("no velocity")
+            else:
+                stream.push(_stamp_ns(m.header), raw.log_ns, row)
 
         return handle
 

@@ -83,6 +83,8 @@ class NavInputs:
     #: (:func:`~autosar_cli.nav.gnss_noise.velocity_decorrelated`); the samples' sigma is then its white part
     gnss_velocity_error_std_mps: float = 0.0
     gnss_velocity_error_time_s: float = 0.0
+    #: what the inputs lack that navigate says in one line each (a receiver that gives no altitude)
+    warnings: list[str] = field(default_factory=list)
 
 
 def lsb_of(values: Array) -> float:
@@ -108,6 +110,24 @@ def _reported_horizontal_std(drive: Drive, fix: h5py.Group) -> float:
     var = 0.5 * (cov[:, 0] + cov[:, 4])
     ok = known & np.isfinite(var) & (var > 0)
     return float(np.sqrt(np.median(var[ok]))) if ok.any() else math.nan
+
+
+def with_altitudes(fix: dict[str, Array], stream: str) -> tuple[dict[str, Array], str]:
+    """``fix`` (columns ``t_ns``, ``altitude_m``) with each altitude the receiver does not give (NaN: NavSatFix's
+    "no altitude available", a 2-D fix) interpolated in time from the others', or 0 where no fix gives one, and then a
+    warning naming ``stream``. A NaN altitude had made every fix's ENU position NaN, and SAR-MIN's whole trajectory
+    with it, without a word."""
+    alt = np.asarray(fix["altitude_m"], dtype=np.float64)
+    given = np.isfinite(alt)
+    if given.all():
+        return fix, ""
+    if not given.any():
+        return {**fix, "altitude_m": np.zeros(len(alt))}, (
+            f"{stream}: none of its {len(alt)} fixes gives an altitude (NaN): taken as 0 m above the ellipsoid, so the "
+            "drive's heights are relative and its horizontal scale off by the height over the Earth's radius "
+            "(16 ppm per 100 m)")
+    t = np.asarray(fix["t_ns"], dtype=np.float64)
+    return {**fix, "altitude_m": np.where(given, alt, np.interp(t, t[given], alt[given]))}, ""
 
 
 def _load_gnss_heading(out: NavInputs, drive: Drive, gnss: h5py.Group, source: str, errors: GnssErrors | None,
@@ -226,6 +246,7 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         vel = drive.columns(gnss["velocity"], ("t_ns", "velocity_enu")) if "velocity" in gnss else None
     if len(fix["t_ns"]) == 0:
         raise NavInputError(f"{drive.path}: gnss/{nav.gnss}/fix is empty")
+    fix, no_altitude = with_altitudes(fix, f"gnss/{nav.gnss}/fix")
     lever = tuple(gnss_cfg.lever_arm_m) if gnss_cfg else (0.0, 0.0, 0.0)
     antenna_height = config.vehicle.cog_height_m + lever[2]
     origin = GeodeticOrigin(float(fix["latitude_deg"][0]), float(fix["longitude_deg"][0]),
@@ -244,7 +265,7 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         """:meth:`Drive.can_role`, reading each message's time stamps once."""
         return drive.can_role(role, can_times)
 
-    out = NavInputs(t0, origin, gnss_lever_m=lever)  # type: ignore[arg-type]
+    out = NavInputs(t0, origin, gnss_lever_m=lever, warnings=[no_altitude] if no_altitude else [])  # type: ignore[arg-type]
     enu = origin.to_enu(fix["latitude_deg"], fix["longitude_deg"], fix["altitude_m"])
     errors = gnss_cfg.gnss if gnss_cfg else None
     if nav.gnss_error_model == "gauss_markov":

@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from autosar_cli.config import Config
 from autosar_cli.nav.frames import wrap_angle
 from autosar_cli.nav.geodesy import GeodeticOrigin
-from autosar_cli.nav.inputs import NavInputError, read_imu, streams_held
+from autosar_cli.nav.inputs import NavInputError, read_imu, streams_held, with_altitudes
 from autosar_cli.nav.trajectory import Trajectory, rear_axle_from_body_point
 from autosar_cli.store.drive import Drive
 
@@ -75,7 +75,7 @@ def load_ins_inputs(drive: Drive, config: Config, origin: GeodeticOrigin, t0_ns:
     if "velocity" not in drive.h5["gnss"][nav.ins_gnss]:
         raise NavInputError(f"{drive.path}: the INS baseline needs the GNSS velocity gnss/{nav.ins_gnss}/velocity, "
                             "which the receiver did not log (its fixes alone: --method sar-min or gnss)")
-    fix = drive.series(f"gnss/{nav.ins_gnss}/fix")
+    fix, _ = with_altitudes(drive.series(f"gnss/{nav.ins_gnss}/fix"), f"gnss/{nav.ins_gnss}/fix")
     vel = drive.series(f"gnss/{nav.ins_gnss}/velocity")
     if np.isnan(imu["angular_velocity"]).any() or np.isnan(imu["linear_acceleration"]).any():
         raise NavInputError(f"{drive.path}: imu/{nav.ins_imu} is not a 6-DoF IMU")

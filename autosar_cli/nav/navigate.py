@@ -761,8 +761,8 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
         traj = from_truth(str(truth_path), inputs.origin, config, radar_motion=True)
         traj.info["truth"] = os.path.abspath(truth_path)
     traj.info["drive"] = os.path.abspath(drive_path)
-    if damage:
-        traj.info["warnings"] = [*damage, *traj.info.get("warnings", [])]
+    if damage or inputs.warnings:
+        traj.info["warnings"] = [*damage, *inputs.warnings, *traj.info.get("warnings", [])]
     if recording is not None:
         traj.info["drive_radar_frames"] = recording
     traj.info["elapsed_s"] = time.perf_counter() - t0
