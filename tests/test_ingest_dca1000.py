@@ -718,6 +718,36 @@ def test_lost_reordered_and_repeated_packets(tmp_path: Path) -> None:
         np.testing.assert_array_equal(d.radar().raw[()], pris[74:])
 
 
+def test_a_second_recording_appended_to_the_first_is_left_out_by_name(tmp_path: Path) -> None:
+    """Two recordings in one raw file (the second's packets start again at sequence 1, byte count 0): the first is
+    read whole, the second left out with one warning naming the file and byte where it starts, whether the first
+    ends inside a packet (40 PRIs: 712 packets and 128 bytes) or at a packet's edge (91 PRIs); a packet cut short
+    inside a recording is said, its bytes kept and the PRIs it lacks left out."""
+    for n_first in (40, 91):
+        p, first, files = config_capture(tmp_path / f"a{n_first}", n_pris=n_first, packet_bytes=PACKET)
+        _, _, second = config_capture(tmp_path / f"b{n_first}", n_pris=60, packet_bytes=PACKET)
+        size = files[0].stat().st_size
+        files[0].write_bytes(files[0].read_bytes() + second[0].read_bytes())
+        cap = Dca1000Capture(tmp_path / f"a{n_first}")
+        blocks = list(cap.blocks())
+        assert cap.num_frames == n_first and not any(d.any() for _, _, d in blocks)
+        np.testing.assert_array_equal(np.concatenate([b for _, b, _ in blocks]), first)
+        assert cap.warnings == [f"{files[0]}: byte {size}: the DCA1000's packets start again (byte count 0 after "
+                                f"{(n_first * p.frame_bytes - 1) // PACKET * PACKET}): a second recording appended "
+                                "to the first, left out (split it off at that byte to read it)"]
+    p, pris, files = config_capture(tmp_path / "cut", packet_bytes=PACKET)
+    stream = files[0].read_bytes()
+    at = 300 * (PACKET + 10)  # packet 301 loses its last 500 bytes
+    files[0].write_bytes(stream[:at + 10 + 956] + stream[at + 10 + PACKET:])
+    cap = Dca1000Capture(tmp_path / "cut")
+    blocks = list(cap.blocks())
+    assert cap.warnings[0] == f"{files[0]}: the packet at byte {at} (sequence 301) holds 956 of 1456 data bytes: " \
+                              "the rest lost"
+    damaged = np.concatenate([d for _, _, d in blocks])
+    assert set(np.flatnonzero(damaged)) == pris_of((300 * PACKET + 956, 301 * PACKET), p) == {16}
+    np.testing.assert_array_equal(np.concatenate([b for _, b, _ in blocks])[~damaged], pris[~damaged])
+
+
 def test_packets_split_across_files_and_a_damaged_file(tmp_path: Path) -> None:
     """A recording split anywhere (a packet, even its header, across two files) reads as one stream. Bytes that
     break the packet layout (a header overwritten in the second file) are left out up to the next header that

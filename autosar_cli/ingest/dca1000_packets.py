@@ -200,7 +200,19 @@ class PacketIndex:
                 continue
             x = int(at[end])
             path, local = rec.where(x)
-            y = _resync(rec, x, origin, data_bytes) if origin is not None else None
+            # from inside the packet before: a header there ends that packet short (a recording's last packet, a
+            # second recording appended after it, which :func:`_restart` finds, or a packet cut short)
+            y = _resync(rec, int(at[end - 1]) + HEADER_BYTES if end else x, origin, data_bytes) \
+                if origin is not None else None
+            if y is not None and y < x:
+                prev, cut = int(at[end - 1]), y - int(at[end - 1]) - HEADER_BYTES
+                parts[-1][2][end - 1] = cut
+                if int(seq[end - 1]) < int(header_fields(rec.headers(np.array([y])))[0][0]):  # the stream goes on
+                    where, at_prev = rec.where(prev)
+                    warnings.append(f"{where}: the packet at byte {at_prev} (sequence {int(seq[end - 1])}) holds "
+                                    f"{cut} of {data_bytes} data bytes: the rest lost")
+                g = y
+                continue
             where = "to the end of the recording" if y is None else (
                 f"up to byte {rec.where(y)[1]} of {rec.where(y)[0].name}" if rec.where(y)[0] != path
                 else f"up to byte {y - x + local}")
@@ -211,6 +223,12 @@ class PacketIndex:
             g = y
         offset, start, length = (np.concatenate([p[i] for p in parts]) if parts else np.zeros(0, dtype=np.int64)
                                  for i in range(3))
+        if (k := _restart(start, data_bytes)) is not None:  # a second recording appended: not this one's stream
+            path, local = rec.where(int(offset[k]) - HEADER_BYTES)
+            warnings.append(f"{path}: byte {local}: the DCA1000's packets start again (byte count {int(start[k])} "
+                            f"after {int(start[:k].max())}): a second recording appended to the first, left out "
+                            f"(split it off at that byte to read it)")
+            offset, start, length = offset[:k], start[:k], length[:k]
         order = np.argsort(start, kind="stable")
         # a packet that arrives after one from later in the stream came out of order (UDP may reorder)
         late = int(np.count_nonzero(start < np.maximum.accumulate(np.concatenate([[-1], start[:-1]]))))
@@ -255,6 +273,21 @@ class PacketIndex:
             lo, hi = max(a, s0), min(b, s0 + len(data))
             out[lo - a:hi - a] = data[lo - s0:hi - s0]
             i = j
+
+
+#: a packet that arrives more than this many packets behind the furthest one is no UDP reordering but a recording
+#: that starts again (two appended in one file)
+RESTART_PACKETS = 64
+
+
+def _restart(start: NDArray[np.int64], data_bytes: int) -> int | None:
+    """The index (recording order) of the first packet of a second recording appended to the first: its byte count
+    ``start`` more than ``RESTART_PACKETS`` packets behind the furthest packet so far; None where there is none."""
+    if len(start) < 2:
+        return None
+    behind = np.maximum.accumulate(start)[:-1] - start[1:] > RESTART_PACKETS * data_bytes
+    k = np.flatnonzero(behind)
+    return int(k[0]) + 1 if len(k) else None
 
 
 def zero_runs(values: NDArray[np.int16], min_values: int = ZERO_RUN_VALUES) -> NDArray[np.int64]:
