@@ -620,6 +620,27 @@ def test_a_frame_clock_that_drifts_is_timed_by_its_triggers(tmp_path: Path) -> N
                 open_radar(d, FocusOptions(radar_clock_drift_ppm=500.0))
 
 
+def test_triggers_that_are_not_one_per_frame_are_said(tmp_path: Path) -> None:
+    """A software-triggered capture of 40 frames whose sync topic holds 41 triggers (the DCA1000 armed a frame late:
+    the first trigger's frame is not in the capture) or 39 (the logger stopped first): its frames are timed from the
+    first trigger as before, and one warning says the counts differ and what a late start does to every frame."""
+    pris = np.random.default_rng(4).integers(-500, 500, (40, 3, 4, 540, 2), dtype=np.int16)
+    write_capture(tmp_path / "sw", params_from_radar(CFG.radar, lanes=4), [pris], param_format="json")
+    start, period_ns = 1_714_557_600_000_000_000, 1e9 / CFG.radar.prf_hz
+    for n in (41, 39, 1):
+        log = trigger_log(tmp_path / f"t{n}.mcap", start + np.round(np.arange(n) * period_ns).astype(np.int64))
+        r = runner.invoke(app, ["ingest", str(log), "--radar", str(tmp_path / "sw"), "--allow-partial",
+                                "-o", str(tmp_path / f"t{n}.h5")])
+        assert r.exit_code == 0, r.output
+        with Drive(tmp_path / f"t{n}.h5") as d:
+            assert d.radar().t_ns[0] == start
+        said = [line for line in r.stderr.splitlines() if "triggers on topic /dca1000/sync for its 40 frames" in line]
+        assert said == ([f"warning: {tmp_path / 'sw' / 'adc_data.bin'}: {n} triggers on topic /dca1000/sync for its "
+                         "40 frames: timed from the first trigger, so every frame the capture missed at its start "
+                         "puts all its frames a frame period (1.0101 ms) early; where it did, give --radar-start"]
+                        if n > 1 else []), r.stderr.splitlines()
+
+
 def test_the_frame_clock_is_measured_through_jitter_and_late_triggers() -> None:
     """3000 triggers 1 ms apart on the radar's clock, 60 ppm fast, stamped with 20 us of jitter and five messages
     50 ms late: the line through them reads the drift within 3 std (std under 1 ppm) and applies it; the same

@@ -188,6 +188,10 @@ def capture_frame_starts(cap: Dca1000Capture, start_ns: int | None, triggers: Se
     start = start_ns if start_ns is not None else int(stamps[0])
     starts = cap.frame_starts_ns(start)
     attrs: dict[str, Any] = {}
+    if start_ns is None and len(stamps) > 1 and len(stamps) != n:  # triggers, yet not one per frame
+        warn(f"{cap.name}: {len(stamps)} triggers on topic {topic} for its {n} frames: timed from the first "
+             f"trigger, so every frame the capture missed at its start puts all its frames a frame period "
+             f"({p.frame_period_s * 1e3:g} ms) early; where it did, give --radar-start")
     if start_ns is None and len(stamps) == n and n > 2:  # a trigger per frame: they must follow the period
         clock = frame_clock_against_triggers(stamps, p.frame_period_s)
         attrs = clock.attrs()
