@@ -106,6 +106,25 @@ def test_narrow_adc_samples_are_sign_extended(tmp_path: Path, bits: int) -> None
     np.testing.assert_array_equal(np.concatenate([b for _, b, _ in cap.blocks()]), pris)
 
 
+@pytest.mark.parametrize("written, stated", [(12, 16), (14, 16), (16, 12), (16, 14)])
+def test_adc_words_of_other_bits_than_the_parameters_give_are_refused(tmp_path: Path, written: int,
+                                                                      stated: int) -> None:
+    """Unextended 12/14-bit words read as the 16-bit samples the .cfg states would wrap every negative sample; 16-bit
+    ones read as 12/14-bit would be sign-extended wrong: each is a one-line error naming the data, the parameter file
+    and the words that contradict it."""
+    p = dataclasses.replace(small_params(2, "complex1x", (0, 1), (0, 1, 2, 3), loops=1), adc_bits=written)
+    pris = np.random.default_rng(written).integers(-(1 << (written - 1)), 1 << (written - 1), (4, 2, 4, 8, 2),
+                                                   dtype=np.int16)
+    write_capture(tmp_path, p, [pris])
+    cfg = tmp_path / "capture.cfg"
+    codes = {12: 0, 14: 1, 16: 2}
+    cfg.write_text(cfg.read_text().replace(f"adcCfg {codes[written]} 1", f"adcCfg {codes[stated]} 1"))
+    r = runner.invoke(app, ["info", str(tmp_path)])
+    needle = "none negative and none above" if stated == 16 else "holds the word"
+    assert_one_line_error(r.exit_code, r.stderr, f"{tmp_path / 'adc_data.bin'}: capture.cfg gives {stated}-bit ADC "
+                          "samples", needle, "State the ADC's bits")
+
+
 def sdk_cfg(tmp_path: Path, **change: str) -> Path:
     """A capture matching the default config, as an mmWave SDK .cfg (2-lane), with edited command lines."""
     p = params_from_radar(CFG.radar, lanes=2)

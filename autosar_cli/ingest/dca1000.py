@@ -260,8 +260,30 @@ class Dca1000Capture:
             self.warnings.append(f"{self.name}: holds {self.num_frames} of the {p.num_frames} frames "
                                  f"{self.param_file.name} configures: the capture stopped early or its file was cut "
                                  "short")
+        self._check_word_bits()
         #: PRIs left out by :meth:`blocks`' flags, by cause, once the blocks are read
         self.damage = {"lost packets": 0, "zero-filled runs": 0, "PRIs": 0}
+
+    def _check_word_bits(self, frames: int = 8) -> None:
+        """The first ``frames`` frames' words must be samples of the ADC bits the parameters give: 12/14-bit ones lie
+        in -2^(bits-1)..2^bits - 1 (sign-extended or not); 16-bit ones are signed, so words that are none negative and
+        all below 2^14 are unextended narrower samples, which read as 16-bit would wrap every negative one."""
+        p = self.params
+        blocks = self._value_blocks(frames)
+        _, values = next(blocks)
+        blocks.close()
+        lo, hi = int(values.min()), int(values.max())
+        src = self.param_file.name
+        if p.adc_bits == 16 and lo >= 0 and 0 < hi < 1 << 14:
+            raise CaptureError(f"{self.name}: {src} gives 16-bit ADC samples, but the first {len(values)} words are "
+                               f"none negative and none above {hi}: unextended 12- or 14-bit samples? State the "
+                               "ADC's bits (b2AdcBits, adcCfg's numADCBits)")
+        if p.adc_bits != 16 and not -(1 << (p.adc_bits - 1)) <= lo <= hi < 1 << p.adc_bits:
+            bad = int(np.flatnonzero((values < -(1 << (p.adc_bits - 1))) | (values >= 1 << p.adc_bits))[0])
+            raise CaptureError(f"{self.name}: {src} gives {p.adc_bits}-bit ADC samples, but frame "
+                               f"{bad // (p.frame_bytes // 2)} holds the word {int(values[bad])}, outside "
+                               f"{-(1 << (p.adc_bits - 1))}..{(1 << p.adc_bits) - 1}: wider samples? State the ADC's "
+                               "bits (b2AdcBits, adcCfg's numADCBits)")
 
     @property
     def name(self) -> str:
