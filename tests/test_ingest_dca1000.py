@@ -402,6 +402,21 @@ def test_malformed_sizes(tmp_path: Path) -> None:
     assert_one_line_error(r.exit_code, r.stderr, "without a DCA1000 parameter file")
 
 
+def test_a_folder_holding_adc_data_and_another_captures_files_is_refused(tmp_path: Path) -> None:
+    """adc_data.bin beside mmWave Studio's raw twin (adc_data_Raw_0.bin …) is the capture; beside another series
+    (run2_0.bin, run2_1.bin) or another .bin it is a one-line error naming them, and each reads given as CAPTURE."""
+    cap = sdk_cfg(tmp_path / "cap")
+    data = (cap / "adc_data.bin").read_bytes()
+    (cap / "adc_data_Raw_0.bin").write_bytes(b"\x01\x00" * 100)
+    assert Dca1000Capture(cap).files == [cap / "adc_data.bin"]
+    (cap / "run2_0.bin").write_bytes(data[:30000])
+    (cap / "run2_1.bin").write_bytes(data[30000:])
+    assert_one_line_error(*cli_ingest(cap, tmp_path / "d.h5"), f"{cap}: adc_data.bin and run2_0.bin, run2_1.bin: "
+                          "the data of two captures? Give the capture's .bin file as CAPTURE")
+    assert Dca1000Capture(cap / "adc_data.bin").files == [cap / "adc_data.bin"]
+    assert Dca1000Capture(cap / "run2_0.bin").files == [cap / "run2_0.bin", cap / "run2_1.bin"]
+
+
 @pytest.fixture(scope="module")
 def simulated_capture(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:
     """`simulate --format dca1000` of ci seed 7 (kinematic): (navigation MCAP, capture, `run` of the two)."""

@@ -160,7 +160,12 @@ def find_capture(path: Path) -> tuple[list[Path], Path]:
         m = _SPLIT.match(path.name)
         files = _split_series(folder, m.group(1)) if m else [path]
         return files, params[0]
-    if (folder / "adc_data.bin").exists():
+    if (folder / "adc_data.bin").exists():  # mmWave Studio's post-processed data, beside its raw adc_data_Raw_<k>
+        others = [b.name for b in sorted(folder.glob("*.bin")) if b.name != "adc_data.bin"
+                  and not re.fullmatch(r"adc_data_Raw_\d+\.bin", b.name)]
+        if others:
+            raise CaptureError(f"{path}: adc_data.bin and {', '.join(others)}: the data of two captures? Give the "
+                               "capture's .bin file as CAPTURE")
         return [folder / "adc_data.bin"], params[0]
     bases = sorted({m.group(1) for p in folder.glob("*_*.bin") if (m := _SPLIT.match(p.name))})
     if len(bases) == 1:
