@@ -220,6 +220,7 @@ ROS1_RUN_ON = ("tests/test_ingest_damage.py::test_ros1_uncompressed_message_whos
 ROS1_RUN_ON_CONNECTION = ("tests/test_ingest_damage.py::test_ros1_uncompressed_message_whose_length_runs_over_a_"
                           "connection_record_costs_nothing")
 _QUIRKS = "tests/test_ingest_quirks.py::"
+_DCA = "tests/test_ingest_dca1000.py::"
 QUIRK_OUTLIVING = _QUIRKS + "test_gnss_outliving_the_imus_and_can_gives_a_trajectory_its_readers_take"
 QUIRK_MUX = _QUIRKS + "test_a_multiplexed_dbc_message_is_decoded_or_refused_clearly"
 QUIRK_SAME_ID = _QUIRKS + "test_another_message_with_the_same_number_is_not_decoded_as_the_dbcs"
@@ -1011,6 +1012,19 @@ MUTATIONS: list[Mutation] = [
     _m("ned-velocity-read-as-enu", "sar-min", "nav/inputs.py",
        "    if swapped < FRAME_FIT_ANGLE_DEG:", "    if False:",
        _QUIRKS + "test_a_gnss_velocity_in_another_frame_than_enu_is_named"),
+    _m("dca-second-recording-read-on", "ingest", "ingest/dca1000_packets.py",
+       "        if (k := _restart(start, data_bytes)) is not None:", "        if (k := None) is not None:",
+       _DCA + "test_a_second_recording_appended_to_the_first_is_left_out_by_name"),
+    _m("dca-triggers-not-one-per-frame-silent", "ingest", "ingest/radar_block.py",
+       "    if start_ns is None and len(stamps) > 1 and len(stamps) != n:", "    if False:",
+       _DCA + "test_triggers_that_are_not_one_per_frame_are_said"),
+    _m("dca-word-bits-unchecked", "ingest", "ingest/dca1000.py",
+       "        self._check_word_bits()", "        pass",
+       _DCA + "test_adc_words_of_other_bits_than_the_parameters_give_are_refused"),
+    _m("dca-two-captures-in-one-folder", "ingest", "ingest/dca1000.py",
+       "        if others:\n            raise CaptureError(f\"{path}: adc_data.bin and",
+       "        if False:\n            raise CaptureError(f\"{path}: adc_data.bin and",
+       _DCA + "test_a_folder_holding_adc_data_and_another_captures_files_is_refused"),
     _m("info-names-cut-short", "inputs", "cli.py",
        "Table(Column(\"stream\", overflow=\"fold\"), Column(\"type\", overflow=\"fold\"),",
        "Table(Column(\"stream\"), Column(\"type\"),", INFO_FOLD),
