@@ -122,6 +122,7 @@ def measure(scenario: str, seed: int, config: Any, work: Path, dynamics: str | N
             "steering_gain": est.info["understeer"].get("gain"), "steering_gain_std": est.info["understeer"].get(
                 "gain_std"), "steering_refused": bool(est.info["understeer"].get("refused")),
             "steering_yaw_rate_rms_radps": est.info["understeer"].get("yaw_rate_rms_radps"),
+            "steering_gain_correlation": est.info["understeer"].get("gain_correlation"),
             "warnings": est.info.get("warnings", []),
             "wheel_lag_applied": bool(est.info["wheel_lag"]["applied"]),
             "wheel_radii_applied": bool(est.info["wheel_radii"]["applied"]),

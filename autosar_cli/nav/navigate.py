@@ -103,6 +103,9 @@ EDGE_MIN_TABLE_CHI2 = 100.0
 UNDERSTEER_RANGE = (-0.002, 0.01)
 STEERING_GAIN_TOLERANCE = 1.25
 STEERING_GAIN_SIGNIFICANT = 5.0
+#: ... where the steering correlates with the kinematic angle by this (the gyros' errors then shrink the gain by at
+#: most its square; test2's lane changes: 0.99, test1's straight drives ~0, the gain ~0) or the drive turns
+MIN_STEERING_CORRELATION = 0.95
 #: the CAN's and the GNSS's latencies against the IMUs, both after their stamps, are the IMUs' own where they agree
 #: within this (s) or 3 std
 IMUS_LATE_AGREE_S = 0.02
@@ -613,9 +616,10 @@ def steering_fit(inputs: NavInputs, config: Config, first: NavSolution) -> dict:
 def steering_gain_error(fit: UndersteerFit, wheelbase_m: float, steering_ratio: float) -> str | None:
     """Why the steering is not this car's road-wheel angle, where its slope against the kinematic angle (``fit.gain``)
     lies beyond what a car steers at the drive's speeds (:data:`UNDERSTEER_RANGE`, :data:`STEERING_GAIN_TOLERANCE`)
-    by :data:`STEERING_GAIN_SIGNIFICANT` std, on a drive that turns (the yaw rate varies by ``MIN_TURNING_RADPS`` RMS);
-    else None."""
-    if fit.yaw_rate_rms_radps < MIN_TURNING_RADPS:
+    by :data:`STEERING_GAIN_SIGNIFICANT` std, where the turns make the kinematic angle (the steering follows it by
+    :data:`MIN_STEERING_CORRELATION`, or the yaw rate varies by ``MIN_TURNING_RADPS`` RMS): elsewhere the gyros' errors
+    are much of it, and shrink the gain towards 0; else None."""
+    if abs(fit.gain_correlation) < MIN_STEERING_CORRELATION and fit.yaw_rate_rms_radps < MIN_TURNING_RADPS:
         return None
     v2_over_l = fit.gain_speed_mps**2 / wheelbase_m
     low = (1.0 + UNDERSTEER_RANGE[0] * v2_over_l) / STEERING_GAIN_TOLERANCE

@@ -53,9 +53,11 @@ class UndersteerFit:
     gain: float = 1.0
     gain_std: float = 0.0
     gain_speed_mps: float = 0.0  #: the speed whose K v^2 / L the gain holds: RMS, weighted as the slope weighs
-    #: the gyros' yaw rate about its mean, RMS: on a straight drive their noise alone varies the kinematic angle, and
-    #: the gain reads ~0 (test1: 0.00 +- 0.01)
+    #: the gyros' yaw rate about its mean, RMS, and the steering's correlation with the kinematic angle: on a straight
+    #: drive the gyros' errors are most of the kinematic angle's variation, and the gain reads ~0 (test1: 0.00 +- 0.01,
+    #: the correlation ~0, the yaw rate 0.5 mrad/s RMS)
     yaw_rate_rms_radps: float = 0.0
+    gain_correlation: float = 0.0
     steering_left_out: bool = False  #: the fit showed another steering: SAR-MIN navigated without it
     reason: str = ""
 
@@ -136,7 +138,8 @@ def fit_understeer(inputs: NavInputs, t: Array, x: Array, wheelbase_m: float, mi
     weight = (kinematic - kinematic.mean()) ** 2
     gain_speed = float(np.sqrt(np.sum(weight * v**2) / np.sum(weight))) if np.sum(weight) > 0 else v_mid
     return UndersteerFit(float(coef[1]), float(std), float(coef[2]), float(lag_std), lag, n, float(n_eff),
-                         float(np.std(a)), rms, gain, gain_std, gain_speed, float(np.std(w_side)))
+                         float(np.std(a)), rms, gain, gain_std, gain_speed, float(np.std(w_side)),
+                         float(np.corrcoef(z, kinematic)[0, 1]) if np.std(z) > 0 and np.std(kinematic) > 0 else 0.0)
 
 
 def steering_gain(z: Array, kinematic: Array) -> tuple[float, float]:
