@@ -125,6 +125,18 @@ def test_adc_words_of_other_bits_than_the_parameters_give_are_refused(tmp_path: 
                           "samples", needle, "State the ADC's bits")
 
 
+@pytest.mark.parametrize("bits, low, high", [(16, 150, 450), (16, 2100, 2900), (12, 1800, 2048)])
+def test_a_quiet_capture_with_a_dc_offset_reads(tmp_path: Path, bits: int, low: int, high: int) -> None:
+    """A quiet scene's samples about an ADC's DC offset (16-bit: 150..449 or 2100..2899, none negative; 12-bit:
+    1800..2047) are its bits' samples: read as they are. Words none negative and below 2^14 are unextended narrower
+    samples only where they lie near both 0 and the top of the narrower range (the negative ones wrapped)."""
+    p = dataclasses.replace(small_params(2, "complex1x", (0, 1), (0, 1, 2, 3), loops=1), adc_bits=bits)
+    pris = np.random.default_rng(bits).integers(low, high, (4, 2, 4, 8, 2), dtype=np.int16)
+    write_capture(tmp_path, p, [pris])
+    cap = Dca1000Capture(tmp_path)
+    np.testing.assert_array_equal(np.concatenate([b for _, b, _ in cap.blocks()]), pris)
+
+
 def sdk_cfg(tmp_path: Path, **change: str) -> Path:
     """A capture matching the default config, as an mmWave SDK .cfg (2-lane), with edited command lines."""
     p = params_from_radar(CFG.radar, lanes=2)

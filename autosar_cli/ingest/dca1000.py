@@ -271,18 +271,22 @@ class Dca1000Capture:
 
     def _check_word_bits(self, frames: int = 8) -> None:
         """The first ``frames`` frames' words must be samples of the ADC bits the parameters give: 12/14-bit ones lie
-        in -2^(bits-1)..2^bits - 1 (sign-extended or not); 16-bit ones are signed, so words that are none negative and
-        all below 2^14 are unextended narrower samples, which read as 16-bit would wrap every negative one."""
+        in -2^(bits-1)..2^bits - 1 (sign-extended or not); 16-bit ones are signed, so words that are none negative,
+        all below 2^14 and lie both near 0 and near the top of a 12/14-bit range (its negative samples, unextended)
+        are narrower samples, which read as 16-bit would wrap every negative one. A quiet scene's 16-bit samples about
+        a DC offset (150..449: none negative) lie near neither end."""
         p = self.params
         blocks = self._value_blocks(frames)
         _, values = next(blocks)
         blocks.close()
         lo, hi = int(values.min()), int(values.max())
         src = self.param_file.name
-        if p.adc_bits == 16 and lo >= 0 and 0 < hi < 1 << 14:
+        bits = 12 if hi < 1 << 12 else 14
+        if (p.adc_bits == 16 and lo >= 0 and 0 < hi < 1 << 14 and bool(np.any(values < 1 << (bits - 2)))
+                and bool(np.any(values >= 3 << (bits - 2)))):
             raise CaptureError(f"{self.name}: {src} gives 16-bit ADC samples, but the first {len(values)} words are "
-                               f"none negative and none above {hi}: unextended 12- or 14-bit samples? State the "
-                               "ADC's bits (b2AdcBits, adcCfg's numADCBits)")
+                               f"none negative and none above {hi}, near both 0 and 2^{bits}: unextended {bits}-bit "
+                               "samples? State the ADC's bits (b2AdcBits, adcCfg's numADCBits)")
         if p.adc_bits != 16 and not -(1 << (p.adc_bits - 1)) <= lo <= hi < 1 << p.adc_bits:
             bad = int(np.flatnonzero((values < -(1 << (p.adc_bits - 1))) | (values >= 1 << p.adc_bits))[0])
             raise CaptureError(f"{self.name}: {src} gives {p.adc_bits}-bit ADC samples, but frame "
