@@ -647,3 +647,30 @@ def test_velocities_where_the_receiver_gives_no_fix_are_left_out(sim_dir: Path, 
     t = traj.t_ns[(traj.t_ns > truth.t_ns[0]) & (traj.t_ns < truth.t_ns[-1])][::50]
     across = float(np.sqrt(np.mean(trajectory_errors(traj, truth, [0, 0, 0], t).aligned_across ** 2)))
     assert across < 0.02, across
+
+
+def test_a_latitude_role_keeps_its_degrees_whatever_its_signals_name(tmp_path: Path) -> None:
+    """OxTS names its coordinates PosLat and PosLon ("deg", "degrees"): as the latitude/longitude roles they stay in
+    degrees like a signal named Latitude, and no unit is warned of. Before: stored in radians (0.84 for 48.12 deg, the
+    fixes 5000 km off), and ingest warned "the DBC gives its unit as 'deg', not one read as deg (deg): its values are
+    taken as deg as they are"."""
+    import dataclasses
+
+    from autosar_cli.config import DEFAULT_CONFIG
+    from autosar_cli.store.drive import Drive
+
+    dbc = tmp_path / "oxts.dbc"
+    dbc.write_text('VERSION ""\n\nBU_: ECU\n\nBO_ 1537 PosLatLong: 8 ECU\n'
+                   ' SG_ PosLat : 0|32@1- (1E-007,0) [-90|90] "deg" ECU\n'
+                   ' SG_ PosLon : 32|32@1- (1E-007,0) [-180|180] "degrees" ECU\n')
+    base = load_config(DEFAULT_CONFIG.parent / "examples" / "css_canedge_gnss.toml")
+    cfg = dataclasses.replace(base, can=dataclasses.replace(base.can, dbc=str(dbc), roles={
+        "latitude.css_gnss": "PosLatLong.PosLat", "longitude.css_gnss": "PosLatLong.PosLon"}))
+    log = tmp_path / "gps.log"
+    log.write_text("".join(f"({1_700_000_000 + i:.6f}) can0 601#{struct.pack('<ii', 481234567 + i, 115678901).hex()}\n"
+                           for i in range(20)))
+    report = ingest([], tmp_path / "d.h5", config=cfg, can_logs=[log], allow_partial=True)
+    assert not [w for w in report.warnings if w.startswith("can.roles.")], report.warnings
+    with Drive(tmp_path / "d.h5") as d:
+        np.testing.assert_allclose(d.can_role("latitude.css_gnss")[1], 48.1234567 + 1e-7 * np.arange(20))
+        np.testing.assert_allclose(d.can_role("longitude.css_gnss")[1], 11.5678901)

@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from cantools.database.can import Database, Message
+from cantools.database.can import Database, Message, Signal
 
 from autosar_cli.candb import giorgio_checksum, si_factor
 from autosar_cli.store.drive import Column, DriveWriter, RadarCube, Table
@@ -288,8 +288,13 @@ class CanDecoder:
     unknown IDs, DLC mismatch and bad checksums drop the frame; counter jumps are counted and kept.
     """
 
-    def __init__(self, writer: DriveWriter, db: Database, checksum_rule: str, attrs: Callable[[], dict[str, Any]]):
+    def __init__(self, writer: DriveWriter, db: Database, checksum_rule: str, attrs: Callable[[], dict[str, Any]],
+                 geodetic: Collection[tuple[str, str]] = ()):
+        """``geodetic``: the (message or group, signal) pairs of the latitude/longitude roles, kept in degrees
+        whatever their names (OxTS's ``PosLat``, which :func:`~autosar_cli.candb.si_factor` cannot tell from an
+        angle of the car's)."""
         self.writer = writer
+        self._geodetic = set(geodetic)
         self.db = db
         self.checksum_rule = checksum_rule
         self.stats = CanStats()
@@ -299,7 +304,7 @@ class CanDecoder:
         for m in db.messages:
             group = m.name if names[m.name] == 1 else f"{m.name}_0x{m.frame_id:X}"
             sig_names = [s.name for s in m.signals]
-            factors = [si_factor(s.name, s.unit)[0] for s in m.signals]
+            factors = [self._si(m, group, s)[0] for s in m.signals]
             integrity = [s for s in m.signals if s.name in ("CHECKSUM", "COUNTER")]
             plain = all(s.scale == 1 and s.offset == 0 for s in integrity)
             ranges = [(sg.name, float(sg.minimum), float(sg.maximum)) for sg in m.signals if _meaningful_range(sg)]
@@ -313,8 +318,14 @@ class CanDecoder:
         for lay in self._layouts.values():
             if lay.group == group:
                 sig = next((s for s in lay.message.signals if s.name == signal), None)
-                return None if sig is None else ((sig.unit or "").strip(), si_factor(sig.name, sig.unit)[1])
+                return None if sig is None else ((sig.unit or "").strip(), self._si(lay.message, group, sig)[1])
         return None
+
+    def _si(self, m: Message, group: str, s: Signal) -> tuple[float, str]:
+        """(factor, unit) the signal ``s`` of message ``m`` (drive.h5 group ``group``) is stored in."""
+        if (m.name, s.name) in self._geodetic or (group, s.name) in self._geodetic:
+            return 1.0, (s.unit or "").strip()
+        return si_factor(s.name, s.unit)
 
     def groups_of(self, message: str) -> list[str]:
         """The drive.h5 groups a role's message may name: the DBC messages of that name (a DBC may give two frame
@@ -324,7 +335,7 @@ class CanDecoder:
     def _stream(self, lay: _CanLayout) -> TableStream:
         columns: dict[str, Column] = {"t_ns": Column(np.int64, (), "ns")}
         for s in lay.message.signals:
-            columns[s.name] = Column(np.float64, (), si_factor(s.name, s.unit)[1])
+            columns[s.name] = Column(np.float64, (), self._si(lay.message, lay.group, s)[1])
         attrs = {**self._attrs(), "frame_id": lay.message.frame_id, "is_extended": lay.message.is_extended_frame,
                  "message": lay.message.name, "msgtype": "can_msgs/msg/Frame"}
         lay.stream = TableStream(self.writer, f"can/{lay.group}", "can", columns, attrs)

@@ -263,7 +263,9 @@ class _Ingest:
             raise IngestError(f"{dbc_path}: {exc}") from exc
         self.dbc_path = dbc_path
         self.warnings.extend(dbc_warnings)
-        self.can = CanDecoder(writer, db, config.can.checksum, lambda: {"source_file": self.source_file})
+        self.can = CanDecoder(writer, db, config.can.checksum, lambda: {"source_file": self.source_file},
+                              geodetic={(m, sig) for role, ref in config.can.roles.items() if role_unit(role) == "deg"
+                                        for m, _, sig in [ref.partition(".")]})
         self.names = self._configured_names()
         self.used_names: dict[tuple[str, str], str] = {}
         #: the streams named after their topic, no sensor of the config's naming it: (kind, topic)
@@ -1149,9 +1151,12 @@ def _role_unit_warnings(job: _Ingest, roles: dict[str, str]) -> list[str]:
         expected = role_unit(role)
         group, _, signal = ref.partition("/")
         units = job.can.signal_unit(group, signal)
-        if expected is None or units is None or units[1].lower() in (expected, "°" if expected == "deg" else expected):
+        # a latitude/longitude keeps its DBC's degrees (CanDecoder's geodetic): any spelling of them
+        read_as = {expected, *(u for u, (f, si) in DBC_UNITS.items()
+                               if si == expected or expected == "deg" and si == "rad" and f == DBC_UNITS["deg"][0])}
+        if expected is None or units is None or units[1].lower() in read_as:
             continue
-        spellings = sorted({expected, *(u for u, (_, si) in DBC_UNITS.items() if si == expected)})
+        spellings = sorted(read_as)
         out.append(f"can.roles.{role} = {job.config.can.roles[role]}: the DBC gives its unit as {units[0]!r}, not one "
                    f"read as {expected} ({', '.join(spellings)}): its values are taken as {expected} as they are")
     return out
