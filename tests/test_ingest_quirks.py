@@ -674,3 +674,18 @@ def test_a_latitude_role_keeps_its_degrees_whatever_its_signals_name(tmp_path: P
     with Drive(tmp_path / "d.h5") as d:
         np.testing.assert_allclose(d.can_role("latitude.css_gnss")[1], 48.1234567 + 1e-7 * np.arange(20))
         np.testing.assert_allclose(d.can_role("longitude.css_gnss")[1], 11.5678901)
+
+
+def test_a_steering_turned_on_a_fast_drive_is_named() -> None:
+    """At 60 m/s the band a car's steering gain may take (its understeer from -0.002 rad per m/s^2) reached down to
+    -1.24, so a neutral car's steering with its sign turned (-1.0) passed as a car's; no car steers against its turn."""
+    from autosar_cli.nav.navigate import steering_gain_error
+    from autosar_cli.nav.understeer import UndersteerFit
+
+    def fit(gain: float) -> UndersteerFit:
+        return UndersteerFit(0.0, 1e-4, 0.0, 1e-3, 0.0, 2000, 500.0, 1.0, 1e-4, gain=gain, gain_std=0.01,
+                             gain_speed_mps=60.0, yaw_rate_rms_radps=0.03, gain_correlation=-0.99)
+
+    said = steering_gain_error(fit(-1.0), 2.82, 15.0)
+    assert said is not None and "its sign turned" in said, said
+    assert steering_gain_error(fit(3.5), 2.82, 15.0) is None  # an understeering car's gain at 60 m/s

@@ -622,7 +622,8 @@ def steering_gain_error(fit: UndersteerFit, wheelbase_m: float, steering_ratio: 
     if abs(fit.gain_correlation) < MIN_STEERING_CORRELATION and fit.yaw_rate_rms_radps < MIN_TURNING_RADPS:
         return None
     v2_over_l = fit.gain_speed_mps**2 / wheelbase_m
-    low = (1.0 + UNDERSTEER_RANGE[0] * v2_over_l) / STEERING_GAIN_TOLERANCE
+    # no car steers against its turn: an oversteering one's gain reaches 0 only at its critical speed
+    low = max((1.0 + UNDERSTEER_RANGE[0] * v2_over_l) / STEERING_GAIN_TOLERANCE, 0.0)
     high = (1.0 + UNDERSTEER_RANGE[1] * v2_over_l) * STEERING_GAIN_TOLERANCE
     margin = STEERING_GAIN_SIGNIFICANT * fit.gain_std
     if low - margin <= fit.gain <= high + margin:
