@@ -1099,13 +1099,15 @@ def info(
         from autosar_cli.store.atomic import stale_partials
 
         stale = [str(p) for p in stale_partials(path if path.is_dir() else path.parent)]
-        from autosar_cli.ingest.dca1000 import is_capture
+        from autosar_cli.ingest.dca1000 import capture_problem, is_capture
         from autosar_cli.ingest.inputs import drive_folder
         from autosar_cli.ingest.inspect import summarize
         from autosar_cli.ingest.sources import is_log_directory
 
         folder = drive_folder(path)
         if path.is_dir() and not is_log_directory(path) and not is_capture(path) and folder is None:  # plain
+            if (problem := capture_problem(path)) is not None:  # ADC data or a parameter file, not read as a capture
+                raise ValueError(problem)
             if as_json:
                 out.print_json(strict_json({"path": str(path), "stale_partials": stale}))
                 return

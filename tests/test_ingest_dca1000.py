@@ -429,6 +429,25 @@ def test_a_folder_holding_adc_data_and_another_captures_files_is_refused(tmp_pat
     assert Dca1000Capture(cap / "run2_0.bin").files == [cap / "run2_0.bin", cap / "run2_1.bin"]
 
 
+
+def test_a_capture_folder_not_read_as_one_says_why(tmp_path: Path) -> None:
+    """`autosar info` of a folder whose ADC data is not read as a capture (adc_data.bin beside another capture's
+    series) listed it as a plain folder ('0 stale partial file(s)'), exit 0, where ingest refuses it in one line:
+    info says ingest's reason. A stray .bin beside one split series was left out of the capture without a word: it
+    is refused as adc_data.bin's companions are."""
+    cap = sdk_cfg(tmp_path / "cap")
+    (cap / "run2_0.bin").write_bytes(b"\x01\x00" * 100)
+    r = runner.invoke(app, ["info", str(cap)])
+    assert_one_line_error(r.exit_code, r.stderr, f"{cap}: adc_data.bin and run2_0.bin: the data of two captures?")
+    (cap / "adc_data.bin").rename(cap / "old.bin")
+    (cap / "run2_1.bin").write_bytes(b"\x01\x00" * 100)
+    assert_one_line_error(*cli_ingest(cap, tmp_path / "d.h5"),
+                          f"{cap}: old.bin beside the split series run2_<k>.bin: the data of two captures?")
+    plain = tmp_path / "plain"
+    plain.mkdir()
+    (plain / "notes.txt").write_text("a folder of no capture")
+    assert runner.invoke(app, ["info", str(plain)]).exit_code == 0
+
 @pytest.fixture(scope="module")
 def simulated_capture(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:
     """`simulate --format dca1000` of ci seed 7 (kinematic): (navigation MCAP, capture, `run` of the two)."""

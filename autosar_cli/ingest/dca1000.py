@@ -130,6 +130,10 @@ def pris_to_frames(pris: NDArray[np.int16], p: CaptureParams) -> NDArray[np.int1
 _SPLIT = re.compile(r"^(.*)_(\d+)\.bin$")
 
 
+#: a capture's parameter files, by preference: mmWave Studio's JSON, an mmWave SDK CLI config, a Studio Lua script
+_PARAM_GLOBS = ("*.mmwave.json", "*.cfg", "*.lua")
+
+
 def is_capture(path: Path) -> bool:
     """A DCA1000 capture: a directory or .bin file with a parameter file (.mmwave.json / .cfg / .lua) beside it."""
     if not (path.is_dir() or path.suffix.lower() == ".bin"):
@@ -141,6 +145,18 @@ def is_capture(path: Path) -> bool:
     return True
 
 
+def capture_problem(path: Path) -> str | None:
+    """Why a directory holding ADC data (``*.bin``) or a parameter file is not read as a capture; None where it is
+    one, or holds neither."""
+    if not path.is_dir() or not any(next(path.glob(g), None) for g in ("*.bin", *_PARAM_GLOBS)):
+        return None
+    try:
+        find_capture(path)
+    except CaptureError as exc:
+        return str(exc)
+    return None
+
+
 def find_capture(path: Path) -> tuple[list[Path], Path]:
     """(data files in stream order, parameter file) of a capture directory, data file or parameter file (which is
     then the one read, whatever else lies beside it)."""
@@ -148,8 +164,7 @@ def find_capture(path: Path) -> tuple[list[Path], Path]:
     if path.is_file() and path.suffix.lower() != ".bin":  # the parameter file names its capture's folder
         named, path = path, path.parent
     folder = path if path.is_dir() else path.parent
-    params = [named] if named else (sorted(folder.glob("*.mmwave.json")) or sorted(folder.glob("*.cfg"))
-                                    or sorted(folder.glob("*.lua")))
+    params = [named] if named else next((found for g in _PARAM_GLOBS if (found := sorted(folder.glob(g)))), [])
     if not params:
         raise CaptureError(f"{path}: no DCA1000 parameter file (*.mmwave.json, mmWave SDK *.cfg or mmWave Studio "
                            "*.lua) beside it")
@@ -169,7 +184,11 @@ def find_capture(path: Path) -> tuple[list[Path], Path]:
         return [folder / "adc_data.bin"], params[0]
     bases = sorted({m.group(1) for p in folder.glob("*_*.bin") if (m := _SPLIT.match(p.name))})
     if len(bases) == 1:
-        return _split_series(folder, bases[0]), params[0]
+        series = _split_series(folder, bases[0])
+        if others := [b.name for b in sorted(folder.glob("*.bin")) if b not in series]:
+            raise CaptureError(f"{path}: {', '.join(others)} beside the split series {bases[0]}_<k>.bin: the data of "
+                               "two captures? Give the capture's .bin file as CAPTURE")
+        return series, params[0]
     bins = sorted(folder.glob("*.bin"))
     if len(bins) == 1:
         return bins, params[0]
