@@ -689,3 +689,43 @@ def test_a_steering_turned_on_a_fast_drive_is_named() -> None:
     said = steering_gain_error(fit(-1.0), 2.82, 15.0)
     assert said is not None and "its sign turned" in said, said
     assert steering_gain_error(fit(3.5), 2.82, 15.0) is None  # an understeering car's gain at 60 m/s
+
+
+def test_the_ins_baselines_receiver_in_ned_is_read_as_such(sim_dir: Path, tmp_path: Path) -> None:
+    """The INS baseline's own receiver (gnss_radar, /ins_radar/vel) publishing north, east, down: the baseline read it
+    as ENU without a word (SAR-MIN's receiver is another, so nothing was checked). Its velocity is checked as
+    SAR-MIN's is: NED named, read as such, and the baseline's track as with the recording's."""
+    from dataclasses import replace
+
+    from conftest import NAV_ONLY_PRF_HZ, simulated
+    from rosbags.typesys import Stores, get_typestore
+
+    from autosar_cli.evaluate.evaluation import load_truth
+    from autosar_cli.evaluate.trajectory_metrics import trajectory_errors
+    from autosar_cli.nav.navigate import navigate
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+
+    def ned(topic: str, t: int, cdr: bytes) -> tuple[int, bytes]:
+        if topic != "/ins_radar/vel":
+            return t, cdr
+        msg = store.deserialize_cdr(cdr, "geometry_msgs/msg/TwistStamped")
+        v = msg.twist.linear
+        v.x, v.y, v.z = v.y, v.x, -v.z
+        return t, bytes(store.serialize_cdr(msg, "geometry_msgs/msg/TwistStamped"))
+
+    sim = simulated(sim_dir, "urban", "mcap", 1, prf_hz=NAV_ONLY_PRF_HZ)
+    base = load_config()
+    cfg = replace(base, radar=replace(base.radar, prf_hz=NAV_ONLY_PRF_HZ))
+    across = {}
+    for name, log in (("recorded", sim.log_path), ("ned", rewrite_mcap(sim.log_path, tmp_path / "ned.mcap", ned))):
+        ingest([log], tmp_path / f"{name}.h5", config=cfg)
+        traj = navigate(tmp_path / f"{name}.h5", "ins", cfg)
+        warned = traj.info.get("warnings", [])
+        said = [w for w in warned if w.startswith("gnss/gnss_radar/velocity: its direction agrees with the fixes' "
+                                                  "motion only with its x and y swapped")]
+        assert len(said) == (name == "ned"), warned
+        truth = load_truth(sim.truth_path, traj.origin, cfg).trajectory
+        t = traj.t_ns[(traj.t_ns > truth.t_ns[0]) & (traj.t_ns < truth.t_ns[-1])][::50]
+        across[name] = float(np.sqrt(np.mean(trajectory_errors(traj, truth, [0, 0, 0], t).aligned_across ** 2)))
+    assert across["ned"] < 1.2 * across["recorded"] + 0.005, across

@@ -16,7 +16,7 @@ that the motion the trajectory describes is the motion the INS measured.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,7 +24,14 @@ from numpy.typing import NDArray
 from autosar_cli.config import Config
 from autosar_cli.nav.frames import wrap_angle
 from autosar_cli.nav.geodesy import GeodeticOrigin
-from autosar_cli.nav.inputs import NavInputError, read_imu, streams_held, with_altitudes
+from autosar_cli.nav.inputs import (
+    NavInputError,
+    read_imu,
+    streams_held,
+    velocities_with_fixes,
+    velocity_frame_checked,
+    with_altitudes,
+)
 from autosar_cli.nav.trajectory import Trajectory, rear_axle_from_body_point
 from autosar_cli.store.drive import Drive
 
@@ -58,6 +65,7 @@ class InsInputs:
     gnss_vel: Array  # (M', 3) ENU
     imu_lever: Array  # (3,) body frame, from the CoG
     gnss_lever: Array  # (3,) body frame, from the CoG
+    warnings: list[str] = field(default_factory=list)  # what its receiver's velocity got wrong, one line each
 
 
 def load_ins_inputs(drive: Drive, config: Config, origin: GeodeticOrigin, t0_ns: int) -> InsInputs:
@@ -84,11 +92,15 @@ def load_ins_inputs(drive: Drive, config: Config, origin: GeodeticOrigin, t0_ns:
         return (np.asarray(t, dtype=np.int64) - t0_ns) / 1e9 - latency
 
     enu = origin.to_enu(fix["latitude_deg"], fix["longitude_deg"], fix["altitude_m"])
+    stream = f"gnss/{nav.ins_gnss}/velocity"
+    vel, unfixed = velocities_with_fixes(fix["t_ns"], vel, stream)
+    velocity, frame = velocity_frame_checked(rel(fix["t_ns"], 0.0), enu[:, :2], rel(vel["t_ns"], 0.0),
+                                             np.asarray(vel["velocity_enu"], dtype=np.float64), stream)
     return InsInputs(t0_ns, origin, rel(imu["t_ns"], imu_cfg.latency_s), imu["angular_velocity"],
                      imu["linear_acceleration"], rel(fix["t_ns"], gnss_cfg.latency_s), enu,
-                     rel(vel["t_ns"], gnss_cfg.latency_s), vel["velocity_enu"],
+                     rel(vel["t_ns"], gnss_cfg.latency_s), velocity,
                      np.asarray(imu_cfg.lever_arm_m, dtype=np.float64),
-                     np.asarray(gnss_cfg.lever_arm_m, dtype=np.float64))
+                     np.asarray(gnss_cfg.lever_arm_m, dtype=np.float64), [w for w in (unfixed, frame) if w])
 
 
 def run_ins(ins: InsInputs, config: Config) -> Trajectory:

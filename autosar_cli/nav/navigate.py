@@ -758,6 +758,8 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
         from autosar_cli.nav.ins import run_ins
 
         traj = run_ins(ins_inputs, config)
+        if ins_warnings := [w for w in ins_inputs.warnings if w not in inputs.warnings]:  # its receiver's own
+            traj.info["warnings"] = [*traj.info.get("warnings", []), *ins_warnings]
     elif method == "gnss":
         traj = gnss_only(inputs, config)
     elif method == "none":
