@@ -8,6 +8,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -50,6 +51,16 @@ def header_stamp(cdr: bytes) -> int:
 def with_header_stamp(cdr: bytes, t_ns: int) -> bytes:
     sec, nsec = divmod(t_ns, 1_000_000_000)
     return cdr[:4] + struct.pack("<iI", sec, nsec) + cdr[12:]
+
+
+def aligned_across_rms_m(traj: Any, truth_path: Path, cfg: Any) -> float:
+    """RMS across-track error (m) of ``traj`` against the truth once rigidly aligned, every 50th sample inside it."""
+    from autosar_cli.evaluate.evaluation import load_truth
+    from autosar_cli.evaluate.trajectory_metrics import trajectory_errors
+
+    truth = load_truth(truth_path, traj.origin, cfg).trajectory
+    t = traj.t_ns[(traj.t_ns > truth.t_ns[0]) & (traj.t_ns < truth.t_ns[-1])][::50]
+    return float(np.sqrt(np.mean(trajectory_errors(traj, truth, [0, 0, 0], t).aligned_across ** 2)))
 
 
 def test_gnss_outliving_the_imus_and_can_gives_a_trajectory_its_readers_take(sim_dir: Path, tmp_path: Path) -> None:
@@ -149,8 +160,6 @@ def test_imus_stamped_late_are_moved_where_the_can_and_the_gnss_agree(sim_dir: P
 
     from conftest import NAV_ONLY_PRF_HZ, simulated
 
-    from autosar_cli.evaluate.evaluation import load_truth
-    from autosar_cli.evaluate.trajectory_metrics import trajectory_errors
     from autosar_cli.nav.navigate import navigate
 
     imus = {"/imu/cog_a", "/imu/cog_b", "/ins_cog/imu", "/ins_radar/imu"}
@@ -166,9 +175,7 @@ def test_imus_stamped_late_are_moved_where_the_can_and_the_gnss_agree(sim_dir: P
     assert len(said) == 1 and abs(int(said[0].split("stamped ")[1].split(" ms")[0]) - 300) <= 10, warned
     assert not traj.info["can_latency"]["applied"] and not traj.info["gnss_latency"]["applied"], traj.info
     assert not [w for w in warned if "GNSS" in w.split(":")[0]], warned
-    truth = load_truth(sim.truth_path, traj.origin, cfg).trajectory
-    t = traj.t_ns[(traj.t_ns > truth.t_ns[0]) & (traj.t_ns < truth.t_ns[-1])][::50]
-    across = float(np.sqrt(np.mean(trajectory_errors(traj, truth, [0, 0, 0], t).aligned_across ** 2)))
+    across = aligned_across_rms_m(traj, sim.truth_path, cfg)
     assert across < 0.015, across
 
 _DBC = '''VERSION ""
@@ -257,8 +264,6 @@ def test_wheel_speeds_a_few_per_cent_off_are_scaled_to_the_gnss_speed(sim_dir: P
     from conftest import NAV_ONLY_PRF_HZ, simulated
 
     from autosar_cli.config import DEFAULT_CONFIG
-    from autosar_cli.evaluate.evaluation import load_truth
-    from autosar_cli.evaluate.trajectory_metrics import trajectory_errors
     from autosar_cli.nav.navigate import navigate
 
     sim = simulated(sim_dir, "urban", "mcap", 1, prf_hz=NAV_ONLY_PRF_HZ)
@@ -273,9 +278,7 @@ def test_wheel_speeds_a_few_per_cent_off_are_scaled_to_the_gnss_speed(sim_dir: P
     for name, cfg in (("recorded", recorded), ("off", load_config(layer))):
         ingest([sim.log_path], tmp_path / f"{name}.h5", config=cfg)
         traj = navigate(tmp_path / f"{name}.h5", "sar-min", cfg)
-        truth = load_truth(sim.truth_path, traj.origin, cfg).trajectory
-        t = traj.t_ns[(traj.t_ns > truth.t_ns[0]) & (traj.t_ns < truth.t_ns[-1])][::50]
-        across[name] = float(np.sqrt(np.mean(trajectory_errors(traj, truth, [0, 0, 0], t).aligned_across ** 2)))
+        across[name] = aligned_across_rms_m(traj, sim.truth_path, cfg)
         scale = traj.info["wheel_scale"]
         assert scale["applied"] == (name == "off"), scale
     assert scale["ratio"] == pytest.approx(1.05, abs=0.005) and "divided by that" in scale["reason"]
@@ -346,8 +349,6 @@ def test_a_gyro_with_its_sign_turned_is_left_out_by_name(sim_dir: Path, tmp_path
     from conftest import NAV_ONLY_PRF_HZ, simulated
     from rosbags.typesys import Stores, get_typestore
 
-    from autosar_cli.evaluate.evaluation import load_truth
-    from autosar_cli.evaluate.trajectory_metrics import trajectory_errors
     from autosar_cli.nav.navigate import navigate
 
     store = get_typestore(Stores.ROS2_HUMBLE)
@@ -369,9 +370,7 @@ def test_a_gyro_with_its_sign_turned_is_left_out_by_name(sim_dir: Path, tmp_path
     assert [w for w in warned if w.startswith("gyro imu_cog_a reads the other gyros' yaw rate with its sign turned")]
     assert not [w for w in warned if "GNSS" in w], warned
     assert "bias.imu_cog_a" not in traj.state_names
-    truth = load_truth(sim.truth_path, traj.origin, cfg).trajectory
-    t = traj.t_ns[(traj.t_ns > truth.t_ns[0]) & (traj.t_ns < truth.t_ns[-1])][::50]
-    across = float(np.sqrt(np.mean(trajectory_errors(traj, truth, [0, 0, 0], t).aligned_across ** 2)))
+    across = aligned_across_rms_m(traj, sim.truth_path, cfg)
     assert across < 0.015, across
 
 
@@ -480,8 +479,6 @@ def test_a_steering_that_is_not_the_cars_road_wheel_angle_is_left_out_by_name(
 
     from conftest import NAV_ONLY_PRF_HZ, simulated
 
-    from autosar_cli.evaluate.evaluation import load_truth
-    from autosar_cli.evaluate.trajectory_metrics import trajectory_errors
     from autosar_cli.nav.navigate import navigate
 
     base = load_config()
@@ -500,9 +497,7 @@ def test_a_steering_that_is_not_the_cars_road_wheel_angle_is_left_out_by_name(
     assert traj.info["understeer"]["steering_left_out"] and traj.info["understeer"]["refused"]
     assert [w for w in traj.info.get("warnings", []) if w.startswith("steering: [sensors.steering] it reads")
             and said in w], traj.info.get("warnings")
-    truth = load_truth(sim.truth_path, traj.origin, cfg).trajectory
-    t = traj.t_ns[(traj.t_ns > truth.t_ns[0]) & (traj.t_ns < truth.t_ns[-1])][::50]
-    across = float(np.sqrt(np.mean(trajectory_errors(traj, truth, [0, 0, 0], t).aligned_across ** 2)))
+    across = aligned_across_rms_m(traj, sim.truth_path, cfg)
     assert across < 0.015, across
 
 
@@ -518,8 +513,6 @@ def test_a_receivers_nan_velocity_or_altitude_leaves_the_track_whole(sim_dir: Pa
     from conftest import NAV_ONLY_PRF_HZ, simulated
     from rosbags.typesys import Stores, get_typestore
 
-    from autosar_cli.evaluate.evaluation import load_truth
-    from autosar_cli.evaluate.trajectory_metrics import trajectory_errors
     from autosar_cli.nav.navigate import navigate
 
     store = get_typestore(Stores.ROS2_HUMBLE)
@@ -552,9 +545,7 @@ def test_a_receivers_nan_velocity_or_altitude_leaves_the_track_whole(sim_dir: Pa
     said = [w for w in traj.info.get("warnings", []) if w.startswith("gnss/gnss_cog/fix: none of its 580 fixes gives "
                                                                        "an altitude (NaN): taken as 0 m")]
     assert len(said) == (quirk == "no_altitude"), traj.info.get("warnings")
-    truth = load_truth(sim.truth_path, traj.origin, cfg).trajectory
-    t = traj.t_ns[(traj.t_ns > truth.t_ns[0]) & (traj.t_ns < truth.t_ns[-1])][::50]
-    across = float(np.sqrt(np.mean(trajectory_errors(traj, truth, [0, 0, 0], t).aligned_across ** 2)))
+    across = aligned_across_rms_m(traj, sim.truth_path, cfg)
     assert across < 0.015, across
 
 
@@ -614,8 +605,6 @@ def test_velocities_where_the_receiver_gives_no_fix_are_left_out(sim_dir: Path, 
     from conftest import NAV_ONLY_PRF_HZ, simulated
     from rosbags.typesys import Stores, get_typestore
 
-    from autosar_cli.evaluate.evaluation import load_truth
-    from autosar_cli.evaluate.trajectory_metrics import trajectory_errors
     from autosar_cli.nav.navigate import navigate
 
     store = get_typestore(Stores.ROS2_HUMBLE)
@@ -643,9 +632,7 @@ def test_velocities_where_the_receiver_gives_no_fix_are_left_out(sim_dir: Path, 
     warned = traj.info.get("warnings", [])
     assert [w for w in warned if w.startswith("gnss/gnss_cog/velocity: 80 of its 580 velocities come where the "
                                               "receiver gives no fix")], warned
-    truth = load_truth(sim.truth_path, traj.origin, cfg).trajectory
-    t = traj.t_ns[(traj.t_ns > truth.t_ns[0]) & (traj.t_ns < truth.t_ns[-1])][::50]
-    across = float(np.sqrt(np.mean(trajectory_errors(traj, truth, [0, 0, 0], t).aligned_across ** 2)))
+    across = aligned_across_rms_m(traj, sim.truth_path, cfg)
     assert across < 0.02, across
 
 
@@ -700,8 +687,6 @@ def test_the_ins_baselines_receiver_in_ned_is_read_as_such(sim_dir: Path, tmp_pa
     from conftest import NAV_ONLY_PRF_HZ, simulated
     from rosbags.typesys import Stores, get_typestore
 
-    from autosar_cli.evaluate.evaluation import load_truth
-    from autosar_cli.evaluate.trajectory_metrics import trajectory_errors
     from autosar_cli.nav.navigate import navigate
 
     store = get_typestore(Stores.ROS2_HUMBLE)
@@ -725,7 +710,5 @@ def test_the_ins_baselines_receiver_in_ned_is_read_as_such(sim_dir: Path, tmp_pa
         said = [w for w in warned if w.startswith("gnss/gnss_radar/velocity: its direction agrees with the fixes' "
                                                   "motion only with its x and y swapped")]
         assert len(said) == (name == "ned"), warned
-        truth = load_truth(sim.truth_path, traj.origin, cfg).trajectory
-        t = traj.t_ns[(traj.t_ns > truth.t_ns[0]) & (traj.t_ns < truth.t_ns[-1])][::50]
-        across[name] = float(np.sqrt(np.mean(trajectory_errors(traj, truth, [0, 0, 0], t).aligned_across ** 2)))
+        across[name] = aligned_across_rms_m(traj, sim.truth_path, cfg)
     assert across["ned"] < 1.2 * across["recorded"] + 0.005, across
