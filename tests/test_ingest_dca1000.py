@@ -446,6 +446,7 @@ def test_a_capture_folder_not_read_as_one_says_why(tmp_path: Path) -> None:
     plain = tmp_path / "plain"
     plain.mkdir()
     (plain / "notes.txt").write_text("a folder of no capture")
+    (plain / "tool.cfg").write_text("any tool's config")
     assert runner.invoke(app, ["info", str(plain)]).exit_code == 0
 
 @pytest.fixture(scope="module")

@@ -146,9 +146,9 @@ def is_capture(path: Path) -> bool:
 
 
 def capture_problem(path: Path) -> str | None:
-    """Why a directory holding ADC data (``*.bin``) or a parameter file is not read as a capture; None where it is
-    one, or holds neither."""
-    if not path.is_dir() or not any(next(path.glob(g), None) for g in ("*.bin", *_PARAM_GLOBS)):
+    """Why a directory holding ADC data (``*.bin``) or mmWave Studio's parameters (``*.mmwave.json``) is not read as a
+    capture; None where it is one, or holds neither (a folder's ``.cfg`` or ``.lua`` may be any tool's)."""
+    if not path.is_dir() or not any(next(path.glob(g), None) for g in ("*.bin", "*.mmwave.json")):
         return None
     try:
         find_capture(path)
