@@ -53,6 +53,24 @@ def with_header_stamp(cdr: bytes, t_ns: int) -> bytes:
     return cdr[:4] + struct.pack("<iI", sec, nsec) + cdr[12:]
 
 
+def urban_navigated(sim_dir: Path, log: Path, fn: Callable[[str, int, bytes], tuple[int, bytes] | None]
+                    ) -> tuple[Any, Any, Any, Any]:
+    """urban seed 1 (navigation only) rewritten by ``fn`` into ``log`` (see :func:`rewrite_mcap`), ingested beside it
+    and navigated with SAR-MIN: (the simulation, the config, the ingest's report, the trajectory)."""
+    from dataclasses import replace
+
+    from conftest import NAV_ONLY_PRF_HZ, simulated
+
+    from autosar_cli.nav.navigate import navigate
+
+    sim = simulated(sim_dir, "urban", "mcap", 1, prf_hz=NAV_ONLY_PRF_HZ)
+    rewrite_mcap(sim.log_path, log, fn)
+    base = load_config()
+    cfg = replace(base, radar=replace(base.radar, prf_hz=NAV_ONLY_PRF_HZ))
+    report = ingest([log], log.with_suffix(".h5"), config=cfg)
+    return sim, cfg, report, navigate(log.with_suffix(".h5"), "sar-min", cfg)
+
+
 def aligned_across_rms_m(traj: Any, truth_path: Path, cfg: Any) -> float:
     """RMS across-track error (m) of ``traj`` against the truth once rigidly aligned, every 50th sample inside it."""
     from autosar_cli.evaluate.evaluation import load_truth
@@ -132,19 +150,11 @@ def test_an_imu_stamped_late_is_not_read_as_a_gnss_latency_after_the_stamps(sim_
     their stamps', which no receiver does, and the track was 1.25 m off the truth (0.225 as recorded), 0.387 m RMS
     across once aligned (0.009), exit 0 with no warning. A fitted latency that puts the samples after their stamps
     is not applied, and said as a warning."""
-    from dataclasses import replace
 
-    from conftest import NAV_ONLY_PRF_HZ, simulated
 
-    from autosar_cli.nav.navigate import navigate
 
-    sim = simulated(sim_dir, "urban", "mcap", 1, prf_hz=NAV_ONLY_PRF_HZ)
-    log = rewrite_mcap(sim.log_path, tmp_path / "imu_late.mcap", lambda topic, t, cdr: (
+    sim, cfg, report, traj = urban_navigated(sim_dir, tmp_path / "imu_late.mcap", lambda topic, t, cdr: (
         t, with_header_stamp(cdr, header_stamp(cdr) + 300_000_000) if topic == "/ins_cog/imu" else cdr))
-    base = load_config()
-    cfg = replace(base, radar=replace(base.radar, prf_hz=NAV_ONLY_PRF_HZ))
-    ingest([log], tmp_path / "d.h5", config=cfg)
-    traj = navigate(tmp_path / "d.h5", "sar-min", cfg)
     latency = traj.info["gnss_latency"]
     assert not latency["applied"] and latency["change_s"] < -0.2, latency
     assert [w for w in traj.info.get("warnings", []) if w.startswith("GNSS latency: the samples would refer to")
@@ -156,20 +166,12 @@ def test_imus_stamped_late_are_moved_where_the_can_and_the_gnss_agree(sim_dir: P
     whole bus by -296 ms to them, the GNSS (-297 ms against them, warned) then disagreed with the car's sensors, the
     gate refused 468 of its 580 fixes, and the track was 6.6 m off across once aligned, exit 0. Where the CAN and the
     GNSS both put their samples after their stamps by one delay, it is the IMUs': they are moved by it, said."""
-    from dataclasses import replace
 
-    from conftest import NAV_ONLY_PRF_HZ, simulated
 
-    from autosar_cli.nav.navigate import navigate
 
     imus = {"/imu/cog_a", "/imu/cog_b", "/ins_cog/imu", "/ins_radar/imu"}
-    sim = simulated(sim_dir, "urban", "mcap", 1, prf_hz=NAV_ONLY_PRF_HZ)
-    log = rewrite_mcap(sim.log_path, tmp_path / "imus_late.mcap", lambda topic, t, cdr: (
+    sim, cfg, report, traj = urban_navigated(sim_dir, tmp_path / "imus_late.mcap", lambda topic, t, cdr: (
         t, with_header_stamp(cdr, header_stamp(cdr) + 300_000_000) if topic in imus else cdr))
-    base = load_config()
-    cfg = replace(base, radar=replace(base.radar, prf_hz=NAV_ONLY_PRF_HZ))
-    ingest([log], tmp_path / "d.h5", config=cfg)
-    traj = navigate(tmp_path / "d.h5", "sar-min", cfg)
     warned = traj.info.get("warnings", [])
     said = [w for w in warned if w.startswith("IMUs imu_cog_a, imu_cog_b, ins_cog: stamped ")]
     assert len(said) == 1 and abs(int(said[0].split("stamped ")[1].split(" ms")[0]) - 300) <= 10, warned
@@ -344,12 +346,9 @@ def test_a_gyro_with_its_sign_turned_is_left_out_by_name(sim_dir: Path, tmp_path
     DBC's sign): the gate refused most of its samples and the warning named the GNSS ('the car's own sensors and the
     GNSS disagree'), the heading 52.8° off where the gate let it through. The gyro is left out, named, and the track
     is the one the other three give."""
-    from dataclasses import replace
 
-    from conftest import NAV_ONLY_PRF_HZ, simulated
     from rosbags.typesys import Stores, get_typestore
 
-    from autosar_cli.nav.navigate import navigate
 
     store = get_typestore(Stores.ROS2_HUMBLE)
 
@@ -360,12 +359,7 @@ def test_a_gyro_with_its_sign_turned_is_left_out_by_name(sim_dir: Path, tmp_path
         msg.angular_velocity.z = -msg.angular_velocity.z
         return t, bytes(store.serialize_cdr(msg, "sensor_msgs/msg/Imu"))
 
-    sim = simulated(sim_dir, "urban", "mcap", 1, prf_hz=NAV_ONLY_PRF_HZ)
-    log = rewrite_mcap(sim.log_path, tmp_path / "turned.mcap", turned)
-    base = load_config()
-    cfg = replace(base, radar=replace(base.radar, prf_hz=NAV_ONLY_PRF_HZ))
-    ingest([log], tmp_path / "d.h5", config=cfg)
-    traj = navigate(tmp_path / "d.h5", "sar-min", cfg)
+    sim, cfg, report, traj = urban_navigated(sim_dir, tmp_path / "turned.mcap", turned)
     warned = traj.info.get("warnings", [])
     assert [w for w in warned if w.startswith("gyro imu_cog_a reads the other gyros' yaw rate with its sign turned")]
     assert not [w for w in warned if "GNSS" in w], warned
@@ -508,12 +502,9 @@ def test_a_receivers_nan_velocity_or_altitude_leaves_the_track_whole(sim_dir: Pa
     fix). Each made SAR-MIN's whole trajectory NaN (the velocity's NaN updates the filter; an altitude's NaN makes the
     fix's ENU position NaN, the first one the drive's origin), exit 0, no warning. A NaN velocity is skipped and
     counted; a missing altitude is interpolated from the others', or, where no fix gives one, taken as 0 and said."""
-    from dataclasses import replace
 
-    from conftest import NAV_ONLY_PRF_HZ, simulated
     from rosbags.typesys import Stores, get_typestore
 
-    from autosar_cli.nav.navigate import navigate
 
     store = get_typestore(Stores.ROS2_HUMBLE)
     topic, msgtype = (("/ins_cog/fix_velocity", "geometry_msgs/msg/TwistWithCovarianceStamped")
@@ -533,12 +524,7 @@ def test_a_receivers_nan_velocity_or_altitude_leaves_the_track_whole(sim_dir: Pa
             msg.altitude = float("nan")
         return t, bytes(store.serialize_cdr(msg, msgtype))
 
-    sim = simulated(sim_dir, "urban", "mcap", 1, prf_hz=NAV_ONLY_PRF_HZ)
-    log = rewrite_mcap(sim.log_path, tmp_path / f"{quirk}.mcap", fn)
-    base = load_config()
-    cfg = replace(base, radar=replace(base.radar, prf_hz=NAV_ONLY_PRF_HZ))
-    report = ingest([log], tmp_path / "d.h5", config=cfg)
-    traj = navigate(tmp_path / "d.h5", "sar-min", cfg)
+    sim, cfg, report, traj = urban_navigated(sim_dir, tmp_path / f"{quirk}.mcap", fn)
     assert np.isfinite(traj.rear_axle_enu).all() and np.isfinite(traj.heading).all()
     velocity = next(s for s in report.streams if s["path"] == "gnss/gnss_cog/velocity")
     assert velocity["skipped"] == ({"no velocity": 58} if quirk == "velocity_nan" else {}), velocity
@@ -556,14 +542,11 @@ def test_a_gnss_velocity_in_another_frame_than_enu_is_named(sim_dir: Path, tmp_p
     velocities, the track 125 m off the truth, and the warnings said only 'the car's own sensors and the GNSS disagree';
     the body's axes: 411 velocities refused, 3.3 cm RMS across once aligned (0.95 as recorded), the same vague word.
     The velocity's direction against the fixes' motion names the frame; NED is read as such."""
-    from dataclasses import replace
 
-    from conftest import NAV_ONLY_PRF_HZ, simulated
     from rosbags.typesys import Stores, get_typestore
 
     from autosar_cli.evaluate.evaluation import load_truth
     from autosar_cli.evaluate.trajectory_metrics import trajectory_errors
-    from autosar_cli.nav.navigate import navigate
 
     store = get_typestore(Stores.ROS2_HUMBLE)
     msgtype = "geometry_msgs/msg/TwistWithCovarianceStamped"
@@ -576,12 +559,7 @@ def test_a_gnss_velocity_in_another_frame_than_enu_is_named(sim_dir: Path, tmp_p
         v.x, v.y, v.z = (v.y, v.x, -v.z) if frame == "ned" else (float(np.hypot(v.x, v.y)), 0.0, v.z)
         return t, bytes(store.serialize_cdr(msg, msgtype))
 
-    sim = simulated(sim_dir, "urban", "mcap", 1, prf_hz=NAV_ONLY_PRF_HZ)
-    log = rewrite_mcap(sim.log_path, tmp_path / f"{frame}.mcap", fn)
-    base = load_config()
-    cfg = replace(base, radar=replace(base.radar, prf_hz=NAV_ONLY_PRF_HZ))
-    ingest([log], tmp_path / "d.h5", config=cfg)
-    traj = navigate(tmp_path / "d.h5", "sar-min", cfg)
+    sim, cfg, report, traj = urban_navigated(sim_dir, tmp_path / f"{frame}.mcap", fn)
     warned = traj.info.get("warnings", [])
     named = ("gnss/gnss_cog/velocity: its direction agrees with the fixes' motion only with its x and y swapped"
              if frame == "ned" else "the body's axes (x forward), not ENU")
@@ -600,12 +578,9 @@ def test_velocities_where_the_receiver_gives_no_fix_are_left_out(sim_dir: Path, 
     ingest) but its velocity goes on, 0 (as a u-blox's NAV-PVT does). The gate refused a few and took the rest: the
     track 17.3 cm RMS across once aligned (1.46 with nothing logged there), exit 0, no word. Velocities farther than
     1 s from every fix are left out, counted in one line."""
-    from dataclasses import replace
 
-    from conftest import NAV_ONLY_PRF_HZ, simulated
     from rosbags.typesys import Stores, get_typestore
 
-    from autosar_cli.nav.navigate import navigate
 
     store = get_typestore(Stores.ROS2_HUMBLE)
     first: dict[str, int] = {}
@@ -623,12 +598,7 @@ def test_velocities_where_the_receiver_gives_no_fix_are_left_out(sim_dir: Path, 
             msg.twist.twist.linear.x = msg.twist.twist.linear.y = msg.twist.twist.linear.z = 0.0
         return t, bytes(store.serialize_cdr(msg, msgtype))
 
-    sim = simulated(sim_dir, "urban", "mcap", 1, prf_hz=NAV_ONLY_PRF_HZ)
-    log = rewrite_mcap(sim.log_path, tmp_path / "unfixed.mcap", fn)
-    base = load_config()
-    cfg = replace(base, radar=replace(base.radar, prf_hz=NAV_ONLY_PRF_HZ))
-    ingest([log], tmp_path / "d.h5", config=cfg)
-    traj = navigate(tmp_path / "d.h5", "sar-min", cfg)
+    sim, cfg, report, traj = urban_navigated(sim_dir, tmp_path / "unfixed.mcap", fn)
     warned = traj.info.get("warnings", [])
     assert [w for w in warned if w.startswith("gnss/gnss_cog/velocity: 80 of its 580 velocities come where the "
                                               "receiver gives no fix")], warned
