@@ -1144,7 +1144,7 @@ def _listed(values: Sequence[int], n: int = 8) -> str:
 
 def _role_unit_warnings(job: _Ingest, roles: dict[str, str]) -> list[str]:
     """A warning for each CAN role whose DBC signal's unit converts to another than the one the stages read it in
-    (an empty unit, 'degree', 'rpm'): its values are stored as they come, and a steering in degrees read as radians
+    (an empty unit, 'rpm'): its values are stored as they come, and a steering in degrees read as radians
     or a wheel speed in km/h as m/s is wrong by a factor the stages only partly see."""
     out = []
     for role, ref in roles.items():
