@@ -222,7 +222,7 @@ class GnssErrors:
 
 SensorKind = Literal["wheel_speeds", "steering", "can_imu", "imu", "gnss", "can_gnss"]
 
-_REQUIRED_ERRORS: dict[str, tuple[str, ...]] = {
+REQUIRED_ERROR_TABLES: dict[str, tuple[str, ...]] = {
     "wheel_speeds": ("wheel",),
     "steering": ("steering",),
     "can_imu": ("gyro", "accel"),
@@ -662,9 +662,10 @@ def _keys_of_its_kind(table: dict[str, Any], path: str) -> None:
     ``mounting_ypr_deg``, an IMU's ``gnss`` table): nothing would read it, so what it says would be silently ignored.
     The one place this rule lives: every config is built from such tables (:func:`config_from_dict`)."""
     kind = table["kind"]
-    own = _COMMON_SENSOR_KEYS | _KIND_KEYS.get(kind, frozenset()) | set(_REQUIRED_ERRORS[kind])
+    own = _COMMON_SENSOR_KEYS | _KIND_KEYS.get(kind, frozenset()) | set(REQUIRED_ERROR_TABLES[kind])
     for key in sorted(set(table) - own):
-        theirs = sorted(k for k in _REQUIRED_ERRORS if key in _KIND_KEYS.get(k, ()) or key in _REQUIRED_ERRORS[k])
+        theirs = sorted(k for k in REQUIRED_ERROR_TABLES
+                        if key in _KIND_KEYS.get(k, ()) or key in REQUIRED_ERROR_TABLES[k])
         what = "table" if isinstance(table[key], dict) else "key"
         raise ConfigError(f"{_join(path, key)}: {_a(kind)} sensor reads no {key} {what} ({_a(' or '.join(theirs))} "
                           f"sensor's); {_a(kind)} sensor's: {', '.join(sorted(own - {'kind'}))}")
@@ -686,7 +687,7 @@ def _build(cls: Any, value: Any, path: str) -> Any:
         unknown = sorted(set(value) - names)
         if unknown:
             raise ConfigError(f"{_join(path, unknown[0])}: unknown key{_suggestion(unknown[0], sorted(names))}")
-        if cls is SensorConfig and value.get("kind") in _REQUIRED_ERRORS:
+        if cls is SensorConfig and value.get("kind") in REQUIRED_ERROR_TABLES:
             _keys_of_its_kind(value, path)
         kwargs = {}
         for f in fields(cls):
@@ -912,11 +913,12 @@ def _validate(cfg: Config) -> None:
         _positive(f"{base}.rate_hz", s.rate_hz)
         _non_negative(f"{base}.latency_s", s.latency_s)
         _finite_vector(f"{base}.lever_arm_m", s.lever_arm_m)
-        for sub in _REQUIRED_ERRORS[s.kind]:
+        for sub in REQUIRED_ERROR_TABLES[s.kind]:
             if getattr(s, sub) is None:
                 raise ConfigError(f"{base}.{sub}: a {s.kind} sensor needs this error-model table")
-        if s.kind in ("imu", "gnss") and not s.topic:
-            raise ConfigError(f"{base}.topic: a {s.kind} sensor needs a topic")
+        # a gnss sensor without topics is an NMEA text capture, which ingest names by its file
+        if s.kind == "imu" and not s.topic:
+            raise ConfigError(f"{base}.topic: an imu sensor needs a topic")
         if s.kind == "imu" and s.dof not in (3, 6):
             raise ConfigError(f"{base}.dof: must be 3 or 6, got {s.dof}")
         _finite_vector(f"{base}.mounting_ypr_deg", s.mounting_ypr_deg)

@@ -13,11 +13,12 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
-from autosar_cli.config import DEFAULT_CONFIG, SPEED_OF_LIGHT, Config
+from autosar_cli.config import DEFAULT_CONFIG, REQUIRED_ERROR_TABLES, SPEED_OF_LIGHT, Config
 from autosar_cli.nav.frames import gravity_tilt_deg, levelling_pitch_roll_deg
 from autosar_cli.store.drive import Drive
 from autosar_cli.store.hdf5_read import read_dataset
@@ -40,10 +41,13 @@ def config_sketch(drive_path: str | Path, config: Config) -> str:
              "# [vehicle] geometry (cog_to_rear_axle_m: the reference point), the sensors' error tables, an IMU's yaw.",
              "# Then: autosar ingest LOG -o drive.h5 --config THIS; autosar navigate drive.h5 --config THIS",
              f'base = "{base}"', ""]
-    for name, table in gnss + imus:
-        lines.append(f"[sensors.{name}]")
-        lines += [f"{key} = {_toml(value)}" + (f"  # {note}" if note else "") for key, value, note in table]
-        lines.append("")
+    for kind, tables in (("gnss", gnss), ("imu", imus)):
+        for name, table in tables:
+            lines.append(f"[sensors.{name}]")
+            lines += _new_sensor(config, name, kind)[0]
+            lines += [f"{key} = {_toml(value)}" + (f"  # {note}" if note else "") for key, value, note in table]
+            lines += _new_sensor(config, name, kind)[1]
+            lines.append("")
     if radar and radar[0]:
         lines += ["[radar]", f"topic = {_toml(radar[0])}", ""]
     absent = [role for role in config.can.roles if role not in roles]
@@ -119,23 +123,58 @@ def _names(drive_names: list[str], wanted: list[str], config: Config, kind: str)
     return [n if n in taken else (free.pop(0) if free else n) for n in drive_names]
 
 
+def _new_sensor(config: Config, name: str, kind: str) -> tuple[list[str], list[str]]:
+    """The lines a sensor the base lacks needs before and after its table: its kind, and the lever arm and error
+    tables of the base's first sensor of that kind (the navigation's receiver, for a receiver), said to be that."""
+    if name in config.sensors:
+        return [], []
+    nav = config.navigation
+    like = [n for n, s in config.sensors.items() if s.kind == kind]
+    template = nav.gnss if kind == "gnss" and nav.gnss in like else like[0] if like else None
+    if template is None:
+        return [f"kind = {_toml(kind)}"], []
+    t = config.sensors[template]
+    after = [f"lever_arm_m = {_toml(list(t.lever_arm_m))}  # the base's {template}'s: where this sensor is"]
+    for sub in REQUIRED_ERROR_TABLES[kind]:
+        after += ["", f"[sensors.{name}.{sub}]  # the base's {template}'s: this sensor's own"]
+        after += [f"{key} = {_toml(value)}" for key, value in asdict(getattr(t, sub)).items()]
+    return [f"kind = {_toml(kind)}"], after
+
+
+def _fix_stream(drive: Drive, source: str) -> str:
+    """The stream that gives ``gnss/<source>``'s positions: its NavSatFix's, else its GGA sentences'."""
+    return "fix" if "fix" in drive.h5["gnss"][source] else "nmea_fix"
+
+
 def _gnss_tables(drive: Drive, config: Config) -> list[tuple[str, Table]]:
-    sources = [s for s in drive.gnss_sources() if "fix" in drive.h5["gnss"][s]]
+    # a receiver logged as NMEA sentences alone is navigated from its GGA and RMC (nav.inputs.receiver_streams)
+    sources = [s for s in drive.gnss_sources() if {"fix", "nmea_fix"} & set(drive.h5["gnss"][s])]
     nav = config.navigation
     wanted = [nav.gnss, nav.ins_gnss] + [n for n, s in config.sensors.items() if s.kind == "gnss"]
+    # an NMEA text capture has no topic to pin: ingest names it by its file, and so must the config
+    captures = {s for s in sources if drive.h5["gnss"][s][_fix_stream(drive, s)].attrs.get("msgtype") == "nmea text"}
+    names = iter(_names([s for s in sources if s not in captures], list(dict.fromkeys(wanted)), config, "gnss"))
     out = []
-    for source, name in zip(sources, _names(sources, list(dict.fromkeys(wanted)), config, "gnss"), strict=True):
+    for source in sources:
+        name = source if source in captures else next(names)
         g = drive.h5["gnss"][source]
-        table: Table = [("topic", g["fix"].attrs.get("topic", ""), "")]
+        fix = _fix_stream(drive, source)
+        if source in captures:
+            table: Table = [("topic", "", f"the NMEA capture {Path(g[fix].attrs.get('source_file', '')).name}: "
+                                          "named by its file")]
+        elif fix == "fix":
+            table = [("topic", g["fix"].attrs.get("topic", ""), "")]
+        else:
+            table = [("topic", "", "no NavSatFix logged: navigated from the NMEA GGA and RMC")]
         if "velocity" in g:
             vtype = "twist_with_covariance" if "WithCovariance" in str(g["velocity"].attrs.get("msgtype", "")) \
                 else "twist"
             table += [("velocity_topic", g["velocity"].attrs.get("topic", ""), ""), ("velocity_type", vtype, "")]
-        else:
+        elif fix == "fix":
             table.append(("velocity_topic", "", "none logged: SAR-MIN starts on the fixes' first move"))
         nmea = [k for k in g if k.startswith("nmea_")]
         table.append(("nmea_topic", g[nmea[0]].attrs.get("topic", "") if nmea else "", ""))
-        table.append(("rate_hz", _rate(drive, f"gnss/{source}/fix"), "measured"))
+        table.append(("rate_hz", _rate(drive, f"gnss/{source}/{fix}"), "measured"))
         out.append((name, table))
     return out
 
@@ -179,10 +218,10 @@ def _rate(drive: Drive, path: str) -> float:
 
 
 def _toml(value: object) -> str:
-    """A TOML value: a string, a list, an integer or a float (numpy's too)."""
+    """A TOML value: a string, a list (or tuple), an integer or a float (numpy's too)."""
     if isinstance(value, str):
         return json.dumps(value)
-    if isinstance(value, list):
+    if isinstance(value, list | tuple):
         return "[" + ", ".join(_toml(v) for v in value) + "]"
     if isinstance(value, int | np.integer):
         return str(int(value))

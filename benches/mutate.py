@@ -228,6 +228,8 @@ QUIRK_WHEEL_SCALE = _QUIRKS + "test_wheel_speeds_a_few_per_cent_off_are_scaled_t
 QUIRK_IMU_LATE = _QUIRKS + "test_an_imu_stamped_late_is_not_read_as_a_gnss_latency_after_the_stamps"
 QUIRK_GNSS_EDGE = _QUIRKS + "test_a_gnss_latency_beyond_the_search_is_warned_of"
 QUIRK_CLOCK = _QUIRKS + "test_a_stream_stamped_on_another_clock_is_warned_of"
+QUIRK_NMEA_ONLY = _QUIRKS + "test_a_receiver_logged_only_as_nmea_is_navigated"
+QUIRK_NMEA_CAPTURE = _QUIRKS + "test_an_nmea_capture_is_navigated_once_the_config_names_its_receiver"
 NO_FRAME_INSIDE = "tests/test_sar_focus.py::test_a_trajectory_no_radar_frame_lies_inside_is_refused_for_that"
 TRUTH_FIRST = "tests/test_run.py::test_a_truth_sidecar_that_is_none_is_refused_before_the_ingest"
 INFO_FOLD = "tests/test_cli.py::test_info_on_a_narrow_terminal_gives_each_stream_and_type_whole"
@@ -546,7 +548,8 @@ MUTATIONS: list[Mutation] = [
     _m("misspelt-choice-without-its-likely-meaning", "inputs", "cli.py",
        "near = difflib.get_close_matches(given.lower(), choices, n=1, cutoff=0.6)", "near = []", CHOICE_MEANT),
     _m("sensor-key-of-another-kind-ignored", "inputs", "config.py",
-       '        if cls is SensorConfig and value.get("kind") in _REQUIRED_ERRORS:', "        if False:", CONFIG_SILENT),
+       '        if cls is SensorConfig and value.get("kind") in REQUIRED_ERROR_TABLES:', "        if False:",
+       CONFIG_SILENT),
     _m("overwritten-set-left-part-old", "safety", "store/outputs.py",
        "            if replaced or (product == manifest or before[product] is None):",
        "            if product == manifest or before[product] is None:", SET_WHOLE),
@@ -1009,7 +1012,7 @@ MUTATIONS: list[Mutation] = [
        "    if False:\n        return None",
        _QUIRKS + "test_a_receivers_nan_velocity_or_altitude_leaves_the_track_whole"),
     _m("nan-altitude-kept", "sar-min", "nav/inputs.py",
-       "    fix, no_altitude = with_altitudes(fix, f\"gnss/{nav.gnss}/fix\")", "    no_altitude = \"\"",
+       "    fix, no_altitude = with_altitudes(fix, streams.fix_stream)", "    no_altitude = \"\"",
        _QUIRKS + "test_a_receivers_nan_velocity_or_altitude_leaves_the_track_whole"),
     _m("unfixed-velocities-kept", "sar-min", "nav/inputs.py",
        "    unfixed = nearest > reach", "    unfixed = nearest < 0",
@@ -1054,6 +1057,24 @@ MUTATIONS: list[Mutation] = [
     _m("info-names-cut-short", "inputs", "cli.py",
        "Table(Column(\"stream\", overflow=\"fold\"), Column(\"type\", overflow=\"fold\"),",
        "Table(Column(\"stream\"), Column(\"type\"),", INFO_FOLD),
+    _m("nmea-epoch-counted-twice", "inputs", "nav/inputs.py",
+       "    keep[np.flatnonzero(timed)[np.unique(t_fix[timed], return_index=True)[1]]] = True",
+       "    keep[:] = True", QUIRK_NMEA_ONLY),
+    _m("nmea-dead-reckoned-fix-taken", "inputs", "nav/inputs.py",
+       "    unmeasured = np.isin(gga[\"quality\"], NMEA_UNMEASURED_QUALITIES)",
+       "    unmeasured = np.isin(gga[\"quality\"], ())", QUIRK_NMEA_ONLY),
+    _m("ins-nmea-velocity-up-nan", "inputs", "nav/ins.py",
+       "            given = np.isfinite(ins.gnss_vel[vi])", "            given = np.ones(3, dtype=bool)",
+       QUIRK_NMEA_ONLY),
+    _m("nmea-receiver-not-read", "inputs", "nav/inputs.py",
+       "    if \"nmea_fix\" in g:\n        return nmea_receiver_streams(drive, name)",
+       "    if False:\n        return nmea_receiver_streams(drive, name)", QUIRK_NMEA_ONLY),
+    _m("sketch-capture-renamed", "inputs", "config_sketch.py",
+       ".attrs.get(\"msgtype\") == \"nmea text\"}", ".attrs.get(\"msgtype\") == \"none\"}",
+       QUIRK_NMEA_CAPTURE),
+    _m("sketch-new-sensor-without-kind", "inputs", "config_sketch.py",
+       "    if name in config.sensors:\n        return [], []", "    if True:\n        return [], []",
+       QUIRK_NMEA_CAPTURE),
 ]
 
 

@@ -22,9 +22,12 @@ GNSS_AND_RADAR = {"/ins_cog/fix", "/ins_cog/fix_velocity", "/ins_cog/nmea", "/in
                   "/scanbrick/raw_frames"}
 
 
-def rewrite_mcap(src: Path, dst: Path, fn: Callable[[str, int, bytes], tuple[int, bytes] | None]) -> Path:
-    """``src`` copied to ``dst`` message by message: ``fn(topic, log_ns, cdr)`` gives (log_ns, cdr), or None to leave
-    the message out."""
+Rewrite = Callable[[str, int, bytes], "tuple[int, bytes] | list[tuple[int, bytes]] | None"]
+
+
+def rewrite_mcap(src: Path, dst: Path, fn: Rewrite) -> Path:
+    """``src`` copied to ``dst`` message by message: ``fn(topic, log_ns, cdr)`` gives (log_ns, cdr), a list of them
+    (the message and others on its topic), or None to leave the message out."""
     with open(src, "rb") as f, open(dst, "wb") as g:
         r = make_reader(f)
         w = Writer(g, compression=CompressionType.ZSTD)
@@ -36,8 +39,8 @@ def rewrite_mcap(src: Path, dst: Path, fn: Callable[[str, int, bytes], tuple[int
                     for cid, c in summary.channels.items()}
         for _, ch, m in r.iter_messages(log_time_order=True):
             out = fn(ch.topic, m.log_time, bytes(m.data))
-            if out is not None:
-                w.add_message(channels[ch.id], out[0], out[1], out[0])
+            for log_ns, cdr in [] if out is None else out if isinstance(out, list) else [out]:
+                w.add_message(channels[ch.id], log_ns, cdr, log_ns)
         w.finish()
     return dst
 
@@ -53,8 +56,7 @@ def with_header_stamp(cdr: bytes, t_ns: int) -> bytes:
     return cdr[:4] + struct.pack("<iI", sec, nsec) + cdr[12:]
 
 
-def urban_navigated(sim_dir: Path, log: Path, fn: Callable[[str, int, bytes], tuple[int, bytes] | None]
-                    ) -> tuple[Any, Any, Any, Any]:
+def urban_navigated(sim_dir: Path, log: Path, fn: Rewrite) -> tuple[Any, Any, Any, Any]:
     """urban seed 1 (navigation only) rewritten by ``fn`` into ``log`` (see :func:`rewrite_mcap`), ingested beside it
     and navigated with SAR-MIN: (the simulation, the config, the ingest's report, the trajectory)."""
     from dataclasses import replace
@@ -682,3 +684,100 @@ def test_the_ins_baselines_receiver_in_ned_is_read_as_such(sim_dir: Path, tmp_pa
         assert len(said) == (name == "ned"), warned
         across[name] = aligned_across_rms_m(traj, sim.truth_path, cfg)
     assert across["ned"] < 1.2 * across["recorded"] + 0.005, across
+
+
+def _nmea_message(cdr: bytes, sentence_body: str) -> bytes:
+    """An nmea_msgs/Sentence CDR message with its sentence (the last field) replaced by ``$<body>*<checksum>``."""
+    checksum = 0
+    for byte in sentence_body.encode():
+        checksum ^= byte
+    new = f"${sentence_body}*{checksum:02X}".encode()
+    i = cdr.index(b"$")
+    return cdr[:i - 4] + struct.pack("<I", len(new) + 1) + new + b"\0"
+
+
+def test_a_receiver_logged_only_as_nmea_is_navigated(sim_dir: Path, tmp_path: Path) -> None:
+    """Urban seed 1's receiver logged as NMEA sentences alone (nmea_msgs/Sentence; its NavSatFix and twist topics
+    left out), talking GPS and GNSS (each GGA sent again as GPGGA, received 5 ms later), every 20th GGA a dead-reckoned
+    fix (quality 6). navigate refused the drive: 'no GNSS fix stream gnss/gnss_cog ... name the sensors in a --config',
+    though the config named them and the drive held them. Now the GGA fixes and RMC velocities are read, each epoch
+    once, the dead-reckoned fixes left out and counted: 0.95 cm RMS across aligned, as with the NavSatFix topics."""
+    from dataclasses import replace
+
+    from autosar_cli.nav.inputs import load_inputs
+    from autosar_cli.nav.navigate import navigate
+    from autosar_cli.store.drive import Drive
+
+    seen = {"gga": 0}
+
+    def fn(topic: str, t: int, cdr: bytes) -> tuple[int, bytes] | list[tuple[int, bytes]] | None:
+        if topic in ("/ins_cog/fix", "/ins_cog/fix_velocity"):
+            return None
+        text = cdr[cdr.index(b"$"):].rstrip(b"\0").decode() if topic == "/ins_cog/nmea" else ""
+        if "GGA" not in text:
+            return t, cdr
+        seen["gga"] += 1
+        fields = text[1:text.index("*")].split(",")
+        if seen["gga"] % 20 == 7:
+            fields[6] = "6"
+        gp = with_header_stamp(_nmea_message(cdr, ",".join(["GPGGA", *fields[1:]])), header_stamp(cdr) + 5_000_000)
+        return [(t, _nmea_message(cdr, ",".join(fields))), (t + 5_000_000, gp)]
+
+    sim, cfg, report, traj = urban_navigated(sim_dir, tmp_path / "nmea_only.mcap", fn)
+    fixes = next(s for s in report.streams if s["path"] == "gnss/gnss_cog/nmea_fix")
+    assert fixes["written"] == 1160 and "gnss/gnss_cog/fix" not in [s["path"] for s in report.streams]
+    with Drive(tmp_path / "nmea_only.h5") as drive:
+        inputs = load_inputs(drive, cfg)
+    assert inputs.gnss_position is not None and len(inputs.gnss_position.t) == 580 - 29
+    assert inputs.gnss_velocity is not None and len(inputs.gnss_velocity.t) == 580
+    said = "gnss/gnss_cog/nmea_fix: 29 of 580 GGA fixes left out, their quality (6: dead reckoning"
+    assert [w for w in traj.info.get("warnings", []) if w.startswith(said)], traj.info.get("warnings")
+    across = aligned_across_rms_m(traj, sim.truth_path, cfg)
+    assert across < 0.012, across
+    # the INS baseline reads it too (its own receiver, at the radar, logged no NMEA): horizontal velocities only
+    ins = navigate(tmp_path / "nmea_only.h5", "ins", replace(cfg, navigation=replace(cfg.navigation,
+                                                                                      ins_gnss="gnss_cog")))
+    assert np.isfinite(ins.rear_axle_enu).all()
+
+
+def test_an_nmea_capture_is_navigated_once_the_config_names_its_receiver(ci_mcap, tmp_path: Path) -> None:
+    """The ci drive's receiver logged as a text capture of its NMEA sentences beside the log (its topics left out of
+    it). navigate said 'no GNSS fix stream gnss/gnss_cog ... name the sensors in a --config (each [sensors.*]
+    topic ...)', but a capture has no topic (ingest names it by its file), and the config refused a gnss sensor
+    without one. Now the error names the capture and the keys to set; the config sketch names its receiver after the
+    file, with the base receiver's lever arm and errors to check; and with it the drive navigates as with the
+    receiver's topics (the same track within 1 mm)."""
+    from typer.testing import CliRunner
+
+    from autosar_cli.cli import app
+    from autosar_cli.nav.inputs import NavInputError
+    from autosar_cli.nav.navigate import navigate
+
+    lines = []
+    with open(ci_mcap.log_path, "rb") as f:
+        for _, _, m in make_reader(f).iter_messages(topics=["/ins_cog/nmea"]):
+            lines.append(bytes(m.data)[bytes(m.data).index(b"$"):].rstrip(b"\0").decode())
+    capture = tmp_path / "ublox.nmea"
+    capture.write_text("\r\n".join(lines) + "\r\n")
+    log = rewrite_mcap(ci_mcap.log_path, tmp_path / "log.mcap",
+                       lambda topic, t, cdr: None if topic.startswith("/ins_cog/") and topic != "/ins_cog/imu"
+                       else (t, cdr))
+    ingest([log], tmp_path / "drive.h5", config=load_config(), nmea_logs=[capture])
+    with pytest.raises(NavInputError, match=r"gnss/ublox an NMEA capture named by its file: name its receiver so in "
+                                            r"a --config \(navigation.gnss = \"ublox\", and a \[sensors.ublox\]"):
+        navigate(tmp_path / "drive.h5", "sar-min", load_config())
+    r = CliRunner().invoke(app, ["info", str(tmp_path / "drive.h5"), "--config-sketch"])
+    assert r.exit_code == 0, r.output
+    assert '[sensors.ublox]\nkind = "gnss"\ntopic = ""  # the NMEA capture ublox.nmea: named by its file' in r.stdout
+    assert "[sensors.ublox.gnss]  # the base's gnss_cog's: this sensor's own" in r.stdout
+    sketch = tmp_path / "sketch.toml"
+    sketch.write_text(r.stdout.replace('\ngnss = "gnss_radar"\n', '\ngnss = "ublox"\n'))
+    cfg = load_config(sketch)
+    ingest([log], tmp_path / "sketched.h5", config=cfg, nmea_logs=[capture])
+    from_capture = navigate(tmp_path / "sketched.h5", "sar-min", cfg)
+    ingest([ci_mcap.log_path], tmp_path / "topics.h5", config=load_config())
+    from_topics = navigate(tmp_path / "topics.h5", "sar-min", load_config())
+    t = from_topics.t_ns[(from_topics.t_ns > from_capture.t_ns[0]) & (from_topics.t_ns < from_capture.t_ns[-1])]
+    apart = np.hypot(*(np.interp(t, from_capture.t_ns, from_capture.rear_axle_enu[:, k])
+                       - np.interp(t, from_topics.t_ns, from_topics.rear_axle_enu[:, k]) for k in (0, 1)))
+    assert np.sqrt(np.mean(apart ** 2)) < 1e-3, apart.max()

@@ -305,6 +305,84 @@ def can_gnss_streams(drive: Drive, name: str) -> tuple[dict[str, Array], dict[st
     return fix, {"t_ns": t_speed[ok], "velocity_enu": enu[ok]}
 
 
+#: GGA qualities that are not a measured position: 6 dead reckoning (the receiver's own estimate), 7 entered by
+#: hand, 8 a simulator's
+NMEA_UNMEASURED_QUALITIES = (6, 7, 8)
+
+
+@dataclass(frozen=True)
+class ReceiverStreams:
+    """A GNSS receiver's fixes and velocities in the columns of a NavSatFix stream's (``t_ns``, ``latitude_deg``,
+    ``longitude_deg``, ``altitude_m``) and a twist's (``t_ns``, ``velocity_enu`` (n, 3) m/s ENU, NaN where the
+    receiver gives no up), the drive's streams they came from, and what was left out of them."""
+
+    fix: dict[str, Array]
+    velocity: dict[str, Array] | None
+    fix_stream: str
+    velocity_stream: str
+    warnings: tuple[str, ...] = ()
+
+
+def _first_of_each_fix_time(cols: dict[str, Array]) -> dict[str, Array]:
+    """``cols`` without the rows whose NMEA fix time repeats an earlier row's: a receiver talking GPS and GNSS
+    (GPGGA beside GNGGA) sends one epoch twice, which would count it twice. Rows without a fix time (VTG) stay."""
+    t_fix = np.asarray(cols["fix_time_ns"], dtype=np.float64)
+    timed = np.isfinite(t_fix)
+    keep = ~timed
+    keep[np.flatnonzero(timed)[np.unique(t_fix[timed], return_index=True)[1]]] = True
+    return {k: np.asarray(v)[keep] for k, v in cols.items()}
+
+
+def nmea_receiver_streams(drive: Drive, name: str) -> ReceiverStreams:
+    """A receiver the drive holds only as NMEA sentences (``gnss/<name>/nmea_fix``): its GGA fixes, without those
+    whose quality says they are not measured (:data:`NMEA_UNMEASURED_QUALITIES`, counted in a warning), and its
+    RMC velocities (else VTG's) from speed and course, with NaN up (NMEA gives no vertical velocity)."""
+    g = drive.h5["gnss"][name]
+    gga = _first_of_each_fix_time(drive.columns(g["nmea_fix"], ("t_ns", "fix_time_ns", "latitude_deg",
+                                                                "longitude_deg", "altitude_m", "quality")))
+    unmeasured = np.isin(gga["quality"], NMEA_UNMEASURED_QUALITIES)
+    warnings = (f"gnss/{name}/nmea_fix: {int(unmeasured.sum())} of {len(unmeasured)} GGA fixes left out, their "
+                f"quality ({', '.join(str(q) for q in sorted(set(gga['quality'][unmeasured].astype(int))))}: dead "
+                "reckoning, manual or simulated) not a measured position",) if unmeasured.any() else ()
+    fix = {k: np.asarray(gga[k])[~unmeasured] for k in ("t_ns", "latitude_deg", "longitude_deg", "altitude_m")}
+    fix_stream = f"gnss/{name}/nmea_fix"
+    kind = next((k for k in ("nmea_velocity", "nmea_vtg") if k in g and g[k]["t_ns"].shape[0]), None)
+    if kind is None:
+        return ReceiverStreams(fix, None, fix_stream, "", warnings)
+    cols = _first_of_each_fix_time(drive.columns(g[kind], ("t_ns", "fix_time_ns", "speed_mps", "course_rad")))
+    speed, course = np.asarray(cols["speed_mps"]), np.asarray(cols["course_rad"])
+    enu = np.stack([speed * np.cos(course), speed * np.sin(course), np.full(len(speed), np.nan)], axis=1)
+    ok = np.isfinite(enu[:, :2]).all(axis=1)
+    return ReceiverStreams(fix, {"t_ns": np.asarray(cols["t_ns"])[ok], "velocity_enu": enu[ok]}, fix_stream,
+                           f"gnss/{name}/{kind}", warnings)
+
+
+def receiver_streams(drive: Drive, name: str, key: str) -> ReceiverStreams:
+    """The receiver ``gnss/<name>`` (the config's ``key`` names it) as its NavSatFix fixes and twist velocities, or,
+    where it logged neither, its NMEA sentences' (:func:`nmea_receiver_streams`). Refused, saying what the drive
+    holds, where it has neither."""
+    if name not in drive.gnss_sources():
+        captures = [s for s in drive.gnss_sources() if "nmea_fix" in drive.h5["gnss"][s]
+                    and drive.h5["gnss"][s]["nmea_fix"].attrs.get("msgtype") == "nmea text"]
+        if captures:  # a text capture has no topic to pin it by: the config names its receiver after the file
+            raise NavInputError(
+                f"{drive.path}: no GNSS stream gnss/{name} (config {key}); the drive has "
+                f"{', '.join(f'gnss/{s}' for s in drive.gnss_sources())}, of which "
+                f"{', '.join(f'gnss/{c}' for c in captures)} an NMEA capture named by its file: name its receiver so "
+                f"in a --config ({key} = \"{captures[0]}\", and a [sensors.{captures[0]}] of kind gnss for its "
+                f"lever arm and errors: autosar info DRIVE --config-sketch)")
+        raise NavInputError(f"{drive.path}: no GNSS stream gnss/{name} (config {key}); {streams_held(drive, 'gnss')}")
+    g = drive.h5["gnss"][name]
+    if "fix" in g:
+        vel = drive.columns(g["velocity"], ("t_ns", "velocity_enu")) if "velocity" in g else None
+        return ReceiverStreams(drive.columns(g["fix"], ("t_ns", "latitude_deg", "longitude_deg", "altitude_m")), vel,
+                               f"gnss/{name}/fix", f"gnss/{name}/velocity")
+    if "nmea_fix" in g:
+        return nmea_receiver_streams(drive, name)
+    raise NavInputError(f"{drive.path}: gnss/{name} (config {key}) has no position: neither a NavSatFix stream nor "
+                        f"NMEA GGA sentences, only {', '.join(sorted(g))}")
+
+
 def streams_held(drive: Drive, kind: str) -> str:
     """What the drive holds of ``kind`` ("gnss" or "imu"), for an error that names a missing stream: the config
     names a sensor's stream by its topic, so a drive logged on other topics holds them under names of its own."""
@@ -323,16 +401,14 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
     gnss: h5py.Group | None = None
     if gnss_cfg is not None and gnss_cfg.kind == "can_gnss":
         fix, vel = can_gnss_streams(drive, nav.gnss)
+        streams = ReceiverStreams(fix, vel, f"gnss/{nav.gnss}/fix", f"gnss/{nav.gnss}/velocity")
     else:
-        if nav.gnss not in drive.gnss_sources() or "fix" not in h5["gnss"][nav.gnss]:
-            raise NavInputError(f"{drive.path}: no GNSS fix stream gnss/{nav.gnss} (config navigation.gnss); "
-                                f"{streams_held(drive, 'gnss')}")
+        streams = receiver_streams(drive, nav.gnss, "navigation.gnss")
+        fix, vel = streams.fix, streams.velocity
         gnss = h5["gnss"][nav.gnss]
-        fix = drive.columns(gnss["fix"], ("t_ns", "latitude_deg", "longitude_deg", "altitude_m"))
-        vel = drive.columns(gnss["velocity"], ("t_ns", "velocity_enu")) if "velocity" in gnss else None
     if len(fix["t_ns"]) == 0:
-        raise NavInputError(f"{drive.path}: gnss/{nav.gnss}/fix is empty")
-    fix, no_altitude = with_altitudes(fix, f"gnss/{nav.gnss}/fix")
+        raise NavInputError(f"{drive.path}: {streams.fix_stream} is empty")
+    fix, no_altitude = with_altitudes(fix, streams.fix_stream)
     lever = tuple(gnss_cfg.lever_arm_m) if gnss_cfg else (0.0, 0.0, 0.0)
     antenna_height = config.vehicle.cog_height_m + lever[2]
     origin = GeodeticOrigin(float(fix["latitude_deg"][0]), float(fix["longitude_deg"][0]),
@@ -351,7 +427,8 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         """:meth:`Drive.can_role`, reading each message's time stamps once."""
         return drive.can_role(role, can_times)
 
-    out = NavInputs(t0, origin, gnss_lever_m=lever, warnings=[no_altitude] if no_altitude else [])  # type: ignore[arg-type]
+    out = NavInputs(t0, origin, gnss_lever_m=lever,  # type: ignore[arg-type]
+                    warnings=[*streams.warnings, *([no_altitude] if no_altitude else [])])
     enu = origin.to_enu(fix["latitude_deg"], fix["longitude_deg"], fix["altitude_m"])
     errors = gnss_cfg.gnss if gnss_cfg else None
     if nav.gnss_error_model == "gauss_markov":
@@ -366,14 +443,15 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
     else:
         pos_std = np.full(2, nav.gnss_position_std_m)
     out.gnss_position = Measurements(nav.gnss, rel(fix["t_ns"], nav.gnss), enu[:, :2], pos_std)
-    out.gnss_reported_std_m = _reported_horizontal_std(drive, gnss["fix"]) if gnss is not None else math.nan
+    out.gnss_reported_std_m = _reported_horizontal_std(drive, gnss["fix"]) if gnss is not None and "fix" in gnss \
+        else math.nan
     if vel is not None:
-        vel, unfixed = velocities_with_fixes(fix["t_ns"], vel, f"gnss/{nav.gnss}/velocity")
+        vel, unfixed = velocities_with_fixes(fix["t_ns"], vel, streams.velocity_stream)
         out.warnings += [unfixed] if unfixed else []
     if vel is not None and len(vel["t_ns"]):
         velocity, frame = velocity_frame_checked(out.gnss_position.t, enu[:, :2], rel(vel["t_ns"], nav.gnss),
                                                  np.asarray(vel["velocity_enu"], dtype=np.float64),
-                                                 f"gnss/{nav.gnss}/velocity")
+                                                 streams.velocity_stream)
         vel = {**vel, "velocity_enu": velocity}
         out.warnings += [frame] if frame else []
         std = max(errors.velocity_std_mps if errors else 0.05, 1e-3)  # a perfect (simulated) receiver's 0: 1 mm/s
@@ -384,7 +462,7 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         if np.isfinite(up).any() and np.any(up[np.isfinite(up)] != 0.0):
             # its stated variance where the stream has one; else receivers' usual 1.5 x the horizontal
             var = (drive.columns(gnss["velocity"], ("velocity_variance",))["velocity_variance"][:, 2]
-                   if gnss is not None
+                   if gnss is not None and "velocity" in gnss
                    and "velocity_variance" in gnss["velocity"] else np.zeros(0))
             var = np.median(var[np.isfinite(var)]) if np.isfinite(var).any() else 0.0
             up_std = float(np.sqrt(var)) if var > 0 else 1.5 * std

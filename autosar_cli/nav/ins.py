@@ -27,6 +27,7 @@ from autosar_cli.nav.geodesy import GeodeticOrigin
 from autosar_cli.nav.inputs import (
     NavInputError,
     read_imu,
+    receiver_streams,
     streams_held,
     velocities_with_fixes,
     velocity_frame_checked,
@@ -76,15 +77,13 @@ def load_ins_inputs(drive: Drive, config: Config, origin: GeodeticOrigin, t0_ns:
     if nav.ins_imu not in drive.imu_sources():
         raise NavInputError(f"{drive.path}: the INS baseline needs imu/{nav.ins_imu} (config navigation.ins_imu); "
                             f"{streams_held(drive, 'imu')}")
-    if nav.ins_gnss not in drive.gnss_sources():
-        raise NavInputError(f"{drive.path}: the INS baseline needs gnss/{nav.ins_gnss} (config navigation.ins_gnss); "
-                            f"{streams_held(drive, 'gnss')}")
+    streams = receiver_streams(drive, nav.ins_gnss, "navigation.ins_gnss")
     imu = read_imu(drive, nav.ins_imu, config)
-    if "velocity" not in drive.h5["gnss"][nav.ins_gnss]:
+    if streams.velocity is None:
         raise NavInputError(f"{drive.path}: the INS baseline needs the GNSS velocity gnss/{nav.ins_gnss}/velocity, "
                             "which the receiver did not log (its fixes alone: --method sar-min or gnss)")
-    fix, _ = with_altitudes(drive.series(f"gnss/{nav.ins_gnss}/fix"), f"gnss/{nav.ins_gnss}/fix")
-    vel = drive.series(f"gnss/{nav.ins_gnss}/velocity")
+    fix, _ = with_altitudes(streams.fix, streams.fix_stream)
+    vel = streams.velocity
     if np.isnan(imu["angular_velocity"]).any() or np.isnan(imu["linear_acceleration"]).any():
         raise NavInputError(f"{drive.path}: imu/{nav.ins_imu} is not a 6-DoF IMU")
 
@@ -92,7 +91,7 @@ def load_ins_inputs(drive: Drive, config: Config, origin: GeodeticOrigin, t0_ns:
         return (np.asarray(t, dtype=np.int64) - t0_ns) / 1e9 - latency
 
     enu = origin.to_enu(fix["latitude_deg"], fix["longitude_deg"], fix["altitude_m"])
-    stream = f"gnss/{nav.ins_gnss}/velocity"
+    stream = streams.velocity_stream
     vel, unfixed = velocities_with_fixes(fix["t_ns"], vel, stream)
     velocity, frame = velocity_frame_checked(rel(fix["t_ns"], 0.0), enu[:, :2], rel(vel["t_ns"], 0.0),
                                              np.asarray(vel["velocity_enu"], dtype=np.float64), stream)
@@ -100,7 +99,8 @@ def load_ins_inputs(drive: Drive, config: Config, origin: GeodeticOrigin, t0_ns:
                      imu["linear_acceleration"], rel(fix["t_ns"], gnss_cfg.latency_s), enu,
                      rel(vel["t_ns"], gnss_cfg.latency_s), velocity,
                      np.asarray(imu_cfg.lever_arm_m, dtype=np.float64),
-                     np.asarray(gnss_cfg.lever_arm_m, dtype=np.float64), [w for w in (unfixed, frame) if w])
+                     np.asarray(gnss_cfg.lever_arm_m, dtype=np.float64),
+                     [*streams.warnings, *(w for w in (unfixed, frame) if w)])
 
 
 def run_ins(ins: InsInputs, config: Config) -> Trajectory:
@@ -129,7 +129,7 @@ def run_ins(ins: InsInputs, config: Config) -> Trajectory:
     C = _rotation(np.array([0.0, 0.0, yaw]))  # body -> ENU
     kp = int(np.argmin(np.abs(ins.gnss_t - t_start)))
     p = ins.gnss_pos[kp] - C @ lever_ga
-    v = ins.gnss_vel[k0].copy()
+    v = np.nan_to_num(ins.gnss_vel[k0])
     ba = np.zeros(3)
     bg = np.zeros(3)
     ba_std = 1.5 * s_imu.accel.turn_on_bias_mps2
@@ -184,10 +184,11 @@ def run_ins(ins: InsInputs, config: Config) -> Trajectory:
             p, v, C, ba, bg, P = _correct(p, v, C, ba, bg, P, H, y, R_pos)
             gi += 1
         while vi < len(ins.vel_t) and ins.vel_t[vi] <= t:
+            given = np.isfinite(ins.gnss_vel[vi])  # an NMEA receiver gives no up
             H = np.zeros((3, 15))
             H[:, 3:6] = np.eye(3)
             y = ins.gnss_vel[vi] - v
-            p, v, C, ba, bg, P = _correct(p, v, C, ba, bg, P, H, y, R_vel)
+            p, v, C, ba, bg, P = _correct(p, v, C, ba, bg, P, H[given], y[given], R_vel[np.ix_(given, given)])
             vi += 1
         out_t[k] = t
         out_p[k] = p
