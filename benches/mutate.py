@@ -1052,7 +1052,7 @@ MUTATIONS: list[Mutation] = [
        "                     rel(vel[\"t_ns\"], gnss_cfg.latency_s), vel[\"velocity_enu\"],",
        _QUIRKS + "test_the_ins_baselines_receiver_in_ned_is_read_as_such"),
     _m("channels-incoherent-unchecked", "focus", "sar/focus.py",
-       "    if loss <= MAX_CHANNEL_LOSS_DB:\n        return None", "    if True:\n        return None",
+       "    if loss is None or loss <= MAX_CHANNEL_LOSS_DB:\n        return None", "    if True:\n        return None",
        "tests/test_sar_focus.py::test_a_config_that_misplaces_the_antennas_is_warned_of"),
     _m("info-names-cut-short", "inputs", "cli.py",
        "Table(Column(\"stream\", overflow=\"fold\"), Column(\"type\", overflow=\"fold\"),",

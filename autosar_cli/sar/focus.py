@@ -534,11 +534,11 @@ def check_some_backprojection(n: int, drive_path: str | Path, options: FocusOpti
 MAX_CHANNEL_LOSS_DB = 6.0
 
 
-def channels_incoherent_warning(drive_path: str | Path, trajectory: str | Path | Trajectory, config: Config,
-                                options: FocusOptions, image: FocusedImage, size_m: float = 0.4) -> str | None:
-    """A warning where the image's brightest point sums its channels far under their coherent gain: the array's
-    phase centres (``radar.*_positions_wavelengths``, ``tx_channels``, ``[radar.mounting]``'s yaw) are not the
-    radar's. That point is focused again on a fine patch with every channel and with Tx0-Rx0 alone."""
+def channel_sum_loss_db(drive_path: str | Path, trajectory: str | Path | Trajectory, config: Config,
+                        options: FocusOptions, image: FocusedImage, size_m: float = 0.4) -> float | None:
+    """How far (dB) the image's brightest point sums its channels under their coherent gain (20 log10 of their
+    count): that point focused again on a fine patch (``size_m`` square) with every channel and with Tx0-Rx0 alone.
+    None where the image has under 4 channels or the one channel's patch is empty."""
     n = len(image.params["channel_pairs"])
     if n < 4:
         return None
@@ -551,9 +551,18 @@ def channels_incoherent_warning(drive_path: str | Path, trajectory: str | Path |
                                        grids=[patch]).images[0].image).max()) for k in (options.channels, 1)]
     if not peaks[1] > 0:
         return None
-    loss = 20 * math.log10(n) - 20 * math.log10(peaks[0] / peaks[1])
-    if loss <= MAX_CHANNEL_LOSS_DB:
+    return 20 * math.log10(n) - 20 * math.log10(peaks[0] / peaks[1])
+
+
+def channels_incoherent_warning(drive_path: str | Path, trajectory: str | Path | Trajectory, config: Config,
+                                options: FocusOptions, image: FocusedImage) -> str | None:
+    """A warning where the image's brightest point sums its channels far under their coherent gain
+    (:func:`channel_sum_loss_db` over ``MAX_CHANNEL_LOSS_DB``): the array's phase centres
+    (``radar.*_positions_wavelengths``, ``tx_channels``, ``[radar.mounting]``'s yaw) are not the radar's."""
+    loss = channel_sum_loss_db(drive_path, trajectory, config, options, image)
+    if loss is None or loss <= MAX_CHANNEL_LOSS_DB:
         return None
+    n = len(image.params["channel_pairs"])
     return (f"focus: the image's brightest point sums its {n} channels {loss:.1f} dB under their coherent gain: the "
             f"radar's antennas are not where the config places them (radar.tx_positions_wavelengths, "
             f"rx_positions_wavelengths, tx_channels, the sign of radar.mounting.yaw_deg); the image is blurred or "
