@@ -206,3 +206,16 @@ def test_info_with_a_config_checks_it_and_says_which_of_its_topics_the_log_holds
     assert pinned["not_in_logs"] == [{"topic": "/ins_cog/fix_velocityy", "key": "sensors.gnss_cog.velocity_topic"}]
     assert {"topic": "/imu/cog_a", "key": "sensors.imu_cog_a.topic"} in pinned["in_logs"]
     assert len(pinned["in_logs"]) == 9
+
+
+@pytest.mark.parametrize("args", [["navigate", ".", "-o", "t.h5"], ["focus", ".", "-t", "t.h5", "-o", "i"],
+                                  ["evaluate", ".", "-o", "report"]])
+def test_the_current_directory_given_as_a_product_is_named_not_a_python_repr(args, tmp_path, monkeypatch):
+    """`autosar navigate .` in a folder holding a log was "error: PosixPath('.') has an empty name" (the truth
+    sidecar's name taken of "."): it says what the folder is, and the command that makes what was wanted."""
+    (tmp_path / "drive").mkdir()
+    (tmp_path / "drive" / "x.mcap").write_bytes(b"\x89MCAP0\r\n")
+    monkeypatch.chdir(tmp_path / "drive")
+    r = runner.invoke(app, args)
+    assert r.exit_code == 1, r.output
+    assert "PosixPath" not in r.output and r.stderr.startswith("error: .: a drive log, not "), r.stderr

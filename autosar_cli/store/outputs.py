@@ -231,7 +231,9 @@ def _check_parent(path: Path) -> None:
 
 
 def _truth_sidecar(log: Path) -> Path:
-    return log.with_name(log.name + ".truth.h5")
+    # "." or "..": its name is the directory's own (Path(".").name is "", which with_name refuses)
+    log = Path(os.path.abspath(log))
+    return log.with_name(log.name + ".truth.h5") if log.name else log / ".truth.h5"
 
 
 def _hdf5_format(path: Path) -> str | None:
