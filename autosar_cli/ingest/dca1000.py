@@ -192,6 +192,10 @@ def find_capture(path: Path) -> tuple[list[Path], Path]:
     bins = sorted(folder.glob("*.bin"))
     if len(bins) == 1:
         return bins, params[0]
+    if named is not None:  # "." (its folder) had named a file given as CAPTURE that is none of a capture's
+        raise CaptureError(f"{named}: not a DCA1000 capture (taken for its parameter file, no ADC data lies beside it: "
+                           f"expected adc_data.bin or one series of split files <name>_0.bin, <name>_1.bin …, found "
+                           f"{', '.join(p.name for p in bins) or 'no .bin file'})")
     raise CaptureError(f"{path}: expected adc_data.bin or one series of split files <name>_0.bin, <name>_1.bin …, "
                        f"found {', '.join(p.name for p in bins) or 'no .bin file'}")
 

@@ -67,6 +67,15 @@ def check_input(path: Path, kind: str) -> None:
         what = {"mcap": "an MCAP log", "ros1": "a ROS 1 bag"}.get(container_of(path), "a log container")
         raise InputError(f"{path}: {what}, not {_FILE_KINDS[kind]}: give it as a LOG, without "
                          f"--{'can-log' if kind == 'can' else 'nmea'}")
+    if kind == "radar" and path.is_file() and begins_as_a_container(path):  # read as a parameter file, it was
+        what = {"mcap": "an MCAP log", "ros1": "a ROS 1 bag"}.get(container_of(path), "a log container")
+        raise InputError(f"{path}: {what}, not a DCA1000 capture: give it as a LOG, without --radar (--radar "
+                         "takes the capture's folder, its .bin or its parameter file)")
+    if kind == "radar" and path.is_file():
+        from .canlog import is_can_log
+
+        if is_can_log(path):
+            raise InputError(f"{path}: a CAN log file, not a DCA1000 capture: give it with --can-log")
 
 
 #: files and folders a drive folder leaves out named in its warning (then counted)
