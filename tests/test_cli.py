@@ -235,3 +235,18 @@ def test_a_log_given_as_the_radar_capture_is_named_for_what_it_is(tmp_path):
     assert r.exit_code == 1 and r.stderr.startswith(f"error: {notes}: not a DCA1000 capture (taken for its parameter "
                                                     "file, no ADC data lies beside it"), r.stderr
     assert not out.exists()
+
+
+def test_a_dbc_or_an_unknown_file_given_as_a_log_says_what_is_read(tmp_path):
+    """A DBC given as LOG was "unknown log container (expected .mcap, .bag or a rosbag2 directory (or its .db3))",
+    which named neither --dbc nor the CAN logs, NMEA and DCA1000 captures that ingest and info read too."""
+    dbc, npy = tmp_path / "car.dbc", tmp_path / "frame.npy"
+    dbc.write_text('VERSION ""\n')
+    npy.write_bytes(b"\x93NUMPY")
+    for command in (["info", str(dbc)], ["ingest", str(dbc), "-o", str(tmp_path / "d.h5")]):
+        r = runner.invoke(app, command)
+        assert r.exit_code == 1 and r.stderr == f"error: {dbc}: a CAN database (DBC), not a log: give it with --dbc\n"
+    r = runner.invoke(app, ["info", str(npy)], env={"COLUMNS": "300"}, terminal_width=300)
+    assert r.exit_code == 1 and r.stderr.strip().endswith(
+        "(or its .db3); nor is it a CAN log (.blf .asc .trc .log .mf4), an NMEA text capture or a DCA1000 capture)")
+    assert not (tmp_path / "d.h5").exists()

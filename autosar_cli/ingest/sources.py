@@ -131,9 +131,12 @@ def _container(path: Path) -> Container:
     if path.suffix.lower() == ".bin":
         raise LogReadError(f"{path}: a raw .bin without a DCA1000 parameter file (*.mmwave.json, .cfg or .lua) "
                            "beside it")
+    if path.suffix.lower() == ".dbc":
+        raise LogReadError(f"{path}: a CAN database (DBC), not a log: give it with --dbc")
     names = [c.expected for c in _CONTAINERS]
     expected = " or ".join([", ".join(names[:-1]), names[-1]] if len(names) > 1 else names)
-    raise LogReadError(f"{path}: unknown log container (expected {expected})")
+    raise LogReadError(f"{path}: unknown log container (expected {expected}; nor is it a CAN log (.blf .asc .trc "
+                       ".log .mf4), an NMEA text capture or a DCA1000 capture)")
 
 
 def is_log_directory(path: Path) -> bool:
