@@ -1074,7 +1074,7 @@ def info(
     """Summarise a log or drive.h5: streams, message types, counts, rates, time span and gaps; and list the
     partial files that killed autosar processes left beside it. --verify checks a stored file's checksums."""
     with _errors(kernels=False):
-        from autosar_cli.store.outputs import input_problem
+        from autosar_cli.store.outputs import _hdf5_format, input_problem, what_autosar_wrote
 
         if (problem := input_problem(path)) is not None and (path.exists() or path.is_symlink()):
             raise ValueError(f"{path}: {problem}")
@@ -1113,7 +1113,14 @@ def info(
                 return
             out.print(f"[bold]{_lit(path)}[/]: {len(stale)} stale partial file(s)"
                       + "".join(f"\n  {escape(p)}" for p in stale))
+            if (wrote := what_autosar_wrote(path)) is not None:  # a run's directory: where its summary is
+                out.print(f"{_lit(path)}: {_lit(wrote)}; `autosar info {_lit(path / 'drive.h5')}` lists its drive's "
+                          f"streams, `autosar info {_lit(path)} --verify` checks its products", highlight=False,
+                          soft_wrap=True)
             return
+        if folder is None and path.is_file() and _hdf5_format(path) not in (None, "autosar-drive"):
+            raise ValueError(f"{path}: {what_autosar_wrote(path)}; `autosar info` lists a log's or a drive.h5's "
+                             f"streams, `autosar info {path} --verify` checks this file's checksums")
         inputs = [(p, kind) for kind, ps in folder.inputs.items() for p in ps] if folder else [(path, "")]
         summaries = [(p, kind, summarize(p)) for p, kind in inputs]
         said = folder.warning() if folder else None

@@ -250,3 +250,25 @@ def test_a_dbc_or_an_unknown_file_given_as_a_log_says_what_is_read(tmp_path):
     assert r.exit_code == 1 and r.stderr.strip().endswith(
         "(or its .db3); nor is it a CAN log (.blf .asc .trc .log .mf4), an NMEA text capture or a DCA1000 capture)")
     assert not (tmp_path / "d.h5").exists()
+
+
+def test_info_of_a_product_other_than_a_drive_says_what_reads_it_not_how_to_ingest(tmp_path):
+    """`autosar info trajectory.h5` said "not a drive.h5 ...; `autosar ingest LOG -o drive.h5` makes one", advice
+    for a user who has no log to hand; `info RUN_DIR` said "0 stale partial file(s)" alone. Each names what the file
+    is and the info that reads it (--verify, the run's drive.h5)."""
+    import h5py
+
+    traj, run = tmp_path / "trajectory.h5", tmp_path / "run"
+    with h5py.File(traj, "w") as f:
+        f.attrs["format"] = "autosar-trajectory"
+    r = runner.invoke(app, ["info", str(traj)])
+    assert r.exit_code == 1 and r.stderr == (
+        f"error: {traj}: a trajectory.h5 autosar wrote (`autosar focus --trajectory` reads it); `autosar info` lists "
+        f"a log's or a drive.h5's streams, `autosar info {traj} --verify` checks this file's checksums\n"), r.stderr
+    run.mkdir()
+    (run / "run.json").write_text(json.dumps({"format": "autosar-run", "status": "ok"}))
+    r = runner.invoke(app, ["info", str(run)], env={"COLUMNS": "300"}, terminal_width=300)
+    assert r.exit_code == 0 and r.stdout.splitlines() == [
+        f"{run}: 0 stale partial file(s)",
+        f"{run}: a run directory autosar wrote (`autosar evaluate` reads it); `autosar info {run / 'drive.h5'}` lists "
+        f"its drive's streams, `autosar info {run} --verify` checks its products"], r.stdout
