@@ -227,3 +227,24 @@ def test_a_loggers_mf4_renamed_is_read_as_the_can_log_it_is(tmp_path: Path) -> N
     assert classify_input(d / "x.bag") == "can"
     frames = sum(1 for _ in read_can_log(d / "x.bag", lambda said: None))
     assert frames == sum(1 for _ in read_can_log(mf4, lambda said: None)) == 5588
+
+
+def test_a_ros1_bag_in_a_folder_is_read_not_left_out_of_a_bag_the_folder_is_taken_for(tmp_path: Path) -> None:
+    """A folder holding a ROS 1 bag alone was refused as "a directory but not a rosbag2 bag (no metadata.yaml, no
+    .db3 or .mcap files)"; one holding a ROS 1 bag beside an MCAP was read as a rosbag2 bag of the MCAP, and the
+    ROS 1 bag left unread without a word. A ROS 1 bag, a bag's own folder inside it, is no storage file of a rosbag2
+    bag: the folder is a drive folder of them; a bag's storage files alone stay that bag."""
+    one, two, storage = tmp_path / "one", tmp_path / "two", tmp_path / "killed"
+    for d in (one, two, storage):
+        d.mkdir()
+    (one / "drive.bag").write_bytes(b"#ROSBAG V2.0\n")
+    (two / "radar.bag").write_bytes(b"#ROSBAG V2.0\n")
+    (two / "nav.mcap").write_bytes(b"\x89MCAP0\r\n")
+    (storage / "killed_0.mcap").write_bytes(b"\x89MCAP0\r\n")
+    (storage / "killed_1.mcap").write_bytes(b"\x89MCAP0\r\n")
+    found = drive_folder(one)
+    assert found is not None and found.inputs["log"] == [one / "drive.bag"] and classify_input(one) == "drive"
+    found = drive_folder(two)
+    assert found is not None and found.inputs["log"] == [two / "nav.mcap", two / "radar.bag"]
+    assert sort_inputs([two]).by_kind["log"] == [two / "nav.mcap", two / "radar.bag"]
+    assert drive_folder(storage) is None and classify_input(storage) == "log"
