@@ -370,7 +370,8 @@ def simulate(
     seed: Annotated[int, typer.Option("--seed", min=0, max=2**64 - 1, metavar="N",  # numpy's seeds: 64 bits
                                       help="Random seed: same seed, same bytes.")] = 0,
     dynamics: Annotated[Dynamics | None, typer.Option(
-        "--dynamics", help="Vehicle model: kinematic bicycle or full 3-D dynamics (default: the config's).")] = None,
+        "--dynamics", help="Vehicle model: kinematic bicycle or full 3-D dynamics (default: the config's "
+                           "simulation.dynamics, full in the default config).")] = None,
     config: ConfigOpt = None,
     overwrite: OverwriteOpt = False,
     as_json: JsonOpt = False,
