@@ -21,6 +21,7 @@ from autosar_cli.cli import app
 from autosar_cli.config import load_config
 from autosar_cli.ingest.dca1000 import (
     ADC_FORMATS,
+    CaptureError,
     CaptureParams,
     Dca1000Capture,
     params_from_radar,
@@ -833,6 +834,49 @@ def test_a_second_recording_appended_to_the_first_is_left_out_by_name(tmp_path: 
     damaged = np.concatenate([d for _, _, d in blocks])
     assert set(np.flatnonzero(damaged)) == pris_of((300 * PACKET + 956, 301 * PACKET), p) == {16}
     np.testing.assert_array_equal(np.concatenate([b for _, b, _ in blocks])[~damaged], pris[~damaged])
+
+
+def test_a_second_recording_after_a_first_of_fewer_than_64_packets_is_left_out_by_name(tmp_path: Path) -> None:
+    """A first recording of fewer than 64 packets (3 PRIs: 54 packets, the last of 592 bytes) with a second of 60
+    PRIs appended: the second's packets came no more than 64 behind the first's furthest, so they were taken for
+    repeats: 60 frames read, the first's 3 PRIs then 56 of the second's, 2 left out as "lost", and no word of a
+    second recording. A packet UDP repeats is the same bytes; the second's repeat the first's byte counts with other
+    data: the first is read, the second left out naming its byte, as after a longer first. A first of 10 packets (no
+    whole frame) is refused naming where the second starts (it read as 60 frames, no warning); a packet repeated
+    verbatim in a short recording is still a repeat."""
+    p, first, files = config_capture(tmp_path / "short", n_pris=3, packet_bytes=PACKET)
+    second = np.random.default_rng(9).integers(-500, 500, (60, 3, 4, 540, 2), dtype=np.int16)
+    appended = write_capture(tmp_path / "second", p, [second], packet_bytes=PACKET)[0].read_bytes()
+    step = PACKET + 10
+    one = files[0].read_bytes()
+    assert len(one) == 53 * step + 10 + 592
+    files[0].write_bytes(one + appended)
+    cap = Dca1000Capture(tmp_path / "short")
+    blocks = list(cap.blocks())
+    assert cap.num_frames == 3 and not any(d.any() for _, _, d in blocks)
+    np.testing.assert_array_equal(np.concatenate([b for _, b, _ in blocks]), first)
+    assert (cap.packets.packets, cap.packets.duplicates) == (54, 0)
+    assert cap.warnings == [f"{files[0]}: byte {len(one)}: the DCA1000's packets start again (byte count 0 after "
+                            f"{53 * PACKET}): a second recording appended to the first, left out (split it off at "
+                            "that byte to read it)"]
+    # the second's first two packets swapped: it starts at the first of them in the file all the same
+    swapped = appended[step:2 * step] + appended[:step] + appended[2 * step:]
+    files[0].write_bytes(one + swapped)
+    cap = Dca1000Capture(tmp_path / "short")
+    assert cap.num_frames == 3 and f"byte {len(one)}: the DCA1000's packets start again (byte count 1456 after " \
+        f"{53 * PACKET})" in cap.warnings[0]
+    # a first of 10 packets, under one frame
+    files[0].write_bytes(one[:10 * step] + appended)
+    with pytest.raises(CaptureError, match=rf"14560 bytes fit no frame layout .* 25920 bytes a frame; .*adc_data.bin: "
+                                           rf"byte {10 * step}: the DCA1000's packets start again"):
+        Dca1000Capture(tmp_path / "short")
+    # a short recording whose packet 6 UDP repeated after packet 41: read whole, one repeat
+    packets = [one[i:i + step] for i in range(0, len(one), step)]
+    files[0].write_bytes(b"".join(packets[:41] + [packets[5]] + packets[41:]))
+    cap = Dca1000Capture(tmp_path / "short")
+    blocks = list(cap.blocks())
+    assert (cap.num_frames, cap.packets.duplicates, cap.warnings) == (3, 1, [])
+    np.testing.assert_array_equal(np.concatenate([b for _, b, _ in blocks]), first)
 
 
 def test_packets_split_across_files_and_a_damaged_file(tmp_path: Path) -> None:

@@ -275,8 +275,9 @@ class Dca1000Capture:
         else:
             self.bytes_total = sum(f.stat().st_size for f in self.files)
         if self.bytes_total < p.frame_bytes:
+            appended = f"; {self.packets.appended}" if self.packets is not None and self.packets.appended else ""
             raise CaptureError(f"{self.name}: {self.bytes_total} bytes fit no frame layout of {self.param_file.name}: "
-                               f"expected whole frames of {p.describe_layout()}")
+                               f"expected whole frames of {p.describe_layout()}{appended}")
         self.num_frames, self.partial_bytes = divmod(self.bytes_total, p.frame_bytes)
         if p.num_frames and self.num_frames > p.num_frames:
             raise CaptureError(f"{self.name}: holds {self.num_frames} frames but {self.param_file.name} configures "

@@ -154,6 +154,7 @@ class PacketIndex:
     duplicates: int
     late: int
     warnings: list[str]
+    appended: str = ""  #: where a second recording appended to this one starts (a warning), else ""
 
     @classmethod
     def build(cls, files: list[Path], data_bytes: int, gaps_before: tuple[int, ...] = ()) -> PacketIndex:
@@ -223,11 +224,17 @@ class PacketIndex:
             g = y
         offset, start, length = (np.concatenate([p[i] for p in parts]) if parts else np.zeros(0, dtype=np.int64)
                                  for i in range(3))
-        if (k := _restart(start, data_bytes)) is not None:  # a second recording appended: not this one's stream
+        k = _restart(start, data_bytes)
+        # a first recording of fewer packets than that: the second's repeat its byte counts, with other data
+        if (short := _repeat_of_other_data(rec, offset[:k], start[:k], length[:k])) is not None:
+            k = short
+        appended = ""
+        if k is not None:  # a second recording appended: not this one's stream
             path, local = rec.where(int(offset[k]) - HEADER_BYTES)
-            warnings.append(f"{path}: byte {local}: the DCA1000's packets start again (byte count {int(start[k])} "
-                            f"after {int(start[:k].max())}): a second recording appended to the first, left out "
-                            f"(split it off at that byte to read it)")
+            appended = (f"{path}: byte {local}: the DCA1000's packets start again (byte count {int(start[k])} after "
+                        f"{int(start[:k].max())}): a second recording appended to the first, left out (split it off "
+                        f"at that byte to read it)")
+            warnings.append(appended)
             offset, start, length = offset[:k], start[:k], length[:k]
         order = np.argsort(start, kind="stable")
         # a packet that arrives after one from later in the stream came out of order (UDP may reorder)
@@ -241,7 +248,8 @@ class PacketIndex:
         gap = start > covered_to
         lost = np.stack([covered_to[gap], start[gap]], axis=-1).reshape(-1, 2)
         total = int(end_at[-1]) if len(end_at) else 0
-        return cls(rec, data_bytes, offset, start, length, end_at, lost, total, duplicates, late, warnings)
+        return cls(rec, data_bytes, offset, start, length, end_at, lost, total, duplicates, late, warnings,
+                   appended)
 
     @property
     def packets(self) -> int:
@@ -288,6 +296,25 @@ def _restart(start: NDArray[np.int64], data_bytes: int) -> int | None:
     behind = np.maximum.accumulate(start)[:-1] - start[1:] > RESTART_PACKETS * data_bytes
     k = np.flatnonzero(behind)
     return int(k[0]) + 1 if len(k) else None
+
+
+def _repeat_of_other_data(rec: SplitFiles, offset: NDArray[np.int64], start: NDArray[np.int64],
+                          length: NDArray[np.int64]) -> int | None:
+    """The index (recording order) where a second recording starts, or None. A packet
+    repeated by UDP is the same bytes; one whose byte count an earlier packet holds with other data was sent by a
+    DCA1000 that started again, after a first recording of too few packets for :func:`_restart` to see: the second
+    starts at the last packet before it (or it) whose byte count falls behind the one before."""
+    if len(start) < 2:
+        return None
+    _, first, inverse = np.unique(start, return_index=True, return_inverse=True)
+    earlier = first[inverse.reshape(-1)]
+    for i in np.flatnonzero(earlier != np.arange(len(start))):
+        j, n = int(earlier[i]), int(min(length[i], length[earlier[i]]))
+        if not np.array_equal(rec.read(int(offset[i]), int(offset[i]) + n), rec.read(int(offset[j]),
+                                                                                  int(offset[j]) + n)):
+            drops = np.flatnonzero(start[j + 1:i + 1] < start[j:i])
+            return j + 1 + int(drops[-1])
+    return None
 
 
 def zero_runs(values: NDArray[np.int16], min_values: int = ZERO_RUN_VALUES) -> NDArray[np.int64]:
