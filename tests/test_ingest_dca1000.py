@@ -708,6 +708,35 @@ def test_triggers_that_are_not_one_per_frame_are_said(tmp_path: Path) -> None:
                         if n > 1 else []), r.stderr.splitlines()
 
 
+def test_a_loop_count_off_by_two_is_said_against_the_triggers(tmp_path: Path) -> None:
+    """A capture of 42 frames of one loop whose mmWave Studio JSON states 3 loops a frame and numFrames 0, read with
+    a config of its 2970 Hz PRF: the ADC stream marks no frame, so it reads as 14 frames of 3 loops whole, every PRI
+    timed wrong. With --radar-start its log's 42 triggers were not looked at: exit 0, not a word. Now the count is
+    said whoever times the frames, with the loop count that makes one frame a trigger; 41 triggers name none."""
+    pris = np.random.default_rng(4).integers(-500, 500, (42, 3, 4, 540, 2), dtype=np.int16)
+    write_capture(tmp_path / "cap", params_from_radar(CFG.radar, lanes=4), [pris], param_format="json")
+    js = tmp_path / "cap" / "capture.mmwave.json"
+    frame = json.loads(js.read_text())["mmWaveDevices"][0]["rfConfig"]["rlFrameCfg_t"]
+    assert (frame["numLoops"], frame["numFrames"]) == (1, 0) and js.read_text().count('"numLoops": 1,') == 1
+    js.write_text(js.read_text().replace('"numLoops": 1,', '"numLoops": 3,'))
+    cfg = tmp_path / "prf.toml"
+    cfg.write_text(f'base = "default"\n\n[radar]\nprf_hz = {3 * CFG.radar.prf_hz}\n')
+    start, period_ns = 1_714_557_600_000_000_000, 1e9 / CFG.radar.prf_hz
+    for n in (42, 41):
+        log = trigger_log(tmp_path / f"t{n}.mcap", start + np.round(np.arange(n) * period_ns).astype(np.int64))
+        for timing in ([], ["--radar-start", str(start)]):
+            r = runner.invoke(app, ["ingest", str(log), "--radar", str(tmp_path / "cap"), "--allow-partial",
+                                    "--config", str(cfg), "-o", str(tmp_path / f"t{n}{len(timing)}.h5"), *timing])
+            assert r.exit_code == 0, r.output
+            with Drive(tmp_path / f"t{n}{len(timing)}.h5") as d:
+                assert len(d.radar().t_ns) == 42
+            said = [line for line in r.stderr.splitlines() if "triggers on topic /dca1000/sync" in line]
+            assert len(said) == 1 and f"{n} triggers on topic /dca1000/sync for its 14 frames" in said[0], said
+            assert ("(timed from --radar-start)" in said[0]) == bool(timing)
+            assert ("its 42 loops would be 1 a frame, one frame a trigger: does capture.mmwave.json state the "
+                    "recording's loop count (numLoops 3)?" in said[0]) == (n == 42), said
+
+
 def test_the_frame_clock_is_measured_through_jitter_and_late_triggers() -> None:
     """3000 triggers 1 ms apart on the radar's clock, 60 ppm fast, stamped with 20 us of jitter and five messages
     50 ms late: the line through them reads the drift within 3 std (std under 1 ppm) and applies it; the same

@@ -328,6 +328,13 @@ class Dca1000Capture:
         return self.num_frames * self.params.num_loops
 
     @property
+    def whole_loops(self) -> int | None:
+        """Loops of the chirp table the data holds (a trailing partial frame's included), None where it ends inside
+        one."""
+        loop_bytes = self.params.frame_bytes // self.params.num_loops
+        return None if self.bytes_total % loop_bytes else self.bytes_total // loop_bytes
+
+    @property
     def layout(self) -> str:
         """How the data files hold the stream, for ``autosar info``."""
         trigger = "; frames on a hardware trigger, timed by the sync topic at ingest" \

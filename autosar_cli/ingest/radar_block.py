@@ -188,10 +188,19 @@ def capture_frame_starts(cap: Dca1000Capture, start_ns: int | None, triggers: Se
     start = start_ns if start_ns is not None else int(stamps[0])
     starts = cap.frame_starts_ns(start)
     attrs: dict[str, Any] = {}
-    if start_ns is None and len(stamps) > 1 and len(stamps) != n:  # triggers, yet not one per frame
-        warn(f"{cap.name}: {len(stamps)} triggers on topic {topic} for its {n} frames: timed from the first "
-             f"trigger, so every frame the capture missed at its start puts all its frames a frame period "
-             f"({p.frame_period_s * 1e3:g} ms) early; where it did, give --radar-start")
+    if len(stamps) > 1 and len(stamps) != n:  # triggers, yet not one per frame
+        # the ADC stream marks no frame: a loop count other than the recording's shows only against the triggers
+        loops = cap.whole_loops
+        other = "" if loops is None or loops % len(stamps) or loops // len(stamps) == p.num_loops else (
+            f"; its {loops} loops would be {loops // len(stamps)} a frame, one frame a trigger: does "
+            f"{cap.param_file.name} state the recording's loop count (numLoops {p.num_loops})?")
+        if start_ns is None:
+            warn(f"{cap.name}: {len(stamps)} triggers on topic {topic} for its {n} frames: timed from the first "
+                 f"trigger, so every frame the capture missed at its start puts all its frames a frame period "
+                 f"({p.frame_period_s * 1e3:g} ms) early; where it did, give --radar-start{other}")
+        else:
+            warn(f"{cap.name}: {len(stamps)} triggers on topic {topic} for its {n} frames (timed from "
+                 f"--radar-start){other}")
     if start_ns is None and len(stamps) == n and n > 2:  # a trigger per frame: they must follow the period
         clock = frame_clock_against_triggers(stamps, p.frame_period_s)
         attrs = clock.attrs()
