@@ -304,7 +304,7 @@ def _repeat_of_other_data(rec: SplitFiles, offset: NDArray[np.int64], start: NDA
     repeated by UDP is the same bytes; one whose byte count an earlier packet holds with other data was sent by a
     DCA1000 that started again, after a first recording of too few packets for :func:`_restart` to see: the second
     starts at the last packet before it (or it) whose byte count falls behind the one before."""
-    if len(start) < 2:
+    if len(start) < 2 or bool(np.all(start[1:] > start[:-1])):  # in order: nothing repeated
         return None
     _, first, inverse = np.unique(start, return_index=True, return_inverse=True)
     earlier = first[inverse.reshape(-1)]
