@@ -1086,6 +1086,21 @@ MUTATIONS: list[Mutation] = [
     _m("sketch-new-sensor-without-kind", "inputs", "config_sketch.py",
        "    if name in config.sensors:\n        return [], []", "    if True:\n        return [], []",
        QUIRK_NMEA_CAPTURE),
+    _m("drive-folder-ros1-bag-unread", "inputs", "ingest/inputs.py",
+       "or len(kinds) > 1 or not_storage):", "or len(kinds) > 1):",
+       "tests/test_ingest_drive_folder.py::"
+       "test_a_ros1_bag_in_a_folder_is_read_not_left_out_of_a_bag_the_folder_is_taken_for"),
+    _m("radar-flag-log-read-as-parameters", "inputs", "ingest/inputs.py",
+       "    if kind == \"radar\" and path.is_file() and begins_as_a_container(path):",
+       "    if False:", "tests/test_cli.py::test_a_log_given_as_the_radar_capture_is_named_for_what_it_is"),
+    _m("dbc-given-as-log-unnamed", "inputs", "ingest/sources.py",
+       "    if path.suffix.lower() == \".dbc\":", "    if False:",
+       "tests/test_cli.py::test_a_dbc_or_an_unknown_file_given_as_a_log_says_what_is_read"),
+    _m("current-directory-truth-name-repr", "inputs", "store/outputs.py",
+       "    log = Path(os.path.abspath(log))\n    return log.with_name(log.name + \".truth.h5\") if log.name else",
+       "    return log.with_name(log.name + \".truth.h5\")\n"
+       "    return log.with_name(log.name + \".truth.h5\") if log.name else",
+       "tests/test_cli.py::test_the_current_directory_given_as_a_product_is_named_not_a_python_repr"),
 ]
 
 

@@ -221,7 +221,7 @@ def test_the_current_directory_given_as_a_product_is_named_not_a_python_repr(arg
     assert "PosixPath" not in r.output and r.stderr.startswith("error: .: a drive log, not "), r.stderr
 
 
-def test_a_log_given_as_the_radar_capture_is_named_for_what_it_is(tmp_path):
+def test_a_log_given_as_the_radar_capture_is_named_for_what_it_is(tmp_path, ci_mcap):
     """`--radar drive.mcap` was read as a capture's parameter file and refused as "error: .: expected adc_data.bin
     or ... found no .bin file", naming the folder "." and not the file: the file is named, with what it is."""
     log, notes, out = tmp_path / "drive.mcap", tmp_path / "notes.log", tmp_path / "d.h5"
@@ -230,8 +230,7 @@ def test_a_log_given_as_the_radar_capture_is_named_for_what_it_is(tmp_path):
     r = runner.invoke(app, ["ingest", str(log), "--radar", str(log), "-o", str(out)])
     assert r.exit_code == 1 and r.stderr.startswith(f"error: {log}: an MCAP log, not a DCA1000 capture: give it as a "
                                                     "LOG, without --radar"), r.stderr
-    sample = Path(__file__).parents[1] / "sample_logs" / "ci_seed1.mcap"
-    r = runner.invoke(app, ["ingest", str(sample), "--radar", str(notes), "-o", str(out)])
+    r = runner.invoke(app, ["ingest", str(ci_mcap.log_path), "--radar", str(notes), "-o", str(out)])
     assert r.exit_code == 1 and r.stderr.startswith(f"error: {notes}: not a DCA1000 capture (taken for its parameter "
                                                     "file, no ADC data lies beside it"), r.stderr
     assert not out.exists()
