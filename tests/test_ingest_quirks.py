@@ -686,12 +686,17 @@ def test_the_ins_baselines_receiver_in_ned_is_read_as_such(sim_dir: Path, tmp_pa
     assert across["ned"] < 1.2 * across["recorded"] + 0.005, across
 
 
+def _nmea_sentence(body: str) -> str:
+    """``$<body>*<checksum>``."""
+    checksum = 0
+    for byte in body.encode():
+        checksum ^= byte
+    return f"${body}*{checksum:02X}"
+
+
 def _nmea_message(cdr: bytes, sentence_body: str) -> bytes:
     """An nmea_msgs/Sentence CDR message with its sentence (the last field) replaced by ``$<body>*<checksum>``."""
-    checksum = 0
-    for byte in sentence_body.encode():
-        checksum ^= byte
-    new = f"${sentence_body}*{checksum:02X}".encode()
+    new = _nmea_sentence(sentence_body).encode()
     i = cdr.index(b"$")
     return cdr[:i - 4] + struct.pack("<I", len(new) + 1) + new + b"\0"
 
@@ -781,3 +786,57 @@ def test_an_nmea_capture_is_navigated_once_the_config_names_its_receiver(ci_mcap
     apart = np.hypot(*(np.interp(t, from_capture.t_ns, from_capture.rear_axle_enu[:, k])
                        - np.interp(t, from_topics.t_ns, from_topics.rear_axle_enu[:, k]) for k in (0, 1)))
     assert np.sqrt(np.mean(apart ** 2)) < 1e-3, apart.max()
+
+
+def test_a_drive_of_gnss_alone_has_its_gnss_and_none_tracks(ci_mcap, tmp_path: Path) -> None:
+    """The ci drive's receiver alone (its fix and velocity topics; no IMU, no CAN, no radar), and a config that names
+    no gyro: every method was refused, 'no gyro to fuse (config navigation.gyros is empty)', though the GNSS and the
+    straight-line baselines use none. Now they give their tracks, and SAR-MIN alone is refused, saying which do not
+    need one."""
+    from dataclasses import replace
+
+    from autosar_cli.nav.inputs import NavInputError
+    from autosar_cli.nav.navigate import navigate
+
+    log = rewrite_mcap(ci_mcap.log_path, tmp_path / "gnss.mcap",
+                       lambda topic, t, cdr: (t, cdr) if topic in ("/ins_cog/fix", "/ins_cog/fix_velocity") else None)
+    base = load_config()
+    cfg = replace(base, navigation=replace(base.navigation, gyros=[], attitude_imu=""))
+    ingest([log], tmp_path / "gnss.h5", config=cfg, allow_partial=True)
+    for method in ("gnss", "none"):
+        track = navigate(tmp_path / "gnss.h5", method, cfg)
+        assert len(track.t_ns) >= 10 and np.isfinite(track.rear_axle_enu).all(), method
+    gnss = navigate(tmp_path / "gnss.h5", "gnss", cfg)
+    travelled = float(np.sum(np.hypot(*np.diff(gnss.rear_axle_enu[:, :2], axis=0).T)))
+    assert abs(travelled - 2.4) < 0.3, travelled  # the ci drive: 2.4 m
+    with pytest.raises(NavInputError, match=r"no gyro to fuse \(config navigation.gyros is empty\): SAR-MIN needs one "
+                                            r"\(--method gnss or none do not\)"):
+        navigate(tmp_path / "gnss.h5", "sar-min", cfg)
+
+
+def test_a_receiver_standing_still_with_no_course_reads_a_zero_velocity(tmp_path: Path) -> None:
+    """A receiver standing still sends its RMC speed as 0 and its course empty (u-blox, gpsd's NEO-M8N capture): the
+    velocity was left out with the course's NaN; it is 0 whatever the direction. A speed above 0 with no course
+    stays out (its direction unknown)."""
+    from datetime import UTC, datetime, timedelta
+
+    from autosar_cli.nav.inputs import nmea_receiver_streams
+    from autosar_cli.sim.messages import nmea_sentences
+    from autosar_cli.store.drive import Drive
+
+    start, lines = datetime(2021, 2, 10, 10, 0, 0, tzinfo=UTC), []
+    for k, speed in enumerate([0.0, 0.0, 0.0, 0.06, 1.5]):
+        for sentence in nmea_sentences(start + timedelta(seconds=k), 45.5, 9.2, 120.0, speed, 90.0, 90.0)[:2]:
+            fields = sentence[1:sentence.index("*")].split(",")
+            if fields[0].endswith("RMC") and speed < 1.0:
+                fields[8] = ""  # no course over ground
+            lines.append(_nmea_sentence(",".join(fields)))
+    capture = tmp_path / "still.nmea"
+    capture.write_text("\r\n".join(lines) + "\r\n")
+    ingest([], tmp_path / "still.h5", config=load_config(), nmea_logs=[capture], allow_partial=True)
+    with Drive(tmp_path / "still.h5") as drive:
+        streams = nmea_receiver_streams(drive, "still")
+    assert streams.velocity is not None and len(streams.fix["t_ns"]) == 5
+    np.testing.assert_array_equal(streams.velocity["velocity_enu"][:3, :2], 0.0)
+    assert len(streams.velocity["t_ns"]) == 4  # 0.06 m/s without a course: left out
+    np.testing.assert_allclose(streams.velocity["velocity_enu"][3, :2], [1.5, 0.0], atol=2e-3)

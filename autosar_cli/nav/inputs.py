@@ -351,6 +351,8 @@ def nmea_receiver_streams(drive: Drive, name: str) -> ReceiverStreams:
         return ReceiverStreams(fix, None, fix_stream, "", warnings)
     cols = _first_of_each_fix_time(drive.columns(g[kind], ("t_ns", "fix_time_ns", "speed_mps", "course_rad")))
     speed, course = np.asarray(cols["speed_mps"]), np.asarray(cols["course_rad"])
+    # standing still, a receiver leaves the course empty: its velocity is 0 all the same
+    course = np.where(speed == 0.0, 0.0, course)
     enu = np.stack([speed * np.cos(course), speed * np.sin(course), np.full(len(speed), np.nan)], axis=1)
     ok = np.isfinite(enu[:, :2]).all(axis=1)
     return ReceiverStreams(fix, {"t_ns": np.asarray(cols["t_ns"])[ok], "velocity_enu": enu[ok]}, fix_stream,
@@ -518,8 +520,6 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         out.steering = Measurements(steer_cfg, rel(t_ns, steer_cfg), (angle / ratio)[:, None],
                                     np.array([np.hypot(noise, q / np.sqrt(12)) / ratio]))
         out.steering_offset_std = (np.deg2rad(s.steering.offset_std_deg) if s.steering else 0.02) / ratio * 2
-    if not out.gyros:
-        raise NavInputError(f"{drive.path}: no gyro to fuse (config navigation.gyros is empty)")
     if nav.attitude_imu and nav.attitude_imu in imu_sources:
         imu = imus.get(nav.attitude_imu) or read_imu(drive, nav.attitude_imu, config)
         w, f = imu["angular_velocity"], imu["linear_acceleration"]

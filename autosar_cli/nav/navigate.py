@@ -698,6 +698,9 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                 raise NavInputError(why)
         damage = list(drive.damage)  # rows of a damaged drive left out of its tables: gaps the filter bridges
     if method == "sar-min":
+        if not inputs.gyros:  # the baselines need none: a drive of GNSS alone has its gnss and none tracks
+            raise NavInputError(f"{drive_path}: no gyro to fuse (config navigation.gyros is empty): SAR-MIN needs "
+                                "one (--method gnss or none do not)")
         if why := wheel_scale_error(inputs):
             raise NavInputError(f"{drive_path}: {why}")
         inputs, wheel_scale = wheel_scale_corrected(inputs)
