@@ -23,7 +23,7 @@ MAX_NAMED = 1  #: named records (a summary's groups) shown per table: the aggreg
 MAX_ROWS = 2
 LEAD_PREFIXES = ("drives", "sarmin_af_", "sarmin_")  #: columns shown first, in this order
 MAX_TEXT = 200  #: characters of a text value (a note) shown
-PER_RUN_KEYS = {"rows", "trials"}  #: per-drive / per-trial records: left in the JSON where a summary exists
+PER_RUN_KEYS = {"rows", "trials", "mutations"}  #: per-drive / per-trial records: in the JSON where a summary exists
 SUMMARY_KEYS = {"summary", "table"}
 
 

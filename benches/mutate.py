@@ -1101,6 +1101,12 @@ MUTATIONS: list[Mutation] = [
        "    return log.with_name(log.name + \".truth.h5\")\n"
        "    return log.with_name(log.name + \".truth.h5\") if log.name else",
        "tests/test_cli.py::test_the_current_directory_given_as_a_product_is_named_not_a_python_repr"),
+    _m("nmea-still-velocity-left-out", "inputs", "nav/inputs.py",
+       "    course = np.where(speed == 0.0, 0.0, course)", "    course = course",
+       _QUIRKS + "test_a_receiver_standing_still_with_no_course_reads_a_zero_velocity"),
+    _m("sar-min-without-gyros-unsaid", "inputs", "nav/navigate.py",
+       "        if not inputs.gyros:  # the baselines need none", "        if False:  # the baselines need none",
+       _QUIRKS + "test_a_drive_of_gnss_alone_has_its_gnss_and_none_tracks"),
 ]
 
 
@@ -1192,7 +1198,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{len(rows) - len(survived)}/{len(rows)} mutations killed in {total / 60:.1f} min"
           + (f"; survived: {', '.join(survived)}" if survived else ""))
     if args.json:
-        args.json.write_text(json.dumps({"total_s": round(total, 1), "mutations": rows}, indent=1) + "\n")
+        summary = {"mutations": len(rows), "killed": len(rows) - len(survived)}
+        args.json.write_text(json.dumps({"total_s": round(total, 1), "summary": summary, "mutations": rows},
+                                        indent=1) + "\n")
     return 1 if survived else 0
 
 
