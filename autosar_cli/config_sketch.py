@@ -174,7 +174,7 @@ def _gnss_tables(drive: Drive, config: Config) -> list[tuple[str, Table]]:
             table.append(("velocity_topic", "", "none logged: SAR-MIN starts on the fixes' first move"))
         nmea = [k for k in g if k.startswith("nmea_")]
         table.append(("nmea_topic", g[nmea[0]].attrs.get("topic", "") if nmea else "", ""))
-        table.append(("rate_hz", _rate(drive, f"gnss/{source}/{fix}"), "measured"))
+        table.append(_rate(drive, f"gnss/{source}/{fix}", config, name, "gnss"))
         out.append((name, table))
     return out
 
@@ -199,7 +199,7 @@ def _imu_tables(drive: Drive, config: Config) -> list[tuple[str, Table]]:
     for source in sources:
         cols = drive.h5["imu"][source]
         table: Table = [("topic", cols.attrs.get("topic", ""), ""), ("dof", dof[source], ""),
-                        ("rate_hz", _rate(drive, f"imu/{source}"), "measured")]
+                        _rate(drive, f"imu/{source}", config, names[source], "imu")]
         if dof[source] == 6:
             f = forces[source]
             g = np.median(f[np.isfinite(f).all(axis=1)], axis=0)
@@ -212,9 +212,16 @@ def _imu_tables(drive: Drive, config: Config) -> list[tuple[str, Table]]:
     return out
 
 
-def _rate(drive: Drive, path: str) -> float:
+def _rate(drive: Drive, path: str, config: Config, name: str, kind: str) -> tuple[str, float, str]:
+    """The ``rate_hz`` row of a sensor: the stream's measured rate; where its samples cannot measure one (a capture of
+    one fix), the base's for that sensor (else for its first of ``kind``, else 1 Hz), said to be that."""
     t = np.asarray(read_dataset(drive.h5[path], "t_ns"), dtype=np.int64)
-    return round(float((len(t) - 1) / ((t[-1] - t[0]) / 1e9)), 1) if len(t) > 1 and t[-1] > t[0] else 0.0
+    rate = round(float((len(t) - 1) / ((t[-1] - t[0]) / 1e9)), 1) if len(t) > 1 and t[-1] > t[0] else 0.0
+    if rate > 0:
+        return "rate_hz", rate, "measured"
+    like = [s for s in config.sensors.values() if s.kind == kind]
+    base = config.sensors[name] if name in config.sensors else like[0] if like else None
+    return "rate_hz", base.rate_hz if base else 1.0, f"{len(t)} sample(s): too few to measure, the base's"
 
 
 def _toml(value: object) -> str:

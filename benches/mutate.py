@@ -1107,6 +1107,15 @@ MUTATIONS: list[Mutation] = [
     _m("sar-min-without-gyros-unsaid", "inputs", "nav/navigate.py",
        "        if not inputs.gyros:  # the baselines need none", "        if False:  # the baselines need none",
        _QUIRKS + "test_a_drive_of_gnss_alone_has_its_gnss_and_none_tracks"),
+    _m("sketch-rate-of-one-fix-zero", "inputs", "config_sketch.py",
+       "    if rate > 0:\n        return \"rate_hz\", rate, \"measured\"",
+       "    if True:\n        return \"rate_hz\", rate, \"measured\"",
+       "tests/test_nav_realdata.py::test_the_config_sketch_of_a_real_nmea_capture_is_a_config"),
+    _m("baseline-reason-names-no-drive", "inputs", "nav/navigate.py",
+       "        except NavInputError as exc:  # the baselines' reasons name no drive\n"
+       "            raise NavInputError(f\"{drive_path}: {exc}\") from None",
+       "        except NavInputError as exc:  # the baselines' reasons name no drive\n            raise",
+       "tests/test_nav_realdata.py::test_the_config_sketch_of_a_real_nmea_capture_is_a_config"),
 ]
 
 

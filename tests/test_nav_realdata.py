@@ -359,3 +359,25 @@ def test_a_can_receivers_speed_and_course_are_its_velocity(tmp_path: Path) -> No
         can_gnss_streams(d, "css_gnss")
     assert "css_gnss is on CAN (config kind can_gnss) but the drive has no CAN signal for latitude.css_gnss" in str(
         info.value)
+
+
+def test_the_config_sketch_of_a_real_nmea_capture_is_a_config(tmp_path: Path) -> None:
+    """Real NMEA captures given alone (pynmeagps's u-blox capture of one epoch; a Unicore UM981 standing still for
+    10 s): the sketch of the first wrote its receiver's rate_hz as the 0.0 one fix measures, a config that the next
+    command refused ('rate_hz: must be a positive finite number, got 0.0'); it takes the base's now, said so. Their
+    gnss tracks are refused naming the drive (the reasons had named none: 'the vehicle never moves faster than 0.3
+    m/s')."""
+    for name, why in (("pygpsdata-nmea2", "need a GNSS velocity stream or at least two fixes"),
+                      ("pygpsdata-um981", "the vehicle never moves faster than 0.3 m/s: no GNSS course")):
+        drive = tmp_path / f"{name}.h5"
+        ingest([], drive, config=load_config(), nmea_logs=[realdata("pynmeagps", f"{name}.log")], allow_partial=True)
+        sketch = tmp_path / f"{name}.toml"
+        sketch.write_text(config_sketch(drive, load_config()))
+        cfg = load_config(sketch)
+        receiver = cfg.sensors[name.replace("-", "_")]
+        assert receiver.kind == "gnss" and receiver.rate_hz > 0, receiver
+        gyroless = dataclasses.replace(cfg, navigation=dataclasses.replace(cfg.navigation, gyros=[]))
+        with pytest.raises(NavInputError, match=f"^{drive}: .*{why}"):
+            navigate(drive, "gnss", gyroless)
+    said = "rate_hz = 10.0  # 1 sample(s): too few to measure, the base's"
+    assert said in (tmp_path / "pygpsdata-nmea2.toml").read_text()

@@ -760,13 +760,17 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
     elif method == "ins":
         from autosar_cli.nav.ins import run_ins
 
-        traj = run_ins(ins_inputs, config)
+        try:
+            traj = run_ins(ins_inputs, config)
+        except NavInputError as exc:  # its reasons name no drive
+            raise NavInputError(f"{drive_path}: {exc}") from None
         if ins_warnings := [w for w in ins_inputs.warnings if w not in inputs.warnings]:  # its receiver's own
             traj.info["warnings"] = [*traj.info.get("warnings", []), *ins_warnings]
-    elif method == "gnss":
-        traj = gnss_only(inputs, config)
-    elif method == "none":
-        traj = straight_line(inputs, config)
+    elif method in ("gnss", "none"):
+        try:
+            traj = (gnss_only if method == "gnss" else straight_line)(inputs, config)
+        except NavInputError as exc:  # the baselines' reasons name no drive
+            raise NavInputError(f"{drive_path}: {exc}") from None
     else:
         traj = from_truth(str(truth_path), inputs.origin, config, radar_motion=True)
         traj.info["truth"] = os.path.abspath(truth_path)
