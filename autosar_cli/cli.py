@@ -588,9 +588,7 @@ def navigate(
             err.print(f"[yellow]GNSS latency:[/] {escape(latency['reason'])} (+- {latency['std_s'] * 1000:.0f} ms, "
                       f"against imu/{latency['imu']})", highlight=False, soft_wrap=True)
         if "understeer" in traj.info and not traj.info["understeer"].get("refused"):  # a refusal is a warning
-            us = traj.info["understeer"]
-            fitted = f" +- {us['std']:.2g}" if "std" in us else ""
-            out.print(f"understeer gradient {us['gradient']:.3g}{fitted} rad per m/s^2: {_lit(us['reason'])}")
+            out.print(_lit(traj.info["understeer"]["reason"]))  # with the steering (which K) or without, and why
         if traj.info.get("wheel_scale", {}).get("applied"):
             err.print(f"[yellow]wheels:[/] {escape(traj.info['wheel_scale']['reason'])}", highlight=False,
                       soft_wrap=True)

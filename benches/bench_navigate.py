@@ -75,7 +75,8 @@ def time_drive(scenario: str, seed: int, work: Path, repeat: int, reference_engi
     wall = statistics.median(walls)
     filter_only = statistics.median(unsmoothed)
     # which passes the product ran: the first alone where the steering is left out and no rear slip shows
-    one_pass = first.info["understeer"].get("steering_left_out", False) and not first.info["rear_slip"].get("applied")
+    steering = first.info.get("understeer", {})  # none without a steering
+    one_pass = steering.get("steering_left_out", False) and not first.info["rear_slip"].get("applied")
     return {"scenario": scenario, "seed": seed, "drive_s": round(duration, 2), "samples": len(first.t_ns),
             "passes": 1 if one_pass else 2, "first_run_s": round(warmup, 3), "median_wall_s": round(wall, 3),
             "walls_s": [round(w, 3) for w in walls], "realtime_factor": round(duration / wall, 1),

@@ -1116,6 +1116,10 @@ MUTATIONS: list[Mutation] = [
        "            raise NavInputError(f\"{drive_path}: {exc}\") from None",
        "        except NavInputError as exc:  # the baselines' reasons name no drive\n            raise",
        "tests/test_nav_realdata.py::test_the_config_sketch_of_a_real_nmea_capture_is_a_config"),
+    _m("no-steering-said-as-understeer", "sar-min", "nav/navigate.py",
+       "**({\"understeer\": understeer} if inputs.steering is not None else {})", "\"understeer\": understeer",
+       "tests/test_nav_sarmin.py::"
+       "test_navigate_says_what_it_steered_with_and_nothing_of_a_steering_the_drive_lacks"),
 ]
 
 

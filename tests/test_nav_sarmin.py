@@ -31,6 +31,7 @@ from autosar_cli.store.drive import Drive
 from autosar_cli.store.trajectory import read_trajectory
 
 CFG = load_config()
+runner = CliRunner()
 #: with the receiver's heading fused (navigation.gnss_heading, off by default)
 CFG_HDT = dataclasses.replace(CFG, navigation=dataclasses.replace(CFG.navigation, gnss_heading=True))
 
@@ -384,6 +385,29 @@ def test_a_gyro_the_gate_refuses_is_warned_of(ci_drive: Path, tmp_path: Path) ->
     said = gated_streams({"orc": 5, "esc": 9}, {"orc": 6, "esc": 2})  # 6 of 11 is over half; 2 of 11 is not
     assert [w.split(" samples of ")[1].split(":")[0] for w in said] == ["orc"]
     assert len(gated_streams({"orc": 4}, {"orc": 6, "gnss_pos": 9})) == 1  # 9 refused fixes alone are too few
+
+
+def test_navigate_says_what_it_steered_with_and_nothing_of_a_steering_the_drive_lacks(ci_drive: Path, ci_mcap,  # noqa: ANN001
+                                                                                      tmp_path: Path) -> None:
+    """navigate printed the K fitted to the drive ("understeer gradient 0.0471 +- 0.024 rad per m/s^2: K's std ...:
+    the steering as recorded") where SAR-MIN steered with the vehicle's K, and on a drive without a steering "...: no
+    steering: the steering as recorded": it says what it navigated with and why, and nothing where there is none."""
+    r = runner.invoke(app, ["navigate", str(ci_drive), "-o", str(tmp_path / "t.h5")])
+    assert r.exit_code == 0, r.output
+    said = " ".join(r.stdout.split())
+    assert ("steering used with the vehicle's understeer gradient 0 rad per m/s^2: the drive's (" in said
+            and "too uncertain to test it (std above navigation.understeer_max_std_rad_per_mps2;" in said), said
+    assert "understeer gradient 0.0" not in said and "as recorded" not in said, said
+    config = tmp_path / "no_steering.toml"  # a car without a steering signal
+    config.write_text('base = "default"\n[can.roles]\nsteering_wheel_angle = ""\nsteering_wheel_rate = ""\n')
+    r = runner.invoke(app, ["ingest", str(ci_mcap.log_path), "-o", str(tmp_path / "d.h5"), "-c", str(config)])
+    assert r.exit_code == 0, r.output
+    r = runner.invoke(app, ["navigate", str(tmp_path / "d.h5"), "-o", str(tmp_path / "t2.h5"), "-c", str(config),
+                            "--json"])
+    assert r.exit_code == 0, r.output
+    assert "understeer" not in r.stdout and "steering" not in r.stdout, r.stdout
+    r = runner.invoke(app, ["navigate", str(tmp_path / "d.h5"), "-o", str(tmp_path / "t3.h5"), "-c", str(config)])
+    assert r.exit_code == 0 and "steering" not in r.output and "understeer" not in r.output, r.output
 
 
 def test_an_imu_logging_its_accelerations_in_g_is_refused(ci_drive: Path, tmp_path: Path) -> None:

@@ -570,10 +570,10 @@ def sarmin_with_fits(inputs: NavInputs, config: Config, smooth: bool = True
     first = run_sarmin(first_inputs, config, smooth=smooth, smoothed_covariance=False)
     if test_steering:
         info = steering_fit(inputs, config, first)
-    else:
-        why = "navigation.estimate_understeer is off" if inputs.steering else "no steering"
+    else:  # no steering: nothing to say (navigate leaves "understeer" out of its info)
         info = {"steering_left_out": False, "gradient": veh.understeer_gradient_rad_per_mps2,
-                "reason": f"{why}: the steering as recorded"}
+                "reason": f"{steering_used(veh.understeer_gradient_rad_per_mps2)} "
+                          "(navigation.estimate_understeer is off)" if inputs.steering else "no steering"}
     left_out = bool(info["steering_left_out"])
     # a steering refused as not this car's says nothing of its tyres
     gain, slip_info = rear_slip_gain(inputs, config, first, tyres_slip=left_out and not info.get("refused"))
@@ -585,32 +585,42 @@ def sarmin_with_fits(inputs: NavInputs, config: Config, smooth: bool = True
     return sol, info, slip_info, gain
 
 
+def steering_used(vehicle_k: float) -> str:
+    """What navigated with the steering: the vehicle's understeer gradient (the start of a fit's ``reason``)."""
+    return f"steering used with the vehicle's understeer gradient {vehicle_k:.3g} rad per m/s^2"
+
+
 def steering_fit(inputs: NavInputs, config: Config, first: NavSolution) -> dict:
     """What the steering fit (:mod:`.understeer`) finds on ``first`` (a pass without the steering), and whether
     the steering is left out (``steering_left_out``): where K differs from the vehicle's, or a yaw lag shows, by more
-    than ``SIGNIFICANT`` std and the ``MIN_*`` sizes, with K's std at most ``understeer_max_std_rad_per_mps2``."""
+    than ``SIGNIFICANT`` std and the ``MIN_*`` sizes, with K's std at most ``understeer_max_std_rad_per_mps2``.
+    Its ``reason`` says what SAR-MIN navigated with (the steering, with the vehicle's K, or without it) and why."""
     nav, veh = config.navigation, config.vehicle
     vehicle_k = {"steering_left_out": False, "gradient": veh.understeer_gradient_rad_per_mps2}
+    used = steering_used(veh.understeer_gradient_rad_per_mps2)
     common_scale_std = wheel_scale_mean_std(first.P[-1], first.state_names) or 0.0
     fit = fit_understeer(inputs, first.t, first.x, veh.wheelbase_m, nav.steering_min_speed_mps, common_scale_std)
     if fit is None:
-        return {**vehicle_k, "reason": "no steering samples above navigation.steering_min_speed_mps: the steering "
-                                       "as recorded"}
+        return {**vehicle_k, "reason": f"{used}: no steering samples above navigation.steering_min_speed_mps to "
+                                       "test it on"}
     if said := steering_gain_error(fit, veh.wheelbase_m, veh.steering_ratio):
         return replace(fit, steering_left_out=True, reason=f"{said}; navigated without the steering").to_dict() | {
             "refused": True, "warning": f"steering: [sensors.{inputs.steering.name}] {said}; navigated without it"}
+    drive_k = f"the drive's ({fit.gradient:.3g} +- {fit.std:.2g})"
     if not fit.std <= nav.understeer_max_std_rad_per_mps2:
-        return replace(fit, reason=f"K's std {fit.std:.2g} above navigation.understeer_max_std_rad_per_mps2 "
-                                   f"(lateral acceleration {fit.lateral_accel_rms_mps2:.2f} m/s^2 RMS): the steering "
-                                   "as recorded").to_dict()
+        return replace(fit, reason=f"{used}: {drive_k} too uncertain to test it (std above "
+                                   f"navigation.understeer_max_std_rad_per_mps2; lateral acceleration "
+                                   f"{fit.lateral_accel_rms_mps2:.2f} m/s^2 RMS)").to_dict()
     if not (_shows(fit.gradient - veh.understeer_gradient_rad_per_mps2, fit.std, MIN_UNDERSTEER_CHANGE)
             or (_shows(fit.yaw_lag_coefficient_s2, fit.yaw_lag_coefficient_std_s2, 0.0)
                 and abs(fit.yaw_lag_s) > MIN_YAW_LAG_S)):
-        return replace(fit, reason=f"K within {SIGNIFICANT:g} std or {MIN_UNDERSTEER_CHANGE:g} of the vehicle's and "
-                                   f"the lag within {SIGNIFICANT:g} std or {MIN_YAW_LAG_S * 1000:g} ms of 0: the "
-                                   "steering as recorded").to_dict()
-    return replace(fit, steering_left_out=True, reason="the car does not steer as the kinematic bicycle: navigated "
-                                                       "without the steering").to_dict()
+        return replace(fit, reason=f"{used}: {drive_k} within {SIGNIFICANT:g} std or {MIN_UNDERSTEER_CHANGE:g} of "
+                                   f"it, its yaw lag ({fit.yaw_lag_s * 1000:.1f} ms) within {SIGNIFICANT:g} std or "
+                                   f"{MIN_YAW_LAG_S * 1000:g} ms of 0").to_dict()
+    return replace(fit, steering_left_out=True, reason=(
+        f"steering left out: the car does not steer as the kinematic bicycle (its understeer gradient "
+        f"{fit.gradient:.3g} +- {fit.std:.2g} rad per m/s^2, the vehicle's {veh.understeer_gradient_rad_per_mps2:.3g}; "
+        f"its yaw lag {fit.yaw_lag_s * 1000:.1f} ms)")).to_dict()
 
 
 def steering_gain_error(fit: UndersteerFit, wheelbase_m: float, steering_ratio: float) -> str | None:
@@ -736,7 +746,8 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
                           config.vehicle.cog_height_m, state=sol.x, state_names=sol.state_names,
                           covariance=sol.P, rear_slip_gain=slip_gain,
                           info={"updates": sol.updates, "rejected": sol.rejected, "smoothed": smooth,
-                                "understeer": understeer, "rear_slip": rear_slip, "wheel_lag": wheel_lag,
+                                **({"understeer": understeer} if inputs.steering is not None else {}),
+                                "rear_slip": rear_slip, "wheel_lag": wheel_lag,
                                 "wheel_radii": wheel_radii, "wheel_scale": wheel_scale, "gnss_noise": gnss_noise,
                                 "gnss_slow_error": gnss_slow_error, "gnss_latency": gnss_latency,
                                 "can_latency": can_latency,
