@@ -556,7 +556,9 @@ def navigate(
         out.print(f"wrote [bold]{_lit(output)}[/]: {traj.method}, {len(traj.t_ns)} samples over {span:.2f} s, "
                   f"{dist:.1f} m travelled, in {traj.info['elapsed_s']:.1f} s")
         if traj.info.get("rejected"):
-            out.print("gated out: " + ", ".join(f"{k} {v}" for k, v in traj.info["rejected"].items()))
+            updates = traj.info.get("updates", {})
+            out.print("gated out: " + ", ".join(f"{k} {v} of {v + updates.get(k, 0)} updates"
+                                                for k, v in traj.info["rejected"].items()))
         for w in traj.info.get("warnings", []):
             err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
         for stream, noise in traj.info.get("gnss_noise", {}).items():

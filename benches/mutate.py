@@ -1120,6 +1120,9 @@ MUTATIONS: list[Mutation] = [
        "**({\"understeer\": understeer} if inputs.steering is not None else {})", "\"understeer\": understeer",
        "tests/test_nav_sarmin.py::"
        "test_navigate_says_what_it_steered_with_and_nothing_of_a_steering_the_drive_lacks"),
+    _m("gated-out-count-without-total", "sar-min", "cli.py",
+       "f\"{k} {v} of {v + updates.get(k, 0)} updates\"", "f\"{k} {v}\"",
+       "tests/test_nav_sarmin.py::test_a_gyro_the_gate_refuses_is_warned_of"),
 ]
 
 

@@ -373,7 +373,8 @@ def _with_column(drive: Path, out: Path, dataset: str, change: Callable[[np.ndar
 def test_a_gyro_the_gate_refuses_is_warned_of(ci_drive: Path, tmp_path: Path) -> None:
     """A gyro logged in deg/s where the drive says rad/s (57.3 times its rate): SAR-MIN's gate refuses all 494 of
     the ci drive's imu_cog_a samples and the track follows the other gyros, which it says in a warning naming the
-    stream; the drive as recorded has none. Below half refused, or under ten samples, nothing is said."""
+    stream, and navigate's "gated out" line says of how many; the drive as recorded has none. Below half refused, or
+    under ten samples, nothing is said."""
     from autosar_cli.nav.navigate import gated_streams
 
     bad = _with_column(ci_drive, tmp_path / "deg_per_s.h5", "imu/imu_cog_a/angular_velocity", np.degrees)
@@ -382,6 +383,9 @@ def test_a_gyro_the_gate_refuses_is_warned_of(ci_drive: Path, tmp_path: Path) ->
                         "(a unit, e.g. deg/s read as rad/s, a sign, a mounting, another drive's data?), and the track "
                         "follows the others"]
     assert "warnings" not in navigate(ci_drive, "sar-min", CFG).info
+    # navigate's console line gave the count alone ("gated out: imu_cog_a 494"): now of how many
+    r = runner.invoke(app, ["navigate", str(bad), "-o", str(tmp_path / "t.h5")])
+    assert r.exit_code == 0 and "gated out: imu_cog_a 494 of 494 updates\n" in r.stdout, r.output
     said = gated_streams({"orc": 5, "esc": 9}, {"orc": 6, "esc": 2})  # 6 of 11 is over half; 2 of 11 is not
     assert [w.split(" samples of ")[1].split(":")[0] for w in said] == ["orc"]
     assert len(gated_streams({"orc": 4}, {"orc": 6, "gnss_pos": 9})) == 1  # 9 refused fixes alone are too few
