@@ -1123,6 +1123,10 @@ MUTATIONS: list[Mutation] = [
     _m("gated-out-count-without-total", "sar-min", "cli.py",
        "f\"{k} {v} of {v + updates.get(k, 0)} updates\"", "f\"{k} {v}\"",
        "tests/test_nav_sarmin.py::test_a_gyro_the_gate_refuses_is_warned_of"),
+    _m("overwrite-refusal-worded-otherwise", "safety", "store/outputs.py",
+       "raise FileExistsError(already_exists(path))",
+       "raise FileExistsError(f\"{path}: already exists (use --overwrite to replace it)\")",
+       "tests/test_safety.py::test_every_command_refuses_an_existing_product_in_the_same_words"),
 ]
 
 

@@ -1212,3 +1212,17 @@ except OSError as exc:
         subprocess.run(["umount", str(disk)], capture_output=True)
     assert r.returncode == 0, r.stderr[-500:]
     assert "refused: 28" in r.stdout and left == ["fill"]
+
+
+def test_every_command_refuses_an_existing_product_in_the_same_words(tmp_path: Path, ci_mcap, ci_run: Path) -> None:
+    """ingest and navigate said "t.h5: already exists (use --overwrite to replace it)", focus "image.tif already
+    exists; pass --overwrite to replace it": one wording, the file named first as in every other error."""
+    for product, copy in (("drive.h5", "d.h5"), ("trajectory.h5", "t.h5"), ("image.tif", "i.tif")):
+        shutil.copy(ci_run / product, tmp_path / copy)
+    for args, refused in ((["ingest", str(ci_mcap.log_path), "-o", str(tmp_path / "d.h5")], "d.h5"),
+                          (["navigate", str(ci_run / "drive.h5"), "-o", str(tmp_path / "t.h5")], "t.h5"),
+                          (["focus", str(ci_run / "drive.h5"), "-t", str(ci_run / "trajectory.h5"), "-o",
+                            str(tmp_path / "i")], "i.tif")):
+        r = runner.invoke(app, args, env={"COLUMNS": "300"})
+        _one_line_error(r)
+        assert r.stderr == f"error: {tmp_path / refused}: already exists; pass --overwrite to replace it\n", args

@@ -47,6 +47,7 @@ from autosar_cli.sar.stripmap import (
     stripmap_windows,
     zero_doppler_pulses,
 )
+from autosar_cli.store.atomic import already_exists
 from autosar_cli.store.drive import Drive, RadarStream
 from autosar_cli.store.image import FocusedImage, preload_quicklook, product_paths, write_image
 from autosar_cli.store.outputs import check_output
@@ -636,7 +637,7 @@ def check_request(options: FocusOptions, output: str | Path, overwrite: bool,
         check_output(path, inputs, overwrite=True)     # file) before the advice to pass it
     existing = [str(p) for p in product_paths(Path(output)).values() if p.exists()]
     if existing and not overwrite:
-        raise FocusError(f"{existing[0]} already exists; pass --overwrite to replace it")
+        raise FocusError(already_exists(existing[0]))
 
 
 def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Path, config: Config,

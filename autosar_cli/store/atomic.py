@@ -86,6 +86,11 @@ def _process_alive(pid: int) -> bool:
     return True
 
 
+def already_exists(path: Path | str) -> str:
+    """The refusal to replace an existing product without --overwrite: one wording for every command."""
+    return f"{path}: already exists; pass --overwrite to replace it"
+
+
 @contextmanager
 def atomic_output(path: Path, overwrite: bool) -> Iterator[Path]:
     """Yield a temporary path to write ``path``'s content to; on success it replaces ``path`` (os.replace).
@@ -97,7 +102,7 @@ def atomic_output(path: Path, overwrite: bool) -> Iterator[Path]:
     """
     path = Path(path)
     if path.exists() and not overwrite:
-        raise FileExistsError(f"{path} already exists; pass --overwrite to replace it")
+        raise FileExistsError(already_exists(path))
     tmp = partial_path(path)
     try:
         yield tmp

@@ -27,7 +27,7 @@ from rasterio.crs import CRS
 from rasterio.windows import Window
 
 from autosar_cli import __version__
-from autosar_cli.store.atomic import atomic_output
+from autosar_cli.store.atomic import already_exists, atomic_output
 from autosar_cli.store.attr_checksum import attributes_damage, stamp_attributes
 from autosar_cli.store.hdf5_read import open_hdf5, read_dataset
 from autosar_cli.store.manifest import json_default
@@ -149,7 +149,7 @@ class ImageWriter:
         if not self.overwrite:
             for p in self.paths.values():
                 if p.exists():
-                    raise FileExistsError(f"{p} already exists; pass --overwrite to replace it")
+                    raise FileExistsError(already_exists(p))
         rows, cols = self.grid.shape
         # complex64 image.h5 + float32 GeoTIFF (uncompressed bounds; the quicklook is small)
         check_free_space(self.paths["h5"], rows * cols * (8 + 4), "the image", SMALL_FILE_MARGIN_BYTES)

@@ -20,7 +20,7 @@ import stat
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
-from autosar_cli.store.atomic import remove_stale_partials
+from autosar_cli.store.atomic import already_exists, remove_stale_partials
 
 AUTOSAR_FORMAT_PREFIX = "autosar-"
 DIRECTORY_MANIFESTS = ("run.json", "batch.json", "compare.json", "metrics.json")
@@ -71,7 +71,7 @@ def check_output(path: str | Path, inputs: Iterable[str | Path] = (), *, overwri
         raise OutputError(f"{path}: is {what} autosar did not write (no autosar metadata); refusing to replace "
                           f"it, even with --overwrite")
     if not overwrite:
-        raise FileExistsError(f"{path}: already exists (use --overwrite to replace it)")
+        raise FileExistsError(already_exists(path))
 
 
 def input_problem(path: Path) -> str | None:
