@@ -322,6 +322,17 @@ def _not_a_log(path: Path, wanted: str, maker: str) -> None:
         raise ValueError(f"{path}: a drive log, not {wanted}: `{maker.replace('LOG', str(path))}` makes one")
 
 
+def _an_input_file(path: Path, wanted: str, in_run: str) -> None:
+    """Refuse a directory (or nothing) given where the file ``wanted`` is read, before the output is checked against
+    it; a run directory's file of that name (``in_run``: drive.h5, trajectory.h5) is named as the one to give."""
+    if not (path.exists() or path.is_symlink()):
+        raise ValueError(f"{path}: no such file or directory")
+    if path.is_dir():
+        what = "a run directory" if (path / "run.json").is_file() else "a directory"
+        give = f": give {path / in_run}" if (path / in_run).is_file() else ""
+        raise ValueError(f"{path}: {what}, not {wanted}{give}")
+
+
 def _load_config(path: Path | None) -> Any:
     from autosar_cli.config import load_config
 
@@ -521,6 +532,7 @@ def navigate(
 
         _not_a_log(drive, "a drive.h5", "autosar ingest LOG -o drive.h5")
         cfg = _load_config(config)
+        _an_input_file(drive, "a drive.h5", "drive.h5")  # before the output is checked against it
         from autosar_cli.store.outputs import is_autosar_product
 
         plotted = output.is_file() and is_autosar_product(output)  # its plot beside it is autosar's too
@@ -680,6 +692,8 @@ def focus(
         cfg = _load_config(config)
         options = FocusOptions.from_config(cfg, pixel_m=pixel, resolution_m=resolution, height_m=height, grid=grid,
                                            channels=int(channels.value) if channels else None, radar=radar_stream)
+        _an_input_file(drive, "a drive.h5", "drive.h5")  # before the output is checked against them
+        _an_input_file(trajectory, "a trajectory.h5", "trajectory.h5")
         from autosar_cli.store.outputs import make_directories
 
         _state["undo_on_failure"].append(make_directories(output.parent))  # as ingest and navigate make theirs

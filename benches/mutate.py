@@ -1127,6 +1127,9 @@ MUTATIONS: list[Mutation] = [
        "raise FileExistsError(already_exists(path))",
        "raise FileExistsError(f\"{path}: already exists (use --overwrite to replace it)\")",
        "tests/test_safety.py::test_every_command_refuses_an_existing_product_in_the_same_words"),
+    _m("run-directory-drive-unnamed", "safety", "cli.py",
+       "give = f\": give {path / in_run}\" if (path / in_run).is_file() else \"\"", "give = \"\"",
+       "tests/test_cli.py::test_a_run_directory_or_a_folder_given_as_a_drive_is_said_before_the_output"),
 ]
 
 

@@ -221,6 +221,26 @@ def test_the_current_directory_given_as_a_product_is_named_not_a_python_repr(arg
     assert "PosixPath" not in r.output and r.stderr.startswith("error: .: a drive log, not "), r.stderr
 
 
+def test_a_run_directory_or_a_folder_given_as_a_drive_is_said_before_the_output(ci_run, tmp_path, monkeypatch):
+    """`autosar navigate RUN_DIR` said "RUN_DIR: a directory, not an HDF5 file" without naming the drive.h5 in it,
+    and `autosar navigate .. -o t.h5` "t.h5: lies inside the input ..", where `..` is no drive.h5 at all: the input is
+    checked first, and a run directory's own drive.h5 or trajectory.h5 named."""
+    r = runner.invoke(app, ["navigate", str(ci_run), "-o", str(tmp_path / "t.h5")], env={"COLUMNS": "300"})
+    assert r.exit_code == 1 and r.stderr == f"error: {ci_run}: a run directory, not a drive.h5: give " \
+        f"{ci_run / 'drive.h5'}\n", r.output
+    r = runner.invoke(app, ["focus", str(ci_run / "drive.h5"), "-t", str(ci_run), "-o", str(tmp_path / "i")],
+                      env={"COLUMNS": "300"})
+    assert r.exit_code == 1 and r.stderr == f"error: {ci_run}: a run directory, not a trajectory.h5: give " \
+        f"{ci_run / 'trajectory.h5'}\n", r.output
+    (tmp_path / "sub").mkdir()
+    monkeypatch.chdir(tmp_path / "sub")
+    r = runner.invoke(app, ["navigate", "..", "-o", "t.h5"])
+    assert r.exit_code == 1 and r.stderr == "error: ..: a directory, not a drive.h5\n", r.output
+    r = runner.invoke(app, ["navigate", "gone.h5", "-o", "t.h5"])
+    assert r.exit_code == 1 and r.stderr == "error: gone.h5: no such file or directory\n", r.output
+    assert not list(tmp_path.rglob("t.h5")) and not list(tmp_path.rglob("i.*"))
+
+
 def test_a_log_given_as_the_radar_capture_is_named_for_what_it_is(tmp_path, ci_mcap):
     """`--radar drive.mcap` was read as a capture's parameter file and refused as "error: .: expected adc_data.bin
     or ... found no .bin file", naming the folder "." and not the file: the file is named, with what it is."""

@@ -83,7 +83,7 @@ def test_a_product_cut_short_says_by_how_much(tmp_path: Path) -> None:
                          (["focus", str(tmp_path / "a_dir"), "-t", str(path), "-o", str(tmp_path / "img")], "a_dir")):
         r = runner.invoke(app, cmd)
         assert r.exit_code == 1 and "Traceback" not in r.output
-        why = "no such file or directory" if missing == "gone.h5" else "a directory, not an HDF5 file"
+        why = "no such file or directory" if missing == "gone.h5" else "a directory, not a drive.h5"
         assert r.stderr.strip().endswith(f"{missing}: {why}"), r.stderr
 
 
