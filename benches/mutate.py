@@ -811,7 +811,7 @@ MUTATIONS: list[Mutation] = [
     _m("capture-short-of-its-frames-unsaid", "radar", "ingest/dca1000.py",
        "        if p.num_frames and self.num_frames < p.num_frames:", "        if False:", CAPTURE_SHORT),
     _m("empty-beam-writes-a-zero-image", "sar", "sar/focus.py",
-       "    if n == 0:\n        raise FocusError(", "    if n < 0:\n        raise FocusError(", EMPTY_BEAM),
+       "    if n == 0:\n        where = ", "    if n < 0:\n        where = ", EMPTY_BEAM),
     _m("focus-output-folder-not-made", "safety", "cli.py",
        "        _state[\"undo_on_failure\"].append(make_directories(output.parent))  # as ingest and navigate",
        "        pass  # as ingest and navigate", FOCUS_FOLDER),
@@ -1130,6 +1130,12 @@ MUTATIONS: list[Mutation] = [
     _m("run-directory-drive-unnamed", "safety", "cli.py",
        "give = f\": give {path / in_run}\" if (path / in_run).is_file() else \"\"", "give = \"\"",
        "tests/test_cli.py::test_a_run_directory_or_a_folder_given_as_a_drive_is_said_before_the_output"),
+    _m("empty-grid-track-unsaid", "focus", "sar/focus.py",
+       "where = \"\" if parse_grid(options.grid) is None else", "where = \"\" if True else",
+       "tests/test_safety.py::test_an_image_no_pulse_reaches_is_refused[1]"),
+    _m("focus-json-grid-box-left-out", "focus", "sar/focus.py",
+       "res.drive_s, warnings, grid_enu_box(img.grid))", "res.drive_s, warnings)",
+       "tests/test_sar_focus.py::test_focus_cli_writes_the_three_products"),
 ]
 
 

@@ -968,14 +968,20 @@ def test_navigate_replaces_its_own_plot_beside_an_output_of_any_name(tmp_path: P
 def test_an_image_no_pulse_reaches_is_refused(tmp_path: Path, ci_run: Path, tiles: str) -> None:
     """`focus --resolution 1e300` wrote an all-zero image, exit 0, no word (its beam +-0 deg held no pulse), and
     `--resolution 1000` one of single pulses (332 of 40443 pixels lit): a resolution coarser than 1 m is refused,
-    and an image no pulse reaches (a box 500 m off the drive) is one line."""
+    and an image no pulse reaches (a box 500 m off the drive, or on the side the radar does not look to) is one
+    line, which said nothing of where the track lies: it gives the track's ENU box, the side the radar looks to
+    and the box --grid auto covers."""
     for resolution in ("1e300", "1000", "1.5"):
         r = runner.invoke(app, ["focus", str(ci_run / "drive.h5"), "-t", str(ci_run / "trajectory.h5"), "-o",
                                 str(tmp_path / "x"), "--resolution", resolution, "--tiles", tiles])
         _one_line_error(r, f"cross-range resolution {float(resolution):g} m: coarser than 1 m")
-    r = runner.invoke(app, ["focus", str(ci_run / "drive.h5"), "-t", str(ci_run / "trajectory.h5"), "-o",
-                            str(tmp_path / "x"), "--grid", "500,500,501,501", "--tiles", tiles])
-    _one_line_error(r, "no radar pulse reaches a pixel within the processed beam")
+    for grid in ("500,500,501,501", "2,0,5,3"):  # the ci drive's radar looks right of its track, heading east
+        r = runner.invoke(app, ["focus", str(ci_run / "drive.h5"), "-t", str(ci_run / "trajectory.h5"), "-o",
+                                str(tmp_path / "x"), "--grid", grid, "--tiles", tiles])
+        _one_line_error(r, "no radar pulse reaches a pixel within the processed beam")
+        assert re.search(r"the image would be empty: the radar's track spans x 2\.\d to 4\.\d m, y -0\.\d to -0\.\d m "
+                         r"\(ENU\) and it looks to the right \(radar.mounting.yaw_deg -45\); --grid auto covers "
+                         r"2\.\d,-27\.\d,6\.\d,-1\.\d$", r.stderr.replace("\n", "")), r.stderr
     assert not list(tmp_path.iterdir())
 
 

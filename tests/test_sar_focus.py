@@ -503,6 +503,10 @@ def test_focus_cli_writes_the_three_products(ci_drive: Drive, tmp_path: Path) ->
     img = read_image(tmp_path / "img.h5")
     assert img.grid.pixel_m == 0.08 and img.params["trajectory_method"] == "truth"
     assert math.isfinite(float(np.abs(img.image).max()))
+    # where the (auto) grid lies in ENU, to choose a --grid by: the box around its outer pixel edges
+    corners = img.grid.corners_enu()
+    np.testing.assert_allclose(json.loads(res.stdout)["grid_enu_m"], [*corners.min(axis=0), *corners.max(axis=0)],
+                               atol=1e-3)
 
 
 @pytest.mark.slow

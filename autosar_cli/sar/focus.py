@@ -114,6 +114,7 @@ class FocusReport:
     timings_s: dict[str, float] = field(default_factory=dict)
     drive_s: float = 0.0
     warnings: list[str] = field(default_factory=list)  #: what the image leaves out (another radar of the drive)
+    grid_enu_m: tuple[float, float, float, float] | None = None  #: x0, y0, x1, y1 around the image (grid_enu_box)
 
     @property
     def backprojections_per_s(self) -> float:
@@ -521,12 +522,44 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
                        damaged_index)
 
 
-def check_some_backprojection(n: int, drive_path: str | Path, options: FocusOptions, half_width_rad: float) -> None:
-    """Refuse an image no pulse reached (all zero: a cross-range resolution so coarse its beam holds no pulse)."""
+def check_some_backprojection(n: int, drive_path: str | Path, options: FocusOptions, half_width_rad: float,
+                              trajectory: str | Path | Trajectory, config: Config) -> None:
+    """Refuse an image no pulse reached (all zero: a cross-range resolution so coarse its beam holds no pulse, or a
+    --grid box the radar does not look at), saying, for a box, where the track lies (:func:`where_the_radar_looks`)."""
     if n == 0:
+        where = "" if parse_grid(options.grid) is None else \
+            f": {where_the_radar_looks(drive_path, trajectory, config, options)}"
         raise FocusError(f"{drive_path}: no radar pulse reaches a pixel within the processed beam (cross-range "
                          f"resolution {options.resolution_m:g} m: +-{math.degrees(half_width_rad):.3g} deg); the "
-                         "image would be empty")
+                         f"image would be empty{where}")
+
+
+def where_the_radar_looks(drive_path: str | Path, trajectory: str | Path | Trajectory, config: Config,
+                          options: FocusOptions) -> str:
+    """Where the radar's track lies in the trajectory's ENU frame (the box of its phase centre over the frames
+    focused), which side it looks to (:func:`radar_side`, by ``radar.mounting.yaw_deg``), and the box --grid auto
+    covers: what a --grid no pulse reaches is told, to choose another by."""
+    traj = trajectory if isinstance(trajectory, Trajectory) else read_trajectory(trajectory, covariance=False)
+    config = measured_mounting(config, traj)
+    with Drive(drive_path) as d:
+        geometry = _frames_to_focus(open_radar(d, options), traj, config, options.min_speed_mps, drive_path,
+                                    str(trajectory))
+    (x0, y0), (x1, y1) = geometry.reference[:, :2].min(axis=0), geometry.reference[:, :2].max(axis=0)
+    side = "left" if radar_side(config) > 0 else "right"
+    said = (f"the radar's track spans x {x0:.1f} to {x1:.1f} m, y {y0:.1f} to {y1:.1f} m (ENU) and it looks to the "
+            f"{side} (radar.mounting.yaw_deg {config.radar.mounting.yaw_deg:g})")
+    try:
+        auto = ",".join(f"{v:.1f}" for v in grid_enu_box(make_grid(replace(options, grid="auto"), geometry, config)))
+    except FocusError:  # the auto grid too large at this pixel: the track alone
+        return said
+    return f"{said}; --grid auto covers {auto}"
+
+
+def grid_enu_box(grid: FocusGrid) -> tuple[float, float, float, float]:
+    """x0, y0, x1, y1 (ENU m) of the box around ``grid``'s outer pixel edges (a --grid value that holds it)."""
+    corners = grid.corners_enu()
+    (x0, y0), (x1, y1) = corners.min(axis=0), corners.max(axis=0)
+    return round(float(x0), 3), round(float(y0), 3), round(float(x1), 3), round(float(y1), 3)
 
 
 #: the brightest point's channels may add this far (dB) under their coherent gain, 20 log10(channels), before the image
@@ -657,7 +690,8 @@ def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Pat
             progress(done, total)
 
     res = focus_images(drive_path, trajectory_path, config, options, progress=on_block, command=command)
-    check_some_backprojection(res.backprojections, drive_path, options, res.images[0].params["half_width_rad"])
+    check_some_backprojection(res.backprojections, drive_path, options, res.images[0].params["half_width_rad"],
+                              trajectory_path, config)
     t0 = time.perf_counter()
     img = res.images[0]
     warnings = [*res.warnings, *unfocused_radars(drive_path, options)]
@@ -668,4 +702,4 @@ def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Pat
     timings = dict(res.timings_s)
     timings["write"] = time.perf_counter() - t0
     return FocusReport({k: str(v) for k, v in outputs.items()}, img.grid.shape, res.frames_used, res.frames_skipped,
-                       res.backprojections, timings, res.drive_s, warnings)
+                       res.backprojections, timings, res.drive_s, warnings, grid_enu_box(img.grid))

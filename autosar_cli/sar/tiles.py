@@ -44,6 +44,7 @@ from autosar_cli.sar.focus import (
     damaged_frames_warning,
     drive_radar_config,
     focus_images,
+    grid_enu_box,
     make_grid,
     open_radar,
     unfocused_radars,
@@ -200,7 +201,8 @@ def focus_tiled(drive_path: str | Path, trajectory_path: str | Path, output: str
 
         first = min(results, key=lambda r: r.col0)
         n_bp = sum(r.backprojections for r in results)
-        check_some_backprojection(n_bp, drive_path, options, float(first.params["half_width_rad"]))
+        check_some_backprojection(n_bp, drive_path, options, float(first.params["half_width_rad"]), trajectory_path,
+                                  config)
         # each tile reads the frames its columns need: the frames left out are those any tile found damaged
         damaged = sorted({i for r in results for i in r.damaged_frame_index})
         frames_used = first.frames_used + len(first.damaged_frame_index) - len(damaged)
@@ -215,7 +217,7 @@ def focus_tiled(drive_path: str | Path, trajectory_path: str | Path, output: str
         t0 = time.perf_counter()
     timings["write"] += time.perf_counter() - t0  # closing: tags, quicklook, flush, rename
     return FocusReport({k: str(v) for k, v in writer.paths.items()}, grid.shape, frames_used, skipped, n_bp,
-                       dict(timings), first.drive_s, warnings)
+                       dict(timings), first.drive_s, warnings, grid_enu_box(grid))
 
 
 def _token() -> str:
