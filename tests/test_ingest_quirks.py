@@ -370,6 +370,39 @@ def test_a_gyro_with_its_sign_turned_is_left_out_by_name(sim_dir: Path, tmp_path
     assert across < 0.015, across
 
 
+@pytest.mark.parametrize(("topic", "said"), [
+    ("/imu/cog_a", "gyro imu_cog_a: its yaw rate reads "),  # one of the four gyros SAR-MIN fuses
+    ("/ins_cog/imu", "imu/ins_cog: its z gyro reads "),  # the attitude IMU: its roll and pitch rates tilt the radar
+], ids=["gyro", "attitude_imu"])
+def test_a_gyro_in_degrees_per_second_is_read_as_such(sim_dir: Path, tmp_path: Path, topic: str, said: str) -> None:
+    """An IMU's angular velocity published in deg/s (a driver's unit; ROS's is rad/s). imu_cog_a: the gate refused
+    27236 of its 28987 samples, let the rest (near 0) through, the steering was refused as '0.162 times the road-wheel
+    angle' and the track was 35.8 cm RMS across once aligned (0.95 as recorded); ins_cog, the attitude IMU: the gate
+    refused 493 of the 580 GNSS fixes ('the car's own sensors and the GNSS disagree'), 40.0 cm. A gyro whose yaw rate
+    is 57.3 times the others' is read as deg/s, said, and the track is the recording's."""
+    import math
+
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+
+    def degrees(t_topic: str, t: int, cdr: bytes) -> tuple[int, bytes]:
+        if t_topic != topic:
+            return t, cdr
+        msg = store.deserialize_cdr(cdr, "sensor_msgs/msg/Imu")
+        w = msg.angular_velocity
+        w.x, w.y, w.z = math.degrees(w.x), math.degrees(w.y), math.degrees(w.z)
+        return t, bytes(store.serialize_cdr(msg, "sensor_msgs/msg/Imu"))
+
+    sim, cfg, report, traj = urban_navigated(sim_dir, tmp_path / "degrees.mcap", degrees)
+    warned = traj.info.get("warnings", [])
+    told = [w for w in warned if w.startswith(said)]
+    assert len(told) == 1 and abs(float(told[0][len(said):].split()[0]) - 57.3) < 0.5, warned
+    assert told[0].endswith("read as deg/s") and len(warned) == 1, warned
+    across = aligned_across_rms_m(traj, sim.truth_path, cfg)
+    assert across < 0.011, across
+
+
 def test_a_capture_is_not_taken_for_a_topic_on_another_clock(tmp_path: Path) -> None:
     """A recorder whose clock runs 5 s ahead of the one every header is stamped on (each topic 5 s off its log times
     alike), with a DCA1000 capture timed by the sync topic's stamps: the capture was compared as if stamped on its
