@@ -403,6 +403,41 @@ def test_a_gyro_in_degrees_per_second_is_read_as_such(sim_dir: Path, tmp_path: P
     assert across < 0.011, across
 
 
+def test_an_imu_publishing_gravity_removed_acceleration_is_named_and_its_gyros_kept(sim_dir: Path,
+                                                                                   tmp_path: Path) -> None:
+    """The 6-DoF IMUs publishing their acceleration with gravity taken out (BNO055's linear_acceleration, an Xsens's
+    free acceleration): navigate refused urban seed 1 for its attitude IMU, 'its accelerometers read gravity as 0.33
+    m/s^2 ..., not about 9.81: a unit (g read as m/s^2 is 1.0) or a scale in the log', neither the cause nor a
+    remedy. It is named as gravity-removed; SAR-MIN navigates without its roll and pitch (0.96 cm RMS across aligned,
+    0.95 with them), and the INS baseline, whose strapdown needs the specific force, is refused naming it."""
+    from rosbags.typesys import Stores, get_typestore
+
+    from autosar_cli.nav.inputs import NavInputError
+    from autosar_cli.nav.navigate import navigate
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+
+    def free(topic: str, t: int, cdr: bytes) -> tuple[int, bytes]:
+        if topic not in ("/ins_cog/imu", "/ins_radar/imu"):
+            return t, cdr
+        msg = store.deserialize_cdr(cdr, "sensor_msgs/msg/Imu")
+        msg.linear_acceleration.z -= 9.80665
+        return t, bytes(store.serialize_cdr(msg, "sensor_msgs/msg/Imu"))
+
+    sim, cfg, report, traj = urban_navigated(sim_dir, tmp_path / "free.mcap", free)
+    warned = traj.info.get("warnings", [])
+    planar = "no roll and pitch from it (the radar and the GNSS antenna as on a planar body)"
+    said = [w for w in warned if w.startswith("imu/ins_cog: its accelerometers read no gravity (median magnitude 0.3")
+            and "gravity-removed ('free' or linear) acceleration" in w and w.endswith(planar)]
+    assert len(said) == 1 and len(warned) == 1, warned
+    assert traj.info["attitude"]["reason"].startswith("imu/ins_cog reads gravity-removed acceleration"), traj.info
+    across = aligned_across_rms_m(traj, sim.truth_path, cfg)
+    assert across < 0.011, across
+    with pytest.raises(NavInputError, match=r"imu/ins_radar: its accelerometers read no gravity .* gravity-removed "
+                                            r"\('free' or linear\) acceleration"):
+        navigate(tmp_path / "free.h5", "ins", cfg)
+
+
 def test_a_capture_is_not_taken_for_a_topic_on_another_clock(tmp_path: Path) -> None:
     """A recorder whose clock runs 5 s ahead of the one every header is stamped on (each topic 5 s off its log times
     alike), with a DCA1000 capture timed by the sync topic's stamps: the capture was compared as if stamped on its

@@ -27,6 +27,15 @@ class NavInputError(ValueError):
     """A drive lacks what navigation needs; the message says what."""
 
 
+class GravityRemovedError(NavInputError):
+    """:func:`read_imu`'s refusal of a stream whose accelerometers hold no gravity, with what it said of it (``said``,
+    no drive named) and its columns (``columns``) for a caller that takes its gyros alone."""
+
+    def __init__(self, message: str, said: str, columns: dict[str, Array]) -> None:
+        super().__init__(message)
+        self.said, self.columns = said, columns
+
+
 @dataclass
 class Measurements:
     """One sensor's samples: times (s), values (n, k) and the standard deviation of one sample (k,)."""
@@ -46,6 +55,8 @@ class ImuSamples:
     angular_velocity: Array  #: (N, 3) rad/s
     specific_force: Array  #: (N, 3) m/s^2 (the accelerometers' reading: acceleration minus gravity)
     lever_arm_m: tuple[float, float, float]  #: the IMU in the body frame, from the CoG
+    #: its accelerations with gravity taken out by its driver (:class:`GravityRemovedError`): no roll and pitch from it
+    gravity_removed: bool = False
 
 
 @dataclass
@@ -238,6 +249,9 @@ def _load_gnss_heading(out: NavInputs, drive: Drive, gnss: h5py.Group, source: s
 MAX_GRAVITY_TILT_DEG = 30.0
 #: the median magnitude of a 6-DoF IMU's specific force over a drive (m/s^2): gravity and the car's accelerations
 GRAVITY_RANGE_MPS2 = (7.0, 12.5)
+#: ... below it, with the median vector under this share of the median magnitude (no fixed direction: gravity's, in
+#: any unit, is ~1), the driver took gravity out (urban seed 1's ins_cog: 0.33 m/s^2, its median 0.07)
+GRAVITY_REMOVED_SHARE = 0.5
 
 
 def read_imu(drive: Drive, name: str, config: Config) -> dict[str, Array]:
@@ -253,6 +267,14 @@ def read_imu(drive: Drive, name: str, config: Config) -> dict[str, Array]:
     if whole.any():
         g = np.median(f[whole], axis=0)
         magnitude = float(np.median(np.linalg.norm(f[whole], axis=1)))
+        if magnitude < GRAVITY_RANGE_MPS2[0] and np.linalg.norm(g) < GRAVITY_REMOVED_SHARE * magnitude:
+            said = (f"imu/{name}: its accelerometers read no gravity (median magnitude {magnitude:.2f} m/s^2, in no "
+                    f"fixed direction: their median [{g[0]:.2f}, {g[1]:.2f}, {g[2]:.2f}]): gravity-removed ('free' or "
+                    "linear) acceleration, not the specific force an accelerometer measures")
+            raise GravityRemovedError(
+                f"{drive.path}: {said}; neither roll and pitch nor a strapdown come from it (log the driver's raw "
+                "acceleration, gravity in it)", said, {"t_ns": cols["t_ns"], "angular_velocity": w,
+                                                        "linear_acceleration": f})
         if not GRAVITY_RANGE_MPS2[0] <= magnitude <= GRAVITY_RANGE_MPS2[1]:
             raise NavInputError(
                 f"{drive.path}: imu/{name}: its accelerometers read gravity as {magnitude:.2f} m/s^2 (median "
@@ -527,6 +549,19 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         out.gnss_heading_missing = f"{nav.gnss} is a receiver on CAN: no NMEA heading"
     imu_sources = drive.imu_sources()
     imus: dict[str, dict[str, Array]] = {}  # read_imu's per stream: a gyro's may be the attitude IMU's too
+    gravity_removed: dict[str, str] = {}  # what read_imu said of each stream whose driver took gravity out
+
+    def imu_of(name: str) -> dict[str, Array]:
+        """read_imu's, once per stream; a stream without gravity's columns, said in ``gravity_removed``: its gyros
+        are usable (urban seed 1's attitude IMU without gravity had navigate refuse the drive, 'a unit (g read as m/s^2
+        is 1.0) or a scale' at 0.33 m/s^2)"""
+        if name not in imus:
+            try:
+                imus[name] = read_imu(drive, name, config)
+            except GravityRemovedError as exc:
+                imus[name], gravity_removed[name] = exc.columns, exc.said
+        return imus[name]
+
     yaw_rates: dict[str, tuple[Array, Array]] = {}  # each gyro's times (ns) and yaw rate as read
     for name in nav.gyros:
         s = config.sensors.get(name)
@@ -536,7 +571,7 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
             if name not in imu_sources:
                 raise NavInputError(f"{drive.path}: no IMU stream imu/{name} (config navigation.gyros); "
                                     f"{streams_held(drive, 'imu')}")
-            imu = imus.setdefault(name, read_imu(drive, name, config))
+            imu = imu_of(name)
             yaw_rates[name] = imu["t_ns"], imu["angular_velocity"][:, 2]
         else:
             try:
@@ -579,7 +614,7 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
                                     np.array([np.hypot(noise, q / np.sqrt(12)) / ratio]))
         out.steering_offset_std = (np.deg2rad(s.steering.offset_std_deg) if s.steering else 0.02) / ratio * 2
     if nav.attitude_imu and nav.attitude_imu in imu_sources:
-        imu = imus.get(nav.attitude_imu) or read_imu(drive, nav.attitude_imu, config)
+        imu = imu_of(nav.attitude_imu)
         w, f = imu["angular_velocity"], imu["linear_acceleration"]
         if nav.attitude_imu in in_degrees:
             w = np.deg2rad(w)
@@ -594,5 +629,12 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         ok = np.isfinite(w).all(axis=1) & np.isfinite(f).all(axis=1)
         if ok.any():  # a 3-DoF stream (NaN axes) has no attitude to give: left out, and navigate says why
             out.attitude_imu = ImuSamples(nav.attitude_imu, rel(imu["t_ns"][ok], nav.attitude_imu), w[ok], f[ok],
-                                          tuple(config.sensors[nav.attitude_imu].lever_arm_m))
+                                          tuple(config.sensors[nav.attitude_imu].lever_arm_m),
+                                          gravity_removed=nav.attitude_imu in gravity_removed)
+    for name, said in gravity_removed.items():
+        uses = [*(["its z gyro taken as the yaw rate as mounted (no gravity to check the mounting by)"]
+                  if name in nav.gyros else []),
+                *(["no roll and pitch from it (the radar and the GNSS antenna as on a planar body)"]
+                  if name == nav.attitude_imu else [])]
+        out.warnings.append(f"{said}: {'; '.join(uses)}")
     return out

@@ -402,6 +402,9 @@ def body_attitude(inputs: NavInputs, config: Config) -> tuple[BodyAttitude | Non
     if inputs.attitude_imu is None:
         return None, (f"no 6-DoF IMU stream imu/{nav.attitude_imu} in the drive: the radar and the GNSS antenna as "
                       "on a planar body")
+    if inputs.attitude_imu.gravity_removed:
+        return None, (f"imu/{nav.attitude_imu} reads gravity-removed acceleration: no roll and pitch from it, the "
+                      "radar and the GNSS antenna as on a planar body")
     if inputs.wheels is not None:
         t, speed = inputs.wheels.t, inputs.wheels.z[:, 2:].mean(axis=1)
     elif inputs.gnss_velocity is not None:
