@@ -1149,6 +1149,12 @@ MUTATIONS: list[Mutation] = [
     _m("focus-json-grid-box-left-out", "focus", "sar/focus.py",
        "res.drive_s, warnings, grid_enu_box(img.grid))", "res.drive_s, warnings)",
        "tests/test_sar_focus.py::test_focus_cli_writes_the_three_products"),
+    _m("stamps-in-microseconds-taken-as-ns", "ingest", "ingest/series.py",
+       "    return bool(as_given > 1_000_000 and 10 * as_microseconds < as_given)", "    return False",
+       _QUIRKS + "test_stamps_whose_nanoseconds_hold_microseconds_are_read_as_such"),
+    _m("stamps-in-microseconds-said-not-read", "ingest", "ingest/series.py",
+       "        return header_ns + header_ns % 1_000_000_000 * 999", "        return header_ns",
+       _QUIRKS + "test_stamps_whose_nanoseconds_hold_microseconds_are_read_as_such"),
 ]
 
 

@@ -908,3 +908,24 @@ def test_a_receiver_standing_still_with_no_course_reads_a_zero_velocity(tmp_path
     np.testing.assert_array_equal(streams.velocity["velocity_enu"][:3, :2], 0.0)
     assert len(streams.velocity["t_ns"]) == 4  # 0.06 m/s without a course: left out
     np.testing.assert_allclose(streams.velocity["velocity_enu"][3, :2], [1.5, 0.0], atol=2e-3)
+
+
+def test_stamps_whose_nanoseconds_hold_microseconds_are_read_as_such(sim_dir: Path, tmp_path: Path) -> None:
+    """Urban seed 1's four IMUs stamped by a driver that writes microseconds into the stamps' nanoseconds field:
+    each second's samples were written within its first millisecond, then a 999 ms gap; ingest said nothing, the
+    gate refused samples, and the only warning blamed the GNSS latency (1.36 cm RMS across aligned, 0.95 as
+    recorded). Each stream is named and read in microseconds: the track as recorded."""
+    imus = ("/imu/cog_a", "/imu/cog_b", "/ins_cog/imu", "/ins_radar/imu")
+
+    def fn(topic: str, t: int, cdr: bytes) -> tuple[int, bytes]:
+        if topic not in imus:
+            return t, cdr
+        sec, ns = divmod(header_stamp(cdr), 1_000_000_000)
+        return t, with_header_stamp(cdr, sec * 1_000_000_000 + ns // 1000)
+
+    sim, cfg, report, traj = urban_navigated(sim_dir, tmp_path / "microseconds.mcap", fn)
+    said = [w for w in report.warnings if "header stamps' nanoseconds field holds microseconds" in w]
+    assert sorted(w.split(":")[0] for w in said) == ["imu/imu_cog_a", "imu/imu_cog_b", "imu/ins_cog", "imu/ins_radar"]
+    assert len(said) == 4, report.warnings
+    across = aligned_across_rms_m(traj, sim.truth_path, cfg)
+    assert across < 0.0097, across

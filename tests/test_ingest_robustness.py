@@ -877,3 +877,25 @@ def test_a_log_on_other_topics_altogether_is_no_typo(tmp_path: Path) -> None:
     bag = realdata("robot_localization", "test1.bag")
     report = ingest([bag], tmp_path / "d.h5", config=load_config(), allow_partial=True)
     assert not [w for w in report.warnings if "typo" in w], report.warnings
+
+
+@pytest.mark.parametrize(("case", "expected"), [
+    ("microseconds", True),  # 500 Hz, the nanoseconds field holding microseconds
+    ("microseconds_across_a_second", True),
+    ("nanoseconds", False),  # the same stream stamped right
+    ("whole_seconds", False),  # a 1 Hz receiver stamped on its whole seconds: sub-second parts 0
+    ("burst", False),  # right stamps, their log times one burst (a logger reading a USB buffer)
+])
+def test_stamps_in_microseconds_are_told_from_the_first_messages(case: str, expected: bool) -> None:
+    from autosar_cli.ingest.series import stamps_hold_microseconds
+
+    sec = 1_700_000_000 * 10**9
+    start = {"microseconds_across_a_second": 0.9993e9, "whole_seconds": 0.0}.get(case, 0.2e9)
+    period = 1e9 if case == "whole_seconds" else 2e6
+    true = [int(sec + start + k * period) for k in range(8)]  # the instants, ns
+    log = [t + 3_000_000 + (k * 7919 % 50_000) for k, t in enumerate(true)]  # 3 ms late, jittered
+    if case == "burst":
+        log = [true[-1] + 1_000_000] * 8
+    stamps = true if case in ("nanoseconds", "whole_seconds", "burst") else [
+        t // 10**9 * 10**9 + t % 10**9 // 1000 for t in true]
+    assert stamps_hold_microseconds(list(zip(stamps, log, strict=True))) is expected

@@ -1101,6 +1101,10 @@ def _plausibility(infos: list[StreamInfo], job: _Ingest) -> None:
             job.warnings.append(f"{info.path}: {info.stats.late_dropped} message(s) dropped as late: stamped before "
                                 "rows already written, further out of order than its reorder buffer reaches (inputs "
                                 "of one stream out of time order, or their stamps damaged?)")
+        if info.stats is not None and info.stats.stamps_in_microseconds:
+            job.warnings.append(f"{info.path}: its header stamps' nanoseconds field holds microseconds (each under 1 "
+                                "ms, and steady against the log's times only when read so: a driver's bug): read "
+                                "as microseconds")
         if info.stats is not None and info.stats.stamp_outliers:
             job.warnings.append(f"{info.path}: {info.stats.stamp_outliers} message(s) stamped over a second after the "
                                 "ones before and after them dropped (a damaged stamp)")

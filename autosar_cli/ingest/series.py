@@ -53,6 +53,8 @@ class SeriesStats:
     clock_offset_ns: int = 0
     first_ns: int = 0
     last_ns: int = 0
+    #: the header stamps' nanoseconds field held microseconds (:func:`stamps_hold_microseconds`), read as such
+    stamps_in_microseconds: bool = False
     #: how fast the header stamps run against the log times (ppm) and its 1-sigma (:class:`ClockRate`); None
     #: where too few messages carry a header stamp
     clock_rate_ppm: float | None = None
@@ -64,6 +66,23 @@ class SeriesStats:
         d["largest_gap_s"] = max(((b - a) / 1e9 for a, b in self.gaps), default=0.0)
         d["skipped"] = dict(self.skipped)
         return d
+
+
+def stamps_hold_microseconds(pairs: list[tuple[int | None, int]]) -> bool:
+    """Whether a stream's first (header stamp, log time) pairs (ns) carry microseconds in the stamps' nanoseconds
+    field (a driver's bug): every sub-second part under 1 ms, and the stamps read as microseconds keep an offset from
+    the log times ten times steadier than as given, over more than 1 ms of it. Its samples were written each second
+    within that second's first millisecond, then a 999 ms gap, without a word."""
+    stamped = [(h, lg) for h, lg in pairs if h and h > 0]
+    if len(stamped) < 4:
+        return False
+    h = np.array([p[0] for p in stamped], dtype=np.int64)
+    log = np.array([p[1] for p in stamped], dtype=np.int64)
+    sub = h % 1_000_000_000
+    if sub.max() >= 1_000_000:
+        return False
+    as_given, as_microseconds = np.ptp(h - log), np.ptp(h + sub * 999 - log)
+    return bool(as_given > 1_000_000 and 10 * as_microseconds < as_given)
 
 
 class ClockRate:
@@ -143,9 +162,17 @@ class Series:
             if len(self._pending) >= _OFFSET_SAMPLES:
                 self._settle_offset()
             return
-        self._add(self._stamp(header_ns, log_ns), row)
+        self._add(self._stamp(self._microseconds_read(header_ns), log_ns), row)
+
+    def _microseconds_read(self, header_ns: int | None) -> int | None:
+        """``header_ns`` with its sub-second part read as microseconds where the stream's stamps carry them."""
+        if not self.stats.stamps_in_microseconds or not header_ns or header_ns <= 0:
+            return header_ns
+        return header_ns + header_ns % 1_000_000_000 * 999
 
     def _settle_offset(self) -> None:
+        self.stats.stamps_in_microseconds = stamps_hold_microseconds([(h, lg) for h, lg, _ in self._pending])
+        self._pending = [(self._microseconds_read(h), lg, row) for h, lg, row in self._pending]
         offsets = [h - lg for h, lg, _ in self._pending if h]
         self._offset = int(np.median(offsets)) if offsets else 0
         self.stats.clock_offset_ns = self._offset
