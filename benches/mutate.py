@@ -1155,6 +1155,9 @@ MUTATIONS: list[Mutation] = [
     _m("stamps-in-microseconds-said-not-read", "ingest", "ingest/series.py",
        "        return header_ns + header_ns % 1_000_000_000 * 999", "        return header_ns",
        _QUIRKS + "test_stamps_whose_nanoseconds_hold_microseconds_are_read_as_such"),
+    _m("imu-in-ned-unnamed", "inputs", "nav/inputs.py",
+       "if tilt > UPSIDE_DOWN_TILT_DEG and not any(mounting) else \"\"", "if False else \"\"",
+       _QUIRKS + "test_an_imu_in_ned_axes_is_named_so"),
 ]
 
 

@@ -929,3 +929,27 @@ def test_stamps_whose_nanoseconds_hold_microseconds_are_read_as_such(sim_dir: Pa
     assert len(said) == 4, report.warnings
     across = aligned_across_rms_m(traj, sim.truth_path, cfg)
     assert across < 0.0097, across
+
+
+def test_an_imu_in_ned_axes_is_named_so(sim_dir: Path, tmp_path: Path) -> None:
+    """Urban seed 1's attitude IMU publishing its rates and forces in NED / FRD axes (x forward, y right, z down, as
+    PX4 and some INS drivers do; ROS's are FLU): refused with the roll that levels it (-179.8 deg, which reads the
+    drive as recorded), but named only as 'gravity 180 deg from the body's up'; now also as NED / FRD."""
+    from rosbags.typesys import Stores, get_typestore
+
+    from autosar_cli.nav.inputs import NavInputError
+
+    store, msgtype = get_typestore(Stores.ROS2_HUMBLE), "sensor_msgs/msg/Imu"
+
+    def fn(topic: str, t: int, cdr: bytes) -> tuple[int, bytes]:
+        if topic != "/ins_cog/imu":
+            return t, cdr
+        msg = store.deserialize_cdr(cdr, msgtype)
+        for v in (msg.angular_velocity, msg.linear_acceleration):
+            v.y, v.z = -v.y, -v.z
+        return t, bytes(store.serialize_cdr(msg, msgtype))
+
+    with pytest.raises(NavInputError, match=r"imu/ins_cog: its accelerometers read gravity 180 deg from the body's up "
+                                            r".*\[yaw, 0\.\d, -179\.\d\], the yaw yours to give\): its z points down, "
+                                            r"NED / FRD axes"):
+        urban_navigated(sim_dir, tmp_path / "ned.mcap", fn)

@@ -254,6 +254,10 @@ GRAVITY_RANGE_MPS2 = (7.0, 12.5)
 GRAVITY_REMOVED_SHARE = 0.5
 
 
+#: an IMU whose gravity reads this far (deg) from its z axis, unturned by the config, has its z down
+UPSIDE_DOWN_TILT_DEG = 170.0
+
+
 def read_imu(drive: Drive, name: str, config: Config) -> dict[str, Array]:
     """The IMU stream ``imu/<name>`` (``t_ns``, ``angular_velocity``, ``linear_acceleration``) on the body's axes,
     turned by the sensor's ``mounting_ypr_deg``. Refused, naming the stream, where its accelerometers (all three
@@ -284,11 +288,14 @@ def read_imu(drive: Drive, name: str, config: Config) -> dict[str, Array]:
             turned = f"with its mounting_ypr_deg {list(mounting)}" if any(mounting) else "as mounted in the config"
             raw_g = np.median(np.asarray(cols["linear_acceleration"])[whole], axis=0)
             pitch, roll = levelling_pitch_roll_deg(raw_g)
+            # a sensor whose z points down is a NED / FRD one (PX4's, some INS drivers'), not mounted upside down
+            down = (": its z points down, NED / FRD axes (x forward, y right, z down), which a 180 deg roll makes "
+                    "ROS's") if tilt > UPSIDE_DOWN_TILT_DEG and not any(mounting) else ""
             raise NavInputError(
                 f"{drive.path}: imu/{name}: its accelerometers read gravity {tilt:.0f} deg from the body's up "
                 f"{turned} (median [{g[0]:.2f}, {g[1]:.2f}, {g[2]:.2f}] m/s^2 on the body's x, y, z), so its z gyro "
                 f"is not the yaw rate: give the sensor's mounting_ypr_deg (yaw, pitch, roll of its axes; gravity "
-                f"levels it at about [yaw, {pitch:.1f}, {roll:.1f}], the yaw yours to give)")
+                f"levels it at about [yaw, {pitch:.1f}, {roll:.1f}], the yaw yours to give){down}")
     return {"t_ns": cols["t_ns"], "angular_velocity": w, "linear_acceleration": f}
 
 
