@@ -1158,6 +1158,9 @@ MUTATIONS: list[Mutation] = [
     _m("imu-in-ned-unnamed", "inputs", "nav/inputs.py",
        "if tilt > UPSIDE_DOWN_TILT_DEG and not any(mounting) else \"\"", "if False else \"\"",
        _QUIRKS + "test_an_imu_in_ned_axes_is_named_so"),
+    _m("imu-repeats-weighed-twice", "inputs", "nav/inputs.py",
+       "    if len(x) < 2 or same.mean() <= MAX_REPEATED_SHARE:", "    if True:",
+       _QUIRKS + "test_imu_samples_published_twice_are_counted_once"),
 ]
 
 

@@ -953,3 +953,23 @@ def test_an_imu_in_ned_axes_is_named_so(sim_dir: Path, tmp_path: Path) -> None:
                                             r".*\[yaw, 0\.\d, -179\.\d\], the yaw yours to give\): its z points down, "
                                             r"NED / FRD axes"):
         urban_navigated(sim_dir, tmp_path / "ned.mcap", fn)
+
+
+def test_imu_samples_published_twice_are_counted_once(sim_dir: Path, tmp_path: Path) -> None:
+    """Urban seed 1's IMUs each publishing every sample twice, the copy 0.5 ms after (a driver publishing its
+    sensor's last sample faster than the sensor samples): ingest keeps both (other stamps), and SAR-MIN weighed each
+    gyro twice, 1.07 cm RMS across once aligned (0.95 as recorded), without a word. The repeats are left out at
+    navigation, each stream named: the track as recorded."""
+    imus = ("/imu/cog_a", "/imu/cog_b", "/ins_cog/imu", "/ins_radar/imu")
+
+    def fn(topic: str, t: int, cdr: bytes) -> tuple[int, bytes] | list[tuple[int, bytes]]:
+        if topic not in imus:
+            return t, cdr
+        return [(t, cdr), (t + 500_000, with_header_stamp(cdr, header_stamp(cdr) + 500_000))]
+
+    sim, cfg, report, traj = urban_navigated(sim_dir, tmp_path / "twice.mcap", fn)
+    said = [w for w in traj.info.get("warnings", []) if "samples repeat the one before on every axis" in w]
+    assert {w.split(":")[0] for w in said} == {"imu/imu_cog_a", "imu/imu_cog_b", "imu/ins_cog"}, said
+    assert "imu/imu_cog_a: 28987 of 57974 samples repeat" in " ".join(said), said
+    across = aligned_across_rms_m(traj, sim.truth_path, cfg)
+    assert across < 0.0097, across

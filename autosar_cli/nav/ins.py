@@ -32,6 +32,7 @@ from autosar_cli.nav.inputs import (
     velocities_with_fixes,
     velocity_frame_checked,
     with_altitudes,
+    without_repeated_samples,
 )
 from autosar_cli.nav.trajectory import Trajectory, rear_axle_from_body_point
 from autosar_cli.store.drive import Drive
@@ -78,7 +79,7 @@ def load_ins_inputs(drive: Drive, config: Config, origin: GeodeticOrigin, t0_ns:
         raise NavInputError(f"{drive.path}: the INS baseline needs imu/{nav.ins_imu} (config navigation.ins_imu); "
                             f"{streams_held(drive, 'imu')}")
     streams = receiver_streams(drive, nav.ins_gnss, "navigation.ins_gnss")
-    imu = read_imu(drive, nav.ins_imu, config)
+    imu, repeated = without_repeated_samples(read_imu(drive, nav.ins_imu, config), f"imu/{nav.ins_imu}")
     if streams.velocity is None:
         raise NavInputError(f"{drive.path}: the INS baseline needs the GNSS velocity gnss/{nav.ins_gnss}/velocity, "
                             "which the receiver did not log (its fixes alone: --method sar-min or gnss)")
@@ -100,7 +101,7 @@ def load_ins_inputs(drive: Drive, config: Config, origin: GeodeticOrigin, t0_ns:
                      rel(vel["t_ns"], gnss_cfg.latency_s), velocity,
                      np.asarray(imu_cfg.lever_arm_m, dtype=np.float64),
                      np.asarray(gnss_cfg.lever_arm_m, dtype=np.float64),
-                     [*streams.warnings, *(w for w in (unfixed, frame) if w)])
+                     [*streams.warnings, *(w for w in (unfixed, frame, repeated) if w)])
 
 
 def run_ins(ins: InsInputs, config: Config) -> Trajectory:
