@@ -77,6 +77,8 @@ def test_a_product_cut_short_says_by_how_much(tmp_path: Path) -> None:
     (tmp_path / "junk.h5").write_bytes(b"not hdf5" * 100)
     with pytest.raises(TrajectoryFormatError, match="junk.h5: not an HDF5 file"):
         read_trajectory(tmp_path / "junk.h5")
+    with pytest.raises(TrajectoryFormatError, match=r"gone.h5: no such file or directory$"):
+        read_trajectory(tmp_path / "gone.h5")  # the library's reader (the CLI checks its inputs before)
     # absent, or a directory: said so, not "not an HDF5 file ([Errno 2] Unable to synchronously open file ...)"
     (tmp_path / "a_dir").mkdir()
     for cmd, missing in ((["navigate", str(tmp_path / "gone.h5"), "-o", str(tmp_path / "t2.h5")], "gone.h5"),
