@@ -487,6 +487,8 @@ def ingest(
             notes += [f"{k} {v}" for k, v in st["skipped"].items()]
             if st.get("missing_frames"):
                 notes.append(f"missing frames {st['missing_frames']}")
+            if st.get("full_scale_frames"):
+                notes.append(f"clipped frames {st['full_scale_frames']}")
             table.add_row(st["path"], str(st["written"]), f"{rate:.1f}", str(st["gaps"]), ", ".join(notes))
         out.print(table)
         can = report.can

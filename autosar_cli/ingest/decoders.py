@@ -465,7 +465,7 @@ class RadarDecoder:
         self.shape: tuple[int, int, int] | None = None
         self.series = Series(self._sink, window=self.BLOCK, flush_rows=self.BLOCK)
         self.frame_gaps = FrameGaps()
-        self._frame_stats: list[np.ndarray] = []  # per block: (frame index, peak |sample|, RMS)
+        self._frame_stats: list[np.ndarray] = []  # per block: (frame index, peak |sample|, RMS, full-scale samples)
 
     def feed(self, m: Any, log_ns: int) -> None:
         """A deserialized RawFrame."""
@@ -516,9 +516,11 @@ class RadarDecoder:
             return self.info if stats.received else None
         self.frame_gaps.write(self.cube, stats)
         self.info.extra["missing_frames"] = self.frame_gaps.missing
-        flagged = implausible_frames(np.concatenate(self._frame_stats)) if self._frame_stats else []
+        stats_rows = np.concatenate(self._frame_stats) if self._frame_stats else np.zeros((0, 4))
+        flagged = implausible_frames(stats_rows)
         if len(flagged):
             self.info.extra["implausible_frames"] = [int(i) for i in flagged]
+        self.info.extra.update(clipping(stats_rows, 16))  # a RawFrame's samples are int16
         return self.info
 
 
@@ -533,14 +535,34 @@ LOCAL_RATIO = 2.0
 NEIGHBOURS = 9
 
 
-def frame_statistics(frame_index: np.ndarray, raw: np.ndarray) -> np.ndarray:
-    """(frame index, peak |sample|, RMS) per frame of ``raw`` (frames first, int16 ADC counts)."""
+def frame_statistics(frame_index: np.ndarray, raw: np.ndarray, adc_bits: int = 16) -> np.ndarray:
+    """(frame index, peak |sample|, RMS, samples at the ADC's full scale) per frame of ``raw`` (frames first, int16
+    ADC counts of an ``adc_bits``-bit ADC, sign-extended: its full scale -2^(bits-1) and 2^(bits-1) - 1)."""
     x = raw.reshape(len(raw), -1)
     # the peak on the int16 values and one float32 copy for the RMS: 9x faster than abs and square copies
-    peak = np.maximum(x.max(axis=1).astype(np.int32), -x.min(axis=1).astype(np.int32))
+    top, bottom = x.max(axis=1), x.min(axis=1)
+    peak = np.maximum(top.astype(np.int32), -bottom.astype(np.int32))
     xf = x.astype(np.float32)
     rms = np.sqrt(np.einsum("ij,ij->i", xf, xf) / max(x.shape[1], 1))
-    return np.column_stack([frame_index, peak, rms]).astype(np.float64)
+    lo, hi = full_scale(adc_bits)
+    full = np.zeros(len(x), dtype=np.int64)
+    at = np.flatnonzero((top >= hi) | (bottom <= lo))  # only a frame that reaches full scale is counted through
+    if len(at):
+        full[at] = np.count_nonzero((x[at] >= hi) | (x[at] <= lo), axis=1)
+    return np.column_stack([frame_index, peak, rms, full]).astype(np.float64)
+
+
+def full_scale(adc_bits: int) -> tuple[int, int]:
+    """The lowest and highest sample of an ``adc_bits``-bit ADC (two's complement): where a clipped one sits."""
+    return -(1 << (adc_bits - 1)), (1 << (adc_bits - 1)) - 1
+
+
+def clipping(stats: np.ndarray, adc_bits: int) -> dict[str, Any]:
+    """The radar stream's report entries for its samples at the ADC's full scale (``stats``: rows of
+    :func:`frame_statistics`): how many frames hold any, how many samples, and the full scale."""
+    full = stats[:, 3] if len(stats) else np.zeros(0)
+    return {"full_scale_frames": int(np.count_nonzero(full)), "full_scale_samples": int(full.sum()),
+            "adc_full_scale": list(full_scale(adc_bits))}
 
 
 def implausible_frames(stats: np.ndarray) -> np.ndarray:

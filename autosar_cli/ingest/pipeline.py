@@ -1112,6 +1112,11 @@ def _plausibility(infos: list[StreamInfo], job: _Ingest) -> None:
         if bad:
             job.warnings.append(f"{info.path}: {len(bad)} radar frames have a crest factor (peak/RMS) far above "
                                 f"the stream's, or are all zero (damaged data?): frame indices {_listed(bad)}")
+        if info.extra.get("full_scale_frames") and info.stats is not None:
+            lo, hi = info.extra["adc_full_scale"]
+            job.warnings.append(f"{info.path}: {info.extra['full_scale_frames']} of {info.stats.written} frames hold "
+                                f"samples at the ADC's full scale ({info.extra['full_scale_samples']} samples at {lo} "
+                                f"or {hi}; clipped: a reflector too strong or too close; the image may hold ghosts)")
     can = job.can.stats
     if can.impossible_ids:
         job.warnings.append(f"{can.impossible_ids} CAN frames with an id no frame of theirs can have (a standard id "

@@ -21,7 +21,7 @@ from autosar_cli.config import MAX_CLOCK_DRIFT_PPM, RadarConfig
 from autosar_cli.store.drive import DriveWriter
 
 from .dca1000 import Dca1000Capture
-from .decoders import FrameGaps, StreamInfo, frame_statistics, implausible_frames
+from .decoders import FrameGaps, StreamInfo, clipping, frame_statistics, implausible_frames
 from .series import SeriesStats
 
 OVERRIDE_OPTION = "--radar-override"
@@ -273,7 +273,7 @@ def write_capture_stream(writer: DriveWriter, path: str, cap: Dca1000Capture, fr
     cube = writer.radar(path, (p.num_tx, p.num_rx, p.num_samples), attrs)
     t_ns = cap.pri_times_ns(frame_starts_ns)
     gaps = FrameGaps()
-    frame_stats: list[np.ndarray] = []  # per block: (PRI index, peak |sample|, RMS), as for RawFrame logs
+    frame_stats: list[np.ndarray] = []  # per block: (PRI index, peak, RMS, full-scale samples), as for RawFrame logs
     done = written = 0
     for first, block, damaged in cap.blocks():
         n = len(block)
@@ -284,7 +284,7 @@ def write_capture_stream(writer: DriveWriter, path: str, cap: Dca1000Capture, fr
             idx, block = idx[keep], block[keep]
         if len(idx):  # a block the DCA1000 lost whole leaves nothing to write
             gaps.add(idx, t_ns[idx])
-            frame_stats.append(frame_statistics(idx, block))
+            frame_stats.append(frame_statistics(idx, block, p.adc_bits))
             cube.append_frames(t_ns[idx], idx, block)
             written += len(idx)
         progress(done // p.num_loops * p.frame_bytes)
@@ -297,7 +297,9 @@ def write_capture_stream(writer: DriveWriter, path: str, cap: Dca1000Capture, fr
         stats.skipped["PRIs holding data the DCA1000 lost"] = done - written
     info = StreamInfo(path, "radar", topics={str(cap.path)}, msgtype=CAPTURE_MSGTYPE, stats=stats)
     info.extra["missing_frames"] = gaps.missing
-    flagged = implausible_frames(np.concatenate(frame_stats)) if frame_stats else []
+    stats_rows = np.concatenate(frame_stats) if frame_stats else np.zeros((0, 4))
+    flagged = implausible_frames(stats_rows)
     if len(flagged):
         info.extra["implausible_frames"] = [int(i) for i in flagged]
+    info.extra.update(clipping(stats_rows, p.adc_bits))
     return info
