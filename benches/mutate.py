@@ -1161,6 +1161,9 @@ MUTATIONS: list[Mutation] = [
     _m("imu-repeats-weighed-twice", "inputs", "nav/inputs.py",
        "    if len(x) < 2 or same.mean() <= MAX_REPEATED_SHARE:", "    if True:",
        _QUIRKS + "test_imu_samples_published_twice_are_counted_once"),
+    _m("capture-full-scale-taken-as-int16", "ingest", "ingest/radar_block.py",
+       "frame_statistics(idx, block, p.adc_bits)", "frame_statistics(idx, block)",
+       "tests/test_ingest_clipping.py::test_a_12_bit_capture_clips_at_its_own_full_scale"),
 ]
 
 
