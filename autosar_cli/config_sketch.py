@@ -161,7 +161,8 @@ def _gnss_tables(drive: Drive, config: Config) -> list[tuple[str, Table]]:
         fix = _fix_stream(drive, source)
         if source in captures:
             table: Table = [("topic", "", f"the NMEA capture {Path(g[fix].attrs.get('source_file', '')).name}: "
-                                          "named by its file")]
+                                          "named by its file"),
+                            ("latency_s", 0.0, "its times are its fixes' own (UTC), not a logger's stamps")]
         elif fix == "fix":
             table = [("topic", g["fix"].attrs.get("topic", ""), "")]
         else:

@@ -1091,8 +1091,8 @@ MUTATIONS: list[Mutation] = [
        "            given = np.isfinite(ins.gnss_vel[vi])", "            given = np.ones(3, dtype=bool)",
        QUIRK_NMEA_ONLY),
     _m("nmea-receiver-not-read", "inputs", "nav/inputs.py",
-       "    if \"nmea_fix\" in g:\n        return nmea_receiver_streams(drive, name)",
-       "    if False:\n        return nmea_receiver_streams(drive, name)", QUIRK_NMEA_ONLY),
+       "    if \"nmea_fix\" in g or (\"nmea_velocity\" in g and \"latitude_deg\" in g[\"nmea_velocity\"]):",
+       "    if False:", QUIRK_NMEA_ONLY),
     _m("sketch-capture-renamed", "inputs", "config_sketch.py",
        ".attrs.get(\"msgtype\") == \"nmea text\"}", ".attrs.get(\"msgtype\") == \"none\"}",
        QUIRK_NMEA_CAPTURE),
@@ -1164,6 +1164,9 @@ MUTATIONS: list[Mutation] = [
     _m("capture-full-scale-taken-as-int16", "ingest", "ingest/radar_block.py",
        "frame_statistics(idx, block, p.adc_bits)", "frame_statistics(idx, block)",
        "tests/test_ingest_clipping.py::test_a_12_bit_capture_clips_at_its_own_full_scale"),
+    _m("rmc-positions-dropped", "ingest", "ingest/nmea.py",
+       "        latlon = self._latlon(msg, 2) or (math.nan, math.nan)", "        latlon = (math.nan, math.nan)",
+       _QUIRKS + "test_a_receiver_sending_rmc_alone_is_navigated_from_its_positions"),
 ]
 
 

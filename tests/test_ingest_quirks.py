@@ -973,3 +973,39 @@ def test_imu_samples_published_twice_are_counted_once(sim_dir: Path, tmp_path: P
     assert "imu/imu_cog_a: 28987 of 57974 samples repeat" in " ".join(said), said
     across = aligned_across_rms_m(traj, sim.truth_path, cfg)
     assert across < 0.0097, across
+
+
+def test_a_receiver_sending_rmc_alone_is_navigated_from_its_positions(ci_mcap, tmp_path: Path) -> None:
+    """The ci drive's receiver as a text capture of its RMC sentences alone (a cheap module or a dash camera sends
+    no GGA): ingest kept RMC's speed and course only, and navigate refused the drive ('gnss/dashcam/nmea_fix is
+    empty'). RMC's positions are kept and navigated (no altitude: taken as 0, said): the track within 1 mm of the one
+    from the receiver's topics."""
+    from dataclasses import replace
+
+    from autosar_cli.nav.navigate import navigate
+
+    lines = []
+    with open(ci_mcap.log_path, "rb") as f:
+        for _, _, m in make_reader(f).iter_messages(topics=["/ins_cog/nmea"]):
+            text = bytes(m.data)[bytes(m.data).index(b"$"):].rstrip(b"\0").decode()
+            if "RMC" in text:
+                lines.append(text)
+    capture = tmp_path / "dashcam.nmea"
+    capture.write_text("\r\n".join(lines) + "\r\n")
+    log = rewrite_mcap(ci_mcap.log_path, tmp_path / "log.mcap",
+                       lambda topic, t, cdr: None if topic.startswith("/ins_cog/") and topic != "/ins_cog/imu"
+                       else (t, cdr))
+    base = load_config()
+    # a text capture's times are its fixes' own (UTC): no latency after them, unlike the topics' stamps
+    cfg = replace(base, navigation=replace(base.navigation, gnss="dashcam"),
+                  sensors={**base.sensors, "dashcam": replace(base.sensors["gnss_cog"], topic="", velocity_topic="",
+                                                              nmea_topic="", latency_s=0.0)})
+    ingest([log], tmp_path / "rmc.h5", config=cfg, nmea_logs=[capture])
+    from_rmc = navigate(tmp_path / "rmc.h5", "sar-min", cfg)
+    assert [w for w in from_rmc.info.get("warnings", []) if w.startswith("gnss/dashcam/nmea_velocity: none of its")]
+    ingest([ci_mcap.log_path], tmp_path / "topics.h5", config=base)
+    from_topics = navigate(tmp_path / "topics.h5", "sar-min", base)
+    t = from_topics.t_ns[(from_topics.t_ns > from_rmc.t_ns[0]) & (from_topics.t_ns < from_rmc.t_ns[-1])]
+    apart = np.hypot(*(np.interp(t, from_rmc.t_ns, from_rmc.rear_axle_enu[:, k])
+                       - np.interp(t, from_topics.t_ns, from_topics.rear_axle_enu[:, k]) for k in (0, 1)))
+    assert np.sqrt(np.mean(apart ** 2)) < 1e-3, apart.max()

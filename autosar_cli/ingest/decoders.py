@@ -137,6 +137,8 @@ NMEA_VELOCITY_COLUMNS = {
     "fix_time_ns": _f("ns"),
     "speed_mps": _f("m/s"),
     "course_rad": _f("rad"),
+    "latitude_deg": _f("deg"),  # RMC's position; NaN in VTG's table
+    "longitude_deg": _f("deg"),
 }
 NMEA_HEADING_COLUMNS = {"t_ns": Column(np.int64, (), "ns"), "heading_rad": _f("rad")}
 
@@ -197,9 +199,10 @@ class NmeaStreams:
                                            r.num_satellites, r.hdop))
             elif isinstance(r, NmeaVelocity):
                 if r.fix_time_ns == UNKNOWN_TIME:
-                    self.vtg.push(r.t_ns, lg, (math.nan, r.speed_mps, r.course_rad))
+                    self.vtg.push(r.t_ns, lg, (math.nan, r.speed_mps, r.course_rad, math.nan, math.nan))
                 else:
-                    self.velocity.push(r.t_ns, lg, (float(r.fix_time_ns), r.speed_mps, r.course_rad))
+                    self.velocity.push(r.t_ns, lg, (float(r.fix_time_ns), r.speed_mps, r.course_rad, r.latitude_deg,
+                                                    r.longitude_deg))
             elif isinstance(r, NmeaHeading):
                 self.heading.push(r.t_ns, lg, (r.heading_rad,))
 

@@ -320,8 +320,10 @@ class NmeaDecoder:
         speed = _num(getattr(msg, "spd", ""))
         if math.isnan(speed):
             raise _Skip("no fix")
+        latlon = self._latlon(msg, 2) or (math.nan, math.nan)
         record = NmeaVelocity(t_ns=UNKNOWN_TIME, fix_time_ns=UNKNOWN_TIME, speed_mps=speed * MPS_PER_KNOT,
-                              course_rad=_course_rad(getattr(msg, "cog", "")))
+                              course_rad=_course_rad(getattr(msg, "cog", "")), latitude_deg=latlon[0],
+                              longitude_deg=latlon[1])
         self._emit_timed(record, tod, fix, stamp_ns, out)
 
     def _vtg(self, msg: Any, stamp_ns: int | None, out: list[NmeaRecord]) -> None:

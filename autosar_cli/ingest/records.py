@@ -7,6 +7,7 @@ clockwise" are converted once, by the NMEA decoder, through :mod:`autosar_cli.na
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from datetime import UTC, datetime
 
@@ -50,6 +51,9 @@ class NmeaVelocity:
     fix_time_ns: int  #: RMC: its fix instant; VTG (no time field): UNKNOWN_TIME
     speed_mps: float
     course_rad: float  #: course over ground in ENU convention (from East, counter-clockwise); NaN if absent
+    #: RMC's position (signed deg; a receiver sending RMC alone gives its fixes only there); NaN for VTG
+    latitude_deg: float = math.nan
+    longitude_deg: float = math.nan
 
 
 @dataclass(frozen=True, slots=True)

@@ -384,17 +384,28 @@ def _first_of_each_fix_time(cols: dict[str, Array]) -> dict[str, Array]:
 
 def nmea_receiver_streams(drive: Drive, name: str) -> ReceiverStreams:
     """A receiver the drive holds only as NMEA sentences (``gnss/<name>/nmea_fix``): its GGA fixes, without those
-    whose quality says they are not measured (:data:`NMEA_UNMEASURED_QUALITIES`, counted in a warning), and its
-    RMC velocities (else VTG's) from speed and course, with NaN up (NMEA gives no vertical velocity)."""
+    whose quality says they are not measured (:data:`NMEA_UNMEASURED_QUALITIES`, counted in a warning), or, where it
+    sent no GGA, its RMC positions (no altitude); and its RMC velocities (else VTG's) from speed and course, with NaN
+    up (NMEA gives no vertical velocity)."""
     g = drive.h5["gnss"][name]
-    gga = _first_of_each_fix_time(drive.columns(g["nmea_fix"], ("t_ns", "fix_time_ns", "latitude_deg",
-                                                                "longitude_deg", "altitude_m", "quality")))
-    unmeasured = np.isin(gga["quality"], NMEA_UNMEASURED_QUALITIES)
-    warnings = (f"gnss/{name}/nmea_fix: {int(unmeasured.sum())} of {len(unmeasured)} GGA fixes left out, their "
-                f"quality ({', '.join(str(q) for q in sorted(set(gga['quality'][unmeasured].astype(int))))}: dead "
-                "reckoning, manual or simulated) not a measured position",) if unmeasured.any() else ()
-    fix = {k: np.asarray(gga[k])[~unmeasured] for k in ("t_ns", "latitude_deg", "longitude_deg", "altitude_m")}
-    fix_stream = f"gnss/{name}/nmea_fix"
+    # a receiver sending RMC alone (ingest writes its GGA table all the same): its positions, no altitude, which
+    # with_altitudes says
+    if ("nmea_fix" not in g or not g["nmea_fix"]["t_ns"].shape[0]) and "latitude_deg" in g.get("nmea_velocity", {}):
+        rmc = _first_of_each_fix_time(drive.columns(g["nmea_velocity"], ("t_ns", "fix_time_ns", "latitude_deg",
+                                                                         "longitude_deg")))
+        placed = np.isfinite(rmc["latitude_deg"]) & np.isfinite(rmc["longitude_deg"])
+        fix = {k: np.asarray(rmc[k])[placed] for k in ("t_ns", "latitude_deg", "longitude_deg")}
+        fix["altitude_m"] = np.full(int(placed.sum()), np.nan)
+        fix_stream, warnings = f"gnss/{name}/nmea_velocity", ()
+    else:
+        gga = _first_of_each_fix_time(drive.columns(g["nmea_fix"], ("t_ns", "fix_time_ns", "latitude_deg",
+                                                                    "longitude_deg", "altitude_m", "quality")))
+        unmeasured = np.isin(gga["quality"], NMEA_UNMEASURED_QUALITIES)
+        warnings = (f"gnss/{name}/nmea_fix: {int(unmeasured.sum())} of {len(unmeasured)} GGA fixes left out, their "
+                    f"quality ({', '.join(str(q) for q in sorted(set(gga['quality'][unmeasured].astype(int))))}: "
+                    "dead reckoning, manual or simulated) not a measured position",) if unmeasured.any() else ()
+        fix = {k: np.asarray(gga[k])[~unmeasured] for k in ("t_ns", "latitude_deg", "longitude_deg", "altitude_m")}
+        fix_stream = f"gnss/{name}/nmea_fix"
     kind = next((k for k in ("nmea_velocity", "nmea_vtg") if k in g and g[k]["t_ns"].shape[0]), None)
     if kind is None:
         return ReceiverStreams(fix, None, fix_stream, "", warnings)
@@ -428,7 +439,7 @@ def receiver_streams(drive: Drive, name: str, key: str) -> ReceiverStreams:
         vel = drive.columns(g["velocity"], ("t_ns", "velocity_enu")) if "velocity" in g else None
         return ReceiverStreams(drive.columns(g["fix"], ("t_ns", "latitude_deg", "longitude_deg", "altitude_m")), vel,
                                f"gnss/{name}/fix", f"gnss/{name}/velocity")
-    if "nmea_fix" in g:
+    if "nmea_fix" in g or ("nmea_velocity" in g and "latitude_deg" in g["nmea_velocity"]):
         return nmea_receiver_streams(drive, name)
     raise NavInputError(f"{drive.path}: gnss/{name} (config {key}) has no position: neither a NavSatFix stream nor "
                         f"NMEA GGA sentences, only {', '.join(sorted(g))}")
