@@ -152,7 +152,7 @@ def _gnss_tables(drive: Drive, config: Config) -> list[tuple[str, Table]]:
     nav = config.navigation
     wanted = [nav.gnss, nav.ins_gnss] + [n for n, s in config.sensors.items() if s.kind == "gnss"]
     # an NMEA text capture has no topic to pin: ingest names it by its file, and so must the config
-    captures = {s for s in sources if drive.h5["gnss"][s][_fix_stream(drive, s)].attrs.get("msgtype") == "nmea text"}
+    captures = set(drive.nmea_captures())
     names = iter(_names([s for s in sources if s not in captures], list(dict.fromkeys(wanted)), config, "gnss"))
     out = []
     for source in sources:

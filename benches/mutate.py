@@ -1094,7 +1094,7 @@ MUTATIONS: list[Mutation] = [
        "    if \"nmea_fix\" in g or (\"nmea_velocity\" in g and \"latitude_deg\" in g[\"nmea_velocity\"]):",
        "    if False:", QUIRK_NMEA_ONLY),
     _m("sketch-capture-renamed", "inputs", "config_sketch.py",
-       ".attrs.get(\"msgtype\") == \"nmea text\"}", ".attrs.get(\"msgtype\") == \"none\"}",
+       "    captures = set(drive.nmea_captures())", "    captures: set[str] = set()",
        QUIRK_NMEA_CAPTURE),
     _m("sketch-new-sensor-without-kind", "inputs", "config_sketch.py",
        "    if name in config.sensors:\n        return [], []", "    if True:\n        return [], []",

@@ -29,7 +29,7 @@ from typing import Any, NamedTuple
 from autosar_cli import __version__, msgs
 from autosar_cli.candb import DBC_UNITS, DbcError, load_dbc
 from autosar_cli.config import Config, role_unit
-from autosar_cli.store.drive import DriveWriter, chirp_on_navigation_clock
+from autosar_cli.store.drive import NMEA_TEXT_MSGTYPE, DriveWriter, chirp_on_navigation_clock
 from autosar_cli.store.outputs import input_bytes
 
 from . import fastcdr
@@ -590,7 +590,7 @@ class _Ingest:
         key = f"gnss/{name}"
         streams = self.streams.get(key)
         if streams is None:
-            attrs = {"topic": "", "msgtype": "nmea text", "source_file": str(path), "sensor": name}
+            attrs = {"topic": "", "msgtype": NMEA_TEXT_MSGTYPE, "source_file": str(path), "sensor": name}
             streams = self.streams[key] = NmeaStreams(self.writer, key, attrs)
         # a capture without RMC/ZDA has times of day only: date them by the streams read so far
         anchor = min((a for a, _ in self.spans.values()), default=None)

@@ -424,9 +424,8 @@ def receiver_streams(drive: Drive, name: str, key: str) -> ReceiverStreams:
     where it logged neither, its NMEA sentences' (:func:`nmea_receiver_streams`). Refused, saying what the drive
     holds, where it has neither."""
     if name not in drive.gnss_sources():
-        captures = [s for s in drive.gnss_sources() if "nmea_fix" in drive.h5["gnss"][s]
-                    and drive.h5["gnss"][s]["nmea_fix"].attrs.get("msgtype") == "nmea text"]
-        if captures:  # a text capture has no topic to pin it by: the config names its receiver after the file
+        # a text capture has no topic to pin it by: the config names its receiver after the file
+        if captures := drive.nmea_captures():
             raise NavInputError(
                 f"{drive.path}: no GNSS stream gnss/{name} (config {key}); the drive has "
                 f"{', '.join(f'gnss/{s}' for s in drive.gnss_sources())}, of which "

@@ -44,6 +44,9 @@ from autosar_cli.store.attr_checksum import attributes_damage, stamp_attributes
 from autosar_cli.store.hdf5_read import DamagedFileError, dataset_errors, open_hdf5, read_dataset, read_rows
 from autosar_cli.store.outputs import check_free_space, not_the_format
 
+#: the msgtype attribute of a GNSS source read from an NMEA text capture (ingest writes it)
+NMEA_TEXT_MSGTYPE = "nmea text"
+
 FORMAT = "autosar-drive"
 FORMAT_VERSION = 1
 RADAR_CHUNK_FRAMES = 64
@@ -515,6 +518,11 @@ class Drive:
 
     def gnss_sources(self) -> list[str]:
         return self._members("gnss")
+
+    def nmea_captures(self) -> list[str]:
+        """The GNSS sources that are NMEA text captures: named by their files, no topic pins them to a sensor."""
+        return [s for s in self.gnss_sources() if "nmea_fix" in self.h5["gnss"][s]
+                and self.h5["gnss"][s]["nmea_fix"].attrs.get("msgtype") == NMEA_TEXT_MSGTYPE]
 
     def imu_sources(self) -> list[str]:
         return self._members("imu")
