@@ -1167,6 +1167,9 @@ MUTATIONS: list[Mutation] = [
     _m("rmc-positions-dropped", "ingest", "ingest/nmea.py",
        "        latlon = self._latlon(msg, 2) or (math.nan, math.nan)", "        latlon = (math.nan, math.nan)",
        _QUIRKS + "test_a_receiver_sending_rmc_alone_is_navigated_from_its_positions"),
+    _m("capture-latency-unsaid", "sar-min", "nav/inputs.py",
+       "    if latency_s == 0.0:\n        return streams\n", "    if True:\n        return streams\n",
+       _QUIRKS + "test_a_capture_given_a_receivers_latency_is_said_to_move_its_fixes"),
 ]
 
 

@@ -5,6 +5,7 @@ that must name the problem."""
 
 from __future__ import annotations
 
+import re
 import struct
 from collections.abc import Callable
 from pathlib import Path
@@ -813,6 +814,21 @@ def test_a_receiver_logged_only_as_nmea_is_navigated(sim_dir: Path, tmp_path: Pa
     assert np.isfinite(ins.rear_axle_enu).all()
 
 
+def _ci_receiver_as_a_capture(ci_mcap, tmp_path: Path) -> tuple[Path, Path]:  # noqa: ANN001
+    """The ci log without its receiver's topics (its IMU kept), and that receiver's NMEA sentences as a text capture
+    ``ublox.nmea``."""
+    lines = []
+    with open(ci_mcap.log_path, "rb") as f:
+        for _, _, m in make_reader(f).iter_messages(topics=["/ins_cog/nmea"]):
+            lines.append(bytes(m.data)[bytes(m.data).index(b"$"):].rstrip(b"\0").decode())
+    capture = tmp_path / "ublox.nmea"
+    capture.write_text("\r\n".join(lines) + "\r\n")
+    log = rewrite_mcap(ci_mcap.log_path, tmp_path / "log.mcap",
+                       lambda topic, t, cdr: None if topic.startswith("/ins_cog/") and topic != "/ins_cog/imu"
+                       else (t, cdr))
+    return log, capture
+
+
 def test_an_nmea_capture_is_navigated_once_the_config_names_its_receiver(ci_mcap, tmp_path: Path) -> None:
     """The ci drive's receiver logged as a text capture of its NMEA sentences beside the log (its topics left out of
     it). navigate said 'no GNSS fix stream gnss/gnss_cog ... name the sensors in a --config (each [sensors.*]
@@ -826,15 +842,7 @@ def test_an_nmea_capture_is_navigated_once_the_config_names_its_receiver(ci_mcap
     from autosar_cli.nav.inputs import NavInputError
     from autosar_cli.nav.navigate import navigate
 
-    lines = []
-    with open(ci_mcap.log_path, "rb") as f:
-        for _, _, m in make_reader(f).iter_messages(topics=["/ins_cog/nmea"]):
-            lines.append(bytes(m.data)[bytes(m.data).index(b"$"):].rstrip(b"\0").decode())
-    capture = tmp_path / "ublox.nmea"
-    capture.write_text("\r\n".join(lines) + "\r\n")
-    log = rewrite_mcap(ci_mcap.log_path, tmp_path / "log.mcap",
-                       lambda topic, t, cdr: None if topic.startswith("/ins_cog/") and topic != "/ins_cog/imu"
-                       else (t, cdr))
+    log, capture = _ci_receiver_as_a_capture(ci_mcap, tmp_path)
     ingest([log], tmp_path / "drive.h5", config=load_config(), nmea_logs=[capture])
     with pytest.raises(NavInputError, match=r"gnss/ublox an NMEA capture named by its file: name its receiver so in "
                                             r"a --config \(navigation.gnss = \"ublox\", and a \[sensors.ublox\]"):
@@ -854,6 +862,37 @@ def test_an_nmea_capture_is_navigated_once_the_config_names_its_receiver(ci_mcap
     apart = np.hypot(*(np.interp(t, from_capture.t_ns, from_capture.rear_axle_enu[:, k])
                        - np.interp(t, from_topics.t_ns, from_topics.rear_axle_enu[:, k]) for k in (0, 1)))
     assert np.sqrt(np.mean(apart ** 2)) < 1e-3, apart.max()
+
+
+def test_a_capture_given_a_receivers_latency_is_said_to_move_its_fixes(ci_mcap, tmp_path: Path) -> None:
+    """An NMEA text capture's times are its fixes' own; a config that keeps a ROS receiver's latency_s (0.05 s) for
+    it moved the whole track 12 cm along it (2.4 m/s) without a word. Now navigate says so, with the shift; a
+    capture given latency_s 0 (the sketch's) says nothing of it."""
+    from dataclasses import replace
+
+    from autosar_cli.nav.navigate import navigate
+
+    log, capture = _ci_receiver_as_a_capture(ci_mcap, tmp_path)
+    base = load_config()
+    sensor = replace(base.sensors["gnss_cog"], topic="", latency_s=0.0)
+    right = replace(base, sensors={**base.sensors, "ublox": sensor},
+                    navigation=replace(base.navigation, gnss="ublox", ins_gnss="ublox"))
+    late = replace(right, sensors={**right.sensors, "ublox": replace(sensor, latency_s=0.05)})
+    ingest([log], tmp_path / "drive.h5", config=right, nmea_logs=[capture])
+    tracks = {}
+    for name, cfg in (("right", right), ("late", late)):
+        tracks[name] = navigate(tmp_path / "drive.h5", "sar-min", cfg)
+        said = [w for w in tracks[name].info.get("warnings", []) if w.startswith("gnss/ublox: an NMEA capture")]
+        assert bool(said) == (name == "late"), tracks[name].info.get("warnings")
+    assert re.search(r"latency_s is 0.05 s, which moves every fix that much earlier, 1[0-4] cm along the track at "
+                     r"its median 2\.[0-9] m/s: set latency_s = 0", said[0]), said
+    ins = navigate(tmp_path / "drive.h5", "ins", late)
+    assert [w for w in ins.info.get("warnings", []) if w.startswith("gnss/ublox: an NMEA capture")]
+    a, b = tracks["right"], tracks["late"]
+    t = a.t_ns[(a.t_ns > b.t_ns[0]) & (a.t_ns < b.t_ns[-1])]
+    apart = np.hypot(*(np.interp(t, a.t_ns, a.rear_axle_enu[:, k]) - np.interp(t, b.t_ns, b.rear_axle_enu[:, k])
+                       for k in (0, 1)))
+    assert 0.08 < np.median(apart) < 0.16, np.median(apart)  # the shift said is the one the track takes
 
 
 def test_a_drive_of_gnss_alone_has_its_gnss_and_none_tracks(ci_mcap, tmp_path: Path) -> None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import h5py
 import numpy as np
@@ -419,10 +419,28 @@ def nmea_receiver_streams(drive: Drive, name: str) -> ReceiverStreams:
                            f"gnss/{name}/{kind}", warnings)
 
 
-def receiver_streams(drive: Drive, name: str, key: str) -> ReceiverStreams:
+def capture_latency_said(streams: ReceiverStreams, name: str, latency_s: float) -> ReceiverStreams:
+    """``streams`` of the NMEA text capture ``gnss/<name>``, with a warning where its sensor states a latency: a
+    capture's times are its fixes' own (UTC), so the stated ``latency_s`` (a ROS receiver's, kept in a config) moves
+    them that much earlier, by latency times speed along the track (the ci drive's 0.05 s: 12 cm at 2.4 m/s)."""
+    if latency_s == 0.0:
+        return streams
+    vel = streams.velocity
+    speed = (float(np.median(np.hypot(vel["velocity_enu"][:, 0], vel["velocity_enu"][:, 1])))
+             if vel is not None and len(vel["t_ns"]) else math.nan)
+    shift = f", {100 * speed * latency_s:.0f} cm along the track at its median {speed:.1f} m/s" \
+        if math.isfinite(speed) else ""
+    return replace(streams, warnings=(*streams.warnings, (
+        f"gnss/{name}: an NMEA capture, stamped with its fixes' own times, yet [sensors.{name}] latency_s is "
+        f"{latency_s:g} s, which moves every fix that much earlier{shift}: set latency_s = 0 unless the capture's "
+        "clock runs late")))
+
+
+def receiver_streams(drive: Drive, name: str, key: str, latency_s: float = 0.0) -> ReceiverStreams:
     """The receiver ``gnss/<name>`` (the config's ``key`` names it) as its NavSatFix fixes and twist velocities, or,
-    where it logged neither, its NMEA sentences' (:func:`nmea_receiver_streams`). Refused, saying what the drive
-    holds, where it has neither."""
+    where it logged neither, its NMEA sentences' (:func:`nmea_receiver_streams`; an NMEA text capture's with
+    :func:`capture_latency_said` of its sensor's ``latency_s``). Refused, saying what the drive holds, where it has
+    neither."""
     if name not in drive.gnss_sources():
         # a text capture has no topic to pin it by: the config names its receiver after the file
         if captures := drive.nmea_captures():
@@ -439,7 +457,8 @@ def receiver_streams(drive: Drive, name: str, key: str) -> ReceiverStreams:
         return ReceiverStreams(drive.columns(g["fix"], ("t_ns", "latitude_deg", "longitude_deg", "altitude_m")), vel,
                                f"gnss/{name}/fix", f"gnss/{name}/velocity")
     if "nmea_fix" in g or ("nmea_velocity" in g and "latitude_deg" in g["nmea_velocity"]):
-        return nmea_receiver_streams(drive, name)
+        streams = nmea_receiver_streams(drive, name)
+        return capture_latency_said(streams, name, latency_s) if name in drive.nmea_captures() else streams
     raise NavInputError(f"{drive.path}: gnss/{name} (config {key}) has no position: neither a NavSatFix stream nor "
                         f"NMEA GGA sentences, only {', '.join(sorted(g))}")
 
@@ -514,7 +533,7 @@ def load_inputs(drive: Drive, config: Config) -> NavInputs:
         fix, vel = can_gnss_streams(drive, nav.gnss)
         streams = ReceiverStreams(fix, vel, f"gnss/{nav.gnss}/fix", f"gnss/{nav.gnss}/velocity")
     else:
-        streams = receiver_streams(drive, nav.gnss, "navigation.gnss")
+        streams = receiver_streams(drive, nav.gnss, "navigation.gnss", gnss_cfg.latency_s if gnss_cfg else 0.0)
         fix, vel = streams.fix, streams.velocity
         gnss = h5["gnss"][nav.gnss]
     if len(fix["t_ns"]) == 0:

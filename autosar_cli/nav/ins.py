@@ -78,7 +78,7 @@ def load_ins_inputs(drive: Drive, config: Config, origin: GeodeticOrigin, t0_ns:
     if nav.ins_imu not in drive.imu_sources():
         raise NavInputError(f"{drive.path}: the INS baseline needs imu/{nav.ins_imu} (config navigation.ins_imu); "
                             f"{streams_held(drive, 'imu')}")
-    streams = receiver_streams(drive, nav.ins_gnss, "navigation.ins_gnss")
+    streams = receiver_streams(drive, nav.ins_gnss, "navigation.ins_gnss", gnss_cfg.latency_s)
     imu, repeated = without_repeated_samples(read_imu(drive, nav.ins_imu, config), f"imu/{nav.ins_imu}")
     if streams.velocity is None:
         raise NavInputError(f"{drive.path}: the INS baseline needs the GNSS velocity gnss/{nav.ins_gnss}/velocity, "
