@@ -1037,8 +1037,7 @@ MUTATIONS: list[Mutation] = [
        "        k = _restart(start, data_bytes)\n", "        k = None\n",
        _DCA + "test_a_second_recording_appended_to_the_first_is_left_out_by_name"),
     _m("dca-short-first-recording-read-as-repeats", "ingest", "ingest/dca1000_packets.py",
-       "        if (short := _repeat_of_other_data(rec, offset[:k], start[:k], length[:k])) is not None:",
-       "        if (short := None) is not None:",
+       "        if short is not None:\n            k = short\n", "        if False:\n            k = short\n",
        _DCA + "test_a_second_recording_after_a_first_of_fewer_than_64_packets_is_left_out_by_name"),
     _m("dca-triggers-not-one-per-frame-silent", "ingest", "ingest/radar_block.py",
        "    if len(stamps) > 1 and len(stamps) != n:", "    if False:",
@@ -1170,6 +1169,9 @@ MUTATIONS: list[Mutation] = [
     _m("capture-latency-unsaid", "sar-min", "nav/inputs.py",
        "    if latency_s == 0.0:\n        return streams\n", "    if True:\n        return streams\n",
        _QUIRKS + "test_a_capture_given_a_receivers_latency_is_said_to_move_its_fixes"),
+    _m("dca1000-damaged-repeat-read-as-a-restart", "ingest", "ingest/dca1000_packets.py",
+       "            if i == len(start) - 1 or start[i + 1] > start[:i].max():", "            if False:",
+       "tests/test_ingest_dca1000.py::test_a_packet_repeated_with_other_data_costs_only_its_pris"),
 ]
 
 

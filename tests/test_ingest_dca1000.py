@@ -908,6 +908,35 @@ def test_a_second_recording_after_a_first_of_fewer_than_64_packets_is_left_out_b
     np.testing.assert_array_equal(np.concatenate([b for _, b, _ in blocks]), first)
 
 
+def test_a_packet_repeated_with_other_data_costs_only_its_pris(tmp_path: Path) -> None:
+    """A packet repeated with a byte changed in its copy, inside a recording of 2671 packets: right after itself it
+    stopped ingest with an IndexError; three packets later it was named a second recording, the rest of the capture
+    left out (56 of 150 PRIs read; 1 of 150 where packet 21 repeated). Which copy holds the ADC's data cannot be
+    told, so the PRIs the packet touches are left out, said with the byte; every other PRI is the one written. A
+    second recording after a short first is still told by the packets after the repeat staying behind."""
+    p, pris, files = config_capture(tmp_path / "cap", packet_bytes=PACKET)
+    stream = files[0].read_bytes()
+    step = PACKET + 10
+    packets = [stream[i:i + step] for i in range(0, len(stream), step)]
+    for where, later in ((1000, 0), (1000, 3), (20, 3)):
+        copy = bytearray(packets[where])
+        copy[500] ^= 0x40
+        files[0].write_bytes(b"".join(packets[:where + 1 + later] + [bytes(copy)] + packets[where + 1 + later:]))
+        cap = Dca1000Capture(tmp_path / "cap")
+        blocks = list(cap.blocks())
+        damaged = np.concatenate([d for _, _, d in blocks])
+        assert cap.num_frames == len(pris)
+        assert set(np.flatnonzero(damaged)) == pris_of((where * PACKET, (where + 1) * PACKET), p)
+        np.testing.assert_array_equal(np.concatenate([b for _, b, _ in blocks])[~damaged], pris[~damaged])
+        assert cap.warnings == [
+            f"{files[0]}: byte {(where + 1 + later) * step}: a packet repeats byte count {where * PACKET} with other "
+            "data: which copy holds the ADC's cannot be told, the PRIs it touches left out",
+            f"{files[0]}: 1 of 150 PRIs left out, they hold data the DCA1000 lost (1 packets repeated with other "
+            "data)"]
+    code, stderr = cli_ingest(tmp_path / "cap", tmp_path / "d.h5")
+    assert code == 0 and "a packet repeats byte count 29120 with other data" in stderr, stderr
+
+
 def test_packets_split_across_files_and_a_damaged_file(tmp_path: Path) -> None:
     """A recording split anywhere (a packet, even its header, across two files) reads as one stream. Bytes that
     break the packet layout (a header overwritten in the second file) are left out up to the next header that

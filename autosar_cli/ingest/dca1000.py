@@ -366,9 +366,11 @@ class Dca1000Capture:
         at least ``ZERO_RUN_VALUES`` zeros (post-processing's fill), a run across two blocks included."""
         p = self.params
         pri_values = p.frame_bytes // 2 // p.num_loops
-        lost = self.packets.lost if self.packets is not None else np.zeros((0, 2), dtype=np.int64)
-        self.damage = {"lost packets": self.packets.lost_packets if self.packets is not None else 0,
-                       "zero-filled runs": 0, "PRIs": 0}
+        k = self.packets
+        lost = np.concatenate([k.lost, k.conflicting]) if k is not None else np.zeros((0, 2), dtype=np.int64)
+        self.damage = {"lost packets": k.lost_packets if k is not None else 0, "zero-filled runs": 0, "PRIs": 0}
+        if k is not None and len(k.conflicting):
+            self.damage["packets repeated with other data"] = len(k.conflicting)
         pending: tuple[int, NDArray[np.int16], NDArray[np.bool_]] | None = None
         pending_trail = 0
         for first, values in self._value_blocks(frames_per_block):

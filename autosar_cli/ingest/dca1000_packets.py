@@ -10,7 +10,7 @@ of zeros. Both are found here, so that the reader leaves the PRIs they touch out
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -155,6 +155,8 @@ class PacketIndex:
     late: int
     warnings: list[str]
     appended: str = ""  #: where a second recording appended to this one starts (a warning), else ""
+    #: (k, 2) ADC stream byte ranges of packets repeated with other data: either copy may be the damaged one
+    conflicting: NDArray[np.int64] = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
 
     @classmethod
     def build(cls, files: list[Path], data_bytes: int, gaps_before: tuple[int, ...] = ()) -> PacketIndex:
@@ -226,8 +228,14 @@ class PacketIndex:
                                  for i in range(3))
         k = _restart(start, data_bytes)
         # a first recording of fewer packets than that: the second's repeat its byte counts, with other data
-        if (short := _repeat_of_other_data(rec, offset[:k], start[:k], length[:k])) is not None:
+        short, other_data = _repeats_of_other_data(rec, offset[:k], start[:k], length[:k])
+        if short is not None:
             k = short
+        for i in other_data:
+            path, local = rec.where(int(offset[i]) - HEADER_BYTES)
+            warnings.append(f"{path}: byte {local}: a packet repeats byte count {int(start[i])} with other data: "
+                            "which copy holds the ADC's cannot be told, the PRIs it touches left out")
+        conflicting = np.array([[start[i], start[i] + length[i]] for i in other_data], dtype=np.int64).reshape(-1, 2)
         appended = ""
         if k is not None:  # a second recording appended: not this one's stream
             path, local = rec.where(int(offset[k]) - HEADER_BYTES)
@@ -249,7 +257,7 @@ class PacketIndex:
         lost = np.stack([covered_to[gap], start[gap]], axis=-1).reshape(-1, 2)
         total = int(end_at[-1]) if len(end_at) else 0
         return cls(rec, data_bytes, offset, start, length, end_at, lost, total, duplicates, late, warnings,
-                   appended)
+                   appended, conflicting)
 
     @property
     def packets(self) -> int:
@@ -298,23 +306,29 @@ def _restart(start: NDArray[np.int64], data_bytes: int) -> int | None:
     return int(k[0]) + 1 if len(k) else None
 
 
-def _repeat_of_other_data(rec: SplitFiles, offset: NDArray[np.int64], start: NDArray[np.int64],
-                          length: NDArray[np.int64]) -> int | None:
-    """The index (recording order) where a second recording starts, or None. A packet
-    repeated by UDP is the same bytes; one whose byte count an earlier packet holds with other data was sent by a
-    DCA1000 that started again, after a first recording of too few packets for :func:`_restart` to see: the second
-    starts at the last packet before it (or it) whose byte count falls behind the one before."""
+def _repeats_of_other_data(rec: SplitFiles, offset: NDArray[np.int64], start: NDArray[np.int64],
+                           length: NDArray[np.int64]) -> tuple[int | None, list[int]]:
+    """Packets whose byte count an earlier packet holds with other data: (the index, recording order, where a second
+    recording starts, or None; the indices of the other repeats). A packet repeated by UDP is the same bytes; one
+    with other data followed by packets that stay behind the furthest so far was sent by a DCA1000 that started
+    again, after a first recording of too few packets for :func:`_restart` to see: the second starts at the last
+    packet before it (or it) whose byte count falls behind the one before. One alone, the stream going on past the
+    furthest after it, is a damaged copy, and which of the two holds the data cannot be told."""
     if len(start) < 2 or bool(np.all(start[1:] > start[:-1])):  # in order: nothing repeated
-        return None
+        return None, []
     _, first, inverse = np.unique(start, return_index=True, return_inverse=True)
     earlier = first[inverse.reshape(-1)]
+    damaged: list[int] = []
     for i in np.flatnonzero(earlier != np.arange(len(start))):
         j, n = int(earlier[i]), int(min(length[i], length[earlier[i]]))
         if not np.array_equal(rec.read(int(offset[i]), int(offset[i]) + n), rec.read(int(offset[j]),
                                                                                   int(offset[j]) + n)):
+            if i == len(start) - 1 or start[i + 1] > start[:i].max():
+                damaged.append(int(i))
+                continue
             drops = np.flatnonzero(start[j + 1:i + 1] < start[j:i])
-            return j + 1 + int(drops[-1])
-    return None
+            return (j + 1 + int(drops[-1]) if len(drops) else int(i)), [d for d in damaged if d < i]
+    return None, damaged
 
 
 def zero_runs(values: NDArray[np.int16], min_values: int = ZERO_RUN_VALUES) -> NDArray[np.int64]:
