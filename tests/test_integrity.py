@@ -426,6 +426,12 @@ def test_a_flipped_byte_in_an_attribute_is_damage_not_another_value(ci_run: Path
     if name == "drive.h5":  # the rest of a drive is read, as a damaged table's is: the image marked degraded
         assert r.exit_code == 0 and json.loads(r.stdout)["status"] == "degraded", r.output
         assert "its attributes fail their checksum" in json.loads(r.stdout)["warnings"][0]
+        # in tiles too: each tile's focus read the drive's warning, and `focus --tiles 2` dropped it (status ok)
+        t = runner.invoke(app, ["focus", str(damaged), "-t", str(ci_run / "trajectory.h5"), "-o",
+                                str(tmp_path / "tiled"), "--json", "--tiles", "2"])
+        assert t.exit_code == 0, t.output
+        assert json.loads(t.stdout)["warnings"] == json.loads(r.stdout)["warnings"]
+        assert read_image(tmp_path / "tiled.h5").provenance["warnings"] == json.loads(r.stdout)["warnings"]
         return
     assert r.exit_code == 1 and r.stderr.count("\n") == 1 and "its attributes" in r.stderr, r.output
     assert str(damaged) in r.stderr

@@ -136,6 +136,8 @@ class TileResult:
     provenance: dict[str, Any] = field(default_factory=dict)
     wall_s: float = 0.0
     damaged_frame_index: list[int] = field(default_factory=list)  #: frames of a damaged drive the tile left out
+    #: what focus_images warned of beside those frames (the drive's damaged attributes or tables): the image's too
+    warnings: list[str] = field(default_factory=list)
 
 
 def focus_tile(drive_path: str | Path, trajectory: str | Path | Trajectory, config: Config, options: FocusOptions,
@@ -145,9 +147,10 @@ def focus_tile(drive_path: str | Path, trajectory: str | Path | Trajectory, conf
     t0 = time.perf_counter()
     res = focus_images(drive_path, trajectory, config, options, [tile], progress=progress, command=command)
     img = res.images[0]
+    others = res.warnings[1:] if res.damaged_frame_index else res.warnings  # the damaged frames' warning first
     return TileResult(getattr(tile, "col0", 0), img.image, res.frames_used, res.frames_skipped, res.backprojections,
                       res.timings_s, res.drive_s, img.params, img.provenance, time.perf_counter() - t0,
-                      res.damaged_frame_index)
+                      res.damaged_frame_index, list(others))
 
 
 def focus_tiled(drive_path: str | Path, trajectory_path: str | Path, output: str | Path, config: Config,
@@ -210,6 +213,7 @@ def focus_tiled(drive_path: str | Path, trajectory_path: str | Path, output: str
         if damaged:
             skipped[DAMAGED_FRAMES] = len(damaged)
         warnings = [damaged_frames_warning(drive_path, str(first.params["radar"]), damaged)] if damaged else []
+        warnings += list(dict.fromkeys(w for r in sorted(results, key=lambda r: r.col0) for w in r.warnings))
         warnings += unfocused_radars(drive_path, options)
         writer.set_metadata({**first.params, "backprojections": n_bp, "frames_used": frames_used,
                              "frames_damaged": len(damaged)},
