@@ -1176,6 +1176,9 @@ MUTATIONS: list[Mutation] = [
        "for r in sorted(results, key=lambda r: r.col0) for w in r.warnings))",
        "for r in sorted(results, key=lambda r: r.col0) for w in r.warnings[:0]))",
        "tests/test_integrity.py::test_a_flipped_byte_in_an_attribute_is_damage_not_another_value[drive.h5-/-created_utc]"),
+    _m("track-cut-short-unsaid", "focus", "sar/focus.py",
+       "    if max(early, late) <= MAX_UNCOVERED_S:", "    if max(early, late) <= 10 * MAX_UNCOVERED_S:",
+       "tests/test_sar_focus.py::test_a_trajectory_that_covers_part_of_the_radars_frames_is_warned_of"),
 ]
 
 

@@ -34,6 +34,7 @@ from autosar_cli.store.attr_checksum import stamp_attributes
 from autosar_cli.store.image import read_image
 from autosar_cli.store.outputs import OutputError
 from autosar_cli.store.trajectory import read_trajectory, write_trajectory
+from autosar_cli.types import Trajectory
 
 
 @dataclass
@@ -590,6 +591,49 @@ def test_a_trajectory_no_radar_frame_lies_inside_is_refused_for_that(ci_drive: D
         with pytest.raises(FocusError, match=r"drive\.h5: no radar frame lies inside the trajectory <truth "
                                              r"trajectory> while moving$"):
             auto_grid(ci_drive.drive, later, ci_drive.config, options)
+
+
+def test_a_trajectory_that_covers_part_of_the_radars_frames_is_warned_of(ci_drive: Drive, tmp_path: Path) -> None:
+    """A trajectory that ends half-way through the radar's frames (cut short, a GNSS that stopped, another span's):
+    focus left out the 492 of the ci drive's 981 frames beyond it and made an image of half the drive, exit 0, status
+    ok and no warning (only a "skipped" line on stderr). It now warns, naming the trajectory, how far it ends before
+    the radar's last frame and the frames left out; one that ends a fix period early (a GNSS track's 0.09 s on the
+    ci drive, 0.2 s here) is not."""
+    from autosar_cli.store.drive import Drive as DriveFile
+
+    traj = read_trajectory(ci_drive.trajectory)
+    with DriveFile(ci_drive.drive) as d:
+        t = d.radar().t_ns
+    last_chirp_ns = round(float(np.max(ci_drive.config.radar.tx_start_offsets_s)) * 1e9)
+    opts = FocusOptions.from_config(ci_drive.config, pixel_m=0.08)
+    reports = {}
+    for name, end_s in (("whole", None), ("0.2 s short", 0.2), ("half", (t[-1] - t[0]) / 2e9)):
+        cut = traj if end_s is None else _track_until(traj, int(t[-1] - end_s * 1e9))
+        path = tmp_path / f"{name.replace(' ', '_')}.h5"
+        write_trajectory(path, cut)
+        rep = focus(ci_drive.drive, path, tmp_path / f"img_{path.stem}", ci_drive.config, opts)
+        reports[name] = (rep, cut, path)
+    for name in ("whole", "0.2 s short"):
+        assert not [w for w in reports[name][0].warnings if "outside the trajectory" in w], reports[name][0].warnings
+    rep, cut, path = reports["half"]
+    outside = int(np.sum(t + last_chirp_ns > cut.t_ns[-1]))
+    assert 480 <= outside <= 500 and len(t) == 981  # ci seed 3: 492 of 981
+    assert rep.frames_skipped["outside the trajectory's time span"] == outside
+    late_s = (t[-1] + last_chirp_ns - cut.t_ns[-1]) / 1e9
+    assert late_s == pytest.approx(0.49, abs=0.01)
+    said = (f"{path}: ends {late_s:.2f} s before the last frame of radar scanbrick_w43 in {ci_drive.drive}: {outside} "
+            f"of its 981 frames lie outside the trajectory and are left out of the image, which lacks their part")
+    assert rep.warnings == [said]
+    assert read_image(Path(rep.outputs["h5"])).provenance["warnings"] == [said]
+
+
+def _track_until(traj: Trajectory, end_ns: int) -> Trajectory:
+    """``traj``'s samples up to ``end_ns``."""
+    keep = traj.t_ns <= end_ns
+    return replace(traj, t_ns=traj.t_ns[keep], rear_axle_enu=traj.rear_axle_enu[keep], heading=traj.heading[keep],
+                   speed=traj.speed[keep], yaw_rate=traj.yaw_rate[keep],
+                   state=None if traj.state is None else traj.state[keep],
+                   covariance=None if traj.covariance is None else traj.covariance[keep])
 
 
 def test_a_config_that_misplaces_the_antennas_is_warned_of(ci_drive: Drive, tmp_path: Path) -> None:

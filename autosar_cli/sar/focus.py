@@ -500,6 +500,8 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         damaged_index = sorted(int(i) for i in np.asarray(radar.frame_index)[np.asarray(damaged, np.int64)])
         warnings = [damaged_frames_warning(drive_path, radar.name, damaged_index)] if damaged else []
         warnings += drive.damage  # its attributes failing their checksum: the radar's chirp may be wrong
+        uncovered = uncovered_frames_warning(drive_path, radar, offsets, traj, traj_name)
+        warnings += [uncovered] if uncovered else []
 
     params = {**asdict(options), "channel_pairs": [list(p) for p in pairs], "start_frequency_hz": f0,
               "slope_hz_per_s": slope, "sample_rate_hz": fs, "num_samples": n_samp, "bin_m": bin_m,
@@ -601,6 +603,29 @@ def channels_incoherent_warning(drive_path: str | Path, trajectory: str | Path |
             f"radar's antennas are not where the config places them (radar.tx_positions_wavelengths, "
             f"rx_positions_wavelengths, tx_channels, the sign of radar.mounting.yaw_deg); the image is blurred or "
             f"mirrored across the track")
+
+
+#: a trajectory may start after the radar's first frame, or end before its last, by this much (s) before the frames it
+#: leaves out are warned of: a track of GNSS fixes (gnss, none) ends at its last fix, up to a fix period and the
+#: receiver's latency before the radar (the ci drive's: 0.09 s of its 0.99)
+MAX_UNCOVERED_S = 0.25
+
+
+def uncovered_frames_warning(drive_path: str | Path, radar: RadarStream, tx_start_offsets_s: NDArray[np.float64],
+                             traj: Trajectory, traj_name: str) -> str | None:
+    """A warning where ``traj`` starts more than :data:`MAX_UNCOVERED_S` after the radar's first frame or ends more
+    than that before its last (a trajectory cut short, another span's, a GNSS that started late): the frames outside
+    it are left out of the image (:func:`_usable_frames`), which then covers part of the drive alone. None else."""
+    t = np.asarray(radar.t_ns, np.int64)
+    last_chirp_ns = int(round(float(np.max(tx_start_offsets_s)) * 1e9)) if np.size(tx_start_offsets_s) else 0
+    early, late = (int(traj.t_ns[0]) - int(t[0])) / 1e9, (int(t[-1]) + last_chirp_ns - int(traj.t_ns[-1])) / 1e9
+    if max(early, late) <= MAX_UNCOVERED_S:
+        return None
+    outside = int(np.sum((t < traj.t_ns[0]) | (t + last_chirp_ns > traj.t_ns[-1])))
+    ends = ([f"starts {early:.2f} s after the first"] if early > 0 else []) + \
+        ([f"ends {late:.2f} s before the last"] if late > 0 else [])
+    return (f"{traj_name}: {' and '.join(ends)} frame of radar {radar.name} in {drive_path}: {outside} of its "
+            f"{len(t)} frames lie outside the trajectory and are left out of the image, which lacks their part")
 
 
 def damaged_frames_warning(drive_path: str | Path, radar: str, frame_index: Sequence[int]) -> str:
