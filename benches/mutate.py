@@ -1179,6 +1179,10 @@ MUTATIONS: list[Mutation] = [
     _m("track-cut-short-unsaid", "focus", "sar/focus.py",
        "    if max(early, late) <= MAX_UNCOVERED_S:", "    if max(early, late) <= 10 * MAX_UNCOVERED_S:",
        "tests/test_sar_focus.py::test_a_trajectory_that_covers_part_of_the_radars_frames_is_warned_of"),
+    _m("track-gap-carried-through-unsaid", "focus", "sar/focus.py",
+       "    bad = (jumps > MAX_BRIDGE_JUMP_M) & (frames > 0)",
+       "    bad = (jumps > 10 * MAX_BRIDGE_JUMP_M) & (frames > 0)",
+       "tests/test_sar_focus.py::test_a_trajectory_with_a_gap_where_radar_frames_lie_is_warned_of"),
 ]
 
 

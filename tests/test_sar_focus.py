@@ -627,13 +627,65 @@ def test_a_trajectory_that_covers_part_of_the_radars_frames_is_warned_of(ci_driv
     assert read_image(Path(rep.outputs["h5"])).provenance["warnings"] == [said]
 
 
-def _track_until(traj: Trajectory, end_ns: int) -> Trajectory:
-    """``traj``'s samples up to ``end_ns``."""
-    keep = traj.t_ns <= end_ns
+def test_a_trajectory_with_a_gap_where_radar_frames_lie_is_warned_of(ci_drive: Drive, tmp_path: Path) -> None:
+    """The ci drive's track with 40 % of its samples cut out of the middle (0.40 s, where ~390 radar frames lie): focus
+    carried the pose before the gap through it (CTRV), 3.3 cm from the sample after, and the reflectors the gap's
+    frames see moved by 4.0 and 23.4 mm against the whole track's image (the first, seen before it, by 0), with status
+    ok and no warning. It now warns, naming the gap, its frames and how far the carried pose lands; the whole track is
+    not warned of."""
+    traj = read_trajectory(ci_drive.trajectory)
+    n = len(traj.t_ns)
+    keep = np.ones(n, bool)
+    keep[int(0.3 * n):int(0.7 * n)] = False
+    holed = _track_samples(traj, keep)
+    path = tmp_path / "holed.h5"
+    write_trajectory(path, holed)
+    k = int(np.argmax(np.diff(holed.t_ns)))
+    carried, _ = holed.pose(holed.t_ns[k + 1:k + 2] - 1)
+    jump = float(np.linalg.norm(carried[0] - holed.rear_axle_enu[k + 1]))
+    gap_s = (holed.t_ns[k + 1] - holed.t_ns[k]) / 1e9
+    assert gap_s == pytest.approx(0.39, abs=0.01) and 0.02 < jump < 0.05, (gap_s, jump)
+    opts = FocusOptions.from_config(ci_drive.config, pixel_m=0.08)
+    whole = focus(ci_drive.drive, ci_drive.trajectory, tmp_path / "whole", ci_drive.config, opts)
+    assert not [w for w in whole.warnings if "no sample" in w], whole.warnings
+    rep = focus(ci_drive.drive, path, tmp_path / "img", ci_drive.config, opts)
+    with h5py.File(ci_drive.drive) as f:
+        t = f["radar/scanbrick_w43/t_ns"][()]
+    frames = int(np.sum((t > holed.t_ns[k]) & (t < holed.t_ns[k + 1])))
+    assert 380 <= frames <= 400
+    said = (f"{path}: has no sample for {gap_s:.2f} s ({(holed.t_ns[k] - holed.t_ns[0]) / 1e9:.2f}-"
+            f"{(holed.t_ns[k + 1] - holed.t_ns[0]) / 1e9:.2f} s after its first) where {frames} radar frames lie: "
+            f"focus carries its pose through (CTRV), which lands {jump * 100:.1f} cm from the sample after; the image "
+            "is blurred where those frames look")
+    assert rep.warnings == [said]
+    assert read_image(Path(rep.outputs["h5"])).provenance["warnings"] == [said]
+    # what the carried pose costs the reflectors (fine patches)
+    targets = read_targets(ci_drive.truth, holed.origin)
+    grids = [box_grid(x - 0.3, y - 0.3, x + 0.3, y + 0.3, pixel_m=0.005, height_m=opts.height_m)
+             for x, y in targets.position_enu[targets.corner_reflectors, :2]]
+    fine = replace(opts, pixel_m=0.005)
+    peaks = {}
+    for name, track in (("whole", traj), ("holed", holed)):
+        images = focus_images(ci_drive.drive, track, ci_drive.config, fine, grids=grids).images
+        peaks[name] = [analyse_point_target(img, targets.position_enu[i], patch_m=0.5)
+                       for i, img in zip(targets.corner_reflectors, images, strict=True)]
+    moved = [float(np.hypot(*np.subtract(a.peak_enu, b.peak_enu)))
+             for a, b in zip(peaks["whole"], peaks["holed"], strict=True)]
+    print("reflectors moved by the gap (mm):", np.round(np.array(moved) * 1e3, 1))
+    assert moved[0] < 0.001 and max(moved) > 0.015, moved  # ci seed 3: 0, 4.0, 23.4 mm
+
+
+def _track_samples(traj: Trajectory, keep: np.ndarray) -> Trajectory:
+    """``traj``'s samples where ``keep``."""
     return replace(traj, t_ns=traj.t_ns[keep], rear_axle_enu=traj.rear_axle_enu[keep], heading=traj.heading[keep],
                    speed=traj.speed[keep], yaw_rate=traj.yaw_rate[keep],
                    state=None if traj.state is None else traj.state[keep],
                    covariance=None if traj.covariance is None else traj.covariance[keep])
+
+
+def _track_until(traj: Trajectory, end_ns: int) -> Trajectory:
+    """``traj``'s samples up to ``end_ns``."""
+    return _track_samples(traj, traj.t_ns <= end_ns)
 
 
 def test_a_config_that_misplaces_the_antennas_is_warned_of(ci_drive: Drive, tmp_path: Path) -> None:

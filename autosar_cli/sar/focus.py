@@ -501,7 +501,8 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         warnings = [damaged_frames_warning(drive_path, radar.name, damaged_index)] if damaged else []
         warnings += drive.damage  # its attributes failing their checksum: the radar's chirp may be wrong
         uncovered = uncovered_frames_warning(drive_path, radar, offsets, traj, traj_name)
-        warnings += [uncovered] if uncovered else []
+        bridged = bridged_gap_warning(geometry.t_ns, traj, traj_name)
+        warnings += [w for w in (uncovered, bridged) if w]
 
     params = {**asdict(options), "channel_pairs": [list(p) for p in pairs], "start_frequency_hz": f0,
               "slope_hz_per_s": slope, "sample_rate_hz": fs, "num_samples": n_samp, "bin_m": bin_m,
@@ -626,6 +627,36 @@ def uncovered_frames_warning(drive_path: str | Path, radar: RadarStream, tx_star
         ([f"ends {late:.2f} s before the last"] if late > 0 else [])
     return (f"{traj_name}: {' and '.join(ends)} frame of radar {radar.name} in {drive_path}: {outside} of its "
             f"{len(t)} frames lie outside the trajectory and are left out of the image, which lacks their part")
+
+
+#: a trajectory's samples may lie this far apart (s) around radar frames, and its pose carried through the gap (CTRV
+#: from the sample before) land this far (m) from the sample after, before the gap is warned of: SAR-MIN's, the
+#: truth's and the INS's samples lie milliseconds apart, a GNSS track's a fix period (0.1 s), and the line of `none`
+#: (1001 samples over any drive) is carried through exactly
+MAX_BRIDGED_S, MAX_BRIDGE_JUMP_M = 0.25, 0.01
+
+
+def bridged_gap_warning(frames_t_ns: NDArray[np.int64], traj: Trajectory, traj_name: str) -> str | None:
+    """A warning where radar frames focused (``frames_t_ns``) lie in a gap of ``traj`` over :data:`MAX_BRIDGED_S`
+    long whose far end its pose carried through the gap misses by over :data:`MAX_BRIDGE_JUMP_M` (a trajectory with
+    samples cut out, a GNSS outage of a GNSS track): focus places those frames by that guess. None else."""
+    t = np.asarray(traj.t_ns, np.int64)
+    gaps = np.flatnonzero(np.diff(t) > MAX_BRIDGED_S * 1e9)
+    if gaps.size == 0:
+        return None
+    carried, _ = traj.pose(t[gaps + 1] - 1)  # from the sample before, to a nanosecond short of the one after
+    jumps = np.linalg.norm(carried - traj.rear_axle_enu[gaps + 1], axis=1)
+    frames = np.searchsorted(frames_t_ns, t[gaps + 1]) - np.searchsorted(frames_t_ns, t[gaps], side="right")
+    bad = (jumps > MAX_BRIDGE_JUMP_M) & (frames > 0)
+    if not bad.any():
+        return None
+    k = gaps[bad][np.argmax(jumps[bad])]
+    i = int(np.flatnonzero(gaps == k)[0])
+    more = f" (and {int(bad.sum()) - 1} more such gaps)" if bad.sum() > 1 else ""
+    return (f"{traj_name}: has no sample for {(t[k + 1] - t[k]) / 1e9:.2f} s ({(t[k] - t[0]) / 1e9:.2f}-"
+            f"{(t[k + 1] - t[0]) / 1e9:.2f} s after its first) where {int(frames[i])} radar frames lie{more}: focus "
+            f"carries its pose through (CTRV), which lands {jumps[i] * 100:.1f} cm from the sample after; the image is "
+            "blurred where those frames look")
 
 
 def damaged_frames_warning(drive_path: str | Path, radar: str, frame_index: Sequence[int]) -> str:
