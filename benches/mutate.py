@@ -1183,6 +1183,9 @@ MUTATIONS: list[Mutation] = [
        "    bad = (jumps > MAX_BRIDGE_JUMP_M) & (frames > 0)",
        "    bad = (jumps > 10 * MAX_BRIDGE_JUMP_M) & (frames > 0)",
        "tests/test_sar_focus.py::test_a_trajectory_with_a_gap_where_radar_frames_lie_is_warned_of"),
+    _m("pixel-coarser-than-the-response-unsaid", "focus", "sar/focus.py",
+       "    null = min(resolution_m, range_null_m)", "    null = max(resolution_m, range_null_m)",
+       "tests/test_sar_focus.py::test_pixels_too_coarse_for_the_response_are_warned_of"),
 ]
 
 

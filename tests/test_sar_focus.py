@@ -409,7 +409,8 @@ def test_a_drive_with_two_radars_says_which_it_focused(ci_drive: Drive, tmp_path
         raw[...] = np.zeros(raw.shape, raw.dtype)  # an array: a scalar took 100 s here, this 0.03 s
         stamp_attributes(f)  # a drive written so, not one damaged in its attributes
     runner = CliRunner()
-    common = ["focus", str(drive), "-t", str(ci_drive.trajectory), "--pixel", "0.08", "--json"]
+    common = ["focus", str(drive), "-t", str(ci_drive.trajectory), "--pixel", "0.08", "--resolution", "0.08",
+              "--json"]
     res = runner.invoke(app, [*common, "-o", str(tmp_path / "first")])
     assert res.exit_code == 0, res.output
     assert json.loads(res.stdout)["warnings"] == [f"{drive}: holds 2 radar streams; focused a_right, not {own} "
@@ -605,7 +606,7 @@ def test_a_trajectory_that_covers_part_of_the_radars_frames_is_warned_of(ci_driv
     with DriveFile(ci_drive.drive) as d:
         t = d.radar().t_ns
     last_chirp_ns = round(float(np.max(ci_drive.config.radar.tx_start_offsets_s)) * 1e9)
-    opts = FocusOptions.from_config(ci_drive.config, pixel_m=0.08)
+    opts = FocusOptions.from_config(ci_drive.config, pixel_m=0.08, resolution_m=0.08)
     reports = {}
     for name, end_s in (("whole", None), ("0.2 s short", 0.2), ("half", (t[-1] - t[0]) / 2e9)):
         cut = traj if end_s is None else _track_until(traj, int(t[-1] - end_s * 1e9))
@@ -645,7 +646,7 @@ def test_a_trajectory_with_a_gap_where_radar_frames_lie_is_warned_of(ci_drive: D
     jump = float(np.linalg.norm(carried[0] - holed.rear_axle_enu[k + 1]))
     gap_s = (holed.t_ns[k + 1] - holed.t_ns[k]) / 1e9
     assert gap_s == pytest.approx(0.39, abs=0.01) and 0.02 < jump < 0.05, (gap_s, jump)
-    opts = FocusOptions.from_config(ci_drive.config, pixel_m=0.08)
+    opts = FocusOptions.from_config(ci_drive.config, pixel_m=0.08, resolution_m=0.08)
     whole = focus(ci_drive.drive, ci_drive.trajectory, tmp_path / "whole", ci_drive.config, opts)
     assert not [w for w in whole.warnings if "no sample" in w], whole.warnings
     rep = focus(ci_drive.drive, path, tmp_path / "img", ci_drive.config, opts)
@@ -663,7 +664,7 @@ def test_a_trajectory_with_a_gap_where_radar_frames_lie_is_warned_of(ci_drive: D
     targets = read_targets(ci_drive.truth, holed.origin)
     grids = [box_grid(x - 0.3, y - 0.3, x + 0.3, y + 0.3, pixel_m=0.005, height_m=opts.height_m)
              for x, y in targets.position_enu[targets.corner_reflectors, :2]]
-    fine = replace(opts, pixel_m=0.005)
+    fine = replace(opts, pixel_m=0.005, resolution_m=0.04)
     peaks = {}
     for name, track in (("whole", traj), ("holed", holed)):
         images = focus_images(ci_drive.drive, track, ci_drive.config, fine, grids=grids).images
@@ -673,6 +674,40 @@ def test_a_trajectory_with_a_gap_where_radar_frames_lie_is_warned_of(ci_drive: D
              for a, b in zip(peaks["whole"], peaks["holed"], strict=True)]
     print("reflectors moved by the gap (mm):", np.round(np.array(moved) * 1e3, 1))
     assert moved[0] < 0.001 and max(moved) > 0.015, moved  # ci seed 3: 0, 4.0, 23.4 mm
+
+
+def test_pixels_too_coarse_for_the_response_are_warned_of(ci_drive: Drive, tmp_path: Path) -> None:
+    """Each pixel is the image at its centre, so pixels far coarser than a point's response sample points between
+    them on their sidelobes: at 12 cm pixels (4 cm resolution) the ci reflectors were 4.0, 12.6 and 14.6 dB under
+    their peak on fine patches (at 30 cm on ci seed 1, 25-30 dB: gone), exit 0, no warning. Focus now says so where a
+    pixel exceeds 1.4 times the distance to the response's first null (rho across, c/B = 10 cm in range); the
+    defaults (4 cm, 4 cm) and 8 cm at 8 cm are not."""
+    from autosar_cli.sar.focus import coarse_pixel_warning
+
+    assert coarse_pixel_warning(0.04, 0.04, 0.1) is None and coarse_pixel_warning(0.08, 0.08, 0.1) is None
+    opts = FocusOptions.from_config(ci_drive.config, pixel_m=0.12)
+    rep = focus(ci_drive.drive, ci_drive.trajectory, tmp_path / "coarse", ci_drive.config, opts)
+    said = ("focus: pixel 0.12 m samples a point's response whose first null lies 0.04 m from its peak (cross-range "
+            "resolution 0.04 m, range c/B 0.0999 m): a point between pixel centres is sampled on its sidelobes and can "
+            "vanish from the image (a pixel's value is the image at its centre, not its area's); choose --pixel "
+            "0.056 or finer, or a coarser --resolution")
+    assert rep.warnings == [said]
+    coarse = read_image(Path(rep.outputs["h5"]))
+    assert coarse.provenance["warnings"] == [said]
+    targets = read_targets(ci_drive.truth, coarse.origin)
+    reflectors = targets.corner_reflectors
+    grids = [box_grid(x - 0.3, y - 0.3, x + 0.3, y + 0.3, pixel_m=0.005, height_m=opts.height_m)
+             for x, y in targets.position_enu[reflectors, :2]]
+    fine = focus_images(ci_drive.drive, ci_drive.trajectory, ci_drive.config, replace(opts, pixel_m=0.005),
+                        grids=grids).images
+    mag = np.abs(coarse.image)
+    lost = []
+    for i, patch in zip(reflectors, fine, strict=True):
+        r, c = (int(round(float(v))) for v in coarse.grid.enu_to_pixel(targets.position_enu[i, :2]))
+        near = mag[max(0, r - 2):r + 3, max(0, c - 2):c + 3].max()
+        lost.append(20 * np.log10(np.abs(patch.image).max() / near))
+    print("reflectors under their peak at 12 cm pixels (dB):", np.round(lost, 1))
+    assert max(lost) > 10.0, lost  # ci seed 3: 4.0, 12.6, 14.6 dB
 
 
 def _track_samples(traj: Trajectory, keep: np.ndarray) -> Trajectory:

@@ -502,7 +502,9 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         warnings += drive.damage  # its attributes failing their checksum: the radar's chirp may be wrong
         uncovered = uncovered_frames_warning(drive_path, radar, offsets, traj, traj_name)
         bridged = bridged_gap_warning(geometry.t_ns, traj, traj_name)
-        warnings += [w for w in (uncovered, bridged) if w]
+        coarse = coarse_pixel_warning(max(g.pixel_m for g in grid_list), options.resolution_m,
+                                      SPEED_OF_LIGHT * fs / (slope * n_samp))
+        warnings += [w for w in (uncovered, bridged, coarse) if w]
 
     params = {**asdict(options), "channel_pairs": [list(p) for p in pairs], "start_frequency_hz": f0,
               "slope_hz_per_s": slope, "sample_rate_hz": fs, "num_samples": n_samp, "bin_m": bin_m,
@@ -627,6 +629,28 @@ def uncovered_frames_warning(drive_path: str | Path, radar: RadarStream, tx_star
         ([f"ends {late:.2f} s before the last"] if late > 0 else [])
     return (f"{traj_name}: {' and '.join(ends)} frame of radar {radar.name} in {drive_path}: {outside} of its "
             f"{len(t)} frames lie outside the trajectory and are left out of the image, which lacks their part")
+
+
+#: a pixel may be this many times the distance from a point's peak to its response's first null (across, the
+#: cross-range resolution rho; in range c / B, a Hann window's two bins) before the image is said to lose points: half
+#: a pixel then reaches 0.7 of the way to the null, where a point lies 9 dB down its cross-range sinc
+MAX_PIXEL_PER_NULL = 1.4
+
+
+def coarse_pixel_warning(pixel_m: float, resolution_m: float, range_null_m: float) -> str | None:
+    """A warning where ``pixel_m`` exceeds :data:`MAX_PIXEL_PER_NULL` times the nearer first null of a point's
+    response (``resolution_m`` across, ``range_null_m`` = c / B along the range): each pixel is the image at its
+    centre, so a point between centres is sampled on its sidelobes and can vanish. None else."""
+    null = min(resolution_m, range_null_m)
+    if pixel_m <= MAX_PIXEL_PER_NULL * null:
+        return None
+    finest = MAX_PIXEL_PER_NULL * null
+    how = (f"--pixel {finest:.3g} or finer, or a coarser --resolution" if resolution_m < range_null_m else
+           f"--pixel {finest:.3g} or finer (the range response's, which --resolution does not widen)")
+    return (f"focus: pixel {pixel_m:g} m samples a point's response whose first null lies {null:.3g} m from its peak "
+            f"(cross-range resolution {resolution_m:g} m, range c/B {range_null_m:.3g} m): a point between pixel "
+            f"centres is sampled on its sidelobes and can vanish from the image (a pixel's value is the image at its "
+            f"centre, not its area's); choose {how}")
 
 
 #: a trajectory's samples may lie this far apart (s) around radar frames, and its pose carried through the gap (CTRV
