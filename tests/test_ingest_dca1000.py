@@ -935,6 +935,9 @@ def test_a_packet_repeated_with_other_data_costs_only_its_pris(tmp_path: Path) -
             "data)"]
     code, stderr = cli_ingest(tmp_path / "cap", tmp_path / "d.h5")
     assert code == 0 and "a packet repeats byte count 29120 with other data" in stderr, stderr
+    r = runner.invoke(app, ["info", str(tmp_path / "cap"), "--json"])
+    assert r.exit_code == 0 and "2671 recorded, 0 lost, 1 out of order, 1 repeated (1 with other data: their PRIs " \
+        "left out)" in r.stdout, r.output
 
 
 def test_packets_split_across_files_and_a_damaged_file(tmp_path: Path) -> None:

@@ -342,8 +342,9 @@ class Dca1000Capture:
         if self.packets is None:
             return "ADC data" + trigger
         k = self.packets
+        other = f" ({len(k.conflicting)} with other data: their PRIs left out)" if len(k.conflicting) else ""
         return (f"DCA1000 packets of {k.data_bytes} data bytes: {k.packets} recorded, {k.lost_packets} lost, "
-                f"{k.late} out of order, {k.duplicates} repeated{trigger}")
+                f"{k.late} out of order, {k.duplicates} repeated{other}{trigger}")
 
     def frame_starts_ns(self, start_ns: int, period_s: float | None = None) -> NDArray[np.int64]:
         """Each frame's start (ns since the epoch) of a frame every ``period_s`` (None: the frame period) from
