@@ -1128,9 +1128,13 @@ def info(
             if as_json:
                 out.print_json(strict_json({"path": str(path), "stale_partials": stale}))
                 return
-            out.print(f"[bold]{_lit(path)}[/]: {len(stale)} stale partial file(s)"
-                      + "".join(f"\n  {escape(p)}" for p in stale))
-            if (wrote := what_autosar_wrote(path)) is not None:  # a run's directory: where its summary is
+            wrote = what_autosar_wrote(path)
+            holds = "" if wrote is not None else (
+                " holds no log, CAN log, NMEA capture or DCA1000 capture (`autosar info` summarises one of those, a "
+                "folder of them or a drive.h5);")
+            out.print(f"[bold]{_lit(path)}[/]:{holds} {len(stale)} stale partial file(s)"
+                      + "".join(f"\n  {escape(p)}" for p in stale), highlight=False, soft_wrap=True)
+            if wrote is not None:  # a run's directory: where its summary is
                 out.print(f"{_lit(path)}: {_lit(wrote)}; `autosar info {_lit(path / 'drive.h5')}` lists its drive's "
                           f"streams, `autosar info {_lit(path)} --verify` checks its products", highlight=False,
                           soft_wrap=True)
@@ -1157,6 +1161,12 @@ def info(
                       "read as if given on its own")
         for p, _, summary in summaries:
             _print_summary(p, summary)
+        if folder is not None and folder.inputs["radar"] and not folder.inputs["log"]:
+            capture = folder.inputs["radar"][0]
+            out.print(f"{_lit(path)}: a DCA1000 capture and no log: the log recorded with it holds the drive's "
+                      f"navigation and the triggers that time its frames; give it too: `autosar ingest LOG --radar "
+                      f"{_lit(capture)} -o drive.h5` (or put the log in {_lit(path)})", highlight=False,
+                      soft_wrap=True)
         if pinned is not None and pinned["in_logs"] + pinned["not_in_logs"]:
             out.print(f"{_lit(config)}: the topics it pins, in the logs: "
                       + (", ".join(f"{t['topic']} ({t['key']})" for t in pinned["in_logs"]) or "none")

@@ -1099,7 +1099,7 @@ MUTATIONS: list[Mutation] = [
        "    if name in config.sensors:\n        return [], []", "    if True:\n        return [], []",
        QUIRK_NMEA_CAPTURE),
     _m("drive-folder-ros1-bag-unread", "inputs", "ingest/inputs.py",
-       "or len(kinds) > 1 or not_storage):", "or len(kinds) > 1):",
+       "or len(kinds) > 1 or not_storage or", "or len(kinds) > 1 or",
        "tests/test_ingest_drive_folder.py::"
        "test_a_ros1_bag_in_a_folder_is_read_not_left_out_of_a_bag_the_folder_is_taken_for"),
     _m("radar-flag-log-read-as-parameters", "inputs", "ingest/inputs.py",
@@ -1186,6 +1186,9 @@ MUTATIONS: list[Mutation] = [
     _m("pixel-coarser-than-the-response-unsaid", "focus", "sar/focus.py",
        "    null = min(resolution_m, range_null_m)", "    null = max(resolution_m, range_null_m)",
        "tests/test_sar_focus.py::test_pixels_too_coarse_for_the_response_are_warned_of"),
+    _m("capture-folder-in-a-folder-not-found", "inputs", "ingest/inputs.py",
+       "or not_storage or nested_capture):", "or not_storage):",
+       "tests/test_cli.py::test_info_of_a_folder_holding_a_capture_alone_says_what_it_holds_and_what_to_give"),
 ]
 
 

@@ -292,3 +292,30 @@ def test_info_of_a_product_other_than_a_drive_says_what_reads_it_not_how_to_inge
         f"{run}: 0 stale partial file(s)",
         f"{run}: a run directory autosar wrote (`autosar evaluate` reads it); `autosar info {run / 'drive.h5'}` lists "
         f"its drive's streams, `autosar info {run} --verify` checks its products"]), r.stdout
+
+
+def test_info_of_a_folder_holding_a_capture_alone_says_what_it_holds_and_what_to_give(tmp_path):
+    """A drive's folder whose only content is its DCA1000 capture's folder: `info` said "0 stale partial file(s)",
+    as of an empty folder, and `ingest` "a directory but not a rosbag2 bag (no metadata.yaml, ...)". It is a drive
+    folder of that capture: info summarises the capture and names the log it lacks, and ingest asks for that log."""
+    from test_ingest_dca1000 import sdk_cfg
+
+    drive = tmp_path / "drive"
+    capture = sdk_cfg(drive / "radar")
+    r = runner.invoke(app, ["info", str(drive)], env={"COLUMNS": "300"}, terminal_width=300)
+    text = " ".join(r.stdout.split())
+    assert r.exit_code == 0, r.output
+    assert f"{drive} a drive folder: 1 input" in text and f"{capture} TI DCA1000 capture" in text, text
+    assert (f"{drive}: a DCA1000 capture and no log: the log recorded with it holds the drive's navigation and the "
+            f"triggers that time its frames; give it too: `autosar ingest LOG --radar {capture} -o drive.h5`") in text
+    assert "stale partial" not in text
+    r = runner.invoke(app, ["ingest", str(drive), "-o", str(tmp_path / "d.h5")])
+    assert r.exit_code == 1 and r.stderr.count("\n") == 1 and r.stderr.startswith(
+        f"error: {capture}: a DCA1000 capture and no log, so no start time for its frames"), r.stderr
+    assert f"give it too (autosar ingest LOG --radar {capture})" in r.stderr and not (tmp_path / "d.h5").exists()
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    r = runner.invoke(app, ["info", str(empty)], env={"COLUMNS": "300"}, terminal_width=300)
+    assert r.exit_code == 0 and " ".join(r.stdout.split()) == (
+        f"{empty}: holds no log, CAN log, NMEA capture or DCA1000 capture (`autosar info` summarises one of those, a "
+        "folder of them or a drive.h5); 0 stale partial file(s)"), r.stdout

@@ -5,9 +5,9 @@ A drive folder is a directory that holds one drive's inputs of several kinds (a 
 files, an NMEA capture, a DCA1000 capture's files): each is read as if it were given on its own, a capture's files
 lying in the folder itself being the folder read as that capture, and a folder inside it that holds inputs (the CAN
 logger's ``can/``) giving those. A directory stays what it was (a rosbag2 bag, its
-``metadata.yaml`` or its storage files alone; a DCA1000 capture alone) unless it holds a CAN log or an NMEA capture,
-a capture's files beside a log, or a log no bag's storage file is (a ROS 1 bag, a bag's own folder): read as a bag,
-its other files went unread without a word. What a drive folder
+``metadata.yaml`` or its storage files alone; a DCA1000 capture's files alone) unless it holds a CAN log or an NMEA
+capture, a capture's files beside a log, a log no bag's storage file is (a ROS 1 bag, a bag's own folder), or a
+capture's own folder: read as a bag, its other files went unread without a word. What a drive folder
 holds that is none of those (a note, a photo, a folder of its own) is named in a warning and left alone; autosar's
 own products and a simulated log's truth sidecar are left alone quietly, as is what a DCA1000 writes beside its data
 (``*_LogFile.txt``, ``*_LogFile.csv``).
@@ -151,8 +151,10 @@ def drive_folder(path: Path, depth: int = 0) -> DriveFolder | None:
     # a ROS 1 bag, a bag's own folder or a log saved under another name is no storage file of a bag this folder is:
     # read as one, the folder left it unread without a word
     not_storage = [p for p in found["log"] if not (p.is_file() and p.suffix.lower() in (".mcap", ".db3"))]
-    if not (found["can"] or found["nmea"] or len(kinds) > 1 or not_storage):
-        return None  # a bag's storage files, or a capture, alone: read as that bag or capture
+    # a capture's own folder inside it is no capture this folder is: it was read as no bag and no capture at all
+    nested_capture = [p for p in found["radar"] if p != path]
+    if not (found["can"] or found["nmea"] or len(kinds) > 1 or not_storage or nested_capture):
+        return None  # a bag's storage files, or a capture's files, alone: read as that bag or capture
     return DriveFolder(path, {kind: found[kind] for kind in KINDS}, sorted(left_out))
 
 

@@ -746,6 +746,12 @@ def ingest_sorted(given: SortedInputs, output: Path, *, config: Config, dbc: Pat
     inputs = given.all()  # a CAN log, NMEA capture or DCA1000 capture among the logs is read as what it is
     if not inputs:
         raise IngestError("no input: give at least one log, --can-log or --nmea file")
+    captures = [p for p, kind in inputs if kind == "radar"]
+    if captures and radar_options.start_ns is None and not any(kind == "log" for _, kind in inputs):
+        raise IngestError(f"{captures[0]}: a DCA1000 capture and no log, so no start time for its frames: the log "
+                          f"recorded with it holds the triggers that time them (topic {radar_options.sync_topic}) "
+                          f"and the drive's navigation; give it too (autosar ingest LOG --radar {captures[0]}), or "
+                          "--radar-start TIME --allow-partial for the radar alone")
     offsets = {Path(p): round(float(s) * 1e9) for p, s in (time_offsets or {}).items()}
     for p in offsets:
         if (p, "can") not in inputs and (p, "nmea") not in inputs:
