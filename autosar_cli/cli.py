@@ -139,6 +139,11 @@ AutofocusOpt = Annotated[bool, typer.Option("--autofocus", help="Before focusing
                                             "can be measured the navigated track is kept and run.json says why.")]
 
 
+#: suffixes of files, which a rosbag2 bag (a directory) is not named with
+_FILE_SUFFIXES = (".mcap", ".bag", ".db3", ".h5", ".hdf5", ".tif", ".png", ".json", ".yaml", ".csv", ".bin", ".nmea",
+                  ".txt", ".gps", *CAN_LOG_SUFFIXES)
+
+
 class Scenario(StrEnum):
     ci = "ci"
     test1 = "test1"
@@ -372,7 +377,8 @@ def _progress(label: str, enabled: bool = True, in_bytes: bool = False) -> Itera
 @app.command(cls=_Command)
 def simulate(
     output: Annotated[Path, typer.Option("--output", "-o", metavar="LOG",
-                                         help="Log to write (.mcap, .bag, or a rosbag2 directory).")],
+                                         help="Log to write, named as --format writes it: .mcap, .bag (ros1), "
+                                              "or a rosbag2 directory (ros2).")],
     scenario: Annotated[Scenario, typer.Option("--scenario", "-s", help="Drive to simulate.")] = Scenario.ci,
     fmt: Annotated[LogFormat | None, typer.Option(
         "--format", "-f", help="Log container (default: ros1 for a .bag, else mcap); dca1000: an MCAP of the "
@@ -393,11 +399,19 @@ def simulate(
         from autosar_cli.sim.simulate import simulate as run_simulation
         from autosar_cli.sim.truth import truth_path_for
 
-        bag = output.suffix.lower() == ".bag"
-        fmt = fmt or (LogFormat.ros1 if bag else LogFormat.mcap)
-        if bag != (fmt is LogFormat.ros1) and (bag or output.suffix.lower() == ".mcap"):  # other tools go by it
-            raise typer.BadParameter(f"{output}: a {output.suffix} name for a --format {fmt.value} log; name it "
-                                     f"{'.bag' if fmt is LogFormat.ros1 else '.mcap'}, or give the --format it names")
+        suffix = output.suffix.lower()
+        default = "" if fmt else " (the default but for a .bag)"
+        fmt = fmt or (LogFormat.ros1 if suffix == ".bag" else LogFormat.mcap)
+        want = {LogFormat.ros1: ".bag", LogFormat.ros2: ""}.get(fmt, ".mcap")
+        if want and suffix != want:  # other tools go by the name; nor would --overwrite replace a log named otherwise
+            named = f"a {output.suffix} name" if suffix else f"a name without {want}"
+            fixed = output.with_suffix(want) if suffix[1:].isalpha() else output.with_name(output.name + want)
+            raise typer.BadParameter(f"{output}: {named} for a --format {fmt.value} log{default}; name it {fixed}"
+                                     + (", or give the --format it names" if suffix in (".bag", ".mcap") else ""))
+        if not want and suffix in _FILE_SUFFIXES:
+            raise typer.BadParameter(f"{output}: a {output.suffix} name for a --format ros2 log, which is a "
+                                     f"directory (rosbag2); name it {output.with_suffix('')}"
+                                     + (", or give the --format it names" if suffix in (".bag", ".mcap") else ""))
         cfg = _load_config(config)
         _prepare_output(output, overwrite, [cfg.source], replaces_directory=fmt is LogFormat.ros2)
         _prepare_output(truth_path_for(output), overwrite, [cfg.source])

@@ -1189,6 +1189,9 @@ MUTATIONS: list[Mutation] = [
     _m("capture-folder-in-a-folder-not-found", "inputs", "ingest/inputs.py",
        "or not_storage or nested_capture):", "or not_storage):",
        "tests/test_cli.py::test_info_of_a_folder_holding_a_capture_alone_says_what_it_holds_and_what_to_give"),
+    _m("simulate-log-named-as-another-file", "inputs", "cli.py",
+       "        if want and suffix != want:", "        if False:",
+       "tests/test_cli.py::test_simulate_to_a_name_of_another_kind_of_file_is_refused_with_the_name_to_give"),
 ]
 
 

@@ -319,3 +319,22 @@ def test_info_of_a_folder_holding_a_capture_alone_says_what_it_holds_and_what_to
     assert r.exit_code == 0 and " ".join(r.stdout.split()) == (
         f"{empty}: holds no log, CAN log, NMEA capture or DCA1000 capture (`autosar info` summarises one of those, a "
         "folder of them or a drive.h5); 0 stale partial file(s)"), r.stdout
+
+
+@pytest.mark.parametrize(("args", "said"), [
+    (["-o", "a.txt"], "a.txt: a .txt name for a --format mcap log (the default but for a .bag); name it a.mcap"),
+    (["-o", "drive"], "drive: a name without .mcap for a --format mcap log (the default but for a .bag); name it "
+                      "drive.mcap"),
+    (["-f", "ros1", "-o", "a.txt"], "a.txt: a .txt name for a --format ros1 log; name it a.bag"),
+    (["-f", "dca1000", "-o", "a.txt"], "a.txt: a .txt name for a --format dca1000 log; name it a.mcap"),
+    (["-f", "ros2", "-o", "a.mcap"], "a.mcap: a .mcap name for a --format ros2 log, which is a directory (rosbag2); "
+                                     "name it a, or give the --format it names")])
+def test_simulate_to_a_name_of_another_kind_of_file_is_refused_with_the_name_to_give(args, said, tmp_path,
+                                                                                     monkeypatch):
+    """`simulate -o a.txt` wrote an MCAP named a.txt (a logging line said "suffix-based readers will miss it"), which
+    a second `simulate -o a.txt --overwrite` refused to replace ("a file autosar did not write"); `-f ros2 -o
+    a.mcap` made a directory a.mcap holding a.mcap.db3. Each is refused in one line naming the name to give."""
+    monkeypatch.chdir(tmp_path)
+    r = runner.invoke(app, ["simulate", *args])
+    assert r.exit_code == 1 and r.stderr == f"error: {said}\n", r.stderr
+    assert list(tmp_path.iterdir()) == []

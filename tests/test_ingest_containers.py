@@ -107,9 +107,9 @@ def test_container_variant_gives_the_same_drive(variant: str, ci_mcap, ci_ros1, 
                                              ("drive", "ros1"), ("drive.log", "mcap"), ("drive.txt", "ros1")])
 def test_a_log_is_read_by_what_it_holds_not_by_its_name(name: str, holds: str, ci_mcap, ci_ros1, reference: Path,
                                                         tmp_path: Path) -> None:
-    """An MCAP saved without its suffix (as `simulate -o NAME` writes it) or a bag renamed is opened by its first
-    bytes and gives the same drive, also under a name a CAN log or an NMEA capture has (.log, .txt); a file no reader
-    recognises is refused in one line naming it."""
+    """An MCAP saved without its suffix or a bag renamed is opened by its first bytes and gives the same drive, also
+    under a name a CAN log or an NMEA capture has (.log, .txt); a file no reader recognises is refused in one line
+    naming it."""
     src = tmp_path / name
     shutil.copyfile(ci_mcap.log_path if holds == "mcap" else ci_ros1.log_path, src)
     assert container_of(src) == holds
