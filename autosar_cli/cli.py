@@ -40,13 +40,21 @@ from autosar_cli.store.manifest import product_status, strict_json
 
 
 class _FlagsShownBare:
-    """Help that shows a flag as it is given (``--overwrite``), not beside a type (``--overwrite <bool>``)."""
+    """Help that shows a flag as it is given (``--overwrite``), not beside a type (``--overwrite <bool>``); a
+    required argument in the usage line as a name alone (``autosar info [OPTIONS] PATH``, not typer's ``{PATH}``); a
+    64-bit range as such, not as its 20 digits."""
+
+    def collect_usage_pieces(self, ctx: Any) -> list[str]:
+        pieces = super().collect_usage_pieces(ctx)  # type: ignore[misc]
+        return [re.sub(r"^\{([^{}]+)\}", r"\1", piece) for piece in pieces]
 
     def get_params(self, ctx: Any) -> list[Any]:
         params = super().get_params(ctx)  # type: ignore[misc]
         for param in params:
             if isinstance(param, typer.core.TyperOption) and param.is_flag and param.metavar is None:
                 param.metavar = ""  # typer shows a parameter's metavar, where it has one, in place of its type
+            elif isinstance(param, typer.core.TyperOption) and param.max == 2**64 - 1:
+                param._get_number_range_help_str = lambda low=param.min: f"{low}<=x<2^64"  # type: ignore[method-assign]
             elif isinstance(param, typer.core.TyperArgument):
                 shown = param.display_type(ctx)
                 if shown and shown.startswith("<list["):  # an argument given many times: as an option's is shown
@@ -668,7 +676,7 @@ class Channels(StrEnum):
 @app.command(cls=_Command)
 def focus(
     drive: Annotated[Path, typer.Argument(metavar="DRIVE", help="drive.h5 written by `autosar ingest`.")],
-    trajectory: Annotated[Path, typer.Option("--trajectory", "-t", help="trajectory.h5 written by "
+    trajectory: Annotated[Path, typer.Option("--trajectory", "-t", metavar="FILE", help="trajectory.h5 written by "
                                              "`autosar navigate`.")],
     output: Annotated[Path, typer.Option("--output", "-o", metavar="BASE",
                                          help="Output base name: writes BASE.tif (GeoTIFF, dB, "

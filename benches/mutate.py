@@ -1192,6 +1192,9 @@ MUTATIONS: list[Mutation] = [
     _m("simulate-log-named-as-another-file", "inputs", "cli.py",
        "        if want and suffix != want:", "        if False:",
        "tests/test_cli.py::test_simulate_to_a_name_of_another_kind_of_file_is_refused_with_the_name_to_give"),
+    _m("usage-line-arguments-in-braces", "inputs", "cli.py",
+       'return [re.sub(r"^\\{([^{}]+)\\}", r"\\1", piece) for piece in pieces]', "return pieces",
+       "tests/test_cli.py::test_usage_lines_show_arguments_as_named_and_a_seeds_range_as_64_bits"),
 ]
 
 

@@ -338,3 +338,25 @@ def test_simulate_to_a_name_of_another_kind_of_file_is_refused_with_the_name_to_
     r = runner.invoke(app, ["simulate", *args])
     assert r.exit_code == 1 and r.stderr == f"error: {said}\n", r.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_usage_lines_show_arguments_as_named_and_a_seeds_range_as_64_bits():
+    """typer 0.29 writes a required argument in braces (`Usage: autosar info [OPTIONS] {PATH}`, read as a set or a
+    placeholder to fill in with its braces), `--seed` beside `[0<=x<=18446744073709551615]`, and focus's
+    `--trajectory` as `<path>` where every other file option says FILE."""
+    from typer.main import get_command
+
+    for name in ["", *get_command(app).commands]:
+        r = runner.invoke(app, [*name.split(), "--help"], env={"COLUMNS": "200"}, terminal_width=200)
+        assert r.exit_code == 0 and "{" not in r.output and "}" not in r.output, (name, r.output)
+    usage = {name: next(ln.strip() for ln in runner.invoke(app, [name, "--help"], terminal_width=200).output
+                        .splitlines() if "Usage:" in ln) for name in ("info", "run", "ingest", "focus")}
+    assert usage == {"info": "Usage: autosar info [OPTIONS] PATH", "run": "Usage: autosar run [OPTIONS] LOG...",
+                     "ingest": "Usage: autosar ingest [OPTIONS] [LOG]...",
+                     "focus": "Usage: autosar focus [OPTIONS] DRIVE"}
+    r = runner.invoke(app, ["info"])
+    assert r.exit_code == 2 and r.output.startswith("Usage: autosar info [OPTIONS] PATH\n")
+    r = runner.invoke(app, ["simulate", "--help"], env={"COLUMNS": "200"}, terminal_width=200)
+    assert "N [0<=x<2^64]" in r.output and "18446744073709551615" not in r.output
+    r = runner.invoke(app, ["focus", "--help"], env={"COLUMNS": "200"}, terminal_width=200)
+    assert any(ln.split()[2:5] == ["--trajectory", "-t", "FILE"] for ln in r.output.splitlines()), r.output
