@@ -276,7 +276,9 @@ def _run_after_ingest(manifest: dict[str, Any], out: Path, config: Config, metho
     frep = focus(out / DRIVE, out / TRAJECTORY, out / IMAGE, config, options, overwrite=True,
                  progress=stage_progress("focus"), command=command)
     manifest["stages"]["focus"] = {"wall_s": time.perf_counter() - t, "timings_s": frep.timings_s,
-                                   "grid_shape": list(frep.grid_shape), "frames_used": frep.frames_used,
+                                   "grid_shape": list(frep.grid_shape),
+                                   "grid_enu_m": list(frep.grid_enu_m) if frep.grid_enu_m is not None else None,
+                                   "frames_used": frep.frames_used,
                                    "frames_skipped": frep.frames_skipped,
                                    "backprojections": frep.backprojections,
                                    "backprojections_per_s": frep.backprojections_per_s, "warnings": frep.warnings}

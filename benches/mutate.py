@@ -1195,6 +1195,9 @@ MUTATIONS: list[Mutation] = [
     _m("usage-line-arguments-in-braces", "inputs", "cli.py",
        'return [re.sub(r"^\\{([^{}]+)\\}", r"\\1", piece) for piece in pieces]', "return pieces",
        "tests/test_cli.py::test_usage_lines_show_arguments_as_named_and_a_seeds_range_as_64_bits"),
+    _m("run-json-without-the-images-enu-box", "focus", "run.py",
+       '"grid_enu_m": list(frep.grid_enu_m) if frep.grid_enu_m is not None else None,', "",
+       "tests/test_run.py::test_run_json_gives_the_images_enu_box_as_focus_json_does"),
 ]
 
 

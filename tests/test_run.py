@@ -242,3 +242,18 @@ def test_run_m_truth_with_no_sidecar_beside_its_log_is_refused_before_the_ingest
                                        "--truth LOG.truth.h5$"):
         run([lone], out, load_config(), method="truth")
     assert not out.exists()
+
+
+def test_run_json_gives_the_images_enu_box_as_focus_json_does(ci_run: Path) -> None:
+    """`focus --json` gives the grid's ENU box (grid_enu_m: x0, y0, x1, y1, to choose a --grid by); run.json's focus
+    stage gave its shape alone, so a run's user had to open image.h5 to find where the image lies."""
+    import json
+
+    from autosar_cli.sar.focus import grid_enu_box
+    from autosar_cli.store.image import read_image
+
+    focus = json.loads((ci_run / "run.json").read_text())["stages"]["focus"]
+    grid = read_image(ci_run / "image.h5").grid
+    assert focus["grid_enu_m"] == list(grid_enu_box(grid)) and focus["grid_shape"] == list(grid.shape)
+    corners = grid.corners_enu()
+    np.testing.assert_allclose(focus["grid_enu_m"], [*corners.min(axis=0), *corners.max(axis=0)], atol=1e-3)
