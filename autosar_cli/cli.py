@@ -147,9 +147,9 @@ AutofocusOpt = Annotated[bool, typer.Option("--autofocus", help="Before focusing
                                             "can be measured the navigated track is kept and run.json says why.")]
 
 
-#: suffixes of files, which a rosbag2 bag (a directory) is not named with
-_FILE_SUFFIXES = (".mcap", ".bag", ".db3", ".h5", ".hdf5", ".tif", ".png", ".json", ".yaml", ".csv", ".bin", ".nmea",
-                  ".txt", ".gps", *CAN_LOG_SUFFIXES)
+#: suffixes of files, which a directory (a rosbag2 bag, a run, a report) is not named with
+_FILE_SUFFIXES = (".mcap", ".bag", ".db3", ".h5", ".hdf5", ".tif", ".tiff", ".png", ".json", ".md", ".yaml", ".toml",
+                  ".csv", ".bin", ".nmea", ".txt", ".gps", *CAN_LOG_SUFFIXES)
 
 
 class Scenario(StrEnum):
@@ -344,6 +344,14 @@ def _an_input_file(path: Path, wanted: str, in_run: str) -> None:
         what = "a run directory" if (path / "run.json").is_file() else "a directory"
         give = f": give {path / in_run}" if (path / in_run).is_file() else ""
         raise ValueError(f"{path}: {what}, not {wanted}{give}")
+
+
+def _a_directory_not_named_as_a_file(output: Path, what: str) -> None:
+    """Refuse a directory output named as a file is (`run -o a.txt` made a directory a.txt holding run.json), unless
+    it is one already (a run written there before, for --overwrite or --resume)."""
+    if output.suffix.lower() in _FILE_SUFFIXES and not output.is_dir():
+        raise typer.BadParameter(f"{output}: a file's name ({output.suffix}) for the directory {what} writes; name it "
+                                 f"{output.with_suffix('')}")
 
 
 def _load_config(path: Path | None) -> Any:
@@ -779,6 +787,7 @@ def run(
 ) -> None:
     """Ingest, navigate and focus a drive in one go; every product in one directory plus a run.json manifest."""
     with _errors(output):
+        _a_directory_not_named_as_a_file(output, "`autosar run`")
         from autosar_cli.run import run as run_chain
         from autosar_cli.sar.focus import FocusOptions
 
@@ -866,6 +875,7 @@ def evaluate(
     """Evaluate a focused run against the truth: trajectory errors, corner reflectors (position, peak loss, IRW,
     PSLR, ISLR on fine patches), entropy, contrast, straightness of the facade and kerb."""
     with _errors(output):
+        _a_directory_not_named_as_a_file(output, "`autosar evaluate`")
         from autosar_cli.evaluate.report import evaluate_run
 
         _not_a_log(source, "a run directory or image.h5", "autosar run LOG -o DIR")
@@ -935,6 +945,7 @@ def compare(
 ) -> None:
     """Focus one drive with several navigation methods and compare them side by side (paper Fig. 10/11)."""
     with _errors(output):
+        _a_directory_not_named_as_a_file(output, "`autosar compare`")
         from autosar_cli.evaluate.compare import DRIVE, parse_methods
         from autosar_cli.evaluate.compare import compare as run_compare
 
@@ -1319,6 +1330,7 @@ def batch(
     exit code 1 if any drive failed. Ctrl-C stops the batch and writes batch.json of what finished; `--resume`
     runs the rest."""
     with _errors(output, kernels=False):
+        _a_directory_not_named_as_a_file(output, "`autosar batch`")
         from autosar_cli.batch import run_batch
         from autosar_cli.ingest.pipeline import parse_time_ns
 

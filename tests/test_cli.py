@@ -360,3 +360,20 @@ def test_usage_lines_show_arguments_as_named_and_a_seeds_range_as_64_bits():
     assert "N [0<=x<2^64]" in r.output and "18446744073709551615" not in r.output
     r = runner.invoke(app, ["focus", "--help"], env={"COLUMNS": "200"}, terminal_width=200)
     assert any(ln.split()[2:5] == ["--trajectory", "-t", "FILE"] for ln in r.output.splitlines()), r.output
+
+
+@pytest.mark.parametrize(("command", "output"), [("run", "a.txt"), ("evaluate", "report.md"), ("compare", "x.json"),
+                                                 ("batch", "runs.h5")])
+def test_a_directory_output_named_as_a_file_is_refused_with_the_name_to_give(command, output, tmp_path, monkeypatch):
+    """`run -o a.txt` made a directory a.txt holding run.json and the products (as did evaluate, compare and batch
+    of theirs): each is refused in one line, before any input is read, naming the directory's name to give. A
+    directory of that name already there (written before, for --overwrite or --resume) is not refused for its name."""
+    monkeypatch.chdir(tmp_path)
+    r = runner.invoke(app, [command, "nope.mcap", "-o", output])
+    stem = output.rsplit(".", 1)[0]
+    assert r.exit_code == 1 and r.stderr == (f"error: {output}: a file's name (.{output.rsplit('.', 1)[1]}) for the "
+                                             f"directory `autosar {command}` writes; name it {stem}\n"), r.stderr
+    assert list(tmp_path.iterdir()) == []
+    (tmp_path / output).mkdir()
+    r = runner.invoke(app, [command, "nope.mcap", "-o", output])
+    assert r.exit_code == 1 and "a file's name" not in r.stderr and "nope.mcap" in r.stderr, r.stderr
