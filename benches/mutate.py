@@ -1201,6 +1201,9 @@ MUTATIONS: list[Mutation] = [
     _m("directory-output-named-as-a-file", "inputs", "cli.py",
        "    if output.suffix.lower() in _FILE_SUFFIXES and not output.is_dir():", "    if False:",
        "tests/test_cli.py::test_a_directory_output_named_as_a_file_is_refused_with_the_name_to_give"),
+    _m("empty-mcap-mapped", "ingest", "ingest/mcap_source.py",
+       "    if path.stat().st_size < 2 * len(MCAP_MAGIC):", "    if False:",
+       "tests/test_cli.py::test_an_empty_mcap_is_named_with_what_it_is"),
 ]
 
 

@@ -377,3 +377,15 @@ def test_a_directory_output_named_as_a_file_is_refused_with_the_name_to_give(com
     (tmp_path / output).mkdir()
     r = runner.invoke(app, [command, "nope.mcap", "-o", output])
     assert r.exit_code == 1 and "a file's name" not in r.stderr and "nope.mcap" in r.stderr, r.stderr
+
+
+def test_an_empty_mcap_is_named_with_what_it_is(tmp_path):
+    """A zero-byte .mcap (a recorder that never wrote, a copy that failed): ingest and run said "error: cannot mmap
+    an empty file", naming no file; info "cannot read mcap log: cannot mmap an empty file"."""
+    empty = tmp_path / "drive.mcap"
+    empty.write_bytes(b"")
+    for args in (["ingest", str(empty), "-o", str(tmp_path / "d.h5")], ["run", str(empty), "-o", str(tmp_path / "r")],
+                 ["info", str(empty)]):
+        r = runner.invoke(app, args)
+        assert r.exit_code == 1 and r.stderr == f"error: {empty}: an empty file (0 bytes), no MCAP log in it\n", args
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["drive.mcap"]

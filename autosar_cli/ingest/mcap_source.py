@@ -107,6 +107,8 @@ def _summary_by_its_data_end(path: Path) -> tuple[dict[int, Schema], dict[int, M
     from mcap.records import Footer, Statistics
     from mcap.stream_reader import StreamReader
 
+    if path.stat().st_size < 2 * len(MCAP_MAGIC):  # no summary between two magics (an empty file maps not at all)
+        return None
     with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
         if buf[-len(MCAP_MAGIC):] != MCAP_MAGIC:
             return None
@@ -293,6 +295,8 @@ class McapSource:
         resynchronised on the next plausible record (:func:`_next_record`).
         """
         magic = f.read(8)
+        if not magic:
+            raise LogReadError(f"{self.path}: an empty file (0 bytes), no MCAP log in it")
         if magic != MCAP_MAGIC:
             raise LogReadError(f"{self.path}: not an MCAP file (bad magic)")
         pending: deque[tuple[int, Future[bytes]]] = deque()
