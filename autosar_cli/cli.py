@@ -69,6 +69,11 @@ class _FlagsShownBare:
         except typer.BadParameter as exc:
             exc.message = _said_plainly(exc.message)
             raise
+        except Exception as exc:  # click's NoSuchOption (typer's own copy of click names it nowhere public)
+            if getattr(exc, "option_name", None) == "--debug":  # "No such option: --debug (Possible options: --dbc)"
+                exc.message = f"--debug goes before the command: autosar --debug {ctx.info_name} ..."  # type: ignore
+                exc.possibilities = None  # type: ignore[attr-defined]
+            raise
 
 
 def _said_plainly(message: str) -> str:

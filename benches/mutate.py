@@ -1204,6 +1204,9 @@ MUTATIONS: list[Mutation] = [
     _m("empty-mcap-mapped", "ingest", "ingest/mcap_source.py",
        "    if path.stat().st_size < 2 * len(MCAP_MAGIC):", "    if False:",
        "tests/test_cli.py::test_an_empty_mcap_is_named_with_what_it_is"),
+    _m("debug-after-the-command-unexplained", "inputs", "cli.py",
+       'if getattr(exc, "option_name", None) == "--debug":', "if False:",
+       "tests/test_cli.py::test_debug_given_after_the_command_says_where_it_goes"),
 ]
 
 

@@ -389,3 +389,13 @@ def test_an_empty_mcap_is_named_with_what_it_is(tmp_path):
         r = runner.invoke(app, args)
         assert r.exit_code == 1 and r.stderr == f"error: {empty}: an empty file (0 bytes), no MCAP log in it\n", args
     assert sorted(p.name for p in tmp_path.iterdir()) == ["drive.mcap"]
+
+
+def test_debug_given_after_the_command_says_where_it_goes():
+    """`autosar ingest LOG --debug` said "No such option: --debug (Possible options: --dbc)", pointing at the CAN
+    database; --debug is autosar's own option: it says it goes before the command."""
+    r = runner.invoke(app, ["run", "x.mcap", "-o", "r", "--debug"], env={"COLUMNS": "200"}, terminal_width=200)
+    assert r.exit_code == 2 and "--debug goes before the command: autosar --debug run ..." in r.output, r.output
+    assert "--dbc" not in r.output
+    r = runner.invoke(app, ["run", "x.mcap", "-o", "r", "--dbug"], env={"COLUMNS": "200"}, terminal_width=200)
+    assert r.exit_code == 2 and "No such option: --dbug" in r.output
