@@ -1207,6 +1207,9 @@ MUTATIONS: list[Mutation] = [
     _m("debug-after-the-command-unexplained", "inputs", "cli.py",
        'if getattr(exc, "option_name", None) == "--debug":', "if False:",
        "tests/test_cli.py::test_debug_given_after_the_command_says_where_it_goes"),
+    _m("asc-relative-times-read-as-absolute", "ingest", "ingest/canlog.py",
+       'relative_times=suffix == ".asc" and _asc_times_relative(path))', "relative_times=False)",
+       "tests/test_ingest_canlog.py::test_an_asc_whose_times_are_relative_reads_each_frame_at_its_own_time"),
 ]
 
 

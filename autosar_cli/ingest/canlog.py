@@ -19,7 +19,8 @@ What python-can 4.6 gives as the timestamp, per format (all Unix seconds unless 
   ``relative_timestamp=False`` so python-can adds that date, parsed as *local time of the reading
   machine*; a date it cannot parse is a :class:`CanLogError`. A file without a header date keeps
   offsets from the measurement start (t_ns near 0; logged as a warning). python-can ignores the
-  header's ``timestamps relative`` (offsets from the previous event): such files read wrong.
+  header's ``timestamps relative`` (each time since the event before): such a file's times are summed as its lines
+  are fed to the reader (:func:`.text_lines.summed_time`), from each ``Begin Triggerblock``.
 - ``.trc`` (``TRCReader``): ``$STARTTIME`` (days since 1899-12-30, taken as UTC) + offsets in ms with
   1 us resolution (v1.1+). Version 1.0 files and files without ``$STARTTIME`` give offsets from the
   measurement start (warning logged).
@@ -203,8 +204,20 @@ def _open_reader(path: Path, stack: ExitStack, shown: Path) -> MessageReader:
         raise CanLogError(f"{shown}: not a candump -L log (first line {first[:40]!r})")
     text: IO[str] = stack.enter_context(path.open("r", encoding="cp1252", errors="replace"))
     marks = ("Begin Trigger", "begin trigger") if suffix == ".asc" else ()  # an ASC's "Begin Triggerblock <date>"
-    feed = LineFeed(text, damaged_lines(path), marks, judge_skipped=suffix != ".log")
+    feed = LineFeed(text, damaged_lines(path), marks, judge_skipped=suffix != ".log",
+                    relative_times=suffix == ".asc" and _asc_times_relative(path))
     return stack.enter_context(_text_reader(suffix, feed))
+
+
+_ASC_BASE = re.compile(rb"^\s*base\s+(?:hex|dec)\s+timestamps\s+(absolute|relative)", re.IGNORECASE | re.MULTILINE)
+
+
+def _asc_times_relative(path: Path) -> bool:
+    """Whether an ASC log's header says ``timestamps relative``: each event's time is the time since the event
+    before, which python-can reads as the time since the start (every frame within the first second or so)."""
+    with open(path, "rb") as f:
+        found = _ASC_BASE.search(f.read(_SNIFF_BYTES))
+    return found is not None and found.group(1).lower() == b"relative"
 
 
 def _text_reader(suffix: str, feed: LineFeed) -> MessageReader:

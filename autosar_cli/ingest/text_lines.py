@@ -69,12 +69,14 @@ class LineFeed:
     file handed out so far, so the one a reader failed on)."""
 
     def __init__(self, file: IO[str], damaged_lines: frozenset[int] = frozenset(), marks: tuple[str, ...] = (),
-                 judge_skipped: bool = True) -> None:
+                 judge_skipped: bool = True, relative_times: bool = False) -> None:
         """``damaged_lines``: the numbers of the file's lines to hold back (:func:`damaged_lines`); ``marks``: text
         of the lines that set the reader's clock on the way (an ASC's ``Begin Triggerblock``, whose date the times
         after it count from), the last of which is read again after the header; ``judge_skipped``: whether the
         lines the reader skips are judged (False for a reader that skips none: python-can's candump reader raises
-        at a line it cannot read)."""
+        at a line it cannot read); ``relative_times``: each line's leading time is the time since the event before
+        (an ASC whose header says ``timestamps relative``, which python-can reads as times since the start): it is
+        handed out as their sum since the last mark (:func:`summed_time`)."""
         self._judge_skipped = judge_skipped
         self._file = file
         self._held_back = damaged_lines
@@ -93,6 +95,8 @@ class LineFeed:
         self._first_frame_lines: dict[int, str] = {}
         self._frame_lines: dict[int, str] = {}
         self._doubtful: list[tuple[int, str]] = []
+        self._relative = relative_times
+        self._since_mark_ns = 0  # relative_times: the events' times summed since the last mark
 
     def __iter__(self) -> Iterator[str]:
         # a reader iterates anew after its header (ASC) and a new reader after damage: each picks up where the
@@ -110,6 +114,9 @@ class LineFeed:
             for mark in marks:
                 if mark in line:
                     self._last_mark = line
+                    self._since_mark_ns = 0
+            if self._relative:
+                line, self._since_mark_ns = summed_time(line, self._since_mark_ns)
             if self._before_first is not None:
                 self._before_first.append(line)
                 if len(self._before_first) > _MAX_HEADER_LINES:
@@ -194,6 +201,20 @@ class LineFeed:
 
     def close(self) -> None:
         """What a python-can reader calls at its end: the file is the caller's to close."""
+
+
+_LEADING_TIME = re.compile(r"^(\s*)(\d+)\.(\d+)(?=\s)")
+
+
+def summed_time(line: str, before_ns: int) -> tuple[str, int]:
+    """``line`` with its leading time (s, the time since the event before) replaced by ``before_ns`` plus it, and
+    that sum (ns, added in integers: a drive's 10^5 events summed in floats drift); a line without one as it is."""
+    found = _LEADING_TIME.match(line)
+    if found is None:
+        return line, before_ns
+    lead, whole, fraction = found.groups()
+    total = before_ns + int(whole) * 1_000_000_000 + int(fraction[:9].ljust(9, "0"))
+    return f"{lead}{total // 1_000_000_000}.{total % 1_000_000_000:09d}{line[found.end():]}", total
 
 
 def damaged_lines(path: Path) -> frozenset[int]:
