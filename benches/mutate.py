@@ -1210,6 +1210,9 @@ MUTATIONS: list[Mutation] = [
     _m("asc-relative-times-read-as-absolute", "ingest", "ingest/canlog.py",
        'relative_times=suffix == ".asc" and _asc_times_relative(path))', "relative_times=False)",
        "tests/test_ingest_canlog.py::test_an_asc_whose_times_are_relative_reads_each_frame_at_its_own_time"),
+    _m("can-clock-off-left-unmoved", "sar-min", "nav/navigate.py",
+       "    return delayed_can(inputs, late, can), [", "    return inputs, [",
+       _QUIRKS + "test_a_can_log_whose_clock_is_seconds_off_is_moved_and_named"),
 ]
 
 

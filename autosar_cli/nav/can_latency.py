@@ -15,7 +15,9 @@ with ``omega_imu`` the IMUs' mean yaw rate, both sides averaged over :data:`TURN
 each CAN gyro's own scale and bias. ``d``, the bus's delay beyond the tables, is the one that leaves the least
 residual over a search of ±:data:`SEARCH_S`, refined by the linearised fit about it (``omega_imu'``'s coefficient),
 whose std counts the residual's serial correlation. What measures it is the yaw rate's change: a straight drive
-leaves it unmeasured. The policy (whether the samples move) is in :mod:`.navigate`.
+leaves it unmeasured. A CAN clock seconds off (a CAN logger's set wrong) lies beyond that search:
+:func:`fit_can_clock` looks for it over ±:data:`CLOCK_SEARCH_S` first. The policy (whether the samples move) is in
+:mod:`.navigate`.
 """
 
 from __future__ import annotations
@@ -40,6 +42,13 @@ SEARCH_STEP_S = 0.005
 COMPARE_STEP_S = 0.05
 #: fewer CAN gyro samples than this leave it unmeasured
 MIN_SAMPLES = 500
+#: a CAN clock off the IMUs' by more than the delay's search (a CAN logger's clock set wrong) is searched for within
+#: +- this (s), on the compared samples' step
+CLOCK_SEARCH_S = 30.0
+#: ... and taken where the IMUs' yaw rate leaves at most this fraction of the CAN's unexplained there (1 - R^2: a drive
+#: that turns, which both gyros see alike), and at most this fraction of what it leaves within +-SEARCH_S
+CLOCK_MAX_UNEXPLAINED = 0.25
+CLOCK_COST_RATIO = 0.25
 
 
 @dataclass(frozen=True)
@@ -116,6 +125,78 @@ def fit_can_latency(inputs: NavInputs, can_gyros: list[str], imu_gyros: list[str
     accel = blocks[:, 0]
     return CanLatencyFit(best + float(coef[0]), std, tuple(g.name for g, _ in smoothed), tuple(g.name for g in imu),
                          int(len(res)), float(np.sqrt(np.mean(accel**2))))
+
+
+def fit_can_clock(inputs: NavInputs, can_gyros: list[str], imu_gyros: list[str]) -> float | None:
+    """How late (s) the CAN gyros' yaw rate runs against the IMUs' where that lies beyond the delay's search
+    (+-:data:`SEARCH_S`), found over +-:data:`CLOCK_SEARCH_S`: a CAN log whose logger's clock was set wrong, every CAN
+    signal that much off; None where the best fit lies within the search, or is not decisive (it leaves over
+    :data:`CLOCK_MAX_UNEXPLAINED` of the CAN yaw rate's variance unexplained: a drive that hardly turns; or over
+    :data:`CLOCK_COST_RATIO` of what the best within the search leaves). Both sides averaged over
+    :data:`TURN_WINDOW_S`, each CAN gyro fitted with its own scale and bias at every lag, over the samples whose lagged
+    instant the IMUs cover (at least half)."""
+    can = [g for g in inputs.gyros if g.name in can_gyros]
+    means = [running_mean(g.t, g.z[:, 0], TURN_WINDOW_S) for g in inputs.gyros if g.name in imu_gyros]
+    means = [mean for mean in means if mean is not None and len(mean[0]) > 2]
+    if not can or not means:
+        return None
+    lo, hi = max(float(m[0][0]) for m in means), min(float(m[0][-1]) for m in means)
+    if hi - lo <= 0:
+        return None
+    ref_t = np.arange(lo, hi, COMPARE_STEP_S / 5)
+    ref_z = np.mean([np.interp(ref_t, *mean) for mean in means], axis=0)
+    series = [_every(mean, COMPARE_STEP_S) for g in can
+              if (mean := running_mean(g.t, g.z[:, 0], TURN_WINDOW_S)) is not None and len(mean[0]) > 2]
+    if sum(len(t) for t, _ in series) < MIN_SAMPLES / 5:  # compared every COMPARE_STEP_S, not at the bus's rate
+        return None
+    steps = int(round(CLOCK_SEARCH_S / COMPARE_STEP_S))
+    grid = np.arange(-steps, steps + 1) * COMPARE_STEP_S
+    cost = np.full(len(grid), np.inf)
+    for k, d in enumerate(grid):
+        sse, syy, n, needed = 0.0, 0.0, 0, 0
+        for t, z in series:
+            keep = (t - d >= lo) & (t - d <= hi)
+            needed += len(t)
+            if keep.sum() < 3:
+                continue
+            x, y = np.interp(t[keep] - d, ref_t, ref_z), z[keep]
+            x, y = x - x.mean(), y - y.mean()
+            sxx = float(x @ x)
+            syy += float(y @ y)
+            sse += float(y @ y) - (float(x @ y) ** 2 / sxx if sxx > 0 else 0.0)
+            n += int(keep.sum())
+        if 2 * n >= needed and syy > 0:
+            cost[k] = sse / syy  # the part of the CAN yaw rate the IMUs' leaves unexplained there
+    near = np.abs(grid) <= SEARCH_S + COMPARE_STEP_S / 2
+    if not np.isfinite(cost).any():
+        return None
+    best = int(np.argmin(cost))
+    if near[best] or not (cost[best] <= CLOCK_COST_RATIO * np.min(cost[near])
+                          and cost[best] <= CLOCK_MAX_UNEXPLAINED):
+        return None
+    return float(grid[best])
+
+
+def wheels_late_against_gnss(inputs: NavInputs, late_s: float) -> bool:
+    """Whether the wheel speeds fit the GNSS speed with ``late_s`` (s) removed from their stamps much better than as
+    stamped (leave at most :data:`CLOCK_COST_RATIO` of what they leave unexplained so): the CAN is off the GNSS too,
+    not the IMUs off both (a drive whose speed changes little, or no GNSS velocity: False)."""
+    wheels, vel = inputs.wheels, inputs.gnss_velocity
+    if wheels is None or vel is None or len(wheels.t) < 2:
+        return False
+    gnss_speed = np.hypot(vel.z[:, 0], vel.z[:, 1])
+    unexplained = []
+    for d in (0.0, late_s):
+        keep = (vel.t >= wheels.t[0] - d) & (vel.t <= wheels.t[-1] - d) & np.isfinite(gnss_speed)
+        if keep.sum() < 10:
+            return False
+        x, y = np.interp(vel.t[keep] + d, wheels.t, wheels.z.mean(axis=1)), gnss_speed[keep]
+        x, y = x - x.mean(), y - y.mean()
+        sxx, syy = float(x @ x), float(y @ y)
+        if sxx <= 0 or syy <= 0:
+            return False
+        unexplained.append(1.0 - float(x @ y) ** 2 / (sxx * syy))
+    return unexplained[1] <= CLOCK_COST_RATIO * unexplained[0]
 
 
 def imus_moved(inputs: NavInputs, late_s: float, imus: list[str]) -> NavInputs:
