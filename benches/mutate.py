@@ -1213,6 +1213,9 @@ MUTATIONS: list[Mutation] = [
     _m("can-clock-off-left-unmoved", "sar-min", "nav/navigate.py",
        "    return delayed_can(inputs, late, can), [", "    return inputs, [",
        _QUIRKS + "test_a_can_log_whose_clock_is_seconds_off_is_moved_and_named"),
+    _m("can-log-clock-step-back-unsaid", "ingest", "ingest/pipeline.py",
+       "                if latest - rec.t_ns > CAN_LOG_STEP_BACK_NS:", "                if False:",
+       "tests/test_ingest_canlog.py::test_a_can_log_whose_clock_steps_back_while_recording_is_warned_of"),
 ]
 
 

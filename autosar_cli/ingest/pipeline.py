@@ -89,6 +89,9 @@ APART_WARN_S = 60.0
 #: rows of one stream from two inputs interleaving over longer than this are refused: a split recording's files
 #: reorder across their boundary only by the messages' latency
 INTERLEAVE_NS = 250_000_000
+#: a CAN log's frame stamped this much (ns) before one read before it in the file (a logger writes frames as they
+#: come: a clock set back while it recorded) is a warning; within it, frames of two channels a logger buffers apart
+CAN_LOG_STEP_BACK_NS = 50_000_000
 
 ProgressFn = Callable[[int, int], None]
 
@@ -565,7 +568,8 @@ class _Ingest:
 
         self.source_file = str(path)
         n = 0
-        first = last = 0
+        first = last = latest = 0
+        back = (0, 0, 0, 0)  # the largest step back: (ns, frame, its time, frames stamped before one read earlier)
         try:
             for rec in read_can_log(path, self.warnings.append):
                 if offset_ns:
@@ -573,11 +577,22 @@ class _Ingest:
                 self.can.feed(rec, None, rec.t_ns, f"file:{path.name}")
                 first = rec.t_ns if n == 0 else first
                 last = rec.t_ns
+                if latest - rec.t_ns > CAN_LOG_STEP_BACK_NS:
+                    back = (max(back[0], latest - rec.t_ns), *(back[1:3] if back[3] else (n + 1, rec.t_ns)),
+                            back[3] + 1)
+                latest = max(latest, rec.t_ns)
                 n += 1
         except CanLogError as exc:
             if n == 0:
                 raise LogReadError(str(exc)) from exc
             self.warnings.append(str(exc))  # it says how many frames came before the damage
+        if back[3]:
+            self.warnings.append(
+                f"{path}: its frame times step back by up to {back[0] / 1e9:.3f} s from frame {back[1]} on "
+                f"({utc_text(back[2], 'milliseconds')}; {back[3]} frames stamped over "
+                f"{CAN_LOG_STEP_BACK_NS / 1e6:g} ms before one the file holds before them): the logger's clock set "
+                "back while it recorded? The frames either side are read as stamped, those on one side that much off "
+                "(split the log there and give --time-offset)")
         if n:
             self.spans[str(path)] = (first, last)
         return n
