@@ -766,6 +766,34 @@ def _channels(kind: str, count: int, channels: tuple[int, ...] | None, rows: int
         raise ConfigError(f"radar.{kind}_channels: {list(channels)} must be distinct rows of {name} (0-{rows - 1})")
 
 
+#: the least angle (deg) between the radar's boresight and the car's x axis: a radar looking along its own track
+#: makes no SAR image (the ci drive's reflectors lost 13.6 dB with yaw_deg -0.785, the default's -45 in radians)
+MIN_BORESIGHT_OFF_AXIS_DEG = 10.0
+
+
+def _looks_sideways(m: MountingConfig, track_m: float) -> None:
+    """The radar looks to a side of the car, and not across it: a yaw in radians turns its boresight along the track;
+    a lever arm's y with its sign turned (or x and y swapped), or a yaw's sign turned, puts a radar on one side looking
+    through the car at the other, whose image focus placed as far to the wrong side without a word (the ci drive's
+    reflectors 1.50 m off with y's sign turned, 4.3 m with x and y swapped)."""
+    off_axis = math.degrees(math.asin(min(1.0, abs(math.sin(math.radians(m.yaw_deg))))))
+    if off_axis < MIN_BORESIGHT_OFF_AXIS_DEG:
+        radians = (f"; in radians? {m.yaw_deg:g} rad is {math.degrees(m.yaw_deg):.1f} deg"
+                   if abs(m.yaw_deg) <= 2 * math.pi else "")
+        raise ConfigError(f"radar.mounting.yaw_deg: {m.yaw_deg:g} turns the boresight {off_axis:.1f} deg off the car's "
+                          f"x axis, along its track, which makes no SAR image: a side-looking radar's is at least "
+                          f"{MIN_BORESIGHT_OFF_AXIS_DEG:g} deg off it (-90: broadside to the right, +90: to the left)"
+                          f"{radians}")
+    y = m.lever_arm_m[1]
+    looks = 1.0 if math.sin(math.radians(m.yaw_deg)) > 0 else -1.0  # nav.trajectory.radar_side's rule
+    if abs(y) > track_m / 4 and y * looks < 0:
+        sits, side = ("left", "right") if y > 0 else ("right", "left")
+        raise ConfigError(f"radar.mounting: the radar sits {abs(y):.2f} m {sits} of the car's centre line "
+                          f"(lever_arm_m[1] = {y:g}; body y is to the left) yet looks to the {side} (yaw_deg "
+                          f"{m.yaw_deg:g}; > 0 left), through the car: the sign of lever_arm_m's y or of yaw_deg "
+                          f"turned, or lever_arm_m's x and y swapped?")
+
+
 def _join(path: str, key: str) -> str:
     return f"{path}.{key}" if path else key
 
@@ -899,6 +927,7 @@ def _validate(cfg: Config) -> None:
     _finite_vector("radar.mounting.lever_arm_m", m.lever_arm_m)
     for name in ("yaw_deg", "pitch_deg", "roll_deg"):
         _finite_vector(f"radar.mounting.{name}", (getattr(m, name),))
+    _looks_sideways(m, min(v.track_front_m, v.track_rear_m))
 
     if cfg.can.checksum not in ("fca_giorgio", "none"):
         raise ConfigError(f"can.checksum: expected 'fca_giorgio' or 'none', got {cfg.can.checksum!r}")

@@ -1216,6 +1216,10 @@ MUTATIONS: list[Mutation] = [
     _m("can-log-clock-step-back-unsaid", "ingest", "ingest/pipeline.py",
        "                if latest - rec.t_ns > CAN_LOG_STEP_BACK_NS:", "                if False:",
        "tests/test_ingest_canlog.py::test_a_can_log_whose_clock_steps_back_while_recording_is_warned_of"),
+    _m("radar-looking-through-the-car-taken", "config", "config.py",
+       "    if abs(y) > track_m / 4 and y * looks < 0:", "    if False:", CONFIG_SILENT),
+    _m("radar-yaw-along-the-track-taken", "config", "config.py",
+       "    if off_axis < MIN_BORESIGHT_OFF_AXIS_DEG:", "    if False:", CONFIG_SILENT),
 ]
 
 

@@ -323,6 +323,23 @@ def _layer(tmp_path: Path, text: str) -> Path:
      r"radar.mounting.lever_arm_m\[0\]: 1000.0 is more than 50 in magnitude"),
     ('[sensors.gnss_cog]\nlever_arm_m = [0.0, 0.0, 60.0]\n',
      r"sensors.gnss_cog.lever_arm_m\[2\]: 60.0 is more than 50"),
+    # a radar on one side looking through the car at the other: the ci drive's reflectors imaged 1.50 m off with
+    # y's sign turned, 4.3 m with x and y swapped (status ok, no word), mirrored with yaw's sign turned (warned after
+    # the run: 19.5 dB under the channels' coherent gain)
+    ('[radar.mounting]\nlever_arm_m = [2.20, 0.75, 0.0]\n',
+     r"radar.mounting: the radar sits 0.75 m left of the car's centre line \(lever_arm_m\[1\] = 0.75; body y is to "
+     r"the left\) yet looks to the right \(yaw_deg -45; > 0 left\), through the car: the sign of lever_arm_m's y or of "
+     r"yaw_deg turned, or lever_arm_m's x and y swapped\?$"),
+    ('[radar.mounting]\nlever_arm_m = [-0.75, 2.20, 0.0]\n', r"radar.mounting: the radar sits 2.20 m left of"),
+    ('[radar.mounting]\nyaw_deg = 45.0\n', r"radar.mounting: the radar sits 0.75 m right of the car's centre line "
+                                            r"\(lever_arm_m\[1\] = -0.75; .* yet looks to the left \(yaw_deg 45;"),
+    # the default's -45 deg in radians: a boresight along the track, the ci drive's reflectors 13.6 dB down
+    ('[radar.mounting]\nyaw_deg = -0.785\n',
+     r"radar.mounting.yaw_deg: -0.785 turns the boresight 0.8 deg off the car's x axis, along its track, which makes "
+     r"no SAR image: a side-looking radar's is at least 10 deg off it \(-90: broadside to the right, \+90: to the "
+     r"left\); in radians\? -0.785 rad is -45.0 deg$"),
+    ('[radar.mounting]\nyaw_deg = 180.0\nlever_arm_m = [-2.0, 0.0, 0.0]\n',
+     r"radar.mounting.yaw_deg: 180 turns the boresight 0.0 deg off the car's x axis, .* \+90: to the left\)$"),
     # a misspelt sensor's table: "missing required key (a config ... says base = "default" ...)" where it did
     ('[sensors.gnss_cgo]\ntopic = "/fix"\n',
      r"sensors.gnss_cgo: not one of \[sensors\] \(did you mean gnss_cog\?\); a new one needs kind"),
