@@ -766,6 +766,11 @@ def _channels(kind: str, count: int, channels: tuple[int, ...] | None, rows: int
         raise ConfigError(f"radar.{kind}_channels: {list(channels)} must be distinct rows of {name} (0-{rows - 1})")
 
 
+#: the slowest rate (Hz) an IMU's or CAN gyro's table may state: its noise per sample is its noise density x
+#: sqrt(rate_hz), so test1's ESC gyro (100 Hz) stated as its period (0.01) was trusted 100 times too much, the track
+#: moved 5.1 cm and the reflectors 3.0-5.1 cm, status ok
+MIN_GYRO_RATE_HZ = 1.0
+
 #: the least angle (deg) between the radar's boresight and the car's x axis: a radar looking along its own track
 #: makes no SAR image (the ci drive's reflectors lost 13.6 dB with yaw_deg -0.785, the default's -45 in radians)
 MIN_BORESIGHT_OFF_AXIS_DEG = 10.0
@@ -940,6 +945,10 @@ def _validate(cfg: Config) -> None:
     for name, s in cfg.sensors.items():
         base = f"sensors.{name}"
         _positive(f"{base}.rate_hz", s.rate_hz)
+        if s.kind in ("imu", "can_imu") and s.rate_hz < MIN_GYRO_RATE_HZ:
+            raise ConfigError(f"{base}.rate_hz: {s.rate_hz:g} Hz is no gyro's (its yaw rate's noise per sample is "
+                              f"noise_density_dps_rthz x sqrt(rate_hz)): a period in s ({s.rate_hz:g} s is "
+                              f"{1 / s.rate_hz:.4g} Hz), or kHz?")
         _non_negative(f"{base}.latency_s", s.latency_s)
         _finite_vector(f"{base}.lever_arm_m", s.lever_arm_m)
         for sub in REQUIRED_ERROR_TABLES[s.kind]:

@@ -1220,6 +1220,8 @@ MUTATIONS: list[Mutation] = [
        "    if abs(y) > track_m / 4 and y * looks < 0:", "    if False:", CONFIG_SILENT),
     _m("radar-yaw-along-the-track-taken", "config", "config.py",
        "    if off_axis < MIN_BORESIGHT_OFF_AXIS_DEG:", "    if False:", CONFIG_SILENT),
+    _m("gyro-rate-as-a-period-taken", "config", "config.py",
+       'if s.kind in ("imu", "can_imu") and s.rate_hz < MIN_GYRO_RATE_HZ:', "if False:", CONFIG_SILENT),
 ]
 
 

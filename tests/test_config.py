@@ -333,6 +333,11 @@ def _layer(tmp_path: Path, text: str) -> Path:
     ('[radar.mounting]\nlever_arm_m = [-0.75, 2.20, 0.0]\n', r"radar.mounting: the radar sits 2.20 m left of"),
     ('[radar.mounting]\nyaw_deg = 45.0\n', r"radar.mounting: the radar sits 0.75 m right of the car's centre line "
                                             r"\(lever_arm_m\[1\] = -0.75; .* yet looks to the left \(yaw_deg 45;"),
+    # a gyro's rate given as its period: test1's ESC gyro trusted 100 times too much, the track 5.1 cm off, no word
+    ('[sensors.esc]\nrate_hz = 0.01\n',
+     r"sensors.esc.rate_hz: 0.01 Hz is no gyro's \(its yaw rate's noise per sample is noise_density_dps_rthz x "
+     r"sqrt\(rate_hz\)\): a period in s \(0.01 s is 100 Hz\), or kHz\?$"),
+    ('[sensors.imu_cog_a]\nrate_hz = 0.5\n', r"sensors.imu_cog_a.rate_hz: 0.5 Hz is no gyro's .* \(0.5 s is 2 Hz\)"),
     # the default's -45 deg in radians: a boresight along the track, the ci drive's reflectors 13.6 dB down
     ('[radar.mounting]\nyaw_deg = -0.785\n',
      r"radar.mounting.yaw_deg: -0.785 turns the boresight 0.8 deg off the car's x axis, along its track, which makes "
