@@ -1222,6 +1222,8 @@ MUTATIONS: list[Mutation] = [
        "    if off_axis < MIN_BORESIGHT_OFF_AXIS_DEG:", "    if False:", CONFIG_SILENT),
     _m("gyro-rate-as-a-period-taken", "config", "config.py",
        'if s.kind in ("imu", "can_imu") and s.rate_hz < MIN_GYRO_RATE_HZ:', "if False:", CONFIG_SILENT),
+    _m("steering-ratio-inverted-taken", "config", "config.py",
+       "    if v.steering_ratio < 1.0:", "    if False:", CONFIG_SILENT),
 ]
 
 

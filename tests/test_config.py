@@ -333,6 +333,10 @@ def _layer(tmp_path: Path, text: str) -> Path:
     ('[radar.mounting]\nlever_arm_m = [-0.75, 2.20, 0.0]\n', r"radar.mounting: the radar sits 2.20 m left of"),
     ('[radar.mounting]\nyaw_deg = 45.0\n', r"radar.mounting: the radar sits 0.75 m right of the car's centre line "
                                             r"\(lever_arm_m\[1\] = -0.75; .* yet looks to the left \(yaw_deg 45;"),
+    # the steering ratio inverted: the steering read as 139 times the road-wheel angle (SAR-MIN's steering model)
+    ('[vehicle]\nsteering_ratio = 0.0847\n',
+     r"vehicle.steering_ratio: 0.0847 turns the road wheels 11.8 times as far as the steering wheel, which no car's do "
+     r"\(it is the steering wheel's angle over the road wheels', 10-25 on cars\): inverted, 11.8\?$"),
     # a gyro's rate given as its period: test1's ESC gyro trusted 100 times too much, the track 5.1 cm off, no word
     ('[sensors.esc]\nrate_hz = 0.01\n',
      r"sensors.esc.rate_hz: 0.01 Hz is no gyro's \(its yaw rate's noise per sample is noise_density_dps_rthz x "
