@@ -8,6 +8,7 @@ unknown keys and impossible values raise :class:`ConfigError` naming the key pat
 from __future__ import annotations
 
 import difflib
+import itertools
 import math
 import tomllib
 import types
@@ -766,6 +767,32 @@ def _channels(kind: str, count: int, channels: tuple[int, ...] | None, rows: int
         raise ConfigError(f"radar.{kind}_channels: {list(channels)} must be distinct rows of {name} (0-{rows - 1})")
 
 
+#: the units a chirp's keys are likely given in where slope x ADC window misses bandwidth_hz: key -> (the least value
+#: any FMCW radar's has in the key's SI unit, that unit, (factor to it, other unit) each)
+_CHIRP_UNITS: dict[str, tuple[float, str, tuple[tuple[float, str], ...]]] = {
+    "slope_hz_per_s": (1e9, "Hz/s", ((1e12, "MHz/us"),)),
+    "sample_rate_hz": (1e5, "Hz", ((1e3, "ksps"), (1e6, "Msps"))),
+    "bandwidth_hz": (1e6, "Hz", ((1e6, "MHz"), (1e9, "GHz"))),
+}
+
+
+def _chirp_units_slipped(r: RadarConfig) -> str:
+    """The chirp's keys whose values lie below any radar's in their SI unit and, read in another (MHz/us, ksps, Msps,
+    MHz, GHz), make slope x ADC window (``slope_hz_per_s * num_samples / sample_rate_hz``) equal ``bandwidth_hz``,
+    each named with its value in the SI unit ("" if none): a datasheet's 75 MHz/us slope was refused as a bandwidth
+    that differs, naming bandwidth_hz alone."""
+    options = [[(k, 1.0, "")] + ([(k, f, u) for f, u in units] if getattr(r, k) < floor else [])
+               for k, (floor, _, units) in _CHIRP_UNITS.items()]
+    for combo in itertools.product(*options):
+        scale = {k: f for k, f, _ in combo}
+        slope, rate = r.slope_hz_per_s * scale["slope_hz_per_s"], r.sample_rate_hz * scale["sample_rate_hz"]
+        bandwidth = r.bandwidth_hz * scale["bandwidth_hz"]
+        if any(f != 1.0 for f in scale.values()) and abs(slope * r.num_samples / rate - bandwidth) <= 1e-6 * bandwidth:
+            return "".join(f"radar.{k}: {getattr(r, k):g} is likely in {u}, {getattr(r, k) * f:g} "
+                           f"{_CHIRP_UNITS[k][1]}; " for k, f, u in combo if f != 1.0)
+    return ""
+
+
 #: the slowest rate (Hz) an IMU's or CAN gyro's table may state: its noise per sample is its noise density x
 #: sqrt(rate_hz), so test1's ESC gyro (100 Hz) stated as its period (0.01) was trusted 100 times too much, the track
 #: moved 5.1 cm and the reflectors 3.0-5.1 cm, status ok
@@ -909,7 +936,8 @@ def _validate(cfg: Config) -> None:
     swept = r.slope_hz_per_s * r.num_samples / r.sample_rate_hz
     if abs(swept - r.bandwidth_hz) > 1e-6 * r.bandwidth_hz:
         raise ConfigError(
-            f"radar.bandwidth_hz: slope x ADC window = {swept:.6g} Hz differs from bandwidth_hz = "
+            f"{_chirp_units_slipped(r)}radar.bandwidth_hz: slope x ADC window = {swept:.6g} Hz differs from "
+            f"bandwidth_hz = "
             f"{r.bandwidth_hz:.6g} Hz (slope_hz_per_s * num_samples / sample_rate_hz must equal it)"
         )
     r_max = r.sample_rate_hz * SPEED_OF_LIGHT / (2.0 * r.slope_hz_per_s)

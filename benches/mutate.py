@@ -1224,6 +1224,8 @@ MUTATIONS: list[Mutation] = [
        'if s.kind in ("imu", "can_imu") and s.rate_hz < MIN_GYRO_RATE_HZ:', "if False:", CONFIG_SILENT),
     _m("steering-ratio-inverted-taken", "config", "config.py",
        "    if v.steering_ratio < 1.0:", "    if False:", CONFIG_SILENT),
+    _m("chirp-units-unnamed", "config", "config.py",
+       "if getattr(r, k) < floor else []", "if False else []", CONFIG_SILENT),
 ]
 
 

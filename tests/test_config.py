@@ -337,6 +337,15 @@ def _layer(tmp_path: Path, text: str) -> Path:
     ('[vehicle]\nsteering_ratio = 0.0847\n',
      r"vehicle.steering_ratio: 0.0847 turns the road wheels 11.8 times as far as the steering wheel, which no car's do "
      r"\(it is the steering wheel's angle over the road wheels', 10-25 on cars\): inverted, 11.8\?$"),
+    # a datasheet's chirp units: each was refused naming bandwidth_hz alone ("slope x ADC window = 0.003 Hz differs")
+    ('[radar]\nslope_hz_per_s = 75.0\n',
+     r"radar.slope_hz_per_s: 75 is likely in MHz/us, 7.5e\+13 Hz/s; radar.bandwidth_hz: slope x ADC window = 0.003 Hz "
+     r"differs from bandwidth_hz = 3e\+09 Hz"),
+    ('[radar]\nsample_rate_hz = 13.5\nslope_hz_per_s = 75.0\n',
+     r"radar.slope_hz_per_s: 75 is likely in MHz/us, 7.5e\+13 Hz/s; radar.sample_rate_hz: 13.5 is likely in Msps, "
+     r"1.35e\+07 Hz; radar.bandwidth_hz: slope x ADC window = 3000 Hz"),
+    ('[radar]\nsample_rate_hz = 13500.0\n', r"radar.sample_rate_hz: 13500 is likely in ksps, 1.35e\+07 Hz; radar.band"),
+    ('[radar]\nbandwidth_hz = 3.0\n', r"radar.bandwidth_hz: 3 is likely in GHz, 3e\+09 Hz; radar.bandwidth_hz: slope"),
     # a gyro's rate given as its period: test1's ESC gyro trusted 100 times too much, the track 5.1 cm off, no word
     ('[sensors.esc]\nrate_hz = 0.01\n',
      r"sensors.esc.rate_hz: 0.01 Hz is no gyro's \(its yaw rate's noise per sample is noise_density_dps_rthz x "
