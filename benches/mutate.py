@@ -1226,6 +1226,12 @@ MUTATIONS: list[Mutation] = [
        "    if v.steering_ratio < 1.0:", "    if False:", CONFIG_SILENT),
     _m("chirp-units-unnamed", "config", "config.py",
        "if getattr(r, k) < floor else []", "if False else []", CONFIG_SILENT),
+    _m("tiles-skip-the-channel-check", "focus", "sar/tiles.py",
+       "        warnings += [incoherent] if incoherent else []\n", "",
+       "tests/test_sar_focus.py::test_a_config_that_misplaces_the_antennas_is_warned_of_in_tiles_too"),
+    _m("tiles-check-the-first-tiles-brightest-pixel", "focus", "sar/tiles.py",
+       "key=lambda b: (b[0], -b[1], -b[2]))", "key=lambda b: -b[2])",
+       "tests/test_sar_focus.py::test_a_config_that_misplaces_the_antennas_is_warned_of_in_tiles_too"),
 ]
 
 

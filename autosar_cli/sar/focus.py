@@ -573,19 +573,32 @@ def grid_enu_box(grid: FocusGrid) -> tuple[float, float, float, float]:
 MAX_CHANNEL_LOSS_DB = 6.0
 
 
+def brightest_pixel(image: NDArray[np.complex64]) -> tuple[int, int]:
+    """Row and column of ``image``'s largest magnitude (of equals, the first in row-major order)."""
+    mag = np.abs(image)
+    r, c = np.unravel_index(int(np.argmax(mag)), mag.shape)
+    return int(r), int(c)
+
+
 def channel_sum_loss_db(drive_path: str | Path, trajectory: str | Path | Trajectory, config: Config,
                         options: FocusOptions, image: FocusedImage, size_m: float = 0.4) -> float | None:
     """How far (dB) the image's brightest point sums its channels under their coherent gain (20 log10 of their
     count): that point focused again on a fine patch (``size_m`` square) with every channel and with Tx0-Rx0 alone.
     None where the image has under 4 channels or the one channel's patch is empty."""
-    n = len(image.params["channel_pairs"])
+    return point_channel_sum_loss_db(drive_path, trajectory, config, options, image.grid, brightest_pixel(image.image),
+                                     len(image.params["channel_pairs"]), size_m)
+
+
+def point_channel_sum_loss_db(drive_path: str | Path, trajectory: str | Path | Trajectory, config: Config,
+                              options: FocusOptions, grid: FocusGrid, pixel: tuple[int, int], n: int,
+                              size_m: float = 0.4) -> float | None:
+    """:func:`channel_sum_loss_db` at ``pixel`` (row, column) of ``grid``, an image of ``n`` channels (focus in
+    tiles: the brightest of the tiles' brightest pixels)."""
     if n < 4:
         return None
-    mag = np.abs(image.image)
-    r, c = np.unravel_index(int(np.argmax(mag)), mag.shape)
-    x, y, _ = image.grid.pixel_enu(np.array([r]), np.array([c])).reshape(3)
+    x, y, _ = grid.pixel_enu(np.array([pixel[0]]), np.array([pixel[1]])).reshape(3)
     h = size_m / 2
-    patch = box_grid(x - h, y - h, x + h, y + h, pixel_m=options.pixel_m / 4, height_m=image.grid.height_m)
+    patch = box_grid(x - h, y - h, x + h, y + h, pixel_m=options.pixel_m / 4, height_m=grid.height_m)
     peaks = [float(np.abs(focus_images(drive_path, trajectory, config, replace(options, channels=k),
                                        grids=[patch]).images[0].image).max()) for k in (options.channels, 1)]
     if not peaks[1] > 0:
@@ -594,14 +607,13 @@ def channel_sum_loss_db(drive_path: str | Path, trajectory: str | Path | Traject
 
 
 def channels_incoherent_warning(drive_path: str | Path, trajectory: str | Path | Trajectory, config: Config,
-                                options: FocusOptions, image: FocusedImage) -> str | None:
-    """A warning where the image's brightest point sums its channels far under their coherent gain
-    (:func:`channel_sum_loss_db` over ``MAX_CHANNEL_LOSS_DB``): the array's phase centres
-    (``radar.*_positions_wavelengths``, ``tx_channels``, ``[radar.mounting]``'s yaw) are not the radar's."""
-    loss = channel_sum_loss_db(drive_path, trajectory, config, options, image)
+                                options: FocusOptions, grid: FocusGrid, pixel: tuple[int, int], n: int) -> str | None:
+    """A warning where the image's brightest point (``pixel`` of ``grid``, ``n`` channels) sums its channels far
+    under their coherent gain (:func:`point_channel_sum_loss_db` over ``MAX_CHANNEL_LOSS_DB``): the array's phase
+    centres (``radar.*_positions_wavelengths``, ``tx_channels``, ``[radar.mounting]``'s yaw) are not the radar's."""
+    loss = point_channel_sum_loss_db(drive_path, trajectory, config, options, grid, pixel, n)
     if loss is None or loss <= MAX_CHANNEL_LOSS_DB:
         return None
-    n = len(image.params["channel_pairs"])
     return (f"focus: the image's brightest point sums its {n} channels {loss:.1f} dB under their coherent gain: the "
             f"radar's antennas are not where the config places them (radar.tx_positions_wavelengths, "
             f"rx_positions_wavelengths, tx_channels, the sign of radar.mounting.yaw_deg); the image is blurred or "
@@ -775,7 +787,8 @@ def focus(drive_path: str | Path, trajectory_path: str | Path, output: str | Pat
     t0 = time.perf_counter()
     img = res.images[0]
     warnings = [*res.warnings, *unfocused_radars(drive_path, options)]
-    incoherent = channels_incoherent_warning(drive_path, trajectory_path, config, options, img)
+    incoherent = channels_incoherent_warning(drive_path, trajectory_path, config, options, img.grid,
+                                             brightest_pixel(img.image), len(img.params["channel_pairs"]))
     warnings += [incoherent] if incoherent else []
     img.provenance["warnings"] = warnings  # what the image lacks, with it (evaluate reads them)
     outputs = write_image(Path(output), img, overwrite=overwrite)

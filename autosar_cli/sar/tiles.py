@@ -38,6 +38,8 @@ from autosar_cli.sar.focus import (
     FocusOptions,
     FocusReport,
     _usable_frames,
+    brightest_pixel,
+    channels_incoherent_warning,
     check_request,
     check_same_recording,
     check_some_backprojection,
@@ -138,6 +140,8 @@ class TileResult:
     damaged_frame_index: list[int] = field(default_factory=list)  #: frames of a damaged drive the tile left out
     #: what focus_images warned of beside those frames (the drive's damaged attributes or tables): the image's too
     warnings: list[str] = field(default_factory=list)
+    #: the tile's brightest pixel: its magnitude, row and column in the parent grid (the channels' check's point)
+    brightest: tuple[float, int, int] = (0.0, 0, 0)
 
 
 def focus_tile(drive_path: str | Path, trajectory: str | Path | Trajectory, config: Config, options: FocusOptions,
@@ -148,9 +152,11 @@ def focus_tile(drive_path: str | Path, trajectory: str | Path | Trajectory, conf
     res = focus_images(drive_path, trajectory, config, options, [tile], progress=progress, command=command)
     img = res.images[0]
     others = res.warnings[1:] if res.damaged_frame_index else res.warnings  # the damaged frames' warning first
-    return TileResult(getattr(tile, "col0", 0), img.image, res.frames_used, res.frames_skipped, res.backprojections,
+    col0 = getattr(tile, "col0", 0)
+    r, c = brightest_pixel(img.image)
+    return TileResult(col0, img.image, res.frames_used, res.frames_skipped, res.backprojections,
                       res.timings_s, res.drive_s, img.params, img.provenance, time.perf_counter() - t0,
-                      res.damaged_frame_index, list(others))
+                      res.damaged_frame_index, list(others), (float(np.abs(img.image[r, c])), r, col0 + c))
 
 
 def focus_tiled(drive_path: str | Path, trajectory_path: str | Path, output: str | Path, config: Config,
@@ -215,6 +221,14 @@ def focus_tiled(drive_path: str | Path, trajectory_path: str | Path, output: str
         warnings = [damaged_frames_warning(drive_path, str(first.params["radar"]), damaged)] if damaged else []
         warnings += list(dict.fromkeys(w for r in sorted(results, key=lambda r: r.col0) for w in r.warnings))
         warnings += unfocused_radars(drive_path, options)
+        # the whole image's brightest pixel (of equals, the first row-major, as np.argmax over one piece), then the
+        # check that its channels add coherently, as focus makes it on one piece: two patch focuses
+        t0 = time.perf_counter()
+        _, row, col = max((r.brightest for r in results), key=lambda b: (b[0], -b[1], -b[2]))
+        incoherent = channels_incoherent_warning(drive_path, trajectory_path, config, options, grid, (row, col),
+                                                 len(first.params["channel_pairs"]))
+        warnings += [incoherent] if incoherent else []
+        timings["channel_check"] += time.perf_counter() - t0
         writer.set_metadata({**first.params, "backprojections": n_bp, "frames_used": frames_used,
                              "frames_damaged": len(damaged)},
                             {**first.provenance, "tiles": len(parts), "warnings": warnings})
