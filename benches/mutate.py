@@ -1232,6 +1232,17 @@ MUTATIONS: list[Mutation] = [
     _m("tiles-check-the-first-tiles-brightest-pixel", "focus", "sar/tiles.py",
        "key=lambda b: (b[0], -b[1], -b[2]))", "key=lambda b: -b[2])",
        "tests/test_sar_focus.py::test_a_config_that_misplaces_the_antennas_is_warned_of_in_tiles_too"),
+    _m("compare-drops-each-methods-warnings", "evaluate", "evaluate/compare.py",
+       "        own[m] = [w for w in dict.fromkeys([*nav_warnings, *focus_warnings]) if w not in warnings]",
+       "        own[m] = []",
+       "tests/test_evaluate.py::test_a_comparison_carries_what_focus_warned_of_along_each_method"),
+    _m("compare-image-keeps-no-focus-warnings", "evaluate", "evaluate/compare.py",
+       '"command": command, "warnings": focus_warnings})', '"command": command, "warnings": []})',
+       "tests/test_evaluate.py::test_a_comparison_carries_what_focus_warned_of_along_each_method"),
+    _m("compare-checks-the-metrics-pixel", "evaluate", "evaluate/compare.py",
+       "coarse = coarse_pixel_warning(image.grid.pixel_m, options.resolution_m, range_null_m)",
+       "coarse = coarse_pixel_warning(metrics_image.grid.pixel_m, options.resolution_m, range_null_m)",
+       "tests/test_evaluate.py::test_a_comparisons_coarse_product_pixel_is_warned_of_as_focus_warns"),
 ]
 
 

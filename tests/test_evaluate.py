@@ -917,6 +917,71 @@ def test_a_comparison_that_fails_leaves_nothing_it_wrote(ci_mcap, tmp_path: Path
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "other.txt"]
 
 
+def test_a_comparison_carries_what_focus_warned_of_along_each_method(ci_mcap, tmp_path: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """A method whose track ends half-way through the radar's frames (a GNSS that stopped): `autosar focus` and
+    `autosar run` warn that 585 of the ci drive's 981 frames (seed 7) are left out, but `compare` dropped focus's
+    warnings: its gnss image covered 396 frames, compare.json, its run.json and metrics.json said ok, stderr nothing.
+    The warning now reaches stderr (one line, the last line "degraded"), compare.json (status, warnings, the method's
+    result), compare.md, the method's run.json, image provenance and evaluation; the other method's stay ok."""
+    import autosar_cli.evaluate.compare as compare_module
+
+    navigate_whole = compare_module.navigate
+
+    def gnss_stops(drive, method, config, **kwargs):  # type: ignore[no-untyped-def]
+        traj = navigate_whole(drive, method, config, **kwargs)
+        if method != "gnss":
+            return traj
+        keep = traj.t_ns <= traj.t_ns[0] + (traj.t_ns[-1] - traj.t_ns[0]) // 2
+        return replace(traj, t_ns=traj.t_ns[keep], rear_axle_enu=traj.rear_axle_enu[keep],
+                       heading=traj.heading[keep], speed=traj.speed[keep], yaw_rate=traj.yaw_rate[keep],
+                       state=None if traj.state is None else traj.state[keep],
+                       covariance=None if traj.covariance is None else traj.covariance[keep])
+
+    monkeypatch.setattr(compare_module, "navigate", gnss_stops)
+    out = tmp_path / "cmp"
+    r = runner.invoke(app, ["compare", str(ci_mcap.log_path), "-o", str(out), "--methods", "none,gnss"])
+    assert r.exit_code == 0, r.output
+    result = json.loads((out / "compare.json").read_text())
+    gnss_run = json.loads((out / "gnss" / "run.json").read_text())
+    left_out = 981 - gnss_run["stages"]["focus"]["frames_used"]
+    assert 560 <= left_out <= 600, left_out  # ci seed 7: 585
+    said = re.compile(rf"<gnss trajectory>: ends 0\.\d\d s before the last frame of radar scanbrick_w43 in "
+                      rf"{re.escape(str(out / 'drive.h5'))}: {left_out} of its 981 frames lie outside the trajectory "
+                      "and are left out of the image, which lacks their part")
+    assert len(result["warnings"]) == 1 and said.fullmatch(result["warnings"][0]), result["warnings"]
+    warning = result["warnings"][0]
+    assert result["status"] == "degraded"
+    assert result["results"]["gnss"]["status"] == "degraded" and result["results"]["gnss"]["warnings"] == [warning]
+    assert result["results"]["none"]["status"] == "ok" and result["results"]["none"]["warnings"] == []
+    assert gnss_run["status"] == "degraded" and gnss_run["warnings"] == [warning]
+    assert gnss_run["stages"]["focus"]["warnings"] == [warning]
+    assert gnss_run["stages"]["focus"]["frames_skipped"] == {"outside the trajectory's time span": left_out}
+    assert read_image(out / "gnss" / "image.h5").provenance["warnings"] == [warning]
+    metrics = json.loads((out / "gnss" / "metrics.json").read_text())
+    assert metrics["status"] == "degraded" and metrics["input_warnings"] == [warning]
+    none_run = json.loads((out / "none" / "run.json").read_text())
+    assert none_run["status"] == "ok" and none_run["warnings"] == []
+    assert json.loads((out / "none" / "metrics.json").read_text())["status"] == "ok"
+    assert f"- {warning}\n" in (out / "compare.md").read_text()
+    assert [line for line in r.stderr.splitlines() if line.startswith("warning:")] == [f"warning: {warning}"]
+    assert "degraded (1 warning above, in compare.json)" in " ".join(r.stdout.split())
+
+
+def test_a_comparisons_coarse_product_pixel_is_warned_of_as_focus_warns(ci_mcap, tmp_path: Path) -> None:
+    """10 cm pixels at 4 cm resolution: `autosar focus` warns that a point between pixel centres can vanish, but
+    `compare` focuses the metrics grid at half the product's pixel (5 cm, under the 5.6 cm limit) and took the
+    product every other pixel of it: no warning, status ok. Its images are now checked at the product's pixel."""
+    cfg = replace(CFG, processing=replace(CFG.processing, pixel_m=0.10))
+    result = compare([ci_mcap.log_path], tmp_path / "cmp", cfg, methods=["none"])
+    said = ("focus: pixel 0.1 m samples a point's response whose first null lies 0.04 m from its peak (cross-range "
+            "resolution 0.04 m, range c/B 0.0999 m): a point between pixel centres is sampled on its sidelobes and can "
+            "vanish from the image (a pixel's value is the image at its centre, not its area's); choose --pixel "
+            "0.056 or finer, or a coarser --resolution")
+    assert (result["status"], result["warnings"]) == ("degraded", [said])
+    assert read_image(tmp_path / "cmp" / "none" / "image.h5").grid.pixel_m == 0.10
+
+
 def test_lobe_top_is_the_paraboloids_maximum_over_the_top() -> None:
     """lobe_top on an exact paraboloid's samples (its top within 1 dB: a disc of ~170 samples) returns its
     maximum to 1e-9 samples, with a 2 % ripple of period 2.3 samples added (a non-band-limited image's) within 0.02

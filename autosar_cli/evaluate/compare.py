@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from autosar_cli import __version__
-from autosar_cli.config import Config
+from autosar_cli.config import SPEED_OF_LIGHT, Config
 from autosar_cli.evaluate.alignment import Se2
 from autosar_cli.evaluate.evaluation import (
     LINE_KINDS,
@@ -64,11 +64,18 @@ from autosar_cli.run import FORMAT as RUN_FORMAT
 from autosar_cli.run import FORMAT_VERSION as RUN_FORMAT_VERSION
 from autosar_cli.sar.autofocus import TrackAutofocus, estimate_track_scale, scale_track
 from autosar_cli.sar.autofocus_stage import autofocus_residual_motion
-from autosar_cli.sar.focus import FocusOptions, auto_grid, drive_radar_config, focus_images, unfocused_radars
+from autosar_cli.sar.focus import (
+    FocusOptions,
+    auto_grid,
+    coarse_pixel_warning,
+    drive_radar_config,
+    focus_images,
+    unfocused_radars,
+)
 from autosar_cli.sar.grid import FocusGrid
 from autosar_cli.sim.truth import truth_radar_mismatch
 from autosar_cli.store.drive import Drive, radar_times
-from autosar_cli.store.image import write_image
+from autosar_cli.store.image import FocusedImage, write_image
 from autosar_cli.store.manifest import json_safe, product_status, write_json
 from autosar_cli.store.outputs import check_free_space, check_output, check_products, input_bytes, output_directory
 from autosar_cli.store.trajectory import write_trajectory
@@ -179,7 +186,8 @@ def _compare_drive(out: Path, config: Config, methods: list[str], truth_path: st
                    options: FocusOptions, command: str, tick: Progress, timings: dict[str, float], notes: list[str],
                    given: list[str | Path], warnings: list[str]) -> dict[str, Any]:
     """:func:`compare` once its drive is ingested (``warnings``: what the ingest warned of)."""
-    warnings += unfocused_radars(out / DRIVE, options)  # another radar of the drive: in no image
+    unfocused = unfocused_radars(out / DRIVE, options)  # another radar of the drive: in no image
+    warnings += unfocused
     config = drive_radar_config(config, out / DRIVE, options.radar)  # a radar ingested with --radar-override
 
     with Drive(out / DRIVE) as d:
@@ -287,6 +295,7 @@ def _compare_drive(out: Path, config: Config, methods: list[str], truth_path: st
         timings["reference_patches"] = time.perf_counter() - t0
 
     evaluations: dict[str, Evaluation] = {}
+    own: dict[str, list[str]] = {}  # what each method's navigation and focus warned of beyond the drive's warnings
     for m in order:
         traj = trajectories[m]
         mdir = out / m
@@ -308,13 +317,19 @@ def _compare_drive(out: Path, config: Config, methods: list[str], truth_path: st
         image = product_pixels(metrics_image)
         image.params["grid"] = "auto, registered" if truth is not None else "auto"
         image.params["grid_reference"] = base_traj.method
+        # what the image lacks (frames of a damaged drive or outside the track, a gap it bridges, a coarse pixel),
+        # with it as focus keeps it: the method's run.json, its evaluation and compare.json say degraded
+        focus_warnings = list(dict.fromkeys([*_product_pixel_warnings(res.warnings, metrics_image, image, options),
+                                             *unfocused]))
         image.provenance.update({"drive": str(out / DRIVE), "trajectory": str(mdir / "trajectory.h5"),
-                                 "command": command})
+                                 "command": command, "warnings": focus_warnings})
+        nav_warnings = [str(w) for w in traj.info.get("warnings", [])]
+        own[m] = [w for w in dict.fromkeys([*nav_warnings, *focus_warnings]) if w not in warnings]
         focus_s = time.perf_counter() - t0
         write_trajectory(mdir / "trajectory.h5", traj)
         outputs = write_image(mdir / "image", image, overwrite=True)
         _write_method_manifest(mdir, given, config, m, traj, truth_path, options, res, focus_s, outputs, command,
-                               warnings)
+                               [*warnings, *own[m]], nav_warnings, focus_warnings)
         timings[f"focus_{m}"] = focus_s
         t0 = time.perf_counter()
         tick(f"evaluate {m}", 0, 1)
@@ -344,6 +359,11 @@ def _compare_drive(out: Path, config: Config, methods: list[str], truth_path: st
     tick("figures", 1, 1)
     timings["figures"] = time.perf_counter() - t0
 
+    # a warning every method gave (a coarse pixel, the drive's damaged frames) is the comparison's, said once; the
+    # others name their method
+    common = [w for w in dict.fromkeys(w for m in run_methods for w in own[m]) if all(w in own[m] for m in run_methods)]
+    shared = [*warnings, *common]
+    warnings = [*shared, *(method_warning(m, w) for m in run_methods for w in own[m] if w not in common)]
     result: dict[str, Any] = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "autosar_version": __version__, "command": command,
         "inputs": [os.path.abspath(p) for p in given], "config": config.source,
@@ -352,7 +372,9 @@ def _compare_drive(out: Path, config: Config, methods: list[str], truth_path: st
         "status": product_status(warnings), "warnings": warnings,
         "grid": {"reference_trajectory": base_traj.method, "shape": list(base_grid.shape),
                  "pixel_m": base_grid.pixel_m, "range_direction": list(range_dir)},
-        "results": {m: _method_result(evaluations[m]) for m in run_methods}, "autofocus": autofocus,
+        "results": {m: {**_method_result(evaluations[m]), "status": product_status([*shared, *own[m]]),
+                        "warnings": [w for w in own[m] if w not in common]} for m in run_methods},
+        "autofocus": autofocus,
         "timings_s": timings, "outputs": {**figures, "markdown": "compare.md",
                                           "methods": {m: m for m in run_methods}},
     }
@@ -360,6 +382,23 @@ def _compare_drive(out: Path, config: Config, methods: list[str], truth_path: st
     write_text(out / "compare.md", compare_markdown(result, evaluations, figures))
     write_json(out / "compare.json", result)
     return json_safe(result)
+
+
+def _product_pixel_warnings(warnings: list[str], metrics_image: FocusedImage, image: FocusedImage,
+                            options: FocusOptions) -> list[str]:
+    """``warnings`` of the focus of ``metrics_image`` (half the product's pixel), its pixel warning (if any) for the
+    product's pixel instead, as focusing the product alone would give (:func:`coarse_pixel_warning`)."""
+    p = metrics_image.params
+    range_null_m = SPEED_OF_LIGHT * p["sample_rate_hz"] / (p["slope_hz_per_s"] * p["num_samples"])
+    fine = coarse_pixel_warning(metrics_image.grid.pixel_m, options.resolution_m, range_null_m)
+    coarse = coarse_pixel_warning(image.grid.pixel_m, options.resolution_m, range_null_m)
+    return [w for w in warnings if w != fine] + ([coarse] if coarse else [])
+
+
+def method_warning(method: str, warning: str) -> str:
+    """``warning`` of one method's navigation or focus as the comparison lists it: naming the method unless it
+    does (focus names a trajectory it was given as ``<METHOD trajectory>``)."""
+    return warning if f"<{method} trajectory>" in warning else f"{method}: {warning}"
 
 
 def _method_result(ev: Evaluation) -> dict[str, Any]:
@@ -372,17 +411,20 @@ def _method_result(ev: Evaluation) -> dict[str, Any]:
 
 def _write_method_manifest(mdir: Path, logs: Sequence[str | Path], config: Config, method: str, traj: Trajectory,
                            truth_path: str | Path | None, options: FocusOptions, res: Any, focus_s: float,
-                           outputs: dict[str, Path], command: str, warnings: list[str]) -> None:
+                           outputs: dict[str, Path], command: str, warnings: list[str], nav_warnings: list[str],
+                           focus_warnings: list[str]) -> None:
     """A run.json (format autosar-run) for a method directory, so ``autosar evaluate OUT/<method>`` works;
-    ``warnings``: the ingest's (as in `autosar run`'s)."""
+    ``warnings``: the ingest's, the navigation's and the focus's (as in `autosar run`'s), ``nav_warnings`` and
+    ``focus_warnings`` those stages' own."""
     manifest = {
         "format": RUN_FORMAT, "format_version": RUN_FORMAT_VERSION, "autosar_version": __version__,
         "python": platform.python_version(), "command": command, "config": config.source,
         "inputs": [{"path": str(p)} for p in logs], "method": method, "focus_options": asdict(options),
         "stages": {"navigate": {"method": traj.method, "samples": int(len(traj.t_ns)),
-                                "elapsed_s": traj.info.get("elapsed_s")},
+                                "elapsed_s": traj.info.get("elapsed_s"), "warnings": nav_warnings},
                    "focus": {"wall_s": focus_s, "timings_s": res.timings_s, "frames_used": res.frames_used,
-                             "backprojections": res.backprojections}},
+                             "frames_skipped": res.frames_skipped, "backprojections": res.backprojections,
+                             "warnings": focus_warnings}},
         "outputs": {"drive": os.path.join("..", DRIVE), "trajectory": "trajectory.h5",
                     "image": {k: os.path.relpath(v, mdir) for k, v in outputs.items()}},
         "drive_s": res.drive_s, "comparison": "..", "status": product_status(warnings), "warnings": warnings,
@@ -402,7 +444,12 @@ def compare_markdown(result: dict[str, Any], evaluations: dict[str, Evaluation],
              f"{result['grid']['shape'][1]} pixels of {result['grid']['pixel_m'] * 100:g} cm)"
              + (", registered into each method's frame by its SE(2) alignment" if result["truth"] else "")
              + ".\n\n"]
-    parts.append(degraded_markdown(result.get("warnings", []), "every image below is"))
+    own = {m: result["results"][m].get("warnings", []) for m in methods}
+    named = {method_warning(m, w) for m in methods for w in own[m]}
+    parts.append(degraded_markdown([w for w in result.get("warnings", []) if w not in named], "every image below is"))
+    if named:
+        parts.append("**Degraded images:** what navigating and focusing along these methods' trajectories warned "
+                     "of.\n\n" + "".join(f"- {method_warning(m, w)}\n" for m in methods for w in own[m]) + "\n")
     rows = []
     for m in methods:
         s = evaluations[m].summary()
