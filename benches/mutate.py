@@ -1243,6 +1243,9 @@ MUTATIONS: list[Mutation] = [
        "coarse = coarse_pixel_warning(image.grid.pixel_m, options.resolution_m, range_null_m)",
        "coarse = coarse_pixel_warning(metrics_image.grid.pixel_m, options.resolution_m, range_null_m)",
        "tests/test_evaluate.py::test_a_comparisons_coarse_product_pixel_is_warned_of_as_focus_warns"),
+    _m("compare-skips-the-channel-check", "evaluate", "evaluate/compare.py",
+       "*unfocused, *([incoherent] if incoherent else [])]))", "*unfocused]))",
+       "tests/test_evaluate.py::test_a_comparison_checks_each_methods_channels_as_focus_does"),
 ]
 
 

@@ -67,6 +67,8 @@ from autosar_cli.sar.autofocus_stage import autofocus_residual_motion
 from autosar_cli.sar.focus import (
     FocusOptions,
     auto_grid,
+    brightest_pixel,
+    channels_incoherent_warning,
     coarse_pixel_warning,
     drive_radar_config,
     focus_images,
@@ -319,8 +321,11 @@ def _compare_drive(out: Path, config: Config, methods: list[str], truth_path: st
         image.params["grid_reference"] = base_traj.method
         # what the image lacks (frames of a damaged drive or outside the track, a gap it bridges, a coarse pixel),
         # with it as focus keeps it: the method's run.json, its evaluation and compare.json say degraded
+        # and, as focus checks it on its image, whether the product's brightest point adds its channels coherently
+        incoherent = channels_incoherent_warning(out / DRIVE, traj, config, options, image.grid,
+                                                 brightest_pixel(image.image), len(image.params["channel_pairs"]))
         focus_warnings = list(dict.fromkeys([*_product_pixel_warnings(res.warnings, metrics_image, image, options),
-                                             *unfocused]))
+                                             *unfocused, *([incoherent] if incoherent else [])]))
         image.provenance.update({"drive": str(out / DRIVE), "trajectory": str(mdir / "trajectory.h5"),
                                  "command": command, "warnings": focus_warnings})
         nav_warnings = [str(w) for w in traj.info.get("warnings", [])]
