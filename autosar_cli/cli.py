@@ -353,8 +353,9 @@ def _an_input_file(path: Path, wanted: str, in_run: str) -> None:
 
 def _a_directory_not_named_as_a_file(output: Path, what: str) -> None:
     """Refuse a directory output named as a file is (`run -o a.txt` made a directory a.txt holding run.json), unless
-    it is one already (a run written there before, for --overwrite or --resume)."""
-    if output.suffix.lower() in _FILE_SUFFIXES and not output.is_dir():
+    it is one already (a run written there before, for --overwrite or --resume) or a file is there: the output gate
+    names what it is (an input of the command, a file autosar did not write)."""
+    if output.suffix.lower() in _FILE_SUFFIXES and not output.exists():
         raise typer.BadParameter(f"{output}: a file's name ({output.suffix}) for the directory {what} writes; name it "
                                  f"{output.with_suffix('')}")
 

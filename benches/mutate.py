@@ -1199,7 +1199,7 @@ MUTATIONS: list[Mutation] = [
        '"grid_enu_m": list(frep.grid_enu_m) if frep.grid_enu_m is not None else None,', "",
        "tests/test_run.py::test_run_json_gives_the_images_enu_box_as_focus_json_does"),
     _m("directory-output-named-as-a-file", "inputs", "cli.py",
-       "    if output.suffix.lower() in _FILE_SUFFIXES and not output.is_dir():", "    if False:",
+       "    if output.suffix.lower() in _FILE_SUFFIXES and not output.exists():", "    if False:",
        "tests/test_cli.py::test_a_directory_output_named_as_a_file_is_refused_with_the_name_to_give"),
     _m("empty-mcap-mapped", "ingest", "ingest/mcap_source.py",
        "    if path.stat().st_size < 2 * len(MCAP_MAGIC):", "    if False:",
