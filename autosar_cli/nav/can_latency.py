@@ -49,6 +49,8 @@ CLOCK_SEARCH_S = 30.0
 #: that turns, which both gyros see alike), and at most this fraction of what it leaves within +-SEARCH_S
 CLOCK_MAX_UNEXPLAINED = 0.25
 CLOCK_COST_RATIO = 0.25
+#: the search fits every this-many-th lag of the compared samples' step first, then every lag about the best
+COARSE_STEPS = 4
 
 
 @dataclass(frozen=True)
@@ -151,23 +153,37 @@ def fit_can_clock(inputs: NavInputs, can_gyros: list[str], imu_gyros: list[str])
         return None
     steps = int(round(CLOCK_SEARCH_S / COMPARE_STEP_S))
     grid = np.arange(-steps, steps + 1) * COMPARE_STEP_S
-    cost = np.full(len(grid), np.inf)
-    for k, d in enumerate(grid):
-        sse, syy, n, needed = 0.0, 0.0, 0, 0
-        for t, z in series:
-            keep = (t - d >= lo) & (t - d <= hi)
-            needed += len(t)
-            if keep.sum() < 3:
-                continue
-            x, y = np.interp(t[keep] - d, ref_t, ref_z), z[keep]
-            x, y = x - x.mean(), y - y.mean()
-            sxx = float(x @ x)
-            syy += float(y @ y)
-            sse += float(y @ y) - (float(x @ y) ** 2 / sxx if sxx > 0 else 0.0)
-            n += int(keep.sum())
-        if 2 * n >= needed and syy > 0:
-            cost[k] = sse / syy  # the part of the CAN yaw rate the IMUs' leaves unexplained there
     near = np.abs(grid) <= SEARCH_S + COMPARE_STEP_S / 2
+    cost = np.full(len(grid), np.inf)
+
+    def fit_at(ks: Array) -> None:
+        """``cost`` at the lags ``grid[ks]`` not fitted yet."""
+        for k in ks[np.isinf(cost[ks])]:
+            d = grid[k]
+            sse, syy, n, needed = 0.0, 0.0, 0, 0
+            for t, z in series:
+                keep = (t - d >= lo) & (t - d <= hi)
+                needed += len(t)
+                if keep.sum() < 3:
+                    continue
+                x, y = np.interp(t[keep] - d, ref_t, ref_z), z[keep]
+                x, y = x - x.mean(), y - y.mean()
+                sxx = float(x @ x)
+                syy += float(y @ y)
+                sse += float(y @ y) - (float(x @ y) ** 2 / sxx if sxx > 0 else 0.0)
+                n += int(keep.sum())
+            if 2 * n >= needed and syy > 0:
+                cost[k] = sse / syy  # the part of the CAN yaw rate the IMUs' leaves unexplained there
+            else:
+                cost[k] = np.nan  # fitted, not measured: too few samples overlap
+
+    # every COARSE_STEPS-th lag and those within the delay's search, then every lag about the coarse best: the
+    # yaw rate's turns last seconds, so its basin spans several coarse steps
+    fit_at(np.flatnonzero(near | (np.arange(len(grid)) % COARSE_STEPS == steps % COARSE_STEPS)))
+    if np.isfinite(cost).any():
+        k = int(np.nanargmin(np.where(np.isinf(cost), np.nan, cost)))
+        fit_at(np.arange(max(k - COARSE_STEPS, 0), min(k + COARSE_STEPS + 1, len(grid))))
+    cost = np.where(np.isfinite(cost), cost, np.inf)
     if not np.isfinite(cost).any():
         return None
     best = int(np.argmin(cost))
