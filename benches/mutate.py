@@ -1246,6 +1246,9 @@ MUTATIONS: list[Mutation] = [
     _m("compare-skips-the-channel-check", "evaluate", "evaluate/compare.py",
        "*unfocused, *([incoherent] if incoherent else [])]))", "*unfocused]))",
        "tests/test_evaluate.py::test_a_comparison_checks_each_methods_channels_as_focus_does"),
+    _m("sparse-track-gaps-judged-by-time-alone", "focus", "sar/focus.py",
+       "max(MAX_BRIDGED_S, MAX_BRIDGED_SPACINGS * track_spacing_s(traj))", "MAX_BRIDGED_S",
+       "tests/test_sar_focus.py::test_a_sparse_receivers_track_is_not_warned_of_as_cut_or_holed"),
 ]
 
 

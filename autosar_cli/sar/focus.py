@@ -622,19 +622,27 @@ def channels_incoherent_warning(drive_path: str | Path, trajectory: str | Path |
 
 #: a trajectory may start after the radar's first frame, or end before its last, by this much (s) before the frames it
 #: leaves out are warned of: a track of GNSS fixes (gnss, none) ends at its last fix, up to a fix period and the
-#: receiver's latency before the radar (the ci drive's: 0.09 s of its 0.99)
+#: receiver's latency before the radar (the ci drive's: 0.09 s of its 0.99); a track sampled more sparsely (a 1 Hz
+#: receiver's fixes) may end up to this many of its own sample spacings early
 MAX_UNCOVERED_S = 0.25
+MAX_UNCOVERED_SPACINGS = 1.5
+
+
+def track_spacing_s(traj: Trajectory) -> float:
+    """The median spacing (s) of ``traj``'s samples; 0 for a track of one sample."""
+    return float(np.median(np.diff(np.asarray(traj.t_ns, np.int64)))) / 1e9 if len(traj.t_ns) > 1 else 0.0
 
 
 def uncovered_frames_warning(drive_path: str | Path, radar: RadarStream, tx_start_offsets_s: NDArray[np.float64],
                              traj: Trajectory, traj_name: str) -> str | None:
-    """A warning where ``traj`` starts more than :data:`MAX_UNCOVERED_S` after the radar's first frame or ends more
-    than that before its last (a trajectory cut short, another span's, a GNSS that started late): the frames outside
-    it are left out of the image (:func:`_usable_frames`), which then covers part of the drive alone. None else."""
+    """A warning where ``traj`` starts after the radar's first frame or ends before its last by more than
+    :data:`MAX_UNCOVERED_S` and :data:`MAX_UNCOVERED_SPACINGS` of its sample spacings (a trajectory cut short,
+    another span's, a GNSS that started late): the frames outside it are left out of the image
+    (:func:`_usable_frames`), which then covers part of the drive alone. None else."""
     t = np.asarray(radar.t_ns, np.int64)
     last_chirp_ns = int(round(float(np.max(tx_start_offsets_s)) * 1e9)) if np.size(tx_start_offsets_s) else 0
     early, late = (int(traj.t_ns[0]) - int(t[0])) / 1e9, (int(t[-1]) + last_chirp_ns - int(traj.t_ns[-1])) / 1e9
-    if max(early, late) <= MAX_UNCOVERED_S:
+    if max(early, late) <= max(MAX_UNCOVERED_S, MAX_UNCOVERED_SPACINGS * track_spacing_s(traj)):
         return None
     outside = int(np.sum((t < traj.t_ns[0]) | (t + last_chirp_ns > traj.t_ns[-1])))
     ends = ([f"starts {early:.2f} s after the first"] if early > 0 else []) + \
@@ -668,16 +676,18 @@ def coarse_pixel_warning(pixel_m: float, resolution_m: float, range_null_m: floa
 #: a trajectory's samples may lie this far apart (s) around radar frames, and its pose carried through the gap (CTRV
 #: from the sample before) land this far (m) from the sample after, before the gap is warned of: SAR-MIN's, the
 #: truth's and the INS's samples lie milliseconds apart, a GNSS track's a fix period (0.1 s), and the line of `none`
-#: (1001 samples over any drive) is carried through exactly
-MAX_BRIDGED_S, MAX_BRIDGE_JUMP_M = 0.25, 0.01
+#: (1001 samples over any drive) is carried through exactly; a track sampled more sparsely (a 1-4 Hz receiver's fixes,
+#: each carried to the next only within its noise) has gaps of over this many of its own sample spacings
+MAX_BRIDGED_S, MAX_BRIDGE_JUMP_M, MAX_BRIDGED_SPACINGS = 0.25, 0.01, 3.0
 
 
 def bridged_gap_warning(frames_t_ns: NDArray[np.int64], traj: Trajectory, traj_name: str) -> str | None:
     """A warning where radar frames focused (``frames_t_ns``) lie in a gap of ``traj`` over :data:`MAX_BRIDGED_S`
-    long whose far end its pose carried through the gap misses by over :data:`MAX_BRIDGE_JUMP_M` (a trajectory with
-    samples cut out, a GNSS outage of a GNSS track): focus places those frames by that guess. None else."""
+    and :data:`MAX_BRIDGED_SPACINGS` of its sample spacings long whose far end its pose carried through the gap misses
+    by over :data:`MAX_BRIDGE_JUMP_M` (a trajectory with samples cut out, a GNSS outage of a GNSS track): focus places
+    those frames by that guess. None else."""
     t = np.asarray(traj.t_ns, np.int64)
-    gaps = np.flatnonzero(np.diff(t) > MAX_BRIDGED_S * 1e9)
+    gaps = np.flatnonzero(np.diff(t) > max(MAX_BRIDGED_S, MAX_BRIDGED_SPACINGS * track_spacing_s(traj)) * 1e9)
     if gaps.size == 0:
         return None
     carried, _ = traj.pose(t[gaps + 1] - 1)  # from the sample before, to a nanosecond short of the one after
