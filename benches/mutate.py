@@ -1250,6 +1250,10 @@ MUTATIONS: list[Mutation] = [
     _m("sparse-track-gaps-judged-by-time-alone", "focus", "sar/focus.py",
        "max(MAX_BRIDGED_S, MAX_BRIDGED_SPACINGS * track_spacing_s(traj))", "MAX_BRIDGED_S",
        "tests/test_sar_focus.py::test_a_sparse_receivers_track_is_not_warned_of_as_cut_or_holed"),
+    _m("can-clock-unconfirmed-unsaid", "sar-min", "nav/navigate.py",
+       "        return inputs, [f\"{runs}, and the wheel speeds",
+       "        return inputs, [] and [f\"{runs}, and the wheel speeds",
+       _QUIRKS + "test_a_can_log_whose_clock_is_seconds_off_is_moved_and_named"),
 ]
 
 

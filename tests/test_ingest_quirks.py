@@ -1079,6 +1079,13 @@ def test_a_can_log_whose_clock_is_seconds_off_is_moved_and_named(sim_dir: Path, 
     assert not report.warnings, report.warnings  # ingest cannot tell
     traj = navigate(tmp_path / "d.h5", "sar-min", cfg)
     said = [w for w in traj.info.get("warnings", []) if w.startswith("CAN: its gyros' yaw rate runs 2.00 s late")]
-    assert len(said) == 1 and "--time-offset CAN_LOG=-2.00" in said[0], traj.info.get("warnings")
+    assert len(said) == 1 and "(or --time-offset can_2s_ahead.log=-2.00 at ingest)" in said[0], traj.info["warnings"]
     across = aligned_across_rms_m(traj, sim.truth_path, cfg)
     assert across < 0.0100, across
+    # without the receiver's velocity the wheels cannot say whose clock is off: nothing moves, and that is said
+    fixes = rewrite_mcap(rest, tmp_path / "fixes.mcap",
+                         lambda topic, t, cdr: None if topic.endswith("velocity") else (t, cdr))
+    ingest([fixes], tmp_path / "f.h5", config=cfg, can_logs=[log])
+    warned = [w for w in navigate(tmp_path / "f.h5", "sar-min", cfg).info.get("warnings", []) if w.startswith("CAN:")]
+    assert len(warned) == 1 and "2.00 s late" in warned[0] and "cannot tell whose clock is off, the CAN's or the " \
+        "IMUs': nothing moved" in warned[0], warned

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
 
-from autosar_cli.config import Config
+from autosar_cli.config import CAN_LOG_SUFFIXES, Config
 from autosar_cli.nav import models as m
 from autosar_cli.nav.attitude import (
     CROSSOVER_HZ,
@@ -282,23 +282,39 @@ def latencies_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs, d
     return inputs, can, gnss, [said]
 
 
-def can_clock_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs, list[str]]:
+def can_log_files(drive: Drive) -> list[str]:
+    """The names of the CAN log files (``.blf``, ``.asc`` ...: a logger of their own, on its own clock) ``drive``'s
+    CAN messages were read from."""
+    sources = {str(drive.h5["can"][m].attrs.get("source_file", "")) for m in drive.can_messages()}
+    return sorted(Path(s).name for s in sources if Path(s).suffix.lower() in CAN_LOG_SUFFIXES)
+
+
+def can_clock_corrected(inputs: NavInputs, config: Config, can_logs: list[str]) -> tuple[NavInputs, list[str]]:
     """``inputs`` with every CAN signal moved by the CAN gyros' lag against the IMUs' where it lies beyond the CAN
     delay's search (:func:`fit_can_clock`: a CAN logger's clock set wrong) and the wheel speeds show it against the
-    GNSS speed too (:func:`wheels_late_against_gnss`; else the IMUs are off both), and a warning saying so; as they
-    are otherwise, or where ``navigation.estimate_can_latency`` is off. Urban seed 1's CAN log 2 s late: the gate
-    refused 447 of 580 fixes, naming the GNSS, and the track went 2.2 m across."""
+    GNSS speed too (:func:`wheels_late_against_gnss`; else the IMUs are off both), and a warning saying so (the
+    ``--time-offset`` that mends it where the CAN came from the CAN log files ``can_logs``); where the wheels cannot
+    tell whose clock is off, nothing moved and a warning saying that; as they are otherwise, or where
+    ``navigation.estimate_can_latency`` is off. Urban seed 1's CAN log 2 s late: the gate refused 447 of 580 fixes,
+    naming the GNSS, and the track went 2.2 m across."""
     if not config.navigation.estimate_can_latency:
         return inputs, []
     can = [name for name, s in config.sensors.items() if s.kind == "can_imu"]
     imu = [name for name, s in config.sensors.items() if s.kind == "imu"]
     late = fit_can_clock(inputs, can, imu)
-    if late is None or not wheels_late_against_gnss(inputs, late):  # else the IMUs' clock: latencies_corrected's
+    if late is None:
         return inputs, []
-    return delayed_can(inputs, late, can), [
-        f"CAN: its gyros' yaw rate runs {abs(late):.2f} s {'late' if late > 0 else 'early'} against the IMUs' "
-        f"({', '.join(imu)}), beyond any bus's delay: a CAN logger's clock set wrong? Every CAN signal moved by it "
-        f"(or at ingest: --time-offset CAN_LOG={-late:.2f})"]
+    used = ", ".join(g.name for g in inputs.gyros if g.name in imu)
+    runs = (f"CAN: its gyros' yaw rate runs {abs(late):.2f} s {'late' if late > 0 else 'early'} against the IMUs' "
+            f"({used}), beyond any bus's delay")
+    mend = (f"--time-offset {can_logs[0]}={-late:.2f} at ingest" if len(can_logs) == 1 else
+            f"--time-offset CAN_LOG={-late:.2f} at ingest for the CAN log of {', '.join(can_logs)} that is off"
+            if can_logs else "the CAN topic's stamps")
+    if not wheels_late_against_gnss(inputs, late):  # the IMUs' clock may be the one off: latencies_corrected's
+        return inputs, [f"{runs}, and the wheel speeds against the GNSS speed cannot tell whose clock is off, the "
+                        f"CAN's or the IMUs': nothing moved; check both ({mend} where the CAN's)"]
+    return delayed_can(inputs, late, can), [f"{runs}: a CAN logger's clock set wrong? Every CAN signal moved by it "
+                                            f"(or {mend})"]
 
 
 def can_latency_corrected(inputs: NavInputs, config: Config) -> tuple[NavInputs, dict]:
@@ -735,11 +751,12 @@ def navigate(drive_path: str | Path, method: str, config: Config, *, smooth: boo
             if why := truth_radar_mismatch(truth_path, drive):
                 raise NavInputError(why)
         damage = list(drive.damage)  # rows of a damaged drive left out of its tables: gaps the filter bridges
+        can_logs = can_log_files(drive)
     if method == "sar-min":
         if not inputs.gyros:  # the baselines need none: a drive of GNSS alone has its gnss and none tracks
             raise NavInputError(f"{drive_path}: no gyro to fuse (config navigation.gyros is empty): SAR-MIN needs "
                                 "one (--method gnss or none do not)")
-        inputs, can_clock = can_clock_corrected(inputs, config)
+        inputs, can_clock = can_clock_corrected(inputs, config, can_logs)
         if why := wheel_scale_error(inputs):
             raise NavInputError(f"{drive_path}: {why}")
         inputs, wheel_scale = wheel_scale_corrected(inputs)
