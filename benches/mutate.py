@@ -1254,6 +1254,9 @@ MUTATIONS: list[Mutation] = [
        "        return inputs, [f\"{runs}, and the wheel speeds",
        "        return inputs, [] and [f\"{runs}, and the wheel speeds",
        _QUIRKS + "test_a_can_log_whose_clock_is_seconds_off_is_moved_and_named"),
+    _m("asc-relative-damaged-line-time-dropped", "ingest", "ingest/text_lines.py",
+       "                if self._relative:  # its event's time", "                if False:  # its event's time",
+       "tests/test_ingest_canlog.py::test_an_asc_whose_times_are_relative_reads_each_frame_at_its_own_time"),
 ]
 
 

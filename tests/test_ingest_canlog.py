@@ -1068,6 +1068,17 @@ def test_an_asc_whose_times_are_relative_reads_each_frame_at_its_own_time(tmp_pa
     want = [r.t_ns for r in read_can_log(absolute)]
     got = list(read_can_log(relative))
     assert [r.t_ns for r in got] == want and (want[-1] - want[0]) / 1e9 == pytest.approx(0.99, abs=0.01)
+    # a frame line damaged after its time (a NUL in its data) is left out; its time still counts for those after it
+    # (they read 6.9 ms early before: its time since the frame before)
+    lines = relative.read_text().splitlines(keepends=True)
+    k = [i for i, line in enumerate(lines) if " Rx " in line][10]
+    lines[k] = lines[k][:-6] + "\0" + lines[k][-5:]
+    damaged = tmp_path / "damaged.asc"
+    damaged.write_text("".join(lines))
+    read = []
+    with pytest.raises(CanLogError, match=r"1 line no frame could be read from left out \(line 16\)"):
+        read.extend(r.t_ns for r in read_can_log(damaged))
+    assert read == want[:10] + want[11:]
     from autosar_cli.config import load_config
     from autosar_cli.ingest.pipeline import ingest
 

@@ -110,6 +110,8 @@ class LineFeed:
         for self.line, line in enumerate(self._file, self.line + 1):  # noqa: B020 (the count is the feed's)
             if held_back and self.line in held_back:  # no writer puts such bytes in a text log: not the writer's
                 self.damaged.append(self.line)
+                if self._relative:  # its event's time, where it reads, still counts for the events after it
+                    _, self._since_mark_ns = summed_time(line, self._since_mark_ns)
                 continue
             for mark in marks:
                 if mark in line:
