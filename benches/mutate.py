@@ -1170,7 +1170,8 @@ MUTATIONS: list[Mutation] = [
        "    if latency_s == 0.0:\n        return streams\n", "    if True:\n        return streams\n",
        _QUIRKS + "test_a_capture_given_a_receivers_latency_is_said_to_move_its_fixes"),
     _m("dca1000-damaged-repeat-read-as-a-restart", "ingest", "ingest/dca1000_packets.py",
-       "            if i == len(start) - 1 or start[i + 1] > start[:i].max():", "            if False:",
+       "            if i == len(start) - 1 or np.any(start[i + 1:i + 1 + GOES_ON_PACKETS] > start[:i].max()):",
+       "            if False:",
        "tests/test_ingest_dca1000.py::test_a_packet_repeated_with_other_data_costs_only_its_pris"),
     _m("tiles-drop-the-drives-warnings", "focus", "sar/tiles.py",
        "for r in sorted(results, key=lambda r: r.col0) for w in r.warnings))",
@@ -1257,6 +1258,9 @@ MUTATIONS: list[Mutation] = [
     _m("asc-relative-damaged-line-time-dropped", "ingest", "ingest/text_lines.py",
        "                if self._relative:  # its event's time", "                if False:  # its event's time",
        "tests/test_ingest_canlog.py::test_an_asc_whose_times_are_relative_reads_each_frame_at_its_own_time"),
+    _m("dca1000-damaged-repeat-judged-by-the-next-packet-alone", "ingest", "ingest/dca1000_packets.py",
+       "start[i + 1:i + 1 + GOES_ON_PACKETS] > start[:i].max()", "start[i + 1:i + 2] > start[:i].max()",
+       "tests/test_ingest_dca1000.py::test_a_packet_repeated_with_other_data_costs_only_its_pris"),
 ]
 
 

@@ -918,10 +918,15 @@ def test_a_packet_repeated_with_other_data_costs_only_its_pris(tmp_path: Path) -
     stream = files[0].read_bytes()
     step = PACKET + 10
     packets = [stream[i:i + step] for i in range(0, len(stream), step)]
-    for where, later in ((1000, 0), (1000, 3), (20, 3)):
+    for where, later in ((1000, 0), (1000, 3), (20, 3), (1000, "reordered")):
         copy = bytearray(packets[where])
         copy[500] ^= 0x40
-        files[0].write_bytes(b"".join(packets[:where + 1 + later] + [bytes(copy)] + packets[where + 1 + later:]))
+        if later == "reordered":  # the copy after the packet two on, the one between sent late: [..., w, w+2, w', w+1]
+            later = 1
+            files[0].write_bytes(b"".join(packets[:where + 1] + [packets[where + 2], bytes(copy), packets[where + 1]]
+                                          + packets[where + 3:]))
+        else:
+            files[0].write_bytes(b"".join(packets[:where + 1 + later] + [bytes(copy)] + packets[where + 1 + later:]))
         cap = Dca1000Capture(tmp_path / "cap")
         blocks = list(cap.blocks())
         damaged = np.concatenate([d for _, _, d in blocks])
@@ -930,13 +935,13 @@ def test_a_packet_repeated_with_other_data_costs_only_its_pris(tmp_path: Path) -
         np.testing.assert_array_equal(np.concatenate([b for _, b, _ in blocks])[~damaged], pris[~damaged])
         assert cap.warnings == [
             f"{files[0]}: byte {(where + 1 + later) * step}: a packet repeats byte count {where * PACKET} with other "
-            "data: which copy holds the ADC's cannot be told, the PRIs it touches left out",
+            "data: which copy holds the ADC's data cannot be told, the PRIs it touches left out",
             f"{files[0]}: 1 of 150 PRIs left out, they hold data the DCA1000 lost (1 packets repeated with other "
             "data)"]
     code, stderr = cli_ingest(tmp_path / "cap", tmp_path / "d.h5")
-    assert code == 0 and "a packet repeats byte count 29120 with other data" in stderr, stderr
+    assert code == 0 and "a packet repeats byte count 1456000 with other data" in stderr, stderr
     r = runner.invoke(app, ["info", str(tmp_path / "cap"), "--json"])
-    assert r.exit_code == 0 and "2671 recorded, 0 lost, 1 out of order, 1 repeated (1 with other data: their PRIs " \
+    assert r.exit_code == 0 and "2671 recorded, 0 lost, 2 out of order, 1 repeated (1 with other data: their PRIs " \
         "left out)" in r.stdout, r.output
 
 

@@ -231,10 +231,13 @@ class PacketIndex:
         short, other_data = _repeats_of_other_data(rec, offset[:k], start[:k], length[:k])
         if short is not None:
             k = short
-        for i in other_data:
-            path, local = rec.where(int(offset[i]) - HEADER_BYTES)
-            warnings.append(f"{path}: byte {local}: a packet repeats byte count {int(start[i])} with other data: "
-                            "which copy holds the ADC's cannot be told, the PRIs it touches left out")
+        if other_data:
+            path, local = rec.where(int(offset[other_data[0]]) - HEADER_BYTES)
+            warnings.append(
+                f"{path}: byte {local}: a packet repeats byte count {int(start[other_data[0]])} with other data: which "
+                "copy holds the ADC's data cannot be told, the PRIs it touches left out" if len(other_data) == 1 else
+                f"{path}: byte {local}: {len(other_data)} packets from here on repeat byte counts with other data: "
+                "which copies hold the ADC's data cannot be told, the PRIs they touch left out")
         conflicting = np.array([[start[i], start[i] + length[i]] for i in other_data], dtype=np.int64).reshape(-1, 2)
         appended = ""
         if k is not None:  # a second recording appended: not this one's stream
@@ -294,6 +297,9 @@ class PacketIndex:
 #: a packet that arrives more than this many packets behind the furthest one is no UDP reordering but a recording
 #: that starts again (two appended in one file)
 RESTART_PACKETS = 64
+#: a packet repeated with other data is a damaged copy where one of this many packets after it goes past the furthest
+#: byte count so far (the stream goes on; UDP may have sent the next ones late); a second recording stays behind
+GOES_ON_PACKETS = 8
 
 
 def _restart(start: NDArray[np.int64], data_bytes: int) -> int | None:
@@ -310,10 +316,10 @@ def _repeats_of_other_data(rec: SplitFiles, offset: NDArray[np.int64], start: ND
                            length: NDArray[np.int64]) -> tuple[int | None, list[int]]:
     """Packets whose byte count an earlier packet holds with other data: (the index, recording order, where a second
     recording starts, or None; the indices of the other repeats). A packet repeated by UDP is the same bytes; one
-    with other data followed by packets that stay behind the furthest so far was sent by a DCA1000 that started
-    again, after a first recording of too few packets for :func:`_restart` to see: the second starts at the last
-    packet before it (or it) whose byte count falls behind the one before. One alone, the stream going on past the
-    furthest after it, is a damaged copy, and which of the two holds the data cannot be told."""
+    with other data followed by :data:`GOES_ON_PACKETS` packets that stay behind the furthest so far was sent by a
+    DCA1000 that started again, after a first recording of too few packets for :func:`_restart` to see: the second
+    starts at the last packet before it (or it) whose byte count falls behind the one before. One alone, the stream
+    going on past the furthest after it, is a damaged copy, and which of the two holds the data cannot be told."""
     if len(start) < 2 or bool(np.all(start[1:] > start[:-1])):  # in order: nothing repeated
         return None, []
     _, first, inverse = np.unique(start, return_index=True, return_inverse=True)
@@ -323,11 +329,12 @@ def _repeats_of_other_data(rec: SplitFiles, offset: NDArray[np.int64], start: ND
         j, n = int(earlier[i]), int(min(length[i], length[earlier[i]]))
         if not np.array_equal(rec.read(int(offset[i]), int(offset[i]) + n), rec.read(int(offset[j]),
                                                                                   int(offset[j]) + n)):
-            if i == len(start) - 1 or start[i + 1] > start[:i].max():
+            if i == len(start) - 1 or np.any(start[i + 1:i + 1 + GOES_ON_PACKETS] > start[:i].max()):
                 damaged.append(int(i))
                 continue
             drops = np.flatnonzero(start[j + 1:i + 1] < start[j:i])
-            return (j + 1 + int(drops[-1]) if len(drops) else int(i)), [d for d in damaged if d < i]
+            k = j + 1 + int(drops[-1]) if len(drops) else int(i)
+            return k, [d for d in damaged if d < k]
     return None, damaged
 
 
