@@ -767,12 +767,12 @@ def _channels(kind: str, count: int, channels: tuple[int, ...] | None, rows: int
         raise ConfigError(f"radar.{kind}_channels: {list(channels)} must be distinct rows of {name} (0-{rows - 1})")
 
 
-#: the units a chirp's keys are likely given in where slope x ADC window misses bandwidth_hz: key -> (the least value
-#: any FMCW radar's has in the key's SI unit, that unit, (factor to it, other unit) each)
-_CHIRP_UNITS: dict[str, tuple[float, str, tuple[tuple[float, str], ...]]] = {
-    "slope_hz_per_s": (1e9, "Hz/s", ((1e12, "MHz/us"),)),
-    "sample_rate_hz": (1e5, "Hz", ((1e3, "ksps"), (1e6, "Msps"))),
-    "bandwidth_hz": (1e6, "Hz", ((1e6, "MHz"), (1e9, "GHz"))),
+#: the units a chirp's keys are likely given in where slope x ADC window misses bandwidth_hz: key -> (the least and
+#: the most value any FMCW radar's has in the key's SI unit, that unit, (factor to it, other unit) each)
+_CHIRP_UNITS: dict[str, tuple[float, float, str, tuple[tuple[float, str], ...]]] = {
+    "slope_hz_per_s": (1e9, 1e15, "Hz/s", ((1e12, "MHz/us"),)),
+    "sample_rate_hz": (1e5, 1e8, "Hz", ((1e3, "ksps"), (1e6, "Msps"))),
+    "bandwidth_hz": (1e6, 1e11, "Hz", ((1e6, "MHz"), (1e9, "GHz"))),
 }
 
 
@@ -780,16 +780,18 @@ def _chirp_units_slipped(r: RadarConfig) -> str:
     """The chirp's keys whose values lie below any radar's in their SI unit and, read in another (MHz/us, ksps, Msps,
     MHz, GHz), make slope x ADC window (``slope_hz_per_s * num_samples / sample_rate_hz``) equal ``bandwidth_hz``,
     each named with its value in the SI unit ("" if none): a datasheet's 75 MHz/us slope was refused as a bandwidth
-    that differs, naming bandwidth_hz alone."""
-    options = [[(k, 1.0, "")] + ([(k, f, u) for f, u in units] if getattr(r, k) < floor else [])
-               for k, (floor, _, units) in _CHIRP_UNITS.items()]
+    that differs, naming bandwidth_hz alone (all three in a datasheet's units agree with one another: refused as a
+    chirp period shorter than the ADC window, naming that alone). A key below its least value is read in another
+    unit, one that takes it within its range (TI's 75 MHz/us, 13.5 Msps, 3000 MHz: not 3000 GHz)."""
+    options = [[(k, f, u) for f, u in units if lo <= getattr(r, k) * f <= hi] if getattr(r, k) < lo else [(k, 1.0, "")]
+               for k, (lo, hi, _, units) in _CHIRP_UNITS.items()]
     for combo in itertools.product(*options):
         scale = {k: f for k, f, _ in combo}
         slope, rate = r.slope_hz_per_s * scale["slope_hz_per_s"], r.sample_rate_hz * scale["sample_rate_hz"]
         bandwidth = r.bandwidth_hz * scale["bandwidth_hz"]
         if any(f != 1.0 for f in scale.values()) and abs(slope * r.num_samples / rate - bandwidth) <= 1e-6 * bandwidth:
             return "".join(f"radar.{k}: {getattr(r, k):g} is likely in {u}, {getattr(r, k) * f:g} "
-                           f"{_CHIRP_UNITS[k][1]}; " for k, f, u in combo if f != 1.0)
+                           f"{_CHIRP_UNITS[k][2]}; " for k, f, u in combo if f != 1.0)
     return ""
 
 
@@ -947,7 +949,7 @@ def _validate(cfg: Config) -> None:
         )
     if r.chirp_period_s < r.chirp_duration_s:
         raise ConfigError(
-            f"radar.chirp_period_s: {r.chirp_period_s} s is shorter than the ADC window "
+            f"{_chirp_units_slipped(r)}radar.chirp_period_s: {r.chirp_period_s} s is shorter than the ADC window "
             f"{r.chirp_duration_s} s"
         )
     if r.num_tx * r.chirp_period_s > 1.0 / r.prf_hz:

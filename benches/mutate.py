@@ -1227,7 +1227,7 @@ MUTATIONS: list[Mutation] = [
     _m("steering-ratio-inverted-taken", "config", "config.py",
        "    if v.steering_ratio < 1.0:", "    if False:", CONFIG_SILENT),
     _m("chirp-units-unnamed", "config", "config.py",
-       "if getattr(r, k) < floor else []", "if False else []", CONFIG_SILENT),
+       "if lo <= getattr(r, k) * f <= hi] if getattr(r, k) < lo else", "] if False else", CONFIG_SILENT),
     _m("tiles-skip-the-channel-check", "focus", "sar/tiles.py",
        "        warnings += [incoherent] if incoherent else []\n", "",
        "tests/test_sar_focus.py::test_a_config_that_misplaces_the_antennas_is_warned_of_in_tiles_too"),
@@ -1261,6 +1261,8 @@ MUTATIONS: list[Mutation] = [
     _m("dca1000-damaged-repeat-judged-by-the-next-packet-alone", "ingest", "ingest/dca1000_packets.py",
        "start[i + 1:i + 1 + GOES_ON_PACKETS] > start[:i].max()", "start[i + 1:i + 2] > start[:i].max()",
        "tests/test_ingest_dca1000.py::test_a_packet_repeated_with_other_data_costs_only_its_pris"),
+    _m("chirp-units-taken-outside-any-radars", "config", "config.py",
+       "if lo <= getattr(r, k) * f <= hi]", "if True]", CONFIG_SILENT),
 ]
 
 

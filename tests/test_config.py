@@ -346,6 +346,17 @@ def _layer(tmp_path: Path, text: str) -> Path:
      r"1.35e\+07 Hz; radar.bandwidth_hz: slope x ADC window = 3000 Hz"),
     ('[radar]\nsample_rate_hz = 13500.0\n', r"radar.sample_rate_hz: 13500 is likely in ksps, 1.35e\+07 Hz; radar.band"),
     ('[radar]\nbandwidth_hz = 3.0\n', r"radar.bandwidth_hz: 3 is likely in GHz, 3e\+09 Hz; radar.bandwidth_hz: slope"),
+    # all three in a datasheet's or TI mmWave Studio's units: each named in its own (sample rate and bandwidth were
+    # named in ksps and GHz, or the sample rate or the slope not at all)
+    ('[radar]\nslope_hz_per_s = 75.0\nsample_rate_hz = 13.5\nbandwidth_hz = 3000.0\n',
+     r"radar.slope_hz_per_s: 75 is likely in MHz/us, 7.5e\+13 Hz/s; radar.sample_rate_hz: 13.5 is likely in Msps, "
+     r"1.35e\+07 Hz; radar.bandwidth_hz: 3000 is likely in MHz, 3e\+09 Hz; "),
+    ('[radar]\nslope_hz_per_s = 75.0\nsample_rate_hz = 13500.0\nbandwidth_hz = 3.0\n',
+     r"radar.slope_hz_per_s: 75 is likely in MHz/us, 7.5e\+13 Hz/s; radar.sample_rate_hz: 13500 is likely in ksps, "
+     r"1.35e\+07 Hz; radar.bandwidth_hz: 3 is likely in GHz, 3e\+09 Hz; "),
+    ('[radar]\nslope_hz_per_s = 75.0\nsample_rate_hz = 13500.0\nbandwidth_hz = 3000.0\n',
+     r"radar.slope_hz_per_s: 75 is likely in MHz/us, 7.5e\+13 Hz/s; radar.sample_rate_hz: 13500 is likely in ksps, "
+     r"1.35e\+07 Hz; radar.bandwidth_hz: 3000 is likely in MHz, 3e\+09 Hz; "),
     # a gyro's rate given as its period: test1's ESC gyro trusted 100 times too much, the track 5.1 cm off, no word
     ('[sensors.esc]\nrate_hz = 0.01\n',
      r"sensors.esc.rate_hz: 0.01 Hz is no gyro's \(its yaw rate's noise per sample is noise_density_dps_rthz x "
