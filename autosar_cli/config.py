@@ -805,11 +805,16 @@ MIN_GYRO_RATE_HZ = 1.0
 MIN_BORESIGHT_OFF_AXIS_DEG = 10.0
 
 
+#: a radar this high above the CoG (m; a car's roof is ~0.9 m above it) may sit on one side looking across the roof
+#: at the other: a roof rack's or a mast's mount, which the lateral check leaves alone
+MIN_ABOVE_COG_ACROSS_THE_ROOF_M = 0.5
+
+
 def _looks_sideways(m: MountingConfig, track_m: float) -> None:
     """The radar looks to a side of the car, and not across it: a yaw in radians turns its boresight along the track;
     a lever arm's y with its sign turned (or x and y swapped), or a yaw's sign turned, puts a radar on one side looking
     through the car at the other, whose image focus placed as far to the wrong side without a word (the ci drive's
-    reflectors 1.50 m off with y's sign turned, 4.3 m with x and y swapped)."""
+    reflectors 1.50 m off with y's sign turned, 4.3 m with x and y swapped); one on the roof may look across it."""
     off_axis = math.degrees(math.asin(min(1.0, abs(math.sin(math.radians(m.yaw_deg))))))
     if off_axis < MIN_BORESIGHT_OFF_AXIS_DEG:
         radians = (f"; in radians? {m.yaw_deg:g} rad is {math.degrees(m.yaw_deg):.1f} deg"
@@ -818,9 +823,9 @@ def _looks_sideways(m: MountingConfig, track_m: float) -> None:
                           f"x axis, along its track, which makes no SAR image: a side-looking radar's is at least "
                           f"{MIN_BORESIGHT_OFF_AXIS_DEG:g} deg off it (-90: broadside to the right, +90: to the left)"
                           f"{radians}")
-    y = m.lever_arm_m[1]
+    y, z = m.lever_arm_m[1], m.lever_arm_m[2]
     looks = 1.0 if math.sin(math.radians(m.yaw_deg)) > 0 else -1.0  # nav.trajectory.radar_side's rule
-    if abs(y) > track_m / 4 and y * looks < 0:
+    if abs(y) > track_m / 4 and y * looks < 0 and z < MIN_ABOVE_COG_ACROSS_THE_ROOF_M:
         sits, side = ("left", "right") if y > 0 else ("right", "left")
         raise ConfigError(f"radar.mounting: the radar sits {abs(y):.2f} m {sits} of the car's centre line "
                           f"(lever_arm_m[1] = {y:g}; body y is to the left) yet looks to the {side} (yaw_deg "

@@ -1219,7 +1219,7 @@ MUTATIONS: list[Mutation] = [
        "                if latest - rec.t_ns > CAN_LOG_STEP_BACK_NS:", "                if False:",
        "tests/test_ingest_canlog.py::test_a_can_log_whose_clock_steps_back_while_recording_is_warned_of"),
     _m("radar-looking-through-the-car-taken", "config", "config.py",
-       "    if abs(y) > track_m / 4 and y * looks < 0:", "    if False:", CONFIG_SILENT),
+       "    if abs(y) > track_m / 4 and y * looks < 0 and", "    if False and", CONFIG_SILENT),
     _m("radar-yaw-along-the-track-taken", "config", "config.py",
        "    if off_axis < MIN_BORESIGHT_OFF_AXIS_DEG:", "    if False:", CONFIG_SILENT),
     _m("gyro-rate-as-a-period-taken", "config", "config.py",
@@ -1263,6 +1263,9 @@ MUTATIONS: list[Mutation] = [
        "tests/test_ingest_dca1000.py::test_a_packet_repeated_with_other_data_costs_only_its_pris"),
     _m("chirp-units-taken-outside-any-radars", "config", "config.py",
        "if lo <= getattr(r, k) * f <= hi]", "if True]", CONFIG_SILENT),
+    _m("roof-mount-looking-across-refused", "config", "config.py",
+       " and z < MIN_ABOVE_COG_ACROSS_THE_ROOF_M:", ":",
+       "tests/test_config.py::test_a_radar_mounted_as_real_cars_carry_them_is_taken"),
 ]
 
 

@@ -391,6 +391,18 @@ def test_a_config_that_would_run_wrong_without_a_word_is_refused(tmp_path: Path,
         load_config(_layer(tmp_path, text))
 
 
+@pytest.mark.parametrize("mounting", [
+    'lever_arm_m = [1.0, 0.5, 0.9]\nyaw_deg = -60.0',  # a roof rack's, left of the centre line, looking right across
+    'lever_arm_m = [0.0, 0.0, 0.0]\nyaw_deg = 90.0',  # on the centre line, looking left
+    'lever_arm_m = [-2.0, -0.75, 0.0]\nyaw_deg = -135.0',  # the right rear corner, squinted back
+])
+def test_a_radar_mounted_as_real_cars_carry_them_is_taken(tmp_path: Path, mounting: str) -> None:
+    """The lateral check refuses a radar on one side of the body looking through the car; one on the roof may look
+    across it, and the centre line or a squint back is no mistake."""
+    cfg = load_config(_layer(tmp_path, f"[radar.mounting]\n{mounting}\n"))
+    assert cfg.radar.mounting.lever_arm_m[2] in (0.0, 0.9)
+
+
 def test_the_roles_and_gyros_of_every_bundled_config_are_known() -> None:
     """The check above refuses none of the configs we ship (their roles and gyros are all read by the stages)."""
     for path in sorted((DEFAULT_CONFIG.parent).glob("**/*.toml")):
