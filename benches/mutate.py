@@ -1242,8 +1242,8 @@ MUTATIONS: list[Mutation] = [
        '"command": command, "warnings": focus_warnings})', '"command": command, "warnings": []})',
        "tests/test_evaluate.py::test_a_comparison_carries_what_focus_warned_of_along_each_method"),
     _m("compare-checks-the-metrics-pixel", "evaluate", "evaluate/compare.py",
-       "coarse = coarse_pixel_warning(image.grid.pixel_m, options.resolution_m, range_null_m)",
-       "coarse = coarse_pixel_warning(metrics_image.grid.pixel_m, options.resolution_m, range_null_m)",
+       "coarse = coarse_pixel_warning(image.grid.pixel_m, options.resolution_m, null)",
+       "coarse = coarse_pixel_warning(metrics_image.grid.pixel_m, options.resolution_m, null)",
        "tests/test_evaluate.py::test_a_comparisons_coarse_product_pixel_is_warned_of_as_focus_warns"),
     _m("compare-skips-the-channel-check", "evaluate", "evaluate/compare.py",
        "*unfocused, *([incoherent] if incoherent else [])]))", "*unfocused]))",
@@ -1266,6 +1266,9 @@ MUTATIONS: list[Mutation] = [
     _m("roof-mount-looking-across-refused", "config", "config.py",
        " and z < MIN_ABOVE_COG_ACROSS_THE_ROOF_M:", ":",
        "tests/test_config.py::test_a_radar_mounted_as_real_cars_carry_them_is_taken"),
+    _m("range-null-of-a-blackman-taken-as-hanns", "kernel", "sar/range_compression.py",
+       '"blackman": 3.0}', '"blackman": 2.0}',
+       "tests/test_sar_range.py::test_a_windows_first_range_null_is_the_one_its_response_has[blackman]"),
 ]
 
 

@@ -975,7 +975,7 @@ def test_a_comparisons_coarse_product_pixel_is_warned_of_as_focus_warns(ci_mcap,
     cfg = replace(CFG, processing=replace(CFG.processing, pixel_m=0.10))
     result = compare([ci_mcap.log_path], tmp_path / "cmp", cfg, methods=["none"])
     said = ("focus: pixel 0.1 m samples a point's response whose first null lies 0.04 m from its peak (cross-range "
-            "resolution 0.04 m, range c/B 0.0999 m): a point between pixel centres is sampled on its sidelobes and can "
+            "resolution 0.04 m, range 0.0999 m): a point between pixel centres is sampled on its sidelobes and can "
             "vanish from the image (a pixel's value is the image at its centre, not its area's); choose --pixel "
             "0.056 or finer, or a coarser --resolution")
     assert (result["status"], result["warnings"]) == ("degraded", [said])

@@ -688,7 +688,7 @@ def test_pixels_too_coarse_for_the_response_are_warned_of(ci_drive: Drive, tmp_p
     opts = FocusOptions.from_config(ci_drive.config, pixel_m=0.12)
     rep = focus(ci_drive.drive, ci_drive.trajectory, tmp_path / "coarse", ci_drive.config, opts)
     said = ("focus: pixel 0.12 m samples a point's response whose first null lies 0.04 m from its peak (cross-range "
-            "resolution 0.04 m, range c/B 0.0999 m): a point between pixel centres is sampled on its sidelobes and can "
+            "resolution 0.04 m, range 0.0999 m): a point between pixel centres is sampled on its sidelobes and can "
             "vanish from the image (a pixel's value is the image at its centre, not its area's); choose --pixel "
             "0.056 or finer, or a coarser --resolution")
     assert rep.warnings == [said]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import reference
+import scipy.signal
 from conftest import realdata
 
 from autosar_cli.config import SPEED_OF_LIGHT, load_config
@@ -118,3 +119,22 @@ def test_range_compress_into_is_the_transposed_profile() -> None:
     ref = range_compress(raw, sample_rate_hz=FS, slope_hz_per_s=K, upsample=4)
     np.testing.assert_allclose(re[:, :37] + 1j * im[:, :37], ref.T, atol=1e-5 * np.abs(ref).max())
     assert not re[:, 37:].any()
+
+
+@pytest.mark.parametrize("window", ["rect", "hann", "hamming", "blackman"])
+def test_a_windows_first_range_null_is_the_one_its_response_has(window: str) -> None:
+    """The first null of a tone's windowed spectrum (zero-padded 64x, float64), in bins of the unpadded FFT, is the
+    window's stated half-width (rect 1, Hann and Hamming 2, Blackman 3), and ``range_null_m`` is that many bins of
+    c / (2B)."""
+    from autosar_cli.config import SPEED_OF_LIGHT
+    from autosar_cli.sar.range_compression import NULL_BINS, range_null_m
+
+    n, pad = 256, 64
+    w = scipy.signal.get_window(window if window != "rect" else "boxcar", n, fftbins=False)
+    spectrum = np.abs(np.fft.fft(w, n * pad))[: n * pad // 2]
+    falling = np.flatnonzero(np.diff(spectrum) > 0)  # the first bin where the response rises again: its first null
+    assert falling[0] / pad == pytest.approx(NULL_BINS[window], abs=0.05)
+    fs, slope = 12.5e6, 60e12
+    bandwidth = slope * n / fs
+    assert range_null_m(sample_rate_hz=fs, slope_hz_per_s=slope, num_samples=n, window=window) == pytest.approx(
+        NULL_BINS[window] * SPEED_OF_LIGHT / (2 * bandwidth))

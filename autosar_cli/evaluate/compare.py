@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from autosar_cli import __version__
-from autosar_cli.config import SPEED_OF_LIGHT, Config
+from autosar_cli.config import Config
 from autosar_cli.evaluate.alignment import Se2
 from autosar_cli.evaluate.evaluation import (
     LINE_KINDS,
@@ -75,6 +75,7 @@ from autosar_cli.sar.focus import (
     unfocused_radars,
 )
 from autosar_cli.sar.grid import FocusGrid
+from autosar_cli.sar.range_compression import range_null_m
 from autosar_cli.sim.truth import truth_radar_mismatch
 from autosar_cli.store.drive import Drive, radar_times
 from autosar_cli.store.image import FocusedImage, write_image
@@ -394,9 +395,10 @@ def _product_pixel_warnings(warnings: list[str], metrics_image: FocusedImage, im
     """``warnings`` of the focus of ``metrics_image`` (half the product's pixel), its pixel warning (if any) for the
     product's pixel instead, as focusing the product alone would give (:func:`coarse_pixel_warning`)."""
     p = metrics_image.params
-    range_null_m = SPEED_OF_LIGHT * p["sample_rate_hz"] / (p["slope_hz_per_s"] * p["num_samples"])
-    fine = coarse_pixel_warning(metrics_image.grid.pixel_m, options.resolution_m, range_null_m)
-    coarse = coarse_pixel_warning(image.grid.pixel_m, options.resolution_m, range_null_m)
+    null = range_null_m(sample_rate_hz=p["sample_rate_hz"], slope_hz_per_s=p["slope_hz_per_s"],
+                        num_samples=p["num_samples"], window=options.window)
+    fine = coarse_pixel_warning(metrics_image.grid.pixel_m, options.resolution_m, null)
+    coarse = coarse_pixel_warning(image.grid.pixel_m, options.resolution_m, null)
     return [w for w in warnings if w != fine] + ([coarse] if coarse else [])
 
 

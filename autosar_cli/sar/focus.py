@@ -39,7 +39,7 @@ from autosar_cli.nav.trajectory import (
 from autosar_cli.sar.backprojection import PulseBlock, backproject_block
 from autosar_cli.sar.channel_gains import ChannelGains, stated_channel_gains, trajectory_channel_gains
 from autosar_cli.sar.grid import FocusGrid, GridError, box_grid, check_image_size, track_grid
-from autosar_cli.sar.range_compression import range_compress_into
+from autosar_cli.sar.range_compression import range_compress_into, range_null_m
 from autosar_cli.sar.stripmap import (
     block_context,
     look_angle_margin_m,
@@ -503,7 +503,8 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         uncovered = uncovered_frames_warning(drive_path, radar, offsets, traj, traj_name)
         bridged = bridged_gap_warning(geometry.t_ns, traj, traj_name)
         coarse = coarse_pixel_warning(max(g.pixel_m for g in grid_list), options.resolution_m,
-                                      SPEED_OF_LIGHT * fs / (slope * n_samp))
+                                      range_null_m(sample_rate_hz=fs, slope_hz_per_s=slope, num_samples=n_samp,
+                                                   window=options.window))
         warnings += [w for w in (uncovered, bridged, coarse) if w]
 
     params = {**asdict(options), "channel_pairs": [list(p) for p in pairs], "start_frequency_hz": f0,
@@ -659,7 +660,8 @@ MAX_PIXEL_PER_NULL = 1.4
 
 def coarse_pixel_warning(pixel_m: float, resolution_m: float, range_null_m: float) -> str | None:
     """A warning where ``pixel_m`` exceeds :data:`MAX_PIXEL_PER_NULL` times the nearer first null of a point's
-    response (``resolution_m`` across, ``range_null_m`` = c / B along the range): each pixel is the image at its
+    response (``resolution_m`` across, ``range_null_m`` along the range: :func:`.range_compression.range_null_m`,
+    c / B with a Hann window): each pixel is the image at its
     centre, so a point between centres is sampled on its sidelobes and can vanish. None else."""
     null = min(resolution_m, range_null_m)
     if pixel_m <= MAX_PIXEL_PER_NULL * null:
@@ -668,7 +670,7 @@ def coarse_pixel_warning(pixel_m: float, resolution_m: float, range_null_m: floa
     how = (f"--pixel {finest:.3g} or finer, or a coarser --resolution" if resolution_m < range_null_m else
            f"--pixel {finest:.3g} or finer (the range response's, which --resolution does not widen)")
     return (f"focus: pixel {pixel_m:g} m samples a point's response whose first null lies {null:.3g} m from its peak "
-            f"(cross-range resolution {resolution_m:g} m, range c/B {range_null_m:.3g} m): a point between pixel "
+            f"(cross-range resolution {resolution_m:g} m, range {range_null_m:.3g} m): a point between pixel "
             f"centres is sampled on its sidelobes and can vanish from the image (a pixel's value is the image at its "
             f"centre, not its area's); choose {how}")
 

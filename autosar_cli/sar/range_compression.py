@@ -134,3 +134,14 @@ def range_compress_into(beat: ArrayLike, out_re: NDArray[np.float32], out_im: ND
 def bistatic_range_axis(n_fft: int, *, sample_rate_hz: float, slope_hz_per_s: float) -> NDArray[np.float64]:
     """Bistatic path length (m, Tx -> target -> Rx) of each compressed bin."""
     return SPEED_OF_LIGHT * np.arange(n_fft) * sample_rate_hz / (n_fft * slope_hz_per_s)
+
+
+#: a range taper's first null from its peak, in bins of the unpadded FFT (c / (2 B) each): its main lobe's half-width
+NULL_BINS = {"rect": 1.0, "boxcar": 1.0, "hann": 2.0, "hamming": 2.0, "blackman": 3.0}
+
+
+def range_null_m(*, sample_rate_hz: float, slope_hz_per_s: float, num_samples: int, window: str = "hann") -> float:
+    """Distance (m, one-way range) from a point's range peak to its response's first null: the window's
+    :data:`NULL_BINS` times c / (2 B), B = slope x the ADC window (Hz); a window not listed is taken as Hann's."""
+    bandwidth_hz = slope_hz_per_s * num_samples / sample_rate_hz
+    return NULL_BINS.get(window, 2.0) * SPEED_OF_LIGHT / (2.0 * bandwidth_hz)
