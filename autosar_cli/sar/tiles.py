@@ -151,7 +151,10 @@ def focus_tile(drive_path: str | Path, trajectory: str | Path | Trajectory, conf
     t0 = time.perf_counter()
     res = focus_images(drive_path, trajectory, config, options, [tile], progress=progress, command=command)
     img = res.images[0]
-    others = res.warnings[1:] if res.damaged_frame_index else res.warnings  # the damaged frames' warning first
+    # the damaged frames' warning is the whole image's, counted over every tile's frames by focus_tiled
+    damaged = damaged_frames_warning(drive_path, str(img.params["radar"]), res.damaged_frame_index) \
+        if res.damaged_frame_index else None
+    others = [w for w in res.warnings if w != damaged]
     col0 = getattr(tile, "col0", 0)
     r, c = brightest_pixel(img.image)
     return TileResult(col0, img.image, res.frames_used, res.frames_skipped, res.backprojections,
