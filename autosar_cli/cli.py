@@ -34,7 +34,7 @@ from rich.progress import (
 from rich.table import Column, Table
 
 from autosar_cli import __version__, exit_interrupted
-from autosar_cli.config import CAN_LOG_SUFFIXES, Config
+from autosar_cli.config import CAN_LOG_SUFFIXES, LOG_SUFFIXES, NMEA_SUFFIXES, Config
 from autosar_cli.interrupts import Terminated, interrupts_held
 from autosar_cli.store.manifest import product_status, strict_json
 
@@ -153,8 +153,8 @@ AutofocusOpt = Annotated[bool, typer.Option("--autofocus", help="Before focusing
 
 
 #: suffixes of files, which a directory (a rosbag2 bag, a run, a report) is not named with
-_FILE_SUFFIXES = (".mcap", ".bag", ".db3", ".h5", ".hdf5", ".tif", ".tiff", ".png", ".json", ".md", ".yaml", ".toml",
-                  ".csv", ".bin", ".nmea", ".txt", ".gps", *CAN_LOG_SUFFIXES)
+_FILE_SUFFIXES = (*LOG_SUFFIXES, *NMEA_SUFFIXES, *CAN_LOG_SUFFIXES, ".h5", ".hdf5", ".tif", ".tiff", ".png", ".json",
+                  ".md", ".yaml", ".toml", ".csv", ".bin")
 
 
 class Scenario(StrEnum):

@@ -27,6 +27,10 @@ MAX_LATENCY_S = 2.0  #: the largest latency a sensor's table may state (s)
 #: the standalone CAN logs' suffixes (any case) read by :mod:`autosar_cli.ingest.canlog`; here, where the command
 #: line's help can name them without importing python-can
 CAN_LOG_SUFFIXES: tuple[str, ...] = (".blf", ".asc", ".trc", ".log", ".mf4")
+#: a log container's files (a rosbag2 bag's storage files among them), and an NMEA capture's: read by
+#: :mod:`autosar_cli.ingest.inputs`, here for the same reason
+LOG_SUFFIXES: tuple[str, ...] = (".mcap", ".bag", ".db3")
+NMEA_SUFFIXES: tuple[str, ...] = (".nmea", ".txt", ".gps")
 
 
 class ConfigError(ValueError):

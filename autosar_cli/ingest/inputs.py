@@ -19,14 +19,13 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from autosar_cli.config import LOG_SUFFIXES, NMEA_SUFFIXES
 from autosar_cli.store.outputs import input_problem, is_autosar_product
 
 from .dca1000 import is_capture
 from .sources import begins_as_a_container, container_of, is_log_directory
 
 KINDS = ("log", "can", "nmea", "radar")
-NMEA_SUFFIXES = (".nmea", ".txt", ".gps")
-LOG_SUFFIXES = (".mcap", ".bag", ".db3")  #: a log container's files (a rosbag2 bag's storage files among them)
 #: a DCA1000 capture's files: its data and the parameter files that state how it was recorded
 CAPTURE_SUFFIXES = (".bin", ".mmwave.json", ".setup.json", ".cfg", ".lua")
 _NMEA_SNIFF_BYTES = 65536
