@@ -925,8 +925,8 @@ def _validate(cfg: Config) -> None:
     if v.steering_ratio < 1.0:  # the road wheels turning further than the steering wheel: the ratio inverted
         raise ConfigError(f"vehicle.steering_ratio: {v.steering_ratio:g} turns the road wheels "
                           f"{1 / v.steering_ratio:.3g} times as far as the steering wheel, which no car's do (it is "
-                          f"the steering wheel's angle over the road wheels', 10-25 on cars): inverted, "
-                          f"{1 / v.steering_ratio:.3g}?")
+                          f"the steering wheel's angle over the road wheels', 10-25 on cars): inverted"
+                          + (f", {1 / v.steering_ratio:.3g}?" if 5.0 <= 1 / v.steering_ratio <= 30.0 else "?"))
     _non_negative("vehicle.cog_height_m", v.cog_height_m)
     if not 0.0 <= v.roll_axis_height_m <= max(v.cog_height_m, 0.0):
         raise ConfigError(f"vehicle.roll_axis_height_m: must lie between the road (0) and the CoG "

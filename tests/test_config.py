@@ -337,6 +337,8 @@ def _layer(tmp_path: Path, text: str) -> Path:
     ('[vehicle]\nsteering_ratio = 0.0847\n',
      r"vehicle.steering_ratio: 0.0847 turns the road wheels 11.8 times as far as the steering wheel, which no car's do "
      r"\(it is the steering wheel's angle over the road wheels', 10-25 on cars\): inverted, 11.8\?$"),
+    ('[vehicle]\nsteering_ratio = 0.9\n',
+     r"vehicle.steering_ratio: 0.9 turns the road wheels 1.11 times .*: inverted\?$"),
     # a datasheet's chirp units: each was refused naming bandwidth_hz alone ("slope x ADC window = 0.003 Hz differs")
     ('[radar]\nslope_hz_per_s = 75.0\n',
      r"radar.slope_hz_per_s: 75 is likely in MHz/us, 7.5e\+13 Hz/s; radar.bandwidth_hz: slope x ADC window = 0.003 Hz "
