@@ -1269,6 +1269,9 @@ MUTATIONS: list[Mutation] = [
     _m("range-null-of-a-blackman-taken-as-hanns", "kernel", "sar/range_compression.py",
        '"blackman": 3.0}', '"blackman": 2.0}',
        "tests/test_sar_range.py::test_a_windows_first_range_null_is_the_one_its_response_has[blackman]"),
+    _m("compare-drops-each-methods-navigation-warnings", "evaluate", "evaluate/compare.py",
+       '        nav_warnings = [str(w) for w in traj.info.get("warnings", [])]', "        nav_warnings = []",
+       "tests/test_evaluate.py::test_a_comparison_carries_what_each_methods_navigation_warned_of"),
 ]
 
 

@@ -917,6 +917,36 @@ def test_a_comparison_that_fails_leaves_nothing_it_wrote(ci_mcap, tmp_path: Path
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "other.txt"]
 
 
+def test_a_comparison_carries_what_each_methods_navigation_warned_of(ci_mcap, tmp_path: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """What a method's navigation warns of (here one line navigate would give its gnss track, put there as navigate
+    puts its own) reaches compare.json under the method's name, its result and run.json (degraded), compare.md and
+    stderr; the other method stays ok."""
+    import autosar_cli.evaluate.compare as compare_module
+
+    navigate_whole = compare_module.navigate
+    said = "gnss/gnss_cog/nmea_fix: 3 of 9 GGA fixes left out, their quality (6: dead reckoning) not measured"
+
+    def gnss_warns(drive, method, config, **kwargs):  # type: ignore[no-untyped-def]
+        traj = navigate_whole(drive, method, config, **kwargs)
+        if method == "gnss":
+            traj.info["warnings"] = [said]
+        return traj
+
+    monkeypatch.setattr(compare_module, "navigate", gnss_warns)
+    out = tmp_path / "cmp"
+    r = runner.invoke(app, ["compare", str(ci_mcap.log_path), "-o", str(out), "--methods", "none,gnss"])
+    assert r.exit_code == 0, r.output
+    result = json.loads((out / "compare.json").read_text())
+    assert result["status"] == "degraded" and result["warnings"] == [f"gnss: {said}"], result["warnings"]
+    assert result["results"]["gnss"]["status"] == "degraded" and result["results"]["gnss"]["warnings"] == [said]
+    assert result["results"]["none"]["status"] == "ok" and result["results"]["none"]["warnings"] == []
+    gnss_run = json.loads((out / "gnss" / "run.json").read_text())
+    assert gnss_run["status"] == "degraded" and gnss_run["stages"]["navigate"]["warnings"] == [said]
+    assert f"gnss: {said}" in (out / "compare.md").read_text()
+    assert f"warning: gnss: {said}" in r.stderr.splitlines()
+
+
 def test_a_comparison_carries_what_focus_warned_of_along_each_method(ci_mcap, tmp_path: Path,
                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
     """A method whose track ends half-way through the radar's frames (a GNSS that stopped): `autosar focus` and
