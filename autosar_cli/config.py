@@ -799,6 +799,12 @@ def _chirp_units_slipped(r: RadarConfig) -> str:
     return ""
 
 
+#: the carriers (Hz) of FMCW radars (automotive 24 / 77 / 79 GHz among them): 77 is GHz, not Hz
+MIN_CARRIER_HZ, MAX_CARRIER_HZ = 1e9, 3e11
+#: the furthest (m) the focusing plane may lie from the road: 500 is the default's 0.5 m in mm (it failed at focus,
+#: "no ground ... at height 500.0 m", naming no key)
+MAX_FOCUS_HEIGHT_M = 20.0
+
 #: the slowest rate (Hz) an IMU's or CAN gyro's table may state: its noise per sample is its noise density x
 #: sqrt(rate_hz), so test1's ESC gyro (100 Hz) stated as its period (0.01) was trusted 100 times too much, the track
 #: moved 5.1 cm and the reflectors 3.0-5.1 cm, status ok
@@ -941,6 +947,11 @@ def _validate(cfg: Config) -> None:
     for name in ("start_frequency_hz", "bandwidth_hz", "slope_hz_per_s", "sample_rate_hz", "prf_hz",
                  "chirp_period_s", "max_range_m", "beamwidth_az_deg", "beamwidth_el_deg"):
         _positive(f"radar.{name}", getattr(r, name))
+    if not MIN_CARRIER_HZ <= r.start_frequency_hz <= MAX_CARRIER_HZ:
+        f0 = r.start_frequency_hz
+        raise ConfigError(f"radar.start_frequency_hz: {f0:g} Hz is no FMCW radar's carrier ({MIN_CARRIER_HZ / 1e9:g}-"
+                          f"{MAX_CARRIER_HZ / 1e9:g} GHz)" + (f": in GHz? {f0:g} GHz is {f0 * 1e9:g} Hz"
+                                                              if MIN_CARRIER_HZ <= f0 * 1e9 <= MAX_CARRIER_HZ else ""))
     for name in ("num_samples", "num_tx", "num_rx"):
         if getattr(r, name) < 1:
             raise ConfigError(f"radar.{name}: must be at least 1, got {getattr(r, name)}")
@@ -1066,6 +1077,10 @@ def _validate(cfg: Config) -> None:
         raise ConfigError(f"processing.cross_range_resolution_m: {p.cross_range_resolution_m!r} m asks for a wider "
                           f"beam than the antenna's (radar.beamwidth_az_deg): the finest it holds is {finest:.3g} m")
     _finite_vector("processing.focus_height_m", (p.focus_height_m,))
+    if abs(p.focus_height_m) > MAX_FOCUS_HEIGHT_M:
+        raise ConfigError(f"processing.focus_height_m: {p.focus_height_m:g} m from the road is no plane a car's radar "
+                          f"images (at most {MAX_FOCUS_HEIGHT_M:g} m): in mm? {p.focus_height_m:g} mm is "
+                          f"{p.focus_height_m / 1000:g} m")
     if not 1 <= p.range_upsample <= MAX_RANGE_UPSAMPLE:  # beyond, the range profiles alone fill the memory
         raise ConfigError(f"processing.range_upsample: must lie in [1, {MAX_RANGE_UPSAMPLE}], got {p.range_upsample}")
     if not 0.0 < p.autofocus_pass_block_s <= 1.0:  # a block no longer than the slow motion's 1 s nodes

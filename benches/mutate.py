@@ -1272,6 +1272,10 @@ MUTATIONS: list[Mutation] = [
     _m("compare-drops-each-methods-navigation-warnings", "evaluate", "evaluate/compare.py",
        '        nav_warnings = [str(w) for w in traj.info.get("warnings", [])]', "        nav_warnings = []",
        "tests/test_evaluate.py::test_a_comparison_carries_what_each_methods_navigation_warned_of"),
+    _m("carrier-in-ghz-taken", "config", "config.py",
+       "    if not MIN_CARRIER_HZ <= r.start_frequency_hz <= MAX_CARRIER_HZ:", "    if False:", CONFIG_SILENT),
+    _m("focus-height-in-mm-taken", "config", "config.py",
+       "    if abs(p.focus_height_m) > MAX_FOCUS_HEIGHT_M:", "    if False:", CONFIG_SILENT),
 ]
 
 

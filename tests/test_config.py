@@ -359,6 +359,12 @@ def _layer(tmp_path: Path, text: str) -> Path:
     ('[radar]\nslope_hz_per_s = 75.0\nsample_rate_hz = 13500.0\nbandwidth_hz = 3000.0\n',
      r"radar.slope_hz_per_s: 75 is likely in MHz/us, 7.5e\+13 Hz/s; radar.sample_rate_hz: 13500 is likely in ksps, "
      r"1.35e\+07 Hz; radar.bandwidth_hz: 3000 is likely in MHz, 3e\+09 Hz; "),
+    # a carrier in GHz: refused blaming processing.cross_range_resolution_m (the wavelength 4 million times long)
+    ('[radar]\nstart_frequency_hz = 77.0\n',
+     r"radar.start_frequency_hz: 77 Hz is no FMCW radar's carrier \(1-300 GHz\): in GHz\? 77 GHz is 7.7e\+10 Hz$"),
+    # the focusing plane in mm: focus failed after ingest and navigate, "no ground ... at height 500.0 m", no key
+    ('[processing]\nfocus_height_m = 500.0\n',
+     r"processing.focus_height_m: 500 m from the road .* \(at most 20 m\): in mm\? 500 mm is 0.5 m$"),
     # a gyro's rate given as its period: test1's ESC gyro trusted 100 times too much, the track 5.1 cm off, no word
     ('[sensors.esc]\nrate_hz = 0.01\n',
      r"sensors.esc.rate_hz: 0.01 Hz is no gyro's \(its yaw rate's noise per sample is noise_density_dps_rthz x "
