@@ -500,7 +500,8 @@ def focus_images(drive_path: str | Path, trajectory: str | Path | Trajectory, co
         damaged_index = sorted(int(i) for i in np.asarray(radar.frame_index)[np.asarray(damaged, np.int64)])
         warnings = [damaged_frames_warning(drive_path, radar.name, damaged_index)] if damaged else []
         warnings += drive.damage  # its attributes failing their checksum: the radar's chirp may be wrong
-        uncovered = uncovered_frames_warning(drive_path, radar, offsets, traj, traj_name)
+        uncovered = uncovered_frames_warning(drive_path, radar, offsets, traj, traj_name,
+                                             geometry.skipped["outside the trajectory's time span"])
         bridged = bridged_gap_warning(geometry.t_ns, traj, traj_name)
         coarse = coarse_pixel_warning(max(g.pixel_m for g in grid_list), options.resolution_m,
                                       range_null_m(sample_rate_hz=fs, slope_hz_per_s=slope, num_samples=n_samp,
@@ -635,17 +636,17 @@ def track_spacing_s(traj: Trajectory) -> float:
 
 
 def uncovered_frames_warning(drive_path: str | Path, radar: RadarStream, tx_start_offsets_s: NDArray[np.float64],
-                             traj: Trajectory, traj_name: str) -> str | None:
+                             traj: Trajectory, traj_name: str, outside: int) -> str | None:
     """A warning where ``traj`` starts after the radar's first frame or ends before its last by more than
     :data:`MAX_UNCOVERED_S` and :data:`MAX_UNCOVERED_SPACINGS` of its sample spacings (a trajectory cut short,
     another span's, a GNSS that started late): the frames outside it are left out of the image
-    (:func:`_usable_frames`), which then covers part of the drive alone. None else."""
+    (:func:`_usable_frames`, which counts them: ``outside``), which then covers part of the drive alone. None
+    else."""
     t = np.asarray(radar.t_ns, np.int64)
     last_chirp_ns = int(round(float(np.max(tx_start_offsets_s)) * 1e9)) if np.size(tx_start_offsets_s) else 0
     early, late = (int(traj.t_ns[0]) - int(t[0])) / 1e9, (int(t[-1]) + last_chirp_ns - int(traj.t_ns[-1])) / 1e9
     if max(early, late) <= max(MAX_UNCOVERED_S, MAX_UNCOVERED_SPACINGS * track_spacing_s(traj)):
         return None
-    outside = int(np.sum((t < traj.t_ns[0]) | (t + last_chirp_ns > traj.t_ns[-1])))
     ends = ([f"starts {early:.2f} s after the first"] if early > 0 else []) + \
         ([f"ends {late:.2f} s before the last"] if late > 0 else [])
     return (f"{traj_name}: {' and '.join(ends)} frame of radar {radar.name} in {drive_path}: {outside} of its "
