@@ -370,7 +370,8 @@ def run_batch(logs: Sequence[str | Path], out_dir: str | Path, config: Config, *
                                 ingest_options=these, numba_threads=numba_threads,
                                 progress_topic=topic, command=command, can_logs=inputs["can"],
                                 nmea_logs=inputs["nmea"], radar_captures=inputs["radar"], retries=retries, pure=False,
-                                key=f"autosar-run-{name}-{topic[-12:]}")
+                                key=f"autosar-run-{name}-{topic[-12:]}",
+                                priority=len(names) - i)  # in the order given: submits 60 ms apart tie otherwise
             futures[fut] = i
         for fut in as_completed(futures):
             name, inputs = names[futures[fut]], drive_inputs[futures[fut]]
