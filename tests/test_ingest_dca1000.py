@@ -625,6 +625,10 @@ def test_hardware_triggered_frames_take_their_triggers_times(tmp_path: Path) -> 
     r = runner.invoke(app, ["info", str(tmp_path / "hw"), "--json"])
     assert r.exit_code == 0, r.output
     assert json.loads(r.stdout)["container"].endswith("hardware trigger, timed by the sync topic at ingest)")
+    r = runner.invoke(app, ["ingest", str(tmp_path / "hw"), "-o", str(tmp_path / "alone.h5")])  # not --radar-start
+    assert_one_line_error(r.exit_code, r.stderr, "a DCA1000 capture and no log", "(triggerSelect 2), so only their "
+                          "triggers time them; --radar-start cannot")
+    assert "--radar-start TIME" not in r.stderr
     start = 1_714_557_600_000_000_000
     stamps = start + np.cumsum(np.random.default_rng(5).integers(800_000, 3_000_000, 40))
     log = trigger_log(tmp_path / "hw.mcap", stamps)

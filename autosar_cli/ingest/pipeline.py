@@ -744,6 +744,19 @@ def ingest(logs: Sequence[Path], output: Path, *, config: Config, can_logs: Iter
     return ingest_sorted(given, output, config=config, **options)
 
 
+def _radar_alone_hint(capture: Path) -> str:
+    """How a capture with no log could be ingested alone: by ``--radar-start``, unless its frames start on a
+    hardware trigger (then only their triggers time them)."""
+    try:
+        hardware = Dca1000Capture(capture).params.hardware_trigger
+    except (CaptureError, OSError, ValueError):  # only the hint depends on it; ingest names a damaged capture
+        hardware = False
+    if hardware:
+        return (": its frames start on a hardware trigger (triggerSelect 2), so only their triggers time them; "
+                "--radar-start cannot")
+    return ", or --radar-start TIME --allow-partial for the radar alone"
+
+
 def ingest_sorted(given: SortedInputs, output: Path, *, config: Config, dbc: Path | None = None,
                   radar_options: RadarCaptureOptions = RadarCaptureOptions(), allow_partial: bool = False,
                   progress: ProgressFn | None = None, command: str = "",
@@ -765,8 +778,8 @@ def ingest_sorted(given: SortedInputs, output: Path, *, config: Config, dbc: Pat
     if captures and radar_options.start_ns is None and not any(kind == "log" for _, kind in inputs):
         raise IngestError(f"{captures[0]}: a DCA1000 capture and no log, so no start time for its frames: the log "
                           f"recorded with it holds the triggers that time them (topic {radar_options.sync_topic}) "
-                          f"and the drive's navigation; give it too (autosar ingest LOG --radar {captures[0]}), or "
-                          "--radar-start TIME --allow-partial for the radar alone")
+                          f"and the drive's navigation; give it too (autosar ingest LOG --radar {captures[0]})"
+                          + _radar_alone_hint(captures[0]))
     offsets = {Path(p): round(float(s) * 1e9) for p, s in (time_offsets or {}).items()}
     for p in offsets:
         if (p, "can") not in inputs and (p, "nmea") not in inputs:
