@@ -66,8 +66,12 @@ class GeodeticOrigin:
         return np.asarray(lat), np.asarray(lon), np.asarray(h)
 
     def utm_epsg(self) -> int:
-        """EPSG code of the WGS-84 UTM zone holding the origin."""
-        zone = int((self.lon_deg + 180.0) // 6.0) + 1
+        """EPSG code of the WGS-84 UTM zone holding the origin (326zz north of the equator, 327zz south of it).
+
+        Zone zz = 1 + floor((lon + 180) / 6), clamped to 1-60: the antimeridian itself, lon = +180 exactly, is zone
+        60's east edge (zone "61" would be EPSG:32661/32761, the polar UPS projections).
+        """
+        zone = min(int((self.lon_deg + 180.0) // 6.0) + 1, 60)
         return (32600 if self.lat_deg >= 0 else 32700) + zone
 
     def enu_to_utm(self, enu: ArrayLike, epsg: int | None = None) -> NDArray[np.float64]:

@@ -28,6 +28,7 @@ REPO = Path(__file__).resolve().parents[1]
 RAD8 = "tests/test_sar_radiometry.py::test_isolated_point_targets_focus_to_the_radar_equation[8]"
 TWELVE = "tests/test_sar_focus.py::test_twelve_channels_focus_too"
 GEOTIFF = "tests/test_sar_focus.py::test_geotiff_puts_reflectors_at_their_utm_position"
+UTM_ANYWHERE = "tests/test_image_products.py::test_geotiff_is_in_the_utm_zone_of_the_origin_anywhere"
 BP_REF = "tests/test_sar_backprojection.py::test_kernel_equals_float64_reference_straight_track"
 RANGE_REF = "tests/test_sar_range.py::test_matches_the_float64_reference_on_random_data"
 BEAT_REF = "tests/test_sim_kernels.py::test_beat_kernel_matches_float64_reference"
@@ -470,7 +471,10 @@ MUTATIONS: list[Mutation] = [
        "pymap3d.enu2geodetic(p[..., 0], p[..., 1], p[..., 2]", "pymap3d.enu2geodetic(p[..., 1], p[..., 0], p[..., 2]",
        GEOTIFF),
     _m("geodesy-utm-zone-off-by-one", "geodesy", "types.py",
-       "zone = int((self.lon_deg + 180.0) // 6.0) + 1", "zone = int((self.lon_deg + 180.0) // 6.0) + 2", GEOTIFF),
+       "int((self.lon_deg + 180.0) // 6.0) + 1, 60)", "int((self.lon_deg + 180.0) // 6.0) + 2, 60)", GEOTIFF),
+    _m("geodesy-antimeridian-is-zone-61", "geodesy", "types.py",
+       "zone = min(int((self.lon_deg + 180.0) // 6.0) + 1, 60)", "zone = int((self.lon_deg + 180.0) // 6.0) + 1",
+       UTM_ANYWHERE),
     _m("geotiff-half-pixel-shift", "geotiff", "store/image.py",
        "grid.pixel_enu(v - 0.5, u - 0.5)", "grid.pixel_enu(v, u)", GEOTIFF),
     # --- SAR-MIN's fits to the drive: understeer, standstill, the GNSS's and the CAN bus's latency, the GNSS noise

@@ -384,3 +384,62 @@ def test_a_geotiff_without_autosars_checksums_is_not_called_intact(tmp_path: Pat
         dst.write(np.ones((1, 10, 20), np.float32))
     r = runner.invoke(app, ["info", str(tif), "--verify"])
     assert r.exit_code == 1 and "carries no autosar checksum" in r.stderr
+
+
+def pyproj_utm(origin: GeodeticOrigin, enu: NDArray[np.float64], epsg: int) -> NDArray[np.float64]:
+    """UTM easting, northing (..., 2) of ENU points (..., 3) about ``origin`` through pyproj alone (not the package's
+    pymap3d geodesy): the origin to ECEF (EPSG:4979 -> 4978), the tangent-plane rotation, ECEF -> WGS-84 geodetic,
+    geodetic -> ``EPSG:<epsg>``."""
+    x0 = np.array(Transformer.from_crs("EPSG:4979", "EPSG:4978", always_xy=True).transform(
+        origin.lon_deg, origin.lat_deg, origin.height_m))
+    la, lo = math.radians(origin.lat_deg), math.radians(origin.lon_deg)
+    rot = np.array([[-math.sin(lo), math.cos(lo), 0.0],
+                    [-math.sin(la) * math.cos(lo), -math.sin(la) * math.sin(lo), math.cos(la)],
+                    [math.cos(la) * math.cos(lo), math.cos(la) * math.sin(lo), math.sin(la)]])
+    ecef = x0 + np.asarray(enu, np.float64) @ rot
+    lon, lat, _ = Transformer.from_crs("EPSG:4978", "EPSG:4979", always_xy=True).transform(*ecef.T)
+    return np.stack(Transformer.from_crs("EPSG:4326", f"EPSG:{epsg}", always_xy=True).transform(lon, lat), axis=-1)
+
+
+@pytest.mark.parametrize(("lat", "lon", "epsg"), [
+    (-33.45, -72.0001, 32718),  # Chile, 9 m west of the zone 18/19 boundary: the image lies across it
+    (-16.8, 180.0, 32760),  # Fiji, on the antimeridian: zone 60S (zone "61" would be EPSG:32761, UPS South)
+    (16.8, 180.0, 32660),  # and north of the equator: zone 60N (not EPSG:32661, UPS North)
+    (-16.8, -180.0, 32701),
+    (0.0, 3.0, 32631),
+])
+def test_geotiff_is_in_the_utm_zone_of_the_origin_anywhere(tmp_path: Path, lat: float, lon: float, epsg: int) -> None:
+    """South of the equator, west of Greenwich, across a zone boundary and on the antimeridian: the GeoTIFF states
+    the UTM zone pyproj's database gives the origin, and each pixel lands where pyproj alone puts its ENU position.
+    The georeference is read twice, through GDAL (rasterio) and from the TIFF's own tags (Pillow): the
+    ModelTransformationTag, the ProjectedCSTypeGeoKey and GTRasterTypeGeoKey = 1 (PixelIsArea, so the transform's
+    (0, 0) is the outer corner of pixel (0, 0): PixelIsPoint would move every pixel by half of one, 2 cm)."""
+    from PIL import Image
+    from pyproj import CRS
+    from pyproj.aoi import AreaOfInterest
+    from pyproj.database import query_utm_crs_info
+
+    origin = GeodeticOrigin(lat, lon, 35.0)
+    zones = {int(z.code) for z in query_utm_crs_info(datum_name="WGS 84", area_of_interest=AreaOfInterest(
+        lon, lat, lon, lat))}
+    assert epsg in zones
+    grid = rotated_grid()
+    paths = write_image(tmp_path / "scene", FocusedImage(make_image(grid), grid, origin, PARAMS))
+    with rasterio.open(paths["tif"]) as ds:
+        assert ds.crs.to_epsg() == epsg
+        assert f"UTM zone {epsg % 100}{'N' if epsg < 32700 else 'S'}" in CRS.from_wkt(ds.crs.to_wkt()).name
+        t = ds.transform
+    with Image.open(paths["tif"]) as tif:
+        tags = tif.tag_v2
+        model = np.array(tags[34264]).reshape(4, 4)  # ModelTransformationTag: raster (col, row, 0, 1) -> (E, N, 0, 1)
+        keys = np.array(tags[34735][4:]).reshape(-1, 4)  # GeoKeyDirectoryTag: (key, location, count, value) rows
+    geokeys = {int(k): int(v) for k, loc, _, v in keys if loc == 0}
+    assert geokeys[1025] == 1 and geokeys[3072] == epsg  # GTRasterTypeGeoKey: PixelIsArea; ProjectedCSTypeGeoKey
+    np.testing.assert_allclose(model[:2, [0, 1, 3]], [[t.a, t.b, t.c], [t.d, t.e, t.f]], rtol=0, atol=1e-9)
+    rows, cols = np.meshgrid([0, 17, 120, 249], [0, 33, 250, 399], indexing="ij")
+    truth = pyproj_utm(origin, grid.pixel_enu(rows.ravel(), cols.ravel()), epsg)
+    for (row, col), want in zip(zip(rows.ravel(), cols.ravel(), strict=True), truth, strict=True):
+        got = model[:2] @ [col + 0.5, row + 0.5, 0.0, 1.0]  # the pixel's centre, as the TIFF's tags alone place it
+        assert np.hypot(*(got - want)) < 1e-3, (row, col, got - want)
+    with h5py.File(paths["h5"], "r") as f:
+        assert int(f.attrs["utm_epsg"]) == epsg
