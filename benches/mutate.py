@@ -29,6 +29,7 @@ RAD8 = "tests/test_sar_radiometry.py::test_isolated_point_targets_focus_to_the_r
 TWELVE = "tests/test_sar_focus.py::test_twelve_channels_focus_too"
 GEOTIFF = "tests/test_sar_focus.py::test_geotiff_puts_reflectors_at_their_utm_position"
 UTM_ANYWHERE = "tests/test_image_products.py::test_geotiff_is_in_the_utm_zone_of_the_origin_anywhere"
+QUICKLOOK_POOLED = "tests/test_quicklook.py::test_quicklook_axes_put_a_pooled_pixel_at_its_pixels_metres"
 BP_REF = "tests/test_sar_backprojection.py::test_kernel_equals_float64_reference_straight_track"
 RANGE_REF = "tests/test_sar_range.py::test_matches_the_float64_reference_on_random_data"
 BEAT_REF = "tests/test_sim_kernels.py::test_beat_kernel_matches_float64_reference"
@@ -477,6 +478,9 @@ MUTATIONS: list[Mutation] = [
        UTM_ANYWHERE),
     _m("geotiff-half-pixel-shift", "geotiff", "store/image.py",
        "grid.pixel_enu(v - 0.5, u - 0.5)", "grid.pixel_enu(v, u)", GEOTIFF),
+    _m("quicklook-pooled-cell-at-its-first-pixel", "geotiff", "store/quicklook.py",
+       "extent = ((c.start * pool - 0.5) * pixel_m, (c.stop * pool - 0.5) * pixel_m,",
+       "extent = ((c.start - 0.5) * pool * pixel_m, (c.stop - 0.5) * pool * pixel_m,", QUICKLOOK_POOLED),
     # --- SAR-MIN's fits to the drive: understeer, standstill, the GNSS's and the CAN bus's latency, the GNSS noise
     _m("understeer-against-the-bicycle-sign", "sar-min", "nav/understeer.py",
        "r = z - np.arctan(wheelbase_m * w / v)", "r = z + np.arctan(wheelbase_m * w / v)", UNDERSTEER),

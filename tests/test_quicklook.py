@@ -86,3 +86,38 @@ def test_panel_grid_places_equal_panels_on_its_margins() -> None:
     assert axes.shape == (2, 3) and tuple(fig.get_size_inches()) == pytest.approx((w, h))
     box = axes[1, 2].get_position().bounds
     assert box == pytest.approx(g.rect(1, 2))
+
+
+@pytest.mark.parametrize(("shape", "pool"), [((64, 3000), 3), ((64, 1000), 1)])
+def test_quicklook_axes_put_a_pooled_pixel_at_its_pixels_metres(shape: tuple[int, int], pool: int, tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """The quicklook max-pools pool x pool pixels into one drawn cell: the cell holding pixels k*pool ...
+    k*pool + pool - 1 is drawn centred on their centre, ((k + 1/2) pool - 1/2) pixels from pixel (0, 0)'s, on the
+    metre axes. A bright pixel in the middle of its cell (3000 columns at 4 cm pool by 3) sits on the axes at its own
+    along and across metres, 60.04 m and 1.24 m (drawn at k pool pixels, 60.00 m and 1.20 m, it was (pool - 1) / 2
+    pixels, 4 cm, towards pixel (0, 0): 28 cm on a 800 m drive's quicklook, pooled by 15)."""
+    from autosar_cli.store import quicklook
+
+    figures = []
+
+    def keep(*args: object) -> object:
+        figures.append(fig := real(*args))
+        return fig
+
+    real = quicklook.agg_figure
+    monkeypatch.setattr(quicklook, "agg_figure", keep)
+    grid = FocusGrid((0.0, 0.0), (1.0, 0.0), (0.0, -1.0), 0.04, shape[1], shape[0], 0.0)
+    image = np.full(grid.shape, 1e-3, np.complex64)
+    row, col = 31, 1501 if pool == 3 else 501  # the middle pixel of its 3 x 3 cell (pool 3)
+    image[row, col] = 1.0
+    write_image(tmp_path / "scene", FocusedImage(image, grid, ORIGIN, PARAMS))
+    (fig,) = figures
+    drawn = [(im.get_extent(), im.get_array()) for ax in fig.axes for im in ax.get_images()]
+    assert sum(a.shape[1] for _, a in drawn) == -(-shape[1] // pool)  # the tiles side by side, pool x pool cells
+    centres = []
+    for (x0, x1, y0, y1), cells in drawn:
+        i, j = np.nonzero(np.asarray(cells) == 0.0)  # the peak: 0 dB rel. peak (row 0 at the bottom, origin lower)
+        centres += [(x0 + (jj + 0.5) * (x1 - x0) / cells.shape[1], y0 + (ii + 0.5) * (y1 - y0) / cells.shape[0])
+                    for ii, jj in zip(i, j, strict=True)]
+    (x, y), = centres
+    assert x == pytest.approx(col * 0.04, abs=1e-6) and y == pytest.approx(row * 0.04, abs=1e-6), (x, y)

@@ -199,17 +199,19 @@ def _nice_length(x: float) -> float:
 
 
 def draw_tiled(fig: Any, layout: TileLayout, images: Sequence[tuple[str, NDArray[np.float32]]], pixel_m: float, *,
-               vmin: float, cmap: Any, colorbar_label: str, title: str = "") -> list[Any]:
+               vmin: float, cmap: Any, colorbar_label: str, title: str = "", pool: int = 1) -> list[Any]:
     """Draw dB images (rows, cols; row 0 at the bottom) on ``fig`` as ``layout`` places them, one colour scale
-    [vmin, 0] and one colour bar; axes in metres from pixel (0, 0)'s centre (``pixel_m`` per array pixel).
+    [vmin, 0] and one colour bar; axes in metres from the image's pixel (0, 0)'s centre (``pixel_m`` per image
+    pixel). ``pool``: each array cell (k, l) holds the image pixels k*pool ... k*pool + pool - 1 (and the same in
+    columns), so it is drawn from pixel k*pool's outer edge to pixel (k + 1)*pool - 1's, centred on their centre.
     Returns every tile's axes (panel by panel)."""
     axes = []
     im = None
     for p, (label, db) in enumerate(images):
         for j, (r, c, rect) in enumerate(layout.tiles_of(p)):
             ax = fig.add_axes(rect)
-            extent = ((c.start - 0.5) * pixel_m, (c.stop - 0.5) * pixel_m, (r.start - 0.5) * pixel_m,
-                      (r.stop - 0.5) * pixel_m)
+            extent = ((c.start * pool - 0.5) * pixel_m, (c.stop * pool - 0.5) * pixel_m,
+                      (r.start * pool - 0.5) * pixel_m, (r.stop * pool - 0.5) * pixel_m)
             # at most ~one image pixel per screen pixel (the quicklook is max-pooled first): drawn as is
             im = ax.imshow(db[r, c], origin="lower", extent=extent, cmap=cmap, vmin=vmin, vmax=0.0,
                            interpolation="nearest", aspect="auto")  # the rectangle already has the image's aspect
@@ -252,8 +254,8 @@ def draw_quicklook(path: Path, pooled_db: NDArray[np.float32], pool: int, g: Foc
     title = f"peak {peak:.1f} dB, {rows} x {cols} px at {g.pixel_m * 100:g} cm"
     if layout.tiles > 1:
         title += f", in {layout.tiles} tiles"
-    ax = draw_tiled(fig, layout, [("", rel)], g.pixel_m * pool, vmin=-dynamic_range_db, cmap="gray",
-                    colorbar_label="dB (rel. peak)", title=title)[0]
+    ax = draw_tiled(fig, layout, [("", rel)], g.pixel_m, vmin=-dynamic_range_db, cmap="gray",
+                    colorbar_label="dB (rel. peak)", title=title, pool=pool)[0]
     x0, x1 = ax.get_xlim()
     y0, y1 = ax.get_ylim()
     width_m, height_m = x1 - x0, y1 - y0
