@@ -1287,6 +1287,22 @@ MUTATIONS: list[Mutation] = [
     _m("capture-alone-offered-radar-start-under-a-hardware-trigger", "ingest", "ingest/pipeline.py",
        "    if hardware:\n        return (", "    if False:\n        return (",
        "tests/test_ingest_dca1000.py::test_hardware_triggered_frames_take_their_triggers_times"),
+    _m("dca-adc-data-beside-another-recordings-raw-read", "ingest", "ingest/dca1000.py",
+       "        if differs := _not_its_raw_twin(folder):",
+       "        if False and (differs := _not_its_raw_twin(folder)):",
+       _DCA + "test_adc_data_beside_the_raw_files_of_another_recording_is_refused"),
+    _m("dca-frames-past-numframes-refuse-the-capture", "ingest", "ingest/dca1000.py",
+       "            self.num_frames, self.partial_bytes = p.num_frames, 0",
+       "            raise CaptureError(self.warnings.pop())", _DCA + "test_malformed_sizes"),
+    _m("dca-frames-past-numframes-read-as-the-recordings", "ingest", "ingest/dca1000.py",
+       "            self.num_frames, self.partial_bytes = p.num_frames, 0", "            pass",
+       _DCA + "test_malformed_sizes"),
+    _m("dca-earlier-recordings-split-files-unsaid", "ingest", "ingest/dca1000_packets.py",
+       "        if stale := _another_recordings_file(rec, offset, start, length, data_bytes, gaps_before):",
+       "        if False:", _DCA + "test_an_earlier_longer_recordings_split_files_left_beside_are_said"),
+    _m("dca-files-after-a-recordings-last-packet-unsaid", "ingest", "ingest/dca1000_packets.py",
+       " or (gap > 0 and length[i - 1] < data_bytes):", ":",
+       _DCA + "test_an_earlier_longer_recordings_split_files_left_beside_are_said"),
 ]
 
 

@@ -403,10 +403,23 @@ def test_malformed_sizes(tmp_path: Path) -> None:
     (cap / "adc_data.bin").write_bytes(data)
     r = runner.invoke(app, ["ingest", "--radar", str(cap), "--allow-partial", "-o", str(tmp_path / "f.h5")])
     assert_one_line_error(r.exit_code, r.stderr, "no start time", "--radar-start")
-    # more frames than the frame configuration says the capture holds
+    # more frames than the frame configuration says the capture holds (a second recording appended, or numFrames
+    # not the recording's: refused, it lost the frames configured): those configured kept, the rest left out, said
     cfg = cap / "capture.cfg"
     cfg.write_text(cfg.read_text().replace("frameCfg 0 2 1 0 ", "frameCfg 0 2 1 2 "))
-    assert_one_line_error(*cli_ingest(cap, tmp_path / "e.h5"), "holds 3 frames but capture.cfg configures 2")
+    first = np.random.default_rng(1).integers(-500, 500, (3, 3, 4, 540, 2), dtype=np.int16)[:2]
+    for extra, said in ((b"", "holds 3 frames but capture.cfg configures 2 (1 loops x 3 chirps x 4 Rx x 540 samples, "
+                         "complex1x, 2-lane = 25920 bytes a frame): its first 2 kept, the 25920 bytes after them left "
+                         "out (1 frame: a second recording appended, or numFrames not the recording's?)"),
+                        (data[:1000], "holds 3 frames and 1000 bytes but capture.cfg configures 2 (1 loops x 3 chirps"
+                         " x 4 Rx x 540 samples, complex1x, 2-lane = 25920 bytes a frame): its first 2 kept, the "
+                         "26920 bytes after them left out (1 frame and 1000 bytes: a second recording appended")):
+        (cap / "adc_data.bin").write_bytes(data + extra)
+        code, stderr = cli_ingest(cap, tmp_path / "e.h5", "--overwrite")
+        assert code == 0 and said in stderr and "partial frame" not in stderr, stderr
+        with Drive(tmp_path / "e.h5") as d:
+            np.testing.assert_array_equal(d.radar().raw[:], first)
+    (cap / "adc_data.bin").write_bytes(data)
     # a .bin without parameters beside it
     lone = tmp_path / "lone"
     lone.mkdir()
@@ -420,7 +433,7 @@ def test_a_folder_holding_adc_data_and_another_captures_files_is_refused(tmp_pat
     (run2_0.bin, run2_1.bin) or another .bin it is a one-line error naming them, and each reads given as CAPTURE."""
     cap = sdk_cfg(tmp_path / "cap")
     data = (cap / "adc_data.bin").read_bytes()
-    (cap / "adc_data_Raw_0.bin").write_bytes(b"\x01\x00" * 100)
+    (cap / "adc_data_Raw_0.bin").write_bytes(b"".join(packets_of(data, PACKET)))
     assert Dca1000Capture(cap).files == [cap / "adc_data.bin"]
     (cap / "run2_0.bin").write_bytes(data[:30000])
     (cap / "run2_1.bin").write_bytes(data[30000:])
@@ -429,6 +442,33 @@ def test_a_folder_holding_adc_data_and_another_captures_files_is_refused(tmp_pat
     assert Dca1000Capture(cap / "adc_data.bin").files == [cap / "adc_data.bin"]
     assert Dca1000Capture(cap / "run2_0.bin").files == [cap / "run2_0.bin", cap / "run2_1.bin"]
 
+
+
+def test_adc_data_beside_the_raw_files_of_another_recording_is_refused(tmp_path: Path) -> None:
+    """mmWave Studio run again into a folder rewrites adc_data_Raw_0.bin; the earlier run's post-processed adc_data.bin
+    stayed and was read as the capture, without a word (the campaign's "stale-flat" trials: 981 PRIs of the other
+    recording, exit 0). adc_data.bin is read beside its raw twin only where it holds the twin's data (the first
+    packet's at its byte count, or the first 4 KiB of data recorded without headers); else one line naming the byte,
+    and each reads given as CAPTURE."""
+    cap = sdk_cfg(tmp_path / "cap")
+    data = (cap / "adc_data.bin").read_bytes()
+    frame = len(data) // 3
+    packets = packets_of(data, PACKET)
+    for twin in (b"".join(packets), b"".join(packets[1:]), data[:5000]):  # the first packet lost; no headers
+        (cap / "adc_data_Raw_0.bin").write_bytes(twin)
+        assert Dca1000Capture(cap).files == [cap / "adc_data.bin"]
+    other = data[frame:] + data[:frame]  # another recording of the same setup
+    (cap / "adc_data_Raw_0.bin").write_bytes(b"".join(packets_of(other, PACKET)))
+    first = next(i for i in range(len(data)) if data[i] != other[i])
+    assert_one_line_error(*cli_ingest(cap, tmp_path / "d.h5"),
+                          f"{cap}: adc_data.bin is not adc_data_Raw_0.bin's data (stream byte {first} differs): the "
+                          "data of two recordings (mmWave Studio run again into this folder)? Give the capture's .bin "
+                          "file as CAPTURE")
+    (cap / "adc_data_Raw_0.bin").write_bytes(other[:5000])
+    assert_one_line_error(*cli_ingest(cap, tmp_path / "d.h5"), f"(stream byte {first} differs)")
+    (cap / "adc_data_Raw_0.bin").write_bytes(b"".join(packets_of(other, PACKET)))
+    assert Dca1000Capture(cap / "adc_data.bin").files == [cap / "adc_data.bin"]
+    assert Dca1000Capture(cap / "adc_data_Raw_0.bin").files == [cap / "adc_data_Raw_0.bin"]
 
 
 def test_a_capture_folder_not_read_as_one_says_why(tmp_path: Path) -> None:
@@ -910,6 +950,35 @@ def test_a_second_recording_after_a_first_of_fewer_than_64_packets_is_left_out_b
     blocks = list(cap.blocks())
     assert (cap.num_frames, cap.packets.duplicates, cap.warnings) == (3, 1, [])
     np.testing.assert_array_equal(np.concatenate([b for _, b, _ in blocks]), first)
+
+
+def test_an_earlier_longer_recordings_split_files_left_beside_are_said(tmp_path: Path) -> None:
+    """mmWave Studio run again into a folder overwrites the split files its recording fills: a longer earlier one's
+    last files stay. Their packets start on the same grid, so they were read on as this recording's, past a gap
+    counted as lost packets (the campaign's "stale-split" trials, numFrames 0: the earlier recording's PRIs kept as
+    this one's, its warnings of lost packets only). Where a file starts with a packet past the furthest before it,
+    the file before ending at a packet's edge, by over 64 packets or after a packet of fewer bytes (a recording's
+    last), a warning names the files; the recording's own files, split anywhere or losing packets, draw none."""
+    p = params_from_radar(CFG.radar, lanes=2)
+    older = np.random.default_rng(9).integers(-500, 500, (200, 3, 4, 540, 2), dtype=np.int16)
+    for n_pris, per_file, short in ((100, 40, " (one of fewer bytes)"), (90, 200, "")):
+        size = per_file * (PACKET + 10)  # files of whole packets, as the DCA1000 splits its recording
+        _, _, new = config_capture(tmp_path / f"cap{n_pris}", n_pris=n_pris, packet_bytes=PACKET, split_bytes=size)
+        if not short:  # its last packet whole: the recording ends at a packet's edge
+            new[-1].write_bytes(new[-1].read_bytes()[:-(n_pris * p.frame_bytes % PACKET) - 10])
+        old = write_capture(tmp_path / f"old{n_pris}", p, [older], packet_bytes=PACKET, split_bytes=size)
+        assert not any("packets) past" in w for w in Dca1000Capture(tmp_path / f"cap{n_pris}").warnings)
+        for f in old[len(new):]:
+            shutil.copyfile(f, tmp_path / f"cap{n_pris}" / f.name)
+        cap = Dca1000Capture(tmp_path / f"cap{n_pris}")
+        k = len(new)
+        gap = k * per_file * PACKET - (n_pris * p.frame_bytes if short else n_pris * p.frame_bytes // PACKET * PACKET)
+        assert [w for w in cap.warnings if "packets) past" in w] == [
+            f"{tmp_path / f'cap{n_pris}' / f'adc_data_Raw_{k}.bin'}: its first packet (byte count "
+            f"{k * per_file * PACKET}) lies {gap} bytes ({gap / PACKET:.1f} packets) past the last of "
+            f"adc_data_Raw_{k - 1}.bin, which ends at a packet's edge{short}: an earlier, longer recording's files "
+            f"left beside this one's (mmWave Studio run again into the folder), or the end of adc_data_Raw_{k - 1}.bin "
+            "lost? Move " + ", ".join(f.name for f in old[k:]) + " away if they are another recording's"], cap.warnings
 
 
 def test_a_packet_repeated_with_other_data_costs_only_its_pris(tmp_path: Path) -> None:

@@ -181,6 +181,10 @@ def find_capture(path: Path) -> tuple[list[Path], Path]:
         if others:
             raise CaptureError(f"{path}: adc_data.bin and {', '.join(others)}: the data of two captures? Give the "
                                "capture's .bin file as CAPTURE")
+        if differs := _not_its_raw_twin(folder):
+            raise CaptureError(f"{path}: adc_data.bin is not adc_data_Raw_0.bin's data ({differs}): the data of two "
+                               "recordings (mmWave Studio run again into this folder)? Give the capture's .bin file as "
+                               "CAPTURE")
         return [folder / "adc_data.bin"], params[0]
     bases = sorted({m.group(1) for p in folder.glob("*_*.bin") if (m := _SPLIT.match(p.name))})
     if len(bases) == 1:
@@ -198,6 +202,31 @@ def find_capture(path: Path) -> tuple[list[Path], Path]:
                            f"{', '.join(p.name for p in bins) or 'no .bin file'})")
     raise CaptureError(f"{path}: expected adc_data.bin or one series of split files <name>_0.bin, <name>_1.bin …, "
                        f"found {', '.join(p.name for p in bins) or 'no .bin file'}")
+
+
+def _not_its_raw_twin(folder: Path) -> str | None:
+    """Where ``folder``'s ``adc_data.bin`` is not mmWave Studio's post-processing of the ``adc_data_Raw_0.bin`` beside
+    it (the first packet's data, or the first 4 KiB of data recorded without headers, not at its place in
+    ``adc_data.bin``): which bytes differ; None where it is, or no raw twin lies beside it."""
+    raw = folder / "adc_data_Raw_0.bin"
+    if not raw.is_file():
+        return None
+    with open(raw, "rb") as f:
+        head = f.read(4 * (HEADER_BYTES + MAX_PACKET_DATA))
+    data_bytes = packet_data_bytes(head)
+    if data_bytes:  # its first packet's data goes at the byte count its header gives
+        at = int.from_bytes(head[4:HEADER_BYTES], "little")
+        recorded = head[HEADER_BYTES:HEADER_BYTES + data_bytes]
+    else:
+        at, recorded = 0, head[:4096]
+    with open(folder / "adc_data.bin", "rb") as f:
+        f.seek(at)
+        post = f.read(len(recorded))
+    if post == recorded:
+        return None
+    i = next((k for k, (a, b) in enumerate(zip(post, recorded, strict=False)) if a != b), len(post))
+    return f"stream byte {at + i} differs" if i < len(post) else f"it ends at byte {at + len(post)}, inside the " \
+                                                               "raw file's first data"
 
 
 def load_params(path: Path) -> tuple[CaptureParams, list[Path]]:
@@ -279,9 +308,17 @@ class Dca1000Capture:
             raise CaptureError(f"{self.name}: {self.bytes_total} bytes fit no frame layout of {self.param_file.name}: "
                                f"expected whole frames of {p.describe_layout()}{appended}")
         self.num_frames, self.partial_bytes = divmod(self.bytes_total, p.frame_bytes)
-        if p.num_frames and self.num_frames > p.num_frames:
-            raise CaptureError(f"{self.name}: holds {self.num_frames} frames but {self.param_file.name} configures "
-                               f"{p.num_frames} ({p.describe_layout()})")
+        if p.num_frames and self.num_frames > p.num_frames:  # the recording's frames kept; what follows cannot be
+            surplus = self.bytes_total - p.num_frames * p.frame_bytes  # told from a second recording appended
+            part = f" and {self.partial_bytes} bytes" if self.partial_bytes else ""
+            self.warnings.append(
+                f"{self.name}: holds {self.num_frames} frames{part} but {self.param_file.name} configures "
+                f"{p.num_frames} ({p.describe_layout()}): its first {p.num_frames} kept, the {surplus} bytes after "
+                "them "
+                f"left out ({self.num_frames - p.num_frames} frame{'s' if self.num_frames - p.num_frames > 1 else ''}"
+                f"{part}: a second recording appended, or numFrames "
+                "not the recording's?)")
+            self.num_frames, self.partial_bytes = p.num_frames, 0
         if self.partial_bytes:  # a recording cut short (a full disk, an interrupted copy) keeps its whole frames
             self.warnings.append(f"{self.name}: trailing partial frame left out ({self.partial_bytes} of "
                                  f"{p.frame_bytes} bytes, 1 frame)")
@@ -332,7 +369,8 @@ class Dca1000Capture:
         """Loops of the chirp table the data holds (a trailing partial frame's included), None where it ends inside
         one."""
         loop_bytes = self.params.frame_bytes // self.params.num_loops
-        return None if self.bytes_total % loop_bytes else self.bytes_total // loop_bytes
+        read = self.num_frames * self.params.frame_bytes + self.partial_bytes  # the bytes of frames read
+        return None if read % loop_bytes else read // loop_bytes
 
     @property
     def layout(self) -> str:

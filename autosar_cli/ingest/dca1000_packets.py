@@ -226,6 +226,8 @@ class PacketIndex:
             g = y
         offset, start, length = (np.concatenate([p[i] for p in parts]) if parts else np.zeros(0, dtype=np.int64)
                                  for i in range(3))
+        if stale := _another_recordings_file(rec, offset, start, length, data_bytes, gaps_before):
+            warnings.append(stale)
         k = _restart(start, data_bytes)
         # a first recording of fewer packets than that: the second's repeat its byte counts, with other data
         short, other_data = _repeats_of_other_data(rec, offset[:k], start[:k], length[:k])
@@ -310,6 +312,32 @@ def _restart(start: NDArray[np.int64], data_bytes: int) -> int | None:
     behind = np.maximum.accumulate(start)[:-1] - start[1:] > RESTART_PACKETS * data_bytes
     k = np.flatnonzero(behind)
     return int(k[0]) + 1 if len(k) else None
+
+
+def _another_recordings_file(rec: SplitFiles, offset: NDArray[np.int64], start: NDArray[np.int64],
+                             length: NDArray[np.int64], data_bytes: int, gaps_before: tuple[int, ...]) -> str | None:
+    """A warning where a split file starts with a packet more than ``RESTART_PACKETS`` packets past the furthest byte
+    count before it (or past it at all after a packet of fewer bytes, a recording's last) while the file before ends
+    at a packet's end: an earlier, longer recording's files that a
+    recording run again into the folder did not overwrite (or that file's end lost: which cannot be told); None
+    where no file does. ``gaps_before``: files a missing file came before (their jump is its packets)."""
+    heads = offset - HEADER_BYTES  # ascending: recording order
+    for j in range(1, len(rec.files)):
+        b = int(rec.bounds[j])
+        i = int(np.searchsorted(heads, b))
+        if j in gaps_before or not 0 < i < len(heads) or heads[i] != b or offset[i - 1] + length[i - 1] != b:
+            continue
+        gap = int(start[i]) - int(np.max(start[:i] + length[:i]))
+        # the DCA1000 sends a packet of fewer bytes last: after it, no packet of its recording comes
+        if gap > RESTART_PACKETS * data_bytes or (gap > 0 and length[i - 1] < data_bytes):
+            later = ", ".join(f.name for f in rec.files[j:])
+            return (f"{rec.files[j]}: its first packet (byte count {int(start[i])}) lies {gap} bytes "
+                    f"({gap / data_bytes:.1f} packets) past the last of {rec.files[j - 1].name}, which ends at a "
+                    f"packet's edge{' (one of fewer bytes)' if length[i - 1] < data_bytes else ''}: an earlier, "
+                    f"longer recording's files left beside this one's "
+                    f"(mmWave Studio run again into the folder), or the end of {rec.files[j - 1].name} lost? Move "
+                    f"{later} away if they are another recording's")
+    return None
 
 
 def _repeats_of_other_data(rec: SplitFiles, offset: NDArray[np.int64], start: NDArray[np.int64],
