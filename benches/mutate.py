@@ -1303,6 +1303,10 @@ MUTATIONS: list[Mutation] = [
     _m("dca-files-after-a-recordings-last-packet-unsaid", "ingest", "ingest/dca1000_packets.py",
        " or (gap > 0 and length[i - 1] < data_bytes):", ":",
        _DCA + "test_an_earlier_longer_recordings_split_files_left_beside_are_said"),
+    _m("dca-zero-run-flagged-three-values-past-its-zeros", "ingest", "ingest/dca1000.py",
+       "lo, hi = int(lo) - _zeros_beside(values, int(lo), -1), int(hi) + _zeros_beside(values, int(hi), 1)",
+       "lo, hi = int(lo) - 3, int(hi) + 3",
+       _DCA + "test_a_loss_that_starts_or_ends_at_a_pris_edge_costs_only_the_pris_it_touches", DCA_ZEROS),
 ]
 
 

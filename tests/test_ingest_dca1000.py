@@ -981,6 +981,29 @@ def test_an_earlier_longer_recordings_split_files_left_beside_are_said(tmp_path:
             "lost? Move " + ", ".join(f.name for f in old[k:]) + " away if they are another recording's"], cap.warnings
 
 
+def test_a_loss_that_starts_or_ends_at_a_pris_edge_costs_only_the_pris_it_touches(tmp_path: Path) -> None:
+    """Every 91 frames (25920 bytes) a packet (1456 bytes) starts at a PRI's first byte. Such a packet lost, or
+    zero-filled by post-processing, read as zeros found on aligned groups of four, and the PRIs within three values
+    of them were left out: the whole PRI before (after) it too (the campaign's "stale-split" trials lost this
+    recording's last PRI, 980, to the gap after it). Only the PRIs the zeros touch are left out now."""
+    p, pris, files = config_capture(tmp_path / "raw", n_pris=200, packet_bytes=PACKET)
+    assert 1620 * PACKET == 91 * p.frame_bytes
+    stream = files[0].read_bytes()
+    step = PACKET + 10
+    for gone, touched in ((1620, {91}), (1619, {90}), (3240, {182})):
+        files[0].write_bytes(stream[:gone * step] + stream[(gone + 1) * step:])
+        blocks = list(Dca1000Capture(tmp_path / "raw").blocks())
+        damaged = np.concatenate([d for _, _, d in blocks])
+        assert set(np.flatnonzero(damaged)) == touched == pris_of((gone * PACKET, (gone + 1) * PACKET), p)
+        np.testing.assert_array_equal(np.concatenate([b for _, b, _ in blocks])[~damaged], pris[~damaged])
+    _, _, flat = config_capture(tmp_path / "flat", n_pris=200)
+    data = bytearray(flat[0].read_bytes())
+    data[1620 * PACKET:1621 * PACKET] = bytes(PACKET)  # Packet_Reorder_Zerofill's fill
+    flat[0].write_bytes(bytes(data))
+    damaged = np.concatenate([d for _, _, d in Dca1000Capture(tmp_path / "flat").blocks()])
+    assert set(np.flatnonzero(damaged)) == {91}
+
+
 def test_a_packet_repeated_with_other_data_costs_only_its_pris(tmp_path: Path) -> None:
     """A packet repeated with a byte changed in its copy, inside a recording of 2671 packets: right after itself it
     stopped ingest with an IndexError; three packets later it was named a second recording, the rest of the capture

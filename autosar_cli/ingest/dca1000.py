@@ -261,6 +261,15 @@ def missing_split_files(files: list[Path]) -> list[int]:
     return [k for k in range(max(have)) if k not in have]
 
 
+def _zeros_beside(values: NDArray[np.int16], at: int, side: int, most: int = 3) -> int:
+    """Zero values next to index ``at`` of ``values`` (up to ``most``): those before it (``side`` -1) or from it on
+    (1); where a zero run found on aligned groups of four really starts or ends."""
+    k = 0
+    while k < most and 0 <= (i := at - k - 1 if side < 0 else at + k) < len(values) and values[i] == 0:
+        k += 1
+    return k
+
+
 def _flag(damaged: NDArray[np.bool_], lo: int, hi: int, per_pri: int) -> None:
     """Flag the PRIs that [lo, hi) touches (offsets in the block, ``per_pri`` of them to a PRI; clipped to it)."""
     lo, hi = max(lo, 0), min(hi, len(damaged) * per_pri)
@@ -419,8 +428,9 @@ class Dca1000Capture:
             for lo, hi in lost[(lost[:, 1] > a) & (lost[:, 0] < b)]:  # stream bytes
                 _flag(damaged, int(lo) - a, int(hi) - a, 2 * pri_values)
             runs = zero_runs(values)
-            for lo, hi in runs:  # values; a run found on aligned groups of four may reach three values further
-                _flag(damaged, int(lo) - 3, int(hi) + 3, pri_values)
+            for lo, hi in runs:  # values; a run found on aligned groups of four may reach three zeros further
+                lo, hi = int(lo) - _zeros_beside(values, int(lo), -1), int(hi) + _zeros_beside(values, int(hi), 1)
+                _flag(damaged, lo, hi, pri_values)
             lead, trail = edge_zeros(values)
             # zeros where no packet was are lost packets, counted already
             self.damage["zero-filled runs"] += sum(not within(lost, a + 2 * int(lo), a + 2 * int(hi))
