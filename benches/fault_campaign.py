@@ -20,7 +20,14 @@ in subprocesses (minimum counts at ``--scale 1``):
                                     repeated or overwritten in a recording split across files, a split file
                                     missing, a packet zero-filled or the data cut in the post-processed file,
                                     an edited number in its mmWave Studio JSON (flipped ADC sample bits are
-                                    left out: the format carries no checksum to find them by)
+                                    left out: the format carries no checksum to find them by); from trial 40 on,
+                                    what a re-run or a setup of other frames leaves (``DCA_SETUP_KINDS``): a second
+                                    recording appended (in one file, split, after a first cut short, of under 64
+                                    packets), an earlier, longer recording's split files or adc_data.bin left
+                                    beside this one's, a second series beside it, frames of another recording after
+                                    adc_data.bin's; numFrames above or below the frames held, the data cut at a
+                                    frame's end or followed by a partial frame, numLoops with or without the frame
+                                    period scaled, a frame period the per-frame triggers contradict
     canlog 40                       standalone CAN logs cut short at a random byte (``autosar info --json``):
                                     ASC, TRC, candump -L and BLF written by python-can (2000 frames), and a
                                     real CANedge MDF4 file (``../shared/realdata``; its trials skipped without)
@@ -72,7 +79,7 @@ OUTCOMES = ("clean-error", "kept-with-warning", "ok", "crash-or-traceback", "sil
 BAD = ("crash-or-traceback", "silent-wrong", "input-harmed", "partial-left")
 COUNTS = {"mcap": 100, "ros1": 40, "ros1-records": 40, "rosbag2": 40, "hdf5": 60, "config": 30, "kill": 30,
           "disk-full": 5, "path": 12,
-          "dca1000": 40, "canlog": 40, "realfiles": 56, "finalised": 28}
+          "dca1000": 70, "canlog": 40, "realfiles": 56, "finalised": 28}
 PACKET = 1456  #: the DCA1000's default data bytes per packet
 
 
@@ -743,7 +750,212 @@ def path_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
     return trial
 
 
+#: dca1000 trials from this one on are of ``DCA_SETUP_KINDS``, each in turn (the first 40 keep their packet damage)
+DCA_SETUP_FROM = 40
+DCA_SETUP_KINDS = ("appended", "appended-split", "appended-cut", "appended-short", "stale-split", "stale-flat",
+                   "second-series", "appended-flat", "numFrames-less", "numFrames-more", "cut-at-frame",
+                   "partial-frame", "numLoops", "numLoops-prf", "period")
+
+
+def _edit_frame_cfg(js: Path, **fields: float) -> None:
+    """Set ``rlFrameCfg_t`` fields of an mmWave Studio JSON (numLoops, numFrames, framePeriodicity_msec)."""
+    doc = json.loads(js.read_text())
+    doc["mmWaveDevices"][0]["rfConfig"]["rlFrameCfg_t"].update(fields)
+    js.write_text(json.dumps(doc, indent=2))
+
+
+def _split_packets(packets: list[bytes], per_file: int) -> list[bytes]:
+    """Packets in files of ``per_file`` packets each, as the DCA1000 records a long capture."""
+    return [b"".join(packets[i:i + per_file]) for i in range(0, len(packets), per_file)]
+
+
+def dca1000_pris_kept(product: Path, reference: Path) -> tuple[int, int]:
+    """(PRIs of ``product`` that are the reference drive's at the same frame index, the other PRIs it holds)."""
+    import h5py
+    import numpy as np
+
+    import autosar_cli.store.drive  # noqa: F401  (registers the compression filters)
+
+    with h5py.File(product, "r") as new, h5py.File(reference, "r") as ref:
+        group = next(k for k in ref["radar"])
+        raw, idx = new[f"radar/{group}/raw"], new[f"radar/{group}/frame_index"][()]
+        ref_raw = ref[f"radar/{group}/raw"]
+        kept = 0
+        for a in range(0, len(idx), 256):
+            i = idx[a:a + 256]
+            ok = i < len(ref_raw)
+            same = np.zeros(len(i), dtype=bool)
+            if ok.any():
+                got, want = raw[a:a + 256][ok], ref_raw[i[ok].min():i[ok].max() + 1][i[ok] - i[ok].min()]
+                same[ok] = (got == want).reshape(len(got), -1).all(axis=1)
+            kept += int(same.sum())
+        return kept, len(idx) - kept
+
+
+def dca1000_setup_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
+    """What a re-run of mmWave Studio or a setup of other frames than the recording's leaves: the capture (981 frames
+    of 1 loop, 25920 bytes a frame, with a sync trigger per frame in its MCAP) with a second recording appended or
+    an earlier one's files beside it, or its JSON's numFrames / numLoops / framePeriodicity_msec not the
+    recording's. ``chunks_expected``: its PRIs that must be kept (the recording's intact whole frames), where the
+    trial keeps them all; ``messages_read``: the product's PRIs that are the undamaged drive's at the same index."""
+    assert base.dca_flat is not None and base.dca_packets is not None and base.dca_mcap is not None
+    from autosar_cli.ingest.dca1000 import load_params
+
+    kind = DCA_SETUP_KINDS[(n - DCA_SETUP_FROM) % len(DCA_SETUP_KINDS)]
+    cap = tdir / "cap"
+    shutil.copytree(base.dca_flat, cap)
+    js = next(cap.glob("*.mmwave.json"))
+    p, _ = load_params(js)
+    fb, frames = p.frame_bytes, p.num_frames
+    data = (cap / "adc_data.bin").read_bytes()
+    from autosar_cli.ingest.dca1000_packets import packets_of
+
+    def other(k: int) -> bytes:  # another recording of the same setup: this one's frames from frame k on
+        return data[k * fb:] + data[:k * fb]
+
+    packets = [bytes(pk) for pk in packets_of(data, PACKET)]
+    expected: int | None = frames  # PRIs (1 loop a frame) the product must keep
+    args: list[str] = []
+    if kind.startswith("appended") and kind != "appended-flat":
+        (cap / "adc_data.bin").unlink()
+        shift = rng.randrange(1, frames)
+        second = packets_of(other(shift), PACKET)
+        first = packets
+        if kind == "appended-cut":  # the first recording stopped inside a frame
+            keep = rng.randrange(64, len(packets) - 1)
+            first = packets[:keep]
+            expected = keep * PACKET // fb
+        if kind == "appended-short":
+            second = second[:rng.randrange(2, 64)]
+        else:
+            second = second[:rng.randrange(64, len(second))]
+        stream = b"".join(first) + b"".join(second)
+        if kind == "appended-split":
+            cuts = sorted(rng.sample(range(1, len(stream)), 3))
+            for j, (a, b) in enumerate(zip([0, *cuts], [*cuts, len(stream)], strict=True)):
+                (cap / f"adc_data_Raw_{j}.bin").write_bytes(stream[a:b])
+        else:
+            (cap / "adc_data_Raw_0.bin").write_bytes(stream)
+        fault = (f"a second recording of {len(second)} packets (frames from {shift} on) appended after "
+                 + (f"the first cut at packet {len(first)} of {len(packets)}" if kind == "appended-cut" else
+                    f"the whole first ({len(packets)} packets)")
+                 + (", cut into 4 files anywhere" if kind == "appended-split" else ", in adc_data_Raw_0.bin"))
+    elif kind == "stale-split":  # re-run into the folder: an earlier, longer recording's last files stay beside
+        (cap / "adc_data.bin").unlink()
+        per_file = rng.randrange(len(packets) // 4, len(packets) // 2)
+        longer = other(rng.randrange(1, frames)) + data[:rng.randrange(1, frames // 2) * fb]
+        old = _split_packets([bytes(pk) for pk in packets_of(longer, PACKET)], per_file)
+        new = _split_packets(packets, per_file)
+        for j, blob in enumerate(new + old[len(new):]):
+            (cap / f"adc_data_Raw_{j}.bin").write_bytes(blob)
+        stated = rng.choice([frames, 0])
+        _edit_frame_cfg(js, numFrames=stated)
+        fault = (f"files of {per_file} packets: {len(new)} of this recording, then {len(old) - len(new)} left of an "
+                 f"earlier one of {len(longer) // fb} frames (numFrames {stated})")
+        expected = frames
+    elif kind == "stale-flat":  # this recording's raw files beside the earlier one's post-processed adc_data.bin
+        (cap / "adc_data.bin").write_bytes(other(rng.randrange(1, frames)))
+        stream = b"".join(packets)
+        cuts = sorted(rng.sample(range(1, len(stream)), 2))
+        for j, (a, b) in enumerate(zip([0, *cuts], [*cuts, len(stream)], strict=True)):
+            (cap / f"adc_data_Raw_{j}.bin").write_bytes(stream[a:b])
+        fault = "adc_data.bin of an earlier recording beside this one's adc_data_Raw_0..2.bin"
+        expected = None  # which of the two is meant cannot be told
+    elif kind == "second-series":
+        (cap / "adc_data.bin").unlink()
+        (cap / "adc_data_Raw_0.bin").write_bytes(b"".join(packets))
+        (cap / "run2_Raw_0.bin").write_bytes(b"".join(packets_of(other(rng.randrange(1, frames)), PACKET)))
+        fault = "a second recording's run2_Raw_0.bin beside adc_data_Raw_0.bin"
+        expected = None
+    elif kind == "appended-flat":
+        extra = rng.randrange(1, frames)
+        (cap / "adc_data.bin").write_bytes(data + other(rng.randrange(1, frames))[:extra * fb])
+        stated = rng.choice([frames, 0])
+        _edit_frame_cfg(js, numFrames=stated)
+        fault = f"adc_data.bin holds {extra} frames of another recording after its {frames} (numFrames {stated})"
+    elif kind == "numFrames-less":
+        stated = rng.randrange(1, frames)
+        _edit_frame_cfg(js, numFrames=stated)
+        fault = f"numFrames {stated}, the capture holds {frames}"
+    elif kind == "numFrames-more":
+        stated = rng.randrange(frames + 1, 3 * frames)
+        _edit_frame_cfg(js, numFrames=stated)
+        fault = f"numFrames {stated}, the capture holds {frames}"
+    elif kind == "cut-at-frame":
+        held = rng.randrange(1, frames)
+        stated = rng.choice([frames, 0])
+        (cap / "adc_data.bin").write_bytes(data[:held * fb])
+        _edit_frame_cfg(js, numFrames=stated)
+        fault = f"adc_data.bin cut at frame {held} of {frames} (numFrames {stated})"
+        expected = held
+    elif kind == "partial-frame":
+        extra = rng.randrange(1, fb)
+        if rng.random() < 0.5:
+            (cap / "adc_data.bin").write_bytes(data + other(rng.randrange(1, frames))[:extra])
+            fault = f"adc_data.bin followed by {extra} bytes of a frame"
+        else:
+            (cap / "adc_data.bin").unlink()
+            longer = data + other(rng.randrange(1, frames))[:extra]
+            (cap / "adc_data_Raw_0.bin").write_bytes(b"".join(packets_of(longer, PACKET)))
+            fault = f"recorded packets of the capture and {extra} bytes of a frame more"
+    elif kind in ("numLoops", "numLoops-prf"):
+        k = rng.choice([3, 9, 109, 2, 4])  # 981 = 3 x 3 x 109; 2 and 4 leave a partial frame
+        period = float(json.loads(js.read_text())["mmWaveDevices"][0]["rfConfig"]["rlFrameCfg_t"][
+            "framePeriodicity_msec"])
+        stated = rng.choice([frames, frames // k])
+        fields: dict[str, float] = {"numLoops": k, "numFrames": stated}
+        if kind == "numLoops":  # the PRF (loops / frame period) the config states stays
+            fields["framePeriodicity_msec"] = period * k
+        _edit_frame_cfg(js, **fields)
+        fault = f"numLoops {k} (the recording's 1), numFrames {stated}" + (
+            f", framePeriodicity_msec x {k}" if kind == "numLoops" else "")
+        expected = None  # the PRIs are the same, but timed as loops of the stated frames
+    else:  # a frame period the per-frame triggers contradict, the config's prf_hz agreeing with the JSON
+        e = rng.choice([1.5e-5, 3e-5, 3e-4, 2e-3, 2e-2, -5e-4])
+        period = float(json.loads(js.read_text())["mmWaveDevices"][0]["rfConfig"]["rlFrameCfg_t"][
+            "framePeriodicity_msec"])
+        _edit_frame_cfg(js, framePeriodicity_msec=period * (1 + e))
+        (tdir / "radar.toml").write_text(f'base = "{REPO / "configs" / "giulia_scanbrick.toml"}"\n\n[radar]\n'
+                                          f"prf_hz = {1e3 / (period * (1 + e))!r}\n")
+        args = ["--config", "radar.toml"]
+        fault = f"framePeriodicity_msec x (1 {e:+g}), the config's prf_hz with it"
+        expected = None
+    before = tree_hash(cap)
+    t0 = time.perf_counter()
+    r = cli(["ingest", str(base.dca_mcap), "--radar", "cap", "-o", "out/drive.h5", "--json", *args], tdir)
+    trial = Trial("dca1000", n, fault, rc=r.returncode, wall_s=time.perf_counter() - t0)
+    report: dict[str, object] = {}
+    if r.returncode == 0:
+        try:
+            report = json.loads(r.stdout)
+        except ValueError:
+            pass
+    trial.outcome, trial.detail = classify(r, tdir / "out" / "drive.h5", base.digests["dca1000"],
+                                           warned=bool(report.get("warnings")))
+    if r.returncode == 0 and trial.outcome != "crash-or-traceback":
+        kept, foreign = dca1000_pris_kept(tdir / "out" / "drive.h5", base.dir / "ref_dca1000.h5")
+        trial.messages_read = kept
+        if foreign:
+            trial.detail = f"{foreign} PRIs not the recording's kept as its own" + (
+                f"; {trial.detail}" if trial.detail else "")
+        if expected is not None:
+            trial.chunks_expected = expected
+    elif expected is not None:
+        trial.chunks_expected = expected
+    if trial.outcome in ("kept-with-warning", "clean-error", "silent-wrong"):
+        warns = [str(w) for w in report.get("warnings", [])] if isinstance(report.get("warnings"), list) else []
+        said = "; ".join(w.replace(str(tdir), "") for w in warns) or trial.detail
+        trial.detail = (trial.detail + " | " if trial.detail and trial.detail != said else "") + said[:400]
+    if tree_hash(cap) != before:
+        trial.outcome = "input-harmed"
+    elif partials(tdir):
+        trial.outcome, trial.detail = "partial-left", ", ".join(partials(tdir))
+    return trial
+
+
 def dca1000_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
+    if n >= DCA_SETUP_FROM:
+        return dca1000_setup_trial(base, n, rng, tdir)
     assert base.dca_flat is not None and base.dca_packets is not None and base.dca_mcap is not None
     kind = rng.choice(["lose", "reorder", "repeat", "header", "missing-file", "truncate", "zero-fill", "params"])
     cap = tdir / "cap"
@@ -946,8 +1158,11 @@ def main() -> None:
     print(f"{'class':10s} {'trials':>6s} " + " ".join(f"{o:>18s}" for o in cols))
     for c in classes:
         print(f"{c:10s} {sum(table[c].values()):6d} " + " ".join(f"{table[c].get(o, 0):18d}" for o in cols))
-    print(f"intact chunks (MCAP, ROS1), message records (ROS1 uncompressed) or whole lines (text CAN logs) kept: "
-          f"{len(chunk_checks) - len(chunk_fail)} of {len(chunk_checks)} trials")
+    print(f"intact chunks (MCAP, ROS1), message records (ROS1 uncompressed), whole lines (text CAN logs) or a DCA1000 "
+          f"recording's whole frames kept: {len(chunk_checks) - len(chunk_fail)} of {len(chunk_checks)} trials")
+    for t in trials:
+        if t.cls == "dca1000" and "not the recording's kept as its own" in t.detail:
+            print(f"  {t.cls} #{t.n} ({t.outcome}): {t.fault} -- {t.detail[:240]}")
     for c in classes:
         read = [t for t in trials if t.cls == c and t.messages_whole]
         if read:
