@@ -119,6 +119,7 @@ DRIVE_FOLDER = "tests/test_ingest_drive_folder.py::test_a_drive_folder_reads_as_
 DRIVE_FOLDER_NESTED = "tests/test_ingest_drive_folder.py::test_a_folder_inside_a_drive_folder_gives_its_inputs"
 BATCH_FOLDER = "tests/test_batch.py::test_batch_takes_drive_folders_and_the_time_offsets_of_their_logs"
 BATCH_INGEST = "tests/test_batch.py::test_batch_reads_every_drive_with_its_ingest_options"
+CAN_FORWARD = "tests/test_ingest_canlog.py::test_a_can_log_whose_clock_steps_forward_is_told_from_frames_lost"
 COMPARE_INGEST = "tests/test_ingest_mixed.py::test_compare_reads_can_logs_and_the_ingest_options_as_run_does"
 CAPTURE_USED = "tests/test_ingest_dca1000.py::test_simulated_capture_ingests_to_the_rawframe_cube"
 BOARD_TX = "tests/test_ingest_dca1000.py::test_a_capture_on_two_of_the_boards_three_tx_focuses_its_reflectors"
@@ -1307,6 +1308,14 @@ MUTATIONS: list[Mutation] = [
        "lo, hi = int(lo) - _zeros_beside(values, int(lo), -1), int(hi) + _zeros_beside(values, int(hi), 1)",
        "lo, hi = int(lo) - 3, int(hi) + 3",
        _DCA + "test_a_loss_that_starts_or_ends_at_a_pris_edge_costs_only_the_pris_it_touches", DCA_ZEROS),
+    _m("can-log-clock-step-forward-unsaid", "ingest", "ingest/pipeline.py",
+       "            if rec.t_ns - before - period > gap / 2:", "            if False:", CAN_FORWARD),
+    _m("can-log-id-pausing-taken-for-a-jump", "ingest", "ingest/pipeline.py",
+       "            if rec.t_ns - before - period > gap / 2:", "            if True:",
+       "tests/test_ingest_canlog.py::test_a_real_can_logs_id_that_pauses_while_another_comes_on_time_is_no_jump"),
+    _m("can-log-counter-gone-round-taken-as-no-frame-lost", "ingest", "ingest/pipeline.py",
+       "if lost is not None and counter_step is not None and lost % 16:",
+       "if lost is not None and counter_step is not None:", CAN_FORWARD),
 ]
 
 

@@ -1090,9 +1090,8 @@ def test_an_asc_whose_times_are_relative_reads_each_frame_at_its_own_time(tmp_pa
 def test_a_can_log_whose_clock_steps_back_while_recording_is_warned_of(tmp_path: Path) -> None:
     """A logger whose clock is set back while it records (NTP, PTP stepping a PC's clock) writes the frames after the
     step stamped before those it wrote before: a stream's reorder buffer (512 messages) interleaves the two, without
-    a word. Urban seed 1's CAN as a candump log stepping 0.3 s back halfway went 16.3 cm across (0.96 as recorded;
-    0.3 s forward: 13.2 cm, a gap no reader can tell from frames lost). The step is one warning naming the file,
-    the frame and the size; a log in time order says nothing."""
+    a word. Urban seed 1's CAN as a candump log stepping 0.3 s back halfway went 16.3 cm across (0.96 as recorded).
+    The step is one warning naming the file, the frame and the size; a log in time order says nothing."""
     from autosar_cli.config import load_config
     from autosar_cli.ingest.pipeline import ingest
 
@@ -1109,6 +1108,54 @@ def test_a_can_log_whose_clock_steps_back_while_recording_is_warned_of(tmp_path:
     _write(whole, [f[3] for f in _frames()])
     report = ingest([], tmp_path / "w.h5", config=load_config(), can_logs=[whole], allow_partial=True)
     assert not [w for w in report.warnings if "step back" in w], report.warnings
+
+
+def test_a_can_log_whose_clock_steps_forward_is_told_from_frames_lost(tmp_path: Path) -> None:
+    """A logger whose clock is set forward while it records leaves a gap in its times with no frame lost: urban seed
+    1's CAN as a candump log stepping 0.3 s forward halfway went 13.2 cm across, without a word. The jump is one
+    warning naming the file, the frame, the time and the size; the rolling counters across it tell a clock step (on
+    by one) from 30 frames of each ID lost (they skip); 32 frames lost (the counters go round twice) say neither; a
+    log in time order, and one that steps back, say nothing of a jump."""
+    from autosar_cli.config import load_config
+    from autosar_cli.ingest.pipeline import ingest
+
+    def jumps(name: str, messages: list[can.Message]) -> list[str]:
+        path = tmp_path / name
+        _write(path, messages)
+        report = ingest([], tmp_path / f"{name}.h5", config=load_config(), can_logs=[path], allow_partial=True)
+        return [w for w in report.warnings if w.startswith(f"{path}: its frame times jump forward")]
+
+    stepped = [f[3] for f in _frames()]
+    for m in stepped[N_CYCLES:]:
+        m.timestamp += 0.3
+    said = jumps("stepped.log", stepped)
+    assert len(said) == 1 and (f"by up to 0.307 s after frame {N_CYCLES} (2020-09-13T12:26:40.616+00:00; 1 such "
+                               "jump): no frame where ID 0xEE on can0 came every 10 ms (31 periods)") in said[0], said
+    assert "counters of the 2 IDs that have one go on by one across it: no frame lost, the logger's clock set forward" \
+        in said[0]
+    frames = [f[3] for f in _frames()]
+    said = jumps("lost.log", frames[:N_CYCLES] + frames[N_CYCLES + 60:])
+    assert len(said) == 1 and "0.307 s after frame 100" in said[0], said
+    assert "counters of 2 of the 2 IDs that have one skip across it: frames lost" in said[0]
+    said = jumps("lost32.log", frames[:N_CYCLES] + frames[N_CYCLES + 64:])
+    assert len(said) == 1 and "0.327 s" in said[0] and "no rolling counter tells which" in said[0], said
+    assert jumps("whole.log", frames) == []
+    back = [f[3] for f in _frames()]
+    for m in back[N_CYCLES:]:
+        m.timestamp -= 0.3
+    assert jumps("back.log", back) == []
+
+
+def test_a_real_can_logs_id_that_pauses_while_another_comes_on_time_is_no_jump(tmp_path: Path) -> None:
+    """The 2022 CANedge file's 0x9 (every 10 ms) pauses 0.5 s while 0x10 comes on, every 200 ms, as before: no jump
+    of the file's times, none warned of (it was, 0.2 s twice, before 0x10's own times were asked)."""
+    from autosar_cli.config import load_config
+    from autosar_cli.ingest.pipeline import ingest
+
+    path = realdata(CSS, MF4_2022)
+    report = ingest([], tmp_path / "d.h5", config=load_config(), can_logs=[path],
+                    allow_partial=True, dbc=path.parent / "gnss.dbc")
+    assert not [w for w in report.warnings if "jump forward" in w], report.warnings
 
 
 def test_round_trip_extended_ids(tmp_path: Path) -> None:

@@ -301,6 +301,9 @@ class CanDecoder:
         self.db = db
         self.checksum_rule = checksum_rule
         self.stats = CanStats()
+        #: whether the last frame fed carried its message's rolling counter on by one (False: it skipped), None
+        #: where it was not checked (no counter, its id's first frame, or a frame dropped before it)
+        self.counter_step: bool | None = None
         self._attrs = attrs
         names = Counter(m.name for m in db.messages)
         self._layouts: dict[tuple[int, bool], _CanLayout] = {}
@@ -347,6 +350,7 @@ class CanDecoder:
     def feed(self, frame: CanRecord, header_ns: int | None, log_ns: int, topic: str = "") -> None:
         st = self.stats
         st.frames += 1
+        self.counter_step = None
         if frame.is_error:
             st.error_frames += 1
             return
@@ -392,8 +396,10 @@ class CanDecoder:
                 return
         if lay.has_counter and "COUNTER" in raw:
             c = int(raw["COUNTER"])
-            if lay.last_counter is not None and c != (lay.last_counter + 1) % 16:
-                st.counter_errors[m.name] += 1
+            if lay.last_counter is not None:
+                self.counter_step = c == (lay.last_counter + 1) % 16
+                if not self.counter_step:
+                    st.counter_errors[m.name] += 1
             lay.last_counter = c
         for name, lo, hi in lay.ranges:  # ROS containers have no checksums: a flipped bit shows here
             if name in values and not lo <= values[name] <= hi:

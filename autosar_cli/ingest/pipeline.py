@@ -18,7 +18,7 @@ import os
 import re
 import statistics
 import time
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -92,6 +92,83 @@ INTERLEAVE_NS = 250_000_000
 #: a CAN log's frame stamped this much (ns) before one read before it in the file (a logger writes frames as they
 #: come: a clock set back while it recorded) is a warning; within it, frames of two channels a logger buffers apart
 CAN_LOG_STEP_BACK_NS = 50_000_000
+#: a CAN log with no frame for over this many periods of a frame ID that came regularly before (and over
+#: CAN_LOG_STEP_BACK_NS) is a warning: frames lost, or the logger's clock set forward while it recorded
+CAN_LOG_JUMP_PERIODS = 10
+#: the intervals of a frame ID its period is the median of (regular: the longest within twice the shortest)
+_JUMP_INTERVALS = 8
+
+
+class _ForwardJumps:
+    """Where a CAN log's times jump forward: no frame for over :data:`CAN_LOG_JUMP_PERIODS` periods of a frame ID that
+    came regularly before, and the regular ID's frame after the silence late by it too (one on time: that ID came on,
+    another one paused). Frames lost on the bus or by the logger, or the logger's clock set forward while it recorded
+    (the frames after it read that much late); the rolling counters of the IDs across it tell which: on by one, no
+    frame was lost."""
+
+    def __init__(self) -> None:
+        self.intervals: dict[tuple[str, int, bool], deque[int]] = {}
+        self.last: dict[tuple[str, int, bool], int] = {}
+        #: (size ns, the frame before it (1-based), the time before it ns, the ID's period ns, the ID) of each jump
+        self.jumps: list[tuple[int, int, int, int, tuple[str, int, bool]]] = []
+        #: a silence no regular ID's frame has ended yet: (size ns, frame, time before it, {ID: its period ns})
+        self.pending: tuple[int, int, int, dict[tuple[str, int, bool], float]] | None = None
+        #: the IDs whose first frame after the last jump is still to come: the frames lost there, were any lost
+        self.waiting: dict[tuple[str, int, bool], int] = {}
+        self.kept = self.skipped = 0  #: IDs whose rolling counter went on by one across a jump, or skipped
+
+    def _period(self, key: tuple[str, int, bool]) -> float | None:
+        """The median of the ID's last intervals (ns) where they are regular (the longest within twice the shortest)."""
+        d = self.intervals.get(key)
+        if d is None or len(d) < _JUMP_INTERVALS or min(d) <= 0 or max(d) > 2 * min(d):
+            return None
+        return statistics.median(d)
+
+    def see(self, rec: CanRecord, frame: int, latest: int, counter_step: bool | None) -> None:
+        """Take the frame ``rec`` (``frame`` frames before it; ``latest``: the latest time before it, ns), fed with
+        ``counter_step`` (:attr:`CanDecoder.counter_step`)."""
+        key = (rec.channel, rec.frame_id, rec.is_extended)
+        gap = rec.t_ns - latest
+        if frame and gap > CAN_LOG_STEP_BACK_NS:
+            missed = {k: p for k in self.intervals if (p := self._period(k)) is not None
+                      and gap > CAN_LOG_JUMP_PERIODS * p}
+            if missed:
+                self.pending = (gap, frame, latest, missed)
+        before = self.last.get(key)
+        if self.pending is not None and before is not None and (period := self._period(key)) is not None:
+            gap, at_frame, at, missed = self.pending
+            self.pending = None
+            if rec.t_ns - before - period > gap / 2:  # its own frame late by the silence too
+                fastest = min(missed, key=missed.__getitem__)
+                self.jumps.append((gap, at_frame, at, int(missed[fastest]), fastest))
+                self.waiting = {k: round(gap / p) - 1 for k, p in missed.items()}
+        lost = self.waiting.pop(key, None)
+        if lost is not None and counter_step is not None and lost % 16:  # 16 frames lost: the counter on by one
+            self.kept += counter_step
+            self.skipped += not counter_step
+        if before is not None and rec.t_ns > before:
+            self.intervals.setdefault(key, deque(maxlen=_JUMP_INTERVALS)).append(rec.t_ns - before)
+        self.last[key] = rec.t_ns
+
+    def warning(self, path: Path) -> str | None:
+        """The one warning of the jumps, naming the largest; None where there are none."""
+        if not self.jumps:
+            return None
+        gap, frame, at, period, (channel, frame_id, _) = max(self.jumps)
+        said = (f"{path}: its frame times jump forward by up to {gap / 1e9:.3f} s after frame {frame} "
+                f"({utc_text(at, 'milliseconds')}; {len(self.jumps)} such jump{'s' if len(self.jumps) > 1 else ''}): "
+                f"no frame where ID 0x{frame_id:X}{f' on {channel}' if channel else ''} came every "
+                f"{period / 1e6:.3g} ms ({gap / period:.0f} periods); ")
+        if self.skipped:
+            return said + (f"the rolling counters of {self.skipped} of the {self.kept + self.skipped} IDs that have "
+                           "one skip across it: frames lost on the bus or by the logger, their signals missing there")
+        if self.kept:
+            return said + (f"the rolling counters of the {self.kept} IDs that have one go on by one across it: no "
+                           "frame lost, the logger's clock set forward while it recorded? The frames after it are read "
+                           "that much late (split the log there and give --time-offset)")
+        return said + ("frames lost on the bus or by the logger, or its clock set forward while it recorded (no "
+                       "rolling counter tells which; the frames after a clock set forward are read that much late: "
+                       "split the log there and give --time-offset)")
 
 ProgressFn = Callable[[int, int], None]
 
@@ -570,11 +647,13 @@ class _Ingest:
         n = 0
         first = last = latest = 0
         back = (0, 0, 0, 0)  # the largest step back: (ns, frame, its time, frames stamped before one read earlier)
+        jumps = _ForwardJumps()
         try:
             for rec in read_can_log(path, self.warnings.append):
                 if offset_ns:
                     rec = dataclasses.replace(rec, t_ns=rec.t_ns + offset_ns)
                 self.can.feed(rec, None, rec.t_ns, f"file:{path.name}")
+                jumps.see(rec, n, latest, self.can.counter_step)
                 first = rec.t_ns if n == 0 else first
                 last = rec.t_ns
                 if latest - rec.t_ns > CAN_LOG_STEP_BACK_NS:
@@ -593,6 +672,8 @@ class _Ingest:
                 f"{CAN_LOG_STEP_BACK_NS / 1e6:g} ms before one the file holds before them): the logger's clock set "
                 "back while it recorded? The frames either side are read as stamped, those on one side that much off "
                 "(split the log there and give --time-offset)")
+        if (jumped := jumps.warning(path)) is not None:
+            self.warnings.append(jumped)
         if n:
             self.spans[str(path)] = (first, last)
         return n
