@@ -1316,6 +1316,8 @@ MUTATIONS: list[Mutation] = [
     _m("can-log-counter-gone-round-taken-as-no-frame-lost", "ingest", "ingest/pipeline.py",
        "if lost is not None and counter_step is not None and lost % 16:",
        "if lost is not None and counter_step is not None:", CAN_FORWARD),
+    _m("latency-in-ms-taken", "config", "config.py",
+       "        if math.isfinite(s.latency_s) and s.latency_s >= LATENCY_IN_MS_S:", "        if False:", CONFIG_SILENT),
 ]
 
 

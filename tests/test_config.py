@@ -281,8 +281,8 @@ def test_every_number_far_beyond_its_unit_is_rejected_naming_its_key(tmp_path: P
 
 
 @pytest.mark.parametrize("replacement, key, said", [
-    ("latency_s = 10.0", "sensors.wheel_speeds.latency_s",
-     "10.0 is more than 2 in magnitude (a sensor whose stamps lag its values by more is on another clock)"),
+    ("latency_s = -10.0", "sensors.wheel_speeds.latency_s",
+     "-10.0 is more than 2 in magnitude (a sensor whose stamps lag its values by more is on another clock)"),
     ("wheelbase_m = 282.0", "vehicle.wheelbase_m", "282.0 is more than 20 in magnitude (no road vehicle's)"),
     ("bias_tau_s = 1e9", "sensors.esc.gyro.bias_tau_s",
      "1000000000.0 is more than 1e+07 in magnitude (beyond any car's, road's or sensor's in s)")],
@@ -393,6 +393,12 @@ def _layer(tmp_path: Path, text: str) -> Path:
                                                     r"can_gnss or gnss sensor's\)"),
     ('[sensors.gnss_cog]\nmounting_ypr_deg = [0.0, 0.0, 0.0]\n', r"sensors.gnss_cog.mounting_ypr_deg: a gnss sensor "
                                                                   r"reads no mounting_ypr_deg key"),
+    # a latency in ms: the GNSS's 1 (ms) moved the ci drive's track 2.31 m, status ok; 2 was the bound
+    ('[sensors.gnss_cog]\nlatency_s = 1.0\n',
+     r"sensors.gnss_cog.latency_s: 1 s is no sensor's latency \(its stamps that long after the instant its values "
+     r"refer to; under 0.5 s\): in ms\? If you meant 1 ms write 0.001$"),
+    ('[sensors.imu_cog_a]\nlatency_s = 2.0\n', r"sensors.imu_cog_a.latency_s: 2 s .* If you meant 2 ms write 0.002$"),
+    ('[sensors.esc]\nlatency_s = 0.5\n', r"sensors.esc.latency_s: 0.5 s .* If you meant 0.5 ms write 0.0005$"),
 ])
 def test_a_config_that_would_run_wrong_without_a_word_is_refused(tmp_path: Path, text: str, said: str) -> None:
     with pytest.raises(ConfigError, match=said):
