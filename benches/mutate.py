@@ -1318,6 +1318,12 @@ MUTATIONS: list[Mutation] = [
        "if lost is not None and counter_step is not None:", CAN_FORWARD),
     _m("latency-in-ms-taken", "config", "config.py",
        "        if math.isfinite(s.latency_s) and s.latency_s >= LATENCY_IN_MS_S:", "        if False:", CONFIG_SILENT),
+    _m("empty-blf-in-pythons-words", "ingest", "ingest/canlog.py",
+       "    if size == 0 and suffix in _BINARY:", "    if False:",
+       "tests/test_cli.py::test_an_empty_binary_can_log_is_named_with_what_it_is[empty blf]"),
+    _m("blf-cut-in-its-header-in-pythons-words", "ingest", "ingest/canlog.py",
+       '    if suffix == ".blf" and size < _BLF_HEADER_READ:', "    if False:",
+       "tests/test_cli.py::test_an_empty_binary_can_log_is_named_with_what_it_is[blf of its magic alone]"),
 ]
 
 

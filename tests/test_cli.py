@@ -395,6 +395,27 @@ def test_an_empty_mcap_is_named_with_what_it_is(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["drive.mcap"]
 
 
+@pytest.mark.parametrize("name, data, said", [
+    ("bus.blf", b"", "an empty file (0 bytes), no BLF log in it: it holds no CAN frames"),
+    ("bus.blf", b"LOGG", "truncated BLF log, no frame read: the file ends inside its file header (4 bytes), it holds "
+                         "no CAN frames"),
+    ("bus.mf4", b"", "an empty file (0 bytes), no MDF4 log in it: it holds no CAN frames")],
+    ids=["empty blf", "blf of its magic alone", "empty mf4"])
+def test_an_empty_binary_can_log_is_named_with_what_it_is(tmp_path: Path, name: str, data: bytes, said: str) -> None:
+    """A zero-byte .blf said "cannot open BLF log: ValueError: cannot mmap an empty file", one of 4 bytes "error:
+    unpack requires a buffer of 72 bytes" (python-can's words); a zero-byte .mf4 quoted asammdf's. Given as the log,
+    as a --can-log beside one, to run and to info: one line naming the file, exit 1, nothing written."""
+    can_log = tmp_path / name
+    can_log.write_bytes(data)
+    sample = Path(__file__).resolve().parents[1] / "sample_logs" / "ci_seed1.mcap"
+    for args in (["ingest", str(can_log), "-o", str(tmp_path / "d.h5")],
+                 ["ingest", str(sample), "--can-log", str(can_log), "-o", str(tmp_path / "d.h5")],
+                 ["run", str(can_log), "-o", str(tmp_path / "r")], ["info", str(can_log)]):
+        r = runner.invoke(app, args)
+        assert r.exit_code == 1 and r.stderr == f"error: {can_log}: {said}\n", (args, r.stderr)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]
+
+
 def test_debug_given_after_the_command_says_where_it_goes():
     """`autosar ingest LOG --debug` said "No such option: --debug (Possible options: --dbc)", pointing at the CAN
     database; --debug is autosar's own option: it says it goes before the command."""

@@ -86,6 +86,10 @@ _ASC_CLASSIC_LONG_DLC = re.compile(r"\s*\d+\.\d+\s+\d+\s+[0-9A-Fa-f]+x?\s+[RT]x\
                                    r"(?:\s+[0-9A-Fa-f]{2}){8}(?:\s+Length\s*=.*)?\s*$")
 _SNIFF_BYTES = 4096
 _FORMAT_NAMES = {".blf": "BLF", ".asc": "ASC", ".trc": "TRC", ".log": "candump -L", ".mf4": "MDF4"}
+#: formats of which an empty file is no log (a text log of no line is one of no frame)
+_BINARY = (".blf", ".mf4")
+#: the bytes of a BLF file's header python-can reads before anything else
+_BLF_HEADER_READ = 72
 
 
 class CanLogError(RuntimeError):
@@ -290,6 +294,12 @@ def _records(path: Path, warn: Callable[[str], None]) -> Iterator[CanRecord]:
     kind = _FORMAT_NAMES[suffix]
     to_channel: Callable[[object], str] = _channel_from_one if suffix in _ZERO_BASED_CHANNELS else _channel
     frames = 0
+    size = path.stat().st_size
+    if size == 0 and suffix in _BINARY:  # python-can's "cannot mmap an empty file" named no file
+        raise CanLogError(f"{path}: an empty file (0 bytes), no {kind} log in it: it holds no CAN frames")
+    if suffix == ".blf" and size < _BLF_HEADER_READ:  # python-can's "unpack requires a buffer of 72 bytes"
+        raise CanLogError(f"{path}: truncated BLF log, no frame read: the file ends inside its file header ({size} "
+                          "bytes), it holds no CAN frames")
     # asammdf prints the traceback of an error to stdout before it raises it or reads on: held back (it would break
     # --json's output), the error is ours to word
     printed = io.StringIO()
