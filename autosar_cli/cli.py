@@ -360,6 +360,17 @@ def _a_directory_not_named_as_a_file(output: Path, what: str) -> None:
                                  f"{output.with_suffix('')}")
 
 
+def _an_hdf5_name(output: Path, what: str) -> None:
+    """Refuse an HDF5 output (``what``: ingest's drive.h5) not named .h5 or .hdf5: `ingest -o t.txt` wrote HDF5 that
+    `info` then read as an NMEA capture ("none of its 994 NMEA 0183 sentences could be read") and `info --verify`
+    refused, as other tools, which go by the name, do."""
+    suffix = output.suffix.lower()
+    if suffix not in (".h5", ".hdf5"):
+        named = f"a {output.suffix} name" if suffix else "a name without .h5"
+        fixed = output.with_suffix(".h5") if suffix[1:].isalpha() else output.with_name(output.name + ".h5")
+        raise typer.BadParameter(f"{output}: {named} for {what}, an HDF5 file; name it {fixed}")
+
+
 def _load_config(path: Path | None) -> Any:
     from autosar_cli.config import load_config
 
@@ -502,6 +513,7 @@ def ingest(
         # a capture's folder may take the drive beside its data; a log's or a drive folder's may not
         _prepare_output(output, overwrite, [*(logs or []), *(p for p, kind in given.all() if kind != "radar"), dbc,
                                             cfg.source])
+        _an_hdf5_name(output, "the drive.h5 ingest writes")
         from autosar_cli.store.outputs import check_free_space, input_bytes
 
         check_free_space(output, input_bytes([p for p, _ in given.all()]), "the drive")

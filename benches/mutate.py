@@ -1324,6 +1324,9 @@ MUTATIONS: list[Mutation] = [
     _m("blf-cut-in-its-header-in-pythons-words", "ingest", "ingest/canlog.py",
        '    if suffix == ".blf" and size < _BLF_HEADER_READ:', "    if False:",
        "tests/test_cli.py::test_an_empty_binary_can_log_is_named_with_what_it_is[blf of its magic alone]"),
+    _m("drive-of-any-name-written", "inputs", "cli.py",
+       '    if suffix not in (".h5", ".hdf5"):', "    if False:",
+       "tests/test_cli.py::test_a_drive_named_as_another_kind_of_file_is_refused_with_the_name_to_give[txt]"),
 ]
 
 

@@ -344,6 +344,26 @@ def test_simulate_to_a_name_of_another_kind_of_file_is_refused_with_the_name_to_
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize(("name", "said"), [
+    ("t.txt", "t.txt: a .txt name for the drive.h5 ingest writes, an HDF5 file; name it t.h5"),
+    ("drive", "drive: a name without .h5 for the drive.h5 ingest writes, an HDF5 file; name it drive.h5"),
+    ("drive.v2", "drive.v2: a .v2 name for the drive.h5 ingest writes, an HDF5 file; name it drive.v2.h5")],
+    ids=["txt", "no suffix", "dotted"])
+def test_a_drive_named_as_another_kind_of_file_is_refused_with_the_name_to_give(
+        name: str, said: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`ingest -o t.txt` wrote a drive.h5 named t.txt, which `info` then read as an NMEA capture ("none of its 994
+    NMEA 0183 sentences could be read") and `info --verify` refused. It is refused in one line naming the name to
+    give, as simulate's wrong names are, nothing written; .H5 is taken."""
+    source = str(Path(__file__).resolve().parents[1] / "sample_logs" / "ci_seed1.mcap")
+    monkeypatch.chdir(tmp_path)
+    r = runner.invoke(app, ["ingest", source, "-o", name])
+    assert r.exit_code == 1 and r.stderr == f"error: {said}\n", r.stderr
+    assert list(tmp_path.iterdir()) == []
+    if name == "t.txt":
+        r = runner.invoke(app, ["ingest", source, "-o", "drive.H5"])
+        assert r.exit_code == 0 and (tmp_path / "drive.H5").is_file(), r.stderr
+
+
 def test_usage_lines_show_arguments_as_named_and_a_seeds_range_as_64_bits():
     """typer 0.29 writes a required argument in braces (`Usage: autosar info [OPTIONS] {PATH}`, read as a set or a
     placeholder to fill in with its braces), `--seed` beside `[0<=x<=18446744073709551615]`, and focus's
