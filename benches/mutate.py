@@ -117,6 +117,8 @@ RUN_CAN_LOG = "tests/test_ingest_mixed.py::test_run_reads_can_logs_beside_the_dr
 CONFIG_NOT_AN_OUTPUT = "tests/test_ingest_mixed.py::test_run_and_compare_never_write_over_their_config[compare]"
 DRIVE_FOLDER = "tests/test_ingest_drive_folder.py::test_a_drive_folder_reads_as_its_inputs_given_one_by_one"
 DRIVE_FOLDER_NESTED = "tests/test_ingest_drive_folder.py::test_a_folder_inside_a_drive_folder_gives_its_inputs"
+SIMULATED_FOLDER = ("tests/test_ingest_drive_folder.py::"
+                    "test_a_folder_of_a_simulated_log_and_its_truth_is_that_log_and_finds_its_truth")
 BATCH_FOLDER = "tests/test_batch.py::test_batch_takes_drive_folders_and_the_time_offsets_of_their_logs"
 BATCH_INGEST = "tests/test_batch.py::test_batch_reads_every_drive_with_its_ingest_options"
 CAN_FORWARD = "tests/test_ingest_canlog.py::test_a_can_log_whose_clock_steps_forward_is_told_from_frames_lost"
@@ -743,6 +745,8 @@ MUTATIONS: list[Mutation] = [
        "elif depth < MAX_DEPTH and (inner :=", "elif False and (inner :=", DRIVE_FOLDER_NESTED),
     _m("drive-folder-left-out-unsaid", "ingest", "ingest/inputs.py",
        "            sorted_.warnings.append(said)", "            pass", DRIVE_FOLDER),
+    _m("drive-folder-of-a-simulated-log-read-as-a-bag", "ingest", "ingest/inputs.py",
+       "or p.with_name(p.name + \".truth.h5\").is_file()]", "or False]", SIMULATED_FOLDER),
     _m("batch-drive-folder-time-offset-refused", "inputs", "batch.py",
        "folder.inputs[\"nmea\"]] if folder else []", "folder.inputs[\"nmea\"]] if False else []", BATCH_FOLDER),
     _m("batch-drive-read-without-the-ingest-options", "batch", "batch.py",

@@ -98,6 +98,28 @@ def test_a_folder_of_a_bags_storage_files_alone_is_still_that_bag(ci_mcap: Simul
     assert drive_folder(bag) is None and classify_input(bag) == "log"
 
 
+def test_a_folder_of_a_simulated_log_and_its_truth_is_that_log_and_finds_its_truth(ci_mcap: SimulationResult,  # noqa: F811
+                                                                                    work: Path, cfg: Config) -> None:  # noqa: F811
+    """`autosar simulate -o sims/ci.mcap` then `autosar ingest sims/` (as the bundled sample_logs/ is): the folder
+    was read as a rosbag2 bag killed before its metadata.yaml, warned of as 'a recording that did not finish' (the
+    drive degraded) and its truth sidecar not found (`navigate -m truth`: 'no truth sidecar found')."""
+    d = work / "sims"
+    d.mkdir()
+    os.link(ci_mcap.log_path, d / "ci.mcap")
+    os.link(ci_mcap.truth_path, d / "ci.mcap.truth.h5")
+    found = drive_folder(d)
+    assert found is not None and found.inputs["log"] == [d / "ci.mcap"] and found.left_out == []
+    report = ingest([d], work / "sims.h5", config=cfg)
+    assert report.warnings == [] and [i["path"] for i in report.inputs] == [str(d / "ci.mcap")]
+    from autosar_cli.nav.navigate import navigate
+
+    truth = navigate(work / "sims.h5", "truth", cfg)  # the sidecar beside the folder's log
+    travelled = float(np.linalg.norm(np.diff(truth.rear_axle_enu, axis=0), axis=1).sum())
+    assert len(truth.t_ns) == 991 and 2.3 < travelled < 2.5, (len(truth.t_ns), travelled)
+    ingest([d / "ci.mcap"], work / "sims_file.h5", config=cfg)
+    assert drive_content(work / "sims.h5") == drive_content(work / "sims_file.h5")
+
+
 def test_a_captures_files_beside_its_navigation_log_are_read_as_that_capture(tmp_path: Path) -> None:
     """A DCA1000 capture's files (data and parameter file) lying in the folder beside the MCAP: the folder was
     taken for the capture alone and its MCAP, the capture's navigation and clock, went unread."""

@@ -6,7 +6,8 @@ files, an NMEA capture, a DCA1000 capture's files): each is read as if it were g
 lying in the folder itself being the folder read as that capture, and a folder inside it that holds inputs (the CAN
 logger's ``can/``) giving those. A directory stays what it was (a rosbag2 bag, its
 ``metadata.yaml`` or its storage files alone; a DCA1000 capture's files alone) unless it holds a CAN log or an NMEA
-capture, a capture's files beside a log, a log no bag's storage file is (a ROS 1 bag, a bag's own folder), or a
+capture, a capture's files beside a log, a log no bag's storage file is (a ROS 1 bag, a bag's own folder, a
+simulated MCAP beside its truth sidecar), or a
 capture's own folder: read as a bag, its other files went unread without a word. What a drive folder
 holds that is none of those (a note, a photo, a folder of its own) is named in a warning and left alone; autosar's
 own products and a simulated log's truth sidecar are left alone quietly, as is what a DCA1000 writes beside its data
@@ -149,7 +150,10 @@ def drive_folder(path: Path, depth: int = 0) -> DriveFolder | None:
     kinds = [kind for kind in KINDS if found[kind]]
     # a ROS 1 bag, a bag's own folder or a log saved under another name is no storage file of a bag this folder is:
     # read as one, the folder left it unread without a word
-    not_storage = [p for p in found["log"] if not (p.is_file() and p.suffix.lower() in (".mcap", ".db3"))]
+    # so is an MCAP with its own truth sidecar beside it (autosar simulate's log, a bag's storage file has none): read
+    # as a bag without metadata.yaml, it was warned of as a recording that did not finish and its truth went unfound
+    not_storage = [p for p in found["log"] if not (p.is_file() and p.suffix.lower() in (".mcap", ".db3"))
+                   or p.with_name(p.name + ".truth.h5").is_file()]
     # a capture's own folder inside it is no capture this folder is: it was read as no bag and no capture at all
     nested_capture = [p for p in found["radar"] if p != path]
     if not (found["can"] or found["nmea"] or len(kinds) > 1 or not_storage or nested_capture):
