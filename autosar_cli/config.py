@@ -639,15 +639,25 @@ def _known_role(role: str, sensors: dict[str, SensorConfig]) -> None:
                           f"{' or '.join(kinds)} sensors: {', '.join(theirs) or 'none'}")
 
 
-def _suggestion(key: str, names: list[str]) -> str:
-    """What an unknown ``key`` was likely meant to be: a near spelling of a key of its table (``names``), or
-    where a key of that name belongs; "" if neither."""
+def _suggestion(key: str, names: list[str], value: Any = None) -> str:
+    """What an unknown ``key`` was likely meant to be: a near spelling of a key of its table (``names``), where a
+    key of that name belongs, or, of a table (``value`` a dict: ``[focus]`` holding ``pixel_m``), the table whose
+    keys it holds; "" if none."""
     near = difflib.get_close_matches(key, names, n=1, cutoff=0.75)
     if near:
         return f" (did you mean {near[0]}?)"
-    homes = [p for p in _key_paths(Config, "") if p.rsplit(".", 1)[-1] == key]
+    paths = _key_paths(Config, "")
+    homes = [p for p in paths if p.rsplit(".", 1)[-1] == key]
     tables = [f"[{p.rsplit('.', 1)[0]}]" if "." in p else "the top level" for p in homes]
-    return f" (a key of {' and '.join(tables)})" if homes else ""
+    if homes:
+        return f" (a key of {' and '.join(tables)})"
+    if isinstance(value, dict) and value:
+        # the tables that hold every key of this one
+        holders = [t for t in dict.fromkeys(p.rsplit(".", 1)[0] for p in paths if "." in p)
+                   if all(f"{t}.{k}" in paths for k in value)]
+        if holders:
+            return f" (its keys belong in {' and '.join(f'[{t}]' for t in holders)})"
+    return ""
 
 
 def _key_paths(cls: Any, path: str) -> list[str]:
@@ -691,7 +701,8 @@ def _build(cls: Any, value: Any, path: str) -> Any:
         names = {f.name for f in fields(cls)}
         unknown = sorted(set(value) - names)
         if unknown:
-            raise ConfigError(f"{_join(path, unknown[0])}: unknown key{_suggestion(unknown[0], sorted(names))}")
+            raise ConfigError(f"{_join(path, unknown[0])}: unknown key"
+                              f"{_suggestion(unknown[0], sorted(names), value[unknown[0]])}")
         if cls is SensorConfig and value.get("kind") in REQUIRED_ERROR_TABLES:
             _keys_of_its_kind(value, path)
         kwargs = {}

@@ -117,6 +117,7 @@ RUN_CAN_LOG = "tests/test_ingest_mixed.py::test_run_reads_can_logs_beside_the_dr
 CONFIG_NOT_AN_OUTPUT = "tests/test_ingest_mixed.py::test_run_and_compare_never_write_over_their_config[compare]"
 DRIVE_FOLDER = "tests/test_ingest_drive_folder.py::test_a_drive_folder_reads_as_its_inputs_given_one_by_one"
 DRIVE_FOLDER_NESTED = "tests/test_ingest_drive_folder.py::test_a_folder_inside_a_drive_folder_gives_its_inputs"
+CONFIG_TABLE_HOME = "tests/test_config.py::test_an_unknown_key_names_the_key_it_likely_is"
 SIMULATED_FOLDER = ("tests/test_ingest_drive_folder.py::"
                     "test_a_folder_of_a_simulated_log_and_its_truth_is_that_log_and_finds_its_truth")
 BATCH_FOLDER = "tests/test_batch.py::test_batch_takes_drive_folders_and_the_time_offsets_of_their_logs"
@@ -617,7 +618,7 @@ MUTATIONS: list[Mutation] = [
        "if total < MIN_GATED or gated <= MAX_GATED_SHARE * total:",
        'if total < MIN_GATED or gated <= MAX_GATED_SHARE * total or not stream.startswith("gnss_"):', GATED_GYRO),
     _m("config-unknown-key-said-without-the-key-it-likely-is", "inputs", "config.py",
-       "unknown key{_suggestion(unknown[0], sorted(names))}", "unknown key", CONFIG_UNKNOWN),
+       "f\"{_suggestion(unknown[0], sorted(names), value[unknown[0]])}\")", "\"\")", CONFIG_UNKNOWN),
     _m("dca1000-word-bits-unchecked", "radar", "ingest/dca1000_params.py",
        "if fmt is not None and DCA_FORMAT_BITS.get(_int_or_none(fmt)) != params.adc_bits:",
        "if False:", DCA_CLI_CONFIG),
@@ -745,6 +746,8 @@ MUTATIONS: list[Mutation] = [
        "elif depth < MAX_DEPTH and (inner :=", "elif False and (inner :=", DRIVE_FOLDER_NESTED),
     _m("drive-folder-left-out-unsaid", "ingest", "ingest/inputs.py",
        "            sorted_.warnings.append(said)", "            pass", DRIVE_FOLDER),
+    _m("config-table-of-another-tables-keys-unnamed", "config", "config.py",
+       "    if isinstance(value, dict) and value:\n", "    if False:\n", CONFIG_TABLE_HOME),
     _m("drive-folder-of-a-simulated-log-read-as-a-bag", "ingest", "ingest/inputs.py",
        "or p.with_name(p.name + \".truth.h5\").is_file()]", "or False]", SIMULATED_FOLDER),
     _m("batch-drive-folder-time-offset-refused", "inputs", "batch.py",

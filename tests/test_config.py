@@ -105,6 +105,10 @@ def test_bad_values_are_rejected_naming_the_key(tmp_path, pattern, replacement, 
     ("wheelbase_m = 2.8\n", "wheelbase_m: unknown key (a key of [vehicle])"),
     ("[radar]\nwheelbase_m = 2.8\n", "radar.wheelbase_m: unknown key (a key of [vehicle])"),
     ("[vehicle]\ncolour = 2.8\n", "vehicle.colour: unknown key"),
+    # a table of its own for the focus's keys (the CLI's command is focus; its keys are [processing]'s)
+    ("[focus]\npixel_m = 0.05\nchannels = 12\n", "focus: unknown key (its keys belong in [processing])"),
+    ("[focuss]\npixel_m = 0.05\n", "focuss: unknown key (its keys belong in [processing])"),
+    ("[focus]\npixel_m = 0.05\nwheelbase_m = 2.8\n", "focus: unknown key"),
 ])
 def test_an_unknown_key_names_the_key_it_likely_is(tmp_path: Path, text: str, said: str) -> None:
     path = tmp_path / "layer.toml"
