@@ -708,18 +708,23 @@ def focus(
                                          help="Output base name: writes BASE.tif (GeoTIFF, dB, "
                                          "UTM), BASE.h5 (complex image) and BASE.png (quicklook).")] = Path("image"),
     pixel: Annotated[float | None, typer.Option("--pixel", metavar="METRES",
-                                                help="Pixel spacing in metres (config default 0.04).")]
+                                                help="Pixel spacing in metres (default: the config's "
+                                                "processing.pixel_m, 0.04 in the default config).")]
     = None,
     resolution: Annotated[float | None, typer.Option("--resolution", metavar="METRES",
                                                      help="Cross-range resolution rho in metres: the "
-                                                     "processed beam is lambda/(4 rho) wide (config default 0.04).")]
+                                                     "processed beam is lambda/(4 rho) wide (default: the "
+                                                     "config's processing.cross_range_resolution_m, 0.04 in the "
+                                                     "default config).")]
     = None,
     channels: Annotated[Channels | None, typer.Option("--channels", help="8: Tx0 + Tx2 with the 4 Rx, whose "
                                                       "channels' phase centres (Tx-Rx midpoints) lie lambda/4 apart "
-                                                      "in one row; 12: all Tx-Rx pairs (config default 8).")] = None,
+                                                      "in one row; 12: all Tx-Rx pairs (default: the config's "
+                                                      "processing.channels, 8 in the default config).")] = None,
     height: Annotated[float | None, typer.Option("--height", metavar="METRES",
                                                  help="Focusing plane height, ENU metres above the "
-                                                 "road at the origin (config default 0.5).")] = None,
+                                                 "road at the origin (default: the config's "
+                                                 "processing.focus_height_m, 0.5 in the default config).")] = None,
     grid: Annotated[str, typer.Option("--grid", metavar="auto|X0,Y0,X1,Y1", help="'auto' (along the trajectory on the "
                                       "radar side, ground range 0.5 m to R_max) or x0,y0,x1,y1 in ENU "
                                       "metres.")] = "auto",

@@ -88,6 +88,21 @@ def test_no_help_text_loses_a_bracketed_word_to_rich_markup():
     assert "config's [radar]" in r.output
 
 
+def test_focus_help_names_the_config_key_of_each_default_and_its_value():
+    """--pixel, --resolution, --channels and --height said 'config default 0.04' without the key: a user wanting
+    the value in their config could not find it (the [processing] table, not a [focus] one)."""
+    import re
+
+    from autosar_cli.config import load_config
+
+    r = runner.invoke(app, ["focus", "--help"], env={"COLUMNS": "300"}, terminal_width=300)
+    text = " ".join(r.output.replace("│", " ").split())
+    said = dict(re.findall(r"the config's processing\.(\w+), ([0-9.]+) in the default config", text))
+    processing = load_config().processing
+    assert said == {"pixel_m": "0.04", "cross_range_resolution_m": "0.04", "channels": "8", "focus_height_m": "0.5"}
+    assert {key: float(v) for key, v in said.items()} == {key: float(getattr(processing, key)) for key in said}
+
+
 def test_a_path_holding_a_bracketed_word_is_printed_as_it_is(tmp_path):
     log = tmp_path / "run[a]" / "gps[raw].log"
     log.parent.mkdir()
