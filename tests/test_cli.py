@@ -256,6 +256,19 @@ def test_a_run_directory_or_a_folder_given_as_a_drive_is_said_before_the_output(
     assert not list(tmp_path.rglob("t.h5")) and not list(tmp_path.rglob("i.*"))
 
 
+def test_a_drive_h5_given_without_o_is_said_to_want_it(tmp_path, monkeypatch):
+    """`autosar ingest LOG drive.h5` (the -o forgotten) said 'drive.h5: no such file or directory', an input it
+    had never been meant as; now it says the output is named with -o, nothing written (not the default drive.h5)."""
+    monkeypatch.chdir(tmp_path)
+    log = Path(__file__).resolve().parents[1] / "sample_logs" / "ci_seed1.mcap"
+    r = runner.invoke(app, ["ingest", str(log), "new.h5"], env={"COLUMNS": "300"})
+    assert r.exit_code == 1 and r.stderr == ("error: new.h5: no such file or directory; an output is named with -o "
+                                             "(`-o new.h5`), every name without it is an input\n"), r.output
+    r = runner.invoke(app, ["ingest", str(log), "new.mcap"], env={"COLUMNS": "300"})  # a log's name: as it was
+    assert r.exit_code == 1 and r.stderr == "error: new.mcap: no such file or directory\n", r.output
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_log_given_as_the_radar_capture_is_named_for_what_it_is(tmp_path, ci_mcap):
     """`--radar drive.mcap` was read as a capture's parameter file and refused as "error: .: expected adc_data.bin
     or ... found no .bin file", naming the folder "." and not the file: the file is named, with what it is."""

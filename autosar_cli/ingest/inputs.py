@@ -60,6 +60,10 @@ def check_input(path: Path, kind: str) -> None:
     """Refuse, naming it, an input that is not there or not a file to read (a rosbag2 bag, a DCA1000 capture and a
     drive folder may be directories)."""
     problem = input_problem(path)
+    if problem is not None and kind == "log" and path.suffix.lower() == ".h5" and not path.exists():
+        # `autosar ingest LOG drive.h5`: the drive.h5 to write given as a second log, -o forgotten
+        raise InputError(f"{path}: no such file or directory; an output is named with -o (`-o {path}`), "
+                         "every name without it is an input")
     if problem is not None:
         raise InputError(f"{path}: {problem}")
     if path.is_dir() and kind in _FILE_KINDS:
