@@ -751,6 +751,8 @@ MUTATIONS: list[Mutation] = [
     _m("drive-h5-given-without-o-said-missing-alone", "ingest", "ingest/inputs.py",
        "kind == \"log\" and path.suffix.lower() == \".h5\" and not path.exists():", "False:",
        "tests/test_cli.py::test_a_drive_h5_given_without_o_is_said_to_want_it"),
+    _m("pixel-in-cm-unsaid-where-the-track-is-shorter", "focus", "sar/grid.py",
+       "if pixel_m >= 1 else \"\"", "if False else \"\"", "tests/test_sar_backprojection.py::test_grids"),
     _m("drive-folder-of-a-simulated-log-read-as-a-bag", "ingest", "ingest/inputs.py",
        "or p.with_name(p.name + \".truth.h5\").is_file()]", "or False]", SIMULATED_FOLDER),
     _m("batch-drive-folder-time-offset-refused", "inputs", "batch.py",

@@ -334,6 +334,15 @@ def test_grids() -> None:
     np.testing.assert_allclose(b.pixel_enu(0, 0), [0.25, 0.75, 0.0])
     with pytest.raises(GridError):
         box_grid(1.0, 0.0, 0.0, 1.0, pixel_m=0.5, height_m=0.0)
+    # `focus --pixel 4` meant as 4 cm, on a 2.4 m drive: said as 'shorter than one pixel', no length, no unit
+    short = np.column_stack([np.linspace(0.0, 2.4, 50), np.zeros(50)])
+    with pytest.raises(GridError, match=r"^the trajectory runs 2\.40 m from its first point to its last, shorter "
+                                        r"than one 4 m pixel \(--pixel and processing\.pixel_m are metres: 0\.04 "
+                                        r"is 4 cm\): nothing to focus along$"):
+        track_grid(short, side=-1.0, pixel_m=4.0, height_m=0.5, antenna_height_m=0.5)
+    with pytest.raises(GridError, match=r"^the trajectory runs 0\.02 m .* one 0\.04 m pixel: nothing"):
+        track_grid(short[:1] + [[0.0, 0.0], [0.02, 0.0]], side=-1.0, pixel_m=0.04, height_m=0.5,
+                   antenna_height_m=0.5)
 
 
 def test_windows_only_on_the_radar_side() -> None:

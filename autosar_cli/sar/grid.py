@@ -68,8 +68,11 @@ def track_grid(track_xy: ArrayLike, *, side: float, pixel_m: float, height_m: fl
     reaches ``max_range_m`` (pixels behind parts of a weaving track get no pulses: see stripmap windows).
     """
     xy = np.asarray(track_xy, dtype=np.float64).reshape(-1, 2)
-    if len(xy) < 2 or np.hypot(*(xy[-1] - xy[0])) < pixel_m:
-        raise GridError("the trajectory is shorter than one pixel: nothing to focus along")
+    if len(xy) < 2 or (length := float(np.hypot(*(xy[-1] - xy[0])))) < pixel_m:
+        runs = "holds one point" if len(xy) < 2 else f"runs {length:.2f} m from its first point to its last"
+        # a pixel of metres given in centimetres (4 for 0.04) is what makes a moving car's track this short
+        unit = " (--pixel and processing.pixel_m are metres: 0.04 is 4 cm)" if pixel_m >= 1 else ""
+        raise GridError(f"the trajectory {runs}, shorter than one {pixel_m:g} m pixel{unit}: nothing to focus along")
     if pixel_m <= 0:
         raise GridError(f"pixel size {pixel_m} m: must be positive")
     centre = xy.mean(axis=0)
