@@ -109,7 +109,14 @@ err = Console(stderr=True)
 out = Console()
 
 #: ``undo_on_failure``: what a failing command undoes (the directories its outputs' gate made), in :func:`_errors`
-_state: dict[str, Any] = {"debug": False, "undo_on_failure": []}
+_state: dict[str, Any] = {"debug": False, "undo_on_failure": [], "disk_filled": False}
+#: HDF5's words for a write the disk refused: h5py raises a close's failure as a RuntimeError that holds them
+HDF5_DISK_FULL = "errno = 28"
+
+
+def _disk_full(exc: BaseException) -> bool:
+    """Whether ``exc`` is a write the full disk refused (ENOSPC, or HDF5's failed write in its text)."""
+    return (isinstance(exc, OSError) and exc.errno == errno.ENOSPC) or HDF5_DISK_FULL in str(exc)
 
 ConfigOpt = Annotated[
     Path | None, typer.Option("--config", "-c", metavar="FILE",
@@ -256,8 +263,11 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         for warning in (w for w in getattr(exc, "warnings", ()) if w not in msg):  # what went wrong before it
             err.print(f"[yellow]warning:[/] {escape(warning)}", highlight=False, soft_wrap=True)
-        if isinstance(exc, OSError) and exc.errno == errno.ENOSPC and str(writing or "") not in msg:
-            msg = f"{exc.filename or writing}: no space left on the device"
+        if _disk_full(exc):
+            _state["disk_filled"] = True
+        if _disk_full(exc) and "no space left on the device" not in msg:
+            # HDF5's own message is lines of its internals, naming the output's partial file at best
+            msg = f"{getattr(exc, 'filename', None) or writing or 'the output'}: no space left on the device"
         elif writing is not None and _not_writable(exc, writing):
             refused = "its partial file could not be kept" if exc.errno == errno.ENOENT else os.strerror(exc.errno)  # type: ignore[union-attr]
             msg = f"{writing}: cannot be written there ({refused})"
@@ -1445,6 +1455,16 @@ def main() -> None:
     # are no longer walked by the collections of the interpreter's shutdown: 0.7-0.8 s -> 0.1 s after
     # `autosar run` (measured). atexit handlers still run.
     gc.freeze()
+    if _state["disk_filled"]:
+        # an HDF5 file the full disk refused is left half closed by the library, whose objects' release in the
+        # interpreter's shutdown then crashed the process (SIGSEGV, exit 139, after the error line): the
+        # command's clean-up is done, so the process ends here, after the atexit handlers
+        import atexit
+
+        atexit._run_exitfuncs()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code if isinstance(code, int) else 1)
     sys.exit(code)
 
 

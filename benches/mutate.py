@@ -118,6 +118,9 @@ CONFIG_NOT_AN_OUTPUT = "tests/test_ingest_mixed.py::test_run_and_compare_never_w
 DRIVE_FOLDER = "tests/test_ingest_drive_folder.py::test_a_drive_folder_reads_as_its_inputs_given_one_by_one"
 DRIVE_FOLDER_NESTED = "tests/test_ingest_drive_folder.py::test_a_folder_inside_a_drive_folder_gives_its_inputs"
 CONFIG_TABLE_HOME = "tests/test_config.py::test_an_unknown_key_names_the_key_it_likely_is"
+HDF5_DISK_FULL = ("tests/test_safety.py::"
+                  "test_a_disk_that_fills_as_hdf5_writes_ends_the_command_with_its_error_not_a_crash")
+HDF5_FULL_TEXT = "tests/test_safety.py::test_hdf5s_runtime_error_of_a_full_disk_is_said_as_one"
 SIMULATED_FOLDER = ("tests/test_ingest_drive_folder.py::"
                     "test_a_folder_of_a_simulated_log_and_its_truth_is_that_log_and_finds_its_truth")
 BATCH_FOLDER = "tests/test_batch.py::test_batch_takes_drive_folders_and_the_time_offsets_of_their_logs"
@@ -753,6 +756,10 @@ MUTATIONS: list[Mutation] = [
        "tests/test_cli.py::test_a_drive_h5_given_without_o_is_said_to_want_it"),
     _m("pixel-in-cm-unsaid-where-the-track-is-shorter", "focus", "sar/grid.py",
        "if pixel_m >= 1 else \"\"", "if False else \"\"", "tests/test_sar_backprojection.py::test_grids"),
+    _m("disk-full-hdf5-left-to-crash-the-shutdown", "safety", "cli.py",
+       "    if _state[\"disk_filled\"]:\n", "    if False:\n", HDF5_DISK_FULL),
+    _m("disk-full-hdf5-runtime-error-said-as-its-text", "safety", "cli.py",
+       " or HDF5_DISK_FULL in str(exc)", "", HDF5_FULL_TEXT),
     _m("drive-folder-of-a-simulated-log-read-as-a-bag", "ingest", "ingest/inputs.py",
        "or p.with_name(p.name + \".truth.h5\").is_file()]", "or False]", SIMULATED_FOLDER),
     _m("batch-drive-folder-time-offset-refused", "inputs", "batch.py",

@@ -1220,6 +1220,66 @@ except OSError as exc:
     assert "refused: 28" in r.stdout and left == ["fill"]
 
 
+@pytest.mark.parametrize("command", ["ingest", "focus"])
+def test_a_disk_that_fills_as_hdf5_writes_ends_the_command_with_its_error_not_a_crash(
+        tmp_path: Path, ci_mcap, ci_run: Path, command: str) -> None:
+    """The free-space estimate passed (another program filling the disk after it): HDF5's write fails, the command
+    says so in one line, and then the process crashed in the interpreter's shutdown (SIGSEGV, exit 139: the library
+    left the file it could not flush half closed), `ingest` on a 2 MB tmpfs; `focus` on a 250 kB one said "error:
+    Can't close dataset (file write failed: time = ..." (HDF5's RuntimeError, its text cut at its first line). Now
+    exit 1, the output named, nothing left. The console script's main() in a process of its own, on a tmpfs
+    mounted for the test (skipped where that is not allowed)."""
+    import subprocess
+
+    disk = tmp_path / "small"
+    disk.mkdir()
+    size, out, args = {"ingest": ("2m", disk / "drive.h5", [str(ci_mcap.log_path)]),
+                       "focus": ("250k", disk / "img", [str(ci_run / "drive.h5"), "-t",
+                                                        str(ci_run / "trajectory.h5")])}[command]
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(disk)], capture_output=True)
+    if mounted.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here ({mounted.stderr.decode().strip()[:80]})")
+    script = f"""
+import sys
+import autosar_cli.store.outputs as outputs
+outputs.shutil.disk_usage = lambda p: outputs.shutil._ntuple_diskusage(10**12, 0, 10**12)  # every estimate passes
+from autosar_cli.cli import main
+sys.argv = ["autosar", {command!r}, *{args!r}, "-o", {str(out)!r}]
+main()
+"""
+    try:
+        r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+        left = sorted(p.name for p in disk.iterdir())
+    finally:
+        subprocess.run(["umount", str(disk)], capture_output=True)
+    said = [ln for ln in r.stderr.splitlines() if ln.strip() and not ln.startswith("_tiff")]  # libtiff's own lines
+    assert (r.returncode, said) == (1, [f"error: {out}: no space left on the device"]), r.stderr[-800:]
+    assert left == []
+
+
+def test_hdf5s_runtime_error_of_a_full_disk_is_said_as_one(capsys: pytest.CaptureFixture[str]) -> None:
+    """h5py raises a close the full disk refused as a RuntimeError whose text is HDF5's (its first line, as the
+    error line was: "Can't close dataset (file write failed: time = Tue Dec  8 01:54:41 2026"): said as a full
+    disk naming the output, and the process marked to end without the interpreter's shutdown."""
+    import typer
+
+    from autosar_cli import cli
+
+    text = ("Can't close dataset (file write failed: time = Tue Dec  8 01:54:41 2026\n, filename = "
+            "'/x/img.partial-20512.h5', file descriptor = 6, errno = 28, error message = 'No space left on device', "
+            "buf = 0x5568cb13ea14, total write size = 48368, bytes this sub-write = 48368, offset = 77824)")
+    try:
+        with pytest.raises(typer.Exit) as stopped, cli._errors(Path("/x/img"), kernels=False):
+            raise RuntimeError(text)
+        assert stopped.value.exit_code == 1 and cli._state["disk_filled"]
+    finally:
+        cli._state["disk_filled"] = False
+    assert capsys.readouterr().err == "error: /x/img: no space left on the device\n"
+    with pytest.raises(typer.Exit), cli._errors(Path("/x/img"), kernels=False):
+        raise RuntimeError("Can't close dataset (a failure of another kind)")
+    assert not cli._state["disk_filled"] and "no space" not in capsys.readouterr().err
+
+
 def test_every_command_refuses_an_existing_product_in_the_same_words(tmp_path: Path, ci_mcap, ci_run: Path) -> None:
     """ingest and navigate said "t.h5: already exists (use --overwrite to replace it)", focus "image.tif already
     exists; pass --overwrite to replace it": one wording, the file named first as in every other error."""
