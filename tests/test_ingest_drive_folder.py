@@ -107,10 +107,17 @@ def test_a_folder_of_a_simulated_log_and_its_truth_is_that_log_and_finds_its_tru
     d.mkdir()
     os.link(ci_mcap.log_path, d / "ci.mcap")
     os.link(ci_mcap.truth_path, d / "ci.mcap.truth.h5")
+    # notes beside it (the bundled folder's README.md made its run degraded: "not read")
+    for name in ("README.md", "NOTES.HTML", "setup.pdf"):
+        (d / name).write_bytes(b"# notes\n")
     found = drive_folder(d)
     assert found is not None and found.inputs["log"] == [d / "ci.mcap"] and found.left_out == []
     report = ingest([d], work / "sims.h5", config=cfg)
     assert report.warnings == [] and [i["path"] for i in report.inputs] == [str(d / "ci.mcap")]
+    (d / "speeds.csv").write_text("t,v\n0,1\n")  # a table may be data: still named
+    assert drive_folder(d).warning() == (f"{d}: not read, none of them a log, CAN log, NMEA capture or DCA1000 "
+                                         "capture: speeds.csv")
+    (d / "speeds.csv").unlink()
     from autosar_cli.nav.navigate import navigate
 
     truth = navigate(work / "sims.h5", "truth", cfg)  # the sidecar beside the folder's log

@@ -9,8 +9,9 @@ logger's ``can/``) giving those. A directory stays what it was (a rosbag2 bag, i
 capture, a capture's files beside a log, a log no bag's storage file is (a ROS 1 bag, a bag's own folder, a
 simulated MCAP beside its truth sidecar), or a
 capture's own folder: read as a bag, its other files went unread without a word. What a drive folder
-holds that is none of those (a note, a photo, a folder of its own) is named in a warning and left alone; autosar's
-own products and a simulated log's truth sidecar are left alone quietly, as is what a DCA1000 writes beside its data
+holds that is none of those (a text file, a table, a folder of its own) is named in a warning and left alone;
+autosar's own products, a simulated log's truth sidecar and documents (:data:`DOCUMENT_SUFFIXES`: a README.md, a
+PDF of the setup) are left alone quietly, as is what a DCA1000 writes beside its data
 (``*_LogFile.txt``, ``*_LogFile.csv``).
 """
 
@@ -29,6 +30,9 @@ from .sources import begins_as_a_container, container_of, is_log_directory
 KINDS = ("log", "can", "nmea", "radar")
 #: a DCA1000 capture's files: its data and the parameter files that state how it was recorded
 CAPTURE_SUFFIXES = (".bin", ".mmwave.json", ".setup.json", ".cfg", ".lua")
+#: documents a drive folder leaves alone quietly: the notes people keep beside a drive's logs, which no input's data
+#: is (a .txt or .csv may be, a picture a camera's frame: those stay named in the warning)
+DOCUMENT_SUFFIXES = (".md", ".rst", ".pdf", ".html", ".htm", ".doc", ".docx", ".odt")
 _NMEA_SNIFF_BYTES = 65536
 MAX_DEPTH = 4  #: folders inside a drive folder read for inputs (a CAN logger's LOG/<device>/<session>/)
 _FILE_KINDS = {"can": "a CAN log file", "nmea": "an NMEA log file"}
@@ -145,7 +149,7 @@ def drive_folder(path: Path, depth: int = 0) -> DriveFolder | None:
             found["log"].append(entry)
         elif name.endswith((*NMEA_SUFFIXES, ".log")) and _holds_nmea(entry):
             found["nmea"].append(entry)
-        elif not (name.endswith(".truth.h5") or is_autosar_product(entry)):
+        elif not (name.endswith((".truth.h5", *DOCUMENT_SUFFIXES)) or is_autosar_product(entry)):
             left_out.append(entry)
     if capture_files and is_capture(path):
         found["radar"].insert(0, path)
