@@ -472,3 +472,17 @@ def test_debug_given_after_the_command_says_where_it_goes():
     assert "--dbc" not in r.output
     r = runner.invoke(app, ["run", "x.mcap", "-o", "r", "--dbug"], env={"COLUMNS": "200"}, terminal_width=200)
     assert r.exit_code == 2 and "No such option: --dbug" in r.output
+
+
+def test_python_dash_m_autosar_cli_is_the_command() -> None:
+    """`python -m autosar_cli` (the package, as a newcomer types it) said "No module named autosar_cli.__main__"."""
+    import subprocess
+    import sys
+
+    from autosar_cli import __version__
+
+    ok = subprocess.run([sys.executable, "-m", "autosar_cli", "--version"], capture_output=True, text=True, timeout=120)
+    assert (ok.returncode, ok.stdout.strip()) == (0, f"autosar {__version__}"), ok.stderr
+    bad = subprocess.run([sys.executable, "-m", "autosar_cli", "info", "/no/such/log.mcap"], capture_output=True,
+                         text=True, timeout=120)
+    assert (bad.returncode, bad.stderr) == (1, "error: /no/such/log.mcap: no such file or directory\n")
