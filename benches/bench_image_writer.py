@@ -8,8 +8,8 @@ strip by strip from a seeded generator, as tiles of ``focus --tiles`` arrive, an
 image is assembled whole and written with ``write_image``. Each case runs in a fresh process; its peak
 RSS, the RSS of the bare process (imports only) and the wall time are reported. The GeoTIFF's column checksums
 (``store/tif_checksum.py``) are timed side by side: ``--rounds`` alternated strip-by-strip writes with them and
-without (``column_crc32`` made a no-op; ABBA order, in one process, the strips made beforehand), medians and their
-ratio; and ``autosar info image.tif
+without (``column_crc32`` and the writer's read-back of the closed GeoTIFF made no-ops; ABBA order, in one process,
+the strips made beforehand), medians and their ratio; and ``autosar info image.tif
 --verify``'s check of the written GeoTIFF (``verify_geotiff``). Writes benches/results/image_writer.json.
 """
 
@@ -49,13 +49,15 @@ if mode == "verify":
     assert verify_geotiff(Path(out).with_suffix(".tif")).intact
 elif mode.startswith("checksums"):  # "checksums:ROUNDS": with and without them, ABBA, in this one process
     import autosar_cli.store.image as image_module
-    with_them = image_module.column_crc32
+    with_them, read_back = image_module.column_crc32, image_module.ImageWriter._read_back_geotiff
     without = lambda db, prior=None: np.zeros(db.shape[1], np.uint32)
     strips = [strip(k) for k in range(n_strips)]
     walls = {"with": [], "without": []}
     for r in range(int(mode.split(":")[1])):
         for case in (("with", "without") if r % 2 == 0 else ("without", "with")):
             image_module.column_crc32 = with_them if case == "with" else without
+            # the read-back before the products come into place checks those checksums: without them, without it
+            image_module.ImageWriter._read_back_geotiff = read_back if case == "with" else lambda *a: False
             t0 = time.perf_counter()
             with ImageWriter(out, grid, origin, overwrite=True) as w:
                 for k in range(n_strips):
@@ -82,7 +84,8 @@ def main() -> None:
     ap.add_argument("--rows", type=int, default=1500)
     ap.add_argument("--cols", type=int, default=20000)
     ap.add_argument("--strips", type=int, default=16)
-    ap.add_argument("--rounds", type=int, default=5, help="alternated writes with and without column checksums")
+    ap.add_argument("--rounds", type=int, default=5,
+                    help="alternated writes with and without column checksums (and the GeoTIFF's read-back)")
     args = ap.parse_args()
     image_mb = args.rows * args.cols * 8 / 1e6
     result: dict[str, object] = {"benchmark": "image_writer", "rows": args.rows, "cols": args.cols,

@@ -202,6 +202,39 @@ def test_failed_tif_write_leaves_nothing(tmp_path: Path, monkeypatch: pytest.Mon
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize(("damage", "said"), [("cut", "(it does not open)"), ("zeroed", "(columns 256-511 differ)"),
+                                              ("end zeroed", "(columns 512-599 differ)")])
+def test_a_geotiff_cut_as_it_closed_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                   damage: str, said: str) -> None:
+    """libtiff's writes refused as the GeoTIFF closes (a disk that fills then) raise nothing through rasterio: the
+    cut file came into place beside a whole image.h5 and PNG, a product that looked complete. Now the GeoTIFF is
+    read back against its columns' checksums before anything comes into place: an error naming it, nothing left.
+    Here the file, the moment it is closed, is cut to 97 % of its bytes (its directory, written last, lost), or
+    holds zeros where 4 kB of its tiles were (blocks the disk did not take)."""
+    import contextlib
+
+    real_open = image_mod._open_geotiff
+
+    @contextlib.contextmanager
+    def damaged_as_it_closes(path: Path, *args: object):  # noqa: ANN202
+        with real_open(path, *args) as ds:
+            yield ds
+        size = path.stat().st_size
+        if damage == "cut":
+            os.truncate(path, int(size * 0.97))
+            return
+        with open(path, "r+b") as f:  # the header and directories are at the start and the end
+            f.seek(size // 2 if damage == "zeroed" else size * 3 // 4)
+            f.write(bytes(4096))
+
+    monkeypatch.setattr(image_mod, "_open_geotiff", damaged_as_it_closes)
+    grid = FocusGrid((0.0, 0.0), (1.0, 0.0), (0.0, -1.0), PIXEL, 600, 300, 0.0)
+    with pytest.raises(OSError, match=r"scene.tif: the GeoTIFF did not read back as written \(") as failed:
+        write_image(tmp_path / "scene", FocusedImage(make_image(grid), grid, ORIGIN, PARAMS))
+    assert said in str(failed.value) and not str(failed.value).startswith("[Errno"), str(failed.value)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_existing_outputs_need_overwrite(tmp_path: Path) -> None:
     grid = FocusGrid((0.0, 0.0), (1.0, 0.0), (0.0, -1.0), PIXEL, 40, 30, 0.0)
     first = FocusedImage(make_image(grid, seed=1), grid, ORIGIN, {"run": 1})

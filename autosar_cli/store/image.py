@@ -10,8 +10,10 @@ docs/FORMATS.md.
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
+import shutil
 import warnings
 from contextlib import ExitStack
 from dataclasses import dataclass, field
@@ -33,7 +35,7 @@ from autosar_cli.store.hdf5_read import open_hdf5, read_dataset
 from autosar_cli.store.manifest import json_default
 from autosar_cli.store.outputs import SMALL_FILE_MARGIN_BYTES, check_free_space, not_the_format
 from autosar_cli.store.quicklook import draw_quicklook, preload_quicklook  # noqa: F401  (focus, run preload it)
-from autosar_cli.store.tif_checksum import checksum_tags, column_crc32
+from autosar_cli.store.tif_checksum import checksum_tags, column_crc32, verify_geotiff
 from autosar_cli.types import FocusGrid, GeodeticOrigin
 
 FORMAT = "autosar-image"
@@ -159,6 +161,8 @@ class ImageWriter:
         try:
             self._tmp = {k: stack.enter_context(atomic_output(p, self.overwrite)) for k, p in self.paths.items()}
             stack.enter_context(rasterio.Env(GDAL_CACHEMAX=self.gdal_cache_mb))
+            # after the GeoTIFF is closed, within the bounded block cache, before the products come into place
+            stack.push(self._read_back_geotiff)
             self._tif = stack.enter_context(_open_geotiff(self._tmp["tif"], self.grid, self.transform, self.crs))
             self._h5 = stack.enter_context(h5py.File(self._tmp["h5"], "w"))
             self._image_ds = _create_h5(self._h5, self.grid, self.origin, self.transform, self.epsg, self.crs,
@@ -222,6 +226,28 @@ class ImageWriter:
         if exc_type is not None:
             self._abandon()
         stack.__exit__(exc_type, exc, tb)  # closes the files, then renames them (or deletes them on error)
+
+    def _read_back_geotiff(self, exc_type: Any, exc: Any, tb: Any) -> bool:
+        """Read the closed GeoTIFF back against the columns' checksums: libtiff's writes that the disk refused as it
+        closed raise nothing through rasterio (its errors only logged), and the cut file came into place as if
+        whole. OSError (ENOSPC where the disk is full) then, so that no product comes into place."""
+        if exc_type is not None:
+            return False
+        try:
+            found = verify_geotiff(self._tmp["tif"])
+        except OSError:
+            what = "it does not open"
+        else:
+            if found.intact:
+                return False
+            what = (f"{len(found.unreadable)} tile(s) unreadable" if found.unreadable
+                    else f"columns {found.damaged_columns[0][0]}-{found.damaged_columns[0][1] - 1} differ"
+                    if found.damaged_columns else "its checksum tags missing or damaged")
+        full = shutil.disk_usage(self._tmp["tif"].parent).free < SMALL_FILE_MARGIN_BYTES
+        failed = OSError(f"{self.paths['tif']}: the GeoTIFF did not read back as written ({what})"
+                         + ("; the disk is full" if full else ""))
+        failed.errno = errno.ENOSPC if full else errno.EIO  # the message alone, as str() gives it
+        raise failed
 
     def _abandon(self) -> None:
         """Empty the partial image.h5 before it is closed and deleted: closing flushes HDF5's caches, and on a full
