@@ -597,6 +597,7 @@ def navigate(
 
         plotted = output.is_file() and is_autosar_product(output)  # its plot beside it is autosar's too
         _prepare_output(output, overwrite, [drive, truth, cfg.source])
+        _an_hdf5_name(output, "the trajectory.h5 navigate writes")
         if plot:
             _prepare_output(output.with_suffix(".png"), overwrite, [drive, truth, cfg.source], ours=plotted)
         traj = run_navigate(drive, method.value, cfg, smooth=not no_smooth, truth_path=truth)

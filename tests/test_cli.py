@@ -390,6 +390,11 @@ def test_a_drive_named_as_another_kind_of_file_is_refused_with_the_name_to_give(
     if name == "t.txt":
         r = runner.invoke(app, ["ingest", source, "-o", "drive.H5"])
         assert r.exit_code == 0 and (tmp_path / "drive.H5").is_file(), r.stderr
+        # so is a trajectory (`navigate -o tr.txt` wrote one, which `info` read as an NMEA capture as well)
+        r = runner.invoke(app, ["navigate", "drive.H5", "-o", "tr.txt"])
+        assert r.exit_code == 1 and r.stderr == ("error: tr.txt: a .txt name for the trajectory.h5 navigate writes, "
+                                                 "an HDF5 file; name it tr.h5\n"), r.stderr
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["drive.H5"]
 
 
 def test_usage_lines_show_arguments_as_named_and_a_seeds_range_as_64_bits():

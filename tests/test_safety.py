@@ -969,10 +969,10 @@ def test_a_process_the_command_spawns_keeps_pythons_signal_handlers() -> None:
 
 
 def test_navigate_replaces_its_own_plot_beside_an_output_of_any_name(tmp_path: Path, ci_run: Path) -> None:
-    """`navigate -o tr --plot --overwrite` again: its own tr.png was refused as "a file autosar did not write" (a
+    """`navigate -o tr.hdf5 --plot --overwrite` again: its own tr.png was refused as "a file autosar did not write" (a
     PNG counted as autosar's only beside an .h5 of its name); the plot beside autosar's trajectory is its own."""
     for _ in range(2):
-        r = runner.invoke(app, ["navigate", str(ci_run / "drive.h5"), "-o", str(tmp_path / "tr"), "--plot",
+        r = runner.invoke(app, ["navigate", str(ci_run / "drive.h5"), "-o", str(tmp_path / "tr.hdf5"), "--plot",
                                 "--overwrite"])
         assert r.exit_code == 0, r.output
     assert (tmp_path / "tr.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
