@@ -44,7 +44,7 @@ bench: setup
 	$(BIN)/python benches/bench_run.py
 
 # The paper's comparison (issue 6's figures) on test1-3, seeds 0-9, on the planar motion SAR-MIN models (the
-# simulator's kinematic car; the config's default is the full vehicle): ~35 min (1.2 min per drive).
+# simulator's kinematic car; the config's default is the full vehicle): ~50 min (1.7 min per drive: paper.json's rows, simulate + compare).
 bench-paper: setup
 	$(BIN)/python benches/bench_paper.py --dynamics kinematic
 
@@ -55,7 +55,7 @@ PAPER_FULL := --scenarios test1,test2,test3,urban --seeds 0-9 --dynamics full --
 bench-paper-full: setup
 	$(BIN)/python benches/bench_paper.py $(PAPER_FULL) --output benches/results/paper_full_slow.json
 
-# What each effect of the full vehicle model does to the chain: test2 and urban, seed 0, one effect at a time: ~35 min.
+# What each effect of the full vehicle model does to the chain: test2 and urban, seed 0, one effect at a time: ~45 min (paper_ablation.json's rows).
 ABLATION := slip body road tyre_radius wheel_ticks slip,body,road,tyre_radius,wheel_ticks,imu_misalignment
 bench-ablation: setup
 	for c in $(ABLATION); do $(BIN)/python benches/bench_paper.py --scenarios test2,urban --seeds 0 \
