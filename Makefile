@@ -49,8 +49,8 @@ bench-paper: setup
 	$(BIN)/python benches/bench_paper.py --dynamics kinematic
 
 # The 40 drives of the full vehicle model (test1-3 and urban, seeds 0-9), SAR-MIN and the product's `sar-min+af`,
-# measured again at the code as it is into the product's file: ~1.5 h on 2 cores (one process; two halves at once
-# take ~45 min: --scenarios urban and --scenarios test1,test2,test3 to two --output files).
+# measured again at the code as it is into the product's file: ~2 h on 2 cores in one process; two halves at once
+# (--scenarios urban and --scenarios test1,test2,test3 to two --output files) ~75 min (the file's rows: 62 / 76 min).
 PAPER_FULL := --scenarios test1,test2,test3,urban --seeds 0-9 --dynamics full --methods sar-min,sar-min+af
 bench-paper-full: setup
 	$(BIN)/python benches/bench_paper.py $(PAPER_FULL) --output benches/results/paper_full_slow.json
