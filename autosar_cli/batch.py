@@ -37,6 +37,7 @@ from typing import Any
 
 from autosar_cli import __version__
 from autosar_cli.config import Config
+from autosar_cli.disk_full import disk_full_said, drop_disk_full_reports, is_disk_full, reports_held
 from autosar_cli.ingest.canlog import CanLogError
 from autosar_cli.ingest.inputs import drive_folder
 from autosar_cli.ingest.pipeline import IngestError, IngestOptions
@@ -45,7 +46,7 @@ from autosar_cli.interrupts import interrupts_held
 from autosar_cli.run import mark_interrupted, run, run_warnings
 from autosar_cli.sar.focus import FocusOptions
 from autosar_cli.store.manifest import product_status, read_json_manifest, strict_json, write_json
-from autosar_cli.store.outputs import check_output, input_problem
+from autosar_cli.store.outputs import DiskFullError, check_output, input_problem
 
 FORMAT = "autosar-batch"
 FORMAT_VERSION = 1
@@ -134,11 +135,11 @@ def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, m
                               "worker": _worker_address()}
     t0 = time.perf_counter()
     try:
-        manifest = run(logs, out_dir, config, method=method, options=options, truth_path=truth_path,
-                       autofocus=autofocus, overwrite=overwrite, progress=report, command=command,
-                       ingest_options=ingest_options, can_logs=can_logs, nmea_logs=nmea_logs,
-                       radar_captures=radar_captures,
-                       replace_unfinished=True)  # a retry finds the products of its attempt before
+        manifest = _run_said_full(out_dir, lambda: run(
+            logs, out_dir, config, method=method, options=options, truth_path=truth_path, autofocus=autofocus,
+            overwrite=overwrite, progress=report, command=command,
+            ingest_options=ingest_options, can_logs=can_logs, nmea_logs=nmea_logs, radar_captures=radar_captures,
+            replace_unfinished=True))  # a retry finds the products of its attempt before
     except INPUT_ERRORS as exc:
         record.update(status="failed", error=_message(exc), error_type=type(exc).__name__,
                       warnings=[str(w) for w in getattr(exc, "warnings", [])], wall_s=time.perf_counter() - t0)
@@ -147,6 +148,21 @@ def run_drive(name: str, logs: Sequence[str], out_dir: str, config: Config, *, m
     record.update(_finished_run(manifest), wall_s=time.perf_counter() - t0)
     report("done", 1, 1)
     return record
+
+
+def _run_said_full(out_dir: str, run_it: Callable[[], dict[str, Any]]) -> dict[str, Any]:
+    """``run_it()``; a full disk raised as DiskFullError naming the run (``out_dir``). h5py's objects of the files
+    the disk refused are released when the worker lets the error go, or at a later collection (forced, the worker
+    crashed), after :func:`reports_held`: their reports of the full disk are dropped in this worker from then on."""
+    try:
+        with reports_held():  # h5py's tracebacks of a full disk on the worker's stderr: its error says it
+            return run_it()
+    except Exception as exc:
+        if not is_disk_full(exc):
+            raise
+        said = disk_full_said(exc, out_dir)
+        drop_disk_full_reports()  # those of its files released later, in this process, are said by it too
+    raise DiskFullError(said)
 
 
 def _finished_run(manifest: dict[str, Any]) -> dict[str, Any]:

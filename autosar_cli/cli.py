@@ -12,7 +12,7 @@ import signal
 import sys
 import threading
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from enum import StrEnum
 from pathlib import Path
 from typing import Annotated, Any
@@ -35,6 +35,8 @@ from rich.table import Column, Table
 
 from autosar_cli import __version__, exit_interrupted
 from autosar_cli.config import CAN_LOG_SUFFIXES, LOG_SUFFIXES, NMEA_SUFFIXES, Config
+from autosar_cli.disk_full import disk_full_said, reports_held
+from autosar_cli.disk_full import is_disk_full as _disk_full
 from autosar_cli.interrupts import Terminated, interrupts_held
 from autosar_cli.store.manifest import product_status, strict_json
 
@@ -110,13 +112,6 @@ out = Console()
 
 #: ``undo_on_failure``: what a failing command undoes (the directories its outputs' gate made), in :func:`_errors`
 _state: dict[str, Any] = {"debug": False, "undo_on_failure": [], "disk_filled": False}
-#: HDF5's words for a write the disk refused: h5py raises a close's failure as a RuntimeError that holds them
-HDF5_DISK_FULL = "errno = 28"
-
-
-def _disk_full(exc: BaseException) -> bool:
-    """Whether ``exc`` is a write the full disk refused (ENOSPC, or HDF5's failed write in its text)."""
-    return (isinstance(exc, OSError) and exc.errno == errno.ENOSPC) or HDF5_DISK_FULL in str(exc)
 
 ConfigOpt = Annotated[
     Path | None, typer.Option("--config", "-c", metavar="FILE",
@@ -222,6 +217,14 @@ def main_options(
                                           help="Print the version and exit.")] = False,
 ) -> None:
     _state["debug"] = debug
+    if debug:  # libtiff's own messages (store/libtiff_messages.py), as libtiff words them
+        import logging
+
+        libtiff = logging.getLogger("autosar_cli.libtiff")
+        shown = logging.StreamHandler(sys.stderr)
+        shown.setFormatter(logging.Formatter("%(message)s"))
+        libtiff.addHandler(shown)
+        libtiff.setLevel(logging.DEBUG)
 
 
 @contextmanager
@@ -247,7 +250,9 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
     undo_on_failure: list[Callable[[], None]] = []
     _state["undo_on_failure"] = undo_on_failure
     try:
-        yield
+        # h5py's reports of a full disk from its destructors (tracebacks) are the error's to say, in one line
+        with nullcontext() if _state["debug"] else reports_held():
+            yield
     except (typer.Exit, typer.Abort):
         raise
     except KeyboardInterrupt as exc:
@@ -258,16 +263,16 @@ def _errors(writing: Path | None = None, kernels: bool = True) -> Iterator[None]
         if (signum := _state["stopped_by"]) is not None and not _state["debug"]:
             # the interrupt was swallowed (a destructor, a C extension's import) and this error followed from it
             raise typer.Exit(_said_stopped(signum)) from None
+        if _disk_full(exc):
+            _state["disk_filled"] = True
         if _state["debug"]:
             raise
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         for warning in (w for w in getattr(exc, "warnings", ()) if w not in msg):  # what went wrong before it
             err.print(f"[yellow]warning:[/] {escape(warning)}", highlight=False, soft_wrap=True)
-        if _disk_full(exc):
-            _state["disk_filled"] = True
         if _disk_full(exc) and "no space left on the device" not in msg:
             # HDF5's own message is lines of its internals, naming the output's partial file at best
-            msg = f"{getattr(exc, 'filename', None) or writing or 'the output'}: no space left on the device"
+            msg = disk_full_said(exc, writing)
         elif writing is not None and _not_writable(exc, writing):
             refused = "its partial file could not be kept" if exc.errno == errno.ENOENT else os.strerror(exc.errno)  # type: ignore[union-attr]
             msg = f"{writing}: cannot be written there ({refused})"
@@ -1452,6 +1457,13 @@ def main() -> None:
         code = exc.code
     except KeyboardInterrupt as exc:
         code = _said_stopped(_signal_of(exc))
+    except Exception:
+        if not _state["disk_filled"]:
+            raise
+        import traceback
+
+        traceback.print_exc()  # --debug's traceback of a full disk, the process then ended as below
+        code = 1
     # The command is over and its products are closed. Frozen, the objects of numba, scipy, pandas and matplotlib
     # are no longer walked by the collections of the interpreter's shutdown: 0.7-0.8 s -> 0.1 s after
     # `autosar run` (measured). atexit handlers still run.

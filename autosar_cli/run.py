@@ -36,6 +36,7 @@ import numpy as np
 
 from autosar_cli import __version__
 from autosar_cli.config import Config
+from autosar_cli.disk_full import disk_full_said, is_disk_full
 from autosar_cli.interrupts import Terminated
 from autosar_cli.sar.grid import GridError, check_image_size
 from autosar_cli.store.atomic import stale_partials
@@ -169,6 +170,8 @@ def _mark_stopped(exc: BaseException, manifest: dict[str, Any], manifest_path: P
         status, error = "interrupted", "terminated" if isinstance(exc, Terminated) else "interrupted"
     else:
         status, error = "failed", str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        if is_disk_full(exc):  # as the command says it, not in HDF5's words
+            error = disk_full_said(exc, manifest_path.parent)
     with contextlib.suppress(Exception):  # best effort: the disk may be what failed
         write_json(manifest_path, {**manifest, "status": status, "error": error})
 

@@ -121,6 +121,7 @@ CONFIG_TABLE_HOME = "tests/test_config.py::test_an_unknown_key_names_the_key_it_
 HDF5_DISK_FULL = ("tests/test_safety.py::"
                   "test_a_disk_that_fills_as_hdf5_writes_ends_the_command_with_its_error_not_a_crash")
 HDF5_FULL_TEXT = "tests/test_safety.py::test_hdf5s_runtime_error_of_a_full_disk_is_said_as_one"
+FILLS_AT = "tests/test_safety.py::test_a_disk_that_fills_at_any_stage_ends_each_command_with_one_line"
 SIMULATED_FOLDER = ("tests/test_ingest_drive_folder.py::"
                     "test_a_folder_of_a_simulated_log_and_its_truth_is_that_log_and_finds_its_truth")
 BATCH_FOLDER = "tests/test_batch.py::test_batch_takes_drive_folders_and_the_time_offsets_of_their_logs"
@@ -758,15 +759,27 @@ MUTATIONS: list[Mutation] = [
        "if pixel_m >= 1 else \"\"", "if False else \"\"", "tests/test_sar_backprojection.py::test_grids"),
     _m("disk-full-hdf5-left-to-crash-the-shutdown", "safety", "cli.py",
        "    if _state[\"disk_filled\"]:\n", "    if False:\n", HDF5_DISK_FULL),
-    _m("disk-full-hdf5-runtime-error-said-as-its-text", "safety", "cli.py",
+    _m("disk-full-hdf5-runtime-error-said-as-its-text", "safety", "disk_full.py",
        " or HDF5_DISK_FULL in str(exc)", "", HDF5_FULL_TEXT),
+    _m("disk-full-h5py-destructor-tracebacks-shown", "safety", "cli.py",
+       "with nullcontext() if _state[\"debug\"] else reports_held():", "with nullcontext():",
+       f"{FILLS_AT}[navigate]"),
+    _m("disk-full-libtiff-lines-printed", "safety", "store/tif_checksum.py",
+       "\nroute_libtiff_messages()  #", "\nNone  #", f"{FILLS_AT}[focus-tiles]"),
+    _m("disk-full-geotiff-write-said-in-rasterios-words", "safety", "store/image.py",
+       "except rasterio.errors.RasterioIOError as exc:", "except ZeroDivisionError as exc:", f"{FILLS_AT}[focus-tif]"),
+    _m("disk-full-batch-worker-tracebacks-shown-later", "safety", "batch.py",
+       "        drop_disk_full_reports()  #", "        pass  #", f"{FILLS_AT}[batch]"),
+    _m("disk-full-run-json-error-in-hdf5s-words", "safety", "run.py",
+       "        if is_disk_full(exc):  # as the command says it", "        if False:  # as the command says it",
+       f"{FILLS_AT}[run-navigate]"),
     _m("drive-folder-of-a-simulated-log-read-as-a-bag", "ingest", "ingest/inputs.py",
        "or p.with_name(p.name + \".truth.h5\").is_file()]", "or False]", SIMULATED_FOLDER),
     _m("batch-drive-folder-time-offset-refused", "inputs", "batch.py",
        "folder.inputs[\"nmea\"]] if folder else []", "folder.inputs[\"nmea\"]] if False else []", BATCH_FOLDER),
     _m("batch-drive-read-without-the-ingest-options", "batch", "batch.py",
-       "                       ingest_options=ingest_options, can_logs",
-       "                       ingest_options=None, can_logs",
+       "            ingest_options=ingest_options, can_logs",
+       "            ingest_options=None, can_logs",
        BATCH_INGEST),
     _m("compare-config-not-an-input", "evaluate", "evaluate/compare.py",
        "*config.files, *ingest_options.files()]\n", "*ingest_options.files()]\n", CONFIG_NOT_AN_OUTPUT),
@@ -828,7 +841,7 @@ MUTATIONS: list[Mutation] = [
        '    if mp is not None and mp.current_process().name != "MainProcess":', "    if False:",
        SPAWNED_HANDLERS),
     _m("batch-retry-refuses-its-first-attempt", "batch", "batch.py",
-       "                       replace_unfinished=True)", "                       replace_unfinished=False)",
+       "            replace_unfinished=True))", "            replace_unfinished=False))",
        BATCH_RETRY),
     _m("attribute-checksum-unchecked", "integrity", "store/attr_checksum.py",
        "    if stored != found:\n", "    if False:\n", ATTR_CRC),

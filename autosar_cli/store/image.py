@@ -184,7 +184,11 @@ class ImageWriter:
         if self._written[col0: col0 + n].any():
             raise ValueError(f"columns {col0}..{col0 + n - 1}: some were written already")
         db = magnitude_db(strip)
-        self._tif.write(db, 1, window=Window(col0, 0, n, rows))
+        try:
+            self._tif.write(db, 1, window=Window(col0, 0, n, rows))
+        except rasterio.errors.RasterioIOError as exc:  # "Write failed. See previous exception for details."
+            raise self._tif_refused(f"columns {col0}-{col0 + n - 1} could not be written: "
+                                    f"{str(exc.__cause__ or exc).splitlines()[0]}") from exc
         self._column_crc32[col0: col0 + n] = column_crc32(db)
         self._image_ds[:, col0: col0 + n] = strip
         self._pool_into(np.where(strip == 0, np.float32(-np.inf), db), col0)
@@ -243,11 +247,15 @@ class ImageWriter:
             what = (f"{len(found.unreadable)} tile(s) unreadable" if found.unreadable
                     else f"columns {found.damaged_columns[0][0]}-{found.damaged_columns[0][1] - 1} differ"
                     if found.damaged_columns else "its checksum tags missing or damaged")
+        raise self._tif_refused(f"the GeoTIFF did not read back as written ({what})")
+
+    def _tif_refused(self, what: str) -> OSError:
+        """The GeoTIFF's failure ``what`` as an OSError naming it: ENOSPC where its disk is (all but) full, whose
+        write libtiff refused (rasterio says only "Write failed"), else EIO."""
         full = shutil.disk_usage(self._tmp["tif"].parent).free < SMALL_FILE_MARGIN_BYTES
-        failed = OSError(f"{self.paths['tif']}: the GeoTIFF did not read back as written ({what})"
-                         + ("; the disk is full" if full else ""))
+        failed = OSError(f"{self.paths['tif']}: {what}" + ("; the disk is full" if full else ""))
         failed.errno = errno.ENOSPC if full else errno.EIO  # the message alone, as str() gives it
-        raise failed
+        return failed
 
     def _abandon(self) -> None:
         """Empty the partial image.h5 before it is closed and deleted: closing flushes HDF5's caches, and on a full
