@@ -490,6 +490,7 @@ def simulate(
 
 @app.command(cls=_Command)
 def ingest(
+    ctx: typer.Context,
     logs: Annotated[list[Path] | None, typer.Argument(
         metavar="LOG",
         help=f"Drive logs: .mcap, .bag, rosbag2 directories; CAN logs ({' '.join(CAN_LOG_SUFFIXES)}), NMEA text "
@@ -519,8 +520,11 @@ def ingest(
 ) -> None:
     """Decode CAN (with a DBC), GNSS, IMU and raw radar frames of drive logs into one drive.h5, streaming."""
     with _errors(output, kernels=False):
+        from autosar_cli.ingest.inputs import an_output_given_as_a_log
         from autosar_cli.ingest.pipeline import ingest_sorted, sort_inputs
 
+        if getattr(ctx.get_parameter_source("output"), "name", "") == "DEFAULT":  # `ingest LOG drive.h5`, no -o
+            an_output_given_as_a_log(logs or [])
         cfg = _load_config(config)
         options = _ingest_options(dbc, radar_start, radar_sync, radar_override, allow_unverified, time_offset,
                                   allow_time_gap, max_time_gap)

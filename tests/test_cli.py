@@ -269,6 +269,21 @@ def test_a_drive_h5_given_without_o_is_said_to_want_it(tmp_path, monkeypatch):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_missing_h5_log_beside_an_output_given_is_not_said_to_want_o(tmp_path, monkeypatch):
+    """The hint that an output is named with -o is for an ingest that was given none: `ingest LOG a.h5 -o b.h5`,
+    `run LOG a.h5 -o DIR` and `batch LOG a.h5 -o DIR` were told to give `-o a.h5`, an -o they had given (run's and
+    batch's a directory); a missing a.h5 there is what any missing input is."""
+    monkeypatch.chdir(tmp_path)
+    log = Path(__file__).resolve().parents[1] / "sample_logs" / "ci_seed1.mcap"
+    for args in (["ingest", str(log), "a.h5", "-o", "b.h5"], ["run", str(log), "a.h5", "-o", "out"]):
+        r = runner.invoke(app, args, env={"COLUMNS": "300"})
+        assert r.exit_code == 1 and r.stderr == "error: a.h5: no such file or directory\n", (args, r.output)
+    r = runner.invoke(app, ["ingest", str(log), "new.hdf5"], env={"COLUMNS": "300"})  # -o forgotten, .hdf5 too
+    assert r.exit_code == 1 and r.stderr == ("error: new.hdf5: no such file or directory; an output is named with -o "
+                                             "(`-o new.hdf5`), every name without it is an input\n"), r.output
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_log_given_as_the_radar_capture_is_named_for_what_it_is(tmp_path, ci_mcap):
     """`--radar drive.mcap` was read as a capture's parameter file and refused as "error: .: expected adc_data.bin
     or ... found no .bin file", naming the folder "." and not the file: the file is named, with what it is."""

@@ -64,10 +64,6 @@ def check_input(path: Path, kind: str) -> None:
     """Refuse, naming it, an input that is not there or not a file to read (a rosbag2 bag, a DCA1000 capture and a
     drive folder may be directories)."""
     problem = input_problem(path)
-    if problem is not None and kind == "log" and path.suffix.lower() == ".h5" and not path.exists():
-        # `autosar ingest LOG drive.h5`: the drive.h5 to write given as a second log, -o forgotten
-        raise InputError(f"{path}: no such file or directory; an output is named with -o (`-o {path}`), "
-                         "every name without it is an input")
     if problem is not None:
         raise InputError(f"{path}: {problem}")
     if path.is_dir() and kind in _FILE_KINDS:
@@ -191,6 +187,15 @@ class SortedInputs:
         return [(p, kind) for kind in KINDS for p in self.by_kind[kind]]
 
 
+def an_output_given_as_a_log(logs: Iterable[Path]) -> None:
+    """Refuse a missing log named .h5 or .hdf5 as the output given without -o: ``autosar ingest LOG drive.h5`` (for an
+    ingest that was given no -o; one given it, and run's or batch's directory, miss such a log as any input)."""
+    for path in map(Path, logs):
+        if path.suffix.lower() in (".h5", ".hdf5") and not path.exists() and not path.is_symlink():
+            raise InputError(f"{path}: no such file or directory; an output is named with -o (`-o {path}`), "
+                             "every name without it is an input")
+
+
 def sort_inputs(logs: Iterable[Path], can_logs: Iterable[Path] = (), nmea_logs: Iterable[Path] = (),
                 radar_captures: Iterable[Path] = ()) -> SortedInputs:
     """The inputs by kind: each of ``logs`` as what it is (:func:`classify_input`; a drive folder as what it holds),
@@ -217,4 +222,4 @@ def sort_inputs(logs: Iterable[Path], can_logs: Iterable[Path] = (), nmea_logs: 
 
 
 __all__ = ["CAPTURE_SUFFIXES", "DriveFolder", "InputError", "KINDS", "LOG_SUFFIXES", "NMEA_SUFFIXES", "SortedInputs",
-           "check_input", "classify_input", "drive_folder", "sort_inputs"]
+           "an_output_given_as_a_log", "check_input", "classify_input", "drive_folder", "sort_inputs"]
