@@ -65,7 +65,7 @@ import sys
 import tempfile
 import time
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -792,6 +792,24 @@ def dca1000_pris_kept(product: Path, reference: Path) -> tuple[int, int]:
         return kept, len(idx) - kept
 
 
+def _ingest_capture(base: Base, tdir: Path, n: int, fault: str,
+                    args: Sequence[str] = ()) -> tuple[Trial, subprocess.CompletedProcess[str], dict[str, Any]]:
+    """Ingest the trial's damaged capture ``tdir``/cap beside the DCA1000 drive's log and classify the product;
+    the trial, the command's result and its --json report."""
+    t0 = time.perf_counter()
+    r = cli(["ingest", str(base.dca_mcap), "--radar", "cap", "-o", "out/drive.h5", "--json", *args], tdir)
+    trial = Trial("dca1000", n, fault, rc=r.returncode, wall_s=time.perf_counter() - t0)
+    report: dict[str, Any] = {}
+    if r.returncode == 0:
+        try:
+            report = json.loads(r.stdout)
+        except ValueError:
+            pass
+    trial.outcome, trial.detail = classify(r, tdir / "out" / "drive.h5", base.digests["dca1000"],
+                                           warned=bool(report.get("warnings")))
+    return trial, r, report
+
+
 def dca1000_setup_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
     """What a re-run of mmWave Studio or a setup of other frames than the recording's leaves: the capture (981 frames
     of 1 loop, 25920 bytes a frame, with a sync trigger per frame in its MCAP) with a second recording appended or
@@ -921,17 +939,7 @@ def dca1000_setup_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> T
         fault = f"framePeriodicity_msec x (1 {e:+g}), the config's prf_hz with it"
         expected = None
     before = tree_hash(cap)
-    t0 = time.perf_counter()
-    r = cli(["ingest", str(base.dca_mcap), "--radar", "cap", "-o", "out/drive.h5", "--json", *args], tdir)
-    trial = Trial("dca1000", n, fault, rc=r.returncode, wall_s=time.perf_counter() - t0)
-    report: dict[str, object] = {}
-    if r.returncode == 0:
-        try:
-            report = json.loads(r.stdout)
-        except ValueError:
-            pass
-    trial.outcome, trial.detail = classify(r, tdir / "out" / "drive.h5", base.digests["dca1000"],
-                                           warned=bool(report.get("warnings")))
+    trial, r, report = _ingest_capture(base, tdir, n, fault, args)
     if r.returncode == 0 and trial.outcome != "crash-or-traceback":
         kept, foreign = dca1000_pris_kept(tdir / "out" / "drive.h5", base.dir / "ref_dca1000.h5")
         trial.messages_read = kept
@@ -1014,17 +1022,7 @@ def dca1000_trial(base: Base, n: int, rng: random.Random, tdir: Path) -> Trial:
         js.write_text(text[:i] + new + text[i + 1:])
         fault = f"{js.name}: digit at character {i} {text[i]} -> {new}"
     before = tree_hash(cap)
-    t0 = time.perf_counter()
-    r = cli(["ingest", str(base.dca_mcap), "--radar", "cap", "-o", "out/drive.h5", "--json"], tdir)
-    trial = Trial("dca1000", n, fault, rc=r.returncode, wall_s=time.perf_counter() - t0)
-    report: dict[str, object] = {}
-    if r.returncode == 0:
-        try:
-            report = json.loads(r.stdout)
-        except ValueError:
-            pass
-    trial.outcome, trial.detail = classify(r, tdir / "out" / "drive.h5", base.digests["dca1000"],
-                                           warned=bool(report.get("warnings")))
+    trial, _, _ = _ingest_capture(base, tdir, n, fault)
     if tree_hash(cap) != before:
         trial.outcome = "input-harmed"
     elif partials(tdir):
