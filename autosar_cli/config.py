@@ -821,11 +821,12 @@ MAX_FOCUS_HEIGHT_M = 20.0
 #: moved 5.1 cm and the reflectors 3.0-5.1 cm, status ok
 MIN_GYRO_RATE_HZ = 1.0
 
-#: the latency (s) from which a sensor's table is refused as one stated in ms: stamps half a second after the instant
-#: their values refer to are no sensor's (a logger's clock set wrong is an offset of every stream, not a latency);
+#: the latency (s) from which a sensor's table is refused as one stated in ms: stamps a second after the instant their
+#: values refer to are no sensor's (a logger's clock set wrong is an offset of every stream, not a latency), where an
+#: NMEA receiver at 4800 baud sends its last sentences of a fix up to ~1 s after it (~500 bytes at 480 bytes/s);
 #: gnss_cog.latency_s = 1 (1 ms meant) moved the ci drive's track 2.31 m (0.44 -> 2.17 m RMS from the truth, heading
 #: 0.73 -> 28.8 mrad RMS), status ok
-LATENCY_IN_MS_S = 0.5
+LATENCY_IN_MS_S = 1.0
 
 #: the least angle (deg) between the radar's boresight and the car's x axis: a radar looking along its own track
 #: makes no SAR image (the ci drive's reflectors lost 13.6 dB with yaw_deg -0.785, the default's -45 in radians)
