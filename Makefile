@@ -76,7 +76,7 @@ figures: setup
 	$(BIN)/autosar compare $(FIGURES_WORK)/test1.mcap -o $(FIGURES_WORK)/compare --overwrite
 	$(BIN)/python benches/docs_figures.py $(FIGURES_WORK)/compare docs/figures
 
-# Curated mutations (benches/mutate.py): each must make a fast test fail; 402 in ~30 min on 2 cores.
+# Curated mutations (benches/mutate.py): each must make a fast test fail; 403 in ~30 min on 2 cores.
 mutate: setup
 	$(BIN)/python benches/mutate.py --json benches/results/mutate.json
 

@@ -53,10 +53,11 @@ FORMAT_VERSION = 1
 MANIFEST = "batch.json"
 DEFAULT_RETRIES = 2
 
-#: Errors that say the drive itself is bad: retrying cannot help, the drive is reported failed at once.
+#: Errors that say the drive itself is bad, or its output's disk full: retrying cannot help, the drive is reported
+#: failed at once (a full disk was tried three times, each attempt writing until the disk refused it again).
 INPUT_ERRORS: tuple[type[BaseException], ...] = (
     ValueError, LookupError, IngestError, LogReadError, CanLogError, EOFError, FileNotFoundError,
-    FileExistsError, IsADirectoryError, NotADirectoryError, PermissionError,
+    FileExistsError, IsADirectoryError, NotADirectoryError, PermissionError, DiskFullError,
 )
 
 

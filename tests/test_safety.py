@@ -1341,6 +1341,7 @@ def test_a_disk_that_fills_at_any_stage_ends_each_command_with_one_line(tmp_path
         assert (r.returncode, said[2:]) == (1, [f"failed: {name}: {out / name}: no space left on the device"]
                                             ), r.stderr[-800:]
         assert batch is not None and batch["drives"][0]["error"] == f"{out / name}: no space left on the device"
+        assert batch["drives"][0]["attempts"] == 1  # not retried: each attempt filled the disk again
         assert not [p for p in left if ".partial" in p], left
         return
     assert (r.returncode, said) == (1, [f"error: {full}"]), r.stderr[-1500:]
