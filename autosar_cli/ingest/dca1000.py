@@ -319,14 +319,13 @@ class Dca1000Capture:
         self.num_frames, self.partial_bytes = divmod(self.bytes_total, p.frame_bytes)
         if p.num_frames and self.num_frames > p.num_frames:  # the recording's frames kept; what follows cannot be
             surplus = self.bytes_total - p.num_frames * p.frame_bytes  # told from a second recording appended
+            extra = self.num_frames - p.num_frames
             part = f" and {self.partial_bytes} bytes" if self.partial_bytes else ""
             self.warnings.append(
                 f"{self.name}: holds {self.num_frames} frames{part} but {self.param_file.name} configures "
                 f"{p.num_frames} ({p.describe_layout()}): its first {p.num_frames} kept, the {surplus} bytes after "
-                "them "
-                f"left out ({self.num_frames - p.num_frames} frame{'s' if self.num_frames - p.num_frames > 1 else ''}"
-                f"{part}: a second recording appended, or numFrames "
-                "not the recording's?)")
+                f"them left out ({extra} frame{'s' if extra > 1 else ''}{part}: a second recording appended, or "
+                "numFrames not the recording's?)")
             self.num_frames, self.partial_bytes = p.num_frames, 0
         if self.partial_bytes:  # a recording cut short (a full disk, an interrupted copy) keeps its whole frames
             self.warnings.append(f"{self.name}: trailing partial frame left out ({self.partial_bytes} of "
