@@ -32,6 +32,7 @@ from autosar_cli import __version__
 from autosar_cli.store.atomic import already_exists, atomic_output
 from autosar_cli.store.attr_checksum import attributes_damage, stamp_attributes
 from autosar_cli.store.hdf5_read import open_hdf5, read_dataset
+from autosar_cli.store.libtiff_messages import route_libtiff_messages
 from autosar_cli.store.manifest import json_default
 from autosar_cli.store.outputs import SMALL_FILE_MARGIN_BYTES, check_free_space, not_the_format
 from autosar_cli.store.quicklook import draw_quicklook, preload_quicklook  # noqa: F401  (focus, run preload it)
@@ -161,6 +162,7 @@ class ImageWriter:
         try:
             self._tmp = {k: stack.enter_context(atomic_output(p, self.overwrite)) for k, p in self.paths.items()}
             stack.enter_context(rasterio.Env(GDAL_CACHEMAX=self.gdal_cache_mb))
+            route_libtiff_messages()  # a write the disk refuses is this writer's error to tell, not libtiff's print
             # after the GeoTIFF is closed, within the bounded block cache, before the products come into place
             stack.push(self._read_back_geotiff)
             self._tif = stack.enter_context(_open_geotiff(self._tmp["tif"], self.grid, self.transform, self.crs))

@@ -25,10 +25,6 @@ import rasterio
 from numpy.typing import NDArray
 from rasterio import Affine
 
-from autosar_cli.store.libtiff_messages import route_libtiff_messages
-
-route_libtiff_messages()  # a write the disk refused is the writer's error to tell, not libtiff's print on stderr
-
 GEOREFERENCE_TAG = "autosar_georeference_crc32"
 COLUMNS_TAG = "autosar_columns_crc32"
 COLUMNS_TAG_CHECK = "autosar_columns_tag_crc32"
